@@ -1,0 +1,305 @@
+"""The robot model: an immutable description in SI units.
+
+Conventions (see docs/conventions.md):
+
+* ``W`` is the measurement frame (laser tracker, theodolites, CMM), ``B`` the robot's frame 0.
+* Frame ``j`` is placed relative to its parent frame ``p`` by the modified Denavit-Hartenberg
+  transform of Khalil and Kleinfinger extended with Hayati's beta::
+
+      X_pj = Rot(z, gamma) Trans(z, b) Rot(y, beta) Rot(x, alpha) Trans(x, d) Rot(z, theta) Trans(z, r)
+
+  For a serial chain gamma = b = 0 and the parent is the predecessor; gamma and b place a frame that
+  hangs off a frame other than its predecessor (kinematic trees).
+* The joint variable adds to theta (revolute) or r (prismatic); theta and r themselves are the
+  constant offsets, so their error is the encoder-offset error.
+* Compliance: theta, alpha and beta deflect by ``K * M`` with ``M`` the gravity moment about the
+  parameter's own rotation axis (docs/conventions.md).
+* The base pose ``X_WB`` and a marker's orientation carry small rotation corrections rx, ry, rz that
+  are zero in any stored model: identification composes them into the stored rotation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Sequence
+
+import numpy as np
+
+from ._errors import InputError
+
+JOINT_TYPES = ("revolute", "prismatic", "fixed")
+GEOMETRIC_KINDS = ("gamma", "b", "beta", "alpha", "d", "theta", "r")
+COMPLIANCE_KINDS = ("k_theta", "k_alpha", "k_beta")
+FRAME_KINDS = GEOMETRIC_KINDS + COMPLIANCE_KINDS
+BASE_KINDS = ("x", "y", "z", "rx", "ry", "rz")
+MARKER_KINDS = ("x", "y", "z", "rx", "ry", "rz")
+ANGLE_KINDS = frozenset({"gamma", "beta", "alpha", "theta", "rx", "ry", "rz"})
+
+DEFAULT_PARALLEL_TOL = np.deg2rad(1.0)
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One frame of the modified-DH description, fixed to one link.
+
+    Lengths in metres, angles in radians, mass in kg, compliance in rad/(N m) (the moment of a
+    prismatic frame's theta axis is a torque too, so the unit is the same for every frame).
+    ``coupling`` gives the joint variable as ``sum(coef * reading[index])``; for an ordinary joint
+    it is ``((own_index, 1.0),)`` and for a fixed frame it is empty.
+    """
+
+    name: str
+    joint: str = "revolute"
+    parent: int = -1
+    gamma: float = 0.0
+    b: float = 0.0
+    beta: float = 0.0
+    alpha: float = 0.0
+    d: float = 0.0
+    theta: float = 0.0
+    r: float = 0.0
+    has_beta: bool = False
+    coupling: tuple[tuple[int, float], ...] = ()
+    mass: float = 0.0
+    com: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    k_theta: float = 0.0
+    k_alpha: float = 0.0
+    k_beta: float = 0.0
+
+
+@dataclass(frozen=True)
+class Marker:
+    """A measured point (or a measured full frame) fixed to one robot frame.
+
+    ``position`` is the point in that frame, metres. ``rotation`` (3x3, row-major nested tuple)
+    orients the marker's own frame in that frame; it matters only for 6D measurements.
+    """
+
+    name: str
+    frame: int
+    position: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rotation: tuple[tuple[float, ...], ...] = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+
+
+@dataclass(frozen=True)
+class Payload:
+    """A mass carried at a frame (normally the last), centre of mass in that frame."""
+
+    mass: float = 0.0
+    com: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    frame: int = -1
+
+
+@dataclass(frozen=True)
+class RobotModel:
+    """A robot: frames, joints, markers, base pose and mass properties, all SI.
+
+    ``frames`` are ordered so that a parent always precedes its children. ``joint_names`` name
+    the measured joint readings (the columns of a measurement file); ``joint_limits`` is
+    ``((lower, upper), ...)`` per reading. ``base_position``/``base_rotation`` give ``X_WB``.
+    """
+
+    name: str
+    frames: tuple[Frame, ...]
+    joint_names: tuple[str, ...]
+    joint_limits: tuple[tuple[float, float], ...]
+    markers: tuple[Marker, ...]
+    base_position: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    base_rotation: tuple[tuple[float, ...], ...] = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+    gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
+    payload: Payload = field(default_factory=Payload)
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        _validate(self)
+
+    # -- convenient views -------------------------------------------------------------------
+    @property
+    def n_frames(self) -> int:
+        return len(self.frames)
+
+    @property
+    def n_joints(self) -> int:
+        return len(self.joint_names)
+
+    @property
+    def frame_names(self) -> tuple[str, ...]:
+        return tuple(f.name for f in self.frames)
+
+    @property
+    def marker_names(self) -> tuple[str, ...]:
+        return tuple(m.name for m in self.markers)
+
+    @property
+    def X_WB(self) -> np.ndarray:
+        """Base pose as a 4x4 homogeneous matrix (measurement frame W <- robot frame 0)."""
+        X = np.eye(4)
+        X[:3, :3] = np.asarray(self.base_rotation, dtype=float)
+        X[:3, 3] = self.base_position
+        return X
+
+    @property
+    def coupling_matrix(self) -> np.ndarray:
+        """``(n_frames, n_joints)``: frame joint variables = C @ readings."""
+        C = np.zeros((self.n_frames, self.n_joints))
+        for i, f in enumerate(self.frames):
+            for j, coef in f.coupling:
+                C[i, j] += coef
+        return C
+
+    @property
+    def lower_limits(self) -> np.ndarray:
+        return np.array([lo for lo, _ in self.joint_limits], dtype=float)
+
+    @property
+    def upper_limits(self) -> np.ndarray:
+        return np.array([hi for _, hi in self.joint_limits], dtype=float)
+
+    @property
+    def has_masses(self) -> bool:
+        return any(f.mass > 0 for f in self.frames) or self.payload.mass > 0
+
+    @property
+    def has_compliance(self) -> bool:
+        return any(f.k_theta or f.k_alpha or f.k_beta for f in self.frames)
+
+    def frame_index(self, name: str) -> int:
+        try:
+            return self.frame_names.index(name)
+        except ValueError:
+            raise InputError(f"unknown frame {name!r}; frames are {', '.join(self.frame_names)}") from None
+
+    def replace(self, **changes) -> "RobotModel":
+        return replace(self, **changes)
+
+
+def _validate(model: RobotModel) -> None:
+    names = [f.name for f in model.frames]
+    if len(model.frames) == 0:
+        raise InputError("a model needs at least one frame", where="frames")
+    if len(set(names)) != len(names):
+        dup = next(n for n in names if names.count(n) > 1)
+        raise InputError(f"frame name {dup!r} is used twice", where="frames")
+    if len(set(model.joint_names)) != len(model.joint_names):
+        dup = next(n for n in model.joint_names if model.joint_names.count(n) > 1)
+        raise InputError(f"joint name {dup!r} is used twice", where="joints")
+    if len(model.joint_limits) != len(model.joint_names):
+        raise InputError("one (lower, upper) limit pair is needed per joint", where="joint_limits")
+    for j, (lo, hi) in enumerate(model.joint_limits):
+        if not (lo <= hi):
+            raise InputError(f"lower limit {lo} exceeds upper limit {hi}", where=f"joints[{j}].limits")
+    for i, f in enumerate(model.frames):
+        where = f"frames[{i}] ({f.name})"
+        if f.joint not in JOINT_TYPES:
+            raise InputError(f"joint type must be one of {', '.join(JOINT_TYPES)}, got {f.joint!r}", where=where)
+        if not (-1 <= f.parent < i):
+            raise InputError("a frame's parent must come before it (or be the base, -1)", where=where)
+        if f.joint == "fixed" and f.coupling:
+            raise InputError("a fixed frame has no joint variable", where=where)
+        if f.joint != "fixed" and not f.coupling:
+            raise InputError("a moving frame needs a joint reading (coupling)", where=where)
+        for j, _ in f.coupling:
+            if not (0 <= j < len(model.joint_names)):
+                raise InputError(f"coupling refers to joint {j}, which does not exist", where=where)
+        if f.mass < 0 or not np.isfinite(f.mass):
+            raise InputError(f"mass must be a non-negative number, got {f.mass}", where=where)
+        for k in GEOMETRIC_KINDS + COMPLIANCE_KINDS:
+            if not np.isfinite(getattr(f, k)):
+                raise InputError(f"{k} is not a finite number", where=where)
+    if model.payload.mass < 0:
+        raise InputError(f"payload mass must be non-negative, got {model.payload.mass}", where="payload")
+    if not (-1 <= model.payload.frame < len(model.frames)):
+        raise InputError("payload frame does not exist", where="payload")
+    mnames = [m.name for m in model.markers]
+    if len(set(mnames)) != len(mnames):
+        dup = next(n for n in mnames if mnames.count(n) > 1)
+        raise InputError(f"marker name {dup!r} is used twice", where="markers")
+    if not model.markers:
+        raise InputError("a model needs at least one marker (tool point)", where="markers")
+    for i, m in enumerate(model.markers):
+        if not (0 <= m.frame < len(model.frames)):
+            raise InputError(f"marker {m.name!r} is attached to a frame that does not exist", where=f"markers[{i}]")
+        _check_rotation(m.rotation, f"markers[{i}].rotation")
+    _check_rotation(model.base_rotation, "base.rotation")
+
+
+def _check_rotation(R, where: str) -> None:
+    R = np.asarray(R, dtype=float)
+    if R.shape != (3, 3) or not np.all(np.isfinite(R)):
+        raise InputError("expected a 3x3 rotation", where=where)
+    if np.abs(R @ R.T - np.eye(3)).max() > 1e-6 or np.linalg.det(R) < 0:
+        raise InputError("not a proper rotation matrix", where=where)
+
+
+def parallel_beta_frames(frames: Sequence[Frame], tol: float = DEFAULT_PARALLEL_TOL) -> tuple[bool, ...]:
+    """Which frames carry Hayati's beta: z of the parent and z of the frame parallel within ``tol``.
+
+    In modified DH, z(j) is tilted from z(parent) by alpha_j about x (and beta_j about y, gamma
+    does not tilt z), so the axes are parallel when the tilt angle is 0 or pi.
+    """
+    out = []
+    for f in frames:
+        c = np.cos(f.alpha) * np.cos(f.beta)  # z_parent . z_j
+        tilt = np.arccos(np.clip(abs(c), -1.0, 1.0))
+        out.append(bool(tilt <= tol and f.joint != "fixed"))
+    return tuple(out)
+
+
+def serial_model(
+    name: str,
+    rows: Sequence[dict],
+    *,
+    markers: Sequence[tuple[str, Sequence[float]]] = (("tool", (0.0, 0.0, 0.0)),),
+    joint_limits: Sequence[tuple[float, float]] | None = None,
+    base_position=(0.0, 0.0, 0.0),
+    base_rotation=None,
+    beta_tol: float = DEFAULT_PARALLEL_TOL,
+    gravity=(0.0, 0.0, -9.81),
+    payload: Payload | None = None,
+    description: str = "",
+) -> RobotModel:
+    """Build a serial chain from modified-DH rows (dicts with joint, alpha, d, theta, r, ...; SI).
+
+    Each moving frame gets its own joint reading named after the frame; markers attach to the last
+    frame; beta is carried where consecutive axes are parallel within ``beta_tol`` unless a row
+    says ``has_beta`` explicitly.
+
+    >>> m = serial_model("rr", [dict(joint="revolute"), dict(joint="revolute", d=0.5)],
+    ...                  markers=[("tool", (0.3, 0, 0))])
+    >>> m.joint_names, [f.has_beta for f in m.frames]
+    (('j1', 'j2'), [True, True])
+    """
+    frames = []
+    joint_names = []
+    for i, row in enumerate(rows):
+        row = dict(row)
+        fname = row.pop("name", f"j{i + 1}")
+        joint = row.pop("joint", "revolute")
+        coupling: tuple = ()
+        if joint != "fixed":
+            coupling = ((len(joint_names), 1.0),)
+            joint_names.append(fname)
+        row.setdefault("parent", i - 1)
+        explicit_beta = row.pop("has_beta", None)
+        f = Frame(name=fname, joint=joint, coupling=coupling, **row)
+        if explicit_beta is None:
+            explicit_beta = parallel_beta_frames([f], beta_tol)[0]
+        frames.append(replace(f, has_beta=bool(explicit_beta)))
+    if joint_limits is None:
+        joint_limits = [(-np.pi, np.pi) if frames[i].joint == "revolute" else (0.0, 1.0)
+                        for i in range(len(frames)) if frames[i].joint != "fixed"]
+    R = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)) if base_rotation is None else \
+        tuple(tuple(float(v) for v in row) for row in np.asarray(base_rotation, dtype=float))
+    last = len(frames) - 1
+    return RobotModel(
+        name=name,
+        frames=tuple(frames),
+        joint_names=tuple(joint_names),
+        joint_limits=tuple((float(lo), float(hi)) for lo, hi in joint_limits),
+        markers=tuple(Marker(n, last, tuple(float(v) for v in p)) for n, p in markers),
+        base_position=tuple(float(v) for v in base_position),
+        base_rotation=R,
+        gravity=tuple(float(v) for v in gravity),
+        payload=payload if payload is not None else Payload(frame=last),
+        description=description,
+    )
