@@ -8,6 +8,12 @@ from ._errors import (ConvergenceWarning, DegenerateDataError, IdentifiabilityWa
 from ._kinematics import (evaluate, forward_kinematics, jacobian, model_from_vector, parameter_names,
                           parameter_vector)
 from ._model import Frame, Marker, Payload, RobotModel, parallel_beta_frames, serial_model
+from ._data import Measurements
+from ._identifiability import Absorption, IdentifiabilityResult
+from ._identify import (CalibrationResult, ParameterEstimate, calibrate, error_stats, identifiability,
+                        random_configurations, register_base)
+from ._params import candidate_parameters
+from ._simulate import measure, perturb_model, simulate
 
 __version__ = "0.1.0"
 
@@ -15,5 +21,7 @@ __all__ = [
     "ConvergenceWarning", "DegenerateDataError", "IdentifiabilityWarning", "InputError", "MisfitWarning",
     "RobocalError", "RobocalWarning", "evaluate", "forward_kinematics", "jacobian", "model_from_vector",
     "parameter_names", "parameter_vector", "Frame", "Marker", "Payload", "RobotModel",
-    "parallel_beta_frames", "serial_model",
+    "parallel_beta_frames", "serial_model", "Measurements", "Absorption", "IdentifiabilityResult",
+    "CalibrationResult", "ParameterEstimate", "calibrate", "error_stats", "identifiability",
+    "random_configurations", "register_base", "candidate_parameters", "measure", "perturb_model", "simulate",
 ]

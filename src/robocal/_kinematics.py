@@ -54,6 +54,19 @@ def _rot(E, axis, angle):
     return E
 
 
+def _cross(a, b):
+    """Cross product over the last axis; numpy's own is several times slower on small vectors."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
+def _rmul(R: np.ndarray, M: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) @ (3, k) as one 2-D product (stacked matmul is slow for 3x3 blocks)."""
+    N = R.shape[0]
+    return (R.reshape(N * 3, 3) @ M).reshape(N, 3, M.shape[1])
+
+
 def _rot_matrix(axis, angle) -> np.ndarray:
     c, s = np.cos(angle), np.sin(angle)
     if axis == 0:
@@ -80,6 +93,8 @@ class Layout:
     anc: np.ndarray             # (3 n_frames, n_steps) step is proximal to the compliant step
     desc: np.ndarray            # (3 n_frames, n_steps) step is distal to it (moves masses only)
     subtree: np.ndarray         # (n_frames, n_frames) bool: [i, k] frame k is in the subtree of i
+    param_step: np.ndarray      # (n_params,) step moved by each parameter, -1 for compliances
+    param_compliant: np.ndarray  # (n_params,) row in compliant_steps of a compliance, else -1
 
 
 def parameter_names(model: RobotModel) -> tuple[str, ...]:
@@ -156,7 +171,12 @@ def layout(model: RobotModel) -> Layout:
             for k in np.nonzero(subtree[i])[0]:
                 if k != i:
                     desc[row, frame_steps(k)] = True
+    param_step = np.full(len(names), -1, dtype=int)
+    param_step[step_param] = np.arange(n_steps)
+    param_compliant = np.full(len(names), -1, dtype=int)
+    param_compliant[np.array(cparams, dtype=int)] = np.arange(len(cparams))
     return Layout(
+        param_step=param_step, param_compliant=param_compliant,
         names=tuple(names), n_params=len(names), frame0=np.array(frame0, dtype=int),
         marker0=np.array(marker0, dtype=int), step_param=step_param,
         step_is_rot=np.array(step_is_rot), step_frame=step_frame, marker_path=marker_path,
@@ -165,8 +185,14 @@ def layout(model: RobotModel) -> Layout:
     )
 
 
-def parameter_vector(model: RobotModel) -> np.ndarray:
-    """The model's values in the layout of ``parameter_names`` (rotation corrections are 0)."""
+def parameter_vector(model: RobotModel, reference: RobotModel | None = None) -> np.ndarray:
+    """The model's values in the layout of ``parameter_names``.
+
+    Rotation corrections (base and marker rx, ry, rz) are 0 for the model itself; with a
+    ``reference`` of the same structure they are the corrections that turn the reference's stored
+    rotations into this model's (R = R_ref Rot(x, rx) Rot(y, ry) Rot(z, rz)), so that
+    ``model_from_vector(reference, parameter_vector(model, reference))`` is ``model``.
+    """
     lay = layout(model)
     p = np.zeros(lay.n_params)
     p[0:3] = model.base_position
@@ -174,7 +200,18 @@ def parameter_vector(model: RobotModel) -> np.ndarray:
         p[lay.frame0[i]:lay.frame0[i] + N_FRAME] = [getattr(f, k) for k in FRAME_KINDS]
     for m, mk in enumerate(model.markers):
         p[lay.marker0[m]:lay.marker0[m] + 3] = mk.position
+    if reference is not None:
+        p[3:6] = _xyz_angles(np.asarray(reference.base_rotation).T @ np.asarray(model.base_rotation))
+        for m, (mk, mr) in enumerate(zip(model.markers, reference.markers)):
+            p[lay.marker0[m] + 3:lay.marker0[m] + 6] = _xyz_angles(np.asarray(mr.rotation).T @ np.asarray(mk.rotation))
     return p
+
+
+def _xyz_angles(R: np.ndarray) -> np.ndarray:
+    """Angles (a, b, c) with R = Rot(x, a) Rot(y, b) Rot(z, c)."""
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_matrix(R).as_euler("XYZ")
 
 
 def _small_rotation(rx, ry, rz) -> np.ndarray:
@@ -209,98 +246,116 @@ def model_from_vector(model: RobotModel, p: np.ndarray) -> RobotModel:
 
 @dataclass(frozen=True)
 class _Pass:
-    E: list          # per frame [e0, e1, e2] (N, 3) each
+    R: list          # per frame rotation R_W<frame> (N, 3, 3)
     O: list          # per frame origin (N, 3)
     U: np.ndarray    # (n_steps, N, 3) step axes
     Q: np.ndarray    # (n_steps, N, 3) points on rotation axes
     P: np.ndarray    # (n_markers, N, 3) marker positions
-    RM: list         # per marker [e0, e1, e2] orientation columns
+    RM: list         # per marker orientation (N, 3, 3), when asked
+
+
+def _rot_stack(axis: int, angle: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) rotations about one coordinate axis."""
+    c, s = np.cos(angle), np.sin(angle)
+    out = np.zeros(np.shape(angle) + (3, 3))
+    i, j = _ROT_PAIRS[axis]
+    out[..., axis, axis] = 1.0
+    out[..., i, i] = c
+    out[..., j, j] = c
+    out[..., j, i] = s
+    out[..., i, j] = -s
+    return out
+
+
+def _turn_z(R: np.ndarray, angle) -> np.ndarray:
+    """R @ Rot(z, angle) with per-pose angles: mixes the first two columns."""
+    c = np.cos(angle)[:, None]
+    s = np.sin(angle)[:, None]
+    out = R.copy()
+    out[:, :, 0] = R[:, :, 0] * c + R[:, :, 1] * s
+    out[:, :, 1] = R[:, :, 1] * c - R[:, :, 0] * s
+    return out
 
 
 def _kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray, defl=None,
                     orientations: bool = False) -> _Pass:
+    """One pass down the tree. Per frame, the constant part of X_parent,j is one 3x3 product;
+    only the joint rotation (and gravity deflections) vary per pose."""
     N = qf.shape[0]
     n_steps = len(lay.step_param)
-    U = np.zeros((n_steps, N, 3))
+    U = np.empty((n_steps, N, 3))
     Q = np.zeros((n_steps, N, 3))
-    # base: translations along W's axes, then the reference rotation and small corrections
-    U[0, :, 0] = 1.0
-    U[1, :, 1] = 1.0
-    U[2, :, 2] = 1.0
-    Ob = np.broadcast_to(p[0:3], (N, 3))
     Rref = np.asarray(model.base_rotation, dtype=float)
-    Eb = [np.broadcast_to(Rref[:, k], (N, 3)) for k in range(3)]
+    U[0:3] = np.eye(3)[:, None, :]
+    Ob = np.broadcast_to(p[0:3], (N, 3))
+    Rb = Rref
     for k in range(3):
-        U[3 + k] = Eb[k]
+        U[3 + k] = Rb[:, k]
         Q[3 + k] = Ob
-        if p[3 + k] != 0.0:
-            Eb = _rot(Eb, k, p[3 + k])
-    E_frames: list = [None] * model.n_frames
+        Rb = Rb @ _rot_matrix(k, p[3 + k])
+    Rb = np.broadcast_to(Rb, (N, 3, 3))
+    R_frames: list = [None] * model.n_frames
     O_frames: list = [None] * model.n_frames
+    ez = np.array([0.0, 0.0, 1.0])
     for i, f in enumerate(model.frames):
         if f.parent < 0:
-            E, O = Eb, Ob
+            Rp, Op = Rb, Ob
         else:
-            E, O = E_frames[f.parent], O_frames[f.parent]
+            Rp, Op = R_frames[f.parent], O_frames[f.parent]
         s0 = N_BASE + 7 * i
         v = p[lay.frame0[i]:lay.frame0[i] + 7]
         q = qf[:, i]
-        d_th = d_al = d_be = 0.0
-        if defl is not None:
+        Rg = _rot_matrix(2, v[GAMMA])
+        bvec = np.array([0.0, 0.0, v[B]])
+        if defl is None or (not np.ndim(defl[i][1]) and not np.ndim(defl[i][2])):
+            Rgb = Rg @ _rot_matrix(1, v[BETA])
+            A = Rgb @ _rot_matrix(0, v[ALPHA])
+            # parent-frame vectors: beta axis, alpha/d axis, theta/r axis, b offset, full offset
+            V = np.column_stack([Rg[:, 1], Rgb[:, 0], A[:, 2], bvec, bvec + Rgb[:, 0] * v[D]])
+            W = _rmul(Rp, V)                                             # (N, 3, 5)
+            RA = _rmul(Rp, A)
+        else:
             d_th, d_al, d_be = defl[i]
-        # gamma, b
-        U[s0 + GAMMA] = E[2]
-        Q[s0 + GAMMA] = O
-        if v[GAMMA] != 0.0:
-            E = _rot(E, 2, v[GAMMA])
-        U[s0 + B] = E[2]
-        if v[B] != 0.0:
-            O = O + v[B] * E[2]
-        # beta, alpha
-        U[s0 + BETA] = E[1]
-        Q[s0 + BETA] = O
-        if v[BETA] != 0.0 or np.ndim(d_be):
-            E = _rot(E, 1, v[BETA] + d_be)
-        U[s0 + ALPHA] = E[0]
-        Q[s0 + ALPHA] = O
-        if v[ALPHA] != 0.0 or np.ndim(d_al):
-            E = _rot(E, 0, v[ALPHA] + d_al)
-        # d
-        U[s0 + D] = E[0]
-        if v[D] != 0.0:
-            O = O + v[D] * E[0]
-        # theta, r (the joint variable moves one of them)
-        U[s0 + THETA] = E[2]
-        Q[s0 + THETA] = O
-        th = v[THETA] + d_th + (q if f.joint == "revolute" else 0.0)
-        if np.ndim(th) or th != 0.0:
-            E = _rot(E, 2, th)
-        U[s0 + R] = E[2]
+            Rgb = Rg @ _rot_stack(1, v[BETA] + d_be)                     # (N, 3, 3)
+            A = Rgb @ _rot_stack(0, v[ALPHA] + d_al)
+            V = np.stack([np.broadcast_to(Rg[:, 1], (N, 3)), Rgb[:, :, 0], A[:, :, 2],
+                          np.broadcast_to(bvec, (N, 3)), bvec + Rgb[:, :, 0] * v[D]], axis=2)
+            W = Rp @ V
+            RA = Rp @ A
+        U[s0 + GAMMA] = Rp[:, :, 2]
+        Q[s0 + GAMMA] = Op
+        U[s0 + B] = Rp[:, :, 2]
+        U[s0 + BETA] = W[:, :, 0]
+        Q[s0 + BETA] = Q[s0 + ALPHA] = Op + W[:, :, 3]
+        U[s0 + ALPHA] = U[s0 + D] = W[:, :, 1]
+        U[s0 + THETA] = U[s0 + R] = W[:, :, 2]
+        O_th = Op + W[:, :, 4]
+        Q[s0 + THETA] = O_th
+        th = v[THETA] + (q if f.joint == "revolute" else 0.0)
+        if defl is not None:
+            th = th + defl[i][0]
+        Rj = _turn_z(np.broadcast_to(RA, (N, 3, 3)), np.broadcast_to(th, (N,)))
         rr = v[R] + (q if f.joint == "prismatic" else 0.0)
-        if np.ndim(rr) or rr != 0.0:
-            O = O + (rr[:, None] if np.ndim(rr) else rr) * E[2]
-        E_frames[i] = E
-        O_frames[i] = np.broadcast_to(O, (N, 3))
-    P = np.zeros((len(model.markers), N, 3))
+        O_frames[i] = O_th + np.reshape(rr, (-1, 1)) * W[:, :, 2]
+        R_frames[i] = Rj
+    P = np.empty((len(model.markers), N, 3))
     RM = []
     for m, mk in enumerate(model.markers):
-        E, O = E_frames[mk.frame], O_frames[mk.frame]
+        Rf, Of = R_frames[mk.frame], O_frames[mk.frame]
         s0 = N_BASE + 7 * model.n_frames + N_MARKER * m
         v = p[lay.marker0[m]:lay.marker0[m] + N_MARKER]
-        for k in range(3):
-            U[s0 + k] = E[k]
-        Pm = O + v[0] * E[0] + v[1] * E[1] + v[2] * E[2]
-        P[m] = Pm
+        U[s0:s0 + 3] = Rf.transpose(2, 0, 1)
+        P[m] = Of + _rmul(Rf, v[:3, None])[:, :, 0]
         if orientations:
             Rm = np.asarray(mk.rotation, dtype=float)
-            Em = [E[0] * Rm[0, c] + E[1] * Rm[1, c] + E[2] * Rm[2, c] for c in range(3)]
-            for k in range(3):
-                U[s0 + 3 + k] = Em[k]
-                Q[s0 + 3 + k] = Pm
-                if v[3 + k] != 0.0:
-                    Em = _rot(Em, k, v[3 + k])
-            RM.append(Em)
-    return _Pass(E=E_frames, O=O_frames, U=U, Q=Q, P=P, RM=RM)
+            C = np.column_stack([Rm[:, 0], (Rm @ _rot_matrix(0, v[3]))[:, 1],
+                                 (Rm @ _rot_matrix(0, v[3]) @ _rot_matrix(1, v[4]))[:, 2]])
+            U[s0 + 3:s0 + 6] = _rmul(Rf, C).transpose(2, 0, 1)
+            Q[s0 + 3:s0 + 6] = P[m]
+            RM.append(_rmul(Rf, Rm @ _small_rotation(*v[3:6])))
+        else:
+            U[s0 + 3:s0 + 6] = 0.0
+    return _Pass(R=R_frames, O=O_frames, U=U, Q=Q, P=P, RM=RM)
 
 
 def _mass_sums(model: RobotModel, lay: Layout, ps: _Pass, payload_mass):
@@ -311,16 +366,14 @@ def _mass_sums(model: RobotModel, lay: Layout, ps: _Pass, payload_mass):
     own_m = np.zeros((nf, N))
     for i, f in enumerate(model.frames):
         if f.mass > 0:
-            E, O = ps.E[i], ps.O[i]
-            c = O + f.com[0] * E[0] + f.com[1] * E[1] + f.com[2] * E[2]
+            c = ps.O[i] + _rmul(ps.R[i], np.asarray(f.com, dtype=float)[:, None])[:, :, 0]
             own_c1[i] += f.mass * c
             own_m[i] += f.mass
     pl = model.payload
     pm = pl.mass if payload_mass is None else payload_mass
     if np.any(np.asarray(pm) > 0):
         k = pl.frame if pl.frame >= 0 else nf - 1
-        E, O = ps.E[k], ps.O[k]
-        c = O + pl.com[0] * E[0] + pl.com[1] * E[1] + pl.com[2] * E[2]
+        c = ps.O[k] + _rmul(ps.R[k], np.asarray(pl.com, dtype=float)[:, None])[:, :, 0]
         pm = np.broadcast_to(np.asarray(pm, dtype=float), (N,))
         own_c1[k] += pm[:, None] * c
         own_m[k] += pm
@@ -335,42 +388,35 @@ def _moments(model, lay, ps, C1, msub):
     frame_of = np.repeat(np.arange(model.n_frames), 3)
     u = ps.U[lay.compliant_steps]                     # (P, N, 3)
     A = C1[frame_of] - msub[frame_of][..., None] * ps.Q[lay.compliant_steps]
-    M = np.einsum("pna,pna->pn", u, np.cross(A, g))
+    M = np.einsum("pna,pna->pn", u, _cross(A, g))
     return M, A, u
 
 
-def _moment_derivatives(model, lay, ps, C1, msub, A, u):
-    """dM_p/d(step value) for every compliant p and every step: (P, N, n_steps).
+def _moment_derivatives(model, lay, ps, C1, msub, A, u, steps):
+    """dM_p/d(step value) for every compliant p and the given robot ``steps``: (P, N, len(steps)).
 
     A proximal rotation (axis w) turns the axis and all masses distal to p rigidly; that leaves the
     moment as if gravity turned by -w instead: dM = -u . (A x (w x g)). A proximal translation
     changes nothing. A distal step moves only the masses distal to itself (subtree of its frame j):
     rotation dM = u . ((w x (C1_j - m_j Q)) x g), translation dM = u . ((m_j w) x g).
+    Marker steps move no mass.
     """
     g = np.asarray(model.gravity, dtype=float)
-    n_steps = len(lay.step_param)
-    robot_steps = np.nonzero(lay.step_frame >= -1)[0]
-    W = ps.U[robot_steps]                                      # (S', N, 3)
-    rot = lay.step_is_rot[robot_steps]
-    frame = lay.step_frame[robot_steps]
-    # proximal part
-    wg = np.cross(W, g)                                        # (S', N, 3)
+    W = ps.U[steps]                                            # (S, N, 3)
+    rot = lay.step_is_rot[steps]
+    frame = lay.step_frame[steps]
+    wg = _cross(W, g)
     wg[~rot] = 0.0
-    uxA = np.cross(u, A)                                       # (P, N, 3)
-    d_anc = -np.einsum("sna,pna->psn", wg, uxA)
-    # distal part: D_s = w x (C1_j - m_j Q) for rotations, m_j w for translations
+    d_anc = -np.einsum("sna,pna->psn", wg, _cross(u, A))
     fj = np.where(frame >= 0, frame, 0)
-    Bv = C1[fj] - msub[fj][..., None] * ps.Q[robot_steps]
-    Dv = np.where(rot[:, None, None], np.cross(W, Bv), msub[fj][..., None] * W)
-    Dv[frame < 0] = 0.0
-    gxu = np.cross(g, u)                                       # (P, N, 3)
-    d_desc = np.einsum("sna,pna->psn", Dv, gxu)
-    out = np.zeros((u.shape[0], u.shape[1], n_steps))
-    anc = lay.anc[:, robot_steps]
-    desc = lay.desc[:, robot_steps]
-    out[:, :, robot_steps] = np.where(anc[:, None, :], d_anc.transpose(0, 2, 1), 0.0) + \
-        np.where(desc[:, None, :], d_desc.transpose(0, 2, 1), 0.0)
-    return out
+    Bv = C1[fj] - msub[fj][..., None] * ps.Q[steps]
+    Dv = np.where(rot[:, None, None], _cross(W, Bv), msub[fj][..., None] * W)
+    d_desc = np.einsum("sna,pna->psn", Dv, _cross(g, u))
+    anc = lay.anc[:, steps][:, :, None]
+    desc = lay.desc[:, steps][:, :, None]
+    out = np.where(anc, d_anc, 0.0) + np.where(desc, d_desc, 0.0)   # (P, S, N)
+    out[:, frame < -1] = 0.0
+    return out.transpose(0, 2, 1)
 
 
 @dataclass(frozen=True)
@@ -389,21 +435,27 @@ class Evaluation:
     frames: np.ndarray | None = None
 
 
-def _step_columns(lay: Layout, ps: _Pass, m: int) -> np.ndarray:
-    """(N, 6, n_steps) columns of every step for marker m (zero off its path)."""
-    U, Q = ps.U, ps.Q
-    P = ps.P[m]
-    lin = np.where(lay.step_is_rot[:, None, None], np.cross(U, P[None] - Q), U)
-    ang = np.where(lay.step_is_rot[:, None, None], U, 0.0)
-    cols = np.concatenate([lin, ang], axis=2)                   # (S, N, 6)
-    cols[~lay.marker_path[m]] = 0.0
-    return cols.transpose(1, 2, 0)
+def _step_columns(lay: Layout, ps: _Pass, m: int, steps: np.ndarray) -> np.ndarray:
+    """(N, 6, len(steps)) columns of the given steps for marker m (zero off its path)."""
+    U = ps.U[steps]
+    rot = lay.step_is_rot[steps]
+    on = lay.marker_path[m, steps]
+    lin = U.copy()
+    ang = np.zeros_like(U)
+    r = rot & on
+    lin[r] = _cross(U[r], ps.P[m][None] - ps.Q[steps[r]])
+    ang[r] = U[r]
+    lin[~on] = 0.0
+    return np.concatenate([lin, ang], axis=2).transpose(1, 2, 0)
 
 
 def evaluate(model: RobotModel, q: np.ndarray, p: np.ndarray | None = None, *, jacobian: bool = False,
              orientations: bool = False, compliance: bool | None = None, payload_mass=None,
-             frames: bool = False) -> Evaluation:
+             frames: bool = False, columns=None) -> Evaluation:
     """Evaluate the model (or the values ``p`` in its layout) at joint readings ``q`` (N, n_joints).
+
+    ``columns``: indices into the parameter vector of the Jacobian columns wanted (default all);
+    the Jacobian's last axis then follows ``columns``.
 
     ``compliance``: apply gravity deflections (default: when the model has compliance) and, with
     ``jacobian``, include the compliance columns and corrections.
@@ -431,27 +483,31 @@ def evaluate(model: RobotModel, q: np.ndarray, p: np.ndarray | None = None, *, j
     positions = ps.P.transpose(1, 0, 2)
     rotations = None
     if need_or and ps.RM:
-        rotations = np.stack([np.stack(Em, axis=-1) for Em in ps.RM], axis=1)
+        rotations = np.stack(ps.RM, axis=1)
     J = None
     if jacobian:
-        N = q.shape[0]
-        J = np.zeros((N, len(model.markers), 6, lay.n_params))
+        cols_idx = np.arange(lay.n_params) if columns is None else np.asarray(columns, dtype=int)
+        J = np.zeros((q.shape[0], len(model.markers), 6, len(cols_idx)))
+        step_of = lay.param_step[cols_idx]
+        is_step = step_of >= 0
+        steps = step_of[is_step]
+        k_slot = lay.param_compliant[cols_idx]
+        is_k = k_slot >= 0
         if compliance:
-            dM = _moment_derivatives(model, lay, ps0, C1, msub, A, u)     # (P, N, S)
+            dM = _moment_derivatives(model, lay, ps0, C1, msub, A, u, steps)     # (P, N, S)
             kdM = ks[:, None, None] * dM
         for m in range(len(model.markers)):
-            cols = _step_columns(lay, ps, m)                            # (N, 6, S)
-            Jm = cols.copy()
+            cols = _step_columns(lay, ps, m, steps)                           # (N, 6, S)
             if compliance:
-                cp = cols[:, :, lay.compliant_steps]                       # (N, 6, P)
-                Jm += np.einsum("nap,pns->nas", cp, kdM)
-                J[:, m][:, :, lay.compliant_params] = cp * M.T[:, None, :]
-            J[:, m][:, :, lay.step_param] = Jm
+                cp = _step_columns(lay, ps, m, lay.compliant_steps)           # (N, 6, P)
+                cols += np.einsum("nap,pns->nas", cp, kdM)
+                J[:, m, :, is_k] = (cp[:, :, k_slot[is_k]] * M.T[:, None, k_slot[is_k]]).transpose(2, 0, 1)
+            J[:, m, :, is_step] = cols.transpose(2, 0, 1)
     frames_out = None
     if frames:
         frames_out = np.zeros((q.shape[0], model.n_frames, 4, 4))
         for i in range(model.n_frames):
-            frames_out[:, i, :3, :3] = np.stack(ps.E[i], axis=-1)
+            frames_out[:, i, :3, :3] = ps.R[i]
             frames_out[:, i, :3, 3] = ps.O[i]
             frames_out[:, i, 3, 3] = 1.0
     return Evaluation(positions=positions, rotations=rotations, jacobian=J,
@@ -472,6 +528,14 @@ def forward_kinematics(model: RobotModel, q, *, frames: bool = False, payload_ma
     return evaluate(model, q, orientations=True, frames=frames, payload_mass=payload_mass)
 
 
-def jacobian(model: RobotModel, q, *, compliance: bool | None = None, payload_mass=None) -> np.ndarray:
-    """Identification Jacobian (N, n_markers, 6, n_params) over ``parameter_names(model)``."""
-    return evaluate(model, q, jacobian=True, compliance=compliance, payload_mass=payload_mass).jacobian
+def jacobian(model: RobotModel, q, *, compliance: bool | None = None, payload_mass=None,
+             columns=None) -> np.ndarray:
+    """Identification Jacobian (N, n_markers, 6, n_params) over ``parameter_names(model)``.
+
+    ``columns``: parameter indices or names to compute (default all, in layout order).
+    """
+    if columns is not None:
+        names = layout(model).names
+        columns = [names.index(c) if isinstance(c, str) else int(c) for c in columns]
+    return evaluate(model, q, jacobian=True, compliance=compliance, payload_mass=payload_mass,
+                    columns=columns).jacobian

@@ -1,0 +1,124 @@
+"""The measurement set: joint readings and what the instrument saw, in SI and the measurement frame."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ._errors import InputError
+
+
+@dataclass(frozen=True, eq=False)
+class Measurements:
+    """Joint readings with measured marker positions (and optionally orientations) per pose.
+
+    Shapes: ``q`` (n_poses, n_joints) in rad or m; ``positions`` (n_poses, n_markers, 3) in metres
+    in the measurement frame W, NaN where a marker was not seen; ``mask`` (n_poses, n_markers) True
+    where a position was measured (rows are masked, never dropped). ``rotations`` (n_poses,
+    n_markers, 3, 3) marker orientations in W (``rot_mask`` likewise) or None for points only.
+    ``sigma`` (n_poses, n_markers) position standard deviation per measurement in metres and
+    ``sigma_rot`` in radians, or None (unweighted). ``payload_mass`` (n_poses,) kg or None.
+    ``labels`` names each pose for messages (e.g. the CSV row).
+    """
+
+    q: np.ndarray
+    positions: np.ndarray
+    marker_names: tuple[str, ...]
+    joint_names: tuple[str, ...] = ()
+    mask: np.ndarray | None = None
+    rotations: np.ndarray | None = None
+    rot_mask: np.ndarray | None = None
+    sigma: np.ndarray | None = None
+    sigma_rot: np.ndarray | None = None
+    payload_mass: np.ndarray | None = None
+    labels: tuple[str, ...] = ()
+    source: str = ""
+    sha256: str = ""
+    extra: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        q = np.atleast_2d(np.asarray(self.q, dtype=float))
+        pos = np.asarray(self.positions, dtype=float)
+        if pos.ndim == 2:
+            pos = pos[:, None, :]
+        n = q.shape[0]
+        src = self.source or "measurements"
+        if pos.shape != (n, len(self.marker_names), 3):
+            raise InputError(f"positions must have shape ({n}, {len(self.marker_names)}, 3), got {pos.shape}",
+                             source=src)
+        if not np.all(np.isfinite(q)):
+            r, c = np.argwhere(~np.isfinite(q))[0]
+            raise InputError("joint reading is not a finite number", source=src,
+                             where=f"{self._label(r)}, joint {c}")
+        mask = np.all(np.isfinite(pos), axis=2) if self.mask is None else np.asarray(self.mask, dtype=bool)
+        if mask.shape != (n, len(self.marker_names)):
+            raise InputError("mask shape does not match positions", source=src)
+        bad = mask & ~np.all(np.isfinite(pos), axis=2)
+        if bad.any():
+            r, m = np.argwhere(bad)[0]
+            raise InputError(f"marker {self.marker_names[m]!r} position is not finite", source=src,
+                             where=self._label(r))
+        rot = self.rotations
+        rmask = self.rot_mask
+        if rot is not None:
+            rot = np.asarray(rot, dtype=float)
+            if rot.shape != (n, len(self.marker_names), 3, 3):
+                raise InputError("rotations must have shape (n_poses, n_markers, 3, 3)", source=src)
+            rmask = np.all(np.isfinite(rot), axis=(2, 3)) if rmask is None else np.asarray(rmask, dtype=bool)
+        for name in ("sigma", "sigma_rot"):
+            s = getattr(self, name)
+            if s is not None:
+                s = np.broadcast_to(np.asarray(s, dtype=float), (n, len(self.marker_names))).copy()
+                used = mask if name == "sigma" else (rmask if rmask is not None else mask)
+                if np.any(used & ~(s > 0)):
+                    r, m = np.argwhere(used & ~(s > 0))[0]
+                    raise InputError(f"{name} must be a positive number", source=src,
+                                     where=f"{self._label(r)}, marker {self.marker_names[m]!r}")
+                object.__setattr__(self, name, s)
+        if self.payload_mass is not None:
+            pm = np.broadcast_to(np.asarray(self.payload_mass, dtype=float), (n,)).copy()
+            if np.any(~np.isfinite(pm) | (pm < 0)):
+                r = int(np.argwhere(~np.isfinite(pm) | (pm < 0))[0][0])
+                raise InputError("payload mass must be a non-negative number", source=src, where=self._label(r))
+            object.__setattr__(self, "payload_mass", pm)
+        object.__setattr__(self, "q", q)
+        object.__setattr__(self, "positions", pos)
+        object.__setattr__(self, "mask", mask)
+        object.__setattr__(self, "rotations", rot)
+        object.__setattr__(self, "rot_mask", rmask)
+        if not self.labels:
+            object.__setattr__(self, "labels", tuple(f"pose {i}" for i in range(n)))
+
+    def _label(self, i: int) -> str:
+        return self.labels[i] if self.labels else f"pose {i}"
+
+    @property
+    def n_poses(self) -> int:
+        return self.q.shape[0]
+
+    @property
+    def has_orientation(self) -> bool:
+        return self.rotations is not None and bool(np.any(self.rot_mask))
+
+    def subset(self, index) -> "Measurements":
+        """The poses selected by ``index`` (boolean mask or integer indices)."""
+        idx = np.arange(self.n_poses)[index]
+
+        def cut(a):
+            return None if a is None else a[idx]
+
+        return Measurements(
+            q=self.q[idx], positions=self.positions[idx], marker_names=self.marker_names,
+            joint_names=self.joint_names, mask=self.mask[idx], rotations=cut(self.rotations),
+            rot_mask=cut(self.rot_mask), sigma=cut(self.sigma), sigma_rot=cut(self.sigma_rot),
+            payload_mass=cut(self.payload_mass), labels=tuple(self.labels[i] for i in idx),
+            source=self.source, sha256=self.sha256, extra=dict(self.extra),
+        )
+
+    def split(self, n_validation: int | float, *, rng=None) -> tuple["Measurements", "Measurements"]:
+        """Random split into (fit, validation); ``n_validation`` a count or a fraction."""
+        rng = np.random.default_rng(rng)
+        n_val = int(round(n_validation * self.n_poses)) if 0 < n_validation < 1 else int(n_validation)
+        order = rng.permutation(self.n_poses)
+        return self.subset(np.sort(order[n_val:])), self.subset(np.sort(order[:n_val]))

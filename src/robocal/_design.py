@@ -1,0 +1,123 @@
+"""Choosing measurement configurations before the robot is touched (D-optimal selection)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._data import Measurements
+from ._errors import DegenerateDataError, InputError
+from ._identify import _Problem, identifiability, random_configurations
+from ._kinematics import parameter_vector
+from ._model import RobotModel
+from ._params import candidate_parameters
+
+
+@dataclass(frozen=True)
+class PoseSelection:
+    """Chosen configurations ``q`` (n, n_joints), their indices among the candidates, and how they
+    compare with as many random candidates: log det of the scaled normal matrix per pose (higher
+    is better), its condition number, and the average prediction variance over the candidates
+    in units of the measurement variance (tr(W M^-1), lower is better)."""
+
+    q: np.ndarray
+    indices: np.ndarray
+    parameters: tuple[str, ...]
+    criterion: str
+    log_det_random: float
+    log_det_selected: float
+    condition_random: float
+    condition_selected: float
+    prediction_random: float
+    prediction_selected: float
+
+
+def _blocks(model, q, names, orientation):
+    meas = Measurements(q=q, positions=np.zeros((len(q), len(model.markers), 3)), marker_names=model.marker_names,
+                        rotations=np.broadcast_to(np.eye(3), (len(q), len(model.markers), 3, 3)) if orientation
+                        else None)
+    prob = _Problem(model, meas, names, compliance=model.has_compliance or any(".k_" in n for n in names))
+    J = prob.jacobian(parameter_vector(model))
+    rows = J.shape[0] // len(q)
+    # rows are ordered pose by pose within each block: regroup per pose
+    return J.reshape(-1, len(q), rows // (1 + orientation), len(names)).transpose(1, 0, 2, 3).reshape(len(q), rows, -1)
+
+
+CRITERIA = ("I", "D")
+
+
+def select_poses(model: RobotModel, n: int, *, candidates=None, n_candidates: int = 2000, parameters=("geometric",),
+                 known=(), orientation: bool = False, criterion: str = "I", rng=0, sweeps: int = 2) -> PoseSelection:
+    """Pick ``n`` configurations for identifying the identifiable parameters.
+
+    ``criterion="I"`` minimises the average prediction variance of the calibrated model over the
+    candidate configurations, tr(W M^-1) with M = J^T J of the chosen poses and W = J^T J over
+    all candidates / their count: what the held-out error after calibration depends on.
+    ``criterion="D"`` maximises det(M). Columns are scaled to unit norm over the candidates, so
+    metres and radians weigh alike. Greedy forward selection (Woodbury updates) from a random
+    start, then ``sweeps`` passes of exchanges. ``candidates``: joint readings to choose from,
+    default ``n_candidates`` drawn within the joint limits.
+    """
+    if criterion not in CRITERIA:
+        raise InputError(f"criterion must be one of {', '.join(CRITERIA)}, got {criterion!r}", where="criterion")
+    rng = np.random.default_rng(rng)
+    q = random_configurations(model, n_candidates, rng) if candidates is None else np.atleast_2d(candidates)
+    if n > len(q):
+        raise InputError(f"cannot choose {n} poses from {len(q)} candidates", where="n")
+    names = identifiability(model, None, parameters=parameters, known=known, orientation=orientation,
+                            rng=rng).identified
+    B = _blocks(model, q, names, orientation)                         # (n_cand, rows, k)
+    k = B.shape[2]
+    if n * B.shape[1] <= k:
+        raise DegenerateDataError(f"{n} poses give {n * B.shape[1]} equations for {k} identifiable parameters")
+    B = B / np.linalg.norm(B, axis=(0, 1))
+    ridge = 1e-9 * np.eye(k)
+
+    def logdet(idx):
+        M = np.einsum("pri,prj->ij", B[idx], B[idx]) + ridge
+        return np.linalg.slogdet(M)[1]
+
+    Wbar = np.einsum("pri,prj->ij", B, B) / len(q)
+
+    def gains(Minv, idx_pool):
+        Bp = B[idx_pool]
+        BM = np.einsum("pri,ij->prj", Bp, Minv)
+        S = np.einsum("prj,psj->prs", BM, Bp) + np.eye(B.shape[1])       # I + Bi Minv Bi^T
+        if criterion == "D":
+            # det(M + Bi^T Bi) / det(M) = det(I + Bi Minv Bi^T)
+            return np.linalg.slogdet(S)[1]
+        # tr(W M^-1) falls by tr(S^-1 Bi G Bi^T) with G = Minv W Minv (Woodbury)
+        G = Minv @ Wbar @ Minv
+        BGB = np.einsum("pri,ij,psj->prs", Bp, G, Bp)
+        return np.einsum("prr->p", np.linalg.solve(S, BGB))
+
+    start = list(rng.choice(len(q), size=max(1, k // B.shape[1] + 1), replace=False))
+    chosen = list(start)
+    while len(chosen) < n:
+        M = np.einsum("pri,prj->ij", B[chosen], B[chosen]) + ridge
+        pool = np.setdiff1d(np.arange(len(q)), chosen)
+        g = gains(np.linalg.inv(M), pool)
+        chosen.append(int(pool[np.argmax(g)]))
+    for _ in range(sweeps):
+        for pos in range(n):
+            rest = chosen[:pos] + chosen[pos + 1:]
+            M = np.einsum("pri,prj->ij", B[rest], B[rest]) + ridge
+            pool = np.setdiff1d(np.arange(len(q)), rest)
+            g = gains(np.linalg.inv(M), pool)
+            chosen[pos] = int(pool[np.argmax(g)])
+    chosen_arr = np.array(chosen)
+    rand = rng.choice(len(q), size=n, replace=False)
+
+    def cond(idx):
+        s = np.linalg.svd(B[idx].reshape(-1, k), compute_uv=False)
+        return float(s[0] / s[-1])
+
+    def prediction(idx):
+        M = np.einsum("pri,prj->ij", B[idx], B[idx]) + ridge
+        return float(np.trace(np.linalg.solve(M, Wbar)))
+
+    return PoseSelection(q=q[chosen_arr], indices=chosen_arr, parameters=names, criterion=criterion,
+                         log_det_random=float(logdet(rand)) / n, log_det_selected=float(logdet(chosen_arr)) / n,
+                         condition_random=cond(rand), condition_selected=cond(chosen_arr),
+                         prediction_random=prediction(rand), prediction_selected=prediction(chosen_arr))

@@ -1,0 +1,136 @@
+"""Which parameters the data can identify, and what absorbs the others (METHOD.md section 4).
+
+The Jacobian stacked over every pose and measured row is scaled to unit column norms (lengths and
+angles then weigh alike). Its singular values give the numerical rank, the condition number and the
+observability indices. Which parameters to keep is decided by a rank-revealing QR whose pivots are
+taken in the preference order (``_params``): a parameter is kept when the part of its unit column
+outside the span of the columns kept before it exceeds ``tol``; otherwise it is eliminated, and
+least squares on the kept columns gives the linear combination that absorbs it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+DEFAULT_TOL = 1e-6
+TABLE_KINDS = ("gamma", "b", "beta", "alpha", "d", "theta", "r", "k_theta", "k_alpha", "k_beta")
+
+
+@dataclass(frozen=True)
+class Absorption:
+    """An eliminated parameter: ``d(name) = sum(coef * d(absorber))`` moves the tool the same way."""
+
+    name: str
+    reason: str
+    absorbers: tuple[tuple[str, float], ...]
+    residual: float
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "reason": self.reason, "residual": self.residual,
+                "absorbed_by": [{"name": n, "coefficient": c} for n, c in self.absorbers]}
+
+
+@dataclass(frozen=True)
+class IdentifiabilityResult:
+    """Outcome of the identifiability analysis.
+
+    ``identified`` and ``eliminated`` partition ``candidates``; ``singular_values`` are those of the
+    column-scaled Jacobian of the identified parameters; ``observability`` holds the indices O1..O5
+    of Borm-Menq and Nahvi-Hollerbach (O1 = geometric mean of singular values / sqrt(n_rows),
+    O2 = min/max, O3 = min, O4 = min^2/max, O5 = 1 / sum(1/sigma)).
+    """
+
+    candidates: tuple[str, ...]
+    identified: tuple[str, ...]
+    eliminated: tuple[Absorption, ...]
+    tol: float
+    rank: int
+    condition_number: float
+    singular_values: tuple[float, ...]
+    observability: dict
+    n_rows: int
+    column_scale: dict = field(default_factory=dict)
+
+    def status(self, name: str) -> str:
+        """'I' identified, 'E' eliminated, '-' not considered."""
+        if name in self.identified:
+            return "I"
+        if any(a.name == name for a in self.eliminated):
+            return "E"
+        return "-"
+
+    def absorption(self, name: str) -> Absorption | None:
+        return next((a for a in self.eliminated if a.name == name), None)
+
+    def table(self, frame_names) -> list[dict]:
+        """Per frame, the status of each parameter kind (the paper's layout)."""
+        return [{"frame": f, **{k: self.status(f"{f}.{k}") for k in TABLE_KINDS}} for f in frame_names]
+
+    def to_dict(self) -> dict:
+        return {
+            "candidates": list(self.candidates), "identified": list(self.identified),
+            "eliminated": [a.to_dict() for a in self.eliminated], "tol": self.tol, "rank": self.rank,
+            "condition_number": self.condition_number, "singular_values": list(self.singular_values),
+            "observability": dict(self.observability), "n_rows": self.n_rows,
+        }
+
+
+def analyse(J: np.ndarray, names, *, tol: float = DEFAULT_TOL, max_terms: int = 6) -> IdentifiabilityResult:
+    """Identifiability of the columns of ``J`` (n_rows, n_candidates) named ``names``, in preference order."""
+    names = tuple(names)
+    J = np.asarray(J, dtype=float)
+    scale = np.linalg.norm(J, axis=0)
+    eliminated = []
+    kept_idx = []
+    basis = np.zeros((J.shape[0], 0))
+    An = np.zeros_like(J)
+    nz = scale > 0
+    An[:, nz] = J[:, nz] / scale[nz]
+    for k, name in enumerate(names):
+        if not nz[k]:
+            eliminated.append((k, "has no effect on the measurements"))
+            continue
+        a = An[:, k]
+        # project twice: one classical Gram-Schmidt pass loses orthogonality for nearly dependent columns
+        res = a - basis @ (basis.T @ a)
+        res = res - basis @ (basis.T @ res)
+        nr = np.linalg.norm(res)
+        if nr > tol:
+            basis = np.column_stack([basis, res / nr])
+            kept_idx.append(k)
+        else:
+            eliminated.append((k, "is a combination of identified parameters"))
+    kept_idx = np.array(kept_idx, dtype=int)
+    absorptions = []
+    Ak = An[:, kept_idx]
+    for k, reason in eliminated:
+        if not nz[k]:
+            absorptions.append(Absorption(names[k], reason, (), 0.0))
+            continue
+        c, *_ = np.linalg.lstsq(Ak, An[:, k], rcond=None)
+        resid = float(np.linalg.norm(Ak @ c - An[:, k]))
+        coef = c * scale[k] / scale[kept_idx]  # back to parameter units
+        order = np.argsort(-np.abs(c))
+        terms = tuple((names[kept_idx[i]], float(coef[i])) for i in order[:max_terms] if abs(c[i]) > 1e-6)
+        absorptions.append(Absorption(names[k], reason, terms, resid))
+    if len(kept_idx):
+        s = np.linalg.svd(Ak, compute_uv=False)
+    else:
+        s = np.zeros(0)
+    m = J.shape[0]
+    if len(s) and s[-1] > 0:
+        obs = {"O1": float(np.exp(np.mean(np.log(s))) / np.sqrt(m)), "O2": float(s[-1] / s[0]),
+               "O3": float(s[-1]), "O4": float(s[-1] ** 2 / s[0]), "O5": float(1.0 / np.sum(1.0 / s))}
+        cond = float(s[0] / s[-1])
+    else:
+        obs = {k: 0.0 for k in ("O1", "O2", "O3", "O4", "O5")}
+        cond = float("inf")
+    all_s = np.linalg.svd(An[:, nz], compute_uv=False) if nz.any() else np.zeros(0)
+    rank = int(np.sum(all_s > tol * all_s[0])) if len(all_s) else 0
+    return IdentifiabilityResult(
+        candidates=names, identified=tuple(names[i] for i in kept_idx), eliminated=tuple(absorptions),
+        tol=tol, rank=rank, condition_number=cond, singular_values=tuple(float(v) for v in s),
+        observability=obs, n_rows=m, column_scale={n: float(v) for n, v in zip(names, scale)},
+    )

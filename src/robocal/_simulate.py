@@ -1,0 +1,97 @@
+"""Simulation of a calibration campaign: a "true" robot, configurations and noisy measurements.
+
+Every random function takes an explicit seed or ``numpy.random.Generator``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ._data import Measurements
+from ._identify import identifiability, random_configurations
+from ._kinematics import evaluate, layout, model_from_vector, parameter_vector
+from ._model import RobotModel
+from ._params import is_angle
+
+
+def _signed_uniform(rng, lo, hi, n):
+    """Magnitudes uniform in [lo, hi] with random signs."""
+    return rng.uniform(lo, hi, n) * rng.choice([-1.0, 1.0], n)
+
+
+def perturb_model(model: RobotModel, names, *, length_error=(1e-4, 1e-3), angle_error=(np.deg2rad(0.01),
+                  np.deg2rad(0.1)), compliance_error=None, rng=None) -> RobotModel:
+    """A copy of ``model`` with random errors on the parameters ``names``.
+
+    Each error's magnitude is uniform in the (lo, hi) range of its kind (m, rad, rad/(N m)) with a
+    random sign. Compliance parameters need ``compliance_error`` (else they are left alone).
+    """
+    rng = np.random.default_rng(rng)
+    lay = layout(model)
+    p = parameter_vector(model)
+    index = {n: i for i, n in enumerate(lay.names)}
+    for n in names:
+        kind = n.rsplit(".", 1)[1]
+        if kind.startswith("k_"):
+            if compliance_error is None:
+                continue
+            lo, hi = compliance_error
+        elif is_angle(n):
+            lo, hi = angle_error
+        else:
+            lo, hi = length_error
+        p[index[n]] += _signed_uniform(rng, lo, hi, 1)[0]
+    return model_from_vector(model, p)
+
+
+def measure(true_model: RobotModel, q, *, noise: float = 2e-5, noise_rot: float | None = None,
+            orientation: bool = False, payload_mass=None, rng=None, labels=()) -> Measurements:
+    """Measurements of ``true_model`` at readings ``q`` with isotropic Gaussian noise (std, metres).
+
+    ``noise_rot`` (rad) perturbs measured orientations when ``orientation`` is set.
+    """
+    rng = np.random.default_rng(rng)
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    ev = evaluate(true_model, q, orientations=orientation, payload_mass=payload_mass)
+    pos = ev.positions + rng.normal(0.0, noise, ev.positions.shape)
+    rot = None
+    if orientation:
+        n, m = ev.rotations.shape[:2]
+        sr = noise_rot if noise_rot is not None else 0.0
+        dR = Rotation.from_rotvec(rng.normal(0.0, sr, (n * m, 3))).as_matrix().reshape(n, m, 3, 3)
+        rot = dR @ ev.rotations
+    return Measurements(q=q, positions=pos, rotations=rot, marker_names=true_model.marker_names,
+                        joint_names=true_model.joint_names, payload_mass=payload_mass, labels=tuple(labels),
+                        source="simulated")
+
+
+def simulate(model: RobotModel, n_poses: int | None = None, *, q=None, parameters=("geometric",), known=(),
+             length_error=(1e-4, 1e-3), angle_error=(np.deg2rad(0.01), np.deg2rad(0.1)),
+             compliance_error=None, true_compliance: dict | None = None, noise: float = 2e-5,
+             orientation: bool = False, noise_rot: float | None = None, payload_mass=None,
+             seed=0) -> tuple[RobotModel, Measurements]:
+    """Draw a true robot near ``model`` and measure it at ``n_poses`` random configurations (or ``q``).
+
+    Errors go on the parameters that are identifiable for this robot (theory, random poses) in
+    the requested families, so the truth is unambiguous; ``true_compliance`` maps parameter names
+    to exact true values (rad/(N m)) set after the random errors.
+    Returns ``(true_model, measurements)``.
+    """
+    rng = np.random.default_rng(seed)
+    ident = identifiability(model, None, parameters=parameters, known=known, orientation=orientation, rng=rng)
+    true = perturb_model(model, ident.identified, length_error=length_error, angle_error=angle_error,
+                         compliance_error=compliance_error, rng=rng)
+    if true_compliance:
+        lay = layout(true)
+        p = parameter_vector(true)
+        for n, v in true_compliance.items():
+            p[lay.names.index(n)] = v
+        true = model_from_vector(true, p)
+    if q is None:
+        if n_poses is None:
+            raise ValueError("give n_poses or q")
+        q = random_configurations(model, n_poses, rng)
+    data = measure(true, q, noise=noise, noise_rot=noise_rot, orientation=orientation,
+                   payload_mass=payload_mass, rng=rng)
+    return true, data

@@ -1,0 +1,195 @@
+"""Forward kinematics against hand-computed values and an independent 4x4 implementation;
+every Jacobian column against central finite differences."""
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+import robocal as rc
+from robocal._kinematics import evaluate, layout, model_from_vector, parameter_vector
+from robocal._model import Frame, Marker, Payload, RobotModel
+
+from robots import DEG, arm6r, cylindrical
+
+
+def _T(axis, kind, v):
+    """Independent elementary 4x4 transform."""
+    T = np.eye(4)
+    if kind == "T":
+        T[axis, 3] = v
+    else:
+        T[:3, :3] = Rotation.from_rotvec(np.eye(3)[axis] * v).as_matrix()
+    return T
+
+
+def _mdh(f: Frame, q: float) -> np.ndarray:
+    """The METHOD.md transform, written out factor by factor."""
+    th = f.theta + (q if f.joint == "revolute" else 0.0)
+    r = f.r + (q if f.joint == "prismatic" else 0.0)
+    return (_T(2, "R", f.gamma) @ _T(2, "T", f.b) @ _T(1, "R", f.beta) @ _T(0, "R", f.alpha)
+            @ _T(0, "T", f.d) @ _T(2, "R", th) @ _T(2, "T", r))
+
+
+def _reference_fk(model: RobotModel, q: np.ndarray) -> np.ndarray:
+    """Marker positions by a per-pose loop of 4x4 products (slow, obviously correct)."""
+    out = np.zeros((len(q), len(model.markers), 3))
+    C = model.coupling_matrix
+    for n, qn in enumerate(q):
+        qf = C @ qn
+        X = [None] * model.n_frames
+        for i, f in enumerate(model.frames):
+            parent = model.X_WB if f.parent < 0 else X[f.parent]
+            X[i] = parent @ _mdh(f, qf[i])
+        for m, mk in enumerate(model.markers):
+            out[n, m] = (X[mk.frame] @ np.append(mk.position, 1.0))[:3]
+    return out
+
+
+def test_modified_dh_matrix_matches_method_md():
+    # METHOD.md's closed form of T(j-1, j) with beta = 0
+    al, d, th, r = 0.3, 0.2, -0.7, 0.15
+    expected = np.array([
+        [np.cos(th), -np.sin(th), 0, d],
+        [np.cos(al) * np.sin(th), np.cos(al) * np.cos(th), -np.sin(al), -r * np.sin(al)],
+        [np.sin(al) * np.sin(th), np.sin(al) * np.cos(th), np.cos(al), r * np.cos(al)],
+        [0, 0, 0, 1]])
+    m = rc.serial_model("one", [dict(joint="revolute", alpha=al, d=d, r=r)], markers=[("tool", (0, 0, 0))])
+    X = rc.forward_kinematics(m, [[th]], frames=True).frames[0, 0]
+    np.testing.assert_allclose(X, expected, atol=1e-15)
+
+
+def test_planar_two_link_by_hand():
+    # two parallel revolute axes, links 0.5 and 0.3: the textbook planar arm
+    m = rc.serial_model("planar", [dict(joint="revolute"), dict(joint="revolute", d=0.5)],
+                        markers=[("tool", (0.3, 0.0, 0.0))])
+    q1, q2 = 0.4, -1.1
+    expected = [0.5 * np.cos(q1) + 0.3 * np.cos(q1 + q2), 0.5 * np.sin(q1) + 0.3 * np.sin(q1 + q2), 0.0]
+    np.testing.assert_allclose(rc.forward_kinematics(m, [[q1, q2]]).positions[0, 0], expected, atol=1e-15)
+
+
+def test_cylindrical_by_hand():
+    # revolute base, vertical prismatic, radial prismatic: tool at (r cos q1, r sin q1, h)
+    m = rc.serial_model("cyl", [dict(joint="revolute"), dict(joint="prismatic"),
+                                dict(joint="prismatic", alpha=-90 * DEG)], markers=[("tool", (0, 0, 0))])
+    q = np.array([[0.3, 0.7, 0.4]])
+    P = rc.forward_kinematics(m, q).positions[0, 0]
+    # alpha = -90 deg about x turns z3 onto +y of frame 2, which joint 1 turns by q1 about the vertical
+    np.testing.assert_allclose(P, [-0.4 * np.sin(0.3), 0.4 * np.cos(0.3), 0.7], atol=1e-15)
+
+
+@pytest.mark.parametrize("make", [arm6r, cylindrical])
+def test_fk_matches_independent_implementation(make):
+    m = make()
+    q = rc.random_configurations(m, 20, rng=3)
+    np.testing.assert_allclose(rc.forward_kinematics(m, q).positions, _reference_fk(m, q), atol=1e-14)
+
+
+def _random_tree_model(seed, *, compliance=True, prismatic=True):
+    """A random tree with coupled joints, beta and gamma/b everywhere, masses, payload, two markers."""
+    rng = np.random.default_rng(seed)
+    parents = [-1, 0, 1, 2, 1, 4]
+    frames = []
+    for i in range(6):
+        joint = "prismatic" if (prismatic and rng.random() < 0.4) else "revolute"
+        frames.append(Frame(
+            name=f"f{i}", joint=joint, parent=parents[i], gamma=rng.normal(0, .3), b=rng.normal(0, .1),
+            beta=rng.normal(0, .1), alpha=rng.normal(0, 1), d=rng.normal(0, .3), theta=rng.normal(0, 1),
+            r=rng.normal(0, .3), coupling=((i, 1.0),) if i != 3 else ((1, -1.0), (2, 0.5)),
+            mass=rng.uniform(1, 5), com=tuple(rng.normal(0, .2, 3)),
+            k_theta=rng.normal(0, 1e-3) * compliance, k_alpha=rng.normal(0, 1e-3) * compliance,
+            k_beta=rng.normal(0, 1e-3) * compliance))
+    rot = lambda s: tuple(map(tuple, Rotation.random(random_state=s).as_matrix()))  # noqa: E731
+    return RobotModel(
+        name="tree", frames=tuple(frames), joint_names=tuple(f"q{i}" for i in range(6)),
+        joint_limits=((-1.0, 1.0),) * 6,
+        markers=(Marker("a", 3, (0.1, 0.2, 0.3), rot(seed + 1)), Marker("b", 5, (0.0, 0.1, -0.2))),
+        base_position=(0.5, 0.1, -0.2), base_rotation=rot(seed + 2), gravity=(0.3, -1.0, -9.7),
+        payload=Payload(2.0, (0.1, 0.0, 0.05), -1))
+
+
+def _fd_jacobian(model, q, p, h=1e-6, payload_mass=None):
+    cols = []
+    for k in range(len(p)):
+        dp = np.zeros_like(p)
+        dp[k] = h
+        e1 = evaluate(model, q, p + dp, orientations=True, compliance=True, payload_mass=payload_mass)
+        e0 = evaluate(model, q, p - dp, orientations=True, compliance=True, payload_mass=payload_mass)
+        dpos = (e1.positions - e0.positions) / (2 * h)
+        dR = e1.rotations @ np.swapaxes(e0.rotations, -1, -2)
+        drot = Rotation.from_matrix(dR.reshape(-1, 3, 3)).as_rotvec().reshape(dpos.shape) / (2 * h)
+        cols.append(np.concatenate([dpos, drot], axis=-1))
+    return np.stack(cols, axis=-1)
+
+
+def _assert_columns_match(model, q, payload_mass=None):
+    p = parameter_vector(model)
+    J = evaluate(model, q, jacobian=True, compliance=True, payload_mass=payload_mass).jacobian
+    F = _fd_jacobian(model, q, p, payload_mass=payload_mass)
+    names = layout(model).names
+    scale = np.maximum(np.abs(F).max(axis=(0, 1, 2)), 1e-3)  # relative per column, absolute near zero
+    err = np.abs(J - F).max(axis=(0, 1, 2)) / scale
+    bad = [(names[k], err[k]) for k in np.nonzero(err > 1e-6)[0]]
+    assert not bad, bad
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_every_column_matches_finite_differences_on_random_trees(seed):
+    m = _random_tree_model(seed)
+    q = np.random.default_rng(seed).uniform(-1, 1, (6, 6))
+    _assert_columns_match(m, q)
+
+
+def test_columns_match_with_per_pose_payload():
+    m = _random_tree_model(7)
+    q = np.random.default_rng(7).uniform(-1, 1, (5, 6))
+    _assert_columns_match(m, q, payload_mass=np.array([0.0, 1.0, 2.5, 4.0, 0.3]))
+
+
+@pytest.mark.parametrize("make", [arm6r, cylindrical])
+def test_columns_match_on_serial_arms_with_and_without_compliance(make):
+    m = make(masses=True)
+    q = rc.random_configurations(m, 6, rng=1)
+    _assert_columns_match(m, q)
+    lay = layout(m)
+    p = parameter_vector(m)
+    p[lay.compliant_params] = 1e-5
+    _assert_columns_match(model_from_vector(m, p), q)
+
+
+def test_geometric_columns_are_the_textbook_ones():
+    # theta_j: [z_j x (P - O_j); z_j]; r_j: [z_j; 0], in the measurement frame
+    m = arm6r()
+    q = rc.random_configurations(m, 3, rng=5)
+    ev = rc.forward_kinematics(m, q, frames=True)
+    J = rc.jacobian(m, q, columns=["j4.theta", "j4.r"])
+    z, O = ev.frames[:, 3, :3, 2], ev.frames[:, 3, :3, 3]
+    P = ev.positions[:, 0]
+    np.testing.assert_allclose(J[:, 0, :3, 0], np.cross(z, P - O), atol=1e-14)
+    np.testing.assert_allclose(J[:, 0, 3:, 0], z, atol=1e-14)
+    np.testing.assert_allclose(J[:, 0, :3, 1], z, atol=1e-14)
+    np.testing.assert_allclose(J[:, 0, 3:, 1], 0.0, atol=1e-14)
+
+
+def test_model_from_vector_round_trip_with_rotation_corrections():
+    m = _random_tree_model(3)
+    p = parameter_vector(m)
+    p[3:6] = [0.01, -0.02, 0.03]
+    p[layout(m).marker0[0] + 3:layout(m).marker0[0] + 6] = [0.02, 0.01, -0.01]
+    m2 = model_from_vector(m, p)
+    np.testing.assert_allclose(parameter_vector(m2, m), p, atol=1e-14)
+    q = np.random.default_rng(0).uniform(-1, 1, (4, 6))
+    np.testing.assert_allclose(evaluate(m2, q).positions, evaluate(m, q, p).positions, atol=1e-14)
+
+
+def test_coupled_joint_follows_readings():
+    # q4 = -q2 - q3 (parallelogram): the frame variable is the combination
+    m = arm6r()
+    frames = list(m.frames)
+    from dataclasses import replace
+    frames[3] = replace(frames[3], coupling=((1, -1.0), (2, -1.0)))
+    mc = m.replace(frames=tuple(frames))
+    q = rc.random_configurations(m, 4, rng=2)
+    qeq = q.copy()
+    qeq[:, 3] = -q[:, 1] - q[:, 2]
+    np.testing.assert_allclose(rc.forward_kinematics(mc, q).positions, rc.forward_kinematics(m, qeq).positions,
+                               atol=1e-14)
