@@ -14,6 +14,8 @@ from ._identify import (CalibrationResult, ParameterEstimate, calibrate, error_s
                         random_configurations, register_base)
 from ._params import candidate_parameters
 from ._simulate import measure, perturb_model, simulate
+from ._design import PoseSelection, select_poses
+from ._imports import from_standard_dh, mdh_table, read_urdf, write_mdh_csv, write_urdf
 
 __version__ = "0.1.0"
 
@@ -24,4 +26,5 @@ __all__ = [
     "parallel_beta_frames", "serial_model", "Measurements", "Absorption", "IdentifiabilityResult",
     "CalibrationResult", "ParameterEstimate", "calibrate", "error_stats", "identifiability",
     "random_configurations", "register_base", "candidate_parameters", "measure", "perturb_model", "simulate",
+    "PoseSelection", "select_poses", "from_standard_dh", "mdh_table", "read_urdf", "write_mdh_csv", "write_urdf",
 ]
