@@ -10,7 +10,7 @@ from ._kinematics import (evaluate, forward_kinematics, jacobian, model_from_vec
 from ._model import Frame, Marker, Payload, RobotModel, parallel_beta_frames, serial_model
 from ._data import Measurements
 from ._identifiability import Absorption, IdentifiabilityResult
-from ._identify import (CalibrationResult, ParameterEstimate, calibrate, error_stats, identifiability,
+from ._identify import (CalibrationResult, Comparison, ParameterEstimate, calibrate, compare, error_stats, identifiability,
                         random_configurations, register_base)
 from ._params import candidate_parameters
 from ._simulate import measure, perturb_model, simulate
@@ -24,7 +24,7 @@ __all__ = [
     "RobocalError", "RobocalWarning", "evaluate", "forward_kinematics", "jacobian", "model_from_vector",
     "parameter_names", "parameter_vector", "Frame", "Marker", "Payload", "RobotModel",
     "parallel_beta_frames", "serial_model", "Measurements", "Absorption", "IdentifiabilityResult",
-    "CalibrationResult", "ParameterEstimate", "calibrate", "error_stats", "identifiability",
+    "CalibrationResult", "Comparison", "compare", "ParameterEstimate", "calibrate", "error_stats", "identifiability",
     "random_configurations", "register_base", "candidate_parameters", "measure", "perturb_model", "simulate",
     "PoseSelection", "select_poses", "from_standard_dh", "mdh_table", "read_urdf", "write_mdh_csv", "write_urdf",
 ]

@@ -14,7 +14,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._params import unit_of
+
 DEFAULT_TOL = 1e-6
+NO_EFFECT = 1e-10
 TABLE_KINDS = ("gamma", "b", "beta", "alpha", "d", "theta", "r", "k_theta", "k_alpha", "k_beta")
 
 
@@ -86,7 +89,13 @@ def analyse(J: np.ndarray, names, *, tol: float = DEFAULT_TOL, max_terms: int = 
     kept_idx = []
     basis = np.zeros((J.shape[0], 0))
     An = np.zeros_like(J)
-    nz = scale > 0
+    # a column is "no effect" when it is round-off next to the largest column of the same unit
+    # (e.g. the torsion of a joint whose distal centre of mass lies on its axis)
+    units = np.array([unit_of(n) for n in names])
+    nz = np.zeros(len(names), dtype=bool)
+    for u in set(units):
+        sel = units == u
+        nz[sel] = scale[sel] > NO_EFFECT * scale[sel].max()
     An[:, nz] = J[:, nz] / scale[nz]
     for k, name in enumerate(names):
         if not nz[k]:

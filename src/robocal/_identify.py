@@ -348,10 +348,14 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
     J = prob.jacobian(p_hat)
     dof = prob.n_rows - len(free)
     s2 = float(r @ r) / dof
-    U, s, Vt = np.linalg.svd(J, full_matrices=False)
-    if s[-1] <= s[0] * 1e-14:
-        raise DegenerateDataError("the normal matrix is singular at the solution")
-    cov = (Vt.T / s ** 2) @ Vt * s2
+    # columns mix metres, radians and rad/(N m): invert the normal matrix in unit-column scaling
+    col = np.linalg.norm(J, axis=0)
+    col[col == 0] = 1.0
+    U, s, Vt = np.linalg.svd(J / col, full_matrices=False)
+    if s[-1] <= s[0] * 1e-12:
+        raise DegenerateDataError("the normal matrix is singular at the solution: the parameters "
+                                  "identifiable at the nominal model are not at the estimate")
+    cov = (Vt.T / s ** 2) @ Vt * s2 / np.outer(col, col)
     std = np.sqrt(np.diag(cov))
     corr = cov / np.outer(std, std)
     success = bool(sol.status > 0)
@@ -410,3 +414,65 @@ def judge_against_limit(limit, stats: dict) -> dict:
     return {"limit_m": value, "compared": key, "mean_error_m": mean, "ratio": ratio,
             # the limit is a mean-error bar; within 15 % of it counts as reaching it
             "reached": bool(ratio <= 1.15)}
+
+
+@dataclass(frozen=True, eq=False)
+class Comparison:
+    """Geometric-only against geometric-and-compliance identification on the same data.
+
+    ``f_statistic``/``p_value``: the nested-model F test on the fitted residuals (does adding the
+    compliance parameters reduce the residual more than their number explains?). ``helped`` is
+    True when p < ``alpha`` and, with held-out poses, the held-out RMS error fell too.
+    """
+
+    geometric: CalibrationResult
+    combined: CalibrationResult
+    f_statistic: float
+    p_value: float
+    helped: bool
+    verdict: str
+
+    @property
+    def best(self) -> CalibrationResult:
+        return self.combined if self.helped else self.geometric
+
+    def to_dict(self) -> dict:
+        def row(r):
+            return {"fit": r.stats["fit_after"], "validation": r.stats["validation_after"],
+                    "n_parameters": len(r.parameters)}
+        return {"schema": "robocal.comparison/1", "geometric": row(self.geometric),
+                "geometric_and_compliance": row(self.combined), "f_statistic": self.f_statistic,
+                "p_value": self.p_value, "helped": self.helped, "verdict": self.verdict}
+
+
+def compare(model: RobotModel, data: Measurements, *, validation: Measurements | None = None, alpha: float = 0.01,
+            **kwargs) -> Comparison:
+    """Run geometric and geometric-plus-compliance identifications on the same data (the paper's two).
+
+    Keyword arguments other than ``parameters`` go to both ``calibrate`` calls.
+    """
+    from scipy.stats import f as f_dist
+
+    kwargs.pop("parameters", None)
+    geo = calibrate(model, data, parameters=("geometric",), validation=validation, **kwargs)
+    both = calibrate(model, data, parameters=("geometric", "compliance"), validation=validation, **kwargs)
+    n_rows = 3 * int(data.mask.sum()) + (3 * int(data.rot_mask.sum()) if data.has_orientation else 0)
+    p1, p2 = len(geo.parameters), len(both.parameters)
+    ssr1 = geo.sigma0 ** 2 * (n_rows - p1)
+    ssr2 = both.sigma0 ** 2 * (n_rows - p2)
+    dfn, dfd = max(p2 - p1, 1), n_rows - p2
+    F = max((ssr1 - ssr2) / dfn, 0.0) / (ssr2 / dfd)
+    p_value = float(f_dist.sf(F, dfn, dfd))
+    significant = p_value < alpha
+    if validation is not None:
+        v1 = geo.stats["validation_after"]["rms"]
+        v2 = both.stats["validation_after"]["rms"]
+        helped = significant and v2 < v1
+        detail = f"held-out RMS {v1 * 1e3:.4f} mm -> {v2 * 1e3:.4f} mm"
+    else:
+        helped = significant
+        detail = f"fitted RMS {geo.stats['fit_after']['rms'] * 1e3:.4f} mm -> {both.stats['fit_after']['rms'] * 1e3:.4f} mm"
+    verdict = (f"compliance helped: {detail}; F = {F:.3g}, p = {p_value:.2g}" if helped else
+               f"compliance did not help: {detail}; F = {F:.3g}, p = {p_value:.2g} (threshold {alpha})")
+    return Comparison(geometric=geo, combined=both, f_statistic=float(F), p_value=p_value, helped=bool(helped),
+                      verdict=verdict)
