@@ -16,6 +16,12 @@ from ._params import candidate_parameters
 from ._simulate import measure, perturb_model, simulate
 from ._design import PoseSelection, select_poses
 from ._imports import from_standard_dh, mdh_table, read_urdf, write_mdh_csv, write_urdf
+from ._modelfile import model_from_dict, model_to_dict, read_model, write_model
+from ._csvio import read_measurements, split_sets, write_measurements
+from ._resultio import read_result, write_result
+from ._limit import (AccuracyLimit, PoseRepeatability, PrecisionResult, PredictedPrecision, RepeatabilityData,
+                     RepeatabilityResult, accuracy_limit, controller_precision, iso9283_repeatability,
+                     predicted_controller_precision, read_repeatability_csv)
 
 __version__ = "0.1.0"
 
@@ -27,4 +33,8 @@ __all__ = [
     "CalibrationResult", "Comparison", "compare", "ParameterEstimate", "calibrate", "error_stats", "identifiability",
     "random_configurations", "register_base", "candidate_parameters", "measure", "perturb_model", "simulate",
     "PoseSelection", "select_poses", "from_standard_dh", "mdh_table", "read_urdf", "write_mdh_csv", "write_urdf",
+    "model_from_dict", "model_to_dict", "read_model", "write_model", "read_measurements", "split_sets",
+    "write_measurements", "read_result", "write_result", "AccuracyLimit", "PoseRepeatability", "PrecisionResult",
+    "PredictedPrecision", "RepeatabilityData", "RepeatabilityResult", "accuracy_limit", "controller_precision",
+    "iso9283_repeatability", "predicted_controller_precision", "read_repeatability_csv",
 ]

@@ -19,7 +19,8 @@ class Measurements:
     n_markers, 3, 3) marker orientations in W (``rot_mask`` likewise) or None for points only.
     ``sigma`` (n_poses, n_markers) position standard deviation per measurement in metres and
     ``sigma_rot`` in radians, or None (unweighted). ``payload_mass`` (n_poses,) kg or None.
-    ``labels`` names each pose for messages (e.g. the CSV row).
+    ``labels`` names each pose for messages (e.g. the CSV row). ``extra`` holds anything else a
+    reader found; arrays with one entry per pose follow ``subset``.
     """
 
     q: np.ndarray
@@ -113,7 +114,9 @@ class Measurements:
             joint_names=self.joint_names, mask=self.mask[idx], rotations=cut(self.rotations),
             rot_mask=cut(self.rot_mask), sigma=cut(self.sigma), sigma_rot=cut(self.sigma_rot),
             payload_mass=cut(self.payload_mass), labels=tuple(self.labels[i] for i in idx),
-            source=self.source, sha256=self.sha256, extra=dict(self.extra),
+            source=self.source, sha256=self.sha256,
+            extra={k: (v[idx] if isinstance(v, np.ndarray) and v.shape[:1] == (self.n_poses,) else v)
+                   for k, v in self.extra.items()},
         )
 
     def split(self, n_validation: int | float, *, rng=None) -> tuple["Measurements", "Measurements"]:

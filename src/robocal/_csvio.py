@@ -1,0 +1,484 @@
+"""Measurement files (CSV): one row per pose, converted to SI on reading (docs/formats.md).
+
+Units are never guessed: every column that needs one takes it from a suffix on its name
+(``j1_deg``, ``tool_x_mm``), from a ``# units: length=mm angle=deg`` line before the header, or
+from the ``units`` argument. A marker that was not seen in a pose has empty cells: the pose is
+kept and the marker masked.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import re
+from dataclasses import replace
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ._data import Measurements
+from ._errors import InputError
+from ._model import RobotModel
+from ._modelfile import (ANGLE_UNITS, LENGTH_UNITS, _suggest, check_unit, parse_units, read_text,
+                         write_texts)
+
+RESERVED = ("pose", "set", "payload_kg")
+POSITION = ("x", "y", "z")
+ORIENTATION_PARTS = {"quat": ("qx", "qy", "qz", "qw"), "rpy": ("roll", "pitch", "yaw"), "euler": ("e1", "e2", "e3")}
+# longest first, so "sigma_rot" is not read as "sigma" plus a unit
+PARTS = ("sigma_rot", "sigma") + POSITION + sum(ORIENTATION_PARTS.values(), ())
+UNIT_OF = {"length": LENGTH_UNITS, "angle": ANGLE_UNITS}
+_MARKER_COLUMN = re.compile(r"^(?P<m>.+?)_(?P<part>x|y|z)(?:_(?P<unit>[A-Za-z]+))?$")
+_NUMBER = re.compile(r"^[+-]?(\d+(\.\d*)?|\.\d+)([eE][+-]?\d+)?$")
+_NOT_FINITE = re.compile(r"^[+-]?(nan|inf|infinity)$", re.IGNORECASE)
+SETS = ("fit", "validation")
+
+
+def parse_orientation(text: str | None, *, source: str | None = None, where: str = "orientation"):
+    """``quat_xyzw``/``quat_wxyz``/``rpy``/``euler:SEQ`` -> (kind, euler sequence or None)."""
+    if text is None:
+        return None
+    text = text.strip()
+    if text in ("quat_xyzw", "quat_wxyz"):
+        return "quat", None
+    if text == "rpy":
+        return "rpy", None
+    if text.startswith("euler:"):
+        seq = text.split(":", 1)[1]
+        try:
+            Rotation.from_euler(seq, [0.0, 0.0, 0.0])
+        except ValueError:
+            raise InputError(f"bad Euler sequence {seq!r}: three axes from xyz, uppercase for intrinsic "
+                             "(euler:ZYX), lowercase for extrinsic (euler:zyx)", source=source, where=where) from None
+        return "euler", seq
+    raise InputError(f"unknown orientation convention {text!r}; use quat_xyzw, quat_wxyz, rpy or euler:ZYX "
+                     "(any scipy sequence)", source=source, where=where)
+
+
+class _Columns:
+    """What each header column holds, with its unit resolved (or an InputError saying how to declare it)."""
+
+    def __init__(self, header, model, declared, orientation, source, line):
+        self.source, self.line = source, line
+        self.names = header
+        where = f"line {line}"
+        for k, c in enumerate(header):
+            if not c:
+                raise InputError(f"column {k + 1} has no name", source=source, where=where)
+            if header.count(c) > 1:
+                raise InputError(f"column {c!r} appears twice", source=source, where=where)
+        if model is not None:
+            joint_names = list(model.joint_names)
+            kinds = [_joint_kind(model, j) for j in range(model.n_joints)]
+            marker_names = list(model.marker_names)
+        else:
+            marker_names = []
+            for c in header:
+                mt = _MARKER_COLUMN.match(c)
+                if mt and mt["part"] == "x" and mt["m"] not in marker_names:
+                    marker_names.append(mt["m"])
+            joint_names, kinds = self._joints_without_model(header, marker_names)
+        self.joint_names, self.joint_kinds = joint_names, kinds
+        self.declared = declared
+        self.joint_cols: dict[str, tuple[int, float]] = {}
+        self.marker_cols: dict[str, dict[str, tuple[int, float]]] = {}
+        self.special: dict[str, int] = {}
+        for k, c in enumerate(header):
+            mn, part, unit = _marker_part(c, marker_names)
+            jn = c if c in joint_names else next(
+                (j for j in joint_names if c.startswith(j + "_") and c[len(j) + 1:].isalpha()), None)
+            if c in RESERVED:
+                self.special[c] = k
+            elif mn is not None:
+                self.marker_cols.setdefault(mn, {})[part] = (k, self._part_scale(c, part, unit))
+            elif jn is not None:
+                if jn in self.joint_cols:
+                    raise InputError(f"joint {jn!r} has two columns", source=source, where=where)
+                self.joint_cols[jn] = (k, self._scale(c, c[len(jn) + 1:] or None, kinds[joint_names.index(jn)]))
+            else:
+                valid = list(RESERVED) + joint_names + [f"{m}_{p}" for m in marker_names for p in POSITION]
+                known = f"; the model has joints {', '.join(joint_names)} and markers {', '.join(marker_names)}" \
+                    if model is not None else ""
+                raise InputError(f"unknown column {c!r}{_suggest(c, valid)}{known}", source=source, where=where)
+        missing = [j for j in joint_names if j not in self.joint_cols]
+        if missing:
+            have = len(self.joint_cols)
+            raise InputError(f"missing column {missing[0]!r}: the model has {len(joint_names)} joints "
+                             f"({', '.join(joint_names)}), the file has {have} of them", source=source, where=where)
+        if not self.marker_cols:
+            raise InputError("no marker columns (like tool_x, tool_y, tool_z)"
+                             + (f"; the model's markers are {', '.join(marker_names)}" if marker_names else ""),
+                             source=source, where=where)
+        self.orientation = {}
+        for mn, parts in self.marker_cols.items():
+            for p in POSITION:
+                if p not in parts:
+                    raise InputError(f"missing column {mn}_{p}", source=source, where=where)
+            self.orientation[mn] = self._orientation_of(mn, parts, orientation)
+        # markers in the model's order (or the file's, without a model)
+        self.markers = [m for m in marker_names if m in self.marker_cols]
+
+    def _joints_without_model(self, header, marker_names):
+        names, kinds = [], []
+        for c in header:
+            if c in RESERVED or _marker_part(c, marker_names)[0] is not None:
+                continue
+            base, _, unit = c.rpartition("_")
+            kind = next((k for k, units in UNIT_OF.items() if unit in units), None)
+            if not base or kind is None:
+                raise InputError(f"column {c!r}: without a model a joint column must carry its unit "
+                                 f"({c}_deg, {c}_rad, {c}_mm or {c}_m), since the joint type is unknown; "
+                                 "or pass the model", source=self.source, where=f"line {self.line}")
+            names.append(base)
+            kinds.append(kind)
+        return names, kinds
+
+    def _scale(self, column: str, unit: str | None, kind: str) -> float:
+        """SI per file unit for ``column`` holding a ``kind`` ("length"/"angle") quantity."""
+        where = f"line {self.line}, column {column!r}"
+        if unit is None:
+            unit = self.declared.get(kind)
+            if unit is None:
+                example = "mm" if kind == "length" else "deg"
+                raise InputError(
+                    f"no {kind} unit declared for this column: name it {column}_{example}, put "
+                    f"'# units: length=mm angle=deg' before the header, or pass units='mm-deg' "
+                    f"(--units mm-deg on the command line)", source=self.source, where=where)
+        if unit not in UNIT_OF[kind]:
+            other = "angle" if kind == "length" else "length"
+            hint = f" (that is an {other} unit)" if unit in UNIT_OF[other] else ""
+            raise InputError(f"unknown {kind} unit {unit!r}{hint}; use one of {', '.join(UNIT_OF[kind])}",
+                             source=self.source, where=where)
+        return UNIT_OF[kind][unit]
+
+    def _part_scale(self, column: str, part: str, unit: str | None) -> float:
+        if part in ORIENTATION_PARTS["quat"]:
+            if unit is not None:
+                raise InputError("a quaternion component has no unit", source=self.source,
+                                 where=f"line {self.line}, column {column!r}")
+            return 1.0
+        kind = "length" if part in POSITION + ("sigma",) else "angle"
+        return self._scale(column, unit, kind)
+
+    def _orientation_of(self, mn, parts, declared):
+        kinds = [k for k, ps in ORIENTATION_PARTS.items() if any(p in parts for p in ps)]
+        if not kinds:
+            if "sigma_rot" in parts:
+                raise InputError(f"column {mn}_sigma_rot without orientation columns", source=self.source,
+                                 where=f"line {self.line}")
+            return None
+        if len(kinds) > 1:
+            raise InputError(f"marker {mn!r} has orientation columns of two conventions ({' and '.join(kinds)})",
+                             source=self.source, where=f"line {self.line}")
+        kind = kinds[0]
+        if declared is not None and declared[0] != kind:
+            raise InputError(f"orientation columns of marker {mn!r} are {kind}, but the declared convention is "
+                             f"{declared[0]}", source=self.source, where=f"line {self.line}")
+        if kind == "euler" and declared is None:
+            raise InputError(f"columns {mn}_e1.. need the Euler sequence: orientation='euler:ZYX' "
+                             "(--orientation euler:ZYX) or a line '# orientation: euler:ZYX' before the header",
+                             source=self.source, where=f"line {self.line}")
+        for p in ORIENTATION_PARTS[kind]:
+            if p not in parts:
+                raise InputError(f"missing column {mn}_{p}", source=self.source, where=f"line {self.line}")
+        return kind, (declared[1] if declared else None)
+
+
+def _marker_part(column: str, markers):
+    """(marker, part, unit) when ``column`` is a marker column, else (None, None, None).
+
+    ``markers`` longest name first, so "tool_2_x" belongs to "tool_2", not to "tool".
+    """
+    for mn in sorted(markers, key=len, reverse=True):
+        if column.startswith(mn + "_"):
+            part, unit = _split_part(column[len(mn) + 1:])
+            if part is not None:
+                return mn, part, unit
+    return None, None, None
+
+
+def _split_part(rest: str):
+    """``x_mm`` -> ("x", "mm"), ``sigma_rot`` -> ("sigma_rot", None); (None, None) if not a part."""
+    for p in PARTS:
+        if rest == p:
+            return p, None
+        if rest.startswith(p + "_") and rest[len(p) + 1:].isalpha():
+            return p, rest[len(p) + 1:]
+    return None, None
+
+
+def _joint_kind(model: RobotModel, j: int) -> str:
+    """"length" if reading ``j`` drives a prismatic frame, else "angle"."""
+    drives = [f.joint for f in model.frames if any(k == j for k, _ in f.coupling)]
+    return "length" if drives and drives[0] == "prismatic" else "angle"
+
+
+def _directive(text: str, name: str) -> str | None:
+    body = text.lstrip("#").strip()
+    if body.lower().startswith(name + ":"):
+        return body.split(":", 1)[1].strip()
+    return None
+
+
+def _comment_units(text: str, source: str, line: int) -> dict:
+    where = f"line {line}"
+    out = {}
+    for item in text.replace(",", " ").split():
+        key, sep, unit = item.partition("=")
+        if not sep or key not in UNIT_OF:
+            raise InputError(f"expected '# units: length=mm angle=deg', got {item!r}", source=source, where=where)
+        out[key] = check_unit(unit, key, source=source, where=f"{where}, units.{key}")
+    return out
+
+
+def read_measurements(path, model: RobotModel | None = None, *, units: str | None = None, sep: str = ",",
+                      decimal: str = ".", orientation: str | None = None) -> Measurements:
+    """Read a measurement CSV (docs/formats.md) into Measurements in SI units.
+
+    ``model``: check joint and marker names against it and take each joint's type (angle or
+    length) from it; without it, joint columns must carry a unit suffix. ``units``: "mm-deg" etc.
+    for columns without a suffix. ``sep``/``decimal``: e.g. ";" and "," as instrument software in
+    many locales writes them. ``orientation``: the convention of 6D pose columns.
+    """
+    source = str(path)
+    if len(sep) != 1 or sep == decimal or decimal not in (".", ","):
+        raise InputError(f"separator {sep!r} and decimal mark {decimal!r} must be one character each and differ "
+                         "(decimal '.' or ',')", where="sep/decimal")
+    declared = dict(zip(("length", "angle"), parse_units(units))) if units is not None else {}
+    orient = parse_orientation(orientation)
+    text, digest = read_text(path)
+    reader = csv.reader(io.StringIO(text, newline=""), delimiter=sep)
+    header, header_line, comment_units, comment_orient = None, 0, {}, None
+    rows = []
+    try:
+        for row in reader:
+            line = reader.line_num
+            if not row or all(not c.strip() for c in row):
+                continue
+            if row[0].lstrip().startswith("#"):
+                if header is None:
+                    joined = sep.join(row)
+                    u = _directive(joined, "units")
+                    if u is not None:
+                        comment_units.update(_comment_units(u, source, line))
+                    o = _directive(joined, "orientation")
+                    if o is not None:
+                        comment_orient = parse_orientation(o, source=source, where=f"line {line}")
+                continue
+            if header is None:
+                header, header_line = [c.strip() for c in row], line
+            else:
+                rows.append((line, row))
+    except csv.Error as e:
+        raise InputError(f"not readable as CSV: {e}", source=source, where=f"line {reader.line_num}") from None
+    if header is None:
+        raise InputError("no header line (and no data)", source=source)
+    for kind, unit in comment_units.items():
+        if kind in declared and declared[kind] != unit:
+            raise InputError(f"the file declares {kind} in {unit}, the units option says {declared[kind]}; "
+                             "they must agree", source=source, where="units")
+        declared[kind] = unit
+    if orient is not None and comment_orient is not None and orient != comment_orient:
+        raise InputError(f"the file declares orientation {comment_orient}, the option says {orientation}",
+                         source=source, where="orientation")
+    cols = _Columns(header, model, declared, orient or comment_orient, source, header_line)
+    if not rows:
+        raise InputError("no data rows after the header", source=source)
+    return _parse_rows(rows, cols, decimal, source, digest)
+
+
+def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str) -> Measurements:
+    n, nm = len(rows), len(cols.markers)
+    q = np.empty((n, len(cols.joint_names)))
+    pos = np.full((n, nm, 3), np.nan)
+    has_sigma = any("sigma" in cols.marker_cols[m] for m in cols.markers)
+    has_rot = any(cols.orientation[m] for m in cols.markers)
+    has_sigma_rot = any("sigma_rot" in cols.marker_cols[m] for m in cols.markers)
+    sigma = np.full((n, nm), np.nan) if has_sigma else None
+    sigma_rot = np.full((n, nm), np.nan) if has_sigma_rot else None
+    rot = np.full((n, nm, 3, 3), np.nan) if has_rot else None
+    payload = np.empty(n) if "payload_kg" in cols.special else None
+    validation = np.zeros(n, dtype=bool)
+    labels = []
+    width = len(cols.names)
+    for i, (line, row) in enumerate(rows):
+        if len(row) != width:
+            raise InputError(f"{len(row)} cells where the header has {width} columns",
+                             source=source, where=f"line {line}")
+
+        def num(k, *, required=True):
+            return _number(row[k], decimal, source, line, cols.names[k], required)
+
+        for j, jn in enumerate(cols.joint_names):
+            k, s = cols.joint_cols[jn]
+            q[i, j] = num(k) * s
+        for m, mn in enumerate(cols.markers):
+            mc = cols.marker_cols[mn]
+            xyz = _group(row, mc, POSITION, num, source, line, mn, cols.names)
+            if xyz is not None:
+                pos[i, m] = xyz
+                if has_sigma and "sigma" in mc:
+                    sigma[i, m] = _positive(num, mc["sigma"], source, line, cols.names)
+            if cols.orientation[mn]:
+                kind, seq = cols.orientation[mn]
+                vals = _group(row, mc, ORIENTATION_PARTS[kind], num, source, line, mn, cols.names)
+                if vals is not None:
+                    rot[i, m] = _rotation(kind, seq, vals, source, line, cols.names[mc["qx" if kind == "quat" else
+                                                                                          ORIENTATION_PARTS[kind][0]][0]])
+                    if "sigma_rot" in mc:
+                        sigma_rot[i, m] = _positive(num, mc["sigma_rot"], source, line, cols.names)
+        if payload is not None:
+            payload[i] = num(cols.special["payload_kg"])
+        if "set" in cols.special:
+            value = row[cols.special["set"]].strip().lower()
+            if value not in SETS:
+                raise InputError(f"set must be fit or validation, got {row[cols.special['set']]!r}", source=source,
+                                 where=f"line {line}, column 'set'")
+            validation[i] = value == "validation"
+        label = row[cols.special["pose"]].strip() if "pose" in cols.special else ""
+        labels.append(label or f"line {line}")
+    if not np.any(np.isfinite(pos)):
+        raise InputError("no marker position in any row", source=source)
+    extra = {"joint_kinds": tuple(cols.joint_kinds)}
+    if "set" in cols.special:
+        extra["validation"] = validation
+    return Measurements(q=q, positions=pos, marker_names=tuple(cols.markers), joint_names=tuple(cols.joint_names),
+                        rotations=rot, sigma=sigma, sigma_rot=sigma_rot, payload_mass=payload,
+                        labels=tuple(labels), source=source, sha256=digest, extra=extra)
+
+
+def _number(text: str, decimal: str, source: str, line: int, column: str, required: bool) -> float:
+    t = text.strip()
+    where = f"line {line}, column {column!r}"
+    if not t:
+        if required:
+            raise InputError("empty cell", source=source, where=where)
+        return np.nan
+    if _NOT_FINITE.match(t):
+        raise InputError(f"{t!r} is not a measurement; leave a missing marker's cells empty", source=source,
+                         where=where)
+    if decimal != ".":
+        if "." in t:
+            raise InputError(f"expected a number with decimal mark {decimal!r}, got {t!r}", source=source, where=where)
+        t = t.replace(decimal, ".")
+    if not _NUMBER.match(t):
+        raise InputError(f"expected a number, got {text.strip()!r}", source=source, where=where)
+    return float(t)
+
+
+def _group(row, mc, parts, num, source, line, marker, names):
+    """The values of ``parts`` of one marker, or None when all their cells are empty."""
+    vals = [num(mc[p][0], required=False) for p in parts]
+    empty = [np.isnan(v) for v in vals]
+    if all(empty):
+        return None
+    if any(empty):
+        p = parts[empty.index(True)]
+        raise InputError(f"empty cell while other {marker} cells of this group are filled; leave all of "
+                         f"{', '.join(f'{marker}_{q}' for q in parts)} empty when the marker was not seen",
+                         source=source, where=f"line {line}, column {names[mc[p][0]]!r}")
+    return np.array(vals) * np.array([mc[p][1] for p in parts])
+
+
+def _positive(num, col, source, line, names) -> float:
+    k, s = col
+    v = num(k)
+    if not v > 0:
+        raise InputError(f"a standard deviation must be positive, got {v}", source=source,
+                         where=f"line {line}, column {names[k]!r}")
+    return v * s
+
+
+def _rotation(kind, seq, vals, source, line, column) -> np.ndarray:
+    if kind == "quat":
+        if np.linalg.norm(vals) < 1e-12:
+            raise InputError("quaternion of zero norm", source=source, where=f"line {line}, column {column!r}")
+        return Rotation.from_quat(vals).as_matrix()  # scalar-last (x, y, z, w): the column names say which
+    return Rotation.from_euler("xyz" if kind == "rpy" else seq, vals).as_matrix()
+
+
+def split_sets(data: Measurements) -> tuple[Measurements, Measurements | None]:
+    """(fit, validation) from a file's ``set`` column; (data, None) without one."""
+    flags = data.extra.get("validation")
+    if flags is None:
+        return data, None
+    extra = {k: v for k, v in data.extra.items() if k != "validation"}
+    fit = replace(data.subset(~flags), extra=extra)
+    if not flags.any():
+        return fit, None
+    if flags.all():
+        raise InputError("every row is in the validation set; mark some rows fit", source=data.source, where="set")
+    return fit, replace(data.subset(flags), extra=extra)
+
+
+def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, units: str = "mm-deg") -> str:
+    """The CSV text of ``data``: every column carries its unit; orientations as quaternions (x, y, z, w)."""
+    lu, au = parse_units(units)
+    L, A = LENGTH_UNITS[lu], ANGLE_UNITS[au]
+    if model is not None:
+        kinds = [_joint_kind(model, model.joint_names.index(jn)) for jn in data.joint_names] if data.joint_names \
+            else [_joint_kind(model, j) for j in range(model.n_joints)]
+        joint_names = data.joint_names or model.joint_names
+    else:
+        kinds = data.extra.get("joint_kinds")
+        joint_names = data.joint_names
+        if kinds is None or not joint_names:
+            raise InputError("the joint types are unknown: pass the model so each joint's unit is known",
+                             where="model")
+    header = ["pose"]
+    header += [f"{jn}_{lu if k == 'length' else au}" for jn, k in zip(joint_names, kinds)]
+    has_rot = data.rotations is not None
+    for mn in data.marker_names:
+        header += [f"{mn}_{p}_{lu}" for p in POSITION]
+        if data.sigma is not None:
+            header.append(f"{mn}_sigma_{lu}")
+        if has_rot:
+            header += [f"{mn}_{p}" for p in ORIENTATION_PARTS["quat"]]
+            if data.sigma_rot is not None:
+                header.append(f"{mn}_sigma_rot_{au}")
+    if data.payload_mass is not None:
+        header.append("payload_kg")
+    flags = data.extra.get("validation")
+    if flags is not None:
+        header.append("set")
+
+    def fmt(v, s=1.0):
+        return "" if not np.isfinite(v) else repr(float(v) / s)
+
+    buf = io.StringIO()
+    if has_rot:
+        buf.write("# orientation: quat_xyzw\n")
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(header)
+    quats = None
+    if has_rot:
+        R = np.where(data.rot_mask[..., None, None], data.rotations, np.eye(3))
+        quats = Rotation.from_matrix(R.reshape(-1, 3, 3)).as_quat().reshape(data.n_poses, len(data.marker_names), 4)
+    for i in range(data.n_poses):
+        row = [data.labels[i]]
+        row += [fmt(v, L if k == "length" else A) for v, k in zip(data.q[i], kinds)]
+        for m in range(len(data.marker_names)):
+            seen = data.mask[i, m]
+            row += [fmt(v, L) if seen else "" for v in data.positions[i, m]]
+            if data.sigma is not None:
+                row.append(fmt(data.sigma[i, m], L) if seen else "")
+            if has_rot:
+                rseen = data.rot_mask[i, m]
+                row += [fmt(v) if rseen else "" for v in quats[i, m]]
+                if data.sigma_rot is not None:
+                    row.append(fmt(data.sigma_rot[i, m], A) if rseen else "")
+        if data.payload_mass is not None:
+            row.append(fmt(data.payload_mass[i]))
+        if flags is not None:
+            row.append("validation" if flags[i] else "fit")
+        w.writerow(row)
+    return buf.getvalue()
+
+
+def write_measurements(data: Measurements, path, *, units: str = "mm-deg", force: bool = False,
+                       model: RobotModel | None = None) -> None:
+    """Write ``data`` as a measurement CSV in ``units``, atomically; refuse to overwrite unless ``force``.
+
+    Joint units follow each joint's type, from ``model`` or from the file the data were read from.
+    """
+    write_texts({path: measurements_to_csv(data, model=model, units=units)}, force=force)

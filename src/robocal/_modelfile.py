@@ -1,0 +1,450 @@
+"""The robot model file (YAML): reading, writing, and the units it is written in.
+
+The format is documented in docs/formats.md. Units are converted to SI here and nowhere else in
+the model's path: the file states its length and angle units, masses are kg, compliances are
+always rad/(N m) and gravity m/s^2.
+"""
+
+from __future__ import annotations
+
+import difflib
+import hashlib
+import os
+import re
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import yaml
+from scipy.spatial.transform import Rotation
+
+from ._errors import InputError
+from ._model import (DEFAULT_PARALLEL_TOL, JOINT_TYPES, Frame, Marker, Payload, RobotModel,
+                     parallel_beta_frames)
+
+FORMAT_VERSION = 1
+LENGTH_UNITS = {"m": 1.0, "mm": 1e-3}
+ANGLE_UNITS = {"rad": 1.0, "deg": np.pi / 180.0}
+# the file key is the frame's attribute; "length"/"angle" says which unit scales it
+FRAME_VALUES = {"beta": "angle", "alpha": "angle", "d": "length", "theta": "angle", "r": "length",
+                "gamma": "angle", "b": "length", "mass": None, "k_theta": None, "k_alpha": None, "k_beta": None}
+FRAME_KEYS = ("name", "joint", "reading", "coupling", "parent", "has_beta", "com") + tuple(FRAME_VALUES)
+TOP_KEYS = ("robocal_model", "name", "description", "units", "base", "gravity", "joints", "frames",
+            "markers", "payload")
+IDENTITY = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+# base.* names the base pose parameters, so no frame or marker may be called "base"
+RESERVED_NAMES = ("base",)
+_NUMBER = re.compile(r"^[+-]?(\d+(\.\d*)?|\.\d+)([eE][+-]?\d+)?$")
+
+
+def parse_units(text: str, *, source: str | None = None, where: str | None = "units") -> tuple[str, str]:
+    """``"mm-deg"`` -> ``("mm", "deg")``; an InputError naming the allowed units otherwise."""
+    parts = str(text).strip().split("-")
+    if len(parts) != 2:
+        raise InputError(f"units must look like 'mm-deg' (length-angle), got {text!r}", source=source, where=where)
+    length, angle = parts
+    check_unit(length, "length", source=source, where=where)
+    check_unit(angle, "angle", source=source, where=where)
+    return length, angle
+
+
+def check_unit(unit: str, kind: str, *, source: str | None = None, where: str | None = None) -> str:
+    allowed = LENGTH_UNITS if kind == "length" else ANGLE_UNITS
+    if unit not in allowed:
+        raise InputError(f"unknown {kind} unit {unit!r}; use one of {', '.join(allowed)}", source=source, where=where)
+    return unit
+
+
+def _suggest(word: str, options) -> str:
+    close = difflib.get_close_matches(str(word), [str(o) for o in options], n=1)
+    return f"; did you mean {close[0]!r}?" if close else f"; expected one of {', '.join(map(str, options))}"
+
+
+class _Reader:
+    """Typed access to a parsed YAML document; every error names the source and the key path."""
+
+    def __init__(self, source: str):
+        self.source = source
+
+    def error(self, where: str, message: str) -> InputError:
+        return InputError(message, source=self.source, where=where)
+
+    def mapping(self, value, where: str, allowed, required=()) -> dict:
+        if not isinstance(value, dict):
+            raise self.error(where, f"expected a mapping (key: value), got {_show(value)}")
+        for key in value:
+            if key not in allowed:
+                raise self.error(_join(where, key), f"unknown key {key!r}{_suggest(key, allowed)}")
+        for key in required:
+            if key not in value:
+                raise self.error(_join(where, key), f"missing required key {key!r}")
+        return value
+
+    def sequence(self, value, where: str) -> list:
+        if not isinstance(value, list):
+            raise self.error(where, f"expected a list, got {_show(value)}")
+        return value
+
+    def number(self, value, where: str, *, finite: bool = True) -> float:
+        # PyYAML reads 1e-3 (no dot) as text: accept numeric text rather than surprise the user
+        if isinstance(value, str) and _NUMBER.match(value.strip()):
+            value = float(value)
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.error(where, f"expected a number, got {_show(value)}")
+        value = float(value)
+        if np.isnan(value) or (finite and not np.isfinite(value)):
+            raise self.error(where, f"expected a finite number, got {value}")
+        return value
+
+    def vector(self, value, where: str, n: int, scale: float = 1.0) -> tuple[float, ...]:
+        seq = self.sequence(value, where)
+        if len(seq) != n:
+            raise self.error(where, f"expected {n} numbers, got {len(seq)}")
+        return tuple(self.number(v, f"{where}[{i}]") * scale for i, v in enumerate(seq))
+
+    def name(self, value, where: str) -> str:
+        if not isinstance(value, str) or not value.strip():
+            raise self.error(where, f"expected a name (text), got {_show(value)}")
+        if value in RESERVED_NAMES:
+            raise self.error(where, f"{value!r} is reserved for the base pose parameters; choose another name")
+        return value
+
+    def rotation(self, value, where: str, angle: float) -> tuple:
+        d = self.mapping(value, where, ("rpy", "matrix", "quaternion_xyzw"))
+        if len(d) != 1:
+            raise self.error(where, "give exactly one of rpy, matrix, quaternion_xyzw")
+        (kind, v), = d.items()
+        w = f"{where}.{kind}"
+        if kind == "rpy":
+            R = Rotation.from_euler("xyz", self.vector(v, w, 3, angle)).as_matrix()  # extrinsic: Rz Ry Rx
+        elif kind == "quaternion_xyzw":
+            quat = np.array(self.vector(v, w, 4))
+            if np.linalg.norm(quat) < 1e-12:
+                raise self.error(w, "quaternion has zero norm")
+            R = Rotation.from_quat(quat).as_matrix()
+        else:
+            rows = self.sequence(v, w)
+            if len(rows) != 3:
+                raise self.error(w, "expected 3 rows of 3 numbers")
+            R = np.array([self.vector(row, f"{w}[{i}]", 3) for i, row in enumerate(rows)])
+        return tuple(tuple(float(x) for x in row) for row in R)
+
+
+def _join(where: str, key) -> str:
+    return f"{where}.{key}" if where else str(key)
+
+
+def _show(value) -> str:
+    return "nothing" if value is None else repr(value)
+
+
+def model_from_dict(d: dict, *, source: str = "<dict>") -> RobotModel:
+    """A RobotModel (SI) from the parsed model file ``d`` (docs/formats.md)."""
+    rd = _Reader(source)
+    rd.mapping(d, "", TOP_KEYS, required=("robocal_model", "units", "joints", "frames", "markers"))
+    if d["robocal_model"] != FORMAT_VERSION:
+        raise rd.error("robocal_model", f"unsupported format version {d['robocal_model']!r}; "
+                                        f"this robocal reads version {FORMAT_VERSION}")
+    units = rd.mapping(d["units"], "units", ("length", "angle"), required=("length", "angle"))
+    L = LENGTH_UNITS[check_unit(units["length"], "length", source=source, where="units.length")]
+    A = ANGLE_UNITS[check_unit(units["angle"], "angle", source=source, where="units.angle")]
+
+    name = d.get("name", Path(source).stem)
+    description = d.get("description", "") or ""
+    if not isinstance(description, str):
+        raise rd.error("description", f"expected text, got {_show(description)}")
+
+    joint_items = rd.sequence(d["joints"], "joints")
+    joint_names: list[str] = []
+    raw_limits = []
+    for j, item in enumerate(joint_items):
+        where = f"joints[{j}]"
+        if isinstance(item, str):
+            item = {"name": item}
+        rd.mapping(item, where, ("name", "limits"), required=("name",))
+        jn = rd.name(item["name"], f"{where}.name")
+        if jn in joint_names:
+            raise rd.error(f"{where}.name", f"joint {jn!r} is named twice (also joints[{joint_names.index(jn)}])")
+        joint_names.append(jn)
+        raw_limits.append(item.get("limits"))
+
+    frame_items = rd.sequence(d["frames"], "frames")
+    if not frame_items:
+        raise rd.error("frames", "a model needs at least one frame")
+    frames: list[Frame] = []
+    frame_names: list[str] = []
+    used_joints: set[int] = set()
+    auto_beta: list[int] = []
+    for i, item in enumerate(frame_items):
+        where = f"frames[{i}]"
+        rd.mapping(item, where, FRAME_KEYS, required=("name", "joint"))
+        fn = rd.name(item["name"], f"{where}.name")
+        if fn in frame_names:
+            raise rd.error(f"{where}.name", f"frame {fn!r} is named twice (also frames[{frame_names.index(fn)}])")
+        joint = item["joint"]
+        if joint not in JOINT_TYPES:
+            raise rd.error(f"{where}.joint", f"joint type must be one of {', '.join(JOINT_TYPES)}, got {_show(joint)}")
+        coupling = _coupling(rd, item, where, fn, joint, joint_names, used_joints)
+        used_joints.update(j for j, _ in coupling)
+        parent = _parent(rd, item.get("parent"), f"{where}.parent", i, frame_names)
+        values = {k: rd.number(item[k], f"{where}.{k}") * (L if u == "length" else A if u == "angle" else 1.0)
+                  for k, u in FRAME_VALUES.items() if k in item}
+        com = rd.vector(item["com"], f"{where}.com", 3, L) if "com" in item else (0.0, 0.0, 0.0)
+        hb = item.get("has_beta", "auto")
+        if hb not in (True, False, "auto"):
+            raise rd.error(f"{where}.has_beta", f"expected auto, true or false, got {_show(hb)}")
+        if hb == "auto":
+            auto_beta.append(i)
+        frames.append(Frame(name=fn, joint=joint, parent=parent, coupling=coupling, com=com,
+                            has_beta=bool(hb is True), **values))
+        frame_names.append(fn)
+    beta = parallel_beta_frames(frames, DEFAULT_PARALLEL_TOL)
+    frames = [replace(f, has_beta=beta[i]) if i in auto_beta else f for i, f in enumerate(frames)]
+
+    limits = []
+    for j, raw in enumerate(raw_limits):
+        # a limit is in the unit of what the reading drives: a length for a prismatic frame
+        drives = [f.joint for f in frames if any(k == j for k, _ in f.coupling)]
+        kind = drives[0] if drives else "revolute"
+        where = f"joints[{j}].limits"
+        if raw is None:
+            if kind == "prismatic":
+                raise rd.error(where, f"missing required key 'limits' (joint {joint_names[j]!r} is prismatic)")
+            limits.append((-np.pi, np.pi))
+            continue
+        scale = L if kind == "prismatic" else A
+        lo, hi = (rd.number(v, f"{where}[{k}]", finite=False) * scale
+                  for k, v in enumerate(_pair(rd, raw, where)))
+        if not lo <= hi:
+            raise rd.error(where, f"lower limit exceeds upper limit ({raw[0]} > {raw[1]})")
+        limits.append((lo, hi))
+
+    markers = []
+    marker_names: list[str] = []
+    for m, item in enumerate(rd.sequence(d["markers"], "markers")):
+        where = f"markers[{m}]"
+        rd.mapping(item, where, ("name", "frame", "position", "rotation"), required=("name", "frame"))
+        mn = rd.name(item["name"], f"{where}.name")
+        if mn in marker_names:
+            raise rd.error(f"{where}.name", f"marker {mn!r} is named twice (also markers[{marker_names.index(mn)}])")
+        marker_names.append(mn)
+        fi = _frame_ref(rd, item["frame"], f"{where}.frame", frame_names)
+        pos = rd.vector(item["position"], f"{where}.position", 3, L) if "position" in item else (0.0, 0.0, 0.0)
+        rot = rd.rotation(item["rotation"], f"{where}.rotation", A) if "rotation" in item else IDENTITY
+        markers.append(Marker(mn, fi, pos, rot))
+
+    base_position, base_rotation = (0.0, 0.0, 0.0), IDENTITY
+    if d.get("base") is not None:
+        base = rd.mapping(d["base"], "base", ("position", "rotation"))
+        if "position" in base:
+            base_position = rd.vector(base["position"], "base.position", 3, L)
+        if "rotation" in base:
+            base_rotation = rd.rotation(base["rotation"], "base.rotation", A)
+    gravity = rd.vector(d["gravity"], "gravity", 3) if "gravity" in d else (0.0, 0.0, -9.81)
+
+    payload = Payload()
+    if d.get("payload") is not None:
+        pl = rd.mapping(d["payload"], "payload", ("mass", "com", "frame"))
+        payload = Payload(
+            mass=rd.number(pl["mass"], "payload.mass") if "mass" in pl else 0.0,
+            com=rd.vector(pl["com"], "payload.com", 3, L) if "com" in pl else (0.0, 0.0, 0.0),
+            frame=_frame_ref(rd, pl["frame"], "payload.frame", frame_names) if "frame" in pl else -1)
+    try:
+        return RobotModel(name=str(name), frames=tuple(frames), joint_names=tuple(joint_names),
+                          joint_limits=tuple(limits), markers=tuple(markers), base_position=base_position,
+                          base_rotation=base_rotation, gravity=gravity, payload=payload,
+                          description=description)
+    except InputError as e:  # the record's own checks: add the file name
+        raise InputError(e.detail, source=source, where=e.where) from None
+
+
+def _pair(rd: _Reader, raw, where: str) -> list:
+    seq = rd.sequence(raw, where)
+    if len(seq) != 2:
+        raise rd.error(where, f"expected [lower, upper], got {len(seq)} numbers")
+    return seq
+
+
+def _frame_ref(rd: _Reader, value, where: str, frame_names: list[str]) -> int:
+    if value not in frame_names:
+        raise rd.error(where, f"unknown frame {_show(value)}{_suggest(value, frame_names)}")
+    return frame_names.index(value)
+
+
+def _parent(rd: _Reader, value, where: str, i: int, earlier: list[str]) -> int:
+    if value is None:
+        return i - 1  # the previous frame; for the first frame, the base (-1)
+    if value == "base":
+        return -1
+    if value not in earlier:
+        raise rd.error(where, f"parent {_show(value)} is not a frame defined before this one"
+                              f"{_suggest(value, earlier + ['base'])}")
+    return earlier.index(value)
+
+
+def _coupling(rd: _Reader, item: dict, where: str, fname: str, joint: str, joint_names: list[str],
+              used: set[int]) -> tuple:
+    if joint == "fixed":
+        for key in ("reading", "coupling"):
+            if key in item:
+                raise rd.error(f"{where}.{key}", "a fixed frame has no joint reading")
+        return ()
+    if "reading" in item and "coupling" in item:
+        raise rd.error(f"{where}.coupling", "give either reading or coupling, not both")
+    if "coupling" in item:
+        c = rd.mapping(item["coupling"], f"{where}.coupling", joint_names)
+        if not c:
+            raise rd.error(f"{where}.coupling", "a coupling needs at least one joint")
+        return tuple((joint_names.index(jn), rd.number(v, f"{where}.coupling.{jn}")) for jn, v in c.items())
+    if "reading" in item:
+        jn = item["reading"]
+        if jn not in joint_names:
+            raise rd.error(f"{where}.reading", f"unknown joint {_show(jn)}{_suggest(jn, joint_names)}")
+        return ((joint_names.index(jn), 1.0),)
+    if fname in joint_names:
+        return ((joint_names.index(fname), 1.0),)
+    free = [j for j in range(len(joint_names)) if j not in used]
+    if not free:
+        raise rd.error(f"{where}.reading", "no joint reading is left for this moving frame; add one under "
+                                           "joints or set reading/coupling")
+    return ((free[0], 1.0),)
+
+
+def _yaml_error(e: yaml.YAMLError) -> tuple[str | None, str]:
+    mark = getattr(e, "problem_mark", None)
+    problem = getattr(e, "problem", None) or str(e)
+    return f"line {mark.line + 1}, column {mark.column + 1}" if mark else None, f"not valid YAML: {problem}"
+
+
+def read_text(path) -> tuple[str, str]:
+    """The file's text (UTF-8, a BOM allowed) and the SHA-256 of its bytes; a missing or unreadable
+    file is an InputError."""
+    try:
+        with open(path, "rb") as fh:
+            raw = fh.read()
+    except FileNotFoundError:
+        raise InputError("file not found", source=str(path)) from None
+    except OSError as e:
+        raise InputError(f"cannot read: {e.strerror}", source=str(path)) from None
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        raise InputError(f"not UTF-8 text ({e.reason} at byte {e.start})", source=str(path)) from None
+    return text, hashlib.sha256(raw).hexdigest()
+
+
+def read_model(path) -> RobotModel:
+    """Read a model file (docs/formats.md) into a RobotModel in SI units."""
+    source = str(path)
+    try:
+        d = yaml.safe_load(read_text(path)[0])
+    except yaml.YAMLError as e:
+        where, msg = _yaml_error(e)
+        raise InputError(msg, source=source, where=where) from None
+    if d is None:
+        raise InputError("the file is empty", source=source)
+    return model_from_dict(d, source=source)
+
+
+def model_to_dict(model: RobotModel, *, units: str = "mm-deg") -> dict:
+    """The model file form of ``model`` (plain Python types, ready for YAML or JSON)."""
+    lu, au = parse_units(units)
+    L, A = LENGTH_UNITS[lu], ANGLE_UNITS[au]
+    scale = {"length": 1.0 / L, "angle": 1.0 / A, None: 1.0}
+
+    def num(x, s=1.0):
+        # 15 digits drop the conversion's last-bit noise (-119.99999999999999 deg); still exact to 1e-15
+        return float(f"{float(x) * s:.15g}") if s != 1.0 else float(x)
+
+    def vec(v, s=1.0):
+        return [num(x, s) for x in v]
+
+    def matrix(R):
+        return {"matrix": [vec(row) for row in R]}
+
+    frames = []
+    for i, f in enumerate(model.frames):
+        row = {"name": f.name, "joint": f.joint}
+        if len(f.coupling) == 1 and f.coupling[0][1] == 1.0:
+            row["reading"] = model.joint_names[f.coupling[0][0]]
+        elif f.coupling:
+            c = {}
+            for j, coef in f.coupling:
+                c[model.joint_names[j]] = c.get(model.joint_names[j], 0.0) + float(coef)
+            row["coupling"] = c
+        if f.parent != i - 1:
+            row["parent"] = "base" if f.parent < 0 else model.frames[f.parent].name
+        for k, u in FRAME_VALUES.items():
+            if k in ("gamma", "b") and f.parent == i - 1 and getattr(f, k) == 0.0:
+                continue  # tree offsets: only worth showing where they are used
+            row[k] = num(getattr(f, k), scale[u])
+            if k == "r":
+                row["has_beta"] = bool(f.has_beta)
+            if k == "mass":
+                row["com"] = vec(f.com, scale["length"])
+        frames.append(row)
+    joints = []
+    for j, jn in enumerate(model.joint_names):
+        drives = [f.joint for f in model.frames if any(k == j for k, _ in f.coupling)]
+        s = scale["length"] if drives and drives[0] == "prismatic" else scale["angle"]
+        joints.append({"name": jn, "limits": vec(model.joint_limits[j], s)})
+    markers = []
+    for mk in model.markers:
+        row = {"name": mk.name, "frame": model.frames[mk.frame].name, "position": vec(mk.position, scale["length"])}
+        if not np.array_equal(np.asarray(mk.rotation), np.eye(3)):
+            row["rotation"] = matrix(mk.rotation)  # a matrix keeps a calibrated rotation exact
+        markers.append(row)
+    base = {"position": vec(model.base_position, scale["length"])}
+    if not np.array_equal(np.asarray(model.base_rotation), np.eye(3)):
+        base["rotation"] = matrix(model.base_rotation)
+    d = {"robocal_model": FORMAT_VERSION, "name": model.name}
+    if model.description:
+        d["description"] = model.description
+    d.update({"units": {"length": lu, "angle": au}, "base": base, "gravity": vec(model.gravity),
+              "joints": joints, "frames": frames, "markers": markers})
+    pl = model.payload
+    if pl.mass or any(pl.com) or pl.frame != -1:
+        d["payload"] = {"mass": float(pl.mass), "com": vec(pl.com, scale["length"])}
+        if pl.frame != -1:  # -1 means the last frame; keep it so
+            d["payload"]["frame"] = model.frames[pl.frame].name
+    return d
+
+
+def model_to_yaml(model: RobotModel, *, units: str = "mm-deg") -> str:
+    """The model file text (see model_to_dict)."""
+    return yaml.safe_dump(model_to_dict(model, units=units), sort_keys=False, default_flow_style=None,
+                          width=110, allow_unicode=True)
+
+
+def write_model(model: RobotModel, path, *, units: str = "mm-deg", force: bool = False) -> None:
+    """Write ``model`` as a model file in ``units`` ("mm-deg", "m-rad"...), atomically.
+
+    An existing file is an InputError unless ``force``.
+    """
+    write_texts({path: model_to_yaml(model, units=units)}, force=force)
+
+
+def write_texts(files: dict, *, force: bool = False) -> None:
+    """Write several text files all-or-nothing: refuse if any exists (unless ``force``), write
+    each to a temporary name in its own directory, and rename only once every write succeeded.
+
+    The rename is atomic per file (``os.replace``), so a reader never sees half a file.
+    """
+    paths = [Path(p) for p in files]
+    if not force:
+        for p in paths:
+            if p.exists():
+                raise InputError("exists; pass force=True (--force) to overwrite", source=str(p))
+    staged = []
+    try:
+        for p, text in zip(paths, files.values()):
+            tmp = p.with_name(f".{p.name}.{os.getpid()}.tmp")
+            staged.append((tmp, p))
+            with open(tmp, "w", encoding="utf-8", newline="") as fh:
+                fh.write(text)
+        for tmp, p in staged:
+            os.replace(tmp, p)
+    finally:
+        for tmp, _ in staged:
+            if tmp.exists():
+                tmp.unlink()

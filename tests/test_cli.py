@@ -1,0 +1,289 @@
+"""The command line, through ``main(argv)``: outputs, summaries, and one clear line per bad input."""
+
+import importlib.util
+import json
+import subprocess
+import sys
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import yaml
+
+import robocal as rc
+from robocal._csvio import write_measurements
+from robocal._modelfile import model_to_dict, read_model, write_model
+from robocal.cli import main
+from robots import arm6r
+from test_files import _cell, _drop
+
+HAS_REPORT = importlib.util.find_spec("robocal._report") is not None
+
+
+@pytest.fixture
+def campaign(tmp_path):
+    """A nominal model file, a measurement file of a perturbed robot, and the true robot."""
+    model = arm6r(masses=True)
+    true, data = rc.simulate(model, 40, seed=4)
+    write_model(model, tmp_path / "model.yaml")
+    write_measurements(data, tmp_path / "data.csv", model=model)
+    return tmp_path, model, true, data
+
+
+def run(capsys, *argv):
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_calibrate_writes_model_and_result(campaign, capsys):
+    d, model, true, data = campaign
+    code, out, err = run(capsys, "calibrate", d / "model.yaml", d / "data.csv", "--out", d / "run",
+                         "--holdout", "0.25", "--seed", "1")
+    assert code == 0, err
+    assert "fit, before" in out and "validation, after" in out and "j2.alpha" in out
+    assert "eliminated parameters" in out and "j1.theta" in out and "converged" in out
+    cal = read_model(d / "run" / "calibrated.yaml")
+    result = json.loads((d / "run" / "result.json").read_text())
+    assert result["schema"] == "robocal.result/1"
+    assert result["stats"]["validation_after"]["n"] == 10
+    # the calibrated robot predicts the true robot far better than the nominal one
+    q = rc.random_configurations(model, 20, 2)
+    err_cal = np.linalg.norm(rc.forward_kinematics(cal, q).positions - rc.forward_kinematics(true, q).positions, axis=-1)
+    err_nom = np.linalg.norm(rc.forward_kinematics(model, q).positions - rc.forward_kinematics(true, q).positions,
+                             axis=-1)
+    assert err_cal.mean() < 0.05 * err_nom.mean()
+    assert sorted(p.name for p in (d / "run").iterdir()) == ["calibrated.yaml", "result.json"]
+
+
+def test_calibrate_semicolon_decimal_comma_missing_marker(tmp_path, capsys):
+    model = arm6r(markers=(("tool", (0.05, 0.02, 0.12)), ("t2", (0.1, 0.0, 0.1))))
+    true, data = rc.simulate(model, 30, seed=5)
+    write_model(model, tmp_path / "model.yaml", units="m-rad")
+    lines = ["# units: length=mm angle=deg",
+             ";".join(["pose"] + list(model.joint_names) + [f"{m}_{c}" for m in model.marker_names for c in "xyz"])]
+    for i in range(data.n_poses):
+        cells = [f"P{i}"] + [f"{v:.9f}" for v in np.rad2deg(data.q[i])]
+        for m in range(2):
+            missing = m == 1 and i % 5 == 0  # t2 not seen in every fifth pose
+            cells += ["" if missing else f"{v * 1e3:.6f}" for v in data.positions[i, m]]
+        lines.append(";".join(c.replace(".", ",") for c in cells))
+    (tmp_path / "d.csv").write_text("\n".join(lines) + "\n")
+    code, out, err = run(capsys, "calibrate", tmp_path / "model.yaml", tmp_path / "d.csv", "--out", tmp_path / "o",
+                         "--sep", ";", "--decimal", ",")
+    assert code == 0, err
+    result = json.loads((tmp_path / "o" / "result.json").read_text())
+    assert result["stats"]["fit_after"]["n"] == 30 + 24
+    assert result["stats"]["fit_after"]["rms"] < 1e-4
+
+
+def test_calibrate_validation_file_and_limit(campaign, capsys):
+    d, model, true, data = campaign
+    val = rc.measure(true, rc.random_configurations(model, 10, 9), rng=9)  # the same robot, other poses
+    write_measurements(val, d / "val.csv", model=model)
+    code, out, err = run(capsys, "calibrate", d / "model.yaml", d / "data.csv", "--out", d / "run",
+                         "--validation", d / "val.csv", "--limit-mm", "0.1", "--known", "markers")
+    assert code == 0, err
+    assert "limit of absolute accuracy 0.100 mm" in out and "reached" in out
+    result = json.loads((d / "run" / "result.json").read_text())
+    assert result["provenance"]["validation"]["n_poses"] == 10
+    assert not any(p["name"].startswith("tool.") for p in result["parameters"])
+
+
+def test_calibrate_compare(tmp_path, capsys):
+    d = tmp_path
+    model = arm6r(masses=True)
+    # centres of mass off the last axes: a moment that is zero up to rounding is not a parameter
+    frames = model.frames[:4] + tuple(replace(f, com=(0.01, 0.02, 0.03)) for f in model.frames[4:])
+    model = model.replace(frames=frames)
+    true, data = rc.simulate(model, 60, parameters=("geometric", "compliance"), compliance_error=(1e-6, 5e-6),
+                             seed=4)
+    write_model(model, d / "model.yaml")
+    write_measurements(data, d / "data.csv", model=model)
+    code, out, err = run(capsys, "calibrate", d / "model.yaml", d / "data.csv", "--out", d / "cmp", "--compare",
+                         "--holdout", "0.3")
+    assert code == 0, err
+    assert "geometric+compliance" in out and "better by" in out
+    assert sorted(p.name for p in (d / "cmp").iterdir()) == ["calibrated.yaml", "result-compliance.json",
+                                                             "result-geometric.json"]
+
+
+def test_force_overwrites(campaign, capsys):
+    d, *_ = campaign
+    args = ["calibrate", d / "model.yaml", d / "data.csv", "--out", d / "run"]
+    assert run(capsys, *args)[0] == 0
+    code, out, err = run(capsys, *args)
+    assert code == 2 and "exists; pass --force" in err
+    assert run(capsys, *args, "--force")[0] == 0
+
+
+@pytest.mark.skipif(HAS_REPORT, reason="the report extra is installed")
+def test_report_missing_extra(campaign, capsys):
+    d, *_ = campaign
+    code, out, err = run(capsys, "calibrate", d / "model.yaml", d / "data.csv", "--out", d / "run", "--report")
+    assert code == 1 and "report extra not installed" in err
+    assert not (d / "run").exists()
+
+
+def test_simulate_then_identifiability(tmp_path, capsys):
+    write_model(arm6r(), tmp_path / "m.yaml")
+    code, out, err = run(capsys, "simulate", tmp_path / "m.yaml", "--out", tmp_path / "s.csv", "--poses", 15,
+                         "--seed", 3, "--noise-mm", 0.01, "--length-error-mm", "0.5,1", "--true-model",
+                         tmp_path / "true.yaml")
+    assert code == 0, err
+    data = rc._csvio.read_measurements(tmp_path / "s.csv", read_model(tmp_path / "m.yaml"))
+    assert data.n_poses == 15
+    true = read_model(tmp_path / "true.yaml")
+    q = data.q
+    assert np.abs(rc.forward_kinematics(true, q).positions - data.positions).max() < 1e-4  # noise 0.01 mm
+    code, out, err = run(capsys, "identifiability", tmp_path / "m.yaml", tmp_path / "s.csv")
+    assert code == 0, err
+    table = {line.split()[0]: line.split()[1:] for line in out.splitlines() if line.startswith("  j")}
+    assert table["j1"][:5] == ["E", "E", "E", "E", "E"]       # frame 1 goes to the base
+    assert table["j3"][:5] == ["I", "I", "I", "I", "E"]       # r of the second parallel axis
+    assert "j3.r" in out and "= +1*j2.r" in out
+    assert "condition number" in out and "O1" in out
+    code, out2, err = run(capsys, "identifiability", tmp_path / "m.yaml", "--poses", 30, "--seed", 1)
+    assert code == 0 and "30 random poses" in out2
+
+
+def test_help_for_every_command(capsys):
+    for cmd in ("calibrate", "simulate", "identifiability", "report"):
+        code, out, err = run(capsys, cmd, "--help")
+        assert code == 0 and f"usage: robocal {cmd}" in out
+
+
+def test_python_dash_m(tmp_path):
+    out = subprocess.run([sys.executable, "-m", "robocal", "--version"], capture_output=True, text=True)
+    assert out.returncode == 0 and "robocal" in out.stdout
+
+
+# ------------------------------------------------------------------------------------------------
+# every bad input: exit 2, one line naming the file and the place, no traceback, nothing written
+
+def _edit_csv(path, edit):
+    lines = path.read_text().splitlines()
+    edit(lines)
+    path.write_text("\n".join(lines) + "\n")
+
+
+def _set(lines, row, col_name, value):
+    _cell(lines, row, lines[0].split(",").index(col_name), value)
+
+
+def _edit_model(path, edit):
+    d = yaml.safe_load(path.read_text())
+    edit(d)
+    path.write_text(yaml.safe_dump(d, sort_keys=False))
+
+
+CSV_CASES = {
+    "missing column": (lambda ls: _drop(ls, "tool_y_mm"), ["missing column tool_y"]),
+    "non-numeric cell": (lambda ls: _set(ls, 4, "j3_deg", "12.5x"), ["line 5", "'j3_deg'", "expected a number"]),
+    "NaN": (lambda ls: _set(ls, 6, "tool_z_mm", "nan"), ["line 7", "'tool_z_mm'", "not a measurement"]),
+    "wrong number of joints": (lambda ls: _drop(ls, "j6_deg"), ["line 1", "missing column 'j6'", "6 joints"]),
+    "unknown unit": (lambda ls: _set(ls, 0, "tool_x_mm", "tool_x_cm"), ["line 1", "'tool_x_cm'",
+                                                                         "unknown length unit 'cm'"]),
+    "cell count": (lambda ls: ls.__setitem__(9, ls[9] + ",3"), ["line 10", "cells where the header has"]),
+    "fewer poses than parameters": (lambda ls: ls.__delitem__(slice(6, None)), ["5 poses", "identifiable parameters"]),
+}
+
+MODEL_CASES = {
+    "misspelt key": (lambda d: d["frames"][2].update(thetta=d["frames"][2].pop("theta")),
+                     ["frames[2].thetta", "did you mean 'theta'"]),
+    "missing key": (lambda d: d["markers"][0].pop("frame"), ["markers[0].frame", "missing required key"]),
+    "marker on an unknown frame": (lambda d: d["markers"][0].update(frame="f6"), ["markers[0].frame",
+                                                                                 "unknown frame 'f6'"]),
+    "joint named twice": (lambda d: d["joints"][4].update(name="j2"), ["joints[4].name", "'j2' is named twice"]),
+    "unknown unit": (lambda d: d["units"].update(angle="grad"), ["units.angle", "unknown angle unit 'grad'"]),
+    "non-numeric value": (lambda d: d["frames"][3].update(d="long"), ["frames[3].d", "expected a number"]),
+}
+
+
+def assert_clean_failure(code, err, cmd, words, out_dir):
+    assert code == 2
+    assert "Traceback" not in err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"robocal {cmd}: error: "), err
+    for w in words:
+        assert w in lines[0], (w, lines[0])
+    assert not out_dir.exists() or not any(out_dir.iterdir())
+
+
+@pytest.mark.parametrize("kind, case", [("csv", c) for c in sorted(CSV_CASES)] +
+                         [("model", c) for c in sorted(MODEL_CASES)])
+def test_bad_input_file(campaign, capsys, kind, case):
+    d, *_ = campaign
+    if kind == "csv":
+        bad, (edit, words) = d / "data.csv", CSV_CASES[case]
+        _edit_csv(bad, edit)
+    else:
+        bad, (edit, words) = d / "model.yaml", MODEL_CASES[case]
+        _edit_model(bad, edit)
+    code, out, err = run(capsys, "calibrate", d / "model.yaml", d / "data.csv", "--out", d / "run")
+    assert_clean_failure(code, err, "calibrate", [str(bad)] + words, d / "run")
+
+
+def test_zero_quaternion(tmp_path, capsys):
+    model = arm6r()
+    true, data = rc.simulate(model, 20, seed=2, orientation=True, noise_rot=1e-5)
+    write_model(model, tmp_path / "model.yaml")
+    write_measurements(data, tmp_path / "data.csv", model=model)
+    lines = (tmp_path / "data.csv").read_text().splitlines()
+    comment, rest = lines[0], lines[1:]
+    for c in ("tool_qx", "tool_qy", "tool_qz", "tool_qw"):
+        _set(rest, 3, c, "0.0")
+    (tmp_path / "data.csv").write_text("\n".join([comment] + rest) + "\n")
+    code, out, err = run(capsys, "calibrate", tmp_path / "model.yaml", tmp_path / "data.csv", "--out", tmp_path / "o")
+    assert_clean_failure(code, err, "calibrate", [str(tmp_path / "data.csv"), "line 5", "'tool_qx'",
+                                                  "quaternion of zero norm"], tmp_path / "o")
+
+
+def test_no_units_declared(campaign, capsys):
+    d, *_ = campaign
+    _edit_csv(d / "data.csv", lambda ls: ls.__setitem__(0, ls[0].replace("_mm", "").replace("_deg", "")))
+    code, out, err = run(capsys, "calibrate", d / "model.yaml", d / "data.csv", "--out", d / "run")
+    assert_clean_failure(code, err, "calibrate", [str(d / "data.csv"), "line 1", "'j1'", "--units mm-deg"],
+                         d / "run")
+    code, out, err = run(capsys, "calibrate", d / "model.yaml", d / "data.csv", "--out", d / "run",
+                         "--units", "mm-deg")
+    assert code == 0, err
+
+
+def test_existing_output_without_force(campaign, capsys):
+    d, *_ = campaign
+    (d / "run").mkdir()
+    (d / "run" / "result.json").write_text("mine")
+    code, out, err = run(capsys, "calibrate", d / "model.yaml", d / "data.csv", "--out", d / "run")
+    assert code == 2 and "Traceback" not in err
+    assert f"{d / 'run' / 'result.json'}: exists; pass --force" in err
+    assert sorted(p.name for p in (d / "run").iterdir()) == ["result.json"]
+    assert (d / "run" / "result.json").read_text() == "mine"
+
+
+def test_simulate_refuses_existing_output(tmp_path, capsys):
+    write_model(arm6r(), tmp_path / "m.yaml")
+    (tmp_path / "s.csv").write_text("keep")
+    code, out, err = run(capsys, "simulate", tmp_path / "m.yaml", "--out", tmp_path / "s.csv", "--poses", 5)
+    assert code == 2 and "exists" in err and (tmp_path / "s.csv").read_text() == "keep"
+
+
+def test_missing_files_and_bad_options(tmp_path, capsys):
+    code, out, err = run(capsys, "calibrate", tmp_path / "none.yaml", tmp_path / "none.csv", "--out", tmp_path / "o")
+    assert code == 2 and "none.yaml: file not found" in err and "Traceback" not in err
+    code, out, err = run(capsys, "calibrate", "m.yaml", "d.csv", "--out", "o", "--holdout", "1.5")
+    assert code == 2 and "fraction" in err
+    code, out, err = run(capsys, "calibrate", "m.yaml", "d.csv", "--out", "o", "--units", "mm-grad")
+    assert code == 2 and "unknown angle unit 'grad'" in err
+
+
+def test_unknown_parameter_family(campaign, capsys):
+    d, *_ = campaign
+    code, out, err = run(capsys, "calibrate", d / "model.yaml", d / "data.csv", "--out", d / "run",
+                         "--parameters", "geometric,geometry")
+    assert_clean_failure(code, err, "calibrate", ["parameters", "'geometry'"], d / "run")
+
+
+def test_model_dict_matches_written_file(campaign):
+    d, model, *_ = campaign
+    assert yaml.safe_load((d / "model.yaml").read_text()) == model_to_dict(model)
