@@ -1,0 +1,120 @@
+"""``robocal limit``: the limit of absolute accuracy of a robot model (METHOD.md section 5).
+
+Parses units at the edge (deg, rad, mm, m), calls the library in SI, writes JSON atomically.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import sys
+
+from ._errors import InputError, RobocalError
+from ._limit import (DEFAULT_CHUNK, MARKER_MODES, LENGTH_UNITS, accuracy_limit, controller_precision,
+                     iso9283_repeatability, joint_reading_is_angle, read_repeatability_csv)
+
+PROG = "robocal limit"
+_UNITS = {"deg": (math.pi / 180, True), "rad": (1.0, True), "mm": (1e-3, False), "m": (1.0, False)}
+_ENTRY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(deg|rad|mm|m)\s*$")
+
+
+def register(subparsers) -> None:
+    """Add the ``limit`` subcommand to an argparse subparsers object (``run`` is set as ``func``)."""
+    p = subparsers.add_parser(
+        "limit", help="limit of absolute accuracy: repeatability + geometric-control precision",
+        description="Limit of absolute accuracy = ISO 9283 repeatability RP + the mean tool deviation "
+                    "caused by encoder resolution and parameter round-off (Monte Carlo).")
+    p.add_argument("model", help="robot model file")
+    rep = p.add_mutually_exclusive_group(required=True)
+    rep.add_argument("--repeatability-csv", metavar="FILE",
+                     help="repeated measurements, columns pose, cycle, x, y, z")
+    rep.add_argument("--repeatability-mm", metavar="X", type=float, help="pose repeatability RP in mm")
+    p.add_argument("--csv-units", choices=tuple(LENGTH_UNITS), default="mm",
+                   help="units of x, y, z in the CSV (default mm)")
+    p.add_argument("--encoder-resolution", required=True, metavar="LIST",
+                   help='one per joint with its unit, e.g. "0.01deg,0.01deg,0.1mm" (deg, rad, mm, m)')
+    p.add_argument("--length-quantum-mm", required=True, type=float, metavar="X",
+                   help="round-off quantum of stored lengths, mm")
+    p.add_argument("--angle-quantum-deg", required=True, type=float, metavar="X",
+                   help="round-off quantum of stored angles, degrees")
+    p.add_argument("--samples", type=int, default=100_000, metavar="N", help="Monte Carlo samples (default 100000)")
+    p.add_argument("--seed", type=int, default=0, metavar="S", help="random seed (default 0)")
+    p.add_argument("--chunk-size", type=int, default=DEFAULT_CHUNK, metavar="N",
+                   help=f"configurations per vectorised chunk (default {DEFAULT_CHUNK})")
+    p.add_argument("--markers", choices=MARKER_MODES, default="first",
+                   help="deviation of the first marker, or the worst over all markers")
+    p.add_argument("--out", required=True, metavar="FILE.json", help="where to write the result")
+    p.add_argument("--force", action="store_true", help="overwrite --out if it exists")
+    p.set_defaults(func=run)
+
+
+def parse_resolution(text: str, is_angle) -> list[float]:
+    """``"0.01deg,0.1mm"`` -> SI values, one per joint reading; the unit must suit the joint."""
+    entries = [e for e in text.split(",")]
+    if len(entries) != len(is_angle):
+        raise InputError(f"expected one entry per joint ({len(is_angle)} joints), got {len(entries)}",
+                         where="--encoder-resolution")
+    out = []
+    for j, (entry, angle) in enumerate(zip(entries, is_angle)):
+        m = _ENTRY.match(entry)
+        if m is None:
+            raise InputError(f"joint {j + 1}: expected a number with a unit (deg, rad, mm, m), got {entry.strip()!r}",
+                             where="--encoder-resolution")
+        scale, unit_is_angle = _UNITS[m.group(2)]
+        if unit_is_angle != bool(angle):
+            kind = "revolute (deg or rad)" if angle else "prismatic (mm or m)"
+            raise InputError(f"joint {j + 1} is {kind}, got {entry.strip()!r}", where="--encoder-resolution")
+        out.append(float(m.group(1)) * scale)
+    return out
+
+
+def _progress_bar():
+    """A progress callback for a terminal, or None (stderr is not a terminal)."""
+    if not sys.stderr.isatty():
+        return None
+
+    def show(done: int, total: int) -> None:
+        width = 30
+        filled = width * done // total
+        sys.stderr.write(f"\r{PROG}: [{'#' * filled}{'.' * (width - filled)}] {done}/{total}")
+        if done == total:
+            sys.stderr.write("\n")
+        sys.stderr.flush()
+    return show
+
+
+def run(args) -> int:
+    """Run ``robocal limit``; 0 on success, 2 on bad input (one line on stderr)."""
+    try:
+        if os.path.exists(args.out) and not args.force:
+            raise InputError("exists; use --force to overwrite", source=args.out)
+        # readers and writers are imported here so the library does not depend on the file layer
+        from ._modelfile import read_model, write_texts
+        from ._resultio import result_to_json
+
+        model = read_model(args.model)
+        resolution = parse_resolution(args.encoder_resolution, joint_reading_is_angle(model))
+        if args.repeatability_csv is not None:
+            data = read_repeatability_csv(args.repeatability_csv, units=args.csv_units)
+            repeatability = iso9283_repeatability(data.pose_ids, data.points)
+        else:
+            repeatability = args.repeatability_mm * 1e-3
+        long_run = args.samples > args.chunk_size
+        precision = controller_precision(
+            model, encoder_resolution=resolution, length_quantum=args.length_quantum_mm * 1e-3,
+            angle_quantum=math.radians(args.angle_quantum_deg), n_samples=args.samples,
+            chunk_size=args.chunk_size, rng=args.seed, markers=args.markers,
+            progress=_progress_bar() if long_run else None)
+        limit = accuracy_limit(repeatability, precision)
+        out = limit.to_dict()
+        out["run"] = {"model": str(args.model), "seed": args.seed,
+                      "repeatability_source": args.repeatability_csv or "--repeatability-mm"}
+        write_texts({args.out: result_to_json(out)}, force=args.force)  # atomic, refuses to overwrite
+    except RobocalError as exc:
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return 2
+    print(f"limit of absolute accuracy {limit.limit * 1e3:.4f} mm = repeatability {limit.repeatability * 1e3:.4f} mm"
+          f" + geometric control {limit.precision * 1e3:.4f} mm (mean; 95th percentile "
+          f"{limit.precision_p95 * 1e3:.4f} mm) -> {args.out}")
+    return 0

@@ -1,0 +1,556 @@
+"""The limit of absolute accuracy (METHOD.md section 5): repeatability + geometric-control precision.
+
+Calibration cannot make a robot more accurate than the sum of
+
+* the precision of the positioning control system, the pose repeatability RP of ISO 9283
+  (``iso9283_repeatability``), and
+* the precision of the geometric control system: the tool moves even with perfect parameters,
+  because the controller reads its joints with a finite encoder resolution and stores its
+  dimensional parameters rounded to a quantum (``controller_precision``, a Monte Carlo over the
+  workspace; ``predicted_controller_precision`` is its first-order counterpart).
+
+``accuracy_limit`` adds the two. Everything is SI inside (metres, radians); the CSV reader is the
+only place where millimetres appear.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass, field
+from typing import Callable, Hashable, Sequence
+
+import numpy as np
+
+from ._errors import InputError
+from ._kinematics import _kinematic_pass, evaluate, layout, parameter_names, parameter_vector
+from ._model import FRAME_KINDS, RobotModel
+
+LIMIT_SCHEMA = "robocal.limit/1"
+LENGTH_UNITS = {"mm": 1e-3, "m": 1.0}
+CSV_COLUMNS = ("pose", "cycle", "x", "y", "z")
+PERCENTILES = (50.0, 90.0, 95.0, 99.0)
+MARKER_MODES = ("first", "all")
+DEFAULT_CHUNK = 2048
+# stored parameters rounded to the controller's quanta (METHOD.md section 5)
+_LENGTH_KINDS = ("b", "d", "r")
+_ANGLE_KINDS = ("gamma", "beta", "alpha", "theta")
+
+
+# -- records -----------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class RepeatabilityData:
+    """Repeated measurements of attained positions: ``points`` (n, 3) in metres, in file order.
+
+    ``pose_ids`` (n,) name the commanded pose of each row, ``cycles`` (n,) its cycle number.
+    """
+
+    pose_ids: tuple[str, ...]
+    cycles: np.ndarray = field(compare=False)
+    points: np.ndarray = field(compare=False)
+    source: str = ""
+
+
+@dataclass(frozen=True)
+class PoseRepeatability:
+    """ISO 9283 pose repeatability of one commanded pose (metres).
+
+    ``barycentre`` is the mean attained position, ``l`` the distances l_j of the attained positions
+    from it, ``s_l`` their sample standard deviation (n - 1) and ``rp = l_mean + 3 s_l``.
+    """
+
+    pose: Hashable
+    n_cycles: int
+    barycentre: tuple[float, float, float]
+    l: tuple[float, ...]
+    l_mean: float
+    s_l: float
+    rp: float
+
+    def to_dict(self) -> dict:
+        return {"pose": _plain_id(self.pose), "n_cycles": self.n_cycles,
+                "barycentre": list(self.barycentre), "l": list(self.l), "l_mean": self.l_mean,
+                "s_l": self.s_l, "rp": self.rp}
+
+
+@dataclass(frozen=True)
+class RepeatabilityResult:
+    """Per-pose ISO 9283 repeatability; ``rp`` is the worst pose's RP (metres)."""
+
+    poses: tuple[PoseRepeatability, ...]
+    rp: float
+    worst_pose: Hashable
+
+    def to_dict(self) -> dict:
+        return {"rp": self.rp, "worst_pose": _plain_id(self.worst_pose),
+                "poses": [p.to_dict() for p in self.poses]}
+
+
+@dataclass(frozen=True)
+class PrecisionResult:
+    """Monte Carlo of the geometric control system's precision: tool deviations in metres.
+
+    ``mean`` is the statistic that counts as the precision; ``standard_error`` is that of the mean
+    (std / sqrt(n), the samples are independent). ``rms`` (with ``rms_standard_error``, delta
+    method) is the figure to compare with ``predicted_controller_precision``. ``percentiles`` are
+    ``((50, v), (90, v), (95, v), (99, v))``. ``deviations`` (n_samples,) holds every sample.
+    """
+
+    n_samples: int
+    mean: float
+    std: float
+    standard_error: float
+    rms: float
+    rms_standard_error: float
+    percentiles: tuple[tuple[float, float], ...]
+    max: float
+    encoder_resolution: tuple[float, ...]
+    length_quantum: float
+    angle_quantum: float
+    markers: str
+    rounded_parameters: tuple[str, ...]
+    method: str
+    deviations: np.ndarray = field(repr=False, compare=False)
+
+    def percentile(self, pct: float) -> float:
+        return dict(self.percentiles)[float(pct)]
+
+    def to_dict(self) -> dict:
+        return {"statistic": "mean", "n_samples": self.n_samples, "mean": self.mean, "std": self.std,
+                "standard_error": self.standard_error, "rms": self.rms,
+                "rms_standard_error": self.rms_standard_error,
+                "percentiles": {f"p{pct:g}": v for pct, v in self.percentiles}, "max": self.max,
+                "encoder_resolution": list(self.encoder_resolution),
+                "length_quantum": self.length_quantum, "angle_quantum": self.angle_quantum,
+                "markers": self.markers, "rounded_parameters": list(self.rounded_parameters),
+                "method": self.method}
+
+
+@dataclass(frozen=True)
+class PredictedPrecision:
+    """First-order prediction of the geometric control precision (metres), averaged over the workspace.
+
+    ``rms`` = sqrt(E_q trace(J Sigma J^T)) is exact to first order whatever the error
+    distribution; ``mean_gaussian`` is E|dP| for dP ~ N(0, J Sigma J^T), an approximation (the
+    quantisation errors are uniform, not Gaussian). Standard errors are those of the sampling
+    over configurations (and Gaussian draws).
+    """
+
+    n_configurations: int
+    rms: float
+    rms_standard_error: float
+    mean_gaussian: float
+    mean_gaussian_standard_error: float
+    marker: str
+
+    def to_dict(self) -> dict:
+        return {"n_configurations": self.n_configurations, "rms": self.rms,
+                "rms_standard_error": self.rms_standard_error, "mean_gaussian": self.mean_gaussian,
+                "mean_gaussian_standard_error": self.mean_gaussian_standard_error, "marker": self.marker}
+
+
+@dataclass(frozen=True)
+class AccuracyLimit:
+    """The limit of absolute accuracy (metres): ``limit = repeatability + precision``.
+
+    ``precision`` is the Monte Carlo mean tool deviation (``precision_statistic == "mean"``: the
+    paper compares mean errors); ``limit_p95`` uses the 95th percentile instead.
+    """
+
+    repeatability: float
+    precision: float
+    precision_p95: float
+    limit: float
+    limit_p95: float
+    precision_statistic: str
+    repeatability_detail: RepeatabilityResult | None
+    precision_detail: PrecisionResult
+
+    def to_dict(self) -> dict:
+        return {"schema": LIMIT_SCHEMA, "unit": "m", "limit": self.limit, "limit_p95": self.limit_p95,
+                "repeatability": self.repeatability, "precision": self.precision,
+                "precision_p95": self.precision_p95, "precision_statistic": self.precision_statistic,
+                "repeatability_detail": None if self.repeatability_detail is None
+                else self.repeatability_detail.to_dict(),
+                "precision_detail": self.precision_detail.to_dict()}
+
+
+def _plain_id(pose):
+    """A pose id as a JSON type (numpy scalars become Python ones)."""
+    pose = pose.item() if isinstance(pose, np.generic) else pose
+    return pose if isinstance(pose, (str, int)) else str(pose)
+
+
+# -- ISO 9283 repeatability --------------------------------------------------------------------
+
+def read_repeatability_csv(path, *, units: str = "mm") -> RepeatabilityData:
+    """Read repeated measurements: columns ``pose, cycle, x, y, z`` (header required, any order,
+    further columns ignored). ``units`` ("mm" or "m") are those of x, y, z; the result is in metres.
+
+    Errors name the file and ``row N, column 'c'`` with N the line number in the file (header = 1).
+    """
+    if units not in LENGTH_UNITS:
+        raise InputError(f"units must be one of {', '.join(LENGTH_UNITS)}, got {units!r}", where="units")
+    scale = LENGTH_UNITS[units]
+    src = str(path)
+    try:
+        with open(path, newline="") as fh:
+            reader = csv.reader(fh)
+            header = next(reader, None)
+            if header is None:
+                raise InputError("the file is empty; a header pose, cycle, x, y, z is required", source=src)
+            names = [h.strip().lower() for h in header]
+            for c in CSV_COLUMNS:
+                if c not in names:
+                    raise InputError(f"missing column {c!r} (need {', '.join(CSV_COLUMNS)})",
+                                     source=src, where="header")
+            col = {c: names.index(c) for c in CSV_COLUMNS}
+            pose_ids, cycles, points, rows_of = [], [], [], {}
+            seen = {}
+            for row in reader:
+                if not any(cell.strip() for cell in row):
+                    continue
+                line = reader.line_num
+                cells = {}
+                for c in CSV_COLUMNS:
+                    where = f"row {line}, column {c!r}"
+                    if col[c] >= len(row) or not row[col[c]].strip():
+                        raise InputError("empty cell", source=src, where=where)
+                    cells[c] = row[col[c]].strip()
+                try:
+                    cycle = int(cells["cycle"])
+                except ValueError:
+                    raise InputError(f"expected an integer cycle number, got {cells['cycle']!r}",
+                                     source=src, where=f"row {line}, column 'cycle'") from None
+                xyz = []
+                for c in "xyz":
+                    where = f"row {line}, column {c!r}"
+                    try:
+                        v = float(cells[c])
+                    except ValueError:
+                        raise InputError(f"expected a number, got {cells[c]!r}", source=src, where=where) from None
+                    if not math.isfinite(v):
+                        raise InputError(f"expected a finite number, got {cells[c]!r}", source=src, where=where)
+                    xyz.append(v * scale)
+                key = (cells["pose"], cycle)
+                if key in seen:
+                    raise InputError(f"pose {cells['pose']!r} cycle {cycle} already given in row {seen[key]}",
+                                     source=src, where=f"row {line}")
+                seen[key] = line
+                rows_of.setdefault(cells["pose"], []).append(line)
+                pose_ids.append(cells["pose"])
+                cycles.append(cycle)
+                points.append(xyz)
+    except OSError as exc:
+        raise InputError(f"cannot read: {exc.strerror}", source=src) from None
+    if not points:
+        raise InputError("no measurements after the header", source=src)
+    for pose, lines in rows_of.items():
+        if len(lines) < 2:
+            raise InputError(f"pose {pose!r} has a single cycle; repeatability needs at least two",
+                             source=src, where=f"row {lines[0]}")
+    return RepeatabilityData(pose_ids=tuple(pose_ids), cycles=np.array(cycles, dtype=int),
+                             points=np.array(points, dtype=float), source=src)
+
+
+def iso9283_repeatability(pose_ids: Sequence[Hashable], points) -> RepeatabilityResult:
+    """ISO 9283 pose repeatability of each commanded pose and the worst pose.
+
+    ``pose_ids`` (n,) name the commanded pose of each attained position ``points`` (n, 3), metres.
+    Per pose: barycentre, ``l_j = |P_j - barycentre|``, ``l_mean``, ``S_l`` (sample standard
+    deviation, n - 1) and ``RP = l_mean + 3 S_l``. Poses are reported in order of first appearance.
+
+    >>> r = iso9283_repeatability(["a"] * 2, [[0.0, 0, 0], [0.002, 0, 0]])
+    >>> round(r.poses[0].l_mean, 6), round(r.poses[0].s_l, 6), round(r.rp, 6)
+    (0.001, 0.0, 0.001)
+    """
+    P = np.asarray(points, dtype=float)
+    ids = list(pose_ids)
+    if P.ndim != 2 or P.shape[1] != 3:
+        raise InputError(f"expected an (n, 3) array, got shape {P.shape}", where="points")
+    if len(ids) != P.shape[0]:
+        raise InputError(f"{len(ids)} pose ids for {P.shape[0]} points", where="pose_ids")
+    if not np.all(np.isfinite(P)):
+        raise InputError("points must be finite", where="points")
+    order: dict = {}
+    for i, pid in enumerate(ids):
+        order.setdefault(pid, []).append(i)
+    if not order:
+        raise InputError("no measurements", where="points")
+    poses = []
+    for pid, rows in order.items():
+        if len(rows) < 2:
+            raise InputError(f"pose {pid!r} has a single cycle; repeatability needs at least two",
+                             where="pose_ids")
+        Pj = P[rows]
+        bary = Pj.mean(axis=0)
+        l = np.linalg.norm(Pj - bary, axis=1)
+        l_mean = float(l.mean())
+        s_l = float(l.std(ddof=1))
+        poses.append(PoseRepeatability(pose=pid, n_cycles=len(rows), barycentre=tuple(float(v) for v in bary),
+                                       l=tuple(float(v) for v in l), l_mean=l_mean, s_l=s_l,
+                                       rp=l_mean + 3.0 * s_l))
+    worst = max(poses, key=lambda r: r.rp)
+    return RepeatabilityResult(poses=tuple(poses), rp=worst.rp, worst_pose=worst.pose)
+
+
+# -- geometric control precision ---------------------------------------------------------------
+
+@dataclass(frozen=True)
+class _Rounded:
+    """The parameters the controller stores rounded: indices in the full vector, steps, quanta."""
+
+    names: tuple[str, ...]
+    params: np.ndarray   # (K,) index in parameter_vector
+    steps: np.ndarray    # (K,) step of the kinematic pass each one moves
+    quanta: np.ndarray   # (K,) metres or radians
+
+
+def rounded_parameters(model: RobotModel, length_quantum: float, angle_quantum: float) -> _Rounded:
+    """Which stored parameters the controller rounds, with their quanta.
+
+    Every frame's d, r (lengths) and alpha, theta (angles); beta where the frame carries it; gamma
+    and b where the frame hangs off a frame other than its predecessor (elsewhere they are
+    structural zeros, not stored numbers); every marker's and the base's x, y, z. Rotation
+    corrections and compliances are not stored dimensions.
+    """
+    lay = layout(model)
+    names = parameter_names(model)
+    step_of = {int(p): s for s, p in enumerate(lay.step_param)}
+    chosen = []
+    for i, f in enumerate(model.frames):
+        kinds = ["d", "r", "alpha", "theta"]
+        if f.has_beta:
+            kinds.append("beta")
+        if f.parent != i - 1:
+            kinds += ["gamma", "b"]
+        chosen += [(f"{f.name}.{k}", length_quantum if k in _LENGTH_KINDS else angle_quantum) for k in kinds]
+    for prefix in ["base"] + [m.name for m in model.markers]:
+        chosen += [(f"{prefix}.{k}", length_quantum) for k in "xyz"]
+    idx = np.array([names.index(n) for n, _ in chosen], dtype=int)
+    # keep the parameter-vector order so the random stream does not depend on how we listed them
+    order = np.argsort(idx, kind="stable")
+    idx = idx[order]
+    return _Rounded(names=tuple(names[i] for i in idx), params=idx,
+                    steps=np.array([step_of[int(i)] for i in idx], dtype=int),
+                    quanta=np.array([chosen[k][1] for k in order], dtype=float))
+
+
+def _nonnegative(value, name: str) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"expected a number, got {value!r}", where=name) from None
+    if not math.isfinite(v) or v < 0:
+        raise InputError(f"must be a finite number >= 0, got {value!r}", where=name)
+    return v
+
+
+def _count(value, name: str, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise InputError(f"must be an integer >= {minimum}, got {value!r}", where=name)
+    return int(value)
+
+
+def _resolution(model: RobotModel, encoder_resolution) -> np.ndarray:
+    res = np.atleast_1d(np.asarray(encoder_resolution, dtype=float))
+    if res.shape == (1,):
+        res = np.repeat(res, model.n_joints)
+    if res.shape != (model.n_joints,):
+        raise InputError(f"expected one resolution per joint ({model.n_joints}), got {res.size}",
+                         where="encoder_resolution")
+    if not np.all(np.isfinite(res)) or np.any(res < 0):
+        raise InputError(f"resolutions must be finite and >= 0, got {res.tolist()}", where="encoder_resolution")
+    return res
+
+
+def _generator(rng) -> np.random.Generator:
+    if isinstance(rng, np.random.Generator):
+        return rng
+    if isinstance(rng, (int, np.integer)) and not isinstance(rng, bool):
+        return np.random.default_rng(int(rng))
+    raise InputError(f"expected a numpy Generator or an integer seed, got {rng!r}", where="rng")
+
+
+def _joint_box(model: RobotModel) -> tuple[np.ndarray, np.ndarray]:
+    lo, hi = model.lower_limits, model.upper_limits
+    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+        raise InputError("configurations are drawn within the joint limits, which must be finite",
+                         where="joint_limits")
+    return lo, hi
+
+
+def joint_reading_is_angle(model: RobotModel) -> np.ndarray:
+    """(n_joints,) bool: the reading drives a revolute frame (radians) rather than a prismatic one."""
+    out = np.zeros(model.n_joints, dtype=bool)
+    for f in model.frames:
+        for j, _ in f.coupling:
+            out[j] |= f.joint == "revolute"
+    return out
+
+
+def _error_model(model: RobotModel, encoder_resolution, length_quantum, angle_quantum):
+    """Validated joint resolutions (n_joints,), the rounded parameters and the joint box."""
+    res = _resolution(model, encoder_resolution)
+    rp = rounded_parameters(model, _nonnegative(length_quantum, "length_quantum"),
+                            _nonnegative(angle_quantum, "angle_quantum"))
+    return res, rp, _joint_box(model)
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross product over the last axis (np.cross is several times slower on (K, N, 3) stacks)."""
+    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+                     a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
+
+
+def _parameter_displacement(ps, rot: np.ndarray, steps: np.ndarray, on_path: np.ndarray,
+                            dp: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """First-order tool displacement (N, 3) of the point P (N, 3) for per-pose errors dp (N, K).
+
+    A rotation step by dp about unit axis u through Q moves P by dp u x (P - Q), a translation by
+    dp u: the engine's own step geometry, so the sum is J_p(q) @ dp without forming J.
+    """
+    rot, steps, dp = rot[on_path], steps[on_path], dp[:, on_path]  # steps off the path do not move P
+    w = ps.U[steps] * dp.T[:, :, None]                                  # (K, N, 3) scaled axes
+    trans = w[~rot].sum(axis=0)
+    wr = w[rot]
+    # sum_k w_k x (P - Q_k) = (sum_k w_k) x P - sum_k w_k x Q_k
+    turn = _cross(wr.sum(axis=0), P) - _cross(wr, ps.Q[steps[rot]]).sum(axis=0)
+    return trans + turn
+
+
+def controller_precision(model: RobotModel, *, encoder_resolution, length_quantum: float,
+                         angle_quantum: float, n_samples: int, chunk_size: int = DEFAULT_CHUNK, rng,
+                         progress: Callable[[int, int], None] | None = None,
+                         markers: str = "first") -> PrecisionResult:
+    """Precision of the geometric control system by Monte Carlo over the workspace (metres).
+
+    Model: the controller stores every dimensional parameter rounded to its quantum
+    (``rounded_parameters``: lengths to ``length_quantum`` m, angles to ``angle_quantum`` rad), and
+    reaches each joint within its ``encoder_resolution`` (one value per joint reading, rad or m,
+    or one value for all). Per sample: a configuration q uniform within the joint limits, a joint
+    error uniform in [-res/2, res/2] per joint and a round-off error uniform in [-quantum/2,
+    quantum/2] per rounded parameter (the true value is unknown relative to the grid); the
+    deviation is ``|P(p, q) - P(p + dp, q + dq)|`` for the first marker (``markers="first"``) or
+    the largest over the markers (``markers="all"``).
+
+    Exactness: the joint part is exact forward kinematics at q + dq; the parameter part is the
+    first-order displacement J_p(q + dq) @ dp from the engine's step geometry. The neglected
+    second-order term is ~|dp|^2 * reach, about 1e-10 m for 0.1 mm and 1e-3 deg quanta. The rigid
+    model is used (no gravity deflection): deflection is common to both positions.
+
+    Random stream: each sample consumes one row of ``rng.random((n, 2 n_joints + K))``, so the
+    results do not depend on ``chunk_size``. Memory: the kinematics works on ``chunk_size``
+    configurations at a time (a few kB each); the deviations are kept (8 bytes per sample) for
+    exact percentiles. ``progress(done, total)`` is called after each chunk.
+    """
+    res, rp, (lo, hi) = _error_model(model, encoder_resolution, length_quantum, angle_quantum)
+    n = _count(n_samples, "n_samples", 2)
+    chunk = _count(chunk_size, "chunk_size", 1)
+    if markers not in MARKER_MODES:
+        raise InputError(f"must be one of {', '.join(MARKER_MODES)}, got {markers!r}", where="markers")
+    gen = _generator(rng)
+    lay = layout(model)
+    p = parameter_vector(model)
+    C = model.coupling_matrix
+    rot = lay.step_is_rot[rp.steps]
+    sel = range(len(model.markers)) if markers == "all" else range(1)
+    nj, K = model.n_joints, len(rp.params)
+    dev = np.empty(n)
+    for start in range(0, n, chunk):
+        m = min(chunk, n - start)
+        u = gen.random((m, 2 * nj + K))
+        q = lo + (hi - lo) * u[:, :nj]
+        dq = (u[:, nj:2 * nj] - 0.5) * res
+        dp = (u[:, 2 * nj:] - 0.5) * rp.quanta
+        ref = _kinematic_pass(model, lay, p, q @ C.T).P
+        ps = _kinematic_pass(model, lay, p, (q + dq) @ C.T)
+        worst = np.zeros(m)
+        for k in sel:
+            d = ps.P[k] + _parameter_displacement(ps, rot, rp.steps, lay.marker_path[k, rp.steps], dp, ps.P[k])
+            worst = np.maximum(worst, np.linalg.norm(d - ref[k], axis=1))
+        dev[start:start + m] = worst
+        if progress is not None:
+            progress(start + m, n)
+    std = float(dev.std(ddof=1))
+    sq = dev * dev
+    rms = float(np.sqrt(sq.mean()))
+    return PrecisionResult(
+        n_samples=n, mean=float(dev.mean()), std=std, standard_error=std / math.sqrt(n), rms=rms,
+        rms_standard_error=float(sq.std(ddof=1) / math.sqrt(n) / (2 * rms)) if rms > 0 else 0.0,
+        percentiles=tuple((pct, float(v)) for pct, v in zip(PERCENTILES, np.percentile(dev, PERCENTILES))),
+        max=float(dev.max()), encoder_resolution=tuple(float(v) for v in res), length_quantum=float(length_quantum),
+        angle_quantum=float(angle_quantum), markers=markers, rounded_parameters=rp.names,
+        method="exact forward kinematics for joint errors, first order (J_p dp) for parameter round-off",
+        deviations=dev)
+
+
+def predicted_controller_precision(model: RobotModel, *, encoder_resolution, length_quantum: float,
+                                   angle_quantum: float, n_configurations: int = 20000,
+                                   chunk_size: int = 2048, rng, marker: int = 0) -> PredictedPrecision:
+    """First-order prediction of ``controller_precision`` for one marker (metres).
+
+    Per configuration q (uniform within the joint limits) the tool error is dP = J_q dq + J_p dp
+    with independent uniform errors of variance res^2/12 per joint and quantum^2/12 per rounded
+    parameter, so Cov(dP) = J Sigma J^T (J from ``evaluate(..., jacobian=True)``, rigid model).
+
+    ``rms = sqrt(E_q trace Cov)`` is the right comparison with the Monte Carlo's RMS: second
+    moments of a sum of independent errors add whatever their distribution, so it is exact to
+    first order. A mean norm depends on the distribution; ``mean_gaussian`` samples
+    dP ~ N(0, Cov) (one draw per configuration, as a Gaussian-weighted sum of J's columns) and is
+    only as good as the Gaussian approximation of a sum of uniform errors.
+    """
+    res, rp, (lo, hi) = _error_model(model, encoder_resolution, length_quantum, angle_quantum)
+    n = _count(n_configurations, "n_configurations", 2)
+    chunk = _count(chunk_size, "chunk_size", 1)
+    if not (0 <= marker < len(model.markers)):
+        raise InputError(f"no marker {marker}; the model has {len(model.markers)}", where="marker")
+    gen = _generator(rng)
+    lay = layout(model)
+    p = parameter_vector(model)
+    # joint reading j moves theta (revolute) or r (prismatic) of the frames coupled to it
+    G = np.zeros((lay.n_params, model.n_joints))
+    for i, f in enumerate(model.frames):
+        if f.joint != "fixed":
+            G[lay.frame0[i] + FRAME_KINDS.index("theta" if f.joint == "revolute" else "r")] = model.coupling_matrix[i]
+    sigma = np.concatenate([res, rp.quanta]) / math.sqrt(12.0)
+    trace = np.empty(n)
+    norm = np.empty(n)
+    for start in range(0, n, chunk):
+        m = min(chunk, n - start)
+        q = lo + (hi - lo) * gen.random((m, model.n_joints))
+        J = evaluate(model, q, p, jacobian=True, compliance=False).jacobian[:, marker, :3, :]
+        Js = np.concatenate([J @ G, J[:, :, rp.params]], axis=2) * sigma     # (m, 3, nj + K)
+        trace[start:start + m] = np.einsum("nak,nak->n", Js, Js)
+        z = gen.standard_normal((m, Js.shape[2]))
+        norm[start:start + m] = np.linalg.norm(np.einsum("nak,nk->na", Js, z), axis=1)
+    ms = float(trace.mean())
+    rms = math.sqrt(ms)
+    return PredictedPrecision(
+        n_configurations=n, rms=rms,
+        rms_standard_error=float(trace.std(ddof=1) / math.sqrt(n) / (2 * rms)) if rms > 0 else 0.0,
+        mean_gaussian=float(norm.mean()), mean_gaussian_standard_error=float(norm.std(ddof=1) / math.sqrt(n)),
+        marker=model.markers[marker].name)
+
+
+# -- the limit ---------------------------------------------------------------------------------
+
+def accuracy_limit(repeatability, precision: PrecisionResult) -> AccuracyLimit:
+    """The limit of absolute accuracy: repeatability RP + the geometric control's mean deviation.
+
+    ``repeatability`` is RP in metres (a float) or a ``RepeatabilityResult`` (its worst pose's RP).
+    """
+    detail = None
+    if isinstance(repeatability, RepeatabilityResult):
+        detail = repeatability
+        rp = repeatability.rp
+    else:
+        rp = _nonnegative(repeatability, "repeatability")
+    if not isinstance(precision, PrecisionResult):
+        raise InputError(f"expected a PrecisionResult, got {type(precision).__name__}", where="precision")
+    p95 = precision.percentile(95)
+    return AccuracyLimit(repeatability=float(rp), precision=precision.mean, precision_p95=p95,
+                         limit=float(rp) + precision.mean, limit_p95=float(rp) + p95,
+                         precision_statistic="mean", repeatability_detail=detail, precision_detail=precision)
