@@ -38,10 +38,7 @@ def _blocks(model, q, names, orientation):
                         rotations=np.broadcast_to(np.eye(3), (len(q), len(model.markers), 3, 3)) if orientation
                         else None)
     prob = _Problem(model, meas, names, compliance=model.has_compliance or any(".k_" in n for n in names))
-    J = prob.jacobian(parameter_vector(model))
-    rows = J.shape[0] // len(q)
-    # rows are ordered pose by pose within each block: regroup per pose
-    return J.reshape(-1, len(q), rows // (1 + orientation), len(names)).transpose(1, 0, 2, 3).reshape(len(q), rows, -1)
+    return prob.pose_blocks(parameter_vector(model))
 
 
 CRITERIA = ("I", "D")

@@ -114,12 +114,18 @@ def analyse(J: np.ndarray, names, *, tol: float = DEFAULT_TOL, max_terms: int = 
     kept_idx = np.array(kept_idx, dtype=int)
     absorptions = []
     Ak = An[:, kept_idx]
+    dep = [k for k, _ in eliminated if nz[k]]
+    coefs = {}
+    if dep and len(kept_idx):
+        # one least-squares solve for every eliminated column
+        C, *_ = np.linalg.lstsq(Ak, An[:, dep], rcond=None)
+        R = np.linalg.norm(Ak @ C - An[:, dep], axis=0)
+        coefs = {k: (C[:, i], float(R[i])) for i, k in enumerate(dep)}
     for k, reason in eliminated:
-        if not nz[k]:
+        if k not in coefs:
             absorptions.append(Absorption(names[k], reason, (), 0.0))
             continue
-        c, *_ = np.linalg.lstsq(Ak, An[:, k], rcond=None)
-        resid = float(np.linalg.norm(Ak @ c - An[:, k]))
+        c, resid = coefs[k]
         coef = c * scale[k] / scale[kept_idx]  # back to parameter units
         order = np.argsort(-np.abs(c))
         terms = tuple((names[kept_idx[i]], float(coef[i])) for i in order[:max_terms] if abs(c[i]) > 1e-6)

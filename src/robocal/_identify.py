@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, field
+from functools import lru_cache
 from datetime import datetime, timezone
 
 import numpy as np
@@ -14,7 +15,7 @@ from ._data import Measurements
 from ._errors import (ConvergenceWarning, DegenerateDataError, IdentifiabilityWarning, InputError,
                       MisfitWarning)
 from ._identifiability import DEFAULT_TOL, IdentifiabilityResult, analyse
-from ._kinematics import evaluate, layout, model_from_vector, parameter_vector
+from ._kinematics import _evaluate_state, _jacobian_columns, evaluate, layout, model_from_vector, parameter_vector
 from ._model import RobotModel
 from ._params import candidate_parameters, unit_of
 
@@ -33,63 +34,98 @@ def error_stats(norms) -> dict:
 
 
 class _Problem:
-    """Residuals and Jacobian of one model on one data set, over a chosen set of parameters."""
+    """Residuals and Jacobian of one model on one data set, over a chosen set of parameters.
+
+    Rows are ordered marker by marker, then pose by pose (x, y, z), then, with orientations, the
+    rotation rows in the same order. The Jacobian is returned column-major (a transposed view),
+    as MINPACK works on columns. ``fun`` and ``jac`` at the same parameters share one pass.
+    """
 
     def __init__(self, model: RobotModel, data: Measurements, free: tuple[str, ...], *, compliance: bool):
         self.model = model
         self.data = data
-        lay = layout(model)
-        index = {n: i for i, n in enumerate(lay.names)}
+        self.lay = layout(model)
+        index = {n: i for i, n in enumerate(self.lay.names)}
         self.free_idx = np.array([index[n] for n in free], dtype=int)
         self.compliance = compliance
-        mi = [model.marker_names.index(n) for n in data.marker_names]
-        self.marker_idx = np.array(mi, dtype=int)
-        self.pose_m, self.mark_m = np.nonzero(data.mask)
+        self.qf = data.q @ model.coupling_matrix.T
+        self.marker_idx = np.array([model.marker_names.index(n) for n in data.marker_names], dtype=int)
         self.use_rot = data.has_orientation
-        w = np.ones(self.pose_m.shape) if data.sigma is None else 1.0 / data.sigma[self.pose_m, self.mark_m]
-        self.w = w
+        self.sel = [np.nonzero(data.mask[:, j])[0] for j in range(len(data.marker_names))]
+        self.w = [np.ones(len(s)) if data.sigma is None else 1.0 / data.sigma[s, j] for j, s in enumerate(self.sel)]
+        self.meas = [data.positions[s, j] for j, s in enumerate(self.sel)]
         if self.use_rot:
-            self.pose_r, self.mark_r = np.nonzero(data.rot_mask)
+            self.sel_r = [np.nonzero(data.rot_mask[:, j])[0] for j in range(len(data.marker_names))]
             sr = data.sigma_rot
-            self.w_rot = np.ones(self.pose_r.shape) if sr is None else 1.0 / sr[self.pose_r, self.mark_r]
+            self.w_r = [np.ones(len(s)) if sr is None else 1.0 / sr[s, j] for j, s in enumerate(self.sel_r)]
+        self._cache_key = None
+        self._cache = None
 
     @property
     def n_rows(self) -> int:
-        return 3 * len(self.pose_m) + (3 * len(self.pose_r) if self.use_rot else 0)
+        return 3 * sum(len(s) for s in self.sel) + (3 * sum(len(s) for s in self.sel_r) if self.use_rot else 0)
 
-    def _eval(self, p, jac, columns=None):
-        return evaluate(self.model, self.data.q, p, jacobian=jac, orientations=self.use_rot,
-                        compliance=self.compliance, payload_mass=self.data.payload_mass,
-                        columns=self.free_idx if columns is None else columns)
+    def _state(self, p):
+        key = p.tobytes()
+        if key != self._cache_key:
+            self._cache = _evaluate_state(self.model, self.lay, p, self.qf, compliance=self.compliance,
+                                          orientations=self.use_rot, payload_mass=self.data.payload_mass)
+            self._cache_key = key
+        return self._cache
+
+    def _eval(self, p):
+        return evaluate(self.model, self.data.q, p, orientations=self.use_rot, compliance=self.compliance,
+                        payload_mass=self.data.payload_mass)
 
     def position_errors(self, ev) -> np.ndarray:
         """(n_poses, n_data_markers, 3) predicted minus measured."""
         return ev.positions[:, self.marker_idx] - self.data.positions
 
-    def rotation_errors(self, ev) -> np.ndarray:
-        """(n_rot, 3) rotation vector of R_pred R_meas^T in W for measured orientations."""
-        Rp = ev.rotations[self.pose_r, self.marker_idx[self.mark_r]]
-        Rm = self.data.rotations[self.pose_r, self.mark_r]
+    def _rotation_errors(self, st, j) -> np.ndarray:
+        """(n, 3) rotation vectors of R_pred R_meas^T in W for marker j's measured orientations."""
+        s = self.sel_r[j]
+        Rp = st.ps.RM[self.marker_idx[j]][s]
+        Rm = self.data.rotations[s, j]
         return Rotation.from_matrix(Rp @ np.swapaxes(Rm, -1, -2)).as_rotvec()
 
-    def residuals(self, p, ev=None) -> np.ndarray:
-        ev = self._eval(p, False) if ev is None else ev
-        e = self.position_errors(ev)[self.pose_m, self.mark_m] * self.w[:, None]
-        parts = [e.ravel()]
+    def residuals(self, p) -> np.ndarray:
+        st = self._state(p)
+        parts = [((st.ps.P[m][s] - meas) * w[:, None]).ravel()
+                 for m, s, meas, w in zip(self.marker_idx, self.sel, self.meas, self.w)]
         if self.use_rot:
-            parts.append((self.rotation_errors(ev) * self.w_rot[:, None]).ravel())
+            parts += [(self._rotation_errors(st, j) * w[:, None]).ravel() for j, w in enumerate(self.w_r)]
         return np.concatenate(parts)
 
+    def rotation_residuals(self, p) -> np.ndarray | None:
+        """(n, 3) unweighted rotation residuals in rad, or None for point data."""
+        if not self.use_rot:
+            return None
+        st = self._state(p)
+        return np.concatenate([self._rotation_errors(st, j) for j in range(len(self.sel_r))])
+
     def jacobian(self, p) -> np.ndarray:
-        """Weighted Jacobian of ``residuals`` over the free parameters: (n_rows, n_free)."""
-        J = self._eval(p, True).jacobian                              # (N, nm, 6, n_free)
-        idx = self.free_idx
-        Jp = J[self.pose_m, self.marker_idx[self.mark_m], :3] * self.w[:, None, None]
-        parts = [Jp.reshape(-1, len(idx))]
+        """Weighted Jacobian of ``residuals`` over the free parameters: (n_rows, n_free), column-major."""
+        st = self._state(p)
+        rows = 6 if self.use_rot else 3
+        k = len(self.free_idx)
+        cols = [_jacobian_columns(self.model, self.lay, st, self.free_idx, m, rows) for m in self.marker_idx]
+        parts = []
+        for C, s, w in zip(cols, self.sel, self.w):
+            if len(s) == C.shape[1] and self.data.sigma is None:
+                parts.append(C[:, :, :3].reshape(k, -1))
+            else:
+                parts.append((C[:, s, :3] * w[None, :, None]).reshape(k, -1))
         if self.use_rot:
-            Jr = J[self.pose_r, self.marker_idx[self.mark_r], 3:] * self.w_rot[:, None, None]
-            parts.append(Jr.reshape(-1, len(idx)))
-        return np.concatenate(parts)
+            parts += [(C[:, s, 3:] * w[None, :, None]).reshape(k, -1) for C, s, w in zip(cols, self.sel_r, self.w_r)]
+        Jt = parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)
+        return Jt.T
+
+    def pose_blocks(self, p) -> np.ndarray:
+        """(n_poses, rows_per_pose, n_free) unweighted Jacobian grouped by pose (all markers seen)."""
+        st = self._state(p)
+        rows = 6 if self.use_rot else 3
+        cols = [_jacobian_columns(self.model, self.lay, st, self.free_idx, m, rows) for m in self.marker_idx]
+        return np.concatenate([C.transpose(1, 2, 0) for C in cols], axis=1)
 
 
 @dataclass(frozen=True)
@@ -113,6 +149,8 @@ class ParameterEstimate:
 class CalibrationResult:
     """Everything a calibration produced. Fields are always present; absent data are None.
 
+    ``residual_vectors`` (n_poses, n_markers, 3) calibrated minus measured and ``measured_positions``
+    likewise, metres in W, NaN where not measured.
     ``errors_before``/``errors_after``: (n_poses, n_markers) position error norms in metres on the
     fitted poses (NaN where not measured); ``validation_before``/``validation_after`` likewise on
     held-out poses, or None. ``stats`` maps "fit_before", "fit_after", "validation_before",
@@ -131,6 +169,7 @@ class CalibrationResult:
     validation_before: np.ndarray | None
     validation_after: np.ndarray | None
     residual_vectors: np.ndarray
+    measured_positions: np.ndarray
     success: bool
     status: int
     message: str
@@ -168,7 +207,8 @@ class CalibrationResult:
                        "fit_before": arr(self.errors_before), "fit_after": arr(self.errors_after),
                        "validation_before": arr(self.validation_before),
                        "validation_after": arr(self.validation_after),
-                       "fit_residual_vectors": arr(self.residual_vectors)},
+                       "fit_residual_vectors": arr(self.residual_vectors),
+                       "fit_positions": arr(self.measured_positions)},
             "notes": list(self.notes), "limit": self.limit, "provenance": self.provenance,
             "nominal_model": model_to_dict(self.nominal_model),
             "calibrated_model": model_to_dict(self.calibrated_model),
@@ -235,6 +275,16 @@ def identifiability(model: RobotModel, data: Measurements | np.ndarray | None = 
     return analyse(prob.jacobian(parameter_vector(model)), names, tol=tol)
 
 
+def _as_tuple(v) -> tuple:
+    return (v,) if isinstance(v, str) else tuple(v)
+
+
+@lru_cache(maxsize=32)
+def _theory(model: RobotModel, parameters: tuple, known: tuple, orientation: bool, tol: float) -> IdentifiabilityResult:
+    """What this robot's structure allows to identify (random configurations, fixed seed)."""
+    return identifiability(model, None, parameters=parameters, known=known, orientation=orientation, tol=tol, rng=0)
+
+
 def _check_data(model: RobotModel, data: Measurements, what: str) -> None:
     src = data.source or what
     if data.q.shape[1] != model.n_joints:
@@ -247,7 +297,7 @@ def _check_data(model: RobotModel, data: Measurements, what: str) -> None:
 
 
 def _norms(prob: _Problem, p) -> np.ndarray:
-    ev = prob._eval(p, False)
+    ev = prob._eval(p)
     e = np.linalg.norm(prob.position_errors(ev), axis=2)
     return np.where(prob.data.mask, e, np.nan)
 
@@ -285,8 +335,7 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
     compliance = wants_k or model.has_compliance
     p0 = parameter_vector(model)
 
-    theory = identifiability(model, None, parameters=parameters, known=known, orientation=orientation,
-                             tol=tol, rng=0)
+    theory = _theory(model, _as_tuple(parameters), _as_tuple(known), orientation, tol)
     n_unique = len(np.unique(data.q, axis=0))
     if n_unique < data.n_poses:
         notes.append(f"{data.n_poses - n_unique} of {data.n_poses} poses repeat an earlier joint configuration "
@@ -378,7 +427,7 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
     prob_nom = _Problem(nominal, data, free, compliance=nominal.has_compliance)
     before = _norms(prob_nom, parameter_vector(nominal))
     after = _norms(prob, p_hat)
-    vectors = np.where(data.mask[..., None], prob.position_errors(prob._eval(p_hat, False)), np.nan)
+    vectors = np.where(data.mask[..., None], prob.position_errors(prob._eval(p_hat)), np.nan)
     stats = {"fit_before": error_stats(before), "fit_after": error_stats(after),
              "validation_before": error_stats([]), "validation_after": error_stats([])}
     vb = va = None
@@ -390,7 +439,9 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
     limit_d = None
     if limit is not None:
         limit_d = judge_against_limit(limit, stats)
-    prov = {"software": "robocal", "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+    from . import __version__
+
+    prov = {"software": "robocal", "version": __version__, "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
             "data": {"source": data.source, "sha256": data.sha256, "n_poses": data.n_poses}}
     if validation is not None:
         prov["validation"] = {"source": validation.source, "sha256": validation.sha256,
@@ -399,7 +450,8 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
     return CalibrationResult(
         nominal_model=nominal, calibrated_model=calibrated, parameters=est, covariance=cov, correlation=corr,
         identifiability=ident, stats=stats, errors_before=before, errors_after=after,
-        validation_before=vb, validation_after=va, residual_vectors=vectors, success=success,
+        validation_before=vb, validation_after=va, residual_vectors=vectors,
+        measured_positions=np.where(data.mask[..., None], data.positions, np.nan), success=success,
         status=int(sol.status), message=str(sol.message), nfev=int(sol.nfev), sigma0=float(np.sqrt(s2)),
         families=fam, loss=loss, notes=tuple(notes), limit=limit_d, provenance=prov,
     )

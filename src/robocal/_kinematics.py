@@ -392,31 +392,42 @@ def _moments(model, lay, ps, C1, msub):
     return M, A, u
 
 
-def _moment_derivatives(model, lay, ps, C1, msub, A, u, steps):
-    """dM_p/d(step value) for every compliant p and the given robot ``steps``: (P, N, len(steps)).
+def _compliance_corrections(model, lay, st, steps, cp) -> np.ndarray:
+    """sum_p K_p dM_p/d(step) column_p for the given robot ``steps``: (S, N, rows).
 
-    A proximal rotation (axis w) turns the axis and all masses distal to p rigidly; that leaves the
-    moment as if gravity turned by -w instead: dM = -u . (A x (w x g)). A proximal translation
-    changes nothing. A distal step moves only the masses distal to itself (subtree of its frame j):
-    rotation dM = u . ((w x (C1_j - m_j Q)) x g), translation dM = u . ((m_j w) x g).
-    Marker steps move no mass.
+    ``cp`` (P, N, rows) are the columns of the compliant steps. dM_p/d(step), for a step of axis w:
+
+    * proximal rotation: it turns the axis and all masses distal to p rigidly, which leaves the
+      moment as if gravity turned by -w instead: dM = -u . (A x (w x g)) = -(w x g) . (u x A);
+    * proximal translation: nothing changes;
+    * distal step (its frame j in p's subtree): only the masses distal to itself move:
+      rotation dM = u . ((w x (C1_j - m_j Q)) x g) = D . (g x u) with D = w x (C1_j - m_j Q),
+      translation the same with D = m_j w.
+
+    Both are a dot product of a per-step vector with a per-p vector, so the sum over p is taken
+    first, as one matrix product with the constant proximal/distal masks.
     """
     g = np.asarray(model.gravity, dtype=float)
-    W = ps.U[steps]                                            # (S, N, 3)
+    ps = st.ps0
+    S, N, rows = len(steps), cp.shape[1], cp.shape[2]
+    W = ps.U[steps]                                              # (S, N, 3)
     rot = lay.step_is_rot[steps]
     frame = lay.step_frame[steps]
     wg = _cross(W, g)
     wg[~rot] = 0.0
-    d_anc = -np.einsum("sna,pna->psn", wg, _cross(u, A))
     fj = np.where(frame >= 0, frame, 0)
-    Bv = C1[fj] - msub[fj][..., None] * ps.Q[steps]
-    Dv = np.where(rot[:, None, None], _cross(W, Bv), msub[fj][..., None] * W)
-    d_desc = np.einsum("sna,pna->psn", Dv, _cross(g, u))
-    anc = lay.anc[:, steps][:, :, None]
-    desc = lay.desc[:, steps][:, :, None]
-    out = np.where(anc, d_anc, 0.0) + np.where(desc, d_desc, 0.0)   # (P, S, N)
-    out[:, frame < -1] = 0.0
-    return out.transpose(0, 2, 1)
+    Bv = st.C1[fj] - st.msub[fj][..., None] * ps.Q[steps]
+    Dv = np.where(rot[:, None, None], _cross(W, Bv), st.msub[fj][..., None] * W)
+    Dv[frame < 0] = 0.0
+    kcp = st.ks[:, None, None] * cp                              # (P, N, rows)
+    # T[p, n, a, b] = K_p v[p, n, a] cp[p, n, b], summed over p by the masks
+    Ta = (_cross(st.u, st.A)[:, :, :, None] * kcp[:, :, None, :]).reshape(len(kcp), -1)
+    Td = (_cross(g, st.u)[:, :, :, None] * kcp[:, :, None, :]).reshape(len(kcp), -1)
+    anc = lay.anc[:, steps].T.astype(float)                      # (S, P)
+    desc = lay.desc[:, steps].T.astype(float)
+    Sa = (anc @ Ta).reshape(S, N, 3, rows)
+    Sd = (desc @ Td).reshape(S, N, 3, rows)
+    return np.einsum("sna,snab->snb", Dv, Sd) - np.einsum("sna,snab->snb", wg, Sa)
 
 
 @dataclass(frozen=True)
@@ -435,18 +446,78 @@ class Evaluation:
     frames: np.ndarray | None = None
 
 
-def _step_columns(lay: Layout, ps: _Pass, m: int, steps: np.ndarray) -> np.ndarray:
-    """(N, 6, len(steps)) columns of the given steps for marker m (zero off its path)."""
-    U = ps.U[steps]
-    rot = lay.step_is_rot[steps]
+def _step_columns(lay: Layout, ps: _Pass, m: int, steps: np.ndarray, rows: int = 6) -> np.ndarray:
+    """(len(steps), N, rows) columns of the given steps for marker m, zero off its path.
+
+    Column-major (one contiguous block per parameter): what the solver wants, and cheap to fill.
+    ``rows`` 3 gives the position part only.
+    """
+    N = ps.P.shape[1]
+    out = np.zeros((len(steps), N, rows))
     on = lay.marker_path[m, steps]
-    lin = U.copy()
-    ang = np.zeros_like(U)
-    r = rot & on
-    lin[r] = _cross(U[r], ps.P[m][None] - ps.Q[steps[r]])
-    ang[r] = U[r]
-    lin[~on] = 0.0
-    return np.concatenate([lin, ang], axis=2).transpose(1, 2, 0)
+    rot = lay.step_is_rot[steps] & on
+    tra = ~lay.step_is_rot[steps] & on
+    if rot.any():
+        U = ps.U[steps[rot]]
+        out[rot, :, :3] = _cross(U, ps.P[m][None] - ps.Q[steps[rot]])
+        if rows == 6:
+            out[rot, :, 3:] = U
+    if tra.any():
+        out[tra, :, :3] = ps.U[steps[tra]]
+    return out
+
+
+@dataclass(frozen=True)
+class _State:
+    """One evaluation at parameters p: the kinematic pass and, with compliance, the moments."""
+
+    ps: _Pass
+    compliance: bool
+    ks: np.ndarray
+    ps0: _Pass | None = None
+    C1: np.ndarray | None = None
+    msub: np.ndarray | None = None
+    M: np.ndarray | None = None
+    A: np.ndarray | None = None
+    u: np.ndarray | None = None
+
+
+def _evaluate_state(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray, *, compliance: bool,
+                    orientations: bool, payload_mass=None) -> _State:
+    ks = p[lay.compliant_params]
+    if not compliance:
+        return _State(ps=_kinematic_pass(model, lay, p, qf, orientations=orientations), compliance=False, ks=ks)
+    ps0 = _kinematic_pass(model, lay, p, qf, orientations=False)
+    C1, msub = _mass_sums(model, lay, ps0, payload_mass)
+    M, A, u = _moments(model, lay, ps0, C1, msub)
+    defl = (ks[:, None] * M).reshape(model.n_frames, 3, -1)
+    ps = _kinematic_pass(model, lay, p, qf, defl=[tuple(defl[i]) for i in range(model.n_frames)],
+                         orientations=orientations)
+    return _State(ps=ps, compliance=True, ks=ks, ps0=ps0, C1=C1, msub=msub, M=M, A=A, u=u)
+
+
+def _jacobian_columns(model: RobotModel, lay: Layout, st: _State, cols_idx: np.ndarray, m: int,
+                      rows: int = 6) -> np.ndarray:
+    """(len(cols_idx), N, rows) Jacobian columns of marker m for the parameters ``cols_idx``."""
+    step_of = lay.param_step[cols_idx]
+    is_step = step_of >= 0
+    steps = step_of[is_step]
+    if not st.compliance:
+        if is_step.all():
+            return _step_columns(lay, st.ps, m, steps, rows)
+        out = np.zeros((len(cols_idx), st.ps.P.shape[1], rows))
+        out[is_step] = _step_columns(lay, st.ps, m, steps, rows)
+        return out
+    out = np.zeros((len(cols_idx), st.ps.P.shape[1], rows))
+    cols = _step_columns(lay, st.ps, m, steps, rows)                          # (S, N, rows)
+    cp = _step_columns(lay, st.ps, m, lay.compliant_steps, rows)              # (P, N, rows)
+    if np.any(st.ks != 0.0):
+        cols += _compliance_corrections(model, lay, st, steps, cp)
+    out[is_step] = cols
+    k_slot = lay.param_compliant[cols_idx]
+    is_k = k_slot >= 0
+    out[is_k] = cp[k_slot[is_k]] * st.M[k_slot[is_k]][:, :, None]
+    return out
 
 
 def evaluate(model: RobotModel, q: np.ndarray, p: np.ndarray | None = None, *, jacobian: bool = False,
@@ -466,43 +537,17 @@ def evaluate(model: RobotModel, q: np.ndarray, p: np.ndarray | None = None, *, j
         raise ValueError(f"q must have {model.n_joints} columns, got {q.shape[1]}")
     p = parameter_vector(model) if p is None else np.asarray(p, dtype=float)
     qf = q @ model.coupling_matrix.T
-    ks = p[lay.compliant_params]
     if compliance is None:
-        compliance = bool(np.any(ks != 0.0))
+        compliance = bool(np.any(p[lay.compliant_params] != 0.0))
     need_or = orientations or jacobian
-    M = None
-    if compliance:
-        ps0 = _kinematic_pass(model, lay, p, qf, orientations=False)
-        C1, msub = _mass_sums(model, lay, ps0, payload_mass)
-        M, A, u = _moments(model, lay, ps0, C1, msub)
-        defl = (ks[:, None] * M).reshape(model.n_frames, 3, -1)
-        defl_list = [tuple(defl[i]) for i in range(model.n_frames)]
-        ps = _kinematic_pass(model, lay, p, qf, defl=defl_list, orientations=need_or)
-    else:
-        ps = _kinematic_pass(model, lay, p, qf, orientations=need_or)
-    positions = ps.P.transpose(1, 0, 2)
-    rotations = None
-    if need_or and ps.RM:
-        rotations = np.stack(ps.RM, axis=1)
+    st = _evaluate_state(model, lay, p, qf, compliance=compliance, orientations=need_or, payload_mass=payload_mass)
+    ps = st.ps
+    rotations = np.stack(ps.RM, axis=1) if need_or and ps.RM else None
     J = None
     if jacobian:
         cols_idx = np.arange(lay.n_params) if columns is None else np.asarray(columns, dtype=int)
-        J = np.zeros((q.shape[0], len(model.markers), 6, len(cols_idx)))
-        step_of = lay.param_step[cols_idx]
-        is_step = step_of >= 0
-        steps = step_of[is_step]
-        k_slot = lay.param_compliant[cols_idx]
-        is_k = k_slot >= 0
-        if compliance:
-            dM = _moment_derivatives(model, lay, ps0, C1, msub, A, u, steps)     # (P, N, S)
-            kdM = ks[:, None, None] * dM
-        for m in range(len(model.markers)):
-            cols = _step_columns(lay, ps, m, steps)                           # (N, 6, S)
-            if compliance:
-                cp = _step_columns(lay, ps, m, lay.compliant_steps)           # (N, 6, P)
-                cols += np.einsum("nap,pns->nas", cp, kdM)
-                J[:, m, :, is_k] = (cp[:, :, k_slot[is_k]] * M.T[:, None, k_slot[is_k]]).transpose(2, 0, 1)
-            J[:, m, :, is_step] = cols.transpose(2, 0, 1)
+        J = np.stack([_jacobian_columns(model, lay, st, cols_idx, m).transpose(1, 2, 0)
+                      for m in range(len(model.markers))], axis=1)
     frames_out = None
     if frames:
         frames_out = np.zeros((q.shape[0], model.n_frames, 4, 4))
@@ -510,8 +555,8 @@ def evaluate(model: RobotModel, q: np.ndarray, p: np.ndarray | None = None, *, j
             frames_out[:, i, :3, :3] = ps.R[i]
             frames_out[:, i, :3, 3] = ps.O[i]
             frames_out[:, i, 3, 3] = 1.0
-    return Evaluation(positions=positions, rotations=rotations, jacobian=J,
-                      moments=None if M is None else M.T, frames=frames_out)
+    return Evaluation(positions=ps.P.transpose(1, 0, 2), rotations=rotations, jacobian=J,
+                      moments=None if st.M is None else st.M.T, frames=frames_out)
 
 
 def forward_kinematics(model: RobotModel, q, *, frames: bool = False, payload_mass=None) -> Evaluation:

@@ -1,0 +1,105 @@
+"""Time identification of a 6-joint arm and batched kinematics; compare with a finite-difference baseline.
+
+Run: python benchmarks/bench_identify.py [--repeat 5] [--compliance]
+
+Identification = scipy.optimize.least_squares ('lm') on the identifiable parameters with robocal's
+analytic Jacobian, as ``calibrate`` runs it. The baseline solves the same problem with the same
+vectorised residual function but scipy's finite-difference Jacobian ('2-point'). ``calibrate``
+(the whole call: identifiability, covariance, statistics) is timed as well.
+"""
+
+from __future__ import annotations
+
+import argparse
+import platform
+import time
+import warnings
+
+import numpy as np
+from scipy.optimize import least_squares
+
+import robocal as rc
+from robocal._identify import _Problem
+
+DEG = np.pi / 180
+
+
+def arm6r(masses=False):
+    rows = [dict(joint="revolute"), dict(joint="revolute", alpha=-90 * DEG), dict(joint="revolute", d=0.45),
+            dict(joint="revolute", alpha=-90 * DEG, r=0.45), dict(joint="revolute", alpha=90 * DEG),
+            dict(joint="revolute", alpha=-90 * DEG)]
+    if masses:
+        for row, m, c in zip(rows, [20, 15, 10, 5, 2, 1], [(0, 0, -0.1), (0.2, 0, 0.05), (0.1, -0.02, 0.2),
+                                                          (0, 0.05, 0), (0, 0.01, 0.05), (0.01, 0, 0.02)]):
+            row.update(mass=m, com=c)
+    limits = [(-170 * DEG, 170 * DEG), (-120 * DEG, 60 * DEG), (-60 * DEG, 160 * DEG), (-170 * DEG, 170 * DEG),
+              (-110 * DEG, 110 * DEG), (-180 * DEG, 180 * DEG)]
+    return rc.serial_model("arm6r", rows, markers=[("tool", (0.05, 0.02, 0.12))], joint_limits=limits,
+                           base_position=(1.5, -0.4, 0.2))
+
+
+def best_of(fn, repeat):
+    times = []
+    for _ in range(repeat):
+        t = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t)
+    return min(times), out
+
+
+def solve(model, data, families, jac):
+    ident = rc.identifiability(model, data, parameters=families)
+    prob = _Problem(model, data, ident.identified, compliance="compliance" in families)
+    p0 = rc.parameter_vector(model)
+
+    def full(x):
+        p = p0.copy()
+        p[prob.free_idx] = x
+        return p
+
+    def run():
+        fun = lambda x: prob.residuals(full(x))  # noqa: E731
+        j = (lambda x: prob.jacobian(full(x))) if jac else "2-point"
+        return least_squares(fun, p0[prob.free_idx], jac=j, method="lm", x_scale="jac",
+                             xtol=1e-12, ftol=1e-12, gtol=1e-12)
+    return run
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--fk-poses", type=int, default=100_000)
+    args = ap.parse_args(argv)
+    warnings.simplefilter("ignore", rc.RobocalWarning)
+    print(f"# robocal identification benchmark, {time.strftime('%Y-%m-%d')}, {platform.processor() or platform.machine()}, "
+          f"numpy {np.__version__}")
+    print("| robot | poses | solve, analytic J (ms) | solve, finite differences (ms) | speed-up | calibrate() (ms) | nfev |")
+    print("|---|---|---|---|---|---|---|")
+    for label, families, masses in (("6R geometric", ("geometric",), False),
+                                    ("6R geometric + compliance", ("geometric", "compliance"), True)):
+        m = arm6r(masses)
+        for n in (48, 1000, 10_000):
+            true_k = {"j2.k_theta": 4e-6, "j3.k_theta": 6e-6} if masses else None
+            _, data = rc.simulate(m, n, seed=1, parameters=families, true_compliance=true_k)
+            rep = args.repeat if n <= 1000 else max(1, args.repeat // 2)
+            t_an, sol = best_of(solve(m, data, families, True), rep)
+            t_fd, sol_fd = best_of(solve(m, data, families, False), max(1, rep // 2))
+            t_cal, _ = best_of(lambda: rc.calibrate(m, data, parameters=families), rep)
+            print(f"| {label} | {n} | {t_an * 1e3:.1f} | {t_fd * 1e3:.1f} | {t_fd / t_an:.1f}x | "
+                  f"{t_cal * 1e3:.1f} | {sol.nfev} (FD {sol_fd.nfev}) |")
+    m = arm6r(True)
+    q = rc.random_configurations(m, args.fk_poses, rng=0)
+    names = rc.identifiability(m).identified
+    t_fk, _ = best_of(lambda: rc.forward_kinematics(m, q), 3)
+    t_j, J = best_of(lambda: rc.jacobian(m, q, columns=names), 3)
+    t_jall, _ = best_of(lambda: rc.jacobian(m, q), 3)
+    print()
+    print(f"| batched, {args.fk_poses} poses | time (ms) |")
+    print("|---|---|")
+    print(f"| forward kinematics (positions and orientations) | {t_fk * 1e3:.0f} |")
+    print(f"| forward kinematics + Jacobian, {len(names)} identifiable columns | {t_j * 1e3:.0f} |")
+    print(f"| forward kinematics + Jacobian, all {len(rc.parameter_names(m))} columns | {t_jall * 1e3:.0f} |")
+
+
+if __name__ == "__main__":
+    main()
