@@ -1,0 +1,340 @@
+"""The HTML report: numbers equal the result's, missing inputs are said, the page renders in Chromium."""
+
+import json
+import math
+import os
+import re
+import shutil
+import subprocess
+import sys
+from html.parser import HTMLParser
+from pathlib import Path
+
+import pytest
+
+import robocal as rc
+from robocal._report import PLOTS, render_report, write_report
+from robocal._resultio import result_to_json
+from robots import arm6r, cylindrical
+
+pytest.importorskip("matplotlib")
+
+CHROMIUM = "/usr/bin/chromium"
+ARTIFACTS = Path(__file__).resolve().parent.parent / "test-artifacts"
+# display unit (data-unit attribute) -> factor from SI; written independently of the report's table
+FACTOR = {"mm": 1e3, "deg": 180 / math.pi, "deg/(kN m)": 180 / math.pi * 1e3}
+
+
+def _roundtrip(result) -> dict:
+    """What the report sees when it reads result.json."""
+    return json.loads(result_to_json(result))
+
+
+@pytest.fixture(scope="module")
+def simulated():
+    m = arm6r()
+    true, data = rc.simulate(m, 60, seed=1)
+    return m, data
+
+
+@pytest.fixture(scope="module")
+def full(simulated):
+    """A result with held-out poses and a limit, as read back from JSON."""
+    m, data = simulated
+    fit, val = data.subset(slice(0, 40)), data.subset(slice(40, None))
+    res = rc.calibrate(m, fit, validation=val, limit=0.0001)
+    return _roundtrip(res)
+
+
+@pytest.fixture(scope="module")
+def bare(simulated):
+    """No held-out poses, no limit."""
+    m, data = simulated
+    return _roundtrip(rc.calibrate(m, data.subset(slice(0, 40))))
+
+
+@pytest.fixture(scope="module")
+def compliance():
+    m = cylindrical(masses=True)
+    _, data = rc.simulate(m, 48, parameters=("geometric", "compliance"), seed=2)
+    return _roundtrip(rc.calibrate(m, data, parameters=("geometric", "compliance")))
+
+
+class Page(HTMLParser):
+    """Text of every element with a data-key (and its data-unit), the <svg data-plot> elements, links."""
+
+    def __init__(self, text):
+        super().__init__()
+        self.keyed, self.units, self.plots, self.urls, self.tags = {}, {}, {}, [], []
+        self._open = []  # [key or None, ...] per open element
+        self._plot = None
+        self.feed(text)
+
+    def handle_starttag(self, tag, attrs):
+        a = dict(attrs)
+        self.tags.append(tag)
+        for k in ("src", "href", "xlink:href"):
+            if k in a:
+                self.urls.append(a[k])
+        if tag == "svg" and "data-plot" in a:
+            self._plot = a["data-plot"]
+            self.plots[self._plot] = {"elements": 0, "text": ""}
+        elif self._plot:
+            self.plots[self._plot]["elements"] += 1
+        key = a.get("data-key")
+        if key is not None:
+            assert key not in self.keyed, f"data-key {key} twice"
+            self.keyed[key] = ""
+            self.units[key] = a.get("data-unit")
+        if tag not in ("meta", "link", "br", "path", "use", "rect", "circle"):  # void or self-closed
+            self._open.append((tag, key))
+
+    def handle_startendtag(self, tag, attrs):
+        self.handle_starttag(tag, attrs)
+        if self._open and self._open[-1][0] == tag:
+            self._open.pop()
+
+    def handle_endtag(self, tag):
+        while self._open:
+            t, _ = self._open.pop()
+            if t == tag:
+                break
+        if tag == "svg":
+            self._plot = None
+
+    def handle_data(self, data):
+        for _, key in self._open:
+            if key is not None:
+                self.keyed[key] += data
+        if self._plot:
+            self.plots[self._plot]["text"] += data
+
+
+def _page(d, tmp_path, name="report.html", **kw) -> tuple[Page, str]:
+    path = tmp_path / name
+    write_report(d, path, **kw)
+    text = path.read_text(encoding="utf-8")
+    return Page(text), text
+
+
+def _shown_equals(page: Page, key: str, si: float) -> None:
+    """The cell's number equals the SI value in its display unit, to the printed precision."""
+    text = page.keyed[key].strip()
+    unit = page.units[key]
+    decimals = len(text.split(".")[1]) if "." in text else 0
+    expected = si * FACTOR[unit]
+    assert abs(float(text) - expected) <= 0.5 * 10 ** -decimals * (1 + 1e-9) + 1e-12, (key, text, expected)
+    assert decimals >= 4, (key, text)  # enough digits to be checked at all
+
+
+def test_parameter_cells_equal_the_result(full, tmp_path):
+    page, _ = _page(full, tmp_path)
+    assert full["parameters"]
+    for p in full["parameters"]:
+        for field in ("nominal", "estimate", "change", "std"):
+            _shown_equals(page, f"{p['name']}:{field}", p[field])
+        assert page.keyed[f"{p['name']}:status"].strip() == "I"
+    for a in full["identifiability"]["eliminated"]:
+        assert page.keyed[f"{a['name']}:status"].strip() == "E"
+        for t in a["absorbed_by"]:
+            assert t["name"] in page.keyed[f"{a['name']}:absorbed_by"]
+    # the paper's layout: one status cell per frame and shown kind
+    for row in full["identifiability_table"]:
+        for kind in ("beta", "alpha", "d", "theta", "r"):
+            shown = page.keyed[f"{row['frame']}.{kind}:status"].strip()
+            assert shown == {"I": "I", "E": "E", "-": "–"}[row[kind]]
+
+
+def test_units_are_converted_once(full, tmp_path):
+    page, _ = _page(full, tmp_path)
+    p = next(p for p in full["parameters"] if p["name"] == "j2.alpha")
+    assert page.units["j2.alpha:estimate"] == "deg"
+    assert float(page.keyed["j2.alpha:nominal"]) == pytest.approx(-90.0)
+    assert page.units["base.x:estimate"] == "mm"
+    assert float(page.keyed["base.x:nominal"]) == pytest.approx(1500.0)
+    assert p["unit"] == "rad"
+
+
+def test_stats_and_limit_equal_the_result(full, tmp_path):
+    page, _ = _page(full, tmp_path)
+    for key, s in full["stats"].items():
+        assert int(page.keyed[f"stats.{key}.n"]) == s["n"] > 0
+        for f in ("mean", "std", "rms", "max"):
+            _shown_equals(page, f"stats.{key}.{f}", s[f])
+    lim = full["limit"]
+    _shown_equals(page, "limit.limit_m", lim["limit_m"])
+    _shown_equals(page, "limit.mean_error_m", lim["mean_error_m"])
+    assert float(page.keyed["limit.ratio"]) == pytest.approx(lim["ratio"], abs=5e-4)
+    assert page.keyed["limit.reached"] == ("reached" if lim["reached"] else "not reached")
+    _shown_equals(page, "solver.sigma0_m", full["sigma0_m"])
+    assert int(page.keyed["solver.nfev"]) == full["nfev"]
+    assert page.keyed["solver.message"] == full["message"]
+    assert page.keyed["provenance.data.source"] == full["provenance"]["data"]["source"]
+
+
+def test_every_plot_is_there_and_self_contained(full, tmp_path):
+    page, text = _page(full, tmp_path)
+    assert set(page.plots) == set(PLOTS)
+    for name, plot in page.plots.items():
+        assert plot["elements"] > 20, name
+    assert "errors-per-pose" in page.plots and "pose" in page.plots["errors-per-pose"]["text"]
+    assert "(mm)" in page.plots["histograms"]["text"]
+    assert "j2.alpha" in page.plots["correlation"]["text"]
+    # no network: every link is in-page or a data URL, no scripts, no external style sheets
+    assert page.urls and all(u.startswith(("#", "data:")) for u in page.urls), page.urls
+    assert "script" not in page.tags
+    assert "@import" not in text and "url(http" not in text
+    # ids unique across the inline SVGs
+    ids = re.findall(r' id="([^"]+)"', text)
+    assert len(ids) == len(set(ids))
+
+
+def test_report_is_deterministic(full):
+    assert render_report(full) == render_report(full)
+
+
+def test_missing_validation_and_limit_are_said(bare, tmp_path):
+    page, text = _page(bare, tmp_path)
+    assert "No held-out poses were given: the errors shown are on the fitted poses only." in text
+    assert "No limit of absolute accuracy was given: run <code>robocal limit</code>" in text
+    assert page.keyed["stats.validation_after.n"] == "0"
+    assert "limit.limit_m" not in page.keyed
+    assert set(page.plots) == set(PLOTS)
+    for p in bare["parameters"]:
+        _shown_equals(page, f"{p['name']}:estimate", p["estimate"])
+
+
+def test_complete_result_does_not_claim_anything_missing(full, tmp_path):
+    _, text = _page(full, tmp_path)
+    assert "No held-out poses" not in text and "No limit of absolute accuracy" not in text
+
+
+def test_compliance_columns_in_paper_layout(compliance, tmp_path):
+    page, text = _page(compliance, tmp_path)
+    ks = [p for p in compliance["parameters"] if ".k_" in p["name"]]
+    assert ks
+    for p in ks:
+        assert page.units[f"{p['name']}:estimate"] == "deg/(kN m)"
+        _shown_equals(page, f"{p['name']}:estimate", p["estimate"])
+        _shown_equals(page, f"{p['name']}:std", p["std"])
+    assert "K<sub>&theta;</sub>" in text
+
+
+def test_geometric_only_omits_compliance_columns(full, tmp_path):
+    page, text = _page(full, tmp_path)
+    assert not any(".k_" in k for k in page.keyed)
+    assert "are not shown: those parameters were not among the candidates" in text
+
+
+def test_residuals_drawn_at_measured_points_when_given(full, simulated):
+    _, data = simulated
+    # result.json carries the measured positions; an older file without them still renders
+    without = dict(full, errors={k: v for k, v in full["errors"].items() if k != "fit_positions"})
+    with_points = dict(full, errors=dict(full["errors"], fit_positions=data.positions[:40].tolist()))
+    html_a, html_b = render_report(without), render_report(with_points)
+    assert "common origin" in html_a and "Arrows start at the measured points" in html_b
+    assert html_a != html_b
+
+
+def test_extra_tables(full, tmp_path):
+    extra = {"comparison": [{"label": "geometric", "mean_mm": 0.69, "std_mm": 0.34},
+                            {"label": "geometric + compliance", "mean_mm": 0.58, "std_mm": 0.21}],
+             "paper": {"title": "TH8 in the paper", "columns": ["quantity", "value (mm)"],
+                       "rows": [["limit of absolute accuracy", 0.55], ["before", 2.82]]}}
+    page, text = _page(full, tmp_path, extra=extra)
+    assert page.keyed["extra.0.title"] == "comparison" and page.keyed["extra.1.title"] == "TH8 in the paper"
+    assert "geometric + compliance" in text and "<td class=\"num\">0.58</td>" in text
+    assert "limit of absolute accuracy</td><td class=\"num\">0.55</td>" in text
+    with pytest.raises(rc.InputError, match="extra"):
+        render_report(full, extra={"paper": {"title": "t", "columns": ["a", "b"], "rows": [[1]]}})
+    with pytest.raises(rc.InputError, match="extra"):
+        render_report(full, extra={"paper": 3})
+
+
+def test_refuses_to_overwrite_and_writes_atomically(full, tmp_path):
+    path = tmp_path / "report.html"
+    path.write_text("keep me")
+    with pytest.raises(rc.InputError) as err:
+        write_report(full, path)
+    assert err.value.source == str(path) and path.read_text() == "keep me"
+    write_report(full, path, force=True)
+    assert path.read_text(encoding="utf-8").startswith("<!DOCTYPE html>")
+    assert [p.name for p in tmp_path.iterdir()] == ["report.html"]  # no temporary file left
+
+
+def test_not_a_result_is_an_input_error():
+    with pytest.raises(rc.InputError, match="not a robocal result"):
+        render_report({"schema": "robocal.result/1"})
+
+
+def test_needs_matplotlib_only_when_drawing(full, monkeypatch):
+    code = "import sys, robocal, robocal._report; assert 'matplotlib' not in sys.modules"
+    subprocess.run([sys.executable, "-c", code], check=True)
+    monkeypatch.setitem(sys.modules, "matplotlib", None)
+    with pytest.raises(rc.RobocalError, match=r"pip install robocal\[report\]"):
+        render_report(full)
+
+
+def test_nan_entries_are_not_drawn_or_printed(full):
+    d = json.loads(json.dumps(full))
+    d["errors"]["fit_after"][0] = [None]
+    d["errors"]["fit_residual_vectors"][0] = [[None, None, None]]
+    d["stats"]["validation_after"] = {"n": 0, "mean": None, "std": None, "rms": None, "max": None}
+    text = render_report(d)
+    assert re.search(r"\bnan\b", text, re.I) is None
+    assert "validation_after" in d["stats"] and "stats.validation_after.mean" not in Page(text).keyed
+
+
+# -- the browser ---------------------------------------------------------------------------------
+
+def _browser_or_skip():
+    """Chromium and Playwright, or a skip outside CI (under CI a missing browser is a failure)."""
+    ci = os.environ.get("CI", "").lower() not in ("", "0", "false", "no")
+    missing = [what for what, ok in (("chromium", Path(CHROMIUM).exists() or shutil.which("chromium")),)
+               if not ok]
+    try:
+        import playwright.sync_api  # noqa: F401
+    except ImportError:
+        missing.append("playwright (pip install playwright)")
+    if missing:
+        msg = f"headless browser test needs {', '.join(missing)}"
+        if ci:
+            pytest.fail(msg + " (CI is set)")
+        pytest.skip(msg)
+
+
+def test_renders_in_headless_chromium(full, tmp_path):
+    _browser_or_skip()
+    from playwright.sync_api import sync_playwright
+
+    path = tmp_path / "report.html"
+    write_report(full, path)
+    url = path.as_uri()
+    console, requests = [], []
+    with sync_playwright() as p:
+        browser = p.chromium.launch(
+            executable_path=CHROMIUM if Path(CHROMIUM).exists() else shutil.which("chromium"),
+            args=["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
+                  "--disable-sync", "--no-first-run"])
+        try:
+            page = browser.new_page(viewport={"width": 1200, "height": 900})
+            page.on("console", lambda m: console.append((m.type, m.text)))
+            page.on("pageerror", lambda e: console.append(("pageerror", str(e))))
+            page.on("request", lambda r: requests.append(r.url))
+            page.goto(url, wait_until="load")
+            plots = page.eval_on_selector_all(
+                "svg[data-plot]", "els => els.map(e => ({name: e.dataset.plot, width: e.getBoundingClientRect().width,"
+                " height: e.getBoundingClientRect().height, n: e.querySelectorAll('path, use, text').length}))")
+            title = page.title()
+            ARTIFACTS.mkdir(exist_ok=True)
+            shot = ARTIFACTS / "report.png"
+            page.screenshot(path=str(shot), full_page=True)
+        finally:
+            browser.close()
+    assert [m for m in console if m[0] in ("error", "pageerror")] == []
+    assert requests == [url]  # nothing fetched but the page itself
+    assert title.startswith("Calibration report")
+    assert sorted(pl["name"] for pl in plots) == sorted(PLOTS)
+    for pl in plots:
+        assert pl["width"] > 300 and pl["height"] > 150 and pl["n"] > 20, pl
+    assert shot.stat().st_size > 50_000
