@@ -103,7 +103,7 @@ def test_calibrate_compare(tmp_path, capsys):
     code, out, err = run(capsys, "calibrate", d / "model.yaml", d / "data.csv", "--out", d / "cmp", "--compare",
                          "--holdout", "0.3")
     assert code == 0, err
-    assert "geometric+compliance" in out and "better by" in out
+    assert "geometric+compliance" in out and "compliance helped" in out
     assert sorted(p.name for p in (d / "cmp").iterdir()) == ["calibrated.yaml", "result-compliance.json",
                                                              "result-geometric.json"]
 

@@ -19,6 +19,8 @@ from ._imports import from_standard_dh, mdh_table, read_urdf, write_mdh_csv, wri
 from ._modelfile import model_from_dict, model_to_dict, read_model, write_model
 from ._csvio import read_measurements, split_sets, write_measurements
 from ._resultio import read_result, write_result
+from ._report import render_report, write_report
+from ._compensate import Compensation, compensate, joint_jacobian
 from ._limit import (AccuracyLimit, PoseRepeatability, PrecisionResult, PredictedPrecision, RepeatabilityData,
                      RepeatabilityResult, accuracy_limit, controller_precision, iso9283_repeatability,
                      predicted_controller_precision, read_repeatability_csv)
@@ -37,4 +39,5 @@ __all__ = [
     "write_measurements", "read_result", "write_result", "AccuracyLimit", "PoseRepeatability", "PrecisionResult",
     "PredictedPrecision", "RepeatabilityData", "RepeatabilityResult", "accuracy_limit", "controller_precision",
     "iso9283_repeatability", "predicted_controller_precision", "read_repeatability_csv",
+    "render_report", "write_report", "Compensation", "compensate", "joint_jacobian",
 ]

@@ -20,7 +20,7 @@ import numpy as np
 from . import __version__
 from ._csvio import measurements_to_csv, parse_orientation, read_measurements, split_sets
 from ._errors import DegenerateDataError, InputError, RobocalError, RobocalWarning
-from ._identify import calibrate, identifiability
+from ._identify import calibrate, compare, identifiability
 from ._modelfile import model_to_yaml, parse_units, read_model, write_texts
 from ._params import unit_of
 from ._resultio import read_result, result_to_json
@@ -298,18 +298,19 @@ def cmd_calibrate(args) -> int:
         data, validation = data.split(args.holdout, rng=args.seed)
     runs = [("geometric", ("geometric",)), ("compliance", ("geometric", "compliance"))] if args.compare \
         else [(None, args.parameters or ("geometric",))]
-    results = {}
-    for label, params in runs:
-        try:
-            results[label] = calibrate(model, data, parameters=params, known=args.known, validation=validation,
-                                       loss=args.loss, tol=args.tol,
-                                       initial_base="register" if args.register_base else "model",
-                                       limit=None if args.limit_mm is None else args.limit_mm / MM)
-        except DegenerateDataError as e:  # name the file: the data, not the program, fall short
-            raise DegenerateDataError(f"{args.csv}: {e}") from None
+    options = dict(known=args.known, validation=validation, loss=args.loss, tol=args.tol,
+                   initial_base="register" if args.register_base else "model",
+                   limit=None if args.limit_mm is None else args.limit_mm / MM)
+    try:
+        if args.compare:
+            comparison = compare(model, data, **options)
+            results = {"geometric": comparison.geometric, "compliance": comparison.combined}
+        else:
+            results = {None: calibrate(model, data, parameters=runs[0][1], **options)}
+    except DegenerateDataError as e:  # name the file: the data, not the program, fall short
+        raise DegenerateDataError(f"{args.csv}: {e}") from None
     if args.compare:
-        best = _print_comparison(results["geometric"], results["compliance"], args.shown_warnings,
-                                 weighted=data.sigma is not None)
+        best = _print_comparison(comparison, args.shown_warnings, weighted=data.sigma is not None)
     else:
         best = results[None]
         _print_summary(best, args.shown_warnings, weighted=data.sigma is not None)
@@ -386,14 +387,8 @@ def _print_summary(result, shown=(), weighted=False) -> None:
     _print_notes(result, shown)
 
 
-def _score(result) -> float:
-    """Validation mean error when there are held-out poses, else the residual std (which charges the
-    extra parameters through the degrees of freedom)."""
-    v = result.stats["validation_after"]
-    return v["mean"] if v["n"] else result.sigma0
-
-
-def _print_comparison(geo, comp, shown=(), weighted=False):
+def _print_comparison(comparison, shown=(), weighted=False):
+    geo, comp = comparison.geometric, comparison.combined
     cols = (("geometric", geo), ("geometric+compliance", comp))
     print(f"comparison on {geo.provenance['data']['n_poses']} poses")
     print(f"  {'':<30}" + "".join(f"{name:>24}" for name, _ in cols))
@@ -409,9 +404,9 @@ def _print_comparison(geo, comp, shown=(), weighted=False):
     else:
         print(f"  {'residual std (mm)':<30}" + "".join(f"{r.sigma0 * MM:>24.4f}" for _, r in cols))
     print(f"  {'solver':<30}" + "".join(f"{'converged' if r.success else 'NOT converged':>24}" for _, r in cols))
-    best = comp if _score(comp) < _score(geo) else geo
-    basis = "validation mean error" if geo.stats["validation_after"]["n"] else "residual standard deviation"
-    print(f"better by {basis}: {'geometric+compliance' if best is comp else 'geometric'} (its model is written)")
+    best = comparison.best
+    print(comparison.verdict)
+    print(f"calibrated model written: {'geometric+compliance' if best is comp else 'geometric'}")
     for name, r in cols:
         notes = [n for n in r.notes if n not in shown]
         for n in notes:

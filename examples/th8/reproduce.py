@@ -1,0 +1,255 @@
+"""The founding paper's experiment on a SIMULATED TH8-like robot, from campaign to verdict.
+
+    python examples/th8/reproduce.py --out runs/th8            # the shipped campaign (seed 0)
+    python examples/th8/reproduce.py --seeds 20                # the paper's pattern over 20 campaigns
+    python examples/th8/reproduce.py --write-data              # regenerate the shipped CSV files
+
+The robot is simulated and its dimensions were chosen by us (examples/th8/model.yaml): the paper
+(Caenen and Angue, 1990) prints none. The campaign follows the paper: 48 configurations over the
+working volume, a 2 mm sphere seen by two theodolites (0.02 mm per metre), a robot with about
+0.3 mm repeatability, encoders of 0.1 and 0.12 mm (prismatic) and 0.01 to 0.002 degree (revolute)
+and a controller that rounds stored dimensions to 0.1 mm. The true robot differs from the nominal
+one by the geometric errors the paper identified (its tables), a base known to a few tenths of a
+millimetre, and joint and link compliances
+that move the tool about half a millimetre under gravity.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+import robocal as rc
+from robocal._campaign import RobotImperfections, accuracy_in_use, measure_campaign
+
+HERE = Path(__file__).resolve().parent
+DEG = np.pi / 180
+MM = 1e-3
+
+IMPERFECTIONS = RobotImperfections(
+    # j1 0.01 deg, j2 0.1 mm, j3 0.12 mm, wrist 0.005 / 0.002 / 0.002 deg
+    encoder_resolution=(0.01 * DEG, 0.1 * MM, 0.12 * MM, 0.005 * DEG, 0.002 * DEG, 0.002 * DEG),
+    # the arm's own scatter, per axis; with the theodolites' noise and the encoder quantum it makes
+    # the ISO 9283 test measure RP = l_mean + 3 S_l of about 0.3 mm, the paper's figure
+    repeatability_sigma=0.06 * MM,
+    instrument_noise_per_m=0.02 * MM,          # theodolites: 0.02 mm per metre
+    instrument_position=(0.0, 0.0, 0.0),
+    length_quantum=0.1 * MM,                   # dimensions stored to 0.1 mm
+    angle_quantum=0.001 * DEG,
+)
+# The true geometric errors are the values the paper identified on its TH8 (its tables; frame 2
+# from the second table, whose first-table row is illegible in the scan), degrees and mm.
+PAPER_ERRORS = {"j1.theta": 0.015, "j2.beta": 0.049, "j2.alpha": -0.049, "j2.r": 0.940,
+                "j3.alpha": 0.099, "j3.d": 0.874, "j3.r": 2.087, "j4.beta": -0.062, "j4.alpha": 0.031,
+                "j4.theta": -0.133, "j5.alpha": 0.014, "j5.d": -0.041, "j5.theta": -0.114,
+                "j6.alpha": 0.063, "j6.r": -3.703}
+# The base comes from a separate measurement (the paper's circle of joint 1 and translation of
+# joint 3): it is known to about this, drawn afresh for each campaign.
+BASE_ERROR = {"length": (0.1 * MM, 0.5 * MM), "angle": (0.005 * DEG, 0.02 * DEG)}
+# rad/(N m): base and carriage flexion, radial arm flexion and torsion, wrist torsion; gravity
+# then moves the tool by about half a millimetre (examples/th8/README.md)
+TRUE_COMPLIANCE = {"j1.k_alpha": 4e-7, "j1.k_beta": 4e-7, "j2.k_alpha": 4e-7, "j3.k_alpha": 2e-6,
+                   "j3.k_theta": 1e-4, "j5.k_theta": 2e-4}
+KNOWN = ("markers",)          # the tool was measured with precision, as in the paper
+N_FIT, N_VAL, N_ISO_POSES, N_CYCLES = 48, 48, 5, 30
+PAPER = {"before": (2.82, 0.88), "geometric": (0.69, 0.34), "geometric and compliance": (0.58, 0.21),
+         "repeatability": 0.3, "controller precision": 0.25, "limit": 0.55}
+
+
+def true_robot(nominal, rng):
+    p = rc.parameter_vector(nominal)
+    names = rc.parameter_names(nominal)
+    for n, v in PAPER_ERRORS.items():
+        unit = DEG if n.rsplit(".", 1)[1] in ("beta", "alpha", "theta") else MM
+        p[names.index(n)] += v * unit
+    sign = rng.choice([-1.0, 1.0], 6)
+    p[0:3] += sign[:3] * rng.uniform(*BASE_ERROR["length"], 3)
+    p[3:6] += sign[3:] * rng.uniform(*BASE_ERROR["angle"], 3)
+    for n, v in TRUE_COMPLIANCE.items():
+        p[names.index(n)] = v
+    return rc.model_from_vector(nominal, p)
+
+
+def campaign(nominal, seed):
+    """The true robot, the 48 + 48 measured poses and the ISO 9283 cycles of one simulated campaign."""
+    rng = np.random.default_rng(seed)
+    true = true_robot(nominal, rng)
+    q = rc.random_configurations(nominal, N_FIT + N_VAL, rng)
+    data = measure_campaign(true, q, IMPERFECTIONS, rng=rng,
+                            labels=[f"P{i + 1:02d}" for i in range(N_FIT + N_VAL)])
+    iso_q = rc.random_configurations(nominal, N_ISO_POSES, rng)
+    cycles = measure_campaign(true, np.repeat(iso_q, N_CYCLES, axis=0), IMPERFECTIONS, rng=rng)
+    pose_ids = np.repeat(np.arange(1, N_ISO_POSES + 1), N_CYCLES)
+    return true, data, pose_ids, cycles.positions[:, 0]
+
+
+def accuracy_limit(nominal, pose_ids, points, seed, samples=200_000):
+    rep = rc.iso9283_repeatability(pose_ids, points)
+    prec = rc.controller_precision(nominal, encoder_resolution=np.array(IMPERFECTIONS.encoder_resolution),
+                                   length_quantum=IMPERFECTIONS.length_quantum,
+                                   angle_quantum=IMPERFECTIONS.angle_quantum, n_samples=samples, rng=seed)
+    return rc.accuracy_limit(rep, prec)
+
+
+def run(nominal, true, fit, val, limit, seed):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", rc.RobocalWarning)
+        cmp = rc.compare(nominal, fit, validation=val, known=KNOWN, limit=limit.limit)
+    # the robot in use: the controller commands the held-out targets through the model it stores
+    targets = val.q
+    in_use = {
+        "before": accuracy_in_use(true, None, nominal, targets, IMPERFECTIONS, rng=seed),
+        "geometric": accuracy_in_use(true, cmp.geometric.calibrated_model, nominal, targets, IMPERFECTIONS, rng=seed),
+        "geometric and compliance": accuracy_in_use(true, cmp.combined.calibrated_model, nominal, targets,
+                                                    IMPERFECTIONS, rng=seed),
+    }
+    return cmp, in_use
+
+
+def _mm(v):
+    return f"{v * 1e3:.2f}"
+
+
+def figures(cmp, in_use):
+    rows = {}
+    for key, res in (("before", None), ("geometric", cmp.geometric), ("geometric and compliance", cmp.combined)):
+        r = cmp.geometric if res is None else res
+        fit = r.stats["fit_before" if res is None else "fit_after"]
+        val = r.stats["validation_before" if res is None else "validation_after"]
+        rows[key] = {"fit": (fit["mean"], fit["std"]), "held_out": (val["mean"], val["std"]),
+                     "in_use": (float(in_use[key].mean()), float(in_use[key].std(ddof=1)))}
+    return rows
+
+
+def table(rows, limit) -> list[str]:
+    out = ["| | paper: mean (std), mm | ours, fitted poses | ours, held-out poses | ours, in use (held-out targets) |",
+           "|---|---|---|---|---|"]
+    for key, r in rows.items():
+        pm, ps = PAPER[key]
+        cells = [f"{_mm(m)} ({_mm(s)})" for m, s in (r["fit"], r["held_out"], r["in_use"])]
+        out.append(f"| {key} | {pm:.2f} ({ps:.2f}) | " + " | ".join(cells) + " |")
+    out.append(f"| repeatability RP (ISO 9283) | {PAPER['repeatability']:.2f} | {_mm(limit.repeatability)} | | |")
+    out.append(f"| precision of the geometric control | {PAPER['controller precision']:.2f} | {_mm(limit.precision)} | | |")
+    out.append(f"| limit of absolute accuracy | {PAPER['limit']:.2f} | {_mm(limit.limit)} | | |")
+    return out
+
+
+def identifiability_table(result, frame_names) -> list[str]:
+    kinds = ("beta", "alpha", "d", "theta", "r", "k_theta", "k_alpha", "k_beta")
+    head = ["| frame | " + " | ".join(kinds) + " |", "|---" * (len(kinds) + 1) + "|"]
+    rows = [f"| {row['frame']} | " + " | ".join(row[k] for k in kinds) + " |"
+            for row in result.identifiability.table(frame_names)]
+    why = []
+    for a in result.identifiability.eliminated:
+        absorbers = ", ".join(f"{c:+.3g} {n}" for n, c in a.absorbers) or "nothing"
+        why.append(f"- {a.name}: {a.reason}" + (f" (absorbed by {absorbers})" if a.absorbers else ""))
+    return head + rows + ["", "Eliminated parameters and what absorbs them:", ""] + why
+
+
+def write_data(nominal):
+    true, data, pose_ids, points = campaign(nominal, 0)
+    held_out = np.arange(N_FIT + N_VAL) >= N_FIT
+    data = rc.Measurements(q=data.q, positions=data.positions, marker_names=data.marker_names,
+                           joint_names=data.joint_names, labels=data.labels, extra={"validation": held_out})
+    rc.write_measurements(data, HERE / "measurements.csv", model=nominal, units="mm-deg", force=True)
+    with open(HERE / "repeatability.csv", "w") as fh:
+        fh.write("pose,cycle,x,y,z\n")
+        cycle = np.tile(np.arange(1, N_CYCLES + 1), N_ISO_POSES)
+        for pid, c, (x, y, z) in zip(pose_ids, cycle, points * 1e3):
+            fh.write(f"{pid},{c},{x:.4f},{y:.4f},{z:.4f}\n")
+    rc.write_model(true, HERE / "true_model.yaml", force=True)
+
+
+def one(nominal, out: Path | None):
+    fit, val = rc.split_sets(rc.read_measurements(HERE / "measurements.csv", nominal))
+    rep = rc.read_repeatability_csv(HERE / "repeatability.csv", units="mm")
+    true = rc.read_model(HERE / "true_model.yaml")
+    limit = accuracy_limit(nominal, rep.pose_ids, rep.points, seed=0)
+    cmp, in_use = run(nominal, true, fit, val, limit, seed=0)
+    rows = figures(cmp, in_use)
+    lines = ["# TH8-like robot (simulated; dimensions chosen by robocal, not the paper's)", "",
+             "Errors of the tool point, mm. 'Fitted' and 'held-out' compare the model with the measured",
+             "positions at the recorded joint readings, as the paper does; 'in use' commands held-out",
+             "targets through the controller (model stored to 0.1 mm, encoders, repeatability) and",
+             "measures where the robot goes (ISO 9283 accuracy).", ""]
+    lines += table(rows, limit)
+    lines += ["", cmp.verdict, ""]
+    lim = cmp.combined.limit
+    lines += [f"Held-out mean error after both identifications: {lim['mean_error_m'] * 1e3:.3f} mm, "
+              f"{lim['ratio']:.2f} times the limit of {limit.limit * 1e3:.3f} mm "
+              f"({'reached' if lim['reached'] else 'not reached'}).",
+              "The simulated robot has no imperfection beyond those the limit accounts for, and the limit",
+              "adds RP (a near-worst-case, l_mean + 3 S_l) to a mean deviation: the mean error lands well",
+              "below it. The paper's real TH8 (0.58 mm against 0.55 mm) had errors our simulation lacks.", ""]
+    lines += ["## Identifiability (derived from the data, geometric and compliance parameters)", ""]
+    lines += identifiability_table(cmp.combined, nominal.frame_names)
+    print("\n".join(lines))
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "summary.md").write_text("\n".join(lines) + "\n")
+        rc.write_result(cmp.geometric, out / "result-geometric.json", force=True)
+        rc.write_result(cmp.combined, out / "result.json", force=True)
+        rc.write_model(cmp.best.calibrated_model, out / "calibrated.yaml", force=True)
+        (out / "limit.json").write_text(json.dumps(limit.to_dict(), indent=2))
+        try:
+            from robocal._report import write_report
+        except ImportError:
+            print("(report extra not installed: no report.html)")
+        else:
+            extra = {"tables": [{"title": "The paper's figures beside ours (mm)",
+                                 "columns": ["", "paper mean (std)", "fitted", "held-out", "in use"],
+                                 "rows": [[k, f"{PAPER[k][0]:.2f} ({PAPER[k][1]:.2f})"] +
+                                          [f"{_mm(m)} ({_mm(s)})" for m, s in (r["fit"], r["held_out"], r["in_use"])]
+                                          for k, r in rows.items()]}]}
+            d = json.loads(rc._resultio.result_to_json(cmp.combined))
+            write_report(d, out / "report.html", force=True, extra=extra)
+        print(f"\nwritten: {', '.join(sorted(p.name for p in out.iterdir()))} in {out}")
+
+
+def many(nominal, seeds: int):
+    ratios, cut, improved, finals = [], [], [], []
+    for seed in range(seeds):
+        true, data, pose_ids, points = campaign(nominal, 1000 + seed)
+        limit = accuracy_limit(nominal, pose_ids, points, seed=seed, samples=50_000)
+        cmp, in_use = run(nominal, true, data.subset(slice(0, N_FIT)), data.subset(slice(N_FIT, None)), limit, seed)
+        rows = figures(cmp, in_use)
+        b, g, c = (rows[k]["held_out"][0] for k in ("before", "geometric", "geometric and compliance"))
+        cut.append(b / g)
+        improved.append(c < g)
+        finals.append((c, rows["geometric and compliance"]["in_use"][0], limit.limit))
+        ratios.append(c / limit.limit)
+        print(f"seed {seed:2d}: before {_mm(b)}  geometric {_mm(g)}  +compliance {_mm(c)}  in use "
+              f"{_mm(finals[-1][1])}  limit {_mm(limit.limit)}  final/limit {c / limit.limit:.2f}", flush=True)
+    ratios = np.array(ratios)
+    in_use_ratio = np.array([u / lim for _, u, lim in finals])
+    print(f"\nover {seeds} simulated campaigns (mean and spread):")
+    print(f"  geometric identification cuts the held-out mean error {np.mean(cut):.1f}x (min {np.min(cut):.1f}x)")
+    print(f"  compliance improves it further in {int(np.sum(improved))} of {seeds}")
+    print(f"  final held-out mean / limit = {ratios.mean():.2f} +- {ratios.std(ddof=1):.2f} "
+          f"(min {ratios.min():.2f}, max {ratios.max():.2f})")
+    print(f"  final in-use mean / limit = {in_use_ratio.mean():.2f} +- {in_use_ratio.std(ddof=1):.2f}")
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", type=Path, default=None, help="folder for summary, results, model and report")
+    ap.add_argument("--seeds", type=int, default=0, help="run this many simulated campaigns instead")
+    ap.add_argument("--write-data", action="store_true", help="regenerate the shipped campaign files")
+    args = ap.parse_args(argv)
+    nominal = rc.read_model(HERE / "model.yaml")
+    if args.write_data:
+        write_data(nominal)
+    elif args.seeds:
+        many(nominal, args.seeds)
+    else:
+        one(nominal, args.out)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,106 @@
+"""A measurement campaign on a simulated real robot, with the imperfections a real one has.
+
+Where ``_simulate.measure`` adds isotropic noise to exact kinematics, this module simulates how a
+campaign actually happens: the controller servoes each joint to an encoder count (the recorded
+reading is that count, the true joint lies anywhere within its quantum), the arm scatters
+around where it should be (its repeatability), and the instrument's noise grows with distance
+(theodolites and trackers are specified in mm per metre). It also simulates the robot in use:
+a controller that stores its model rounded to its own quantum, commands targets through it,
+and reaches them within encoder resolution and repeatability.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._compensate import compensate
+from ._data import Measurements
+from ._kinematics import evaluate, model_from_vector, parameter_vector
+from ._limit import rounded_parameters
+from ._model import RobotModel
+
+
+@dataclass(frozen=True)
+class RobotImperfections:
+    """How a real robot, its controller and the instrument depart from the ideal (SI).
+
+    ``encoder_resolution`` (n_joints,) rad or m per count; ``repeatability_sigma`` standard
+    deviation per axis of the attained position about its mean, m; ``instrument_noise_per_m``
+    standard deviation per axis per metre of distance from ``instrument_position`` (in W);
+    ``length_quantum``/``angle_quantum`` the round-off of the parameters stored in the controller.
+    """
+
+    encoder_resolution: tuple[float, ...]
+    repeatability_sigma: float
+    instrument_noise_per_m: float
+    instrument_position: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    length_quantum: float = 0.0
+    angle_quantum: float = 0.0
+
+    def repeatability_rp(self) -> float:
+        """ISO 9283 RP = l_mean + 3 S_l expected for isotropic Gaussian scatter of this sigma.
+
+        The distance to the barycentre then follows a Maxwell law: mean 2 sqrt(2/pi) sigma,
+        standard deviation sqrt(3 - 8/pi) sigma.
+        """
+        s = self.repeatability_sigma
+        return float(2 * np.sqrt(2 / np.pi) * s + 3 * np.sqrt(3 - 8 / np.pi) * s)
+
+
+def _quantise(q, res):
+    res = np.asarray(res, dtype=float)
+    safe = np.where(res > 0, res, 1.0)
+    return np.where(res > 0, np.round(q / safe) * safe, q)
+
+
+def _attain(true_model: RobotModel, recorded, imp: RobotImperfections, rng, payload_mass=None):
+    """Positions the arm reaches at recorded encoder counts, and what the instrument reads."""
+    res = np.asarray(imp.encoder_resolution, dtype=float)
+    actual = recorded + rng.uniform(-0.5, 0.5, recorded.shape) * res
+    P = evaluate(true_model, actual, payload_mass=payload_mass).positions
+    P = P + rng.normal(0.0, imp.repeatability_sigma, P.shape)
+    dist = np.linalg.norm(P - np.asarray(imp.instrument_position), axis=-1, keepdims=True)
+    return P + rng.normal(0.0, 1.0, P.shape) * imp.instrument_noise_per_m * dist
+
+
+def measure_campaign(true_model: RobotModel, q_commanded, imp: RobotImperfections, *, rng=None,
+                     payload_mass=None, labels=()) -> Measurements:
+    """Measurements of a campaign at the commanded configurations: readings are encoder counts."""
+    rng = np.random.default_rng(rng)
+    recorded = _quantise(np.atleast_2d(np.asarray(q_commanded, dtype=float)), imp.encoder_resolution)
+    P = _attain(true_model, recorded, imp, rng, payload_mass)
+    return Measurements(q=recorded, positions=P, marker_names=true_model.marker_names,
+                        joint_names=true_model.joint_names, payload_mass=payload_mass, labels=tuple(labels),
+                        source="simulated campaign")
+
+
+def stored_model(model: RobotModel, imp: RobotImperfections) -> RobotModel:
+    """The model as the controller stores it: dimensions and angles rounded to its quanta."""
+    if imp.length_quantum <= 0 and imp.angle_quantum <= 0:
+        return model
+    rp = rounded_parameters(model, imp.length_quantum, imp.angle_quantum)
+    p = parameter_vector(model)
+    qz = np.where(rp.quanta > 0, rp.quanta, 1.0)
+    p[rp.params] = np.where(rp.quanta > 0, np.round(p[rp.params] / qz) * qz, p[rp.params])
+    return model_from_vector(model, p)
+
+
+def accuracy_in_use(true_model: RobotModel, controller_model: RobotModel | None, nominal: RobotModel, targets_q,
+                    imp: RobotImperfections, *, rng=None, marker: int = 0) -> np.ndarray:
+    """Distance (m) between each target and what the instrument sees the robot reach (ISO 9283 sense).
+
+    Targets are the poses ``nominal`` reaches at ``targets_q`` (what an off-line program asks for).
+    Without ``controller_model`` the controller commands the targets' readings as they are (an
+    uncalibrated robot); with it, it stores that model rounded to its quanta and commands the
+    compensated readings. Returns (n_targets,).
+    """
+    rng = np.random.default_rng(rng)
+    q = np.atleast_2d(np.asarray(targets_q, dtype=float))
+    target = evaluate(nominal, q).positions[:, marker]
+    if controller_model is not None:
+        q = compensate(stored_model(controller_model, imp), q, nominal=nominal, marker=marker).q
+    recorded = _quantise(q, imp.encoder_resolution)
+    P = _attain(true_model, recorded, imp, rng)[:, marker]
+    return np.linalg.norm(P - target, axis=1)
