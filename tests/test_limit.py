@@ -160,7 +160,6 @@ def test_chunking_does_not_change_the_statistics():
     seen = []
     parts = controller_precision(model, n_samples=5000, chunk_size=777, rng=3, progress=lambda d, t: seen.append((d, t)),
                                  **QUANTA)
-    np.testing.assert_allclose(parts.deviations, whole.deviations, rtol=1e-12)
     for f in ("mean", "std", "rms", "max"):
         np.testing.assert_allclose(getattr(parts, f), getattr(whole, f), rtol=1e-12)
     np.testing.assert_allclose(parts.percentiles, whole.percentiles, rtol=1e-12)
@@ -178,14 +177,20 @@ def test_joint_errors_alone_are_exact_kinematics():
     dq = (u[:, 6:12] - 0.5) * 0.1 * DEG
     ref = rc.forward_kinematics(model, q).positions[:, 0]
     moved = rc.forward_kinematics(model, q + dq).positions[:, 0]
-    np.testing.assert_allclose(r.deviations, np.linalg.norm(moved - ref, axis=1), rtol=1e-9, atol=1e-15)
+    exact = np.linalg.norm(moved - ref, axis=1)
+    np.testing.assert_allclose([r.mean, r.max, r.rms], [exact.mean(), exact.max(), np.sqrt(np.mean(exact ** 2))],
+                               rtol=1e-9)
+    # percentiles come from a histogram of 0.14 % wide bins
+    for pct, v in r.percentiles:
+        np.testing.assert_allclose(v, np.percentile(exact, pct), rtol=4e-3)
 
 
 def test_all_markers_takes_the_worst():
     model = industrial_6r(markers=(("tool", (0.0, 0.0, 0.1)), ("far", (0.5, 0.0, 0.1))))
     first = controller_precision(model, n_samples=2000, rng=4, markers="first", **QUANTA)
     both = controller_precision(model, n_samples=2000, rng=4, markers="all", **QUANTA)
-    assert np.all(both.deviations >= first.deviations) and both.mean > first.mean
+    assert both.max >= first.max and both.mean > first.mean
+    assert all(b >= f for (_, b), (_, f) in zip(both.percentiles, first.percentiles))
 
 
 @pytest.mark.parametrize("change, where", [
