@@ -34,12 +34,17 @@ class Compensation:
 
 
 def compensate(model: RobotModel, targets_q, *, nominal: RobotModel | None = None, marker: int = 0,
-               orientation: bool | None = None, iterations: int = 8, tol: float = 1e-10) -> Compensation:
+               orientation: bool | None = None, iterations: int = 20, tol: float = 1e-10,
+               damping: float = 1e-6, max_step: float = 0.05) -> Compensation:
     """Readings q' at which ``model`` reaches the pose ``nominal`` reaches at ``targets_q``.
 
     This is what a controller holding the nominal model needs to send to the identified robot.
     With six or more joints the full pose of ``marker`` is matched (``orientation`` default True),
-    otherwise its position only (least-norm correction). Damped Newton steps, batched over poses.
+    otherwise its position only (least-norm correction). Damped least-squares steps (``damping``
+    in the Jacobian's units, each step at most ``max_step`` rad or m per joint), batched over
+    poses. ``residual`` tells how well each target was reached: near a singularity the robot may
+    not reach the exact nominal pose without a large joint motion, and the damped step settles
+    for the nearest pose instead.
     """
     q0 = np.atleast_2d(np.asarray(targets_q, dtype=float))
     nominal = model if nominal is None else nominal
@@ -62,8 +67,13 @@ def compensate(model: RobotModel, targets_q, *, nominal: RobotModel | None = Non
         else:
             e = e_pos
             J = J[:, :3]
-        # least-norm Gauss-Newton step per pose (pinv handles redundant or singular poses)
-        q = q - np.einsum("nij,nj->ni", np.linalg.pinv(J, rcond=1e-10), e)
+        # damped least squares per pose: near a singularity (wrist aligned) an exact step would
+        # swing the joints by radians for a micrometre; damping and a step bound keep it local
+        JT = np.swapaxes(J, 1, 2)
+        A = JT @ J + damping ** 2 * np.eye(J.shape[2])
+        step = np.linalg.solve(A, np.einsum("nji,ni->nj", JT, e)[..., None])[..., 0]
+        big = np.abs(step).max(axis=1, keepdims=True)
+        q = q - step * np.minimum(1.0, max_step / np.maximum(big, 1e-300))
     ev = evaluate(model, q, p, orientations=True)
     res = np.linalg.norm(ev.positions[:, marker] - Pt, axis=1)
     res_rot = np.linalg.norm(Rotation.from_matrix(ev.rotations[:, marker] @ np.swapaxes(Rt, -1, -2)).as_rotvec(), axis=1)
