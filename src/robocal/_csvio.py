@@ -248,7 +248,7 @@ def read_measurements(path, model: RobotModel | None = None, *, units: str | Non
     orient = parse_orientation(orientation)
     text, digest = read_text(path)
     reader = csv.reader(io.StringIO(text, newline=""), delimiter=sep)
-    header, header_line, comment_units, comment_orient = None, 0, {}, None
+    header, header_line, comment_units, comment_orient, orient_text = None, 0, {}, None, ""
     rows = []
     try:
         for row in reader:
@@ -264,6 +264,7 @@ def read_measurements(path, model: RobotModel | None = None, *, units: str | Non
                     o = _directive(joined, "orientation")
                     if o is not None:
                         comment_orient = parse_orientation(o, source=source, where=f"line {line}")
+                        orient_text = f"{o.strip()} (line {line})"
                 continue
             if header is None:
                 header, header_line = [c.strip() for c in row], line
@@ -279,7 +280,7 @@ def read_measurements(path, model: RobotModel | None = None, *, units: str | Non
                              "they must agree", source=source, where="units")
         declared[kind] = unit
     if orient is not None and comment_orient is not None and orient != comment_orient:
-        raise InputError(f"the file declares orientation {comment_orient}, the option says {orientation}",
+        raise InputError(f"the file declares orientation {orient_text}, the option says {orientation}",
                          source=source, where="orientation")
     cols = _Columns(header, model, declared, orient or comment_orient, source, header_line)
     if not rows:

@@ -11,7 +11,7 @@ from ._errors import DegenerateDataError, InputError
 from ._identify import _Problem, identifiability, random_configurations
 from ._kinematics import parameter_vector
 from ._model import RobotModel
-from ._params import candidate_parameters
+
 
 
 @dataclass(frozen=True)

@@ -16,6 +16,7 @@ from ._errors import (ConvergenceWarning, DegenerateDataError, IdentifiabilityWa
                       MisfitWarning)
 from ._identifiability import DEFAULT_TOL, IdentifiabilityResult, analyse
 from ._kinematics import _evaluate_state, _jacobian_columns, evaluate, layout, model_from_vector, parameter_vector
+from ._misfit import characteristic_length, misfit_notes
 from ._model import RobotModel
 from ._params import candidate_parameters, unit_of
 
@@ -415,19 +416,31 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
                "the data declaration (units, orientation convention, marker names) does not fit")
         notes.append(msg)
         warnings.warn(msg, MisfitWarning, stacklevel=2)
+    ev_hat = prob._eval(p_hat)
+    if orientation:
+        # a wrong orientation convention converges quietly: test the rotations, with or without stated sigmas
+        Rp = ev_hat.rotations[:, prob.marker_idx][data.rot_mask]
+        rot_res = Rotation.from_matrix(Rp @ np.swapaxes(data.rotations[data.rot_mask], -1, -2)).as_rotvec()
+        for msg in misfit_notes(prob.position_errors(ev_hat)[data.mask], rot_res,
+                                characteristic_length_m=characteristic_length(data.positions[data.mask]),
+                                sigma_rot_rad=None if data.sigma_rot is None else data.sigma_rot[data.rot_mask]):
+            notes.append(msg)
+            warnings.warn(msg, MisfitWarning, stacklevel=2)
 
     calibrated = model_from_vector(model, p_hat)
-    nominal_idx = layout(model).names
-    p_nom = parameter_vector(nominal)
+    # "nominal" is the start of the solve: the user's model, or with registration the registered
+    # base (rotation corrections and their standard deviations are small angles about it)
     est = tuple(
-        ParameterEstimate(n, unit_of(n), float(p_nom[nominal_idx.index(n)]), float(p_hat[prob.free_idx[k]]),
-                          float(std[k]))
+        ParameterEstimate(n, unit_of(n), float(p0[prob.free_idx[k]]), float(p_hat[prob.free_idx[k]]), float(std[k]))
         for k, n in enumerate(free)
     )
+    if initial_base == "register":
+        notes.append("base parameters are reported against the registered base (nominal column), not the "
+                     "model file's")
     prob_nom = _Problem(nominal, data, free, compliance=nominal.has_compliance)
     before = _norms(prob_nom, parameter_vector(nominal))
     after = _norms(prob, p_hat)
-    vectors = np.where(data.mask[..., None], prob.position_errors(prob._eval(p_hat)), np.nan)
+    vectors = np.where(data.mask[..., None], prob.position_errors(ev_hat), np.nan)
     stats = {"fit_before": error_stats(before), "fit_after": error_stats(after),
              "validation_before": error_stats([]), "validation_after": error_stats([])}
     vb = va = None

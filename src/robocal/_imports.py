@@ -24,7 +24,6 @@ import io
 import math
 import os
 import re
-import tempfile
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -34,6 +33,7 @@ import numpy as np
 
 from ._errors import InputError
 from ._kinematics import _as_tuple3x3, _rot_matrix
+from ._modelfile import write_texts
 from ._model import DEFAULT_PARALLEL_TOL, Frame, Marker, RobotModel, parallel_beta_frames
 
 __all__ = ["from_standard_dh", "read_urdf", "write_urdf", "mdh_table", "write_mdh_csv"]
@@ -601,19 +601,6 @@ def _axis_angle(k: np.ndarray, angle: float) -> np.ndarray:
 # ----------------------------------------------------------------------------------------------
 # URDF out
 
-def _atomic_write(path, text: str) -> None:
-    """Write ``text`` to ``path`` via a temporary file in the same folder and ``os.replace``."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def _num(v: float) -> str:
     return repr(float(v) + 0.0)  # + 0.0 turns -0.0 into 0.0
 
@@ -623,7 +610,7 @@ def _origin(el: ET.Element, X: np.ndarray) -> None:
                   rpy=" ".join(_num(v) for v in _matrix_rpy(X[:3, :3])))
 
 
-def write_urdf(model: RobotModel, path) -> None:
+def write_urdf(model: RobotModel, path, *, force: bool = False) -> None:
     """Write ``model`` as URDF (serial chains and trees), atomically.
 
     Links: ``world`` (the measurement frame W), ``base_link`` (robot frame 0, fixed joint with
@@ -721,7 +708,7 @@ def write_urdf(model: RobotModel, path) -> None:
         ET.SubElement(j, "child", link=mlinks[m])
     ET.indent(robot)
     text = '<?xml version="1.0" encoding="utf-8"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
-    _atomic_write(path, text)
+    write_texts({path: text}, force=force)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -766,7 +753,7 @@ def mdh_table(model: RobotModel, *, units: str = "m-rad") -> list[dict]:
     return rows
 
 
-def write_mdh_csv(model: RobotModel, path, *, units: str = "mm-deg") -> None:
+def write_mdh_csv(model: RobotModel, path, *, units: str = "mm-deg", force: bool = False) -> None:
     """Write :func:`mdh_table` as CSV (header with unit suffixes), atomically; 15 significant digits."""
     rows = mdh_table(model, units=units)
     buf = io.StringIO()
@@ -774,4 +761,4 @@ def write_mdh_csv(model: RobotModel, path, *, units: str = "mm-deg") -> None:
     w.writerow(list(rows[0]))
     for row in rows:
         w.writerow([format(v, ".15g") if isinstance(v, float) else v for v in row.values()])
-    _atomic_write(path, buf.getvalue())
+    write_texts({path: buf.getvalue()}, force=force)

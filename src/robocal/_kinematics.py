@@ -39,21 +39,6 @@ COMPLIANT = ((THETA, K_THETA), (ALPHA, K_ALPHA), (BETA, K_BETA))
 _ROT_PAIRS = {0: (1, 2), 1: (2, 0), 2: (0, 1)}
 
 
-def _rot(E, axis, angle):
-    """Frame columns E=[e0,e1,e2] turned by Rot(axis, angle) about their own axis (right product)."""
-    i, j = _ROT_PAIRS[axis]
-    c = np.cos(angle)
-    s = np.sin(angle)
-    if np.ndim(c):
-        c = c[:, None]
-        s = s[:, None]
-    E = list(E)
-    ei, ej = E[i], E[j]
-    E[i] = ei * c + ej * s
-    E[j] = ej * c - ei * s
-    return E
-
-
 def _cross(a, b):
     """Cross product over the last axis; numpy's own is several times slower on small vectors."""
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
@@ -296,7 +281,6 @@ def _kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarra
     Rb = np.broadcast_to(Rb, (N, 3, 3))
     R_frames: list = [None] * model.n_frames
     O_frames: list = [None] * model.n_frames
-    ez = np.array([0.0, 0.0, 1.0])
     for i, f in enumerate(model.frames):
         if f.parent < 0:
             Rp, Op = Rb, Ob
