@@ -11,11 +11,13 @@ vectorised residual function but scipy's finite-difference Jacobian ('2-point').
 from __future__ import annotations
 
 import argparse
+import os
 import platform
 import time
 import warnings
 
 import numpy as np
+import scipy
 from scipy.optimize import least_squares
 
 import robocal as rc
@@ -71,30 +73,45 @@ def main(argv=None):
     ap.add_argument("--fk-poses", type=int, default=100_000)
     args = ap.parse_args(argv)
     warnings.simplefilter("ignore", rc.RobocalWarning)
-    print(f"# robocal identification benchmark, {time.strftime('%Y-%m-%d')}, {platform.processor() or platform.machine()}, "
-          f"numpy {np.__version__}")
-    print("| robot | poses | solve, analytic J (ms) | solve, finite differences (ms) | speed-up | calibrate() (ms) | nfev |")
-    print("|---|---|---|---|---|---|---|")
-    for label, families, masses in (("6R geometric", ("geometric",), False),
-                                    ("6R geometric + compliance", ("geometric", "compliance"), True)):
-        m = arm6r(masses)
-        for n in (48, 1000, 10_000):
-            true_k = {"j2.k_theta": 4e-6, "j3.k_theta": 6e-6} if masses else None
-            _, data = rc.simulate(m, n, seed=1, parameters=families, true_compliance=true_k)
-            rep = args.repeat if n <= 1000 else max(1, args.repeat // 2)
-            t_an, sol = best_of(solve(m, data, families, True), rep)
-            t_fd, sol_fd = best_of(solve(m, data, families, False), max(1, rep // 2))
-            t_cal, _ = best_of(lambda: rc.calibrate(m, data, parameters=families), rep)
-            print(f"| {label} | {n} | {t_an * 1e3:.1f} | {t_fd * 1e3:.1f} | {t_fd / t_an:.1f}x | "
-                  f"{t_cal * 1e3:.1f} | {sol.nfev} (FD {sol_fd.nfev}) |")
+    print(f"# robocal identification benchmark, {time.strftime('%Y-%m-%d')}, {platform.machine()}, "
+          f"{os.cpu_count()} cores, numpy {np.__version__}, scipy {scipy.__version__}; best of {args.repeat}")
+    print("\n## Geometric identification, 6R arm\n")
+    print("| poses | solve, analytic J (ms) | solve, finite differences (ms) | speed-up | calibrate() (ms) | nfev |")
+    print("|---|---|---|---|---|---|")
+    m = arm6r(False)
+    for n in (48, 1000, 10_000):
+        _, data = rc.simulate(m, n, seed=1)
+        rep = args.repeat if n <= 1000 else max(1, args.repeat // 2)
+        t_an, sol = best_of(solve(m, data, ("geometric",), True), rep)
+        t_fd, sol_fd = best_of(solve(m, data, ("geometric",), False), max(1, rep // 2))
+        t_cal, _ = best_of(lambda: rc.calibrate(m, data), rep)
+        print(f"| {n} | {t_an * 1e3:.1f} | {t_fd * 1e3:.1f} | {t_fd / t_an:.1f}x | {t_cal * 1e3:.1f} | "
+              f"{sol.nfev} (FD {sol_fd.nfev}) |")
+    print("\n## Compliance against geometry alone, same data (6R arm with masses, compliant truth)\n")
+    print("| poses | calibrate() geometric (ms) | calibrate() geometric + compliance (ms) | ratio | "
+          "solve geometric (ms) | solve with compliance (ms) | ratio | solve with compliance, FD (ms) |")
+    print("|---|---|---|---|---|---|---|---|")
+    m = arm6r(True)
+    both = ("geometric", "compliance")
+    for n in (48, 1000, 10_000):
+        _, data = rc.simulate(m, n, seed=1, parameters=both, true_compliance={"j2.k_theta": 4e-6, "j3.k_theta": 6e-6})
+        rep = args.repeat if n <= 1000 else max(1, args.repeat // 2)
+        t_g, _ = best_of(lambda: rc.calibrate(m, data), rep)
+        t_c, _ = best_of(lambda: rc.calibrate(m, data, parameters=both), rep)
+        s_g, _ = best_of(solve(m, data, ("geometric",), True), rep)
+        s_c, _ = best_of(solve(m, data, both, True), rep)
+        s_fd, _ = best_of(solve(m, data, both, False), 1)
+        print(f"| {n} | {t_g * 1e3:.1f} | {t_c * 1e3:.1f} | {t_c / t_g:.1f}x | {s_g * 1e3:.1f} | {s_c * 1e3:.1f} | "
+              f"{s_c / s_g:.1f}x | {s_fd * 1e3:.0f} |")
     m = arm6r(True)
     q = rc.random_configurations(m, args.fk_poses, rng=0)
     names = rc.identifiability(m).identified
+    rc.forward_kinematics(m, q)  # first touch of the large arrays
     t_fk, _ = best_of(lambda: rc.forward_kinematics(m, q), 3)
     t_j, J = best_of(lambda: rc.jacobian(m, q, columns=names), 3)
     t_jall, _ = best_of(lambda: rc.jacobian(m, q), 3)
-    print()
-    print(f"| batched, {args.fk_poses} poses | time (ms) |")
+    print(f"\n## Batched kinematics, {args.fk_poses} poses\n")
+    print("| computation | time (ms) |")
     print("|---|---|")
     print(f"| forward kinematics (positions and orientations) | {t_fk * 1e3:.0f} |")
     print(f"| forward kinematics + Jacobian, {len(names)} identifiable columns | {t_j * 1e3:.0f} |")

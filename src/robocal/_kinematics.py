@@ -239,26 +239,16 @@ class _Pass:
     RM: list         # per marker orientation (N, 3, 3), when asked
 
 
-def _rot_stack(axis: int, angle: np.ndarray) -> np.ndarray:
-    """(N, 3, 3) rotations about one coordinate axis."""
-    c, s = np.cos(angle), np.sin(angle)
-    out = np.zeros(np.shape(angle) + (3, 3))
+def _turn(R: np.ndarray, axis: int, angle) -> np.ndarray:
+    """R @ Rot(axis, angle) for a stack R (N, 3, 3) and per-pose angles: mixes two columns."""
     i, j = _ROT_PAIRS[axis]
-    out[..., axis, axis] = 1.0
-    out[..., i, i] = c
-    out[..., j, j] = c
-    out[..., j, i] = s
-    out[..., i, j] = -s
-    return out
-
-
-def _turn_z(R: np.ndarray, angle) -> np.ndarray:
-    """R @ Rot(z, angle) with per-pose angles: mixes the first two columns."""
     c = np.cos(angle)[:, None]
     s = np.sin(angle)[:, None]
-    out = R.copy()
-    out[:, :, 0] = R[:, :, 0] * c + R[:, :, 1] * s
-    out[:, :, 1] = R[:, :, 1] * c - R[:, :, 0] * s
+    out = np.empty(R.shape)
+    ri, rj = R[:, :, i], R[:, :, j]
+    out[:, :, i] = ri * c + rj * s
+    out[:, :, j] = rj * c - ri * s
+    out[:, :, axis] = R[:, :, axis]
     return out
 
 
@@ -299,13 +289,17 @@ def _kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarra
             W = _rmul(Rp, V)                                             # (N, 3, 5)
             RA = _rmul(Rp, A)
         else:
+            # per-pose deflections of beta and alpha: turn the parent's columns pose by pose
             d_th, d_al, d_be = defl[i]
-            Rgb = Rg @ _rot_stack(1, v[BETA] + d_be)                     # (N, 3, 3)
-            A = Rgb @ _rot_stack(0, v[ALPHA] + d_al)
-            V = np.stack([np.broadcast_to(Rg[:, 1], (N, 3)), Rgb[:, :, 0], A[:, :, 2],
-                          np.broadcast_to(bvec, (N, 3)), bvec + Rgb[:, :, 0] * v[D]], axis=2)
-            W = Rp @ V
-            RA = Rp @ A
+            RG = _rmul(Rp, Rg)
+            RGB = _turn(RG, 1, np.broadcast_to(v[BETA] + d_be, (N,)))
+            RA = _turn(RGB, 0, np.broadcast_to(v[ALPHA] + d_al, (N,)))
+            W = np.empty((N, 3, 5))
+            W[:, :, 0] = RG[:, :, 1]
+            W[:, :, 1] = RGB[:, :, 0]
+            W[:, :, 2] = RA[:, :, 2]
+            W[:, :, 3] = v[B] * RG[:, :, 2]
+            W[:, :, 4] = W[:, :, 3] + v[D] * RGB[:, :, 0]
         U[s0 + GAMMA] = Rp[:, :, 2]
         Q[s0 + GAMMA] = Op
         U[s0 + B] = Rp[:, :, 2]
@@ -318,7 +312,7 @@ def _kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarra
         th = v[THETA] + (q if f.joint == "revolute" else 0.0)
         if defl is not None:
             th = th + defl[i][0]
-        Rj = _turn_z(np.broadcast_to(RA, (N, 3, 3)), np.broadcast_to(th, (N,)))
+        Rj = _turn(np.broadcast_to(RA, (N, 3, 3)), 2, np.broadcast_to(th, (N,)))
         rr = v[R] + (q if f.joint == "prismatic" else 0.0)
         O_frames[i] = O_th + np.reshape(rr, (-1, 1)) * W[:, :, 2]
         R_frames[i] = Rj
@@ -403,12 +397,14 @@ def _compliance_corrections(model, lay, st, steps, cp) -> np.ndarray:
     Bv = st.C1[fj] - st.msub[fj][..., None] * ps.Q[steps]
     Dv = np.where(rot[:, None, None], _cross(W, Bv), st.msub[fj][..., None] * W)
     Dv[frame < 0] = 0.0
-    kcp = st.ks[:, None, None] * cp                              # (P, N, rows)
+    act = np.nonzero(st.ks)[0]                                   # only compliances that are not zero
+    kcp = st.ks[act, None, None] * cp[act]                       # (P', N, rows)
+    u = st.u[act]
     # T[p, n, a, b] = K_p v[p, n, a] cp[p, n, b], summed over p by the masks
-    Ta = (_cross(st.u, st.A)[:, :, :, None] * kcp[:, :, None, :]).reshape(len(kcp), -1)
-    Td = (_cross(g, st.u)[:, :, :, None] * kcp[:, :, None, :]).reshape(len(kcp), -1)
-    anc = lay.anc[:, steps].T.astype(float)                      # (S, P)
-    desc = lay.desc[:, steps].T.astype(float)
+    Ta = (_cross(u, st.A[act])[:, :, :, None] * kcp[:, :, None, :]).reshape(len(act), -1)
+    Td = (_cross(g, u)[:, :, :, None] * kcp[:, :, None, :]).reshape(len(act), -1)
+    anc = lay.anc[act][:, steps].T.astype(float)                 # (S, P')
+    desc = lay.desc[act][:, steps].T.astype(float)
     Sa = (anc @ Ta).reshape(S, N, 3, rows)
     Sd = (desc @ Td).reshape(S, N, 3, rows)
     return np.einsum("sna,snab->snb", Dv, Sd) - np.einsum("sna,snab->snb", wg, Sa)
