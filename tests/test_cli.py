@@ -1,6 +1,5 @@
 """The command line, through ``main(argv)``: outputs, summaries, and one clear line per bad input."""
 
-import importlib.util
 import json
 import subprocess
 import sys
@@ -17,7 +16,6 @@ from robocal.cli import main
 from robots import arm6r
 from test_files import _cell, _drop
 
-HAS_REPORT = importlib.util.find_spec("robocal._report") is not None
 
 
 @pytest.fixture
@@ -117,8 +115,8 @@ def test_force_overwrites(campaign, capsys):
     assert run(capsys, *args, "--force")[0] == 0
 
 
-@pytest.mark.skipif(HAS_REPORT, reason="the report extra is installed")
-def test_report_missing_extra(campaign, capsys):
+def test_report_missing_extra(campaign, capsys, monkeypatch):
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # as if the report extra were not installed
     d, *_ = campaign
     code, out, err = run(capsys, "calibrate", d / "model.yaml", d / "data.csv", "--out", d / "run", "--report")
     assert code == 1 and "report extra not installed" in err
@@ -287,3 +285,17 @@ def test_unknown_parameter_family(campaign, capsys):
 def test_model_dict_matches_written_file(campaign):
     d, model, *_ = campaign
     assert yaml.safe_load((d / "model.yaml").read_text()) == model_to_dict(model)
+
+
+def test_calibrate_report_and_report_command(campaign, capsys):
+    d, *_ = campaign
+    code, out, err = run(capsys, "calibrate", d / "model.yaml", d / "data.csv", "--out", d / "run", "--holdout",
+                         "0.25", "--report")
+    assert code == 0, err
+    html = (d / "run" / "report.html").read_text()
+    assert html.startswith("<!DOCTYPE html>") and "data-plot" in html
+    code, out, err = run(capsys, "report", d / "run" / "result.json", "--out", d / "again.html")
+    assert code == 0, err
+    assert (d / "again.html").read_text().count("data-plot=") == html.count("data-plot=")
+    code, out, err = run(capsys, "report", d / "run" / "result.json", "--out", d / "again.html")
+    assert code == 2 and "exists" in err

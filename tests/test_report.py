@@ -1,5 +1,6 @@
 """The HTML report: numbers equal the result's, missing inputs are said, the page renders in Chromium."""
 
+import importlib.util
 import json
 import math
 import os
@@ -20,7 +21,8 @@ from robots import arm6r, cylindrical
 pytest.importorskip("matplotlib")
 
 CHROMIUM = "/usr/bin/chromium"
-ARTIFACTS = Path(__file__).resolve().parent.parent / "test-artifacts"
+ROOT = Path(__file__).resolve().parent.parent
+ARTIFACTS = ROOT / "test-artifacts"
 # display unit (data-unit attribute) -> factor from SI; written independently of the report's table
 FACTOR = {"mm": 1e3, "deg": 180 / math.pi, "deg/(kN m)": 180 / math.pi * 1e3}
 
@@ -303,12 +305,11 @@ def _browser_or_skip():
         pytest.skip(msg)
 
 
-def test_renders_in_headless_chromium(full, tmp_path):
+def _render_in_chromium(path: Path, shot_name: str):
+    """Load ``path`` in headless Chromium: console messages, requests, plots, title, screenshot."""
     _browser_or_skip()
     from playwright.sync_api import sync_playwright
 
-    path = tmp_path / "report.html"
-    write_report(full, path)
     url = path.as_uri()
     console, requests = [], []
     with sync_playwright() as p:
@@ -327,10 +328,14 @@ def test_renders_in_headless_chromium(full, tmp_path):
                 " height: e.getBoundingClientRect().height, n: e.querySelectorAll('path, use, text').length}))")
             title = page.title()
             ARTIFACTS.mkdir(exist_ok=True)
-            shot = ARTIFACTS / "report.png"
+            shot = ARTIFACTS / shot_name
             page.screenshot(path=str(shot), full_page=True)
         finally:
             browser.close()
+    return console, requests, plots, title, shot, url
+
+
+def _assert_rendered(console, requests, plots, title, shot, url):
     assert [m for m in console if m[0] in ("error", "pageerror")] == []
     assert requests == [url]  # nothing fetched but the page itself
     assert title.startswith("Calibration report")
@@ -338,3 +343,25 @@ def test_renders_in_headless_chromium(full, tmp_path):
     for pl in plots:
         assert pl["width"] > 300 and pl["height"] > 150 and pl["n"] > 20, pl
     assert shot.stat().st_size > 50_000
+
+
+def test_renders_in_headless_chromium(full, tmp_path):
+    path = tmp_path / "report.html"
+    write_report(full, path)
+    _assert_rendered(*_render_in_chromium(path, "report.png"))
+
+
+def test_th8_demo_report_renders_in_headless_chromium(tmp_path):
+    # the report `make demo` writes, rendered as a user opens it
+    spec = importlib.util.spec_from_file_location("th8_reproduce", ROOT / "examples" / "th8" / "reproduce.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    assert mod.main(["--out", str(tmp_path)]) == 0
+    rendered = _render_in_chromium(tmp_path / "report.html", "th8-report.png")
+    _assert_rendered(*rendered)
+    d = json.loads((tmp_path / "result.json").read_text())
+    html = (tmp_path / "report.html").read_text()
+    # the demo's own numbers are the ones on the page, and so is the paper's table
+    mean_mm = d["stats"]["validation_after"]["mean"] * 1e3
+    assert f"{mean_mm:.4f}" in html
+    assert "figures beside ours" in html

@@ -224,8 +224,9 @@ def main(argv=None) -> int:
 
 
 def _report_module():
-    """``robocal._report`` or _Extra; imported only when asked for (it pulls in matplotlib)."""
+    """``robocal._report`` or _Extra when its plotting library is missing; checked before any work."""
     try:
+        importlib.import_module("matplotlib")
         return importlib.import_module("robocal._report")
     except ImportError:
         raise _Extra("report extra not installed (pip install 'robocal[report]')") from None
