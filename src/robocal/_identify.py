@@ -74,13 +74,17 @@ class _Problem:
             self._cache_key = key
         return self._cache
 
-    def _eval(self, p):
-        return evaluate(self.model, self.data.q, p, orientations=self.use_rot, compliance=self.compliance,
-                        payload_mass=self.data.payload_mass)
+    def predicted(self, p):
+        """Marker positions (n_poses, n_data_markers, 3) and orientations (or None) at ``p``."""
+        st = self._state(p)
+        pos = st.ps.P[self.marker_idx].transpose(1, 0, 2)
+        rot = np.stack([st.ps.RM[m] for m in self.marker_idx], axis=1) if self.use_rot else None
+        return pos, rot
 
-    def position_errors(self, ev) -> np.ndarray:
-        """(n_poses, n_data_markers, 3) predicted minus measured."""
-        return ev.positions[:, self.marker_idx] - self.data.positions
+    def errors(self, p) -> np.ndarray:
+        """(n_poses, n_data_markers, 3) predicted minus measured positions, NaN where not measured."""
+        pos, _ = self.predicted(p)
+        return np.where(self.data.mask[..., None], pos - self.data.positions, np.nan)
 
     def _rotation_errors(self, st, j) -> np.ndarray:
         """(n, 3) rotation vectors of R_pred R_meas^T in W for marker j's measured orientations."""
@@ -298,9 +302,8 @@ def _check_data(model: RobotModel, data: Measurements, what: str) -> None:
 
 
 def _norms(prob: _Problem, p) -> np.ndarray:
-    ev = prob._eval(p)
-    e = np.linalg.norm(prob.position_errors(ev), axis=2)
-    return np.where(prob.data.mask, e, np.nan)
+    """(n_poses, n_data_markers) position error norms, NaN where not measured."""
+    return np.linalg.norm(prob.errors(p), axis=2)
 
 
 def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",), known=(),
@@ -416,12 +419,13 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
                "the data declaration (units, orientation convention, marker names) does not fit")
         notes.append(msg)
         warnings.warn(msg, MisfitWarning, stacklevel=2)
-    ev_hat = prob._eval(p_hat)
+    # the solution's pass is cached from the Jacobian above
+    vectors = prob.errors(p_hat)
     if orientation:
         # a wrong orientation convention converges quietly: test the rotations, with or without stated sigmas
-        Rp = ev_hat.rotations[:, prob.marker_idx][data.rot_mask]
+        Rp = prob.predicted(p_hat)[1][data.rot_mask]
         rot_res = Rotation.from_matrix(Rp @ np.swapaxes(data.rotations[data.rot_mask], -1, -2)).as_rotvec()
-        for msg in misfit_notes(prob.position_errors(ev_hat)[data.mask], rot_res,
+        for msg in misfit_notes(vectors[data.mask], rot_res,
                                 characteristic_length_m=characteristic_length(data.positions[data.mask]),
                                 sigma_rot_rad=None if data.sigma_rot is None else data.sigma_rot[data.rot_mask]):
             notes.append(msg)
@@ -439,8 +443,7 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
                      "model file's")
     prob_nom = _Problem(nominal, data, free, compliance=nominal.has_compliance)
     before = _norms(prob_nom, parameter_vector(nominal))
-    after = _norms(prob, p_hat)
-    vectors = np.where(data.mask[..., None], prob.position_errors(ev_hat), np.nan)
+    after = np.linalg.norm(vectors, axis=2)
     stats = {"fit_before": error_stats(before), "fit_after": error_stats(after),
              "validation_before": error_stats([]), "validation_after": error_stats([])}
     vb = va = None
