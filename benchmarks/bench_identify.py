@@ -21,7 +21,7 @@ import scipy
 from scipy.optimize import least_squares
 
 import robocal as rc
-from robocal._identify import _Problem
+from robocal._identify import SOLVER_TOL, _Problem
 
 DEG = np.pi / 180
 
@@ -63,7 +63,7 @@ def solve(model, data, families, jac):
         fun = lambda x: prob.residuals(full(x))  # noqa: E731
         j = (lambda x: prob.jacobian(full(x))) if jac else "2-point"
         return least_squares(fun, p0[prob.free_idx], jac=j, method="lm", x_scale="jac",
-                             xtol=1e-12, ftol=1e-12, gtol=1e-12)
+                             xtol=SOLVER_TOL, ftol=SOLVER_TOL, gtol=SOLVER_TOL)
     return run
 
 

@@ -21,6 +21,9 @@ from ._model import RobotModel
 from ._params import candidate_parameters, unit_of
 
 SCHEMA = "robocal.result/1"
+# least_squares' step, cost and gradient tolerances: Gauss-Newton converges quadratically here, so
+# the step that meets them leaves an error far below them (noise-free recovery is ~1e-16)
+SOLVER_TOL = 1e-10
 LOSSES = ("linear", "soft_l1", "huber", "cauchy", "arctan")
 
 
@@ -377,7 +380,7 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
     x0 = p0[prob.free_idx]
     fun = lambda x: prob.residuals(full(x))  # noqa: E731
     jac = lambda x: prob.jacobian(full(x))  # noqa: E731
-    kw = dict(jac=jac, x_scale="jac", xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=max_nfev)
+    kw = dict(jac=jac, x_scale="jac", xtol=SOLVER_TOL, ftol=SOLVER_TOL, gtol=SOLVER_TOL, max_nfev=max_nfev)
     if loss == "linear":
         sol = least_squares(fun, x0, method="lm", **kw)
     else:
