@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation
 from ._data import Measurements
 from ._errors import (ConvergenceWarning, DegenerateDataError, IdentifiabilityWarning, InputError,
                       MisfitWarning)
-from ._identifiability import DEFAULT_TOL, IdentifiabilityResult, analyse
+from ._identifiability import DEFAULT_TOL, IdentifiabilityResult, analyse, singular_values
 from ._kinematics import _evaluate_state, _jacobian_columns, evaluate, layout, model_from_vector, parameter_vector
 from ._misfit import characteristic_length, misfit_notes
 from ._model import RobotModel
@@ -407,7 +407,7 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
     # columns mix metres, radians and rad/(N m): invert the normal matrix in unit-column scaling
     col = np.linalg.norm(J, axis=0)
     col[col == 0] = 1.0
-    U, s, Vt = np.linalg.svd(J / col, full_matrices=False)
+    s, Vt = singular_values(J / col, vectors=True)
     if s[-1] <= s[0] * 1e-12:
         raise DegenerateDataError("the normal matrix is singular at the solution: the parameters "
                                   "identifiable at the nominal model are not at the estimate")
