@@ -387,27 +387,39 @@ def _compliance_corrections(model, lay, st, steps, cp) -> np.ndarray:
     """
     g = np.asarray(model.gravity, dtype=float)
     ps = st.ps0
-    S, N, rows = len(steps), cp.shape[1], cp.shape[2]
-    W = ps.U[steps]                                              # (S, N, 3)
-    rot = lay.step_is_rot[steps]
-    frame = lay.step_frame[steps]
-    wg = _cross(W, g)
-    wg[~rot] = 0.0
-    fj = np.where(frame >= 0, frame, 0)
-    Bv = st.C1[fj] - st.msub[fj][..., None] * ps.Q[steps]
-    Dv = np.where(rot[:, None, None], _cross(W, Bv), st.msub[fj][..., None] * W)
-    Dv[frame < 0] = 0.0
+    N, rows = cp.shape[1], cp.shape[2]
+    out = np.zeros((len(steps), N, rows))
     act = np.nonzero(st.ks)[0]                                   # only compliances that are not zero
+    anc_m = lay.anc[act][:, steps]                               # (P', S)
+    desc_m = lay.desc[act][:, steps]
+    rot = lay.step_is_rot[steps]
+    # a proximal translation changes no moment: only rotations count as proximal
+    anc_m = anc_m & rot
+    live = anc_m.any(axis=0) | desc_m.any(axis=0)                 # steps with a correction at all
+    if not live.any():
+        return out
+    steps, rot, frame = steps[live], rot[live], lay.step_frame[steps[live]]
+    anc = anc_m[:, live].T.astype(float)                         # (S', P')
+    desc = desc_m[:, live].T.astype(float)
+    S = len(steps)
+    W = ps.U[steps]                                              # (S', N, 3)
+    wg = np.zeros_like(W)
+    wg[rot] = _cross(W[rot], g)
+    fj = np.where(frame >= 0, frame, 0)
+    Dv = np.zeros_like(W)
+    r = rot & (frame >= 0)
+    t = ~rot & (frame >= 0)
+    Dv[r] = _cross(W[r], st.C1[fj[r]] - st.msub[fj[r]][..., None] * ps.Q[steps[r]])
+    Dv[t] = st.msub[fj[t]][..., None] * W[t]
     kcp = st.ks[act, None, None] * cp[act]                       # (P', N, rows)
     u = st.u[act]
     # T[p, n, a, b] = K_p v[p, n, a] cp[p, n, b], summed over p by the masks
     Ta = (_cross(u, st.A[act])[:, :, :, None] * kcp[:, :, None, :]).reshape(len(act), -1)
     Td = (_cross(g, u)[:, :, :, None] * kcp[:, :, None, :]).reshape(len(act), -1)
-    anc = lay.anc[act][:, steps].T.astype(float)                 # (S, P')
-    desc = lay.desc[act][:, steps].T.astype(float)
     Sa = (anc @ Ta).reshape(S, N, 3, rows)
     Sd = (desc @ Td).reshape(S, N, 3, rows)
-    return np.einsum("sna,snab->snb", Dv, Sd) - np.einsum("sna,snab->snb", wg, Sa)
+    out[live] = np.einsum("sna,snab->snb", Dv, Sd) - np.einsum("sna,snab->snb", wg, Sa)
+    return out
 
 
 @dataclass(frozen=True)
