@@ -479,9 +479,13 @@ def _evaluate_state(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarra
     ks = p[lay.compliant_params]
     if not compliance:
         return _State(ps=_kinematic_pass(model, lay, p, qf, orientations=orientations), compliance=False, ks=ks)
-    ps0 = _kinematic_pass(model, lay, p, qf, orientations=False)
+    deflects = bool(np.any(ks != 0.0))
+    # with every compliance zero the deflected chain is the undeformed one: one pass serves both
+    ps0 = _kinematic_pass(model, lay, p, qf, orientations=orientations and not deflects)
     C1, msub = _mass_sums(model, lay, ps0, payload_mass)
     M, A, u = _moments(model, lay, ps0, C1, msub)
+    if not deflects:
+        return _State(ps=ps0, compliance=True, ks=ks, ps0=ps0, C1=C1, msub=msub, M=M, A=A, u=u)
     defl = (ks[:, None] * M).reshape(model.n_frames, 3, -1)
     ps = _kinematic_pass(model, lay, p, qf, defl=[tuple(defl[i]) for i in range(model.n_frames)],
                          orientations=orientations)
