@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.linalg import solve_triangular
 
 from ._params import unit_of
 
@@ -101,7 +102,9 @@ def analyse(J: np.ndarray, names, *, tol: float = DEFAULT_TOL, max_terms: int = 
     scale = np.linalg.norm(J, axis=0)
     eliminated = []
     kept_idx = []
-    basis = np.zeros((J.shape[0], 0))
+    n_rows, n_cols = J.shape
+    basis = np.zeros((n_rows, n_cols))      # orthonormal basis of the kept columns, filled in order
+    Rk = np.zeros((n_cols, n_cols))         # kept columns = basis @ Rk (upper triangular)
     An = np.zeros_like(J)
     # a column is "no effect" when it is round-off next to the largest column of the same unit
     # (e.g. the torsion of a joint whose distal centre of mass lies on its axis)
@@ -111,29 +114,39 @@ def analyse(J: np.ndarray, names, *, tol: float = DEFAULT_TOL, max_terms: int = 
         sel = units == u
         nz[sel] = scale[sel] > NO_EFFECT * scale[sel].max()
     An[:, nz] = J[:, nz] / scale[nz]
+    dep = []
     for k, name in enumerate(names):
         if not nz[k]:
             eliminated.append((k, "has no effect on the measurements"))
             continue
         a = An[:, k]
+        B = basis[:, :len(kept_idx)]
         # project twice: one classical Gram-Schmidt pass loses orthogonality for nearly dependent columns
-        res = a - basis @ (basis.T @ a)
-        res = res - basis @ (basis.T @ res)
+        r1 = B.T @ a
+        res = a - B @ r1
+        r2 = B.T @ res
+        res = res - B @ r2
         nr = np.linalg.norm(res)
         if nr > tol:
-            basis = np.column_stack([basis, res / nr])
+            j = len(kept_idx)
+            Rk[:j, j] = r1 + r2
+            Rk[j, j] = nr
+            basis[:, j] = res / nr
             kept_idx.append(k)
         else:
             eliminated.append((k, "is a combination of identified parameters"))
+            dep.append(k)
     kept_idx = np.array(kept_idx, dtype=int)
+    nk = len(kept_idx)
+    basis, Rk = basis[:, :nk], Rk[:nk, :nk]
     absorptions = []
-    Ak = An[:, kept_idx]
-    dep = [k for k, _ in eliminated if nz[k]]
     coefs = {}
-    if dep and len(kept_idx):
-        # one least-squares solve for every eliminated column
-        C, *_ = np.linalg.lstsq(Ak, An[:, dep], rcond=None)
-        R = np.linalg.norm(Ak @ C - An[:, dep], axis=0)
+    if dep and nk:
+        # least squares on the kept columns through their QR factors: c = Rk^-1 basis^T a
+        D = An[:, dep]
+        proj = basis.T @ D
+        C = solve_triangular(Rk, proj)
+        R = np.linalg.norm(D - basis @ proj, axis=0)
         coefs = {k: (C[:, i], float(R[i])) for i, k in enumerate(dep)}
     for k, reason in eliminated:
         if k not in coefs:
@@ -144,8 +157,8 @@ def analyse(J: np.ndarray, names, *, tol: float = DEFAULT_TOL, max_terms: int = 
         order = np.argsort(-np.abs(c))
         terms = tuple((names[kept_idx[i]], float(coef[i])) for i in order[:max_terms] if abs(c[i]) > 1e-6)
         absorptions.append(Absorption(names[k], reason, terms, resid))
-    if len(kept_idx):
-        s = singular_values(Ak)
+    if nk:
+        s = singular_values(Rk)
     else:
         s = np.zeros(0)
     m = J.shape[0]
