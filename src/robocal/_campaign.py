@@ -82,8 +82,7 @@ def stored_model(model: RobotModel, imp: RobotImperfections) -> RobotModel:
         return model
     rp = rounded_parameters(model, imp.length_quantum, imp.angle_quantum)
     p = parameter_vector(model)
-    qz = np.where(rp.quanta > 0, rp.quanta, 1.0)
-    p[rp.params] = np.where(rp.quanta > 0, np.round(p[rp.params] / qz) * qz, p[rp.params])
+    p[rp.params] = _quantise(p[rp.params], rp.quanta)
     return model_from_vector(model, p)
 
 

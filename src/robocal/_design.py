@@ -6,9 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._data import Measurements
 from ._errors import DegenerateDataError, InputError
-from ._identify import _Problem, identifiability, random_configurations
+from ._identify import _Problem, design_measurements, identifiability, needs_compliance, random_configurations
 from ._kinematics import parameter_vector
 from ._model import RobotModel
 
@@ -34,10 +33,8 @@ class PoseSelection:
 
 
 def _blocks(model, q, names, orientation):
-    meas = Measurements(q=q, positions=np.zeros((len(q), len(model.markers), 3)), marker_names=model.marker_names,
-                        rotations=np.broadcast_to(np.eye(3), (len(q), len(model.markers), 3, 3)) if orientation
-                        else None)
-    prob = _Problem(model, meas, names, compliance=model.has_compliance or any(".k_" in n for n in names))
+    prob = _Problem(model, design_measurements(model, q, orientation), names,
+                    compliance=needs_compliance(model, names))
     return prob.pose_blocks(parameter_vector(model))
 
 

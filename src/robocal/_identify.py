@@ -267,20 +267,24 @@ def identifiability(model: RobotModel, data: Measurements | np.ndarray | None = 
         q = data.q
     else:
         q = np.atleast_2d(np.asarray(data, dtype=float))
-    if isinstance(data, Measurements):
-        meas = data
-    else:
-        meas = Measurements(q=q, positions=np.zeros((len(q), len(model.markers), 3)),
-                            marker_names=model.marker_names)
-        if orientation:
-            meas = Measurements(q=q, positions=meas.positions, marker_names=model.marker_names,
-                                rotations=np.broadcast_to(np.eye(3), (len(q), len(model.markers), 3, 3)))
+    meas = data if isinstance(data, Measurements) else design_measurements(model, q, bool(orientation))
     if orientation is None:
         orientation = meas.has_orientation
     names = candidate_parameters(model, parameters, orientation=orientation, known=known)
-    compliance = any(n.rsplit(".", 1)[1].startswith("k_") for n in names) or model.has_compliance
-    prob = _Problem(model, meas, names, compliance=compliance)
+    prob = _Problem(model, meas, names, compliance=needs_compliance(model, names))
     return analyse(prob.jacobian(parameter_vector(model)), names, tol=tol)
+
+
+def design_measurements(model: RobotModel, q, orientation: bool = False) -> Measurements:
+    """Configurations without measured values, for what depends on the poses only (the Jacobian)."""
+    n, m = len(q), len(model.markers)
+    return Measurements(q=q, positions=np.zeros((n, m, 3)), marker_names=model.marker_names,
+                        rotations=np.broadcast_to(np.eye(3), (n, m, 3, 3)) if orientation else None)
+
+
+def needs_compliance(model: RobotModel, names) -> bool:
+    """Whether evaluating ``names`` on ``model`` needs the gravity moments."""
+    return model.has_compliance or any(n.rsplit(".", 1)[1].startswith("k_") for n in names)
 
 
 def _as_tuple(v) -> tuple:
@@ -338,8 +342,7 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
         notes.append("base pose started from a closed-form registration of the nominal robot on the data")
     orientation = data.has_orientation
     names = candidate_parameters(model, parameters, orientation=orientation, known=known)
-    wants_k = any(n.rsplit(".", 1)[1].startswith("k_") for n in names)
-    compliance = wants_k or model.has_compliance
+    compliance = needs_compliance(model, names)
     p0 = parameter_vector(model)
 
     theory = _theory(model, _as_tuple(parameters), _as_tuple(known), orientation, tol)
