@@ -3,6 +3,8 @@
     python examples/th8/reproduce.py --out runs/th8            # the shipped campaign (seed 0)
     python examples/th8/reproduce.py --seeds 20                # the paper's pattern over 20 campaigns
     python examples/th8/reproduce.py --write-data              # regenerate the shipped CSV files
+    python examples/th8/reproduce.py --seeds 20 --backlash-arcmin 2 --backlash-mm 0.05
+                                     # the same with lost motion in every joint, an error the limit does not count
 
 The robot is simulated and its dimensions were chosen by us (examples/th8/model.yaml): the paper
 (Caenen and Angue, 1990) prints none. The campaign follows the paper: 48 configurations over the
@@ -25,6 +27,8 @@ from pathlib import Path
 import numpy as np
 
 import robocal as rc
+from dataclasses import replace
+
 from robocal._campaign import RobotImperfections, accuracy_in_use, measure_campaign
 
 HERE = Path(__file__).resolve().parent
@@ -75,15 +79,14 @@ def true_robot(nominal, rng):
     return rc.model_from_vector(nominal, p)
 
 
-def campaign(nominal, seed):
+def campaign(nominal, seed, imp=IMPERFECTIONS):
     """The true robot, the 48 + 48 measured poses and the ISO 9283 cycles of one simulated campaign."""
     rng = np.random.default_rng(seed)
     true = true_robot(nominal, rng)
     q = rc.random_configurations(nominal, N_FIT + N_VAL, rng)
-    data = measure_campaign(true, q, IMPERFECTIONS, rng=rng,
-                            labels=[f"P{i + 1:02d}" for i in range(N_FIT + N_VAL)])
+    data = measure_campaign(true, q, imp, rng=rng, labels=[f"P{i + 1:02d}" for i in range(N_FIT + N_VAL)])
     iso_q = rc.random_configurations(nominal, N_ISO_POSES, rng)
-    cycles = measure_campaign(true, np.repeat(iso_q, N_CYCLES, axis=0), IMPERFECTIONS, rng=rng)
+    cycles = measure_campaign(true, np.repeat(iso_q, N_CYCLES, axis=0), imp, rng=rng)
     pose_ids = np.repeat(np.arange(1, N_ISO_POSES + 1), N_CYCLES)
     return true, data, pose_ids, cycles.positions[:, 0]
 
@@ -96,17 +99,17 @@ def accuracy_limit(nominal, pose_ids, points, seed, samples=200_000):
     return rc.accuracy_limit(rep, prec)
 
 
-def run(nominal, true, fit, val, limit, seed):
+def run(nominal, true, fit, val, limit, seed, imp=IMPERFECTIONS):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", rc.RobocalWarning)
         cmp = rc.compare(nominal, fit, validation=val, known=KNOWN, limit=limit.limit)
     # the robot in use: the controller commands the held-out targets through the model it stores
     targets = val.q
     in_use = {
-        "before": accuracy_in_use(true, None, nominal, targets, IMPERFECTIONS, rng=seed),
-        "geometric": accuracy_in_use(true, cmp.geometric.calibrated_model, nominal, targets, IMPERFECTIONS, rng=seed),
+        "before": accuracy_in_use(true, None, nominal, targets, imp, rng=seed),
+        "geometric": accuracy_in_use(true, cmp.geometric.calibrated_model, nominal, targets, imp, rng=seed),
         "geometric and compliance": accuracy_in_use(true, cmp.combined.calibrated_model, nominal, targets,
-                                                    IMPERFECTIONS, rng=seed),
+                                                    imp, rng=seed),
     }
     return cmp, in_use
 
@@ -211,12 +214,13 @@ def one(nominal, out: Path | None):
         print(f"\nwritten: {', '.join(sorted(p.name for p in out.iterdir()))} in {out}")
 
 
-def many(nominal, seeds: int):
+def many(nominal, seeds: int, imp=IMPERFECTIONS):
     ratios, cut, improved, finals = [], [], [], []
     for seed in range(seeds):
-        true, data, pose_ids, points = campaign(nominal, 1000 + seed)
+        true, data, pose_ids, points = campaign(nominal, 1000 + seed, imp)
         limit = accuracy_limit(nominal, pose_ids, points, seed=seed, samples=50_000)
-        cmp, in_use = run(nominal, true, data.subset(slice(0, N_FIT)), data.subset(slice(N_FIT, None)), limit, seed)
+        cmp, in_use = run(nominal, true, data.subset(slice(0, N_FIT)), data.subset(slice(N_FIT, None)), limit, seed,
+                          imp)
         rows = figures(cmp, in_use)
         b, g, c = (rows[k]["held_out"][0] for k in ("before", "geometric", "geometric and compliance"))
         cut.append(b / g)
@@ -240,12 +244,28 @@ def main(argv=None):
     ap.add_argument("--out", type=Path, default=None, help="folder for summary, results, model and report")
     ap.add_argument("--seeds", type=int, default=0, help="run this many simulated campaigns instead")
     ap.add_argument("--write-data", action="store_true", help="regenerate the shipped campaign files")
+    ap.add_argument("--backlash-arcmin", type=float, default=0.0,
+                    help="with --seeds: lost motion of each revolute joint, arc minutes (default 0)")
+    ap.add_argument("--backlash-mm", type=float, default=0.0,
+                    help="with --seeds: lost motion of each prismatic joint, mm (default 0)")
     args = ap.parse_args(argv)
+    backlash = args.backlash_arcmin or args.backlash_mm
+    if backlash and not args.seeds:
+        ap.error("--backlash-arcmin and --backlash-mm apply to simulated campaigns (--seeds N) only")
+    if args.backlash_arcmin < 0 or args.backlash_mm < 0:
+        ap.error("backlash cannot be negative")
     nominal = rc.read_model(HERE / "model.yaml")
     if args.write_data:
         write_data(nominal)
     elif args.seeds:
-        many(nominal, args.seeds)
+        imp = IMPERFECTIONS
+        if backlash:
+            imp = replace(IMPERFECTIONS, backlash=tuple(
+                args.backlash_arcmin * DEG / 60 if f.joint == "revolute" else args.backlash_mm * MM
+                for f in nominal.frames))
+            print(f"lost motion (backlash) in every joint: {args.backlash_arcmin:g} arcmin revolute, "
+                  f"{args.backlash_mm:g} mm prismatic", flush=True)
+        many(nominal, args.seeds, imp)
     else:
         one(nominal, args.out)
     return 0

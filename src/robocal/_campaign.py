@@ -4,7 +4,9 @@ Where ``_simulate.measure`` adds isotropic noise to exact kinematics, this modul
 campaign actually happens: the controller servoes each joint to an encoder count (the recorded
 reading is that count, the true joint lies anywhere within its quantum), the arm scatters
 around where it should be (its repeatability), and the instrument's noise grows with distance
-(theodolites and trackers are specified in mm per metre). It also simulates the robot in use:
+(theodolites and trackers are specified in mm per metre), and, if asked, each joint's lost motion
+(backlash) leaves the arm behind its motor by half of it, on the side it came from. It also
+simulates the robot in use:
 a controller that stores its model rounded to its own quantum, commands targets through it,
 and reaches them within encoder resolution and repeatability.
 """
@@ -29,7 +31,12 @@ class RobotImperfections:
     ``encoder_resolution`` (n_joints,) rad or m per count; ``repeatability_sigma`` standard
     deviation per axis of the attained position about its mean, m; ``instrument_noise_per_m``
     standard deviation per axis per metre of distance from ``instrument_position`` (in W);
-    ``length_quantum``/``angle_quantum`` the round-off of the parameters stored in the controller.
+    ``length_quantum``/``angle_quantum`` the round-off of the parameters stored in the controller;
+    ``backlash`` (n_joints,) lost motion per joint, rad or m (empty: none). Encoders sit on the
+    motors, so readings do not see it: the arm stops ``backlash / 2`` short of the reading, behind
+    the direction of the last move of that joint. Poses are visited in the order given; the first
+    is approached from the last (as in a cycle). An ISO 9283 test approaches each pose the same
+    way every cycle, so backlash cannot show in its RP: it is an error the limit does not count.
     """
 
     encoder_resolution: tuple[float, ...]
@@ -38,6 +45,12 @@ class RobotImperfections:
     instrument_position: tuple[float, float, float] = (0.0, 0.0, 0.0)
     length_quantum: float = 0.0
     angle_quantum: float = 0.0
+    backlash: tuple[float, ...] = ()
+
+    def __post_init__(self):
+        b = np.asarray(self.backlash, dtype=float)
+        if len(b) and (len(b) != len(self.encoder_resolution) or not np.all(np.isfinite(b)) or np.any(b < 0)):
+            raise ValueError("backlash must be empty or one finite, non-negative value per joint")
 
     def repeatability_rp(self) -> float:
         """ISO 9283 RP = l_mean + 3 S_l expected for isotropic Gaussian scatter of this sigma.
@@ -55,10 +68,30 @@ def _quantise(q, res):
     return np.where(res > 0, np.round(q / safe) * safe, q)
 
 
+def approach_sides(q) -> np.ndarray:
+    """+1 or -1 per pose and joint: the sign of the last move of that joint before reaching the pose.
+
+    Poses are visited in row order, the first approached from the last; a joint that does not
+    move keeps the side it had (+1 if it never moves). Returns (n_poses, n_joints).
+    """
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    step = np.sign(np.diff(q, axis=0, prepend=q[-1:]))
+    n = len(q)
+    # forward-fill over the rows where a joint did not move, cycling once so the first poses
+    # inherit the side of the last move before them
+    rows = np.arange(2 * n)[:, None]
+    twice = np.vstack([step, step])
+    last = np.maximum.accumulate(np.where(twice != 0, rows, -1), axis=0)[n:]
+    sides = np.take_along_axis(twice, np.maximum(last, 0), axis=0)
+    return np.where(last >= 0, sides, 1.0)
+
+
 def _attain(true_model: RobotModel, recorded, imp: RobotImperfections, rng, payload_mass=None):
     """Positions the arm reaches at recorded encoder counts, and what the instrument reads."""
     res = np.asarray(imp.encoder_resolution, dtype=float)
     actual = recorded + rng.uniform(-0.5, 0.5, recorded.shape) * res
+    if len(imp.backlash):
+        actual = actual - approach_sides(recorded) * (0.5 * np.asarray(imp.backlash, dtype=float))
     P = evaluate(true_model, actual, payload_mass=payload_mass).positions
     P = P + rng.normal(0.0, imp.repeatability_sigma, P.shape)
     dist = np.linalg.norm(P - np.asarray(imp.instrument_position), axis=-1, keepdims=True)
