@@ -79,7 +79,7 @@ def test_csv_units_metres_match_millimetres(tmp_path):
     g = tmp_path / "mm.csv"
     g.write_text(CSV)
     np.testing.assert_allclose(read_repeatability_csv(f, units="m").points,
-                               read_repeatability_csv(g).points, rtol=1e-15)
+                               read_repeatability_csv(g, units="mm").points, rtol=1e-15)
 
 
 @pytest.mark.parametrize("text, where, words", [
@@ -94,7 +94,7 @@ def test_csv_bad_input(tmp_path, text, where, words):
     f = tmp_path / "bad.csv"
     f.write_text(text)
     with pytest.raises(rc.InputError) as exc:
-        read_repeatability_csv(f)
+        read_repeatability_csv(f, units="mm")
     assert exc.value.source == str(f) and exc.value.where == where and words in exc.value.detail
 
 
@@ -103,6 +103,16 @@ def test_csv_units_must_be_explicit_and_known(tmp_path):
     f.write_text(CSV)
     with pytest.raises(rc.InputError, match="units"):
         read_repeatability_csv(f, units="inch")
+    # plain x, y, z without a declared unit: refused, not assumed
+    with pytest.raises(rc.InputError, match="unit of column 'x' is not declared") as exc:
+        read_repeatability_csv(f)
+    assert exc.value.where == "header"
+    # units in the column names need nothing else, and must agree with any units given
+    g = tmp_path / "suffixed.csv"
+    g.write_text(CSV.replace("x,y,z", "x_m,y_m,z_m", 1))
+    np.testing.assert_allclose(read_repeatability_csv(g).points, read_repeatability_csv(f, units="mm").points * 1e3)
+    with pytest.raises(rc.InputError, match="says m but units 'mm'"):
+        read_repeatability_csv(g, units="mm")
 
 
 # -- controller precision ----------------------------------------------------------------------
@@ -218,7 +228,7 @@ def test_accuracy_limit_adds_repeatability_and_mean_precision(tmp_path):
     prec = controller_precision(model, n_samples=2000, rng=0, **QUANTA)
     f = tmp_path / "rep.csv"
     f.write_text(CSV)
-    data = read_repeatability_csv(f)
+    data = read_repeatability_csv(f, units="mm")
     rep = iso9283_repeatability(data.pose_ids, data.points)
     lim = accuracy_limit(rep, prec)
     assert isinstance(lim, AccuracyLimit) and isinstance(lim.repeatability_detail, RepeatabilityResult)
@@ -254,7 +264,7 @@ def test_cli_writes_the_limit(model_file, tmp_path, capsys):
     out = tmp_path / "limit.json"
     csv_file = tmp_path / "rep.csv"
     csv_file.write_text(CSV)
-    argv = ["limit", str(model_file), "--repeatability-csv", str(csv_file), "--encoder-resolution",
+    argv = ["limit", str(model_file), "--repeatability-csv", str(csv_file), "--csv-units", "mm", "--encoder-resolution",
             "0.01deg,0.01deg,0.01deg,1.745e-4rad,0.01deg,0.01deg", "--length-quantum-mm", "0.1",
             "--angle-quantum-deg", "0.001", "--samples", "3000", "--seed", "5", "--out", str(out)]
     assert _run(argv) == 0

@@ -161,7 +161,7 @@ def write_data(nominal):
                            joint_names=data.joint_names, labels=data.labels, extra={"validation": held_out})
     rc.write_measurements(data, HERE / "measurements.csv", model=nominal, units="mm-deg", force=True)
     with open(HERE / "repeatability.csv", "w") as fh:
-        fh.write("pose,cycle,x,y,z\n")
+        fh.write("pose,cycle,x_mm,y_mm,z_mm\n")
         cycle = np.tile(np.arange(1, N_CYCLES + 1), N_ISO_POSES)
         for pid, c, (x, y, z) in zip(pose_ids, cycle, points * 1e3):
             fh.write(f"{pid},{c},{x:.4f},{y:.4f},{z:.4f}\n")
@@ -170,7 +170,7 @@ def write_data(nominal):
 
 def one(nominal, out: Path | None):
     fit, val = rc.split_sets(rc.read_measurements(HERE / "measurements.csv", nominal))
-    rep = rc.read_repeatability_csv(HERE / "repeatability.csv", units="mm")
+    rep = rc.read_repeatability_csv(HERE / "repeatability.csv")
     true = rc.read_model(HERE / "true_model.yaml")
     limit = accuracy_limit(nominal, rep.pose_ids, rep.points, seed=0)
     cmp, in_use = run(nominal, true, fit, val, limit, seed=0)

@@ -28,10 +28,10 @@ def register(subparsers) -> None:
     p.add_argument("model", help="robot model file")
     rep = p.add_mutually_exclusive_group(required=True)
     rep.add_argument("--repeatability-csv", metavar="FILE",
-                     help="repeated measurements, columns pose, cycle, x, y, z")
+                     help="repeated measurements, columns pose, cycle, x_mm, y_mm, z_mm (or x_m...)")
     rep.add_argument("--repeatability-mm", metavar="X", type=float, help="pose repeatability RP in mm")
-    p.add_argument("--csv-units", choices=tuple(LENGTH_UNITS), default="mm",
-                   help="units of x, y, z in the CSV (default mm)")
+    p.add_argument("--csv-units", choices=tuple(LENGTH_UNITS),
+                   help="units of plain x, y, z columns (not needed when they are named x_mm... or x_m...)")
     p.add_argument("--encoder-resolution", required=True, metavar="LIST",
                    help='one per joint with its unit, e.g. "0.01deg,0.01deg,0.1mm" (deg, rad, mm, m)')
     p.add_argument("--length-quantum-mm", required=True, type=float, metavar="X",

@@ -202,15 +202,16 @@ def _plain_id(pose):
 
 # -- ISO 9283 repeatability --------------------------------------------------------------------
 
-def read_repeatability_csv(path, *, units: str = "mm") -> RepeatabilityData:
+def read_repeatability_csv(path, *, units: str | None = None) -> RepeatabilityData:
     """Read repeated measurements: columns ``pose, cycle, x, y, z`` (header required, any order,
-    further columns ignored). ``units`` ("mm" or "m") are those of x, y, z; the result is in metres.
+    further columns ignored). The coordinates' unit is never guessed: it comes from the column
+    names (``x_mm, y_mm, z_mm`` or ``x_m``...) or, for plain ``x, y, z``, from ``units`` ("mm" or
+    "m"); a suffix that disagrees with ``units`` is an error. The result is in metres.
 
     Errors name the file and ``row N, column 'c'`` with N the line number in the file (header = 1).
     """
-    if units not in LENGTH_UNITS:
+    if units is not None and units not in LENGTH_UNITS:
         raise InputError(f"units must be one of {', '.join(LENGTH_UNITS)}, got {units!r}", where="units")
-    scale = LENGTH_UNITS[units]
     src = str(path)
     try:
         with open(path, newline="") as fh:
@@ -219,11 +220,7 @@ def read_repeatability_csv(path, *, units: str = "mm") -> RepeatabilityData:
             if header is None:
                 raise InputError("the file is empty; a header pose, cycle, x, y, z is required", source=src)
             names = [h.strip().lower() for h in header]
-            for c in CSV_COLUMNS:
-                if c not in names:
-                    raise InputError(f"missing column {c!r} (need {', '.join(CSV_COLUMNS)})",
-                                     source=src, where="header")
-            col = {c: names.index(c) for c in CSV_COLUMNS}
+            col, scale = _repeatability_columns(names, units, src)
             pose_ids, cycles, points, rows_of = [], [], [], {}
             seen = {}
             for row in reader:
@@ -250,7 +247,7 @@ def read_repeatability_csv(path, *, units: str = "mm") -> RepeatabilityData:
                         raise InputError(f"expected a number, got {cells[c]!r}", source=src, where=where) from None
                     if not math.isfinite(v):
                         raise InputError(f"expected a finite number, got {cells[c]!r}", source=src, where=where)
-                    xyz.append(v * scale)
+                    xyz.append(v * scale[c])
                 key = (cells["pose"], cycle)
                 if key in seen:
                     raise InputError(f"pose {cells['pose']!r} cycle {cycle} already given in row {seen[key]}",
@@ -270,6 +267,31 @@ def read_repeatability_csv(path, *, units: str = "mm") -> RepeatabilityData:
                              source=src, where=f"row {lines[0]}")
     return RepeatabilityData(pose_ids=tuple(pose_ids), cycles=np.array(cycles, dtype=int),
                              points=np.array(points, dtype=float), source=src)
+
+
+def _repeatability_columns(names: list[str], units: str | None, src: str) -> tuple[dict, dict]:
+    """Column index of pose, cycle, x, y, z and the metres per unit of each coordinate."""
+    col, scale = {}, {}
+    for c in CSV_COLUMNS:
+        found = [(i, n[len(c) + 1:] if n != c else None) for i, n in enumerate(names)
+                 if n == c or (c in "xyz" and n.startswith(c + "_") and n[len(c) + 1:] in LENGTH_UNITS)]
+        if not found:
+            raise InputError(f"missing column {c!r} (need {', '.join(CSV_COLUMNS)}; coordinates may carry their "
+                             f"unit, e.g. x_mm)", source=src, where="header")
+        if len(found) > 1:
+            raise InputError(f"column {c!r} is given {len(found)} times", source=src, where="header")
+        i, suffix = found[0]
+        col[c] = i
+        if c not in "xyz":
+            continue
+        if suffix is None and units is None:
+            raise InputError(f"the unit of column {c!r} is not declared: name it {c}_mm or {c}_m, or give the "
+                             "units (--csv-units mm|m)", source=src, where="header")
+        if suffix is not None and units is not None and suffix != units:
+            raise InputError(f"column {names[i]!r} says {suffix} but units {units!r} were given",
+                             source=src, where="header")
+        scale[c] = LENGTH_UNITS[suffix or units]
+    return col, scale
 
 
 def iso9283_repeatability(pose_ids: Sequence[Hashable], points) -> RepeatabilityResult:
