@@ -146,7 +146,7 @@ def test_simulate_then_identifiability(tmp_path, capsys):
 
 
 def test_help_for_every_command(capsys):
-    for cmd in ("calibrate", "simulate", "identifiability", "report"):
+    for cmd in ("calibrate", "simulate", "identifiability", "report", "limit", "import-urdf"):
         code, out, err = run(capsys, cmd, "--help")
         assert code == 0 and f"usage: robocal {cmd}" in out
 
@@ -299,3 +299,34 @@ def test_calibrate_report_and_report_command(campaign, capsys):
     assert (d / "again.html").read_text().count("data-plot=") == html.count("data-plot=")
     code, out, err = run(capsys, "report", d / "run" / "result.json", "--out", d / "again.html")
     assert code == 2 and "exists" in err
+
+
+def test_import_urdf_writes_a_model_with_the_same_kinematics(tmp_path, capsys):
+    from test_imports import ARM7, _urdf_text
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text(_urdf_text("arm", ARM7))
+    code, out, err = run(capsys, "import-urdf", urdf, "--out", tmp_path / "arm.yaml", "--marker-mm", "tcp,0,10,120")
+    assert code == 0 and err == "" and "7 joints" in out
+    written = read_model(tmp_path / "arm.yaml")
+    direct = rc.read_urdf(urdf, markers=[("tcp", (0.0, 0.01, 0.12))])
+    assert written.marker_names == ("tcp",) and written.joint_names == direct.joint_names
+    q = rc.random_configurations(direct, 20, rng=3)
+    # the file holds mm and degrees at full precision: the same robot to round-off
+    np.testing.assert_allclose(rc.forward_kinematics(written, q).positions,
+                               rc.forward_kinematics(direct, q).positions, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("args, message", [
+    (("missing.urdf",), "missing.urdf: no such file"),
+    (("arm.urdf", "--tip-link", "nowhere"), "tip link 'nowhere' is not defined"),
+    (("broken.urdf",), "broken.urdf"),
+    (("arm.urdf", "--marker-mm", "tcp,1,2"), "expected NAME,X,Y,Z"),
+])
+def test_import_urdf_bad_input(tmp_path, capsys, args, message):
+    from test_imports import ARM7, _urdf_text
+    (tmp_path / "arm.urdf").write_text(_urdf_text("arm", ARM7))
+    (tmp_path / "broken.urdf").write_text("<robot name='x'><link name='a'/><joint")
+    argv = [tmp_path / a if a.endswith(".urdf") else a for a in args]
+    code, out, err = run(capsys, "import-urdf", *argv, "--out", tmp_path / "out.yaml")
+    assert code == 2 and message in err and len(err.strip().splitlines()) <= 5 and "Traceback" not in err
+    assert not (tmp_path / "out.yaml").exists()

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import importlib.util
 import logging
 import os
 import sys
@@ -17,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__
+from . import __version__, _cli_limit
 from ._csvio import measurements_to_csv, parse_orientation, read_measurements, split_sets
 from ._errors import DegenerateDataError, InputError, RobocalError, RobocalWarning
 from ._identify import calibrate, compare, identifiability
@@ -64,6 +63,17 @@ def _number_in(ok, what: str):
 
 _fraction = _number_in(lambda v: 0.0 < v < 1.0, "a fraction between 0 and 1")
 _positive = _number_in(lambda v: 0.0 < v < np.inf, "a positive number")
+
+
+def _marker_mm(text: str) -> tuple[str, tuple[float, float, float]]:
+    parts = [t.strip() for t in text.split(",")]
+    try:
+        xyz = tuple(float(v) / MM for v in parts[1:])
+    except ValueError:
+        xyz = ()
+    if len(parts) != 4 or not parts[0] or len(xyz) != 3 or not all(np.isfinite(xyz)):
+        raise argparse.ArgumentTypeError(f"expected NAME,X,Y,Z with X, Y, Z in mm, got {text!r}")
+    return parts[0], xyz
 
 
 def _names(text: str) -> tuple[str, ...]:
@@ -172,12 +182,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true", help="overwrite an existing file")
     p.set_defaults(func=cmd_report)
 
-    # the accuracy-limit command lives in its own module, which may not be there yet
-    if importlib.util.find_spec("robocal._cli_limit") is not None:
-        limit = importlib.import_module("robocal._cli_limit")
-        limit.register(sub)
-        if "limit" in sub.choices and sub.choices["limit"].get_default("func") is None:
-            sub.choices["limit"].set_defaults(func=limit.run)
+    _cli_limit.register(sub)
+
+    p = sub.add_parser("import-urdf", help="write a robocal model file from a URDF serial chain",
+                       description="Convert the chain of a URDF file (metres and radians by the URDF rule) "
+                                   "into a robocal model file (modified DH with Hayati's beta).")
+    p.add_argument("urdf", metavar="URDF", help="URDF file")
+    p.add_argument("--out", required=True, metavar="MODEL.yaml", help="model file to write")
+    p.add_argument("--base-link", help="first link of the chain (default: the root link)")
+    p.add_argument("--tip-link", help="last link of the chain (default: the leaf of an unbranched chain)")
+    p.add_argument("--marker-mm", action="append", type=_marker_mm, metavar="NAME,X,Y,Z",
+                   help="a measured point in the tip link's frame, mm (repeatable; default one marker "
+                        "'tool' at the tip link's origin)")
+    p.add_argument("--units", type=_units, default="mm-deg", help="units of the written file (default mm-deg)")
+    p.add_argument("--force", action="store_true", help="overwrite an existing file")
+    p.set_defaults(func=cmd_import_urdf)
     return parser
 
 
@@ -463,6 +482,19 @@ def cmd_identifiability(args) -> int:
     _print_eliminated(res)
     print(f"condition number: {res.condition_number:.4g}")
     print("observability: " + ", ".join(f"{k} {v:.4g}" for k, v in res.observability.items()))
+    return 0
+
+
+def cmd_import_urdf(args) -> int:
+    from ._imports import read_urdf
+
+    _refuse_existing([args.out], args.force)
+    if not Path(args.urdf).is_file():
+        raise InputError("no such file", source=args.urdf)
+    model = read_urdf(args.urdf, base_link=args.base_link, tip_link=args.tip_link, markers=args.marker_mm)
+    _write_outputs({args.out: model_to_yaml(model, units=args.units)}, force=args.force)
+    print(f"{model.name}: {model.n_joints} joints ({', '.join(model.joint_names)}), {len(model.frames)} frames, "
+          f"markers {', '.join(model.marker_names)}: wrote {args.out}")
     return 0
 
 
