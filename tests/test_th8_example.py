@@ -174,3 +174,11 @@ def test_backlash_does_not_show_in_iso_repeatability_but_does_in_a_campaign():
     q = rc.random_configurations(m, 50, rng=5)
     shift = (measure_campaign(m, q, lost, rng=6).positions - measure_campaign(m, q, base, rng=6).positions)[:, 0]
     assert np.linalg.norm(shift, axis=1).mean() > rp[0]
+
+
+def test_simulation_options_need_simulated_campaigns(reproduce, capsys):
+    for argv in (["--backlash-arcmin", "2"], ["--compliance-scale", "3"], ["--seeds", "1", "--backlash-mm", "-1"]):
+        with pytest.raises(SystemExit) as exc:
+            reproduce.main(argv)
+        assert exc.value.code == 2
+    assert "apply to simulated campaigns" in capsys.readouterr().err

@@ -65,7 +65,7 @@ PAPER = {"before": (2.82, 0.88), "geometric": (0.69, 0.34), "geometric and compl
          "repeatability": 0.3, "controller precision": 0.25, "limit": 0.55}
 
 
-def true_robot(nominal, rng):
+def true_robot(nominal, rng, compliance_scale=1.0):
     p = rc.parameter_vector(nominal)
     names = rc.parameter_names(nominal)
     for n, v in PAPER_ERRORS.items():
@@ -75,14 +75,14 @@ def true_robot(nominal, rng):
     p[0:3] += sign[:3] * rng.uniform(*BASE_ERROR["length"], 3)
     p[3:6] += sign[3:] * rng.uniform(*BASE_ERROR["angle"], 3)
     for n, v in TRUE_COMPLIANCE.items():
-        p[names.index(n)] = v
+        p[names.index(n)] = v * compliance_scale
     return rc.model_from_vector(nominal, p)
 
 
-def campaign(nominal, seed, imp=IMPERFECTIONS):
+def campaign(nominal, seed, imp=IMPERFECTIONS, compliance_scale=1.0):
     """The true robot, the 48 + 48 measured poses and the ISO 9283 cycles of one simulated campaign."""
     rng = np.random.default_rng(seed)
-    true = true_robot(nominal, rng)
+    true = true_robot(nominal, rng, compliance_scale)
     q = rc.random_configurations(nominal, N_FIT + N_VAL, rng)
     data = measure_campaign(true, q, imp, rng=rng, labels=[f"P{i + 1:02d}" for i in range(N_FIT + N_VAL)])
     iso_q = rc.random_configurations(nominal, N_ISO_POSES, rng)
@@ -214,10 +214,22 @@ def one(nominal, out: Path | None):
         print(f"\nwritten: {', '.join(sorted(p.name for p in out.iterdir()))} in {out}")
 
 
-def many(nominal, seeds: int, imp=IMPERFECTIONS):
+def gravity_displacement(true, n=2000):
+    """Mean and largest distance (m) by which gravity moves the tool of ``true``, over random poses."""
+    q = rc.random_configurations(true, n, 7)
+    rigid = rc.model_from_vector(true, np.where(np.isin(rc.parameter_names(true), list(TRUE_COMPLIANCE)), 0.0,
+                                                rc.parameter_vector(true)))
+    d = np.linalg.norm(rc.forward_kinematics(true, q).positions - rc.forward_kinematics(rigid, q).positions, axis=-1)
+    return float(d.mean()), float(d.max())
+
+
+def many(nominal, seeds: int, imp=IMPERFECTIONS, compliance_scale=1.0):
     ratios, cut, improved, finals = [], [], [], []
     for seed in range(seeds):
-        true, data, pose_ids, points = campaign(nominal, 1000 + seed, imp)
+        true, data, pose_ids, points = campaign(nominal, 1000 + seed, imp, compliance_scale)
+        if seed == 0:
+            mean, top = gravity_displacement(true)
+            print(f"gravity moves the tool by {mean * 1e3:.2f} mm on average, {top * 1e3:.2f} mm at most", flush=True)
         limit = accuracy_limit(nominal, pose_ids, points, seed=seed, samples=50_000)
         cmp, in_use = run(nominal, true, data.subset(slice(0, N_FIT)), data.subset(slice(N_FIT, None)), limit, seed,
                           imp)
@@ -248,12 +260,15 @@ def main(argv=None):
                     help="with --seeds: lost motion of each revolute joint, arc minutes (default 0)")
     ap.add_argument("--backlash-mm", type=float, default=0.0,
                     help="with --seeds: lost motion of each prismatic joint, mm (default 0)")
+    ap.add_argument("--compliance-scale", type=float, default=1.0,
+                    help="with --seeds: multiply the true compliances by this (default 1)")
     args = ap.parse_args(argv)
     backlash = args.backlash_arcmin or args.backlash_mm
-    if backlash and not args.seeds:
-        ap.error("--backlash-arcmin and --backlash-mm apply to simulated campaigns (--seeds N) only")
-    if args.backlash_arcmin < 0 or args.backlash_mm < 0:
-        ap.error("backlash cannot be negative")
+    if (backlash or args.compliance_scale != 1.0) and not args.seeds:
+        ap.error("--backlash-arcmin, --backlash-mm and --compliance-scale apply to simulated campaigns "
+                 "(--seeds N) only")
+    if args.backlash_arcmin < 0 or args.backlash_mm < 0 or not args.compliance_scale >= 0:
+        ap.error("backlash and the compliance scale cannot be negative")
     nominal = rc.read_model(HERE / "model.yaml")
     if args.write_data:
         write_data(nominal)
@@ -265,7 +280,7 @@ def main(argv=None):
                 for f in nominal.frames))
             print(f"lost motion (backlash) in every joint: {args.backlash_arcmin:g} arcmin revolute, "
                   f"{args.backlash_mm:g} mm prismatic", flush=True)
-        many(nominal, args.seeds, imp)
+        many(nominal, args.seeds, imp, args.compliance_scale)
     else:
         one(nominal, args.out)
     return 0
