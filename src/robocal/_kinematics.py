@@ -16,12 +16,12 @@ poses and looping over frames, gives positions, orientations and every column.
 Compliance (METHOD.md section 2): theta, alpha and beta of frame i deflect by ``K * M``, M the
 gravity moment about that step's own axis of every mass distal to it, computed on the undeformed
 chain at the current parameters. Geometric columns then gain ``sum_p K_p dM_p/dx * column_p``, with
-dM/dx from rigid-motion identities (see ``_moment_derivatives``).
+dM/dx from rigid-motion identities (see ``_add_corrections``).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
@@ -370,55 +370,212 @@ def _moments(model, lay, ps, C1, msub):
     return M, A, u
 
 
-def _compliance_corrections(model, lay, st, steps, cp) -> np.ndarray:
-    """sum_p K_p dM_p/d(step) column_p for the given robot ``steps``: (S, N, rows).
+def _runs(idx) -> tuple:
+    """(first, stop, offset) of each run of consecutive values in ``idx``."""
+    idx = [int(v) for v in idx]
+    runs, k = [], 0
+    while k < len(idx):
+        j = k
+        while j + 1 < len(idx) and idx[j + 1] == idx[j] + 1:
+            j += 1
+        runs.append((idx[k], idx[j] + 1, k))
+        k = j + 1
+    return tuple(runs)
 
-    ``cp`` (P, N, rows) are the columns of the compliant steps. dM_p/d(step), for a step of axis w:
+
+def _cm_rows(X: np.ndarray, runs: tuple, n: int) -> np.ndarray:
+    """Rows of a pose-major stack (n_rows, N, 3), given as ``_runs``, component-major (n, 3, N):
+    componentwise arithmetic then runs over contiguous pose vectors instead of stride-3 ones."""
+    out = np.empty((n, X.shape[2], X.shape[1]))
+    for a, b, k in runs:
+        np.copyto(out[k:k + b - a], X[a:b].transpose(0, 2, 1))
+    return out
+
+
+def _cross_cm(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """a x b for component-major stacks (k, 3, N), written into ``out``."""
+    for i, (j, k) in _ROT_PAIRS.items():
+        np.multiply(a[:, j], b[:, k], out=out[:, i])
+        out[:, i] -= a[:, k] * b[:, j]
+    return out
+
+
+def _gcross_cm(g, w: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """g x w for a constant vector g and a component-major stack w (k, 3, N)."""
+    for i, (j, k) in _ROT_PAIRS.items():
+        np.multiply(w[:, k], g[j], out=out[:, i])
+        out[:, i] -= g[k] * w[:, j]
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class _CorrectionPlan:
+    """Which step columns get compliance corrections and how the sums over compliances are built.
+
+    Rows are the corrected steps in step order. Part 0 sums over the compliances a step is distal
+    to, part 1 over those it is proximal to (translations ride along there with a zero vector, so
+    that rows sharing a sum stay contiguous). Each distinct sum is built from a smaller one.
+    """
+
+    steps: np.ndarray        # (R,) corrected steps, in step order
+    out_runs: tuple          # ``_runs`` of the step columns the rows correct
+    step_runs: tuple         # ``_runs`` of ``steps``
+    frames: tuple            # (frame, row0, row1) rows of each frame's steps
+    translations: tuple      # (row, frame) of translation rows
+    base_rows: tuple         # rows of base steps (never distal to a compliance)
+    rot: np.ndarray          # (R,) 1.0 for rotations
+    sums: tuple              # per sum: (part, base sum or -1, compliance items)
+    groups: tuple            # (part, row0, row1, sum, assign): rows [row0, row1) use that sum
+
+
+@lru_cache(maxsize=128)
+def _correction_plan(model: RobotModel, steps_key: bytes, act_key: bytes) -> _CorrectionPlan | None:
+    lay = layout(model)
+    steps = np.frombuffer(steps_key, dtype=int)
+    act = np.frombuffer(act_key, dtype=int)
+    rot = lay.step_is_rot[steps]
+    anc = lay.anc[act][:, steps]
+    desc = lay.desc[act][:, steps]
+    # a proximal translation changes no moment: only rotations count as proximal
+    live = (anc & rot).any(axis=0) | desc.any(axis=0)
+    cols = np.nonzero(live)[0]
+    cols = cols[np.argsort(steps[cols], kind="stable")]
+    if not len(cols):
+        return None
+    rsteps = steps[cols]
+    frame = lay.step_frame[rsteps]
+    frames = tuple((int(f), int(np.nonzero(frame == f)[0][0]), int(np.nonzero(frame == f)[0][-1]) + 1)
+                   for f in dict.fromkeys(frame[frame >= 0]))
+    translations = tuple((int(r), int(frame[r])) for r in np.nonzero(~rot[cols] & (frame >= 0))[0])
+    base_rows = tuple(int(r) for r in np.nonzero(frame == -1)[0])
+    sets = [[frozenset(np.nonzero(desc[:, c])[0]) for c in cols], [frozenset(np.nonzero(anc[:, c])[0]) for c in cols]]
+    # each distinct sum once, smallest first, from the largest sum already built inside it
+    sums, index = [], {}
+    for part in (0, 1):
+        for s in sorted(set(sets[part]) - {frozenset()}, key=len):
+            base = max((t for (pt, t) in index if pt == part and t < s), key=len, default=frozenset())
+            sums.append((part, index[(part, base)] if base else -1, tuple(int(i) for i in sorted(s - base))))
+            index[(part, s)] = len(sums) - 1
+    groups = []
+    touched = np.zeros(len(cols), dtype=bool)
+    for part in (0, 1):
+        r = 0
+        while r < len(cols):
+            s = sets[part][r]
+            r1 = r + 1
+            while r1 < len(cols) and sets[part][r1] == s:
+                r1 += 1
+            k = r
+            while s and k < r1:
+                # the first sum to reach a row assigns it, later ones add
+                k1 = k + 1
+                while k1 < r1 and touched[k1] == touched[k]:
+                    k1 += 1
+                groups.append((part, k, k1, index[(part, s)], not touched[k]))
+                k = k1
+            if s:
+                touched[r:r1] = True
+            r = r1
+    return _CorrectionPlan(steps=rsteps, out_runs=_runs(cols), step_runs=_runs(rsteps), frames=frames,
+                           translations=translations, base_rows=base_rows, rot=rot[cols].astype(float),
+                           sums=tuple(sums), groups=tuple(groups))
+
+
+def _plan_vectors(model, lay, st, plan) -> np.ndarray:
+    """(R, 6, N) per corrected step, on the undeformed chain: the vector dotted with the distal sum
+    (``w x (C1_j - m_j Q)`` for a rotation of frame j, ``m_j w`` for a translation), then ``g x w``
+    dotted with the proximal sum (zero for translations)."""
+    ps = st.ps0
+    g = np.asarray(model.gravity, dtype=float)
+    R = len(plan.steps)
+    W = _cm_rows(ps.U, plan.step_runs, R)
+    Q = _cm_rows(ps.Q, plan.step_runs, R)
+    C1 = np.ascontiguousarray(st.C1.transpose(0, 2, 1))
+    V = np.empty((R, 6, W.shape[2]))
+    for f, r0, r1 in plan.frames:
+        B = Q[r0:r1]
+        np.multiply(B, -st.msub[f], out=B)
+        B += C1[f]
+        _cross_cm(W[r0:r1], B, V[r0:r1, :3])
+    for r, f in plan.translations:
+        np.multiply(W[r], st.msub[f], out=V[r, :3])
+    for r in plan.base_rows:
+        V[r, :3] = 0.0
+    _gcross_cm(g, W, V[:, 3:])
+    V[:, 3:] *= plan.rot[:, None, None]
+    return V
+
+
+def _add_corrections(model, lay, st, plan, act, cpa, cols) -> None:
+    """Add ``sum_p K_p dM_p/d(step) column_p`` to the step columns ``cols`` (S, N, rows).
+
+    ``cpa`` (P', rows, N): component-major columns of the active compliant steps. dM_p/d(step), for
+    a step of axis w:
 
     * proximal rotation: it turns the axis and all masses distal to p rigidly, which leaves the
-      moment as if gravity turned by -w instead: dM = -u . (A x (w x g)) = -(w x g) . (u x A);
+      moment as if gravity turned by -w instead: dM = -u . (A x (w x g)) = (g x w) . (u x A);
     * proximal translation: nothing changes;
     * distal step (its frame j in p's subtree): only the masses distal to itself move:
       rotation dM = u . ((w x (C1_j - m_j Q)) x g) = D . (g x u) with D = w x (C1_j - m_j Q),
       translation the same with D = m_j w.
 
-    Both are a dot product of a per-step vector with a per-p vector, so the sum over p is taken
-    first, as one matrix product with the constant proximal/distal masks.
+    Both are a dot product of a per-step vector with a per-p vector, so the sums over p of
+    ``K_p (g x u_p) column_p`` and ``K_p (u_p x A_p) column_p`` are taken first, each distinct sum
+    once, growing along the chain.
     """
-    g = np.asarray(model.gravity, dtype=float)
-    ps = st.ps0
-    N, rows = cp.shape[1], cp.shape[2]
-    out = np.zeros((len(steps), N, rows))
-    act = np.nonzero(st.ks)[0]                                   # only compliances that are not zero
-    anc_m = lay.anc[act][:, steps]                               # (P', S)
-    desc_m = lay.desc[act][:, steps]
-    rot = lay.step_is_rot[steps]
-    # a proximal translation changes no moment: only rotations count as proximal
-    anc_m = anc_m & rot
-    live = anc_m.any(axis=0) | desc_m.any(axis=0)                 # steps with a correction at all
-    if not live.any():
-        return out
-    steps, rot, frame = steps[live], rot[live], lay.step_frame[steps[live]]
-    anc = anc_m[:, live].T.astype(float)                         # (S', P')
-    desc = desc_m[:, live].T.astype(float)
-    S = len(steps)
-    W = ps.U[steps]                                              # (S', N, 3)
-    wg = np.zeros_like(W)
-    wg[rot] = _cross(W[rot], g)
-    fj = np.where(frame >= 0, frame, 0)
-    Dv = np.zeros_like(W)
-    r = rot & (frame >= 0)
-    t = ~rot & (frame >= 0)
-    Dv[r] = _cross(W[r], st.C1[fj[r]] - st.msub[fj[r]][..., None] * ps.Q[steps[r]])
-    Dv[t] = st.msub[fj[t]][..., None] * W[t]
-    kcp = st.ks[act, None, None] * cp[act]                       # (P', N, rows)
-    u = st.u[act]
-    # T[p, n, a, b] = K_p v[p, n, a] cp[p, n, b], summed over p by the masks
-    Ta = (_cross(u, st.A[act])[:, :, :, None] * kcp[:, :, None, :]).reshape(len(act), -1)
-    Td = (_cross(g, u)[:, :, :, None] * kcp[:, :, None, :]).reshape(len(act), -1)
-    Sa = (anc @ Ta).reshape(S, N, 3, rows)
-    Sd = (desc @ Td).reshape(S, N, 3, rows)
-    out[live] = np.einsum("sna,snab->snb", Dv, Sd) - np.einsum("sna,snab->snb", wg, Sa)
+    key = ("corr", id(plan))
+    if key not in st.cache:
+        g = np.asarray(model.gravity, dtype=float)
+        P = len(act)
+        u = _cm_rows(st.u, _runs(act), P)
+        DA = np.empty((P, 6, u.shape[2]))
+        _gcross_cm(g, u, DA[:, :3])
+        _cross_cm(u, _cm_rows(st.A, _runs(act), P), DA[:, 3:])
+        DA *= st.ks[act][:, None, None]
+        st.cache[key] = (DA, _plan_vectors(model, lay, st, plan))
+    DA, V = st.cache[key]
+    rows, N = cpa.shape[1], cpa.shape[2]
+    T = DA[:, :, None, :] * cpa[:, None, :, :]                     # (P', 6, rows, N)
+    S = []
+    for part, base, items in plan.sums:
+        lo = 3 * part
+        if base < 0 and len(items) == 1:
+            S.append(T[items[0], lo:lo + 3])
+            continue
+        acc = np.add(S[base] if base >= 0 else T[items[0], lo:lo + 3], T[items[1 if base < 0 else 0], lo:lo + 3])
+        for i in items[2 if base < 0 else 1:]:
+            acc += T[i, lo:lo + 3]
+        S.append(acc)
+    corr = np.empty((len(plan.steps), rows, N))
+    for part, r0, r1, s, assign in plan.groups:
+        lo = 3 * part
+        prod = V[r0:r1, lo:lo + 3, None, :] * S[s]                  # (k, 3, rows, N)
+        c = corr[r0:r1]
+        if assign:
+            np.add(prod[:, 0], prod[:, 1], out=c)
+        else:
+            c += prod[:, 0]
+            c += prod[:, 1]
+        c += prod[:, 2]
+    for c0, c1, r0 in plan.out_runs:
+        for b in range(rows):
+            cols[c0:c1, :, b] += corr[r0:r0 + c1 - c0, b]
+
+
+def _compliant_columns(lay, ps, m, steps, rows) -> np.ndarray:
+    """(len(steps), rows, N) component-major columns of compliant (rotation) steps for marker m."""
+    runs = _runs(steps)
+    n = len(steps)
+    U = _cm_rows(ps.U, runs, n)
+    out = np.empty((n, rows, U.shape[2]))
+    D = _cm_rows(ps.Q, runs, n)
+    np.subtract(ps.P[m].T, D, out=D)
+    _cross_cm(U, D, out[:, :3])
+    if rows == 6:
+        out[:, 3:] = U
+    on = lay.marker_path[m, steps]
+    if not on.all():
+        out[~on] = 0.0
     return out
 
 
@@ -472,6 +629,7 @@ class _State:
     M: np.ndarray | None = None
     A: np.ndarray | None = None
     u: np.ndarray | None = None
+    cache: dict = field(default_factory=dict)   # what the Jacobian derives from this state
 
 
 def _evaluate_state(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray, *, compliance: bool,
@@ -504,15 +662,23 @@ def _jacobian_columns(model: RobotModel, lay: Layout, st: _State, cols_idx: np.n
         out = np.zeros((len(cols_idx), st.ps.P.shape[1], rows))
         out[is_step] = _step_columns(lay, st.ps, m, steps, rows)
         return out
-    out = np.zeros((len(cols_idx), st.ps.P.shape[1], rows))
+    out = np.empty((len(cols_idx), st.ps.P.shape[1], rows))
     cols = _step_columns(lay, st.ps, m, steps, rows)                          # (S, N, rows)
-    cp = _step_columns(lay, st.ps, m, lay.compliant_steps, rows)              # (P, N, rows)
-    if np.any(st.ks != 0.0):
-        cols += _compliance_corrections(model, lay, st, steps, cp)
-    out[is_step] = cols
     k_slot = lay.param_compliant[cols_idx]
     is_k = k_slot >= 0
-    out[is_k] = cp[k_slot[is_k]] * st.M[k_slot[is_k]][:, :, None]
+    kk = k_slot[is_k]
+    act = np.nonzero(st.ks)[0]
+    plan = _correction_plan(model, steps.tobytes(), act.tobytes()) if len(act) else None
+    # compliant columns needed: the active ones (corrections), then those of requested K not among them
+    csel = act if plan is not None else act[:0]
+    csel = np.concatenate([csel, [k for k in kk if k not in set(csel.tolist())]]).astype(int)
+    cpc = _compliant_columns(lay, st.ps, m, lay.compliant_steps[csel], rows)   # (len(csel), rows, N)
+    if plan is not None:
+        _add_corrections(model, lay, st, plan, act, cpc[:len(act)], cols)
+    out[is_step] = cols
+    where = {int(c): i for i, c in enumerate(csel)}
+    ki = np.array([where[int(k)] for k in kk], dtype=int)
+    out[is_k] = (cpc[ki] * st.M[kk][:, None, :]).transpose(0, 2, 1)
     return out
 
 
