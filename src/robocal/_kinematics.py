@@ -281,24 +281,30 @@ def _kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarra
         q = qf[:, i]
         Rg = _rot_matrix(2, v[GAMMA])
         bvec = np.array([0.0, 0.0, v[B]])
-        if defl is None or (not np.ndim(defl[i][1]) and not np.ndim(defl[i][2])):
-            Rgb = Rg @ _rot_matrix(1, v[BETA])
-            A = Rgb @ _rot_matrix(0, v[ALPHA])
+        d_th, d_al, d_be = (0.0, 0.0, 0.0) if defl is None else defl[i]
+        be, al = v[BETA] + d_be, v[ALPHA] + d_al
+        if not np.ndim(al) and not np.ndim(be):
+            Rgb = Rg @ _rot_matrix(1, be)
+            A = Rgb @ _rot_matrix(0, al)
             # parent-frame vectors: beta axis, alpha/d axis, theta/r axis, b offset, full offset
             V = np.column_stack([Rg[:, 1], Rgb[:, 0], A[:, 2], bvec, bvec + Rgb[:, 0] * v[D]])
             W = _rmul(Rp, V)                                             # (N, 3, 5)
             RA = _rmul(Rp, A)
         else:
-            # per-pose deflections of beta and alpha: turn the parent's columns pose by pose
-            d_th, d_al, d_be = defl[i]
-            RG = _rmul(Rp, Rg)
-            RGB = _turn(RG, 1, np.broadcast_to(v[BETA] + d_be, (N,)))
-            RA = _turn(RGB, 0, np.broadcast_to(v[ALPHA] + d_al, (N,)))
+            # per-pose deflections: turn the parent's columns pose by pose, only where they vary
             W = np.empty((N, 3, 5))
-            W[:, :, 0] = RG[:, :, 1]
+            if np.ndim(be):
+                RG = _rmul(Rp, Rg)
+                RGB = _turn(RG, 1, be)
+                W[:, :, 0] = RG[:, :, 1]
+                W[:, :, 3] = v[B] * RG[:, :, 2]
+            else:
+                X = _rmul(Rp, np.column_stack([Rg[:, 1], bvec, Rg @ _rot_matrix(1, be)]))
+                W[:, :, [0, 3]] = X[:, :, :2]
+                RGB = X[:, :, 2:]
+            RA = _turn(RGB, 0, np.broadcast_to(al, (N,)))
             W[:, :, 1] = RGB[:, :, 0]
             W[:, :, 2] = RA[:, :, 2]
-            W[:, :, 3] = v[B] * RG[:, :, 2]
             W[:, :, 4] = W[:, :, 3] + v[D] * RGB[:, :, 0]
         U[s0 + GAMMA] = Rp[:, :, 2]
         Q[s0 + GAMMA] = Op
@@ -309,9 +315,7 @@ def _kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarra
         U[s0 + THETA] = U[s0 + R] = W[:, :, 2]
         O_th = Op + W[:, :, 4]
         Q[s0 + THETA] = O_th
-        th = v[THETA] + (q if f.joint == "revolute" else 0.0)
-        if defl is not None:
-            th = th + defl[i][0]
+        th = v[THETA] + (q if f.joint == "revolute" else 0.0) + d_th
         Rj = _turn(np.broadcast_to(RA, (N, 3, 3)), 2, np.broadcast_to(th, (N,)))
         rr = v[R] + (q if f.joint == "prismatic" else 0.0)
         O_frames[i] = O_th + np.reshape(rr, (-1, 1)) * W[:, :, 2]
@@ -644,8 +648,9 @@ def _evaluate_state(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarra
     M, A, u = _moments(model, lay, ps0, C1, msub)
     if not deflects:
         return _State(ps=ps0, compliance=True, ks=ks, ps0=ps0, C1=C1, msub=msub, M=M, A=A, u=u)
-    defl = (ks[:, None] * M).reshape(model.n_frames, 3, -1)
-    ps = _kinematic_pass(model, lay, p, qf, defl=[tuple(defl[i]) for i in range(model.n_frames)],
+    # a zero compliance deflects nothing: a scalar keeps that frame's constant part constant
+    defl = [k * Mk if k else 0.0 for k, Mk in zip(ks, M)]
+    ps = _kinematic_pass(model, lay, p, qf, defl=[tuple(defl[3 * i:3 * i + 3]) for i in range(model.n_frames)],
                          orientations=orientations)
     return _State(ps=ps, compliance=True, ks=ks, ps0=ps0, C1=C1, msub=msub, M=M, A=A, u=u)
 
