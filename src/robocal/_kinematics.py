@@ -233,10 +233,13 @@ def model_from_vector(model: RobotModel, p: np.ndarray) -> RobotModel:
 class _Pass:
     R: list          # per frame rotation R_W<frame> (N, 3, 3)
     O: list          # per frame origin (N, 3)
-    U: np.ndarray    # (n_steps, N, 3) step axes
-    Q: np.ndarray    # (n_steps, N, 3) points on rotation axes
-    P: np.ndarray    # (n_markers, N, 3) marker positions
+    U: np.ndarray | None  # (n_steps, N, 3) step axes (None for a frames-only pass)
+    Q: np.ndarray | None  # (n_steps, N, 3) points on rotation axes
+    P: np.ndarray | None  # (n_markers, N, 3) marker positions
     RM: list         # per marker orientation (N, 3, 3), when asked
+    F: list          # per frame (R_parent, O_parent, W): what the frame's step axes and points come from
+    base_axes: np.ndarray  # (6, 3) axes of the base steps
+    cache: dict = field(default_factory=dict)
 
 
 def _turn(R: np.ndarray, axis: int, angle) -> np.ndarray:
@@ -253,22 +256,29 @@ def _turn(R: np.ndarray, axis: int, angle) -> np.ndarray:
 
 
 def _kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray, defl=None,
-                    orientations: bool = False) -> _Pass:
+                    orientations: bool = False, frames_only: bool = False) -> _Pass:
     """One pass down the tree. Per frame, the constant part of X_parent,j is one 3x3 product;
-    only the joint rotation (and gravity deflections) vary per pose."""
+    only the joint rotation (and gravity deflections) vary per pose.
+
+    ``frames_only``: frame poses without step axes, points or markers (the undeformed chain
+    under compliance needs no more; ``_frame_vectors`` gives the axes it asks for)."""
     N = qf.shape[0]
     n_steps = len(lay.step_param)
-    U = np.empty((n_steps, N, 3))
-    Q = np.zeros((n_steps, N, 3))
-    Rref = np.asarray(model.base_rotation, dtype=float)
-    U[0:3] = np.eye(3)[:, None, :]
+    U = Q = None
+    base_axes = np.empty((6, 3))
+    base_axes[0:3] = np.eye(3)
     Ob = np.broadcast_to(p[0:3], (N, 3))
-    Rb = Rref
+    Rb = np.asarray(model.base_rotation, dtype=float)
     for k in range(3):
-        U[3 + k] = Rb[:, k]
-        Q[3 + k] = Ob
+        base_axes[3 + k] = Rb[:, k]
         Rb = Rb @ _rot_matrix(k, p[3 + k])
+    if not frames_only:
+        U = np.empty((n_steps, N, 3))
+        Q = np.zeros((n_steps, N, 3))
+        U[0:N_BASE] = base_axes[:, None, :]
+        Q[3:N_BASE] = Ob
     Rb = np.broadcast_to(Rb, (N, 3, 3))
+    F: list = [None] * model.n_frames
     R_frames: list = [None] * model.n_frames
     O_frames: list = [None] * model.n_frames
     for i, f in enumerate(model.frames):
@@ -306,20 +316,24 @@ def _kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarra
             W[:, :, 1] = RGB[:, :, 0]
             W[:, :, 2] = RA[:, :, 2]
             W[:, :, 4] = W[:, :, 3] + v[D] * RGB[:, :, 0]
-        U[s0 + GAMMA] = Rp[:, :, 2]
-        Q[s0 + GAMMA] = Op
-        U[s0 + B] = Rp[:, :, 2]
-        U[s0 + BETA] = W[:, :, 0]
-        Q[s0 + BETA] = Q[s0 + ALPHA] = Op + W[:, :, 3]
-        U[s0 + ALPHA] = U[s0 + D] = W[:, :, 1]
-        U[s0 + THETA] = U[s0 + R] = W[:, :, 2]
         O_th = Op + W[:, :, 4]
-        Q[s0 + THETA] = O_th
+        F[i] = (Rp, Op, W)
+        if not frames_only:
+            U[s0 + GAMMA] = Rp[:, :, 2]
+            Q[s0 + GAMMA] = Op
+            U[s0 + B] = Rp[:, :, 2]
+            U[s0 + BETA] = W[:, :, 0]
+            Q[s0 + BETA] = Q[s0 + ALPHA] = Op + W[:, :, 3]
+            U[s0 + ALPHA] = U[s0 + D] = W[:, :, 1]
+            U[s0 + THETA] = U[s0 + R] = W[:, :, 2]
+            Q[s0 + THETA] = O_th
         th = v[THETA] + (q if f.joint == "revolute" else 0.0) + d_th
         Rj = _turn(np.broadcast_to(RA, (N, 3, 3)), 2, np.broadcast_to(th, (N,)))
         rr = v[R] + (q if f.joint == "prismatic" else 0.0)
         O_frames[i] = O_th + np.reshape(rr, (-1, 1)) * W[:, :, 2]
         R_frames[i] = Rj
+    if frames_only:
+        return _Pass(R=R_frames, O=O_frames, U=None, Q=None, P=None, RM=[], F=F, base_axes=base_axes)
     P = np.empty((len(model.markers), N, 3))
     RM = []
     for m, mk in enumerate(model.markers):
@@ -337,13 +351,14 @@ def _kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarra
             RM.append(_rmul(Rf, Rm @ _small_rotation(*v[3:6])))
         else:
             U[s0 + 3:s0 + 6] = 0.0
-    return _Pass(R=R_frames, O=O_frames, U=U, Q=Q, P=P, RM=RM)
+    return _Pass(R=R_frames, O=O_frames, U=U, Q=Q, P=P, RM=RM, F=F, base_axes=base_axes)
 
 
 def _mass_sums(model: RobotModel, lay: Layout, ps: _Pass, payload_mass):
-    """First moments ``C1`` (n_frames, N, 3) and masses ``msub`` (n_frames, N) of every subtree."""
+    """First moments ``C1`` (3, n_frames, N), component-major, and masses ``msub`` (n_frames, N) of
+    every subtree."""
     nf = model.n_frames
-    N = ps.P.shape[1]
+    N = ps.O[0].shape[0]
     own_c1 = np.zeros((nf, N, 3))
     own_m = np.zeros((nf, N))
     for i, f in enumerate(model.frames):
@@ -359,19 +374,39 @@ def _mass_sums(model: RobotModel, lay: Layout, ps: _Pass, payload_mass):
         pm = np.broadcast_to(np.asarray(pm, dtype=float), (N,))
         own_c1[k] += pm[:, None] * c
         own_m[k] += pm
-    C1 = np.einsum("ik,kna->ina", lay.subtree.astype(float), own_c1)
-    msub = lay.subtree.astype(float) @ own_m
-    return C1, msub
+    sub = lay.subtree.astype(float)
+    return sub @ own_c1.transpose(2, 0, 1), sub @ own_m
 
 
-def _moments(model, lay, ps, C1, msub):
-    """Gravity moments ``M`` (3 n_frames, N) about each compliant step's axis, and ``A = C1 - m O``."""
+def _frame_vectors(ps: _Pass, i: int):
+    """Frame i's ``W`` (3, 5, N) and its parent's origin (3, N), component-major, once per pass."""
+    key = ("frame", i)
+    if key not in ps.cache:
+        Rp, Op, W = ps.F[i]
+        ps.cache[key] = (np.ascontiguousarray(W.transpose(1, 2, 0)), np.ascontiguousarray(Op.T))
+    return ps.cache[key]
+
+
+def _moments(model, ps, C1, msub):
+    """Gravity moments ``M`` (3 n_frames, N) about each compliant step's axis; with the axes ``u``
+    and ``A = C1 - m Q`` (3, 3 n_frames, N), component-major."""
     g = np.asarray(model.gravity, dtype=float)
-    frame_of = np.repeat(np.arange(model.n_frames), 3)
-    u = ps.U[lay.compliant_steps]                     # (P, N, 3)
-    A = C1[frame_of] - msub[frame_of][..., None] * ps.Q[lay.compliant_steps]
-    M = np.einsum("pna,pna->pn", u, _cross(A, g))
-    return M, A, u
+    nf = model.n_frames
+    N = ps.O[0].shape[0]
+    u = np.empty((3, 3 * nf, N))
+    A = np.empty((3, 3 * nf, N))
+    for i in range(nf):
+        Wc, Op = _frame_vectors(ps, i)
+        np.copyto(u[:, 3 * i:3 * i + 3], Wc[:, 2::-1])             # theta, alpha, beta axes
+        G = C1[:, i] - msub[i] * Op
+        np.subtract(G, msub[i] * Wc[:, 4], out=A[:, 3 * i])        # theta: through O_theta
+        np.subtract(G, msub[i] * Wc[:, 3], out=A[:, 3 * i + 1])    # alpha and beta share a point
+        A[:, 3 * i + 2] = A[:, 3 * i + 1]
+    gA = _gcross_cm(g, A, np.empty_like(A))
+    M = u[0] * gA[0]
+    M += u[1] * gA[1]
+    M += u[2] * gA[2]
+    return np.negative(M, out=M), A, u                             # u . (A x g)
 
 
 def _runs(idx) -> tuple:
@@ -388,27 +423,27 @@ def _runs(idx) -> tuple:
 
 
 def _cm_rows(X: np.ndarray, runs: tuple, n: int) -> np.ndarray:
-    """Rows of a pose-major stack (n_rows, N, 3), given as ``_runs``, component-major (n, 3, N):
+    """Rows of a pose-major stack (n_rows, N, 3), given as ``_runs``, component-major (3, n, N):
     componentwise arithmetic then runs over contiguous pose vectors instead of stride-3 ones."""
-    out = np.empty((n, X.shape[2], X.shape[1]))
+    out = np.empty((X.shape[2], n, X.shape[1]))
     for a, b, k in runs:
-        np.copyto(out[k:k + b - a], X[a:b].transpose(0, 2, 1))
+        np.copyto(out[:, k:k + b - a], X[a:b].transpose(2, 0, 1))
     return out
 
 
 def _cross_cm(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> np.ndarray:
-    """a x b for component-major stacks (k, 3, N), written into ``out``."""
+    """a x b for component-major stacks (3, ...), written into ``out``."""
     for i, (j, k) in _ROT_PAIRS.items():
-        np.multiply(a[:, j], b[:, k], out=out[:, i])
-        out[:, i] -= a[:, k] * b[:, j]
+        np.multiply(a[j], b[k], out=out[i])
+        out[i] -= a[k] * b[j]
     return out
 
 
 def _gcross_cm(g, w: np.ndarray, out: np.ndarray) -> np.ndarray:
-    """g x w for a constant vector g and a component-major stack w (k, 3, N)."""
+    """g x w for a constant vector g and a component-major stack w (3, ...)."""
     for i, (j, k) in _ROT_PAIRS.items():
-        np.multiply(w[:, k], g[j], out=out[:, i])
-        out[:, i] -= g[k] * w[:, j]
+        np.multiply(w[k], g[j], out=out[i])
+        out[i] -= g[k] * w[j]
     return out
 
 
@@ -421,12 +456,8 @@ class _CorrectionPlan:
     that rows sharing a sum stay contiguous). Each distinct sum is built from a smaller one.
     """
 
-    steps: np.ndarray        # (R,) corrected steps, in step order
+    rows: tuple              # (step, frame or -1 for the base, offset in the frame) per row, in step order
     out_runs: tuple          # ``_runs`` of the step columns the rows correct
-    step_runs: tuple         # ``_runs`` of ``steps``
-    frames: tuple            # (frame, row0, row1) rows of each frame's steps
-    translations: tuple      # (row, frame) of translation rows
-    base_rows: tuple         # rows of base steps (never distal to a compliance)
     rot: np.ndarray          # (R,) 1.0 for rotations
     sums: tuple              # per sum: (part, base sum or -1, compliance items)
     groups: tuple            # (part, row0, row1, sum, assign): rows [row0, row1) use that sum
@@ -448,10 +479,7 @@ def _correction_plan(model: RobotModel, steps_key: bytes, act_key: bytes) -> _Co
         return None
     rsteps = steps[cols]
     frame = lay.step_frame[rsteps]
-    frames = tuple((int(f), int(np.nonzero(frame == f)[0][0]), int(np.nonzero(frame == f)[0][-1]) + 1)
-                   for f in dict.fromkeys(frame[frame >= 0]))
-    translations = tuple((int(r), int(frame[r])) for r in np.nonzero(~rot[cols] & (frame >= 0))[0])
-    base_rows = tuple(int(r) for r in np.nonzero(frame == -1)[0])
+    rows = tuple((int(s), int(f), int(s - N_BASE - 7 * f) if f >= 0 else -1) for s, f in zip(rsteps, frame))
     sets = [[frozenset(np.nonzero(desc[:, c])[0]) for c in cols], [frozenset(np.nonzero(anc[:, c])[0]) for c in cols]]
     # each distinct sum once, smallest first, from the largest sum already built inside it
     sums, index = [], {}
@@ -480,41 +508,57 @@ def _correction_plan(model: RobotModel, steps_key: bytes, act_key: bytes) -> _Co
             if s:
                 touched[r:r1] = True
             r = r1
-    return _CorrectionPlan(steps=rsteps, out_runs=_runs(cols), step_runs=_runs(rsteps), frames=frames,
-                           translations=translations, base_rows=base_rows, rot=rot[cols].astype(float),
-                           sums=tuple(sums), groups=tuple(groups))
+    return _CorrectionPlan(rows=rows, out_runs=_runs(cols), rot=rot[cols].astype(float), sums=tuple(sums),
+                           groups=tuple(groups))
 
 
-def _plan_vectors(model, lay, st, plan) -> np.ndarray:
-    """(R, 6, N) per corrected step, on the undeformed chain: the vector dotted with the distal sum
+# frame step -> column of the frame's W holding its axis, and row of its compliance within the frame
+_AXIS_COL = {BETA: 0, ALPHA: 1, D: 1, THETA: 2, R: 2}
+_COMPLIANT_ROW = {off: c for c, (off, _) in enumerate(COMPLIANT)}
+
+
+def _plan_vectors(model, st, plan) -> np.ndarray:
+    """(6, R, N) per corrected step, on the undeformed chain: the vector dotted with the distal sum
     (``w x (C1_j - m_j Q)`` for a rotation of frame j, ``m_j w`` for a translation), then ``g x w``
     dotted with the proximal sum (zero for translations)."""
     ps = st.ps0
     g = np.asarray(model.gravity, dtype=float)
-    R = len(plan.steps)
-    W = _cm_rows(ps.U, plan.step_runs, R)
-    Q = _cm_rows(ps.Q, plan.step_runs, R)
-    C1 = np.ascontiguousarray(st.C1.transpose(0, 2, 1))
-    V = np.empty((R, 6, W.shape[2]))
-    for f, r0, r1 in plan.frames:
-        B = Q[r0:r1]
-        np.multiply(B, -st.msub[f], out=B)
-        B += C1[f]
-        _cross_cm(W[r0:r1], B, V[r0:r1, :3])
-    for r, f in plan.translations:
-        np.multiply(W[r], st.msub[f], out=V[r, :3])
-    for r in plan.base_rows:
-        V[r, :3] = 0.0
-    _gcross_cm(g, W, V[:, 3:])
-    V[:, 3:] *= plan.rot[:, None, None]
+    R, N = len(plan.rows), st.M.shape[1]
+    W = np.empty((3, R, N))                       # axes
+    B = np.empty((3, R, N))                       # C1_j - m_j Q for rotations (the axis for others: w x w = 0)
+    for r, (s, j, o) in enumerate(plan.rows):
+        if j < 0:
+            W[:, r] = ps.base_axes[s][:, None]
+            B[:, r] = W[:, r]
+            continue
+        Wc, Op = _frame_vectors(ps, j)
+        if o in _AXIS_COL:
+            W[:, r] = Wc[:, _AXIS_COL[o]]
+        else:
+            W[:, r] = ps.F[j][0][:, :, 2].T        # gamma and b turn/slide along the parent's z
+        if o in _COMPLIANT_ROW:
+            B[:, r] = st.A[:, 3 * j + _COMPLIANT_ROW[o]]
+        elif o == GAMMA:
+            np.subtract(st.C1[:, j], st.msub[j] * Op, out=B[:, r])
+        else:
+            B[:, r] = W[:, r]
+    V = np.empty((6, R, N))
+    _cross_cm(W, B, V[:3])
+    for r, (s, j, o) in enumerate(plan.rows):
+        if j < 0:
+            V[:3, r] = 0.0                         # the base is distal to no compliance
+        elif not plan.rot[r]:
+            np.multiply(W[:, r], st.msub[j], out=V[:3, r])
+    _gcross_cm(g, W, V[3:])
+    V[3:] *= plan.rot[:, None]
     return V
 
 
-def _add_corrections(model, lay, st, plan, act, cpa, cols) -> None:
+def _add_corrections(model, st, plan, act, cpa, cols) -> None:
     """Add ``sum_p K_p dM_p/d(step) column_p`` to the step columns ``cols`` (S, N, rows).
 
-    ``cpa`` (P', rows, N): component-major columns of the active compliant steps. dM_p/d(step), for
-    a step of axis w:
+    ``cpa`` (rows, P', N): component-major columns of the active compliant steps. dM_p/d(step),
+    for a step of axis w:
 
     * proximal rotation: it turns the axis and all masses distal to p rigidly, which leaves the
       moment as if gravity turned by -w instead: dM = -u . (A x (w x g)) = (g x w) . (u x A);
@@ -527,19 +571,17 @@ def _add_corrections(model, lay, st, plan, act, cpa, cols) -> None:
     ``K_p (g x u_p) column_p`` and ``K_p (u_p x A_p) column_p`` are taken first, each distinct sum
     once, growing along the chain.
     """
-    key = ("corr", id(plan))
-    if key not in st.cache:
+    if plan not in st.cache:
         g = np.asarray(model.gravity, dtype=float)
-        P = len(act)
-        u = _cm_rows(st.u, _runs(act), P)
-        DA = np.empty((P, 6, u.shape[2]))
-        _gcross_cm(g, u, DA[:, :3])
-        _cross_cm(u, _cm_rows(st.A, _runs(act), P), DA[:, 3:])
-        DA *= st.ks[act][:, None, None]
-        st.cache[key] = (DA, _plan_vectors(model, lay, st, plan))
-    DA, V = st.cache[key]
-    rows, N = cpa.shape[1], cpa.shape[2]
-    T = DA[:, :, None, :] * cpa[:, None, :, :]                     # (P', 6, rows, N)
+        u, A = st.u[:, act], st.A[:, act]
+        DA = np.empty((6,) + u.shape[1:])
+        _gcross_cm(g, u, DA[:3])
+        _cross_cm(u, A, DA[3:])
+        DA *= st.ks[act][:, None]
+        st.cache[plan] = (DA.transpose(1, 0, 2), _plan_vectors(model, st, plan))
+    DA, V = st.cache[plan]
+    rows, N = cpa.shape[0], cpa.shape[2]
+    T = DA[:, :, None, :] * cpa.transpose(1, 0, 2)[:, None, :, :]     # (P', 6, rows, N)
     S = []
     for part, base, items in plan.sums:
         lo = 3 * part
@@ -550,36 +592,36 @@ def _add_corrections(model, lay, st, plan, act, cpa, cols) -> None:
         for i in items[2 if base < 0 else 1:]:
             acc += T[i, lo:lo + 3]
         S.append(acc)
-    corr = np.empty((len(plan.steps), rows, N))
+    corr = np.empty((len(plan.rows), rows, N))
     for part, r0, r1, s, assign in plan.groups:
         lo = 3 * part
-        prod = V[r0:r1, lo:lo + 3, None, :] * S[s]                  # (k, 3, rows, N)
+        prod = V[lo:lo + 3, r0:r1, None, :] * S[s][:, None]            # (3, k, rows, N)
         c = corr[r0:r1]
         if assign:
-            np.add(prod[:, 0], prod[:, 1], out=c)
+            np.add(prod[0], prod[1], out=c)
         else:
-            c += prod[:, 0]
-            c += prod[:, 1]
-        c += prod[:, 2]
+            c += prod[0]
+            c += prod[1]
+        c += prod[2]
     for c0, c1, r0 in plan.out_runs:
         for b in range(rows):
             cols[c0:c1, :, b] += corr[r0:r0 + c1 - c0, b]
 
 
 def _compliant_columns(lay, ps, m, steps, rows) -> np.ndarray:
-    """(len(steps), rows, N) component-major columns of compliant (rotation) steps for marker m."""
+    """(rows, len(steps), N) component-major columns of compliant (rotation) steps for marker m."""
     runs = _runs(steps)
     n = len(steps)
     U = _cm_rows(ps.U, runs, n)
-    out = np.empty((n, rows, U.shape[2]))
+    out = np.empty((rows, n, U.shape[2]))
     D = _cm_rows(ps.Q, runs, n)
-    np.subtract(ps.P[m].T, D, out=D)
-    _cross_cm(U, D, out[:, :3])
+    np.subtract(ps.P[m].T[:, None, :], D, out=D)
+    _cross_cm(U, D, out[:3])
     if rows == 6:
-        out[:, 3:] = U
+        out[3:] = U
     on = lay.marker_path[m, steps]
     if not on.all():
-        out[~on] = 0.0
+        out[:, ~on] = 0.0
     return out
 
 
@@ -643,9 +685,9 @@ def _evaluate_state(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarra
         return _State(ps=_kinematic_pass(model, lay, p, qf, orientations=orientations), compliance=False, ks=ks)
     deflects = bool(np.any(ks != 0.0))
     # with every compliance zero the deflected chain is the undeformed one: one pass serves both
-    ps0 = _kinematic_pass(model, lay, p, qf, orientations=orientations and not deflects)
+    ps0 = _kinematic_pass(model, lay, p, qf, orientations=orientations and not deflects, frames_only=deflects)
     C1, msub = _mass_sums(model, lay, ps0, payload_mass)
-    M, A, u = _moments(model, lay, ps0, C1, msub)
+    M, A, u = _moments(model, ps0, C1, msub)
     if not deflects:
         return _State(ps=ps0, compliance=True, ks=ks, ps0=ps0, C1=C1, msub=msub, M=M, A=A, u=u)
     # a zero compliance deflects nothing: a scalar keeps that frame's constant part constant
@@ -677,13 +719,20 @@ def _jacobian_columns(model: RobotModel, lay: Layout, st: _State, cols_idx: np.n
     # compliant columns needed: the active ones (corrections), then those of requested K not among them
     csel = act if plan is not None else act[:0]
     csel = np.concatenate([csel, [k for k in kk if k not in set(csel.tolist())]]).astype(int)
-    cpc = _compliant_columns(lay, st.ps, m, lay.compliant_steps[csel], rows)   # (len(csel), rows, N)
+    cpc = _compliant_columns(lay, st.ps, m, lay.compliant_steps[csel], rows)   # (rows, len(csel), N)
     if plan is not None:
-        _add_corrections(model, lay, st, plan, act, cpc[:len(act)], cols)
+        _add_corrections(model, st, plan, act, cpc[:, :len(act)], cols)
     out[is_step] = cols
     where = {int(c): i for i, c in enumerate(csel)}
-    ki = np.array([where[int(k)] for k in kk], dtype=int)
-    out[is_k] = (cpc[ki] * st.M[kk][:, None, :]).transpose(0, 2, 1)
+    ki = [where[int(k)] for k in kk]
+    pos = np.nonzero(is_k)[0]
+    kcols = out[pos[0]:pos[-1] + 1] if len(pos) and pos[-1] - pos[0] == len(pos) - 1 else None
+    for b in range(rows):
+        kb = cpc[b, ki] * st.M[kk]
+        if kcols is not None:
+            kcols[:, :, b] = kb
+        else:
+            out[pos, :, b] = kb
     return out
 
 
