@@ -573,11 +573,10 @@ def _add_corrections(model, st, plan, act, cpa, cols) -> None:
     """
     if plan not in st.cache:
         g = np.asarray(model.gravity, dtype=float)
-        u, A = st.u[:, act], st.A[:, act]
+        u = st.u[:, act] * st.ks[act][:, None]
         DA = np.empty((6,) + u.shape[1:])
         _gcross_cm(g, u, DA[:3])
-        _cross_cm(u, A, DA[3:])
-        DA *= st.ks[act][:, None]
+        _cross_cm(u, st.A[:, act], DA[3:])
         st.cache[plan] = (DA.transpose(1, 0, 2), _plan_vectors(model, st, plan))
     DA, V = st.cache[plan]
     rows, N = cpa.shape[0], cpa.shape[2]
@@ -641,17 +640,22 @@ class Evaluation:
     frames: np.ndarray | None = None
 
 
-def _step_columns(lay: Layout, ps: _Pass, m: int, steps: np.ndarray, rows: int = 6) -> np.ndarray:
+def _step_columns(lay: Layout, ps: _Pass, m: int, steps: np.ndarray, rows: int = 6, out=None) -> np.ndarray:
     """(len(steps), N, rows) columns of the given steps for marker m, zero off its path.
 
     Column-major (one contiguous block per parameter): what the solver wants, and cheap to fill.
-    ``rows`` 3 gives the position part only.
+    ``rows`` 3 gives the position part only. ``out``: where to write them instead of a new array.
     """
     N = ps.P.shape[1]
-    out = np.zeros((len(steps), N, rows))
     on = lay.marker_path[m, steps]
     rot = lay.step_is_rot[steps] & on
     tra = ~lay.step_is_rot[steps] & on
+    if out is None:
+        out = np.zeros((len(steps), N, rows))
+    else:
+        out[~on] = 0.0
+        if rows == 6:
+            out[tra, :, 3:] = 0.0
     if rot.any():
         U = ps.U[steps[rot]]
         out[rot, :, :3] = _cross(U, ps.P[m][None] - ps.Q[steps[rot]])
@@ -710,7 +714,9 @@ def _jacobian_columns(model: RobotModel, lay: Layout, st: _State, cols_idx: np.n
         out[is_step] = _step_columns(lay, st.ps, m, steps, rows)
         return out
     out = np.empty((len(cols_idx), st.ps.P.shape[1], rows))
-    cols = _step_columns(lay, st.ps, m, steps, rows)                          # (S, N, rows)
+    # step columns written in place when they are one block (the usual order: geometry, then K)
+    sblock = _block(is_step)
+    cols = _step_columns(lay, st.ps, m, steps, rows, out=None if sblock is None else out[sblock])
     k_slot = lay.param_compliant[cols_idx]
     is_k = k_slot >= 0
     kk = k_slot[is_k]
@@ -722,18 +728,22 @@ def _jacobian_columns(model: RobotModel, lay: Layout, st: _State, cols_idx: np.n
     cpc = _compliant_columns(lay, st.ps, m, lay.compliant_steps[csel], rows)   # (rows, len(csel), N)
     if plan is not None:
         _add_corrections(model, st, plan, act, cpc[:, :len(act)], cols)
-    out[is_step] = cols
+    if sblock is None:
+        out[is_step] = cols
     where = {int(c): i for i, c in enumerate(csel)}
     ki = [where[int(k)] for k in kk]
-    pos = np.nonzero(is_k)[0]
-    kcols = out[pos[0]:pos[-1] + 1] if len(pos) and pos[-1] - pos[0] == len(pos) - 1 else None
+    kblock = _block(is_k)
     for b in range(rows):
-        kb = cpc[b, ki] * st.M[kk]
-        if kcols is not None:
-            kcols[:, :, b] = kb
-        else:
-            out[pos, :, b] = kb
+        out[is_k if kblock is None else kblock, :, b] = cpc[b, ki] * st.M[kk]
     return out
+
+
+def _block(mask: np.ndarray) -> slice | None:
+    """The slice selecting the True entries of ``mask`` when they are consecutive, else None."""
+    pos = np.nonzero(mask)[0]
+    if len(pos) and pos[-1] - pos[0] == len(pos) - 1:
+        return slice(int(pos[0]), int(pos[-1]) + 1)
+    return None
 
 
 def evaluate(model: RobotModel, q: np.ndarray, p: np.ndarray | None = None, *, jacobian: bool = False,
