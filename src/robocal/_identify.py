@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import warnings
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -49,8 +50,7 @@ class _Problem:
         self.model = model
         self.data = data
         self.lay = layout(model)
-        index = {n: i for i, n in enumerate(self.lay.names)}
-        self.free_idx = np.array([index[n] for n in free], dtype=int)
+        self.free_idx = self._indices(free)
         self.compliance = compliance
         self.qf = data.q @ model.coupling_matrix.T
         self.marker_idx = np.array([model.marker_names.index(n) for n in data.marker_names], dtype=int)
@@ -64,6 +64,16 @@ class _Problem:
             self.w_r = [np.ones(len(s)) if sr is None else 1.0 / sr[s, j] for j, s in enumerate(self.sel_r)]
         self._cache_key = None
         self._cache = None
+
+    def _indices(self, free) -> np.ndarray:
+        index = {n: i for i, n in enumerate(self.lay.names)}
+        return np.array([index[n] for n in free], dtype=int)
+
+    def over(self, free: tuple[str, ...]) -> _Problem:
+        """The same problem over other free parameters, keeping the evaluation already made."""
+        other = copy.copy(self)
+        other.free_idx = self._indices(free)
+        return other
 
     @property
     def n_rows(self) -> int:
@@ -350,16 +360,16 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
     if n_unique < data.n_poses:
         notes.append(f"{data.n_poses - n_unique} of {data.n_poses} poses repeat an earlier joint configuration "
                      "exactly: they average noise but add no information")
-    prob = _Problem(model, data, names, compliance=compliance)
+    prob0 = _Problem(model, data, names, compliance=compliance)
     rows_per_pose = 3 * (1 + int(orientation))
     needed = len(theory.identified)
-    distinct_rows = prob.n_rows * n_unique // data.n_poses
+    distinct_rows = prob0.n_rows * n_unique // data.n_poses
     if distinct_rows <= needed:
         raise DegenerateDataError(
             f"{data.n_poses} poses ({n_unique} distinct) give {distinct_rows} equations for {needed} identifiable "
             f"parameters; at least {needed // rows_per_pose + 1} distinct poses are needed, and several times "
             "that for a useful estimate")
-    J0 = prob.jacobian(p0)
+    J0 = prob0.jacobian(p0)
     ident = analyse(J0, names, tol=tol)
     lost = [n for n in theory.identified if n not in ident.identified]
     if lost:
@@ -371,7 +381,7 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
     free = ident.identified
     if not free:
         raise DegenerateDataError("no parameter is identifiable from these data")
-    prob = _Problem(model, data, free, compliance=compliance)
+    prob = prob0.over(free)          # the solve starts where the analysis evaluated the model
     if prob.n_rows <= len(free):
         raise DegenerateDataError(f"{prob.n_rows} equations for {len(free)} parameters")
 
@@ -404,7 +414,8 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
             sol = least_squares(fun, x0, method="trf", loss=loss, f_scale=f_scale, **kw)
     p_hat = full(sol.x)
     r = sol.fun if loss == "linear" else prob.residuals(p_hat)
-    J = prob.jacobian(p_hat)
+    # method "lm" returns the Jacobian at the solution; the robust losses return a reweighted one
+    J = sol.jac if loss == "linear" else prob.jacobian(p_hat)
     dof = prob.n_rows - len(free)
     s2 = float(r @ r) / dof
     # columns mix metres, radians and rad/(N m): invert the normal matrix in unit-column scaling
@@ -425,7 +436,7 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
                "the data declaration (units, orientation convention, marker names) does not fit")
         notes.append(msg)
         warnings.warn(msg, MisfitWarning, stacklevel=2)
-    # the solution's pass is cached from the Jacobian above
+    # the solution's pass is cached from the solver's last Jacobian
     vectors = prob.errors(p_hat)
     if orientation:
         # a wrong orientation convention converges quietly: test the rotations, with or without stated sigmas
@@ -447,8 +458,11 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
     if initial_base == "register":
         notes.append("base parameters are reported against the registered base (nominal column), not the "
                      "model file's")
-    prob_nom = _Problem(nominal, data, free, compliance=nominal.has_compliance)
-    before = _norms(prob_nom, parameter_vector(nominal))
+    if nominal is model:
+        # the analysis evaluated it there (a compliance deflects nothing at p0 unless the model has one)
+        before = _norms(prob0, p0)
+    else:
+        before = _norms(_Problem(nominal, data, free, compliance=nominal.has_compliance), parameter_vector(nominal))
     after = np.linalg.norm(vectors, axis=2)
     stats = {"fit_before": error_stats(before), "fit_after": error_stats(after),
              "validation_before": error_stats([]), "validation_after": error_stats([])}
