@@ -453,14 +453,21 @@ class _CorrectionPlan:
 
     Rows are the corrected steps in step order. Part 0 sums over the compliances a step is distal
     to, part 1 over those it is proximal to (translations ride along there with a zero vector, so
-    that rows sharing a sum stay contiguous). Each distinct sum is built from a smaller one.
+    that rows sharing a sum stay contiguous). Rows with the same pair of sums form a group and
+    share a slot holding both; each distinct sum is built once, from a smaller one.
     """
 
     rows: tuple              # (step, frame or -1 for the base, offset in the frame) per row, in step order
     out_runs: tuple          # ``_runs`` of the step columns the rows correct
     rot: np.ndarray          # (R,) 1.0 for rotations
-    sums: tuple              # per sum: (part, base sum or -1, compliance items)
-    groups: tuple            # (part, row0, row1, sum, assign): rows [row0, row1) use that sum
+    n_base: int              # the first rows are base rotations
+    axis_of: np.ndarray      # (R - n_base,) compliant row whose axis (and A) each frame row takes
+    translations: np.ndarray  # (k,) rows of translations, and their frames
+    translation_frames: np.ndarray
+    parent_z: tuple          # (row, frame) of gamma and b rows: the parent's z axis
+    n_slots: int
+    fills: tuple             # (slot, part, source slot or -1, compliance items): how each sum is made
+    groups: tuple            # (row0, row1, slot): rows [row0, row1) use that slot
 
 
 @lru_cache(maxsize=128)
@@ -480,40 +487,38 @@ def _correction_plan(model: RobotModel, steps_key: bytes, act_key: bytes) -> _Co
     rsteps = steps[cols]
     frame = lay.step_frame[rsteps]
     rows = tuple((int(s), int(f), int(s - N_BASE - 7 * f) if f >= 0 else -1) for s, f in zip(rsteps, frame))
-    sets = [[frozenset(np.nonzero(desc[:, c])[0]) for c in cols], [frozenset(np.nonzero(anc[:, c])[0]) for c in cols]]
-    # each distinct sum once, smallest first, from the largest sum already built inside it
-    sums, index = [], {}
+    n_base = int(np.sum(frame == -1))
+    # a frame step's axis is that of a compliant step of its frame (d: alpha's, r: theta's)
+    same_axis = {BETA: BETA, ALPHA: ALPHA, D: ALPHA, THETA: THETA, R: THETA}
+    axis_of = np.array([3 * f + _COMPLIANT_ROW[same_axis.get(o, THETA)] for _, f, o in rows[n_base:]], dtype=int)
+    parent_z = tuple((r, f) for r, (_, f, o) in enumerate(rows) if o in (GAMMA, B))
+    tra = np.nonzero(~rot[cols])[0]
+    pairs = [(frozenset(np.nonzero(desc[:, c])[0]), frozenset(np.nonzero(anc[:, c])[0])) for c in cols]
+    slot_of, groups, r = {}, [], 0
+    while r < len(pairs):
+        r1 = r + 1
+        while r1 < len(pairs) and pairs[r1] == pairs[r]:
+            r1 += 1
+        groups.append((r, r1, slot_of.setdefault(pairs[r], len(slot_of))))
+        r = r1
+    # each distinct sum once, smallest first, from the largest one already built inside it
+    fills = []
     for part in (0, 1):
-        for s in sorted(set(sets[part]) - {frozenset()}, key=len):
-            base = max((t for (pt, t) in index if pt == part and t < s), key=len, default=frozenset())
-            sums.append((part, index[(part, base)] if base else -1, tuple(int(i) for i in sorted(s - base))))
-            index[(part, s)] = len(sums) - 1
-    groups = []
-    touched = np.zeros(len(cols), dtype=bool)
-    for part in (0, 1):
-        r = 0
-        while r < len(cols):
-            s = sets[part][r]
-            r1 = r + 1
-            while r1 < len(cols) and sets[part][r1] == s:
-                r1 += 1
-            k = r
-            while s and k < r1:
-                # the first sum to reach a row assigns it, later ones add
-                k1 = k + 1
-                while k1 < r1 and touched[k1] == touched[k]:
-                    k1 += 1
-                groups.append((part, k, k1, index[(part, s)], not touched[k]))
-                k = k1
+        built = {}
+        for s in sorted({pair[part] for pair in slot_of}, key=len):
+            users = [slot for pair, slot in slot_of.items() if pair[part] == s]
             if s:
-                touched[r:r1] = True
-            r = r1
-    return _CorrectionPlan(rows=rows, out_runs=_runs(cols), rot=rot[cols].astype(float), sums=tuple(sums),
-                           groups=tuple(groups))
+                base = max((t for t in built if t < s), key=len, default=frozenset())
+                fills.append((users[0], part, built[base] if base else -1, tuple(int(i) for i in sorted(s - base))))
+                built[s] = users[0]
+                users = users[1:]
+            fills += [(slot, part, built.get(s, -1), ()) for slot in users]   # copies, or zeros
+    return _CorrectionPlan(rows=rows, out_runs=_runs(cols), rot=rot[cols].astype(float), n_base=n_base,
+                           axis_of=axis_of, translations=tra, translation_frames=frame[tra], parent_z=parent_z,
+                           n_slots=len(slot_of), fills=tuple(fills), groups=tuple(groups))
 
 
-# frame step -> column of the frame's W holding its axis, and row of its compliance within the frame
-_AXIS_COL = {BETA: 0, ALPHA: 1, D: 1, THETA: 2, R: 2}
+# frame step -> row of its compliance within the frame
 _COMPLIANT_ROW = {off: c for c, (off, _) in enumerate(COMPLIANT)}
 
 
@@ -523,32 +528,21 @@ def _plan_vectors(model, st, plan) -> np.ndarray:
     dotted with the proximal sum (zero for translations)."""
     ps = st.ps0
     g = np.asarray(model.gravity, dtype=float)
-    R, N = len(plan.rows), st.M.shape[1]
+    R, N, nb = len(plan.rows), st.M.shape[1], plan.n_base
     W = np.empty((3, R, N))                       # axes
-    B = np.empty((3, R, N))                       # C1_j - m_j Q for rotations (the axis for others: w x w = 0)
-    for r, (s, j, o) in enumerate(plan.rows):
-        if j < 0:
-            W[:, r] = ps.base_axes[s][:, None]
-            B[:, r] = W[:, r]
-            continue
-        Wc, Op = _frame_vectors(ps, j)
-        if o in _AXIS_COL:
-            W[:, r] = Wc[:, _AXIS_COL[o]]
-        else:
-            W[:, r] = ps.F[j][0][:, :, 2].T        # gamma and b turn/slide along the parent's z
-        if o in _COMPLIANT_ROW:
-            B[:, r] = st.A[:, 3 * j + _COMPLIANT_ROW[o]]
-        elif o == GAMMA:
-            np.subtract(st.C1[:, j], st.msub[j] * Op, out=B[:, r])
-        else:
-            B[:, r] = W[:, r]
+    B = np.empty((3, R, N))                       # C1_j - m_j Q for rotations (anything finite for others)
+    W[:, :nb] = ps.base_axes[[s for s, _, _ in plan.rows[:nb]]].T[:, :, None]
+    B[:, :nb] = W[:, :nb]
+    W[:, nb:] = st.u[:, plan.axis_of]
+    B[:, nb:] = st.A[:, plan.axis_of]
+    for r, j in plan.parent_z:
+        W[:, r] = ps.F[j][0][:, :, 2].T
+        if plan.rot[r]:
+            np.subtract(st.C1[:, j], st.msub[j] * _frame_vectors(ps, j)[1], out=B[:, r])
     V = np.empty((6, R, N))
     _cross_cm(W, B, V[:3])
-    for r, (s, j, o) in enumerate(plan.rows):
-        if j < 0:
-            V[:3, r] = 0.0                         # the base is distal to no compliance
-        elif not plan.rot[r]:
-            np.multiply(W[:, r], st.msub[j], out=V[:3, r])
+    V[:3, :nb] = 0.0                              # the base is distal to no compliance
+    V[:3, plan.translations] = W[:, plan.translations] * st.msub[plan.translation_frames]
     _gcross_cm(g, W, V[3:])
     V[3:] *= plan.rot[:, None]
     return V
@@ -581,27 +575,23 @@ def _add_corrections(model, st, plan, act, cpa, cols) -> None:
     DA, V = st.cache[plan]
     rows, N = cpa.shape[0], cpa.shape[2]
     T = DA[:, :, None, :] * cpa.transpose(1, 0, 2)[:, None, :, :]     # (P', 6, rows, N)
-    S = []
-    for part, base, items in plan.sums:
+    S = np.empty((plan.n_slots, 6, rows, N))
+    for slot, part, src, items in plan.fills:
         lo = 3 * part
-        if base < 0 and len(items) == 1:
-            S.append(T[items[0], lo:lo + 3])
+        dst = S[slot, lo:lo + 3]
+        if not items:
+            dst[...] = S[src, lo:lo + 3] if src >= 0 else 0.0
             continue
-        acc = np.add(S[base] if base >= 0 else T[items[0], lo:lo + 3], T[items[1 if base < 0 else 0], lo:lo + 3])
-        for i in items[2 if base < 0 else 1:]:
-            acc += T[i, lo:lo + 3]
-        S.append(acc)
+        first, rest = (S[src, lo:lo + 3], items) if src >= 0 else (T[items[0], lo:lo + 3], items[1:])
+        if not rest:
+            dst[...] = first
+            continue
+        np.add(first, T[rest[0], lo:lo + 3], out=dst)
+        for i in rest[1:]:
+            dst += T[i, lo:lo + 3]
     corr = np.empty((len(plan.rows), rows, N))
-    for part, r0, r1, s, assign in plan.groups:
-        lo = 3 * part
-        prod = V[lo:lo + 3, r0:r1, None, :] * S[s][:, None]            # (3, k, rows, N)
-        c = corr[r0:r1]
-        if assign:
-            np.add(prod[0], prod[1], out=c)
-        else:
-            c += prod[0]
-            c += prod[1]
-        c += prod[2]
+    for r0, r1, slot in plan.groups:
+        np.add.reduce(V[:, r0:r1, None, :] * S[slot][:, None], axis=0, out=corr[r0:r1])
     for c0, c1, r0 in plan.out_runs:
         for b in range(rows):
             cols[c0:c1, :, b] += corr[r0:r0 + c1 - c0, b]
