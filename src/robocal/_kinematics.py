@@ -46,10 +46,13 @@ def _cross(a, b):
     return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
 
 
-def _rmul(R: np.ndarray, M: np.ndarray) -> np.ndarray:
+def _rmul(R: np.ndarray, M: np.ndarray, out=None) -> np.ndarray:
     """(N, 3, 3) @ (3, k) as one 2-D product (stacked matmul is slow for 3x3 blocks)."""
     N = R.shape[0]
-    return (R.reshape(N * 3, 3) @ M).reshape(N, 3, M.shape[1])
+    if out is None:
+        return (R.reshape(N * 3, 3) @ M).reshape(N, 3, M.shape[1])
+    np.matmul(R.reshape(N * 3, 3), M, out=out.reshape(N * 3, M.shape[1]))
+    return out
 
 
 def _rot_matrix(axis, angle) -> np.ndarray:
@@ -231,23 +234,25 @@ def model_from_vector(model: RobotModel, p: np.ndarray) -> RobotModel:
 
 @dataclass(frozen=True)
 class _Pass:
-    R: list          # per frame rotation R_W<frame> (N, 3, 3)
-    O: list          # per frame origin (N, 3)
+    R: np.ndarray    # (n_frames, N, 3, 3) rotations R_W<frame>
+    O: np.ndarray    # (n_frames, N, 3) origins
     U: np.ndarray | None  # (n_steps, N, 3) step axes (None for a frames-only pass)
     Q: np.ndarray | None  # (n_steps, N, 3) points on rotation axes
     P: np.ndarray | None  # (n_markers, N, 3) marker positions
     RM: list         # per marker orientation (N, 3, 3), when asked
-    F: list          # per frame (R_parent, O_parent, W): what the frame's step axes and points come from
+    W: np.ndarray    # (n_frames, N, 3, 5) per frame in W: beta axis, alpha/d axis, theta/r axis, b offset, full offset
     base_axes: np.ndarray  # (6, 3) axes of the base steps
+    base_origin: np.ndarray  # (3,)
+    base_rotation: np.ndarray  # (3, 3) frame 0 of the base, parent of the root frames
     cache: dict = field(default_factory=dict)
 
 
-def _turn(R: np.ndarray, axis: int, angle) -> np.ndarray:
+def _turn(R: np.ndarray, axis: int, angle, out=None) -> np.ndarray:
     """R @ Rot(axis, angle) for a stack R (N, 3, 3) and per-pose angles: mixes two columns."""
     i, j = _ROT_PAIRS[axis]
     c = np.cos(angle)[:, None]
     s = np.sin(angle)[:, None]
-    out = np.empty(R.shape)
+    out = np.empty(R.shape) if out is None else out
     ri, rj = R[:, :, i], R[:, :, j]
     out[:, :, i] = ri * c + rj * s
     out[:, :, j] = rj * c - ri * s
@@ -261,7 +266,7 @@ def _kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarra
     only the joint rotation (and gravity deflections) vary per pose.
 
     ``frames_only``: frame poses without step axes, points or markers (the undeformed chain
-    under compliance needs no more; ``_frame_vectors`` gives the axes it asks for)."""
+    under compliance needs no more; ``_compliant_vectors`` gives the axes it asks for)."""
     N = qf.shape[0]
     n_steps = len(lay.step_param)
     U = Q = None
@@ -277,10 +282,11 @@ def _kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarra
         Q = np.zeros((n_steps, N, 3))
         U[0:N_BASE] = base_axes[:, None, :]
         Q[3:N_BASE] = Ob
+    base = dict(base_axes=base_axes, base_origin=p[0:3], base_rotation=Rb)
     Rb = np.broadcast_to(Rb, (N, 3, 3))
-    F: list = [None] * model.n_frames
-    R_frames: list = [None] * model.n_frames
-    O_frames: list = [None] * model.n_frames
+    R_frames = np.empty((model.n_frames, N, 3, 3))
+    O_frames = np.empty((model.n_frames, N, 3))
+    W_frames = np.empty((model.n_frames, N, 3, 5))
     for i, f in enumerate(model.frames):
         if f.parent < 0:
             Rp, Op = Rb, Ob
@@ -298,11 +304,11 @@ def _kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarra
             A = Rgb @ _rot_matrix(0, al)
             # parent-frame vectors: beta axis, alpha/d axis, theta/r axis, b offset, full offset
             V = np.column_stack([Rg[:, 1], Rgb[:, 0], A[:, 2], bvec, bvec + Rgb[:, 0] * v[D]])
-            W = _rmul(Rp, V)                                             # (N, 3, 5)
+            W = _rmul(Rp, V, out=W_frames[i])                            # (N, 3, 5)
             RA = _rmul(Rp, A)
         else:
             # per-pose deflections: turn the parent's columns pose by pose, only where they vary
-            W = np.empty((N, 3, 5))
+            W = W_frames[i]
             if np.ndim(be):
                 RG = _rmul(Rp, Rg)
                 RGB = _turn(RG, 1, be)
@@ -317,7 +323,6 @@ def _kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarra
             W[:, :, 2] = RA[:, :, 2]
             W[:, :, 4] = W[:, :, 3] + v[D] * RGB[:, :, 0]
         O_th = Op + W[:, :, 4]
-        F[i] = (Rp, Op, W)
         if not frames_only:
             U[s0 + GAMMA] = Rp[:, :, 2]
             Q[s0 + GAMMA] = Op
@@ -328,12 +333,11 @@ def _kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarra
             U[s0 + THETA] = U[s0 + R] = W[:, :, 2]
             Q[s0 + THETA] = O_th
         th = v[THETA] + (q if f.joint == "revolute" else 0.0) + d_th
-        Rj = _turn(np.broadcast_to(RA, (N, 3, 3)), 2, np.broadcast_to(th, (N,)))
+        _turn(np.broadcast_to(RA, (N, 3, 3)), 2, np.broadcast_to(th, (N,)), out=R_frames[i])
         rr = v[R] + (q if f.joint == "prismatic" else 0.0)
-        O_frames[i] = O_th + np.reshape(rr, (-1, 1)) * W[:, :, 2]
-        R_frames[i] = Rj
+        np.add(O_th, np.reshape(rr, (-1, 1)) * W[:, :, 2], out=O_frames[i])
     if frames_only:
-        return _Pass(R=R_frames, O=O_frames, U=None, Q=None, P=None, RM=[], F=F, base_axes=base_axes)
+        return _Pass(R=R_frames, O=O_frames, U=None, Q=None, P=None, RM=[], W=W_frames, **base)
     P = np.empty((len(model.markers), N, 3))
     RM = []
     for m, mk in enumerate(model.markers):
@@ -351,21 +355,17 @@ def _kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarra
             RM.append(_rmul(Rf, Rm @ _small_rotation(*v[3:6])))
         else:
             U[s0 + 3:s0 + 6] = 0.0
-    return _Pass(R=R_frames, O=O_frames, U=U, Q=Q, P=P, RM=RM, F=F, base_axes=base_axes)
+    return _Pass(R=R_frames, O=O_frames, U=U, Q=Q, P=P, RM=RM, W=W_frames, **base)
 
 
 def _mass_sums(model: RobotModel, lay: Layout, ps: _Pass, payload_mass):
     """First moments ``C1`` (3, n_frames, N), component-major, and masses ``msub`` (n_frames, N) of
     every subtree."""
-    nf = model.n_frames
-    N = ps.O[0].shape[0]
-    own_c1 = np.zeros((nf, N, 3))
-    own_m = np.zeros((nf, N))
-    for i, f in enumerate(model.frames):
-        if f.mass > 0:
-            c = ps.O[i] + _rmul(ps.R[i], np.asarray(f.com, dtype=float)[:, None])[:, :, 0]
-            own_c1[i] += f.mass * c
-            own_m[i] += f.mass
+    nf, N = ps.O.shape[0], ps.O.shape[1]
+    mass = np.array([f.mass for f in model.frames], dtype=float)
+    com = np.array([f.com for f in model.frames], dtype=float)
+    own_c1 = mass[:, None, None] * (ps.O + np.matmul(ps.R.reshape(nf, 3 * N, 3), com[:, :, None]).reshape(nf, N, 3))
+    own_m = np.repeat(mass[:, None], N, axis=1)
     pl = model.payload
     pm = pl.mass if payload_mass is None else payload_mass
     if np.any(np.asarray(pm) > 0):
@@ -378,30 +378,30 @@ def _mass_sums(model: RobotModel, lay: Layout, ps: _Pass, payload_mass):
     return sub @ own_c1.transpose(2, 0, 1), sub @ own_m
 
 
-def _frame_vectors(ps: _Pass, i: int):
-    """Frame i's ``W`` (3, 5, N) and its parent's origin (3, N), component-major, once per pass."""
-    key = ("frame", i)
-    if key not in ps.cache:
-        Rp, Op, W = ps.F[i]
-        ps.cache[key] = (np.ascontiguousarray(W.transpose(1, 2, 0)), np.ascontiguousarray(Op.T))
-    return ps.cache[key]
+def _compliant_vectors(model: RobotModel, ps: _Pass):
+    """Axes ``u`` and points ``Q`` of every compliant step (theta, alpha, beta of each frame) and the
+    parents' origins ``Op``, component-major ((3, 3 n_frames, N) and (3, n_frames, N)), once per pass."""
+    if "compliant" not in ps.cache:
+        nf, N = ps.O.shape[0], ps.O.shape[1]
+        Wc = np.ascontiguousarray(ps.W.transpose(2, 0, 3, 1))        # (3, nf, 5, N)
+        parent = np.array([f.parent for f in model.frames])
+        Op = np.empty((3, nf, N))
+        Op[:, parent >= 0] = ps.O[parent[parent >= 0]].transpose(2, 0, 1)
+        Op[:, parent < 0] = ps.base_origin[:, None, None]
+        u = Wc[:, :, 2::-1].reshape(3, 3 * nf, N)                    # theta, alpha, beta axes
+        # theta turns about O_theta = O_parent + W4; alpha and beta about O_parent + W3
+        Q = (Op[:, :, None] + Wc[:, :, [4, 3, 3]]).reshape(3, 3 * nf, N)
+        ps.cache["compliant"] = (u, Q, Op)
+    return ps.cache["compliant"]
 
 
 def _moments(model, ps, C1, msub):
     """Gravity moments ``M`` (3 n_frames, N) about each compliant step's axis; with the axes ``u``
     and ``A = C1 - m Q`` (3, 3 n_frames, N), component-major."""
     g = np.asarray(model.gravity, dtype=float)
-    nf = model.n_frames
-    N = ps.O[0].shape[0]
-    u = np.empty((3, 3 * nf, N))
-    A = np.empty((3, 3 * nf, N))
-    for i in range(nf):
-        Wc, Op = _frame_vectors(ps, i)
-        np.copyto(u[:, 3 * i:3 * i + 3], Wc[:, 2::-1])             # theta, alpha, beta axes
-        G = C1[:, i] - msub[i] * Op
-        np.subtract(G, msub[i] * Wc[:, 4], out=A[:, 3 * i])        # theta: through O_theta
-        np.subtract(G, msub[i] * Wc[:, 3], out=A[:, 3 * i + 1])    # alpha and beta share a point
-        A[:, 3 * i + 2] = A[:, 3 * i + 1]
+    u, Q, _ = _compliant_vectors(model, ps)
+    A = np.repeat(C1, 3, axis=1)
+    A -= np.repeat(msub, 3, axis=0) * Q
     gA = _gcross_cm(g, A, np.empty_like(A))
     M = u[0] * gA[0]
     M += u[1] * gA[1]
@@ -420,15 +420,6 @@ def _runs(idx) -> tuple:
         runs.append((idx[k], idx[j] + 1, k))
         k = j + 1
     return tuple(runs)
-
-
-def _cm_rows(X: np.ndarray, runs: tuple, n: int) -> np.ndarray:
-    """Rows of a pose-major stack (n_rows, N, 3), given as ``_runs``, component-major (3, n, N):
-    componentwise arithmetic then runs over contiguous pose vectors instead of stride-3 ones."""
-    out = np.empty((X.shape[2], n, X.shape[1]))
-    for a, b, k in runs:
-        np.copyto(out[:, k:k + b - a], X[a:b].transpose(2, 0, 1))
-    return out
 
 
 def _cross_cm(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> np.ndarray:
@@ -536,9 +527,10 @@ def _plan_vectors(model, st, plan) -> np.ndarray:
     W[:, nb:] = st.u[:, plan.axis_of]
     B[:, nb:] = st.A[:, plan.axis_of]
     for r, j in plan.parent_z:
-        W[:, r] = ps.F[j][0][:, :, 2].T
+        parent = model.frames[j].parent
+        W[:, r] = (ps.R[parent][:, :, 2].T if parent >= 0 else ps.base_rotation[:, 2:])
         if plan.rot[r]:
-            np.subtract(st.C1[:, j], st.msub[j] * _frame_vectors(ps, j)[1], out=B[:, r])
+            np.subtract(st.C1[:, j], st.msub[j] * _compliant_vectors(model, ps)[2][:, j], out=B[:, r])
     V = np.empty((6, R, N))
     _cross_cm(W, B, V[:3])
     V[:3, :nb] = 0.0                              # the base is distal to no compliance
@@ -597,18 +589,17 @@ def _add_corrections(model, st, plan, act, cpa, cols) -> None:
             cols[c0:c1, :, b] += corr[r0:r0 + c1 - c0, b]
 
 
-def _compliant_columns(lay, ps, m, steps, rows) -> np.ndarray:
-    """(rows, len(steps), N) component-major columns of compliant (rotation) steps for marker m."""
-    runs = _runs(steps)
-    n = len(steps)
-    U = _cm_rows(ps.U, runs, n)
-    out = np.empty((rows, n, U.shape[2]))
-    D = _cm_rows(ps.Q, runs, n)
-    np.subtract(ps.P[m].T[:, None, :], D, out=D)
-    _cross_cm(U, D, out[:3])
+def _compliant_columns(model, lay, ps, m, csel, rows) -> np.ndarray:
+    """(rows, len(csel), N) component-major columns of the compliant steps ``csel`` (rows of
+    ``compliant_steps``) for marker m."""
+    u, Q, _ = _compliant_vectors(model, ps)
+    u = u[:, csel]
+    D = np.subtract(ps.P[m].T[:, None, :], Q[:, csel])
+    out = np.empty((rows,) + u.shape[1:])
+    _cross_cm(u, D, out[:3])
     if rows == 6:
-        out[3:] = U
-    on = lay.marker_path[m, steps]
+        out[3:] = u
+    on = lay.marker_path[m, lay.compliant_steps[csel]]
     if not on.all():
         out[:, ~on] = 0.0
     return out
@@ -715,7 +706,7 @@ def _jacobian_columns(model: RobotModel, lay: Layout, st: _State, cols_idx: np.n
     # compliant columns needed: the active ones (corrections), then those of requested K not among them
     csel = act if plan is not None else act[:0]
     csel = np.concatenate([csel, [k for k in kk if k not in set(csel.tolist())]]).astype(int)
-    cpc = _compliant_columns(lay, st.ps, m, lay.compliant_steps[csel], rows)   # (rows, len(csel), N)
+    cpc = _compliant_columns(model, lay, st.ps, m, csel, rows)                # (rows, len(csel), N)
     if plan is not None:
         _add_corrections(model, st, plan, act, cpc[:, :len(act)], cols)
     if sblock is None:
