@@ -83,6 +83,7 @@ class Layout:
     subtree: np.ndarray         # (n_frames, n_frames) bool: [i, k] frame k is in the subtree of i
     param_step: np.ndarray      # (n_params,) step moved by each parameter, -1 for compliances
     param_compliant: np.ndarray  # (n_params,) row in compliant_steps of a compliance, else -1
+    plans: dict = field(default_factory=dict, compare=False)  # compliance correction plans, by columns
 
 
 def parameter_names(model: RobotModel) -> tuple[str, ...]:
@@ -461,11 +462,16 @@ class _CorrectionPlan:
     groups: tuple            # (row0, row1, slot): rows [row0, row1) use that slot
 
 
-@lru_cache(maxsize=128)
-def _correction_plan(model: RobotModel, steps_key: bytes, act_key: bytes) -> _CorrectionPlan | None:
-    lay = layout(model)
-    steps = np.frombuffer(steps_key, dtype=int)
-    act = np.frombuffer(act_key, dtype=int)
+def _correction_plan(model: RobotModel, lay: Layout, steps: np.ndarray, act: np.ndarray) -> _CorrectionPlan | None:
+    """The plan for these step columns and active compliances, made once per model (a layout lookup
+    is cheaper than hashing the model)."""
+    key = (steps.tobytes(), act.tobytes())
+    if key not in lay.plans:
+        lay.plans[key] = _make_correction_plan(model, lay, steps, act)
+    return lay.plans[key]
+
+
+def _make_correction_plan(model, lay, steps, act) -> _CorrectionPlan | None:
     rot = lay.step_is_rot[steps]
     anc = lay.anc[act][:, steps]
     desc = lay.desc[act][:, steps]
@@ -702,7 +708,7 @@ def _jacobian_columns(model: RobotModel, lay: Layout, st: _State, cols_idx: np.n
     is_k = k_slot >= 0
     kk = k_slot[is_k]
     act = np.nonzero(st.ks)[0]
-    plan = _correction_plan(model, steps.tobytes(), act.tobytes()) if len(act) else None
+    plan = _correction_plan(model, lay, steps, act) if len(act) else None
     # compliant columns needed: the active ones (corrections), then those of requested K not among them
     csel = act if plan is not None else act[:0]
     csel = np.concatenate([csel, [k for k in kk if k not in set(csel.tolist())]]).astype(int)
