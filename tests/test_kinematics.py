@@ -156,6 +156,22 @@ def test_columns_match_on_serial_arms_with_and_without_compliance(make):
     _assert_columns_match(model_from_vector(m, p), q)
 
 
+def test_columns_match_with_some_compliances_zero_and_columns_in_any_order():
+    # the corrections are planned from the non-zero compliances and the columns asked for
+    m = _random_tree_model(3)
+    lay = layout(m)
+    p = parameter_vector(m)
+    p[lay.compliant_params[::3]] = 0.0
+    m = model_from_vector(m, p)
+    q = np.random.default_rng(3).uniform(-1, 1, (5, 6))
+    cols = np.random.default_rng(4).permutation(lay.n_params)[:40]
+    J = evaluate(m, q, jacobian=True, compliance=True, columns=cols).jacobian
+    F = _fd_jacobian(m, q, p)[..., cols]
+    scale = np.maximum(np.abs(F).max(axis=(0, 1, 2)), 1e-3)
+    err = np.abs(J - F).max(axis=(0, 1, 2)) / scale
+    assert err.max() < 1e-6, [(lay.names[c], e) for c, e in zip(cols, err) if e >= 1e-6]
+
+
 def test_geometric_columns_are_the_textbook_ones():
     # theta_j: [z_j x (P - O_j); z_j]; r_j: [z_j; 0], in the measurement frame
     m = arm6r()
