@@ -365,7 +365,8 @@ def _mass_sums(model: RobotModel, lay: Layout, ps: _Pass, payload_mass):
     nf, N = ps.O.shape[0], ps.O.shape[1]
     mass = np.array([f.mass for f in model.frames], dtype=float)
     com = np.array([f.com for f in model.frames], dtype=float)
-    own_c1 = mass[:, None, None] * (ps.O + np.matmul(ps.R.reshape(nf, 3 * N, 3), com[:, :, None]).reshape(nf, N, 3))
+    centres = ps.O + np.matmul(ps.R.reshape(nf, 3 * N, 3), com[:, :, None]).reshape(nf, N, 3)
+    own_c1 = mass[:, None, None] * centres
     own_m = np.repeat(mass[:, None], N, axis=1)
     pl = model.payload
     pm = pl.mass if payload_mass is None else payload_mass
