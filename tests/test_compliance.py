@@ -1,6 +1,9 @@
 """Joint and link compliance under gravity: identification, comparison with geometry alone,
 and refusal of what cannot be computed."""
 
+from dataclasses import replace
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -122,3 +125,55 @@ def test_payload_per_pose_enters_the_moments():
     light = rc.forward_kinematics(mk, q, payload_mass=np.zeros(5)).positions
     heavy = rc.forward_kinematics(mk, q, payload_mass=np.full(5, 10.0)).positions
     assert np.linalg.norm(heavy - light, axis=2).min() > 1e-6
+
+
+# ------------------------------------------------------------------------------------------------
+# gravity loads on the joints (what decides the side of a loaded joint's backlash)
+
+def _potential_gradient(m, q, payload_mass=None, h=1e-6):
+    """d/dq of sum_k m_k g . c_k by central differences: the generalised gravity force."""
+    def work(qq):
+        X = rc.forward_kinematics(m, qq, frames=True).frames
+        g = np.asarray(m.gravity)
+        total = np.zeros(len(qq))
+        bodies = [(f.mass, i, f.com) for i, f in enumerate(m.frames)]
+        pm = m.payload.mass if payload_mass is None else payload_mass
+        bodies.append((pm, m.payload.frame if m.payload.frame >= 0 else m.n_frames - 1, m.payload.com))
+        for mass, i, com in bodies:
+            c = X[:, i, :3, :3] @ np.asarray(com, float) + X[:, i, :3, 3]
+            total += mass * (c @ g)
+        return total
+    out = np.zeros(q.shape)
+    for j in range(q.shape[1]):
+        dq = np.zeros(q.shape[1])
+        dq[j] = h
+        out[:, j] = (work(q + dq) - work(q - dq)) / (2 * h)
+    return out
+
+
+def test_gravity_loads_by_hand_for_one_horizontal_axis():
+    # joint axis along W's y (base turned -90 deg about x), 2 kg at 0.5 m along x: at q = 0 gravity
+    # (0, 0, -9.81) pulls x towards -z, a positive turn about y: + 2 * 9.81 * 0.5 N m
+    c, s = np.cos(-np.pi / 2), np.sin(-np.pi / 2)
+    m = rc.serial_model("h", [dict(joint="revolute", mass=2.0, com=(0.5, 0, 0))], markers=[("t", (1.0, 0, 0))],
+                        base_rotation=[[1, 0, 0], [0, c, -s], [0, s, c]])
+    q = np.array([[0.0], [np.pi], [np.pi / 2], [np.pi / 3]])
+    np.testing.assert_allclose(rc._kinematics.gravity_loads(m, q)[:, 0],
+                               9.81 * np.array([1.0, -1.0, 0.0, 0.5]), rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("which", ["cylindrical", "torso"])
+def test_gravity_loads_are_the_potential_energys_gradient(which):
+    if which == "cylindrical":
+        m = cylindrical(masses=True)      # prismatic joints, one vertical, one horizontal
+    else:
+        # a tree with a coupled joint: couplings map frame loads to joints by virtual work
+        m = rc.read_model(Path(__file__).resolve().parents[1] / "examples" / "torso" / "model.yaml")
+        frames = [replace(f, mass=1.0 + i, com=(0.05, -0.02 * i, 0.1)) for i, f in enumerate(m.frames)]
+        m = m.replace(frames=tuple(frames), payload=rc.Payload(mass=1.5, com=(0.0, 0.0, 0.1), frame=5))
+    q = rc.random_configurations(m, 7, rng=3)
+    expected = _potential_gradient(m, q)
+    np.testing.assert_allclose(rc._kinematics.gravity_loads(m, q), expected, rtol=1e-6, atol=1e-6)
+    pm = np.linspace(0.0, 4.0, len(q))
+    np.testing.assert_allclose(rc._kinematics.gravity_loads(m, q, payload_mass=pm),
+                               _potential_gradient(m, q, payload_mass=pm), rtol=1e-6, atol=1e-6)

@@ -773,6 +773,32 @@ def evaluate(model: RobotModel, q: np.ndarray, p: np.ndarray | None = None, *, j
                       moments=None if st.M is None else st.M.T, frames=frames_out)
 
 
+def gravity_loads(model: RobotModel, q, *, payload_mass=None) -> np.ndarray:
+    """Generalised gravity force on each joint (N, n_joints): N m for revolute, N for prismatic.
+
+    Positive where gravity would move the joint's reading upwards: for a revolute frame, the
+    moment about its joint axis of every mass distal to it; for a prismatic one, that mass times
+    gravity's component along the axis. Couplings map frame loads to joints by virtual work
+    (``C^T``). Computed on the undeformed chain, as the compliance moments are.
+    """
+    lay = layout(model)
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    if q.shape[1] != model.n_joints:
+        raise ValueError(f"q must have {model.n_joints} columns, got {q.shape[1]}")
+    p = parameter_vector(model)
+    p[lay.compliant_params] = 0.0
+    st = _evaluate_state(model, lay, p, q @ model.coupling_matrix.T, compliance=True, orientations=False,
+                         payload_mass=payload_mass)
+    g = np.asarray(model.gravity, dtype=float)
+    loads = np.zeros((q.shape[0], model.n_frames))
+    for i, f in enumerate(model.frames):
+        if f.joint == "revolute":
+            loads[:, i] = st.M[3 * i]
+        elif f.joint == "prismatic":
+            loads[:, i] = st.msub[i] * (st.ps.R[i][:, :, 2] @ g)
+    return loads @ model.coupling_matrix
+
+
 def forward_kinematics(model: RobotModel, q, *, frames: bool = False, payload_mass=None) -> Evaluation:
     """Marker positions (N, n_markers, 3) and orientations in W at readings ``q`` (N, n_joints).
 
