@@ -5,8 +5,9 @@ campaign actually happens: the controller servoes each joint to an encoder count
 reading is that count, the true joint lies anywhere within its quantum), the arm scatters
 around where it should be (its repeatability), and the instrument's noise grows with distance
 (theodolites and trackers are specified in mm per metre), and, if asked, each joint's lost motion
-(backlash) leaves the arm behind its motor by half of it, on the side it came from. It also
-simulates the robot in use:
+(backlash) leaves the arm half of it away from its motor: on the side gravity pushes it to where
+gravity's load on the joint beats the friction of its transmission, else behind the direction it
+came from. It also simulates the robot in use:
 a controller that stores its model rounded to its own quantum, commands targets through it,
 and reaches them within encoder resolution and repeatability.
 """
@@ -19,7 +20,7 @@ import numpy as np
 
 from ._compensate import compensate
 from ._data import Measurements
-from ._kinematics import evaluate, model_from_vector, parameter_vector
+from ._kinematics import evaluate, gravity_loads, model_from_vector, parameter_vector
 from ._limit import rounded_parameters
 from ._model import RobotModel
 
@@ -35,8 +36,11 @@ class RobotImperfections:
     ``backlash`` (n_joints,) lost motion per joint, rad or m (empty: none). Encoders sit on the
     motors, so readings do not see it: the arm stops ``backlash / 2`` short of the reading, behind
     the direction of the last move of that joint. Poses are visited in the order given; the first
-    is approached from the last (as in a cycle). An ISO 9283 test approaches each pose the same
-    way every cycle, so backlash cannot show in its RP: it is an error the limit does not count.
+    is approached from the last (as in a cycle). ``backlash_friction`` (n_joints,) N m or N (empty:
+    infinite): where the gravity load on a joint (``gravity_loads``) exceeds it, the arm rests on
+    the side gravity pushes it to, whatever the approach (backlash under gravity, which a
+    compliance term partly describes). An ISO 9283 test approaches each pose the same way every
+    cycle, so backlash cannot show in its RP: it is an error the limit does not count.
     """
 
     encoder_resolution: tuple[float, ...]
@@ -46,11 +50,18 @@ class RobotImperfections:
     length_quantum: float = 0.0
     angle_quantum: float = 0.0
     backlash: tuple[float, ...] = ()
+    backlash_friction: tuple[float, ...] = ()
 
     def __post_init__(self):
+        n = len(self.encoder_resolution)
         b = np.asarray(self.backlash, dtype=float)
-        if len(b) and (len(b) != len(self.encoder_resolution) or not np.all(np.isfinite(b)) or np.any(b < 0)):
+        if len(b) and (len(b) != n or not np.all(np.isfinite(b)) or np.any(b < 0)):
             raise ValueError("backlash must be empty or one finite, non-negative value per joint")
+        f = np.asarray(self.backlash_friction, dtype=float)
+        if len(f) and (len(f) != n or np.any(np.isnan(f)) or np.any(f < 0)):
+            raise ValueError("backlash_friction must be empty or one non-negative value per joint")
+        if len(f) and not len(b):
+            raise ValueError("backlash_friction needs backlash")
 
     def repeatability_rp(self) -> float:
         """ISO 9283 RP = l_mean + 3 S_l expected for isotropic Gaussian scatter of this sigma.
@@ -86,12 +97,27 @@ def approach_sides(q) -> np.ndarray:
     return np.where(last >= 0, sides, 1.0)
 
 
+def backlash_sides(true_model: RobotModel, recorded, imp: RobotImperfections, payload_mass=None) -> np.ndarray:
+    """+1 or -1 per pose and joint: the side of its gap, relative to the reading, where the arm rests.
+
+    Behind the last move (``-approach_sides``) unless gravity's load on the joint exceeds
+    ``imp.backlash_friction``; then on the side the load pushes it to. Returns (n_poses, n_joints).
+    """
+    side = -approach_sides(recorded)
+    if len(imp.backlash_friction):
+        load = gravity_loads(true_model, recorded, payload_mass=payload_mass)
+        held = np.abs(load) > np.asarray(imp.backlash_friction, dtype=float)
+        side = np.where(held, np.sign(load), side)
+    return side
+
+
 def _attain(true_model: RobotModel, recorded, imp: RobotImperfections, rng, payload_mass=None):
     """Positions the arm reaches at recorded encoder counts, and what the instrument reads."""
     res = np.asarray(imp.encoder_resolution, dtype=float)
     actual = recorded + rng.uniform(-0.5, 0.5, recorded.shape) * res
     if len(imp.backlash):
-        actual = actual - approach_sides(recorded) * (0.5 * np.asarray(imp.backlash, dtype=float))
+        actual = actual + backlash_sides(true_model, recorded, imp, payload_mass) * (
+            0.5 * np.asarray(imp.backlash, dtype=float))
     P = evaluate(true_model, actual, payload_mass=payload_mass).positions
     P = P + rng.normal(0.0, imp.repeatability_sigma, P.shape)
     dist = np.linalg.norm(P - np.asarray(imp.instrument_position), axis=-1, keepdims=True)
