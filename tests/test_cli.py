@@ -73,6 +73,9 @@ def test_calibrate_semicolon_decimal_comma_missing_marker(tmp_path, capsys):
     result = json.loads((tmp_path / "o" / "result.json").read_text())
     assert result["stats"]["fit_after"]["n"] == 30 + 24
     assert result["stats"]["fit_after"]["rms"] < 1e-4
+    # the result says which pose of the file each row of its errors is
+    assert result["provenance"]["data"]["labels"] == [f"P{i}" for i in range(data.n_poses)]
+    assert len(result["errors"]["fit_after"]) == data.n_poses
 
 
 def test_calibrate_validation_file_and_limit(campaign, capsys):
@@ -85,6 +88,8 @@ def test_calibrate_validation_file_and_limit(campaign, capsys):
     assert "limit of absolute accuracy 0.100 mm" in out and "reached" in out
     result = json.loads((d / "run" / "result.json").read_text())
     assert result["provenance"]["validation"]["n_poses"] == 10
+    assert result["provenance"]["validation"]["labels"] == list(rc.read_measurements(d / "val.csv", model).labels)
+    assert len(result["provenance"]["validation"]["labels"]) == len(result["errors"]["validation_after"]) == 10
     assert not any(p["name"].startswith("tool.") for p in result["parameters"])
 
 

@@ -478,10 +478,12 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
     from . import __version__
 
     prov = {"software": "robocal", "version": __version__, "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
-            "data": {"source": data.source, "sha256": data.sha256, "n_poses": data.n_poses}}
+            "data": {"source": data.source, "sha256": data.sha256, "n_poses": data.n_poses,
+                     "labels": list(data.labels)}}
     if validation is not None:
+        # the labels say which rows of the errors are which poses of the user's files
         prov["validation"] = {"source": validation.source, "sha256": validation.sha256,
-                              "n_poses": validation.n_poses}
+                              "n_poses": validation.n_poses, "labels": list(validation.labels)}
     fam = (parameters,) if isinstance(parameters, str) else tuple(parameters)
     return CalibrationResult(
         nominal_model=nominal, calibrated_model=calibrated, parameters=est, covariance=cov, correlation=corr,
