@@ -174,6 +174,23 @@ def test_stats_and_limit_equal_the_result(full, tmp_path):
     assert page.keyed["provenance.data.source"] == full["provenance"]["data"]["source"]
 
 
+def test_largest_errors_are_named_by_pose_label(full, tmp_path):
+    page, _ = _page(full, tmp_path)
+    err, prov = full["errors"], full["provenance"]
+    points = []   # (after, before, label) over both sets, written independently of the report
+    for key, src in (("fit", "data"), ("validation", "validation")):
+        for label, rb, ra in zip(prov[src]["labels"], err[f"{key}_before"], err[f"{key}_after"]):
+            points += [(a, b, label) for a, b in zip(ra, rb)]
+    points.sort(reverse=True)
+    # held-out poses keep the labels they had in the campaign they were split from
+    assert prov["validation"]["labels"] == [f"pose {i}" for i in range(40, 60)]
+    for j, (a, b, label) in enumerate(points[:10]):
+        assert page.keyed[f"worst.{j}.pose"] == label
+        _shown_equals(page, f"worst.{j}.after", a)
+        _shown_equals(page, f"worst.{j}.before", b)
+    assert "worst.10.pose" not in page.keyed
+
+
 def test_every_plot_is_there_and_self_contained(full, tmp_path):
     page, text = _page(full, tmp_path)
     assert set(page.plots) == set(PLOTS)

@@ -35,6 +35,7 @@ _SYMBOL = {"gamma": "&gamma;", "b": "b", "beta": "&beta;", "alpha": "&alpha;", "
            "k_beta": "K<sub>&beta;</sub>"}
 _KIND_UNIT = {"gamma": "rad", "b": "m", "beta": "rad", "alpha": "rad", "d": "m", "theta": "rad", "r": "m",
               "k_theta": "rad/(N m)", "k_alpha": "rad/(N m)", "k_beta": "rad/(N m)"}
+WORST_POSES = 10
 MISSING_VALIDATION = "No held-out poses were given: the errors shown are on the fitted poses only."
 MISSING_LIMIT = ("No limit of absolute accuracy was given: run <code>robocal limit</code> on the model (repeatability, "
                  "encoder resolution, parameter round-off) and pass its value to the calibration "
@@ -111,6 +112,32 @@ def _flat_mm(a) -> list[float]:
 def _per_pose_mm(a) -> list[list[float]]:
     """(n_poses, n_markers) nested list in metres -> per pose, the finite errors in mm."""
     return [_flat_mm(row) for row in (a or [])]
+
+
+def _worst_poses(d: dict, k: int = WORST_POSES) -> str:
+    """The ``k`` measured points with the largest error after calibration, named by their pose labels."""
+    err, prov = d["errors"], d.get("provenance") or {}
+    markers = err.get("markers") or []
+    rows = []
+    for key, when, src in (("fit", "fitted", "data"), ("validation", "held-out", "validation")):
+        before, after = err.get(f"{key}_before") or [], err.get(f"{key}_after") or []
+        labels = (prov.get(src) or {}).get("labels") or []
+        for i, (rb, ra) in enumerate(zip(before, after)):
+            for m, (b, a) in enumerate(zip(rb, ra)):
+                if a is not None and b is not None and math.isfinite(a) and math.isfinite(b):
+                    name = labels[i] if i < len(labels) else f"pose {i}"
+                    rows.append((a, b, name, when, markers[m] if m < len(markers) else str(m)))
+    if not rows:
+        return ""
+    rows.sort(key=lambda r: -r[0])
+    body = [f'<tr><td class="name" data-key="worst.{j}.pose">{_e(name)}</td><td>{when}</td><td>{_e(mk)}</td>'
+            f'<td class="num" data-key="worst.{j}.before" data-unit="mm">{b * 1e3:.4f}</td>'
+            f'<td class="num" data-key="worst.{j}.after" data-unit="mm">{a * 1e3:.4f}</td></tr>'
+            for j, (a, b, name, when, mk) in enumerate(rows[:k])]
+    return ("<h3>Largest errors after calibration</h3>"
+            + _table(["pose", "poses", "marker", "before (mm)", "after (mm)"], body, num_from=3,
+                     caption=f"The {min(k, len(rows))} measured points with the largest error after calibration, "
+                             "by the pose labels of the input files."))
 
 
 def _date(text) -> str:
@@ -749,7 +776,8 @@ def render_report(result: dict, *, extra: dict | None = None) -> str:
         "fitted poses; open triangles on grey: held-out poses" + ("" if has_val else " (none given)")
         + ". Dashed line: the limit of absolute accuracy" + ("" if lim else " (not given)") + ".")
         + _figure(plot_histograms(d), "Distribution of the position errors. Solid bars: fitted poses; hatched: "
-                  "held-out poses." + (" Dashed line: the limit of absolute accuracy." if lim else "")))]
+                  "held-out poses." + (" Dashed line: the limit of absolute accuracy." if lim else ""))
+        + _worst_poses(d))]
     frame_table, other_table, note = _parameter_tables(d)
     sections.append(("parameters", "Parameters",
                      "<p>Per frame, in the paper's layout: I identified, E eliminated (held at its nominal value, "
