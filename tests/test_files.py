@@ -274,6 +274,28 @@ def test_csv_orientation_conventions(tmp_path, convention, parts, columns):
     np.testing.assert_allclose(back.rotations[:, 0], data.rotations[:, 0], atol=1e-12)
 
 
+@pytest.mark.parametrize("convention, columns", [
+    ("quat_xyzw", ("qx", "qy", "qz", "qw")), ("quat_wxyz", ("qw", "qx", "qy", "qz")),
+    ("rpy", ("roll_deg", "pitch_deg", "yaw_deg")), ("euler:ZYX", ("e1_deg", "e2_deg", "e3_deg")),
+    ("euler:zxz", ("e1_deg", "e2_deg", "e3_deg")),
+])
+def test_csv_orientations_written_in_each_convention_read_back(tmp_path, convention, columns):
+    model, data = sim(8, orientation=True)
+    write_measurements(data, tmp_path / "d.csv", model=model, orientation=convention)
+    lines = (tmp_path / "d.csv").read_text().splitlines()
+    assert lines[0] == f"# orientation: {convention}"
+    head = lines[1].split(",")
+    assert [c for c in head if c.startswith("tool_") and c[5:] in columns] == [f"tool_{c}" for c in columns]
+    back = read_measurements(tmp_path / "d.csv", model)   # the comment line declares the convention
+    both = data.rot_mask & back.rot_mask
+    np.testing.assert_array_equal(back.rot_mask, data.rot_mask)
+    np.testing.assert_allclose(back.rotations[both], data.rotations[both], atol=1e-12)
+    np.testing.assert_allclose(back.positions[data.mask], data.positions[data.mask], atol=1e-12)
+    with pytest.raises(rc.InputError, match="unknown orientation convention"):
+        write_measurements(data, tmp_path / "e.csv", model=model, orientation="quaternion")
+    assert not (tmp_path / "e.csv").exists()
+
+
 def test_csv_set_column_splits_fit_and_validation(tmp_path):
     model, data = sim(8)
     text = _table(model, data).splitlines()

@@ -412,8 +412,14 @@ def split_sets(data: Measurements) -> tuple[Measurements, Measurements | None]:
     return fit, replace(data.subset(flags), extra=extra)
 
 
-def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, units: str = "mm-deg") -> str:
-    """The CSV text of ``data``: every column carries its unit; orientations as quaternions (x, y, z, w)."""
+def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, units: str = "mm-deg",
+                        orientation: str = "quat_xyzw") -> str:
+    """The CSV text of ``data``: every column carries its unit; orientations in the convention
+    ``orientation`` (quaternions, whose columns need no unit, or angles in the angle unit)."""
+    kind, seq = parse_orientation(orientation)
+    orientation = orientation.strip()
+    rot_parts = ("qw", "qx", "qy", "qz") if orientation == "quat_wxyz" else ORIENTATION_PARTS[kind]
+    rot_suffix = "" if kind == "quat" else None     # angles: filled in below with the angle unit
     lu, au = parse_units(units)
     L, A = LENGTH_UNITS[lu], ANGLE_UNITS[au]
     if model is not None:
@@ -434,7 +440,7 @@ def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, 
         if data.sigma is not None:
             header.append(f"{mn}_sigma_{lu}")
         if has_rot:
-            header += [f"{mn}_{p}" for p in ORIENTATION_PARTS["quat"]]
+            header += [f"{mn}_{p}" + (rot_suffix if rot_suffix is not None else f"_{au}") for p in rot_parts]
             if data.sigma_rot is not None:
                 header.append(f"{mn}_sigma_rot_{au}")
     if data.payload_mass is not None:
@@ -448,13 +454,17 @@ def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, 
 
     buf = io.StringIO()
     if has_rot:
-        buf.write("# orientation: quat_xyzw\n")
+        buf.write(f"# orientation: {orientation}\n")
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(header)
-    quats = None
+    rots = None
     if has_rot:
-        R = np.where(data.rot_mask[..., None, None], data.rotations, np.eye(3))
-        quats = Rotation.from_matrix(R.reshape(-1, 3, 3)).as_quat().reshape(data.n_poses, len(data.marker_names), 4)
+        R = Rotation.from_matrix(np.where(data.rot_mask[..., None, None], data.rotations, np.eye(3)).reshape(-1, 3, 3))
+        if kind == "quat":
+            rots = R.as_quat(scalar_first=orientation == "quat_wxyz")
+        else:
+            rots = R.as_euler("xyz" if kind == "rpy" else seq) / A
+        rots = rots.reshape(data.n_poses, len(data.marker_names), -1)
     for i in range(data.n_poses):
         row = [data.labels[i]]
         row += [fmt(v, L if k == "length" else A) for v, k in zip(data.q[i], kinds)]
@@ -465,7 +475,7 @@ def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, 
                 row.append(fmt(data.sigma[i, m], L) if seen else "")
             if has_rot:
                 rseen = data.rot_mask[i, m]
-                row += [fmt(v) if rseen else "" for v in quats[i, m]]
+                row += [fmt(v) if rseen else "" for v in rots[i, m]]
                 if data.sigma_rot is not None:
                     row.append(fmt(data.sigma_rot[i, m], A) if rseen else "")
         if data.payload_mass is not None:
@@ -477,9 +487,10 @@ def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, 
 
 
 def write_measurements(data: Measurements, path, *, units: str = "mm-deg", force: bool = False,
-                       model: RobotModel | None = None) -> None:
+                       model: RobotModel | None = None, orientation: str = "quat_xyzw") -> None:
     """Write ``data`` as a measurement CSV in ``units``, atomically; refuse to overwrite unless ``force``.
 
     Joint units follow each joint's type, from ``model`` or from the file the data were read from.
+    ``orientation``: how orientations are written (``quat_xyzw``, ``quat_wxyz``, ``rpy``, ``euler:SEQ``).
     """
-    write_texts({path: measurements_to_csv(data, model=model, units=units)}, force=force)
+    write_texts({path: measurements_to_csv(data, model=model, units=units, orientation=orientation)}, force=force)
