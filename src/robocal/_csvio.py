@@ -461,7 +461,9 @@ def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, 
     if has_rot:
         R = Rotation.from_matrix(np.where(data.rot_mask[..., None, None], data.rotations, np.eye(3)).reshape(-1, 3, 3))
         if kind == "quat":
-            rots = R.as_quat(scalar_first=orientation == "quat_wxyz")
+            rots = R.as_quat()                  # (x, y, z, w); scalar_first needs scipy 1.14
+            if orientation == "quat_wxyz":
+                rots = np.roll(rots, 1, axis=-1)
         else:
             rots = R.as_euler("xyz" if kind == "rpy" else seq) / A
         rots = rots.reshape(data.n_poses, len(data.marker_names), -1)
