@@ -419,8 +419,8 @@ def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, 
     kind, seq = parse_orientation(orientation)
     orientation = orientation.strip()
     rot_parts = ("qw", "qx", "qy", "qz") if orientation == "quat_wxyz" else ORIENTATION_PARTS[kind]
-    rot_suffix = "" if kind == "quat" else None     # angles: filled in below with the angle unit
     lu, au = parse_units(units)
+    rot_unit = "" if kind == "quat" else f"_{au}"      # a quaternion component has no unit
     L, A = LENGTH_UNITS[lu], ANGLE_UNITS[au]
     if model is not None:
         kinds = [_joint_kind(model, model.joint_names.index(jn)) for jn in data.joint_names] if data.joint_names \
@@ -440,7 +440,7 @@ def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, 
         if data.sigma is not None:
             header.append(f"{mn}_sigma_{lu}")
         if has_rot:
-            header += [f"{mn}_{p}" + (rot_suffix if rot_suffix is not None else f"_{au}") for p in rot_parts]
+            header += [f"{mn}_{p}{rot_unit}" for p in rot_parts]
             if data.sigma_rot is not None:
                 header.append(f"{mn}_sigma_rot_{au}")
     if data.payload_mass is not None:
