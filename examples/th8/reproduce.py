@@ -50,7 +50,8 @@ BACKLASH_BASE_ARCMIN = 2.8                 # --size-backlash
 WRIST_TO_BASE = 5.1                        # lever_ratio(model)
 SLIDE_BACKLASH_MM = 0.05
 # friction each transmission holds against gravity (N m, N): above it, a joint rests on the side
-# gravity pushes it to; below it (the base's vertical axis, the horizontal slide) behind its last move
+# gravity pushes it to; below it (the base's vertical axis, the horizontal slide, the tool roll),
+# behind its last move
 BACKLASH_FRICTION = (1.0, 10.0, 10.0, 0.1, 0.1, 0.1)
 PAPER_GEOMETRIC_TO_LIMIT = 0.69 / 0.55
 
