@@ -178,7 +178,7 @@ def test_backlash_does_not_show_in_iso_repeatability_but_does_in_a_campaign():
 
 
 def test_simulation_options_need_simulated_campaigns(reproduce, capsys):
-    for argv in (["--backlash-base-arcmin", "2"], ["--compliance-scale", "3"],
+    for argv in (["--backlash-base-arcmin", "2"], ["--compliance-scale", "3"], ["--wrist-to-base", "3"],
                  ["--seeds", "1", "--backlash-base-arcmin", "-1"]):
         with pytest.raises(SystemExit) as exc:
             reproduce.main(argv)
@@ -195,6 +195,7 @@ def test_lost_motion_shape_follows_the_models_lever_arms(reproduce):
     b = np.array(reproduce.IMPERFECTIONS.backlash)
     assert b[3:] == pytest.approx(reproduce.WRIST_TO_BASE * b[0]) and b[1] == b[2] == 0.05e-3
     assert reproduce.imperfections(0).backlash == ()
+    assert reproduce.backlash(2.0, 3.0)[3:] == pytest.approx((3 * 2.0 / 60 * np.pi / 180,) * 3)
 
 
 def test_the_papers_pattern_over_20_campaigns(reproduce):

@@ -64,16 +64,17 @@ def lever_ratio(nominal, n=5000):
     return float(lever[0] / lever[1:].mean())
 
 
-def backlash(base_arcmin=BACKLASH_BASE_ARCMIN):
-    """Lost motion per joint (rad, m) for a base of ``base_arcmin``; none at 0."""
+def backlash(base_arcmin=BACKLASH_BASE_ARCMIN, wrist_to_base=WRIST_TO_BASE):
+    """Lost motion per joint (rad, m) for a base of ``base_arcmin``, the wrist ``wrist_to_base`` times
+    it; none at 0."""
     if base_arcmin == 0:
         return ()
     rev = base_arcmin * DEG / 60
-    return (rev, SLIDE_BACKLASH_MM * MM, SLIDE_BACKLASH_MM * MM) + (WRIST_TO_BASE * rev,) * 3
+    return (rev, SLIDE_BACKLASH_MM * MM, SLIDE_BACKLASH_MM * MM) + (wrist_to_base * rev,) * 3
 
 
-def imperfections(base_arcmin=BACKLASH_BASE_ARCMIN):
-    b = backlash(base_arcmin)
+def imperfections(base_arcmin=BACKLASH_BASE_ARCMIN, wrist_to_base=WRIST_TO_BASE):
+    b = backlash(base_arcmin, wrist_to_base)
     return RobotImperfections(
         # j1 0.01 deg, j2 0.1 mm, j3 0.12 mm, wrist 0.005 / 0.002 / 0.002 deg
         encoder_resolution=(0.01 * DEG, 0.1 * MM, 0.12 * MM, 0.005 * DEG, 0.002 * DEG, 0.002 * DEG),
@@ -312,13 +313,13 @@ def many(nominal, seeds: int, imp=IMPERFECTIONS, compliance_scale=1.0):
     return r
 
 
-def size_backlash(nominal, seeds=20, first_seed=2000):
+def size_backlash(nominal, seeds=20, first_seed=2000, wrist_to_base=WRIST_TO_BASE):
     """The base's lost motion (arc minutes) at which the error after geometric identification is
     the paper's 0.69 / 0.55 of the limit, on average over campaigns other than those reported."""
     def ratio(a):
-        r = campaigns(nominal, seeds, imperfections(a), first_seed=first_seed, show=False)
+        r = campaigns(nominal, seeds, imperfections(a, wrist_to_base), first_seed=first_seed, show=False)
         v = float(np.mean(r["geometric"] / r["limit"]))
-        print(f"  base {a:.3f} arcmin (wrist {WRIST_TO_BASE * a:.3f}): geometric / limit {v:.3f}", flush=True)
+        print(f"  base {a:.3f} arcmin (wrist {wrist_to_base * a:.3f}): geometric / limit {v:.3f}", flush=True)
         return v - PAPER_GEOMETRIC_TO_LIMIT
     # secant from two guesses: the ratio grows smoothly with the lost motion (the same seeds each time)
     a0, a1 = 2.0, 5.0
@@ -329,13 +330,12 @@ def size_backlash(nominal, seeds=20, first_seed=2000):
         f1 = ratio(a1)
         if abs(f1) < 0.005:
             break
-    print(f"base lost motion {a1:.2f} arcmin (shipped: {BACKLASH_BASE_ARCMIN:g}); wrist {WRIST_TO_BASE:g} times it "
+    print(f"base lost motion {a1:.2f} arcmin (shipped: {BACKLASH_BASE_ARCMIN:g}); wrist {wrist_to_base:g} times it "
           f"(lever ratio of the model: {lever_ratio(nominal):.2f})")
     return a1
 
 
 def main(argv=None):
-    global WRIST_TO_BASE
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=None, help="folder for summary, results, model and report")
     ap.add_argument("--seeds", type=int, default=0, help="run this many simulated campaigns instead")
@@ -358,17 +358,16 @@ def main(argv=None):
     base = BACKLASH_BASE_ARCMIN if args.backlash_base_arcmin is None else args.backlash_base_arcmin
     if not base >= 0 or not args.compliance_scale >= 0 or not (args.wrist_to_base or 0) >= 0:
         ap.error("the lost motion, its shape and the compliance scale cannot be negative")
-    if args.wrist_to_base is not None:
-        WRIST_TO_BASE = args.wrist_to_base
+    ratio = WRIST_TO_BASE if args.wrist_to_base is None else args.wrist_to_base
     nominal = rc.read_model(HERE / "model.yaml")
     if args.write_data:
         write_data(nominal)
     elif args.size_backlash:
-        size_backlash(nominal)
+        size_backlash(nominal, wrist_to_base=ratio)
     elif args.seeds:
-        print(f"lost motion: base {base:g} arcmin, wrist {WRIST_TO_BASE * base:g} arcmin, slides "
+        print(f"lost motion: base {base:g} arcmin, wrist {ratio * base:g} arcmin, slides "
               f"{SLIDE_BACKLASH_MM if base else 0:g} mm", flush=True)
-        many(nominal, args.seeds, imperfections(base), args.compliance_scale)
+        many(nominal, args.seeds, imperfections(base, ratio), args.compliance_scale)
     else:
         one(nominal, args.out)
     return 0
