@@ -21,7 +21,7 @@ import scipy
 from scipy.optimize import least_squares
 
 import robocal as rc
-from robocal._identify import SOLVER_TOL, _Problem
+from robocal._calibration import SOLVER_TOL, _Problem
 
 DEG = np.pi / 180
 

@@ -15,7 +15,7 @@ import resource
 import time
 
 import robocal as rc
-from robocal._limit import DEFAULT_CHUNK, controller_precision
+from robocal._accuracy_limit import DEFAULT_CHUNK, controller_precision
 
 DEG = math.pi / 180
 

@@ -10,8 +10,8 @@ import pytest
 import yaml
 
 import robocal as rc
-from robocal._csvio import write_measurements
-from robocal._modelfile import model_to_dict, read_model, write_model
+from robocal._files.measurements import write_measurements
+from robocal._files.model import model_to_dict, read_model, write_model
 from robocal.cli import main
 from robots import arm6r
 from test_files import _cell, _drop
@@ -134,7 +134,7 @@ def test_simulate_then_identifiability(tmp_path, capsys):
                          "--seed", 3, "--noise-mm", 0.01, "--length-error-mm", "0.5,1", "--true-model",
                          tmp_path / "true.yaml")
     assert code == 0, err
-    data = rc._csvio.read_measurements(tmp_path / "s.csv", read_model(tmp_path / "m.yaml"))
+    data = rc.read_measurements(tmp_path / "s.csv", read_model(tmp_path / "m.yaml"))
     assert data.n_poses == 15
     true = read_model(tmp_path / "true.yaml")
     q = data.q

@@ -8,10 +8,10 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 import robocal as rc
-from robocal._csvio import measurements_to_csv, read_measurements, split_sets, write_measurements
+from robocal._files.measurements import measurements_to_csv, read_measurements, split_sets, write_measurements
 from robocal._model import Frame, Marker, Payload, RobotModel
-from robocal._modelfile import model_from_dict, model_to_dict, read_model, write_model
-from robocal._resultio import read_result, write_result
+from robocal._files.model import model_from_dict, model_to_dict, read_model, write_model
+from robocal._files.result import read_result, write_result
 from robots import arm6r, cylindrical
 
 DEG = np.pi / 180

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import robocal as rc
-from robocal._design import select_poses
+from robocal._pose_selection import select_poses
 
 from robots import arm6r, cylindrical
 

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 import robocal as rc
-from robocal import _cli_limit
+from robocal.cli import limit as _cli_limit
 from robocal._kinematics import _kinematic_pass, layout
-from robocal._limit import (AccuracyLimit, LIMIT_SCHEMA, RepeatabilityResult, _parameter_displacement,
+from robocal._accuracy_limit import (AccuracyLimit, LIMIT_SCHEMA, RepeatabilityResult, _parameter_displacement,
                             accuracy_limit, controller_precision, iso9283_repeatability,
                             predicted_controller_precision, read_repeatability_csv, rounded_parameters)
 
@@ -247,7 +247,7 @@ def test_accuracy_limit_adds_repeatability_and_mean_precision(tmp_path):
 @pytest.fixture
 def model_file(tmp_path):
     """The test arm written as a model file by the project's writer (read back by the CLI)."""
-    from robocal._modelfile import write_model
+    from robocal._files.model import write_model
 
     path = tmp_path / "arm.yaml"
     write_model(industrial_6r(), path)
@@ -273,7 +273,7 @@ def test_cli_writes_the_limit(model_file, tmp_path, capsys):
     np.testing.assert_allclose(d["repeatability"], 3.709980e-3, rtol=1e-6)
     np.testing.assert_allclose(d["precision_detail"]["encoder_resolution"][3], 1.745e-4)
     np.testing.assert_allclose(d["precision_detail"]["length_quantum"], 1e-4)
-    from robocal._modelfile import read_model
+    from robocal._files.model import read_model
 
     direct = controller_precision(read_model(model_file), n_samples=3000, rng=5,
                                   encoder_resolution=[0.01 * DEG] * 3 + [1.745e-4] + [0.01 * DEG] * 2,

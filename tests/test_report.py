@@ -14,8 +14,8 @@ from pathlib import Path
 import pytest
 
 import robocal as rc
-from robocal._report import PLOTS, render_report, write_report
-from robocal._resultio import result_to_json
+from robocal._presentation.html import PLOTS, render_report, write_report
+from robocal._files.result import result_to_json
 from robots import arm6r, cylindrical
 
 pytest.importorskip("matplotlib")
@@ -287,7 +287,7 @@ def test_not_a_result_is_an_input_error():
 
 
 def test_needs_matplotlib_only_when_drawing(full, monkeypatch):
-    code = "import sys, robocal, robocal._report; assert 'matplotlib' not in sys.modules"
+    code = "import sys, robocal, robocal._presentation.html; assert 'matplotlib' not in sys.modules"
     subprocess.run([sys.executable, "-c", code], check=True)
     monkeypatch.setitem(sys.modules, "matplotlib", None)
     with pytest.raises(rc.RobocalError, match=r"pip install robocal\[report\]"):

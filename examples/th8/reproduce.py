@@ -249,7 +249,7 @@ def one(nominal, out: Path | None):
         rc.write_model(cmp.best.calibrated_model, out / "calibrated.yaml", force=True)
         (out / "limit.json").write_text(json.dumps(limit.to_dict(), indent=2))
         try:
-            from robocal._report import write_report
+            from robocal._presentation.html import write_report
         except ImportError:
             print("(report extra not installed: no report.html)")
         else:
@@ -258,7 +258,7 @@ def one(nominal, out: Path | None):
                                  "rows": [[k, f"{PAPER[k][0]:.2f} ({PAPER[k][1]:.2f})"] +
                                           [f"{_mm(m)} ({_mm(s)})" for m, s in (r["fit"], r["held_out"], r["in_use"])]
                                           for k, r in rows.items()]}]}
-            d = json.loads(rc._resultio.result_to_json(cmp.combined))
+            d = json.loads(rc._files.result.result_to_json(cmp.combined))
             write_report(d, out / "report.html", force=True, extra=extra)
         print(f"\nwritten: {', '.join(sorted(p.name for p in out.iterdir()))} in {out}")
 

@@ -8,20 +8,20 @@ from ._errors import (ConvergenceWarning, DegenerateDataError, IdentifiabilityWa
 from ._kinematics import (evaluate, forward_kinematics, jacobian, model_from_vector, parameter_names,
                           parameter_vector)
 from ._model import Frame, Marker, Payload, RobotModel, parallel_beta_frames, serial_model
-from ._data import Measurements
+from ._measurements import Measurements
 from ._identifiability import Absorption, IdentifiabilityResult
-from ._identify import (CalibrationResult, Comparison, ParameterEstimate, calibrate, compare, error_stats, identifiability,
+from ._calibration import (CalibrationResult, Comparison, ParameterEstimate, calibrate, compare, error_stats, identifiability,
                         random_configurations, register_base)
-from ._params import candidate_parameters
-from ._simulate import measure, perturb_model, simulate
-from ._design import PoseSelection, select_poses
-from ._imports import from_standard_dh, mdh_table, read_urdf, write_mdh_csv, write_urdf
-from ._modelfile import model_from_dict, model_to_dict, read_model, write_model
-from ._csvio import read_measurements, split_sets, write_measurements
-from ._resultio import read_result, write_result
-from ._report import render_report, write_report
-from ._compensate import Compensation, compensate, joint_jacobian
-from ._limit import (AccuracyLimit, PoseRepeatability, PrecisionResult, PredictedPrecision, RepeatabilityData,
+from ._parameters import candidate_parameters
+from ._simulation import measure, perturb_model, simulate
+from ._pose_selection import PoseSelection, select_poses
+from ._files.urdf import from_standard_dh, mdh_table, read_urdf, write_mdh_csv, write_urdf
+from ._files.model import model_from_dict, model_to_dict, read_model, write_model
+from ._files.measurements import read_measurements, split_sets, write_measurements
+from ._files.result import read_result, write_result
+from ._presentation.html import render_report, write_report
+from ._compensation import Compensation, compensate, joint_jacobian
+from ._accuracy_limit import (AccuracyLimit, PoseRepeatability, PrecisionResult, PredictedPrecision, RepeatabilityData,
                      RepeatabilityResult, accuracy_limit, controller_precision, iso9283_repeatability,
                      predicted_controller_precision, read_repeatability_csv)
 

@@ -18,10 +18,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._compensate import compensate
-from ._data import Measurements
+from ._compensation import compensate
+from ._measurements import Measurements
 from ._kinematics import evaluate, gravity_loads, model_from_vector, parameter_vector
-from ._limit import rounded_parameters
+from ._accuracy_limit import rounded_parameters
 from ._model import RobotModel
 
 

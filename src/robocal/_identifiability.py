@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import solve_triangular
 
-from ._params import unit_of
+from ._parameters import unit_of
 
 DEFAULT_TOL = 1e-6
 NO_EFFECT = 1e-10

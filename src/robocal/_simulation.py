@@ -8,11 +8,11 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ._data import Measurements
-from ._identify import identifiability, random_configurations
+from ._measurements import Measurements
+from ._calibration import identifiability, random_configurations
 from ._kinematics import evaluate, layout, model_from_vector, parameter_vector
 from ._model import RobotModel
-from ._params import is_angle
+from ._parameters import is_angle
 
 
 def _signed_uniform(rng, lo, hi, n):

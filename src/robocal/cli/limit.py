@@ -10,8 +10,8 @@ import os
 import re
 import sys
 
-from ._errors import InputError, RobocalError
-from ._limit import (DEFAULT_CHUNK, MARKER_MODES, LENGTH_UNITS, accuracy_limit, controller_precision,
+from .._errors import InputError, RobocalError
+from .._accuracy_limit import (DEFAULT_CHUNK, MARKER_MODES, LENGTH_UNITS, accuracy_limit, controller_precision,
                      iso9283_repeatability, joint_reading_is_angle, read_repeatability_csv)
 
 PROG = "robocal limit"
@@ -90,8 +90,8 @@ def run(args) -> int:
         if os.path.exists(args.out) and not args.force:
             raise InputError("exists; use --force to overwrite", source=args.out)
         # readers and writers are imported here so the library does not depend on the file layer
-        from ._modelfile import read_model, write_texts
-        from ._resultio import result_to_json
+        from .._files.model import read_model, write_texts
+        from .._files.result import result_to_json
 
         model = read_model(args.model)
         resolution = parse_resolution(args.encoder_resolution, joint_reading_is_angle(model))

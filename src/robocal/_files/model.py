@@ -18,8 +18,8 @@ import numpy as np
 import yaml
 from scipy.spatial.transform import Rotation
 
-from ._errors import InputError
-from ._model import (DEFAULT_PARALLEL_TOL, JOINT_TYPES, Frame, Marker, Payload, RobotModel,
+from .._errors import InputError
+from .._model import (DEFAULT_PARALLEL_TOL, JOINT_TYPES, Frame, Marker, Payload, RobotModel,
                      parallel_beta_frames)
 
 FORMAT_VERSION = 1

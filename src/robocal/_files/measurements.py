@@ -16,10 +16,10 @@ from dataclasses import replace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ._data import Measurements
-from ._errors import InputError
-from ._model import RobotModel
-from ._modelfile import (ANGLE_UNITS, LENGTH_UNITS, _suggest, check_unit, parse_units, read_text,
+from .._measurements import Measurements
+from .._errors import InputError
+from .._model import RobotModel
+from .model import (ANGLE_UNITS, LENGTH_UNITS, _suggest, check_unit, parse_units, read_text,
                          write_texts)
 
 RESERVED = ("pose", "set", "payload_kg")

@@ -16,13 +16,14 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__, _cli_limit
-from ._csvio import measurements_to_csv, parse_orientation, read_measurements, split_sets
-from ._errors import DegenerateDataError, InputError, RobocalError, RobocalWarning
-from ._identify import calibrate, compare, identifiability
-from ._modelfile import model_to_yaml, parse_units, read_model, write_texts
-from ._params import unit_of
-from ._resultio import read_result, result_to_json
+from .. import __version__
+from . import limit as _cli_limit
+from .._files.measurements import measurements_to_csv, parse_orientation, read_measurements, split_sets
+from .._errors import DegenerateDataError, InputError, RobocalError, RobocalWarning
+from .._calibration import calibrate, compare, identifiability
+from .._files.model import model_to_yaml, parse_units, read_model, write_texts
+from .._parameters import unit_of
+from .._files.result import read_result, result_to_json
 
 MM = 1e3
 DEG = 180.0 / np.pi
@@ -246,7 +247,7 @@ def _report_module():
     """``robocal._report`` or _Extra when its plotting library is missing; checked before any work."""
     try:
         importlib.import_module("matplotlib")
-        return importlib.import_module("robocal._report")
+        return importlib.import_module("robocal._presentation.html")
     except ImportError:
         raise _Extra("report extra not installed (pip install 'robocal[report]')") from None
 
@@ -438,7 +439,7 @@ def _print_comparison(comparison, shown=(), weighted=False):
 # simulate, identifiability, report
 
 def cmd_simulate(args) -> int:
-    from ._simulate import simulate
+    from .._simulation import simulate
 
     if args.poses < 1:
         raise InputError(f"--poses must be at least 1, got {args.poses}", where="--poses")
@@ -486,7 +487,7 @@ def cmd_identifiability(args) -> int:
 
 
 def cmd_import_urdf(args) -> int:
-    from ._imports import read_urdf
+    from .._files.urdf import read_urdf
 
     _refuse_existing([args.out], args.force)
     if not Path(args.urdf).is_file():

@@ -31,10 +31,10 @@ from typing import Sequence
 
 import numpy as np
 
-from ._errors import InputError
-from ._kinematics import _as_tuple3x3, _rot_matrix
-from ._modelfile import write_texts
-from ._model import DEFAULT_PARALLEL_TOL, Frame, Marker, RobotModel, parallel_beta_frames
+from .._errors import InputError
+from .._kinematics import _as_tuple3x3, _rot_matrix
+from .model import write_texts
+from .._model import DEFAULT_PARALLEL_TOL, Frame, Marker, RobotModel, parallel_beta_frames
 
 __all__ = ["from_standard_dh", "read_urdf", "write_urdf", "mdh_table", "write_mdh_csv"]
 

@@ -12,14 +12,14 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from ._data import Measurements
+from ._measurements import Measurements
 from ._errors import (ConvergenceWarning, DegenerateDataError, IdentifiabilityWarning, InputError,
                       MisfitWarning)
 from ._identifiability import DEFAULT_TOL, IdentifiabilityResult, analyse, singular_values
 from ._kinematics import _evaluate_state, _jacobian_columns, evaluate, layout, model_from_vector, parameter_vector
 from ._misfit import characteristic_length, misfit_notes
 from ._model import RobotModel
-from ._params import candidate_parameters, unit_of
+from ._parameters import candidate_parameters, unit_of
 
 SCHEMA = "robocal.result/1"
 # least_squares' step, cost and gradient tolerances: Gauss-Newton converges quadratically here, so
@@ -210,7 +210,7 @@ class CalibrationResult:
         def arr(a):
             return None if a is None else np.where(np.isfinite(a), a, np.nan).tolist()
 
-        from ._modelfile import model_to_dict  # late: the file form of a model lives with the readers
+        from ._files.model import model_to_dict  # late: the file form of a model lives with the readers
 
         return {
             "schema": SCHEMA,

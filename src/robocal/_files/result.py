@@ -7,8 +7,8 @@ import math
 
 import numpy as np
 
-from ._errors import InputError
-from ._modelfile import read_text, write_texts
+from .._errors import InputError
+from .model import read_text, write_texts
 
 SCHEMAS = ("robocal.result/1",)
 

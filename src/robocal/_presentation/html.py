@@ -16,7 +16,7 @@ import math
 import re
 from datetime import datetime
 
-from ._errors import InputError, RobocalError
+from .._errors import InputError, RobocalError
 
 # SI unit in result.json -> (display unit, factor, decimals)
 DISPLAY_UNITS = {
@@ -825,6 +825,6 @@ def write_report(result: dict, path, *, force: bool = False, extra: dict | None 
 
     An existing ``path`` is an InputError unless ``force``. See ``render_report``.
     """
-    from ._modelfile import write_texts
+    from .._files.model import write_texts
 
     write_texts({path: render_report(result, extra=extra)}, force=force)

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._errors import DegenerateDataError, InputError
-from ._identify import _Problem, design_measurements, identifiability, needs_compliance, random_configurations
+from ._calibration import _Problem, design_measurements, identifiability, needs_compliance, random_configurations
 from ._kinematics import parameter_vector
 from ._model import RobotModel
 
