@@ -15,7 +15,8 @@ import resource
 import time
 
 import robocal as rc
-from robocal._accuracy_limit import DEFAULT_CHUNK, controller_precision
+from robocal._options import LIMIT_CHUNK as DEFAULT_CHUNK
+from robocal.limit import controller_precision
 
 DEG = math.pi / 180
 

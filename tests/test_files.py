@@ -8,10 +8,10 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 import robocal as rc
-from robocal._files.measurements import measurements_to_csv, read_measurements, split_sets, write_measurements
-from robocal._model import Frame, Marker, Payload, RobotModel
-from robocal._files.model import model_from_dict, model_to_dict, read_model, write_model
-from robocal._files.result import read_result, write_result
+from robocal.io import measurements_to_csv, read_measurements, split_sets, write_measurements
+from robocal.kinematics import Frame, Marker, Payload, RobotModel
+from robocal.io import model_from_dict, model_to_dict, read_model, write_model
+from robocal.io import read_result, result_to_dict, write_result
 from robots import arm6r, cylindrical
 
 DEG = np.pi / 180
@@ -235,7 +235,7 @@ def test_csv_semicolon_decimal_comma_missing_marker(tmp_path):
     np.testing.assert_allclose(back.positions[back.mask], pos[back.mask], atol=1e-15)
     assert back.labels[0] == "P0"
     result = rc.calibrate(model, back)
-    assert result.stats["fit_after"]["rms"] < 1e-4
+    assert result.stats.fit_after.rms < 1e-4
 
 
 def test_csv_units_from_comment_line_or_option(tmp_path):
@@ -385,11 +385,19 @@ def test_result_round_trip_and_schema(tmp_path):
     model, data = sim(25)
     result = rc.calibrate(model, data)
     write_result(result, tmp_path / "r.json")
-    d = read_result(tmp_path / "r.json")
-    assert d["schema"] == "robocal.result/1"
-    assert [p["name"] for p in d["parameters"]] == list(result.parameter_names)
-    assert d["stats"]["fit_after"]["rms"] == pytest.approx(result.stats["fit_after"]["rms"])
-    assert_same_model(model_from_dict(d["calibrated_model"]), result.calibrated_model)
+    back = read_result(tmp_path / "r.json")
+    # JSON keeps every float exactly: the record read back is the one written
+    assert back.parameters == result.parameters and back.stats == result.stats
+    assert back.identifiability.identified == result.identifiability.identified
+    assert back.identifiability.eliminated == result.identifiability.eliminated
+    for name in ("covariance", "correlation", "errors_before", "errors_after", "residual_vectors",
+                 "measured_positions"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(result, name))
+    assert (back.success, back.status, back.nfev, back.sigma0, back.notes) == \
+        (result.success, result.status, result.nfev, result.sigma0, result.notes)
+    assert back.validation_before is None and back.limit is None
+    assert_same_model(back.calibrated_model, result.calibrated_model)
+    assert result_to_dict(back)["schema"] == "robocal.result/1"
     json.loads((tmp_path / "r.json").read_text(), parse_constant=lambda c: pytest.fail(f"non-JSON {c}"))
     with pytest.raises(rc.InputError, match="exists"):
         write_result(result, tmp_path / "r.json")

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import robocal as rc
-from robocal._pose_selection import select_poses
+from robocal import select_poses
 
 from robots import arm6r, cylindrical
 
@@ -41,7 +41,7 @@ def test_recovers_parameters_within_three_reported_std(make):
     assert res.success
     z = (np.array([e.estimate for e in res.parameters]) - _truth(true, m, res)) / [e.std for e in res.parameters]
     assert np.all(np.abs(z) < 3), dict(zip(res.parameter_names, z.round(2)))
-    assert res.stats["validation_before"]["rms"] > 20 * _noise_floor(true, val)
+    assert res.stats.validation_before.rms > 20 * _noise_floor(true, val)
 
 
 @pytest.mark.parametrize("make", [arm6r, cylindrical])
@@ -55,7 +55,7 @@ def test_held_out_error_ends_near_the_noise_floor(make):
     for seed in range(10):
         true, fit, val = _campaign(m, design, seed)
         res = rc.calibrate(m, fit, validation=val)
-        ratios.append(res.stats["validation_after"]["rms"] / _noise_floor(true, val))
+        ratios.append(res.stats.validation_after.rms / _noise_floor(true, val))
     assert np.mean(ratios) < 1.10, np.round(ratios, 3)
     assert min(ratios) > 1.0  # a calibrated model cannot beat the truth on fresh noise
 
@@ -92,7 +92,7 @@ def test_errors_on_eliminated_parameters_are_absorbed_exactly():
     true = rc.perturb_model(m, names, rng=5)
     data = rc.measure(true, rc.random_configurations(m, 60, rng=6), noise=0.0)
     res = rc.calibrate(m, data)
-    assert res.stats["fit_after"]["max"] < 1e-10
+    assert res.stats.fit_after.max < 1e-10
 
 
 def test_eliminated_parameters_are_those_theory_predicts():
@@ -109,7 +109,7 @@ def test_eliminated_parameters_are_those_theory_predicts():
     # the point marker absorbs the last joint's offset along and about its axis
     assert "j6.r" in elim and "j6.theta" in elim
     assert len(ident.identified) == 27
-    table = {row["frame"]: row for row in ident.table(arm6r().frame_names)}
+    table = {row["frame"]: row for row in rc.status_table(ident, arm6r().frame_names)}
     assert table["j3"]["beta"] == "I" and table["j3"]["r"] == "E" and table["j2"]["beta"] == "-"
 
 
@@ -189,7 +189,7 @@ def test_closed_form_registration_needs_no_base_guess():
     true, data = rc.simulate(m, 48, noise=NOISE, seed=9)
     blind = m.replace(base_position=(0.0, 0.0, 0.0), base_rotation=((1.0, 0, 0), (0, 1.0, 0), (0, 0, 1.0)))
     res = rc.calibrate(blind, data, initial_base="register")
-    assert res.success and res.stats["fit_after"]["rms"] < 2 * np.sqrt(3) * NOISE
+    assert res.success and res.stats.fit_after.rms < 2 * np.sqrt(3) * NOISE
     np.testing.assert_allclose(res.calibrated_model.base_position, true.base_position, atol=1e-4)
 
 
@@ -205,7 +205,7 @@ def test_validation_without_data_keeps_fields_present():
     m = cylindrical()
     _, data = rc.simulate(m, 40, seed=2)
     res = rc.calibrate(m, data)
-    assert res.validation_after is None and res.stats["validation_after"]["n"] == 0
+    assert res.validation_after is None and res.stats.validation_after.n == 0
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         corr = res.correlation

@@ -14,7 +14,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import robocal
-from robocal._files.urdf import from_standard_dh, mdh_table, read_urdf, write_mdh_csv, write_urdf
+from robocal.io import from_standard_dh, mdh_table, read_urdf, write_mdh_csv, write_urdf
 
 TOL_M = 1e-12      # positions, metres
 TOL_R = 1e-12      # rotation matrix entries

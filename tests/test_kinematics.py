@@ -6,8 +6,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import robocal as rc
-from robocal._kinematics import evaluate, layout, model_from_vector, parameter_vector
-from robocal._model import Frame, Marker, Payload, RobotModel
+from robocal.kinematics import evaluate, model_from_vector, parameter_layout, parameter_vector
+from robocal.kinematics import Frame, Marker, Payload, RobotModel
 
 from robots import DEG, arm6r, cylindrical
 
@@ -125,7 +125,7 @@ def _assert_columns_match(model, q, payload_mass=None):
     p = parameter_vector(model)
     J = evaluate(model, q, jacobian=True, compliance=True, payload_mass=payload_mass).jacobian
     F = _fd_jacobian(model, q, p, payload_mass=payload_mass)
-    names = layout(model).names
+    names = parameter_layout(model).names
     scale = np.maximum(np.abs(F).max(axis=(0, 1, 2)), 1e-3)  # relative per column, absolute near zero
     err = np.abs(J - F).max(axis=(0, 1, 2)) / scale
     bad = [(names[k], err[k]) for k in np.nonzero(err > 1e-6)[0]]
@@ -150,18 +150,20 @@ def test_columns_match_on_serial_arms_with_and_without_compliance(make):
     m = make(masses=True)
     q = rc.random_configurations(m, 6, rng=1)
     _assert_columns_match(m, q)
-    lay = layout(m)
+    lay = parameter_layout(m)
+    compliant = np.array([prm.index for prm in lay.parameters if prm.family == "compliance"])
     p = parameter_vector(m)
-    p[lay.compliant_params] = 1e-5
+    p[compliant] = 1e-5
     _assert_columns_match(model_from_vector(m, p), q)
 
 
 def test_columns_match_with_some_compliances_zero_and_columns_in_any_order():
     # the corrections are planned from the non-zero compliances and the columns asked for
     m = _random_tree_model(3)
-    lay = layout(m)
+    lay = parameter_layout(m)
+    compliant = np.array([prm.index for prm in lay.parameters if prm.family == "compliance"])
     p = parameter_vector(m)
-    p[lay.compliant_params[::3]] = 0.0
+    p[compliant[::3]] = 0.0
     m = model_from_vector(m, p)
     q = np.random.default_rng(3).uniform(-1, 1, (5, 6))
     cols = np.random.default_rng(4).permutation(lay.n_params)[:40]
@@ -190,7 +192,8 @@ def test_model_from_vector_round_trip_with_rotation_corrections():
     m = _random_tree_model(3)
     p = parameter_vector(m)
     p[3:6] = [0.01, -0.02, 0.03]
-    p[layout(m).marker0[0] + 3:layout(m).marker0[0] + 6] = [0.02, 0.01, -0.01]
+    marker = m.markers[0].name
+    p[parameter_layout(m).indices([f"{marker}.rx", f"{marker}.ry", f"{marker}.rz"])] = [0.02, 0.01, -0.01]
     m2 = model_from_vector(m, p)
     np.testing.assert_allclose(parameter_vector(m2, m), p, atol=1e-14)
     q = np.random.default_rng(0).uniform(-1, 1, (4, 6))

@@ -1,6 +1,5 @@
 """The limit of absolute accuracy: ISO 9283 repeatability, controller precision, the limit, the CLI."""
 
-import argparse
 import json
 import math
 import sys
@@ -9,11 +8,12 @@ import numpy as np
 import pytest
 
 import robocal as rc
-from robocal.cli import limit as _cli_limit
-from robocal._kinematics import _kinematic_pass, layout
-from robocal._accuracy_limit import (AccuracyLimit, LIMIT_SCHEMA, RepeatabilityResult, _parameter_displacement,
-                            accuracy_limit, controller_precision, iso9283_repeatability,
-                            predicted_controller_precision, read_repeatability_csv, rounded_parameters)
+from robocal._kinematics import kinematic_pass, layout
+from robocal._accuracy_limit import parameter_displacement
+from robocal._files.result import LIMIT_SCHEMA
+from robocal.io import limit_to_dict, read_repeatability_csv
+from robocal.limit import (AccuracyLimit, RepeatabilityResult, accuracy_limit, controller_precision,
+                           iso9283_repeatability, predicted_controller_precision, rounded_parameters)
 
 DEG = math.pi / 180
 QUANTA = dict(encoder_resolution=0.01 * DEG, length_quantum=1e-4, angle_quantum=1e-3 * DEG)
@@ -68,7 +68,6 @@ def test_iso9283_hand_computed(tmp_path):
     np.testing.assert_allclose([b.l_mean, b.s_l, b.rp], [0.28e-3, math.sqrt(0.027) * 1e-3, 0.772950e-3],
                                rtol=1e-5)
     assert r.worst_pose == "A" and r.rp == a.rp
-    json.dumps(r.to_dict())
 
 
 def test_csv_units_metres_match_millimetres(tmp_path):
@@ -117,7 +116,7 @@ def test_csv_units_must_be_explicit_and_known(tmp_path):
 
 # -- controller precision ----------------------------------------------------------------------
 
-def test_parameter_displacement_matches_engine_jacobian():
+def testparameter_displacement_matches_engine_jacobian():
     # the fast J_p @ dp from the step geometry against the public Jacobian
     model = industrial_6r(markers=(("tool", (0.02, 0.01, 0.1)), ("m2", (0.1, 0.0, 0.0))))
     rp = rounded_parameters(model, 1e-4, 1e-5)
@@ -126,10 +125,10 @@ def test_parameter_displacement_matches_engine_jacobian():
     dp = rng.uniform(-1, 1, (7, len(rp.params))) * rp.quanta
     lay = layout(model)
     p = rc.parameter_vector(model)
-    ps = _kinematic_pass(model, lay, p, q @ model.coupling_matrix.T)
+    ps = kinematic_pass(model, lay, p, q @ model.coupling_matrix.T)
     J = rc.evaluate(model, q, p, jacobian=True).jacobian
     for k in range(2):
-        fast = _parameter_displacement(ps, lay.step_is_rot[rp.steps], rp.steps,
+        fast = parameter_displacement(ps, lay.step_is_rot[rp.steps], rp.steps,
                                        lay.marker_path[k, rp.steps], dp, ps.P[k])
         np.testing.assert_allclose(fast, np.einsum("nak,nk->na", J[:, k, :3][:, :, rp.params], dp), atol=1e-15)
 
@@ -233,11 +232,11 @@ def test_accuracy_limit_adds_repeatability_and_mean_precision(tmp_path):
     lim = accuracy_limit(rep, prec)
     assert isinstance(lim, AccuracyLimit) and isinstance(lim.repeatability_detail, RepeatabilityResult)
     assert lim.limit == rep.rp + prec.mean and lim.limit_p95 == rep.rp + prec.percentile(95)
-    d = json.loads(json.dumps(lim.to_dict()))
+    d = json.loads(json.dumps(limit_to_dict(lim)))
     assert d["schema"] == LIMIT_SCHEMA and d["precision_statistic"] == "mean"
     assert d["repeatability_detail"]["worst_pose"] == "A"
     plain = accuracy_limit(0.03e-3, prec)
-    assert plain.limit == 0.03e-3 + prec.mean and plain.to_dict()["repeatability_detail"] is None
+    assert plain.limit == 0.03e-3 + prec.mean and limit_to_dict(plain)["repeatability_detail"] is None
     with pytest.raises(rc.InputError):
         accuracy_limit(-1.0, prec)
 
@@ -247,7 +246,7 @@ def test_accuracy_limit_adds_repeatability_and_mean_precision(tmp_path):
 @pytest.fixture
 def model_file(tmp_path):
     """The test arm written as a model file by the project's writer (read back by the CLI)."""
-    from robocal._files.model import write_model
+    from robocal.io import write_model
 
     path = tmp_path / "arm.yaml"
     write_model(industrial_6r(), path)
@@ -255,9 +254,9 @@ def model_file(tmp_path):
 
 
 def _run(argv):
-    parser = argparse.ArgumentParser(prog="robocal")
-    _cli_limit.register(parser.add_subparsers(dest="command"))
-    return _cli_limit.run(parser.parse_args(argv))
+    from robocal.cli import main
+
+    return main(argv)
 
 
 def test_cli_writes_the_limit(model_file, tmp_path, capsys):
@@ -273,7 +272,7 @@ def test_cli_writes_the_limit(model_file, tmp_path, capsys):
     np.testing.assert_allclose(d["repeatability"], 3.709980e-3, rtol=1e-6)
     np.testing.assert_allclose(d["precision_detail"]["encoder_resolution"][3], 1.745e-4)
     np.testing.assert_allclose(d["precision_detail"]["length_quantum"], 1e-4)
-    from robocal._files.model import read_model
+    from robocal.io import read_model
 
     direct = controller_precision(read_model(model_file), n_samples=3000, rng=5,
                                   encoder_resolution=[0.01 * DEG] * 3 + [1.745e-4] + [0.01 * DEG] * 2,

@@ -14,8 +14,8 @@ from pathlib import Path
 import pytest
 
 import robocal as rc
-from robocal._presentation.html import PLOTS, render_report, write_report
-from robocal._files.result import result_to_json
+from robocal.report import PLOTS, render_report, write_report
+from robocal.io import result_from_dict, result_to_json
 from robots import arm6r, cylindrical
 
 pytest.importorskip("matplotlib")
@@ -28,8 +28,17 @@ FACTOR = {"mm": 1e3, "deg": 180 / math.pi, "deg/(kN m)": 180 / math.pi * 1e3}
 
 
 def _roundtrip(result) -> dict:
-    """What the report sees when it reads result.json."""
+    """What result.json holds: the tests compare the page with it."""
     return json.loads(result_to_json(result))
+
+
+def _render(d: dict, **kw) -> str:
+    """The report of the result read back from its file form ``d``."""
+    return render_report(result_from_dict(d), **kw)
+
+
+def _write(d: dict, path, **kw) -> None:
+    write_report(result_from_dict(d), path, **kw)
 
 
 @pytest.fixture(scope="module")
@@ -114,7 +123,7 @@ class Page(HTMLParser):
 
 def _page(d, tmp_path, name="report.html", **kw) -> tuple[Page, str]:
     path = tmp_path / name
-    write_report(d, path, **kw)
+    _write(d, path, **kw)
     text = path.read_text(encoding="utf-8")
     return Page(text), text
 
@@ -209,7 +218,7 @@ def test_every_plot_is_there_and_self_contained(full, tmp_path):
 
 
 def test_report_is_deterministic(full):
-    assert render_report(full) == render_report(full)
+    assert _render(full) == _render(full)
 
 
 def test_missing_validation_and_limit_are_said(bare, tmp_path):
@@ -250,7 +259,7 @@ def test_residuals_drawn_at_measured_points_when_given(full, simulated):
     # result.json carries the measured positions; an older file without them still renders
     without = dict(full, errors={k: v for k, v in full["errors"].items() if k != "fit_positions"})
     with_points = dict(full, errors=dict(full["errors"], fit_positions=data.positions[:40].tolist()))
-    html_a, html_b = render_report(without), render_report(with_points)
+    html_a, html_b = _render(without), _render(with_points)
     assert "common origin" in html_a and "Arrows start at the measured points" in html_b
     assert html_a != html_b
 
@@ -265,25 +274,27 @@ def test_extra_tables(full, tmp_path):
     assert "geometric + compliance" in text and "<td class=\"num\">0.58</td>" in text
     assert "limit of absolute accuracy</td><td class=\"num\">0.55</td>" in text
     with pytest.raises(rc.InputError, match="extra"):
-        render_report(full, extra={"paper": {"title": "t", "columns": ["a", "b"], "rows": [[1]]}})
+        _render(full, extra={"paper": {"title": "t", "columns": ["a", "b"], "rows": [[1]]}})
     with pytest.raises(rc.InputError, match="extra"):
-        render_report(full, extra={"paper": 3})
+        _render(full, extra={"paper": 3})
 
 
 def test_refuses_to_overwrite_and_writes_atomically(full, tmp_path):
     path = tmp_path / "report.html"
     path.write_text("keep me")
     with pytest.raises(rc.InputError) as err:
-        write_report(full, path)
+        _write(full, path)
     assert err.value.source == str(path) and path.read_text() == "keep me"
-    write_report(full, path, force=True)
+    _write(full, path, force=True)
     assert path.read_text(encoding="utf-8").startswith("<!DOCTYPE html>")
     assert [p.name for p in tmp_path.iterdir()] == ["report.html"]  # no temporary file left
 
 
-def test_not_a_result_is_an_input_error():
-    with pytest.raises(rc.InputError, match="not a robocal result"):
-        render_report({"schema": "robocal.result/1"})
+def test_not_a_result_is_an_input_error(full):
+    with pytest.raises(rc.InputError, match="expected a CalibrationResult, got dict"):
+        render_report(full)
+    with pytest.raises(rc.InputError, match="nominal_model: missing key"):
+        result_from_dict({"schema": "robocal.result/1"})
 
 
 def test_needs_matplotlib_only_when_drawing(full, monkeypatch):
@@ -291,7 +302,7 @@ def test_needs_matplotlib_only_when_drawing(full, monkeypatch):
     subprocess.run([sys.executable, "-c", code], check=True)
     monkeypatch.setitem(sys.modules, "matplotlib", None)
     with pytest.raises(rc.RobocalError, match=r"pip install robocal\[report\]"):
-        render_report(full)
+        _render(full)
 
 
 def test_nan_entries_are_not_drawn_or_printed(full):
@@ -299,7 +310,7 @@ def test_nan_entries_are_not_drawn_or_printed(full):
     d["errors"]["fit_after"][0] = [None]
     d["errors"]["fit_residual_vectors"][0] = [[None, None, None]]
     d["stats"]["validation_after"] = {"n": 0, "mean": None, "std": None, "rms": None, "max": None}
-    text = render_report(d)
+    text = _render(d)
     assert re.search(r"\bnan\b", text, re.I) is None
     assert "validation_after" in d["stats"] and "stats.validation_after.mean" not in Page(text).keyed
 
@@ -364,7 +375,7 @@ def _assert_rendered(console, requests, plots, title, shot, url):
 
 def test_renders_in_headless_chromium(full, tmp_path):
     path = tmp_path / "report.html"
-    write_report(full, path)
+    _write(full, path)
     _assert_rendered(*_render_in_chromium(path, "report.png"))
 
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import robocal as rc
-from robocal._campaign import RobotImperfections, accuracy_in_use, measure_campaign, stored_model
+from robocal.sim import RobotImperfections, accuracy_in_use, measure_campaign, stored_model
 
 from robots import arm6r
 
@@ -47,7 +47,7 @@ def test_demo_writes_the_story_and_says_the_robot_is_simulated(reproduce, tmp_pa
     nominal = rc.read_model(TH8 / "model.yaml")
     fit, _ = rc.split_sets(rc.read_measurements(TH8 / "measurements.csv", nominal))
     ident = rc.identifiability(nominal, fit, parameters=("geometric", "compliance"), known=("markers",))
-    for row in ident.table(nominal.frame_names):
+    for row in rc.status_table(ident, nominal.frame_names):
         assert f"| {row['frame']} | " + " | ".join(row[k] for k in _kinds()) + " |" in out
     for a in ident.eliminated:
         assert f"- {a.name}: {a.reason}" in out
@@ -134,7 +134,7 @@ def test_accuracy_in_use_improves_with_calibration_and_rounding_is_applied():
 
 
 def test_approach_sides_follow_the_visiting_order():
-    from robocal._campaign import approach_sides
+    from robocal.sim import approach_sides
     # joint 0: from the last pose (0.5) down to 0, up to 1, stays, down, stays; joint 1 never moves
     q = np.array([[0, 0], [1, 0], [1, 0], [0.5, 0], [0.5, 0]], float)
     np.testing.assert_array_equal(approach_sides(q), [[-1, 1], [1, 1], [1, 1], [-1, 1], [-1, 1]])
@@ -150,7 +150,7 @@ def test_backlash_leaves_the_arm_half_its_lost_motion_behind_the_reading():
                                backlash=b)
     q = rc.random_configurations(m, 20, rng=1)
     data = measure_campaign(m, q, exact, rng=2)
-    from robocal._campaign import approach_sides
+    from robocal.sim import approach_sides
     expected = rc.forward_kinematics(m, q - approach_sides(q) * np.array(b) / 2).positions
     np.testing.assert_allclose(data.positions, expected, rtol=0, atol=1e-12)
     np.testing.assert_array_equal(data.q, q)          # motor-side encoders do not see it
@@ -212,7 +212,7 @@ def test_the_papers_pattern_over_20_campaigns(reproduce):
 
 
 def test_backlash_under_gravity_rests_on_the_side_gravity_pushes_to():
-    from robocal._campaign import approach_sides, backlash_sides
+    from robocal.sim import approach_sides, backlash_sides
     # one horizontal axis (W's y), 2 kg at 0.5 m: the load is 9.81 cos(q) N m
     c, s = np.cos(-np.pi / 2), np.sin(-np.pi / 2)
     m = rc.serial_model("h", [dict(joint="revolute", mass=2.0, com=(0.5, 0, 0))], markers=[("t", (1.0, 0, 0))],
@@ -235,8 +235,8 @@ def test_backlash_under_gravity_rests_on_the_side_gravity_pushes_to():
 
 
 def test_loaded_joints_give_way_to_gravity_and_iso_repeatability_still_misses_it():
-    from robocal._campaign import approach_sides, backlash_sides
-    from robocal._kinematics import gravity_loads
+    from robocal.sim import approach_sides, backlash_sides
+    from robocal.kinematics import gravity_loads
     from robots import cylindrical
     m = cylindrical(masses=True)
     friction = (0.5, 5.0, 5.0, 0.2, 0.2, 0.2)

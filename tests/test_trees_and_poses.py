@@ -123,12 +123,12 @@ def test_torso_recovers_identifiable_parameters():
     assert {"r1.gamma", "l4.d", "l4.alpha", "base.rz"} <= set(names)
     z = z_scores(result, true, m)
     assert np.abs(z).max() < 3.0, dict(zip(names, z.round(2)))
-    assert result.stats["fit_after"]["rms"] < 2.5 * NOISE * np.sqrt(3)
+    assert result.stats.fit_after.rms < 2.5 * NOISE * np.sqrt(3)
     # the calibrated robot predicts the true one at new poses
     q = rc.random_configurations(m, 50, rng=7)
     err = np.linalg.norm(rc.forward_kinematics(result.calibrated_model, q).positions
                          - rc.forward_kinematics(true, q).positions, axis=-1)
-    assert err.max() < 1e-4 < result.stats["fit_before"]["mean"]
+    assert err.max() < 1e-4 < result.stats.fit_before.mean
 
 
 def test_torso_z_scores_are_calibrated_over_seeds():
@@ -313,8 +313,8 @@ def test_far_base_converges_from_registration():
     nominal = m.replace(base_position=(0.0, 0.0, 0.0), base_rotation=((1.0, 0, 0), (0, 1.0, 0), (0, 0, 1.0)))
     result = rc.calibrate(nominal, data, initial_base="register")
     assert result.success
-    assert result.stats["fit_before"]["mean"] > 2.0  # really no guess: metres off before
-    assert result.stats["fit_after"]["rms"] < 2.5 * NOISE * np.sqrt(3)
+    assert result.stats.fit_before.mean > 2.0  # really no guess: metres off before
+    assert result.stats.fit_after.rms < 2.5 * NOISE * np.sqrt(3)
     # base rotation corrections are relative to the registered start (calibrate's reference)
     z = z_scores(result, true, rc.register_base(nominal, data))
     assert len(z) == 44 and np.abs(z).max() < 3.0, dict(zip(result.parameter_names, z.round(2)))
@@ -346,7 +346,7 @@ def test_semicolon_decimal_comma_missing_marker(tmp_path):
     np.testing.assert_allclose(back.positions[back.mask], full.positions[back.mask], atol=1e-12)
     result = rc.calibrate(m, back)
     assert result.errors_after.shape == (60, 2) and np.isnan(result.errors_after[hidden, 1]).all()
-    assert result.stats["fit_after"]["n"] == 120 - hidden.sum()
+    assert result.stats.fit_after.n == 120 - hidden.sum()
     z = z_scores(result, true, m)
     assert np.abs(z).max() < 3.0, dict(zip(result.parameter_names, z.round(2)))
 

@@ -21,6 +21,7 @@ which the paper's robot had too (see BACKLASH_BASE_ARCMIN below and examples/th8
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import sys
 import warnings
@@ -30,7 +31,7 @@ import numpy as np
 
 import robocal as rc
 
-from robocal._campaign import RobotImperfections, accuracy_in_use, measure_campaign
+from robocal.sim import RobotImperfections, accuracy_in_use, measure_campaign
 
 HERE = Path(__file__).resolve().parent
 DEG = np.pi / 180
@@ -170,7 +171,7 @@ def figures(cmp, in_use):
         r = cmp.geometric if res is None else res
         fit = r.stats["fit_before" if res is None else "fit_after"]
         val = r.stats["validation_before" if res is None else "validation_after"]
-        rows[key] = {"fit": (fit["mean"], fit["std"]), "held_out": (val["mean"], val["std"]),
+        rows[key] = {"fit": (fit.mean, fit.std), "held_out": (val.mean, val.std),
                      "in_use": (float(in_use[key].mean()), float(in_use[key].std(ddof=1)))}
     return rows
 
@@ -192,7 +193,7 @@ def identifiability_table(result, frame_names) -> list[str]:
     kinds = ("beta", "alpha", "d", "theta", "r", "k_theta", "k_alpha", "k_beta")
     head = ["| frame | " + " | ".join(kinds) + " |", "|---" * (len(kinds) + 1) + "|"]
     rows = [f"| {row['frame']} | " + " | ".join(row[k] for k in kinds) + " |"
-            for row in result.identifiability.table(frame_names)]
+            for row in rc.status_table(result.identifiability, frame_names)]
     why = []
     for a in result.identifiability.eliminated:
         absorbers = ", ".join(f"{c:+.3g} {n}" for n, c in a.absorbers) or "nothing"
@@ -229,9 +230,9 @@ def one(nominal, out: Path | None):
     lines += table(rows, limit)
     lines += ["", cmp.verdict, ""]
     lim = cmp.combined.limit
-    lines += [f"Held-out mean error after both identifications: {lim['mean_error_m'] * 1e3:.3f} mm, "
-              f"{lim['ratio']:.2f} times the limit of {limit.limit * 1e3:.3f} mm "
-              f"({'reached' if lim['reached'] else 'not reached'}).",
+    lines += [f"Held-out mean error after both identifications: {lim.mean_error_m * 1e3:.3f} mm, "
+              f"{lim.ratio:.2f} times the limit of {limit.limit * 1e3:.3f} mm "
+              f"({'reached' if lim.reached else 'not reached'}).",
               f"The simulated robot has lost motion in its joints ({BACKLASH_BASE_ARCMIN:g} arcmin at the base, "
               f"{WRIST_TO_BASE * BACKLASH_BASE_ARCMIN:.1f} at the wrist,",
               f"{SLIDE_BACKLASH_MM:g} mm in the slides), an error the limit does not count, sized so that the "
@@ -247,10 +248,8 @@ def one(nominal, out: Path | None):
         rc.write_result(cmp.geometric, out / "result-geometric.json", force=True)
         rc.write_result(cmp.combined, out / "result.json", force=True)
         rc.write_model(cmp.best.calibrated_model, out / "calibrated.yaml", force=True)
-        (out / "limit.json").write_text(json.dumps(limit.to_dict(), indent=2))
-        try:
-            from robocal._presentation.html import write_report
-        except ImportError:
+        (out / "limit.json").write_text(json.dumps(rc.io.limit_to_dict(limit), indent=2))
+        if importlib.util.find_spec("matplotlib") is None:
             print("(report extra not installed: no report.html)")
         else:
             extra = {"tables": [{"title": "The paper's figures beside ours (mm)",
@@ -258,8 +257,8 @@ def one(nominal, out: Path | None):
                                  "rows": [[k, f"{PAPER[k][0]:.2f} ({PAPER[k][1]:.2f})"] +
                                           [f"{_mm(m)} ({_mm(s)})" for m, s in (r["fit"], r["held_out"], r["in_use"])]
                                           for k, r in rows.items()]}]}
-            d = json.loads(rc._files.result.result_to_json(cmp.combined))
-            write_report(d, out / "report.html", force=True, extra=extra)
+            # the report of the file just written, as `robocal report` would draw it
+            rc.write_report(rc.read_result(out / "result.json"), out / "report.html", force=True, extra=extra)
         print(f"\nwritten: {', '.join(sorted(p.name for p in out.iterdir()))} in {out}")
 
 

@@ -1,43 +1,49 @@
 """robocal: identify a robot's geometric and compliance parameters from measurements.
 
-Conventions (frames, units, parameter order) are in docs/conventions.md.
+``import robocal as rc`` gives the everyday surface; the subpackages ``robocal.kinematics``,
+``robocal.io``, ``robocal.sim``, ``robocal.limit``, ``robocal.report`` and ``robocal.errors`` hold
+the rest. Conventions (frames, units, parameter order) are in docs/conventions.md. Names load on
+first use, so the command line starts without the numerical libraries.
 """
 
-from ._errors import (ConvergenceWarning, DegenerateDataError, IdentifiabilityWarning, InputError,
-                      MisfitWarning, RobocalError, RobocalWarning)
-from ._kinematics import (evaluate, forward_kinematics, jacobian, model_from_vector, parameter_names,
-                          parameter_vector)
-from ._model import Frame, Marker, Payload, RobotModel, parallel_beta_frames, serial_model
-from ._measurements import Measurements
-from ._identifiability import Absorption, IdentifiabilityResult
-from ._calibration import (CalibrationResult, Comparison, ParameterEstimate, calibrate, compare, error_stats, identifiability,
-                        random_configurations, register_base)
-from ._parameters import candidate_parameters
-from ._simulation import measure, perturb_model, simulate
-from ._pose_selection import PoseSelection, select_poses
-from ._files.urdf import from_standard_dh, mdh_table, read_urdf, write_mdh_csv, write_urdf
-from ._files.model import model_from_dict, model_to_dict, read_model, write_model
-from ._files.measurements import read_measurements, split_sets, write_measurements
-from ._files.result import read_result, write_result
-from ._presentation.html import render_report, write_report
-from ._compensation import Compensation, compensate, joint_jacobian
-from ._accuracy_limit import (AccuracyLimit, PoseRepeatability, PrecisionResult, PredictedPrecision, RepeatabilityData,
-                     RepeatabilityResult, accuracy_limit, controller_precision, iso9283_repeatability,
-                     predicted_controller_precision, read_repeatability_csv)
+from importlib import import_module
 
-__version__ = "0.1.0"
+from ._version import __version__
 
-__all__ = [
-    "ConvergenceWarning", "DegenerateDataError", "IdentifiabilityWarning", "InputError", "MisfitWarning",
-    "RobocalError", "RobocalWarning", "evaluate", "forward_kinematics", "jacobian", "model_from_vector",
-    "parameter_names", "parameter_vector", "Frame", "Marker", "Payload", "RobotModel",
-    "parallel_beta_frames", "serial_model", "Measurements", "Absorption", "IdentifiabilityResult",
-    "CalibrationResult", "Comparison", "compare", "ParameterEstimate", "calibrate", "error_stats", "identifiability",
-    "random_configurations", "register_base", "candidate_parameters", "measure", "perturb_model", "simulate",
-    "PoseSelection", "select_poses", "from_standard_dh", "mdh_table", "read_urdf", "write_mdh_csv", "write_urdf",
-    "model_from_dict", "model_to_dict", "read_model", "write_model", "read_measurements", "split_sets",
-    "write_measurements", "read_result", "write_result", "AccuracyLimit", "PoseRepeatability", "PrecisionResult",
-    "PredictedPrecision", "RepeatabilityData", "RepeatabilityResult", "accuracy_limit", "controller_precision",
-    "iso9283_repeatability", "predicted_controller_precision", "read_repeatability_csv",
-    "render_report", "write_report", "Compensation", "compensate", "joint_jacobian",
-]
+# name -> public module that provides it
+_EVERYDAY = {
+    "errors": ("RobocalError", "InputError", "DegenerateDataError", "RobocalWarning", "ConvergenceWarning",
+               "MisfitWarning", "IdentifiabilityWarning"),
+    "kinematics": ("Frame", "Marker", "Payload", "RobotModel", "serial_model", "parallel_beta_frames",
+                   "mdh_transform", "evaluate", "forward_kinematics", "jacobian", "gravity_loads", "joint_jacobian",
+                   "parameter_names", "parameter_vector", "model_from_vector", "candidate_parameters",
+                   "random_configurations"),
+    "io": ("Measurements", "read_model", "write_model", "model_from_dict", "model_to_dict", "read_measurements",
+           "write_measurements", "split_sets", "read_result", "write_result", "read_urdf", "write_urdf",
+           "from_standard_dh", "mdh_table", "write_mdh_csv", "read_repeatability_csv"),
+    "sim": ("simulate", "measure", "perturb_model"),
+    "limit": ("AccuracyLimit", "PoseRepeatability", "PrecisionResult", "PredictedPrecision", "RepeatabilityData",
+              "RepeatabilityResult", "accuracy_limit", "controller_precision", "iso9283_repeatability",
+              "predicted_controller_precision"),
+    "report": ("render_report", "write_report"),
+    "_calibration": ("calibrate", "compare", "register_base", "error_stats", "CalibrationResult", "Comparison",
+                     "ParameterEstimate", "ErrorStats", "ErrorSummary", "LimitJudgement"),
+    "_identifiability": ("identifiability", "status_table", "Absorption", "IdentifiabilityResult"),
+    "_pose_selection": ("select_poses", "PoseSelection"),
+    "_compensation": ("compensate", "Compensation"),
+}
+_WHERE = {name: module for module, names in _EVERYDAY.items() for name in names}
+
+__all__ = ["__version__"] + sorted(_WHERE)
+
+
+def __getattr__(name: str):
+    if name in _WHERE:
+        value = getattr(import_module(f".{_WHERE[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'robocal' has no attribute {name!r}")
+
+
+def __dir__():
+    return __all__

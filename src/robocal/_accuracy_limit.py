@@ -1,4 +1,4 @@
-"""The limit of absolute accuracy (METHOD.md section 5): repeatability + geometric-control precision.
+"""The limit of absolute accuracy (docs/method.md section 5): repeatability + geometric-control precision.
 
 Calibration cannot make a robot more accurate than the sum of
 
@@ -15,20 +15,20 @@ only place where millimetres appear.
 
 from __future__ import annotations
 
-import csv
 import math
 from dataclasses import dataclass, field
 from typing import Callable, Hashable, Sequence
 
 import numpy as np
 
-from ._errors import InputError
-from ._kinematics import _cross, _kinematic_pass, evaluate, layout, parameter_names, parameter_vector
-from ._model import FRAME_KINDS, RobotModel
+from ._errors import InputError, check_choice
+from ._options import LIMIT_CHUNK, LIMIT_MARKER_MODES
+from ._kinematics import evaluate, kinematic_pass, layout
+from ._model import RobotModel
+from ._parameters import families, parameter_layout, parameter_vector
+from ._problem import sampling_box
+from ._spatial import cross
 
-LIMIT_SCHEMA = "robocal.limit/1"
-LENGTH_UNITS = {"mm": 1e-3, "m": 1.0}
-CSV_COLUMNS = ("pose", "cycle", "x", "y", "z")
 PERCENTILES = (50.0, 90.0, 95.0, 99.0)
 HIST_BINS = 20_000
 HIST_EDGES = np.logspace(-12, 0, HIST_BINS + 1)
@@ -48,11 +48,8 @@ def _histogram_percentile(hist: np.ndarray, pct: float, top: float) -> float:
     before = cum[k - 1] - hist[k]
     frac = (target - before) / hist[k] if hist[k] else 0.0
     return float(min(lo * (hi / lo) ** frac, top))
-MARKER_MODES = ("first", "all")
-DEFAULT_CHUNK = 2048
-# stored parameters rounded to the controller's quanta (METHOD.md section 5)
-_LENGTH_KINDS = ("b", "d", "r")
-_ANGLE_KINDS = ("gamma", "beta", "alpha", "theta")
+MARKER_MODES = LIMIT_MARKER_MODES
+DEFAULT_CHUNK = LIMIT_CHUNK
 
 
 # -- records -----------------------------------------------------------------------------------
@@ -86,10 +83,6 @@ class PoseRepeatability:
     s_l: float
     rp: float
 
-    def to_dict(self) -> dict:
-        return {"pose": _plain_id(self.pose), "n_cycles": self.n_cycles,
-                "barycentre": list(self.barycentre), "l": list(self.l), "l_mean": self.l_mean,
-                "s_l": self.s_l, "rp": self.rp}
 
 
 @dataclass(frozen=True)
@@ -100,9 +93,6 @@ class RepeatabilityResult:
     rp: float
     worst_pose: Hashable
 
-    def to_dict(self) -> dict:
-        return {"rp": self.rp, "worst_pose": _plain_id(self.worst_pose),
-                "poses": [p.to_dict() for p in self.poses]}
 
 
 @dataclass(frozen=True)
@@ -134,15 +124,6 @@ class PrecisionResult:
     def percentile(self, pct: float) -> float:
         return dict(self.percentiles)[float(pct)]
 
-    def to_dict(self) -> dict:
-        return {"statistic": "mean", "n_samples": self.n_samples, "mean": self.mean, "std": self.std,
-                "standard_error": self.standard_error, "rms": self.rms,
-                "rms_standard_error": self.rms_standard_error,
-                "percentiles": {f"p{pct:g}": v for pct, v in self.percentiles}, "max": self.max,
-                "encoder_resolution": list(self.encoder_resolution),
-                "length_quantum": self.length_quantum, "angle_quantum": self.angle_quantum,
-                "markers": self.markers, "rounded_parameters": list(self.rounded_parameters),
-                "method": self.method}
 
 
 @dataclass(frozen=True)
@@ -162,10 +143,6 @@ class PredictedPrecision:
     mean_gaussian_standard_error: float
     marker: str
 
-    def to_dict(self) -> dict:
-        return {"n_configurations": self.n_configurations, "rms": self.rms,
-                "rms_standard_error": self.rms_standard_error, "mean_gaussian": self.mean_gaussian,
-                "mean_gaussian_standard_error": self.mean_gaussian_standard_error, "marker": self.marker}
 
 
 @dataclass(frozen=True)
@@ -185,114 +162,9 @@ class AccuracyLimit:
     repeatability_detail: RepeatabilityResult | None
     precision_detail: PrecisionResult
 
-    def to_dict(self) -> dict:
-        return {"schema": LIMIT_SCHEMA, "unit": "m", "limit": self.limit, "limit_p95": self.limit_p95,
-                "repeatability": self.repeatability, "precision": self.precision,
-                "precision_p95": self.precision_p95, "precision_statistic": self.precision_statistic,
-                "repeatability_detail": None if self.repeatability_detail is None
-                else self.repeatability_detail.to_dict(),
-                "precision_detail": self.precision_detail.to_dict()}
-
-
-def _plain_id(pose):
-    """A pose id as a JSON type (numpy scalars become Python ones)."""
-    pose = pose.item() if isinstance(pose, np.generic) else pose
-    return pose if isinstance(pose, (str, int)) else str(pose)
 
 
 # -- ISO 9283 repeatability --------------------------------------------------------------------
-
-def read_repeatability_csv(path, *, units: str | None = None) -> RepeatabilityData:
-    """Read repeated measurements: columns ``pose, cycle, x, y, z`` (header required, any order,
-    further columns ignored). The coordinates' unit is never guessed: it comes from the column
-    names (``x_mm, y_mm, z_mm`` or ``x_m``...) or, for plain ``x, y, z``, from ``units`` ("mm" or
-    "m"); a suffix that disagrees with ``units`` is an error. The result is in metres.
-
-    Errors name the file and ``row N, column 'c'`` with N the line number in the file (header = 1).
-    """
-    if units is not None and units not in LENGTH_UNITS:
-        raise InputError(f"units must be one of {', '.join(LENGTH_UNITS)}, got {units!r}", where="units")
-    src = str(path)
-    try:
-        with open(path, newline="") as fh:
-            reader = csv.reader(fh)
-            header = next(reader, None)
-            if header is None:
-                raise InputError("the file is empty; a header pose, cycle, x, y, z is required", source=src)
-            names = [h.strip().lower() for h in header]
-            col, scale = _repeatability_columns(names, units, src)
-            pose_ids, cycles, points, rows_of = [], [], [], {}
-            seen = {}
-            for row in reader:
-                if not any(cell.strip() for cell in row):
-                    continue
-                line = reader.line_num
-                cells = {}
-                for c in CSV_COLUMNS:
-                    where = f"row {line}, column {c!r}"
-                    if col[c] >= len(row) or not row[col[c]].strip():
-                        raise InputError("empty cell", source=src, where=where)
-                    cells[c] = row[col[c]].strip()
-                try:
-                    cycle = int(cells["cycle"])
-                except ValueError:
-                    raise InputError(f"expected an integer cycle number, got {cells['cycle']!r}",
-                                     source=src, where=f"row {line}, column 'cycle'") from None
-                xyz = []
-                for c in "xyz":
-                    where = f"row {line}, column {c!r}"
-                    try:
-                        v = float(cells[c])
-                    except ValueError:
-                        raise InputError(f"expected a number, got {cells[c]!r}", source=src, where=where) from None
-                    if not math.isfinite(v):
-                        raise InputError(f"expected a finite number, got {cells[c]!r}", source=src, where=where)
-                    xyz.append(v * scale[c])
-                key = (cells["pose"], cycle)
-                if key in seen:
-                    raise InputError(f"pose {cells['pose']!r} cycle {cycle} already given in row {seen[key]}",
-                                     source=src, where=f"row {line}")
-                seen[key] = line
-                rows_of.setdefault(cells["pose"], []).append(line)
-                pose_ids.append(cells["pose"])
-                cycles.append(cycle)
-                points.append(xyz)
-    except OSError as exc:
-        raise InputError(f"cannot read: {exc.strerror}", source=src) from None
-    if not points:
-        raise InputError("no measurements after the header", source=src)
-    for pose, lines in rows_of.items():
-        if len(lines) < 2:
-            raise InputError(f"pose {pose!r} has a single cycle; repeatability needs at least two",
-                             source=src, where=f"row {lines[0]}")
-    return RepeatabilityData(pose_ids=tuple(pose_ids), cycles=np.array(cycles, dtype=int),
-                             points=np.array(points, dtype=float), source=src)
-
-
-def _repeatability_columns(names: list[str], units: str | None, src: str) -> tuple[dict, dict]:
-    """Column index of pose, cycle, x, y, z and the metres per unit of each coordinate."""
-    col, scale = {}, {}
-    for c in CSV_COLUMNS:
-        found = [(i, n[len(c) + 1:] if n != c else None) for i, n in enumerate(names)
-                 if n == c or (c in "xyz" and n.startswith(c + "_") and n[len(c) + 1:] in LENGTH_UNITS)]
-        if not found:
-            raise InputError(f"missing column {c!r} (need {', '.join(CSV_COLUMNS)}; coordinates may carry their "
-                             f"unit, e.g. x_mm)", source=src, where="header")
-        if len(found) > 1:
-            raise InputError(f"column {c!r} is given {len(found)} times", source=src, where="header")
-        i, suffix = found[0]
-        col[c] = i
-        if c not in "xyz":
-            continue
-        if suffix is None and units is None:
-            raise InputError(f"the unit of column {c!r} is not declared: name it {c}_mm or {c}_m, or give the "
-                             "units (--csv-units mm|m)", source=src, where="header")
-        if suffix is not None and units is not None and suffix != units:
-            raise InputError(f"column {names[i]!r} says {suffix} but units {units!r} were given",
-                             source=src, where="header")
-        scale[c] = LENGTH_UNITS[suffix or units]
-    return col, scale
-
 
 def iso9283_repeatability(pose_ids: Sequence[Hashable], points) -> RepeatabilityResult:
     """ISO 9283 pose repeatability of each commanded pose and the worst pose.
@@ -356,25 +228,15 @@ def rounded_parameters(model: RobotModel, length_quantum: float, angle_quantum: 
     corrections and compliances are not stored dimensions.
     """
     lay = layout(model)
-    names = parameter_names(model)
-    step_of = {int(p): s for s, p in enumerate(lay.step_param)}
-    chosen = []
-    for i, f in enumerate(model.frames):
-        kinds = ["d", "r", "alpha", "theta"]
-        if f.has_beta:
-            kinds.append("beta")
-        if f.parent != i - 1:
-            kinds += ["gamma", "b"]
-        chosen += [(f"{f.name}.{k}", length_quantum if k in _LENGTH_KINDS else angle_quantum) for k in kinds]
-    for prefix in ["base"] + [m.name for m in model.markers]:
-        chosen += [(f"{prefix}.{k}", length_quantum) for k in "xyz"]
-    idx = np.array([names.index(n) for n, _ in chosen], dtype=int)
-    # keep the parameter-vector order so the random stream does not depend on how we listed them
-    order = np.argsort(idx, kind="stable")
-    idx = idx[order]
-    return _Rounded(names=tuple(names[i] for i in idx), params=idx,
-                    steps=np.array([step_of[int(i)] for i in idx], dtype=int),
-                    quanta=np.array([chosen[k][1] for k in order], dtype=float))
+    params = parameter_layout(model)
+    quantum = {"length": length_quantum, "angle": angle_quantum}
+    chosen = [params[n] for n in families(model)["geometric"] 
+              if params[n].quantity == "length" or params[n].role == "frame"]
+    # parameter-vector order, so the random stream does not depend on how the families list them
+    chosen.sort(key=lambda prm: prm.index)
+    idx = np.array([prm.index for prm in chosen], dtype=int)
+    return _Rounded(names=tuple(prm.name for prm in chosen), params=idx, steps=lay.param_step[idx],
+                    quanta=np.array([quantum[prm.quantity] for prm in chosen], dtype=float))
 
 
 def _nonnegative(value, name: str) -> float:
@@ -413,32 +275,15 @@ def _generator(rng) -> np.random.Generator:
     raise InputError(f"expected a numpy Generator or an integer seed, got {rng!r}", where="rng")
 
 
-def _joint_box(model: RobotModel) -> tuple[np.ndarray, np.ndarray]:
-    lo, hi = model.lower_limits, model.upper_limits
-    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
-        raise InputError("configurations are drawn within the joint limits, which must be finite",
-                         where="joint_limits")
-    return lo, hi
-
-
-def joint_reading_is_angle(model: RobotModel) -> np.ndarray:
-    """(n_joints,) bool: the reading drives a revolute frame (radians) rather than a prismatic one."""
-    out = np.zeros(model.n_joints, dtype=bool)
-    for f in model.frames:
-        for j, _ in f.coupling:
-            out[j] |= f.joint == "revolute"
-    return out
-
-
 def _error_model(model: RobotModel, encoder_resolution, length_quantum, angle_quantum):
     """Validated joint resolutions (n_joints,), the rounded parameters and the joint box."""
     res = _resolution(model, encoder_resolution)
     rp = rounded_parameters(model, _nonnegative(length_quantum, "length_quantum"),
                             _nonnegative(angle_quantum, "angle_quantum"))
-    return res, rp, _joint_box(model)
+    return res, rp, sampling_box(model)
 
 
-def _parameter_displacement(ps, rot: np.ndarray, steps: np.ndarray, on_path: np.ndarray,
+def parameter_displacement(ps, rot: np.ndarray, steps: np.ndarray, on_path: np.ndarray,
                             dp: np.ndarray, P: np.ndarray) -> np.ndarray:
     """First-order tool displacement (N, 3) of the point P (N, 3) for per-pose errors dp (N, K).
 
@@ -450,7 +295,7 @@ def _parameter_displacement(ps, rot: np.ndarray, steps: np.ndarray, on_path: np.
     trans = w[~rot].sum(axis=0)
     wr = w[rot]
     # sum_k w_k x (P - Q_k) = (sum_k w_k) x P - sum_k w_k x Q_k
-    turn = _cross(wr.sum(axis=0), P) - _cross(wr, ps.Q[steps[rot]]).sum(axis=0)
+    turn = cross(wr.sum(axis=0), P) - cross(wr, ps.Q[steps[rot]]).sum(axis=0)
     return trans + turn
 
 
@@ -483,8 +328,7 @@ def controller_precision(model: RobotModel, *, encoder_resolution, length_quantu
     res, rp, (lo, hi) = _error_model(model, encoder_resolution, length_quantum, angle_quantum)
     n = _count(n_samples, "n_samples", 2)
     chunk = _count(chunk_size, "chunk_size", 1)
-    if markers not in MARKER_MODES:
-        raise InputError(f"must be one of {', '.join(MARKER_MODES)}, got {markers!r}", where="markers")
+    check_choice(markers, MARKER_MODES, "markers")
     gen = _generator(rng)
     lay = layout(model)
     p = parameter_vector(model)
@@ -501,11 +345,11 @@ def controller_precision(model: RobotModel, *, encoder_resolution, length_quantu
         q = lo + (hi - lo) * u[:, :nj]
         dq = (u[:, nj:2 * nj] - 0.5) * res
         dp = (u[:, 2 * nj:] - 0.5) * rp.quanta
-        ref = _kinematic_pass(model, lay, p, q @ C.T).P
-        ps = _kinematic_pass(model, lay, p, (q + dq) @ C.T)
+        ref = kinematic_pass(model, lay, p, q @ C.T).P
+        ps = kinematic_pass(model, lay, p, (q + dq) @ C.T)
         worst = np.zeros(m)
         for k in sel:
-            d = ps.P[k] + _parameter_displacement(ps, rot, rp.steps, lay.marker_path[k, rp.steps], dp, ps.P[k])
+            d = ps.P[k] + parameter_displacement(ps, rot, rp.steps, lay.marker_path[k, rp.steps], dp, ps.P[k])
             worst = np.maximum(worst, np.linalg.norm(d - ref[k], axis=1))
         sq = worst * worst
         s1 += float(worst.sum())
@@ -550,13 +394,13 @@ def predicted_controller_precision(model: RobotModel, *, encoder_resolution, len
     if not (0 <= marker < len(model.markers)):
         raise InputError(f"no marker {marker}; the model has {len(model.markers)}", where="marker")
     gen = _generator(rng)
-    lay = layout(model)
+    params = parameter_layout(model)
     p = parameter_vector(model)
     # joint reading j moves theta (revolute) or r (prismatic) of the frames coupled to it
-    G = np.zeros((lay.n_params, model.n_joints))
+    G = np.zeros((params.n_params, model.n_joints))
     for i, f in enumerate(model.frames):
         if f.joint != "fixed":
-            G[lay.frame0[i] + FRAME_KINDS.index("theta" if f.joint == "revolute" else "r")] = model.coupling_matrix[i]
+            G[params[f"{f.name}.{'theta' if f.joint == 'revolute' else 'r'}"].index] = model.coupling_matrix[i]
     sigma = np.concatenate([res, rp.quanta]) / math.sqrt(12.0)
     trace = np.empty(n)
     norm = np.empty(n)

@@ -20,9 +20,10 @@ import numpy as np
 
 from ._compensation import compensate
 from ._measurements import Measurements
-from ._kinematics import evaluate, gravity_loads, model_from_vector, parameter_vector
 from ._accuracy_limit import rounded_parameters
+from ._kinematics import evaluate, gravity_loads
 from ._model import RobotModel
+from ._parameters import model_from_vector, parameter_vector
 
 
 @dataclass(frozen=True)

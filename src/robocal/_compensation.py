@@ -7,14 +7,15 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ._kinematics import evaluate, layout, parameter_vector
+from ._kinematics import evaluate
 from ._model import RobotModel
+from ._parameters import parameter_layout, parameter_vector
 
 
 def joint_jacobian(model: RobotModel, q) -> np.ndarray:
     """d(marker pose)/d(joint readings): (N, n_markers, 6, n_joints) in W (rows dx, dy, dz, rotation)."""
-    lay = layout(model)
-    cols = [lay.frame0[i] + (6 if f.joint == "prismatic" else 5) for i, f in enumerate(model.frames)]
+    lay = parameter_layout(model)
+    cols = [lay[f"{f.name}.{'r' if f.joint == 'prismatic' else 'theta'}"].index for f in model.frames]
     ev = evaluate(model, q, jacobian=True, columns=cols)
     moving = np.array([f.joint != "fixed" for f in model.frames])
     Jf = np.where(moving, ev.jacobian, 0.0)                     # per frame variable

@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+import difflib
+
+# an offending value is quoted in a message at most this long: a huge cell must not flood a terminal
+EXCERPT = 60
+
 
 class RobocalError(Exception):
     """Base class of every error robocal raises on purpose."""
@@ -40,3 +45,23 @@ class MisfitWarning(RobocalWarning):
 
 class IdentifiabilityWarning(RobocalWarning):
     """Parameters were eliminated or the design is poorly conditioned."""
+
+
+def excerpt(value) -> str:
+    """``repr(value)``, cut to ``EXCERPT`` characters."""
+    text = "nothing" if value is None else repr(value)
+    return text if len(text) <= EXCERPT else text[:EXCERPT - 5] + "...'" + f" ({len(text)} characters)"
+
+
+def suggest(word, options) -> str:
+    """"; did you mean 'x'?" for the closest option, else the list of options (for messages)."""
+    options = [str(o) for o in options]
+    close = difflib.get_close_matches(str(word), options, n=1)
+    return f"; did you mean {close[0]!r}?" if close else f"; expected one of {', '.join(options)}"
+
+
+def check_choice(value, options, where: str):
+    """``value`` if it is one of ``options`` (an option table declared once), else an InputError."""
+    if isinstance(value, str) and value in options:
+        return value
+    raise InputError(f"must be one of {', '.join(map(str, options))}, got {excerpt(value)}", where=where)

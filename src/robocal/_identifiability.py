@@ -1,9 +1,9 @@
-"""Which parameters the data can identify, and what absorbs the others (METHOD.md section 4).
+"""Which parameters the data can identify, and what absorbs the others (docs/method.md section 4).
 
 The Jacobian stacked over every pose and measured row is scaled to unit column norms (lengths and
 angles then weigh alike). Its singular values give the numerical rank, the condition number and the
 observability indices. Which parameters to keep is decided by a rank-revealing QR whose pivots are
-taken in the preference order (``_params``): a parameter is kept when the part of its unit column
+taken in the preference order (``candidate_parameters``): a parameter is kept when the part of its unit column
 outside the span of the columns kept before it exceeds ``tol``; otherwise it is eliminated, and
 least squares on the kept columns gives the linear combination that absorbs it.
 """
@@ -11,15 +11,18 @@ least squares on the kept columns gives the linear combination that absorbs it.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 from scipy.linalg import solve_triangular
 
-from ._parameters import unit_of
+from ._measurements import Measurements
+from ._model import RobotModel
+from ._parameters import FRAME_KINDS, candidate_parameters, parameter_layout, parameter_vector
+from ._problem import Problem, design_measurements, needs_compliance, random_configurations
 
 DEFAULT_TOL = 1e-6
 NO_EFFECT = 1e-10
-TABLE_KINDS = ("gamma", "b", "beta", "alpha", "d", "theta", "r", "k_theta", "k_alpha", "k_beta")
 
 
 @dataclass(frozen=True)
@@ -30,10 +33,6 @@ class Absorption:
     reason: str
     absorbers: tuple[tuple[str, float], ...]
     residual: float
-
-    def to_dict(self) -> dict:
-        return {"name": self.name, "reason": self.reason, "residual": self.residual,
-                "absorbed_by": [{"name": n, "coefficient": c} for n, c in self.absorbers]}
 
 
 @dataclass(frozen=True)
@@ -68,17 +67,11 @@ class IdentifiabilityResult:
     def absorption(self, name: str) -> Absorption | None:
         return next((a for a in self.eliminated if a.name == name), None)
 
-    def table(self, frame_names) -> list[dict]:
-        """Per frame, the status of each parameter kind (the paper's layout)."""
-        return [{"frame": f, **{k: self.status(f"{f}.{k}") for k in TABLE_KINDS}} for f in frame_names]
 
-    def to_dict(self) -> dict:
-        return {
-            "candidates": list(self.candidates), "identified": list(self.identified),
-            "eliminated": [a.to_dict() for a in self.eliminated], "tol": self.tol, "rank": self.rank,
-            "condition_number": self.condition_number, "singular_values": list(self.singular_values),
-            "observability": dict(self.observability), "n_rows": self.n_rows,
-        }
+
+def status_table(result: IdentifiabilityResult, frame_names) -> list[dict]:
+    """Per frame, the status (I, E or -) of each of its parameter kinds: the paper's table."""
+    return [{"frame": f, **{k: result.status(f"{f}.{k}") for k in FRAME_KINDS}} for f in frame_names]
 
 
 def singular_values(A: np.ndarray, vectors: bool = False):
@@ -95,8 +88,14 @@ def singular_values(A: np.ndarray, vectors: bool = False):
     return np.linalg.svd(A, compute_uv=False)
 
 
-def analyse(J: np.ndarray, names, *, tol: float = DEFAULT_TOL, max_terms: int = 6) -> IdentifiabilityResult:
-    """Identifiability of the columns of ``J`` (n_rows, n_candidates) named ``names``, in preference order."""
+def analyse(J: np.ndarray, names, *, quantities=None, tol: float = DEFAULT_TOL,
+            max_terms: int = 6) -> IdentifiabilityResult:
+    """Identifiability of the columns of ``J`` (n_rows, n_candidates) named ``names``, in preference order.
+
+    ``quantities`` (n_candidates,): what each parameter measures ("length", "angle", ...); a column
+    has no effect when it is round-off next to the largest column of the same quantity. Default:
+    all alike.
+    """
     names = tuple(names)
     J = np.asarray(J, dtype=float)
     scale = np.linalg.norm(J, axis=0)
@@ -108,7 +107,7 @@ def analyse(J: np.ndarray, names, *, tol: float = DEFAULT_TOL, max_terms: int = 
     An = np.zeros_like(J)
     # a column is "no effect" when it is round-off next to the largest column of the same unit
     # (e.g. the torsion of a joint whose distal centre of mass lies on its axis)
-    units = np.array([unit_of(n) for n in names])
+    units = np.array(["" for _ in names] if quantities is None else list(quantities))
     nz = np.zeros(len(names), dtype=bool)
     for u in set(units):
         sel = units == u
@@ -176,3 +175,39 @@ def analyse(J: np.ndarray, names, *, tol: float = DEFAULT_TOL, max_terms: int = 
         tol=tol, rank=rank, condition_number=cond, singular_values=tuple(float(v) for v in s),
         observability=obs, n_rows=m, column_scale={n: float(v) for n, v in zip(names, scale)},
     )
+
+
+def identifiability(model: RobotModel, data: Measurements | np.ndarray | None = None, *,
+                    parameters=("geometric",), known=(), orientation: bool | None = None,
+                    tol: float = DEFAULT_TOL, n_random: int = 200, rng=0) -> IdentifiabilityResult:
+    """Which parameters are identifiable at the poses of ``data`` (Measurements or readings q).
+
+    With ``data=None`` the analysis uses ``n_random`` configurations drawn within the joint limits:
+    what theory allows for this robot, whatever the poses.
+    """
+    if data is None:
+        q = random_configurations(model, n_random, rng)
+    elif isinstance(data, Measurements):
+        q = data.q
+    else:
+        q = np.atleast_2d(np.asarray(data, dtype=float))
+    meas = data if isinstance(data, Measurements) else design_measurements(model, q, bool(orientation))
+    if orientation is None:
+        orientation = meas.has_orientation
+    names = candidate_parameters(model, parameters, orientation=orientation, known=known)
+    prob = Problem(model, meas, names, compliance=needs_compliance(model, names))
+    return analyse_problem(prob, names, tol=tol)
+
+
+def analyse_problem(prob: Problem, names, *, tol: float = DEFAULT_TOL) -> IdentifiabilityResult:
+    """``analyse`` of a problem's Jacobian at its model's values."""
+    lay = parameter_layout(prob.model)
+    return analyse(prob.jacobian(parameter_vector(prob.model)), names, tol=tol,
+                   quantities=[lay[n].quantity for n in names])
+
+
+@lru_cache(maxsize=32)
+def theoretical_identifiability(model: RobotModel, parameters: tuple, known: tuple, orientation: bool,
+                                tol: float) -> IdentifiabilityResult:
+    """What this robot's structure allows to identify (random configurations, fixed seed)."""
+    return identifiability(model, None, parameters=parameters, known=known, orientation=orientation, tol=tol, rng=0)

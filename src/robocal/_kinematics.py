@@ -10,10 +10,10 @@ translation along, a coordinate axis of the frame reached so far.
 
 The derivative of a marker's pose with respect to a step's value is geometric: for a rotation about
 unit axis u through point O it is ``[u x (P - O); u]``, for a translation along u it is ``[u; 0]``,
-all in the measurement frame W (METHOD.md section 3). One pass over the steps, vectorised over
+all in the measurement frame W (docs/method.md section 3). One pass over the steps, vectorised over
 poses and looping over frames, gives positions, orientations and every column.
 
-Compliance (METHOD.md section 2): theta, alpha and beta of frame i deflect by ``K * M``, M the
+Compliance (docs/method.md section 2): theta, alpha and beta of frame i deflect by ``K * M``, M the
 gravity moment about that step's own axis of every mass distal to it, computed on the undeformed
 chain at the current parameters. Geometric columns then gain ``sum_p K_p dM_p/dx * column_p``, with
 dM/dx from rigid-motion identities (see ``_add_corrections``).
@@ -26,10 +26,11 @@ from functools import lru_cache
 
 import numpy as np
 
-from ._model import BASE_KINDS, FRAME_KINDS, MARKER_KINDS, RobotModel
+from ._model import RobotModel
+from ._parameters import BASE_KINDS, MARKER_KINDS, parameter_layout, parameter_vector
+from ._spatial import cross, rot_matrix, small_rotation
 
 N_BASE = len(BASE_KINDS)
-N_FRAME = len(FRAME_KINDS)
 N_MARKER = len(MARKER_KINDS)
 # offsets of the geometric steps inside a frame's block (same order as FRAME_KINDS)
 GAMMA, B, BETA, ALPHA, D, THETA, R = range(7)
@@ -38,12 +39,6 @@ K_THETA, K_ALPHA, K_BETA = 7, 8, 9
 COMPLIANT = ((THETA, K_THETA), (ALPHA, K_ALPHA), (BETA, K_BETA))
 _ROT_PAIRS = {0: (1, 2), 1: (2, 0), 2: (0, 1)}
 
-
-def _cross(a, b):
-    """Cross product over the last axis; numpy's own is several times slower on small vectors."""
-    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
 
 
 def _rmul(R: np.ndarray, M: np.ndarray, out=None) -> np.ndarray:
@@ -55,16 +50,8 @@ def _rmul(R: np.ndarray, M: np.ndarray, out=None) -> np.ndarray:
     return out
 
 
-def _rot_matrix(axis, angle) -> np.ndarray:
-    c, s = np.cos(angle), np.sin(angle)
-    if axis == 0:
-        return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
-    if axis == 1:
-        return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
-    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
 
-
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Layout:
     """Where each parameter sits in the full parameter vector, and how steps relate."""
 
@@ -83,26 +70,16 @@ class Layout:
     subtree: np.ndarray         # (n_frames, n_frames) bool: [i, k] frame k is in the subtree of i
     param_step: np.ndarray      # (n_params,) step moved by each parameter, -1 for compliances
     param_compliant: np.ndarray  # (n_params,) row in compliant_steps of a compliance, else -1
-    plans: dict = field(default_factory=dict, compare=False)  # compliance correction plans, by columns
 
-
-def parameter_names(model: RobotModel) -> tuple[str, ...]:
-    """Names of the full parameter vector: ``base.x``..., ``<frame>.<kind>``, ``<marker>.<kind>``."""
-    return layout(model).names
 
 
 @lru_cache(maxsize=64)
 def layout(model: RobotModel) -> Layout:
+    """The step structure of ``model`` over its parameter layout (cached per model)."""
     nf, nm = model.n_frames, len(model.markers)
-    names = [f"base.{k}" for k in BASE_KINDS]
-    frame0 = []
-    for f in model.frames:
-        frame0.append(len(names))
-        names += [f"{f.name}.{k}" for k in FRAME_KINDS]
-    marker0 = []
-    for m in model.markers:
-        marker0.append(len(names))
-        names += [f"{m.name}.{k}" for k in MARKER_KINDS]
+    params = parameter_layout(model)
+    names = params.names
+    frame0, marker0 = params.frame0.tolist(), params.marker0.tolist()
 
     step_param, step_is_rot, step_frame = [], [], []
     for k in range(N_BASE):
@@ -174,66 +151,7 @@ def layout(model: RobotModel) -> Layout:
     )
 
 
-def parameter_vector(model: RobotModel, reference: RobotModel | None = None) -> np.ndarray:
-    """The model's values in the layout of ``parameter_names``.
-
-    Rotation corrections (base and marker rx, ry, rz) are 0 for the model itself; with a
-    ``reference`` of the same structure they are the corrections that turn the reference's stored
-    rotations into this model's (R = R_ref Rot(x, rx) Rot(y, ry) Rot(z, rz)), so that
-    ``model_from_vector(reference, parameter_vector(model, reference))`` is ``model``.
-    """
-    lay = layout(model)
-    p = np.zeros(lay.n_params)
-    p[0:3] = model.base_position
-    for i, f in enumerate(model.frames):
-        p[lay.frame0[i]:lay.frame0[i] + N_FRAME] = [getattr(f, k) for k in FRAME_KINDS]
-    for m, mk in enumerate(model.markers):
-        p[lay.marker0[m]:lay.marker0[m] + 3] = mk.position
-    if reference is not None:
-        p[3:6] = _xyz_angles(np.asarray(reference.base_rotation).T @ np.asarray(model.base_rotation))
-        for m, (mk, mr) in enumerate(zip(model.markers, reference.markers)):
-            p[lay.marker0[m] + 3:lay.marker0[m] + 6] = _xyz_angles(np.asarray(mr.rotation).T @ np.asarray(mk.rotation))
-    return p
-
-
-def _xyz_angles(R: np.ndarray) -> np.ndarray:
-    """Angles (a, b, c) with R = Rot(x, a) Rot(y, b) Rot(z, c)."""
-    from scipy.spatial.transform import Rotation
-
-    return Rotation.from_matrix(R).as_euler("XYZ")
-
-
-def _small_rotation(rx, ry, rz) -> np.ndarray:
-    return _rot_matrix(0, rx) @ _rot_matrix(1, ry) @ _rot_matrix(2, rz)
-
-
-def _as_tuple3x3(R) -> tuple:
-    return tuple(tuple(float(v) for v in row) for row in R)
-
-
-def model_from_vector(model: RobotModel, p: np.ndarray) -> RobotModel:
-    """A new model holding the values ``p`` (rotation corrections composed into stored rotations)."""
-    from dataclasses import replace
-
-    lay = layout(model)
-    p = np.asarray(p, dtype=float)
-    Rb = np.asarray(model.base_rotation) @ _small_rotation(*p[3:6])
-    frames = tuple(
-        replace(f, **{k: float(p[lay.frame0[i] + j]) for j, k in enumerate(FRAME_KINDS)})
-        for i, f in enumerate(model.frames)
-    )
-    markers = []
-    for m, mk in enumerate(model.markers):
-        q = p[lay.marker0[m]:lay.marker0[m] + N_MARKER]
-        R = np.asarray(mk.rotation) @ _small_rotation(*q[3:6])
-        markers.append(replace(mk, position=tuple(float(v) for v in q[:3]), rotation=_as_tuple3x3(R)))
-    return model.replace(
-        base_position=tuple(float(v) for v in p[0:3]), base_rotation=_as_tuple3x3(Rb),
-        frames=frames, markers=tuple(markers),
-    )
-
-
-@dataclass(frozen=True)
+@dataclass
 class _Pass:
     R: np.ndarray    # (n_frames, N, 3, 3) rotations R_W<frame>
     O: np.ndarray    # (n_frames, N, 3) origins
@@ -261,7 +179,7 @@ def _turn(R: np.ndarray, axis: int, angle, out=None) -> np.ndarray:
     return out
 
 
-def _kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray, defl=None,
+def kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray, defl=None,
                     orientations: bool = False, frames_only: bool = False) -> _Pass:
     """One pass down the tree. Per frame, the constant part of X_parent,j is one 3x3 product;
     only the joint rotation (and gravity deflections) vary per pose.
@@ -277,7 +195,7 @@ def _kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarra
     Rb = np.asarray(model.base_rotation, dtype=float)
     for k in range(3):
         base_axes[3 + k] = Rb[:, k]
-        Rb = Rb @ _rot_matrix(k, p[3 + k])
+        Rb = Rb @ rot_matrix(k, p[3 + k])
     if not frames_only:
         U = np.empty((n_steps, N, 3))
         Q = np.zeros((n_steps, N, 3))
@@ -296,13 +214,13 @@ def _kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarra
         s0 = N_BASE + 7 * i
         v = p[lay.frame0[i]:lay.frame0[i] + 7]
         q = qf[:, i]
-        Rg = _rot_matrix(2, v[GAMMA])
+        Rg = rot_matrix(2, v[GAMMA])
         bvec = np.array([0.0, 0.0, v[B]])
         d_th, d_al, d_be = (0.0, 0.0, 0.0) if defl is None else defl[i]
         be, al = v[BETA] + d_be, v[ALPHA] + d_al
         if not np.ndim(al) and not np.ndim(be):
-            Rgb = Rg @ _rot_matrix(1, be)
-            A = Rgb @ _rot_matrix(0, al)
+            Rgb = Rg @ rot_matrix(1, be)
+            A = Rgb @ rot_matrix(0, al)
             # parent-frame vectors: beta axis, alpha/d axis, theta/r axis, b offset, full offset
             V = np.column_stack([Rg[:, 1], Rgb[:, 0], A[:, 2], bvec, bvec + Rgb[:, 0] * v[D]])
             W = _rmul(Rp, V, out=W_frames[i])                            # (N, 3, 5)
@@ -316,7 +234,7 @@ def _kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarra
                 W[:, :, 0] = RG[:, :, 1]
                 W[:, :, 3] = v[B] * RG[:, :, 2]
             else:
-                X = _rmul(Rp, np.column_stack([Rg[:, 1], bvec, Rg @ _rot_matrix(1, be)]))
+                X = _rmul(Rp, np.column_stack([Rg[:, 1], bvec, Rg @ rot_matrix(1, be)]))
                 W[:, :, [0, 3]] = X[:, :, :2]
                 RGB = X[:, :, 2:]
             RA = _turn(RGB, 0, np.broadcast_to(al, (N,)))
@@ -349,11 +267,11 @@ def _kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarra
         P[m] = Of + _rmul(Rf, v[:3, None])[:, :, 0]
         if orientations:
             Rm = np.asarray(mk.rotation, dtype=float)
-            C = np.column_stack([Rm[:, 0], (Rm @ _rot_matrix(0, v[3]))[:, 1],
-                                 (Rm @ _rot_matrix(0, v[3]) @ _rot_matrix(1, v[4]))[:, 2]])
+            C = np.column_stack([Rm[:, 0], (Rm @ rot_matrix(0, v[3]))[:, 1],
+                                 (Rm @ rot_matrix(0, v[3]) @ rot_matrix(1, v[4]))[:, 2]])
             U[s0 + 3:s0 + 6] = _rmul(Rf, C).transpose(2, 0, 1)
             Q[s0 + 3:s0 + 6] = P[m]
-            RM.append(_rmul(Rf, Rm @ _small_rotation(*v[3:6])))
+            RM.append(_rmul(Rf, Rm @ small_rotation(*v[3:6])))
         else:
             U[s0 + 3:s0 + 6] = 0.0
     return _Pass(R=R_frames, O=O_frames, U=U, Q=Q, P=P, RM=RM, W=W_frames, **base)
@@ -464,15 +382,17 @@ class _CorrectionPlan:
 
 
 def _correction_plan(model: RobotModel, lay: Layout, steps: np.ndarray, act: np.ndarray) -> _CorrectionPlan | None:
-    """The plan for these step columns and active compliances, made once per model (a layout lookup
-    is cheaper than hashing the model)."""
-    key = (steps.tobytes(), act.tobytes())
-    if key not in lay.plans:
-        lay.plans[key] = _make_correction_plan(model, lay, steps, act)
-    return lay.plans[key]
+    """The plan for these step columns and active compliances, made once per layout (a layout is
+    hashed by identity, which is cheaper than hashing the model)."""
+    return _cached_plan(lay, steps.tobytes(), act.tobytes())
 
 
-def _make_correction_plan(model, lay, steps, act) -> _CorrectionPlan | None:
+@lru_cache(maxsize=256)
+def _cached_plan(lay: Layout, steps: bytes, act: bytes) -> _CorrectionPlan | None:
+    return _make_correction_plan(lay, np.frombuffer(steps, dtype=int), np.frombuffer(act, dtype=int))
+
+
+def _make_correction_plan(lay, steps, act) -> _CorrectionPlan | None:
     rot = lay.step_is_rot[steps]
     anc = lay.anc[act][:, steps]
     desc = lay.desc[act][:, steps]
@@ -646,7 +566,7 @@ def _step_columns(lay: Layout, ps: _Pass, m: int, steps: np.ndarray, rows: int =
             out[tra, :, 3:] = 0.0
     if rot.any():
         U = ps.U[steps[rot]]
-        out[rot, :, :3] = _cross(U, ps.P[m][None] - ps.Q[steps[rot]])
+        out[rot, :, :3] = cross(U, ps.P[m][None] - ps.Q[steps[rot]])
         if rows == 6:
             out[rot, :, 3:] = U
     if tra.any():
@@ -654,7 +574,7 @@ def _step_columns(lay: Layout, ps: _Pass, m: int, steps: np.ndarray, rows: int =
     return out
 
 
-@dataclass(frozen=True)
+@dataclass
 class _State:
     """One evaluation at parameters p: the kinematic pass and, with compliance, the moments."""
 
@@ -670,26 +590,26 @@ class _State:
     cache: dict = field(default_factory=dict)   # what the Jacobian derives from this state
 
 
-def _evaluate_state(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray, *, compliance: bool,
+def evaluate_state(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray, *, compliance: bool,
                     orientations: bool, payload_mass=None) -> _State:
     ks = p[lay.compliant_params]
     if not compliance:
-        return _State(ps=_kinematic_pass(model, lay, p, qf, orientations=orientations), compliance=False, ks=ks)
+        return _State(ps=kinematic_pass(model, lay, p, qf, orientations=orientations), compliance=False, ks=ks)
     deflects = bool(np.any(ks != 0.0))
     # with every compliance zero the deflected chain is the undeformed one: one pass serves both
-    ps0 = _kinematic_pass(model, lay, p, qf, orientations=orientations and not deflects, frames_only=deflects)
+    ps0 = kinematic_pass(model, lay, p, qf, orientations=orientations and not deflects, frames_only=deflects)
     C1, msub = _mass_sums(model, lay, ps0, payload_mass)
     M, A, u = _moments(model, ps0, C1, msub)
     if not deflects:
         return _State(ps=ps0, compliance=True, ks=ks, ps0=ps0, C1=C1, msub=msub, M=M, A=A, u=u)
     # a zero compliance deflects nothing: a scalar keeps that frame's constant part constant
     defl = [k * Mk if k else 0.0 for k, Mk in zip(ks, M)]
-    ps = _kinematic_pass(model, lay, p, qf, defl=[tuple(defl[3 * i:3 * i + 3]) for i in range(model.n_frames)],
+    ps = kinematic_pass(model, lay, p, qf, defl=[tuple(defl[3 * i:3 * i + 3]) for i in range(model.n_frames)],
                          orientations=orientations)
     return _State(ps=ps, compliance=True, ks=ks, ps0=ps0, C1=C1, msub=msub, M=M, A=A, u=u)
 
 
-def _jacobian_columns(model: RobotModel, lay: Layout, st: _State, cols_idx: np.ndarray, m: int,
+def jacobian_columns(model: RobotModel, lay: Layout, st: _State, cols_idx: np.ndarray, m: int,
                       rows: int = 6) -> np.ndarray:
     """(len(cols_idx), N, rows) Jacobian columns of marker m for the parameters ``cols_idx``."""
     step_of = lay.param_step[cols_idx]
@@ -754,13 +674,13 @@ def evaluate(model: RobotModel, q: np.ndarray, p: np.ndarray | None = None, *, j
     if compliance is None:
         compliance = bool(np.any(p[lay.compliant_params] != 0.0))
     need_or = orientations or jacobian
-    st = _evaluate_state(model, lay, p, qf, compliance=compliance, orientations=need_or, payload_mass=payload_mass)
+    st = evaluate_state(model, lay, p, qf, compliance=compliance, orientations=need_or, payload_mass=payload_mass)
     ps = st.ps
     rotations = np.stack(ps.RM, axis=1) if need_or and ps.RM else None
     J = None
     if jacobian:
         cols_idx = np.arange(lay.n_params) if columns is None else np.asarray(columns, dtype=int)
-        J = np.stack([_jacobian_columns(model, lay, st, cols_idx, m).transpose(1, 2, 0)
+        J = np.stack([jacobian_columns(model, lay, st, cols_idx, m).transpose(1, 2, 0)
                       for m in range(len(model.markers))], axis=1)
     frames_out = None
     if frames:
@@ -787,7 +707,7 @@ def gravity_loads(model: RobotModel, q, *, payload_mass=None) -> np.ndarray:
         raise ValueError(f"q must have {model.n_joints} columns, got {q.shape[1]}")
     p = parameter_vector(model)
     p[lay.compliant_params] = 0.0
-    st = _evaluate_state(model, lay, p, q @ model.coupling_matrix.T, compliance=True, orientations=False,
+    st = evaluate_state(model, lay, p, q @ model.coupling_matrix.T, compliance=True, orientations=False,
                          payload_mass=payload_mass)
     g = np.asarray(model.gravity, dtype=float)
     loads = np.zeros((q.shape[0], model.n_frames))

@@ -20,21 +20,15 @@ Conventions (see docs/conventions.md):
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from typing import Sequence
 
 import numpy as np
 
 from ._errors import InputError
+from ._spatial import rot4, trans4
 
 JOINT_TYPES = ("revolute", "prismatic", "fixed")
-GEOMETRIC_KINDS = ("gamma", "b", "beta", "alpha", "d", "theta", "r")
-COMPLIANCE_KINDS = ("k_theta", "k_alpha", "k_beta")
-FRAME_KINDS = GEOMETRIC_KINDS + COMPLIANCE_KINDS
-BASE_KINDS = ("x", "y", "z", "rx", "ry", "rz")
-MARKER_KINDS = ("x", "y", "z", "rx", "ry", "rz")
-ANGLE_KINDS = frozenset({"gamma", "beta", "alpha", "theta", "rx", "ry", "rz"})
-
 DEFAULT_PARALLEL_TOL = np.deg2rad(1.0)
 
 
@@ -156,6 +150,15 @@ class RobotModel:
         return np.array([hi for _, hi in self.joint_limits], dtype=float)
 
     @property
+    def reading_quantities(self) -> tuple[str, ...]:
+        """Per joint reading, "length" when it drives a prismatic frame, else "angle" (its unit's kind)."""
+        out = []
+        for j in range(self.n_joints):
+            drives = [f.joint for f in self.frames if any(k == j for k, _ in f.coupling)]
+            out.append("length" if drives and drives[0] == "prismatic" else "angle")
+        return tuple(out)
+
+    @property
     def has_masses(self) -> bool:
         return any(f.mass > 0 for f in self.frames) or self.payload.mass > 0
 
@@ -171,6 +174,10 @@ class RobotModel:
 
     def replace(self, **changes) -> "RobotModel":
         return replace(self, **changes)
+
+
+# every number a frame holds (geometry, mass, compliance) must be finite
+_FRAME_NUMBERS = tuple(f.name for f in fields(Frame) if f.type == "float")
 
 
 def _validate(model: RobotModel) -> None:
@@ -203,7 +210,7 @@ def _validate(model: RobotModel) -> None:
                 raise InputError(f"coupling refers to joint {j}, which does not exist", where=where)
         if f.mass < 0 or not np.isfinite(f.mass):
             raise InputError(f"mass must be a non-negative number, got {f.mass}", where=where)
-        for k in GEOMETRIC_KINDS + COMPLIANCE_KINDS:
+        for k in _FRAME_NUMBERS:
             if not np.isfinite(getattr(f, k)):
                 raise InputError(f"{k} is not a finite number", where=where)
     if model.payload.mass < 0:
@@ -229,6 +236,30 @@ def _check_rotation(R, where: str) -> None:
         raise InputError("expected a 3x3 rotation", where=where)
     if np.abs(R @ R.T - np.eye(3)).max() > 1e-6 or np.linalg.det(R) < 0:
         raise InputError("not a proper rotation matrix", where=where)
+
+
+def mdh_transform(frame: Frame, q: float = 0.0) -> np.ndarray:
+    """``X_pj``, the 4x4 placement of one frame in its parent at joint variable ``q`` (rad or m).
+
+    The reference form of the engine's transform (docs/method.md section 1)::
+
+        X_pj = Rot(z, gamma) Trans(z, b) Rot(y, beta) Rot(x, alpha) Trans(x, d) Rot(z, theta) Trans(z, r)
+
+    with ``q`` added to theta (revolute) or r (prismatic); compliance is not applied. With
+    gamma = b = beta = 0 it is the usual modified-DH matrix: a frame turned by theta = 90 deg
+    about z, then lifted by r = 0.2 m, after alpha = 90 deg and d = 0.5 m:
+
+    >>> X = mdh_transform(Frame("j2", alpha=np.pi / 2, d=0.5, r=0.2), q=np.pi / 2)
+    >>> X.round(12) + 0.0
+    array([[ 0. , -1. ,  0. ,  0.5],
+           [ 0. ,  0. , -1. , -0.2],
+           [ 1. ,  0. ,  0. ,  0. ],
+           [ 0. ,  0. ,  0. ,  1. ]])
+    """
+    th = frame.theta + (q if frame.joint == "revolute" else 0.0)
+    r = frame.r + (q if frame.joint == "prismatic" else 0.0)
+    return (rot4(2, frame.gamma) @ trans4(2, frame.b) @ rot4(1, frame.beta) @ rot4(0, frame.alpha)
+            @ trans4(0, frame.d) @ rot4(2, th) @ trans4(2, r))
 
 
 def parallel_beta_frames(frames: Sequence[Frame], tol: float = DEFAULT_PARALLEL_TOL) -> tuple[bool, ...]:

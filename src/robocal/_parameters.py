@@ -1,20 +1,181 @@
-"""Which parameters to consider: families, explicit names, and the preference order.
+"""Parameters: every identifiable quantity of a model, named, typed and placed once.
 
-The preference order decides which of a dependent group is kept: earlier wins. It follows the
-paper and the habit of tracker users: the base first (so it absorbs what frame 1 cannot show),
-then the markers, then frames from the base outwards (beta, alpha, d, theta, r within a frame, so
-r of the second of two parallel axes is the one eliminated), then compliances.
+The full parameter vector of a model is, in order: the base pose (``base.x`` ... ``base.rz``),
+each frame's kinds (``<frame>.gamma`` ... ``<frame>.k_beta``), each marker's kinds
+(``<marker>.x`` ... ``<marker>.rz``). ``parameter_layout`` gives a record per entry (name, owner,
+kind, quantity, SI unit, family, index); every other module asks it rather than reading names.
+
+Rotation kinds of the base and the markers (rx, ry, rz) are small corrections about the stored
+rotation: zero in any stored model (docs/method.md section 1).
+
+The preference order of ``candidate_parameters`` decides which of a dependent group is kept
+(earlier wins). It follows the paper and the habit of tracker users: the base first (so it absorbs
+what frame 1 cannot show), then the markers, then frames from the base outwards (beta, alpha, d,
+theta, r within a frame, so r of the second of two parallel axes is the one eliminated), then
+compliances.
 """
 
 from __future__ import annotations
 
+import types
+from dataclasses import dataclass, replace
+from functools import lru_cache
 from typing import Iterable
 
-from ._errors import InputError
-from ._kinematics import layout
-from ._model import ANGLE_KINDS, RobotModel
+import numpy as np
 
+from ._errors import InputError
+from ._model import RobotModel
+from ._spatial import matrix_tuple, small_rotation, xyz_angles
+
+BASE_KINDS = ("x", "y", "z", "rx", "ry", "rz")
+GEOMETRIC_KINDS = ("gamma", "b", "beta", "alpha", "d", "theta", "r")
+COMPLIANCE_KINDS = ("k_theta", "k_alpha", "k_beta")
+FRAME_KINDS = GEOMETRIC_KINDS + COMPLIANCE_KINDS
+MARKER_KINDS = ("x", "y", "z", "rx", "ry", "rz")
+
+# the one table of kinds: the quantity each one measures, and the SI unit of each quantity
+KIND_QUANTITY = types.MappingProxyType({
+    "x": "length", "y": "length", "z": "length", "rx": "angle", "ry": "angle", "rz": "angle",
+    "gamma": "angle", "b": "length", "beta": "angle", "alpha": "angle", "d": "length", "theta": "angle",
+    "r": "length", "k_theta": "compliance", "k_alpha": "compliance", "k_beta": "compliance",
+})
+SI_UNITS = types.MappingProxyType({"length": "m", "angle": "rad", "compliance": "rad/(N m)"})
+
+# families a user names; "geometric" is base + markers + frames
 FAMILIES = ("geometric", "compliance", "base", "markers", "frames")
+ROLES = ("base", "frame", "marker")
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One entry of the full parameter vector.
+
+    ``owner`` is ``"base"``, a frame name or a marker name; ``role`` says which of the three;
+    ``index`` is the position in ``parameter_vector``.
+    """
+
+    name: str
+    owner: str
+    role: str
+    kind: str
+    index: int
+
+    @property
+    def quantity(self) -> str:
+        """"length", "angle" or "compliance"."""
+        return KIND_QUANTITY[self.kind]
+
+    @property
+    def unit(self) -> str:
+        """The SI unit: m, rad or rad/(N m)."""
+        return SI_UNITS[self.quantity]
+
+    @property
+    def family(self) -> str:
+        """"base", "markers", "frames" (geometric kinds of a frame) or "compliance"."""
+        if self.role == "frame":
+            return "compliance" if self.kind in COMPLIANCE_KINDS else "frames"
+        return "base" if self.role == "base" else "markers"
+
+
+@dataclass(frozen=True, eq=False)
+class ParameterLayout:
+    """The parameters of one model, in vector order, with lookups by name.
+
+    ``frame0`` (n_frames,) and ``marker0`` (n_markers,) give the index of each frame's and each
+    marker's first parameter.
+    """
+
+    parameters: tuple[Parameter, ...]
+    frame0: np.ndarray
+    marker0: np.ndarray
+    by_name: types.MappingProxyType
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.parameters)
+
+    @property
+    def n_params(self) -> int:
+        return len(self.parameters)
+
+    def __getitem__(self, name: str) -> Parameter:
+        return self.by_name[name]
+
+    def __contains__(self, name) -> bool:
+        return name in self.by_name
+
+    def indices(self, names: Iterable[str]) -> np.ndarray:
+        """Vector indices of ``names`` (KeyError for an unknown name)."""
+        return np.array([self.by_name[n].index for n in names], dtype=int)
+
+    def of_quantity(self, quantity: str) -> np.ndarray:
+        """(n_params,) bool: the parameters measuring ``quantity``."""
+        return np.array([p.quantity == quantity for p in self.parameters])
+
+
+@lru_cache(maxsize=64)
+def parameter_layout(model: RobotModel) -> ParameterLayout:
+    """The parameter records of ``model`` (cached per model)."""
+    params: list[Parameter] = []
+
+    def add(owner, role, kinds):
+        first = len(params)
+        params.extend(Parameter(f"{owner}.{k}", owner, role, k, first + i) for i, k in enumerate(kinds))
+        return first
+
+    add("base", "base", BASE_KINDS)
+    frame0 = [add(f.name, "frame", FRAME_KINDS) for f in model.frames]
+    marker0 = [add(m.name, "marker", MARKER_KINDS) for m in model.markers]
+    return ParameterLayout(parameters=tuple(params), frame0=np.array(frame0, dtype=int),
+                           marker0=np.array(marker0, dtype=int),
+                           by_name=types.MappingProxyType({p.name: p for p in params}))
+
+
+def parameter_names(model: RobotModel) -> tuple[str, ...]:
+    """Names of the full parameter vector: ``base.x``..., ``<frame>.<kind>``, ``<marker>.<kind>``."""
+    return parameter_layout(model).names
+
+
+def parameter_vector(model: RobotModel, reference: RobotModel | None = None) -> np.ndarray:
+    """The model's values in the layout of ``parameter_names`` (SI).
+
+    Rotation corrections (base and marker rx, ry, rz) are 0 for the model itself; with a
+    ``reference`` of the same structure they are the corrections that turn the reference's stored
+    rotations into this model's (R = R_ref Rot(x, rx) Rot(y, ry) Rot(z, rz)), so that
+    ``model_from_vector(reference, parameter_vector(model, reference))`` is ``model``.
+    """
+    lay = parameter_layout(model)
+    p = np.zeros(lay.n_params)
+    p[0:3] = model.base_position
+    for i, f in enumerate(model.frames):
+        p[lay.frame0[i]:lay.frame0[i] + len(FRAME_KINDS)] = [getattr(f, k) for k in FRAME_KINDS]
+    for m, mk in enumerate(model.markers):
+        p[lay.marker0[m]:lay.marker0[m] + 3] = mk.position
+    if reference is not None:
+        p[3:6] = xyz_angles(np.asarray(reference.base_rotation).T @ np.asarray(model.base_rotation))
+        for m, (mk, mr) in enumerate(zip(model.markers, reference.markers)):
+            p[lay.marker0[m] + 3:lay.marker0[m] + 6] = xyz_angles(np.asarray(mr.rotation).T @ np.asarray(mk.rotation))
+    return p
+
+
+def model_from_vector(model: RobotModel, p: np.ndarray) -> RobotModel:
+    """A new model holding the values ``p`` (rotation corrections composed into stored rotations)."""
+    lay = parameter_layout(model)
+    p = np.asarray(p, dtype=float)
+    Rb = np.asarray(model.base_rotation) @ small_rotation(*p[3:6])
+    frames = tuple(
+        replace(f, **{k: float(p[lay.frame0[i] + j]) for j, k in enumerate(FRAME_KINDS)})
+        for i, f in enumerate(model.frames)
+    )
+    markers = []
+    for m, mk in enumerate(model.markers):
+        q = p[lay.marker0[m]:lay.marker0[m] + len(MARKER_KINDS)]
+        R = np.asarray(mk.rotation) @ small_rotation(*q[3:6])
+        markers.append(replace(mk, position=tuple(float(v) for v in q[:3]), rotation=matrix_tuple(R)))
+    return model.replace(base_position=tuple(float(v) for v in p[0:3]), base_rotation=matrix_tuple(Rb),
+                         frames=frames, markers=tuple(markers))
 
 
 def _frame_geometric(model: RobotModel, i: int) -> list[str]:
@@ -29,6 +190,20 @@ def _frame_geometric(model: RobotModel, i: int) -> list[str]:
     return [f"{f.name}.{k}" for k in kinds]
 
 
+def families(model: RobotModel, *, orientation: bool = False) -> dict[str, list[str]]:
+    """The names each family stands for, in preference order.
+
+    ``orientation``: the data hold orientations, so marker rotations belong to ``markers``.
+    """
+    base = [f"base.{k}" for k in BASE_KINDS]
+    marker_kinds = MARKER_KINDS if orientation else MARKER_KINDS[:3]
+    markers = [f"{mk.name}.{k}" for mk in model.markers for k in marker_kinds]
+    frames = [n for i in range(model.n_frames) for n in _frame_geometric(model, i)]
+    compliance = [f"{f.name}.{k}" for f in model.frames for k in COMPLIANCE_KINDS]
+    return {"base": base, "markers": markers, "frames": frames, "geometric": base + markers + frames,
+            "compliance": compliance}
+
+
 def candidate_parameters(model: RobotModel, parameters: Iterable[str] = ("geometric",), *,
                          orientation: bool = False, known: Iterable[str] = ()) -> tuple[str, ...]:
     """Parameter names to consider, in preference order.
@@ -38,28 +213,15 @@ def candidate_parameters(model: RobotModel, parameters: Iterable[str] = ("geomet
     ``orientation``: the data hold orientations, so marker rotations are candidates too.
     ``known``: families or names to hold fixed at their model values (e.g. ``("base",)``).
     """
-    if isinstance(parameters, str):
-        parameters = (parameters,)
-    if isinstance(known, str):
-        known = (known,)
-    all_names = set(layout(model).names)
-    base = [f"base.{k}" for k in ("x", "y", "z", "rx", "ry", "rz")]
-    markers = []
-    for mk in model.markers:
-        markers += [f"{mk.name}.{k}" for k in ("x", "y", "z")]
-        if orientation:
-            markers += [f"{mk.name}.{k}" for k in ("rx", "ry", "rz")]
-    frames = [n for i in range(model.n_frames) for n in _frame_geometric(model, i)]
-    compliance = [f"{f.name}.{k}" for f in model.frames for k in ("k_theta", "k_alpha", "k_beta")]
-    fam = {"base": base, "markers": markers, "frames": frames, "geometric": base + markers + frames,
-           "compliance": compliance}
+    lay = parameter_layout(model)
+    fam = families(model, orientation=orientation)
 
     def expand(items, what):
         out = []
-        for item in items:
+        for item in (items,) if isinstance(items, str) else items:
             if item in fam:
                 out += fam[item]
-            elif item in all_names:
+            elif item in lay:
                 out.append(item)
             else:
                 raise InputError(f"unknown parameter or family {item!r}; families are {', '.join(FAMILIES)} "
@@ -68,21 +230,15 @@ def candidate_parameters(model: RobotModel, parameters: Iterable[str] = ("geomet
 
     chosen = set(expand(parameters, "parameters"))
     fixed = set(expand(known, "known"))
-    if any(n.endswith(("k_theta", "k_alpha", "k_beta")) for n in chosen) and not model.has_masses:
+    if any(lay[n].family == "compliance" for n in chosen) and not model.has_masses:
         raise InputError("compliance parameters need link masses (or a payload); the model has none",
                          where="parameters")
-    order = base + markers + frames + compliance
+    order = fam["geometric"] + fam["compliance"]
     extra = [n for n in chosen if n not in order]  # explicit names outside the default families
     return tuple(n for n in order + sorted(extra) if n in chosen and n not in fixed)
 
 
-def is_angle(name: str) -> bool:
-    """Whether a parameter is an angle (rad) rather than a length (m) or a compliance (rad/N m)."""
-    return name.rsplit(".", 1)[1] in ANGLE_KINDS
-
-
-def unit_of(name: str) -> str:
-    kind = name.rsplit(".", 1)[1]
-    if kind.startswith("k_"):
-        return "rad/(N m)"
-    return "rad" if kind in ANGLE_KINDS else "m"
+def has_compliance_parameters(model: RobotModel, names: Iterable[str]) -> bool:
+    """Whether any of ``names`` is a compliance of ``model``."""
+    lay = parameter_layout(model)
+    return any(lay[n].family == "compliance" for n in names)

@@ -6,11 +6,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._errors import DegenerateDataError, InputError
-from ._calibration import _Problem, design_measurements, identifiability, needs_compliance, random_configurations
-from ._kinematics import parameter_vector
+from ._errors import DegenerateDataError, InputError, check_choice
+from ._identifiability import identifiability
+from ._options import POSE_CRITERIA
 from ._model import RobotModel
-
+from ._parameters import parameter_vector
+from ._problem import design_problem, random_configurations
 
 
 @dataclass(frozen=True)
@@ -32,13 +33,7 @@ class PoseSelection:
     prediction_selected: float
 
 
-def _blocks(model, q, names, orientation):
-    prob = _Problem(model, design_measurements(model, q, orientation), names,
-                    compliance=needs_compliance(model, names))
-    return prob.pose_blocks(parameter_vector(model))
-
-
-CRITERIA = ("I", "D")
+CRITERIA = POSE_CRITERIA
 
 
 def select_poses(model: RobotModel, n: int, *, candidates=None, n_candidates: int = 2000, parameters=("geometric",),
@@ -53,15 +48,14 @@ def select_poses(model: RobotModel, n: int, *, candidates=None, n_candidates: in
     start, then ``sweeps`` passes of exchanges. ``candidates``: joint readings to choose from,
     default ``n_candidates`` drawn within the joint limits.
     """
-    if criterion not in CRITERIA:
-        raise InputError(f"criterion must be one of {', '.join(CRITERIA)}, got {criterion!r}", where="criterion")
+    check_choice(criterion, CRITERIA, "criterion")
     rng = np.random.default_rng(rng)
     q = random_configurations(model, n_candidates, rng) if candidates is None else np.atleast_2d(candidates)
     if n > len(q):
         raise InputError(f"cannot choose {n} poses from {len(q)} candidates", where="n")
     names = identifiability(model, None, parameters=parameters, known=known, orientation=orientation,
                             rng=rng).identified
-    B = _blocks(model, q, names, orientation)                         # (n_cand, rows, k)
+    B = design_problem(model, q, names, orientation).pose_blocks(parameter_vector(model))  # (n_cand, rows, k)
     k = B.shape[2]
     if n * B.shape[1] <= k:
         raise DegenerateDataError(f"{n} poses give {n * B.shape[1]} equations for {k} identifiable parameters")

@@ -8,11 +8,12 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ._identifiability import identifiability
+from ._kinematics import evaluate
 from ._measurements import Measurements
-from ._calibration import identifiability, random_configurations
-from ._kinematics import evaluate, layout, model_from_vector, parameter_vector
 from ._model import RobotModel
-from ._parameters import is_angle
+from ._parameters import model_from_vector, parameter_layout, parameter_vector
+from ._problem import random_configurations
 
 
 def _signed_uniform(rng, lo, hi, n):
@@ -28,20 +29,14 @@ def perturb_model(model: RobotModel, names, *, length_error=(1e-4, 1e-3), angle_
     random sign. Compliance parameters need ``compliance_error`` (else they are left alone).
     """
     rng = np.random.default_rng(rng)
-    lay = layout(model)
+    lay = parameter_layout(model)
     p = parameter_vector(model)
-    index = {n: i for i, n in enumerate(lay.names)}
+    ranges = {"length": length_error, "angle": angle_error, "compliance": compliance_error}
     for n in names:
-        kind = n.rsplit(".", 1)[1]
-        if kind.startswith("k_"):
-            if compliance_error is None:
-                continue
-            lo, hi = compliance_error
-        elif is_angle(n):
-            lo, hi = angle_error
-        else:
-            lo, hi = length_error
-        p[index[n]] += _signed_uniform(rng, lo, hi, 1)[0]
+        bounds = ranges[lay[n].quantity]
+        if bounds is None:
+            continue
+        p[lay[n].index] += _signed_uniform(rng, *bounds, 1)[0]
     return model_from_vector(model, p)
 
 
@@ -83,10 +78,10 @@ def simulate(model: RobotModel, n_poses: int | None = None, *, q=None, parameter
     true = perturb_model(model, ident.identified, length_error=length_error, angle_error=angle_error,
                          compliance_error=compliance_error, rng=rng)
     if true_compliance:
-        lay = layout(true)
+        lay = parameter_layout(true)
         p = parameter_vector(true)
         for n, v in true_compliance.items():
-            p[lay.names.index(n)] = v
+            p[lay[n].index] = v
         true = model_from_vector(true, p)
     if q is None:
         if n_poses is None:

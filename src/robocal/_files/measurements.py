@@ -16,18 +16,17 @@ from dataclasses import replace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from .._errors import InputError, suggest
 from .._measurements import Measurements
-from .._errors import InputError
 from .._model import RobotModel
-from .model import (ANGLE_UNITS, LENGTH_UNITS, _suggest, check_unit, parse_units, read_text,
-                         write_texts)
+from .._units import ANGLE_UNITS, LENGTH_UNITS, UNITS, check_unit, parse_units
+from .text import read_text, write_texts
 
 RESERVED = ("pose", "set", "payload_kg")
 POSITION = ("x", "y", "z")
 ORIENTATION_PARTS = {"quat": ("qx", "qy", "qz", "qw"), "rpy": ("roll", "pitch", "yaw"), "euler": ("e1", "e2", "e3")}
 # longest first, so "sigma_rot" is not read as "sigma" plus a unit
 PARTS = ("sigma_rot", "sigma") + POSITION + sum(ORIENTATION_PARTS.values(), ())
-UNIT_OF = {"length": LENGTH_UNITS, "angle": ANGLE_UNITS}
 _MARKER_COLUMN = re.compile(r"^(?P<m>.+?)_(?P<part>x|y|z)(?:_(?P<unit>[A-Za-z]+))?$")
 _NUMBER = re.compile(r"^[+-]?(\d+(\.\d*)?|\.\d+)([eE][+-]?\d+)?$")
 _NOT_FINITE = re.compile(r"^[+-]?(nan|inf|infinity)$", re.IGNORECASE)
@@ -69,7 +68,7 @@ class _Columns:
                 raise InputError(f"column {c!r} appears twice", source=source, where=where)
         if model is not None:
             joint_names = list(model.joint_names)
-            kinds = [_joint_kind(model, j) for j in range(model.n_joints)]
+            kinds = list(model.reading_quantities)
             marker_names = list(model.marker_names)
         else:
             marker_names = []
@@ -99,7 +98,7 @@ class _Columns:
                 valid = list(RESERVED) + joint_names + [f"{m}_{p}" for m in marker_names for p in POSITION]
                 known = f"; the model has joints {', '.join(joint_names)} and markers {', '.join(marker_names)}" \
                     if model is not None else ""
-                raise InputError(f"unknown column {c!r}{_suggest(c, valid)}{known}", source=source, where=where)
+                raise InputError(f"unknown column {c!r}{suggest(c, valid)}{known}", source=source, where=where)
         missing = [j for j in joint_names if j not in self.joint_cols]
         if missing:
             have = len(self.joint_cols)
@@ -124,7 +123,7 @@ class _Columns:
             if c in RESERVED or _marker_part(c, marker_names)[0] is not None:
                 continue
             base, _, unit = c.rpartition("_")
-            kind = next((k for k, units in UNIT_OF.items() if unit in units), None)
+            kind = next((k for k, units in UNITS.items() if unit in units), None)
             if not base or kind is None:
                 raise InputError(f"column {c!r}: without a model a joint column must carry its unit "
                                  f"({c}_deg, {c}_rad, {c}_mm or {c}_m), since the joint type is unknown; "
@@ -144,12 +143,7 @@ class _Columns:
                     f"no {kind} unit declared for this column: name it {column}_{example}, put "
                     f"'# units: length=mm angle=deg' before the header, or pass units='mm-deg' "
                     f"(--units mm-deg on the command line)", source=self.source, where=where)
-        if unit not in UNIT_OF[kind]:
-            other = "angle" if kind == "length" else "length"
-            hint = f" (that is an {other} unit)" if unit in UNIT_OF[other] else ""
-            raise InputError(f"unknown {kind} unit {unit!r}{hint}; use one of {', '.join(UNIT_OF[kind])}",
-                             source=self.source, where=where)
-        return UNIT_OF[kind][unit]
+        return UNITS[kind][check_unit(unit, kind, source=self.source, where=where)]
 
     def _part_scale(self, column: str, part: str, unit: str | None) -> float:
         if part in ORIENTATION_PARTS["quat"]:
@@ -207,12 +201,6 @@ def _split_part(rest: str):
     return None, None
 
 
-def _joint_kind(model: RobotModel, j: int) -> str:
-    """"length" if reading ``j`` drives a prismatic frame, else "angle"."""
-    drives = [f.joint for f in model.frames if any(k == j for k, _ in f.coupling)]
-    return "length" if drives and drives[0] == "prismatic" else "angle"
-
-
 def _directive(text: str, name: str) -> str | None:
     body = text.lstrip("#").strip()
     if body.lower().startswith(name + ":"):
@@ -225,7 +213,7 @@ def _comment_units(text: str, source: str, line: int) -> dict:
     out = {}
     for item in text.replace(",", " ").split():
         key, sep, unit = item.partition("=")
-        if not sep or key not in UNIT_OF:
+        if not sep or key not in UNITS:
             raise InputError(f"expected '# units: length=mm angle=deg', got {item!r}", source=source, where=where)
         out[key] = check_unit(unit, key, source=source, where=f"{where}, units.{key}")
     return out
@@ -423,8 +411,8 @@ def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, 
     rot_unit = "" if kind == "quat" else f"_{au}"      # a quaternion component has no unit
     L, A = LENGTH_UNITS[lu], ANGLE_UNITS[au]
     if model is not None:
-        kinds = [_joint_kind(model, model.joint_names.index(jn)) for jn in data.joint_names] if data.joint_names \
-            else [_joint_kind(model, j) for j in range(model.n_joints)]
+        kinds = [model.reading_quantities[model.joint_names.index(jn)] for jn in data.joint_names] \
+            if data.joint_names else list(model.reading_quantities)
         joint_names = data.joint_names or model.joint_names
     else:
         kinds = data.extra.get("joint_kinds")

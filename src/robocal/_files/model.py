@@ -7,9 +7,6 @@ always rad/(N m) and gravity m/s^2.
 
 from __future__ import annotations
 
-import difflib
-import hashlib
-import os
 import re
 from dataclasses import replace
 from pathlib import Path
@@ -18,16 +15,17 @@ import numpy as np
 import yaml
 from scipy.spatial.transform import Rotation
 
-from .._errors import InputError
+from .._errors import InputError, suggest
+from .._units import ANGLE_UNITS, LENGTH_UNITS, check_unit, parse_units
+from .text import read_text, write_texts
+from .._parameters import KIND_QUANTITY
 from .._model import (DEFAULT_PARALLEL_TOL, JOINT_TYPES, Frame, Marker, Payload, RobotModel,
                      parallel_beta_frames)
 
 FORMAT_VERSION = 1
-LENGTH_UNITS = {"m": 1.0, "mm": 1e-3}
-ANGLE_UNITS = {"rad": 1.0, "deg": np.pi / 180.0}
-# the file key is the frame's attribute; "length"/"angle" says which unit scales it
-FRAME_VALUES = {"beta": "angle", "alpha": "angle", "d": "length", "theta": "angle", "r": "length",
-                "gamma": "angle", "b": "length", "mass": None, "k_theta": None, "k_alpha": None, "k_beta": None}
+# the file key is the frame's attribute; its quantity says which unit scales it
+FRAME_VALUES = {k: KIND_QUANTITY[k] for k in ("beta", "alpha", "d", "theta", "r", "gamma", "b")}
+FRAME_VALUES.update({"mass": None, "k_theta": None, "k_alpha": None, "k_beta": None})
 FRAME_KEYS = ("name", "joint", "reading", "coupling", "parent", "has_beta", "com") + tuple(FRAME_VALUES)
 TOP_KEYS = ("robocal_model", "name", "description", "units", "base", "gravity", "joints", "frames",
             "markers", "payload")
@@ -35,29 +33,6 @@ IDENTITY = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
 # base.* names the base pose parameters, so no frame or marker may be called "base"
 RESERVED_NAMES = ("base",)
 _NUMBER = re.compile(r"^[+-]?(\d+(\.\d*)?|\.\d+)([eE][+-]?\d+)?$")
-
-
-def parse_units(text: str, *, source: str | None = None, where: str | None = "units") -> tuple[str, str]:
-    """``"mm-deg"`` -> ``("mm", "deg")``; an InputError naming the allowed units otherwise."""
-    parts = str(text).strip().split("-")
-    if len(parts) != 2:
-        raise InputError(f"units must look like 'mm-deg' (length-angle), got {text!r}", source=source, where=where)
-    length, angle = parts
-    check_unit(length, "length", source=source, where=where)
-    check_unit(angle, "angle", source=source, where=where)
-    return length, angle
-
-
-def check_unit(unit: str, kind: str, *, source: str | None = None, where: str | None = None) -> str:
-    allowed = LENGTH_UNITS if kind == "length" else ANGLE_UNITS
-    if unit not in allowed:
-        raise InputError(f"unknown {kind} unit {unit!r}; use one of {', '.join(allowed)}", source=source, where=where)
-    return unit
-
-
-def _suggest(word: str, options) -> str:
-    close = difflib.get_close_matches(str(word), [str(o) for o in options], n=1)
-    return f"; did you mean {close[0]!r}?" if close else f"; expected one of {', '.join(map(str, options))}"
 
 
 class _Reader:
@@ -74,7 +49,7 @@ class _Reader:
             raise self.error(where, f"expected a mapping (key: value), got {_show(value)}")
         for key in value:
             if key not in allowed:
-                raise self.error(_join(where, key), f"unknown key {key!r}{_suggest(key, allowed)}")
+                raise self.error(_join(where, key), f"unknown key {key!r}{suggest(key, allowed)}")
         for key in required:
             if key not in value:
                 raise self.error(_join(where, key), f"missing required key {key!r}")
@@ -267,7 +242,7 @@ def _pair(rd: _Reader, raw, where: str) -> list:
 
 def _frame_ref(rd: _Reader, value, where: str, frame_names: list[str]) -> int:
     if value not in frame_names:
-        raise rd.error(where, f"unknown frame {_show(value)}{_suggest(value, frame_names)}")
+        raise rd.error(where, f"unknown frame {_show(value)}{suggest(value, frame_names)}")
     return frame_names.index(value)
 
 
@@ -278,7 +253,7 @@ def _parent(rd: _Reader, value, where: str, i: int, earlier: list[str]) -> int:
         return -1
     if value not in earlier:
         raise rd.error(where, f"parent {_show(value)} is not a frame defined before this one"
-                              f"{_suggest(value, earlier + ['base'])}")
+                              f"{suggest(value, earlier + ['base'])}")
     return earlier.index(value)
 
 
@@ -299,7 +274,7 @@ def _coupling(rd: _Reader, item: dict, where: str, fname: str, joint: str, joint
     if "reading" in item:
         jn = item["reading"]
         if jn not in joint_names:
-            raise rd.error(f"{where}.reading", f"unknown joint {_show(jn)}{_suggest(jn, joint_names)}")
+            raise rd.error(f"{where}.reading", f"unknown joint {_show(jn)}{suggest(jn, joint_names)}")
         return ((joint_names.index(jn), 1.0),)
     if fname in joint_names:
         return ((joint_names.index(fname), 1.0),)
@@ -314,23 +289,6 @@ def _yaml_error(e: yaml.YAMLError) -> tuple[str | None, str]:
     mark = getattr(e, "problem_mark", None)
     problem = getattr(e, "problem", None) or str(e)
     return f"line {mark.line + 1}, column {mark.column + 1}" if mark else None, f"not valid YAML: {problem}"
-
-
-def read_text(path) -> tuple[str, str]:
-    """The file's text (UTF-8, a BOM allowed) and the SHA-256 of its bytes; a missing or unreadable
-    file is an InputError."""
-    try:
-        with open(path, "rb") as fh:
-            raw = fh.read()
-    except FileNotFoundError:
-        raise InputError("file not found", source=str(path)) from None
-    except OSError as e:
-        raise InputError(f"cannot read: {e.strerror}", source=str(path)) from None
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError as e:
-        raise InputError(f"not UTF-8 text ({e.reason} at byte {e.start})", source=str(path)) from None
-    return text, hashlib.sha256(raw).hexdigest()
 
 
 def read_model(path) -> RobotModel:
@@ -385,8 +343,7 @@ def model_to_dict(model: RobotModel, *, units: str = "mm-deg") -> dict:
         frames.append(row)
     joints = []
     for j, jn in enumerate(model.joint_names):
-        drives = [f.joint for f in model.frames if any(k == j for k, _ in f.coupling)]
-        s = scale["length"] if drives and drives[0] == "prismatic" else scale["angle"]
+        s = scale[model.reading_quantities[j]]
         joints.append({"name": jn, "limits": vec(model.joint_limits[j], s)})
     markers = []
     for mk in model.markers:
@@ -422,29 +379,3 @@ def write_model(model: RobotModel, path, *, units: str = "mm-deg", force: bool =
     An existing file is an InputError unless ``force``.
     """
     write_texts({path: model_to_yaml(model, units=units)}, force=force)
-
-
-def write_texts(files: dict, *, force: bool = False) -> None:
-    """Write several text files all-or-nothing: refuse if any exists (unless ``force``), write
-    each to a temporary name in its own directory, and rename only once every write succeeded.
-
-    The rename is atomic per file (``os.replace``), so a reader never sees half a file.
-    """
-    paths = [Path(p) for p in files]
-    if not force:
-        for p in paths:
-            if p.exists():
-                raise InputError("exists; pass force=True (--force) to overwrite", source=str(p))
-    staged = []
-    try:
-        for p, text in zip(paths, files.values()):
-            tmp = p.with_name(f".{p.name}.{os.getpid()}.tmp")
-            staged.append((tmp, p))
-            with open(tmp, "w", encoding="utf-8", newline="") as fh:
-                fh.write(text)
-        for tmp, p in staged:
-            os.replace(tmp, p)
-    finally:
-        for tmp, _ in staged:
-            if tmp.exists():
-                tmp.unlink()

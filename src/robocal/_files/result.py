@@ -1,4 +1,10 @@
-"""The result file (JSON): ``CalibrationResult.to_dict()`` with its schema version (docs/formats.md)."""
+"""Result files (JSON): calibration results and accuracy limits, with their schema versions.
+
+``result_to_dict`` / ``result_from_dict`` are the only translation between a ``CalibrationResult``
+and its file form (docs/formats.md); reading checks the whole document against the schema before
+anything uses it and gives back the typed record. Values are SI; NaN and infinities are stored
+as null (strict JSON has neither).
+"""
 
 from __future__ import annotations
 
@@ -7,20 +13,26 @@ import math
 
 import numpy as np
 
-from .._errors import InputError
-from .model import read_text, write_texts
+from .._accuracy_limit import AccuracyLimit, PoseRepeatability, PrecisionResult, RepeatabilityResult
+from .._calibration import CalibrationResult, ErrorStats, ErrorSummary, LimitJudgement, ParameterEstimate
+from .._errors import InputError, excerpt
+from .._identifiability import Absorption, IdentifiabilityResult, status_table
+from .model import model_from_dict, model_to_dict
+from .text import read_text, write_texts
 
-SCHEMAS = ("robocal.result/1",)
+SCHEMA = "robocal.result/1"
+SCHEMAS = (SCHEMA,)
+LIMIT_SCHEMA = "robocal.limit/1"
 
 
-def _plain(obj):
-    """JSON-ready copy: numpy types to Python, NaN and infinities to null (strict JSON has neither)."""
+def plain(obj):
+    """JSON-ready copy: numpy types to Python, NaN and infinities to null."""
     if isinstance(obj, dict):
-        return {str(k): _plain(v) for k, v in obj.items()}
+        return {str(k): plain(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
-        return [_plain(v) for v in obj]
+        return [plain(v) for v in obj]
     if isinstance(obj, np.ndarray):
-        return _plain(obj.tolist())
+        return plain(obj.tolist())
     if isinstance(obj, (np.bool_, bool)):
         return bool(obj)
     if isinstance(obj, (np.integer, int)):
@@ -30,28 +42,280 @@ def _plain(obj):
     return obj
 
 
-def result_to_json(result) -> str:
-    """The result file text of a CalibrationResult (or of its ``to_dict()``)."""
-    d = result if isinstance(result, dict) else result.to_dict()
-    return json.dumps(_plain(d), indent=1, allow_nan=False) + "\n"
+def to_json(d: dict) -> str:
+    """The file text of a dict of results."""
+    return json.dumps(plain(d), indent=1, allow_nan=False) + "\n"
 
 
-def write_result(result, path, *, force: bool = False) -> None:
-    """Write ``result.to_dict()`` as JSON, atomically; an existing file is an InputError unless ``force``."""
+# -- calibration results -----------------------------------------------------------------------
+
+def identifiability_to_dict(ident: IdentifiabilityResult) -> dict:
+    return {"candidates": list(ident.candidates), "identified": list(ident.identified),
+            "eliminated": [{"name": a.name, "reason": a.reason, "residual": a.residual,
+                            "absorbed_by": [{"name": n, "coefficient": c} for n, c in a.absorbers]}
+                           for a in ident.eliminated],
+            "tol": ident.tol, "rank": ident.rank, "condition_number": ident.condition_number,
+            "singular_values": list(ident.singular_values), "observability": dict(ident.observability),
+            "n_rows": ident.n_rows}
+
+
+def _stats_dict(s: ErrorStats) -> dict:
+    return {"n": s.n, "mean": s.mean, "std": s.std, "rms": s.rms, "max": s.max}
+
+
+def _array(a):
+    return None if a is None else np.where(np.isfinite(a), a, np.nan).tolist()
+
+
+def result_to_dict(result: CalibrationResult) -> dict:
+    """The file form of a calibration result (plain Python types)."""
+    lim = result.limit
+    return {
+        "schema": SCHEMA,
+        "success": result.success, "status": result.status, "message": result.message, "nfev": result.nfev,
+        "families": list(result.families), "loss": result.loss, "sigma0_m": result.sigma0,
+        "parameters": [{"name": p.name, "unit": p.unit, "nominal": p.nominal, "estimate": p.estimate,
+                        "change": p.change, "std": p.std} for p in result.parameters],
+        "correlation": result.correlation.tolist(), "covariance": result.covariance.tolist(),
+        "identifiability": identifiability_to_dict(result.identifiability),
+        "identifiability_table": status_table(result.identifiability, result.nominal_model.frame_names),
+        "stats": {k: _stats_dict(result.stats[k]) for k in ErrorSummary.KEYS},
+        "errors": {"unit": "m", "markers": list(result.nominal_model.marker_names),
+                   "fit_before": _array(result.errors_before), "fit_after": _array(result.errors_after),
+                   "validation_before": _array(result.validation_before),
+                   "validation_after": _array(result.validation_after),
+                   "fit_residual_vectors": _array(result.residual_vectors),
+                   "fit_positions": _array(result.measured_positions)},
+        "notes": list(result.notes),
+        "limit": None if lim is None else {"limit_m": lim.limit_m, "compared": lim.compared,
+                                           "mean_error_m": lim.mean_error_m, "ratio": lim.ratio,
+                                           "reached": lim.reached},
+        "provenance": result.provenance,
+        "nominal_model": model_to_dict(result.nominal_model),
+        "calibrated_model": model_to_dict(result.calibrated_model),
+    }
+
+
+def result_to_json(result: CalibrationResult) -> str:
+    """The result file text of a CalibrationResult."""
+    return to_json(result_to_dict(result))
+
+
+def write_result(result: CalibrationResult, path, *, force: bool = False) -> None:
+    """Write a calibration result as JSON, atomically; an existing file is an InputError unless ``force``."""
     write_texts({path: result_to_json(result)}, force=force)
 
 
-def read_result(path) -> dict:
-    """The dict stored by ``write_result``; InputError if it is not a robocal result of a known schema."""
+class _Doc:
+    """Typed access to a parsed result document; every error names the source and the key path."""
+
+    def __init__(self, source: str):
+        self.source = source
+
+    def error(self, where: str, message: str) -> InputError:
+        return InputError(message, source=self.source, where=where)
+
+    def get(self, d: dict, key: str, where: str, kind, *, optional: bool = False):
+        path = f"{where}.{key}" if where else key
+        if key not in d:
+            if optional:
+                return None
+            raise self.error(path, "missing key")
+        v = d[key]
+        if v is None and optional:
+            return None
+        if kind is float:
+            return self.number(v, path)
+        if kind is int and not (isinstance(v, int) and not isinstance(v, bool)):
+            raise self.error(path, f"expected a whole number, got {excerpt(v)}")
+        if kind is not int and not isinstance(v, kind):
+            raise self.error(path, f"expected {_KIND_NAMES.get(kind, kind.__name__)}, got {excerpt(v)}")
+        return v
+
+    def number(self, v, where: str) -> float:
+        """A float; null reads as NaN (how the writer stores non-finite values)."""
+        if v is None:
+            return float("nan")
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise self.error(where, f"expected a number, got {excerpt(v)}")
+        return float(v)
+
+    def strings(self, v, where: str) -> tuple[str, ...]:
+        if not isinstance(v, list) or not all(isinstance(s, str) for s in v):
+            raise self.error(where, f"expected a list of names, got {excerpt(v)}")
+        return tuple(v)
+
+    def array(self, v, where: str, shape: tuple) -> np.ndarray:
+        """A nested list of numbers (null for NaN) of ``shape`` (None in a dimension: any size)."""
+        try:
+            a = np.array(v, dtype=float)
+        except (TypeError, ValueError):
+            raise self.error(where, "expected a nested list of numbers") from None
+        if v == [] and len(shape) > 1:
+            a = a.reshape((0,) + tuple(s or 0 for s in shape[1:]))
+        if a.ndim != len(shape) or any(s is not None and s != n for s, n in zip(shape, a.shape)):
+            want = " x ".join("n" if s is None else str(s) for s in shape)
+            raise self.error(where, f"expected an array of shape {want}, got shape {a.shape}")
+        return a
+
+
+_KIND_NAMES = {dict: "a mapping", list: "a list", str: "text", bool: "true or false"}
+
+
+def _identifiability(doc: _Doc, d: dict) -> IdentifiabilityResult:
+    w = "identifiability"
+    eliminated = []
+    for i, e in enumerate(doc.get(d, "eliminated", w, list)):
+        we = f"{w}.eliminated[{i}]"
+        if not isinstance(e, dict):
+            raise doc.error(we, f"expected a mapping, got {excerpt(e)}")
+        terms = []
+        for j, t in enumerate(doc.get(e, "absorbed_by", we, list)):
+            if not isinstance(t, dict):
+                raise doc.error(f"{we}.absorbed_by[{j}]", f"expected a mapping, got {excerpt(t)}")
+            terms.append((doc.get(t, "name", f"{we}.absorbed_by[{j}]", str),
+                          doc.get(t, "coefficient", f"{we}.absorbed_by[{j}]", float)))
+        eliminated.append(Absorption(doc.get(e, "name", we, str), doc.get(e, "reason", we, str), tuple(terms),
+                                     doc.get(e, "residual", we, float)))
+    obs = doc.get(d, "observability", w, dict)
+    return IdentifiabilityResult(
+        candidates=doc.strings(doc.get(d, "candidates", w, list), f"{w}.candidates"),
+        identified=doc.strings(doc.get(d, "identified", w, list), f"{w}.identified"),
+        eliminated=tuple(eliminated), tol=doc.get(d, "tol", w, float), rank=doc.get(d, "rank", w, int),
+        condition_number=doc.get(d, "condition_number", w, float),
+        singular_values=tuple(doc.number(v, f"{w}.singular_values") for v in doc.get(d, "singular_values", w, list)),
+        observability={str(k): doc.number(v, f"{w}.observability.{k}") for k, v in obs.items()},
+        n_rows=doc.get(d, "n_rows", w, int))
+
+
+def _stats(doc: _Doc, d: dict) -> ErrorSummary:
+    parts = {}
+    for key in ErrorSummary.KEYS:
+        s = doc.get(d, key, "stats", dict)
+        w = f"stats.{key}"
+        n = doc.get(s, "n", w, int)
+        vals = {f: (doc.get(s, f, w, float, optional=True) if n else None) for f in ("mean", "std", "rms", "max")}
+        parts[key] = ErrorStats(n=n, **{f: (None if v is None or math.isnan(v) else v) for f, v in vals.items()})
+    return ErrorSummary(**parts)
+
+
+def _limit_judgement(doc: _Doc, d: dict | None) -> LimitJudgement | None:
+    if d is None:
+        return None
+    w = "limit"
+    return LimitJudgement(limit_m=doc.get(d, "limit_m", w, float), compared=doc.get(d, "compared", w, str),
+                          mean_error_m=doc.get(d, "mean_error_m", w, float), ratio=doc.get(d, "ratio", w, float),
+                          reached=doc.get(d, "reached", w, bool))
+
+
+def _parameters(doc: _Doc, d: list) -> tuple[ParameterEstimate, ...]:
+    out = []
+    for i, p in enumerate(d):
+        w = f"parameters[{i}]"
+        if not isinstance(p, dict):
+            raise doc.error(w, f"expected a mapping, got {excerpt(p)}")
+        out.append(ParameterEstimate(doc.get(p, "name", w, str), doc.get(p, "unit", w, str),
+                                     doc.get(p, "nominal", w, float), doc.get(p, "estimate", w, float),
+                                     doc.get(p, "std", w, float)))
+    return tuple(out)
+
+
+def _errors(doc: _Doc, d: dict, n_markers: int) -> dict:
+    w = "errors"
+    fit = doc.array(doc.get(d, "fit_before", w, list), f"{w}.fit_before", (None, n_markers))
+    n = fit.shape[0]
+    out = {"errors_before": fit,
+           "errors_after": doc.array(doc.get(d, "fit_after", w, list), f"{w}.fit_after", (n, n_markers)),
+           "residual_vectors": doc.array(doc.get(d, "fit_residual_vectors", w, list), f"{w}.fit_residual_vectors",
+                                         (n, n_markers, 3))}
+    pos = doc.get(d, "fit_positions", w, list, optional=True)
+    out["measured_positions"] = (np.full((n, n_markers, 3), np.nan) if pos is None
+                                 else doc.array(pos, f"{w}.fit_positions", (n, n_markers, 3)))
+    vb = doc.get(d, "validation_before", w, list, optional=True)
+    va = doc.get(d, "validation_after", w, list, optional=True)
+    if (vb is None) != (va is None):
+        raise doc.error(w, "validation_before and validation_after must both be given or both be null")
+    out["validation_before"] = None if vb is None else doc.array(vb, f"{w}.validation_before", (None, n_markers))
+    nv = None if vb is None else out["validation_before"].shape[0]
+    out["validation_after"] = None if va is None else doc.array(va, f"{w}.validation_after", (nv, n_markers))
+    return out
+
+
+def result_from_dict(d, *, source: str = "<dict>") -> CalibrationResult:
+    """The CalibrationResult stored in ``d`` (the parsed result file); InputError naming the key
+    where it departs from the schema."""
+    doc = _Doc(source)
+    if not isinstance(d, dict) or "schema" not in d:
+        raise doc.error("schema", "not a robocal result: no 'schema' key")
+    if d["schema"] not in SCHEMAS:
+        raise doc.error("schema", f"unknown schema {excerpt(d['schema'])}; this robocal reads {', '.join(SCHEMAS)}")
+    nominal = model_from_dict(doc.get(d, "nominal_model", "", dict), source=f"{source}: nominal_model")
+    calibrated = model_from_dict(doc.get(d, "calibrated_model", "", dict), source=f"{source}: calibrated_model")
+    params = _parameters(doc, doc.get(d, "parameters", "", list))
+    k = len(params)
+    errors = doc.get(d, "errors", "", dict)
+    markers = doc.strings(doc.get(errors, "markers", "errors", list), "errors.markers")
+    if markers != nominal.marker_names:
+        raise doc.error("errors.markers", f"the markers {list(markers)} are not the nominal model's "
+                                          f"{list(nominal.marker_names)}")
+    return CalibrationResult(
+        nominal_model=nominal, calibrated_model=calibrated, parameters=params,
+        covariance=doc.array(doc.get(d, "covariance", "", list), "covariance", (k, k)),
+        correlation=doc.array(doc.get(d, "correlation", "", list), "correlation", (k, k)),
+        identifiability=_identifiability(doc, doc.get(d, "identifiability", "", dict)),
+        stats=_stats(doc, doc.get(d, "stats", "", dict)), **_errors(doc, errors, len(markers)),
+        success=doc.get(d, "success", "", bool), status=doc.get(d, "status", "", int),
+        message=doc.get(d, "message", "", str), nfev=doc.get(d, "nfev", "", int),
+        sigma0=doc.get(d, "sigma0_m", "", float),
+        families=doc.strings(doc.get(d, "families", "", list), "families"), loss=doc.get(d, "loss", "", str),
+        notes=doc.strings(doc.get(d, "notes", "", list), "notes"),
+        limit=_limit_judgement(doc, doc.get(d, "limit", "", dict, optional=True)),
+        provenance=doc.get(d, "provenance", "", dict, optional=True) or {})
+
+
+def read_result(path) -> CalibrationResult:
+    """The CalibrationResult stored by ``write_result``; InputError if it is not a robocal result of a
+    known schema, naming the key that departs from it."""
     source = str(path)
     text, _ = read_text(path)
     try:
         d = json.loads(text)
     except json.JSONDecodeError as e:
         raise InputError(f"not valid JSON: {e.msg}", source=source, where=f"line {e.lineno}, column {e.colno}") from None
-    if not isinstance(d, dict) or "schema" not in d:
-        raise InputError("not a robocal result: no 'schema' key", source=source, where="schema")
-    if d["schema"] not in SCHEMAS:
-        raise InputError(f"unknown schema {d['schema']!r}; this robocal reads {', '.join(SCHEMAS)}", source=source,
-                         where="schema")
-    return d
+    except RecursionError:
+        raise InputError("nested too deeply to be a robocal result", source=source) from None
+    return result_from_dict(d, source=source)
+
+
+# -- the limit of absolute accuracy ------------------------------------------------------------
+
+def _pose_id(pose):
+    """A pose id as a JSON type (numpy scalars become Python ones)."""
+    pose = pose.item() if isinstance(pose, np.generic) else pose
+    return pose if isinstance(pose, (str, int)) else str(pose)
+
+
+def _repeatability_dict(r: RepeatabilityResult) -> dict:
+    def pose(p: PoseRepeatability) -> dict:
+        return {"pose": _pose_id(p.pose), "n_cycles": p.n_cycles, "barycentre": list(p.barycentre), "l": list(p.l),
+                "l_mean": p.l_mean, "s_l": p.s_l, "rp": p.rp}
+    return {"rp": r.rp, "worst_pose": _pose_id(r.worst_pose), "poses": [pose(p) for p in r.poses]}
+
+
+def _precision_dict(p: PrecisionResult) -> dict:
+    return {"statistic": "mean", "n_samples": p.n_samples, "mean": p.mean, "std": p.std,
+            "standard_error": p.standard_error, "rms": p.rms, "rms_standard_error": p.rms_standard_error,
+            "percentiles": {f"p{pct:g}": v for pct, v in p.percentiles}, "max": p.max,
+            "encoder_resolution": list(p.encoder_resolution), "length_quantum": p.length_quantum,
+            "angle_quantum": p.angle_quantum, "markers": p.markers, "rounded_parameters": list(p.rounded_parameters),
+            "method": p.method}
+
+
+def limit_to_dict(limit: AccuracyLimit) -> dict:
+    """The file form of the limit of absolute accuracy (metres)."""
+    return {"schema": LIMIT_SCHEMA, "unit": "m", "limit": limit.limit, "limit_p95": limit.limit_p95,
+            "repeatability": limit.repeatability, "precision": limit.precision,
+            "precision_p95": limit.precision_p95, "precision_statistic": limit.precision_statistic,
+            "repeatability_detail": None if limit.repeatability_detail is None
+            else _repeatability_dict(limit.repeatability_detail),
+            "precision_detail": _precision_dict(limit.precision_detail)}

@@ -1,26 +1,10 @@
-"""Robots as users have them: classic DH tables and URDF in, URDF and MDH tables out.
-
-Every importer returns a :class:`RobotModel` in our modified-DH convention (docs/conventions.md)
-whose forward kinematics equals the source's: the same marker pose in W for the same joint
-readings, to rounding (tests check 1e-12 m). The MDH parameters themselves are a choice, written
-down here:
-
-* Frame j (one per moving joint) has z along the joint axis, pointing the way the source's positive
-  joint motion turns (right-hand rule) or slides, so the readings are the source's joint values.
-* x_j runs along the common normal of axis j and axis j+1 and O_j is its foot on axis j (Khalil and
-  Kleinfinger). Where the two axes are parallel within ``DEFAULT_PARALLEL_TOL`` the normal is taken
-  through the foot of the previous normal, so r_j = 0, and a residual tilt of the next axis goes
-  into Hayati's beta (exact, and well conditioned where the true common normal runs off to
-  infinity). The last frame continues the previous x (theta = r = 0 at zero readings).
-* Whatever is left at the ends goes to the base pose ``X_WB`` and to the markers.
-
-Units: SI everywhere; ``write_mdh_csv`` converts to the units it is asked for.
+"""URDF in and out. Reading turns a URDF chain's joint axes into our modified DH with Hayati's
+beta (``_conversion``: the same forward kinematics, to rounding); writing puts each frame's
+constant transform into its joint's origin. URDF speaks metres and radians, as robocal does inside.
 """
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 import os
 import re
@@ -32,283 +16,10 @@ from typing import Sequence
 import numpy as np
 
 from .._errors import InputError
-from .._kinematics import _as_tuple3x3, _rot_matrix
-from .model import write_texts
-from .._model import DEFAULT_PARALLEL_TOL, Frame, Marker, RobotModel, parallel_beta_frames
-
-__all__ = ["from_standard_dh", "read_urdf", "write_urdf", "mdh_table", "write_mdh_csv"]
-
-_EYE3 = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
-
-
-# ----------------------------------------------------------------------------------------------
-# small transform helpers (4x4 homogeneous, active, right-multiplied steps)
-
-def _rot4(axis: int, angle: float) -> np.ndarray:
-    X = np.eye(4)
-    X[:3, :3] = _rot_matrix(axis, angle)
-    return X
-
-
-def _trans4(axis: int, dist: float) -> np.ndarray:
-    X = np.eye(4)
-    X[axis, 3] = dist
-    return X
-
-
-def _pose(R, p) -> np.ndarray:
-    X = np.eye(4)
-    X[:3, :3] = R
-    X[:3, 3] = p
-    return X
-
-
-def _inv(X: np.ndarray) -> np.ndarray:
-    R, p = X[:3, :3], X[:3, 3]
-    return _pose(R.T, -R.T @ p)
-
-
-def mdh_transform(frame: Frame, q: float = 0.0) -> np.ndarray:
-    """``X_parent_frame`` (4x4) of one frame at frame joint variable ``q`` (rad or m).
-
-    ``Rot(z,gamma) Trans(z,b) Rot(y,beta) Rot(x,alpha) Trans(x,d) Rot(z,theta) Trans(z,r)`` with q
-    added to theta (revolute) or r (prismatic); compliance is not applied.
-    """
-    th = frame.theta + (q if frame.joint == "revolute" else 0.0)
-    r = frame.r + (q if frame.joint == "prismatic" else 0.0)
-    return (_rot4(2, frame.gamma) @ _trans4(2, frame.b) @ _rot4(1, frame.beta) @ _rot4(0, frame.alpha)
-            @ _trans4(0, frame.d) @ _rot4(2, th) @ _trans4(2, r))
-
-
-def _rpy_matrix(rpy) -> np.ndarray:
-    """URDF fixed-axis roll-pitch-yaw: R = Rz(yaw) Ry(pitch) Rx(roll)."""
-    roll, pitch, yaw = rpy
-    return _rot_matrix(2, yaw) @ _rot_matrix(1, pitch) @ _rot_matrix(0, roll)
-
-
-def _matrix_rpy(R: np.ndarray) -> tuple[float, float, float]:
-    """Inverse of :func:`_rpy_matrix`, stable through gimbal lock.
-
-    Yaw first, then roll and pitch from ``Rz(-yaw) R``: near pitch = +-pi/2 a poor yaw is absorbed
-    by roll, so the rebuilt matrix stays accurate to rounding (separate atan2s would not).
-    """
-    yaw = math.atan2(R[1, 0], R[0, 0]) if math.hypot(R[1, 0], R[0, 0]) > 1e-300 else 0.0
-    M = _rot_matrix(2, -yaw) @ R
-    roll = math.atan2(-M[1, 2], M[1, 1])
-    pitch = math.atan2(-M[2, 0], M[0, 0])
-    return roll, pitch, yaw
-
-
-def _unit(v: np.ndarray) -> np.ndarray:
-    return v / np.linalg.norm(v)
-
-
-def _perpendicular(z: np.ndarray, hint: np.ndarray | None) -> np.ndarray:
-    """A unit vector normal to ``z``: ``hint`` made normal when it can be, else the best world axis."""
-    if hint is not None:
-        h = hint - (hint @ z) * z
-        if np.linalg.norm(h) > 1e-9:
-            return _unit(h)
-    e = np.eye(3)[int(np.argmin(np.abs(z)))]
-    return _unit(e - (e @ z) * z)
-
-
-# ----------------------------------------------------------------------------------------------
-# classic DH
-
-def _markers_arg(markers, where: str) -> list[tuple[str, np.ndarray, np.ndarray]]:
-    """Normalise ``[(name, xyz), (name, xyz, R3x3), ...]`` to arrays; names must be strings."""
-    out = []
-    for i, m in enumerate(markers):
-        if len(m) not in (2, 3) or not isinstance(m[0], str):
-            raise InputError("a marker is (name, xyz) or (name, xyz, 3x3 rotation)", where=f"{where}[{i}]")
-        p = np.asarray(m[1], dtype=float)
-        R = np.asarray(m[2], dtype=float) if len(m) == 3 else np.eye(3)
-        if p.shape != (3,) or R.shape != (3, 3) or not (np.all(np.isfinite(p)) and np.all(np.isfinite(R))):
-            raise InputError("marker position must be 3 numbers and rotation 3x3", where=f"{where}[{i}]")
-        out.append((m[0], p, R))
-    return out
-
-
-def _dh_row(row, i: int) -> tuple[str | None, float, float, float, float, str]:
-    where = f"rows[{i}]"
-    if isinstance(row, dict):
-        unknown = set(row) - {"name", "theta", "d", "a", "alpha", "joint"}
-        if unknown:
-            raise InputError(f"unknown keys {sorted(unknown)}; expected theta, d, a, alpha, joint, name",
-                             where=where)
-        name = row.get("name")
-        vals = [row.get(k, 0.0) for k in ("theta", "d", "a", "alpha")]
-        joint = row.get("joint", "revolute")
-    else:
-        row = tuple(row)
-        if len(row) not in (4, 5):
-            raise InputError("a DH row is (theta, d, a, alpha[, joint])", where=where)
-        name, vals, joint = None, list(row[:4]), (row[4] if len(row) == 5 else "revolute")
-    if joint not in ("revolute", "prismatic"):
-        raise InputError(f"joint type must be revolute or prismatic, got {joint!r}", where=where)
-    try:
-        th, d, a, al = (float(v) for v in vals)
-    except (TypeError, ValueError):
-        raise InputError("theta, d, a, alpha must be numbers", where=where) from None
-    if not all(map(math.isfinite, (th, d, a, al))):
-        raise InputError("theta, d, a, alpha must be finite", where=where)
-    return name, th, d, a, al, joint
-
-
-def from_standard_dh(rows: Sequence, *, name: str, markers: Sequence = (("tool", (0.0, 0.0, 0.0)),),
-                     base=None, joint_limits: Sequence[tuple[float, float]] | None = None) -> RobotModel:
-    """A model from classic (distal) DH rows, as Universal Robots publish them.
-
-    ``rows``: one per joint, a dict ``{theta, d, a, alpha, joint, name}`` or a tuple
-    ``(theta, d, a, alpha[, joint])``; SI; theta (revolute) or d (prismatic) is the offset the
-    joint value adds to. The source chain is ``T_0n = prod_i Rot(z,theta_i) Trans(z,d_i)
-    Trans(x,a_i) Rot(x,alpha_i)``.
-    ``markers``: ``(name, xyz)`` or ``(name, xyz, R)`` given in the source's last frame n (the
-    flange). ``base``: ``X_W0`` (4x4) placing the DH frame 0 in W; identity when None.
-    ``joint_limits``: ``(lower, upper)`` per row, default +-pi (revolute) or (0, 1) m (prismatic).
-
-    Mapping (exact, because Trans(x,a) and Rot(x,alpha) commute): MDH frame i takes theta_i, r = d_i
-    and, from the previous row, alpha = alpha_{i-1}, d = a_{i-1}; frame 1 starts at frame 0 with
-    alpha = d = 0, so the base needs nothing; a_n and alpha_n of the last row go into every marker.
-    Beta is carried where ``parallel_beta_frames`` says the axes are parallel.
-
-    >>> m = from_standard_dh([(0, 0.1, 0.5, 0), (0, 0, 0.4, 0)], name="rr")
-    >>> [(f.alpha, f.d, f.r) for f in m.frames], m.markers[0].position
-    ([(0.0, 0.0, 0.1), (0.0, 0.5, 0.0)], (0.4, 0.0, 0.0))
-    """
-    parsed = [_dh_row(r, i) for i, r in enumerate(rows)]
-    if not parsed:
-        raise InputError("at least one DH row is needed", where="rows")
-    frames = []
-    names = []
-    prev_a = prev_alpha = 0.0
-    for i, (fname, th, d, a, al, joint) in enumerate(parsed):
-        fname = fname or f"j{i + 1}"
-        frames.append(Frame(name=fname, joint=joint, parent=i - 1, alpha=prev_alpha, d=prev_a,
-                            theta=th, r=d, coupling=((i, 1.0),)))
-        names.append(fname)
-        prev_a, prev_alpha = a, al
-    flags = parallel_beta_frames(frames)
-    frames = [replace(f, has_beta=b) for f, b in zip(frames, flags)]
-    # the last row's Trans(x, a_n) Rot(x, alpha_n) sits between MDH frame n and the source's frame n
-    X_tail = _trans4(0, prev_a) @ _rot4(0, prev_alpha)
-    mk = []
-    for mname, p, R in _markers_arg(markers, "markers"):
-        X = X_tail @ _pose(R, p)
-        mk.append(Marker(mname, len(frames) - 1, tuple(float(v) for v in X[:3, 3]), _as_tuple3x3(X[:3, :3])))
-    if joint_limits is None:
-        joint_limits = [(-math.pi, math.pi) if f.joint == "revolute" else (0.0, 1.0) for f in frames]
-    if len(joint_limits) != len(frames):
-        raise InputError(f"{len(frames)} (lower, upper) pairs needed, got {len(joint_limits)}",
-                         where="joint_limits")
-    X_W0 = np.eye(4) if base is None else np.asarray(base, dtype=float)
-    if X_W0.shape != (4, 4):
-        raise InputError("base must be a 4x4 homogeneous matrix X_W0", where="base")
-    return RobotModel(
-        name=name, frames=tuple(frames), joint_names=tuple(names),
-        joint_limits=tuple((float(lo), float(hi)) for lo, hi in joint_limits),
-        markers=tuple(mk), base_position=tuple(float(v) for v in X_W0[:3, 3]),
-        base_rotation=_as_tuple3x3(X_W0[:3, :3]),
-        description="imported from classic DH",
-    )
-
-
-# ----------------------------------------------------------------------------------------------
-# lines (joint axes) to MDH frames
-
-def _decompose(T: np.ndarray, use_beta: bool) -> dict:
-    """MDH parameters of a relative pose built by :func:`_line_frames` (gamma = b = 0).
-
-    ``T = Rot(y,beta) Rot(x,alpha) Trans(x,d) Rot(z,theta) Trans(z,r)``; beta is kept within
-    +-pi/2 (alpha takes the half-turn of antiparallel axes) and forced to 0 unless ``use_beta``.
-    """
-    z = T[:3, 2]
-    if use_beta:
-        s = 1.0 if z[2] >= 0 else -1.0
-        beta = math.atan2(s * z[0], s * z[2])
-    else:
-        beta = 0.0
-    cb, sb = math.cos(beta), math.sin(beta)
-    alpha = math.atan2(-z[1], z[0] * sb + z[2] * cb)
-    Rp = _rot_matrix(1, beta) @ _rot_matrix(0, alpha)
-    M = Rp.T @ T[:3, :3]
-    theta = math.atan2(M[1, 0], M[0, 0])
-    t = T[:3, 3]
-    out = dict(beta=beta, alpha=alpha, d=float(t @ Rp[:, 0]), theta=theta, r=float(t @ Rp[:, 2]))
-    # rounding noise (1e-17) reads as a parameter in tables; below 1e-15 it moves nothing measurable
-    return {k: (0.0 if abs(v) < 1e-15 else v) for k, v in out.items()}
-
-
-def _line_frames(points: np.ndarray, axes: np.ndarray, tol: float) -> tuple[np.ndarray, list[np.ndarray]]:
-    """Base pose ``X_0B`` and MDH frames ``X_0j`` (4x4 each) for joint lines in source frame 0.
-
-    ``points`` (n, 3) a point on each line, ``axes`` (n, 3) unit directions, both in the source's
-    root frame. The base has z on axis 1 through the root origin's projection, rotated from the
-    root by the smallest rotation, so a first axis along the root z gives X_0B = identity.
-    """
-    n = len(axes)
-    z1 = axes[0]
-    # smallest rotation taking e_z to z1 (a half-turn about x when z1 = -e_z)
-    c = float(z1[2])
-    w = np.cross([0.0, 0.0, 1.0], z1)
-    if np.linalg.norm(w) < 1e-12:
-        RB = np.eye(3) if c > 0 else _rot_matrix(0, math.pi)
-    else:
-        k = _unit(w)
-        K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-        ang = math.atan2(np.linalg.norm(w), c)
-        RB = np.eye(3) + math.sin(ang) * K + (1 - math.cos(ang)) * K @ K
-        RB[:, 2] = z1  # exact z, so frame 1 needs no alpha/beta
-    foot = points[0] + (-points[0] @ z1) * z1      # root origin projected on axis 1
-    X_0B = _pose(RB, foot)
-    frames = []
-    x_prev = RB[:, 0]
-    for j in range(n):
-        zj = axes[j]
-        if j + 1 == n:
-            O, x = foot, _perpendicular(zj, x_prev)
-        else:
-            zn, pn = axes[j + 1], points[j + 1]
-            cr = np.cross(zj, zn)
-            if np.linalg.norm(cr) <= math.sin(tol):
-                # parallel: normal through the previous foot (r_j = 0), towards the nearest point of
-                # the next axis; a slight tilt of that axis goes to beta of frame j+1
-                O = foot
-                near = pn + ((O - pn) @ zn) * zn
-                x = _perpendicular(zj, near - O) if np.linalg.norm(near - O) > 1e-12 else \
-                    _perpendicular(zj, x_prev)
-                foot = near
-            else:
-                # common normal: solve for the feet O = pj + s zj and near = pn + u zn
-                pj = points[j]
-                A = np.array([[zj @ zj, -(zj @ zn)], [zj @ zn, -(zn @ zn)]])
-                rhs = np.array([(pn - pj) @ zj, (pn - pj) @ zn])
-                s, u = np.linalg.solve(A, rhs)
-                O, near = pj + s * zj, pn + u * zn
-                x = _unit(cr)
-                if (near - O) @ x < -1e-12:
-                    x = -x  # keep d >= 0 where the axes do not meet
-                foot = near
-        x = _unit(x - (x @ zj) * zj)
-        frames.append(_pose(np.column_stack([x, np.cross(zj, x), zj]), O))
-        x_prev = x
-    return X_0B, frames
-
-
-def _frames_from_lines(names, joints, couplings, X_0B, X_0F) -> list[Frame]:
-    """Serial MDH frames from the base pose and frame poses found by :func:`_line_frames`."""
-    out = []
-    prev = X_0B
-    prev_z = X_0B[:3, 2]
-    for i, X in enumerate(X_0F):
-        par = abs(float(prev_z @ X[:3, 2])) >= math.cos(DEFAULT_PARALLEL_TOL)
-        p = _decompose(_inv(prev) @ X, use_beta=par)
-        out.append(Frame(name=names[i], joint=joints[i], parent=i - 1, coupling=couplings[i], **p))
-        prev, prev_z = X, X[:3, 2]
-    flags = parallel_beta_frames(out)
-    return [replace(f, has_beta=b) for f, b in zip(out, flags)]
-
+from .._conversion import frames_from_lines, line_frames, marker_placements
+from .._model import DEFAULT_PARALLEL_TOL, Marker, RobotModel, mdh_transform
+from .._spatial import axis_angle_matrix, inverse4, matrix_rpy, matrix_tuple, pose4, rpy_matrix, unit_vector
+from .text import write_texts
 
 # ----------------------------------------------------------------------------------------------
 # URDF in
@@ -432,7 +143,7 @@ def _parse_joints(root: ET.Element, source: str) -> tuple[set[str], dict[str, _U
                 raise InputError("<mimic> needs joint=...", source=source, where=where)
             mimic = (mim.get("joint"), _attr_float(mim, "multiplier", 1.0, source, where + " mimic"),
                      _attr_float(mim, "offset", 0.0, source, where + " mimic"))
-        joints[jname] = _UJoint(jname, jtype or "", parent, child, _pose(_rpy_matrix(rpy), xyz), axis,
+        joints[jname] = _UJoint(jname, jtype or "", parent, child, pose4(rpy_matrix(rpy), xyz), axis,
                                 limits, mimic)
     return links, joints, {"child_of": child_of, "inertials": inertials}
 
@@ -548,21 +259,21 @@ def read_urdf(path_or_string, *, base_link: str | None = None, tip_link: str | N
     for j in chain:
         X = X @ j.X_origin
         if j.type != "fixed":
-            a = X[:3, :3] @ _unit(j.axis)
+            a = X[:3, :3] @ unit_vector(j.axis)
             points.append(X[:3, 3].copy())
             axes.append(a)
             off = reading_of[j.name][2]    # mimic offset: the joint sits there at zero readings
             if off:
-                X = X @ (_pose(_axis_angle(_unit(j.axis), off), np.zeros(3)) if j.type != "prismatic"
-                         else _pose(np.eye(3), off * _unit(j.axis)))
+                X = X @ (pose4(axis_angle_matrix(unit_vector(j.axis), off), np.zeros(3)) if j.type != "prismatic"
+                         else pose4(np.eye(3), off * unit_vector(j.axis)))
             X_child.append(X.copy())
         owner[j.child] = len(axes) - 1
         X_link[j.child] = X.copy()
-    X_0B, X_0F = _line_frames(np.array(points), np.array(axes), DEFAULT_PARALLEL_TOL)
+    X_0B, X_0F = line_frames(np.array(points), np.array(axes), DEFAULT_PARALLEL_TOL)
     types = ["prismatic" if joints[jn].type == "prismatic" else "revolute" for jn in moving]
     couplings = [((reading_of[jn][0], reading_of[jn][1]),) for jn in moving]
     fnames = [joints[jn].child for jn in moving]
-    frames = _frames_from_lines(fnames, types, couplings, X_0B, X_0F)
+    frames = frames_from_lines(fnames, types, couplings, X_0B, X_0F)
     # masses of chain links, in the frame they ride on
     mass = np.zeros(len(frames))
     first = np.zeros((len(frames), 3))
@@ -570,17 +281,17 @@ def read_urdf(path_or_string, *, base_link: str | None = None, tip_link: str | N
         i = owner.get(lk, -1)
         if i >= 0 and m > 0:
             c0 = X_link[lk][:3, :3] @ com + X_link[lk][:3, 3]
-            cF = _inv(X_0F[i]) @ np.append(c0, 1.0)
+            cF = inverse4(X_0F[i]) @ np.append(c0, 1.0)
             mass[i] += m
             first[i] += m * cF[:3]
     frames = [replace(f, mass=float(mass[i]), com=tuple(float(v) for v in first[i] / mass[i]))
               if mass[i] > 0 else f for i, f in enumerate(frames)]
     tip = chain[-1].child
-    X_nT = _inv(X_0F[-1]) @ X_link[tip]
+    X_nT = inverse4(X_0F[-1]) @ X_link[tip]
     mk = []
-    for mname, p, R in _markers_arg(markers if markers is not None else [("tool", (0.0, 0.0, 0.0))], "markers"):
-        Xm = X_nT @ _pose(R, p)
-        mk.append(Marker(mname, len(frames) - 1, tuple(float(v) for v in Xm[:3, 3]), _as_tuple3x3(Xm[:3, :3])))
+    for mname, p, R in marker_placements(markers if markers is not None else [("tool", (0.0, 0.0, 0.0))], "markers"):
+        Xm = X_nT @ pose4(R, p)
+        mk.append(Marker(mname, len(frames) - 1, tuple(float(v) for v in Xm[:3, 3]), matrix_tuple(Xm[:3, :3])))
     limits = []
     for jn in readings:
         j = joints[jn]
@@ -588,14 +299,9 @@ def read_urdf(path_or_string, *, base_link: str | None = None, tip_link: str | N
     return RobotModel(
         name=root.get("name") or "robot", frames=tuple(frames), joint_names=tuple(readings),
         joint_limits=tuple((float(lo), float(hi)) for lo, hi in limits), markers=tuple(mk),
-        base_position=tuple(float(v) for v in X_0B[:3, 3]), base_rotation=_as_tuple3x3(X_0B[:3, :3]),
+        base_position=tuple(float(v) for v in X_0B[:3, 3]), base_rotation=matrix_tuple(X_0B[:3, :3]),
         description=f"imported from URDF {source}, {chain[0].parent} -> {tip}",
     )
-
-
-def _axis_angle(k: np.ndarray, angle: float) -> np.ndarray:
-    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + math.sin(angle) * K + (1 - math.cos(angle)) * K @ K
 
 
 # ----------------------------------------------------------------------------------------------
@@ -607,7 +313,7 @@ def _num(v: float) -> str:
 
 def _origin(el: ET.Element, X: np.ndarray) -> None:
     ET.SubElement(el, "origin", xyz=" ".join(_num(v) for v in X[:3, 3]),
-                  rpy=" ".join(_num(v) for v in _matrix_rpy(X[:3, :3])))
+                  rpy=" ".join(_num(v) for v in matrix_rpy(X[:3, :3])))
 
 
 def write_urdf(model: RobotModel, path, *, force: bool = False) -> None:
@@ -703,62 +409,9 @@ def write_urdf(model: RobotModel, path, *, force: bool = False) -> None:
             ET.SubElement(j, "mimic", joint=jnames[primary[k]], multiplier=_num(f.coupling[0][1]), offset="0")
     for m, mk in enumerate(model.markers):
         j = ET.SubElement(robot, "joint", name=unique(f"{mk.name}_joint", used_joints), type="fixed")
-        _origin(j, _pose(np.asarray(mk.rotation, dtype=float), mk.position))
+        _origin(j, pose4(np.asarray(mk.rotation, dtype=float), mk.position))
         ET.SubElement(j, "parent", link=flinks[mk.frame])
         ET.SubElement(j, "child", link=mlinks[m])
     ET.indent(robot)
     text = '<?xml version="1.0" encoding="utf-8"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
     write_texts({path: text}, force=force)
-
-
-# ----------------------------------------------------------------------------------------------
-# MDH table
-
-# unit system -> (length name, length factor from metres, angle name, angle factor from radians)
-_UNITS = {
-    "m-rad": ("m", 1.0, "rad", 1.0),
-    "mm-deg": ("mm", 1e3, "deg", 180.0 / math.pi),
-    "m-deg": ("m", 1.0, "deg", 180.0 / math.pi),
-    "mm-rad": ("mm", 1e3, "rad", 1.0),
-}
-_TABLE_KINDS = ("beta", "alpha", "d", "theta", "r", "gamma", "b")
-
-
-def mdh_table(model: RobotModel, *, units: str = "m-rad") -> list[dict]:
-    """The MDH table, one dict per frame, units in the keys (``alpha_rad``, ``d_m``, ...).
-
-    Keys in order: frame, parent (frame name or ``"base"``), joint (revolute/prismatic/fixed),
-    reading (the joint reading(s) driving it, e.g. ``"j3"`` or ``"0.5*j3"``; empty when fixed),
-    has_beta, then beta, alpha, d, theta, r, gamma, b with unit suffixes. theta (revolute) and r
-    (prismatic) are the offsets at zero reading. ``units``: one of ``m-rad``, ``mm-deg``, ``m-deg``,
-    ``mm-rad``.
-
-    >>> from robocal._model import serial_model
-    >>> mdh_table(serial_model("r", [dict(d=0.5)]), units="mm-deg")[0]["d_mm"]
-    500.0
-    """
-    if units not in _UNITS:
-        raise InputError(f"units must be one of {', '.join(_UNITS)}, got {units!r}", where="units")
-    lname, lf, aname, af = _UNITS[units]
-    rows = []
-    for f in model.frames:
-        reading = " + ".join(model.joint_names[k] if c == 1.0 else f"{c!r}*{model.joint_names[k]}"
-                             for k, c in f.coupling)
-        row = {"frame": f.name, "parent": "base" if f.parent < 0 else model.frames[f.parent].name,
-               "joint": f.joint, "reading": reading, "has_beta": f.has_beta}
-        for kind in _TABLE_KINDS:
-            is_angle = kind in ("beta", "alpha", "theta", "gamma")
-            row[f"{kind}_{aname if is_angle else lname}"] = float(getattr(f, kind)) * (af if is_angle else lf)
-        rows.append(row)
-    return rows
-
-
-def write_mdh_csv(model: RobotModel, path, *, units: str = "mm-deg", force: bool = False) -> None:
-    """Write :func:`mdh_table` as CSV (header with unit suffixes), atomically; 15 significant digits."""
-    rows = mdh_table(model, units=units)
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(list(rows[0]))
-    for row in rows:
-        w.writerow([format(v, ".15g") if isinstance(v, float) else v for v in row.values()])
-    write_texts({path: buf.getvalue()}, force=force)

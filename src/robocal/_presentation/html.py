@@ -1,11 +1,9 @@
-"""The calibration report: one self-contained HTML file drawn from a result dict (result.json).
+"""The calibration report: one self-contained HTML file drawn from a calibration result.
 
-Everything here is a pure function of ``CalibrationResult.to_dict()`` (or the parsed result
-file): ``render_report`` returns the HTML text, ``write_report`` writes it atomically. Plots are
-matplotlib figures embedded as inline SVG; the page needs no network and no JavaScript.
-
-This is the only place where the report's units are converted from SI: lengths are shown in mm,
-angles in degrees and compliances in deg/(kN m) (``DISPLAY_UNITS``).
+``render_report`` returns the HTML text of a ``CalibrationResult`` (computed, or read back from
+result.json), ``write_report`` writes it atomically. Plots are matplotlib figures embedded as
+inline SVG; the page needs no network and no JavaScript. Units are shown as ``units.DISPLAY_UNITS``
+says: lengths in mm, angles in degrees, compliances in deg/(kN m).
 """
 
 from __future__ import annotations
@@ -16,25 +14,21 @@ import math
 import re
 from datetime import datetime
 
+from .._calibration import CalibrationResult
 from .._errors import InputError, RobocalError
+from .._files.result import result_to_dict
+from .._files.text import write_texts
+from .._parameters import FRAME_KINDS, parameter_layout, parameter_vector
+from .units import absorption_coefficient, display_unit as _display, finite as _num, fmt
 
-# SI unit in result.json -> (display unit, factor, decimals)
-DISPLAY_UNITS = {
-    "m": ("mm", 1e3, 4),
-    "rad": ("deg", 180.0 / math.pi, 5),
-    "rad/(N m)": ("deg/(kN m)", 180.0 / math.pi * 1e3, 4),
-}
 PLOTS = ("errors-per-pose", "histograms", "correlation", "residuals")
 STAT_SETS = (("fit_before", "fitted poses", "before"), ("fit_after", "fitted poses", "after"),
              ("validation_before", "held-out poses", "before"), ("validation_after", "held-out poses", "after"))
 STAT_FIELDS = ("mean", "std", "rms", "max")
-FRAME_COLUMNS = ("gamma", "b", "beta", "alpha", "d", "theta", "r", "k_theta", "k_alpha", "k_beta")
 ALWAYS_SHOWN = ("beta", "alpha", "d", "theta", "r")
 _SYMBOL = {"gamma": "&gamma;", "b": "b", "beta": "&beta;", "alpha": "&alpha;", "d": "d", "theta": "&theta;",
            "r": "r", "k_theta": "K<sub>&theta;</sub>", "k_alpha": "K<sub>&alpha;</sub>",
            "k_beta": "K<sub>&beta;</sub>"}
-_KIND_UNIT = {"gamma": "rad", "b": "m", "beta": "rad", "alpha": "rad", "d": "m", "theta": "rad", "r": "m",
-              "k_theta": "rad/(N m)", "k_alpha": "rad/(N m)", "k_beta": "rad/(N m)"}
 WORST_POSES = 10
 MISSING_VALIDATION = "No held-out poses were given: the errors shown are on the fitted poses only."
 MISSING_LIMIT = ("No limit of absolute accuracy was given: run <code>robocal limit</code> on the model (repeatability, "
@@ -46,33 +40,6 @@ CORRELATED = 0.9  # |r| from which a pair is listed below the correlation map
 
 
 # -- values and formatting -------------------------------------------------------------------------
-
-def _num(v) -> float | None:
-    """A finite float, or None for None/NaN/infinite (result.json stores NaN as null)."""
-    if v is None or isinstance(v, bool):
-        return None
-    v = float(v)
-    return v if math.isfinite(v) else None
-
-
-def _display(unit: str) -> tuple[str, float, int | None]:
-    return DISPLAY_UNITS.get(unit, (unit, 1.0, None))
-
-
-def fmt(value, unit: str = "m", *, sign: bool = False) -> str:
-    """``value`` (SI, in ``unit``) as display text without the unit; an en dash when absent.
-
-    >>> fmt(0.0012345), fmt(math.pi / 2, "rad"), fmt(-1e-6, "rad/(N m)", sign=True), fmt(None)
-    ('1.2345', '90.00000', '-0.0573', '–')
-    """
-    v = _num(value)
-    if v is None:
-        return "–"
-    _, k, dec = _display(unit)
-    spec = ("+" if sign else "") + (f".{dec}f" if dec is not None else ".6g")
-    text = format(v * k, spec)
-    return text.lstrip("+-") if float(text) == 0 else text  # no signed zeros
-
 
 def _ratio(v, spec: str) -> str:
     v = _num(v)
@@ -326,7 +293,7 @@ def plot_residuals(d: dict) -> str:
     err = d["errors"]
     vec = [v for pose in (err.get("fit_residual_vectors") or []) for v in pose]
     pos = [p for pose in (err.get("fit_positions") or []) for p in pose]
-    at_points = len(pos) == len(vec) > 0
+    at_points = len(pos) == len(vec) > 0 and any(_finite3(p) for p in pos)
     keep = [k for k, v in enumerate(vec) if _finite3(v) and (not at_points or _finite3(pos[k]))]
     res = [[c * 1e3 for c in vec[k]] for k in keep]
     length = max((math.sqrt(sum(c * c for c in v)) for v in res), default=0.0) or 1e-3
@@ -465,47 +432,24 @@ def _limit_text(d: dict) -> str:
             "(within 15 % of it counts as reached).</p>")
 
 
-def _guess_unit(name: str) -> str:
-    kind = name.rsplit(".", 1)[1]
-    return _KIND_UNIT.get(kind, "rad" if kind in ("rx", "ry", "rz") else "m")
+def _nominal_values(result: CalibrationResult) -> tuple[dict, dict]:
+    """Nominal values (SI) and SI units of every parameter of the nominal model."""
+    lay = parameter_layout(result.nominal_model)
+    values = parameter_vector(result.nominal_model)
+    return ({p.name: float(values[p.index]) for p in lay.parameters}, {p.name: p.unit for p in lay.parameters})
 
 
-def _model_nominal(d: dict) -> dict:
-    """Nominal values (SI) of the frame, base and marker values stored in the nominal model."""
-    m = d.get("nominal_model") or {}
-    units = m.get("units") or {}
-    length = {"m": 1.0, "mm": 1e-3}.get(units.get("length", "m"))
-    angle = {"rad": 1.0, "deg": math.pi / 180}.get(units.get("angle", "rad"))
-    if length is None or angle is None:
-        return {}
-    scale = {"m": length, "rad": angle, "rad/(N m)": 1.0}
-    out = {}
-    for f in m.get("frames", []):
-        for kind, unit in _KIND_UNIT.items():
-            if _num(f.get(kind)) is not None:
-                out[f"{f['name']}.{kind}"] = f[kind] * scale[unit]
-    owners = [("base", (m.get("base") or {}).get("position"))]
-    owners += [(mk.get("name"), mk.get("position")) for mk in m.get("markers", [])]
-    for owner, point in owners:
-        for axis, v in zip("xyz", point or ()):
-            out[f"{owner}.{axis}"] = v * length
-        for axis in ("rx", "ry", "rz"):
-            out[f"{owner}.{axis}"] = 0.0  # small rotations about the nominal orientation
-    return out
-
-
-def _parameter_tables(d: dict) -> tuple[str, str, str]:
+def _parameter_tables(d: dict, nominal: dict, units: dict) -> tuple[str, str, str]:
     """The per-frame table (the paper's layout), the base and marker table, a note on omitted columns."""
     est = {p["name"]: p for p in d["parameters"]}
     ident = d["identifiability"]
     status = {n: "-" for n in ident.get("candidates", [])}
     status.update({n: "I" for n in ident.get("identified", [])})
     status.update({a["name"]: "E" for a in ident.get("eliminated", [])})
-    nominal = _model_nominal(d)
     table = d.get("identifiability_table") or []
     frames = [row["frame"] for row in table]
-    shown = [k for k in FRAME_COLUMNS if k in ALWAYS_SHOWN or any(row.get(k, "-") != "-" for row in table)]
-    omitted = [k for k in FRAME_COLUMNS if k not in shown and k not in ("gamma", "b")]
+    shown = [k for k in FRAME_KINDS if k in ALWAYS_SHOWN or any(row.get(k, "-") != "-" for row in table)]
+    omitted = [k for k in FRAME_KINDS if k not in shown and k not in ("gamma", "b")]
 
     def value_cells(name, unit):
         """nominal, identified, change, std dev"""
@@ -526,12 +470,13 @@ def _parameter_tables(d: dict) -> tuple[str, str, str]:
 
     body = []
     for f in frames:
-        cols = [value_cells(f"{f}.{k}", _KIND_UNIT[k]) for k in shown]
+        cols = [value_cells(f"{f}.{k}", units[f"{f}.{k}"]) for k in shown]
         body.append(f'<tr class="frame-start"><th rowspan="5" class="frame">{_e(f)}</th><td class="what">I / E</td>'
                     + "".join(status_cell(f"{f}.{k}") for k in shown) + "</tr>")
         for i, label in enumerate(("nominal", "identified", "change", "std dev")):
             body.append(f'<tr><td class="what">{label}</td>' + "".join(c[i] for c in cols) + "</tr>")
-    head = ["frame", ""] + [f"{_SYMBOL[k]} <small>({_e(_display(_KIND_UNIT[k])[0])})</small>" for k in shown]
+    head = ["frame", ""] + [f"{_SYMBOL[k]} <small>({_e(_display(units[f'{frames[0]}.{k}'])[0])})</small>"
+                            if frames else _SYMBOL[k] for k in shown]
     note = ""
     if omitted:
         note = ("Columns " + ", ".join(_SYMBOL[k] for k in omitted)
@@ -542,7 +487,7 @@ def _parameter_tables(d: dict) -> tuple[str, str, str]:
     other += [n for n in est if n not in other and n.split(".", 1)[0] not in frames]
     rows = []
     for n in other:
-        unit = est[n]["unit"] if n in est else _guess_unit(n)
+        unit = units.get(n, est[n]["unit"] if n in est else "")
         rows.append(f'<tr><td class="name">{_e(n)}</td><td>{_e(_display(unit)[0])}</td>'
                     + "".join(value_cells(n, unit)) + status_cell(n) + "</tr>")
     other_table = (_table(["parameter", "unit", "nominal", "identified", "change", "std dev", "I / E"], rows,
@@ -551,19 +496,17 @@ def _parameter_tables(d: dict) -> tuple[str, str, str]:
     return frame_table, other_table, note
 
 
-def _eliminated_table(d: dict) -> str:
+def _eliminated_table(d: dict, units: dict) -> str:
     elim = (d.get("identifiability") or {}).get("eliminated") or []
     if not elim:
         return "<p>Every candidate parameter was identified: none was eliminated.</p>"
-    units = {p["name"]: p["unit"] for p in d["parameters"]}
     rows = []
     for a in elim:
         name = a["name"]
-        scale = _display(units.get(name) or _guess_unit(name))[1]
         terms = []
         for t in a.get("absorbed_by", []):
-            # the coefficient in display units: d(name) [shown] = c * d(absorber) [shown]
-            c = t["coefficient"] * scale / _display(units.get(t["name"]) or _guess_unit(t["name"]))[1]
+            # the coefficient in display units: 1 shown unit of name moves the tool as c shown units of t
+            c = absorption_coefficient(t["coefficient"], units.get(name, ""), units.get(t["name"], ""))
             sign = "-" if c < 0 else "+"
             terms.append((f" {sign} " if terms else sign.strip("+")) + f"{abs(c):.4g} &times; {_e(t['name'])}")
         expr = "".join(terms) if terms else '<span class="muted">nothing (no effect)</span>'
@@ -746,17 +689,16 @@ footer{margin-top:36px;padding-top:8px;border-top:1px solid var(--line);font-siz
 """ % {"before": BEFORE, "after": AFTER, "limit": LIMIT}
 
 
-def render_report(result: dict, *, extra: dict | None = None) -> str:
-    """The HTML text of the report of ``result`` (``CalibrationResult.to_dict()`` or result.json).
+def render_report(result: CalibrationResult, *, extra: dict | None = None) -> str:
+    """The HTML text of the report of ``result`` (a CalibrationResult, computed or read back).
 
     ``extra``: optional tables for a comparison section (see ``_extra_tables``).
     Raises RobocalError when matplotlib is missing, InputError when ``result`` is not a result.
     """
-    d = result
-    needed = ("parameters", "stats", "errors", "identifiability", "correlation")
-    missing = [k for k in needed if k not in d] if isinstance(d, dict) else list(needed)
-    if missing:
-        raise InputError(f"not a robocal result: no {', '.join(missing)}", where="result")
+    if not isinstance(result, CalibrationResult):
+        raise InputError(f"expected a CalibrationResult, got {type(result).__name__}", where="result")
+    d = result_to_dict(result)
+    nominal, units = _nominal_values(result)
     tables = _extra_tables(extra)
     _matplotlib()  # fail early and clearly without the extra
     robot = (d.get("nominal_model") or {}).get("name", "robot")
@@ -778,7 +720,7 @@ def render_report(result: dict, *, extra: dict | None = None) -> str:
         + _figure(plot_histograms(d), "Distribution of the position errors. Solid bars: fitted poses; hatched: "
                   "held-out poses." + (" Dashed line: the limit of absolute accuracy." if lim else ""))
         + _worst_poses(d))]
-    frame_table, other_table, note = _parameter_tables(d)
+    frame_table, other_table, note = _parameter_tables(d, nominal, units)
     sections.append(("parameters", "Parameters",
                      "<p>Per frame, in the paper's layout: I identified, E eliminated (held at its nominal value, "
                      "its effect carried by identified parameters), &ndash; not a candidate. Lengths in mm, angles "
@@ -787,11 +729,11 @@ def render_report(result: dict, *, extra: dict | None = None) -> str:
                      + "<h3>Base and marker parameters</h3>" + other_table))
     sections.append(("identifiability", "Eliminated parameters and what absorbs them",
                      "<p>An eliminated parameter cannot be told apart from a combination of identified ones: a "
-                     "change in it moves the tool exactly as the combination shown does.</p>" + _eliminated_table(d)))
+                     "change in it moves the tool exactly as the combination shown does.</p>" + _eliminated_table(d, units)))
     sections.append(("correlation", "Correlation of the identified parameters",
                      _figure(plot_correlation(d), "Correlation coefficients from the covariance of the estimates "
                              "(red positive, blue negative).") + _correlated_pairs(d)))
-    at_points = bool(d["errors"].get("fit_positions"))
+    at_points = any(_finite3(p) for pose in (d["errors"].get("fit_positions") or []) for p in pose)
     sections.append(("residuals", "Residual vectors after calibration", _figure(
         plot_residuals(d), "Fit residuals (predicted minus measured) of the fitted poses, projected on three planes. "
         + ("Arrows start at the measured points and are scaled up; the bar gives their scale." if at_points else
@@ -820,11 +762,9 @@ def render_report(result: dict, *, extra: dict | None = None) -> str:
             "units. A self-contained page: no scripts, no network.</footer>\n</main>\n</body>\n</html>\n")
 
 
-def write_report(result: dict, path, *, force: bool = False, extra: dict | None = None) -> None:
+def write_report(result: CalibrationResult, path, *, force: bool = False, extra: dict | None = None) -> None:
     """Write the HTML report of ``result`` to ``path`` atomically (temporary file, then rename).
 
     An existing ``path`` is an InputError unless ``force``. See ``render_report``.
     """
-    from .._files.model import write_texts
-
     write_texts({path: render_report(result, extra=extra)}, force=force)

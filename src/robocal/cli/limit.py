@@ -1,4 +1,4 @@
-"""``robocal limit``: the limit of absolute accuracy of a robot model (METHOD.md section 5).
+"""``robocal limit``: the limit of absolute accuracy of a robot model (docs/method.md section 5).
 
 Parses units at the edge (deg, rad, mm, m), calls the library in SI, writes JSON atomically.
 """
@@ -6,17 +6,16 @@ Parses units at the edge (deg, rad, mm, m), calls the library in SI, writes JSON
 from __future__ import annotations
 
 import math
-import os
 import re
 import sys
 
-from .._errors import InputError, RobocalError
-from .._accuracy_limit import (DEFAULT_CHUNK, MARKER_MODES, LENGTH_UNITS, accuracy_limit, controller_precision,
-                     iso9283_repeatability, joint_reading_is_angle, read_repeatability_csv)
+from .._errors import InputError
+from .._options import LIMIT_CHUNK as DEFAULT_CHUNK, LIMIT_MARKER_MODES as MARKER_MODES
+from .._units import LENGTH_UNITS, UNITS, unit_kind
+from . import common
 
 PROG = "robocal limit"
-_UNITS = {"deg": (math.pi / 180, True), "rad": (1.0, True), "mm": (1e-3, False), "m": (1.0, False)}
-_ENTRY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(deg|rad|mm|m)\s*$")
+_ENTRY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([a-z]+)\s*$")
 
 
 def register(subparsers) -> None:
@@ -58,10 +57,11 @@ def parse_resolution(text: str, is_angle) -> list[float]:
     out = []
     for j, (entry, angle) in enumerate(zip(entries, is_angle)):
         m = _ENTRY.match(entry)
-        if m is None:
+        kind = unit_kind(m.group(2)) if m else None
+        if kind is None:
             raise InputError(f"joint {j + 1}: expected a number with a unit (deg, rad, mm, m), got {entry.strip()!r}",
                              where="--encoder-resolution")
-        scale, unit_is_angle = _UNITS[m.group(2)]
+        scale, unit_is_angle = UNITS[kind][m.group(2)], kind == "angle"
         if unit_is_angle != bool(angle):
             kind = "revolute (deg or rad)" if angle else "prismatic (mm or m)"
             raise InputError(f"joint {j + 1} is {kind}, got {entry.strip()!r}", where="--encoder-resolution")
@@ -85,35 +85,31 @@ def _progress_bar():
 
 
 def run(args) -> int:
-    """Run ``robocal limit``; 0 on success, 2 on bad input (one line on stderr)."""
-    try:
-        if os.path.exists(args.out) and not args.force:
-            raise InputError("exists; use --force to overwrite", source=args.out)
-        # readers and writers are imported here so the library does not depend on the file layer
-        from .._files.model import read_model, write_texts
-        from .._files.result import result_to_json
+    """Run ``robocal limit``; 0 on success, 2 on bad input (one line on stderr, from ``main``)."""
+    from .._accuracy_limit import accuracy_limit, controller_precision, iso9283_repeatability
+    from .._files.model import read_model
+    from .._files.repeatability import read_repeatability_csv
+    from .._files.result import limit_to_dict, to_json
 
-        model = read_model(args.model)
-        resolution = parse_resolution(args.encoder_resolution, joint_reading_is_angle(model))
-        if args.repeatability_csv is not None:
-            data = read_repeatability_csv(args.repeatability_csv, units=args.csv_units)
-            repeatability = iso9283_repeatability(data.pose_ids, data.points)
-        else:
-            repeatability = args.repeatability_mm * 1e-3
-        long_run = args.samples > args.chunk_size
-        precision = controller_precision(
-            model, encoder_resolution=resolution, length_quantum=args.length_quantum_mm * 1e-3,
-            angle_quantum=math.radians(args.angle_quantum_deg), n_samples=args.samples,
-            chunk_size=args.chunk_size, rng=args.seed, markers=args.markers,
-            progress=_progress_bar() if long_run else None)
-        limit = accuracy_limit(repeatability, precision)
-        out = limit.to_dict()
-        out["run"] = {"model": str(args.model), "seed": args.seed,
-                      "repeatability_source": args.repeatability_csv or "--repeatability-mm"}
-        write_texts({args.out: result_to_json(out)}, force=args.force)  # atomic, refuses to overwrite
-    except RobocalError as exc:
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
-        return 2
+    common.refuse_existing([args.out], args.force)
+    model = read_model(args.model)
+    resolution = parse_resolution(args.encoder_resolution, [q == "angle" for q in model.reading_quantities])
+    if args.repeatability_csv is not None:
+        data = read_repeatability_csv(args.repeatability_csv, units=args.csv_units)
+        repeatability = iso9283_repeatability(data.pose_ids, data.points)
+    else:
+        repeatability = args.repeatability_mm * 1e-3
+    long_run = args.samples > args.chunk_size
+    precision = controller_precision(
+        model, encoder_resolution=resolution, length_quantum=args.length_quantum_mm * 1e-3,
+        angle_quantum=math.radians(args.angle_quantum_deg), n_samples=args.samples,
+        chunk_size=args.chunk_size, rng=args.seed, markers=args.markers,
+        progress=_progress_bar() if long_run else None)
+    limit = accuracy_limit(repeatability, precision)
+    out = limit_to_dict(limit)
+    out["run"] = {"model": str(args.model), "seed": args.seed,
+                  "repeatability_source": args.repeatability_csv or "--repeatability-mm"}
+    common.write_outputs({args.out: to_json(out)}, force=args.force)
     print(f"limit of absolute accuracy {limit.limit * 1e3:.4f} mm = repeatability {limit.repeatability * 1e3:.4f} mm"
           f" + geometric control {limit.precision * 1e3:.4f} mm (mean; 95th percentile "
           f"{limit.precision_p95 * 1e3:.4f} mm) -> {args.out}")

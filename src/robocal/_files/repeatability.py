@@ -1,0 +1,106 @@
+"""Repeatability files (CSV): repeated measurements of commanded poses, for ISO 9283 (docs/formats.md)."""
+
+from __future__ import annotations
+
+import csv
+import math
+
+import numpy as np
+
+from .._accuracy_limit import RepeatabilityData
+from .._errors import InputError
+from .._units import LENGTH_UNITS
+
+CSV_COLUMNS = ("pose", "cycle", "x", "y", "z")
+
+
+def read_repeatability_csv(path, *, units: str | None = None) -> RepeatabilityData:
+    """Read repeated measurements: columns ``pose, cycle, x, y, z`` (header required, any order,
+    further columns ignored). The coordinates' unit is never guessed: it comes from the column
+    names (``x_mm, y_mm, z_mm`` or ``x_m``...) or, for plain ``x, y, z``, from ``units`` ("mm" or
+    "m"); a suffix that disagrees with ``units`` is an error. The result is in metres.
+
+    Errors name the file and ``row N, column 'c'`` with N the line number in the file (header = 1).
+    """
+    if units is not None and units not in LENGTH_UNITS:
+        raise InputError(f"units must be one of {', '.join(LENGTH_UNITS)}, got {units!r}", where="units")
+    src = str(path)
+    try:
+        with open(path, newline="") as fh:
+            reader = csv.reader(fh)
+            header = next(reader, None)
+            if header is None:
+                raise InputError("the file is empty; a header pose, cycle, x, y, z is required", source=src)
+            names = [h.strip().lower() for h in header]
+            col, scale = _repeatability_columns(names, units, src)
+            pose_ids, cycles, points, rows_of = [], [], [], {}
+            seen = {}
+            for row in reader:
+                if not any(cell.strip() for cell in row):
+                    continue
+                line = reader.line_num
+                cells = {}
+                for c in CSV_COLUMNS:
+                    where = f"row {line}, column {c!r}"
+                    if col[c] >= len(row) or not row[col[c]].strip():
+                        raise InputError("empty cell", source=src, where=where)
+                    cells[c] = row[col[c]].strip()
+                try:
+                    cycle = int(cells["cycle"])
+                except ValueError:
+                    raise InputError(f"expected an integer cycle number, got {cells['cycle']!r}",
+                                     source=src, where=f"row {line}, column 'cycle'") from None
+                xyz = []
+                for c in "xyz":
+                    where = f"row {line}, column {c!r}"
+                    try:
+                        v = float(cells[c])
+                    except ValueError:
+                        raise InputError(f"expected a number, got {cells[c]!r}", source=src, where=where) from None
+                    if not math.isfinite(v):
+                        raise InputError(f"expected a finite number, got {cells[c]!r}", source=src, where=where)
+                    xyz.append(v * scale[c])
+                key = (cells["pose"], cycle)
+                if key in seen:
+                    raise InputError(f"pose {cells['pose']!r} cycle {cycle} already given in row {seen[key]}",
+                                     source=src, where=f"row {line}")
+                seen[key] = line
+                rows_of.setdefault(cells["pose"], []).append(line)
+                pose_ids.append(cells["pose"])
+                cycles.append(cycle)
+                points.append(xyz)
+    except OSError as exc:
+        raise InputError(f"cannot read: {exc.strerror}", source=src) from None
+    if not points:
+        raise InputError("no measurements after the header", source=src)
+    for pose, lines in rows_of.items():
+        if len(lines) < 2:
+            raise InputError(f"pose {pose!r} has a single cycle; repeatability needs at least two",
+                             source=src, where=f"row {lines[0]}")
+    return RepeatabilityData(pose_ids=tuple(pose_ids), cycles=np.array(cycles, dtype=int),
+                             points=np.array(points, dtype=float), source=src)
+
+
+def _repeatability_columns(names: list[str], units: str | None, src: str) -> tuple[dict, dict]:
+    """Column index of pose, cycle, x, y, z and the metres per unit of each coordinate."""
+    col, scale = {}, {}
+    for c in CSV_COLUMNS:
+        found = [(i, n[len(c) + 1:] if n != c else None) for i, n in enumerate(names)
+                 if n == c or (c in "xyz" and n.startswith(c + "_") and n[len(c) + 1:] in LENGTH_UNITS)]
+        if not found:
+            raise InputError(f"missing column {c!r} (need {', '.join(CSV_COLUMNS)}; coordinates may carry their "
+                             f"unit, e.g. x_mm)", source=src, where="header")
+        if len(found) > 1:
+            raise InputError(f"column {c!r} is given {len(found)} times", source=src, where="header")
+        i, suffix = found[0]
+        col[c] = i
+        if c not in "xyz":
+            continue
+        if suffix is None and units is None:
+            raise InputError(f"the unit of column {c!r} is not declared: name it {c}_mm or {c}_m, or give the "
+                             "units (--csv-units mm|m)", source=src, where="header")
+        if suffix is not None and units is not None and suffix != units:
+            raise InputError(f"column {names[i]!r} says {suffix} but units {units!r} were given",
+                             source=src, where="header")
+        scale[c] = LENGTH_UNITS[suffix or units]
+    return col, scale

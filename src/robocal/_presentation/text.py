@@ -1,0 +1,126 @@
+"""Text summaries of results, as the command line prints them: pure functions returning lines."""
+
+from __future__ import annotations
+
+from .._parameters import BASE_KINDS, FRAME_KINDS, MARKER_KINDS, parameter_layout
+from .units import MM, absorption_coefficient, display_unit, with_unit
+
+STAT_ROWS = ("fit_before", "fit_after", "validation_before", "validation_after")
+# the paper's table shows these kinds; gamma and b join them where a tree uses them
+PAPER_KINDS = FRAME_KINDS[2:]
+
+
+def _mm(v) -> str:
+    return f"{'-':>7}" if v is None else f"{v * MM:7.3f}"
+
+
+def stats_lines(stats, indent: str = "  ") -> list[str]:
+    """The error table (mm) before and after, on fitted and held-out poses."""
+    lines = [f"{indent}{'error (mm)':<20}{'n':>5}{'mean':>8}{'std':>8}{'RMS':>8}{'max':>8}"]
+    for key in STAT_ROWS:
+        s = stats[key]
+        if s.n:
+            lines.append(f"{indent}{key.replace('_', ', '):<20}{s.n:>5} {_mm(s.mean)} {_mm(s.std)} {_mm(s.rms)} "
+                         f"{_mm(s.max)}")
+    return lines
+
+
+def eliminated_lines(ident, units: dict) -> list[str]:
+    """Each eliminated parameter and the combination that carries it, in display units.
+
+    ``units`` maps parameter names to their SI units.
+    """
+    if not ident.eliminated:
+        return []
+    width = max(len(a.name) for a in ident.eliminated)
+    lines = [f"eliminated parameters ({len(ident.eliminated)}): held at nominal; a change in each moves the "
+             "tool as the changes shown"]
+    for a in ident.eliminated:
+        if a.absorbers:
+            unit = units.get(a.name, "")
+            terms = " ".join(f"{absorption_coefficient(c, unit, units.get(n, '')):+.4g} {display_unit(units.get(n, ''))[0]}"
+                             f" {n}" for n, c in a.absorbers)
+            lines.append(f"  {a.name:<{width}}  1 {display_unit(unit)[0]} = {terms}")
+        else:
+            lines.append(f"  {a.name:<{width}} {a.reason}")
+    return lines
+
+
+def calibration_summary(result, *, shown=(), weighted: bool = False) -> str:
+    """What ``robocal calibrate`` prints about one result. ``shown``: notes already printed as warnings."""
+    lines = [f"calibration of {result.nominal_model.name} on {result.provenance['data']['n_poses']} poses "
+             f"({', '.join(result.families)}, loss {result.loss})"]
+    lines += stats_lines(result.stats)
+    lines.append(f"identified parameters ({len(result.parameters)}): change = estimate - nominal")
+    width = max([len(p.name) for p in result.parameters] + [16])
+    for p in result.parameters:
+        lines.append(f"  {p.name:<{width}} change {with_unit(p.change, p.unit, sign=True):>20}   "
+                     f"std {with_unit(p.std, p.unit):>18}")
+    units = {p.name: p.unit for p in result.parameters}
+    units.update(_candidate_units(result))
+    lines += eliminated_lines(result.identifiability, units)
+    lines.append(f"solver: {'converged' if result.success else 'NOT converged'} (status {result.status}, "
+                 f"{result.nfev} evaluations): {result.message}")
+    if weighted:
+        lines.append(f"residual standard deviation: {result.sigma0:.3g} times the stated measurement standard "
+                     "deviations")
+    else:
+        lines.append(f"residual standard deviation: {result.sigma0 * MM:.4f} mm")
+    if result.limit:
+        lim = result.limit
+        lines.append(f"limit of absolute accuracy {lim.limit_m * MM:.3f} mm: {lim.compared.replace('_', ' ')} mean "
+                     f"{lim.mean_error_m * MM:.3f} mm, {'reached' if lim.reached else 'not reached'}")
+    lines += [f"note: {n}" for n in result.notes if n not in shown]
+    return "\n".join(lines)
+
+
+def _candidate_units(result) -> dict:
+    lay = parameter_layout(result.nominal_model)
+    return {n: lay[n].unit for n in result.identifiability.candidates if n in lay}
+
+
+def comparison_summary(comparison, *, shown=(), weighted: bool = False) -> str:
+    """What ``robocal calibrate --compare`` prints: the two identifications side by side."""
+    geo, comp = comparison.geometric, comparison.combined
+    cols = (("geometric", geo), ("geometric+compliance", comp))
+    lines = [f"comparison on {geo.provenance['data']['n_poses']} poses",
+             f"  {'':<30}" + "".join(f"{name:>24}" for name, _ in cols),
+             f"  {'parameters identified':<30}" + "".join(f"{len(r.parameters):>24}" for _, r in cols)]
+    for key in STAT_ROWS:
+        if not geo.stats[key].n:
+            continue
+        for q in ("mean", "std", "rms", "max"):
+            label = f"{key.replace('_', ', ')} {q} (mm)"
+            lines.append(f"  {label:<30}" + "".join(f"{getattr(r.stats[key], q) * MM:>24.3f}" for _, r in cols))
+    if weighted:
+        lines.append(f"  {'residual std (stated stds)':<30}" + "".join(f"{r.sigma0:>24.4g}" for _, r in cols))
+    else:
+        lines.append(f"  {'residual std (mm)':<30}" + "".join(f"{r.sigma0 * MM:>24.4f}" for _, r in cols))
+    lines.append(f"  {'solver':<30}" + "".join(f"{'converged' if r.success else 'NOT converged':>24}"
+                                                for _, r in cols))
+    lines.append(comparison.verdict)
+    lines.append(f"calibrated model written: {'geometric+compliance' if comparison.best is comp else 'geometric'}")
+    for name, r in cols:
+        lines += [f"note ({name}): {n}" for n in r.notes if n not in shown]
+    return "\n".join(lines)
+
+
+def identifiability_summary(model, res, where: str) -> str:
+    """The identifiability table in the paper's layout, base and marker statuses, what absorbs what."""
+    width = max([len(f) for f in model.frame_names] + [len(m) for m in model.marker_names] + [12])
+    lines = [f"identifiability of {model.name} at {where}, tolerance {res.tol:g}",
+             "I identified, E eliminated, - not considered"]
+    kinds = [k for k in ("gamma", "b") if any(res.status(f"{f}.{k}") != "-" for f in model.frame_names)]
+    kinds += list(PAPER_KINDS)
+    lines.append(f"  {'frame':<{width}}" + "".join(f"{k:>9}" for k in kinds))
+    for f in model.frame_names:
+        lines.append(f"  {f:<{width}}" + "".join(f"{res.status(f'{f}.{k}'):>9}" for k in kinds))
+    for owner, owner_kinds in [("base", BASE_KINDS)] + [(m, MARKER_KINDS) for m in model.marker_names]:
+        lines.append(f"  {owner:<{width}}" + "".join(f"{k}:{res.status(f'{owner}.{k}'):<3}" for k in owner_kinds))
+    lines.append(f"identified {len(res.identified)} of {len(res.candidates)} candidates (rank {res.rank}, "
+                 f"{res.n_rows} equations)")
+    lay = parameter_layout(model)
+    lines += eliminated_lines(res, {n: lay[n].unit for n in res.candidates if n in lay})
+    lines.append(f"condition number: {res.condition_number:.4g}")
+    lines.append("observability: " + ", ".join(f"{k} {v:.4g}" for k, v in res.observability.items()))
+    return "\n".join(lines)

@@ -1,0 +1,182 @@
+"""A calibration problem: residuals and the stacked Jacobian of one model on one set of poses.
+
+Identifiability, pose selection, simulation and identification all start here. Rows are ordered
+marker by marker, then pose by pose (x, y, z), then, with orientations, the rotation rows in the
+same order; each row is divided by its stated standard deviation when the data carry one.
+"""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ._errors import InputError
+from ._kinematics import evaluate_state, jacobian_columns, layout
+from ._measurements import Measurements
+from ._model import RobotModel
+from ._parameters import has_compliance_parameters
+
+
+class Problem:
+    """Residuals and Jacobian of ``model`` on ``data`` over the free parameters ``free`` (names).
+
+    The Jacobian is returned column-major (a transposed view), as MINPACK works on columns.
+    ``residuals`` and ``jacobian`` at the same parameters share one kinematic pass.
+    """
+
+    def __init__(self, model: RobotModel, data: Measurements, free: tuple[str, ...], *, compliance: bool):
+        self.model = model
+        self.data = data
+        self.lay = layout(model)
+        self.free_idx = self._indices(free)
+        self.compliance = compliance
+        self.qf = data.q @ model.coupling_matrix.T
+        self.marker_idx = np.array([model.marker_names.index(n) for n in data.marker_names], dtype=int)
+        self.use_rot = data.has_orientation
+        self.sel = [np.nonzero(data.mask[:, j])[0] for j in range(len(data.marker_names))]
+        self.w = [np.ones(len(s)) if data.sigma is None else 1.0 / data.sigma[s, j] for j, s in enumerate(self.sel)]
+        self.meas = [data.positions[s, j] for j, s in enumerate(self.sel)]
+        if self.use_rot:
+            self.sel_r = [np.nonzero(data.rot_mask[:, j])[0] for j in range(len(data.marker_names))]
+            sr = data.sigma_rot
+            self.w_r = [np.ones(len(s)) if sr is None else 1.0 / sr[s, j] for j, s in enumerate(self.sel_r)]
+        self._cache_key = None
+        self._cache = None
+
+    def _indices(self, free) -> np.ndarray:
+        index = {n: i for i, n in enumerate(self.lay.names)}
+        return np.array([index[n] for n in free], dtype=int)
+
+    def over(self, free: tuple[str, ...]) -> Problem:
+        """The same problem over other free parameters, keeping the evaluation already made."""
+        other = copy.copy(self)
+        other.free_idx = self._indices(free)
+        return other
+
+    @property
+    def n_rows(self) -> int:
+        return 3 * sum(len(s) for s in self.sel) + (3 * sum(len(s) for s in self.sel_r) if self.use_rot else 0)
+
+    def full(self, x, p0) -> np.ndarray:
+        """The full parameter vector: ``p0`` with the free parameters set to ``x``."""
+        p = np.array(p0, dtype=float)
+        p[self.free_idx] = x
+        return p
+
+    def _state(self, p):
+        key = p.tobytes()
+        if key != self._cache_key:
+            self._cache = evaluate_state(self.model, self.lay, p, self.qf, compliance=self.compliance,
+                                         orientations=self.use_rot, payload_mass=self.data.payload_mass)
+            self._cache_key = key
+        return self._cache
+
+    def predicted(self, p):
+        """Marker positions (n_poses, n_data_markers, 3) and orientations (or None) at ``p``."""
+        st = self._state(p)
+        pos = st.ps.P[self.marker_idx].transpose(1, 0, 2)
+        rot = np.stack([st.ps.RM[m] for m in self.marker_idx], axis=1) if self.use_rot else None
+        return pos, rot
+
+    def errors(self, p) -> np.ndarray:
+        """(n_poses, n_data_markers, 3) predicted minus measured positions, NaN where not measured."""
+        pos, _ = self.predicted(p)
+        return np.where(self.data.mask[..., None], pos - self.data.positions, np.nan)
+
+    def error_norms(self, p) -> np.ndarray:
+        """(n_poses, n_data_markers) position error norms, NaN where not measured."""
+        return np.linalg.norm(self.errors(p), axis=2)
+
+    def _rotation_errors(self, st, j) -> np.ndarray:
+        """(n, 3) rotation vectors of R_pred R_meas^T in W for marker j's measured orientations."""
+        s = self.sel_r[j]
+        Rp = st.ps.RM[self.marker_idx[j]][s]
+        Rm = self.data.rotations[s, j]
+        return Rotation.from_matrix(Rp @ np.swapaxes(Rm, -1, -2)).as_rotvec()
+
+    def residuals(self, p) -> np.ndarray:
+        st = self._state(p)
+        parts = [((st.ps.P[m][s] - meas) * w[:, None]).ravel()
+                 for m, s, meas, w in zip(self.marker_idx, self.sel, self.meas, self.w)]
+        if self.use_rot:
+            parts += [(self._rotation_errors(st, j) * w[:, None]).ravel() for j, w in enumerate(self.w_r)]
+        return np.concatenate(parts)
+
+    def rotation_residuals(self, p) -> np.ndarray | None:
+        """(n, 3) unweighted rotation residuals in rad, or None for point data."""
+        if not self.use_rot:
+            return None
+        st = self._state(p)
+        return np.concatenate([self._rotation_errors(st, j) for j in range(len(self.sel_r))])
+
+    def jacobian(self, p) -> np.ndarray:
+        """Weighted Jacobian of ``residuals`` over the free parameters: (n_rows, n_free), column-major."""
+        st = self._state(p)
+        rows = 6 if self.use_rot else 3
+        k = len(self.free_idx)
+        cols = [jacobian_columns(self.model, self.lay, st, self.free_idx, m, rows) for m in self.marker_idx]
+        parts = []
+        for C, s, w in zip(cols, self.sel, self.w):
+            if len(s) == C.shape[1] and self.data.sigma is None:
+                parts.append(C[:, :, :3].reshape(k, -1))
+            else:
+                parts.append((C[:, s, :3] * w[None, :, None]).reshape(k, -1))
+        if self.use_rot:
+            parts += [(C[:, s, 3:] * w[None, :, None]).reshape(k, -1) for C, s, w in zip(cols, self.sel_r, self.w_r)]
+        Jt = parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)
+        return Jt.T
+
+    def pose_blocks(self, p) -> np.ndarray:
+        """(n_poses, rows_per_pose, n_free) unweighted Jacobian grouped by pose (all markers seen)."""
+        st = self._state(p)
+        rows = 6 if self.use_rot else 3
+        cols = [jacobian_columns(self.model, self.lay, st, self.free_idx, m, rows) for m in self.marker_idx]
+        return np.concatenate([C.transpose(1, 2, 0) for C in cols], axis=1)
+
+
+def needs_compliance(model: RobotModel, names) -> bool:
+    """Whether evaluating ``names`` on ``model`` needs the gravity moments."""
+    return model.has_compliance or has_compliance_parameters(model, names)
+
+
+def design_measurements(model: RobotModel, q, orientation: bool = False) -> Measurements:
+    """Configurations without measured values, for what depends on the poses only (the Jacobian)."""
+    n, m = len(q), len(model.markers)
+    return Measurements(q=q, positions=np.zeros((n, m, 3)), marker_names=model.marker_names,
+                        rotations=np.broadcast_to(np.eye(3), (n, m, 3, 3)) if orientation else None)
+
+
+def design_problem(model: RobotModel, q, names, orientation: bool = False) -> Problem:
+    """The problem of ``names`` at readings ``q`` with nothing measured: its Jacobian is the design's."""
+    return Problem(model, design_measurements(model, q, orientation), tuple(names),
+                   compliance=needs_compliance(model, names))
+
+
+def sampling_box(model: RobotModel) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper readings within which configurations are drawn, (n_joints,) each.
+
+    An unbounded revolute reading turns within +-pi (every orientation); an unbounded prismatic
+    one has no such range and is refused.
+    """
+    lo, hi = model.lower_limits.copy(), model.upper_limits.copy()
+    angle = np.zeros(model.n_joints, dtype=bool)
+    for f in model.frames:
+        for j, _ in f.coupling:
+            angle[j] |= f.joint == "revolute"
+    open_ = ~(np.isfinite(lo) & np.isfinite(hi))
+    if np.any(open_ & ~angle):
+        j = int(np.argmax(open_ & ~angle))
+        raise InputError(f"joint {model.joint_names[j]!r} slides without finite limits: configurations cannot be "
+                         "drawn; give its limits", where=f"joints[{j}].limits")
+    lo[open_] = np.maximum(lo[open_], -np.pi)
+    hi[open_] = np.minimum(hi[open_], np.pi)
+    return lo, hi
+
+
+def random_configurations(model: RobotModel, n: int, rng=None) -> np.ndarray:
+    """``n`` joint readings (n, n_joints) drawn uniformly within ``sampling_box(model)``."""
+    rng = np.random.default_rng(rng)
+    lo, hi = sampling_box(model)
+    return rng.uniform(lo, hi, size=(n, model.n_joints))

@@ -1,0 +1,106 @@
+"""Small rigid-body helpers on plain numpy arrays: elementary rotations, 4x4 placements, angle sets.
+
+Rotations are active and compose by right-multiplication (``R @ Rot(x, a)`` turns about the
+rotated x axis), as in docs/conventions.md.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def rot_matrix(axis: int, angle: float) -> np.ndarray:
+    """Rot(axis, angle) as a 3x3 matrix, ``axis`` 0, 1 or 2 for x, y, z.
+
+    >>> rot_matrix(2, np.pi / 2).round(12) @ [1.0, 0.0, 0.0]
+    array([0., 1., 0.])
+    """
+    c, s = np.cos(angle), np.sin(angle)
+    if axis == 0:
+        return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+    if axis == 1:
+        return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+
+
+def rot4(axis: int, angle: float) -> np.ndarray:
+    """Rot(axis, angle) as a 4x4 placement."""
+    X = np.eye(4)
+    X[:3, :3] = rot_matrix(axis, angle)
+    return X
+
+
+def trans4(axis: int, dist: float) -> np.ndarray:
+    """Trans(axis, dist) as a 4x4 placement."""
+    X = np.eye(4)
+    X[axis, 3] = dist
+    return X
+
+
+def pose4(R, p) -> np.ndarray:
+    """The 4x4 placement with rotation ``R`` (3x3) and translation ``p`` (3,)."""
+    X = np.eye(4)
+    X[:3, :3] = R
+    X[:3, 3] = p
+    return X
+
+
+def inverse4(X: np.ndarray) -> np.ndarray:
+    """The inverse of a 4x4 rigid placement."""
+    R, p = X[:3, :3], X[:3, 3]
+    return pose4(R.T, -R.T @ p)
+
+
+def small_rotation(rx: float, ry: float, rz: float) -> np.ndarray:
+    """Rot(x, rx) Rot(y, ry) Rot(z, rz): the rotation corrections of the base and the markers."""
+    return rot_matrix(0, rx) @ rot_matrix(1, ry) @ rot_matrix(2, rz)
+
+
+def xyz_angles(R: np.ndarray) -> np.ndarray:
+    """Angles (a, b, c) with R = Rot(x, a) Rot(y, b) Rot(z, c), the inverse of ``small_rotation``."""
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_matrix(R).as_euler("XYZ")
+
+
+def rpy_matrix(rpy) -> np.ndarray:
+    """Fixed-axis roll, pitch, yaw (URDF's rule): R = Rot(z, yaw) Rot(y, pitch) Rot(x, roll)."""
+    roll, pitch, yaw = rpy
+    return rot_matrix(2, yaw) @ rot_matrix(1, pitch) @ rot_matrix(0, roll)
+
+
+def matrix_rpy(R: np.ndarray) -> tuple[float, float, float]:
+    """Inverse of ``rpy_matrix``, stable through gimbal lock.
+
+    Yaw first, then roll and pitch from ``Rot(z, -yaw) R``: near pitch = +-pi/2 a poor yaw is
+    absorbed by roll, so the rebuilt matrix stays accurate to rounding (separate atan2s would not).
+    """
+    yaw = math.atan2(R[1, 0], R[0, 0]) if math.hypot(R[1, 0], R[0, 0]) > 1e-300 else 0.0
+    M = rot_matrix(2, -yaw) @ R
+    roll = math.atan2(-M[1, 2], M[1, 1])
+    pitch = math.atan2(-M[2, 0], M[0, 0])
+    return roll, pitch, yaw
+
+
+def axis_angle_matrix(k: np.ndarray, angle: float) -> np.ndarray:
+    """Rotation by ``angle`` about the unit axis ``k`` (Rodrigues)."""
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + math.sin(angle) * K + (1 - math.cos(angle)) * K @ K
+
+
+def unit_vector(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v)
+
+
+def matrix_tuple(R) -> tuple:
+    """A 3x3 matrix as the nested tuple of floats the frozen model records hold."""
+    return tuple(tuple(float(v) for v in row) for row in R)
+
+
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross product over the last axis; numpy's own is several times slower on small vectors."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)

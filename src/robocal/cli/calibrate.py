@@ -1,0 +1,90 @@
+"""``robocal calibrate``: identify the parameters from measurements, write the model and the result."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .._errors import DegenerateDataError, InputError
+from .._options import LOSSES
+from . import common
+
+
+def register(sub) -> None:
+    p = sub.add_parser("calibrate", help="identify the parameters from measurements",
+                       description="Identify the robot's parameters from measured marker positions; write "
+                                   "OUT/calibrated.yaml and OUT/result.json.")
+    p.add_argument("model", metavar="MODEL", help="model file (YAML)")
+    p.add_argument("csv", metavar="CSV", help="measurement file")
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder (created)")
+    v = p.add_mutually_exclusive_group()
+    v.add_argument("--validation", metavar="CSV", help="held-out measurements to judge the result on")
+    v.add_argument("--holdout", type=common.fraction, metavar="FRACTION", help="hold out this fraction of the poses")
+    common.parameter_options(p)
+    p.add_argument("--compare", action="store_true",
+                   help="fit geometric and geometric+compliance on the same data and compare them")
+    p.add_argument("--loss", default="linear", choices=LOSSES, help="least-squares loss (robust ones bend for outliers)")
+    p.add_argument("--register-base", action="store_true",
+                   help="start the base pose from a rigid registration of the nominal robot on the data")
+    p.add_argument("--limit-mm", type=common.positive, metavar="X",
+                   help="limit of absolute accuracy to judge against, mm")
+    p.add_argument("--seed", type=int, default=0, help="seed of the --holdout split (default 0)")
+    p.add_argument("--out-units", type=common.units, default="mm-deg", help="units of calibrated.yaml (default mm-deg)")
+    p.add_argument("--force", action="store_true", help="overwrite existing output files")
+    p.add_argument("--report", action="store_true", help="also write OUT/report.html (needs robocal[report])")
+    common.csv_options(p)
+    p.set_defaults(func=run)
+
+
+def _inputs(args):
+    """The model, the fitted data and the held-out data (or None) the options name."""
+    from .._files.measurements import split_sets
+    from .._files.model import read_model
+
+    model = read_model(args.model)
+    data, validation = split_sets(common.read_data(args, model, args.csv))
+    if validation is not None and (args.validation or args.holdout):
+        raise InputError("the file marks validation rows (column 'set') and --validation/--holdout was given; "
+                         "use one", source=args.csv)
+    if args.validation:
+        validation = common.read_data(args, model, args.validation)
+    elif args.holdout:
+        data, validation = data.split(args.holdout, rng=args.seed)
+    return model, data, validation
+
+
+def run(args) -> int:
+    from .._calibration import calibrate, compare
+    from .._files.model import model_to_yaml
+    from .._files.result import result_to_json
+    from .._presentation.text import calibration_summary, comparison_summary
+
+    if args.compare and args.parameters:
+        raise InputError("--compare chooses the parameters itself; drop --parameters", where="--compare")
+    out = Path(args.out)
+    names = ["result-geometric.json", "result-compliance.json"] if args.compare else ["result.json"]
+    report = common.report_module() if args.report else None
+    common.refuse_existing([out / "calibrated.yaml"] + [out / n for n in names]
+                           + ([out / "report.html"] if report else []), args.force)
+    model, data, validation = _inputs(args)
+    options = dict(known=args.known, validation=validation, loss=args.loss, tol=args.tol,
+                   initial_base="register" if args.register_base else "model",
+                   limit=None if args.limit_mm is None else args.limit_mm / common.MM)
+    weighted = data.sigma is not None
+    try:
+        if args.compare:
+            comparison = compare(model, data, **options)
+            results = [comparison.geometric, comparison.combined]
+            best = comparison.best
+            print(comparison_summary(comparison, shown=args.shown_warnings, weighted=weighted))
+        else:
+            best = calibrate(model, data, parameters=args.parameters or ("geometric",), **options)
+            results = [best]
+            print(calibration_summary(best, shown=args.shown_warnings, weighted=weighted))
+    except DegenerateDataError as e:  # name the file: the data, not the program, fall short
+        raise DegenerateDataError(f"{args.csv}: {e}") from None
+    files = {out / "calibrated.yaml": model_to_yaml(best.calibrated_model, units=args.out_units)}
+    files.update({out / n: result_to_json(r) for n, r in zip(names, results)})
+    rep = (report, best, out / "report.html") if report else None
+    common.write_outputs(files, force=args.force, report=rep)
+    print(f"wrote {', '.join(str(p) for p in list(files) + ([rep[2]] if rep else []))}")
+    return 0

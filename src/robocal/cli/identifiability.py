@@ -1,0 +1,36 @@
+"""``robocal identifiability``: which parameters can be identified, and what absorbs the others."""
+
+from __future__ import annotations
+
+from .._errors import InputError
+from . import common
+
+
+def register(sub) -> None:
+    p = sub.add_parser("identifiability", help="which parameters can be identified, and what absorbs the others",
+                       description="Identifiability of the parameters at the poses of CSV, or at --poses random "
+                                   "poses within the joint limits.")
+    p.add_argument("model", metavar="MODEL", help="model file (YAML)")
+    p.add_argument("csv", metavar="CSV", nargs="?", help="measurement file (its poses); default random poses")
+    common.parameter_options(p)
+    p.add_argument("--poses", type=int, default=200, metavar="N", help="random poses without CSV (default 200)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the random poses (default 0)")
+    common.csv_options(p)
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from .._files.model import read_model
+    from .._identifiability import identifiability
+    from .._presentation.text import identifiability_summary
+
+    model = read_model(args.model)
+    data = common.read_data(args, model, args.csv) if args.csv else None
+    if data is None and args.poses < 1:
+        raise InputError(f"--poses must be at least 1, got {args.poses}", where="--poses")
+    res = identifiability(model, data, parameters=args.parameters or ("geometric",), known=args.known, tol=args.tol,
+                          n_random=args.poses, rng=args.seed)
+    where = f"the {data.n_poses} poses of {args.csv}" if data is not None else \
+        f"{args.poses} random poses (seed {args.seed}) within the joint limits"
+    print(identifiability_summary(model, res, where))
+    return 0

@@ -1,0 +1,12 @@
+"""Exceptions and warnings robocal raises, for users to catch or filter.
+
+``InputError`` (bad input, naming the file and the row, column or key), ``DegenerateDataError``
+(data that cannot determine what was asked), both ``RobocalError``; warnings derive from
+``RobocalWarning``.
+"""
+
+from ._errors import (ConvergenceWarning, DegenerateDataError, IdentifiabilityWarning, InputError, MisfitWarning,
+                      RobocalError, RobocalWarning)
+
+__all__ = ["RobocalError", "InputError", "DegenerateDataError", "RobocalWarning", "ConvergenceWarning",
+           "MisfitWarning", "IdentifiabilityWarning"]

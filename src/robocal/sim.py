@@ -1,0 +1,10 @@
+"""Simulation before the robot is touched: a perturbed "true" robot and its measurements, and
+campaigns with a real robot's imperfections (encoder counts, scatter, instrument noise, lost motion)."""
+
+from ._campaign import (RobotImperfections, accuracy_in_use, approach_sides, backlash_sides, measure_campaign,
+                        stored_model)
+from ._problem import random_configurations
+from ._simulation import measure, perturb_model, simulate
+
+__all__ = ["simulate", "measure", "perturb_model", "random_configurations", "RobotImperfections",
+           "measure_campaign", "accuracy_in_use", "approach_sides", "backlash_sides", "stored_model"]
