@@ -14,6 +14,7 @@ from datetime import datetime, timezone
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ._checks import Check, verdict
 from ._errors import (ConvergenceWarning, DegenerateDataError, IdentifiabilityWarning, InputError,
                       MisfitWarning, check_choice)
 from ._identifiability import DEFAULT_TOL, IdentifiabilityResult, analyse_problem, theoretical_identifiability
@@ -141,6 +142,12 @@ class CalibrationResult:
     notes: tuple[str, ...] = ()
     limit: LimitJudgement | None = None
     provenance: dict = field(default_factory=dict)
+    checks: tuple[Check, ...] = ()
+
+    @property
+    def verdict(self) -> str:
+        """"pass", "warn" or "fail": the worst of the checks."""
+        return verdict(self.checks)
 
     def estimate(self, name: str) -> ParameterEstimate:
         return next(p for p in self.parameters if p.name == name)

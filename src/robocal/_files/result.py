@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 from .._accuracy_limit import AccuracyLimit, PoseRepeatability, PrecisionResult, RepeatabilityResult
+from .._checks import STATUSES, Check
 from .._calibration import CalibrationResult, ErrorStats, ErrorSummary, LimitJudgement, ParameterEstimate
 from .._errors import InputError, excerpt
 from .._identifiability import Absorption, IdentifiabilityResult, status_table
@@ -87,6 +88,9 @@ def result_to_dict(result: CalibrationResult) -> dict:
                    "fit_residual_vectors": _array(result.residual_vectors),
                    "fit_positions": _array(result.measured_positions)},
         "notes": list(result.notes),
+        "verdict": result.verdict,
+        "checks": [{"name": c.name, "status": c.status, "summary": c.summary, "cause": c.cause, "fix": c.fix,
+                    "items": list(c.items)} for c in result.checks],
         "limit": None if lim is None else {"limit_m": lim.limit_m, "compared": lim.compared,
                                            "mean_error_m": lim.mean_error_m, "ratio": lim.ratio,
                                            "reached": lim.reached},
@@ -208,6 +212,21 @@ def _limit_judgement(doc: _Doc, d: dict | None) -> LimitJudgement | None:
                           reached=doc.get(d, "reached", w, bool))
 
 
+def _checks(doc: _Doc, d: list) -> tuple[Check, ...]:
+    out = []
+    for i, c in enumerate(d):
+        w = f"checks[{i}]"
+        if not isinstance(c, dict):
+            raise doc.error(w, f"expected a mapping, got {excerpt(c)}")
+        status = doc.get(c, "status", w, str)
+        if status not in STATUSES:
+            raise doc.error(f"{w}.status", f"expected one of {', '.join(STATUSES)}, got {excerpt(status)}")
+        out.append(Check(name=doc.get(c, "name", w, str), status=status, summary=doc.get(c, "summary", w, str),
+                         cause=doc.get(c, "cause", w, str), fix=doc.get(c, "fix", w, str),
+                         items=doc.strings(doc.get(c, "items", w, list), f"{w}.items")))
+    return tuple(out)
+
+
 def _parameters(doc: _Doc, d: list) -> tuple[ParameterEstimate, ...]:
     out = []
     for i, p in enumerate(d):
@@ -270,6 +289,7 @@ def result_from_dict(d, *, source: str = "<dict>") -> CalibrationResult:
         families=doc.strings(doc.get(d, "families", "", list), "families"), loss=doc.get(d, "loss", "", str),
         notes=doc.strings(doc.get(d, "notes", "", list), "notes"),
         limit=_limit_judgement(doc, doc.get(d, "limit", "", dict, optional=True)),
+        checks=_checks(doc, doc.get(d, "checks", "", list, optional=True) or []),
         provenance=doc.get(d, "provenance", "", dict, optional=True) or {})
 
 
