@@ -110,13 +110,15 @@ class ParameterEstimate:
 class CalibrationResult:
     """Everything a calibration produced. Fields are always present; absent data are None.
 
-    ``residual_vectors`` (n_poses, n_markers, 3) calibrated minus measured and ``measured_positions``
-    likewise, metres in W, NaN where not measured.
-    ``errors_before``/``errors_after``: (n_poses, n_markers) position error norms in metres on the
-    fitted poses (NaN where not measured); ``validation_before``/``validation_after`` likewise on
-    held-out poses, or None. ``stats`` summarises them. ``correlation`` is indexed like
-    ``parameters``. ``sigma0`` is the residual standard deviation (m, or in stated standard
-    deviations when the data carry them).
+    Per measured point, on the fitted poses: ``errors_before``/``errors_after`` (n_poses, n_markers)
+    position error norms in metres (NaN where not measured), ``residual_vectors`` (n_poses,
+    n_markers, 3) calibrated minus measured and ``measured_positions`` likewise, metres in W,
+    ``readings`` (n_poses, n_joints) the joint readings (SI), and for 6D data
+    ``rotation_errors_before``/``rotation_errors_after`` (n_poses, n_markers) rotation error angles in
+    radians (None for point data). The ``validation_*`` fields are the same on held-out poses, or
+    None. ``stats`` summarises the position errors, ``rotation_stats`` the rotation errors (rad) or
+    None. ``correlation`` is indexed like ``parameters``. ``sigma0`` is the residual standard
+    deviation (m, or in stated standard deviations when the data carry them).
     """
 
     nominal_model: RobotModel
@@ -128,8 +130,6 @@ class CalibrationResult:
     stats: ErrorSummary
     errors_before: np.ndarray
     errors_after: np.ndarray
-    validation_before: np.ndarray | None
-    validation_after: np.ndarray | None
     residual_vectors: np.ndarray
     measured_positions: np.ndarray
     success: bool
@@ -143,6 +143,17 @@ class CalibrationResult:
     limit: LimitJudgement | None = None
     provenance: dict = field(default_factory=dict)
     checks: tuple[Check, ...] = ()
+    readings: np.ndarray | None = None
+    validation_before: np.ndarray | None = None
+    validation_after: np.ndarray | None = None
+    rotation_errors_before: np.ndarray | None = None
+    rotation_errors_after: np.ndarray | None = None
+    rotation_stats: ErrorSummary | None = None
+    validation_readings: np.ndarray | None = None
+    validation_residual_vectors: np.ndarray | None = None
+    validation_positions: np.ndarray | None = None
+    rotation_validation_before: np.ndarray | None = None
+    rotation_validation_after: np.ndarray | None = None
 
     @property
     def verdict(self) -> str:
@@ -214,19 +225,17 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
     cov = covariance(solution)
     notes += _checks(design, solution, cov, data)
     calibrated = model_from_vector(start, solution.p)
-    before, after, vectors = _fit_errors(model, design, solution, data)
-    vb, va = _validation_errors(model, calibrated, design, validation)
-    stats = ErrorSummary(error_stats(before), error_stats(after), error_stats(vb if vb is not None else []),
-                         error_stats(va if va is not None else []))
+    fit = _PoseErrors.of(model, data, design.problem, design.p0, solution.p, design)
+    val = None if validation is None else _PoseErrors.of(model, validation, None, None, calibrated, design)
+    stats = fit.summary(val, rotation=False)
     return CalibrationResult(
         nominal_model=model, calibrated_model=calibrated, parameters=_estimates(design, solution, cov),
         covariance=cov.covariance, correlation=cov.correlation, identifiability=design.identifiability,
-        stats=stats, errors_before=before, errors_after=after, validation_before=vb, validation_after=va,
-        residual_vectors=vectors, measured_positions=np.where(data.mask[..., None], data.positions, np.nan),
         success=solution.success, status=solution.status, message=solution.message, nfev=solution.nfev,
         sigma0=float(np.sqrt(cov.s2)), families=parameters, loss=loss, notes=tuple(notes),
         limit=None if limit is None else judge_against_limit(limit, stats),
-        provenance=provenance(data, validation),
+        provenance=provenance(data, validation), stats=stats, rotation_stats=fit.summary(val, rotation=True),
+        **fit.fields("fit"), **(val.fields("validation") if val is not None else {}),
     )
 
 
@@ -333,28 +342,66 @@ def _estimates(design: _Design, solution: Solution, cov: Covariance) -> tuple[Pa
                  for k, n in enumerate(design.identifiability.identified))
 
 
-def _fit_errors(nominal: RobotModel, design: _Design, solution: Solution, data: Measurements):
-    """Error norms on the fitted poses before and after, and the residual vectors after."""
-    vectors = design.problem.errors(solution.p)      # the solution's pass is cached from the last Jacobian
-    if nominal is design.start:
-        # the analysis evaluated it there (a compliance deflects nothing at p0 unless the model has one)
-        before = design.problem.error_norms(design.p0)
-    else:
-        before = _norms(nominal, data)
-    return before, np.linalg.norm(vectors, axis=2), vectors
+@dataclass(frozen=True, eq=False)
+class _PoseErrors:
+    """Errors before and after calibration on one set of poses: position vectors (n, m, 3) in m and,
+    for 6D data, rotation vectors (n, m, 3) in rad; NaN where not measured."""
+
+    data: Measurements
+    before: np.ndarray
+    after: np.ndarray
+    rotation_before: np.ndarray | None
+    rotation_after: np.ndarray | None
+
+    @staticmethod
+    def of(nominal: RobotModel, data: Measurements, problem, p0, after, design: _Design) -> _PoseErrors:
+        """On the fitted poses ``problem`` evaluates both (``after`` a parameter vector); on held-out
+        poses (``problem`` None) the nominal and the calibrated model (``after``) are evaluated."""
+        if problem is not None and nominal is design.start:
+            # the analysis evaluated the start (a compliance deflects nothing there unless the model has one)
+            prob_before, p_before = problem, p0
+        else:
+            prob_before, p_before = _problem_of(nominal, data, nominal.has_compliance)
+        vb, rb = prob_before.errors(p_before), prob_before.rotation_errors(p_before)
+        if problem is not None:
+            prob_after, p_after = problem, after      # the solution's pass is cached from the last Jacobian
+        else:
+            prob_after, p_after = _problem_of(after, data, design.compliance)
+        return _PoseErrors(data, vb, prob_after.errors(p_after), rb, prob_after.rotation_errors(p_after))
+
+    def summary(self, other: _PoseErrors | None, *, rotation: bool) -> ErrorSummary | None:
+        """Statistics of the error norms here (fit) and on ``other`` (held out), positions or rotations."""
+        if rotation and self.rotation_after is None:
+            return None
+
+        def stats(e: _PoseErrors | None, when: str):
+            if e is None:
+                return error_stats([])
+            v = getattr(e, f"rotation_{when}" if rotation else when)
+            return error_stats([] if v is None else np.linalg.norm(v, axis=2))
+
+        return ErrorSummary(stats(self, "before"), stats(self, "after"), stats(other, "before"), stats(other, "after"))
+
+    def fields(self, which: str) -> dict:
+        """The result fields of this set (``which``: "fit" or "validation")."""
+        norms = {k: None if v is None else np.linalg.norm(v, axis=2)
+                 for k, v in (("before", self.before), ("after", self.after),
+                              ("rotation_before", self.rotation_before), ("rotation_after", self.rotation_after))}
+        positions = np.where(self.data.mask[..., None], self.data.positions, np.nan)
+        if which == "fit":
+            return {"errors_before": norms["before"], "errors_after": norms["after"], "residual_vectors": self.after,
+                    "measured_positions": positions, "readings": self.data.q,
+                    "rotation_errors_before": norms["rotation_before"],
+                    "rotation_errors_after": norms["rotation_after"]}
+        return {"validation_before": norms["before"], "validation_after": norms["after"],
+                "validation_residual_vectors": self.after, "validation_positions": positions,
+                "validation_readings": self.data.q, "rotation_validation_before": norms["rotation_before"],
+                "rotation_validation_after": norms["rotation_after"]}
 
 
-def _validation_errors(nominal: RobotModel, calibrated: RobotModel, design: _Design, validation):
-    """Error norms on the held-out poses before and after, or (None, None)."""
-    if validation is None:
-        return None, None
-    return _norms(nominal, validation), _norms(calibrated, validation, compliance=design.compliance)
-
-
-def _norms(model: RobotModel, data: Measurements, *, compliance: bool | None = None) -> np.ndarray:
-    """(n_poses, n_markers) position error norms of ``model`` on ``data``, NaN where not measured."""
-    comp = model.has_compliance if compliance is None else compliance
-    return Problem(model, data, (), compliance=comp).error_norms(parameter_vector(model))
+def _problem_of(model: RobotModel, data: Measurements, compliance: bool) -> tuple[Problem, np.ndarray]:
+    """The problem of evaluating ``model`` on ``data`` (no free parameter), and its vector."""
+    return Problem(model, data, (), compliance=compliance), parameter_vector(model)
 
 
 def provenance(data: Measurements, validation: Measurements | None = None) -> dict:

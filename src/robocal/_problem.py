@@ -89,6 +89,17 @@ class Problem:
         """(n_poses, n_data_markers) position error norms, NaN where not measured."""
         return np.linalg.norm(self.errors(p), axis=2)
 
+    def rotation_errors(self, p) -> np.ndarray | None:
+        """(n_poses, n_data_markers, 3) rotation vectors (rad, in W) of R_pred R_meas^T, NaN where no
+        orientation was measured; None for point data."""
+        if not self.use_rot:
+            return None
+        st = self._state(p)
+        out = np.full(self.data.positions.shape, np.nan)
+        for j, s in enumerate(self.sel_r):
+            out[s, j] = self._rotation_errors(st, j)
+        return out
+
     def _rotation_errors(self, st, j) -> np.ndarray:
         """(n, 3) rotation vectors of R_pred R_meas^T in W for marker j's measured orientations."""
         s = self.sel_r[j]

@@ -60,6 +60,18 @@ def identifiability_to_dict(ident: IdentifiabilityResult) -> dict:
             "n_rows": ident.n_rows}
 
 
+# result.json "errors" key -> CalibrationResult field (fitted poses first, then held-out ones)
+_ERROR_ARRAYS = (
+    ("fit_before", "errors_before"), ("fit_after", "errors_after"), ("fit_residual_vectors", "residual_vectors"),
+    ("fit_positions", "measured_positions"), ("fit_readings", "readings"),
+    ("fit_rotation_before", "rotation_errors_before"), ("fit_rotation_after", "rotation_errors_after"),
+    ("validation_before", "validation_before"), ("validation_after", "validation_after"),
+    ("validation_residual_vectors", "validation_residual_vectors"), ("validation_positions", "validation_positions"),
+    ("validation_readings", "validation_readings"), ("validation_rotation_before", "rotation_validation_before"),
+    ("validation_rotation_after", "rotation_validation_after"),
+)
+
+
 def _stats_dict(s: ErrorStats) -> dict:
     return {"n": s.n, "mean": s.mean, "std": s.std, "rms": s.rms, "max": s.max}
 
@@ -80,13 +92,11 @@ def result_to_dict(result: CalibrationResult) -> dict:
         "correlation": result.correlation.tolist(), "covariance": result.covariance.tolist(),
         "identifiability": identifiability_to_dict(result.identifiability),
         "identifiability_table": status_table(result.identifiability, result.nominal_model.frame_names),
-        "stats": {k: _stats_dict(result.stats[k]) for k in ErrorSummary.KEYS},
-        "errors": {"unit": "m", "markers": list(result.nominal_model.marker_names),
-                   "fit_before": _array(result.errors_before), "fit_after": _array(result.errors_after),
-                   "validation_before": _array(result.validation_before),
-                   "validation_after": _array(result.validation_after),
-                   "fit_residual_vectors": _array(result.residual_vectors),
-                   "fit_positions": _array(result.measured_positions)},
+        "stats": {**{k: _stats_dict(result.stats[k]) for k in ErrorSummary.KEYS},
+                  "rotation": None if result.rotation_stats is None else
+                  {k: _stats_dict(result.rotation_stats[k]) for k in ErrorSummary.KEYS}},
+        "errors": {"unit": "m", "rotation_unit": "rad", "markers": list(result.nominal_model.marker_names),
+                   **{key: _array(getattr(result, field)) for key, field in _ERROR_ARRAYS}},
         "notes": list(result.notes),
         "verdict": result.verdict,
         "checks": [{"name": c.name, "status": c.status, "summary": c.summary, "cause": c.cause, "fix": c.fix,
@@ -192,11 +202,11 @@ def _identifiability(doc: _Doc, d: dict) -> IdentifiabilityResult:
         n_rows=doc.get(d, "n_rows", w, int))
 
 
-def _stats(doc: _Doc, d: dict) -> ErrorSummary:
+def _stats(doc: _Doc, d: dict, where: str = "stats") -> ErrorSummary:
     parts = {}
     for key in ErrorSummary.KEYS:
-        s = doc.get(d, key, "stats", dict)
-        w = f"stats.{key}"
+        s = doc.get(d, key, where, dict)
+        w = f"{where}.{key}"
         n = doc.get(s, "n", w, int)
         vals = {f: (doc.get(s, f, w, float, optional=True) if n else None) for f in ("mean", "std", "rms", "max")}
         parts[key] = ErrorStats(n=n, **{f: (None if v is None or math.isnan(v) else v) for f, v in vals.items()})
@@ -239,24 +249,26 @@ def _parameters(doc: _Doc, d: list) -> tuple[ParameterEstimate, ...]:
     return tuple(out)
 
 
-def _errors(doc: _Doc, d: dict, n_markers: int) -> dict:
-    w = "errors"
-    fit = doc.array(doc.get(d, "fit_before", w, list), f"{w}.fit_before", (None, n_markers))
-    n = fit.shape[0]
-    out = {"errors_before": fit,
-           "errors_after": doc.array(doc.get(d, "fit_after", w, list), f"{w}.fit_after", (n, n_markers)),
-           "residual_vectors": doc.array(doc.get(d, "fit_residual_vectors", w, list), f"{w}.fit_residual_vectors",
-                                         (n, n_markers, 3))}
-    pos = doc.get(d, "fit_positions", w, list, optional=True)
-    out["measured_positions"] = (np.full((n, n_markers, 3), np.nan) if pos is None
-                                 else doc.array(pos, f"{w}.fit_positions", (n, n_markers, 3)))
-    vb = doc.get(d, "validation_before", w, list, optional=True)
-    va = doc.get(d, "validation_after", w, list, optional=True)
-    if (vb is None) != (va is None):
-        raise doc.error(w, "validation_before and validation_after must both be given or both be null")
-    out["validation_before"] = None if vb is None else doc.array(vb, f"{w}.validation_before", (None, n_markers))
-    nv = None if vb is None else out["validation_before"].shape[0]
-    out["validation_after"] = None if va is None else doc.array(va, f"{w}.validation_after", (nv, n_markers))
+def _errors(doc: _Doc, d: dict, n_markers: int, n_joints: int) -> dict:
+    """The per-point arrays; every set's arrays agree in their number of poses."""
+    shapes = {"before": (n_markers,), "after": (n_markers,), "residual_vectors": (n_markers, 3),
+              "positions": (n_markers, 3), "readings": (n_joints,), "rotation_before": (n_markers,),
+              "rotation_after": (n_markers,)}
+    required = {"fit_before", "fit_after", "fit_residual_vectors"}
+    out, n_poses = {}, {}
+    for key, field in _ERROR_ARRAYS:
+        which, part = key.split("_", 1)
+        value = doc.get(d, key, "errors", list, optional=key not in required)
+        if value is None:
+            out[field] = None
+            continue
+        a = doc.array(value, f"errors.{key}", (n_poses.get(which),) + shapes[part])
+        n_poses.setdefault(which, a.shape[0])
+        out[field] = a
+    if out["measured_positions"] is None:
+        out["measured_positions"] = np.full(out["residual_vectors"].shape, np.nan)
+    if (out["validation_before"] is None) != (out["validation_after"] is None):
+        raise doc.error("errors", "validation_before and validation_after must both be given or both be null")
     return out
 
 
@@ -277,12 +289,15 @@ def result_from_dict(d, *, source: str = "<dict>") -> CalibrationResult:
     if markers != nominal.marker_names:
         raise doc.error("errors.markers", f"the markers {list(markers)} are not the nominal model's "
                                           f"{list(nominal.marker_names)}")
+    stats = doc.get(d, "stats", "", dict)
+    rotation = doc.get(stats, "rotation", "stats", dict, optional=True)
     return CalibrationResult(
         nominal_model=nominal, calibrated_model=calibrated, parameters=params,
         covariance=doc.array(doc.get(d, "covariance", "", list), "covariance", (k, k)),
         correlation=doc.array(doc.get(d, "correlation", "", list), "correlation", (k, k)),
         identifiability=_identifiability(doc, doc.get(d, "identifiability", "", dict)),
-        stats=_stats(doc, doc.get(d, "stats", "", dict)), **_errors(doc, errors, len(markers)),
+        stats=_stats(doc, stats), rotation_stats=None if rotation is None else _stats(doc, rotation, "stats.rotation"),
+        **_errors(doc, errors, len(markers), nominal.n_joints),
         success=doc.get(d, "success", "", bool), status=doc.get(d, "status", "", int),
         message=doc.get(d, "message", "", str), nfev=doc.get(d, "nfev", "", int),
         sigma0=doc.get(d, "sigma0_m", "", float),
