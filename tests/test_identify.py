@@ -166,7 +166,8 @@ def test_rank_deficient_design_is_explained():
     data = rc.measure(true, q, noise=NOISE, rng=4)
     with pytest.warns(rc.IdentifiabilityWarning, match="cannot separate"):
         res = rc.calibrate(m, data)
-    assert any("rank-deficient" in n for n in res.notes)
+    check = next(c for c in res.checks if c.name == "identifiability at these poses")
+    assert check.status == "warn" and "j5.alpha" in check.items and res.verdict != "pass"
     assert len(res.parameters) < 27
 
 
@@ -176,12 +177,19 @@ def test_robust_loss_resists_outliers():
     pos = data.positions.copy()
     pos[::10, 0] += 0.005  # 8 gross outliers of 5 mm
     bad = rc.Measurements(q=data.q, positions=pos, marker_names=data.marker_names)
-    plain = rc.calibrate(m, bad)
+    plain = rc.calibrate(m, bad, on_outliers="flag")
     robust = rc.calibrate(m, bad, loss="soft_l1")
     t = _truth(true, m, robust)
     err_plain = np.abs(np.array([e.estimate for e in plain.parameters]) - t).max()
     err_robust = np.abs(np.array([e.estimate for e in robust.parameters]) - t).max()
     assert err_robust < err_plain / 5
+    # least squares names the outliers and fails; by default it refits with the robust loss itself
+    outliers = next(c for c in plain.checks if c.name == "outliers")
+    assert plain.verdict == "fail" and outliers.status == "fail"
+    assert {item.split(",")[0] for item in outliers.items} == {data.labels[i] for i in range(0, 80, 10)}
+    refit = rc.calibrate(m, bad)
+    assert refit.loss == "soft_l1" and refit.verdict == "warn"
+    np.testing.assert_allclose([e.estimate for e in refit.parameters], [e.estimate for e in robust.parameters])
 
 
 def test_closed_form_registration_needs_no_base_guess():

@@ -278,7 +278,8 @@ def test_calibrate_warns_on_wrong_orientation_convention(six_d, written, declare
     wrong = _wrong_file(six_d, written, declared)
     with pytest.warns(rc.MisfitWarning, match="orientation"):
         result = rc.calibrate(m, wrong)
-    assert any("orientation convention" in n for n in result.notes)
+    check = next(c for c in result.checks if c.name == "orientation fit")
+    assert result.verdict == "fail" and check.status == "fail" and "orientation convention" in check.summary
 
 
 def test_misfit_notes_rules():

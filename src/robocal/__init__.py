@@ -12,7 +12,7 @@ from ._version import __version__
 
 # name -> public module that provides it
 _EVERYDAY = {
-    "errors": ("RobocalError", "InputError", "DegenerateDataError", "RobocalWarning", "ConvergenceWarning",
+    "errors": ("RobocalError", "InputError", "DegenerateDataError", "RobocalWarning", "CheckWarning", "ConvergenceWarning",
                "MisfitWarning", "IdentifiabilityWarning"),
     "kinematics": ("Frame", "Marker", "Payload", "RobotModel", "serial_model", "parallel_beta_frames",
                    "mdh_transform", "evaluate", "forward_kinematics", "jacobian", "gravity_loads", "joint_jacobian",
@@ -26,6 +26,8 @@ _EVERYDAY = {
               "RepeatabilityResult", "accuracy_limit", "controller_precision", "iso9283_repeatability",
               "predicted_controller_precision"),
     "report": ("render_report", "write_report"),
+    "_measurements": ("Noise",),
+    "_checks": ("Check",),
     "_calibration": ("calibrate", "compare", "register_base", "error_stats", "CalibrationResult", "Comparison",
                      "ParameterEstimate", "ErrorStats", "ErrorSummary", "LimitJudgement"),
     "_identifiability": ("identifiability", "status_table", "Absorption", "IdentifiabilityResult"),

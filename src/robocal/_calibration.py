@@ -8,20 +8,25 @@ compute the error statistics, record the provenance.
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ._checks import Check, verdict
-from ._errors import (ConvergenceWarning, DegenerateDataError, IdentifiabilityWarning, InputError,
+from ._checks import (OUTLIER_SHARE_MAX, Check, cloud_size_check, compliance_sign_check, convergence_check,
+                      correlation_check, expected_noise, fit_check, identifiability_check, markers_check,
+                      outlier_check, plausibility_check, reading_units_check, readings_check, support_check,
+                      tolerances, verdict)
+from ._errors import (CheckWarning, ConvergenceWarning, DegenerateDataError, IdentifiabilityWarning, InputError,
                       MisfitWarning, check_choice)
-from ._identifiability import DEFAULT_TOL, IdentifiabilityResult, analyse_problem, theoretical_identifiability
+from ._identifiability import (DEFAULT_TOL, IdentifiabilityResult, analyse_problem, theoretical_identifiability,
+                               weakly_identifiable)
+from ._identifiability import eliminate as eliminate_parameters
 from ._kinematics import evaluate
-from ._measurements import Measurements
-from ._options import INITIAL_BASES, LOSSES
-from ._misfit import MAX_STANDARDISED_RMS, characteristic_length, misfit_notes
+from ._measurements import Measurements, Noise
+from ._options import DEFAULT_INSTRUMENT, INITIAL_BASES, LOSSES, OUTLIER_ACTIONS, WEAK_ACTIONS
+from ._misfit import characteristic_length, misfit_notes
 from ._model import RobotModel
 from ._parameters import candidate_parameters, model_from_vector, parameter_layout, parameter_vector
 from ._problem import Problem, needs_compliance
@@ -100,6 +105,8 @@ class ParameterEstimate:
     nominal: float
     estimate: float
     std: float
+    family: str = ""
+    quantity: str = ""
 
     @property
     def change(self) -> float:
@@ -192,20 +199,25 @@ def register_base(model: RobotModel, data: Measurements) -> RobotModel:
 
 @dataclass(frozen=True, eq=False)
 class _Design:
-    """What the analysis step decided: the start, the problem over the identifiable parameters."""
+    """What the analysis step decided: the start, the problem over the identifiable parameters, and
+    what the structure allows but these poses lose (``lost``) or cannot pin down (``weak``)."""
 
     start: RobotModel
     p0: np.ndarray
     problem: Problem
     identifiability: IdentifiabilityResult
     compliance: bool
+    lost: tuple[str, ...] = ()
+    weak: tuple[tuple[str, str], ...] = ()
+    weak_kept: bool = False
 
 
 def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",), known=(),
               validation: Measurements | None = None, loss: str = "linear", f_scale: float | None = None,
               tol: float = DEFAULT_TOL, max_nfev: int | None = None, initial_base: str = "model",
-              limit=None) -> CalibrationResult:
-    """Identify the identifiable parameters of ``model`` from ``data``.
+              limit=None, noise=None, on_outliers: str = "refit", weak: str = "eliminate",
+              nonnegative_compliance: bool = False) -> CalibrationResult:
+    """Identify the identifiable parameters of ``model`` from ``data``, and check the result.
 
     ``parameters``: families (``geometric``, ``compliance``, ``base``, ``markers``, ``frames``)
     and/or explicit names; ``known``: families or names held at their model values.
@@ -214,26 +226,44 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
     ``loss``: least-squares loss (``linear`` or a robust one of scipy's); ``f_scale`` the residual
     size (m, or in standard deviations when the data carry them) where a robust loss bends.
     ``limit``: an ``AccuracyLimit`` or a value in metres; the result then states the validation
-    error (held-out poses, or the fitted ones without them) against it.
+    error (held-out poses, or the fitted ones without them) against it, and the checks expect
+    residuals of the robot's own size. ``noise``: the measurement noise where the data state none,
+    a ``Noise`` or an instrument class (``INSTRUMENT_NOISE``; default a laser tracker's); it weighs
+    6D rows and sets the bar of the checks. ``on_outliers``: ``"refit"`` refits with a robust loss
+    when a few measured points stand out, ``"flag"`` only names them. ``weak``: ``"eliminate"``
+    holds weakly identifiable parameters at nominal, ``"flag"`` keeps them and warns.
+    ``nonnegative_compliance``: keep compliances >= 0. The result's ``checks`` and ``verdict``
+    say whether it can be trusted (docs/checks.md).
     """
     parameters, known = _as_tuple(parameters), _as_tuple(known)
-    _check_inputs(model, data, validation, loss=loss, initial_base=initial_base)
+    _check_inputs(model, data, validation, loss=loss, initial_base=initial_base, on_outliers=on_outliers, weak=weak)
+    noise = noise if isinstance(noise, Noise) else Noise.of(noise or DEFAULT_INSTRUMENT)
+    limit_m = None if limit is None else float(getattr(limit, "limit", limit))
+    checks = [readings_check(model, data), reading_units_check(model, data),
+              cloud_size_check(model, data, _predicted(model, data)), markers_check(model, data)]
     notes: list[str] = []
     start = _starting_model(model, data, initial_base, notes)
-    design = _analyse(start, data, parameters, known, tol, notes)
-    solution = solve(design.problem, design.p0, loss=loss, f_scale=f_scale, max_nfev=max_nfev)
+    design = _analyse(start, data, parameters, known + _unmeasured(model, data), tol, notes,
+                      noise=noise, limit_m=limit_m, weak=weak)
+    solution, outlier_check, outlying = _solve(design, data, noise, notes, loss=loss, f_scale=f_scale,
+                                                max_nfev=max_nfev, on_outliers=on_outliers,
+                                                nonnegative_compliance=nonnegative_compliance)
     cov = covariance(solution)
-    notes += _checks(design, solution, cov, data)
+    estimates = _estimates(design, solution, cov)
+    checks += [outlier_check] + _result_checks(design, solution, cov, estimates, data, noise, limit_m, outlying)
     calibrated = model_from_vector(start, solution.p)
-    fit = _PoseErrors.of(model, data, design.problem, design.p0, solution.p, design)
-    val = None if validation is None else _PoseErrors.of(model, validation, None, None, calibrated, design)
+    before = _registered_nominal(design, notes)
+    fit = _PoseErrors.of(model, data, design.problem, before, solution.p, design)
+    val = None if validation is None else _PoseErrors.of(model_from_vector(start, before), validation, None, None,
+                                                         calibrated, design)
     stats = fit.summary(val, rotation=False)
+    _warn(checks)
     return CalibrationResult(
-        nominal_model=model, calibrated_model=calibrated, parameters=_estimates(design, solution, cov),
+        nominal_model=model, calibrated_model=calibrated, parameters=estimates,
         covariance=cov.covariance, correlation=cov.correlation, identifiability=design.identifiability,
         success=solution.success, status=solution.status, message=solution.message, nfev=solution.nfev,
-        sigma0=float(np.sqrt(cov.s2)), families=parameters, loss=loss, notes=tuple(notes),
-        limit=None if limit is None else judge_against_limit(limit, stats),
+        sigma0=float(np.sqrt(cov.s2)), families=parameters, loss=solution.loss, notes=tuple(notes),
+        limit=None if limit is None else judge_against_limit(limit, stats), checks=tuple(checks),
         provenance=provenance(data, validation), stats=stats, rotation_stats=fit.summary(val, rotation=True),
         **fit.fields("fit"), **(val.fields("validation") if val is not None else {}),
     )
@@ -243,10 +273,13 @@ def _as_tuple(v) -> tuple:
     return (v,) if isinstance(v, str) else tuple(v)
 
 
-def _check_inputs(model: RobotModel, data: Measurements, validation, *, loss: str, initial_base: str) -> None:
+def _check_inputs(model: RobotModel, data: Measurements, validation, *, loss: str, initial_base: str,
+                  on_outliers: str, weak: str) -> None:
     """Every argument checked before any work."""
     check_choice(loss, LOSSES, "loss")
     check_choice(initial_base, INITIAL_BASES, "initial_base")
+    check_choice(on_outliers, OUTLIER_ACTIONS, "on_outliers")
+    check_choice(weak, WEAK_ACTIONS, "weak")
     for what, d in (("data", data), ("validation", validation)):
         if d is None:
             continue
@@ -260,6 +293,19 @@ def _check_inputs(model: RobotModel, data: Measurements, validation, *, loss: st
                                  source=src)
 
 
+def _predicted(model: RobotModel, data: Measurements) -> np.ndarray:
+    """Nominal marker positions (n_poses, n_data_markers, 3) at the data's readings."""
+    ev = evaluate(model, data.q, payload_mass=data.payload_mass)
+    return ev.positions[:, [model.marker_names.index(n) for n in data.marker_names]]
+
+
+def _unmeasured(model: RobotModel, data: Measurements) -> tuple[str, ...]:
+    """The parameter names of markers the data never measured: nothing can identify them."""
+    seen = {n for j, n in enumerate(data.marker_names) if data.mask[:, j].any()}
+    lay = parameter_layout(model)
+    return tuple(p.name for p in lay.parameters if p.role == "marker" and p.owner not in seen)
+
+
 def _starting_model(model: RobotModel, data: Measurements, initial_base: str, notes: list) -> RobotModel:
     """The model the solve starts from: the user's, or with a registered base."""
     if initial_base != "register":
@@ -270,8 +316,8 @@ def _starting_model(model: RobotModel, data: Measurements, initial_base: str, no
 
 
 def _analyse(start: RobotModel, data: Measurements, parameters: tuple, known: tuple, tol: float,
-             notes: list) -> _Design:
-    """Which candidates the data can identify; refuse data that cannot determine them."""
+             notes: list, *, noise: Noise, limit_m: float | None, weak: str) -> _Design:
+    """Which candidates the data can identify, and pin down; refuse data that cannot determine them."""
     orientation = data.has_orientation
     names = candidate_parameters(start, parameters, orientation=orientation, known=known)
     compliance = needs_compliance(start, names)
@@ -280,7 +326,7 @@ def _analyse(start: RobotModel, data: Measurements, parameters: tuple, known: tu
     if n_unique < data.n_poses:
         notes.append(f"{data.n_poses - n_unique} of {data.n_poses} poses repeat an earlier joint configuration "
                      "exactly: they average noise but add no information")
-    prob = Problem(start, data, names, compliance=compliance)
+    prob = Problem(start, data, names, compliance=compliance, noise=noise)
     needed = len(theory.identified)
     distinct_rows = prob.n_rows * n_unique // data.n_poses
     if distinct_rows <= needed:
@@ -290,46 +336,141 @@ def _analyse(start: RobotModel, data: Measurements, parameters: tuple, known: tu
             f"parameters; at least {needed // rows_per_pose + 1} distinct poses are needed, and several times "
             "that for a useful estimate")
     ident = analyse_problem(prob, names, tol=tol)
-    lost = [n for n in theory.identified if n not in ident.identified]
-    if lost:
-        msg = (f"the poses cannot separate {len(lost)} parameter(s) that this robot's structure allows to "
-               f"identify: {', '.join(lost)}; they are held at their nominal values. Add poses that move "
-               "the joints more widely (the design is rank-deficient)")
-        notes.append(msg)
-        warnings.warn(msg, IdentifiabilityWarning, stacklevel=3)
+    lost = tuple(n for n in theory.identified if n not in ident.identified and n in names)
+    ident, weak_found = _weak(prob, names, ident, noise, limit_m, eliminate=weak == "eliminate")
     if not ident.identified:
         raise DegenerateDataError("no parameter is identifiable from these data")
     free = prob.over(ident.identified)   # the solve starts where the analysis evaluated the model
     if free.n_rows <= len(ident.identified):
         raise DegenerateDataError(f"{free.n_rows} equations for {len(ident.identified)} parameters")
     return _Design(start=start, p0=parameter_vector(start), problem=free, identifiability=ident,
-                   compliance=compliance)
+                   compliance=compliance, lost=lost, weak=weak_found, weak_kept=weak == "flag")
 
 
-def _checks(design: _Design, solution: Solution, cov: Covariance, data: Measurements) -> list[str]:
-    """Notes (also issued as warnings) where the result's own figures say something is off."""
-    notes = []
-    if not solution.success:
-        warnings.warn(f"identification did not converge: {solution.message}", ConvergenceWarning, stacklevel=3)
-    if solution.f_scale is not None:
-        unit = "standard deviations" if data.sigma is not None else "m"
-        notes.append(f"robust loss {solution.loss} bends at {solution.f_scale:.3g} {unit} (3 robust standard "
-                     "deviations)")
-    misfit = []
-    if data.sigma is not None and cov.s2 > MAX_STANDARDISED_RMS ** 2:
-        misfit.append(f"residuals are {np.sqrt(cov.s2):.1f} times the stated measurement standard deviations: the "
-                      "model or the data declaration (units, orientation convention, marker names) does not fit")
+def _weak(prob: Problem, names, ident: IdentifiabilityResult, noise: Noise, limit_m, *, eliminate: bool):
+    """The analysis with weakly identifiable parameters eliminated (or only named), and those
+    parameters with their predicted standard deviations. Eliminating one may let an equivalent one
+    in (a member of the same dependent group): the analysis repeats until none is weak."""
+    lay = parameter_layout(prob.model)
+    p0 = parameter_vector(prob.model)
+    J = prob.jacobian(p0)
+    expected, _ = expected_noise(noise, limit_m)
+    sigma = expected / noise.position if prob.weighted else expected   # weighted rows are in noise units
+    quantities = [lay[n].quantity for n in names]
+    moments = prob.compliance_moments(p0)
+    dropped: dict[str, str] = {}
+    said: list[tuple[str, str]] = []
+    result = ident
+    while True:
+        cols = [list(names).index(n) for n in result.identified]
+        found = weakly_identifiable(J[:, cols], result.identified, [quantities[k] for k in cols], sigma,
+                                    moments=moments)
+        said += [(n, _effect(effect, lay[n].quantity)) for n, effect, _ in found]
+        if not found or not eliminate:
+            return result, tuple(said)
+        dropped.update({n: f"is weakly identifiable: predicted std {_effect(e, lay[n].quantity)} exceeds "
+                           f"{_effect(b, lay[n].quantity)}" for n, e, b in found})
+        result = eliminate_parameters(ident, J, names, quantities, dropped)
+
+
+def _effect(v: float, quantity: str) -> str:
+    if quantity == "length":
+        return f"{v * 1e3:.3g} mm"
+    return f"{np.degrees(v):.3g} deg" + (" of deflection" if quantity == "compliance" else "")
+
+
+def _solve(design: _Design, data: Measurements, noise: Noise, notes: list, *, loss: str, f_scale, max_nfev,
+           on_outliers: str, nonnegative_compliance: bool):
+    """The solution, the outlier check and the outlier mask of the measured points; with
+    ``on_outliers="refit"`` a linear fit that leaves a few outliers is refitted with a robust loss."""
+    lower = None
+    if nonnegative_compliance:
+        lay = parameter_layout(design.start)
+        lower = np.array([0.0 if lay[n].family == "compliance" else -np.inf for n in design.identifiability.identified])
+    solution = solve(design.problem, design.p0, loss=loss, f_scale=f_scale, max_nfev=max_nfev, lower=lower)
+    check, out = _outliers(design, solution, data, noise)
+    if not out.any():
+        return solution, check, out
+    if out.mean() > OUTLIER_SHARE_MAX:
+        return solution, replace(check, cause="so many that the data do not fit the model: see the other checks",
+                                 fix="correct the data or the model; a robust loss would hide the misfit"), out
+    if loss == "linear" and on_outliers == "refit":
+        solution = solve(design.problem, design.p0, loss="soft_l1", max_nfev=max_nfev, lower=lower)
+        notes.append(f"{out.sum()} outlier(s) found by the least-squares fit: refitted with the robust loss soft_l1")
+        check, out = _outliers(design, solution, data, noise)
+    if loss != "linear" or on_outliers == "refit":
+        check = replace(check, status="warn" if out.any() else "pass",
+                        summary=check.summary + f"; the robust loss {solution.loss} sets them aside",
+                        fix="check those measurements; remove them to fit without them")
+    return solution, check, out
+
+
+def _outliers(design: _Design, solution: Solution, data: Measurements, noise: Noise):
+    residuals = design.problem.errors(solution.p)[data.mask]
+    rows, markers = np.nonzero(data.mask)
+    labels = [f"{data.labels[i]}, marker {data.marker_names[j]}" for i, j in zip(rows, markers)]
+    sigma = None if data.sigma is None else data.sigma[data.mask]
+    return outlier_check(residuals, sigma, noise, labels)
+
+
+def _result_checks(design: _Design, solution: Solution, cov: Covariance, estimates, data: Measurements,
+                   noise: Noise, limit_m, outlying) -> list[Check]:
+    """The checks of the solution: convergence, fit, plausibility, support, correlation, identifiability."""
+    residuals = design.problem.errors(solution.p)[data.mask]
+    sigma = None if data.sigma is None else data.sigma[data.mask]
+    moments = design.problem.compliance_moments(solution.p)
+    deflections = {e.name: e.estimate * float(np.max(np.abs(moments[e.name]))) for e in estimates
+                   if e.name in moments}
+    out = [convergence_check(solution.success, solution.message, solution.nfev),
+           fit_check(residuals, sigma, noise, limit_m, outlying),
+           plausibility_check(estimates, tolerances(design.start), deflections),
+           support_check(estimates), compliance_sign_check(estimates),
+           correlation_check([e.name for e in estimates], cov.correlation),
+           identifiability_check(design.lost, design.weak, weak_kept=design.weak_kept)]
     if data.has_orientation:
-        # a wrong orientation convention converges quietly: test the rotations, with or without stated sigmas
-        vectors = design.problem.errors(solution.p)
-        Rp = design.problem.predicted(solution.p)[1][data.rot_mask]
-        rot_res = Rotation.from_matrix(Rp @ np.swapaxes(data.rotations[data.rot_mask], -1, -2)).as_rotvec()
-        misfit += misfit_notes(vectors[data.mask], rot_res,
-                               characteristic_length_m=characteristic_length(data.positions[data.mask]),
-                               sigma_rot_rad=None if data.sigma_rot is None else data.sigma_rot[data.rot_mask])
-    for msg in misfit:
-        warnings.warn(msg, MisfitWarning, stacklevel=3)
-    return notes + misfit
+        out.append(_orientation_check(design, solution, data))
+    return out
+
+
+def _orientation_check(design: _Design, solution: Solution, data: Measurements) -> Check:
+    """A wrong orientation convention converges quietly: test the rotations, with or without stated sigmas."""
+    vectors = design.problem.errors(solution.p)
+    rot = design.problem.rotation_errors(solution.p)[data.rot_mask]
+    found = misfit_notes(vectors[data.mask], rot, characteristic_length_m=characteristic_length(data.positions[data.mask]),
+                         sigma_rot_rad=None if data.sigma_rot is None else data.sigma_rot[data.rot_mask])
+    rms = float(np.degrees(np.sqrt(np.mean(np.sum(rot ** 2, axis=1)))))
+    if not found:
+        return Check("orientation fit", "pass", f"rotation residuals {rms:.3g} deg RMS")
+    return Check("orientation fit", "fail", found[0], cause="a wrong orientation convention or angle unit",
+                 fix="declare the convention (--orientation) and the angle unit of the rotation columns")
+
+
+_WARNING_CLASS = {"solver convergence": ConvergenceWarning, "fit against the instrument": MisfitWarning,
+                  "orientation fit": MisfitWarning, "identifiability at these poses": IdentifiabilityWarning}
+
+
+def _warn(checks) -> None:
+    """Every check that did not pass, as a warning users can filter."""
+    for c in checks:
+        if c.status != "pass":
+            category = _WARNING_CLASS.get(c.name, CheckWarning)
+            warnings.warn(f"{c.name} ({'FAILED' if c.status == 'fail' else 'warning'}): {c.summary}", category,
+                          stacklevel=3)
+
+
+def _registered_nominal(design: _Design, notes: list) -> np.ndarray:
+    """The parameter vector errors "before" are taken at: the nominal geometry, with the base and
+    marker parameters being identified fitted to the data first (a raw base guess says nothing
+    about the robot). The start itself when none of them is free, or nothing else is."""
+    lay = parameter_layout(design.start)
+    free = design.identifiability.identified
+    placed = tuple(n for n in free if lay[n].family in ("base", "markers"))
+    if not placed or len(placed) == len(free):
+        return design.p0
+    sol = solve(design.problem.over(placed), design.p0)
+    notes.append("errors before calibration are those of the nominal geometry with its base and markers fitted "
+                 f"to the data ({', '.join(placed)})")
+    return sol.p
 
 
 def _estimates(design: _Design, solution: Solution, cov: Covariance) -> tuple[ParameterEstimate, ...]:
@@ -338,7 +479,7 @@ def _estimates(design: _Design, solution: Solution, cov: Covariance) -> tuple[Pa
     lay = parameter_layout(design.start)
     idx = design.problem.free_idx
     return tuple(ParameterEstimate(n, lay[n].unit, float(design.p0[idx[k]]), float(solution.p[idx[k]]),
-                                   float(cov.std[k]))
+                                   float(cov.std[k]), family=lay[n].family, quantity=lay[n].quantity)
                  for k, n in enumerate(design.identifiability.identified))
 
 

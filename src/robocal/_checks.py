@@ -1,14 +1,64 @@
 """Checks on a calibration: each names what it looked at, says pass, warn or fail with the figures
 behind it and, where one exists, the likely cause and the fix (docs/checks.md).
 
-A result that fails a check cannot be mistaken for a good one: its verdict is "fail".
+A result that fails a check cannot be mistaken for a good one: its verdict is "fail". Every
+threshold is a named constant here, and docs/checks.md gives each one with its reason.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
+from ._measurements import Measurements, Noise
+from ._model import RobotModel
+
 STATUSES = ("pass", "warn", "fail")
+
+# residual RMS per axis over the expected noise beyond which the fit does not match the data
+FIT_RATIO = 3.0
+# residual RMS per axis (m) beyond which no calibrated robot explains the misfit, whatever its noise
+ROBOT_RESIDUAL_MAX = 1e-3
+# a measured point is an outlier beyond this many robust standard deviations (3D residual norm)
+OUTLIER_SIGMAS = 5.0
+# beyond this share of outliers the data do not fit: a robust refit would hide a real misfit
+OUTLIER_SHARE_MAX = 0.2
+# an estimate within this many standard deviations of its nominal is not supported by the data
+SIGNIFICANCE_SIGMAS = 2.0
+# pairs of identified parameters correlated beyond this are named
+CORRELATION_MAX = 0.99
+# the measured cloud against the robot's predicted one: a size ratio outside these bounds fails
+CLOUD_RATIO = (0.67, 1.5)
+# known unit mix-ups, as the factor between the measured and the predicted sizes
+UNIT_FACTORS = {1000.0: "metres declared as millimetres (or the reverse)", 25.4: "inches declared as millimetres",
+                10.0: "centimetres declared as millimetres"}
+# half-width (relative) within which a size ratio names a unit factor
+UNIT_FACTOR_TOL = 0.2
+# readings whose largest magnitude is within pi degrees look like radians declared as degrees
+RADIANS_AS_DEGREES = np.pi * np.pi / 180
+# a mean limit error corresponds to this many per-axis standard deviations (the mean of a 3D
+# Gaussian error's norm is 2 sqrt(2/pi) sigma)
+MEAN_NORM_PER_SIGMA = 2.0 * np.sqrt(2.0 / np.pi)
+
+
+# how far a parameter may move from its nominal before the change is implausible, per (family,
+# quantity), SI; None for no bound (a base pose is often only guessed). Compliances are bounded by
+# the largest deflection they give under the poses' gravity moments. A model file's 'tolerances'
+# key overrides these.
+DEFAULT_TOLERANCES = {
+    ("frames", "length"): 10e-3, ("frames", "angle"): np.deg2rad(2.0),
+    ("markers", "length"): 0.1, ("markers", "angle"): np.deg2rad(10.0),
+    ("base", "length"): None, ("base", "angle"): None,
+    ("compliance", "compliance"): np.deg2rad(1.0),
+}
+
+
+def tolerances(model: RobotModel) -> dict:
+    """The plausibility tolerances for ``model``: the defaults, with the model file's own over them."""
+    out = dict(DEFAULT_TOLERANCES)
+    out.update({(family, quantity): value for family, quantity, value in model.tolerances})
+    return out
 
 
 @dataclass(frozen=True)
@@ -26,3 +76,265 @@ class Check:
 def verdict(checks) -> str:
     """The worst status among ``checks`` ("pass" when there are none)."""
     return max((c.status for c in checks), key=STATUSES.index, default="pass")
+
+
+def _listed(items, n: int = 6) -> str:
+    items = list(items)
+    return ", ".join(items[:n]) + (f" and {len(items) - n} more" if len(items) > n else "")
+
+
+# -- the inputs, before solving --------------------------------------------------------------------
+
+def readings_check(model: RobotModel, data: Measurements) -> Check:
+    """Every joint reading within the model's limits; readings beyond them named by pose and joint."""
+    name = "joint readings within the limits"
+    lo, hi = model.lower_limits, model.upper_limits
+    slack = 1e-9 * np.maximum(1.0, np.abs(np.where(np.isfinite(hi - lo), hi - lo, 0.0)))
+    out = (data.q < lo - slack) | (data.q > hi + slack)
+    if not out.any():
+        return Check(name, "pass", f"all {data.n_poses} poses within the joint limits")
+    rows, cols = np.nonzero(out)
+    angle = np.array([q == "angle" for q in model.reading_quantities])
+    items = tuple(f"{data.labels[r]}: {model.joint_names[c]} = {_reading(data.q[r, c], angle[c])}" for r, c in
+                  zip(rows, cols))
+    cause = "a mistyped reading, a reading in another unit, or limits in the model that are too narrow"
+    if np.any(np.abs(data.q[:, angle][out[:, angle]]) > 2 * np.pi):
+        cause = "readings of several turns: degrees declared as radians, or a mistyped reading"
+    return Check(name, "fail", f"{out.sum()} reading(s) in {len(set(rows))} pose(s) beyond the joint limits: "
+                 f"{_listed(items, 3)}", cause=cause,
+                 fix="correct or remove those rows, declare the joint units, or widen the limits in the model file",
+                 items=items)
+
+
+def _reading(v: float, angle: bool) -> str:
+    return f"{np.degrees(v):.6g} deg" if angle else f"{v * 1e3:.6g} mm"
+
+
+def reading_units_check(model: RobotModel, data: Measurements) -> Check:
+    """Angle readings that all stay within pi degrees look like radians declared as degrees."""
+    name = "joint reading units"
+    angle = np.array([q == "angle" for q in model.reading_quantities])
+    span = model.upper_limits - model.lower_limits
+    wide = angle & (span > 4 * RADIANS_AS_DEGREES) & (np.ptp(data.q, axis=0) > 0)
+    small = wide & (np.abs(data.q).max(axis=0) <= RADIANS_AS_DEGREES)
+    if wide.any() and small.sum() == wide.sum():
+        joints = tuple(model.joint_names[j] for j in np.nonzero(small)[0])
+        return Check(name, "fail", f"every angle reading of {_listed(joints)} stays within 3.14 degrees",
+                     cause="joint angles in radians declared as degrees",
+                     fix="declare the joint columns in rad (j1_rad, or --units ...-rad)", items=joints)
+    return Check(name, "pass", "the angle readings span more than a few degrees")
+
+
+def cloud_size_check(model: RobotModel, data: Measurements, predicted: np.ndarray) -> Check:
+    """The measured points' spread against the spread the nominal robot predicts at the same readings.
+
+    ``predicted`` (n_poses, n_data_markers, 3): nominal marker positions, any base pose (the spread
+    does not depend on it).
+    """
+    name = "measured points against the robot's size"
+    m = data.mask
+    measured, nominal = _spread(data.positions[m]), _spread(predicted[m])
+    if nominal <= 0 or measured <= 0:
+        return Check(name, "pass", "too few distinct points to compare sizes")
+    ratio = measured / nominal
+    summary = f"the measured points spread {measured * 1e3:.4g} mm, the nominal robot's {nominal * 1e3:.4g} mm " \
+              f"(ratio {ratio:.4g})"
+    if CLOUD_RATIO[0] <= ratio <= CLOUD_RATIO[1]:
+        return Check(name, "pass", summary)
+    factor = max(ratio, 1.0 / ratio)
+    known = next((why for f, why in UNIT_FACTORS.items() if abs(factor / f - 1.0) < UNIT_FACTOR_TOL), None)
+    cause = known or "the measured points do not come from this robot's workspace: another robot's file, wrong " \
+                     "marker columns, joint readings in another unit or order"
+    return Check(name, "fail", summary, cause=cause,
+                 fix="declare the units of the marker columns (x_mm or x_m) and check the file belongs to this model")
+
+
+def _spread(points: np.ndarray) -> float:
+    p = np.asarray(points, dtype=float).reshape(-1, 3)
+    return float(np.sqrt(np.mean(np.sum((p - p.mean(axis=0)) ** 2, axis=1)))) if len(p) > 1 else 0.0
+
+
+def markers_check(model: RobotModel, data: Measurements) -> Check:
+    """Every marker of the model has measured values; the parameters of the others are held."""
+    name = "every marker measured"
+    seen = {n for j, n in enumerate(data.marker_names) if data.mask[:, j].any()}
+    missing = tuple(n for n in model.marker_names if n not in seen)
+    if not missing:
+        return Check(name, "pass", f"all {len(model.marker_names)} marker(s) measured")
+    return Check(name, "warn", f"marker(s) {_listed(missing)} never measured: their parameters are held at nominal",
+                 cause="no columns (or only empty cells) for them in the measurement file",
+                 fix="measure them, or remove them from the model if they are not used", items=missing)
+
+
+# -- the solution --------------------------------------------------------------------------------
+
+def convergence_check(success: bool, message: str, nfev: int) -> Check:
+    name = "solver convergence"
+    if success:
+        return Check(name, "pass", f"converged after {nfev} evaluations")
+    return Check(name, "fail", f"the solver stopped without converging after {nfev} evaluations: {message}",
+                 cause="a start far from the truth (units, a rough base guess) or data the model cannot fit",
+                 fix="check the other checks first; start from a registered base (--register-base)")
+
+
+def expected_noise(noise: Noise, limit_m: float | None) -> tuple[float, str]:
+    """Per-axis scatter (m) a good fit leaves: the instrument's and, with a limit of absolute
+    accuracy, the robot's own (its mean error converted to a per-axis standard deviation)."""
+    if limit_m is None:
+        return noise.position, f"the instrument's {noise.position * 1e3:.3g} mm ({noise.source})"
+    robot = limit_m / MEAN_NORM_PER_SIGMA
+    total = float(np.hypot(noise.position, robot))
+    return total, f"{total * 1e3:.3g} mm (instrument {noise.position * 1e3:.3g} mm, robot {robot * 1e3:.3g} mm " \
+                  "from the limit of absolute accuracy)"
+
+
+def fit_check(residuals: np.ndarray, sigma: np.ndarray | None, noise: Noise, limit_m: float | None,
+        outliers: np.ndarray) -> Check:
+    """The position residuals (n, 3, m) against what the instrument (and the robot's limit) explain.
+
+    ``sigma`` (n,) stated standard deviations per point, or None; ``outliers`` (n,) bool, left out.
+    """
+    name = "fit against the instrument"
+    keep = ~outliers
+    r = residuals[keep]
+    if not len(r):
+        return Check(name, "fail", "every measured point is an outlier")
+    expected, said = expected_noise(noise, limit_m)
+    per_axis = float(np.sqrt(np.mean(r ** 2)))
+    scale = expected if sigma is None else np.hypot(sigma[keep], expected if limit_m is not None else 0.0)
+    ratio = float(np.sqrt(np.mean((r / np.reshape(scale, (-1, 1))) ** 2)))
+    source = "the stated standard deviations" if sigma is not None else said
+    summary = f"residuals {per_axis * 1e3:.4g} mm RMS per axis, {ratio:.3g} times {source}"
+    if ratio <= FIT_RATIO:
+        return Check(name, "pass", summary)
+    if per_axis > ROBOT_RESIDUAL_MAX or limit_m is not None:
+        return Check(name, "fail", summary + (" and beyond what any calibrated robot leaves" if limit_m is None else
+                                              ", beyond the robot's own limit"),
+                     cause="the data do not fit the model: units, marker names or columns swapped, joint order or "
+                           "sign, a marker on the wrong frame, another robot's file",
+                     fix="read the other checks; compare a few poses by hand with the nominal model")
+    return Check(name, "warn", summary, cause="the robot's own repeatability and unmodelled effects (compliance, "
+                 "backlash) or a data problem: the instrument noise alone cannot tell",
+                 fix="give the limit of absolute accuracy (--limit) or the expected noise (--noise-mm) to judge")
+
+
+def outlier_check(residuals: np.ndarray, sigma: np.ndarray | None, noise: Noise, labels) -> tuple[Check, np.ndarray]:
+    """Measured points whose residual norm exceeds ``OUTLIER_SIGMAS`` robust standard deviations.
+
+    ``residuals`` (n, 3) of the measured points named by ``labels`` (n,). The scale is the larger of
+    the residuals' own robust spread (median absolute deviation) and the instrument's noise, so a
+    noise-free fit flags nothing; with stated deviations each point is scaled by its own.
+    Returns the check and the (n,) outlier mask.
+    """
+    name = "outliers"
+    comps = residuals.ravel()
+    robust = 1.4826 * float(np.median(np.abs(comps - np.median(comps)))) if comps.size else 0.0
+    scale = max(robust, noise.position) if sigma is None else np.maximum(sigma, robust)
+    z = np.linalg.norm(residuals, axis=1) / scale
+    out = z > OUTLIER_SIGMAS
+    if not out.any():
+        return Check(name, "pass", f"no measured point beyond {OUTLIER_SIGMAS:g} robust standard deviations"), out
+    order = np.argsort(-z[out])
+    items = tuple(f"{labels[i]}: {np.linalg.norm(residuals[i]) * 1e3:.3g} mm, {z[i]:.3g} sd"
+                  for i in np.nonzero(out)[0][order])
+    return Check(name, "fail", f"{out.sum()} of {len(z)} measured point(s) beyond {OUTLIER_SIGMAS:g} robust standard "
+                 f"deviations: {_listed(items, 3)}", cause="a blunder: a mistyped or misassigned measurement, a "
+                 "reading taken while the robot moved", fix="remove them, or refit with a robust loss "
+                 "(--loss soft_l1; --on-outliers refit does it)", items=items), out
+
+
+def plausibility_check(estimates, tolerances: dict, deflections: dict) -> Check:
+    """Each change against its family's tolerance (``tolerances[(family, quantity)]``, SI, None for
+    none); compliances by the largest deflection they give (``deflections[name]``, rad)."""
+    name = "plausible changes"
+    bad = []
+    for e in estimates:
+        family, quantity = e.family, e.quantity
+        tol = tolerances.get((family, quantity))
+        value = abs(deflections.get(e.name, 0.0)) if quantity == "compliance" else abs(e.change)
+        if tol is not None and value > tol:
+            bad.append(f"{e.name}: {_size(value, quantity)} (tolerance {_size(tol, quantity)})")
+    if not bad:
+        return Check(name, "pass", "every change within its family's tolerance")
+    return Check(name, "fail", f"{len(bad)} implausible change(s): {_listed(bad, 3)}",
+                 cause="the data pull the model somewhere no real robot is: a sign or unit error in the model file, "
+                       "data in the wrong unit or order, or a parameter the data cannot pin down",
+                 fix="check those parameters' nominal values and the data's units; the tolerances are in the model "
+                     "file's 'tolerances' key", items=tuple(bad))
+
+
+def _size(v: float, quantity: str) -> str:
+    return f"{v * 1e3:.4g} mm" if quantity == "length" else f"{np.degrees(v):.4g} deg"
+
+
+def support_check(estimates) -> Check:
+    """Estimates whose change is within ``SIGNIFICANCE_SIGMAS`` standard deviations of zero.
+
+    They are named, not failed: a parameter already at its true value changes by noise. A
+    compliance family none of whose estimates the data support is a warning: the geometric model
+    explains the data.
+    """
+    name = "estimates supported by the data"
+    weak = [e for e in estimates if abs(e.change) < SIGNIFICANCE_SIGMAS * e.std]
+    items = tuple(f"{e.name} ({e.change / e.std:+.2g} sd)" for e in weak)
+    comp = [e for e in estimates if e.quantity == "compliance"]
+    if comp and all(e in weak for e in comp):
+        return Check(name, "warn", f"no compliance differs from zero by {SIGNIFICANCE_SIGMAS:g} standard deviations",
+                     cause="the data do not show compliance (too little load, too few poses, or none to find)",
+                     fix="calibrate the geometry alone, or measure with a payload and more poses", items=items)
+    if not weak:
+        return Check(name, "pass", f"every change beyond {SIGNIFICANCE_SIGMAS:g} standard deviations")
+    return Check(name, "pass", f"{len(weak)} change(s) within {SIGNIFICANCE_SIGMAS:g} standard deviations of zero, "
+                 "kept at their estimates (the data do not distinguish them from nominal)", items=items)
+
+
+def compliance_sign_check(estimates) -> Check:
+    """Compliances are stiffnesses' inverses: one significantly negative is non-physical. Negative
+    estimates within their uncertainty are named (noise around zero), not failed."""
+    name = "physical compliances"
+    neg = [e for e in estimates if e.quantity == "compliance" and e.estimate < 0]
+    if not neg:
+        return Check(name, "pass", "no negative compliance")
+    significant = [e for e in neg if -e.estimate > SIGNIFICANCE_SIGMAS * e.std]
+    if significant:
+        items = tuple(f"{e.name} ({e.estimate / e.std:+.2g} sd)" for e in significant)
+        return Check(name, "fail", f"{len(significant)} compliance(s) significantly negative: {_listed(items, 3)}",
+                     cause="masses or centres of mass on the wrong side, or gravity in the wrong direction",
+                     fix="check the masses, centres of mass and gravity in the model file", items=items)
+    items = tuple(f"{e.name} ({e.estimate / e.std:+.2g} sd)" for e in neg)
+    return Check(name, "pass", f"{len(neg)} compliance(s) negative within their uncertainty (noise about zero): "
+                 f"{_listed(items, 3)}; --nonnegative-compliance keeps them at zero or above", items=items)
+
+
+def correlation_check(names, corr: np.ndarray) -> Check:
+    name = "correlated parameters"
+    iu = np.triu_indices(len(names), 1)
+    high = np.abs(corr[iu]) > CORRELATION_MAX
+    if not high.any():
+        return Check(name, "pass", f"no pair of identified parameters correlated beyond |r| = {CORRELATION_MAX:g}")
+    pairs = tuple(f"{names[i]} ~ {names[j]} (r = {corr[i, j]:+.4f})" for i, j in zip(iu[0][high], iu[1][high]))
+    return Check(name, "warn", f"{len(pairs)} pair(s) correlated beyond |r| = {CORRELATION_MAX:g}: {_listed(pairs, 3)}",
+                 cause="the poses barely separate these parameters: their estimates trade against each other",
+                 fix="add poses that move the joints more widely (robocal plan), or hold one of each pair known",
+                 items=pairs)
+
+
+def identifiability_check(lost, weak, *, weak_kept: bool = False) -> Check:
+    """Parameters the structure allows but the poses cannot separate (``lost``: a warning), and those
+    they cannot pin down (``weak``: (name, predicted std text) pairs). Weak ones are held at nominal
+    and named, which is the right handling (a pass), unless they were kept (``weak_kept``: a warning)."""
+    name = "identifiability at these poses"
+    items = tuple(lost) + tuple(f"{n} (predicted std {s})" for n, s in weak)
+    if not items:
+        return Check(name, "pass", "every parameter the robot's structure allows is identified")
+    summary = []
+    if lost:
+        summary.append(f"the poses cannot separate {_listed(lost)}; they are held at their nominal values")
+    if weak:
+        summary.append(f"weakly identifiable (predicted standard deviation beyond its bound): "
+                       f"{_listed(n for n, _ in weak)}" + ("; kept, their estimates are unreliable" if weak_kept else
+                                                          "; held at their nominal values"))
+    status = "warn" if lost or weak_kept else "pass"
+    return Check(name, status, "; ".join(summary),
+                 cause="poses that do not move the joints widely enough, or a tool point nearly on an axis",
+                 fix="add poses over the whole workspace (robocal plan); or accept the nominal values", items=items)

@@ -35,15 +35,19 @@ class RobocalWarning(UserWarning):
     """Base class of robocal's warnings."""
 
 
-class ConvergenceWarning(RobocalWarning):
+class CheckWarning(RobocalWarning):
+    """A check of a calibration did not pass (docs/checks.md); the result's verdict says how badly."""
+
+
+class ConvergenceWarning(CheckWarning):
     """The solver stopped without meeting its convergence test."""
 
 
-class MisfitWarning(RobocalWarning):
-    """The fit leaves residuals far larger than the stated measurement noise."""
+class MisfitWarning(CheckWarning):
+    """The fit leaves residuals far larger than the measurement noise, or the orientations do not fit."""
 
 
-class IdentifiabilityWarning(RobocalWarning):
+class IdentifiabilityWarning(CheckWarning):
     """Parameters were eliminated or the design is poorly conditioned."""
 
 

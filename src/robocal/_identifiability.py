@@ -23,6 +23,10 @@ from ._problem import Problem, design_measurements, needs_compliance, random_con
 
 DEFAULT_TOL = 1e-6
 NO_EFFECT = 1e-10
+# A parameter whose predicted standard deviation exceeds its bound is weakly identifiable: the rank
+# tolerance keeps it, but the data cannot pin it down (docs/checks.md). Compliances are bounded by
+# the deflection their uncertainty gives at the RMS moment of the poses.
+WEAK_STD = {"length": 1e-3, "angle": np.deg2rad(0.1), "compliance": np.deg2rad(0.1)}
 
 
 @dataclass(frozen=True)
@@ -211,3 +215,73 @@ def theoretical_identifiability(model: RobotModel, parameters: tuple, known: tup
                                 tol: float) -> IdentifiabilityResult:
     """What this robot's structure allows to identify (random configurations, fixed seed)."""
     return identifiability(model, None, parameters=parameters, known=known, orientation=orientation, tol=tol, rng=0)
+
+
+def predicted_std(J: np.ndarray, sigma: float) -> np.ndarray:
+    """Standard deviations of the parameters of the columns of ``J`` (n_rows, k) for residuals of
+    standard deviation ``sigma`` (in the rows' units): sqrt(diag(sigma^2 (J^T J)^-1)), inverted in
+    unit-column scaling."""
+    col = np.linalg.norm(J, axis=0)
+    col[col == 0] = 1.0
+    s, vt = singular_values(J / col, vectors=True)
+    inv = (vt.T / np.maximum(s, s[0] * 1e-15) ** 2) @ vt
+    return sigma * np.sqrt(np.diag(inv)) / col
+
+
+def weakly_identifiable(J: np.ndarray, names, quantities, sigma: float, *, moments: dict | None = None,
+                        bounds: dict | None = None) -> list[tuple[str, float, float]]:
+    """Parameters to eliminate because the design cannot pin them down, worst first.
+
+    ``J`` (n_rows, k): the (weighted) Jacobian of the identified parameters ``names``; ``sigma``
+    the expected residual standard deviation in the rows' units. Each parameter's predicted
+    standard deviation (for a compliance: times the RMS of its moments, a deflection) is compared
+    with ``bounds[quantity]`` (default ``WEAK_STD``); the worst offender is removed and the rest
+    predicted again, until every one is within its bound. Returns (name, predicted effect,
+    bound) in the order of elimination.
+    """
+    bounds = WEAK_STD if bounds is None else bounds
+    names, quantities = list(names), list(quantities)
+    scale = np.array([np.sqrt(np.mean(moments[n] ** 2)) if q == "compliance" and moments else 1.0
+                      for n, q in zip(names, quantities)])
+    limit = np.array([bounds.get(q, np.inf) for q in quantities])
+    keep = np.ones(len(names), dtype=bool)
+    out = []
+    while keep.sum() > 1:
+        effect = predicted_std(J[:, keep], sigma) * scale[keep]
+        ratio = effect / limit[keep]
+        worst = int(np.argmax(ratio))
+        if ratio[worst] <= 1.0:
+            break
+        k = np.nonzero(keep)[0][worst]
+        out.append((names[k], float(effect[worst]), float(limit[k])))
+        keep[k] = False
+    return out
+
+
+def eliminate(result: IdentifiabilityResult, J: np.ndarray, names, quantities, dropped: dict,
+              *, max_terms: int = 6) -> IdentifiabilityResult:
+    """The analysis of ``J`` (n_rows, n_candidates) with the identified parameters in ``dropped``
+    (name -> reason) eliminated too: each absorbed by the least-squares combination of the
+    parameters kept."""
+    names = list(names)
+    sub = [k for k, n in enumerate(names) if n not in dropped]
+    kept = analyse(J[:, sub], [names[k] for k in sub], quantities=[quantities[k] for k in sub], tol=result.tol)
+    cols = [names.index(n) for n in kept.identified]
+    scale = np.linalg.norm(J, axis=0)
+    scale[scale == 0] = 1.0
+    A = J[:, cols] / scale[cols]
+    extra = []
+    for name, reason in dropped.items():
+        k = names.index(name)
+        c, *_ = np.linalg.lstsq(A, J[:, k] / scale[k], rcond=None)
+        resid = float(np.linalg.norm(A @ c - J[:, k] / scale[k]))
+        coef = c * scale[k] / scale[cols]
+        order = np.argsort(-np.abs(c))
+        terms = tuple((kept.identified[i], float(coef[i])) for i in order[:max_terms] if abs(c[i]) > 1e-6)
+        extra.append(Absorption(name, reason, terms, resid))
+    rank_of = {n: i for i, n in enumerate(names)}
+    eliminated = tuple(sorted(kept.eliminated + tuple(extra), key=lambda a: rank_of[a.name]))
+    return IdentifiabilityResult(candidates=tuple(names), identified=kept.identified, eliminated=eliminated,
+                                 tol=kept.tol, rank=kept.rank, condition_number=kept.condition_number,
+                                 singular_values=kept.singular_values, observability=kept.observability,
+                                 n_rows=kept.n_rows, column_scale=result.column_scale)

@@ -6,7 +6,31 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._errors import InputError
+from ._errors import InputError, check_choice
+from ._options import DEFAULT_INSTRUMENT, INSTRUMENT_NOISE
+
+
+@dataclass(frozen=True)
+class Noise:
+    """The expected scatter of measurements about a perfect model, one standard deviation per axis:
+    ``position`` (m) and ``rotation`` (rad); ``source`` says where the figures come from."""
+
+    position: float
+    rotation: float
+    source: str
+
+    @staticmethod
+    def of(instrument: str = DEFAULT_INSTRUMENT, *, position: float | None = None,
+           rotation: float | None = None) -> "Noise":
+        """An instrument class's noise (``INSTRUMENT_NOISE``), or the figures given, SI."""
+        check_choice(instrument, INSTRUMENT_NOISE, "instrument")
+        p, r = INSTRUMENT_NOISE[instrument]
+        for name, v in (("position", position), ("rotation", rotation)):
+            if v is not None and not (isinstance(v, (int, float)) and 0 < v < np.inf):
+                raise InputError(f"must be a positive number, got {v!r}", where=f"noise {name}")
+        given = [n for n, v in (("position", position), ("rotation", rotation)) if v is not None]
+        source = f"{instrument} (default)" if not given else f"stated ({', '.join(given)})"
+        return Noise(position=float(position or p), rotation=float(rotation or r), source=source)
 
 
 @dataclass(frozen=True, eq=False)

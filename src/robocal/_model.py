@@ -91,6 +91,8 @@ class RobotModel:
     ``frames`` are ordered so that a parent always precedes its children. ``joint_names`` name
     the measured joint readings (the columns of a measurement file); ``joint_limits`` is
     ``((lower, upper), ...)`` per reading. ``base_position``/``base_rotation`` give ``X_WB``.
+    ``tolerances``: ``(family, quantity, value)`` triples, how far calibration may plausibly move
+    a family's parameters (SI; None for no bound), over the defaults of docs/checks.md.
     """
 
     name: str
@@ -103,6 +105,7 @@ class RobotModel:
     gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
     payload: Payload = field(default_factory=Payload)
     description: str = ""
+    tolerances: tuple[tuple[str, str, float | None], ...] = ()
 
     def __post_init__(self) -> None:
         _validate(self)

@@ -6,3 +6,15 @@ INITIAL_BASES = ("model", "register")
 POSE_CRITERIA = ("I", "D")
 LIMIT_MARKER_MODES = ("first", "all")
 LIMIT_CHUNK = 2048
+OUTLIER_ACTIONS = ("refit", "flag")
+WEAK_ACTIONS = ("eliminate", "flag")
+
+# Measurement noise of each instrument class, one standard deviation per axis: position (m) and
+# rotation (rad, for 6D probes). Used when the data state none (docs/checks.md).
+INSTRUMENT_NOISE = {
+    "tracker": (0.02e-3, 0.01 * 3.141592653589793 / 180),      # laser tracker, 6D probe
+    "theodolite": (0.04e-3, 0.02 * 3.141592653589793 / 180),   # about 0.02 mm per metre at 2 m
+    "cmm": (0.005e-3, 0.005 * 3.141592653589793 / 180),
+    "camera": (0.1e-3, 0.1 * 3.141592653589793 / 180),         # motion capture, photogrammetry
+}
+DEFAULT_INSTRUMENT = "tracker"

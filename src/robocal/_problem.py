@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation
 
 from ._errors import InputError
 from ._kinematics import evaluate_state, jacobian_columns, layout
-from ._measurements import Measurements
+from ._measurements import Measurements, Noise
 from ._model import RobotModel
 from ._parameters import has_compliance_parameters
 
@@ -26,7 +26,8 @@ class Problem:
     ``residuals`` and ``jacobian`` at the same parameters share one kinematic pass.
     """
 
-    def __init__(self, model: RobotModel, data: Measurements, free: tuple[str, ...], *, compliance: bool):
+    def __init__(self, model: RobotModel, data: Measurements, free: tuple[str, ...], *, compliance: bool,
+                 noise: Noise | None = None):
         self.model = model
         self.data = data
         self.lay = layout(model)
@@ -36,12 +37,15 @@ class Problem:
         self.marker_idx = np.array([model.marker_names.index(n) for n in data.marker_names], dtype=int)
         self.use_rot = data.has_orientation
         self.sel = [np.nonzero(data.mask[:, j])[0] for j in range(len(data.marker_names))]
-        self.w = [np.ones(len(s)) if data.sigma is None else 1.0 / data.sigma[s, j] for j, s in enumerate(self.sel)]
+        # 6D rows mix metres and radians: without stated deviations, each part is weighed by its noise
+        self.weighted = data.sigma is not None or (self.use_rot and noise is not None)
+        sp = data.sigma if data.sigma is not None else (noise.position if self.weighted else 1.0)
+        self.w = [1.0 / np.broadcast_to(sp, data.mask.shape)[s, j] for j, s in enumerate(self.sel)]
         self.meas = [data.positions[s, j] for j, s in enumerate(self.sel)]
         if self.use_rot:
             self.sel_r = [np.nonzero(data.rot_mask[:, j])[0] for j in range(len(data.marker_names))]
-            sr = data.sigma_rot
-            self.w_r = [np.ones(len(s)) if sr is None else 1.0 / sr[s, j] for j, s in enumerate(self.sel_r)]
+            sr = data.sigma_rot if data.sigma_rot is not None else (noise.rotation if noise is not None else 1.0)
+            self.w_r = [1.0 / np.broadcast_to(sr, data.rot_mask.shape)[s, j] for j, s in enumerate(self.sel_r)]
         self._cache_key = None
         self._cache = None
 
@@ -58,6 +62,11 @@ class Problem:
     @property
     def n_rows(self) -> int:
         return 3 * sum(len(s) for s in self.sel) + (3 * sum(len(s) for s in self.sel_r) if self.use_rot else 0)
+
+    def row_kinds(self) -> np.ndarray:
+        """(n_rows,) 0 for position rows, 1 for rotation rows: their noise differs in kind."""
+        n_pos = 3 * sum(len(s) for s in self.sel)
+        return np.concatenate([np.zeros(n_pos, dtype=int), np.ones(self.n_rows - n_pos, dtype=int)])
 
     def full(self, x, p0) -> np.ndarray:
         """The full parameter vector: ``p0`` with the free parameters set to ``x``."""
@@ -130,7 +139,7 @@ class Problem:
         cols = [jacobian_columns(self.model, self.lay, st, self.free_idx, m, rows) for m in self.marker_idx]
         parts = []
         for C, s, w in zip(cols, self.sel, self.w):
-            if len(s) == C.shape[1] and self.data.sigma is None:
+            if len(s) == C.shape[1] and not self.weighted:
                 parts.append(C[:, :, :3].reshape(k, -1))
             else:
                 parts.append((C[:, s, :3] * w[None, :, None]).reshape(k, -1))
@@ -138,6 +147,14 @@ class Problem:
             parts += [(C[:, s, 3:] * w[None, :, None]).reshape(k, -1) for C, s, w in zip(cols, self.sel_r, self.w_r)]
         Jt = parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)
         return Jt.T
+
+    def compliance_moments(self, p) -> dict:
+        """Per compliance parameter name, the gravity moments (n_poses,) it multiplies (N m), at ``p``."""
+        if not self.compliance:
+            return {}
+        st = self._state(p)
+        names = self.lay.names
+        return {names[k]: st.M[row] for row, k in enumerate(self.lay.compliant_params)}
 
     def pose_blocks(self, p) -> np.ndarray:
         """(n_poses, rows_per_pose, n_free) unweighted Jacobian grouped by pose (all markers seen)."""

@@ -37,20 +37,23 @@ class Solution:
     nfev: int
     loss: str
     f_scale: float | None
+    row_kinds: np.ndarray | None = None
 
 
 def solve(problem: Problem, p0: np.ndarray, *, loss: str = "linear", f_scale: float | None = None,
-          max_nfev: int | None = None) -> Solution:
+          max_nfev: int | None = None, lower: np.ndarray | None = None) -> Solution:
     """Minimise the problem's residuals over its free parameters, starting from ``p0`` (full vector).
 
     ``loss="linear"`` is Levenberg-Marquardt (MINPACK) with the analytic Jacobian and Jacobian
     column scaling; a robust loss runs scipy's trust-region solver. Without ``f_scale`` a robust
     loss bends at ``ROBUST_SCALE_SIGMAS`` robust standard deviations (median absolute deviation)
     of the residuals, re-estimated from the robust fit until it settles: the first, non-robust fit
-    spreads outliers over every residual.
+    spreads outliers over every residual. ``lower`` (n_free,): lower bounds (-inf for none), which
+    need the trust-region solver.
     """
     check_choice(loss, LOSSES, "loss")
     x0 = p0[problem.free_idx]
+    bounded = lower is not None and bool(np.any(np.isfinite(lower)))
 
     def fun(x):
         return problem.residuals(problem.full(x, p0))
@@ -59,12 +62,17 @@ def solve(problem: Problem, p0: np.ndarray, *, loss: str = "linear", f_scale: fl
         return problem.jacobian(problem.full(x, p0))
 
     kw = dict(jac=jac, x_scale="jac", xtol=SOLVER_TOL, ftol=SOLVER_TOL, gtol=SOLVER_TOL, max_nfev=max_nfev)
-    if loss == "linear":
+    if bounded:
+        x0 = np.maximum(x0, lower)
+        kw["bounds"] = (lower, np.full(len(x0), np.inf))
+    if loss == "linear" and bounded:
+        sol = least_squares(fun, x0, method="trf", **kw)
+    elif loss == "linear":
         sol = least_squares(fun, x0, method="lm", **kw)
     elif f_scale is not None:
         sol = least_squares(fun, x0, method="trf", loss=loss, f_scale=f_scale, **kw)
     else:
-        sol = least_squares(fun, x0, method="lm", **kw)
+        sol = least_squares(fun, x0, method="trf" if bounded else "lm", **kw)
         for _ in range(6):
             mad = 1.4826 * float(np.median(np.abs(sol.fun - np.median(sol.fun))))
             new_scale = max(ROBUST_SCALE_SIGMAS * mad, 1e-12)
@@ -73,12 +81,12 @@ def solve(problem: Problem, p0: np.ndarray, *, loss: str = "linear", f_scale: fl
             f_scale = new_scale
             sol = least_squares(fun, sol.x, method="trf", loss=loss, f_scale=f_scale, **kw)
     p = problem.full(sol.x, p0)
-    # method "lm" returns the Jacobian at the solution; the robust losses return a reweighted one
+    # least_squares returns the Jacobian at the solution, reweighted by a robust loss
     residuals = sol.fun if loss == "linear" else problem.residuals(p)
-    jacobian = sol.jac if loss == "linear" else problem.jacobian(p)
+    jacobian = sol.jac if loss == "linear" and not bounded else problem.jacobian(p)
     return Solution(p=p, residuals=residuals, jacobian=jacobian, success=bool(sol.status > 0),
                     status=int(sol.status), message=str(sol.message), nfev=int(sol.nfev), loss=loss,
-                    f_scale=None if loss == "linear" else float(f_scale))
+                    f_scale=None if loss == "linear" else float(f_scale), row_kinds=problem.row_kinds())
 
 
 @dataclass(frozen=True, eq=False)
@@ -90,23 +98,58 @@ class Covariance:
     std: np.ndarray
     correlation: np.ndarray
     s2: float
-    dof: int
+    dof: float
+
+
+def robust_weights(residuals: np.ndarray, loss: str, f_scale: float) -> np.ndarray:
+    """Each residual's weight rho'(z), z = (r / f_scale)^2, in the loss' own normalisation
+    (scipy's definitions): 1 for small residuals, falling for outliers."""
+    z = (np.asarray(residuals) / f_scale) ** 2
+    if loss == "soft_l1":
+        return 1.0 / np.sqrt(1.0 + z)
+    if loss == "huber":
+        return np.where(z <= 1.0, 1.0, 1.0 / np.sqrt(np.maximum(z, 1.0)))
+    if loss == "cauchy":
+        return 1.0 / (1.0 + z)
+    if loss == "arctan":
+        return 1.0 / (1.0 + z ** 2)
+    return np.ones_like(z)
 
 
 def covariance(solution: Solution) -> Covariance:
-    """The estimates' covariance s2 (J^T J)^-1 at the solution.
+    """The estimates' covariance at the solution.
 
-    Columns mix metres, radians and rad/(N m): the normal matrix is inverted in unit-column scaling.
+    One kind of row: s2 (J^T W J)^-1, s2 the weighted residual variance. Position and rotation rows
+    (6D data) each get their own variance factor, whatever weights the fit gave them, and the
+    covariance is the sandwich M^-1 (sum_k s2_k J_k^T W J_k) M^-1 with M = J^T W J: honest when the
+    stated (or default) noise of one kind is off. With a robust loss W holds each residual's weight
+    (``robust_weights``), so outliers neither move nor widen it. Columns mix metres, radians and
+    rad/(N m): the normal matrix is inverted in unit-column scaling.
     """
     J, r = solution.jacobian, solution.residuals
-    dof = J.shape[0] - J.shape[1]
-    s2 = float(r @ r) / dof
+    w = robust_weights(r, solution.loss, solution.f_scale) if solution.f_scale else np.ones_like(r)
+    J = J * np.sqrt(w)[:, None]
+    k = J.shape[1]
+    dof = float(w.sum()) - k
+    s2 = float(w @ (r * r)) / dof
     col = np.linalg.norm(J, axis=0)
     col[col == 0] = 1.0
-    s, Vt = singular_values(J / col, vectors=True)
+    A = J / col
+    s, Vt = singular_values(A, vectors=True)
     if s[-1] <= s[0] * 1e-12:
         raise DegenerateDataError("the normal matrix is singular at the solution: the parameters "
                                   "identifiable at the nominal model are not at the estimate")
-    cov = (Vt.T / s ** 2) @ Vt * s2 / np.outer(col, col)
+    Minv = (Vt.T / s ** 2) @ Vt
+    kinds = solution.row_kinds
+    if kinds is None or len(np.unique(kinds)) < 2:
+        cov = Minv * s2 / np.outer(col, col)
+    else:
+        B = np.zeros((k, k))
+        for kind in np.unique(kinds):
+            rows = kinds == kind
+            share = float(w[rows].sum())
+            s2_kind = float(w[rows] @ (r[rows] ** 2)) / max(share - k * share / float(w.sum()), 1.0)
+            B += s2_kind * (A[rows].T @ A[rows])
+        cov = Minv @ B @ Minv / np.outer(col, col)
     std = np.sqrt(np.diag(cov))
     return Covariance(covariance=cov, std=std, correlation=cov / np.outer(std, std), s2=s2, dof=dof)

@@ -5,8 +5,8 @@
 ``RobocalWarning``.
 """
 
-from ._errors import (ConvergenceWarning, DegenerateDataError, IdentifiabilityWarning, InputError, MisfitWarning,
+from ._errors import (CheckWarning, ConvergenceWarning, DegenerateDataError, IdentifiabilityWarning, InputError, MisfitWarning,
                       RobocalError, RobocalWarning)
 
-__all__ = ["RobocalError", "InputError", "DegenerateDataError", "RobocalWarning", "ConvergenceWarning",
+__all__ = ["RobocalError", "InputError", "DegenerateDataError", "RobocalWarning", "CheckWarning", "ConvergenceWarning",
            "MisfitWarning", "IdentifiabilityWarning"]

@@ -18,6 +18,7 @@ from .._checks import STATUSES, Check
 from .._calibration import CalibrationResult, ErrorStats, ErrorSummary, LimitJudgement, ParameterEstimate
 from .._errors import InputError, excerpt
 from .._identifiability import Absorption, IdentifiabilityResult, status_table
+from .._parameters import parameter_layout
 from .model import model_from_dict, model_to_dict
 from .text import read_text, write_texts
 
@@ -87,8 +88,9 @@ def result_to_dict(result: CalibrationResult) -> dict:
         "schema": SCHEMA,
         "success": result.success, "status": result.status, "message": result.message, "nfev": result.nfev,
         "families": list(result.families), "loss": result.loss, "sigma0_m": result.sigma0,
-        "parameters": [{"name": p.name, "unit": p.unit, "nominal": p.nominal, "estimate": p.estimate,
-                        "change": p.change, "std": p.std} for p in result.parameters],
+        "parameters": [{"name": p.name, "unit": p.unit, "family": p.family, "quantity": p.quantity,
+                        "nominal": p.nominal, "estimate": p.estimate, "change": p.change, "std": p.std}
+                       for p in result.parameters],
         "correlation": result.correlation.tolist(), "covariance": result.covariance.tolist(),
         "identifiability": identifiability_to_dict(result.identifiability),
         "identifiability_table": status_table(result.identifiability, result.nominal_model.frame_names),
@@ -237,15 +239,19 @@ def _checks(doc: _Doc, d: list) -> tuple[Check, ...]:
     return tuple(out)
 
 
-def _parameters(doc: _Doc, d: list) -> tuple[ParameterEstimate, ...]:
+def _parameters(doc: _Doc, d: list, nominal) -> tuple[ParameterEstimate, ...]:
+    lay = parameter_layout(nominal)
     out = []
     for i, p in enumerate(d):
         w = f"parameters[{i}]"
         if not isinstance(p, dict):
             raise doc.error(w, f"expected a mapping, got {excerpt(p)}")
-        out.append(ParameterEstimate(doc.get(p, "name", w, str), doc.get(p, "unit", w, str),
-                                     doc.get(p, "nominal", w, float), doc.get(p, "estimate", w, float),
-                                     doc.get(p, "std", w, float)))
+        name = doc.get(p, "name", w, str)
+        if name not in lay:
+            raise doc.error(f"{w}.name", f"{excerpt(name)} is not a parameter of the nominal model")
+        out.append(ParameterEstimate(name, doc.get(p, "unit", w, str), doc.get(p, "nominal", w, float),
+                                     doc.get(p, "estimate", w, float), doc.get(p, "std", w, float),
+                                     family=lay[name].family, quantity=lay[name].quantity))
     return tuple(out)
 
 
@@ -282,7 +288,7 @@ def result_from_dict(d, *, source: str = "<dict>") -> CalibrationResult:
         raise doc.error("schema", f"unknown schema {excerpt(d['schema'])}; this robocal reads {', '.join(SCHEMAS)}")
     nominal = model_from_dict(doc.get(d, "nominal_model", "", dict), source=f"{source}: nominal_model")
     calibrated = model_from_dict(doc.get(d, "calibrated_model", "", dict), source=f"{source}: calibrated_model")
-    params = _parameters(doc, doc.get(d, "parameters", "", list))
+    params = _parameters(doc, doc.get(d, "parameters", "", list), nominal)
     k = len(params)
     errors = doc.get(d, "errors", "", dict)
     markers = doc.strings(doc.get(errors, "markers", "errors", list), "errors.markers")
