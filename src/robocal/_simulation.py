@@ -26,7 +26,8 @@ def perturb_model(model: RobotModel, names, *, length_error=(1e-4, 1e-3), angle_
     """A copy of ``model`` with random errors on the parameters ``names``.
 
     Each error's magnitude is uniform in the (lo, hi) range of its kind (m, rad, rad/(N m)) with a
-    random sign. Compliance parameters need ``compliance_error`` (else they are left alone).
+    random sign. Compliance parameters need ``compliance_error`` (else they are left alone); a
+    compliance stays non-negative (a robot is not stiffer than rigid): a negative draw is mirrored.
     """
     rng = np.random.default_rng(rng)
     lay = parameter_layout(model)
@@ -37,6 +38,8 @@ def perturb_model(model: RobotModel, names, *, length_error=(1e-4, 1e-3), angle_
         if bounds is None:
             continue
         p[lay[n].index] += _signed_uniform(rng, *bounds, 1)[0]
+        if lay[n].quantity == "compliance":
+            p[lay[n].index] = abs(p[lay[n].index])
     return model_from_vector(model, p)
 
 

@@ -28,7 +28,10 @@ FRAME_VALUES = {k: KIND_QUANTITY[k] for k in ("beta", "alpha", "d", "theta", "r"
 FRAME_VALUES.update({"mass": None, "k_theta": None, "k_alpha": None, "k_beta": None})
 FRAME_KEYS = ("name", "joint", "reading", "coupling", "parent", "has_beta", "com") + tuple(FRAME_VALUES)
 TOP_KEYS = ("robocal_model", "name", "description", "units", "base", "gravity", "joints", "frames",
-            "markers", "payload")
+            "markers", "payload", "tolerances", "calibration")
+# tolerances: family -> the quantities a file may bound, and the unit each is given in
+TOLERANCE_KEYS = {"frames": ("length", "angle"), "markers": ("length", "angle"), "base": ("length", "angle"),
+                  "compliance": ("deflection",)}
 IDENTITY = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
 # base.* names the base pose parameters, so no frame or marker may be called "base"
 RESERVED_NAMES = ("base",)
@@ -224,13 +227,42 @@ def model_from_dict(d: dict, *, source: str = "<dict>") -> RobotModel:
             mass=rd.number(pl["mass"], "payload.mass") if "mass" in pl else 0.0,
             com=rd.vector(pl["com"], "payload.com", 3, L) if "com" in pl else (0.0, 0.0, 0.0),
             frame=_frame_ref(rd, pl["frame"], "payload.frame", frame_names) if "frame" in pl else -1)
+    tolerances = _tolerances(rd, d.get("tolerances"), L, A)
+    if d.get("calibration") is not None:
+        rd.mapping(d["calibration"], "calibration", ("verdict", "failed", "warned", "date"))
     try:
         return RobotModel(name=str(name), frames=tuple(frames), joint_names=tuple(joint_names),
                           joint_limits=tuple(limits), markers=tuple(markers), base_position=base_position,
                           base_rotation=base_rotation, gravity=gravity, payload=payload,
-                          description=description)
+                          description=description, tolerances=tolerances)
     except InputError as e:  # the record's own checks: add the file name
         raise InputError(e.detail, source=source, where=e.where) from None
+
+
+def _tolerances(rd: _Reader, value, L: float, A: float) -> tuple:
+    """``tolerances: {frames: {length: 10, angle: 2}, compliance: {deflection: 1}, ...}`` in the file's
+    units (a deflection is an angle); null for no bound. Returns (family, quantity, SI value) triples."""
+    if value is None:
+        return ()
+    out = []
+    for family, bounds in rd.mapping(value, "tolerances", tuple(TOLERANCE_KEYS)).items():
+        where = f"tolerances.{family}"
+        for key, v in rd.mapping(bounds, where, TOLERANCE_KEYS[family]).items():
+            if v is not None:
+                v = rd.number(v, f"{where}.{key}")
+                if v <= 0:
+                    raise rd.error(f"{where}.{key}", f"a tolerance must be positive (or null for none), got {v}")
+                v *= L if key == "length" else A
+            out.append((family, "compliance" if key == "deflection" else key, v))
+    return tuple(out)
+
+
+def _tolerances_dict(model: RobotModel, L: float, A: float) -> dict:
+    out: dict = {}
+    for family, quantity, v in model.tolerances:
+        key = "deflection" if quantity == "compliance" else quantity
+        out.setdefault(family, {})[key] = None if v is None else float(f"{v / (L if key == 'length' else A):.15g}")
+    return out
 
 
 def _pair(rd: _Reader, raw, where: str) -> list:
@@ -304,8 +336,12 @@ def read_model(path) -> RobotModel:
     return model_from_dict(d, source=source)
 
 
-def model_to_dict(model: RobotModel, *, units: str = "mm-deg") -> dict:
-    """The model file form of ``model`` (plain Python types, ready for YAML or JSON)."""
+def model_to_dict(model: RobotModel, *, units: str = "mm-deg", calibration: dict | None = None) -> dict:
+    """The model file form of ``model`` (plain Python types, ready for YAML or JSON).
+
+    ``calibration``: what a calibration said of this model (its verdict and the checks that did not
+    pass), written under the key of that name so that nobody mistakes a failed result for a good one.
+    """
     lu, au = parse_units(units)
     L, A = LENGTH_UNITS[lu], ANGLE_UNITS[au]
     scale = {"length": 1.0 / L, "angle": 1.0 / A, None: 1.0}
@@ -364,13 +400,17 @@ def model_to_dict(model: RobotModel, *, units: str = "mm-deg") -> dict:
         d["payload"] = {"mass": float(pl.mass), "com": vec(pl.com, scale["length"])}
         if pl.frame != -1:  # -1 means the last frame; keep it so
             d["payload"]["frame"] = model.frames[pl.frame].name
+    if model.tolerances:
+        d["tolerances"] = _tolerances_dict(model, L, A)
+    if calibration:
+        d["calibration"] = calibration
     return d
 
 
-def model_to_yaml(model: RobotModel, *, units: str = "mm-deg") -> str:
+def model_to_yaml(model: RobotModel, *, units: str = "mm-deg", calibration: dict | None = None) -> str:
     """The model file text (see model_to_dict)."""
-    return yaml.safe_dump(model_to_dict(model, units=units), sort_keys=False, default_flow_style=None,
-                          width=110, allow_unicode=True)
+    return yaml.safe_dump(model_to_dict(model, units=units, calibration=calibration), sort_keys=False,
+                          default_flow_style=None, width=110, allow_unicode=True)
 
 
 def write_model(model: RobotModel, path, *, units: str = "mm-deg", force: bool = False) -> None:

@@ -10,19 +10,47 @@ STAT_ROWS = ("fit_before", "fit_after", "validation_before", "validation_after")
 PAPER_KINDS = FRAME_KINDS[2:]
 
 
-def _mm(v) -> str:
-    return f"{'-':>7}" if v is None else f"{v * MM:7.3f}"
+def stats_lines(stats, indent: str = "  ", *, unit: str = "m") -> list[str]:
+    """The error table before and after, on fitted and held-out poses, in display units."""
+    shown, k, _ = display_unit(unit)
+    label = "position error" if unit == "m" else "rotation error"
 
+    def cell(v):
+        return f"{'-':>8}" if v is None else f"{v * k:8.3f}"
 
-def stats_lines(stats, indent: str = "  ") -> list[str]:
-    """The error table (mm) before and after, on fitted and held-out poses."""
-    lines = [f"{indent}{'error (mm)':<20}{'n':>5}{'mean':>8}{'std':>8}{'RMS':>8}{'max':>8}"]
+    lines = [f"{indent}{f'{label} ({shown})':<24}{'n':>5}{'mean':>8}{'std':>8}{'RMS':>8}{'max':>8}"]
     for key in STAT_ROWS:
         s = stats[key]
         if s.n:
-            lines.append(f"{indent}{key.replace('_', ', '):<20}{s.n:>5} {_mm(s.mean)} {_mm(s.std)} {_mm(s.rms)} "
-                         f"{_mm(s.max)}")
+            lines.append(f"{indent}{key.replace('_', ', '):<24}{s.n:>5}{cell(s.mean)}{cell(s.std)}{cell(s.rms)}"
+                         f"{cell(s.max)}")
     return lines
+
+
+MARKS = {"pass": "ok  ", "warn": "WARN", "fail": "FAIL"}
+
+
+def checks_lines(checks) -> list[str]:
+    """Every check with its figures; the likely cause and the fix of those that did not pass."""
+    lines = ["checks:"]
+    for c in checks:
+        lines.append(f"  {MARKS[c.status]} {c.name}: {c.summary}")
+        if c.status != "pass":
+            lines += [f"       likely cause: {c.cause}"] if c.cause else []
+            lines += [f"       fix: {c.fix}"] if c.fix else []
+    return lines
+
+
+def verdict_line(result) -> str:
+    """The last line of a summary: the verdict, with what it rests on."""
+    failed = [c.name for c in result.checks if c.status == "fail"]
+    warned = [c.name for c in result.checks if c.status == "warn"]
+    if failed:
+        return (f"verdict: FAIL ({len(failed)} check(s) failed: {', '.join(failed)}); this calibration is not to be "
+                "used as it is")
+    if warned:
+        return f"verdict: warn ({len(warned)} warning(s): {', '.join(warned)})"
+    return f"verdict: pass (all {len(result.checks)} checks passed)"
 
 
 def eliminated_lines(ident, units: dict) -> list[str]:
@@ -51,6 +79,8 @@ def calibration_summary(result, *, shown=(), weighted: bool = False) -> str:
     lines = [f"calibration of {result.nominal_model.name} on {result.provenance['data']['n_poses']} poses "
              f"({', '.join(result.families)}, loss {result.loss})"]
     lines += stats_lines(result.stats)
+    if result.rotation_stats is not None:
+        lines += stats_lines(result.rotation_stats, unit="rad")
     lines.append(f"identified parameters ({len(result.parameters)}): change = estimate - nominal")
     width = max([len(p.name) for p in result.parameters] + [16])
     for p in result.parameters:
@@ -62,7 +92,7 @@ def calibration_summary(result, *, shown=(), weighted: bool = False) -> str:
     lines.append(f"solver: {'converged' if result.success else 'NOT converged'} (status {result.status}, "
                  f"{result.nfev} evaluations): {result.message}")
     if weighted:
-        lines.append(f"residual standard deviation: {result.sigma0:.3g} times the stated measurement standard "
+        lines.append(f"residual standard deviation: {result.sigma0:.3g} times the expected measurement standard "
                      "deviations")
     else:
         lines.append(f"residual standard deviation: {result.sigma0 * MM:.4f} mm")
@@ -71,6 +101,8 @@ def calibration_summary(result, *, shown=(), weighted: bool = False) -> str:
         lines.append(f"limit of absolute accuracy {lim.limit_m * MM:.3f} mm: {lim.compared.replace('_', ' ')} mean "
                      f"{lim.mean_error_m * MM:.3f} mm, {'reached' if lim.reached else 'not reached'}")
     lines += [f"note: {n}" for n in result.notes if n not in shown]
+    lines += checks_lines(result.checks)
+    lines.append(verdict_line(result))
     return "\n".join(lines)
 
 
@@ -98,10 +130,14 @@ def comparison_summary(comparison, *, shown=(), weighted: bool = False) -> str:
         lines.append(f"  {'residual std (mm)':<30}" + "".join(f"{r.sigma0 * MM:>24.4f}" for _, r in cols))
     lines.append(f"  {'solver':<30}" + "".join(f"{'converged' if r.success else 'NOT converged':>24}"
                                                 for _, r in cols))
+    lines.append(f"  {'verdict':<30}" + "".join(f"{r.verdict:>24}" for _, r in cols))
     lines.append(comparison.verdict)
-    lines.append(f"calibrated model written: {'geometric+compliance' if comparison.best is comp else 'geometric'}")
+    lines.append(f"calibrated model chosen: {'geometric+compliance' if comparison.best is comp else 'geometric'}")
     for name, r in cols:
         lines += [f"note ({name}): {n}" for n in r.notes if n not in shown]
+    best = comparison.best
+    lines += checks_lines(best.checks)
+    lines.append(verdict_line(best))
     return "\n".join(lines)
 
 

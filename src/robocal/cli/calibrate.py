@@ -5,8 +5,11 @@ from __future__ import annotations
 from pathlib import Path
 
 from .._errors import DegenerateDataError, InputError
-from .._options import LOSSES
+from .._options import INSTRUMENT_NOISE, LOSSES, OUTLIER_ACTIONS, WEAK_ACTIONS
 from . import common
+
+# exit code of a calibration whose checks failed (docs/cli.md)
+FAILED = 3
 
 
 def register(sub) -> None:
@@ -31,6 +34,20 @@ def register(sub) -> None:
     p.add_argument("--out-units", type=common.units, default="mm-deg", help="units of calibrated.yaml (default mm-deg)")
     p.add_argument("--force", action="store_true", help="overwrite existing output files")
     p.add_argument("--report", action="store_true", help="also write OUT/report.html (needs robocal[report])")
+    g = p.add_argument_group("checks (docs/checks.md)")
+    g.add_argument("--instrument", choices=tuple(INSTRUMENT_NOISE), default="tracker",
+                   help="instrument class whose noise the checks expect where the data state none (default tracker)")
+    g.add_argument("--noise-mm", type=common.positive, metavar="X",
+                   help="expected measurement noise, mm per axis (overrides the instrument's)")
+    g.add_argument("--noise-deg", type=common.positive, metavar="X",
+                   help="expected rotation noise of 6D measurements, degrees (overrides the instrument's)")
+    g.add_argument("--on-outliers", choices=OUTLIER_ACTIONS, default="refit",
+                   help="refit with a robust loss when a few points stand out (default), or only name them")
+    g.add_argument("--weak", choices=WEAK_ACTIONS, default="eliminate",
+                   help="hold weakly identifiable parameters at nominal (default), or keep them and warn")
+    g.add_argument("--nonnegative-compliance", action="store_true", help="keep identified compliances >= 0")
+    g.add_argument("--write-failed", action="store_true",
+                   help="write calibrated.yaml even when a check fails (it then carries the verdict)")
     common.csv_options(p)
     p.set_defaults(func=run)
 
@@ -55,6 +72,7 @@ def _inputs(args):
 def run(args) -> int:
     from .._calibration import calibrate, compare
     from .._files.model import model_to_yaml
+    from .._measurements import Noise
     from .._files.result import result_to_json
     from .._presentation.text import calibration_summary, comparison_summary
 
@@ -66,10 +84,13 @@ def run(args) -> int:
     common.refuse_existing([out / "calibrated.yaml"] + [out / n for n in names]
                            + ([out / "report.html"] if report else []), args.force)
     model, data, validation = _inputs(args)
+    noise = Noise.of(args.instrument, position=None if args.noise_mm is None else args.noise_mm / common.MM,
+                     rotation=None if args.noise_deg is None else args.noise_deg / common.DEG)
     options = dict(known=args.known, validation=validation, loss=args.loss, tol=args.tol,
                    initial_base="register" if args.register_base else "model",
-                   limit=None if args.limit_mm is None else args.limit_mm / common.MM)
-    weighted = data.sigma is not None
+                   limit=None if args.limit_mm is None else args.limit_mm / common.MM, noise=noise,
+                   on_outliers=args.on_outliers, weak=args.weak, nonnegative_compliance=args.nonnegative_compliance)
+    weighted = data.sigma is not None or data.has_orientation
     try:
         if args.compare:
             comparison = compare(model, data, **options)
@@ -82,9 +103,27 @@ def run(args) -> int:
             print(calibration_summary(best, shown=args.shown_warnings, weighted=weighted))
     except DegenerateDataError as e:  # name the file: the data, not the program, fall short
         raise DegenerateDataError(f"{args.csv}: {e}") from None
-    files = {out / "calibrated.yaml": model_to_yaml(best.calibrated_model, units=args.out_units)}
-    files.update({out / n: result_to_json(r) for n, r in zip(names, results)})
+    files = {out / n: result_to_json(r) for n, r in zip(names, results)}
+    failed = best.verdict == "fail"
+    if not failed or args.write_failed:
+        files[out / "calibrated.yaml"] = model_to_yaml(best.calibrated_model, units=args.out_units,
+                                                       calibration=_verdict(best))
     rep = (report, best, out / "report.html") if report else None
     common.write_outputs(files, force=args.force, report=rep)
     print(f"wrote {', '.join(str(p) for p in list(files) + ([rep[2]] if rep else []))}")
+    if failed:
+        print(f"not written: {out / 'calibrated.yaml'} (the calibration failed its checks; --write-failed writes it "
+              "anyway, marked as failed)" if not args.write_failed else
+              f"{out / 'calibrated.yaml'} carries the verdict FAIL")
+        return FAILED
     return 0
+
+
+def _verdict(result) -> dict:
+    """What the calibrated model file says of its own calibration."""
+    out = {"verdict": result.verdict, "date": result.provenance.get("date", "")}
+    for status, key in (("fail", "failed"), ("warn", "warned")):
+        names = [c.name for c in result.checks if c.status == status]
+        if names:
+            out[key] = names
+    return out
