@@ -35,11 +35,14 @@ _EVERYDAY = {
     "_compensation": ("compensate", "Compensation"),
 }
 _WHERE = {name: module for module, names in _EVERYDAY.items() for name in names}
+_SUBMODULES = ("kinematics", "io", "sim", "limit", "report", "errors", "cli")
 
 __all__ = ["__version__"] + sorted(_WHERE)
 
 
 def __getattr__(name: str):
+    if name in _SUBMODULES:
+        return import_module(f".{name}", __name__)
     if name in _WHERE:
         value = getattr(import_module(f".{_WHERE[name]}", __name__), name)
         globals()[name] = value
@@ -48,4 +51,4 @@ def __getattr__(name: str):
 
 
 def __dir__():
-    return __all__
+    return __all__ + list(_SUBMODULES)

@@ -321,7 +321,8 @@ def _analyse(start: RobotModel, data: Measurements, parameters: tuple, known: tu
     orientation = data.has_orientation
     names = candidate_parameters(start, parameters, orientation=orientation, known=known)
     compliance = needs_compliance(start, names)
-    theory = theoretical_identifiability(start, parameters, known, orientation, tol)
+    measured = tuple(n for j, n in enumerate(data.marker_names) if data.mask[:, j].any())
+    theory = theoretical_identifiability(start, parameters, known, orientation, tol, measured)
     n_unique = len(np.unique(data.q, axis=0))
     if n_unique < data.n_poses:
         notes.append(f"{data.n_poses - n_unique} of {data.n_poses} poses repeat an earlier joint configuration "
@@ -365,11 +366,12 @@ def _weak(prob: Problem, names, ident: IdentifiabilityResult, noise: Noise, limi
         cols = [list(names).index(n) for n in result.identified]
         found = weakly_identifiable(J[:, cols], result.identified, [quantities[k] for k in cols], sigma,
                                     moments=moments)
-        said += [(n, _effect(effect, lay[n].quantity)) for n, effect, _ in found]
+        said += [(n, _effect(e, lay[by].quantity) + ("" if by == n else f" of {by} with it")) for n, by, e, _ in found]
         if not found or not eliminate:
             return result, tuple(said)
-        dropped.update({n: f"is weakly identifiable: predicted std {_effect(e, lay[n].quantity)} exceeds "
-                           f"{_effect(b, lay[n].quantity)}" for n, e, b in found})
+        dropped.update({n: f"is weakly identifiable: " + (f"predicted std {_effect(e, lay[n].quantity)} exceeds "
+                           if by == n else f"with it, {by}'s predicted std {_effect(e, lay[by].quantity)} exceeds ")
+                        + _effect(b, lay[by].quantity) for n, by, e, b in found})
         result = eliminate_parameters(ident, J, names, quantities, dropped)
 
 

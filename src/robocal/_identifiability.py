@@ -183,11 +183,12 @@ def analyse(J: np.ndarray, names, *, quantities=None, tol: float = DEFAULT_TOL,
 
 def identifiability(model: RobotModel, data: Measurements | np.ndarray | None = None, *,
                     parameters=("geometric",), known=(), orientation: bool | None = None,
-                    tol: float = DEFAULT_TOL, n_random: int = 200, rng=0) -> IdentifiabilityResult:
+                    tol: float = DEFAULT_TOL, n_random: int = 200, rng=0, markers=None) -> IdentifiabilityResult:
     """Which parameters are identifiable at the poses of ``data`` (Measurements or readings q).
 
     With ``data=None`` the analysis uses ``n_random`` configurations drawn within the joint limits:
-    what theory allows for this robot, whatever the poses.
+    what theory allows for this robot, whatever the poses. ``markers``: the markers measured, when
+    ``data`` does not say (default all).
     """
     if data is None:
         q = random_configurations(model, n_random, rng)
@@ -195,7 +196,7 @@ def identifiability(model: RobotModel, data: Measurements | np.ndarray | None = 
         q = data.q
     else:
         q = np.atleast_2d(np.asarray(data, dtype=float))
-    meas = data if isinstance(data, Measurements) else design_measurements(model, q, bool(orientation))
+    meas = data if isinstance(data, Measurements) else design_measurements(model, q, bool(orientation), markers)
     if orientation is None:
         orientation = meas.has_orientation
     names = candidate_parameters(model, parameters, orientation=orientation, known=known)
@@ -212,9 +213,11 @@ def analyse_problem(prob: Problem, names, *, tol: float = DEFAULT_TOL) -> Identi
 
 @lru_cache(maxsize=32)
 def theoretical_identifiability(model: RobotModel, parameters: tuple, known: tuple, orientation: bool,
-                                tol: float) -> IdentifiabilityResult:
-    """What this robot's structure allows to identify (random configurations, fixed seed)."""
-    return identifiability(model, None, parameters=parameters, known=known, orientation=orientation, tol=tol, rng=0)
+                                tol: float, markers: tuple | None = None) -> IdentifiabilityResult:
+    """What this robot's structure allows to identify with ``markers`` measured (default all), at
+    random configurations (fixed seed)."""
+    return identifiability(model, None, parameters=parameters, known=known, orientation=orientation, tol=tol, rng=0,
+                           markers=markers)
 
 
 def predicted_std(J: np.ndarray, sigma: float) -> np.ndarray:
@@ -229,32 +232,41 @@ def predicted_std(J: np.ndarray, sigma: float) -> np.ndarray:
 
 
 def weakly_identifiable(J: np.ndarray, names, quantities, sigma: float, *, moments: dict | None = None,
-                        bounds: dict | None = None) -> list[tuple[str, float, float]]:
-    """Parameters to eliminate because the design cannot pin them down, worst first.
+                        bounds: dict | None = None) -> list[tuple[str, str, float, float]]:
+    """Parameters to eliminate because the design cannot pin them down.
 
-    ``J`` (n_rows, k): the (weighted) Jacobian of the identified parameters ``names``; ``sigma``
-    the expected residual standard deviation in the rows' units. Each parameter's predicted
-    standard deviation (for a compliance: times the RMS of its moments, a deflection) is compared
-    with ``bounds[quantity]`` (default ``WEAK_STD``); the worst offender is removed and the rest
-    predicted again, until every one is within its bound. Returns (name, predicted effect,
-    bound) in the order of elimination.
+    ``J`` (n_rows, k): the (weighted) Jacobian of the identified parameters ``names``, in preference
+    order; ``sigma`` the expected residual standard deviation in the rows' units. A parameter's
+    predicted standard deviation (for a compliance: times the RMS of its moments, a deflection) is
+    compared with ``bounds[quantity]`` (default ``WEAK_STD``). As in the rank analysis, parameters
+    are taken in preference order, each joining those kept before it: one that leaves itself or a
+    kept one beyond its bound is eliminated (the later member of a near-dependent group goes, as
+    the later member of an exactly dependent one does). Returns, in order, (name, the parameter
+    beyond its bound with it: itself or an earlier one, that one's predicted effect, its bound).
     """
     bounds = WEAK_STD if bounds is None else bounds
     names, quantities = list(names), list(quantities)
     scale = np.array([np.sqrt(np.mean(moments[n] ** 2)) if q == "compliance" and moments else 1.0
                       for n, q in zip(names, quantities)])
     limit = np.array([bounds.get(q, np.inf) for q in quantities])
-    keep = np.ones(len(names), dtype=bool)
+    norms = np.linalg.norm(J, axis=0)
+    norms[norms == 0] = 1.0
+    # J^T J of any subset of columns is R_S^T R_S: one QR, then only k x k work per trial
+    R = np.linalg.qr(J / norms, mode="r") if J.shape[0] >= J.shape[1] else J / norms
+    kept: list[int] = []
     out = []
-    while keep.sum() > 1:
-        effect = predicted_std(J[:, keep], sigma) * scale[keep]
-        ratio = effect / limit[keep]
+    for k in range(len(names)):
+        trial = kept + [k]
+        A = R[:, trial]
+        s, vt = np.linalg.svd(A, full_matrices=False)[1:]
+        inv_diag = np.sum((vt / np.maximum(s, s[0] * 1e-15)[:, None]) ** 2, axis=0)
+        effect = sigma * np.sqrt(inv_diag) / norms[trial] * scale[trial]
+        ratio = effect / limit[trial]
         worst = int(np.argmax(ratio))
-        if ratio[worst] <= 1.0:
-            break
-        k = np.nonzero(keep)[0][worst]
-        out.append((names[k], float(effect[worst]), float(limit[k])))
-        keep[k] = False
+        if ratio[worst] > 1.0:
+            out.append((names[k], names[trial[worst]], float(effect[worst]), float(limit[trial[worst]])))
+        else:
+            kept.append(k)
     return out
 
 

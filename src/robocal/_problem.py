@@ -169,10 +169,13 @@ def needs_compliance(model: RobotModel, names) -> bool:
     return model.has_compliance or has_compliance_parameters(model, names)
 
 
-def design_measurements(model: RobotModel, q, orientation: bool = False) -> Measurements:
-    """Configurations without measured values, for what depends on the poses only (the Jacobian)."""
-    n, m = len(q), len(model.markers)
-    return Measurements(q=q, positions=np.zeros((n, m, 3)), marker_names=model.marker_names,
+def design_measurements(model: RobotModel, q, orientation: bool = False, markers=None) -> Measurements:
+    """Configurations without measured values, for what depends on the poses only (the Jacobian).
+
+    ``markers``: the names of the markers measured (default all the model's)."""
+    names = model.marker_names if markers is None else tuple(markers)
+    n, m = len(q), len(names)
+    return Measurements(q=q, positions=np.zeros((n, m, 3)), marker_names=names,
                         rotations=np.broadcast_to(np.eye(3), (n, m, 3, 3)) if orientation else None)
 
 

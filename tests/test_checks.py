@@ -1,0 +1,382 @@
+"""Results that can say they are wrong: a corpus of realistic mistakes, each caught through the
+command line; no false alarm on clean campaigns; outliers named; weak parameters handled."""
+
+import json
+import warnings
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+import robocal as rc
+from conftest import z_scores
+from robots import DEG, arm6r, cylindrical
+
+NOISE = 2e-5
+
+
+def _campaign(make=arm6r, n=48, seed=0, **kw):
+    m = make(**kw)
+    true, data = rc.simulate(m, n, seed=seed, noise=NOISE)
+    return m, true, data
+
+
+def _csv(data, model, units="mm-deg") -> list[str]:
+    return rc.io.measurements_to_csv(data, model=model, units=units).splitlines()
+
+
+def _rename(lines, old, new, *, where=lambda c: True):
+    """The header with ``old`` replaced by ``new`` in the columns ``where`` accepts."""
+    head = [new.join(c.rsplit(old, 1)) if c.endswith(old) and where(c) else c for c in lines[0].split(",")]
+    return [",".join(head)] + lines[1:]
+
+
+def _set(lines, row, column, value):
+    head = lines[0].split(",")
+    cells = lines[row + 1].split(",")
+    cells[head.index(column)] = str(value)
+    return lines[:row + 1] + [",".join(cells)] + lines[row + 2:]
+
+
+def _swap_columns(lines, a, b):
+    head = lines[0].split(",")
+    i, j = head.index(a), head.index(b)
+    head[i], head[j] = head[j], head[i]
+    return [",".join(head)] + lines[1:]
+
+
+def _calibrate(tmp_path, cli, model, lines, *args):
+    """Run ``robocal calibrate`` on ``model`` and the CSV ``lines``; (code, stdout, stderr, result dict)."""
+    rc.write_model(model, tmp_path / "model.yaml", force=True)
+    (tmp_path / "data.csv").write_text("\n".join(lines) + "\n")
+    out = tmp_path / "out"
+    code, stdout, stderr = cli("calibrate", tmp_path / "model.yaml", tmp_path / "data.csv", "--out", out, "--force",
+                               *args)
+    result = json.loads((out / "result.json").read_text()) if (out / "result.json").exists() else None
+    return code, stdout, stderr, result
+
+
+def _failed(result) -> dict:
+    return {c["name"]: c for c in result["checks"] if c["status"] == "fail"}
+
+
+def _assert_fails(code, out, result, check, *words):
+    """Exit code 3, verdict fail, ``check`` failed with ``words`` in what it says, and no calibrated model."""
+    assert code == 3, out
+    assert result["verdict"] == "fail" and check in _failed(result), [c["name"] for c in result["checks"]]
+    said = json.dumps(_failed(result)[check])
+    assert all(w in said for w in words), said
+    assert "verdict: FAIL" in out
+
+
+def test_clean_campaign_passes_and_writes_its_verdict(tmp_path, cli):
+    m, true, data = _campaign()
+    code, out, err, result = _calibrate(tmp_path, cli, m, _csv(data, m))
+    assert code == 0 and result["verdict"] == "pass", out
+    assert "verdict: pass" in out
+    assert "verdict: pass" in (tmp_path / "out" / "calibrated.yaml").read_text().replace("'", "")
+
+
+# -- the corpus: each mistake is an error before solving or a failed check naming the cause ---------
+
+def test_metres_declared_as_millimetres(tmp_path, cli):
+    m, _, data = _campaign()
+    lines = _rename(_csv(data, m, units="m-deg"), "_m", "_mm", where=lambda c: c.startswith("tool"))
+    code, out, _, result = _calibrate(tmp_path, cli, m, lines)
+    _assert_fails(code, out, result, "measured points against the robot's size", "metres declared as millimetres")
+    assert not (tmp_path / "out" / "calibrated.yaml").exists()
+
+
+def test_millimetres_declared_as_metres(tmp_path, cli):
+    m, _, data = _campaign()
+    lines = _rename(_csv(data, m), "_mm", "_m", where=lambda c: c.startswith("tool"))
+    code, out, _, result = _calibrate(tmp_path, cli, m, lines)
+    _assert_fails(code, out, result, "measured points against the robot's size", "metres declared as millimetres")
+
+
+def test_degrees_declared_as_radians(tmp_path, cli):
+    m, _, data = _campaign()
+    lines = _rename(_csv(data, m), "_deg", "_rad")
+    code, out, _, result = _calibrate(tmp_path, cli, m, lines)
+    _assert_fails(code, out, result, "joint readings within the limits", "degrees declared as radians")
+
+
+def test_radians_declared_as_degrees(tmp_path, cli):
+    m, _, data = _campaign()
+    lines = _rename(_csv(data, m, units="mm-rad"), "_rad", "_deg")
+    code, out, _, result = _calibrate(tmp_path, cli, m, lines)
+    _assert_fails(code, out, result, "joint reading units", "radians declared as degrees")
+
+
+def test_one_joint_in_the_wrong_unit(tmp_path, cli):
+    m, _, data = _campaign()
+    lines = _csv(data, m)
+    head = lines[0].split(",")
+    k = head.index("j4_deg")
+    rows = [line.split(",") for line in lines[1:]]
+    for r in rows:
+        r[k] = repr(float(np.radians(float(r[k]))))
+    code, out, _, result = _calibrate(tmp_path, cli, m, [lines[0]] + [",".join(r) for r in rows])
+    _assert_fails(code, out, result, "fit against the instrument")
+    units = next(c for c in result["checks"] if c["name"] == "joint reading units")
+    assert units["status"] == "warn" and units["items"] == ["j4"]
+
+
+def test_prismatic_readings_in_millimetres_declared_as_metres(tmp_path, cli):
+    m, _, data = _campaign(cylindrical)
+    lines = _rename(_csv(data, m), "_mm", "_m", where=lambda c: c.startswith("j"))
+    code, out, _, result = _calibrate(tmp_path, cli, m, lines)
+    _assert_fails(code, out, result, "joint readings within the limits", "j2")
+
+
+def test_sign_error_in_the_model(tmp_path, cli):
+    m, _, data = _campaign()
+    lines = _csv(data, m)
+    wrong = m.replace(frames=tuple(replace(f, d=-f.d) if f.name == "j3" else f for f in m.frames))
+    code, out, _, result = _calibrate(tmp_path, cli, wrong, lines)
+    assert code == 3 and {"plausible changes", "fit against the instrument"} & set(_failed(result))
+    if "plausible changes" in _failed(result):
+        assert "j3.d" in json.dumps(_failed(result)["plausible changes"])
+
+
+def test_two_markers_swapped(tmp_path, cli):
+    m, _, data = _campaign(markers=(("tool", (0.05, 0.02, 0.12)), ("tool2", (-0.06, 0.03, 0.1))))
+    lines = _csv(data, m)
+    for axis in "xyz":
+        lines = _swap_columns(lines, f"tool_{axis}_mm", f"tool2_{axis}_mm")
+    code, out, _, result = _calibrate(tmp_path, cli, m, lines, "--known", "markers")
+    _assert_fails(code, out, result, "fit against the instrument", "marker names or columns swapped")
+
+
+def test_reading_beyond_its_limit_is_named(tmp_path, cli):
+    m, _, data = _campaign()
+    m = m.replace(joint_limits=m.joint_limits[:5] + ((-360 * DEG, 360 * DEG),))
+    lines = _set(_csv(data, m), 5, "j6_deg", 400.0)
+    code, out, _, result = _calibrate(tmp_path, cli, m, lines)
+    _assert_fails(code, out, result, "joint readings within the limits", "pose 5: j6 = 400 deg")
+
+
+def test_joint_order_swapped(tmp_path, cli):
+    m, _, data = _campaign()
+    lines = _swap_columns(_csv(data, m), "j2_deg", "j3_deg")
+    code, out, _, result = _calibrate(tmp_path, cli, m, lines)
+    assert code == 3 and "fit against the instrument" in _failed(result)
+
+
+def test_joint_sign_reversed(tmp_path, cli):
+    m, _, data = _campaign()
+    lines = _csv(data, m)
+    head = lines[0].split(",")
+    k = head.index("j2_deg")
+    rows = [line.split(",") for line in lines[1:]]
+    for r in rows:
+        r[k] = repr(-float(r[k]))
+    code, out, _, result = _calibrate(tmp_path, cli, m, [lines[0]] + [",".join(r) for r in rows])
+    assert code == 3 and {"fit against the instrument", "joint readings within the limits"} & set(_failed(result))
+
+
+def test_marker_on_the_wrong_frame(tmp_path, cli):
+    m, _, data = _campaign()
+    wrong = m.replace(markers=(replace(m.markers[0], frame=4),))
+    code, out, _, result = _calibrate(tmp_path, cli, wrong, _csv(data, m))
+    assert code == 3 and {"fit against the instrument", "plausible changes"} & set(_failed(result))
+
+
+def test_file_from_another_robot(tmp_path, cli):
+    m, _, _ = _campaign()
+    bigger = m.replace(frames=tuple(replace(f, d=f.d * 1.3, r=f.r * 1.3) for f in m.frames))
+    _, data = rc.simulate(bigger, 48, seed=3, noise=NOISE)
+    code, out, _, result = _calibrate(tmp_path, cli, m, _csv(data, bigger))
+    _assert_fails(code, out, result, "plausible changes", "j3.d")
+
+
+def test_pose_column_shifted_by_one_row(tmp_path, cli):
+    m, _, data = _campaign()
+    lines = _csv(data, m)
+    head = lines[0].split(",")
+    joints = [k for k, c in enumerate(head) if c.startswith("j")]
+    rows = [line.split(",") for line in lines[1:]]
+    shifted = [[(rows[(i + 1) % len(rows)][k] if k in joints else c) for k, c in enumerate(r)]
+               for i, r in enumerate(rows)]
+    code, out, _, result = _calibrate(tmp_path, cli, m, [lines[0]] + [",".join(r) for r in shifted])
+    assert code == 3 and "fit against the instrument" in _failed(result)
+
+
+def test_instrument_axes_swapped(tmp_path, cli):
+    m, _, data = _campaign()
+    lines = _swap_columns(_csv(data, m), "tool_x_mm", "tool_y_mm")   # a mirrored frame: no rotation fits
+    code, out, _, result = _calibrate(tmp_path, cli, m, lines)
+    assert code == 3 and "fit against the instrument" in _failed(result)
+
+
+def test_blunder_is_named_and_refitted_or_failed(tmp_path, cli):
+    m, _, data = _campaign()
+    lines = _csv(data, m)
+    value = float(lines[8].split(",")[lines[0].split(",").index("tool_x_mm")])
+    lines = _set(lines, 7, "tool_x_mm", value + 5.0)
+    code, out, _, result = _calibrate(tmp_path, cli, m, lines)
+    outliers = next(c for c in result["checks"] if c["name"] == "outliers")
+    assert code == 0 and result["verdict"] == "warn" and result["loss"] == "soft_l1"
+    assert outliers["status"] == "warn" and outliers["items"][0].startswith("pose 7, marker tool")
+    code, out, _, result = _calibrate(tmp_path, cli, m, lines, "--on-outliers", "flag")
+    _assert_fails(code, out, result, "outliers", "pose 7, marker tool")
+
+
+def test_noise_only_data_calibrated_with_compliance(tmp_path, cli):
+    m = arm6r(masses=True)
+    true, data = rc.simulate(m, 60, seed=5, noise=NOISE)        # a rigid robot
+    code, out, _, result = _calibrate(tmp_path, cli, m, _csv(data, m), "--parameters", "geometric,compliance")
+    support = next(c for c in result["checks"] if c["name"] == "estimates supported by the data")
+    assert code == 0 and result["verdict"] != "pass" and support["status"] == "warn"
+    assert "no compliance differs from zero" in support["summary"]
+
+
+def test_marker_never_measured_is_named(tmp_path, cli):
+    m, _, data = _campaign(markers=(("tool", (0.05, 0.02, 0.12)), ("tool2", (-0.06, 0.03, 0.1))))
+    lines = _csv(data, m)
+    keep = [k for k, c in enumerate(lines[0].split(",")) if not c.startswith("tool2")]
+    lines = [",".join(c for k, c in enumerate(line.split(",")) if k in keep) for line in lines]
+    code, out, _, result = _calibrate(tmp_path, cli, m, lines)
+    check = next(c for c in result["checks"] if c["name"] == "every marker measured")
+    assert code == 0 and result["verdict"] == "warn" and check["items"] == ["tool2"]
+    assert not any(p["name"].startswith("tool2") for p in result["parameters"])
+    assert "add poses" not in json.dumps(result["checks"])
+
+
+def test_too_few_poses_and_a_bad_cell_stop_before_solving(tmp_path, cli):
+    m, _, data = _campaign()
+    lines = _csv(data, m)
+    code, _, err, result = _calibrate(tmp_path, cli, m, lines[:6])
+    assert code == 2 and result is None and "distinct poses are needed" in err
+    code, _, err, result = _calibrate(tmp_path, cli, m, _set(lines, 3, "tool_y_mm", "nan"))
+    assert code == 2 and result is None and "line 5, column 'tool_y_mm'" in err
+
+
+def test_wrong_orientation_convention_fails(tmp_path, cli):
+    m, _, _ = _campaign()
+    true, data = rc.simulate(m, 40, orientation=True, noise=NOISE, noise_rot=1e-4, seed=2)
+    # written as intrinsic XYZ Euler angles, declared extrinsic
+    lines = [line if not line.startswith("# orientation") else "# orientation: euler:xyz" for line in
+             rc.io.measurements_to_csv(data, model=m, orientation="euler:XYZ").splitlines()]
+    code, out, _, result = _calibrate(tmp_path, cli, m, lines)
+    _assert_fails(code, out, result, "orientation fit", "orientation convention")
+
+
+# -- weakly identifiable parameters ------------------------------------------------------------------
+
+def _held_out_rms(result, data):
+    ev = rc.forward_kinematics(result.calibrated_model, data.q)
+    return float(np.sqrt(np.mean(np.sum((ev.positions - data.positions) ** 2, axis=2))))
+
+
+def test_two_step_workflow_gives_the_one_step_answer():
+    # the tool point on the last axis: the one-step analysis eliminates what it cannot see
+    m = arm6r(markers=(("tool", (0.0, 0.0, 0.12)),))
+    true, data = rc.simulate(m, 60, seed=11, noise=NOISE)
+    _, held = rc.simulate(m, 300, seed=11, noise=NOISE)
+    held = rc.measure(true, held.q, noise=NOISE, rng=12)
+    one = rc.calibrate(m, data)
+    placed = rc.calibrate(m, data, parameters=("base", "markers")).calibrated_model   # step one
+    assert np.hypot(*placed.markers[0].position[:2]) > 1e-5       # the tool left the axis
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        two = rc.calibrate(placed, data)                             # step two, from that model
+        kept = rc.calibrate(placed, data, weak="flag")
+    assert set(two.parameter_names) == set(one.parameter_names)
+    ident = next(c for c in two.checks if c.name == "identifiability at these poses")
+    assert ident.items and "weakly identifiable" in ident.summary and two.verdict != "fail"
+    assert abs(_held_out_rms(two, held) - _held_out_rms(one, held)) < 0.1 * _held_out_rms(one, held)
+    # kept instead, they are flagged and their estimates are poor
+    flagged = next(c for c in kept.checks if c.name == "identifiability at these poses")
+    assert flagged.status == "warn" and kept.verdict != "pass"
+
+
+def test_poses_that_barely_turn_the_tool_name_its_weak_parameters():
+    m = arm6r()
+    rng = np.random.default_rng(4)
+    q = rc.random_configurations(m, 60, rng=rng)
+    q[:, 3:] = rng.uniform(-2 * DEG, 2 * DEG, (60, 3))              # the wrist barely moves
+    true = rc.perturb_model(m, rc.identifiability(m).identified, rng=5)
+    data = rc.measure(true, q, noise=NOISE, rng=6)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = rc.calibrate(m, data)
+    ident = next(c for c in res.checks if c.name == "identifiability at these poses")
+    units = next(c for c in res.checks if c.name == "joint reading units")
+    assert res.verdict == "warn" and units.items == ("j4", "j5", "j6") and "weakly identifiable" in ident.summary
+    # the tool's length is kept, pinned down; what the poses confound with it goes instead
+    assert res.estimate("tool.z").std < 1e-3 and abs(res.estimate("tool.z").change - (
+        true.markers[0].position[2] - m.markers[0].position[2])) < 3 * res.estimate("tool.z").std
+
+
+# -- false alarms, outliers ----------------------------------------------------------------------------
+
+def _clean(make, poses, compliance, seed):
+    m = make(masses=compliance)
+    params = ("geometric", "compliance") if compliance else ("geometric",)
+    kw = {}
+    if compliance:
+        rng = np.random.default_rng(seed)
+        ks = [n for n in rc.identifiability(m, parameters=params).identified
+              if rc.kinematics.parameter_layout(m)[n].family == "compliance"]
+        kw = dict(true_compliance={n: rng.uniform(2e-6, 1e-5) for n in ks})
+    true, data = rc.simulate(m, poses, parameters=params, seed=1000 + seed, noise=NOISE, **kw)
+    return rc.calibrate(m, data, parameters=params)
+
+
+def test_clean_campaigns_raise_no_false_alarm():
+    verdicts = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for make in (arm6r, cylindrical):
+            for poses in (48, 500):
+                for compliance in (False, True):
+                    verdicts += [_clean(make, poses, compliance, seed).verdict for seed in range(13)]
+    assert len(verdicts) >= 100
+    assert verdicts.count("fail") == 0 and verdicts.count("warn") <= 0.05 * len(verdicts)
+
+
+def test_one_blunder_is_named_in_nearly_every_campaign():
+    m = arm6r()
+    named = 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for seed in range(100):
+            true, data = rc.simulate(m, 48, seed=2000 + seed, noise=NOISE)
+            rng = np.random.default_rng(seed)
+            i = int(rng.integers(48))
+            direction = rng.normal(size=3)
+            pos = data.positions.copy()
+            pos[i, 0] += 5e-3 * direction / np.linalg.norm(direction)
+            res = rc.calibrate(m, replace(data, positions=pos))
+            check = next(c for c in res.checks if c.name == "outliers")
+            named += any(item.startswith(f"pose {i}, marker tool") for item in check.items)
+    assert named >= 95
+
+
+def test_robust_refit_keeps_the_truth_within_three_sigma_with_gross_outliers():
+    m = arm6r()
+    good = 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for seed in range(100):
+            true, data = rc.simulate(m, 48, seed=3000 + seed, noise=NOISE)
+            rng = np.random.default_rng(seed)
+            rows = rng.choice(48, size=3, replace=False)                  # 5 % of the points, 5 mm off
+            direction = rng.normal(size=(3, 3))
+            pos = data.positions.copy()
+            pos[rows, 0] += 5e-3 * direction / np.linalg.norm(direction, axis=1, keepdims=True)
+            res = rc.calibrate(m, replace(data, positions=pos))
+            good += res.loss == "soft_l1" and np.abs(z_scores(res, true, m)).max() < 3.0
+    assert good >= 90
+
+
+def test_fair_before_registers_base_and_tool():
+    m, true, data = _campaign(seed=7)
+    far = m.replace(base_position=tuple(np.add(m.base_position, (1.2, -0.8, 0.5))))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = rc.calibrate(far, data)
+    # the nominal geometry with its base and tool fitted: millimetres, not the metres of the guess
+    assert res.stats.fit_before.mean < 10e-3
+    assert any("base and markers fitted" in n for n in res.notes)
