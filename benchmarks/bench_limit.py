@@ -15,7 +15,6 @@ import resource
 import time
 
 import robocal as rc
-from robocal._options import LIMIT_CHUNK as DEFAULT_CHUNK
 from robocal.limit import controller_precision
 
 DEG = math.pi / 180
@@ -31,7 +30,7 @@ def arm() -> rc.RobotModel:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--samples", type=int, default=1_000_000)
-    ap.add_argument("--chunk-size", type=int, default=DEFAULT_CHUNK)
+    ap.add_argument("--chunk-size", type=int, default=2048)
     ap.add_argument("--repeat", type=int, default=3, help="report the best of this many runs")
     args = ap.parse_args()
     model = arm()

@@ -1,0 +1,156 @@
+"""The package's shape (docs/architecture.md): imports follow the data flow, no module reaches for
+another's private names, the tables of kinds and units exist once, no function grows past a screen."""
+
+import ast
+import math
+import re
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+SRC = ROOT / "src" / "robocal"
+
+# the data flow, upstream first: a module may import from its own layer or an earlier one
+LAYERS = [
+    {"_version", "_errors", "_options", "_units", "_spatial", "_misfit"},
+    {"_model", "_measurements"},
+    {"_parameters"},
+    {"_kinematics"},
+    {"_problem"},
+    {"_identifiability"},
+    {"_pose_selection", "_simulation", "_compensation", "_accuracy_limit", "_conversion", "_checks"},
+    {"_solve", "_calibration", "_campaign"},
+    {"_files"},
+    {"_presentation"},
+    {"__init__", "errors", "kinematics", "io", "sim", "limit", "report", "identification"},
+    {"cli", "__main__"},
+]
+LAYER = {name: i for i, names in enumerate(LAYERS) for name in names}
+MAX_FUNCTION_LINES = 80
+MAX_CALIBRATE_LINES = 60
+
+
+def _modules():
+    return sorted(p for p in SRC.rglob("*.py"))
+
+
+def _unit(path: Path) -> str:
+    """The top-level part of the package a file belongs to (``_files`` for ``_files/model.py``)."""
+    rel = path.relative_to(SRC).parts
+    return rel[0] if len(rel) > 1 else rel[0][:-3]
+
+
+def _imports(path: Path):
+    """(imported top-level unit, imported names, line) for every robocal import in ``path``."""
+    tree = ast.parse(path.read_text())
+    package = path.relative_to(SRC).parts[:-1]
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.module != "__future__":
+            if node.level:
+                base = list(package[:len(package) - node.level + 1])
+                target = base + (node.module.split(".") if node.module else [])
+            elif node.module and node.module.split(".")[0] == "robocal":
+                target = node.module.split(".")[1:]
+            else:
+                continue
+            names = [a.name for a in node.names]
+            if not target:                       # from . import x: x is the unit
+                for n in names:
+                    yield n, [], node.lineno
+            else:
+                yield target[0], names, node.lineno
+        elif isinstance(node, ast.Import):
+            for a in node.names:
+                if a.name.startswith("robocal."):
+                    yield a.name.split(".")[1], [], node.lineno
+
+
+def test_every_module_has_a_layer():
+    assert {_unit(p) for p in _modules()} <= set(LAYER), {_unit(p) for p in _modules()} - set(LAYER)
+
+
+def test_imports_follow_the_data_flow_and_reach_no_private_name():
+    wrong = []
+    for path in _modules():
+        own = _unit(path)
+        for unit, names, line in _imports(path):
+            where = f"{path.relative_to(SRC)}:{line}"
+            if unit != own and LAYER.get(unit, -1) > LAYER[own]:
+                wrong.append(f"{where} imports {unit} against the data flow")
+            wrong += [f"{where} imports the private name {n}" for n in names
+                      if n.startswith("_") and not n.endswith("__")]
+            if unit != own and unit.startswith("_") and not names:
+                wrong.append(f"{where} imports the private module {unit} itself")
+    assert not wrong, "\n".join(wrong)
+
+
+def test_no_import_cycle():
+    graph = {}
+    for path in _modules():
+        graph.setdefault(_unit(path), set()).update(u for u, _, _ in _imports(path) if u != _unit(path))
+    seen, done = set(), set()
+
+    def visit(node, stack):
+        if node in done:
+            return
+        assert node not in seen, f"import cycle: {' -> '.join(stack + [node])}"
+        seen.add(node)
+        for nxt in graph.get(node, ()):
+            visit(nxt, stack + [node])
+        done.add(node)
+
+    for node in graph:
+        visit(node, [])
+
+
+def test_no_function_over_a_screen():
+    long = []
+    for path in _modules():
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                n = node.end_lineno - node.lineno + 1
+                limit = MAX_CALIBRATE_LINES if node.name == "calibrate" else MAX_FUNCTION_LINES
+                if n > limit:
+                    long.append(f"{path.relative_to(SRC)}:{node.lineno} {node.name}: {n} lines")
+    assert not long, "\n".join(long)
+
+
+# -- one table each ---------------------------------------------------------------------------------
+
+def _dict_literals(path: Path):
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Dict):
+            keys = [k.value for k in node.keys if isinstance(k, ast.Constant)]
+            yield node, keys
+
+
+def test_tables_of_kinds_units_and_display_units_exist_once():
+    from robocal._parameters import KIND_QUANTITY, SI_UNITS
+    from robocal._presentation.units import DISPLAY_UNITS
+    from robocal._units import ANGLE_UNITS, LENGTH_UNITS
+
+    assert LENGTH_UNITS["mm"] == 1e-3 and ANGLE_UNITS["deg"] == pytest.approx(math.pi / 180)
+    assert set(SI_UNITS.values()) == set(DISPLAY_UNITS) and set(KIND_QUANTITY.values()) == set(SI_UNITS)
+    homes = {"kinds": SRC / "_parameters.py", "units": SRC / "_units.py",
+             "display": SRC / "_presentation" / "units.py"}
+    kinds = {"alpha", "beta", "theta", "gamma", "d", "r", "b"}
+    found = []
+    for path in _modules():
+        for node, keys in _dict_literals(path):
+            if path != homes["units"] and ({"mm", "m"} <= set(keys) or {"deg", "rad"} <= set(keys)):
+                found.append(f"{path.relative_to(SRC)}:{node.lineno} a table of units")
+            if path != homes["kinds"] and len(kinds & set(keys)) >= 3:
+                found.append(f"{path.relative_to(SRC)}:{node.lineno} a table of parameter kinds")
+        text = path.read_text()
+        if path != homes["display"] and "deg/(kN m)" in text:
+            found.append(f"{path.relative_to(SRC)} a display unit of its own")
+    assert not found, "\n".join(found)
+
+
+def test_documents_examples_and_benchmarks_use_public_names_only():
+    files = [ROOT / "README.md", *ROOT.glob("docs/*.md"), *ROOT.glob("examples/**/*.py"),
+             *ROOT.glob("examples/**/*.md"), *ROOT.glob("benchmarks/*.py"), *ROOT.glob("benchmarks/*.md")]
+    private = [f"{p.relative_to(ROOT)}: {m.group(0)}" for p in files
+               for m in re.finditer(r"robocal\._\w+", p.read_text())]
+    assert not private, "\n".join(private)
