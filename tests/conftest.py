@@ -29,3 +29,13 @@ def z_scores(result, true, nominal):
     names = rc.parameter_names(true)
     truth = dict(zip(names, rc.parameter_vector(true, nominal)))
     return np.array([(p.estimate - truth[p.name]) / p.std for p in result.parameters])
+
+
+def assert_one_line_error(code, err, words, out_dir=None, command="calibrate"):
+    """A bad input: exit 2, one line on stderr naming ``words``, no traceback, nothing written."""
+    assert code == 2 and "Traceback" not in err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"robocal {command}: error: "), err
+    for w in words:
+        assert w in lines[0], (w, lines[0])
+    assert out_dir is None or not out_dir.exists()

@@ -1,7 +1,10 @@
 """Test robots built in code (SI): a 6R industrial arm and a TH8-like cylindrical arm."""
 
+from pathlib import Path
+
 import numpy as np
 
+import robocal as rc
 from robocal import serial_model
 
 DEG = np.pi / 180
@@ -46,3 +49,11 @@ def cylindrical(masses=False):
               (-100 * DEG, 100 * DEG), (-180 * DEG, 180 * DEG)]
     return serial_model("cylindrical", rows, markers=[("tool", (0.03, 0.02, 0.15))], joint_limits=limits,
                         base_position=(2.0, 0.5, -0.3))
+
+
+TORSO = Path(__file__).resolve().parents[1] / "examples" / "torso" / "model.yaml"
+
+
+def torso() -> rc.RobotModel:
+    """examples/torso/model.yaml: a two-armed tree with a coupled joint."""
+    return rc.read_model(TORSO)

@@ -6,7 +6,6 @@ import warnings
 from dataclasses import replace
 
 import numpy as np
-import pytest
 
 import robocal as rc
 from conftest import z_scores

@@ -14,8 +14,8 @@ import yaml
 import robocal as rc
 from robocal.io import write_measurements
 from robocal.io import model_to_dict, read_model, write_model
-from robocal.cli import main
-from robots import arm6r
+from conftest import assert_one_line_error
+from robots import TORSO, arm6r, torso
 from test_files import _cell, _drop
 
 
@@ -30,15 +30,9 @@ def campaign(tmp_path):
     return tmp_path, model, true, data
 
 
-def run(capsys, *argv):
-    code = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
-def test_calibrate_writes_model_and_result(campaign, capsys):
+def test_calibrate_writes_model_and_result(campaign, cli):
     d, model, true, data = campaign
-    code, out, err = run(capsys, "calibrate", d / "model.yaml", d / "data.csv", "--out", d / "run",
+    code, out, err = cli("calibrate", d / "model.yaml", d / "data.csv", "--out", d / "run",
                          "--holdout", "0.25", "--seed", "1")
     assert code == 0, err
     assert "fit, before" in out and "validation, after" in out and "j2.alpha" in out
@@ -56,7 +50,7 @@ def test_calibrate_writes_model_and_result(campaign, capsys):
     assert sorted(p.name for p in (d / "run").iterdir()) == ["calibrated.yaml", "result.json"]
 
 
-def test_calibrate_semicolon_decimal_comma_missing_marker(tmp_path, capsys):
+def test_calibrate_semicolon_decimal_comma_missing_marker(tmp_path, cli):
     model = arm6r(markers=(("tool", (0.05, 0.02, 0.12)), ("t2", (0.1, 0.0, 0.1))))
     true, data = rc.simulate(model, 30, seed=5)
     write_model(model, tmp_path / "model.yaml", units="m-rad")
@@ -69,7 +63,7 @@ def test_calibrate_semicolon_decimal_comma_missing_marker(tmp_path, capsys):
             cells += ["" if missing else f"{v * 1e3:.6f}" for v in data.positions[i, m]]
         lines.append(";".join(c.replace(".", ",") for c in cells))
     (tmp_path / "d.csv").write_text("\n".join(lines) + "\n")
-    code, out, err = run(capsys, "calibrate", tmp_path / "model.yaml", tmp_path / "d.csv", "--out", tmp_path / "o",
+    code, out, err = cli("calibrate", tmp_path / "model.yaml", tmp_path / "d.csv", "--out", tmp_path / "o",
                          "--sep", ";", "--decimal", ",")
     assert code == 0, err
     result = json.loads((tmp_path / "o" / "result.json").read_text())
@@ -80,11 +74,11 @@ def test_calibrate_semicolon_decimal_comma_missing_marker(tmp_path, capsys):
     assert len(result["errors"]["fit_after"]) == data.n_poses
 
 
-def test_calibrate_validation_file_and_limit(campaign, capsys):
+def test_calibrate_validation_file_and_limit(campaign, cli):
     d, model, true, data = campaign
     val = rc.measure(true, rc.random_configurations(model, 10, 9), rng=9)  # the same robot, other poses
     write_measurements(val, d / "val.csv", model=model)
-    code, out, err = run(capsys, "calibrate", d / "model.yaml", d / "data.csv", "--out", d / "run",
+    code, out, err = cli("calibrate", d / "model.yaml", d / "data.csv", "--out", d / "run",
                          "--validation", d / "val.csv", "--limit-mm", "0.1", "--known", "markers")
     assert code == 0, err
     assert "limit of absolute accuracy 0.100 mm" in out and "reached" in out
@@ -95,7 +89,7 @@ def test_calibrate_validation_file_and_limit(campaign, capsys):
     assert not any(p["name"].startswith("tool.") for p in result["parameters"])
 
 
-def test_calibrate_compare(tmp_path, capsys):
+def test_calibrate_compare(tmp_path, cli):
     d = tmp_path
     model = arm6r(masses=True)
     # centres of mass off the last axes: a moment that is zero up to rounding is not a parameter
@@ -105,7 +99,7 @@ def test_calibrate_compare(tmp_path, capsys):
                              seed=4)
     write_model(model, d / "model.yaml")
     write_measurements(data, d / "data.csv", model=model)
-    code, out, err = run(capsys, "calibrate", d / "model.yaml", d / "data.csv", "--out", d / "cmp", "--compare",
+    code, out, err = cli("calibrate", d / "model.yaml", d / "data.csv", "--out", d / "cmp", "--compare",
                          "--holdout", "0.3")
     assert code == 0, err
     assert "geometric+compliance" in out and "compliance helped" in out
@@ -113,26 +107,26 @@ def test_calibrate_compare(tmp_path, capsys):
                                                              "result-geometric.json"]
 
 
-def test_force_overwrites(campaign, capsys):
+def test_force_overwrites(campaign, cli):
     d, *_ = campaign
     args = ["calibrate", d / "model.yaml", d / "data.csv", "--out", d / "run"]
-    assert run(capsys, *args)[0] == 0
-    code, out, err = run(capsys, *args)
+    assert cli(*args)[0] == 0
+    code, out, err = cli(*args)
     assert code == 2 and "exists; pass --force" in err
-    assert run(capsys, *args, "--force")[0] == 0
+    assert cli(*args, "--force")[0] == 0
 
 
-def test_report_missing_extra(campaign, capsys, monkeypatch):
+def test_report_missing_extra(campaign, monkeypatch, cli):
     monkeypatch.setitem(sys.modules, "matplotlib", None)  # as if the report extra were not installed
     d, *_ = campaign
-    code, out, err = run(capsys, "calibrate", d / "model.yaml", d / "data.csv", "--out", d / "run", "--report")
+    code, out, err = cli("calibrate", d / "model.yaml", d / "data.csv", "--out", d / "run", "--report")
     assert code == 1 and "report extra not installed" in err
     assert not (d / "run").exists()
 
 
-def test_simulate_then_identifiability(tmp_path, capsys):
+def test_simulate_then_identifiability(tmp_path, cli):
     write_model(arm6r(), tmp_path / "m.yaml")
-    code, out, err = run(capsys, "simulate", tmp_path / "m.yaml", "--out", tmp_path / "s.csv", "--poses", 15,
+    code, out, err = cli("simulate", tmp_path / "m.yaml", "--out", tmp_path / "s.csv", "--poses", 15,
                          "--seed", 3, "--noise-mm", 0.01, "--length-error-mm", "0.5,1", "--true-model",
                          tmp_path / "true.yaml")
     assert code == 0, err
@@ -141,20 +135,20 @@ def test_simulate_then_identifiability(tmp_path, capsys):
     true = read_model(tmp_path / "true.yaml")
     q = data.q
     assert np.abs(rc.forward_kinematics(true, q).positions - data.positions).max() < 1e-4  # noise 0.01 mm
-    code, out, err = run(capsys, "identifiability", tmp_path / "m.yaml", tmp_path / "s.csv")
+    code, out, err = cli("identifiability", tmp_path / "m.yaml", tmp_path / "s.csv")
     assert code == 0, err
     table = {line.split()[0]: line.split()[1:] for line in out.splitlines() if line.startswith("  j")}
     assert table["j1"][:5] == ["E", "E", "E", "E", "E"]       # frame 1 goes to the base
     assert table["j3"][:5] == ["I", "I", "I", "I", "E"]       # r of the second parallel axis
     assert re.search(r"j3\.r +1 mm = \+1 mm j2\.r", out)
     assert "condition number" in out and "O1" in out
-    code, out2, err = run(capsys, "identifiability", tmp_path / "m.yaml", "--poses", 30, "--seed", 1)
+    code, out2, err = cli("identifiability", tmp_path / "m.yaml", "--poses", 30, "--seed", 1)
     assert code == 0 and "30 random poses" in out2
 
 
-def test_help_for_every_command(capsys):
+def test_help_for_every_command(cli):
     for cmd in ("calibrate", "simulate", "identifiability", "report", "limit", "import-urdf"):
-        code, out, err = run(capsys, cmd, "--help")
+        code, out, err = cli(cmd, "--help")
         assert code == 0 and f"usage: robocal {cmd}" in out
 
 
@@ -217,7 +211,7 @@ def assert_clean_failure(code, err, cmd, words, out_dir):
 
 @pytest.mark.parametrize("kind, case", [("csv", c) for c in sorted(CSV_CASES)] +
                          [("model", c) for c in sorted(MODEL_CASES)])
-def test_bad_input_file(campaign, capsys, kind, case):
+def test_bad_input_file(campaign, kind, case, cli):
     d, *_ = campaign
     if kind == "csv":
         bad, (edit, words) = d / "data.csv", CSV_CASES[case]
@@ -225,11 +219,11 @@ def test_bad_input_file(campaign, capsys, kind, case):
     else:
         bad, (edit, words) = d / "model.yaml", MODEL_CASES[case]
         _edit_model(bad, edit)
-    code, out, err = run(capsys, "calibrate", d / "model.yaml", d / "data.csv", "--out", d / "run")
+    code, out, err = cli("calibrate", d / "model.yaml", d / "data.csv", "--out", d / "run")
     assert_clean_failure(code, err, "calibrate", [str(bad)] + words, d / "run")
 
 
-def test_zero_quaternion(tmp_path, capsys):
+def test_zero_quaternion(tmp_path, cli):
     model = arm6r()
     true, data = rc.simulate(model, 20, seed=2, orientation=True, noise_rot=1e-5)
     write_model(model, tmp_path / "model.yaml")
@@ -239,52 +233,52 @@ def test_zero_quaternion(tmp_path, capsys):
     for c in ("tool_qx", "tool_qy", "tool_qz", "tool_qw"):
         _set(rest, 3, c, "0.0")
     (tmp_path / "data.csv").write_text("\n".join([comment] + rest) + "\n")
-    code, out, err = run(capsys, "calibrate", tmp_path / "model.yaml", tmp_path / "data.csv", "--out", tmp_path / "o")
+    code, out, err = cli("calibrate", tmp_path / "model.yaml", tmp_path / "data.csv", "--out", tmp_path / "o")
     assert_clean_failure(code, err, "calibrate", [str(tmp_path / "data.csv"), "line 5", "'tool_qx'",
                                                   "quaternion of zero norm"], tmp_path / "o")
 
 
-def test_no_units_declared(campaign, capsys):
+def test_no_units_declared(campaign, cli):
     d, *_ = campaign
     _edit_csv(d / "data.csv", lambda ls: ls.__setitem__(0, ls[0].replace("_mm", "").replace("_deg", "")))
-    code, out, err = run(capsys, "calibrate", d / "model.yaml", d / "data.csv", "--out", d / "run")
+    code, out, err = cli("calibrate", d / "model.yaml", d / "data.csv", "--out", d / "run")
     assert_clean_failure(code, err, "calibrate", [str(d / "data.csv"), "line 1", "'j1'", "--units mm-deg"],
                          d / "run")
-    code, out, err = run(capsys, "calibrate", d / "model.yaml", d / "data.csv", "--out", d / "run",
+    code, out, err = cli("calibrate", d / "model.yaml", d / "data.csv", "--out", d / "run",
                          "--units", "mm-deg")
     assert code == 0, err
 
 
-def test_existing_output_without_force(campaign, capsys):
+def test_existing_output_without_force(campaign, cli):
     d, *_ = campaign
     (d / "run").mkdir()
     (d / "run" / "result.json").write_text("mine")
-    code, out, err = run(capsys, "calibrate", d / "model.yaml", d / "data.csv", "--out", d / "run")
+    code, out, err = cli("calibrate", d / "model.yaml", d / "data.csv", "--out", d / "run")
     assert code == 2 and "Traceback" not in err
     assert f"{d / 'run' / 'result.json'}: exists; pass --force" in err
     assert sorted(p.name for p in (d / "run").iterdir()) == ["result.json"]
     assert (d / "run" / "result.json").read_text() == "mine"
 
 
-def test_simulate_refuses_existing_output(tmp_path, capsys):
+def test_simulate_refuses_existing_output(tmp_path, cli):
     write_model(arm6r(), tmp_path / "m.yaml")
     (tmp_path / "s.csv").write_text("keep")
-    code, out, err = run(capsys, "simulate", tmp_path / "m.yaml", "--out", tmp_path / "s.csv", "--poses", 5)
+    code, out, err = cli("simulate", tmp_path / "m.yaml", "--out", tmp_path / "s.csv", "--poses", 5)
     assert code == 2 and "exists" in err and (tmp_path / "s.csv").read_text() == "keep"
 
 
-def test_missing_files_and_bad_options(tmp_path, capsys):
-    code, out, err = run(capsys, "calibrate", tmp_path / "none.yaml", tmp_path / "none.csv", "--out", tmp_path / "o")
+def test_missing_files_and_bad_options(tmp_path, cli):
+    code, out, err = cli("calibrate", tmp_path / "none.yaml", tmp_path / "none.csv", "--out", tmp_path / "o")
     assert code == 2 and "none.yaml: file not found" in err and "Traceback" not in err
-    code, out, err = run(capsys, "calibrate", "m.yaml", "d.csv", "--out", "o", "--holdout", "1.5")
+    code, out, err = cli("calibrate", "m.yaml", "d.csv", "--out", "o", "--holdout", "1.5")
     assert code == 2 and "fraction" in err
-    code, out, err = run(capsys, "calibrate", "m.yaml", "d.csv", "--out", "o", "--units", "mm-grad")
+    code, out, err = cli("calibrate", "m.yaml", "d.csv", "--out", "o", "--units", "mm-grad")
     assert code == 2 and "unknown angle unit 'grad'" in err
 
 
-def test_unknown_parameter_family(campaign, capsys):
+def test_unknown_parameter_family(campaign, cli):
     d, *_ = campaign
-    code, out, err = run(capsys, "calibrate", d / "model.yaml", d / "data.csv", "--out", d / "run",
+    code, out, err = cli("calibrate", d / "model.yaml", d / "data.csv", "--out", d / "run",
                          "--parameters", "geometric,geometry")
     assert_clean_failure(code, err, "calibrate", ["parameters", "'geometry'"], d / "run")
 
@@ -294,25 +288,25 @@ def test_model_dict_matches_written_file(campaign):
     assert yaml.safe_load((d / "model.yaml").read_text()) == model_to_dict(model)
 
 
-def test_calibrate_report_and_report_command(campaign, capsys):
+def test_calibrate_report_and_report_command(campaign, cli):
     d, *_ = campaign
-    code, out, err = run(capsys, "calibrate", d / "model.yaml", d / "data.csv", "--out", d / "run", "--holdout",
+    code, out, err = cli("calibrate", d / "model.yaml", d / "data.csv", "--out", d / "run", "--holdout",
                          "0.25", "--report")
     assert code == 0, err
     html = (d / "run" / "report.html").read_text()
     assert html.startswith("<!DOCTYPE html>") and "data-plot" in html
-    code, out, err = run(capsys, "report", d / "run" / "result.json", "--out", d / "again.html")
+    code, out, err = cli("report", d / "run" / "result.json", "--out", d / "again.html")
     assert code == 0, err
     assert (d / "again.html").read_text().count("data-plot=") == html.count("data-plot=")
-    code, out, err = run(capsys, "report", d / "run" / "result.json", "--out", d / "again.html")
+    code, out, err = cli("report", d / "run" / "result.json", "--out", d / "again.html")
     assert code == 2 and "exists" in err
 
 
-def test_import_urdf_writes_a_model_with_the_same_kinematics(tmp_path, capsys):
-    from test_imports import ARM7, _urdf_text
+def test_import_urdf_writes_a_model_with_the_same_kinematics(tmp_path, cli):
+    from test_conversion import ARM7, _urdf_text
     urdf = tmp_path / "arm.urdf"
     urdf.write_text(_urdf_text("arm", ARM7))
-    code, out, err = run(capsys, "import-urdf", urdf, "--out", tmp_path / "arm.yaml", "--marker-mm", "tcp,0,10,120")
+    code, out, err = cli("import-urdf", urdf, "--out", tmp_path / "arm.yaml", "--marker-mm", "tcp,0,10,120")
     assert code == 0 and err == "" and "7 joints" in out
     written = read_model(tmp_path / "arm.yaml")
     direct = rc.read_urdf(urdf, markers=[("tcp", (0.0, 0.01, 0.12))])
@@ -329,11 +323,53 @@ def test_import_urdf_writes_a_model_with_the_same_kinematics(tmp_path, capsys):
     (("broken.urdf",), "broken.urdf"),
     (("arm.urdf", "--marker-mm", "tcp,1,2"), "expected NAME,X,Y,Z"),
 ])
-def test_import_urdf_bad_input(tmp_path, capsys, args, message):
-    from test_imports import ARM7, _urdf_text
+def test_import_urdf_bad_input(tmp_path, args, message, cli):
+    from test_conversion import ARM7, _urdf_text
     (tmp_path / "arm.urdf").write_text(_urdf_text("arm", ARM7))
     (tmp_path / "broken.urdf").write_text("<robot name='x'><link name='a'/><joint")
     argv = [tmp_path / a if a.endswith(".urdf") else a for a in args]
-    code, out, err = run(capsys, "import-urdf", *argv, "--out", tmp_path / "out.yaml")
+    code, out, err = cli("import-urdf", *argv, "--out", tmp_path / "out.yaml")
     assert code == 2 and message in err and len(err.strip().splitlines()) <= 5 and "Traceback" not in err
     assert not (tmp_path / "out.yaml").exists()
+
+
+@pytest.fixture
+def torso_campaign(tmp_path):
+    m = torso()
+    true, data = rc.simulate(m, 30, seed=1)
+    text = yaml.safe_load(TORSO.read_text())
+    rc.write_measurements(data, tmp_path / "data.csv", model=m)
+    return tmp_path, text
+
+
+TREE_CASES = {
+    "coupling to an unknown joint": (lambda d: d["frames"][5]["coupling"].update(l9=1),
+                                     ["frames[5].coupling.l9", "unknown key 'l9'"]),
+    "parent defined later": (lambda d: d["frames"][6].update(parent="r2"),
+                             ["frames[6].parent", "'r2' is not a frame defined before this one"]),
+    "coupled frame made fixed": (lambda d: d["frames"][5].update(joint="fixed"),
+                                 ["frames[5].coupling", "a fixed frame has no joint reading"]),
+}
+
+
+@pytest.mark.parametrize("case", sorted(TREE_CASES))
+def test_bad_tree_model_file_through_cli(torso_campaign, case, cli):
+    d, text = torso_campaign
+    edit, words = TREE_CASES[case]
+    edit(text)
+    (d / "bad.yaml").write_text(yaml.safe_dump(text, sort_keys=False))
+    with pytest.raises(rc.InputError) as err:
+        rc.read_model(d / "bad.yaml")
+    assert err.value.source == str(d / "bad.yaml")
+    code, out, err = cli("calibrate", d / "bad.yaml", d / "data.csv", "--out", d / "run")
+    assert_one_line_error(code, err, [f"{d / 'bad.yaml'}: "] + words, d / "run")
+
+
+
+
+
+
+
+
+
+

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import robocal as rc
+from conftest import assert_one_line_error
 from robocal._kinematics import kinematic_pass, layout
 from robocal._accuracy_limit import parameter_displacement
 from robocal._files.result import LIMIT_SCHEMA
@@ -116,7 +117,7 @@ def test_csv_units_must_be_explicit_and_known(tmp_path):
 
 # -- controller precision ----------------------------------------------------------------------
 
-def testparameter_displacement_matches_engine_jacobian():
+def test_parameter_displacement_matches_engine_jacobian():
     # the fast J_p @ dp from the step geometry against the public Jacobian
     model = industrial_6r(markers=(("tool", (0.02, 0.01, 0.1)), ("m2", (0.1, 0.0, 0.0))))
     rp = rounded_parameters(model, 1e-4, 1e-5)
@@ -243,6 +244,14 @@ def test_accuracy_limit_adds_repeatability_and_mean_precision(tmp_path):
 
 # -- CLI ---------------------------------------------------------------------------------------
 
+
+
+def cli(argv):
+    from robocal.cli import main
+
+    return main(argv)
+
+
 @pytest.fixture
 def model_file(tmp_path):
     """The test arm written as a model file by the project's writer (read back by the CLI)."""
@@ -253,20 +262,14 @@ def model_file(tmp_path):
     return path
 
 
-def _run(argv):
-    from robocal.cli import main
-
-    return main(argv)
-
-
-def test_cli_writes_the_limit(model_file, tmp_path, capsys):
+def test_cli_writes_the_limit(model_file, tmp_path, cli):
     out = tmp_path / "limit.json"
     csv_file = tmp_path / "rep.csv"
     csv_file.write_text(CSV)
     argv = ["limit", str(model_file), "--repeatability-csv", str(csv_file), "--csv-units", "mm", "--encoder-resolution",
             "0.01deg,0.01deg,0.01deg,1.745e-4rad,0.01deg,0.01deg", "--length-quantum-mm", "0.1",
             "--angle-quantum-deg", "0.001", "--samples", "3000", "--seed", "5", "--out", str(out)]
-    assert _run(argv) == 0
+    assert cli(*argv)[0] == 0
     d = json.loads(out.read_text())
     assert d["schema"] == LIMIT_SCHEMA
     np.testing.assert_allclose(d["repeatability"], 3.709980e-3, rtol=1e-6)
@@ -279,9 +282,9 @@ def test_cli_writes_the_limit(model_file, tmp_path, capsys):
                                   length_quantum=1e-4, angle_quantum=1e-3 * DEG)
     np.testing.assert_allclose(d["precision"], direct.mean, rtol=1e-12)
     # no overwrite without --force
-    assert _run(argv) == 2
-    assert "exists" in capsys.readouterr().err
-    assert _run(argv + ["--force"]) == 0
+    code, _, err = cli(*argv)
+    assert code == 2 and "exists" in err
+    assert cli(*argv, "--force")[0] == 0
 
 
 @pytest.mark.parametrize("resolution, words", [
@@ -290,14 +293,11 @@ def test_cli_writes_the_limit(model_file, tmp_path, capsys):
     ("0.01deg,0.01deg,0.01deg,0.01deg,0.01deg,0.01", "unit"),
     ("0.01deg,0.01deg,0.01deg,0.01deg,0.01deg,-0.01deg", ">= 0"),
 ])
-def test_cli_bad_resolution_is_one_line(model_file, tmp_path, capsys, resolution, words):
+def test_cli_bad_resolution_is_one_line(model_file, tmp_path, resolution, words, cli):
     out = tmp_path / "x.json"
-    code = _run(["limit", str(model_file), "--repeatability-mm", "0.03", "--encoder-resolution", resolution,
-                 "--length-quantum-mm", "0.1", "--angle-quantum-deg", "0.001", "--samples", "100",
-                 "--out", str(out)])
-    err = capsys.readouterr().err
-    assert code == 2 and not out.exists()
-    assert err.startswith("robocal limit: error: ") and err.count("\n") == 1 and words in err
+    code, _, err = cli("limit", model_file, "--repeatability-mm", "0.03", "--encoder-resolution", resolution,
+                       "--length-quantum-mm", "0.1", "--angle-quantum-deg", "0.001", "--samples", "100", "--out", out)
+    assert_one_line_error(code, err, [words], out, command="limit")
 
 
 def test_cli_main_with_progress_on_a_terminal(model_file, tmp_path, capsys, monkeypatch):

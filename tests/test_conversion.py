@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-import robocal
+import robocal as rc
 from robocal.io import from_standard_dh, mdh_table, read_urdf, write_mdh_csv, write_urdf
 
 TOL_M = 1e-12      # positions, metres
@@ -56,7 +56,7 @@ def _pose(R, p):
 
 
 def _check_fk(model, q, X_ref, marker=0):
-    ev = robocal.forward_kinematics(model, q)
+    ev = rc.forward_kinematics(model, q)
     np.testing.assert_allclose(ev.positions[:, marker], X_ref[:, :3, 3], rtol=0, atol=TOL_M)
     np.testing.assert_allclose(ev.rotations[:, marker], X_ref[:, :3, :3], rtol=0, atol=TOL_R)
 
@@ -103,11 +103,11 @@ def test_standard_dh_with_prismatic_row(rng):
 
 
 def test_standard_dh_rejects_bad_rows():
-    with pytest.raises(robocal.InputError, match=r"rows\[1\]"):
+    with pytest.raises(rc.InputError, match=r"rows\[1\]"):
         from_standard_dh([(0, 0, 0, 0), (0, 0, 0)], name="x")
-    with pytest.raises(robocal.InputError, match="joint type"):
+    with pytest.raises(rc.InputError, match="joint type"):
         from_standard_dh([(0, 0, 0, 0, "spherical")], name="x")
-    with pytest.raises(robocal.InputError, match="joint_limits"):
+    with pytest.raises(rc.InputError, match="joint_limits"):
         from_standard_dh([(0, 0, 0, 0)], name="x", joint_limits=[(0, 1), (0, 1)])
 
 
@@ -223,7 +223,7 @@ def test_urdf_masses_follow_links(rng):
     f = model.frames[3]
     assert f.mass == 2.5
     q = _random_q(rng, 7, 5)
-    ev = robocal.forward_kinematics(model, q, frames=True)
+    ev = rc.forward_kinematics(model, q, frames=True)
     c_W = ev.frames[:, 3, :3, :3] @ np.array(f.com) + ev.frames[:, 3, :3, 3]
     X_ref = _urdf_reference(ARM7[:4], q[:, :4])
     np.testing.assert_allclose(c_W, X_ref[:, :3, :3] @ [0.1, -0.02, 0.03] + X_ref[:, :3, 3], atol=TOL_M)
@@ -237,7 +237,7 @@ def test_urdf_tip_link_markers_and_file(tmp_path, rng):
     assert model.n_joints == 5 and model.name == "arm"
     q = _random_q(rng, 5)
     X_ref = _urdf_reference(ARM7[:5], q)
-    ev = robocal.forward_kinematics(model, q)
+    ev = rc.forward_kinematics(model, q)
     np.testing.assert_allclose(ev.positions[:, 0], X_ref[:, :3, :3] @ p + X_ref[:, :3, 3], atol=TOL_M)
     # a base inside the chain: W is that link
     model = read_urdf(path, base_link="link2", tip_link="link8")
@@ -269,7 +269,7 @@ def _ur5_model():
 
 def _gimbal_model():
     """Origins at pitch +-pi/2 (and just off it), where roll and yaw are ill-conditioned."""
-    return robocal.serial_model("g", [dict(), dict(beta=np.pi / 2, alpha=0.3, theta=0.2, d=0.3, r=0.1),
+    return rc.serial_model("g", [dict(), dict(beta=np.pi / 2, alpha=0.3, theta=0.2, d=0.3, r=0.1),
                                       dict(beta=np.pi / 2 - 1e-7, alpha=-0.4, d=0.2),
                                       dict(beta=-np.pi / 2 + 3.7e-6, alpha=1.1, theta=-2.0, d=0.1)],
                                 markers=[("t", (0.1, 0.2, 0.3))])
@@ -291,35 +291,35 @@ def test_write_then_read_urdf_keeps_fk(make, tmp_path, rng):
     q = _random_q(rng, model.n_joints)
     if any(f.joint == "prismatic" for f in model.frames):
         q[:, 2] = rng.uniform(-0.2, 0.2, len(q))
-    a, b = robocal.forward_kinematics(model, q), robocal.forward_kinematics(back, q)
+    a, b = rc.forward_kinematics(model, q), rc.forward_kinematics(back, q)
     np.testing.assert_allclose(b.positions, a.positions, rtol=0, atol=TOL_M)
     np.testing.assert_allclose(b.rotations, a.rotations, rtol=0, atol=TOL_R)
     assert not list(tmp_path.glob(".*.tmp"))       # atomic write leaves no temporary behind
 
 
 def test_write_urdf_tree_and_mimic(tmp_path, rng):
-    base = robocal.serial_model("t", [dict(), dict(alpha=np.pi / 2, d=0.3), dict(d=0.4, theta=0.2)],
+    base = rc.serial_model("t", [dict(), dict(alpha=np.pi / 2, d=0.3), dict(d=0.4, theta=0.2)],
                                 markers=[("tip", (0.1, 0, 0))])
     frames = list(base.frames)
     # frame 3 hangs off frame 1 (a tree, using gamma and b) and follows -0.5 x reading j2
     frames[2] = replace(frames[2], parent=0, gamma=0.3, b=0.05, coupling=((1, -0.5),))
     model = base.replace(frames=tuple(frames), joint_names=("j1", "j2"), joint_limits=((-1, 1), (-2, 2)),
-                         markers=(robocal.Marker("a", 1, (0, 0.1, 0)), robocal.Marker("b", 2, (0.2, 0, 0.1))))
+                         markers=(rc.Marker("a", 1, (0, 0.1, 0)), rc.Marker("b", 2, (0.2, 0, 0.1))))
     path = tmp_path / "tree.urdf"
     write_urdf(model, path)
     q = _random_q(rng, 2)
-    ref = robocal.forward_kinematics(model, q)
+    ref = rc.forward_kinematics(model, q)
     for m, tip in ((0, "a"), (1, "b")):
         back = read_urdf(path, tip_link=tip)
-        np.testing.assert_allclose(robocal.forward_kinematics(back, q).positions[:, 0], ref.positions[:, m],
+        np.testing.assert_allclose(rc.forward_kinematics(back, q).positions[:, 0], ref.positions[:, m],
                                    rtol=0, atol=TOL_M)
     assert '<mimic joint="j2" multiplier="-0.5"' in path.read_text()
 
 
 def test_write_urdf_rejects_multi_reading_coupling(tmp_path):
-    m = robocal.serial_model("x", [dict(), dict(d=0.2)])
+    m = rc.serial_model("x", [dict(), dict(d=0.2)])
     m = m.replace(frames=(m.frames[0], replace(m.frames[1], coupling=((0, 1.0), (1, 1.0)))))
-    with pytest.raises(robocal.InputError, match="several readings"):
+    with pytest.raises(rc.InputError, match="several readings"):
         write_urdf(m, tmp_path / "x.urdf")
     assert not (tmp_path / "x.urdf").exists()
 
@@ -341,7 +341,7 @@ def test_mdh_table_and_csv(tmp_path):
     assert float(got[4]["alpha_deg"]) == pytest.approx(90.0, abs=1e-12)
     assert float(got[0]["r_mm"]) == pytest.approx(89.159, abs=1e-12)
     assert got[3]["reading"] == "j4"
-    with pytest.raises(robocal.InputError, match="units"):
+    with pytest.raises(rc.InputError, match="units"):
         mdh_table(model, units="furlong")
 
 
@@ -365,7 +365,7 @@ GOOD = _urdf_text("arm", ARM7[:3])
 ], ids=["malformed", "joint-twice", "unknown-parent", "zero-axis", "floating", "bad-number", "branch",
         "no-limit"])
 def test_bad_urdf(text, match, where):
-    with pytest.raises(robocal.InputError, match=match) as err:
+    with pytest.raises(rc.InputError, match=match) as err:
         read_urdf(text)
     assert err.value.source == "<string>"
     assert err.value.where == where
@@ -378,17 +378,26 @@ def test_entity_bomb_is_refused_before_parsing(tmp_path):
             + ']>\n<robot name="&a12;"><link name="l"/></robot>')
     path = tmp_path / "bomb.urdf"
     path.write_text(bomb)
-    with pytest.raises(robocal.InputError, match="DOCTYPE") as err:
+    with pytest.raises(rc.InputError, match="DOCTYPE") as err:
         read_urdf(path)
     assert err.value.source == str(path)
     external = '<!DOCTYPE r [<!ENTITY x SYSTEM "file:///etc/passwd">]><robot name="&x;"/>'
-    with pytest.raises(robocal.InputError, match="DOCTYPE"):
+    with pytest.raises(rc.InputError, match="DOCTYPE"):
         read_urdf(external)
 
 
 def test_missing_file_and_wrong_root(tmp_path):
-    with pytest.raises(robocal.InputError, match="cannot read") as err:
+    with pytest.raises(rc.InputError, match="cannot read") as err:
         read_urdf(tmp_path / "none.urdf")
     assert err.value.source.endswith("none.urdf")
-    with pytest.raises(robocal.InputError, match="<robot>"):
+    with pytest.raises(rc.InputError, match="<robot>"):
         read_urdf("<sdf/>")
+
+
+def test_malformed_urdf_file_names_file_and_line(tmp_path):
+    path = tmp_path / "arm.urdf"
+    path.write_text('<robot name="arm">\n  <link name="a">\n  <link name="b"/>\n</robot>\n')
+    with pytest.raises(rc.InputError) as err:
+        rc.read_urdf(path)
+    assert err.value.source == str(path)
+    assert str(err.value).startswith(f"{path}: malformed XML") and "line 4" in str(err.value)
