@@ -6,6 +6,7 @@ import warnings
 from dataclasses import replace
 
 import numpy as np
+import pytest
 
 import robocal as rc
 from conftest import z_scores
@@ -44,6 +45,15 @@ def _swap_columns(lines, a, b):
     return [",".join(head)] + lines[1:]
 
 
+def _map_column(lines, column, f):
+    """The CSV lines with ``f`` applied to every value of ``column``."""
+    k = lines[0].split(",").index(column)
+    rows = [line.split(",") for line in lines[1:]]
+    for r in rows:
+        r[k] = repr(float(f(float(r[k]))))
+    return [lines[0]] + [",".join(r) for r in rows]
+
+
 def _calibrate(tmp_path, cli, model, lines, *args):
     """Run ``robocal calibrate`` on ``model`` and the CSV ``lines``; (code, stdout, stderr, result dict)."""
     rc.write_model(model, tmp_path / "model.yaml", force=True)
@@ -78,44 +88,36 @@ def test_clean_campaign_passes_and_writes_its_verdict(tmp_path, cli):
 
 # -- the corpus: each mistake is an error before solving or a failed check naming the cause ---------
 
-def test_metres_declared_as_millimetres(tmp_path, cli):
+def _markers_only(column: str) -> bool:
+    return column.startswith("tool")
+
+
+# (mistake, how the file is written, header edit: old suffix, new suffix, columns; the failed check, its words)
+UNIT_MISTAKES = [
+    ("metres declared as millimetres", "m-deg", ("_m", "_mm", _markers_only),
+     "measured points against the robot's size", "metres declared as millimetres"),
+    ("millimetres declared as metres", "mm-deg", ("_mm", "_m", _markers_only),
+     "measured points against the robot's size", "metres declared as millimetres"),
+    ("degrees declared as radians", "mm-deg", ("_deg", "_rad", lambda c: True),
+     "joint readings within the limits", "degrees declared as radians"),
+    ("radians declared as degrees", "mm-rad", ("_rad", "_deg", lambda c: True),
+     "joint reading units", "radians declared as degrees"),
+]
+
+
+@pytest.mark.parametrize("mistake, units, edit, check, words", UNIT_MISTAKES, ids=[m[0] for m in UNIT_MISTAKES])
+def test_a_unit_declared_wrong(tmp_path, cli, mistake, units, edit, check, words):
     m, _, data = _campaign()
-    lines = _rename(_csv(data, m, units="m-deg"), "_m", "_mm", where=lambda c: c.startswith("tool"))
+    old, new, where = edit
+    lines = _rename(_csv(data, m, units=units), old, new, where=where)
     code, out, _, result = _calibrate(tmp_path, cli, m, lines)
-    _assert_fails(code, out, result, "measured points against the robot's size", "metres declared as millimetres")
+    _assert_fails(code, out, result, check, words)
     assert not (tmp_path / "out" / "calibrated.yaml").exists()
-
-
-def test_millimetres_declared_as_metres(tmp_path, cli):
-    m, _, data = _campaign()
-    lines = _rename(_csv(data, m), "_mm", "_m", where=lambda c: c.startswith("tool"))
-    code, out, _, result = _calibrate(tmp_path, cli, m, lines)
-    _assert_fails(code, out, result, "measured points against the robot's size", "metres declared as millimetres")
-
-
-def test_degrees_declared_as_radians(tmp_path, cli):
-    m, _, data = _campaign()
-    lines = _rename(_csv(data, m), "_deg", "_rad")
-    code, out, _, result = _calibrate(tmp_path, cli, m, lines)
-    _assert_fails(code, out, result, "joint readings within the limits", "degrees declared as radians")
-
-
-def test_radians_declared_as_degrees(tmp_path, cli):
-    m, _, data = _campaign()
-    lines = _rename(_csv(data, m, units="mm-rad"), "_rad", "_deg")
-    code, out, _, result = _calibrate(tmp_path, cli, m, lines)
-    _assert_fails(code, out, result, "joint reading units", "radians declared as degrees")
 
 
 def test_one_joint_in_the_wrong_unit(tmp_path, cli):
     m, _, data = _campaign()
-    lines = _csv(data, m)
-    head = lines[0].split(",")
-    k = head.index("j4_deg")
-    rows = [line.split(",") for line in lines[1:]]
-    for r in rows:
-        r[k] = repr(float(np.radians(float(r[k]))))
-    code, out, _, result = _calibrate(tmp_path, cli, m, [lines[0]] + [",".join(r) for r in rows])
+    code, out, _, result = _calibrate(tmp_path, cli, m, _map_column(_csv(data, m), "j4_deg", np.radians))
     _assert_fails(code, out, result, "fit against the instrument")
     units = next(c for c in result["checks"] if c["name"] == "joint reading units")
     assert units["status"] == "warn" and units["items"] == ["j4"]
@@ -164,13 +166,7 @@ def test_joint_order_swapped(tmp_path, cli):
 
 def test_joint_sign_reversed(tmp_path, cli):
     m, _, data = _campaign()
-    lines = _csv(data, m)
-    head = lines[0].split(",")
-    k = head.index("j2_deg")
-    rows = [line.split(",") for line in lines[1:]]
-    for r in rows:
-        r[k] = repr(-float(r[k]))
-    code, out, _, result = _calibrate(tmp_path, cli, m, [lines[0]] + [",".join(r) for r in rows])
+    code, out, _, result = _calibrate(tmp_path, cli, m, _map_column(_csv(data, m), "j2_deg", lambda v: -v))
     assert code == 3 and {"fit against the instrument", "joint readings within the limits"} & set(_failed(result))
 
 
@@ -335,21 +331,27 @@ def test_clean_campaigns_raise_no_false_alarm():
     assert verdicts.count("fail") == 0 and verdicts.count("warn") <= 0.05 * len(verdicts)
 
 
+def _with_blunders(m, seed, n_bad):
+    """A 48-pose campaign of a perturbed ``m`` with ``n_bad`` points moved 5 mm in random directions;
+    (truth, data, the rows moved)."""
+    true, data = rc.simulate(m, 48, seed=seed, noise=NOISE)
+    rng = np.random.default_rng(seed)
+    rows = rng.choice(48, size=n_bad, replace=False)
+    direction = rng.normal(size=(n_bad, 3))
+    pos = data.positions.copy()
+    pos[rows, 0] += 5e-3 * direction / np.linalg.norm(direction, axis=1, keepdims=True)
+    return true, replace(data, positions=pos), rows
+
+
 def test_one_blunder_is_named_in_nearly_every_campaign():
     m = arm6r()
     named = 0
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         for seed in range(100):
-            true, data = rc.simulate(m, 48, seed=2000 + seed, noise=NOISE)
-            rng = np.random.default_rng(seed)
-            i = int(rng.integers(48))
-            direction = rng.normal(size=3)
-            pos = data.positions.copy()
-            pos[i, 0] += 5e-3 * direction / np.linalg.norm(direction)
-            res = rc.calibrate(m, replace(data, positions=pos))
-            check = next(c for c in res.checks if c.name == "outliers")
-            named += any(item.startswith(f"pose {i}, marker tool") for item in check.items)
+            true, data, rows = _with_blunders(m, 2000 + seed, 1)
+            check = next(c for c in rc.calibrate(m, data).checks if c.name == "outliers")
+            named += any(item.startswith(f"pose {rows[0]}, marker tool") for item in check.items)
     assert named >= 95
 
 
@@ -359,13 +361,8 @@ def test_robust_refit_keeps_the_truth_within_three_sigma_with_gross_outliers():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         for seed in range(100):
-            true, data = rc.simulate(m, 48, seed=3000 + seed, noise=NOISE)
-            rng = np.random.default_rng(seed)
-            rows = rng.choice(48, size=3, replace=False)                  # 5 % of the points, 5 mm off
-            direction = rng.normal(size=(3, 3))
-            pos = data.positions.copy()
-            pos[rows, 0] += 5e-3 * direction / np.linalg.norm(direction, axis=1, keepdims=True)
-            res = rc.calibrate(m, replace(data, positions=pos))
+            true, data, _ = _with_blunders(m, 3000 + seed, 3)     # 5 % of the points
+            res = rc.calibrate(m, data)
             good += res.loss == "soft_l1" and np.abs(z_scores(res, true, m)).max() < 3.0
     assert good >= 90
 

@@ -181,16 +181,9 @@ _KIND_NAMES = {dict: "a mapping", list: "a list", str: "text", bool: "true or fa
 def _identifiability(doc: _Doc, d: dict) -> IdentifiabilityResult:
     w = "identifiability"
     eliminated = []
-    for i, e in enumerate(doc.get(d, "eliminated", w, list)):
-        we = f"{w}.eliminated[{i}]"
-        if not isinstance(e, dict):
-            raise doc.error(we, f"expected a mapping, got {excerpt(e)}")
-        terms = []
-        for j, t in enumerate(doc.get(e, "absorbed_by", we, list)):
-            if not isinstance(t, dict):
-                raise doc.error(f"{we}.absorbed_by[{j}]", f"expected a mapping, got {excerpt(t)}")
-            terms.append((doc.get(t, "name", f"{we}.absorbed_by[{j}]", str),
-                          doc.get(t, "coefficient", f"{we}.absorbed_by[{j}]", float)))
+    for we, e in _mappings(doc, doc.get(d, "eliminated", w, list), f"{w}.eliminated"):
+        terms = [(doc.get(t, "name", wt, str), doc.get(t, "coefficient", wt, float))
+                 for wt, t in _mappings(doc, doc.get(e, "absorbed_by", we, list), f"{we}.absorbed_by")]
         eliminated.append(Absorption(doc.get(e, "name", we, str), doc.get(e, "reason", we, str), tuple(terms),
                                      doc.get(e, "residual", we, float)))
     obs = doc.get(d, "observability", w, dict)
@@ -224,12 +217,18 @@ def _limit_judgement(doc: _Doc, d: dict | None) -> LimitJudgement | None:
                           reached=doc.get(d, "reached", w, bool))
 
 
+def _mappings(doc: _Doc, items: list, where: str):
+    """(key path, mapping) for each item of a list that must hold mappings."""
+    for i, item in enumerate(items):
+        w = f"{where}[{i}]"
+        if not isinstance(item, dict):
+            raise doc.error(w, f"expected a mapping, got {excerpt(item)}")
+        yield w, item
+
+
 def _checks(doc: _Doc, d: list) -> tuple[Check, ...]:
     out = []
-    for i, c in enumerate(d):
-        w = f"checks[{i}]"
-        if not isinstance(c, dict):
-            raise doc.error(w, f"expected a mapping, got {excerpt(c)}")
+    for w, c in _mappings(doc, d, "checks"):
         status = doc.get(c, "status", w, str)
         if status not in STATUSES:
             raise doc.error(f"{w}.status", f"expected one of {', '.join(STATUSES)}, got {excerpt(status)}")
@@ -242,10 +241,7 @@ def _checks(doc: _Doc, d: list) -> tuple[Check, ...]:
 def _parameters(doc: _Doc, d: list, nominal) -> tuple[ParameterEstimate, ...]:
     lay = parameter_layout(nominal)
     out = []
-    for i, p in enumerate(d):
-        w = f"parameters[{i}]"
-        if not isinstance(p, dict):
-            raise doc.error(w, f"expected a mapping, got {excerpt(p)}")
+    for w, p in _mappings(doc, d, "parameters"):
         name = doc.get(p, "name", w, str)
         if name not in lay:
             raise doc.error(f"{w}.name", f"{excerpt(name)} is not a parameter of the nominal model")
