@@ -56,6 +56,17 @@ def test_modified_dh_matrix_matches_method_md():
     m = rc.serial_model("one", [dict(joint="revolute", alpha=al, d=d, r=r)], markers=[("tool", (0, 0, 0))])
     X = rc.forward_kinematics(m, [[th]], frames=True).frames[0, 0]
     np.testing.assert_allclose(X, expected, atol=1e-15)
+    # the public reference of one frame's placement says the same
+    np.testing.assert_allclose(rc.mdh_transform(m.frames[0], th), expected, atol=1e-15)
+
+
+@pytest.mark.parametrize("joint", ["revolute", "prismatic", "fixed"])
+def test_reference_transform_matches_an_independent_product(joint):
+    rng = np.random.default_rng(7)
+    g, b, be, al, d, th, r, q = rng.uniform(-1, 1, 8)
+    f = Frame("f", joint=joint, gamma=g, b=b, beta=be, alpha=al, d=d, theta=th, r=r)
+    q = 0.0 if joint == "fixed" else q
+    np.testing.assert_allclose(rc.mdh_transform(f, q), _mdh(f, q), atol=1e-15)
 
 
 def test_planar_two_link_by_hand():
