@@ -1,11 +1,11 @@
 """Time identification of a 6-joint arm and batched kinematics; compare with a finite-difference baseline.
 
-Run: python benchmarks/bench_identify.py [--repeat 5] [--compliance]
+Run: python benchmarks/bench_identify.py [--repeat 5]
 
-Identification = scipy.optimize.least_squares ('lm') on the identifiable parameters with robocal's
-analytic Jacobian, as ``calibrate`` runs it. The baseline solves the same problem with the same
-vectorised residual function but scipy's finite-difference Jacobian ('2-point'). ``calibrate``
-(the whole call: identifiability, covariance, statistics) is timed as well.
+"solve" is the library's own solve (``robocal.identification.solve``, as ``calibrate`` runs it) on
+the identifiable parameters with robocal's analytic Jacobian. The baseline solves the same problem
+with the same vectorised residual function but scipy's finite-difference Jacobian ('2-point').
+``calibrate`` (the whole call: analysis, solve, covariance, checks, statistics) is timed as well.
 """
 
 from __future__ import annotations
@@ -21,7 +21,11 @@ import scipy
 from scipy.optimize import least_squares
 
 import robocal as rc
-from robocal._calibration import SOLVER_TOL, _Problem
+from robocal.identification import Problem, solve as library_solve
+from robocal.kinematics import parameter_vector
+
+# the baseline's tolerances: those of the library's solve
+SOLVER_TOL = 1e-10
 
 DEG = np.pi / 180
 
@@ -50,20 +54,16 @@ def best_of(fn, repeat):
 
 
 def solve(model, data, families, jac):
+    """A function running one solve: the library's (``jac``), or the finite-difference baseline."""
     ident = rc.identifiability(model, data, parameters=families)
-    prob = _Problem(model, data, ident.identified, compliance="compliance" in families)
-    p0 = rc.parameter_vector(model)
-
-    def full(x):
-        p = p0.copy()
-        p[prob.free_idx] = x
-        return p
+    prob = Problem(model, data, ident.identified, compliance="compliance" in families)
+    p0 = parameter_vector(model)
+    if jac:
+        return lambda: library_solve(prob, p0)
 
     def run():
-        fun = lambda x: prob.residuals(full(x))  # noqa: E731
-        j = (lambda x: prob.jacobian(full(x))) if jac else "2-point"
-        return least_squares(fun, p0[prob.free_idx], jac=j, method="lm", x_scale="jac",
-                             xtol=SOLVER_TOL, ftol=SOLVER_TOL, gtol=SOLVER_TOL)
+        return least_squares(lambda x: prob.residuals(prob.full(x, p0)), p0[prob.free_idx], jac="2-point",
+                             method="lm", x_scale="jac", xtol=SOLVER_TOL, ftol=SOLVER_TOL, gtol=SOLVER_TOL)
     return run
 
 

@@ -113,6 +113,11 @@ def test_a_unit_declared_wrong(tmp_path, cli, mistake, units, edit, check, words
     code, out, _, result = _calibrate(tmp_path, cli, m, lines)
     _assert_fails(code, out, result, check, words)
     assert not (tmp_path / "out" / "calibrated.yaml").exists()
+    # asked for anyway, the calibrated model says it failed, and still reads
+    code, out, _, result = _calibrate(tmp_path, cli, m, lines, "--write-failed")
+    written = tmp_path / "out" / "calibrated.yaml"
+    assert code == 3 and "verdict: fail" in written.read_text() and check in written.read_text()
+    rc.read_model(written)
 
 
 def test_one_joint_in_the_wrong_unit(tmp_path, cli):

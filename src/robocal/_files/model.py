@@ -413,9 +413,22 @@ def model_to_yaml(model: RobotModel, *, units: str = "mm-deg", calibration: dict
                           default_flow_style=None, width=110, allow_unicode=True)
 
 
-def write_model(model: RobotModel, path, *, units: str = "mm-deg", force: bool = False) -> None:
+def write_model(model: RobotModel, path, *, units: str = "mm-deg", force: bool = False,
+                calibration: dict | None = None) -> None:
     """Write ``model`` as a model file in ``units`` ("mm-deg", "m-rad"...), atomically.
 
-    An existing file is an InputError unless ``force``.
+    An existing file is an InputError unless ``force``. ``calibration``: what a calibration said of
+    the model (see ``model_to_dict``; ``robocal.io.calibration_record(result)`` gives it).
     """
-    write_texts({path: model_to_yaml(model, units=units)}, force=force)
+    write_texts({path: model_to_yaml(model, units=units, calibration=calibration)}, force=force)
+
+
+def calibration_record(result) -> dict:
+    """What a calibrated model file says of its own calibration: the verdict, the date and the checks
+    that did not pass."""
+    out = {"verdict": result.verdict, "date": result.provenance.get("date", "")}
+    for status, key in (("fail", "failed"), ("warn", "warned")):
+        names = [c.name for c in result.checks if c.status == status]
+        if names:
+            out[key] = names
+    return out

@@ -71,7 +71,7 @@ def _inputs(args):
 
 def run(args) -> int:
     from .._calibration import calibrate, compare
-    from .._files.model import model_to_yaml
+    from .._files.model import calibration_record, model_to_yaml
     from .._measurements import Noise
     from .._files.result import result_to_json
     from .._presentation.text import calibration_summary, comparison_summary
@@ -107,7 +107,7 @@ def run(args) -> int:
     failed = best.verdict == "fail"
     if not failed or args.write_failed:
         files[out / "calibrated.yaml"] = model_to_yaml(best.calibrated_model, units=args.out_units,
-                                                       calibration=_verdict(best))
+                                                       calibration=calibration_record(best))
     rep = (report, best, out / "report.html") if report else None
     common.write_outputs(files, force=args.force, report=rep)
     print(f"wrote {', '.join(str(p) for p in list(files) + ([rep[2]] if rep else []))}")
@@ -117,13 +117,3 @@ def run(args) -> int:
               f"{out / 'calibrated.yaml'} carries the verdict FAIL")
         return FAILED
     return 0
-
-
-def _verdict(result) -> dict:
-    """What the calibrated model file says of its own calibration."""
-    out = {"verdict": result.verdict, "date": result.provenance.get("date", "")}
-    for status, key in (("fail", "failed"), ("warn", "warned")):
-        names = [c.name for c in result.checks if c.status == status]
-        if names:
-            out[key] = names
-    return out

@@ -1,0 +1,17 @@
+"""Identification piece by piece, for those who build their own workflow: the problem (residuals
+and Jacobian of a model on a set of poses), the identifiability analysis, the solve and the
+covariance that ``calibrate`` runs, and the checks it records (docs/checks.md)."""
+
+from ._calibration import (CalibrationResult, Comparison, ErrorStats, ErrorSummary, LimitJudgement, ParameterEstimate,
+                           calibrate, compare, error_stats, register_base)
+from ._checks import Check, verdict
+from ._identifiability import (Absorption, IdentifiabilityResult, analyse, identifiability, status_table,
+                               weakly_identifiable)
+from ._measurements import Noise
+from ._problem import Problem, design_problem
+from ._solve import Covariance, Solution, covariance, solve
+
+__all__ = ["calibrate", "compare", "register_base", "error_stats", "CalibrationResult", "Comparison",
+           "ParameterEstimate", "ErrorStats", "ErrorSummary", "LimitJudgement", "Check", "verdict", "Noise",
+           "identifiability", "analyse", "weakly_identifiable", "status_table", "Absorption",
+           "IdentifiabilityResult", "Problem", "design_problem", "solve", "Solution", "covariance", "Covariance"]
