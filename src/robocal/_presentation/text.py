@@ -89,6 +89,9 @@ def calibration_summary(result, *, shown=(), weighted: bool = False) -> str:
     units = {p.name: p.unit for p in result.parameters}
     units.update(_candidate_units(result))
     lines += eliminated_lines(result.identifiability, units)
+    ident = result.identifiability
+    lines.append(f"identified {len(ident.identified)} of {len(ident.candidates)} candidates; condition number of "
+                 f"those kept {ident.condition_number:.4g}")
     lines.append(f"solver: {'converged' if result.success else 'NOT converged'} (status {result.status}, "
                  f"{result.nfev} evaluations): {result.message}")
     if weighted:
