@@ -8,12 +8,16 @@ from __future__ import annotations
 
 import math
 
+from .._parameters import SI_UNITS
+
 # SI unit -> (display unit, factor from SI, decimals)
 DISPLAY_UNITS = {
     "m": ("mm", 1e3, 4),
     "rad": ("deg", 180.0 / math.pi, 5),
     "rad/(N m)": ("deg/(kN m)", 180.0 / math.pi * 1e3, 4),
 }
+# "lengths in mm, angles in deg, compliances in deg/(kN m)"
+UNITS_SENTENCE = ", ".join(f"{q}s in {DISPLAY_UNITS[u][0]}" for q, u in SI_UNITS.items())
 MM = DISPLAY_UNITS["m"][1]
 DEG = DISPLAY_UNITS["rad"][1]
 
@@ -44,6 +48,17 @@ def fmt(value, unit: str = "m", *, sign: bool = False) -> str:
     spec = ("+" if sign else "") + (f".{dec}f" if dec is not None else ".6g")
     text = format(v * k, spec)
     return text.lstrip("+-") if float(text) == 0 else text  # no signed zeros
+
+
+def symbol(kind: str) -> str:
+    """The HTML symbol of a parameter kind: Greek letters by their entity, compliances as K with the angle.
+
+    >>> symbol("theta"), symbol("d"), symbol("k_beta")
+    ('&theta;', 'd', 'K<sub>&beta;</sub>')
+    """
+    if kind.startswith("k_"):
+        return f"K<sub>{symbol(kind[2:])}</sub>"
+    return f"&{kind};" if len(kind) > 1 else kind
 
 
 def with_unit(value, unit: str, *, sign: bool = False) -> str:
