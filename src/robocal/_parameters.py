@@ -24,7 +24,7 @@ from typing import Iterable
 
 import numpy as np
 
-from ._errors import InputError
+from ._errors import InputError, excerpt
 from ._model import RobotModel
 from ._spatial import matrix_tuple, small_rotation, xyz_angles
 
@@ -224,7 +224,7 @@ def candidate_parameters(model: RobotModel, parameters: Iterable[str] = ("geomet
             elif item in lay:
                 out.append(item)
             else:
-                raise InputError(f"unknown parameter or family {item!r}; families are {', '.join(FAMILIES)} "
+                raise InputError(f"unknown parameter or family {excerpt(item)}; families are {', '.join(FAMILIES)} "
                                  f"and names look like 'base.x', '{model.frames[0].name}.alpha'", where=what)
         return out
 
@@ -235,7 +235,11 @@ def candidate_parameters(model: RobotModel, parameters: Iterable[str] = ("geomet
                          where="parameters")
     order = fam["geometric"] + fam["compliance"]
     extra = [n for n in chosen if n not in order]  # explicit names outside the default families
-    return tuple(n for n in order + sorted(extra) if n in chosen and n not in fixed)
+    out = tuple(n for n in order + sorted(extra) if n in chosen and n not in fixed)
+    if not out:
+        raise InputError(f"no parameter left to identify: the known ones ({', '.join(map(str, known))}) cover "
+                         "every parameter chosen", where="known")
+    return out
 
 
 def has_compliance_parameters(model: RobotModel, names: Iterable[str]) -> bool:
