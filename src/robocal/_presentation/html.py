@@ -19,7 +19,7 @@ from .._errors import InputError, RobocalError
 from .._files.result import result_to_dict
 from .._files.text import write_texts
 from .._parameters import FRAME_KINDS, GEOMETRIC_KINDS, parameter_layout, parameter_vector
-from .units import UNITS_SENTENCE, absorption_coefficient, display_unit as _display, finite as _num, fmt, symbol
+from .units import UNITS_SENTENCE, absorption_text, display_unit as _display, finite as _num, fmt, symbol
 
 PLOTS = ("errors-per-pose", "histograms", "correlation", "residuals")
 STAT_SETS = (("fit_before", "fitted poses", "before"), ("fit_after", "fitted poses", "after"),
@@ -500,17 +500,13 @@ def _eliminated_table(d: dict, units: dict) -> str:
     rows = []
     for a in elim:
         name = a["name"]
-        terms = []
-        for t in a.get("absorbed_by", []):
-            # the coefficient in display units: 1 shown unit of name moves the tool as c shown units of t
-            c = absorption_coefficient(t["coefficient"], units.get(name, ""), units.get(t["name"], ""))
-            sign = "-" if c < 0 else "+"
-            terms.append((f" {sign} " if terms else sign.strip("+")) + f"{abs(c):.4g} &times; {_e(t['name'])}")
-        expr = "".join(terms) if terms else '<span class="muted">nothing (no effect)</span>'
+        terms = [(t["name"], t["coefficient"]) for t in a.get("absorbed_by", [])]
+        expr = (_e(absorption_text(units.get(name, ""), terms, units)) if terms
+                else '<span class="muted">nothing (no effect)</span>')
         rows.append(f'<tr><td class="name">{_e(name)}</td><td>{_e(a.get("reason", ""))}</td>'
                     f'<td class="expr" data-key="{_e(name)}:absorbed_by">{expr}</td>'
                     f'<td class="num">{_ratio(a.get("residual"), ".1e") if terms else "–"}</td></tr>')
-    return _table(["eliminated", "why", "absorbed by (changes in mm and degrees)", "fit residual"], rows,
+    return _table(["eliminated", "why", "a change of it moves the tool as", "fit residual"], rows,
                   cls="elim", num_from=3)
 
 

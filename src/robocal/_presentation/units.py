@@ -76,3 +76,17 @@ def absorption_coefficient(coefficient: float, unit: str, absorber_unit: str) ->
     8.726646
     """
     return coefficient * display_unit(absorber_unit)[1] / display_unit(unit)[1]
+
+
+def absorption_text(unit: str, absorbers, units: dict) -> str:
+    """An absorption in display units: ``'1 deg = +2.865 mm tool.y -1.146 mm tool.x'``.
+
+    ``unit``: the SI unit of the eliminated parameter; ``absorbers``: (name, SI coefficient) pairs;
+    ``units``: SI unit of each absorber's name.
+
+    >>> absorption_text("rad", [("tool.y", 0.05)], {"tool.y": "m"})
+    '1 deg = +0.8727 mm tool.y'
+    """
+    terms = " ".join(f"{absorption_coefficient(c, unit, units.get(n, '')):+.4g} {display_unit(units.get(n, ''))[0]} {n}"
+                     for n, c in absorbers)
+    return f"1 {display_unit(unit)[0]} = {terms}"
