@@ -135,10 +135,10 @@ def csv_options(p: argparse.ArgumentParser) -> None:
 
 def parameter_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--parameters", type=names,
-                   help="comma-separated families (geometric, compliance, base, markers, frames) or names "
-                        "like j2.alpha (default geometric)")
-    p.add_argument("--known", type=names, default=(), help="families or names held at the model's values, "
-                                                           "e.g. base,markers")
+                   help="comma-separated families (geometric, compliance, base, markers, frames), names "
+                        "like j2.alpha or patterns like '*.theta' and 'j2.*' (default geometric)")
+    p.add_argument("--known", type=names, default=(), help="families, names or patterns held at the model's "
+                                                           "values, e.g. base,markers")
     p.add_argument("--tol", type=positive, default=1e-6, help="identifiability tolerance (default 1e-6)")
 
 
