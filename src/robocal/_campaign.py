@@ -115,7 +115,7 @@ def measure_campaign(true_model: RobotModel, q_commanded, imp: RobotImperfection
     P = _attain(true_model, recorded, imp, rng, payload_mass)
     return Measurements(q=recorded, positions=P, marker_names=true_model.marker_names,
                         joint_names=true_model.joint_names, payload_mass=payload_mass, labels=tuple(labels),
-                        source="simulated campaign")
+                        source="simulated campaign", extra={"approach": approach_sides(recorded)})
 
 
 def stored_model(model: RobotModel, imp: RobotImperfections) -> RobotModel:
