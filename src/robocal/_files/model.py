@@ -31,7 +31,7 @@ TOP_KEYS = ("robocal_model", "name", "description", "units", "base", "gravity", 
             "markers", "payload", "tolerances", "calibration")
 # tolerances: family -> the quantities a file may bound, and the unit each is given in
 TOLERANCE_KEYS = {"frames": ("length", "angle"), "markers": ("length", "angle"), "base": ("length", "angle"),
-                  "compliance": ("deflection",)}
+                  "compliance": ("deflection",), "backlash": ("length", "angle")}
 IDENTITY = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
 # base.* names the base pose parameters, so no frame or marker may be called "base"
 RESERVED_NAMES = ("base",)
