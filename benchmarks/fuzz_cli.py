@@ -75,7 +75,8 @@ def _child(folder: Path, argv: list[str]) -> None:
 
 
 class Runner:
-    def __init__(self, show: int):
+    def __init__(self, show: int, keep: Path | None):
+        self.keep = keep
         self.counts = collections.Counter()
         self.examples = collections.defaultdict(list)
         self.show = show
@@ -113,6 +114,9 @@ class Runner:
         self.counts[outcome] += 1
         if outcome not in ("clean error", "ok result") and len(self.examples[outcome]) < self.show:
             self.examples[outcome].append((argv, {k: v[:300] for k, v in files.items()}, err[-1500:]))
+        if self.keep and outcome not in ("clean error", "ok result"):
+            (folder / "argv.txt").write_text("\n".join(argv) + "\n")
+            shutil.copytree(folder, self.keep / f"{outcome.replace(' ', '-')}-{sum(self.counts.values())}")
         shutil.rmtree(folder, ignore_errors=True)
         n = sum(self.counts.values())
         if n % 100 == 0:
@@ -136,10 +140,13 @@ def main_fuzz(argv=None) -> int:
     p.add_argument("--cases", type=int, default=10_000)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--show", type=int, default=3, help="examples printed per bad outcome")
+    p.add_argument("--keep", type=Path, help="copy the folder of every bad case here (argv.txt holds its command)")
     args = p.parse_args(argv)
     import random
 
-    runner = Runner(args.show)
+    runner = Runner(args.show, args.keep)
+    if args.keep:
+        args.keep.mkdir(parents=True, exist_ok=True)
     result_text = base_result()
 
     @settings(max_examples=args.cases, database=None, deadline=None, phases=[Phase.generate],
