@@ -1,6 +1,6 @@
 """Run many malformed inputs through every command and count how each run ended.
 
-    python benchmarks/fuzz_cli.py --cases 10000 [--seed 0] [--show 3]
+    python benchmarks/fuzz_cli.py --cases 10000 [--seed 0] [--jobs 2] [--show 3] [--keep DIR]
 
 Cases come from the hypothesis strategies in tests/fuzz_cases.py (model files, measurement and
 repeatability CSVs, URDFs, result files, command lines). Each runs ``robocal.cli.main(argv)`` in a
@@ -75,8 +75,8 @@ def _child(folder: Path, argv: list[str]) -> None:
 
 
 class Runner:
-    def __init__(self, show: int, keep: Path | None):
-        self.keep = keep
+    def __init__(self, show: int, keep: Path | None, jobs: int):
+        self.keep, self.jobs, self.running, self.started = keep, jobs, {}, 0
         self.counts = collections.Counter()
         self.examples = collections.defaultdict(list)
         self.show = show
@@ -84,39 +84,48 @@ class Runner:
         self.root = Path(tempfile.mkdtemp(prefix="robocal-fuzz-"))
 
     def run(self, files: dict, argv: list[str]) -> None:
-        folder = self.root / f"case{sum(self.counts.values())}"
+        """Start one case; with ``jobs`` cases running, first wait for one to finish."""
+        while len(self.running) >= self.jobs:
+            self.reap()
+        self.started += 1
+        folder = self.root / f"case{self.started}"
         folder.mkdir()
         for name, data in files.items():
             (folder / name).write_bytes(data)
-        before = set(files) | {"stdout.txt", "stderr.txt"}
-        start = time.monotonic()
         pid = os.fork()
         if pid == 0:
             _child(folder, argv)
-        outcome = None
+        self.running[pid] = (folder, time.monotonic(), argv, files)
+
+    def reap(self) -> None:
+        """Wait until one running case ends (or overruns the time limit) and count it."""
         while True:
-            done, status, usage = os.wait4(pid, os.WNOHANG)
-            if done:
-                break
-            if time.monotonic() - start > TIME_LIMIT:
-                os.kill(pid, signal.SIGKILL)
-                os.wait4(pid, 0)
-                outcome = "hang"
-                break
+            for pid, (folder, start, argv, files) in list(self.running.items()):
+                done, status, usage = os.wait4(pid, os.WNOHANG)
+                if done:
+                    return self.count(pid, status, usage, None)
+                if time.monotonic() - start > TIME_LIMIT:
+                    os.kill(pid, signal.SIGKILL)
+                    _, status, usage = os.wait4(pid, 0)
+                    return self.count(pid, status, usage, "hang")
             time.sleep(0.005)
+
+    def count(self, pid, status, usage, outcome) -> None:
+        folder, start, argv, files = self.running.pop(pid)
         self.times.append(time.monotonic() - start)
         err = (folder / "stderr.txt").read_text(errors="replace") if (folder / "stderr.txt").exists() else ""
         if outcome is None:
             if os.WIFSIGNALED(status) or usage.ru_maxrss * 1024 > MEMORY_LIMIT + (400 << 20) or "MemoryError" in err:
                 outcome = "over-memory"
             else:
+                before = set(files) | {"stdout.txt", "stderr.txt"}
                 outcome = fuzz_cases.judge(os.WEXITSTATUS(status), err, folder, before)
         self.counts[outcome] += 1
         if outcome not in ("clean error", "ok result") and len(self.examples[outcome]) < self.show:
             self.examples[outcome].append((argv, {k: v[:300] for k, v in files.items()}, err[-1500:]))
         if self.keep and outcome not in ("clean error", "ok result"):
             (folder / "argv.txt").write_text("\n".join(argv) + "\n")
-            shutil.copytree(folder, self.keep / f"{outcome.replace(' ', '-')}-{sum(self.counts.values())}")
+            shutil.copytree(folder, self.keep / f"{outcome.replace(' ', '-')}-{folder.name}")
         shutil.rmtree(folder, ignore_errors=True)
         n = sum(self.counts.values())
         if n % 100 == 0:
@@ -139,12 +148,13 @@ def main_fuzz(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--cases", type=int, default=10_000)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--jobs", type=int, default=2, help="cases run at once")
     p.add_argument("--show", type=int, default=3, help="examples printed per bad outcome")
     p.add_argument("--keep", type=Path, help="copy the folder of every bad case here (argv.txt holds its command)")
     args = p.parse_args(argv)
     import random
 
-    runner = Runner(args.show, args.keep)
+    runner = Runner(args.show, args.keep, args.jobs)
     if args.keep:
         args.keep.mkdir(parents=True, exist_ok=True)
     result_text = base_result()
@@ -159,6 +169,8 @@ def main_fuzz(argv=None) -> int:
     t0 = time.monotonic()
     each._hypothesis_internal_use_seed = args.seed
     each()
+    while runner.running:
+        runner.reap()
     wall = time.monotonic() - t0
     n = sum(runner.counts.values())
     times = sorted(runner.times)
