@@ -37,8 +37,8 @@ matplotlib.use("Agg")
 from hypothesis import HealthCheck, Phase, given, settings  # noqa: E402
 
 import fuzz_cases  # noqa: E402
-import robocal._calibration  # noqa: E402,F401  (imported once here, not in every child)
-import robocal._presentation.html  # noqa: E402,F401
+import robocal  # noqa: E402,F401  (imported once here, not in every child)
+import robocal.report  # noqa: E402,F401
 from robocal.cli import main  # noqa: E402
 
 # per case: 20 s of CPU time (the machine may be shared: wall-clock time is not the program's), and
