@@ -113,13 +113,6 @@ def names(text: str) -> tuple[str, ...]:
     return out
 
 
-def separator(text: str) -> str:
-    """A CSV column separator: one character that is not a quote, a newline or a digit."""
-    if len(text) != 1 or text in "\"\r\n" or text.isalnum() or text == ".":
-        raise argparse.ArgumentTypeError(f"expected one separator character such as , ; or a tab, got {excerpt(text)}")
-    return text
-
-
 def checked_by(check):
     """An argparse type that keeps the text once ``check`` (a library parser) accepts it."""
     def parse(text: str) -> str:
@@ -137,8 +130,26 @@ def _parse_orientation(text: str):
     return parse_orientation(text)
 
 
+def _parse_separator(text: str):
+    from .._files.table import parse_separator
+
+    return parse_separator(text)
+
+
+def column_pairs(text: str) -> dict[str, str]:
+    """``FILE=ROBOCAL,...`` -> {file column: robocal column}."""
+    out = {}
+    for item in (t.strip() for t in text.split(",")):
+        file_column, eq, name = (s.strip() for s in item.partition("="))
+        if not eq or not file_column or not name:
+            raise argparse.ArgumentTypeError(f"expected FILE_COLUMN=ROBOCAL_COLUMN[,...], got {excerpt(item)}")
+        out[file_column] = name
+    return out
+
+
 units = checked_by(parse_units)
 orientation = checked_by(_parse_orientation)
+separator = checked_by(_parse_separator)
 
 
 # -- options shared by several commands ------------------------------------------------------------
@@ -147,18 +158,31 @@ def csv_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("measurement file")
     g.add_argument("--units", type=units, help="units of CSV columns without a unit suffix, e.g. mm-deg or m-rad "
                                                "(never guessed: a suffix, a '# units:' line or this option)")
-    g.add_argument("--sep", default=",", type=separator, help="column separator (default ','; ';' for decimal-comma files)")
-    g.add_argument("--decimal", default=".", choices=(".", ","), help="decimal mark (default '.')")
+    g.add_argument("--sep", type=separator, help="column separator: ',', ';', '\\t' or whitespace "
+                                                 "(default: detected and said in the summary)")
+    g.add_argument("--decimal", choices=(".", ","), help="decimal mark (default: detected)")
     g.add_argument("--orientation", type=orientation,
                    help="convention of 6D pose columns: quat_xyzw, quat_wxyz, rpy, euler:ZYX (scipy sequences)")
+    g.add_argument("--map", type=column_pairs, action="append", default=[], metavar="FILE=NAME,...",
+                   help="rename the file's columns to robocal's, e.g. 'X=tool_x_mm,Y=tool_y_mm,Z=tool_z_mm'")
+    g.add_argument("--ignore", type=names, action="append", default=[], metavar="COLUMN,...",
+                   help="columns of the file to ignore")
+    g.add_argument("--unknown", choices=("refuse", "ignore"),
+                   help="columns robocal does not know: refuse (default) or ignore them, listed in the summary")
+    g.add_argument("--profile", metavar="YAML", help="instrument profile: separator, units, column map... "
+                                                     "(docs/formats.md); options given here win over it")
+    g.add_argument("--joints", metavar="CSV", help="joint readings in a file of their own, joined to the "
+                                                   "measurements on the pose column (--key)")
+    g.add_argument("--key", metavar="COLUMN", help="the column that joins --joints to the measurements "
+                                                   "(default pose)")
 
 
 def parameter_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--parameters", type=names,
-                   help="comma-separated families (geometric, compliance, base, markers, frames) or names "
-                        "like j2.alpha (default geometric)")
-    p.add_argument("--known", type=names, default=(), help="families or names held at the model's values, "
-                                                           "e.g. base,markers")
+                   help="comma-separated families (geometric, compliance, base, markers, frames), names "
+                        "like j2.alpha or patterns like '*.theta' and 'j2.*' (default geometric)")
+    p.add_argument("--known", type=names, default=(), help="families, names or patterns held at the model's "
+                                                           "values, e.g. base,markers")
     p.add_argument("--tol", type=tolerance, default=1e-6, help="identifiability tolerance, between 0 and 1 "
                                                                 "(default 1e-6)")
 
@@ -166,8 +190,12 @@ def parameter_options(p: argparse.ArgumentParser) -> None:
 def read_data(args, model, path):
     from .._files.measurements import read_measurements
 
+    columns = {k: v for m in args.map for k, v in m.items()}
+    columns.update({c: None for group in args.ignore for c in group})
     return read_measurements(path, model, units=args.units, sep=args.sep, decimal=args.decimal,
-                             orientation=args.orientation)
+                             orientation=args.orientation, columns=columns or None, unknown=args.unknown,
+                             profile=args.profile, joints=args.joints,
+                             key=args.key)
 
 
 # -- outputs ----------------------------------------------------------------------------------------
