@@ -69,6 +69,19 @@ def _inputs(args):
     return model, data, validation
 
 
+def _headline(result) -> dict:
+    """The numbers of a result that must be finite: estimates, their deviations, the fit's statistics."""
+    out = {f"{p.name} estimate": p.estimate for p in result.parameters}
+    out.update({f"{p.name} std": p.std for p in result.parameters})
+    for key in ("fit_before", "fit_after"):
+        s = result.stats[key]
+        out.update({f"{key} {f}": getattr(s, f) for f in ("mean", "rms", "max") if s.n})
+    from .._parameters import parameter_vector
+
+    out["the calibrated model"] = parameter_vector(result.calibrated_model)
+    return out
+
+
 def run(args) -> int:
     from .._calibration import calibrate, compare
     from .._files.model import calibration_record, model_to_yaml
@@ -103,6 +116,8 @@ def run(args) -> int:
             print(calibration_summary(best, shown=args.shown_warnings, weighted=weighted))
     except DegenerateDataError as e:  # name the file: the data, not the program, fall short
         raise DegenerateDataError(f"{args.csv}: {e}") from None
+    for r in results:
+        common.require_finite("the calibration", _headline(r))
     files = {out / n: result_to_json(r) for n, r in zip(names, results)}
     failed = best.verdict == "fail"
     if not failed or args.write_failed:
