@@ -457,3 +457,33 @@ def test_absorptions_in_display_units_agree_with_the_jacobian(full, length_by_an
             _agrees_with_finite_differences(result.nominal_model, q, name, unit, terms)
             pairs |= {(quantity[unit], quantity[u]) for _, u, _ in terms}
     assert pairs == {("length", "length"), ("length", "angle"), ("angle", "length"), ("angle", "angle")}
+
+
+# -- the verdict and the checks --------------------------------------------------------------------
+
+def test_verdict_and_every_check_at_the_top_with_items_linked(full, tmp_path):
+    d = json.loads(json.dumps(full))
+    label = d["provenance"]["data"]["labels"][7]  # a pose far from the largest errors, named by a failed check
+    d["checks"].append({"name": "outliers", "status": "fail", "summary": f"1 point: {label}",
+                        "cause": "a blunder", "fix": "remove it", "items": [f"{label}: 3.1 mm, 9 sd"]})
+    d["checks"].append({"name": "plausible changes", "status": "warn", "summary": "j2.alpha moved far",
+                        "cause": "", "fix": "", "items": ["j2.alpha: 1.2 deg (tolerance 0.5 deg)"]})
+    d["verdict"] = "fail"
+    page, text = _page(d, tmp_path)
+    assert page.keyed["verdict"] == "fail"
+    # every check shown, failed first, before any other section
+    shown = [(page.keyed[f"check.{j}.status"], page.keyed[f"check.{j}.name"]) for j in range(len(d["checks"]))]
+    assert sorted(shown) == sorted((c["status"], c["name"]) for c in d["checks"])
+    assert shown[0] == ("fail", "outliers") and shown[1][0] == "warn"
+    assert text.index('id="checks"') < text.index('id="errors"') < text.index('id="parameters"')
+    # the named pose and parameter link to rows that exist
+    pose_id = "pose-" + re.sub(r"[^\w.-]", "_", label)
+    assert f'href="#{pose_id}"' in text and f'id="{pose_id}"' in text
+    assert 'href="#param-j2.alpha"' in text and 'id="param-j2.alpha"' in text
+    assert "left no notes" not in text
+
+
+def test_a_passing_result_says_so(full, tmp_path):
+    page, _ = _page(full, tmp_path)
+    assert page.keyed["verdict"] == full["verdict"]
+    assert {page.keyed[f"check.{j}.name"] for j in range(len(full["checks"]))} == {c["name"] for c in full["checks"]}

@@ -78,8 +78,9 @@ def _per_pose_mm(a) -> list[list[float]]:
     return [_flat_mm(row) for row in (a or [])]
 
 
-def _worst_poses(d: dict, k: int = WORST_POSES) -> str:
-    """The ``k`` measured points with the largest error after calibration, named by their pose labels."""
+def _worst_poses(d: dict, flagged=frozenset(), k: int = WORST_POSES) -> str:
+    """The ``k`` measured points with the largest error after calibration, and those of the pose labels
+    in ``flagged`` (named by a check), each pose's first row anchored for the checks to link to."""
     err, prov = d["errors"], d.get("provenance") or {}
     markers = err.get("markers") or []
     rows = []
@@ -94,14 +95,24 @@ def _worst_poses(d: dict, k: int = WORST_POSES) -> str:
     if not rows:
         return ""
     rows.sort(key=lambda r: -r[0])
-    body = [f'<tr><td class="name" data-key="worst.{j}.pose">{_e(name)}</td><td>{when}</td><td>{_e(mk)}</td>'
-            f'<td class="num" data-key="worst.{j}.before" data-unit="mm">{b * 1e3:.4f}</td>'
-            f'<td class="num" data-key="worst.{j}.after" data-unit="mm">{a * 1e3:.4f}</td></tr>'
-            for j, (a, b, name, when, mk) in enumerate(rows[:k])]
+    shown = rows[:k] + [r for r in rows[k:] if r[2] in flagged]
+    anchored, body = set(), []
+    for j, (a, b, name, when, mk) in enumerate(shown):
+        anchor = f' id="{_anchor("pose", name)}"' if name not in anchored else ""
+        anchored.add(name)
+        body.append(f'<tr{anchor}><td class="name" data-key="worst.{j}.pose">{_e(name)}</td><td>{when}</td>'
+                    f'<td>{_e(mk)}</td><td class="num" data-key="worst.{j}.before" data-unit="mm">{b * 1e3:.4f}</td>'
+                    f'<td class="num" data-key="worst.{j}.after" data-unit="mm">{a * 1e3:.4f}</td></tr>')
+    more = f", then the {len(shown) - k} other points of poses a check named" if len(shown) > k else ""
     return ("<h3>Largest errors after calibration</h3>"
             + _table(["pose", "poses", "marker", "before (mm)", "after (mm)"], body, num_from=3,
-                     caption=f"The {min(k, len(rows))} measured points with the largest error after calibration, "
-                             "by the pose labels of the input files."))
+                     caption=f"The {min(k, len(rows))} measured points with the largest error after calibration"
+                             f"{more}, by the pose labels of the input files."))
+
+
+def _anchor(kind: str, name: str) -> str:
+    """The id of the row or cell of a parameter or pose, for the checks to link to."""
+    return f"{kind}-" + re.sub(r"[^\w.-]", "_", str(name))
 
 
 def _date(text) -> str:
@@ -399,6 +410,60 @@ def _headline(d: dict) -> str:
     return f'<div class="cards">{"".join(cards)}</div>'
 
 
+def _pose_labels(d: dict) -> set:
+    prov = d.get("provenance") or {}
+    return {lab for src in ("data", "validation") for lab in ((prov.get(src) or {}).get("labels") or [])}
+
+
+def _flagged_poses(d: dict) -> set:
+    """Pose labels a check that did not pass names (items read 'label: ...')."""
+    labels = _pose_labels(d)
+    return {str(item).split(":")[0] for c in d.get("checks") or [] if c.get("status") != "pass"
+            for item in c.get("items") or []} & labels
+
+
+def _item_html(item: str, params: set, poses: set) -> str:
+    """A check's item with the parameters and the pose it names linked to their rows."""
+    text = str(item)
+    head = text.split(":")[0]
+    if head in poses:
+        return f'<a href="#{_anchor("pose", head)}">{_e(head)}</a>{_e(text[len(head):])}'
+    parts = re.split(r"([\w.]+)", text)
+    return "".join(f'<a href="#{_anchor("param", t)}">{_e(t)}</a>' if t in params else _e(t) for t in parts)
+
+
+VERDICT_TEXT = {"pass": "every check passed", "warn": "usable, with warnings to read",
+                "fail": "not to be used as it is: a check failed"}
+STATUS_CLASS = {"pass": "good", "warn": "missing", "fail": "bad"}
+
+
+def _checks_html(d: dict) -> str:
+    """The verdict and every check, those that did not pass first, their items linked to their rows."""
+    checks = d.get("checks") or []
+    if not checks:
+        return _notice("This result holds no checks (written by an older robocal): no verdict.")
+    verdict = d.get("verdict") or "pass"
+    params = set((d.get("identifiability") or {}).get("candidates") or []) | {p["name"] for p in d["parameters"]}
+    poses = _flagged_poses(d)
+    rows = []
+    for j, c in enumerate(sorted(checks, key=lambda c: c.get("status") == "pass")):
+        st = c.get("status", "")
+        detail = "".join(f"<br><b>{label}:</b> {_e(c[key])}" for key, label in (("cause", "likely cause"),
+                                                                                 ("fix", "fix"))
+                         if st != "pass" and c.get(key))
+        items = c.get("items") or []
+        listed = items[:20]
+        more = f" and {len(items) - 20} more" if len(items) > 20 else ""
+        named = (f'<br><span class="items">{", ".join(_item_html(i, params, poses) for i in listed)}{more}</span>'
+                 if items and st != "pass" else "")
+        rows.append(f'<tr class="check {st}"><td><span class="status {st}" data-key="check.{j}.status">{st}</span>'
+                    f'</td><td data-key="check.{j}.name">{_e(c.get("name", ""))}</td>'
+                    f'<td class="wrap">{_e(c.get("summary", ""))}{detail}{named}</td></tr>')
+    banner = (f'<p class="notice {STATUS_CLASS.get(verdict, "missing")} verdict">Verdict: '
+              f'<b data-key="verdict">{_e(verdict)}</b> &ndash; {VERDICT_TEXT.get(verdict, "")}.</p>')
+    return banner + _table(["status", "check", "what it found"], rows, cls="checks")
+
+
 def _stats_table(d: dict) -> str:
     rows = []
     for key, poses, when in STAT_SETS:
@@ -463,7 +528,7 @@ def _parameter_tables(d: dict, nominal: dict, units: dict) -> tuple[str, str, st
     def status_cell(name):
         st = status.get(name, "-")
         text = {"I": '<span class="badge si">I</span>', "E": '<span class="badge se">E</span>', "-": "–"}[st]
-        return f'<td class="status" data-key="{_e(name)}:status">{text}</td>'
+        return f'<td class="status" id="{_anchor("param", name)}" data-key="{_e(name)}:status">{text}</td>'
 
     body = []
     for f in frames:
@@ -676,6 +741,12 @@ figcaption{font-size:12.5px;margin-top:2px}
 svg[data-plot]{max-width:100%%;height:auto;display:block}
 svg[data-plot] *{stroke-linejoin:round;stroke-linecap:butt}
 ul.notes li{margin:4px 0}
+span.status{display:inline-block;padding:0 6px;border-radius:4px;font-weight:700;font-size:11.5px;
+text-transform:uppercase}
+span.status.pass{background:#e3f2e6;color:#1d6b2f}span.status.warn{background:#fff0c2;color:#7a5600}
+span.status.fail{background:#fbe5e5;color:var(--limit)}
+table.checks{width:100%%}table.checks td.wrap{overflow-wrap:anywhere}
+.verdict{font-size:16px}:target{outline:2px solid var(--after);background:#eaf2fb}
 footer{margin-top:36px;padding-top:8px;border-top:1px solid var(--line);font-size:12px;color:var(--muted)}
 @media print{body{background:#fff}main{padding:0}figure,table{break-inside:avoid}}
 @media (max-width:800px){.cards{grid-template-columns:1fr 1fr}nav ol{columns:1}}
@@ -712,7 +783,7 @@ def render_report(result: CalibrationResult, *, extra: dict | None = None) -> st
         + ". Dashed line: the limit of absolute accuracy" + ("" if lim else " (not given)") + ".")
         + _figure(plot_histograms(d), "Distribution of the position errors. Solid bars: fitted poses; hatched: "
                   "held-out poses." + (" Dashed line: the limit of absolute accuracy." if lim else ""))
-        + _worst_poses(d))]
+        + _worst_poses(d, _flagged_poses(d)))]
     frame_table, other_table, note = _parameter_tables(d, nominal, units)
     sections.append(("parameters", "Parameters",
                      "<p>Per frame, in the paper's layout: I identified, E eliminated (held at its nominal value, "
@@ -736,11 +807,12 @@ def render_report(result: CalibrationResult, *, extra: dict | None = None) -> st
     sections.append(("solver", "Solver and identifiability", _solver_table(d)))
     notes = d.get("notes") or []
     sections.append(("notes", "Notes", '<ul class="notes">' + "".join(f"<li>{_e(n)}</li>" for n in notes) + "</ul>"
-                     if notes else "<p>The calibration left no notes.</p>"))
+                     if notes else "<p>No notes beyond the checks at the top of the page.</p>"))
     sections.append(("provenance", "Provenance", _provenance(d)))
 
+    sections.insert(0, ("checks", "Verdict and checks", _checks_html(d)))
     toc = "".join(f'<li><a href="#{i}">{t}</a></li>' for i, t, _ in sections)
-    body = "".join(f'<section id="{i}"><h2>{t}</h2>{b}</section>\n' for i, t, b in sections)
+    first, *rest = [f'<section id="{i}"><h2>{t}</h2>{b}</section>\n' for i, t, b in sections]
     meta = [", ".join(d.get("families") or []) + " identification", _date(prov.get("date", "date not recorded")),
             f'{prov.get("software", "")} {prov.get("version", "")}'.strip()]
     return ('<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
@@ -749,7 +821,7 @@ def render_report(result: CalibrationResult, *, extra: dict | None = None) -> st
             f"<style>{_CSS}</style>\n</head>\n<body>\n<main>\n"
             f'<header><h1>Calibration report &ndash; <span class="robot">{_e(robot)}</span></h1>'
             f'<p class="meta">{" &middot; ".join(_e(m) for m in meta if m)}</p></header>\n'
-            f"{_headline(d)}{''.join(notices)}<nav><ol>{toc}</ol></nav>\n{body}"
+            f"{first}{_headline(d)}{''.join(notices)}<nav><ol>{toc}</ol></nav>\n{''.join(rest)}"
             f"<footer>{_e(UNITS_SENTENCE).capitalize()}; the result file keeps SI "
             "units. A self-contained page: no scripts, no network.</footer>\n</main>\n</body>\n</html>\n")
 
