@@ -487,3 +487,29 @@ def test_a_passing_result_says_so(full, tmp_path):
     page, _ = _page(full, tmp_path)
     assert page.keyed["verdict"] == full["verdict"]
     assert {page.keyed[f"check.{j}.name"] for j in range(len(full["checks"]))} == {c["name"] for c in full["checks"]}
+
+
+# -- residual trends -----------------------------------------------------------------------------
+
+def test_an_unmodelled_joint_error_shows_as_a_trend_against_that_joint_only():
+    from dataclasses import replace
+
+    from robocal._presentation.plots import residual_trends
+
+    m = arm6r()
+    _, data = rc.simulate(m, 2000, seed=4)
+    # an error the model cannot absorb: 0.3 mm along world z, three periods over joint 2's reading
+    bump = 3e-4 * np.sin(3 * data.q[:, 1])
+    data = replace(data, positions=data.positions + bump[:, None, None] * np.array([0.0, 0.0, 1.0]))
+    d = _roundtrip(rc.calibrate(m, data))
+    trends = residual_trends(d, m.joint_names, ["rad"] * 6, m.base_position)
+    spread = {x: np.ptp(trends["trends"][("dz", x)]["median"]) for x, _ in trends["columns"]}
+    joint2 = f"{m.joint_names[1]} reading"
+    # reach and height follow joint 2 too (it lifts the arm); the other joints do not
+    others = max(v for x, v in spread.items() if x.endswith("reading") and x != joint2)
+    assert spread[joint2] > 0.35  # mm: most of the 0.6 mm peak to peak survives the fit
+    assert spread[joint2] > 3 * others, spread
+    # the trend follows the error's shape: residuals are calibrated minus measured, so minus the bump
+    t = trends["trends"][("dz", joint2)]
+    shape = -0.3 * np.sin(3 * np.radians(t["x"]))
+    assert np.corrcoef(t["median"], shape)[0, 1] > 0.9
