@@ -351,7 +351,7 @@ def residual_trends(d: dict, joint_names, joint_units, base_position) -> dict | 
     ``joint_names``/``joint_units`` (SI unit per reading), ``base_position`` (m, in W). Reach is the
     horizontal distance of the measured point from the base's vertical axis, height its height above
     the base origin. Returns {"rows": [(label, unit)], "columns": [(label, unit)], "points": n,
-    "trends": {(row label, column label): binned_median(...)}, "samples": {...: (x, y)} for few points}
+    "trends": {(row label, column label): binned_median(...)}}
     or None when the result holds no measured points.
     """
     vec, pos, q = _stacked(d, "residual_vectors"), _stacked(d, "positions"), _stacked(d, "readings")
@@ -367,38 +367,80 @@ def residual_trends(d: dict, joint_names, joint_units, base_position) -> dict | 
     rot = _stacked(d, "rotation_after")
     if rot is not None and rot.shape == (n, m):
         ys.append(("rotation error", "deg", rot * DEG))
-    trends, samples = {}, {}
-    for ylab, _, y in ys:
-        for xlab, _, x in xs:
-            trends[(ylab, xlab)] = binned_median(x.ravel(), y.ravel())
-            if n * m <= DENSE:
-                samples[(ylab, xlab)] = (x.ravel(), y.ravel())
+    trends = {(ylab, xlab): binned_median(x.ravel(), y.ravel()) for ylab, _, y in ys for xlab, _, x in xs}
     return {"rows": [(lab, u) for lab, u, _ in ys], "columns": [(lab, u) for lab, u, _ in xs], "points": n * m,
-            "trends": trends, "samples": samples}
+            "trends": trends}
+
+
+def _ticks(lo: float, hi: float, n: int = 3) -> list[float]:
+    """About ``n`` round values within [lo, hi]."""
+    step = _nice((hi - lo) / max(n - 1, 1)) if hi > lo else 1.0
+    first = math.ceil(lo / step) * step
+    return [first + k * step for k in range(int((hi - first) / step + 1e-9) + 1)]
+
+
+def _span(values: list[np.ndarray]) -> tuple[float, float]:
+    v = np.concatenate([x for x in values if x.size]) if any(x.size for x in values) else np.zeros(1)
+    lo, hi = float(v.min()), float(v.max())
+    pad = 0.06 * (hi - lo) or 1e-3
+    return lo - pad, hi + pad
+
+
+# panel size, gaps and margins of the trend grid (SVG user units, about pixels)
+PANEL_W, PANEL_H, GAP, LEFT, BOTTOM = 150, 92, 10, 62, 40
 
 
 def plot_residual_trends(trends: dict) -> str:
     """A grid of small panels: each residual component (rows) against reach, height and each joint's
-    reading (columns), the binned median as a line over the interquartile band (SVG)."""
-    rows, cols = trends["rows"], trends["columns"]
+    reading (columns), the binned median as a line over the interquartile band (SVG, written
+    directly: a grid of dozens of panels would take matplotlib seconds)."""
+    rows, cols, data = trends["rows"], trends["columns"], trends["trends"]
+    yspan = [_span([data[(r, c)][k] for c, _ in cols for k in ("q25", "q75", "median")] + [np.zeros(1)])
+             for r, _ in rows]
+    xspan = [_span([data[(r, c)]["x"] for r, _ in rows]) for c, _ in cols]
+    width = LEFT + len(cols) * (PANEL_W + GAP)
+    height = 8 + len(rows) * (PANEL_H + GAP) + BOTTOM
+    out = [f'<svg data-plot="residual-trends" role="img" aria-label="residual components against reach, height and '
+           f'each joint\'s reading" xmlns="http://www.w3.org/2000/svg" viewBox="0 0 {width} {height}" '
+           f'width="{width}" height="{height}" font-family="DejaVu Sans, Helvetica, Arial, sans-serif" '
+           'font-size="9" fill="#444">']
+    for i, (r, runit) in enumerate(rows):
+        y0 = 8 + i * (PANEL_H + GAP)
+        lo, hi = yspan[i]
 
-    def draw(fig):
-        axes = np.atleast_2d(fig.subplots(len(rows), len(cols), sharex="col", sharey="row", squeeze=False))
-        for r, (ylab, yunit) in enumerate(rows):
-            for c, (xlab, xunit) in enumerate(cols):
-                ax = axes[r, c]
-                t = trends["trends"][(ylab, xlab)]
-                if (ylab, xlab) in trends["samples"]:
-                    x, y = trends["samples"][(ylab, xlab)]
-                    ax.scatter(x, y, s=3, color="#9aa3ad", lw=0, zorder=1)
-                ax.fill_between(t["x"], t["q25"], t["q75"], color=AFTER, alpha=0.18, lw=0, zorder=2)
-                ax.plot(t["x"], t["median"], color=AFTER, lw=1.4, zorder=3)
-                ax.axhline(0, color="#888", lw=0.6, zorder=1)
-                ax.tick_params(labelsize=6.5, length=2, pad=1)
-                if r == len(rows) - 1:
-                    ax.set_xlabel(f"{xlab} ({xunit})", fontsize=7.5)
-                if c == 0:
-                    ax.set_ylabel(f"{ylab} ({yunit})", fontsize=7.5)
-        fig.subplots_adjust(wspace=0.12, hspace=0.12)
-    return _plot("residual-trends", "residual components against reach, height and each joint's reading", draw,
-                 figsize=(max(8.0, 1.45 * len(cols)), 1.35 * len(rows) + 0.6))
+        def py(v, y0=y0, lo=lo, hi=hi):
+            return y0 + PANEL_H * (hi - v) / (hi - lo)
+        out.append(f'<text transform="translate(12 {y0 + PANEL_H / 2:.1f}) rotate(-90)" text-anchor="middle" '
+                   f'font-size="10" fill="#222">{html.escape(r)} ({runit})</text>')
+        out += [f'<text x="{LEFT - 4}" y="{py(t) + 3:.1f}" text-anchor="end">{t:.3g}</text>' for t in _ticks(lo, hi)]
+        for j, (c, _) in enumerate(cols):
+            x0 = LEFT + j * (PANEL_W + GAP)
+            xl, xh = xspan[j]
+            out.append(_trend_panel(data[(r, c)], x0, y0, (xl, xh), py))
+    for j, (c, cunit) in enumerate(cols):
+        x0 = LEFT + j * (PANEL_W + GAP)
+        xl, xh = xspan[j]
+        base = 8 + len(rows) * (PANEL_H + GAP) - GAP
+        out += [f'<text x="{x0 + PANEL_W * (t - xl) / (xh - xl):.1f}" y="{base + 11}" text-anchor="middle">{t:.4g}</text>'
+                for t in _ticks(xl, xh)]
+        out.append(f'<text x="{x0 + PANEL_W / 2}" y="{base + 26}" text-anchor="middle" font-size="10" fill="#222">'
+                   f"{html.escape(c)} ({cunit})</text>")
+    return "".join(out) + "</svg>"
+
+
+def _trend_panel(t: dict, x0: float, y0: float, xspan: tuple, py) -> str:
+    """One panel: frame, zero line, interquartile band and median polyline."""
+    xl, xh = xspan
+
+    def px(v):
+        return x0 + PANEL_W * (v - xl) / (xh - xl)
+    parts = [f'<rect x="{x0}" y="{y0}" width="{PANEL_W}" height="{PANEL_H}" fill="#fafbfc" stroke="#8a9099" '
+             'stroke-width="0.6"/>',
+             f'<path d="M{x0} {py(0):.1f}H{x0 + PANEL_W}" stroke="#888" stroke-width="0.6"/>']
+    if len(t["x"]):
+        band = [f"{px(x):.1f} {py(v):.1f}" for x, v in zip(t["x"], t["q75"])]
+        band += [f"{px(x):.1f} {py(v):.1f}" for x, v in zip(t["x"][::-1], t["q25"][::-1])]
+        parts.append(f'<path d="M{"L".join(band)}Z" fill="{AFTER}" fill-opacity="0.2" stroke="none"/>')
+        line = "L".join(f"{px(x):.1f} {py(v):.1f}" for x, v in zip(t["x"], t["median"]))
+        parts.append(f'<path d="M{line}" fill="none" stroke="{AFTER}" stroke-width="1.4"/>')
+    return "".join(parts)
