@@ -556,3 +556,17 @@ def test_an_unmodelled_joint_error_shows_as_a_trend_against_that_joint_only():
     t = trends["trends"][("dz", joint2)]
     shape = -0.3 * np.sin(3 * np.radians(t["x"]))
     assert np.corrcoef(t["median"], shape)[0, 1] > 0.9
+
+
+def test_terminal_tables_align_for_long_names():
+    from robocal.report import calibration_summary, identifiability_summary
+
+    m = arm6r(markers=(("spherically_mounted_retroreflector_2", (0.05, 0.02, 0.12)),))
+    lines = identifiability_summary(m, rc.identifiability(m, n_random=30), "random poses").splitlines()
+    header = next(i for i, line in enumerate(lines) if line.lstrip().startswith("frame"))
+    assert {len(line) for line in lines[header:header + 1 + m.n_frames]} == {len(lines[header])}
+    owners = [line for line in lines if line.lstrip().startswith(("base ", "spherically"))]
+    assert len(owners) == 2 and owners[0].index(" x:") == owners[1].index(" x:")
+    _, data = rc.simulate(m, 30, seed=1)
+    rows = [line for line in calibration_summary(rc.calibrate(m, data)).splitlines() if " change " in line and " std " in line]
+    assert len(rows) > 20 and len({line.index(" change ") for line in rows}) == 1 and len({line.index(" std ") for line in rows}) == 1

@@ -497,7 +497,16 @@ span.status.fail{background:#fbe5e5;color:var(--limit)}
 table.checks{width:100%%}table.checks td.wrap{overflow-wrap:anywhere}
 .verdict{font-size:16px}:target{outline:2px solid var(--after);background:#eaf2fb}
 footer{margin-top:36px;padding-top:8px;border-top:1px solid var(--line);font-size:12px;color:var(--muted)}
-@media print{body{background:#fff}main{padding:0}figure,table{break-inside:avoid}}
+.side{display:grid;grid-template-columns:minmax(0,1fr) minmax(250px,max-content);gap:18px;align-items:start}
+table.pairs tr.strong td{font-weight:650}
+table.params{font-size:12.5px}table.params td,table.params th{padding:3px 7px}
+@page{size:A4;margin:12mm}
+@media print{body{background:#fff;font-size:11px}main{padding:0;max-width:none;min-height:0}
+.scroll{overflow:visible}table{font-size:10px}th,td{padding:2px 5px}table.params{font-size:9px}
+table.params td,table.params th{padding:1px 3px}td.name{white-space:normal;overflow-wrap:anywhere}
+.side{display:block}h2{break-after:avoid}figure,tr,.card,.notice{break-inside:avoid}
+nav ol{columns:4}:target{outline:none;background:none}}
+@media (max-width:900px){.side{display:block}}
 @media (max-width:800px){.cards{grid-template-columns:1fr 1fr}nav ol{columns:1}}
 """ % {"before": BEFORE, "after": AFTER, "limit": LIMIT}
 
