@@ -1,8 +1,8 @@
 """The calibration report: one self-contained HTML file drawn from a calibration result.
 
 ``render_report`` returns the HTML text of a ``CalibrationResult`` (computed, or read back from
-result.json), ``write_report`` writes it atomically. Plots are matplotlib figures embedded as
-inline SVG; the page needs no network and no JavaScript. Units are shown as ``units.DISPLAY_UNITS``
+result.json), ``write_report`` writes it atomically. Plots (``plots``) are inline SVG; the page
+needs no network and no JavaScript. Units are shown as ``units.DISPLAY_UNITS``
 says.
 """
 
