@@ -508,7 +508,7 @@ def test_verdict_and_every_check_at_the_top_with_items_linked(full, tmp_path):
     d = json.loads(json.dumps(full))
     label = d["provenance"]["data"]["labels"][7]  # a pose far from the largest errors, named by a failed check
     d["checks"].append({"name": "outliers", "status": "fail", "summary": f"1 point: {label}",
-                        "cause": "a blunder", "fix": "remove it", "items": [f"{label}: 3.1 mm, 9 sd"]})
+                        "cause": "a blunder", "fix": "remove it", "items": [f"{label}, marker tool: 3.1 mm, 9 sd"]})
     d["checks"].append({"name": "plausible changes", "status": "warn", "summary": "j2.alpha moved far",
                         "cause": "", "fix": "", "items": ["j2.alpha: 1.2 deg (tolerance 0.5 deg)"]})
     d["verdict"] = "fail"

@@ -160,15 +160,20 @@ def _pose_labels(d: dict) -> set:
 def _flagged_poses(d: dict) -> set:
     """Pose labels a check that did not pass names (items read 'label: ...')."""
     labels = _pose_labels(d)
-    return {str(item).split(":")[0] for c in d.get("checks") or [] if c.get("status") != "pass"
+    return {_item_head(item) for c in d.get("checks") or [] if c.get("status") != "pass"
             for item in c.get("items") or []} & labels
+
+
+def _item_head(item) -> str:
+    """What a check's item names first: 'pose 12' of 'pose 12, marker tool: 3.1 mm'."""
+    return re.split(r"[:,]", str(item), maxsplit=1)[0].strip()
 
 
 def _item_html(item: str, params: set, poses: set) -> str:
     """A check's item with the parameters and the pose it names linked to their rows."""
     text = str(item)
-    head = text.split(":")[0]
-    if head in poses:
+    head = _item_head(text)
+    if head in poses and text.startswith(head):
         return f'<a href="#{_anchor("pose", head)}">{_e(head)}</a>{_e(text[len(head):])}'
     parts = re.split(r"([\w.]+)", text)
     return "".join(f'<a href="#{_anchor("param", t)}">{_e(t)}</a>' if t in params else _e(t) for t in parts)

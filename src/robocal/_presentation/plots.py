@@ -263,7 +263,8 @@ def plot_residuals(d: dict) -> str:
     (SVG). With the measured points stored the arrows start at them, scaled up; otherwise at a
     common origin. At most ``VECTORS`` arrows, evenly spaced through the campaign."""
     res, pts, _ = residual_sample(d)
-    length = float(np.linalg.norm(res, axis=1).max()) if len(res) else 0.0
+    # arrows scaled to the typical residual, not the largest: one outlier must not shrink them all
+    length = float(np.percentile(np.linalg.norm(res, axis=1), 90)) if len(res) else 0.0
     length = length or 1e-3
     bar = _nice(length * 0.5)
     at_points = pts is not None
@@ -277,7 +278,7 @@ def plot_residuals(d: dict) -> str:
         axes = fig.subplots(1, 3)
         for ax, (a, b, i, j) in zip(axes, (("X", "Y", 0, 1), ("X", "Z", 0, 2), ("Y", "Z", 1, 2))):
             ax.quiver(pts[:, i], pts[:, j], gain * res[:, i], gain * res[:, j], angles="xy", scale_units="xy",
-                      scale=1, color=AFTER, width=0.004, headwidth=3.5, headlength=4, zorder=2)
+                      scale=1, color=AFTER, width=0.005, headwidth=3, headlength=3.5, headaxislength=3, zorder=2)
             if at_points:
                 ax.scatter(pts[:, i], pts[:, j], s=4, color="#555", zorder=3, lw=0)
                 xs = np.concatenate([pts[:, i], pts[:, i] + gain * res[:, i]])
@@ -288,7 +289,7 @@ def plot_residuals(d: dict) -> str:
                 ax.set_xlabel(f"{a} (mm)")
                 ax.set_ylabel(f"{b} (mm)")
             else:
-                r = 1.15 * length
+                r = 1.15 * (float(np.linalg.norm(res, axis=1).max()) if len(res) else length)
                 ax.set_xlim(-r, r)
                 ax.set_ylim(-r, r)
                 ax.axhline(0, color="#999", lw=0.6)
@@ -313,7 +314,7 @@ def _scale_bar(ax, plane: str, gain: float, bar: float, at_points: bool) -> None
     y0, y1 = ax.get_ylim()
     bx, by = x0 + 0.06 * (x1 - x0), y0 + 0.07 * (y1 - y0)
     ax.plot([bx, bx + gain * bar], [by, by], color="#222", lw=2.2, solid_capstyle="butt")
-    ax.text(bx + gain * bar / 2, by + 0.025 * (y1 - y0), f"{bar:g} mm", ha="center", va="bottom", fontsize=8)
+    ax.text(bx, by + 0.025 * (y1 - y0), f"{bar:g} mm", ha="left", va="bottom", fontsize=8)
 
 
 # -- residuals against where the robot was -------------------------------------------------------
