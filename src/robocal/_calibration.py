@@ -14,7 +14,8 @@ from datetime import datetime, timezone
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ._checks import (OUTLIER_SHARE_MAX, Check, cloud_size_check, compliance_sign_check, convergence_check,
+from ._checks import (OUTLIER_SHARE_MAX, Check, backlash_sign_check, cloud_size_check, compliance_sign_check,
+                      convergence_check,
                       correlation_check, expected_noise, fit_check, identifiability_check, markers_check,
                       outlier_check, plausibility_check, reading_units_check, readings_check, support_check,
                       tolerances, verdict)
@@ -428,7 +429,7 @@ def _result_checks(design: _Design, solution: Solution, cov: Covariance, estimat
     out = [convergence_check(solution.success, solution.message, solution.nfev),
            fit_check(residuals, sigma, noise, limit_m, outlying),
            plausibility_check(estimates, tolerances(design.start), deflections),
-           support_check(estimates), compliance_sign_check(estimates),
+           support_check(estimates), compliance_sign_check(estimates), backlash_sign_check(estimates),
            correlation_check([e.name for e in estimates], cov.correlation),
            identifiability_check(design.lost, design.weak, weak_kept=design.weak_kept)]
     if data.has_orientation:

@@ -12,7 +12,7 @@ The preference order of ``candidate_parameters`` decides which of a dependent gr
 (earlier wins). It follows the paper and the habit of tracker users: the base first (so it absorbs
 what frame 1 cannot show), then the markers, then frames from the base outwards (beta, alpha, d,
 theta, r within a frame, so r of the second of two parallel axes is the one eliminated), then
-compliances.
+compliances, then backlash (so a joint offset absorbs a backlash whose side never changes).
 """
 
 from __future__ import annotations
@@ -25,14 +25,16 @@ from typing import Iterable
 
 import numpy as np
 
-from ._errors import InputError
+from ._errors import InputError, excerpt
 from ._model import RobotModel
 from ._spatial import matrix_tuple, small_rotation, xyz_angles
 
 BASE_KINDS = ("x", "y", "z", "rx", "ry", "rz")
 GEOMETRIC_KINDS = ("gamma", "b", "beta", "alpha", "d", "theta", "r")
 COMPLIANCE_KINDS = ("k_theta", "k_alpha", "k_beta")
-FRAME_KINDS = GEOMETRIC_KINDS + COMPLIANCE_KINDS
+# half the lost motion of a revolute (theta) or prismatic (r) joint: the one matching the joint is used
+BACKLASH_KINDS = ("backlash_theta", "backlash_r")
+FRAME_KINDS = GEOMETRIC_KINDS + COMPLIANCE_KINDS + BACKLASH_KINDS
 MARKER_KINDS = ("x", "y", "z", "rx", "ry", "rz")
 
 # the one table of kinds: the quantity each one measures, and the SI unit of each quantity
@@ -40,11 +42,12 @@ KIND_QUANTITY = types.MappingProxyType({
     "x": "length", "y": "length", "z": "length", "rx": "angle", "ry": "angle", "rz": "angle",
     "gamma": "angle", "b": "length", "beta": "angle", "alpha": "angle", "d": "length", "theta": "angle",
     "r": "length", "k_theta": "compliance", "k_alpha": "compliance", "k_beta": "compliance",
+    "backlash_theta": "angle", "backlash_r": "length",
 })
 SI_UNITS = types.MappingProxyType({"length": "m", "angle": "rad", "compliance": "rad/(N m)"})
 
 # families a user names; "geometric" is base + markers + frames
-FAMILIES = ("geometric", "compliance", "base", "markers", "frames")
+FAMILIES = ("geometric", "compliance", "backlash", "base", "markers", "frames")
 # a parameter item holding one of these is a pattern (fnmatch): "*.theta", "j2.*", "*.k_theta"
 PATTERN_CHARS = "*?["
 ROLES = ("base", "frame", "marker")
@@ -76,8 +79,10 @@ class Parameter:
 
     @property
     def family(self) -> str:
-        """"base", "markers", "frames" (geometric kinds of a frame) or "compliance"."""
+        """"base", "markers", "frames" (geometric kinds of a frame), "compliance" or "backlash"."""
         if self.role == "frame":
+            if self.kind in BACKLASH_KINDS:
+                return "backlash"
             return "compliance" if self.kind in COMPLIANCE_KINDS else "frames"
         return "base" if self.role == "base" else "markers"
 
@@ -211,7 +216,13 @@ def families(model: RobotModel, *, orientation: bool = False) -> dict[str, list[
     frames = [n for n in frames if n not in last] + last
     compliance = [f"{f.name}.{k}" for f in model.frames for k in COMPLIANCE_KINDS]
     return {"base": base, "markers": markers, "frames": frames, "geometric": base + markers + frames,
-            "compliance": compliance}
+            "compliance": compliance, "backlash": backlash_names(model)}
+
+
+def backlash_names(model: RobotModel) -> list[str]:
+    """The backlash parameter of every moving frame: ``backlash_theta`` or ``backlash_r`` by its joint."""
+    return [f"{f.name}.backlash_{'theta' if f.joint == 'revolute' else 'r'}" for f in model.frames
+            if f.joint != "fixed"]
 
 
 def candidate_parameters(model: RobotModel, parameters: Iterable[str] = ("geometric",), *,
@@ -219,7 +230,7 @@ def candidate_parameters(model: RobotModel, parameters: Iterable[str] = ("geomet
     """Parameter names to consider, in preference order.
 
     ``parameters`` holds family names (``geometric`` = base + markers + frames, ``compliance``,
-    ``base``, ``markers``, ``frames``), explicit parameter names such as ``j2.alpha`` and/or
+    ``backlash``, ``base``, ``markers``, ``frames``), explicit parameter names such as ``j2.alpha`` and/or
     patterns such as ``*.theta`` or ``j2.*`` (see ``matched_by_pattern``).
     ``orientation``: the data hold orientations, so marker rotations are candidates too.
     ``known``: families or names to hold fixed at their model values (e.g. ``("base",)``).
@@ -237,7 +248,7 @@ def candidate_parameters(model: RobotModel, parameters: Iterable[str] = ("geomet
             elif item in lay:
                 out.append(item)
             else:
-                raise InputError(f"unknown parameter or family {item!r}; families are {', '.join(FAMILIES)} "
+                raise InputError(f"unknown parameter or family {excerpt(item)}; families are {', '.join(FAMILIES)} "
                                  f"and names look like 'base.x', '{model.frames[0].name}.alpha'", where=what)
         return out
 
@@ -246,9 +257,17 @@ def candidate_parameters(model: RobotModel, parameters: Iterable[str] = ("geomet
     if any(lay[n].family == "compliance" for n in chosen) and not model.has_masses:
         raise InputError("compliance parameters need link masses (or a payload); the model has none",
                          where="parameters")
-    order = fam["geometric"] + fam["compliance"]
+    if model.backlash_side == "gravity" and any(lay[n].family == "backlash" for n in chosen) \
+            and not model.has_masses:
+        raise InputError("gravity-sided backlash needs link masses (or a payload); the model has none: give "
+                         "masses or choose the approach-sided model", where="parameters")
+    order = fam["geometric"] + fam["compliance"] + fam["backlash"]
     extra = [n for n in chosen if n not in order]  # explicit names outside the default families
-    return tuple(n for n in order + sorted(extra) if n in chosen and n not in fixed)
+    out = tuple(n for n in order + sorted(extra) if n in chosen and n not in fixed)
+    if not out:
+        raise InputError(f"no parameter left to identify: the known ones ({', '.join(map(str, known))}) cover "
+                         "every parameter chosen", where="known")
+    return out
 
 
 def is_pattern(item: str) -> bool:
@@ -291,3 +310,9 @@ def has_compliance_parameters(model: RobotModel, names: Iterable[str]) -> bool:
     """Whether any of ``names`` is a compliance of ``model``."""
     lay = parameter_layout(model)
     return any(lay[n].family == "compliance" for n in names)
+
+
+def has_backlash_parameters(model: RobotModel, names: Iterable[str]) -> bool:
+    """Whether any of ``names`` is a backlash of ``model``."""
+    lay = parameter_layout(model)
+    return any(lay[n].family == "backlash" for n in names)

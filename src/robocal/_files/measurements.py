@@ -428,17 +428,23 @@ def _rotation(kind, seq, vals, source, line, column) -> np.ndarray:
 
 
 def split_sets(data: Measurements) -> tuple[Measurements, Measurements | None]:
-    """(fit, validation) from a file's ``set`` column; (data, None) without one."""
+    """(fit, validation) from a file's ``set`` column; (data, None) without one. Both keep the
+    approach directions of the file's visiting order (``Measurements.with_approach``)."""
     flags = data.extra.get("validation")
     if flags is None:
         return data, None
-    extra = {k: v for k, v in data.extra.items() if k != "validation"}
-    fit = replace(data.subset(~flags), extra=extra)
+    data = data.with_approach()
+
+    def part(index):
+        sub = data.subset(index)
+        return replace(sub, extra={k: v for k, v in sub.extra.items() if k != "validation"})
+
+    fit = part(~flags)
     if not flags.any():
         return fit, None
     if flags.all():
         raise InputError("every row is in the validation set; mark some rows fit", source=data.source, where="set")
-    return fit, replace(data.subset(flags), extra=extra)
+    return fit, part(flags)
 
 
 def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, units: str = "mm-deg",

@@ -15,9 +15,9 @@ import numpy as np
 import yaml
 from scipy.spatial.transform import Rotation
 
-from .._errors import InputError, suggest
+from .._errors import InputError, excerpt, suggest
 from .._units import ANGLE_UNITS, LENGTH_UNITS, check_unit, parse_units
-from .text import read_text, write_texts
+from .text import load_yaml, read_text, write_texts
 from .._parameters import KIND_QUANTITY
 from .._model import (DEFAULT_PARALLEL_TOL, JOINT_TYPES, Frame, Marker, Payload, RobotModel,
                      parallel_beta_frames, placement_parameters)
@@ -38,10 +38,12 @@ TOP_KEYS = ("robocal_model", "name", "description", "units", "base", "gravity", 
             "markers", "payload", "tolerances", "calibration")
 # tolerances: family -> the quantities a file may bound, and the unit each is given in
 TOLERANCE_KEYS = {"frames": ("length", "angle"), "markers": ("length", "angle"), "base": ("length", "angle"),
-                  "compliance": ("deflection",)}
+                  "compliance": ("deflection",), "backlash": ("length", "angle")}
 IDENTITY = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
 # base.* names the base pose parameters, so no frame or marker may be called "base"
 RESERVED_NAMES = ("base",)
+# no quantity of a model, in any of its units, comes near this; beyond it arithmetic overflows
+MAX_MAGNITUDE = 1e12
 _NUMBER = re.compile(r"^[+-]?(\d+(\.\d*)?|\.\d+)([eE][+-]?\d+)?$")
 
 
@@ -77,9 +79,11 @@ class _Reader:
             value = float(value)
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.error(where, f"expected a number, got {_show(value)}")
+        if isinstance(value, int) and abs(value) >= MAX_MAGNITUDE:  # float() of a huge int overflows
+            value = float("inf") if value > 0 else float("-inf")
         value = float(value)
-        if np.isnan(value) or (finite and not np.isfinite(value)):
-            raise self.error(where, f"expected a finite number, got {value}")
+        if np.isnan(value) or (finite and not abs(value) < MAX_MAGNITUDE):
+            raise self.error(where, f"expected a finite number (magnitude below {MAX_MAGNITUDE:g}), got {value}")
         return value
 
     def vector(self, value, where: str, n: int, scale: float = 1.0) -> tuple[float, ...]:
@@ -133,7 +137,7 @@ def _join(where: str, key) -> str:
 
 
 def _show(value) -> str:
-    return "nothing" if value is None else repr(value)
+    return excerpt(value)
 
 
 def model_from_dict(d: dict, *, source: str = "<dict>") -> RobotModel:
@@ -394,20 +398,10 @@ def _coupling(rd: _Reader, item: dict, where: str, fname: str, joint: str, joint
     return ((free[0], 1.0),)
 
 
-def _yaml_error(e: yaml.YAMLError) -> tuple[str | None, str]:
-    mark = getattr(e, "problem_mark", None)
-    problem = getattr(e, "problem", None) or str(e)
-    return f"line {mark.line + 1}, column {mark.column + 1}" if mark else None, f"not valid YAML: {problem}"
-
-
 def read_model(path) -> RobotModel:
     """Read a model file (docs/formats.md) into a RobotModel in SI units."""
     source = str(path)
-    try:
-        d = yaml.safe_load(read_text(path)[0])
-    except yaml.YAMLError as e:
-        where, msg = _yaml_error(e)
-        raise InputError(msg, source=source, where=where) from None
+    d = load_yaml(read_text(path)[0], source)
     if d is None:
         raise InputError("the file is empty", source=source)
     return model_from_dict(d, source=source)

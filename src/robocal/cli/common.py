@@ -9,9 +9,11 @@ from __future__ import annotations
 import argparse
 import importlib
 import math
+import re
 from pathlib import Path
 
 from .._errors import InputError, excerpt
+from .._options import MAX_POSES
 from .._units import parse_units
 
 MM = 1e3
@@ -22,19 +24,50 @@ class MissingExtra(Exception):
     """An optional part of robocal is not installed (exit 1)."""
 
 
+class Parser(argparse.ArgumentParser):
+    """argparse, but a usage error is one line (``robocal CMD: error: ...``), never the usage block,
+    and never echoes more than an excerpt of what was typed."""
+
+    def error(self, message):
+        message = " ".join(str(message).split())
+        if len(message) > 300:
+            message = message[:300] + "..."
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
 # -- argument types: each refuses a bad value at parse time with one line naming the option ----------
 
-def floats(n: int):
+def floats(n: int, top: float = math.inf, *, ordered: bool = False):
+    """An argparse type: ``n`` comma-separated numbers between 0 and ``top``; ``ordered``: LO <= HI."""
     def parse(text: str) -> tuple[float, ...]:
         try:
             vals = tuple(float(v) for v in text.split(","))
         except ValueError:
             raise argparse.ArgumentTypeError(f"expected {n} comma-separated numbers, got {excerpt(text)}") from None
-        if len(vals) != n or not all(map(math.isfinite, vals)) or min(vals) < 0:
-            raise argparse.ArgumentTypeError(f"expected {n} non-negative comma-separated numbers, got "
+        if len(vals) != n or not all(0 <= v <= top for v in vals):
+            raise argparse.ArgumentTypeError(f"expected {n} comma-separated numbers from 0 to {top:g}, got "
                                              f"{excerpt(text)}")
+        if ordered and list(vals) != sorted(vals):
+            raise argparse.ArgumentTypeError(f"expected LO,HI with LO <= HI, got {excerpt(text)}")
         return vals
     return parse
+
+
+def integer(lo: int, hi: int, what: str | None = None):
+    """An argparse type: a whole number from ``lo`` to ``hi`` (``what`` says why the bound, if any)."""
+    def parse(text: str) -> int:
+        t = text.strip()
+        v = int(t) if re.fullmatch(r"[+-]?\d{1,30}", t) else None
+        if v is None or not lo <= v <= hi:
+            raise argparse.ArgumentTypeError(f"expected a whole number from {lo:,} to {hi:,}"
+                                             f"{f' ({what})' if what else ''}, got {excerpt(text)}")
+        return v
+    return parse
+
+
+SEED_MAX = 2 ** 32 - 1
+seed = integer(0, SEED_MAX)
+poses = integer(1, MAX_POSES, "the pose limit of docs/formats.md")
 
 
 def number_in(ok, what: str):
@@ -52,6 +85,14 @@ def number_in(ok, what: str):
 
 fraction = number_in(lambda v: 0.0 < v < 1.0, "a fraction between 0 and 1")
 positive = number_in(lambda v: 0.0 < v < math.inf, "a positive number")
+# lengths in mm and angles in degrees a user may type for noise, errors, quanta: beyond a metre or
+# half a turn they are not what the option means
+length_mm = number_in(lambda v: 0.0 <= v <= 1e3, "a number from 0 to 1000 (mm)")
+angle_deg = number_in(lambda v: 0.0 <= v <= 180.0, "a number from 0 to 180 (degrees)")
+tolerance = number_in(lambda v: 0.0 < v < 1.0, "a tolerance between 0 and 1 (exclusive)")
+# noise of an instrument, mm and degrees: beyond a metre or half a turn it is not a measurement
+noise_mm = number_in(lambda v: 0.0 < v <= 1e3, "a positive number up to 1000 (mm)")
+noise_deg = number_in(lambda v: 0.0 < v <= 180.0, "a positive number up to 180 (degrees)")
 
 
 def marker_mm(text: str) -> tuple[str, tuple[float, float, float]]:
@@ -66,7 +107,10 @@ def marker_mm(text: str) -> tuple[str, tuple[float, float, float]]:
 
 
 def names(text: str) -> tuple[str, ...]:
-    return tuple(s.strip() for s in text.split(",") if s.strip())
+    out = tuple(s.strip() for s in text.split(",") if s.strip())
+    if not out or any(len(s) > 100 for s in out):
+        raise argparse.ArgumentTypeError(f"expected comma-separated names, got {excerpt(text)}")
+    return out
 
 
 def checked_by(check):
@@ -139,7 +183,8 @@ def parameter_options(p: argparse.ArgumentParser) -> None:
                         "like j2.alpha or patterns like '*.theta' and 'j2.*' (default geometric)")
     p.add_argument("--known", type=names, default=(), help="families, names or patterns held at the model's "
                                                            "values, e.g. base,markers")
-    p.add_argument("--tol", type=positive, default=1e-6, help="identifiability tolerance (default 1e-6)")
+    p.add_argument("--tol", type=tolerance, default=1e-6, help="identifiability tolerance, between 0 and 1 "
+                                                                "(default 1e-6)")
 
 
 def read_data(args, model, path):
@@ -165,11 +210,11 @@ def report_module():
 
 
 def refuse_existing(paths, force: bool) -> None:
-    """Fail before the work, not after it, when outputs exist."""
-    if not force:
-        for p in paths:
-            if Path(p).exists():
-                raise InputError("exists; pass --force to overwrite", source=str(p))
+    """Fail before the work, not after it, when an output exists (without ``force``) or cannot be
+    written (its folder is read-only, a file, ...)."""
+    from .._files.text import check_writable
+
+    check_writable(paths, force=force)
 
 
 def write_outputs(files: dict, *, force: bool, report=None) -> None:
