@@ -75,15 +75,16 @@ def _kind_groups(kinds: np.ndarray) -> dict:
     return {str(n): names == n for n in dict.fromkeys(names)}
 
 
-def _unabsorbed(v: np.ndarray, N: np.ndarray) -> float:
-    """The relative norm of ``v`` outside the span of the columns of ``N``."""
-    nv = np.linalg.norm(v)
-    if nv == 0:
+def _unabsorbed(v: np.ndarray, N: np.ndarray, ref: float) -> float:
+    """The norm of ``v`` outside the span of the columns of ``N``, relative to ``ref`` (the size of
+    the direction's effect on the marker positions: a ball bar sees a rotation of the whole robot
+    as round-off, not as zero)."""
+    if ref == 0:
         return 0.0
     if N.shape[1] == 0:
-        return 1.0
+        return float(np.linalg.norm(v) / ref)
     c = np.linalg.lstsq(N, v, rcond=None)[0]
-    return float(np.linalg.norm(v - N @ c) / nv)
+    return float(np.linalg.norm(v - N @ c) / ref)
 
 
 def _unreachable(problem: ContactProblem, p: np.ndarray) -> tuple[Unreachable, ...]:
@@ -91,16 +92,22 @@ def _unreachable(problem: ContactProblem, p: np.ndarray) -> tuple[Unreachable, .
     lay = parameter_layout(problem.model)
     base = tuple(n for n in lay.names if lay[n].role == "base")
     lengths = tuple(n for n in lay.names if lay[n].quantity == "length" and lay[n].role != "base")
-    J = problem.at_contact().over(base + lengths).jacobian(p)
+    met = problem.at_contact().over(base + lengths)
+    J = met.jacobian(p)
     N = J[:, len(base) + len(lengths):]
     N = N / np.maximum(np.linalg.norm(N, axis=0), 1e-300)
+    # the effect on the marker positions, in the rows' weights: what "absorbed" is relative to
+    k = len(base) + len(lengths)
+    Jm = (met.marker_jacobian(p[:met.n_robot]) / met.contacts.sigma[:, None, None]).reshape(-1, k)
+    Jm = np.vstack([J[:int(np.sum(met.row_kinds() < 2)), :k], Jm])     # tracker rows as they are
     out = []
-    hidden = [(n, _unabsorbed(J[:, i], N)) for i, n in enumerate(base)]
+    hidden = [(n, _unabsorbed(J[:, i], N, np.linalg.norm(Jm[:, i]))) for i, n in enumerate(base)]
     gone = tuple(n for n, r in hidden if r < UNREACHABLE_TOL)
     if gone:
         out.append(Unreachable("base", _WHY["base"], gone, max(r for n, r in hidden if n in gone)))
-    scale = J[:, len(base):len(base) + len(lengths)] @ p[lay.indices(lengths)]
-    r = _unabsorbed(scale, N)
+    v = p[lay.indices(lengths)]
+    scale = J[:, len(base):len(base) + len(lengths)] @ v
+    r = _unabsorbed(scale, N, np.linalg.norm(Jm[:, len(base):] @ v))
     if r < UNREACHABLE_TOL:
         out.append(Unreachable("scale", _WHY["scale"], lengths, r))
     return tuple(out)

@@ -21,7 +21,7 @@ from ._problem import random_configurations, sampling_box
 # a 3-socket plate (m, in the plate's frame): spacings of 200, 150 and 250 mm
 PLATE = {"A": (0.0, 0.0, 0.0), "B": (0.2, 0.0, 0.0), "C": (0.0, 0.15, 0.0)}
 # where plates and planes are put: a box in front of a 7-joint arm of about 0.8 m reach (m, in W)
-WORK_BOX = ((0.35, -0.35, 0.05), (0.6, 0.35, 0.45))
+WORK_BOX = ((0.45, -0.35, 0.05), (0.65, 0.35, 0.45))
 
 
 def _joint_jacobian(model: RobotModel, q: np.ndarray, marker: int) -> tuple[np.ndarray, np.ndarray]:
@@ -33,7 +33,7 @@ def _joint_jacobian(model: RobotModel, q: np.ndarray, marker: int) -> tuple[np.n
     return ev.positions[:, marker], ev.jacobian[:, marker, :3] @ model.coupling_matrix
 
 
-def reach(model: RobotModel, targets, *, marker: int = 0, rng=None, tol: float = 1e-10, max_rounds: int = 20):
+def reach(model: RobotModel, targets, *, marker: int = 0, rng=None, tol: float = 1e-10, max_rounds: int = 40):
     """Readings (N, n_joints) within the joint limits that put ``marker`` on each of ``targets`` (N, 3),
     each from its own random start (damped least squares). Targets no start reaches raise ValueError."""
     rng = np.random.default_rng(rng)
@@ -88,6 +88,7 @@ def socket_campaign(true: RobotModel, *, placements: int = 3, poses_per_socket: 
     rng = np.random.default_rng(rng)
     names = tuple(plate)
     local = np.array([plate[s] for s in names])
+    local = local - local.mean(axis=0)           # the plate's centre where the placement puts it
     rows_q, target, placement, sig = [], [], [], []
     for k, (origin, R) in enumerate(plate_placements(placements, rng)):
         pts = origin + local @ R.T
@@ -129,13 +130,18 @@ def plane_campaign(true: RobotModel, *, planes: int = 4, poses_per_plane: int = 
                     joint_names=true.joint_names, source="simulated")
 
 
-def bar_campaign(true: RobotModel, *, pairs: int = 60, length: float = 0.3, length_sigma: float = 2e-6,
+def bar_campaign(true: RobotModel, *, pairs: int = 60, length: float = 0.2, length_sigma: float = 2e-6,
                  joint_noise: float = 2e-5, seat_noise: float = 5e-6, marker: int = 0, rng=None) -> Contacts:
     """``pairs`` ball-bar measurements: the marker at two poses ``length`` (m) apart, ends in the work box."""
     rng = np.random.default_rng(rng)
-    a = rng.uniform(WORK_BOX[0], WORK_BOX[1], (pairs, 3))
-    u = rng.normal(size=(pairs, 3))
-    b = a + length * u / np.linalg.norm(u, axis=1, keepdims=True)
+    lo, hi = np.asarray(WORK_BOX[0]), np.asarray(WORK_BOX[1])
+    a, b = np.zeros((0, 3)), np.zeros((0, 3))
+    while len(a) < pairs:    # both ends in the work box
+        a1 = rng.uniform(lo, hi, (pairs, 3))
+        u = rng.normal(size=(pairs, 3))
+        b1 = a1 + length * u / np.linalg.norm(u, axis=1, keepdims=True)
+        inside = np.all((b1 >= lo) & (b1 <= hi), axis=1)
+        a, b = np.vstack([a, a1[inside]])[:pairs], np.vstack([b, b1[inside]])[:pairs]
     ends = np.empty((2 * pairs, 3))
     ends[0::2], ends[1::2] = a, b
     q = reach(true, ends + rng.normal(0.0, seat_noise, ends.shape), marker=marker, rng=rng)

@@ -256,7 +256,7 @@ class ContactProblem:
     def n_rows(self) -> int:
         return len(self.row_kinds())
 
-    def _marker_jacobian(self, p_robot: np.ndarray) -> np.ndarray:
+    def marker_jacobian(self, p_robot: np.ndarray) -> np.ndarray:
         """(n_rows, 3, n_free_robot) the position Jacobian of each contact row's marker."""
         st = self._state(p_robot)
         out = np.zeros((len(self.marker_idx), 3, len(self.robot_idx)))
@@ -278,7 +278,7 @@ class ContactProblem:
 
     def _contact_jacobian(self, p: np.ndarray, k: int, nn: int) -> list[np.ndarray]:
         c = self.contacts
-        Jm = self._marker_jacobian(p[:self.n_robot])
+        Jm = self.marker_jacobian(p[:self.n_robot])
         P = self.positions(p)
         nu = p[self.n_robot:]
         blocks = []
