@@ -195,3 +195,64 @@ def test_contacts_refuse_bad_input(edit, words):
         rc.Contacts(**{**base, **edit})
     for w in words:
         assert w in str(e.value)
+
+
+# -- the contact file and the command line ----------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def small_session(arm7, tmp_path_factory):
+    """A simulated kit session written as a contact file: 4 placements, 10 poses per socket."""
+    from robocal.io import write_contacts
+
+    true = rc.perturb_model(arm7, rc.identifiability(arm7, parameters=("frames", "markers")).identified, rng=7)
+    c = socket_campaign(true, placements=4, poses_per_socket=10, joint_noise=ENCODER, rng=7)
+    path = tmp_path_factory.mktemp("kit") / "sockets.csv"
+    write_contacts(c, path, arm7)
+    return true, c, path
+
+
+def test_the_contact_file_reads_back_what_was_written(arm7, small_session):
+    _, c, path = small_session
+    back = rc.io.read_contacts(path, arm7)
+    np.testing.assert_allclose(back.q, c.q, atol=1e-10)
+    np.testing.assert_allclose(back.sigma, c.sigma, rtol=1e-5)
+    assert back.target == c.target and back.placement == c.placement and back.kind == c.kind
+    assert [(d.a, d.b) for d in back.distances] == [(d.a, d.b) for d in c.distances]
+    np.testing.assert_allclose([d.length for d in back.distances], [d.length for d in c.distances], rtol=1e-9)
+
+
+@pytest.mark.parametrize("edit, words", [
+    (lambda t: t.replace("# units: length=mm angle=deg\n", ""), ["units directive"]),
+    (lambda t: t.replace("angle=deg", "angle=mm"), ["unknown angle unit 'mm'"]),
+    (lambda t: t.replace("P1,A,socket", "P1,A,sockett", 1), ["line 7", "kind 'sockett'"]),
+    (lambda t: t.replace("# distance: A B", "# distance: A Z", 1), ["socket 'Z'"]),
+    (lambda t: t.replace(",j3,", ",j33,"), ["column 'j3' is missing"]),
+    (lambda t: t.replace("# distance: A B 200.000000", "# distance: A B -200", 1), ["line 3", "length must be positive"]),
+])
+def test_bad_contact_files_are_refused_in_one_line(cli, arm7, small_session, tmp_path, edit, words):
+    from conftest import assert_one_line_error
+
+    _, _, path = small_session
+    bad = tmp_path / "bad.csv"
+    bad.write_text(edit(path.read_text()))
+    code, _, err = cli("calibrate", ARM7, "--contacts", bad, "--out", tmp_path / "run")
+    assert_one_line_error(code, err, [str(bad)] + words, tmp_path / "run")
+
+
+def test_the_command_line_calibrates_from_contacts_alone_and_next_to_a_tracker_file(cli, arm7, small_session,
+                                                                                      tmp_path):
+    true, _, path = small_session
+    code, out, err = cli("calibrate", ARM7, "--contacts", path, "--out", tmp_path / "a", "--holdout-placement", "P4")
+    assert code == 0, err
+    assert "held-out socket spread" in out and "unreachable: base" in out and "verdict: PASS" in out
+    written = rc.read_model(tmp_path / "a" / "calibrated.yaml")
+    assert rc.parameter_vector(written).shape == rc.parameter_vector(arm7).shape
+    result = __import__("json").loads((tmp_path / "a" / "contacts-result.json").read_text())
+    assert [u["name"] for u in result["unreachable"]] == ["base"] and result["verdict"] == "pass"
+    tracker = rc.measure(true, rc.random_configurations(arm7, 15, 1), rng=1)
+    rc.write_measurements(tracker, tmp_path / "tracker.csv", model=arm7)
+    code, out, err = cli("calibrate", ARM7, tmp_path / "tracker.csv", "--contacts", path, "--out", tmp_path / "b")
+    assert code == 0, err
+    assert "tracker points after" in out and "unreachable" not in out
+    code, _, err = cli("calibrate", ARM7, "--contacts", path, "--out", tmp_path / "c", "--holdout-placement", "P9")
+    assert code == 2 and "no placement 'P9'" in err

@@ -126,7 +126,7 @@ def read_contacts(path, model: RobotModel) -> Contacts:
             facts.add(name.strip().lower(), rest.strip(), source, f"line {i + 1}")
     else:
         raise InputError("no header row", source=source)
-    if "angle" not in facts.units and any(f.joint == "revolute" for f in model.frames):
+    if "angle" not in facts.units and "angle" in model.reading_quantities:
         raise InputError("the units directive must give the angle unit of the joint readings "
                          "('# units: length=mm angle=deg')", source=source)
     rows = list(csv.reader(io.StringIO("\n".join(lines[body_start:]))))
@@ -153,8 +153,8 @@ def _columns(header, model: RobotModel, facts: _Facts, source: str) -> dict:
 
 def _rows(rows, header, first_line, model: RobotModel, facts: _Facts, source: str, digest: str) -> Contacts:
     col = _columns(header, model, facts, source)
-    scale = np.array([facts.units.get("angle", 1.0) if f.joint == "revolute" else facts.units["length"]
-                      for f in _joint_frames(model)])
+    scale = np.array([facts.units.get("angle", 1.0) if k == "angle" else facts.units["length"]
+                      for k in model.reading_quantities])
     q, marker, kind, target, placement, sigma, labels = [], [], [], [], [], [], []
     for k, row in enumerate(rows):
         line = first_line + 1 + k
@@ -188,14 +188,6 @@ def _rows(rows, header, first_line, model: RobotModel, facts: _Facts, source: st
                     labels=tuple(labels), source=source, sha256=digest)
 
 
-def _joint_frames(model: RobotModel):
-    """The frame each joint reading moves (its unit follows that frame's joint type)."""
-    out = []
-    for j in range(model.n_joints):
-        out.append(next(f for f in model.frames if any(jj == j for jj, _ in f.coupling)))
-    return out
-
-
 def _known_targets(facts: _Facts, kind, target, source: str) -> None:
     """Every directive names something the rows touch."""
     touched = {k: {t for kk, t in zip(kind, target) if kk == k} for k in CONTACT_KINDS}
@@ -218,7 +210,7 @@ def contacts_to_csv(contacts: Contacts, model: RobotModel, *, units: str = "mm-d
 
     f = unit_factors(units)
     length, angle = units.split("-")
-    scale = np.array([f["angle"] if fr.joint == "revolute" else f["length"] for fr in _joint_frames(model)])
+    scale = np.array([f[k] for k in model.reading_quantities])
     out = ["# robocal contacts", f"# units: length={length} angle={angle}"]
     out += [f"# distance: {d.a} {d.b} {d.length / f['length']:.6f} sigma={d.sigma / f['length']:.6g}"
             for d in contacts.distances]
