@@ -18,13 +18,13 @@ from ._calibration import ErrorStats, ParameterEstimate, error_stats
 from ._checks import (Check, contact_fit_check, convergence_check, correlation_check, fit_check, outlier_check,
                       plausibility_check, tolerances, verdict)
 from ._contacts import Contacts
-from ._errors import DegenerateDataError, InputError
+from ._errors import DegenerateDataError, InputError, check_choice
 from ._identifiability import DEFAULT_TOL, Absorption, IdentifiabilityResult, analyse
 from ._kinematics import evaluate
 from ._measurements import Measurements, Noise
 from ._model import RobotModel
 from ._observations import ROW_KINDS, ContactProblem
-from ._options import DEFAULT_INSTRUMENT
+from ._options import DEFAULT_INSTRUMENT, OUTLIER_ACTIONS
 from ._parameters import candidate_parameters, model_from_vector, parameter_layout
 from ._problem import needs_compliance
 from ._solve import covariance, solve
@@ -241,14 +241,17 @@ def _check_inputs(model: RobotModel, contacts: Contacts, data, validation) -> No
 
 def calibrate_contacts(model: RobotModel, contacts: Contacts, *, data: Measurements | None = None,
                        validation: Contacts | None = None, parameters=("geometric",), known=(), noise=None,
-                       tol: float = DEFAULT_TOL, loss: str = "linear", max_nfev: int | None = None
-                       ) -> ContactCalibration:
+                       tol: float = DEFAULT_TOL, loss: str = "linear", max_nfev: int | None = None,
+                       on_outliers: str = "refit") -> ContactCalibration:
     """Identify the parameters of ``model`` that ``contacts`` (and tracker ``data``, if given) reach.
 
     ``parameters``/``known`` as for ``calibrate``; ``validation``: held-out contacts (e.g. a
     placement) judged with the calibrated model; ``noise`` weighs tracker rows that state no
     deviation (a ``Noise`` or an instrument class). Each contact row weighs by its stated deviation.
+    ``on_outliers``: ``"refit"`` refits with the robust loss soft_l1 when rows stand out (every row
+    is in its own standard deviations, so one bend serves every kind), ``"flag"`` only names them.
     """
+    check_choice(on_outliers, OUTLIER_ACTIONS, "on_outliers")
     noise = noise if isinstance(noise, Noise) else Noise.of(noise or DEFAULT_INSTRUMENT)
     _check_inputs(model, contacts, data, validation)
     names = candidate_parameters(model, parameters if not isinstance(parameters, str) else (parameters,),
@@ -260,7 +263,7 @@ def calibrate_contacts(model: RobotModel, contacts: Contacts, *, data: Measureme
     if not ident.identified or design.n_rows <= len(design.free_idx):
         raise DegenerateDataError(f"{design.n_rows} equations for {len(ident.identified)} identifiable robot "
                                   f"parameters and {prob.n_nuisance} unknowns of points and planes")
-    sol = solve(design, p0, loss=loss, max_nfev=max_nfev)
+    sol, checks, ratios = _solve(design, p0, data, noise, loss=loss, max_nfev=max_nfev, on_outliers=on_outliers)
     cov = covariance(sol)
     k = len(ident.identified)
     lay = parameter_layout(model)
@@ -268,7 +271,8 @@ def calibrate_contacts(model: RobotModel, contacts: Contacts, *, data: Measureme
                                         float(cov.std[i]), family=lay[n].family, quantity=lay[n].quantity)
                       for i, n in enumerate(ident.identified))
     calibrated = model_from_vector(model, sol.p[:prob.n_robot])
-    checks, ratios = _checks(design, sol, estimates, cov.correlation[:k, :k], data, noise, model)
+    checks += [plausibility_check(estimates, tolerances(model), {}),
+               correlation_check([e.name for e in estimates], cov.correlation[:k, :k])]
     tracker = None
     if data is not None:
         tracker = error_stats(design.tracker.error_norms(sol.p[:prob.n_robot]))
@@ -283,16 +287,34 @@ def calibrate_contacts(model: RobotModel, contacts: Contacts, *, data: Measureme
         nfev=sol.nfev)
 
 
-def _checks(design: ContactProblem, sol, estimates, corr, data, noise: Noise, model: RobotModel):
-    """Convergence, then each kind of row on its own (fit and outliers), then the estimates."""
+def _solve(design: ContactProblem, p0, data, noise: Noise, *, loss: str, max_nfev, on_outliers: str):
+    """The solution, the checks of its rows and each kind's residual ratio; a linear fit that leaves
+    outliers is refitted with a robust loss when ``on_outliers`` is "refit"."""
+    sol = solve(design, p0, loss=loss, max_nfev=max_nfev)
+    checks, ratios, outlying = _row_checks(design, sol, data, noise)
+    if not (outlying and loss == "linear" and on_outliers == "refit"):
+        return sol, checks, ratios
+    sol = solve(design, p0, loss="soft_l1", max_nfev=max_nfev)
+    checks, ratios, _ = _row_checks(design, sol, data, noise)
+    said = f"; the robust loss {sol.loss} sets them aside"
+    return sol, [replace(c, status="warn", summary=c.summary + said, fix="check those rows; remove them to fit "
+                         "without them") if c.name.startswith("outliers") and c.status == "fail" else c
+                 for c in checks], ratios
+
+
+def _row_checks(design: ContactProblem, sol, data, noise: Noise):
+    """Convergence, then each kind of row on its own (outliers and fit), each kind's RMS residual in
+    stated deviations, and whether any row stands out."""
     checks = [convergence_check(sol.success, sol.message, sol.nfev)]
     ratios = {}
+    outlying = False
     labels = design.contact_labels()
     for kind, (r, s) in design.contact_errors(sol.p).items():
         if not len(s):
             continue
         r2 = np.reshape(r, (len(s), -1))
         out_check, out = outlier_check(r2, s, noise, labels[kind])
+        outlying |= bool(out.any())
         checks += [replace(out_check, name=f"outliers among the {kind} contacts"),
                    contact_fit_check(kind, r2, s, out)]
         ratios[kind] = float(np.sqrt(np.mean((r2 / s[:, None]) ** 2)))
@@ -302,9 +324,8 @@ def _checks(design: ContactProblem, sol, estimates, corr, data, noise: Noise, mo
         rows, markers = np.nonzero(data.mask)
         out_check, out = outlier_check(residuals, sigma, noise, [f"{data.labels[i]}, marker {data.marker_names[j]}"
                                                                  for i, j in zip(rows, markers)])
+        outlying |= bool(out.any())
         checks += [out_check, fit_check(residuals, sigma, noise, None, out)]
         ratios["tracker"] = float(np.sqrt(np.mean((residuals / (noise.position if sigma is None else
                                                                  sigma[:, None])) ** 2)))
-    checks += [plausibility_check(estimates, tolerances(model), {}),
-               correlation_check([e.name for e in estimates], corr)]
-    return checks, ratios
+    return checks, ratios, outlying

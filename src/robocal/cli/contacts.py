@@ -65,7 +65,7 @@ def run(args) -> int:
     try:
         result = calibrate_contacts(model, contacts, data=data, validation=validation,
                                     parameters=args.parameters or ("geometric",), known=args.known, noise=noise,
-                                    tol=args.tol, loss=args.loss)
+                                    tol=args.tol, loss=args.loss, on_outliers=args.on_outliers)
     except DegenerateDataError as e:
         raise DegenerateDataError(f"{args.contacts}: {e}") from None
     print(contact_summary(result))
