@@ -66,7 +66,8 @@ def met_readings(model: RobotModel, contacts: Contacts, marker_idx: np.ndarray, 
         P = evaluate(model, q).positions[rows, marker_idx]
         J = np.stack([(evaluate(model, q + h * e).positions[rows, marker_idx] - P) / h
                       for e in np.eye(model.n_joints)], axis=2)
-        q = q + (J.transpose(0, 2, 1) @ np.linalg.solve(J @ J.transpose(0, 2, 1), (T - P)[..., None]))[..., 0]
+        JJt = J @ J.transpose(0, 2, 1) + 1e-12 * np.eye(3)      # damped: a pose near a singularity stays put
+        q = q + (J.transpose(0, 2, 1) @ np.linalg.solve(JJt, (T - P)[..., None]))[..., 0]
     return q
 
 
