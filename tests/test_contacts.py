@@ -105,6 +105,7 @@ def test_sockets_with_known_spacing_recover_the_arm_and_the_held_out_spread(arm7
     assert not any(n.startswith("base.") for n in ident.identified)
     # the spacing alone identifies nothing, but with the sockets it fixes the scale
     assert ident.contributions["distance"] == () and ident.together
+    assert len(ident.lost_without["distance"]) == 1 and ident.lost_without["socket"] == ident.identified
     noise_alone = contact_errors(true, val).mean_spread
     assert res.validation_before.mean_spread > 50 * noise_alone
     assert res.validation_after.mean_spread < 1.2 * noise_alone

@@ -10,7 +10,7 @@ bar, and the distance of plane contacts to their plane, before and after, fitted
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -58,8 +58,8 @@ class ContactIdentifiability:
     """The analysis over the union of the kinds. ``analysis`` holds nuisance and robot columns
     (nuisance first: what they absorb is eliminated from the robot); ``identified``/``eliminated``
     are the robot's; ``contributions`` maps each kind present to the robot parameters its rows
-    identify alone; ``together`` those only the kinds together identify; ``unreachable`` the
-    directions no kind reaches."""
+    identify alone, ``lost_without`` to those the others cannot identify without it; ``together``
+    those only the kinds together identify; ``unreachable`` the directions no kind reaches."""
 
     analysis: IdentifiabilityResult
     identified: tuple[str, ...]
@@ -67,6 +67,7 @@ class ContactIdentifiability:
     contributions: dict
     together: tuple[str, ...]
     unreachable: tuple[Unreachable, ...]
+    lost_without: dict = field(default_factory=dict)
 
 
 def _kind_groups(kinds: np.ndarray) -> dict:
@@ -129,15 +130,19 @@ def contact_identifiability(problem: ContactProblem, names, *, tol: float = DEFA
     result = analyse(J[:, order], all_names, quantities=quantities, tol=tol)
     robot = set(names)
     identified = tuple(n for n in result.identified if n in robot)
-    contributions = {}
-    for kind, rows in _kind_groups(prob.row_kinds()).items():
+    contributions, lost = {}, {}
+    groups = _kind_groups(prob.row_kinds())
+    for kind, rows in groups.items():
         alone = analyse(J[rows][:, order], all_names, quantities=quantities, tol=tol)
         contributions[kind] = tuple(n for n in alone.identified if n in robot)
+        if len(groups) > 1:
+            rest = set(analyse(J[~rows][:, order], all_names, quantities=quantities, tol=tol).identified)
+            lost[kind] = tuple(n for n in identified if n not in rest)
     seen = set().union(*contributions.values()) if contributions else set()
     return ContactIdentifiability(
         analysis=result, identified=identified, eliminated=tuple(a for a in result.eliminated if a.name in robot),
         contributions=contributions, together=tuple(n for n in identified if n not in seen),
-        unreachable=_unreachable(problem, p))
+        unreachable=_unreachable(problem, p), lost_without=lost)
 
 
 @dataclass(frozen=True, eq=False)

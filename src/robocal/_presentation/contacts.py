@@ -40,7 +40,9 @@ def contact_summary(result) -> str:
         lines.append(f"  tracker points after: {_mm(result.tracker_after.rms)} RMS over {result.tracker_after.n}")
     lines.append(f"identified {len(ident.identified)} parameters; each kind alone identifies:")
     for kind, names in ident.contributions.items():
-        lines.append(f"  {kind}: {len(names)}")
+        lost = ident.lost_without.get(kind)
+        lines.append(f"  {kind}: {len(names)}" + ("" if lost is None else
+                     f"; without it {len(lost)} fewer" + (f" ({', '.join(lost)})" if lost else "")))
     if ident.together:
         lines.append(f"  only the kinds together: {', '.join(ident.together)}")
     for u in ident.unreachable:
