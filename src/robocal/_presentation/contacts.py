@@ -8,6 +8,10 @@ import numpy as np
 from .units import with_unit
 
 
+def _listed(names, n: int = 6) -> str:
+    return ", ".join(names[:n]) + (f", ... ({len(names) - n} more)" if len(names) > n else "")
+
+
 def _mm(v) -> str:
     return "–" if v is None else with_unit(v, "m")
 
@@ -42,7 +46,7 @@ def contact_summary(result) -> str:
     for kind, names in ident.contributions.items():
         lost = ident.lost_without.get(kind)
         lines.append(f"  {kind}: {len(names)}" + ("" if lost is None else
-                     f"; without it {len(lost)} fewer" + (f" ({', '.join(lost)})" if lost else "")))
+                     f"; without it {len(lost)} fewer" + (f" ({_listed(lost)})" if lost else "")))
     if ident.together:
         lines.append(f"  only the kinds together: {', '.join(ident.together)}")
     for u in ident.unreachable:
