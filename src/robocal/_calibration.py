@@ -32,6 +32,7 @@ from ._model import RobotModel
 from ._parameters import candidate_parameters, matched_by_pattern, model_from_vector, parameter_layout, parameter_vector
 from ._problem import Problem, needs_compliance
 from ._solve import Covariance, Solution, covariance, solve
+from ._threads import one_blas_thread
 from ._version import __version__
 
 # the limit is a mean-error bar; within this factor of it counts as reaching it
@@ -213,6 +214,7 @@ class _Design:
     weak_kept: bool = False
 
 
+@one_blas_thread
 def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",), known=(),
               validation: Measurements | None = None, loss: str = "linear", f_scale: float | None = None,
               tol: float = DEFAULT_TOL, max_nfev: int | None = None, initial_base: str = "model",
@@ -581,6 +583,7 @@ class Comparison:
         return self.combined if self.helped else self.geometric
 
 
+@one_blas_thread
 def compare(model: RobotModel, data: Measurements, *, validation: Measurements | None = None, alpha: float = 0.01,
             **kwargs) -> Comparison:
     """Run geometric and geometric-plus-compliance identifications on the same data (the paper's two).

@@ -20,6 +20,7 @@ from ._measurements import Measurements
 from ._model import RobotModel
 from ._parameters import FRAME_KINDS, candidate_parameters, parameter_layout, parameter_vector
 from ._problem import Problem, design_measurements, needs_compliance, random_configurations
+from ._threads import one_blas_thread
 
 DEFAULT_TOL = 1e-6
 NO_EFFECT = 1e-10
@@ -103,6 +104,7 @@ def reduced(A: np.ndarray) -> np.ndarray:
     return A
 
 
+@one_blas_thread
 def analyse(J: np.ndarray, names, *, quantities=None, tol: float = DEFAULT_TOL, max_terms: int = 6,
             n_rows: int | None = None) -> IdentifiabilityResult:
     """Identifiability of the columns of ``J`` (n_rows, n_candidates) named ``names``, in preference order.
@@ -208,6 +210,7 @@ def _observability(s: np.ndarray, m: int) -> tuple[dict, float]:
     return {k: 0.0 for k in ("O1", "O2", "O3", "O4", "O5")}, float("inf")
 
 
+@one_blas_thread
 def identifiability(model: RobotModel, data: Measurements | np.ndarray | None = None, *,
                     parameters=("geometric",), known=(), orientation: bool | None = None,
                     tol: float = DEFAULT_TOL, n_random: int = 200, rng=0, markers=None) -> IdentifiabilityResult:

@@ -31,6 +31,7 @@ from ._measurements import approach_sides
 from ._model import RobotModel
 from ._parameters import BASE_KINDS, MARKER_KINDS, parameter_layout, parameter_vector
 from ._spatial import cross, rot_matrix, small_rotation
+from ._threads import one_blas_thread
 
 N_BASE = len(BASE_KINDS)
 N_MARKER = len(MARKER_KINDS)
@@ -112,36 +113,14 @@ def layout(model: RobotModel) -> Layout:
             ancestors[i] |= ancestors[f.parent]
     subtree = ancestors.T.copy()  # [i, k]: k in subtree of i
 
-    def frame_steps(i):
-        return np.arange(N_BASE + 7 * i, N_BASE + 7 * i + 7)
-
     marker_path = np.zeros((nm, n_steps), dtype=bool)
     for m, mk in enumerate(model.markers):
         marker_path[m, :N_BASE] = True
         for k in np.nonzero(ancestors[mk.frame])[0]:
-            marker_path[m, frame_steps(k)] = True
+            marker_path[m, _frame_steps(k)] = True
         s0 = N_BASE + 7 * nf + N_MARKER * m
         marker_path[m, s0:s0 + N_MARKER] = True
-
-    csteps, cparams = [], []
-    anc = np.zeros((3 * nf, n_steps), dtype=bool)
-    desc = np.zeros((3 * nf, n_steps), dtype=bool)
-    for i in range(nf):
-        for c, (off, koff) in enumerate(COMPLIANT):
-            row = 3 * i + c
-            s = N_BASE + 7 * i + off
-            csteps.append(s)
-            cparams.append(frame0[i] + koff)
-            anc[row, :N_BASE] = True
-            for k in np.nonzero(ancestors[i])[0]:
-                if k != i:
-                    anc[row, frame_steps(k)] = True
-            own = frame_steps(i)
-            anc[row, own[own <= s]] = True
-            desc[row, own[own > s]] = True
-            for k in np.nonzero(subtree[i])[0]:
-                if k != i:
-                    desc[row, frame_steps(k)] = True
+    csteps, cparams, anc, desc = _compliant_rows(frame0, ancestors, n_steps)
     param_step = np.full(len(names), -1, dtype=int)
     param_step[step_param] = np.arange(n_steps)
     param_compliant = np.full(len(names), -1, dtype=int)
@@ -164,6 +143,37 @@ def layout(model: RobotModel) -> Layout:
         compliant_steps=np.array(csteps, dtype=int), compliant_params=np.array(cparams, dtype=int),
         anc=anc, desc=desc, subtree=subtree,
     )
+
+
+def _frame_steps(i: int) -> np.ndarray:
+    return np.arange(N_BASE + 7 * i, N_BASE + 7 * i + 7)
+
+
+def _compliant_rows(frame0: list, ancestors: np.ndarray, n_steps: int):
+    """Per compliant step (theta, alpha, beta of each frame): its step and compliance indices, and
+    which steps are proximal (``anc``) and distal (``desc``) to it, (3 n_frames, n_steps) each."""
+    nf = len(frame0)
+    subtree = ancestors.T
+    csteps, cparams = [], []
+    anc = np.zeros((3 * nf, n_steps), dtype=bool)
+    desc = np.zeros((3 * nf, n_steps), dtype=bool)
+    for i in range(nf):
+        for c, (off, koff) in enumerate(COMPLIANT):
+            row = 3 * i + c
+            s = N_BASE + 7 * i + off
+            csteps.append(s)
+            cparams.append(frame0[i] + koff)
+            anc[row, :N_BASE] = True
+            for k in np.nonzero(ancestors[i])[0]:
+                if k != i:
+                    anc[row, _frame_steps(k)] = True
+            own = _frame_steps(i)
+            anc[row, own[own <= s]] = True
+            desc[row, own[own > s]] = True
+            for k in np.nonzero(subtree[i])[0]:
+                if k != i:
+                    desc[row, _frame_steps(k)] = True
+    return csteps, cparams, anc, desc
 
 
 @dataclass
@@ -864,6 +874,7 @@ def _block(mask: np.ndarray) -> slice | None:
     return None
 
 
+@one_blas_thread
 def evaluate(model: RobotModel, q: np.ndarray, p: np.ndarray | None = None, *, jacobian: bool = False,
              orientations: bool = False, compliance: bool | None = None, payload_mass=None,
              frames: bool = False, columns=None, backlash: bool | None = None, approach=None) -> Evaluation:
@@ -910,6 +921,7 @@ def evaluate(model: RobotModel, q: np.ndarray, p: np.ndarray | None = None, *, j
                       moments=None if st.M is None else st.M.T, frames=frames_out)
 
 
+@one_blas_thread
 def gravity_loads(model: RobotModel, q, *, payload_mass=None) -> np.ndarray:
     """Generalised gravity force on each joint (N, n_joints): N m for revolute, N for prismatic.
 

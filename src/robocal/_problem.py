@@ -17,6 +17,7 @@ from ._kinematics import evaluate_state, frame_approach, jacobian_columns, layou
 from ._measurements import Measurements, Noise, approach_of
 from ._model import RobotModel
 from ._parameters import has_backlash_parameters, has_compliance_parameters
+from ._threads import one_blas_thread
 
 
 class Problem:
@@ -121,6 +122,7 @@ class Problem:
         Rm = self.data.rotations[s, j]
         return Rotation.from_matrix(Rp @ np.swapaxes(Rm, -1, -2)).as_rotvec()
 
+    @one_blas_thread
     def residuals(self, p) -> np.ndarray:
         st = self._state(p)
         parts = [((st.ps.P[m][s] - meas) * w[:, None]).ravel()
@@ -136,6 +138,7 @@ class Problem:
         st = self._state(p)
         return np.concatenate([self._rotation_errors(st, j) for j in range(len(self.sel_r))])
 
+    @one_blas_thread
     def jacobian(self, p) -> np.ndarray:
         """Weighted Jacobian of ``residuals`` over the free parameters: (n_rows, n_free), column-major."""
         st = self._state(p)
@@ -169,6 +172,7 @@ class Problem:
         names = self.lay.names
         return {names[k]: st.backlash.sides[:, i] for i, k in enumerate(self.lay.backlash_params) if k >= 0}
 
+    @one_blas_thread
     def pose_blocks(self, p) -> np.ndarray:
         """(n_poses, rows_per_pose, n_free) unweighted Jacobian grouped by pose (all markers seen)."""
         st = self._state(p)

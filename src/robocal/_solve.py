@@ -14,6 +14,7 @@ from ._errors import DegenerateDataError, check_choice
 from ._identifiability import singular_values
 from ._options import LOSSES
 from ._problem import Problem
+from ._threads import one_blas_thread
 
 # least_squares' step, cost and gradient tolerances: Gauss-Newton converges quadratically here, so
 # the step that meets them leaves an error far below them (noise-free recovery is ~1e-16)
@@ -40,6 +41,7 @@ class Solution:
     row_kinds: np.ndarray | None = None
 
 
+@one_blas_thread
 def solve(problem: Problem, p0: np.ndarray, *, loss: str = "linear", f_scale: float | None = None,
           max_nfev: int | None = None, lower: np.ndarray | None = None) -> Solution:
     """Minimise the problem's residuals over its free parameters, starting from ``p0`` (full vector).
@@ -116,6 +118,7 @@ def robust_weights(residuals: np.ndarray, loss: str, f_scale: float) -> np.ndarr
     return np.ones_like(z)
 
 
+@one_blas_thread
 def covariance(solution: Solution) -> Covariance:
     """The estimates' covariance at the solution.
 
