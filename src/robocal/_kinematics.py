@@ -184,7 +184,8 @@ class _Pass:
     R: np.ndarray    # (n_frames, N, 3, 3) rotations R_W<frame>
     O: np.ndarray    # (n_frames, N, 3) origins
     P: np.ndarray | None  # (n_markers, N, 3) marker positions (None for a frames-only pass)
-    W: np.ndarray    # (n_frames, N, 3, 5) per frame in W: beta axis, alpha/d axis, theta/r axis, b offset, full offset
+    W: np.ndarray    # (n_frames, N, 3, 6) per frame in W: beta axis, alpha/d axis, theta/r axis, b offset,
+    #                  full offset, and the y axis before the theta turn
     base_axes: np.ndarray  # (6, 3) axes of the base steps
     base_origin: np.ndarray  # (3,)
     base_rotation: np.ndarray  # (3, 3) frame 0 of the base, parent of the root frames
@@ -219,14 +220,23 @@ class _Pass:
 
 def _turn(R: np.ndarray, axis: int, angle, out=None) -> np.ndarray:
     """R @ Rot(axis, angle) for a stack R (N, 3, 3) and per-pose angles: mixes two columns."""
+    return _turn_columns((R[:, :, 0], R[:, :, 1], R[:, :, 2]), axis, angle, out)
+
+
+def _turn_columns(cols, axis: int, angle, out=None) -> np.ndarray:
+    """``_turn`` of the rotation whose columns (N, 3) each are ``cols``."""
     i, j = _ROT_PAIRS[axis]
-    c = np.cos(angle)[:, None]
-    s = np.sin(angle)[:, None]
-    out = np.empty(R.shape) if out is None else out
-    ri, rj = R[:, :, i], R[:, :, j]
-    out[:, :, i] = ri * c + rj * s
-    out[:, :, j] = rj * c - ri * s
-    out[:, :, axis] = R[:, :, axis]
+    c = np.cos(angle)
+    s = np.sin(angle)
+    out = np.empty(cols[0].shape[:1] + (3, 3)) if out is None else out
+    # (3, N) views: numpy's inner loops then run over the poses, not over 3 components
+    ri, rj = cols[i].T, cols[j].T
+    oi, oj = out[:, :, i].T, out[:, :, j].T
+    np.multiply(ri, c, out=oi)
+    oi += rj * s
+    np.multiply(rj, c, out=oj)
+    oj -= ri * s
+    out[:, :, axis] = cols[axis]
     return out
 
 
@@ -244,16 +254,17 @@ def kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray
     Rb_all = np.broadcast_to(Rb, (N, 3, 3))
     R_frames = np.empty((model.n_frames, N, 3, 3))
     O_frames = np.empty((model.n_frames, N, 3))
-    W_frames = np.empty((model.n_frames, N, 3, 5))
+    W_frames = np.empty((model.n_frames, N, 3, 6))
     for i, f in enumerate(model.frames):
         Rp, Op = (Rb_all, Ob) if f.parent < 0 else (R_frames[f.parent], O_frames[f.parent])
         v = p[lay.frame0[i]:lay.frame0[i] + 7]
         q = qf[:, i]
         d_th, d_al, d_be = (0.0, 0.0, 0.0) if defl is None else defl[i]
         W = W_frames[i]
-        RA = _frame_axes(Rp, v, v[BETA] + d_be, v[ALPHA] + d_al, W)
+        _frame_axes(Rp, v, v[BETA] + d_be, v[ALPHA] + d_al, W)
         th = v[THETA] + (q if f.joint == "revolute" else 0.0) + d_th
-        _turn(np.broadcast_to(RA, (N, 3, 3)), 2, np.broadcast_to(th, (N,)), out=R_frames[i])
+        # the frame before its theta turn has x along the d axis and z along the theta axis
+        _turn_columns((W[:, :, 1], W[:, :, 5], W[:, :, 2]), 2, np.broadcast_to(th, (N,)), out=R_frames[i])
         rr = v[R] + (q if f.joint == "prismatic" else 0.0)
         np.add(Op + W[:, :, 4], np.reshape(rr, (-1, 1)) * W[:, :, 2], out=O_frames[i])
     ps = _Pass(R=R_frames, O=O_frames, P=None, W=W_frames, base_axes=base_axes, base_origin=p[0:3],
@@ -274,10 +285,10 @@ def _base_placement(model: RobotModel, p: np.ndarray) -> tuple[np.ndarray, np.nd
     return base_axes, Rb
 
 
-def _frame_axes(Rp: np.ndarray, v: np.ndarray, be, al, W: np.ndarray) -> np.ndarray:
-    """Fill ``W`` (N, 3, 5) with the frame's vectors in W (beta axis, alpha/d axis, theta/r axis,
-    b offset, full offset to the theta/r origin) from its parent's rotations ``Rp`` and its values
-    ``v``; return R_W of the frame before its theta turn, (N, 3, 3) or one (3, 3)-product stack.
+def _frame_axes(Rp: np.ndarray, v: np.ndarray, be, al, W: np.ndarray) -> None:
+    """Fill ``W`` (N, 3, 6) with the frame's vectors in W (beta axis, alpha/d axis, theta/r axis,
+    b offset, full offset to the theta/r origin, y axis before the theta turn) from its parent's
+    rotations ``Rp`` and its values ``v``.
 
     ``be`` and ``al`` are scalars, or per-pose arrays where gravity deflects them."""
     N = Rp.shape[0]
@@ -286,9 +297,9 @@ def _frame_axes(Rp: np.ndarray, v: np.ndarray, be, al, W: np.ndarray) -> np.ndar
     if not np.ndim(al) and not np.ndim(be):
         Rgb = Rg @ rot_matrix(1, be)
         A = Rgb @ rot_matrix(0, al)
-        V = np.column_stack([Rg[:, 1], Rgb[:, 0], A[:, 2], bvec, bvec + Rgb[:, 0] * v[D]])
+        V = np.column_stack([Rg[:, 1], Rgb[:, 0], A[:, 2], bvec, bvec + Rgb[:, 0] * v[D], A[:, 1]])
         _rmul(Rp, V, out=W)
-        return _rmul(Rp, A)
+        return
     # per-pose deflections: turn the parent's columns pose by pose, only where they vary
     if np.ndim(be):
         RG = _rmul(Rp, Rg)
@@ -303,7 +314,7 @@ def _frame_axes(Rp: np.ndarray, v: np.ndarray, be, al, W: np.ndarray) -> np.ndar
     W[:, :, 1] = RGB[:, :, 0]
     W[:, :, 2] = RA[:, :, 2]
     W[:, :, 4] = W[:, :, 3] + v[D] * RGB[:, :, 0]
-    return RA
+    W[:, :, 5] = RA[:, :, 1]
 
 
 def _marker_positions(ps: _Pass) -> np.ndarray:
@@ -387,7 +398,7 @@ def _compliant_vectors(model: RobotModel, ps: _Pass):
     parents' origins ``Op``, component-major ((3, 3 n_frames, N) and (3, n_frames, N)), once per pass."""
     if "compliant" not in ps.cache:
         nf, N = ps.O.shape[0], ps.O.shape[1]
-        Wc = np.ascontiguousarray(ps.W.transpose(2, 0, 3, 1))        # (3, nf, 5, N)
+        Wc = np.ascontiguousarray(ps.W[..., :5].transpose(2, 0, 3, 1))        # (3, nf, 5, N)
         parent = np.array([f.parent for f in model.frames])
         Op = np.empty((3, nf, N))
         Op[:, parent >= 0] = ps.O[parent[parent >= 0]].transpose(2, 0, 1)
