@@ -140,8 +140,22 @@ class Problem:
 
     @one_blas_thread
     def jacobian(self, p) -> np.ndarray:
-        """Weighted Jacobian of ``residuals`` over the free parameters: (n_rows, n_free), column-major."""
+        """Weighted Jacobian of ``residuals`` over the free parameters: (n_rows, n_free), column-major.
+
+        Kept with the evaluation at ``p``: asked again, or for fewer parameters (the solve after
+        the analysis, at the same start), its columns are taken instead of built again."""
         st = self._state(p)
+        free = tuple(self.free_idx.tolist())
+        for have, Jt in st.cache.get("jacobians", {}).items():
+            if set(free) <= set(have):
+                where = {c: i for i, c in enumerate(have)}
+                return (Jt if free == have else Jt[[where[c] for c in free]]).T
+        Jt = self._jacobian_rows(st)
+        st.cache.setdefault("jacobians", {})[free] = Jt
+        return Jt.T
+
+    def _jacobian_rows(self, st) -> np.ndarray:
+        """(n_free, n_rows) the transposed weighted Jacobian at the evaluation ``st``."""
         rows = 6 if self.use_rot else 3
         k = len(self.free_idx)
         cols = [jacobian_columns(self.model, self.lay, st, self.free_idx, m, rows) for m in self.marker_idx]
@@ -153,8 +167,7 @@ class Problem:
                 parts.append((C[:, s, :3] * w[None, :, None]).reshape(k, -1))
         if self.use_rot:
             parts += [(C[:, s, 3:] * w[None, :, None]).reshape(k, -1) for C, s, w in zip(cols, self.sel_r, self.w_r)]
-        Jt = parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)
-        return Jt.T
+        return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)
 
     def compliance_moments(self, p) -> dict:
         """Per compliance parameter name, the gravity moments (n_poses,) it multiplies (N m), at ``p``."""
