@@ -301,12 +301,12 @@ def weakly_identifiable(J: np.ndarray, names, quantities, sigma: float, *, momen
 
 
 def eliminate(result: IdentifiabilityResult, J: np.ndarray, names, quantities, dropped: dict,
-              *, max_terms: int = 6) -> IdentifiabilityResult:
+              *, max_terms: int = 6, n_rows: int | None = None) -> IdentifiabilityResult:
     """The analysis of ``J`` (n_rows, n_candidates) with the identified parameters in ``dropped``
     (name -> reason) eliminated too: each absorbed by the least-squares combination of the
-    parameters kept."""
+    parameters kept. ``n_rows``: the rows ``J`` stands for when it is reduced (see ``analyse``)."""
     names = list(names)
-    n_rows = J.shape[0]
+    n_rows = J.shape[0] if n_rows is None else n_rows
     scale = np.linalg.norm(J, axis=0)
     scale[scale == 0] = 1.0
     J = reduced(J / scale) * scale   # the same Gram matrix in k rows, factored in unit-column scaling

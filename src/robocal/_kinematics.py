@@ -34,6 +34,10 @@ from ._spatial import cross, rot_matrix, small_rotation
 from ._threads import one_blas_thread
 
 N_BASE = len(BASE_KINDS)
+# above this many poses, what needs no Jacobian is evaluated CHUNK_POSES poses at a time (and a
+# problem of point data is solved on normal equations accumulated chunk by chunk, see _problem)
+LARGE_POSES = 50_000
+CHUNK_POSES = 10_000
 N_MARKER = len(MARKER_KINDS)
 # offsets of the geometric steps inside a frame's block (same order as FRAME_KINDS)
 GAMMA, B, BETA, ALPHA, D, THETA, R = range(7)
@@ -912,6 +916,9 @@ def evaluate(model: RobotModel, q: np.ndarray, p: np.ndarray | None = None, *, j
     if backlash is None:
         backlash = bool(np.any(p[lay.backlash_params[lay.backlash_params >= 0]] != 0.0)) or (
             jacobian and bool(np.any(lay.param_backlash[cols_idx] >= 0)))
+    if len(q) > LARGE_POSES and not (jacobian or frames or backlash):
+        return _evaluate_in_chunks(model, q, p, orientations=orientations, compliance=compliance,
+                                   payload_mass=payload_mass)
     need_or = orientations or jacobian
     st = evaluate_state(model, lay, p, qf, compliance=compliance, orientations=need_or, payload_mass=payload_mass,
                         backlash=backlash, approach=None if approach is None else frame_approach(model, approach))
@@ -930,6 +937,23 @@ def evaluate(model: RobotModel, q: np.ndarray, p: np.ndarray | None = None, *, j
             frames_out[:, i, 3, 3] = 1.0
     return Evaluation(positions=ps.P.transpose(1, 0, 2), rotations=rotations, jacobian=J,
                       moments=None if st.M is None else st.M.T, frames=frames_out)
+
+
+def _evaluate_in_chunks(model: RobotModel, q: np.ndarray, p: np.ndarray, *, orientations: bool, compliance: bool,
+                        payload_mass) -> Evaluation:
+    """``evaluate`` of positions (and orientations, moments) ``CHUNK_POSES`` poses at a time: the
+    per-frame arrays of one chunk are held at a time."""
+    parts = []
+    for a in range(0, len(q), CHUNK_POSES):
+        pm = payload_mass if np.ndim(payload_mass) == 0 else np.asarray(payload_mass)[a:a + CHUNK_POSES]
+        parts.append(evaluate(model, q[a:a + CHUNK_POSES], p, orientations=orientations, compliance=compliance,
+                              payload_mass=pm, backlash=False))
+
+    def joined(field):
+        return None if getattr(parts[0], field) is None else np.concatenate([getattr(e, field) for e in parts])
+
+    return Evaluation(positions=joined("positions"), rotations=joined("rotations"), jacobian=None,
+                      moments=joined("moments"))
 
 
 @one_blas_thread
