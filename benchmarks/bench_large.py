@@ -51,8 +51,11 @@ def main(argv=None):
     elapsed = time.perf_counter() - t
     print(f"calibrate({args.poses} poses): {elapsed:.1f} s, peak {peak_mb():.0f} MB, {len(result.parameters)} "
           f"parameters, nfev {result.nfev}, verdict {result.verdict}, sigma0 {result.sigma0 * 1e3:.4f} mm")
+    for c in result.checks:
+        if c.status != "pass":
+            print(f"check {c.name}: {c.status}, {c.summary}")
     err = max(abs(result.estimate(n).estimate - v) / max(result.estimate(n).std, 1e-300)
-              for n, v in zip(rc.parameter_names(truth), parameter_vector(truth)) if n in result.parameter_names)
+              for n, v in zip(rc.parameter_names(m), rc.parameter_vector(truth, m)) if n in result.parameter_names)
     print(f"largest error of an estimate against the simulated truth: {err:.2f} standard deviations")
     sub = data.subset(slice(0, args.check_poses))
     names = rc.identifiability(m, sub).identified

@@ -250,6 +250,7 @@ def theoretical_identifiability(model: RobotModel, parameters: tuple, known: tup
                            markers=markers)
 
 
+@one_blas_thread
 def predicted_std(J: np.ndarray, sigma: float) -> np.ndarray:
     """Standard deviations of the parameters of the columns of ``J`` (n_rows, k) for residuals of
     standard deviation ``sigma`` (in the rows' units): sqrt(diag(sigma^2 (J^T J)^-1)), inverted in
@@ -261,6 +262,7 @@ def predicted_std(J: np.ndarray, sigma: float) -> np.ndarray:
     return sigma * np.sqrt(np.diag(inv)) / col
 
 
+@one_blas_thread
 def weakly_identifiable(J: np.ndarray, names, quantities, sigma: float, *, moments: dict | None = None,
                         bounds: dict | None = None) -> list[tuple[str, str, float, float]]:
     """Parameters to eliminate because the design cannot pin them down.
@@ -300,6 +302,7 @@ def weakly_identifiable(J: np.ndarray, names, quantities, sigma: float, *, momen
     return out
 
 
+@one_blas_thread
 def eliminate(result: IdentifiabilityResult, J: np.ndarray, names, quantities, dropped: dict,
               *, max_terms: int = 6, n_rows: int | None = None) -> IdentifiabilityResult:
     """The analysis of ``J`` (n_rows, n_candidates) with the identified parameters in ``dropped``
