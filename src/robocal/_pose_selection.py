@@ -206,7 +206,7 @@ class CampaignPrediction:
 
     ``parameters``: the parameters identifiable from these poses, in preference order, with
     ``std`` their predicted standard deviations at position noise ``noise`` (m per axis);
-    ``eliminated``: the candidates these poses cannot identify. ``error_rms``: the predicted RMS
+    ``identifiability``: the analysis at these poses (what is eliminated, what absorbs it). ``error_rms``: the predicted RMS
     position error of the calibrated model over ``n_workspace`` configurations within the joint
     limits (what parameter uncertainty leaves, the instrument's noise not counted);
     ``held_out_rms``: the RMS error a measurement at such a configuration would show against the
@@ -215,7 +215,7 @@ class CampaignPrediction:
     q: np.ndarray
     parameters: tuple[str, ...]
     std: np.ndarray
-    eliminated: tuple
+    identifiability: object
     noise: float
     error_rms: float
     held_out_rms: float
@@ -244,6 +244,6 @@ def predict_campaign(model: RobotModel, q, *, parameters=("geometric",), known=(
     work = random_configurations(model, n_workspace, np.random.default_rng(rng))
     Jw = design_problem(model, work, names).jacobian(p0)               # (n_workspace * markers * 3, k)
     per_point = np.einsum("ri,ij,rj->", Jw, cov, Jw) / (len(Jw) / 3)   # mean of tr(J_p C J_p^T)
-    return CampaignPrediction(q=q, parameters=names, std=np.sqrt(np.diag(cov)), eliminated=ident.eliminated,
+    return CampaignPrediction(q=q, parameters=names, std=np.sqrt(np.diag(cov)), identifiability=ident,
                               noise=noise, error_rms=float(np.sqrt(per_point)),
                               held_out_rms=float(np.sqrt(per_point + 3 * noise ** 2)), n_workspace=n_workspace)

@@ -57,7 +57,7 @@ def parse_orientation(text: str | None, *, source: str | None = None, where: str
 class _Columns:
     """What each header column holds, with its unit resolved (or an InputError saying how to declare it)."""
 
-    def __init__(self, header, model, declared, orientation, source, line):
+    def __init__(self, header, model, declared, orientation, source, line, targets=False):
         self.source, self.line = source, line
         self.names = header
         where = f"line {line}"
@@ -104,7 +104,7 @@ class _Columns:
             have = len(self.joint_cols)
             raise InputError(f"missing column {missing[0]!r}: the model has {len(joint_names)} joints "
                              f"({', '.join(joint_names)}), the file has {have} of them", source=source, where=where)
-        if not self.marker_cols:
+        if not self.marker_cols and not targets:
             raise InputError("no marker columns (like tool_x, tool_y, tool_z)"
                              + (f"; the model's markers are {', '.join(marker_names)}" if marker_names else ""),
                              source=source, where=where)
@@ -220,13 +220,15 @@ def _comment_units(text: str, source: str, line: int) -> dict:
 
 
 def read_measurements(path, model: RobotModel | None = None, *, units: str | None = None, sep: str = ",",
-                      decimal: str = ".", orientation: str | None = None) -> Measurements:
+                      decimal: str = ".", orientation: str | None = None, targets: bool = False) -> Measurements:
     """Read a measurement CSV (docs/formats.md) into Measurements in SI units.
 
     ``model``: check joint and marker names against it and take each joint's type (angle or
     length) from it; without it, joint columns must carry a unit suffix. ``units``: "mm-deg" etc.
     for columns without a suffix. ``sep``/``decimal``: e.g. ";" and "," as instrument software in
-    many locales writes them. ``orientation``: the convention of 6D pose columns.
+    many locales writes them. ``orientation``: the convention of 6D pose columns. ``targets``:
+    the file lists poses to reach or to measure, not measurements: marker columns may be absent or
+    empty (positions NaN there).
     """
     source = str(path)
     if len(sep) != 1 or sep == decimal or decimal not in (".", ","):
@@ -270,13 +272,13 @@ def read_measurements(path, model: RobotModel | None = None, *, units: str | Non
     if orient is not None and comment_orient is not None and orient != comment_orient:
         raise InputError(f"the file declares orientation {orient_text}, the option says {orientation}",
                          source=source, where="orientation")
-    cols = _Columns(header, model, declared, orient or comment_orient, source, header_line)
+    cols = _Columns(header, model, declared, orient or comment_orient, source, header_line, targets)
     if not rows:
         raise InputError("no data rows after the header", source=source)
-    return _parse_rows(rows, cols, decimal, source, digest)
+    return _parse_rows(rows, cols, decimal, source, digest, targets)
 
 
-def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str) -> Measurements:
+def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str, targets: bool = False) -> Measurements:
     n, nm = len(rows), len(cols.markers)
     q = np.empty((n, len(cols.joint_names)))
     pos = np.full((n, nm, 3), np.nan)
@@ -326,7 +328,7 @@ def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str) ->
             validation[i] = value == "validation"
         label = row[cols.special["pose"]].strip() if "pose" in cols.special else ""
         labels.append(label or f"line {line}")
-    if not np.any(np.isfinite(pos)):
+    if not targets and not np.any(np.isfinite(pos)):
         raise InputError("no marker position in any row", source=source)
     extra = {"joint_kinds": tuple(cols.joint_kinds)}
     if "set" in cols.special:

@@ -14,10 +14,10 @@ import warnings
 
 from .._errors import RobocalError, RobocalWarning
 from .._version import __version__
-from . import calibrate, identifiability, import_urdf, limit, report, simulate
+from . import calibrate, compensate, export, identifiability, import_dh, import_urdf, limit, plan, report, simulate
 from .common import MissingExtra
 
-COMMANDS = (calibrate, simulate, identifiability, report, limit, import_urdf)
+COMMANDS = (plan, simulate, calibrate, compensate, export, identifiability, report, limit, import_urdf, import_dh)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -22,6 +22,10 @@ class MissingExtra(Exception):
     """An optional part of robocal is not installed (exit 1)."""
 
 
+# every command's --help: the description, the options, then an example laid out as written
+Formatter = argparse.RawDescriptionHelpFormatter
+
+
 # -- argument types: each refuses a bad value at parse time with one line naming the option ----------
 
 def floats(n: int):
@@ -50,8 +54,20 @@ def number_in(ok, what: str):
     return parse
 
 
+def count(text: str) -> int:
+    """A whole number of at least 1."""
+    try:
+        v = int(text)
+    except ValueError:
+        v = 0
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number of at least 1, got {excerpt(text)}")
+    return v
+
+
 fraction = number_in(lambda v: 0.0 < v < 1.0, "a fraction between 0 and 1")
 positive = number_in(lambda v: 0.0 < v < math.inf, "a positive number")
+non_negative = number_in(lambda v: 0.0 <= v < math.inf, "a number of at least 0")
 
 
 def marker_mm(text: str) -> tuple[str, tuple[float, float, float]]:
@@ -86,6 +102,14 @@ def _parse_orientation(text: str):
     return parse_orientation(text)
 
 
+def separator(text: str) -> str:
+    """One character; ``\\t`` or ``tab`` for a tab, as a shell passes ``--sep '\\t'``."""
+    sep = "\t" if text in ("\\t", "tab", "TAB") else text
+    if len(sep) != 1:
+        raise argparse.ArgumentTypeError(f"expected one character (or '\\t' for a tab), got {excerpt(text)}")
+    return sep
+
+
 units = checked_by(parse_units)
 orientation = checked_by(_parse_orientation)
 
@@ -96,7 +120,8 @@ def csv_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("measurement file")
     g.add_argument("--units", type=units, help="units of CSV columns without a unit suffix, e.g. mm-deg or m-rad "
                                                "(never guessed: a suffix, a '# units:' line or this option)")
-    g.add_argument("--sep", default=",", help="column separator (default ','; ';' for decimal-comma files)")
+    g.add_argument("--sep", type=separator, default=",",
+                   help="column separator (default ','; ';' for decimal-comma files; '\\t' for tabs)")
     g.add_argument("--decimal", default=".", choices=(".", ","), help="decimal mark (default '.')")
     g.add_argument("--orientation", type=orientation,
                    help="convention of 6D pose columns: quat_xyzw, quat_wxyz, rpy, euler:ZYX (scipy sequences)")
@@ -111,11 +136,11 @@ def parameter_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--tol", type=positive, default=1e-6, help="identifiability tolerance (default 1e-6)")
 
 
-def read_data(args, model, path):
+def read_data(args, model, path, *, targets: bool = False):
     from .._files.measurements import read_measurements
 
     return read_measurements(path, model, units=args.units, sep=args.sep, decimal=args.decimal,
-                             orientation=args.orientation)
+                             orientation=args.orientation, targets=targets)
 
 
 # -- outputs ----------------------------------------------------------------------------------------

@@ -31,7 +31,13 @@ def run(args) -> int:
     common.refuse_existing([args.out], args.force)
     if not Path(args.urdf).is_file():
         raise InputError("no such file", source=args.urdf)
-    model = read_urdf(args.urdf, base_link=args.base_link, tip_link=args.tip_link, markers=args.marker_mm)
+    try:
+        model = read_urdf(args.urdf, base_link=args.base_link, tip_link=args.tip_link, markers=args.marker_mm)
+    except InputError as e:
+        if e.where in ("base_link", "tip_link"):   # name the option as the user types it
+            flag = "--" + e.where.replace("_", "-")
+            raise InputError(e.detail.replace(e.where.replace("_", " "), flag), source=e.source, where=flag) from None
+        raise
     common.write_outputs({args.out: model_to_yaml(model, units=args.units)}, force=args.force)
     print(f"{model.name}: {model.n_joints} joints ({', '.join(model.joint_names)}), {len(model.frames)} frames, "
           f"markers {', '.join(model.marker_names)}: wrote {args.out}")
