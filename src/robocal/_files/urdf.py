@@ -20,6 +20,7 @@ from .._errors import InputError
 from .._conversion import frames_from_lines, line_frames, marker_placements
 from .._model import DEFAULT_PARALLEL_TOL, Marker, RobotModel, mdh_transform
 from .._spatial import axis_angle_matrix, inverse4, matrix_rpy, matrix_tuple, pose4, rpy_matrix, unit_vector
+from .._units import ANGLE_UNITS
 from .text import write_texts
 
 # ----------------------------------------------------------------------------------------------
@@ -51,6 +52,18 @@ def _floats(text: str | None, n: int, default, source: str, where: str) -> np.nd
     if vals.shape != (n,) or not np.all(np.isfinite(vals)):
         raise InputError(f"expected {n} finite numbers, got {text!r}", source=source, where=where)
     return vals
+
+
+def _round_angle(v: float, text: str | None) -> float:
+    """An angle written in radians to some decimals (0.820304748437) as the whole degrees or
+    fraction it stands for to that precision (47 deg): the file's precision, shown in degrees."""
+    try:
+        written = 0.5 * 10.0 ** Decimal((text or "0").strip()).as_tuple().exponent
+    except (ArithmeticError, TypeError, ValueError):
+        return v
+    in_deg = written / ANGLE_UNITS["deg"]
+    decimals = max(0, -math.ceil(math.log10(2 * in_deg))) if in_deg > 0 else 15
+    return round(v / ANGLE_UNITS["deg"], decimals) * ANGLE_UNITS["deg"]
 
 
 def _attr_float(el, key: str, default: float, source: str, where: str) -> float:
@@ -135,8 +148,9 @@ def _parse_joints(root: ET.Element, source: str) -> tuple[set[str], dict[str, _U
         lim = el.find("limit")
         limits = None
         if lim is not None:  # URDF: lower/upper default to 0
-            limits = (_attr_float(lim, "lower", 0.0, source, where + " limit"),
-                      _attr_float(lim, "upper", 0.0, source, where + " limit"))
+            limits = tuple(_round_angle(_attr_float(lim, k, 0.0, source, where + " limit"), lim.get(k))
+                           if jtype in ("revolute", "continuous") else _attr_float(lim, k, 0.0, source, where + " limit")
+                           for k in ("lower", "upper"))
         mim = el.find("mimic")
         mimic = None
         if mim is not None:
@@ -309,7 +323,9 @@ def _with_masses(frames, walk: _Walk, X_0F, inertials) -> list:
 def _source_angle_tol(root: ET.Element) -> float:
     """How far the file's angles stand from the multiples of pi/2 they were written for: an rpy
     number within half a unit of its last written digit of such a multiple meant it (pi written
-    to 11 decimals is 2e-12 off); four times the largest such gap, at least 1e-13 rad."""
+    to 11 decimals is 2e-12 off); four times the largest such gap, at least 1e-13 rad. Gaps over
+    1e-10 rad (pi written as 3.1416) are kept: the file says that angle, and snapping it would move
+    the tool by more than 1e-10 m per metre of arm."""
     gaps = [1e-13]
     for el in root.iter("origin"):
         for part in _NUM.split((el.get("rpy") or "").strip()):
@@ -318,30 +334,44 @@ def _source_angle_tol(root: ET.Element) -> float:
             except (ValueError, ArithmeticError, TypeError):
                 continue
             gap = abs(v - round(v / (math.pi / 2)) * (math.pi / 2))
-            if gap <= written:
+            if gap <= min(written, 1e-10):
                 gaps.append(4 * gap)
     return max(gaps)
 
 
-def _clean(v: float, angle: bool, tol: float) -> float:
+def _source_decimals(root: ET.Element) -> int:
+    """The most decimals of a metre any origin's xyz is written with (at most 14): lengths the
+    import computes from them carry no more."""
+    most = 0
+    for el in root.iter("origin"):
+        for part in _NUM.split((el.get("xyz") or "").strip()):
+            try:
+                most = max(most, -Decimal(part).as_tuple().exponent)
+            except (ArithmeticError, TypeError, ValueError):
+                continue
+    return min(most, 14)
+
+
+def _clean(v: float, angle: bool, tol: float, decimals: int = 14) -> float:
     """``v`` without the source's round-off: an angle within ``tol`` of a multiple of pi/2 is that
-    multiple; a length keeps 14 decimals of a metre (what is below is float noise, 1e-17)."""
+    multiple; a length keeps ``decimals`` decimals of a metre (those of the source)."""
     if angle:
         k = round(v / (math.pi / 2))
         return k * (math.pi / 2) + 0.0 if abs(v - k * (math.pi / 2)) <= tol else v
-    return round(v, 14) + 0.0
+    return round(v, decimals) + 0.0
 
 
-def _clean_frames(frames, tol: float) -> list:
+def _clean_frames(frames, tol: float, decimals: int) -> list:
     angles, lengths = ("beta", "alpha", "theta", "gamma"), ("d", "r", "b")
     return [replace(f, **{k: _clean(getattr(f, k), True, tol) for k in angles},
-                    **{k: _clean(getattr(f, k), False, tol) for k in lengths}) for f in frames]
+                    **{k: _clean(getattr(f, k), False, tol, decimals) for k in lengths},
+                    com=tuple(_clean(v, False, tol, decimals) for v in f.com)) for f in frames]
 
 
-def _clean_pose(X: np.ndarray) -> tuple[tuple, tuple]:
+def _clean_pose(X: np.ndarray, decimals: int) -> tuple[tuple, tuple]:
     R = np.where(np.abs(X[:3, :3]) < 1e-12, 0.0, X[:3, :3])
     R = np.where(np.abs(np.abs(R) - 1.0) < 1e-12, np.sign(R), R)
-    return tuple(_clean(float(v), False, 0.0) for v in X[:3, 3]), matrix_tuple(R)
+    return tuple(_clean(float(v), False, 0.0, decimals) for v in X[:3, 3]), matrix_tuple(R)
 
 
 def read_urdf(path_or_string, *, base_link: str | None = None, tip_link: str | None = None,
@@ -380,15 +410,17 @@ def read_urdf(path_or_string, *, base_link: str | None = None, tip_link: str | N
     types = ["prismatic" if joints[jn].type == "prismatic" else "revolute" for jn in moving]
     couplings = [((reading_of[jn][0], reading_of[jn][1]),) for jn in moving]
     frames = frames_from_lines([joints[jn].child for jn in moving], types, couplings, X_0B, X_0F)
-    frames = _clean_frames(_with_masses(frames, walk, X_0F, extra["inertials"]), _source_angle_tol(root))
+    tol, decimals = _source_angle_tol(root), _source_decimals(root)
+    frames = _clean_frames(_with_masses(frames, walk, X_0F, extra["inertials"]), tol, decimals)
     tip = chain[-1].child
     X_nT = inverse4(X_0F[-1]) @ walk.X_link[tip]
     mk = []
     for mname, p, R in marker_placements(markers if markers is not None else [("tool", (0.0, 0.0, 0.0))], "markers"):
-        position, rotation = _clean_pose(X_nT @ pose4(R, p))
+        position, rotation = _clean_pose(X_nT @ pose4(R, p), decimals if markers is None else 14)
         mk.append(Marker(mname, len(frames) - 1, position, rotation))
-    limits = [(-math.pi, math.pi) if joints[jn].type == "continuous" else joints[jn].limits for jn in readings]
-    base_position, base_rotation = _clean_pose(X_0B)
+    limits = [(-math.pi, math.pi) if joints[jn].type == "continuous" else
+              tuple(_clean(v, joints[jn].type == "revolute", tol) for v in joints[jn].limits) for jn in readings]
+    base_position, base_rotation = _clean_pose(X_0B, decimals)
     return RobotModel(
         name=root.get("name") or "robot", frames=tuple(frames), joint_names=tuple(readings),
         joint_limits=tuple((float(lo), float(hi)) for lo, hi in limits), markers=tuple(mk),
