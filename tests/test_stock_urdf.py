@@ -81,9 +81,12 @@ def test_stock_urdf_forward_kinematics(robot, tmp_path, cli):
     ev = rc.forward_kinematics(model, q)
     assert np.abs(ev.positions[:, 0] - X[:, :3, 3]).max() < 1e-9
     assert np.abs(ev.rotations[:, 0] - X[:, :3, :3]).max() < 1e-9
-    # what the file says is clean: no 179.999999999719 or 1.87e-37 from round-off
+    # what the file says is clean: no 1.87e-37 from round-off, nor 179.999999999719 where the URDF
+    # wrote pi to 11 digits (the Gen3 shape writes 3.1416, which is a different angle)
     text = out.read_text()
-    assert "99999999" not in text and "00000000" not in text and "e-3" not in text, text
+    assert "e-3" not in text and "e-2" not in text, text
+    if robot != "gen3-like":
+        assert "99999999" not in text and "00000000" not in text and "e-1" not in text, text
 
 
 def test_fixed_leaf_is_no_branch_and_the_flag_is_named_as_typed(tmp_path, cli):
