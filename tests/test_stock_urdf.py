@@ -1,5 +1,5 @@
 """import-urdf on stock arm URDFs: UR5, Panda and Kinova (Jaco) from the example-robot-data package
-(a test dependency), and a Gen3-shaped arm written for these tests (tests/data/gen3_like.urdf;
+(a test dependency), and a Gen3-shaped arm written for these tests (examples/urdf/gen3_like.urdf;
 the package ships no Gen3). The reference is an independent evaluation of the URDF's own numbers:
 origin times joint motion per joint, with plain 4x4 products and scipy rotations."""
 
@@ -16,7 +16,7 @@ from scipy.spatial.transform import Rotation
 
 import robocal as rc
 
-DATA = Path(__file__).parent / "data"
+DATA = Path(__file__).resolve().parent.parent / "examples" / "urdf"
 ERD = Path(sysconfig.get_paths()["purelib"]) / "cmeel.prefix" / "share" / "example-robot-data" / "robots"
 
 STOCK = {   # file, the tip the import should choose, the arm's joints

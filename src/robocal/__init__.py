@@ -31,7 +31,7 @@ _EVERYDAY = {
     "_calibration": ("calibrate", "compare", "register_base", "error_stats", "CalibrationResult", "Comparison",
                      "ParameterEstimate", "ErrorStats", "ErrorSummary", "LimitJudgement"),
     "_identifiability": ("identifiability", "status_table", "Absorption", "IdentifiabilityResult"),
-    "_pose_selection": ("select_poses", "PoseSelection"),
+    "_pose_selection": ("select_poses", "PoseSelection", "predict_campaign", "CampaignPrediction"),
     "_compensation": ("compensate", "Compensation"),
 }
 _WHERE = {name: module for module, names in _EVERYDAY.items() for name in names}

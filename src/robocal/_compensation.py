@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -10,6 +11,8 @@ from scipy.spatial.transform import Rotation
 from ._kinematics import evaluate
 from ._model import RobotModel
 from ._parameters import parameter_layout, parameter_vector
+
+log = logging.getLogger(__name__)
 
 
 def joint_jacobian(model: RobotModel, q) -> np.ndarray:
@@ -89,9 +92,10 @@ def compensate(model: RobotModel, targets_q, *, nominal: RobotModel | None = Non
                                 marker, orientation)
     q = q0.copy()
     p = parameter_vector(model)
-    for _ in range(iterations):
+    for it in range(iterations):
         e_pos, e_rot = _errors(model, q, p, marker, Pt, Rt)
         e_rot[~oriented] = 0.0
+        log.info("compensation step %d: largest position error %.3g m", it, np.max(np.linalg.norm(e_pos, axis=1)))
         if np.max(np.linalg.norm(e_pos, axis=1)) < tol and np.max(np.abs(e_rot)) < tol:
             break
         J = joint_jacobian(model, q)[:, marker].copy()

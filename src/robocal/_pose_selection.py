@@ -241,6 +241,7 @@ def predict_campaign(model: RobotModel, q, *, parameters=("geometric",), known=(
     col[col == 0] = 1.0
     Ms = (J / col).T @ (J / col)
     cov = noise ** 2 * np.linalg.pinv(Ms, rcond=1e-15, hermitian=True) / np.outer(col, col)
+    log.info("predicting %d parameters' uncertainty over %d configurations", len(names), n_workspace)
     work = random_configurations(model, n_workspace, np.random.default_rng(rng))
     Jw = design_problem(model, work, names).jacobian(p0)               # (n_workspace * markers * 3, k)
     per_point = np.einsum("ri,ij,rj->", Jw, cov, Jw) / (len(Jw) / 3)   # mean of tr(J_p C J_p^T)

@@ -105,7 +105,7 @@ class _Table:
             header = [c.strip() for c in next(reader)]
         except StopIteration:
             raise InputError("empty table", source=self.source) from None
-        self.scale: dict[str, tuple[int, float]] = {}
+        self.scale: dict[str, list[tuple[int, float]]] = {}   # limits have a column per unit
         self.text: dict[str, int] = {}
         for k, c in enumerate(header):
             base, _, unit = c.rpartition("_")
@@ -113,7 +113,7 @@ class _Table:
             if kind is None:
                 self.text[c] = k
             else:
-                self.scale[base] = (k, UNITS[kind][unit])
+                self.scale.setdefault(base, []).append((k, UNITS[kind][unit]))
         self.rows = [(i + 2, row) for i, row in enumerate(reader)]
         self.header = header
 
@@ -126,7 +126,8 @@ class _Table:
                 raise InputError(f"no column {name} (with a unit suffix, e.g. {name}_mm or {name}_deg)",
                                  source=self.source)
             return default
-        k, s = self.scale[name]
+        filled = [(k, s) for k, s in self.scale[name] if k < len(row) and row[k].strip()]
+        k, s = (filled or self.scale[name])[0]
         cell = row[k].strip() if k < len(row) else ""
         if not cell:
             if default is None:

@@ -65,6 +65,35 @@ def count(text: str) -> int:
     return v
 
 
+def limit_mm(text: str) -> float:
+    """The limit of absolute accuracy in mm: a number, or the JSON file ``robocal limit --out`` writes."""
+    try:
+        v = float(text)
+    except ValueError:
+        return _limit_from_file(text)
+    if not 0.0 < v < math.inf:
+        raise argparse.ArgumentTypeError(f"expected a positive number of mm or a limit file, got {excerpt(text)}")
+    return v
+
+
+def _limit_from_file(path: str) -> float:
+    import json
+
+    try:
+        with open(path, encoding="utf-8") as fh:
+            doc = json.load(fh)
+        if not str(doc["schema"]).startswith("robocal.limit/") or doc["unit"] != "m":
+            raise KeyError("schema")
+        value = doc["limit"]
+    except FileNotFoundError:
+        raise argparse.ArgumentTypeError(f"{path}: no such file (expected mm or a limit file)") from None
+    except (OSError, ValueError, KeyError, TypeError):
+        raise argparse.ArgumentTypeError(f"{path}: not a limit file ('robocal limit --out' writes one)") from None
+    if not isinstance(value, (int, float)) or not 0.0 < value < math.inf:
+        raise argparse.ArgumentTypeError(f"{path}: limit: expected a positive number of metres")
+    return value * MM
+
+
 fraction = number_in(lambda v: 0.0 < v < 1.0, "a fraction between 0 and 1")
 positive = number_in(lambda v: 0.0 < v < math.inf, "a positive number")
 non_negative = number_in(lambda v: 0.0 <= v < math.inf, "a number of at least 0")

@@ -52,6 +52,9 @@ def run(args) -> int:
         if far:
             print(f"robocal: warning: classic DH of {args.model} is ill-conditioned: offsets "
                   f"{', '.join(f'{n} {v:.3g} m' for n, v in far)}; rounding them moves the tool", file=sys.stderr)
+    if model.has_compliance:
+        print(f"robocal: warning: {args.model}: compliance is not exported; {args.format} holds the geometry only",
+              file=sys.stderr)
     common.write_outputs({args.out: text}, force=args.force)
     print(f"{model.name}: {args.format} of {model.n_joints} joints, markers {', '.join(model.marker_names)}: "
           f"wrote {args.out}")

@@ -8,10 +8,18 @@ from .._errors import InputError
 from . import common
 
 
+EXAMPLE = """example:
+  robocal import-urdf examples/urdf/gen3_like.urdf --out gen3.yaml --marker-mm tcp,0,0,120
+
+Without --tip-link the chain ends where the arm ends: branches of fixed links only (a flange, a
+tool point) are not branches, and joints beyond the point where a gripper's fingers part are
+not imported."""
+
 def register(sub) -> None:
     p = sub.add_parser("import-urdf", help="write a robocal model file from a URDF serial chain",
                        description="Convert the chain of a URDF file (metres and radians by the URDF rule) "
-                                   "into a robocal model file (modified DH with Hayati's beta).")
+                                   "into a robocal model file (modified DH with Hayati's beta).",
+                       epilog=EXAMPLE, formatter_class=common.Formatter)
     p.add_argument("urdf", metavar="URDF", help="URDF file")
     p.add_argument("--out", required=True, metavar="MODEL.yaml", help="model file to write")
     p.add_argument("--base-link", help="first link of the chain (default: the root link)")
