@@ -309,9 +309,10 @@ def to_standard_dh(model: RobotModel, *, max_offset: float | None = None) -> Sta
     rel = [_decompose(inverse4(prev) @ cur, use_beta=False) for prev, cur in zip([X_0B] + lines[:-1], lines)]
     rows = []
     for i, f in enumerate(model.frames):
-        nxt = rel[i + 1] if i + 1 < len(rel) else {"d": 0.0, "alpha": 0.0}
-        rows.append({"name": f.name, "joint": f.joint, "theta": rel[i]["theta"], "d": rel[i]["r"],
-                     "a": nxt["d"], "alpha": nxt["alpha"]})
+        nxt = rel[i + 1] if i + 1 < len(rel) else dict(d=0.0, alpha=0.0)
+        # classic row i: this frame's theta and r, the next frame's d and alpha (from_standard_dh, reversed)
+        rows.append(dict(name=f.name, joint=f.joint, theta=rel[i]["theta"], d=rel[i]["r"], a=nxt["d"],
+                         alpha=nxt["alpha"]))
     X_W0 = X_0B @ rot4(0, rel[0]["alpha"]) @ trans4(0, rel[0]["d"])
     extent = max(1.0, float(np.max(np.linalg.norm(pts - model.X_WB[:3, 3], axis=1))))
     size = [(r["name"], max(abs(r["d"]), abs(r["a"]))) for r in rows]
