@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._compensation import compensate
-from ._measurements import Measurements
+from ._measurements import Measurements, approach_sides
 from ._accuracy_limit import rounded_parameters
 from ._kinematics import evaluate, gravity_loads
 from ._model import RobotModel
@@ -80,24 +80,6 @@ def _quantise(q, res):
     return np.where(res > 0, np.round(q / safe) * safe, q)
 
 
-def approach_sides(q) -> np.ndarray:
-    """+1 or -1 per pose and joint: the sign of the last move of that joint before reaching the pose.
-
-    Poses are visited in row order, the first approached from the last; a joint that does not
-    move keeps the side it had (+1 if it never moves). Returns (n_poses, n_joints).
-    """
-    q = np.atleast_2d(np.asarray(q, dtype=float))
-    step = np.sign(np.diff(q, axis=0, prepend=q[-1:]))
-    n = len(q)
-    # forward-fill over the rows where a joint did not move, cycling once so the first poses
-    # inherit the side of the last move before them
-    rows = np.arange(2 * n)[:, None]
-    twice = np.vstack([step, step])
-    last = np.maximum.accumulate(np.where(twice != 0, rows, -1), axis=0)[n:]
-    sides = np.take_along_axis(twice, np.maximum(last, 0), axis=0)
-    return np.where(last >= 0, sides, 1.0)
-
-
 def backlash_sides(true_model: RobotModel, recorded, imp: RobotImperfections, payload_mass=None) -> np.ndarray:
     """+1 or -1 per pose and joint: the side of its gap, relative to the reading, where the arm rests.
 
@@ -133,7 +115,7 @@ def measure_campaign(true_model: RobotModel, q_commanded, imp: RobotImperfection
     P = _attain(true_model, recorded, imp, rng, payload_mass)
     return Measurements(q=recorded, positions=P, marker_names=true_model.marker_names,
                         joint_names=true_model.joint_names, payload_mass=payload_mass, labels=tuple(labels),
-                        source="simulated campaign")
+                        source="simulated campaign", extra={"approach": approach_sides(recorded)})
 
 
 def stored_model(model: RobotModel, imp: RobotImperfections) -> RobotModel:

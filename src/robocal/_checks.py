@@ -29,6 +29,9 @@ SIGNIFICANCE_SIGMAS = 2.0
 # a compliance this many standard deviations below zero is non-physical, not noise (a stricter bar
 # than significance: a robot has a dozen compliances, and each is a one-sided test)
 NEGATIVE_COMPLIANCE_SIGMAS = 4.0
+# a backlash (half a lost motion) this many standard deviations below zero is non-physical: the same
+# one-sided bar as the compliances'
+NEGATIVE_BACKLASH_SIGMAS = NEGATIVE_COMPLIANCE_SIGMAS
 # pairs of identified parameters correlated beyond this are named
 CORRELATION_MAX = 0.99
 # the measured cloud against the robot's predicted one: a size ratio outside these bounds fails
@@ -54,6 +57,9 @@ DEFAULT_TOLERANCES = {
     ("markers", "length"): 0.1, ("markers", "angle"): np.deg2rad(10.0),
     ("base", "length"): None, ("base", "angle"): None,
     ("compliance", "compliance"): np.deg2rad(1.0),
+    # half a lost motion: gear trains are specified in arc minutes, worn ones reach a few tenths of
+    # a degree; ball screws in hundredths of a millimetre
+    ("backlash", "angle"): np.deg2rad(0.5), ("backlash", "length"): 0.5e-3,
 }
 
 
@@ -311,6 +317,25 @@ def compliance_sign_check(estimates) -> Check:
     items = tuple(f"{e.name} ({e.estimate / e.std:+.2g} sd)" for e in neg)
     return Check(name, "pass", f"{len(neg)} compliance(s) negative within their uncertainty (noise about zero): "
                  f"{_listed(items, 3)}; --nonnegative-compliance keeps them at zero or above", items=items)
+
+
+def backlash_sign_check(estimates) -> Check:
+    """A backlash is half a lost motion: one significantly negative is non-physical (the side
+    model or the load's sign is wrong). Negative estimates within their uncertainty are named."""
+    name = "physical backlash"
+    neg = [e for e in estimates if e.family == "backlash" and e.estimate < 0]
+    if not neg:
+        return Check(name, "pass", "no negative backlash")
+    items = tuple(f"{e.name} ({e.estimate / e.std:+.2g} sd)" for e in neg)
+    significant = [i for e, i in zip(neg, items) if -e.estimate > NEGATIVE_BACKLASH_SIGMAS * e.std]
+    if significant:
+        return Check(name, "fail", f"{len(significant)} backlash(es) significantly negative: {_listed(significant, 3)}",
+                     cause="the joints rest on the other side than the model says: gravity in the wrong direction, "
+                           "masses on the wrong side, or approach directions reversed",
+                     fix="check gravity and the masses in the model file, the backlash side model and the approach "
+                         "columns", items=tuple(significant))
+    return Check(name, "pass", f"{len(neg)} backlash(es) negative within their uncertainty (noise about zero): "
+                 f"{_listed(items, 3)}", items=items)
 
 
 def correlation_check(names, corr: np.ndarray) -> Check:

@@ -21,11 +21,13 @@ dM/dx from rigid-motion identities (see ``_add_corrections``).
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
 
+from ._measurements import approach_sides
 from ._model import RobotModel
 from ._parameters import BASE_KINDS, MARKER_KINDS, parameter_layout, parameter_vector
 from ._spatial import cross, rot_matrix, small_rotation
@@ -70,6 +72,9 @@ class Layout:
     subtree: np.ndarray         # (n_frames, n_frames) bool: [i, k] frame k is in the subtree of i
     param_step: np.ndarray      # (n_params,) step moved by each parameter, -1 for compliances
     param_compliant: np.ndarray  # (n_params,) row in compliant_steps of a compliance, else -1
+    backlash_params: np.ndarray  # (n_frames,) parameter index of each frame's backlash, -1 if fixed
+    joint_steps: np.ndarray     # (n_frames,) step its joint variable moves (theta or r), -1 if fixed
+    param_backlash: np.ndarray  # (n_params,) frame of a backlash parameter, else -1
 
 
 
@@ -141,8 +146,18 @@ def layout(model: RobotModel) -> Layout:
     param_step[step_param] = np.arange(n_steps)
     param_compliant = np.full(len(names), -1, dtype=int)
     param_compliant[np.array(cparams, dtype=int)] = np.arange(len(cparams))
+    bparams = np.full(nf, -1, dtype=int)
+    jsteps = np.full(nf, -1, dtype=int)
+    for i, f in enumerate(model.frames):
+        if f.joint != "fixed":
+            rev = f.joint == "revolute"
+            bparams[i] = params.by_name[f"{f.name}.backlash_{'theta' if rev else 'r'}"].index
+            jsteps[i] = N_BASE + 7 * i + (THETA if rev else R)
+    param_backlash = np.full(len(names), -1, dtype=int)
+    param_backlash[bparams[bparams >= 0]] = np.nonzero(bparams >= 0)[0]
     return Layout(
-        param_step=param_step, param_compliant=param_compliant,
+        param_step=param_step, param_compliant=param_compliant, backlash_params=bparams, joint_steps=jsteps,
+        param_backlash=param_backlash,
         names=tuple(names), n_params=len(names), frame0=np.array(frame0, dtype=int),
         marker0=np.array(marker0, dtype=int), step_param=step_param,
         step_is_rot=np.array(step_is_rot), step_frame=step_frame, marker_path=marker_path,
@@ -588,10 +603,33 @@ class _State:
     A: np.ndarray | None = None
     u: np.ndarray | None = None
     cache: dict = field(default_factory=dict)   # what the Jacobian derives from this state
+    backlash: _Backlash | None = None
+
+
+@dataclass(frozen=True)
+class _Backlash:
+    """Where each joint rests in its lost motion at each pose: q_eff = q + b s.
+
+    ``b`` (n_frames,) the half lost motion (0 for fixed frames); ``sides`` s (N, n_frames) in
+    [-1, 1]; ``slope`` ds/dL (N, n_frames) for the gravity-sided model (None for approach-sided);
+    ``loads`` L (N, n_frames), N m or N, or None.
+    """
+
+    b: np.ndarray
+    sides: np.ndarray
+    slope: np.ndarray | None
+    loads: np.ndarray | None
 
 
 def evaluate_state(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray, *, compliance: bool,
-                    orientations: bool, payload_mass=None) -> _State:
+                    orientations: bool, payload_mass=None, backlash: bool = False, approach=None) -> _State:
+    """The kinematic pass at ``p`` and readings ``qf`` (N, n_frames), with gravity moments when
+    ``compliance``, and joints resting in their lost motion when ``backlash`` (``approach``
+    (N, n_frames) the direction of each frame variable's last move, see ``frame_approach``;
+    None: from the row order of ``qf``)."""
+    if backlash:
+        return _backlash_state(model, lay, p, qf, compliance=compliance, orientations=orientations,
+                               payload_mass=payload_mass, approach=approach)
     ks = p[lay.compliant_params]
     if not compliance:
         return _State(ps=kinematic_pass(model, lay, p, qf, orientations=orientations), compliance=False, ks=ks)
@@ -609,9 +647,63 @@ def evaluate_state(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray
     return _State(ps=ps, compliance=True, ks=ks, ps0=ps0, C1=C1, msub=msub, M=M, A=A, u=u)
 
 
+def frame_approach(model: RobotModel, approach) -> np.ndarray:
+    """(N, n_frames) direction (+1, -1) of each frame variable's last move, from the joints'
+    (N, n_joints) through the couplings (0 for fixed frames)."""
+    return np.sign(np.asarray(approach, dtype=float) @ model.coupling_matrix.T)
+
+
+def _frame_loads(model: RobotModel, lay: Layout, ps0: _Pass, M: np.ndarray, msub: np.ndarray) -> np.ndarray:
+    """(N, n_frames) gravity load on each frame's joint variable on the undeformed chain ``ps0``:
+    the moment about a revolute axis, the weight along a prismatic one (see ``gravity_loads``)."""
+    g = np.asarray(model.gravity, dtype=float)
+    loads = np.zeros((M.shape[1], model.n_frames))
+    for i, f in enumerate(model.frames):
+        if f.joint == "revolute":
+            loads[:, i] = M[3 * i]
+        elif f.joint == "prismatic":
+            loads[:, i] = msub[i] * (ps0.R[i][:, :, 2] @ g)
+    return loads
+
+
+def _backlash_state(model, lay, p, qf, *, compliance, orientations, payload_mass, approach) -> _State:
+    """The state with each joint at q + b s (docs/conventions.md, backlash). Gravity moments,
+    loads and sides are taken on the undeformed chain at the readings, so neither depends on b."""
+    N, nf = qf.shape
+    moving = lay.backlash_params >= 0
+    b = np.where(moving, p[np.maximum(lay.backlash_params, 0)], 0.0)
+    a = approach_sides(qf) if approach is None else np.asarray(approach, dtype=float)
+    gravity = model.backlash_side == "gravity"
+    ks = p[lay.compliant_params] if compliance else np.zeros(len(lay.compliant_params))
+    ps0 = C1 = msub = M = A = u = loads = slope = None
+    if gravity or compliance:
+        # the load derivatives need the steps' axes on this chain, so not frames only
+        ps0 = kinematic_pass(model, lay, p, qf, orientations=False, frames_only=not gravity)
+        C1, msub = _mass_sums(model, lay, ps0, payload_mass)
+        M, A, u = _moments(model, ps0, C1, msub)
+    if gravity:
+        loads = _frame_loads(model, lay, ps0, M, msub)
+        F = np.array([f.backlash_friction for f in model.frames])
+        w = np.array([f.backlash_width for f in model.frames])
+        sides = np.tanh((loads - a * F) / w)
+        slope = (1.0 - sides ** 2) / w
+    else:
+        sides = -a
+    sides = sides * moving
+    defl = None
+    if compliance and np.any(ks != 0.0):
+        d = [k * Mk if k else 0.0 for k, Mk in zip(ks, M)]
+        defl = [tuple(d[3 * i:3 * i + 3]) for i in range(nf)]
+    ps = kinematic_pass(model, lay, p, qf + sides * b, defl=defl, orientations=orientations)
+    return _State(ps=ps, compliance=compliance, ks=ks, ps0=ps0, C1=C1, msub=msub, M=M, A=A, u=u,
+                  backlash=_Backlash(b=b, sides=sides, slope=slope, loads=loads))
+
+
 def jacobian_columns(model: RobotModel, lay: Layout, st: _State, cols_idx: np.ndarray, m: int,
                       rows: int = 6) -> np.ndarray:
     """(len(cols_idx), N, rows) Jacobian columns of marker m for the parameters ``cols_idx``."""
+    if st.backlash is not None:
+        return _backlash_columns(model, lay, st, cols_idx, m, rows)
     step_of = lay.param_step[cols_idx]
     is_step = step_of >= 0
     steps = step_of[is_step]
@@ -643,7 +735,66 @@ def jacobian_columns(model: RobotModel, lay: Layout, st: _State, cols_idx: np.nd
     kblock = _block(is_k)
     for b in range(rows):
         out[is_k if kblock is None else kblock, :, b] = cpc[b, ki] * st.M[kk]
+    rest = ~is_step & ~is_k          # backlash: not a step, nothing moves without its state
+    if rest.any():
+        out[rest] = 0.0
     return out
+
+
+def _backlash_columns(model, lay, st, cols_idx, m, rows) -> np.ndarray:
+    """Columns under backlash, q_eff = q + b s: a backlash's is its joint's column (on the
+    deflected chain, without compliance corrections: the moments are taken at the readings) times
+    s; under the gravity-sided model every column also gains ``b ds/dL dL/dx`` times it."""
+    bare = copy.copy(st)
+    bare.backlash = None
+    out = jacobian_columns(model, lay, bare, cols_idx, m, rows)
+    bl = st.backlash
+    frames = np.nonzero(lay.backlash_params >= 0)[0]
+    joint_cols = _step_columns(lay, st.ps, m, lay.joint_steps[frames], rows)      # (F, N, rows)
+    slot = {int(i): k for k, i in enumerate(frames)}
+    fb = lay.param_backlash[cols_idx]
+    for c in np.nonzero(fb >= 0)[0]:
+        out[c] = bl.sides[:, fb[c], None] * joint_cols[slot[int(fb[c])]]
+    if bl.slope is None:
+        return out
+    steps = lay.param_step[cols_idx]
+    has = steps >= 0
+    for i in frames:
+        if bl.b[i] == 0.0 or not has.any():
+            continue
+        dL = _load_derivatives(model, lay, st, int(i), steps[has])                  # (S, N)
+        out[has] += (bl.b[i] * bl.slope[:, i] * dL)[:, :, None] * joint_cols[slot[int(i)]][None]
+    return out
+
+
+def _load_derivatives(model, lay, st, i: int, steps: np.ndarray) -> np.ndarray:
+    """(len(steps), N) derivative of frame i's joint load (``_frame_loads``) by each step's value,
+    on the undeformed chain. Revolute, L = u . (A x g): a proximal rotation about w turns the axis
+    and the distal masses rigidly, dL = w . ((u x A) x g); a distal step of frame j moves the
+    masses distal to it, dL = w . ((C1_j - m_j Q) x (g x u)) for a rotation through Q, m_j w .
+    (g x u) for a translation. Prismatic, L = m (u . g): dL = m w . (u x g) for a proximal
+    rotation, nothing else changes it."""
+    g = np.asarray(model.gravity, dtype=float)
+    ps0, row = st.ps0, 3 * i
+    N = ps0.O.shape[1]
+    u = st.u[:, row].T                                                              # (N, 3)
+    w = ps0.U[steps]                                                                # (S, N, 3)
+    rot = lay.step_is_rot[steps]
+    prox = lay.anc[row, steps] & rot
+    dL = np.zeros((len(steps), N))
+    if model.frames[i].joint == "prismatic":
+        dL[prox] = np.einsum("snk,nk->sn", w[prox], st.msub[i][:, None] * cross(u, g))
+        return dL
+    dL[prox] = np.einsum("snk,nk->sn", w[prox], cross(cross(u, st.A[:, row].T), g))
+    gu = cross(g, u)
+    for k in np.nonzero(lay.desc[row, steps])[0]:
+        s, j = steps[k], lay.step_frame[steps[k]]
+        if rot[k]:
+            lever = st.C1[:, j].T - st.msub[j][:, None] * ps0.Q[s]
+            dL[k] = np.sum(w[k] * cross(lever, gu), axis=1)
+        else:
+            dL[k] = st.msub[j] * np.sum(w[k] * gu, axis=1)
+    return dL
 
 
 def _block(mask: np.ndarray) -> slice | None:
@@ -656,7 +807,7 @@ def _block(mask: np.ndarray) -> slice | None:
 
 def evaluate(model: RobotModel, q: np.ndarray, p: np.ndarray | None = None, *, jacobian: bool = False,
              orientations: bool = False, compliance: bool | None = None, payload_mass=None,
-             frames: bool = False, columns=None) -> Evaluation:
+             frames: bool = False, columns=None, backlash: bool | None = None, approach=None) -> Evaluation:
     """Evaluate the model (or the values ``p`` in its layout) at joint readings ``q`` (N, n_joints).
 
     ``columns``: indices into the parameter vector of the Jacobian columns wanted (default all);
@@ -664,6 +815,9 @@ def evaluate(model: RobotModel, q: np.ndarray, p: np.ndarray | None = None, *, j
 
     ``compliance``: apply gravity deflections (default: when the model has compliance) and, with
     ``jacobian``, include the compliance columns and corrections.
+    ``backlash``: joints rest in their lost motion (default: when the values hold a backlash or
+    backlash columns are asked for); ``approach`` (N, n_joints) the direction of each joint's last
+    move (default: from the row order of ``q``, the first pose approached from the last).
     """
     lay = layout(model)
     q = np.atleast_2d(np.asarray(q, dtype=float))
@@ -673,13 +827,17 @@ def evaluate(model: RobotModel, q: np.ndarray, p: np.ndarray | None = None, *, j
     qf = q @ model.coupling_matrix.T
     if compliance is None:
         compliance = bool(np.any(p[lay.compliant_params] != 0.0))
+    cols_idx = np.arange(lay.n_params) if columns is None else np.asarray(columns, dtype=int)
+    if backlash is None:
+        backlash = bool(np.any(p[lay.backlash_params[lay.backlash_params >= 0]] != 0.0)) or (
+            jacobian and bool(np.any(lay.param_backlash[cols_idx] >= 0)))
     need_or = orientations or jacobian
-    st = evaluate_state(model, lay, p, qf, compliance=compliance, orientations=need_or, payload_mass=payload_mass)
+    st = evaluate_state(model, lay, p, qf, compliance=compliance, orientations=need_or, payload_mass=payload_mass,
+                        backlash=backlash, approach=None if approach is None else frame_approach(model, approach))
     ps = st.ps
     rotations = np.stack(ps.RM, axis=1) if need_or and ps.RM else None
     J = None
     if jacobian:
-        cols_idx = np.arange(lay.n_params) if columns is None else np.asarray(columns, dtype=int)
         J = np.stack([jacobian_columns(model, lay, st, cols_idx, m).transpose(1, 2, 0)
                       for m in range(len(model.markers))], axis=1)
     frames_out = None

@@ -2,12 +2,37 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ._errors import InputError, check_choice
 from ._options import DEFAULT_INSTRUMENT, INSTRUMENT_NOISE
+
+
+def approach_sides(q) -> np.ndarray:
+    """+1 or -1 per pose and joint: the sign of the last move of that joint before reaching the pose.
+
+    Poses are visited in row order, the first approached from the last (as in a cycle); a joint
+    that does not move keeps the side it had (+1 if it never moves). ``q`` (n_poses, n_joints).
+    """
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    step = np.sign(np.diff(q, axis=0, prepend=q[-1:]))
+    n = len(q)
+    # forward-fill over the rows where a joint did not move, cycling once so the first poses
+    # inherit the side of the last move before them
+    rows = np.arange(2 * n)[:, None]
+    twice = np.vstack([step, step])
+    last = np.maximum.accumulate(np.where(twice != 0, rows, -1), axis=0)[n:]
+    sides = np.take_along_axis(twice, np.maximum(last, 0), axis=0)
+    return np.where(last >= 0, sides, 1.0)
+
+
+def approach_of(data: "Measurements") -> np.ndarray:
+    """(n_poses, n_joints) approach direction of each joint at each pose: the file's ``approach``
+    columns (``extra["approach"]``) when it has them, else from the visiting order of the rows."""
+    a = data.extra.get("approach")
+    return approach_sides(data.q) if a is None else np.asarray(a, dtype=float)
 
 
 @dataclass(frozen=True)
@@ -144,8 +169,17 @@ class Measurements:
         )
 
     def split(self, n_validation: int | float, *, rng=None) -> tuple["Measurements", "Measurements"]:
-        """Random split into (fit, validation); ``n_validation`` a count or a fraction."""
+        """Random split into (fit, validation); ``n_validation`` a count or a fraction. Each part keeps
+        the approach directions of the visiting order of the whole (``approach_of``)."""
         rng = np.random.default_rng(rng)
         n_val = int(round(n_validation * self.n_poses)) if 0 < n_validation < 1 else int(n_validation)
         order = rng.permutation(self.n_poses)
-        return self.subset(np.sort(order[n_val:])), self.subset(np.sort(order[:n_val]))
+        whole = self.with_approach()
+        return whole.subset(np.sort(order[n_val:])), whole.subset(np.sort(order[:n_val]))
+
+    def with_approach(self) -> "Measurements":
+        """These measurements with their approach directions stored (``extra["approach"]``), so that a
+        subset keeps the directions of this visiting order."""
+        if "approach" in self.extra:
+            return self
+        return replace(self, extra={**self.extra, "approach": approach_sides(self.q)})

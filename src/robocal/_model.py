@@ -14,6 +14,9 @@ Conventions (see docs/conventions.md):
   constant offsets, so their error is the encoder-offset error.
 * Compliance: theta, alpha and beta deflect by ``K * M`` with ``M`` the gravity moment about the
   parameter's own rotation axis (docs/conventions.md).
+* Backlash (docs/conventions.md): a joint's arm rests ``backlash_theta`` (revolute) or ``backlash_r``
+  (prismatic), half its lost motion, to one side of its reading: q_eff = q + b s, with the side s
+  set per pose by the model's ``backlash_side`` (the gravity load or the approach direction).
 * The base pose ``X_WB`` and a marker's orientation carry small rotation corrections rx, ry, rz that
   are zero in any stored model: identification composes them into the stored rotation.
 """
@@ -29,6 +32,8 @@ from ._errors import InputError
 from ._spatial import rot4, trans4
 
 JOINT_TYPES = ("revolute", "prismatic", "fixed")
+# how a joint's side of its lost motion is decided per pose (see RobotModel.backlash_side)
+BACKLASH_SIDES = ("gravity", "approach")
 DEFAULT_PARALLEL_TOL = np.deg2rad(1.0)
 
 
@@ -40,6 +45,10 @@ class Frame:
     prismatic frame's theta axis is a torque too, so the unit is the same for every frame).
     ``coupling`` gives the joint variable as ``sum(coef * reading[index])``; for an ordinary joint
     it is ``((own_index, 1.0),)`` and for a fixed frame it is empty.
+    ``backlash_theta`` (rad) and ``backlash_r`` (m): half the joint's lost motion, on the revolute and
+    the prismatic joint variable. ``backlash_friction`` and ``backlash_width`` (N m on a revolute
+    frame, N on a prismatic one) shape the gravity-sided side ``tanh((L - a F) / w)``: F the load the
+    transmission's friction holds (0: gravity alone decides), w the width of the smooth transition.
     """
 
     name: str
@@ -59,6 +68,10 @@ class Frame:
     k_theta: float = 0.0
     k_alpha: float = 0.0
     k_beta: float = 0.0
+    backlash_theta: float = 0.0
+    backlash_r: float = 0.0
+    backlash_friction: float = 0.0
+    backlash_width: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -93,6 +106,10 @@ class RobotModel:
     ``((lower, upper), ...)`` per reading. ``base_position``/``base_rotation`` give ``X_WB``.
     ``tolerances``: ``(family, quantity, value)`` triples, how far calibration may plausibly move
     a family's parameters (SI; None for no bound), over the defaults of docs/checks.md.
+    ``backlash_side``: where a joint rests in its lost motion, pose by pose: ``"gravity"`` on the
+    side its gravity load L pushes it to, ``s = tanh((L - a F) / w)`` (frame's friction F and
+    width w; a the approach direction, which matters only where F > 0), or ``"approach"`` behind
+    its last move, ``s = -a`` (docs/conventions.md).
     """
 
     name: str
@@ -106,6 +123,7 @@ class RobotModel:
     payload: Payload = field(default_factory=Payload)
     description: str = ""
     tolerances: tuple[tuple[str, str, float | None], ...] = ()
+    backlash_side: str = "gravity"
 
     def __post_init__(self) -> None:
         _validate(self)
@@ -169,6 +187,10 @@ class RobotModel:
     def has_compliance(self) -> bool:
         return any(f.k_theta or f.k_alpha or f.k_beta for f in self.frames)
 
+    @property
+    def has_backlash(self) -> bool:
+        return any(f.backlash_theta or f.backlash_r for f in self.frames)
+
     def frame_index(self, name: str) -> int:
         try:
             return self.frame_names.index(name)
@@ -216,6 +238,11 @@ def _validate(model: RobotModel) -> None:
         for k in _FRAME_NUMBERS:
             if not np.isfinite(getattr(f, k)):
                 raise InputError(f"{k} is not a finite number", where=where)
+        if not (f.backlash_width > 0 and f.backlash_friction >= 0):
+            raise InputError("backlash_width must be positive and backlash_friction non-negative", where=where)
+    if model.backlash_side not in BACKLASH_SIDES:
+        raise InputError(f"backlash side must be one of {', '.join(BACKLASH_SIDES)}, got {model.backlash_side!r}",
+                         where="backlash.side")
     if model.payload.mass < 0:
         raise InputError(f"payload mass must be non-negative, got {model.payload.mass}", where="payload")
     if not (-1 <= model.payload.frame < len(model.frames)):

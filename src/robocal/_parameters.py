@@ -12,11 +12,12 @@ The preference order of ``candidate_parameters`` decides which of a dependent gr
 (earlier wins). It follows the paper and the habit of tracker users: the base first (so it absorbs
 what frame 1 cannot show), then the markers, then frames from the base outwards (beta, alpha, d,
 theta, r within a frame, so r of the second of two parallel axes is the one eliminated), then
-compliances.
+compliances, then backlash (so a joint offset absorbs a backlash whose side never changes).
 """
 
 from __future__ import annotations
 
+import fnmatch
 import types
 from dataclasses import dataclass, replace
 from functools import lru_cache
@@ -24,14 +25,16 @@ from typing import Iterable
 
 import numpy as np
 
-from ._errors import InputError
+from ._errors import InputError, excerpt
 from ._model import RobotModel
 from ._spatial import matrix_tuple, small_rotation, xyz_angles
 
 BASE_KINDS = ("x", "y", "z", "rx", "ry", "rz")
 GEOMETRIC_KINDS = ("gamma", "b", "beta", "alpha", "d", "theta", "r")
 COMPLIANCE_KINDS = ("k_theta", "k_alpha", "k_beta")
-FRAME_KINDS = GEOMETRIC_KINDS + COMPLIANCE_KINDS
+# half the lost motion of a revolute (theta) or prismatic (r) joint: the one matching the joint is used
+BACKLASH_KINDS = ("backlash_theta", "backlash_r")
+FRAME_KINDS = GEOMETRIC_KINDS + COMPLIANCE_KINDS + BACKLASH_KINDS
 MARKER_KINDS = ("x", "y", "z", "rx", "ry", "rz")
 
 # the one table of kinds: the quantity each one measures, and the SI unit of each quantity
@@ -39,11 +42,14 @@ KIND_QUANTITY = types.MappingProxyType({
     "x": "length", "y": "length", "z": "length", "rx": "angle", "ry": "angle", "rz": "angle",
     "gamma": "angle", "b": "length", "beta": "angle", "alpha": "angle", "d": "length", "theta": "angle",
     "r": "length", "k_theta": "compliance", "k_alpha": "compliance", "k_beta": "compliance",
+    "backlash_theta": "angle", "backlash_r": "length",
 })
 SI_UNITS = types.MappingProxyType({"length": "m", "angle": "rad", "compliance": "rad/(N m)"})
 
 # families a user names; "geometric" is base + markers + frames
-FAMILIES = ("geometric", "compliance", "base", "markers", "frames")
+FAMILIES = ("geometric", "compliance", "backlash", "base", "markers", "frames")
+# a parameter item holding one of these is a pattern (fnmatch): "*.theta", "j2.*", "*.k_theta"
+PATTERN_CHARS = "*?["
 ROLES = ("base", "frame", "marker")
 
 
@@ -73,8 +79,10 @@ class Parameter:
 
     @property
     def family(self) -> str:
-        """"base", "markers", "frames" (geometric kinds of a frame) or "compliance"."""
+        """"base", "markers", "frames" (geometric kinds of a frame), "compliance" or "backlash"."""
         if self.role == "frame":
+            if self.kind in BACKLASH_KINDS:
+                return "backlash"
             return "compliance" if self.kind in COMPLIANCE_KINDS else "frames"
         return "base" if self.role == "base" else "markers"
 
@@ -201,7 +209,13 @@ def families(model: RobotModel, *, orientation: bool = False) -> dict[str, list[
     frames = [n for i in range(model.n_frames) for n in _frame_geometric(model, i)]
     compliance = [f"{f.name}.{k}" for f in model.frames for k in COMPLIANCE_KINDS]
     return {"base": base, "markers": markers, "frames": frames, "geometric": base + markers + frames,
-            "compliance": compliance}
+            "compliance": compliance, "backlash": backlash_names(model)}
+
+
+def backlash_names(model: RobotModel) -> list[str]:
+    """The backlash parameter of every moving frame: ``backlash_theta`` or ``backlash_r`` by its joint."""
+    return [f"{f.name}.backlash_{'theta' if f.joint == 'revolute' else 'r'}" for f in model.frames
+            if f.joint != "fixed"]
 
 
 def candidate_parameters(model: RobotModel, parameters: Iterable[str] = ("geometric",), *,
@@ -209,7 +223,8 @@ def candidate_parameters(model: RobotModel, parameters: Iterable[str] = ("geomet
     """Parameter names to consider, in preference order.
 
     ``parameters`` holds family names (``geometric`` = base + markers + frames, ``compliance``,
-    ``base``, ``markers``, ``frames``) and/or explicit parameter names such as ``j2.alpha``.
+    ``backlash``, ``base``, ``markers``, ``frames``), explicit parameter names such as ``j2.alpha`` and/or
+    patterns such as ``*.theta`` or ``j2.*`` (see ``matched_by_pattern``).
     ``orientation``: the data hold orientations, so marker rotations are candidates too.
     ``known``: families or names to hold fixed at their model values (e.g. ``("base",)``).
     """
@@ -221,10 +236,12 @@ def candidate_parameters(model: RobotModel, parameters: Iterable[str] = ("geomet
         for item in (items,) if isinstance(items, str) else items:
             if item in fam:
                 out += fam[item]
+            elif is_pattern(item):
+                out += _matching(model, item, fam, what)
             elif item in lay:
                 out.append(item)
             else:
-                raise InputError(f"unknown parameter or family {item!r}; families are {', '.join(FAMILIES)} "
+                raise InputError(f"unknown parameter or family {excerpt(item)}; families are {', '.join(FAMILIES)} "
                                  f"and names look like 'base.x', '{model.frames[0].name}.alpha'", where=what)
         return out
 
@@ -233,12 +250,62 @@ def candidate_parameters(model: RobotModel, parameters: Iterable[str] = ("geomet
     if any(lay[n].family == "compliance" for n in chosen) and not model.has_masses:
         raise InputError("compliance parameters need link masses (or a payload); the model has none",
                          where="parameters")
-    order = fam["geometric"] + fam["compliance"]
+    if model.backlash_side == "gravity" and any(lay[n].family == "backlash" for n in chosen) \
+            and not model.has_masses:
+        raise InputError("gravity-sided backlash needs link masses (or a payload); the model has none: give "
+                         "masses or choose the approach-sided model", where="parameters")
+    order = fam["geometric"] + fam["compliance"] + fam["backlash"]
     extra = [n for n in chosen if n not in order]  # explicit names outside the default families
-    return tuple(n for n in order + sorted(extra) if n in chosen and n not in fixed)
+    out = tuple(n for n in order + sorted(extra) if n in chosen and n not in fixed)
+    if not out:
+        raise InputError(f"no parameter left to identify: the known ones ({', '.join(map(str, known))}) cover "
+                         "every parameter chosen", where="known")
+    return out
+
+
+def is_pattern(item: str) -> bool:
+    return any(c in item for c in PATTERN_CHARS)
+
+
+def _pattern_pool(model: RobotModel, fam: dict) -> list[str]:
+    """What a pattern may match: the geometric candidates, and compliances when there are masses."""
+    return fam["geometric"] + (fam["compliance"] if model.has_masses else [])
+
+
+def _matching(model: RobotModel, pattern: str, fam: dict, what: str) -> list[str]:
+    found = [n for n in _pattern_pool(model, fam) if fnmatch.fnmatchcase(n, pattern)]
+    if not found:
+        raise InputError(f"pattern {pattern!r} matches no parameter; names look like 'base.x', "
+                         f"'{model.frames[0].name}.theta', '{model.markers[0].name}.x'", where=what)
+    return found
+
+
+def matched_by_pattern(model: RobotModel, parameters: Iterable[str], *,
+                       orientation: bool = False) -> tuple[tuple[str, tuple[str, ...]], ...]:
+    """``(pattern, names)`` for each pattern among ``parameters``: the candidate names it matches.
+
+    Patterns are shell-style (``*`` any text, ``?`` one character, ``[..]`` a set), matched against
+    the whole name among the families' candidates (geometric, and compliance when the model has
+    masses): ``*.theta`` every joint offset, ``j2.*`` frame j2's parameters, ``*.k_theta`` every
+    torsion compliance.
+
+    >>> from robocal._model import serial_model
+    >>> m = serial_model("rr", [dict(), dict(d=0.5)])
+    >>> matched_by_pattern(m, ["geometric", "*.theta"])
+    (('*.theta', ('j1.theta', 'j2.theta')),)
+    """
+    fam = families(model, orientation=orientation)
+    items = (parameters,) if isinstance(parameters, str) else parameters
+    return tuple((p, tuple(_matching(model, p, fam, "parameters"))) for p in items if is_pattern(p))
 
 
 def has_compliance_parameters(model: RobotModel, names: Iterable[str]) -> bool:
     """Whether any of ``names`` is a compliance of ``model``."""
     lay = parameter_layout(model)
     return any(lay[n].family == "compliance" for n in names)
+
+
+def has_backlash_parameters(model: RobotModel, names: Iterable[str]) -> bool:
+    """Whether any of ``names`` is a backlash of ``model``."""
+    lay = parameter_layout(model)
+    return any(lay[n].family == "backlash" for n in names)

@@ -13,17 +13,19 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ._errors import InputError
-from ._kinematics import evaluate_state, jacobian_columns, layout
-from ._measurements import Measurements, Noise
+from ._kinematics import evaluate_state, frame_approach, jacobian_columns, layout
+from ._measurements import Measurements, Noise, approach_of
 from ._model import RobotModel
-from ._parameters import has_compliance_parameters
+from ._parameters import has_backlash_parameters, has_compliance_parameters
 
 
 class Problem:
     """Residuals and Jacobian of ``model`` on ``data`` over the free parameters ``free`` (names).
 
     The Jacobian is returned column-major (a transposed view), as MINPACK works on columns.
-    ``residuals`` and ``jacobian`` at the same parameters share one kinematic pass.
+    ``residuals`` and ``jacobian`` at the same parameters share one kinematic pass. Joints rest in
+    their lost motion when the model has backlash or ``free`` holds some, on the sides of the
+    model's ``backlash_side`` (the approach directions from ``approach_of(data)``).
     """
 
     def __init__(self, model: RobotModel, data: Measurements, free: tuple[str, ...], *, compliance: bool,
@@ -33,6 +35,8 @@ class Problem:
         self.lay = layout(model)
         self.free_idx = self._indices(free)
         self.compliance = compliance
+        self.backlash = model.has_backlash or has_backlash_parameters(model, free)
+        self.approach = frame_approach(model, approach_of(data)) if self.backlash else None
         self.qf = data.q @ model.coupling_matrix.T
         self.marker_idx = np.array([model.marker_names.index(n) for n in data.marker_names], dtype=int)
         self.use_rot = data.has_orientation
@@ -78,7 +82,8 @@ class Problem:
         key = p.tobytes()
         if key != self._cache_key:
             self._cache = evaluate_state(self.model, self.lay, p, self.qf, compliance=self.compliance,
-                                         orientations=self.use_rot, payload_mass=self.data.payload_mass)
+                                         orientations=self.use_rot, payload_mass=self.data.payload_mass,
+                                         backlash=self.backlash, approach=self.approach)
             self._cache_key = key
         return self._cache
 
@@ -155,6 +160,14 @@ class Problem:
         st = self._state(p)
         names = self.lay.names
         return {names[k]: st.M[row] for row, k in enumerate(self.lay.compliant_params)}
+
+    def backlash_sides(self, p) -> dict:
+        """Per backlash parameter name, the sides (n_poses,) in [-1, 1] its joint rests on at ``p``."""
+        if not self.backlash:
+            return {}
+        st = self._state(p)
+        names = self.lay.names
+        return {names[k]: st.backlash.sides[:, i] for i, k in enumerate(self.lay.backlash_params) if k >= 0}
 
     def pose_blocks(self, p) -> np.ndarray:
         """(n_poses, rows_per_pose, n_free) unweighted Jacobian grouped by pose (all markers seen)."""

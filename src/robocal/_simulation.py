@@ -10,7 +10,7 @@ from scipy.spatial.transform import Rotation
 
 from ._identifiability import identifiability
 from ._kinematics import evaluate
-from ._measurements import Measurements
+from ._measurements import Measurements, approach_sides
 from ._model import RobotModel
 from ._parameters import model_from_vector, parameter_layout, parameter_vector
 from ._problem import random_configurations
@@ -27,7 +27,8 @@ def perturb_model(model: RobotModel, names, *, length_error=(1e-4, 1e-3), angle_
 
     Each error's magnitude is uniform in the (lo, hi) range of its kind (m, rad, rad/(N m)) with a
     random sign. Compliance parameters need ``compliance_error`` (else they are left alone); a
-    compliance stays non-negative (a robot is not stiffer than rigid): a negative draw is mirrored.
+    compliance stays non-negative (a robot is not stiffer than rigid): a negative draw is mirrored,
+    and so does a backlash (a lost motion is not negative), drawn in the length and angle ranges.
     """
     rng = np.random.default_rng(rng)
     lay = parameter_layout(model)
@@ -38,7 +39,7 @@ def perturb_model(model: RobotModel, names, *, length_error=(1e-4, 1e-3), angle_
         if bounds is None:
             continue
         p[lay[n].index] += _signed_uniform(rng, *bounds, 1)[0]
-        if lay[n].quantity == "compliance":
+        if lay[n].quantity == "compliance" or lay[n].family == "backlash":
             p[lay[n].index] = abs(p[lay[n].index])
     return model_from_vector(model, p)
 
@@ -47,7 +48,9 @@ def measure(true_model: RobotModel, q, *, noise: float = 2e-5, noise_rot: float 
             orientation: bool = False, payload_mass=None, rng=None, labels=()) -> Measurements:
     """Measurements of ``true_model`` at readings ``q`` with isotropic Gaussian noise (std, metres).
 
-    ``noise_rot`` (rad) perturbs measured orientations when ``orientation`` is set.
+    ``noise_rot`` (rad) perturbs measured orientations when ``orientation`` is set. The poses are
+    visited in row order: a robot with backlash rests on the sides that order gives, and the
+    measurements keep its approach directions (``extra["approach"]``).
     """
     rng = np.random.default_rng(rng)
     q = np.atleast_2d(np.asarray(q, dtype=float))
@@ -61,7 +64,7 @@ def measure(true_model: RobotModel, q, *, noise: float = 2e-5, noise_rot: float 
         rot = dR @ ev.rotations
     return Measurements(q=q, positions=pos, rotations=rot, marker_names=true_model.marker_names,
                         joint_names=true_model.joint_names, payload_mass=payload_mass, labels=tuple(labels),
-                        source="simulated")
+                        source="simulated", extra={"approach": approach_sides(q)})
 
 
 def simulate(model: RobotModel, n_poses: int | None = None, *, q=None, parameters=("geometric",), known=(),

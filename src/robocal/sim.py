@@ -1,8 +1,9 @@
 """Simulation before the robot is touched: a perturbed "true" robot and its measurements, and
 campaigns with a real robot's imperfections (encoder counts, scatter, instrument noise, lost motion)."""
 
-from ._campaign import (RobotImperfections, accuracy_in_use, approach_sides, backlash_sides, measure_campaign,
+from ._campaign import (RobotImperfections, accuracy_in_use, backlash_sides, measure_campaign,
                         stored_model)
+from ._measurements import approach_sides
 from ._problem import random_configurations
 from ._simulation import measure, perturb_model, simulate
 

@@ -29,9 +29,9 @@ def register(sub) -> None:
     p.add_argument("--marker", help="the marker to place (default the file's first marker, else the model's)")
     p.add_argument("--position-only", action="store_true",
                    help="match the marker's position only, even with six joints or more")
-    p.add_argument("--tol-mm", type=common.positive, default=0.001,
+    p.add_argument("--tol-mm", type=common.noise_mm, default=0.001,
                    help="position residual above which a target counts as out of reach (default 0.001)")
-    p.add_argument("--tol-deg", type=common.positive, default=1e-4,
+    p.add_argument("--tol-deg", type=common.noise_deg, default=1e-4,
                    help="orientation residual above which a target counts as out of reach (default 1e-4)")
     p.add_argument("--out-units", type=common.units, default="mm-deg", help="units of the written file (default mm-deg)")
     p.add_argument("--force", action="store_true", help="overwrite an existing file")

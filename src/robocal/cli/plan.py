@@ -23,20 +23,20 @@ def register(sub) -> None:
                                    "position error after calibration.",
                        epilog=EXAMPLE, formatter_class=common.Formatter)
     p.add_argument("model", metavar="MODEL", help="nominal model file (YAML)")
-    p.add_argument("--poses", type=common.count, required=True, metavar="N", help="number of poses to choose")
+    p.add_argument("--poses", type=common.poses, required=True, metavar="N", help="number of poses to choose")
     p.add_argument("--out", required=True, metavar="CSV", help="poses to write (measurement-file layout)")
     p.add_argument("--candidates", metavar="CSV", help="choose among these joint readings (e.g. collision-free "
                                                        "poses; measurement-file layout, marker columns optional)")
-    p.add_argument("--n-candidates", type=common.count, default=10000, metavar="M",
+    p.add_argument("--n-candidates", type=common.poses, default=10000, metavar="M",
                    help="random candidates without --candidates (default 10000)")
     p.add_argument("--criterion", choices=POSE_CRITERIA, default="I",
                    help="I: lowest average prediction variance (held-out error), D: largest det (default I)")
     common.parameter_options(p)
     p.add_argument("--instrument", choices=tuple(INSTRUMENT_NOISE), default="tracker",
                    help="instrument class whose noise the predictions assume (default tracker)")
-    p.add_argument("--noise-mm", type=common.positive, metavar="X", help="measurement noise, mm per axis "
+    p.add_argument("--noise-mm", type=common.noise_mm, metavar="X", help="measurement noise, mm per axis "
                                                                        "(overrides the instrument's)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--seed", type=common.seed, default=0, help="random seed (default 0)")
     p.add_argument("--out-units", type=common.units, default="mm-deg", help="units of the written file (default mm-deg)")
     p.add_argument("--force", action="store_true", help="overwrite an existing file")
     common.csv_options(p)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from .._errors import InputError
 from . import common
 
 
@@ -15,12 +14,12 @@ def register(sub) -> None:
                        epilog=EXAMPLE, formatter_class=common.Formatter)
     p.add_argument("model", metavar="MODEL", help="nominal model file (YAML)")
     p.add_argument("--out", required=True, metavar="CSV", help="measurement file to write")
-    p.add_argument("--poses", type=common.count, required=True, metavar="N", help="number of random poses")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    p.add_argument("--noise-mm", type=common.non_negative, default=0.02, help="measurement noise std, mm (default 0.02)")
-    p.add_argument("--length-error-mm", type=common.floats(2), default=(0.1, 1.0), metavar="LO,HI",
+    p.add_argument("--poses", type=common.poses, required=True, metavar="N", help="number of random poses")
+    p.add_argument("--seed", type=common.seed, default=0, help="random seed (default 0)")
+    p.add_argument("--noise-mm", type=common.length_mm, default=0.02, help="measurement noise std, mm (default 0.02)")
+    p.add_argument("--length-error-mm", type=common.floats(2, 1e3, ordered=True), default=(0.1, 1.0), metavar="LO,HI",
                    help="range of length errors, mm (default 0.1,1)")
-    p.add_argument("--angle-error-deg", type=common.floats(2), default=(0.01, 0.1), metavar="LO,HI",
+    p.add_argument("--angle-error-deg", type=common.floats(2, 180.0, ordered=True), default=(0.01, 0.1), metavar="LO,HI",
                    help="range of angle errors, deg (default 0.01,0.1)")
     p.add_argument("--parameters", type=common.names, default=("geometric",), help="families to perturb")
     p.add_argument("--true-model", metavar="OUT.yaml", help="also write the true model")
