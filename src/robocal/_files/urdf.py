@@ -61,6 +61,8 @@ def _round_angle(v: float, text: str | None) -> float:
         written = 0.5 * 10.0 ** Decimal((text or "0").strip()).as_tuple().exponent
     except (ArithmeticError, TypeError, ValueError):
         return v
+    if written > 1e-6:   # a short number (-1.0) is the angle it says, not a rounded degree value
+        return v
     in_deg = written / ANGLE_UNITS["deg"]
     decimals = max(0, -math.ceil(math.log10(2 * in_deg))) if in_deg > 0 else 15
     return round(v / ANGLE_UNITS["deg"], decimals) * ANGLE_UNITS["deg"]
@@ -354,11 +356,15 @@ def _source_decimals(root: ET.Element) -> int:
 
 def _clean(v: float, angle: bool, tol: float, decimals: int = 14) -> float:
     """``v`` without the source's round-off: an angle within ``tol`` of a multiple of pi/2 is that
-    multiple; a length keeps ``decimals`` decimals of a metre (those of the source)."""
+    multiple; a length within 1e-12 m of ``decimals`` decimals of a metre (those of the source)
+    is rounded to them."""
     if angle:
         k = round(v / (math.pi / 2))
         return k * (math.pi / 2) + 0.0 if abs(v - k * (math.pi / 2)) <= tol else v
-    return round(v, decimals) + 0.0
+    short = round(v, decimals)
+    # a length the source's numbers add up to sits within float noise of that many decimals;
+    # one through a skew axis does not, and keeps its digits
+    return (short if abs(short - v) <= 1e-12 else round(v, 14)) + 0.0
 
 
 def _clean_frames(frames, tol: float, decimals: int) -> list:
