@@ -210,6 +210,22 @@ def csv_options(p: argparse.ArgumentParser) -> None:
                                                    "(default pose)")
 
 
+def imported_model_options(p: argparse.ArgumentParser) -> None:
+    """--out, --units and --force of a command that writes a model file it imported."""
+    p.add_argument("--out", required=True, metavar="MODEL.yaml", help="model file to write")
+    p.add_argument("--units", type=units, default="mm-deg", help="units of the written file (default mm-deg)")
+    p.add_argument("--force", action="store_true", help="overwrite an existing file")
+
+
+def write_imported_model(args, model, what: str) -> None:
+    """Write the imported ``model`` to ``args.out`` and say what it holds (``what``: frames, ...)."""
+    from .._files.model import model_to_yaml
+
+    write_outputs({args.out: model_to_yaml(model, units=args.units)}, force=args.force)
+    print(f"{model.name}: {model.n_joints} joints ({', '.join(model.joint_names)}), {what}markers "
+          f"{', '.join(model.marker_names)}: wrote {args.out}")
+
+
 def parameter_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--parameters", type=names,
                    help="comma-separated families (geometric, compliance, base, markers, frames), names "

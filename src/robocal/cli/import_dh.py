@@ -20,20 +20,15 @@ def register(sub) -> None:
                                    "robocal model file (modified DH with Hayati's beta where axes are parallel).",
                        epilog=EXAMPLE, formatter_class=common.Formatter)
     p.add_argument("table", metavar="TABLE.csv", help="DH table")
-    p.add_argument("--out", required=True, metavar="MODEL.yaml", help="model file to write")
+    common.imported_model_options(p)
     p.add_argument("--name", help="robot name (default: the table's file name)")
-    p.add_argument("--units", type=common.units, default="mm-deg", help="units of the written file (default mm-deg)")
-    p.add_argument("--force", action="store_true", help="overwrite an existing file")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     from .._files.dh import read_dh_table
-    from .._files.model import model_to_yaml
 
     common.refuse_existing([args.out], args.force)
     model = read_dh_table(args.table, name=args.name)
-    common.write_outputs({args.out: model_to_yaml(model, units=args.units)}, force=args.force)
-    print(f"{model.name}: {model.n_joints} joints ({', '.join(model.joint_names)}), markers "
-          f"{', '.join(model.marker_names)}: wrote {args.out}")
+    common.write_imported_model(args, model, "")
     return 0

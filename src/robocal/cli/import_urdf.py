@@ -21,19 +21,16 @@ def register(sub) -> None:
                                    "into a robocal model file (modified DH with Hayati's beta).",
                        epilog=EXAMPLE, formatter_class=common.Formatter)
     p.add_argument("urdf", metavar="URDF", help="URDF file")
-    p.add_argument("--out", required=True, metavar="MODEL.yaml", help="model file to write")
+    common.imported_model_options(p)
     p.add_argument("--base-link", help="first link of the chain (default: the root link)")
-    p.add_argument("--tip-link", help="last link of the chain (default: the leaf of an unbranched chain)")
+    p.add_argument("--tip-link", help="last link of the chain (default: where the arm ends, below)")
     p.add_argument("--marker-mm", action="append", type=common.marker_mm, metavar="NAME,X,Y,Z",
                    help="a measured point in the tip link's frame, mm (repeatable; default one marker "
                         "'tool' at the tip link's origin)")
-    p.add_argument("--units", type=common.units, default="mm-deg", help="units of the written file (default mm-deg)")
-    p.add_argument("--force", action="store_true", help="overwrite an existing file")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    from .._files.model import model_to_yaml
     from .._files.urdf import read_urdf
 
     common.refuse_existing([args.out], args.force)
@@ -46,7 +43,5 @@ def run(args) -> int:
             flag = "--" + e.where.replace("_", "-")
             raise InputError(e.detail.replace(e.where.replace("_", " "), flag), source=e.source, where=flag) from None
         raise
-    common.write_outputs({args.out: model_to_yaml(model, units=args.units)}, force=args.force)
-    print(f"{model.name}: {model.n_joints} joints ({', '.join(model.joint_names)}), {len(model.frames)} frames, "
-          f"markers {', '.join(model.marker_names)}: wrote {args.out}")
+    common.write_imported_model(args, model, f"{len(model.frames)} frames, ")
     return 0
