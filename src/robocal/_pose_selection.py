@@ -76,12 +76,15 @@ class _Greedy:
         b = self.B[i]
         u = b @ self.Minv                                                   # (rows, k)
         Sinv = np.linalg.inv(np.eye(len(b)) + sign * (u @ b.T))
-        C = self.flat @ u.T                                                 # B_i M^-1 b^T, flat
-        if self.F is not None:
-            # F_i += [C D] [[E, -s S^-1], [-s S^-1, 0]] [C D]^T with D = B_i M^-1 W M^-1 b^T and
-            # E = S^-1 u W u^T S^-1: the three terms of (M^-1 - s u^T S^-1 u) W (...) in one product
-            Z = np.hstack([C, self.flat @ (self.Minv @ self.W @ u.T)])
-            r = len(b)
+        r = len(b)
+        if self.F is None:
+            C = self.flat @ u.T                                             # B_i M^-1 b^T, flat
+        else:
+            # one product gives C and D = B_i M^-1 W M^-1 b^T; then F_i += [C D] K [C D]^T with
+            # K = [[E, -s S^-1], [-s S^-1, 0]], E = S^-1 u W u^T S^-1: the three terms of
+            # (M^-1 - s u^T S^-1 u) W (...) in one product
+            Z = self.flat @ np.hstack([u.T, self.Minv @ self.W @ u.T])
+            C = Z[:, :r]
             K = np.zeros((2 * r, 2 * r))
             K[:r, :r] = Sinv @ (u @ self.W @ u.T) @ Sinv
             K[:r, r:] = K[r:, :r] = -sign * Sinv
