@@ -7,6 +7,8 @@
    inverts M and evaluates every candidate's gain with k x k products, as robocal did before),
    from the same start; the criterion each reaches is printed beside the times. The baseline is
    run at 2,000 candidates only (at 10,000 it takes minutes).
+   CPU time is given beside wall time: on a machine shared by several jobs the wall time says
+   more about the neighbours than about the code.
 2. ``robocal --help`` (a new process) against ``python -c "import numpy"``.
 
 BLAS runs single-threaded (set below): on a machine shared by several jobs, threaded BLAS on
@@ -69,13 +71,14 @@ def prediction(B, W, idx):
 
 def bench_selection():
     model = arm6r()
-    print("| candidates | poses | criterion | select_poses (s) | baseline (s) | speed-up | tr(W M^-1) robocal | baseline |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| candidates | poses | criterion | select_poses, wall (s) | select_poses, CPU (s) | baseline, wall (s) | "
+          "speed-up | tr(W M^-1) robocal | baseline |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for n_cand, n in ((2000, 30), (10000, 50)):
         for criterion in ("I", "D"):
-            t = time.perf_counter()
+            t, c = time.perf_counter(), time.process_time()
             sel = rc.select_poses(model, n, n_candidates=n_cand, criterion=criterion, rng=1)
-            t_new = time.perf_counter() - t
+            t_new, c_new = time.perf_counter() - t, time.process_time() - c
             # the baseline on the same candidates and blocks, from the same random start
             rng = np.random.default_rng(1)
             q = rc.random_configurations(model, n_cand, rng)
@@ -88,7 +91,7 @@ def bench_selection():
             ref = baseline(B, W, n, criterion, [int(i) for i in start]) if n_cand <= 2000 else None
             t_old = time.perf_counter() - t if ref is not None else float("nan")
             p_ref = f"{prediction(B, W, ref):.4f}" if ref is not None else "(not run: minutes)"
-            print(f"| {n_cand} | {n} | {criterion} | {t_new:.2f} | {t_old:.2f} | {t_old / t_new:.1f}x | "
+            print(f"| {n_cand} | {n} | {criterion} | {t_new:.2f} | {c_new:.2f} | {t_old:.2f} | {t_old / t_new:.1f}x | "
                   f"{sel.prediction_selected:.4f} | {p_ref} |")
 
 
