@@ -20,7 +20,7 @@ _EVERYDAY = {
                    "random_configurations"),
     "io": ("Measurements", "read_model", "write_model", "model_from_dict", "model_to_dict", "read_measurements",
            "write_measurements", "split_sets", "read_result", "write_result", "read_urdf", "write_urdf",
-           "from_standard_dh", "mdh_table", "write_mdh_csv", "read_repeatability_csv"),
+           "from_standard_dh", "mdh_table", "write_mdh_csv", "read_dh_table", "urdf_text", "to_standard_dh", "read_repeatability_csv"),
     "sim": ("simulate", "measure", "perturb_model"),
     "limit": ("AccuracyLimit", "PoseRepeatability", "PrecisionResult", "PredictedPrecision", "RepeatabilityData",
               "RepeatabilityResult", "accuracy_limit", "controller_precision", "iso9283_repeatability",
