@@ -11,6 +11,7 @@ from scipy.spatial.transform import Rotation
 from ._kinematics import evaluate
 from ._model import RobotModel
 from ._parameters import parameter_layout, parameter_vector
+from ._threads import one_blas_thread
 
 log = logging.getLogger(__name__)
 
@@ -69,6 +70,7 @@ def _errors(model, q, p, marker, Pt, Rt):
     return e_pos, e_rot
 
 
+@one_blas_thread
 def compensate(model: RobotModel, targets_q, *, nominal: RobotModel | None = None, positions=None,
                rotations=None, marker: int = 0, orientation: bool | None = None, iterations: int = 50,
                tol: float = 1e-10, damping: float = 1e-6, max_step: float = 0.05) -> Compensation:

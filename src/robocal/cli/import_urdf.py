@@ -31,6 +31,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    from .._files.model import model_from_dict, model_to_dict
     from .._files.urdf import read_urdf
 
     common.refuse_existing([args.out], args.force)
@@ -43,5 +44,10 @@ def run(args) -> int:
             flag = "--" + e.where.replace("_", "-")
             raise InputError(e.detail.replace(e.where.replace("_", " "), flag), source=e.source, where=flag) from None
         raise
+    try:  # never write a model file robocal would then refuse to read
+        model_from_dict(model_to_dict(model, units=args.units), source=args.out)
+    except InputError as e:
+        raise InputError(f"the model it gives cannot be written as a robocal model: {e.where or ''} {e.detail}",
+                         source=args.urdf) from None
     common.write_imported_model(args, model, f"{len(model.frames)} frames, ")
     return 0
