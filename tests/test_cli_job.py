@@ -7,6 +7,7 @@ import json
 import subprocess
 import sys
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,8 +15,9 @@ import pytest
 import robocal as rc
 from robots import arm6r
 
-TH8 = "examples/th8/model.yaml"
-TRUE = "examples/th8/true_model.yaml"
+ROOT = Path(__file__).resolve().parent.parent
+TH8 = str(ROOT / "examples/th8/model.yaml")
+TRUE = str(ROOT / "examples/th8/true_model.yaml")
 
 
 def _rows(path):
@@ -132,7 +134,7 @@ def test_classic_dh_export_refuses_ill_conditioned_parallel_axes(tmp_path, cli):
 
 def test_compare_writes_the_chosen_result_json(tmp_path, cli):
     out = tmp_path / "run"
-    code, _, err = cli("calibrate", TH8, "examples/th8/measurements.csv", "--out", out, "--compare",
+    code, _, err = cli("calibrate", TH8, str(ROOT / "examples/th8/measurements.csv"), "--out", out, "--compare",
                        "--known", "markers")
     assert code in (0, 3), err
     chosen = json.loads((out / "result.json").read_text())
@@ -162,7 +164,29 @@ def test_every_help_has_a_description_and_an_example(command, cli):
 
 
 def test_broken_pipe_is_quiet():
-    code = ("import sys; sys.argv = ['robocal', 'identifiability', 'examples/th8/model.yaml', '--poses', '30'];"
+    code = ("import sys; sys.argv = ['robocal', 'identifiability', '" + TH8 + "', '--poses', '30'];"
             "from robocal.cli import main; sys.exit(main())")
-    p = subprocess.run(f"{sys.executable} -c \"{code}\" | head -1", shell=True, capture_output=True, text=True)
+    p = subprocess.run(f"{sys.executable} -c \"{code}\" | head -1", shell=True, capture_output=True, text=True,
+                       cwd=ROOT)
     assert p.stderr == "" and p.stdout.startswith("identifiability")
+
+
+@pytest.mark.parametrize("edit, words", [
+    (("89.159", "8x9"), ["line 5", "'d_mm'", "expected a number"]),
+    ((",revolute,0,0,-425", ",rotary,0,0,-425"), ["line 6", "'joint'", "rotary"]),
+], ids=["number", "joint-kind"])
+def test_import_dh_bad_table(edit, words, tmp_path, cli):
+    from conftest import assert_one_line_error
+
+    text = ((ROOT / "examples/dh/ur5-dh.csv").read_text()).replace(*edit)
+    (tmp_path / "t.csv").write_text(text)
+    code, _, err = cli("import-dh", tmp_path / "t.csv", "--out", tmp_path / "out" / "m.yaml")
+    assert_one_line_error(code, err, ["t.csv"] + words, tmp_path / "out", command="import-dh")
+
+
+def test_compensate_unknown_marker(tmp_path, cli):
+    from conftest import assert_one_line_error
+
+    code, _, err = cli("compensate", TH8, TRUE, str(ROOT / "examples/th8/targets.csv"), "--out", tmp_path / "o" / "c.csv",
+                       "--marker", "nose")
+    assert_one_line_error(code, err, ["--marker", "nose", "tool"], tmp_path / "o", command="compensate")

@@ -99,12 +99,11 @@ class _Table:
     def __init__(self, path):
         self.source = str(path)
         text, _ = read_text(path)
-        lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
-        reader = csv.reader(lines)
-        try:
-            header = [c.strip() for c in next(reader)]
-        except StopIteration:
-            raise InputError("empty table", source=self.source) from None
+        numbered = [(i, ln) for i, ln in enumerate(text.splitlines(), 1) if ln.strip() and not ln.lstrip().startswith("#")]
+        if not numbered:
+            raise InputError("empty table", source=self.source)
+        parsed = list(csv.reader([ln for _, ln in numbered]))
+        header = [c.strip() for c in parsed[0]]
         self.scale: dict[str, list[tuple[int, float]]] = {}   # limits have a column per unit
         self.text: dict[str, int] = {}
         for k, c in enumerate(header):
@@ -114,11 +113,11 @@ class _Table:
                 self.text[c] = k
             else:
                 self.scale.setdefault(base, []).append((k, UNITS[kind][unit]))
-        self.rows = [(i + 2, row) for i, row in enumerate(reader)]
+        self.rows = [(line, row) for (line, _), row in zip(numbered[1:], parsed[1:])]
         self.header = header
 
     def where(self, line: int, column: str | None = None) -> str:
-        return f"row {line}" + (f", column {column!r}" if column else "")
+        return f"line {line}" + (f", column {column!r}" if column else "")
 
     def get(self, line, row, name: str, default=None) -> float:
         if name not in self.scale:
