@@ -190,3 +190,31 @@ def test_compensate_unknown_marker(tmp_path, cli):
     code, _, err = cli("compensate", TH8, TRUE, str(ROOT / "examples/th8/targets.csv"), "--out", tmp_path / "o" / "c.csv",
                        "--marker", "nose")
     assert_one_line_error(code, err, ["--marker", "nose", "tool"], tmp_path / "o", command="compensate")
+
+
+def test_a_closed_pipe_ends_quietly(monkeypatch, capsys):
+    """What ``robocal ... | head`` meets: stdout raising BrokenPipeError once the reader left."""
+    from robocal.cli import main
+
+    class Closed:
+        def write(self, text):
+            raise BrokenPipeError(32, "Broken pipe")
+
+        def flush(self):
+            pass
+
+    monkeypatch.setattr(sys, "stdout", Closed())
+    assert main(["identifiability", TH8, "--poses", "20"]) == 0
+    assert capsys.readouterr().err == ""
+
+
+def test_plan_from_candidate_poses(tmp_path, cli):
+    out = tmp_path / "poses.csv"
+    code, printed, err = cli("plan", TH8, "--poses", 10, "--candidates", ROOT / "examples/th8/measurements.csv",
+                             "--out", out)
+    assert code == 0, err
+    assert f"10 poses chosen from {rc.read_measurements(ROOT / "examples/th8/measurements.csv", rc.read_model(TH8)).n_poses} poses of" in printed
+    model = rc.read_model(TH8)
+    chosen = rc.read_measurements(out, model, targets=True).q
+    given = rc.read_measurements(ROOT / "examples/th8/measurements.csv", model).q
+    assert all(np.isclose(given, row).all(axis=1).any() for row in chosen)
