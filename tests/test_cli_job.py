@@ -213,8 +213,8 @@ def test_plan_from_candidate_poses(tmp_path, cli):
     code, printed, err = cli("plan", TH8, "--poses", 10, "--candidates", ROOT / "examples/th8/measurements.csv",
                              "--out", out)
     assert code == 0, err
-    assert f"10 poses chosen from {rc.read_measurements(ROOT / "examples/th8/measurements.csv", rc.read_model(TH8)).n_poses} poses of" in printed
     model = rc.read_model(TH8)
-    chosen = rc.read_measurements(out, model, targets=True).q
     given = rc.read_measurements(ROOT / "examples/th8/measurements.csv", model).q
+    assert f"10 poses chosen from {len(given)} poses of" in printed
+    chosen = rc.read_measurements(out, model, targets=True).q
     assert all(np.isclose(given, row).all(axis=1).any() for row in chosen)
