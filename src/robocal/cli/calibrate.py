@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 from .._errors import DegenerateDataError, InputError
@@ -117,6 +118,8 @@ def run(args) -> int:
     common.refuse_existing([out / "calibrated.yaml"] + [out / n for n in names]
                            + ([out / "report.html"] if report else []), args.force)
     model, data, validation = _inputs(args)
+    logging.getLogger("robocal").info("read %s: %d poses to fit, %d held out", args.csv, data.n_poses,
+                                      0 if validation is None else validation.n_poses)
     noise = Noise.of(args.instrument, position=None if args.noise_mm is None else args.noise_mm / common.MM,
                      rotation=None if args.noise_deg is None else args.noise_deg / common.DEG)
     options = dict(known=args.known, validation=validation, loss=args.loss, tol=args.tol,
