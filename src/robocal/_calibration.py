@@ -244,7 +244,7 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
     limit_m = None if limit is None else float(getattr(limit, "limit", limit))
     checks = [readings_check(model, data), reading_units_check(model, data),
               cloud_size_check(model, data, _predicted(model, data)), markers_check(model, data)]
-    notes = list(data.extra.get("notes", ()))  # what reading the file decided, e.g. a detected separator
+    notes = list(model.notes) + list(data.extra.get("notes", ()))  # what the readers decided for the user
     start = _starting_model(model, data, initial_base, notes)
     design = _analyse(start, data, parameters, known + _unmeasured(model, data), tol, notes,
                       noise=noise, limit_m=limit_m, weak=weak)

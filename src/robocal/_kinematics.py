@@ -385,14 +385,15 @@ def _mass_sums(model: RobotModel, lay: Layout, ps: _Pass, payload_mass):
     centres = ps.O + np.matmul(ps.R.reshape(nf, 3 * N, 3), com[:, :, None]).reshape(nf, N, 3)
     own_c1 = mass[:, None, None] * centres
     own_m = np.repeat(mass[:, None], N, axis=1)
-    pl = model.payload
-    pm = pl.mass if payload_mass is None else payload_mass
-    if np.any(np.asarray(pm) > 0):
-        k = pl.frame if pl.frame >= 0 else nf - 1
-        c = ps.O[k] + _rmul(ps.R[k], np.asarray(pl.com, dtype=float)[:, None])[:, :, 0]
-        pm = np.broadcast_to(np.asarray(pm, dtype=float), (N,))
-        own_c1[k] += pm[:, None] * c
-        own_m[k] += pm
+    for n, pl in enumerate(model.payloads):
+        # a measurement's payload column varies the first payload only
+        pm = pl.mass if payload_mass is None or n > 0 else payload_mass
+        if np.any(np.asarray(pm) > 0):
+            k = pl.frame if pl.frame >= 0 else nf - 1
+            c = ps.O[k] + _rmul(ps.R[k], np.asarray(pl.com, dtype=float)[:, None])[:, :, 0]
+            pm = np.broadcast_to(np.asarray(pm, dtype=float), (N,))
+            own_c1[k] += pm[:, None] * c
+            own_m[k] += pm
     sub = lay.subtree.astype(float)
     return sub @ own_c1.transpose(2, 0, 1), sub @ own_m
 
