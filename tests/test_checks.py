@@ -399,3 +399,18 @@ def test_weak_parameters_are_judged_at_the_scatter_the_fit_shows():
     assert {c.name for c in plain.checks if c.status != "pass"} == {"fit against the instrument"}
     assert plain.verdict == "warn" and any("times the expected" in n for n in plain.notes)
 
+
+def test_outlier_bar_rises_with_the_campaign_so_clean_noise_names_no_point():
+    """200,000 clean points: a fixed bar of 5 would name about three of them; the risen one names
+    none, and still names a 10-sigma blunder among them."""
+    from robocal.identification import Noise, outlier_bar, outlier_check
+    n = 200_000
+    residuals = np.random.default_rng(7).normal(scale=NOISE, size=(n, 3))
+    labels = [f"pose {i}, marker tool" for i in range(n)]
+    assert (np.linalg.norm(residuals, axis=1) / NOISE > 5.0).sum() >= 1      # what a fixed bar would name
+    check, out = outlier_check(residuals, None, Noise.of(position=NOISE), labels)
+    assert check.status == "pass" and not out.any() and outlier_bar(n) > 5.5
+    residuals[123] = [10 * NOISE, 0, 0]
+    check, out = outlier_check(residuals, None, Noise.of(position=NOISE), labels)
+    assert check.status == "fail" and np.flatnonzero(out).tolist() == [123] and check.items[0].startswith("pose 123,")
+
