@@ -10,7 +10,7 @@ from ._errors import DegenerateDataError, InputError, check_choice
 from ._identifiability import identifiability
 from ._options import POSE_CRITERIA
 from ._model import RobotModel
-from ._parameters import parameter_vector
+from ._parameters import has_backlash_parameters, parameter_vector
 from ._problem import design_problem, random_configurations
 
 
@@ -19,7 +19,12 @@ class PoseSelection:
     """Chosen configurations ``q`` (n, n_joints), their indices among the candidates, and how they
     compare with as many random candidates: log det of the scaled normal matrix per pose (higher
     is better), its condition number, and the average prediction variance over the candidates
-    in units of the measurement variance (tr(W M^-1), lower is better)."""
+    in units of the measurement variance (tr(W M^-1), lower is better).
+
+    ``approach`` (n, n_joints): for an approach-sided backlash model, the direction (+1, -1) each
+    joint must come from at each pose (end its move that way, past an overshoot); None otherwise.
+    ``one_sided``: backlash parameters whose joint rests on one side at every chosen pose, which a
+    joint offset then absorbs: those poses cannot identify them."""
 
     q: np.ndarray
     indices: np.ndarray
@@ -31,9 +36,13 @@ class PoseSelection:
     condition_selected: float
     prediction_random: float
     prediction_selected: float
+    approach: np.ndarray | None = None
+    one_sided: tuple[str, ...] = ()
 
 
 CRITERIA = POSE_CRITERIA
+# a joint counts as resting on a side of its lost motion where |s| exceeds this
+ONE_SIDE = 0.5
 
 
 def select_poses(model: RobotModel, n: int, *, candidates=None, n_candidates: int = 2000, parameters=("geometric",),
@@ -47,6 +56,11 @@ def select_poses(model: RobotModel, n: int, *, candidates=None, n_candidates: in
     metres and radians weigh alike. Greedy forward selection (Woodbury updates) from a random
     start, then ``sweeps`` passes of exchanges. ``candidates``: joint readings to choose from,
     default ``n_candidates`` drawn within the joint limits.
+
+    Backlash needs both sides of each joint visited: under the gravity-sided model the side is the
+    pose's (its load), so the criterion sees it; under the approach-sided model each candidate is
+    given a random approach direction per joint, the criterion chooses among them, and the result
+    says which direction to come from (``approach``).
     """
     check_choice(criterion, CRITERIA, "criterion")
     rng = np.random.default_rng(rng)
@@ -55,7 +69,11 @@ def select_poses(model: RobotModel, n: int, *, candidates=None, n_candidates: in
         raise InputError(f"cannot choose {n} poses from {len(q)} candidates", where="n")
     names = identifiability(model, None, parameters=parameters, known=known, orientation=orientation,
                             rng=rng).identified
-    B = design_problem(model, q, names, orientation).pose_blocks(parameter_vector(model))  # (n_cand, rows, k)
+    approach = None
+    if model.backlash_side == "approach" and has_backlash_parameters(model, names):
+        approach = rng.choice([-1.0, 1.0], size=q.shape)
+    prob = design_problem(model, q, names, orientation, approach=approach)
+    B = prob.pose_blocks(parameter_vector(model))                                          # (n_cand, rows, k)
     k = B.shape[2]
     if n * B.shape[1] <= k:
         raise DegenerateDataError(f"{n} poses give {n * B.shape[1]} equations for {k} identifiable parameters")
@@ -105,7 +123,11 @@ def select_poses(model: RobotModel, n: int, *, candidates=None, n_candidates: in
         M = np.einsum("pri,prj->ij", B[idx], B[idx]) + ridge
         return float(np.trace(np.linalg.solve(M, Wbar)))
 
+    sides = prob.backlash_sides(parameter_vector(model))
+    one_sided = tuple(nm for nm, sd in sides.items() if nm in names and
+                      not (np.any(sd[chosen_arr] > ONE_SIDE) and np.any(sd[chosen_arr] < -ONE_SIDE)))
     return PoseSelection(q=q[chosen_arr], indices=chosen_arr, parameters=names, criterion=criterion,
+                         approach=None if approach is None else approach[chosen_arr], one_sided=one_sided,
                          log_det_random=float(logdet(rand)) / n, log_det_selected=float(logdet(chosen_arr)) / n,
                          condition_random=cond(rand), condition_selected=cond(chosen_arr),
                          prediction_random=prediction(rand), prediction_selected=prediction(chosen_arr))

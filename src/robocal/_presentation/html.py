@@ -28,7 +28,8 @@ STAT_FIELDS = ("mean", "std", "rms", "max")
 ALWAYS_SHOWN = ("beta", "alpha", "d", "theta", "r")
 _SYMBOL = {"gamma": "&gamma;", "b": "b", "beta": "&beta;", "alpha": "&alpha;", "d": "d", "theta": "&theta;",
            "r": "r", "k_theta": "K<sub>&theta;</sub>", "k_alpha": "K<sub>&alpha;</sub>",
-           "k_beta": "K<sub>&beta;</sub>"}
+           "k_beta": "K<sub>&beta;</sub>", "backlash_theta": "backlash <sub>&theta;</sub>",
+           "backlash_r": "backlash <sub>r</sub>"}
 WORST_POSES = 10
 MISSING_VALIDATION = "No held-out poses were given: the errors shown are on the fitted poses only."
 MISSING_LIMIT = ("No limit of absolute accuracy was given: run <code>robocal limit</code> on the model (repeatability, "

@@ -25,6 +25,9 @@ def register(sub) -> None:
     common.parameter_options(p)
     p.add_argument("--compare", action="store_true",
                    help="fit geometric and geometric+compliance on the same data and compare them")
+    p.add_argument("--backlash", action="store_true",
+                   help="with --compare: a third identification, geometric+compliance+backlash (the model file's "
+                        "backlash side)")
     p.add_argument("--loss", default="linear", choices=LOSSES, help="least-squares loss (robust ones bend for outliers)")
     p.add_argument("--register-base", action="store_true",
                    help="start the base pose from a rigid registration of the nominal robot on the data")
@@ -79,7 +82,11 @@ def run(args) -> int:
     if args.compare and args.parameters:
         raise InputError("--compare chooses the parameters itself; drop --parameters", where="--compare")
     out = Path(args.out)
+    if args.backlash and not args.compare:
+        raise InputError("--backlash adds a third identification to --compare; for one identification name the "
+                         "family: --parameters geometric compliance backlash", where="--backlash")
     names = ["result-geometric.json", "result-compliance.json"] if args.compare else ["result.json"]
+    names += ["result-backlash.json"] if args.backlash else []
     report = common.report_module() if args.report else None
     common.refuse_existing([out / "calibrated.yaml"] + [out / n for n in names]
                            + ([out / "report.html"] if report else []), args.force)
@@ -93,8 +100,8 @@ def run(args) -> int:
     weighted = data.sigma is not None or data.has_orientation
     try:
         if args.compare:
-            comparison = compare(model, data, **options)
-            results = [comparison.geometric, comparison.combined]
+            comparison = compare(model, data, backlash=args.backlash, **options)
+            results = list(comparison.results.values())
             best = comparison.best
             print(comparison_summary(comparison, shown=args.shown_warnings, weighted=weighted))
         else:
