@@ -70,3 +70,40 @@ def test_columns_match_on_serial_arms_near_the_transition(make):
     p = parameter_vector(m)
     p[[prm.index for prm in lay.parameters if prm.family == "compliance"]] = 1e-5
     assert not _column_errors(model_from_vector(m, p), q)
+
+
+def test_model_file_keeps_backlash_and_its_side(tmp_path):
+    m = _with_backlash(cylindrical(masses=True), np.random.default_rng(0), side="approach", width=0.5, friction=2.0)
+    rc.write_model(m, tmp_path / "m.yaml")
+    back = rc.read_model(tmp_path / "m.yaml")
+    assert back.backlash_side == "approach"
+    np.testing.assert_allclose(parameter_vector(back), parameter_vector(m), atol=1e-12)
+    assert [f.backlash_width for f in back.frames] == [0.5] * 6
+    assert [f.backlash_friction for f in back.frames] == [2.0] * 6
+    text = (tmp_path / "m.yaml").read_text().replace("side: approach", "side: sideways")
+    (tmp_path / "bad.yaml").write_text(text)
+    with pytest.raises(rc.InputError, match="backlash.side"):
+        rc.read_model(tmp_path / "bad.yaml")
+
+
+def test_approach_columns_are_read_written_and_kept_by_a_split(tmp_path):
+    m = cylindrical(masses=True)
+    q = rc.random_configurations(m, 8, rng=0)
+    data = rc.measure(m, q, rng=1)
+    # written only where the row order does not give them
+    rc.write_measurements(data, tmp_path / "order.csv", model=m)
+    assert "approach_" not in (tmp_path / "order.csv").read_text()
+    flipped = -data.extra["approach"]
+    data2 = rc.Measurements(q=data.q, positions=data.positions, marker_names=data.marker_names,
+                            joint_names=data.joint_names, extra={"approach": flipped})
+    rc.write_measurements(data2, tmp_path / "a.csv", model=m)
+    back = rc.read_measurements(tmp_path / "a.csv", m)
+    np.testing.assert_array_equal(back.extra["approach"], flipped)
+    fit, val = back.split(3, rng=0)
+    both = np.vstack([fit.extra["approach"], val.extra["approach"]])
+    assert sorted(map(tuple, both)) == sorted(map(tuple, flipped))
+    text = (tmp_path / "a.csv").read_text().splitlines()
+    text[1] = text[1][:-2] + "+2"
+    (tmp_path / "bad.csv").write_text("\n".join(text) + "\n")
+    with pytest.raises(rc.InputError, match="approach"):
+        rc.read_measurements(tmp_path / "bad.csv", m)

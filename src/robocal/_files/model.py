@@ -19,16 +19,21 @@ from .._errors import InputError, suggest
 from .._units import ANGLE_UNITS, LENGTH_UNITS, check_unit, parse_units
 from .text import read_text, write_texts
 from .._parameters import KIND_QUANTITY
-from .._model import (DEFAULT_PARALLEL_TOL, JOINT_TYPES, Frame, Marker, Payload, RobotModel,
+from .._model import (BACKLASH_SIDES, DEFAULT_PARALLEL_TOL, JOINT_TYPES, Frame, Marker, Payload, RobotModel,
                      parallel_beta_frames)
 
 FORMAT_VERSION = 1
 # the file key is the frame's attribute; its quantity says which unit scales it
 FRAME_VALUES = {k: KIND_QUANTITY[k] for k in ("beta", "alpha", "d", "theta", "r", "gamma", "b")}
 FRAME_VALUES.update({"mass": None, "k_theta": None, "k_alpha": None, "k_beta": None})
+# backlash: half the lost motion (the model's units), the load friction holds and the transition's
+# width (N m on a revolute frame, N on a prismatic one, always SI); written where they differ from
+# these defaults
+BACKLASH_VALUES = {"backlash_theta": 0.0, "backlash_r": 0.0, "backlash_friction": 0.0, "backlash_width": 1.0}
+FRAME_VALUES.update({k: KIND_QUANTITY.get(k) for k in BACKLASH_VALUES})
 FRAME_KEYS = ("name", "joint", "reading", "coupling", "parent", "has_beta", "com") + tuple(FRAME_VALUES)
 TOP_KEYS = ("robocal_model", "name", "description", "units", "base", "gravity", "joints", "frames",
-            "markers", "payload", "tolerances", "calibration")
+            "markers", "payload", "tolerances", "calibration", "backlash")
 # tolerances: family -> the quantities a file may bound, and the unit each is given in
 TOLERANCE_KEYS = {"frames": ("length", "angle"), "markers": ("length", "angle"), "base": ("length", "angle"),
                   "compliance": ("deflection",), "backlash": ("length", "angle")}
@@ -228,13 +233,18 @@ def model_from_dict(d: dict, *, source: str = "<dict>") -> RobotModel:
             com=rd.vector(pl["com"], "payload.com", 3, L) if "com" in pl else (0.0, 0.0, 0.0),
             frame=_frame_ref(rd, pl["frame"], "payload.frame", frame_names) if "frame" in pl else -1)
     tolerances = _tolerances(rd, d.get("tolerances"), L, A)
+    side = "gravity"
+    if d.get("backlash") is not None:
+        side = rd.mapping(d["backlash"], "backlash", ("side",)).get("side", side)
+        if side not in BACKLASH_SIDES:
+            raise rd.error("backlash.side", f"expected one of {', '.join(BACKLASH_SIDES)}, got {_show(side)}")
     if d.get("calibration") is not None:
         rd.mapping(d["calibration"], "calibration", ("verdict", "failed", "warned", "date"))
     try:
         return RobotModel(name=str(name), frames=tuple(frames), joint_names=tuple(joint_names),
                           joint_limits=tuple(limits), markers=tuple(markers), base_position=base_position,
                           base_rotation=base_rotation, gravity=gravity, payload=payload,
-                          description=description, tolerances=tolerances)
+                          description=description, tolerances=tolerances, backlash_side=side)
     except InputError as e:  # the record's own checks: add the file name
         raise InputError(e.detail, source=source, where=e.where) from None
 
@@ -371,6 +381,8 @@ def model_to_dict(model: RobotModel, *, units: str = "mm-deg", calibration: dict
         for k, u in FRAME_VALUES.items():
             if k in ("gamma", "b") and f.parent == i - 1 and getattr(f, k) == 0.0:
                 continue  # tree offsets: only worth showing where they are used
+            if getattr(f, k) == BACKLASH_VALUES.get(k):
+                continue
             row[k] = num(getattr(f, k), scale[u])
             if k == "r":
                 row["has_beta"] = bool(f.has_beta)
@@ -402,6 +414,8 @@ def model_to_dict(model: RobotModel, *, units: str = "mm-deg", calibration: dict
             d["payload"]["frame"] = model.frames[pl.frame].name
     if model.tolerances:
         d["tolerances"] = _tolerances_dict(model, L, A)
+    if model.backlash_side != "gravity" or model.has_backlash:
+        d["backlash"] = {"side": model.backlash_side}
     if calibration:
         d["calibration"] = calibration
     return d
