@@ -10,7 +10,7 @@ least squares on the kept columns gives the linear combination that absorbs it.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 
 import numpy as np
@@ -26,6 +26,8 @@ NO_EFFECT = 1e-10
 # A parameter whose predicted standard deviation exceeds its bound is weakly identifiable: the rank
 # tolerance keeps it, but the data cannot pin it down (docs/checks.md). Compliances are bounded by
 # the deflection their uncertainty gives at the RMS moment of the poses.
+# a joint counts as resting on a side of its lost motion where |side| exceeds this
+ONE_SIDE = 0.5
 WEAK_STD = {"length": 1e-3, "angle": np.deg2rad(0.1), "compliance": np.deg2rad(0.1)}
 
 
@@ -205,10 +207,26 @@ def identifiability(model: RobotModel, data: Measurements | np.ndarray | None = 
 
 
 def analyse_problem(prob: Problem, names, *, tol: float = DEFAULT_TOL) -> IdentifiabilityResult:
-    """``analyse`` of a problem's Jacobian at its model's values."""
+    """``analyse`` of a problem's Jacobian at its model's values; an eliminated backlash says why
+    when its joint rests on one side (or mid-gap) at every pose."""
     lay = parameter_layout(prob.model)
-    return analyse(prob.jacobian(parameter_vector(prob.model)), names, tol=tol,
-                   quantities=[lay[n].quantity for n in names])
+    p = parameter_vector(prob.model)
+    res = analyse(prob.jacobian(p), names, tol=tol, quantities=[lay[n].quantity for n in names])
+    sides = prob.backlash_sides(p)
+    if not any(a.name in sides for a in res.eliminated):
+        return res
+    return replace(res, eliminated=tuple(replace(a, reason=a.reason + _one_side(sides[a.name])) if a.name in sides
+                                         else a for a in res.eliminated))
+
+
+def _one_side(s: np.ndarray) -> str:
+    """Why a backlash whose joint never changes side cannot be told from the joint's offset."""
+    if np.all(s > ONE_SIDE) or np.all(s < -ONE_SIDE):
+        return (": its joint rests on the same side of its lost motion at every pose, so the joint offset absorbs "
+                "it (visit both sides: reverse the approach, or poses where the gravity load changes sign)")
+    if np.all(np.abs(s) < ONE_SIDE):
+        return ": its joint rests mid-gap at every pose (no gravity load to push it to a side)"
+    return ""
 
 
 @lru_cache(maxsize=32)

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._errors import DegenerateDataError, InputError, check_choice
-from ._identifiability import identifiability
+from ._identifiability import ONE_SIDE, identifiability
 from ._options import POSE_CRITERIA
 from ._model import RobotModel
 from ._parameters import has_backlash_parameters, parameter_vector
@@ -41,8 +41,6 @@ class PoseSelection:
 
 
 CRITERIA = POSE_CRITERIA
-# a joint counts as resting on a side of its lost motion where |s| exceeds this
-ONE_SIDE = 0.5
 
 
 def select_poses(model: RobotModel, n: int, *, candidates=None, n_candidates: int = 2000, parameters=("geometric",),
