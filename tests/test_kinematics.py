@@ -23,7 +23,7 @@ def _T(axis, kind, v):
 
 
 def _mdh(f: Frame, q: float) -> np.ndarray:
-    """The METHOD.md transform, written out factor by factor."""
+    """The docs/method.md transform, written out factor by factor."""
     th = f.theta + (q if f.joint == "revolute" else 0.0)
     r = f.r + (q if f.joint == "prismatic" else 0.0)
     return (_T(2, "R", f.gamma) @ _T(2, "T", f.b) @ _T(1, "R", f.beta) @ _T(0, "R", f.alpha)

@@ -11,6 +11,7 @@ import sys
 from html.parser import HTMLParser
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import robocal as rc
@@ -394,3 +395,65 @@ def test_th8_demo_report_renders_in_headless_chromium(tmp_path):
     mean_mm = d["stats"]["validation_after"]["mean"] * 1e3
     assert f"{mean_mm:.4f}" in html
     assert "figures beside ours" in html
+
+
+# -- absorptions in display units, against the Jacobian -------------------------------------------
+
+TERM = re.compile(r"([+-]\d[\d.]*(?:e[+-]?\d+)?) (mm|deg|deg/\(kN m\)) (\S+)")
+
+
+def _absorptions(text: str) -> dict:
+    """'name  1 deg = +2.865 mm tool.y ...' lines (summary) or cells (report) -> {name: (unit, terms)}."""
+    out = {}
+    for name, unit, rhs in re.findall(r"([\w.]+)\s+1 (mm|deg|deg/\(kN m\)) = (.*)", text):
+        out[name] = (unit, [(float(c), u, n) for c, u, n in TERM.findall(rhs)])
+    return out
+
+
+def _agrees_with_finite_differences(model, q, name, unit, terms) -> None:
+    """A change of ``name`` moves the markers as the shown combination does (central differences)."""
+    from robocal.kinematics import forward_kinematics, model_from_vector, parameter_layout, parameter_vector
+
+    lay, p0 = parameter_layout(model), parameter_vector(model)
+    h = 1e-3  # display units
+
+    def moved(step: dict, sign: float):
+        p = p0.copy()
+        for n, (v, u) in step.items():
+            p[lay[n].index] += sign * v / FACTOR[u]
+        return forward_kinematics(model_from_vector(model, p), q).positions
+
+    def central(step):
+        return (moved(step, 1) - moved(step, -1)) / (2 * h)
+
+    direct = central({name: (h, unit)})
+    combination = central({n: (c * h, u) for c, u, n in terms})
+    assert np.abs(direct - combination).max() <= 2e-3 * np.abs(direct).max(), (name, terms)
+
+
+@pytest.fixture(scope="module")
+def length_by_angle():
+    """A slide whose marker's sideways offset is absorbed by the base rotation: a length by an angle."""
+    m = rc.serial_model("slide", [dict(joint="prismatic"), dict(joint="revolute", r=0.2)],
+                        markers=[("tool", (0.8, 0.0, 0.1))], joint_limits=[(0.0, 0.5), (-0.3, 0.3)])
+    _, data = rc.simulate(m, 30, parameters=["base.rz", "tool.y"], seed=3)
+    return _roundtrip(rc.calibrate(m, data, parameters=["base.rz", "tool.y"]))
+
+
+def test_absorptions_in_display_units_agree_with_the_jacobian(full, length_by_angle, tmp_path):
+    from robocal.report import calibration_summary
+
+    quantity = {"mm": "length", "deg": "angle"}
+    pairs = set()
+    for d in (full, length_by_angle):
+        result = result_from_dict(d)
+        q = np.asarray(d["errors"]["fit_readings"])
+        page, _ = _page(d, tmp_path, name=f"{result.nominal_model.name}.html")
+        cells = {a["name"]: page.keyed[f"{a['name']}:absorbed_by"] for a in d["identifiability"]["eliminated"]}
+        shown = _absorptions("\n".join(f"{n} {c}" for n, c in cells.items()))
+        summary = _absorptions(calibration_summary(result))
+        assert shown == summary and len(shown) == len(cells) > 0
+        for name, (unit, terms) in shown.items():
+            _agrees_with_finite_differences(result.nominal_model, q, name, unit, terms)
+            pairs |= {(quantity[unit], quantity[u]) for _, u, _ in terms}
+    assert pairs == {("length", "length"), ("length", "angle"), ("angle", "length"), ("angle", "angle")}

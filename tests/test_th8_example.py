@@ -60,6 +60,7 @@ def test_demo_writes_the_story_and_says_the_robot_is_simulated(reproduce, tmp_pa
         assert f"- {a.name}: {a.reason}" in out
     # the demo passes every check, and says so
     assert result["verdict"] == "pass" and geo["verdict"] == "pass"
+    assert out.rstrip().splitlines()[-3].startswith("verdict: pass") and "geometric alone: verdict: pass" in out
     assert "simulated" in (tmp_path / "summary.md").read_text()
 
 

@@ -32,6 +32,7 @@ import numpy as np
 import robocal as rc
 
 from robocal.sim import RobotImperfections, accuracy_in_use, measure_campaign
+from robocal.report import checks_lines, verdict_line
 
 HERE = Path(__file__).resolve().parent
 DEG = np.pi / 180
@@ -241,6 +242,9 @@ def one(nominal, out: Path | None):
               ""]
     lines += ["## Identifiability (derived from the data, geometric and compliance parameters)", ""]
     lines += identifiability_table(cmp.combined, nominal.frame_names)
+    # the verdict is the story's last line, as in `robocal calibrate`
+    lines += ["", "## Checks of both identifications", "", "geometric alone: " + verdict_line(cmp.geometric), ""]
+    lines += checks_lines(cmp.combined.checks) + ["", verdict_line(cmp.combined)]
     print("\n".join(lines))
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)

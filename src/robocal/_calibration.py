@@ -29,7 +29,7 @@ from ._measurements import Measurements, Noise
 from ._options import DEFAULT_INSTRUMENT, INITIAL_BASES, LOSSES, OUTLIER_ACTIONS, WEAK_ACTIONS
 from ._misfit import characteristic_length, misfit_notes
 from ._model import RobotModel
-from ._parameters import candidate_parameters, model_from_vector, parameter_layout, parameter_vector
+from ._parameters import candidate_parameters, matched_by_pattern, model_from_vector, parameter_layout, parameter_vector
 from ._problem import Problem, needs_compliance
 from ._solve import Covariance, Solution, covariance, solve
 from ._version import __version__
@@ -242,7 +242,7 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
     limit_m = None if limit is None else float(getattr(limit, "limit", limit))
     checks = [readings_check(model, data), reading_units_check(model, data),
               cloud_size_check(model, data, _predicted(model, data)), markers_check(model, data)]
-    notes: list[str] = []
+    notes = list(data.extra.get("notes", ()))  # what reading the file decided, e.g. a detected separator
     start = _starting_model(model, data, initial_base, notes)
     design = _analyse(start, data, parameters, known + _unmeasured(model, data), tol, notes,
                       noise=noise, limit_m=limit_m, weak=weak)
@@ -321,6 +321,8 @@ def _analyse(start: RobotModel, data: Measurements, parameters: tuple, known: tu
     """Which candidates the data can identify, and pin down; refuse data that cannot determine them."""
     orientation = data.has_orientation
     names = candidate_parameters(start, parameters, orientation=orientation, known=known)
+    notes += [f"parameters {p!r} matched: {', '.join(m)}" for p, m in matched_by_pattern(start, parameters,
+                                                                                       orientation=orientation)]
     compliance = needs_compliance(start, names)
     measured = tuple(n for j, n in enumerate(data.marker_names) if data.mask[:, j].any())
     theory = theoretical_identifiability(start, parameters, known, orientation, tol, measured)

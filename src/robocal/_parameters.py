@@ -17,6 +17,7 @@ compliances, then backlash (so a joint offset absorbs a backlash whose side neve
 
 from __future__ import annotations
 
+import fnmatch
 import types
 from dataclasses import dataclass, replace
 from functools import lru_cache
@@ -24,7 +25,7 @@ from typing import Iterable
 
 import numpy as np
 
-from ._errors import InputError
+from ._errors import InputError, excerpt
 from ._model import RobotModel
 from ._spatial import matrix_tuple, small_rotation, xyz_angles
 
@@ -47,6 +48,8 @@ SI_UNITS = types.MappingProxyType({"length": "m", "angle": "rad", "compliance": 
 
 # families a user names; "geometric" is base + markers + frames
 FAMILIES = ("geometric", "compliance", "backlash", "base", "markers", "frames")
+# a parameter item holding one of these is a pattern (fnmatch): "*.theta", "j2.*", "*.k_theta"
+PATTERN_CHARS = "*?["
 ROLES = ("base", "frame", "marker")
 
 
@@ -220,7 +223,8 @@ def candidate_parameters(model: RobotModel, parameters: Iterable[str] = ("geomet
     """Parameter names to consider, in preference order.
 
     ``parameters`` holds family names (``geometric`` = base + markers + frames, ``compliance``,
-    ``backlash``, ``base``, ``markers``, ``frames``) and/or explicit parameter names such as ``j2.alpha``.
+    ``backlash``, ``base``, ``markers``, ``frames``), explicit parameter names such as ``j2.alpha`` and/or
+    patterns such as ``*.theta`` or ``j2.*`` (see ``matched_by_pattern``).
     ``orientation``: the data hold orientations, so marker rotations are candidates too.
     ``known``: families or names to hold fixed at their model values (e.g. ``("base",)``).
     """
@@ -232,10 +236,12 @@ def candidate_parameters(model: RobotModel, parameters: Iterable[str] = ("geomet
         for item in (items,) if isinstance(items, str) else items:
             if item in fam:
                 out += fam[item]
+            elif is_pattern(item):
+                out += _matching(model, item, fam, what)
             elif item in lay:
                 out.append(item)
             else:
-                raise InputError(f"unknown parameter or family {item!r}; families are {', '.join(FAMILIES)} "
+                raise InputError(f"unknown parameter or family {excerpt(item)}; families are {', '.join(FAMILIES)} "
                                  f"and names look like 'base.x', '{model.frames[0].name}.alpha'", where=what)
         return out
 
@@ -250,7 +256,47 @@ def candidate_parameters(model: RobotModel, parameters: Iterable[str] = ("geomet
                          "masses or choose the approach-sided model", where="parameters")
     order = fam["geometric"] + fam["compliance"] + fam["backlash"]
     extra = [n for n in chosen if n not in order]  # explicit names outside the default families
-    return tuple(n for n in order + sorted(extra) if n in chosen and n not in fixed)
+    out = tuple(n for n in order + sorted(extra) if n in chosen and n not in fixed)
+    if not out:
+        raise InputError(f"no parameter left to identify: the known ones ({', '.join(map(str, known))}) cover "
+                         "every parameter chosen", where="known")
+    return out
+
+
+def is_pattern(item: str) -> bool:
+    return any(c in item for c in PATTERN_CHARS)
+
+
+def _pattern_pool(model: RobotModel, fam: dict) -> list[str]:
+    """What a pattern may match: the geometric candidates, and compliances when there are masses."""
+    return fam["geometric"] + (fam["compliance"] if model.has_masses else [])
+
+
+def _matching(model: RobotModel, pattern: str, fam: dict, what: str) -> list[str]:
+    found = [n for n in _pattern_pool(model, fam) if fnmatch.fnmatchcase(n, pattern)]
+    if not found:
+        raise InputError(f"pattern {pattern!r} matches no parameter; names look like 'base.x', "
+                         f"'{model.frames[0].name}.theta', '{model.markers[0].name}.x'", where=what)
+    return found
+
+
+def matched_by_pattern(model: RobotModel, parameters: Iterable[str], *,
+                       orientation: bool = False) -> tuple[tuple[str, tuple[str, ...]], ...]:
+    """``(pattern, names)`` for each pattern among ``parameters``: the candidate names it matches.
+
+    Patterns are shell-style (``*`` any text, ``?`` one character, ``[..]`` a set), matched against
+    the whole name among the families' candidates (geometric, and compliance when the model has
+    masses): ``*.theta`` every joint offset, ``j2.*`` frame j2's parameters, ``*.k_theta`` every
+    torsion compliance.
+
+    >>> from robocal._model import serial_model
+    >>> m = serial_model("rr", [dict(), dict(d=0.5)])
+    >>> matched_by_pattern(m, ["geometric", "*.theta"])
+    (('*.theta', ('j1.theta', 'j2.theta')),)
+    """
+    fam = families(model, orientation=orientation)
+    items = (parameters,) if isinstance(parameters, str) else parameters
+    return tuple((p, tuple(_matching(model, p, fam, "parameters"))) for p in items if is_pattern(p))
 
 
 def has_compliance_parameters(model: RobotModel, names: Iterable[str]) -> bool:

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 
-from ._errors import InputError
+from ._errors import InputError, excerpt
 
 LENGTH_UNITS = {"m": 1.0, "mm": 1e-3}
 ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180.0}
@@ -18,10 +18,10 @@ UNITS = {"length": LENGTH_UNITS, "angle": ANGLE_UNITS}
 def check_unit(unit: str, kind: str, *, source: str | None = None, where: str | None = None) -> str:
     """``unit`` if it is a known ``kind`` ("length" or "angle") unit, else an InputError naming the others."""
     allowed = UNITS[kind]
-    if unit not in allowed:
+    if not isinstance(unit, str) or unit not in allowed:
         other = "angle" if kind == "length" else "length"
-        hint = f" (that is an {other} unit)" if unit in UNITS[other] else ""
-        raise InputError(f"unknown {kind} unit {unit!r}{hint}; use one of {', '.join(allowed)}", source=source,
+        hint = f" (that is an {other} unit)" if isinstance(unit, str) and unit in UNITS[other] else ""
+        raise InputError(f"unknown {kind} unit {excerpt(unit)}{hint}; use one of {', '.join(allowed)}", source=source,
                          where=where)
     return unit
 
@@ -34,7 +34,7 @@ def parse_units(text: str, *, source: str | None = None, where: str | None = "un
     """
     parts = str(text).strip().split("-")
     if len(parts) != 2:
-        raise InputError(f"units must look like 'mm-deg' (length-angle), got {text!r}", source=source, where=where)
+        raise InputError(f"units must look like 'mm-deg' (length-angle), got {excerpt(text)}", source=source, where=where)
     length, angle = parts
     check_unit(length, "length", source=source, where=where)
     check_unit(angle, "angle", source=source, where=where)

@@ -4,6 +4,8 @@ measurement files (CSV), result files (JSON), repeatability files (CSV), URDF, D
 from ._conversion import from_standard_dh, mdh_table
 from ._files.dh import write_mdh_csv
 from ._files.measurements import measurements_to_csv, read_measurements, split_sets, write_measurements
+from ._files.profile import Profile, profile_from_dict, read_profile
+from ._files.table import ColumnMap
 from ._files.model import calibration_record, model_from_dict, model_to_dict, model_to_yaml, read_model, write_model
 from ._files.repeatability import read_repeatability_csv
 from ._files.result import (limit_to_dict, read_result, result_from_dict, result_to_dict, result_to_json,
@@ -12,6 +14,7 @@ from ._files.urdf import read_urdf, write_urdf
 from ._measurements import Measurements
 
 __all__ = ["read_model", "write_model", "calibration_record", "model_from_dict", "model_to_dict", "model_to_yaml", "Measurements",
-           "read_measurements", "write_measurements", "measurements_to_csv", "split_sets", "read_result",
+           "read_measurements", "write_measurements", "read_profile", "profile_from_dict",
+           "Profile", "ColumnMap", "measurements_to_csv", "split_sets", "read_result",
            "write_result", "result_from_dict", "result_to_dict", "result_to_json", "limit_to_dict",
            "read_repeatability_csv", "read_urdf", "write_urdf", "from_standard_dh", "mdh_table", "write_mdh_csv"]

@@ -10,12 +10,13 @@ from ._kinematics import Evaluation, evaluate, forward_kinematics, gravity_loads
 from ._model import Frame, Marker, Payload, RobotModel, mdh_transform, parallel_beta_frames, serial_model
 from ._parameters import (BASE_KINDS, COMPLIANCE_KINDS, FAMILIES, FRAME_KINDS, GEOMETRIC_KINDS, KIND_QUANTITY,
                           MARKER_KINDS, SI_UNITS, Parameter, ParameterLayout, candidate_parameters, families,
+                          matched_by_pattern,
                           model_from_vector, parameter_layout, parameter_names, parameter_vector)
 from ._problem import random_configurations, sampling_box
 
 __all__ = ["Frame", "Marker", "Payload", "RobotModel", "serial_model", "parallel_beta_frames", "mdh_transform",
            "Evaluation", "evaluate", "forward_kinematics", "jacobian", "gravity_loads", "joint_jacobian",
            "Parameter", "ParameterLayout", "parameter_layout", "parameter_names", "parameter_vector",
-           "model_from_vector", "candidate_parameters", "families", "random_configurations", "sampling_box",
+           "model_from_vector", "candidate_parameters", "families", "matched_by_pattern", "random_configurations", "sampling_box",
            "BASE_KINDS", "GEOMETRIC_KINDS", "COMPLIANCE_KINDS", "FRAME_KINDS", "MARKER_KINDS", "KIND_QUANTITY",
            "SI_UNITS", "FAMILIES"]

@@ -20,6 +20,8 @@ from .._errors import InputError, suggest
 from .._measurements import Measurements, approach_sides
 from .._model import RobotModel
 from .._units import ANGLE_UNITS, LENGTH_UNITS, UNITS, check_unit, parse_units
+from .profile import Profile, read_profile
+from .table import Table, decimal_hint, join_tables, map_columns, read_table
 from .text import read_text, write_texts
 
 RESERVED = ("pose", "set", "payload_kg")
@@ -27,8 +29,10 @@ RESERVED = ("pose", "set", "payload_kg")
 APPROACH_PREFIX = "approach_"
 POSITION = ("x", "y", "z")
 ORIENTATION_PARTS = {"quat": ("qx", "qy", "qz", "qw"), "rpy": ("roll", "pitch", "yaw"), "euler": ("e1", "e2", "e3")}
+# per-axis standard deviations of a position, combined into one per point (docs/formats.md)
+SIGMA_AXES = ("sigma_x", "sigma_y", "sigma_z")
 # longest first, so "sigma_rot" is not read as "sigma" plus a unit
-PARTS = ("sigma_rot", "sigma") + POSITION + sum(ORIENTATION_PARTS.values(), ())
+PARTS = ("sigma_rot",) + SIGMA_AXES + ("sigma",) + POSITION + sum(ORIENTATION_PARTS.values(), ())
 _MARKER_COLUMN = re.compile(r"^(?P<m>.+?)_(?P<part>x|y|z)(?:_(?P<unit>[A-Za-z]+))?$")
 _NUMBER = re.compile(r"^[+-]?(\d+(\.\d*)?|\.\d+)([eE][+-]?\d+)?$")
 _NOT_FINITE = re.compile(r"^[+-]?(nan|inf|infinity)$", re.IGNORECASE)
@@ -59,9 +63,10 @@ def parse_orientation(text: str | None, *, source: str | None = None, where: str
 class _Columns:
     """What each header column holds, with its unit resolved (or an InputError saying how to declare it)."""
 
-    def __init__(self, header, model, declared, orientation, source, line):
+    def __init__(self, header, model, declared, orientation, source, line, unknown: str = "refuse"):
         self.source, self.line = source, line
         self.names = header
+        self.notes: tuple[str, ...] = ()
         where = f"line {line}"
         for k, c in enumerate(header):
             if not c:
@@ -78,13 +83,14 @@ class _Columns:
                 mt = _MARKER_COLUMN.match(c)
                 if mt and mt["part"] == "x" and mt["m"] not in marker_names:
                     marker_names.append(mt["m"])
-            joint_names, kinds = self._joints_without_model(header, marker_names)
+            joint_names, kinds = self._joints_without_model(header, marker_names, unknown)
         self.joint_names, self.joint_kinds = joint_names, kinds
         self.declared = declared
         self.joint_cols: dict[str, tuple[int, float]] = {}
         self.marker_cols: dict[str, dict[str, tuple[int, float]]] = {}
         self.special: dict[str, int] = {}
         self.approach_cols: dict[str, int] = {}
+        ignored = []
         for k, c in enumerate(header):
             if c.startswith(APPROACH_PREFIX) and c[len(APPROACH_PREFIX):] in joint_names:
                 self.approach_cols[c[len(APPROACH_PREFIX):]] = k
@@ -100,11 +106,17 @@ class _Columns:
                 if jn in self.joint_cols:
                     raise InputError(f"joint {jn!r} has two columns", source=source, where=where)
                 self.joint_cols[jn] = (k, self._scale(c, c[len(jn) + 1:] or None, kinds[joint_names.index(jn)]))
+            elif unknown == "ignore":
+                ignored.append(c)
             else:
                 valid = list(RESERVED) + joint_names + [f"{m}_{p}" for m in marker_names for p in POSITION]
                 known = f"; the model has joints {', '.join(joint_names)} and markers {', '.join(marker_names)}" \
                     if model is not None else ""
-                raise InputError(f"unknown column {c!r}{suggest(c, valid)}{known}", source=source, where=where)
+                raise InputError(f"unknown column {c!r}{suggest(c, valid)}{known}; map it (--map '{c}=NAME'), "
+                                 f"ignore it (--ignore '{c}') or ignore every unknown column (--unknown ignore)",
+                                 source=source, where=where)
+        if ignored:
+            self.notes = (f"columns robocal does not know, ignored: {', '.join(ignored)}",)
         if self.approach_cols and len(self.approach_cols) != len(joint_names):
             lacking = next(j for j in joint_names if j not in self.approach_cols)
             raise InputError(f"missing column {APPROACH_PREFIX}{lacking}: approach directions are given per joint, "
@@ -123,17 +135,23 @@ class _Columns:
             for p in POSITION:
                 if p not in parts:
                     raise InputError(f"missing column {mn}_{p}", source=source, where=where)
+            axes = [p for p in SIGMA_AXES if p in parts]
+            if axes and (len(axes) < 3 or "sigma" in parts):
+                raise InputError(f"marker {mn!r}: give {mn}_sigma or all of {', '.join(f'{mn}_{p}' for p in SIGMA_AXES)}"
+                                 ", not a part of them", source=source, where=where)
             self.orientation[mn] = self._orientation_of(mn, parts, orientation)
         # markers in the model's order (or the file's, without a model)
         self.markers = [m for m in marker_names if m in self.marker_cols]
 
-    def _joints_without_model(self, header, marker_names):
+    def _joints_without_model(self, header, marker_names, unknown):
         names, kinds = [], []
         for c in header:
             if c in RESERVED or _marker_part(c, marker_names)[0] is not None:
                 continue
             base, _, unit = c.rpartition("_")
             kind = next((k for k, units in UNITS.items() if unit in units), None)
+            if (not base or kind is None) and unknown == "ignore":
+                continue
             if not base or kind is None:
                 raise InputError(f"column {c!r}: without a model a joint column must carry its unit "
                                  f"({c}_deg, {c}_rad, {c}_mm or {c}_m), since the joint type is unknown; "
@@ -161,7 +179,7 @@ class _Columns:
                 raise InputError("a quaternion component has no unit", source=self.source,
                                  where=f"line {self.line}, column {column!r}")
             return 1.0
-        kind = "length" if part in POSITION + ("sigma",) else "angle"
+        kind = "length" if part in POSITION + ("sigma",) + SIGMA_AXES else "angle"
         return self._scale(column, unit, kind)
 
     def _orientation_of(self, mn, parts, declared):
@@ -221,7 +239,7 @@ def _directive(text: str, name: str) -> str | None:
 def _comment_units(text: str, source: str, line: int) -> dict:
     where = f"line {line}"
     out = {}
-    for item in text.replace(",", " ").split():
+    for item in text.replace(",", " ").replace(";", " ").split():
         key, sep, unit = item.partition("=")
         if not sep or key not in UNITS:
             raise InputError(f"expected '# units: length=mm angle=deg', got {item!r}", source=source, where=where)
@@ -229,68 +247,76 @@ def _comment_units(text: str, source: str, line: int) -> dict:
     return out
 
 
-def read_measurements(path, model: RobotModel | None = None, *, units: str | None = None, sep: str = ",",
-                      decimal: str = ".", orientation: str | None = None) -> Measurements:
-    """Read a measurement CSV (docs/formats.md) into Measurements in SI units.
+def read_measurements(path, model: RobotModel | None = None, *, units: str | None = None, sep: str | None = None,
+                      decimal: str | None = None, orientation: str | None = None, columns=None,
+                      unknown: str | None = None, joints=None, key: str | None = None,
+                      profile=None) -> Measurements:
+    """Read a measurement file (docs/formats.md) into Measurements in SI units.
 
     ``model``: check joint and marker names against it and take each joint's type (angle or
     length) from it; without it, joint columns must carry a unit suffix. ``units``: "mm-deg" etc.
     for columns without a suffix. ``sep``/``decimal``: e.g. ";" and "," as instrument software in
-    many locales writes them. ``orientation``: the convention of 6D pose columns.
+    many locales writes them; None detects them (said in ``extra["notes"]``). ``orientation``: the
+    convention of 6D pose columns. ``columns``: {file column: robocal column, or None to ignore it}
+    (or a ``ColumnMap``); ``unknown``: "refuse" (default) or "ignore" columns robocal does not know.
+    ``joints``: a second file with the joint readings, joined on column ``key`` (default "pose").
+    ``profile``: an instrument profile (a path or a ``Profile``) giving any of these; the
+    arguments given here win over it.
     """
     source = str(path)
-    if len(sep) != 1 or sep == decimal or decimal not in (".", ","):
-        raise InputError(f"separator {sep!r} and decimal mark {decimal!r} must be one character each and differ "
-                         "(decimal '.' or ',')", where="sep/decimal")
-    declared = dict(zip(("length", "angle"), parse_units(units))) if units is not None else {}
-    orient = parse_orientation(orientation)
+    prof = _profile(profile)
+    opts = prof.options(units=units, sep=sep, decimal=decimal, orientation=orientation, columns=columns,
+                        unknown=unknown, key=key)
+    declared = dict(zip(("length", "angle"), parse_units(opts["units"]))) if opts["units"] is not None else {}
+    orient = parse_orientation(opts["orientation"])
     text, digest = read_text(path)
-    reader = csv.reader(io.StringIO(text, newline=""), delimiter=sep)
-    header, header_line, comment_units, comment_orient, orient_text = None, 0, {}, None, ""
-    rows = []
-    try:
-        for row in reader:
-            line = reader.line_num
-            if not row or all(not c.strip() for c in row):
-                continue
-            if row[0].lstrip().startswith("#"):
-                if header is None:
-                    joined = sep.join(row)
-                    u = _directive(joined, "units")
-                    if u is not None:
-                        comment_units.update(_comment_units(u, source, line))
-                    o = _directive(joined, "orientation")
-                    if o is not None:
-                        comment_orient = parse_orientation(o, source=source, where=f"line {line}")
-                        orient_text = f"{o.strip()} (line {line})"
-                continue
-            if header is None:
-                header, header_line = [c.strip() for c in row], line
-            else:
-                rows.append((line, row))
-    except csv.Error as e:
-        raise InputError(f"not readable as CSV: {e}", source=source, where=f"line {reader.line_num}") from None
-    if header is None:
-        raise InputError("no header line (and no data)", source=source)
+    table = map_columns(read_table(text, source, sep=opts["sep"], decimal=opts["decimal"]), opts["columns"])
+    if joints is not None:
+        other = read_table(read_text(joints)[0], str(joints), sep=opts["sep"], decimal=opts["decimal"])
+        table = join_tables(table, map_columns(other, opts["columns"]), opts["key"] or "pose")
+    comment_units, comment_orient, orient_text = _directives(table)
     for kind, unit in comment_units.items():
         if kind in declared and declared[kind] != unit:
             raise InputError(f"the file declares {kind} in {unit}, the units option says {declared[kind]}; "
                              "they must agree", source=source, where="units")
         declared[kind] = unit
     if orient is not None and comment_orient is not None and orient != comment_orient:
-        raise InputError(f"the file declares orientation {orient_text}, the option says {orientation}",
+        raise InputError(f"the file declares orientation {orient_text}, the option says {opts['orientation']}",
                          source=source, where="orientation")
-    cols = _Columns(header, model, declared, orient or comment_orient, source, header_line)
-    if not rows:
+    cols = _Columns(list(table.header), model, declared, orient or comment_orient, source, table.header_line,
+                    unknown=opts["columns"].unknown)
+    if not table.rows:
         raise InputError("no data rows after the header", source=source)
-    return _parse_rows(rows, cols, decimal, source, digest)
+    data = _parse_rows(table.rows, cols, table.decimal, source, digest)
+    notes = tuple(f"reading {source}: {n}" for n in table.notes + cols.notes)
+    return replace(data, extra={**data.extra, "notes": notes}) if notes else data
+
+
+def _profile(profile) -> Profile:
+    if profile is None:
+        return Profile()
+    return profile if isinstance(profile, Profile) else read_profile(profile)
+
+
+def _directives(table: Table):
+    """The ``# units:`` and ``# orientation:`` lines before the header."""
+    comment_units, comment_orient, orient_text = {}, None, ""
+    for line, text in table.comments:
+        u = _directive(text, "units")
+        if u is not None:
+            comment_units.update(_comment_units(u, table.source, line))
+        o = _directive(text, "orientation")
+        if o is not None:
+            comment_orient = parse_orientation(o, source=table.source, where=f"line {line}")
+            orient_text = f"{o.strip()} (line {line})"
+    return comment_units, comment_orient, orient_text
 
 
 def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str) -> Measurements:
     n, nm = len(rows), len(cols.markers)
     q = np.empty((n, len(cols.joint_names)))
     pos = np.full((n, nm, 3), np.nan)
-    has_sigma = any("sigma" in cols.marker_cols[m] for m in cols.markers)
+    has_sigma = any(_point_sigma_parts(cols.marker_cols[m]) for m in cols.markers)
     has_rot = any(cols.orientation[m] for m in cols.markers)
     has_sigma_rot = any("sigma_rot" in cols.marker_cols[m] for m in cols.markers)
     sigma = np.full((n, nm), np.nan) if has_sigma else None
@@ -317,8 +343,8 @@ def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str) ->
             xyz = _group(row, mc, POSITION, num, source, line, mn, cols.names)
             if xyz is not None:
                 pos[i, m] = xyz
-                if has_sigma and "sigma" in mc:
-                    sigma[i, m] = _positive(num, mc["sigma"], source, line, cols.names)
+                if _point_sigma_parts(mc):
+                    sigma[i, m] = _point_sigma(num, mc, source, line, cols.names)
             if cols.orientation[mn]:
                 kind, seq = cols.orientation[mn]
                 vals = _group(row, mc, ORIENTATION_PARTS[kind], num, source, line, mn, cols.names)
@@ -366,10 +392,12 @@ def _number(text: str, decimal: str, source: str, line: int, column: str, requir
                          where=where)
     if decimal != ".":
         if "." in t:
-            raise InputError(f"expected a number with decimal mark {decimal!r}, got {t!r}", source=source, where=where)
+            raise InputError(f"expected a number with decimal mark {decimal!r}, got {t!r}{decimal_hint(t, decimal)}",
+                             source=source, where=where)
         t = t.replace(decimal, ".")
     if not _NUMBER.match(t):
-        raise InputError(f"expected a number, got {text.strip()!r}", source=source, where=where)
+        raise InputError(f"expected a number, got {text.strip()!r}{decimal_hint(text, decimal)}", source=source,
+                         where=where)
     return float(t)
 
 
@@ -385,6 +413,19 @@ def _group(row, mc, parts, num, source, line, marker, names):
                          f"{', '.join(f'{marker}_{q}' for q in parts)} empty when the marker was not seen",
                          source=source, where=f"line {line}, column {names[mc[p][0]]!r}")
     return np.array(vals) * np.array([mc[p][1] for p in parts])
+
+
+def _point_sigma_parts(mc) -> tuple[str, ...]:
+    """The standard-deviation columns of one marker's position: sigma, or sigma_x/y/z, or none."""
+    return ("sigma",) if "sigma" in mc else SIGMA_AXES if SIGMA_AXES[0] in mc else ()
+
+
+def _point_sigma(num, mc, source, line, names) -> float:
+    """One standard deviation per point; per-axis ones combine as their root mean square, which
+    gives the weighted residual the same expected size (docs/formats.md)."""
+    parts = _point_sigma_parts(mc)
+    vals = [_positive(num, mc[p], source, line, names) for p in parts]
+    return float(np.sqrt(np.mean(np.square(vals))))
 
 
 def _positive(num, col, source, line, names) -> float:

@@ -15,9 +15,9 @@ import numpy as np
 import yaml
 from scipy.spatial.transform import Rotation
 
-from .._errors import InputError, suggest
+from .._errors import InputError, excerpt, suggest
 from .._units import ANGLE_UNITS, LENGTH_UNITS, check_unit, parse_units
-from .text import read_text, write_texts
+from .text import load_yaml, read_text, write_texts
 from .._parameters import KIND_QUANTITY
 from .._model import (BACKLASH_SIDES, DEFAULT_PARALLEL_TOL, JOINT_TYPES, Frame, Marker, Payload, RobotModel,
                      parallel_beta_frames)
@@ -40,6 +40,8 @@ TOLERANCE_KEYS = {"frames": ("length", "angle"), "markers": ("length", "angle"),
 IDENTITY = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
 # base.* names the base pose parameters, so no frame or marker may be called "base"
 RESERVED_NAMES = ("base",)
+# no quantity of a model, in any of its units, comes near this; beyond it arithmetic overflows
+MAX_MAGNITUDE = 1e12
 _NUMBER = re.compile(r"^[+-]?(\d+(\.\d*)?|\.\d+)([eE][+-]?\d+)?$")
 
 
@@ -74,9 +76,11 @@ class _Reader:
             value = float(value)
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.error(where, f"expected a number, got {_show(value)}")
+        if isinstance(value, int) and abs(value) >= MAX_MAGNITUDE:  # float() of a huge int overflows
+            value = float("inf") if value > 0 else float("-inf")
         value = float(value)
-        if np.isnan(value) or (finite and not np.isfinite(value)):
-            raise self.error(where, f"expected a finite number, got {value}")
+        if np.isnan(value) or (finite and not abs(value) < MAX_MAGNITUDE):
+            raise self.error(where, f"expected a finite number (magnitude below {MAX_MAGNITUDE:g}), got {value}")
         return value
 
     def vector(self, value, where: str, n: int, scale: float = 1.0) -> tuple[float, ...]:
@@ -118,29 +122,61 @@ def _join(where: str, key) -> str:
 
 
 def _show(value) -> str:
-    return "nothing" if value is None else repr(value)
+    return excerpt(value)
 
 
 def model_from_dict(d: dict, *, source: str = "<dict>") -> RobotModel:
     """A RobotModel (SI) from the parsed model file ``d`` (docs/formats.md)."""
     rd = _Reader(source)
+    L, A = _units_of(rd, d)
+    name = d.get("name", Path(source).stem)
+    description = d.get("description", "") or ""
+    if not isinstance(description, str):
+        raise rd.error("description", f"expected text, got {_show(description)}")
+    joint_names, raw_limits = _joints(rd, d["joints"])
+    frames = _frames(rd, d["frames"], joint_names, L, A)
+    frame_names = [f.name for f in frames]
+    limits = _limits(rd, raw_limits, joint_names, frames, L, A)
+    markers = _markers(rd, d["markers"], frame_names, L, A)
+    base_position, base_rotation = (0.0, 0.0, 0.0), IDENTITY
+    if d.get("base") is not None:
+        base = rd.mapping(d["base"], "base", ("position", "rotation"))
+        if "position" in base:
+            base_position = rd.vector(base["position"], "base.position", 3, L)
+        if "rotation" in base:
+            base_rotation = rd.rotation(base["rotation"], "base.rotation", A)
+    gravity = rd.vector(d["gravity"], "gravity", 3) if "gravity" in d else (0.0, 0.0, -9.81)
+    payload = _payload(rd, d.get("payload"), frame_names, L)
+    tolerances = _tolerances(rd, d.get("tolerances"), L, A)
+    if d.get("calibration") is not None:
+        rd.mapping(d["calibration"], "calibration", ("verdict", "failed", "warned", "date"))
+    try:
+        return RobotModel(name=str(name), frames=tuple(frames), joint_names=tuple(joint_names),
+                          joint_limits=tuple(limits), markers=tuple(markers), base_position=base_position,
+                          base_rotation=base_rotation, gravity=gravity, payload=payload,
+                          description=description, tolerances=tolerances,
+                          backlash_side=_backlash_side(rd, d.get("backlash")))
+    except InputError as e:  # the record's own checks: add the file name
+        raise InputError(e.detail, source=source, where=e.where) from None
+
+
+def _units_of(rd: _Reader, d) -> tuple[float, float]:
+    """The top-level checks and the file's (length, angle) units as SI factors."""
     rd.mapping(d, "", TOP_KEYS, required=("robocal_model", "units", "joints", "frames", "markers"))
     if d["robocal_model"] != FORMAT_VERSION:
         raise rd.error("robocal_model", f"unsupported format version {d['robocal_model']!r}; "
                                         f"this robocal reads version {FORMAT_VERSION}")
     units = rd.mapping(d["units"], "units", ("length", "angle"), required=("length", "angle"))
-    L = LENGTH_UNITS[check_unit(units["length"], "length", source=source, where="units.length")]
-    A = ANGLE_UNITS[check_unit(units["angle"], "angle", source=source, where="units.angle")]
+    L = LENGTH_UNITS[check_unit(units["length"], "length", source=rd.source, where="units.length")]
+    A = ANGLE_UNITS[check_unit(units["angle"], "angle", source=rd.source, where="units.angle")]
+    return L, A
 
-    name = d.get("name", Path(source).stem)
-    description = d.get("description", "") or ""
-    if not isinstance(description, str):
-        raise rd.error("description", f"expected text, got {_show(description)}")
 
-    joint_items = rd.sequence(d["joints"], "joints")
+def _joints(rd: _Reader, value) -> tuple[list[str], list]:
+    """Joint names and their raw limits (read once the frames say what each reading drives)."""
     joint_names: list[str] = []
     raw_limits = []
-    for j, item in enumerate(joint_items):
+    for j, item in enumerate(rd.sequence(value, "joints")):
         where = f"joints[{j}]"
         if isinstance(item, str):
             item = {"name": item}
@@ -150,40 +186,51 @@ def model_from_dict(d: dict, *, source: str = "<dict>") -> RobotModel:
             raise rd.error(f"{where}.name", f"joint {jn!r} is named twice (also joints[{joint_names.index(jn)}])")
         joint_names.append(jn)
         raw_limits.append(item.get("limits"))
+    return joint_names, raw_limits
 
-    frame_items = rd.sequence(d["frames"], "frames")
+
+def _frames(rd: _Reader, value, joint_names: list[str], L: float, A: float) -> list[Frame]:
+    frame_items = rd.sequence(value, "frames")
     if not frame_items:
         raise rd.error("frames", "a model needs at least one frame")
     frames: list[Frame] = []
-    frame_names: list[str] = []
     used_joints: set[int] = set()
     auto_beta: list[int] = []
     for i, item in enumerate(frame_items):
-        where = f"frames[{i}]"
-        rd.mapping(item, where, FRAME_KEYS, required=("name", "joint"))
-        fn = rd.name(item["name"], f"{where}.name")
-        if fn in frame_names:
-            raise rd.error(f"{where}.name", f"frame {fn!r} is named twice (also frames[{frame_names.index(fn)}])")
-        joint = item["joint"]
-        if joint not in JOINT_TYPES:
-            raise rd.error(f"{where}.joint", f"joint type must be one of {', '.join(JOINT_TYPES)}, got {_show(joint)}")
-        coupling = _coupling(rd, item, where, fn, joint, joint_names, used_joints)
-        used_joints.update(j for j, _ in coupling)
-        parent = _parent(rd, item.get("parent"), f"{where}.parent", i, frame_names)
-        values = {k: rd.number(item[k], f"{where}.{k}") * (L if u == "length" else A if u == "angle" else 1.0)
-                  for k, u in FRAME_VALUES.items() if k in item}
-        com = rd.vector(item["com"], f"{where}.com", 3, L) if "com" in item else (0.0, 0.0, 0.0)
-        hb = item.get("has_beta", "auto")
-        if hb not in (True, False, "auto"):
-            raise rd.error(f"{where}.has_beta", f"expected auto, true or false, got {_show(hb)}")
-        if hb == "auto":
+        frame, auto = _frame(rd, item, f"frames[{i}]", i, frames, joint_names, used_joints, L, A)
+        used_joints.update(j for j, _ in frame.coupling)
+        if auto:
             auto_beta.append(i)
-        frames.append(Frame(name=fn, joint=joint, parent=parent, coupling=coupling, com=com,
-                            has_beta=bool(hb is True), **values))
-        frame_names.append(fn)
+        frames.append(frame)
     beta = parallel_beta_frames(frames, DEFAULT_PARALLEL_TOL)
-    frames = [replace(f, has_beta=beta[i]) if i in auto_beta else f for i, f in enumerate(frames)]
+    return [replace(f, has_beta=beta[i]) if i in auto_beta else f for i, f in enumerate(frames)]
 
+
+def _frame(rd: _Reader, item, where: str, i: int, earlier: list[Frame], joint_names: list[str],
+           used_joints: set[int], L: float, A: float) -> tuple[Frame, bool]:
+    """One frame, and whether its has_beta is left to the parallel-axes rule."""
+    frame_names = [f.name for f in earlier]
+    rd.mapping(item, where, FRAME_KEYS, required=("name", "joint"))
+    fn = rd.name(item["name"], f"{where}.name")
+    if fn in frame_names:
+        raise rd.error(f"{where}.name", f"frame {fn!r} is named twice (also frames[{frame_names.index(fn)}])")
+    joint = item["joint"]
+    if joint not in JOINT_TYPES:
+        raise rd.error(f"{where}.joint", f"joint type must be one of {', '.join(JOINT_TYPES)}, got {_show(joint)}")
+    coupling = _coupling(rd, item, where, fn, joint, joint_names, used_joints)
+    parent = _parent(rd, item.get("parent"), f"{where}.parent", i, frame_names)
+    values = {k: rd.number(item[k], f"{where}.{k}") * (L if u == "length" else A if u == "angle" else 1.0)
+              for k, u in FRAME_VALUES.items() if k in item}
+    com = rd.vector(item["com"], f"{where}.com", 3, L) if "com" in item else (0.0, 0.0, 0.0)
+    hb = item.get("has_beta", "auto")
+    if hb not in (True, False, "auto"):
+        raise rd.error(f"{where}.has_beta", f"expected auto, true or false, got {_show(hb)}")
+    return Frame(name=fn, joint=joint, parent=parent, coupling=coupling, com=com, has_beta=bool(hb is True),
+                 **values), hb == "auto"
+
+
+def _limits(rd: _Reader, raw_limits: list, joint_names: list[str], frames: list[Frame], L: float,
+            A: float) -> list[tuple[float, float]]:
     limits = []
     for j, raw in enumerate(raw_limits):
         # a limit is in the unit of what the reading drives: a length for a prismatic frame
@@ -201,10 +248,13 @@ def model_from_dict(d: dict, *, source: str = "<dict>") -> RobotModel:
         if not lo <= hi:
             raise rd.error(where, f"lower limit exceeds upper limit ({raw[0]} > {raw[1]})")
         limits.append((lo, hi))
+    return limits
 
+
+def _markers(rd: _Reader, value, frame_names: list[str], L: float, A: float) -> list[Marker]:
     markers = []
     marker_names: list[str] = []
-    for m, item in enumerate(rd.sequence(d["markers"], "markers")):
+    for m, item in enumerate(rd.sequence(value, "markers")):
         where = f"markers[{m}]"
         rd.mapping(item, where, ("name", "frame", "position", "rotation"), required=("name", "frame"))
         mn = rd.name(item["name"], f"{where}.name")
@@ -215,38 +265,27 @@ def model_from_dict(d: dict, *, source: str = "<dict>") -> RobotModel:
         pos = rd.vector(item["position"], f"{where}.position", 3, L) if "position" in item else (0.0, 0.0, 0.0)
         rot = rd.rotation(item["rotation"], f"{where}.rotation", A) if "rotation" in item else IDENTITY
         markers.append(Marker(mn, fi, pos, rot))
+    return markers
 
-    base_position, base_rotation = (0.0, 0.0, 0.0), IDENTITY
-    if d.get("base") is not None:
-        base = rd.mapping(d["base"], "base", ("position", "rotation"))
-        if "position" in base:
-            base_position = rd.vector(base["position"], "base.position", 3, L)
-        if "rotation" in base:
-            base_rotation = rd.rotation(base["rotation"], "base.rotation", A)
-    gravity = rd.vector(d["gravity"], "gravity", 3) if "gravity" in d else (0.0, 0.0, -9.81)
 
-    payload = Payload()
-    if d.get("payload") is not None:
-        pl = rd.mapping(d["payload"], "payload", ("mass", "com", "frame"))
-        payload = Payload(
-            mass=rd.number(pl["mass"], "payload.mass") if "mass" in pl else 0.0,
-            com=rd.vector(pl["com"], "payload.com", 3, L) if "com" in pl else (0.0, 0.0, 0.0),
-            frame=_frame_ref(rd, pl["frame"], "payload.frame", frame_names) if "frame" in pl else -1)
-    tolerances = _tolerances(rd, d.get("tolerances"), L, A)
-    side = "gravity"
-    if d.get("backlash") is not None:
-        side = rd.mapping(d["backlash"], "backlash", ("side",)).get("side", side)
-        if side not in BACKLASH_SIDES:
-            raise rd.error("backlash.side", f"expected one of {', '.join(BACKLASH_SIDES)}, got {_show(side)}")
-    if d.get("calibration") is not None:
-        rd.mapping(d["calibration"], "calibration", ("verdict", "failed", "warned", "date"))
-    try:
-        return RobotModel(name=str(name), frames=tuple(frames), joint_names=tuple(joint_names),
-                          joint_limits=tuple(limits), markers=tuple(markers), base_position=base_position,
-                          base_rotation=base_rotation, gravity=gravity, payload=payload,
-                          description=description, tolerances=tolerances, backlash_side=side)
-    except InputError as e:  # the record's own checks: add the file name
-        raise InputError(e.detail, source=source, where=e.where) from None
+def _backlash_side(rd: _Reader, value) -> str:
+    """``backlash: {side: gravity | approach}`` (default gravity)."""
+    if value is None:
+        return "gravity"
+    side = rd.mapping(value, "backlash", ("side",)).get("side", "gravity")
+    if side not in BACKLASH_SIDES:
+        raise rd.error("backlash.side", f"expected one of {', '.join(BACKLASH_SIDES)}, got {_show(side)}")
+    return side
+
+
+def _payload(rd: _Reader, value, frame_names: list[str], L: float) -> Payload:
+    if value is None:
+        return Payload()
+    pl = rd.mapping(value, "payload", ("mass", "com", "frame"))
+    return Payload(
+        mass=rd.number(pl["mass"], "payload.mass") if "mass" in pl else 0.0,
+        com=rd.vector(pl["com"], "payload.com", 3, L) if "com" in pl else (0.0, 0.0, 0.0),
+        frame=_frame_ref(rd, pl["frame"], "payload.frame", frame_names) if "frame" in pl else -1)
 
 
 def _tolerances(rd: _Reader, value, L: float, A: float) -> tuple:
@@ -327,20 +366,10 @@ def _coupling(rd: _Reader, item: dict, where: str, fname: str, joint: str, joint
     return ((free[0], 1.0),)
 
 
-def _yaml_error(e: yaml.YAMLError) -> tuple[str | None, str]:
-    mark = getattr(e, "problem_mark", None)
-    problem = getattr(e, "problem", None) or str(e)
-    return f"line {mark.line + 1}, column {mark.column + 1}" if mark else None, f"not valid YAML: {problem}"
-
-
 def read_model(path) -> RobotModel:
     """Read a model file (docs/formats.md) into a RobotModel in SI units."""
     source = str(path)
-    try:
-        d = yaml.safe_load(read_text(path)[0])
-    except yaml.YAMLError as e:
-        where, msg = _yaml_error(e)
-        raise InputError(msg, source=source, where=where) from None
+    d = load_yaml(read_text(path)[0], source)
     if d is None:
         raise InputError("the file is empty", source=source)
     return model_from_dict(d, source=source)

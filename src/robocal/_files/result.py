@@ -20,7 +20,7 @@ from .._errors import InputError, excerpt
 from .._identifiability import Absorption, IdentifiabilityResult, status_table
 from .._parameters import parameter_layout
 from .model import model_from_dict, model_to_dict
-from .text import read_text, write_texts
+from .text import load_json, read_text, write_texts
 
 SCHEMA = "robocal.result/1"
 SCHEMAS = (SCHEMA,)
@@ -314,14 +314,7 @@ def read_result(path) -> CalibrationResult:
     """The CalibrationResult stored by ``write_result``; InputError if it is not a robocal result of a
     known schema, naming the key that departs from it."""
     source = str(path)
-    text, _ = read_text(path)
-    try:
-        d = json.loads(text)
-    except json.JSONDecodeError as e:
-        raise InputError(f"not valid JSON: {e.msg}", source=source, where=f"line {e.lineno}, column {e.colno}") from None
-    except RecursionError:
-        raise InputError("nested too deeply to be a robocal result", source=source) from None
-    return result_from_dict(d, source=source)
+    return result_from_dict(load_json(read_text(path)[0], source), source=source)
 
 
 # -- the limit of absolute accuracy ------------------------------------------------------------

@@ -3,7 +3,7 @@
 ``render_report`` returns the HTML text of a ``CalibrationResult`` (computed, or read back from
 result.json), ``write_report`` writes it atomically. Plots are matplotlib figures embedded as
 inline SVG; the page needs no network and no JavaScript. Units are shown as ``units.DISPLAY_UNITS``
-says: lengths in mm, angles in degrees, compliances in deg/(kN m).
+says.
 """
 
 from __future__ import annotations
@@ -18,18 +18,14 @@ from .._calibration import CalibrationResult
 from .._errors import InputError, RobocalError
 from .._files.result import result_to_dict
 from .._files.text import write_texts
-from .._parameters import FRAME_KINDS, parameter_layout, parameter_vector
-from .units import absorption_coefficient, display_unit as _display, finite as _num, fmt
+from .._parameters import FRAME_KINDS, GEOMETRIC_KINDS, parameter_layout, parameter_vector
+from .units import UNITS_SENTENCE, absorption_text, display_unit as _display, finite as _num, fmt, symbol
 
 PLOTS = ("errors-per-pose", "histograms", "correlation", "residuals")
 STAT_SETS = (("fit_before", "fitted poses", "before"), ("fit_after", "fitted poses", "after"),
              ("validation_before", "held-out poses", "before"), ("validation_after", "held-out poses", "after"))
 STAT_FIELDS = ("mean", "std", "rms", "max")
-ALWAYS_SHOWN = ("beta", "alpha", "d", "theta", "r")
-_SYMBOL = {"gamma": "&gamma;", "b": "b", "beta": "&beta;", "alpha": "&alpha;", "d": "d", "theta": "&theta;",
-           "r": "r", "k_theta": "K<sub>&theta;</sub>", "k_alpha": "K<sub>&alpha;</sub>",
-           "k_beta": "K<sub>&beta;</sub>", "backlash_theta": "backlash <sub>&theta;</sub>",
-           "backlash_r": "backlash <sub>r</sub>"}
+ALWAYS_SHOWN = GEOMETRIC_KINDS[2:]  # the paper's columns; gamma and b only for frames of a tree
 WORST_POSES = 10
 MISSING_VALIDATION = "No held-out poses were given: the errors shown are on the fitted poses only."
 MISSING_LIMIT = ("No limit of absolute accuracy was given: run <code>robocal limit</code> on the model (repeatability, "
@@ -476,11 +472,11 @@ def _parameter_tables(d: dict, nominal: dict, units: dict) -> tuple[str, str, st
                     + "".join(status_cell(f"{f}.{k}") for k in shown) + "</tr>")
         for i, label in enumerate(("nominal", "identified", "change", "std dev")):
             body.append(f'<tr><td class="what">{label}</td>' + "".join(c[i] for c in cols) + "</tr>")
-    head = ["frame", ""] + [f"{_SYMBOL[k]} <small>({_e(_display(units[f'{frames[0]}.{k}'])[0])})</small>"
-                            if frames else _SYMBOL[k] for k in shown]
+    head = ["frame", ""] + [f"{symbol(k)} <small>({_e(_display(units[f'{frames[0]}.{k}'])[0])})</small>"
+                            if frames else symbol(k) for k in shown]
     note = ""
     if omitted:
-        note = ("Columns " + ", ".join(_SYMBOL[k] for k in omitted)
+        note = ("Columns " + ", ".join(symbol(k) for k in omitted)
                 + " are not shown: those parameters were not among the candidates.")
     frame_table = _table(head, body, cls="params", num_from=2)
 
@@ -504,17 +500,13 @@ def _eliminated_table(d: dict, units: dict) -> str:
     rows = []
     for a in elim:
         name = a["name"]
-        terms = []
-        for t in a.get("absorbed_by", []):
-            # the coefficient in display units: 1 shown unit of name moves the tool as c shown units of t
-            c = absorption_coefficient(t["coefficient"], units.get(name, ""), units.get(t["name"], ""))
-            sign = "-" if c < 0 else "+"
-            terms.append((f" {sign} " if terms else sign.strip("+")) + f"{abs(c):.4g} &times; {_e(t['name'])}")
-        expr = "".join(terms) if terms else '<span class="muted">nothing (no effect)</span>'
+        terms = [(t["name"], t["coefficient"]) for t in a.get("absorbed_by", [])]
+        expr = (_e(absorption_text(units.get(name, ""), terms, units)) if terms
+                else '<span class="muted">nothing (no effect)</span>')
         rows.append(f'<tr><td class="name">{_e(name)}</td><td>{_e(a.get("reason", ""))}</td>'
                     f'<td class="expr" data-key="{_e(name)}:absorbed_by">{expr}</td>'
                     f'<td class="num">{_ratio(a.get("residual"), ".1e") if terms else "–"}</td></tr>')
-    return _table(["eliminated", "why", "absorbed by (changes in mm and degrees)", "fit residual"], rows,
+    return _table(["eliminated", "why", "a change of it moves the tool as", "fit residual"], rows,
                   cls="elim", num_from=3)
 
 
@@ -724,9 +716,8 @@ def render_report(result: CalibrationResult, *, extra: dict | None = None) -> st
     frame_table, other_table, note = _parameter_tables(d, nominal, units)
     sections.append(("parameters", "Parameters",
                      "<p>Per frame, in the paper's layout: I identified, E eliminated (held at its nominal value, "
-                     "its effect carried by identified parameters), &ndash; not a candidate. Lengths in mm, angles "
-                     "in degrees, compliances in deg/(kN&nbsp;m); std dev is the standard deviation of the "
-                     "estimate.</p>" + frame_table + (f'<p class="muted">{note}</p>' if note else "")
+                     "its effect carried by identified parameters), &ndash; not a candidate. "
+                     f"{_e(UNITS_SENTENCE).capitalize()}; std dev is the standard deviation of the estimate.</p>" + frame_table + (f'<p class="muted">{note}</p>' if note else "")
                      + "<h3>Base and marker parameters</h3>" + other_table))
     sections.append(("identifiability", "Eliminated parameters and what absorbs them",
                      "<p>An eliminated parameter cannot be told apart from a combination of identified ones: a "
@@ -759,7 +750,7 @@ def render_report(result: CalibrationResult, *, extra: dict | None = None) -> st
             f'<header><h1>Calibration report &ndash; <span class="robot">{_e(robot)}</span></h1>'
             f'<p class="meta">{" &middot; ".join(_e(m) for m in meta if m)}</p></header>\n'
             f"{_headline(d)}{''.join(notices)}<nav><ol>{toc}</ol></nav>\n{body}"
-            "<footer>Lengths in mm, angles in degrees, compliances in deg/(kN&nbsp;m); the result file keeps SI "
+            f"<footer>{_e(UNITS_SENTENCE).capitalize()}; the result file keeps SI "
             "units. A self-contained page: no scripts, no network.</footer>\n</main>\n</body>\n</html>\n")
 
 

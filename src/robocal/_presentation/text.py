@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from .._parameters import BACKLASH_KINDS, BASE_KINDS, FRAME_KINDS, MARKER_KINDS, parameter_layout
-from .units import MM, absorption_coefficient, display_unit, with_unit
+from .units import MM, absorption_text, display_unit, with_unit
 
 STAT_ROWS = ("fit_before", "fit_after", "validation_before", "validation_after")
 # the paper's table shows these kinds; gamma and b join them where a tree uses them
@@ -65,10 +65,7 @@ def eliminated_lines(ident, units: dict) -> list[str]:
              "tool as the changes shown"]
     for a in ident.eliminated:
         if a.absorbers:
-            unit = units.get(a.name, "")
-            terms = " ".join(f"{absorption_coefficient(c, unit, units.get(n, '')):+.4g} {display_unit(units.get(n, ''))[0]}"
-                             f" {n}" for n, c in a.absorbers)
-            lines.append(f"  {a.name:<{width}}  1 {display_unit(unit)[0]} = {terms}")
+            lines.append(f"  {a.name:<{width}}  {absorption_text(units.get(a.name, ''), a.absorbers, units)}")
         else:
             lines.append(f"  {a.name:<{width}} {a.reason}")
     return lines

@@ -8,12 +8,16 @@ from __future__ import annotations
 
 import math
 
+from .._parameters import SI_UNITS
+
 # SI unit -> (display unit, factor from SI, decimals)
 DISPLAY_UNITS = {
     "m": ("mm", 1e3, 4),
     "rad": ("deg", 180.0 / math.pi, 5),
     "rad/(N m)": ("deg/(kN m)", 180.0 / math.pi * 1e3, 4),
 }
+# "lengths in mm, angles in deg, compliances in deg/(kN m)"
+UNITS_SENTENCE = ", ".join(f"{q}s in {DISPLAY_UNITS[u][0]}" for q, u in SI_UNITS.items())
 MM = DISPLAY_UNITS["m"][1]
 DEG = DISPLAY_UNITS["rad"][1]
 
@@ -46,6 +50,19 @@ def fmt(value, unit: str = "m", *, sign: bool = False) -> str:
     return text.lstrip("+-") if float(text) == 0 else text  # no signed zeros
 
 
+def symbol(kind: str) -> str:
+    """The HTML symbol of a parameter kind: Greek letters by their entity, compliances as K with the angle.
+
+    >>> symbol("theta"), symbol("d"), symbol("k_beta")
+    ('&theta;', 'd', 'K<sub>&beta;</sub>')
+    """
+    if kind.startswith("k_"):
+        return f"K<sub>{symbol(kind[2:])}</sub>"
+    if kind.startswith("backlash_"):
+        return f"backlash<sub>{symbol(kind[len('backlash_'):])}</sub>"
+    return f"&{kind};" if len(kind) > 1 else kind
+
+
 def with_unit(value, unit: str, *, sign: bool = False) -> str:
     """``fmt`` followed by the display unit: ``'+0.1234 mm'``."""
     return f"{fmt(value, unit, sign=sign)} {display_unit(unit)[0]}"
@@ -61,3 +78,17 @@ def absorption_coefficient(coefficient: float, unit: str, absorber_unit: str) ->
     8.726646
     """
     return coefficient * display_unit(absorber_unit)[1] / display_unit(unit)[1]
+
+
+def absorption_text(unit: str, absorbers, units: dict) -> str:
+    """An absorption in display units: ``'1 deg = +2.865 mm tool.y -1.146 mm tool.x'``.
+
+    ``unit``: the SI unit of the eliminated parameter; ``absorbers``: (name, SI coefficient) pairs;
+    ``units``: SI unit of each absorber's name.
+
+    >>> absorption_text("rad", [("tool.y", 0.05)], {"tool.y": "m"})
+    '1 deg = +0.8727 mm tool.y'
+    """
+    terms = " ".join(f"{absorption_coefficient(c, unit, units.get(n, '')):+.4g} {display_unit(units.get(n, ''))[0]} {n}"
+                     for n, c in absorbers)
+    return f"1 {display_unit(unit)[0]} = {terms}"

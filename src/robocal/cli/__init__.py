@@ -7,21 +7,21 @@ nothing written). This package is the only place that prints or configures loggi
 
 from __future__ import annotations
 
-import argparse
 import logging
+import signal
 import sys
 import warnings
 
 from .._errors import RobocalError, RobocalWarning
 from .._version import __version__
 from . import calibrate, identifiability, import_urdf, limit, report, simulate
-from .common import MissingExtra
+from .common import MissingExtra, Parser
 
 COMMANDS = (calibrate, simulate, identifiability, report, limit, import_urdf)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="robocal", description="Robot calibration: geometric and compliance "
+    parser = Parser(prog="robocal", description="Robot calibration: geometric and compliance "
                                      "parameters, identifiability, the limit of absolute accuracy.")
     parser.add_argument("--version", action="version", version=f"robocal {__version__}")
     parser.add_argument("-v", "--verbose", action="store_true", help="log progress")
@@ -56,18 +56,45 @@ def main(argv=None) -> int:
         warnings.simplefilter("always", RobocalWarning)
         warnings.showwarning = show
         args.shown_warnings = shown
-        try:
-            return args.func(args)
-        except RobocalError as e:
-            print(f"robocal {args.command}: error: {e}", file=sys.stderr)
-            return 2
-        except MissingExtra as e:
-            print(f"robocal {args.command}: {e}", file=sys.stderr)
-            return 1
-        except OSError as e:  # the output folder cannot be made or written: the user's to fix
-            where = f"{e.filename}: " if e.filename else ""
-            print(f"robocal {args.command}: error: {where}{e.strerror or e}", file=sys.stderr)
-            return 2
+        return _run(args)
+
+
+def _terminate(signum, frame):
+    raise KeyboardInterrupt  # unwinds like Ctrl-C: the writers remove their temporary files
+
+
+def _run(args) -> int:
+    """The command, with every error the user can act on as one line on stderr."""
+    def fail(message: str, code: int = 2) -> int:
+        print(f"robocal {args.command}: {message}", file=sys.stderr)
+        return code
+
+    try:
+        previous = signal.signal(signal.SIGTERM, _terminate)
+    except ValueError:  # not the main thread
+        previous = None
+    try:
+        return args.func(args)
+    except RobocalError as e:
+        return fail(f"error: {one_line(e)}")
+    except MissingExtra as e:
+        return fail(str(e), 1)
+    except OSError as e:  # the output folder cannot be made or written: the user's to fix
+        where = f"{e.filename}: " if e.filename else ""
+        return fail(f"error: {where}{e.strerror or e}")
+    except MemoryError as e:  # numpy says how much it tried to allocate
+        return fail(f"error: out of memory{f' ({one_line(e)})' if str(e) else ''}; use fewer poses or samples")
+    except KeyboardInterrupt:
+        return fail("interrupted; nothing was written", 130)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def one_line(e: BaseException) -> str:
+    """An error's message on one line, cut to a length a terminal shows."""
+    text = " ".join(str(e).split())
+    return text if len(text) <= 500 else text[:500] + "..."
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -33,16 +33,16 @@ def register(sub) -> None:
                    help="start the base pose from a rigid registration of the nominal robot on the data")
     p.add_argument("--limit-mm", type=common.positive, metavar="X",
                    help="limit of absolute accuracy to judge against, mm")
-    p.add_argument("--seed", type=int, default=0, help="seed of the --holdout split (default 0)")
+    p.add_argument("--seed", type=common.seed, default=0, help="seed of the --holdout split (default 0)")
     p.add_argument("--out-units", type=common.units, default="mm-deg", help="units of calibrated.yaml (default mm-deg)")
     p.add_argument("--force", action="store_true", help="overwrite existing output files")
     p.add_argument("--report", action="store_true", help="also write OUT/report.html (needs robocal[report])")
     g = p.add_argument_group("checks (docs/checks.md)")
     g.add_argument("--instrument", choices=tuple(INSTRUMENT_NOISE), default="tracker",
                    help="instrument class whose noise the checks expect where the data state none (default tracker)")
-    g.add_argument("--noise-mm", type=common.positive, metavar="X",
+    g.add_argument("--noise-mm", type=common.noise_mm, metavar="X",
                    help="expected measurement noise, mm per axis (overrides the instrument's)")
-    g.add_argument("--noise-deg", type=common.positive, metavar="X",
+    g.add_argument("--noise-deg", type=common.noise_deg, metavar="X",
                    help="expected rotation noise of 6D measurements, degrees (overrides the instrument's)")
     g.add_argument("--on-outliers", choices=OUTLIER_ACTIONS, default="refit",
                    help="refit with a robust loss when a few points stand out (default), or only name them")

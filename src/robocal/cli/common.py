@@ -9,9 +9,11 @@ from __future__ import annotations
 import argparse
 import importlib
 import math
+import re
 from pathlib import Path
 
 from .._errors import InputError, excerpt
+from .._options import MAX_POSES
 from .._units import parse_units
 
 MM = 1e3
@@ -22,19 +24,50 @@ class MissingExtra(Exception):
     """An optional part of robocal is not installed (exit 1)."""
 
 
+class Parser(argparse.ArgumentParser):
+    """argparse, but a usage error is one line (``robocal CMD: error: ...``), never the usage block,
+    and never echoes more than an excerpt of what was typed."""
+
+    def error(self, message):
+        message = " ".join(str(message).split())
+        if len(message) > 300:
+            message = message[:300] + "..."
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
 # -- argument types: each refuses a bad value at parse time with one line naming the option ----------
 
-def floats(n: int):
+def floats(n: int, top: float = math.inf, *, ordered: bool = False):
+    """An argparse type: ``n`` comma-separated numbers between 0 and ``top``; ``ordered``: LO <= HI."""
     def parse(text: str) -> tuple[float, ...]:
         try:
             vals = tuple(float(v) for v in text.split(","))
         except ValueError:
             raise argparse.ArgumentTypeError(f"expected {n} comma-separated numbers, got {excerpt(text)}") from None
-        if len(vals) != n or not all(map(math.isfinite, vals)) or min(vals) < 0:
-            raise argparse.ArgumentTypeError(f"expected {n} non-negative comma-separated numbers, got "
+        if len(vals) != n or not all(0 <= v <= top for v in vals):
+            raise argparse.ArgumentTypeError(f"expected {n} comma-separated numbers from 0 to {top:g}, got "
                                              f"{excerpt(text)}")
+        if ordered and list(vals) != sorted(vals):
+            raise argparse.ArgumentTypeError(f"expected LO,HI with LO <= HI, got {excerpt(text)}")
         return vals
     return parse
+
+
+def integer(lo: int, hi: int, what: str | None = None):
+    """An argparse type: a whole number from ``lo`` to ``hi`` (``what`` says why the bound, if any)."""
+    def parse(text: str) -> int:
+        t = text.strip()
+        v = int(t) if re.fullmatch(r"[+-]?\d{1,30}", t) else None
+        if v is None or not lo <= v <= hi:
+            raise argparse.ArgumentTypeError(f"expected a whole number from {lo:,} to {hi:,}"
+                                             f"{f' ({what})' if what else ''}, got {excerpt(text)}")
+        return v
+    return parse
+
+
+SEED_MAX = 2 ** 32 - 1
+seed = integer(0, SEED_MAX)
+poses = integer(1, MAX_POSES, "the pose limit of docs/formats.md")
 
 
 def number_in(ok, what: str):
@@ -52,6 +85,14 @@ def number_in(ok, what: str):
 
 fraction = number_in(lambda v: 0.0 < v < 1.0, "a fraction between 0 and 1")
 positive = number_in(lambda v: 0.0 < v < math.inf, "a positive number")
+# lengths in mm and angles in degrees a user may type for noise, errors, quanta: beyond a metre or
+# half a turn they are not what the option means
+length_mm = number_in(lambda v: 0.0 <= v <= 1e3, "a number from 0 to 1000 (mm)")
+angle_deg = number_in(lambda v: 0.0 <= v <= 180.0, "a number from 0 to 180 (degrees)")
+tolerance = number_in(lambda v: 0.0 < v < 1.0, "a tolerance between 0 and 1 (exclusive)")
+# noise of an instrument, mm and degrees: beyond a metre or half a turn it is not a measurement
+noise_mm = number_in(lambda v: 0.0 < v <= 1e3, "a positive number up to 1000 (mm)")
+noise_deg = number_in(lambda v: 0.0 < v <= 180.0, "a positive number up to 180 (degrees)")
 
 
 def marker_mm(text: str) -> tuple[str, tuple[float, float, float]]:
@@ -66,7 +107,10 @@ def marker_mm(text: str) -> tuple[str, tuple[float, float, float]]:
 
 
 def names(text: str) -> tuple[str, ...]:
-    return tuple(s.strip() for s in text.split(",") if s.strip())
+    out = tuple(s.strip() for s in text.split(",") if s.strip())
+    if not out or any(len(s) > 100 for s in out):
+        raise argparse.ArgumentTypeError(f"expected comma-separated names, got {excerpt(text)}")
+    return out
 
 
 def checked_by(check):
@@ -86,8 +130,26 @@ def _parse_orientation(text: str):
     return parse_orientation(text)
 
 
+def _parse_separator(text: str):
+    from .._files.table import parse_separator
+
+    return parse_separator(text)
+
+
+def column_pairs(text: str) -> dict[str, str]:
+    """``FILE=ROBOCAL,...`` -> {file column: robocal column}."""
+    out = {}
+    for item in (t.strip() for t in text.split(",")):
+        file_column, eq, name = (s.strip() for s in item.partition("="))
+        if not eq or not file_column or not name:
+            raise argparse.ArgumentTypeError(f"expected FILE_COLUMN=ROBOCAL_COLUMN[,...], got {excerpt(item)}")
+        out[file_column] = name
+    return out
+
+
 units = checked_by(parse_units)
 orientation = checked_by(_parse_orientation)
+separator = checked_by(_parse_separator)
 
 
 # -- options shared by several commands ------------------------------------------------------------
@@ -96,26 +158,44 @@ def csv_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("measurement file")
     g.add_argument("--units", type=units, help="units of CSV columns without a unit suffix, e.g. mm-deg or m-rad "
                                                "(never guessed: a suffix, a '# units:' line or this option)")
-    g.add_argument("--sep", default=",", help="column separator (default ','; ';' for decimal-comma files)")
-    g.add_argument("--decimal", default=".", choices=(".", ","), help="decimal mark (default '.')")
+    g.add_argument("--sep", type=separator, help="column separator: ',', ';', '\\t' or whitespace "
+                                                 "(default: detected and said in the summary)")
+    g.add_argument("--decimal", choices=(".", ","), help="decimal mark (default: detected)")
     g.add_argument("--orientation", type=orientation,
                    help="convention of 6D pose columns: quat_xyzw, quat_wxyz, rpy, euler:ZYX (scipy sequences)")
+    g.add_argument("--map", type=column_pairs, action="append", default=[], metavar="FILE=NAME,...",
+                   help="rename the file's columns to robocal's, e.g. 'X=tool_x_mm,Y=tool_y_mm,Z=tool_z_mm'")
+    g.add_argument("--ignore", type=names, action="append", default=[], metavar="COLUMN,...",
+                   help="columns of the file to ignore")
+    g.add_argument("--unknown", choices=("refuse", "ignore"),
+                   help="columns robocal does not know: refuse (default) or ignore them, listed in the summary")
+    g.add_argument("--profile", metavar="YAML", help="instrument profile: separator, units, column map... "
+                                                     "(docs/formats.md); options given here win over it")
+    g.add_argument("--joints", metavar="CSV", help="joint readings in a file of their own, joined to the "
+                                                   "measurements on the pose column (--key)")
+    g.add_argument("--key", metavar="COLUMN", help="the column that joins --joints to the measurements "
+                                                   "(default pose)")
 
 
 def parameter_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--parameters", type=names,
-                   help="comma-separated families (geometric, compliance, base, markers, frames) or names "
-                        "like j2.alpha (default geometric)")
-    p.add_argument("--known", type=names, default=(), help="families or names held at the model's values, "
-                                                           "e.g. base,markers")
-    p.add_argument("--tol", type=positive, default=1e-6, help="identifiability tolerance (default 1e-6)")
+                   help="comma-separated families (geometric, compliance, base, markers, frames), names "
+                        "like j2.alpha or patterns like '*.theta' and 'j2.*' (default geometric)")
+    p.add_argument("--known", type=names, default=(), help="families, names or patterns held at the model's "
+                                                           "values, e.g. base,markers")
+    p.add_argument("--tol", type=tolerance, default=1e-6, help="identifiability tolerance, between 0 and 1 "
+                                                                "(default 1e-6)")
 
 
 def read_data(args, model, path):
     from .._files.measurements import read_measurements
 
+    columns = {k: v for m in args.map for k, v in m.items()}
+    columns.update({c: None for group in args.ignore for c in group})
     return read_measurements(path, model, units=args.units, sep=args.sep, decimal=args.decimal,
-                             orientation=args.orientation)
+                             orientation=args.orientation, columns=columns or None, unknown=args.unknown,
+                             profile=args.profile, joints=args.joints,
+                             key=args.key)
 
 
 # -- outputs ----------------------------------------------------------------------------------------
@@ -130,11 +210,11 @@ def report_module():
 
 
 def refuse_existing(paths, force: bool) -> None:
-    """Fail before the work, not after it, when outputs exist."""
-    if not force:
-        for p in paths:
-            if Path(p).exists():
-                raise InputError("exists; pass --force to overwrite", source=str(p))
+    """Fail before the work, not after it, when an output exists (without ``force``) or cannot be
+    written (its folder is read-only, a file, ...)."""
+    from .._files.text import check_writable
+
+    check_writable(paths, force=force)
 
 
 def write_outputs(files: dict, *, force: bool, report=None) -> None:

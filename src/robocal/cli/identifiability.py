@@ -13,8 +13,8 @@ def register(sub) -> None:
     p.add_argument("model", metavar="MODEL", help="model file (YAML)")
     p.add_argument("csv", metavar="CSV", nargs="?", help="measurement file (its poses); default random poses")
     common.parameter_options(p)
-    p.add_argument("--poses", type=int, default=200, metavar="N", help="random poses without CSV (default 200)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the random poses (default 0)")
+    p.add_argument("--poses", type=common.poses, default=200, metavar="N", help="random poses without CSV (default 200)")
+    p.add_argument("--seed", type=common.seed, default=0, help="seed of the random poses (default 0)")
     common.csv_options(p)
     p.set_defaults(func=run)
 
@@ -26,8 +26,6 @@ def run(args) -> int:
 
     model = read_model(args.model)
     data = common.read_data(args, model, args.csv) if args.csv else None
-    if data is None and args.poses < 1:
-        raise InputError(f"--poses must be at least 1, got {args.poses}", where="--poses")
     res = identifiability(model, data, parameters=args.parameters or ("geometric",), known=args.known, tol=args.tol,
                           n_random=args.poses, rng=args.seed)
     where = f"the {data.n_poses} poses of {args.csv}" if data is not None else \

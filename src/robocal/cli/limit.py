@@ -10,7 +10,7 @@ import re
 import sys
 
 from .._errors import InputError
-from .._options import LIMIT_CHUNK as DEFAULT_CHUNK, LIMIT_MARKER_MODES as MARKER_MODES
+from .._options import LIMIT_CHUNK as DEFAULT_CHUNK, LIMIT_MARKER_MODES as MARKER_MODES, MAX_CHUNK, MAX_SAMPLES
 from .._units import LENGTH_UNITS, UNITS, unit_kind
 from . import common
 
@@ -28,18 +28,18 @@ def register(subparsers) -> None:
     rep = p.add_mutually_exclusive_group(required=True)
     rep.add_argument("--repeatability-csv", metavar="FILE",
                      help="repeated measurements, columns pose, cycle, x_mm, y_mm, z_mm (or x_m...)")
-    rep.add_argument("--repeatability-mm", metavar="X", type=float, help="pose repeatability RP in mm")
+    rep.add_argument("--repeatability-mm", metavar="X", type=common.length_mm, help="pose repeatability RP in mm")
     p.add_argument("--csv-units", choices=tuple(LENGTH_UNITS),
                    help="units of plain x, y, z columns (not needed when they are named x_mm... or x_m...)")
     p.add_argument("--encoder-resolution", required=True, metavar="LIST",
                    help='one per joint with its unit, e.g. "0.01deg,0.01deg,0.1mm" (deg, rad, mm, m)')
-    p.add_argument("--length-quantum-mm", required=True, type=float, metavar="X",
+    p.add_argument("--length-quantum-mm", required=True, type=common.length_mm, metavar="X",
                    help="round-off quantum of stored lengths, mm")
-    p.add_argument("--angle-quantum-deg", required=True, type=float, metavar="X",
+    p.add_argument("--angle-quantum-deg", required=True, type=common.angle_deg, metavar="X",
                    help="round-off quantum of stored angles, degrees")
-    p.add_argument("--samples", type=int, default=100_000, metavar="N", help="Monte Carlo samples (default 100000)")
-    p.add_argument("--seed", type=int, default=0, metavar="S", help="random seed (default 0)")
-    p.add_argument("--chunk-size", type=int, default=DEFAULT_CHUNK, metavar="N",
+    p.add_argument("--samples", type=common.integer(1, MAX_SAMPLES), default=100_000, metavar="N", help="Monte Carlo samples (default 100000)")
+    p.add_argument("--seed", type=common.seed, default=0, metavar="S", help="random seed (default 0)")
+    p.add_argument("--chunk-size", type=common.integer(1, MAX_CHUNK), default=DEFAULT_CHUNK, metavar="N",
                    help=f"configurations per vectorised chunk (default {DEFAULT_CHUNK})")
     p.add_argument("--markers", choices=MARKER_MODES, default="first",
                    help="deviation of the first marker, or the worst over all markers")

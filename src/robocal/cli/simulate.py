@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from .._errors import InputError
 from . import common
 
 
@@ -11,12 +10,12 @@ def register(sub) -> None:
                        description="Draw a 'true' robot near MODEL and write noisy measurements of it.")
     p.add_argument("model", metavar="MODEL", help="nominal model file (YAML)")
     p.add_argument("--out", required=True, metavar="CSV", help="measurement file to write")
-    p.add_argument("--poses", type=int, required=True, metavar="N", help="number of random poses")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    p.add_argument("--noise-mm", type=float, default=0.02, help="measurement noise std, mm (default 0.02)")
-    p.add_argument("--length-error-mm", type=common.floats(2), default=(0.1, 1.0), metavar="LO,HI",
+    p.add_argument("--poses", type=common.poses, required=True, metavar="N", help="number of random poses")
+    p.add_argument("--seed", type=common.seed, default=0, help="random seed (default 0)")
+    p.add_argument("--noise-mm", type=common.length_mm, default=0.02, help="measurement noise std, mm (default 0.02)")
+    p.add_argument("--length-error-mm", type=common.floats(2, 1e3, ordered=True), default=(0.1, 1.0), metavar="LO,HI",
                    help="range of length errors, mm (default 0.1,1)")
-    p.add_argument("--angle-error-deg", type=common.floats(2), default=(0.01, 0.1), metavar="LO,HI",
+    p.add_argument("--angle-error-deg", type=common.floats(2, 180.0, ordered=True), default=(0.01, 0.1), metavar="LO,HI",
                    help="range of angle errors, deg (default 0.01,0.1)")
     p.add_argument("--parameters", type=common.names, default=("geometric",), help="families to perturb")
     p.add_argument("--true-model", metavar="OUT.yaml", help="also write the true model")
@@ -30,8 +29,6 @@ def run(args) -> int:
     from .._files.model import model_to_yaml, read_model
     from .._simulation import simulate
 
-    if args.poses < 1:
-        raise InputError(f"--poses must be at least 1, got {args.poses}", where="--poses")
     files = [args.out] + ([args.true_model] if args.true_model else [])
     common.refuse_existing(files, args.force)
     model = read_model(args.model)

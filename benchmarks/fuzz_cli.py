@@ -1,0 +1,171 @@
+"""Run many malformed inputs through every command and count how each run ended.
+
+    python benchmarks/fuzz_cli.py --cases 10000 [--seed 0] [--show 3]
+
+Cases come from the hypothesis strategies in tests/fuzz_cases.py (model files, measurement and
+repeatability CSVs, URDFs, result files, command lines). Each runs ``robocal.cli.main(argv)`` in a
+forked child, in a folder of its own, under a 20 s wall-clock limit and a 1 GB memory limit (on
+top of the address space the parent already holds). Outcomes: clean error, ok result, traceback,
+hang, over-memory, non-finite output, multi-line error. A few examples of each bad outcome are
+printed with the command line and the last lines of stderr.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+
+for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")
+
+import collections  # noqa: E402
+import resource  # noqa: E402
+import shutil  # noqa: E402
+import signal  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+import traceback  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+
+import matplotlib  # noqa: E402
+
+matplotlib.use("Agg")
+from hypothesis import HealthCheck, Phase, given, settings  # noqa: E402
+
+import fuzz_cases  # noqa: E402
+import robocal._calibration  # noqa: E402,F401  (imported once here, not in every child)
+import robocal._presentation.html  # noqa: E402,F401
+from robocal.cli import main  # noqa: E402
+
+TIME_LIMIT = 20.0
+MEMORY_LIMIT = 1 << 30
+
+
+def _vm_size() -> int:
+    with open("/proc/self/status") as fh:
+        for line in fh:
+            if line.startswith("VmSize:"):
+                return int(line.split()[1]) * 1024
+    return 0
+
+
+def _child(folder: Path, argv: list[str]) -> None:
+    """In the forked child: limits, output to files, run, exit with the code."""
+    code = 99
+    try:
+        os.chdir(folder)
+        limit = _vm_size() + MEMORY_LIMIT
+        resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+        out = os.open("stdout.txt", os.O_WRONLY | os.O_CREAT | os.O_TRUNC)
+        err = os.open("stderr.txt", os.O_WRONLY | os.O_CREAT | os.O_TRUNC)
+        os.dup2(out, 1)
+        os.dup2(err, 2)
+        sys.stdout = open(1, "w", closefd=False)
+        sys.stderr = open(2, "w", closefd=False)
+        code = main(argv)
+    except BaseException:  # noqa: BLE001 - whatever escapes main is what we count
+        traceback.print_exc()
+    finally:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code if isinstance(code, int) and 0 <= code < 99 else 99)
+
+
+class Runner:
+    def __init__(self, show: int):
+        self.counts = collections.Counter()
+        self.examples = collections.defaultdict(list)
+        self.show = show
+        self.times = []
+        self.root = Path(tempfile.mkdtemp(prefix="robocal-fuzz-"))
+
+    def run(self, files: dict, argv: list[str]) -> None:
+        folder = self.root / f"case{sum(self.counts.values())}"
+        folder.mkdir()
+        for name, data in files.items():
+            (folder / name).write_bytes(data)
+        before = set(files) | {"stdout.txt", "stderr.txt"}
+        start = time.monotonic()
+        pid = os.fork()
+        if pid == 0:
+            _child(folder, argv)
+        outcome = None
+        while True:
+            done, status, usage = os.wait4(pid, os.WNOHANG)
+            if done:
+                break
+            if time.monotonic() - start > TIME_LIMIT:
+                os.kill(pid, signal.SIGKILL)
+                os.wait4(pid, 0)
+                outcome = "hang"
+                break
+            time.sleep(0.005)
+        self.times.append(time.monotonic() - start)
+        err = (folder / "stderr.txt").read_text(errors="replace") if (folder / "stderr.txt").exists() else ""
+        if outcome is None:
+            if os.WIFSIGNALED(status) or usage.ru_maxrss * 1024 > MEMORY_LIMIT + (400 << 20) or "MemoryError" in err:
+                outcome = "over-memory"
+            else:
+                outcome = fuzz_cases.judge(os.WEXITSTATUS(status), err, folder, before)
+        self.counts[outcome] += 1
+        if outcome not in ("clean error", "ok result") and len(self.examples[outcome]) < self.show:
+            self.examples[outcome].append((argv, {k: v[:300] for k, v in files.items()}, err[-1500:]))
+        shutil.rmtree(folder, ignore_errors=True)
+        n = sum(self.counts.values())
+        if n % 100 == 0:
+            print(f"{n} cases: {dict(self.counts)}", file=sys.stderr, flush=True)
+
+
+def base_result() -> str:
+    """A real result.json of the small example campaign, the seed of the result-file cases."""
+    folder = Path(tempfile.mkdtemp(prefix="robocal-fuzz-base-"))
+    (folder / "m.yaml").write_text(fuzz_cases.MODEL)
+    (folder / "d.csv").write_text(fuzz_cases.MEASUREMENTS)
+    code = main(["calibrate", str(folder / "m.yaml"), str(folder / "d.csv"), "--out", str(folder / "o")])
+    assert code in (0, 3), code
+    text = (folder / "o" / "result.json").read_text()
+    shutil.rmtree(folder)
+    return text
+
+
+def main_fuzz(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--cases", type=int, default=10_000)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--show", type=int, default=3, help="examples printed per bad outcome")
+    args = p.parse_args(argv)
+    import random
+
+    runner = Runner(args.show)
+    result_text = base_result()
+
+    @settings(max_examples=args.cases, database=None, deadline=None, phases=[Phase.generate],
+              suppress_health_check=list(HealthCheck))
+    @given(fuzz_cases.case(result_text))
+    def each(c):
+        runner.run(*c)
+
+    random.seed(args.seed)
+    t0 = time.monotonic()
+    each._hypothesis_internal_use_seed = args.seed
+    each()
+    wall = time.monotonic() - t0
+    n = sum(runner.counts.values())
+    times = sorted(runner.times)
+    for outcome, examples in runner.examples.items():
+        for argv_, files, err in examples:
+            print(f"--- {outcome}: robocal {' '.join(a[:80] for a in argv_)}\n    files: "
+                  f"{ {k: v[:120] for k, v in files.items()} }\n{err}")
+    print(f"\n{n} cases in {wall:.0f} s (median {times[n // 2]:.2f} s, slowest {times[-1]:.1f} s per case)")
+    for outcome in fuzz_cases.OUTCOMES:
+        print(f"  {outcome:18s} {runner.counts.get(outcome, 0)}")
+    shutil.rmtree(runner.root, ignore_errors=True)
+    bad = sum(runner.counts.get(o, 0) for o in fuzz_cases.OUTCOMES[2:])
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main_fuzz())

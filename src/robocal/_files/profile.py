@@ -1,0 +1,115 @@
+"""Instrument profiles: how one instrument's or controller's exports are laid out, written once.
+
+A profile is a small YAML file (docs/formats.md) holding what would otherwise be options on every
+run: the separator and decimal mark, the units and orientation convention of columns without a
+suffix, the column map (renames and ignored columns), what to do with unknown columns, and the key
+column that joins a joint-readings file to the instrument's.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import yaml
+
+from .._errors import InputError, excerpt, suggest
+from .._units import parse_units
+from .table import UNKNOWN_ACTIONS, ColumnMap, check_decimal, parse_separator
+from .text import read_text
+
+PROFILE_VERSION = 1
+PROFILE_KEYS = ("robocal_profile", "name", "sep", "decimal", "units", "orientation", "columns", "ignore",
+                "unknown", "key")
+# a column mapped to one of these is dropped
+IGNORE_WORDS = (None, "ignore")
+
+
+@dataclass(frozen=True)
+class Profile:
+    """What a profile file says; None where it says nothing (the reader's defaults then apply)."""
+
+    name: str = ""
+    sep: str | None = None
+    decimal: str | None = None
+    units: str | None = None
+    orientation: str | None = None
+    columns: ColumnMap = field(default_factory=ColumnMap)
+    key: str | None = None
+
+    def options(self, *, units=None, sep=None, decimal=None, orientation=None, columns=None, unknown=None,
+                key=None) -> dict:
+        """The reading options: those given here over the profile's."""
+        given = column_map(columns) if columns is not None else None
+        cmap = self.columns.merged(given)
+        if unknown is not None:
+            cmap = ColumnMap(cmap.rename, cmap.ignore, unknown)
+        pick = {"units": (units, self.units), "sep": (sep, self.sep), "decimal": (decimal, self.decimal),
+                "orientation": (orientation, self.orientation), "key": (key, self.key)}
+        out = {k: a if a is not None else b for k, (a, b) in pick.items()}
+        out["columns"] = cmap
+        return out
+
+
+def column_map(columns, *, unknown: str | None = None) -> ColumnMap:
+    """A ColumnMap from a ColumnMap or a mapping {file column: robocal column, or None/"ignore"}."""
+    if isinstance(columns, ColumnMap):
+        return columns if unknown is None else ColumnMap(columns.rename, columns.ignore, unknown)
+    if not isinstance(columns, dict):
+        raise InputError(f"expected a mapping of file column to robocal column, got {excerpt(columns)}",
+                         where="columns")
+    rename, ignore = {}, set()
+    for k, v in columns.items():
+        if v in IGNORE_WORDS:
+            ignore.add(str(k))
+        elif isinstance(v, str) and v.strip():
+            rename[str(k)] = v.strip()
+        else:
+            raise InputError(f"expected a column name or 'ignore', got {excerpt(v)}", where=f"columns.{k}")
+    return ColumnMap(rename, frozenset(ignore), unknown or "refuse")
+
+
+def profile_from_dict(d, *, source: str = "<dict>") -> Profile:
+    """A Profile from the parsed profile file ``d``."""
+    def error(where, message):
+        return InputError(message, source=source, where=where)
+
+    if not isinstance(d, dict):
+        raise error(None, "expected a mapping (key: value) at the top")
+    for k in d:
+        if k not in PROFILE_KEYS:
+            raise error(str(k), f"unknown key {k!r}{suggest(str(k), PROFILE_KEYS)}")
+    if d.get("robocal_profile") != PROFILE_VERSION:
+        raise error("robocal_profile", f"expected robocal_profile: {PROFILE_VERSION}, got "
+                                       f"{excerpt(d.get('robocal_profile'))}")
+    texts = {}
+    for k in ("name", "sep", "decimal", "units", "orientation", "key"):
+        v = d.get(k)
+        if v is not None and not isinstance(v, str):
+            raise error(k, f"expected text, got {excerpt(v)}")
+        texts[k] = v
+    try:
+        sep = parse_separator(texts["sep"])
+        check_decimal(texts["decimal"], sep)
+        if texts["units"] is not None:
+            parse_units(texts["units"])
+        cmap = column_map(d.get("columns") or {}, unknown=d.get("unknown") or "refuse")
+    except InputError as e:
+        raise error(e.where, e.detail) from None
+    ignore = d.get("ignore") or []
+    if not isinstance(ignore, list) or not all(isinstance(c, str) for c in ignore):
+        raise error("ignore", f"expected a list of column names, got {excerpt(ignore)}")
+    if cmap.unknown not in UNKNOWN_ACTIONS:
+        raise error("unknown", f"expected {' or '.join(UNKNOWN_ACTIONS)}, got {excerpt(cmap.unknown)}")
+    cmap = ColumnMap(cmap.rename, cmap.ignore | frozenset(ignore), cmap.unknown)
+    return Profile(name=texts["name"] or "", sep=sep, decimal=texts["decimal"], units=texts["units"],
+                   orientation=texts["orientation"], columns=cmap, key=texts["key"])
+
+
+def read_profile(path) -> Profile:
+    """Read an instrument profile file (docs/formats.md)."""
+    source = str(path)
+    try:
+        d = yaml.safe_load(read_text(path)[0])
+    except yaml.YAMLError as e:
+        raise InputError(f"not valid YAML: {getattr(e, 'problem', None) or e}", source=source) from None
+    return profile_from_dict(d, source=source)

@@ -1,0 +1,277 @@
+"""Delimited text tables as instruments and controllers export them: the layout, not the meaning.
+
+A table is a header and rows of text cells, with the comment lines that came before the header.
+This module finds the separator and the decimal mark when they are not given, accepts trailing
+separators, renames and drops columns by a column map, and joins two tables on a key column.
+What the columns mean (joints, markers, units) is the business of the reader that uses it
+(``measurements``); any file layout of rows and named columns can use it the same way.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import re
+from dataclasses import dataclass, field, replace
+from typing import Mapping
+
+from .._errors import InputError, excerpt
+
+# separators tried when none is given, in order of preference ("," last: decimal-comma files hold
+# commas in their numbers); "whitespace" means runs of spaces and tabs
+SEPARATORS = (";", "\t", ",", "|")
+WHITESPACE = "whitespace"
+SEPARATOR_NAMES = {"\\t": "\t", "tab": "\t", "TAB": "\t", " ": WHITESPACE, "space": WHITESPACE,
+                   "whitespace": WHITESPACE}
+DECIMALS = (".", ",")
+UNKNOWN_ACTIONS = ("refuse", "ignore")
+# how many data lines the separator must fit, beyond the header
+_SAMPLE = 50
+_COMMA_NUMBER = re.compile(r"^[+-]?(\d+,\d*|,\d+)([eE][+-]?\d+)?$")
+_DOT_NUMBER = re.compile(r"^[+-]?(\d+\.\d*|\.\d+)([eE][+-]?\d+)?$")
+
+
+@dataclass(frozen=True)
+class Table:
+    """A header and its rows of text cells.
+
+    ``rows``: ``(line, cells)`` with ``line`` what messages call the row (``"12"``, or
+    ``"12 (joints.csv line 9)"`` after a join). ``comments``: ``(line, text)`` of the comment lines
+    before the header. ``notes``: what was decided on the user's behalf (a detected separator,
+    ignored columns, unmatched rows of a join), for the summary.
+    """
+
+    header: tuple[str, ...]
+    rows: tuple[tuple[str, list[str]], ...]
+    source: str
+    header_line: int = 1
+    comments: tuple[tuple[int, str], ...] = ()
+    sep: str = ","
+    decimal: str = "."
+    notes: tuple[str, ...] = ()
+
+    def with_notes(self, *notes: str) -> "Table":
+        return replace(self, notes=self.notes + tuple(n for n in notes if n))
+
+
+@dataclass(frozen=True)
+class ColumnMap:
+    """How a file's columns become robocal's: ``rename`` {file column: robocal column}, ``ignore``
+    (file columns to drop), and what to do with columns the reader does not know: ``unknown``
+    "refuse" (an error naming the column) or "ignore" (dropped, and said in the notes)."""
+
+    rename: Mapping[str, str] = field(default_factory=dict)
+    ignore: frozenset = frozenset()
+    unknown: str = "refuse"
+
+    def __post_init__(self) -> None:
+        if self.unknown not in UNKNOWN_ACTIONS:
+            raise InputError(f"unknown columns must be 'refuse' or 'ignore', got {excerpt(self.unknown)}",
+                             where="unknown")
+        object.__setattr__(self, "rename", dict(self.rename))
+        object.__setattr__(self, "ignore", frozenset(self.ignore))
+
+    def merged(self, other: "ColumnMap | None") -> "ColumnMap":
+        """This map with ``other``'s entries (and its unknown-column action) on top."""
+        if other is None:
+            return self
+        return ColumnMap({**self.rename, **other.rename}, self.ignore | other.ignore, other.unknown)
+
+
+def parse_separator(text: str | None, *, where: str = "sep") -> str | None:
+    """A separator as given by a user (``;``, ``\\t`` typed as two characters, ``tab``, ``whitespace``)."""
+    if text is None:
+        return None
+    sep = SEPARATOR_NAMES.get(text, text)
+    if sep != WHITESPACE and len(sep) != 1:
+        raise InputError(f"a separator is one character, '\\t' or 'whitespace'; got {excerpt(text)}", where=where)
+    if sep in DECIMALS[:1] or sep.isalnum() or sep in "\"#":
+        raise InputError(f"{excerpt(text)} cannot separate columns", where=where)
+    return sep
+
+
+def check_decimal(decimal: str | None, sep: str | None) -> None:
+    if decimal is not None and decimal not in DECIMALS:
+        raise InputError(f"the decimal mark is '.' or ',', got {excerpt(decimal)}", where="decimal")
+    if decimal is not None and decimal == sep:
+        raise InputError(f"the separator and the decimal mark are both {decimal!r}", where="sep/decimal")
+
+
+def show_separator(sep: str) -> str:
+    return {"\t": "tab", WHITESPACE: "whitespace"}.get(sep, repr(sep))
+
+
+def read_table(text: str, source: str, *, sep: str | None = None, decimal: str | None = None) -> Table:
+    """The table in ``text``: comment lines (``#``) before the header kept, blank lines skipped.
+
+    ``sep``/``decimal``: None to detect them from the header and the first rows (said in the notes).
+    """
+    sep = parse_separator(sep)
+    check_decimal(decimal, sep)
+    lines = text.splitlines()
+    content = [(k + 1, ln) for k, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")]
+    if not content:
+        raise InputError("no header line (and no data)", source=source)
+    notes = []
+    if sep is None:
+        sep = _detect_separator(content[0][1], [ln for _, ln in content[1:_SAMPLE + 1]])
+        notes.append(f"separator {show_separator(sep)} (detected)")
+    header_line = content[0][0]
+    comments = tuple((k + 1, ln) for k, ln in enumerate(lines[:header_line - 1]) if ln.lstrip().startswith("#"))
+    cells = _split(text, sep, source)
+    header = [c.strip() for c in cells[header_line]]
+    _refuse_other_separator(header, sep, source, header_line)
+    while header and not header[-1]:
+        header.pop()  # a separator at the end of every line
+    width = len(header)
+    rows = []
+    for line, _ in content[1:]:
+        row = cells[line]
+        if len(row) > width and not any(c.strip() for c in row[width:]):
+            row = row[:width]
+        rows.append((str(line), row))
+    if decimal is None:
+        decimal = _detect_decimal(sep, rows)
+        if decimal != ".":
+            notes.append(f"decimal mark {decimal!r} (detected)")
+    check_decimal(decimal, sep)
+    return Table(header=tuple(header), rows=tuple(rows), source=source, header_line=header_line,
+                 comments=comments, sep=sep, decimal=decimal, notes=tuple(notes))
+
+
+def _split(text: str, sep: str, source: str) -> dict[int, list[str]]:
+    """The cells of every line, by line number (comments and blank lines included, unused)."""
+    if sep == WHITESPACE:
+        return {k + 1: ln.split() for k, ln in enumerate(text.splitlines())}
+    reader = csv.reader(io.StringIO(text, newline=""), delimiter=sep)
+    out = {}
+    try:
+        start = 1
+        for row in reader:
+            out[start] = row
+            start = reader.line_num + 1
+    except csv.Error as e:
+        raise InputError(f"not readable as CSV: {e}", source=source, where=f"line {reader.line_num}") from None
+    return out
+
+
+def _detect_separator(header: str, sample: list[str]) -> str:
+    counts = {s: header.count(s) for s in SEPARATORS if header.count(s)}
+    consistent = [s for s in counts if all(ln.count(s) == counts[s] for ln in sample)]
+    if consistent:
+        return consistent[0]
+    if counts:
+        return max(counts, key=counts.get)
+    return WHITESPACE if len(header.split()) > 1 else ","
+
+
+def _detect_decimal(sep: str, rows) -> str:
+    if sep == ",":
+        return "."
+    comma = dot = False
+    for _, row in rows[:_SAMPLE]:
+        for c in row:
+            c = c.strip()
+            comma = comma or bool(_COMMA_NUMBER.match(c))
+            dot = dot or bool(_DOT_NUMBER.match(c))
+    return "," if comma and not dot else "."
+
+
+def _refuse_other_separator(header: list[str], sep: str, source: str, line: int) -> None:
+    """A header read as one column that another separator would split: name the fix."""
+    if len([c for c in header if c]) != 1:
+        return
+    for other in SEPARATORS + (WHITESPACE,):
+        parts = header[0].split() if other == WHITESPACE else header[0].split(other)
+        if other != sep and len(parts) > 1:
+            raise InputError(f"the header is one column {excerpt(header[0])}; it looks separated by "
+                             f"{show_separator(other)}: pass sep={other!r} (--sep {_cli(other)}) or leave the "
+                             "separator out to have it detected", source=source, where=f"line {line}")
+
+
+def _cli(sep: str) -> str:
+    return {"\t": "'\\t'", WHITESPACE: "whitespace"}.get(sep, f"'{sep}'")
+
+
+def decimal_hint(text: str, decimal: str) -> str:
+    """'; ...' naming the other decimal mark when ``text`` reads as a number with it, else ''."""
+    t = text.strip()
+    if decimal == "." and _COMMA_NUMBER.match(t):
+        return "; it looks like a decimal comma: pass decimal=',' (--decimal ,) or leave the decimal mark out " \
+               "to have it detected"
+    if decimal == "," and _DOT_NUMBER.match(t):
+        return "; it looks like a decimal point: pass decimal='.' (--decimal .)"
+    return ""
+
+
+def map_columns(table: Table, columns: ColumnMap | None) -> Table:
+    """``table`` with its columns renamed and the ignored ones dropped (said in the notes)."""
+    if columns is None or (not columns.rename and not columns.ignore):
+        return table
+    where = f"line {table.header_line}"
+    keep = [k for k, c in enumerate(table.header) if c not in columns.ignore]
+    header = [columns.rename.get(table.header[k], table.header[k]) for k in keep]
+    for k, c in zip(keep, header):
+        if header.count(c) > 1:
+            raise InputError(f"column {table.header[k]!r} is mapped to {c!r}, which another column also is "
+                             "or already was", source=table.source, where=where)
+    dropped = [c for c in table.header if c in columns.ignore]
+    rows = tuple((line, [row[k] if k < len(row) else "" for k in keep] if len(row) == len(table.header) else row)
+                 for line, row in table.rows)
+    note = f"columns ignored as asked: {', '.join(dropped)}" if dropped else ""
+    return replace(table, header=tuple(header), rows=rows).with_notes(note)
+
+
+def join_tables(points: Table, readings: Table, key: str) -> Table:
+    """The rows of ``points`` and ``readings`` that share a value of column ``key``, side by side.
+
+    Rows without a partner are left out and named in the notes; no match at all, a repeated key or
+    a column both tables hold (other than the key) is an InputError.
+    """
+    for t in (points, readings):
+        if key not in t.header:
+            raise InputError(f"no key column {key!r} to join on; the columns are {', '.join(t.header)}",
+                             source=t.source, where=f"line {t.header_line}")
+    both = [c for c in readings.header if c in points.header and c != key]
+    if both:
+        raise InputError(f"column {both[0]!r} is in both {points.source} and {readings.source}; map or "
+                         "ignore it in one of them", source=readings.source, where=f"line {readings.header_line}")
+    kp, kr = points.header.index(key), readings.header.index(key)
+    by_key = _keyed(readings, kr)
+    seen = _keyed(points, kp)
+    rows = []
+    for value, (line, row) in seen.items():
+        if value in by_key:
+            rline, rrow = by_key[value]
+            rows.append((f"{line} ({readings.source} line {rline})",
+                         list(row) + [c for k, c in enumerate(rrow) if k != kr]))
+    if not rows:
+        raise InputError(f"no {key} value is in both files ({_few(seen)} in {points.source}; {_few(by_key)} "
+                         f"in {readings.source})", source=points.source, where=f"column {key!r}")
+    notes = []
+    for t, mine, other, what in ((points, seen, by_key, "joint readings"), (readings, by_key, seen, "measurement")):
+        lost = [v for v in mine if v not in other]
+        if lost:
+            notes.append(f"{len(lost)} row(s) of {t.source} have no {what} in the other file and are left out "
+                         f"({key} {_few(lost)})")
+    header = points.header + tuple(c for k, c in enumerate(readings.header) if k != kr)
+    return replace(points, header=header, rows=tuple(rows)).with_notes(
+        *readings.notes, f"joined with {readings.source} on column {key!r}: {len(rows)} poses", *notes)
+
+
+def _keyed(table: Table, k: int) -> dict:
+    out: dict = {}
+    for line, row in table.rows:
+        value = row[k].strip() if k < len(row) else ""
+        if not value:
+            raise InputError("empty key cell", source=table.source, where=f"line {line}, column {table.header[k]!r}")
+        if value in out:
+            raise InputError(f"{table.header[k]} {value!r} appears twice (also line {out[value][0]})",
+                             source=table.source, where=f"line {line}")
+        out[value] = (line, row)
+    return out
+
+
+def _few(values, n: int = 5) -> str:
+    values = list(values)
+    return ", ".join(values[:n]) + (f" and {len(values) - n} more" if len(values) > n else "")
