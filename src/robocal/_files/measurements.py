@@ -380,6 +380,14 @@ def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str) ->
                         labels=tuple(labels), source=source, sha256=digest, extra=extra)
 
 
+def _approach_to_write(data: Measurements):
+    """The approach directions to write: None where the row order gives them (the reader's default)."""
+    approach = data.extra.get("approach")
+    if approach is not None and np.array_equal(approach, approach_sides(data.q)):
+        return None
+    return approach
+
+
 def _number(text: str, decimal: str, source: str, line: int, column: str, required: bool) -> float:
     t = text.strip()
     where = f"line {line}, column {column!r}"
@@ -501,10 +509,7 @@ def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, 
     flags = data.extra.get("validation")
     if flags is not None:
         header.append("set")
-    # approach directions: written only where the row order does not give them
-    approach = data.extra.get("approach")
-    if approach is not None and np.array_equal(approach, approach_sides(data.q)):
-        approach = None
+    approach = _approach_to_write(data)
     if approach is not None:
         header += [APPROACH_PREFIX + jn for jn in joint_names]
 
