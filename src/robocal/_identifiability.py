@@ -310,7 +310,11 @@ def eliminate(result: IdentifiabilityResult, J: np.ndarray, names, quantities, d
         terms = tuple((kept.identified[i], float(coef[i])) for i in order[:max_terms] if abs(c[i]) > 1e-6)
         extra.append(Absorption(name, reason, terms, resid))
     rank_of = {n: i for i, n in enumerate(names)}
-    eliminated = tuple(sorted(kept.eliminated + tuple(extra), key=lambda a: rank_of[a.name]))
+    # a reason the first analysis gave in more words (a one-sided backlash) is kept
+    said = {a.name: a.reason for a in result.eliminated}
+    again = tuple(replace(a, reason=said[a.name]) if said.get(a.name, "").startswith(a.reason) else a
+                  for a in kept.eliminated)
+    eliminated = tuple(sorted(again + tuple(extra), key=lambda a: rank_of[a.name]))
     return IdentifiabilityResult(candidates=tuple(names), identified=kept.identified, eliminated=eliminated,
                                  tol=kept.tol, rank=kept.rank, condition_number=kept.condition_number,
                                  singular_values=kept.singular_values, observability=kept.observability,
