@@ -231,3 +231,21 @@ def test_backlash_checks_sign_and_tolerance():
     assert plausibility_check([e], DEFAULT_TOLERANCES, {}).status == "pass"
     big = replace(e, estimate=0.02)
     assert plausibility_check([big], DEFAULT_TOLERANCES, {}).status == "fail"
+
+
+def test_command_line_compares_three_identifications(tmp_path, cli):
+    from robocal.io import write_measurements, write_model
+    m = _robot(cylindrical, "approach")
+    true = _with_backlash(m, np.random.default_rng(1), side="approach")
+    data = rc.measure(true, rc.random_configurations(m, 60, rng=2), rng=3)
+    write_model(m, tmp_path / "model.yaml")
+    write_measurements(data, tmp_path / "data.csv", model=m)
+    code, out, err = cli("calibrate", tmp_path / "model.yaml", tmp_path / "data.csv", "--out", tmp_path / "cmp",
+                         "--compare", "--backlash", "--holdout", "0.3")
+    assert code in (0, 3), err
+    assert "+backlash" in out and "backlash helped" in out and "calibrated model chosen: +backlash" in out
+    assert {p.name for p in (tmp_path / "cmp").iterdir()} >= {"result-geometric.json", "result-compliance.json",
+                                                              "result-backlash.json"}
+    code, out, err = cli("calibrate", tmp_path / "model.yaml", tmp_path / "data.csv", "--out", tmp_path / "one",
+                         "--backlash")
+    assert code == 2 and "--backlash" in err and "Traceback" not in err
