@@ -249,3 +249,8 @@ def test_command_line_compares_three_identifications(tmp_path, cli):
     code, out, err = cli("calibrate", tmp_path / "model.yaml", tmp_path / "data.csv", "--out", tmp_path / "one",
                          "--backlash")
     assert code == 2 and "--backlash" in err and "Traceback" not in err
+    # the side chosen for this campaign, over the model file's: gravity-sided needs masses the arm has
+    code, out, err = cli("calibrate", tmp_path / "model.yaml", tmp_path / "data.csv", "--out", tmp_path / "grav",
+                         "--parameters", "geometric,backlash", "--backlash-side", "gravity")
+    assert code in (0, 3), err
+    assert rc.read_result(tmp_path / "grav" / "result.json").calibrated_model.backlash_side == "gravity"

@@ -19,7 +19,8 @@ from .._errors import InputError, excerpt, suggest
 from .._units import ANGLE_UNITS, LENGTH_UNITS, check_unit, parse_units
 from .text import load_yaml, read_text, write_texts
 from .._parameters import KIND_QUANTITY
-from .._model import (BACKLASH_SIDES, DEFAULT_PARALLEL_TOL, JOINT_TYPES, Frame, Marker, Payload, RobotModel,
+from .._options import BACKLASH_SIDES
+from .._model import (DEFAULT_PARALLEL_TOL, JOINT_TYPES, Frame, Marker, Payload, RobotModel,
                      parallel_beta_frames, placement_parameters)
 from .._spatial import nearest_rotation, pose4
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .._errors import DegenerateDataError, InputError
-from .._options import INSTRUMENT_NOISE, LOSSES, OUTLIER_ACTIONS, WEAK_ACTIONS
+from .._options import BACKLASH_SIDES, INSTRUMENT_NOISE, LOSSES, OUTLIER_ACTIONS, WEAK_ACTIONS
 from . import common
 
 # exit code of a calibration whose checks failed (docs/cli.md)
@@ -30,8 +30,10 @@ def register(sub) -> None:
     p.add_argument("--compare", action="store_true",
                    help="fit geometric and geometric+compliance on the same data and compare them")
     p.add_argument("--backlash", action="store_true",
-                   help="with --compare: a third identification, geometric+compliance+backlash (the model file's "
-                        "backlash side)")
+                   help="with --compare: a third identification, geometric+compliance+backlash")
+    p.add_argument("--backlash-side", choices=BACKLASH_SIDES, default=None,
+                   help="where each joint rests in its lost motion in this campaign: on the side its gravity load "
+                        "pushes it to, or behind its last move (default: the model file's backlash.side)")
     p.add_argument("--loss", default="linear", choices=LOSSES, help="least-squares loss (robust ones bend for outliers)")
     p.add_argument("--register-base", action="store_true",
                    help="start the base pose from a rigid registration of the nominal robot on the data")
@@ -65,6 +67,8 @@ def _inputs(args):
     from .._files.model import read_model
 
     model = read_model(args.model)
+    if args.backlash_side is not None:
+        model = model.replace(backlash_side=args.backlash_side)
     data, validation = split_sets(common.read_data(args, model, args.csv))
     if validation is not None and (args.validation or args.holdout):
         raise InputError("the file marks validation rows (column 'set') and --validation/--holdout was given; "
