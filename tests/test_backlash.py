@@ -222,8 +222,8 @@ def test_a_backlash_whose_side_never_changes_is_absorbed_by_its_joint_offset():
     assert sum(n.endswith(("backlash_theta", "backlash_r")) for n in both.identified) == 6
 
 
-def test_backlash_checks_sign_and_tolerance():
-    from robocal._checks import backlash_sign_check, plausibility_check, DEFAULT_TOLERANCES
+def test_backlash_checks_sign_tolerance_and_support():
+    from robocal._checks import backlash_sign_check, plausibility_check, support_check, DEFAULT_TOLERANCES
     from robocal._calibration import ParameterEstimate
     e = ParameterEstimate("j1.backlash_theta", "rad", 0.0, -1e-3, 1e-5, family="backlash", quantity="angle")
     assert backlash_sign_check([e]).status == "fail"
@@ -231,6 +231,9 @@ def test_backlash_checks_sign_and_tolerance():
     assert plausibility_check([e], DEFAULT_TOLERANCES, {}).status == "pass"
     big = replace(e, estimate=0.02)
     assert plausibility_check([big], DEFAULT_TOLERANCES, {}).status == "fail"
+    noise = replace(e, estimate=1e-5)
+    assert support_check([noise]).status == "warn" and "no backlash" in support_check([noise]).summary
+    assert support_check([e]).status == "pass"
 
 
 def test_command_line_compares_three_identifications(tmp_path, cli):
