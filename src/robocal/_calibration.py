@@ -21,8 +21,8 @@ from ._checks import (OUTLIER_SHARE_MAX, Check, backlash_sign_check, cloud_size_
                       tolerances, verdict)
 from ._errors import (CheckWarning, ConvergenceWarning, DegenerateDataError, IdentifiabilityWarning, InputError,
                       MisfitWarning, check_choice)
-from ._identifiability import (DEFAULT_TOL, IdentifiabilityResult, analyse, theoretical_identifiability,
-                               weakly_identifiable)
+from ._identifiability import (DEFAULT_TOL, IdentifiabilityResult, analyse, backlash_reasons,
+                               theoretical_identifiability, weakly_identifiable)
 from ._identifiability import eliminate as eliminate_parameters
 from ._kinematics import evaluate
 from ._measurements import Measurements, Noise
@@ -344,6 +344,7 @@ def _analyse(start: RobotModel, data: Measurements, parameters: tuple, known: tu
     J = prob.reduced_jacobian(parameter_vector(start))
     lay = parameter_layout(start)
     ident = analyse(J, names, tol=tol, quantities=[lay[n].quantity for n in names], n_rows=prob.n_rows)
+    ident = backlash_reasons(ident, prob)
     lost = tuple(n for n in theory.identified if n not in ident.identified and n in names)
     ident, weak_found = _weak(prob, J, names, ident, noise, limit_m, eliminate=weak == "eliminate")
     if not ident.identified:

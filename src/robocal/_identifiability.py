@@ -237,12 +237,17 @@ def identifiability(model: RobotModel, data: Measurements | np.ndarray | None = 
 
 
 def analyse_problem(prob: Problem, names, *, tol: float = DEFAULT_TOL) -> IdentifiabilityResult:
-    """``analyse`` of a problem's Jacobian at its model's values; an eliminated backlash says why
-    when its joint rests on one side (or mid-gap) at every pose."""
+    """``analyse`` of a problem's Jacobian at its model's values (``backlash_reasons`` added)."""
     lay = parameter_layout(prob.model)
     p = parameter_vector(prob.model)
     res = analyse(prob.jacobian(p), names, tol=tol, quantities=[lay[n].quantity for n in names])
-    sides = prob.backlash_sides(p)
+    return backlash_reasons(res, prob)
+
+
+def backlash_reasons(res: IdentifiabilityResult, prob: Problem) -> IdentifiabilityResult:
+    """``res`` with each eliminated backlash saying why when its joint rests on one side (or
+    mid-gap) at every pose of ``prob``, at its model's values."""
+    sides = prob.backlash_sides(parameter_vector(prob.model))
     if not any(a.name in sides for a in res.eliminated):
         return res
     return replace(res, eliminated=tuple(replace(a, reason=a.reason + _one_side(sides[a.name])) if a.name in sides
