@@ -248,7 +248,9 @@ def test_command_line_compares_three_identifications(tmp_path, cli):
     assert code in (0, 3), err
     assert "+backlash" in out and "backlash helped" in out and "calibrated model chosen: +backlash" in out
     assert {p.name for p in (tmp_path / "cmp").iterdir()} >= {"result-geometric.json", "result-compliance.json",
-                                                              "result-backlash.json"}
+                                                              "result-backlash.json", "result.json"}
+    chosen = rc.read_result(tmp_path / "cmp" / "result.json")
+    assert any(p.family == "backlash" for p in chosen.parameters)
     code, out, err = cli("calibrate", tmp_path / "model.yaml", tmp_path / "data.csv", "--out", tmp_path / "one",
                          "--backlash")
     assert code == 2 and "--backlash" in err and "Traceback" not in err
