@@ -129,15 +129,7 @@ def layout(model: RobotModel) -> Layout:
     param_step[step_param] = np.arange(n_steps)
     param_compliant = np.full(len(names), -1, dtype=int)
     param_compliant[np.array(cparams, dtype=int)] = np.arange(len(cparams))
-    bparams = np.full(nf, -1, dtype=int)
-    jsteps = np.full(nf, -1, dtype=int)
-    for i, f in enumerate(model.frames):
-        if f.joint != "fixed":
-            rev = f.joint == "revolute"
-            bparams[i] = params.by_name[f"{f.name}.backlash_{'theta' if rev else 'r'}"].index
-            jsteps[i] = N_BASE + 7 * i + (THETA if rev else R)
-    param_backlash = np.full(len(names), -1, dtype=int)
-    param_backlash[bparams[bparams >= 0]] = np.nonzero(bparams >= 0)[0]
+    bparams, jsteps, param_backlash = _backlash_layout(model, params)
     return Layout(
         param_step=param_step, param_compliant=param_compliant, backlash_params=bparams, joint_steps=jsteps,
         param_backlash=param_backlash,
@@ -147,6 +139,22 @@ def layout(model: RobotModel) -> Layout:
         compliant_steps=np.array(csteps, dtype=int), compliant_params=np.array(cparams, dtype=int),
         anc=anc, desc=desc, subtree=subtree,
     )
+
+
+def _backlash_layout(model: RobotModel, params):
+    """Per frame, the index of its backlash parameter and the step its joint variable moves (-1 for
+    a fixed frame); per parameter, the frame of a backlash (else -1)."""
+    nf = model.n_frames
+    bparams = np.full(nf, -1, dtype=int)
+    jsteps = np.full(nf, -1, dtype=int)
+    for i, f in enumerate(model.frames):
+        if f.joint != "fixed":
+            rev = f.joint == "revolute"
+            bparams[i] = params.by_name[f"{f.name}.backlash_{'theta' if rev else 'r'}"].index
+            jsteps[i] = N_BASE + 7 * i + (THETA if rev else R)
+    param_backlash = np.full(params.n_params, -1, dtype=int)
+    param_backlash[bparams[bparams >= 0]] = np.nonzero(bparams >= 0)[0]
+    return bparams, jsteps, param_backlash
 
 
 def _frame_steps(i: int) -> np.ndarray:

@@ -30,11 +30,10 @@ from typing import Sequence
 import numpy as np
 
 from ._errors import InputError
+from ._options import BACKLASH_SIDES
 from ._spatial import rot4, rot_matrix, trans4
 
 JOINT_TYPES = ("revolute", "prismatic", "fixed")
-# how a joint's side of its lost motion is decided per pose (see RobotModel.backlash_side)
-BACKLASH_SIDES = ("gravity", "approach")
 DEFAULT_PARALLEL_TOL = np.deg2rad(1.0)
 
 

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-from .._parameters import BASE_KINDS, FRAME_KINDS, MARKER_KINDS, parameter_layout
+from .._parameters import BACKLASH_KINDS, BASE_KINDS, FRAME_KINDS, MARKER_KINDS, parameter_layout
 from .units import MM, absorption_text, display_unit, with_unit
 
 STAT_ROWS = ("fit_before", "fit_after", "validation_before", "validation_after")
 # the paper's table shows these kinds; gamma and b join them where a tree uses them
-PAPER_KINDS = FRAME_KINDS[2:]
+PAPER_KINDS = tuple(k for k in FRAME_KINDS[2:] if k not in BACKLASH_KINDS)
 
 
 def stats_lines(stats, indent: str = "  ", *, unit: str = "m") -> list[str]:
@@ -112,9 +112,11 @@ def _candidate_units(result) -> dict:
 
 
 def comparison_summary(comparison, *, shown=(), weighted: bool = False) -> str:
-    """What ``robocal calibrate --compare`` prints: the two identifications side by side."""
-    geo, comp = comparison.geometric, comparison.combined
-    cols = (("geometric", geo), ("geometric+compliance", comp))
+    """What ``robocal calibrate --compare`` prints: the two (or three) identifications side by side."""
+    geo = comparison.geometric
+    short = {"geometric": "geometric", "geometric and compliance": "geometric+compliance",
+             "geometric, compliance and backlash": "+backlash"}
+    cols = tuple((short[k], r) for k, r in comparison.results.items())
     lines = [f"comparison on {geo.provenance['data']['n_poses']} poses",
              f"  {'':<30}" + "".join(f"{name:>24}" for name, _ in cols),
              f"  {'parameters identified':<30}" + "".join(f"{len(r.parameters):>24}" for _, r in cols)]
@@ -132,7 +134,8 @@ def comparison_summary(comparison, *, shown=(), weighted: bool = False) -> str:
                                                 for _, r in cols))
     lines.append(f"  {'verdict':<30}" + "".join(f"{r.verdict:>24}" for _, r in cols))
     lines.append(comparison.verdict)
-    lines.append(f"calibrated model chosen: {'geometric+compliance' if comparison.best is comp else 'geometric'}")
+    chosen = next(name for name, r in cols if r is comparison.best)
+    lines.append(f"calibrated model chosen: {chosen}")
     for name, r in cols:
         lines += [f"note ({name}): {n}" for n in r.notes if n not in shown]
     best = comparison.best
@@ -148,9 +151,10 @@ def identifiability_summary(model, res, where: str) -> str:
              "I identified, E eliminated, - not considered"]
     kinds = [k for k in ("gamma", "b") if any(res.status(f"{f}.{k}") != "-" for f in model.frame_names)]
     kinds += list(PAPER_KINDS)
-    lines.append(f"  {'frame':<{width}}" + "".join(f"{k:>9}" for k in kinds))
+    kinds += [k for k in BACKLASH_KINDS if any(res.status(f"{f}.{k}") != "-" for f in model.frame_names)]
+    lines.append(f"  {'frame':<{width}}" + "".join(f"{k:>{max(9, len(k) + 1)}}" for k in kinds))
     for f in model.frame_names:
-        lines.append(f"  {f:<{width}}" + "".join(f"{res.status(f'{f}.{k}'):>9}" for k in kinds))
+        lines.append(f"  {f:<{width}}" + "".join(f"{res.status(f'{f}.{k}'):>{max(9, len(k) + 1)}}" for k in kinds))
     for owner, owner_kinds in [("base", BASE_KINDS)] + [(m, MARKER_KINDS) for m in model.marker_names]:
         lines.append(f"  {owner:<{width}} " + " ".join(f"{k}:{res.status(f'{owner}.{k}'):<3}" for k in owner_kinds))
     lines.append(f"identified {len(res.identified)} of {len(res.candidates)} candidates (rank {res.rank}, "
