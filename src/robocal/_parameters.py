@@ -256,7 +256,9 @@ def candidate_parameters(model: RobotModel, parameters: Iterable[str] = ("geomet
     chosen = set(expand(parameters, "parameters"))
     fixed = set(expand(known, "known"))
     if any(lay[n].family == "compliance" for n in chosen) and not model.has_masses:
-        raise InputError("compliance parameters need link masses (or a payload); the model has none",
+        raise InputError("compliance parameters need link masses (or a payload); the model has none: "
+                         "assume them from the geometry with robocal.default_masses(model, total_mass) "
+                         "(--assume-masses [TOTAL_KG] on the command line)",
                          where="parameters")
     if model.backlash_side == "gravity" and any(lay[n].family == "backlash" for n in chosen) \
             and not model.has_masses:
