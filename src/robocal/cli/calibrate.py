@@ -46,11 +46,7 @@ def register(sub) -> None:
     g.add_argument("--weak", choices=WEAK_ACTIONS, default="eliminate",
                    help="hold weakly identifiable parameters at nominal (default), or keep them and warn")
     g.add_argument("--nonnegative-compliance", action="store_true", help="keep identified compliances >= 0")
-    p.add_argument("--assume-masses", action="store_true",
-                   help="link masses from the geometry (docs/conventions.md) instead of the model's, for compliance "
-                        "without CAD masses; compliances are then relative unless --total-mass is given")
-    p.add_argument("--total-mass", type=common.positive, metavar="KG",
-                   help="the arm's mass without payloads, spread over the links as --assume-masses does")
+    common.mass_options(p)
     g.add_argument("--write-failed", action="store_true",
                    help="write calibrated.yaml even when a check fails (it then carries the verdict)")
     common.csv_options(p)
@@ -62,11 +58,7 @@ def _inputs(args):
     from .._files.measurements import split_sets
     from .._files.model import read_model
 
-    model = read_model(args.model)
-    if args.assume_masses or args.total_mass is not None:
-        from .._model import default_masses
-
-        model = default_masses(model, args.total_mass)
+    model = common.masses_as_asked(args, read_model(args.model))
     data, validation = split_sets(common.read_data(args, model, args.csv))
     if validation is not None and (args.validation or args.holdout):
         raise InputError("the file marks validation rows (column 'set') and --validation/--holdout was given; "
