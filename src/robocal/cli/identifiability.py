@@ -35,4 +35,9 @@ def run(args) -> int:
     where = f"the {data.n_poses} poses of {args.csv}" if data is not None else \
         f"{args.poses} random poses (seed {args.seed}) within the joint limits"
     print(identifiability_summary(model, res, where))
+    from .._parameters import matched_by_pattern
+
+    orientation = data is not None and data.has_orientation
+    for pattern, names in matched_by_pattern(model, args.parameters or (), orientation=orientation):
+        print(f"note: parameters {pattern!r} matched: {', '.join(names)}")
     return 0
