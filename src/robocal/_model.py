@@ -315,7 +315,7 @@ def placement_parameters(X) -> dict[str, float]:
     parallel axes never give huge offsets.
 
     >>> X = mdh_transform(Frame("m", joint="fixed", gamma=0.3, b=0.1, alpha=-np.pi / 2, d=0.5, theta=0.2, r=0.05))
-    >>> np.abs(mdh_transform(Frame("m", joint="fixed", **placement_parameters(X))) - X).max() < 1e-12
+    >>> bool(np.abs(mdh_transform(Frame("m", joint="fixed", **placement_parameters(X))) - X).max() < 1e-12)
     True
     """
     X = np.asarray(X, dtype=float)
