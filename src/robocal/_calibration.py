@@ -14,7 +14,7 @@ from datetime import datetime, timezone
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ._checks import (OUTLIER_SHARE_MAX, Check, backlash_sign_check, cloud_size_check, compliance_sign_check,
+from ._checks import (FIT_RATIO, OUTLIER_SHARE_MAX, ROBOT_RESIDUAL_MAX, Check, backlash_sign_check, cloud_size_check, compliance_sign_check,
                       convergence_check,
                       correlation_check, expected_noise, fit_check, identifiability_check, markers_check,
                       outlier_check, plausibility_check, reading_units_check, readings_check, support_check,
@@ -257,11 +257,10 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
               cloud_size_check(model, data, _predicted(model, data)), markers_check(model, data)]
     notes = list(model.notes) + list(data.extra.get("notes", ()))  # what the readers decided for the user
     start = _starting_model(model, data, initial_base, notes)
-    design = _analyse(start, data, parameters, known + _unmeasured(model, data), tol, notes,
-                      noise=noise, limit_m=limit_m, weak=weak)
-    solution, outlier_check, outlying = _solve(design, data, noise, notes, loss=loss, f_scale=f_scale,
-                                                max_nfev=max_nfev, on_outliers=on_outliers,
-                                                nonnegative_compliance=nonnegative_compliance)
+    design, (solution, outlier_check, outlying) = _identify(
+        start, data, parameters, known + _unmeasured(model, data), tol, notes, noise=noise, limit_m=limit_m,
+        weak=weak, solve_options=dict(loss=loss, f_scale=f_scale, max_nfev=max_nfev, on_outliers=on_outliers,
+                                      nonnegative_compliance=nonnegative_compliance))
     cov = covariance(solution)
     estimates = _estimates(design, solution, cov)
     checks += [outlier_check] + _result_checks(design, solution, cov, estimates, data, noise, limit_m, outlying)
@@ -329,8 +328,40 @@ def _starting_model(model: RobotModel, data: Measurements, initial_base: str, no
     return register_base(model, data)
 
 
+def _identify(start: RobotModel, data: Measurements, parameters: tuple, known: tuple, tol: float, notes: list, *,
+              noise: Noise, limit_m: float | None, weak: str, solve_options: dict):
+    """The design and its solution. Weak parameters are first judged at the noise expected. When the
+    fit leaves residuals well above it, spread over every point (no outlier) and of a size a robot's
+    repeatability or an unmodelled effect explains, they are judged again at the scatter the fit
+    shows, and the fit repeated without those it cannot pin down. Larger residuals are a mistake in
+    the data or the model, which the checks name; they are left to them."""
+    design = _analyse(start, data, parameters, known, tol, notes, noise=noise, limit_m=limit_m, weak=weak)
+    solved = _solve(design, data, noise, notes, **solve_options)
+    expected, _ = expected_noise(noise, limit_m)
+    scatter = _scatter(design, solved[0], data, solved[2])
+    if weak != "eliminate" or solved[2].any() or not FIT_RATIO * expected < scatter <= ROBOT_RESIDUAL_MAX:
+        return design, solved
+    try:
+        wider = _analyse(start, data, parameters, known, tol, [], noise=noise, limit_m=limit_m, weak=weak,
+                         scatter=scatter)
+    except DegenerateDataError:
+        return design, solved
+    if wider.identifiability.identified == design.identifiability.identified:
+        return design, solved
+    notes.append(f"residuals of {scatter * 1e3:.3g} mm per axis, {scatter / expected:.3g} times the expected "
+                 f"{expected * 1e3:.3g} mm: the parameters these poses cannot pin down at that scatter are held at "
+                 "nominal and the fit repeated")
+    return wider, _solve(wider, data, noise, notes, **solve_options)
+
+
+def _scatter(design: _Design, solution: Solution, data: Measurements, outlying: np.ndarray) -> float:
+    """Per-axis RMS (m) of the position residuals, outliers left out."""
+    r = design.problem.errors(solution.p)[data.mask][~outlying]
+    return float(np.sqrt(np.mean(r ** 2))) if r.size else 0.0
+
+
 def _analyse(start: RobotModel, data: Measurements, parameters: tuple, known: tuple, tol: float,
-             notes: list, *, noise: Noise, limit_m: float | None, weak: str) -> _Design:
+             notes: list, *, noise: Noise, limit_m: float | None, weak: str, scatter: float = 0.0) -> _Design:
     """Which candidates the data can identify, and pin down; refuse data that cannot determine them."""
     orientation = data.has_orientation
     names = candidate_parameters(start, parameters, orientation=orientation, known=known)
@@ -356,7 +387,7 @@ def _analyse(start: RobotModel, data: Measurements, parameters: tuple, known: tu
     lay = parameter_layout(start)
     ident = analyse(J, names, tol=tol, quantities=[lay[n].quantity for n in names], n_rows=prob.n_rows)
     lost = tuple(n for n in theory.identified if n not in ident.identified and n in names)
-    ident, weak_found = _weak(prob, J, names, ident, noise, limit_m, eliminate=weak == "eliminate")
+    ident, weak_found = _weak(prob, J, names, ident, noise, limit_m, scatter, eliminate=weak == "eliminate")
     if not ident.identified:
         raise DegenerateDataError("no parameter is identifiable from these data")
     free = prob.over(ident.identified)   # the solve starts where the analysis evaluated the model
@@ -366,14 +397,14 @@ def _analyse(start: RobotModel, data: Measurements, parameters: tuple, known: tu
                    compliance=compliance, lost=lost, weak=weak_found, weak_kept=weak == "flag")
 
 
-def _weak(prob: Problem, J: np.ndarray, names, ident: IdentifiabilityResult, noise: Noise, limit_m, *,
-          eliminate: bool):
+def _weak(prob: Problem, J: np.ndarray, names, ident: IdentifiabilityResult, noise: Noise, limit_m,
+          scatter: float, *, eliminate: bool):
     """The analysis with weakly identifiable parameters eliminated (or only named), and those
     parameters with their predicted standard deviations. Eliminating one may let an equivalent one
     in (a member of the same dependent group): the analysis repeats until none is weak."""
     lay = parameter_layout(prob.model)
     p0 = parameter_vector(prob.model)
-    expected, _ = expected_noise(noise, limit_m)
+    expected = max(expected_noise(noise, limit_m)[0], scatter)
     sigma = expected / noise.position if prob.weighted else expected   # weighted rows are in noise units
     quantities = [lay[n].quantity for n in names]
     moments = prob.compliance_moments(p0)
