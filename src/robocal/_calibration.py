@@ -176,6 +176,17 @@ class CalibrationResult:
     def parameter_names(self) -> tuple[str, ...]:
         return tuple(p.name for p in self.parameters)
 
+    @property
+    def held_nominals(self) -> tuple[tuple[str, float], ...]:
+        """``(name, SI value)`` of every non-zero parameter the calibrated model keeps that was not a
+        candidate (a fixed mount's gamma and b, a known marker): the report shows them beside the
+        identified ones, so nothing the calibrated file holds is hidden."""
+        lay = parameter_layout(self.calibrated_model)
+        values = parameter_vector(self.calibrated_model)
+        considered = set(self.identifiability.candidates) | set(self.parameter_names)
+        return tuple((p.name, float(values[p.index])) for p in lay.parameters
+                     if p.name not in considered and values[p.index] != 0.0)
+
 
 def register_base(model: RobotModel, data: Measurements) -> RobotModel:
     """The model with ``X_WB`` from a closed-form rigid registration (Kabsch/Horn, via scipy).

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from .._parameters import BACKLASH_KINDS, BASE_KINDS, FRAME_KINDS, MARKER_KINDS, parameter_layout
 from .units import MM, absorption_text, display_unit, with_unit
 
@@ -83,9 +85,11 @@ def calibration_summary(result, *, shown=(), weighted: bool = False) -> str:
     for p in result.parameters:
         lines.append(f"  {p.name:<{width}} change {with_unit(p.change, p.unit, sign=True):>20}   "
                      f"std {with_unit(p.std, p.unit):>18}")
+    lines += rotation_lines(result.parameters)
     units = {p.name: p.unit for p in result.parameters}
     units.update(_candidate_units(result))
     lines += eliminated_lines(result.identifiability, units)
+    lines += held_lines(result)
     ident = result.identifiability
     lines.append(f"identified {len(ident.identified)} of {len(ident.candidates)} candidates; condition number of "
                  f"those kept {ident.condition_number:.4g}")
@@ -104,6 +108,33 @@ def calibration_summary(result, *, shown=(), weighted: bool = False) -> str:
     lines += checks_lines(result.checks)
     lines.append(verdict_line(result))
     return "\n".join(lines)
+
+
+def rotation_lines(parameters) -> list[str]:
+    """Each identified rotation correction as one angle about one axis (rx, ry, rz are its rotation
+    vector, so this holds however large the turn)."""
+    by_name = {p.name: p for p in parameters}
+    lines = []
+    for owner in dict.fromkeys(p.name.rsplit(".", 1)[0] for p in parameters):
+        names = [f"{owner}.r{c}" for c in "xyz"]
+        if all(n in by_name for n in names):
+            v = np.array([by_name[n].change for n in names])
+            angle = float(np.linalg.norm(v))
+            if angle > 0:
+                axis = ", ".join(f"{c:+.4f}" for c in v / angle)
+                lines.append(f"  {owner} rotation: turned {with_unit(angle, 'rad')} about ({axis})")
+    return lines
+
+
+def held_lines(result) -> list[str]:
+    """The non-zero values the calibrated model keeps from the nominal without considering them."""
+    held = result.held_nominals
+    if not held:
+        return []
+    lay = parameter_layout(result.nominal_model)
+    width = max([len(n) for n, _ in held] + [16])
+    return ([f"kept at nominal, not candidates ({len(held)} non-zero):"]
+            + [f"  {n:<{width}} {with_unit(v, lay[n].unit, sign=True):>20}" for n, v in held])
 
 
 def _candidate_units(result) -> dict:

@@ -64,6 +64,7 @@ def register(sub) -> None:
     g.add_argument("--weak", choices=WEAK_ACTIONS, default="eliminate",
                    help="hold weakly identifiable parameters at nominal (default), or keep them and warn")
     g.add_argument("--nonnegative-compliance", action="store_true", help="keep identified compliances >= 0")
+    common.mass_options(p)
     g.add_argument("--write-failed", action="store_true",
                    help="write calibrated.yaml even when a check fails (it then carries the verdict)")
     common.csv_options(p)
@@ -75,7 +76,7 @@ def _inputs(args):
     from .._files.measurements import split_sets
     from .._files.model import read_model
 
-    model = read_model(args.model)
+    model = common.masses_as_asked(args, read_model(args.model))
     if args.backlash_side is not None:
         model = model.replace(backlash_side=args.backlash_side)
     data, validation = split_sets(common.read_data(args, model, args.csv))
