@@ -300,8 +300,8 @@ def support_check(estimates) -> Check:
     """Estimates whose change is within ``SIGNIFICANCE_SIGMAS`` standard deviations of zero.
 
     They are named, not failed: a parameter already at its true value changes by noise. A
-    compliance family none of whose estimates the data support is a warning: the geometric model
-    explains the data.
+    compliance (or backlash) family none of whose estimates the data support is a warning: the
+    model without it explains the data.
     """
     name = "estimates supported by the data"
     weak = [e for e in estimates if abs(e.change) < SIGNIFICANCE_SIGMAS * e.std]
@@ -311,6 +311,11 @@ def support_check(estimates) -> Check:
         return Check(name, "warn", f"no compliance differs from zero by {SIGNIFICANCE_SIGMAS:g} standard deviations",
                      cause="the data do not show compliance (too little load, too few poses, or none to find)",
                      fix="calibrate the geometry alone, or measure with a payload and more poses", items=items)
+    lost = [e for e in estimates if e.family == "backlash"]
+    if lost and all(e in weak for e in lost):
+        return Check(name, "warn", f"no backlash differs from zero by {SIGNIFICANCE_SIGMAS:g} standard deviations",
+                     cause="the data do not show lost motion (too little, or sides not visited both ways)",
+                     fix="calibrate without the backlash family, or approach the poses from both sides", items=items)
     if not weak:
         return Check(name, "pass", f"every change beyond {SIGNIFICANCE_SIGMAS:g} standard deviations")
     return Check(name, "pass", f"{len(weak)} change(s) within {SIGNIFICANCE_SIGMAS:g} standard deviations of zero, "
