@@ -47,11 +47,10 @@ def main(argv=None) -> int:
     def show(message, category, filename, lineno, file=None, line=None):
         if issubclass(category, RobocalWarning):
             shown.append(str(message))
-            print(f"robocal: warning: {message}", file=sys.stderr)
-        else:
-            default_show(message, category, filename, lineno, file, line)
+            print(f"robocal: warning: {one_line(message)}", file=sys.stderr)
+        else:  # a library's warning: one line too, saying whose
+            print(f"robocal: warning: {category.__name__}: {one_line(message)}", file=sys.stderr)
 
-    default_show = warnings.showwarning
     with warnings.catch_warnings():
         warnings.simplefilter("always", RobocalWarning)
         warnings.showwarning = show

@@ -28,7 +28,7 @@ def register(sub) -> None:
     p.add_argument("--loss", default="linear", choices=LOSSES, help="least-squares loss (robust ones bend for outliers)")
     p.add_argument("--register-base", action="store_true",
                    help="start the base pose from a rigid registration of the nominal robot on the data")
-    p.add_argument("--limit-mm", type=common.positive, metavar="X",
+    p.add_argument("--limit-mm", type=common.noise_mm, metavar="X",
                    help="limit of absolute accuracy to judge against, mm")
     p.add_argument("--seed", type=common.seed, default=0, help="seed of the --holdout split (default 0)")
     p.add_argument("--out-units", type=common.units, default="mm-deg", help="units of calibrated.yaml (default mm-deg)")
