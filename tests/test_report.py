@@ -336,7 +336,8 @@ def _browser_or_skip():
 
 
 def _render_in_chromium(path: Path, shot_name: str):
-    """Load ``path`` in headless Chromium: console messages, requests, plots, title, screenshot."""
+    """Load ``path`` in headless Chromium as a user opens it and print it to PDF: console messages,
+    requests, plots, title, screenshot, how far the page is wider than the window, the PDF's outline."""
     _browser_or_skip()
     from playwright.sync_api import sync_playwright
 
@@ -356,29 +357,39 @@ def _render_in_chromium(path: Path, shot_name: str):
             plots = page.eval_on_selector_all(
                 "svg[data-plot]", "els => els.map(e => ({name: e.dataset.plot, width: e.getBoundingClientRect().width,"
                 " height: e.getBoundingClientRect().height, n: e.querySelectorAll('path, use, text').length}))")
+            overflow = page.evaluate("Math.max(document.documentElement.scrollWidth, document.body.scrollWidth)"
+                                     " - document.documentElement.clientWidth")
             title = page.title()
             ARTIFACTS.mkdir(exist_ok=True)
             shot = ARTIFACTS / shot_name
             page.screenshot(path=str(shot), full_page=True)
+            pdf = page.pdf(path=str(shot.with_suffix(".pdf")), format="A4", outline=True, tagged=True,
+                           print_background=True)
         finally:
             browser.close()
-    return console, requests, plots, title, shot, url
+    outline = [t.decode("latin-1") for t in re.findall(rb"/Title\s*\(([^)]*)\)", pdf)]
+    return {"console": console, "requests": requests, "plots": plots, "title": title, "shot": shot, "url": url,
+            "overflow": overflow, "outline": outline}
 
 
-def _assert_rendered(console, requests, plots, title, shot, url):
-    assert [m for m in console if m[0] in ("error", "pageerror")] == []
-    assert requests == [url]  # nothing fetched but the page itself
-    assert title.startswith("Calibration report")
-    assert sorted(pl["name"] for pl in plots) == sorted(PLOTS)
-    for pl in plots:
+def _assert_rendered(r: dict, html: str):
+    assert [m for m in r["console"] if m[0] in ("error", "pageerror")] == []
+    assert r["requests"] == [r["url"]]  # nothing fetched but the page itself
+    assert r["title"].startswith("Calibration report")
+    assert sorted(pl["name"] for pl in r["plots"]) == sorted(PLOTS)
+    for pl in r["plots"]:
         assert pl["width"] > 300 and pl["height"] > 150 and pl["n"] > 20, pl
-    assert shot.stat().st_size > 50_000
+    assert r["shot"].stat().st_size > 50_000
+    assert r["overflow"] <= 0, f"the page is {r['overflow']} px wider than the window"
+    # the printed PDF holds every section: each section heading is in its outline
+    sections = re.findall(r'<section id="[^"]+"><h2>([^<]+)</h2>', html)
+    assert len(sections) >= 10 and set(sections) <= set(r["outline"]), (sections, r["outline"])
 
 
 def test_renders_in_headless_chromium(full, tmp_path):
     path = tmp_path / "report.html"
     _write(full, path)
-    _assert_rendered(*_render_in_chromium(path, "report.png"))
+    _assert_rendered(_render_in_chromium(path, "report.png"), path.read_text(encoding="utf-8"))
 
 
 def test_th8_demo_report_renders_in_headless_chromium(tmp_path):
@@ -387,14 +398,46 @@ def test_th8_demo_report_renders_in_headless_chromium(tmp_path):
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     assert mod.main(["--out", str(tmp_path)]) == 0
-    rendered = _render_in_chromium(tmp_path / "report.html", "th8-report.png")
-    _assert_rendered(*rendered)
-    d = json.loads((tmp_path / "result.json").read_text())
     html = (tmp_path / "report.html").read_text()
+    _assert_rendered(_render_in_chromium(tmp_path / "report.html", "th8-report.png"), html)
+    d = json.loads((tmp_path / "result.json").read_text())
     # the demo's own numbers are the ones on the page, and so is the paper's table
     mean_mm = d["stats"]["validation_after"]["mean"] * 1e3
     assert f"{mean_mm:.4f}" in html
     assert "figures beside ours" in html
+
+
+def _campaign_6d(n: int, seed: int):
+    """A 6R arm measured with positions and orientations, a fifth of the poses held out."""
+    m = arm6r()
+    _, data = rc.simulate(m, n, orientation=True, noise_rot=2e-5, seed=seed)
+    k = int(0.8 * n)
+    return rc.calibrate(m, data.subset(slice(0, k)), validation=data.subset(slice(k, None)), limit=5e-5)
+
+
+@pytest.fixture(scope="module")
+def big_6d():
+    """20,000 poses, 6D: built once for the tests that need a campaign of real size."""
+    return _campaign_6d(20_000, seed=11)
+
+
+def test_6d_report_renders_in_headless_chromium(tmp_path):
+    path = tmp_path / "report.html"
+    write_report(_campaign_6d(80, seed=5), path)
+    html = path.read_text(encoding="utf-8")
+    page = Page(html)
+    assert "stats.rotation.validation_after.mean" in page.keyed
+    assert "rotation error" in page.plots["histograms"]["text"] and "rotation error" in page.plots["residual-trends"]["text"]
+    _assert_rendered(_render_in_chromium(path, "report-6d.png"), html)
+
+
+def test_20000_pose_report_is_small_and_renders_in_headless_chromium(big_6d, tmp_path):
+    path = tmp_path / "report.html"
+    write_report(big_6d, path)
+    assert path.stat().st_size < 5e6
+    html = path.read_text(encoding="utf-8")
+    assert "300 of the 16000 measured points are drawn" in html
+    _assert_rendered(_render_in_chromium(path, "report-20000.png"), html)
 
 
 # -- absorptions in display units, against the Jacobian -------------------------------------------
@@ -457,3 +500,73 @@ def test_absorptions_in_display_units_agree_with_the_jacobian(full, length_by_an
             _agrees_with_finite_differences(result.nominal_model, q, name, unit, terms)
             pairs |= {(quantity[unit], quantity[u]) for _, u, _ in terms}
     assert pairs == {("length", "length"), ("length", "angle"), ("angle", "length"), ("angle", "angle")}
+
+
+# -- the verdict and the checks --------------------------------------------------------------------
+
+def test_verdict_and_every_check_at_the_top_with_items_linked(full, tmp_path):
+    d = json.loads(json.dumps(full))
+    label = d["provenance"]["data"]["labels"][7]  # a pose far from the largest errors, named by a failed check
+    d["checks"].append({"name": "outliers", "status": "fail", "summary": f"1 point: {label}",
+                        "cause": "a blunder", "fix": "remove it", "items": [f"{label}, marker tool: 3.1 mm, 9 sd"]})
+    d["checks"].append({"name": "plausible changes", "status": "warn", "summary": "j2.alpha moved far",
+                        "cause": "", "fix": "", "items": ["j2.alpha: 1.2 deg (tolerance 0.5 deg)"]})
+    d["verdict"] = "fail"
+    page, text = _page(d, tmp_path)
+    assert page.keyed["verdict"] == "fail"
+    # every check shown, failed first, before any other section
+    shown = [(page.keyed[f"check.{j}.status"], page.keyed[f"check.{j}.name"]) for j in range(len(d["checks"]))]
+    assert sorted(shown) == sorted((c["status"], c["name"]) for c in d["checks"])
+    assert shown[0] == ("fail", "outliers") and shown[1][0] == "warn"
+    assert text.index('id="checks"') < text.index('id="errors"') < text.index('id="parameters"')
+    # the named pose and parameter link to rows that exist
+    pose_id = "pose-" + re.sub(r"[^\w.-]", "_", label)
+    assert f'href="#{pose_id}"' in text and f'id="{pose_id}"' in text
+    assert 'href="#param-j2.alpha"' in text and 'id="param-j2.alpha"' in text
+    assert "left no notes" not in text
+
+
+def test_a_passing_result_says_so(full, tmp_path):
+    page, _ = _page(full, tmp_path)
+    assert page.keyed["verdict"] == full["verdict"]
+    assert {page.keyed[f"check.{j}.name"] for j in range(len(full["checks"]))} == {c["name"] for c in full["checks"]}
+
+
+# -- residual trends -----------------------------------------------------------------------------
+
+def test_an_unmodelled_joint_error_shows_as_a_trend_against_that_joint_only():
+    from dataclasses import replace
+
+    from robocal._presentation.plots import residual_trends
+
+    m = arm6r()
+    _, data = rc.simulate(m, 2000, seed=4)
+    # an error the model cannot absorb: 0.3 mm along world z, three periods over joint 2's reading
+    bump = 3e-4 * np.sin(3 * data.q[:, 1])
+    data = replace(data, positions=data.positions + bump[:, None, None] * np.array([0.0, 0.0, 1.0]))
+    d = _roundtrip(rc.calibrate(m, data))
+    trends = residual_trends(d, m.joint_names, ["rad"] * 6, m.base_position)
+    spread = {x: np.ptp(trends["trends"][("dz", x)]["median"]) for x, _ in trends["columns"]}
+    joint2 = f"{m.joint_names[1]} reading"
+    # reach and height follow joint 2 too (it lifts the arm); the other joints do not
+    others = max(v for x, v in spread.items() if x.endswith("reading") and x != joint2)
+    assert spread[joint2] > 0.35  # mm: most of the 0.6 mm peak to peak survives the fit
+    assert spread[joint2] > 3 * others, spread
+    # the trend follows the error's shape: residuals are calibrated minus measured, so minus the bump
+    t = trends["trends"][("dz", joint2)]
+    shape = -0.3 * np.sin(3 * np.radians(t["x"]))
+    assert np.corrcoef(t["median"], shape)[0, 1] > 0.9
+
+
+def test_terminal_tables_align_for_long_names():
+    from robocal.report import calibration_summary, identifiability_summary
+
+    m = arm6r(markers=(("spherically_mounted_retroreflector_2", (0.05, 0.02, 0.12)),))
+    lines = identifiability_summary(m, rc.identifiability(m, n_random=30), "random poses").splitlines()
+    header = next(i for i, line in enumerate(lines) if line.lstrip().startswith("frame"))
+    assert {len(line) for line in lines[header:header + 1 + m.n_frames]} == {len(lines[header])}
+    owners = [line for line in lines if line.lstrip().startswith(("base ", "spherically"))]
+    assert len(owners) == 2 and owners[0].index(" x:") == owners[1].index(" x:")
+    _, data = rc.simulate(m, 30, seed=1)
+    rows = [line for line in calibration_summary(rc.calibrate(m, data)).splitlines() if " change " in line and " std " in line]
+    assert len(rows) > 20 and len({line.index(" change ") for line in rows}) == 1 and len({line.index(" std ") for line in rows}) == 1

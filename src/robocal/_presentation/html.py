@@ -1,29 +1,27 @@
 """The calibration report: one self-contained HTML file drawn from a calibration result.
 
 ``render_report`` returns the HTML text of a ``CalibrationResult`` (computed, or read back from
-result.json), ``write_report`` writes it atomically. Plots are matplotlib figures embedded as
-inline SVG; the page needs no network and no JavaScript. Units are shown as ``units.DISPLAY_UNITS``
+result.json), ``write_report`` writes it atomically. Plots (``plots``) are inline SVG; the page
+needs no network and no JavaScript. Units are shown as ``units.DISPLAY_UNITS``
 says.
 """
 
 from __future__ import annotations
 
 import html
-import io
 import math
 import re
 from datetime import datetime
 
 from .._calibration import CalibrationResult
-from .._errors import InputError, RobocalError
+from .._errors import InputError
 from .._files.result import result_to_dict
 from .._files.text import write_texts
-from .._parameters import FRAME_KINDS, GEOMETRIC_KINDS, parameter_layout, parameter_vector
+from .._parameters import FRAME_KINDS, GEOMETRIC_KINDS, SI_UNITS, parameter_layout, parameter_vector
+from .plots import (AFTER, BEFORE, DENSE, LIMIT, need_matplotlib, plot_correlation, plot_errors_per_pose,
+                    plot_histograms, plot_residual_trends, plot_residuals, residual_sample, residual_trends)
 from .units import UNITS_SENTENCE, absorption_text, display_unit as _display, finite as _num, fmt, symbol
 
-# residual arrows drawn at most (large campaigns: an evenly spaced subset, so the report stays quick)
-MAX_ARROWS = 500
-PLOTS = ("errors-per-pose", "histograms", "correlation", "residuals")
 STAT_SETS = (("fit_before", "fitted poses", "before"), ("fit_after", "fitted poses", "after"),
              ("validation_before", "held-out poses", "before"), ("validation_after", "held-out poses", "after"))
 STAT_FIELDS = ("mean", "std", "rms", "max")
@@ -33,8 +31,6 @@ MISSING_VALIDATION = "No held-out poses were given: the errors shown are on the 
 MISSING_LIMIT = ("No limit of absolute accuracy was given: run <code>robocal limit</code> on the model (repeatability, "
                  "encoder resolution, parameter round-off) and pass its value to the calibration "
                  "(<code>--limit-mm</code>, or <code>limit=</code> in Python) to judge the result against it.")
-# colours: before orange, after blue, the limit dark red
-BEFORE, AFTER, LIMIT, GRID = "#e0812f", "#2266b0", "#a3262a", "#d9dde3"
 CORRELATED = 0.9  # |r| from which a pair is listed below the correlation map
 
 
@@ -54,34 +50,9 @@ def _cell(value, unit, key, *, sign=False) -> str:
             f"{fmt(value, unit, sign=sign)}</td>")
 
 
-def _mm(v) -> float | None:
-    v = _num(v)
-    return None if v is None else v * 1e3
-
-
-def _flat_mm(a) -> list[float]:
-    """Finite entries of a nested list (metres) in mm, in order."""
-    out = []
-
-    def walk(x):
-        if isinstance(x, (list, tuple)):
-            for y in x:
-                walk(y)
-        else:
-            v = _mm(x)
-            if v is not None:
-                out.append(v)
-    walk(a if a is not None else [])
-    return out
-
-
-def _per_pose_mm(a) -> list[list[float]]:
-    """(n_poses, n_markers) nested list in metres -> per pose, the finite errors in mm."""
-    return [_flat_mm(row) for row in (a or [])]
-
-
-def _worst_poses(d: dict, k: int = WORST_POSES) -> str:
-    """The ``k`` measured points with the largest error after calibration, named by their pose labels."""
+def _worst_poses(d: dict, flagged=frozenset(), k: int = WORST_POSES) -> str:
+    """The ``k`` measured points with the largest error after calibration, and those of the pose labels
+    in ``flagged`` (named by a check), each pose's first row anchored for the checks to link to."""
     err, prov = d["errors"], d.get("provenance") or {}
     markers = err.get("markers") or []
     rows = []
@@ -96,14 +67,24 @@ def _worst_poses(d: dict, k: int = WORST_POSES) -> str:
     if not rows:
         return ""
     rows.sort(key=lambda r: -r[0])
-    body = [f'<tr><td class="name" data-key="worst.{j}.pose">{_e(name)}</td><td>{when}</td><td>{_e(mk)}</td>'
-            f'<td class="num" data-key="worst.{j}.before" data-unit="mm">{b * 1e3:.4f}</td>'
-            f'<td class="num" data-key="worst.{j}.after" data-unit="mm">{a * 1e3:.4f}</td></tr>'
-            for j, (a, b, name, when, mk) in enumerate(rows[:k])]
+    shown = rows[:k] + [r for r in rows[k:] if r[2] in flagged]
+    anchored, body = set(), []
+    for j, (a, b, name, when, mk) in enumerate(shown):
+        anchor = f' id="{_anchor("pose", name)}"' if name not in anchored else ""
+        anchored.add(name)
+        body.append(f'<tr{anchor}><td class="name" data-key="worst.{j}.pose">{_e(name)}</td><td>{when}</td>'
+                    f'<td>{_e(mk)}</td><td class="num" data-key="worst.{j}.before" data-unit="mm">{b * 1e3:.4f}</td>'
+                    f'<td class="num" data-key="worst.{j}.after" data-unit="mm">{a * 1e3:.4f}</td></tr>')
+    more = f", then the {len(shown) - k} other points of poses a check named" if len(shown) > k else ""
     return ("<h3>Largest errors after calibration</h3>"
             + _table(["pose", "poses", "marker", "before (mm)", "after (mm)"], body, num_from=3,
-                     caption=f"The {min(k, len(rows))} measured points with the largest error after calibration, "
-                             "by the pose labels of the input files."))
+                     caption=f"The {min(k, len(rows))} measured points with the largest error after calibration"
+                             f"{more}, by the pose labels of the input files."))
+
+
+def _anchor(kind: str, name: str) -> str:
+    """The id of the row or cell of a parameter or pose, for the checks to link to."""
+    return f"{kind}-" + re.sub(r"[^\w.-]", "_", str(name))
 
 
 def _date(text) -> str:
@@ -114,237 +95,6 @@ def _date(text) -> str:
         return str(text)
     zone = t.tzname() or ""
     return t.strftime("%Y-%m-%d %H:%M ") + ("UTC" if zone in ("UTC", "UTC+00:00") else zone)
-
-
-# -- plots (pure functions of the result dict, SVG text) ---------------------------------------
-
-def _matplotlib():
-    try:
-        import matplotlib  # lazy: the report is an optional extra
-        from matplotlib.figure import Figure
-    except ImportError:
-        raise RobocalError("the report needs matplotlib: pip install robocal[report]") from None
-    return matplotlib, Figure
-
-
-def _style(name: str) -> dict:
-    return {"svg.hashsalt": f"robocal-{name}", "svg.fonttype": "none", "font.family": "sans-serif",
-            "font.sans-serif": ["DejaVu Sans", "Helvetica", "Arial"], "font.size": 9,
-            "axes.edgecolor": "#8a9099", "axes.labelcolor": "#222", "axes.titlesize": 10,
-            "axes.titleweight": "bold", "xtick.color": "#444", "ytick.color": "#444",
-            "axes.grid": True, "grid.color": GRID, "grid.linewidth": 0.6, "axes.axisbelow": True,
-            "legend.frameon": False, "legend.fontsize": 8}
-
-
-def _svg(fig, name: str, label: str) -> str:
-    """The figure as an inline <svg> tagged ``data-plot=name``, ids prefixed so plots never clash."""
-    buf = io.StringIO()
-    fig.savefig(buf, format="svg", metadata={"Date": None}, bbox_inches="tight", pad_inches=0.05)
-    text = buf.getvalue()
-    text = text[text.index("<svg"):]
-    text = re.sub(r"\s*<metadata>.*?</metadata>", "", text, flags=re.S)
-    text = re.sub(r'\s*<style type="text/css">.*?</style>', "", text, flags=re.S)  # global in HTML: moved to CSS
-    text = text.replace(' id="', f' id="{name}-').replace('href="#', f'href="#{name}-')
-    text = text.replace("url(#", f"url(#{name}-")
-    return text.replace("<svg ", f'<svg data-plot="{name}" role="img" aria-label="{_e(label)}" ', 1)
-
-
-def _plot(name: str, label: str, draw, *, figsize) -> str:
-    matplotlib, Figure = _matplotlib()
-    with matplotlib.rc_context(_style(name)):
-        fig = Figure(figsize=figsize)
-        draw(fig)
-        return _svg(fig, name, label)
-
-
-def _limit_mm(d: dict) -> float | None:
-    return _mm((d.get("limit") or {}).get("limit_m"))
-
-
-def plot_errors_per_pose(d: dict) -> str:
-    """Position error per pose before and after, fitted poses then held-out ones (SVG)."""
-    from matplotlib.ticker import FormatStrFormatter
-
-    err = d["errors"]
-    sets = [("fitted", _per_pose_mm(err.get("fit_before")), _per_pose_mm(err.get("fit_after")), "o"),
-            ("held-out", _per_pose_mm(err.get("validation_before")), _per_pose_mm(err.get("validation_after")), "^")]
-    lim = _limit_mm(d)
-
-    def draw(fig):
-        ax = fig.subplots()
-        start = 1
-        values = []
-        for label, before, after, marker in sets:
-            if not before:
-                continue
-            n = len(before)
-            if label == "held-out":
-                ax.axvspan(start - 0.5, start + n - 0.5, color="#eef1f5", zorder=0, lw=0)
-                ax.text(start - 0.3, 1.0, "held-out poses", transform=ax.get_xaxis_transform(), va="bottom",
-                        ha="left", fontsize=8, color="#555")
-            links = [(start + i, vb, va) for i, (b, a) in enumerate(zip(before, after)) for vb, va in zip(b, a)]
-            if links:  # one collection, not an artist per pose: large campaigns stay quick
-                ax.vlines(*zip(*links), color="#c5cad1", lw=0.7, zorder=1)
-            hollow = label == "held-out"
-            for when, per_pose, colour in (("before", before, BEFORE), ("after", after, AFTER)):
-                xs = [start + i for i, e in enumerate(per_pose) for _ in e]
-                ys = [v for e in per_pose for v in e]
-                ax.scatter(xs, ys, marker=marker, s=22, zorder=3, label=f"{when}, {label} poses", linewidths=1.1,
-                           facecolors="white" if hollow else colour, edgecolors=colour)
-                values += ys
-            start += n
-        if lim is not None:
-            ax.axhline(lim, color=LIMIT, ls="--", lw=1.2, zorder=2,
-                       label=f"limit of absolute accuracy\n({lim:.3f} mm)")
-            values.append(lim)
-        positive = [v for v in values if v > 0]
-        if positive and max(positive) / min(positive) > 30:
-            ax.set_yscale("log")
-            ax.yaxis.set_major_formatter(FormatStrFormatter("%g"))
-            ax.set_ylabel("position error (mm, log scale)")
-        else:
-            ax.set_ylim(bottom=0)
-            ax.set_ylabel("position error (mm)")
-        ax.set_xlim(0.5, max(start - 0.5, 1.5))
-        ax.set_xlabel("pose")
-        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
-    return _plot("errors-per-pose", "position error per pose, before and after calibration", draw,
-                 figsize=(9.0, 3.4))
-
-
-def plot_histograms(d: dict) -> str:
-    """Histograms of the position errors before and after, with the limit as a vertical line (SVG)."""
-    err = d["errors"]
-    lim = _limit_mm(d)
-
-    def draw(fig):
-        axes = fig.subplots(1, 2)
-        for ax, when, colour in zip(axes, ("before", "after"), (BEFORE, AFTER)):
-            fit = _flat_mm(err.get(f"fit_{when}"))
-            val = _flat_mm(err.get(f"validation_{when}"))
-            top = max(fit + val + ([lim] if lim is not None else []) + [1e-9])
-            bins = [top * 1.02 * i / 16 for i in range(17)]
-            data, colours, labels, hatches = [fit], [colour], ["fitted poses"], [None]
-            if val:
-                data.append(val)
-                colours.append("white")
-                labels.append("held-out poses")
-                hatches.append("////")
-            _, _, patches = ax.hist(data, bins=bins, stacked=True, color=colours, edgecolor=colour, lw=0.8,
-                                    label=labels)
-            for group, hatch in zip(patches if val else [patches], hatches):
-                for p in group:
-                    p.set_hatch(hatch)
-            if lim is not None:
-                ax.axvline(lim, color=LIMIT, ls="--", lw=1.2, label=f"limit ({lim:.3f} mm)")
-            ax.set_xlim(0, bins[-1])
-            ax.set_title(f"{when} calibration", color=colour)
-            ax.set_xlabel("position error (mm)")
-            ax.set_ylabel("number of measured points")
-            ax.yaxis.get_major_locator().set_params(integer=True)
-            ax.set_ylim(top=ax.get_ylim()[1] * 1.3)  # room for the legend
-            ax.legend(loc="upper right", fontsize=7.5)
-        fig.subplots_adjust(wspace=0.25)
-    return _plot("histograms", "histograms of the position errors before and after calibration", draw,
-                 figsize=(10.5, 3.4))
-
-
-def plot_correlation(d: dict) -> str:
-    """The correlation matrix of the identified parameters as a labelled heatmap (SVG)."""
-    names = [p["name"] for p in d["parameters"]]
-    corr = [[_num(v) if _num(v) is not None else float("nan") for v in row] for row in d["correlation"]]
-    n = len(names)
-    size = min(max(3.5, 0.2 * n + 1.6), 10.0)
-
-    def draw(fig):
-        ax = fig.subplots()
-        im = ax.imshow(corr, cmap="RdBu_r", vmin=-1, vmax=1, interpolation="nearest")
-        ax.set_xticks(range(n), names, rotation=90, fontsize=7)
-        ax.set_yticks(range(n), names, fontsize=7)
-        ax.grid(False)
-        ax.set_xticks([i - 0.5 for i in range(1, n)], minor=True)
-        ax.set_yticks([i - 0.5 for i in range(1, n)], minor=True)
-        ax.grid(which="minor", color="white", lw=0.5)
-        ax.tick_params(which="minor", length=0)
-        cb = fig.colorbar(im, ax=ax, fraction=0.035, pad=0.02, shrink=0.8)
-        cb.set_label("correlation coefficient")
-    return _plot("correlation", "correlation map of the identified parameters", draw, figsize=(size + 0.9, size))
-
-
-def _nice(x: float) -> float:
-    """A round length (1, 2 or 5 times a power of ten) at most ``x`` > 0."""
-    p = 10 ** math.floor(math.log10(x))
-    return next(m * p for m in (5, 2, 1) if m * p <= x)
-
-
-def _finite3(v) -> bool:
-    return isinstance(v, (list, tuple)) and len(v) == 3 and all(_num(c) is not None for c in v)
-
-
-def plot_residuals(d: dict) -> str:
-    """Fit residual vectors (predicted - measured) on the XY, XZ and YZ planes, with a scale bar (SVG).
-
-    With ``errors.fit_positions`` (measured points in metres, shaped like the residual vectors) the
-    arrows start at the points, scaled up; without it they start at a common origin.
-    """
-    from matplotlib.ticker import MaxNLocator
-
-    err = d["errors"]
-    vec = [v for pose in (err.get("fit_residual_vectors") or []) for v in pose]
-    pos = [p for pose in (err.get("fit_positions") or []) for p in pose]
-    at_points = len(pos) == len(vec) > 0 and any(_finite3(p) for p in pos)
-    keep = [k for k, v in enumerate(vec) if _finite3(v) and (not at_points or _finite3(pos[k]))]
-    keep = keep[::-(-len(keep) // MAX_ARROWS)] if keep else keep  # an arrow costs ~5 ms: evenly spaced subset
-    res = [[c * 1e3 for c in vec[k]] for k in keep]
-    length = max((math.sqrt(sum(c * c for c in v)) for v in res), default=0.0) or 1e-3
-    bar = _nice(length * 0.5)
-    if at_points:
-        pts = [[c * 1e3 for c in pos[k]] for k in keep]
-        span = max(max(p[i] for p in pts) - min(p[i] for p in pts) for i in range(3)) or 1.0
-        gain = _nice(0.08 * span / length)
-    else:
-        pts = [[0.0, 0.0, 0.0] for _ in res]
-        gain = 1.0
-
-    def draw(fig):
-        axes = fig.subplots(1, 3)
-        for ax, (a, b, i, j) in zip(axes, (("X", "Y", 0, 1), ("X", "Z", 0, 2), ("Y", "Z", 1, 2))):
-            for p, v in zip(pts, res):
-                ax.annotate("", xy=(p[i] + gain * v[i], p[j] + gain * v[j]), xytext=(p[i], p[j]),
-                            arrowprops=dict(arrowstyle="-|>", color=AFTER, lw=0.8, mutation_scale=7,
-                                            shrinkA=0, shrinkB=0))
-            if at_points:
-                ax.scatter([p[i] for p in pts], [p[j] for p in pts], s=6, color="#555", zorder=3)
-                xs = [p[i] for p in pts] + [p[i] + gain * v[i] for p, v in zip(pts, res)]
-                ys = [p[j] for p in pts] + [p[j] + gain * v[j] for p, v in zip(pts, res)]
-                pad = 0.08 * max(max(xs) - min(xs), max(ys) - min(ys), 1e-9)
-                ax.set_xlim(min(xs) - pad, max(xs) + pad)
-                ax.set_ylim(min(ys) - pad, max(ys) + pad)
-                ax.set_xlabel(f"{a} (mm)")
-                ax.set_ylabel(f"{b} (mm)")
-            else:
-                r = 1.15 * length
-                ax.set_xlim(-r, r)
-                ax.set_ylim(-r, r)
-                ax.axhline(0, color="#999", lw=0.6)
-                ax.axvline(0, color="#999", lw=0.6)
-                ax.set_xlabel(f"residual {a} (mm)")
-                ax.set_ylabel(f"residual {b} (mm)")
-            ax.set_aspect("equal", adjustable="box")
-            ax.set_title(f"{a}{b} plane")
-            for axis in (ax.xaxis, ax.yaxis):
-                axis.set_major_locator(MaxNLocator(4, symmetric=not at_points))
-            ax.tick_params(labelsize=8)
-            # scale bar: ``bar`` mm of residual, drawn at the arrows' scale
-            x0, x1 = ax.get_xlim()
-            y0, y1 = ax.get_ylim()
-            bx, by = x0 + 0.06 * (x1 - x0), y0 + 0.07 * (y1 - y0)
-            ax.plot([bx, bx + gain * bar], [by, by], color="#222", lw=2.2, solid_capstyle="butt")
-            ax.text(bx + gain * bar / 2, by + 0.025 * (y1 - y0), f"{bar:g} mm", ha="center", va="bottom",
-                    fontsize=8)
-        fig.subplots_adjust(wspace=0.35)
-    return _plot("residuals", "fit residual vectors projected on the XY, XZ and YZ planes", draw,
-                 figsize=(11.0, 4.0))
 
 
 # -- HTML pieces ----------------------------------------------------------------------------------
@@ -402,19 +152,82 @@ def _headline(d: dict) -> str:
     return f'<div class="cards">{"".join(cards)}</div>'
 
 
-def _stats_table(d: dict) -> str:
+def _pose_labels(d: dict) -> set:
+    prov = d.get("provenance") or {}
+    return {lab for src in ("data", "validation") for lab in ((prov.get(src) or {}).get("labels") or [])}
+
+
+def _flagged_poses(d: dict) -> set:
+    """Pose labels a check that did not pass names (items read 'label: ...')."""
+    labels = _pose_labels(d)
+    return {_item_head(item) for c in d.get("checks") or [] if c.get("status") != "pass"
+            for item in c.get("items") or []} & labels
+
+
+def _item_head(item) -> str:
+    """What a check's item names first: 'pose 12' of 'pose 12, marker tool: 3.1 mm'."""
+    return re.split(r"[:,]", str(item), maxsplit=1)[0].strip()
+
+
+def _item_html(item: str, params: set, poses: set) -> str:
+    """A check's item with the parameters and the pose it names linked to their rows."""
+    text = str(item)
+    head = _item_head(text)
+    if head in poses and text.startswith(head):
+        return f'<a href="#{_anchor("pose", head)}">{_e(head)}</a>{_e(text[len(head):])}'
+    parts = re.split(r"([\w.]+)", text)
+    return "".join(f'<a href="#{_anchor("param", t)}">{_e(t)}</a>' if t in params else _e(t) for t in parts)
+
+
+VERDICT_TEXT = {"pass": "every check passed", "warn": "usable, with warnings to read",
+                "fail": "not to be used as it is: a check failed"}
+STATUS_CLASS = {"pass": "good", "warn": "missing", "fail": "bad"}
+
+
+def _checks_html(d: dict) -> str:
+    """The verdict and every check, those that did not pass first, their items linked to their rows."""
+    checks = d.get("checks") or []
+    if not checks:
+        return _notice("This result holds no checks (written by an older robocal): no verdict.")
+    verdict = d.get("verdict") or "pass"
+    params = set((d.get("identifiability") or {}).get("candidates") or []) | {p["name"] for p in d["parameters"]}
+    poses = _flagged_poses(d)
+    rows = []
+    for j, c in enumerate(sorted(checks, key=lambda c: c.get("status") == "pass")):
+        st = c.get("status", "")
+        detail = "".join(f"<br><b>{label}:</b> {_e(c[key])}" for key, label in (("cause", "likely cause"),
+                                                                                 ("fix", "fix"))
+                         if st != "pass" and c.get(key))
+        items = c.get("items") or []
+        listed = items[:20]
+        more = f" and {len(items) - 20} more" if len(items) > 20 else ""
+        named = (f'<br><span class="items">{", ".join(_item_html(i, params, poses) for i in listed)}{more}</span>'
+                 if items and st != "pass" else "")
+        rows.append(f'<tr class="check {st}"><td><span class="status {st}" data-key="check.{j}.status">{st}</span>'
+                    f'</td><td data-key="check.{j}.name">{_e(c.get("name", ""))}</td>'
+                    f'<td class="wrap">{_e(c.get("summary", ""))}{detail}{named}</td></tr>')
+    banner = (f'<p class="notice {STATUS_CLASS.get(verdict, "missing")} verdict">Verdict: '
+              f'<b data-key="verdict">{_e(verdict)}</b> &ndash; {VERDICT_TEXT.get(verdict, "")}.</p>')
+    return banner + _table(["status", "check", "what it found"], rows, cls="checks")
+
+
+def _stats_table(d: dict, *, rotation: bool = False) -> str:
+    """Position errors before and after, on fitted and held-out poses; the rotation errors with ``rotation``."""
+    stats, unit, prefix = (d["stats"]["rotation"], "rad", "stats.rotation") if rotation else (d["stats"], "m", "stats")
+    shown = _display(unit)[0]
     rows = []
     for key, poses, when in STAT_SETS:
-        s = d["stats"].get(key) or {}
+        s = stats.get(key) or {}
         lead = f'<tr class="{when}"><td>{poses}</td><td><span class="tag {when}">{when}</span></td>'
         if not s.get("n"):
-            rows.append(lead + f'<td class="num" data-key="stats.{key}.n">0</td>'
+            rows.append(lead + f'<td class="num" data-key="{prefix}.{key}.n">0</td>'
                         f'<td colspan="4" class="muted">not given</td></tr>')
             continue
-        cells = "".join(_cell(s.get(f), "m", f"stats.{key}.{f}") for f in STAT_FIELDS)
-        rows.append(lead + f'<td class="num" data-key="stats.{key}.n">{_e(s["n"])}</td>{cells}</tr>')
-    return _table(["poses", "calibration", "points", "mean (mm)", "std (mm)", "RMS (mm)", "max (mm)"], rows,
-                  cls="stats", num_from=2)
+        cells = "".join(_cell(s.get(f), unit, f"{prefix}.{key}.{f}") for f in STAT_FIELDS)
+        rows.append(lead + f'<td class="num" data-key="{prefix}.{key}.n">{_e(s["n"])}</td>{cells}</tr>')
+    what = "rotation" if rotation else "position"
+    return _table(["poses", "calibration", "points"] + [f"{f} ({shown})" for f in ("mean", "std", "RMS", "max")],
+                  rows, cls="stats", num_from=2, caption=f"{what.capitalize()} errors")
 
 
 def _limit_text(d: dict) -> str:
@@ -466,7 +279,7 @@ def _parameter_tables(d: dict, nominal: dict, units: dict) -> tuple[str, str, st
     def status_cell(name):
         st = status.get(name, "-")
         text = {"I": '<span class="badge si">I</span>', "E": '<span class="badge se">E</span>', "-": "–"}[st]
-        return f'<td class="status" data-key="{_e(name)}:status">{text}</td>'
+        return f'<td class="status" id="{_anchor("param", name)}" data-key="{_e(name)}:status">{text}</td>'
 
     body = []
     for f in frames:
@@ -513,21 +326,24 @@ def _eliminated_table(d: dict, units: dict) -> str:
                   cls="elim", num_from=3)
 
 
-def _correlated_pairs(d: dict) -> str:
+def _correlated_pairs(d: dict, k: int = 12) -> str:
+    """The ``k`` most strongly correlated pairs, named in full, those beyond ``CORRELATED`` marked."""
     names = [p["name"] for p in d["parameters"]]
     pairs = []
     for i, row in enumerate(d["correlation"]):
         for j in range(i + 1, len(row)):
             r = _num(row[j])
-            if r is not None and abs(r) >= CORRELATED:
+            if r is not None:
                 pairs.append((-abs(r), names[i], names[j], r))
     if not pairs:
-        return f"<p>No two identified parameters correlate beyond |r| = {CORRELATED}.</p>"
-    rows = [f'<tr><td class="name">{_e(a)}</td><td class="name">{_e(b)}</td><td class="num">{r:+.3f}</td></tr>'
-            for _, a, b, r in sorted(pairs)[:15]]
-    more = f" ({len(pairs) - 15} more not listed)" if len(pairs) > 15 else ""
-    return _table(["parameter", "parameter", "r"], rows, num_from=2,
-                  caption=f"Pairs with |r| &ge; {CORRELATED}{more}")
+        return ""
+    pairs.sort()
+    strong = sum(1 for p in pairs if -p[0] >= CORRELATED)
+    rows = [f'<tr{" class=strong" if abs(r) >= CORRELATED else ""}><td class="name">{_e(a)}</td>'
+            f'<td class="name">{_e(b)}</td><td class="num">{r:+.3f}</td></tr>' for _, a, b, r in pairs[:k]]
+    return _table(["parameter", "parameter", "r"], rows, num_from=2, cls="pairs",
+                  caption=f"The {min(k, len(pairs))} strongest of {len(pairs)} pairs; {strong} with |r| &ge; "
+                          f"{CORRELATED} (in bold)")
 
 
 def _solver_table(d: dict) -> str:
@@ -679,10 +495,68 @@ figcaption{font-size:12.5px;margin-top:2px}
 svg[data-plot]{max-width:100%%;height:auto;display:block}
 svg[data-plot] *{stroke-linejoin:round;stroke-linecap:butt}
 ul.notes li{margin:4px 0}
+span.status{display:inline-block;padding:0 6px;border-radius:4px;font-weight:700;font-size:11.5px;
+text-transform:uppercase}
+span.status.pass{background:#e3f2e6;color:#1d6b2f}span.status.warn{background:#fff0c2;color:#7a5600}
+span.status.fail{background:#fbe5e5;color:var(--limit)}
+table.checks{width:100%%}table.checks td.wrap{overflow-wrap:anywhere}
+.verdict{font-size:16px}:target{outline:2px solid var(--after);background:#eaf2fb}
 footer{margin-top:36px;padding-top:8px;border-top:1px solid var(--line);font-size:12px;color:var(--muted)}
-@media print{body{background:#fff}main{padding:0}figure,table{break-inside:avoid}}
+.side{display:grid;grid-template-columns:minmax(0,1fr) minmax(250px,max-content);gap:18px;align-items:start}
+table.pairs tr.strong td{font-weight:650}
+table.params{font-size:12.5px}table.params td,table.params th{padding:3px 7px}
+@page{size:A4;margin:12mm}
+@media print{body{background:#fff;font-size:11px}main{padding:0;max-width:none;min-height:0}
+.scroll{overflow:visible}table{font-size:10px}th,td{padding:2px 5px}table.params{font-size:9px}
+table.params td,table.params th{padding:1px 3px}td.name{white-space:normal;overflow-wrap:anywhere}
+.side{display:block}h2{break-after:avoid}figure,tr,.card,.notice{break-inside:avoid}
+nav ol{columns:4}:target{outline:none;background:none}}
+@media (max-width:900px){.side{display:block}}
 @media (max-width:800px){.cards{grid-template-columns:1fr 1fr}nav ol{columns:1}}
 """ % {"before": BEFORE, "after": AFTER, "limit": LIMIT}
+
+
+def _errors_section(d: dict, has_val: bool) -> str:
+    lim = d.get("limit")
+    n = sum(len((d["errors"].get(k) or [])) for k in ("fit_before", "validation_before"))
+    how = ("Position error of each measured point before (orange) and after (blue) calibration. Filled circles: "
+           "fitted poses; open triangles on grey: held-out poses" if n <= DENSE else
+           f"Position errors of the {n} poses before (orange) and after (blue) calibration, summarised in bins of "
+           "consecutive poses: the line is the median of a bin, the band holds 90 % of its points; dashed lines "
+           "and the grey band: held-out poses")
+    rotation = d["stats"].get("rotation")
+    return (_stats_table(d) + (_stats_table(d, rotation=True) if rotation else "") + _limit_text(d)
+            + _figure(plot_errors_per_pose(d), how + ("" if has_val else " (none given)")
+                      + ". Dashed red line: the limit of absolute accuracy" + ("" if lim else " (not given)") + ".")
+            + _figure(plot_histograms(d), "Distribution of the errors. Solid bars: fitted poses; hatched: held-out "
+                      "poses." + (" Dashed line: the limit of absolute accuracy." if lim else ""))
+            + _worst_poses(d, _flagged_poses(d)))
+
+
+def _residuals_section(d: dict) -> str:
+    shown, at_points, n = residual_sample(d)
+    where = ("Arrows start at the measured points and are scaled up; the bar gives their scale." if at_points is not None
+             else "The measured positions are not stored in the result, so every arrow starts at a common origin; "
+                  "the bar gives the scale.")
+    count = (f" {len(shown)} of the {n} measured points are drawn, evenly spaced through the campaign."
+             if len(shown) < n else "")
+    return _figure(plot_residuals(d), "Fit residuals (calibrated minus measured) of the fitted poses, projected on "
+                   "three planes. " + where + count)
+
+
+def _trends_section(d: dict, result: CalibrationResult) -> str:
+    model = result.nominal_model
+    trends = residual_trends(d, model.joint_names, [SI_UNITS[q] for q in model.reading_quantities],
+                             model.base_position)
+    if trends is None:
+        return "<p>The result holds no measured points and joint readings: no trends to draw.</p>"
+    return ("<p>Where a model term is missing (backlash, compliance, a wrong encoder ratio, a thermal drift), the "
+            "residuals follow the robot's posture: a trend here against one joint's reading and not against the "
+            "others points at that joint.</p>"
+            + _figure(plot_residual_trends(trends), f"Residual components after calibration (calibrated minus "
+                      f"measured, world axes) of all {trends['points']} measured points, fitted and held-out, against "
+                      "the horizontal distance from the base axis (reach), the height above the base origin and each "
+                      "joint's reading. Line: median in bins of equal counts of points; band: the middle half."))
 
 
 def render_report(result: CalibrationResult, *, extra: dict | None = None) -> str:
@@ -696,7 +570,7 @@ def render_report(result: CalibrationResult, *, extra: dict | None = None) -> st
     d = result_to_dict(result)
     nominal, units = _nominal_values(result)
     tables = _extra_tables(extra)
-    _matplotlib()  # fail early and clearly without the extra
+    need_matplotlib()  # fail early and clearly without the extra
     robot = (d.get("nominal_model") or {}).get("name", "robot")
     has_val = bool((d["stats"].get("validation_after") or {}).get("n"))
     prov = d.get("provenance") or {}
@@ -708,42 +582,34 @@ def render_report(result: CalibrationResult, *, extra: dict | None = None) -> st
     if not d.get("success"):
         notices.append(_notice(f"The solver did not converge: {_e(d.get('message'))}", "bad"))
 
-    sections = [("errors", "Position errors", _stats_table(d) + _limit_text(d) + _figure(
-        plot_errors_per_pose(d),
-        "Position error of each measured point before (orange) and after (blue) calibration. Filled circles: "
-        "fitted poses; open triangles on grey: held-out poses" + ("" if has_val else " (none given)")
-        + ". Dashed line: the limit of absolute accuracy" + ("" if lim else " (not given)") + ".")
-        + _figure(plot_histograms(d), "Distribution of the position errors. Solid bars: fitted poses; hatched: "
-                  "held-out poses." + (" Dashed line: the limit of absolute accuracy." if lim else ""))
-        + _worst_poses(d))]
+    sections = [("errors", "Position and rotation errors", _errors_section(d, has_val))]
     frame_table, other_table, note = _parameter_tables(d, nominal, units)
     sections.append(("parameters", "Parameters",
                      "<p>Per frame, in the paper's layout: I identified, E eliminated (held at its nominal value, "
                      "its effect carried by identified parameters), &ndash; not a candidate. "
-                     f"{_e(UNITS_SENTENCE).capitalize()}; std dev is the standard deviation of the estimate.</p>" + frame_table + (f'<p class="muted">{note}</p>' if note else "")
+                     f"{_e(UNITS_SENTENCE).capitalize()}; std dev is the standard deviation of the estimate.</p>"
+                     + frame_table + (f'<p class="muted">{note}</p>' if note else "")
                      + "<h3>Base and marker parameters</h3>" + other_table))
     sections.append(("identifiability", "Eliminated parameters and what absorbs them",
                      "<p>An eliminated parameter cannot be told apart from a combination of identified ones: a "
-                     "change in it moves the tool exactly as the combination shown does.</p>" + _eliminated_table(d, units)))
+                     "change of one display unit in it moves the tool as the changes shown do.</p>"
+                     + _eliminated_table(d, units)))
     sections.append(("correlation", "Correlation of the identified parameters",
-                     _figure(plot_correlation(d), "Correlation coefficients from the covariance of the estimates "
-                             "(red positive, blue negative).") + _correlated_pairs(d)))
-    at_points = any(_finite3(p) for pose in (d["errors"].get("fit_positions") or []) for p in pose)
-    sections.append(("residuals", "Residual vectors after calibration", _figure(
-        plot_residuals(d), "Fit residuals (predicted minus measured) of the fitted poses, projected on three planes. "
-        + ("Arrows start at the measured points and are scaled up; the bar gives their scale." if at_points else
-           "The measured positions are not stored in the result, so every arrow starts at a common origin; "
-           "the bar gives the scale."))))
+                     '<div class="side">' + _figure(plot_correlation(d), "Correlation coefficients from the "
+                                                    "covariance of the estimates (red positive, blue negative).")
+                     + _correlated_pairs(d) + "</div>"))
+    sections.append(("residuals", "Residual vectors after calibration", _residuals_section(d)))
+    sections.append(("trends", "Residuals against reach, height and joint readings", _trends_section(d, result)))
     if tables:
         sections.append(("comparison", "Comparison", _extra_html(tables)))
     sections.append(("solver", "Solver and identifiability", _solver_table(d)))
     notes = d.get("notes") or []
     sections.append(("notes", "Notes", '<ul class="notes">' + "".join(f"<li>{_e(n)}</li>" for n in notes) + "</ul>"
-                     if notes else "<p>The calibration left no notes.</p>"))
+                     if notes else "<p>No notes beyond the checks at the top of the page.</p>"))
     sections.append(("provenance", "Provenance", _provenance(d)))
-
+    sections.insert(0, ("checks", "Verdict and checks", _checks_html(d)))
     toc = "".join(f'<li><a href="#{i}">{t}</a></li>' for i, t, _ in sections)
-    body = "".join(f'<section id="{i}"><h2>{t}</h2>{b}</section>\n' for i, t, b in sections)
+    first, *rest = [f'<section id="{i}"><h2>{t}</h2>{b}</section>\n' for i, t, b in sections]
     meta = [", ".join(d.get("families") or []) + " identification", _date(prov.get("date", "date not recorded")),
             f'{prov.get("software", "")} {prov.get("version", "")}'.strip()]
     return ('<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
@@ -752,7 +618,7 @@ def render_report(result: CalibrationResult, *, extra: dict | None = None) -> st
             f"<style>{_CSS}</style>\n</head>\n<body>\n<main>\n"
             f'<header><h1>Calibration report &ndash; <span class="robot">{_e(robot)}</span></h1>'
             f'<p class="meta">{" &middot; ".join(_e(m) for m in meta if m)}</p></header>\n'
-            f"{_headline(d)}{''.join(notices)}<nav><ol>{toc}</ol></nav>\n{body}"
+            f"{first}{_headline(d)}{''.join(notices)}<nav><ol>{toc}</ol></nav>\n{''.join(rest)}"
             f"<footer>{_e(UNITS_SENTENCE).capitalize()}; the result file keeps SI "
             "units. A self-contained page: no scripts, no network.</footer>\n</main>\n</body>\n</html>\n")
 

@@ -152,7 +152,7 @@ def identifiability_summary(model, res, where: str) -> str:
     for f in model.frame_names:
         lines.append(f"  {f:<{width}}" + "".join(f"{res.status(f'{f}.{k}'):>9}" for k in kinds))
     for owner, owner_kinds in [("base", BASE_KINDS)] + [(m, MARKER_KINDS) for m in model.marker_names]:
-        lines.append(f"  {owner:<{width}}" + "".join(f"{k}:{res.status(f'{owner}.{k}'):<3}" for k in owner_kinds))
+        lines.append(f"  {owner:<{width}} " + " ".join(f"{k}:{res.status(f'{owner}.{k}'):<3}" for k in owner_kinds))
     lines.append(f"identified {len(res.identified)} of {len(res.candidates)} candidates (rank {res.rank}, "
                  f"{res.n_rows} equations)")
     lay = parameter_layout(model)

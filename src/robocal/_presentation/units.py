@@ -7,6 +7,7 @@ compliances in deg/(kN m).
 from __future__ import annotations
 
 import math
+from html.entities import html5
 
 from .._parameters import SI_UNITS
 
@@ -51,14 +52,16 @@ def fmt(value, unit: str = "m", *, sign: bool = False) -> str:
 
 
 def symbol(kind: str) -> str:
-    """The HTML symbol of a parameter kind: Greek letters by their entity, compliances as K with the angle.
+    """The HTML symbol of a parameter kind: Greek letters by their entity, a qualified kind with its
+    qualifier as a subscript (compliances as K).
 
-    >>> symbol("theta"), symbol("d"), symbol("k_beta")
-    ('&theta;', 'd', 'K<sub>&beta;</sub>')
+    >>> symbol("theta"), symbol("d"), symbol("k_beta"), symbol("backlash_r")
+    ('&theta;', 'd', 'K<sub>&beta;</sub>', 'backlash<sub>r</sub>')
     """
-    if kind.startswith("k_"):
-        return f"K<sub>{symbol(kind[2:])}</sub>"
-    return f"&{kind};" if len(kind) > 1 else kind
+    head, _, sub = kind.partition("_")
+    if sub:
+        return f"{'K' if head == 'k' else head}<sub>{symbol(sub)}</sub>"
+    return f"&{kind};" if f"{kind};" in html5 else kind
 
 
 def with_unit(value, unit: str, *, sign: bool = False) -> str:

@@ -17,7 +17,11 @@ def register(sub) -> None:
                        description="Identify the robot's parameters from measured marker positions; write "
                                    "OUT/calibrated.yaml and OUT/result.json.")
     p.add_argument("model", metavar="MODEL", help="model file (YAML)")
-    p.add_argument("csv", metavar="CSV", help="measurement file")
+    p.add_argument("csv", metavar="CSV", nargs="?", help="measurement file (may be left out with --contacts)")
+    p.add_argument("--contacts", metavar="FILE", help="contact file: joint-only recordings of sockets, planes and "
+                   "ball bars (docs/formats.md), fitted alone or with CSV")
+    p.add_argument("--holdout-placement", type=common.names, metavar="NAMES",
+                   help="with --contacts: hold out these placements (comma-separated) to judge the result on")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder (created)")
     v = p.add_mutually_exclusive_group()
     v.add_argument("--validation", metavar="CSV", help="held-out measurements to judge the result on")
@@ -89,6 +93,13 @@ def run(args) -> int:
     from .._files.result import result_to_json
     from .._presentation.text import calibration_summary, comparison_summary
 
+    if args.contacts:
+        from . import contacts
+        return contacts.run(args)
+    if args.csv is None:
+        raise InputError("give a measurement file (CSV) or a contact file (--contacts)", where="calibrate")
+    if args.holdout_placement:
+        raise InputError("needs --contacts", where="--holdout-placement")
     if args.compare and args.parameters:
         raise InputError("--compare chooses the parameters itself; drop --parameters", where="--compare")
     out = Path(args.out)

@@ -1,0 +1,447 @@
+"""The report's plots: matplotlib figures as inline SVG text, pure functions of the result dict.
+
+Plots scale with the campaign: beyond ``DENSE`` poses the error per pose is drawn as binned
+summaries of consecutive poses rather than one mark per point, residual vectors are a
+representative subsample of at most ``VECTORS`` arrows, and the residual trends are binned
+medians with their interquartile band. Matplotlib is imported here only, on first use.
+"""
+
+from __future__ import annotations
+
+import html
+import io
+import math
+import re
+
+import numpy as np
+
+from .._errors import RobocalError
+from .units import DEG, MM
+
+PLOTS = ("errors-per-pose", "histograms", "correlation", "residuals", "residual-trends")
+# colours: before orange, after blue, the limit dark red
+BEFORE, AFTER, LIMIT, GRID = "#e0812f", "#2266b0", "#a3262a", "#d9dde3"
+DENSE = 600      # poses beyond which the error per pose is summarised in bins
+VECTORS = 300    # residual arrows drawn at most
+TREND_BINS = 16  # bins of a trend (equal counts of points)
+
+
+# -- the figure machinery ------------------------------------------------------------------------
+
+def need_matplotlib():
+    """(matplotlib, Figure), or a RobocalError saying how to install the extra."""
+    try:
+        import matplotlib  # lazy: the report is an optional extra
+        from matplotlib.figure import Figure
+    except ImportError:
+        raise RobocalError("the report needs matplotlib: pip install robocal[report]") from None
+    return matplotlib, Figure
+
+
+def _style(name: str) -> dict:
+    return {"svg.hashsalt": f"robocal-{name}", "svg.fonttype": "none", "font.family": "sans-serif",
+            "font.sans-serif": ["DejaVu Sans", "Helvetica", "Arial"], "font.size": 9,
+            "axes.edgecolor": "#8a9099", "axes.labelcolor": "#222", "axes.titlesize": 10,
+            "axes.titleweight": "bold", "xtick.color": "#444", "ytick.color": "#444",
+            "axes.grid": True, "grid.color": GRID, "grid.linewidth": 0.6, "axes.axisbelow": True,
+            "legend.frameon": False, "legend.fontsize": 8, "path.simplify": True}
+
+
+def _svg(fig, name: str, label: str) -> str:
+    """The figure as an inline <svg> tagged ``data-plot=name``, ids prefixed so plots never clash."""
+    buf = io.StringIO()
+    fig.savefig(buf, format="svg", metadata={"Date": None}, bbox_inches="tight", pad_inches=0.05)
+    text = buf.getvalue()
+    text = text[text.index("<svg"):]
+    text = re.sub(r"\s*<metadata>.*?</metadata>", "", text, flags=re.S)
+    text = re.sub(r'\s*<style type="text/css">.*?</style>', "", text, flags=re.S)  # global in HTML: moved to CSS
+    text = text.replace(' id="', f' id="{name}-').replace('href="#', f'href="#{name}-')
+    text = text.replace("url(#", f"url(#{name}-")
+    return text.replace("<svg ", f'<svg data-plot="{name}" role="img" aria-label="{html.escape(label)}" ', 1)
+
+
+def _plot(name: str, label: str, draw, *, figsize) -> str:
+    matplotlib, Figure = need_matplotlib()
+    with matplotlib.rc_context(_style(name)):
+        fig = Figure(figsize=figsize)
+        draw(fig)
+        return _svg(fig, name, label)
+
+
+# -- the data, as arrays --------------------------------------------------------------------------
+
+def errors_array(d: dict, key: str) -> np.ndarray | None:
+    """``errors[key]`` of the result dict as a float array (null entries NaN), None when absent."""
+    v = (d.get("errors") or {}).get(key)
+    if v is None or len(v) == 0:
+        return None
+    return np.asarray(v, dtype=float)
+
+
+def _limit_mm(d: dict) -> float | None:
+    v = (d.get("limit") or {}).get("limit_m")
+    return None if v is None or not math.isfinite(v) else v * MM
+
+
+def _finite(a: np.ndarray | None) -> np.ndarray:
+    return np.zeros(0) if a is None else a[np.isfinite(a)]
+
+
+# -- errors per pose and their distribution ---------------------------------------------------------
+
+def _per_pose(ax, start: int, before: np.ndarray, after: np.ndarray, label: str, marker: str) -> list:
+    """One mark per measured point, before and after, joined by a grey line; returns the values."""
+    n, m = before.shape
+    x = np.repeat(np.arange(start, start + n), m)
+    b, a = before.ravel(), after.ravel()
+    ok = np.isfinite(b) & np.isfinite(a)
+    ax.vlines(x[ok], b[ok], a[ok], color="#c5cad1", lw=0.7, zorder=1)
+    hollow = label == "held-out"
+    for when, v, colour in (("before", b, BEFORE), ("after", a, AFTER)):
+        keep = np.isfinite(v)
+        ax.scatter(x[keep], v[keep], marker=marker, s=22, zorder=3, label=f"{when}, {label} poses", linewidths=1.1,
+                   facecolors="white" if hollow else colour, edgecolors=colour)
+    return [b[ok], a[ok]]
+
+
+def _binned(ax, start: int, before: np.ndarray, after: np.ndarray, label: str, width: int) -> list:
+    """Median and 5-95 % band of the points in bins of ``width`` consecutive poses; returns the values."""
+    n = len(before)
+    edges = list(range(0, n, width)) + [n]
+    for when, v, colour in (("before", before, BEFORE), ("after", after, AFTER)):
+        centre, lo, mid, hi = [], [], [], []
+        for i, j in zip(edges[:-1], edges[1:]):
+            vals = _finite(v[i:j])
+            if vals.size:
+                centre.append(start + (i + j - 1) / 2)
+                q = np.percentile(vals, [5, 50, 95])
+                lo.append(q[0]), mid.append(q[1]), hi.append(q[2])
+        ax.fill_between(centre, lo, hi, color=colour, alpha=0.22 if label == "fitted" else 0.12, lw=0, zorder=1)
+        ax.plot(centre, mid, color=colour, lw=1.3, ls="-" if label == "fitted" else "--", zorder=3,
+                label=f"{when}, {label} poses: median and 5-95 %")
+    return [_finite(before), _finite(after)]
+
+
+def plot_errors_per_pose(d: dict) -> str:
+    """Position error per pose before and after, fitted poses then held-out ones (SVG); binned
+    summaries of consecutive poses beyond ``DENSE`` poses."""
+    from matplotlib.ticker import FormatStrFormatter
+
+    sets = [(label, errors_array(d, f"{key}_before"), errors_array(d, f"{key}_after"), marker)
+            for label, key, marker in (("fitted", "fit", "o"), ("held-out", "validation", "^"))]
+    sets = [(label, b * MM, a * MM, mk) for label, b, a, mk in sets if b is not None and a is not None]
+    total = sum(len(b) for _, b, _, _ in sets)
+    width = max(1, math.ceil(total / 150))
+    lim = _limit_mm(d)
+
+    def draw(fig):
+        ax = fig.subplots()
+        start, values = 1, []
+        for label, before, after, marker in sets:
+            n = len(before)
+            if label == "held-out":
+                ax.axvspan(start - 0.5, start + n - 0.5, color="#eef1f5", zorder=0, lw=0)
+                ax.text(start - 0.3, 1.0, "held-out poses", transform=ax.get_xaxis_transform(), va="bottom",
+                        ha="left", fontsize=8, color="#555")
+            if total > DENSE:
+                values += _binned(ax, start, before, after, label, width)
+            else:
+                values += _per_pose(ax, start, before, after, label, marker)
+            start += n
+        if lim is not None:
+            ax.axhline(lim, color=LIMIT, ls="--", lw=1.2, zorder=2, label=f"limit of absolute accuracy\n({lim:.3f} mm)")
+            values.append(np.array([lim]))
+        v = np.concatenate(values) if values else np.zeros(0)
+        v = v[v > 0]
+        if v.size and v.max() / v.min() > 30 and total <= DENSE:
+            ax.set_yscale("log")
+            ax.yaxis.set_major_formatter(FormatStrFormatter("%g"))
+            ax.set_ylabel("position error (mm, log scale)")
+        else:
+            ax.set_ylim(bottom=0)
+            ax.set_ylabel("position error (mm)")
+        ax.set_xlim(0.5, max(start - 0.5, 1.5))
+        ax.set_xlabel("pose" if total <= DENSE else f"pose (bins of {width} consecutive poses)")
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
+    return _plot("errors-per-pose", "position error per pose, before and after calibration", draw,
+                 figsize=(9.0, 3.4))
+
+
+def _hist(ax, fit: np.ndarray, val: np.ndarray, colour: str, top: float, lim: float | None, unit: str) -> None:
+    bins = np.linspace(0, top * 1.02, 25)
+    data, colours, labels = [fit], [colour], ["fitted poses"]
+    if val.size:
+        data, colours, labels = [fit, val], [colour, "white"], ["fitted poses", "held-out poses"]
+    _, _, patches = ax.hist(data, bins=bins, stacked=True, color=colours, edgecolor=colour, lw=0.8, label=labels)
+    if val.size:
+        for p in patches[1]:
+            p.set_hatch("////")
+    if lim is not None:
+        ax.axvline(lim, color=LIMIT, ls="--", lw=1.2, label=f"limit ({lim:.3f} {unit})")
+    ax.set_xlim(0, bins[-1])
+    ax.set_ylabel("number of measured points")
+    ax.yaxis.get_major_locator().set_params(integer=True)
+    ax.set_ylim(top=ax.get_ylim()[1] * 1.3)  # room for the legend
+    ax.legend(loc="upper right", fontsize=7.5)
+
+
+def plot_histograms(d: dict) -> str:
+    """Histograms of the position errors before and after, with the limit as a vertical line, and of
+    the rotation errors below them when the data hold orientations (SVG)."""
+    lim = _limit_mm(d)
+    kinds = [("position", "", MM, "mm", lim)]
+    if errors_array(d, "fit_rotation_after") is not None:
+        kinds.append(("rotation", "rotation_", DEG, "deg", None))
+
+    def draw(fig):
+        axes = np.atleast_2d(fig.subplots(len(kinds), 2))
+        for row, (what, part, k, unit, line) in zip(axes, kinds):
+            vals = {(s, w): _finite(errors_array(d, f"{s}_{part}{w}")) * k
+                    for s in ("fit", "validation") for w in ("before", "after")}
+            top = max([float(v.max()) for v in vals.values() if v.size] + ([line] if line else []) + [1e-9])
+            for ax, when, colour in zip(row, ("before", "after"), (BEFORE, AFTER)):
+                _hist(ax, vals[("fit", when)], vals[("validation", when)], colour, top, line, unit)
+                ax.set_title(f"{what} errors {when} calibration", color=colour)
+                ax.set_xlabel(f"{what} error ({unit})")
+        fig.subplots_adjust(wspace=0.25, hspace=0.55)
+    return _plot("histograms", "histograms of the position (and rotation) errors before and after calibration",
+                 draw, figsize=(10.5, 3.4 * len(kinds)))
+
+
+# -- correlation ------------------------------------------------------------------------------------
+
+def plot_correlation(d: dict) -> str:
+    """The correlation matrix of the identified parameters as a heatmap, every label in full (SVG)."""
+    names = [p["name"] for p in d["parameters"]]
+    corr = np.asarray([[np.nan if v is None else v for v in row] for row in d["correlation"]], dtype=float)
+    n = len(names)
+    size = max(3.5, 0.16 * n + 1.6)
+    font = 7 if n <= 40 else 5.5
+
+    def draw(fig):
+        ax = fig.subplots()
+        im = ax.imshow(corr.reshape(n, n), cmap="RdBu_r", vmin=-1, vmax=1, interpolation="nearest")
+        ax.set_xticks(range(n), names, rotation=90, fontsize=font)
+        ax.set_yticks(range(n), names, fontsize=font)
+        ax.grid(False)
+        ax.set_xticks([i - 0.5 for i in range(1, n)], minor=True)
+        ax.set_yticks([i - 0.5 for i in range(1, n)], minor=True)
+        ax.grid(which="minor", color="white", lw=0.5)
+        ax.tick_params(which="minor", length=0)
+        cb = fig.colorbar(im, ax=ax, fraction=0.035, pad=0.02, shrink=0.8)
+        cb.set_label("correlation coefficient")
+    return _plot("correlation", "correlation map of the identified parameters", draw, figsize=(size + 0.9, size))
+
+
+# -- residual vectors -------------------------------------------------------------------------------
+
+def _nice(x: float) -> float:
+    """A round length (1, 2 or 5 times a power of ten) at most ``x`` > 0."""
+    p = 10 ** math.floor(math.log10(x))
+    return next(m * p for m in (5, 2, 1) if m * p <= x)
+
+
+def residual_sample(d: dict) -> tuple[np.ndarray, np.ndarray | None, int]:
+    """(vectors (k, 3) mm, their measured points (k, 3) mm or None, number of finite vectors): at most
+    ``VECTORS`` fit residual vectors, evenly spaced through the campaign."""
+    vec = errors_array(d, "fit_residual_vectors")
+    if vec is None:
+        return np.zeros((0, 3)), None, 0
+    vec = vec.reshape(-1, 3) * MM
+    pos = errors_array(d, "fit_positions")
+    pos = pos.reshape(-1, 3) * MM if pos is not None and pos.size == vec.size else None
+    ok = np.isfinite(vec).all(axis=1) & (np.isfinite(pos).all(axis=1) if pos is not None else True)
+    idx = np.nonzero(ok)[0]
+    n = len(idx)
+    if n > VECTORS:
+        idx = idx[np.linspace(0, n - 1, VECTORS).round().astype(int)]
+    return vec[idx], None if pos is None or not n else pos[idx], n
+
+
+def plot_residuals(d: dict) -> str:
+    """Fit residual vectors (calibrated minus measured) on the XY, XZ and YZ planes, with a scale bar
+    (SVG). With the measured points stored the arrows start at them, scaled up; otherwise at a
+    common origin. At most ``VECTORS`` arrows, evenly spaced through the campaign."""
+    res, pts, _ = residual_sample(d)
+    # arrows scaled to the typical residual, not the largest: one outlier must not shrink them all
+    length = float(np.percentile(np.linalg.norm(res, axis=1), 90)) if len(res) else 0.0
+    length = length or 1e-3
+    bar = _nice(length * 0.5)
+    at_points = pts is not None
+    if at_points:
+        span = float((pts.max(axis=0) - pts.min(axis=0)).max()) or 1.0
+        gain = _nice(0.08 * span / length)
+    else:
+        pts, gain = np.zeros_like(res), 1.0
+
+    def draw(fig):
+        axes = fig.subplots(1, 3)
+        for ax, (a, b, i, j) in zip(axes, (("X", "Y", 0, 1), ("X", "Z", 0, 2), ("Y", "Z", 1, 2))):
+            ax.quiver(pts[:, i], pts[:, j], gain * res[:, i], gain * res[:, j], angles="xy", scale_units="xy",
+                      scale=1, color=AFTER, width=0.005, headwidth=3, headlength=3.5, headaxislength=3, zorder=2)
+            if at_points:
+                ax.scatter(pts[:, i], pts[:, j], s=4, color="#555", zorder=3, lw=0)
+                xs = np.concatenate([pts[:, i], pts[:, i] + gain * res[:, i]])
+                ys = np.concatenate([pts[:, j], pts[:, j] + gain * res[:, j]])
+                pad = 0.08 * max(np.ptp(xs) if xs.size else 0, np.ptp(ys) if ys.size else 0, 1e-9)
+                ax.set_xlim(xs.min() - pad if xs.size else -1, xs.max() + pad if xs.size else 1)
+                ax.set_ylim(ys.min() - pad if ys.size else -1, ys.max() + pad if ys.size else 1)
+                ax.set_xlabel(f"{a} (mm)")
+                ax.set_ylabel(f"{b} (mm)")
+            else:
+                r = 1.15 * (float(np.linalg.norm(res, axis=1).max()) if len(res) else length)
+                ax.set_xlim(-r, r)
+                ax.set_ylim(-r, r)
+                ax.axhline(0, color="#999", lw=0.6)
+                ax.axvline(0, color="#999", lw=0.6)
+                ax.set_xlabel(f"residual {a} (mm)")
+                ax.set_ylabel(f"residual {b} (mm)")
+            _scale_bar(ax, a + b, gain, bar, at_points)
+        fig.subplots_adjust(wspace=0.35)
+    return _plot("residuals", "fit residual vectors projected on the XY, XZ and YZ planes", draw,
+                 figsize=(11.0, 4.0))
+
+
+def _scale_bar(ax, plane: str, gain: float, bar: float, at_points: bool) -> None:
+    from matplotlib.ticker import MaxNLocator
+
+    ax.set_aspect("equal", adjustable="box")
+    ax.set_title(f"{plane} plane")
+    for axis in (ax.xaxis, ax.yaxis):
+        axis.set_major_locator(MaxNLocator(4, symmetric=not at_points))
+    ax.tick_params(labelsize=8)
+    x0, x1 = ax.get_xlim()
+    y0, y1 = ax.get_ylim()
+    bx, by = x0 + 0.06 * (x1 - x0), y0 + 0.07 * (y1 - y0)
+    ax.plot([bx, bx + gain * bar], [by, by], color="#222", lw=2.2, solid_capstyle="butt")
+    ax.text(bx, by + 0.025 * (y1 - y0), f"{bar:g} mm", ha="left", va="bottom", fontsize=8)
+
+
+# -- residuals against where the robot was -------------------------------------------------------
+
+def _stacked(d: dict, key: str) -> np.ndarray | None:
+    """Fitted then held-out poses of ``errors.fit_<key>`` and ``errors.validation_<key>``."""
+    parts = [errors_array(d, f"{s}_{key}") for s in ("fit", "validation")]
+    if parts[0] is None:
+        return None
+    return parts[0] if parts[1] is None else np.concatenate(parts)
+
+
+def binned_median(x: np.ndarray, y: np.ndarray, bins: int = TREND_BINS) -> dict:
+    """The trend of ``y`` against ``x``: median and quartiles of ``y`` in bins of equal counts of points.
+
+    Returns {"x": bin centres (median x), "median", "q25", "q75"} as arrays (empty without data).
+    """
+    ok = np.isfinite(x) & np.isfinite(y)
+    x, y = x[ok], y[ok]
+    bins = min(bins, len(x) // 8)
+    if bins < 2:
+        return {k: np.zeros(0) for k in ("x", "median", "q25", "q75")}
+    order = np.argsort(x, kind="stable")
+    groups = np.array_split(order, bins)
+    return {"x": np.array([np.median(x[g]) for g in groups]),
+            "median": np.array([np.median(y[g]) for g in groups]),
+            "q25": np.array([np.percentile(y[g], 25) for g in groups]),
+            "q75": np.array([np.percentile(y[g], 75) for g in groups])}
+
+
+def residual_trends(d: dict, joint_names, joint_units, base_position) -> dict | None:
+    """What the trend plot draws: residual components after calibration against reach, height and
+    each joint's reading, fitted and held-out poses together.
+
+    ``joint_names``/``joint_units`` (SI unit per reading), ``base_position`` (m, in W). Reach is the
+    horizontal distance of the measured point from the base's vertical axis, height its height above
+    the base origin. Returns {"rows": [(label, unit)], "columns": [(label, unit)], "points": n,
+    "trends": {(row label, column label): binned_median(...)}}
+    or None when the result holds no measured points.
+    """
+    vec, pos, q = _stacked(d, "residual_vectors"), _stacked(d, "positions"), _stacked(d, "readings")
+    if vec is None or pos is None or q is None or pos.shape != vec.shape or len(q) != len(vec):
+        return None
+    n, m = vec.shape[:2]
+    rel = pos - np.asarray(base_position, dtype=float)
+    xs = [("reach", "mm", np.hypot(rel[..., 0], rel[..., 1]) * MM), ("height", "mm", rel[..., 2] * MM)]
+    for j, (name, unit) in enumerate(zip(joint_names, joint_units)):
+        shown = "deg" if unit == "rad" else "mm"
+        xs.append((f"{name} reading", shown, np.repeat(q[:, j:j + 1], m, axis=1) * (DEG if unit == "rad" else MM)))
+    ys = [(f"d{c}", "mm", vec[..., i] * MM) for i, c in enumerate("xyz")]
+    rot = _stacked(d, "rotation_after")
+    if rot is not None and rot.shape == (n, m):
+        ys.append(("rotation error", "deg", rot * DEG))
+    trends = {(ylab, xlab): binned_median(x.ravel(), y.ravel()) for ylab, _, y in ys for xlab, _, x in xs}
+    return {"rows": [(lab, u) for lab, u, _ in ys], "columns": [(lab, u) for lab, u, _ in xs], "points": n * m,
+            "trends": trends}
+
+
+def _ticks(lo: float, hi: float, n: int = 3) -> list[float]:
+    """About ``n`` round values within [lo, hi]."""
+    step = _nice((hi - lo) / max(n - 1, 1)) if hi > lo else 1.0
+    first = math.ceil(lo / step) * step
+    return [first + k * step for k in range(int((hi - first) / step + 1e-9) + 1)]
+
+
+def _span(values: list[np.ndarray]) -> tuple[float, float]:
+    v = np.concatenate([x for x in values if x.size]) if any(x.size for x in values) else np.zeros(1)
+    lo, hi = float(v.min()), float(v.max())
+    pad = 0.06 * (hi - lo) or 1e-3
+    return lo - pad, hi + pad
+
+
+# panel size, gaps and margins of the trend grid (SVG user units, about pixels)
+PANEL_W, PANEL_H, GAP, LEFT, BOTTOM = 150, 92, 10, 62, 40
+
+
+def plot_residual_trends(trends: dict) -> str:
+    """A grid of small panels: each residual component (rows) against reach, height and each joint's
+    reading (columns), the binned median as a line over the interquartile band (SVG, written
+    directly: a grid of dozens of panels would take matplotlib seconds)."""
+    rows, cols, data = trends["rows"], trends["columns"], trends["trends"]
+    yspan = [_span([data[(r, c)][k] for c, _ in cols for k in ("q25", "q75", "median")] + [np.zeros(1)])
+             for r, _ in rows]
+    xspan = [_span([data[(r, c)]["x"] for r, _ in rows]) for c, _ in cols]
+    width = LEFT + len(cols) * (PANEL_W + GAP)
+    height = 8 + len(rows) * (PANEL_H + GAP) + BOTTOM
+    out = [f'<svg data-plot="residual-trends" role="img" aria-label="residual components against reach, height and '
+           f'each joint\'s reading" xmlns="http://www.w3.org/2000/svg" viewBox="0 0 {width} {height}" '
+           f'width="{width}" height="{height}" font-family="DejaVu Sans, Helvetica, Arial, sans-serif" '
+           'font-size="9" fill="#444">']
+    for i, (r, runit) in enumerate(rows):
+        y0 = 8 + i * (PANEL_H + GAP)
+        lo, hi = yspan[i]
+
+        def py(v, y0=y0, lo=lo, hi=hi):
+            return y0 + PANEL_H * (hi - v) / (hi - lo)
+        out.append(f'<text transform="translate(12 {y0 + PANEL_H / 2:.1f}) rotate(-90)" text-anchor="middle" '
+                   f'font-size="10" fill="#222">{html.escape(r)} ({runit})</text>')
+        out += [f'<text x="{LEFT - 4}" y="{py(t) + 3:.1f}" text-anchor="end">{t:.3g}</text>' for t in _ticks(lo, hi)]
+        for j, (c, _) in enumerate(cols):
+            x0 = LEFT + j * (PANEL_W + GAP)
+            xl, xh = xspan[j]
+            out.append(_trend_panel(data[(r, c)], x0, y0, (xl, xh), py))
+    for j, (c, cunit) in enumerate(cols):
+        x0 = LEFT + j * (PANEL_W + GAP)
+        xl, xh = xspan[j]
+        base = 8 + len(rows) * (PANEL_H + GAP) - GAP
+        out += [f'<text x="{x0 + PANEL_W * (t - xl) / (xh - xl):.1f}" y="{base + 11}" text-anchor="middle">{t:.4g}</text>'
+                for t in _ticks(xl, xh)]
+        out.append(f'<text x="{x0 + PANEL_W / 2}" y="{base + 26}" text-anchor="middle" font-size="10" fill="#222">'
+                   f"{html.escape(c)} ({cunit})</text>")
+    return "".join(out) + "</svg>"
+
+
+def _trend_panel(t: dict, x0: float, y0: float, xspan: tuple, py) -> str:
+    """One panel: frame, zero line, interquartile band and median polyline."""
+    xl, xh = xspan
+
+    def px(v):
+        return x0 + PANEL_W * (v - xl) / (xh - xl)
+    parts = [f'<rect x="{x0}" y="{y0}" width="{PANEL_W}" height="{PANEL_H}" fill="#fafbfc" stroke="#8a9099" '
+             'stroke-width="0.6"/>',
+             f'<path d="M{x0} {py(0):.1f}H{x0 + PANEL_W}" stroke="#888" stroke-width="0.6"/>']
+    if len(t["x"]):
+        band = [f"{px(x):.1f} {py(v):.1f}" for x, v in zip(t["x"], t["q75"])]
+        band += [f"{px(x):.1f} {py(v):.1f}" for x, v in zip(t["x"][::-1], t["q25"][::-1])]
+        parts.append(f'<path d="M{"L".join(band)}Z" fill="{AFTER}" fill-opacity="0.2" stroke="none"/>')
+        line = "L".join(f"{px(x):.1f} {py(v):.1f}" for x, v in zip(t["x"], t["median"]))
+        parts.append(f'<path d="M{line}" fill="none" stroke="{AFTER}" stroke-width="1.4"/>')
+    return "".join(parts)
