@@ -186,6 +186,7 @@ def _edit(d, path, value):
     (("errors", "fit_residual_vectors"), [[]]), (("identifiability",), {}), (("checks", 0), 3),
     (("nominal_model", "frames"), []), (("covariance",), [[1.0]]), (("stats", "fit_before", "n"), -1),
     (("errors", "markers"), [None]), (("provenance",), "x"), (("notes",), [1]),
+    (("provenance", "data", "labels", 2), {}), (("provenance", "data", "n_poses"), "x"), (("provenance", "date"), []),
 ])
 def test_report_on_a_broken_result_refuses_in_one_line(tmp_path, cli, result_text, path, value):
     pytest.importorskip("matplotlib")
