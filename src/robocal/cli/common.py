@@ -100,17 +100,18 @@ def limit_mm(text: str) -> float:
 
 
 def _limit_from_file(path: str) -> float:
-    import json
+    from .._files.text import load_json, read_text
 
+    if not Path(path).exists():
+        raise argparse.ArgumentTypeError(f"{excerpt(path)}: no such file (expected mm or a limit file)")
     try:
-        with open(path, encoding="utf-8") as fh:
-            doc = json.load(fh)
+        doc = load_json(read_text(path)[0], path)  # bounded and checked like every robocal file
         if not str(doc["schema"]).startswith("robocal.limit/") or doc["unit"] != "m":
             raise KeyError("schema")
         value = doc["limit"]
-    except FileNotFoundError:
-        raise argparse.ArgumentTypeError(f"{path}: no such file (expected mm or a limit file)") from None
-    except (OSError, ValueError, KeyError, TypeError):
+    except InputError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+    except (KeyError, TypeError):
         raise argparse.ArgumentTypeError(f"{path}: not a limit file ('robocal limit --out' writes one)") from None
     if not isinstance(value, (int, float)) or isinstance(value, bool) or not 0.0 < value <= 1.0:
         raise argparse.ArgumentTypeError(f"{path}: limit: expected a positive number of metres (up to 1)")
