@@ -232,6 +232,7 @@ def test_json_duplicate_names_both_lines(tmp_path):
     (("limit", "{m}", "--repeatability-mm", "1", *LIMIT_ARGS, "--samples", "1e12", "--out", "{d}/l.json"),
      "--samples"),
     (("calibrate", "{m}"), "required"),
+    (("simulate", "{m}", "--out", "{d}/s.csv", "--poses", "5", "--true-model", "9" * 5000), "..."),
 ])
 def test_every_option_checked_at_parse_time_in_one_line(files, cli, argv, option):
     argv = [a.format(m=files / "model.yaml", d=files) for a in argv]
