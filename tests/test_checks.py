@@ -2,6 +2,7 @@
 command line; no false alarm on clean campaigns; outliers named; weak parameters handled."""
 
 import json
+from pathlib import Path
 import warnings
 from dataclasses import replace
 
@@ -379,3 +380,37 @@ def test_fair_before_registers_base_and_tool():
     # the nominal geometry with its base and tool fitted: millimetres, not the metres of the guess
     assert res.stats.fit_before.mean < 10e-3
     assert any("base and markers fitted" in n for n in res.notes)
+
+
+def test_weak_parameters_are_judged_at_the_scatter_the_fit_shows():
+    """Residuals of the robot's own size and no limit given: the shipped TH8 campaign holds back what
+    the limit-aware calibration holds back, and only the fit against the instrument warns."""
+    th8 = Path(__file__).resolve().parents[1] / "examples" / "th8"
+    nominal = rc.read_model(th8 / "model.yaml")
+    fit, val = rc.split_sets(rc.read_measurements(th8 / "measurements.csv", nominal))
+    kw = dict(validation=val, parameters=("geometric", "compliance"), known=("markers",))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        plain, aware = rc.calibrate(nominal, fit, **kw), rc.calibrate(nominal, fit, limit=0.483e-3, **kw)
+
+    def weak(r):
+        return {a.name for a in r.identifiability.eliminated if a.reason.startswith("is weakly identifiable")}
+    assert weak(plain) and weak(plain) == weak(aware)
+    assert {c.name for c in plain.checks if c.status != "pass"} == {"fit against the instrument"}
+    assert plain.verdict == "warn" and any("times the expected" in n for n in plain.notes)
+
+
+def test_outlier_bar_rises_with_the_campaign_so_clean_noise_names_no_point():
+    """200,000 clean points: a fixed bar of 5 would name about three of them; the risen one names
+    none, and still names a 10-sigma blunder among them."""
+    from robocal.identification import Noise, outlier_bar, outlier_check
+    n = 200_000
+    residuals = np.random.default_rng(7).normal(scale=NOISE, size=(n, 3))
+    labels = [f"pose {i}, marker tool" for i in range(n)]
+    assert (np.linalg.norm(residuals, axis=1) / NOISE > 5.0).sum() >= 1      # what a fixed bar would name
+    check, out = outlier_check(residuals, None, Noise.of(position=NOISE), labels)
+    assert check.status == "pass" and not out.any() and outlier_bar(n) > 5.5
+    residuals[123] = [10 * NOISE, 0, 0]
+    check, out = outlier_check(residuals, None, Noise.of(position=NOISE), labels)
+    assert check.status == "fail" and np.flatnonzero(out).tolist() == [123] and check.items[0].startswith("pose 123,")
+

@@ -126,3 +126,22 @@ def test_placement_errors(edit, where, words):
     with pytest.raises(rc.InputError) as err:
         rc.model_from_dict(d, source="t.yaml")
     assert err.value.where == where and words in str(err.value)
+
+
+def test_report_and_summary_show_every_nonzero_nominal_the_calibrated_file_keeps():
+    from robocal._presentation.html import render_report
+    from robocal._presentation.text import calibration_summary
+
+    model = rc.model_from_dict(TABLE)
+    _, data = rc.simulate(model, 30, seed=4)
+    result = rc.calibrate(model, data)
+    lay = dict(zip(rc.parameter_names(model), rc.parameter_vector(result.calibrated_model)))
+    held = dict(result.held_nominals)
+    considered = set(result.identifiability.candidates)
+    # exactly the non-zero values outside the candidates (rotation corrections are zero in a model)
+    assert held == {n: v for n, v in lay.items() if v != 0.0 and n not in considered}
+    assert {"ltcp.beta", "rtcp.gamma"} <= set(held)
+    summary = calibration_summary(result)
+    assert f"kept at nominal, not candidates ({len(held)} non-zero)" in summary and "rtcp.gamma" in summary
+    html = render_report(result)
+    assert f"{np.rad2deg(held['rtcp.gamma']):.5f}"[:7] in html   # shown in the frame table's nominal row

@@ -36,3 +36,10 @@ def test_pattern_on_the_command_line_lists_the_names_matched(tmp_path, cli):
     line = next(ln for ln in out.splitlines() if "'*.theta' matched" in ln)
     assert all(f"j{i}.theta" in line for i in range(1, 7))
     assert "'tool.*' matched: tool.x, tool.y, tool.z" in out
+
+
+def test_identifiability_command_lists_the_names_matched(tmp_path, cli):
+    rc.write_model(arm6r(), tmp_path / "m.yaml")
+    code, out, err = cli("identifiability", tmp_path / "m.yaml", "--parameters", "j2.*", "--poses", "30")
+    assert code == 0, err
+    assert "note: parameters 'j2.*' matched: j2.alpha, j2.d, j2.theta, j2.r" in out

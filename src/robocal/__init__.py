@@ -17,7 +17,7 @@ _EVERYDAY = {
     "kinematics": ("Frame", "Marker", "Payload", "RobotModel", "serial_model", "parallel_beta_frames",
                    "mdh_transform", "evaluate", "forward_kinematics", "jacobian", "gravity_loads", "joint_jacobian",
                    "parameter_names", "parameter_vector", "model_from_vector", "candidate_parameters",
-                   "random_configurations"),
+                   "random_configurations", "default_masses"),
     "io": ("Measurements", "read_model", "write_model", "model_from_dict", "model_to_dict", "read_measurements",
            "write_measurements", "split_sets", "read_result", "write_result", "read_urdf", "write_urdf",
            "from_standard_dh", "mdh_table", "write_mdh_csv", "read_dh_table", "urdf_text", "to_standard_dh", "read_repeatability_csv"),

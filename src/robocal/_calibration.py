@@ -14,15 +14,15 @@ from datetime import datetime, timezone
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ._checks import (OUTLIER_SHARE_MAX, Check, backlash_sign_check, cloud_size_check, compliance_sign_check,
+from ._checks import (FIT_RATIO, OUTLIER_SHARE_MAX, ROBOT_RESIDUAL_MAX, Check, backlash_sign_check, cloud_size_check, compliance_sign_check,
                       convergence_check,
                       correlation_check, expected_noise, fit_check, identifiability_check, markers_check,
                       outlier_check, plausibility_check, reading_units_check, readings_check, support_check,
                       tolerances, verdict)
 from ._errors import (CheckWarning, ConvergenceWarning, DegenerateDataError, IdentifiabilityWarning, InputError,
                       MisfitWarning, check_choice)
-from ._identifiability import (DEFAULT_TOL, IdentifiabilityResult, analyse, theoretical_identifiability,
-                               weakly_identifiable)
+from ._identifiability import (DEFAULT_TOL, IdentifiabilityResult, analyse, backlash_reasons,
+                               theoretical_identifiability, weakly_identifiable)
 from ._identifiability import eliminate as eliminate_parameters
 from ._kinematics import evaluate
 from ._measurements import Measurements, Noise
@@ -176,6 +176,17 @@ class CalibrationResult:
     def parameter_names(self) -> tuple[str, ...]:
         return tuple(p.name for p in self.parameters)
 
+    @property
+    def held_nominals(self) -> tuple[tuple[str, float], ...]:
+        """``(name, SI value)`` of every non-zero parameter the calibrated model keeps that was not a
+        candidate (a fixed mount's gamma and b, a known marker): the report shows them beside the
+        identified ones, so nothing the calibrated file holds is hidden."""
+        lay = parameter_layout(self.calibrated_model)
+        values = parameter_vector(self.calibrated_model)
+        considered = set(self.identifiability.candidates) | set(self.parameter_names)
+        return tuple((p.name, float(values[p.index])) for p in lay.parameters
+                     if p.name not in considered and values[p.index] != 0.0)
+
 
 def register_base(model: RobotModel, data: Measurements) -> RobotModel:
     """The model with ``X_WB`` from a closed-form rigid registration (Kabsch/Horn, via scipy).
@@ -246,11 +257,10 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
               cloud_size_check(model, data, _predicted(model, data)), markers_check(model, data)]
     notes = list(model.notes) + list(data.extra.get("notes", ()))  # what the readers decided for the user
     start = _starting_model(model, data, initial_base, notes)
-    design = _analyse(start, data, parameters, known + _unmeasured(model, data), tol, notes,
-                      noise=noise, limit_m=limit_m, weak=weak)
-    solution, outlier_check, outlying = _solve(design, data, noise, notes, loss=loss, f_scale=f_scale,
-                                                max_nfev=max_nfev, on_outliers=on_outliers,
-                                                nonnegative_compliance=nonnegative_compliance)
+    design, (solution, outlier_check, outlying) = _identify(
+        start, data, parameters, known + _unmeasured(model, data), tol, notes, noise=noise, limit_m=limit_m,
+        weak=weak, solve_options=dict(loss=loss, f_scale=f_scale, max_nfev=max_nfev, on_outliers=on_outliers,
+                                      nonnegative_compliance=nonnegative_compliance))
     cov = covariance(solution)
     estimates = _estimates(design, solution, cov)
     checks += [outlier_check] + _result_checks(design, solution, cov, estimates, data, noise, limit_m, outlying)
@@ -318,8 +328,40 @@ def _starting_model(model: RobotModel, data: Measurements, initial_base: str, no
     return register_base(model, data)
 
 
+def _identify(start: RobotModel, data: Measurements, parameters: tuple, known: tuple, tol: float, notes: list, *,
+              noise: Noise, limit_m: float | None, weak: str, solve_options: dict):
+    """The design and its solution. Weak parameters are first judged at the noise expected. When the
+    fit leaves residuals well above it, spread over every point (no outlier) and of a size a robot's
+    repeatability or an unmodelled effect explains, they are judged again at the scatter the fit
+    shows, and the fit repeated without those it cannot pin down. Larger residuals are a mistake in
+    the data or the model, which the checks name; they are left to them."""
+    design = _analyse(start, data, parameters, known, tol, notes, noise=noise, limit_m=limit_m, weak=weak)
+    solved = _solve(design, data, noise, notes, **solve_options)
+    expected, _ = expected_noise(noise, limit_m)
+    scatter = _scatter(design, solved[0], data, solved[2])
+    if weak != "eliminate" or solved[2].any() or not FIT_RATIO * expected < scatter <= ROBOT_RESIDUAL_MAX:
+        return design, solved
+    try:
+        wider = _analyse(start, data, parameters, known, tol, [], noise=noise, limit_m=limit_m, weak=weak,
+                         scatter=scatter)
+    except DegenerateDataError:
+        return design, solved
+    if wider.identifiability.identified == design.identifiability.identified:
+        return design, solved
+    notes.append(f"residuals of {scatter * 1e3:.3g} mm per axis, {scatter / expected:.3g} times the expected "
+                 f"{expected * 1e3:.3g} mm: the parameters these poses cannot pin down at that scatter are held at "
+                 "nominal and the fit repeated")
+    return wider, _solve(wider, data, noise, notes, **solve_options)
+
+
+def _scatter(design: _Design, solution: Solution, data: Measurements, outlying: np.ndarray) -> float:
+    """Per-axis RMS (m) of the position residuals, outliers left out."""
+    r = design.problem.errors(solution.p)[data.mask][~outlying]
+    return float(np.sqrt(np.mean(r ** 2))) if r.size else 0.0
+
+
 def _analyse(start: RobotModel, data: Measurements, parameters: tuple, known: tuple, tol: float,
-             notes: list, *, noise: Noise, limit_m: float | None, weak: str) -> _Design:
+             notes: list, *, noise: Noise, limit_m: float | None, weak: str, scatter: float = 0.0) -> _Design:
     """Which candidates the data can identify, and pin down; refuse data that cannot determine them."""
     orientation = data.has_orientation
     names = candidate_parameters(start, parameters, orientation=orientation, known=known)
@@ -344,8 +386,9 @@ def _analyse(start: RobotModel, data: Measurements, parameters: tuple, known: tu
     J = prob.reduced_jacobian(parameter_vector(start))
     lay = parameter_layout(start)
     ident = analyse(J, names, tol=tol, quantities=[lay[n].quantity for n in names], n_rows=prob.n_rows)
+    ident = backlash_reasons(ident, prob)
     lost = tuple(n for n in theory.identified if n not in ident.identified and n in names)
-    ident, weak_found = _weak(prob, J, names, ident, noise, limit_m, eliminate=weak == "eliminate")
+    ident, weak_found = _weak(prob, J, names, ident, noise, limit_m, scatter, eliminate=weak == "eliminate")
     if not ident.identified:
         raise DegenerateDataError("no parameter is identifiable from these data")
     free = prob.over(ident.identified)   # the solve starts where the analysis evaluated the model
@@ -355,14 +398,14 @@ def _analyse(start: RobotModel, data: Measurements, parameters: tuple, known: tu
                    compliance=compliance, lost=lost, weak=weak_found, weak_kept=weak == "flag")
 
 
-def _weak(prob: Problem, J: np.ndarray, names, ident: IdentifiabilityResult, noise: Noise, limit_m, *,
-          eliminate: bool):
+def _weak(prob: Problem, J: np.ndarray, names, ident: IdentifiabilityResult, noise: Noise, limit_m,
+          scatter: float, *, eliminate: bool):
     """The analysis with weakly identifiable parameters eliminated (or only named), and those
     parameters with their predicted standard deviations. Eliminating one may let an equivalent one
     in (a member of the same dependent group): the analysis repeats until none is weak."""
     lay = parameter_layout(prob.model)
     p0 = parameter_vector(prob.model)
-    expected, _ = expected_noise(noise, limit_m)
+    expected = max(expected_noise(noise, limit_m)[0], scatter)
     sigma = expected / noise.position if prob.weighted else expected   # weighted rows are in noise units
     quantities = [lay[n].quantity for n in names]
     moments = prob.compliance_moments(p0)
@@ -569,11 +612,14 @@ def provenance(data: Measurements, validation: Measurements | None = None) -> di
 
 @dataclass(frozen=True, eq=False)
 class Comparison:
-    """Geometric-only against geometric-and-compliance identification on the same data.
+    """Geometric-only against geometric-and-compliance identification on the same data, and, when
+    asked, against geometric, compliance and backlash together (the third).
 
     ``f_statistic``/``p_value``: the nested-model F test on the fitted residuals (does adding the
     compliance parameters reduce the residual more than their number explains?). ``helped`` is
     True when p < ``alpha`` and, with held-out poses, the held-out RMS error fell too.
+    ``backlash``, ``backlash_f``, ``backlash_p``, ``backlash_helped``: the same test of the third
+    against the second (None and False without it). ``verdict`` says both.
     """
 
     geometric: CalibrationResult
@@ -582,37 +628,65 @@ class Comparison:
     p_value: float
     helped: bool
     verdict: str
+    backlash: CalibrationResult | None = None
+    backlash_f: float | None = None
+    backlash_p: float | None = None
+    backlash_helped: bool = False
 
     @property
     def best(self) -> CalibrationResult:
+        if self.backlash is not None and self.backlash_helped:
+            return self.backlash
         return self.combined if self.helped else self.geometric
+
+    @property
+    def results(self) -> dict:
+        """The identifications side by side, by what they identify."""
+        out = {"geometric": self.geometric, "geometric and compliance": self.combined}
+        if self.backlash is not None:
+            out["geometric, compliance and backlash"] = self.backlash
+        return out
+
+
+def _nested_test(small: CalibrationResult, large: CalibrationResult, data: Measurements, validation, alpha: float,
+                 what: str):
+    """F test of ``large`` against ``small`` nested in it, and the held-out RMS: (F, p, helped, verdict)."""
+    from scipy.stats import f as f_dist
+
+    n_rows = 3 * int(data.mask.sum()) + (3 * int(data.rot_mask.sum()) if data.has_orientation else 0)
+    p1, p2 = len(small.parameters), len(large.parameters)
+    ssr1 = small.sigma0 ** 2 * (n_rows - p1)
+    ssr2 = large.sigma0 ** 2 * (n_rows - p2)
+    dfn, dfd = max(p2 - p1, 1), n_rows - p2
+    F = max((ssr1 - ssr2) / dfn, 0.0) / (ssr2 / dfd)
+    p_value = float(f_dist.sf(F, dfn, dfd))
+    on = "validation_after" if validation is not None else "fit_after"
+    v1, v2 = small.stats[on].rms, large.stats[on].rms
+    helped = p_value < alpha and (validation is None or v2 < v1)
+    detail = f"{'held-out' if validation is not None else 'fitted'} RMS {v1 * 1e3:.4f} mm -> {v2 * 1e3:.4f} mm"
+    verdict = (f"{what} helped: {detail}; F = {F:.3g}, p = {p_value:.2g}" if helped else
+               f"{what} did not help: {detail}; F = {F:.3g}, p = {p_value:.2g} (threshold {alpha})")
+    return float(F), p_value, bool(helped), verdict
 
 
 @one_blas_thread
 def compare(model: RobotModel, data: Measurements, *, validation: Measurements | None = None, alpha: float = 0.01,
-            **kwargs) -> Comparison:
-    """Run geometric and geometric-plus-compliance identifications on the same data (the paper's two).
+            backlash: bool = False, **kwargs) -> Comparison:
+    """Run geometric and geometric-plus-compliance identifications on the same data (the paper's two),
+    and with ``backlash`` a third, geometric + compliance + backlash, tested against the second.
 
-    Keyword arguments other than ``parameters`` go to both ``calibrate`` calls.
+    Keyword arguments other than ``parameters`` go to every ``calibrate`` call.
     """
-    from scipy.stats import f as f_dist
-
     kwargs.pop("parameters", None)
     geo = calibrate(model, data, parameters=("geometric",), validation=validation, **kwargs)
     both = calibrate(model, data, parameters=("geometric", "compliance"), validation=validation, **kwargs)
-    n_rows = 3 * int(data.mask.sum()) + (3 * int(data.rot_mask.sum()) if data.has_orientation else 0)
-    p1, p2 = len(geo.parameters), len(both.parameters)
-    ssr1 = geo.sigma0 ** 2 * (n_rows - p1)
-    ssr2 = both.sigma0 ** 2 * (n_rows - p2)
-    dfn, dfd = max(p2 - p1, 1), n_rows - p2
-    F = max((ssr1 - ssr2) / dfn, 0.0) / (ssr2 / dfd)
-    p_value = float(f_dist.sf(F, dfn, dfd))
-    significant = p_value < alpha
-    on = "validation_after" if validation is not None else "fit_after"
-    v1, v2 = geo.stats[on].rms, both.stats[on].rms
-    helped = significant and (validation is None or v2 < v1)
-    detail = f"{'held-out' if validation is not None else 'fitted'} RMS {v1 * 1e3:.4f} mm -> {v2 * 1e3:.4f} mm"
-    verdict = (f"compliance helped: {detail}; F = {F:.3g}, p = {p_value:.2g}" if helped else
-               f"compliance did not help: {detail}; F = {F:.3g}, p = {p_value:.2g} (threshold {alpha})")
-    return Comparison(geometric=geo, combined=both, f_statistic=float(F), p_value=p_value, helped=bool(helped),
-                      verdict=verdict)
+    F, p_value, helped, verdict = _nested_test(geo, both, data, validation, alpha, "compliance")
+    third = {}
+    if backlash:
+        res = calibrate(model, data, parameters=("geometric", "compliance", "backlash"), validation=validation,
+                        **kwargs)
+        bF, bp, bh, bv = _nested_test(both, res, data, validation, alpha, "backlash")
+        third = dict(backlash=res, backlash_f=bF, backlash_p=bp, backlash_helped=bh)
+        verdict = f"{verdict}\n{bv}"
+    return Comparison(geometric=geo, combined=both, f_statistic=F, p_value=p_value, helped=helped, verdict=verdict,
+                      **third)

@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.special import gammainccinv
 
 from ._measurements import Measurements, Noise
 from ._model import RobotModel
@@ -20,8 +21,10 @@ STATUSES = ("pass", "warn", "fail")
 FIT_RATIO = 3.0
 # residual RMS per axis (m) beyond which no calibrated robot explains the misfit, whatever its noise
 ROBOT_RESIDUAL_MAX = 1e-3
-# a measured point is an outlier beyond this many robust standard deviations (3D residual norm)
+# a measured point is an outlier beyond this many robust standard deviations (3D residual norm),
+# raised on large campaigns so that clean Gaussian noise names a point in at most this share of them
 OUTLIER_SIGMAS = 5.0
+OUTLIER_FALSE_ALARM = 0.01
 # beyond this share of outliers the data do not fit: a robust refit would hide a real misfit
 OUTLIER_SHARE_MAX = 0.2
 # an estimate within this many standard deviations of its nominal is not supported by the data
@@ -231,6 +234,18 @@ def fit_check(residuals: np.ndarray, sigma: np.ndarray | None, noise: Noise, lim
                  fix="give the limit of absolute accuracy (--limit) or the expected noise (--noise-mm) to judge")
 
 
+def outlier_bar(n_points: int) -> float:
+    """The outlier threshold in robust standard deviations for ``n_points`` 3D residuals: 5, or more
+    where n points of pure Gaussian noise would put one beyond 5 in more than ``OUTLIER_FALSE_ALARM``
+    of campaigns (the norm over sigma is chi-distributed with 3 degrees of freedom).
+
+    >>> outlier_bar(48), round(outlier_bar(1_000_000), 2)
+    (5.0, 6.33)
+    """
+    tail = OUTLIER_FALSE_ALARM / max(n_points, 1)
+    return max(OUTLIER_SIGMAS, float(np.sqrt(2.0 * gammainccinv(1.5, tail))))
+
+
 def outlier_check(residuals: np.ndarray, sigma: np.ndarray | None, noise: Noise, labels) -> tuple[Check, np.ndarray]:
     """Measured points whose residual norm exceeds ``OUTLIER_SIGMAS`` robust standard deviations.
 
@@ -244,13 +259,14 @@ def outlier_check(residuals: np.ndarray, sigma: np.ndarray | None, noise: Noise,
     robust = 1.4826 * float(np.median(np.abs(comps - np.median(comps)))) if comps.size else 0.0
     scale = max(robust, noise.position) if sigma is None else np.maximum(sigma, robust)
     z = np.linalg.norm(residuals, axis=1) / scale
-    out = z > OUTLIER_SIGMAS
+    bar = outlier_bar(len(z))
+    out = z > bar
     if not out.any():
-        return Check(name, "pass", f"no measured point beyond {OUTLIER_SIGMAS:g} robust standard deviations"), out
+        return Check(name, "pass", f"no measured point beyond {bar:.3g} robust standard deviations"), out
     order = np.argsort(-z[out])
     items = tuple(f"{labels[i]}: {np.linalg.norm(residuals[i]) * 1e3:.3g} mm, {z[i]:.3g} sd"
                   for i in np.nonzero(out)[0][order])
-    return Check(name, "fail", f"{out.sum()} of {len(z)} measured point(s) beyond {OUTLIER_SIGMAS:g} robust standard "
+    return Check(name, "fail", f"{out.sum()} of {len(z)} measured point(s) beyond {bar:.3g} robust standard "
                  f"deviations: {_listed(items, 3)}", cause="a blunder: a mistyped or misassigned measurement, a "
                  "reading taken while the robot moved", fix="remove them, or refit with a robust loss "
                  "(--loss soft_l1; --on-outliers refit does it)", items=items), out
@@ -284,8 +300,8 @@ def support_check(estimates) -> Check:
     """Estimates whose change is within ``SIGNIFICANCE_SIGMAS`` standard deviations of zero.
 
     They are named, not failed: a parameter already at its true value changes by noise. A
-    compliance family none of whose estimates the data support is a warning: the geometric model
-    explains the data.
+    compliance (or backlash) family none of whose estimates the data support is a warning: the
+    model without it explains the data.
     """
     name = "estimates supported by the data"
     weak = [e for e in estimates if abs(e.change) < SIGNIFICANCE_SIGMAS * e.std]
@@ -295,6 +311,11 @@ def support_check(estimates) -> Check:
         return Check(name, "warn", f"no compliance differs from zero by {SIGNIFICANCE_SIGMAS:g} standard deviations",
                      cause="the data do not show compliance (too little load, too few poses, or none to find)",
                      fix="calibrate the geometry alone, or measure with a payload and more poses", items=items)
+    lost = [e for e in estimates if e.family == "backlash"]
+    if lost and all(e in weak for e in lost):
+        return Check(name, "warn", f"no backlash differs from zero by {SIGNIFICANCE_SIGMAS:g} standard deviations",
+                     cause="the data do not show lost motion (too little, or sides not visited both ways)",
+                     fix="calibrate without the backlash family, or approach the poses from both sides", items=items)
     if not weak:
         return Check(name, "pass", f"every change beyond {SIGNIFICANCE_SIGMAS:g} standard deviations")
     return Check(name, "pass", f"{len(weak)} change(s) within {SIGNIFICANCE_SIGMAS:g} standard deviations of zero, "

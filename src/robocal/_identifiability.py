@@ -10,7 +10,7 @@ least squares on the kept columns gives the linear combination that absorbs it.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 
 import numpy as np
@@ -27,6 +27,8 @@ NO_EFFECT = 1e-10
 # A parameter whose predicted standard deviation exceeds its bound is weakly identifiable: the rank
 # tolerance keeps it, but the data cannot pin it down (docs/checks.md). Compliances are bounded by
 # the deflection their uncertainty gives at the RMS moment of the poses.
+# a joint counts as resting on a side of its lost motion where |side| exceeds this
+ONE_SIDE = 0.5
 WEAK_STD = {"length": 1e-3, "angle": np.deg2rad(0.1), "compliance": np.deg2rad(0.1)}
 
 
@@ -235,10 +237,31 @@ def identifiability(model: RobotModel, data: Measurements | np.ndarray | None = 
 
 
 def analyse_problem(prob: Problem, names, *, tol: float = DEFAULT_TOL) -> IdentifiabilityResult:
-    """``analyse`` of a problem's Jacobian at its model's values."""
+    """``analyse`` of a problem's Jacobian at its model's values (``backlash_reasons`` added)."""
     lay = parameter_layout(prob.model)
-    return analyse(prob.jacobian(parameter_vector(prob.model)), names, tol=tol,
-                   quantities=[lay[n].quantity for n in names])
+    p = parameter_vector(prob.model)
+    res = analyse(prob.jacobian(p), names, tol=tol, quantities=[lay[n].quantity for n in names])
+    return backlash_reasons(res, prob)
+
+
+def backlash_reasons(res: IdentifiabilityResult, prob: Problem) -> IdentifiabilityResult:
+    """``res`` with each eliminated backlash saying why when its joint rests on one side (or
+    mid-gap) at every pose of ``prob``, at its model's values."""
+    sides = prob.backlash_sides(parameter_vector(prob.model))
+    if not any(a.name in sides for a in res.eliminated):
+        return res
+    return replace(res, eliminated=tuple(replace(a, reason=a.reason + _one_side(sides[a.name])) if a.name in sides
+                                         else a for a in res.eliminated))
+
+
+def _one_side(s: np.ndarray) -> str:
+    """Why a backlash whose joint never changes side cannot be told from the joint's offset."""
+    if np.all(s > ONE_SIDE) or np.all(s < -ONE_SIDE):
+        return (": its joint rests on the same side of its lost motion at every pose, so the joint offset absorbs "
+                "it (visit both sides: reverse the approach, or poses where the gravity load changes sign)")
+    if np.all(np.abs(s) < ONE_SIDE):
+        return ": its joint rests mid-gap at every pose (no gravity load to push it to a side)"
+    return ""
 
 
 @lru_cache(maxsize=32)
@@ -328,7 +351,11 @@ def eliminate(result: IdentifiabilityResult, J: np.ndarray, names, quantities, d
         terms = tuple((kept.identified[i], float(coef[i])) for i in order[:max_terms] if abs(c[i]) > 1e-6)
         extra.append(Absorption(name, reason, terms, resid))
     rank_of = {n: i for i, n in enumerate(names)}
-    eliminated = tuple(sorted(kept.eliminated + tuple(extra), key=lambda a: rank_of[a.name]))
+    # a reason the first analysis gave in more words (a one-sided backlash) is kept
+    said = {a.name: a.reason for a in result.eliminated}
+    again = tuple(replace(a, reason=said[a.name]) if said.get(a.name, "").startswith(a.reason) else a
+                  for a in kept.eliminated)
+    eliminated = tuple(sorted(again + tuple(extra), key=lambda a: rank_of[a.name]))
     return IdentifiabilityResult(candidates=tuple(names), identified=kept.identified, eliminated=eliminated,
                                  tol=kept.tol, rank=kept.rank, condition_number=kept.condition_number,
                                  singular_values=kept.singular_values, observability=kept.observability,

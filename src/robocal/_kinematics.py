@@ -3,10 +3,10 @@
 Every placement in the robot is a sequence of elementary motions ("steps"): a rotation about, or a
 translation along, a coordinate axis of the frame reached so far.
 
-* base (W -> frame 0): Trans(x_W, x) Trans(y_W, y) Trans(z_W, z) R_ref Rot(x, rx) Rot(y, ry) Rot(z, rz)
+* base (W -> frame 0): Trans(x_W, x) Trans(y_W, y) Trans(z_W, z) R_ref exp([rx, ry, rz]x) (a rotation vector)
 * frame j (parent -> j): Rot(z, gamma) Trans(z, b) Rot(y, beta) Rot(x, alpha) Trans(x, d)
   Rot(z, theta) Trans(z, r)
-* marker (its frame -> marker): Trans(x, x) Trans(y, y) Trans(z, z) R_ref Rot(x, rx) Rot(y, ry) Rot(z, rz)
+* marker (its frame -> marker): Trans(x, x) Trans(y, y) Trans(z, z) R_ref exp([rx, ry, rz]x)
 
 The derivative of a marker's pose with respect to a step's value is geometric: for a rotation about
 unit axis u through point O it is ``[u x (P - O); u]``, for a translation along u it is ``[u; 0]``,
@@ -30,7 +30,7 @@ import numpy as np
 from ._measurements import approach_sides
 from ._model import RobotModel
 from ._parameters import BASE_KINDS, MARKER_KINDS, parameter_layout, parameter_vector
-from ._spatial import cross, rot_matrix, small_rotation
+from ._spatial import cross, left_jacobian, rot_matrix, small_rotation
 from ._threads import one_blas_thread
 
 N_BASE = len(BASE_KINDS)
@@ -129,15 +129,7 @@ def layout(model: RobotModel) -> Layout:
     param_step[step_param] = np.arange(n_steps)
     param_compliant = np.full(len(names), -1, dtype=int)
     param_compliant[np.array(cparams, dtype=int)] = np.arange(len(cparams))
-    bparams = np.full(nf, -1, dtype=int)
-    jsteps = np.full(nf, -1, dtype=int)
-    for i, f in enumerate(model.frames):
-        if f.joint != "fixed":
-            rev = f.joint == "revolute"
-            bparams[i] = params.by_name[f"{f.name}.backlash_{'theta' if rev else 'r'}"].index
-            jsteps[i] = N_BASE + 7 * i + (THETA if rev else R)
-    param_backlash = np.full(len(names), -1, dtype=int)
-    param_backlash[bparams[bparams >= 0]] = np.nonzero(bparams >= 0)[0]
+    bparams, jsteps, param_backlash = _backlash_layout(model, params)
     return Layout(
         param_step=param_step, param_compliant=param_compliant, backlash_params=bparams, joint_steps=jsteps,
         param_backlash=param_backlash,
@@ -147,6 +139,22 @@ def layout(model: RobotModel) -> Layout:
         compliant_steps=np.array(csteps, dtype=int), compliant_params=np.array(cparams, dtype=int),
         anc=anc, desc=desc, subtree=subtree,
     )
+
+
+def _backlash_layout(model: RobotModel, params):
+    """Per frame, the index of its backlash parameter and the step its joint variable moves (-1 for
+    a fixed frame); per parameter, the frame of a backlash (else -1)."""
+    nf = model.n_frames
+    bparams = np.full(nf, -1, dtype=int)
+    jsteps = np.full(nf, -1, dtype=int)
+    for i, f in enumerate(model.frames):
+        if f.joint != "fixed":
+            rev = f.joint == "revolute"
+            bparams[i] = params.by_name[f"{f.name}.backlash_{'theta' if rev else 'r'}"].index
+            jsteps[i] = N_BASE + 7 * i + (THETA if rev else R)
+    param_backlash = np.full(params.n_params, -1, dtype=int)
+    param_backlash[bparams[bparams >= 0]] = np.nonzero(bparams >= 0)[0]
+    return bparams, jsteps, param_backlash
 
 
 def _frame_steps(i: int) -> np.ndarray:
@@ -282,11 +290,10 @@ def _base_placement(model: RobotModel, p: np.ndarray) -> tuple[np.ndarray, np.nd
     """The axes (6, 3) of the base steps and the rotation of frame 0 in W."""
     base_axes = np.empty((6, 3))
     base_axes[0:3] = np.eye(3)
-    Rb = np.asarray(model.base_rotation, dtype=float)
-    for k in range(3):
-        base_axes[3 + k] = Rb[:, k]
-        Rb = Rb @ rot_matrix(k, p[3 + k])
-    return base_axes, Rb
+    Rref = np.asarray(model.base_rotation, dtype=float)
+    # R = R_ref exp(v): a change dv turns the base about the columns of R_ref J_l(v), in W
+    base_axes[3:6] = (Rref @ left_jacobian(p[3:6])).T
+    return base_axes, Rref @ small_rotation(*p[3:6])
 
 
 def _frame_axes(Rp: np.ndarray, v: np.ndarray, be, al, W: np.ndarray) -> None:
@@ -367,8 +374,7 @@ def _step_axes(ps: _Pass) -> tuple[np.ndarray, np.ndarray]:
         if ps.orientations:
             v = p[lay.marker0[m] + 3:lay.marker0[m] + 6]
             Rm = np.asarray(mk.rotation, dtype=float)
-            C = np.column_stack([Rm[:, 0], (Rm @ rot_matrix(0, v[0]))[:, 1],
-                                 (Rm @ rot_matrix(0, v[0]) @ rot_matrix(1, v[1]))[:, 2]])
+            C = Rm @ left_jacobian(v)
             U[s0 + 3:s0 + 6] = _rmul(Rf, C).transpose(2, 0, 1)
             Q[s0 + 3:s0 + 6] = ps.P[m]
         else:

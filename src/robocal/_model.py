@@ -30,11 +30,10 @@ from typing import Sequence
 import numpy as np
 
 from ._errors import InputError
+from ._options import BACKLASH_SIDES
 from ._spatial import rot4, rot_matrix, trans4
 
 JOINT_TYPES = ("revolute", "prismatic", "fixed")
-# how a joint's side of its lost motion is decided per pose (see RobotModel.backlash_side)
-BACKLASH_SIDES = ("gravity", "approach")
 DEFAULT_PARALLEL_TOL = np.deg2rad(1.0)
 
 
@@ -315,7 +314,7 @@ def placement_parameters(X) -> dict[str, float]:
     parallel axes never give huge offsets.
 
     >>> X = mdh_transform(Frame("m", joint="fixed", gamma=0.3, b=0.1, alpha=-np.pi / 2, d=0.5, theta=0.2, r=0.05))
-    >>> np.abs(mdh_transform(Frame("m", joint="fixed", **placement_parameters(X))) - X).max() < 1e-12
+    >>> bool(np.abs(mdh_transform(Frame("m", joint="fixed", **placement_parameters(X))) - X).max() < 1e-12)
     True
     """
     X = np.asarray(X, dtype=float)
@@ -338,6 +337,48 @@ def placement_parameters(X) -> dict[str, float]:
     q = rot_matrix(2, -gamma) @ p
     r = -q[1] / s_alpha
     return dict(gamma=gamma, b=q[2] - r * math.cos(alpha), beta=0.0, alpha=alpha, d=q[0], theta=theta, r=r)
+
+
+# the default mass model's linear density when no total mass is given: masses are then relative,
+# and identified compliances relative compliances (docs/conventions.md)
+DEFAULT_LINK_DENSITY = 10.0   # kg per metre of link
+
+
+def default_masses(model: RobotModel, total_mass: float | None = None) -> RobotModel:
+    """``model`` with link masses assumed from its geometry, for compliance without CAD masses.
+
+    Each frame's link is the set of segments from its origin to its children's origins and to the
+    markers it carries (at zero joint variables); its mass is proportional to their total length
+    (a uniform linear density), its centre of mass their length-weighted midpoint. The masses sum
+    to ``total_mass`` (kg, the arm's catalogue mass without payloads) when given, else to
+    ``DEFAULT_LINK_DENSITY`` kg per metre. Payloads are kept. Identified compliances absorb any
+    common scale error of the masses, and are exact when the true masses are in these proportions;
+    the summary says which masses were assumed.
+
+    >>> m = default_masses(serial_model("rr", [dict(), dict(d=0.5)], markers=[("tool", (0.3, 0, 0))]), 8.0)
+    >>> [round(f.mass, 3) for f in m.frames], m.frames[1].com
+    ([5.0, 3.0], (0.15, 0.0, 0.0))
+    """
+    lengths, centres = [], []
+    for i, f in enumerate(model.frames):
+        ends = [mdh_transform(g)[:3, 3] for g in model.frames if g.parent == i]
+        ends += [np.asarray(mk.position, dtype=float) for mk in model.markers if mk.frame == i]
+        seg = np.array([np.linalg.norm(e) for e in ends]) if ends else np.zeros(0)
+        lengths.append(float(seg.sum()))
+        centres.append(tuple(float(c) for c in (sum(s * e / 2 for s, e in zip(seg, ends)) / seg.sum()))
+                       if seg.sum() > 0 else (0.0, 0.0, 0.0))
+    total_length = sum(lengths)
+    if total_length <= 0:
+        raise InputError("the model has no link of non-zero length to spread masses over", where="masses")
+    if total_mass is not None and not (np.isfinite(total_mass) and total_mass > 0):
+        raise InputError(f"the total mass must be a positive number of kg, got {total_mass}", where="total mass")
+    scale = (total_mass / total_length) if total_mass is not None else DEFAULT_LINK_DENSITY
+    frames = tuple(replace(f, mass=scale * L, com=c) for f, L, c in zip(model.frames, lengths, centres))
+    said = (f"total {total_mass:g} kg" if total_mass is not None else
+            f"{DEFAULT_LINK_DENSITY:g} kg per metre, no total mass given: compliances are relative")
+    listed = ", ".join(f"{f.name} {f.mass:.3g} kg" for f in frames if f.mass > 0)
+    note = f"masses assumed from the geometry ({said}): {listed}"
+    return model.replace(frames=frames, notes=model.notes + (note,))
 
 
 def _yxz_angles(M: np.ndarray) -> tuple[float, float, float]:

@@ -84,12 +84,14 @@ class ContactProblem:
     def __init__(self, model: RobotModel, contacts: Contacts, free: tuple[str, ...], *, compliance: bool,
                  data: Measurements | None = None, noise: Noise | None = None):
         self.model, self.contacts, self.compliance = model, contacts, compliance
+        self.chunked = False       # what ``solve`` asks: the Jacobian is formed whole
         self.lay = layout(model)
         self.n_robot = len(self.lay.names)
         self.tracker = None
         self.tracker_scale = 1.0
         if data is not None:
-            self.tracker = Problem(model, data, free, compliance=compliance, noise=noise)
+            # whole, not in chunks: its rows stack with the contacts' in one Jacobian
+            self.tracker = Problem(model, data, free, compliance=compliance, noise=noise, chunked=False)
             if not self.tracker.weighted:
                 self.tracker_scale = 1.0 / (noise.position if noise is not None else Noise.of().position)
         self.qf = contacts.q @ model.coupling_matrix.T

@@ -14,6 +14,8 @@ MAX_SAMPLES = 100_000_000
 MAX_CHUNK = 100_000
 OUTLIER_ACTIONS = ("refit", "flag")
 WEAK_ACTIONS = ("eliminate", "flag")
+# where a joint rests in its lost motion, pose by pose (RobotModel.backlash_side)
+BACKLASH_SIDES = ("gravity", "approach")
 
 # Measurement noise of each instrument class, one standard deviation per axis: position (m) and
 # rotation (rad, for 6D probes). Used when the data state none (docs/checks.md).

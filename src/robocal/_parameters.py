@@ -5,8 +5,9 @@ each frame's kinds (``<frame>.gamma`` ... ``<frame>.k_beta``), each marker's kin
 (``<marker>.x`` ... ``<marker>.rz``). ``parameter_layout`` gives a record per entry (name, owner,
 kind, quantity, SI unit, family, index); every other module asks it rather than reading names.
 
-Rotation kinds of the base and the markers (rx, ry, rz) are small corrections about the stored
-rotation: zero in any stored model (docs/method.md section 1).
+Rotation kinds of the base and the markers (rx, ry, rz) are the rotation vector of a correction
+about the stored rotation: zero in any stored model, free of gimbal lock however far they turn
+(docs/conventions.md).
 
 The preference order of ``candidate_parameters`` decides which of a dependent group is kept
 (earlier wins). It follows the paper and the habit of tracker users: the base first (so it absorbs
@@ -27,7 +28,7 @@ import numpy as np
 
 from ._errors import InputError, excerpt
 from ._model import RobotModel
-from ._spatial import matrix_tuple, small_rotation, xyz_angles
+from ._spatial import matrix_tuple, rotation_vector, small_rotation
 
 BASE_KINDS = ("x", "y", "z", "rx", "ry", "rz")
 GEOMETRIC_KINDS = ("gamma", "b", "beta", "alpha", "d", "theta", "r")
@@ -151,7 +152,7 @@ def parameter_vector(model: RobotModel, reference: RobotModel | None = None) -> 
 
     Rotation corrections (base and marker rx, ry, rz) are 0 for the model itself; with a
     ``reference`` of the same structure they are the corrections that turn the reference's stored
-    rotations into this model's (R = R_ref Rot(x, rx) Rot(y, ry) Rot(z, rz)), so that
+    rotations into this model's (R = R_ref exp([rx, ry, rz]x), a rotation vector), so that
     ``model_from_vector(reference, parameter_vector(model, reference))`` is ``model``.
     """
     lay = parameter_layout(model)
@@ -162,9 +163,9 @@ def parameter_vector(model: RobotModel, reference: RobotModel | None = None) -> 
     for m, mk in enumerate(model.markers):
         p[lay.marker0[m]:lay.marker0[m] + 3] = mk.position
     if reference is not None:
-        p[3:6] = xyz_angles(np.asarray(reference.base_rotation).T @ np.asarray(model.base_rotation))
+        p[3:6] = rotation_vector(np.asarray(reference.base_rotation).T @ np.asarray(model.base_rotation))
         for m, (mk, mr) in enumerate(zip(model.markers, reference.markers)):
-            p[lay.marker0[m] + 3:lay.marker0[m] + 6] = xyz_angles(np.asarray(mr.rotation).T @ np.asarray(mk.rotation))
+            p[lay.marker0[m] + 3:lay.marker0[m] + 6] = rotation_vector(np.asarray(mr.rotation).T @ np.asarray(mk.rotation))
     return p
 
 
@@ -255,7 +256,9 @@ def candidate_parameters(model: RobotModel, parameters: Iterable[str] = ("geomet
     chosen = set(expand(parameters, "parameters"))
     fixed = set(expand(known, "known"))
     if any(lay[n].family == "compliance" for n in chosen) and not model.has_masses:
-        raise InputError("compliance parameters need link masses (or a payload); the model has none",
+        raise InputError("compliance parameters need link masses (or a payload); the model has none: "
+                         "assume them from the geometry with robocal.default_masses(model, total_mass) "
+                         "(--assume-masses [TOTAL_KG] on the command line)",
                          where="parameters")
     if model.backlash_side == "gravity" and any(lay[n].family == "backlash" for n in chosen) \
             and not model.has_masses:

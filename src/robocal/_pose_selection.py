@@ -9,10 +9,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._errors import DegenerateDataError, InputError, check_choice
-from ._identifiability import identifiability
+from ._identifiability import ONE_SIDE, identifiability
 from ._options import POSE_CRITERIA
 from ._model import RobotModel
-from ._parameters import parameter_vector
+from ._parameters import has_backlash_parameters, parameter_vector
 from ._problem import design_problem, random_configurations
 from ._threads import one_blas_thread
 
@@ -24,7 +24,12 @@ class PoseSelection:
     """Chosen configurations ``q`` (n, n_joints), their indices among the candidates, and how they
     compare with as many random candidates: log det of the scaled normal matrix per pose (higher
     is better), its condition number, and the average prediction variance over the candidates
-    in units of the measurement variance (tr(W M^-1), lower is better)."""
+    in units of the measurement variance (tr(W M^-1), lower is better).
+
+    ``approach`` (n, n_joints): for an approach-sided backlash model, the direction (+1, -1) each
+    joint must come from at each pose (end its move that way, past an overshoot); None otherwise.
+    ``one_sided``: backlash parameters whose joint rests on one side at every chosen pose, which a
+    joint offset then absorbs: those poses cannot identify them."""
 
     q: np.ndarray
     indices: np.ndarray
@@ -36,6 +41,8 @@ class PoseSelection:
     condition_selected: float
     prediction_random: float
     prediction_selected: float
+    approach: np.ndarray | None = None
+    one_sided: tuple[str, ...] = ()
 
 
 CRITERIA = POSE_CRITERIA
@@ -133,13 +140,14 @@ def _inverses(S: np.ndarray) -> np.ndarray:
     return cof / det[:, None, None]
 
 
-def _scaled_blocks(model: RobotModel, q, names, orientation: bool) -> np.ndarray:
+def _scaled_blocks(model: RobotModel, q, names, orientation: bool, approach=None):
     """Each candidate's Jacobian block (n_cand, rows, k), columns scaled to unit norm over all
-    candidates so that metres and radians weigh alike."""
-    B = design_problem(model, q, names, orientation).pose_blocks(parameter_vector(model))
+    candidates so that metres and radians weigh alike; and the design problem."""
+    prob = design_problem(model, q, names, orientation, approach=approach)
+    B = prob.pose_blocks(parameter_vector(model))
     col = np.linalg.norm(B, axis=(0, 1))
     col[col == 0] = 1.0
-    return B / col
+    return B / col, prob
 
 
 @one_blas_thread
@@ -155,6 +163,11 @@ def select_poses(model: RobotModel, n: int, *, candidates=None, n_candidates: in
     passes of exchanges, every step a rank-``rows`` update of M^-1 evaluated over all candidates
     at once. ``candidates``: joint readings to choose from, default ``n_candidates`` drawn within
     the joint limits.
+
+    Backlash needs both sides of each joint visited: under the gravity-sided model the side is the
+    pose's (its load), so the criterion sees it; under the approach-sided model each candidate is
+    given a random approach direction per joint, the criterion chooses among them, and the result
+    says which direction to come from (``approach``).
     """
     check_choice(criterion, CRITERIA, "criterion")
     rng = np.random.default_rng(rng)
@@ -163,7 +176,10 @@ def select_poses(model: RobotModel, n: int, *, candidates=None, n_candidates: in
         raise InputError(f"cannot choose {n} poses from {len(q)} candidates", where="n")
     names = identifiability(model, None, parameters=parameters, known=known, orientation=orientation,
                             rng=rng).identified
-    B = _scaled_blocks(model, q, names, orientation)
+    approach = None
+    if model.backlash_side == "approach" and has_backlash_parameters(model, names):
+        approach = rng.choice([-1.0, 1.0], size=q.shape)
+    B, prob = _scaled_blocks(model, q, names, orientation, approach)
     rows, k = B.shape[1], B.shape[2]
     if n * rows <= k:
         raise DegenerateDataError(f"{n} poses give {n * rows} equations for {k} identifiable parameters")
@@ -188,7 +204,11 @@ def select_poses(model: RobotModel, n: int, *, candidates=None, n_candidates: in
                 chosen[pos] = best
     chosen_arr = np.array(chosen)
     rand = rng.choice(len(q), size=n, replace=False)
+    sides = prob.backlash_sides(parameter_vector(model))
+    one_sided = tuple(nm for nm, sd in sides.items() if nm in names and
+                      not (np.any(sd[chosen_arr] > ONE_SIDE) and np.any(sd[chosen_arr] < -ONE_SIDE)))
     return PoseSelection(q=q[chosen_arr], indices=chosen_arr, parameters=names, criterion=criterion,
+                         approach=None if approach is None else approach[chosen_arr], one_sided=one_sided,
                          **_design_figures(B, W, chosen_arr, rand))
 
 

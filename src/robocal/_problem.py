@@ -252,19 +252,21 @@ def needs_compliance(model: RobotModel, names) -> bool:
     return model.has_compliance or has_compliance_parameters(model, names)
 
 
-def design_measurements(model: RobotModel, q, orientation: bool = False, markers=None) -> Measurements:
+def design_measurements(model: RobotModel, q, orientation: bool = False, markers=None, approach=None) -> Measurements:
     """Configurations without measured values, for what depends on the poses only (the Jacobian).
 
-    ``markers``: the names of the markers measured (default all the model's)."""
+    ``markers``: the names of the markers measured (default all the model's); ``approach``
+    (n, n_joints) the direction each joint comes from (default: the row order)."""
     names = model.marker_names if markers is None else tuple(markers)
     n, m = len(q), len(names)
     return Measurements(q=q, positions=np.zeros((n, m, 3)), marker_names=names,
-                        rotations=np.broadcast_to(np.eye(3), (n, m, 3, 3)) if orientation else None)
+                        rotations=np.broadcast_to(np.eye(3), (n, m, 3, 3)) if orientation else None,
+                        extra={} if approach is None else {"approach": np.asarray(approach, dtype=float)})
 
 
-def design_problem(model: RobotModel, q, names, orientation: bool = False) -> Problem:
+def design_problem(model: RobotModel, q, names, orientation: bool = False, approach=None) -> Problem:
     """The problem of ``names`` at readings ``q`` with nothing measured: its Jacobian is the design's."""
-    return Problem(model, design_measurements(model, q, orientation), tuple(names),
+    return Problem(model, design_measurements(model, q, orientation, approach=approach), tuple(names),
                    compliance=needs_compliance(model, names))
 
 

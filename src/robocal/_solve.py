@@ -58,7 +58,7 @@ def solve(problem: Problem, p0: np.ndarray, *, loss: str = "linear", f_scale: fl
     check_choice(loss, LOSSES, "loss")
     x0 = p0[problem.free_idx]
     bounded = lower is not None and bool(np.any(np.isfinite(lower)))
-    if problem.chunked:
+    if getattr(problem, "chunked", False):   # problems of other observations are solved whole
         if loss != "linear" or bounded:
             raise InputError(f"a campaign of over {LARGE_POSES} poses is solved in chunks, with the linear loss and "
                              "without bounds only")

@@ -5,7 +5,7 @@ joint-only contacts (sockets, planes, ball bars, known distances), alone or with
 
 from ._calibration import (CalibrationResult, Comparison, ErrorStats, ErrorSummary, LimitJudgement, ParameterEstimate,
                            calibrate, compare, error_stats, register_base)
-from ._checks import Check, verdict
+from ._checks import Check, outlier_bar, outlier_check, verdict
 from ._contact_calibration import (ContactCalibration, ContactErrors, ContactIdentifiability, Unreachable,
                                    calibrate_contacts, contact_errors, contact_identifiability)
 from ._identifiability import (Absorption, IdentifiabilityResult, analyse, identifiability, status_table,
@@ -16,7 +16,7 @@ from ._problem import Problem, design_problem
 from ._solve import Covariance, Solution, covariance, solve
 
 __all__ = ["calibrate", "compare", "register_base", "error_stats", "CalibrationResult", "Comparison",
-           "ParameterEstimate", "ErrorStats", "ErrorSummary", "LimitJudgement", "Check", "verdict", "Noise",
+           "ParameterEstimate", "ErrorStats", "ErrorSummary", "LimitJudgement", "Check", "verdict", "outlier_check", "outlier_bar", "Noise",
            "identifiability", "analyse", "weakly_identifiable", "status_table", "Absorption",
            "IdentifiabilityResult", "Problem", "design_problem", "solve", "Solution", "covariance", "Covariance",
            "ContactProblem", "ROW_KINDS", "calibrate_contacts", "contact_identifiability", "contact_errors",

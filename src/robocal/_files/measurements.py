@@ -17,7 +17,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from .._errors import InputError, excerpt, suggest
-from .._measurements import Measurements
+from .._measurements import Measurements, approach_sides
 from .._model import RobotModel
 from .._options import MAX_POSES
 from .._units import ANGLE_UNITS, LENGTH_UNITS, UNITS, check_unit, parse_units
@@ -26,6 +26,8 @@ from .table import Table, decimal_hint, join_tables, map_columns, read_table
 from .text import read_text, write_texts
 
 RESERVED = ("pose", "set", "payload_kg")
+# approach_<joint>: the direction (+1 or -1) of the joint's last move before the pose (backlash)
+APPROACH_PREFIX = "approach_"
 POSITION = ("x", "y", "z")
 ORIENTATION_PARTS = {"quat": ("qx", "qy", "qz", "qw"), "rpy": ("roll", "pitch", "yaw"), "euler": ("e1", "e2", "e3")}
 # per-axis standard deviations of a position, combined into one per point (docs/formats.md)
@@ -91,8 +93,12 @@ class _Columns:
         self.joint_cols: dict[str, tuple[int, float]] = {}
         self.marker_cols: dict[str, dict[str, tuple[int, float]]] = {}
         self.special: dict[str, int] = {}
+        self.approach_cols: dict[str, int] = {}
         ignored = []
         for k, c in enumerate(header):
+            if c.startswith(APPROACH_PREFIX) and c[len(APPROACH_PREFIX):] in joint_names:
+                self.approach_cols[c[len(APPROACH_PREFIX):]] = k
+                continue
             mn, part, unit = _marker_part(c, marker_names)
             jn = c if c in joint_names else next(
                 (j for j in joint_names if c.startswith(j + "_") and c[len(j) + 1:].isalpha()), None)
@@ -115,6 +121,10 @@ class _Columns:
                                  source=source, where=where)
         if ignored:
             self.notes = (f"columns robocal does not know, ignored: {', '.join(ignored)}",)
+        if self.approach_cols and len(self.approach_cols) != len(joint_names):
+            lacking = next(j for j in joint_names if j not in self.approach_cols)
+            raise InputError(f"missing column {APPROACH_PREFIX}{lacking}: approach directions are given per joint, "
+                             "for every joint or none", source=source, where=where)
         missing = [j for j in joint_names if j not in self.joint_cols]
         if missing:
             have = len(self.joint_cols)
@@ -322,6 +332,7 @@ def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str, ta
     rot = np.full((n, nm, 3, 3), np.nan) if has_rot else None
     payload = np.empty(n) if "payload_kg" in cols.special else None
     validation = np.zeros(n, dtype=bool)
+    approach = np.empty((n, len(cols.joint_names))) if cols.approach_cols else None
     labels = []
     width = len(cols.names)
     for i, (line, row) in enumerate(rows):
@@ -352,6 +363,11 @@ def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str, ta
                         sigma_rot[i, m] = _positive(num, mc["sigma_rot"], source, line, cols.names)
         if payload is not None:
             payload[i] = num(cols.special["payload_kg"])
+        for j, jn in enumerate(cols.joint_names if approach is not None else ()):
+            approach[i, j] = num(cols.approach_cols[jn])
+            if approach[i, j] not in (-1.0, 1.0):
+                raise InputError(f"an approach direction is +1 or -1, got {row[cols.approach_cols[jn]]!r}",
+                                 source=source, where=f"line {line}, column {APPROACH_PREFIX + jn!r}")
         if "set" in cols.special:
             value = row[cols.special["set"]].strip().lower()
             if value not in SETS:
@@ -365,9 +381,19 @@ def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str, ta
     extra = {"joint_kinds": tuple(cols.joint_kinds)}
     if "set" in cols.special:
         extra["validation"] = validation
+    if approach is not None:
+        extra["approach"] = approach
     return Measurements(q=q, positions=pos, marker_names=tuple(cols.markers), joint_names=tuple(cols.joint_names),
                         rotations=rot, sigma=sigma, sigma_rot=sigma_rot, payload_mass=payload,
                         labels=tuple(labels), source=source, sha256=digest, extra=extra)
+
+
+def _approach_to_write(data: Measurements):
+    """The approach directions to write: None where the row order gives them (the reader's default)."""
+    approach = data.extra.get("approach")
+    if approach is not None and np.array_equal(approach, approach_sides(data.q)):
+        return None
+    return approach
 
 
 def _number(text: str, decimal: str, source: str, line: int, column: str, required: bool) -> float:
@@ -496,6 +522,9 @@ def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, 
     flags = data.extra.get("validation")
     if flags is not None:
         header.append("set")
+    approach = _approach_to_write(data)
+    if approach is not None:
+        header += [APPROACH_PREFIX + jn for jn in joint_names]
 
     def fmt(v, s=1.0):
         return "" if not np.isfinite(v) else repr(float(v) / s)
@@ -532,6 +561,8 @@ def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, 
             row.append(fmt(data.payload_mass[i]))
         if flags is not None:
             row.append("validation" if flags[i] else "fit")
+        if approach is not None:
+            row += [f"{int(v):+d}" for v in approach[i]]
         w.writerow(row)
     return buf.getvalue()
 

@@ -19,6 +19,7 @@ from .._errors import InputError, excerpt, suggest
 from .._units import ANGLE_UNITS, LENGTH_UNITS, check_unit, parse_units
 from .text import load_yaml, read_text, write_texts
 from .._parameters import KIND_QUANTITY
+from .._options import BACKLASH_SIDES
 from .._model import (DEFAULT_PARALLEL_TOL, JOINT_TYPES, Frame, Marker, Payload, RobotModel,
                      parallel_beta_frames, placement_parameters)
 from .._spatial import nearest_rotation, pose4
@@ -27,6 +28,11 @@ FORMAT_VERSION = 1
 # the file key is the frame's attribute; its quantity says which unit scales it
 FRAME_VALUES = {k: KIND_QUANTITY[k] for k in ("beta", "alpha", "d", "theta", "r", "gamma", "b")}
 FRAME_VALUES.update({"mass": None, "k_theta": None, "k_alpha": None, "k_beta": None})
+# backlash: half the lost motion (the model's units), the load friction holds and the transition's
+# width (N m on a revolute frame, N on a prismatic one, always SI); written where they differ from
+# these defaults
+BACKLASH_VALUES = {"backlash_theta": 0.0, "backlash_r": 0.0, "backlash_friction": 0.0, "backlash_width": 1.0}
+FRAME_VALUES.update({k: KIND_QUANTITY.get(k) for k in BACKLASH_VALUES})
 FRAME_KEYS = ("name", "joint", "reading", "coupling", "parent", "has_beta", "com", "position",
               "rotation") + tuple(FRAME_VALUES)
 # the placement a fixed frame may give as a transform instead
@@ -35,7 +41,7 @@ PLACEMENT_KEYS = ("gamma", "b", "beta", "alpha", "d", "theta", "r")
 # the nearest rotation (three printed decimals are 5e-4 off at worst)
 ROTATION_TOLERANCE = 5e-3
 TOP_KEYS = ("robocal_model", "name", "description", "units", "base", "gravity", "joints", "frames",
-            "markers", "payload", "tolerances", "calibration")
+            "markers", "payload", "tolerances", "calibration", "backlash")
 # tolerances: family -> the quantities a file may bound, and the unit each is given in
 TOLERANCE_KEYS = {"frames": ("length", "angle"), "markers": ("length", "angle"), "base": ("length", "angle"),
                   "compliance": ("deflection",), "backlash": ("length", "angle")}
@@ -170,7 +176,8 @@ def model_from_dict(d: dict, *, source: str = "<dict>") -> RobotModel:
                           joint_limits=tuple(limits), markers=tuple(markers), base_position=base_position,
                           base_rotation=base_rotation, gravity=gravity, payload=payloads[0],
                           other_payloads=tuple(payloads[1:]), description=description, tolerances=tolerances,
-                          notes=tuple(f"{source}: {n}" for n in rd.notes))
+                          notes=tuple(f"{source}: {n}" for n in rd.notes),
+                          backlash_side=_backlash_side(rd, d.get("backlash")))
     except InputError as e:  # the record's own checks: add the file name
         raise InputError(e.detail, source=source, where=e.where) from None
 
@@ -299,6 +306,16 @@ def _markers(rd: _Reader, value, frame_names: list[str], L: float, A: float) -> 
         rot = rd.rotation(item["rotation"], f"{where}.rotation", A) if "rotation" in item else IDENTITY
         markers.append(Marker(mn, fi, pos, rot))
     return markers
+
+
+def _backlash_side(rd: _Reader, value) -> str:
+    """``backlash: {side: gravity | approach}`` (default gravity)."""
+    if value is None:
+        return "gravity"
+    side = rd.mapping(value, "backlash", ("side",)).get("side", "gravity")
+    if side not in BACKLASH_SIDES:
+        raise rd.error("backlash.side", f"expected one of {', '.join(BACKLASH_SIDES)}, got {_show(side)}")
+    return side
 
 
 def _payloads(rd: _Reader, value, frame_names: list[str], L: float) -> list[Payload]:
@@ -442,6 +459,8 @@ def model_to_dict(model: RobotModel, *, units: str = "mm-deg", calibration: dict
         for k, u in FRAME_VALUES.items():
             if k in ("gamma", "b") and f.parent == i - 1 and getattr(f, k) == 0.0:
                 continue  # tree offsets: only worth showing where they are used
+            if getattr(f, k) == BACKLASH_VALUES.get(k):
+                continue
             row[k] = num(getattr(f, k), scale[u])
             if k == "r":
                 row["has_beta"] = bool(f.has_beta)
@@ -478,6 +497,8 @@ def model_to_dict(model: RobotModel, *, units: str = "mm-deg", calibration: dict
         d["payload"] = payloads[0]
     if model.tolerances:
         d["tolerances"] = _tolerances_dict(model, L, A)
+    if model.backlash_side != "gravity" or model.has_backlash:
+        d["backlash"] = {"side": model.backlash_side}
     if calibration:
         d["calibration"] = calibration
     return d

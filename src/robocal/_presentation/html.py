@@ -261,7 +261,10 @@ def _parameter_tables(d: dict, nominal: dict, units: dict) -> tuple[str, str, st
     status.update({a["name"]: "E" for a in ident.get("eliminated", [])})
     table = d.get("identifiability_table") or []
     frames = [row["frame"] for row in table]
-    shown = [k for k in FRAME_KINDS if k in ALWAYS_SHOWN or any(row.get(k, "-") != "-" for row in table)]
+    # a kind is shown where it was a candidate, or where the model holds a non-zero value of it (a
+    # fixed mount's gamma and b): nothing the calibrated file keeps is hidden
+    shown = [k for k in FRAME_KINDS if k in ALWAYS_SHOWN or any(row.get(k, "-") != "-" or nominal.get(f"{row['frame']}.{k}")
+                                                                  for row in table)]
     omitted = [k for k in FRAME_KINDS if k not in shown and k not in ("gamma", "b")]
 
     def value_cells(name, unit):
@@ -271,7 +274,7 @@ def _parameter_tables(d: dict, nominal: dict, units: dict) -> tuple[str, str, st
             return [_cell(p["nominal"], unit, f"{name}:nominal"), _cell(p["estimate"], unit, f"{name}:estimate"),
                     _cell(p["change"], unit, f"{name}:change", sign=True), _cell(p["std"], unit, f"{name}:std")]
         st = status.get(name, "-")
-        nom = nominal.get(name) if st != "-" else None
+        nom = nominal.get(name) if st != "-" or nominal.get(name) else None
         held = '<td class="num muted">held</td>' if st == "E" else "<td></td>"
         return [f'<td class="num muted">{fmt(nom, unit) if nom is not None else ""}</td>', held,
                 "<td></td>", "<td></td>"]

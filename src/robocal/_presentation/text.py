@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
-from .._parameters import BASE_KINDS, FRAME_KINDS, MARKER_KINDS, parameter_layout
+import numpy as np
+
+from .._parameters import BACKLASH_KINDS, BASE_KINDS, FRAME_KINDS, MARKER_KINDS, parameter_layout
 from .units import MM, absorption_text, display_unit, with_unit
 
 STAT_ROWS = ("fit_before", "fit_after", "validation_before", "validation_after")
 # the paper's table shows these kinds; gamma and b join them where a tree uses them
-PAPER_KINDS = FRAME_KINDS[2:]
+PAPER_KINDS = tuple(k for k in FRAME_KINDS[2:] if k not in BACKLASH_KINDS)
 
 
 def stats_lines(stats, indent: str = "  ", *, unit: str = "m") -> list[str]:
@@ -83,9 +85,11 @@ def calibration_summary(result, *, shown=(), weighted: bool = False) -> str:
     for p in result.parameters:
         lines.append(f"  {p.name:<{width}} change {with_unit(p.change, p.unit, sign=True):>20}   "
                      f"std {with_unit(p.std, p.unit):>18}")
+    lines += rotation_lines(result.parameters)
     units = {p.name: p.unit for p in result.parameters}
     units.update(_candidate_units(result))
     lines += eliminated_lines(result.identifiability, units)
+    lines += held_lines(result)
     ident = result.identifiability
     lines.append(f"identified {len(ident.identified)} of {len(ident.candidates)} candidates; condition number of "
                  f"those kept {ident.condition_number:.4g}")
@@ -106,15 +110,44 @@ def calibration_summary(result, *, shown=(), weighted: bool = False) -> str:
     return "\n".join(lines)
 
 
+def rotation_lines(parameters) -> list[str]:
+    """Each identified rotation correction as one angle about one axis (rx, ry, rz are its rotation
+    vector, so this holds however large the turn)."""
+    by_name = {p.name: p for p in parameters}
+    lines = []
+    for owner in dict.fromkeys(p.name.rsplit(".", 1)[0] for p in parameters):
+        names = [f"{owner}.r{c}" for c in "xyz"]
+        if all(n in by_name for n in names):
+            v = np.array([by_name[n].change for n in names])
+            angle = float(np.linalg.norm(v))
+            if angle > 0:
+                axis = ", ".join(f"{c:+.4f}" for c in v / angle)
+                lines.append(f"  {owner} rotation: turned {with_unit(angle, 'rad')} about ({axis})")
+    return lines
+
+
+def held_lines(result) -> list[str]:
+    """The non-zero values the calibrated model keeps from the nominal without considering them."""
+    held = result.held_nominals
+    if not held:
+        return []
+    lay = parameter_layout(result.nominal_model)
+    width = max([len(n) for n, _ in held] + [16])
+    return ([f"kept at nominal, not candidates ({len(held)} non-zero):"]
+            + [f"  {n:<{width}} {with_unit(v, lay[n].unit, sign=True):>20}" for n, v in held])
+
+
 def _candidate_units(result) -> dict:
     lay = parameter_layout(result.nominal_model)
     return {n: lay[n].unit for n in result.identifiability.candidates if n in lay}
 
 
 def comparison_summary(comparison, *, shown=(), weighted: bool = False) -> str:
-    """What ``robocal calibrate --compare`` prints: the two identifications side by side."""
-    geo, comp = comparison.geometric, comparison.combined
-    cols = (("geometric", geo), ("geometric+compliance", comp))
+    """What ``robocal calibrate --compare`` prints: the two (or three) identifications side by side."""
+    geo = comparison.geometric
+    short = {"geometric": "geometric", "geometric and compliance": "geometric+compliance",
+             "geometric, compliance and backlash": "+backlash"}
+    cols = tuple((short[k], r) for k, r in comparison.results.items())
     lines = [f"comparison on {geo.provenance['data']['n_poses']} poses",
              f"  {'':<30}" + "".join(f"{name:>24}" for name, _ in cols),
              f"  {'parameters identified':<30}" + "".join(f"{len(r.parameters):>24}" for _, r in cols)]
@@ -132,7 +165,8 @@ def comparison_summary(comparison, *, shown=(), weighted: bool = False) -> str:
                                                 for _, r in cols))
     lines.append(f"  {'verdict':<30}" + "".join(f"{r.verdict:>24}" for _, r in cols))
     lines.append(comparison.verdict)
-    lines.append(f"calibrated model chosen: {'geometric+compliance' if comparison.best is comp else 'geometric'}")
+    chosen = next(name for name, r in cols if r is comparison.best)
+    lines.append(f"calibrated model chosen: {chosen}")
     for name, r in cols:
         lines += [f"note ({name}): {n}" for n in r.notes if n not in shown]
     best = comparison.best
@@ -148,9 +182,10 @@ def identifiability_summary(model, res, where: str) -> str:
              "I identified, E eliminated, - not considered"]
     kinds = [k for k in ("gamma", "b") if any(res.status(f"{f}.{k}") != "-" for f in model.frame_names)]
     kinds += list(PAPER_KINDS)
-    lines.append(f"  {'frame':<{width}}" + "".join(f"{k:>9}" for k in kinds))
+    kinds += [k for k in BACKLASH_KINDS if any(res.status(f"{f}.{k}") != "-" for f in model.frame_names)]
+    lines.append(f"  {'frame':<{width}}" + "".join(f"{k:>{max(9, len(k) + 1)}}" for k in kinds))
     for f in model.frame_names:
-        lines.append(f"  {f:<{width}}" + "".join(f"{res.status(f'{f}.{k}'):>9}" for k in kinds))
+        lines.append(f"  {f:<{width}}" + "".join(f"{res.status(f'{f}.{k}'):>{max(9, len(k) + 1)}}" for k in kinds))
     for owner, owner_kinds in [("base", BASE_KINDS)] + [(m, MARKER_KINDS) for m in model.marker_names]:
         lines.append(f"  {owner:<{width}} " + " ".join(f"{k}:{res.status(f'{owner}.{k}'):<3}" for k in owner_kinds))
     lines.append(f"identified {len(res.identified)} of {len(res.candidates)} candidates (rank {res.rank}, "

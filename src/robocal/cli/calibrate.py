@@ -6,7 +6,7 @@ import logging
 from pathlib import Path
 
 from .._errors import DegenerateDataError, InputError
-from .._options import INSTRUMENT_NOISE, LOSSES, OUTLIER_ACTIONS, WEAK_ACTIONS
+from .._options import BACKLASH_SIDES, INSTRUMENT_NOISE, LOSSES, OUTLIER_ACTIONS, WEAK_ACTIONS
 from . import common
 
 # exit code of a calibration whose checks failed (docs/cli.md)
@@ -38,6 +38,11 @@ def register(sub) -> None:
     common.parameter_options(p)
     p.add_argument("--compare", action="store_true",
                    help="fit geometric and geometric+compliance on the same data and compare them")
+    p.add_argument("--backlash", action="store_true",
+                   help="with --compare: a third identification, geometric+compliance+backlash")
+    p.add_argument("--backlash-side", choices=BACKLASH_SIDES, default=None,
+                   help="where each joint rests in its lost motion in this campaign: on the side its gravity load "
+                        "pushes it to, or behind its last move (default: the model file's backlash.side)")
     p.add_argument("--loss", default="linear", choices=LOSSES, help="least-squares loss (robust ones bend for outliers)")
     p.add_argument("--register-base", action="store_true",
                    help="start the base pose from a rigid registration of the nominal robot on the data")
@@ -59,6 +64,7 @@ def register(sub) -> None:
     g.add_argument("--weak", choices=WEAK_ACTIONS, default="eliminate",
                    help="hold weakly identifiable parameters at nominal (default), or keep them and warn")
     g.add_argument("--nonnegative-compliance", action="store_true", help="keep identified compliances >= 0")
+    common.mass_options(p)
     g.add_argument("--write-failed", action="store_true",
                    help="write calibrated.yaml even when a check fails (it then carries the verdict)")
     common.csv_options(p)
@@ -70,7 +76,9 @@ def _inputs(args):
     from .._files.measurements import split_sets
     from .._files.model import read_model
 
-    model = read_model(args.model)
+    model = common.masses_as_asked(args, read_model(args.model))
+    if args.backlash_side is not None:
+        model = model.replace(backlash_side=args.backlash_side)
     data, validation = split_sets(common.read_data(args, model, args.csv))
     if validation is not None and (args.validation or args.holdout):
         raise InputError("the file marks validation rows (column 'set') and --validation/--holdout was given; "
@@ -112,8 +120,12 @@ def run(args) -> int:
     if args.compare and args.parameters:
         raise InputError("--compare chooses the parameters itself; drop --parameters", where="--compare")
     out = Path(args.out)
-    # with --compare, result.json is the chosen one (what report and compensate take), beside both
-    names = ["result-geometric.json", "result-compliance.json", "result.json"] if args.compare else ["result.json"]
+    if args.backlash and not args.compare:
+        raise InputError("--backlash adds a third identification to --compare; for one identification name the "
+                         "family: --parameters geometric compliance backlash", where="--backlash")
+    # with --compare, result.json is the chosen one (what report and compensate take), beside each
+    names = ["result-geometric.json", "result-compliance.json"] + (["result-backlash.json"] if args.backlash else [])
+    names = names + ["result.json"] if args.compare else ["result.json"]
     report = common.report_module() if args.report else None
     common.refuse_existing([out / "calibrated.yaml"] + [out / n for n in names]
                            + ([out / "report.html"] if report else []), args.force)
@@ -129,9 +141,9 @@ def run(args) -> int:
     weighted = data.sigma is not None or data.has_orientation
     try:
         if args.compare:
-            comparison = compare(model, data, **options)
+            comparison = compare(model, data, backlash=args.backlash, **options)
             best = comparison.best
-            results = [comparison.geometric, comparison.combined, best]
+            results = [*comparison.results.values(), best]
             print(comparison_summary(comparison, shown=args.shown_warnings, weighted=weighted))
         else:
             best = calibrate(model, data, parameters=args.parameters or ("geometric",), **options)

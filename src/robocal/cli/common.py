@@ -238,6 +238,23 @@ def parameter_options(p: argparse.ArgumentParser) -> None:
                                                                 "(default 1e-6)")
 
 
+def mass_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--assume-masses", action="store_true",
+                   help="link masses from the geometry (docs/conventions.md) instead of the model's, for compliance "
+                        "without CAD masses; compliances are then relative unless --total-mass is given")
+    p.add_argument("--total-mass", type=positive, metavar="KG",
+                   help="the arm's mass without payloads, spread over the links as --assume-masses does")
+
+
+def masses_as_asked(args, model):
+    """``model``, or with --assume-masses/--total-mass the model with masses from its geometry."""
+    if not args.assume_masses and args.total_mass is None:
+        return model
+    from .._model import default_masses
+
+    return default_masses(model, args.total_mass)
+
+
 def read_data(args, model, path, *, targets: bool = False):
     from .._files.measurements import read_measurements
 

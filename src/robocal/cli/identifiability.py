@@ -18,6 +18,7 @@ def register(sub) -> None:
     p.add_argument("model", metavar="MODEL", help="model file (YAML)")
     p.add_argument("csv", metavar="CSV", nargs="?", help="measurement file (its poses); default random poses")
     common.parameter_options(p)
+    common.mass_options(p)
     p.add_argument("--poses", type=common.poses, default=200, metavar="N", help="random poses without CSV (default 200)")
     p.add_argument("--seed", type=common.seed, default=0, help="seed of the random poses (default 0)")
     common.csv_options(p)
@@ -29,7 +30,7 @@ def run(args) -> int:
     from .._identifiability import identifiability
     from .._presentation.text import identifiability_summary
 
-    model = read_model(args.model)
+    model = common.masses_as_asked(args, read_model(args.model))
     data = common.read_data(args, model, args.csv) if args.csv else None
     res = identifiability(model, data, parameters=args.parameters or ("geometric",), known=args.known, tol=args.tol,
                           n_random=args.poses, rng=args.seed)
@@ -39,4 +40,9 @@ def run(args) -> int:
     where = f"the {data.n_poses} poses of {args.csv}" if data is not None else \
         f"{args.poses} random poses (seed {args.seed}) within the joint limits"
     print(identifiability_summary(model, res, where))
+    from .._parameters import matched_by_pattern
+
+    orientation = data is not None and data.has_orientation
+    for pattern, names in matched_by_pattern(model, args.parameters or (), orientation=orientation):
+        print(f"note: parameters {pattern!r} matched: {', '.join(names)}")
     return 0
