@@ -20,6 +20,8 @@ for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
 import collections  # noqa: E402
+import importlib.util  # noqa: E402
+import pkgutil  # noqa: E402
 import resource  # noqa: E402
 import shutil  # noqa: E402
 import signal  # noqa: E402
@@ -37,12 +39,17 @@ matplotlib.use("Agg")
 from hypothesis import HealthCheck, Phase, given, settings  # noqa: E402
 
 import fuzz_cases  # noqa: E402
-import robocal  # noqa: E402,F401  (imported once here, not in every child)
+import robocal  # noqa: E402,F401
 import robocal.report  # noqa: E402,F401
 from robocal.cli import main  # noqa: E402
 
 # per case: 20 s of CPU time (the machine may be shared: wall-clock time is not the program's), and
 # a wall-clock backstop for a case that sleeps or waits; 1 GB of memory beyond the parent's
+# every module imported once here, not in every child (and not from files edited during a run)
+for _m in pkgutil.walk_packages(importlib.util.find_spec("robocal").submodule_search_locations, "robocal."):
+    if not _m.name.endswith(".__main__"):
+        importlib.import_module(_m.name)
+
 TIME_LIMIT = 20
 WALL_LIMIT = 120.0
 MEMORY_LIMIT = 1 << 30

@@ -48,7 +48,9 @@ def read_repeatability_csv(path, *, units: str | None = None) -> RepeatabilityDa
                     raise InputError("empty cell", source=src, where=where)
                 cells[c] = row[col[c]].strip()
             try:
-                cycle = int(cells["cycle"])
+                cycle = int(cells["cycle"]) if len(cells["cycle"]) < 10 else None
+                if cycle is None:
+                    raise ValueError
             except ValueError:
                 raise InputError(f"expected an integer cycle number, got {excerpt(cells['cycle'])}",
                                  source=src, where=f"row {line}, column 'cycle'") from None

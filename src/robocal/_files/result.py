@@ -228,6 +228,22 @@ def _mappings(doc: _Doc, items: list, where: str):
         yield w, item
 
 
+def _provenance(doc: _Doc, prov: dict) -> dict:
+    """Scalars (software, version, date...) and inputs ({source, sha256, n_poses, labels})."""
+    for key, v in prov.items():
+        w = f"provenance.{key}"
+        if isinstance(v, dict):
+            for field, kind in (("source", str), ("sha256", str), ("n_poses", int), ("labels", list)):
+                doc.get(v, field, w, kind, optional=True)
+            if v.get("n_poses") is not None and v["n_poses"] < 0:
+                raise doc.error(f"{w}.n_poses", f"expected a count, got {v['n_poses']}")
+            if v.get("labels") is not None:
+                doc.strings(v["labels"], f"{w}.labels")
+        elif v is not None and (isinstance(v, (list, dict)) or not isinstance(v, (str, int, float))):
+            raise doc.error(w, f"expected text or a number, got {excerpt(v)}")
+    return prov
+
+
 def _checks(doc: _Doc, d: list) -> tuple[Check, ...]:
     out = []
     for w, c in _mappings(doc, d, "checks"):
@@ -309,7 +325,7 @@ def result_from_dict(d, *, source: str = "<dict>") -> CalibrationResult:
         notes=doc.strings(doc.get(d, "notes", "", list), "notes"),
         limit=_limit_judgement(doc, doc.get(d, "limit", "", dict, optional=True)),
         checks=_checks(doc, doc.get(d, "checks", "", list, optional=True) or []),
-        provenance=doc.get(d, "provenance", "", dict, optional=True) or {})
+        provenance=_provenance(doc, doc.get(d, "provenance", "", dict, optional=True) or {}))
 
 
 def read_result(path) -> CalibrationResult:

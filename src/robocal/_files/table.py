@@ -28,6 +28,7 @@ UNKNOWN_ACTIONS = ("refuse", "ignore")
 # how many data lines the separator must fit, beyond the header
 _SAMPLE = 50
 _COMMA_NUMBER = re.compile(r"^[+-]?(\d+,\d*|,\d+)([eE][+-]?\d+)?$")
+_LINES = re.compile(r"\r\n|\r|\n")
 _DOT_NUMBER = re.compile(r"^[+-]?(\d+\.\d*|\.\d+)([eE][+-]?\d+)?$")
 
 
@@ -108,7 +109,7 @@ def read_table(text: str, source: str, *, sep: str | None = None, decimal: str |
     """
     sep = parse_separator(sep)
     check_decimal(decimal, sep)
-    lines = text.splitlines()
+    lines = _LINES.split(text)  # the csv module's line ends; str.splitlines knows more (\x1e, \u2028...)
     content = [(k + 1, ln) for k, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")]
     if not content:
         raise InputError("no header line (and no data)", source=source)
@@ -119,6 +120,9 @@ def read_table(text: str, source: str, *, sep: str | None = None, decimal: str |
     header_line = content[0][0]
     comments = tuple((k + 1, ln) for k, ln in enumerate(lines[:header_line - 1]) if ln.lstrip().startswith("#"))
     cells = _split(text, sep, source)
+    if header_line not in cells:
+        raise InputError("a quoted cell runs over several lines (a quote not closed?)", source=source,
+                         where=f"line {header_line}")
     header = [c.strip() for c in cells[header_line]]
     _refuse_other_separator(header, sep, source, header_line)
     while header and not header[-1]:
@@ -126,7 +130,10 @@ def read_table(text: str, source: str, *, sep: str | None = None, decimal: str |
     width = len(header)
     rows = []
     for line, _ in content[1:]:
-        row = cells[line]
+        row = cells.get(line)
+        if row is None:
+            raise InputError("a quoted cell runs over several lines (a quote not closed?)", source=source,
+                             where=f"line {line}")
         if len(row) > width and not any(c.strip() for c in row[width:]):
             row = row[:width]
         rows.append((str(line), row))
@@ -142,7 +149,7 @@ def read_table(text: str, source: str, *, sep: str | None = None, decimal: str |
 def _split(text: str, sep: str, source: str) -> dict[int, list[str]]:
     """The cells of every line, by line number (comments and blank lines included, unused)."""
     if sep == WHITESPACE:
-        return {k + 1: ln.split() for k, ln in enumerate(text.splitlines())}
+        return {k + 1: ln.split() for k, ln in enumerate(_LINES.split(text))}
     reader = csv.reader(io.StringIO(text, newline=""), delimiter=sep)
     out = {}
     try:

@@ -39,6 +39,8 @@ def read_bytes(path, *, limit: int = MAX_FILE_BYTES) -> bytes:
             raw = fh.read(limit + 1)
     except FileNotFoundError:
         raise InputError("cannot read: file not found", source=str(path)) from None
+    except ValueError:  # a NUL in the name
+        raise InputError("not a valid file name", source=excerpt(str(path))) from None
     except IsADirectoryError:
         raise InputError("is a folder, not a file", source=str(path)) from None
     except OSError as e:
@@ -127,17 +129,24 @@ _SafeLoader.add_constructor("tag:yaml.org,2002:int", _SafeLoader.construct_yaml_
 
 def load_yaml(text: str, source: str):
     """The YAML document in ``text``, parsed safely (see _SafeLoader); InputError naming the line."""
-    loader = _SafeLoader(text, source)
+    loader = None
     try:
+        loader = _SafeLoader(text, source)  # its reader already refuses control characters
         return loader.get_single_data()
     except yaml.MarkedYAMLError as e:
         mark = e.problem_mark or e.context_mark
         where = f"line {mark.line + 1}, column {mark.column + 1}" if mark else None
         raise InputError(f"not valid YAML: {e.problem or e.context}", source=source, where=where) from None
+    except yaml.reader.ReaderError as e:
+        line = text[:e.position].count("\n") + 1
+        char = f"#x{e.character:04x}" if isinstance(e.character, int) else repr(e.character)
+        raise InputError(f"not valid YAML: character {char} is not allowed", source=source,
+                         where=f"line {line}") from None
     except yaml.YAMLError as e:
         raise InputError(f"not valid YAML: {excerpt(str(e))}", source=source) from None
     finally:
-        loader.dispose()
+        if loader is not None:
+            loader.dispose()
 
 
 # -- JSON without duplicate keys, NaN, huge numbers or deep nesting ----------------------------
@@ -210,6 +219,8 @@ def check_writable(paths, *, force: bool = False) -> None:
     """Before any work: each output can be written (its folder exists or can be made and is
     writable, the path is not a folder) and, unless ``force``, does not exist yet."""
     for p in map(Path, paths):
+        if "\x00" in str(p) or not str(p).strip():
+            raise InputError("not a valid file name", source=excerpt(str(p)))
         if p.is_dir():
             raise InputError("is a folder; give a file name", source=str(p))
         if not force and (p.exists() or p.is_symlink()):

@@ -97,6 +97,7 @@ def _load_xml(path_or_string) -> tuple[ET.Element, str]:
         raise InputError(f"malformed XML: {e}", source=source) from None
     if root.tag != "robot":
         raise InputError(f"the root element must be <robot>, got <{root.tag}>", source=source)
+    check_tree(root, source)  # before anything walks the joints
     return root, source
 
 
@@ -439,7 +440,6 @@ def read_urdf(path_or_string, *, base_link: str | None = None, tip_link: str | N
     floating/planar joints.
     """
     root, source = _load_xml(path_or_string)
-    check_tree(root, source)
     links, joints, extra = _parse_joints(root, source)
     chain = _chain(links, joints, extra["child_of"], base_link, tip_link, source)
     moving = _moving_joints(chain, source)

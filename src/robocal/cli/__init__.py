@@ -69,11 +69,10 @@ def main(argv=None) -> int:
     def show(message, category, filename, lineno, file=None, line=None):
         if issubclass(category, RobocalWarning):
             shown.append(str(message))
-            print(f"robocal: warning: {message}", file=sys.stderr)
-        else:
-            default_show(message, category, filename, lineno, file, line)
+            print(f"robocal: warning: {one_line(message)}", file=sys.stderr)
+        else:  # a library's warning: one line too, saying whose
+            print(f"robocal: warning: {category.__name__}: {one_line(message)}", file=sys.stderr)
 
-    default_show = warnings.showwarning
     with warnings.catch_warnings():
         warnings.simplefilter("always", RobocalWarning)
         warnings.showwarning = show
@@ -106,7 +105,8 @@ def _run(args) -> int:
         _quiet_stdout()
         return 0
     except OSError as e:  # the output folder cannot be made or written: the user's to fix
-        where = f"{e.filename}: " if e.filename else ""
+        name = str(e.filename or "")
+        where = f"{name if len(name) <= 200 else name[:100] + '...'}: " if name else ""
         return fail(f"error: {where}{e.strerror or e}")
     except MemoryError as e:  # numpy says how much it tried to allocate
         return fail(f"error: out of memory{f' ({one_line(e)})' if str(e) else ''}; use fewer poses or samples")

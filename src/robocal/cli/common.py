@@ -93,26 +93,28 @@ def limit_mm(text: str) -> float:
         v = float(text)
     except ValueError:
         return _limit_from_file(text)
-    if not 0.0 < v < math.inf:
-        raise argparse.ArgumentTypeError(f"expected a positive number of mm or a limit file, got {excerpt(text)}")
+    if not 0.0 < v <= 1e3:
+        raise argparse.ArgumentTypeError(f"expected a positive number of mm (up to 1000) or a limit file, got "
+                                         f"{excerpt(text)}")
     return v
 
 
 def _limit_from_file(path: str) -> float:
-    import json
+    from .._files.text import load_json, read_text
 
+    if not Path(path).exists():
+        raise argparse.ArgumentTypeError(f"{excerpt(path)}: no such file (expected mm or a limit file)")
     try:
-        with open(path, encoding="utf-8") as fh:
-            doc = json.load(fh)
+        doc = load_json(read_text(path)[0], path)  # bounded and checked like every robocal file
         if not str(doc["schema"]).startswith("robocal.limit/") or doc["unit"] != "m":
             raise KeyError("schema")
         value = doc["limit"]
-    except FileNotFoundError:
-        raise argparse.ArgumentTypeError(f"{path}: no such file (expected mm or a limit file)") from None
-    except (OSError, ValueError, KeyError, TypeError):
+    except InputError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+    except (KeyError, TypeError):
         raise argparse.ArgumentTypeError(f"{path}: not a limit file ('robocal limit --out' writes one)") from None
-    if not isinstance(value, (int, float)) or not 0.0 < value < math.inf:
-        raise argparse.ArgumentTypeError(f"{path}: limit: expected a positive number of metres")
+    if not isinstance(value, (int, float)) or isinstance(value, bool) or not 0.0 < value <= 1.0:
+        raise argparse.ArgumentTypeError(f"{path}: limit: expected a positive number of metres (up to 1)")
     return value * MM
 
 
