@@ -430,6 +430,7 @@ def test_6d_report_renders_in_headless_chromium(chromium, tmp_path):
     html = path.read_text(encoding="utf-8")
     page = Page(html)
     assert "stats.rotation.validation_after.mean" in page.keyed
+    assert "solver.sigma0" in page.keyed and "solver.sigma0_m" not in page.keyed  # a ratio for weighted 6D fits
     assert "rotation error" in page.plots["histograms"]["text"] and "rotation error" in page.plots["residual-trends"]["text"]
     _assert_rendered(_render_in_chromium(chromium, path, "report-6d.png"), html)
 
