@@ -1,11 +1,12 @@
 """Run many malformed inputs through every command and count how each run ended.
 
-    python benchmarks/fuzz_cli.py --cases 10000 [--seed 0] [--show 3]
+    python benchmarks/fuzz_cli.py --cases 10000 [--seed 0] [--jobs 2] [--show 3] [--keep DIR]
 
 Cases come from the hypothesis strategies in tests/fuzz_cases.py (model files, measurement and
 repeatability CSVs, URDFs, result files, command lines). Each runs ``robocal.cli.main(argv)`` in a
-forked child, in a folder of its own, under a 20 s wall-clock limit and a 1 GB memory limit (on
-top of the address space the parent already holds). Outcomes: clean error, ok result, traceback,
+forked child, in a folder of its own, under a limit of 20 s of CPU time (wall-clock time on a
+shared machine is not the program's; a 120 s wall-clock backstop too) and 1 GB of memory (on top
+of the address space the parent already holds). Outcomes: clean error, ok result, traceback,
 hang, over-memory, non-finite output, multi-line error. A few examples of each bad outcome are
 printed with the command line and the last lines of stderr.
 """
@@ -36,11 +37,14 @@ matplotlib.use("Agg")
 from hypothesis import HealthCheck, Phase, given, settings  # noqa: E402
 
 import fuzz_cases  # noqa: E402
-import robocal._calibration  # noqa: E402,F401  (imported once here, not in every child)
-import robocal._presentation.html  # noqa: E402,F401
+import robocal  # noqa: E402,F401  (imported once here, not in every child)
+import robocal.report  # noqa: E402,F401
 from robocal.cli import main  # noqa: E402
 
-TIME_LIMIT = 20.0
+# per case: 20 s of CPU time (the machine may be shared: wall-clock time is not the program's), and
+# a wall-clock backstop for a case that sleeps or waits; 1 GB of memory beyond the parent's
+TIME_LIMIT = 20
+WALL_LIMIT = 120.0
 MEMORY_LIMIT = 1 << 30
 
 
@@ -59,6 +63,7 @@ def _child(folder: Path, argv: list[str]) -> None:
         os.chdir(folder)
         limit = _vm_size() + MEMORY_LIMIT
         resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+        resource.setrlimit(resource.RLIMIT_CPU, (TIME_LIMIT, TIME_LIMIT + 5))
         out = os.open("stdout.txt", os.O_WRONLY | os.O_CREAT | os.O_TRUNC)
         err = os.open("stderr.txt", os.O_WRONLY | os.O_CREAT | os.O_TRUNC)
         os.dup2(out, 1)
@@ -75,7 +80,8 @@ def _child(folder: Path, argv: list[str]) -> None:
 
 
 class Runner:
-    def __init__(self, show: int):
+    def __init__(self, show: int, keep: Path | None, jobs: int):
+        self.keep, self.jobs, self.running, self.started = keep, jobs, {}, 0
         self.counts = collections.Counter()
         self.examples = collections.defaultdict(list)
         self.show = show
@@ -83,36 +89,51 @@ class Runner:
         self.root = Path(tempfile.mkdtemp(prefix="robocal-fuzz-"))
 
     def run(self, files: dict, argv: list[str]) -> None:
-        folder = self.root / f"case{sum(self.counts.values())}"
+        """Start one case; with ``jobs`` cases running, first wait for one to finish."""
+        while len(self.running) >= self.jobs:
+            self.reap()
+        self.started += 1
+        folder = self.root / f"case{self.started}"
         folder.mkdir()
         for name, data in files.items():
             (folder / name).write_bytes(data)
-        before = set(files) | {"stdout.txt", "stderr.txt"}
-        start = time.monotonic()
         pid = os.fork()
         if pid == 0:
             _child(folder, argv)
-        outcome = None
+        self.running[pid] = (folder, time.monotonic(), argv, files)
+
+    def reap(self) -> None:
+        """Wait until one running case ends (or overruns the time limit) and count it."""
         while True:
-            done, status, usage = os.wait4(pid, os.WNOHANG)
-            if done:
-                break
-            if time.monotonic() - start > TIME_LIMIT:
-                os.kill(pid, signal.SIGKILL)
-                os.wait4(pid, 0)
-                outcome = "hang"
-                break
+            for pid, (folder, start, argv, files) in list(self.running.items()):
+                done, status, usage = os.wait4(pid, os.WNOHANG)
+                if done:
+                    return self.count(pid, status, usage, None)
+                if time.monotonic() - start > WALL_LIMIT:
+                    os.kill(pid, signal.SIGKILL)
+                    _, status, usage = os.wait4(pid, 0)
+                    return self.count(pid, status, usage, "hang")
             time.sleep(0.005)
+
+    def count(self, pid, status, usage, outcome) -> None:
+        folder, start, argv, files = self.running.pop(pid)
         self.times.append(time.monotonic() - start)
         err = (folder / "stderr.txt").read_text(errors="replace") if (folder / "stderr.txt").exists() else ""
         if outcome is None:
-            if os.WIFSIGNALED(status) or usage.ru_maxrss * 1024 > MEMORY_LIMIT + (400 << 20) or "MemoryError" in err:
+            if os.WIFSIGNALED(status) and os.WTERMSIG(status) in (signal.SIGXCPU, signal.SIGKILL) and \
+                    usage.ru_utime + usage.ru_stime >= TIME_LIMIT:
+                outcome = "hang"
+            elif os.WIFSIGNALED(status) or usage.ru_maxrss * 1024 > MEMORY_LIMIT + (400 << 20) or "MemoryError" in err:
                 outcome = "over-memory"
             else:
+                before = set(files) | {"stdout.txt", "stderr.txt"}
                 outcome = fuzz_cases.judge(os.WEXITSTATUS(status), err, folder, before)
         self.counts[outcome] += 1
         if outcome not in ("clean error", "ok result") and len(self.examples[outcome]) < self.show:
             self.examples[outcome].append((argv, {k: v[:300] for k, v in files.items()}, err[-1500:]))
+        if self.keep and outcome not in ("clean error", "ok result"):
+            (folder / "argv.txt").write_text("\n".join(argv) + "\n")
+            shutil.copytree(folder, self.keep / f"{outcome.replace(' ', '-')}-{folder.name}")
         shutil.rmtree(folder, ignore_errors=True)
         n = sum(self.counts.values())
         if n % 100 == 0:
@@ -135,11 +156,15 @@ def main_fuzz(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--cases", type=int, default=10_000)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--jobs", type=int, default=2, help="cases run at once")
     p.add_argument("--show", type=int, default=3, help="examples printed per bad outcome")
+    p.add_argument("--keep", type=Path, help="copy the folder of every bad case here (argv.txt holds its command)")
     args = p.parse_args(argv)
     import random
 
-    runner = Runner(args.show)
+    runner = Runner(args.show, args.keep, args.jobs)
+    if args.keep:
+        args.keep.mkdir(parents=True, exist_ok=True)
     result_text = base_result()
 
     @settings(max_examples=args.cases, database=None, deadline=None, phases=[Phase.generate],
@@ -152,6 +177,8 @@ def main_fuzz(argv=None) -> int:
     t0 = time.monotonic()
     each._hypothesis_internal_use_seed = args.seed
     each()
+    while runner.running:
+        runner.reap()
     wall = time.monotonic() - t0
     n = sum(runner.counts.values())
     times = sorted(runner.times)

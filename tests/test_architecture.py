@@ -13,14 +13,15 @@ SRC = ROOT / "src" / "robocal"
 
 # the data flow, upstream first: a module may import from its own layer or an earlier one
 LAYERS = [
-    {"_version", "_errors", "_options", "_units", "_spatial", "_misfit"},
-    {"_model", "_measurements"},
+    {"_version", "_errors", "_options", "_units", "_spatial", "_misfit", "_threads"},
+    {"_model", "_measurements", "_contacts"},
     {"_parameters"},
     {"_kinematics"},
-    {"_problem"},
+    {"_problem", "_observations"},
     {"_identifiability"},
-    {"_pose_selection", "_simulation", "_compensation", "_accuracy_limit", "_conversion", "_checks"},
-    {"_solve", "_calibration", "_campaign"},
+    {"_pose_selection", "_simulation", "_compensation", "_accuracy_limit", "_conversion", "_checks",
+     "_contact_simulation"},
+    {"_solve", "_calibration", "_campaign", "_contact_calibration"},
     {"_files"},
     {"_presentation"},
     {"__init__", "errors", "kinematics", "io", "sim", "limit", "report", "identification"},

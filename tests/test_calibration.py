@@ -168,3 +168,31 @@ def test_validation_without_data_keeps_fields_present():
     np.testing.assert_allclose(np.diag(res.correlation), 1.0)
 
 
+
+
+def test_a_campaign_solved_in_chunks_gives_the_in_memory_answer(monkeypatch):
+    """Large campaigns are evaluated a chunk of poses at a time and solved on normal equations;
+    small chunks here make the same path run on a small campaign."""
+    import robocal._kinematics as kinematics
+    import robocal._problem as problem
+    from robocal.identification import Problem
+
+    m = arm6r()
+    _, data = rc.simulate(m, 400, seed=3, noise=NOISE)
+    whole = rc.calibrate(m, data)
+    q = rc.random_configurations(m, 400, rng=0)
+    fk = rc.forward_kinematics(m, q)
+    for module in (kinematics, problem):
+        monkeypatch.setattr(module, "LARGE_POSES", 150)
+        monkeypatch.setattr(module, "CHUNK_POSES", 70)
+    assert Problem(m, data, whole.parameter_names, compliance=False).chunked
+    chunked = rc.calibrate(m, data)
+    assert chunked.parameter_names == whole.parameter_names and chunked.success
+    est = [np.array([(e.estimate, e.std) for e in r.parameters]) for r in (chunked, whole)]
+    np.testing.assert_allclose(est[0], est[1], rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(chunked.errors_after, whole.errors_after, rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(chunked.errors_before, whole.errors_before, rtol=1e-9, atol=1e-15)
+    assert chunked.identifiability.observability == pytest.approx(whole.identifiability.observability, rel=1e-9)
+    fk_chunked = rc.forward_kinematics(m, q)
+    np.testing.assert_allclose(fk_chunked.positions, fk.positions, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(fk_chunked.rotations, fk.rotations, rtol=0, atol=1e-15)

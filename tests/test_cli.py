@@ -269,7 +269,7 @@ def test_simulate_refuses_existing_output(tmp_path, cli):
 
 def test_missing_files_and_bad_options(tmp_path, cli):
     code, out, err = cli("calibrate", tmp_path / "none.yaml", tmp_path / "none.csv", "--out", tmp_path / "o")
-    assert code == 2 and "none.yaml: file not found" in err and "Traceback" not in err
+    assert code == 2 and "none.yaml: cannot read: file not found" in err and "Traceback" not in err
     code, out, err = cli("calibrate", "m.yaml", "d.csv", "--out", "o", "--holdout", "1.5")
     assert code == 2 and "fraction" in err
     code, out, err = cli("calibrate", "m.yaml", "d.csv", "--out", "o", "--units", "mm-grad")

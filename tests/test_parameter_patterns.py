@@ -10,7 +10,7 @@ from robots import arm6r, torso
 def test_patterns_expand_to_the_candidates_they_match():
     model = torso()
     offsets = rc.candidate_parameters(model, ["*.theta"])
-    assert offsets == tuple(f"{f.name}.theta" for f in model.frames)
+    assert sorted(offsets) == sorted(f"{f.name}.theta" for f in model.frames)
     assert rc.candidate_parameters(model, ["r1.*"]) == ("r1.gamma", "r1.b", "r1.beta", "r1.alpha", "r1.d",
                                                          "r1.theta", "r1.r")
     # no masses: compliances are not matched by a pattern

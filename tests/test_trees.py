@@ -47,10 +47,14 @@ def test_torso_file_is_the_tree_it_claims():
     q = rc.random_configurations(m, 5, rng=1)
     np.testing.assert_allclose(rc.forward_kinematics(m, q).positions, rc.forward_kinematics(built, q).positions,
                                atol=1e-15)
-    # r1 hangs off t2, not off its predecessor l4: gamma and b are its candidates, not l1's
+    # r1 hangs off t2, not off its predecessor l4; both arms' first frames get gamma and b alike,
+    # and t2's theta and r, which move both branches as their gamma and b do, come after them
     assert m.frames[6].parent == 1 != 6 - 1
     cand = rc.candidate_parameters(m)
-    assert {"r1.gamma", "r1.b"} <= set(cand) and "l1.gamma" not in cand
+    assert {"r1.gamma", "r1.b", "l1.gamma", "l1.b"} <= set(cand)
+    assert cand.index("t2.theta") > cand.index("r1.b") and cand.index("t2.r") > cand.index("r1.b")
+    absorbed = {e.name: dict(e.absorbers) for e in rc.identifiability(m, None).eliminated}
+    assert set(absorbed["t2.theta"]) == {"l1.gamma", "r1.gamma"}
     # the passive frame turns by -l2 - l3: the left hand keeps its orientation as l2 and l3 move
     q2 = q.copy()
     q2[:, J["l2"]] += 0.4

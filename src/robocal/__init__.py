@@ -33,6 +33,8 @@ _EVERYDAY = {
     "_identifiability": ("identifiability", "status_table", "Absorption", "IdentifiabilityResult"),
     "_pose_selection": ("select_poses", "PoseSelection"),
     "_compensation": ("compensate", "Compensation"),
+    "_contacts": ("Contacts", "KnownDistance", "KnownPlane"),
+    "_contact_calibration": ("calibrate_contacts", "contact_errors", "ContactCalibration", "ContactErrors"),
 }
 _WHERE = {name: module for module, names in _EVERYDAY.items() for name in names}
 _SUBMODULES = ("kinematics", "io", "sim", "limit", "report", "errors", "cli")

@@ -28,6 +28,7 @@ from ._model import RobotModel
 from ._parameters import families, parameter_layout, parameter_vector
 from ._problem import sampling_box
 from ._spatial import cross
+from ._threads import one_blas_thread
 
 PERCENTILES = (50.0, 90.0, 95.0, 99.0)
 HIST_BINS = 20_000
@@ -299,6 +300,7 @@ def parameter_displacement(ps, rot: np.ndarray, steps: np.ndarray, on_path: np.n
     return trans + turn
 
 
+@one_blas_thread
 def controller_precision(model: RobotModel, *, encoder_resolution, length_quantum: float,
                          angle_quantum: float, n_samples: int, chunk_size: int = DEFAULT_CHUNK, rng,
                          progress: Callable[[int, int], None] | None = None,
@@ -373,6 +375,7 @@ def controller_precision(model: RobotModel, *, encoder_resolution, length_quantu
         method="exact forward kinematics for joint errors, first order (J_p dp) for parameter round-off")
 
 
+@one_blas_thread
 def predicted_controller_precision(model: RobotModel, *, encoder_resolution, length_quantum: float,
                                    angle_quantum: float, n_configurations: int = 20000,
                                    chunk_size: int = 2048, rng, marker: int = 0) -> PredictedPrecision:

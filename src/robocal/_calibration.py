@@ -21,7 +21,7 @@ from ._checks import (OUTLIER_SHARE_MAX, Check, backlash_sign_check, cloud_size_
                       tolerances, verdict)
 from ._errors import (CheckWarning, ConvergenceWarning, DegenerateDataError, IdentifiabilityWarning, InputError,
                       MisfitWarning, check_choice)
-from ._identifiability import (DEFAULT_TOL, IdentifiabilityResult, analyse_problem, theoretical_identifiability,
+from ._identifiability import (DEFAULT_TOL, IdentifiabilityResult, analyse, theoretical_identifiability,
                                weakly_identifiable)
 from ._identifiability import eliminate as eliminate_parameters
 from ._kinematics import evaluate
@@ -32,6 +32,7 @@ from ._model import RobotModel
 from ._parameters import candidate_parameters, matched_by_pattern, model_from_vector, parameter_layout, parameter_vector
 from ._problem import Problem, needs_compliance
 from ._solve import Covariance, Solution, covariance, solve
+from ._threads import one_blas_thread
 from ._version import __version__
 
 # the limit is a mean-error bar; within this factor of it counts as reaching it
@@ -213,6 +214,7 @@ class _Design:
     weak_kept: bool = False
 
 
+@one_blas_thread
 def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",), known=(),
               validation: Measurements | None = None, loss: str = "linear", f_scale: float | None = None,
               tol: float = DEFAULT_TOL, max_nfev: int | None = None, initial_base: str = "model",
@@ -242,7 +244,7 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
     limit_m = None if limit is None else float(getattr(limit, "limit", limit))
     checks = [readings_check(model, data), reading_units_check(model, data),
               cloud_size_check(model, data, _predicted(model, data)), markers_check(model, data)]
-    notes = list(data.extra.get("notes", ()))  # what reading the file decided, e.g. a detected separator
+    notes = list(model.notes) + list(data.extra.get("notes", ()))  # what the readers decided for the user
     start = _starting_model(model, data, initial_base, notes)
     design = _analyse(start, data, parameters, known + _unmeasured(model, data), tol, notes,
                       noise=noise, limit_m=limit_m, weak=weak)
@@ -339,9 +341,11 @@ def _analyse(start: RobotModel, data: Measurements, parameters: tuple, known: tu
             f"{data.n_poses} poses ({n_unique} distinct) give {distinct_rows} equations for {needed} identifiable "
             f"parameters; at least {needed // rows_per_pose + 1} distinct poses are needed, and several times "
             "that for a useful estimate")
-    ident = analyse_problem(prob, names, tol=tol)
+    J = prob.reduced_jacobian(parameter_vector(start))
+    lay = parameter_layout(start)
+    ident = analyse(J, names, tol=tol, quantities=[lay[n].quantity for n in names], n_rows=prob.n_rows)
     lost = tuple(n for n in theory.identified if n not in ident.identified and n in names)
-    ident, weak_found = _weak(prob, names, ident, noise, limit_m, eliminate=weak == "eliminate")
+    ident, weak_found = _weak(prob, J, names, ident, noise, limit_m, eliminate=weak == "eliminate")
     if not ident.identified:
         raise DegenerateDataError("no parameter is identifiable from these data")
     free = prob.over(ident.identified)   # the solve starts where the analysis evaluated the model
@@ -351,13 +355,13 @@ def _analyse(start: RobotModel, data: Measurements, parameters: tuple, known: tu
                    compliance=compliance, lost=lost, weak=weak_found, weak_kept=weak == "flag")
 
 
-def _weak(prob: Problem, names, ident: IdentifiabilityResult, noise: Noise, limit_m, *, eliminate: bool):
+def _weak(prob: Problem, J: np.ndarray, names, ident: IdentifiabilityResult, noise: Noise, limit_m, *,
+          eliminate: bool):
     """The analysis with weakly identifiable parameters eliminated (or only named), and those
     parameters with their predicted standard deviations. Eliminating one may let an equivalent one
     in (a member of the same dependent group): the analysis repeats until none is weak."""
     lay = parameter_layout(prob.model)
     p0 = parameter_vector(prob.model)
-    J = prob.jacobian(p0)
     expected, _ = expected_noise(noise, limit_m)
     sigma = expected / noise.position if prob.weighted else expected   # weighted rows are in noise units
     quantities = [lay[n].quantity for n in names]
@@ -375,7 +379,7 @@ def _weak(prob: Problem, names, ident: IdentifiabilityResult, noise: Noise, limi
         dropped.update({n: f"is weakly identifiable: " + (f"predicted std {_effect(e, lay[n].quantity)} exceeds "
                            if by == n else f"with it, {by}'s predicted std {_effect(e, lay[by].quantity)} exceeds ")
                         + _effect(b, lay[by].quantity) for n, by, e, b in found})
-        result = eliminate_parameters(ident, J, names, quantities, dropped)
+        result = eliminate_parameters(ident, J, names, quantities, dropped, n_rows=prob.n_rows)
 
 
 def _effect(v: float, quantity: str) -> str:
@@ -399,11 +403,14 @@ def _solve(design: _Design, data: Measurements, noise: Noise, notes: list, *, lo
     if out.mean() > OUTLIER_SHARE_MAX:
         return solution, replace(check, cause="so many that the data do not fit the model: see the other checks",
                                  fix="correct the data or the model; a robust loss would hide the misfit"), out
-    if loss == "linear" and on_outliers == "refit":
+    in_chunks = design.problem.chunked
+    if loss == "linear" and on_outliers == "refit" and in_chunks:
+        notes.append(f"{out.sum()} outlier(s) found: a campaign solved in chunks is not refitted with a robust loss")
+    elif loss == "linear" and on_outliers == "refit":
         solution = solve(design.problem, design.p0, loss="soft_l1", max_nfev=max_nfev, lower=lower)
         notes.append(f"{out.sum()} outlier(s) found by the least-squares fit: refitted with the robust loss soft_l1")
         check, out = _outliers(design, solution, data, noise)
-    if loss != "linear" or on_outliers == "refit":
+    if (loss != "linear" or on_outliers == "refit") and not in_chunks:
         check = replace(check, status="warn" if out.any() else "pass",
                         summary=check.summary + f"; the robust loss {solution.loss} sets them aside",
                         fix="check those measurements; remove them to fit without them")
@@ -581,6 +588,7 @@ class Comparison:
         return self.combined if self.helped else self.geometric
 
 
+@one_blas_thread
 def compare(model: RobotModel, data: Measurements, *, validation: Measurements | None = None, alpha: float = 0.01,
             **kwargs) -> Comparison:
     """Run geometric and geometric-plus-compliance identifications on the same data (the paper's two).

@@ -24,6 +24,7 @@ from ._accuracy_limit import rounded_parameters
 from ._kinematics import evaluate, gravity_loads
 from ._model import RobotModel
 from ._parameters import model_from_vector, parameter_vector
+from ._threads import one_blas_thread
 
 
 @dataclass(frozen=True)
@@ -107,6 +108,7 @@ def _attain(true_model: RobotModel, recorded, imp: RobotImperfections, rng, payl
     return P + rng.normal(0.0, 1.0, P.shape) * imp.instrument_noise_per_m * dist
 
 
+@one_blas_thread
 def measure_campaign(true_model: RobotModel, q_commanded, imp: RobotImperfections, *, rng=None,
                      payload_mass=None, labels=()) -> Measurements:
     """Measurements of a campaign at the commanded configurations: readings are encoder counts."""
@@ -128,6 +130,7 @@ def stored_model(model: RobotModel, imp: RobotImperfections) -> RobotModel:
     return model_from_vector(model, p)
 
 
+@one_blas_thread
 def accuracy_in_use(true_model: RobotModel, controller_model: RobotModel | None, nominal: RobotModel, targets_q,
                     imp: RobotImperfections, *, rng=None, marker: int = 0) -> np.ndarray:
     """Distance (m) between each target and what the instrument sees the robot reach (ISO 9283 sense).

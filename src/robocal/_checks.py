@@ -372,3 +372,21 @@ def identifiability_check(lost, weak, *, weak_kept: bool = False) -> Check:
     return Check(name, status, "; ".join(summary),
                  cause="poses that do not move the joints widely enough, or a tool point nearly on an axis",
                  fix="add poses over the whole workspace (robocal plan); or accept the nominal values", items=items)
+
+
+def contact_fit_check(kind: str, residuals: np.ndarray, sigma: np.ndarray, outliers: np.ndarray) -> Check:
+    """The residuals of one kind of contact row (n, d) in metres against their stated standard
+    deviations (n,), outliers (n,) left out. Each kind is judged on its own: a socket's scatter, a
+    plane's distances and a ball bar's length errors are different noises (docs/checks.md)."""
+    name = f"fit of the {kind} contacts"
+    keep = ~outliers
+    r = np.reshape(residuals, (len(sigma), -1))[keep]
+    if not len(r):
+        return Check(name, "fail", f"every {kind} contact is an outlier")
+    ratio = float(np.sqrt(np.mean((r / sigma[keep, None]) ** 2)))
+    summary = f"residuals {np.sqrt(np.mean(r ** 2)) * 1e3:.4g} mm RMS, {ratio:.3g} times the stated deviations"
+    if ratio <= FIT_RATIO:
+        return Check(name, "pass", summary)
+    return Check(name, "fail", summary, cause=f"the {kind} contacts do not fit the model: a mislabelled socket or "
+                 "placement, a ball not seated, a wrong stated length or deviation, joint order or sign",
+                 fix="read the outliers; compare the spread of each group of rows before calibration")

@@ -10,6 +10,7 @@ from scipy.spatial.transform import Rotation
 from ._kinematics import evaluate
 from ._model import RobotModel
 from ._parameters import parameter_layout, parameter_vector
+from ._threads import one_blas_thread
 
 
 def joint_jacobian(model: RobotModel, q) -> np.ndarray:
@@ -34,6 +35,7 @@ class Compensation:
     within_limits: np.ndarray
 
 
+@one_blas_thread
 def compensate(model: RobotModel, targets_q, *, nominal: RobotModel | None = None, marker: int = 0,
                orientation: bool | None = None, iterations: int = 20, tol: float = 1e-10,
                damping: float = 1e-6, max_step: float = 0.05) -> Compensation:

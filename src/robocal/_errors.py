@@ -6,6 +6,8 @@ import difflib
 
 # an offending value is quoted in a message at most this long: a huge cell must not flood a terminal
 EXCERPT = 60
+# and a whole message at most this long
+MESSAGE = 500
 
 
 class RobocalError(Exception):
@@ -20,6 +22,8 @@ class InputError(RobocalError, ValueError):
     """
 
     def __init__(self, message: str, *, source: str | None = None, where: str | None = None):
+        if len(message) > MESSAGE:  # a value quoted whole by mistake must not flood the terminal
+            message = message[:MESSAGE - 100] + " ... " + message[-95:]
         self.source = source
         self.where = where
         self.detail = message

@@ -20,6 +20,7 @@ from ._measurements import Measurements
 from ._model import RobotModel
 from ._parameters import FRAME_KINDS, candidate_parameters, parameter_layout, parameter_vector
 from ._problem import Problem, design_measurements, needs_compliance, random_configurations
+from ._threads import one_blas_thread
 
 DEFAULT_TOL = 1e-6
 NO_EFFECT = 1e-10
@@ -84,73 +85,47 @@ def singular_values(A: np.ndarray, vectors: bool = False):
     A = Q R, so A and R share singular values and right singular vectors; the SVD then runs on
     a k x k matrix instead of the stacked rows (several times faster for thousands of rows).
     """
-    if A.shape[0] > 2 * A.shape[1]:
-        A = np.linalg.qr(A, mode="r")
+    A = reduced(A)
     if vectors:
         _, s, vt = np.linalg.svd(A, full_matrices=False)
         return s, vt
     return np.linalg.svd(A, compute_uv=False)
 
 
-def analyse(J: np.ndarray, names, *, quantities=None, tol: float = DEFAULT_TOL,
-            max_terms: int = 6) -> IdentifiabilityResult:
+def reduced(A: np.ndarray) -> np.ndarray:
+    """A matrix with the same Gram matrix as ``A`` (n_rows, k) and at most k rows: its R factor
+    when ``A`` is tall, else ``A`` itself.
+
+    Inner products, norms, least-squares residuals and singular values of the columns are those
+    of ``A``, so every column analysis runs on k x k numbers instead of the stacked rows.
+    """
+    if A.shape[0] > A.shape[1]:
+        return np.linalg.qr(A, mode="r")
+    return A
+
+
+@one_blas_thread
+def analyse(J: np.ndarray, names, *, quantities=None, tol: float = DEFAULT_TOL, max_terms: int = 6,
+            n_rows: int | None = None) -> IdentifiabilityResult:
     """Identifiability of the columns of ``J`` (n_rows, n_candidates) named ``names``, in preference order.
 
     ``quantities`` (n_candidates,): what each parameter measures ("length", "angle", ...); a column
     has no effect when it is round-off next to the largest column of the same quantity. Default:
-    all alike.
+    all alike. ``J`` may be replaced by any matrix with the same Gram matrix (``reduced(J)``);
+    ``n_rows`` then gives the rows it stands for (the observability index O1 divides by them).
     """
     names = tuple(names)
     J = np.asarray(J, dtype=float)
-    scale = np.linalg.norm(J, axis=0)
-    eliminated = []
-    kept_idx = []
-    n_rows, n_cols = J.shape
-    basis = np.zeros((n_rows, n_cols))      # orthonormal basis of the kept columns, filled in order
-    Rk = np.zeros((n_cols, n_cols))         # kept columns = basis @ Rk (upper triangular)
+    m = J.shape[0] if n_rows is None else int(n_rows)
+    scale, nz = _column_scale(J, quantities, len(names))
     An = np.zeros_like(J)
-    # a column is "no effect" when it is round-off next to the largest column of the same unit
-    # (e.g. the torsion of a joint whose distal centre of mass lies on its axis)
-    units = np.array(["" for _ in names] if quantities is None else list(quantities))
-    nz = np.zeros(len(names), dtype=bool)
-    for u in set(units):
-        sel = units == u
-        nz[sel] = scale[sel] > NO_EFFECT * scale[sel].max()
     An[:, nz] = J[:, nz] / scale[nz]
-    dep = []
-    for k, name in enumerate(names):
-        if not nz[k]:
-            eliminated.append((k, "has no effect on the measurements"))
-            continue
-        a = An[:, k]
-        B = basis[:, :len(kept_idx)]
-        # project twice: one classical Gram-Schmidt pass loses orthogonality for nearly dependent columns
-        r1 = B.T @ a
-        res = a - B @ r1
-        r2 = B.T @ res
-        res = res - B @ r2
-        nr = np.linalg.norm(res)
-        if nr > tol:
-            j = len(kept_idx)
-            Rk[:j, j] = r1 + r2
-            Rk[j, j] = nr
-            basis[:, j] = res / nr
-            kept_idx.append(k)
-        else:
-            eliminated.append((k, "is a combination of identified parameters"))
-            dep.append(k)
-    kept_idx = np.array(kept_idx, dtype=int)
-    nk = len(kept_idx)
-    basis, Rk = basis[:, :nk], Rk[:nk, :nk]
+    An = reduced(An)
+    kept_idx, dep, Rk, basis = _preference_qr(An, nz, tol)
+    eliminated = sorted([(k, "has no effect on the measurements") for k in np.nonzero(~nz)[0]]
+                        + [(k, "is a combination of identified parameters") for k in dep])
+    coefs = _absorbing_combinations(An, dep, basis, Rk)
     absorptions = []
-    coefs = {}
-    if dep and nk:
-        # least squares on the kept columns through their QR factors: c = Rk^-1 basis^T a
-        D = An[:, dep]
-        proj = basis.T @ D
-        C = solve_triangular(Rk, proj)
-        R = np.linalg.norm(D - basis @ proj, axis=0)
-        coefs = {k: (C[:, i], float(R[i])) for i, k in enumerate(dep)}
     for k, reason in eliminated:
         if k not in coefs:
             absorptions.append(Absorption(names[k], reason, (), 0.0))
@@ -160,18 +135,8 @@ def analyse(J: np.ndarray, names, *, quantities=None, tol: float = DEFAULT_TOL,
         order = np.argsort(-np.abs(c))
         terms = tuple((names[kept_idx[i]], float(coef[i])) for i in order[:max_terms] if abs(c[i]) > 1e-6)
         absorptions.append(Absorption(names[k], reason, terms, resid))
-    if nk:
-        s = singular_values(Rk)
-    else:
-        s = np.zeros(0)
-    m = J.shape[0]
-    if len(s) and s[-1] > 0:
-        obs = {"O1": float(np.exp(np.mean(np.log(s))) / np.sqrt(m)), "O2": float(s[-1] / s[0]),
-               "O3": float(s[-1]), "O4": float(s[-1] ** 2 / s[0]), "O5": float(1.0 / np.sum(1.0 / s))}
-        cond = float(s[0] / s[-1])
-    else:
-        obs = {k: 0.0 for k in ("O1", "O2", "O3", "O4", "O5")}
-        cond = float("inf")
+    s = singular_values(Rk) if len(kept_idx) else np.zeros(0)
+    obs, cond = _observability(s, m)
     all_s = singular_values(An[:, nz]) if nz.any() else np.zeros(0)
     rank = int(np.sum(all_s > tol * all_s[0])) if len(all_s) else 0
     return IdentifiabilityResult(
@@ -181,6 +146,71 @@ def analyse(J: np.ndarray, names, *, quantities=None, tol: float = DEFAULT_TOL,
     )
 
 
+def _column_scale(J: np.ndarray, quantities, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Column norms of ``J`` and which columns have an effect: a column is "no effect" when it is
+    round-off next to the largest column of the same quantity (e.g. the torsion of a joint whose
+    distal centre of mass lies on its axis)."""
+    scale = np.linalg.norm(J, axis=0)
+    units = np.array(["" for _ in range(n)] if quantities is None else list(quantities))
+    nz = np.zeros(n, dtype=bool)
+    for u in set(units):
+        sel = units == u
+        nz[sel] = scale[sel] > NO_EFFECT * scale[sel].max()
+    return scale, nz
+
+
+def _preference_qr(An: np.ndarray, nz: np.ndarray, tol: float):
+    """Gram-Schmidt over the unit columns ``An`` in preference order: a column is kept when the part
+    outside the span of those kept before it exceeds ``tol``. Returns the kept and the dependent
+    indices, the kept columns' triangular factor ``Rk`` and orthonormal ``basis`` (An[:, kept] =
+    basis @ Rk)."""
+    n_rows, n_cols = An.shape
+    basis = np.zeros((n_rows, n_cols))
+    Rk = np.zeros((n_cols, n_cols))
+    kept, dep = [], []
+    for k in np.nonzero(nz)[0]:
+        a = An[:, k]
+        B = basis[:, :len(kept)]
+        # project twice: one classical Gram-Schmidt pass loses orthogonality for nearly dependent columns
+        r1 = B.T @ a
+        res = a - B @ r1
+        r2 = B.T @ res
+        res = res - B @ r2
+        nr = np.linalg.norm(res)
+        if nr > tol:
+            j = len(kept)
+            Rk[:j, j] = r1 + r2
+            Rk[j, j] = nr
+            basis[:, j] = res / nr
+            kept.append(int(k))
+        else:
+            dep.append(int(k))
+    nk = len(kept)
+    return np.array(kept, dtype=int), dep, Rk[:nk, :nk], basis[:, :nk]
+
+
+def _absorbing_combinations(An: np.ndarray, dep: list, basis: np.ndarray, Rk: np.ndarray) -> dict:
+    """Per dependent column, the least-squares combination of the kept columns (through their QR
+    factors: c = Rk^-1 basis^T a) and the norm of what it leaves."""
+    if not dep or not len(Rk):
+        return {}
+    D = An[:, dep]
+    proj = basis.T @ D
+    C = solve_triangular(Rk, proj)
+    R = np.linalg.norm(D - basis @ proj, axis=0)
+    return {k: (C[:, i], float(R[i])) for i, k in enumerate(dep)}
+
+
+def _observability(s: np.ndarray, m: int) -> tuple[dict, float]:
+    """The observability indices O1..O5 of singular values ``s`` over ``m`` rows, and the condition number."""
+    if len(s) and s[-1] > 0:
+        obs = {"O1": float(np.exp(np.mean(np.log(s))) / np.sqrt(m)), "O2": float(s[-1] / s[0]),
+               "O3": float(s[-1]), "O4": float(s[-1] ** 2 / s[0]), "O5": float(1.0 / np.sum(1.0 / s))}
+        return obs, float(s[0] / s[-1])
+    return {k: 0.0 for k in ("O1", "O2", "O3", "O4", "O5")}, float("inf")
+
+
+@one_blas_thread
 def identifiability(model: RobotModel, data: Measurements | np.ndarray | None = None, *,
                     parameters=("geometric",), known=(), orientation: bool | None = None,
                     tol: float = DEFAULT_TOL, n_random: int = 200, rng=0, markers=None) -> IdentifiabilityResult:
@@ -220,6 +250,7 @@ def theoretical_identifiability(model: RobotModel, parameters: tuple, known: tup
                            markers=markers)
 
 
+@one_blas_thread
 def predicted_std(J: np.ndarray, sigma: float) -> np.ndarray:
     """Standard deviations of the parameters of the columns of ``J`` (n_rows, k) for residuals of
     standard deviation ``sigma`` (in the rows' units): sqrt(diag(sigma^2 (J^T J)^-1)), inverted in
@@ -231,6 +262,7 @@ def predicted_std(J: np.ndarray, sigma: float) -> np.ndarray:
     return sigma * np.sqrt(np.diag(inv)) / col
 
 
+@one_blas_thread
 def weakly_identifiable(J: np.ndarray, names, quantities, sigma: float, *, moments: dict | None = None,
                         bounds: dict | None = None) -> list[tuple[str, str, float, float]]:
     """Parameters to eliminate because the design cannot pin them down.
@@ -270,17 +302,21 @@ def weakly_identifiable(J: np.ndarray, names, quantities, sigma: float, *, momen
     return out
 
 
+@one_blas_thread
 def eliminate(result: IdentifiabilityResult, J: np.ndarray, names, quantities, dropped: dict,
-              *, max_terms: int = 6) -> IdentifiabilityResult:
+              *, max_terms: int = 6, n_rows: int | None = None) -> IdentifiabilityResult:
     """The analysis of ``J`` (n_rows, n_candidates) with the identified parameters in ``dropped``
     (name -> reason) eliminated too: each absorbed by the least-squares combination of the
-    parameters kept."""
+    parameters kept. ``n_rows``: the rows ``J`` stands for when it is reduced (see ``analyse``)."""
     names = list(names)
-    sub = [k for k, n in enumerate(names) if n not in dropped]
-    kept = analyse(J[:, sub], [names[k] for k in sub], quantities=[quantities[k] for k in sub], tol=result.tol)
-    cols = [names.index(n) for n in kept.identified]
+    n_rows = J.shape[0] if n_rows is None else n_rows
     scale = np.linalg.norm(J, axis=0)
     scale[scale == 0] = 1.0
+    J = reduced(J / scale) * scale   # the same Gram matrix in k rows, factored in unit-column scaling
+    sub = [k for k, n in enumerate(names) if n not in dropped]
+    kept = analyse(J[:, sub], [names[k] for k in sub], quantities=[quantities[k] for k in sub], tol=result.tol,
+                   n_rows=n_rows)
+    cols = [names.index(n) for n in kept.identified]
     A = J[:, cols] / scale[cols]
     extra = []
     for name, reason in dropped.items():

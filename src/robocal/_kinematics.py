@@ -31,8 +31,13 @@ from ._measurements import approach_sides
 from ._model import RobotModel
 from ._parameters import BASE_KINDS, MARKER_KINDS, parameter_layout, parameter_vector
 from ._spatial import cross, rot_matrix, small_rotation
+from ._threads import one_blas_thread
 
 N_BASE = len(BASE_KINDS)
+# above this many poses, what needs no Jacobian is evaluated CHUNK_POSES poses at a time (and a
+# problem of point data is solved on normal equations accumulated chunk by chunk, see _problem)
+LARGE_POSES = 50_000
+CHUNK_POSES = 10_000
 N_MARKER = len(MARKER_KINDS)
 # offsets of the geometric steps inside a frame's block (same order as FRAME_KINDS)
 GAMMA, B, BETA, ALPHA, D, THETA, R = range(7)
@@ -112,36 +117,14 @@ def layout(model: RobotModel) -> Layout:
             ancestors[i] |= ancestors[f.parent]
     subtree = ancestors.T.copy()  # [i, k]: k in subtree of i
 
-    def frame_steps(i):
-        return np.arange(N_BASE + 7 * i, N_BASE + 7 * i + 7)
-
     marker_path = np.zeros((nm, n_steps), dtype=bool)
     for m, mk in enumerate(model.markers):
         marker_path[m, :N_BASE] = True
         for k in np.nonzero(ancestors[mk.frame])[0]:
-            marker_path[m, frame_steps(k)] = True
+            marker_path[m, _frame_steps(k)] = True
         s0 = N_BASE + 7 * nf + N_MARKER * m
         marker_path[m, s0:s0 + N_MARKER] = True
-
-    csteps, cparams = [], []
-    anc = np.zeros((3 * nf, n_steps), dtype=bool)
-    desc = np.zeros((3 * nf, n_steps), dtype=bool)
-    for i in range(nf):
-        for c, (off, koff) in enumerate(COMPLIANT):
-            row = 3 * i + c
-            s = N_BASE + 7 * i + off
-            csteps.append(s)
-            cparams.append(frame0[i] + koff)
-            anc[row, :N_BASE] = True
-            for k in np.nonzero(ancestors[i])[0]:
-                if k != i:
-                    anc[row, frame_steps(k)] = True
-            own = frame_steps(i)
-            anc[row, own[own <= s]] = True
-            desc[row, own[own > s]] = True
-            for k in np.nonzero(subtree[i])[0]:
-                if k != i:
-                    desc[row, frame_steps(k)] = True
+    csteps, cparams, anc, desc = _compliant_rows(frame0, ancestors, n_steps)
     param_step = np.full(len(names), -1, dtype=int)
     param_step[step_param] = np.arange(n_steps)
     param_compliant = np.full(len(names), -1, dtype=int)
@@ -166,31 +149,98 @@ def layout(model: RobotModel) -> Layout:
     )
 
 
+def _frame_steps(i: int) -> np.ndarray:
+    return np.arange(N_BASE + 7 * i, N_BASE + 7 * i + 7)
+
+
+def _compliant_rows(frame0: list, ancestors: np.ndarray, n_steps: int):
+    """Per compliant step (theta, alpha, beta of each frame): its step and compliance indices, and
+    which steps are proximal (``anc``) and distal (``desc``) to it, (3 n_frames, n_steps) each."""
+    nf = len(frame0)
+    subtree = ancestors.T
+    csteps, cparams = [], []
+    anc = np.zeros((3 * nf, n_steps), dtype=bool)
+    desc = np.zeros((3 * nf, n_steps), dtype=bool)
+    for i in range(nf):
+        for c, (off, koff) in enumerate(COMPLIANT):
+            row = 3 * i + c
+            s = N_BASE + 7 * i + off
+            csteps.append(s)
+            cparams.append(frame0[i] + koff)
+            anc[row, :N_BASE] = True
+            for k in np.nonzero(ancestors[i])[0]:
+                if k != i:
+                    anc[row, _frame_steps(k)] = True
+            own = _frame_steps(i)
+            anc[row, own[own <= s]] = True
+            desc[row, own[own > s]] = True
+            for k in np.nonzero(subtree[i])[0]:
+                if k != i:
+                    desc[row, _frame_steps(k)] = True
+    return csteps, cparams, anc, desc
+
+
 @dataclass
 class _Pass:
+    """The frames of one pass; step axes, points on them and marker orientations are built from
+    them when first asked for (residuals need none of the per-step arrays)."""
+
     R: np.ndarray    # (n_frames, N, 3, 3) rotations R_W<frame>
     O: np.ndarray    # (n_frames, N, 3) origins
-    U: np.ndarray | None  # (n_steps, N, 3) step axes (None for a frames-only pass)
-    Q: np.ndarray | None  # (n_steps, N, 3) points on rotation axes
-    P: np.ndarray | None  # (n_markers, N, 3) marker positions
-    RM: list         # per marker orientation (N, 3, 3), when asked
-    W: np.ndarray    # (n_frames, N, 3, 5) per frame in W: beta axis, alpha/d axis, theta/r axis, b offset, full offset
+    P: np.ndarray | None  # (n_markers, N, 3) marker positions (None for a frames-only pass)
+    W: np.ndarray    # (n_frames, N, 3, 6) per frame in W: beta axis, alpha/d axis, theta/r axis, b offset,
+    #                  full offset, and the y axis before the theta turn
     base_axes: np.ndarray  # (6, 3) axes of the base steps
     base_origin: np.ndarray  # (3,)
     base_rotation: np.ndarray  # (3, 3) frame 0 of the base, parent of the root frames
+    model: RobotModel | None = None
+    lay: Layout | None = None
+    p: np.ndarray | None = None
+    orientations: bool = False
     cache: dict = field(default_factory=dict)
+
+    @property
+    def U(self) -> np.ndarray:
+        """(n_steps, N, 3) step axes in W (marker rotation axes zero without orientations)."""
+        return self._axes()[0]
+
+    @property
+    def Q(self) -> np.ndarray:
+        """(n_steps, N, 3) a point on each rotation step's axis (zero for translations)."""
+        return self._axes()[1]
+
+    @property
+    def RM(self) -> list:
+        """Per marker its orientation (N, 3, 3) in W; empty without orientations."""
+        if "RM" not in self.cache:
+            self.cache["RM"] = _marker_rotations(self) if self.orientations else []
+        return self.cache["RM"]
+
+    def _axes(self):
+        if "axes" not in self.cache:
+            self.cache["axes"] = _step_axes(self)
+        return self.cache["axes"]
 
 
 def _turn(R: np.ndarray, axis: int, angle, out=None) -> np.ndarray:
     """R @ Rot(axis, angle) for a stack R (N, 3, 3) and per-pose angles: mixes two columns."""
+    return _turn_columns((R[:, :, 0], R[:, :, 1], R[:, :, 2]), axis, angle, out)
+
+
+def _turn_columns(cols, axis: int, angle, out=None) -> np.ndarray:
+    """``_turn`` of the rotation whose columns (N, 3) each are ``cols``."""
     i, j = _ROT_PAIRS[axis]
-    c = np.cos(angle)[:, None]
-    s = np.sin(angle)[:, None]
-    out = np.empty(R.shape) if out is None else out
-    ri, rj = R[:, :, i], R[:, :, j]
-    out[:, :, i] = ri * c + rj * s
-    out[:, :, j] = rj * c - ri * s
-    out[:, :, axis] = R[:, :, axis]
+    c = np.cos(angle)
+    s = np.sin(angle)
+    out = np.empty(cols[0].shape[:1] + (3, 3)) if out is None else out
+    # (3, N) views: numpy's inner loops then run over the poses, not over 3 components
+    ri, rj = cols[i].T, cols[j].T
+    oi, oj = out[:, :, i].T, out[:, :, j].T
+    np.multiply(ri, c, out=oi)
+    oi += rj * s
+    np.multiply(rj, c, out=oj)
+    oj -= ri * s
+    out[:, :, axis] = cols[axis]
     return out
 
 
@@ -199,97 +249,131 @@ def kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray
     """One pass down the tree. Per frame, the constant part of X_parent,j is one 3x3 product;
     only the joint rotation (and gravity deflections) vary per pose.
 
-    ``frames_only``: frame poses without step axes, points or markers (the undeformed chain
-    under compliance needs no more; ``_compliant_vectors`` gives the axes it asks for)."""
+    ``frames_only``: frame poses without marker positions (the undeformed chain under compliance
+    needs no more; ``_compliant_vectors`` gives the axes it asks for). Step axes and points
+    (``U``, ``Q``) and marker orientations are built on first use."""
     N = qf.shape[0]
-    n_steps = len(lay.step_param)
-    U = Q = None
+    base_axes, Rb = _base_placement(model, p)
+    Ob = np.broadcast_to(p[0:3], (N, 3))
+    Rb_all = np.broadcast_to(Rb, (N, 3, 3))
+    R_frames = np.empty((model.n_frames, N, 3, 3))
+    O_frames = np.empty((model.n_frames, N, 3))
+    W_frames = np.empty((model.n_frames, N, 3, 6))
+    for i, f in enumerate(model.frames):
+        Rp, Op = (Rb_all, Ob) if f.parent < 0 else (R_frames[f.parent], O_frames[f.parent])
+        v = p[lay.frame0[i]:lay.frame0[i] + 7]
+        q = qf[:, i]
+        d_th, d_al, d_be = (0.0, 0.0, 0.0) if defl is None else defl[i]
+        W = W_frames[i]
+        _frame_axes(Rp, v, v[BETA] + d_be, v[ALPHA] + d_al, W)
+        th = v[THETA] + (q if f.joint == "revolute" else 0.0) + d_th
+        # the frame before its theta turn has x along the d axis and z along the theta axis
+        _turn_columns((W[:, :, 1], W[:, :, 5], W[:, :, 2]), 2, np.broadcast_to(th, (N,)), out=R_frames[i])
+        rr = v[R] + (q if f.joint == "prismatic" else 0.0)
+        np.add(Op + W[:, :, 4], np.reshape(rr, (-1, 1)) * W[:, :, 2], out=O_frames[i])
+    ps = _Pass(R=R_frames, O=O_frames, P=None, W=W_frames, base_axes=base_axes, base_origin=p[0:3],
+               base_rotation=Rb, model=model, lay=lay, p=p, orientations=orientations)
+    if not frames_only:
+        ps.P = _marker_positions(ps)
+    return ps
+
+
+def _base_placement(model: RobotModel, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The axes (6, 3) of the base steps and the rotation of frame 0 in W."""
     base_axes = np.empty((6, 3))
     base_axes[0:3] = np.eye(3)
-    Ob = np.broadcast_to(p[0:3], (N, 3))
     Rb = np.asarray(model.base_rotation, dtype=float)
     for k in range(3):
         base_axes[3 + k] = Rb[:, k]
         Rb = Rb @ rot_matrix(k, p[3 + k])
-    if not frames_only:
-        U = np.empty((n_steps, N, 3))
-        Q = np.zeros((n_steps, N, 3))
-        U[0:N_BASE] = base_axes[:, None, :]
-        Q[3:N_BASE] = Ob
-    base = dict(base_axes=base_axes, base_origin=p[0:3], base_rotation=Rb)
-    Rb = np.broadcast_to(Rb, (N, 3, 3))
-    R_frames = np.empty((model.n_frames, N, 3, 3))
-    O_frames = np.empty((model.n_frames, N, 3))
-    W_frames = np.empty((model.n_frames, N, 3, 5))
-    for i, f in enumerate(model.frames):
-        if f.parent < 0:
-            Rp, Op = Rb, Ob
-        else:
-            Rp, Op = R_frames[f.parent], O_frames[f.parent]
-        s0 = N_BASE + 7 * i
-        v = p[lay.frame0[i]:lay.frame0[i] + 7]
-        q = qf[:, i]
-        Rg = rot_matrix(2, v[GAMMA])
-        bvec = np.array([0.0, 0.0, v[B]])
-        d_th, d_al, d_be = (0.0, 0.0, 0.0) if defl is None else defl[i]
-        be, al = v[BETA] + d_be, v[ALPHA] + d_al
-        if not np.ndim(al) and not np.ndim(be):
-            Rgb = Rg @ rot_matrix(1, be)
-            A = Rgb @ rot_matrix(0, al)
-            # parent-frame vectors: beta axis, alpha/d axis, theta/r axis, b offset, full offset
-            V = np.column_stack([Rg[:, 1], Rgb[:, 0], A[:, 2], bvec, bvec + Rgb[:, 0] * v[D]])
-            W = _rmul(Rp, V, out=W_frames[i])                            # (N, 3, 5)
-            RA = _rmul(Rp, A)
-        else:
-            # per-pose deflections: turn the parent's columns pose by pose, only where they vary
-            W = W_frames[i]
-            if np.ndim(be):
-                RG = _rmul(Rp, Rg)
-                RGB = _turn(RG, 1, be)
-                W[:, :, 0] = RG[:, :, 1]
-                W[:, :, 3] = v[B] * RG[:, :, 2]
-            else:
-                X = _rmul(Rp, np.column_stack([Rg[:, 1], bvec, Rg @ rot_matrix(1, be)]))
-                W[:, :, [0, 3]] = X[:, :, :2]
-                RGB = X[:, :, 2:]
-            RA = _turn(RGB, 0, np.broadcast_to(al, (N,)))
-            W[:, :, 1] = RGB[:, :, 0]
-            W[:, :, 2] = RA[:, :, 2]
-            W[:, :, 4] = W[:, :, 3] + v[D] * RGB[:, :, 0]
-        O_th = Op + W[:, :, 4]
-        if not frames_only:
-            U[s0 + GAMMA] = Rp[:, :, 2]
-            Q[s0 + GAMMA] = Op
-            U[s0 + B] = Rp[:, :, 2]
-            U[s0 + BETA] = W[:, :, 0]
-            Q[s0 + BETA] = Q[s0 + ALPHA] = Op + W[:, :, 3]
-            U[s0 + ALPHA] = U[s0 + D] = W[:, :, 1]
-            U[s0 + THETA] = U[s0 + R] = W[:, :, 2]
-            Q[s0 + THETA] = O_th
-        th = v[THETA] + (q if f.joint == "revolute" else 0.0) + d_th
-        _turn(np.broadcast_to(RA, (N, 3, 3)), 2, np.broadcast_to(th, (N,)), out=R_frames[i])
-        rr = v[R] + (q if f.joint == "prismatic" else 0.0)
-        np.add(O_th, np.reshape(rr, (-1, 1)) * W[:, :, 2], out=O_frames[i])
-    if frames_only:
-        return _Pass(R=R_frames, O=O_frames, U=None, Q=None, P=None, RM=[], W=W_frames, **base)
-    P = np.empty((len(model.markers), N, 3))
-    RM = []
+    return base_axes, Rb
+
+
+def _frame_axes(Rp: np.ndarray, v: np.ndarray, be, al, W: np.ndarray) -> None:
+    """Fill ``W`` (N, 3, 6) with the frame's vectors in W (beta axis, alpha/d axis, theta/r axis,
+    b offset, full offset to the theta/r origin, y axis before the theta turn) from its parent's
+    rotations ``Rp`` and its values ``v``.
+
+    ``be`` and ``al`` are scalars, or per-pose arrays where gravity deflects them."""
+    N = Rp.shape[0]
+    Rg = rot_matrix(2, v[GAMMA])
+    bvec = np.array([0.0, 0.0, v[B]])
+    if not np.ndim(al) and not np.ndim(be):
+        Rgb = Rg @ rot_matrix(1, be)
+        A = Rgb @ rot_matrix(0, al)
+        V = np.column_stack([Rg[:, 1], Rgb[:, 0], A[:, 2], bvec, bvec + Rgb[:, 0] * v[D], A[:, 1]])
+        _rmul(Rp, V, out=W)
+        return
+    # per-pose deflections: turn the parent's columns pose by pose, only where they vary
+    if np.ndim(be):
+        RG = _rmul(Rp, Rg)
+        RGB = _turn(RG, 1, be)
+        W[:, :, 0] = RG[:, :, 1]
+        W[:, :, 3] = v[B] * RG[:, :, 2]
+    else:
+        X = _rmul(Rp, np.column_stack([Rg[:, 1], bvec, Rg @ rot_matrix(1, be)]))
+        W[:, :, [0, 3]] = X[:, :, :2]
+        RGB = X[:, :, 2:]
+    RA = _turn(RGB, 0, np.broadcast_to(al, (N,)))
+    W[:, :, 1] = RGB[:, :, 0]
+    W[:, :, 2] = RA[:, :, 2]
+    W[:, :, 4] = W[:, :, 3] + v[D] * RGB[:, :, 0]
+    W[:, :, 5] = RA[:, :, 1]
+
+
+def _marker_positions(ps: _Pass) -> np.ndarray:
+    """(n_markers, N, 3) marker positions in W."""
+    model, lay, p = ps.model, ps.lay, ps.p
+    P = np.empty((len(model.markers), ps.R.shape[1], 3))
     for m, mk in enumerate(model.markers):
-        Rf, Of = R_frames[mk.frame], O_frames[mk.frame]
-        s0 = N_BASE + 7 * model.n_frames + N_MARKER * m
-        v = p[lay.marker0[m]:lay.marker0[m] + N_MARKER]
+        v = p[lay.marker0[m]:lay.marker0[m] + 3]
+        np.add(ps.O[mk.frame], _rmul(ps.R[mk.frame], v[:, None])[:, :, 0], out=P[m])
+    return P
+
+
+def _marker_rotations(ps: _Pass) -> list:
+    """Per marker its orientation (N, 3, 3) in W."""
+    model, lay, p = ps.model, ps.lay, ps.p
+    out = []
+    for m, mk in enumerate(model.markers):
+        v = p[lay.marker0[m] + 3:lay.marker0[m] + 6]
+        out.append(_rmul(ps.R[mk.frame], np.asarray(mk.rotation, dtype=float) @ small_rotation(*v)))
+    return out
+
+
+def _step_axes(ps: _Pass) -> tuple[np.ndarray, np.ndarray]:
+    """Axes ``U`` (n_steps, N, 3) of every step and points ``Q`` on the rotation axes, in W."""
+    model, lay, p = ps.model, ps.lay, ps.p
+    nf, N = ps.R.shape[0], ps.R.shape[1]
+    U = np.empty((len(lay.step_param), N, 3))
+    Q = np.zeros((len(lay.step_param), N, 3))
+    U[0:N_BASE] = ps.base_axes[:, None, :]
+    Q[3:N_BASE] = ps.base_origin
+    for i, f in enumerate(model.frames):
+        s0, W = N_BASE + 7 * i, ps.W[i]
+        zp, Op = (ps.base_rotation[:, 2], ps.base_origin) if f.parent < 0 else (ps.R[f.parent][:, :, 2],
+                                                                                   ps.O[f.parent])
+        U[s0 + GAMMA] = U[s0 + B] = zp
+        Q[s0 + GAMMA] = Op
+        U[s0 + BETA] = W[:, :, 0]
+        Q[s0 + BETA] = Q[s0 + ALPHA] = Op + W[:, :, 3]
+        U[s0 + ALPHA] = U[s0 + D] = W[:, :, 1]
+        U[s0 + THETA] = U[s0 + R] = W[:, :, 2]
+        Q[s0 + THETA] = Op + W[:, :, 4]
+    for m, mk in enumerate(model.markers):
+        Rf = ps.R[mk.frame]
+        s0 = N_BASE + 7 * nf + N_MARKER * m
         U[s0:s0 + 3] = Rf.transpose(2, 0, 1)
-        P[m] = Of + _rmul(Rf, v[:3, None])[:, :, 0]
-        if orientations:
+        if ps.orientations:
+            v = p[lay.marker0[m] + 3:lay.marker0[m] + 6]
             Rm = np.asarray(mk.rotation, dtype=float)
-            C = np.column_stack([Rm[:, 0], (Rm @ rot_matrix(0, v[3]))[:, 1],
-                                 (Rm @ rot_matrix(0, v[3]) @ rot_matrix(1, v[4]))[:, 2]])
+            C = np.column_stack([Rm[:, 0], (Rm @ rot_matrix(0, v[0]))[:, 1],
+                                 (Rm @ rot_matrix(0, v[0]) @ rot_matrix(1, v[1]))[:, 2]])
             U[s0 + 3:s0 + 6] = _rmul(Rf, C).transpose(2, 0, 1)
-            Q[s0 + 3:s0 + 6] = P[m]
-            RM.append(_rmul(Rf, Rm @ small_rotation(*v[3:6])))
+            Q[s0 + 3:s0 + 6] = ps.P[m]
         else:
             U[s0 + 3:s0 + 6] = 0.0
-    return _Pass(R=R_frames, O=O_frames, U=U, Q=Q, P=P, RM=RM, W=W_frames, **base)
+    return U, Q
 
 
 def _mass_sums(model: RobotModel, lay: Layout, ps: _Pass, payload_mass):
@@ -301,14 +385,15 @@ def _mass_sums(model: RobotModel, lay: Layout, ps: _Pass, payload_mass):
     centres = ps.O + np.matmul(ps.R.reshape(nf, 3 * N, 3), com[:, :, None]).reshape(nf, N, 3)
     own_c1 = mass[:, None, None] * centres
     own_m = np.repeat(mass[:, None], N, axis=1)
-    pl = model.payload
-    pm = pl.mass if payload_mass is None else payload_mass
-    if np.any(np.asarray(pm) > 0):
-        k = pl.frame if pl.frame >= 0 else nf - 1
-        c = ps.O[k] + _rmul(ps.R[k], np.asarray(pl.com, dtype=float)[:, None])[:, :, 0]
-        pm = np.broadcast_to(np.asarray(pm, dtype=float), (N,))
-        own_c1[k] += pm[:, None] * c
-        own_m[k] += pm
+    for n, pl in enumerate(model.payloads):
+        # a measurement's payload column varies the first payload only
+        pm = pl.mass if payload_mass is None or n > 0 else payload_mass
+        if np.any(np.asarray(pm) > 0):
+            k = pl.frame if pl.frame >= 0 else nf - 1
+            c = ps.O[k] + _rmul(ps.R[k], np.asarray(pl.com, dtype=float)[:, None])[:, :, 0]
+            pm = np.broadcast_to(np.asarray(pm, dtype=float), (N,))
+            own_c1[k] += pm[:, None] * c
+            own_m[k] += pm
     sub = lay.subtree.astype(float)
     return sub @ own_c1.transpose(2, 0, 1), sub @ own_m
 
@@ -318,7 +403,7 @@ def _compliant_vectors(model: RobotModel, ps: _Pass):
     parents' origins ``Op``, component-major ((3, 3 n_frames, N) and (3, n_frames, N)), once per pass."""
     if "compliant" not in ps.cache:
         nf, N = ps.O.shape[0], ps.O.shape[1]
-        Wc = np.ascontiguousarray(ps.W.transpose(2, 0, 3, 1))        # (3, nf, 5, N)
+        Wc = np.ascontiguousarray(ps.W[..., :5].transpose(2, 0, 3, 1))        # (3, nf, 5, N)
         parent = np.array([f.parent for f in model.frames])
         Op = np.empty((3, nf, N))
         Op[:, parent >= 0] = ps.O[parent[parent >= 0]].transpose(2, 0, 1)
@@ -805,6 +890,7 @@ def _block(mask: np.ndarray) -> slice | None:
     return None
 
 
+@one_blas_thread
 def evaluate(model: RobotModel, q: np.ndarray, p: np.ndarray | None = None, *, jacobian: bool = False,
              orientations: bool = False, compliance: bool | None = None, payload_mass=None,
              frames: bool = False, columns=None, backlash: bool | None = None, approach=None) -> Evaluation:
@@ -831,6 +917,9 @@ def evaluate(model: RobotModel, q: np.ndarray, p: np.ndarray | None = None, *, j
     if backlash is None:
         backlash = bool(np.any(p[lay.backlash_params[lay.backlash_params >= 0]] != 0.0)) or (
             jacobian and bool(np.any(lay.param_backlash[cols_idx] >= 0)))
+    if len(q) > LARGE_POSES and not (jacobian or frames or backlash):
+        return _evaluate_in_chunks(model, q, p, orientations=orientations, compliance=compliance,
+                                   payload_mass=payload_mass)
     need_or = orientations or jacobian
     st = evaluate_state(model, lay, p, qf, compliance=compliance, orientations=need_or, payload_mass=payload_mass,
                         backlash=backlash, approach=None if approach is None else frame_approach(model, approach))
@@ -851,6 +940,24 @@ def evaluate(model: RobotModel, q: np.ndarray, p: np.ndarray | None = None, *, j
                       moments=None if st.M is None else st.M.T, frames=frames_out)
 
 
+def _evaluate_in_chunks(model: RobotModel, q: np.ndarray, p: np.ndarray, *, orientations: bool, compliance: bool,
+                        payload_mass) -> Evaluation:
+    """``evaluate`` of positions (and orientations, moments) ``CHUNK_POSES`` poses at a time: the
+    per-frame arrays of one chunk are held at a time."""
+    parts = []
+    for a in range(0, len(q), CHUNK_POSES):
+        pm = payload_mass if np.ndim(payload_mass) == 0 else np.asarray(payload_mass)[a:a + CHUNK_POSES]
+        parts.append(evaluate(model, q[a:a + CHUNK_POSES], p, orientations=orientations, compliance=compliance,
+                              payload_mass=pm, backlash=False))
+
+    def joined(field):
+        return None if getattr(parts[0], field) is None else np.concatenate([getattr(e, field) for e in parts])
+
+    return Evaluation(positions=joined("positions"), rotations=joined("rotations"), jacobian=None,
+                      moments=joined("moments"))
+
+
+@one_blas_thread
 def gravity_loads(model: RobotModel, q, *, payload_mass=None) -> np.ndarray:
     """Generalised gravity force on each joint (N, n_joints): N m for revolute, N for prismatic.
 

@@ -23,13 +23,14 @@ Conventions (see docs/conventions.md):
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, fields, replace
 from typing import Sequence
 
 import numpy as np
 
 from ._errors import InputError
-from ._spatial import rot4, trans4
+from ._spatial import rot4, rot_matrix, trans4
 
 JOINT_TYPES = ("revolute", "prismatic", "fixed")
 # how a joint's side of its lost motion is decided per pose (see RobotModel.backlash_side)
@@ -106,6 +107,9 @@ class RobotModel:
     ``((lower, upper), ...)`` per reading. ``base_position``/``base_rotation`` give ``X_WB``.
     ``tolerances``: ``(family, quantity, value)`` triples, how far calibration may plausibly move
     a family's parameters (SI; None for no bound), over the defaults of docs/checks.md.
+    ``payload`` is the payload a measurement file's ``payload_kg`` column varies; ``other_payloads``
+    are fixed masses on other frames (a second arm's tool). ``notes``: what the reader decided on the
+    user's behalf (a re-orthonormalised matrix), for the summary.
     ``backlash_side``: where a joint rests in its lost motion, pose by pose: ``"gravity"`` on the
     side its gravity load L pushes it to, ``s = tanh((L - a F) / w)`` (frame's friction F and
     width w; a the approach direction, which matters only where F > 0), or ``"approach"`` behind
@@ -124,6 +128,8 @@ class RobotModel:
     description: str = ""
     tolerances: tuple[tuple[str, str, float | None], ...] = ()
     backlash_side: str = "gravity"
+    other_payloads: tuple[Payload, ...] = ()
+    notes: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         _validate(self)
@@ -180,8 +186,12 @@ class RobotModel:
         return tuple(out)
 
     @property
+    def payloads(self) -> tuple[Payload, ...]:
+        return (self.payload,) + self.other_payloads
+
+    @property
     def has_masses(self) -> bool:
-        return any(f.mass > 0 for f in self.frames) or self.payload.mass > 0
+        return any(f.mass > 0 for f in self.frames) or any(p.mass > 0 for p in self.payloads)
 
     @property
     def has_compliance(self) -> bool:
@@ -243,10 +253,12 @@ def _validate(model: RobotModel) -> None:
     if model.backlash_side not in BACKLASH_SIDES:
         raise InputError(f"backlash side must be one of {', '.join(BACKLASH_SIDES)}, got {model.backlash_side!r}",
                          where="backlash.side")
-    if model.payload.mass < 0:
-        raise InputError(f"payload mass must be non-negative, got {model.payload.mass}", where="payload")
-    if not (-1 <= model.payload.frame < len(model.frames)):
-        raise InputError("payload frame does not exist", where="payload")
+    for k, pl in enumerate(model.payloads):
+        where = "payload" if not model.other_payloads else f"payload[{k}]"
+        if pl.mass < 0 or not np.isfinite(pl.mass):
+            raise InputError(f"payload mass must be non-negative, got {pl.mass}", where=where)
+        if not (-1 <= pl.frame < len(model.frames)):
+            raise InputError("payload frame does not exist", where=where)
     mnames = [m.name for m in model.markers]
     if len(set(mnames)) != len(mnames):
         dup = next(n for n in mnames if mnames.count(n) > 1)
@@ -290,6 +302,50 @@ def mdh_transform(frame: Frame, q: float = 0.0) -> np.ndarray:
     r = frame.r + (q if frame.joint == "prismatic" else 0.0)
     return (rot4(2, frame.gamma) @ trans4(2, frame.b) @ rot4(1, frame.beta) @ rot4(0, frame.alpha)
             @ trans4(0, frame.d) @ rot4(2, th) @ trans4(2, r))
+
+
+def placement_parameters(X) -> dict[str, float]:
+    """gamma, b, beta, alpha, d, theta, r whose ``mdh_transform`` (at q = 0) is the placement ``X``
+    (4x4, a proper rotation): the inverse of ``mdh_transform`` for fixed frames given as transforms.
+
+    Seven numbers for six degrees of freedom, so one is chosen: either beta = 0 (Khalil-Kleinfinger:
+    z of the frame placed by gamma and alpha, the offset split along z, x and the new z), or r = 0
+    (gamma turns x towards the offset, beta and alpha tilt z, theta turns about it). The first
+    divides by sin(alpha), the second by cos(beta); the better conditioned is taken, so nearly
+    parallel axes never give huge offsets.
+
+    >>> X = mdh_transform(Frame("m", joint="fixed", gamma=0.3, b=0.1, alpha=-np.pi / 2, d=0.5, theta=0.2, r=0.05))
+    >>> np.abs(mdh_transform(Frame("m", joint="fixed", **placement_parameters(X))) - X).max() < 1e-12
+    True
+    """
+    X = np.asarray(X, dtype=float)
+    R, p = X[:3, :3], X[:3, 3]
+    z = R[:, 2]
+    s_alpha = math.hypot(z[0], z[1])
+    h = math.hypot(p[0], p[1])
+    # r = 0 form: gamma points x at the offset's horizontal part
+    gamma = math.atan2(p[1], p[0]) if h > 1e-15 else 0.0
+    beta, alpha, theta = _yxz_angles(rot_matrix(2, -gamma) @ R)
+    c_beta = abs(math.cos(beta)) if h > 1e-15 else 1.0
+    if c_beta >= s_alpha:
+        d = h / math.cos(beta) if h > 1e-15 else 0.0
+        return dict(gamma=gamma, b=p[2] + d * math.sin(beta), beta=beta, alpha=alpha, d=d, theta=theta, r=0.0)
+    # beta = 0 form: z of the frame is Rz(gamma) (0, -sin alpha, cos alpha)
+    alpha = math.atan2(s_alpha, z[2])
+    gamma = math.atan2(z[0], -z[1])
+    M = rot_matrix(0, -alpha) @ rot_matrix(2, -gamma) @ R
+    theta = math.atan2(M[1, 0], M[0, 0])
+    q = rot_matrix(2, -gamma) @ p
+    r = -q[1] / s_alpha
+    return dict(gamma=gamma, b=q[2] - r * math.cos(alpha), beta=0.0, alpha=alpha, d=q[0], theta=theta, r=r)
+
+
+def _yxz_angles(M: np.ndarray) -> tuple[float, float, float]:
+    """(beta, alpha, theta) with M = Rot(y, beta) Rot(x, alpha) Rot(z, theta); beta first, the rest
+    from Rot(y, -beta) M, so the rebuilt matrix is exact to rounding even at alpha = +-90 deg."""
+    beta = math.atan2(M[0, 2], M[2, 2]) if math.hypot(M[0, 2], M[2, 2]) > 1e-300 else 0.0
+    N = rot_matrix(1, -beta) @ M
+    return beta, math.atan2(-N[1, 2], N[2, 2]), math.atan2(-N[0, 1], N[0, 0])
 
 
 def parallel_beta_frames(frames: Sequence[Frame], tol: float = DEFAULT_PARALLEL_TOL) -> tuple[bool, ...]:

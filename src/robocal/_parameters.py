@@ -189,8 +189,10 @@ def model_from_vector(model: RobotModel, p: np.ndarray) -> RobotModel:
 def _frame_geometric(model: RobotModel, i: int) -> list[str]:
     f = model.frames[i]
     kinds = []
-    # gamma and b only where a frame does not hang off its predecessor (Khalil-Kleinfinger trees)
-    if f.parent != i - 1:
+    # gamma and b where a frame does not hang off its predecessor (Khalil-Kleinfinger trees), and on
+    # every branch of a frame with several children, so that both arms' first frames are alike
+    siblings = sum(1 for g in model.frames if g.parent == f.parent)
+    if f.parent != i - 1 or siblings > 1:
         kinds += ["gamma", "b"]
     if f.has_beta:
         kinds.append("beta")
@@ -207,6 +209,11 @@ def families(model: RobotModel, *, orientation: bool = False) -> dict[str, list[
     marker_kinds = MARKER_KINDS if orientation else MARKER_KINDS[:3]
     markers = [f"{mk.name}.{k}" for mk in model.markers for k in marker_kinds]
     frames = [n for i in range(model.n_frames) for n in _frame_geometric(model, i)]
+    # a frame with several children: its theta and r move every branch as the children's gamma and b
+    # do together, so they come last and the branches keep alike parameters
+    branching = {f.parent for f in model.frames if sum(g.parent == f.parent for g in model.frames) > 1}
+    last = [f"{model.frames[i].name}.{k}" for i in sorted(branching - {-1}) for k in ("theta", "r")]
+    frames = [n for n in frames if n not in last] + last
     compliance = [f"{f.name}.{k}" for f in model.frames for k in COMPLIANCE_KINDS]
     return {"base": base, "markers": markers, "frames": frames, "geometric": base + markers + frames,
             "compliance": compliance, "backlash": backlash_names(model)}

@@ -14,6 +14,7 @@ from ._options import POSE_CRITERIA
 from ._model import RobotModel
 from ._parameters import parameter_vector
 from ._problem import design_problem, random_configurations
+from ._threads import one_blas_thread
 
 log = logging.getLogger(__name__)
 
@@ -138,6 +139,7 @@ def _scaled_blocks(model: RobotModel, q, names, orientation: bool) -> np.ndarray
     return B / col
 
 
+@one_blas_thread
 def select_poses(model: RobotModel, n: int, *, candidates=None, n_candidates: int = 2000, parameters=("geometric",),
                  known=(), orientation: bool = False, criterion: str = "I", rng=0, sweeps: int = 2) -> PoseSelection:
     """Pick ``n`` configurations for identifying the identifiable parameters.
@@ -222,6 +224,7 @@ class CampaignPrediction:
     n_workspace: int
 
 
+@one_blas_thread
 def predict_campaign(model: RobotModel, q, *, parameters=("geometric",), known=(), noise: float = 2e-5,
                      n_workspace: int = 2000, tol: float = 1e-6, rng=0) -> CampaignPrediction:
     """Predicted standard deviations and post-calibration errors of a calibration at readings ``q``.

@@ -3,6 +3,11 @@
 Identifiability, pose selection, simulation and identification all start here. Rows are ordered
 marker by marker, then pose by pose (x, y, z), then, with orientations, the rotation rows in the
 same order; each row is divided by its stated standard deviation when the data carry one.
+
+A large campaign of point data (over ``LARGE_POSES`` poses) is evaluated ``CHUNK_POSES`` poses at a
+time: its positions and residuals are assembled from the chunks, and instead of its Jacobian the
+solve and the analysis take ``normal_equations`` (the Jacobian's R factor and gradient), so memory
+grows with the parameters, not the poses.
 """
 
 from __future__ import annotations
@@ -13,10 +18,11 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ._errors import InputError
-from ._kinematics import evaluate_state, frame_approach, jacobian_columns, layout
+from ._kinematics import CHUNK_POSES, LARGE_POSES, evaluate_state, frame_approach, jacobian_columns, layout
 from ._measurements import Measurements, Noise, approach_of
 from ._model import RobotModel
 from ._parameters import has_backlash_parameters, has_compliance_parameters
+from ._threads import one_blas_thread
 
 
 class Problem:
@@ -25,13 +31,16 @@ class Problem:
     The Jacobian is returned column-major (a transposed view), as MINPACK works on columns.
     ``residuals`` and ``jacobian`` at the same parameters share one kinematic pass. Joints rest in
     their lost motion when the model has backlash or ``free`` holds some, on the sides of the
-    model's ``backlash_side`` (the approach directions from ``approach_of(data)``).
+    model's ``backlash_side`` (the approach directions from ``approach_of(data)``). ``chunked``:
+    evaluate ``CHUNK_POSES`` poses at a time and solve on normal equations (default: point data of
+    over ``LARGE_POSES`` poses; data with orientations or lost motion are evaluated whole).
     """
 
     def __init__(self, model: RobotModel, data: Measurements, free: tuple[str, ...], *, compliance: bool,
-                 noise: Noise | None = None):
+                 noise: Noise | None = None, chunked: bool | None = None):
         self.model = model
         self.data = data
+        self.noise = noise
         self.lay = layout(model)
         self.free_idx = self._indices(free)
         self.compliance = compliance
@@ -52,6 +61,39 @@ class Problem:
             self.w_r = [1.0 / np.broadcast_to(sr, data.rot_mask.shape)[s, j] for j, s in enumerate(self.sel_r)]
         self._cache_key = None
         self._cache = None
+        if chunked is None:
+            chunked = data.n_poses > LARGE_POSES
+        if chunked and (self.use_rot or self.backlash):
+            chunked = False   # orientations and lost motion are evaluated whole
+        self.chunked = chunked
+
+    def _chunks(self):
+        """The problem over each chunk of ``CHUNK_POSES`` poses in turn (made when reached, so that
+        one chunk's evaluation is held at a time)."""
+        for a in range(0, self.data.n_poses, CHUNK_POSES):
+            sub = Problem(self.model, self.data.subset(slice(a, a + CHUNK_POSES)), (), compliance=self.compliance,
+                          noise=self.noise, chunked=False)
+            sub.free_idx = self.free_idx
+            yield sub
+
+    @one_blas_thread
+    def normal_equations(self, p) -> tuple[np.ndarray, np.ndarray, float]:
+        """At ``p``: the R factor (n_free, n_free) of the weighted Jacobian (``R^T R = J^T J``), the
+        gradient ``J^T r`` and the sum of squared weighted residuals, taken chunk by chunk for a
+        large campaign."""
+        k = len(self.free_idx)
+        R, g, cost = np.zeros((0, k)), np.zeros(k), 0.0
+        for sub in self._chunks() if self.chunked else (self,):
+            J, r = sub.jacobian(p), sub.residuals(p)
+            R = np.linalg.qr(np.vstack([R, J]), mode="r")
+            g += J.T @ r
+            cost += float(r @ r)
+        return R, g, cost
+
+    def reduced_jacobian(self, p) -> np.ndarray:
+        """The weighted Jacobian at ``p``, or for a large campaign its R factor: a matrix with the
+        same Gram matrix, which is all the identifiability analysis needs."""
+        return self.normal_equations(p)[0] if self.chunked else self.jacobian(p)
 
     def _indices(self, free) -> np.ndarray:
         index = {n: i for i, n in enumerate(self.lay.names)}
@@ -87,11 +129,19 @@ class Problem:
             self._cache_key = key
         return self._cache
 
+    def _positions(self, p) -> np.ndarray:
+        """(n_model_markers, n_poses, 3) marker positions at ``p``."""
+        if self.chunked:
+            return np.concatenate([sub._positions(p) for sub in self._chunks()], axis=1)
+        return self._state(p).ps.P
+
     def predicted(self, p):
         """Marker positions (n_poses, n_data_markers, 3) and orientations (or None) at ``p``."""
+        pos = self._positions(p)[self.marker_idx].transpose(1, 0, 2)
+        if not self.use_rot:
+            return pos, None
         st = self._state(p)
-        pos = st.ps.P[self.marker_idx].transpose(1, 0, 2)
-        rot = np.stack([st.ps.RM[m] for m in self.marker_idx], axis=1) if self.use_rot else None
+        rot = np.stack([st.ps.RM[m] for m in self.marker_idx], axis=1)
         return pos, rot
 
     def errors(self, p) -> np.ndarray:
@@ -121,11 +171,13 @@ class Problem:
         Rm = self.data.rotations[s, j]
         return Rotation.from_matrix(Rp @ np.swapaxes(Rm, -1, -2)).as_rotvec()
 
+    @one_blas_thread
     def residuals(self, p) -> np.ndarray:
-        st = self._state(p)
-        parts = [((st.ps.P[m][s] - meas) * w[:, None]).ravel()
+        P = self._positions(p)
+        parts = [((P[m][s] - meas) * w[:, None]).ravel()
                  for m, s, meas, w in zip(self.marker_idx, self.sel, self.meas, self.w)]
         if self.use_rot:
+            st = self._state(p)
             parts += [(self._rotation_errors(st, j) * w[:, None]).ravel() for j, w in enumerate(self.w_r)]
         return np.concatenate(parts)
 
@@ -136,9 +188,24 @@ class Problem:
         st = self._state(p)
         return np.concatenate([self._rotation_errors(st, j) for j in range(len(self.sel_r))])
 
+    @one_blas_thread
     def jacobian(self, p) -> np.ndarray:
-        """Weighted Jacobian of ``residuals`` over the free parameters: (n_rows, n_free), column-major."""
+        """Weighted Jacobian of ``residuals`` over the free parameters: (n_rows, n_free), column-major.
+
+        Kept with the evaluation at ``p``: asked again, or for fewer parameters (the solve after
+        the analysis, at the same start), its columns are taken instead of built again."""
         st = self._state(p)
+        free = tuple(self.free_idx.tolist())
+        for have, Jt in st.cache.get("jacobians", {}).items():
+            if set(free) <= set(have):
+                where = {c: i for i, c in enumerate(have)}
+                return (Jt if free == have else Jt[[where[c] for c in free]]).T
+        Jt = self._jacobian_rows(st)
+        st.cache.setdefault("jacobians", {})[free] = Jt
+        return Jt.T
+
+    def _jacobian_rows(self, st) -> np.ndarray:
+        """(n_free, n_rows) the transposed weighted Jacobian at the evaluation ``st``."""
         rows = 6 if self.use_rot else 3
         k = len(self.free_idx)
         cols = [jacobian_columns(self.model, self.lay, st, self.free_idx, m, rows) for m in self.marker_idx]
@@ -150,13 +217,15 @@ class Problem:
                 parts.append((C[:, s, :3] * w[None, :, None]).reshape(k, -1))
         if self.use_rot:
             parts += [(C[:, s, 3:] * w[None, :, None]).reshape(k, -1) for C, s, w in zip(cols, self.sel_r, self.w_r)]
-        Jt = parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)
-        return Jt.T
+        return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)
 
     def compliance_moments(self, p) -> dict:
         """Per compliance parameter name, the gravity moments (n_poses,) it multiplies (N m), at ``p``."""
         if not self.compliance:
             return {}
+        if self.chunked:
+            parts = [sub.compliance_moments(p) for sub in self._chunks()]
+            return {n: np.concatenate([part[n] for part in parts]) for n in parts[0]}
         st = self._state(p)
         names = self.lay.names
         return {names[k]: st.M[row] for row, k in enumerate(self.lay.compliant_params)}
@@ -169,6 +238,7 @@ class Problem:
         names = self.lay.names
         return {names[k]: st.backlash.sides[:, i] for i, k in enumerate(self.lay.backlash_params) if k >= 0}
 
+    @one_blas_thread
     def pose_blocks(self, p) -> np.ndarray:
         """(n_poses, rows_per_pose, n_free) unweighted Jacobian grouped by pose (all markers seen)."""
         st = self._state(p)

@@ -14,6 +14,7 @@ from ._measurements import Measurements, approach_sides
 from ._model import RobotModel
 from ._parameters import model_from_vector, parameter_layout, parameter_vector
 from ._problem import random_configurations
+from ._threads import one_blas_thread
 
 
 def _signed_uniform(rng, lo, hi, n):
@@ -67,6 +68,7 @@ def measure(true_model: RobotModel, q, *, noise: float = 2e-5, noise_rot: float 
                         source="simulated", extra={"approach": approach_sides(q)})
 
 
+@one_blas_thread
 def simulate(model: RobotModel, n_poses: int | None = None, *, q=None, parameters=("geometric",), known=(),
              length_error=(1e-4, 1e-3), angle_error=(np.deg2rad(0.01), np.deg2rad(0.1)),
              compliance_error=None, true_compliance: dict | None = None, noise: float = 2e-5,

@@ -8,12 +8,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import solve_triangular
 from scipy.optimize import least_squares
 
-from ._errors import DegenerateDataError, check_choice
+from ._errors import DegenerateDataError, InputError, check_choice
 from ._identifiability import singular_values
 from ._options import LOSSES
-from ._problem import Problem
+from ._problem import LARGE_POSES, Problem
+from ._threads import one_blas_thread
 
 # least_squares' step, cost and gradient tolerances: Gauss-Newton converges quadratically here, so
 # the step that meets them leaves an error far below them (noise-free recovery is ~1e-16)
@@ -25,7 +27,8 @@ ROBUST_SCALE_SIGMAS = 3.0
 @dataclass(frozen=True, eq=False)
 class Solution:
     """Where the solver stopped: the full parameter vector ``p``, the weighted residuals and the
-    weighted Jacobian (n_rows, n_free) there, and the solver's own account (``status`` > 0 is
+    weighted Jacobian (n_rows, n_free) there (for a campaign solved in chunks its R factor, (n_free,
+    n_free)), and the solver's own account (``status`` > 0 is
     convergence, as in scipy). ``f_scale`` is where a robust loss bent (None for ``linear``)."""
 
     p: np.ndarray
@@ -40,6 +43,7 @@ class Solution:
     row_kinds: np.ndarray | None = None
 
 
+@one_blas_thread
 def solve(problem: Problem, p0: np.ndarray, *, loss: str = "linear", f_scale: float | None = None,
           max_nfev: int | None = None, lower: np.ndarray | None = None) -> Solution:
     """Minimise the problem's residuals over its free parameters, starting from ``p0`` (full vector).
@@ -54,6 +58,11 @@ def solve(problem: Problem, p0: np.ndarray, *, loss: str = "linear", f_scale: fl
     check_choice(loss, LOSSES, "loss")
     x0 = p0[problem.free_idx]
     bounded = lower is not None and bool(np.any(np.isfinite(lower)))
+    if problem.chunked:
+        if loss != "linear" or bounded:
+            raise InputError(f"a campaign of over {LARGE_POSES} poses is solved in chunks, with the linear loss and "
+                             "without bounds only")
+        return _solve_normal(problem, p0, max_nfev)
 
     def fun(x):
         return problem.residuals(problem.full(x, p0))
@@ -89,6 +98,42 @@ def solve(problem: Problem, p0: np.ndarray, *, loss: str = "linear", f_scale: fl
                     f_scale=None if loss == "linear" else float(f_scale), row_kinds=problem.row_kinds())
 
 
+def _solve_normal(problem: Problem, p0: np.ndarray, max_nfev: int | None) -> Solution:
+    """Levenberg-Marquardt on the normal equations, accumulated chunk by chunk (``problem.chunked``).
+
+    Each step solves ``(R^T R + lam D^2) dx = -J^T r`` through the QR factor of ``[R; sqrt(lam) D]``,
+    D the Jacobian's column norms (scipy's ``x_scale="jac"``); the stopping tests are MINPACK's
+    with ``SOLVER_TOL``. The returned ``jacobian`` is the R factor at the solution.
+    """
+    free = problem.free_idx
+    x = p0[free].astype(float)
+    R, g, cost = problem.normal_equations(p0)
+    nfev, lam, k = 1, 0.0, len(x)
+    max_nfev = 100 * (k + 1) if max_nfev is None else max_nfev
+    D = np.maximum(np.linalg.norm(R, axis=0), np.finfo(float).tiny)
+    status, message = 0, "the maximum number of function evaluations is exceeded"
+    while nfev < max_nfev:
+        A = R if lam == 0.0 else np.linalg.qr(np.vstack([R, np.sqrt(lam) * np.diag(D)]), mode="r")
+        dx = -solve_triangular(A, solve_triangular(A, g, trans="T"))
+        x_new = x + dx
+        R_new, g_new, cost_new = problem.normal_equations(problem.full(x_new, p0))
+        nfev += 1
+        if cost_new <= cost:
+            reduction = (cost - cost_new) / cost if cost > 0 else 0.0
+            small_step = np.linalg.norm(D * dx) <= SOLVER_TOL * (SOLVER_TOL + np.linalg.norm(D * x_new))
+            x, R, g, cost, lam = x_new, R_new, g_new, cost_new, lam / 10.0 if lam > 1e-12 else 0.0
+            if small_step or reduction <= SOLVER_TOL:
+                status = 2 if small_step else 1
+                message = ("the relative step is below xtol" if small_step else
+                           "the relative reduction of the sum of squares is below ftol")
+                break
+        else:
+            lam = max(10.0 * lam, 1e-3)
+    p = problem.full(x, p0)
+    return Solution(p=p, residuals=problem.residuals(p), jacobian=R, success=status > 0, status=status,
+                    message=message, nfev=nfev, loss="linear", f_scale=None, row_kinds=None)
+
+
 @dataclass(frozen=True, eq=False)
 class Covariance:
     """Covariance of the free parameters (SI), their standard deviations and correlations, and the
@@ -116,6 +161,7 @@ def robust_weights(residuals: np.ndarray, loss: str, f_scale: float) -> np.ndarr
     return np.ones_like(z)
 
 
+@one_blas_thread
 def covariance(solution: Solution) -> Covariance:
     """The estimates' covariance at the solution.
 
@@ -128,7 +174,8 @@ def covariance(solution: Solution) -> Covariance:
     """
     J, r = solution.jacobian, solution.residuals
     w = robust_weights(r, solution.loss, solution.f_scale) if solution.f_scale else np.ones_like(r)
-    J = J * np.sqrt(w)[:, None]
+    if len(J) == len(r):          # else the R factor of a campaign solved in chunks: linear, one kind of row
+        J = J * np.sqrt(w)[:, None]
     k = J.shape[1]
     dof = float(w.sum()) - k
     s2 = float(w @ (r * r)) / dof

@@ -90,6 +90,20 @@ def axis_angle_matrix(k: np.ndarray, angle: float) -> np.ndarray:
     return np.eye(3) + math.sin(angle) * K + (1 - math.cos(angle)) * K @ K
 
 
+def nearest_rotation(M) -> tuple[np.ndarray, float]:
+    """The rotation nearest ``M`` (3x3, Frobenius norm: U V^T of its SVD) and the largest entry
+    change that takes ``M`` there; a reflection (det < 0) comes back with det -1 for the caller to refuse.
+
+    >>> R, dev = nearest_rotation([[0.866, -0.5, 0], [0.5, 0.866, 0], [0, 0, 1]])
+    >>> bool(np.allclose(R @ R.T, np.eye(3))), round(dev, 5)
+    (True, 2.5e-05)
+    """
+    M = np.asarray(M, dtype=float)
+    U, _, Vt = np.linalg.svd(M)
+    R = U @ Vt
+    return R, float(np.abs(R - M).max())
+
+
 def unit_vector(v: np.ndarray) -> np.ndarray:
     return v / np.linalg.norm(v)
 

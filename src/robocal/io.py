@@ -1,7 +1,8 @@
 """Files in and out, the only place units are converted (docs/formats.md): model files (YAML),
-measurement files (CSV), result files (JSON), repeatability files (CSV), URDF, DH tables."""
+measurement files (CSV), contact files (CSV), result files (JSON), repeatability files (CSV), URDF, DH tables."""
 
 from ._conversion import from_standard_dh, mdh_table
+from ._files.contacts import contacts_to_csv, read_contacts, write_contacts
 from ._files.dh import write_mdh_csv
 from ._files.measurements import measurements_to_csv, read_measurements, split_sets, write_measurements
 from ._files.profile import Profile, profile_from_dict, read_profile
@@ -17,4 +18,4 @@ __all__ = ["read_model", "write_model", "calibration_record", "model_from_dict",
            "read_measurements", "write_measurements", "read_profile", "profile_from_dict",
            "Profile", "ColumnMap", "measurements_to_csv", "split_sets", "read_result",
            "write_result", "result_from_dict", "result_to_dict", "result_to_json", "limit_to_dict",
-           "read_repeatability_csv", "read_urdf", "write_urdf", "from_standard_dh", "mdh_table", "write_mdh_csv"]
+           "read_repeatability_csv", "read_contacts", "write_contacts", "contacts_to_csv", "read_urdf", "write_urdf", "from_standard_dh", "mdh_table", "write_mdh_csv"]

@@ -1,11 +1,14 @@
 """Simulation before the robot is touched: a perturbed "true" robot and its measurements, and
-campaigns with a real robot's imperfections (encoder counts, scatter, instrument noise, lost motion)."""
+campaigns with a real robot's imperfections (encoder counts, scatter, instrument noise, lost motion);
+joint-only campaigns of sockets, planes and ball bars."""
 
 from ._campaign import (RobotImperfections, accuracy_in_use, backlash_sides, measure_campaign,
                         stored_model)
+from ._contact_simulation import bar_campaign, plane_campaign, plate_placements, reach, socket_campaign
 from ._measurements import approach_sides
 from ._problem import random_configurations
 from ._simulation import measure, perturb_model, simulate
 
 __all__ = ["simulate", "measure", "perturb_model", "random_configurations", "RobotImperfections",
-           "measure_campaign", "accuracy_in_use", "approach_sides", "backlash_sides", "stored_model"]
+           "measure_campaign", "accuracy_in_use", "approach_sides", "backlash_sides", "stored_model",
+           "socket_campaign", "plane_campaign", "bar_campaign", "plate_placements", "reach"]

@@ -16,9 +16,10 @@ from dataclasses import replace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .._errors import InputError, suggest
+from .._errors import InputError, excerpt, suggest
 from .._measurements import Measurements
 from .._model import RobotModel
+from .._options import MAX_POSES
 from .._units import ANGLE_UNITS, LENGTH_UNITS, UNITS, check_unit, parse_units
 from .profile import Profile, read_profile
 from .table import Table, decimal_hint, join_tables, map_columns, read_table
@@ -35,6 +36,8 @@ _MARKER_COLUMN = re.compile(r"^(?P<m>.+?)_(?P<part>x|y|z)(?:_(?P<unit>[A-Za-z]+)
 _NUMBER = re.compile(r"^[+-]?(\d+(\.\d*)?|\.\d+)([eE][+-]?\d+)?$")
 _NOT_FINITE = re.compile(r"^[+-]?(nan|inf|infinity)$", re.IGNORECASE)
 SETS = ("fit", "validation")
+# no coordinate, joint reading or sigma in any unit comes near this; beyond it arithmetic overflows
+MAX_MAGNITUDE = 1e12
 
 
 def parse_orientation(text: str | None, *, source: str | None = None, where: str = "orientation"):
@@ -277,6 +280,9 @@ def read_measurements(path, model: RobotModel | None = None, *, units: str | Non
                     unknown=opts["columns"].unknown)
     if not table.rows:
         raise InputError("no data rows after the header", source=source)
+    if len(table.rows) > MAX_POSES:
+        raise InputError(f"{len(table.rows):,} rows; robocal reads up to {MAX_POSES:,} poses per file "
+                         "(docs/formats.md)", source=source)
     data = _parse_rows(table.rows, cols, table.decimal, source, digest)
     notes = tuple(f"reading {source}: {n}" for n in table.notes + cols.notes)
     return replace(data, extra={**data.extra, "notes": notes}) if notes else data
@@ -378,9 +384,13 @@ def _number(text: str, decimal: str, source: str, line: int, column: str, requir
                              source=source, where=where)
         t = t.replace(decimal, ".")
     if not _NUMBER.match(t):
-        raise InputError(f"expected a number, got {text.strip()!r}{decimal_hint(text, decimal)}", source=source,
-                         where=where)
-    return float(t)
+        raise InputError(f"expected a number, got {excerpt(text.strip())}{decimal_hint(text, decimal)}",
+                         source=source, where=where)
+    v = float(t)
+    if not abs(v) <= MAX_MAGNITUDE:
+        raise InputError(f"{excerpt(t)} is too large for a measurement (magnitude up to {MAX_MAGNITUDE:g})",
+                         source=source, where=where)
+    return v
 
 
 def _group(row, mc, parts, num, source, line, marker, names):
@@ -421,8 +431,9 @@ def _positive(num, col, source, line, names) -> float:
 
 def _rotation(kind, seq, vals, source, line, column) -> np.ndarray:
     if kind == "quat":
-        if np.linalg.norm(vals) < 1e-12:
-            raise InputError("quaternion of zero norm", source=source, where=f"line {line}, column {column!r}")
+        if not 1e-12 < np.linalg.norm(vals) < np.inf:
+            raise InputError("quaternion of zero norm (or too large)", source=source,
+                             where=f"line {line}, column {column!r}")
         return Rotation.from_quat(vals).as_matrix()  # scalar-last (x, y, z, w): the column names say which
     return Rotation.from_euler("xyz" if kind == "rpy" else seq, vals).as_matrix()
 

@@ -20,13 +20,20 @@ from .._units import ANGLE_UNITS, LENGTH_UNITS, check_unit, parse_units
 from .text import load_yaml, read_text, write_texts
 from .._parameters import KIND_QUANTITY
 from .._model import (DEFAULT_PARALLEL_TOL, JOINT_TYPES, Frame, Marker, Payload, RobotModel,
-                     parallel_beta_frames)
+                     parallel_beta_frames, placement_parameters)
+from .._spatial import nearest_rotation, pose4
 
 FORMAT_VERSION = 1
 # the file key is the frame's attribute; its quantity says which unit scales it
 FRAME_VALUES = {k: KIND_QUANTITY[k] for k in ("beta", "alpha", "d", "theta", "r", "gamma", "b")}
 FRAME_VALUES.update({"mass": None, "k_theta": None, "k_alpha": None, "k_beta": None})
-FRAME_KEYS = ("name", "joint", "reading", "coupling", "parent", "has_beta", "com") + tuple(FRAME_VALUES)
+FRAME_KEYS = ("name", "joint", "reading", "coupling", "parent", "has_beta", "com", "position",
+              "rotation") + tuple(FRAME_VALUES)
+# the placement a fixed frame may give as a transform instead
+PLACEMENT_KEYS = ("gamma", "b", "beta", "alpha", "d", "theta", "r")
+# a printed rotation matrix is re-orthonormalised when its largest entry is at most this far from
+# the nearest rotation (three printed decimals are 5e-4 off at worst)
+ROTATION_TOLERANCE = 5e-3
 TOP_KEYS = ("robocal_model", "name", "description", "units", "base", "gravity", "joints", "frames",
             "markers", "payload", "tolerances", "calibration")
 # tolerances: family -> the quantities a file may bound, and the unit each is given in
@@ -45,6 +52,7 @@ class _Reader:
 
     def __init__(self, source: str):
         self.source = source
+        self.notes: list[str] = []
 
     def error(self, where: str, message: str) -> InputError:
         return InputError(message, source=self.source, where=where)
@@ -108,8 +116,20 @@ class _Reader:
             rows = self.sequence(v, w)
             if len(rows) != 3:
                 raise self.error(w, "expected 3 rows of 3 numbers")
-            R = np.array([self.vector(row, f"{w}[{i}]", 3) for i, row in enumerate(rows)])
+            R = self.proper(np.array([self.vector(row, f"{w}[{i}]", 3) for i, row in enumerate(rows)]), w)
         return tuple(tuple(float(x) for x in row) for row in R)
+
+    def proper(self, M: np.ndarray, where: str) -> np.ndarray:
+        """The rotation nearest a printed matrix, within ROTATION_TOLERANCE; the change goes in the notes."""
+        R, deviation = nearest_rotation(M)
+        if np.linalg.det(R) < 0:
+            raise self.error(where, "a reflection (determinant -1), not a rotation: check the signs")
+        if deviation > ROTATION_TOLERANCE:
+            raise self.error(where, f"not a rotation matrix: an entry is {deviation:.2g} from the nearest rotation; "
+                                    f"printed matrices are accepted within {ROTATION_TOLERANCE} (and re-orthonormalised)")
+        if deviation > 1e-9:
+            self.notes.append(f"{where}: re-orthonormalised (the largest entry moved by {deviation:.1e})")
+        return R
 
 
 def _join(where: str, key) -> str:
@@ -141,15 +161,16 @@ def model_from_dict(d: dict, *, source: str = "<dict>") -> RobotModel:
         if "rotation" in base:
             base_rotation = rd.rotation(base["rotation"], "base.rotation", A)
     gravity = rd.vector(d["gravity"], "gravity", 3) if "gravity" in d else (0.0, 0.0, -9.81)
-    payload = _payload(rd, d.get("payload"), frame_names, L)
+    payloads = _payloads(rd, d.get("payload"), frame_names, L)
     tolerances = _tolerances(rd, d.get("tolerances"), L, A)
     if d.get("calibration") is not None:
         rd.mapping(d["calibration"], "calibration", ("verdict", "failed", "warned", "date"))
     try:
         return RobotModel(name=str(name), frames=tuple(frames), joint_names=tuple(joint_names),
                           joint_limits=tuple(limits), markers=tuple(markers), base_position=base_position,
-                          base_rotation=base_rotation, gravity=gravity, payload=payload,
-                          description=description, tolerances=tolerances)
+                          base_rotation=base_rotation, gravity=gravity, payload=payloads[0],
+                          other_payloads=tuple(payloads[1:]), description=description, tolerances=tolerances,
+                          notes=tuple(f"{source}: {n}" for n in rd.notes))
     except InputError as e:  # the record's own checks: add the file name
         raise InputError(e.detail, source=source, where=e.where) from None
 
@@ -215,12 +236,30 @@ def _frame(rd: _Reader, item, where: str, i: int, earlier: list[Frame], joint_na
     parent = _parent(rd, item.get("parent"), f"{where}.parent", i, frame_names)
     values = {k: rd.number(item[k], f"{where}.{k}") * (L if u == "length" else A if u == "angle" else 1.0)
               for k, u in FRAME_VALUES.items() if k in item}
+    values.update(_placement(rd, item, where, joint, L, A))
     com = rd.vector(item["com"], f"{where}.com", 3, L) if "com" in item else (0.0, 0.0, 0.0)
     hb = item.get("has_beta", "auto")
     if hb not in (True, False, "auto"):
         raise rd.error(f"{where}.has_beta", f"expected auto, true or false, got {_show(hb)}")
     return Frame(name=fn, joint=joint, parent=parent, coupling=coupling, com=com, has_beta=bool(hb is True),
                  **values), hb == "auto"
+
+
+def _placement(rd: _Reader, item: dict, where: str, joint: str, L: float, A: float) -> dict:
+    """A fixed frame given by ``position`` and ``rotation`` in its parent: the equivalent gamma ... r."""
+    given = [k for k in ("position", "rotation") if k in item]
+    if not given:
+        return {}
+    if joint != "fixed":
+        raise rd.error(f"{where}.{given[0]}", "only a fixed frame may be placed by position and rotation; a moving "
+                                              "frame's placement is its DH values (alpha, d, theta, r...)")
+    both = [k for k in PLACEMENT_KEYS if k in item]
+    if both:
+        raise rd.error(f"{where}.{both[0]}", f"give the placement either as position/rotation or as {', '.join(PLACEMENT_KEYS)}, "
+                                             "not both")
+    p = rd.vector(item["position"], f"{where}.position", 3, L) if "position" in item else (0.0, 0.0, 0.0)
+    R = rd.rotation(item["rotation"], f"{where}.rotation", A) if "rotation" in item else IDENTITY
+    return placement_parameters(pose4(np.asarray(R), p))
 
 
 def _limits(rd: _Reader, raw_limits: list, joint_names: list[str], frames: list[Frame], L: float,
@@ -262,14 +301,23 @@ def _markers(rd: _Reader, value, frame_names: list[str], L: float, A: float) -> 
     return markers
 
 
-def _payload(rd: _Reader, value, frame_names: list[str], L: float) -> Payload:
+def _payloads(rd: _Reader, value, frame_names: list[str], L: float) -> list[Payload]:
+    """One payload (a mapping) or several (a list of them, each on its own frame)."""
     if value is None:
-        return Payload()
-    pl = rd.mapping(value, "payload", ("mass", "com", "frame"))
+        return [Payload()]
+    if not isinstance(value, list):
+        return [_payload(rd, value, "payload", frame_names, L)]
+    if not value:
+        raise rd.error("payload", "an empty list: leave the key out for no payload")
+    return [_payload(rd, v, f"payload[{k}]", frame_names, L) for k, v in enumerate(value)]
+
+
+def _payload(rd: _Reader, value, where: str, frame_names: list[str], L: float) -> Payload:
+    pl = rd.mapping(value, where, ("mass", "com", "frame"))
     return Payload(
-        mass=rd.number(pl["mass"], "payload.mass") if "mass" in pl else 0.0,
-        com=rd.vector(pl["com"], "payload.com", 3, L) if "com" in pl else (0.0, 0.0, 0.0),
-        frame=_frame_ref(rd, pl["frame"], "payload.frame", frame_names) if "frame" in pl else -1)
+        mass=rd.number(pl["mass"], f"{where}.mass") if "mass" in pl else 0.0,
+        com=rd.vector(pl["com"], f"{where}.com", 3, L) if "com" in pl else (0.0, 0.0, 0.0),
+        frame=_frame_ref(rd, pl["frame"], f"{where}.frame", frame_names) if "frame" in pl else -1)
 
 
 def _tolerances(rd: _Reader, value, L: float, A: float) -> tuple:
@@ -418,11 +466,16 @@ def model_to_dict(model: RobotModel, *, units: str = "mm-deg", calibration: dict
         d["description"] = model.description
     d.update({"units": {"length": lu, "angle": au}, "base": base, "gravity": vec(model.gravity),
               "joints": joints, "frames": frames, "markers": markers})
-    pl = model.payload
-    if pl.mass or any(pl.com) or pl.frame != -1:
-        d["payload"] = {"mass": float(pl.mass), "com": vec(pl.com, scale["length"])}
+    payloads = []
+    for pl in model.payloads:
+        payloads.append({"mass": float(pl.mass), "com": vec(pl.com, scale["length"])})
         if pl.frame != -1:  # -1 means the last frame; keep it so
-            d["payload"]["frame"] = model.frames[pl.frame].name
+            payloads[-1]["frame"] = model.frames[pl.frame].name
+    pl = model.payload
+    if model.other_payloads:
+        d["payload"] = payloads
+    elif pl.mass or any(pl.com) or pl.frame != -1:
+        d["payload"] = payloads[0]
     if model.tolerances:
         d["tolerances"] = _tolerances_dict(model, L, A)
     if calibration:

@@ -10,12 +10,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import yaml
-
 from .._errors import InputError, excerpt, suggest
 from .._units import parse_units
 from .table import UNKNOWN_ACTIONS, ColumnMap, check_decimal, parse_separator
-from .text import read_text
+from .text import load_yaml, read_text
 
 PROFILE_VERSION = 1
 PROFILE_KEYS = ("robocal_profile", "name", "sep", "decimal", "units", "orientation", "columns", "ignore",
@@ -108,8 +106,5 @@ def profile_from_dict(d, *, source: str = "<dict>") -> Profile:
 def read_profile(path) -> Profile:
     """Read an instrument profile file (docs/formats.md)."""
     source = str(path)
-    try:
-        d = yaml.safe_load(read_text(path)[0])
-    except yaml.YAMLError as e:
-        raise InputError(f"not valid YAML: {getattr(e, 'problem', None) or e}", source=source) from None
+    d = load_yaml(read_text(path)[0], source)
     return profile_from_dict(d, source=source)

@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import csv
-import math
+import io
 
 import numpy as np
 
 from .._accuracy_limit import RepeatabilityData
-from .._errors import InputError
+from .._errors import InputError, excerpt
+from .._options import MAX_POSES
 from .._units import LENGTH_UNITS
+from .measurements import MAX_MAGNITUDE
+from .text import read_text
 
 CSV_COLUMNS = ("pose", "cycle", "x", "y", "z")
 
@@ -25,57 +28,60 @@ def read_repeatability_csv(path, *, units: str | None = None) -> RepeatabilityDa
     if units is not None and units not in LENGTH_UNITS:
         raise InputError(f"units must be one of {', '.join(LENGTH_UNITS)}, got {units!r}", where="units")
     src = str(path)
+    reader = csv.reader(io.StringIO(read_text(path)[0], newline=""))
     try:
-        with open(path, newline="") as fh:
-            reader = csv.reader(fh)
-            header = next(reader, None)
-            if header is None:
-                raise InputError("the file is empty; a header pose, cycle, x, y, z is required", source=src)
-            names = [h.strip().lower() for h in header]
-            col, scale = _repeatability_columns(names, units, src)
-            pose_ids, cycles, points, rows_of = [], [], [], {}
-            seen = {}
-            for row in reader:
-                if not any(cell.strip() for cell in row):
-                    continue
-                line = reader.line_num
-                cells = {}
-                for c in CSV_COLUMNS:
-                    where = f"row {line}, column {c!r}"
-                    if col[c] >= len(row) or not row[col[c]].strip():
-                        raise InputError("empty cell", source=src, where=where)
-                    cells[c] = row[col[c]].strip()
+        header = next(reader, None)
+        if header is None:
+            raise InputError("the file is empty; a header pose, cycle, x, y, z is required", source=src)
+        names = [h.strip().lower() for h in header]
+        col, scale = _repeatability_columns(names, units, src)
+        pose_ids, cycles, points, rows_of = [], [], [], {}
+        seen = {}
+        for row in reader:
+            if not any(cell.strip() for cell in row):
+                continue
+            line = reader.line_num
+            cells = {}
+            for c in CSV_COLUMNS:
+                where = f"row {line}, column {c!r}"
+                if col[c] >= len(row) or not row[col[c]].strip():
+                    raise InputError("empty cell", source=src, where=where)
+                cells[c] = row[col[c]].strip()
+            try:
+                cycle = int(cells["cycle"])
+            except ValueError:
+                raise InputError(f"expected an integer cycle number, got {excerpt(cells['cycle'])}",
+                                 source=src, where=f"row {line}, column 'cycle'") from None
+            xyz = []
+            for c in "xyz":
+                where = f"row {line}, column {c!r}"
                 try:
-                    cycle = int(cells["cycle"])
+                    v = float(cells[c])
                 except ValueError:
-                    raise InputError(f"expected an integer cycle number, got {cells['cycle']!r}",
-                                     source=src, where=f"row {line}, column 'cycle'") from None
-                xyz = []
-                for c in "xyz":
-                    where = f"row {line}, column {c!r}"
-                    try:
-                        v = float(cells[c])
-                    except ValueError:
-                        raise InputError(f"expected a number, got {cells[c]!r}", source=src, where=where) from None
-                    if not math.isfinite(v):
-                        raise InputError(f"expected a finite number, got {cells[c]!r}", source=src, where=where)
-                    xyz.append(v * scale[c])
-                key = (cells["pose"], cycle)
-                if key in seen:
-                    raise InputError(f"pose {cells['pose']!r} cycle {cycle} already given in row {seen[key]}",
-                                     source=src, where=f"row {line}")
-                seen[key] = line
-                rows_of.setdefault(cells["pose"], []).append(line)
-                pose_ids.append(cells["pose"])
-                cycles.append(cycle)
-                points.append(xyz)
-    except OSError as exc:
-        raise InputError(f"cannot read: {exc.strerror}", source=src) from None
+                    raise InputError(f"expected a number, got {excerpt(cells[c])}", source=src, where=where) from None
+                if not abs(v) <= MAX_MAGNITUDE:
+                    raise InputError(f"expected a finite number of magnitude up to {MAX_MAGNITUDE:g}, got "
+                                     f"{excerpt(cells[c])}", source=src, where=where)
+                xyz.append(v * scale[c])
+            key = (cells["pose"], cycle)
+            if key in seen:
+                raise InputError(f"pose {excerpt(cells['pose'])} cycle {cycle} already given in row {seen[key]}",
+                                 source=src, where=f"row {line}")
+            seen[key] = line
+            rows_of.setdefault(cells["pose"], []).append(line)
+            pose_ids.append(cells["pose"])
+            cycles.append(cycle)
+            points.append(xyz)
+    except csv.Error as e:
+        raise InputError(f"not readable as CSV: {e}", source=src, where=f"row {reader.line_num}") from None
     if not points:
         raise InputError("no measurements after the header", source=src)
+    if len(points) > MAX_POSES:
+        raise InputError(f"{len(points):,} rows; robocal reads up to {MAX_POSES:,} per file (docs/formats.md)",
+                         source=src)
     for pose, lines in rows_of.items():
         if len(lines) < 2:
-            raise InputError(f"pose {pose!r} has a single cycle; repeatability needs at least two",
+            raise InputError(f"pose {excerpt(pose)} has a single cycle; repeatability needs at least two",
                              source=src, where=f"row {lines[0]}")
     return RepeatabilityData(pose_ids=tuple(pose_ids), cycles=np.array(cycles, dtype=int),
                              points=np.array(points, dtype=float), source=src)

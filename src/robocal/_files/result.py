@@ -203,6 +203,8 @@ def _stats(doc: _Doc, d: dict, where: str = "stats") -> ErrorSummary:
         s = doc.get(d, key, where, dict)
         w = f"{where}.{key}"
         n = doc.get(s, "n", w, int)
+        if n < 0:
+            raise doc.error(f"{w}.n", f"expected a count, got {n}")
         vals = {f: (doc.get(s, f, w, float, optional=True) if n else None) for f in ("mean", "std", "rms", "max")}
         parts[key] = ErrorStats(n=n, **{f: (None if v is None or math.isnan(v) else v) for f, v in vals.items()})
     return ErrorSummary(**parts)

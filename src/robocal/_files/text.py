@@ -38,7 +38,7 @@ def read_bytes(path, *, limit: int = MAX_FILE_BYTES) -> bytes:
                                  f"{limit / 2 ** 20:.0f} MB", source=str(path))
             raw = fh.read(limit + 1)
     except FileNotFoundError:
-        raise InputError("file not found", source=str(path)) from None
+        raise InputError("cannot read: file not found", source=str(path)) from None
     except IsADirectoryError:
         raise InputError("is a folder, not a file", source=str(path)) from None
     except OSError as e:

@@ -15,11 +15,11 @@ from typing import Sequence
 
 import numpy as np
 
-from .._errors import InputError
+from .._errors import InputError, excerpt
 from .._conversion import frames_from_lines, line_frames, marker_placements
 from .._model import DEFAULT_PARALLEL_TOL, Marker, RobotModel, mdh_transform
 from .._spatial import axis_angle_matrix, inverse4, matrix_rpy, matrix_tuple, pose4, rpy_matrix, unit_vector
-from .text import write_texts
+from .text import read_bytes, write_texts
 
 # ----------------------------------------------------------------------------------------------
 # URDF in
@@ -61,10 +61,7 @@ def _load_xml(path_or_string) -> tuple[ET.Element, str]:
     if isinstance(path_or_string, (os.PathLike, Path)) or (
             isinstance(path_or_string, str) and not path_or_string.lstrip().startswith("<")):
         source = os.fspath(path_or_string)
-        try:
-            raw = Path(source).read_bytes()
-        except OSError as e:
-            raise InputError(f"cannot read the file: {e.strerror}", source=source) from None
+        raw = read_bytes(source)
         try:
             text = raw.decode("utf-8-sig")
         except UnicodeDecodeError:
@@ -85,6 +82,41 @@ def _load_xml(path_or_string) -> tuple[ET.Element, str]:
     if root.tag != "robot":
         raise InputError(f"the root element must be <robot>, got <{root.tag}>", source=source)
     return root, source
+
+
+# bounds on a URDF (docs/formats.md): a robot arm has tens of elements nested a few deep
+MAX_XML_DEPTH = 32
+MAX_XML_ELEMENTS = 100_000
+
+
+def check_tree(root: ET.Element, source: str) -> None:
+    """Refuse, before anything walks it, a document nested or sized beyond the bounds, and joints
+    whose links form a cycle (following parents from a link must end at a root)."""
+    count, stack = 0, [(root, 1)]
+    while stack:
+        el, depth = stack.pop()
+        count += 1
+        if depth > MAX_XML_DEPTH or count > MAX_XML_ELEMENTS:
+            what = f"nested more than {MAX_XML_DEPTH} elements deep" if depth > MAX_XML_DEPTH else \
+                f"more than {MAX_XML_ELEMENTS:,} elements"
+            raise InputError(f"{what}: not a robot description", source=source)
+        stack.extend((child, depth + 1) for child in el)
+    parent_of: dict = {}
+    for el in root.findall("joint"):
+        pe, ce = el.find("parent"), el.find("child")
+        if pe is not None and ce is not None and ce.get("link") not in parent_of:
+            parent_of[ce.get("link")] = (pe.get("link"), el.get("name"))
+    done: set = set()
+    for start in parent_of:
+        path, link = {}, start  # insertion-ordered: the links walked so far
+        while link in parent_of and link not in done:
+            if link in path:
+                loop = list(path)[list(path).index(link):]
+                raise InputError(f"the joints form a cycle through the links {', '.join(map(excerpt, loop))}",
+                                 source=source, where=f"joint {excerpt(parent_of[link][1])}")
+            path[link] = None
+            link = parent_of[link][0]
+        done.update(path)
 
 
 def _parse_joints(root: ET.Element, source: str) -> tuple[set[str], dict[str, _UJoint], dict]:
@@ -206,6 +238,7 @@ def read_urdf(path_or_string, *, base_link: str | None = None, tip_link: str | N
     twice, missing links, a branching chain without tip_link, zero axis, floating/planar joints.
     """
     root, source = _load_xml(path_or_string)
+    check_tree(root, source)
     links, joints, extra = _parse_joints(root, source)
     chain = _chain(links, joints, extra["child_of"], base_link, tip_link, source)
     moving = []

@@ -17,7 +17,11 @@ def register(sub) -> None:
                        description="Identify the robot's parameters from measured marker positions; write "
                                    "OUT/calibrated.yaml and OUT/result.json.")
     p.add_argument("model", metavar="MODEL", help="model file (YAML)")
-    p.add_argument("csv", metavar="CSV", help="measurement file")
+    p.add_argument("csv", metavar="CSV", nargs="?", help="measurement file (may be left out with --contacts)")
+    p.add_argument("--contacts", metavar="FILE", help="contact file: joint-only recordings of sockets, planes and "
+                   "ball bars (docs/formats.md), fitted alone or with CSV")
+    p.add_argument("--holdout-placement", type=common.names, metavar="NAMES",
+                   help="with --contacts: hold out these placements (comma-separated) to judge the result on")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder (created)")
     v = p.add_mutually_exclusive_group()
     v.add_argument("--validation", metavar="CSV", help="held-out measurements to judge the result on")
@@ -69,6 +73,19 @@ def _inputs(args):
     return model, data, validation
 
 
+def _headline(result) -> dict:
+    """The numbers of a result that must be finite: estimates, their deviations, the fit's statistics."""
+    out = {f"{p.name} estimate": p.estimate for p in result.parameters}
+    out.update({f"{p.name} std": p.std for p in result.parameters})
+    for key in ("fit_before", "fit_after"):
+        s = result.stats[key]
+        out.update({f"{key} {f}": getattr(s, f) for f in ("mean", "rms", "max") if s.n})
+    from .._parameters import parameter_vector
+
+    out["the calibrated model"] = parameter_vector(result.calibrated_model)
+    return out
+
+
 def run(args) -> int:
     from .._calibration import calibrate, compare
     from .._files.model import calibration_record, model_to_yaml
@@ -76,6 +93,13 @@ def run(args) -> int:
     from .._files.result import result_to_json
     from .._presentation.text import calibration_summary, comparison_summary
 
+    if args.contacts:
+        from . import contacts
+        return contacts.run(args)
+    if args.csv is None:
+        raise InputError("give a measurement file (CSV) or a contact file (--contacts)", where="calibrate")
+    if args.holdout_placement:
+        raise InputError("needs --contacts", where="--holdout-placement")
     if args.compare and args.parameters:
         raise InputError("--compare chooses the parameters itself; drop --parameters", where="--compare")
     out = Path(args.out)
@@ -103,6 +127,8 @@ def run(args) -> int:
             print(calibration_summary(best, shown=args.shown_warnings, weighted=weighted))
     except DegenerateDataError as e:  # name the file: the data, not the program, fall short
         raise DegenerateDataError(f"{args.csv}: {e}") from None
+    for r in results:
+        common.require_finite("the calibration", _headline(r))
     files = {out / n: result_to_json(r) for n, r in zip(names, results)}
     failed = best.verdict == "fail"
     if not failed or args.write_failed:

@@ -12,7 +12,7 @@ import math
 import re
 from pathlib import Path
 
-from .._errors import InputError, excerpt
+from .._errors import DegenerateDataError, InputError, excerpt
 from .._options import MAX_POSES
 from .._units import parse_units
 
@@ -215,6 +215,18 @@ def refuse_existing(paths, force: bool) -> None:
     from .._files.text import check_writable
 
     check_writable(paths, force=force)
+
+
+def require_finite(what: str, values: dict) -> None:
+    """Stop, before anything is written, when a computed value is NaN or infinite: a file holding
+    one would be nonsense that looks like a result. ``values``: name -> number or array."""
+    import numpy as np
+
+    bad = [name for name, v in values.items() if not np.all(np.isfinite(np.asarray(v, dtype=float)))]
+    if bad:
+        more = f" and {len(bad) - 3} more" if len(bad) > 3 else ""
+        raise DegenerateDataError(f"{what} came out non-finite ({', '.join(bad[:3])}{more}): the input is out of "
+                                  "range for this computation; nothing written")
 
 
 def write_outputs(files: dict, *, force: bool, report=None) -> None:

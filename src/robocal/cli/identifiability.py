@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .._errors import InputError
+from .._errors import DegenerateDataError
 from . import common
 
 
@@ -28,6 +28,9 @@ def run(args) -> int:
     data = common.read_data(args, model, args.csv) if args.csv else None
     res = identifiability(model, data, parameters=args.parameters or ("geometric",), known=args.known, tol=args.tol,
                           n_random=args.poses, rng=args.seed)
+    if not res.identified:
+        raise DegenerateDataError(f"no parameter is identifiable at tolerance {args.tol:g}; the condition number is "
+                                  "undefined")
     where = f"the {data.n_poses} poses of {args.csv}" if data is not None else \
         f"{args.poses} random poses (seed {args.seed}) within the joint limits"
     print(identifiability_summary(model, res, where))

@@ -25,13 +25,18 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from .._files.model import model_to_yaml
+    from .._files.model import model_from_dict, model_to_dict, model_to_yaml
     from .._files.urdf import read_urdf
 
     common.refuse_existing([args.out], args.force)
     if not Path(args.urdf).is_file():
         raise InputError("no such file", source=args.urdf)
     model = read_urdf(args.urdf, base_link=args.base_link, tip_link=args.tip_link, markers=args.marker_mm)
+    try:  # never write a model file robocal would then refuse to read
+        model_from_dict(model_to_dict(model, units=args.units), source=args.out)
+    except InputError as e:
+        raise InputError(f"the model it gives cannot be written as a robocal model: {e.where or ''} {e.detail}",
+                         source=args.urdf) from None
     common.write_outputs({args.out: model_to_yaml(model, units=args.units)}, force=args.force)
     print(f"{model.name}: {model.n_joints} joints ({', '.join(model.joint_names)}), {len(model.frames)} frames, "
           f"markers {', '.join(model.marker_names)}: wrote {args.out}")

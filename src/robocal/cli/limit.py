@@ -106,6 +106,7 @@ def run(args) -> int:
         chunk_size=args.chunk_size, rng=args.seed, markers=args.markers,
         progress=_progress_bar() if long_run else None)
     limit = accuracy_limit(repeatability, precision)
+    common.require_finite("the limit of absolute accuracy", {"limit": limit.limit, "limit_p95": limit.limit_p95})
     out = limit_to_dict(limit)
     out["run"] = {"model": str(args.model), "seed": args.seed,
                   "repeatability_source": args.repeatability_csv or "--repeatability-mm"}

@@ -27,6 +27,7 @@ def register(sub) -> None:
 def run(args) -> int:
     from .._files.measurements import measurements_to_csv
     from .._files.model import model_to_yaml, read_model
+    from .._parameters import parameter_vector
     from .._simulation import simulate
 
     files = [args.out] + ([args.true_model] if args.true_model else [])
@@ -36,6 +37,8 @@ def run(args) -> int:
                           length_error=tuple(v / common.MM for v in args.length_error_mm),
                           angle_error=tuple(v / common.DEG for v in args.angle_error_deg),
                           noise=args.noise_mm / common.MM, seed=args.seed)
+    common.require_finite("the simulated campaign", {"joint readings": data.q, "positions": data.positions,
+                                                     "true model": parameter_vector(true)})
     texts = {args.out: measurements_to_csv(data, model=model, units=args.units)}
     if args.true_model:
         texts[args.true_model] = model_to_yaml(true, units=args.units)

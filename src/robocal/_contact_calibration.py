@@ -1,0 +1,336 @@
+"""Calibration from contacts (sockets, planes, ball bars, known distances), alone or with a tracker.
+
+The steps of ``calibrate`` for a ``ContactProblem``: the identifiability over the union of the
+kinds (each kind's own contribution, and what none of them reaches), the least-squares solve over
+the identifiable robot parameters and every nuisance (socket points, planes), the covariance with
+one variance factor per kind of row, the checks per kind, and the figures kit users judge a
+calibration by: the spread of each socket's points, the error of each known distance and ball
+bar, and the distance of plane contacts to their plane, before and after, fitted and held out.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ._calibration import ErrorStats, ParameterEstimate, error_stats
+from ._checks import (Check, contact_fit_check, convergence_check, correlation_check, fit_check, outlier_check,
+                      plausibility_check, tolerances, verdict)
+from ._contacts import Contacts
+from ._errors import DegenerateDataError, InputError, check_choice
+from ._identifiability import DEFAULT_TOL, Absorption, IdentifiabilityResult, analyse
+from ._kinematics import evaluate
+from ._measurements import Measurements, Noise
+from ._model import RobotModel
+from ._observations import ROW_KINDS, ContactProblem
+from ._options import DEFAULT_INSTRUMENT, OUTLIER_ACTIONS
+from ._parameters import candidate_parameters, model_from_vector, parameter_layout
+from ._problem import needs_compliance
+from ._solve import covariance, solve
+
+# the part of a direction's effect the nuisance parameters leave (relative) below which it is unreachable
+UNREACHABLE_TOL = 1e-6
+
+_WHY = {
+    "base": "a rigid motion of the whole robot carries every contact with it: the unknown socket points and "
+            "planes follow, and nothing in these data is fixed in the measurement frame (a tracker, or a known "
+            "plane, fixes it)",
+    "scale": "socket and plane contacts fix shape, not size: the robot and every unknown point scaled alike "
+             "give the same readings (a known distance between sockets, a ball bar or a tracker fixes it)",
+}
+
+
+@dataclass(frozen=True)
+class Unreachable:
+    """A direction of the robot's parameters no observation in the data can see, and why.
+    ``components``: the parameters it moves (for the base, those of its six it cannot reach);
+    ``residual``: the relative part of its effect left once the nuisance parameters take theirs."""
+
+    name: str
+    reason: str
+    components: tuple[str, ...]
+    residual: float
+
+
+@dataclass(frozen=True, eq=False)
+class ContactIdentifiability:
+    """The analysis over the union of the kinds. ``analysis`` holds nuisance and robot columns
+    (nuisance first: what they absorb is eliminated from the robot); ``identified``/``eliminated``
+    are the robot's; ``contributions`` maps each kind present to the robot parameters its rows
+    identify alone, ``lost_without`` to those the others cannot identify without it; ``together``
+    those only the kinds together identify; ``unreachable`` the directions no kind reaches."""
+
+    analysis: IdentifiabilityResult
+    identified: tuple[str, ...]
+    eliminated: tuple[Absorption, ...]
+    contributions: dict
+    together: tuple[str, ...]
+    unreachable: tuple[Unreachable, ...]
+    lost_without: dict = field(default_factory=dict)
+
+
+def _kind_groups(kinds: np.ndarray) -> dict:
+    """Row masks per kind present, tracker positions and rotations together."""
+    names = np.array(["tracker" if k < 2 else ROW_KINDS[k] for k in kinds], dtype=object)
+    return {str(n): names == n for n in dict.fromkeys(names)}
+
+
+def _unabsorbed(v: np.ndarray, N: np.ndarray, ref: float) -> float:
+    """The norm of ``v`` outside the span of the columns of ``N``, relative to ``ref`` (the size of
+    the direction's effect on the marker positions: a ball bar sees a rotation of the whole robot
+    as round-off, not as zero)."""
+    if ref == 0:
+        return 0.0
+    if N.shape[1] == 0:
+        return float(np.linalg.norm(v) / ref)
+    c = np.linalg.lstsq(N, v, rcond=None)[0]
+    return float(np.linalg.norm(v - N @ c) / ref)
+
+
+def _unreachable(problem: ContactProblem, p: np.ndarray) -> tuple[Unreachable, ...]:
+    """The base's components and the scale whose effect the nuisance parameters absorb entirely."""
+    lay = parameter_layout(problem.model)
+    base = tuple(n for n in lay.names if lay[n].role == "base")
+    lengths = tuple(n for n in lay.names if lay[n].quantity == "length" and lay[n].role != "base")
+    met = problem.at_contact().over(base + lengths)
+    J = met.jacobian(p)
+    N = J[:, len(base) + len(lengths):]
+    N = N / np.maximum(np.linalg.norm(N, axis=0), 1e-300)
+    # the effect on the marker positions, in the rows' weights: what "absorbed" is relative to
+    k = len(base) + len(lengths)
+    Jm = (met.marker_jacobian(p[:met.n_robot]) / met.contacts.sigma[:, None, None]).reshape(-1, k)
+    Jm = np.vstack([J[:int(np.sum(met.row_kinds() < 2)), :k], Jm])     # tracker rows as they are
+    out = []
+    hidden = [(n, _unabsorbed(J[:, i], N, np.linalg.norm(Jm[:, i]))) for i, n in enumerate(base)]
+    gone = tuple(n for n, r in hidden if r < UNREACHABLE_TOL)
+    if gone:
+        out.append(Unreachable("base", _WHY["base"], gone, max(r for n, r in hidden if n in gone)))
+    v = p[lay.indices(lengths)]
+    scale = J[:, len(base):len(base) + len(lengths)] @ v
+    r = _unabsorbed(scale, N, np.linalg.norm(Jm[:, len(base):] @ v))
+    if r < UNREACHABLE_TOL:
+        out.append(Unreachable("scale", _WHY["scale"], lengths, r))
+    return tuple(out)
+
+
+def contact_identifiability(problem: ContactProblem, names, *, tol: float = DEFAULT_TOL,
+                            p: np.ndarray | None = None) -> ContactIdentifiability:
+    """Which of the robot parameters ``names`` the union of the problem's rows identifies (at ``p``,
+    default the start), what each kind identifies alone, and what none reaches."""
+    p = problem.start_vector() if p is None else p
+    lay = parameter_layout(problem.model)
+    prob = problem.at_contact().over(tuple(names))
+    J = prob.jacobian(p)
+    k = len(names)
+    # nuisance first in the preference order: what a point or a plane absorbs leaves the robot
+    order = np.r_[np.arange(k, J.shape[1]), np.arange(k)]
+    all_names = problem.nuisance_names + tuple(names)
+    quantities = problem.nuisance_quantities + tuple(lay[n].quantity for n in names)
+    result = analyse(J[:, order], all_names, quantities=quantities, tol=tol)
+    robot = set(names)
+    identified = tuple(n for n in result.identified if n in robot)
+    contributions, lost = {}, {}
+    groups = _kind_groups(prob.row_kinds())
+    for kind, rows in groups.items():
+        alone = analyse(J[rows][:, order], all_names, quantities=quantities, tol=tol)
+        contributions[kind] = tuple(n for n in alone.identified if n in robot)
+        if len(groups) > 1:
+            rest = set(analyse(J[~rows][:, order], all_names, quantities=quantities, tol=tol).identified)
+            lost[kind] = tuple(n for n in identified if n not in rest)
+    seen = set().union(*contributions.values()) if contributions else set()
+    return ContactIdentifiability(
+        analysis=result, identified=identified, eliminated=tuple(a for a in result.eliminated if a.name in robot),
+        contributions=contributions, together=tuple(n for n in identified if n not in seen),
+        unreachable=_unreachable(problem, p), lost_without=lost)
+
+
+@dataclass(frozen=True, eq=False)
+class ContactErrors:
+    """What a kit's user judges a calibration by, for one model on one set of contacts (m):
+    ``spread`` per socket (placement/socket) the RMS distance of the marker positions from their
+    centroid; ``distance`` per placement and pair the centroids' distance minus the known length;
+    ``plane`` per plane the RMS distance of its contacts from the plane (the known one, else the
+    best-fitting); ``bar`` per pair the distance of the two ends minus the bar's length."""
+
+    spread: dict
+    distance: dict
+    plane: dict
+    bar: dict
+
+    @property
+    def mean_spread(self) -> float | None:
+        return float(np.mean(list(self.spread.values()))) if self.spread else None
+
+    @property
+    def distance_rms(self) -> float | None:
+        return float(np.sqrt(np.mean(np.square(list(self.distance.values()))))) if self.distance else None
+
+
+def contact_errors(model: RobotModel, contacts: Contacts) -> ContactErrors:
+    """The figures of ``ContactErrors`` for ``model`` at the readings of ``contacts``."""
+    ev = evaluate(model, contacts.q)
+    P = ev.positions[np.arange(contacts.n_rows), [model.marker_names.index(m) for m in contacts.marker]]
+    centre = {}
+    spread = {}
+    for g in contacts.groups("socket"):
+        centre[g.placement, g.target] = P[g.rows].mean(axis=0)
+        spread[g.label] = float(np.sqrt(np.mean(np.sum((P[g.rows] - centre[g.placement, g.target]) ** 2, axis=1))))
+    distance = {f"{ga.placement}: {d.a}-{d.b}": float(np.linalg.norm(centre[ga.placement, d.a] -
+                                                                      centre[gb.placement, d.b]) - d.length)
+                for d, ga, gb in contacts.distance_pairs()}
+    plane = {}
+    for g in contacts.groups("plane"):
+        X = P[g.rows]
+        kp = contacts.known_plane(g.target)
+        if kp is not None:
+            dist = X @ np.asarray(kp.normal) - kp.offset
+        else:
+            dist = (X - X.mean(axis=0)) @ np.linalg.svd(X - X.mean(axis=0))[2][-1]
+        plane[g.label] = float(np.sqrt(np.mean(dist ** 2)))
+    bar = {g.label: float(np.linalg.norm(P[g.rows[0]] - P[g.rows[1]]) - contacts.bars[g.target][0])
+           for g in contacts.groups("bar")}
+    return ContactErrors(spread, distance, plane, bar)
+
+
+@dataclass(frozen=True, eq=False)
+class ContactCalibration:
+    """Everything a calibration from contacts produced. ``parameters`` the identified robot
+    parameters (``covariance``/``correlation`` indexed alike), ``nuisance`` name -> (estimate, std) of
+    each socket point coordinate and plane parameter (SI), ``fit_before``/``fit_after`` and
+    ``validation_before``/``validation_after`` the kit's figures (``ContactErrors``, validation None
+    without held-out contacts), ``tracker_after`` the fitted tracker points' error norms (or None),
+    ``noise_ratio`` per kind of row the RMS residual in stated standard deviations."""
+
+    nominal_model: RobotModel
+    calibrated_model: RobotModel
+    parameters: tuple[ParameterEstimate, ...]
+    covariance: np.ndarray
+    correlation: np.ndarray
+    identifiability: ContactIdentifiability
+    nuisance: dict
+    fit_before: ContactErrors
+    fit_after: ContactErrors
+    validation_before: ContactErrors | None
+    validation_after: ContactErrors | None
+    tracker_after: ErrorStats | None
+    noise_ratio: dict
+    checks: tuple[Check, ...]
+    success: bool
+    message: str
+    nfev: int
+
+    @property
+    def verdict(self) -> str:
+        return verdict(self.checks)
+
+    def estimate(self, name: str) -> ParameterEstimate:
+        return next(p for p in self.parameters if p.name == name)
+
+
+def _check_inputs(model: RobotModel, contacts: Contacts, data, validation) -> None:
+    for what, c in (("contacts", contacts), ("validation", validation)):
+        if c is None:
+            continue
+        if c.q.shape[1] != model.n_joints:
+            raise InputError(f"{c.q.shape[1]} joint columns for a model with {model.n_joints} joints "
+                             f"({', '.join(model.joint_names)})", source=c.source or what)
+        for m in dict.fromkeys(c.marker):
+            if m not in model.marker_names:
+                raise InputError(f"marker {m!r} is not in the model (markers: {', '.join(model.marker_names)})",
+                                 source=c.source or what)
+    if data is not None and data.q.shape[1] != model.n_joints:
+        raise InputError(f"{data.q.shape[1]} joint columns for a model with {model.n_joints} joints",
+                         source=data.source or "data")
+
+
+def calibrate_contacts(model: RobotModel, contacts: Contacts, *, data: Measurements | None = None,
+                       validation: Contacts | None = None, parameters=("geometric",), known=(), noise=None,
+                       tol: float = DEFAULT_TOL, loss: str = "linear", max_nfev: int | None = None,
+                       on_outliers: str = "refit") -> ContactCalibration:
+    """Identify the parameters of ``model`` that ``contacts`` (and tracker ``data``, if given) reach.
+
+    ``parameters``/``known`` as for ``calibrate``; ``validation``: held-out contacts (e.g. a
+    placement) judged with the calibrated model; ``noise`` weighs tracker rows that state no
+    deviation (a ``Noise`` or an instrument class). Each contact row weighs by its stated deviation.
+    ``on_outliers``: ``"refit"`` refits with the robust loss soft_l1 when rows stand out (every row
+    is in its own standard deviations, so one bend serves every kind), ``"flag"`` only names them.
+    """
+    check_choice(on_outliers, OUTLIER_ACTIONS, "on_outliers")
+    noise = noise if isinstance(noise, Noise) else Noise.of(noise or DEFAULT_INSTRUMENT)
+    _check_inputs(model, contacts, data, validation)
+    names = candidate_parameters(model, parameters if not isinstance(parameters, str) else (parameters,),
+                                 known=(known,) if isinstance(known, str) else known)
+    prob = ContactProblem(model, contacts, names, compliance=needs_compliance(model, names), data=data, noise=noise)
+    p0 = prob.start_vector()
+    ident = contact_identifiability(prob, names, tol=tol, p=p0)
+    design = prob.over(ident.identified)
+    if not ident.identified or design.n_rows <= len(design.free_idx):
+        raise DegenerateDataError(f"{design.n_rows} equations for {len(ident.identified)} identifiable robot "
+                                  f"parameters and {prob.n_nuisance} unknowns of points and planes")
+    sol, checks, ratios = _solve(design, p0, data, noise, loss=loss, max_nfev=max_nfev, on_outliers=on_outliers)
+    cov = covariance(sol)
+    k = len(ident.identified)
+    lay = parameter_layout(model)
+    estimates = tuple(ParameterEstimate(n, lay[n].unit, float(p0[lay[n].index]), float(sol.p[lay[n].index]),
+                                        float(cov.std[i]), family=lay[n].family, quantity=lay[n].quantity)
+                      for i, n in enumerate(ident.identified))
+    calibrated = model_from_vector(model, sol.p[:prob.n_robot])
+    checks += [plausibility_check(estimates, tolerances(model), {}),
+               correlation_check([e.name for e in estimates], cov.correlation[:k, :k])]
+    tracker = None
+    if data is not None:
+        tracker = error_stats(design.tracker.error_norms(sol.p[:prob.n_robot]))
+    return ContactCalibration(
+        nominal_model=model, calibrated_model=calibrated, parameters=estimates, covariance=cov.covariance[:k, :k],
+        correlation=cov.correlation[:k, :k], identifiability=ident,
+        nuisance={n: (float(sol.p[prob.n_robot + i]), float(cov.std[k + i])) for i, n in enumerate(prob.nuisance_names)},
+        fit_before=contact_errors(model, contacts), fit_after=contact_errors(calibrated, contacts),
+        validation_before=None if validation is None else contact_errors(model, validation),
+        validation_after=None if validation is None else contact_errors(calibrated, validation),
+        tracker_after=tracker, noise_ratio=ratios, checks=tuple(checks), success=sol.success, message=sol.message,
+        nfev=sol.nfev)
+
+
+def _solve(design: ContactProblem, p0, data, noise: Noise, *, loss: str, max_nfev, on_outliers: str):
+    """The solution, the checks of its rows and each kind's residual ratio; a linear fit that leaves
+    outliers is refitted with a robust loss when ``on_outliers`` is "refit"."""
+    sol = solve(design, p0, loss=loss, max_nfev=max_nfev)
+    checks, ratios, outlying = _row_checks(design, sol, data, noise)
+    if not (outlying and loss == "linear" and on_outliers == "refit"):
+        return sol, checks, ratios
+    sol = solve(design, p0, loss="soft_l1", max_nfev=max_nfev)
+    checks, ratios, _ = _row_checks(design, sol, data, noise)
+    said = f"; the robust loss {sol.loss} sets them aside"
+    return sol, [replace(c, status="warn", summary=c.summary + said, fix="check those rows; remove them to fit "
+                         "without them") if c.name.startswith("outliers") and c.status == "fail" else c
+                 for c in checks], ratios
+
+
+def _row_checks(design: ContactProblem, sol, data, noise: Noise):
+    """Convergence, then each kind of row on its own (outliers and fit), each kind's RMS residual in
+    stated deviations, and whether any row stands out."""
+    checks = [convergence_check(sol.success, sol.message, sol.nfev)]
+    ratios = {}
+    outlying = False
+    labels = design.contact_labels()
+    for kind, (r, s) in design.contact_errors(sol.p).items():
+        if not len(s):
+            continue
+        r2 = np.reshape(r, (len(s), -1))
+        out_check, out = outlier_check(r2, s, noise, labels[kind])
+        outlying |= bool(out.any())
+        checks += [replace(out_check, name=f"outliers among the {kind} contacts"),
+                   contact_fit_check(kind, r2, s, out)]
+        ratios[kind] = float(np.sqrt(np.mean((r2 / s[:, None]) ** 2)))
+    if data is not None:
+        residuals = design.tracker.errors(sol.p[:design.n_robot])[data.mask]
+        sigma = None if data.sigma is None else data.sigma[data.mask]
+        rows, markers = np.nonzero(data.mask)
+        out_check, out = outlier_check(residuals, sigma, noise, [f"{data.labels[i]}, marker {data.marker_names[j]}"
+                                                                 for i, j in zip(rows, markers)])
+        outlying |= bool(out.any())
+        checks += [out_check, fit_check(residuals, sigma, noise, None, out)]
+        ratios["tracker"] = float(np.sqrt(np.mean((residuals / (noise.position if sigma is None else
+                                                                 sigma[:, None])) ** 2)))
+    return checks, ratios, outlying

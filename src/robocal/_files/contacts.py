@@ -1,0 +1,233 @@
+"""The contact file (CSV, docs/formats.md): joint-only recordings grouped by placement and target,
+with the fixture's known facts (socket spacings, ball-bar lengths, known planes) as directives.
+
+    # units: length=mm angle=deg
+    # distance: A B 200.000 sigma=0.002
+    # bar: bar200 200.000 sigma=0.002
+    # plane: table normal=0,0,1 offset=0 
+    # sigma: 0.010
+    placement,target,kind,marker,j1,j2,...,sigma
+
+Units are never guessed: the ``units`` directive is required. Joint columns carry the model's joint
+names; ``marker`` may be left out when the model has one marker; ``sigma`` (per row) may be left out
+when the ``sigma`` directive states one for every row.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+
+import numpy as np
+
+from .._contacts import CONTACT_KINDS, Contacts, KnownDistance, KnownPlane
+from .._errors import InputError
+from .._model import RobotModel
+from .._units import UNITS, check_unit
+from .text import read_text
+
+REQUIRED = ("placement", "target", "kind")
+DIRECTIVES = ("units", "distance", "bar", "plane", "sigma")
+
+
+def _options(words, source, where) -> dict:
+    """``key=value`` words as a dict."""
+    out = {}
+    for w in words:
+        key, sep, value = w.partition("=")
+        if not sep:
+            raise InputError(f"expected key=value, got {w!r}", source=source, where=where)
+        out[key] = value
+    return out
+
+
+def _float(text, what, source, where) -> float:
+    try:
+        v = float(text)
+    except (TypeError, ValueError):
+        raise InputError(f"{what} is not a number: {text!r}", source=source, where=where) from None
+    if not np.isfinite(v):
+        raise InputError(f"{what} is not a finite number: {text!r}", source=source, where=where)
+    return v
+
+
+class _Facts:
+    """What the directives state, SI."""
+
+    def __init__(self):
+        self.units: dict = {}
+        self.distances, self.planes, self.bars, self.sigma = [], [], {}, None
+
+    def add(self, name: str, body: str, source: str, where: str) -> None:
+        words = body.replace(",", " ").split() if name == "units" else body.split()
+        if name == "units":
+            for k, v in _options(words, source, where).items():
+                if k not in UNITS:
+                    raise InputError(f"expected '# units: length=mm angle=deg', got {k!r}", source=source, where=where)
+                self.units[k] = UNITS[k][check_unit(v, k, source=source, where=where)]
+            return
+        mm = self._length_unit(source, where)
+        if name == "sigma":
+            self.sigma = self._positive(words[0] if words else "", "sigma", mm, source, where)
+        elif name == "distance":
+            if len(words) != 4:
+                raise InputError("expected '# distance: SOCKET SOCKET LENGTH sigma=S'", source=source, where=where)
+            s = _options(words[3:], source, where).get("sigma")
+            self.distances.append(KnownDistance(words[0], words[1], self._positive(words[2], "length", mm, source, where),
+                                                self._positive(s, "sigma", mm, source, where)))
+        elif name == "bar":
+            if len(words) != 3:
+                raise InputError("expected '# bar: NAME LENGTH sigma=S'", source=source, where=where)
+            s = _options(words[2:], source, where).get("sigma")
+            self.bars[words[0]] = (self._positive(words[1], "length", mm, source, where),
+                                   self._positive(s, "sigma", mm, source, where))
+        else:
+            self.planes.append(self._plane(words, mm, source, where))
+
+    def _length_unit(self, source, where) -> float:
+        if "length" not in self.units:
+            raise InputError("the units directive ('# units: length=mm angle=deg') must come first", source=source,
+                             where=where)
+        return self.units["length"]
+
+    @staticmethod
+    def _positive(text, what, factor, source, where) -> float:
+        v = _float(text, what, source, where)
+        if v <= 0:
+            raise InputError(f"{what} must be positive, got {text}", source=source, where=where)
+        return v * factor
+
+    @staticmethod
+    def _plane(words, factor, source, where) -> KnownPlane:
+        opts = _options(words[1:], source, where) if words else {}
+        if not words or set(opts) != {"normal", "offset"}:
+            raise InputError("expected '# plane: NAME normal=NX,NY,NZ offset=D'", source=source, where=where)
+        n = np.array([_float(v, "normal", source, where) for v in opts["normal"].split(",")])
+        if len(n) != 3 or not np.linalg.norm(n) > 0:
+            raise InputError("a plane's normal has three components, not all zero", source=source, where=where)
+        n = n / np.linalg.norm(n)
+        return KnownPlane(words[0], tuple(float(v) for v in n), _float(opts["offset"], "offset", source, where) * factor)
+
+
+def read_contacts(path, model: RobotModel) -> Contacts:
+    """Read a contact file for ``model`` (its joints and markers name the columns); SI out."""
+    text, digest = read_text(path)
+    source = str(path)
+    facts = _Facts()
+    lines = text.splitlines()
+    body_start = 0
+    for i, line in enumerate(lines):
+        stripped = line.strip()
+        if stripped and not stripped.startswith("#"):
+            body_start = i
+            break
+        name, _, rest = stripped.lstrip("#").strip().partition(":")
+        if name.strip().lower() in DIRECTIVES and _:
+            facts.add(name.strip().lower(), rest.strip(), source, f"line {i + 1}")
+    else:
+        raise InputError("no header row", source=source)
+    if "angle" not in facts.units and "angle" in model.reading_quantities:
+        raise InputError("the units directive must give the angle unit of the joint readings "
+                         "('# units: length=mm angle=deg')", source=source)
+    rows = list(csv.reader(io.StringIO("\n".join(lines[body_start:]))))
+    header = [h.strip() for h in rows[0]]
+    return _rows(rows[1:], header, body_start + 1, model, facts, source, digest)
+
+
+def _columns(header, model: RobotModel, facts: _Facts, source: str) -> dict:
+    col = {h: i for i, h in enumerate(header)}
+    for name in REQUIRED + model.joint_names:
+        if name not in col:
+            raise InputError(f"column {name!r} is missing (columns: {', '.join(header)})", source=source,
+                             where="header")
+    if "marker" not in col and len(model.marker_names) != 1:
+        raise InputError("column 'marker' is missing and the model has several markers", source=source, where="header")
+    if "sigma" not in col and facts.sigma is None:
+        raise InputError("neither a 'sigma' column nor a '# sigma:' directive states the contacts' deviation",
+                         source=source, where="header")
+    unknown = set(header) - set(REQUIRED + model.joint_names + ("marker", "sigma", "label"))
+    if unknown:
+        raise InputError(f"unknown column {sorted(unknown)[0]!r}", source=source, where="header")
+    return col
+
+
+def _rows(rows, header, first_line, model: RobotModel, facts: _Facts, source: str, digest: str) -> Contacts:
+    col = _columns(header, model, facts, source)
+    scale = np.array([facts.units.get("angle", 1.0) if k == "angle" else facts.units["length"]
+                      for k in model.reading_quantities])
+    q, marker, kind, target, placement, sigma, labels = [], [], [], [], [], [], []
+    for k, row in enumerate(rows):
+        line = first_line + 1 + k
+        where = f"line {line}"
+        if not row or not any(c.strip() for c in row):
+            continue
+        if len(row) != len(header):
+            raise InputError(f"{len(row)} fields for {len(header)} columns", source=source, where=where)
+        cell = {h: row[i].strip() for h, i in col.items()}
+        if cell["kind"] not in CONTACT_KINDS:
+            raise InputError(f"kind {cell['kind']!r} is not one of {', '.join(CONTACT_KINDS)}", source=source,
+                             where=f"{where}, column 'kind'")
+        m = cell.get("marker", model.marker_names[0])
+        if m not in model.marker_names:
+            raise InputError(f"marker {m!r} is not in the model", source=source, where=f"{where}, column 'marker'")
+        q.append([_float(cell[j], f"joint {j}", source, f"{where}, column {j!r}") for j in model.joint_names])
+        s = facts.sigma if "sigma" not in col else \
+            _Facts._positive(cell["sigma"], "sigma", facts._length_unit(source, where), source, f"{where}, column 'sigma'")
+        marker.append(m)
+        kind.append(cell["kind"])
+        target.append(cell["target"])
+        placement.append(cell["placement"])
+        sigma.append(s)
+        labels.append(cell.get("label") or where)
+    if not q:
+        raise InputError("no contact rows", source=source)
+    _known_targets(facts, kind, target, source)
+    return Contacts(q=np.array(q) * scale, marker=tuple(marker), kind=tuple(kind), target=tuple(target),
+                    placement=tuple(placement), sigma=np.array(sigma), distances=tuple(facts.distances),
+                    planes=tuple(facts.planes), bars=facts.bars, joint_names=model.joint_names,
+                    labels=tuple(labels), source=source, sha256=digest)
+
+
+def _known_targets(facts: _Facts, kind, target, source: str) -> None:
+    """Every directive names something the rows touch."""
+    touched = {k: {t for kk, t in zip(kind, target) if kk == k} for k in CONTACT_KINDS}
+    for d in facts.distances:
+        for s in (d.a, d.b):
+            if s not in touched["socket"]:
+                raise InputError(f"the distance {d.a}-{d.b} names socket {s!r}, which no socket row touches",
+                                 source=source)
+    for name in facts.bars:
+        if name not in touched["bar"]:
+            raise InputError(f"ball bar {name!r} is stated but no bar row uses it", source=source)
+    for p in facts.planes:
+        if p.name not in touched["plane"]:
+            raise InputError(f"plane {p.name!r} is stated but no plane row touches it", source=source)
+
+
+def contacts_to_csv(contacts: Contacts, model: RobotModel, *, units: str = "mm-deg") -> str:
+    """The text of a contact file holding ``contacts`` (SI) in ``units`` ("length-angle")."""
+    from .._units import unit_factors
+
+    f = unit_factors(units)
+    length, angle = units.split("-")
+    scale = np.array([f[k] for k in model.reading_quantities])
+    out = ["# robocal contacts", f"# units: length={length} angle={angle}"]
+    out += [f"# distance: {d.a} {d.b} {d.length / f['length']:.6f} sigma={d.sigma / f['length']:.6g}"
+            for d in contacts.distances]
+    out += [f"# bar: {n} {v / f['length']:.6f} sigma={s / f['length']:.6g}" for n, (v, s) in contacts.bars.items()]
+    out += [f"# plane: {p.name} normal={','.join(f'{v:.12g}' for v in p.normal)} offset={p.offset / f['length']:.9g}"
+            for p in contacts.planes]
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["placement", "target", "kind", "marker", *model.joint_names, "sigma"])
+    for i in range(contacts.n_rows):
+        w.writerow([contacts.placement[i], contacts.target[i], contacts.kind[i], contacts.marker[i],
+                    *(f"{v:.9f}" for v in contacts.q[i] / scale), f"{contacts.sigma[i] / f['length']:.6g}"])
+    return "\n".join(out) + "\n" + buf.getvalue()
+
+
+def write_contacts(contacts: Contacts, path, model: RobotModel, *, units: str = "mm-deg", force: bool = False) -> None:
+    """Write ``contacts`` as a contact file (refuses to overwrite unless ``force``)."""
+    from .text import write_texts
+
+    write_texts({path: contacts_to_csv(contacts, model, units=units)}, force=force)

@@ -1,0 +1,62 @@
+"""What the command line prints after a calibration from contacts: the kit's figures before and
+after, what each kind of contact reached and what none did, the parameters and the checks."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .units import with_unit
+
+
+def _listed(names, n: int = 6) -> str:
+    return ", ".join(names[:n]) + (f", ... ({len(names) - n} more)" if len(names) > n else "")
+
+
+def _mm(v) -> str:
+    return "–" if v is None else with_unit(v, "m")
+
+
+def _figures(label: str, before, after) -> list[str]:
+    """Mean socket spread, known-distance RMS error, plane RMS and ball-bar RMS error, before -> after."""
+    out = []
+    if before.spread:
+        out.append(f"  {label} socket spread (RMS about each socket's centre, mean over {len(before.spread)}): "
+                   f"{_mm(before.mean_spread)} -> {_mm(after.mean_spread)}")
+    if before.distance:
+        out.append(f"  {label} known distances, RMS error over {len(before.distance)}: "
+                   f"{_mm(before.distance_rms)} -> {_mm(after.distance_rms)}")
+    for name, kind in (("plane", "plane contacts, RMS distance to their plane"), ("bar", "ball-bar length error")):
+        b, a = getattr(before, name), getattr(after, name)
+        if b:
+            rms = [float(np.sqrt(np.mean(np.square(list(d.values()))))) for d in (b, a)]
+            out.append(f"  {label} {kind}, RMS over {len(b)}: {_mm(rms[0])} -> {_mm(rms[1])}")
+    return out
+
+
+def contact_summary(result) -> str:
+    """The text summary of a ``ContactCalibration``."""
+    ident = result.identifiability
+    lines = ["calibration from contacts", "what the kit shows (before -> after):"]
+    lines += _figures("fitted", result.fit_before, result.fit_after)
+    if result.validation_before is not None:
+        lines += _figures("held-out", result.validation_before, result.validation_after)
+    if result.tracker_after is not None:
+        lines.append(f"  tracker points after: {_mm(result.tracker_after.rms)} RMS over {result.tracker_after.n}")
+    lines.append(f"identified {len(ident.identified)} parameters; each kind alone identifies:")
+    for kind, names in ident.contributions.items():
+        lost = ident.lost_without.get(kind)
+        lines.append(f"  {kind}: {len(names)}" + ("" if lost is None else
+                     f"; without it {len(lost)} fewer" + (f" ({_listed(lost)})" if lost else "")))
+    if ident.together:
+        lines.append(f"  only the kinds together: {', '.join(ident.together)}")
+    for u in ident.unreachable:
+        lines.append(f"unreachable: {u.name} ({', '.join(u.components) if u.name == 'base' else 'every length alike'})"
+                     f": {u.reason}")
+    lines.append("parameters (change from nominal +- std):")
+    for p in result.parameters:
+        lines.append(f"  {p.name:<12} {with_unit(p.change, p.unit, sign=True)} +- {with_unit(p.std, p.unit)}")
+    lines.append("checks:")
+    for c in result.checks:
+        lines.append(f"  [{c.status}] {c.name}: {c.summary}")
+    lines.append(f"verdict: {result.verdict.upper()}")
+    return "\n".join(lines)

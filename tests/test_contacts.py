@@ -1,0 +1,264 @@
+"""Calibration without a tracker: sockets, planes, ball bars and known distances, alone or mixed with
+tracker points. Every Jacobian column against central differences, recovery of a simulated 7-joint
+arm within the reported uncertainty, the analysis naming what the data cannot reach, the kit's
+figures on a held-out placement, and bad input refused. Heavier statistics (10 campaigns) are in
+examples/arm7/contacts_campaigns.py."""
+
+import warnings
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import robocal as rc
+from conftest import z_scores
+from robocal.identification import ContactProblem, calibrate_contacts, contact_errors, contact_identifiability
+from robocal.sim import bar_campaign, plane_campaign, socket_campaign
+
+from robots import arm6r
+
+ARM7 = Path(__file__).resolve().parents[1] / "examples" / "arm7" / "model.yaml"
+ENCODER = 2e-5      # rad: encoder-level joint noise
+
+
+@pytest.fixture(scope="module")
+def arm7():
+    return rc.read_model(ARM7)
+
+
+def _mixed_contacts(m, n=40, seed=1):
+    """Every kind on random readings (residuals need not be small for a Jacobian test)."""
+    rng = np.random.default_rng(seed)
+    q = rc.random_configurations(m, n, rng)
+    kind = ["socket"] * 16 + ["plane"] * 12 + ["bar"] * 4 + ["plane"] * 8
+    target = ["A"] * 8 + ["B"] * 8 + ["table"] * 12 + ["bar"] * 4 + ["wall"] * 8
+    placement = ["P1"] * 28 + ["pair1"] * 2 + ["pair2"] * 2 + [""] * 8
+    return rc.Contacts(q=q, marker=(m.marker_names[0],) * n, kind=tuple(kind), target=tuple(target),
+                       placement=tuple(placement), sigma=rng.uniform(1e-5, 3e-5, n),
+                       distances=(rc.KnownDistance("A", "B", 0.2, 2e-6),),
+                       planes=(rc.KnownPlane("wall", (0.0, 0.6, 0.8), 0.1),), bars={"bar": (0.3, 2e-6)})
+
+
+def _worst_column_error(prob, p):
+    """The largest column error (max over rows) relative to the column's largest entry; near zero
+    absolute, as in the kinematics test (1e-3 m per unit, here in the rows' standard deviations)."""
+    J = prob.jacobian(p)
+    x0 = p[prob.free_idx]
+    floor = 1e-3 / np.median(prob.contacts.sigma)
+    worst = 0.0
+    for j in range(len(x0)):
+        h = 1e-6 * max(1.0, abs(x0[j]))
+        xp, xm = x0.copy(), x0.copy()
+        xp[j] += h
+        xm[j] -= h
+        fd = (prob.residuals(prob.full(xp, p)) - prob.residuals(prob.full(xm, p))) / (2 * h)
+        worst = max(worst, np.abs(fd - J[:, j]).max() / max(np.abs(fd).max(), floor))
+    return worst
+
+
+@pytest.mark.parametrize("case", ["arm7 geometric with tracker points", "arm6r compliance"])
+def test_every_contact_jacobian_column_agrees_with_central_differences(arm7, case):
+    if case.startswith("arm7"):
+        m, families, compliance = arm7, ("geometric",), False
+        data = rc.simulate(m, 10, seed=3)[1]
+    else:
+        m, families, compliance, data = arm6r(masses=True), ("geometric", "compliance"), True, None
+    names = rc.candidate_parameters(m, families)
+    prob = ContactProblem(m, _mixed_contacts(m), names, compliance=compliance, data=data)
+    rng = np.random.default_rng(2)
+    p = prob.start_vector()
+    p[prob.n_robot:] += rng.normal(0.0, 1e-2, prob.n_nuisance)      # off the starting planes and points
+    lay = rc.parameter_names(m)
+    for k, n in zip(prob.robot_idx, names):
+        p[k] += 3e-4 if "k_" not in n else 1e-5                        # compliances deflect: corrections on
+    assert set(np.unique(prob.row_kinds())) >= {2, 3, 4, 5} and len(lay) == prob.n_robot
+    assert _worst_column_error(prob, p) < 1e-6
+
+
+def _truth_for(m, campaign, seed):
+    """A true arm with errors on what ``campaign`` (a function of the robot and a generator) can
+    identify, found on the nominal arm, so the truth is unambiguous; the base stays nominal."""
+    names = rc.candidate_parameters(m, ("geometric",))
+    ident = contact_identifiability(ContactProblem(m, campaign(m, np.random.default_rng(seed + 100)), names,
+                                                   compliance=False), names)
+    return rc.perturb_model(m, [n for n in ident.identified if not n.startswith("base.")], rng=seed)
+
+
+@pytest.fixture(scope="module")
+def socket_run(arm7):
+    """Sockets on a 3-socket plate at 4 placements (the last held out), 20 poses per socket."""
+    true = rc.perturb_model(arm7, rc.identifiability(arm7, parameters=("frames", "markers")).identified, rng=0)
+    c = socket_campaign(true, placements=4, poses_per_socket=20, joint_noise=ENCODER, rng=0)
+    fit, val = c.split_placements(["P4"])
+    return true, fit, val
+
+
+def test_sockets_with_known_spacing_recover_the_arm_and_the_held_out_spread(arm7, socket_run):
+    true, fit, val = socket_run
+    res = calibrate_contacts(arm7, fit, validation=val)
+    z = z_scores(res, true, arm7)
+    assert np.all(np.abs(z) < 3), dict(zip([p.name for p in res.parameters], z.round(2)))
+    assert res.verdict == "pass", [(c.name, c.summary) for c in res.checks if c.status != "pass"]
+    ident = res.identifiability
+    assert [u.name for u in ident.unreachable] == ["base"] and len(ident.unreachable[0].components) == 6
+    assert not any(n.startswith("base.") for n in ident.identified)
+    # the spacing alone identifies nothing, but with the sockets it fixes the scale
+    assert ident.contributions["distance"] == () and ident.together
+    assert len(ident.lost_without["distance"]) == 1 and ident.lost_without["socket"] == ident.identified
+    noise_alone = contact_errors(true, val).mean_spread
+    assert res.validation_before.mean_spread > 50 * noise_alone
+    assert res.validation_after.mean_spread < 1.2 * noise_alone
+    assert res.fit_after.distance_rms < 5 * fit.distances[0].sigma + 1e-5
+
+
+def test_without_a_known_distance_the_scale_is_named_unreachable(arm7, socket_run):
+    _, fit, _ = socket_run
+    names = rc.candidate_parameters(arm7, ("geometric",))
+    ident = contact_identifiability(ContactProblem(arm7, replace(fit, distances=()), names, compliance=False), names)
+    assert [u.name for u in ident.unreachable] == ["base", "scale"]
+    assert "known distance" in ident.unreachable[1].reason and "rigid motion" in ident.unreachable[0].reason
+    with_spacing = contact_identifiability(ContactProblem(arm7, fit, names, compliance=False), names)
+    assert len(with_spacing.identified) == len(ident.identified) + 1
+
+
+@pytest.mark.parametrize("known", [False, True])
+def test_plane_contacts_recover_the_arm(arm7, known):
+    def campaign(robot, rng):
+        return plane_campaign(robot, planes=6, poses_per_plane=25, joint_noise=ENCODER, known=known, rng=rng)
+
+    true = _truth_for(arm7, campaign, 3)
+    res = calibrate_contacts(arm7, campaign(true, np.random.default_rng(3)))
+    z = z_scores(res, true, arm7)
+    assert np.all(np.abs(z) < 3), dict(zip([p.name for p in res.parameters], z.round(2)))
+    unreachable = [u.name for u in res.identifiability.unreachable]
+    # known planes fix the measurement frame and, lying off the base, the scale
+    assert unreachable == ([] if known else ["base", "scale"])
+    assert res.verdict == "pass"
+
+
+def test_ball_bar_recovers_the_arm_and_its_scale(arm7):
+    def campaign(robot, rng):
+        return bar_campaign(robot, pairs=90, joint_noise=ENCODER, rng=rng)
+
+    true = _truth_for(arm7, campaign, 4)
+    res = calibrate_contacts(arm7, campaign(true, np.random.default_rng(4)))
+    z = z_scores(res, true, arm7)
+    assert np.all(np.abs(z) < 3), dict(zip([p.name for p in res.parameters], z.round(2)))
+    assert [u.name for u in res.identifiability.unreachable] == ["base"]
+    assert res.verdict == "pass"
+
+
+def _with_encoder_noise(data, rng):
+    return replace(data, q=data.q + rng.normal(0.0, ENCODER, data.q.shape))
+
+
+def test_tracker_and_sockets_together_beat_either_alone_on_held_out_tracker_poses(arm7):
+    rng = np.random.default_rng(5)
+    true = rc.perturb_model(arm7, rc.identifiability(arm7).identified, rng=rng)
+    fit_t, val_t = (_with_encoder_noise(rc.measure(true, rc.random_configurations(arm7, n, rng), rng=rng), rng)
+                    for n in (20, 40))
+    sockets = socket_campaign(true, placements=3, poses_per_socket=20, joint_noise=ENCODER, rng=rng)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        models = [rc.calibrate(arm7, fit_t).calibrated_model, calibrate_contacts(arm7, sockets).calibrated_model,
+                  calibrate_contacts(arm7, sockets, data=fit_t).calibrated_model]
+    rms = [np.sqrt(np.mean(np.sum((rc.forward_kinematics(x, val_t.q).positions - val_t.positions) ** 2, axis=2)))
+           for x in models]
+    assert rms[2] < rms[0] and rms[2] < rms[1], rms
+
+
+def test_each_kind_is_checked_on_its_own(arm7, socket_run):
+    _, fit, _ = socket_run
+    q = fit.q.copy()
+    q[5, 1] += 1e-3                                # one socket row read while the arm still moved
+    flagged = calibrate_contacts(arm7, replace(fit, q=q), on_outliers="flag")
+    check = next(c for c in flagged.checks if c.name == "outliers among the socket contacts")
+    assert check.status == "fail" and fit.labels[5] in check.summary
+    refit = calibrate_contacts(arm7, replace(fit, q=q))       # the robust loss sets the row aside
+    check = next(c for c in refit.checks if c.name == "outliers among the socket contacts")
+    assert check.status == "warn" and "soft_l1" in check.summary and refit.verdict == "warn"
+    clean = calibrate_contacts(arm7, fit)
+    moved = [abs(a.estimate - b.estimate) / b.std for a, b in zip(refit.parameters, clean.parameters)]
+    assert max(moved) < 1.0
+    # a spacing misread by 0.1 mm (50 of its standard deviations): the distances fail, the sockets still fit
+    wrong = replace(fit, distances=tuple(replace(d, length=d.length + 1e-4) if d.a == "A" and d.b == "B" else d
+                                         for d in fit.distances))
+    status = {c.name: c.status for c in calibrate_contacts(arm7, wrong).checks}
+    assert status["fit of the distance contacts"] == "fail" and status["fit of the socket contacts"] == "pass"
+
+
+@pytest.mark.parametrize("edit, words", [
+    (dict(kind=("socket",) * 3 + ("ball",)), ["kind 'ball'"]),
+    (dict(kind=("socket",) * 3 + ("bar",), target=("A",) * 3 + ("bar",)), ["ball bar", "1 rows"]),
+    (dict(sigma=np.array([1e-5, 1e-5, 0.0, 1e-5])), ["sigma", "row 2"]),
+    (dict(kind=("socket", "socket", "plane", "socket")), ["mixes kinds"]),
+])
+def test_contacts_refuse_bad_input(edit, words):
+    base = dict(q=np.zeros((4, 6)), marker=("tool",) * 4, kind=("socket",) * 4, target=("A",) * 4,
+                placement=("P1",) * 4, sigma=np.full(4, 1e-5), bars={"bar": (0.2, 1e-6)})
+    with pytest.raises(rc.InputError) as e:
+        rc.Contacts(**{**base, **edit})
+    for w in words:
+        assert w in str(e.value)
+
+
+# -- the contact file and the command line ----------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def small_session(arm7, tmp_path_factory):
+    """A simulated kit session written as a contact file: 4 placements, 10 poses per socket."""
+    from robocal.io import write_contacts
+
+    true = rc.perturb_model(arm7, rc.identifiability(arm7, parameters=("frames", "markers")).identified, rng=7)
+    c = socket_campaign(true, placements=4, poses_per_socket=10, joint_noise=ENCODER, rng=7)
+    path = tmp_path_factory.mktemp("kit") / "sockets.csv"
+    write_contacts(c, path, arm7)
+    return true, c, path
+
+
+def test_the_contact_file_reads_back_what_was_written(arm7, small_session):
+    _, c, path = small_session
+    back = rc.io.read_contacts(path, arm7)
+    np.testing.assert_allclose(back.q, c.q, atol=1e-10)
+    np.testing.assert_allclose(back.sigma, c.sigma, rtol=1e-5)
+    assert back.target == c.target and back.placement == c.placement and back.kind == c.kind
+    assert [(d.a, d.b) for d in back.distances] == [(d.a, d.b) for d in c.distances]
+    np.testing.assert_allclose([d.length for d in back.distances], [d.length for d in c.distances], rtol=1e-9)
+
+
+@pytest.mark.parametrize("edit, words", [
+    (lambda t: t.replace("# units: length=mm angle=deg\n", ""), ["units directive"]),
+    (lambda t: t.replace("angle=deg", "angle=mm"), ["unknown angle unit 'mm'"]),
+    (lambda t: t.replace("P1,A,socket", "P1,A,sockett", 1), ["line 7", "kind 'sockett'"]),
+    (lambda t: t.replace("# distance: A B", "# distance: A Z", 1), ["socket 'Z'"]),
+    (lambda t: t.replace(",j3,", ",j33,"), ["column 'j3' is missing"]),
+    (lambda t: t.replace("# distance: A B 200.000000", "# distance: A B -200", 1), ["line 3", "length must be positive"]),
+])
+def test_bad_contact_files_are_refused_in_one_line(cli, arm7, small_session, tmp_path, edit, words):
+    from conftest import assert_one_line_error
+
+    _, _, path = small_session
+    bad = tmp_path / "bad.csv"
+    bad.write_text(edit(path.read_text()))
+    code, _, err = cli("calibrate", ARM7, "--contacts", bad, "--out", tmp_path / "run")
+    assert_one_line_error(code, err, [str(bad)] + words, tmp_path / "run")
+
+
+def test_the_command_line_calibrates_from_contacts_alone_and_next_to_a_tracker_file(cli, arm7, small_session,
+                                                                                      tmp_path):
+    true, _, path = small_session
+    code, out, err = cli("calibrate", ARM7, "--contacts", path, "--out", tmp_path / "a", "--holdout-placement", "P4")
+    assert code == 0, err
+    assert "held-out socket spread" in out and "unreachable: base" in out and "verdict: PASS" in out
+    written = rc.read_model(tmp_path / "a" / "calibrated.yaml")
+    assert rc.parameter_vector(written).shape == rc.parameter_vector(arm7).shape
+    result = __import__("json").loads((tmp_path / "a" / "contacts-result.json").read_text())
+    assert [u["name"] for u in result["unreachable"]] == ["base"] and result["verdict"] == "pass"
+    tracker = rc.measure(true, rc.random_configurations(arm7, 15, 1), rng=1)
+    rc.write_measurements(tracker, tmp_path / "tracker.csv", model=arm7)
+    code, out, err = cli("calibrate", ARM7, tmp_path / "tracker.csv", "--contacts", path, "--out", tmp_path / "b")
+    assert code == 0, err
+    assert "tracker points after" in out and "unreachable" not in out
+    code, _, err = cli("calibrate", ARM7, "--contacts", path, "--out", tmp_path / "c", "--holdout-placement", "P9")
+    assert code == 2 and "no placement 'P9'" in err
