@@ -592,7 +592,8 @@ def render_report(result: CalibrationResult, *, extra: dict | None = None) -> st
     if not d.get("success"):
         notices.append(_notice(f"The solver did not converge: {_e(d.get('message'))}", "bad"))
 
-    sections = [("errors", "Position and rotation errors", _errors_section(d, has_val))]
+    title = "Position and rotation errors" if d["stats"].get("rotation") else "Position errors"
+    sections = [("errors", title, _errors_section(d, has_val))]
     frame_table, other_table, note = _parameter_tables(d, nominal, units)
     sections.append(("parameters", "Parameters",
                      "<p>Per frame, in the paper's layout: I identified, E eliminated (held at its nominal value, "
