@@ -104,7 +104,7 @@ def test_calibrate_compare(tmp_path, cli):
     assert code == 0, err
     assert "geometric+compliance" in out and "compliance helped" in out
     assert sorted(p.name for p in (d / "cmp").iterdir()) == ["calibrated.yaml", "result-compliance.json",
-                                                             "result-geometric.json"]
+                                                             "result-geometric.json", "result.json"]
 
 
 def test_force_overwrites(campaign, cli):
@@ -319,7 +319,7 @@ def test_import_urdf_writes_a_model_with_the_same_kinematics(tmp_path, cli):
 
 @pytest.mark.parametrize("args, message", [
     (("missing.urdf",), "missing.urdf: no such file"),
-    (("arm.urdf", "--tip-link", "nowhere"), "tip link 'nowhere' is not defined"),
+    (("arm.urdf", "--tip-link", "nowhere"), "--tip-link 'nowhere' is not defined"),
     (("broken.urdf",), "broken.urdf"),
     (("arm.urdf", "--marker-mm", "tcp,1,2"), "expected NAME,X,Y,Z"),
 ])

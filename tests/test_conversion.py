@@ -336,7 +336,7 @@ def test_mdh_table_and_csv(tmp_path):
     path = tmp_path / "mdh.csv"
     write_mdh_csv(model, path)
     with open(path, newline="") as fh:
-        got = list(csv.DictReader(fh))
+        got = list(csv.DictReader(fh))[1:]       # the first row places the base
     assert float(got[2]["d_mm"]) == pytest.approx(-425.0, abs=1e-12)
     assert float(got[4]["alpha_deg"]) == pytest.approx(90.0, abs=1e-12)
     assert float(got[0]["r_mm"]) == pytest.approx(89.159, abs=1e-12)
@@ -359,8 +359,9 @@ GOOD = _urdf_text("arm", ARM7[:3])
     (GOOD.replace('type="revolute"', 'type="floating"', 1), "not supported", "joint 'joint1'"),
     (GOOD.replace('<axis xyz="0 1 0"/>', '<axis xyz="0 one 0"/>'), "3 numbers", "joint 'joint2' axis"),
     (GOOD.replace('<robot name="arm">',
-                  '<robot name="arm"><link name="side"/><joint name="s" type="fixed"><parent link="link1"/>'
-                  '<child link="side"/></joint>'), "branches", "link 'link1'"),
+                  '<robot name="arm"><link name="side"/><joint name="s" type="revolute"><parent link="link0"/>'
+                  '<child link="side"/><limit lower="-1" upper="1"/></joint>'), "branches at link 'link0'",
+     "tip_link"),
     (GOOD.replace("<limit", "<nolimit"), "needs <limit", "joint 'joint1'"),
 ], ids=["malformed", "joint-twice", "unknown-parent", "zero-axis", "floating", "bad-number", "branch",
         "no-limit"])

@@ -18,13 +18,13 @@ parameters themselves are a choice, written down here:
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Sequence
 
 import numpy as np
 
 from ._errors import InputError
-from ._model import DEFAULT_PARALLEL_TOL, Frame, Marker, RobotModel, parallel_beta_frames
+from ._model import DEFAULT_PARALLEL_TOL, Frame, Marker, RobotModel, mdh_transform, parallel_beta_frames
 from ._parameters import KIND_QUANTITY
 from ._spatial import inverse4, matrix_tuple, pose4, rot4, rot_matrix, trans4, unit_vector
 from ._units import parse_units, unit_factors
@@ -260,3 +260,72 @@ def mdh_table(model: RobotModel, *, units: str = "m-rad") -> list[dict]:
             row[f"{kind}_{names[quantity]}"] = float(getattr(f, kind)) / factors[quantity]
         rows.append(row)
     return rows
+
+
+@dataclass(frozen=True)
+class StandardDH:
+    """A serial model in classic (distal) DH, SI: ``rows`` one dict per joint (name, joint, theta,
+    d, a, alpha), ``X_W0`` the pose of DH frame 0 in W, ``markers`` (name, X_nM) in the last DH
+    frame, and ``offsets`` the frames whose common normal runs off (name, offset in m) where
+    consecutive axes are nearly but not exactly parallel."""
+
+    rows: tuple[dict, ...]
+    X_W0: np.ndarray
+    markers: tuple[tuple[str, np.ndarray], ...]
+    offsets: tuple[tuple[str, float], ...]
+
+
+def _serial_frames(model: RobotModel, what: str) -> None:
+    for i, f in enumerate(model.frames):
+        if f.parent != i - 1 or f.joint == "fixed" or f.coupling != ((i, 1.0),):
+            raise InputError(f"{what} needs a serial chain with one reading per frame, in order; frame "
+                             f"{f.name!r} is not", where=f"frames[{i}]")
+
+
+def frame_poses(model: RobotModel) -> list[np.ndarray]:
+    """``X_Wj`` (4x4) of every frame at zero readings."""
+    out = []
+    for f in model.frames:
+        parent = model.X_WB if f.parent < 0 else out[f.parent]
+        out.append(parent @ mdh_transform(f))
+    return out
+
+
+def to_standard_dh(model: RobotModel, *, max_offset: float | None = None) -> StandardDH:
+    """Classic DH of a serial model, with the same forward kinematics (exact up to a tilt below
+    1e-12 rad between axes taken as parallel).
+
+    Classic DH places each frame on the common normal of consecutive joint axes. Where the axes
+    are nearly parallel (what Hayati's beta exists for) that normal runs off: the table needs
+    offsets of hundreds of metres that cancel to give a metre-sized robot, and rounding them
+    ruins the model. Offsets beyond ``max_offset`` (default ten times the robot's extent, and at
+    least 10 m) raise an InputError naming the frames; ``max_offset=inf`` accepts them (the
+    returned ``offsets`` list those beyond the default).
+    """
+    _serial_frames(model, "classic DH")
+    X = frame_poses(model)
+    pts = np.array([x[:3, 3] for x in X])
+    X_0B, lines = line_frames(pts, np.array([x[:3, 2] for x in X]), 1e-12)
+    rel = [_decompose(inverse4(prev) @ cur, use_beta=False) for prev, cur in zip([X_0B] + lines[:-1], lines)]
+    rows = []
+    for i, f in enumerate(model.frames):
+        nxt = rel[i + 1] if i + 1 < len(rel) else dict(d=0.0, alpha=0.0)
+        # classic row i: this frame's theta and r, the next frame's d and alpha (from_standard_dh, reversed)
+        rows.append(dict(name=f.name, joint=f.joint, theta=rel[i]["theta"], d=rel[i]["r"], a=nxt["d"],
+                         alpha=nxt["alpha"]))
+    X_W0 = X_0B @ rot4(0, rel[0]["alpha"]) @ trans4(0, rel[0]["d"])
+    extent = max(1.0, float(np.max(np.linalg.norm(pts - model.X_WB[:3, 3], axis=1))))
+    size = [(r["name"], max(abs(r["d"]), abs(r["a"]))) for r in rows]
+    offsets = tuple((n, v) for n, v in size if v > 10.0 * extent)
+    too_far = [(n, v) for n, v in size if v > (10.0 * extent if max_offset is None else max_offset)]
+    if too_far:
+        where = ", ".join(f"{n} ({v:.3g} m)" for n, v in too_far)
+        raise InputError(f"classic DH is ill-conditioned here: nearly parallel axes put the common normal far "
+                         f"away, offsets {where}; use modified DH (mdh-csv) or URDF", where="frames")
+    markers = []
+    for mk in model.markers:
+        if mk.frame != len(model.frames) - 1:
+            raise InputError(f"classic DH places markers on the last frame; {mk.name!r} is on "
+                             f"{model.frames[mk.frame].name!r}", where="markers")
+        markers.append((mk.name, inverse4(lines[-1]) @ X[-1] @ pose4(np.asarray(mk.rotation), mk.position)))
+    return StandardDH(rows=tuple(rows), X_W0=X_W0, markers=tuple(markers), offsets=offsets)

@@ -77,12 +77,15 @@ class _Greedy:
         b = self.B[i]
         u = b @ self.Minv                                                   # (rows, k)
         Sinv = np.linalg.inv(np.eye(len(b)) + sign * (u @ b.T))
-        C = self.flat @ u.T                                                 # B_i M^-1 b^T, flat
-        if self.F is not None:
-            # F_i += [C D] [[E, -s S^-1], [-s S^-1, 0]] [C D]^T with D = B_i M^-1 W M^-1 b^T and
-            # E = S^-1 u W u^T S^-1: the three terms of (M^-1 - s u^T S^-1 u) W (...) in one product
-            Z = np.hstack([C, self.flat @ (self.Minv @ self.W @ u.T)])
-            r = len(b)
+        r = len(b)
+        if self.F is None:
+            C = self.flat @ u.T                                             # B_i M^-1 b^T, flat
+        else:
+            # one product gives C and D = B_i M^-1 W M^-1 b^T; then F_i += [C D] K [C D]^T with
+            # K = [[E, -s S^-1], [-s S^-1, 0]], E = S^-1 u W u^T S^-1: the three terms of
+            # (M^-1 - s u^T S^-1 u) W (...) in one product
+            Z = self.flat @ np.hstack([u.T, self.Minv @ self.W @ u.T])
+            C = Z[:, :r]
             K = np.zeros((2 * r, 2 * r))
             K[:r, :r] = Sinv @ (u @ self.W @ u.T) @ Sinv
             K[:r, r:] = K[r:, :r] = -sign * Sinv
@@ -208,7 +211,7 @@ class CampaignPrediction:
 
     ``parameters``: the parameters identifiable from these poses, in preference order, with
     ``std`` their predicted standard deviations at position noise ``noise`` (m per axis);
-    ``eliminated``: the candidates these poses cannot identify. ``error_rms``: the predicted RMS
+    ``identifiability``: the analysis at these poses (what is eliminated, what absorbs it). ``error_rms``: the predicted RMS
     position error of the calibrated model over ``n_workspace`` configurations within the joint
     limits (what parameter uncertainty leaves, the instrument's noise not counted);
     ``held_out_rms``: the RMS error a measurement at such a configuration would show against the
@@ -217,7 +220,7 @@ class CampaignPrediction:
     q: np.ndarray
     parameters: tuple[str, ...]
     std: np.ndarray
-    eliminated: tuple
+    identifiability: object
     noise: float
     error_rms: float
     held_out_rms: float
@@ -244,9 +247,10 @@ def predict_campaign(model: RobotModel, q, *, parameters=("geometric",), known=(
     col[col == 0] = 1.0
     Ms = (J / col).T @ (J / col)
     cov = noise ** 2 * np.linalg.pinv(Ms, rcond=1e-15, hermitian=True) / np.outer(col, col)
+    log.info("predicting %d parameters' uncertainty over %d configurations", len(names), n_workspace)
     work = random_configurations(model, n_workspace, np.random.default_rng(rng))
     Jw = design_problem(model, work, names).jacobian(p0)               # (n_workspace * markers * 3, k)
     per_point = np.einsum("ri,ij,rj->", Jw, cov, Jw) / (len(Jw) / 3)   # mean of tr(J_p C J_p^T)
-    return CampaignPrediction(q=q, parameters=names, std=np.sqrt(np.diag(cov)), eliminated=ident.eliminated,
+    return CampaignPrediction(q=q, parameters=names, std=np.sqrt(np.diag(cov)), identifiability=ident,
                               noise=noise, error_rms=float(np.sqrt(per_point)),
                               held_out_rms=float(np.sqrt(per_point + 3 * noise ** 2)), n_workspace=n_workspace)

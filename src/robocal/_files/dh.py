@@ -1,21 +1,256 @@
-"""DH tables out (and, as formats are added, in): the MDH table as CSV with unit suffixes."""
+"""DH tables in and out as CSV (docs/formats.md): modified DH (our frames, with Hayati's beta) and
+classic DH, each column with its unit suffix. Besides the joints a table holds what the forward
+kinematics also needs: a ``base`` row (the pose of the table's first frame in the measurement
+frame W) and one ``marker`` row per marker (its pose in its frame), as x, y, z and roll, pitch,
+yaw (URDF's convention, R = Rz(yaw) Ry(pitch) Rx(roll)); and each joint's limits."""
 
 from __future__ import annotations
 
 import csv
 import io
+import math
+from dataclasses import replace
 
-from .._conversion import mdh_table
-from .._model import RobotModel
-from .text import write_texts
+import numpy as np
+
+from .._conversion import MDH_TABLE_KINDS, from_standard_dh, mdh_table, to_standard_dh
+from .._errors import InputError
+from .._model import Frame, Marker, RobotModel, parallel_beta_frames
+from .._spatial import matrix_rpy, matrix_tuple, pose4, rpy_matrix
+from .._units import UNITS, parse_units, unit_factors, unit_kind
+from .text import read_text, write_texts
+
+PLACEMENT = (("x", "length"), ("y", "length"), ("z", "length"), ("roll", "angle"), ("pitch", "angle"),
+             ("yaw", "angle"))
+DH_KINDS = (("theta", "angle"), ("d", "length"), ("a", "length"), ("alpha", "angle"))
+ROW_KINDS = ("revolute", "prismatic", "fixed", "base", "marker")
+
+
+def _placement(X: np.ndarray, names: dict, factors: dict) -> dict:
+    vals = list(X[:3, 3]) + list(matrix_rpy(X[:3, :3]))
+    return {f"{p}_{names[q]}": float(v) / factors[q] for (p, q), v in zip(PLACEMENT, vals)}
+
+
+def _limits(model: RobotModel, reading: int | None, names: dict, factors: dict) -> dict:
+    out = {f"{b}_{names[q]}": "" for q in ("angle", "length") for b in ("lower", "upper")}
+    if reading is not None:
+        q = model.reading_quantities[reading]
+        lo, hi = model.joint_limits[reading]
+        out[f"lower_{names[q]}"], out[f"upper_{names[q]}"] = lo / factors[q], hi / factors[q]
+    return out
+
+
+def _csv(rows: list[dict]) -> str:
+    header = list(dict.fromkeys(k for row in rows for k in row))
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(header)
+    for row in rows:
+        # below 1e-12 (mm, m, deg or rad) a value is round-off of the conversion, not a dimension
+        w.writerow([repr(0.0 if abs(v) < 1e-12 else v + 0.0) if isinstance(v, float) else v
+                    for v in (row.get(k, "") for k in header)])
+    return buf.getvalue()
+
+
+def mdh_csv(model: RobotModel, *, units: str = "mm-deg") -> str:
+    """The CSV text of the modified-DH table: :func:`mdh_table` per frame with each reading's
+    limits on the first frame it drives alone, then the base and marker rows."""
+    names = dict(zip(("length", "angle"), parse_units(units)))
+    factors = unit_factors(units)
+    first = {}
+    for i, f in enumerate(model.frames):
+        if len(f.coupling) == 1 and f.coupling[0][1] == 1.0:
+            first.setdefault(f.coupling[0][0], i)
+    owner = {i: k for k, i in first.items()}
+    rows = [{**row, **_limits(model, owner.get(i), names, factors)} for i, row in enumerate(mdh_table(model, units=units))]
+    rows.insert(0, {"frame": "base", "parent": "world", "joint": "base", **_placement(model.X_WB, names, factors)})
+    for mk in model.markers:
+        rows.append({"frame": mk.name, "parent": model.frames[mk.frame].name, "joint": "marker",
+                     **_placement(pose4(np.asarray(mk.rotation), mk.position), names, factors)})
+    return _csv(rows)
 
 
 def write_mdh_csv(model: RobotModel, path, *, units: str = "mm-deg", force: bool = False) -> None:
-    """Write :func:`mdh_table` as CSV (header with unit suffixes), atomically; 15 significant digits."""
-    rows = mdh_table(model, units=units)
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(list(rows[0]))
-    for row in rows:
-        w.writerow([format(v, ".15g") if isinstance(v, float) else v for v in row.values()])
-    write_texts({path: buf.getvalue()}, force=force)
+    """Write :func:`mdh_csv`, atomically; full float precision."""
+    write_texts({path: mdh_csv(model, units=units)}, force=force)
+
+
+def dh_csv(model: RobotModel, *, units: str = "mm-deg", max_offset: float | None = None) -> str:
+    """The CSV text of the classic DH table of ``model`` (:func:`to_standard_dh`, which refuses
+    where nearly parallel axes make it ill-conditioned)."""
+    names = dict(zip(("length", "angle"), parse_units(units)))
+    factors = unit_factors(units)
+    dh = to_standard_dh(model, max_offset=max_offset)
+    rows = [{"name": "base", "joint": "base", **_placement(dh.X_W0, names, factors)}]
+    for i, r in enumerate(dh.rows):
+        rows.append({"name": r["name"], "joint": r["joint"],
+                     **{f"{k}_{names[q]}": r[k] / factors[q] for k, q in DH_KINDS},
+                     **_limits(model, i, names, factors)})
+    rows += [{"name": n, "joint": "marker", **_placement(X, names, factors)} for n, X in dh.markers]
+    return _csv(rows)
+
+
+# ----------------------------------------------------------------------------------------------
+# in
+
+class _Table:
+    """The rows of a DH table file as SI numbers by column base name, with the file named in errors."""
+
+    def __init__(self, path):
+        self.source = str(path)
+        text, _ = read_text(path)
+        numbered = [(i, ln) for i, ln in enumerate(text.splitlines(), 1) if ln.strip() and not ln.lstrip().startswith("#")]
+        if not numbered:
+            raise InputError("empty table", source=self.source)
+        parsed = list(csv.reader([ln for _, ln in numbered]))
+        header = [c.strip() for c in parsed[0]]
+        self.scale: dict[str, list[tuple[int, float]]] = {}   # limits have a column per unit
+        self.text: dict[str, int] = {}
+        for k, c in enumerate(header):
+            base, _, unit = c.rpartition("_")
+            kind = unit_kind(unit) if base else None
+            if kind is None:
+                self.text[c] = k
+            else:
+                self.scale.setdefault(base, []).append((k, UNITS[kind][unit]))
+        self.rows = [(line, row) for (line, _), row in zip(numbered[1:], parsed[1:])]
+        self.header = header
+
+    def where(self, line: int, column: str | None = None) -> str:
+        return f"line {line}" + (f", column {column!r}" if column else "")
+
+    def get(self, line, row, name: str, default=None) -> float:
+        if name not in self.scale:
+            if default is None:
+                raise InputError(f"no column {name} (with a unit suffix, e.g. {name}_mm or {name}_deg)",
+                                 source=self.source)
+            return default
+        filled = [(k, s) for k, s in self.scale[name] if k < len(row) and row[k].strip()]
+        k, s = (filled or self.scale[name])[0]
+        cell = row[k].strip() if k < len(row) else ""
+        if not cell:
+            if default is None:
+                raise InputError("empty cell", source=self.source, where=self.where(line, self.header[k]))
+            return default
+        try:
+            v = float(cell)
+        except ValueError:
+            raise InputError(f"expected a number, got {cell!r}", source=self.source,
+                             where=self.where(line, self.header[k])) from None
+        if not math.isfinite(v):
+            raise InputError("expected a finite number", source=self.source, where=self.where(line, self.header[k]))
+        return v * s
+
+    def word(self, line, row, name: str) -> str:
+        if name not in self.text:
+            raise InputError(f"no column {name!r}", source=self.source)
+        k = self.text[name]
+        return row[k].strip() if k < len(row) else ""
+
+    def placement(self, line, row) -> np.ndarray:
+        v = [self.get(line, row, p, 0.0) for p, _ in PLACEMENT]
+        return pose4(rpy_matrix(v[3:]), v[:3])
+
+    def limits(self, line, row, joint: str) -> tuple[float, float]:
+        default = (-math.pi, math.pi) if joint == "revolute" else (0.0, 1.0)
+        return self.get(line, row, "lower", default[0]), self.get(line, row, "upper", default[1])
+
+
+def _rows_by_kind(table: _Table, name_column: str):
+    base, joints, markers = None, [], []
+    for line, row in table.rows:
+        kind = table.word(line, row, "joint")
+        name = table.word(line, row, name_column)
+        if kind not in ROW_KINDS:
+            raise InputError(f"joint must be one of {', '.join(ROW_KINDS)}, got {kind!r}", source=table.source,
+                             where=table.where(line, "joint"))
+        if not name:
+            raise InputError("no name", source=table.source, where=table.where(line, name_column))
+        if kind == "base":
+            base = table.placement(line, row)
+        elif kind == "marker":
+            markers.append((line, row, name))
+        else:
+            joints.append((line, row, name, kind))
+    if not joints:
+        raise InputError("no joint rows", source=table.source)
+    return base, joints, markers
+
+
+def read_dh_table(path, *, name: str | None = None) -> RobotModel:
+    """A model from a DH table file: classic DH (columns theta, d, a, alpha) or modified DH (the
+    columns :func:`mdh_csv` writes: beta, alpha, d, theta, r, ...), told apart by its columns."""
+    table = _Table(path)
+    name = name or str(path).replace("\\", "/").rsplit("/", 1)[-1].rsplit(".", 1)[0]
+    if "a" in table.scale:
+        return _classic(table, name)
+    if "r" in table.scale and "frame" in table.text:
+        return _modified(table, name)
+    raise InputError("neither a classic DH table (columns name, joint, theta, d, a, alpha) nor a modified one "
+                     "(frame, parent, joint, reading, beta, alpha, d, theta, r, ...)", source=table.source)
+
+
+def _classic(table: _Table, name: str) -> RobotModel:
+    base, joints, markers = _rows_by_kind(table, "name")
+    rows, limits = [], []
+    for line, row, jname, kind in joints:
+        if kind == "fixed":
+            raise InputError("a classic DH row is a revolute or prismatic joint", source=table.source,
+                             where=table.where(line, "joint"))
+        rows.append({"name": jname, "joint": kind, **{k: table.get(line, row, k) for k, _ in DH_KINDS}})
+        limits.append(table.limits(line, row, kind))
+    mk = [(mname, X[:3, 3], X[:3, :3]) for mname, X in
+          ((m, table.placement(line, row)) for line, row, m in markers)] or [("tool", (0.0, 0.0, 0.0))]
+    model = from_standard_dh(rows, name=name, markers=mk, base=base, joint_limits=limits)
+    return model.replace(description=f"imported from the classic DH table {table.source}")
+
+
+def _modified(table: _Table, name: str) -> RobotModel:
+    base, joints, markers = _rows_by_kind(table, "frame")
+    frame_names = [j[2] for j in joints]
+    readings: list[str] = []
+    limits: dict[str, tuple[float, float]] = {}
+    frames = []
+    for i, (line, row, fname, kind) in enumerate(joints):
+        parent = table.word(line, row, "parent")
+        if parent not in ("base", *frame_names[:i]):
+            raise InputError(f"parent {parent!r} is not 'base' or an earlier frame", source=table.source,
+                             where=table.where(line, "parent"))
+        coupling = []
+        if kind != "fixed":
+            for term in filter(None, (t.strip() for t in table.word(line, row, "reading").split("+"))):
+                coef, _, reading = term.rpartition("*")
+                try:
+                    c = float(coef) if coef else 1.0
+                except ValueError:
+                    raise InputError(f"a reading is NAME or COEF*NAME, got {term!r}", source=table.source,
+                                     where=table.where(line, "reading")) from None
+                if reading not in readings:
+                    readings.append(reading)
+                if c == 1.0 and len(coupling) == 0:
+                    limits.setdefault(reading, table.limits(line, row, kind))
+                coupling.append((readings.index(reading), c))
+            if not coupling:
+                raise InputError("a moving frame needs a reading", source=table.source,
+                                 where=table.where(line, "reading"))
+        values = {k: table.get(line, row, k, 0.0) for k in MDH_TABLE_KINDS}
+        frames.append(Frame(name=fname, joint=kind, parent=-1 if parent == "base" else frame_names.index(parent),
+                            coupling=tuple(coupling), **values))
+    said = ["has_beta" in table.text and table.word(line, row, "has_beta").lower() == "true"
+            for line, row, _, _ in joints]
+    flags = parallel_beta_frames(frames)
+    frames = [replace(f, has_beta=flag or s or f.beta != 0.0) for f, flag, s in zip(frames, flags, said)]
+    mk = []
+    for line, row, mname in markers:
+        parent = table.word(line, row, "parent")
+        if parent not in frame_names:
+            raise InputError(f"marker parent {parent!r} is not a frame", source=table.source,
+                             where=table.where(line, "parent"))
+        X = table.placement(line, row)
+        mk.append(Marker(mname, frame_names.index(parent), tuple(float(v) for v in X[:3, 3]), matrix_tuple(X[:3, :3])))
+    X_WB = np.eye(4) if base is None else base
+    return RobotModel(name=name, frames=tuple(frames), joint_names=tuple(readings),
+                      joint_limits=tuple(limits.get(r, (-math.pi, math.pi)) for r in readings),
+                      markers=tuple(mk) or (Marker("tool", len(frames) - 1),),
+                      base_position=tuple(float(v) for v in X_WB[:3, 3]), base_rotation=matrix_tuple(X_WB[:3, :3]),
+                      description=f"imported from the modified DH table {table.source}")

@@ -64,7 +64,8 @@ def parse_orientation(text: str | None, *, source: str | None = None, where: str
 class _Columns:
     """What each header column holds, with its unit resolved (or an InputError saying how to declare it)."""
 
-    def __init__(self, header, model, declared, orientation, source, line, unknown: str = "refuse"):
+    def __init__(self, header, model, declared, orientation, source, line, unknown: str = "refuse",
+                 targets: bool = False):
         self.source, self.line = source, line
         self.names = header
         self.notes: tuple[str, ...] = ()
@@ -119,7 +120,7 @@ class _Columns:
             have = len(self.joint_cols)
             raise InputError(f"missing column {missing[0]!r}: the model has {len(joint_names)} joints "
                              f"({', '.join(joint_names)}), the file has {have} of them", source=source, where=where)
-        if not self.marker_cols:
+        if not self.marker_cols and not targets:
             raise InputError("no marker columns (like tool_x, tool_y, tool_z)"
                              + (f"; the model's markers are {', '.join(marker_names)}" if marker_names else ""),
                              source=source, where=where)
@@ -243,7 +244,7 @@ def _comment_units(text: str, source: str, line: int) -> dict:
 def read_measurements(path, model: RobotModel | None = None, *, units: str | None = None, sep: str | None = None,
                       decimal: str | None = None, orientation: str | None = None, columns=None,
                       unknown: str | None = None, joints=None, key: str | None = None,
-                      profile=None) -> Measurements:
+                      profile=None, targets: bool = False) -> Measurements:
     """Read a measurement file (docs/formats.md) into Measurements in SI units.
 
     ``model``: check joint and marker names against it and take each joint's type (angle or
@@ -254,7 +255,8 @@ def read_measurements(path, model: RobotModel | None = None, *, units: str | Non
     (or a ``ColumnMap``); ``unknown``: "refuse" (default) or "ignore" columns robocal does not know.
     ``joints``: a second file with the joint readings, joined on column ``key`` (default "pose").
     ``profile``: an instrument profile (a path or a ``Profile``) giving any of these; the
-    arguments given here win over it.
+    arguments given here win over it. ``targets``: the file lists poses to reach or to measure,
+    not measurements: marker columns may be absent or empty (positions NaN there).
     """
     source = str(path)
     prof = _profile(profile)
@@ -277,13 +279,13 @@ def read_measurements(path, model: RobotModel | None = None, *, units: str | Non
         raise InputError(f"the file declares orientation {orient_text}, the option says {opts['orientation']}",
                          source=source, where="orientation")
     cols = _Columns(list(table.header), model, declared, orient or comment_orient, source, table.header_line,
-                    unknown=opts["columns"].unknown)
+                    unknown=opts["columns"].unknown, targets=targets)
     if not table.rows:
         raise InputError("no data rows after the header", source=source)
     if len(table.rows) > MAX_POSES:
         raise InputError(f"{len(table.rows):,} rows; robocal reads up to {MAX_POSES:,} poses per file "
                          "(docs/formats.md)", source=source)
-    data = _parse_rows(table.rows, cols, table.decimal, source, digest)
+    data = _parse_rows(table.rows, cols, table.decimal, source, digest, targets)
     notes = tuple(f"reading {source}: {n}" for n in table.notes + cols.notes)
     return replace(data, extra={**data.extra, "notes": notes}) if notes else data
 
@@ -308,7 +310,7 @@ def _directives(table: Table):
     return comment_units, comment_orient, orient_text
 
 
-def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str) -> Measurements:
+def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str, targets: bool = False) -> Measurements:
     n, nm = len(rows), len(cols.markers)
     q = np.empty((n, len(cols.joint_names)))
     pos = np.full((n, nm, 3), np.nan)
@@ -358,7 +360,7 @@ def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str) ->
             validation[i] = value == "validation"
         label = row[cols.special["pose"]].strip() if "pose" in cols.special else ""
         labels.append(label or f"line {line}")
-    if not np.any(np.isfinite(pos)):
+    if not targets and not np.any(np.isfinite(pos)):
         raise InputError("no marker position in any row", source=source)
     extra = {"joint_kinds": tuple(cols.joint_kinds)}
     if "set" in cols.special:

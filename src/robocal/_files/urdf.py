@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import os
+from decimal import Decimal
 import re
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, replace
@@ -19,6 +20,7 @@ from .._errors import InputError, excerpt
 from .._conversion import frames_from_lines, line_frames, marker_placements
 from .._model import DEFAULT_PARALLEL_TOL, Marker, RobotModel, mdh_transform
 from .._spatial import axis_angle_matrix, inverse4, matrix_rpy, matrix_tuple, pose4, rpy_matrix, unit_vector
+from .._units import ANGLE_UNITS
 from .text import read_bytes, write_texts
 
 # ----------------------------------------------------------------------------------------------
@@ -50,6 +52,20 @@ def _floats(text: str | None, n: int, default, source: str, where: str) -> np.nd
     if vals.shape != (n,) or not np.all(np.isfinite(vals)):
         raise InputError(f"expected {n} finite numbers, got {text!r}", source=source, where=where)
     return vals
+
+
+def _round_angle(v: float, text: str | None) -> float:
+    """An angle written in radians to some decimals (0.820304748437) as the whole degrees or
+    fraction it stands for to that precision (47 deg): the file's precision, shown in degrees."""
+    try:
+        written = 0.5 * 10.0 ** Decimal((text or "0").strip()).as_tuple().exponent
+    except (ArithmeticError, TypeError, ValueError):
+        return v
+    if written > 1e-6:   # a short number (-1.0) is the angle it says, not a rounded degree value
+        return v
+    in_deg = written / ANGLE_UNITS["deg"]
+    decimals = max(0, -math.ceil(math.log10(2 * in_deg))) if in_deg > 0 else 15
+    return round(v / ANGLE_UNITS["deg"], decimals) * ANGLE_UNITS["deg"]
 
 
 def _attr_float(el, key: str, default: float, source: str, where: str) -> float:
@@ -166,8 +182,9 @@ def _parse_joints(root: ET.Element, source: str) -> tuple[set[str], dict[str, _U
         lim = el.find("limit")
         limits = None
         if lim is not None:  # URDF: lower/upper default to 0
-            limits = (_attr_float(lim, "lower", 0.0, source, where + " limit"),
-                      _attr_float(lim, "upper", 0.0, source, where + " limit"))
+            limits = tuple(_round_angle(_attr_float(lim, k, 0.0, source, where + " limit"), lim.get(k))
+                           if jtype in ("revolute", "continuous") else _attr_float(lim, k, 0.0, source, where + " limit")
+                           for k in ("lower", "upper"))
         mim = el.find("mimic")
         mimic = None
         if mim is not None:
@@ -180,29 +197,56 @@ def _parse_joints(root: ET.Element, source: str) -> tuple[set[str], dict[str, _U
     return links, joints, {"child_of": child_of, "inertials": inertials}
 
 
-def _chain(links, joints, child_of, base_link, tip_link, source) -> list[_UJoint]:
-    """Joints from ``base_link`` to ``tip_link`` in order (defaults: the unique root and leaf)."""
+def _children(links, joints) -> dict[str, list[str]]:
     children: dict[str, list[str]] = {lk: [] for lk in links}
     for j in joints.values():
         children[j.parent].append(j.name)
+    return children
+
+
+def _moves(link: str, children, joints) -> bool:
+    """Whether any joint below ``link`` moves."""
+    return any(joints[j].type != "fixed" or _moves(joints[j].child, children, joints) for j in children[link])
+
+
+def _default_tip(base_link: str, children, joints, source: str) -> str:
+    """The end of the arm below ``base_link``: follow the one branch that moves; branches that hold
+    only fixed links (a flange, a tool point) are not branches of the arm; where two or more moving
+    branches part after the arm has moved (a gripper's fingers), stop, and go on only into a single
+    fixed branch there (its tool point)."""
+    link, arm_moved = base_link, False
+    while children[link]:
+        kids = [joints[j] for j in children[link]]
+        moving = [j for j in kids if j.type != "fixed" or _moves(j.child, children, joints)]
+        fixed = [j for j in kids if j not in moving]
+        if len(moving) == 1:
+            nxt = moving[0]
+        elif len(moving) > 1 and not arm_moved:
+            raise InputError(f"the chain branches at link {link!r} (joints {', '.join(j.name for j in moving)}); "
+                             "give the tip link", source=source, where="tip_link")
+        elif len(fixed) == 1:
+            nxt = fixed[0]
+        else:
+            return link
+        arm_moved |= nxt.type != "fixed"
+        link = nxt.child
+    return link
+
+
+def _chain(links, joints, child_of, base_link, tip_link, source) -> list[_UJoint]:
+    """Joints from ``base_link`` to ``tip_link`` in order (defaults: the unique root, and
+    :func:`_default_tip`)."""
     if base_link is None:
         roots = sorted(lk for lk in links if lk not in child_of)
         if len(roots) != 1:
-            raise InputError(f"expected one root link, found {roots}; pass base_link", source=source)
+            raise InputError(f"expected one root link, found {roots}; give the base link", source=source,
+                             where="base_link")
         base_link = roots[0]
     elif base_link not in links:
         raise InputError(f"base link {base_link!r} is not defined", source=source, where="base_link")
     if tip_link is None:
-        chain, link = [], base_link
-        while children[link]:
-            if len(children[link]) > 1:
-                raise InputError(f"the chain branches at link {link!r} (joints {children[link]}); pass tip_link",
-                                 source=source, where=f"link {link!r}")
-            j = joints[children[link][0]]
-            chain.append(j)
-            link = j.child
-        return chain
-    if tip_link not in links:
+        tip_link = _default_tip(base_link, _children(links, joints), joints, source)
+    elif tip_link not in links:
         raise InputError(f"tip link {tip_link!r} is not defined", source=source, where="tip_link")
     chain, link = [], tip_link
     while link != base_link:
@@ -215,32 +259,8 @@ def _chain(links, joints, child_of, base_link, tip_link, source) -> list[_UJoint
     return chain[::-1]
 
 
-def read_urdf(path_or_string, *, base_link: str | None = None, tip_link: str | None = None,
-              markers: Sequence | None = None) -> RobotModel:
-    """A serial model from a URDF file (path) or URDF text (a string starting with ``<``).
-
-    The chain runs from ``base_link`` to ``tip_link`` (defaults: the unique root link and the leaf
-    of an unbranched chain). Joint types: revolute, prismatic, fixed, and continuous, read as
-    revolute with limits +-pi (finite, so pose sampling works; every orientation is reachable).
-    Revolute/prismatic joints need ``<limit>`` (the URDF rule); its lower/upper default to 0.
-    ``<mimic>`` of a joint on the chain becomes a coupling (multiplier; offset into theta or r).
-    Origins and axes may be arbitrary; axes are normalised. Each moving joint is one MDH frame
-    named after its child link; the readings are named after the URDF joints, in chain order.
-    Fixed joints fold into the frames around them. ``W`` is the base link: ``X_WB`` places the
-    robot frame 0 (on the first axis) in it.
-
-    ``markers``: ``(name, xyz)`` or ``(name, xyz, R)`` in the tip link's frame; by default one
-    marker ``"tool"`` at the tip link's origin with its orientation.
-    Link masses (``<inertial><mass>``, centre of mass from its origin) of links on the chain are
-    summed per frame; inertias and links off the chain are ignored.
-
-    Raises InputError naming the source and the joint: malformed XML, DOCTYPE/ENTITY, names used
-    twice, missing links, a branching chain without tip_link, zero axis, floating/planar joints.
-    """
-    root, source = _load_xml(path_or_string)
-    check_tree(root, source)
-    links, joints, extra = _parse_joints(root, source)
-    chain = _chain(links, joints, extra["child_of"], base_link, tip_link, source)
+def _moving_joints(chain, source: str) -> list[str]:
+    """The names of the chain's moving joints, once each joint's type, axis and limits are checked."""
     moving = []
     for j in chain:
         where = f"joint {j.name!r}"
@@ -258,81 +278,192 @@ def read_urdf(path_or_string, *, base_link: str | None = None, tip_link: str | N
             moving.append(j.name)
     if not moving:
         raise InputError("no moving joint between base and tip", source=source)
-    # readings: every moving joint that is not a mimic of another joint on the chain
+    return moving
+
+
+def _readings(moving, joints, source: str) -> tuple[list[str], dict[str, tuple[int, float, float]]]:
+    """The readings (every moving joint that mimics no other, and masters off the chain) and, per
+    moving joint, (reading index, multiplier, offset)."""
     reading_of: dict[str, tuple[int, float, float]] = {}
     readings = []
     for jn in moving:
-        mim = joints[jn].mimic
-        if mim is None:
+        if joints[jn].mimic is None:
             reading_of[jn] = (len(readings), 1.0, 0.0)
             readings.append(jn)
     for jn in moving:
         mim = joints[jn].mimic
-        if mim is not None:
-            master = joints.get(mim[0])
-            if master is None or master.mimic is not None or master.type not in (
-                    "revolute", "continuous", "prismatic"):
-                raise InputError(f"mimics {mim[0]!r}, which is not an independent moving joint",
-                                 source=source, where=f"joint {jn!r}")
-            if mim[0] not in reading_of:
-                # a master off the chain still is a reading: it drives this joint
-                if master.type != "continuous" and master.limits is None:
-                    raise InputError(f"a {master.type} joint needs <limit lower upper>", source=source,
-                                     where=f"joint {mim[0]!r}")
-                reading_of[mim[0]] = (len(readings), 1.0, 0.0)
-                readings.append(mim[0])
-            k = reading_of[mim[0]][0]
-            reading_of[jn] = (k, mim[1], mim[2])
-    # walk the chain at zero readings: link poses X_0L, joint lines in frame 0 (root = base link)
+        if mim is None:
+            continue
+        master = joints.get(mim[0])
+        if master is None or master.mimic is not None or master.type not in ("revolute", "continuous", "prismatic"):
+            raise InputError(f"mimics {mim[0]!r}, which is not an independent moving joint",
+                             source=source, where=f"joint {jn!r}")
+        if mim[0] not in reading_of:
+            # a master off the chain still is a reading: it drives this joint
+            if master.type != "continuous" and master.limits is None:
+                raise InputError(f"a {master.type} joint needs <limit lower upper>", source=source,
+                                 where=f"joint {mim[0]!r}")
+            reading_of[mim[0]] = (len(readings), 1.0, 0.0)
+            readings.append(mim[0])
+        reading_of[jn] = (reading_of[mim[0]][0], mim[1], mim[2])
+    return readings, reading_of
+
+
+@dataclass(frozen=True)
+class _Walk:
+    """The chain at zero readings, in the base link's frame: each link's pose, each moving joint's
+    line (point, axis), and the index of the MDH frame each link rides on (-1: the base)."""
+
+    X_link: dict
+    points: np.ndarray
+    axes: np.ndarray
+    owner: dict
+
+
+def _walk(chain, reading_of) -> _Walk:
     X = np.eye(4)
     X_link = {chain[0].parent: X.copy()}
-    points, axes, X_child = [], [], []
-    owner: dict[str, int] = {}          # link -> index of the MDH frame it rides on (-1: base)
-    owner[chain[0].parent] = -1
+    points, axes = [], []
+    owner = {chain[0].parent: -1}
     for j in chain:
         X = X @ j.X_origin
         if j.type != "fixed":
-            a = X[:3, :3] @ unit_vector(j.axis)
             points.append(X[:3, 3].copy())
-            axes.append(a)
+            axes.append(X[:3, :3] @ unit_vector(j.axis))
             off = reading_of[j.name][2]    # mimic offset: the joint sits there at zero readings
             if off:
                 X = X @ (pose4(axis_angle_matrix(unit_vector(j.axis), off), np.zeros(3)) if j.type != "prismatic"
                          else pose4(np.eye(3), off * unit_vector(j.axis)))
-            X_child.append(X.copy())
         owner[j.child] = len(axes) - 1
         X_link[j.child] = X.copy()
-    X_0B, X_0F = line_frames(np.array(points), np.array(axes), DEFAULT_PARALLEL_TOL)
-    types = ["prismatic" if joints[jn].type == "prismatic" else "revolute" for jn in moving]
-    couplings = [((reading_of[jn][0], reading_of[jn][1]),) for jn in moving]
-    fnames = [joints[jn].child for jn in moving]
-    frames = frames_from_lines(fnames, types, couplings, X_0B, X_0F)
-    # masses of chain links, in the frame they ride on
+    return _Walk(X_link, np.array(points), np.array(axes), owner)
+
+
+def _with_masses(frames, walk: _Walk, X_0F, inertials) -> list:
+    """Masses of the chain's links summed on the frame each rides on (centre of mass in that frame)."""
     mass = np.zeros(len(frames))
     first = np.zeros((len(frames), 3))
-    for lk, (m, com) in extra["inertials"].items():
-        i = owner.get(lk, -1)
+    for lk, (m, com) in inertials.items():
+        i = walk.owner.get(lk, -1)
         if i >= 0 and m > 0:
-            c0 = X_link[lk][:3, :3] @ com + X_link[lk][:3, 3]
+            c0 = walk.X_link[lk][:3, :3] @ com + walk.X_link[lk][:3, 3]
             cF = inverse4(X_0F[i]) @ np.append(c0, 1.0)
             mass[i] += m
             first[i] += m * cF[:3]
-    frames = [replace(f, mass=float(mass[i]), com=tuple(float(v) for v in first[i] / mass[i]))
-              if mass[i] > 0 else f for i, f in enumerate(frames)]
+    return [replace(f, mass=float(mass[i]), com=tuple(float(v) for v in first[i] / mass[i]))
+            if mass[i] > 0 else f for i, f in enumerate(frames)]
+
+
+def _source_angle_tol(root: ET.Element) -> float:
+    """How far the file's angles stand from the multiples of pi/2 they were written for: an rpy
+    number within half a unit of its last written digit of such a multiple meant it (pi written
+    to 11 decimals is 2e-12 off); four times the largest such gap, at least 1e-13 rad. Gaps over
+    1e-10 rad (pi written as 3.1416) are kept: the file says that angle, and snapping it would move
+    the tool by more than 1e-10 m per metre of arm."""
+    gaps = [1e-13]
+    for el in root.iter("origin"):
+        for part in _NUM.split((el.get("rpy") or "").strip()):
+            try:
+                v, written = float(part), 0.5 * 10.0 ** Decimal(part).as_tuple().exponent
+            except (ValueError, ArithmeticError, TypeError):
+                continue
+            gap = abs(v - round(v / (math.pi / 2)) * (math.pi / 2))
+            if gap <= min(written, 1e-10):
+                gaps.append(4 * gap)
+    return max(gaps)
+
+
+def _source_decimals(root: ET.Element) -> int:
+    """The most decimals of a metre any origin's xyz is written with (at most 14): lengths the
+    import computes from them carry no more."""
+    most = 0
+    for el in root.iter("origin"):
+        for part in _NUM.split((el.get("xyz") or "").strip()):
+            try:
+                most = max(most, -Decimal(part).as_tuple().exponent)
+            except (ArithmeticError, TypeError, ValueError):
+                continue
+    return min(most, 14)
+
+
+def _clean(v: float, angle: bool, tol: float, decimals: int = 14) -> float:
+    """``v`` without the source's round-off: an angle within ``tol`` of a multiple of pi/2 is that
+    multiple; a length within 1e-12 m of ``decimals`` decimals of a metre (those of the source)
+    is rounded to them."""
+    if angle:
+        k = round(v / (math.pi / 2))
+        return k * (math.pi / 2) + 0.0 if abs(v - k * (math.pi / 2)) <= tol else v
+    short = round(v, decimals)
+    # a length the source's numbers add up to sits within float noise of that many decimals;
+    # one through a skew axis does not, and keeps its digits
+    return (short if abs(short - v) <= 1e-12 else round(v, 14)) + 0.0
+
+
+def _clean_frames(frames, tol: float, decimals: int) -> list:
+    angles, lengths = ("beta", "alpha", "theta", "gamma"), ("d", "r", "b")
+    return [replace(f, **{k: _clean(getattr(f, k), True, tol) for k in angles},
+                    **{k: _clean(getattr(f, k), False, tol, decimals) for k in lengths},
+                    com=tuple(_clean(v, False, tol, decimals) for v in f.com)) for f in frames]
+
+
+def _clean_pose(X: np.ndarray, decimals: int) -> tuple[tuple, tuple]:
+    R = np.where(np.abs(X[:3, :3]) < 1e-12, 0.0, X[:3, :3])
+    R = np.where(np.abs(np.abs(R) - 1.0) < 1e-12, np.sign(R), R)
+    return tuple(_clean(float(v), False, 0.0, decimals) for v in X[:3, 3]), matrix_tuple(R)
+
+
+def read_urdf(path_or_string, *, base_link: str | None = None, tip_link: str | None = None,
+              markers: Sequence | None = None) -> RobotModel:
+    """A serial model from a URDF file (path) or URDF text (a string starting with ``<``).
+
+    The chain runs from ``base_link`` to ``tip_link`` (defaults: the unique root link, and the end
+    of the arm: the one moving branch is followed, branches of fixed links only (a flange, a tool
+    point) do not count, and where a gripper's fingers part it stops, going on only into a single
+    fixed branch; joints beyond the tip are not imported). Joint types: revolute, prismatic, fixed,
+    and continuous, read as revolute with limits +-pi (finite, so pose sampling works; every
+    orientation is reachable). Revolute/prismatic joints need ``<limit>`` (the URDF rule); its
+    lower/upper default to 0. ``<mimic>`` of a joint on the chain becomes a coupling (multiplier;
+    offset into theta or r). Origins and axes may be arbitrary; axes are normalised. Each moving
+    joint is one MDH frame named after its child link; the readings are named after the URDF
+    joints, in chain order. Fixed joints fold into the frames around them. ``W`` is the base link:
+    ``X_WB`` places the robot frame 0 (on the first axis) in it. Values are cleaned of the
+    source's round-off (``_clean``): the forward kinematics moves by less than 1e-9 m.
+
+    ``markers``: ``(name, xyz)`` or ``(name, xyz, R)`` in the tip link's frame; by default one
+    marker ``"tool"`` at the tip link's origin with its orientation.
+    Link masses (``<inertial><mass>``, centre of mass from its origin) of links on the chain are
+    summed per frame; inertias and links off the chain are ignored.
+
+    Raises InputError naming the source and the joint: malformed XML, DOCTYPE/ENTITY, names used
+    twice, missing links, a chain that branches before the arm moves without tip_link, zero axis,
+    floating/planar joints.
+    """
+    root, source = _load_xml(path_or_string)
+    check_tree(root, source)
+    links, joints, extra = _parse_joints(root, source)
+    chain = _chain(links, joints, extra["child_of"], base_link, tip_link, source)
+    moving = _moving_joints(chain, source)
+    readings, reading_of = _readings(moving, joints, source)
+    walk = _walk(chain, reading_of)
+    X_0B, X_0F = line_frames(walk.points, walk.axes, DEFAULT_PARALLEL_TOL)
+    types = ["prismatic" if joints[jn].type == "prismatic" else "revolute" for jn in moving]
+    couplings = [((reading_of[jn][0], reading_of[jn][1]),) for jn in moving]
+    frames = frames_from_lines([joints[jn].child for jn in moving], types, couplings, X_0B, X_0F)
+    tol, decimals = _source_angle_tol(root), _source_decimals(root)
+    frames = _clean_frames(_with_masses(frames, walk, X_0F, extra["inertials"]), tol, decimals)
     tip = chain[-1].child
-    X_nT = inverse4(X_0F[-1]) @ X_link[tip]
+    X_nT = inverse4(X_0F[-1]) @ walk.X_link[tip]
     mk = []
     for mname, p, R in marker_placements(markers if markers is not None else [("tool", (0.0, 0.0, 0.0))], "markers"):
-        Xm = X_nT @ pose4(R, p)
-        mk.append(Marker(mname, len(frames) - 1, tuple(float(v) for v in Xm[:3, 3]), matrix_tuple(Xm[:3, :3])))
-    limits = []
-    for jn in readings:
-        j = joints[jn]
-        limits.append((-math.pi, math.pi) if j.type == "continuous" else j.limits)
+        position, rotation = _clean_pose(X_nT @ pose4(R, p), decimals if markers is None else 14)
+        mk.append(Marker(mname, len(frames) - 1, position, rotation))
+    limits = [(-math.pi, math.pi) if joints[jn].type == "continuous" else
+              tuple(_clean(v, joints[jn].type == "revolute", tol) for v in joints[jn].limits) for jn in readings]
+    base_position, base_rotation = _clean_pose(X_0B, decimals)
     return RobotModel(
         name=root.get("name") or "robot", frames=tuple(frames), joint_names=tuple(readings),
         joint_limits=tuple((float(lo), float(hi)) for lo, hi in limits), markers=tuple(mk),
-        base_position=tuple(float(v) for v in X_0B[:3, 3]), base_rotation=matrix_tuple(X_0B[:3, :3]),
+        base_position=base_position, base_rotation=base_rotation,
         description=f"imported from URDF {source}, {chain[0].parent} -> {tip}",
     )
 
@@ -349,8 +480,91 @@ def _origin(el: ET.Element, X: np.ndarray) -> None:
                   rpy=" ".join(_num(v) for v in matrix_rpy(X[:3, :3])))
 
 
-def write_urdf(model: RobotModel, path, *, force: bool = False) -> None:
-    """Write ``model`` as URDF (serial chains and trees), atomically.
+def _primary_frames(model: RobotModel) -> dict[int, int]:
+    """Reading -> the first frame it drives alone with coefficient 1 (the URDF joint named after it);
+    InputError where URDF cannot say the coupling."""
+    primary: dict[int, int] = {}
+    for i, f in enumerate(model.frames):
+        if len(f.coupling) == 1 and f.coupling[0][1] == 1.0 and f.coupling[0][0] not in primary:
+            primary[f.coupling[0][0]] = i
+    for i, f in enumerate(model.frames):
+        if len(f.coupling) > 1:
+            raise InputError("a frame driven by several readings cannot be written as URDF",
+                             where=f"frames[{i}] ({f.name})")
+        if f.coupling and f.coupling[0][0] not in primary:
+            raise InputError(f"reading {model.joint_names[f.coupling[0][0]]!r} drives no frame with "
+                             "coefficient 1; URDF cannot express it", where=f"frames[{i}] ({f.name})")
+    return primary
+
+
+class _Names:
+    """URDF keeps link names and joint names apart; each must be unique within its own kind."""
+
+    def __init__(self, model: RobotModel, primary: dict[int, int]):
+        self.used_links: set[str] = set()
+        self.used_joints: set[str] = set()
+        self.world, self.base = self.link("world"), self.link("base_link")
+        self.frames = [self.link(f.name) for f in model.frames]
+        self.markers = [self.link(m.name) for m in model.markers]
+        self.joints = {i: self.joint(model.joint_names[k]) for k, i in primary.items()}
+        for i, f in enumerate(model.frames):
+            if i not in self.joints:
+                self.joints[i] = self.joint(f"{f.name}_joint")
+
+    @staticmethod
+    def _unique(name: str, used: set[str]) -> str:
+        out, k = name, 1
+        while out in used:
+            k += 1
+            out = f"{name}_{k}"
+        used.add(out)
+        return out
+
+    def link(self, name: str) -> str:
+        return self._unique(name, self.used_links)
+
+    def joint(self, name: str) -> str:
+        return self._unique(name, self.used_joints)
+
+
+def _link_element(robot: ET.Element, name: str, frame=None) -> None:
+    el = ET.SubElement(robot, "link", name=name)
+    if frame is not None and frame.mass > 0:
+        iner = ET.SubElement(el, "inertial")
+        ET.SubElement(iner, "origin", xyz=" ".join(_num(v) for v in frame.com), rpy="0 0 0")
+        ET.SubElement(iner, "mass", value=_num(frame.mass))
+        ET.SubElement(iner, "inertia", ixx="0", ixy="0", ixz="0", iyy="0", iyz="0", izz="0")
+
+
+def _frame_joint(robot: ET.Element, model: RobotModel, i: int, names: _Names, primary: dict[int, int]) -> None:
+    """The URDF joint of frame i: its constant MDH transform as origin, axis z, limits, mimic."""
+    f = model.frames[i]
+    jtype = f.joint
+    k = f.coupling[0][0] if f.coupling else None
+    lo, hi = model.joint_limits[k] if k is not None else (0.0, 0.0)
+    mimic = k is not None and primary[k] != i
+    if mimic:
+        # a mimic follows coef * reading: its own range is the reading's, scaled
+        c = f.coupling[0][1]
+        lo, hi = sorted((c * lo, c * hi))
+    if jtype == "revolute" and not (math.isfinite(lo) and math.isfinite(hi)):
+        jtype = "continuous"
+    elif jtype == "prismatic" and not (math.isfinite(lo) and math.isfinite(hi)):
+        raise InputError("URDF needs finite limits for a prismatic joint", where=f"frames[{i}] ({f.name})")
+    j = ET.SubElement(robot, "joint", name=names.joints[i], type=jtype)
+    _origin(j, mdh_transform(f))
+    ET.SubElement(j, "parent", link=names.base if f.parent < 0 else names.frames[f.parent])
+    ET.SubElement(j, "child", link=names.frames[i])
+    if jtype != "fixed":
+        ET.SubElement(j, "axis", xyz="0 0 1")
+    if jtype in ("revolute", "prismatic"):
+        ET.SubElement(j, "limit", lower=_num(lo), upper=_num(hi), effort="0", velocity="0")
+    if mimic:
+        ET.SubElement(j, "mimic", joint=names.joints[primary[k]], multiplier=_num(f.coupling[0][1]), offset="0")
+
+
+def urdf_text(model: RobotModel) -> str:
+    """``model`` as URDF text (serial chains and trees).
 
     Links: ``world`` (the measurement frame W), ``base_link`` (robot frame 0, fixed joint with
     origin ``X_WB``), one link per frame (named after the frame), one link per marker (fixed joint,
@@ -365,86 +579,30 @@ def write_urdf(model: RobotModel, path, *, force: bool = False) -> None:
     frame with coefficient 1, cannot be said in URDF and raises InputError. Masses go out as
     ``<inertial>`` with zero inertia; compliance, gravity and payload are not written.
     """
-    primary: dict[int, int] = {}
-    for i, f in enumerate(model.frames):
-        if len(f.coupling) == 1 and f.coupling[0][1] == 1.0 and f.coupling[0][0] not in primary:
-            primary[f.coupling[0][0]] = i
-    for i, f in enumerate(model.frames):
-        if len(f.coupling) > 1:
-            raise InputError("a frame driven by several readings cannot be written as URDF",
-                             where=f"frames[{i}] ({f.name})")
-        if f.coupling and f.coupling[0][0] not in primary:
-            raise InputError(f"reading {model.joint_names[f.coupling[0][0]]!r} drives no frame with "
-                             "coefficient 1; URDF cannot express it", where=f"frames[{i}] ({f.name})")
-    # URDF keeps link names and joint names apart; each must be unique within its own kind
-    used_links: set[str] = set()
-    used_joints: set[str] = set()
-
-    def unique(name: str, used: set[str]) -> str:
-        out, k = name, 1
-        while out in used:
-            k += 1
-            out = f"{name}_{k}"
-        used.add(out)
-        return out
-
-    link_w, link_b = unique("world", used_links), unique("base_link", used_links)
-    flinks = [unique(f.name, used_links) for f in model.frames]
-    mlinks = [unique(m.name, used_links) for m in model.markers]
-    jnames = {}
-    for k, i in primary.items():
-        jnames[i] = unique(model.joint_names[k], used_joints)
-    for i, f in enumerate(model.frames):
-        if i not in jnames:
-            jnames[i] = unique(f"{f.name}_joint", used_joints)
+    primary = _primary_frames(model)
+    names = _Names(model, primary)
     robot = ET.Element("robot", name=model.name)
-    for lk in [link_w, link_b]:
-        ET.SubElement(robot, "link", name=lk)
-    for i, f in enumerate(model.frames):
-        el = ET.SubElement(robot, "link", name=flinks[i])
-        if f.mass > 0:
-            iner = ET.SubElement(el, "inertial")
-            ET.SubElement(iner, "origin", xyz=" ".join(_num(v) for v in f.com), rpy="0 0 0")
-            ET.SubElement(iner, "mass", value=_num(f.mass))
-            ET.SubElement(iner, "inertia", ixx="0", ixy="0", ixz="0", iyy="0", iyz="0", izz="0")
-    for lk in mlinks:
-        ET.SubElement(robot, "link", name=lk)
-    j = ET.SubElement(robot, "joint", name=unique("world_to_base", used_joints), type="fixed")
+    for lk in (names.world, names.base):
+        _link_element(robot, lk)
+    for name, f in zip(names.frames, model.frames):
+        _link_element(robot, name, f)
+    for lk in names.markers:
+        _link_element(robot, lk)
+    j = ET.SubElement(robot, "joint", name=names.joint("world_to_base"), type="fixed")
     _origin(j, model.X_WB)
-    ET.SubElement(j, "parent", link=link_w)
-    ET.SubElement(j, "child", link=link_b)
-    for i, f in enumerate(model.frames):
-        if f.joint == "fixed":
-            jtype = "fixed"
-        elif f.joint == "prismatic":
-            jtype = "prismatic"
-        else:
-            jtype = "revolute"
-        k = f.coupling[0][0] if f.coupling else None
-        lo, hi = model.joint_limits[k] if k is not None else (0.0, 0.0)
-        if k is not None and primary[k] != i:
-            # a mimic follows coef * reading: its own range is the reading's, scaled
-            c = f.coupling[0][1]
-            lo, hi = sorted((c * lo, c * hi))
-        if jtype == "revolute" and not (math.isfinite(lo) and math.isfinite(hi)):
-            jtype = "continuous"
-        elif jtype == "prismatic" and not (math.isfinite(lo) and math.isfinite(hi)):
-            raise InputError("URDF needs finite limits for a prismatic joint", where=f"frames[{i}] ({f.name})")
-        j = ET.SubElement(robot, "joint", name=jnames[i], type=jtype)
-        _origin(j, mdh_transform(f))
-        ET.SubElement(j, "parent", link=link_b if f.parent < 0 else flinks[f.parent])
-        ET.SubElement(j, "child", link=flinks[i])
-        if jtype != "fixed":
-            ET.SubElement(j, "axis", xyz="0 0 1")
-        if jtype in ("revolute", "prismatic"):
-            ET.SubElement(j, "limit", lower=_num(lo), upper=_num(hi), effort="0", velocity="0")
-        if k is not None and primary[k] != i:
-            ET.SubElement(j, "mimic", joint=jnames[primary[k]], multiplier=_num(f.coupling[0][1]), offset="0")
+    ET.SubElement(j, "parent", link=names.world)
+    ET.SubElement(j, "child", link=names.base)
+    for i in range(len(model.frames)):
+        _frame_joint(robot, model, i, names, primary)
     for m, mk in enumerate(model.markers):
-        j = ET.SubElement(robot, "joint", name=unique(f"{mk.name}_joint", used_joints), type="fixed")
+        j = ET.SubElement(robot, "joint", name=names.joint(f"{mk.name}_joint"), type="fixed")
         _origin(j, pose4(np.asarray(mk.rotation, dtype=float), mk.position))
-        ET.SubElement(j, "parent", link=flinks[mk.frame])
-        ET.SubElement(j, "child", link=mlinks[m])
+        ET.SubElement(j, "parent", link=names.frames[mk.frame])
+        ET.SubElement(j, "child", link=names.markers[m])
     ET.indent(robot)
-    text = '<?xml version="1.0" encoding="utf-8"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
-    write_texts({path: text}, force=force)
+    return '<?xml version="1.0" encoding="utf-8"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
+
+
+def write_urdf(model: RobotModel, path, *, force: bool = False) -> None:
+    """Write :func:`urdf_text` of ``model``, atomically."""
+    write_texts({path: urdf_text(model)}, force=force)

@@ -161,3 +161,24 @@ def identifiability_summary(model, res, where: str) -> str:
     lines.append(f"condition number: {res.condition_number:.4g}")
     lines.append("observability: " + ", ".join(f"{k} {v:.4g}" for k, v in res.observability.items()))
     return "\n".join(lines)
+
+
+def plan_summary(model, selection, prediction, *, n_candidates: int, source: str) -> str:
+    """What ``robocal plan`` prints: the chosen poses against random ones, and what a campaign at
+    them will give (predicted standard deviations and errors) before anything is measured."""
+    sel, pre = selection, prediction
+    lines = [f"plan for {model.name}: {len(sel.q)} poses chosen from {n_candidates} {source} ({sel.criterion}-optimal)",
+             f"  average prediction variance over the workspace: {sel.prediction_selected:.4g} chosen, "
+             f"{sel.prediction_random:.4g} for as many random poses (lower is better)",
+             f"  condition number: {sel.condition_selected:.4g} chosen, {sel.condition_random:.4g} random",
+             f"predicted at measurement noise {with_unit(pre.noise, 'm')} per axis:",
+             f"  position error after calibration over {pre.n_workspace} configurations (RMS): "
+             f"{with_unit(pre.error_rms, 'm')} from the parameters' uncertainty; "
+             f"{with_unit(pre.held_out_rms, 'm')} as measured on held-out poses (with the instrument's noise)",
+             f"identifiable parameters ({len(pre.parameters)}) and their predicted standard deviations:"]
+    lay = parameter_layout(model)
+    width = max([len(n) for n in pre.parameters] + [16])
+    for name, std in zip(pre.parameters, pre.std):
+        lines.append(f"  {name:<{width}} std {with_unit(std, lay[name].unit):>18}")
+    lines += eliminated_lines(pre.identifiability, {n: lay[n].unit for n in pre.identifiability.candidates if n in lay})
+    return "\n".join(lines)

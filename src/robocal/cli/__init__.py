@@ -8,16 +8,17 @@ nothing written). This package is the only place that prints or configures loggi
 from __future__ import annotations
 
 import logging
+import os
 import signal
 import sys
 import warnings
 
 from .._errors import RobocalError, RobocalWarning
 from .._version import __version__
-from . import calibrate, identifiability, import_urdf, limit, report, simulate
+from . import calibrate, compensate, export, identifiability, import_dh, import_urdf, limit, plan, report, simulate
 from .common import MissingExtra, Parser
 
-COMMANDS = (calibrate, simulate, identifiability, report, limit, import_urdf)
+COMMANDS = (plan, simulate, calibrate, compensate, export, identifiability, report, limit, import_urdf, import_dh)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -31,6 +32,28 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _configure_logging(verbose: bool) -> None:
+    """The library logs progress through ``logging`` (logger ``robocal``); only here is it shown."""
+    logger = logging.getLogger("robocal")
+    for h in [h for h in logger.handlers if getattr(h, "robocal_cli", False)]:
+        logger.removeHandler(h)          # a handler of an earlier call holds an earlier stderr
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("robocal: %(message)s"))
+    handler.robocal_cli = True
+    logger.addHandler(handler)
+    logger.setLevel(logging.INFO if verbose else logging.WARNING)
+    logger.propagate = False
+
+
+def _quiet_stdout() -> None:
+    """Point stdout at the null device so that Python's exit-time flush cannot fail again."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):   # no real file behind stdout: nothing to flush
+        pass
+
+
 def main(argv=None) -> int:
     parser = build_parser()
     try:
@@ -40,8 +63,7 @@ def main(argv=None) -> int:
     if getattr(args, "func", None) is None:
         parser.print_help(sys.stderr)
         return 2
-    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
-                        format="robocal: %(levelname)s: %(message)s")
+    _configure_logging(args.verbose)
     shown: list[str] = []
 
     def show(message, category, filename, lineno, file=None, line=None):
@@ -56,6 +78,7 @@ def main(argv=None) -> int:
         warnings.simplefilter("always", RobocalWarning)
         warnings.showwarning = show
         args.shown_warnings = shown
+        logging.getLogger("robocal").info("%s: started", args.command)
         return _run(args)
 
 
@@ -79,6 +102,9 @@ def _run(args) -> int:
         return fail(f"error: {one_line(e)}")
     except MissingExtra as e:
         return fail(str(e), 1)
+    except BrokenPipeError:  # `robocal ... | head`: the reader left; say nothing more
+        _quiet_stdout()
+        return 0
     except OSError as e:  # the output folder cannot be made or written: the user's to fix
         where = f"{e.filename}: " if e.filename else ""
         return fail(f"error: {where}{e.strerror or e}")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 from .._errors import DegenerateDataError, InputError
@@ -12,10 +13,18 @@ from . import common
 FAILED = 3
 
 
+EXAMPLE = """examples:
+  robocal calibrate examples/th8/model.yaml examples/th8/measurements.csv --out runs/mine --compare --known markers
+  robocal calibrate examples/th8/model.yaml examples/th8/measurements.csv --out runs/geo --limit-mm limit.json
+
+Exit code 3 when a check fails (docs/checks.md): result.json is written, calibrated.yaml only
+with --write-failed."""
+
 def register(sub) -> None:
     p = sub.add_parser("calibrate", help="identify the parameters from measurements",
                        description="Identify the robot's parameters from measured marker positions; write "
-                                   "OUT/calibrated.yaml and OUT/result.json.")
+                                   "OUT/calibrated.yaml and OUT/result.json.",
+                       epilog=EXAMPLE, formatter_class=common.Formatter)
     p.add_argument("model", metavar="MODEL", help="model file (YAML)")
     p.add_argument("csv", metavar="CSV", nargs="?", help="measurement file (may be left out with --contacts)")
     p.add_argument("--contacts", metavar="FILE", help="contact file: joint-only recordings of sockets, planes and "
@@ -32,8 +41,8 @@ def register(sub) -> None:
     p.add_argument("--loss", default="linear", choices=LOSSES, help="least-squares loss (robust ones bend for outliers)")
     p.add_argument("--register-base", action="store_true",
                    help="start the base pose from a rigid registration of the nominal robot on the data")
-    p.add_argument("--limit-mm", type=common.positive, metavar="X",
-                   help="limit of absolute accuracy to judge against, mm")
+    p.add_argument("--limit-mm", type=common.limit_mm, metavar="X|LIMIT.json",
+                   help="limit of absolute accuracy to judge against: mm, or the file 'robocal limit --out' wrote")
     p.add_argument("--seed", type=common.seed, default=0, help="seed of the --holdout split (default 0)")
     p.add_argument("--out-units", type=common.units, default="mm-deg", help="units of calibrated.yaml (default mm-deg)")
     p.add_argument("--force", action="store_true", help="overwrite existing output files")
@@ -103,11 +112,14 @@ def run(args) -> int:
     if args.compare and args.parameters:
         raise InputError("--compare chooses the parameters itself; drop --parameters", where="--compare")
     out = Path(args.out)
-    names = ["result-geometric.json", "result-compliance.json"] if args.compare else ["result.json"]
+    # with --compare, result.json is the chosen one (what report and compensate take), beside both
+    names = ["result-geometric.json", "result-compliance.json", "result.json"] if args.compare else ["result.json"]
     report = common.report_module() if args.report else None
     common.refuse_existing([out / "calibrated.yaml"] + [out / n for n in names]
                            + ([out / "report.html"] if report else []), args.force)
     model, data, validation = _inputs(args)
+    logging.getLogger("robocal").info("read %s: %d poses to fit, %d held out", args.csv, data.n_poses,
+                                      0 if validation is None else validation.n_poses)
     noise = Noise.of(args.instrument, position=None if args.noise_mm is None else args.noise_mm / common.MM,
                      rotation=None if args.noise_deg is None else args.noise_deg / common.DEG)
     options = dict(known=args.known, validation=validation, loss=args.loss, tol=args.tol,
@@ -118,8 +130,8 @@ def run(args) -> int:
     try:
         if args.compare:
             comparison = compare(model, data, **options)
-            results = [comparison.geometric, comparison.combined]
             best = comparison.best
+            results = [comparison.geometric, comparison.combined, best]
             print(comparison_summary(comparison, shown=args.shown_warnings, weighted=weighted))
         else:
             best = calibrate(model, data, parameters=args.parameters or ("geometric",), **options)

@@ -24,6 +24,10 @@ class MissingExtra(Exception):
     """An optional part of robocal is not installed (exit 1)."""
 
 
+# every command's --help: the description, the options, then an example laid out as written
+Formatter = argparse.RawDescriptionHelpFormatter
+
+
 class Parser(argparse.ArgumentParser):
     """argparse, but a usage error is one line (``robocal CMD: error: ...``), never the usage block,
     and never echoes more than an excerpt of what was typed."""
@@ -81,6 +85,35 @@ def number_in(ok, what: str):
             raise argparse.ArgumentTypeError(f"expected {what}, got {excerpt(text)}")
         return v
     return parse
+
+
+def limit_mm(text: str) -> float:
+    """The limit of absolute accuracy in mm: a number, or the JSON file ``robocal limit --out`` writes."""
+    try:
+        v = float(text)
+    except ValueError:
+        return _limit_from_file(text)
+    if not 0.0 < v < math.inf:
+        raise argparse.ArgumentTypeError(f"expected a positive number of mm or a limit file, got {excerpt(text)}")
+    return v
+
+
+def _limit_from_file(path: str) -> float:
+    import json
+
+    try:
+        with open(path, encoding="utf-8") as fh:
+            doc = json.load(fh)
+        if not str(doc["schema"]).startswith("robocal.limit/") or doc["unit"] != "m":
+            raise KeyError("schema")
+        value = doc["limit"]
+    except FileNotFoundError:
+        raise argparse.ArgumentTypeError(f"{path}: no such file (expected mm or a limit file)") from None
+    except (OSError, ValueError, KeyError, TypeError):
+        raise argparse.ArgumentTypeError(f"{path}: not a limit file ('robocal limit --out' writes one)") from None
+    if not isinstance(value, (int, float)) or not 0.0 < value < math.inf:
+        raise argparse.ArgumentTypeError(f"{path}: limit: expected a positive number of metres")
+    return value * MM
 
 
 fraction = number_in(lambda v: 0.0 < v < 1.0, "a fraction between 0 and 1")
@@ -177,6 +210,22 @@ def csv_options(p: argparse.ArgumentParser) -> None:
                                                    "(default pose)")
 
 
+def imported_model_options(p: argparse.ArgumentParser) -> None:
+    """--out, --units and --force of a command that writes a model file it imported."""
+    p.add_argument("--out", required=True, metavar="MODEL.yaml", help="model file to write")
+    p.add_argument("--units", type=units, default="mm-deg", help="units of the written file (default mm-deg)")
+    p.add_argument("--force", action="store_true", help="overwrite an existing file")
+
+
+def write_imported_model(args, model, what: str) -> None:
+    """Write the imported ``model`` to ``args.out`` and say what it holds (``what``: frames, ...)."""
+    from .._files.model import model_to_yaml
+
+    write_outputs({args.out: model_to_yaml(model, units=args.units)}, force=args.force)
+    print(f"{model.name}: {model.n_joints} joints ({', '.join(model.joint_names)}), {what}markers "
+          f"{', '.join(model.marker_names)}: wrote {args.out}")
+
+
 def parameter_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--parameters", type=names,
                    help="comma-separated families (geometric, compliance, base, markers, frames), names "
@@ -187,13 +236,13 @@ def parameter_options(p: argparse.ArgumentParser) -> None:
                                                                 "(default 1e-6)")
 
 
-def read_data(args, model, path):
+def read_data(args, model, path, *, targets: bool = False):
     from .._files.measurements import read_measurements
 
     columns = {k: v for m in args.map for k, v in m.items()}
     columns.update({c: None for group in args.ignore for c in group})
     return read_measurements(path, model, units=args.units, sep=args.sep, decimal=args.decimal,
-                             orientation=args.orientation, columns=columns or None, unknown=args.unknown,
+                             orientation=args.orientation, columns=columns or None, targets=targets, unknown=args.unknown,
                              profile=args.profile, joints=args.joints,
                              key=args.key)
 

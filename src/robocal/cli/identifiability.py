@@ -6,10 +6,15 @@ from .._errors import DegenerateDataError
 from . import common
 
 
+EXAMPLE = """examples:
+  robocal identifiability examples/th8/model.yaml --parameters geometric,compliance
+  robocal identifiability examples/th8/model.yaml examples/th8/measurements.csv"""
+
 def register(sub) -> None:
     p = sub.add_parser("identifiability", help="which parameters can be identified, and what absorbs the others",
                        description="Identifiability of the parameters at the poses of CSV, or at --poses random "
-                                   "poses within the joint limits.")
+                                   "poses within the joint limits.",
+                       epilog=EXAMPLE, formatter_class=common.Formatter)
     p.add_argument("model", metavar="MODEL", help="model file (YAML)")
     p.add_argument("csv", metavar="CSV", nargs="?", help="measurement file (its poses); default random poses")
     common.parameter_options(p)

@@ -18,12 +18,20 @@ PROG = "robocal limit"
 _ENTRY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([a-z]+)\s*$")
 
 
+EXAMPLE = """example:
+  robocal limit examples/th8/model.yaml --repeatability-csv examples/th8/repeatability.csv \\
+      --encoder-resolution 0.01deg,0.1mm,0.12mm,0.005deg,0.002deg,0.002deg \\
+      --length-quantum-mm 0.1 --angle-quantum-deg 0.001 --out limit.json
+
+'robocal calibrate --limit-mm limit.json' then judges a calibration against the figure."""
+
 def register(subparsers) -> None:
     """Add the ``limit`` subcommand to an argparse subparsers object (``run`` is set as ``func``)."""
     p = subparsers.add_parser(
         "limit", help="limit of absolute accuracy: repeatability + geometric-control precision",
         description="Limit of absolute accuracy = ISO 9283 repeatability RP + the mean tool deviation "
-                    "caused by encoder resolution and parameter round-off (Monte Carlo).")
+                    "caused by encoder resolution and parameter round-off (Monte Carlo).",
+        epilog=EXAMPLE, formatter_class=common.Formatter)
     p.add_argument("model", help="robot model file")
     rep = p.add_mutually_exclusive_group(required=True)
     rep.add_argument("--repeatability-csv", metavar="FILE",

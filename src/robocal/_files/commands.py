@@ -1,0 +1,39 @@
+"""Corrected joint commands out (``robocal compensate``): one row per target, units in the header."""
+
+from __future__ import annotations
+
+import csv
+import io
+
+import numpy as np
+
+from .._compensation import Compensation
+from .._model import RobotModel
+from .._units import ANGLE_UNITS, LENGTH_UNITS, parse_units
+
+# what the status column says of a target
+REACHED, UNREACHED, BEYOND_LIMITS = "ok", "out of reach", "beyond joint limits"
+
+
+def command_status(comp: Compensation, tol: float, tol_rot: float) -> list[str]:
+    """Per target: ``ok``, ``out of reach`` (residual above the tolerances) or ``beyond joint limits``."""
+    reached = comp.reached(tol, tol_rot)
+    return [UNREACHED if not r else (REACHED if inside else BEYOND_LIMITS)
+            for r, inside in zip(reached, comp.within_limits)]
+
+
+def commands_to_csv(model: RobotModel, labels, comp: Compensation, status, *, units: str = "mm-deg") -> str:
+    """CSV text: pose, the corrected readings (unit suffix per joint), the residual position and
+    orientation errors, and the status of each target."""
+    lu, au = parse_units(units)
+    L, A = LENGTH_UNITS[lu], ANGLE_UNITS[au]
+    scale = [L if k == "length" else A for k in model.reading_quantities]
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["pose"] + [f"{jn}_{lu if k == 'length' else au}"
+                           for jn, k in zip(model.joint_names, model.reading_quantities)]
+               + [f"residual_{lu}", f"residual_rot_{au}", "status"])
+    for i, label in enumerate(labels):
+        w.writerow([label] + [repr(float(v) / s) for v, s in zip(comp.q[i], scale)]
+                   + [format(comp.residual[i] / L, ".3g"), format(comp.residual_rot[i] / A, ".3g"), status[i]])
+    return buf.getvalue()

@@ -1,0 +1,61 @@
+"""``robocal export``: a calibrated model in the forms a controller or planner takes."""
+
+from __future__ import annotations
+
+import sys
+
+from . import common
+
+FORMATS = ("urdf", "mdh-csv", "dh-csv")
+
+EXAMPLE = """examples:
+  robocal export examples/th8/true_model.yaml --format urdf --out th8.urdf
+  robocal export examples/th8/true_model.yaml --format mdh-csv --out th8-mdh.csv
+  robocal export examples/th8/model.yaml --format dh-csv --out th8-dh.csv
+
+urdf: one link per frame, each joint's origin the frame's constant transform (exact), a link per
+marker. mdh-csv: the modified-DH table with Hayati's beta, the base and marker rows and the joint
+limits. dh-csv: classic DH; refused where nearly parallel axes make it ill-conditioned (offsets of
+hundreds of metres that cancel), unless --allow-ill-conditioned."""
+
+
+def register(sub) -> None:
+    p = sub.add_parser("export", help="write a model as URDF or a DH table",
+                       description="Write MODEL (a calibrated model file) as URDF, a modified-DH table or a classic "
+                                   "DH table; each reproduces the model's forward kinematics.",
+                       epilog=EXAMPLE, formatter_class=common.Formatter)
+    p.add_argument("model", metavar="MODEL", help="model file (YAML), e.g. OUT/calibrated.yaml")
+    p.add_argument("--format", required=True, choices=FORMATS, help="what to write")
+    p.add_argument("--out", required=True, metavar="FILE", help="file to write")
+    p.add_argument("--units", type=common.units, default="mm-deg", help="units of a DH table (default mm-deg)")
+    p.add_argument("--allow-ill-conditioned", action="store_true",
+                   help="dh-csv: write even where nearly parallel axes need huge offsets (with a warning)")
+    p.add_argument("--force", action="store_true", help="overwrite an existing file")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from .._files.dh import dh_csv, mdh_csv
+    from .._files.model import read_model
+    from .._files.urdf import urdf_text
+    from .._conversion import to_standard_dh
+
+    common.refuse_existing([args.out], args.force)
+    model = read_model(args.model)
+    if args.format == "urdf":
+        text = urdf_text(model)
+    elif args.format == "mdh-csv":
+        text = mdh_csv(model, units=args.units)
+    else:
+        text = dh_csv(model, units=args.units, max_offset=float("inf") if args.allow_ill_conditioned else None)
+        far = to_standard_dh(model, max_offset=float("inf")).offsets
+        if far:
+            print(f"robocal: warning: classic DH of {args.model} is ill-conditioned: offsets "
+                  f"{', '.join(f'{n} {v:.3g} m' for n, v in far)}; rounding them moves the tool", file=sys.stderr)
+    if model.has_compliance:
+        print(f"robocal: warning: {args.model}: compliance is not exported; {args.format} holds the geometry only",
+              file=sys.stderr)
+    common.write_outputs({args.out: text}, force=args.force)
+    print(f"{model.name}: {args.format} of {model.n_joints} joints, markers {', '.join(model.marker_names)}: "
+          f"wrote {args.out}")
+    return 0

@@ -1,0 +1,34 @@
+"""``robocal import-dh``: a robocal model file from a classic or modified DH table."""
+
+from __future__ import annotations
+
+from . import common
+
+EXAMPLE = """example:
+  robocal import-dh examples/dh/ur5-dh.csv --out ur5.yaml
+
+A classic DH table has columns name, joint (revolute or prismatic), theta, d, a, alpha, each
+with its unit suffix (theta_deg, d_mm, ...), and optionally lower/upper limits; a 'base' row
+(joint 'base': x, y, z, roll, pitch, yaw) places DH frame 0 in the measurement frame, and
+'marker' rows place measured points in the last DH frame. A modified DH table is what
+'robocal export --format mdh-csv' writes. docs/formats.md has both."""
+
+
+def register(sub) -> None:
+    p = sub.add_parser("import-dh", help="write a robocal model file from a classic or modified DH table",
+                       description="Convert a DH table (classic or modified, told apart by its columns) into a "
+                                   "robocal model file (modified DH with Hayati's beta where axes are parallel).",
+                       epilog=EXAMPLE, formatter_class=common.Formatter)
+    p.add_argument("table", metavar="TABLE.csv", help="DH table")
+    common.imported_model_options(p)
+    p.add_argument("--name", help="robot name (default: the table's file name)")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from .._files.dh import read_dh_table
+
+    common.refuse_existing([args.out], args.force)
+    model = read_dh_table(args.table, name=args.name)
+    common.write_imported_model(args, model, "")
+    return 0

@@ -1,0 +1,220 @@
+"""The whole job from the command line: plan, compensate, export, import-dh, and the rough edges."""
+
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import robocal as rc
+from robots import arm6r
+
+ROOT = Path(__file__).resolve().parent.parent
+TH8 = str(ROOT / "examples/th8/model.yaml")
+TRUE = str(ROOT / "examples/th8/true_model.yaml")
+
+
+def _rows(path):
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(line for line in fh if not line.startswith("#")))
+
+
+def test_plan_writes_poses_ready_to_measure(tmp_path, cli):
+    out = tmp_path / "poses.csv"
+    code, printed, err = cli("plan", TH8, "--poses", 12, "--n-candidates", 300, "--out", out)
+    assert code == 0, err
+    rows = _rows(out)
+    assert len(rows) == 12 and rows[0]["tool_x_mm"] == ""
+    assert "identifiable parameters" in printed and "held-out poses" in printed and "j2.d" in printed
+    # the written poses read back as targets, within the joint limits
+    model = rc.read_model(TH8)
+    q = rc.read_measurements(out, model, targets=True).q
+    assert np.all((q >= model.lower_limits) & (q <= model.upper_limits))
+
+
+def test_plan_predictions_agree_with_calibrations_on_the_same_poses():
+    """Predicted standard deviations and held-out error against calibrations with simulated noise,
+    averaged over seeds (a small arm, few poses: cheap). benchmarks/plan_prediction.py runs 20 seeds."""
+    from robocal.sim import simulate
+
+    model = arm6r()
+    noise = 5e-5
+    sel = rc.select_poses(model, 20, n_candidates=400, rng=0)
+    pred = rc.predict_campaign(model, sel.q, noise=noise, n_workspace=400, rng=0)
+    ratios, held = [], []
+    for seed in range(6):
+        true, data = simulate(model, q=sel.q, noise=noise, seed=seed)
+        _, validation = simulate(model, 200, noise=noise, seed=100 + seed)
+        validation = rc.sim.measure(true, validation.q, noise=noise, rng=seed)
+        res = rc.calibrate(model, data, validation=validation, noise=rc.Noise.of(position=noise))
+        got = {p.name: p.std for p in res.parameters}
+        ratios.append([got[n] / s for n, s in zip(pred.parameters, pred.std) if n in got])
+        held.append(res.stats.validation_after.rms)
+    assert abs(np.mean(ratios) - 1) < 0.2
+    assert abs(np.mean(held) / pred.held_out_rms - 1) < 0.2
+
+
+def test_compensate_reaches_every_reachable_target_and_flags_the_rest(tmp_path, cli):
+    nominal, true = rc.read_model(TH8), rc.read_model(TRUE)
+    q = rc.random_configurations(nominal, 8, 3)
+    q = 0.8 * q + 0.2 * (nominal.lower_limits + nominal.upper_limits) / 2     # away from the limits
+    targets = tmp_path / "targets.csv"
+    header = ["pose"] + [f"{j}_{'mm' if k == 'length' else 'deg'}" for j, k in
+                         zip(nominal.joint_names, nominal.reading_quantities)] + ["tool_x_mm", "tool_y_mm", "tool_z_mm"]
+    scale = [1e3 if k == "length" else 180 / np.pi for k in nominal.reading_quantities]
+    far = rc.forward_kinematics(nominal, q[:1]).positions[0, 0] * 1e3 + [5000.0, 0, 0]
+    with open(targets, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(header)
+        for i, qi in enumerate(q):
+            w.writerow([f"T{i}"] + [v * s for v, s in zip(qi, scale)] + ["", "", ""])
+        w.writerow(["far"] + [v * s for v, s in zip(q[0], scale)] + list(far))   # Cartesian, out of reach
+    out = tmp_path / "commands.csv"
+    code, printed, err = cli("compensate", TH8, TRUE, targets, "--out", out)
+    assert code == 0, err
+    rows = _rows(out)
+    assert [r["pose"] for r in rows] == [f"T{i}" for i in range(8)] + ["far"]       # none dropped
+    assert [r["status"] for r in rows] == ["ok"] * 8 + ["out of reach"] and "far: out of reach" in err
+    got = np.array([[float(r[c]) / s for c, s in zip(header[1:7], scale)] for r in rows[:8]])
+    want = rc.forward_kinematics(nominal, q)
+    reached = rc.forward_kinematics(true, got)
+    assert np.abs(reached.positions - want.positions).max() < 1e-6
+    assert np.abs(reached.rotations - want.rotations).max() < 1e-6
+
+
+def test_compensate_cartesian_targets_and_joint_limits():
+    model = arm6r()
+    true, _ = rc.simulate(model, 3, seed=2)
+    q = rc.random_configurations(model, 5, 1) * 0.7
+    goal = rc.forward_kinematics(model, q + 0.05).positions[:, 0]
+    comp = rc.compensate(true, q, nominal=model, positions=goal)
+    assert comp.reached(1e-6).all() and not comp.oriented.any()
+    assert np.abs(rc.forward_kinematics(true, comp.q).positions[:, 0] - goal).max() < 1e-6
+    narrow = model.replace(joint_limits=tuple((lo * 1e-3, hi * 1e-3) for lo, hi in model.joint_limits))
+    assert not rc.compensate(narrow, q, nominal=model).within_limits.all()
+
+
+@pytest.mark.parametrize("fmt", ["urdf", "mdh-csv", "dh-csv"])
+def test_export_round_trips(fmt, tmp_path, cli):
+    source = TRUE if fmt != "dh-csv" else TH8
+    out = tmp_path / f"out.{fmt}"
+    code, _, err = cli("export", source, "--format", fmt, "--out", out)
+    assert code == 0, err
+    model = rc.read_model(source)
+    if fmt == "urdf":
+        back = rc.read_urdf(out)
+    else:
+        code, _, err = cli("import-dh", out, "--out", tmp_path / "back.yaml")
+        assert code == 0, err
+        back = rc.read_model(tmp_path / "back.yaml")
+    # the forms hold geometry: compare the geometric forward kinematics (compliance is not exported)
+    model = model.replace(frames=tuple(replace(f, k_theta=0.0, k_alpha=0.0, k_beta=0.0) for f in model.frames))
+    q = rc.random_configurations(model, 100, 0)
+    a, b = rc.forward_kinematics(model, q), rc.forward_kinematics(back, q)
+    assert np.abs(a.positions - b.positions).max() < 1e-9
+    assert np.allclose(back.joint_limits, model.joint_limits, atol=1e-12)
+
+
+def test_classic_dh_export_refuses_ill_conditioned_parallel_axes(tmp_path, cli):
+    model = arm6r()
+    true, _ = rc.simulate(model, 3, seed=1)       # a tilt between the parallel axes j2 and j3
+    rc.write_model(true, tmp_path / "cal.yaml")
+    code, _, err = cli("export", tmp_path / "cal.yaml", "--format", "dh-csv", "--out", tmp_path / "dh.csv")
+    assert code == 2 and "ill-conditioned" in err and "j2" in err and not (tmp_path / "dh.csv").exists()
+    code, _, err = cli("export", tmp_path / "cal.yaml", "--format", "dh-csv", "--out", tmp_path / "dh.csv",
+                       "--allow-ill-conditioned")
+    assert code == 0 and "warning" in err and "ill-conditioned" in err
+
+
+def test_compare_writes_the_chosen_result_json(tmp_path, cli):
+    out = tmp_path / "run"
+    code, _, err = cli("calibrate", TH8, str(ROOT / "examples/th8/measurements.csv"), "--out", out, "--compare",
+                       "--known", "markers")
+    assert code in (0, 3), err
+    chosen = json.loads((out / "result.json").read_text())
+    assert chosen in (json.loads((out / "result-geometric.json").read_text()),
+                      json.loads((out / "result-compliance.json").read_text()))
+
+
+def test_rough_edges(tmp_path, cli):
+    code, _, err = cli("simulate", TH8, "--out", tmp_path / "s.csv", "--poses", 5, "--noise-mm", -1)
+    assert code == 2 and "Traceback" not in err and "--noise-mm" in err.strip().splitlines()[-1]
+    limit = tmp_path / "limit.json"
+    limit.write_text(json.dumps({"schema": "robocal.limit/1", "unit": "m", "limit": 0.0005}))
+    from robocal.cli.common import limit_mm
+    assert limit_mm(str(limit)) == pytest.approx(0.5) and limit_mm("0.4") == 0.4
+    code, _, err = cli("-v", "plan", TH8, "--poses", 10, "--n-candidates", 100, "--out", tmp_path / "p.csv")
+    assert code == 0 and "robocal: " in err and "chose 10 of 100" in err
+
+
+@pytest.mark.parametrize("command", ["plan", "simulate", "calibrate", "compensate", "export", "identifiability",
+                                     "report", "limit", "import-urdf", "import-dh"])
+def test_every_help_has_a_description_and_an_example(command, cli):
+    code, out, _ = cli(command, "--help")
+    usage, description = out.split("\n\n")[:2]
+    assert code == 0 and usage.startswith(f"usage: robocal {command}") and not description.startswith(("positional",
+                                                                                                      "options"))
+    assert "\nexample" in out and f"  robocal {command} " in out
+
+
+def test_broken_pipe_is_quiet():
+    code = ("import sys; sys.argv = ['robocal', 'identifiability', '" + TH8 + "', '--poses', '30'];"
+            "from robocal.cli import main; sys.exit(main())")
+    p = subprocess.run(f"{sys.executable} -c \"{code}\" | head -1", shell=True, capture_output=True, text=True,
+                       cwd=ROOT)
+    assert p.stderr == "" and p.stdout.startswith("identifiability")
+
+
+@pytest.mark.parametrize("edit, words", [
+    (("89.159", "8x9"), ["line 5", "'d_mm'", "expected a number"]),
+    ((",revolute,0,0,-425", ",rotary,0,0,-425"), ["line 6", "'joint'", "rotary"]),
+], ids=["number", "joint-kind"])
+def test_import_dh_bad_table(edit, words, tmp_path, cli):
+    from conftest import assert_one_line_error
+
+    text = ((ROOT / "examples/dh/ur5-dh.csv").read_text()).replace(*edit)
+    (tmp_path / "t.csv").write_text(text)
+    code, _, err = cli("import-dh", tmp_path / "t.csv", "--out", tmp_path / "out" / "m.yaml")
+    assert_one_line_error(code, err, ["t.csv"] + words, tmp_path / "out", command="import-dh")
+
+
+def test_compensate_unknown_marker(tmp_path, cli):
+    from conftest import assert_one_line_error
+
+    code, _, err = cli("compensate", TH8, TRUE, str(ROOT / "examples/th8/targets.csv"), "--out", tmp_path / "o" / "c.csv",
+                       "--marker", "nose")
+    assert_one_line_error(code, err, ["--marker", "nose", "tool"], tmp_path / "o", command="compensate")
+
+
+def test_a_closed_pipe_ends_quietly(monkeypatch, capsys):
+    """What ``robocal ... | head`` meets: stdout raising BrokenPipeError once the reader left."""
+    from robocal.cli import main
+
+    class Closed:
+        def write(self, text):
+            raise BrokenPipeError(32, "Broken pipe")
+
+        def flush(self):
+            pass
+
+    monkeypatch.setattr(sys, "stdout", Closed())
+    assert main(["identifiability", TH8, "--poses", "20"]) == 0
+    assert capsys.readouterr().err == ""
+
+
+def test_plan_from_candidate_poses(tmp_path, cli):
+    out = tmp_path / "poses.csv"
+    code, printed, err = cli("plan", TH8, "--poses", 10, "--candidates", ROOT / "examples/th8/measurements.csv",
+                             "--out", out)
+    assert code == 0, err
+    model = rc.read_model(TH8)
+    given = rc.read_measurements(ROOT / "examples/th8/measurements.csv", model).q
+    assert f"10 poses chosen from {len(given)} poses of" in printed
+    chosen = rc.read_measurements(out, model, targets=True).q
+    assert all(np.isclose(given, row).all(axis=1).any() for row in chosen)
