@@ -14,7 +14,7 @@ import pytest
 import robocal as rc
 from conftest import z_scores
 from robocal.identification import ContactProblem, calibrate_contacts, contact_errors, contact_identifiability
-from robocal.sim import bar_campaign, plane_campaign, socket_campaign
+from robocal.sim import bar_campaign, plan_sockets, plane_campaign, socket_campaign
 
 from robots import arm6r
 
@@ -262,3 +262,35 @@ def test_the_command_line_calibrates_from_contacts_alone_and_next_to_a_tracker_f
     assert "tracker points after" in out and "unreachable" not in out
     code, _, err = cli("calibrate", ARM7, "--contacts", path, "--out", tmp_path / "c", "--holdout-placement", "P9")
     assert code == 2 and "no placement 'P9'" in err
+
+
+def test_a_socket_plan_predicts_the_standard_deviations_the_calibration_reports(arm7):
+    """The plan's predicted standard deviations against those a calibration of the same design
+    (seatings drawn with the same seed, on a true arm with errors) reports: within 20 % on average."""
+    ratios = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for seed in (1, 2):
+            design = plan_sockets(arm7, placements=(3,), poses_per_socket=(20,), joint_noise=ENCODER,
+                                  seed=seed).designs[0]
+            true = _truth_for(arm7, lambda robot, r: socket_campaign(robot, placements=3, poses_per_socket=20,
+                                                                     joint_noise=ENCODER, rng=r), seed)
+            c = socket_campaign(true, placements=3, poses_per_socket=20, joint_noise=ENCODER,
+                                rng=np.random.default_rng(seed))
+            res = calibrate_contacts(arm7, c)
+            ratios += [p.std / design.predicted_std[p.name] for p in res.parameters]
+            assert design.unreachable == ("base",)
+    assert abs(np.mean(ratios) - 1.0) < 0.2 and 0.5 < min(ratios) and max(ratios) < 2.0, ratios
+
+
+def test_a_socket_plan_recommends_the_smallest_design_within_the_bounds(arm7):
+    tight = {"length": 2e-5, "angle": np.deg2rad(0.002)}     # 0.02 mm, 0.002 deg
+    plan = plan_sockets(arm7, placements=(3, 6), poses_per_socket=(20, 30), joint_noise=ENCODER, bounds=tight)
+    by = {(d.placements, d.poses_per_socket): d for d in plan.designs}
+    assert by[(6, 20)].worst_ratio < by[(3, 20)].worst_ratio and by[(6, 30)].worst_ratio < by[(3, 30)].worst_ratio
+    good = [d for d in plan.designs if d.meets_bounds]
+    assert good and plan.chosen == min(good, key=lambda d: d.n_seatings)
+    assert not by[(3, 20)].meets_bounds      # the bounds decide: the smallest design is not enough
+    assert plan.campaign.q.shape[0] == plan.chosen.n_seatings
+    assert plan_sockets(arm7, placements=(3,), poses_per_socket=(20,), bounds={"length": 1e-9}).chosen is None
+

@@ -1,0 +1,102 @@
+"""Planning a socket-plate campaign before the robot is booked: how many placements of the plate and
+how many seatings per socket, from the standard deviations each design predicts.
+
+A design is simulated on the nominal robot (``socket_campaign``: random seatings within the joint
+limits, the plate at random placements), its contact problem is linearised there, and the
+covariance the fit would report with the stated deviations is ``(J^T J)^-1`` (every row is already
+divided by its deviation). The recommended design is the smallest of the grid (fewest seatings)
+whose predicted standard deviations all stay within the practical-identifiability bounds
+(``WEAK_STD``, docs/checks.md).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._contact_calibration import contact_identifiability
+from ._contact_simulation import socket_campaign
+from ._contacts import Contacts
+from ._errors import InputError
+from ._identifiability import WEAK_STD
+from ._model import RobotModel
+from ._observations import ContactProblem
+from ._parameters import candidate_parameters, parameter_layout
+
+
+@dataclass(frozen=True)
+class SocketDesign:
+    """One design of the grid: ``placements`` of the plate, ``poses_per_socket`` seatings of each
+    socket, the robot parameters it identifies with their predicted standard deviations (SI), the
+    directions it cannot reach, and the parameter furthest beyond (or closest to) its bound."""
+
+    placements: int
+    poses_per_socket: int
+    n_seatings: int
+    predicted_std: dict
+    unreachable: tuple[str, ...]
+    worst: str
+    worst_ratio: float          # predicted std over its bound for ``worst``
+
+    @property
+    def meets_bounds(self) -> bool:
+        return self.worst_ratio <= 1.0
+
+
+@dataclass(frozen=True)
+class SocketPlan:
+    """Every design of the grid, the recommended one (None when none meets the bounds) and its
+    simulated seatings, ready to be written as a contact file and measured."""
+
+    designs: tuple[SocketDesign, ...]
+    chosen: SocketDesign | None
+    campaign: Contacts | None
+
+
+def _design(model: RobotModel, campaign: Contacts, names, placements: int, poses: int, ident,
+            bounds: dict) -> SocketDesign:
+    prob = ContactProblem(model, campaign, names, compliance=False)
+    k = len(ident.identified)
+    J = prob.at_contact().over(ident.identified).jacobian(prob.start_vector())
+    std = np.sqrt(np.diag(np.linalg.pinv(J.T @ J)))[:k]
+    lay = parameter_layout(model)
+    ratios = {n: s / bounds[lay[n].quantity] for n, s in zip(ident.identified, std)}
+    worst = max(ratios, key=ratios.get)
+    return SocketDesign(placements, poses, int(campaign.q.shape[0]), dict(zip(ident.identified, map(float, std))),
+                        tuple(u.name for u in ident.unreachable), worst, float(ratios[worst]))
+
+
+def plan_sockets(model: RobotModel, *, placements=(3, 5, 7, 9), poses_per_socket=(20, 25, 30, 35),
+                 joint_noise: float = 2e-5, seat_noise: float = 5e-6, parameters=("geometric",),
+                 bounds: dict | None = None, seed: int = 0) -> SocketPlan:
+    """The predicted standard deviations of every design of the grid ``placements`` x
+    ``poses_per_socket`` (the default 3-socket plate with known spacing), and the recommended one.
+
+    ``joint_noise`` (rad or m per reading) and ``seat_noise`` (m) are the deviations the fit will
+    state; ``bounds`` the standard deviation each quantity must stay within (``{"length": m,
+    "angle": rad}``, default ``WEAK_STD``); ``seed`` draws the simulated seatings and placements. What
+    the plate identifies and cannot reach is the structure's, found once on the smallest design.
+
+    >>> import robocal as rc
+    >>> plan = plan_sockets(rc.read_model("examples/arm7/model.yaml"), placements=(3,), poses_per_socket=(20,))
+    >>> plan.designs[0].n_seatings, plan.designs[0].unreachable
+    (180, ('base',))
+    """
+    if not placements or not poses_per_socket or min(placements) < 1 or min(poses_per_socket) < 1:
+        raise InputError("placements and poses per socket must be positive counts", where="placements")
+    names = candidate_parameters(model, parameters)
+    bounds = {**WEAK_STD, **(bounds or {})}
+    designs, campaigns, ident = [], {}, None
+    for n_pl in sorted(set(placements)):
+        for n_po in sorted(set(poses_per_socket)):
+            c = socket_campaign(model, placements=n_pl, poses_per_socket=n_po, joint_noise=joint_noise,
+                                seat_noise=seat_noise, rng=np.random.default_rng(seed))
+            if ident is None:
+                ident = contact_identifiability(ContactProblem(model, c, names, compliance=False), names)
+            designs.append(_design(model, c, names, n_pl, n_po, ident, bounds))
+            campaigns[(n_pl, n_po)] = c
+    good = [d for d in designs if d.meets_bounds]
+    chosen = min(good, key=lambda d: (d.n_seatings, d.placements)) if good else None
+    return SocketPlan(tuple(designs), chosen,
+                      None if chosen is None else campaigns[(chosen.placements, chosen.poses_per_socket)])
