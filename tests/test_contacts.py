@@ -250,7 +250,7 @@ def test_the_command_line_calibrates_from_contacts_alone_and_next_to_a_tracker_f
     true, _, path = small_session
     code, out, err = cli("calibrate", ARM7, "--contacts", path, "--out", tmp_path / "a", "--holdout-placement", "P4")
     assert code == 0, err
-    assert "held-out socket spread" in out and "unreachable: base" in out and "verdict: PASS" in out
+    assert "held-out socket spread" in out and "unreachable: base" in out and "verdict: pass" in out
     written = rc.read_model(tmp_path / "a" / "calibrated.yaml")
     assert rc.parameter_vector(written).shape == rc.parameter_vector(arm7).shape
     result = __import__("json").loads((tmp_path / "a" / "contacts-result.json").read_text())

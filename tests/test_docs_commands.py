@@ -33,10 +33,6 @@ def commands(path: Path, prompt: str) -> list[str]:
     return out
 
 
-# inputs a documented command names that no file ships yet: the command is skipped, said in the
-# test report, until the file ships (then remove it here)
-NOT_SHIPPED = {"sockets.csv": "docs/cli.md's calibration from contacts: no contact file ships in examples/"}
-
 README = commands(ROOT / "README.md", "    ")
 CLI_MD = commands(ROOT / "docs" / "cli.md", "$ ")
 
@@ -51,13 +47,7 @@ def test_the_documents_have_their_commands():
 def test_every_documented_command_runs_as_written(document, tmp_path, monkeypatch, cli):
     (tmp_path / "examples").symlink_to(ROOT / "examples")
     monkeypatch.chdir(tmp_path)
-    skipped = []
     for command in README if document == "README" else CLI_MD:
-        missing = [why for name, why in NOT_SHIPPED.items() if name in shlex.split(command)]
-        if missing:
-            skipped.append(missing[0])
-            continue
         code, out, err = cli(*shlex.split(command)[1:])
         assert code == 0, f"{command}\n{err}"
-    if skipped:
-        pytest.skip("ran the others; not run: " + "; ".join(skipped))
+

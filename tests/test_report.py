@@ -335,38 +335,47 @@ def _browser_or_skip():
         pytest.skip(msg)
 
 
-def _render_in_chromium(path: Path, shot_name: str):
-    """Load ``path`` in headless Chromium as a user opens it and print it to PDF: console messages,
-    requests, plots, title, screenshot, how far the page is wider than the window, the PDF's outline."""
+@pytest.fixture(scope="module")
+def chromium():
+    """One headless Chromium for the module's page tests (Playwright driving the system's browser)."""
     _browser_or_skip()
     from playwright.sync_api import sync_playwright
 
-    url = path.as_uri()
-    console, requests = [], []
     with sync_playwright() as p:
         browser = p.chromium.launch(
             executable_path=CHROMIUM if Path(CHROMIUM).exists() else shutil.which("chromium"),
             args=["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
                   "--disable-sync", "--no-first-run"])
         try:
-            page = browser.new_page(viewport={"width": 1200, "height": 900})
-            page.on("console", lambda m: console.append((m.type, m.text)))
-            page.on("pageerror", lambda e: console.append(("pageerror", str(e))))
-            page.on("request", lambda r: requests.append(r.url))
-            page.goto(url, wait_until="load")
-            plots = page.eval_on_selector_all(
-                "svg[data-plot]", "els => els.map(e => ({name: e.dataset.plot, width: e.getBoundingClientRect().width,"
-                " height: e.getBoundingClientRect().height, n: e.querySelectorAll('path, use, text').length}))")
-            overflow = page.evaluate("Math.max(document.documentElement.scrollWidth, document.body.scrollWidth)"
-                                     " - document.documentElement.clientWidth")
-            title = page.title()
-            ARTIFACTS.mkdir(exist_ok=True)
-            shot = ARTIFACTS / shot_name
-            page.screenshot(path=str(shot), full_page=True)
-            pdf = page.pdf(path=str(shot.with_suffix(".pdf")), format="A4", outline=True, tagged=True,
-                           print_background=True)
+            yield browser
         finally:
             browser.close()
+
+
+def _render_in_chromium(browser, path: Path, shot_name: str):
+    """Load ``path`` as a user opens it and print it to PDF: console messages, requests, plots, title,
+    screenshot, how far the page is wider than the window, the PDF's outline."""
+    url = path.as_uri()
+    console, requests = [], []
+    page = browser.new_page(viewport={"width": 1200, "height": 900})
+    try:
+        page.on("console", lambda m: console.append((m.type, m.text)))
+        page.on("pageerror", lambda e: console.append(("pageerror", str(e))))
+        page.on("request", lambda r: requests.append(r.url))
+        page.goto(url, wait_until="load")
+        plots = page.eval_on_selector_all(
+            "svg[data-plot]", "els => els.map(e => ({name: e.dataset.plot, width: e.getBoundingClientRect().width,"
+            " height: e.getBoundingClientRect().height, n: e.querySelectorAll('path, use, text').length}))")
+        overflow = page.evaluate("Math.max(document.documentElement.scrollWidth, document.body.scrollWidth)"
+                                 " - document.documentElement.clientWidth")
+        title = page.title()
+        ARTIFACTS.mkdir(exist_ok=True)
+        shot = ARTIFACTS / shot_name
+        page.screenshot(path=str(shot), full_page=True)
+        pdf = page.pdf(path=str(shot.with_suffix(".pdf")), format="A4", outline=True, tagged=True,
+                       print_background=True)
+    finally:
+        page.close()
     outline = [t.decode("latin-1") for t in re.findall(rb"/Title\s*\(([^)]*)\)", pdf)]
     return {"console": console, "requests": requests, "plots": plots, "title": title, "shot": shot, "url": url,
             "overflow": overflow, "outline": outline}
@@ -386,20 +395,14 @@ def _assert_rendered(r: dict, html: str):
     assert len(sections) >= 10 and set(sections) <= set(r["outline"]), (sections, r["outline"])
 
 
-def test_renders_in_headless_chromium(full, tmp_path):
-    path = tmp_path / "report.html"
-    _write(full, path)
-    _assert_rendered(_render_in_chromium(path, "report.png"), path.read_text(encoding="utf-8"))
-
-
-def test_th8_demo_report_renders_in_headless_chromium(tmp_path):
+def test_th8_demo_report_renders_in_headless_chromium(chromium, tmp_path):
     # the report `make demo` writes, rendered as a user opens it
     spec = importlib.util.spec_from_file_location("th8_reproduce", ROOT / "examples" / "th8" / "reproduce.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     assert mod.main(["--out", str(tmp_path)]) == 0
     html = (tmp_path / "report.html").read_text()
-    _assert_rendered(_render_in_chromium(tmp_path / "report.html", "th8-report.png"), html)
+    _assert_rendered(_render_in_chromium(chromium, tmp_path / "report.html", "th8-report.png"), html)
     d = json.loads((tmp_path / "result.json").read_text())
     # the demo's own numbers are the ones on the page, and so is the paper's table
     mean_mm = d["stats"]["validation_after"]["mean"] * 1e3
@@ -421,23 +424,24 @@ def big_6d():
     return _campaign_6d(20_000, seed=11)
 
 
-def test_6d_report_renders_in_headless_chromium(tmp_path):
+def test_6d_report_renders_in_headless_chromium(chromium, tmp_path):
     path = tmp_path / "report.html"
     write_report(_campaign_6d(80, seed=5), path)
     html = path.read_text(encoding="utf-8")
     page = Page(html)
     assert "stats.rotation.validation_after.mean" in page.keyed
+    assert "solver.sigma0" in page.keyed and "solver.sigma0_m" not in page.keyed  # a ratio for weighted 6D fits
     assert "rotation error" in page.plots["histograms"]["text"] and "rotation error" in page.plots["residual-trends"]["text"]
-    _assert_rendered(_render_in_chromium(path, "report-6d.png"), html)
+    _assert_rendered(_render_in_chromium(chromium, path, "report-6d.png"), html)
 
 
-def test_20000_pose_report_is_small_and_renders_in_headless_chromium(big_6d, tmp_path):
+def test_20000_pose_report_is_small_and_renders_in_headless_chromium(chromium, big_6d, tmp_path):
     path = tmp_path / "report.html"
     write_report(big_6d, path)
     assert path.stat().st_size < 5e6
     html = path.read_text(encoding="utf-8")
     assert "300 of the 16000 measured points are drawn" in html
-    _assert_rendered(_render_in_chromium(path, "report-20000.png"), html)
+    _assert_rendered(_render_in_chromium(chromium, path, "report-20000.png"), html)
 
 
 # -- absorptions in display units, against the Jacobian -------------------------------------------

@@ -1,6 +1,7 @@
 """Calibration without a tracker, over many simulated campaigns of the 7-joint arm (model.yaml).
 
     python examples/arm7/contacts_campaigns.py [--campaigns 10] [--seed 0]
+    python examples/arm7/contacts_campaigns.py --write-sockets examples/arm7/sockets.csv
 
 Each campaign draws a true arm (errors of 0.1 to 1 mm and 0.01 to 0.1 deg on what the campaign can
 identify), puts a 3-socket plate at 3 to 9 placements plus one held out, seats the ball 20 to 35
@@ -97,12 +98,25 @@ def _z_line(label, zs):
             f"{np.mean(np.abs(z) < 3) * 100:.1f} % of {len(z)} estimates; z mean {z.mean():+.3f}, std {z.std():.3f}")
 
 
+def write_sockets(m, path: Path, seed: int) -> None:
+    """The shipped socket file: a simulated arm with errors, a 3-socket plate at 4 placements (P4 to
+    hold out), 20 seatings per socket."""
+    rng = np.random.default_rng(seed)
+    c = socket_campaign(m, placements=4, poses_per_socket=20, joint_noise=ENCODER, rng=rng)
+    true = truth_for(m, lambda robot, r: c, rng)
+    rc.io.write_contacts(socket_campaign(true, placements=4, poses_per_socket=20, joint_noise=ENCODER, rng=rng),
+                         path, m, force=True)
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--campaigns", type=int, default=10)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--write-sockets", type=Path, metavar="CSV", help="write the simulated socket file that ships")
     args = ap.parse_args(argv)
     m = rc.read_model(MODEL)
+    if args.write_sockets:
+        return write_sockets(m, args.write_sockets, args.seed)
     rng = np.random.default_rng(args.seed)
     t0 = time.perf_counter()
     runs = [sockets(m, rng) for _ in range(args.campaigns)]

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .text import checks_lines, verdict_line
 from .units import with_unit
 
 
@@ -55,8 +56,6 @@ def contact_summary(result) -> str:
     lines.append("parameters (change from nominal +- std):")
     for p in result.parameters:
         lines.append(f"  {p.name:<12} {with_unit(p.change, p.unit, sign=True)} +- {with_unit(p.std, p.unit)}")
-    lines.append("checks:")
-    for c in result.checks:
-        lines.append(f"  [{c.status}] {c.name}: {c.summary}")
-    lines.append(f"verdict: {result.verdict.upper()}")
+    lines += checks_lines(result.checks)       # the same checks block and verdict line as a tracker fit
+    lines.append(verdict_line(result))
     return "\n".join(lines)

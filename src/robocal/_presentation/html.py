@@ -124,6 +124,12 @@ def _figure(svg: str, caption: str) -> str:
     return f"<figure>{svg}<figcaption>{caption}</figcaption></figure>"
 
 
+def _rotation_note(stats: dict, key: str) -> str:
+    """'; rotation mean 0.00183 deg' for 6D results, else nothing."""
+    r = (stats.get("rotation") or {}).get(key) or {}
+    return f"; rotation mean {fmt(r.get('mean'), 'rad')} deg" if r.get("n") else ""
+
+
 def _headline(d: dict) -> str:
     """Cards at the top: mean error before and after, the limit, the solver."""
     stats = d["stats"]
@@ -134,7 +140,8 @@ def _headline(d: dict) -> str:
         s = stats.get(f"{on}_{when}") or {}
         cards.append(f'<div class="card {when}"><div class="label">Mean error {when}</div>'
                      f'<div class="value">{fmt(s.get("mean"))} <small>mm</small></div>'
-                     f'<div class="sub">{where}, {_e(s.get("n", 0))} points; max {fmt(s.get("max"))} mm</div></div>')
+                     f'<div class="sub">{where}, {_e(s.get("n", 0))} points; max {fmt(s.get("max"))} mm'
+                     f'{_rotation_note(stats, f"{on}_{when}")}</div></div>')
     lim = d.get("limit")
     if lim:
         ok = bool(lim.get("reached"))
@@ -356,7 +363,10 @@ def _solver_table(d: dict) -> str:
         ("status", _e(d.get("status")), "solver.status"),
         ("message", _e(d.get("message")), "solver.message"),
         ("function evaluations", _e(d.get("nfev")), "solver.nfev"),
-        ("&sigma;<sub>0</sub>, residual standard deviation (mm)", fmt(d.get("sigma0_m")), "solver.sigma0_m", "mm"),
+        # 6D fits weigh positions and rotations by the instrument's deviations: sigma0 is then a ratio
+        (("&sigma;<sub>0</sub>, residual standard deviation (times the expected measurement deviations)",
+          _ratio(d.get("sigma0_m"), ".4g"), "solver.sigma0") if (d["stats"].get("rotation") is not None) else
+         ("&sigma;<sub>0</sub>, residual standard deviation (mm)", fmt(d.get("sigma0_m")), "solver.sigma0_m", "mm")),
         ("loss", _e(d.get("loss")), "solver.loss"),
         ("parameter families", _e(", ".join(d.get("families") or [])), "solver.families"),
         ("identified / candidates", f"{len(ident.get('identified', []))} / {len(ident.get('candidates', []))}",
@@ -585,7 +595,8 @@ def render_report(result: CalibrationResult, *, extra: dict | None = None) -> st
     if not d.get("success"):
         notices.append(_notice(f"The solver did not converge: {_e(d.get('message'))}", "bad"))
 
-    sections = [("errors", "Position and rotation errors", _errors_section(d, has_val))]
+    title = "Position and rotation errors" if d["stats"].get("rotation") else "Position errors"
+    sections = [("errors", title, _errors_section(d, has_val))]
     frame_table, other_table, note = _parameter_tables(d, nominal, units)
     sections.append(("parameters", "Parameters",
                      "<p>Per frame, in the paper's layout: I identified, E eliminated (held at its nominal value, "

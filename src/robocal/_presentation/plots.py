@@ -122,49 +122,62 @@ def _binned(ax, start: int, before: np.ndarray, after: np.ndarray, label: str, w
     return [_finite(before), _finite(after)]
 
 
-def plot_errors_per_pose(d: dict) -> str:
-    """Position error per pose before and after, fitted poses then held-out ones (SVG); binned
-    summaries of consecutive poses beyond ``DENSE`` poses."""
+def _error_sets(d: dict, part: str, k: float) -> list:
+    """(label, before, after, marker) of fitted then held-out poses, errors in display units."""
+    sets = [(label, errors_array(d, f"{key}_{part}before"), errors_array(d, f"{key}_{part}after"), marker)
+            for label, key, marker in (("fitted", "fit", "o"), ("held-out", "validation", "^"))]
+    return [(label, b * k, a * k, mk) for label, b, a, mk in sets if b is not None and a is not None]
+
+
+def _errors_panel(ax, sets: list, total: int, width: int, what: str, unit: str, lim: float | None) -> None:
+    """One quantity's errors per pose (or per bin of poses) on ``ax``, with the limit when given."""
     from matplotlib.ticker import FormatStrFormatter
 
-    sets = [(label, errors_array(d, f"{key}_before"), errors_array(d, f"{key}_after"), marker)
-            for label, key, marker in (("fitted", "fit", "o"), ("held-out", "validation", "^"))]
-    sets = [(label, b * MM, a * MM, mk) for label, b, a, mk in sets if b is not None and a is not None]
-    total = sum(len(b) for _, b, _, _ in sets)
+    start, values = 1, []
+    for label, before, after, marker in sets:
+        n = len(before)
+        if label == "held-out":
+            ax.axvspan(start - 0.5, start + n - 0.5, color="#eef1f5", zorder=0, lw=0)
+            ax.text(start - 0.3, 1.0, "held-out poses", transform=ax.get_xaxis_transform(), va="bottom",
+                    ha="left", fontsize=8, color="#555")
+        if total > DENSE:
+            values += _binned(ax, start, before, after, label, width)
+        else:
+            values += _per_pose(ax, start, before, after, label, marker)
+        start += n
+    if lim is not None:
+        ax.axhline(lim, color=LIMIT, ls="--", lw=1.2, zorder=2, label=f"limit of absolute accuracy\n({lim:.3f} mm)")
+        values.append(np.array([lim]))
+    v = np.concatenate(values) if values else np.zeros(0)
+    v = v[v > 0]
+    if v.size and v.max() / v.min() > 30:
+        ax.set_yscale("log")
+        ax.yaxis.set_major_formatter(FormatStrFormatter("%g"))
+        ax.set_ylabel(f"{what} error ({unit}, log scale)")
+    else:
+        ax.set_ylim(bottom=0)
+        ax.set_ylabel(f"{what} error ({unit})")
+    ax.set_xlim(0.5, max(start - 0.5, 1.5))
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
+
+
+def plot_errors_per_pose(d: dict) -> str:
+    """Position error per pose before and after, fitted poses then held-out ones, and the rotation
+    error below it for 6D data (SVG); binned summaries of consecutive poses beyond ``DENSE`` poses."""
+    panels = [("position", "mm", _error_sets(d, "", MM), _limit_mm(d))]
+    if errors_array(d, "fit_rotation_after") is not None:
+        panels.append(("rotation", "deg", _error_sets(d, "rotation_", DEG), None))
+    total = sum(len(b) for _, b, _, _ in panels[0][2])
     width = max(1, math.ceil(total / 150))
-    lim = _limit_mm(d)
 
     def draw(fig):
-        ax = fig.subplots()
-        start, values = 1, []
-        for label, before, after, marker in sets:
-            n = len(before)
-            if label == "held-out":
-                ax.axvspan(start - 0.5, start + n - 0.5, color="#eef1f5", zorder=0, lw=0)
-                ax.text(start - 0.3, 1.0, "held-out poses", transform=ax.get_xaxis_transform(), va="bottom",
-                        ha="left", fontsize=8, color="#555")
-            if total > DENSE:
-                values += _binned(ax, start, before, after, label, width)
-            else:
-                values += _per_pose(ax, start, before, after, label, marker)
-            start += n
-        if lim is not None:
-            ax.axhline(lim, color=LIMIT, ls="--", lw=1.2, zorder=2, label=f"limit of absolute accuracy\n({lim:.3f} mm)")
-            values.append(np.array([lim]))
-        v = np.concatenate(values) if values else np.zeros(0)
-        v = v[v > 0]
-        if v.size and v.max() / v.min() > 30 and total <= DENSE:
-            ax.set_yscale("log")
-            ax.yaxis.set_major_formatter(FormatStrFormatter("%g"))
-            ax.set_ylabel("position error (mm, log scale)")
-        else:
-            ax.set_ylim(bottom=0)
-            ax.set_ylabel("position error (mm)")
-        ax.set_xlim(0.5, max(start - 0.5, 1.5))
-        ax.set_xlabel("pose" if total <= DENSE else f"pose (bins of {width} consecutive poses)")
-        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
-    return _plot("errors-per-pose", "position error per pose, before and after calibration", draw,
-                 figsize=(9.0, 3.4))
+        axes = fig.subplots(len(panels), 1, squeeze=False)[:, 0]
+        for ax, (what, unit, sets, lim) in zip(axes, panels):
+            _errors_panel(ax, sets, total, width, what, unit, lim)
+        axes[-1].set_xlabel("pose" if total <= DENSE else f"pose (bins of {width} consecutive poses)")
+        fig.subplots_adjust(hspace=0.3)
+    return _plot("errors-per-pose", "position (and rotation) error per pose, before and after calibration", draw,
+                 figsize=(9.0, 3.4 * len(panels)))
 
 
 def _hist(ax, fit: np.ndarray, val: np.ndarray, colour: str, top: float, lim: float | None, unit: str) -> None:

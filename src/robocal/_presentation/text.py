@@ -183,9 +183,10 @@ def identifiability_summary(model, res, where: str) -> str:
     kinds = [k for k in ("gamma", "b") if any(res.status(f"{f}.{k}") != "-" for f in model.frame_names)]
     kinds += list(PAPER_KINDS)
     kinds += [k for k in BACKLASH_KINDS if any(res.status(f"{f}.{k}") != "-" for f in model.frame_names)]
-    lines.append(f"  {'frame':<{width}}" + "".join(f"{k:>{max(9, len(k) + 1)}}" for k in kinds))
+    cols = [max(9, len(k) + 2) for k in kinds]  # long kind names (backlash_theta) widen their column
+    lines.append(f"  {'frame':<{width}}" + "".join(f"{k:>{w}}" for k, w in zip(kinds, cols)))
     for f in model.frame_names:
-        lines.append(f"  {f:<{width}}" + "".join(f"{res.status(f'{f}.{k}'):>{max(9, len(k) + 1)}}" for k in kinds))
+        lines.append(f"  {f:<{width}}" + "".join(f"{res.status(f'{f}.{k}'):>{w}}" for k, w in zip(kinds, cols)))
     for owner, owner_kinds in [("base", BASE_KINDS)] + [(m, MARKER_KINDS) for m in model.marker_names]:
         lines.append(f"  {owner:<{width}} " + " ".join(f"{k}:{res.status(f'{owner}.{k}'):<3}" for k in owner_kinds))
     lines.append(f"identified {len(res.identified)} of {len(res.candidates)} candidates (rank {res.rank}, "

@@ -21,12 +21,12 @@ Exit code 3 when a check fails (docs/checks.md): result.json is written, calibra
 with --write-failed."""
 
 def register(sub) -> None:
-    p = sub.add_parser("calibrate", help="identify the parameters from measurements",
+    p = common.command(sub, "calibrate", summary="identify the parameters from measurements",
                        description="Identify the robot's parameters from measured marker positions; write "
                                    "OUT/calibrated.yaml and OUT/result.json.",
-                       epilog=EXAMPLE, formatter_class=common.Formatter)
-    p.add_argument("model", metavar="MODEL", help="model file (YAML)")
-    p.add_argument("csv", metavar="CSV", nargs="?", help="measurement file (may be left out with --contacts)")
+                       example=EXAMPLE,
+                       inputs=[("model", "MODEL", "model file (YAML)"),
+                               ("csv", "CSV", "measurement file (may be left out with --contacts)", "?")])
     p.add_argument("--contacts", metavar="FILE", help="contact file: joint-only recordings of sockets, planes and "
                    "ball bars (docs/formats.md), fitted alone or with CSV")
     p.add_argument("--holdout-placement", type=common.names, metavar="NAMES",

@@ -28,6 +28,15 @@ class MissingExtra(Exception):
 Formatter = argparse.RawDescriptionHelpFormatter
 
 
+def command(sub, name: str, *, summary: str, description: str, example: str, inputs=()) -> argparse.ArgumentParser:
+    """A command's parser: its one-line help, its description, its examples below the options, and its
+    input files first, each ``(dest, METAVAR, help)`` or ``(dest, METAVAR, help, "?")`` when optional."""
+    p = sub.add_parser(name, help=summary, description=description, epilog=example, formatter_class=Formatter)
+    for dest, metavar, text, *nargs in inputs:
+        p.add_argument(dest, metavar=metavar, help=text, nargs=nargs[0] if nargs else None)
+    return p
+
+
 class Parser(argparse.ArgumentParser):
     """argparse, but a usage error is one line (``robocal CMD: error: ...``), never the usage block,
     and never echoes more than an excerpt of what was typed."""

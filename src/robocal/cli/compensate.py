@@ -17,14 +17,14 @@ for the pose the nominal model reaches at its readings."""
 
 
 def register(sub) -> None:
-    p = sub.add_parser("compensate", help="corrected joint commands for the calibrated robot",
+    p = common.command(sub, "compensate", summary="corrected joint commands for the calibrated robot",
                        description="Joint commands that put the calibrated robot where the nominal controller "
                                    "was asked to go, with the residual of each and a flag where a target is out "
                                    "of reach or beyond a joint limit.",
-                       epilog=EXAMPLE, formatter_class=common.Formatter)
-    p.add_argument("nominal", metavar="NOMINAL", help="the model the controller holds (YAML)")
-    p.add_argument("calibrated", metavar="CALIBRATED", help="the calibrated model (YAML)")
-    p.add_argument("targets", metavar="TARGETS.csv", help="targets: joint readings, or positions/poses in W")
+                       example=EXAMPLE,
+                       inputs=[("nominal", "NOMINAL", "the model the controller holds (YAML)"),
+                               ("calibrated", "CALIBRATED", "the calibrated model (YAML)"),
+                               ("targets", "TARGETS.csv", "targets: joint readings, or positions/poses in W")])
     p.add_argument("--out", required=True, metavar="CSV", help="corrected commands to write")
     p.add_argument("--marker", help="the marker to place (default the file's first marker, else the model's)")
     p.add_argument("--position-only", action="store_true",

@@ -20,11 +20,10 @@ hundreds of metres that cancel), unless --allow-ill-conditioned."""
 
 
 def register(sub) -> None:
-    p = sub.add_parser("export", help="write a model as URDF or a DH table",
+    p = common.command(sub, "export", summary="write a model as URDF or a DH table",
                        description="Write MODEL (a calibrated model file) as URDF, a modified-DH table or a classic "
                                    "DH table; each reproduces the model's forward kinematics.",
-                       epilog=EXAMPLE, formatter_class=common.Formatter)
-    p.add_argument("model", metavar="MODEL", help="model file (YAML), e.g. OUT/calibrated.yaml")
+                       example=EXAMPLE, inputs=[("model", "MODEL", "model file (YAML), e.g. OUT/calibrated.yaml")])
     p.add_argument("--format", required=True, choices=FORMATS, help="what to write")
     p.add_argument("--out", required=True, metavar="FILE", help="file to write")
     p.add_argument("--units", type=common.units, default="mm-deg", help="units of a DH table (default mm-deg)")

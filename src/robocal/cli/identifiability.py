@@ -11,12 +11,13 @@ EXAMPLE = """examples:
   robocal identifiability examples/th8/model.yaml examples/th8/measurements.csv"""
 
 def register(sub) -> None:
-    p = sub.add_parser("identifiability", help="which parameters can be identified, and what absorbs the others",
+    p = common.command(sub, "identifiability",
+                       summary="which parameters can be identified, and what absorbs the others",
                        description="Identifiability of the parameters at the poses of CSV, or at --poses random "
                                    "poses within the joint limits.",
-                       epilog=EXAMPLE, formatter_class=common.Formatter)
-    p.add_argument("model", metavar="MODEL", help="model file (YAML)")
-    p.add_argument("csv", metavar="CSV", nargs="?", help="measurement file (its poses); default random poses")
+                       example=EXAMPLE,
+                       inputs=[("model", "MODEL", "model file (YAML)"),
+                               ("csv", "CSV", "measurement file (its poses); default random poses", "?")])
     common.parameter_options(p)
     common.mass_options(p)
     p.add_argument("--poses", type=common.poses, default=200, metavar="N", help="random poses without CSV (default 200)")

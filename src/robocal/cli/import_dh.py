@@ -15,11 +15,10 @@ with its unit suffix (theta_deg, d_mm, ...), and optionally lower/upper limits; 
 
 
 def register(sub) -> None:
-    p = sub.add_parser("import-dh", help="write a robocal model file from a classic or modified DH table",
+    p = common.command(sub, "import-dh", summary="write a robocal model file from a classic or modified DH table",
                        description="Convert a DH table (classic or modified, told apart by its columns) into a "
                                    "robocal model file (modified DH with Hayati's beta where axes are parallel).",
-                       epilog=EXAMPLE, formatter_class=common.Formatter)
-    p.add_argument("table", metavar="TABLE.csv", help="DH table")
+                       example=EXAMPLE, inputs=[("table", "TABLE.csv", "DH table")])
     common.imported_model_options(p)
     p.add_argument("--name", help="robot name (default: the table's file name)")
     p.set_defaults(func=run)

@@ -16,11 +16,10 @@ tool point) are not branches, and joints beyond the point where a gripper's fing
 not imported."""
 
 def register(sub) -> None:
-    p = sub.add_parser("import-urdf", help="write a robocal model file from a URDF serial chain",
+    p = common.command(sub, "import-urdf", summary="write a robocal model file from a URDF serial chain",
                        description="Convert the chain of a URDF file (metres and radians by the URDF rule) "
                                    "into a robocal model file (modified DH with Hayati's beta).",
-                       epilog=EXAMPLE, formatter_class=common.Formatter)
-    p.add_argument("urdf", metavar="URDF", help="URDF file")
+                       example=EXAMPLE, inputs=[("urdf", "URDF", "URDF file")])
     common.imported_model_options(p)
     p.add_argument("--base-link", help="first link of the chain (default: the root link)")
     p.add_argument("--tip-link", help="last link of the chain (default: where the arm ends, below)")

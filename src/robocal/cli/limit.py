@@ -25,14 +25,12 @@ EXAMPLE = """example:
 
 'robocal calibrate --limit-mm limit.json' then judges a calibration against the figure."""
 
-def register(subparsers) -> None:
+def register(sub) -> None:
     """Add the ``limit`` subcommand to an argparse subparsers object (``run`` is set as ``func``)."""
-    p = subparsers.add_parser(
-        "limit", help="limit of absolute accuracy: repeatability + geometric-control precision",
-        description="Limit of absolute accuracy = ISO 9283 repeatability RP + the mean tool deviation "
-                    "caused by encoder resolution and parameter round-off (Monte Carlo).",
-        epilog=EXAMPLE, formatter_class=common.Formatter)
-    p.add_argument("model", help="robot model file")
+    p = common.command(sub, "limit", summary="limit of absolute accuracy: repeatability + geometric-control precision",
+                       description="Limit of absolute accuracy = ISO 9283 repeatability RP + the mean tool deviation "
+                                   "caused by encoder resolution and parameter round-off (Monte Carlo).",
+                       example=EXAMPLE, inputs=[("model", "MODEL", "robot model file")])
     rep = p.add_mutually_exclusive_group(required=True)
     rep.add_argument("--repeatability-csv", metavar="FILE",
                      help="repeated measurements, columns pose, cycle, x_mm, y_mm, z_mm (or x_m...)")

@@ -16,13 +16,12 @@ fill the columns in, and run 'robocal calibrate'. The predictions assume the ins
 
 
 def register(sub) -> None:
-    p = sub.add_parser("plan", help="choose the poses to measure and predict what they will give",
+    p = common.command(sub, "plan", summary="choose the poses to measure and predict what they will give",
                        description="Choose N poses (D- or I-optimal) from random configurations within the joint "
                                    "limits or from a candidate file, write them ready to be measured, and print the "
                                    "identifiable parameters, their predicted standard deviations and the predicted "
                                    "position error after calibration.",
-                       epilog=EXAMPLE, formatter_class=common.Formatter)
-    p.add_argument("model", metavar="MODEL", help="nominal model file (YAML)")
+                       example=EXAMPLE, inputs=[("model", "MODEL", "nominal model file (YAML)")])
     p.add_argument("--poses", type=common.poses, required=True, metavar="N", help="number of poses to choose")
     p.add_argument("--out", required=True, metavar="CSV", help="poses to write (measurement-file layout)")
     p.add_argument("--candidates", metavar="CSV", help="choose among these joint readings (e.g. collision-free "

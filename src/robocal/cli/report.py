@@ -9,9 +9,9 @@ EXAMPLE = """example:
   robocal report runs/mine/result.json --out report.html"""
 
 def register(sub) -> None:
-    p = sub.add_parser("report", help="write an HTML report of a result.json (needs robocal[report])",
+    p = common.command(sub, "report", summary="write an HTML report of a result.json (needs robocal[report])",
                        description="Write the self-contained HTML report of a calibration result file.",
-                       epilog=EXAMPLE, formatter_class=common.Formatter)
+                       example=EXAMPLE)
     p.add_argument("result", metavar="RESULT.json")
     p.add_argument("--out", required=True, metavar="FILE.html")
     p.add_argument("--force", action="store_true", help="overwrite an existing file")

@@ -9,10 +9,9 @@ EXAMPLE = """example:
   robocal simulate examples/th8/model.yaml --out sim.csv --poses 60 --seed 1 --true-model true.yaml"""
 
 def register(sub) -> None:
-    p = sub.add_parser("simulate", help="simulate a measurement campaign on a perturbed robot",
+    p = common.command(sub, "simulate", summary="simulate a measurement campaign on a perturbed robot",
                        description="Draw a 'true' robot near MODEL and write noisy measurements of it.",
-                       epilog=EXAMPLE, formatter_class=common.Formatter)
-    p.add_argument("model", metavar="MODEL", help="nominal model file (YAML)")
+                       example=EXAMPLE, inputs=[("model", "MODEL", "nominal model file (YAML)")])
     p.add_argument("--out", required=True, metavar="CSV", help="measurement file to write")
     p.add_argument("--poses", type=common.poses, required=True, metavar="N", help="number of random poses")
     p.add_argument("--seed", type=common.seed, default=0, help="random seed (default 0)")
