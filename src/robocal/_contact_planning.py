@@ -35,6 +35,7 @@ class SocketDesign:
     poses_per_socket: int
     n_seatings: int
     predicted_std: dict
+    units: dict                 # each parameter's SI unit
     unreachable: tuple[str, ...]
     worst: str
     worst_ratio: float          # predicted std over its bound for ``worst``
@@ -64,7 +65,8 @@ def _design(model: RobotModel, campaign: Contacts, names, placements: int, poses
     ratios = {n: s / bounds[lay[n].quantity] for n, s in zip(ident.identified, std)}
     worst = max(ratios, key=ratios.get)
     return SocketDesign(placements, poses, int(campaign.q.shape[0]), dict(zip(ident.identified, map(float, std))),
-                        tuple(u.name for u in ident.unreachable), worst, float(ratios[worst]))
+                        {n: lay[n].unit for n in ident.identified}, tuple(u.name for u in ident.unreachable), worst,
+                        float(ratios[worst]))
 
 
 def plan_sockets(model: RobotModel, *, placements=(3, 5, 7, 9), poses_per_socket=(20, 25, 30, 35),

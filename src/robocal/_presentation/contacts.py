@@ -59,3 +59,24 @@ def contact_summary(result) -> str:
     lines += checks_lines(result.checks)       # the same checks block and verdict line as a tracker fit
     lines.append(verdict_line(result))
     return "\n".join(lines)
+
+
+def socket_plan_summary(plan) -> str:
+    """What ``robocal plan-sockets`` prints: every design with its worst parameter against its bound,
+    then the recommendation and the chosen design's predicted standard deviations."""
+    d0 = plan.designs[0]
+    lines = [f"socket plate: {len(d0.predicted_std)} parameters reachable; unreachable: "
+             f"{', '.join(d0.unreachable) or 'none'}",
+             "placements  seatings/socket  seatings  worst parameter (predicted std / bound)"]
+    for d in plan.designs:
+        lines.append(f"  {d.placements:>9}  {d.poses_per_socket:>15}  {d.n_seatings:>8}  {d.worst} {d.worst_ratio:.3g}"
+                     + ("" if d.meets_bounds else "  (beyond)"))
+    if plan.chosen is None:
+        lines.append("no design of the grid keeps every parameter within its bound: more placements or seatings, "
+                     "or looser bounds")
+        return "\n".join(lines)
+    c = plan.chosen
+    lines.append(f"recommended: {c.placements} placements, {c.poses_per_socket} seatings per socket "
+                 f"({c.n_seatings} seatings); predicted standard deviations:")
+    lines += [f"  {n:<12} {with_unit(s, c.units[n])}" for n, s in c.predicted_std.items()]
+    return "\n".join(lines)

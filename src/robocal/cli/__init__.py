@@ -15,10 +15,11 @@ import warnings
 
 from .._errors import RobocalError, RobocalWarning
 from .._version import __version__
-from . import calibrate, compensate, export, identifiability, import_dh, import_urdf, limit, plan, report, simulate
+from . import (calibrate, compensate, export, identifiability, import_dh, import_urdf, limit, plan, plan_sockets,
+               report, simulate)
 from .common import MissingExtra, Parser
 
-COMMANDS = (plan, simulate, calibrate, compensate, export, identifiability, report, limit, import_urdf, import_dh)
+COMMANDS = (plan, plan_sockets, simulate, calibrate, compensate, export, identifiability, report, limit, import_urdf, import_dh)
 
 
 def build_parser() -> argparse.ArgumentParser:
