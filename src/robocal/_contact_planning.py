@@ -1,9 +1,10 @@
 """Planning a socket-plate campaign before the robot is booked: how many placements of the plate and
 how many seatings per socket, from the standard deviations each design predicts.
 
-A design is simulated on the nominal robot (``socket_campaign``: random seatings within the joint
-limits, the plate at random placements), its contact problem is linearised there, and the
-covariance the fit would report with the stated deviations is ``(J^T J)^-1`` (every row is already
+The largest design is simulated on the nominal robot (``socket_campaign``: random seatings within
+the joint limits, the plate at random placements) and each smaller one is its first placements and
+first seatings per socket (so more placements or seatings never predict worse). Each design's
+contact problem is linearised there, and the covariance the fit would report with the stated deviations is ``(J^T J)^-1`` (every row is already
 divided by its deviation). The recommended design is the smallest of the grid (fewest seatings)
 whose predicted standard deviations all stay within the practical-identifiability bounds
 (``WEAK_STD``, docs/checks.md).
@@ -89,11 +90,17 @@ def plan_sockets(model: RobotModel, *, placements=(3, 5, 7, 9), poses_per_socket
         raise InputError("placements and poses per socket must be positive counts", where="placements")
     names = candidate_parameters(model, parameters)
     bounds = {**WEAK_STD, **(bounds or {})}
+    placements, per = sorted(set(placements)), sorted(set(poses_per_socket))
+    # one campaign of the largest design; each smaller one takes its first placements and first
+    # seatings of each socket, so a larger design holds every row of a smaller one (never predicts worse)
+    full = socket_campaign(model, placements=placements[-1], poses_per_socket=per[-1], joint_noise=joint_noise,
+                           seat_noise=seat_noise, rng=np.random.default_rng(seed))
+    row = np.arange(full.n_rows)
+    seating, placement = row % per[-1], row // (full.n_rows // placements[-1])     # rows: placement, socket, seating
     designs, campaigns, ident = [], {}, None
-    for n_pl in sorted(set(placements)):
-        for n_po in sorted(set(poses_per_socket)):
-            c = socket_campaign(model, placements=n_pl, poses_per_socket=n_po, joint_noise=joint_noise,
-                                seat_noise=seat_noise, rng=np.random.default_rng(seed))
+    for n_pl in placements:
+        for n_po in per:
+            c = full.subset((placement < n_pl) & (seating < n_po))
             if ident is None:
                 ident = contact_identifiability(ContactProblem(model, c, names, compliance=False), names)
             designs.append(_design(model, c, names, n_pl, n_po, ident, bounds))
