@@ -11,13 +11,11 @@ a tall matrix with BLAS left at its default threads, which is what stalls when a
 
 from __future__ import annotations
 
-import argparse
 import os
 import platform
 import subprocess
 import sys
 import time
-import warnings
 
 import numpy as np
 import scipy
@@ -27,7 +25,7 @@ import robocal as rc
 from robocal.kinematics import parameter_vector
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from bench_identify import arm6r, solve  # noqa: E402
+from bench_identify import arm6r, options, solve  # noqa: E402
 
 
 def best_of(fn, repeat):
@@ -85,11 +83,7 @@ def figures(repeat: int, fk_poses: int) -> dict:
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--repeat", type=int, default=5)
-    ap.add_argument("--fk-poses", type=int, default=100_000)
-    args = ap.parse_args(argv)
-    warnings.simplefilter("ignore", rc.RobocalWarning)
+    args = options(__doc__, argv, repeat=5, fk_poses=100_000)
     threads = [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
     print(f"# robocal on a busy machine, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, "
           f"{platform.machine()}, {os.cpu_count()} cores, BLAS threads {threads}, numpy {np.__version__}, "

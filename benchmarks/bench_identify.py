@@ -67,12 +67,18 @@ def solve(model, data, families, jac):
     return run
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--repeat", type=int, default=5)
-    ap.add_argument("--fk-poses", type=int, default=100_000)
-    args = ap.parse_args(argv)
+def options(doc: str, argv, **defaults):
+    """The script's options (``--name`` for each default, typed like it), robocal's warnings silenced:
+    a benchmark times the work, not the checks' messages."""
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
+    for name, default in defaults.items():
+        ap.add_argument(f"--{name.replace('_', '-')}", type=type(default), default=default)
     warnings.simplefilter("ignore", rc.RobocalWarning)
+    return ap.parse_args(argv)
+
+
+def main(argv=None):
+    args = options(__doc__, argv, repeat=5, fk_poses=100_000)
     print(f"# robocal identification benchmark, {time.strftime('%Y-%m-%d')}, {platform.machine()}, "
           f"{os.cpu_count()} cores, numpy {np.__version__}, scipy {scipy.__version__}; best of {args.repeat}")
     print("\n## Geometric identification, 6R arm\n")

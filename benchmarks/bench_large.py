@@ -13,12 +13,10 @@ the largest relative difference of the parameters.
 
 from __future__ import annotations
 
-import argparse
 import os
 import resource
 import sys
 import time
-import warnings
 
 import numpy as np
 
@@ -27,7 +25,7 @@ from robocal.identification import Problem, solve
 from robocal.kinematics import parameter_vector
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from bench_identify import arm6r  # noqa: E402
+from bench_identify import arm6r, options  # noqa: E402
 
 
 def peak_mb() -> float:
@@ -35,11 +33,7 @@ def peak_mb() -> float:
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--poses", type=int, default=1_000_000)
-    ap.add_argument("--check-poses", type=int, default=10_000)
-    args = ap.parse_args(argv)
-    warnings.simplefilter("ignore", rc.RobocalWarning)
+    args = options(__doc__, argv, poses=1_000_000, check_poses=10_000)
     print(f"# large campaigns, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, load average "
           f"{os.getloadavg()[0]:.1f}")
     m = arm6r(False)
