@@ -5,9 +5,9 @@ The largest design is simulated on the nominal robot (``socket_campaign``: rando
 the joint limits, the plate at random placements) and each smaller one is its first placements and
 first seatings per socket (so more placements or seatings never predict worse). Each design's
 contact problem is linearised there, and the covariance the fit would report with the stated
-deviations is ``(J^T J)^-1`` (every row is already divided by its deviation). The recommended design is the smallest of the grid (fewest seatings)
-whose predicted standard deviations all stay within the practical-identifiability bounds
-(``WEAK_STD``, docs/checks.md).
+deviations is ``(J^T J)^-1`` (every row is already divided by its deviation). The recommended
+design is the smallest of the grid (fewest seatings) whose predicted standard deviations all stay
+within the practical-identifiability bounds (``WEAK_STD``, docs/checks.md).
 """
 
 from __future__ import annotations
