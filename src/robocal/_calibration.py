@@ -14,11 +14,10 @@ from datetime import datetime, timezone
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ._checks import (FIT_RATIO, OUTLIER_SHARE_MAX, ROBOT_RESIDUAL_MAX, Check, backlash_sign_check, cloud_size_check, compliance_sign_check,
-                      convergence_check,
-                      correlation_check, expected_noise, fit_check, identifiability_check, markers_check,
-                      outlier_check, plausibility_check, reading_units_check, readings_check, support_check,
-                      tolerances, verdict)
+from ._checks import (FIT_RATIO, OUTLIER_SHARE_MAX, ROBOT_RESIDUAL_MAX, Check, backlash_sign_check,
+                      cloud_size_check, compliance_sign_check, convergence_check, correlation_check, expected_noise,
+                      fit_check, identifiability_check, markers_check, outlier_check, plausibility_check,
+                      reading_units_check, readings_check, support_check, tolerances, verdict)
 from ._errors import (CheckWarning, ConvergenceWarning, DegenerateDataError, IdentifiabilityWarning, InputError,
                       MisfitWarning, check_choice)
 from ._identifiability import (DEFAULT_TOL, IdentifiabilityResult, analyse, backlash_reasons,
@@ -29,7 +28,8 @@ from ._measurements import Measurements, Noise
 from ._options import DEFAULT_INSTRUMENT, INITIAL_BASES, LOSSES, OUTLIER_ACTIONS, WEAK_ACTIONS
 from ._misfit import characteristic_length, misfit_notes
 from ._model import RobotModel
-from ._parameters import candidate_parameters, matched_by_pattern, model_from_vector, parameter_layout, parameter_vector
+from ._parameters import (candidate_parameters, matched_by_pattern, model_from_vector, parameter_layout,
+                          parameter_vector)
 from ._problem import Problem, needs_compliance
 from ._solve import Covariance, Solution, covariance, solve
 from ._threads import one_blas_thread
@@ -225,6 +225,19 @@ class _Design:
     weak_kept: bool = False
 
 
+@dataclass(frozen=True, eq=False)
+class _Analysis:
+    """What the data can identify, before asking what they can pin down: the problem over the
+    candidates, its Jacobian at the start, the rank analysis and what these poses lose."""
+
+    problem: Problem
+    J: np.ndarray
+    names: tuple[str, ...]
+    identifiability: IdentifiabilityResult
+    lost: tuple[str, ...]
+    compliance: bool
+
+
 @one_blas_thread
 def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",), known=(),
               validation: Measurements | None = None, loss: str = "linear", f_scale: float | None = None,
@@ -335,15 +348,15 @@ def _identify(start: RobotModel, data: Measurements, parameters: tuple, known: t
     repeatability or an unmodelled effect explains, they are judged again at the scatter the fit
     shows, and the fit repeated without those it cannot pin down. Larger residuals are a mistake in
     the data or the model, which the checks name; they are left to them."""
-    design = _analyse(start, data, parameters, known, tol, notes, noise=noise, limit_m=limit_m, weak=weak)
+    analysis = _analyse(start, data, parameters, known, tol, notes, noise=noise)
+    design = _pin_down(start, analysis, noise, limit_m, weak)
     solved = _solve(design, data, noise, notes, **solve_options)
     expected, _ = expected_noise(noise, limit_m)
     scatter = _scatter(design, solved[0], data, solved[2])
     if weak != "eliminate" or solved[2].any() or not FIT_RATIO * expected < scatter <= ROBOT_RESIDUAL_MAX:
         return design, solved
     try:
-        wider = _analyse(start, data, parameters, known, tol, [], noise=noise, limit_m=limit_m, weak=weak,
-                         scatter=scatter)
+        wider = _pin_down(start, analysis, noise, limit_m, weak, scatter)
     except DegenerateDataError:
         return design, solved
     if wider.identifiability.identified == design.identifiability.identified:
@@ -361,8 +374,8 @@ def _scatter(design: _Design, solution: Solution, data: Measurements, outlying: 
 
 
 def _analyse(start: RobotModel, data: Measurements, parameters: tuple, known: tuple, tol: float,
-             notes: list, *, noise: Noise, limit_m: float | None, weak: str, scatter: float = 0.0) -> _Design:
-    """Which candidates the data can identify, and pin down; refuse data that cannot determine them."""
+             notes: list, *, noise: Noise) -> _Analysis:
+    """Which candidates the data can identify; refuse data that cannot determine them."""
     orientation = data.has_orientation
     names = candidate_parameters(start, parameters, orientation=orientation, known=known)
     notes += [f"parameters {p!r} matched: {', '.join(m)}" for p, m in matched_by_pattern(start, parameters,
@@ -388,14 +401,23 @@ def _analyse(start: RobotModel, data: Measurements, parameters: tuple, known: tu
     ident = analyse(J, names, tol=tol, quantities=[lay[n].quantity for n in names], n_rows=prob.n_rows)
     ident = backlash_reasons(ident, prob)
     lost = tuple(n for n in theory.identified if n not in ident.identified and n in names)
-    ident, weak_found = _weak(prob, J, names, ident, noise, limit_m, scatter, eliminate=weak == "eliminate")
+    return _Analysis(prob, J, names, ident, lost, compliance)
+
+
+def _pin_down(start: RobotModel, analysis: _Analysis, noise: Noise, limit_m: float | None, weak: str,
+              scatter: float = 0.0) -> _Design:
+    """The design over what the data can also pin down at the expected noise (or at ``scatter``, m,
+    when the fit showed more)."""
+    prob = analysis.problem
+    ident, weak_found = _weak(prob, analysis.J, analysis.names, analysis.identifiability, noise, limit_m, scatter,
+                              eliminate=weak == "eliminate")
     if not ident.identified:
         raise DegenerateDataError("no parameter is identifiable from these data")
     free = prob.over(ident.identified)   # the solve starts where the analysis evaluated the model
     if free.n_rows <= len(ident.identified):
         raise DegenerateDataError(f"{free.n_rows} equations for {len(ident.identified)} parameters")
     return _Design(start=start, p0=parameter_vector(start), problem=free, identifiability=ident,
-                   compliance=compliance, lost=lost, weak=weak_found, weak_kept=weak == "flag")
+                   compliance=analysis.compliance, lost=analysis.lost, weak=weak_found, weak_kept=weak == "flag")
 
 
 def _weak(prob: Problem, J: np.ndarray, names, ident: IdentifiabilityResult, noise: Noise, limit_m,
@@ -419,7 +441,7 @@ def _weak(prob: Problem, J: np.ndarray, names, ident: IdentifiabilityResult, noi
         said += [(n, _effect(e, lay[by].quantity) + ("" if by == n else f" of {by} with it")) for n, by, e, _ in found]
         if not found or not eliminate:
             return result, tuple(said)
-        dropped.update({n: f"is weakly identifiable: " + (f"predicted std {_effect(e, lay[n].quantity)} exceeds "
+        dropped.update({n: "is weakly identifiable: " + (f"predicted std {_effect(e, lay[n].quantity)} exceeds "
                            if by == n else f"with it, {by}'s predicted std {_effect(e, lay[by].quantity)} exceeds ")
                         + _effect(b, lay[by].quantity) for n, by, e, b in found})
         result = eliminate_parameters(ident, J, names, quantities, dropped, n_rows=prob.n_rows)

@@ -5,8 +5,6 @@ from __future__ import annotations
 import csv
 import io
 
-import numpy as np
-
 from .._compensation import Compensation
 from .._model import RobotModel
 from .._units import ANGLE_UNITS, LENGTH_UNITS, parse_units

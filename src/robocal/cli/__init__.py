@@ -19,7 +19,8 @@ from . import (calibrate, compensate, export, identifiability, import_dh, import
                report, simulate)
 from .common import MissingExtra, Parser
 
-COMMANDS = (plan, plan_sockets, simulate, calibrate, compensate, export, identifiability, report, limit, import_urdf, import_dh)
+COMMANDS = (plan, plan_sockets, simulate, calibrate, compensate, export, identifiability, report, limit, import_urdf,
+            import_dh)
 
 
 def build_parser() -> argparse.ArgumentParser:
