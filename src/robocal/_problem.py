@@ -19,10 +19,15 @@ from scipy.spatial.transform import Rotation
 
 from ._errors import InputError
 from ._kinematics import CHUNK_POSES, LARGE_POSES, evaluate_state, frame_approach, jacobian_columns, layout
+from ._linalg import reduced
 from ._measurements import Measurements, Noise, approach_of
 from ._model import RobotModel
 from ._parameters import has_backlash_parameters, has_compliance_parameters
 from ._threads import one_blas_thread
+
+
+# evaluations a problem keeps, most recently used first out last
+STATES_KEPT = 4
 
 
 class Problem:
@@ -59,8 +64,7 @@ class Problem:
             self.sel_r = [np.nonzero(data.rot_mask[:, j])[0] for j in range(len(data.marker_names))]
             sr = data.sigma_rot if data.sigma_rot is not None else (noise.rotation if noise is not None else 1.0)
             self.w_r = [1.0 / np.broadcast_to(sr, data.rot_mask.shape)[s, j] for j, s in enumerate(self.sel_r)]
-        self._cache_key = None
-        self._cache = None
+        self._states = {}    # shared with the problems ``over`` makes: they evaluate the same poses
         if chunked is None:
             chunked = data.n_poses > LARGE_POSES
         if chunked and (self.use_rot or self.backlash):
@@ -85,15 +89,16 @@ class Problem:
         R, g, cost = np.zeros((0, k)), np.zeros(k), 0.0
         for sub in self._chunks() if self.chunked else (self,):
             J, r = sub.jacobian(p), sub.residuals(p)
-            R = np.linalg.qr(np.vstack([R, J]), mode="r")
+            R = reduced(np.vstack([R, J]))
             g += J.T @ r
             cost += float(r @ r)
         return R, g, cost
 
     def reduced_jacobian(self, p) -> np.ndarray:
-        """The weighted Jacobian at ``p``, or for a large campaign its R factor: a matrix with the
-        same Gram matrix, which is all the identifiability analysis needs."""
-        return self.normal_equations(p)[0] if self.chunked else self.jacobian(p)
+        """The R factor of the weighted Jacobian at ``p`` (by QR: the candidates' columns may be
+        dependent): a (k, k) matrix with the same Gram matrix, which is all the identifiability
+        analysis needs."""
+        return self.normal_equations(p)[0] if self.chunked else reduced(self.jacobian(p))
 
     def _indices(self, free) -> np.ndarray:
         index = {n: i for i, n in enumerate(self.lay.names)}
@@ -121,13 +126,18 @@ class Problem:
         return p
 
     def _state(self, p):
+        """The evaluation at ``p``; the last ``STATES_KEPT`` are kept (the start is asked for again
+        after the solve, by the fit of the errors before calibration)."""
         key = p.tobytes()
-        if key != self._cache_key:
-            self._cache = evaluate_state(self.model, self.lay, p, self.qf, compliance=self.compliance,
-                                         orientations=self.use_rot, payload_mass=self.data.payload_mass,
-                                         backlash=self.backlash, approach=self.approach)
-            self._cache_key = key
-        return self._cache
+        st = self._states.pop(key, None)
+        if st is None:
+            st = evaluate_state(self.model, self.lay, p, self.qf, compliance=self.compliance,
+                                orientations=self.use_rot, payload_mass=self.data.payload_mass,
+                                backlash=self.backlash, approach=self.approach)
+            if len(self._states) >= STATES_KEPT:
+                self._states.pop(next(iter(self._states)))
+        self._states[key] = st
+        return st
 
     def _positions(self, p) -> np.ndarray:
         """(n_model_markers, n_poses, 3) marker positions at ``p``."""

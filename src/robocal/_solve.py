@@ -13,6 +13,7 @@ from scipy.optimize import least_squares
 
 from ._errors import DegenerateDataError, InputError, check_choice
 from ._identifiability import singular_values
+from ._linalg import r_factor, reduced
 from ._options import LOSSES
 from ._problem import LARGE_POSES, Problem
 from ._threads import one_blas_thread
@@ -48,21 +49,26 @@ def solve(problem: Problem, p0: np.ndarray, *, loss: str = "linear", f_scale: fl
           max_nfev: int | None = None, lower: np.ndarray | None = None) -> Solution:
     """Minimise the problem's residuals over its free parameters, starting from ``p0`` (full vector).
 
-    ``loss="linear"`` is Levenberg-Marquardt (MINPACK) with the analytic Jacobian and Jacobian
-    column scaling; a robust loss runs scipy's trust-region solver. Without ``f_scale`` a robust
-    loss bends at ``ROBUST_SCALE_SIGMAS`` robust standard deviations (median absolute deviation)
+    ``loss="linear"`` is Levenberg-Marquardt on the normal equations with the analytic Jacobian
+    (``_levenberg_marquardt``). A robust loss runs scipy's trust-region solver; without ``f_scale``
+    it bends at ``ROBUST_SCALE_SIGMAS`` robust standard deviations (median absolute deviation)
     of the residuals, re-estimated from the robust fit until it settles: the first, non-robust fit
     spreads outliers over every residual. ``lower`` (n_free,): lower bounds (-inf for none), which
     need the trust-region solver.
     """
     check_choice(loss, LOSSES, "loss")
-    x0 = p0[problem.free_idx]
     bounded = lower is not None and bool(np.any(np.isfinite(lower)))
+    if loss == "linear" and not bounded:
+        return _levenberg_marquardt(problem, p0, max_nfev)
     if getattr(problem, "chunked", False):   # problems of other observations are solved whole
-        if loss != "linear" or bounded:
-            raise InputError(f"a campaign of over {LARGE_POSES} poses is solved in chunks, with the linear loss and "
-                             "without bounds only")
-        return _solve_normal(problem, p0, max_nfev)
+        raise InputError(f"a campaign of over {LARGE_POSES} poses is solved in chunks, with the linear loss and "
+                         "without bounds only")
+    return _trust_region(problem, p0, loss, f_scale, max_nfev, lower if bounded else None)
+
+
+def _trust_region(problem: Problem, p0: np.ndarray, loss: str, f_scale, max_nfev, lower) -> Solution:
+    """scipy's solvers, for a robust loss or bounds."""
+    x0 = p0[problem.free_idx]
 
     def fun(x):
         return problem.residuals(problem.full(x, p0))
@@ -71,17 +77,13 @@ def solve(problem: Problem, p0: np.ndarray, *, loss: str = "linear", f_scale: fl
         return problem.jacobian(problem.full(x, p0))
 
     kw = dict(jac=jac, x_scale="jac", xtol=SOLVER_TOL, ftol=SOLVER_TOL, gtol=SOLVER_TOL, max_nfev=max_nfev)
-    if bounded:
+    if lower is not None:
         x0 = np.maximum(x0, lower)
         kw["bounds"] = (lower, np.full(len(x0), np.inf))
-    if loss == "linear" and bounded:
-        sol = least_squares(fun, x0, method="trf", **kw)
-    elif loss == "linear":
-        sol = least_squares(fun, x0, method="lm", **kw)
-    elif f_scale is not None:
-        sol = least_squares(fun, x0, method="trf", loss=loss, f_scale=f_scale, **kw)
+    if loss == "linear" or f_scale is not None:
+        sol = least_squares(fun, x0, method="trf", loss=loss, f_scale=f_scale or 1.0, **kw)
     else:
-        sol = least_squares(fun, x0, method="trf" if bounded else "lm", **kw)
+        sol = least_squares(fun, x0, method="trf" if lower is not None else "lm", **kw)
         for _ in range(6):
             mad = 1.4826 * float(np.median(np.abs(sol.fun - np.median(sol.fun))))
             new_scale = max(ROBUST_SCALE_SIGMAS * mad, 1e-12)
@@ -90,48 +92,100 @@ def solve(problem: Problem, p0: np.ndarray, *, loss: str = "linear", f_scale: fl
             f_scale = new_scale
             sol = least_squares(fun, sol.x, method="trf", loss=loss, f_scale=f_scale, **kw)
     p = problem.full(sol.x, p0)
-    # least_squares returns the Jacobian at the solution, reweighted by a robust loss
-    residuals = sol.fun if loss == "linear" else problem.residuals(p)
-    jacobian = sol.jac if loss == "linear" and not bounded else problem.jacobian(p)
-    return Solution(p=p, residuals=residuals, jacobian=jacobian, success=bool(sol.status > 0),
+    return Solution(p=p, residuals=problem.residuals(p), jacobian=problem.jacobian(p), success=bool(sol.status > 0),
                     status=int(sol.status), message=str(sol.message), nfev=int(sol.nfev), loss=loss,
                     f_scale=None if loss == "linear" else float(f_scale), row_kinds=problem.row_kinds())
 
 
-def _solve_normal(problem: Problem, p0: np.ndarray, max_nfev: int | None) -> Solution:
-    """Levenberg-Marquardt on the normal equations, accumulated chunk by chunk (``problem.chunked``).
+@dataclass(frozen=True, eq=False)
+class _Normal:
+    """The normal equations at one point: the R factor of the weighted Jacobian (``R^T R = J^T J``),
+    the gradient ``J^T r``, the sum of squares, and the Jacobian itself when it was formed whole."""
 
-    Each step solves ``(R^T R + lam D^2) dx = -J^T r`` through the QR factor of ``[R; sqrt(lam) D]``,
-    D the Jacobian's column norms (scipy's ``x_scale="jac"``); the stopping tests are MINPACK's
-    with ``SOLVER_TOL``. The returned ``jacobian`` is the R factor at the solution.
+    R: np.ndarray
+    g: np.ndarray
+    cost: float
+    J: np.ndarray | None
+
+
+def _normal_equations(problem, p: np.ndarray) -> _Normal:
+    """At ``p``: chunk by chunk for a large campaign, else from the Jacobian formed whole (its R
+    factor through the Gram matrix when well conditioned, ``r_factor``)."""
+    if getattr(problem, "chunked", False):
+        return _Normal(*problem.normal_equations(p), J=None)
+    J, r = problem.jacobian(p), problem.residuals(p)
+    return _Normal(R=r_factor(J), g=J.T @ r, cost=float(r @ r), J=J)
+
+
+def _step(R: np.ndarray, g: np.ndarray, D: np.ndarray, lam: float) -> np.ndarray:
+    """The step solving ``(R^T R + lam D^2) dx = -g``; Gauss-Newton for ``lam = 0``."""
+    A = R if lam == 0.0 else reduced(np.vstack([R, np.sqrt(lam) * np.diag(D)]))
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        return -solve_triangular(A, solve_triangular(A, g, trans="T", check_finite=False), check_finite=False)
+
+
+_MESSAGES = {0: "the maximum number of function evaluations is exceeded",
+             1: "the gradient is orthogonal to the residuals within gtol",
+             2: "the relative reduction of the sum of squares is below ftol",
+             3: "the relative step is below xtol",
+             4: "the relative step is below xtol and the reduction of the sum of squares below ftol"}
+
+
+def _levenberg_marquardt(problem, p0: np.ndarray, max_nfev: int | None, tol: float = SOLVER_TOL) -> Solution:
+    """Levenberg-Marquardt on the normal equations (``_Normal``), chunk by chunk for a large campaign.
+
+    Each step solves ``(R^T R + lam D^2) dx = -J^T r``, D the largest column norms of the Jacobian
+    met so far (MINPACK's scaling, scipy's ``x_scale="jac"``); ``lam`` starts at 0 (Gauss-Newton)
+    and grows tenfold while a step fails to reduce the sum of squares. Stops, with MINPACK's
+    tests at ``SOLVER_TOL``, when the gradient is orthogonal to the residuals, when the step
+    left is below xtol relative to the parameters (the step is not taken: it changes nothing
+    measurable), or when a step reduces the sum of squares by less than ftol relative. Only a
+    step taken needs the Jacobian at its end. ``jacobian`` of the solution is the R factor
+    there, or the Jacobian itself when rows of several kinds need it (``covariance``).
     """
-    free = problem.free_idx
-    x = p0[free].astype(float)
-    R, g, cost = problem.normal_equations(p0)
-    nfev, lam, k = 1, 0.0, len(x)
+    x = p0[problem.free_idx].astype(float)
+    k = len(x)
     max_nfev = 100 * (k + 1) if max_nfev is None else max_nfev
-    D = np.maximum(np.linalg.norm(R, axis=0), np.finfo(float).tiny)
-    status, message = 0, "the maximum number of function evaluations is exceeded"
-    while nfev < max_nfev:
-        A = R if lam == 0.0 else np.linalg.qr(np.vstack([R, np.sqrt(lam) * np.diag(D)]), mode="r")
-        dx = -solve_triangular(A, solve_triangular(A, g, trans="T"))
-        x_new = x + dx
-        R_new, g_new, cost_new = problem.normal_equations(problem.full(x_new, p0))
-        nfev += 1
-        if cost_new <= cost:
-            reduction = (cost - cost_new) / cost if cost > 0 else 0.0
-            small_step = np.linalg.norm(D * dx) <= SOLVER_TOL * (SOLVER_TOL + np.linalg.norm(D * x_new))
-            x, R, g, cost, lam = x_new, R_new, g_new, cost_new, lam / 10.0 if lam > 1e-12 else 0.0
-            if small_step or reduction <= SOLVER_TOL:
-                status = 2 if small_step else 1
-                message = ("the relative step is below xtol" if small_step else
-                           "the relative reduction of the sum of squares is below ftol")
-                break
-        else:
+    ne = _normal_equations(problem, p0)
+    nfev, lam, status = 1, 0.0, 0
+    D = np.zeros(k)
+    while True:
+        D = np.maximum(D, np.linalg.norm(ne.R, axis=0))
+        scale = np.where(D > 0, D, 1.0)
+        if ne.cost == 0.0 or np.max(np.abs(ne.g) / (scale * np.sqrt(ne.cost))) <= tol:
+            status = 1
+            break
+        if nfev >= max_nfev:
+            break
+        dx = _step(ne.R, ne.g, scale, lam)
+        if not np.all(np.isfinite(dx)):      # a singular factor: damp until the step exists
             lam = max(10.0 * lam, 1e-3)
+            continue
+        small_step = np.linalg.norm(scale * dx) <= tol * (tol + np.linalg.norm(scale * x))
+        # the reduction the step promises (linear model): when it is below ftol, taking it changes nothing
+        promised = -(2.0 * float(ne.g @ dx) + float(np.sum((ne.R @ dx) ** 2)))
+        if small_step or promised <= tol * ne.cost:
+            status = 4 if small_step and promised <= tol * ne.cost else (3 if small_step else 2)
+            break
+        x_new = x + dx
+        r_new = problem.residuals(problem.full(x_new, p0))
+        nfev += 1
+        cost_new = float(r_new @ r_new)
+        if not cost_new <= ne.cost:
+            lam = max(10.0 * lam, 1e-3)
+            continue
+        converged = ne.cost - cost_new <= tol * ne.cost
+        x, ne = x_new, _normal_equations(problem, problem.full(x_new, p0))
+        lam = lam / 10.0 if lam > 1e-12 else 0.0
+        if converged:
+            status = 2
+            break
     p = problem.full(x, p0)
-    return Solution(p=p, residuals=problem.residuals(p), jacobian=R, success=status > 0, status=status,
-                    message=message, nfev=nfev, loss="linear", f_scale=None, row_kinds=None)
+    kinds = problem.row_kinds()
+    several = kinds is not None and len(np.unique(kinds)) > 1
+    return Solution(p=p, residuals=problem.residuals(p), jacobian=ne.J if several and ne.J is not None else ne.R,
+                    success=status > 0, status=status, message=_MESSAGES[status], nfev=nfev, loss="linear",
+                    f_scale=None, row_kinds=kinds if several else None)
 
 
 @dataclass(frozen=True, eq=False)
