@@ -266,14 +266,15 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
     _check_inputs(model, data, validation, loss=loss, initial_base=initial_base, on_outliers=on_outliers, weak=weak)
     noise = noise if isinstance(noise, Noise) else Noise.of(noise or DEFAULT_INSTRUMENT)
     limit_m = None if limit is None else float(getattr(limit, "limit", limit))
-    checks = [readings_check(model, data), reading_units_check(model, data),
-              cloud_size_check(model, data, _predicted(model, data)), markers_check(model, data)]
+    checks = [readings_check(model, data), reading_units_check(model, data), markers_check(model, data)]
     notes = list(model.notes) + list(data.extra.get("notes", ()))  # what the readers decided for the user
     start = _starting_model(model, data, initial_base, notes)
     design, (solution, outlier_check, outlying) = _identify(
         start, data, parameters, known + _unmeasured(model, data), tol, notes, noise=noise, limit_m=limit_m,
         weak=weak, solve_options=dict(loss=loss, f_scale=f_scale, max_nfev=max_nfev, on_outliers=on_outliers,
                                       nonnegative_compliance=nonnegative_compliance))
+    # the nominal robot's spread, from the analysis' evaluation of the start (a base pose changes no spread)
+    checks.insert(2, cloud_size_check(model, data, design.problem.predicted(design.p0)[0]))
     cov = covariance(solution)
     estimates = _estimates(design, solution, cov)
     checks += [outlier_check] + _result_checks(design, solution, cov, estimates, data, noise, limit_m, outlying)
@@ -317,12 +318,6 @@ def _check_inputs(model: RobotModel, data: Measurements, validation, *, loss: st
             if n not in model.marker_names:
                 raise InputError(f"marker {n!r} is not in the model (markers: {', '.join(model.marker_names)})",
                                  source=src)
-
-
-def _predicted(model: RobotModel, data: Measurements) -> np.ndarray:
-    """Nominal marker positions (n_poses, n_data_markers, 3) at the data's readings."""
-    ev = evaluate(model, data.q, payload_mass=data.payload_mass)
-    return ev.positions[:, [model.marker_names.index(n) for n in data.marker_names]]
 
 
 def _unmeasured(model: RobotModel, data: Measurements) -> tuple[str, ...]:
@@ -383,7 +378,7 @@ def _analyse(start: RobotModel, data: Measurements, parameters: tuple, known: tu
     compliance = needs_compliance(start, names)
     measured = tuple(n for j, n in enumerate(data.marker_names) if data.mask[:, j].any())
     theory = theoretical_identifiability(start, parameters, known, orientation, tol, measured)
-    n_unique = len(np.unique(data.q, axis=0))
+    n_unique = _distinct_rows(data.q)
     if n_unique < data.n_poses:
         notes.append(f"{data.n_poses - n_unique} of {data.n_poses} poses repeat an earlier joint configuration "
                      "exactly: they average noise but add no information")
@@ -402,6 +397,13 @@ def _analyse(start: RobotModel, data: Measurements, parameters: tuple, known: tu
     ident = backlash_reasons(ident, prob)
     lost = tuple(n for n in theory.identified if n not in ident.identified and n in names)
     return _Analysis(prob, J, names, ident, lost, compliance)
+
+
+def _distinct_rows(q: np.ndarray) -> int:
+    """The number of distinct rows of ``q``, compared as bytes (several times faster than numpy's
+    row-wise unique; + 0.0 makes -0.0 and 0.0 alike)."""
+    rows = np.ascontiguousarray(q + 0.0)
+    return len(np.unique(rows.view(np.dtype((np.void, rows.dtype.itemsize * rows.shape[1]))).ravel()))
 
 
 def _pin_down(start: RobotModel, analysis: _Analysis, noise: Noise, limit_m: float | None, weak: str,
@@ -484,10 +486,23 @@ def _solve(design: _Design, data: Measurements, noise: Noise, notes: list, *, lo
 
 def _outliers(design: _Design, solution: Solution, data: Measurements, noise: Noise):
     residuals = design.problem.errors(solution.p)[data.mask]
-    rows, markers = np.nonzero(data.mask)
-    labels = [f"{data.labels[i]}, marker {data.marker_names[j]}" for i, j in zip(rows, markers)]
+    labels = _PointLabels(data)
     sigma = None if data.sigma is None else data.sigma[data.mask]
     return outlier_check(residuals, sigma, noise, labels)
+
+
+class _PointLabels:
+    """The label of each measured point (pose, marker), made only for those a check names."""
+
+    def __init__(self, data: Measurements):
+        self.data = data
+        self.rows, self.markers = np.nonzero(data.mask)
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    def __getitem__(self, i: int) -> str:
+        return f"{self.data.labels[self.rows[i]]}, marker {self.data.marker_names[self.markers[i]]}"
 
 
 def _result_checks(design: _Design, solution: Solution, cov: Covariance, estimates, data: Measurements,

@@ -16,6 +16,7 @@ from functools import lru_cache
 import numpy as np
 from scipy.linalg import solve_triangular
 
+from ._linalg import reduced
 from ._measurements import Measurements
 from ._model import RobotModel
 from ._parameters import FRAME_KINDS, candidate_parameters, parameter_layout, parameter_vector
@@ -94,18 +95,6 @@ def singular_values(A: np.ndarray, vectors: bool = False):
     return np.linalg.svd(A, compute_uv=False)
 
 
-def reduced(A: np.ndarray) -> np.ndarray:
-    """A matrix with the same Gram matrix as ``A`` (n_rows, k) and at most k rows: its R factor
-    when ``A`` is tall, else ``A`` itself.
-
-    Inner products, norms, least-squares residuals and singular values of the columns are those
-    of ``A``, so every column analysis runs on k x k numbers instead of the stacked rows.
-    """
-    if A.shape[0] > A.shape[1]:
-        return np.linalg.qr(A, mode="r")
-    return A
-
-
 @one_blas_thread
 def analyse(J: np.ndarray, names, *, quantities=None, tol: float = DEFAULT_TOL, max_terms: int = 6,
             n_rows: int | None = None) -> IdentifiabilityResult:
@@ -173,17 +162,12 @@ def _preference_qr(An: np.ndarray, nz: np.ndarray, tol: float):
     for k in np.nonzero(nz)[0]:
         a = An[:, k]
         B = basis[:, :len(kept)]
-        # project twice: one classical Gram-Schmidt pass loses orthogonality for nearly dependent columns
-        r1 = B.T @ a
-        res = a - B @ r1
-        r2 = B.T @ res
-        res = res - B @ r2
-        nr = np.linalg.norm(res)
+        proj, nr = _project(B, a)
         if nr > tol:
             j = len(kept)
-            Rk[:j, j] = r1 + r2
+            Rk[:j, j] = proj
             Rk[j, j] = nr
-            basis[:, j] = res / nr
+            basis[:, j] = (a - B @ proj) / nr
             kept.append(int(k))
         else:
             dep.append(int(k))
@@ -306,23 +290,43 @@ def weakly_identifiable(J: np.ndarray, names, quantities, sigma: float, *, momen
     limit = np.array([bounds.get(q, np.inf) for q in quantities])
     norms = np.linalg.norm(J, axis=0)
     norms[norms == 0] = 1.0
-    # J^T J of any subset of columns is R_S^T R_S: one QR, then only k x k work per trial
-    R = np.linalg.qr(J / norms, mode="r") if J.shape[0] >= J.shape[1] else J / norms
+    A = reduced(J / norms)
+    # the kept columns' QR grows one column at a time: Q (orthonormal), the rows of R^-1 and their
+    # squared norms, so each trial's (A^T A)^-1 diagonal costs one projection (docs/method.md 4)
+    Q = np.zeros((A.shape[0], len(names)))
+    Rinv = np.zeros((len(names), len(names)))
+    inv_diag = np.zeros(len(names))
     kept: list[int] = []
     out = []
     for k in range(len(names)):
+        j = len(kept)
+        proj, s = _project(Q[:, :j], A[:, k])
+        # R' = [[R, proj], [0, s]]: its inverse gains the column [-R^-1 proj / s; 1 / s]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            c = -(Rinv[:j, :j] @ proj) / s
+            trial_diag = np.append(inv_diag[:j] + c ** 2, 1.0 / s ** 2)
         trial = kept + [k]
-        A = R[:, trial]
-        s, vt = np.linalg.svd(A, full_matrices=False)[1:]
-        inv_diag = np.sum((vt / np.maximum(s, s[0] * 1e-15)[:, None]) ** 2, axis=0)
-        effect = sigma * np.sqrt(inv_diag) / norms[trial] * scale[trial]
+        effect = sigma * np.sqrt(np.nan_to_num(trial_diag, nan=np.inf)) / norms[trial] * scale[trial]
         ratio = effect / limit[trial]
         worst = int(np.argmax(ratio))
         if ratio[worst] > 1.0:
             out.append((names[k], names[trial[worst]], float(effect[worst]), float(limit[trial[worst]])))
-        else:
-            kept.append(k)
+            continue
+        Q[:, j] = (A[:, k] - Q[:, :j] @ proj) / s
+        Rinv[:j, j], Rinv[j, j] = c, 1.0 / s
+        inv_diag[:j + 1] = trial_diag
+        kept.append(k)
     return out
+
+
+def _project(B: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, float]:
+    """The coordinates of ``a`` on the orthonormal columns ``B`` and the norm of what is left
+    (projected twice: one classical Gram-Schmidt pass loses orthogonality for nearly dependent
+    columns)."""
+    r1 = B.T @ a
+    res = a - B @ r1
+    r2 = B.T @ res
+    return r1 + r2, float(np.linalg.norm(res - B @ r2))
 
 
 @one_blas_thread

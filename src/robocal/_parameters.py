@@ -236,6 +236,16 @@ def candidate_parameters(model: RobotModel, parameters: Iterable[str] = ("geomet
     ``orientation``: the data hold orientations, so marker rotations are candidates too.
     ``known``: families or names to hold fixed at their model values (e.g. ``("base",)``).
     """
+    return _candidates(model, _as_items(parameters), bool(orientation), _as_items(known))
+
+
+def _as_items(items) -> tuple:
+    return (items,) if isinstance(items, str) else tuple(items)
+
+
+@lru_cache(maxsize=128)
+def _candidates(model: RobotModel, parameters: tuple, orientation: bool, known: tuple) -> tuple[str, ...]:
+    """``candidate_parameters``, kept per model and arguments (a calibration asks for them again)."""
     lay = parameter_layout(model)
     fam = families(model, orientation=orientation)
 
