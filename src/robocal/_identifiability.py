@@ -291,14 +291,13 @@ def weakly_identifiable(J: np.ndarray, names, quantities, sigma: float, *, momen
     norms = np.linalg.norm(J, axis=0)
     norms[norms == 0] = 1.0
     A = reduced(J / norms)
-    # the kept columns' QR grows one column at a time: Q (orthonormal), the rows of R^-1 and their
-    # squared norms, so each trial's (A^T A)^-1 diagonal costs one projection (docs/method.md 4)
-    Q = np.zeros((A.shape[0], len(names)))
-    Rinv = np.zeros((len(names), len(names)))
-    inv_diag = np.zeros(len(names))
-    kept: list[int] = []
-    out = []
-    for k in range(len(names)):
+    k0, Q, Rinv, inv_diag = _kept_prefix(A, sigma, scale / (norms * limit))
+    if k0 == len(names):
+        return []
+    # from the first trial that fails on: the kept columns' QR grows one column at a time (Q
+    # orthonormal, the rows of R^-1 and their squared norms), each trial costing one projection
+    kept, out = list(range(k0)), []
+    for k in range(k0, len(names)):
         j = len(kept)
         proj, s = _project(Q[:, :j], A[:, k])
         # R' = [[R, proj], [0, s]]: its inverse gains the column [-R^-1 proj / s; 1 / s]
@@ -307,7 +306,7 @@ def weakly_identifiable(J: np.ndarray, names, quantities, sigma: float, *, momen
             trial_diag = np.append(inv_diag[:j] + c ** 2, 1.0 / s ** 2)
         trial = kept + [k]
         effect = sigma * np.sqrt(np.nan_to_num(trial_diag, nan=np.inf)) / norms[trial] * scale[trial]
-        ratio = effect / limit[trial]
+        ratio = np.where(np.isinf(limit[trial]), 0.0, effect / limit[trial])    # an unbounded quantity never fails
         worst = int(np.argmax(ratio))
         if ratio[worst] > 1.0:
             out.append((names[k], names[trial[worst]], float(effect[worst]), float(limit[trial[worst]])))
@@ -317,6 +316,34 @@ def weakly_identifiable(J: np.ndarray, names, quantities, sigma: float, *, momen
         inv_diag[:j + 1] = trial_diag
         kept.append(k)
     return out
+
+
+def _kept_prefix(A: np.ndarray, sigma: float, factor: np.ndarray):
+    """How many leading columns of ``A`` (unit columns, in preference order) pass the weak test
+    together, with what the one-at-a-time test continues from: the orthonormal basis of those
+    columns, the inverse of their R factor and the diagonal of their (A^T A)^-1.
+
+    Every leading block at once: with A = Q R, the first k columns' (A^T A)^-1 is R_k^-1 R_k^-T
+    and R_k^-1 is the leading block of R^-1, so its diagonal is a running sum of squares along the
+    rows of R^-1. ``factor``: what turns sqrt of a diagonal entry times ``sigma`` into the ratio to
+    the bound."""
+    k = A.shape[1]
+    Q = np.zeros((A.shape[0], k))
+    Rinv = np.zeros((k, k))
+    if A.shape[0] < k:
+        return 0, Q, Rinv, np.zeros(k)
+    Qa, Ra = np.linalg.qr(A)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        inv = solve_triangular(Ra, np.eye(k), check_finite=False)
+        running = np.cumsum(inv ** 2, axis=1)                     # [i, m]: i's entry among the first m + 1
+        ratio = sigma * np.sqrt(running) * factor[:, None]
+    ratio = np.where(np.triu(np.ones((k, k), dtype=bool)) & (factor[:, None] > 0), np.nan_to_num(ratio, nan=np.inf),
+                     0.0)
+    failing = np.nonzero(ratio.max(axis=0) > 1.0)[0]
+    k0 = int(failing[0]) if len(failing) else k
+    Q[:, :k0] = Qa[:, :k0]
+    Rinv[:k0, :k0] = inv[:k0, :k0]
+    return k0, Q, Rinv, np.concatenate([running[:k0, k0 - 1] if k0 else np.zeros(0), np.zeros(k - k0)])
 
 
 def _project(B: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, float]:
