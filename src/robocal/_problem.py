@@ -33,7 +33,8 @@ STATES_KEPT = 4
 class Problem:
     """Residuals and Jacobian of ``model`` on ``data`` over the free parameters ``free`` (names).
 
-    The Jacobian is returned column-major (a transposed view), as MINPACK works on columns.
+    The Jacobian is returned column-major (a transposed view): one contiguous row per parameter, so
+    J^T J and J^T r are products of contiguous rows.
     ``residuals`` and ``jacobian`` at the same parameters share one kinematic pass. Joints rest in
     their lost motion when the model has backlash or ``free`` holds some, on the sides of the
     model's ``backlash_side`` (the approach directions from ``approach_of(data)``). ``chunked``:

@@ -18,8 +18,8 @@ from ._options import LOSSES
 from ._problem import LARGE_POSES, Problem
 from ._threads import one_blas_thread
 
-# least_squares' step, cost and gradient tolerances: Gauss-Newton converges quadratically here, so
-# the step that meets them leaves an error far below them (noise-free recovery is ~1e-16)
+# step, cost and gradient tolerances (ours and least_squares'): Gauss-Newton converges quadratically
+# here, so the step that meets them leaves an error far below them (noise-free recovery is ~1e-16)
 SOLVER_TOL = 1e-10
 # a robust loss bends at this many robust standard deviations of the residuals
 ROBUST_SCALE_SIGMAS = 3.0
@@ -28,9 +28,9 @@ ROBUST_SCALE_SIGMAS = 3.0
 @dataclass(frozen=True, eq=False)
 class Solution:
     """Where the solver stopped: the full parameter vector ``p``, the weighted residuals and the
-    weighted Jacobian (n_rows, n_free) there (for a campaign solved in chunks its R factor, (n_free,
-    n_free)), and the solver's own account (``status`` > 0 is
-    convergence, as in scipy). ``f_scale`` is where a robust loss bent (None for ``linear``)."""
+    weighted Jacobian there, (n_rows, n_free), or for a linear fit of one kind of row its R factor
+    (n_free, n_free), which has the same Gram matrix; and the solver's own account (``status`` > 0
+    is convergence, as in scipy). ``f_scale`` is where a robust loss bent (None for ``linear``)."""
 
     p: np.ndarray
     residuals: np.ndarray
