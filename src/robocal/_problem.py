@@ -19,7 +19,7 @@ from scipy.spatial.transform import Rotation
 
 from ._errors import InputError
 from ._kinematics import CHUNK_POSES, LARGE_POSES, evaluate_state, frame_approach, jacobian_columns, layout
-from ._linalg import reduced
+from ._linalg import r_factor, reduced
 from ._measurements import Measurements, Noise, approach_of
 from ._model import RobotModel
 from ._parameters import has_backlash_parameters, has_compliance_parameters
@@ -99,7 +99,23 @@ class Problem:
         """The R factor of the weighted Jacobian at ``p`` (by QR: the candidates' columns may be
         dependent): a (k, k) matrix with the same Gram matrix, which is all the identifiability
         analysis needs."""
-        return self.normal_equations(p)[0] if self.chunked else reduced(self.jacobian(p))
+        return self.normal_equations(p)[0] if self.chunked else self._factor(p, reduced)
+
+    def jacobian_factor(self, p) -> np.ndarray:
+        """An R factor (n_free, n_free) of the weighted Jacobian at ``p`` (``r_factor``), taken from
+        the factor of more columns when one was made at ``p`` (the analysis' at the start)."""
+        return self._factor(p, r_factor)
+
+    def _factor(self, p, make) -> np.ndarray:
+        st = self._state(p)
+        free = tuple(self.free_idx.tolist())
+        for have, R in st.cache.get("factors", {}).items():
+            if set(free) <= set(have):
+                where = {c: i for i, c in enumerate(have)}
+                return R if free == have else make(R[:, [where[c] for c in free]])
+        R = make(self.jacobian(p))
+        st.cache.setdefault("factors", {})[free] = R
+        return R
 
     def _indices(self, free) -> np.ndarray:
         index = {n: i for i, n in enumerate(self.lay.names)}

@@ -114,7 +114,8 @@ def _normal_equations(problem, p: np.ndarray) -> _Normal:
     if getattr(problem, "chunked", False):
         return _Normal(*problem.normal_equations(p), J=None)
     J, r = problem.jacobian(p), problem.residuals(p)
-    return _Normal(R=r_factor(J), g=J.T @ r, cost=float(r @ r), J=J)
+    R = problem.jacobian_factor(p) if hasattr(problem, "jacobian_factor") else r_factor(J)
+    return _Normal(R=R, g=J.T @ r, cost=float(r @ r), J=J)
 
 
 def _step(R: np.ndarray, g: np.ndarray, D: np.ndarray, lam: float) -> np.ndarray:
