@@ -106,16 +106,19 @@ class _Normal:
     g: np.ndarray
     cost: float
     J: np.ndarray | None
+    r: np.ndarray | None
 
 
-def _normal_equations(problem, p: np.ndarray) -> _Normal:
-    """At ``p``: chunk by chunk for a large campaign, else from the Jacobian formed whole (its R
-    factor through the Gram matrix when well conditioned, ``r_factor``)."""
+def _normal_equations(problem, p: np.ndarray, r: np.ndarray | None = None) -> _Normal:
+    """At ``p`` (``r``: the residuals there, when known): chunk by chunk for a large campaign, else
+    from the Jacobian formed whole (its R factor through the Gram matrix when well conditioned,
+    ``r_factor``)."""
     if getattr(problem, "chunked", False):
-        return _Normal(*problem.normal_equations(p), J=None)
-    J, r = problem.jacobian(p), problem.residuals(p)
+        return _Normal(*problem.normal_equations(p), J=None, r=r)
+    J = problem.jacobian(p)
+    r = problem.residuals(p) if r is None else r
     R = problem.jacobian_factor(p) if hasattr(problem, "jacobian_factor") else r_factor(J)
-    return _Normal(R=R, g=J.T @ r, cost=float(r @ r), J=J)
+    return _Normal(R=R, g=J.T @ r, cost=float(r @ r), J=J, r=r)
 
 
 def _step(R: np.ndarray, g: np.ndarray, D: np.ndarray, lam: float) -> np.ndarray:
@@ -176,15 +179,16 @@ def _levenberg_marquardt(problem, p0: np.ndarray, max_nfev: int | None, tol: flo
             lam = max(10.0 * lam, 1e-3)
             continue
         converged = ne.cost - cost_new <= tol * ne.cost
-        x, ne = x_new, _normal_equations(problem, problem.full(x_new, p0))
+        x, ne = x_new, _normal_equations(problem, problem.full(x_new, p0), r_new)
         lam = lam / 10.0 if lam > 1e-12 else 0.0
         if converged:
             status = 2
             break
     p = problem.full(x, p0)
     kinds = problem.row_kinds()
-    several = kinds is not None and len(np.unique(kinds)) > 1
-    return Solution(p=p, residuals=problem.residuals(p), jacobian=ne.J if several and ne.J is not None else ne.R,
+    several = kinds is not None and len(kinds) > 0 and kinds.min() != kinds.max()
+    return Solution(p=p, residuals=problem.residuals(p) if ne.r is None else ne.r,
+                    jacobian=ne.J if several and ne.J is not None else ne.R,
                     success=status > 0, status=status, message=_MESSAGES[status], nfev=nfev, loss="linear",
                     f_scale=None, row_kinds=kinds if several else None)
 
