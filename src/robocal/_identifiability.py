@@ -158,8 +158,17 @@ def _preference_qr(An: np.ndarray, nz: np.ndarray, tol: float):
     n_rows, n_cols = An.shape
     basis = np.zeros((n_rows, n_cols))
     Rk = np.zeros((n_cols, n_cols))
-    kept, dep = [], []
-    for k in np.nonzero(nz)[0]:
+    cols = np.nonzero(nz)[0]
+    # the leading columns up to the first dependent one, from one QR of them all (its k-th diagonal
+    # entry is the part of column k outside the span of those before it)
+    first = 0
+    if n_rows >= len(cols) > 0:
+        Qa, Ra = np.linalg.qr(An[:, cols])
+        small = np.nonzero(np.abs(np.diag(Ra)) <= tol)[0]
+        first = int(small[0]) if len(small) else len(cols)
+        basis[:, :first], Rk[:first, :first] = Qa[:, :first], Ra[:first, :first]
+    kept, dep = [int(k) for k in cols[:first]], []
+    for k in cols[first:]:
         a = An[:, k]
         B = basis[:, :len(kept)]
         proj, nr = _project(B, a)

@@ -242,10 +242,10 @@ def _validate(model: RobotModel) -> None:
         for j, _ in f.coupling:
             if not (0 <= j < len(model.joint_names)):
                 raise InputError(f"coupling refers to joint {j}, which does not exist", where=where)
-        if f.mass < 0 or not np.isfinite(f.mass):
+        if f.mass < 0 or not math.isfinite(f.mass):
             raise InputError(f"mass must be a non-negative number, got {f.mass}", where=where)
         for k in _FRAME_NUMBERS:
-            if not np.isfinite(getattr(f, k)):
+            if not math.isfinite(getattr(f, k)):
                 raise InputError(f"{k} is not a finite number", where=where)
         if not (f.backlash_width > 0 and f.backlash_friction >= 0):
             raise InputError("backlash_width must be positive and backlash_friction non-negative", where=where)

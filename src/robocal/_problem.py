@@ -26,8 +26,11 @@ from ._parameters import has_backlash_parameters, has_compliance_parameters
 from ._threads import one_blas_thread
 
 
-# evaluations a problem keeps, most recently used first out last
-STATES_KEPT = 4
+# A problem keeps its last evaluations (the calibration asks for the start again after the solve,
+# and for the solution after the fit of the errors before it): up to STATES_KEPT, fewer for many
+# poses so that they hold no more than about STATE_POSES poses' worth (one at the least).
+STATES_KEPT = 8
+STATE_POSES = 40_000
 
 
 class Problem:
@@ -143,15 +146,14 @@ class Problem:
         return p
 
     def _state(self, p):
-        """The evaluation at ``p``; the last ``STATES_KEPT`` are kept (the start is asked for again
-        after the solve, by the fit of the errors before calibration)."""
+        """The evaluation at ``p``, kept with the last few (``STATES_KEPT``)."""
         key = p.tobytes()
         st = self._states.pop(key, None)
         if st is None:
             st = evaluate_state(self.model, self.lay, p, self.qf, compliance=self.compliance,
                                 orientations=self.use_rot, payload_mass=self.data.payload_mass,
                                 backlash=self.backlash, approach=self.approach)
-            if len(self._states) >= STATES_KEPT:
+            if len(self._states) >= max(1, min(STATES_KEPT, STATE_POSES // max(self.data.n_poses, 1))):
                 self._states.pop(next(iter(self._states)))
         self._states[key] = st
         return st

@@ -140,18 +140,19 @@ def _levenberg_marquardt(problem, p0: np.ndarray, max_nfev: int | None, tol: flo
 
     Each step solves ``(R^T R + lam D^2) dx = -J^T r``, D the largest column norms of the Jacobian
     met so far (MINPACK's scaling, scipy's ``x_scale="jac"``); ``lam`` starts at 0 (Gauss-Newton)
-    and grows tenfold while a step fails to reduce the sum of squares. Stops, with MINPACK's
-    tests at ``SOLVER_TOL``, when the gradient is orthogonal to the residuals, when the step
-    left is below xtol relative to the parameters (the step is not taken: it changes nothing
-    measurable), or when a step reduces the sum of squares by less than ftol relative. Only a
-    step taken needs the Jacobian at its end. ``jacobian`` of the solution is the R factor
-    there, or the Jacobian itself when rows of several kinds need it (``covariance``).
+    and grows tenfold while a step fails to reduce the sum of squares. MINPACK's tests at ``tol``:
+    the fit has converged when the gradient is orthogonal to the residuals, or with the step that
+    is below xtol relative to the parameters, promises (linear model) or gives less than ftol of
+    the sum of squares. That last step is taken and its residuals evaluated, but no Jacobian at its
+    end: ``jacobian`` of the solution (the R factor, or the Jacobian itself when rows of several
+    kinds need it, see ``covariance``) is taken at its start, which differs from the solution by
+    less than the tolerances.
     """
     x = p0[problem.free_idx].astype(float)
     k = len(x)
     max_nfev = 100 * (k + 1) if max_nfev is None else max_nfev
     ne = _normal_equations(problem, p0)
-    nfev, lam, status = 1, 0.0, 0
+    nfev, lam, status, r_end = 1, 0.0, 0, None
     D = np.zeros(k)
     while True:
         D = np.maximum(D, np.linalg.norm(ne.R, axis=0))
@@ -166,29 +167,26 @@ def _levenberg_marquardt(problem, p0: np.ndarray, max_nfev: int | None, tol: flo
             lam = max(10.0 * lam, 1e-3)
             continue
         small_step = np.linalg.norm(scale * dx) <= tol * (tol + np.linalg.norm(scale * x))
-        # the reduction the step promises (linear model): when it is below ftol, taking it changes nothing
-        promised = -(2.0 * float(ne.g @ dx) + float(np.sum((ne.R @ dx) ** 2)))
-        if small_step or promised <= tol * ne.cost:
-            status = 4 if small_step and promised <= tol * ne.cost else (3 if small_step else 2)
-            break
-        x_new = x + dx
-        r_new = problem.residuals(problem.full(x_new, p0))
+        little_promised = -(2.0 * float(ne.g @ dx) + float(np.sum((ne.R @ dx) ** 2))) <= tol * ne.cost
+        r_new = problem.residuals(problem.full(x + dx, p0))
         nfev += 1
         cost_new = float(r_new @ r_new)
+        last = small_step or little_promised or (cost_new <= ne.cost and ne.cost - cost_new <= tol * ne.cost)
+        if last:
+            status = 4 if small_step and little_promised else (3 if small_step else 2)
+            if cost_new <= ne.cost:      # else x is the minimum to round-off
+                x, r_end = x + dx, r_new
+            break
         if not cost_new <= ne.cost:
             lam = max(10.0 * lam, 1e-3)
             continue
-        converged = ne.cost - cost_new <= tol * ne.cost
-        x, ne = x_new, _normal_equations(problem, problem.full(x_new, p0), r_new)
+        x, ne = x + dx, _normal_equations(problem, problem.full(x + dx, p0), r_new)
         lam = lam / 10.0 if lam > 1e-12 else 0.0
-        if converged:
-            status = 2
-            break
     p = problem.full(x, p0)
     kinds = problem.row_kinds()
     several = kinds is not None and len(kinds) > 0 and kinds.min() != kinds.max()
-    return Solution(p=p, residuals=problem.residuals(p) if ne.r is None else ne.r,
-                    jacobian=ne.J if several and ne.J is not None else ne.R,
+    r = r_end if r_end is not None else (ne.r if ne.r is not None else problem.residuals(p))
+    return Solution(p=p, residuals=r, jacobian=ne.J if several and ne.J is not None else ne.R,
                     success=status > 0, status=status, message=_MESSAGES[status], nfev=nfev, loss="linear",
                     f_scale=None, row_kinds=kinds if several else None)
 
