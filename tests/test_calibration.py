@@ -196,3 +196,49 @@ def test_a_campaign_solved_in_chunks_gives_the_in_memory_answer(monkeypatch):
     fk_chunked = rc.forward_kinematics(m, q)
     np.testing.assert_allclose(fk_chunked.positions, fk.positions, rtol=0, atol=1e-15)
     np.testing.assert_allclose(fk_chunked.rotations, fk.rotations, rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize("make", [arm6r, cylindrical])
+def test_the_solve_on_normal_equations_lands_where_minpack_does(make):
+    """The solver on normal equations stops at MINPACK's minimum (scipy's least_squares, method
+    "lm", the same analytic Jacobian and tolerances) to a tiny fraction of a standard deviation."""
+    from scipy.optimize import least_squares
+
+    from robocal.identification import Problem, covariance, solve
+    from robocal.kinematics import parameter_vector
+
+    m = make()
+    _, data = rc.simulate(m, 80, seed=5, noise=NOISE)
+    names = rc.identifiability(m, data).identified
+    prob = Problem(m, data, names, compliance=False)
+    p0 = parameter_vector(m)
+    ours = solve(prob, p0)
+    ref = least_squares(lambda x: prob.residuals(prob.full(x, p0)), p0[prob.free_idx],
+                        jac=lambda x: prob.jacobian(prob.full(x, p0)), method="lm", x_scale="jac",
+                        xtol=1e-12, ftol=1e-12, gtol=1e-12)
+    std = covariance(ours).std
+    assert ours.success and ours.jacobian.shape == (len(names), len(names))   # the R factor
+    assert np.max(np.abs(ours.p[prob.free_idx] - ref.x) / std) < 1e-6
+    # not above MINPACK's sum of squares beyond round-off (the estimates agree to 1e-6 std: second order)
+    assert float(ours.residuals @ ours.residuals) <= 2 * ref.cost * (1 + 1e-10)
+
+
+def test_an_ill_conditioned_factor_comes_from_qr():
+    """The R factor is taken from the Gram matrix only where that is accurate: for columns so
+    nearly dependent that the Gram matrix would lose them, it matches a QR factor to high
+    relative precision, and it is exact for well-conditioned ones too."""
+    from robocal._linalg import GRAM_COND_MAX, r_factor
+
+    rng = np.random.default_rng(0)
+    A = rng.standard_normal((500, 6)) * np.array([1.0, 1e-3, 1e3, 1.0, 1.0, 1.0])
+    other = rng.standard_normal(500)
+    for eps in (1e-2, 1e-7):                     # condition ~1e2 (Cholesky) and ~1e7 (QR)
+        B = A.copy()
+        B[:, 5] = B[:, 4] + eps * other
+        R = r_factor(B)
+        R_qr = np.linalg.qr(B, mode="r")
+        assert np.allclose(np.triu(R), R)
+        cond = np.linalg.cond(B / np.linalg.norm(B, axis=0))
+        assert (cond ** 2 < GRAM_COND_MAX) == (eps == 1e-2)
+        np.testing.assert_allclose(np.abs(np.diag(R)), np.abs(np.diag(R_qr)), rtol=1e-6 if eps == 1e-2 else 1e-9)
+        np.testing.assert_allclose(R.T @ R, B.T @ B, rtol=0, atol=1e-12 * np.abs(B.T @ B).max())
