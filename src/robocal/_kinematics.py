@@ -22,6 +22,7 @@ dM/dx from rigid-motion identities (see ``_add_corrections``).
 from __future__ import annotations
 
 import copy
+import math
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -353,7 +354,7 @@ def kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray
     for i, f in enumerate(model.frames):
         r0 = lay.frame_row[i]
         parent = base if f.parent < 0 else vec[lay.parent_row[i]:lay.parent_row[i] + 4]
-        v = p[lay.frame0[i]:lay.frame0[i] + 7]
+        v = p[lay.frame0[i]:lay.frame0[i] + 7].tolist()
         d_th, d_al, d_be = (0.0, 0.0, 0.0) if defl is None else defl[i]
         rev = f.joint == "revolute"
         if np.ndim(d_al) or np.ndim(d_be):
@@ -371,32 +372,36 @@ def kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray
 
 def _constant_frame(vec, r0, parent, v, be, al, d_th, q, cos_q, sin_q) -> np.ndarray:
     """Fill frame rows X, Y, Z, ORIGIN from the parent when beta and alpha are the same at every
-    pose; return the (4, 4) product rows giving its step axes and points (D_AXIS on)."""
-    Rg = rot_matrix(2, v[GAMMA])
-    Rgb = Rg @ rot_matrix(1, be)
-    A = Rgb @ rot_matrix(0, al)
-    x, y, z = Rgb[:, 0], A[:, 1], A[:, 2]
-    pb = np.array([0.0, 0.0, v[B]])
-    pt = pb + v[D] * x
+    pose (``v`` the frame's values as floats); return the (4, 4) product rows giving its step
+    axes and points (rows D_AXIS on). The constant 3-vectors are a few scalars: plain floats."""
+    cg, sg = math.cos(v[GAMMA]), math.sin(v[GAMMA])
+    cb, sb = math.cos(be), math.sin(be)
+    ca, sa = math.cos(al), math.sin(al)
+    # in the parent's frame: Rot(z, gamma)'s y (the beta axis); after Rot(y, beta) the x (d axis)
+    # and z; after Rot(x, alpha) the y and z
+    yg = (-sg, cg, 0.0)
+    x = (cg * cb, sg * cb, -sb)
+    zb = (cg * sb, sg * sb, cb)
+    y = [ca * a + sa * b for a, b in zip(yg, zb)]
+    z = [ca * b - sa * a for a, b in zip(yg, zb)]
+    pb = (0.0, 0.0, v[B])
+    pt = [a + v[D] * b for a, b in zip(pb, x)]
     varies = q is not None or np.ndim(d_th)
     # theta's constant offset (and a constant deflection) turns the constant part
     t0 = v[THETA] + (0.0 if np.ndim(d_th) else d_th)
-    c0, s0 = np.cos(t0), np.sin(t0)
-    xt, yt = c0 * x + s0 * y, c0 * y - s0 * x
-    Vt = np.zeros((4, 4))
+    c0, s0 = math.cos(t0), math.sin(t0)
+    xt = [c0 * a + s0 * b for a, b in zip(x, y)]
+    yt = [c0 * b - s0 * a for a, b in zip(x, y)]
+    origin = [a + v[R] * b for a, b in zip(pt, z)] + [1.0]
     if not varies:
-        Vt[0, :3], Vt[1, :3], Vt[2, :3], Vt[3] = xt, yt, z, (*(pt + v[R] * z), 1.0)
-        _place(Vt, parent, vec[r0 + X:r0 + ORIGIN + 1])
+        _place(np.array([xt + [0.0], yt + [0.0], z + [0.0], origin]), parent, vec[r0 + X:r0 + ORIGIN + 1])
     else:
-        Vt[0, :3], Vt[1], Vt[2, :3], Vt[3, :3] = z, (*(pt + v[R] * z), 1.0), xt, yt
-        _place(Vt, parent, vec[r0 + Z:r0 + YC + 1])
+        _place(np.array([z + [0.0], origin, xt + [0.0], yt + [0.0]]), parent, vec[r0 + Z:r0 + YC + 1])
         if np.ndim(d_th):
             ang = d_th if q is None else q + d_th
             cos_q, sin_q = np.cos(ang), np.sin(ang)
         _turn_rows(vec[r0 + XC], vec[r0 + YC], cos_q, sin_q, vec[r0 + X], vec[r0 + Y])
-    axes = np.zeros((4, 4))
-    axes[0, :3], axes[1, :3], axes[2], axes[3] = x, Rg[:, 1], (*pb, 1.0), (*pt, 1.0)
-    return axes
+    return np.array([(*x, 0.0), (*yg, 0.0), (*pb, 1.0), (*pt, 1.0)])
 
 
 def _deflected_frame(vec, r0, parent, v, be, al, th) -> None:
@@ -770,29 +775,33 @@ def _step_columns(lay: Layout, ps: _Pass, m: int, steps: np.ndarray, rows: int =
 
     Column-major (one contiguous block per parameter): what the solver wants, and cheap to fill.
     ``rows`` 3 gives the position part only. ``out``: where to write them instead of a new array.
-    The columns are computed component-major from the pass's rows, for the asked steps only.
+    The columns are computed component-major from the pass's rows, for the asked steps only, and
+    written component by component (a strided copy, much cheaper than a transposing one).
     """
     on = lay.marker_path[m, steps]
     is_rot = lay.step_is_rot[steps]
-    rot = np.nonzero(is_rot & on)[0]
-    tra = np.nonzero(~is_rot & on)[0]
     if out is None:
         out = np.empty((len(steps), ps.N, rows))
     if not on.all():
         out[~on] = 0.0
     vec = ps.vectors()
     axis, point = lay.step_rows[int(ps.orientations)]
-    if len(rot):
-        u = vec[axis[steps[rot]]]                                        # (S, 3, N)
-        lever = np.subtract(vec[lay.marker_row[m]], vec[point[steps[rot]]])
-        col = _cross_cm(u.transpose(1, 0, 2), lever.transpose(1, 0, 2), np.empty((3, len(rot), ps.N)))
-        out[rot, :, :3] = col.transpose(1, 2, 0)
-        if rows == 6:
-            out[rot, :, 3:] = u.transpose(0, 2, 1)
-    if len(tra):
-        out[tra, :, :3] = vec[axis[steps[tra]]].transpose(0, 2, 1)
-        if rows == 6:
-            out[tra, :, 3:] = 0.0
+    live = steps[on]
+    rot = is_rot[on]
+    u = vec[axis[live]].transpose(1, 0, 2)                                # (3, S, N)
+    pos = u.copy() if rows == 6 else u
+    if rot.any():
+        ur = u[:, rot]
+        lever = np.subtract(vec[lay.marker_row[m]][:, None], vec[point[live[rot]]].transpose(1, 0, 2))
+        pos[:, rot] = _cross_cm(ur, lever, np.empty_like(lever))
+    dst = out if on.all() else out[on]
+    for c in range(3):
+        dst[:, :, c] = pos[c]
+    if rows == 6:
+        for c in range(3):
+            dst[:, :, 3 + c] = np.where(rot[:, None], u[c], 0.0)
+    if dst is not out:
+        out[on] = dst
     return out
 
 
