@@ -234,7 +234,7 @@ class _Pass:
     p: np.ndarray
     orientations: bool = False
     has_markers: bool = True
-    pending: list = field(default_factory=list)  # (frame, (4, 4)) products giving its step axes and points
+    pending: list = field(default_factory=list)  # (frame, rows of the (4, 4) product giving its step axes and points)
     cache: dict = field(default_factory=dict)
 
     def _frames(self) -> np.ndarray:
@@ -303,18 +303,25 @@ _TURNS_KEPT, _TURNS_MAX_SIZE = 4, 2_000_000
 
 
 def _joint_turns(qf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """cos and sin (n_frames, N) of the frame variables ``qf`` (N, n_frames), remembered for the
-    last few readings (compared by value, so a changed array is never mistaken for an old one)."""
+    """cos (n_frames, N) and (sin, -sin) (n_frames, 2, 1, N) of the frame variables ``qf``
+    (N, n_frames), remembered for the last few readings (compared by value, so a changed array is
+    never mistaken for an old one)."""
     for entry in _TURNS:
         if entry[0].shape == qf.shape and np.array_equal(entry[0], qf):
             return entry[1], entry[2]
     qt = np.ascontiguousarray(qf.T)
-    c, s = np.cos(qt), np.sin(qt)
+    c, s = np.cos(qt), _signed_sines(qt)
     if qf.size <= _TURNS_MAX_SIZE:
         c.flags.writeable = s.flags.writeable = False
         _TURNS.insert(0, (qf.copy(), c, s))
         del _TURNS[_TURNS_KEPT:]
     return c, s
+
+
+def _signed_sines(angle: np.ndarray) -> np.ndarray:
+    """(..., 2, 1, N) sin and -sin of ``angle`` (..., N), as ``_turn_rows`` takes them."""
+    s = np.sin(angle)
+    return np.stack([s, -s], axis=-2)[..., None, :]
 
 
 def _place(Vt: np.ndarray, parent: np.ndarray, out: np.ndarray) -> None:
@@ -327,12 +334,12 @@ def _place(Vt: np.ndarray, parent: np.ndarray, out: np.ndarray) -> None:
         np.matmul(Vt, parent.reshape(4, -1), out=out.reshape(len(Vt), -1))
 
 
-def _turn_rows(x: np.ndarray, y: np.ndarray, c, s, ox: np.ndarray, oy: np.ndarray) -> None:
-    """(ox, oy) = (c x + s y, c y - s x): the x and y axes turned about z, per pose (c, s (N,))."""
-    np.multiply(x, c, out=ox)
-    ox += y * s
-    np.multiply(y, c, out=oy)
-    oy -= x * s
+def _turn_rows(block: np.ndarray, c, ss) -> None:
+    """The x and y axes of a frame's ``block`` turned about z per pose, from those before the turn:
+    x = c xc + s yc, y = c yc - s xc, with c (N,) and ``ss`` the (s, -s) of ``_signed_sines``."""
+    xy = block[X:Y + 1]
+    np.multiply(block[XC:YC + 1], c, out=xy)
+    xy += block[YC:XC - 1:-1] * ss                 # (yc, xc) s, -s
 
 
 def kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray, defl=None,
@@ -350,14 +357,14 @@ def kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray
     ps = _Pass(vec=vec, base_axes=base_axes, base_origin=p[0:3], base_rotation=Rb, model=model, lay=lay, p=p,
                orientations=orientations, has_markers=not frames_only)
     base = np.vstack([Rb.T, p[0:3]])                       # (4, 3) the base's x, y, z and origin
-    cos_q, sin_q = _joint_turns(qf)
+    cos_q, sin_q = _joint_turns(qf)             # sin_q: (sin, -sin)
     for i, f in enumerate(model.frames):
         r0 = lay.frame_row[i]
         parent = base if f.parent < 0 else vec[lay.parent_row[i]:lay.parent_row[i] + 4]
         v = p[lay.frame0[i]:lay.frame0[i] + 7].tolist()
         d_th, d_al, d_be = (0.0, 0.0, 0.0) if defl is None else defl[i]
         rev = f.joint == "revolute"
-        if np.ndim(d_al) or np.ndim(d_be):
+        if isinstance(d_al, np.ndarray) or isinstance(d_be, np.ndarray):
             _deflected_frame(vec, r0, parent, v, v[BETA] + d_be, v[ALPHA] + d_al,
                              v[THETA] + d_th + (qf[:, i] if rev else 0.0))
         else:
@@ -372,8 +379,8 @@ def kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray
 
 def _constant_frame(vec, r0, parent, v, be, al, d_th, q, cos_q, sin_q) -> np.ndarray:
     """Fill frame rows X, Y, Z, ORIGIN from the parent when beta and alpha are the same at every
-    pose (``v`` the frame's values as floats); return the (4, 4) product rows giving its step
-    axes and points (rows D_AXIS on). The constant 3-vectors are a few scalars: plain floats."""
+    pose (``v`` the frame's values as floats); return the rows of the (4, 4) product giving its
+    step axes and points (rows D_AXIS on). The constant 3-vectors are a few scalars: plain floats."""
     cg, sg = math.cos(v[GAMMA]), math.sin(v[GAMMA])
     cb, sb = math.cos(be), math.sin(be)
     ca, sa = math.cos(al), math.sin(al)
@@ -386,9 +393,10 @@ def _constant_frame(vec, r0, parent, v, be, al, d_th, q, cos_q, sin_q) -> np.nda
     z = [ca * b - sa * a for a, b in zip(yg, zb)]
     pb = (0.0, 0.0, v[B])
     pt = [a + v[D] * b for a, b in zip(pb, x)]
-    varies = q is not None or np.ndim(d_th)
+    per_pose = isinstance(d_th, np.ndarray)
+    varies = q is not None or per_pose
     # theta's constant offset (and a constant deflection) turns the constant part
-    t0 = v[THETA] + (0.0 if np.ndim(d_th) else d_th)
+    t0 = v[THETA] + (0.0 if per_pose else d_th)
     c0, s0 = math.cos(t0), math.sin(t0)
     xt = [c0 * a + s0 * b for a, b in zip(x, y)]
     yt = [c0 * b - s0 * a for a, b in zip(x, y)]
@@ -397,11 +405,11 @@ def _constant_frame(vec, r0, parent, v, be, al, d_th, q, cos_q, sin_q) -> np.nda
         _place(np.array([xt + [0.0], yt + [0.0], z + [0.0], origin]), parent, vec[r0 + X:r0 + ORIGIN + 1])
     else:
         _place(np.array([z + [0.0], origin, xt + [0.0], yt + [0.0]]), parent, vec[r0 + Z:r0 + YC + 1])
-        if np.ndim(d_th):
+        if per_pose:
             ang = d_th if q is None else q + d_th
-            cos_q, sin_q = np.cos(ang), np.sin(ang)
-        _turn_rows(vec[r0 + XC], vec[r0 + YC], cos_q, sin_q, vec[r0 + X], vec[r0 + Y])
-    return np.array([(*x, 0.0), (*yg, 0.0), (*pb, 1.0), (*pt, 1.0)])
+            cos_q, sin_q = np.cos(ang), _signed_sines(ang)
+        _turn_rows(vec[r0:r0 + FRAME_ROWS], cos_q, sin_q)
+    return [(*x, 0.0), (*yg, 0.0), (*pb, 1.0), (*pt, 1.0)]
 
 
 def _deflected_frame(vec, r0, parent, v, be, al, th) -> None:
@@ -432,13 +440,29 @@ def _deflected_frame(vec, r0, parent, v, be, al, th) -> None:
 
 
 def _base_placement(model: RobotModel, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The axes (6, 3) of the base steps and the rotation of frame 0 in W."""
-    base_axes = np.empty((6, 3))
-    base_axes[0:3] = np.eye(3)
-    Rref = np.asarray(model.base_rotation, dtype=float)
-    # R = R_ref exp(v): a change dv turns the base about the columns of R_ref J_l(v), in W
-    base_axes[3:6] = (Rref @ left_jacobian(p[3:6])).T
-    return base_axes, Rref @ small_rotation(*p[3:6])
+    """The axes (6, 3) of the base steps and the rotation of frame 0 in W (read-only, remembered
+    for the last few values)."""
+    return _base_rotation(model.base_rotation, *p[3:6].tolist())
+
+
+@lru_cache(maxsize=16)
+def _base_rotation(reference: tuple, x: float, y: float, z: float) -> tuple[np.ndarray, np.ndarray]:
+    """R = R_ref exp([v]x) for the rotation vector v = (x, y, z); a change dv turns the base about
+    the columns of R_ref J_l(v) in W, J_l the left Jacobian (``left_jacobian``)."""
+    Rref = np.asarray(reference, dtype=float)
+    t = math.sqrt(x * x + y * y + z * z)
+    K = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    K2 = K @ K
+    # exp: I + sin t / t K + (1 - cos t) / t^2 K^2; J_l: I + (1 - cos t) / t^2 K + (t - sin t) / t^3 K^2
+    if t < 1e-8:
+        R, J = np.eye(3) + K + 0.5 * K2, np.eye(3) + 0.5 * K
+    else:
+        a, b, c = math.sin(t) / t, (1.0 - math.cos(t)) / t ** 2, (t - math.sin(t)) / t ** 3
+        R, J = np.eye(3) + a * K + b * K2, np.eye(3) + b * K + c * K2
+    base_axes = np.vstack([np.eye(3), (Rref @ J).T])
+    Rb = Rref @ R
+    base_axes.flags.writeable = Rb.flags.writeable = False
+    return base_axes, Rb
 
 
 def _frame_block(ps: _Pass, k: int) -> np.ndarray:
@@ -488,7 +512,7 @@ def _fill_step_vectors(ps: _Pass) -> None:
     for i, axes in ps.pending:
         r0 = lay.frame_row[i]
         parent = base if model.frames[i].parent < 0 else vec[lay.parent_row[i]:lay.parent_row[i] + 4]
-        _place(axes, parent, vec[r0 + D_AXIS:r0 + THETA_POINT + 1])
+        _place(np.array(axes), parent, vec[r0 + D_AXIS:r0 + THETA_POINT + 1])
     ps.pending = []
     for m, mk in enumerate(model.markers):
         r = lay.marker_row[m]
@@ -780,28 +804,31 @@ def _step_columns(lay: Layout, ps: _Pass, m: int, steps: np.ndarray, rows: int =
     """
     on = lay.marker_path[m, steps]
     is_rot = lay.step_is_rot[steps]
+    rot = np.nonzero(is_rot & on)[0]
+    tra = np.nonzero(~is_rot & on)[0]
     if out is None:
         out = np.empty((len(steps), ps.N, rows))
-    if not on.all():
+    if len(rot) + len(tra) < len(steps):
         out[~on] = 0.0
     vec = ps.vectors()
     axis, point = lay.step_rows[int(ps.orientations)]
-    live = steps[on]
-    rot = is_rot[on]
-    u = vec[axis[live]].transpose(1, 0, 2)                                # (3, S, N)
-    pos = u.copy() if rows == 6 else u
-    if rot.any():
-        ur = u[:, rot]
-        lever = np.subtract(vec[lay.marker_row[m]][:, None], vec[point[live[rot]]].transpose(1, 0, 2))
-        pos[:, rot] = _cross_cm(ur, lever, np.empty_like(lever))
-    dst = out if on.all() else out[on]
-    for c in range(3):
-        dst[:, :, c] = pos[c]
-    if rows == 6:
+    if len(rot):
+        u = vec[axis[steps[rot]]]                                          # (S, 3, N)
+        lever = vec[point[steps[rot]]]
+        np.subtract(vec[lay.marker_row[m]], lever, out=lever)
+        part, other = np.empty((2, len(rot), ps.N))
+        for c, (j, k) in _ROT_PAIRS.items():                               # u x lever
+            np.multiply(u[:, j], lever[:, k], out=part)
+            np.multiply(u[:, k], lever[:, j], out=other)
+            out[rot, :, c] = np.subtract(part, other, out=part)
+        for c in range(3, rows):
+            out[rot, :, c] = u[:, c - 3]
+    if len(tra):
+        u = vec[axis[steps[tra]]]
         for c in range(3):
-            dst[:, :, 3 + c] = np.where(rot[:, None], u[c], 0.0)
-    if dst is not out:
-        out[on] = dst
+            out[tra, :, c] = u[:, c]
+        if rows == 6:
+            out[tra, :, 3:] = 0.0
     return out
 
 
