@@ -17,6 +17,11 @@ Compliance (docs/method.md section 2): theta, alpha and beta of frame i deflect 
 gravity moment about that step's own axis of every mass distal to it, computed on the undeformed
 chain at the current parameters. Geometric columns then gain ``sum_p K_p dM_p/dx * column_p``, with
 dM/dx from rigid-motion identities (see ``_add_corrections``).
+
+A pass keeps its vectors component-major, one (3, N) row each (``_Pass``): elementwise work runs
+over contiguous rows of poses, a frame's constant part is one (4 x 4) @ (4 x 3N) product with its
+parent's axes and origin, and the Jacobian reads the rows of just the steps asked for. The layouts
+callers use (``R`` (n_frames, N, 3, 3), ``O``, ``P``, ``U``, ``Q``) are views of it.
 """
 
 from __future__ import annotations
@@ -307,7 +312,8 @@ def _joint_turns(qf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     (N, n_frames), remembered for the last few readings (compared by value, so a changed array is
     never mistaken for an old one)."""
     for entry in _TURNS:
-        if entry[0].shape == qf.shape and np.array_equal(entry[0], qf):
+        # the first pose first: other readings of the same size (chunks, draws) differ there
+        if entry[0].shape == qf.shape and np.array_equal(entry[0][0], qf[0]) and np.array_equal(entry[0], qf):
             return entry[1], entry[2]
     qt = np.ascontiguousarray(qf.T)
     c, s = np.cos(qt), _signed_sines(qt)
