@@ -267,7 +267,8 @@ class _Pass:
         if not self.has_markers:
             return None
         nm, r0 = len(self.model.markers), FRAME_ROW0 + FRAME_ROWS * self.model.n_frames
-        return self.vec[r0:r0 + MARKER_ROWS * nm].reshape((nm, MARKER_ROWS) + self.vec.shape[1:])[:, 0].transpose(0, 2, 1)
+        blocks = self.vec[r0:r0 + MARKER_ROWS * nm].reshape((nm, MARKER_ROWS) + self.vec.shape[1:])
+        return blocks[:, 0].transpose(0, 2, 1)
 
     @property
     def U(self) -> np.ndarray:
@@ -288,9 +289,9 @@ class _Pass:
 
     def vectors(self) -> np.ndarray:
         """``vec`` with the step axes and points filled in."""
-        if "vectors" not in self.cache:
+        if "filled" not in self.cache:
             _fill_step_vectors(self)
-            self.cache["vectors"] = self.vec
+            self.cache["filled"] = True
         return self.vec
 
     def _axes(self):
@@ -1100,7 +1101,8 @@ def evaluate(model: RobotModel, q: np.ndarray, p: np.ndarray | None = None, *, j
             frames_out[:, i, :3, :3] = ps.R[i]
             frames_out[:, i, :3, 3] = ps.O[i]
             frames_out[:, i, 3, 3] = 1.0
-    return Evaluation(positions=ps.P.transpose(1, 0, 2), rotations=rotations, jacobian=J,
+    # a copy: a view would keep the whole pass alive for as long as the caller keeps the positions
+    return Evaluation(positions=np.ascontiguousarray(ps.P.transpose(1, 0, 2)), rotations=rotations, jacobian=J,
                       moments=None if st.M is None else st.M.T, frames=frames_out)
 
 
