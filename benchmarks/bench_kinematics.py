@@ -124,7 +124,11 @@ def main(argv=None):
             print(f"| {n} | largest relative difference | {diff:.1e} | | |")
         q = rc.random_configurations(m, args.fk_poses, rng=0)
         rc.forward_kinematics(m, q)
-        t_fk = best(lambda: rc.forward_kinematics(m, q), 5)
+
+        def fk():
+            new._TURNS.clear()            # the readings' cosines are not remembered from the last call
+            return rc.forward_kinematics(m, q)
+        t_fk = best(fk, 5)
         t_np = best(lambda: mdh_numpy(m, q), 5)
         ev, (pos, rot) = rc.forward_kinematics(m, q), mdh_numpy(m, q)
         assert np.allclose(ev.positions[:, 0], pos, atol=1e-12) and np.allclose(ev.rotations[:, 0], rot, atol=1e-12)

@@ -305,7 +305,7 @@ class _Pass:
 # readings seen lately with the cosines and sines of their frame variables: a fit evaluates the
 # same readings at every step while only the parameters move
 _TURNS: list = []
-_TURNS_KEPT, _TURNS_MAX_SIZE = 4, 2_000_000
+_TURNS_KEPT, _TURNS_MAX_SIZE = 2, 600_000    # entries, and readings (poses x frames) per entry
 
 
 def _joint_turns(qf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
