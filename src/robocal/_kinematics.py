@@ -314,7 +314,7 @@ def _joint_turns(qf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     never mistaken for an old one)."""
     for entry in _TURNS:
         # the first pose first: other readings of the same size (chunks, draws) differ there
-        if entry[0].shape == qf.shape and np.array_equal(entry[0][0], qf[0]) and np.array_equal(entry[0], qf):
+        if entry[0].shape == qf.shape and np.array_equal(entry[0][:1], qf[:1]) and np.array_equal(entry[0], qf):
             return entry[1], entry[2]
     qt = np.ascontiguousarray(qf.T)
     c, s = np.cos(qt), _signed_sines(qt)
