@@ -384,7 +384,7 @@ def kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray
     return ps
 
 
-def _constant_frame(vec, r0, parent, v, be, al, d_th, q, cos_q, sin_q) -> np.ndarray:
+def _constant_frame(vec, r0, parent, v, be, al, d_th, q, cos_q, sin_q) -> list:
     """Fill frame rows X, Y, Z, ORIGIN from the parent when beta and alpha are the same at every
     pose (``v`` the frame's values as floats); return the rows of the (4, 4) product giving its
     step axes and points (rows D_AXIS on). The constant 3-vectors are a few scalars: plain floats."""
