@@ -223,3 +223,24 @@ def test_coupled_joint_follows_readings():
     qeq[:, 3] = -q[:, 1] - q[:, 2]
     np.testing.assert_allclose(rc.forward_kinematics(mc, q).positions, rc.forward_kinematics(m, qeq).positions,
                                atol=1e-14)
+
+
+def test_columns_in_blocks_of_poses_equal_those_in_one_block(monkeypatch):
+    # the step columns are computed a block of poses at a time: blocks of 7 poses, the last one short
+    import robocal._kinematics as kin
+
+    m = arm6r(markers=(("a", (0.05, 0.02, 0.12)), ("b", (-0.1, 0.0, 0.05))))
+    q = rc.random_configurations(m, 30, rng=2)
+    whole = evaluate(m, q, jacobian=True, orientations=True).jacobian
+    monkeypatch.setattr(kin, "COLUMN_BLOCK", 7)
+    np.testing.assert_array_equal(evaluate(m, q, jacobian=True, orientations=True).jacobian, whole)
+
+
+def test_readings_changed_in_place_are_not_taken_for_the_old_ones():
+    # the cosines of the readings are remembered between passes, by value, not by the array
+    m = arm6r()
+    q = rc.random_configurations(m, 5, rng=3)
+    first = evaluate(m, q).positions
+    q[2, 1] += 0.3
+    np.testing.assert_allclose(evaluate(m, q).positions, _reference_fk(m, q), atol=1e-12)
+    assert np.abs(evaluate(m, q).positions - first).max() > 1e-3

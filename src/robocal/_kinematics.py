@@ -17,11 +17,17 @@ Compliance (docs/method.md section 2): theta, alpha and beta of frame i deflect 
 gravity moment about that step's own axis of every mass distal to it, computed on the undeformed
 chain at the current parameters. Geometric columns then gain ``sum_p K_p dM_p/dx * column_p``, with
 dM/dx from rigid-motion identities (see ``_add_corrections``).
+
+A pass keeps its vectors component-major, one (3, N) row each (``_Pass``): elementwise work runs
+over contiguous rows of poses, a frame's constant part is one (4 x 4) @ (4 x 3N) product with its
+parent's axes and origin, and the Jacobian reads the rows of just the steps asked for. The layouts
+callers use (``R`` (n_frames, N, 3, 3), ``O``, ``P``, ``U``, ``Q``) are views of it.
 """
 
 from __future__ import annotations
 
 import copy
+import math
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -45,16 +51,13 @@ K_THETA, K_ALPHA, K_BETA = 7, 8, 9
 # (step offset deflected, compliance offset) pairs
 COMPLIANT = ((THETA, K_THETA), (ALPHA, K_ALPHA), (BETA, K_BETA))
 _ROT_PAIRS = {0: (1, 2), 1: (2, 0), 2: (0, 1)}
-
-
-
-def _rmul(R: np.ndarray, M: np.ndarray, out=None) -> np.ndarray:
-    """(N, 3, 3) @ (3, k) as one 2-D product (stacked matmul is slow for 3x3 blocks)."""
-    N = R.shape[0]
-    if out is None:
-        return (R.reshape(N * 3, 3) @ M).reshape(N, 3, M.shape[1])
-    np.matmul(R.reshape(N * 3, 3), M, out=out.reshape(N * 3, M.shape[1]))
-    return out
+# rows of a pass's vectors (``_Pass.vec``, each row one (3, N) block): a zero row; the base's x, y,
+# z, origin and its 6 step axes; per frame a block of FRAME_ROWS; per marker MARKER_ROWS
+ZERO_ROW, BASE_ROW, FRAME_ROW0, FRAME_ROWS, MARKER_ROWS = 0, 1, 11, 10, 4
+# inside a frame's block: its rotation's columns and origin; the x and y axes before the joint's
+# turn (theta's offset included); the alpha/d axis, the beta axis, the point of the beta and alpha
+# axes, the point of the theta axis. Inside a marker's: its position, then its rotation-step axes.
+X, Y, Z, ORIGIN, XC, YC, D_AXIS, BETA_AXIS, B_POINT, THETA_POINT = range(FRAME_ROWS)
 
 
 
@@ -80,6 +83,11 @@ class Layout:
     backlash_params: np.ndarray  # (n_frames,) parameter index of each frame's backlash, -1 if fixed
     joint_steps: np.ndarray     # (n_frames,) step its joint variable moves (theta or r), -1 if fixed
     param_backlash: np.ndarray  # (n_params,) frame of a backlash parameter, else -1
+    n_rows: int                 # rows of a pass's vectors
+    frame_row: np.ndarray       # (n_frames,) first row of each frame's block
+    parent_row: np.ndarray      # (n_frames,) first row of its parent's block (BASE_ROW for the root)
+    marker_row: np.ndarray      # (n_markers,) first row of each marker's block
+    step_rows: np.ndarray       # (2, 2, n_steps) [orientations] rows of each step's axis and point
 
 
 
@@ -130,7 +138,9 @@ def layout(model: RobotModel) -> Layout:
     param_compliant = np.full(len(names), -1, dtype=int)
     param_compliant[np.array(cparams, dtype=int)] = np.arange(len(cparams))
     bparams, jsteps, param_backlash = _backlash_layout(model, params)
+    rows = _vector_rows(model)
     return Layout(
+        n_rows=rows[0], frame_row=rows[1], parent_row=rows[2], marker_row=rows[3], step_rows=rows[4],
         param_step=param_step, param_compliant=param_compliant, backlash_params=bparams, joint_steps=jsteps,
         param_backlash=param_backlash,
         names=tuple(names), n_params=len(names), frame0=np.array(frame0, dtype=int),
@@ -155,6 +165,30 @@ def _backlash_layout(model: RobotModel, params):
     param_backlash = np.full(params.n_params, -1, dtype=int)
     param_backlash[bparams[bparams >= 0]] = np.nonzero(bparams >= 0)[0]
     return bparams, jsteps, param_backlash
+
+
+def _vector_rows(model: RobotModel):
+    """Where a pass keeps each frame's and marker's vectors, and per step the rows of its axis
+    and of a point on it (ZERO_ROW for a translation), without and with orientations."""
+    nf, nm = model.n_frames, len(model.markers)
+    frame_row = FRAME_ROW0 + FRAME_ROWS * np.arange(nf)
+    parent_row = np.array([BASE_ROW if f.parent < 0 else frame_row[f.parent] for f in model.frames], dtype=int)
+    marker_row = FRAME_ROW0 + FRAME_ROWS * nf + MARKER_ROWS * np.arange(nm)
+    axis = [BASE_ROW + 4 + k for k in range(N_BASE)]
+    point = [ZERO_ROW] * 3 + [BASE_ROW + ORIGIN] * 3
+    for r, pr in zip(frame_row, parent_row):
+        # gamma, b, beta, alpha, d, theta, r
+        axis += [pr + Z, pr + Z, r + BETA_AXIS, r + D_AXIS, r + D_AXIS, r + Z, r + Z]
+        point += [pr + ORIGIN, ZERO_ROW, r + B_POINT, r + B_POINT, ZERO_ROW, r + THETA_POINT, ZERO_ROW]
+    for mk, r in zip(model.markers, marker_row):
+        fr = frame_row[mk.frame]
+        axis += [fr + X, fr + Y, fr + Z, r + 1, r + 2, r + 3]
+        point += [ZERO_ROW] * 3 + [r] * 3
+    rows = np.array([[axis, point]] * 2, dtype=int)
+    # without orientations a marker's rotation steps move nothing: the zero row
+    for r in marker_row:
+        rows[0][np.isin(rows[0], [r, r + 1, r + 2, r + 3])] = ZERO_ROW
+    return FRAME_ROW0 + FRAME_ROWS * nf + MARKER_ROWS * nm, frame_row, parent_row, marker_row, rows
 
 
 def _frame_steps(i: int) -> np.ndarray:
@@ -190,22 +224,51 @@ def _compliant_rows(frame0: list, ancestors: np.ndarray, n_steps: int):
 
 @dataclass
 class _Pass:
-    """The frames of one pass; step axes, points on them and marker orientations are built from
-    them when first asked for (residuals need none of the per-step arrays)."""
+    """The frames of one pass, stored component-major: ``vec`` (n_rows, 3, N) holds one (3, N) block
+    of vectors per row (rows laid out by ``Layout.frame_row`` and ``marker_row``), so every
+    elementwise operation runs over contiguous rows of poses and each frame's constant part is one
+    small matrix product. ``R``, ``O``, ``P``, ``U``, ``Q`` are views of it in the layouts the
+    callers use. The step axes and points are built when first asked for (residuals need none)."""
 
-    R: np.ndarray    # (n_frames, N, 3, 3) rotations R_W<frame>
-    O: np.ndarray    # (n_frames, N, 3) origins
-    P: np.ndarray | None  # (n_markers, N, 3) marker positions (None for a frames-only pass)
-    W: np.ndarray    # (n_frames, N, 3, 6) per frame in W: beta axis, alpha/d axis, theta/r axis, b offset,
-    #                  full offset, and the y axis before the theta turn
+    vec: np.ndarray
     base_axes: np.ndarray  # (6, 3) axes of the base steps
     base_origin: np.ndarray  # (3,)
     base_rotation: np.ndarray  # (3, 3) frame 0 of the base, parent of the root frames
-    model: RobotModel | None = None
-    lay: Layout | None = None
-    p: np.ndarray | None = None
+    model: RobotModel
+    lay: Layout
+    p: np.ndarray
     orientations: bool = False
+    has_markers: bool = True
+    pending: list = field(default_factory=list)  # (frame, rows of the (4, 4) product giving its step axes and points)
     cache: dict = field(default_factory=dict)
+
+    def _frames(self) -> np.ndarray:
+        """(n_frames, FRAME_ROWS, 3, N) every frame's block."""
+        nf = self.model.n_frames
+        return self.vec[FRAME_ROW0:FRAME_ROW0 + FRAME_ROWS * nf].reshape((nf, FRAME_ROWS) + self.vec.shape[1:])
+
+    @property
+    def N(self) -> int:
+        return self.vec.shape[2]
+
+    @property
+    def R(self) -> np.ndarray:
+        """(n_frames, N, 3, 3) rotations R_W<frame> (a view)."""
+        return self._frames()[:, X:Z + 1].transpose(0, 3, 2, 1)
+
+    @property
+    def O(self) -> np.ndarray:  # noqa: E743
+        """(n_frames, N, 3) origins (a view)."""
+        return self._frames()[:, ORIGIN].transpose(0, 2, 1)
+
+    @property
+    def P(self) -> np.ndarray | None:
+        """(n_markers, N, 3) marker positions (a view; None for a frames-only pass)."""
+        if not self.has_markers:
+            return None
+        nm, r0 = len(self.model.markers), FRAME_ROW0 + FRAME_ROWS * self.model.n_frames
+        blocks = self.vec[r0:r0 + MARKER_ROWS * nm].reshape((nm, MARKER_ROWS) + self.vec.shape[1:])
+        return blocks[:, 0].transpose(0, 2, 1)
 
     @property
     def U(self) -> np.ndarray:
@@ -224,200 +287,284 @@ class _Pass:
             self.cache["RM"] = _marker_rotations(self) if self.orientations else []
         return self.cache["RM"]
 
+    def vectors(self) -> np.ndarray:
+        """``vec`` with the step axes and points filled in."""
+        if "filled" not in self.cache:
+            _fill_step_vectors(self)
+            self.cache["filled"] = True
+        return self.vec
+
     def _axes(self):
         if "axes" not in self.cache:
-            self.cache["axes"] = _step_axes(self)
+            rows = self.lay.step_rows[int(self.orientations)]
+            vec = self.vectors()
+            self.cache["axes"] = (vec[rows[0]].transpose(0, 2, 1), vec[rows[1]].transpose(0, 2, 1))
         return self.cache["axes"]
 
 
-def _turn(R: np.ndarray, axis: int, angle, out=None) -> np.ndarray:
-    """R @ Rot(axis, angle) for a stack R (N, 3, 3) and per-pose angles: mixes two columns."""
-    return _turn_columns((R[:, :, 0], R[:, :, 1], R[:, :, 2]), axis, angle, out)
+# readings seen lately with the cosines and sines of their frame variables: a fit evaluates the
+# same readings at every step while only the parameters move
+_TURNS: list = []
+_TURNS_KEPT, _TURNS_MAX_SIZE = 2, 600_000    # entries, and readings (poses x frames) per entry
 
 
-def _turn_columns(cols, axis: int, angle, out=None) -> np.ndarray:
-    """``_turn`` of the rotation whose columns (N, 3) each are ``cols``."""
-    i, j = _ROT_PAIRS[axis]
-    c = np.cos(angle)
+def _joint_turns(qf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """cos (n_frames, N) and (sin, -sin) (n_frames, 2, 1, N) of the frame variables ``qf``
+    (N, n_frames), remembered for the last few readings (compared by value, so a changed array is
+    never mistaken for an old one)."""
+    for entry in _TURNS:
+        # the first pose first: other readings of the same size (chunks, draws) differ there
+        if entry[0].shape == qf.shape and np.array_equal(entry[0][:1], qf[:1]) and np.array_equal(entry[0], qf):
+            return entry[1], entry[2]
+    qt = np.ascontiguousarray(qf.T)
+    c, s = np.cos(qt), _signed_sines(qt)
+    if qf.size <= _TURNS_MAX_SIZE:
+        c.flags.writeable = s.flags.writeable = False
+        _TURNS.insert(0, (qf.copy(), c, s))
+        del _TURNS[_TURNS_KEPT:]
+    return c, s
+
+
+def _signed_sines(angle: np.ndarray) -> np.ndarray:
+    """(..., 2, 1, N) sin and -sin of ``angle`` (..., N), as ``_turn_rows`` takes them."""
     s = np.sin(angle)
-    out = np.empty(cols[0].shape[:1] + (3, 3)) if out is None else out
-    # (3, N) views: numpy's inner loops then run over the poses, not over 3 components
-    ri, rj = cols[i].T, cols[j].T
-    oi, oj = out[:, :, i].T, out[:, :, j].T
-    np.multiply(ri, c, out=oi)
-    oi += rj * s
-    np.multiply(rj, c, out=oj)
-    oj -= ri * s
-    out[:, :, axis] = cols[axis]
-    return out
+    return np.stack([s, -s], axis=-2)[..., None, :]
+
+
+def _place(Vt: np.ndarray, parent: np.ndarray, out: np.ndarray) -> None:
+    """out (k, 3, N) = the vectors whose parent-frame coordinates (homogeneous: 0 for a direction,
+    1 for a point) are the rows of Vt (k, 4), placed by the parent's x, y, z, origin ``parent``:
+    (4, 3, N), or (4, 3) for the base, the same at every pose."""
+    if parent.ndim == 2:
+        out[...] = (Vt @ parent)[:, :, None]
+    else:
+        np.matmul(Vt, parent.reshape(4, -1), out=out.reshape(len(Vt), -1))
+
+
+def _turn_rows(block: np.ndarray, c, ss) -> None:
+    """The x and y axes of a frame's ``block`` turned about z per pose, from those before the turn:
+    x = c xc + s yc, y = c yc - s xc, with c (N,) and ``ss`` the (s, -s) of ``_signed_sines``."""
+    xy = block[X:Y + 1]
+    np.multiply(block[XC:YC + 1], c, out=xy)
+    xy += block[YC:XC - 1:-1] * ss                 # (yc, xc) s, -s
 
 
 def kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray, defl=None,
                     orientations: bool = False, frames_only: bool = False) -> _Pass:
-    """One pass down the tree. Per frame, the constant part of X_parent,j is one 3x3 product;
-    only the joint rotation (and gravity deflections) vary per pose.
+    """One pass down the tree. Per frame, its constant part (the parent's turn, offsets, and
+    theta's offset) is one (4 x 4) @ (4 x 3N) product; only the joint's turn varies per pose.
 
     ``frames_only``: frame poses without marker positions (the undeformed chain under compliance
-    needs no more; ``_compliant_vectors`` gives the axes it asks for). Step axes and points
-    (``U``, ``Q``) and marker orientations are built on first use."""
+    needs no more). Step axes and points (``U``, ``Q``) and marker orientations are built on
+    first use."""
     N = qf.shape[0]
     base_axes, Rb = _base_placement(model, p)
-    Ob = np.broadcast_to(p[0:3], (N, 3))
-    Rb_all = np.broadcast_to(Rb, (N, 3, 3))
-    R_frames = np.empty((model.n_frames, N, 3, 3))
-    O_frames = np.empty((model.n_frames, N, 3))
-    W_frames = np.empty((model.n_frames, N, 3, 6))
+    vec = np.empty((lay.n_rows, 3, N))
+    vec[ZERO_ROW] = 0.0
+    ps = _Pass(vec=vec, base_axes=base_axes, base_origin=p[0:3], base_rotation=Rb, model=model, lay=lay, p=p,
+               orientations=orientations, has_markers=not frames_only)
+    base = np.vstack([Rb.T, p[0:3]])                       # (4, 3) the base's x, y, z and origin
+    cos_q, sin_q = _joint_turns(qf)             # sin_q: (sin, -sin)
     for i, f in enumerate(model.frames):
-        Rp, Op = (Rb_all, Ob) if f.parent < 0 else (R_frames[f.parent], O_frames[f.parent])
-        v = p[lay.frame0[i]:lay.frame0[i] + 7]
-        q = qf[:, i]
+        r0 = lay.frame_row[i]
+        parent = base if f.parent < 0 else vec[lay.parent_row[i]:lay.parent_row[i] + 4]
+        v = p[lay.frame0[i]:lay.frame0[i] + 7].tolist()
         d_th, d_al, d_be = (0.0, 0.0, 0.0) if defl is None else defl[i]
-        W = W_frames[i]
-        _frame_axes(Rp, v, v[BETA] + d_be, v[ALPHA] + d_al, W)
-        th = v[THETA] + (q if f.joint == "revolute" else 0.0) + d_th
-        # the frame before its theta turn has x along the d axis and z along the theta axis
-        _turn_columns((W[:, :, 1], W[:, :, 5], W[:, :, 2]), 2, np.broadcast_to(th, (N,)), out=R_frames[i])
-        rr = v[R] + (q if f.joint == "prismatic" else 0.0)
-        np.add(Op + W[:, :, 4], np.reshape(rr, (-1, 1)) * W[:, :, 2], out=O_frames[i])
-    ps = _Pass(R=R_frames, O=O_frames, P=None, W=W_frames, base_axes=base_axes, base_origin=p[0:3],
-               base_rotation=Rb, model=model, lay=lay, p=p, orientations=orientations)
+        rev = f.joint == "revolute"
+        if isinstance(d_al, np.ndarray) or isinstance(d_be, np.ndarray):
+            _deflected_frame(vec, r0, parent, v, v[BETA] + d_be, v[ALPHA] + d_al,
+                             v[THETA] + d_th + (qf[:, i] if rev else 0.0))
+        else:
+            ps.pending.append((i, _constant_frame(vec, r0, parent, v, v[BETA] + d_be, v[ALPHA] + d_al, d_th,
+                                                  qf[:, i] if rev else None, cos_q[i], sin_q[i])))
+        if f.joint == "prismatic":
+            vec[r0 + ORIGIN] += qf[:, i] * vec[r0 + Z]
     if not frames_only:
-        ps.P = _marker_positions(ps)
+        _marker_positions(ps)
     return ps
 
 
-def _base_placement(model: RobotModel, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The axes (6, 3) of the base steps and the rotation of frame 0 in W."""
-    base_axes = np.empty((6, 3))
-    base_axes[0:3] = np.eye(3)
-    Rref = np.asarray(model.base_rotation, dtype=float)
-    # R = R_ref exp(v): a change dv turns the base about the columns of R_ref J_l(v), in W
-    base_axes[3:6] = (Rref @ left_jacobian(p[3:6])).T
-    return base_axes, Rref @ small_rotation(*p[3:6])
-
-
-def _frame_axes(Rp: np.ndarray, v: np.ndarray, be, al, W: np.ndarray) -> None:
-    """Fill ``W`` (N, 3, 6) with the frame's vectors in W (beta axis, alpha/d axis, theta/r axis,
-    b offset, full offset to the theta/r origin, y axis before the theta turn) from its parent's
-    rotations ``Rp`` and its values ``v``.
-
-    ``be`` and ``al`` are scalars, or per-pose arrays where gravity deflects them."""
-    N = Rp.shape[0]
-    Rg = rot_matrix(2, v[GAMMA])
-    bvec = np.array([0.0, 0.0, v[B]])
-    if not np.ndim(al) and not np.ndim(be):
-        Rgb = Rg @ rot_matrix(1, be)
-        A = Rgb @ rot_matrix(0, al)
-        V = np.column_stack([Rg[:, 1], Rgb[:, 0], A[:, 2], bvec, bvec + Rgb[:, 0] * v[D], A[:, 1]])
-        _rmul(Rp, V, out=W)
-        return
-    # per-pose deflections: turn the parent's columns pose by pose, only where they vary
-    if np.ndim(be):
-        RG = _rmul(Rp, Rg)
-        RGB = _turn(RG, 1, be)
-        W[:, :, 0] = RG[:, :, 1]
-        W[:, :, 3] = v[B] * RG[:, :, 2]
+def _constant_frame(vec, r0, parent, v, be, al, d_th, q, cos_q, sin_q) -> list:
+    """Fill frame rows X, Y, Z, ORIGIN from the parent when beta and alpha are the same at every
+    pose (``v`` the frame's values as floats); return the rows of the (4, 4) product giving its
+    step axes and points (rows D_AXIS on). The constant 3-vectors are a few scalars: plain floats."""
+    cg, sg = math.cos(v[GAMMA]), math.sin(v[GAMMA])
+    cb, sb = math.cos(be), math.sin(be)
+    ca, sa = math.cos(al), math.sin(al)
+    # in the parent's frame: Rot(z, gamma)'s y (the beta axis); after Rot(y, beta) the x (d axis)
+    # and z; after Rot(x, alpha) the y and z
+    yg = (-sg, cg, 0.0)
+    x = (cg * cb, sg * cb, -sb)
+    zb = (cg * sb, sg * sb, cb)
+    y = [ca * a + sa * b for a, b in zip(yg, zb)]
+    z = [ca * b - sa * a for a, b in zip(yg, zb)]
+    pb = (0.0, 0.0, v[B])
+    pt = [a + v[D] * b for a, b in zip(pb, x)]
+    per_pose = isinstance(d_th, np.ndarray)
+    varies = q is not None or per_pose
+    # theta's constant offset (and a constant deflection) turns the constant part
+    t0 = v[THETA] + (0.0 if per_pose else d_th)
+    c0, s0 = math.cos(t0), math.sin(t0)
+    xt = [c0 * a + s0 * b for a, b in zip(x, y)]
+    yt = [c0 * b - s0 * a for a, b in zip(x, y)]
+    origin = [a + v[R] * b for a, b in zip(pt, z)] + [1.0]
+    if not varies:
+        _place(np.array([xt + [0.0], yt + [0.0], z + [0.0], origin]), parent, vec[r0 + X:r0 + ORIGIN + 1])
     else:
-        X = _rmul(Rp, np.column_stack([Rg[:, 1], bvec, Rg @ rot_matrix(1, be)]))
-        W[:, :, [0, 3]] = X[:, :, :2]
-        RGB = X[:, :, 2:]
-    RA = _turn(RGB, 0, np.broadcast_to(al, (N,)))
-    W[:, :, 1] = RGB[:, :, 0]
-    W[:, :, 2] = RA[:, :, 2]
-    W[:, :, 4] = W[:, :, 3] + v[D] * RGB[:, :, 0]
-    W[:, :, 5] = RA[:, :, 1]
+        _place(np.array([z + [0.0], origin, xt + [0.0], yt + [0.0]]), parent, vec[r0 + Z:r0 + YC + 1])
+        if per_pose:
+            ang = d_th if q is None else q + d_th
+            cos_q, sin_q = np.cos(ang), _signed_sines(ang)
+        _turn_rows(vec[r0:r0 + FRAME_ROWS], cos_q, sin_q)
+    return [(*x, 0.0), (*yg, 0.0), (*pb, 1.0), (*pt, 1.0)]
 
 
-def _marker_positions(ps: _Pass) -> np.ndarray:
-    """(n_markers, N, 3) marker positions in W."""
+def _deflected_frame(vec, r0, parent, v, be, al, th) -> None:
+    """Fill every row of a frame whose beta or alpha is deflected pose by pose (``be``, ``al``
+    scalars or (N,)), turning the parent's axes pose by pose where they vary; ``th`` its full
+    theta, (N,) or a scalar."""
+    Rg = rot_matrix(2, v[GAMMA])
+    G = np.empty((4, 3, vec.shape[2] if parent.ndim > 2 else 1))
+    Vt = np.zeros((4, 4))
+    Vt[:3, :3] = Rg.T
+    Vt[3] = (0.0, 0.0, v[B], 1.0)
+    _place(Vt, parent, G)
+    gx, gy, gz, pb = G
+    cb, sb = np.cos(be), np.sin(be)
+    x = cb * gx - sb * gz                                 # after Rot(y, beta)
+    zb = sb * gx + cb * gz
+    ca, sa = np.cos(al), np.sin(al)
+    vec[r0 + Z] = ca * zb - sa * gy                        # after Rot(x, alpha)
+    y = ca * gy + sa * zb
+    vec[r0 + BETA_AXIS] = gy
+    vec[r0 + D_AXIS] = x
+    vec[r0 + B_POINT] = pb
+    vec[r0 + THETA_POINT] = pb + v[D] * x
+    vec[r0 + ORIGIN] = vec[r0 + THETA_POINT] + v[R] * vec[r0 + Z]
+    c, s = np.cos(th), np.sin(th)
+    vec[r0 + X] = c * x + s * y
+    vec[r0 + Y] = c * y - s * x
+
+
+def _base_placement(model: RobotModel, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The axes (6, 3) of the base steps and the rotation of frame 0 in W (read-only, remembered
+    for the last few values)."""
+    return _base_rotation(model.base_rotation, *p[3:6].tolist())
+
+
+@lru_cache(maxsize=16)
+def _base_rotation(reference: tuple, x: float, y: float, z: float) -> tuple[np.ndarray, np.ndarray]:
+    """R = R_ref exp([v]x) for the rotation vector v = (x, y, z); a change dv turns the base about
+    the columns of R_ref J_l(v) in W, J_l the left Jacobian (``left_jacobian``)."""
+    Rref = np.asarray(reference, dtype=float)
+    t = math.sqrt(x * x + y * y + z * z)
+    K = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    K2 = K @ K
+    # exp: I + sin t / t K + (1 - cos t) / t^2 K^2; J_l: I + (1 - cos t) / t^2 K + (t - sin t) / t^3 K^2
+    if t < 1e-8:
+        R, J = np.eye(3) + K + 0.5 * K2, np.eye(3) + 0.5 * K
+    else:
+        a, b, c = math.sin(t) / t, (1.0 - math.cos(t)) / t ** 2, (t - math.sin(t)) / t ** 3
+        R, J = np.eye(3) + a * K + b * K2, np.eye(3) + b * K + c * K2
+    base_axes = np.vstack([np.eye(3), (Rref @ J).T])
+    Rb = Rref @ R
+    base_axes.flags.writeable = Rb.flags.writeable = False
+    return base_axes, Rb
+
+
+def _frame_block(ps: _Pass, k: int) -> np.ndarray:
+    """(4, 3, N) frame k's x, y, z and origin."""
+    r0 = ps.lay.frame_row[k]
+    return ps.vec[r0:r0 + 4]
+
+
+def _marker_positions(ps: _Pass) -> None:
+    """Fill the marker rows with the marker positions in W."""
     model, lay, p = ps.model, ps.lay, ps.p
-    P = np.empty((len(model.markers), ps.R.shape[1], 3))
     for m, mk in enumerate(model.markers):
-        v = p[lay.marker0[m]:lay.marker0[m] + 3]
-        np.add(ps.O[mk.frame], _rmul(ps.R[mk.frame], v[:, None])[:, :, 0], out=P[m])
-    return P
+        v = np.append(p[lay.marker0[m]:lay.marker0[m] + 3], 1.0)
+        r = lay.marker_row[m]
+        _place(v[None], _frame_block(ps, mk.frame), ps.vec[r:r + 1])
 
 
 def _marker_rotations(ps: _Pass) -> list:
-    """Per marker its orientation (N, 3, 3) in W."""
+    """Per marker its orientation (N, 3, 3) in W (a view of a component-major array)."""
     model, lay, p = ps.model, ps.lay, ps.p
     out = []
     for m, mk in enumerate(model.markers):
         v = p[lay.marker0[m] + 3:lay.marker0[m] + 6]
-        out.append(_rmul(ps.R[mk.frame], np.asarray(mk.rotation, dtype=float) @ small_rotation(*v)))
+        C = np.asarray(mk.rotation, dtype=float) @ small_rotation(*v)
+        out.append(_columns(C, _frame_block(ps, mk.frame)).transpose(2, 1, 0))
     return out
 
 
-def _step_axes(ps: _Pass) -> tuple[np.ndarray, np.ndarray]:
-    """Axes ``U`` (n_steps, N, 3) of every step and points ``Q`` on the rotation axes, in W."""
-    model, lay, p = ps.model, ps.lay, ps.p
-    nf, N = ps.R.shape[0], ps.R.shape[1]
-    U = np.empty((len(lay.step_param), N, 3))
-    Q = np.zeros((len(lay.step_param), N, 3))
-    U[0:N_BASE] = ps.base_axes[:, None, :]
-    Q[3:N_BASE] = ps.base_origin
-    for i, f in enumerate(model.frames):
-        s0, W = N_BASE + 7 * i, ps.W[i]
-        zp, Op = (ps.base_rotation[:, 2], ps.base_origin) if f.parent < 0 else (ps.R[f.parent][:, :, 2],
-                                                                                   ps.O[f.parent])
-        U[s0 + GAMMA] = U[s0 + B] = zp
-        Q[s0 + GAMMA] = Op
-        U[s0 + BETA] = W[:, :, 0]
-        Q[s0 + BETA] = Q[s0 + ALPHA] = Op + W[:, :, 3]
-        U[s0 + ALPHA] = U[s0 + D] = W[:, :, 1]
-        U[s0 + THETA] = U[s0 + R] = W[:, :, 2]
-        Q[s0 + THETA] = Op + W[:, :, 4]
+def _columns(C: np.ndarray, frame: np.ndarray) -> np.ndarray:
+    """(k, 3, N) the frame's rotation times the columns of C (3, k)."""
+    Vt = np.zeros((C.shape[1], 4))
+    Vt[:, :3] = C.T
+    out = np.empty((C.shape[1],) + frame.shape[1:])
+    _place(Vt, frame, out)
+    return out
+
+
+def _fill_step_vectors(ps: _Pass) -> None:
+    """Fill the rows the step axes and points come from: the base's frame and step axes, each
+    frame's beta and d axes and points on the beta/alpha and theta axes, and the markers'
+    rotation axes (with orientations)."""
+    model, lay, p, vec = ps.model, ps.lay, ps.p, ps.vec
+    vec[BASE_ROW:BASE_ROW + 3] = ps.base_rotation.T[:, :, None]
+    vec[BASE_ROW + ORIGIN] = ps.base_origin[:, None]
+    vec[BASE_ROW + 4:BASE_ROW + 10] = ps.base_axes[:, :, None]
+    base = np.vstack([ps.base_rotation.T, ps.base_origin])
+    for i, axes in ps.pending:
+        r0 = lay.frame_row[i]
+        parent = base if model.frames[i].parent < 0 else vec[lay.parent_row[i]:lay.parent_row[i] + 4]
+        _place(np.array(axes), parent, vec[r0 + D_AXIS:r0 + THETA_POINT + 1])
+    ps.pending = []
     for m, mk in enumerate(model.markers):
-        Rf = ps.R[mk.frame]
-        s0 = N_BASE + 7 * nf + N_MARKER * m
-        U[s0:s0 + 3] = Rf.transpose(2, 0, 1)
+        r = lay.marker_row[m]
+        if not ps.has_markers:
+            vec[r] = np.nan                         # a frames-only pass has no marker to turn about
         if ps.orientations:
             v = p[lay.marker0[m] + 3:lay.marker0[m] + 6]
-            Rm = np.asarray(mk.rotation, dtype=float)
-            C = Rm @ left_jacobian(v)
-            U[s0 + 3:s0 + 6] = _rmul(Rf, C).transpose(2, 0, 1)
-            Q[s0 + 3:s0 + 6] = ps.P[m]
-        else:
-            U[s0 + 3:s0 + 6] = 0.0
-    return U, Q
+            C = np.asarray(mk.rotation, dtype=float) @ left_jacobian(v)
+            vec[r + 1:r + 4] = _columns(C, _frame_block(ps, mk.frame))
 
 
 def _mass_sums(model: RobotModel, lay: Layout, ps: _Pass, payload_mass):
     """First moments ``C1`` (3, n_frames, N), component-major, and masses ``msub`` (n_frames, N) of
     every subtree."""
-    nf, N = ps.O.shape[0], ps.O.shape[1]
+    nf, N = model.n_frames, ps.N
     mass = np.array([f.mass for f in model.frames], dtype=float)
-    com = np.array([f.com for f in model.frames], dtype=float)
-    centres = ps.O + np.matmul(ps.R.reshape(nf, 3 * N, 3), com[:, :, None]).reshape(nf, N, 3)
-    own_c1 = mass[:, None, None] * centres
+    com = np.ones((nf, 1, 4))
+    com[:, 0, :3] = [f.com for f in model.frames]
+    frames = ps._frames()[:, :4].reshape(nf, 4, 3 * N)
+    own_c1 = np.matmul(com, frames).reshape(nf, 3, N)
+    own_c1 *= mass[:, None, None]
     own_m = np.repeat(mass[:, None], N, axis=1)
     for n, pl in enumerate(model.payloads):
         # a measurement's payload column varies the first payload only
         pm = pl.mass if payload_mass is None or n > 0 else payload_mass
         if np.any(np.asarray(pm) > 0):
             k = pl.frame if pl.frame >= 0 else nf - 1
-            c = ps.O[k] + _rmul(ps.R[k], np.asarray(pl.com, dtype=float)[:, None])[:, :, 0]
+            c = np.append(np.asarray(pl.com, dtype=float), 1.0) @ frames[k]
             pm = np.broadcast_to(np.asarray(pm, dtype=float), (N,))
-            own_c1[k] += pm[:, None] * c
+            own_c1[k] += pm * c.reshape(3, N)
             own_m[k] += pm
     sub = lay.subtree.astype(float)
-    return sub @ own_c1.transpose(2, 0, 1), sub @ own_m
+    return sub @ own_c1.transpose(1, 0, 2), sub @ own_m
 
 
 def _compliant_vectors(model: RobotModel, ps: _Pass):
     """Axes ``u`` and points ``Q`` of every compliant step (theta, alpha, beta of each frame) and the
     parents' origins ``Op``, component-major ((3, 3 n_frames, N) and (3, n_frames, N)), once per pass."""
     if "compliant" not in ps.cache:
-        nf, N = ps.O.shape[0], ps.O.shape[1]
-        Wc = np.ascontiguousarray(ps.W[..., :5].transpose(2, 0, 3, 1))        # (3, nf, 5, N)
-        parent = np.array([f.parent for f in model.frames])
-        Op = np.empty((3, nf, N))
-        Op[:, parent >= 0] = ps.O[parent[parent >= 0]].transpose(2, 0, 1)
-        Op[:, parent < 0] = ps.base_origin[:, None, None]
-        u = Wc[:, :, 2::-1].reshape(3, 3 * nf, N)                    # theta, alpha, beta axes
-        # theta turns about O_theta = O_parent + W4; alpha and beta about O_parent + W3
-        Q = (Op[:, :, None] + Wc[:, :, [4, 3, 3]]).reshape(3, 3 * nf, N)
-        ps.cache["compliant"] = (u, Q, Op)
+        lay, vec = ps.lay, ps.vectors()
+        u = vec[(lay.frame_row[:, None] + [Z, D_AXIS, BETA_AXIS]).ravel()]
+        # theta turns about its own point, alpha and beta about the point b along the parent's z
+        Q = vec[(lay.frame_row[:, None] + [THETA_POINT, B_POINT, B_POINT]).ravel()]
+        Op = vec[lay.parent_row + ORIGIN]
+        ps.cache["compliant"] = (u.transpose(1, 0, 2), Q.transpose(1, 0, 2), Op.transpose(1, 0, 2))
     return ps.cache["compliant"]
 
 
@@ -654,30 +801,58 @@ class Evaluation:
     frames: np.ndarray | None = None
 
 
+# poses per block of the step columns: smaller temporaries, taken again from the allocator's
+# reserve instead of fresh pages (calibrate at 10,000 poses about 4 % faster; no change at 1,000)
+COLUMN_BLOCK = 4096
+
+
 def _step_columns(lay: Layout, ps: _Pass, m: int, steps: np.ndarray, rows: int = 6, out=None) -> np.ndarray:
     """(len(steps), N, rows) columns of the given steps for marker m, zero off its path.
 
     Column-major (one contiguous block per parameter): what the solver wants, and cheap to fill.
     ``rows`` 3 gives the position part only. ``out``: where to write them instead of a new array.
+    The columns are computed component-major from the pass's rows, for the asked steps only, and
+    written component by component (a strided copy, much cheaper than a transposing one), in
+    blocks of poses.
     """
-    N = ps.P.shape[1]
     on = lay.marker_path[m, steps]
-    rot = lay.step_is_rot[steps] & on
-    tra = ~lay.step_is_rot[steps] & on
+    is_rot = lay.step_is_rot[steps]
+    rot = np.nonzero(is_rot & on)[0]
+    tra = np.nonzero(~is_rot & on)[0]
     if out is None:
-        out = np.zeros((len(steps), N, rows))
-    else:
+        out = np.empty((len(steps), ps.N, rows))
+    if len(rot) + len(tra) < len(steps):
         out[~on] = 0.0
-        if rows == 6:
-            out[tra, :, 3:] = 0.0
-    if rot.any():
-        U = ps.U[steps[rot]]
-        out[rot, :, :3] = cross(U, ps.P[m][None] - ps.Q[steps[rot]])
-        if rows == 6:
-            out[rot, :, 3:] = U
-    if tra.any():
-        out[tra, :, :3] = ps.U[steps[tra]]
+    vec = ps.vectors()
+    axis, point = lay.step_rows[int(ps.orientations)]
+    rows_of = (axis[steps[rot]], point[steps[rot]], lay.marker_row[m], axis[steps[tra]])
+    for a in range(0, ps.N, COLUMN_BLOCK):
+        _column_block(vec, rows_of, rot, tra, slice(a, a + COLUMN_BLOCK), out)
     return out
+
+
+def _column_block(vec, rows_of, rot, tra, poses: slice, out) -> None:
+    """``_step_columns`` at the poses ``poses``: rotations ``rot`` (axis rows, point rows, marker
+    row) and translations ``tra`` (axis rows) of ``rows_of``, into ``out``."""
+    rot_axes, rot_points, marker, tra_axes = rows_of
+    rows = out.shape[2]
+    if len(rot):
+        u = vec[rot_axes, :, poses]                                        # (S, 3, n)
+        lever = vec[rot_points, :, poses]
+        np.subtract(vec[marker, :, poses], lever, out=lever)
+        part, other = np.empty((2,) + u.shape[:1] + u.shape[2:])
+        for c, (j, k) in _ROT_PAIRS.items():                               # u x lever
+            np.multiply(u[:, j], lever[:, k], out=part)
+            np.multiply(u[:, k], lever[:, j], out=other)
+            out[rot, poses, c] = np.subtract(part, other, out=part)
+        for c in range(3, rows):
+            out[rot, poses, c] = u[:, c - 3]
+    if len(tra):
+        u = vec[tra_axes, :, poses]
+        for c in range(3):
+            out[tra, poses, c] = u[:, c]
+        if rows == 6:
+            out[tra, poses, 3:] = 0.0
 
 
 @dataclass
@@ -942,7 +1117,8 @@ def evaluate(model: RobotModel, q: np.ndarray, p: np.ndarray | None = None, *, j
             frames_out[:, i, :3, :3] = ps.R[i]
             frames_out[:, i, :3, 3] = ps.O[i]
             frames_out[:, i, 3, 3] = 1.0
-    return Evaluation(positions=ps.P.transpose(1, 0, 2), rotations=rotations, jacobian=J,
+    # a copy: a view would keep the whole pass alive for as long as the caller keeps the positions
+    return Evaluation(positions=np.ascontiguousarray(ps.P.transpose(1, 0, 2)), rotations=rotations, jacobian=J,
                       moments=None if st.M is None else st.M.T, frames=frames_out)
 
 
