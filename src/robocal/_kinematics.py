@@ -287,11 +287,14 @@ class _Pass:
             self.cache["RM"] = _marker_rotations(self) if self.orientations else []
         return self.cache["RM"]
 
-    def vectors(self) -> np.ndarray:
-        """``vec`` with the step axes and points filled in."""
-        if "filled" not in self.cache:
-            _fill_step_vectors(self)
-            self.cache["filled"] = True
+    def vectors(self, frames=None) -> np.ndarray:
+        """``vec`` with the step axes and points filled in: the base's, the markers' and those of
+        ``frames`` (indices; default every frame)."""
+        filled = self.cache.setdefault("filled", set())
+        wanted = set(range(self.model.n_frames)) if frames is None else set(frames)
+        if "base" not in filled or not wanted <= filled:
+            _fill_step_vectors(self, wanted - filled, "base" not in filled)
+            filled |= wanted | {"base"}
         return self.vec
 
     def _axes(self):
@@ -507,20 +510,23 @@ def _columns(C: np.ndarray, frame: np.ndarray) -> np.ndarray:
     return out
 
 
-def _fill_step_vectors(ps: _Pass) -> None:
-    """Fill the rows the step axes and points come from: the base's frame and step axes, each
-    frame's beta and d axes and points on the beta/alpha and theta axes, and the markers'
-    rotation axes (with orientations)."""
+def _fill_step_vectors(ps: _Pass, frames: set, base_and_markers: bool) -> None:
+    """Fill the rows the step axes and points come from: the base's frame and step axes and the
+    markers' rotation axes (with orientations), when ``base_and_markers``; the beta and d axes
+    and the points on the beta/alpha and theta axes of the frames ``frames``."""
     model, lay, p, vec = ps.model, ps.lay, ps.p, ps.vec
-    vec[BASE_ROW:BASE_ROW + 3] = ps.base_rotation.T[:, :, None]
-    vec[BASE_ROW + ORIGIN] = ps.base_origin[:, None]
-    vec[BASE_ROW + 4:BASE_ROW + 10] = ps.base_axes[:, :, None]
     base = np.vstack([ps.base_rotation.T, ps.base_origin])
     for i, axes in ps.pending:
+        if i not in frames:
+            continue
         r0 = lay.frame_row[i]
         parent = base if model.frames[i].parent < 0 else vec[lay.parent_row[i]:lay.parent_row[i] + 4]
         _place(np.array(axes), parent, vec[r0 + D_AXIS:r0 + THETA_POINT + 1])
-    ps.pending = []
+    if not base_and_markers:
+        return
+    vec[BASE_ROW:BASE_ROW + 3] = ps.base_rotation.T[:, :, None]
+    vec[BASE_ROW + ORIGIN] = ps.base_origin[:, None]
+    vec[BASE_ROW + 4:BASE_ROW + 10] = ps.base_axes[:, :, None]
     for m, mk in enumerate(model.markers):
         r = lay.marker_row[m]
         if not ps.has_markers:
@@ -823,7 +829,7 @@ def _step_columns(lay: Layout, ps: _Pass, m: int, steps: np.ndarray, rows: int =
         out = np.empty((len(steps), ps.N, rows))
     if len(rot) + len(tra) < len(steps):
         out[~on] = 0.0
-    vec = ps.vectors()
+    vec = ps.vectors(lay.step_frame[steps[lay.step_frame[steps] >= 0]].tolist())
     axis, point = lay.step_rows[int(ps.orientations)]
     rows_of = (axis[steps[rot]], point[steps[rot]], lay.marker_row[m], axis[steps[tra]])
     for a in range(0, ps.N, COLUMN_BLOCK):
