@@ -46,7 +46,7 @@ class Solution:
 
 @one_blas_thread
 def solve(problem: Problem, p0: np.ndarray, *, loss: str = "linear", f_scale: float | None = None,
-          max_nfev: int | None = None, lower: np.ndarray | None = None) -> Solution:
+          max_nfev: int | None = None, lower: np.ndarray | None = None, tol: float = SOLVER_TOL) -> Solution:
     """Minimise the problem's residuals over its free parameters, starting from ``p0`` (full vector).
 
     ``loss="linear"`` is Levenberg-Marquardt on the normal equations with the analytic Jacobian
@@ -54,19 +54,19 @@ def solve(problem: Problem, p0: np.ndarray, *, loss: str = "linear", f_scale: fl
     it bends at ``ROBUST_SCALE_SIGMAS`` robust standard deviations (median absolute deviation)
     of the residuals, re-estimated from the robust fit until it settles: the first, non-robust fit
     spreads outliers over every residual. ``lower`` (n_free,): lower bounds (-inf for none), which
-    need the trust-region solver.
+    need the trust-region solver. ``tol``: the step, cost and gradient tolerances.
     """
     check_choice(loss, LOSSES, "loss")
     bounded = lower is not None and bool(np.any(np.isfinite(lower)))
     if loss == "linear" and not bounded:
-        return _levenberg_marquardt(problem, p0, max_nfev)
+        return _levenberg_marquardt(problem, p0, max_nfev, tol)
     if getattr(problem, "chunked", False):   # problems of other observations are solved whole
         raise InputError(f"a campaign of over {LARGE_POSES} poses is solved in chunks, with the linear loss and "
                          "without bounds only")
-    return _trust_region(problem, p0, loss, f_scale, max_nfev, lower if bounded else None)
+    return _trust_region(problem, p0, loss, f_scale, max_nfev, lower if bounded else None, tol)
 
 
-def _trust_region(problem: Problem, p0: np.ndarray, loss: str, f_scale, max_nfev, lower) -> Solution:
+def _trust_region(problem: Problem, p0: np.ndarray, loss: str, f_scale, max_nfev, lower, tol: float) -> Solution:
     """scipy's solvers, for a robust loss or bounds."""
     x0 = p0[problem.free_idx]
 
@@ -76,7 +76,7 @@ def _trust_region(problem: Problem, p0: np.ndarray, loss: str, f_scale, max_nfev
     def jac(x):
         return problem.jacobian(problem.full(x, p0))
 
-    kw = dict(jac=jac, x_scale="jac", xtol=SOLVER_TOL, ftol=SOLVER_TOL, gtol=SOLVER_TOL, max_nfev=max_nfev)
+    kw = dict(jac=jac, x_scale="jac", xtol=tol, ftol=tol, gtol=tol, max_nfev=max_nfev)
     if lower is not None:
         x0 = np.maximum(x0, lower)
         kw["bounds"] = (lower, np.full(len(x0), np.inf))
