@@ -242,3 +242,34 @@ def test_an_ill_conditioned_factor_comes_from_qr():
         assert (cond ** 2 < GRAM_COND_MAX) == (eps == 1e-2)
         np.testing.assert_allclose(np.abs(np.diag(R)), np.abs(np.diag(R_qr)), rtol=1e-6 if eps == 1e-2 else 1e-9)
         np.testing.assert_allclose(R.T @ R, B.T @ B, rtol=0, atol=1e-12 * np.abs(B.T @ B).max())
+
+
+def test_a_campaign_in_chunks_holds_one_chunk_at_a_time(monkeypatch):
+    """Memory of a large campaign grows with a chunk, not with the poses: evaluating its residuals
+    keeps no chunk's evaluation beyond the chunk (traced numpy memory, against one chunk's)."""
+    import tracemalloc
+
+    import robocal._kinematics as kinematics
+    import robocal._problem as problem
+    from robocal.identification import Problem
+    from robocal.kinematics import parameter_vector
+
+    for module in (kinematics, problem):
+        monkeypatch.setattr(module, "LARGE_POSES", 1000)
+        monkeypatch.setattr(module, "CHUNK_POSES", 500)
+    m = arm6r()
+    _, data = rc.simulate(m, 8000, seed=0)
+    p = parameter_vector(m)
+
+    def peak(d):
+        prob = Problem(m, d, ("j1.theta",), compliance=False)
+        tracemalloc.start()
+        prob.residuals(p)
+        out = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+        return out, prob.chunked
+
+    (whole, chunked), (one, single) = peak(data), peak(data.subset(slice(0, 500)))
+    assert chunked and not single
+    positions = 8000 * 3 * 8
+    assert whole < 3 * one + 4 * positions      # 16 chunks' evaluations held at once would be ~16 x one

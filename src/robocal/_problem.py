@@ -161,7 +161,8 @@ class Problem:
     def _positions(self, p) -> np.ndarray:
         """(n_model_markers, n_poses, 3) marker positions at ``p``."""
         if self.chunked:
-            return np.concatenate([sub._positions(p) for sub in self._chunks()], axis=1)
+            # copies: a chunk's positions are a view that would keep its whole evaluation alive
+            return np.concatenate([sub._positions(p).copy() for sub in self._chunks()], axis=1)
         return self._state(p).ps.P
 
     def predicted(self, p):
