@@ -394,32 +394,32 @@ def _constant_frame(vec, r0, parent, v, be, al, d_th, q, cos_q, sin_q) -> list:
     cg, sg = math.cos(v[GAMMA]), math.sin(v[GAMMA])
     cb, sb = math.cos(be), math.sin(be)
     ca, sa = math.cos(al), math.sin(al)
-    # in the parent's frame: Rot(z, gamma)'s y (the beta axis); after Rot(y, beta) the x (d axis)
-    # and z; after Rot(x, alpha) the y and z
-    yg = (-sg, cg, 0.0)
-    x = (cg * cb, sg * cb, -sb)
-    zb = (cg * sb, sg * sb, cb)
-    y = [ca * a + sa * b for a, b in zip(yg, zb)]
-    z = [ca * b - sa * a for a, b in zip(yg, zb)]
-    pb = (0.0, 0.0, v[B])
-    pt = [a + v[D] * b for a, b in zip(pb, x)]
+    # in the parent's frame: Rot(z, gamma)'s y (the beta axis, yg); after Rot(y, beta) the x (the d
+    # axis) and z (zb); after Rot(x, alpha) the y and z: y = ca yg + sa zb, z = ca zb - sa yg
+    # written out component by component: list comprehensions over 3-vectors cost more than the math
+    x0, x1, x2 = cg * cb, sg * cb, -sb
+    zb0, zb1, zb2 = cg * sb, sg * sb, cb
+    y0, y1, y2 = -ca * sg + sa * zb0, ca * cg + sa * zb1, sa * zb2
+    z0, z1, z2 = ca * zb0 + sa * sg, ca * zb1 - sa * cg, ca * zb2
+    b, d, r = v[B], v[D], v[R]
     per_pose = isinstance(d_th, np.ndarray)
-    varies = q is not None or per_pose
     # theta's constant offset (and a constant deflection) turns the constant part
     t0 = v[THETA] + (0.0 if per_pose else d_th)
     c0, s0 = math.cos(t0), math.sin(t0)
-    xt = [c0 * a + s0 * b for a, b in zip(x, y)]
-    yt = [c0 * b - s0 * a for a, b in zip(x, y)]
-    origin = [a + v[R] * b for a, b in zip(pt, z)] + [1.0]
-    if not varies:
-        _place(np.array([xt + [0.0], yt + [0.0], z + [0.0], origin]), parent, vec[r0 + X:r0 + ORIGIN + 1])
+    xt = (c0 * x0 + s0 * y0, c0 * x1 + s0 * y1, c0 * x2 + s0 * y2, 0.0)
+    yt = (c0 * y0 - s0 * x0, c0 * y1 - s0 * x1, c0 * y2 - s0 * x2, 0.0)
+    z = (z0, z1, z2, 0.0)
+    origin = (d * x0 + r * z0, d * x1 + r * z1, b + d * x2 + r * z2, 1.0)
+    if q is None and not per_pose:
+        _place(np.array((xt, yt, z, origin)), parent, vec[r0 + X:r0 + ORIGIN + 1])
     else:
-        _place(np.array([z + [0.0], origin, xt + [0.0], yt + [0.0]]), parent, vec[r0 + Z:r0 + YC + 1])
+        _place(np.array((z, origin, xt, yt)), parent, vec[r0 + Z:r0 + YC + 1])
         if per_pose:
             ang = d_th if q is None else q + d_th
             cos_q, sin_q = np.cos(ang), _signed_sines(ang)
         _turn_rows(vec[r0:r0 + FRAME_ROWS], cos_q, sin_q)
-    return [(*x, 0.0), (*yg, 0.0), (*pb, 1.0), (*pt, 1.0)]
+    # in the parent's frame: the d axis, the beta axis (Rot(z, gamma)'s y), b's point, theta's point
+    return [(x0, x1, x2, 0.0), (-sg, cg, 0.0, 0.0), (0.0, 0.0, b, 1.0), (d * x0, d * x1, b + d * x2, 1.0)]
 
 
 def _deflected_frame(vec, r0, parent, v, be, al, th) -> None:
