@@ -244,3 +244,44 @@ def test_readings_changed_in_place_are_not_taken_for_the_old_ones():
     q[2, 1] += 0.3
     np.testing.assert_allclose(evaluate(m, q).positions, _reference_fk(m, q), atol=1e-12)
     assert np.abs(evaluate(m, q).positions - first).max() > 1e-3
+
+
+@pytest.mark.parametrize("orientations", [False, True])
+def test_an_evaluation_moved_by_the_base_and_markers_equals_a_new_one(orientations):
+    """A fit of the base and markers alone evaluates the chain once and moves it: positions,
+    orientations, the base's and markers' columns, and (moved when first asked for) every frame
+    and column equal those of a new pass, also when moved twice and on two markers' frames."""
+    import robocal._kinematics as K
+    from robots import torso
+
+    for m in (arm6r(), torso()):
+        lay, p = K.layout(m), parameter_vector(m)
+        qf = rc.random_configurations(m, 30, rng=1) @ m.coupling_matrix.T
+        rng = np.random.default_rng(0)
+        p2 = p.copy()
+        p2[:6] += 0.05 * rng.standard_normal(6)
+        for k in lay.marker0:
+            p2[k:k + 6] += 0.01 * rng.standard_normal(6)
+        p3 = p2.copy()
+        p3[2] += 0.01
+        assert K.moves_rigidly(lay, p, p2) and not K.moves_rigidly(lay, p, p2 + 1e-9)
+
+        def new(v):
+            return K.evaluate_state(m, lay, v, qf, compliance=False, orientations=orientations)
+
+        moved = K.moved_state(K.moved_state(new(p), p2), p3)      # moved twice, the first never completed
+        ref = new(p3)
+        placed = np.setdiff1d(np.arange(lay.n_params), lay.chain_params)
+        for mi in range(len(m.markers)):
+            np.testing.assert_allclose(K.jacobian_columns(m, lay, moved, placed, mi),
+                                       K.jacobian_columns(m, lay, ref, placed, mi), rtol=0, atol=1e-14)
+        assert moved.ps.moved_from is not None                     # the chain's other frames not moved yet
+        np.testing.assert_allclose(moved.ps.P, ref.ps.P, rtol=0, atol=1e-14)
+        for a, b in zip(moved.ps.RM, ref.ps.RM):
+            np.testing.assert_allclose(a, b, rtol=0, atol=1e-14)
+        everything = np.arange(lay.n_params)
+        for mi in range(len(m.markers)):
+            np.testing.assert_allclose(K.jacobian_columns(m, lay, moved, everything, mi),
+                                       K.jacobian_columns(m, lay, ref, everything, mi), rtol=0, atol=1e-14)
+        for name in ("R", "O", "U", "Q"):
+            np.testing.assert_allclose(getattr(moved.ps, name), getattr(ref.ps, name), rtol=0, atol=1e-14)

@@ -88,6 +88,7 @@ class Layout:
     parent_row: np.ndarray      # (n_frames,) first row of its parent's block (BASE_ROW for the root)
     marker_row: np.ndarray      # (n_markers,) first row of each marker's block
     step_rows: np.ndarray       # (2, 2, n_steps) [orientations] rows of each step's axis and point
+    chain_params: np.ndarray    # indices of every parameter but the base's and the markers'
 
 
 
@@ -141,6 +142,8 @@ def layout(model: RobotModel) -> Layout:
     rows = _vector_rows(model)
     return Layout(
         n_rows=rows[0], frame_row=rows[1], parent_row=rows[2], marker_row=rows[3], step_rows=rows[4],
+        chain_params=np.array([k for k, pr in enumerate(params.parameters) if pr.role not in ("base", "marker")],
+                              dtype=int),
         param_step=param_step, param_compliant=param_compliant, backlash_params=bparams, joint_steps=jsteps,
         param_backlash=param_backlash,
         names=tuple(names), n_params=len(names), frame0=np.array(frame0, dtype=int),
@@ -241,9 +244,18 @@ class _Pass:
     has_markers: bool = True
     pending: list = field(default_factory=list)  # (frame, rows of the (4, 4) product giving its step axes and points)
     cache: dict = field(default_factory=dict)
+    moved_from: tuple | None = None  # (pass, dR, shift): the frame rows still to move from it (``moved_state``)
+
+    def materialise(self) -> None:
+        """Move every frame row from the pass this one was moved from (``moved_state``)."""
+        if self.moved_from is not None:
+            src, dR, shift = self.moved_from
+            self.moved_from = None
+            _move_rows(self.vec, src.vec, dR, shift, np.arange(self.model.n_frames))
 
     def _frames(self) -> np.ndarray:
         """(n_frames, FRAME_ROWS, 3, N) every frame's block."""
+        self.materialise()
         nf = self.model.n_frames
         return self.vec[FRAME_ROW0:FRAME_ROW0 + FRAME_ROWS * nf].reshape((nf, FRAME_ROWS) + self.vec.shape[1:])
 
@@ -292,6 +304,8 @@ class _Pass:
         ``frames`` (indices; default every frame)."""
         filled = self.cache.setdefault("filled", set())
         wanted = set(range(self.model.n_frames)) if frames is None else set(frames)
+        if wanted:
+            self.materialise()
         if "base" not in filled or not wanted <= filled:
             _fill_step_vectors(self, wanted - filled, "base" not in filled)
             filled |= wanted | {"base"}
@@ -477,8 +491,50 @@ def _base_rotation(reference: tuple, x: float, y: float, z: float) -> tuple[np.n
 
 def _frame_block(ps: _Pass, k: int) -> np.ndarray:
     """(4, 3, N) frame k's x, y, z and origin."""
+    if ps.moved_from is not None and all(mk.frame != k for mk in ps.model.markers):
+        ps.materialise()          # a moved pass holds the markers' frames only
     r0 = ps.lay.frame_row[k]
     return ps.vec[r0:r0 + 4]
+
+
+def moved_state(st, p: np.ndarray):
+    """The evaluation at ``p`` from ``st``, a geometric one (no compliance, no backlash) at values
+    that differ from ``p`` in the base and the markers only: the chain is the same, moved rigidly
+    by the change of the base. Only the markers' frames are moved at once (what their positions
+    and the base's and markers' columns need); the other frames are moved when first asked for.
+    A fit of the base and markers alone evaluates this way, without a pass down the chain."""
+    old = st.ps
+    src = old if old.moved_from is None else old.moved_from[0]
+    lay = src.lay
+    base_axes, Rb = _base_placement(src.model, p)
+    dR = Rb @ src.base_rotation.T
+    shift = p[0:3] - dR @ src.base_origin               # a point x goes to dR x + shift
+    vec = np.empty_like(src.vec)
+    vec[ZERO_ROW] = 0.0
+    _move_rows(vec, src.vec, dR, shift, sorted({mk.frame for mk in src.model.markers}), block=4)
+    ps = _Pass(vec=vec, base_axes=base_axes, base_origin=p[0:3], base_rotation=Rb, model=src.model, lay=lay, p=p,
+               orientations=src.orientations, has_markers=src.has_markers, pending=src.pending,
+               moved_from=(src, dR, shift))
+    if ps.has_markers:
+        _marker_positions(ps)
+    return _State(ps=ps, compliance=False, ks=p[lay.compliant_params])
+
+
+def moves_rigidly(lay: Layout, a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether parameter vectors ``a`` and ``b`` differ in the base and marker values only."""
+    return bool(np.array_equal(a[lay.chain_params], b[lay.chain_params]))
+
+
+def _move_rows(dst: np.ndarray, src: np.ndarray, dR: np.ndarray, shift: np.ndarray, frames, block: int = FRAME_ROWS):
+    """The first ``block`` rows of each frame in ``frames`` of ``src`` turned by ``dR`` into ``dst``, and
+    its points (ORIGIN, B_POINT, THETA_POINT) shifted by ``shift``."""
+    for k in frames:
+        r0 = FRAME_ROW0 + FRAME_ROWS * int(k)
+        rows = src[r0:r0 + block]
+        dst[r0:r0 + block] = (dR @ rows.transpose(1, 0, 2).reshape(3, -1)).reshape(3, block, -1).transpose(1, 0, 2)
+        for off in (ORIGIN, B_POINT, THETA_POINT):
+            if off < block:
+                dst[r0 + off] += shift[:, None]
 
 
 def _marker_positions(ps: _Pass) -> None:

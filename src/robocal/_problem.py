@@ -18,7 +18,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ._errors import InputError
-from ._kinematics import CHUNK_POSES, LARGE_POSES, evaluate_state, frame_approach, jacobian_columns, layout
+from ._kinematics import (CHUNK_POSES, LARGE_POSES, evaluate_state, frame_approach, jacobian_columns, layout,
+                          moved_state, moves_rigidly)
 from ._linalg import r_factor, reduced
 from ._measurements import Measurements, Noise, approach_of
 from ._model import RobotModel
@@ -150,9 +151,12 @@ class Problem:
         key = p.tobytes()
         st = self._states.pop(key, None)
         if st is None:
-            st = evaluate_state(self.model, self.lay, p, self.qf, compliance=self.compliance,
-                                orientations=self.use_rot, payload_mass=self.data.payload_mass,
-                                backlash=self.backlash, approach=self.approach)
+            # a geometric chain that only the base and markers moved from a kept evaluation is that one moved
+            near = None if self.compliance or self.backlash else next(
+                (s for s in reversed(self._states.values()) if moves_rigidly(self.lay, s.ps.p, p)), None)
+            st = moved_state(near, p) if near is not None else evaluate_state(
+                self.model, self.lay, p, self.qf, compliance=self.compliance, orientations=self.use_rot,
+                payload_mass=self.data.payload_mass, backlash=self.backlash, approach=self.approach)
             if len(self._states) >= max(1, min(STATES_KEPT, STATE_POSES // max(self.data.n_poses, 1))):
                 self._states.pop(next(iter(self._states)))
         self._states[key] = st
