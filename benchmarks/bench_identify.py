@@ -56,12 +56,18 @@ def best_of(fn, repeat):
 def solve(model, data, families, jac):
     """A function running one solve: the library's (``jac``), or the finite-difference baseline."""
     ident = rc.identifiability(model, data, parameters=families)
-    prob = Problem(model, data, ident.identified, compliance="compliance" in families)
     p0 = parameter_vector(model)
+
+    def problem():
+        # a new problem for every run: a problem keeps its last evaluations, and a solve repeated on
+        # the same one would find them all kept
+        return Problem(model, data, ident.identified, compliance="compliance" in families)
+
     if jac:
-        return lambda: library_solve(prob, p0)
+        return lambda: library_solve(problem(), p0)
 
     def run():
+        prob = problem()
         return least_squares(lambda x: prob.residuals(prob.full(x, p0)), p0[prob.free_idx], jac="2-point",
                              method="lm", x_scale="jac", xtol=SOLVER_TOL, ftol=SOLVER_TOL, gtol=SOLVER_TOL)
     return run
