@@ -10,13 +10,13 @@ least squares on the kept columns gives the linear combination that absorbs it.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 
 import numpy as np
-from scipy.linalg import solve_triangular
 
-from ._linalg import reduced
+from ._linalg import reduced, solve_upper
 from ._measurements import Measurements
 from ._model import RobotModel
 from ._parameters import FRAME_KINDS, candidate_parameters, parameter_layout, parameter_vector
@@ -191,7 +191,7 @@ def _absorbing_combinations(An: np.ndarray, dep: list, basis: np.ndarray, Rk: np
         return {}
     D = An[:, dep]
     proj = basis.T @ D
-    C = solve_triangular(Rk, proj)
+    C = solve_upper(Rk, proj)
     R = np.linalg.norm(D - basis @ proj, axis=0)
     return {k: (C[:, i], float(R[i])) for i, k in enumerate(dep)}
 
@@ -343,7 +343,7 @@ def _kept_prefix(A: np.ndarray, sigma: float, factor: np.ndarray):
         return 0, Q, Rinv, np.zeros(k)
     Qa, Ra = np.linalg.qr(A)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        inv = solve_triangular(Ra, np.eye(k), check_finite=False)
+        inv = solve_upper(Ra, np.eye(k))           # NaN if singular: then every trial goes one at a time
         running = np.cumsum(inv ** 2, axis=1)                     # [i, m]: i's entry among the first m + 1
         ratio = sigma * np.sqrt(running) * factor[:, None]
     ratio = np.where(np.triu(np.ones((k, k), dtype=bool)) & (factor[:, None] > 0), np.nan_to_num(ratio, nan=np.inf),
@@ -359,10 +359,11 @@ def _project(B: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, float]:
     """The coordinates of ``a`` on the orthonormal columns ``B`` and the norm of what is left
     (projected twice: one classical Gram-Schmidt pass loses orthogonality for nearly dependent
     columns)."""
-    r1 = B.T @ a
+    r1 = a @ B
     res = a - B @ r1
-    r2 = B.T @ res
-    return r1 + r2, float(np.linalg.norm(res - B @ r2))
+    r2 = res @ B
+    res -= B @ r2
+    return r1 + r2, math.sqrt(res @ res)
 
 
 @one_blas_thread

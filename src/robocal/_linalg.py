@@ -50,3 +50,12 @@ def r_factor(A: np.ndarray) -> np.ndarray:
             if info == 0 and rcond * GRAM_COND_MAX >= 1.0:
                 return U * col
     return reduced(A)
+
+
+def solve_upper(R: np.ndarray, b: np.ndarray, *, transposed: bool = False) -> np.ndarray:
+    """``R^-1 b`` (or ``R^-T b``) for an upper triangular ``R`` by LAPACK's dtrtrs, NaN where ``R`` is
+    singular (scipy's checking wrapper costs several times the solve at these sizes)."""
+    x, info = lapack.dtrtrs(R, b if b.ndim == 2 else b[:, None], lower=0, trans=int(transposed))
+    if info != 0:
+        x = np.full(x.shape, np.nan)
+    return x if b.ndim == 2 else x[:, 0]

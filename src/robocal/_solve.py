@@ -8,12 +8,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import solve_triangular
 from scipy.optimize import least_squares
 
 from ._errors import DegenerateDataError, InputError, check_choice
 from ._identifiability import singular_values
-from ._linalg import r_factor, reduced
+from ._linalg import r_factor, reduced, solve_upper
 from ._options import LOSSES
 from ._problem import LARGE_POSES, Problem
 from ._threads import one_blas_thread
@@ -124,8 +123,7 @@ def _normal_equations(problem, p: np.ndarray, r: np.ndarray | None = None) -> _N
 def _step(R: np.ndarray, g: np.ndarray, D: np.ndarray, lam: float) -> np.ndarray:
     """The step solving ``(R^T R + lam D^2) dx = -g``; Gauss-Newton for ``lam = 0``."""
     A = R if lam == 0.0 else reduced(np.vstack([R, np.sqrt(lam) * np.diag(D)]))
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        return -solve_triangular(A, solve_triangular(A, g, trans="T", check_finite=False), check_finite=False)
+    return -solve_upper(A, solve_upper(A, g, transposed=True))
 
 
 _MESSAGES = {0: "the maximum number of function evaluations is exceeded",
