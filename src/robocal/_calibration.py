@@ -38,7 +38,7 @@ from ._version import __version__
 # the limit is a mean-error bar; within this factor of it counts as reaching it
 LIMIT_REACHED_WITHIN = 1.15
 # The fit of base and markers behind the errors before calibration stops at this tolerance, its
-# last step taken: its errors are those of the fit run to 1e-12 within about 1e-10 m (they are
+# last step taken: its errors are those of the fit run to 1e-12 within a few 1e-10 m (they are
 # shown in micrometres), and it takes one Jacobian and one pass fewer.
 REGISTRATION_TOL = 1e-6
 
