@@ -5,7 +5,9 @@ blocks: a second BLAS thread gains little on them, and when another process keep
 OpenBLAS's threads wait on each other and a call runs many times slower than on one thread. One
 thread also makes results independent of the machine's thread count. The limit is taken when the
 outermost robocal call starts and the previous setting is restored when it returns: the user's
-own settings are untouched outside robocal.
+own settings are untouched outside robocal. The bound is the BLAS library's, so it holds for the
+whole process while a robocal call runs: BLAS called from another Python thread at that time runs
+on one thread too.
 
 The first call also lets the C allocator keep memory robocal frees for its next arrays. glibc hands
 blocks over 128 kB straight back to the system and trims the heap as soon as a few of them are free,
