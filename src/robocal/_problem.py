@@ -88,11 +88,11 @@ class Problem:
     @one_blas_thread
     def normal_equations(self, p) -> tuple[np.ndarray, np.ndarray, float]:
         """At ``p``: the R factor (n_free, n_free) of the weighted Jacobian (``R^T R = J^T J``), the
-        gradient ``J^T r`` and the sum of squared weighted residuals, taken chunk by chunk for a
-        large campaign."""
+        gradient ``J^T r`` and the sum of squared weighted residuals, taken chunk by chunk (what a
+        large campaign is solved on; a problem held whole is solved on its Jacobian)."""
         k = len(self.free_idx)
         R, g, cost = np.zeros((0, k)), np.zeros(k), 0.0
-        for sub in self._chunks() if self.chunked else (self,):
+        for sub in self._chunks():
             J, r = sub.jacobian(p), sub.residuals(p)
             R = reduced(np.vstack([R, J]))
             g += J.T @ r
@@ -111,14 +111,11 @@ class Problem:
         return self._factor(p, r_factor)
 
     def _factor(self, p, make) -> np.ndarray:
-        st = self._state(p)
+        kept = self._state(p).cache.setdefault("factors", {})
         free = tuple(self.free_idx.tolist())
-        for have, R in st.cache.get("factors", {}).items():
-            if set(free) <= set(have):
-                where = {c: i for i, c in enumerate(have)}
-                return R if free == have else make(R[:, [where[c] for c in free]])
-        R = make(self.jacobian(p))
-        st.cache.setdefault("factors", {})[free] = R
+        R = _taken(kept, free, lambda R, cols: make(R[:, cols]))
+        if R is None:
+            R = kept[free] = make(self.jacobian(p))
         return R
 
     def _indices(self, free) -> np.ndarray:
@@ -229,13 +226,11 @@ class Problem:
         Kept with the evaluation at ``p``: asked again, or for fewer parameters (the solve after
         the analysis, at the same start), its columns are taken instead of built again."""
         st = self._state(p)
+        kept = st.cache.setdefault("jacobians", {})
         free = tuple(self.free_idx.tolist())
-        for have, Jt in st.cache.get("jacobians", {}).items():
-            if set(free) <= set(have):
-                where = {c: i for i, c in enumerate(have)}
-                return (Jt if free == have else Jt[[where[c] for c in free]]).T
-        Jt = self._jacobian_rows(st)
-        st.cache.setdefault("jacobians", {})[free] = Jt
+        Jt = _taken(kept, free, lambda Jt, rows: Jt[rows])
+        if Jt is None:
+            Jt = kept[free] = self._jacobian_rows(st)
         return Jt.T
 
     def _jacobian_rows(self, st) -> np.ndarray:
@@ -279,6 +274,18 @@ class Problem:
         rows = 6 if self.use_rot else 3
         cols = [jacobian_columns(self.model, self.lay, st, self.free_idx, m, rows) for m in self.marker_idx]
         return np.concatenate([C.transpose(1, 2, 0) for C in cols], axis=1)
+
+
+def _taken(kept: dict, free: tuple, take):
+    """What an evaluation keeps for the parameters ``free`` (indices): ``kept[free]``, or
+    ``take(entry, positions of free in it)`` from an entry kept for more parameters; None if neither."""
+    for have, entry in kept.items():
+        if have == free:
+            return entry
+        if set(free) <= set(have):
+            where = {c: i for i, c in enumerate(have)}
+            return take(entry, [where[c] for c in free])
+    return None
 
 
 def needs_compliance(model: RobotModel, names) -> bool:
