@@ -20,7 +20,7 @@ LAYERS = [
     {"_problem", "_observations"},
     {"_identifiability"},
     {"_pose_selection", "_simulation", "_compensation", "_accuracy_limit", "_conversion", "_checks",
-     "_contact_simulation"},
+     "_contact_simulation", "_in_use", "_effects"},
     {"_solve", "_calibration", "_campaign", "_contact_calibration", "_contact_planning"},
     {"_files"},
     {"_presentation"},
@@ -110,7 +110,9 @@ def test_no_function_over_a_screen():
     for path in _modules():
         for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
-                n = node.end_lineno - node.lineno + 1
+                # the code, not its documentation: a numpy-style docstring is as long as it needs
+                body = node.body[1:] if ast.get_docstring(node) is not None and len(node.body) > 1 else node.body
+                n = node.end_lineno - body[0].lineno + 1
                 limit = MAX_CALIBRATE_LINES if node.name == "calibrate" else MAX_FUNCTION_LINES
                 if n > limit:
                     long.append(f"{path.relative_to(SRC)}:{node.lineno} {node.name}: {n} lines")

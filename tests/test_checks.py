@@ -70,6 +70,18 @@ def _failed(result) -> dict:
     return {c["name"]: c for c in result["checks"] if c["status"] == "fail"}
 
 
+# what catches a mistake in the data or the model once solved: what the robot does over its workspace,
+# the accuracy in use, or a solve that cannot settle (the fit's size alone never fails a calibration)
+CAUGHT = {"plausible changes", "accuracy in use", "solver convergence", "orientation fit"}
+
+
+def _assert_caught(code, out, result):
+    """Exit code 3 and verdict fail from a check that judges the solved model (``CAUGHT``)."""
+    assert code == 3 and result["verdict"] == "fail", out
+    assert set(_failed(result)) & CAUGHT, list(_failed(result))
+    assert "verdict: FAIL" in out
+
+
 def _assert_fails(code, out, result, check, *words):
     """Exit code 3, verdict fail, ``check`` failed with ``words`` in what it says, and no calibrated model."""
     assert code == 3, out
@@ -124,7 +136,7 @@ def test_a_unit_declared_wrong(tmp_path, cli, mistake, units, edit, check, words
 def test_one_joint_in_the_wrong_unit(tmp_path, cli):
     m, _, data = _campaign()
     code, out, _, result = _calibrate(tmp_path, cli, m, _map_column(_csv(data, m), "j4_deg", np.radians))
-    _assert_fails(code, out, result, "fit against the instrument")
+    _assert_caught(code, out, result)
     units = next(c for c in result["checks"] if c["name"] == "joint reading units")
     assert units["status"] == "warn" and units["items"] == ["j4"]
 
@@ -141,9 +153,7 @@ def test_sign_error_in_the_model(tmp_path, cli):
     lines = _csv(data, m)
     wrong = m.replace(frames=tuple(replace(f, d=-f.d) if f.name == "j3" else f for f in m.frames))
     code, out, _, result = _calibrate(tmp_path, cli, wrong, lines)
-    assert code == 3 and {"plausible changes", "fit against the instrument"} & set(_failed(result))
-    if "plausible changes" in _failed(result):
-        assert "j3.d" in json.dumps(_failed(result)["plausible changes"])
+    _assert_fails(code, out, result, "plausible changes", "moves the tool up to")
 
 
 def test_two_markers_swapped(tmp_path, cli):
@@ -152,7 +162,7 @@ def test_two_markers_swapped(tmp_path, cli):
     for axis in "xyz":
         lines = _swap_columns(lines, f"tool_{axis}_mm", f"tool2_{axis}_mm")
     code, out, _, result = _calibrate(tmp_path, cli, m, lines, "--known", "markers")
-    _assert_fails(code, out, result, "fit against the instrument", "marker names or columns swapped")
+    _assert_caught(code, out, result)
 
 
 def test_reading_beyond_its_limit_is_named(tmp_path, cli):
@@ -167,20 +177,20 @@ def test_joint_order_swapped(tmp_path, cli):
     m, _, data = _campaign()
     lines = _swap_columns(_csv(data, m), "j2_deg", "j3_deg")
     code, out, _, result = _calibrate(tmp_path, cli, m, lines)
-    assert code == 3 and "fit against the instrument" in _failed(result)
+    assert code == 3 and result["verdict"] == "fail"
 
 
 def test_joint_sign_reversed(tmp_path, cli):
     m, _, data = _campaign()
     code, out, _, result = _calibrate(tmp_path, cli, m, _map_column(_csv(data, m), "j2_deg", lambda v: -v))
-    assert code == 3 and {"fit against the instrument", "joint readings within the limits"} & set(_failed(result))
+    assert code == 3 and (CAUGHT | {"joint readings within the limits"}) & set(_failed(result))
 
 
 def test_marker_on_the_wrong_frame(tmp_path, cli):
     m, _, data = _campaign()
     wrong = m.replace(markers=(replace(m.markers[0], frame=4),))
     code, out, _, result = _calibrate(tmp_path, cli, wrong, _csv(data, m))
-    assert code == 3 and {"fit against the instrument", "plausible changes"} & set(_failed(result))
+    _assert_caught(code, out, result)
 
 
 def test_file_from_another_robot(tmp_path, cli):
@@ -188,7 +198,7 @@ def test_file_from_another_robot(tmp_path, cli):
     bigger = m.replace(frames=tuple(replace(f, d=f.d * 1.3, r=f.r * 1.3) for f in m.frames))
     _, data = rc.simulate(bigger, 48, seed=3, noise=NOISE)
     code, out, _, result = _calibrate(tmp_path, cli, m, _csv(data, bigger))
-    _assert_fails(code, out, result, "plausible changes", "j3.d")
+    _assert_fails(code, out, result, "plausible changes", "moves the tool up to")
 
 
 def test_pose_column_shifted_by_one_row(tmp_path, cli):
@@ -200,14 +210,14 @@ def test_pose_column_shifted_by_one_row(tmp_path, cli):
     shifted = [[(rows[(i + 1) % len(rows)][k] if k in joints else c) for k, c in enumerate(r)]
                for i, r in enumerate(rows)]
     code, out, _, result = _calibrate(tmp_path, cli, m, [lines[0]] + [",".join(r) for r in shifted])
-    assert code == 3 and "fit against the instrument" in _failed(result)
+    _assert_caught(code, out, result)
 
 
 def test_instrument_axes_swapped(tmp_path, cli):
     m, _, data = _campaign()
     lines = _swap_columns(_csv(data, m), "tool_x_mm", "tool_y_mm")   # a mirrored frame: no rotation fits
     code, out, _, result = _calibrate(tmp_path, cli, m, lines)
-    assert code == 3 and "fit against the instrument" in _failed(result)
+    _assert_caught(code, out, result)
 
 
 def test_blunder_is_named_and_refitted_or_failed(tmp_path, cli):
@@ -217,10 +227,18 @@ def test_blunder_is_named_and_refitted_or_failed(tmp_path, cli):
     lines = _set(lines, 7, "tool_x_mm", value + 5.0)
     code, out, _, result = _calibrate(tmp_path, cli, m, lines)
     outliers = next(c for c in result["checks"] if c["name"] == "outliers")
-    assert code == 0 and result["verdict"] == "warn" and result["loss"] == "soft_l1"
+    assert code == 0 and result["verdict"] == "warn" and result["loss"] == "linear"
     assert outliers["status"] == "warn" and outliers["items"][0].startswith("pose 7, marker tool")
+    assert "set aside" in outliers["summary"] and any("set aside" in n for n in result["notes"])
+    # the fit without that point is the one its deletion gives
+    deleted = lines[:8] + lines[9:]
+    (tmp_path / "deleted").mkdir()
+    _, _, _, without = _calibrate(tmp_path / "deleted", cli, m, deleted)
+    for a, b in zip(result["parameters"], without["parameters"]):
+        assert a["name"] == b["name"] and abs(a["estimate"] - b["estimate"]) < 1e-3 * b["std"] + 1e-12
     code, out, _, result = _calibrate(tmp_path, cli, m, lines, "--on-outliers", "flag")
-    _assert_fails(code, out, result, "outliers", "pose 7, marker tool")
+    outliers = next(c for c in result["checks"] if c["name"] == "outliers")
+    assert outliers["status"] == "warn" and "kept in the fit" in outliers["summary"]
 
 
 def test_noise_only_data_calibrated_with_compliance(tmp_path, cli):
@@ -367,7 +385,7 @@ def test_one_blunder_is_named_in_nearly_every_campaign():
 
 def test_robust_refit_keeps_the_truth_within_three_sigma_with_gross_outliers():
     def recovered(res, true, m, rows):                  # 3 of 48 points: about 5 %
-        return res.loss == "soft_l1" and np.abs(z_scores(res, true, m)).max() < 3.0
+        return any("set aside" in n for n in res.notes) and np.abs(z_scores(res, true, m)).max() < 3.0
     assert _count_campaigns(3000, 3, recovered) >= 90
 
 
@@ -384,7 +402,8 @@ def test_fair_before_registers_base_and_tool():
 
 def test_weak_parameters_are_judged_at_the_scatter_the_fit_shows():
     """Residuals of the robot's own size and no limit given: the shipped TH8 campaign holds back what
-    the limit-aware calibration holds back, and only the fit against the instrument warns."""
+    the limit-aware calibration holds back (each choice by the cross-validated error), and only the
+    fit against the instrument warns; with the limit, reached in use, it passes."""
     th8 = Path(__file__).resolve().parents[1] / "examples" / "th8"
     nominal = rc.read_model(th8 / "model.yaml")
     fit, val = rc.split_sets(rc.read_measurements(th8 / "measurements.csv", nominal))
@@ -397,7 +416,8 @@ def test_weak_parameters_are_judged_at_the_scatter_the_fit_shows():
         return {a.name for a in r.identifiability.eliminated if a.reason.startswith("is weakly identifiable")}
     assert weak(plain) and weak(plain) == weak(aware)
     assert {c.name for c in plain.checks if c.status != "pass"} == {"fit against the instrument"}
-    assert plain.verdict == "warn" and any("times the expected" in n for n in plain.notes)
+    assert plain.verdict == "warn" and any("model choice by cross-validated error" in n for n in plain.notes)
+    assert aware.verdict == "pass" and aware.limit.reached
 
 
 def test_outlier_bar_rises_with_the_campaign_so_clean_noise_names_no_point():
@@ -412,5 +432,5 @@ def test_outlier_bar_rises_with_the_campaign_so_clean_noise_names_no_point():
     assert check.status == "pass" and not out.any() and outlier_bar(n) > 5.5
     residuals[123] = [10 * NOISE, 0, 0]
     check, out = outlier_check(residuals, None, Noise.of(position=NOISE), labels)
-    assert check.status == "fail" and np.flatnonzero(out).tolist() == [123] and check.items[0].startswith("pose 123,")
+    assert check.status == "warn" and np.flatnonzero(out).tolist() == [123] and check.items[0].startswith("pose 123,")
 

@@ -174,7 +174,7 @@ def test_each_kind_is_checked_on_its_own(arm7, socket_run):
     q[5, 1] += 1e-3                                # one socket row read while the arm still moved
     flagged = calibrate_contacts(arm7, replace(fit, q=q), on_outliers="flag")
     check = next(c for c in flagged.checks if c.name == "outliers among the socket contacts")
-    assert check.status == "fail" and fit.labels[5] in check.summary
+    assert check.status == "warn" and fit.labels[5] in check.summary
     refit = calibrate_contacts(arm7, replace(fit, q=q))       # the robust loss sets the row aside
     check = next(c for c in refit.checks if c.name == "outliers among the socket contacts")
     assert check.status == "warn" and "soft_l1" in check.summary and refit.verdict == "warn"

@@ -1,7 +1,11 @@
-"""Identification: least squares on the identifiable parameters, with uncertainty and statistics.
+"""Identification: least squares on the identifiable parameters, with uncertainty, the accuracy
+in use and the checks.
 
-``calibrate`` is a short sequence of named steps: check the inputs, register the base (if asked),
-analyse identifiability at the data, solve, take the covariance, run the checks on the result,
+``calibrate`` is a sequence of named steps, each returning a record (no step writes into another's):
+check the inputs, register the base (if asked), analyse identifiability at the data, choose the
+model by its cross-validated error (weak parameters held back only where that costs nothing in
+use; points that stand out set aside only where that helps), take the covariance, judge the
+result (the accuracy in use, what the robot does over its workspace, the campaign's coverage),
 compute the error statistics, record the provenance.
 """
 
@@ -14,15 +18,18 @@ from datetime import datetime, timezone
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ._checks import (FIT_RATIO, OUTLIER_SHARE_MAX, ROBOT_RESIDUAL_MAX, Check, backlash_sign_check,
-                      cloud_size_check, compliance_sign_check, convergence_check, correlation_check, expected_noise,
-                      fit_check, identifiability_check, markers_check, outlier_check, plausibility_check,
-                      reading_units_check, readings_check, support_check, tolerances, verdict)
+from ._checks import (FIT_RATIO, OUTLIER_RUN, OUTLIER_SHARE_MAX, Check, WorkspaceChange, backlash_sign_check,
+                      cloud_size_check, compliance_sign_check, convergence_check, correlation_check, coverage_check,
+                      expected_noise, fit_check, identifiability_check, in_use_check, interchangeable_pairs,
+                      limit_check, markers_check, outlier_check, plausibility_check, reading_units_check,
+                      readings_check, support_check, tolerances, verdict)
 from ._errors import (CheckWarning, ConvergenceWarning, DegenerateDataError, IdentifiabilityWarning, InputError,
                       MisfitWarning, check_choice)
-from ._identifiability import (DEFAULT_TOL, IdentifiabilityResult, analyse, backlash_reasons,
+from ._identifiability import (DEFAULT_TOL, WEAK_STD, IdentifiabilityResult, analyse, backlash_reasons,
                                theoretical_identifiability, weakly_identifiable)
 from ._identifiability import eliminate as eliminate_parameters
+from ._in_use import (DEFAULT_FOLDS, AccuracyInUse, Coverage, HeldOut, accuracy_in_use, coverage, cross_validate,
+                      evaluated, fold_labels, free_names, paired_excess, with_points_aside, workspace_readings)
 from ._kinematics import evaluate
 from ._measurements import Measurements, Noise
 from ._options import DEFAULT_INSTRUMENT, INITIAL_BASES, LOSSES, OUTLIER_ACTIONS, WEAK_ACTIONS
@@ -30,7 +37,7 @@ from ._misfit import characteristic_length, misfit_notes
 from ._model import RobotModel
 from ._parameters import (candidate_parameters, matched_by_pattern, model_from_vector, parameter_layout,
                           parameter_vector)
-from ._problem import Problem, needs_compliance
+from ._problem import Problem, design_measurements, needs_compliance
 from ._solve import Covariance, Solution, covariance, solve
 from ._threads import one_blas_thread
 from ._version import __version__
@@ -81,8 +88,9 @@ class ErrorSummary:
 
 @dataclass(frozen=True)
 class LimitJudgement:
-    """The mean error after calibration (``compared``: held-out poses, else fitted) against the limit
-    of absolute accuracy, metres; ``reached`` within ``LIMIT_REACHED_WITHIN`` of it."""
+    """The mean error in use after calibration (``compared``: "validation_after" for a validation
+    set, "cross-validation" otherwise) against the limit of absolute accuracy, metres; ``reached``
+    within ``LIMIT_REACHED_WITHIN`` of it."""
 
     limit_m: float
     compared: str
@@ -91,11 +99,12 @@ class LimitJudgement:
     reached: bool
 
 
-def judge_against_limit(limit, stats: ErrorSummary) -> LimitJudgement:
-    """The validation mean error against the limit of absolute accuracy (an AccuracyLimit or metres)."""
+def judge_against_limit(limit, in_use: AccuracyInUse) -> LimitJudgement:
+    """The mean error in use after calibration against the limit of absolute accuracy (an
+    AccuracyLimit or metres)."""
     value = float(getattr(limit, "limit", limit))
-    key = "validation_after" if stats.validation_after.n else "fit_after"
-    mean = stats[key].mean
+    key = "cross-validation" if in_use.method == "cross-validation" else "validation_after"
+    mean = float(in_use.position_after.mean)
     ratio = mean / value
     return LimitJudgement(limit_m=value, compared=key, mean_error_m=mean, ratio=ratio,
                           reached=bool(ratio <= LIMIT_REACHED_WITHIN))
@@ -167,6 +176,8 @@ class CalibrationResult:
     validation_positions: np.ndarray | None = None
     rotation_validation_before: np.ndarray | None = None
     rotation_validation_after: np.ndarray | None = None
+    in_use: AccuracyInUse | None = None
+    coverage: Coverage | None = None
 
     @property
     def verdict(self) -> str:
@@ -215,21 +226,6 @@ def register_base(model: RobotModel, data: Measurements) -> RobotModel:
 
 
 @dataclass(frozen=True, eq=False)
-class _Design:
-    """What the analysis step decided: the start, the problem over the identifiable parameters, and
-    what the structure allows but these poses lose (``lost``) or cannot pin down (``weak``)."""
-
-    start: RobotModel
-    p0: np.ndarray
-    problem: Problem
-    identifiability: IdentifiabilityResult
-    compliance: bool
-    lost: tuple[str, ...] = ()
-    weak: tuple[tuple[str, str], ...] = ()
-    weak_kept: bool = False
-
-
-@dataclass(frozen=True, eq=False)
 class _Analysis:
     """What the data can identify, before asking what they can pin down: the problem over the
     candidates, its Jacobian at the start, the rank analysis and what these poses lose."""
@@ -240,6 +236,53 @@ class _Analysis:
     identifiability: IdentifiabilityResult
     lost: tuple[str, ...]
     compliance: bool
+    notes: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True, eq=False)
+class _Design:
+    """One model choice: the start, the problem over the parameters it frees, and what the structure
+    allows but these poses lose (``lost``) or cannot pin down (``weak``: found, and held at nominal
+    unless ``weak_kept``). ``judged_at``: the per-axis scatter (m) weak parameters were judged at."""
+
+    start: RobotModel
+    p0: np.ndarray
+    problem: Problem
+    identifiability: IdentifiabilityResult
+    compliance: bool
+    lost: tuple[str, ...] = ()
+    weak: tuple[tuple[str, str], ...] = ()
+    weak_kept: bool = False
+    judged_at: float = 0.0
+    kept_in_use: bool = False
+
+
+@dataclass(frozen=True)
+class _Options:
+    """How to solve and what to do with outliers, weak parameters and the folds."""
+
+    loss: str
+    f_scale: float | None
+    max_nfev: int | None
+    on_outliers: str
+    weak: str
+    nonnegative_compliance: bool
+    folds: int
+
+
+@dataclass(frozen=True, eq=False)
+class _Fit:
+    """A design solved on ``data`` (its mask: the points set aside taken out), the outlier check and
+    mask over ``measured`` points (those of the original data, in ``np.nonzero(mask)`` order), its
+    cross-validated errors and what it noted."""
+
+    design: _Design
+    data: Measurements
+    solution: Solution
+    outlier_check: Check
+    outlying: np.ndarray
+    held_out: HeldOut
+    notes: tuple[str, ...] = ()
 
 
 @one_blas_thread
@@ -247,55 +290,97 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
               validation: Measurements | None = None, loss: str = "linear", f_scale: float | None = None,
               tol: float = DEFAULT_TOL, max_nfev: int | None = None, initial_base: str = "model",
               limit=None, noise=None, on_outliers: str = "refit", weak: str = "eliminate",
-              nonnegative_compliance: bool = False) -> CalibrationResult:
-    """Identify the identifiable parameters of ``model`` from ``data``, and check the result.
+              nonnegative_compliance: bool = False, folds: int = DEFAULT_FOLDS,
+              register_validation: bool = False) -> CalibrationResult:
+    """Identify the identifiable parameters of ``model`` from ``data``, and judge the result in use.
 
-    ``parameters``: families (``geometric``, ``compliance``, ``base``, ``markers``, ``frames``)
-    and/or explicit names; ``known``: families or names held at their model values.
-    ``initial_base``: ``"model"`` starts from the model's base pose, ``"register"`` from a
-    closed-form rigid registration of the nominal robot onto the measurements.
-    ``loss``: least-squares loss (``linear`` or a robust one of scipy's); ``f_scale`` the residual
-    size (m, or in standard deviations when the data carry them) where a robust loss bends.
-    ``limit``: an ``AccuracyLimit`` or a value in metres; the result then states the validation
-    error (held-out poses, or the fitted ones without them) against it, and the checks expect
-    residuals of the robot's own size. ``noise``: the measurement noise where the data state none,
-    a ``Noise`` or an instrument class (``INSTRUMENT_NOISE``; default a laser tracker's); it weighs
-    6D rows and sets the bar of the checks. ``on_outliers``: ``"refit"`` refits with a robust loss
-    when a few measured points stand out, ``"flag"`` only names them. ``weak``: ``"eliminate"``
-    holds weakly identifiable parameters at nominal, ``"flag"`` keeps them and warns.
-    ``nonnegative_compliance``: keep compliances >= 0. The result's ``checks`` and ``verdict``
-    say whether it can be trusted (docs/checks.md).
+    Parameters
+    ----------
+    model : RobotModel
+        The nominal robot; the solve starts from it.
+    data : Measurements
+        The fitted campaign.
+    parameters, known : families or names
+        What to identify (``geometric``, ``compliance``, ``backlash``, ``base``, ``markers``,
+        ``frames`` or parameter names and patterns) and what to hold at the model's values.
+    validation : Measurements, optional
+        Held-out poses to judge the result on; without them it is judged by ``folds``-fold
+        cross-validation (docs/checks.md, "Accuracy in use").
+    loss, f_scale : str, float
+        Least-squares loss (``linear`` or a robust one of scipy's) and, for a robust one, the
+        residual size where it bends (m, or standard deviations when the data state them).
+    tol : float
+        Identifiability tolerance, in (0, 1).
+    max_nfev : int, optional
+        Evaluations the solver may take.
+    initial_base : {"model", "register"}
+        Start from the model's base pose, or from a rigid registration of the nominal robot.
+    limit : AccuracyLimit or float, optional
+        The limit of absolute accuracy (m): the accuracy in use is judged against it, and weak
+        parameters are judged at the scatter it implies (never holding back what helps in use).
+    noise : Noise or str, optional
+        The measurement noise where the data state none (an instrument class of
+        ``INSTRUMENT_NOISE``; default a laser tracker's).
+    on_outliers : {"refit", "flag"}
+        Set measured points that stand out aside and fit again without them, or only name them.
+    weak : {"eliminate", "flag"}
+        Hold weakly identifiable parameters at nominal where that does not worsen the accuracy in
+        use, or keep them all and warn.
+    nonnegative_compliance : bool
+        Keep compliances >= 0.
+    folds : int
+        Folds of the cross-validation (>= 2), without a validation set or a series column.
+    register_validation : bool
+        With ``validation`` from another set-up: register base and tool on it (for the models
+        before and after alike) before taking its errors.
+
+    Returns
+    -------
+    CalibrationResult
+        Estimates, covariance, errors, the accuracy in use and the checks; ``verdict`` says whether
+        it can be trusted (docs/checks.md).
     """
     parameters, known = _as_tuple(parameters), _as_tuple(known)
-    _check_inputs(model, data, validation, loss=loss, initial_base=initial_base, on_outliers=on_outliers, weak=weak)
+    _check_inputs(model, data, validation, loss=loss, initial_base=initial_base, on_outliers=on_outliers, weak=weak,
+                  folds=folds)
     noise = noise if isinstance(noise, Noise) else Noise.of(noise or DEFAULT_INSTRUMENT)
     limit_m = None if limit is None else float(getattr(limit, "limit", limit))
-    checks = [readings_check(model, data), reading_units_check(model, data), markers_check(model, data)]
+    options = _Options(loss=loss, f_scale=f_scale, max_nfev=max_nfev, on_outliers=on_outliers, weak=weak,
+                       nonnegative_compliance=nonnegative_compliance, folds=folds)
     notes = list(model.notes) + list(data.extra.get("notes", ()))  # what the readers decided for the user
-    start = _starting_model(model, data, initial_base, notes)
-    design, (solution, outlier_check, outlying) = _identify(
-        start, data, parameters, known + _unmeasured(model, data), tol, notes, noise=noise, limit_m=limit_m,
-        weak=weak, solve_options=dict(loss=loss, f_scale=f_scale, max_nfev=max_nfev, on_outliers=on_outliers,
-                                      nonnegative_compliance=nonnegative_compliance))
-    # the nominal robot's spread, from the analysis' evaluation of the start (a base pose changes no spread)
-    checks.insert(2, cloud_size_check(model, data, design.problem.predicted(design.p0)[0]))
+    start, said = _starting_model(model, data, initial_base)
+    analysis = _analyse(start, data, parameters, known + _unmeasured(model, data), tol, noise=noise)
+    labels, k, grouping = fold_labels(data, folds)
+    chosen, choice_notes = _choose(start, analysis, data, noise, limit_m, options, (labels, k))
+    design, solution = chosen.design, chosen.solution
+    before, before_notes = _registered_nominal(design)
+    notes += list(said) + list(analysis.notes) + list(chosen.notes) + list(choice_notes) + list(before_notes)
     cov = covariance(solution)
     estimates = _estimates(design, solution, cov)
-    checks += [outlier_check] + _result_checks(design, solution, cov, estimates, data, noise, limit_m, outlying)
+    in_use = _in_use(model, design, chosen, before, validation, (labels, k, grouping), register_validation)
+    reach = _reach(start, design, solution.p, workspace_readings(start))
+    cover = coverage(design.problem, solution.p, cov.covariance, reach.predicted)
+    checks = [readings_check(model, data), reading_units_check(model, data),
+              cloud_size_check(model, data, analysis.problem.predicted(design.p0)[0]), markers_check(model, data),
+              chosen.outlier_check]
+    checks += _result_checks(design, chosen, cov, estimates, noise, limit_m, reach)
+    checks += [in_use_check(in_use), coverage_check(cover, in_use)]
     calibrated = model_from_vector(start, solution.p)
-    before = _registered_nominal(design, notes)
     fit = _PoseErrors.of(model, data, design.problem, before, solution.p, design)
     val = None if validation is None else _PoseErrors.of(model_from_vector(start, before), validation, None, None,
                                                          calibrated, design)
     stats = fit.summary(val, rotation=False)
+    judged = None if limit is None else judge_against_limit(limit, in_use)
+    if judged is not None:
+        checks.append(limit_check(judged))
     _warn(checks)
     return CalibrationResult(
         nominal_model=model, calibrated_model=calibrated, parameters=estimates,
         covariance=cov.covariance, correlation=cov.correlation, identifiability=design.identifiability,
         success=solution.success, status=solution.status, message=solution.message, nfev=solution.nfev,
         sigma0=float(np.sqrt(cov.s2)), families=parameters, loss=solution.loss, notes=tuple(notes),
-        limit=None if limit is None else judge_against_limit(limit, stats), checks=tuple(checks),
-        provenance=provenance(data, validation), stats=stats, rotation_stats=fit.summary(val, rotation=True),
+        limit=judged, checks=tuple(checks), provenance=provenance(data, validation), stats=stats,
+        rotation_stats=fit.summary(val, rotation=True), in_use=in_use, coverage=cover,
         **fit.fields("fit"), **(val.fields("validation") if val is not None else {}),
     )
 
@@ -305,12 +390,14 @@ def _as_tuple(v) -> tuple:
 
 
 def _check_inputs(model: RobotModel, data: Measurements, validation, *, loss: str, initial_base: str,
-                  on_outliers: str, weak: str) -> None:
+                  on_outliers: str, weak: str, folds: int = DEFAULT_FOLDS) -> None:
     """Every argument checked before any work."""
     check_choice(loss, LOSSES, "loss")
     check_choice(initial_base, INITIAL_BASES, "initial_base")
     check_choice(on_outliers, OUTLIER_ACTIONS, "on_outliers")
     check_choice(weak, WEAK_ACTIONS, "weak")
+    if isinstance(folds, bool) or not isinstance(folds, (int, np.integer)) or folds < 2:
+        raise InputError(f"must be an integer of at least 2, got {folds!r}", where="folds")
     for what, d in (("data", data), ("validation", validation)):
         if d is None:
             continue
@@ -331,54 +418,22 @@ def _unmeasured(model: RobotModel, data: Measurements) -> tuple[str, ...]:
     return tuple(p.name for p in lay.parameters if p.role == "marker" and p.owner not in seen)
 
 
-def _starting_model(model: RobotModel, data: Measurements, initial_base: str, notes: list) -> RobotModel:
-    """The model the solve starts from: the user's, or with a registered base."""
+def _starting_model(model: RobotModel, data: Measurements, initial_base: str) -> tuple[RobotModel, tuple[str, ...]]:
+    """The model the solve starts from (the user's, or with a registered base), and what it noted."""
     if initial_base != "register":
-        return model
-    notes.append("base pose started from a closed-form registration of the nominal robot on the data")
-    notes.append("base parameters are reported against the registered base (nominal column), not the model file's")
-    return register_base(model, data)
+        return model, ()
+    return register_base(model, data), (
+        "base pose started from a closed-form registration of the nominal robot on the data",
+        "base parameters are reported against the registered base (nominal column), not the model file's")
 
 
-def _identify(start: RobotModel, data: Measurements, parameters: tuple, known: tuple, tol: float, notes: list, *,
-              noise: Noise, limit_m: float | None, weak: str, solve_options: dict):
-    """The design and its solution. Weak parameters are first judged at the noise expected. When the
-    fit leaves residuals well above it, spread over every point (no outlier) and of a size a robot's
-    repeatability or an unmodelled effect explains, they are judged again at the scatter the fit
-    shows, and the fit repeated without those it cannot pin down. Larger residuals are a mistake in
-    the data or the model, which the checks name; they are left to them."""
-    analysis = _analyse(start, data, parameters, known, tol, notes, noise=noise)
-    design = _pin_down(start, analysis, noise, limit_m, weak)
-    solved = _solve(design, data, noise, notes, **solve_options)
-    expected, _ = expected_noise(noise, limit_m)
-    scatter = _scatter(design, solved[0], data, solved[2])
-    if weak != "eliminate" or solved[2].any() or not FIT_RATIO * expected < scatter <= ROBOT_RESIDUAL_MAX:
-        return design, solved
-    try:
-        wider = _pin_down(start, analysis, noise, limit_m, weak, scatter)
-    except DegenerateDataError:
-        return design, solved
-    if wider.identifiability.identified == design.identifiability.identified:
-        return design, solved
-    notes.append(f"residuals of {scatter * 1e3:.3g} mm per axis, {scatter / expected:.3g} times the expected "
-                 f"{expected * 1e3:.3g} mm: the parameters these poses cannot pin down at that scatter are held at "
-                 "nominal and the fit repeated")
-    return wider, _solve(wider, data, noise, notes, **solve_options)
-
-
-def _scatter(design: _Design, solution: Solution, data: Measurements, outlying: np.ndarray) -> float:
-    """Per-axis RMS (m) of the position residuals, outliers left out."""
-    r = design.problem.errors(solution.p)[data.mask][~outlying]
-    return float(np.sqrt(np.mean(r ** 2))) if r.size else 0.0
-
-
-def _analyse(start: RobotModel, data: Measurements, parameters: tuple, known: tuple, tol: float,
-             notes: list, *, noise: Noise) -> _Analysis:
+def _analyse(start: RobotModel, data: Measurements, parameters: tuple, known: tuple, tol: float, *,
+             noise: Noise) -> _Analysis:
     """Which candidates the data can identify; refuse data that cannot determine them."""
     orientation = data.has_orientation
     names = candidate_parameters(start, parameters, orientation=orientation, known=known)
-    notes += [f"parameters {p!r} matched: {', '.join(m)}" for p, m in matched_by_pattern(start, parameters,
-                                                                                       orientation=orientation)]
+    notes = [f"parameters {p!r} matched: {', '.join(m)}" for p, m in matched_by_pattern(start, parameters,
+                                                                                      orientation=orientation)]
     compliance = needs_compliance(start, names)
     measured = tuple(n for j, n in enumerate(data.marker_names) if data.mask[:, j].any())
     theory = theoretical_identifiability(start, parameters, known, orientation, tol, measured)
@@ -400,7 +455,7 @@ def _analyse(start: RobotModel, data: Measurements, parameters: tuple, known: tu
     ident = analyse(J, names, tol=tol, quantities=[lay[n].quantity for n in names], n_rows=prob.n_rows)
     ident = backlash_reasons(ident, prob)
     lost = tuple(n for n in theory.identified if n not in ident.identified and n in names)
-    return _Analysis(prob, J, names, ident, lost, compliance)
+    return _Analysis(prob, J, names, ident, lost, compliance, tuple(notes))
 
 
 def _distinct_rows(q: np.ndarray) -> int:
@@ -414,27 +469,31 @@ def _distinct_rows(q: np.ndarray) -> int:
     return len(np.unique(rows.view(np.dtype((np.void, rows.dtype.itemsize * rows.shape[1]))).ravel()))
 
 
-def _pin_down(start: RobotModel, analysis: _Analysis, noise: Noise, limit_m: float | None, weak: str,
-              scatter: float = 0.0) -> _Design:
+def _pin_down(start: RobotModel, analysis: _Analysis, noise: Noise, limit_m: float | None, *, eliminate: bool,
+              scatter: float = 0.0, data: Measurements | None = None) -> _Design:
     """The design over what the data can also pin down at the expected noise (or at ``scatter``, m,
-    when the fit showed more)."""
+    when the fit showed more); with ``eliminate`` False every identifiable parameter stays free
+    (the weak ones named). ``data``: the points to fit (default the analysis'), e.g. with some set aside."""
     prob = analysis.problem
-    ident, weak_found = _weak(prob, analysis.J, analysis.names, analysis.identifiability, noise, limit_m, scatter,
-                              eliminate=weak == "eliminate")
+    ident, weak_found, judged = _weak(prob, analysis.J, analysis.names, analysis.identifiability, noise, limit_m,
+                                      scatter, eliminate=eliminate)
     if not ident.identified:
         raise DegenerateDataError("no parameter is identifiable from these data")
-    free = prob.over(ident.identified)   # the solve starts where the analysis evaluated the model
+    free = prob.over(ident.identified) if data is None else Problem(start, data, ident.identified,
+                                                                    compliance=analysis.compliance, noise=noise)
     if free.n_rows <= len(ident.identified):
         raise DegenerateDataError(f"{free.n_rows} equations for {len(ident.identified)} parameters")
     return _Design(start=start, p0=parameter_vector(start), problem=free, identifiability=ident,
-                   compliance=analysis.compliance, lost=analysis.lost, weak=weak_found, weak_kept=weak == "flag")
+                   compliance=analysis.compliance, lost=analysis.lost, weak=weak_found, weak_kept=not eliminate,
+                   judged_at=judged)
 
 
 def _weak(prob: Problem, J: np.ndarray, names, ident: IdentifiabilityResult, noise: Noise, limit_m,
           scatter: float, *, eliminate: bool):
-    """The analysis with weakly identifiable parameters eliminated (or only named), and those
-    parameters with their predicted standard deviations. Eliminating one may let an equivalent one
-    in (a member of the same dependent group): the analysis repeats until none is weak."""
+    """The analysis with weakly identifiable parameters eliminated (or only named), those parameters
+    with their predicted standard deviations, and the scatter (m per axis) they were judged at.
+    Eliminating one may let an equivalent one in (a member of the same dependent group): the
+    analysis repeats until none is weak."""
     lay = parameter_layout(prob.model)
     p0 = parameter_vector(prob.model)
     expected = max(expected_noise(noise, limit_m)[0], scatter)
@@ -450,7 +509,9 @@ def _weak(prob: Problem, J: np.ndarray, names, ident: IdentifiabilityResult, noi
                                     moments=moments)
         said += [(n, _effect(e, lay[by].quantity) + ("" if by == n else f" of {by} with it")) for n, by, e, _ in found]
         if not found or not eliminate:
-            return result, tuple(said)
+            return result, tuple(said), expected
+        if {n for n, _, _, _ in found} | set(dropped) >= set(ident.identified):
+            raise DegenerateDataError(f"no parameter can be pinned down at a scatter of {expected * 1e3:.3g} mm")
         dropped.update({n: "is weakly identifiable: " + (f"predicted std {_effect(e, lay[n].quantity)} exceeds "
                            if by == n else f"with it, {by}'s predicted std {_effect(e, lay[by].quantity)} exceeds ")
                         + _effect(b, lay[by].quantity) for n, by, e, b in found})
@@ -463,37 +524,160 @@ def _effect(v: float, quantity: str) -> str:
     return f"{np.degrees(v):.3g} deg" + (" of deflection" if quantity == "compliance" else "")
 
 
-def _solve(design: _Design, data: Measurements, noise: Noise, notes: list, *, loss: str, f_scale, max_nfev,
-           on_outliers: str, nonnegative_compliance: bool):
-    """The solution, the outlier check and the outlier mask of the measured points; with
-    ``on_outliers="refit"`` a linear fit that leaves a few outliers is refitted with a robust loss."""
+def _choose(start: RobotModel, analysis: _Analysis, data: Measurements, noise: Noise, limit_m: float | None,
+            options: _Options, folds: tuple) -> tuple[_Fit, tuple[str, ...]]:
+    """The model choice the accuracy in use supports.
+
+    The first design holds weakly identifiable parameters at nominal (judged at the expected noise:
+    the instrument's, and the robot's own with a limit); it is fitted, and measured points that stand
+    out are set aside when that helps (``_fit``). Two more designs are then fitted on the same points
+    where they differ from it: every identifiable parameter free, and weak parameters judged again at
+    the scatter the fit shows when it is well above the expected noise. Of the designs, simplest
+    first, the first whose cross-validated loss is within one standard error of the best one's is
+    chosen: a stated noise, a limit or stated deviations hold back parameters only where that costs
+    nothing in use. With ``weak="flag"`` every identifiable parameter is kept.
+    """
+    eliminate = options.weak == "eliminate"
+    first = _fit(_pin_down(start, analysis, noise, limit_m, eliminate=eliminate), data, noise, options, folds)
+    if not eliminate:
+        return first, ()
+    used = first.data
+    expected = expected_noise(noise, limit_m)[0]
+    scatter = _scatter(first)
+    designs = []
+    if scatter > FIT_RATIO * expected:
+        try:
+            designs.append(_pin_down(start, analysis, noise, limit_m, eliminate=True, scatter=scatter, data=used))
+        except DegenerateDataError:
+            pass                    # nothing is pinned down at that scatter: the fit stands as it is
+    designs += [first.design, _pin_down(start, analysis, noise, limit_m, eliminate=False, data=used)]
+    # simplest first; a design equal to one before it is the same fit
+    fits, seen = [], {}
+    for d in designs:
+        key = d.identifiability.identified
+        if key not in seen:
+            seen[key] = first if d is first.design or key == first.design.identifiability.identified else \
+                _fit(d, used, noise, replace(options, on_outliers="flag"), folds, outliers=first)
+            fits.append(seen[key])
+    if len(fits) == 1:
+        return first, ()
+    mask = _steady(first)
+    best = min(fits, key=lambda f: float(f.held_out.loss[mask].mean()))
+    for f in fits:
+        excess, se = paired_excess(f.held_out.loss, best.held_out.loss, mask)
+        if excess <= se:
+            break
+    names = {id(f): len(f.design.identifiability.identified) for f in fits}
+    rms = {id(g): float(np.sqrt(np.nanmean(g.held_out.norms[mask] ** 2))) for g in fits}
+    said = "; ".join(f"{names[id(g)]} parameters: {rms[id(g)] * 1e3:.4g} mm" for g in fits)
+    note = (f"model choice by cross-validated error (RMS held out): {said}; kept the {names[id(f)]} parameters, "
+            "the simplest within one standard error of the best")
+    if f.design.weak_kept:
+        f = replace(f, design=replace(f.design, kept_in_use=True))
+    return f, (note,)
+
+
+def _steady(fit: _Fit) -> np.ndarray:
+    """(n_poses, n_markers) the points a model choice is judged on: fitted, and not standing out."""
+    mask = fit.data.mask.copy()
+    rows, markers = np.nonzero(fit.data.mask)
+    out = fit.outlying if len(fit.outlying) == len(rows) else np.zeros(len(rows), dtype=bool)
+    mask[rows[out], markers[out]] = False
+    return mask
+
+
+def _scatter(fit: _Fit) -> float:
+    """Per-axis RMS (m) of the fitted position residuals, points set aside or standing out left out."""
+    r = fit.design.problem.errors(fit.solution.p)[_steady(fit)]
+    return float(np.sqrt(np.mean(r ** 2))) if r.size else 0.0
+
+
+def _fit(design: _Design, data: Measurements, noise: Noise, options: _Options, folds: tuple, *,
+         outliers: _Fit | None = None) -> _Fit:
+    """``design`` solved and cross-validated. With the linear loss and ``on_outliers="refit"``,
+    measured points that stand out alone (not in runs of consecutive poses, which are systematic)
+    are set aside and the design fitted again without them, kept when its cross-validated loss on
+    the other points is lower (the model is then the one the rows' deletion gives). ``outliers``: a
+    fit whose outlier check and mask stand (a design fitted on the points it left)."""
+    solution = _solve(design, options)
+    labels, k = folds
+    held = cross_validate(design.problem, solution.p, labels, k)
+    if outliers is not None:
+        return _Fit(design, data, solution, outliers.outlier_check, outliers.outlying, held)
+    check, out = _outliers(design.problem, solution, data, noise)
+    if not out.any():
+        return _Fit(design, data, solution, check, out, held)
+    rows, markers = np.nonzero(data.mask)
+    runs = _in_runs(rows[out])
+    if out.mean() > OUTLIER_SHARE_MAX:
+        check = replace(check, status="warn", cause="so many that the data do not fit the model as it is: unmodelled "
+                        "effects or a mistake (see the other checks)", fix="read the diagnosis; a robust loss would "
+                        "hide the misfit")
+        return _Fit(design, data, solution, check, out, held)
+    blunder = np.zeros(len(rows), dtype=bool)
+    blunder[np.nonzero(out)[0][~runs]] = True
+    notes = []
+    if runs.any():
+        notes.append(f"{int(runs.sum())} point(s) standing out in runs of consecutive poses "
+                     f"({_listed_rows(data, rows[out][runs])}): a systematic error, not blunders; kept in the fit")
+    if not blunder.any() or options.loss != "linear" or options.on_outliers != "refit":
+        return _Fit(design, data, solution, _outlier_status(check, runs, aside=False), out, held, tuple(notes))
+    aside = np.zeros(data.mask.shape, dtype=bool)
+    aside[rows[blunder], markers[blunder]] = True
+    kept = with_points_aside(data, aside)
+    again = replace(design, problem=Problem(design.start, kept, design.identifiability.identified,
+                                            compliance=design.compliance, noise=noise))
+    solution2 = _solve(again, options)
+    held2 = cross_validate(again.problem, solution2.p, labels, k)
+    excess, _ = paired_excess(held2.loss, held.loss, kept.mask)
+    if excess > 0:
+        notes.append(f"{int(blunder.sum())} outlier(s) named; setting them aside did not lower the cross-validated "
+                     "error of the other points, so they stay in the fit")
+        return _Fit(design, data, solution, _outlier_status(check, runs, aside=False), out, held, tuple(notes))
+    notes.append(f"{int(blunder.sum())} outlier(s) set aside and the calibration fitted again without them")
+    return _Fit(again, kept, solution2, _outlier_status(check, runs, aside=True), out, held2, tuple(notes))
+
+
+def _in_runs(rows: np.ndarray) -> np.ndarray:
+    """For sorted pose indices, whether each lies in a run of at least ``OUTLIER_RUN`` consecutive poses."""
+    if not len(rows):
+        return np.zeros(0, dtype=bool)
+    poses = np.unique(rows)
+    start = np.r_[True, np.diff(poses) != 1]
+    run_id = np.cumsum(start) - 1
+    length = np.bincount(run_id)[run_id]
+    long_ = dict(zip(poses, length >= OUTLIER_RUN))
+    return np.array([long_[r] for r in rows], dtype=bool)
+
+
+def _listed_rows(data: Measurements, rows: np.ndarray) -> str:
+    poses = np.unique(rows)
+    return f"{data.labels[poses[0]]} to {data.labels[poses[-1]]}" if len(poses) > 1 else data.labels[poses[0]]
+
+
+def _outlier_status(check: Check, runs: np.ndarray, *, aside: bool) -> Check:
+    """The outlier check once its points are handled: set aside (named, a warning), kept."""
+    said = "; set aside, and the calibration fitted again without them" if aside else "; kept in the fit"
+    if runs.all():
+        return replace(check, status="warn", summary=check.summary + "; they come in runs of consecutive poses: "
+                       "a systematic error (a bump, a payload, a drift), kept in the fit",
+                       cause="an effect that changes along the campaign", fix="read the diagnosis")
+    return replace(check, status="warn", summary=check.summary + said,
+                   fix="check those measurements; the result is the one their deletion gives" if aside else
+                   "check those measurements; remove them, or calibrate with --on-outliers refit")
+
+
+def _solve(design: _Design, options: _Options) -> Solution:
     lower = None
-    if nonnegative_compliance:
+    if options.nonnegative_compliance:
         lay = parameter_layout(design.start)
         lower = np.array([0.0 if lay[n].family == "compliance" else -np.inf for n in design.identifiability.identified])
-    solution = solve(design.problem, design.p0, loss=loss, f_scale=f_scale, max_nfev=max_nfev, lower=lower)
-    check, out = _outliers(design, solution, data, noise)
-    if not out.any():
-        return solution, check, out
-    if out.mean() > OUTLIER_SHARE_MAX:
-        return solution, replace(check, cause="so many that the data do not fit the model: see the other checks",
-                                 fix="correct the data or the model; a robust loss would hide the misfit"), out
-    in_chunks = design.problem.chunked
-    if loss == "linear" and on_outliers == "refit" and in_chunks:
-        notes.append(f"{out.sum()} outlier(s) found: a campaign solved in chunks is not refitted with a robust loss")
-    elif loss == "linear" and on_outliers == "refit":
-        solution = solve(design.problem, design.p0, loss="soft_l1", max_nfev=max_nfev, lower=lower)
-        notes.append(f"{out.sum()} outlier(s) found by the least-squares fit: refitted with the robust loss soft_l1")
-        check, out = _outliers(design, solution, data, noise)
-    if (loss != "linear" or on_outliers == "refit") and not in_chunks:
-        check = replace(check, status="warn" if out.any() else "pass",
-                        summary=check.summary + f"; the robust loss {solution.loss} sets them aside",
-                        fix="check those measurements; remove them to fit without them")
-    return solution, check, out
+    return solve(design.problem, design.p0, loss=options.loss, f_scale=options.f_scale, max_nfev=options.max_nfev,
+                 lower=lower)
 
 
-def _outliers(design: _Design, solution: Solution, data: Measurements, noise: Noise):
-    residuals = design.problem.errors(solution.p)[data.mask]
+def _outliers(problem: Problem, solution: Solution, data: Measurements, noise: Noise):
+    residuals = problem.errors(solution.p)[data.mask]
     labels = _PointLabels(data)
     sigma = None if data.sigma is None else data.sigma[data.mask]
     return outlier_check(residuals, sigma, noise, labels)
@@ -513,23 +697,46 @@ class _PointLabels:
         return f"{self.data.labels[self.rows[i]]}, marker {self.data.marker_names[self.markers[i]]}"
 
 
-def _result_checks(design: _Design, solution: Solution, cov: Covariance, estimates, data: Measurements,
-                   noise: Noise, limit_m, outlying) -> list[Check]:
+def _result_checks(design: _Design, fit: _Fit, cov: Covariance, estimates, noise: Noise, limit_m,
+                   reach: _Reach) -> list[Check]:
     """The checks of the solution: convergence, fit, plausibility, support, correlation, identifiability."""
+    solution, data = fit.solution, fit.data
     residuals = design.problem.errors(solution.p)[data.mask]
     sigma = None if data.sigma is None else data.sigma[data.mask]
     moments = design.problem.compliance_moments(solution.p)
     deflections = {e.name: e.estimate * float(np.max(np.abs(moments[e.name]))) for e in estimates
                    if e.name in moments}
+    names = [e.name for e in estimates]
+    loose = _loose(estimates, moments)
     out = [convergence_check(solution.success, solution.message, solution.nfev),
-           fit_check(residuals, sigma, noise, limit_m, outlying),
-           plausibility_check(estimates, tolerances(design.start), deflections),
+           fit_check(residuals, sigma, noise, limit_m, np.zeros(len(residuals), dtype=bool),
+                     stated=noise.source.startswith("stated")),
+           plausibility_check(estimates, tolerances(design.start), deflections, workspace=reach.judgement,
+                              unknown_rotations=_unknown_rotations(design.start)),
            support_check(estimates), compliance_sign_check(estimates), backlash_sign_check(estimates),
-           correlation_check([e.name for e in estimates], cov.correlation),
-           identifiability_check(design.lost, design.weak, weak_kept=design.weak_kept)]
+           correlation_check(names, cov.correlation, loose),
+           identifiability_check(design.lost, design.weak, weak_kept=design.weak_kept,
+                                 interchangeable=interchangeable_pairs(names, cov.correlation, loose),
+                                 kept_in_use=design.kept_in_use)]
     if data.has_orientation:
-        out.append(_orientation_check(design, solution, data))
+        out.insert(2, _orientation_check(design, solution, data))
     return out
+
+
+def _loose(estimates, moments: dict) -> set:
+    """The estimates whose standard deviation exceeds the bound of practical identifiability
+    (``WEAK_STD``; a compliance's as a deflection at the RMS moment of the poses)."""
+    out = set()
+    for e in estimates:
+        scale = float(np.sqrt(np.mean(moments[e.name] ** 2))) if e.name in moments else 1.0
+        if e.std * scale > WEAK_STD.get(e.quantity, np.inf):
+            out.add(e.name)
+    return out
+
+
+def _unknown_rotations(model: RobotModel) -> tuple[str, ...]:
+    """The markers whose orientation the model declares unknown: their rotation gets no tolerance."""
+    return tuple(m.name for m in model.markers if not getattr(m, "rotation_known", True))
 
 
 def _orientation_check(design: _Design, solution: Solution, data: Measurements) -> Check:
@@ -545,32 +752,107 @@ def _orientation_check(design: _Design, solution: Solution, data: Measurements) 
                  fix="declare the convention (--orientation) and the angle unit of the rotation columns")
 
 
+@dataclass(frozen=True, eq=False)
+class _Reach:
+    """The calibrated model against the nominal one over the workspace: ``predicted`` (n, n_markers,
+    3) the calibrated markers at random configurations within the limits, and the judgement of the
+    change (``WorkspaceChange``)."""
+
+    predicted: np.ndarray
+    judgement: WorkspaceChange | None
+
+
+def _reach(start: RobotModel, design: _Design, p: np.ndarray, q: np.ndarray) -> _Reach:
+    """The calibrated markers at the workspace's configurations ``q``, and how far the calibrated
+    geometry moves them from the nominal one's once base and markers are registered (the change
+    of what the robot does, whatever the parametrisation: equivalent ones move nothing)."""
+    lay = parameter_layout(start)
+    data = design.problem.data
+    measured = {n for j, n in enumerate(data.marker_names) if data.mask[:, j].any()}
+    geometry = np.array([lay[n].family not in ("compliance", "backlash") for n in lay.names])
+    p_geom = np.where(geometry, p, design.p0)
+    at_q = design_measurements(start, q, markers=data.marker_names)
+    predicted = Problem(start, at_q, (), compliance=design.compliance).predicted(p)[0]
+    target = Problem(start, at_q, (), compliance=start.has_compliance).predicted(p_geom)[0]
+    tol = tolerances(start)
+    t_len, t_ang = tol.get(("frames", "length")), tol.get(("frames", "angle"))
+    origin = np.asarray(start.base_position, dtype=float)
+    radius = float(np.max(np.linalg.norm(target - origin, axis=2)))
+    placed = tuple(n for n in lay.names if lay[n].family == "base"
+                   or (lay[n].role == "marker" and lay[n].owner in measured and n in design.identifiability.identified))
+    ws = Measurements(q=q, positions=target, marker_names=data.marker_names, joint_names=start.joint_names)
+    nominal = Problem(start, ws, placed, compliance=start.has_compliance)
+    p_start = design.p0.copy()
+    p_start[lay.indices(placed)] = p[lay.indices(placed)]
+    moved = solve(nominal, p_start, tol=REGISTRATION_TOL)
+    d = nominal.error_norms(moved.p)
+    bar = None if t_len is None or t_ang is None else float(t_len + t_ang * radius)
+    return _Reach(predicted=predicted, judgement=WorkspaceChange(
+        max_m=float(np.nanmax(d)), rms_m=float(np.sqrt(np.nanmean(d ** 2))), tolerance_m=bar, reach_m=radius,
+        n_poses=len(q)))
+
+
+def _in_use(model: RobotModel, design: _Design, fit: _Fit, before: np.ndarray, validation: Measurements | None,
+            folds: tuple, register: bool) -> AccuracyInUse:
+    """The accuracy in use before and after calibration: on ``validation`` when given (with base and
+    markers registered on it for both models when ``register``), else cross-validated on the fitted
+    poses (the nominal's registration of base and markers refitted on each fold's complement too)."""
+    labels, k, grouping = folds
+    problem, p = design.problem, fit.solution.p
+    fit_after = problem.error_norms(p)[fit.data.mask]
+    if validation is None:
+        lay = parameter_layout(design.start)
+        placed = tuple(n for n in design.identifiability.identified if lay[n].family in ("base", "markers"))
+        only = len(placed) == len(design.identifiability.identified)
+        held_before = fit.held_out if only else (
+            cross_validate(problem.over(placed), before, labels, k) if placed else evaluated(problem, before))
+        return accuracy_in_use("cross-validation", k, grouping, held_before, fit.held_out, fit_after,
+                               registration_only=only)
+    start = design.start
+    val = Problem(start, validation, design.identifiability.identified, compliance=design.compliance,
+                  noise=problem.noise)
+    vectors = [before, p]
+    if register:
+        lay = parameter_layout(start)
+        placed = tuple(n for n in lay.names if lay[n].family == "base" or (
+            lay[n].role == "marker" and lay[n].owner in validation.marker_names))
+        reg = val.over(placed)
+        vectors = [solve(reg, v, tol=REGISTRATION_TOL).p for v in vectors]
+    method = "validation, base and tool registered on it" if register else "validation"
+    return accuracy_in_use(method, None, "the validation set", evaluated(val, vectors[0]), evaluated(val, vectors[1]),
+                           fit_after)
+
+
 _WARNING_CLASS = {"solver convergence": ConvergenceWarning, "fit against the instrument": MisfitWarning,
-                  "orientation fit": MisfitWarning, "identifiability at these poses": IdentifiabilityWarning}
+                  "orientation fit": MisfitWarning, "identifiability at these poses": IdentifiabilityWarning,
+                  "accuracy in use": MisfitWarning}
 
 
 def _warn(checks) -> None:
-    """Every check that did not pass, as a warning users can filter."""
+    """Every check that did not pass, as a warning users can filter (pointing at the caller's line)."""
     for c in checks:
         if c.status != "pass":
             category = _WARNING_CLASS.get(c.name, CheckWarning)
             warnings.warn(f"{c.name} ({'FAILED' if c.status == 'fail' else 'warning'}): {c.summary}", category,
-                          stacklevel=3)
+                          stacklevel=4)
 
 
-def _registered_nominal(design: _Design, notes: list) -> np.ndarray:
+def _registered_nominal(design: _Design) -> tuple[np.ndarray, tuple[str, ...]]:
     """The parameter vector errors "before" are taken at: the nominal geometry, with the base and
     marker parameters being identified fitted to the data first (a raw base guess says nothing
-    about the robot). The start itself when none of them is free, or nothing else is."""
+    about the robot), and what that noted. For a fit of the base and markers alone that is the
+    calibration itself: the robot's kinematics are unchanged."""
     lay = parameter_layout(design.start)
     free = design.identifiability.identified
     placed = tuple(n for n in free if lay[n].family in ("base", "markers"))
-    if not placed or len(placed) == len(free):
-        return design.p0
+    if not placed:
+        return design.p0, ()
     sol = solve(design.problem.over(placed), design.p0, tol=REGISTRATION_TOL)
-    notes.append("errors before calibration are those of the nominal geometry with its base and markers fitted "
-                 f"to the data ({', '.join(placed)})")
-    return sol.p
+    if len(placed) == len(free):
+        return sol.p, ("only the base and markers are identified: a registration; errors before calibration are "
+                       "those of the same registration, the robot's kinematics are unchanged",)
+    return sol.p, ("errors before calibration are those of the nominal geometry with its base and markers fitted to "
+                   f"the data ({', '.join(placed)})",)
 
 
 def _estimates(design: _Design, solution: Solution, cov: Covariance) -> tuple[ParameterEstimate, ...]:
@@ -598,8 +880,8 @@ class _PoseErrors:
     def of(nominal: RobotModel, data: Measurements, problem, p0, after, design: _Design) -> _PoseErrors:
         """On the fitted poses ``problem`` evaluates both (``after`` a parameter vector); on held-out
         poses (``problem`` None) the nominal and the calibrated model (``after``) are evaluated."""
-        if problem is not None and nominal is design.start:
-            # the analysis evaluated the start (a compliance deflects nothing there unless the model has one)
+        if problem is not None:
+            # the before vector is in the start's layout (its base registered where the fit moves it)
             prob_before, p_before = problem, p0
         else:
             prob_before, p_before = _problem_of(nominal, data, nominal.has_compliance)
@@ -662,7 +944,8 @@ class Comparison:
 
     ``f_statistic``/``p_value``: the nested-model F test on the fitted residuals (does adding the
     compliance parameters reduce the residual more than their number explains?). ``helped`` is
-    True when p < ``alpha`` and, with held-out poses, the held-out RMS error fell too.
+    True when p < ``alpha`` and the RMS error in use (held-out poses, else cross-validated on the
+    same folds) fell too: a model choice is checked by what it does in use.
     ``backlash``, ``backlash_f``, ``backlash_p``, ``backlash_helped``: the same test of the third
     against the second (None and False without it). ``verdict`` says both.
     """
@@ -705,10 +988,10 @@ def _nested_test(small: CalibrationResult, large: CalibrationResult, data: Measu
     dfn, dfd = max(p2 - p1, 1), n_rows - p2
     F = max((ssr1 - ssr2) / dfn, 0.0) / (ssr2 / dfd)
     p_value = float(f_dist.sf(F, dfn, dfd))
-    on = "validation_after" if validation is not None else "fit_after"
-    v1, v2 = small.stats[on].rms, large.stats[on].rms
-    helped = p_value < alpha and (validation is None or v2 < v1)
-    detail = f"{'held-out' if validation is not None else 'fitted'} RMS {v1 * 1e3:.4f} mm -> {v2 * 1e3:.4f} mm"
+    # in use: the held-out set's RMS, or the cross-validated one (the same folds for both fits)
+    v1, v2 = small.in_use.position_after.rms, large.in_use.position_after.rms
+    helped = p_value < alpha and v2 < v1
+    detail = f"{'held-out' if validation is not None else 'cross-validated'} RMS {v1 * 1e3:.4f} mm -> {v2 * 1e3:.4f} mm"
     verdict = (f"{what} helped: {detail}; F = {F:.3g}, p = {p_value:.2g}" if helped else
                f"{what} did not help: {detail}; F = {F:.3g}, p = {p_value:.2g} (threshold {alpha})")
     return float(F), p_value, bool(helped), verdict

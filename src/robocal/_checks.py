@@ -17,16 +17,23 @@ from ._model import RobotModel
 
 STATUSES = ("pass", "warn", "fail")
 
-# residual RMS per axis over the expected noise beyond which the fit does not match the data
+# residual RMS per axis over the expected noise beyond which the fit leaves more than the noise
+# explains (a warning: a robot's repeatability and unmodelled effects do; whether the model still
+# places the robot better is the accuracy in use's question); below its inverse, the stated noise
+# is too large
 FIT_RATIO = 3.0
-# residual RMS per axis (m) beyond which no calibrated robot explains the misfit, whatever its noise
-ROBOT_RESIDUAL_MAX = 1e-3
 # a measured point is an outlier beyond this many robust standard deviations (3D residual norm),
 # raised on large campaigns so that clean Gaussian noise names a point in at most this share of them
 OUTLIER_SIGMAS = 5.0
 OUTLIER_FALSE_ALARM = 0.01
-# beyond this share of outliers the data do not fit: a robust refit would hide a real misfit
+# beyond this share of outliers the data do not fit: setting them aside would hide a real misfit
 OUTLIER_SHARE_MAX = 0.2
+# outliers at this many consecutive poses or more are a systematic error (a bump, a payload, a
+# drift), not blunders: they are named, not set aside
+OUTLIER_RUN = 4
+# the robust scale of the outlier test does not fall below this share of the expected noise (a
+# noise-free fit names nothing), so that a noise stated far too large cannot hide a blunder
+OUTLIER_SCALE_FLOOR = 0.01
 # an estimate within this many standard deviations of its nominal is not supported by the data
 SIGNIFICANCE_SIGMAS = 2.0
 # a compliance this many standard deviations below zero is non-physical, not noise (a stricter bar
@@ -37,6 +44,23 @@ NEGATIVE_COMPLIANCE_SIGMAS = 4.0
 NEGATIVE_BACKLASH_SIGMAS = NEGATIVE_COMPLIANCE_SIGMAS
 # pairs of identified parameters correlated beyond this are named
 CORRELATION_MAX = 0.99
+# ... and beyond this they are interchangeable at these poses (each estimate trades one for one
+# against the other; only their combination is determined): a warning
+CORRELATION_SINGULAR = 0.9999
+# the accuracy in use: held-out errors this many times those of the fitted poses are overfitting
+# (a warning), and beyond OVERFIT_GROSS times (and a millimetre more) they do not come from the
+# fitted set-up at all (a failure)
+OVERFIT_RATIO = 2.0
+OVERFIT_GROSS = 10.0
+OVERFIT_GROSS_EXCESS = 1e-3
+# worse in use than before beyond this many standard errors of the (paired) difference is a failure;
+# within it, "no better" is a warning (a handful of held-out poses cannot tell the two apart)
+WORSE_SIGMAS = 2.0
+# coverage: a campaign whose points spread less than this share of the workspace's, or whose
+# parameters' uncertainty grows more than EXTRAPOLATION_MAX times from the measured poses to the
+# workspace, is validated only near its poses (a warning)
+COVERAGE_SPREAD_MIN = 0.25
+EXTRAPOLATION_MAX = 3.0
 # the measured cloud against the robot's predicted one: a size ratio outside these bounds fails
 CLOUD_RATIO = (0.67, 1.5)
 # known unit mix-ups, as the factor between the measured and the predicted sizes
@@ -205,33 +229,37 @@ def expected_noise(noise: Noise, limit_m: float | None) -> tuple[float, str]:
 
 
 def fit_check(residuals: np.ndarray, sigma: np.ndarray | None, noise: Noise, limit_m: float | None,
-        outliers: np.ndarray) -> Check:
-    """The position residuals (n, 3, m) against what the instrument (and the robot's limit) explain.
+              outliers: np.ndarray, *, stated: bool = False) -> Check:
+    """The position residuals (n, 3) against what the instrument (and the robot's limit) explain.
 
+    Never a failure: a robot's repeatability and unmodelled effects leave residuals of any size, and
+    whether the model still places the robot better is the accuracy in use's question (a mistake
+    shows there, in the plausibility of the changes, or in the diagnosis). A warning beyond
+    ``FIT_RATIO`` times the expected noise, and below its inverse when the noise (or each point's
+    deviation) was stated: then the stated figures are too large, and so are the standard deviations.
     ``sigma`` (n,) stated standard deviations per point, or None; ``outliers`` (n,) bool, left out.
     """
     name = "fit against the instrument"
     keep = ~outliers
     r = residuals[keep]
     if not len(r):
-        return Check(name, "fail", "every measured point is an outlier")
+        return Check(name, "warn", "every measured point is an outlier")
     expected, said = expected_noise(noise, limit_m)
     per_axis = float(np.sqrt(np.mean(r ** 2)))
     scale = expected if sigma is None else np.hypot(sigma[keep], expected if limit_m is not None else 0.0)
     ratio = float(np.sqrt(np.mean((r / np.reshape(scale, (-1, 1))) ** 2)))
     source = "the stated standard deviations" if sigma is not None else said
     summary = f"residuals {per_axis * 1e3:.4g} mm RMS per axis, {ratio:.3g} times {source}"
-    if ratio <= FIT_RATIO:
-        return Check(name, "pass", summary)
-    if per_axis > ROBOT_RESIDUAL_MAX or limit_m is not None:
-        return Check(name, "fail", summary + (" and beyond what any calibrated robot leaves" if limit_m is None else
-                                              ", beyond the robot's own limit"),
-                     cause="the data do not fit the model: units, marker names or columns swapped, joint order or "
-                           "sign, a marker on the wrong frame, another robot's file",
-                     fix="read the other checks; compare a few poses by hand with the nominal model")
-    return Check(name, "warn", summary, cause="the robot's own repeatability and unmodelled effects (compliance, "
-                 "backlash) or a data problem: the instrument noise alone cannot tell",
-                 fix="give the limit of absolute accuracy (--limit) or the expected noise (--noise-mm) to judge")
+    if ratio > FIT_RATIO:
+        return Check(name, "warn", summary, cause="the robot's own repeatability and effects the model leaves out "
+                     "(elasticity, gear errors, drift), or a mistake in the data: the accuracy in use and the "
+                     "diagnosis tell which", fix="give the limit of absolute accuracy (--limit-mm) or the expected "
+                     "noise (--noise-mm) to judge against; read the diagnosis")
+    if ratio < 1.0 / FIT_RATIO and (stated or sigma is not None):
+        return Check(name, "warn", summary + f": {1 / ratio:.3g} times below what was stated",
+                     cause="a stated noise (or stated deviations) too large: the standard deviations are "
+                     "overstated by as much", fix="state the instrument's real noise (--noise-mm) or deviations")
+    return Check(name, "pass", summary)
 
 
 def outlier_bar(n_points: int) -> float:
@@ -250,15 +278,23 @@ def outlier_check(residuals: np.ndarray, sigma: np.ndarray | None, noise: Noise,
     """Measured points whose residual norm exceeds ``OUTLIER_SIGMAS`` robust standard deviations.
 
     ``residuals`` (n, 3) of the measured points named by ``labels`` (n,). The scale is the larger of
-    the residuals' own robust spread (median absolute deviation) and the instrument's noise, so a
-    noise-free fit flags nothing; with stated deviations each point is scaled by its own.
+    the residuals' own robust spread (median absolute deviation), floored at
+    ``OUTLIER_SCALE_FLOOR`` of the instrument's noise (a noise-free fit flags nothing, a noise stated
+    far too large hides no blunder); with stated deviations, the robust spread of the residuals in
+    those deviations.
     Returns the check and the (n,) outlier mask.
     """
     name = "outliers"
-    comps = residuals.ravel()
-    robust = 1.4826 * float(np.median(np.abs(comps - np.median(comps)))) if comps.size else 0.0
-    scale = max(robust, noise.position) if sigma is None else np.maximum(sigma, robust)
-    z = np.linalg.norm(residuals, axis=1) / scale
+    if sigma is None:
+        comps = residuals.ravel()
+        robust = 1.4826 * float(np.median(np.abs(comps - np.median(comps)))) if comps.size else 0.0
+        z = np.linalg.norm(residuals, axis=1) / max(robust, OUTLIER_SCALE_FLOOR * noise.position)
+    else:
+        # in stated deviations: the robust spread of the standardised residuals sets the scale
+        u = residuals / sigma[:, None]
+        comps = u.ravel()
+        robust = 1.4826 * float(np.median(np.abs(comps - np.median(comps)))) if comps.size else 0.0
+        z = np.linalg.norm(u, axis=1) / max(robust, OUTLIER_SCALE_FLOOR)
     bar = outlier_bar(len(z))
     out = z > bar
     if not out.any():
@@ -266,25 +302,59 @@ def outlier_check(residuals: np.ndarray, sigma: np.ndarray | None, noise: Noise,
     order = np.argsort(-z[out])
     items = tuple(f"{labels[i]}: {np.linalg.norm(residuals[i]) * 1e3:.3g} mm, {z[i]:.3g} sd"
                   for i in np.nonzero(out)[0][order])
-    return Check(name, "fail", f"{out.sum()} of {len(z)} measured point(s) beyond {bar:.3g} robust standard "
+    return Check(name, "warn", f"{out.sum()} of {len(z)} measured point(s) beyond {bar:.3g} robust standard "
                  f"deviations: {_listed(items, 3)}", cause="a blunder: a mistyped or misassigned measurement, a "
-                 "reading taken while the robot moved", fix="remove them, or refit with a robust loss "
-                 "(--loss soft_l1; --on-outliers refit does it)", items=items), out
+                 "reading taken while the robot moved", fix="remove them, or let the calibration set them aside "
+                 "(--on-outliers refit)", items=items), out
 
 
-def plausibility_check(estimates, tolerances: dict, deflections: dict) -> Check:
-    """Each change against its family's tolerance (``tolerances[(family, quantity)]``, SI, None for
-    none); compliances by the largest deflection they give (``deflections[name]``, rad)."""
+@dataclass(frozen=True)
+class WorkspaceChange:
+    """How far the calibrated geometry moves the measured markers from where the nominal one puts
+    them, over ``n_poses`` configurations within the joint limits, once base and markers are
+    registered (m): ``max_m`` and ``rms_m``; ``tolerance_m`` the bar (None for none) and ``reach_m`` the
+    largest distance of the markers from the base over those configurations."""
+
+    max_m: float
+    rms_m: float
+    tolerance_m: float | None
+    reach_m: float
+    n_poses: int
+
+
+def plausibility_check(estimates, tolerances: dict, deflections: dict, *, workspace: WorkspaceChange | None = None,
+                       unknown_rotations=()) -> Check:
+    """What the calibrated robot does, against what a real robot's errors can be.
+
+    The geometry is judged by its effect over the workspace (``workspace``): equivalent
+    parametrisations and interchangeable pairs move the tool nowhere, a model error of a hundred
+    millimetres does; the bar is the frames' length tolerance plus their angle tolerance over the
+    reach. Markers, compliances (by the largest deflection, ``deflections[name]``, rad) and backlash
+    keep their family's tolerance on each parameter (``tolerances[(family, quantity)]``, SI, None for
+    none); a marker's rotation declared unknown (``unknown_rotations``: marker names) has none.
+    """
     name = "plausible changes"
     bad = []
     for e in estimates:
         family, quantity = e.family, e.quantity
+        if family in ("frames", "base") or (family == "markers" and quantity == "angle" and
+                                            e.name.split(".")[0] in set(unknown_rotations)):
+            continue
         tol = tolerances.get((family, quantity))
         value = abs(deflections.get(e.name, 0.0)) if quantity == "compliance" else abs(e.change)
         if tol is not None and value > tol:
             bad.append(f"{e.name}: {_size(value, quantity)} (tolerance {_size(tol, quantity)})")
+    moved = ""
+    if workspace is not None:
+        moved = (f"the calibrated geometry moves the tool up to {workspace.max_m * 1e3:.4g} mm "
+                 f"({workspace.rms_m * 1e3:.4g} mm RMS) from the nominal's over {workspace.n_poses} configurations "
+                 "within the limits, base and markers registered")
+        if workspace.tolerance_m is not None and workspace.max_m > workspace.tolerance_m:
+            bad.insert(0, moved + f", beyond {workspace.tolerance_m * 1e3:.4g} mm (the frames' tolerances over a "
+                       f"reach of {workspace.reach_m * 1e3:.4g} mm)")
+            moved = ""
     if not bad:
-        return Check(name, "pass", "every change within its family's tolerance")
+        return Check(name, "pass", "every change within its family's tolerance" + (f"; {moved}" if moved else ""))
     return Check(name, "fail", f"{len(bad)} implausible change(s): {_listed(bad, 3)}",
                  cause="the data pull the model somewhere no real robot is: a sign or unit error in the model file, "
                        "data in the wrong unit or order, or a parameter the data cannot pin down",
@@ -332,9 +402,11 @@ def compliance_sign_check(estimates) -> Check:
     significant = [e for e in neg if -e.estimate > NEGATIVE_COMPLIANCE_SIGMAS * e.std]
     if significant:
         items = tuple(f"{e.name} ({e.estimate / e.std:+.2g} sd)" for e in significant)
-        return Check(name, "fail", f"{len(significant)} compliance(s) significantly negative: {_listed(items, 3)}",
-                     cause="masses or centres of mass on the wrong side, or gravity in the wrong direction",
-                     fix="check the masses, centres of mass and gravity in the model file", items=items)
+        return Check(name, "warn", f"{len(significant)} compliance(s) significantly negative: {_listed(items, 3)}",
+                     cause="masses or centres of mass on the wrong side, gravity in the wrong direction, or another "
+                           "effect the compliance takes up (the accuracy in use says whether it helps)",
+                     fix="check the masses, centres of mass and gravity in the model file; --nonnegative-compliance "
+                         "keeps them at zero or above", items=items)
     items = tuple(f"{e.name} ({e.estimate / e.std:+.2g} sd)" for e in neg)
     return Check(name, "pass", f"{len(neg)} compliance(s) negative within their uncertainty (noise about zero): "
                  f"{_listed(items, 3)}; --nonnegative-compliance keeps them at zero or above", items=items)
@@ -350,7 +422,7 @@ def backlash_sign_check(estimates) -> Check:
     items = tuple(f"{e.name} ({e.estimate / e.std:+.2g} sd)" for e in neg)
     significant = [i for e, i in zip(neg, items) if -e.estimate > NEGATIVE_BACKLASH_SIGMAS * e.std]
     if significant:
-        return Check(name, "fail", f"{len(significant)} backlash(es) significantly negative: {_listed(significant, 3)}",
+        return Check(name, "warn", f"{len(significant)} backlash(es) significantly negative: {_listed(significant, 3)}",
                      cause="the joints rest on the other side than the model says: gravity in the wrong direction, "
                            "masses on the wrong side, or approach directions reversed",
                      fix="check gravity and the masses in the model file, the backlash side model and the approach "
@@ -359,27 +431,55 @@ def backlash_sign_check(estimates) -> Check:
                  f"{_listed(items, 3)}", items=items)
 
 
-def correlation_check(names, corr: np.ndarray) -> Check:
+def interchangeable_pairs(names, corr: np.ndarray, loose=None) -> tuple[str, ...]:
+    """Pairs of identified parameters correlated beyond ``CORRELATION_SINGULAR`` of which one at
+    least is not pinned down (``loose``: the names whose standard deviation exceeds the bound of
+    practical identifiability; None: every name), as text. Two well-determined parameters may be
+    that correlated (a joint's two flexions under gravity): only their estimates' spread matters."""
+    iu = np.triu_indices(len(names), 1)
+    high = np.abs(corr[iu]) > CORRELATION_SINGULAR
+    loose = set(names) if loose is None else set(loose)
+    return tuple(f"{names[i]} ~ {names[j]} (r = {corr[i, j]:+.4f})" for i, j in zip(iu[0][high], iu[1][high])
+                 if names[i] in loose or names[j] in loose)
+
+
+def correlation_check(names, corr: np.ndarray, loose=None) -> Check:
     """Pairs of identified parameters correlated beyond ``CORRELATION_MAX``, named. Their standard
     deviations already include the correlation (and practical identifiability bounds them), so the
-    pairs are information for the engineer, not a fault."""
+    pairs are information for the engineer; beyond ``CORRELATION_SINGULAR`` the two are
+    interchangeable at these poses, which is a warning when one of them is not pinned down
+    (``loose``, see ``interchangeable_pairs``)."""
     name = "correlated parameters"
     iu = np.triu_indices(len(names), 1)
     high = np.abs(corr[iu]) > CORRELATION_MAX
     if not high.any():
         return Check(name, "pass", f"no pair of identified parameters correlated beyond |r| = {CORRELATION_MAX:g}")
     pairs = tuple(f"{names[i]} ~ {names[j]} (r = {corr[i, j]:+.4f})" for i, j in zip(iu[0][high], iu[1][high]))
+    singular = interchangeable_pairs(names, corr, loose)
+    if singular:
+        return Check(name, "warn", f"{len(singular)} pair(s) interchangeable at these poses (|r| > "
+                     f"{CORRELATION_SINGULAR:g}): {_listed(singular, 3)}; only their combination is determined",
+                     cause="poses that do not separate the two (a joint barely moved, a tool point near an axis)",
+                     fix="add poses that move the joints more widely (robocal plan), or hold one of each pair "
+                         "(--known NAME)", items=pairs)
     return Check(name, "pass", f"{len(pairs)} pair(s) correlated beyond |r| = {CORRELATION_MAX:g}, each estimate "
                  f"trading against the other (their standard deviations include it): {_listed(pairs, 3)}",
                  fix="to separate them, add poses that move the joints more widely (robocal plan)", items=pairs)
 
 
-def identifiability_check(lost, weak, *, weak_kept: bool = False) -> Check:
+def identifiability_check(lost, weak, *, weak_kept: bool = False, interchangeable=(), kept_in_use: bool = False) -> Check:
     """Parameters the structure allows but the poses cannot separate (``lost``: a warning), and those
     they cannot pin down (``weak``: (name, predicted std text) pairs). Weak ones are held at nominal
-    and named, which is the right handling (a pass), unless they were kept (``weak_kept``: a warning)."""
+    and named, which is the right handling (a pass), unless they were kept (``weak_kept``: a warning).
+    Identified pairs that are interchangeable (``interchangeable``) are a warning too: the analysis
+    cannot say every parameter is pinned down beside them. ``kept_in_use``: the weak ones were kept
+    because the accuracy in use is better with them (a pass)."""
     name = "identifiability at these poses"
-    items = tuple(lost) + tuple(f"{n} (predicted std {s})" for n, s in weak)
+    items = tuple(lost) + tuple(f"{n} (predicted std {s})" for n, s in weak) + tuple(interchangeable)
+    if interchangeable:
+        return Check(name, "warn", f"kept but interchangeable at these poses: {_listed(interchangeable, 3)}",
+                     cause="poses that do not separate the two", fix="add poses over the whole workspace (robocal "
+                     "plan), or hold one of each pair at its nominal value (--known NAME)", items=items)
     if not items:
         return Check(name, "pass", "every parameter the robot's structure allows is identified")
     summary = []
@@ -387,9 +487,10 @@ def identifiability_check(lost, weak, *, weak_kept: bool = False) -> Check:
         summary.append(f"the poses cannot separate {_listed(lost)}; they are held at their nominal values")
     if weak:
         summary.append(f"weakly identifiable (predicted standard deviation beyond its bound): "
-                       f"{_listed(n for n, _ in weak)}" + ("; kept, their estimates are unreliable" if weak_kept else
-                                                          "; held at their nominal values"))
-    status = "warn" if lost or weak_kept else "pass"
+                       f"{_listed(n for n, _ in weak)}" + (
+                           "; kept, as the accuracy in use (cross-validated) is better with them" if kept_in_use else
+                           "; kept, their estimates are unreliable" if weak_kept else "; held at their nominal values"))
+    status = "warn" if lost or (weak_kept and not kept_in_use) else "pass"
     return Check(name, status, "; ".join(summary),
                  cause="poses that do not move the joints widely enough, or a tool point nearly on an axis",
                  fix="add poses over the whole workspace (robocal plan); or accept the nominal values", items=items)
@@ -411,3 +512,88 @@ def contact_fit_check(kind: str, residuals: np.ndarray, sigma: np.ndarray, outli
     return Check(name, "fail", summary, cause=f"the {kind} contacts do not fit the model: a mislabelled socket or "
                  "placement, a ball not seated, a wrong stated length or deviation, joint order or sign",
                  fix="read the outliers; compare the spread of each group of rows before calibration")
+
+
+# -- in use ---------------------------------------------------------------------------------------
+
+def _mm(v: float) -> str:
+    return f"{v * 1e3:.4g} mm"
+
+
+def in_use_check(in_use) -> Check:
+    """Will the model place the robot better than the nominal one, and how well (``AccuracyInUse``)?
+
+    A failure when the mean error in use is worse after calibration than before (beyond
+    ``WORSE_SIGMAS`` standard errors of the paired difference), or when the held-out
+    errors are beyond anything the fit explains (``OVERFIT_GROSS`` times the fitted poses' and a
+    millimetre more: another set-up, or a mistake). A warning when it is no better than before within
+    a standard error, when its worst error grew, or when held-out errors are ``OVERFIT_RATIO`` times
+    those of the fitted poses (overfitting). Otherwise a pass, with the figures."""
+    name = "accuracy in use"
+    b, a, fit = in_use.position_before, in_use.position_after, in_use.fit_after
+    how = in_use.method + (f", {in_use.grouping}" if in_use.method == "cross-validation" else "")
+    if not a.n:
+        return Check(name, "warn", "no held-out position to judge the calibration in use")
+    gain, se = in_use.improvement
+    if in_use.registration_only:
+        return Check(name, "pass", f"a registration of base and markers only: mean error {_mm(a.mean)} "
+                     f"(95 % within {_mm(a.p95)}, max {_mm(a.max)}) on {a.n} held-out point(s) ({how}), the robot's "
+                     "kinematics unchanged")
+    summary = (f"mean error {_mm(b.mean)} before, {_mm(a.mean)} after (95 % within {_mm(a.p95)}, max {_mm(a.max)}) "
+               f"on {a.n} held-out point(s) ({how}); {_mm(fit.mean)} on the fitted ones")
+    if fit.n and a.mean > OVERFIT_GROSS * fit.mean and a.mean > fit.mean + OVERFIT_GROSS_EXCESS:
+        return Check(name, "fail", summary + ": the held-out errors are beyond anything the fit explains",
+                     cause="held-out poses of another set-up (base or tool moved) or another robot, or a mistake in "
+                           "the data", fix="for a campaign of another set-up, register base and tool on it "
+                           "(--register-validation); else check the files")
+    if gain < -WORSE_SIGMAS * se:
+        return Check(name, "fail", summary + ": worse than before calibration",
+                     cause="a model that fits the fitted poses but not others: too many parameters for the poses, "
+                           "or data that do not belong together", fix="read the other checks and the diagnosis; "
+                           "measure more poses over the workspace (robocal plan)")
+    if gain <= se:
+        return Check(name, "warn", summary + ": no better than before within its standard error "
+                     f"({_mm(se)})", cause="errors the model cannot take up (repeatability, unmodelled effects)",
+                     fix="calibrate with the compliance or backlash families if the robot has them, or keep the "
+                         "nominal model")
+    if fit.n and a.mean > OVERFIT_RATIO * fit.mean and a.mean - fit.mean > 3 * in_use.standard_error:
+        return Check(name, "warn", summary + f": {a.mean / fit.mean:.3g} times the fitted poses' error "
+                     "(overfitting)", cause="more parameters than the poses pin down, or poses that do not cover "
+                     "where the model is used", fix="measure more poses over the workspace (robocal plan); hold "
+                     "weak parameters (--weak eliminate)")
+    if b.max is not None and a.max > b.max:
+        return Check(name, "warn", summary + f": the worst error grew ({_mm(b.max)} before)",
+                     cause="a few poses the model places worse than the nominal one",
+                     fix="look at the held-out poses with the largest errors in the report")
+    return Check(name, "pass", summary)
+
+
+def coverage_check(cover, in_use) -> Check:
+    """Where the accuracy in use holds: the campaign's points against the workspace's spread, and
+    the parameters' uncertainty carried from the measured poses to the workspace (``Coverage``)."""
+    name = "where the model holds"
+    joints = ", ".join(f"{100 * s:.0f} %" for s in cover.joint_span)
+    summary = (f"the measured points spread {100 * cover.spread_ratio:.3g} % of the workspace's (joints over "
+               f"{joints} of their ranges); the parameters' uncertainty is {_mm(cover.uncertainty_measured)} RMS at "
+               f"the measured poses, {_mm(cover.uncertainty_workspace)} over the workspace")
+    small = cover.spread_ratio < COVERAGE_SPREAD_MIN
+    grows = cover.extrapolation > EXTRAPOLATION_MAX and cover.uncertainty_workspace > 0.5 * (
+        in_use.position_after.rms or 0.0)
+    if not (small or grows):
+        return Check(name, "pass", summary)
+    return Check(name, "warn", summary + ": the accuracy in use holds near the measured poses only",
+                 cause="a campaign that covers a small part of the workspace", fix="measure poses over the whole "
+                 "workspace the robot will use (robocal plan), or use the model only where it was measured")
+
+
+def limit_check(judged) -> Check:
+    """The mean error in use against the limit of absolute accuracy (``LimitJudgement``): a warning
+    when not reached (the robot is placed better, but not as well as it could be)."""
+    name = "limit of absolute accuracy"
+    summary = (f"mean error in use {_mm(judged.mean_error_m)}, {judged.ratio:.3g} times the limit of "
+               f"{_mm(judged.limit_m)}")
+    if judged.reached:
+        return Check(name, "pass", summary + " (reached)")
+    return Check(name, "warn", summary + " (not reached)", cause="errors the model leaves out (compliance, backlash, "
+                 "thermal drift), or poses that do not pin the parameters down",
+                 fix="add the compliance or backlash families, or poses over the workspace")

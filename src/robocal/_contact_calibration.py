@@ -303,7 +303,7 @@ def _solve(design: ContactProblem, p0, data, noise: Noise, *, loss: str, max_nfe
     checks, ratios, _ = _row_checks(design, sol, data, noise)
     said = f"; the robust loss {sol.loss} sets them aside"
     return sol, [replace(c, status="warn", summary=c.summary + said, fix="check those rows; remove them to fit "
-                         "without them") if c.name.startswith("outliers") and c.status == "fail" else c
+                         "without them") if c.name.startswith("outliers") and c.status != "pass" else c
                  for c in checks], ratios
 
 

@@ -137,6 +137,25 @@ class Problem:
         n_pos = 3 * sum(len(s) for s in self.sel)
         return np.concatenate([np.zeros(n_pos, dtype=int), np.ones(self.n_rows - n_pos, dtype=int)])
 
+    def row_points(self) -> tuple[np.ndarray, np.ndarray]:
+        """(n_rows,) each row's pose and (data) marker index, in the order of ``residuals``."""
+        poses = [np.repeat(s, 3) for s in self.sel] + ([np.repeat(s, 3) for s in self.sel_r] if self.use_rot else [])
+        markers = [np.full(3 * len(s), j) for j, s in enumerate(self.sel)]
+        if self.use_rot:
+            markers += [np.full(3 * len(s), j) for j, s in enumerate(self.sel_r)]
+        if not poses:
+            return np.zeros(0, dtype=int), np.zeros(0, dtype=int)
+        return np.concatenate(poses), np.concatenate(markers)
+
+    def pieces(self, p):
+        """``(jacobian, residuals, row poses)`` at ``p``, whole or, for a campaign solved in chunks, a
+        chunk of poses at a time (row poses then index the whole campaign's poses)."""
+        if not self.chunked:
+            yield self.jacobian(p), self.residuals(p), self.row_points()[0]
+            return
+        for a, sub in zip(range(0, self.data.n_poses, CHUNK_POSES), self._chunks()):
+            yield sub.jacobian(p), sub.residuals(p), a + sub.row_points()[0]
+
     def full(self, x, p0) -> np.ndarray:
         """The full parameter vector: ``p0`` with the free parameters set to ``x``."""
         p = np.array(p0, dtype=float)

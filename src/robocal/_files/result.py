@@ -18,6 +18,7 @@ from .._checks import STATUSES, Check
 from .._calibration import CalibrationResult, ErrorStats, ErrorSummary, LimitJudgement, ParameterEstimate
 from .._errors import InputError, excerpt
 from .._identifiability import Absorption, IdentifiabilityResult, status_table
+from .._in_use import AccuracyInUse, Coverage, UseStats
 from .._parameters import parameter_layout
 from .model import model_from_dict, model_to_dict
 from .text import load_json, read_text, write_texts
@@ -106,10 +107,62 @@ def result_to_dict(result: CalibrationResult) -> dict:
         "limit": None if lim is None else {"limit_m": lim.limit_m, "compared": lim.compared,
                                            "mean_error_m": lim.mean_error_m, "ratio": lim.ratio,
                                            "reached": lim.reached},
+        "in_use": in_use_to_dict(result.in_use),
+        "coverage": coverage_to_dict(result.coverage),
         "provenance": result.provenance,
         "nominal_model": model_to_dict(result.nominal_model),
         "calibrated_model": model_to_dict(result.calibrated_model),
     }
+
+
+_USE_FIELDS = ("n", "mean", "rms", "p95", "max")
+
+
+def _use_dict(s) -> dict | None:
+    return None if s is None else {f: getattr(s, f) for f in _USE_FIELDS}
+
+
+def in_use_to_dict(in_use: AccuracyInUse | None) -> dict | None:
+    """The accuracy in use (statistics only; SI: m and rad)."""
+    if in_use is None:
+        return None
+    return {"method": in_use.method, "k": in_use.folds, "grouping": in_use.grouping,
+            "position_before": _use_dict(in_use.position_before), "position_after": _use_dict(in_use.position_after),
+            "rotation_before": _use_dict(in_use.rotation_before), "rotation_after": _use_dict(in_use.rotation_after),
+            "fit_after": _use_dict(in_use.fit_after)}
+
+
+def coverage_to_dict(cover: Coverage | None) -> dict | None:
+    """Where the calibration was measured (SI)."""
+    if cover is None:
+        return None
+    return {"joint_span": cover.joint_span.tolist(), "joint_ranges": [list(r) for r in cover.joint_ranges],
+            "box_m": [list(cover.box[0]), list(cover.box[1])], "spread_ratio": cover.spread_ratio,
+            "uncertainty_measured_m": cover.uncertainty_measured,
+            "uncertainty_workspace_m": cover.uncertainty_workspace}
+
+
+def _use_stats(doc: _Doc, d: dict | None, where: str) -> UseStats | None:
+    if d is None:
+        return None
+    n = doc.get(d, "n", where, int)
+    vals = {f: (doc.get(d, f, where, float, optional=True) if n else None) for f in _USE_FIELDS[1:]}
+    return UseStats(n=n, **{f: (None if v is None or math.isnan(v) else v) for f, v in vals.items()})
+
+
+def _in_use(doc: _Doc, d: dict | None) -> AccuracyInUse | None:
+    """The accuracy in use of a result file (its statistics; the per-point errors are not stored)."""
+    if d is None:
+        return None
+    w = "in_use"
+    k = doc.get(d, "k", w, int, optional=True)
+    stats = {key: _use_stats(doc, doc.get(d, key, w, dict, optional=True), f"{w}.{key}")
+             for key in ("position_before", "position_after", "rotation_before", "rotation_after", "fit_after")}
+    for key in ("position_before", "position_after", "fit_after"):
+        if stats[key] is None:
+            raise doc.error(f"{w}.{key}", "missing key")
+    return AccuracyInUse(method=doc.get(d, "method", w, str), folds=k, grouping=doc.get(d, "grouping", w, str),
+                         errors_before=np.zeros(0), errors_after=np.zeros(0), **stats)
 
 
 def result_to_json(result: CalibrationResult) -> str:
@@ -325,6 +378,7 @@ def result_from_dict(d, *, source: str = "<dict>") -> CalibrationResult:
         notes=doc.strings(doc.get(d, "notes", "", list), "notes"),
         limit=_limit_judgement(doc, doc.get(d, "limit", "", dict, optional=True)),
         checks=_checks(doc, doc.get(d, "checks", "", list, optional=True) or []),
+        in_use=_in_use(doc, doc.get(d, "in_use", "", dict, optional=True)),
         provenance=_provenance(doc, doc.get(d, "provenance", "", dict, optional=True) or {}))
 
 

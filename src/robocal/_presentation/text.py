@@ -32,6 +32,25 @@ def stats_lines(stats, indent: str = "  ", *, unit: str = "m") -> list[str]:
 MARKS = {"pass": "ok  ", "warn": "WARN", "fail": "FAIL"}
 
 
+def in_use_lines(in_use, indent: str = "  ") -> list[str]:
+    """The accuracy in use before and after calibration (``AccuracyInUse``), mm and deg."""
+    if in_use is None or not in_use.position_after.n:
+        return []
+    how = in_use.method + (f", {in_use.grouping}" if in_use.method == "cross-validation" else "")
+    lines = [f"accuracy in use ({how}), on {in_use.position_after.n} held-out point(s):",
+             f"{indent}{'position error (mm)':<24}{'mean':>8}{'RMS':>8}{'95 %':>8}{'max':>8}"]
+
+    def row(label, s, k=MM):
+        return f"{indent}{label:<24}" + "".join(f"{getattr(s, f) * k:8.3f}" for f in ("mean", "rms", "p95", "max"))
+
+    lines += [row("before", in_use.position_before), row("after", in_use.position_after)]
+    if in_use.rotation_after is not None and in_use.rotation_after.n:
+        k = 180.0 / np.pi
+        lines += [f"{indent}{'rotation error (deg)':<24}", row("before", in_use.rotation_before, k),
+                  row("after", in_use.rotation_after, k)]
+    return lines
+
+
 def checks_lines(checks) -> list[str]:
     """Every check with its figures; the likely cause and the fix of those that did not pass."""
     lines = ["checks:"]
@@ -80,6 +99,7 @@ def calibration_summary(result, *, shown=(), weighted: bool = False) -> str:
     lines += stats_lines(result.stats)
     if result.rotation_stats is not None:
         lines += stats_lines(result.rotation_stats, unit="rad")
+    lines += in_use_lines(result.in_use)
     lines.append(f"identified parameters ({len(result.parameters)}): change = estimate - nominal")
     width = max([len(p.name) for p in result.parameters] + [16])
     for p in result.parameters:
@@ -102,8 +122,9 @@ def calibration_summary(result, *, shown=(), weighted: bool = False) -> str:
         lines.append(f"residual standard deviation: {result.sigma0 * MM:.4f} mm")
     if result.limit:
         lim = result.limit
-        lines.append(f"limit of absolute accuracy {lim.limit_m * MM:.3f} mm: {lim.compared.replace('_', ' ')} mean "
-                     f"{lim.mean_error_m * MM:.3f} mm, {'reached' if lim.reached else 'not reached'}")
+        lines.append(f"limit of absolute accuracy {lim.limit_m * MM:.3f} mm: mean error in use "
+                     f"({lim.compared.replace('_', ' ')}) {lim.mean_error_m * MM:.3f} mm, "
+                     f"{'reached' if lim.reached else 'not reached'}")
     lines += [f"note: {n}" for n in result.notes if n not in shown]
     lines += checks_lines(result.checks)
     lines.append(verdict_line(result))

@@ -33,7 +33,8 @@ def register(sub) -> None:
                    help="with --contacts: hold out these placements (comma-separated) to judge the result on")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder (created)")
     v = p.add_mutually_exclusive_group()
-    v.add_argument("--validation", metavar="CSV", help="held-out measurements to judge the result on")
+    v.add_argument("--validation", "--validate", metavar="CSV", dest="validation",
+                   help="held-out measurements to judge the result on (without: cross-validation, --folds)")
     v.add_argument("--holdout", type=common.fraction, metavar="FRACTION", help="hold out this fraction of the poses")
     common.parameter_options(p)
     p.add_argument("--compare", action="store_true",
@@ -48,6 +49,11 @@ def register(sub) -> None:
                    help="start the base pose from a rigid registration of the nominal robot on the data")
     p.add_argument("--limit-mm", type=common.limit_mm, metavar="X|LIMIT.json",
                    help="limit of absolute accuracy to judge against: mm, or the file 'robocal limit --out' wrote")
+    p.add_argument("--folds", type=common.integer(2, 1000), default=5, metavar="K",
+                   help="folds of the cross-validation that estimates the accuracy in use without --validation: "
+                        "consecutive blocks of poses, or the file's series (default 5)")
+    p.add_argument("--register-validation", action="store_true",
+                   help="with --validation from another set-up: register base and tool on it before judging")
     p.add_argument("--seed", type=common.seed, default=0, help="seed of the --holdout split (default 0)")
     p.add_argument("--out-units", type=common.units, default="mm-deg", help="units of calibrated.yaml (default mm-deg)")
     p.add_argument("--force", action="store_true", help="overwrite existing output files")
@@ -137,7 +143,8 @@ def run(args) -> int:
     options = dict(known=args.known, validation=validation, loss=args.loss, tol=args.tol,
                    initial_base="register" if args.register_base else "model",
                    limit=None if args.limit_mm is None else args.limit_mm / common.MM, noise=noise,
-                   on_outliers=args.on_outliers, weak=args.weak, nonnegative_compliance=args.nonnegative_compliance)
+                   on_outliers=args.on_outliers, weak=args.weak, nonnegative_compliance=args.nonnegative_compliance,
+                   folds=args.folds, register_validation=args.register_validation)
     weighted = data.sigma is not None or data.has_orientation
     try:
         if args.compare:
