@@ -18,10 +18,10 @@ from datetime import datetime, timezone
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ._checks import (FIT_RATIO, OUTLIER_RUN, OUTLIER_SHARE_MAX, Check, WorkspaceChange, backlash_sign_check,
+from ._checks import (FIT_RATIO, GROSS_FACTOR, OUTLIER_RUN, OUTLIER_SHARE_MAX, Check, WorkspaceChange, backlash_sign_check,
                       cloud_size_check, compliance_sign_check, convergence_check, correlation_check, coverage_check,
                       expected_noise, fit_check, identifiability_check, in_use_check, interchangeable_pairs,
-                      limit_check, markers_check, outlier_check, plausibility_check, reading_units_check,
+                      limit_check, markers_check, outlier_bar, outlier_check, outlier_scores, plausibility_check, reading_units_check,
                       readings_check, support_check, tolerances, verdict)
 from ._errors import (CheckWarning, ConvergenceWarning, DegenerateDataError, IdentifiabilityWarning, InputError,
                       MisfitWarning, check_choice)
@@ -604,7 +604,7 @@ def _fit(design: _Design, data: Measurements, noise: Noise, options: _Options, f
     held = cross_validate(design.problem, solution.p, labels, k)
     if outliers is not None:
         return _Fit(design, data, solution, outliers.outlier_check, outliers.outlying, held)
-    check, out = _outliers(design.problem, solution, data, noise)
+    check, out, gross = _outliers(design.problem, solution, data, noise)
     if not out.any():
         return _Fit(design, data, solution, check, out, held)
     rows, markers = np.nonzero(data.mask)
@@ -616,10 +616,14 @@ def _fit(design: _Design, data: Measurements, noise: Noise, options: _Options, f
         return _Fit(design, data, solution, check, out, held)
     blunder = np.zeros(len(rows), dtype=bool)
     blunder[np.nonzero(out)[0][~runs]] = True
+    blunder &= gross
     notes = []
     if runs.any():
         notes.append(f"{int(runs.sum())} point(s) standing out in runs of consecutive poses "
                      f"({_listed_rows(data, rows[out][runs])}): a systematic error, not blunders; kept in the fit")
+    if (out & ~gross).any():
+        notes.append(f"{int((out & ~gross).sum())} point(s) beyond the outlier bar but within {GROSS_FACTOR:g} times it: "
+                     "the tail of an effect the model leaves out as much as blunders; kept in the fit")
     if not blunder.any() or options.loss != "linear" or options.on_outliers != "refit":
         return _Fit(design, data, solution, _outlier_status(check, runs, aside=False), out, held, tuple(notes))
     aside = np.zeros(data.mask.shape, dtype=bool)
@@ -628,13 +632,19 @@ def _fit(design: _Design, data: Measurements, noise: Noise, options: _Options, f
     again = replace(design, problem=Problem(design.start, kept, design.identifiability.identified,
                                             compliance=design.compliance, noise=noise))
     solution2 = _solve(again, options)
-    held2 = cross_validate(again.problem, solution2.p, labels, k)
-    excess, _ = paired_excess(held2.loss, held.loss, kept.mask)
+    # judged on every point, those set aside too (predicted without them): blunders are no better
+    # predicted either way, while points whose only fault is an effect the model leaves out are
+    # predicted worse once their like are set aside
+    held2 = cross_validate(again.problem, solution2.p, labels, k, on=design.problem)
+    excess, _ = paired_excess(held2.norms, held.norms, data.mask)
     if excess > 0:
         notes.append(f"{int(blunder.sum())} outlier(s) named; setting them aside did not lower the cross-validated "
                      "error of the other points, so they stay in the fit")
         return _Fit(design, data, solution, _outlier_status(check, runs, aside=False), out, held, tuple(notes))
     notes.append(f"{int(blunder.sum())} outlier(s) set aside and the calibration fitted again without them")
+    held2 = HeldOut(np.where(kept.mask[..., None], held2.positions, np.nan),
+                    None if held2.rotations is None else np.where(kept.mask[..., None], held2.rotations, np.nan),
+                    np.where(kept.mask, held2.loss, 0.0))
     return _Fit(again, kept, solution2, _outlier_status(check, runs, aside=True), out, held2, tuple(notes))
 
 
@@ -680,7 +690,8 @@ def _outliers(problem: Problem, solution: Solution, data: Measurements, noise: N
     residuals = problem.errors(solution.p)[data.mask]
     labels = _PointLabels(data)
     sigma = None if data.sigma is None else data.sigma[data.mask]
-    return outlier_check(residuals, sigma, noise, labels)
+    check, out = outlier_check(residuals, sigma, noise, labels)
+    return check, out, out & (outlier_scores(residuals, sigma, noise) > GROSS_FACTOR * outlier_bar(len(out)))
 
 
 class _PointLabels:
@@ -800,6 +811,7 @@ def _in_use(model: RobotModel, design: _Design, fit: _Fit, before: np.ndarray, v
     labels, k, grouping = folds
     problem, p = design.problem, fit.solution.p
     fit_after = problem.error_norms(p)[fit.data.mask]
+    noise = _instrument_variance(problem.noise, fit.data)
     if validation is None:
         lay = parameter_layout(design.start)
         placed = tuple(n for n in design.identifiability.identified if lay[n].family in ("base", "markers"))
@@ -807,7 +819,7 @@ def _in_use(model: RobotModel, design: _Design, fit: _Fit, before: np.ndarray, v
         held_before = fit.held_out if only else (
             cross_validate(problem.over(placed), before, labels, k) if placed else evaluated(problem, before))
         return accuracy_in_use("cross-validation", k, grouping, held_before, fit.held_out, fit_after,
-                               registration_only=only)
+                               registration_only=only, noise=noise)
     start = design.start
     val = Problem(start, validation, design.identifiability.identified, compliance=design.compliance,
                   noise=problem.noise)
@@ -820,7 +832,19 @@ def _in_use(model: RobotModel, design: _Design, fit: _Fit, before: np.ndarray, v
         vectors = [solve(reg, v, tol=REGISTRATION_TOL).p for v in vectors]
     method = "validation, base and tool registered on it" if register else "validation"
     return accuracy_in_use(method, None, "the validation set", evaluated(val, vectors[0]), evaluated(val, vectors[1]),
-                           fit_after)
+                           fit_after, noise=_instrument_variance(problem.noise, validation))
+
+
+def _instrument_variance(noise: Noise | None, data: Measurements) -> tuple[float, float]:
+    """The instrument's per-axis variance of positions and rotations: the stated deviations' mean
+    square where the data state them, else the expected noise's."""
+    pos = noise.position ** 2 if noise is not None else 0.0
+    rot = noise.rotation ** 2 if noise is not None else 0.0
+    if data.sigma is not None:
+        pos = float(np.mean(data.sigma[data.mask] ** 2))
+    if data.sigma_rot is not None and data.rot_mask is not None and data.rot_mask.any():
+        rot = float(np.mean(data.sigma_rot[data.rot_mask] ** 2))
+    return pos, rot
 
 
 _WARNING_CLASS = {"solver convergence": ConvergenceWarning, "fit against the instrument": MisfitWarning,

@@ -28,6 +28,10 @@ OUTLIER_SIGMAS = 5.0
 OUTLIER_FALSE_ALARM = 0.01
 # beyond this share of outliers the data do not fit: setting them aside would hide a real misfit
 OUTLIER_SHARE_MAX = 0.2
+# only points beyond this factor times the outlier bar are set aside as blunders: between the bar and
+# this, a point is as likely the tail of an effect the model leaves out (an elastic robot's residuals
+# reach 5 to 9 robust standard deviations at its extreme poses) and is named, not set aside
+GROSS_FACTOR = 2.0
 # outliers at this many consecutive poses or more are a systematic error (a bump, a payload, a
 # drift), not blunders: they are named, not set aside
 OUTLIER_RUN = 4
@@ -274,6 +278,19 @@ def outlier_bar(n_points: int) -> float:
     return max(OUTLIER_SIGMAS, float(np.sqrt(2.0 * gammainccinv(1.5, tail))))
 
 
+def outlier_scores(residuals: np.ndarray, sigma: np.ndarray | None, noise: Noise) -> np.ndarray:
+    """(n,) each 3D residual's norm in robust standard deviations (see ``outlier_check``)."""
+    if sigma is None:
+        comps = residuals.ravel()
+        robust = 1.4826 * float(np.median(np.abs(comps - np.median(comps)))) if comps.size else 0.0
+        return np.linalg.norm(residuals, axis=1) / max(robust, OUTLIER_SCALE_FLOOR * noise.position)
+    # in stated deviations: the robust spread of the standardised residuals sets the scale
+    u = residuals / np.reshape(sigma, (-1, 1))
+    comps = u.ravel()
+    robust = 1.4826 * float(np.median(np.abs(comps - np.median(comps)))) if comps.size else 0.0
+    return np.linalg.norm(u, axis=1) / max(robust, OUTLIER_SCALE_FLOOR)
+
+
 def outlier_check(residuals: np.ndarray, sigma: np.ndarray | None, noise: Noise, labels) -> tuple[Check, np.ndarray]:
     """Measured points whose residual norm exceeds ``OUTLIER_SIGMAS`` robust standard deviations.
 
@@ -285,16 +302,7 @@ def outlier_check(residuals: np.ndarray, sigma: np.ndarray | None, noise: Noise,
     Returns the check and the (n,) outlier mask.
     """
     name = "outliers"
-    if sigma is None:
-        comps = residuals.ravel()
-        robust = 1.4826 * float(np.median(np.abs(comps - np.median(comps)))) if comps.size else 0.0
-        z = np.linalg.norm(residuals, axis=1) / max(robust, OUTLIER_SCALE_FLOOR * noise.position)
-    else:
-        # in stated deviations: the robust spread of the standardised residuals sets the scale
-        u = residuals / sigma[:, None]
-        comps = u.ravel()
-        robust = 1.4826 * float(np.median(np.abs(comps - np.median(comps)))) if comps.size else 0.0
-        z = np.linalg.norm(u, axis=1) / max(robust, OUTLIER_SCALE_FLOOR)
+    z = outlier_scores(residuals, sigma, noise)
     bar = outlier_bar(len(z))
     out = z > bar
     if not out.any():

@@ -3,10 +3,12 @@
 A calibration answers its user's question, "will this model place my robot better than what it
 has now, and how well?", from poses the fit did not see: a validation set when one is given, else
 k-fold cross-validation (docs/checks.md, "Accuracy in use"). Folds are contiguous blocks of the
-campaign's order, or its series when the file names them: poses measured together share their
-drift and their corner of the workspace, so holding out a block asks what use asks (a pose
-measured at another time, elsewhere), where random folds would let a pose's neighbours vouch for
-it. Repeated configurations stay in one fold.
+campaign's order where consecutive poses are neighbours (a grid, a path), or its series when the
+file names them: poses measured together share their drift and their corner of the workspace, so
+holding out a block asks what use asks (a pose elsewhere, at another time), where random folds
+would let a pose's neighbours vouch for it. Where consecutive poses are not neighbours (a random
+plan), a block holds out no region and folds are drawn at random. Repeated configurations stay
+in one fold.
 
 Each fold's model is the full solution moved by one Gauss-Newton step on the other folds' rows
 (the normal equations less the fold's: a solve of the size of the parameters), then evaluated
@@ -28,6 +30,11 @@ from ._problem import Problem, random_configurations, sampling_box
 
 # folds of a cross-validation without a series column
 DEFAULT_FOLDS = 5
+# consecutive poses closer than this share of the typical distance between poses are neighbours: the
+# campaign's order is spatial (a grid, a path) and folds are blocks of it; otherwise they are drawn
+# at random (a block of a random plan holds out no region, only a stretch of time)
+NEIGHBOURS = 0.5
+FOLD_SEED = 20240602
 # a series column with more series than this is grouped into this many folds (contiguous series)
 MAX_FOLDS = 20
 # eigenvalues of a fold's normal matrix (unit columns) below this share of the largest are left out:
@@ -101,10 +108,26 @@ def fold_labels(data: Measurements, folds: int = DEFAULT_FOLDS) -> tuple[np.ndar
             labels, k = labels * MAX_FOLDS // k, MAX_FOLDS
         return labels.astype(int), int(k), f"{k} folds by series"
     k = int(min(max(folds, 2), n))
-    labels = np.arange(n) * k // n
+    if ordered(data.q):
+        labels, how = np.arange(n) * k // n, f"{k} folds of consecutive poses"
+    else:
+        labels, how = np.random.default_rng(FOLD_SEED).permutation(n) % k, f"{k} folds drawn at random"
     _, first, inverse = np.unique(np.ascontiguousarray(data.q + 0.0), axis=0, return_index=True, return_inverse=True)
     labels = labels[first[np.ravel(inverse)]]
-    return labels.astype(int), k, f"{k} folds of consecutive poses"
+    return labels.astype(int), k, how
+
+
+def ordered(q: np.ndarray) -> bool:
+    """Whether consecutive poses are neighbours (a grid, a path): the median step between them, in
+    each joint's spread, is below ``NEIGHBOURS`` of the median distance between poses taken at random."""
+    q = np.asarray(q, dtype=float)
+    if len(q) < 4:
+        return True
+    spread = np.std(q, axis=0)
+    x = q / np.where(spread > 0, spread, 1.0)
+    step = np.median(np.linalg.norm(np.diff(x, axis=0), axis=1))
+    other = np.median(np.linalg.norm(x - x[np.random.default_rng(FOLD_SEED).permutation(len(x))], axis=1))
+    return bool(step < NEIGHBOURS * other)
 
 
 def _sub_problem(problem: Problem, index: np.ndarray) -> Problem:
@@ -163,13 +186,18 @@ def fold_steps(problem: Problem, p: np.ndarray, labels: np.ndarray, k: int) -> l
     return steps
 
 
-def cross_validate(problem: Problem, p: np.ndarray, labels: np.ndarray, k: int) -> HeldOut:
-    """Each pose's errors under the model fitted on the other folds (``fold_steps``)."""
+def cross_validate(problem: Problem, p: np.ndarray, labels: np.ndarray, k: int, *,
+                   on: Problem | None = None) -> HeldOut:
+    """Each pose's errors under the model fitted on the other folds (``fold_steps``); ``on``: the
+    problem whose points are predicted (default ``problem``; e.g. the whole campaign when
+    ``problem`` has points set aside)."""
+    steps = fold_steps(problem, p, labels, k)
+    problem = problem if on is None else on
     data = problem.data
     pos = np.full(data.positions.shape, np.nan)
     rot = np.full(data.positions.shape, np.nan) if data.has_orientation else None
     loss = np.zeros(data.mask.shape)
-    for g, step in enumerate(fold_steps(problem, p, labels, k)):
+    for g, step in enumerate(steps):
         index = np.nonzero(labels == g)[0]
         if not len(index):
             continue
@@ -203,6 +231,7 @@ class AccuracyInUse:
     (its base and tool registered on the fitted poses, as the calibration's) and of the calibrated
     one; ``rotation_*`` the same for rotations (rad) or None; ``fit_after`` the calibrated model on
     the fitted poses themselves. ``errors_before``/``errors_after`` (n_points,) the held-out norms.
+    Every figure is the robot's: the instrument's noise is taken out (``without_instrument``).
     """
 
     method: str
@@ -230,14 +259,31 @@ class AccuracyInUse:
         return float(d.mean()), float(d.std(ddof=1) / np.sqrt(d.size)) if d.size > 1 else 0.0
 
 
+def without_instrument(norms: np.ndarray, variance: float) -> np.ndarray:
+    """Error norms of 3D vectors with an instrument's share taken out: scaled so that their mean
+    square loses three times its per-axis ``variance`` (what the robot's placement errors would
+    show without the instrument between; none left when the instrument explains it all)."""
+    v = np.asarray(norms, dtype=float)
+    ms = float(np.nanmean(v * v)) if np.isfinite(v).any() else 0.0
+    if ms <= 0 or variance <= 0:
+        return v
+    return v * np.sqrt(max(1.0 - 3.0 * variance / ms, 0.0))
+
+
 def accuracy_in_use(method: str, folds: int | None, grouping: str, before: HeldOut, after: HeldOut,
-                    fit_after: np.ndarray, *, registration_only: bool = False) -> AccuracyInUse:
+                    fit_after: np.ndarray, *, registration_only: bool = False, noise: tuple[float, float] = (0.0, 0.0)
+                    ) -> AccuracyInUse:
     """The record of held-out errors before and after (``HeldOut``); ``fit_after`` the error norms
     on the fitted points; ``registration_only``: only base and markers were identified (the robot's
-    kinematics are the nominal ones, before as after)."""
-    eb, ea = before.norms.ravel(), after.norms.ravel()
+    kinematics are the nominal ones, before as after). ``noise``: the instrument's per-axis variance
+    of positions (m^2) and rotations (rad^2), taken out of every figure (``without_instrument``):
+    the accuracy in use is the robot's."""
+    eb, ea = without_instrument(before.norms.ravel(), noise[0]), without_instrument(after.norms.ravel(), noise[0])
+    fit_after = without_instrument(fit_after, noise[0])
     both = np.isfinite(eb) & np.isfinite(ea)
     rb, ra = before.rotation_norms, after.rotation_norms
+    rb = None if rb is None else without_instrument(rb, noise[1])
+    ra = None if ra is None else without_instrument(ra, noise[1])
     return AccuracyInUse(method=method, folds=folds, grouping=grouping, position_before=use_stats(eb[both]),
                          position_after=use_stats(ea[both]), rotation_before=None if rb is None else use_stats(rb),
                          rotation_after=None if ra is None else use_stats(ra), fit_after=use_stats(fit_after),

@@ -1,11 +1,13 @@
 """Simulation before the robot is touched: a perturbed "true" robot and its measurements, and
 campaigns with a real robot's imperfections (encoder counts, scatter, instrument noise, lost motion);
-joint-only campaigns of sockets, planes and ball bars, and the planning of a socket campaign."""
+joint-only campaigns of sockets, planes and ball bars, and the planning of a socket campaign; robots with
+effects beyond the model (elasticity, gear errors, drift, scatter) and their accuracy in use."""
 
 from ._campaign import (RobotImperfections, accuracy_in_use, backlash_sides, measure_campaign,
                         stored_model)
 from ._contact_planning import SocketDesign, SocketPlan, plan_sockets
 from ._contact_simulation import bar_campaign, plane_campaign, plate_placements, reach, socket_campaign
+from ._effects import PRESETS, UnmodelledEffects, attained, measure_real, placement_errors
 from ._measurements import approach_sides
 from ._problem import random_configurations
 from ._simulation import measure, perturb_model, simulate
@@ -13,4 +15,5 @@ from ._simulation import measure, perturb_model, simulate
 __all__ = ["simulate", "measure", "perturb_model", "random_configurations", "RobotImperfections",
            "measure_campaign", "accuracy_in_use", "approach_sides", "backlash_sides", "stored_model",
            "socket_campaign", "plane_campaign", "bar_campaign", "plate_placements", "reach", "plan_sockets",
-           "SocketPlan", "SocketDesign"]
+           "SocketPlan", "SocketDesign", "UnmodelledEffects", "PRESETS", "attained", "measure_real",
+           "placement_errors"]
