@@ -549,7 +549,8 @@ def in_use_check(in_use) -> Check:
                      "kinematics unchanged")
     summary = (f"mean error {_mm(b.mean)} before, {_mm(a.mean)} after (95 % within {_mm(a.p95)}, max {_mm(a.max)}) "
                f"on {a.n} held-out point(s) ({how}); {_mm(fit.mean)} on the fitted ones")
-    if fit.n and a.mean > OVERFIT_GROSS * fit.mean and a.mean > fit.mean + OVERFIT_GROSS_EXCESS:
+    seen, seen_fit = in_use.measured_after or a, in_use.measured_fit or fit
+    if seen_fit.n and seen.mean > OVERFIT_GROSS * seen_fit.mean and seen.mean > seen_fit.mean + OVERFIT_GROSS_EXCESS:
         return Check(name, "fail", summary + ": the held-out errors are beyond anything the fit explains",
                      cause="held-out poses of another set-up (base or tool moved) or another robot, or a mistake in "
                            "the data", fix="for a campaign of another set-up, register base and tool on it "
@@ -564,8 +565,8 @@ def in_use_check(in_use) -> Check:
                      f"({_mm(se)})", cause="errors the model cannot take up (repeatability, unmodelled effects)",
                      fix="calibrate with the compliance or backlash families if the robot has them, or keep the "
                          "nominal model")
-    if fit.n and a.mean > OVERFIT_RATIO * fit.mean and a.mean - fit.mean > 3 * in_use.standard_error:
-        return Check(name, "warn", summary + f": {a.mean / fit.mean:.3g} times the fitted poses' error "
+    if seen_fit.n and seen.mean > OVERFIT_RATIO * seen_fit.mean and seen.mean - seen_fit.mean > 3 * in_use.standard_error:
+        return Check(name, "warn", summary + f": {seen.mean / seen_fit.mean:.3g} times the fitted poses' error "
                      "(overfitting)", cause="more parameters than the poses pin down, or poses that do not cover "
                      "where the model is used", fix="measure more poses over the workspace (robocal plan); hold "
                      "weak parameters (--weak eliminate)")

@@ -231,7 +231,9 @@ class AccuracyInUse:
     (its base and tool registered on the fitted poses, as the calibration's) and of the calibrated
     one; ``rotation_*`` the same for rotations (rad) or None; ``fit_after`` the calibrated model on
     the fitted poses themselves. ``errors_before``/``errors_after`` (n_points,) the held-out norms.
-    Every figure is the robot's: the instrument's noise is taken out (``without_instrument``).
+    Every figure is the robot's: the instrument's noise is taken out (``without_instrument``);
+    ``measured_after`` and ``measured_fit`` are the held-out and fitted errors as the instrument saw
+    them (what overfitting is judged on: the same noise in both).
     """
 
     method: str
@@ -245,6 +247,8 @@ class AccuracyInUse:
     errors_before: np.ndarray
     errors_after: np.ndarray
     registration_only: bool = False
+    measured_after: UseStats | None = None
+    measured_fit: UseStats | None = None
 
     @property
     def standard_error(self) -> float:
@@ -278,6 +282,7 @@ def accuracy_in_use(method: str, folds: int | None, grouping: str, before: HeldO
     kinematics are the nominal ones, before as after). ``noise``: the instrument's per-axis variance
     of positions (m^2) and rotations (rad^2), taken out of every figure (``without_instrument``):
     the accuracy in use is the robot's."""
+    raw_after, raw_fit = use_stats(after.norms.ravel()), use_stats(fit_after)
     eb, ea = without_instrument(before.norms.ravel(), noise[0]), without_instrument(after.norms.ravel(), noise[0])
     fit_after = without_instrument(fit_after, noise[0])
     both = np.isfinite(eb) & np.isfinite(ea)
@@ -287,7 +292,8 @@ def accuracy_in_use(method: str, folds: int | None, grouping: str, before: HeldO
     return AccuracyInUse(method=method, folds=folds, grouping=grouping, position_before=use_stats(eb[both]),
                          position_after=use_stats(ea[both]), rotation_before=None if rb is None else use_stats(rb),
                          rotation_after=None if ra is None else use_stats(ra), fit_after=use_stats(fit_after),
-                         errors_before=eb[both], errors_after=ea[both], registration_only=registration_only)
+                         errors_before=eb[both], errors_after=ea[both], registration_only=registration_only,
+                         measured_after=raw_after, measured_fit=raw_fit)
 
 
 @dataclass(frozen=True, eq=False)
