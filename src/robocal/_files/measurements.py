@@ -23,7 +23,7 @@ from .._options import MAX_POSES
 from .._units import ANGLE_UNITS, LENGTH_UNITS, UNITS, check_unit, parse_units
 from .profile import Profile, read_profile
 from .table import Table, decimal_hint, join_tables, map_columns, read_table
-from .text import read_text, write_texts
+from .text import check_rows, read_text, write_texts
 
 RESERVED = ("pose", "set", "payload_kg")
 # approach_<joint>: the direction (+1 or -1) of the joint's last move before the pose (backlash)
@@ -274,6 +274,9 @@ def read_measurements(path, model: RobotModel | None = None, *, units: str | Non
                         unknown=unknown, key=key)
     declared = dict(zip(("length", "angle"), parse_units(opts["units"]))) if opts["units"] is not None else {}
     orient = parse_orientation(opts["orientation"])
+    for p in (path, joints):
+        if p is not None:
+            check_rows(p, MAX_POSES)
     text, digest = read_text(path)
     table = map_columns(read_table(text, source, sep=opts["sep"], decimal=opts["decimal"]), opts["columns"])
     if joints is not None:
