@@ -222,3 +222,48 @@ def test_series_column_kept_per_pose_and_through_subsets(files, reference):
     assert list(val.extra["series"]) == [s for s, f in zip(labels, flags) if f]
     rc.write_measurements(data, files / "back.csv", model=model)
     assert list(rc.read_measurements(files / "back.csv", model).extra["series"]) == labels
+
+
+# -- DH tables: the convention of a theta, d, a, alpha table is stated, never guessed ----------------
+
+CRAIG = """name,joint,alpha_deg,a_mm,theta_deg,d_mm
+j1,revolute,0,0,10,300
+j2,revolute,-90,50,-20,0
+j3,revolute,0,400,5,0
+j4,revolute,-90,30,0,420
+tool,marker,,,,,
+"""
+
+
+def _craig_table(path, comment=""):
+    header, *rows = CRAIG.splitlines()
+    rows = [r for r in rows if not r.startswith("tool")]
+    path.write_text(comment + header + ",x_mm,y_mm,z_mm\n" + "".join(r + ",,,\n" for r in rows)
+                    + "tool,marker,,,,,10,0,80\n")
+    return path
+
+
+def test_a_modified_dh_table_with_unit_suffixes_is_not_read_as_classic(tmp_path, cli):
+    from robocal.io import read_dh_table
+
+    path = _craig_table(tmp_path / "craig.csv")
+    code, _, err = cli("import-dh", path, "--out", tmp_path / "m.yaml")
+    assert_one_line_error(code, err, ["craig.csv", "classic", "modified", "--convention"], command="import-dh")
+    assert not (tmp_path / "m.yaml").exists()
+    model = read_dh_table(path, convention="modified")
+    # the same robot written by hand as robocal frames: alpha, d (Craig's a), theta, r (Craig's d)
+    rows = [(0, 0, 10, 300), (-90, 50, -20, 0), (0, 400, 5, 0), (-90, 30, 0, 420)]
+    truth = rc.serial_model("craig", [dict(joint="revolute", alpha=np.deg2rad(al), d=a * 1e-3, theta=np.deg2rad(th),
+                                           r=d * 1e-3) for al, a, th, d in rows], markers=[("tool", (0.01, 0, 0.08))])
+    q = np.random.default_rng(4).uniform(-1, 1, (20, 4))
+    def points(m):
+        return rc.forward_kinematics(m, q).positions
+
+    np.testing.assert_allclose(points(model), points(truth), atol=1e-12)
+    assert np.abs(points(read_dh_table(path, convention="classic")) - points(truth)).max() > 1e-3
+    _craig_table(tmp_path / "said.csv", "# convention: modified\n")
+    np.testing.assert_allclose(points(read_dh_table(tmp_path / "said.csv")), points(truth), atol=1e-12)
+    with pytest.raises(rc.InputError, match="says convention modified"):
+        read_dh_table(tmp_path / "said.csv", convention="classic")
+    code, _, err = cli("import-dh", path, "--out", tmp_path / "m.yaml", "--convention", "modified")
+    assert code == 0, err
