@@ -22,7 +22,7 @@ from .._model import RobotModel
 from .._options import MAX_POSES
 from .._units import ANGLE_UNITS, LENGTH_UNITS, UNITS, check_unit, parse_units
 from .profile import Profile, read_profile
-from .table import Table, decimal_hint, join_tables, map_columns, read_table
+from .table import Table, Unfit, decimal_hint, join_tables, map_columns, read_columns, read_head, read_table, scan_rows
 from .text import check_rows, read_text, write_texts
 
 RESERVED = ("pose", "set", "series", "payload_kg")
@@ -282,6 +282,29 @@ def read_measurements(path, model: RobotModel | None = None, *, units: str | Non
     for p in (path, joints):
         if p is not None:
             check_rows(p, MAX_POSES)
+    fast = None
+    if joints is None and not any("+" in k for k in opts["columns"].rename):
+        fast = _read_fast(path, source, opts, declared, orient, model, targets)
+    if fast is not None:
+        (data, table, cols), other = fast, None
+    else:
+        table, other, digest = _read_rows(path, joints, source, opts)
+        cols = _columns(table, source, declared, orient, opts, model, targets)
+        if not table.rows:
+            raise InputError("no data rows after the header", source=source)
+        if len(table.rows) > MAX_POSES:
+            raise InputError(f"{len(table.rows):,} rows; robocal reads up to {MAX_POSES:,} poses per file "
+                             "(docs/formats.md)", source=source)
+        data = _parse_rows(table.rows, cols, table.decimal, source, digest, targets)
+    notes = tuple(f"reading {source}: {n}" for n in table.notes + _unknown_note(cols.ignored, other, exclude=True))
+    if other is not None:
+        notes += tuple(f"reading {other.source}: {n}" for n in other.notes + _unknown_note(cols.ignored, other))
+    return replace(data, extra={**data.extra, "notes": notes}) if notes else data
+
+
+def _read_rows(path, joints, source: str, opts: dict):
+    """The file's table, read row by row (joined with the joint file's), the joint file's table and
+    the SHA-256 of the file's bytes."""
     text, digest = read_text(path)
     table = map_columns(read_table(text, source, sep=opts["sep"], decimal=opts["decimal"], header=opts["header"]),
                         opts["columns"])
@@ -290,6 +313,12 @@ def read_measurements(path, model: RobotModel | None = None, *, units: str | Non
         other = map_columns(read_table(read_text(joints)[0], str(joints), sep=opts["sep"], decimal=opts["decimal"]),
                             opts["columns"])
         table = join_tables(table, other, opts["key"] or "pose")
+    return table, other, digest
+
+
+def _columns(table: Table, source: str, declared: dict, orient, opts: dict, model, targets: bool) -> "_Columns":
+    """What each column of ``table`` holds, with the units and orientation its comment lines declare."""
+    declared = dict(declared)
     comment_units, comment_orient, orient_text = _directives(table)
     for kind, unit in comment_units.items():
         if kind in declared and declared[kind] != unit:
@@ -299,18 +328,37 @@ def read_measurements(path, model: RobotModel | None = None, *, units: str | Non
     if orient is not None and comment_orient is not None and orient != comment_orient:
         raise InputError(f"the file declares orientation {orient_text}, the option says {opts['orientation']}",
                          source=source, where="orientation")
-    cols = _Columns(list(table.header), model, declared, orient or comment_orient, source, table.header_where,
+    return _Columns(list(table.header), model, declared, orient or comment_orient, source, table.header_where,
                     unknown=opts["columns"].unknown, targets=targets)
-    if not table.rows:
-        raise InputError("no data rows after the header", source=source)
-    if len(table.rows) > MAX_POSES:
-        raise InputError(f"{len(table.rows):,} rows; robocal reads up to {MAX_POSES:,} poses per file "
-                         "(docs/formats.md)", source=source)
-    data = _parse_rows(table.rows, cols, table.decimal, source, digest, targets)
-    notes = tuple(f"reading {source}: {n}" for n in table.notes + _unknown_note(cols.ignored, other, exclude=True))
-    if other is not None:
-        notes += tuple(f"reading {other.source}: {n}" for n in other.notes + _unknown_note(cols.ignored, other))
-    return replace(data, extra={**data.extra, "notes": notes}) if notes else data
+
+
+def _read_fast(path, source, opts, declared, orient, model, targets):
+    """(Measurements, head table, columns) read by the compiled parser a chunk at a time, or None
+    where it cannot vouch for the file (the row-by-row reader then reads it or names the fault)."""
+    try:
+        head = read_head(path, source, sep=opts["sep"], decimal=opts["decimal"], header=opts["header"])
+        raw_header = head.header
+        table = map_columns(head, opts["columns"])
+        cols = _columns(table, source, declared, orient, opts, model, targets)
+        scan = scan_rows(path, head)
+        if scan.n_rows > MAX_POSES:
+            return None  # the row reader says so, in its words
+        keep = [k for k, c in enumerate(raw_header) if c not in opts["columns"].ignore]
+        raw = dict(enumerate(keep))  # column of the mapped table -> column of the file
+        wanted = {raw[k]: ("text" if k in [cols.special.get(c) for c in ("pose", "set", "series")] else "number")
+                  for k in _used_columns(cols)}
+        arrays = read_columns(path, head, scan, wanted)
+        data = _parse_columns({k: arrays[raw[k]] for k in _used_columns(cols)}, cols, scan, source, targets)
+    except (Unfit, InputError):
+        return None
+    return data, table, cols
+
+
+def _used_columns(cols: "_Columns") -> list[int]:
+    """The columns of the mapped table that the reader reads (unknown ones ignored are not)."""
+    used = [k for k, _ in cols.joint_cols.values()] + list(cols.special.values()) + list(cols.approach_cols.values())
+    used += [k for mc in cols.marker_cols.values() for k, _ in mc.values()]
+    return sorted(set(used))
 
 
 def _unknown_note(ignored, other: Table | None, *, exclude: bool = False) -> tuple[str, ...]:
@@ -340,16 +388,21 @@ def _directives(table: Table):
     return comment_units, comment_orient, orient_text
 
 
-def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str, targets: bool = False) -> Measurements:
-    n, nm = len(rows), len(cols.markers)
-    q = np.empty((n, len(cols.joint_names)))
-    pos = np.full((n, nm, 3), np.nan)
+def _empty_arrays(cols: _Columns, n: int):
+    """(positions, sigma, rotations, sigma_rot) of ``n`` poses, NaN (unseen) until read; None where the
+    file has no such columns."""
+    nm = len(cols.markers)
     has_sigma = any(_sigma_parts(cols.marker_cols[m], "sigma", SIGMA_AXES) for m in cols.markers)
     has_rot = any(cols.orientation[m] for m in cols.markers)
     has_sigma_rot = any(_sigma_parts(cols.marker_cols[m], "sigma_rot", SIGMA_ROT_AXES) for m in cols.markers)
-    sigma = np.full((n, nm), np.nan) if has_sigma else None
-    sigma_rot = np.full((n, nm), np.nan) if has_sigma_rot else None
-    rot = np.full((n, nm, 3, 3), np.nan) if has_rot else None
+    return (np.full((n, nm, 3), np.nan), np.full((n, nm), np.nan) if has_sigma else None,
+            np.full((n, nm, 3, 3), np.nan) if has_rot else None, np.full((n, nm), np.nan) if has_sigma_rot else None)
+
+
+def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str, targets: bool = False) -> Measurements:
+    n = len(rows)
+    q = np.empty((n, len(cols.joint_names)))
+    pos, sigma, rot, sigma_rot = _empty_arrays(cols, n)
     payload = np.empty(n) if "payload_kg" in cols.special else None
     validation = np.zeros(n, dtype=bool)
     series = []
@@ -412,6 +465,88 @@ def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str, ta
     return Measurements(q=q, positions=pos, marker_names=tuple(cols.markers), joint_names=tuple(cols.joint_names),
                         rotations=rot, sigma=sigma, sigma_rot=sigma_rot, payload_mass=payload,
                         labels=tuple(labels), source=source, sha256=digest, extra=extra)
+
+
+def _parse_columns(arrays: dict, cols: _Columns, scan, source: str, targets: bool) -> Measurements:
+    """:func:`_parse_rows` over whole columns (``arrays``: column -> float array, NaN where empty, or
+    list of str); ``Unfit`` wherever that reader would stop with an error, so that it names the cell."""
+    n = scan.n_rows
+    numbers = [a for a in arrays.values() if isinstance(a, np.ndarray)]
+    if any(np.any(np.abs(a) > MAX_MAGNITUDE) for a in numbers):
+        raise Unfit
+
+    def need(k, scale=1.0):
+        a = arrays[k]
+        if np.isnan(a).any():
+            raise Unfit  # an empty cell where a value is required
+        return a * scale
+
+    q = np.empty((n, len(cols.joint_names)))
+    for j, jn in enumerate(cols.joint_names):
+        q[:, j] = need(*cols.joint_cols[jn])
+    pos, sigma, rot, sigma_rot = _empty_arrays(cols, n)
+    for m, mn in enumerate(cols.markers):
+        mc = cols.marker_cols[mn]
+        seen = _group_seen(arrays, mc, POSITION)
+        pos[seen, m] = np.stack([arrays[mc[p][0]][seen] * mc[p][1] for p in POSITION], axis=-1)
+        parts = _sigma_parts(mc, "sigma", SIGMA_AXES)
+        if parts:
+            sigma[seen, m] = _sigma_column(arrays, mc, parts, seen)
+        if cols.orientation[mn]:
+            kind, seq = cols.orientation[mn]
+            rseen = _group_seen(arrays, mc, ORIENTATION_PARTS[kind])
+            vals = np.stack([arrays[mc[p][0]][rseen] * mc[p][1] for p in ORIENTATION_PARTS[kind]], axis=-1)
+            if kind == "quat":
+                norm = np.linalg.norm(vals, axis=-1)
+                if not np.all((norm > 1e-12) & (norm < np.inf)):
+                    raise Unfit
+                R = Rotation.from_quat(vals).as_matrix() if len(vals) else np.empty((0, 3, 3))
+            else:
+                R = Rotation.from_euler("xyz" if kind == "rpy" else seq, vals).as_matrix() if len(vals) else \
+                    np.empty((0, 3, 3))
+            rot[rseen, m] = R
+            rparts = _sigma_parts(mc, "sigma_rot", SIGMA_ROT_AXES)
+            if rparts:
+                sigma_rot[rseen, m] = _sigma_column(arrays, mc, rparts, rseen)
+    payload = need(cols.special["payload_kg"]) if "payload_kg" in cols.special else None
+    approach = None
+    if cols.approach_cols:
+        approach = np.stack([need(cols.approach_cols[jn]) for jn in cols.joint_names], axis=-1)
+        if not np.all(np.abs(approach) == 1.0):
+            raise Unfit
+    given = arrays[cols.special["pose"]] if "pose" in cols.special else [""] * n
+    labels = tuple(label or f"line {i + scan.first_line}" for i, label in enumerate(given))
+    if not targets and not np.any(np.isfinite(pos)):
+        raise Unfit
+    extra = {"joint_kinds": tuple(cols.joint_kinds)}
+    if "set" in cols.special:
+        value = arrays[cols.special["set"]]
+        if not {v.lower() for v in set(value)} <= set(SETS):
+            raise Unfit
+        extra["validation"] = np.array([v.lower() == "validation" for v in value], dtype=bool)
+    if "series" in cols.special:
+        extra["series"] = np.array(arrays[cols.special["series"]], dtype=str)
+    if approach is not None:
+        extra["approach"] = approach
+    return Measurements(q=q, positions=pos, marker_names=tuple(cols.markers), joint_names=tuple(cols.joint_names),
+                        rotations=rot, sigma=sigma, sigma_rot=sigma_rot, payload_mass=payload,
+                        labels=labels, source=source, sha256=scan.sha256, extra=extra)
+
+
+def _group_seen(arrays, mc, parts) -> np.ndarray:
+    """The rows where a marker's group of ``parts`` is filled; ``Unfit`` where it is partly filled."""
+    empty = np.stack([np.isnan(arrays[mc[p][0]]) for p in parts], axis=-1)
+    if np.any(empty.any(axis=-1) != empty.all(axis=-1)):
+        raise Unfit
+    return ~empty[:, 0]
+
+
+def _sigma_column(arrays, mc, parts, seen) -> np.ndarray:
+    """:func:`_sigma` over the rows ``seen``: positive values, combined as their root mean square."""
+    vals = np.stack([arrays[mc[p][0]][seen] for p in parts], axis=-1)
+    if not np.all(vals > 0):  # NaN (empty) fails this too
+        raise Unfit
+    return np.sqrt(np.mean(np.square(vals * np.array([mc[p][1] for p in parts])), axis=-1))
 
 
 def _approach_to_write(data: Measurements):

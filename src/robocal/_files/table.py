@@ -15,6 +15,8 @@ import re
 from dataclasses import dataclass, field, replace
 from typing import Mapping
 
+import numpy as np
+
 from .._errors import InputError, excerpt
 
 # separators tried when none is given, in order of preference ("," last: decimal-comma files hold
@@ -370,3 +372,136 @@ def _keyed(table: Table, k: int) -> dict:
 def _few(values, n: int = 5) -> str:
     values = list(values)
     return ", ".join(values[:n]) + (f" and {len(values) - n} more" if len(values) > n else "")
+
+
+# -- large files: the same tables read by a compiled parser, a chunk of rows at a time ---------------
+
+# rows parsed per chunk: the parser's temporaries stay a few tens of MB whatever the file's length
+CHUNK_ROWS = 250_000
+# bytes the scan reads at a time (then on to the end of that line)
+_SCAN_BYTES = 4 * 2 ** 20
+# what the compiled parser would read differently from read_table: a quote, a NUL, a comment line
+# among the rows (a blank line or a row of another width shows in the count of separators, NaN and
+# infinite text in the parsed numbers)
+_COMMENT_LINE = re.compile(rb"(^|\n)[ \t]*#")
+
+
+class Unfit(Exception):
+    """The compiled parser cannot vouch for this file as read_table would read it (quotes, comments
+    or blank lines among the rows, a row of another width, text where a number is expected...): the
+    caller reads it row by row instead, which either reads it or says exactly what is wrong."""
+
+
+@dataclass(frozen=True)
+class Scan:
+    """What one pass over a file's bytes found: its SHA-256, its data rows and their first line."""
+
+    sha256: str
+    n_rows: int
+    first_line: int
+
+
+def read_head(path, source: str, *, sep: str | None = None, decimal: str | None = None,
+              header: tuple[str, ...] | None = None) -> Table:
+    """The table of the file's comments, header and first rows (enough to detect the separator and
+    the decimal mark as :func:`read_table` does on the whole file); ``Unfit`` if it cannot be read."""
+    lines, content = [], 0
+    with open(path, "rb") as fh:
+        while content < _SAMPLE + 2:
+            line = fh.readline(2 ** 20)
+            if not line:
+                break
+            lines.append(line)
+            content += bool(line.strip()) and not line.lstrip().startswith(b"#")
+    try:
+        text = b"".join(lines).decode("utf-8-sig")
+        return read_table(text, source, sep=sep, decimal=decimal, header=header)
+    except (UnicodeDecodeError, InputError):
+        raise Unfit from None
+
+
+def scan_rows(path, head: Table) -> Scan:
+    """One pass over the file a few MB at a time: its SHA-256, and ``Unfit`` unless every data row is
+    a plain line of the header's width (``head``: :func:`read_head`'s table)."""
+    import hashlib
+
+    if head.sep == WHITESPACE:
+        raise Unfit  # a row's width is not checked by counting separators
+    digest = hashlib.sha256()
+    first = head.header_line if head.header_given else head.header_line + 1
+    sep = head.sep.encode()
+    newlines = seps = 0
+    width = len(head.header) if head.header_given else None
+    tail = b""
+    with open(path, "rb") as fh:
+        chunk = fh.read(_SCAN_BYTES) + fh.readline()
+        digest.update(chunk)
+        start = 0
+        for _ in range(first - 1):  # the comments and the header: read_head's
+            start = chunk.find(b"\n", start) + 1
+            if start == 0:
+                raise Unfit
+        if width is None:
+            header_start = chunk.rfind(b"\n", 0, start - 1) + 1
+            width = chunk.count(sep, header_start, start) + 1
+        newlines = first - 1
+        while chunk:
+            body = chunk[start:]
+            newlines += body.count(b"\n")
+            seps += body.count(sep)
+            if _unfit(body):
+                raise Unfit
+            tail = chunk
+            chunk, start = fh.read(_SCAN_BYTES), 0
+            if chunk:
+                chunk += fh.readline()
+                digest.update(chunk)
+    last = tail[tail.rfind(b"\n") + 1:]
+    if last.strip(b" \t"):
+        newlines += 1  # a last row without its line end
+    elif last:
+        raise Unfit  # spaces after the last line end
+    n_rows = newlines - (first - 1)
+    if n_rows <= 0 or width < 2 or seps != n_rows * (width - 1):
+        raise Unfit
+    return Scan(sha256=digest.hexdigest(), n_rows=n_rows, first_line=first)
+
+
+def _unfit(body: bytes) -> bool:
+    """Whether ``body`` (whole lines) holds what the compiled parser reads otherwise than read_table."""
+    if b'"' in body or b"\x00" in body:
+        return True
+    if b"\r" in body and body.count(b"\r") != body.count(b"\r\n"):
+        return True  # a carriage return that does not end a line
+    return b"#" in body and _COMMENT_LINE.search(body) is not None
+
+
+def read_columns(path, head: Table, scan: Scan, columns: Mapping[int, str]) -> dict:
+    """The file's columns ``{index: "number" or "text"}`` over its data rows: float arrays (NaN
+    where a cell is empty) or lists of str (stripped), parsed by pandas' compiled reader a chunk of rows at
+    a time; ``Unfit`` without pandas or where a number does not parse."""
+    try:
+        import pandas as pd
+    except ImportError:
+        raise Unfit from None
+    dtypes = {k: (np.float64 if kind == "number" else object) for k, kind in columns.items()}
+    parts: dict[int, list] = {k: [] for k in columns}
+    try:
+        reader = pd.read_csv(path, sep=r"\s+" if head.sep == WHITESPACE else head.sep, header=None,
+                             skiprows=scan.first_line - 1, usecols=sorted(columns), dtype=dtypes,
+                             decimal=head.decimal, keep_default_na=False, na_values=[""], quoting=3,
+                             skip_blank_lines=False, chunksize=CHUNK_ROWS, encoding="utf-8", engine="c",
+                             skipinitialspace=True)
+        with reader:
+            for chunk in reader:
+                for k in columns:
+                    parts[k].append(chunk[k].to_numpy())
+    except (ValueError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError):
+        raise Unfit from None
+    out = {}
+    for k, kind in columns.items():
+        a = np.concatenate(parts[k]) if parts[k] else np.empty(0)
+        if len(a) != scan.n_rows:
+            raise Unfit
+        out[k] = a if kind == "number" else [c.strip() if isinstance(c, str) else "" for c in a]
+    return out
