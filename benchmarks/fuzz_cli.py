@@ -154,7 +154,7 @@ def base_result() -> str:
     (folder / "d.csv").write_text(fuzz_cases.MEASUREMENTS)
     code = main(["calibrate", str(folder / "m.yaml"), str(folder / "d.csv"), "--out", str(folder / "o")])
     assert code in (0, 3), code
-    text = (folder / "o" / "result.json").read_text()
+    text = fuzz_cases.inline_result(folder / "o" / "result.json")
     shutil.rmtree(folder)
     return text
 

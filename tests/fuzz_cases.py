@@ -44,6 +44,14 @@ WORDS = ("geometric", "compliance", "base", "markers", "frames", "j2.alpha", "j1
 _NUMBER = re.compile(r"(?<![\w.])-?\d+(?:\.\d+)?(?:e[-+]?\d+)?(?![\w.])")
 
 
+def inline_result(path) -> str:
+    """The result file at ``path`` with its per-pose arrays inline (the seed of the result-file cases:
+    one file to mutate, as result_to_dict writes it)."""
+    from robocal.io import read_result, result_to_json
+
+    return result_to_json(read_result(path))
+
+
 # -- text mutations ------------------------------------------------------------------------------
 
 @st.composite

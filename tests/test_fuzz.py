@@ -21,7 +21,7 @@ def result_text(tmp_path_factory):
     (d / "m.yaml").write_text(fuzz_cases.MODEL)
     (d / "d.csv").write_text(fuzz_cases.MEASUREMENTS)
     assert main(["calibrate", str(d / "m.yaml"), str(d / "d.csv"), "--out", str(d / "o")]) in (0, 3)
-    return (d / "o" / "result.json").read_text()
+    return fuzz_cases.inline_result(d / "o" / "result.json")
 
 
 def run_case(files: dict, argv: list) -> str:

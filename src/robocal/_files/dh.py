@@ -27,6 +27,8 @@ ROW_KINDS = ("revolute", "prismatic", "fixed", "base", "marker")
 # what a table of theta, d, a, alpha means: classic DH, or modified DH in Craig's layout (row i holds
 # alpha_{i-1}, a_{i-1}, theta_i, d_i); the columns fit both, so the convention is stated, never guessed
 CONVENTIONS = ("classic", "modified")
+# Craig's column -> our frame's parameter
+CRAIG = (("alpha", "alpha"), ("a", "d"), ("theta", "theta"), ("d", "r"))
 
 
 def _placement(X: np.ndarray, names: dict, factors: dict) -> dict:
@@ -251,8 +253,7 @@ def _craig(table: _Table, name: str) -> RobotModel:
     base, joints, markers = _rows_by_kind(table, "name")
     rows, limits = [], []
     for line, row, jname, kind in joints:
-        v = {k: table.get(line, row, k) for k, _ in DH_KINDS}
-        rows.append({"name": jname, "joint": kind, "alpha": v["alpha"], "d": v["a"], "theta": v["theta"], "r": v["d"]})
+        rows.append({"name": jname, "joint": kind, **{ours: table.get(line, row, theirs) for theirs, ours in CRAIG}})
         limits.append(table.limits(line, row, kind) if kind != "fixed" else None)
     X_WB = np.eye(4) if base is None else base
     model = serial_model(name, rows, joint_limits=[lim for lim in limits if lim is not None],

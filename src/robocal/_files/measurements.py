@@ -680,19 +680,14 @@ def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, 
                 header.append(f"{mn}_sigma_rot_{au}")
     if data.payload_mass is not None:
         header.append("payload_kg")
-    flags = data.extra.get("validation")
-    if flags is not None:
-        header.append("set")
-    series = data.extra.get("series")
-    if series is not None:
-        header.append("series")
+    flags, series = data.extra.get("validation"), data.extra.get("series")
+    header += [name for name, v in (("set", flags), ("series", series)) if v is not None]
     approach = _approach_to_write(data)
     if approach is not None:
         header += [APPROACH_PREFIX + jn for jn in joint_names]
 
     def fmt(v, s=1.0):
         return "" if not np.isfinite(v) else repr(float(v) / s)
-
     buf = io.StringIO()
     if has_rot:
         buf.write(f"# orientation: {orientation}\n")

@@ -344,8 +344,8 @@ def _alive(pid: int) -> bool:
 
 
 def write_texts(files: dict, *, force: bool = False) -> tuple[str, ...]:
-    """Write several text files all-or-nothing: refuse if any exists (unless ``force``) or is not a
-    regular file (a device, a FIFO, a link to one: ``check_replaceable``), write each to a fresh
+    """Write several files ({path: text, or bytes for a binary file}) all-or-nothing: refuse if any
+    exists (unless ``force``) or is not a regular file (a device, a FIFO, a link to one: ``check_replaceable``), write each to a fresh
     temporary file in its own folder (created exclusively under an unpredictable name, so a link
     planted there is never followed), and rename only once every write succeeded.
 
@@ -376,7 +376,9 @@ def write_texts(files: dict, *, force: bool = False) -> tuple[str, ...]:
                 raise InputError(f"cannot write: {e.strerror}", source=str(p)) from None
             staged.append((tmp, p))
             try:
-                with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
+                binary = isinstance(text, bytes)
+                fh = os.fdopen(fd, "wb") if binary else os.fdopen(fd, "w", encoding="utf-8", newline="")
+                with fh:
                     fh.write(text)
                     fh.flush()
                     os.fsync(fh.fileno())
