@@ -238,3 +238,14 @@ def test_a_file_over_the_pose_limit_is_refused_before_it_is_read(files):
     assert len(p.stderr.strip().splitlines()) == 1
     assert peak_kb < 200 * 1024, peak_kb
     assert not (files / "out").exists()
+
+
+def test_a_file_beyond_what_memory_bounds_is_refused_before_it_is_read(files, cli, monkeypatch):
+    from robocal._files import text
+
+    monkeypatch.setattr(text, "available_memory", lambda: 2 ** 30 * 20 / 1_000_000)  # room for 20 poses
+    code, _, err = cli("calibrate", files / "model.yaml", files / "data.csv", "--out", files / "out")
+    assert_one_line_error(code, err, ["data.csv", "30 rows", "memory available", "up to 20 poses", "per GB"])
+    monkeypatch.setattr(text, "available_memory", lambda: None)  # unknown: the fixed limit alone
+    code, _, err = cli("calibrate", files / "model.yaml", files / "data.csv", "--out", files / "out")
+    assert code in (0, 3), err

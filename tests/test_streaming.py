@@ -14,6 +14,12 @@ import robocal._files.table as table
 pandas = pytest.importorskip("pandas")
 
 
+@pytest.fixture(autouse=True)
+def every_file_compiled(monkeypatch):
+    """The compiled parser on these small files too (by default it starts at a few MB)."""
+    monkeypatch.setattr(reader, "FAST_BYTES", 0)
+
+
 @pytest.fixture
 def model(tmp_path):
     (tmp_path / "model.yaml").write_text(MODEL)
@@ -157,3 +163,12 @@ def test_files_the_compiled_parser_leaves_to_the_row_reader_read_the_same(tmp_pa
     fast = rc.read_measurements(tmp_path / "d.csv", model)
     monkeypatch.setattr(reader, "_read_fast", lambda *a, **k: None)
     identical(fast, rc.read_measurements(tmp_path / "d.csv", model))
+
+
+def test_spaces_around_labels_and_text(tmp_path, model, monkeypatch):
+    lines = MEASUREMENTS.splitlines()
+    text = lines[0] + "\n" + "\n".join(" " + ln.replace(",fit", ", fit ") for ln in lines[1:]) + "\n"
+    (tmp_path / "d.csv").write_text(text)
+    fast, slow = both(tmp_path / "d.csv", model, monkeypatch)
+    identical(fast, slow)
+    assert fast.labels[0] == "P01"

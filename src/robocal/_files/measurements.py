@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import io
+import os
 import re
 from dataclasses import replace
 
@@ -19,7 +20,7 @@ from scipy.spatial.transform import Rotation
 from .._errors import InputError, excerpt, suggest
 from .._measurements import Measurements, approach_sides
 from .._model import RobotModel
-from .._options import MAX_POSES
+from .._options import MAX_POSES, POSES_PER_GB
 from .._units import ANGLE_UNITS, LENGTH_UNITS, UNITS, check_unit, parse_units
 from .profile import Profile, read_profile
 from .table import Table, Unfit, decimal_hint, join_tables, map_columns, read_columns, read_head, read_table, scan_rows
@@ -42,6 +43,9 @@ _NOT_FINITE = re.compile(r"^[+-]?(nan|inf|infinity)$", re.IGNORECASE)
 SETS = ("fit", "validation")
 # no coordinate, joint reading or sigma in any unit comes near this; beyond it arithmetic overflows
 MAX_MAGNITUDE = 1e12
+# files from this size on are read by the compiled parser (below it, importing pandas takes longer
+# than reading the rows one by one)
+FAST_BYTES = 4 * 2 ** 20
 
 
 def parse_orientation(text: str | None, *, source: str | None = None, where: str = "orientation"):
@@ -281,9 +285,9 @@ def read_measurements(path, model: RobotModel | None = None, *, units: str | Non
     orient = parse_orientation(opts["orientation"])
     for p in (path, joints):
         if p is not None:
-            check_rows(p, MAX_POSES)
+            check_rows(p, MAX_POSES, per_gb=POSES_PER_GB)
     fast = None
-    if joints is None and not any("+" in k for k in opts["columns"].rename):
+    if joints is None and not any("+" in k for k in opts["columns"].rename) and _size(path) >= FAST_BYTES:
         fast = _read_fast(path, source, opts, declared, orient, model, targets)
     if fast is not None:
         (data, table, cols), other = fast, None
@@ -300,6 +304,13 @@ def read_measurements(path, model: RobotModel | None = None, *, units: str | Non
     if other is not None:
         notes += tuple(f"reading {other.source}: {n}" for n in other.notes + _unknown_note(cols.ignored, other))
     return replace(data, extra={**data.extra, "notes": notes}) if notes else data
+
+
+def _size(path) -> int:
+    try:
+        return os.path.getsize(path)
+    except (OSError, ValueError):
+        return 0
 
 
 def _read_rows(path, joints, source: str, opts: dict):
@@ -515,7 +526,8 @@ def _parse_columns(arrays: dict, cols: _Columns, scan, source: str, targets: boo
         if not np.all(np.abs(approach) == 1.0):
             raise Unfit
     given = arrays[cols.special["pose"]] if "pose" in cols.special else [""] * n
-    labels = tuple(label or f"line {i + scan.first_line}" for i, label in enumerate(given))
+    labels = tuple(given) if "" not in given else \
+        tuple(label or f"line {i + scan.first_line}" for i, label in enumerate(given))
     if not targets and not np.any(np.isfinite(pos)):
         raise Unfit
     extra = {"joint_kinds": tuple(cols.joint_kinds)}

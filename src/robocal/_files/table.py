@@ -467,6 +467,14 @@ def scan_rows(path, head: Table) -> Scan:
     return Scan(sha256=digest.hexdigest(), n_rows=n_rows, first_line=first)
 
 
+def _texts(a: np.ndarray) -> list:
+    """The stripped text of an object column (empty cells, NaN there, as "")."""
+    cells = a.tolist()
+    if all(type(c) is str and (not c or (c[0] > " " and c[-1] > " ")) for c in cells):  # nothing to strip
+        return cells
+    return [c.strip() if isinstance(c, str) else "" for c in cells]
+
+
 def _unfit(body: bytes) -> bool:
     """Whether ``body`` (whole lines) holds what the compiled parser reads otherwise than read_table."""
     if b'"' in body or b"\x00" in body:
@@ -503,5 +511,5 @@ def read_columns(path, head: Table, scan: Scan, columns: Mapping[int, str]) -> d
         a = np.concatenate(parts[k]) if parts[k] else np.empty(0)
         if len(a) != scan.n_rows:
             raise Unfit
-        out[k] = a if kind == "number" else [c.strip() if isinstance(c, str) else "" for c in a]
+        out[k] = a if kind == "number" else _texts(a)
     return out

@@ -52,18 +52,33 @@ def read_bytes(path, *, limit: int = MAX_FILE_BYTES) -> bytes:
     return raw
 
 
-def check_rows(path, most: int, what: str = "poses") -> None:
+def available_memory() -> float | None:
+    """Bytes of memory available to a new allocation (Linux ``MemAvailable``), or None where unknown."""
+    try:
+        with open("/proc/meminfo", "rb") as fh:
+            for line in fh:
+                if line.startswith(b"MemAvailable:"):
+                    return float(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+def check_rows(path, most: int, what: str = "poses", *, per_gb: int | None = None) -> None:
     """Refuse ``path`` when it holds more than ``most`` data rows (lines that are not blank, not a
     ``#`` comment, and not the header), counted by a scan a megabyte at a time: a file over the limit
-    is refused before it is read, without growing memory. An unreadable file is left to the reader.
+    is refused before it is read, without growing memory. ``per_gb``: also refuse more rows than
+    that many per GB of memory available now. An unreadable file is left to the reader.
     """
+    memory = available_memory() if per_gb else None
+    bound = most if memory is None else min(most, int(memory / 2 ** 30 * per_gb))
     try:
         with open(path, "rb") as fh:
             newlines = returns = 0
             for chunk in iter(lambda: fh.read(2 ** 20), b""):
                 newlines += chunk.count(b"\n")
                 returns += chunk.count(b"\r")
-            if max(newlines, returns) <= most:  # at most most + 1 lines: a header and ``most`` rows
+            if max(newlines, returns) <= bound:  # at most bound + 1 lines: a header and ``bound`` rows
                 return
             fh.seek(0)
             lines = sum(1 for ln in fh if ln.strip() and not ln.lstrip().startswith(b"#"))
@@ -74,6 +89,9 @@ def check_rows(path, most: int, what: str = "poses") -> None:
     if lines - 1 > most:
         raise InputError(f"{lines - 1:,} rows; robocal reads up to {most:,} {what} per file (docs/formats.md)",
                          source=str(path))
+    if lines - 1 > bound:
+        raise InputError(f"{lines - 1:,} rows; with {memory / 2 ** 30:.1f} GB of memory available robocal reads up "
+                         f"to {bound:,} {what} ({per_gb:,} per GB, docs/formats.md)", source=str(path))
 
 
 def decode(raw: bytes, source: str) -> str:
