@@ -43,6 +43,8 @@ import robocal  # noqa: E402,F401
 import robocal.report  # noqa: E402,F401
 from robocal.cli import main  # noqa: E402
 
+fuzz_cases.every_reader()  # the compiled measurement reader on the small fuzzed files too
+
 # per case: 20 s of CPU time (the machine may be shared: wall-clock time is not the program's), and
 # a wall-clock backstop for a case that sleeps or waits; 1 GB of memory beyond the parent's
 # every module imported once here, not in every child (and not from files edited during a run)

@@ -13,7 +13,7 @@ import robocal as rc
 from conftest import assert_one_line_error
 from fuzz_cases import MEASUREMENTS, MODEL
 
-REAL = Path("/work/shared/data/real/serial_robots_datasets")
+REAL = Path(__file__).parent / "data" / "real" / "serial_robots_datasets"
 UR5_GRID = REAL / "UR5" / "3D_UR5_uncalibrated_grid_cleaned.csv"
 
 
