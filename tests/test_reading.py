@@ -8,10 +8,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-import robocal as rc
 from conftest import assert_one_line_error
 from fuzz_cases import MEASUREMENTS, MODEL
+
+import robocal as rc
 
 REAL = Path(__file__).parent / "data" / "real" / "serial_robots_datasets"
 UR5_GRID = REAL / "UR5" / "3D_UR5_uncalibrated_grid_cleaned.csv"
