@@ -140,7 +140,7 @@ def test_per_axis_rotation_deviations(files):
     ignored = rc.read_measurements(files / "d.csv", model, columns={"std_rx": None, "std_ry": None, "std_rz": None})
     assert ignored.sigma_rot is None and ignored.rotations is not None
     used = rc.read_measurements(files / "d.csv", model, units="mm-deg",
-                                columns={"std_rx": "tool_sigma_rx", "std_ry": "tool_sigma_ry", "std_rz": "tool_sigma_rz"})
+                                columns={f"std_r{a}": f"tool_sigma_r{a}" for a in "xyz"})
     np.testing.assert_allclose(used.sigma_rot[:, 0], np.deg2rad(np.sqrt(np.mean(stds ** 2, axis=1))), rtol=1e-12)
     with pytest.raises(rc.InputError, match="all of"):
         rc.read_measurements(files / "d.csv", model, units="mm-deg",

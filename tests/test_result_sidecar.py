@@ -44,10 +44,10 @@ def test_the_json_holds_no_per_pose_array_and_reads_back_whole(run):
 
 def test_the_json_does_not_grow_with_the_campaign(run):
     result = rc.read_result(run / "result.json")
-    big = rc.io.result_from_dict({**result_to_dict(result), "errors": {
-        **result_to_dict(result)["errors"],
-        **{k: np.repeat(np.asarray(v, dtype=float), 50, axis=0).tolist() for k, v in result_to_dict(result)["errors"].items()
-           if isinstance(v, list) and v and k != "markers" and not k.startswith("validation")}}})
+    d = result_to_dict(result)
+    d["errors"].update({k: np.repeat(np.asarray(v, dtype=float), 50, axis=0).tolist() for k, v in d["errors"].items()
+                        if isinstance(v, list) and v and k != "markers" and not k.startswith("validation")})
+    big = rc.io.result_from_dict(d)
     small_json, small_npz = result_files(result, run / "x.json").values()
     big_json, big_npz = result_files(big, run / "x.json").values()
     assert len(big_npz) > 20 * len(small_npz)

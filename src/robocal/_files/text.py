@@ -363,9 +363,10 @@ def _alive(pid: int) -> bool:
 
 def write_texts(files: dict, *, force: bool = False) -> tuple[str, ...]:
     """Write several files ({path: text, or bytes for a binary file}) all-or-nothing: refuse if any
-    exists (unless ``force``) or is not a regular file (a device, a FIFO, a link to one: ``check_replaceable``), write each to a fresh
-    temporary file in its own folder (created exclusively under an unpredictable name, so a link
-    planted there is never followed), and rename only once every write succeeded.
+    exists (unless ``force``) or is not a regular file (a device, a FIFO, a link to one:
+    ``check_replaceable``), write each to a fresh temporary file in its own folder (created
+    exclusively under an unpredictable name, so a link planted there is never followed), and rename
+    only once every write succeeded.
 
     The rename is atomic per file (``os.replace``; a link at the final name is replaced, not
     followed), so a reader never sees half a file. Files get the mode the umask gives a new file

@@ -18,8 +18,9 @@ writes. docs/formats.md has them all."""
 
 def register(sub) -> None:
     p = common.command(sub, "import-dh", summary="write a robocal model file from a classic or modified DH table",
-                       description="Convert a DH table (classic, modified in Craig's layout, or robocal's modified table) into a "
-                                   "robocal model file (modified DH with Hayati's beta where axes are parallel).",
+                       description="Convert a DH table (classic, modified in Craig's layout, or robocal's modified "
+                                   "table) into a robocal model file (modified DH with Hayati's beta where axes are "
+                                   "parallel).",
                        example=EXAMPLE, inputs=[("table", "TABLE.csv", "DH table")])
     common.imported_model_options(p)
     p.add_argument("--name", help="robot name (default: the table's file name)")
