@@ -172,3 +172,26 @@ def test_spaces_around_labels_and_text(tmp_path, model, monkeypatch):
     fast, slow = both(tmp_path / "d.csv", model, monkeypatch)
     identical(fast, slow)
     assert fast.labels[0] == "P01"
+
+
+def test_sums_of_columns_read_the_same(tmp_path, model, monkeypatch):
+    lines = MEASUREMENTS.splitlines()
+    header, rows = lines[0].split(","), [ln.split(",") for ln in lines[1:]]
+    k = [header.index(f"tool_{a}_mm") for a in "xyz"]
+    rng = np.random.default_rng(8)
+    out = []
+    for i, r in enumerate(rows):
+        d = rng.normal(0, 2, 3).round(6)
+        target = [repr(float(float(r[j]) - v)) for j, v in zip(k, d)]
+        cells = target + [repr(float(v)) for v in d] if i != 4 else [""] * 6  # row 4: the marker not seen
+        out.append(r[:k[0]] + cells + r[k[2] + 1:])
+    head = header[:k[0]] + ["x_t", "y_t", "z_t", "x_dif", "y_dif", "z_dif"] + header[k[2] + 1:]
+    (tmp_path / "d.csv").write_text(",".join(head) + "\n" + "".join(",".join(r) + "\n" for r in out))
+    sums = {f"{a}_t+{a}_dif": f"tool_{a}_mm" for a in "xyz"}
+    fast, slow = both(tmp_path / "d.csv", model, monkeypatch, columns=sums)
+    identical(fast, slow)
+    assert not fast.mask[4].any() and fast.mask[5].all()
+    out[6][k[0] + 3] = ""  # one part of a sum empty: the row reader names it
+    (tmp_path / "d.csv").write_text(",".join(head) + "\n" + "".join(",".join(r) + "\n" for r in out))
+    with pytest.raises(rc.InputError, match="line 8, column 'x_dif'"):
+        rc.read_measurements(tmp_path / "d.csv", model, columns=sums)

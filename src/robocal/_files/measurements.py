@@ -287,7 +287,7 @@ def read_measurements(path, model: RobotModel | None = None, *, units: str | Non
         if p is not None:
             check_rows(p, MAX_POSES, per_gb=POSES_PER_GB)
     fast = None
-    if joints is None and not any("+" in k for k in opts["columns"].rename) and _size(path) >= FAST_BYTES:
+    if joints is None and _size(path) >= FAST_BYTES:
         fast = _read_fast(path, source, opts, declared, orient, model, targets)
     if fast is not None:
         (data, table, cols), other = fast, None
@@ -354,15 +354,49 @@ def _read_fast(path, source, opts, declared, orient, model, targets):
         scan = scan_rows(path, head)
         if scan.n_rows > MAX_POSES:
             return None  # the row reader says so, in its words
-        keep = [k for k, c in enumerate(raw_header) if c not in opts["columns"].ignore]
-        raw = dict(enumerate(keep))  # column of the mapped table -> column of the file
-        wanted = {raw[k]: ("text" if k in [cols.special.get(c) for c in ("pose", "set", "series")] else "number")
-                  for k in _used_columns(cols)}
+        raw = _file_columns(raw_header, opts["columns"])  # column of the mapped table -> the file's
+        texts = [cols.special.get(c) for c in ("pose", "set", "series")]
+        wanted = {r: "text" if k in texts else "number" for k in _used_columns(cols) for r in raw[k]}
+        if any(len(raw[k]) > 1 and wanted[raw[k][0]] == "text" for k in _used_columns(cols)):
+            raise Unfit  # a sum of text columns: the row reader says what is wrong
         arrays = read_columns(path, head, scan, wanted)
-        data = _parse_columns({k: arrays[raw[k]] for k in _used_columns(cols)}, cols, scan, source, targets)
+        data = _parse_columns({k: _summed([arrays[r] for r in raw[k]]) for k in _used_columns(cols)}, cols, scan,
+                              source, targets)
     except (Unfit, InputError):
         return None
     return data, table, cols
+
+
+def _file_columns(header, columns) -> list[list[int]]:
+    """For each column of the mapped table (``map_columns``), the file columns it is read from: one,
+    or the parts of a sum ``"A+B"`` (in place of A); ignored columns dropped."""
+    sums = {k: [header.index(p.strip()) for p in k.split("+")] for k in columns.rename
+            if "+" in k and k not in header and all(p.strip() in header for p in k.split("+"))}
+    used = [k for parts in sums.values() for k in parts]
+    if len(used) != len(set(used)):
+        raise Unfit  # a column in two sums: the row reader says what is wrong
+    later = {k for parts in sums.values() for k in parts[1:]}
+    firsts = {parts[0]: name for name, parts in sums.items()}
+    out = []
+    for k, c in enumerate(header):
+        name = firsts.get(k, c)
+        if k not in later and name not in columns.ignore:
+            out.append(sums[name] if k in firsts else [k])
+    return out
+
+
+def _summed(parts: list) -> np.ndarray:
+    """One column, or the sum of several as ``map_columns`` makes it: empty where all parts are empty
+    (``Unfit`` where only some are), else 0.0 + a + b in that order."""
+    if len(parts) == 1:
+        return parts[0]
+    empty = np.stack([np.isnan(a) for a in parts])
+    if np.any(empty.any(axis=0) != empty.all(axis=0)):
+        raise Unfit
+    total = np.zeros(len(parts[0]))
+    for a in parts:
+        total = total + a
+    return total
 
 
 def _used_columns(cols: "_Columns") -> list[int]:
