@@ -44,6 +44,22 @@ WORDS = ("geometric", "compliance", "base", "markers", "frames", "j2.alpha", "j1
 _NUMBER = re.compile(r"(?<![\w.])-?\d+(?:\.\d+)?(?:e[-+]?\d+)?(?![\w.])")
 
 
+def every_reader() -> None:
+    """Fuzzed measurement files (small) through the compiled parser too, which by default starts at a
+    few MB: each case then meets both readers (the row reader wherever the compiled one steps back)."""
+    import robocal._files.measurements as measurements
+
+    measurements.FAST_BYTES = 0
+
+
+def inline_result(path) -> str:
+    """The result file at ``path`` with its per-pose arrays inline (the seed of the result-file cases:
+    one file to mutate, as result_to_dict writes it)."""
+    from robocal.io import read_result, result_to_json
+
+    return result_to_json(read_result(path))
+
+
 # -- text mutations ------------------------------------------------------------------------------
 
 @st.composite
@@ -258,7 +274,8 @@ CALIBRATE = {"--parameters": "geometric", "--known": "base", "--tol": "1e-6", "-
              "--limit-mm": "0.5", "--holdout": "0.2", "--seed": "1", "--noise-mm": "0.02", "--noise-deg": "0.01",
              "--out-units": "m-rad", "--units": "mm-deg", "--sep": ",", "--decimal": ".", "--orientation": "quat_xyzw",
              "--weak": "flag", "--on-outliers": "flag", "--write-failed": None, "--register-base": None,
-             "--compare": None, "--instrument": "cmm", "--nonnegative-compliance": None}
+             "--compare": None, "--instrument": "cmm", "--nonnegative-compliance": None,
+             "--map": "=pose,tool_x_mm+j1_deg=tool_x_mm", "--header": MEASUREMENTS.splitlines()[0]}
 SIMULATE = {"--seed": "3", "--noise-mm": "0.02", "--length-error-mm": "0.1,1", "--angle-error-deg": "0.01,0.1",
             "--parameters": "geometric", "--units": "m-rad", "--true-model": "true.yaml"}
 IDENTIFIABILITY = {"--parameters": "geometric,compliance", "--known": "base", "--tol": "1e-6", "--poses": "30",

@@ -12,7 +12,7 @@ import pytest
 
 import robocal as rc
 from conftest import assert_one_line_error
-from fuzz_cases import MEASUREMENTS, MODEL, REPEATABILITY, URDF, alias_bomb, deep
+from fuzz_cases import MEASUREMENTS, MODEL, REPEATABILITY, URDF, alias_bomb, deep, inline_result
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "th8"
 LIMIT_ARGS = ("--encoder-resolution", "0.01deg,0.01mm,0.01mm,0.01deg,0.01deg,0.01deg", "--length-quantum-mm",
@@ -36,7 +36,7 @@ def result_text(tmp_path_factory):
     (d / "m.yaml").write_text(MODEL)
     (d / "d.csv").write_text(MEASUREMENTS)
     assert main(["calibrate", str(d / "m.yaml"), str(d / "d.csv"), "--out", str(d / "o")]) in (0, 3)
-    return (d / "o" / "result.json").read_text()
+    return inline_result(d / "o" / "result.json")
 
 
 def model_commands(d):

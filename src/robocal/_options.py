@@ -6,9 +6,11 @@ INITIAL_BASES = ("model", "register")
 POSE_CRITERIA = ("I", "D")
 LIMIT_MARKER_MODES = ("first", "all")
 LIMIT_CHUNK = 2048
-# the most poses a measurement file or a simulated campaign may hold (docs/formats.md): a calibration
-# needs about 13 kB per pose, so this is about 1.3 GB
-MAX_POSES = 100_000
+# the most poses a measurement file or a simulated campaign may hold (docs/formats.md); a file is also
+# bounded by memory: POSES_PER_GB poses per GB available when it is read (reading, solving by chunks
+# and writing a calibration of 3D points take about 1 kB per pose, see benchmarks/README.md)
+MAX_POSES = 10_000_000
+POSES_PER_GB = 1_000_000
 # Monte Carlo samples and configurations per chunk of ``limit``: past these it is hours or gigabytes
 MAX_SAMPLES = 100_000_000
 MAX_CHUNK = 100_000

@@ -15,7 +15,7 @@ import numpy as np
 
 from .._conversion import MDH_TABLE_KINDS, from_standard_dh, mdh_table, to_standard_dh
 from .._errors import InputError
-from .._model import Frame, Marker, RobotModel, parallel_beta_frames
+from .._model import Frame, Marker, RobotModel, parallel_beta_frames, serial_model
 from .._spatial import matrix_rpy, matrix_tuple, pose4, rpy_matrix
 from .._units import UNITS, parse_units, unit_factors, unit_kind
 from .text import read_text, write_texts
@@ -24,6 +24,11 @@ PLACEMENT = (("x", "length"), ("y", "length"), ("z", "length"), ("roll", "angle"
              ("yaw", "angle"))
 DH_KINDS = (("theta", "angle"), ("d", "length"), ("a", "length"), ("alpha", "angle"))
 ROW_KINDS = ("revolute", "prismatic", "fixed", "base", "marker")
+# what a table of theta, d, a, alpha means: classic DH, or modified DH in Craig's layout (row i holds
+# alpha_{i-1}, a_{i-1}, theta_i, d_i); the columns fit both, so the convention is stated, never guessed
+CONVENTIONS = ("classic", "modified")
+# Craig's column -> our frame's parameter
+CRAIG = (("alpha", "alpha"), ("a", "d"), ("theta", "theta"), ("d", "r"))
 
 
 def _placement(X: np.ndarray, names: dict, factors: dict) -> dict:
@@ -87,7 +92,7 @@ def dh_csv(model: RobotModel, *, units: str = "mm-deg", max_offset: float | None
                      **{f"{k}_{names[q]}": r[k] / factors[q] for k, q in DH_KINDS},
                      **_limits(model, i, names, factors)})
     rows += [{"name": n, "joint": "marker", **_placement(X, names, factors)} for n, X in dh.markers]
-    return _csv(rows)
+    return "# convention: classic\n" + _csv(rows)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -100,6 +105,11 @@ class _Table:
         self.source = str(path)
         text, _ = read_text(path)
         numbered = [(i, ln) for i, ln in enumerate(text.splitlines(), 1) if ln.strip() and not ln.lstrip().startswith("#")]
+        self.convention = None  # a '# convention: classic' line before the header
+        for i, ln in enumerate(text.splitlines()[:numbered[0][0] - 1 if numbered else 0], 1):
+            body = ln.lstrip().lstrip("#").strip()
+            if body.lower().startswith("convention:"):
+                self.convention = _convention(body.split(":", 1)[1].strip(), self.source, f"line {i}")
         if not numbered:
             raise InputError("empty table", source=self.source)
         parsed = list(csv.reader([ln for _, ln in numbered]))
@@ -177,15 +187,47 @@ def _rows_by_kind(table: _Table, name_column: str):
     return base, joints, markers
 
 
-def read_dh_table(path, *, name: str | None = None) -> RobotModel:
-    """A model from a DH table file: classic DH (columns theta, d, a, alpha) or modified DH (the
-    columns :func:`mdh_csv` writes: beta, alpha, d, theta, r, ...), told apart by its columns."""
+def _convention(text: str, source: str | None, where: str) -> str:
+    if text not in CONVENTIONS:
+        raise InputError(f"the DH convention is classic or modified, got {text!r}", source=source, where=where)
+    return text
+
+
+def read_dh_table(path, *, name: str | None = None, convention: str | None = None) -> RobotModel:
+    """A model from a DH table file: robocal's modified DH (the columns :func:`mdh_csv` writes:
+    frame, beta, alpha, d, theta, r, ...), or a table of theta, d, a, alpha.
+
+    Parameters
+    ----------
+    path : str or Path
+        The table (docs/formats.md).
+    name : str, optional
+        The robot's name (default: the file's name).
+    convention : {"classic", "modified"}, optional
+        What a theta, d, a, alpha table means: classic DH, or modified DH in Craig's layout (row i
+        holds alpha_{i-1}, a_{i-1}, theta_i, d_i). Such a table fits both, so the convention must be
+        stated, here or by a ``# convention: classic`` line before the header; both must agree.
+
+    Returns
+    -------
+    RobotModel
+    """
     table = _Table(path)
     name = name or str(path).replace("\\", "/").rsplit("/", 1)[-1].rsplit(".", 1)[0]
-    if "a" in table.scale:
-        return _classic(table, name)
+    if convention is not None:
+        convention = _convention(convention, None, "convention")
+        if table.convention not in (None, convention):
+            raise InputError(f"the table says convention {table.convention}, the option says {convention}",
+                             source=table.source, where="convention")
+    stated = convention or table.convention
     if "r" in table.scale and "frame" in table.text:
         return _modified(table, name)
+    if "a" in table.scale:
+        if stated is None:
+            raise InputError("columns theta, d, a, alpha fit classic DH and modified (Craig's) DH alike: say which, "
+                             "with --convention classic|modified (convention=...) or a '# convention: classic' line "
+                             "before the header", source=table.source)
+        return _classic(table, name) if stated == "classic" else _craig(table, name)
     raise InputError("neither a classic DH table (columns name, joint, theta, d, a, alpha) nor a modified one "
                      "(frame, parent, joint, reading, beta, alpha, d, theta, r, ...)", source=table.source)
 
@@ -203,6 +245,24 @@ def _classic(table: _Table, name: str) -> RobotModel:
           ((m, table.placement(line, row)) for line, row, m in markers)] or [("tool", (0.0, 0.0, 0.0))]
     model = from_standard_dh(rows, name=name, markers=mk, base=base, joint_limits=limits)
     return model.replace(description=f"imported from the classic DH table {table.source}")
+
+
+def _craig(table: _Table, name: str) -> RobotModel:
+    """Modified DH in Craig's layout: row i's alpha and a are along x of the frame before, theta and
+    d along its own z, which are our frames' alpha, d, theta and r (docs/conventions.md)."""
+    base, joints, markers = _rows_by_kind(table, "name")
+    rows, limits = [], []
+    for line, row, jname, kind in joints:
+        rows.append({"name": jname, "joint": kind, **{ours: table.get(line, row, theirs) for theirs, ours in CRAIG}})
+        limits.append(table.limits(line, row, kind) if kind != "fixed" else None)
+    X_WB = np.eye(4) if base is None else base
+    model = serial_model(name, rows, joint_limits=[lim for lim in limits if lim is not None],
+                         base_position=X_WB[:3, 3], base_rotation=X_WB[:3, :3],
+                         description=f"imported from the modified (Craig) DH table {table.source}")
+    last = len(model.frames) - 1
+    mk = [Marker(m, last, tuple(float(v) for v in X[:3, 3]), matrix_tuple(X[:3, :3]))
+          for m, X in ((m, table.placement(line, row)) for line, row, m in markers)]
+    return model.replace(markers=tuple(mk)) if mk else model
 
 
 def _modified(table: _Table, name: str) -> RobotModel:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import io
+import os
 import re
 from dataclasses import replace
 
@@ -19,27 +20,32 @@ from scipy.spatial.transform import Rotation
 from .._errors import InputError, excerpt, suggest
 from .._measurements import Measurements, approach_sides
 from .._model import RobotModel
-from .._options import MAX_POSES
+from .._options import MAX_POSES, POSES_PER_GB
 from .._units import ANGLE_UNITS, LENGTH_UNITS, UNITS, check_unit, parse_units
 from .profile import Profile, read_profile
-from .table import Table, decimal_hint, join_tables, map_columns, read_table
-from .text import read_text, write_texts
+from .table import Table, Unfit, decimal_hint, join_tables, map_columns, read_columns, read_head, read_table, scan_rows
+from .text import check_rows, read_text, write_texts
 
-RESERVED = ("pose", "set", "payload_kg")
+RESERVED = ("pose", "set", "series", "payload_kg")
 # approach_<joint>: the direction (+1 or -1) of the joint's last move before the pose (backlash)
 APPROACH_PREFIX = "approach_"
 POSITION = ("x", "y", "z")
 ORIENTATION_PARTS = {"quat": ("qx", "qy", "qz", "qw"), "rpy": ("roll", "pitch", "yaw"), "euler": ("e1", "e2", "e3")}
 # per-axis standard deviations of a position, combined into one per point (docs/formats.md)
 SIGMA_AXES = ("sigma_x", "sigma_y", "sigma_z")
+# per-axis standard deviations of an orientation (angle unit), combined the same way into sigma_rot
+SIGMA_ROT_AXES = ("sigma_rx", "sigma_ry", "sigma_rz")
 # longest first, so "sigma_rot" is not read as "sigma" plus a unit
-PARTS = ("sigma_rot",) + SIGMA_AXES + ("sigma",) + POSITION + sum(ORIENTATION_PARTS.values(), ())
+PARTS = ("sigma_rot",) + SIGMA_ROT_AXES + SIGMA_AXES + ("sigma",) + POSITION + sum(ORIENTATION_PARTS.values(), ())
 _MARKER_COLUMN = re.compile(r"^(?P<m>.+?)_(?P<part>x|y|z)(?:_(?P<unit>[A-Za-z]+))?$")
 _NUMBER = re.compile(r"^[+-]?(\d+(\.\d*)?|\.\d+)([eE][+-]?\d+)?$")
 _NOT_FINITE = re.compile(r"^[+-]?(nan|inf|infinity)$", re.IGNORECASE)
 SETS = ("fit", "validation")
 # no coordinate, joint reading or sigma in any unit comes near this; beyond it arithmetic overflows
 MAX_MAGNITUDE = 1e12
+# files from this size on are read by the compiled parser (below it, importing pandas takes longer
+# than reading the rows one by one)
+FAST_BYTES = 4 * 2 ** 20
 
 
 def parse_orientation(text: str | None, *, source: str | None = None, where: str = "orientation"):
@@ -66,12 +72,12 @@ def parse_orientation(text: str | None, *, source: str | None = None, where: str
 class _Columns:
     """What each header column holds, with its unit resolved (or an InputError saying how to declare it)."""
 
-    def __init__(self, header, model, declared, orientation, source, line, unknown: str = "refuse",
+    def __init__(self, header, model, declared, orientation, source, line: str, unknown: str = "refuse",
                  targets: bool = False):
+        """``line``: where messages place the header (``"line 3"``)."""
         self.source, self.line = source, line
         self.names = header
-        self.notes: tuple[str, ...] = ()
-        where = f"line {line}"
+        where = line
         for k, c in enumerate(header):
             if not c:
                 raise InputError(f"column {k + 1} has no name", source=source, where=where)
@@ -119,8 +125,7 @@ class _Columns:
                 raise InputError(f"unknown column {c!r}{suggest(c, valid)}{known}; map it (--map '{c}=NAME'), "
                                  f"ignore it (--ignore '{c}') or ignore every unknown column (--unknown ignore)",
                                  source=source, where=where)
-        if ignored:
-            self.notes = (f"columns robocal does not know, ignored: {', '.join(ignored)}",)
+        self.ignored = tuple(ignored)
         if self.approach_cols and len(self.approach_cols) != len(joint_names):
             lacking = next(j for j in joint_names if j not in self.approach_cols)
             raise InputError(f"missing column {APPROACH_PREFIX}{lacking}: approach directions are given per joint, "
@@ -139,10 +144,11 @@ class _Columns:
             for p in POSITION:
                 if p not in parts:
                     raise InputError(f"missing column {mn}_{p}", source=source, where=where)
-            axes = [p for p in SIGMA_AXES if p in parts]
-            if axes and (len(axes) < 3 or "sigma" in parts):
-                raise InputError(f"marker {mn!r}: give {mn}_sigma or all of {', '.join(f'{mn}_{p}' for p in SIGMA_AXES)}"
-                                 ", not a part of them", source=source, where=where)
+            for one, axes in (("sigma", SIGMA_AXES), ("sigma_rot", SIGMA_ROT_AXES)):
+                given = [p for p in axes if p in parts]
+                if given and (len(given) < 3 or one in parts):
+                    raise InputError(f"marker {mn!r}: give {mn}_{one} or all of {', '.join(f'{mn}_{p}' for p in axes)}"
+                                     ", not a part of them", source=source, where=where)
             self.orientation[mn] = self._orientation_of(mn, parts, orientation)
         # markers in the model's order (or the file's, without a model)
         self.markers = [m for m in marker_names if m in self.marker_cols]
@@ -159,14 +165,14 @@ class _Columns:
             if not base or kind is None:
                 raise InputError(f"column {c!r}: without a model a joint column must carry its unit "
                                  f"({c}_deg, {c}_rad, {c}_mm or {c}_m), since the joint type is unknown; "
-                                 "or pass the model", source=self.source, where=f"line {self.line}")
+                                 "or pass the model", source=self.source, where=self.line)
             names.append(base)
             kinds.append(kind)
         return names, kinds
 
     def _scale(self, column: str, unit: str | None, kind: str) -> float:
         """SI per file unit for ``column`` holding a ``kind`` ("length"/"angle") quantity."""
-        where = f"line {self.line}, column {column!r}"
+        where = f"{self.line}, column {column!r}"
         if unit is None:
             unit = self.declared.get(kind)
             if unit is None:
@@ -181,7 +187,7 @@ class _Columns:
         if part in ORIENTATION_PARTS["quat"]:
             if unit is not None:
                 raise InputError("a quaternion component has no unit", source=self.source,
-                                 where=f"line {self.line}, column {column!r}")
+                                 where=f"{self.line}, column {column!r}")
             return 1.0
         kind = "length" if part in POSITION + ("sigma",) + SIGMA_AXES else "angle"
         return self._scale(column, unit, kind)
@@ -189,24 +195,25 @@ class _Columns:
     def _orientation_of(self, mn, parts, declared):
         kinds = [k for k, ps in ORIENTATION_PARTS.items() if any(p in parts for p in ps)]
         if not kinds:
-            if "sigma_rot" in parts:
-                raise InputError(f"column {mn}_sigma_rot without orientation columns", source=self.source,
-                                 where=f"line {self.line}")
+            if _sigma_parts(parts, "sigma_rot", SIGMA_ROT_AXES):
+                raise InputError(f"column {mn}_{_sigma_parts(parts, 'sigma_rot', SIGMA_ROT_AXES)[0]} without "
+                                 "orientation columns", source=self.source,
+                                 where=self.line)
             return None
         if len(kinds) > 1:
             raise InputError(f"marker {mn!r} has orientation columns of two conventions ({' and '.join(kinds)})",
-                             source=self.source, where=f"line {self.line}")
+                             source=self.source, where=self.line)
         kind = kinds[0]
         if declared is not None and declared[0] != kind:
             raise InputError(f"orientation columns of marker {mn!r} are {kind}, but the declared convention is "
-                             f"{declared[0]}", source=self.source, where=f"line {self.line}")
+                             f"{declared[0]}", source=self.source, where=self.line)
         if kind == "euler" and declared is None:
             raise InputError(f"columns {mn}_e1.. need the Euler sequence: orientation='euler:ZYX' "
                              "(--orientation euler:ZYX) or a line '# orientation: euler:ZYX' before the header",
-                             source=self.source, where=f"line {self.line}")
+                             source=self.source, where=self.line)
         for p in ORIENTATION_PARTS[kind]:
             if p not in parts:
-                raise InputError(f"missing column {mn}_{p}", source=self.source, where=f"line {self.line}")
+                raise InputError(f"missing column {mn}_{p}", source=self.source, where=self.line)
         return kind, (declared[1] if declared else None)
 
 
@@ -254,7 +261,7 @@ def _comment_units(text: str, source: str, line: int) -> dict:
 def read_measurements(path, model: RobotModel | None = None, *, units: str | None = None, sep: str | None = None,
                       decimal: str | None = None, orientation: str | None = None, columns=None,
                       unknown: str | None = None, joints=None, key: str | None = None,
-                      profile=None, targets: bool = False) -> Measurements:
+                      profile=None, targets: bool = False, header=None) -> Measurements:
     """Read a measurement file (docs/formats.md) into Measurements in SI units.
 
     ``model``: check joint and marker names against it and take each joint's type (angle or
@@ -266,19 +273,63 @@ def read_measurements(path, model: RobotModel | None = None, *, units: str | Non
     ``joints``: a second file with the joint readings, joined on column ``key`` (default "pose").
     ``profile``: an instrument profile (a path or a ``Profile``) giving any of these; the
     arguments given here win over it. ``targets``: the file lists poses to reach or to measure,
-    not measurements: marker columns may be absent or empty (positions NaN there).
+    not measurements: marker columns may be absent or empty (positions NaN there). ``header``:
+    the column names of a file without a header line (a sequence of names; a profile's ``header``).
+    A ``series`` column (any text per pose: a series, a fold) is kept in ``extra["series"]``.
     """
     source = str(path)
     prof = _profile(profile)
     opts = prof.options(units=units, sep=sep, decimal=decimal, orientation=orientation, columns=columns,
-                        unknown=unknown, key=key)
+                        unknown=unknown, key=key, header=header)
     declared = dict(zip(("length", "angle"), parse_units(opts["units"]))) if opts["units"] is not None else {}
     orient = parse_orientation(opts["orientation"])
+    for p in (path, joints):
+        if p is not None:
+            check_rows(p, MAX_POSES, per_gb=POSES_PER_GB)
+    fast = None
+    if joints is None and _size(path) >= FAST_BYTES:
+        fast = _read_fast(path, source, opts, declared, orient, model, targets)
+    if fast is not None:
+        (data, table, cols), other = fast, None
+    else:
+        table, other, digest = _read_rows(path, joints, source, opts)
+        cols = _columns(table, source, declared, orient, opts, model, targets)
+        if not table.rows:
+            raise InputError("no data rows after the header", source=source)
+        if len(table.rows) > MAX_POSES:
+            raise InputError(f"{len(table.rows):,} rows; robocal reads up to {MAX_POSES:,} poses per file "
+                             "(docs/formats.md)", source=source)
+        data = _parse_rows(table.rows, cols, table.decimal, source, digest, targets)
+    notes = tuple(f"reading {source}: {n}" for n in table.notes + _unknown_note(cols.ignored, other, exclude=True))
+    if other is not None:
+        notes += tuple(f"reading {other.source}: {n}" for n in other.notes + _unknown_note(cols.ignored, other))
+    return replace(data, extra={**data.extra, "notes": notes}) if notes else data
+
+
+def _size(path) -> int:
+    try:
+        return os.path.getsize(path)
+    except (OSError, ValueError):
+        return 0
+
+
+def _read_rows(path, joints, source: str, opts: dict):
+    """The file's table, read row by row (joined with the joint file's), the joint file's table and
+    the SHA-256 of the file's bytes."""
     text, digest = read_text(path)
-    table = map_columns(read_table(text, source, sep=opts["sep"], decimal=opts["decimal"]), opts["columns"])
+    table = map_columns(read_table(text, source, sep=opts["sep"], decimal=opts["decimal"], header=opts["header"]),
+                        opts["columns"])
+    other = None
     if joints is not None:
-        other = read_table(read_text(joints)[0], str(joints), sep=opts["sep"], decimal=opts["decimal"])
-        table = join_tables(table, map_columns(other, opts["columns"]), opts["key"] or "pose")
+        other = map_columns(read_table(read_text(joints)[0], str(joints), sep=opts["sep"], decimal=opts["decimal"]),
+                            opts["columns"])
+        table = join_tables(table, other, opts["key"] or "pose")
+    return table, other, digest
+
+
+def _columns(table: Table, source: str, declared: dict, orient, opts: dict, model, targets: bool) -> "_Columns":
+    """What each column of ``table`` holds, with the units and orientation its comment lines declare."""
+    declared = dict(declared)
     comment_units, comment_orient, orient_text = _directives(table)
     for kind, unit in comment_units.items():
         if kind in declared and declared[kind] != unit:
@@ -288,16 +339,78 @@ def read_measurements(path, model: RobotModel | None = None, *, units: str | Non
     if orient is not None and comment_orient is not None and orient != comment_orient:
         raise InputError(f"the file declares orientation {orient_text}, the option says {opts['orientation']}",
                          source=source, where="orientation")
-    cols = _Columns(list(table.header), model, declared, orient or comment_orient, source, table.header_line,
+    return _Columns(list(table.header), model, declared, orient or comment_orient, source, table.header_where,
                     unknown=opts["columns"].unknown, targets=targets)
-    if not table.rows:
-        raise InputError("no data rows after the header", source=source)
-    if len(table.rows) > MAX_POSES:
-        raise InputError(f"{len(table.rows):,} rows; robocal reads up to {MAX_POSES:,} poses per file "
-                         "(docs/formats.md)", source=source)
-    data = _parse_rows(table.rows, cols, table.decimal, source, digest, targets)
-    notes = tuple(f"reading {source}: {n}" for n in table.notes + cols.notes)
-    return replace(data, extra={**data.extra, "notes": notes}) if notes else data
+
+
+def _read_fast(path, source, opts, declared, orient, model, targets):
+    """(Measurements, head table, columns) read by the compiled parser a chunk at a time, or None
+    where it cannot vouch for the file (the row-by-row reader then reads it or names the fault)."""
+    try:
+        head = read_head(path, source, sep=opts["sep"], decimal=opts["decimal"], header=opts["header"])
+        raw_header = head.header
+        table = map_columns(head, opts["columns"])
+        cols = _columns(table, source, declared, orient, opts, model, targets)
+        scan = scan_rows(path, head)
+        if scan.n_rows > MAX_POSES:
+            return None  # the row reader says so, in its words
+        raw = _file_columns(raw_header, opts["columns"])  # column of the mapped table -> the file's
+        texts = [cols.special.get(c) for c in ("pose", "set", "series")]
+        wanted = {r: "text" if k in texts else "number" for k in _used_columns(cols) for r in raw[k]}
+        if any(len(raw[k]) > 1 and wanted[raw[k][0]] == "text" for k in _used_columns(cols)):
+            raise Unfit  # a sum of text columns: the row reader says what is wrong
+        arrays = read_columns(path, head, scan, wanted)
+        data = _parse_columns({k: _summed([arrays[r] for r in raw[k]]) for k in _used_columns(cols)}, cols, scan,
+                              source, targets)
+    except (Unfit, InputError):
+        return None
+    return data, table, cols
+
+
+def _file_columns(header, columns) -> list[list[int]]:
+    """For each column of the mapped table (``map_columns``), the file columns it is read from: one,
+    or the parts of a sum ``"A+B"`` (in place of A); ignored columns dropped."""
+    sums = {k: [header.index(p.strip()) for p in k.split("+")] for k in columns.rename
+            if "+" in k and k not in header and all(p.strip() in header for p in k.split("+"))}
+    used = [k for parts in sums.values() for k in parts]
+    if len(used) != len(set(used)):
+        raise Unfit  # a column in two sums: the row reader says what is wrong
+    later = {k for parts in sums.values() for k in parts[1:]}
+    firsts = {parts[0]: name for name, parts in sums.items()}
+    out = []
+    for k, c in enumerate(header):
+        name = firsts.get(k, c)
+        if k not in later and name not in columns.ignore:
+            out.append(sums[name] if k in firsts else [k])
+    return out
+
+
+def _summed(parts: list) -> np.ndarray:
+    """One column, or the sum of several as ``map_columns`` makes it: empty where all parts are empty
+    (``Unfit`` where only some are), else 0.0 + a + b in that order."""
+    if len(parts) == 1:
+        return parts[0]
+    empty = np.stack([np.isnan(a) for a in parts])
+    if np.any(empty.any(axis=0) != empty.all(axis=0)):
+        raise Unfit
+    total = np.zeros(len(parts[0]))
+    for a in parts:
+        total = total + a
+    return total
+
+
+def _used_columns(cols: "_Columns") -> list[int]:
+    """The columns of the mapped table that the reader reads (unknown ones ignored are not)."""
+    used = [k for k, _ in cols.joint_cols.values()] + list(cols.special.values()) + list(cols.approach_cols.values())
+    used += [k for mc in cols.marker_cols.values() for k, _ in mc.values()]
+    return sorted(set(used))
+
+
+def _unknown_note(ignored, other: Table | None, *, exclude: bool = False) -> tuple[str, ...]:
+    """The note naming the unknown columns ignored that came from ``other`` (the joint file), or
+    with ``exclude`` the others."""
+    mine = [c for c in ignored if (other is not None and c in other.header) != exclude]
+    return (f"columns robocal does not know, ignored: {', '.join(mine)}",) if mine else ()
 
 
 def _profile(profile) -> Profile:
@@ -320,18 +433,24 @@ def _directives(table: Table):
     return comment_units, comment_orient, orient_text
 
 
-def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str, targets: bool = False) -> Measurements:
-    n, nm = len(rows), len(cols.markers)
-    q = np.empty((n, len(cols.joint_names)))
-    pos = np.full((n, nm, 3), np.nan)
-    has_sigma = any(_point_sigma_parts(cols.marker_cols[m]) for m in cols.markers)
+def _empty_arrays(cols: _Columns, n: int):
+    """(positions, sigma, rotations, sigma_rot) of ``n`` poses, NaN (unseen) until read; None where the
+    file has no such columns."""
+    nm = len(cols.markers)
+    has_sigma = any(_sigma_parts(cols.marker_cols[m], "sigma", SIGMA_AXES) for m in cols.markers)
     has_rot = any(cols.orientation[m] for m in cols.markers)
-    has_sigma_rot = any("sigma_rot" in cols.marker_cols[m] for m in cols.markers)
-    sigma = np.full((n, nm), np.nan) if has_sigma else None
-    sigma_rot = np.full((n, nm), np.nan) if has_sigma_rot else None
-    rot = np.full((n, nm, 3, 3), np.nan) if has_rot else None
+    has_sigma_rot = any(_sigma_parts(cols.marker_cols[m], "sigma_rot", SIGMA_ROT_AXES) for m in cols.markers)
+    return (np.full((n, nm, 3), np.nan), np.full((n, nm), np.nan) if has_sigma else None,
+            np.full((n, nm, 3, 3), np.nan) if has_rot else None, np.full((n, nm), np.nan) if has_sigma_rot else None)
+
+
+def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str, targets: bool = False) -> Measurements:
+    n = len(rows)
+    q = np.empty((n, len(cols.joint_names)))
+    pos, sigma, rot, sigma_rot = _empty_arrays(cols, n)
     payload = np.empty(n) if "payload_kg" in cols.special else None
     validation = np.zeros(n, dtype=bool)
+    series = []
     approach = np.empty((n, len(cols.joint_names))) if cols.approach_cols else None
     labels = []
     width = len(cols.names)
@@ -351,16 +470,17 @@ def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str, ta
             xyz = _group(row, mc, POSITION, num, source, line, mn, cols.names)
             if xyz is not None:
                 pos[i, m] = xyz
-                if _point_sigma_parts(mc):
-                    sigma[i, m] = _point_sigma(num, mc, source, line, cols.names)
+                if _sigma_parts(mc, "sigma", SIGMA_AXES):
+                    sigma[i, m] = _sigma(num, mc, _sigma_parts(mc, "sigma", SIGMA_AXES), source, line, cols.names)
             if cols.orientation[mn]:
                 kind, seq = cols.orientation[mn]
                 vals = _group(row, mc, ORIENTATION_PARTS[kind], num, source, line, mn, cols.names)
                 if vals is not None:
                     rot[i, m] = _rotation(kind, seq, vals, source, line, cols.names[mc["qx" if kind == "quat" else
                                                                                           ORIENTATION_PARTS[kind][0]][0]])
-                    if "sigma_rot" in mc:
-                        sigma_rot[i, m] = _positive(num, mc["sigma_rot"], source, line, cols.names)
+                    rot_parts = _sigma_parts(mc, "sigma_rot", SIGMA_ROT_AXES)
+                    if rot_parts:
+                        sigma_rot[i, m] = _sigma(num, mc, rot_parts, source, line, cols.names)
         if payload is not None:
             payload[i] = num(cols.special["payload_kg"])
         for j, jn in enumerate(cols.joint_names if approach is not None else ()):
@@ -374,6 +494,8 @@ def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str, ta
                 raise InputError(f"set must be fit or validation, got {row[cols.special['set']]!r}", source=source,
                                  where=f"line {line}, column 'set'")
             validation[i] = value == "validation"
+        if "series" in cols.special:
+            series.append(row[cols.special["series"]].strip())
         label = row[cols.special["pose"]].strip() if "pose" in cols.special else ""
         labels.append(label or f"line {line}")
     if not targets and not np.any(np.isfinite(pos)):
@@ -381,11 +503,96 @@ def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str, ta
     extra = {"joint_kinds": tuple(cols.joint_kinds)}
     if "set" in cols.special:
         extra["validation"] = validation
+    if "series" in cols.special:
+        extra["series"] = np.array(series, dtype=str)
     if approach is not None:
         extra["approach"] = approach
     return Measurements(q=q, positions=pos, marker_names=tuple(cols.markers), joint_names=tuple(cols.joint_names),
                         rotations=rot, sigma=sigma, sigma_rot=sigma_rot, payload_mass=payload,
                         labels=tuple(labels), source=source, sha256=digest, extra=extra)
+
+
+def _parse_columns(arrays: dict, cols: _Columns, scan, source: str, targets: bool) -> Measurements:
+    """:func:`_parse_rows` over whole columns (``arrays``: column -> float array, NaN where empty, or
+    list of str); ``Unfit`` wherever that reader would stop with an error, so that it names the cell."""
+    n = scan.n_rows
+    numbers = [a for a in arrays.values() if isinstance(a, np.ndarray)]
+    if any(np.any(np.abs(a) > MAX_MAGNITUDE) for a in numbers):
+        raise Unfit
+
+    def need(k, scale=1.0):
+        a = arrays[k]
+        if np.isnan(a).any():
+            raise Unfit  # an empty cell where a value is required
+        return a * scale
+
+    q = np.empty((n, len(cols.joint_names)))
+    for j, jn in enumerate(cols.joint_names):
+        q[:, j] = need(*cols.joint_cols[jn])
+    pos, sigma, rot, sigma_rot = _empty_arrays(cols, n)
+    for m, mn in enumerate(cols.markers):
+        mc = cols.marker_cols[mn]
+        seen = _group_seen(arrays, mc, POSITION)
+        pos[seen, m] = np.stack([arrays[mc[p][0]][seen] * mc[p][1] for p in POSITION], axis=-1)
+        parts = _sigma_parts(mc, "sigma", SIGMA_AXES)
+        if parts:
+            sigma[seen, m] = _sigma_column(arrays, mc, parts, seen)
+        if cols.orientation[mn]:
+            kind, seq = cols.orientation[mn]
+            rseen = _group_seen(arrays, mc, ORIENTATION_PARTS[kind])
+            vals = np.stack([arrays[mc[p][0]][rseen] * mc[p][1] for p in ORIENTATION_PARTS[kind]], axis=-1)
+            if kind == "quat":
+                norm = np.linalg.norm(vals, axis=-1)
+                if not np.all((norm > 1e-12) & (norm < np.inf)):
+                    raise Unfit
+                R = Rotation.from_quat(vals).as_matrix() if len(vals) else np.empty((0, 3, 3))
+            else:
+                R = Rotation.from_euler("xyz" if kind == "rpy" else seq, vals).as_matrix() if len(vals) else \
+                    np.empty((0, 3, 3))
+            rot[rseen, m] = R
+            rparts = _sigma_parts(mc, "sigma_rot", SIGMA_ROT_AXES)
+            if rparts:
+                sigma_rot[rseen, m] = _sigma_column(arrays, mc, rparts, rseen)
+    payload = need(cols.special["payload_kg"]) if "payload_kg" in cols.special else None
+    approach = None
+    if cols.approach_cols:
+        approach = np.stack([need(cols.approach_cols[jn]) for jn in cols.joint_names], axis=-1)
+        if not np.all(np.abs(approach) == 1.0):
+            raise Unfit
+    given = arrays[cols.special["pose"]] if "pose" in cols.special else [""] * n
+    labels = tuple(given) if "" not in given else \
+        tuple(label or f"line {i + scan.first_line}" for i, label in enumerate(given))
+    if not targets and not np.any(np.isfinite(pos)):
+        raise Unfit
+    extra = {"joint_kinds": tuple(cols.joint_kinds)}
+    if "set" in cols.special:
+        value = arrays[cols.special["set"]]
+        if not {v.lower() for v in set(value)} <= set(SETS):
+            raise Unfit
+        extra["validation"] = np.array([v.lower() == "validation" for v in value], dtype=bool)
+    if "series" in cols.special:
+        extra["series"] = np.array(arrays[cols.special["series"]], dtype=str)
+    if approach is not None:
+        extra["approach"] = approach
+    return Measurements(q=q, positions=pos, marker_names=tuple(cols.markers), joint_names=tuple(cols.joint_names),
+                        rotations=rot, sigma=sigma, sigma_rot=sigma_rot, payload_mass=payload,
+                        labels=labels, source=source, sha256=scan.sha256, extra=extra)
+
+
+def _group_seen(arrays, mc, parts) -> np.ndarray:
+    """The rows where a marker's group of ``parts`` is filled; ``Unfit`` where it is partly filled."""
+    empty = np.stack([np.isnan(arrays[mc[p][0]]) for p in parts], axis=-1)
+    if np.any(empty.any(axis=-1) != empty.all(axis=-1)):
+        raise Unfit
+    return ~empty[:, 0]
+
+
+def _sigma_column(arrays, mc, parts, seen) -> np.ndarray:
+    """:func:`_sigma` over the rows ``seen``: positive values, combined as their root mean square."""
+    vals = np.stack([arrays[mc[p][0]][seen] for p in parts], axis=-1)
+    if not np.all(vals > 0):  # NaN (empty) fails this too
+        raise Unfit
+    return np.sqrt(np.mean(np.square(vals * np.array([mc[p][1] for p in parts])), axis=-1))
 
 
 def _approach_to_write(data: Measurements):
@@ -435,15 +642,15 @@ def _group(row, mc, parts, num, source, line, marker, names):
     return np.array(vals) * np.array([mc[p][1] for p in parts])
 
 
-def _point_sigma_parts(mc) -> tuple[str, ...]:
-    """The standard-deviation columns of one marker's position: sigma, or sigma_x/y/z, or none."""
-    return ("sigma",) if "sigma" in mc else SIGMA_AXES if SIGMA_AXES[0] in mc else ()
+def _sigma_parts(mc, one: str, axes: tuple[str, ...]) -> tuple[str, ...]:
+    """The standard-deviation columns of one marker's position (``sigma``, or ``sigma_x/y/z``) or
+    orientation (``sigma_rot``, or ``sigma_rx/ry/rz``); () without any."""
+    return (one,) if one in mc else axes if axes[0] in mc else ()
 
 
-def _point_sigma(num, mc, source, line, names) -> float:
-    """One standard deviation per point; per-axis ones combine as their root mean square, which
-    gives the weighted residual the same expected size (docs/formats.md)."""
-    parts = _point_sigma_parts(mc)
+def _sigma(num, mc, parts, source, line, names) -> float:
+    """One standard deviation per point (or orientation); per-axis ones combine as their root mean
+    square, which gives the weighted residual the same expected size (docs/formats.md)."""
     vals = [_positive(num, mc[p], source, line, names) for p in parts]
     return float(np.sqrt(np.mean(np.square(vals))))
 
@@ -519,16 +726,14 @@ def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, 
                 header.append(f"{mn}_sigma_rot_{au}")
     if data.payload_mass is not None:
         header.append("payload_kg")
-    flags = data.extra.get("validation")
-    if flags is not None:
-        header.append("set")
+    flags, series = data.extra.get("validation"), data.extra.get("series")
+    header += [name for name, v in (("set", flags), ("series", series)) if v is not None]
     approach = _approach_to_write(data)
     if approach is not None:
         header += [APPROACH_PREFIX + jn for jn in joint_names]
 
     def fmt(v, s=1.0):
         return "" if not np.isfinite(v) else repr(float(v) / s)
-
     buf = io.StringIO()
     if has_rot:
         buf.write(f"# orientation: {orientation}\n")
@@ -561,6 +766,8 @@ def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, 
             row.append(fmt(data.payload_mass[i]))
         if flags is not None:
             row.append("validation" if flags[i] else "fit")
+        if series is not None:
+            row.append(str(series[i]))
         if approach is not None:
             row += [f"{int(v):+d}" for v in approach[i]]
         w.writerow(row)

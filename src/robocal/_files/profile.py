@@ -17,7 +17,7 @@ from .text import load_yaml, read_text
 
 PROFILE_VERSION = 1
 PROFILE_KEYS = ("robocal_profile", "name", "sep", "decimal", "units", "orientation", "columns", "ignore",
-                "unknown", "key")
+                "unknown", "key", "header")
 # a column mapped to one of these is dropped
 IGNORE_WORDS = (None, "ignore")
 
@@ -33,16 +33,18 @@ class Profile:
     orientation: str | None = None
     columns: ColumnMap = field(default_factory=ColumnMap)
     key: str | None = None
+    header: tuple[str, ...] | None = None
 
     def options(self, *, units=None, sep=None, decimal=None, orientation=None, columns=None, unknown=None,
-                key=None) -> dict:
+                key=None, header=None) -> dict:
         """The reading options: those given here over the profile's."""
         given = column_map(columns) if columns is not None else None
         cmap = self.columns.merged(given)
         if unknown is not None:
             cmap = ColumnMap(cmap.rename, cmap.ignore, unknown)
         pick = {"units": (units, self.units), "sep": (sep, self.sep), "decimal": (decimal, self.decimal),
-                "orientation": (orientation, self.orientation), "key": (key, self.key)}
+                "orientation": (orientation, self.orientation), "key": (key, self.key),
+                "header": (tuple(header) if header is not None else None, self.header)}
         out = {k: a if a is not None else b for k, (a, b) in pick.items()}
         out["columns"] = cmap
         return out
@@ -99,8 +101,13 @@ def profile_from_dict(d, *, source: str = "<dict>") -> Profile:
     if cmap.unknown not in UNKNOWN_ACTIONS:
         raise error("unknown", f"expected {' or '.join(UNKNOWN_ACTIONS)}, got {excerpt(cmap.unknown)}")
     cmap = ColumnMap(cmap.rename, cmap.ignore | frozenset(ignore), cmap.unknown)
+    header = d.get("header")
+    if header is not None and (not isinstance(header, list) or not header
+                               or not all(isinstance(c, str) and c.strip() for c in header)):
+        raise error("header", f"expected a list of column names (a file without a header line), got {excerpt(header)}")
     return Profile(name=texts["name"] or "", sep=sep, decimal=texts["decimal"], units=texts["units"],
-                   orientation=texts["orientation"], columns=cmap, key=texts["key"])
+                   orientation=texts["orientation"], columns=cmap, key=texts["key"],
+                   header=tuple(c.strip() for c in header) if header is not None else None)
 
 
 def read_profile(path) -> Profile:

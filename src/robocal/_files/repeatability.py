@@ -12,7 +12,7 @@ from .._errors import InputError, excerpt
 from .._options import MAX_POSES
 from .._units import LENGTH_UNITS
 from .measurements import MAX_MAGNITUDE
-from .text import read_text
+from .text import check_rows, read_text
 
 CSV_COLUMNS = ("pose", "cycle", "x", "y", "z")
 
@@ -28,6 +28,7 @@ def read_repeatability_csv(path, *, units: str | None = None) -> RepeatabilityDa
     if units is not None and units not in LENGTH_UNITS:
         raise InputError(f"units must be one of {', '.join(LENGTH_UNITS)}, got {units!r}", where="units")
     src = str(path)
+    check_rows(path, MAX_POSES, "rows")
     reader = csv.reader(io.StringIO(read_text(path)[0], newline=""))
     try:
         header = next(reader, None)

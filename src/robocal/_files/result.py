@@ -8,8 +8,12 @@ as null (strict JSON has neither).
 
 from __future__ import annotations
 
+import hashlib
+import io
 import json
 import math
+import zipfile
+from pathlib import Path
 
 import numpy as np
 
@@ -21,7 +25,7 @@ from .._identifiability import Absorption, IdentifiabilityResult, status_table
 from .._in_use import AccuracyInUse, Coverage, UseStats
 from .._parameters import parameter_layout
 from .model import model_from_dict, model_to_dict
-from .text import load_json, read_text, write_texts
+from .text import MAX_FILE_BYTES, load_json, read_bytes, read_text, write_texts
 
 SCHEMA = "robocal.result/1"
 SCHEMAS = (SCHEMA,)
@@ -82,8 +86,9 @@ def _array(a):
     return None if a is None else np.where(np.isfinite(a), a, np.nan).tolist()
 
 
-def result_to_dict(result: CalibrationResult) -> dict:
-    """The file form of a calibration result (plain Python types)."""
+def result_to_dict(result: CalibrationResult, *, per_pose: bool = True) -> dict:
+    """The file form of a calibration result (plain Python types); ``per_pose=False`` leaves the
+    per-pose arrays of ``errors`` out (:func:`result_files` puts them in a sidecar file)."""
     lim = result.limit
     return {
         "schema": SCHEMA,
@@ -99,7 +104,7 @@ def result_to_dict(result: CalibrationResult) -> dict:
                   "rotation": None if result.rotation_stats is None else
                   {k: _stats_dict(result.rotation_stats[k]) for k in ErrorSummary.KEYS}},
         "errors": {"unit": "m", "rotation_unit": "rad", "markers": list(result.nominal_model.marker_names),
-                   **{key: _array(getattr(result, field)) for key, field in _ERROR_ARRAYS}},
+                   **({key: _array(getattr(result, field)) for key, field in _ERROR_ARRAYS} if per_pose else {})},
         "notes": list(result.notes),
         "verdict": result.verdict,
         "checks": [{"name": c.name, "status": c.status, "summary": c.summary, "cause": c.cause, "fix": c.fix,
@@ -170,9 +175,54 @@ def result_to_json(result: CalibrationResult) -> str:
     return to_json(result_to_dict(result))
 
 
-def write_result(result: CalibrationResult, path, *, force: bool = False) -> None:
-    """Write a calibration result as JSON, atomically; an existing file is an InputError unless ``force``."""
-    write_texts({path: result_to_json(result)}, force=force)
+def sidecar_path(path) -> Path:
+    """Where the per-pose arrays of the result file ``path`` go: beside it, ``.npz`` for ``.json``."""
+    return Path(path).with_suffix(".npz")
+
+
+def result_files(result: CalibrationResult, path, *, per_pose: bool = True) -> dict:
+    """The files of a calibration result: ``{path: JSON text, sidecar: bytes}``.
+
+    The JSON holds the summary, estimates, covariance, checks and statistics; the per-pose arrays
+    (errors before and after, residual vectors, measured positions, readings, per pose) go to a
+    NumPy ``.npz`` archive beside it (:func:`sidecar_path`), named with its SHA-256 in
+    ``errors.file``, so that the JSON does not grow with the campaign (docs/formats.md).
+
+    Parameters
+    ----------
+    result : CalibrationResult
+    path : str or Path
+        The result file (``result.json``).
+    per_pose : bool
+        False leaves the per-pose arrays out altogether (no sidecar; the report then has no
+        per-pose plots).
+
+    Returns
+    -------
+    dict
+        {Path: str or bytes}, to write together (``write_texts``).
+    """
+    d = result_to_dict(result, per_pose=False)
+    counts = {"n_fit": int(result.errors_before.shape[0]),
+              "n_validation": None if result.validation_before is None else int(result.validation_before.shape[0])}
+    if not per_pose:
+        d["errors"]["file"] = None
+        d["errors"].update(counts)
+        return {Path(path): to_json(d)}
+    buf = io.BytesIO()
+    np.savez(buf, **{key: np.asarray(getattr(result, field), dtype=float) for key, field in _ERROR_ARRAYS
+                     if getattr(result, field) is not None})
+    blob = buf.getvalue()
+    sidecar = sidecar_path(path)
+    d["errors"]["file"] = {"name": sidecar.name, "format": "npz", "sha256": hashlib.sha256(blob).hexdigest(),
+                           **counts}
+    return {Path(path): to_json(d), sidecar: blob}
+
+
+def write_result(result: CalibrationResult, path, *, force: bool = False, per_pose: bool = True) -> None:
+    """Write a calibration result, atomically: the JSON at ``path`` and its per-pose arrays beside it
+    (:func:`result_files`); an existing file is an InputError unless ``force``."""
+    write_texts(result_files(result, path, per_pose=per_pose), force=force)
 
 
 class _Doc:
@@ -220,7 +270,7 @@ class _Doc:
             a = np.array(v, dtype=float)
         except (TypeError, ValueError):
             raise self.error(where, "expected a nested list of numbers") from None
-        if v == [] and len(shape) > 1:
+        if a.size == 0 and a.ndim == 1 and len(shape) > 1:
             a = a.reshape((0,) + tuple(s or 0 for s in shape[1:]))
         if a.ndim != len(shape) or any(s is not None and s != n for s, n in zip(shape, a.shape)):
             want = " x ".join("n" if s is None else str(s) for s in shape)
@@ -322,8 +372,47 @@ def _parameters(doc: _Doc, d: list, nominal) -> tuple[ParameterEstimate, ...]:
     return tuple(out)
 
 
-def _errors(doc: _Doc, d: dict, n_markers: int, n_joints: int) -> dict:
-    """The per-point arrays; every set's arrays agree in their number of poses."""
+def _sidecar(doc: _Doc, d: dict, folder: Path | None) -> dict | None:
+    """The per-pose arrays of ``errors.file`` (the sidecar beside the result file), checked against
+    its SHA-256; None when the arrays are inline."""
+    if "file" not in d:
+        return None
+    ref = doc.get(d, "file", "errors", dict, optional=True)
+    if ref is None:
+        return {}  # left out on request
+    name = doc.get(ref, "name", "errors.file", str)
+    if folder is None or Path(name).name != name or not name.endswith(".npz"):
+        raise doc.error("errors.file.name", f"cannot read the per-pose arrays {excerpt(name)} here (a file name "
+                                            "beside the result file, ending .npz)")
+    path = folder / name
+    raw = read_bytes(path, limit=MAX_FILE_BYTES * 16)
+    if hashlib.sha256(raw).hexdigest() != doc.get(ref, "sha256", "errors.file", str):
+        raise InputError("is not the per-pose file of this result (its SHA-256 differs from the one in "
+                         f"{doc.source}); write them again together", source=str(path))
+    try:
+        with np.load(io.BytesIO(raw), allow_pickle=False) as z:
+            out = {k: z[k] for k in z.files}
+    except (ValueError, OSError, zipfile.BadZipFile, KeyError, EOFError):
+        raise InputError("not a NumPy .npz archive of arrays", source=str(path)) from None
+    for k, a in out.items():
+        if a.dtype.kind != "f":
+            raise InputError(f"array {excerpt(k)} is not of floating point numbers", source=str(path))
+    return out
+
+
+def _errors(doc: _Doc, d: dict, n_markers: int, n_joints: int, folder: Path | None = None) -> dict:
+    """The per-point arrays (inline, or in the sidecar ``errors.file``); every set's arrays agree in
+    their number of poses."""
+    stored = _sidecar(doc, d, folder)
+    if stored is not None:
+        known = {key for key, _ in _ERROR_ARRAYS}
+        extra = sorted(set(stored) - known)
+        if extra:
+            raise doc.error("errors.file", f"the per-pose file holds an unknown array {excerpt(extra[0])}")
+        if not stored:  # left out: no poses to show
+            stored = {"fit_before": np.empty((0, n_markers)), "fit_after": np.empty((0, n_markers)),
+                      "fit_residual_vectors": np.empty((0, n_markers, 3))}
+        d = {**d, **stored}
     shapes = {"before": (n_markers,), "after": (n_markers,), "residual_vectors": (n_markers, 3),
               "positions": (n_markers, 3), "readings": (n_joints,), "rotation_before": (n_markers,),
               "rotation_after": (n_markers,)}
@@ -331,7 +420,9 @@ def _errors(doc: _Doc, d: dict, n_markers: int, n_joints: int) -> dict:
     out, n_poses = {}, {}
     for key, field in _ERROR_ARRAYS:
         which, part = key.split("_", 1)
-        value = doc.get(d, key, "errors", list, optional=key not in required)
+        value = d.get(key) if stored is not None else doc.get(d, key, "errors", list, optional=key not in required)
+        if value is None and key in required:
+            raise doc.error(f"errors.{key}", "missing array")
         if value is None:
             out[field] = None
             continue
@@ -345,9 +436,9 @@ def _errors(doc: _Doc, d: dict, n_markers: int, n_joints: int) -> dict:
     return out
 
 
-def result_from_dict(d, *, source: str = "<dict>") -> CalibrationResult:
+def result_from_dict(d, *, source: str = "<dict>", folder=None) -> CalibrationResult:
     """The CalibrationResult stored in ``d`` (the parsed result file); InputError naming the key
-    where it departs from the schema."""
+    where it departs from the schema. ``folder``: where its per-pose file (``errors.file``) is."""
     doc = _Doc(source)
     if not isinstance(d, dict) or "schema" not in d:
         raise doc.error("schema", "not a robocal result: no 'schema' key")
@@ -370,7 +461,7 @@ def result_from_dict(d, *, source: str = "<dict>") -> CalibrationResult:
         correlation=doc.array(doc.get(d, "correlation", "", list), "correlation", (k, k)),
         identifiability=_identifiability(doc, doc.get(d, "identifiability", "", dict)),
         stats=_stats(doc, stats), rotation_stats=None if rotation is None else _stats(doc, rotation, "stats.rotation"),
-        **_errors(doc, errors, len(markers), nominal.n_joints),
+        **_errors(doc, errors, len(markers), nominal.n_joints, None if folder is None else Path(folder)),
         success=doc.get(d, "success", "", bool), status=doc.get(d, "status", "", int),
         message=doc.get(d, "message", "", str), nfev=doc.get(d, "nfev", "", int),
         sigma0=doc.get(d, "sigma0_m", "", float),
@@ -386,7 +477,7 @@ def read_result(path) -> CalibrationResult:
     """The CalibrationResult stored by ``write_result``; InputError if it is not a robocal result of a
     known schema, naming the key that departs from it."""
     source = str(path)
-    return result_from_dict(load_json(read_text(path)[0], source), source=source)
+    return result_from_dict(load_json(read_text(path)[0], source), source=source, folder=Path(path).parent)
 
 
 # -- the limit of absolute accuracy ------------------------------------------------------------

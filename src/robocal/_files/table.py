@@ -15,6 +15,8 @@ import re
 from dataclasses import dataclass, field, replace
 from typing import Mapping
 
+import numpy as np
+
 from .._errors import InputError, excerpt
 
 # separators tried when none is given, in order of preference ("," last: decimal-comma files hold
@@ -29,6 +31,7 @@ UNKNOWN_ACTIONS = ("refuse", "ignore")
 _SAMPLE = 50
 _COMMA_NUMBER = re.compile(r"^[+-]?(\d+,\d*|,\d+)([eE][+-]?\d+)?$")
 _LINES = re.compile(r"\r\n|\r|\n")
+_PLAIN_NUMBER = re.compile(r"^[+-]?(\d+(\.\d*)?|\.\d+)([eE][+-]?\d+)?$")
 _DOT_NUMBER = re.compile(r"^[+-]?(\d+\.\d*|\.\d+)([eE][+-]?\d+)?$")
 
 
@@ -50,6 +53,12 @@ class Table:
     sep: str = ","
     decimal: str = "."
     notes: tuple[str, ...] = ()
+    header_given: bool = False
+
+    @property
+    def header_where(self) -> str:
+        """Where messages place the header: its line, or the names given for a file without one."""
+        return "the given column names (header)" if self.header_given else f"line {self.header_line}"
 
     def with_notes(self, *notes: str) -> "Table":
         return replace(self, notes=self.notes + tuple(n for n in notes if n))
@@ -76,7 +85,9 @@ class ColumnMap:
         """This map with ``other``'s entries (and its unknown-column action) on top."""
         if other is None:
             return self
-        return ColumnMap({**self.rename, **other.rename}, self.ignore | other.ignore, other.unknown)
+        rename = {k: v for k, v in self.rename.items() if k not in other.ignore}
+        ignore = frozenset(c for c in self.ignore if c not in other.rename)
+        return ColumnMap({**rename, **other.rename}, ignore | other.ignore, other.unknown)
 
 
 def parse_separator(text: str | None, *, where: str = "sep") -> str | None:
@@ -86,7 +97,7 @@ def parse_separator(text: str | None, *, where: str = "sep") -> str | None:
     sep = SEPARATOR_NAMES.get(text, text)
     if sep != WHITESPACE and len(sep) != 1:
         raise InputError(f"a separator is one character, '\\t' or 'whitespace'; got {excerpt(text)}", where=where)
-    if sep in DECIMALS[:1] or sep.isalnum() or sep in "\"#":
+    if sep != WHITESPACE and (sep in DECIMALS[:1] or sep.isalnum() or sep in "\"#"):
         raise InputError(f"{excerpt(text)} cannot separate columns", where=where)
     return sep
 
@@ -102,48 +113,65 @@ def show_separator(sep: str) -> str:
     return {"\t": "tab", WHITESPACE: "whitespace"}.get(sep, repr(sep))
 
 
-def read_table(text: str, source: str, *, sep: str | None = None, decimal: str | None = None) -> Table:
+def read_table(text: str, source: str, *, sep: str | None = None, decimal: str | None = None,
+               header: tuple[str, ...] | None = None) -> Table:
     """The table in ``text``: comment lines (``#``) before the header kept, blank lines skipped.
 
     ``sep``/``decimal``: None to detect them from the header and the first rows (said in the notes).
+    ``header``: the column names of a file without a header line (its first line is then data).
     """
     sep = parse_separator(sep)
     check_decimal(decimal, sep)
     lines = _LINES.split(text)  # the csv module's line ends; str.splitlines knows more (\x1e, \u2028...)
     content = [(k + 1, ln) for k, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")]
+    if header is not None:
+        header = tuple(str(c).strip() for c in header)
+        if not header or not all(header) or len(set(header)) < len(header):
+            raise InputError(f"expected distinct column names, got {excerpt(','.join(header))}", where="header")
     if not content:
-        raise InputError("no header line (and no data)", source=source)
+        raise InputError("no header line (and no data)" if header is None else "no data rows", source=source)
+    data = content[1:] if header is None else content
     notes = []
     if sep is None:
-        sep = _detect_separator(content[0][1], [ln for _, ln in content[1:_SAMPLE + 1]])
+        sample = [ln for _, ln in data[:_SAMPLE + 1]]
+        sep = _detect_separator(content[0][1], sample[1:] if header is not None else sample)
         notes.append(f"separator {show_separator(sep)} (detected)")
     header_line = content[0][0]
     comments = tuple((k + 1, ln) for k, ln in enumerate(lines[:header_line - 1]) if ln.lstrip().startswith("#"))
     cells = _split(text, sep, source)
-    if header_line not in cells:
+    if header is not None:
+        names = list(header)
+    elif header_line not in cells:
         raise InputError("a quoted cell runs over several lines (a quote not closed?)", source=source,
                          where=f"line {header_line}")
-    header = [c.strip() for c in cells[header_line]]
-    _refuse_other_separator(header, sep, source, header_line)
-    while header and not header[-1]:
-        header.pop()  # a separator at the end of every line
-    width = len(header)
+    else:
+        names = [c.strip() for c in cells[header_line]]
+        _refuse_other_separator(names, sep, source, header_line)
+        _refuse_numbers(names, source, header_line)
+    while names and not names[-1]:
+        names.pop()  # a separator at the end of every line
     rows = []
-    for line, _ in content[1:]:
+    for line, _ in data:
         row = cells.get(line)
         if row is None:
             raise InputError("a quoted cell runs over several lines (a quote not closed?)", source=source,
                              where=f"line {line}")
-        if len(row) > width and not any(c.strip() for c in row[width:]):
-            row = row[:width]
         rows.append((str(line), row))
+    if sep == WHITESPACE and header is None and rows and len(names) > len(rows[0][1]):
+        spaced = [c for c in re.split(r"\t|\s{2,}", lines[header_line - 1].strip()) if c]
+        if len(spaced) == len(rows[0][1]):  # names holding single spaces, columns apart by more
+            names = spaced
+            notes.append("header names hold spaces: columns told apart by tabs or two or more spaces")
+    width = len(names)
+    rows = [(line, row[:width] if len(row) > width and not any(c.strip() for c in row[width:]) else row)
+            for line, row in rows]
     if decimal is None:
         decimal = _detect_decimal(sep, rows)
         if decimal != ".":
             notes.append(f"decimal mark {decimal!r} (detected)")
     check_decimal(decimal, sep)
-    return Table(header=tuple(header), rows=tuple(rows), source=source, header_line=header_line,
-                 comments=comments, sep=sep, decimal=decimal, notes=tuple(notes))
+    return Table(header=tuple(names), rows=tuple(rows), source=source, header_line=header_line,
+                 comments=comments, sep=sep, decimal=decimal, notes=tuple(notes), header_given=header is not None)
 
 
 def _split(text: str, sep: str, source: str) -> dict[int, list[str]]:
@@ -196,6 +224,17 @@ def _refuse_other_separator(header: list[str], sep: str, source: str, line: int)
                              "separator out to have it detected", source=source, where=f"line {line}")
 
 
+def _refuse_numbers(header: list[str], source: str, line: int) -> None:
+    """A first line of numbers is data: the file has no header line; name the fix."""
+    cells = [c for c in header if c]
+    numbers = sum(bool(_PLAIN_NUMBER.match(c) or _COMMA_NUMBER.match(c)) for c in cells)
+    if numbers >= max(2, len(cells) / 2):  # column names are not numbers
+        first = excerpt(", ".join(cells[:3]))[1:-1]
+        raise InputError(f"the first line holds numbers ({first}...), not column names: the file has no header line;"
+                         " name its columns with header=[...] (--header NAME,... or "
+                         "'header:' in a profile)", source=source, where=f"line {line}")
+
+
 def _cli(sep: str) -> str:
     return {"\t": "'\\t'", WHITESPACE: "whitespace"}.get(sep, f"'{sep}'")
 
@@ -212,10 +251,15 @@ def decimal_hint(text: str, decimal: str) -> str:
 
 
 def map_columns(table: Table, columns: ColumnMap | None) -> Table:
-    """``table`` with its columns renamed and the ignored ones dropped (said in the notes)."""
+    """``table`` with its columns renamed and the ignored ones dropped (said in the notes).
+
+    A map entry ``"A+B"`` (file columns joined by ``+``) makes one column of their sum, cell by
+    cell, in place of ``A`` (``B`` dropped): a measured position stored as a target and a deviation.
+    """
     if columns is None or (not columns.rename and not columns.ignore):
         return table
-    where = f"line {table.header_line}"
+    table = _sum_columns(table, {k: v for k, v in columns.rename.items() if "+" in k and k not in table.header})
+    where = table.header_where
     keep = [k for k, c in enumerate(table.header) if c not in columns.ignore]
     header = [columns.rename.get(table.header[k], table.header[k]) for k in keep]
     for k, c in zip(keep, header):
@@ -229,20 +273,66 @@ def map_columns(table: Table, columns: ColumnMap | None) -> Table:
     return replace(table, header=tuple(header), rows=rows).with_notes(note)
 
 
+def _sum_columns(table: Table, sums: dict) -> Table:
+    """``table`` with each ``"A+B"`` of ``sums`` made one column (named ``"A+B"``, where A was)."""
+    if not sums:
+        return table
+    header, rows = list(table.header), [(line, list(row)) for line, row in table.rows]
+    for key in sums:
+        parts = [p.strip() for p in key.split("+")]
+        missing = [p for p in parts if p not in header]
+        if missing or len(parts) < 2:
+            raise InputError(f"column {missing[0]!r} of the sum {key!r} is not in the file" if missing else
+                             f"a sum of columns is A+B, got {key!r}", source=table.source, where=table.header_where)
+        ks = [header.index(p) for p in parts]
+        for line, row in rows:
+            if len(row) == len(header):
+                row[ks[0]] = _sum_cells([row[k] for k in ks], parts, table, line)
+        for line, row in rows:
+            if len(row) == len(header):
+                for k in sorted(ks[1:], reverse=True):
+                    del row[k]
+        header[ks[0]] = key
+        for k in sorted(ks[1:], reverse=True):
+            del header[k]
+    return replace(table, header=tuple(header), rows=tuple((line, row) for line, row in rows)).with_notes(
+        *(f"column {v!r} is the sum {k}" for k, v in sums.items()))
+
+
+def _sum_cells(cells: list[str], names: list[str], table: Table, line: str) -> str:
+    """The sum of a row's ``cells`` in the file's decimal mark; all empty: empty; some empty: an error."""
+    texts = [c.strip() for c in cells]
+    if not any(texts):
+        return ""
+    total = 0.0
+    for t, name in zip(texts, names):
+        where = f"line {line}, column {name!r}"
+        if not t:
+            raise InputError(f"empty cell while the other columns of the sum {'+'.join(names)} are filled",
+                             source=table.source, where=where)
+        number = t.replace(table.decimal, ".") if table.decimal != "." and "." not in t else t
+        if not _PLAIN_NUMBER.match(number):
+            raise InputError(f"expected a number, got {excerpt(t)}{decimal_hint(t, table.decimal)}",
+                             source=table.source, where=where)
+        total += float(number)
+    return repr(total).replace(".", table.decimal)
+
+
 def join_tables(points: Table, readings: Table, key: str) -> Table:
     """The rows of ``points`` and ``readings`` that share a value of column ``key``, side by side.
 
-    Rows without a partner are left out and named in the notes; no match at all, a repeated key or
-    a column both tables hold (other than the key) is an InputError.
+    Rows without a partner are left out and named in the notes (``readings``' own notes are not
+    carried: they name its file); no match at all, a repeated key or a column both tables hold
+    (other than the key) is an InputError.
     """
     for t in (points, readings):
         if key not in t.header:
             raise InputError(f"no key column {key!r} to join on; the columns are {', '.join(t.header)}",
-                             source=t.source, where=f"line {t.header_line}")
+                             source=t.source, where=t.header_where)
     both = [c for c in readings.header if c in points.header and c != key]
     if both:
         raise InputError(f"column {both[0]!r} is in both {points.source} and {readings.source}; map or "
-                         "ignore it in one of them", source=readings.source, where=f"line {readings.header_line}")
+                         "ignore it in one of them", source=readings.source, where=readings.header_where)
     kp, kr = points.header.index(key), readings.header.index(key)
     by_key = _keyed(readings, kr)
     seen = _keyed(points, kp)
@@ -263,7 +353,7 @@ def join_tables(points: Table, readings: Table, key: str) -> Table:
                          f"({key} {_few(lost)})")
     header = points.header + tuple(c for k, c in enumerate(readings.header) if k != kr)
     return replace(points, header=header, rows=tuple(rows)).with_notes(
-        *readings.notes, f"joined with {readings.source} on column {key!r}: {len(rows)} poses", *notes)
+        f"joined with {readings.source} on column {key!r}: {len(rows)} poses", *notes)
 
 
 def _keyed(table: Table, k: int) -> dict:
@@ -282,3 +372,144 @@ def _keyed(table: Table, k: int) -> dict:
 def _few(values, n: int = 5) -> str:
     values = list(values)
     return ", ".join(values[:n]) + (f" and {len(values) - n} more" if len(values) > n else "")
+
+
+# -- large files: the same tables read by a compiled parser, a chunk of rows at a time ---------------
+
+# rows parsed per chunk: the parser's temporaries stay a few tens of MB whatever the file's length
+CHUNK_ROWS = 250_000
+# bytes the scan reads at a time (then on to the end of that line)
+_SCAN_BYTES = 4 * 2 ** 20
+# what the compiled parser would read differently from read_table: a quote, a NUL, a comment line
+# among the rows (a blank line or a row of another width shows in the count of separators, NaN and
+# infinite text in the parsed numbers)
+_COMMENT_LINE = re.compile(rb"(^|\n)[ \t]*#")
+
+
+class Unfit(Exception):
+    """The compiled parser cannot vouch for this file as read_table would read it (quotes, comments
+    or blank lines among the rows, a row of another width, text where a number is expected...): the
+    caller reads it row by row instead, which either reads it or says exactly what is wrong."""
+
+
+@dataclass(frozen=True)
+class Scan:
+    """What one pass over a file's bytes found: its SHA-256, its data rows and their first line."""
+
+    sha256: str
+    n_rows: int
+    first_line: int
+
+
+def read_head(path, source: str, *, sep: str | None = None, decimal: str | None = None,
+              header: tuple[str, ...] | None = None) -> Table:
+    """The table of the file's comments, header and first rows (enough to detect the separator and
+    the decimal mark as :func:`read_table` does on the whole file); ``Unfit`` if it cannot be read."""
+    lines, content = [], 0
+    with open(path, "rb") as fh:
+        while content < _SAMPLE + 2:
+            line = fh.readline(2 ** 20)
+            if not line:
+                break
+            lines.append(line)
+            content += bool(line.strip()) and not line.lstrip().startswith(b"#")
+    try:
+        text = b"".join(lines).decode("utf-8-sig")
+        return read_table(text, source, sep=sep, decimal=decimal, header=header)
+    except (UnicodeDecodeError, InputError):
+        raise Unfit from None
+
+
+def scan_rows(path, head: Table) -> Scan:
+    """One pass over the file a few MB at a time: its SHA-256, and ``Unfit`` unless every data row is
+    a plain line of the header's width (``head``: :func:`read_head`'s table)."""
+    import hashlib
+
+    if head.sep == WHITESPACE:
+        raise Unfit  # a row's width is not checked by counting separators
+    digest = hashlib.sha256()
+    first = head.header_line if head.header_given else head.header_line + 1
+    sep = head.sep.encode()
+    newlines = seps = 0
+    width = len(head.header) if head.header_given else None
+    tail = b""
+    with open(path, "rb") as fh:
+        chunk = fh.read(_SCAN_BYTES) + fh.readline()
+        digest.update(chunk)
+        start = 0
+        for _ in range(first - 1):  # the comments and the header: read_head's
+            start = chunk.find(b"\n", start) + 1
+            if start == 0:
+                raise Unfit
+        if width is None:
+            header_start = chunk.rfind(b"\n", 0, start - 1) + 1
+            width = chunk.count(sep, header_start, start) + 1
+        newlines = first - 1
+        while chunk:
+            body = chunk[start:]
+            newlines += body.count(b"\n")
+            seps += body.count(sep)
+            if _unfit(body):
+                raise Unfit
+            tail = chunk
+            chunk, start = fh.read(_SCAN_BYTES), 0
+            if chunk:
+                chunk += fh.readline()
+                digest.update(chunk)
+    last = tail[tail.rfind(b"\n") + 1:]
+    if last.strip(b" \t"):
+        newlines += 1  # a last row without its line end
+    elif last:
+        raise Unfit  # spaces after the last line end
+    n_rows = newlines - (first - 1)
+    if n_rows <= 0 or width < 2 or seps != n_rows * (width - 1):
+        raise Unfit
+    return Scan(sha256=digest.hexdigest(), n_rows=n_rows, first_line=first)
+
+
+def _texts(a: np.ndarray) -> list:
+    """The stripped text of an object column (empty cells, NaN there, as "")."""
+    cells = a.tolist()
+    if all(type(c) is str and (not c or (c[0] > " " and c[-1] > " ")) for c in cells):  # nothing to strip
+        return cells
+    return [c.strip() if isinstance(c, str) else "" for c in cells]
+
+
+def _unfit(body: bytes) -> bool:
+    """Whether ``body`` (whole lines) holds what the compiled parser reads otherwise than read_table."""
+    if b'"' in body or b"\x00" in body:
+        return True
+    if b"\r" in body and body.count(b"\r") != body.count(b"\r\n"):
+        return True  # a carriage return that does not end a line
+    return b"#" in body and _COMMENT_LINE.search(body) is not None
+
+
+def read_columns(path, head: Table, scan: Scan, columns: Mapping[int, str]) -> dict:
+    """The file's columns ``{index: "number" or "text"}`` over its data rows: float arrays (NaN
+    where a cell is empty) or lists of str (stripped), parsed by pandas' compiled reader a chunk of rows at
+    a time; ``Unfit`` without pandas or where a number does not parse."""
+    try:
+        import pandas as pd
+    except ImportError:
+        raise Unfit from None
+    dtypes = {k: (np.float64 if kind == "number" else object) for k, kind in columns.items()}
+    parts: dict[int, list] = {k: [] for k in columns}
+    try:
+        reader = pd.read_csv(path, sep=r"\s+" if head.sep == WHITESPACE else head.sep, header=None,
+                             skiprows=scan.first_line - 1, usecols=sorted(columns), dtype=dtypes,
+                             decimal=head.decimal, keep_default_na=False, na_values=[""], quoting=3,
+                             skip_blank_lines=False, chunksize=CHUNK_ROWS, encoding="utf-8", engine="c",
+                             skipinitialspace=True)
+        with reader:
+            for chunk in reader:
+                for k in columns:
+                    parts[k].append(chunk[k].to_numpy())
+    except (ValueError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError):
+        raise Unfit from None
+    out = {}
+    for k, kind in columns.items():
+        a = np.concatenate(parts[k]) if parts[k] else np.empty(0)
+        if len(a) != scan.n_rows:
+            raise Unfit
+        out[k] = a if kind == "number" else _texts(a)
+    return out

@@ -6,12 +6,14 @@ The limits below are stated in docs/formats.md. Every error names the user's fil
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import json
 import os
 import re
+import secrets
 import signal
-import tempfile
+import stat
 from pathlib import Path
 
 import yaml
@@ -48,6 +50,48 @@ def read_bytes(path, *, limit: int = MAX_FILE_BYTES) -> bytes:
     if len(raw) > limit:
         raise InputError(f"the file exceeds {limit / 2 ** 20:.0f} MB", source=str(path))
     return raw
+
+
+def available_memory() -> float | None:
+    """Bytes of memory available to a new allocation (Linux ``MemAvailable``), or None where unknown."""
+    try:
+        with open("/proc/meminfo", "rb") as fh:
+            for line in fh:
+                if line.startswith(b"MemAvailable:"):
+                    return float(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+def check_rows(path, most: int, what: str = "poses", *, per_gb: int | None = None) -> None:
+    """Refuse ``path`` when it holds more than ``most`` data rows (lines that are not blank, not a
+    ``#`` comment, and not the header), counted by a scan a megabyte at a time: a file over the limit
+    is refused before it is read, without growing memory. ``per_gb``: also refuse more rows than
+    that many per GB of memory available now. An unreadable file is left to the reader.
+    """
+    memory = available_memory() if per_gb else None
+    bound = most if memory is None else min(most, int(memory / 2 ** 30 * per_gb))
+    try:
+        with open(path, "rb") as fh:
+            newlines = returns = 0
+            for chunk in iter(lambda: fh.read(2 ** 20), b""):
+                newlines += chunk.count(b"\n")
+                returns += chunk.count(b"\r")
+            if max(newlines, returns) <= bound:  # at most bound + 1 lines: a header and ``bound`` rows
+                return
+            fh.seek(0)
+            lines = sum(1 for ln in fh if ln.strip() and not ln.lstrip().startswith(b"#"))
+    except (OSError, ValueError):
+        return
+    if returns > newlines:  # lines ended by a carriage return alone: the count above saw one line
+        lines = returns + 1
+    if lines - 1 > most:
+        raise InputError(f"{lines - 1:,} rows; robocal reads up to {most:,} {what} per file (docs/formats.md)",
+                         source=str(path))
+    if lines - 1 > bound:
+        raise InputError(f"{lines - 1:,} rows; with {memory / 2 ** 30:.1f} GB of memory available robocal reads up "
+                         f"to {bound:,} {what} ({per_gb:,} per GB, docs/formats.md)", source=str(path))
 
 
 def decode(raw: bytes, source: str) -> str:
@@ -215,14 +259,48 @@ def _terminate(signum, frame):
     raise Interrupted(f"terminated by signal {signum}")
 
 
+# the temporary file of an output NAME: ``.NAME.robocal-PID-RANDOM.tmp`` beside it; the process id
+# tells a live run's temporary from the orphan of a run that was killed (SIGKILL, a power cut)
+_TEMPORARY = re.compile(r"^\..+\.robocal-(?P<pid>[1-9][0-9]{0,9})-[0-9a-f]{16}\.tmp$")
+# an output's name kept in its temporary's name: longer ones are cut, so the temporary's name fits
+_NAME_IN_TEMPORARY = 100
+_KINDS = ((stat.S_ISCHR, "a character device (a terminal, /dev/null...)"), (stat.S_ISBLK, "a block device"),
+          (stat.S_ISFIFO, "a FIFO (a named or anonymous pipe)"), (stat.S_ISSOCK, "a socket"))
+
+
+def check_replaceable(path) -> None:
+    """Refuse, naming ``path``, an output that is not a regular file, a folder aside.
+
+    A symbolic link is replaced (its target left alone) when it points to a regular file or to
+    nothing; a device, a FIFO, a socket, or a link to one of them (``/dev/stdout``,
+    ``/proc/self/fd/1``) is refused: robocal writes files, not streams (docs/formats.md).
+    """
+    p = str(path)
+    try:
+        st = os.lstat(p)
+        if stat.S_ISLNK(st.st_mode):
+            st = os.stat(p)
+    except (FileNotFoundError, NotADirectoryError):
+        return  # nothing there, or a link to nothing: written as a new file
+    except OSError as e:
+        if e.errno == errno.ELOOP:  # a link cycle: replaced like any link
+            return
+        raise InputError(f"cannot write: {e.strerror}", source=p) from None
+    if stat.S_ISDIR(st.st_mode):
+        raise InputError("is a folder; give a file name", source=p)
+    kind = next((what for test, what in _KINDS if test(st.st_mode)), None)
+    if kind is not None or not stat.S_ISREG(st.st_mode):
+        raise InputError(f"is {kind or 'not a regular file'}: robocal replaces only regular files; write to a "
+                         "file and copy it from there", source=p)
+
+
 def check_writable(paths, *, force: bool = False) -> None:
     """Before any work: each output can be written (its folder exists or can be made and is
-    writable, the path is not a folder) and, unless ``force``, does not exist yet."""
+    writable, the path is not a folder, a device or a FIFO) and, unless ``force``, does not exist yet."""
     for p in map(Path, paths):
         if "\x00" in str(p) or not str(p).strip():
             raise InputError("not a valid file name", source=excerpt(str(p)))
-        if p.is_dir():
-            raise InputError("is a folder; give a file name", source=str(p))
+        check_replaceable(p)
         if not force and (p.exists() or p.is_symlink()):
             raise InputError("exists; pass --force to overwrite", source=str(p))
         folder = p.parent
@@ -231,43 +309,102 @@ def check_writable(paths, *, force: bool = False) -> None:
         if not folder.is_dir():
             raise InputError(f"cannot write here: {folder} is a file, not a folder", source=str(p))
         try:  # a probe, not os.access: that says yes to root on a read-only disk
-            fd, probe = tempfile.mkstemp(prefix=".robocal-probe.", dir=folder)
+            fd, probe = _create(folder / ".robocal-probe")
             os.close(fd)
             os.unlink(probe)
         except OSError as e:
             raise InputError(f"cannot write in the folder {folder}: {e.strerror}", source=str(p)) from None
 
 
-def write_texts(files: dict, *, force: bool = False) -> None:
-    """Write several text files all-or-nothing: refuse if any exists (unless ``force``), write
-    each to a fresh temporary file in its own folder (created exclusively under an unpredictable
-    name, so a link planted there is never followed), and rename only once every write succeeded.
+def _create(p: Path) -> tuple[int, str]:
+    """A new empty file beside ``p`` under an unpredictable name (created exclusively, never through a
+    link), with the mode a new file gets from the umask (0666 & ~umask): (descriptor, its path)."""
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0)
+    while True:
+        tmp = p.parent / f".{p.name[:_NAME_IN_TEMPORARY]}.robocal-{os.getpid()}-{secrets.token_hex(8)}.tmp"
+        try:
+            return os.open(tmp, flags, 0o666), str(tmp)
+        except FileExistsError:  # 2**64 names: only a planted file gets here
+            continue
+
+
+def remove_orphans(folder) -> tuple[str, ...]:
+    """Remove the temporary files an earlier robocal run left in ``folder`` when it was killed (their
+    process is gone); the names removed. Links, folders and live runs' temporaries are left alone."""
+    removed = []
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return ()
+    for entry in entries:
+        m = _TEMPORARY.match(entry.name)
+        if m is None or int(m["pid"]) == os.getpid() or _alive(int(m["pid"])):
+            continue
+        try:
+            if entry.is_file(follow_symlinks=False):
+                os.unlink(entry.path)
+                removed.append(entry.path)
+        except OSError:  # gone meanwhile, or not ours to remove
+            pass
+    return tuple(removed)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's live process
+        return True
+    except (OverflowError, OSError):
+        return False
+    return True
+
+
+def write_texts(files: dict, *, force: bool = False) -> tuple[str, ...]:
+    """Write several files ({path: text, or bytes for a binary file}) all-or-nothing: refuse if any
+    exists (unless ``force``) or is not a regular file (a device, a FIFO, a link to one:
+    ``check_replaceable``), write each to a fresh temporary file in its own folder (created
+    exclusively under an unpredictable name, so a link planted there is never followed), and rename
+    only once every write succeeded.
 
     The rename is atomic per file (``os.replace``; a link at the final name is replaced, not
-    followed), so a reader never sees half a file. Temporary files are removed on every path the
-    process controls: errors, Ctrl-C and SIGTERM. Errors name the user's path.
+    followed), so a reader never sees half a file. Files get the mode the umask gives a new file
+    (0666 & ~umask). Temporary files are removed on every path the process controls: errors, Ctrl-C
+    and SIGTERM; those of an earlier run that was killed are removed from each output's folder
+    before writing. Errors name the user's path.
+
+    Returns
+    -------
+    tuple of str
+        The orphan temporary files of earlier runs that were removed.
     """
     paths = [Path(p) for p in files]
-    if not force:
-        for p in paths:
-            if p.exists() or p.is_symlink():
-                raise InputError("exists; pass force=True (--force) to overwrite", source=str(p))
+    for p in paths:
+        check_replaceable(p)
+        if not force and (p.exists() or p.is_symlink()):
+            raise InputError("exists; pass force=True (--force) to overwrite", source=str(p))
+    removed = tuple(r for folder in dict.fromkeys(p.parent for p in paths) for r in remove_orphans(folder))
     staged = []
     previous = _on_sigterm(_terminate)
     try:
         for p, text in zip(paths, files.values()):
             try:
-                fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
+                fd, tmp = _create(p)
             except OSError as e:
                 raise InputError(f"cannot write: {e.strerror}", source=str(p)) from None
             staged.append((tmp, p))
             try:
-                with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
+                binary = isinstance(text, bytes)
+                fh = os.fdopen(fd, "wb") if binary else os.fdopen(fd, "w", encoding="utf-8", newline="")
+                with fh:
                     fh.write(text)
                     fh.flush()
                     os.fsync(fh.fileno())
             except OSError as e:
                 raise InputError(f"cannot write: {e.strerror}", source=str(p)) from None
+        for _, p in staged:
+            check_replaceable(p)  # again: a node put there during the work is refused, not replaced
         for tmp, p in staged:
             try:
                 os.replace(tmp, p)
@@ -280,6 +417,7 @@ def write_texts(files: dict, *, force: bool = False) -> None:
             except FileNotFoundError:
                 pass
         _on_sigterm(previous)
+    return removed
 
 
 def _on_sigterm(handler):

@@ -113,7 +113,7 @@ def run(args) -> int:
     from .._calibration import calibrate, compare
     from .._files.model import calibration_record, model_to_yaml
     from .._measurements import Noise
-    from .._files.result import result_to_json
+    from .._files.result import result_files, sidecar_path
     from .._presentation.text import calibration_summary, comparison_summary
 
     if args.contacts:
@@ -134,7 +134,8 @@ def run(args) -> int:
     names = names + ["result.json"] if args.compare else ["result.json"]
     report = common.report_module() if args.report else None
     common.refuse_existing([out / "calibrated.yaml"] + [out / n for n in names]
-                           + ([out / "report.html"] if report else []), args.force)
+                           + [sidecar_path(out / n) for n in names] + ([out / "report.html"] if report else []),
+                           args.force)
     model, data, validation = _inputs(args)
     logging.getLogger("robocal").info("read %s: %d poses to fit, %d held out", args.csv, data.n_poses,
                                       0 if validation is None else validation.n_poses)
@@ -160,7 +161,7 @@ def run(args) -> int:
         raise DegenerateDataError(f"{args.csv}: {e}") from None
     for r in results:
         common.require_finite("the calibration", _headline(r))
-    files = {out / n: result_to_json(r) for n, r in zip(names, results)}
+    files = {p: f for n, r in zip(names, results) for p, f in result_files(r, out / n).items()}
     failed = best.verdict == "fail"
     if not failed or args.write_failed:
         files[out / "calibrated.yaml"] = model_to_yaml(best.calibrated_model, units=args.out_units,

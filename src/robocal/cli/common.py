@@ -185,7 +185,7 @@ def column_pairs(text: str) -> dict[str, str]:
     out = {}
     for item in (t.strip() for t in text.split(",")):
         file_column, eq, name = (s.strip() for s in item.partition("="))
-        if not eq or not file_column or not name:
+        if not eq or not name:  # an empty FILE_COLUMN is a header cell without a name (a pandas index)
             raise argparse.ArgumentTypeError(f"expected FILE_COLUMN=ROBOCAL_COLUMN[,...], got {excerpt(item)}")
         out[file_column] = name
     return out
@@ -208,7 +208,10 @@ def csv_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--orientation", type=orientation,
                    help="convention of 6D pose columns: quat_xyzw, quat_wxyz, rpy, euler:ZYX (scipy sequences)")
     g.add_argument("--map", type=column_pairs, action="append", default=[], metavar="FILE=NAME,...",
-                   help="rename the file's columns to robocal's, e.g. 'X=tool_x_mm,Y=tool_y_mm,Z=tool_z_mm'")
+                   help="rename the file's columns to robocal's, e.g. 'X=tool_x_mm,Y=tool_y_mm,Z=tool_z_mm'; "
+                        "'=pose' names a header cell without a name; 'x_t+x_dif=tool_x_mm' adds two columns")
+    g.add_argument("--header", type=names, metavar="NAME,...",
+                   help="the column names of a file without a header line (its first line is data)")
     g.add_argument("--ignore", type=names, action="append", default=[], metavar="COLUMN,...",
                    help="columns of the file to ignore")
     g.add_argument("--unknown", choices=("refuse", "ignore"),
@@ -270,9 +273,9 @@ def read_data(args, model, path, *, targets: bool = False):
     columns = {k: v for m in args.map for k, v in m.items()}
     columns.update({c: None for group in args.ignore for c in group})
     return read_measurements(path, model, units=args.units, sep=args.sep, decimal=args.decimal,
-                             orientation=args.orientation, columns=columns or None, targets=targets, unknown=args.unknown,
-                             profile=args.profile, joints=args.joints,
-                             key=args.key)
+                             orientation=args.orientation, columns=columns or None, targets=targets,
+                             unknown=args.unknown,
+                             profile=args.profile, joints=args.joints, key=args.key, header=args.header)
 
 
 # -- outputs ----------------------------------------------------------------------------------------

@@ -1,0 +1,197 @@
+"""Large measurement files are read by a compiled parser a chunk at a time; every file must read to
+the same Measurements, bit for bit, as row by row, and every fault must still be named by file,
+line and column (the row reader takes over wherever the compiled one cannot vouch for a file)."""
+
+import numpy as np
+import pytest
+from fuzz_cases import MEASUREMENTS, MODEL
+from robots import arm6r
+
+import robocal as rc
+import robocal._files.measurements as reader
+import robocal._files.table as table
+
+pandas = pytest.importorskip("pandas")
+
+
+@pytest.fixture(autouse=True)
+def every_file_compiled(monkeypatch):
+    """The compiled parser on these small files too (by default it starts at a few MB)."""
+    monkeypatch.setattr(reader, "FAST_BYTES", 0)
+
+
+@pytest.fixture
+def model(tmp_path):
+    (tmp_path / "model.yaml").write_text(MODEL)
+    return rc.read_model(tmp_path / "model.yaml")
+
+
+def both(path, model, monkeypatch, **kw):
+    """(compiled, row by row) readings of ``path``; the compiled parser must have read it."""
+    taken = []
+    real = reader._read_fast
+
+    def spy(*a, **k):
+        out = real(*a, **k)
+        taken.append(out is not None)
+        return out
+
+    monkeypatch.setattr(reader, "_read_fast", spy)
+    fast = rc.read_measurements(path, model, **kw)
+    assert taken == [True], "the compiled parser did not read this file"
+    monkeypatch.setattr(reader, "_read_fast", lambda *a, **k: None)
+    slow = rc.read_measurements(path, model, **kw)
+    monkeypatch.setattr(reader, "_read_fast", real)
+    return fast, slow
+
+
+def identical(a, b):
+    for name in ("q", "positions", "mask", "rotations", "rot_mask", "sigma", "sigma_rot", "payload_mass"):
+        x, y = getattr(a, name), getattr(b, name)
+        assert (x is None) == (y is None), name
+        if x is not None:
+            assert x.dtype == y.dtype and x.shape == y.shape and np.array_equal(x, y, equal_nan=True), name
+    assert a.labels == b.labels and a.sha256 == b.sha256 and a.source == b.source
+    assert a.marker_names == b.marker_names and a.joint_names == b.joint_names
+    assert a.extra.keys() == b.extra.keys()
+    for k in a.extra:
+        if isinstance(a.extra[k], np.ndarray):
+            assert np.array_equal(a.extra[k], b.extra[k]) and a.extra[k].dtype.kind == b.extra[k].dtype.kind, k
+        else:
+            assert a.extra[k] == b.extra[k], k
+
+
+def test_the_example_reads_the_same(tmp_path, model, monkeypatch):
+    (tmp_path / "d.csv").write_text(MEASUREMENTS)
+    identical(*both(tmp_path / "d.csv", model, monkeypatch))
+
+
+@pytest.mark.parametrize("units, orientation", [("mm-deg", "quat_xyzw"), ("m-rad", "rpy"), ("mm-deg", "euler:ZYX")])
+def test_6d_poses_with_sigmas_masks_payload_series_and_approach(tmp_path, monkeypatch, units, orientation):
+    robot = arm6r(markers=(("a", (0.05, 0.02, 0.12)), ("b", (0.0, 0.1, 0.05))))
+    _, data = rc.simulate(robot, 200, seed=5, orientation=True, noise_rot=1e-4)
+    n = data.n_poses
+    rng = np.random.default_rng(6)
+    mask = data.mask.copy()
+    mask[rng.random(mask.shape) < 0.2] = False
+    extra = {"validation": rng.random(n) < 0.3, "series": np.array([f"s{i % 4}" for i in range(n)]),
+             "approach": np.where(rng.random((n, robot.n_joints)) < 0.5, -1.0, 1.0)}
+    data = data.__class__(q=data.q, positions=data.positions, marker_names=data.marker_names,
+                          joint_names=data.joint_names, mask=mask, rotations=data.rotations, rot_mask=mask,
+                          sigma=np.full(mask.shape, 2e-5), sigma_rot=np.full(mask.shape, 1e-4),
+                          payload_mass=rng.uniform(0, 5, n), labels=tuple(f"P{i}" for i in range(n)), extra=extra)
+    rc.write_measurements(data, tmp_path / "d.csv", model=robot, units=units, orientation=orientation)
+    fast, slow = both(tmp_path / "d.csv", robot, monkeypatch)
+    identical(fast, slow)
+    assert fast.mask.sum() == mask.sum() and list(fast.extra["series"]) == list(extra["series"])
+
+
+def test_decimal_commas_semicolons_maps_profiles_and_a_header_given(tmp_path, model, monkeypatch):
+    lines = MEASUREMENTS.splitlines()
+    header, rows = lines[0].split(","), [ln.split(",") for ln in lines[1:]]
+    rows[3][7:10] = ["", "", ""]                        # a marker not seen
+    renamed = ["Index" if c == "pose" else "X" if c == "tool_x_mm" else c for c in header] + ["Temp"]
+    text = "# units: length=mm angle=deg\n" + ";".join(renamed) + "\n" + "".join(
+        ";".join(c.replace(".", ",") for c in r) + ";21,5\n" for r in rows)
+    (tmp_path / "d.csv").write_text(text)
+    (tmp_path / "p.yaml").write_text("robocal_profile: 1\ncolumns: {Index: pose, X: tool_x_mm}\nignore: [Temp]\n")
+    fast, slow = both(tmp_path / "d.csv", model, monkeypatch, profile=tmp_path / "p.yaml")
+    identical(fast, slow)
+    assert any("decimal mark ','" in n for n in fast.extra["notes"])
+    assert not fast.mask[3].any() and fast.labels[0] == "P01"
+    (tmp_path / "h.csv").write_text("".join(",".join(r) + "\n" for r in rows))
+    identical(*both(tmp_path / "h.csv", model, monkeypatch, header=header))
+
+
+@pytest.mark.parametrize("edit, words", [
+    (lambda r: r[5].__setitem__(2, "12x"), ["line 7", "'j2_mm'", "expected a number"]),
+    (lambda r: r[5].__setitem__(2, ""), ["line 7", "'j2_mm'", "empty cell"]),
+    (lambda r: r[8].__setitem__(8, ""), ["line 10", "tool_y_mm", "empty cell"]),
+    (lambda r: r[2].__setitem__(1, "nan"), ["line 4", "'j1_deg'", "not a measurement"]),
+    (lambda r: r[2].__setitem__(1, "1e13"), ["line 4", "'j1_deg'", "too large"]),
+    (lambda r: r[9].append("7"), ["line 11", "cells where the header has"]),
+    (lambda r: r[9].pop(), ["line 11", "cells where the header has"]),
+    (lambda r: r[4].__setitem__(-1, "test"), ["line 6", "set must be fit or validation"]),
+    (lambda r: r.insert(6, ["# a comment", ""]), None),
+], ids=["text", "empty-joint", "partial-marker", "nan", "huge", "long-row", "short-row", "set", "comment"])
+def test_faults_are_named_as_before(tmp_path, model, edit, words):
+    lines = MEASUREMENTS.splitlines()
+    rows = [ln.split(",") for ln in lines[1:]]
+    edit(rows)
+    (tmp_path / "d.csv").write_text(lines[0] + "\n" + "".join(",".join(c for c in r if c or len(r) > 2) + "\n"
+                                                              for r in rows))
+    if words is None:
+        assert rc.read_measurements(tmp_path / "d.csv", model).n_poses == len(lines) - 1
+        return
+    with pytest.raises(rc.InputError) as e:
+        rc.read_measurements(tmp_path / "d.csv", model)
+    for w in words:
+        assert w in str(e.value), (w, str(e.value))
+
+
+def test_chunks_join_up(tmp_path, model, monkeypatch):
+    lines = MEASUREMENTS.splitlines()
+    body = lines[1:] * 40
+    (tmp_path / "d.csv").write_text(lines[0] + "\n" + "\n".join(f"Q{i}" + b[b.index(","):] for i, b in
+                                                                enumerate(body)))  # no line end at the end
+    monkeypatch.setattr(table, "CHUNK_ROWS", 7)
+    monkeypatch.setattr(table, "_SCAN_BYTES", 100)
+    fast, slow = both(tmp_path / "d.csv", model, monkeypatch)
+    identical(fast, slow)
+    assert fast.n_poses == len(body) and fast.labels[-1] == f"Q{len(body) - 1}"
+
+
+@pytest.mark.parametrize("change", ["crlf", "blank-line", "quoted-label", "comment-line", "trailing-separator",
+                                    "bom", "spaces"])
+def test_files_the_compiled_parser_leaves_to_the_row_reader_read_the_same(tmp_path, model, monkeypatch, change):
+    lines = MEASUREMENTS.splitlines()
+    if change == "crlf":
+        text = "\r\n".join(lines) + "\r\n"
+    elif change == "blank-line":
+        text = "\n".join(lines[:5] + [""] + lines[5:]) + "\n"
+    elif change == "quoted-label":
+        text = "\n".join(lines[:3] + ['"P,3"' + lines[3][3:]] + lines[4:]) + "\n"
+    elif change == "comment-line":
+        text = "\n".join(lines[:3] + ["  # a note"] + lines[3:]) + "\n"
+    elif change == "trailing-separator":
+        text = "\n".join(ln + "," for ln in lines) + "\n"
+    elif change == "bom":
+        text = "\ufeff" + "\n".join(lines) + "\n"
+    else:
+        text = "\n".join(", ".join(ln.split(",")) for ln in lines) + "\n"
+    (tmp_path / "d.csv").write_text(text, newline="")
+    fast = rc.read_measurements(tmp_path / "d.csv", model)
+    monkeypatch.setattr(reader, "_read_fast", lambda *a, **k: None)
+    identical(fast, rc.read_measurements(tmp_path / "d.csv", model))
+
+
+def test_spaces_around_labels_and_text(tmp_path, model, monkeypatch):
+    lines = MEASUREMENTS.splitlines()
+    text = lines[0] + "\n" + "\n".join(" " + ln.replace(",fit", ", fit ") for ln in lines[1:]) + "\n"
+    (tmp_path / "d.csv").write_text(text)
+    fast, slow = both(tmp_path / "d.csv", model, monkeypatch)
+    identical(fast, slow)
+    assert fast.labels[0] == "P01"
+
+
+def test_sums_of_columns_read_the_same(tmp_path, model, monkeypatch):
+    lines = MEASUREMENTS.splitlines()
+    header, rows = lines[0].split(","), [ln.split(",") for ln in lines[1:]]
+    k = [header.index(f"tool_{a}_mm") for a in "xyz"]
+    rng = np.random.default_rng(8)
+    out = []
+    for i, r in enumerate(rows):
+        d = rng.normal(0, 2, 3).round(6)
+        target = [repr(float(float(r[j]) - v)) for j, v in zip(k, d)]
+        cells = target + [repr(float(v)) for v in d] if i != 4 else [""] * 6  # row 4: the marker not seen
+        out.append(r[:k[0]] + cells + r[k[2] + 1:])
+    head = header[:k[0]] + ["x_t", "y_t", "z_t", "x_dif", "y_dif", "z_dif"] + header[k[2] + 1:]
+    (tmp_path / "d.csv").write_text(",".join(head) + "\n" + "".join(",".join(r) + "\n" for r in out))
+    sums = {f"{a}_t+{a}_dif": f"tool_{a}_mm" for a in "xyz"}
+    fast, slow = both(tmp_path / "d.csv", model, monkeypatch, columns=sums)
+    identical(fast, slow)
+    assert not fast.mask[4].any() and fast.mask[5].all()
+    out[6][k[0] + 3] = ""  # one part of a sum empty: the row reader names it
+    (tmp_path / "d.csv").write_text(",".join(head) + "\n" + "".join(",".join(r) + "\n" for r in out))
+    with pytest.raises(rc.InputError, match="line 8, column 'x_dif'"):
+        rc.read_measurements(tmp_path / "d.csv", model, columns=sums)
