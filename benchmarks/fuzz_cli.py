@@ -1,14 +1,17 @@
 """Run many malformed inputs through every command and count how each run ended.
 
-    python benchmarks/fuzz_cli.py --cases 10000 [--seed 0] [--jobs 2] [--show 3] [--keep DIR]
+    python benchmarks/fuzz_cli.py --cases 20000 [--seed 0] [--jobs 2] [--show 3] [--keep DIR] [--commands a,b]
 
-Cases come from the hypothesis strategies in tests/fuzz_cases.py (model files, measurement and
-repeatability CSVs, URDFs, result files, command lines). Each runs ``robocal.cli.main(argv)`` in a
+Cases come from the hypothesis strategies in tests/fuzz_cases.py, one per command of its COMMANDS
+table (model files, measurement, repeatability, target and contact CSVs, profiles, limit files, DH
+tables, URDFs, result files, command lines). Each runs ``robocal.cli.main(argv)`` in a
 forked child, in a folder of its own, under a limit of 20 s of CPU time (wall-clock time on a
 shared machine is not the program's; a 120 s wall-clock backstop too) and 1 GB of memory (on top
-of the address space the parent already holds). Outcomes: clean error, ok result, traceback,
-hang, over-memory, non-finite output, multi-line error. A few examples of each bad outcome are
-printed with the command line and the last lines of stderr.
+of the address space the parent already holds). Outcomes (fuzz_cases.OUTCOMES): clean error,
+ok result, traceback, hang, over-memory, non-finite output, unreadable output (an output robocal's
+own reader refuses), wrong output (an output that does not reproduce its source: an export's
+forward kinematics, planned poses or 'ok' commands beyond the joint limits), multi-line error. A
+few examples of each bad outcome are printed with the command line and the last lines of stderr.
 """
 
 from __future__ import annotations
@@ -136,7 +139,7 @@ class Runner:
                 outcome = "over-memory"
             else:
                 before = set(files) | {"stdout.txt", "stderr.txt"}
-                outcome = fuzz_cases.judge(os.WEXITSTATUS(status), err, folder, before)
+                outcome = fuzz_cases.judge(os.WEXITSTATUS(status), err, folder, before, argv)
         self.counts[outcome] += 1
         if outcome not in ("clean error", "ok result") and len(self.examples[outcome]) < self.show:
             self.examples[outcome].append((argv, {k: v[:300] for k, v in files.items()}, err[-1500:]))
@@ -167,6 +170,8 @@ def main_fuzz(argv=None) -> int:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--jobs", type=int, default=2, help="cases run at once")
     p.add_argument("--show", type=int, default=3, help="examples printed per bad outcome")
+    p.add_argument("--commands", help="only these commands of tests/fuzz_cases.py's COMMANDS (comma-separated; "
+                                      "default every one)")
     p.add_argument("--keep", type=Path, help="copy the folder of every bad case here (argv.txt holds its command)")
     args = p.parse_args(argv)
     import random
@@ -178,7 +183,7 @@ def main_fuzz(argv=None) -> int:
 
     @settings(max_examples=args.cases, database=None, deadline=None, phases=[Phase.generate],
               suppress_health_check=list(HealthCheck))
-    @given(fuzz_cases.case(result_text))
+    @given(fuzz_cases.case(result_text, args.commands.split(",") if args.commands else None))
     def each(c):
         runner.run(*c)
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import math
 import re
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 from hypothesis import strategies as st
@@ -270,6 +271,174 @@ def options(draw, table: dict) -> list[str]:
     return argv
 
 
+ARM7 = Path(__file__).resolve().parents[1] / "examples" / "arm7"
+ARM7_MODEL = (ARM7 / "model.yaml").read_text()
+TRUE_MODEL = (EXAMPLE / "true_model.yaml").read_text()
+TARGETS = (EXAMPLE / "targets.csv").read_text()
+DH_TABLE = (Path(__file__).resolve().parents[1] / "examples" / "dh" / "ur5-dh.csv").read_text()
+
+
+def _sockets() -> str:
+    """The arm7 socket file cut to 8 seatings per socket on three placements."""
+    lines = (ARM7 / "sockets.csv").read_text().splitlines()
+    head = [ln for ln in lines if ln.startswith("#") or ln.startswith("placement")]
+    rows = [ln for ln in lines[len(head):] if ln.split(",")[0] in ("P1", "P2", "P3")]
+    keep = [r for k, r in enumerate(rows) if k % 20 < 8]
+    return "\n".join(head + keep) + "\n"
+
+
+SOCKETS = _sockets()
+PROFILE = """robocal_profile: 1
+name: tracker export
+sep: ","
+decimal: "."
+units: mm-deg
+key: pose
+columns:
+  pose: pose
+ignore: []
+unknown: refuse
+"""
+LIMIT_FILE = '{"schema": "robocal.limit/1", "unit": "m", "limit": 0.0005, "repeatability": 0.0002}\n'
+
+
+def long_dh(n: int) -> str:
+    """A classic DH table of ``n`` revolute joints (a chain far longer than any robot)."""
+    rows = [f"j{i},revolute,0,{100 + i % 7},{50 * (i % 3)},{90 * (i % 2)},-180,180,,,,,," for i in range(n)]
+    head, *_ = DH_TABLE.splitlines()[2:3]
+    return head + "\n" + "\n".join(rows) + "\ntool,marker,,,,,,,0,0,100,0,0,0\n"
+
+
+@st.composite
+def dh_file(draw) -> bytes:
+    kind = draw(st.sampled_from(("mutated",) * 6 + ("long", "quote", "nul", "huge", "empty", "binary", "mdh")))
+    if kind == "mutated":
+        return draw(mutated_text(DH_TABLE))
+    if kind == "long":
+        return long_dh(draw(st.sampled_from((20, 200, 2000, 100_000)))).encode()
+    if kind == "quote":
+        return (DH_TABLE + '"unclosed,1,2\n' + "x" * draw(st.sampled_from((10, 200_000))) + "\n").encode()
+    if kind == "nul":
+        return DH_TABLE.replace(",", ",\x00", 1).encode()
+    if kind == "huge":
+        return DH_TABLE.replace("-425", draw(st.sampled_from(("1e300", "1e12", "-1e11", "1" * 400, "nan", "inf")))
+                                ).encode()
+    if kind == "empty":
+        return draw(st.sampled_from((b"", b"\n", DH_TABLE.splitlines()[2].encode() + b"\n", b"frame,r\n")))
+    if kind == "binary":
+        return draw(st.binary(min_size=1, max_size=200))
+    return draw(mutated_text(MDH_TABLE))
+
+
+MDH_TABLE = """frame,parent,joint,reading,beta_deg,alpha_deg,d_mm,theta_deg,r_mm,lower_deg,upper_deg,x_mm,y_mm,z_mm,\
+roll_deg,pitch_deg,yaw_deg
+base,world,base,,,,,,,,,0.0,0.0,0.0,0.0,0.0,0.0
+j1,base,revolute,j1,0.0,0.0,0.0,0.0,340.0,-170.0,170.0,,,,,,
+j2,j1,revolute,j2,0.0,-90.0,0.0,0.0,0.0,-120.0,120.0,,,,,,
+j3,j2,revolute,j3,0.0,90.0,0.0,0.0,400.0,-170.0,170.0,,,,,,
+ball,j3,marker,,,,,,,,,30.0,20.0,100.0,0.0,0.0,0.0
+"""
+
+
+@st.composite
+def contacts_file(draw) -> bytes:
+    kind = draw(st.sampled_from(("mutated",) * 6 + ("distances", "rows", "groups", "quote", "nul", "empty", "binary",
+                                                     "sigma")))
+    if kind == "mutated":
+        return draw(mutated_text(SOCKETS))
+    lines = SOCKETS.splitlines()
+    head = [ln for ln in lines if ln.startswith("#") or ln.startswith("placement")]
+    rows = lines[len(head):]
+    if kind == "distances":
+        n = draw(st.sampled_from((50, 5000, 100_000)))
+        extra = [f"# distance: A B {200 + k * 1e-6:.6f} sigma=0.002" for k in range(n)]
+        return "\n".join(head[:2] + extra + head[2:] + rows).encode() + b"\n"
+    if kind == "rows":
+        n = draw(st.sampled_from((2000, 300_000)))
+        return "\n".join(head + (rows * (n // len(rows) + 1))[:n]).encode() + b"\n"
+    if kind == "groups":
+        n = draw(st.sampled_from((100, 5000, 50_000)))
+        many = [f"Q{k // 3},{'ABC'[k % 3]}{k},socket,ball," + ",".join(r.split(",")[4:]) for k, r in
+                enumerate((rows * (n // len(rows) + 1))[:n])]
+        return "\n".join(head + many).encode() + b"\n"
+    if kind == "quote":
+        return (SOCKETS + '"P9,A,socket\n' + "x" * 200_000 + "\n").encode()
+    if kind == "nul":
+        return SOCKETS.replace(",socket", ",\x00socket", 1).encode()
+    if kind == "empty":
+        return draw(st.sampled_from((b"", b"\n", "\n".join(head).encode() + b"\n", b"# robocal contacts\n")))
+    if kind == "binary":
+        return draw(st.binary(min_size=1, max_size=200))
+    value = draw(st.sampled_from(("0", "1e-300", "1e300", "-1", "nan", "")))
+    return "\n".join(head + [r.rsplit(",", 1)[0] + "," + value for r in rows]).encode() + b"\n"
+
+
+@st.composite
+def profile_file(draw) -> bytes:
+    kind = draw(st.sampled_from(("mutated",) * 5 + ("tag", "bomb", "deep", "empty", "binary", "columns")))
+    if kind == "mutated":
+        return draw(mutated_text(PROFILE))
+    if kind == "tag":
+        return PROFILE.replace("name: tracker export", "name: " + draw(st.sampled_from(
+            ("!!float abc", "!!int x", "!!binary x", "!!python/object:os.system x", "!!timestamp q", "!!set {a}",
+             "!!omap [a]", "!!str")))).encode()
+    if kind == "bomb":
+        return (PROFILE + alias_bomb(draw(st.integers(3, 10)), "zz")).encode()
+    if kind == "deep":
+        return PROFILE.replace("ignore: []", "ignore: " + deep(draw(st.sampled_from((50, 20_000))), "flow")).encode()
+    if kind == "empty":
+        return draw(st.sampled_from((b"", b"robocal_profile: 1\n", b"[]", b"null")))
+    if kind == "binary":
+        return draw(st.binary(min_size=1, max_size=200))
+    n = draw(st.sampled_from((100, 100_000)))
+    return (PROFILE + "".join(f"  c{k}: tool_x\n" for k in range(n))).encode()
+
+
+@st.composite
+def limit_file(draw) -> bytes:
+    kind = draw(st.sampled_from(("value", "value", "mutated", "schema", "deep", "empty", "binary")))
+    if kind == "value":
+        v = draw(st.sampled_from(("0", "-1", "1e-300", "1e308", "1e400", "NaN", "null", '"x"', "true", "[]",
+                                  "1" * 5000, "2", "1e-12", "0.0005")))
+        return LIMIT_FILE.replace("0.0005", v).encode()
+    if kind == "mutated":
+        return draw(mutated_text(LIMIT_FILE))
+    if kind == "schema":
+        return LIMIT_FILE.replace("robocal.limit/1", draw(st.sampled_from(("robocal.result/1", "", "x")))).encode()
+    if kind == "deep":
+        return deep(draw(st.sampled_from((100, 200_000))), "json").encode()
+    if kind == "empty":
+        return draw(st.sampled_from((b"", b"{}", b"[]", b"null")))
+    return draw(st.binary(min_size=1, max_size=200))
+
+
+@st.composite
+def yaml_tag_model(draw, base: str = MODEL) -> bytes:
+    """A model with a YAML tag where a number is expected."""
+    tag = draw(st.sampled_from(("!!float abc", "!!float 1e400", "!!int x", "!!int 1e3", "!!float", "!!bool x",
+                                "!!null x", "!!float .nan", "!!binary x", "!!timestamp x")))
+    return base.replace("r: 600", f"r: {tag}", 1).encode()
+
+
+@st.composite
+def limits_model(draw, base: str = MODEL) -> bytes:
+    """A model with huge, tiny or inverted joint limits."""
+    lo, hi = draw(st.sampled_from((("-1e11", "1e11"), ("-1e300", "1e300"), ("0", "0"), ("-1e-300", "1e-300"),
+                                   ("1e11", "1e11"), ("-99999999999", "99999999999"), ("5", "5.000000000001"))))
+    return re.sub(r"limits: \[[^\]]*\]", f"limits: [{lo}, {hi}]", base, count=draw(st.integers(1, 6))).encode()
+
+
+def _model(draw, base: str = MODEL) -> bytes:
+    kind = draw(st.integers(0, 8))
+    if kind < 5:
+        return base.encode()
+    if kind == 5:
+        return draw(yaml_tag_model(base))
+    if kind == 6:
+        return draw(limits_model(base))
+    return draw(mutated_text(base)) if base is not MODEL else draw(model_file())
+
+
 CALIBRATE = {"--parameters": "geometric", "--known": "base", "--tol": "1e-6", "--loss": "soft_l1",
              "--limit-mm": "0.5", "--holdout": "0.2", "--seed": "1", "--noise-mm": "0.02", "--noise-deg": "0.01",
              "--out-units": "m-rad", "--units": "mm-deg", "--sep": ",", "--decimal": ".", "--orientation": "quat_xyzw",
@@ -282,50 +451,181 @@ IDENTIFIABILITY = {"--parameters": "geometric,compliance", "--known": "base", "-
                    "--seed": "2"}
 LIMIT = {"--seed": "1", "--markers": "all", "--chunk-size": "100", "--csv-units": "mm"}
 IMPORT_URDF = {"--base-link": "l0", "--tip-link": "l3", "--marker-mm": "tool,0,0,10", "--units": "m-rad"}
+PLAN = {"--criterion": "D", "--parameters": "geometric", "--known": "base", "--tol": "1e-6", "--instrument": "cmm",
+        "--noise-mm": "0.02", "--seed": "4", "--out-units": "m-rad"}
+PLAN_SOCKETS = {"--joint-noise-deg": "0.001", "--length-std-mm": "1", "--angle-std-deg": "0.1", "--seed": "2"}
+COMPENSATE = {"--marker": "tool", "--position-only": None, "--tol-mm": "0.001", "--tol-deg": "0.0001",
+              "--out-units": "m-rad", "--units": "mm-deg"}
+CONTACTS = {"--parameters": "geometric", "--known": "base", "--tol": "1e-6", "--loss": "soft_l1",
+            "--holdout-placement": "P3", "--write-failed": None, "--instrument": "cmm", "--noise-mm": "0.02",
+            "--on-outliers": "flag", "--out-units": "m-rad"}
+BIG_COUNTS = ("1000", "100000", "99999999999", "1000000")
+
+
+# -- one strategy per command: a command or reader added later joins here and in COMMANDS ---------
+
+@st.composite
+def calibrate_case(draw, result_text=None):
+    files = {"model.yaml": _model(draw)}
+    good_model = files["model.yaml"] == MODEL.encode()
+    files["data.csv"] = draw(csv_file()) if good_model or draw(st.booleans()) else MEASUREMENTS.encode()
+    argv = ["calibrate", "model.yaml", "data.csv", "--out", draw(st.sampled_from(("out", "out", "model.yaml")))]
+    argv += draw(options(CALIBRATE))
+    reader = draw(st.integers(0, 5))
+    if reader == 0:   # an instrument profile
+        files["profile.yaml"] = draw(profile_file())
+        argv += ["--profile", "profile.yaml"]
+    elif reader == 1:  # a limit file given as --limit-mm
+        files["limit.json"] = draw(limit_file())
+        argv += ["--limit-mm", "limit.json"]
+    return files, argv
 
 
 @st.composite
-def case(draw, result_text: str | None = None):
-    """(files, argv) of one run of one command."""
-    command = draw(st.sampled_from(("calibrate", "calibrate", "simulate", "identifiability", "limit", "import-urdf",
-                                    "report" if result_text else "calibrate")))
-    good_model = draw(st.integers(0, 2)) > 0
-    model = MODEL.encode() if good_model else draw(model_file())
-    files = {"model.yaml": model}
-    if command == "calibrate":
-        files["data.csv"] = draw(csv_file()) if good_model or draw(st.booleans()) else MEASUREMENTS.encode()
-        argv = ["calibrate", "model.yaml", "data.csv", "--out", draw(st.sampled_from(("out", "out", "model.yaml")))]
-        argv += draw(options(CALIBRATE))
-    elif command == "simulate":
-        argv = ["simulate", "model.yaml", "--out", "sim.csv", "--poses", _value(draw, "20")] + draw(options(SIMULATE))
-    elif command == "identifiability":
-        argv = ["identifiability", "model.yaml"] + draw(options(IDENTIFIABILITY))
-        if draw(st.booleans()):
-            files["data.csv"] = draw(csv_file())
-            argv.insert(2, "data.csv")
-    elif command == "limit":
-        files["rep.csv"] = draw(csv_file(REPEATABILITY)) if good_model else REPEATABILITY.encode()
-        source = ["--repeatability-csv", "rep.csv"] if draw(st.booleans()) else \
-            ["--repeatability-mm", _value(draw, "0.05")]
-        argv = ["limit", "model.yaml", *source, "--encoder-resolution",
-                _value(draw, "0.01deg,0.01mm,0.01mm,0.01deg,0.01deg,0.01deg"),
-                "--length-quantum-mm", _value(draw, "0.01"), "--angle-quantum-deg", _value(draw, "0.001"),
-                "--samples", _value(draw, "200"), "--out", "limit.json"] + draw(options(LIMIT))
-    elif command == "import-urdf":
-        del files["model.yaml"]
-        files["robot.urdf"] = draw(urdf_file())
-        argv = ["import-urdf", "robot.urdf", "--out", "imported.yaml"] + draw(options(IMPORT_URDF))
-    else:
-        del files["model.yaml"]
-        files["result.json"] = draw(result_file(result_text))
-        argv = ["report", "result.json", "--out", "report.html"]
+def simulate_case(draw, result_text=None):
+    files = {"model.yaml": _model(draw)}
+    argv = ["simulate", "model.yaml", "--out", "sim.csv", "--poses", _value(draw, "20")]
+    return files, argv + draw(options(SIMULATE))
+
+
+@st.composite
+def identifiability_case(draw, result_text=None):
+    files = {"model.yaml": _model(draw)}
+    argv = ["identifiability", "model.yaml"] + draw(options(IDENTIFIABILITY))
+    if draw(st.booleans()):
+        files["data.csv"] = draw(csv_file())
+        argv.insert(2, "data.csv")
     return files, argv
+
+
+@st.composite
+def limit_case(draw, result_text=None):
+    files = {"model.yaml": _model(draw)}
+    good_model = files["model.yaml"] == MODEL.encode()
+    files["rep.csv"] = draw(csv_file(REPEATABILITY)) if good_model else REPEATABILITY.encode()
+    source = ["--repeatability-csv", "rep.csv"] if draw(st.booleans()) else \
+        ["--repeatability-mm", _value(draw, "0.05")]
+    argv = ["limit", "model.yaml", *source, "--encoder-resolution",
+            _value(draw, "0.01deg,0.01mm,0.01mm,0.01deg,0.01deg,0.01deg"),
+            "--length-quantum-mm", _value(draw, "0.01"), "--angle-quantum-deg", _value(draw, "0.001"),
+            "--samples", _value(draw, "200"), "--out", "limit.json"] + draw(options(LIMIT))
+    return files, argv
+
+
+@st.composite
+def import_urdf_case(draw, result_text=None):
+    urdf = _urdf(draw(st.sampled_from((50, 500, 5000)))).encode() if draw(st.integers(0, 15)) == 0 \
+        else draw(urdf_file())
+    return {"robot.urdf": urdf}, ["import-urdf", "robot.urdf", "--out", "imported.yaml"] + draw(options(IMPORT_URDF))
+
+
+@st.composite
+def report_case(draw, result_text=None):
+    return {"result.json": draw(result_file(result_text))}, ["report", "result.json", "--out", "report.html"]
+
+
+@st.composite
+def plan_case(draw, result_text=None):
+    files = {"model.yaml": _model(draw)}
+    big = draw(st.integers(0, 9)) == 0
+    n = draw(st.sampled_from(BIG_COUNTS)) if big else _value(draw, draw(st.sampled_from(("6", "12", "20"))))
+    argv = ["plan", "model.yaml", "--poses", n, "--out", "poses.csv"]
+    if draw(st.booleans()):
+        files["cand.csv"] = draw(csv_file()) if draw(st.booleans()) else MEASUREMENTS.encode()
+        argv += ["--candidates", "cand.csv"]
+    else:
+        argv += ["--n-candidates", draw(st.sampled_from(BIG_COUNTS)) if draw(st.integers(0, 9)) == 0
+                 else _value(draw, draw(st.sampled_from(("100", "300"))))]
+    return files, argv + draw(options(PLAN))
+
+
+@st.composite
+def plan_sockets_case(draw, result_text=None):
+    files = {"model.yaml": _model(draw, ARM7_MODEL)}
+    big = draw(st.integers(0, 9)) == 0
+
+    def counts(good):
+        if big and draw(st.booleans()):
+            return draw(st.sampled_from(("1000", "1,1000", "1000,999,998", ",".join(map(str, range(1, 200))))))
+        return _value(draw, good)
+    argv = ["plan-sockets", "model.yaml", "--placements", counts("3"), "--poses-per-socket", counts("8")]
+    if draw(st.booleans()):
+        argv += ["--out", "sockets.csv"]
+    return files, argv + draw(options(PLAN_SOCKETS))
+
+
+@st.composite
+def import_dh_case(draw, result_text=None):
+    argv = ["import-dh", "table.csv", "--out", "imported.yaml"]
+    if draw(st.integers(0, 3)) == 0:
+        argv += ["--units", _value(draw, "m-rad")]
+    if draw(st.integers(0, 3)) == 0:
+        argv += ["--name", draw(st.sampled_from(("r", "", "x" * 10_000, "é", "a: b")))]
+    return {"table.csv": draw(dh_file())}, argv
+
+
+@st.composite
+def export_case(draw, result_text=None):
+    base = draw(st.sampled_from((MODEL, TRUE_MODEL, ARM7_MODEL)))
+    files = {"model.yaml": _model(draw, base)}
+    fmt = draw(st.sampled_from(("urdf", "mdh-csv", "dh-csv")))
+    argv = ["export", "model.yaml", "--format", fmt, "--out", "out." + ("urdf" if fmt == "urdf" else "csv")]
+    if draw(st.booleans()):
+        argv += ["--units", _value(draw, "m-rad")]
+    if draw(st.integers(0, 3)) == 0:
+        argv += ["--allow-ill-conditioned"]
+    return files, argv
+
+
+@st.composite
+def compensate_case(draw, result_text=None):
+    files = {"nominal.yaml": _model(draw), "calibrated.yaml": _model(draw, TRUE_MODEL)}
+    files["targets.csv"] = draw(csv_file(TARGETS)) if draw(st.integers(0, 2)) else TARGETS.encode()
+    argv = ["compensate", "nominal.yaml", "calibrated.yaml", "targets.csv", "--out", "commands.csv"]
+    return files, argv + draw(options(COMPENSATE))
+
+
+@st.composite
+def contacts_case(draw, result_text=None):
+    files = {"model.yaml": _model(draw, ARM7_MODEL)}
+    files["sockets.csv"] = draw(contacts_file()) if draw(st.integers(0, 2)) else SOCKETS.encode()
+    argv = ["calibrate", "model.yaml", "--contacts", "sockets.csv", "--out", "out"] + draw(options(CONTACTS))
+    return files, argv
+
+
+# command -> (weight, strategy of (files, argv)). The readers and commands of later work join here:
+# add a strategy above (mutations of a shipped example, the sizes that could hang it) and a line
+# below; the judge (check_output) then learns what a sound output of it is.
+COMMANDS = {
+    "calibrate": (3, calibrate_case), "simulate": (1, simulate_case), "identifiability": (1, identifiability_case),
+    "limit": (1, limit_case), "import-urdf": (2, import_urdf_case), "report": (1, report_case),
+    "plan": (2, plan_case), "plan-sockets": (1, plan_sockets_case), "import-dh": (2, import_dh_case),
+    "export": (2, export_case), "compensate": (2, compensate_case), "contacts": (2, contacts_case),
+}
+
+
+# the in-process sample of the test suite (tests/test_fuzz.py): the same cases, the slow command
+# (plan-sockets simulates its seatings, about a second a run) drawn less often
+SAMPLE_WEIGHTS = {**{n: 4 * w for n, (w, _) in COMMANDS.items()}, "plan-sockets": 1}
+
+
+@st.composite
+def case(draw, result_text: str | None = None, commands=None, weights=None):
+    """(files, argv) of one run of one command (of ``commands``, default every one), drawn by
+    ``weights`` (command -> whole number, default COMMANDS's)."""
+    names = [n for n in (commands or COMMANDS) if result_text or n != "report"]
+    weights = weights or {n: w for n, (w, _) in COMMANDS.items()}
+    command = draw(st.sampled_from([n for n in names for _ in range(weights[n])]))
+    return draw(COMMANDS[command][1](result_text))
 
 
 # -- the judge -----------------------------------------------------------------------------------
 
-OUTCOMES = ("clean error", "ok result", "traceback", "hang", "over-memory", "non-finite output", "multi-line error")
+OUTCOMES = ("clean error", "ok result", "traceback", "hang", "over-memory", "non-finite output", "unreadable output",
+            "wrong output", "multi-line error")
 _NON_FINITE = re.compile(r"(?<![\w.])[-+]?(?:\.?nan|\.?inf|infinity)(?![\w])", re.IGNORECASE)
+# an output's forward kinematics against its source's, metres (the writers' own check)
+FK_TOL = 1e-9
 
 
 def non_finite(folder: Path, before: set[str]) -> str | None:
@@ -335,7 +635,11 @@ def non_finite(folder: Path, before: set[str]) -> str | None:
             continue
         text = p.read_text(errors="replace")
         if p.suffix == ".json":
-            if _json_nulls(json.loads(text)):
+            try:
+                d = json.loads(text)
+            except ValueError:
+                return p.name
+            if _json_nulls(d):
                 return p.name
         elif _NON_FINITE.search(text):
             return p.name
@@ -344,6 +648,8 @@ def non_finite(folder: Path, before: set[str]) -> str | None:
 
 def _json_nulls(d) -> bool:
     """A result or limit file whose headline numbers are null (the writer's form of NaN/inf)."""
+    if not isinstance(d, dict):
+        return True
     if d.get("schema", "").startswith("robocal.limit"):
         return any(d.get(k) is None for k in ("limit", "repeatability", "precision"))
     stats = d.get("stats", {})
@@ -354,11 +660,138 @@ def _json_nulls(d) -> bool:
                not all(math.isfinite(v) for v in (p["estimate"], p["std"])) for p in d.get("parameters", []))
 
 
-def judge(code, err: str, folder: Path, before: set[str]) -> str:
-    """The outcome of one finished run: exit code, its stderr, the folder it ran in."""
+def _sample_q(model, n: int = 16):
+    """Readings spread within the model's limits, clipped to +-2 pi rad and +-10 m where they are wider."""
+    import numpy as np
+
+    rng = np.random.default_rng(1)
+    box = np.array([10.0 if k == "length" else 2 * np.pi for k in model.reading_quantities])
+    lo, hi = np.array(model.joint_limits, dtype=float).reshape(-1, 2).T
+    lo, hi = np.clip(lo, -box, box), np.clip(hi, -box, box)
+    return lo + (np.maximum(hi, lo) - lo) * rng.random((n, model.n_joints))
+
+
+def _fk_gap(model, back, markers=None) -> float:
+    """The largest distance between the markers of ``model`` and of ``back`` (same names) at readings within
+    the limits, geometry only (exports hold no compliance or backlash); ``markers`` maps each of ``back``'s
+    markers to ``model``'s (default by name)."""
+    import numpy as np
+
+    from robocal._kinematics import evaluate
+
+    q = _sample_q(model)
+    qb = q[:, [model.joint_names.index(n) for n in back.joint_names]]
+    a = evaluate(model, q, compliance=False, backlash=False).positions
+    b = evaluate(back, qb, compliance=False, backlash=False).positions
+    idx = [model.marker_names.index(n) for n in (markers or back.marker_names)]
+    return float(np.max(np.linalg.norm(a[:, idx] - b, axis=-1)))
+
+
+def _check_export(argv, folder: Path) -> str | None:
+    import robocal as rc
+    from robocal.io import read_dh_table, read_urdf
+
+    model = rc.read_model(folder / argv[1])
+    out = folder / argv[argv.index("--out") + 1]
+    try:
+        if argv[argv.index("--format") + 1] == "urdf":
+            tips = [j.get("link") for j in ET.parse(out).getroot().iter("child")][-len(model.markers):]
+            gap = max(_fk_gap(model, read_urdf(out, tip_link=t), [m]) for t, m in zip(tips, model.marker_names))
+        else:
+            back = read_dh_table(out)
+            if back.n_joints != model.n_joints:
+                return "wrong output"
+            gap = _fk_gap(model, back)
+    except rc.InputError:
+        return "unreadable output"
+    return None if gap <= FK_TOL else "wrong output"
+
+
+def _check_model(argv, folder: Path) -> str | None:
+    import robocal as rc
+
+    try:
+        rc.read_model(folder / argv[argv.index("--out") + 1])
+    except rc.InputError:
+        return "unreadable output"
+    return None
+
+
+def _within(model, q) -> bool:
+    import numpy as np
+
+    lo, hi = np.array(model.joint_limits, dtype=float).reshape(-1, 2).T
+    return bool(np.all((q >= lo - 1e-12 * np.maximum(1, abs(lo))) & (q <= hi + 1e-12 * np.maximum(1, abs(hi)))))
+
+
+def _check_plan(argv, folder: Path) -> str | None:
+    import robocal as rc
+
+    model = rc.read_model(folder / argv[1])
+    try:
+        data = rc.read_measurements(folder / argv[argv.index("--out") + 1], model, targets=True)
+    except rc.InputError:
+        return "unreadable output"
+    return None if _within(model, data.q) else "wrong output"
+
+
+def _check_compensate(argv, folder: Path) -> str | None:
+    import csv
+
+    import numpy as np
+
+    import robocal as rc
+
+    model, nominal = rc.read_model(folder / argv[2]), rc.read_model(folder / argv[1])
+    rows = list(csv.reader((folder / argv[argv.index("--out") + 1]).read_text().splitlines()))
+    header, body = rows[0], rows[1:]
+    units = "m-rad" if "--out-units" in argv and argv[argv.index("--out-units") + 1] == "m-rad" else "mm-deg"
+    scale = [(1e-3 if units == "mm-deg" else 1.0) if k == "length" else (math.pi / 180 if units == "mm-deg" else 1.0)
+             for k in model.reading_quantities]
+    for row in body:
+        if len(row) != len(header):
+            return "unreadable output"
+        q = np.array([float(v) * s for v, s in zip(row[1:1 + model.n_joints], scale)])
+        if row[-1] == "ok" and not (_within(model, q[None]) and _within(nominal, q[None])):
+            return "wrong output"
+    return None
+
+
+def _check_sockets(argv, folder: Path) -> str | None:
+    import robocal as rc
+    from robocal.io import read_contacts
+
+    if "--out" not in argv or not (folder / argv[argv.index("--out") + 1]).exists():
+        return None
+    try:
+        read_contacts(folder / argv[argv.index("--out") + 1], rc.read_model(folder / argv[1]))
+    except rc.InputError:
+        return "unreadable output"
+    return None
+
+
+# what a sound output of each command is, beyond finite numbers: it reads back and, for the
+# writers of models and commands, reproduces its source (later commands add their check here)
+OUTPUT_CHECKS = {"export": _check_export, "import-dh": _check_model, "import-urdf": _check_model,
+                 "plan": _check_plan, "compensate": _check_compensate, "plan-sockets": _check_sockets}
+
+
+def check_output(argv, folder: Path) -> str | None:
+    """'wrong output' or 'unreadable output' when a run that succeeded wrote something unsound, else None."""
+    check = OUTPUT_CHECKS.get(argv[0]) if argv else None
+    try:
+        return check(argv, folder) if check else None
+    except Exception:  # noqa: BLE001 - an output the checker cannot even take apart is not sound
+        return "unreadable output"
+
+
+def judge(code, err: str, folder: Path, before: set[str], argv=None) -> str:
+    """The outcome of one finished run: exit code, its stderr, the folder it ran in, its command line."""
     if "Traceback" in err or code not in (0, 1, 2, 3):
         return "traceback"
     if code in (1, 2):
         lines = [ln for ln in err.splitlines() if not ln.startswith("robocal: warning:")]
         return "clean error" if len(lines) == 1 and len(lines[0]) < 1000 else "multi-line error"
-    return "non-finite output" if non_finite(folder, before) else "ok result"
+    if non_finite(folder, before):
+        return "non-finite output"
+    return (check_output(argv, folder) if code == 0 else None) or "ok result"

@@ -8,11 +8,12 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
-
-import robocal as rc
 from conftest import assert_one_line_error
 from fuzz_cases import MEASUREMENTS, MODEL, REPEATABILITY, URDF, alias_bomb, deep, inline_result
+
+import robocal as rc
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "th8"
 LIMIT_ARGS = ("--encoder-resolution", "0.01deg,0.01mm,0.01mm,0.01deg,0.01deg,0.01deg", "--length-quantum-mm",
@@ -348,3 +349,232 @@ def test_bit_identical_across_thread_counts(files):
 
 def _strip_date(text):
     return None if text is None else "\n".join(ln for ln in text.splitlines() if "date:" not in ln)
+
+
+# -- every command: the signatures the outside fuzz found, each from a minimal input ------------------
+
+ARM7 = EXAMPLE.parent / "arm7"
+DH = EXAMPLE.parent / "dh" / "ur5-dh.csv"
+
+
+@pytest.mark.parametrize("tag", ["!!float abc", "!!int x", "!!bool x", "!!timestamp x", "!!int 1e3"])
+def test_yaml_tag_its_value_cannot_be_is_one_line(files, cli, tag):
+    (files / "model.yaml").write_text(MODEL.replace("r: 600", f"r: {tag}"))
+    one_line(cli, model_commands(files)[1], ["model.yaml", "line 26", "cannot be read"])
+    (files / "model.yaml").write_text(MODEL)
+    (files / "p.yaml").write_text(f"robocal_profile: 1\nname: {tag}\n")
+    one_line(cli, (*model_commands(files)[0], "--profile", files / "p.yaml"), ["p.yaml", "line 2"])
+
+
+@pytest.mark.parametrize("limits", ["[.inf, .inf]", "[-.inf, -.inf]", "[1e11, .inf]"])
+def test_limits_without_a_finite_range_refused_before_sampling(files, cli, limits):
+    # random_configurations once raised OverflowError ('Range exceeds valid bounds') from numpy
+    (files / "model.yaml").write_text(MODEL.replace("limits: [-150, 150]", f"limits: {limits}", 1))
+    assert f"limits: {limits}" in (files / "model.yaml").read_text()
+    one_line(cli, model_commands(files)[1], ["joints[0].limits", "'j1'", "no finite range"])
+
+
+def _chain_urdf(n):
+    from fuzz_cases import _urdf
+
+    return _urdf(n)
+
+
+def _chain_dh(n):
+    from fuzz_cases import long_dh
+
+    return long_dh(n)
+
+
+@pytest.mark.parametrize("n, words", [(101, ["101 frames", "up to 100"]), (50_000, ["elements"]),
+                                      (100_000, ["25 MB", "up to 16 MB"])])
+def test_import_urdf_long_chain_refused_quickly(tmp_path, cli, n, words):
+    (tmp_path / "r.urdf").write_text(_chain_urdf(n))
+    one_line(cli, ("import-urdf", tmp_path / "r.urdf", "--out", tmp_path / "m.yaml"), ["r.urdf", *words],
+             seconds=20)
+    assert not (tmp_path / "m.yaml").exists()
+
+
+@pytest.mark.parametrize("n, words", [(101, ["101 frames", "up to 100"]), (100_000, ["100,001 rows"])])
+def test_import_dh_long_table_refused_quickly(tmp_path, cli, n, words):
+    (tmp_path / "t.csv").write_text(_chain_dh(n))
+    one_line(cli, ("import-dh", tmp_path / "t.csv", "--out", tmp_path / "m.yaml"), ["t.csv", *words], seconds=20)
+
+
+def test_model_of_a_hundred_frames_is_written_in_linear_time(tmp_path, cli):
+    """The reading kinds were found frame by frame for every joint (cubic): 120 joints took seconds."""
+    (tmp_path / "r.urdf").write_text(_chain_urdf(100))
+    code, out, err = cli("import-urdf", tmp_path / "r.urdf", "--out", tmp_path / "m.yaml")
+    assert code == 0, err
+    model = rc.read_model(tmp_path / "m.yaml")
+    assert model.n_joints == 100 and model.reading_quantities[1] == "length"
+
+
+def test_import_dh_writes_only_a_model_that_reads_back(tmp_path, cli):
+    # theta of 1e26 degrees: the table read, the model file it gave did not (magnitude)
+    (tmp_path / "t.csv").write_text(DH.read_text().replace("shoulder_pan,revolute,0,", "shoulder_pan,revolute,"
+                                                                                      + "9" * 26 + ","))
+    one_line(cli, ("import-dh", tmp_path / "t.csv", "--out", tmp_path / "m.yaml"),
+             ["t.csv", "would not read back", "frames[0].theta"])
+    assert not (tmp_path / "m.yaml").exists()
+
+
+def test_plan_sockets_out_of_reach_is_one_line(tmp_path, cli):
+    # the plate is placed where the arm reaches: a short arm cannot seat the ball (ValueError in reach)
+    (tmp_path / "m.yaml").write_text((ARM7 / "model.yaml").read_text().replace("r: 400", "r: 40"))
+    one_line(cli, ("plan-sockets", tmp_path / "m.yaml", "--placements", "3", "--poses-per-socket", "5"),
+             ["out of the robot's reach"], seconds=60)
+
+
+@pytest.mark.parametrize("argv, words", [
+    (("--placements", "1000", "--poses-per-socket", "20"), ["60,000 seatings", "up to 5,000", "s)"]),
+    (("--placements", ",".join(map(str, range(1, 41))), "--poses-per-socket", "10,11,12,13,14"),
+     ["147,600 rows to linearise over the 200 designs", "up to 100,000"]),
+])
+def test_plan_sockets_design_grid_refused_before_the_work_with_its_cost(tmp_path, cli, argv, words):
+    one_line(cli, ("plan-sockets", ARM7 / "model.yaml", *argv, "--out", tmp_path / "s.csv"), words, seconds=10)
+    assert not (tmp_path / "s.csv").exists()
+
+
+@pytest.mark.parametrize("argv, words", [
+    (("--poses", "2000", "--n-candidates", "100000"), ["2,000 poses among 100,000 candidates", "operations", "MB"]),
+    (("--poses", "20", "--n-candidates", "100000"), []),
+])
+def test_plan_refuses_a_selection_of_minutes_before_it_starts(files, cli, monkeypatch, argv, words):
+    import robocal._pose_selection as ps
+
+    if not words:   # the blocks bound alone: the same refusal, from a smaller selection
+        monkeypatch.setattr(ps, "MAX_SELECTION_BLOCKS", 1e5)
+        words = ["20 poses among 100,000 candidates", "MB"]
+    one_line(cli, ("plan", files / "model.yaml", *argv, "--out", files / "p.csv"), words, seconds=30)
+    assert not (files / "p.csv").exists()
+
+
+def test_plan_never_writes_a_pose_beyond_the_joint_limits(files, cli):
+    model = rc.read_model(files / "model.yaml")
+    lines = MEASUREMENTS.splitlines()
+    head = [ln for ln in lines if ln.startswith("#") or ln.startswith("pose")]
+    rows = lines[len(head):]
+    cells = rows[0].split(",")
+    cells[1] = "179"                                 # j1 beyond its 150 deg limit
+    (files / "cand.csv").write_text("\n".join(head + [",".join(cells)] + rows[1:]) + "\n")
+    code, out, err = cli("plan", files / "model.yaml", "--poses", "25", "--candidates", files / "cand.csv",
+                         "--out", files / "p.csv")
+    assert code == 0 and "1 of 30 candidate poses are beyond the joint limits" in err, err
+    q = rc.read_measurements(files / "p.csv", model, targets=True).q
+    assert np.all((q >= model.lower_limits) & (q <= model.upper_limits))
+
+
+def _contacts(body_edit=None, head_extra=()):
+    from fuzz_cases import SOCKETS
+
+    lines = SOCKETS.splitlines()
+    head = [ln for ln in lines if ln.startswith("#") or ln.startswith("placement")]
+    rows = lines[len(head):]
+    return "\n".join(head[:2] + list(head_extra) + head[2:] + (body_edit(rows) if body_edit else rows)) + "\n"
+
+
+@pytest.mark.parametrize("text, words", [
+    (_contacts(lambda rows: rows + ['"P9,A,socket,ball' + "x" * 200_000]), ["not readable as CSV", "field"]),
+    (_contacts(head_extra=[f"# distance: A B {200 + k * 1e-6:.6f} sigma=0.002" for k in range(5000)]),
+     ["lines before the header", "up to 1,000"]),
+    (_contacts(lambda rows: (rows * 1000)[:30_000]), ["30,0", "up to"]),
+    (_contacts(lambda rows: [f"Q{k},S{k}," + ",".join(r.split(",")[2:]) for k, r in enumerate(rows * 20)]),
+     ["1,440 groups", "up to 1,000"]),
+])
+def test_contact_file_bounded_and_csv_errors_one_line(tmp_path, cli, text, words):
+    (tmp_path / "c.csv").write_text(text)
+    one_line(cli, ("calibrate", ARM7 / "model.yaml", "--contacts", tmp_path / "c.csv", "--out", tmp_path / "o"),
+             ["c.csv", *words], seconds=30)
+    assert not (tmp_path / "o").exists()
+
+
+def test_dh_table_csv_error_is_one_line(tmp_path, cli):
+    (tmp_path / "t.csv").write_text(DH.read_text() + '"unclosed,1,2\n' + "x" * 200_000 + "\n")
+    one_line(cli, ("import-dh", tmp_path / "t.csv", "--out", tmp_path / "m.yaml"), ["t.csv", "not readable as CSV"])
+
+
+def test_measurement_file_of_too_many_lines_refused_before_parsing(files, cli, monkeypatch):
+    """A 250 MB measurement file once took 100 s and 4 GB before its pose count was refused."""
+    import robocal._files.measurements as m
+
+    monkeypatch.setattr(m, "MAX_POSES", 10)
+    monkeypatch.setattr(m, "MAX_HEADER_LINES", 5)
+    one_line(cli, model_commands(files)[0], ["data.csv", "31 lines", "up to 15"])
+
+
+@pytest.mark.parametrize("fmt", ["urdf", "mdh-csv", "dh-csv"])
+def test_export_refuses_what_would_not_reproduce_the_model(tmp_path, cli, fmt):
+    # a marker 1e11 mm away: what the file can hold moves it by far more than 1e-9 m (once written, exit 0)
+    text = (EXAMPLE / "true_model.yaml").read_text()
+    assert "position: [30.0, 0.0, 120.0]" in text
+    (tmp_path / "m.yaml").write_text(text.replace("position: [30.0, 0.0, 120.0]", "position: [99999999999, 0, 120]"))
+    one_line(cli, ("export", tmp_path / "m.yaml", "--format", fmt, "--out", tmp_path / "out"),
+             ["m.yaml", "would not reproduce the model", "1e-09 m"])
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("model", [EXAMPLE / "true_model.yaml", EXAMPLE / "model.yaml", ARM7 / "model.yaml"])
+@pytest.mark.parametrize("fmt", ["urdf", "mdh-csv", "dh-csv"])
+def test_export_of_a_sound_model_reproduces_it(tmp_path, cli, model, fmt):
+    from fuzz_cases import check_output
+
+    argv = ["export", str(model), "--format", fmt, "--out", str(tmp_path / "out")]
+    code, out, err = cli(*argv)
+    assert code == 0, err
+    assert check_output(argv, Path("/")) is None
+
+
+def test_reduced_of_no_column():
+    from robocal._linalg import reduced
+
+    assert reduced(np.ones((5, 0))).shape == (0, 0)    # LAPACK's error: a block of no column
+
+
+def test_line_frames_of_axes_tilted_by_round_off():
+    """Axes tilted by 1e-9 rad: past the parallel test, yet the 2x2 solve of the common normal was
+    singular in round-off (LinAlgError). The feet found lie on both axes."""
+    from robocal._conversion import line_frames
+
+    pts = np.array([[0.0, 0, 0], [0.3, 0, 0.1], [0.6, 0.1, 0.2]])
+    axes = np.array([[0.0, 0, 1], [np.sin(1e-9), 0, np.cos(1e-9)], [0, 1.0, 0]])
+    _, frames = line_frames(pts, axes, 1e-12)
+    assert all(np.all(np.isfinite(f)) for f in frames)
+    foot = frames[0][:3, 3]
+    assert np.linalg.norm(np.cross(foot - pts[0], axes[0])) < 1e-6     # on the first axis
+
+
+def test_compensate_with_joints_that_move_the_marker_alike():
+    """Two joints about one axis, the marker 1 km out: the damping vanished in round-off and the
+    per-pose solve raised LinAlgError for the whole batch."""
+    nominal = rc.serial_model("twin", [dict(joint="revolute"), dict(joint="revolute", theta=0.001)],
+                              markers=[("tool", (1000.0, 0, 0))])
+    robot = rc.serial_model("twin", [dict(joint="revolute"), dict(joint="revolute")],
+                            markers=[("tool", (1000.0, 0, 0))])
+    q = np.array([[0.1, 0.2], [0.3, -0.1]])
+    comp = rc.compensate(robot, q, nominal=nominal)
+    target = rc.forward_kinematics(nominal, q).positions[:, 0]
+    np.testing.assert_allclose(rc.forward_kinematics(robot, comp.q).positions[:, 0], target, rtol=0, atol=1e-9)
+
+
+def test_contact_reading_too_large_is_one_line(tmp_path, cli):
+    lines = _contacts().splitlines()
+    k = next(i for i, ln in enumerate(lines) if ln.startswith("P1,"))
+    cells = lines[k].split(",")
+    cells[4] = "1e300"
+    lines[k] = ",".join(cells)
+    (tmp_path / "c.csv").write_text("\n".join(lines) + "\n")
+    one_line(cli, ("calibrate", ARM7 / "model.yaml", "--contacts", tmp_path / "c.csv", "--out", tmp_path / "o"),
+             ["c.csv", f"line {k + 1}", "'j1'", "too large"])
+
+
+def test_compensate_flags_a_command_beyond_the_nominal_controllers_limits(files, cli):
+    """The calibrated model's limits alone were checked: a command beyond the limits the controller
+    holds (the nominal model's) was written with status ok."""
+    (files / "nominal.yaml").write_text(MODEL.replace("limits: [-150, 150]", "limits: [-10, 10]", 1))
+    code, out, err = cli("compensate", files / "nominal.yaml", EXAMPLE / "true_model.yaml", EXAMPLE / "targets.csv",
+                         "--out", files / "c.csv")
+    assert code == 0, err
+    rows = [ln.split(",") for ln in (files / "c.csv").read_text().splitlines()[1:]]
+    assert rows and all(abs(float(r[1])) > 10 for r in rows)          # every j1 beyond +-10 deg
+    assert all(r[-1] != "ok" for r in rows), rows

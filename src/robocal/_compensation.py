@@ -107,7 +107,9 @@ def compensate(model: RobotModel, targets_q, *, nominal: RobotModel | None = Non
         # swing the joints by radians for a micrometre; damping and a step bound keep it local
         JT = np.swapaxes(J, 1, 2)
         A = JT @ J + damping ** 2 * np.eye(J.shape[2])
-        step = np.linalg.solve(A, np.einsum("nji,ni->nj", JT, e)[..., None])[..., 0]
+        # pinv, not solve: where the damping is lost in round-off (joints that move the marker alike,
+        # far from it) A is singular and solve raised LinAlgError for every pose
+        step = (np.linalg.pinv(A, hermitian=True) @ np.einsum("nji,ni->nj", JT, e)[..., None])[..., 0]
         big = np.abs(step).max(axis=1, keepdims=True)
         q = q - step * np.minimum(1.0, max_step / np.maximum(big, 1e-300))
     e_pos, e_rot = _errors(model, q, p, marker, Pt, Rt)

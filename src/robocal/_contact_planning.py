@@ -17,13 +17,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._contact_calibration import contact_identifiability
-from ._contact_simulation import socket_campaign
+from ._contact_simulation import PLATE, socket_campaign
 from ._contacts import Contacts
 from ._errors import InputError
 from ._identifiability import WEAK_STD
 from ._model import RobotModel
 from ._observations import ContactProblem
+from ._options import MAX_GRID_ROWS, MAX_SEATINGS
 from ._parameters import candidate_parameters, parameter_layout
+
+
+# the cost of a seating simulated and of a row linearised, seconds (benchmarks/README.md), for messages
+SECONDS = {"seat": 1.5e-3, "rows": 1e-4}
 
 
 @dataclass(frozen=True)
@@ -70,6 +75,16 @@ def _design(model: RobotModel, campaign: Contacts, names, placements: int, poses
                         float(ratios[worst]))
 
 
+def _check_cost(placements, per, n_sockets: int) -> None:
+    """Refuse, before any work, a grid whose simulation or linearisation would run for minutes."""
+    largest, grid = n_sockets * placements[-1] * per[-1], n_sockets * sum(placements) * sum(per)
+    for what, n, top in (("seatings to simulate for the largest design", largest, MAX_SEATINGS),
+                         (f"rows to linearise over the {len(placements) * len(per)} designs", grid, MAX_GRID_ROWS)):
+        if n > top:
+            raise InputError(f"{n:,} {what}; robocal plans up to {top:,} (about {top * SECONDS[what[:4]]:.0f} s): "
+                             "compare fewer or smaller designs", where="placements")
+
+
 def plan_sockets(model: RobotModel, *, placements=(3, 5, 7, 9), poses_per_socket=(20, 25, 30, 35),
                  joint_noise: float = 2e-5, seat_noise: float = 5e-6, parameters=("geometric",),
                  bounds: dict | None = None, seed: int = 0) -> SocketPlan:
@@ -91,6 +106,7 @@ def plan_sockets(model: RobotModel, *, placements=(3, 5, 7, 9), poses_per_socket
     names = candidate_parameters(model, parameters)
     bounds = {**WEAK_STD, **(bounds or {})}
     placements, per = sorted(set(placements)), sorted(set(poses_per_socket))
+    _check_cost(placements, per, len(PLATE))
     # one campaign of the largest design; each smaller one takes its first placements and first
     # seatings of each socket, so a larger design holds every row of a smaller one (never predicts worse)
     full = socket_campaign(model, placements=placements[-1], poses_per_socket=per[-1], joint_noise=joint_noise,

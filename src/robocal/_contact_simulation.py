@@ -13,6 +13,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ._contacts import Contacts, KnownDistance, KnownPlane
+from ._errors import DegenerateDataError
 from ._kinematics import evaluate
 from ._model import RobotModel
 from ._parameters import parameter_layout
@@ -35,7 +36,8 @@ def _joint_jacobian(model: RobotModel, q: np.ndarray, marker: int) -> tuple[np.n
 
 def reach(model: RobotModel, targets, *, marker: int = 0, rng=None, tol: float = 1e-10, max_rounds: int = 40):
     """Readings (N, n_joints) within the joint limits that put ``marker`` on each of ``targets`` (N, 3),
-    each from its own random start (damped least squares). Targets no start reaches raise ValueError."""
+    each from its own random start (damped least squares). Targets no start reaches raise
+    DegenerateDataError (out of the robot's reach, e.g. a plate placed where the arm cannot seat)."""
     rng = np.random.default_rng(rng)
     targets = np.atleast_2d(np.asarray(targets, dtype=float))
     lo, hi = sampling_box(model)
@@ -49,14 +51,19 @@ def reach(model: RobotModel, targets, *, marker: int = 0, rng=None, tol: float =
             if it > 10 and np.all(np.linalg.norm(e, axis=1) < tol):
                 break
             JJt = J @ J.transpose(0, 2, 1) + (1e-6 if it < 20 else 0.0) * np.eye(3)
-            q = np.clip(q + (J.transpose(0, 2, 1) @ np.linalg.solve(JJt, e[..., None]))[..., 0], lo, hi)
+            # pinv, not solve: at a singular pose (a stretched arm, a joint that moves nothing) the step
+            # is the least-squares one instead of a LinAlgError
+            step = (J.transpose(0, 2, 1) @ np.linalg.pinv(JJt, hermitian=True) @ e[..., None])[..., 0]
+            q = np.clip(q + np.nan_to_num(step, nan=0.0, posinf=0.0, neginf=0.0), lo, hi)
         err = np.linalg.norm(targets[todo] - evaluate(model, q).positions[:, marker], axis=1)
         ok = err < tol
         out[todo[ok]] = q[ok]
         todo = todo[~ok]
         if not len(todo):
             return out
-    raise ValueError(f"{len(todo)} target(s) out of reach, e.g. {targets[todo[0]]}")
+    x, y, z = targets[todo[0]]
+    raise DegenerateDataError(f"{len(todo)} of {len(targets)} target(s) out of the robot's reach within its joint "
+                              f"limits, e.g. ({x:.4g}, {y:.4g}, {z:.4g}) m in W")
 
 
 def _recorded(model, q, marker, rng, joint_noise, seat_noise):

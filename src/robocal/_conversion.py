@@ -203,11 +203,11 @@ def line_frames(points: np.ndarray, axes: np.ndarray, tol: float) -> tuple[np.nd
                     _perpendicular(zj, x_prev)
                 foot = near
             else:
-                # common normal: solve for the feet O = pj + s zj and near = pn + u zn
+                # common normal: the feet O = pj + s zj and near = pn + u zn, in closed form over
+                # |zj x zn|^2 (a 2x2 solve was singular in round-off for a tilt of ~1e-9 rad)
                 pj = points[j]
-                A = np.array([[zj @ zj, -(zj @ zn)], [zj @ zn, -(zn @ zn)]])
-                rhs = np.array([(pn - pj) @ zj, (pn - pj) @ zn])
-                s, u = np.linalg.solve(A, rhs)
+                s = np.cross(pn - pj, zn) @ cr / (cr @ cr)
+                u = np.cross(pn - pj, zj) @ cr / (cr @ cr)
                 O, near = pj + s * zj, pn + u * zn
                 x = unit_vector(cr)
                 if (near - O) @ x < -1e-12:

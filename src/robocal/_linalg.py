@@ -20,6 +20,8 @@ QR_BLOCK = 8
 
 def reduced(A: np.ndarray) -> np.ndarray:
     """The R factor of ``A`` (n_rows, k) by QR when it is tall, else ``A`` itself."""
+    if A.shape[1] == 0:  # no column (nothing left to identify): LAPACK refuses a block of none
+        return np.zeros((0, 0))
     if A.shape[0] > A.shape[1]:
         # LAPACK's blocked QR alone: numpy's wrapper spends more than the factorisation on copies,
         # and dgeqrf runs unblocked on a few tens of columns (dgeqrt in blocks of 8 is ~1.8x faster)

@@ -30,7 +30,7 @@ from typing import Sequence
 import numpy as np
 
 from ._errors import InputError
-from ._options import BACKLASH_SIDES
+from ._options import BACKLASH_SIDES, MAX_FRAMES, MAX_MARKERS
 from ._spatial import rot4, rot_matrix, trans4
 
 JOINT_TYPES = ("revolute", "prismatic", "fixed")
@@ -178,11 +178,12 @@ class RobotModel:
     @property
     def reading_quantities(self) -> tuple[str, ...]:
         """Per joint reading, "length" when it drives a prismatic frame, else "angle" (its unit's kind)."""
-        out = []
-        for j in range(self.n_joints):
-            drives = [f.joint for f in self.frames if any(k == j for k, _ in f.coupling)]
-            out.append("length" if drives and drives[0] == "prismatic" else "angle")
-        return tuple(out)
+        out: list[str | None] = [None] * self.n_joints
+        for f in self.frames:  # the first frame a reading drives says its kind
+            for k, _ in f.coupling:
+                if 0 <= k < self.n_joints and out[k] is None:
+                    out[k] = "length" if f.joint == "prismatic" else "angle"
+        return tuple(k or "angle" for k in out)
 
     @property
     def payloads(self) -> tuple[Payload, ...]:
@@ -218,6 +219,9 @@ def _validate(model: RobotModel) -> None:
     names = [f.name for f in model.frames]
     if len(model.frames) == 0:
         raise InputError("a model needs at least one frame", where="frames")
+    for what, n, top in (("frames", len(model.frames), MAX_FRAMES), ("markers", len(model.markers), MAX_MARKERS)):
+        if n > top:
+            raise InputError(f"{n:,} {what}; a robocal model holds up to {top} (docs/formats.md)", where=what)
     if len(set(names)) != len(names):
         dup = next(n for n in names if names.count(n) > 1)
         raise InputError(f"frame name {dup!r} is used twice", where="frames")

@@ -11,9 +11,30 @@ LIMIT_CHUNK = 2048
 # and writing a calibration of 3D points take about 1 kB per pose, see benchmarks/README.md)
 MAX_POSES = 10_000_000
 POSES_PER_GB = 1_000_000
+# the most frames and markers a model may hold (docs/formats.md): far beyond any robot, and the cost
+# of a model's kinematics and of writing it grows with the square of the chain
+MAX_FRAMES = 100
+MAX_MARKERS = 100
+# the largest model, profile, DH table or URDF file read, bytes: a model of MAX_FRAMES frames is tens of kB
+MAX_MODEL_BYTES = 16 * 2 ** 20
+# lines of a measurement file besides its poses (comments, the header, blank lines)
+MAX_HEADER_LINES = 10_000
 # Monte Carlo samples and configurations per chunk of ``limit``: past these it is hours or gigabytes
 MAX_SAMPLES = 100_000_000
 MAX_CHUNK = 100_000
+# pose selection (plan): operations of its updates, poses x candidates x rows x parameters^2 x
+# (1 + 2 sweeps), and the size of the candidates' blocks, candidates x rows x parameters (doubles)
+MAX_SELECTION_WORK = 2e10
+MAX_SELECTION_BLOCKS = 4e6
+# a contact file (docs/formats.md): rows, directive lines before the header, and groups (each a
+# socket or plane of its own, three unknowns of the fit)
+MAX_CONTACTS = 20_000
+MAX_DIRECTIVES = 1_000
+MAX_GROUPS = 1_000
+# plan-sockets: seatings simulated for the largest design (about 1.5 ms each), and rows linearised
+# over the whole grid of designs (about 0.1 ms each): past these a plan runs for minutes
+MAX_SEATINGS = 5_000
+MAX_GRID_ROWS = 100_000
 OUTLIER_ACTIONS = ("refit", "flag")
 WEAK_ACTIONS = ("eliminate", "flag")
 # where a joint rests in its lost motion, pose by pose (RobotModel.backlash_side)

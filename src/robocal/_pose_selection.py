@@ -10,7 +10,7 @@ import numpy as np
 
 from ._errors import DegenerateDataError, InputError, check_choice
 from ._identifiability import ONE_SIDE, identifiability
-from ._options import POSE_CRITERIA
+from ._options import MAX_SELECTION_BLOCKS, MAX_SELECTION_WORK, POSE_CRITERIA
 from ._model import RobotModel
 from ._parameters import has_backlash_parameters, parameter_vector
 from ._problem import design_problem, random_configurations
@@ -46,6 +46,8 @@ class PoseSelection:
 
 
 CRITERIA = POSE_CRITERIA
+# what an operation of the selection's updates takes on one core, seconds (benchmarks/README.md), for messages
+SECONDS_PER_OPERATION = 2e-10
 
 
 class _Greedy:
@@ -151,6 +153,18 @@ def _scaled_blocks(model: RobotModel, q, names, orientation: bool, approach=None
 
 
 @one_blas_thread
+def _check_cost(n: int, n_cand: int, rows: int, k: int, sweeps: int) -> None:
+    """Refuse, before the work, a selection whose updates (each O(candidates x rows x k^2)) or whose
+    candidate blocks would take minutes or gigabytes (MAX_SELECTION_WORK, MAX_SELECTION_BLOCKS)."""
+    work = (1 + 2 * sweeps) * n * n_cand * rows * k * k
+    if work > MAX_SELECTION_WORK or n_cand * rows * k > MAX_SELECTION_BLOCKS:
+        raise InputError(f"choosing {n:,} poses among {n_cand:,} candidates for {k} parameters is about {work:.1e} "
+                         f"operations on {n_cand * rows * k * 8 / 2 ** 20:,.0f} MB of candidate blocks; robocal "
+                         f"selects up to {MAX_SELECTION_WORK:.0e} on {MAX_SELECTION_BLOCKS * 8 / 2 ** 20:,.0f} MB "
+                         f"(about {MAX_SELECTION_WORK * SECONDS_PER_OPERATION:.0f} s): fewer poses or candidates",
+                         where="n")
+
+
 def select_poses(model: RobotModel, n: int, *, candidates=None, n_candidates: int = 2000, parameters=("geometric",),
                  known=(), orientation: bool = False, criterion: str = "I", rng=0, sweeps: int = 2) -> PoseSelection:
     """Pick ``n`` configurations for identifying the identifiable parameters.
@@ -176,6 +190,7 @@ def select_poses(model: RobotModel, n: int, *, candidates=None, n_candidates: in
         raise InputError(f"cannot choose {n} poses from {len(q)} candidates", where="n")
     names = identifiability(model, None, parameters=parameters, known=known, orientation=orientation,
                             rng=rng).identified
+    _check_cost(n, len(q), len(model.markers) * (6 if orientation else 3), len(names), sweeps)
     approach = None
     if model.backlash_side == "approach" and has_backlash_parameters(model, names):
         approach = rng.choice([-1.0, 1.0], size=q.shape)

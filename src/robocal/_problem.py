@@ -348,6 +348,12 @@ def sampling_box(model: RobotModel) -> tuple[np.ndarray, np.ndarray]:
                          "drawn; give its limits", where=f"joints[{j}].limits")
     lo[open_] = np.maximum(lo[open_], -np.pi)
     hi[open_] = np.minimum(hi[open_], np.pi)
+    empty = ~(lo <= hi) | ~np.isfinite(hi - lo)  # e.g. limits [inf, inf]: nothing to draw from
+    if np.any(empty):
+        j = int(np.argmax(empty))
+        raise InputError(f"joint {model.joint_names[j]!r} has no finite range of readings within its limits "
+                         f"({model.lower_limits[j]:g}, {model.upper_limits[j]:g}): configurations cannot be drawn",
+                         where=f"joints[{j}].limits")
     return lo, hi
 
 

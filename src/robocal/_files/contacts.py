@@ -23,7 +23,9 @@ import numpy as np
 from .._contacts import CONTACT_KINDS, Contacts, KnownDistance, KnownPlane
 from .._errors import InputError
 from .._model import RobotModel
+from .._options import MAX_CONTACTS, MAX_DIRECTIVES, MAX_GROUPS
 from .._units import UNITS, check_unit
+from .measurements import MAX_MAGNITUDE
 from .text import read_text
 
 REQUIRED = ("placement", "target", "kind")
@@ -48,6 +50,9 @@ def _float(text, what, source, where) -> float:
         raise InputError(f"{what} is not a number: {text!r}", source=source, where=where) from None
     if not np.isfinite(v):
         raise InputError(f"{what} is not a finite number: {text!r}", source=source, where=where)
+    if not abs(v) <= MAX_MAGNITUDE:  # 1e300 of a length overflows the fit's squares into NaN
+        raise InputError(f"{what} is too large: {text!r} (magnitude up to {MAX_MAGNITUDE:g})", source=source,
+                         where=where)
     return v
 
 
@@ -111,7 +116,7 @@ class _Facts:
 
 def read_contacts(path, model: RobotModel) -> Contacts:
     """Read a contact file for ``model`` (its joints and markers name the columns); SI out."""
-    text, digest = read_text(path)
+    text, digest = read_text(path, lines=MAX_CONTACTS + MAX_DIRECTIVES + 1)
     source = str(path)
     facts = _Facts()
     lines = text.splitlines()
@@ -129,7 +134,15 @@ def read_contacts(path, model: RobotModel) -> Contacts:
     if "angle" not in facts.units and "angle" in model.reading_quantities:
         raise InputError("the units directive must give the angle unit of the joint readings "
                          "('# units: length=mm angle=deg')", source=source)
-    rows = list(csv.reader(io.StringIO("\n".join(lines[body_start:]))))
+    if len(lines) - body_start > MAX_CONTACTS + 1 or body_start > MAX_DIRECTIVES:
+        what = ("rows", len(lines) - body_start - 1, MAX_CONTACTS) if body_start <= MAX_DIRECTIVES else \
+            ("lines before the header", body_start, MAX_DIRECTIVES)
+        raise InputError(f"{what[1]:,} {what[0]}; a contact file holds up to {what[2]:,} (docs/formats.md)",
+                         source=source)
+    try:
+        rows = list(csv.reader(io.StringIO("\n".join(lines[body_start:]))))
+    except csv.Error as e:
+        raise InputError(f"not readable as CSV: {e}", source=source) from None
     header = [h.strip() for h in rows[0]]
     return _rows(rows[1:], header, body_start + 1, model, facts, source, digest)
 
@@ -181,6 +194,10 @@ def _rows(rows, header, first_line, model: RobotModel, facts: _Facts, source: st
         labels.append(cell.get("label") or where)
     if not q:
         raise InputError("no contact rows", source=source)
+    groups = len(set(zip(placement, target)))
+    if groups > MAX_GROUPS:  # each group adds unknowns to the fit: its cost grows with their square
+        raise InputError(f"{groups:,} groups (placement, target); a contact file holds up to {MAX_GROUPS:,} "
+                         "(docs/formats.md)", source=source)
     _known_targets(facts, kind, target, source)
     return Contacts(q=np.array(q) * scale, marker=tuple(marker), kind=tuple(kind), target=tuple(target),
                     placement=tuple(placement), sigma=np.array(sigma), distances=tuple(facts.distances),

@@ -16,6 +16,7 @@ import numpy as np
 from .._conversion import MDH_TABLE_KINDS, from_standard_dh, mdh_table, to_standard_dh
 from .._errors import InputError
 from .._model import Frame, Marker, RobotModel, parallel_beta_frames, serial_model
+from .._options import MAX_FRAMES, MAX_MARKERS, MAX_MODEL_BYTES
 from .._spatial import matrix_rpy, matrix_tuple, pose4, rpy_matrix
 from .._units import UNITS, parse_units, unit_factors, unit_kind
 from .text import read_text, write_texts
@@ -103,7 +104,7 @@ class _Table:
 
     def __init__(self, path):
         self.source = str(path)
-        text, _ = read_text(path)
+        text, _ = read_text(path, limit=MAX_MODEL_BYTES)
         numbered = [(i, ln) for i, ln in enumerate(text.splitlines(), 1) if ln.strip() and not ln.lstrip().startswith("#")]
         self.convention = None  # a '# convention: classic' line before the header
         for i, ln in enumerate(text.splitlines()[:numbered[0][0] - 1 if numbered else 0], 1):
@@ -112,7 +113,13 @@ class _Table:
                 self.convention = _convention(body.split(":", 1)[1].strip(), self.source, f"line {i}")
         if not numbered:
             raise InputError("empty table", source=self.source)
-        parsed = list(csv.reader([ln for _, ln in numbered]))
+        if len(numbered) > MAX_FRAMES + MAX_MARKERS + 2:   # the header, the base row, frames, markers
+            raise InputError(f"{len(numbered) - 1:,} rows; a model holds up to {MAX_FRAMES} frames and {MAX_MARKERS} "
+                             "markers (docs/formats.md)", source=self.source)
+        try:
+            parsed = list(csv.reader([ln for _, ln in numbered]))
+        except csv.Error as e:
+            raise InputError(f"not readable as CSV: {e}", source=self.source) from None
         header = [c.strip() for c in parsed[0]]
         self.scale: dict[str, list[tuple[int, float]]] = {}   # limits have a column per unit
         self.text: dict[str, int] = {}

@@ -19,7 +19,7 @@ from .._errors import InputError, excerpt, suggest
 from .._units import ANGLE_UNITS, LENGTH_UNITS, check_unit, parse_units
 from .text import load_yaml, read_text, write_texts
 from .._parameters import KIND_QUANTITY
-from .._options import BACKLASH_SIDES
+from .._options import BACKLASH_SIDES, MAX_MODEL_BYTES
 from .._model import (DEFAULT_PARALLEL_TOL, JOINT_TYPES, Frame, Marker, Payload, RobotModel,
                      parallel_beta_frames, placement_parameters)
 from .._spatial import nearest_rotation, pose4
@@ -418,7 +418,7 @@ def _coupling(rd: _Reader, item: dict, where: str, fname: str, joint: str, joint
 def read_model(path) -> RobotModel:
     """Read a model file (docs/formats.md) into a RobotModel in SI units."""
     source = str(path)
-    d = load_yaml(read_text(path)[0], source)
+    d = load_yaml(read_text(path, limit=MAX_MODEL_BYTES)[0], source)
     if d is None:
         raise InputError("the file is empty", source=source)
     return model_from_dict(d, source=source)

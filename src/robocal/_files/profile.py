@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from .._errors import InputError, excerpt, suggest
+from .._options import MAX_MODEL_BYTES
 from .._units import parse_units
 from .table import UNKNOWN_ACTIONS, ColumnMap, check_decimal, parse_separator
 from .text import load_yaml, read_text
@@ -113,5 +114,5 @@ def profile_from_dict(d, *, source: str = "<dict>") -> Profile:
 def read_profile(path) -> Profile:
     """Read an instrument profile file (docs/formats.md)."""
     source = str(path)
-    d = load_yaml(read_text(path)[0], source)
+    d = load_yaml(read_text(path, limit=MAX_MODEL_BYTES)[0], source)
     return profile_from_dict(d, source=source)

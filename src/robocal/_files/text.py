@@ -41,6 +41,8 @@ def read_bytes(path, *, limit: int = MAX_FILE_BYTES) -> bytes:
             raw = fh.read(limit + 1)
     except FileNotFoundError:
         raise InputError("cannot read: file not found", source=str(path)) from None
+    except InputError:  # too large (an InputError is a ValueError too)
+        raise
     except ValueError:  # a NUL in the name
         raise InputError("not a valid file name", source=excerpt(str(path))) from None
     except IsADirectoryError:
@@ -108,10 +110,15 @@ def decode(raw: bytes, source: str) -> str:
     return text
 
 
-def read_text(path) -> tuple[str, str]:
+def read_text(path, *, limit: int = MAX_FILE_BYTES, lines: int | None = None) -> tuple[str, str]:
     """The file's text (UTF-8, a BOM allowed) and the SHA-256 of its bytes; a missing, unreadable,
-    oversized or non-UTF-8 file is an InputError."""
-    raw = read_bytes(path)
+    oversized (``limit`` bytes, ``lines`` lines when given: counted before the text is parsed) or
+    non-UTF-8 file is an InputError."""
+    raw = read_bytes(path, limit=limit)
+    n = raw.count(b"\n") if lines is not None else 0
+    if lines is not None and n > lines:
+        raise InputError(f"{n:,} lines; robocal reads up to {lines:,} from this kind of file (docs/formats.md)",
+                         source=str(path))
     return decode(raw, str(path)), hashlib.sha256(raw).hexdigest()
 
 
@@ -156,6 +163,16 @@ class _SafeLoader(yaml.SafeLoader):
                                                f"{_line(key_node)})")
                 seen[key] = _line(key_node)
         return super().construct_mapping(node, deep=deep)
+
+    def construct_object(self, node, deep=False):
+        try:
+            return super().construct_object(node, deep=deep)
+        except InputError:
+            raise
+        except (ValueError, TypeError, ArithmeticError, LookupError, AttributeError) as e:  # !!float abc, !!bool x
+            raise self.error(node, f"{excerpt(node.tag.rsplit(':', 1)[-1])} value "
+                                   f"{excerpt(node.value if isinstance(node.value, str) else '...')} cannot be read "
+                                   f"({type(e).__name__})") from None
 
     def construct_scalar(self, node):
         if isinstance(node.value, str) and len(node.value) > MAX_SCALAR:

@@ -21,6 +21,7 @@ from .._conversion import frames_from_lines, line_frames, marker_placements
 from .._model import DEFAULT_PARALLEL_TOL, Marker, RobotModel, mdh_transform
 from .._spatial import axis_angle_matrix, inverse4, matrix_rpy, matrix_tuple, pose4, rpy_matrix, unit_vector
 from .._units import ANGLE_UNITS
+from .._options import MAX_MODEL_BYTES
 from .text import read_bytes, write_texts
 
 # ----------------------------------------------------------------------------------------------
@@ -77,7 +78,7 @@ def _load_xml(path_or_string) -> tuple[ET.Element, str]:
     if isinstance(path_or_string, (os.PathLike, Path)) or (
             isinstance(path_or_string, str) and not path_or_string.lstrip().startswith("<")):
         source = os.fspath(path_or_string)
-        raw = read_bytes(source)
+        raw = read_bytes(source, limit=MAX_MODEL_BYTES)
         try:
             text = raw.decode("utf-8-sig")
         except UnicodeDecodeError:

@@ -231,11 +231,15 @@ def imported_model_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--force", action="store_true", help="overwrite an existing file")
 
 
-def write_imported_model(args, model, what: str) -> None:
-    """Write the imported ``model`` to ``args.out`` and say what it holds (``what``: frames, ...)."""
+def write_imported_model(args, model, what: str, source: str | None = None) -> None:
+    """Write the imported ``model`` to ``args.out`` and say what it holds (``what``: frames, ...);
+    ``source``: the imported file, named when the model would not read back."""
+    from .._files.checked import check_model_text
     from .._files.model import model_to_yaml
 
-    write_outputs({args.out: model_to_yaml(model, units=args.units)}, force=args.force)
+    text = model_to_yaml(model, units=args.units)
+    check_model_text(model, text, source=source or args.out)  # never a model file robocal would refuse, or another model
+    write_outputs({args.out: text}, force=args.force)
     print(f"{model.name}: {model.n_joints} joints ({', '.join(model.joint_names)}), {what}markers "
           f"{', '.join(model.marker_names)}: wrote {args.out}")
 

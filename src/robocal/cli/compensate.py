@@ -49,7 +49,8 @@ def _marker(args, model, data) -> tuple[int, int | None]:
 
 def run(args) -> int:
     from .._compensation import compensate
-    from .._files.commands import command_status, commands_to_csv
+    from .._files.checked import within_limits
+    from .._files.commands import BEYOND_LIMITS, REACHED, command_status, commands_to_csv
     from .._files.model import read_model
 
     common.refuse_existing([args.out], args.force)
@@ -65,6 +66,8 @@ def run(args) -> int:
                       rotations=None if col is None or data.rotations is None else data.rotations[:, col],
                       orientation=False if args.position_only else None)
     status = command_status(comp, args.tol_mm / common.MM, args.tol_deg / common.DEG)
+    # the controller holds the nominal model: a command beyond its limits is flagged too
+    status = [BEYOND_LIMITS if s == REACHED and not ok else s for s, ok in zip(status, within_limits(nominal, comp.q))]
     common.write_outputs({args.out: commands_to_csv(calibrated, data.labels, comp, status, units=args.out_units)},
                          force=args.force)
     flagged = [(lab, s) for lab, s in zip(data.labels, status) if s != "ok"]

@@ -39,6 +39,8 @@ def _result_json(result) -> str:
 
 
 def run(args) -> int:
+    import numpy as np
+
     from .._contact_calibration import calibrate_contacts
     from .._files.contacts import read_contacts
     from .._files.model import model_to_yaml, read_model
@@ -69,6 +71,11 @@ def run(args) -> int:
                                     tol=args.tol, loss=args.loss, on_outliers=args.on_outliers)
     except DegenerateDataError as e:
         raise DegenerateDataError(f"{args.contacts}: {e}") from None
+    except np.linalg.LinAlgError as e:  # what the numbers leave of the fit is singular: the data's to fix
+        raise DegenerateDataError(f"{args.contacts}: the fit is numerically singular on these contacts ({e})") \
+            from None
+    common.require_finite("the contact calibration", {f"{p.name} ({k})": v for p in result.parameters
+                                                      for k, v in (("estimate", p.estimate), ("std", p.std))})
     print(contact_summary(result))
     files = {out / "contacts-result.json": _result_json(result)}
     failed = result.verdict == "fail"

@@ -34,6 +34,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    from .._files.checked import check_export
     from .._files.dh import dh_csv, mdh_csv
     from .._files.model import read_model
     from .._files.urdf import urdf_text
@@ -51,6 +52,7 @@ def run(args) -> int:
         if far:
             print(f"robocal: warning: classic DH of {args.model} is ill-conditioned: offsets "
                   f"{', '.join(f'{n} {v:.3g} m' for n, v in far)}; rounding them moves the tool", file=sys.stderr)
+    check_export(model, text, args.format, source=args.model)
     if model.has_compliance:
         print(f"robocal: warning: {args.model}: compliance is not exported; {args.format} holds the geometry only",
               file=sys.stderr)

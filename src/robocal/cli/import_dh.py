@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from .._errors import InputError
 from . import common
 
 EXAMPLE = """example:
@@ -34,6 +35,11 @@ def run(args) -> int:
     from .._files.dh import read_dh_table
 
     common.refuse_existing([args.out], args.force)
-    model = read_dh_table(args.table, name=args.name, convention=args.convention)
-    common.write_imported_model(args, model, "")
+    try:
+        model = read_dh_table(args.table, name=args.name, convention=args.convention)
+    except InputError as e:
+        if e.source is None:  # the model's own checks (e.g. its size) know no file
+            raise InputError(e.detail, source=args.table, where=e.where) from None
+        raise
+    common.write_imported_model(args, model, "", source=args.table)
     return 0

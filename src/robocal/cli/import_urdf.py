@@ -42,11 +42,13 @@ def run(args) -> int:
         if e.where in ("base_link", "tip_link"):   # name the option as the user types it
             flag = "--" + e.where.replace("_", "-")
             raise InputError(e.detail.replace(e.where.replace("_", " "), flag), source=e.source, where=flag) from None
+        if e.source is None:  # the model's own checks (e.g. its size) know no file
+            raise InputError(e.detail, source=args.urdf, where=e.where) from None
         raise
     try:  # never write a model file robocal would then refuse to read
         model_from_dict(model_to_dict(model, units=args.units), source=args.out)
     except InputError as e:
         raise InputError(f"the model it gives cannot be written as a robocal model: {e.where or ''} {e.detail}",
                          source=args.urdf) from None
-    common.write_imported_model(args, model, f"{len(model.frames)} frames, ")
+    common.write_imported_model(args, model, f"{len(model.frames)} frames, ", source=args.urdf)
     return 0

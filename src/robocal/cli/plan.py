@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from .._errors import InputError
+import sys
+
+from .._errors import DegenerateDataError, InputError
 from .._options import INSTRUMENT_NOISE, POSE_CRITERIA
 from . import common
 
@@ -45,6 +47,7 @@ def register(sub) -> None:
 def run(args) -> int:
     import numpy as np
 
+    from .._files.checked import within_limits
     from .._files.measurements import measurements_to_csv
     from .._files.model import read_model
     from .._measurements import Measurements, Noise
@@ -54,6 +57,12 @@ def run(args) -> int:
     common.refuse_existing([args.out], args.force)
     model = read_model(args.model)
     candidates = common.read_data(args, model, args.candidates, targets=True).q if args.candidates else None
+    if candidates is not None:  # a plan never asks for a pose beyond the joint limits
+        inside = within_limits(model, candidates)
+        if not inside.all():
+            print(f"robocal: warning: {args.candidates}: {int((~inside).sum())} of {len(inside)} candidate poses "
+                  "are beyond the joint limits and left out", file=sys.stderr)
+        candidates = candidates[inside]
     n_cand = len(candidates) if candidates is not None else args.n_candidates
     if args.poses > n_cand:
         raise InputError(f"cannot choose {args.poses} poses from {n_cand} candidates", where="--poses")
@@ -63,6 +72,8 @@ def run(args) -> int:
     noise = Noise.of(args.instrument, position=None if args.noise_mm is None else args.noise_mm / common.MM)
     pred = predict_campaign(model, sel.q, parameters=parameters, known=args.known, noise=noise.position,
                             tol=args.tol, rng=args.seed)
+    if not within_limits(model, sel.q).all():
+        raise DegenerateDataError("the chosen poses are beyond the joint limits; nothing written")
     n, m = len(sel.q), len(model.marker_names)
     poses = Measurements(q=sel.q, positions=np.full((n, m, 3), np.nan), marker_names=model.marker_names,
                          joint_names=model.joint_names, labels=tuple(f"P{i + 1:02d}" for i in range(n)))
