@@ -1,6 +1,7 @@
 """Run many malformed inputs through every command and count how each run ended.
 
     python benchmarks/fuzz_cli.py --cases 20000 [--seed 0] [--jobs 2] [--show 3] [--keep DIR] [--commands a,b]
+                                   [--seconds S]
 
 Cases come from the hypothesis strategies in tests/fuzz_cases.py, one per command of its COMMANDS
 table (model files, measurement, repeatability, target and contact CSVs, profiles, limit files, DH
@@ -164,12 +165,18 @@ def base_result() -> str:
     return text
 
 
+class _TimeUp(Exception):
+    """--seconds have passed: start no more cases."""
+
+
 def main_fuzz(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--cases", type=int, default=10_000)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--jobs", type=int, default=2, help="cases run at once")
     p.add_argument("--show", type=int, default=3, help="examples printed per bad outcome")
+    p.add_argument("--seconds", type=float, help="start no case after this many seconds (the summary counts the "
+                                                 "cases run; for a shared machine's time slot)")
     p.add_argument("--commands", help="only these commands of tests/fuzz_cases.py's COMMANDS (comma-separated; "
                                       "default every one)")
     p.add_argument("--keep", type=Path, help="copy the folder of every bad case here (argv.txt holds its command)")
@@ -185,12 +192,17 @@ def main_fuzz(argv=None) -> int:
               suppress_health_check=list(HealthCheck))
     @given(fuzz_cases.case(result_text, args.commands.split(",") if args.commands else None))
     def each(c):
+        if args.seconds is not None and time.monotonic() - t0 > args.seconds:
+            raise _TimeUp
         runner.run(*c)
 
     random.seed(args.seed)
     t0 = time.monotonic()
     each._hypothesis_internal_use_seed = args.seed
-    each()
+    try:
+        each()
+    except _TimeUp:
+        print(f"time up after {args.seconds:.0f} s: stopped starting cases", file=sys.stderr)
     while runner.running:
         runner.reap()
     wall = time.monotonic() - t0
