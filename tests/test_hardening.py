@@ -578,3 +578,27 @@ def test_compensate_flags_a_command_beyond_the_nominal_controllers_limits(files,
     rows = [ln.split(",") for ln in (files / "c.csv").read_text().splitlines()[1:]]
     assert rows and all(abs(float(r[1])) > 10 for r in rows)          # every j1 beyond +-10 deg
     assert all(r[-1] != "ok" for r in rows), rows
+
+
+def test_table_line_too_long_refused_before_the_cells_are_split(files, cli):
+    (files / "data.csv").write_text(MEASUREMENTS.splitlines()[0] + ",x" * 600_000 + "\n" + MEASUREMENTS)
+    one_line(cli, model_commands(files)[0], ["data.csv", "a line of 1,2", "up to 1,048,576"])
+
+
+def test_contact_result_with_a_non_finite_deviation_is_not_written(tmp_path, cli, monkeypatch):
+    """A contacts result once went out with a standard deviation of NaN, exit 0: the writer checks."""
+    from dataclasses import replace
+
+    import robocal._contact_calibration as cc
+
+    real = cc.calibrate_contacts
+
+    def nan_std(*a, **k):
+        res = real(*a, **k)
+        return replace(res, parameters=(replace(res.parameters[0], std=float("nan")),) + res.parameters[1:])
+
+    monkeypatch.setattr(cc, "calibrate_contacts", nan_std)
+    (tmp_path / "c.csv").write_text(_contacts())
+    one_line(cli, ("calibrate", ARM7 / "model.yaml", "--contacts", tmp_path / "c.csv", "--out", tmp_path / "o"),
+             ["non-finite", "(std)"], seconds=120)
+    assert not (tmp_path / "o").exists()

@@ -9,7 +9,7 @@ import numpy as np
 
 from .._accuracy_limit import RepeatabilityData
 from .._errors import InputError, excerpt
-from .._options import MAX_POSES
+from .._options import MAX_HEADER_LINES, MAX_POSES
 from .._units import LENGTH_UNITS
 from .measurements import MAX_MAGNITUDE
 from .text import check_rows, read_text
@@ -29,7 +29,7 @@ def read_repeatability_csv(path, *, units: str | None = None) -> RepeatabilityDa
         raise InputError(f"units must be one of {', '.join(LENGTH_UNITS)}, got {units!r}", where="units")
     src = str(path)
     check_rows(path, MAX_POSES, "rows")
-    reader = csv.reader(io.StringIO(read_text(path)[0], newline=""))
+    reader = csv.reader(io.StringIO(read_text(path, lines=MAX_POSES + MAX_HEADER_LINES)[0], newline=""))
     try:
         header = next(reader, None)
         if header is None:

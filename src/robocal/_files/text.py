@@ -22,6 +22,8 @@ from .._errors import InputError, excerpt
 
 # a file larger than this is refused before it is read (the largest sensible campaign is ~100 MB)
 MAX_FILE_BYTES = 256 * 2 ** 20
+# one line of a table (measurement, repeatability, contact file): a header of 100,000 columns
+MAX_LINE_BYTES = 2 ** 20
 # nesting of YAML/JSON collections: model and result files need 6; the rest is a bomb or a mistake
 MAX_DEPTH = 32
 # one text value (a name, a description): longer is a pasted file, not a value
@@ -115,10 +117,15 @@ def read_text(path, *, limit: int = MAX_FILE_BYTES, lines: int | None = None) ->
     oversized (``limit`` bytes, ``lines`` lines when given: counted before the text is parsed) or
     non-UTF-8 file is an InputError."""
     raw = read_bytes(path, limit=limit)
-    n = raw.count(b"\n") if lines is not None else 0
-    if lines is not None and n > lines:
-        raise InputError(f"{n:,} lines; robocal reads up to {lines:,} from this kind of file (docs/formats.md)",
-                         source=str(path))
+    if lines is not None:  # a table: its lines and their length, before the cells are split
+        n = raw.count(b"\n")
+        if n > lines:
+            raise InputError(f"{n:,} lines; robocal reads up to {lines:,} from this kind of file (docs/formats.md)",
+                             source=str(path))
+        longest = max(map(len, raw.split(b"\n")))
+        if longest > MAX_LINE_BYTES:
+            raise InputError(f"a line of {longest:,} bytes; robocal reads lines of up to {MAX_LINE_BYTES:,} in a "
+                             "table (docs/formats.md)", source=str(path))
     return decode(raw, str(path)), hashlib.sha256(raw).hexdigest()
 
 
