@@ -67,7 +67,8 @@ def run(args) -> int:
                       orientation=False if args.position_only else None)
     status = command_status(comp, args.tol_mm / common.MM, args.tol_deg / common.DEG)
     # the controller holds the nominal model: a command beyond its limits is flagged too
-    status = [BEYOND_LIMITS if s == REACHED and not ok else s for s, ok in zip(status, within_limits(nominal, comp.q))]
+    status = [BEYOND_LIMITS if s == REACHED and not ok else s
+              for s, ok in zip(status, within_limits(nominal, comp.q))]
     common.write_outputs({args.out: commands_to_csv(calibrated, data.labels, comp, status, units=args.out_units)},
                          force=args.force)
     flagged = [(lab, s) for lab, s in zip(data.labels, status) if s != "ok"]
