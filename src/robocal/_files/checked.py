@@ -154,13 +154,14 @@ def check_export(model: RobotModel, text: str, fmt: str, *, source: str | None =
         from .urdf import read_urdf
 
         joints = ET.fromstring(text).findall("joint")
-        moving = sorted(j.get("name") for j in joints if j.get("type") != "fixed" and j.find("mimic") is None)
+        moving = sorted(j.get("name", "") for j in joints if j.get("type") != "fixed" and j.find("mimic") is None)
         if moving != sorted(model.joint_names):
             raise InputError(f"{what} would not reproduce the model (joints {', '.join(moving)} written for "
                              f"{', '.join(model.joint_names)}); nothing written", source=source)
         # the writer puts one fixed joint per marker last, its child the marker's link
         for m, j in enumerate(joints[-len(model.markers):]):
-            back = read_urdf(text, tip_link=j.find("child").get("link"))
+            child = j.find("child")
+            back = read_urdf(text, tip_link=None if child is None else child.get("link"))
             check_reproduces(model, back, what, source=source, pairs=[(m, 0)], chain=False)
     except InputError as e:
         if e.detail.startswith(what):
