@@ -276,6 +276,7 @@ ARM7_MODEL = (ARM7 / "model.yaml").read_text()
 TRUE_MODEL = (EXAMPLE / "true_model.yaml").read_text()
 TARGETS = (EXAMPLE / "targets.csv").read_text()
 DH_TABLE = (Path(__file__).resolve().parents[1] / "examples" / "dh" / "ur5-dh.csv").read_text()
+DH_HEADER = next(ln for ln in DH_TABLE.splitlines() if ln.startswith("name,"))
 
 
 def _sockets() -> str:
@@ -305,8 +306,8 @@ LIMIT_FILE = '{"schema": "robocal.limit/1", "unit": "m", "limit": 0.0005, "repea
 def long_dh(n: int) -> str:
     """A classic DH table of ``n`` revolute joints (a chain far longer than any robot)."""
     rows = [f"j{i},revolute,0,{100 + i % 7},{50 * (i % 3)},{90 * (i % 2)},-180,180,,,,,," for i in range(n)]
-    head, *_ = DH_TABLE.splitlines()[2:3]
-    return head + "\n" + "\n".join(rows) + "\ntool,marker,,,,,,,0,0,100,0,0,0\n"
+    head = DH_HEADER
+    return "# convention: classic\n" + head + "\n" + "\n".join(rows) + "\ntool,marker,,,,,,,0,0,100,0,0,0\n"
 
 
 @st.composite
@@ -324,7 +325,7 @@ def dh_file(draw) -> bytes:
         return DH_TABLE.replace("-425", draw(st.sampled_from(("1e300", "1e12", "-1e11", "1" * 400, "nan", "inf")))
                                 ).encode()
     if kind == "empty":
-        return draw(st.sampled_from((b"", b"\n", DH_TABLE.splitlines()[2].encode() + b"\n", b"frame,r\n")))
+        return draw(st.sampled_from((b"", b"\n", DH_HEADER.encode() + b"\n", b"frame,r\n")))
     if kind == "binary":
         return draw(st.binary(min_size=1, max_size=200))
     return draw(mutated_text(MDH_TABLE))

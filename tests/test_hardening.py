@@ -494,15 +494,6 @@ def test_dh_table_csv_error_is_one_line(tmp_path, cli):
     one_line(cli, ("import-dh", tmp_path / "t.csv", "--out", tmp_path / "m.yaml"), ["t.csv", "not readable as CSV"])
 
 
-def test_measurement_file_of_too_many_lines_refused_before_parsing(files, cli, monkeypatch):
-    """A 250 MB measurement file once took 100 s and 4 GB before its pose count was refused."""
-    import robocal._files.measurements as m
-
-    monkeypatch.setattr(m, "MAX_POSES", 10)
-    monkeypatch.setattr(m, "MAX_HEADER_LINES", 5)
-    one_line(cli, model_commands(files)[0], ["data.csv", "31 lines", "up to 15"])
-
-
 @pytest.mark.parametrize("fmt", ["urdf", "mdh-csv", "dh-csv"])
 def test_export_refuses_what_would_not_reproduce_the_model(tmp_path, cli, fmt):
     # a marker 1e11 mm away: what the file can hold moves it by far more than 1e-9 m (once written, exit 0)
@@ -581,8 +572,9 @@ def test_compensate_flags_a_command_beyond_the_nominal_controllers_limits(files,
 
 
 def test_table_line_too_long_refused_before_the_cells_are_split(files, cli):
-    (files / "data.csv").write_text(MEASUREMENTS.splitlines()[0] + ",x" * 600_000 + "\n" + MEASUREMENTS)
-    one_line(cli, model_commands(files)[0], ["data.csv", "a line of 1,2", "up to 1,048,576"])
+    (files / "rep.csv").write_text(REPEATABILITY.splitlines()[0] + ",x" * 600_000 + "\n" + REPEATABILITY)
+    one_line(cli, ("limit", files / "model.yaml", "--repeatability-csv", files / "rep.csv", *LIMIT_ARGS,
+                   "--out", files / "limit.json"), ["rep.csv", "a line of 1,2", "up to 1,048,576"])
 
 
 def test_contact_result_with_a_non_finite_deviation_is_not_written(tmp_path, cli, monkeypatch):
