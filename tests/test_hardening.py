@@ -594,3 +594,10 @@ def test_contact_result_with_a_non_finite_deviation_is_not_written(tmp_path, cli
     one_line(cli, ("calibrate", ARM7 / "model.yaml", "--contacts", tmp_path / "c.csv", "--out", tmp_path / "o"),
              ["non-finite", "(std)"], seconds=120)
     assert not (tmp_path / "o").exists()
+
+
+def test_limits_of_1e300_refused_by_the_model_reader(files, cli):
+    """Limits of +-1e300 (finite, so not .inf) read: calibrate then sampled the workspace out there and ran
+    for minutes."""
+    (files / "model.yaml").write_text(MODEL.replace("limits: [0, 700]", "limits: [-1e300, 1e300]", 1))
+    one_line(cli, model_commands(files)[0], ["model.yaml", "joints[1].limits[0]", "magnitude below 1e+12"])

@@ -90,6 +90,8 @@ class _Reader:
         value = float(value)
         if np.isnan(value) or (finite and not abs(value) < MAX_MAGNITUDE):
             raise self.error(where, f"expected a finite number (magnitude below {MAX_MAGNITUDE:g}), got {value}")
+        if not finite and np.isfinite(value) and not abs(value) < MAX_MAGNITUDE:  # .inf, or a size of this world
+            raise self.error(where, f"expected .inf or a number of magnitude below {MAX_MAGNITUDE:g}, got {value}")
         return value
 
     def vector(self, value, where: str, n: int, scale: float = 1.0) -> tuple[float, ...]:
