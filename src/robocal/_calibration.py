@@ -28,7 +28,7 @@ from ._errors import (CheckWarning, ConvergenceWarning, DegenerateDataError, Ide
 from ._identifiability import (DEFAULT_TOL, WEAK_STD, IdentifiabilityResult, analyse, backlash_reasons,
                                theoretical_identifiability, weakly_identifiable)
 from ._identifiability import eliminate as eliminate_parameters
-from ._in_use import (DEFAULT_FOLDS, AccuracyInUse, Coverage, HeldOut, accuracy_in_use, coverage, cross_validate,
+from ._in_use import (DEFAULT_FOLDS, AccuracyInUse, Coverage, FoldProblems, HeldOut, accuracy_in_use, coverage, cross_validate,
                       evaluated, fold_labels, free_names, paired_excess, with_points_aside, workspace_readings)
 from ._kinematics import evaluate
 from ._measurements import Measurements, Noise
@@ -48,6 +48,8 @@ LIMIT_REACHED_WITHIN = 1.15
 # last step taken: its errors are those of the fit run to 1e-12 within a few 1e-10 m (they are
 # shown in micrometres), and it takes one Jacobian and one pass fewer.
 REGISTRATION_TOL = 1e-6
+# configurations within the limits over which the calibrated geometry is compared with the nominal one
+REACH_POSES = 150
 
 
 @dataclass(frozen=True)
@@ -351,15 +353,19 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
     start, said = _starting_model(model, data, initial_base)
     analysis = _analyse(start, data, parameters, known + _unmeasured(model, data), tol, noise=noise)
     labels, k, grouping = fold_labels(data, folds)
-    chosen, choice_notes = _choose(start, analysis, data, noise, limit_m, options, (labels, k))
+    fold_problems = FoldProblems(labels, k)
+    chosen, choice_notes = _choose(start, analysis, data, noise, limit_m, options, (labels, k, fold_problems))
     design, solution = chosen.design, chosen.solution
     before, before_notes = _registered_nominal(design)
     notes += list(said) + list(analysis.notes) + list(chosen.notes) + list(choice_notes) + list(before_notes)
     cov = covariance(solution)
     estimates = _estimates(design, solution, cov)
-    in_use = _in_use(model, design, chosen, before, validation, (labels, k, grouping), register_validation)
-    reach = _reach(start, design, solution.p, workspace_readings(start))
-    cover = coverage(design.problem, solution.p, cov.covariance, reach.predicted)
+    in_use = _in_use(model, design, chosen, before, validation, (labels, k, grouping, fold_problems),
+                     register_validation)
+    reach = _reach(start, design, solution.p, workspace_readings(start, REACH_POSES))
+    square = solution.jacobian.shape[0] == solution.jacobian.shape[1] and solution.row_kinds is None
+    cover = coverage(design.problem, solution.p, cov.covariance, reach.predicted,
+                     factor=solution.jacobian if square else None)
     checks = [readings_check(model, data), reading_units_check(model, data),
               cloud_size_check(model, data, analysis.problem.predicted(design.p0)[0]), markers_check(model, data),
               chosen.outlier_check]
@@ -600,8 +606,8 @@ def _fit(design: _Design, data: Measurements, noise: Noise, options: _Options, f
     the other points is lower (the model is then the one the rows' deletion gives). ``outliers``: a
     fit whose outlier check and mask stand (a design fitted on the points it left)."""
     solution = _solve(design, options)
-    labels, k = folds
-    held = cross_validate(design.problem, solution.p, labels, k)
+    labels, k, subs = folds
+    held = cross_validate(design.problem, solution.p, labels, k, folds=subs)
     if outliers is not None:
         return _Fit(design, data, solution, outliers.outlier_check, outliers.outlying, held)
     check, out, gross = _outliers(design.problem, solution, data, noise)
@@ -635,7 +641,7 @@ def _fit(design: _Design, data: Measurements, noise: Noise, options: _Options, f
     # judged on every point, those set aside too (predicted without them): blunders are no better
     # predicted either way, while points whose only fault is an effect the model leaves out are
     # predicted worse once their like are set aside
-    held2 = cross_validate(again.problem, solution2.p, labels, k, on=design.problem)
+    held2 = cross_validate(again.problem, solution2.p, labels, k, on=design.problem, folds=subs)
     excess, _ = paired_excess(held2.norms, held.norms, data.mask)
     if excess > 0:
         notes.append(f"{int(blunder.sum())} outlier(s) named; setting them aside did not lower the cross-validated "
@@ -808,7 +814,7 @@ def _in_use(model: RobotModel, design: _Design, fit: _Fit, before: np.ndarray, v
     """The accuracy in use before and after calibration: on ``validation`` when given (with base and
     markers registered on it for both models when ``register``), else cross-validated on the fitted
     poses (the nominal's registration of base and markers refitted on each fold's complement too)."""
-    labels, k, grouping = folds
+    labels, k, grouping, subs = folds
     problem, p = design.problem, fit.solution.p
     fit_after = problem.error_norms(p)[fit.data.mask]
     noise = _instrument_variance(problem.noise, fit.data)
@@ -817,7 +823,8 @@ def _in_use(model: RobotModel, design: _Design, fit: _Fit, before: np.ndarray, v
         placed = tuple(n for n in design.identifiability.identified if lay[n].family in ("base", "markers"))
         only = len(placed) == len(design.identifiability.identified)
         held_before = fit.held_out if only else (
-            cross_validate(problem.over(placed), before, labels, k) if placed else evaluated(problem, before))
+            cross_validate(problem.over(placed), before, labels, k, folds=subs) if placed else
+            evaluated(problem, before))
         return accuracy_in_use("cross-validation", k, grouping, held_before, fit.held_out, fit_after,
                                registration_only=only, noise=noise)
     start = design.start
