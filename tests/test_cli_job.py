@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 import subprocess
 import sys
 from dataclasses import replace
@@ -155,6 +156,25 @@ def test_rough_edges(tmp_path, cli):
     assert limit_mm(str(limit)) == pytest.approx(0.5) and limit_mm("0.4") == 0.4
     code, _, err = cli("-v", "plan", TH8, "--poses", 10, "--n-candidates", 100, "--out", tmp_path / "p.csv")
     assert code == 0 and "robocal: " in err and "chose 10 of 100" in err
+    # after the command too, as users type it
+    code, _, err = cli("plan", TH8, "--poses", 10, "--n-candidates", 100, "--out", tmp_path / "p2.csv", "-v")
+    assert code == 0 and "chose 10 of 100" in err
+    code, _, err = cli("plan", TH8, "--poses", 10, "--n-candidates", 100, "--out", tmp_path / "p3.csv")
+    assert code == 0 and "chose 10 of 100" not in err
+
+
+def test_the_masses_advice_is_a_command_line_that_works(tmp_path, cli):
+    from robocal.cli import build_parser
+
+    with pytest.raises(rc.InputError) as e:
+        rc.calibrate(arm6r(), rc.simulate(arm6r(), 30, seed=1)[1], parameters=("geometric", "compliance"))
+    advice = re.search(r"\((--assume-masses[^)]*) on the command line\)", str(e.value)).group(1)
+    options = re.findall(r"--[\w-]+(?: [A-Z]+)?", advice)
+    assert options == ["--assume-masses", "--total-mass KG"]
+    argv = ["calibrate", TH8, "data.csv", "--out", str(tmp_path)] + [w for o in options for w in o.split()]
+    argv[-1] = "12.5"
+    args = build_parser().parse_args(argv)
+    assert args.assume_masses and args.total_mass == 12.5
 
 
 @pytest.mark.parametrize("command", ["plan", "simulate", "calibrate", "compensate", "export", "identifiability",
