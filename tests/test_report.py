@@ -248,6 +248,9 @@ def test_compliance_columns_in_paper_layout(compliance, tmp_path):
         _shown_equals(page, f"{p['name']}:estimate", p["estimate"])
         _shown_equals(page, f"{p['name']}:std", p["std"])
     assert "K<sub>&theta;</sub>" in text
+    # units keep their case wherever the page names them, sentences included
+    assert "deg/(kn m)" not in text
+    assert "compliances in deg/(kN m)" in text
 
 
 def test_geometric_only_omits_compliance_columns(full, tmp_path):
@@ -574,3 +577,23 @@ def test_terminal_tables_align_for_long_names():
     _, data = rc.simulate(m, 30, seed=1)
     rows = [line for line in calibration_summary(rc.calibrate(m, data)).splitlines() if " change " in line and " std " in line]
     assert len(rows) > 20 and len({line.index(" change ") for line in rows}) == 1 and len({line.index(" std ") for line in rows}) == 1
+
+
+def test_summary_error_columns_stay_apart_past_999_mm():
+    from robocal._calibration import ErrorStats
+    from robocal._presentation.text import stats_lines
+
+    big = {"fit_before": ErrorStats(36, 3.252, 1.06, 3.4, 12.5), "fit_after": ErrorStats(36, 4e-4, 2e-4, 5e-4, 1e-3),
+           "validation_before": ErrorStats(12, 1.0004, 0.998, 1.5, 2.75),
+           "validation_after": ErrorStats(0, None, None, None, None)}
+    lines = stats_lines(big)
+    head = lines[0]
+    for line, key in zip(lines[1:], ("fit_before", "fit_after", "validation_before")):
+        s = big[key]
+        cells = line[24:].split()  # after the row label: n and four numbers, each its own word
+        assert [int(cells[0])] + [float(c) for c in cells[1:]] == pytest.approx(
+            [s.n] + [v * 1e3 for v in (s.mean, s.std, s.rms, s.max)], abs=5e-4)
+        # each number ends under its column's name
+        for name, cell in zip(("mean", "std", "RMS", "max"), cells[1:]):
+            assert head.index(name) + len(name) == line.index(cell) + len(cell)
+    assert len(lines) == 4

@@ -41,6 +41,11 @@ def _ratio(v, spec: str) -> str:
     return "–" if v is None else format(v, spec)
 
 
+def _sentence(text: str) -> str:
+    """``text`` with its first letter upper case and the rest as written (units keep their case: kN)."""
+    return text[:1].upper() + text[1:]
+
+
 def _e(text) -> str:
     return html.escape(str(text), quote=True)
 
@@ -601,7 +606,7 @@ def render_report(result: CalibrationResult, *, extra: dict | None = None) -> st
     sections.append(("parameters", "Parameters",
                      "<p>Per frame, in the paper's layout: I identified, E eliminated (held at its nominal value, "
                      "its effect carried by identified parameters), &ndash; not a candidate. "
-                     f"{_e(UNITS_SENTENCE).capitalize()}; std dev is the standard deviation of the estimate.</p>"
+                     f"{_e(_sentence(UNITS_SENTENCE))}; std dev is the standard deviation of the estimate.</p>"
                      + frame_table + (f'<p class="muted">{note}</p>' if note else "")
                      + "<h3>Base and marker parameters</h3>" + other_table))
     sections.append(("identifiability", "Eliminated parameters and what absorbs them",
@@ -633,7 +638,7 @@ def render_report(result: CalibrationResult, *, extra: dict | None = None) -> st
             f'<header><h1>Calibration report &ndash; <span class="robot">{_e(robot)}</span></h1>'
             f'<p class="meta">{" &middot; ".join(_e(m) for m in meta if m)}</p></header>\n'
             f"{first}{_headline(d)}{''.join(notices)}<nav><ol>{toc}</ol></nav>\n{''.join(rest)}"
-            f"<footer>{_e(UNITS_SENTENCE).capitalize()}; the result file keeps SI "
+            f"<footer>{_e(_sentence(UNITS_SENTENCE))}; the result file keeps SI "
             "units. A self-contained page: no scripts, no network.</footer>\n</main>\n</body>\n</html>\n")
 
 
