@@ -215,7 +215,8 @@ def families(model: RobotModel, *, orientation: bool = False) -> dict[str, list[
     branching = {f.parent for f in model.frames if sum(g.parent == f.parent for g in model.frames) > 1}
     last = [f"{model.frames[i].name}.{k}" for i in sorted(branching - {-1}) for k in ("theta", "r")]
     frames = [n for n in frames if n not in last] + last
-    compliance = [f"{f.name}.{k}" for f in model.frames for k in COMPLIANCE_KINDS]
+    # a fixed frame (a placement, often written as a matrix) has no joint to yield: no compliance
+    compliance = [f"{f.name}.{k}" for f in model.frames if f.joint != "fixed" for k in COMPLIANCE_KINDS]
     return {"base": base, "markers": markers, "frames": frames, "geometric": base + markers + frames,
             "compliance": compliance, "backlash": backlash_names(model)}
 
