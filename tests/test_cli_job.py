@@ -122,6 +122,22 @@ def test_export_round_trips(fmt, tmp_path, cli):
     assert np.allclose(back.joint_limits, model.joint_limits, atol=1e-12)
 
 
+def test_the_calibrated_th8_exports_to_classic_dh_and_reproduces_its_kinematics(tmp_path, cli):
+    # what the README says of its own example: the calibrated TH8's classic-DH table is written and usable
+    code, _, err = cli("calibrate", TH8, str(ROOT / "examples/th8/measurements.csv"), "--out", tmp_path / "run",
+                       "--known", "markers")
+    assert code == 0, err
+    code, _, err = cli("export", tmp_path / "run" / "calibrated.yaml", "--format", "dh-csv", "--out", tmp_path / "dh.csv")
+    assert code == 0 and "warning" not in err, err
+    code, _, err = cli("import-dh", tmp_path / "dh.csv", "--out", tmp_path / "back.yaml")
+    assert code == 0, err
+    cal = rc.read_model(tmp_path / "run" / "calibrated.yaml")
+    cal = cal.replace(frames=tuple(replace(f, k_theta=0.0, k_alpha=0.0, k_beta=0.0) for f in cal.frames))
+    back = rc.read_model(tmp_path / "back.yaml")
+    q = rc.random_configurations(cal, 200, 3)
+    assert np.abs(rc.forward_kinematics(cal, q).positions - rc.forward_kinematics(back, q).positions).max() < 1e-9
+
+
 def test_classic_dh_export_refuses_ill_conditioned_parallel_axes(tmp_path, cli):
     model = arm6r()
     true, _ = rc.simulate(model, 3, seed=1)       # a tilt between the parallel axes j2 and j3
