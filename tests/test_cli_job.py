@@ -127,7 +127,8 @@ def test_the_calibrated_th8_exports_to_classic_dh_and_reproduces_its_kinematics(
     code, _, err = cli("calibrate", TH8, str(ROOT / "examples/th8/measurements.csv"), "--out", tmp_path / "run",
                        "--known", "markers")
     assert code == 0, err
-    code, _, err = cli("export", tmp_path / "run" / "calibrated.yaml", "--format", "dh-csv", "--out", tmp_path / "dh.csv")
+    code, _, err = cli("export", tmp_path / "run" / "calibrated.yaml", "--format", "dh-csv",
+                       "--out", tmp_path / "dh.csv")
     assert code == 0 and "warning" not in err, err
     code, _, err = cli("import-dh", tmp_path / "dh.csv", "--out", tmp_path / "back.yaml")
     assert code == 0, err
