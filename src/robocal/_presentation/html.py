@@ -18,8 +18,9 @@ from .._errors import InputError
 from .._files.result import result_to_dict
 from .._files.text import write_texts
 from .._parameters import FRAME_KINDS, GEOMETRIC_KINDS, SI_UNITS, parameter_layout, parameter_vector
-from .plots import (AFTER, BEFORE, DENSE, LIMIT, need_matplotlib, plot_correlation, plot_errors_per_pose,
-                    plot_histograms, plot_residual_trends, plot_residuals, residual_sample, residual_trends)
+from .plots import (AFTER, BEFORE, DENSE, LIMIT, STRUCTURE, correlation_blocks, need_matplotlib, plot_correlation,
+                    plot_errors_per_pose, plot_histograms, plot_residual_trends, plot_residuals, residual_sample,
+                    residual_trends)
 from .units import UNITS_SENTENCE, absorption_text, display_unit as _display, finite as _num, fmt, symbol
 
 STAT_SETS = (("fit_before", "fitted poses", "before"), ("fit_after", "fitted poses", "after"),
@@ -361,6 +362,18 @@ def _correlated_pairs(d: dict, k: int = 12) -> str:
                           f"{CORRELATED} (in bold)")
 
 
+def _correlation_section(d: dict) -> str:
+    """The strongest pairs first (they name what a map of many parameters cannot), then the map:
+    whole for a few parameters, in per-family blocks for many, in a scrollable panel."""
+    blocks = correlation_blocks(d)
+    how = ("Correlation coefficients from the covariance of the estimates (red positive, blue negative)"
+           + ("." if len(blocks) == 1 else f", within each family in {len(blocks)} blocks of at most a few dozen "
+              "parameters; pairs across blocks are in the table above."))
+    k = 12 if len(d["parameters"]) <= 30 else 25
+    return (_correlated_pairs(d, k)
+            + f'<div class="panel">{_figure(plot_correlation(d), how)}</div>')
+
+
 def _solver_table(d: dict) -> str:
     ident = d.get("identifiability") or {}
     return _kv([
@@ -520,16 +533,15 @@ span.status.fail{background:#fbe5e5;color:var(--limit)}
 table.checks{width:100%%}table.checks td.wrap{overflow-wrap:anywhere}
 .verdict{font-size:16px}:target{outline:2px solid var(--after);background:#eaf2fb}
 footer{margin-top:36px;padding-top:8px;border-top:1px solid var(--line);font-size:12px;color:var(--muted)}
-.side{display:grid;grid-template-columns:minmax(0,1fr) minmax(250px,max-content);gap:18px;align-items:start}
 table.pairs tr.strong td{font-weight:650}
+.panel{max-height:1100px;overflow:auto;border:1px solid var(--line);border-radius:6px;padding:0 8px}
 table.params{font-size:12.5px}table.params td,table.params th{padding:3px 7px}
 @page{size:A4;margin:12mm}
 @media print{body{background:#fff;font-size:11px}main{padding:0;max-width:none;min-height:0}
 .scroll{overflow:visible}table{font-size:10px}th,td{padding:2px 5px}table.params{font-size:9px}
 table.params td,table.params th{padding:1px 3px}td.name{white-space:normal;overflow-wrap:anywhere}
-.side{display:block}h2{break-after:avoid}figure,tr,.card,.notice{break-inside:avoid}
+.panel{max-height:none;overflow:visible;border:0}h2{break-after:avoid}figure,tr,.card,.notice{break-inside:avoid}
 nav ol{columns:4}:target{outline:none;background:none}}
-@media (max-width:900px){.side{display:block}}
 @media (max-width:800px){.cards{grid-template-columns:1fr 1fr}nav ol{columns:1}}
 """ % {"before": BEFORE, "after": AFTER, "limit": LIMIT}
 
@@ -565,16 +577,30 @@ def _residuals_section(d: dict) -> str:
 def _trends_section(d: dict, result: CalibrationResult) -> str:
     model = result.nominal_model
     trends = residual_trends(d, model.joint_names, [SI_UNITS[q] for q in model.reading_quantities],
-                             model.base_position)
+                             result.calibrated_model.X_WB)
     if trends is None:
         return "<p>The result holds no measured points and joint readings: no trends to draw.</p>"
+    joints = [c for c, _ in trends["columns"][2:]]
+    drawn = [c for c in joints if c in trends["structured"]]
+    flat = [c.removesuffix(" reading") for c in joints if c not in drawn]
+    said = (f" Against {_list(flat)} the medians stay within the noise (within {STRUCTURE:g} standard errors of a "
+            "bin's median): not drawn." if flat else "")
     return ("<p>Where a model term is missing (backlash, compliance, a wrong encoder ratio, a thermal drift), the "
             "residuals follow the robot's posture: a trend here against one joint's reading and not against the "
-            "others points at that joint.</p>"
-            + _figure(plot_residual_trends(trends), f"Residual components after calibration (calibrated minus "
-                      f"measured, world axes) of all {trends['points']} measured points, fitted and held-out, against "
-                      "the horizontal distance from the base axis (reach), the height above the base origin and each "
-                      "joint's reading. Line: median in bins of equal counts of points; band: the middle half."))
+            "others points at that joint. Reach and height are always drawn; a joint's reading only where the "
+            "residuals show structure against it.</p>"
+            + _figure(plot_residual_trends(trends, ["reach", "height"] + drawn),
+                      f"Residual components after calibration (calibrated minus measured, world axes) of all "
+                      f"{trends['points']} measured points, fitted and held-out, against the distance from the "
+                      "calibrated base's vertical axis (reach), the height above the calibrated base and the "
+                      "readings of the joints that show structure. Line: median in bins of equal counts of points; "
+                      f"band: the middle half.{said}"))
+
+
+def _list(items: list[str]) -> str:
+    """'a, b and c'."""
+    items = [_e(i) for i in items]
+    return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " and " + items[-1]
 
 
 def render_report(result: CalibrationResult, *, extra: dict | None = None) -> str:
@@ -613,10 +639,7 @@ def render_report(result: CalibrationResult, *, extra: dict | None = None) -> st
                      "<p>An eliminated parameter cannot be told apart from a combination of identified ones: a "
                      "change of one display unit in it moves the tool as the changes shown do.</p>"
                      + _eliminated_table(d, units)))
-    sections.append(("correlation", "Correlation of the identified parameters",
-                     '<div class="side">' + _figure(plot_correlation(d), "Correlation coefficients from the "
-                                                    "covariance of the estimates (red positive, blue negative).")
-                     + _correlated_pairs(d) + "</div>"))
+    sections.append(("correlation", "Correlation of the identified parameters", _correlation_section(d)))
     sections.append(("residuals", "Residual vectors after calibration", _residuals_section(d)))
     sections.append(("trends", "Residuals against reach, height and joint readings", _trends_section(d, result)))
     if tables:
