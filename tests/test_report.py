@@ -566,6 +566,64 @@ def test_an_unmodelled_joint_error_shows_as_a_trend_against_that_joint_only():
     assert np.corrcoef(t["median"], shape)[0, 1] > 0.9
 
 
+def test_trends_are_drawn_only_against_joints_that_show_structure():
+    from dataclasses import replace
+
+    from robocal._presentation.plots import STRUCTURE, residual_trends, structure
+
+    m = arm6r()
+    _, data = rc.simulate(m, 2000, seed=4)
+    clean = rc.calibrate(m, data)
+    bumped = replace(data, positions=data.positions + 3e-4 * np.sin(3 * data.q[:, 1])[:, None, None]
+                     * np.array([0.0, 0.0, 1.0]))
+    joint2 = f"{m.joint_names[1]} reading"
+    shown = {}
+    for name, result in (("clean", clean), ("bumped", rc.calibrate(m, bumped))):
+        trends = residual_trends(_roundtrip(result), m.joint_names, ["rad"] * 6, result.calibrated_model.X_WB)
+        shown[name] = [c for c in trends["structured"] if c.endswith("reading")]
+        # what "structured" says is what the measure says, row by row
+        for c, _ in trends["columns"]:
+            assert (c in trends["structured"]) == any(structure(trends["trends"][(r, c)]) >= STRUCTURE
+                                                      for r, _ in trends["rows"])
+    assert shown["clean"] == []  # noise alone shows no trend
+    assert joint2 in shown["bumped"] and len(shown["bumped"]) < 6
+    html = _render(_roundtrip(rc.calibrate(m, bumped)))
+    trends_svg = html[html.index('data-plot="residual-trends"'):]
+    trends_svg = trends_svg[:trends_svg.index("</svg>")]
+    assert f"{joint2} (deg)" in trends_svg and f"{m.joint_names[0]} reading" not in trends_svg
+
+
+def test_reach_and_height_are_measured_from_the_calibrated_base():
+    from robocal._presentation.plots import residual_trends
+
+    true, data = rc.simulate(arm6r(), 400, parameters=("base",), seed=6)
+    at_tracker = true.replace(base_position=(0.0, 0.0, 0.0),  # the base unknown
+                              base_rotation=((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)))
+    result = rc.calibrate(at_tracker, data)
+    trends = residual_trends(_roundtrip(result), true.joint_names, ["rad"] * 6, result.calibrated_model.X_WB)
+    # the marker's distance from the true base's vertical axis, and its height above the base
+    rel = (data.positions[:, 0] - np.asarray(true.base_position)) @ np.asarray(true.base_rotation)
+    reach, height = np.hypot(rel[:, 0], rel[:, 1]) * 1e3, rel[:, 2] * 1e3
+    for label, truth in (("reach", reach), ("height", height)):
+        x = trends["trends"][("dx", label)]["x"]
+        assert truth.min() - 1 <= x.min() and x.max() <= truth.max() + 1, (label, x, truth.min(), truth.max())
+    assert np.hypot(*true.base_position[:2]) * 1e3 > reach.max() + 500  # the tracker's distance would differ
+
+
+def test_each_histogram_has_its_own_axis(full):
+    from robocal._presentation.plots import histogram_panels
+
+    d = json.loads(json.dumps(full))
+    d["limit"] = dict(d["limit"], limit_m=1e-2)  # a limit far beyond the errors after calibration
+    panels = {p["when"]: p for p in histogram_panels(d)}
+    after = max(panels["after"]["fit"].max(), panels["after"]["validation"].max())
+    before = max(panels["before"]["fit"].max(), panels["before"]["validation"].max())
+    assert before > 10 * after
+    assert panels["after"]["top"] == pytest.approx(after) and panels["before"]["top"] == pytest.approx(before)
+    d["limit"] = dict(d["limit"], limit_m=2 * after * 1e-3)  # a limit within reach is on the axis
+    assert [p["top"] for p in histogram_panels(d) if p["when"] == "after"] == [pytest.approx(2 * after)]
+
+
 def test_terminal_tables_align_for_long_names():
     from robocal.report import calibration_summary, identifiability_summary
 
