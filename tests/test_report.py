@@ -6,6 +6,7 @@ import math
 import os
 import re
 import shutil
+from dataclasses import replace
 import subprocess
 import sys
 from html.parser import HTMLParser
@@ -17,7 +18,7 @@ import pytest
 import robocal as rc
 from robocal.report import PLOTS, render_report, write_report
 from robocal.io import result_from_dict, result_to_json
-from robots import arm6r, cylindrical
+from robots import arm6r, cylindrical, humanoid
 
 pytest.importorskip("matplotlib")
 
@@ -251,6 +252,62 @@ def test_compliance_columns_in_paper_layout(compliance, tmp_path):
     # units keep their case wherever the page names them, sentences included
     assert "deg/(kn m)" not in text
     assert "compliances in deg/(kN m)" in text
+
+
+@pytest.fixture(scope="module")
+def humanoid_result():
+    """A humanoid-sized campaign: 19 joints, three fixed frames placed by matrices, five markers,
+    geometric and compliance parameters on masses assumed from the geometry (relative compliances)."""
+    m = humanoid()
+    _, data = rc.simulate(m, 400, parameters=("geometric", "compliance"), seed=3)
+    return rc.calibrate(m, data.subset(slice(0, 320)), validation=data.subset(slice(320, None)),
+                        parameters=("geometric", "compliance"))
+
+
+def test_fixed_frames_are_shown_as_the_position_and_matrix_written(humanoid_result, tmp_path):
+    from robocal.kinematics import mdh_transform
+
+    page, _ = _page(_roundtrip(humanoid_result), tmp_path)
+    # as tests/robots.py writes them (mm; rows of the matrix)
+    written = {"ltool": ((0, 0, 110), ((0, 0, 1), (1, 0, 0), (0, 1, 0))),
+               "rtool": ((0, 0, 110), ((0, 1, 0), (0, 0, 1), (1, 0, 0))),
+               "head": ((60, 0, 80), ((0, 0, 1), (0, 1, 0), (-1, 0, 0)))}
+    calibrated = {f.name: f for f in humanoid_result.calibrated_model.frames}
+    for name, (position, rotation) in written.items():
+        shown = [float(v) for v in page.keyed[f"{name}:nominal.position"].split(",")]
+        assert shown == pytest.approx(position, abs=5e-5)
+        rows = re.findall(r"\[([^\[\]]+)\]", page.keyed[f"{name}:nominal.rotation"])
+        assert np.abs(np.array([[float(v) for v in r.split(",")] for r in rows]) - rotation).max() < 5e-7
+        X = mdh_transform(calibrated[name])
+        cal = [float(v) for v in page.keyed[f"{name}:calibrated.position"].split(",")]
+        assert cal == pytest.approx(X[:3, 3] * 1e3, abs=5e-5)
+        # not as the converted parameters (gamma, beta... of the equivalent transform)
+        assert f"{name}.beta:nominal" not in page.keyed and f"{name}.theta:nominal" not in page.keyed
+
+
+def test_compliances_from_assumed_masses_are_shown_as_relative(humanoid_result, compliance, tmp_path):
+    from robocal._presentation.html import RELATIVE_NOTE
+
+    _, text = _page(_roundtrip(humanoid_result), tmp_path, name="humanoid.html")
+    assert "K<sub>&theta;</sub> <small>(relative)</small>" in text and RELATIVE_NOTE in text
+    assert "K<sub>&theta;</sub> <small>(deg/(kN m))</small>" not in text
+    _, text = _page(compliance, tmp_path, name="masses.html")  # masses given: absolute compliances
+    assert "K<sub>&theta;</sub> <small>(deg/(kN m))</small>" in text and RELATIVE_NOTE not in text
+
+
+def test_a_tool_turn_is_shown_as_an_angle_about_an_axis(tmp_path):
+    from scipy.spatial.transform import Rotation
+
+    m = arm6r()
+    axis = np.array([1.0, 1.0, 1.0]) / np.sqrt(3)
+    turned = m.replace(markers=tuple(replace(mk, rotation=tuple(map(tuple, Rotation.from_rotvec(
+        np.radians(120) * axis).as_matrix()))) for mk in m.markers))
+    _, data = rc.simulate(turned, 80, orientation=True, noise_rot=2e-5, parameters=("base",), seed=8)
+    page, _ = _page(_roundtrip(rc.calibrate(m, data)), tmp_path)
+    said = page.keyed["turn.tool"]
+    angle, shown_axis = re.search(r"turned ([\d.]+) deg about \(([^)]+)\)", said).groups()
+    assert float(angle) == pytest.approx(120, abs=0.01)
+    assert [float(v) for v in shown_axis.split(",")] == pytest.approx(axis, abs=1e-3)
 
 
 def test_geometric_only_omits_compliance_columns(full, tmp_path):

@@ -17,10 +17,12 @@ from .._calibration import CalibrationResult
 from .._errors import InputError
 from .._files.result import result_to_dict
 from .._files.text import write_texts
+from .._model import RELATIVE_MASSES, mdh_transform
 from .._parameters import FRAME_KINDS, GEOMETRIC_KINDS, SI_UNITS, parameter_layout, parameter_vector
 from .plots import (AFTER, BEFORE, DENSE, LIMIT, STRUCTURE, correlation_blocks, need_matplotlib, plot_correlation,
                     plot_errors_per_pose, plot_histograms, plot_residual_trends, plot_residuals, residual_sample,
                     residual_trends)
+from .text import rotation_lines
 from .units import UNITS_SENTENCE, absorption_text, display_unit as _display, finite as _num, fmt, symbol
 
 STAT_SETS = (("fit_before", "fitted poses", "before"), ("fit_after", "fitted poses", "after"),
@@ -265,9 +267,27 @@ def _nominal_values(result: CalibrationResult) -> tuple[dict, dict]:
     return ({p.name: float(values[p.index]) for p in lay.parameters}, {p.name: p.unit for p in lay.parameters})
 
 
-def _parameter_tables(d: dict, nominal: dict, units: dict) -> tuple[str, str, str]:
-    """The per-frame table (the paper's layout), the base and marker table, a note on omitted columns."""
+def _placement_text(frame, key: str) -> str:
+    """A fixed frame's placement in its parent as users write it: position (mm) and rotation matrix."""
+    X = mdh_transform(frame)
+    position = ", ".join(f"{v * 1e3:.4f}" for v in X[:3, 3])
+    rows = "; ".join("[" + ", ".join(f"{v:.6f}".replace("-0.000000", "0.000000") for v in row) + "]"
+                     for row in X[:3, :3])
+    return (f'position (<span data-key="{_e(key)}.position" data-unit="mm">{position}</span>) mm, rotation '
+            f'<span data-key="{_e(key)}.rotation">[{rows}]</span>')
+
+
+def _parameter_tables(d: dict, nominal: dict, units: dict, result: CalibrationResult | None = None,
+                      relative: bool = False) -> tuple[str, str, str]:
+    """The per-frame table (the paper's layout), the base and marker table, a note on omitted columns.
+
+    Fixed frames (placements, often written as a matrix) show their placement as position and
+    rotation matrix, nominal and calibrated, beside the corrections the fit made. With ``relative``
+    the compliances are headed as relative (masses assumed without a total mass)."""
     est = {p["name"]: p for p in d["parameters"]}
+    fixed = {} if result is None else {f.name: (f, g) for f, g in zip(result.nominal_model.frames,
+                                                                      result.calibrated_model.frames)
+                                       if f.joint == "fixed"}
     ident = d["identifiability"]
     status = {n: "-" for n in ident.get("candidates", [])}
     status.update({n: "I" for n in ident.get("identified", [])})
@@ -300,12 +320,24 @@ def _parameter_tables(d: dict, nominal: dict, units: dict) -> tuple[str, str, st
     body = []
     for f in frames:
         cols = [value_cells(f"{f}.{k}", units[f"{f}.{k}"]) for k in shown]
-        body.append(f'<tr class="frame-start"><th rowspan="5" class="frame">{_e(f)}</th><td class="what">I / E</td>'
+        rows = [(label, "".join(c[i] for c in cols)) for i, label in enumerate(("nominal", "identified", "change",
+                                                                                 "std dev"))]
+        if f in fixed:  # a placement: shown as written, the fit's corrections below it
+            nom, cal = fixed[f]
+            rows = [("placement", f'<td colspan="{len(shown)}" class="placement">{_placement_text(nom, f"{f}:nominal")}'
+                                  "</td>"),
+                    ("calibrated", f'<td colspan="{len(shown)}" class="placement">'
+                                   f'{_placement_text(cal, f"{f}:calibrated")}</td>')] + rows[2:]
+        body.append(f'<tr class="frame-start"><th rowspan="{1 + len(rows)}" class="frame">{_e(f)}'
+                    + ('<br><small>fixed</small>' if f in fixed else "") + '</th><td class="what">I / E</td>'
                     + "".join(status_cell(f"{f}.{k}") for k in shown) + "</tr>")
-        for i, label in enumerate(("nominal", "identified", "change", "std dev")):
-            body.append(f'<tr><td class="what">{label}</td>' + "".join(c[i] for c in cols) + "</tr>")
-    head = ["frame", ""] + [f"{symbol(k)} <small>({_e(_display(units[f'{frames[0]}.{k}'])[0])})</small>"
-                            if frames else symbol(k) for k in shown]
+        body += [f'<tr><td class="what">{label}</td>{cells}</tr>' for label, cells in rows]
+
+    def unit_label(k):
+        if relative and k.startswith("k_"):
+            return "relative"
+        return _e(_display(units[f"{frames[0]}.{k}"])[0])
+    head = ["frame", ""] + [f"{symbol(k)} <small>({unit_label(k)})</small>" if frames else symbol(k) for k in shown]
     note = ""
     if omitted:
         note = ("Columns " + ", ".join(symbol(k) for k in omitted)
@@ -323,6 +355,17 @@ def _parameter_tables(d: dict, nominal: dict, units: dict) -> tuple[str, str, st
                           cls="params", num_from=2)
                    if rows else "<p>No base or marker parameters were considered.</p>")
     return frame_table, other_table, note
+
+
+RELATIVE_NOTE = ("Compliances (K) are relative: the link masses were assumed from the geometry at a density of "
+                 "10 kg per metre with no total mass given, so only their ratios hold; give the arm's mass "
+                 "(<code>--total-mass KG</code>) for compliances in deg/(kN m).")
+
+
+def _relative_compliance(d: dict) -> bool:
+    """Whether the result's compliances rest on masses assumed without a total mass (a note says so)."""
+    return any(RELATIVE_MASSES in str(n) for n in d.get("notes") or []) and any(
+        p.get("family") == "compliance" for p in d["parameters"])
 
 
 def _eliminated_table(d: dict, units: dict) -> str:
@@ -534,6 +577,7 @@ table.checks{width:100%%}table.checks td.wrap{overflow-wrap:anywhere}
 .verdict{font-size:16px}:target{outline:2px solid var(--after);background:#eaf2fb}
 footer{margin-top:36px;padding-top:8px;border-top:1px solid var(--line);font-size:12px;color:var(--muted)}
 table.pairs tr.strong td{font-weight:650}
+td.placement{font-family:var(--mono);font-size:12px;white-space:normal}
 .panel{max-height:1100px;overflow:auto;border:1px solid var(--line);border-radius:6px;padding:0 8px}
 table.params{font-size:12.5px}table.params td,table.params th{padding:3px 7px}
 @page{size:A4;margin:12mm}
@@ -628,7 +672,16 @@ def render_report(result: CalibrationResult, *, extra: dict | None = None) -> st
 
     title = "Position and rotation errors" if d["stats"].get("rotation") else "Position errors"
     sections = [("errors", title, _errors_section(d, has_val))]
-    frame_table, other_table, note = _parameter_tables(d, nominal, units)
+    relative = _relative_compliance(d)
+    frame_table, other_table, note = _parameter_tables(d, nominal, units, result, relative)
+    turns = rotation_lines(result.parameters)
+    if turns:
+        other_table += ("<p>Rotation corrections as one turn about one axis (rx, ry, rz above are the components "
+                        "of its rotation vector):</p><ul class=\"notes\">"
+                        + "".join(f'<li data-key="turn.{_e(t.split(" rotation:")[0].strip())}">{_e(t.strip())}</li>'
+                                  for t in turns) + "</ul>")
+    if relative:
+        note = ((note + " ") if note else "") + RELATIVE_NOTE
     sections.append(("parameters", "Parameters",
                      "<p>Per frame, in the paper's layout: I identified, E eliminated (held at its nominal value, "
                      "its effect carried by identified parameters), &ndash; not a candidate. "
