@@ -412,6 +412,46 @@ def chromium():
             browser.close()
 
 
+# In the page as laid out: every text's rendered size (CSS px; SVG text scaled by its transforms and
+# the picture's own scaling to the page) and every pair of texts of a plot whose boxes overlap by
+# more than a pixel each way.
+MEASURE_TEXT = """
+() => {
+  const out = {small: [], overlaps: [], texts: 0};
+  const walker = document.createTreeWalker(document.body, NodeFilter.SHOW_TEXT);
+  while (walker.nextNode()) {
+    const t = walker.currentNode;
+    if (!t.textContent.trim()) continue;
+    const el = t.parentElement;
+    if (el.closest('svg')) continue;
+    out.texts++;
+    const fs = parseFloat(getComputedStyle(el).fontSize);
+    if (fs < 9) out.small.push({where: el.tagName, text: t.textContent.trim().slice(0, 40), size: fs});
+  }
+  for (const svg of document.querySelectorAll('svg[data-plot]')) {
+    const boxes = [];
+    for (const t of svg.querySelectorAll('text')) {
+      if (!t.textContent.trim()) continue;
+      out.texts++;
+      const m = t.getScreenCTM();
+      const scale = Math.sqrt(Math.abs(m.a * m.d - m.b * m.c));
+      const fs = parseFloat(getComputedStyle(t).fontSize) * scale;
+      if (fs < 9) out.small.push({where: svg.dataset.plot, text: t.textContent.trim().slice(0, 40), size: fs});
+      const r = t.getBoundingClientRect();
+      boxes.push({l: r.left, r: r.right, t: r.top, b: r.bottom, text: t.textContent.trim().slice(0, 40)});
+    }
+    for (let i = 0; i < boxes.length; i++) for (let j = i + 1; j < boxes.length; j++) {
+      const a = boxes[i], b = boxes[j];
+      const w = Math.min(a.r, b.r) - Math.max(a.l, b.l), h = Math.min(a.b, b.b) - Math.max(a.t, b.t);
+      if (w > 1 && h > 1) out.overlaps.push({where: svg.dataset.plot, a: a.text, b: b.text, w: w, h: h});
+    }
+  }
+  return out;
+}
+"""
+SMALLEST_TEXT_PX = 9
+
+
 def _render_in_chromium(browser, path: Path, shot_name: str):
     """Load ``path`` as a user opens it and print it to PDF: console messages, requests, plots, title,
     screenshot, how far the page is wider than the window, the PDF's outline."""
@@ -429,6 +469,7 @@ def _render_in_chromium(browser, path: Path, shot_name: str):
         overflow = page.evaluate("Math.max(document.documentElement.scrollWidth, document.body.scrollWidth)"
                                  " - document.documentElement.clientWidth")
         title = page.title()
+        text = page.evaluate(MEASURE_TEXT)
         ARTIFACTS.mkdir(exist_ok=True)
         shot = ARTIFACTS / shot_name
         page.screenshot(path=str(shot), full_page=True)
@@ -438,7 +479,7 @@ def _render_in_chromium(browser, path: Path, shot_name: str):
         page.close()
     outline = [t.decode("latin-1") for t in re.findall(rb"/Title\s*\(([^)]*)\)", pdf)]
     return {"console": console, "requests": requests, "plots": plots, "title": title, "shot": shot, "url": url,
-            "overflow": overflow, "outline": outline}
+            "overflow": overflow, "outline": outline, "text": text}
 
 
 def _assert_rendered(r: dict, html: str):
@@ -450,6 +491,10 @@ def _assert_rendered(r: dict, html: str):
         assert pl["width"] > 300 and pl["height"] > 150 and pl["n"] > 20, pl
     assert r["shot"].stat().st_size > 50_000
     assert r["overflow"] <= 0, f"the page is {r['overflow']} px wider than the window"
+    # readable: no text smaller than 9 px as laid out, no two labels of a plot on top of each other
+    assert r["text"]["texts"] > 100
+    assert r["text"]["small"] == [], r["text"]["small"][:10]
+    assert r["text"]["overlaps"] == [], r["text"]["overlaps"][:10]
     # the printed PDF holds every section: each section heading is in its outline
     sections = re.findall(r'<section id="[^"]+"><h2>([^<]+)</h2>', html)
     assert len(sections) >= 10 and set(sections) <= set(r["outline"]), (sections, r["outline"])
@@ -502,6 +547,18 @@ def test_20000_pose_report_is_small_and_renders_in_headless_chromium(chromium, b
     html = path.read_text(encoding="utf-8")
     assert "300 of the 16000 measured points are drawn" in html
     _assert_rendered(_render_in_chromium(chromium, path, "report-20000.png"), html)
+
+
+def test_humanoid_sized_report_is_readable_in_headless_chromium(chromium, humanoid_result, tmp_path):
+    # a model of 100+ parameters and 19 joints: every label at 9 px or more, none overlapping
+    assert len(humanoid_result.parameters) >= 117 and humanoid_result.nominal_model.n_joints >= 19
+    path = tmp_path / "report.html"
+    write_report(humanoid_result, path)
+    assert path.stat().st_size < 5e6
+    html = path.read_text(encoding="utf-8")
+    page = Page(html)
+    assert all(p.name in page.plots["correlation"]["text"] for p in humanoid_result.parameters)
+    _assert_rendered(_render_in_chromium(chromium, path, "report-humanoid.png"), html)
 
 
 # -- absorptions in display units, against the Jacobian -------------------------------------------
