@@ -269,7 +269,8 @@ def _candidates(model: RobotModel, parameters: tuple, orientation: bool, known: 
     if any(lay[n].family == "compliance" for n in chosen) and not model.has_masses:
         raise InputError("compliance parameters need link masses (or a payload); the model has none: "
                          "assume them from the geometry with robocal.default_masses(model, total_mass) "
-                         "(--assume-masses, with --total-mass KG for compliances in absolute units, on the command line)",
+                         "(--assume-masses, with --total-mass KG for compliances in absolute units, on the "
+                         "command line)",
                          where="parameters")
     if model.backlash_side == "gravity" and any(lay[n].family == "backlash" for n in chosen) \
             and not model.has_masses:

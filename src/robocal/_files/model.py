@@ -483,10 +483,9 @@ def model_to_dict(model: RobotModel, *, units: str = "mm-deg", calibration: dict
     if not np.array_equal(np.asarray(model.base_rotation), np.eye(3)):
         base["rotation"] = matrix(model.base_rotation)
     d = {"robocal_model": FORMAT_VERSION, "name": model.name}
-    if calibration:  # a calibrated model is not the nominal one its description came from
-        d["description"] = calibrated_description(calibration)
-    elif model.description:
-        d["description"] = model.description
+    description = calibrated_description(calibration) if calibration else model.description  # not the nominal's
+    if description:
+        d["description"] = description
     d.update({"units": {"length": lu, "angle": au}, "base": base, "gravity": vec(model.gravity),
               "joints": joints, "frames": frames, "markers": markers})
     payloads = []

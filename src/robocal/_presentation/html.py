@@ -17,7 +17,7 @@ from .._calibration import CalibrationResult
 from .._errors import InputError
 from .._files.result import result_to_dict
 from .._files.text import write_texts
-from .._model import RELATIVE_MASSES, mdh_transform
+from .._model import DEFAULT_LINK_DENSITY, RELATIVE_MASSES, mdh_transform
 from .._parameters import FRAME_KINDS, GEOMETRIC_KINDS, SI_UNITS, parameter_layout, parameter_vector
 from .plots import (AFTER, BEFORE, DENSE, LIMIT, STRUCTURE, correlation_blocks, need_matplotlib, plot_correlation,
                     plot_errors_per_pose, plot_histograms, plot_residual_trends, plot_residuals, residual_sample,
@@ -358,8 +358,8 @@ def _parameter_tables(d: dict, nominal: dict, units: dict, result: CalibrationRe
 
 
 RELATIVE_NOTE = ("Compliances (K) are relative: the link masses were assumed from the geometry at a density of "
-                 "10 kg per metre with no total mass given, so only their ratios hold; give the arm's mass "
-                 "(<code>--total-mass KG</code>) for compliances in deg/(kN m).")
+                 f"{DEFAULT_LINK_DENSITY:g} kg per metre with no total mass given, so only their ratios hold; give "
+                 f"the arm's mass (<code>--total-mass KG</code>) for compliances in {_display('rad/(N m)')[0]}.")
 
 
 def _relative_compliance(d: dict) -> bool:
