@@ -555,6 +555,6 @@ def calibrated_description(calibration: dict) -> str:
     source = (f" from {poses} poses of {data}" if poses and data else f" from {data}" if data
               else f" from {poses} poses" if poses else "")
     nominal = f"nominal model {calibration['nominal']}, " if calibration.get("nominal") else ""
-    when = f", on {calibration['date']}" if calibration.get("date") else ""
+    when = f", on {str(calibration['date'])[:10]}" if calibration.get("date") else ""  # the day; the time below
     return (f"calibrated model: {nominal}{what} parameters identified{source}{when} "
             f"(verdict: {calibration.get('verdict', 'not recorded')})")
