@@ -19,9 +19,9 @@ from .._files.result import result_to_dict
 from .._files.text import write_texts
 from .._model import DEFAULT_LINK_DENSITY, RELATIVE_MASSES, mdh_transform
 from .._parameters import FRAME_KINDS, GEOMETRIC_KINDS, SI_UNITS, parameter_layout, parameter_vector
-from .plots import (AFTER, BEFORE, DENSE, LIMIT, STRUCTURE, correlation_blocks, need_matplotlib, plot_correlation,
-                    plot_errors_per_pose, plot_histograms, plot_residual_trends, plot_residuals, residual_sample,
-                    residual_trends)
+from .plots import (AFTER, BEFORE, BLOCK, DENSE, LIMIT, STRUCTURE, correlation_blocks, need_matplotlib,
+                    plot_correlation, plot_errors_per_pose, plot_histograms, plot_residual_trends, plot_residuals,
+                    residual_sample, residual_trends)
 from .text import rotation_lines
 from .units import UNITS_SENTENCE, absorption_text, display_unit as _display, finite as _num, fmt, symbol
 
@@ -410,7 +410,7 @@ def _correlation_section(d: dict) -> str:
     whole for a few parameters, in per-family blocks for many, in a scrollable panel."""
     blocks = correlation_blocks(d)
     how = ("Correlation coefficients from the covariance of the estimates (red positive, blue negative)"
-           + ("." if len(blocks) == 1 else f", within each family in {len(blocks)} blocks of at most a few dozen "
+           + ("." if len(blocks) == 1 else f", within each family in {len(blocks)} blocks of at most {BLOCK} "
               "parameters; pairs across blocks are in the table above."))
     k = 12 if len(d["parameters"]) <= 30 else 25
     return (_correlated_pairs(d, k)
