@@ -4,6 +4,7 @@ import json
 import subprocess
 import sys
 from dataclasses import replace
+from pathlib import Path
 
 import re
 
@@ -48,6 +49,24 @@ def test_calibrate_writes_model_and_result(campaign, cli):
                              axis=-1)
     assert err_cal.mean() < 0.05 * err_nom.mean()
     assert sorted(p.name for p in (d / "run").iterdir()) == ["calibrated.yaml", "result.json", "result.npz"]
+
+
+ROOT = Path(__file__).resolve().parent.parent
+TH8_MODEL, TH8_DATA = str(ROOT / "examples/th8/model.yaml"), str(ROOT / "examples/th8/measurements.csv")
+
+
+def test_calibrated_model_says_it_is_calibrated_from_what_and_when(tmp_path, cli):
+    nominal = tmp_path / "model.yaml"
+    nominal.write_text(Path(TH8_MODEL).read_text())
+    assert "NOMINAL" in rc.read_model(nominal).description
+    code, _, err = cli("calibrate", nominal, TH8_DATA, "--out", tmp_path / "run", "--known", "markers")
+    assert code == 0, err
+    cal = rc.read_model(tmp_path / "run" / "calibrated.yaml")
+    result = json.loads((tmp_path / "run" / "result.json").read_text())
+    assert "NOMINAL" not in cal.description and cal.description.startswith("calibrated model")
+    for said in (result["nominal_model"]["name"], TH8_DATA, result["provenance"]["date"][:10], result["verdict"],
+                 f"{result['provenance']['data']['n_poses']} poses"):
+        assert str(said) in cal.description, (said, cal.description)
 
 
 def test_calibrate_semicolon_decimal_comma_missing_marker(tmp_path, cli):

@@ -253,6 +253,9 @@ def test_the_command_line_calibrates_from_contacts_alone_and_next_to_a_tracker_f
     assert "held-out socket spread" in out and "unreachable: base" in out and "verdict: pass" in out
     written = rc.read_model(tmp_path / "a" / "calibrated.yaml")
     assert rc.parameter_vector(written).shape == rc.parameter_vector(arm7).shape
+    # calibrated, from what: not the nominal model's own description
+    assert written.description.startswith("calibrated model") and str(path) in written.description
+    assert arm7.name in written.description and written.description != arm7.description
     result = __import__("json").loads((tmp_path / "a" / "contacts-result.json").read_text())
     assert [u["name"] for u in result["unreachable"]] == ["base"] and result["verdict"] == "pass"
     tracker = rc.measure(true, rc.random_configurations(arm7, 15, 1), rng=1)

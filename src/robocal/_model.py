@@ -342,6 +342,7 @@ def placement_parameters(X) -> dict[str, float]:
 # the default mass model's linear density when no total mass is given: masses are then relative,
 # and identified compliances relative compliances (docs/conventions.md)
 DEFAULT_LINK_DENSITY = 10.0   # kg per metre of link
+RELATIVE_MASSES = "no total mass given: compliances are relative"  # said in the notes of such a model
 
 
 def default_masses(model: RobotModel, total_mass: float | None = None) -> RobotModel:
@@ -375,7 +376,7 @@ def default_masses(model: RobotModel, total_mass: float | None = None) -> RobotM
     scale = (total_mass / total_length) if total_mass is not None else DEFAULT_LINK_DENSITY
     frames = tuple(replace(f, mass=scale * L, com=c) for f, L, c in zip(model.frames, lengths, centres))
     said = (f"total {total_mass:g} kg" if total_mass is not None else
-            f"{DEFAULT_LINK_DENSITY:g} kg per metre, no total mass given: compliances are relative")
+            f"{DEFAULT_LINK_DENSITY:g} kg per metre, {RELATIVE_MASSES}")
     listed = ", ".join(f"{f.name} {f.mass:.3g} kg" for f in frames if f.mass > 0)
     note = f"masses assumed from the geometry ({said}): {listed}"
     return model.replace(frames=frames, notes=model.notes + (note,))

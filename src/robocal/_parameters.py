@@ -215,7 +215,8 @@ def families(model: RobotModel, *, orientation: bool = False) -> dict[str, list[
     branching = {f.parent for f in model.frames if sum(g.parent == f.parent for g in model.frames) > 1}
     last = [f"{model.frames[i].name}.{k}" for i in sorted(branching - {-1}) for k in ("theta", "r")]
     frames = [n for n in frames if n not in last] + last
-    compliance = [f"{f.name}.{k}" for f in model.frames for k in COMPLIANCE_KINDS]
+    # a fixed frame (a placement, often written as a matrix) has no joint to yield: no compliance
+    compliance = [f"{f.name}.{k}" for f in model.frames if f.joint != "fixed" for k in COMPLIANCE_KINDS]
     return {"base": base, "markers": markers, "frames": frames, "geometric": base + markers + frames,
             "compliance": compliance, "backlash": backlash_names(model)}
 
@@ -268,7 +269,8 @@ def _candidates(model: RobotModel, parameters: tuple, orientation: bool, known: 
     if any(lay[n].family == "compliance" for n in chosen) and not model.has_masses:
         raise InputError("compliance parameters need link masses (or a payload); the model has none: "
                          "assume them from the geometry with robocal.default_masses(model, total_mass) "
-                         "(--assume-masses [TOTAL_KG] on the command line)",
+                         "(--assume-masses, with --total-mass KG for compliances in absolute units, on the "
+                         "command line)",
                          where="parameters")
     if model.backlash_side == "gravity" and any(lay[n].family == "backlash" for n in chosen) \
             and not model.has_masses:

@@ -170,7 +170,8 @@ def model_from_dict(d: dict, *, source: str = "<dict>") -> RobotModel:
     payloads = _payloads(rd, d.get("payload"), frame_names, L)
     tolerances = _tolerances(rd, d.get("tolerances"), L, A)
     if d.get("calibration") is not None:
-        rd.mapping(d["calibration"], "calibration", ("verdict", "failed", "warned", "date"))
+        rd.mapping(d["calibration"], "calibration", ("verdict", "failed", "warned", "date", "data", "poses",
+                                                      "families", "nominal"))
     try:
         return RobotModel(name=str(name), frames=tuple(frames), joint_names=tuple(joint_names),
                           joint_limits=tuple(limits), markers=tuple(markers), base_position=base_position,
@@ -428,7 +429,8 @@ def model_to_dict(model: RobotModel, *, units: str = "mm-deg", calibration: dict
     """The model file form of ``model`` (plain Python types, ready for YAML or JSON).
 
     ``calibration``: what a calibration said of this model (its verdict and the checks that did not
-    pass), written under the key of that name so that nobody mistakes a failed result for a good one.
+    pass), written under the key of that name so that nobody mistakes a failed result for a good one;
+    the description then says the model is calibrated, from what and when (``calibrated_description``).
     """
     lu, au = parse_units(units)
     L, A = LENGTH_UNITS[lu], ANGLE_UNITS[au]
@@ -481,8 +483,9 @@ def model_to_dict(model: RobotModel, *, units: str = "mm-deg", calibration: dict
     if not np.array_equal(np.asarray(model.base_rotation), np.eye(3)):
         base["rotation"] = matrix(model.base_rotation)
     d = {"robocal_model": FORMAT_VERSION, "name": model.name}
-    if model.description:
-        d["description"] = model.description
+    description = calibrated_description(calibration) if calibration else model.description  # not the nominal's
+    if description:
+        d["description"] = description
     d.update({"units": {"length": lu, "angle": au}, "base": base, "gravity": vec(model.gravity),
               "joints": joints, "frames": frames, "markers": markers})
     payloads = []
@@ -524,8 +527,34 @@ def calibration_record(result) -> dict:
     """What a calibrated model file says of its own calibration: the verdict, the date and the checks
     that did not pass."""
     out = {"verdict": result.verdict, "date": result.provenance.get("date", "")}
+    data = result.provenance.get("data") or {}
+    if data.get("source"):
+        out["data"] = str(data["source"])
+    if data.get("n_poses"):
+        out["poses"] = int(data["n_poses"])
+    out["families"] = list(result.families)
+    out["nominal"] = result.nominal_model.name
     for status, key in (("fail", "failed"), ("warn", "warned")):
         names = [c.name for c in result.checks if c.status == status]
         if names:
             out[key] = names
     return out
+
+
+def calibrated_description(calibration: dict) -> str:
+    """What a calibrated model file says it is, from its ``calibration`` record: calibrated, from
+    which nominal model and data, when, with which verdict (never the nominal model's own words).
+
+    >>> calibrated_description({"verdict": "pass", "date": "2026-01-31", "nominal": "th8",
+    ...                         "families": ["geometric"], "data": "m.csv", "poses": 36})[37:]
+    'geometric parameters identified from 36 poses of m.csv, on 2026-01-31 (verdict: pass)'
+    """
+    what = ", ".join(calibration.get("families") or []) or "its"
+    data = calibration.get("data")
+    poses = calibration.get("poses")
+    source = (f" from {poses} poses of {data}" if poses and data else f" from {data}" if data
+              else f" from {poses} poses" if poses else "")
+    nominal = f"nominal model {calibration['nominal']}, " if calibration.get("nominal") else ""
+    when = f", on {str(calibration['date'])[:10]}" if calibration.get("date") else ""  # the day; the time below
+    return (f"calibrated model: {nominal}{what} parameters identified{source}{when} "
+            f"(verdict: {calibration.get('verdict', 'not recorded')})")

@@ -234,6 +234,25 @@ def _default_tip(base_link: str, children, joints, source: str) -> str:
     return link
 
 
+def _default_markers(chain, links, joints) -> list[tuple[str, np.ndarray]]:
+    """The markers of a URDF read without ``markers``: (name, X_tip_marker).
+
+    A tool point reached through fixed joints at the chain's end keeps its link's name; where the tip
+    holds several leaf links on fixed joints named ``<link>_joint`` (the markers of a model
+    :func:`urdf_text` wrote), each is a marker named after its link; otherwise one marker ``"tool"``
+    at the tip link's origin.
+    """
+    tip = chain[-1].child
+    if chain[-1].type == "fixed":
+        return [(tip, np.eye(4))]
+    children = _children(links, joints)
+    leaves = [joints[j] for j in children[tip]]
+    if len(leaves) > 1 and all(j.type == "fixed" and not children[j.child] and j.name == f"{j.child}_joint"
+                               for j in leaves):
+        return [(j.child, j.X_origin) for j in leaves]
+    return [("tool", np.eye(4))]
+
+
 def _chain(links, joints, child_of, base_link, tip_link, source) -> list[_UJoint]:
     """Joints from ``base_link`` to ``tip_link`` in order (defaults: the unique root, and
     :func:`_default_tip`)."""
@@ -430,8 +449,10 @@ def read_urdf(path_or_string, *, base_link: str | None = None, tip_link: str | N
     ``X_WB`` places the robot frame 0 (on the first axis) in it. Values are cleaned of the
     source's round-off (``_clean``): the forward kinematics moves by less than 1e-9 m.
 
-    ``markers``: ``(name, xyz)`` or ``(name, xyz, R)`` in the tip link's frame; by default one
-    marker ``"tool"`` at the tip link's origin with its orientation.
+    ``markers``: ``(name, xyz)`` or ``(name, xyz, R)`` in the tip link's frame; by default the tip
+    link itself when the chain ends in fixed joints (a tool point: the marker keeps the link's name),
+    the leaf links on fixed joints ``<link>_joint`` at the tip when there are several (the markers
+    of an exported model), else one marker ``"tool"`` at the tip link's origin with its orientation.
     Link masses (``<inertial><mass>``, centre of mass from its origin) of links on the chain are
     summed per frame; inertias and links off the chain are ignored.
 
@@ -454,8 +475,12 @@ def read_urdf(path_or_string, *, base_link: str | None = None, tip_link: str | N
     tip = chain[-1].child
     X_nT = inverse4(X_0F[-1]) @ walk.X_link[tip]
     mk = []
-    for mname, p, R in marker_placements(markers if markers is not None else [("tool", (0.0, 0.0, 0.0))], "markers"):
-        position, rotation = _clean_pose(X_nT @ pose4(R, p), decimals if markers is None else 14)
+    if markers is None:
+        for mname, X_TM in _default_markers(chain, links, joints):
+            position, rotation = _clean_pose(X_nT @ X_TM, decimals)
+            mk.append(Marker(mname, len(frames) - 1, position, rotation))
+    for mname, p, R in marker_placements(markers or [], "markers"):
+        position, rotation = _clean_pose(X_nT @ pose4(R, p), 14)
         mk.append(Marker(mname, len(frames) - 1, position, rotation))
     limits = [(-math.pi, math.pi) if joints[jn].type == "continuous" else
               tuple(_clean(v, joints[jn].type == "revolute", tol) for v in joints[jn].limits) for jn in readings]

@@ -16,16 +16,15 @@ def stats_lines(stats, indent: str = "  ", *, unit: str = "m") -> list[str]:
     """The error table before and after, on fitted and held-out poses, in display units."""
     shown, k, _ = display_unit(unit)
     label = "position error" if unit == "m" else "rotation error"
-
-    def cell(v):
-        return f"{'-':>8}" if v is None else f"{v * k:8.3f}"
-
-    lines = [f"{indent}{f'{label} ({shown})':<24}{'n':>5}{'mean':>8}{'std':>8}{'RMS':>8}{'max':>8}"]
-    for key in STAT_ROWS:
-        s = stats[key]
-        if s.n:
-            lines.append(f"{indent}{key.replace('_', ', '):<24}{s.n:>5}{cell(s.mean)}{cell(s.std)}{cell(s.rms)}"
-                         f"{cell(s.max)}")
+    rows = [(key, stats[key]) for key in STAT_ROWS if stats[key].n]
+    texts = {(key, f): "-" if getattr(s, f) is None else f"{getattr(s, f) * k:.3f}"
+             for key, s in rows for f in ("mean", "std", "rms", "max")}
+    # columns at least one space apart however large the errors (1234.567 mm)
+    w = max([7] + [len(t) for t in texts.values()]) + 1
+    lines = [f"{indent}{f'{label} ({shown})':<24}{'n':>5}{'mean':>{w}}{'std':>{w}}{'RMS':>{w}}{'max':>{w}}"]
+    for key, s in rows:
+        lines.append(f"{indent}{key.replace('_', ', '):<24}{s.n:>5}"
+                     + "".join(f"{texts[(key, f)]:>{w}}" for f in ("mean", "std", "rms", "max")))
     return lines
 
 

@@ -7,6 +7,7 @@ nothing written). This package is the only place that prints or configures loggi
 
 from __future__ import annotations
 
+import argparse
 import logging
 import os
 import signal
@@ -31,6 +32,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for command in COMMANDS:
         command.register(sub)
+    for command_parser in sub.choices.values():  # `robocal COMMAND -v` as well as `robocal -v COMMAND`
+        command_parser.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS,
+                                    help="log progress")
     return parser
 
 
