@@ -1,0 +1,204 @@
+"""ABB RAPID modules: ``jointtarget`` and ``robtarget`` declarations (CONST, PERS, VAR, LOCAL, TASK,
+arrays) and the targets written inline in motion instructions (``MoveAbsJ``, ``MoveJ``, ``MoveL``,
+``MoveC``...); ``tooldata`` and ``wobjdata`` declarations as named frames.
+
+A robtarget is ``[[x, y, z], [q1, q2, q3, q4], [cf1, cf4, cf6, cfx], [eax_a, ..., eax_f]]``: mm,
+a unit quaternion w first, the quadrants of axes 1, 4 and 6 and the posture number; a jointtarget
+``[[rax_1, ..., rax_6], [eax_a, ..., eax_f]]``: deg (mm for a linear axis). External axes are
+never read nor changed.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .syntax import Aggregate, NamedFrame, Number, Program, Scanner, Target, aggregate, closing, numbers
+
+NAME = "rapid"
+EXTENSIONS = (".mod", ".modx", ".prg", ".sys", ".sysx")
+COMMENT = "!"
+LENGTH, ANGLE = 1e-3, math.pi / 180            # file units to SI
+ORIENTATION = 1.0                              # a quaternion's components
+JOINT_TARGET = "[[rax_1, ..., rax_6], [eax_a, ..., eax_f]]"
+ROB_TARGET = "[[x, y, z], [q1, q2, q3, q4], [cf1, cf4, cf6, cfx], [eax_a, ..., eax_f]]"
+DECLARES = ("const", "pers", "var")
+MOTION = ("move", "trigg", "search")           # instructions whose literal targets are read
+TURN_JOINTS = (0, 3, 5)                         # cf1, cf4, cf6: quadrants of axes 1, 4 and 6
+
+
+def read(text: str, source: str) -> Program:
+    """The program's targets and named frames; a malformed module is an InputError at its line and column."""
+    sc = Scanner(text, source, comment=COMMENT)
+    toks = sc.tokens()
+    targets, frames, i = [], [], 0
+    while i < len(toks):
+        k = i
+        while k < len(toks) and toks[k].text != ";":
+            if toks[k].text in ")]}":
+                raise sc.error(toks[k].start, f"{toks[k].text} closes nothing opened here")
+            k = closing(toks, k, sc) + 1 if toks[k].text in "([{" else k + 1
+        _statement(toks[i:k], sc, targets, frames)
+        i = k + 1
+    return Program(source=source, dialect=NAME, text=text, targets=tuple(targets), frames=tuple(frames))
+
+
+def _statement(toks, sc, targets, frames) -> None:
+    words = [t.text.lower() for t in toks]
+    for d in range(len(toks) - 3):
+        if words[d] in DECLARES and toks[d + 1].kind == "name" and toks[d + 2].kind == "name":
+            _declaration(toks, d, sc, targets, frames)
+            return
+    for m, w in enumerate(words):
+        if toks[m].kind == "name" and w.startswith(MOTION):
+            j = m + 1
+            while j < len(toks):
+                if toks[j].text == "[":
+                    agg, j = aggregate(toks, j, sc)
+                    _inline(agg, sc, targets)
+                elif toks[j].text in "({":
+                    j = closing(toks, j, sc) + 1
+                else:
+                    j += 1
+            return
+
+
+def _declaration(toks, d, sc, targets, frames) -> None:
+    kind, name, j = toks[d + 1].text.lower(), toks[d + 2].text, d + 3
+    if kind not in ("jointtarget", "robtarget", "tooldata", "wobjdata"):
+        return
+    array = j < len(toks) and toks[j].text == "{"
+    if array:
+        j = closing(toks, j, sc) + 1
+    if j >= len(toks) or toks[j].text != ":=" or j + 1 >= len(toks) or toks[j + 1].text != "[":
+        return                                   # declared without a literal value
+    value, _ = aggregate(toks, j + 1, sc)
+    if kind in ("tooldata", "wobjdata"):
+        frames.append(_frame(kind, name, value, sc))
+        return
+    items = value.items if array else (value,)
+    for n, item in enumerate(items, 1):
+        label = f"{name}{{{n}}}" if array else name
+        targets.append(_target(kind, label, item, sc))
+
+
+def _inline(agg: Aggregate, sc, targets) -> None:
+    line = sc.line_col(agg.start)[0]
+    for kind in ("jointtarget", "robtarget"):
+        if _shape(kind, agg):
+            targets.append(_target(kind, f"line {line}", agg, sc))
+
+
+def _shape(kind: str, agg) -> bool:
+    if not isinstance(agg, Aggregate):
+        return False
+    sizes = (6, 6) if kind == "jointtarget" else (3, 4, 4, 6)
+    return len(agg.items) == len(sizes) and all(numbers(a, n) is not None for a, n in zip(agg.items, sizes))
+
+
+def _literal(agg) -> bool:
+    """Whether every leaf of ``agg`` is a number (a value computed in RAPID is read, never changed)."""
+    return all(_literal(x) if isinstance(x, Aggregate) else isinstance(x, Number) for x in agg.items)
+
+
+def _target(kind: str, name: str, agg, sc) -> Target:
+    line, column = sc.line_col(agg.start)
+    if not _shape(kind, agg):
+        if isinstance(agg, Aggregate) and _literal(agg):
+            raise sc.error(agg.start, f"{name}: a {kind} is {JOINT_TARGET if kind == 'jointtarget' else ROB_TARGET}")
+        return Target(name, "joint" if kind == "jointtarget" else "pose", line, column,
+                      skip="not a literal value")
+    if kind == "jointtarget":
+        return Target(name, "joint", line, column, joints=agg.items[0].items)
+    conf = agg.items[2].items
+    for c in conf:
+        if c.value != int(c.value) or not (0 <= c.value <= 7 or c is not conf[3]):
+            raise sc.error(c.start, f"{name}: configuration data are whole numbers, cfx 0 to 7; got {c.text}")
+    return Target(name, "pose", line, column, position=agg.items[0].items, orientation=agg.items[1].items,
+                  configuration=conf)
+
+
+def _pose(pos, quat, sc, name) -> np.ndarray:
+    w, x, y, z = (n.value for n in quat)
+    norm = math.sqrt(w * w + x * x + y * y + z * z)
+    if not 0.5 < norm < 1.5:
+        raise sc.error(quat[0].start, f"{name}: the quaternion's norm is {norm:.3g}, not 1")
+    X = np.eye(4)
+    X[:3, :3] = quaternion_matrix(np.array([w, x, y, z]) / norm)
+    X[:3, 3] = [n.value * LENGTH for n in pos]
+    return X
+
+
+def _frame(kind, name, value, sc) -> NamedFrame:
+    """A tooldata's tool frame (in the flange) or a wobjdata's user frame times object frame (in the base)."""
+    at, count = (1, 1) if kind == "tooldata" else (3, 2)
+    parts = value.items[at:at + count]
+    X = np.eye(4)
+    if len(parts) != count:
+        raise sc.error(value.start, f"{name}: a {kind} has {at + count} parts or more, this one {len(value.items)}")
+    for part in parts:
+        if not (isinstance(part, Aggregate) and len(part.items) == 2 and numbers(part.items[0], 3)
+                and numbers(part.items[1], 4)):
+            raise sc.error(value.start, f"{name}: a {kind} frame is [[x, y, z], [q1, q2, q3, q4]]")
+        X = X @ _pose(part.items[0].items, part.items[1].items, sc, name)
+    held = value.items[0]
+    robot_holds = hasattr(held, "text") and held.text.upper() == "TRUE"
+    fixed = kind == "tooldata" or (len(value.items) > 1 and getattr(value.items[1], "text", "").upper() == "TRUE")
+    if robot_holds != (kind == "tooldata") or not fixed:
+        kind = "stationary " + kind if kind == "tooldata" else "moving " + kind   # not one robocal can use
+    return NamedFrame(name, "tool" if kind == "tooldata" else ("wobj" if kind == "wobjdata" else kind), X)
+
+
+def quaternion_matrix(wxyz) -> np.ndarray:
+    """The rotation matrix of a unit quaternion (w, x, y, z)."""
+    w, x, y, z = wxyz
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+# -- the compensation's view: SI poses, configurations, and new values --------------------------------
+
+def pose(target: Target) -> np.ndarray:
+    """X (4x4, SI) of a pose target in its work object."""
+    X = np.eye(4)
+    q = np.array([n.value for n in target.orientation])
+    X[:3, :3] = quaternion_matrix(q / np.linalg.norm(q))
+    X[:3, 3] = [n.value * LENGTH for n in target.position]
+    return X
+
+
+def orientation_values(R: np.ndarray, target: Target) -> list[float]:
+    """The quaternion (w first) of ``R``, on the side of the sphere of the target's own."""
+    from scipy.spatial.transform import Rotation
+
+    x, y, z, w = Rotation.from_matrix(R).as_quat()
+    q = np.array([w, x, y, z])
+    old = np.array([n.value for n in target.orientation])
+    return list(-q if q @ old < 0 else q)
+
+
+def wanted(target: Target, n_joints: int) -> tuple[np.ndarray, np.ndarray]:
+    """Posture bits (3,) and turn windows (n_joints,) that the target's configuration data ask for."""
+    cf1, cf4, cf6, cfx = (int(n.value) for n in target.configuration)
+    turn = np.full(n_joints, np.nan)
+    for j, cf in zip(TURN_JOINTS, (cf1, cf4, cf6)):
+        if j < n_joints:
+            turn[j] = (cf + 0.5) * math.pi / 2 - math.pi
+    return np.array([(cfx >> 2) & 1, (cfx >> 1) & 1, cfx & 1]), turn
+
+
+def configuration_values(q: np.ndarray, bits: np.ndarray, target: Target, slack: float) -> list[int]:
+    """cf1, cf4, cf6 and cfx of readings ``q`` (SI) with posture ``bits``; a quadrant stays as it was
+    while its axis is within ``slack`` (rad) of it."""
+    out = []
+    for j, old in zip(TURN_JOINTS, target.configuration[:3]):
+        cf = int(old.value)
+        inside = j >= len(q) or cf * math.pi / 2 - slack <= q[j] <= (cf + 1) * math.pi / 2 + slack
+        out.append(cf if inside else int(math.floor(q[j] / (math.pi / 2))))
+    return out + [int(4 * bits[0] + 2 * bits[1] + bits[2])]
+
+
+def format_configuration(value: int, old: Number) -> str:
+    return old.text if value == old.value else str(value)

@@ -1,0 +1,236 @@
+"""Robot programs in, compensated programs out (docs/formats.md, "Robot programs"): each dialect read
+and written back byte for byte, compensated joint and Cartesian targets checked through the models
+(the Cartesian ones through the nominal inverse kinematics in the written configuration), targets
+out of reach flagged, malformed programs refused at their line and column."""
+
+import codecs
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import assert_one_line_error
+from robots import arm6r
+from scipy.spatial.transform import Rotation
+
+import robocal as rc
+from robocal._compensation import inverse_kinematics, posture
+from robocal._files.programs import DIALECTS, program_joints, read_program, read_program_joints
+from robocal._files.programs.compensation import compensate_program
+from robocal.sim import perturb_model
+
+HERE = Path(__file__).resolve().parent / "programs"
+EXAMPLES = ["example.mod", "example.dat", "example.src", "example.script"]
+TOL_MM, TOL_DEG = 1e-6, 1e-6
+
+
+@pytest.fixture(scope="module")
+def models():
+    nominal = arm6r()
+    names = rc.candidate_parameters(nominal, ("geometric",))
+    return nominal, perturb_model(nominal, names, rng=3)
+
+
+def _reread(tmp_path, text, name):
+    path = tmp_path / name
+    path.write_bytes(text.encode("utf-8"))
+    return read_program(path)
+
+
+@pytest.mark.parametrize("name", EXAMPLES)
+def test_nominal_as_calibrated_writes_the_program_back_byte_for_byte(name, models):
+    nominal, _ = models
+    program = read_program(HERE / name)
+    assert len([t for t in program.targets if not t.skip]) >= 5
+    result = compensate_program(program, nominal, nominal)
+    assert result.text.encode("utf-8") == (HERE / name).read_bytes()
+    assert all(r.status == "ok" or r.status.startswith("read only") for r in result.targets)
+
+
+def test_byte_order_mark_and_crlf_lines_survive(tmp_path, models):
+    nominal, calibrated = models
+    raw = codecs.BOM_UTF8 + (HERE / "example.mod").read_bytes().replace(b"\n", b"\r\n")
+    (tmp_path / "crlf.mod").write_bytes(raw)
+    program = read_program(tmp_path / "crlf.mod")
+    assert compensate_program(program, nominal, nominal).text.encode("utf-8") == raw
+    changed = compensate_program(program, nominal, calibrated).text.encode("utf-8")
+    assert changed.startswith(codecs.BOM_UTF8) and b"\n" not in changed.replace(b"\r\n", b"")
+    # only the targets' numbers changed: the lines outside any target are the same
+    same = [a for a, b in zip(raw.split(b"\r\n"), changed.split(b"\r\n")) if a == b]
+    assert any(b"PROC main()" in line for line in same) and any(b"MoveL Offs(pPick" in line for line in same)
+
+
+def _tool_pose(model, q):
+    ev = rc.evaluate(model, q, orientations=True)
+    return ev.positions[:, 0], ev.rotations[:, 0]
+
+
+def _assert_same_pose(P, R, P_goal, R_goal):
+    assert np.abs(P - P_goal).max() * 1e3 < TOL_MM
+    angle = Rotation.from_matrix(R @ np.swapaxes(R_goal, 1, 2)).magnitude()
+    assert np.degrees(angle).max() < TOL_DEG
+
+
+@pytest.mark.parametrize("name", EXAMPLES)
+def test_compensated_joint_targets_land_where_the_nominal_ones_did(name, models, tmp_path):
+    nominal, calibrated = models
+    program = read_program(HERE / name)
+    labels, q_old = program_joints(program, nominal)
+    result = compensate_program(program, nominal, calibrated)
+    new = _reread(tmp_path, result.text, name)
+    labels_new, q_new = program_joints(new, nominal)
+    assert labels_new == labels and np.abs(q_new - q_old).max() > 1e-4   # they did change
+    _assert_same_pose(*_tool_pose(calibrated, q_new), *_tool_pose(nominal, q_old))
+
+
+@pytest.mark.parametrize("name", EXAMPLES)
+def test_compensated_cartesian_targets_through_the_nominal_ik_land_on_the_intended_pose(name, models, tmp_path):
+    nominal, calibrated = models
+    module = DIALECTS[read_program(HERE / name).dialect]
+    program = read_program(HERE / name)
+    result = compensate_program(program, nominal, calibrated)
+    new = _reread(tmp_path, result.text, name)
+    ok = {r.name for r in result.targets if r.status == "ok"}
+    pairs = [(a, b) for a, b in zip(program.targets, new.targets) if a.kind == "pose" and a.name in ok]
+    assert len(pairs) >= 3
+    X_WB = nominal.X_WB
+    goal = X_WB @ np.array([module.pose(a) for a, _ in pairs])
+    given = X_WB @ np.array([module.pose(b) for _, b in pairs])
+    assert np.abs(given[:, :3, 3] - goal[:, :3, 3]).max() > 1e-4          # the targets moved
+    want, turn = zip(*[module.wanted(b, 6) if b.configuration else (np.full(3, -1), np.full(6, np.nan))
+                       for _, b in pairs])
+    hints = [None if b.configuration else q for (_, b), q in zip(pairs, _hint_rows(new, nominal, pairs))]
+    ik = inverse_kinematics(nominal, given[:, :3, 3], given[:, :3, :3], want=np.array(want),
+                            turn_from=np.array(turn), hints=np.array([np.full(6, np.nan) if h is None else h
+                                                                      for h in hints]))
+    assert ik.solved.all()
+    _assert_same_pose(*_tool_pose(calibrated, ik.q), goal[:, :3, 3], goal[:, :3, :3])
+    has_conf = np.array([bool(b.configuration) for _, b in pairs])
+    assert np.all((np.array(want) < 0) | (posture(nominal, ik.q) == (np.array(want) > 0))) and (
+        has_conf.any() or module.NAME == "urscript")
+
+
+def _hint_rows(program, model, pairs):
+    """The joint target before each pose target (what the compensation seeds a target without
+    configuration data from)."""
+    out, last = [], None
+    targets = sorted(program.targets, key=lambda t: (t.line, t.column))
+    wanted = {(b.line, b.column) for _, b in pairs}
+    for t in targets:
+        if t.kind == "joint" and not t.skip:
+            last = program_joints(type(program)(program.source, program.dialect, program.text, (t,)), model)[1][0]
+        elif (t.line, t.column) in wanted:
+            out.append(last)
+    return out
+
+
+def test_configuration_data_are_recomputed_where_the_compensated_joints_need_another(models, tmp_path):
+    nominal, calibrated = models
+    program = read_program(HERE / "example.mod")
+    result = compensate_program(program, nominal, calibrated)
+    row = next(r for r in result.targets if r.name == "line 30")
+    assert row.configuration == "0,0,0,0 -> -1,-1,0,0"       # axes 1 and 4 sat on 0 deg and moved below
+    new = next(t for t in _reread(tmp_path, result.text, "x.mod").targets if t.name == "line 30")
+    assert [int(n.value) for n in new.configuration] == [-1, -1, 0, 0]
+
+
+@pytest.mark.parametrize("name, far, comment", [
+    ("example.mod", "CONST robtarget pFar := [[5000,0,0],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n", "!"),
+    ("example.dat", "DECL E6POS XFAR={X 5000.0,Y 0.0,Z 0.0,A 0.0,B 0.0,C 0.0,S 0,T 0}\n", ";"),
+    ("example.script", "  far = p[5.0, 0.0, 0.0, 0.0, 0.0, 0.0]\n  movel(far)\n", "#"),
+])
+def test_out_of_reach_targets_are_flagged_and_left_unchanged(name, far, comment, models, tmp_path):
+    nominal, calibrated = models
+    lines = (HERE / name).read_text().splitlines(keepends=True)
+    lines.insert(len(lines) - 2, far)
+    path = tmp_path / name
+    path.write_text("".join(lines))
+    result = compensate_program(read_program(path), nominal, calibrated)
+    flagged = [r for r in result.flagged if "far" in r.name.lower()]
+    assert len(flagged) == 1 and flagged[0].status.startswith("no nominal solution")
+    out = result.text.splitlines(keepends=True)
+    i = out.index(far.splitlines(keepends=True)[0])
+    assert out[i - 1].strip().startswith(f"{comment} robocal: ") and "left unchanged" in out[i - 1]
+    # the flagged program reads back with the same targets
+    assert len(_reread(tmp_path, result.text, "again" + path.suffix).targets) == len(read_program(path).targets)
+
+
+def test_a_compensation_beyond_a_joint_limit_is_flagged(models):
+    nominal, calibrated = models
+    lo, hi = nominal.lower_limits.copy(), nominal.upper_limits.copy()
+    lo[0] = np.radians(9.999)                               # jHome's axis 1 is 10 deg and moves below it
+    narrow = nominal.replace(joint_limits=tuple(zip(lo, hi)))
+    result = compensate_program(read_program(HERE / "example.mod"), narrow, calibrated.replace(
+        joint_limits=tuple(zip(lo, hi))))
+    row = next(r for r in result.targets if r.name == "jHome")
+    assert row.status == "beyond a joint limit"
+    flag = "! robocal: jHome: beyond a joint limit; left unchanged\n"
+    assert flag + "  CONST jointtarget jHome := [[10, -30" in result.text
+
+
+def test_a_work_object_is_the_frame_of_the_targets(models, tmp_path):
+    nominal, calibrated = models
+    frames = "[[0, 0, 0], [1, 0, 0, 0]], [[0, 0, 0], [1, 0, 0, 0]]];"
+    text = (HERE / "example.mod").read_text().replace(frames, frames.replace("[[0, 0, 0]", "[[100, 0, 0]", 1))
+    shifted = text.replace("[[231.980,68.259,", "[[131.980,68.259,")
+    (tmp_path / "w.mod").write_text(shifted)
+    base = compensate_program(read_program(HERE / "example.mod"), nominal, calibrated)
+    inwobj = compensate_program(read_program(tmp_path / "w.mod"), nominal, calibrated, wobj="wTable")
+    a = next(r for r in base.targets if r.name == "pApproach")
+    b = next(r for r in inwobj.targets if r.name == "pApproach")
+    assert a.status == b.status == "ok" and abs(a.moved - b.moved) < 1e-9 and abs(a.turned - b.turned) < 1e-9
+
+
+def test_program_joints_read_a_campaign_written_as_controller_code(tmp_path):
+    model = arm6r()
+    ext = "[9E9,9E9,9E9,9E9,9E9,9E9]"
+    (tmp_path / "log.mod").write_text(f"MODULE log\n  ! readings\n"
+                                      f"  MoveAbsJ [[1,2,3,4,5,6],{ext}]\\NoEOffs, v10, fine, tool0;\n"
+                                      f"  MoveAbsJ [[-1.5,0,0.25,0,90,-180],{ext}], v10, fine, tool0;\n"
+                                      "ENDMODULE\n")
+    labels, q = read_program_joints(tmp_path / "log.mod", model)
+    assert labels == ["line 3", "line 4"]
+    assert np.allclose(q, np.radians([[1, 2, 3, 4, 5, 6], [-1.5, 0, 0.25, 0, 90, -180]]))
+
+
+@pytest.mark.parametrize("suffix, text, line, at", [
+    (".mod", "MODULE m\n  CONST robtarget p1 := [[1,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9];\nENDMODULE\n",
+     2, ":= [" ),
+    (".mod", "MODULE m\n  CONST robtarget p1 := [[1,2],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\nENDMODULE\n",
+     2, ":= ["),
+    (".mod", "MODULE m\n  CONST robtarget p1 := [[1,2,3],[1,0,0,0],[0,0,0,9],[9E9,9E9,9E9,9E9,9E9,9E9]];\n", 2, "9]"),
+    (".mod", 'MODULE m\n  CONST string s := "open;\n', 2, '"'),
+    (".dat", "DEFDAT d\nDECL E6POS XP1={X 1,Y 2,Z 3,A 0,B 0,C 0,S 0,T 0\nENDDAT\n", 2, "={"),
+    (".dat", "DEFDAT d\nDECL E6POS XP1={X 1,Y 2,Z 3,A 0,B 0,C 0,S 'B012',T 0}\nENDDAT\n", 2, "'B012'"),
+    (".src", "DEF a()\n  PTP {A1 0, A2 0, A3 0, A4 0, A5 0, A6 0}}\nEND\n", 2, "}}"),
+    (".script", "def a():\n  movej([0, 0, 0, 0, 0, 0], a=1.4))\nend\n", 2, "))"),
+    (".script", "def a():\n  movej([0, 0, 0,\n    0, 0, 0,], a=1.4)\nend\n", 3, ",]"),
+])
+def test_a_malformed_program_is_one_line_naming_file_line_and_column(suffix, text, line, at, tmp_path, cli):
+    nominal = arm6r()
+    rc.write_model(nominal, tmp_path / "m.yaml")
+    (tmp_path / f"p{suffix}").write_text(text)
+    row = text.splitlines()[line - 1]
+    column = row.index(at) + 1 + {":= [": 3, "={": 1, "}}": 1, "))": 1, "9]": 0, '"': 0, "'B012'": 0, ",]": 0}[at]
+    code, _, err = cli("compensate", tmp_path / "m.yaml", tmp_path / "m.yaml", tmp_path / f"p{suffix}",
+                       "--out", tmp_path / "o" / f"out{suffix}")
+    assert_one_line_error(code, err, [f"p{suffix}", f"line {line}, column {column}:"], tmp_path / "o",
+                          command="compensate")
+
+
+def test_cli_compensates_a_program_and_prints_each_target(models, tmp_path, cli):
+    nominal, calibrated = models
+    rc.write_model(nominal, tmp_path / "nominal.yaml")
+    rc.write_model(calibrated, tmp_path / "calibrated.yaml")
+    far = "LIN {X 5000.0, Y 0.0, Z 0.0, A 0.0, B 0.0, C 0.0, S 0, T 0}\n"
+    (tmp_path / "prog.txt").write_text((HERE / "example.src").read_text().replace("END\n", far + "END\n"))
+    code, out, err = cli("compensate", tmp_path / "nominal.yaml", tmp_path / "calibrated.yaml", tmp_path / "prog.txt",
+                         "--dialect", "krl", "--out", tmp_path / "prog-compensated.src")
+    assert code == 0, err
+    assert "line 10 (line 10, joint): moved " in out and " mm, turned " in out
+    assert "line 18 (line 18, pose): no nominal solution" in out and "line 18 (line 18): no nominal solution" in err
+    assert "compensated 5 of 6 targets" in out and "1 flagged" in out
+    assert (tmp_path / "prog-compensated.src").read_text() != (HERE / "example.src").read_text()
+    code, _, err = cli("compensate", tmp_path / "nominal.yaml", tmp_path / "calibrated.yaml", HERE / "example.mod",
+                       "--tool", "tGriper", "--out", tmp_path / "t.mod")
+    assert_one_line_error(code, err, ["--tool", "tGriper", "tGripper"], command="compensate")
+    assert not (tmp_path / "t.mod").exists()
