@@ -93,8 +93,8 @@ def test_compensated_cartesian_targets_through_the_nominal_ik_land_on_the_intend
     pairs = [(a, b) for a, b in zip(program.targets, new.targets) if a.kind == "pose" and a.name in ok]
     assert len(pairs) >= 3
     X_WB = nominal.X_WB
-    goal = X_WB @ np.array([module.pose(a) for a, _ in pairs])
-    given = X_WB @ np.array([module.pose(b) for _, b in pairs])
+    goal = X_WB @ module.poses([a for a, _ in pairs])
+    given = X_WB @ module.poses([b for _, b in pairs])
     assert np.abs(given[:, :3, 3] - goal[:, :3, 3]).max() > 1e-4          # the targets moved
     want, turn = zip(*[module.wanted(b, 6) if b.configuration else (np.full(3, -1), np.full(6, np.nan))
                        for _, b in pairs])

@@ -19,7 +19,7 @@ from ..._errors import InputError, suggest
 from ..._model import RobotModel
 from ..text import decode, read_bytes
 from . import krl, rapid, urscript
-from .syntax import Program, Target
+from .syntax import Program
 
 DIALECTS = {"rapid": rapid, "krl": krl, "urscript": urscript}
 EXTENSIONS = {ext: name for name, module in DIALECTS.items() for ext in module.EXTENSIONS}
@@ -74,11 +74,14 @@ def joint_units(model: RobotModel, module) -> np.ndarray:
     return np.array([module.LENGTH if k == "length" else module.ANGLE for k in model.reading_quantities])
 
 
-def joint_values(program: Program, target: Target, model: RobotModel) -> np.ndarray:
-    if len(target.joints) < model.n_joints:
-        raise InputError(f"{target.name}: {len(target.joints)} robot axes, the model has {model.n_joints} joints",
-                         source=program.source, where=f"line {target.line}, column {target.column}")
-    return np.array([n.value for n in target.joints[:model.n_joints]]) * joint_units(model, DIALECTS[program.dialect])
+def joint_values(program: Program, targets, model: RobotModel) -> np.ndarray:
+    """(N, n_joints) readings (SI) of joint ``targets``: their first axes, one per joint of ``model``."""
+    for t in targets:
+        if len(t.joints) < model.n_joints:
+            raise InputError(f"{t.name}: {len(t.joints)} robot axes, the model has {model.n_joints} joints",
+                             source=program.source, where=f"line {t.line}, column {t.column}")
+    values = np.array([[n.value for n in t.joints[:model.n_joints]] for t in targets]).reshape(-1, model.n_joints)
+    return values * joint_units(model, DIALECTS[program.dialect])
 
 
 def program_joints(program: Program, model: RobotModel) -> tuple[list[str], np.ndarray]:
@@ -90,8 +93,7 @@ def program_joints(program: Program, model: RobotModel) -> tuple[list[str], np.n
     targets = [t for t in program.targets if t.kind == "joint" and not t.skip]
     if not targets:
         raise InputError("no joint targets with literal values", source=program.source)
-    q = np.array([joint_values(program, t, model) for t in targets])
-    return [t.name for t in targets], q
+    return [t.name for t in targets], joint_values(program, targets, model)
 
 
 def read_program_joints(path, model: RobotModel, *, dialect: str | None = None) -> tuple[list[str], np.ndarray]:

@@ -3,6 +3,7 @@ for the calibrated robot to land where the program meant (docs/formats.md, "Robo
 
 from __future__ import annotations
 
+import bisect
 import math
 import re
 from dataclasses import dataclass
@@ -100,11 +101,12 @@ def _pose_edits(module, targets, X_new, X_old, q, bits, edits) -> list[str]:
     changed = []
     L, U = module.LENGTH, module.ORIENTATION
     turned = _angle(X_new[:, :3, :3], X_old[:, :3, :3])
+    orientations = module.orientation_values(X_new[:, :3, :3], targets)        # file units
     for i, t in enumerate(targets):
         for n, v in zip(t.position, X_new[i, :3, 3] / L):
             edits.append((n.start, n.end, format_number(v, n, digits=DIGITS[L], keep=KEEP / L)))
         if turned[i] > KEEP:
-            for n, v in zip(t.orientation, module.orientation_values(X_new[i, :3, :3], t)):   # file units
+            for n, v in zip(t.orientation, orientations[i]):
                 edits.append((n.start, n.end, format_number(v, n, digits=DIGITS[U], keep=0.0)))
         new = module.configuration_values(q[i], bits[i], t, SLACK) if t.configuration else []
         old = [int(n.value) for n in t.configuration]
@@ -118,7 +120,7 @@ def _pose_targets(program, module, nominal, calibrated, marker, X_WO, targets, h
     if nominal.n_joints != 6:
         raise InputError(f"Cartesian targets need a six-axis model, {nominal.name} has {nominal.n_joints} joints "
                          f"(first at line {targets[0].line})", source=program.source)
-    X_W = X_WO @ np.array([module.pose(t) for t in targets])
+    X_W = X_WO @ module.poses(targets)
     conf = [module.wanted(t, 6) if t.configuration else (np.full(3, -1), np.full(6, np.nan)) for t in targets]
     pc = compensate_poses(nominal, calibrated, X_W[:, :3, 3], X_W[:, :3, :3], marker=marker,
                           want=np.array([c[0] for c in conf]), turn_from=np.array([c[1] for c in conf]),
@@ -178,7 +180,7 @@ def compensate_program(program: Program, nominal: RobotModel, calibrated: RobotM
     poses = [t for t in live if t.kind == "pose"]
     edits, results = [], {}
     if joints:
-        q = np.array([joint_values(program, t, nominal) for t in joints])
+        q = joint_values(program, joints, nominal)
         comp = compensate(calibrated, q, nominal=nominal, marker=marker)
         status = _status(np.ones(len(q), dtype=bool), comp, tol, tol_rot)
         ok = np.array([s == REACHED for s in status])
@@ -197,10 +199,9 @@ def compensate_program(program: Program, nominal: RobotModel, calibrated: RobotM
             results[id(t)] = r
     rows = [results.get(id(t), TargetResult(t.name, t.line, t.kind, f"read only: {t.skip or 'a frame in use'}"))
             for t in program.targets]
-    flagged = [r for r in rows if r.status != REACHED and not r.status.startswith("read only")]
     starts = [0] + [m.end() for m in re.finditer(r"\r\n|\r|\n", program.text)]
     comments = [(starts[t.line - 1] + t.column - 1, f"{r.name}: {r.status}; left unchanged")
-                for t, r in zip(program.targets, rows) if r in flagged]
+                for t, r in zip(program.targets, rows) if r.status != REACHED and not r.status.startswith("read only")]
     return ProgramCompensation(text=edited(program.text, edits, comments, comment=module.COMMENT), targets=tuple(rows))
 
 
@@ -208,11 +209,13 @@ def _hints(program: Program, nominal: RobotModel, poses) -> np.ndarray:
     """Per pose target without configuration data, the readings of the joint target before it in the
     program (the controller's current joints), NaN where there is none."""
     out = np.full((len(poses), nominal.n_joints), np.nan)
-    last, order = None, sorted(program.targets, key=lambda t: (t.line, t.column))
-    index = {id(t): i for i, t in enumerate(poses)}
-    for t in order:
-        if t.kind == "joint" and not t.skip and len(t.joints) >= nominal.n_joints:
-            last = joint_values(program, t, nominal)
-        elif id(t) in index and not t.configuration and last is not None:
-            out[index[id(t)]] = last
+    joints = [t for t in program.targets if t.kind == "joint" and not t.skip and len(t.joints) >= nominal.n_joints]
+    if not joints:
+        return out
+    q = joint_values(program, joints, nominal)
+    key = [(t.line, t.column) for t in joints]
+    for i, t in enumerate(poses):
+        k = bisect.bisect_left(key, (t.line, t.column)) - 1
+        if not t.configuration and k >= 0:
+            out[i] = q[k]
     return out

@@ -14,7 +14,20 @@ import math
 
 import numpy as np
 
-from .syntax import SLACK, Aggregate, Field, NamedFrame, Number, Program, Scanner, Target, Token, aggregate, closing
+from .syntax import (
+    SLACK,
+    Aggregate,
+    Field,
+    NamedFrame,
+    Number,
+    Program,
+    Scanner,
+    Target,
+    Token,
+    aggregate,
+    check_finite,
+    closing,
+)
 
 NAME = "krl"
 EXTENSIONS = (".src", ".dat", ".sub")
@@ -28,31 +41,22 @@ CARTESIAN, JOINTS = ("X", "Y", "Z", "A", "B", "C"), tuple(f"A{i}" for i in range
 
 def read(text: str, source: str) -> Program:
     """The program's targets and named frames; a malformed line is an InputError at its line and column."""
-    sc = Scanner(text, source, comment=COMMENT, quotes="\"'", newlines=True, names=r"[A-Za-z_$][A-Za-z0-9_$]*")
+    sc = Scanner(text, source, comment=COMMENT, quotes="\"'", newlines=True, names=r"[A-Za-z_$][A-Za-z0-9_$]*",
+                 flat=False)
     toks = sc.tokens()
-    targets, frames, line = [], [], []
-    for t in toks + [Token("nl", "", len(text), len(text))]:
-        if t.kind != "nl":
-            line.append(t)
-            continue
-        if line:
-            _line(line, sc, targets, frames)
-        line = []
+    targets, frames, a = [], [], 0
+    for b in [i for i, t in enumerate(toks) if t.kind == "nl"] + [len(toks)]:
+        if b > a:
+            _line(toks.part(a, b), sc, targets, frames)
+        a = b + 1
     return Program(source=source, dialect=NAME, text=text, targets=tuple(targets), frames=tuple(frames))
 
 
 def _balanced(toks, sc) -> None:
-    """A bracket closed on its own line, by its own kind."""
-    pairs, stack = {"(": ")", "[": "]", "{": "}"}, []
-    for t in toks:
-        if t.text in pairs:
-            stack.append(t)
-        elif t.text in ")]}":
-            if not stack or pairs[stack[-1].text] != t.text:
-                raise sc.error(t.start, f"{t.text} closes nothing opened here")
-            stack.pop()
-    if stack:
-        raise sc.error(stack[-1].start, f"{stack[-1].text} is not closed on its line")
+    """Every bracket closed on its own line (KRL has no continuation lines)."""
+    for t, p in zip(toks, toks.partner):
+        if p < 0 and t.kind == "op" and t.text in "([{":
+            raise sc.error(t.start, f"{t.text} is not closed on its line")
 
 
 def _line(toks, sc, targets, frames) -> None:
@@ -67,7 +71,7 @@ def _line(toks, sc, targets, frames) -> None:
         target = _target(toks[k + 1].text, words[k], agg, sc)
         targets.append(target)
         if words[k] == "FRAME" and not target.skip:
-            frames.append(NamedFrame(toks[k + 1].text, "frame", pose(target)))
+            frames.append(NamedFrame(toks[k + 1].text, "frame", poses([target])[0]))
         return
     if len(toks) > 5 and words[1] == "[" and words[3] == "]" and words[4] == "=" and words[5] == "{":
         agg, _ = aggregate(toks, 5, sc)
@@ -75,7 +79,7 @@ def _line(toks, sc, targets, frames) -> None:
         target = _target(name, "FRAME", agg, sc)
         if not target.skip:
             kind = {"TOOL_DATA": "tool", "BASE_DATA": "wobj"}.get(words[0], "frame")
-            frames.append(NamedFrame(name, kind, pose(target)))
+            frames.append(NamedFrame(name, kind, poses([target])[0]))
         return
     if words[0] in MOTION:
         j = 1
@@ -124,6 +128,7 @@ def _target(name: str, kind: str, agg: Aggregate, sc) -> Target:
     if not all(isinstance(m.get(f), Number) for f in need):
         missing = [f for f in need if not isinstance(m.get(f), Number)]
         return Target(name, "joint" if joint else "pose", line, column, skip=f"no literal {', '.join(missing)}")
+    check_finite([m[f] for f in need], sc, name)
     if joint:
         return Target(name, "joint", line, column, joints=tuple(m[f] for f in JOINTS))
     conf = tuple(_status(m[f], sc) for f in ("S", "T") if f in m)
@@ -132,9 +137,9 @@ def _target(name: str, kind: str, agg: Aggregate, sc) -> Target:
                   orientation=tuple(m[f] for f in "ABC"), configuration=conf)
 
 
-def zyx_matrix(a: float, b: float, c: float) -> np.ndarray:
-    """Rz(a) Ry(b) Rx(c), angles in radians."""
-    ca, sa, cb, sb, cc, sc = math.cos(a), math.sin(a), math.cos(b), math.sin(b), math.cos(c), math.sin(c)
+def zyx_matrix(a, b, c) -> np.ndarray:
+    """Rz(a) Ry(b) Rx(c), angles in radians (scalars, or arrays: the matrix's last axes are theirs)."""
+    ca, sa, cb, sb, cc, sc = np.cos(a), np.sin(a), np.cos(b), np.sin(b), np.cos(c), np.sin(c)
     return np.array([[ca * cb, ca * sb * sc - sa * cc, ca * sb * cc + sa * sc],
                      [sa * cb, sa * sb * sc + ca * cc, sa * sb * cc - ca * sc],
                      [-sb, cb * sc, cb * cc]])
@@ -142,26 +147,26 @@ def zyx_matrix(a: float, b: float, c: float) -> np.ndarray:
 
 # -- the compensation's view ----------------------------------------------------------------------------
 
-def pose(target: Target) -> np.ndarray:
-    """X (4x4, SI) of a pose target in its base frame."""
-    X = np.eye(4)
-    X[:3, :3] = zyx_matrix(*(n.value * ANGLE for n in target.orientation))
-    X[:3, 3] = [n.value * LENGTH for n in target.position]
+def poses(targets) -> np.ndarray:
+    """(N, 4, 4) X (SI) of pose targets in their base frame."""
+    v = np.array([[n.value for n in (*t.position, *t.orientation)] for t in targets]).reshape(-1, 6)
+    X = np.tile(np.eye(4), (len(v), 1, 1))
+    X[:, :3, :3] = zyx_matrix(*(v[:, 3:] * ANGLE).T).transpose(2, 0, 1) if len(v) else X[:, :3, :3]
+    X[:, :3, 3] = v[:, :3] * LENGTH
     return X
 
 
-def orientation_values(R: np.ndarray, target: Target) -> list[float]:
-    """A, B, C (deg) of ``R``: of the two ZYX triples, the one nearest the target's own, each angle
-    within half a turn of its old value."""
-    b = math.atan2(-R[2, 0], math.hypot(R[0, 0], R[1, 0]))
-    a, c = math.atan2(R[1, 0], R[0, 0]), math.atan2(R[2, 1], R[2, 2])
-    old = np.array([n.value for n in target.orientation])
-    best = None
-    for abc in (np.degrees([a, b, c]), np.degrees([a + math.pi, math.pi - b, c + math.pi])):
-        abc = old + (abc - old + 180.0) % 360.0 - 180.0
-        if best is None or np.abs(abc - old).sum() < np.abs(best - old).sum() - 1e-9:
-            best = abc
-    return list(best)
+def orientation_values(R: np.ndarray, targets) -> np.ndarray:
+    """(N, 3) A, B, C (deg) of rotations ``R`` (N, 3, 3): of the two ZYX triples, the one nearest
+    the target's own, each angle within half a turn of its old value."""
+    b = np.arctan2(-R[:, 2, 0], np.hypot(R[:, 0, 0], R[:, 1, 0]))
+    a, c = np.arctan2(R[:, 1, 0], R[:, 0, 0]), np.arctan2(R[:, 2, 1], R[:, 2, 2])
+    old = np.array([[n.value for n in t.orientation] for t in targets]).reshape(-1, 3)
+    one = np.degrees(np.stack([a, b, c], axis=1))
+    other = np.degrees(np.stack([a + np.pi, np.pi - b, c + np.pi], axis=1))
+    one, other = (old + (x - old + 180.0) % 360.0 - 180.0 for x in (one, other))
+    closer = np.abs(other - old).sum(axis=1) < np.abs(one - old).sum(axis=1) - 1e-9
+    return np.where(closer[:, None], other, one)
 
 
 def wanted(target: Target, n_joints: int) -> tuple[np.ndarray, np.ndarray]:

@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from .syntax import Aggregate, NamedFrame, Number, Program, Scanner, Target, aggregate, closing, numbers
+from .syntax import Aggregate, NamedFrame, Number, Program, Scanner, Target, aggregate, check_finite, closing, numbers
 
 NAME = "rapid"
 EXTENSIONS = (".mod", ".modx", ".prg", ".sys", ".sysx")
@@ -36,10 +36,8 @@ def read(text: str, source: str) -> Program:
     while i < len(toks):
         k = i
         while k < len(toks) and toks[k].text != ";":
-            if toks[k].text in ")]}":
-                raise sc.error(toks[k].start, f"{toks[k].text} closes nothing opened here")
-            k = closing(toks, k, sc) + 1 if toks[k].text in "([{" else k + 1
-        _statement(toks[i:k], sc, targets, frames)
+            k = closing(toks, k, sc) + 1 if toks[k].text in "([{" and toks[k].kind == "op" else k + 1
+        _statement(toks.part(i, k), sc, targets, frames)
         i = k + 1
     return Program(source=source, dialect=NAME, text=text, targets=tuple(targets), frames=tuple(frames))
 
@@ -54,7 +52,7 @@ def _statement(toks, sc, targets, frames) -> None:
         if toks[m].kind == "name" and w.startswith(MOTION):
             j = m + 1
             while j < len(toks):
-                if toks[j].text == "[":
+                if toks[j].text[:1] == "[":
                     agg, j = aggregate(toks, j, sc)
                     _inline(agg, sc, targets)
                 elif toks[j].text in "({":
@@ -71,7 +69,7 @@ def _declaration(toks, d, sc, targets, frames) -> None:
     array = j < len(toks) and toks[j].text == "{"
     if array:
         j = closing(toks, j, sc) + 1
-    if j >= len(toks) or toks[j].text != ":=" or j + 1 >= len(toks) or toks[j + 1].text != "[":
+    if j >= len(toks) or toks[j].text != ":=" or j + 1 >= len(toks) or toks[j + 1].text[:1] != "[":
         return                                   # declared without a literal value
     value, _ = aggregate(toks, j + 1, sc)
     if kind in ("tooldata", "wobjdata"):
@@ -109,8 +107,13 @@ def _target(kind: str, name: str, agg, sc) -> Target:
             raise sc.error(agg.start, f"{name}: a {kind} is {JOINT_TARGET if kind == 'jointtarget' else ROB_TARGET}")
         return Target(name, "joint" if kind == "jointtarget" else "pose", line, column,
                       skip="not a literal value")
+    check_finite([n for part in agg.items[:3] for n in part.items], sc, name)
     if kind == "jointtarget":
         return Target(name, "joint", line, column, joints=agg.items[0].items)
+    quat = agg.items[1].items
+    norm = math.sqrt(sum(n.value ** 2 for n in quat))
+    if not 0.9 < norm < 1.1:
+        raise sc.error(quat[0].start, f"{name}: the quaternion's norm is {norm:.3g}, not 1")
     conf = agg.items[2].items
     for c in conf:
         if c.value != int(c.value) or not (0 <= c.value <= 7 or c is not conf[3]):
@@ -160,23 +163,24 @@ def quaternion_matrix(wxyz) -> np.ndarray:
 
 # -- the compensation's view: SI poses, configurations, and new values --------------------------------
 
-def pose(target: Target) -> np.ndarray:
-    """X (4x4, SI) of a pose target in its work object."""
-    X = np.eye(4)
-    q = np.array([n.value for n in target.orientation])
-    X[:3, :3] = quaternion_matrix(q / np.linalg.norm(q))
-    X[:3, 3] = [n.value * LENGTH for n in target.position]
+def poses(targets) -> np.ndarray:
+    """(N, 4, 4) X (SI) of pose targets in their work object."""
+    v = np.array([[n.value for n in (*t.position, *t.orientation)] for t in targets]).reshape(-1, 7)
+    q = v[:, 3:] / np.linalg.norm(v[:, 3:], axis=1, keepdims=True)
+    X = np.tile(np.eye(4), (len(v), 1, 1))
+    X[:, :3, :3] = quaternion_matrix(q.T).transpose(2, 0, 1) if len(v) else X[:, :3, :3]
+    X[:, :3, 3] = v[:, :3] * LENGTH
     return X
 
 
-def orientation_values(R: np.ndarray, target: Target) -> list[float]:
-    """The quaternion (w first) of ``R``, on the side of the sphere of the target's own."""
+def orientation_values(R: np.ndarray, targets) -> np.ndarray:
+    """(N, 4) quaternions (w first) of rotations ``R`` (N, 3, 3), each on the side of the sphere of
+    its target's own."""
     from scipy.spatial.transform import Rotation
 
-    x, y, z, w = Rotation.from_matrix(R).as_quat()
-    q = np.array([w, x, y, z])
-    old = np.array([n.value for n in target.orientation])
-    return list(-q if q @ old < 0 else q)
+    q = Rotation.from_matrix(R).as_quat()[:, [3, 0, 1, 2]]
+    old = np.array([[n.value for n in t.orientation] for t in targets]).reshape(-1, 4)
+    return np.where(np.einsum("ni,ni->n", q, old)[:, None] < 0, -q, q)
 
 
 def wanted(target: Target, n_joints: int) -> tuple[np.ndarray, np.ndarray]:

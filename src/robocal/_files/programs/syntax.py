@@ -9,8 +9,11 @@ the dialect modules say what they mean and the compensation converts them to SI.
 from __future__ import annotations
 
 import bisect
+import math
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -21,10 +24,13 @@ from ..._errors import InputError, excerpt
 SLACK = 1e-4
 
 _NUMBER = r"(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?"
+# a bracketed list of plain numbers, one token (``flat``): most of a long program's text
+_SIGNED = rf"[-+]?{_NUMBER}"
+_FLAT = rf"(?P<flat>\[[ \t]*{_SIGNED}(?:[ \t]*,[ \t]*{_SIGNED})*[ \t]*\])"
+_SIGNED_RE = re.compile(_SIGNED)
 
 
-@dataclass(frozen=True)
-class Token:
+class Token(NamedTuple):
     """One token: ``kind`` is num, name, str, op or nl (a line break, where a dialect needs them)."""
 
     kind: str
@@ -33,8 +39,7 @@ class Token:
     end: int
 
 
-@dataclass(frozen=True)
-class Number:
+class Number(NamedTuple):
     """A number as written: its value, its text and its span ``[start, end)`` in the program
     (a sign included)."""
 
@@ -54,6 +59,29 @@ class Aggregate:
     start: int
     end: int
     label: str = ""
+
+
+class FlatItems(Sequence):
+    """The numbers of a ``flat`` token, read when first asked for (most external axes never are)."""
+
+    def __init__(self, token: Token):
+        self.token, self.size, self._items = token, token.text.count(",") + 1, None
+
+    def __len__(self) -> int:
+        return self.size
+
+    def _numbers(self) -> tuple:
+        if self._items is None:
+            t = self.token
+            self._items = tuple(Number(float(m.group()), m.group(), t.start + m.start(), t.start + m.end())
+                                for m in _SIGNED_RE.finditer(t.text))
+        return self._items
+
+    def __getitem__(self, i):
+        return self._numbers()[i]
+
+    def __iter__(self):
+        return iter(self._numbers())
 
 
 @dataclass(frozen=True)
@@ -112,17 +140,20 @@ class Scanner:
     """Tokens of a program's text with their places; errors name the file, line and column."""
 
     def __init__(self, text: str, source: str, *, comment: str, quotes: str = '"', newlines: bool = False,
-                 names: str = r"[A-Za-z_][A-Za-z0-9_]*"):
+                 names: str = r"[A-Za-z_][A-Za-z0-9_]*", flat: bool = True):
         self.text, self.source = text, source
         self.line_starts = [0] + [m.end() for m in re.finditer(r"\r\n|\r|\n", text)]
+        q = "".join(re.escape(c) for c in quotes)
+        strings = "|".join(f"{re.escape(c)}[^{re.escape(c)}\\r\\n]*{re.escape(c)}" for c in quotes)
         parts = [r"(?P<nl>\r\n|\r|\n)", r"(?P<ws>[ \t\f\v]+)", rf"(?P<comment>{re.escape(comment)}[^\r\n]*)",
-                 rf"(?P<num>{_NUMBER})", rf"(?P<name>{names})", r"(?P<op>:=|==|<=|>=|<>|!=|[^\s\w])"]
+                 rf"(?P<str>{strings})", rf"(?P<open>[{q}])", rf"(?P<num>{_NUMBER})", rf"(?P<name>{names})",
+                 *([_FLAT] if flat else []),
+                 r"(?P<op>:=|==|<=|>=|<>|!=|\S)"]
         self.pattern = re.compile("|".join(parts))
-        self.quotes, self.newlines = quotes, newlines
+        self.newlines = newlines
 
     def where(self, offset: int) -> str:
-        line = bisect.bisect_right(self.line_starts, offset)
-        return f"line {line}, column {offset - self.line_starts[line - 1] + 1}"
+        return "line {}, column {}".format(*self.line_col(offset))
 
     def line_col(self, offset: int) -> tuple[int, int]:
         line = bisect.bisect_right(self.line_starts, offset)
@@ -131,47 +162,64 @@ class Scanner:
     def error(self, offset: int, message: str) -> InputError:
         return InputError(message, source=self.source, where=self.where(offset))
 
-    def tokens(self) -> list[Token]:
-        out, text, i, n = [], self.text, 0, len(self.text)
-        while i < n:
-            if text[i] in self.quotes:
-                j = i + 1
-                while j < n and text[j] != text[i] and text[j] not in "\r\n":
-                    j += 1
-                if j >= n or text[j] != text[i]:
-                    raise self.error(i, f"a string opened with {text[i]} is not closed on its line")
-                out.append(Token("str", text[i:j + 1], i, j + 1))
-                i = j + 1
-                continue
-            m = self.pattern.match(text, i)
-            if m is None:  # cannot happen: the op group takes any other character
-                raise self.error(i, f"unexpected character {excerpt(text[i])}")
+    def tokens(self) -> Tokens:
+        keep = {"num", "name", "op", "str", "flat"} | ({"nl"} if self.newlines else set())
+        out = Tokens()
+        for m in self.pattern.finditer(self.text):
             kind = m.lastgroup
-            if kind == "nl" and self.newlines or kind in ("num", "name", "op"):
-                out.append(Token(kind or "op", m.group(), m.start(), m.end()))
-            i = m.end()
+            if kind in keep:
+                out.append(Token(kind, m.group(), m.start(), m.end()))
+            elif kind == "open":
+                raise self.error(m.start(), f"a string opened with {m.group()} is not closed on its line")
+        out.partner = self._pairs(out)
+        return out
+
+    def _pairs(self, toks) -> list[int]:
+        """Per token, the index of the bracket that closes or opens it (-1 for any other token);
+        a bracket closed by another kind, or never, is an error."""
+        partner, stack = [-1] * len(toks), []
+        for i, t in enumerate(toks):
+            if t.kind != "op":
+                continue
+            if t.text in _PAIRS:
+                stack.append(i)
+            elif t.text in _CLOSERS:
+                if not stack or _PAIRS[toks[stack[-1]].text] != t.text:
+                    raise self.error(t.start, f"{t.text} closes nothing opened here")
+                j = stack.pop()
+                partner[i], partner[j] = j, i
+        if stack:
+            raise self.error(toks[stack[-1]].start, f"{toks[stack[-1]].text} is never closed")
+        return partner
+
+
+_PAIRS, _CLOSERS = {"[": "]", "{": "}", "(": ")"}, {"]", "}", ")"}
+
+
+class Tokens(list):
+    """A list of tokens and ``partner``: per token, the index of its matching bracket (-1 if none)."""
+
+    partner: list[int]
+
+    def part(self, a: int, b: int) -> "Tokens":
+        """Tokens ``a`` to ``b`` with their partners renumbered (a bracket whose partner is outside: -1)."""
+        out = Tokens(self[a:b])
+        out.partner = [p - a if a <= p < b else -1 for p in self.partner[a:b]]
         return out
 
 
-def closing(tokens: list[Token], i: int, scanner: Scanner) -> int:
-    """Index of the bracket closing the one at ``tokens[i]``; an unbalanced bracket is an error."""
-    pairs = {"[": "]", "{": "}", "(": ")"}
-    stack = []
-    for j in range(i, len(tokens)):
-        t = tokens[j].text
-        if t in pairs:
-            stack.append(j)
-        elif t in (")", "]", "}"):
-            if not stack or pairs[tokens[stack[-1]].text] != t:
-                raise scanner.error(tokens[j].start, f"{t} closes nothing opened here")
-            stack.pop()
-            if not stack:
-                return j
-    raise scanner.error(tokens[i].start, f"{tokens[i].text} is never closed")
+def closing(tokens: Tokens, i: int, scanner: Scanner) -> int:
+    """Index of the bracket closing the one at ``tokens[i]``."""
+    j = tokens.partner[i]
+    if j < 0:
+        raise scanner.error(tokens[i].start, f"{tokens[i].text} is not closed here")
+    return j
 
 
-def aggregate(tokens: list[Token], i: int, scanner: Scanner) -> tuple[Aggregate, int]:
+def aggregate(tokens: Tokens, i: int, scanner: Scanner) -> tuple[Aggregate, int]:
     """The aggregate whose opening bracket is ``tokens[i]`` and the index after its closing one."""
+    if tokens[i].kind == "flat":
+        return Aggregate(FlatItems(tokens[i]), tokens[i].start, tokens[i].end), i + 1
     end = closing(tokens, i, scanner)
     items, label, j = [], "", i + 1
     if j + 1 < end and tokens[j].kind == "name" and tokens[j + 1].text == ":":   # KRL {E6POS: ...}
@@ -198,12 +246,13 @@ def _item(tokens, j, end, scanner):
         return j + 2, Number(float(t.text + n.text), scanner.text[t.start:n.end], t.start, n.end)
     if t.kind == "num":
         return j + 1, Number(float(t.text), t.text, t.start, t.end)
-    if t.text in ("[", "{"):
+    if t.text in ("[", "{") or t.kind == "flat":
         return aggregate(tokens, j, scanner)[::-1]
-    if t.kind == "name" and j + 1 < end and tokens[j + 1].text == "[" and t.text == "p":  # URScript pose
+    if t.kind == "name" and j + 1 < end and tokens[j + 1].text[:1] == "[" and t.text == "p":  # URScript pose
         agg, k = aggregate(tokens, j + 1, scanner)
         return k, Aggregate(agg.items, t.start, agg.end, "p")
-    if t.kind == "name" and j + 1 < end and tokens[j + 1].text not in (",", "(", "[", "."):  # KRL field
+    if t.kind == "name" and j + 1 < end and tokens[j + 1].text not in (",", "(", "[", ".") \
+            and tokens[j + 1].kind != "flat":  # KRL field
         k, value = _item(tokens, j + 1, end, scanner)
         return k, Field(t.text, value, t.start)
     return j + 1, t
@@ -213,17 +262,29 @@ def numbers(agg, n: int | None = None) -> tuple[Number, ...] | None:
     """The aggregate's items when they are all numbers (exactly ``n`` of them if given), else None."""
     if not isinstance(agg, Aggregate) or agg.label not in ("", "p"):
         return None
+    if isinstance(agg.items, FlatItems):
+        return agg.items if n is None or len(agg.items) == n else None
     if not all(isinstance(x, Number) for x in agg.items) or (n is not None and len(agg.items) != n):
         return None
     return agg.items
+
+
+def check_finite(values, scanner: Scanner, name: str) -> None:
+    """Every number of a target finite (a value like 1e999 reads as infinity)."""
+    for n in values:
+        if not math.isfinite(n.value):
+            raise scanner.error(n.start, f"{name}: {excerpt(n.text)} is not a finite number")
 
 
 # -- writing back -----------------------------------------------------------------------------------
 
 def decimals(text: str) -> int:
     """Digits after the decimal point of a number as written (0 for an integer)."""
-    mantissa = re.split(r"[eE]", text)[0]
-    return len(mantissa.split(".")[1]) if "." in mantissa else 0
+    dot = text.find(".")
+    if dot < 0:
+        return 0
+    end = next((i for i, c in enumerate(text) if c in "eE"), len(text))
+    return max(end - dot - 1, 0)
 
 
 def format_number(value: float, old: Number, *, digits: int, keep: float) -> str:
@@ -231,11 +292,12 @@ def format_number(value: float, old: Number, *, digits: int, keep: float) -> str
     decimals as ``old`` and up to ``digits`` (trailing zeros beyond ``old``'s dropped)."""
     if abs(value - old.value) <= keep:
         return old.text
-    d = max(decimals(old.text), digits)
-    text = f"{value:.{d}f}"
     least = decimals(old.text)
-    while "." in text and decimals(text) > least and text.endswith("0"):
-        text = text[:-1]
+    text = f"{value:.{max(least, digits)}f}"
+    if max(least, digits) > least:
+        text = text.rstrip("0")
+        if decimals(text) < least:
+            text += "0" * (least - decimals(text))
     text = text[:-1] if text.endswith(".") and "." not in old.text else text
     if text in ("-0", "-0.0") or re.fullmatch(r"-0\.0*", text):
         text = text[1:]

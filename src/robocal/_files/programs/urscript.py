@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from .syntax import Aggregate, NamedFrame, Number, Program, Scanner, Target, aggregate, closing, numbers
+from .syntax import Aggregate, NamedFrame, Number, Program, Scanner, Target, aggregate, check_finite, closing, numbers
 
 NAME = "urscript"
 EXTENSIONS = (".script", ".urscript")
@@ -30,12 +30,10 @@ def read(text: str, source: str) -> Program:
     literals, moved, used, j = [], [], set(), 0
     while j < len(toks):
         t = toks[j]
-        if t.text in ")]}":
-            raise sc.error(t.start, f"{t.text} closes nothing opened here")
         after = toks[j + 1].text if j + 1 < len(toks) else ""
         if t.kind == "name" and after == "=" and j + 2 < len(toks):
-            is_pose = toks[j + 2].text == "p" and j + 3 < len(toks) and toks[j + 3].text == "["
-            if is_pose or toks[j + 2].text == "[":
+            is_pose = toks[j + 2].text == "p" and j + 3 < len(toks) and toks[j + 3].text[:1] == "["
+            if is_pose or toks[j + 2].text[:1] == "[":
                 start = toks[j + 2].start
                 agg, j = aggregate(toks, j + 2 + is_pose, sc)
                 literals.append((t.text, Aggregate(agg.items, start, agg.end, "p" if is_pose else "")))
@@ -50,8 +48,8 @@ def read(text: str, source: str) -> Program:
     frames = []
     for name, agg in literals:
         line = sc.line_col(agg.start)[0]
-        if agg.label == "p" and numbers(agg, 6) is not None:
-            frames.append(NamedFrame(name, "frame", _pose_matrix([n.value for n in agg.items])))
+        if agg.label == "p" and numbers(agg, 6) is not None and all(math.isfinite(n.value) for n in agg.items):
+            frames.append(NamedFrame(name, "frame", _pose_matrix([n.value for n in agg.items])[0]))
         if name in used:
             targets.append(_target(f"{name} (line {line})", agg, sc))
     targets.sort(key=lambda t: (t.line, t.column))
@@ -63,7 +61,7 @@ def _arguments(toks, j, end, sc, used):
     out = []
     while j < end:
         t = toks[j]
-        if t.text == "p" and j + 1 < end and toks[j + 1].text == "[" or t.text == "[":
+        if t.text == "p" and j + 1 < end and toks[j + 1].text[:1] == "[" or t.text[:1] == "[":
             k = j + (t.text == "p")
             agg, j = aggregate(toks, k, sc)
             agg = Aggregate(agg.items, t.start, agg.end, "p" if t.text == "p" else "")
@@ -82,39 +80,42 @@ def _target(name: str, agg: Aggregate, sc) -> Target:
     kind = "pose" if agg.label == "p" else "joint"
     if values is None:
         return Target(name, kind, line, column, skip="not six literal numbers")
+    check_finite(values, sc, name)
     if kind == "joint":
         return Target(name, kind, line, column, joints=values)
     return Target(name, kind, line, column, position=values[:3], orientation=values[3:])
 
 
 def _pose_matrix(v) -> np.ndarray:
+    """(N, 4, 4) X of poses ``v`` (N, 6): x, y, z and a rotation vector."""
     from scipy.spatial.transform import Rotation
 
-    X = np.eye(4)
-    X[:3, :3] = Rotation.from_rotvec(v[3:]).as_matrix()
-    X[:3, 3] = v[:3]
+    v = np.asarray(v, dtype=float).reshape(-1, 6)
+    X = np.tile(np.eye(4), (len(v), 1, 1))
+    if len(v):
+        X[:, :3, :3] = Rotation.from_rotvec(v[:, 3:]).as_matrix()
+    X[:, :3, 3] = v[:, :3]
     return X
 
 
 # -- the compensation's view ----------------------------------------------------------------------------
 
-def pose(target: Target) -> np.ndarray:
-    """X (4x4, SI) of a pose target in the base frame."""
-    return _pose_matrix([n.value for n in target.position + target.orientation])
+def poses(targets) -> np.ndarray:
+    """(N, 4, 4) X (SI) of pose targets in the base frame."""
+    return _pose_matrix([[n.value for n in (*t.position, *t.orientation)] for t in targets])
 
 
-def orientation_values(R: np.ndarray, target: Target) -> list[float]:
-    """The rotation vector of ``R``: of the two that turn less than a turn, the one nearest the target's own."""
+def orientation_values(R: np.ndarray, targets) -> np.ndarray:
+    """(N, 3) rotation vectors of rotations ``R`` (N, 3, 3): of the two that turn less than a turn,
+    the one nearest the target's own."""
     from scipy.spatial.transform import Rotation
 
     r = Rotation.from_matrix(R).as_rotvec()
-    old = np.array([n.value for n in target.orientation])
-    angle = np.linalg.norm(r)
-    if angle > 1e-12:
-        other = r * (1 - 2 * math.pi / angle)
-        if np.linalg.norm(other - old) < np.linalg.norm(r - old):
-            r = other
-    return list(r)
+    old = np.array([[n.value for n in t.orientation] for t in targets]).reshape(-1, 3)
+    angle = np.linalg.norm(r, axis=1, keepdims=True)
+    other = r * (1 - 2 * math.pi / np.maximum(angle, 1e-300))
+    closer = (angle[:, 0] > 1e-12) & (np.linalg.norm(other - old, axis=1) < np.linalg.norm(r - old, axis=1))
+    return np.where(closer[:, None], other, r)
 
 
 def wanted(target: Target, n_joints: int):
