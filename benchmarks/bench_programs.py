@@ -23,9 +23,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 import robocal as rc
-from robocal._compensation import posture
-from robocal._files.programs import read_program
-from robocal._files.programs.compensation import compensate_program
+from robocal.io import compensate_program, read_program
+from robocal.kinematics import posture
 from robocal.sim import perturb_model
 
 DEG = math.pi / 180

@@ -13,9 +13,9 @@ from robots import arm6r
 from scipy.spatial.transform import Rotation
 
 import robocal as rc
-from robocal._compensation import inverse_kinematics, posture
-from robocal._files.programs import DIALECTS, program_joints, read_program, read_program_joints
-from robocal._files.programs.compensation import compensate_program
+from robocal._files.programs import DIALECTS
+from robocal.io import compensate_program, program_joints, read_program, read_program_joints
+from robocal.kinematics import inverse_kinematics, posture
 from robocal.sim import perturb_model
 
 HERE = Path(__file__).resolve().parent / "programs"

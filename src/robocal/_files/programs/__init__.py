@@ -17,6 +17,7 @@ import numpy as np
 
 from ..._errors import InputError, suggest
 from ..._model import RobotModel
+from ..._options import MAX_POSES
 from ..text import decode, read_bytes
 from . import krl, rapid, urscript
 from .syntax import Program
@@ -67,7 +68,11 @@ def read_program(path, *, dialect: str | None = None) -> Program:
     text = decode(raw, str(path))
     if raw.startswith(codecs.BOM_UTF8):          # kept, so that the program is written back as it came
         text = "\ufeff" + text
-    return DIALECTS[name].read(text, str(path))
+    program = DIALECTS[name].read(text, str(path))
+    if len(program.targets) > MAX_POSES:
+        raise InputError(f"{len(program.targets)} targets; robocal compensates up to {MAX_POSES} per program",
+                         source=str(path))
+    return program
 
 
 def joint_units(model: RobotModel, module) -> np.ndarray:

@@ -15,7 +15,17 @@ from ..._compensation import compensate, compensate_poses, posture
 from ..._errors import InputError, suggest
 from ..._kinematics import evaluate
 from ..._model import Marker, RobotModel
-from . import BEYOND, DIALECTS, DIGITS, KEEP, NO_SOLUTION, REACHED, UNREACHED, joint_units, joint_values
+from . import (
+    BEYOND,
+    DIALECTS,
+    DIGITS,
+    KEEP,
+    NO_SOLUTION,
+    REACHED,
+    UNREACHED,
+    joint_units,
+    joint_values,
+)
 from .syntax import SLACK, Program, edited, format_number
 
 

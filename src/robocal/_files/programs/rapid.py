@@ -125,7 +125,7 @@ def _target(kind: str, name: str, agg, sc) -> Target:
 def _pose(pos, quat, sc, name) -> np.ndarray:
     w, x, y, z = (n.value for n in quat)
     norm = math.sqrt(w * w + x * x + y * y + z * z)
-    if not 0.5 < norm < 1.5:
+    if not 0.9 < norm < 1.1:
         raise sc.error(quat[0].start, f"{name}: the quaternion's norm is {norm:.3g}, not 1")
     X = np.eye(4)
     X[:3, :3] = quaternion_matrix(np.array([w, x, y, z]) / norm)

@@ -22,6 +22,8 @@ from ..._errors import InputError, excerpt
 # a turn or quadrant of the configuration data stays as written while its axis is this close to it
 # (rad, about 0.006 deg): a target on the boundary, read back, must not flip its configuration
 SLACK = 1e-4
+# nesting of a program's bracketed values: targets need 3 (an array of robtargets); more is a mistake
+MAX_DEPTH = 32
 
 _NUMBER = r"(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?"
 # a bracketed list of plain numbers, one token (``flat``): most of a long program's text
@@ -216,8 +218,10 @@ def closing(tokens: Tokens, i: int, scanner: Scanner) -> int:
     return j
 
 
-def aggregate(tokens: Tokens, i: int, scanner: Scanner) -> tuple[Aggregate, int]:
+def aggregate(tokens: Tokens, i: int, scanner: Scanner, depth: int = 0) -> tuple[Aggregate, int]:
     """The aggregate whose opening bracket is ``tokens[i]`` and the index after its closing one."""
+    if depth > MAX_DEPTH:
+        raise scanner.error(tokens[i].start, f"values nested more than {MAX_DEPTH} levels deep")
     if tokens[i].kind == "flat":
         return Aggregate(FlatItems(tokens[i]), tokens[i].start, tokens[i].end), i + 1
     end = closing(tokens, i, scanner)
@@ -225,7 +229,7 @@ def aggregate(tokens: Tokens, i: int, scanner: Scanner) -> tuple[Aggregate, int]
     if j + 1 < end and tokens[j].kind == "name" and tokens[j + 1].text == ":":   # KRL {E6POS: ...}
         label, j = tokens[j].text, j + 2
     while j < end:
-        k, item = _item(tokens, j, end, scanner)
+        k, item = _item(tokens, j, end, scanner, depth)
         items.append(item)
         if k < end and tokens[k].text != ",":
             item_end = k
@@ -239,7 +243,7 @@ def aggregate(tokens: Tokens, i: int, scanner: Scanner) -> tuple[Aggregate, int]
     return Aggregate(tuple(items), tokens[i].start, tokens[end].end, label), end + 1
 
 
-def _item(tokens, j, end, scanner):
+def _item(tokens, j, end, scanner, depth):
     t = tokens[j]
     if t.text in ("-", "+") and j + 1 < end and tokens[j + 1].kind == "num":
         n = tokens[j + 1]
@@ -247,13 +251,13 @@ def _item(tokens, j, end, scanner):
     if t.kind == "num":
         return j + 1, Number(float(t.text), t.text, t.start, t.end)
     if t.text in ("[", "{") or t.kind == "flat":
-        return aggregate(tokens, j, scanner)[::-1]
+        return aggregate(tokens, j, scanner, depth + 1)[::-1]
     if t.kind == "name" and j + 1 < end and tokens[j + 1].text[:1] == "[" and t.text == "p":  # URScript pose
-        agg, k = aggregate(tokens, j + 1, scanner)
+        agg, k = aggregate(tokens, j + 1, scanner, depth + 1)
         return k, Aggregate(agg.items, t.start, agg.end, "p")
     if t.kind == "name" and j + 1 < end and tokens[j + 1].text not in (",", "(", "[", ".") \
             and tokens[j + 1].kind != "flat":  # KRL field
-        k, value = _item(tokens, j + 1, end, scanner)
+        k, value = _item(tokens, j + 1, end, scanner, depth + 1)
         return k, Field(t.text, value, t.start)
     return j + 1, t
 
