@@ -234,3 +234,29 @@ def test_cli_compensates_a_program_and_prints_each_target(models, tmp_path, cli)
                        "--tool", "tGriper", "--out", tmp_path / "t.mod")
     assert_one_line_error(code, err, ["--tool", "tGriper", "tGripper"], command="compensate")
     assert not (tmp_path / "t.mod").exists()
+
+
+def test_a_campaign_whose_joint_readings_are_controller_code_calibrates(tmp_path, cli):
+    """The tracker's file holds the points; the joint readings are the MoveAbsJ lines of a RAPID log."""
+    model = arm6r()
+    true, data = rc.simulate(model, 30, seed=5)
+    rc.write_model(model, tmp_path / "model.yaml")
+    rc.write_measurements(data, tmp_path / "all.csv", model=model)
+    rows = (tmp_path / "all.csv").read_text().splitlines()
+    header = rows[0].split(",")
+    keep = [i for i, h in enumerate(header) if not h.startswith("j")]
+    points = "\n".join(",".join(r.split(",")[i] for i in keep) for r in rows) + "\n"
+    (tmp_path / "points.csv").write_text(points.replace("pose ", "p"))
+    labels_rapid = [label.replace("pose ", "p") for label in data.labels]
+    deg = np.degrees(data.q)
+    moves = "".join(f"  CONST jointtarget {label} := [[{', '.join(repr(float(v)) for v in row)}], "
+                    f"[9E9,9E9,9E9,9E9,9E9,9E9]];  ! pose {k}\n" for k, (label, row) in enumerate(zip(labels_rapid, deg)))
+    (tmp_path / "joints.mod").write_text(f"MODULE campaign\n{moves}ENDMODULE\n")
+    labels, q = read_program_joints(tmp_path / "joints.mod", model)
+    assert labels == labels_rapid and np.allclose(q, data.q, rtol=0, atol=1e-12)
+    joined = rc.read_measurements(tmp_path / "points.csv", model, joints=tmp_path / "joints.mod")
+    assert np.allclose(joined.q, data.q, rtol=0, atol=1e-12) and np.allclose(joined.positions, data.positions)
+    code, out, err = cli("calibrate", tmp_path / "model.yaml", tmp_path / "points.csv", "--joints",
+                         tmp_path / "joints.mod", "--out", tmp_path / "run")
+    assert code in (0, 3), err
+    assert (tmp_path / "run" / "calibrated.yaml").exists()

@@ -119,3 +119,28 @@ def read_program_joints(path, model: RobotModel, *, dialect: str | None = None) 
     q : ndarray, (N, n_joints), SI
     """
     return program_joints(read_program(path, dialect=dialect), model)
+
+
+def is_program(path) -> bool:
+    """Whether ``path``'s extension is a robot program's (``EXTENSIONS``)."""
+    return Path(path).suffix.lower() in EXTENSIONS
+
+
+def program_joint_table(path, model: RobotModel | None, key: str = "pose"):
+    """The joint targets of the program at ``path`` as a table of joint readings (``table.Table``):
+    column ``key`` holds the target names, one column per joint of ``model`` with the dialect's unit
+    as suffix; for joining to an instrument's file (``read_measurements(..., joints=path)``)."""
+    from ..table import read_table
+
+    if model is None:
+        raise InputError("joint readings in a robot program need the model (which axes are linear)",
+                         source=str(path))
+    program = read_program(path)
+    module = DIALECTS[program.dialect]
+    labels, _ = program_joints(program, model)
+    targets = [t for t in program.targets if t.kind == "joint" and not t.skip]
+    suffix = {"length": "mm" if module.LENGTH == 1e-3 else "m", "angle": "deg" if module.ANGLE != 1.0 else "rad"}
+    header = [key] + [f"{j}_{suffix[k]}" for j, k in zip(model.joint_names, model.reading_quantities)]
+    lines = [",".join(header)] + [",".join([f'"{name}"'] + [repr(n.value) for n in t.joints[:model.n_joints]])
+                                  for name, t in zip(labels, targets)]
+    return read_table("\n".join(lines) + "\n", str(path), sep=",", decimal=".")
