@@ -250,7 +250,8 @@ def test_a_campaign_whose_joint_readings_are_controller_code_calibrates(tmp_path
     labels_rapid = [label.replace("pose ", "p") for label in data.labels]
     deg = np.degrees(data.q)
     moves = "".join(f"  CONST jointtarget {label} := [[{', '.join(repr(float(v)) for v in row)}], "
-                    f"[9E9,9E9,9E9,9E9,9E9,9E9]];  ! pose {k}\n" for k, (label, row) in enumerate(zip(labels_rapid, deg)))
+                    f"[9E9,9E9,9E9,9E9,9E9,9E9]];  ! pose {k}\n"
+                    for k, (label, row) in enumerate(zip(labels_rapid, deg)))
     (tmp_path / "joints.mod").write_text(f"MODULE campaign\n{moves}ENDMODULE\n")
     labels, q = read_program_joints(tmp_path / "joints.mod", model)
     assert labels == labels_rapid and np.allclose(q, data.q, rtol=0, atol=1e-12)
