@@ -261,3 +261,81 @@ def test_a_campaign_whose_joint_readings_are_controller_code_calibrates(tmp_path
                          tmp_path / "joints.mod", "--out", tmp_path / "run")
     assert code in (0, 3), err
     assert (tmp_path / "run" / "calibrated.yaml").exists()
+
+
+def test_inverse_kinematics_keeps_the_posture_and_turns_asked_for():
+    """The same tool pose in two postures (wrist flipped: axes 4 and 6 turned by half a turn, axis 5
+    negated): each request gets its own solution back, and the turn window picks the axis-6 turn."""
+    model = arm6r()
+    q = np.radians([[20.0, -40.0, 60.0, 30.0, 50.0, 40.0]])
+    flipped = q + np.radians([[0, 0, 0, 180.0, 0, 180.0]])
+    flipped[0, 4] = -q[0, 4]
+    P, R = _tool_pose(model, q)
+    P2, R2 = _tool_pose(model, flipped)
+    _assert_same_pose(P2, R2, P, R)                                   # one pose, two postures
+    bits, bits2 = posture(model, q)[0], posture(model, flipped)[0]
+    assert bits[2] != bits2[2] and (bits[:2] == bits2[:2]).all()
+    for want, expected in ((bits, q), (bits2, flipped)):
+        ik = inverse_kinematics(model, P, R, want=want[None].astype(int))
+        assert ik.solved.all()
+        assert np.allclose(np.angle(np.exp(1j * (ik.q - expected))), 0, atol=1e-7)
+    turn = np.full((1, 6), np.nan)
+    turn[0, 5] = np.radians(300.0) - np.pi                            # axis 6 in [120, 480) deg
+    ik = inverse_kinematics(model, P, R, want=bits[None].astype(int), turn_from=turn)
+    assert np.isclose(ik.q[0, 5], q[0, 5] + 2 * np.pi) and not ik.within_limits[0]
+
+
+def test_elbow_bit_separates_the_two_arm_solutions(models):
+    nominal, _ = models
+    rng = np.random.default_rng(2)
+    q = rng.uniform(nominal.lower_limits * 0.8, nominal.upper_limits * 0.8, (200, 6))
+    P, R = _tool_pose(nominal, q)
+    want = posture(nominal, q).astype(int)
+    want[:, 1] = 1 - want[:, 1]                                     # the other elbow
+    ik = inverse_kinematics(nominal, P, R, want=want)
+    found = ik.solved
+    assert found.mean() > 0.5
+    _assert_same_pose(*_tool_pose(nominal, ik.q[found]), P[found], R[found])
+    assert np.all(posture(nominal, ik.q[found]) == want[found].astype(bool))
+    assert np.all(np.abs(ik.q[found] - q[found]).max(axis=1) > 1e-3)   # other joints than the sampled ones
+
+
+def test_a_named_tool_is_the_model_with_that_tool_point(models, tmp_path):
+    nominal, calibrated = models
+    calibrated = calibrated.replace(markers=nominal.markers)        # a named tool is exact in both models
+    text = (HERE / "example.mod").read_text().replace("[[0, 0, 0], [1, 0, 0, 0]], [1.5,",
+                                                      "[[50, 20, 120], [1, 0, 0, 0]], [1.5,")
+    (tmp_path / "tool.mod").write_text(text)
+    with_tool = compensate_program(read_program(tmp_path / "tool.mod"), nominal, calibrated, tool="tGripper")
+    # arm6r's own tool point is (50, 20, 120) mm on the last frame, with the frame's axes
+    default = compensate_program(read_program(HERE / "example.mod"), nominal, calibrated)
+    assert [r.status for r in with_tool.targets] == [r.status for r in default.targets]
+    assert all(abs(a.moved - b.moved) < 1e-10 for a, b in zip(with_tool.targets, default.targets))
+    moved = compensate_program(read_program(HERE / "example.mod"), nominal, calibrated, tool="tGripper")
+    assert any(abs(a.moved - b.moved) > 1e-6 for a, b in zip(moved.targets, default.targets) if a.status == "ok")
+
+
+@pytest.mark.parametrize("dialect", ["rapid", "krl", "urscript"])
+def test_orientations_are_written_in_the_dialects_convention(dialect):
+    """A rotation through the dialect's writer and back through its reader is the same rotation,
+    and the form written is the one nearest the old (quaternion sign, ZYX triple, rotation vector)."""
+    module = DIALECTS[dialect]
+    rng = np.random.default_rng(1)
+    R = Rotation.random(50, random_state=rng).as_matrix()
+    size = {"rapid": 4, "krl": 3, "urscript": 3}[dialect]
+    olds = rng.normal(size=(50, size)) * (1 if dialect != "krl" else 100)
+    targets = [module.Target("t", "pose", 1, 1, position=_numbers([0, 0, 0]), orientation=_numbers(o)) for o in olds]
+    values = module.orientation_values(R, targets)
+    back = [module.Target("t", "pose", 1, 1, position=_numbers([0, 0, 0]), orientation=_numbers(v)) for v in values]
+    X = module.poses(back)
+    assert np.abs(X[:, :3, :3] - R).max() < 1e-12
+    if dialect == "rapid":
+        assert np.all(np.einsum("ni,ni->n", values, olds) >= 0)
+    if dialect == "krl":
+        assert np.all(np.abs(values - olds) <= 180.0 + 1e-9)
+
+
+def _numbers(values):
+    from robocal._files.programs.syntax import Number
+
+    return tuple(Number(float(v), repr(float(v)), 0, 0) for v in values)
