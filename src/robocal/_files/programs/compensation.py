@@ -188,7 +188,8 @@ def compensate_program(program: Program, nominal: RobotModel, calibrated: RobotM
     live = [t for t in program.targets if not t.skip and t.name not in (tool, wobj)]
     joints = [t for t in live if t.kind == "joint"]
     poses = [t for t in live if t.kind == "pose"]
-    edits, results = [], {}
+    edits: list[tuple[int, int, str]] = []
+    results: dict[int, TargetResult] = {}
     if joints:
         q = joint_values(program, joints, nominal)
         comp = compensate(calibrated, q, nominal=nominal, marker=marker)

@@ -44,7 +44,9 @@ def read(text: str, source: str) -> Program:
     sc = Scanner(text, source, comment=COMMENT, quotes="\"'", newlines=True, names=r"[A-Za-z_$][A-Za-z0-9_$]*",
                  flat=False)
     toks = sc.tokens()
-    targets, frames, a = [], [], 0
+    targets: list[Target] = []
+    frames: list[NamedFrame] = []
+    a = 0
     for b in [i for i, t in enumerate(toks) if t.kind == "nl"] + [len(toks)]:
         if b > a:
             _line(toks.part(a, b), sc, targets, frames)
@@ -131,8 +133,9 @@ def _target(name: str, kind: str, agg: Aggregate, sc) -> Target:
     check_finite([m[f] for f in need], sc, name)
     if joint:
         return Target(name, "joint", line, column, joints=tuple(m[f] for f in JOINTS))
-    conf = tuple(_status(m[f], sc) for f in ("S", "T") if f in m)
-    conf = conf if len(conf) == 2 and all(c is not None for c in conf) else ()
+    status = [_status(m[f], sc) for f in ("S", "T") if f in m]
+    conf = tuple(c for c in status if c is not None)
+    conf = conf if len(conf) == 2 else ()
     return Target(name, "pose", line, column, position=tuple(m[f] for f in "XYZ"),
                   orientation=tuple(m[f] for f in "ABC"), configuration=conf)
 

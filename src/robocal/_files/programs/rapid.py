@@ -32,7 +32,9 @@ def read(text: str, source: str) -> Program:
     """The program's targets and named frames; a malformed module is an InputError at its line and column."""
     sc = Scanner(text, source, comment=COMMENT)
     toks = sc.tokens()
-    targets, frames, i = [], [], 0
+    targets: list[Target] = []
+    frames: list[NamedFrame] = []
+    i = 0
     while i < len(toks):
         k = i
         while k < len(toks) and toks[k].text != ";":

@@ -30,6 +30,7 @@ _NUMBER = r"(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?"
 _SIGNED = rf"[-+]?{_NUMBER}"
 _FLAT = rf"(?P<flat>\[[ \t]*{_SIGNED}(?:[ \t]*,[ \t]*{_SIGNED})*[ \t]*\])"
 _SIGNED_RE = re.compile(_SIGNED)
+_INDENT = re.compile(r"[ \t]*")
 
 
 class Token(NamedTuple):
@@ -57,7 +58,7 @@ class Aggregate:
     else), the span of its brackets, and a KRL structure type (``{E6POS: ...}``) or ``p`` (a
     URScript pose) when written."""
 
-    items: tuple
+    items: Sequence
     start: int
     end: int
     label: str = ""
@@ -67,12 +68,13 @@ class FlatItems(Sequence):
     """The numbers of a ``flat`` token, read when first asked for (most external axes never are)."""
 
     def __init__(self, token: Token):
-        self.token, self.size, self._items = token, token.text.count(",") + 1, None
+        self.token, self.size = token, token.text.count(",") + 1
+        self._items: tuple[Number, ...] | None = None
 
     def __len__(self) -> int:
         return self.size
 
-    def _numbers(self) -> tuple:
+    def _numbers(self) -> tuple[Number, ...]:
         if self._items is None:
             t = self.token
             self._items = tuple(Number(float(m.group()), m.group(), t.start + m.start(), t.start + m.end())
@@ -110,10 +112,10 @@ class Target:
     kind: str
     line: int
     column: int
-    joints: tuple[Number, ...] = ()
-    position: tuple[Number, ...] = ()
-    orientation: tuple[Number, ...] = ()
-    configuration: tuple[Number, ...] = ()
+    joints: Sequence[Number] = ()
+    position: Sequence[Number] = ()
+    orientation: Sequence[Number] = ()
+    configuration: Sequence[Number] = ()
     skip: str = ""
 
 
@@ -262,7 +264,7 @@ def _item(tokens, j, end, scanner, depth):
     return j + 1, t
 
 
-def numbers(agg, n: int | None = None) -> tuple[Number, ...] | None:
+def numbers(agg, n: int | None = None) -> Sequence[Number] | None:
     """The aggregate's items when they are all numbers (exactly ``n`` of them if given), else None."""
     if not isinstance(agg, Aggregate) or agg.label not in ("", "p"):
         return None
@@ -317,7 +319,8 @@ def edited(text: str, replacements, comments, *, comment: str) -> str:
     edits = list(replacements)
     for offset, message in comments:
         start = line_starts[bisect.bisect_right(line_starts, offset) - 1]
-        indent = re.match(r"[ \t]*", text[start:]).group()
+        m = _INDENT.match(text, start)
+        indent = m.group() if m else ""
         edits.append((start, start, f"{indent}{comment} robocal: {message}{newline}"))
     out, at = [], 0
     for start, end, new in sorted(edits, key=lambda e: (e[0], e[1])):

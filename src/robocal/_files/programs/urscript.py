@@ -27,7 +27,10 @@ def read(text: str, source: str) -> Program:
     """The program's targets and named frames; a malformed script is an InputError at its line and column."""
     sc = Scanner(text, source, comment=COMMENT, quotes="\"'")
     toks = sc.tokens()
-    literals, moved, used, j = [], [], set(), 0
+    literals: list = []
+    moved: list = []
+    used: set[str] = set()
+    j = 0
     while j < len(toks):
         t = toks[j]
         after = toks[j + 1].text if j + 1 < len(toks) else ""
