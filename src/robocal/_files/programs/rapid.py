@@ -39,21 +39,22 @@ def read(text: str, source: str) -> Program:
         k = i
         while k < len(toks) and toks[k].text != ";":
             k = closing(toks, k, sc) + 1 if toks[k].text in "([{" and toks[k].kind == "op" else k + 1
-        _statement(toks.part(i, k), sc, targets, frames)
+        _statement(toks, i, k, sc, targets, frames)
         i = k + 1
     return Program(source=source, dialect=NAME, text=text, targets=tuple(targets), frames=tuple(frames))
 
 
-def _statement(toks, sc, targets, frames) -> None:
-    words = [t.text.lower() for t in toks]
-    for d in range(len(toks) - 3):
-        if words[d] in DECLARES and toks[d + 1].kind == "name" and toks[d + 2].kind == "name":
-            _declaration(toks, d, sc, targets, frames)
+def _statement(toks, i: int, end: int, sc, targets, frames) -> None:
+    """The targets or frames of the statement ``toks[i:end]`` (a declaration or a motion)."""
+    for d in range(i, end - 3):
+        if toks[d].kind == "name" and toks[d].text.lower() in DECLARES and toks[d + 1].kind == "name" \
+                and toks[d + 2].kind == "name":
+            _declaration(toks, d, end, sc, targets, frames)
             return
-    for m, w in enumerate(words):
-        if toks[m].kind == "name" and w.startswith(MOTION):
+    for m in range(i, end):
+        if toks[m].kind == "name" and toks[m].text.lower().startswith(MOTION):
             j = m + 1
-            while j < len(toks):
+            while j < end:
                 if toks[j].text[:1] == "[":
                     agg, j = aggregate(toks, j, sc)
                     _inline(agg, sc, targets)
@@ -64,14 +65,14 @@ def _statement(toks, sc, targets, frames) -> None:
             return
 
 
-def _declaration(toks, d, sc, targets, frames) -> None:
+def _declaration(toks, d: int, end: int, sc, targets, frames) -> None:
     kind, name, j = toks[d + 1].text.lower(), toks[d + 2].text, d + 3
     if kind not in ("jointtarget", "robtarget", "tooldata", "wobjdata"):
         return
-    array = j < len(toks) and toks[j].text == "{"
+    array = j < end and toks[j].text == "{"
     if array:
         j = closing(toks, j, sc) + 1
-    if j >= len(toks) or toks[j].text != ":=" or j + 1 >= len(toks) or toks[j + 1].text[:1] != "[":
+    if j + 1 >= end or toks[j].text != ":=" or toks[j + 1].text[:1] != "[":
         return                                   # declared without a literal value
     value, _ = aggregate(toks, j + 1, sc)
     if kind in ("tooldata", "wobjdata"):

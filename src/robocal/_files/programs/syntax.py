@@ -77,7 +77,8 @@ class FlatItems(Sequence):
     def _numbers(self) -> tuple[Number, ...]:
         if self._items is None:
             t = self.token
-            self._items = tuple(Number(float(m.group()), m.group(), t.start + m.start(), t.start + m.end())
+            new, at = tuple.__new__, t.start        # a NamedTuple made without its Python-level __new__
+            self._items = tuple(new(Number, (float(m.group()), m.group(), at + m.start(), at + m.end()))
                                 for m in _SIGNED_RE.finditer(t.text))
         return self._items
 
@@ -168,11 +169,11 @@ class Scanner:
 
     def tokens(self) -> Tokens:
         keep = {"num", "name", "op", "str", "flat"} | ({"nl"} if self.newlines else set())
-        out = Tokens()
+        out, new = Tokens(), tuple.__new__        # a NamedTuple made without its Python-level __new__
         for m in self.pattern.finditer(self.text):
             kind = m.lastgroup
             if kind in keep:
-                out.append(Token(kind, m.group(), m.start(), m.end()))
+                out.append(new(Token, (kind, m.group(), m.start(), m.end())))
             elif kind == "open":
                 raise self.error(m.start(), f"a string opened with {m.group()} is not closed on its line")
         out.partner = self._pairs(out)
@@ -289,8 +290,9 @@ def decimals(text: str) -> int:
     dot = text.find(".")
     if dot < 0:
         return 0
-    end = next((i for i, c in enumerate(text) if c in "eE"), len(text))
-    return max(end - dot - 1, 0)
+    end = text.find("e")
+    end = text.find("E") if end < 0 else end
+    return max((len(text) if end < 0 else end) - dot - 1, 0)
 
 
 def format_number(value: float, old: Number, *, digits: int, keep: float) -> str:
@@ -300,10 +302,10 @@ def format_number(value: float, old: Number, *, digits: int, keep: float) -> str
         return old.text
     least = decimals(old.text)
     text = f"{value:.{max(least, digits)}f}"
-    if max(least, digits) > least:
+    if digits > least:
         text = text.rstrip("0")
-        if decimals(text) < least:
-            text += "0" * (least - decimals(text))
+        short = least - (len(text) - text.find(".") - 1)
+        text += "0" * short if short > 0 else ""
     text = text[:-1] if text.endswith(".") and "." not in old.text else text
     if text in ("-0", "-0.0") or re.fullmatch(r"-0\.0*", text):
         text = text[1:]
