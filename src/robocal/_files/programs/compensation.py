@@ -211,7 +211,8 @@ def compensate_program(program: Program, nominal: RobotModel, calibrated: RobotM
     rows = [results.get(id(t), TargetResult(t.name, t.line, t.kind, f"read only: {t.skip or 'a frame in use'}"))
             for t in program.targets]
     starts = [0] + [m.end() for m in re.finditer(r"\r\n|\r|\n", program.text)]
-    comments = [(starts[t.line - 1] + t.column - 1, f"{r.name}: {r.status}; left unchanged")
+    comments = [(t.anchor if t.anchor >= 0 else starts[t.line - 1] + t.column - 1,
+                 f"{r.name}: {r.status}; left unchanged")
                 for t, r in zip(program.targets, rows) if r.status != REACHED and not r.status.startswith("read only")]
     return ProgramCompensation(text=edited(program.text, edits, comments, comment=module.COMMENT), targets=tuple(rows))
 

@@ -11,6 +11,7 @@ never read nor changed.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -57,7 +58,7 @@ def _statement(toks, i: int, end: int, sc, targets, frames) -> None:
             while j < end:
                 if toks[j].text[:1] == "[":
                     agg, j = aggregate(toks, j, sc)
-                    _inline(agg, sc, targets)
+                    _inline(agg, sc, targets, toks[m].start)
                 elif toks[j].text in "({":
                     j = closing(toks, j, sc) + 1
                 else:
@@ -79,16 +80,19 @@ def _declaration(toks, d: int, end: int, sc, targets, frames) -> None:
         frames.append(_frame(kind, name, value, sc))
         return
     items = value.items if array else (value,)
+    first = d
+    while first > 0 and toks[first - 1].kind == "name" and toks[first - 1].text.lower() in ("local", "task"):
+        first -= 1
     for n, item in enumerate(items, 1):
         label = f"{name}{{{n}}}" if array else name
-        targets.append(_target(kind, label, item, sc))
+        targets.append(replace(_target(kind, label, item, sc), anchor=toks[first].start))
 
 
-def _inline(agg: Aggregate, sc, targets) -> None:
+def _inline(agg: Aggregate, sc, targets, anchor: int) -> None:
     line = sc.line_col(agg.start)[0]
     for kind in ("jointtarget", "robtarget"):
         if _shape(kind, agg):
-            targets.append(_target(kind, f"line {line}", agg, sc))
+            targets.append(replace(_target(kind, f"line {line}", agg, sc), anchor=anchor))
 
 
 def _shape(kind: str, agg) -> bool:

@@ -118,6 +118,7 @@ class Target:
     orientation: Sequence[Number] = ()
     configuration: Sequence[Number] = ()
     skip: str = ""
+    anchor: int = -1
 
 
 @dataclass(frozen=True)

@@ -10,6 +10,7 @@ current joints, so a pose target is solved nearest the program's preceding joint
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -38,23 +39,24 @@ def read(text: str, source: str) -> Program:
             is_pose = toks[j + 2].text == "p" and j + 3 < len(toks) and toks[j + 3].text[:1] == "["
             if is_pose or toks[j + 2].text[:1] == "[":
                 start = toks[j + 2].start
+                anchor = toks[j - 1].start if j and toks[j - 1].text in ("global", "local") else t.start
                 agg, j = aggregate(toks, j + 2 + is_pose, sc)
-                literals.append((t.text, Aggregate(agg.items, start, agg.end, "p" if is_pose else "")))
+                literals.append((t.text, Aggregate(agg.items, start, agg.end, "p" if is_pose else ""), anchor))
                 continue
         if t.kind == "name" and t.text.lower() in MOTION and after == "(":
             end = closing(toks, j + 1, sc)
-            moved.extend(_arguments(toks, j + 2, end, sc, used))
+            moved.extend(replace(t_, anchor=t.start) for t_ in _arguments(toks, j + 2, end, sc, used))
             j = end + 1
             continue
         j = closing(toks, j, sc) + 1 if t.text in "([{" else j + 1
     targets = list(moved)
     frames = []
-    for name, agg in literals:
+    for name, agg, anchor in literals:
         line = sc.line_col(agg.start)[0]
         if agg.label == "p" and numbers(agg, 6) is not None and all(math.isfinite(n.value) for n in agg.items):
             frames.append(NamedFrame(name, "frame", _pose_matrix([n.value for n in agg.items])[0]))
         if name in used:
-            targets.append(_target(f"{name} (line {line})", agg, sc))
+            targets.append(replace(_target(f"{name} (line {line})", agg, sc), anchor=anchor))
     targets.sort(key=lambda t: (t.line, t.column))
     return Program(source=source, dialect=NAME, text=text, targets=tuple(targets), frames=tuple(frames))
 
