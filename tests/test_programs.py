@@ -339,3 +339,14 @@ def _numbers(values):
     from robocal._files.programs.syntax import Number
 
     return tuple(Number(float(v), repr(float(v)), 0, 0) for v in values)
+
+
+def test_cartesian_targets_need_a_six_axis_arm(tmp_path, cli):
+    four = rc.serial_model("four", [dict(joint="revolute"), dict(joint="revolute", alpha=np.pi / 2),
+                                    dict(joint="revolute", d=0.4), dict(joint="revolute", d=0.3)],
+                           markers=[("tool", (0.1, 0, 0))])
+    rc.write_model(four, tmp_path / "four.yaml")
+    (tmp_path / "p.script").write_text("def a():\n  movel(p[0.3, 0.1, 0.2, 0, 3.14, 0], a=1)\nend\n")
+    code, _, err = cli("compensate", tmp_path / "four.yaml", tmp_path / "four.yaml", tmp_path / "p.script",
+                       "--out", tmp_path / "o.script")
+    assert_one_line_error(code, err, ["p.script", "six-axis arm", "4 joints", "line 2"], command="compensate")

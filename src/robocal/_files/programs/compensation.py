@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..._compensation import compensate, compensate_poses, posture
+from ..._compensation import arm_chain, compensate, compensate_poses, posture
 from ..._errors import InputError, suggest
 from ..._kinematics import evaluate
 from ..._model import Marker, RobotModel
@@ -127,9 +127,11 @@ def _pose_edits(module, targets, X_new, X_old, q, bits, edits) -> list[str]:
 
 def _pose_targets(program, module, nominal, calibrated, marker, X_WO, targets, hints, tol, tol_rot, edits):
     """Compensate the pose targets; their results (the joint targets' results are made alongside)."""
-    if nominal.n_joints != 6:
-        raise InputError(f"Cartesian targets need a six-axis model, {nominal.name} has {nominal.n_joints} joints "
-                         f"(first at line {targets[0].line})", source=program.source)
+    chain = arm_chain(nominal, marker)
+    if nominal.n_joints != 6 or len(chain) != 6:
+        raise InputError(f"Cartesian targets need a six-axis arm, {nominal.name} has {nominal.n_joints} joints and "
+                         f"{len(chain)} moving frames to its tool point (first target at line {targets[0].line})",
+                         source=program.source)
     X_W = X_WO @ module.poses(targets)
     conf = [module.wanted(t, 6) if t.configuration else (np.full(3, -1), np.full(6, np.nan)) for t in targets]
     pc = compensate_poses(nominal, calibrated, X_W[:, :3, 3], X_W[:, :3, :3], marker=marker,
