@@ -350,3 +350,22 @@ def test_cartesian_targets_need_a_six_axis_arm(tmp_path, cli):
     code, _, err = cli("compensate", tmp_path / "four.yaml", tmp_path / "four.yaml", tmp_path / "p.script",
                        "--out", tmp_path / "o.script")
     assert_one_line_error(code, err, ["p.script", "six-axis arm", "4 joints", "line 2"], command="compensate")
+
+
+def test_rapid_targets_take_the_tool_and_work_object_their_motions_use(models):
+    """tests/programs/tools.mod: p1 is moved to with tool tA and work object wB, p3{1} with wB alone,
+    the inline target with tA; p2 with two tools is read only. The same figures as when the tool and
+    work object are given on the command line."""
+    nominal, calibrated = models
+    calibrated = calibrated.replace(markers=nominal.markers)
+    program = read_program(HERE / "tools.mod")
+    uses = {t.name: (t.tool, t.wobj, t.skip) for t in program.targets}
+    assert uses == {"p1": ("tA", "wB", ""), "p2": ("", "", "moved to with several tools or work objects"),
+                    "p3{1}": ("", "wB", ""), "p3{2}": ("", "", ""), "line 13": ("tA", "", "")}
+    rows = {r.name: r for r in compensate_program(program, nominal, calibrated).targets}
+    for name, tool, wobj in (("p1", "tA", "wB"), ("p3{1}", None, "wB"), ("line 13", "tA", None),
+                             ("p3{2}", None, None)):
+        alone = {r.name: r for r in compensate_program(program, nominal, calibrated, tool=tool, wobj=wobj).targets}
+        assert rows[name].status == "ok" and abs(rows[name].moved - alone[name].moved) < 1e-12
+    assert len({round(rows[n].moved, 9) for n in ("p1", "p3{1}", "p3{2}", "line 13")}) == 4   # four frames
+    assert rows["p2"].status.startswith("read only")

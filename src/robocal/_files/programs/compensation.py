@@ -62,21 +62,23 @@ class ProgramCompensation:
 
 def _named(program: Program, name: str, kinds, option: str):
     found = [f for f in program.frames if f.name == name]
+    source = None if option.startswith("--") else program.source       # else the line that uses it
     if not found:
         names = [f.name for f in program.frames if f.kind in kinds]
         hint = suggest(name, names) if names else "; the program declares none"
         raise InputError(f"no {'tool' if 'tool' in kinds else 'work object'} {name!r} in {program.source}{hint}",
-                         where=option)
+                         source=source, where=option)
     if found[-1].kind not in kinds:
-        raise InputError(f"{name!r} is a {found[-1].kind}, not something robocal can use here", where=option)
+        raise InputError(f"{name!r} is a {found[-1].kind}, not something robocal can use here", source=source,
+                         where=option)
     return found[-1].X
 
 
-def _tool_models(program, nominal, calibrated, marker, tool):
+def _tool_models(program, nominal, calibrated, marker, tool, where: str):
     """The models with the named tool as their only marker, on the frame of the model's own tool point."""
     if tool is None:
         return nominal, calibrated, marker
-    X = _named(program, tool, ("tool", "frame"), "--tool")
+    X = _named(program, tool, ("tool", "frame"), where)
     mk = Marker(tool, nominal.markers[marker].frame, tuple(X[:3, 3]), tuple(map(tuple, X[:3, :3])))
     return nominal.replace(markers=(mk,)), calibrated.replace(markers=(mk,)), 0
 
@@ -185,29 +187,24 @@ def compensate_program(program: Program, nominal: RobotModel, calibrated: RobotM
     ProgramCompensation
     """
     module = DIALECTS[program.dialect]
-    nominal, calibrated, marker = _tool_models(program, nominal, calibrated, marker, tool)
-    X_WO = nominal.X_WB @ (np.eye(4) if wobj is None else _named(program, wobj, ("wobj", "frame"), "--wobj"))
     live = [t for t in program.targets if not t.skip and t.name not in (tool, wobj)]
     joints = [t for t in live if t.kind == "joint"]
-    poses = [t for t in live if t.kind == "pose"]
     edits: list[tuple[int, int, str]] = []
     results: dict[int, TargetResult] = {}
     if joints:
-        q = joint_values(program, joints, nominal)
-        comp = compensate(calibrated, q, nominal=nominal, marker=marker)
-        status = _status(np.ones(len(q), dtype=bool), comp, tol, tol_rot)
-        ok = np.array([s == REACHED for s in status])
-        _joint_edits(program, nominal, [t for t, k in zip(joints, ok) if k], comp.q[ok], edits)
-        a, b = evaluate(nominal, q, orientations=True), evaluate(nominal, comp.q, orientations=True)
-        moved = np.linalg.norm(a.positions[:, marker] - b.positions[:, marker], axis=1)
-        turned = _angle(a.rotations[:, marker], b.rotations[:, marker])
-        ang, lin = _changes(nominal, q, comp.q)
-        for i, (t, s) in enumerate(zip(joints, status)):
-            results[id(t)] = TargetResult(t.name, t.line, t.kind, s, *((moved[i], turned[i], ang[i], lin[i])
-                                                                       if ok[i] else ()))
-    if poses:
-        hints = _hints(program, nominal, poses)
-        for t, r in zip(poses, _pose_targets(program, module, nominal, calibrated, marker, X_WO, poses, hints,
+        models = _tool_models(program, nominal, calibrated, marker, tool, "--tool")
+        results.update(_joint_targets(program, *models, joints, tol, tol_rot, edits))
+    groups: dict[tuple, list] = {}
+    for t in live:
+        if t.kind == "pose":          # the command line's tool and work object win over the program's
+            groups.setdefault((tool or t.tool or None, wobj or t.wobj or None), []).append(t)
+    for (tool_name, wobj_name), poses in groups.items():
+        where = f"line {poses[0].line}"
+        n_, c_, m_ = _tool_models(program, nominal, calibrated, marker, tool_name, "--tool" if tool else where)
+        X_BO = np.eye(4) if wobj_name is None else _named(program, wobj_name, ("wobj", "frame"),
+                                                           "--wobj" if wobj else where)
+        hints = _hints(program, n_, poses)
+        for t, r in zip(poses, _pose_targets(program, module, n_, c_, m_, n_.X_WB @ X_BO, poses, hints,
                                              tol, tol_rot, edits)):
             results[id(t)] = r
     rows = [results.get(id(t), TargetResult(t.name, t.line, t.kind, f"read only: {t.skip or 'a frame in use'}"))
@@ -217,6 +214,21 @@ def compensate_program(program: Program, nominal: RobotModel, calibrated: RobotM
                  f"{r.name}: {r.status}; left unchanged")
                 for t, r in zip(program.targets, rows) if r.status != REACHED and not r.status.startswith("read only")]
     return ProgramCompensation(text=edited(program.text, edits, comments, comment=module.COMMENT), targets=tuple(rows))
+
+
+def _joint_targets(program, nominal, calibrated, marker, joints, tol, tol_rot, edits) -> dict:
+    """Compensate the joint targets; their results by ``id``."""
+    q = joint_values(program, joints, nominal)
+    comp = compensate(calibrated, q, nominal=nominal, marker=marker)
+    status = _status(np.ones(len(q), dtype=bool), comp, tol, tol_rot)
+    ok = np.array([s == REACHED for s in status])
+    _joint_edits(program, nominal, [t for t, k in zip(joints, ok) if k], comp.q[ok], edits)
+    a, b = evaluate(nominal, q, orientations=True), evaluate(nominal, comp.q, orientations=True)
+    moved = np.linalg.norm(a.positions[:, marker] - b.positions[:, marker], axis=1)
+    turned = _angle(a.rotations[:, marker], b.rotations[:, marker])
+    ang, lin = _changes(nominal, q, comp.q)
+    return {id(t): TargetResult(t.name, t.line, t.kind, s, *((moved[i], turned[i], ang[i], lin[i]) if ok[i] else ()))
+            for i, (t, s) in enumerate(zip(joints, status))}
 
 
 def _hints(program: Program, nominal: RobotModel, poses) -> np.ndarray:

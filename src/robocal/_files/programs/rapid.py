@@ -35,17 +35,32 @@ def read(text: str, source: str) -> Program:
     toks = sc.tokens()
     targets: list[Target] = []
     frames: list[NamedFrame] = []
+    uses: dict[str, set] = {}
     i = 0
     while i < len(toks):
         k = i
         while k < len(toks) and toks[k].text != ";":
             k = closing(toks, k, sc) + 1 if toks[k].text in "([{" and toks[k].kind == "op" else k + 1
-        _statement(toks, i, k, sc, targets, frames)
+        _statement(toks, i, k, sc, targets, frames, uses)
         i = k + 1
-    return Program(source=source, dialect=NAME, text=text, targets=tuple(targets), frames=tuple(frames))
+    return Program(source=source, dialect=NAME, text=text, targets=tuple(_used(targets, uses)), frames=tuple(frames))
 
 
-def _statement(toks, i: int, end: int, sc, targets, frames) -> None:
+def _used(targets, uses):
+    """Declared targets with the tool and work object the motions that name them use; one named with
+    several is read only."""
+    for t in targets:
+        seen = uses.get(t.name)
+        if seen and len(seen) > 1:
+            yield replace(t, skip="moved to with several tools or work objects")
+        elif seen:
+            tool, wobj = next(iter(seen))
+            yield replace(t, tool=tool, wobj=wobj)
+        else:
+            yield t
+
+
+def _statement(toks, i: int, end: int, sc, targets, frames, uses) -> None:
     """The targets or frames of the statement ``toks[i:end]`` (a declaration or a motion)."""
     for d in range(i, end - 3):
         if toks[d].kind == "name" and toks[d].text.lower() in DECLARES and toks[d + 1].kind == "name" \
@@ -54,16 +69,48 @@ def _statement(toks, i: int, end: int, sc, targets, frames) -> None:
             return
     for m in range(i, end):
         if toks[m].kind == "name" and toks[m].text.lower().startswith(MOTION):
-            j = m + 1
-            while j < end:
-                if toks[j].text[:1] == "[":
-                    agg, j = aggregate(toks, j, sc)
-                    _inline(agg, sc, targets, toks[m].start)
-                elif toks[j].text in "({":
-                    j = closing(toks, j, sc) + 1
-                else:
-                    j += 1
+            _motion(toks, m, end, sc, targets, uses)
             return
+
+
+def _arguments(toks, j: int, end: int) -> list[tuple[list, list]]:
+    """A motion's arguments: per comma at depth 0, its main tokens and its switches (``\\WObj:=w``)."""
+    out: list[tuple[list, list]] = [([], [])]
+    while j < end:
+        t = toks[j]
+        nxt = toks.partner[j] + 1 if t.kind == "op" and t.text in "([{" else j + 1
+        if t.text == ",":
+            out.append(([], []))
+        elif t.text == "\\" or out[-1][1]:
+            out[-1][1].extend(toks[j:nxt])
+        else:
+            out[-1][0].extend(range(j, nxt))
+        j = nxt
+    return out
+
+
+def _motion(toks, m: int, end: int, sc, targets, uses) -> None:
+    """The literal targets of a motion instruction, and the tool and work object it moves them with
+    (the last positional argument; ``\\WObj:=``), recorded in ``uses`` for the targets it names."""
+    args = _arguments(toks, m + 1, end)
+    last = args[-1][0]
+    tool = toks[last[0]].text if len(last) == 1 and toks[last[0]].kind == "name" else ""
+    wobj = ""
+    for _, switches in args:
+        for k in range(len(switches) - 3):
+            if switches[k].text == "\\" and switches[k + 1].text.lower() == "wobj" and switches[k + 2].text == ":=":
+                wobj = switches[k + 3].text
+    tool, wobj = ("" if tool.lower() == "tool0" else tool), ("" if wobj.lower() == "wobj0" else wobj)
+    for main, _ in args[:-1]:
+        if not main:
+            continue
+        first = toks[main[0]]
+        if first.text[:1] == "[":
+            agg, _ = aggregate(toks, main[0], sc)
+            _inline(agg, sc, targets, toks[m].start, tool, wobj)
+        elif first.kind == "name":
+            key = "".join(toks[k].text for k in main) if len(main) > 1 else first.text
+            uses.setdefault(key, set()).add((tool, wobj))
 
 
 def _declaration(toks, d: int, end: int, sc, targets, frames) -> None:
@@ -88,11 +135,11 @@ def _declaration(toks, d: int, end: int, sc, targets, frames) -> None:
         targets.append(replace(_target(kind, label, item, sc), anchor=toks[first].start))
 
 
-def _inline(agg: Aggregate, sc, targets, anchor: int) -> None:
+def _inline(agg: Aggregate, sc, targets, anchor: int, tool: str, wobj: str) -> None:
     line = sc.line_col(agg.start)[0]
     for kind in ("jointtarget", "robtarget"):
         if _shape(kind, agg):
-            targets.append(replace(_target(kind, f"line {line}", agg, sc), anchor=anchor))
+            targets.append(replace(_target(kind, f"line {line}", agg, sc), anchor=anchor, tool=tool, wobj=wobj))
 
 
 def _shape(kind: str, agg) -> bool:

@@ -119,6 +119,8 @@ class Target:
     configuration: Sequence[Number] = ()
     skip: str = ""
     anchor: int = -1
+    tool: str = ""
+    wobj: str = ""
 
 
 @dataclass(frozen=True)
