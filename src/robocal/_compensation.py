@@ -159,6 +159,20 @@ def posture(model: RobotModel, q, *, marker: int = 0) -> np.ndarray:
     axis 1, ``(c - O_1) . x_1 < 0``; ``elbow_back`` when c lies on the negative side of the lower
     arm, ``((O_3 - O_2) x (c - O_2)) . z_2 < 0`` (the elbow singularity is where the two agree in
     line); ``wrist_negative`` when joint 5's reading is negative.
+
+    Parameters
+    ----------
+    model : RobotModel
+        A model with at least six moving frames on the chain to ``marker``.
+    q : array_like
+        (N, n_joints) joint readings, SI.
+    marker : int
+        The marker whose chain defines frames 1 to 6.
+
+    Returns
+    -------
+    ndarray
+        (N, 3) booleans.
     """
     chain = arm_chain(model, marker)
     if len(chain) < 6:
@@ -260,6 +274,25 @@ def inverse_kinematics(model: RobotModel, positions, rotations, *, marker: int =
     steps from the configurations nearest the pose among ``N_SEEDS`` spread over the limits and of
     the posture asked for, nearest first, until a solution has the posture and respects the limits
     (``SEED_TRIES`` at most); a solution beyond the limits is kept when no other is found.
+
+    Parameters
+    ----------
+    model : RobotModel
+        The model the controller holds.
+    positions, rotations : array_like
+        (N, 3) and (N, 3, 3): the poses of ``marker`` to reach, W.
+    marker : int
+        The marker (tool point) placed on the poses.
+    want, turn_from, hints : array_like, optional
+        As above; None leaves the posture, the turns and the first guesses free.
+    tol : float
+        Position (m) and rotation (rad) residual at which a pose counts as reached (within 10 tol).
+    iterations : int
+        Damped Newton steps per seed at most.
+
+    Returns
+    -------
+    InverseKinematics
     """
     P = np.asarray(positions, dtype=float).reshape(-1, 3)
     R = np.asarray(rotations, dtype=float).reshape(-1, 3, 3)

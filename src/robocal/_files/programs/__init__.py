@@ -94,6 +94,18 @@ def program_joints(program: Program, model: RobotModel) -> tuple[list[str], np.n
 
     For a campaign whose joint readings were recorded as controller code (``MoveAbsJ`` lines,
     ``E6AXIS`` declarations, ``movej`` lists).
+
+    Parameters
+    ----------
+    program : Program
+        As ``read_program`` gives it.
+    model : RobotModel
+        The model whose joints the targets' first axes are (their kinds give the units).
+
+    Returns
+    -------
+    labels : list of str
+    q : ndarray, (N, n_joints), SI
     """
     targets = [t for t in program.targets if t.kind == "joint" and not t.skip]
     if not targets:
