@@ -46,17 +46,36 @@ def test_nominal_as_calibrated_writes_the_program_back_byte_for_byte(name, model
     assert all(r.status == "ok" or r.status.startswith("read only") for r in result.targets)
 
 
-def test_byte_order_mark_and_crlf_lines_survive(tmp_path, models):
+@pytest.mark.parametrize("name", EXAMPLES)
+def test_byte_order_mark_and_crlf_lines_survive(name, tmp_path, models):
     nominal, calibrated = models
-    raw = codecs.BOM_UTF8 + (HERE / "example.mod").read_bytes().replace(b"\n", b"\r\n")
-    (tmp_path / "crlf.mod").write_bytes(raw)
-    program = read_program(tmp_path / "crlf.mod")
+    raw = codecs.BOM_UTF8 + (HERE / name).read_bytes().replace(b"\n", b"\r\n")
+    (tmp_path / f"crlf{Path(name).suffix}").write_bytes(raw)
+    program = read_program(tmp_path / f"crlf{Path(name).suffix}")
     assert compensate_program(program, nominal, nominal).text.encode("utf-8") == raw
     changed = compensate_program(program, nominal, calibrated).text.encode("utf-8")
     assert changed.startswith(codecs.BOM_UTF8) and b"\n" not in changed.replace(b"\r\n", b"")
-    # only the targets' numbers changed: the lines outside any target are the same
-    same = [a for a, b in zip(raw.split(b"\r\n"), changed.split(b"\r\n")) if a == b]
-    assert any(b"PROC main()" in line for line in same) and any(b"MoveL Offs(pPick" in line for line in same)
+    # only the targets' numbers changed: every line without a target's number is the same
+    text = program.text
+    held = {text.count("\n", 0, n.start) for t in program.targets
+            for n in (*t.joints, *t.position, *t.orientation, *t.configuration)}
+    new_lines = [ln for ln in changed.split(b"\r\n") if b"robocal: " not in ln]
+    old_lines = raw.split(b"\r\n")
+    assert len(new_lines) == len(old_lines) and len(held) >= 3
+    assert all(a == b for k, (a, b) in enumerate(zip(old_lines, new_lines)) if k not in held)
+    assert any(a != b for a, b in zip(old_lines, new_lines))
+
+
+def test_numbers_keep_their_style():
+    from robocal._files.programs.syntax import Number, format_number
+
+    def fmt(value, old, digits=7):
+        return format_number(value, Number(float(old), old, 0, 0), digits=digits, keep=1e-12)
+
+    assert fmt(12.0, "12") == "12" and fmt(12.5, "12") == "12.5" and fmt(12.25, "12.0000") == "12.2500"
+    assert fmt(-1e-11, "0.0") == "0.0" and fmt(-0.00000001, "0.000") == "0.000"   # no "-0"
+    assert fmt(2.5, "+1.0") == "+2.5" and fmt(-2.5, "+1.0") == "-2.5"
+    assert fmt(1.234567891234, "1.5", digits=9) == "1.234567891"
 
 
 def _tool_pose(model, q):
