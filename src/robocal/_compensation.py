@@ -301,9 +301,10 @@ def inverse_kinematics(model: RobotModel, positions, rotations, *, marker: int =
     turn_from = np.full((n, model.n_joints), np.nan) if turn_from is None else np.asarray(turn_from, dtype=float)
     table_q, table_f, table_post = _seed_table(model, marker)
     seeds = [table_q[i] for i in _seed_order(table_f, table_post, _features(P, R), want, SEED_TRIES).T]
-    if hints is not None:
-        hints = np.asarray(hints, dtype=float)
-        seeds.insert(0, np.where(np.all(np.isfinite(hints), axis=1, keepdims=True), hints, seeds[0]))
+    if hints is not None:                       # first the hint, then the table's seeds one round later
+        hinted = np.all(np.isfinite(np.asarray(hints, dtype=float)), axis=1, keepdims=True)
+        seeds = [np.where(hinted, hints, seeds[0])] + [np.where(hinted, seeds[k], seeds[min(k + 1, len(seeds) - 1)])
+                                                      for k in range(len(seeds))]
     q = np.full((n, model.n_joints), np.nan)
     state = np.zeros(n, dtype=int)              # 0 nothing yet, 1 solved beyond the limits, 2 solved
     p = parameter_vector(model)

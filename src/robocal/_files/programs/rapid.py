@@ -132,14 +132,14 @@ def _declaration(toks, d: int, end: int, sc, targets, frames) -> None:
         first -= 1
     for n, item in enumerate(items, 1):
         label = f"{name}{{{n}}}" if array else name
-        targets.append(replace(_target(kind, label, item, sc), anchor=toks[first].start))
+        targets.append(_target(kind, label, item, sc, anchor=toks[first].start))
 
 
 def _inline(agg: Aggregate, sc, targets, anchor: int, tool: str, wobj: str) -> None:
     line = sc.line_col(agg.start)[0]
     for kind in ("jointtarget", "robtarget"):
         if _shape(kind, agg):
-            targets.append(replace(_target(kind, f"line {line}", agg, sc), anchor=anchor, tool=tool, wobj=wobj))
+            targets.append(_target(kind, f"line {line}", agg, sc, anchor=anchor, tool=tool, wobj=wobj))
 
 
 def _shape(kind: str, agg) -> bool:
@@ -154,16 +154,17 @@ def _literal(agg) -> bool:
     return all(_literal(x) if isinstance(x, Aggregate) else isinstance(x, Number) for x in agg.items)
 
 
-def _target(kind: str, name: str, agg, sc) -> Target:
+def _target(kind: str, name: str, agg, sc, **where) -> Target:
+    """The target of a jointtarget or robtarget literal; ``where``: its anchor, tool and work object."""
     line, column = sc.line_col(agg.start)
     if not _shape(kind, agg):
         if isinstance(agg, Aggregate) and _literal(agg):
             raise sc.error(agg.start, f"{name}: a {kind} is {JOINT_TARGET if kind == 'jointtarget' else ROB_TARGET}")
         return Target(name, "joint" if kind == "jointtarget" else "pose", line, column,
-                      skip="not a literal value")
-    check_finite([n for part in agg.items[:3] for n in part.items], sc, name)
+                      skip="not a literal value", **where)
+    check_finite([n for part in agg.items[:1 if kind == "jointtarget" else 3] for n in part.items], sc, name)
     if kind == "jointtarget":
-        return Target(name, "joint", line, column, joints=agg.items[0].items)
+        return Target(name, "joint", line, column, joints=agg.items[0].items, **where)
     quat = agg.items[1].items
     norm = math.sqrt(sum(n.value ** 2 for n in quat))
     if not 0.9 < norm < 1.1:
@@ -173,7 +174,7 @@ def _target(kind: str, name: str, agg, sc) -> Target:
         if c.value != int(c.value) or not (0 <= c.value <= 7 or c is not conf[3]):
             raise sc.error(c.start, f"{name}: configuration data are whole numbers, cfx 0 to 7; got {c.text}")
     return Target(name, "pose", line, column, position=agg.items[0].items, orientation=agg.items[1].items,
-                  configuration=conf)
+                  configuration=conf, **where)
 
 
 def _pose(pos, quat, sc, name) -> np.ndarray:

@@ -303,16 +303,19 @@ def format_number(value: float, old: Number, *, digits: int, keep: float) -> str
     decimals as ``old`` and up to ``digits`` (trailing zeros beyond ``old``'s dropped)."""
     if abs(value - old.value) <= keep:
         return old.text
-    least = decimals(old.text)
-    text = f"{value:.{max(least, digits)}f}"
+    was = old.text
+    least = decimals(was)
+    text = f"{value:.{digits if digits > least else least}f}"
     if digits > least:
         text = text.rstrip("0")
         short = least - (len(text) - text.find(".") - 1)
-        text += "0" * short if short > 0 else ""
-    text = text[:-1] if text.endswith(".") and "." not in old.text else text
-    if text in ("-0", "-0.0") or re.fullmatch(r"-0\.0*", text):
+        if short > 0:
+            text += "0" * short
+    if text[-1] == "." and "." not in was:
+        text = text[:-1]
+    if text[0] == "-" and not text.strip("-0."):         # no "-0.000"
         text = text[1:]
-    return ("+" + text) if old.text.startswith("+") and not text.startswith("-") else text
+    return "+" + text if was[0] == "+" and text[0] != "-" else text
 
 
 def edited(text: str, replacements, comments, *, comment: str) -> str:
