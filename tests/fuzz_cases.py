@@ -43,7 +43,8 @@ PROGRAMS = {
     "prog.src": "DEF prog( )\n  PTP {A1 -112.72, A2 469.4, A3 388.32, A4 39.23, A5 -25.59, A6 178.996} ; start\n"
                 "  LIN {X 375.660, Y -912.608, Z 929.978, A 45.0, B -30.0, C 170.0, S 6, T 2}\nEND\n",
     "prog.script": "def prog():\n  home = [-1.698, 0.6042, 0.32484, -1.1886, -0.29684, -2.96364]\n"
-                   "  movej(home, a=1.4)\n  movel(p[0.628819, 0.962752, 1.135675, 0.1, 0.2, 0.3], a=1.2, v=0.25)\nend\n",
+                   "  movej(home, a=1.4)\n"
+                   "  movel(p[0.628819, 0.962752, 1.135675, 0.1, 0.2, 0.3], a=1.2, v=0.25)\nend\n",
 }
 
 # values that broke number parsing, unit checks and argument types

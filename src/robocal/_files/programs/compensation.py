@@ -192,8 +192,8 @@ def compensate_program(program: Program, nominal: RobotModel, calibrated: RobotM
     edits: list[tuple[int, int, str]] = []
     results: dict[int, TargetResult] = {}
     if joints:
-        models = _tool_models(program, nominal, calibrated, marker, tool, "--tool")
-        results.update(_joint_targets(program, *models, joints, tol, tol_rot, edits))
+        n_, c_, m_ = _tool_models(program, nominal, calibrated, marker, tool, "--tool")
+        results.update(_joint_targets(program, n_, c_, m_, joints, tol, tol_rot, edits))
     groups: dict[tuple, list] = {}
     for t in live:
         if t.kind == "pose":          # the command line's tool and work object win over the program's
