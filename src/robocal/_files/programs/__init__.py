@@ -22,6 +22,8 @@ from ..text import decode, read_bytes
 from . import krl, rapid, urscript
 from .syntax import Program
 
+# a program of 100,000 targets is about 20 MB
+MAX_PROGRAM_BYTES = 64 * 2 ** 20
 DIALECTS = {"rapid": rapid, "krl": krl, "urscript": urscript}
 EXTENSIONS = {ext: name for name, module in DIALECTS.items() for ext in module.EXTENSIONS}
 # a new number replaces the old one only where they differ by more than this (SI: m, rad, or a
@@ -64,7 +66,7 @@ def read_program(path, *, dialect: str | None = None) -> Program:
         naming the file, line and column.
     """
     name = dialect_of(path, dialect)
-    raw = read_bytes(path)
+    raw = read_bytes(path, limit=MAX_PROGRAM_BYTES)
     text = decode(raw, str(path))
     if raw.startswith(codecs.BOM_UTF8):          # kept, so that the program is written back as it came
         text = "\ufeff" + text

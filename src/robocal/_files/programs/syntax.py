@@ -22,6 +22,8 @@ from ..._errors import InputError, excerpt
 # a turn or quadrant of the configuration data stays as written while its axis is this close to it
 # (rad, about 0.006 deg): a target on the boundary, read back, must not flip its configuration
 SLACK = 1e-4
+# tokens of one program: a 100,000-target program has about 3 million (KRL); more is not a program
+MAX_TOKENS = 4_000_000
 # nesting of a program's bracketed values: targets need 3 (an array of robtargets); more is a mistake
 MAX_DEPTH = 32
 
@@ -177,6 +179,8 @@ class Scanner:
             kind = m.lastgroup
             if kind in keep:
                 out.append(new(Token, (kind, m.group(), m.start(), m.end())))
+                if len(out) > MAX_TOKENS:
+                    raise self.error(m.start(), f"more than {MAX_TOKENS:,} tokens: not a robot program robocal reads")
             elif kind == "open":
                 raise self.error(m.start(), f"a string opened with {m.group()} is not closed on its line")
         out.partner = self._pairs(out)
