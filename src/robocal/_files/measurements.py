@@ -321,7 +321,8 @@ def _read_rows(path, joints, source: str, opts: dict, model=None):
                         opts["columns"])
     other = None
     if joints is not None:
-        from .programs import is_program, program_joint_table   # joint readings logged as controller code
+        # joint readings logged as controller code: a robot program's joint targets
+        from .programs import is_program, program_joint_table
 
         raw = program_joint_table(joints, model, opts["key"] or "pose") if is_program(joints) else \
             read_table(read_text(joints)[0], str(joints), sep=opts["sep"], decimal=opts["decimal"])
