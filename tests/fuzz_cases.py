@@ -34,6 +34,19 @@ def _urdf(n: int = 3) -> str:
 
 URDF = _urdf()
 
+# robot programs for the th8 model (docs/formats.md, "Robot programs"), one per dialect
+PROGRAMS = {
+    "prog.mod": (EXAMPLE / "program.mod").read_text(),
+    "prog.dat": "DEFDAT prog\nDECL E6AXIS XP1={A1 -97.3,A2 604.2,A3 324.84,A4 -68.1,A5 -17.008,A6 -169.804,E1 0.0}\n"
+                "DECL E6POS XP2={X 628.819,Y 962.752,Z 1135.675,A 10.0,B 20.0,C 30.0,S 'B011',T 'B000010'}\n"
+                "DECL FRAME TOOL={X 0.0,Y 0.0,Z 100.0,A 0.0,B 0.0,C 0.0}\nENDDAT\n",
+    "prog.src": "DEF prog( )\n  PTP {A1 -112.72, A2 469.4, A3 388.32, A4 39.23, A5 -25.59, A6 178.996} ; start\n"
+                "  LIN {X 375.660, Y -912.608, Z 929.978, A 45.0, B -30.0, C 170.0, S 6, T 2}\nEND\n",
+    "prog.script": "def prog():\n  home = [-1.698, 0.6042, 0.32484, -1.1886, -0.29684, -2.96364]\n"
+                   "  movej(home, a=1.4)\n"
+                   "  movel(p[0.628819, 0.962752, 1.135675, 0.1, 0.2, 0.3], a=1.2, v=0.25)\nend\n",
+}
+
 # values that broke number parsing, unit checks and argument types
 NASTY = ("0", "-0", "-1", "1e308", "-1e308", "1e400", "99999999999999999999999999", "9" * 5000, "nan", "inf",
          "-inf", ".nan", ".inf", "abc", "", " ", "1,0", "0,1", ",", "1e-320", "0x10", "true", "null", "[]", "{}",
@@ -281,14 +294,37 @@ SIMULATE = {"--seed": "3", "--noise-mm": "0.02", "--length-error-mm": "0.1,1", "
 IDENTIFIABILITY = {"--parameters": "geometric,compliance", "--known": "base", "--tol": "1e-6", "--poses": "30",
                    "--seed": "2"}
 LIMIT = {"--seed": "1", "--markers": "all", "--chunk-size": "100", "--csv-units": "mm"}
+COMPENSATE_PROGRAM = {"--tool": "TOOL", "--wobj": "TOOL", "--marker": "tool", "--tol-mm": "0.001",
+                      "--tol-deg": "0.0001", "--force": None}
 IMPORT_URDF = {"--base-link": "l0", "--tip-link": "l3", "--marker-mm": "tool,0,0,10", "--units": "m-rad"}
+
+
+@st.composite
+def program_file(draw, base: str) -> bytes:
+    """A robot program, mutated or broken the ways that break program readers."""
+    kind = draw(st.sampled_from(("mutated",) * 6 + ("deep", "unclosed", "huge", "empty", "binary", "many")))
+    if kind == "mutated":
+        return draw(mutated_text(base))
+    if kind == "deep":
+        n = draw(st.sampled_from((40, 1000, 100_000)))
+        return (base + "\nCONST robtarget deep := " + "[" * n + "1" + "]" * n + ";\n").encode()
+    if kind == "unclosed":
+        return base.replace("]", "", 1).replace("}", "", 1).replace(")", "", 1).encode()
+    if kind == "huge":
+        return re.sub(r"\d+\.\d+", draw(st.sampled_from(("1e400", "1" * 400, "-1e308", "0.0"))), base, count=3).encode()
+    if kind == "empty":
+        return draw(st.sampled_from((b"", b"\n", b"MODULE m\nENDMODULE\n", b"DEF a()\nEND\n")))
+    if kind == "binary":
+        return bytes(range(256)) * 4
+    line = next((ln for ln in base.splitlines() if re.search(r"\d", ln)), "")
+    return (base + ("\n" + line) * draw(st.sampled_from((100, 5000)))).encode()
 
 
 @st.composite
 def case(draw, result_text: str | None = None):
     """(files, argv) of one run of one command."""
     command = draw(st.sampled_from(("calibrate", "calibrate", "simulate", "identifiability", "limit", "import-urdf",
-                                    "report" if result_text else "calibrate")))
+                                    "compensate", "report" if result_text else "calibrate")))
     good_model = draw(st.integers(0, 2)) > 0
     model = MODEL.encode() if good_model else draw(model_file())
     files = {"model.yaml": model}
@@ -311,6 +347,14 @@ def case(draw, result_text: str | None = None):
                 _value(draw, "0.01deg,0.01mm,0.01mm,0.01deg,0.01deg,0.01deg"),
                 "--length-quantum-mm", _value(draw, "0.01"), "--angle-quantum-deg", _value(draw, "0.001"),
                 "--samples", _value(draw, "200"), "--out", "limit.json"] + draw(options(LIMIT))
+    elif command == "compensate":
+        name = draw(st.sampled_from(sorted(PROGRAMS)))
+        good = PROGRAMS[name].encode()
+        files[name] = draw(program_file(PROGRAMS[name])) if good_model or draw(st.booleans()) else good
+        out = draw(st.sampled_from(("out" + name[4:], "out" + name[4:], name)))
+        argv = ["compensate", "model.yaml", "model.yaml", name, "--out", out] + draw(options(COMPENSATE_PROGRAM))
+        if draw(st.integers(0, 4)) == 0:
+            argv += ["--dialect", _value(draw, {"mod": "rapid", "dat": "krl", "src": "krl"}.get(name[5:], "urscript"))]
     elif command == "import-urdf":
         del files["model.yaml"]
         files["robot.urdf"] = draw(urdf_file())

@@ -32,7 +32,8 @@ _EVERYDAY = {
                      "ParameterEstimate", "ErrorStats", "ErrorSummary", "LimitJudgement"),
     "_identifiability": ("identifiability", "status_table", "Absorption", "IdentifiabilityResult"),
     "_pose_selection": ("select_poses", "PoseSelection", "predict_campaign", "CampaignPrediction"),
-    "_compensation": ("compensate", "Compensation"),
+    "_compensation": ("compensate", "Compensation", "compensate_poses", "PoseCompensation", "inverse_kinematics",
+                      "InverseKinematics", "posture"),
     "_contacts": ("Contacts", "KnownDistance", "KnownPlane"),
     "_contact_calibration": ("calibrate_contacts", "contact_errors", "ContactCalibration", "ContactErrors"),
 }

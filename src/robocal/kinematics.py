@@ -6,6 +6,7 @@ identification Jacobian, gravity loads, and the parameters (names, units, vector
 """
 
 from ._compensation import joint_jacobian
+from ._compensation import POSTURE, arm_chain, inverse_kinematics, posture
 from ._kinematics import Evaluation, evaluate, forward_kinematics, gravity_loads, jacobian
 from ._model import (Frame, Marker, Payload, RobotModel, default_masses, mdh_transform, parallel_beta_frames,
                      placement_parameters, serial_model)
@@ -22,3 +23,4 @@ __all__ = ["Frame", "Marker", "Payload", "RobotModel", "serial_model", "parallel
            "model_from_vector", "candidate_parameters", "families", "matched_by_pattern", "random_configurations", "sampling_box",
            "BASE_KINDS", "GEOMETRIC_KINDS", "COMPLIANCE_KINDS", "FRAME_KINDS", "MARKER_KINDS", "KIND_QUANTITY",
            "SI_UNITS", "FAMILIES"]
+__all__ += ["POSTURE", "arm_chain", "posture", "inverse_kinematics"]

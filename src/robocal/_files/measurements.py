@@ -292,7 +292,7 @@ def read_measurements(path, model: RobotModel | None = None, *, units: str | Non
     if fast is not None:
         (data, table, cols), other = fast, None
     else:
-        table, other, digest = _read_rows(path, joints, source, opts)
+        table, other, digest = _read_rows(path, joints, source, opts, model)
         cols = _columns(table, source, declared, orient, opts, model, targets)
         if not table.rows:
             raise InputError("no data rows after the header", source=source)
@@ -313,16 +313,20 @@ def _size(path) -> int:
         return 0
 
 
-def _read_rows(path, joints, source: str, opts: dict):
-    """The file's table, read row by row (joined with the joint file's), the joint file's table and
-    the SHA-256 of the file's bytes."""
+def _read_rows(path, joints, source: str, opts: dict, model=None):
+    """The file's table, read row by row (joined with the joint file's, or a robot program's joint
+    targets: ``model`` says their units), the joint file's table and the SHA-256 of the file's bytes."""
     text, digest = read_text(path)
     table = map_columns(read_table(text, source, sep=opts["sep"], decimal=opts["decimal"], header=opts["header"]),
                         opts["columns"])
     other = None
     if joints is not None:
-        other = map_columns(read_table(read_text(joints)[0], str(joints), sep=opts["sep"], decimal=opts["decimal"]),
-                            opts["columns"])
+        # joint readings logged as controller code: a robot program's joint targets
+        from .programs import is_program, program_joint_table
+
+        raw = program_joint_table(joints, model, opts["key"] or "pose") if is_program(joints) else \
+            read_table(read_text(joints)[0], str(joints), sep=opts["sep"], decimal=opts["decimal"])
+        other = map_columns(raw, opts["columns"])
         table = join_tables(table, other, opts["key"] or "pose")
     return table, other, digest
 
