@@ -350,6 +350,7 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
     options = _Options(loss=loss, f_scale=f_scale, max_nfev=max_nfev, on_outliers=on_outliers, weak=weak,
                        nonnegative_compliance=nonnegative_compliance, folds=folds)
     notes = list(model.notes) + list(data.extra.get("notes", ()))  # what the readers decided for the user
+    data, copies = _without_copies(data)
     start, said = _starting_model(model, data, initial_base)
     analysis = _analyse(start, data, parameters, known + _unmeasured(model, data), tol, noise=noise)
     labels, k, grouping = fold_labels(data, folds)
@@ -357,7 +358,7 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
     chosen, choice_notes = _choose(start, analysis, data, noise, limit_m, options, (labels, k, fold_problems))
     design, solution = chosen.design, chosen.solution
     before, before_notes = _registered_nominal(design)
-    notes += list(said) + list(analysis.notes) + list(chosen.notes) + list(choice_notes) + list(before_notes)
+    notes += list(copies) + list(said) + list(analysis.notes) + list(chosen.notes) + list(choice_notes) + list(before_notes)
     cov = covariance(solution)
     estimates = _estimates(design, solution, cov)
     in_use = _in_use(model, design, chosen, before, validation, (labels, k, grouping, fold_problems),
@@ -415,6 +416,25 @@ def _check_inputs(model: RobotModel, data: Measurements, validation, *, loss: st
             if n not in model.marker_names:
                 raise InputError(f"marker {n!r} is not in the model (markers: {', '.join(model.marker_names)})",
                                  source=src)
+
+
+def _without_copies(data: Measurements) -> tuple[Measurements, tuple[str, ...]]:
+    """``data`` with rows that repeat an earlier row exactly (readings and every measured value)
+    counted once: a copy adds no measurement, and counting it would shrink the standard deviations
+    as if it did. Repeated readings with their own measurements stay (they average the instrument's
+    noise)."""
+    if _distinct_rows(data.q) == data.n_poses:
+        return data, ()
+    rows = np.ascontiguousarray(np.hstack([data.q, np.nan_to_num(data.positions.reshape(data.n_poses, -1), nan=1e300),
+                                           data.mask.astype(float)]) + 0.0)
+    _, first = np.unique(rows.view(np.dtype((np.void, rows.dtype.itemsize * rows.shape[1]))).ravel(),
+                         return_index=True)
+    if len(first) == data.n_poses:
+        return data, ()
+    kept = np.sort(first)
+    return data.with_approach().subset(kept), (
+        f"{data.n_poses - len(kept)} of {data.n_poses} rows repeat an earlier row exactly (readings and measurements): "
+        "counted once",)
 
 
 def _unmeasured(model: RobotModel, data: Measurements) -> tuple[str, ...]:
@@ -753,7 +773,7 @@ def _loose(estimates, moments: dict) -> set:
 
 def _unknown_rotations(model: RobotModel) -> tuple[str, ...]:
     """The markers whose orientation the model declares unknown: their rotation gets no tolerance."""
-    return tuple(m.name for m in model.markers if not getattr(m, "rotation_known", True))
+    return tuple(m.name for m in model.markers if not m.rotation_known)
 
 
 def _orientation_check(design: _Design, solution: Solution, data: Measurements) -> Check:

@@ -80,12 +80,15 @@ class Marker:
 
     ``position`` is the point in that frame, metres. ``rotation`` (3x3, row-major nested tuple)
     orients the marker's own frame in that frame; it matters only for 6D measurements.
+    ``rotation_known`` False: the orientation is not known (it starts at identity and a calibration
+    gives its change no tolerance).
     """
 
     name: str
     frame: int
     position: tuple[float, float, float] = (0.0, 0.0, 0.0)
     rotation: tuple[tuple[float, ...], ...] = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+    rotation_known: bool = True
 
 
 @dataclass(frozen=True)

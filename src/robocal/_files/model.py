@@ -304,8 +304,11 @@ def _markers(rd: _Reader, value, frame_names: list[str], L: float, A: float) -> 
         marker_names.append(mn)
         fi = _frame_ref(rd, item["frame"], f"{where}.frame", frame_names)
         pos = rd.vector(item["position"], f"{where}.position", 3, L) if "position" in item else (0.0, 0.0, 0.0)
-        rot = rd.rotation(item["rotation"], f"{where}.rotation", A) if "rotation" in item else IDENTITY
-        markers.append(Marker(mn, fi, pos, rot))
+        # 'rotation: unknown': the tool's orientation is not known; it starts at identity, and a
+        # calibration gives its change no tolerance
+        unknown = item.get("rotation") == "unknown"
+        rot = rd.rotation(item["rotation"], f"{where}.rotation", A) if "rotation" in item and not unknown else IDENTITY
+        markers.append(Marker(mn, fi, pos, rot, rotation_known=not unknown))
     return markers
 
 
@@ -478,6 +481,8 @@ def model_to_dict(model: RobotModel, *, units: str = "mm-deg", calibration: dict
         row = {"name": mk.name, "frame": model.frames[mk.frame].name, "position": vec(mk.position, scale["length"])}
         if not np.array_equal(np.asarray(mk.rotation), np.eye(3)):
             row["rotation"] = matrix(mk.rotation)  # a matrix keeps a calibrated rotation exact
+        elif not mk.rotation_known:
+            row["rotation"] = "unknown"
         markers.append(row)
     base = {"position": vec(model.base_position, scale["length"])}
     if not np.array_equal(np.asarray(model.base_rotation), np.eye(3)):
