@@ -114,9 +114,19 @@ def fold_labels(data: Measurements, folds: int = DEFAULT_FOLDS) -> tuple[np.ndar
         labels, how = np.arange(n) * k // n, f"{k} folds of consecutive poses"
     else:
         labels, how = np.random.default_rng(FOLD_SEED).permutation(n) % k, f"{k} folds drawn at random"
-    _, first, inverse = np.unique(np.ascontiguousarray(data.q + 0.0), axis=0, return_index=True, return_inverse=True)
-    labels = labels[first[np.ravel(inverse)]]
-    return labels.astype(int), k, how
+    return _repeats_together(data.q, labels).astype(int), k, how
+
+
+def _repeats_together(q: np.ndarray, labels: np.ndarray) -> np.ndarray:
+    """``labels`` with each configuration repeated exactly given the label of its first occurrence.
+    Rows with distinct projections on a fixed direction are distinct: only when two tie are the rows
+    compared whole."""
+    rows = np.ascontiguousarray(q + 0.0)
+    h = rows @ (1.0 / np.sqrt(np.arange(2.0, rows.shape[1] + 2.0)))
+    if len(np.unique(h)) == len(h):
+        return labels
+    _, first, inverse = np.unique(rows, axis=0, return_index=True, return_inverse=True)
+    return labels[first[np.ravel(inverse)]]
 
 
 def ordered(q: np.ndarray) -> bool:
@@ -149,9 +159,8 @@ def point_loss(problem: Problem, p: np.ndarray) -> np.ndarray:
     """(n_poses, n_markers) each measured point's sum of squared weighted residuals at ``p``."""
     r = problem.residuals(p)
     poses, markers = problem.row_points()
-    out = np.zeros(problem.data.mask.shape)
-    np.add.at(out, (poses, markers), r * r)
-    return out
+    n, m = problem.data.mask.shape
+    return np.bincount(poses * m + markers, weights=r * r, minlength=n * m).reshape(n, m)
 
 
 def evaluated(problem: Problem, p: np.ndarray) -> HeldOut:
