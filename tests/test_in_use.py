@@ -271,3 +271,27 @@ def test_a_tool_orientation_declared_unknown_gets_no_tolerance(tmp_path):
     assert next(c for c in stated.checks if c.name == "plausible changes").status == "fail"
     assert next(c for c in declared.checks if c.name == "plausible changes").status == "pass"
     assert declared.verdict != "fail"
+
+
+def test_a_worse_worst_error_in_use_is_said():
+    """Another series whose mean error falls but whose worst grows (2.71 -> 3.62 mm on a UR10): a
+    warning naming it."""
+    from robocal._checks import in_use_check   # noqa: the check on its own, with figures made to order
+    from robocal._in_use import HeldOut, accuracy_in_use
+    rng = np.random.default_rng(1)
+    before = rng.normal(scale=1e-3, size=(80, 1, 3))
+    before *= np.minimum(1.0, 2.71e-3 / np.linalg.norm(before, axis=2, keepdims=True))   # worst 2.71 mm
+    after = 0.5 * before
+    after[5, 0] = [3.62e-3, 0.0, 0.0]                                                   # worst 3.62 mm
+    held = [HeldOut(v, None, np.sum(v ** 2, axis=2)) for v in (before, after)]
+    check = in_use_check(accuracy_in_use("validation", None, "set", *held, np.full(80, 5e-4)))
+    assert check.status == "warn" and "the worst error grew" in check.summary
+
+
+def test_a_limit_does_not_turn_a_mistake_into_a_pass():
+    m, true, data = _real_campaign(PRESETS["gears"], 6, n=60)
+    wrong = m.replace(frames=tuple(replace(f, d=-f.d) if f.name == "j3" else f for f in m.frames))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = rc.calibrate(wrong, data, limit=0.15e-3)
+    assert result.verdict == "fail" and not result.limit.reached
