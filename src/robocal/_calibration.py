@@ -801,32 +801,40 @@ class _Reach:
 
 def _reach(start: RobotModel, design: _Design, p: np.ndarray, q: np.ndarray) -> _Reach:
     """The calibrated markers at the workspace's configurations ``q``, and how far the calibrated
-    geometry moves them from the nominal one's once base and markers are registered (the change
-    of what the robot does, whatever the parametrisation: equivalent ones move nothing)."""
-    lay = parameter_layout(start)
+    geometry moves them from the nominal one's (``workspace_change``)."""
     data = design.problem.data
-    measured = {n for j, n in enumerate(data.marker_names) if data.mask[:, j].any()}
-    geometry = np.array([lay[n].family not in ("compliance", "backlash") for n in lay.names])
-    p_geom = np.where(geometry, p, design.p0)
+    measured = tuple(n for j, n in enumerate(data.marker_names) if data.mask[:, j].any())
     at_q = design_measurements(start, q, markers=data.marker_names)
     predicted = Problem(start, at_q, (), compliance=design.compliance).predicted(p)[0]
-    target = Problem(start, at_q, (), compliance=start.has_compliance).predicted(p_geom)[0]
+    return _Reach(predicted=predicted, judgement=workspace_change(start, p, q, measured,
+                                                                  design.identifiability.identified))
+
+
+def workspace_change(start: RobotModel, p: np.ndarray, q: np.ndarray, markers, free) -> WorkspaceChange:
+    """How far the geometry of the vector ``p`` (the layout of ``start``) moves the ``markers`` from
+    where ``start``'s puts them at readings ``q``, once the nominal's base and the ``free`` markers'
+    parameters are registered onto it: the change of what the robot does, whatever the
+    parametrisation (equivalent ones move nothing). Compliance and backlash are left out: their
+    own tolerances judge them."""
+    lay = parameter_layout(start)
+    p0 = parameter_vector(start)
+    geometry = np.array([lay[n].family not in ("compliance", "backlash") for n in lay.names])
+    p_geom = np.where(geometry, p, p0)
+    target = Problem(start, design_measurements(start, q, markers=markers), (),
+                     compliance=start.has_compliance).predicted(p_geom)[0]
     tol = tolerances(start)
     t_len, t_ang = tol.get(("frames", "length")), tol.get(("frames", "angle"))
-    origin = np.asarray(start.base_position, dtype=float)
-    radius = float(np.max(np.linalg.norm(target - origin, axis=2)))
+    radius = float(np.max(np.linalg.norm(target - np.asarray(start.base_position, dtype=float), axis=2)))
     placed = tuple(n for n in lay.names if lay[n].family == "base"
-                   or (lay[n].role == "marker" and lay[n].owner in measured and n in design.identifiability.identified))
-    ws = Measurements(q=q, positions=target, marker_names=data.marker_names, joint_names=start.joint_names)
+                   or (lay[n].role == "marker" and lay[n].owner in set(markers) and n in set(free)))
+    ws = Measurements(q=q, positions=target, marker_names=tuple(markers), joint_names=start.joint_names)
     nominal = Problem(start, ws, placed, compliance=start.has_compliance)
-    p_start = design.p0.copy()
+    p_start = p0.copy()
     p_start[lay.indices(placed)] = p[lay.indices(placed)]
-    moved = solve(nominal, p_start, tol=REGISTRATION_TOL)
-    d = nominal.error_norms(moved.p)
+    d = nominal.error_norms(solve(nominal, p_start, tol=REGISTRATION_TOL).p)
     bar = None if t_len is None or t_ang is None else float(t_len + t_ang * radius)
-    return _Reach(predicted=predicted, judgement=WorkspaceChange(
-        max_m=float(np.nanmax(d)), rms_m=float(np.sqrt(np.nanmean(d ** 2))), tolerance_m=bar, reach_m=radius,
-        n_poses=len(q)))
+    return WorkspaceChange(max_m=float(np.nanmax(d)), rms_m=float(np.sqrt(np.nanmean(d ** 2))), tolerance_m=bar,
+                           reach_m=radius, n_poses=len(q))
 
 
 def _in_use(model: RobotModel, design: _Design, fit: _Fit, before: np.ndarray, validation: Measurements | None,

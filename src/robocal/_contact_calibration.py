@@ -14,12 +14,13 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ._calibration import ErrorStats, ParameterEstimate, error_stats
+from ._calibration import REACH_POSES, ErrorStats, ParameterEstimate, error_stats, workspace_change
 from ._checks import (Check, contact_fit_check, convergence_check, correlation_check, fit_check, outlier_check,
                       plausibility_check, tolerances, verdict)
 from ._contacts import Contacts
 from ._errors import DegenerateDataError, InputError, check_choice
 from ._identifiability import DEFAULT_TOL, Absorption, IdentifiabilityResult, analyse
+from ._in_use import workspace_readings
 from ._kinematics import evaluate
 from ._measurements import Measurements, Noise
 from ._model import RobotModel
@@ -276,7 +277,9 @@ def calibrate_contacts(model: RobotModel, contacts: Contacts, *, data: Measureme
                                         float(cov.std[i]), family=lay[n].family, quantity=lay[n].quantity)
                       for i, n in enumerate(ident.identified))
     calibrated = model_from_vector(model, sol.p[:prob.n_robot])
-    checks += [plausibility_check(estimates, tolerances(model), {}),
+    reach = workspace_change(model, sol.p[:prob.n_robot], workspace_readings(model, REACH_POSES),
+                             tuple(dict.fromkeys(contacts.marker)), ident.identified)
+    checks += [plausibility_check(estimates, tolerances(model), {}, workspace=reach),
                correlation_check([e.name for e in estimates], cov.correlation[:k, :k])]
     tracker = None
     if data is not None:
