@@ -262,6 +262,12 @@ def _score(fit: _Fit, ssr: float, n_rows: int, freedom: float, implausible: int 
     return score
 
 
+def _bic(ssr: float, n_rows: int, k: int) -> float:
+    """The Bayesian information criterion of a fit of ``k`` more parameters leaving ``ssr``: which of
+    several groups of parameters a step or a drift moved (the fewest that explain it)."""
+    return float(n_rows * np.log(max(ssr, 1e-300) / n_rows) + k * np.log(n_rows))
+
+
 def _mm(v: float) -> str:
     return f"{v * 1e3:.3g} mm"
 
@@ -890,11 +896,11 @@ def step_change(model, data: Measurements, result, noise=None, *, fit: _Fit | No
         row, gain = _split_gains(fit, Z, side)
         ssr = max(fit.ssr - gain, 0.0)
         score = _score(fit, ssr, len(fit.r), Z.shape[1] + np.log2(max(n, 2)))
-        if best is None or score > best[0]:
-            best = (score, what, row, ssr, items)
+        if best is None or _bic(ssr, len(fit.r), Z.shape[1]) < best[0]:
+            best = (_bic(ssr, len(fit.r), Z.shape[1]), score, what, row, ssr, items)
     if best is None:
         return None
-    score, what, row, ssr, items = best
+    _, score, what, row, ssr, items = best
     label = data.labels[int(fit.rows[row])]
     rms = fit.rms * np.sqrt(ssr / max(fit.ssr, 1e-300))
     return Finding("step change", f"from {label} on, {what} changed", f"a fit letting it change at {label} "
@@ -915,9 +921,9 @@ def drift(model, data: Measurements, result, noise=None, *, fit: _Fit | None = N
         gain, _coef = _projected_gain(fit, Z)
         ssr = max(fit.ssr - gain, 0.0)
         score = _score(fit, ssr, len(fit.r), Z.shape[1])
-        if best is None or score > best[0]:
-            best = (score, what, ssr)
-    score, what, ssr = best
+        if best is None or _bic(ssr, len(fit.r), Z.shape[1]) < best[0]:
+            best = (_bic(ssr, len(fit.r), Z.shape[1]), score, what, ssr)
+    _, score, what, ssr = best
     rms = fit.rms * np.sqrt(ssr / max(fit.ssr, 1e-300))
     first, last = data.labels[0], data.labels[-1]
     return Finding("drift", f"{what.split(' (')[0]} drifts slowly along the campaign (warming up, the instrument "
