@@ -474,6 +474,7 @@ def mirrored_frame(model, data: Measurements, result, noise=None, *, fit: _Fit |
     with one axis mirrored (all three when the base pose is not identified, since then which one
     matters)."""
     fit = _fit_of(model, data, result, noise, fit)
+    data = fit.data     # a change of each row alone: the poses diagnosed are enough
     axes = (0,) if fit.base_free else (0, 1, 2)
     outs = [(a, _refit(fit, _mirror(data, a))) for a in axes]
     outs = [(a, o) for a, o in outs if o is not None]
@@ -496,6 +497,7 @@ def axes_swapped(model, data: Measurements, result, noise=None, *, fit: _Fit | N
     """Two axes swapped in one marker's columns (with two markers or more; in the only marker it is
     a mirrored frame): the swap the nominal robot matches best is refitted."""
     fit = _fit_of(model, data, result, noise, fit)
+    data = fit.data     # a change of each row alone: the poses diagnosed are enough
     if len(data.marker_names) < 2:
         return None
     cands = [(m, a, b) for m in range(len(data.marker_names)) for a, b in combinations(range(3), 2)]
@@ -525,6 +527,7 @@ def markers_swapped(model, data: Measurements, result, noise=None, *, fit: _Fit 
     """Two markers' columns swapped (names or columns): the swap the nominal robot matches best is
     refitted."""
     fit = _fit_of(model, data, result, noise, fit)
+    data = fit.data     # a change of each row alone: the poses diagnosed are enough
     pairs = list(combinations(range(len(data.marker_names)), 2))
     if not pairs:
         return None
@@ -595,6 +598,7 @@ def unit_factor(model, data: Measurements, result, noise=None, *, fit: _Fit | No
     """Positions, joint readings or payload masses in another unit than declared: the factor the
     nominal robot matches best is refitted."""
     fit = _fit_of(model, data, result, noise, fit)
+    data = fit.data     # a change of each row alone: the poses diagnosed are enough
     cands = []
     for f, why in LENGTH_FACTORS.items():
         cands.append((f"positions: {why}", (), _with(data, positions=data.positions / f), f))
@@ -667,6 +671,7 @@ def joint_scale(model, data: Measurements, result, noise=None, *, fit: _Fit | No
     """A joint that turns a little more or less than its reading (a gear ratio off): the joint whose
     scale explains most at the original fit (one Gauss-Newton step each), refitted at that scale."""
     fit = _fit_of(model, data, result, noise, fit)
+    data = fit.data     # a change of each row alone: the poses diagnosed are enough
     C = _joint_scale_columns(fit)
     Zp = C - fit.Q @ (fit.Q.T @ C)
     rp = fit.r - fit.Q @ (fit.Q.T @ fit.r)
@@ -687,6 +692,7 @@ def joint_sign(model, data: Measurements, result, noise=None, *, fit: _Fit | Non
     refitted from the nominal model (a flip a mirrored wrist absorbs fits as well, with implausible
     changes: the refit makes them plausible)."""
     fit = _fit_of(model, data, result, noise, fit)
+    data = fit.data     # a change of each row alone: the poses diagnosed are enough
     n_j = data.q.shape[1]
     order = np.argsort([_screen(fit, _scaled(data, j, -1.0)) for j in range(n_j)])
     found = [_refit_found(fit, _scaled(data, j, -1.0), "joint sign", f"joint {model.joint_names[j]}'s readings have "
@@ -700,6 +706,7 @@ def joints_swapped(model, data: Measurements, result, noise=None, *, fit: _Fit |
     """Two joint columns swapped (of the same kind): the swap the nominal robot matches best is
     refitted."""
     fit = _fit_of(model, data, result, noise, fit)
+    data = fit.data     # a change of each row alone: the poses diagnosed are enough
     kinds = model.reading_quantities
     pairs = [(a, b) for a, b in combinations(range(data.q.shape[1]), 2) if kinds[a] == kinds[b]]
     if not pairs:
@@ -739,6 +746,7 @@ def model_sign(model, data: Measurements, result, noise=None, *, fit: _Fit | Non
     """A nominal value with the wrong sign in the model file: each non-zero length or angle of the
     frames flipped in turn, the flip the nominal robot then matches best refitted."""
     fit = _fit_of(model, data, result, noise, fit)
+    data = fit.data     # a change of each row alone: the poses diagnosed are enough
     lay = parameter_layout(model)
     p_nom = parameter_vector(model)
     names = [par.name for par in lay.parameters if par.family == "frames" and p_nom[par.index] != 0.0]
@@ -769,6 +777,7 @@ def robot_size(model, data: Measurements, result, noise=None, *, fit: _Fit | Non
     """The data come from a robot of another size (another robot's file): the model with every
     length of its frames scaled, by the factor the nominal robot then matches best, is refitted."""
     fit = _fit_of(model, data, result, noise, fit)
+    data = fit.data     # a change of each row alone: the poses diagnosed are enough
     coarse = np.exp(np.linspace(np.log(0.5), np.log(2.0), 29))
     s = float(coarse[int(np.argmin([_screen(fit, data, _robot_scaled(model, f)) for f in coarse]))])
     fine = s * np.linspace(0.96, 1.04, 9)
@@ -785,6 +794,7 @@ def marker_frame(model, data: Measurements, result, noise=None, *, fit: _Fit | N
     """A marker on another frame than the model says: the two frames the nominal robot matches best
     (the marker's coordinates kept) are refitted for each marker."""
     fit = _fit_of(model, data, result, noise, fit)
+    data = fit.data     # a change of each row alone: the poses diagnosed are enough
     found = []
     for name in data.marker_names:
         k = model.marker_names.index(name)
@@ -943,6 +953,7 @@ def rotation_convention(model, data: Measurements, result, noise=None, *, fit: _
     from scipy.spatial.transform import Rotation
 
     fit = _fit_of(model, data, result, noise, fit)
+    data = fit.data     # a change of each row alone: the poses diagnosed are enough
     R = np.where(data.rot_mask[..., None, None], data.rotations, np.eye(3))
     cands = [("the measured rotations are the inverses (transposes) of the marker orientations",
               np.swapaxes(R, -1, -2))]
