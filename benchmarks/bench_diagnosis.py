@@ -19,8 +19,9 @@ from dataclasses import replace
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
 
-import robocal as rc  # noqa: E402
-from robots import arm6r  # noqa: E402
+from robots import arm6r
+
+import robocal as rc
 
 
 def _best(f, repeat: int):
@@ -46,8 +47,8 @@ def main(argv=None) -> None:
         _, data = rc.simulate(m, n, seed=1, noise=2e-5)
         mirrored = replace(data, positions=data.positions * [1.0, -1.0, 1.0])
         for label, d in (("clean", data), ("mirrored", mirrored)):
-            cw, cc, result = _best(lambda: rc.calibrate(m, d), args.repeat)
-            dw, dc, diagnosis = _best(lambda: rc.diagnose(m, d, result), args.repeat)
+            cw, cc, result = _best(lambda d=d: rc.calibrate(m, d), args.repeat)
+            dw, dc, diagnosis = _best(lambda d=d, result=result: rc.diagnose(m, d, result), args.repeat)
             first = diagnosis.cause.hypothesis if diagnosis.cause else "none"
             print(f"{n:>7} {label:<9} {cw:>11.3f} / {cc:<10.3f} {dw:>10.3f} / {dc:<10.3f}  {first}")
 

@@ -1,7 +1,7 @@
 """How often the diagnosis names the true cause of a simulated mistake, and how often it names a
 cause where there is none (docs/diagnosis.md).
 
-Run: python benchmarks/diagnosis_corpus.py [--seeds 20] [--clean 60] [--effects 20]
+Run: python benchmarks/diagnosis_corpus.py [--seeds 20] [--first 0] [--clean 60] [--effects 20]
 
 Every mistake of tests/diagnosis_corpus.py on the 6R arm and the TH8-like cylindrical arm, seeds
 0..SEEDS-1: the share of campaigns whose first finding is the true cause, per mistake and robot.
@@ -20,7 +20,7 @@ from collections import defaultdict
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
 
-import diagnosis_corpus as corpus  # noqa: E402
+import diagnosis_corpus as corpus
 
 
 def _first(case):
@@ -28,15 +28,17 @@ def _first(case):
     return diagnosis.cause.hypothesis if diagnosis.cause else None
 
 
-def mistakes(seeds: int) -> None:
+def mistakes(seeds: int, first: int = 0) -> None:
     hits, total, wrong = defaultdict(int), defaultdict(int), defaultdict(list)
-    for robot in corpus.ROBOTS:
-        for seed in range(seeds):
+    for seed in range(first, seeds):
+        for robot in corpus.ROBOTS:
             for make in corpus.MISTAKES:
                 case = make(robot, seed)
                 if case is None:
                     continue
                 got = _first(case)
+                print(f"  {robot} {seed} {make.__name__}: {'ok' if got == case.expected else 'MISSED'} ({got})",
+                      flush=True)
                 key = (case.name, robot)
                 total[key] += 1
                 hits[key] += got == case.expected
@@ -69,11 +71,12 @@ def no_cause(clean: int, effects: int) -> None:
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=20)
+    ap.add_argument("--first", type=int, default=0, help="the first seed (to continue an interrupted run)")
     ap.add_argument("--clean", type=int, default=60)
     ap.add_argument("--effects", type=int, default=20)
     args = ap.parse_args(argv)
     t = time.perf_counter()
-    mistakes(args.seeds)
+    mistakes(args.seeds, args.first)
     no_cause(args.clean, args.effects)
     print(f"({time.perf_counter() - t:.0f} s)")
 

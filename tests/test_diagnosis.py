@@ -8,10 +8,10 @@ import warnings
 from dataclasses import replace
 from pathlib import Path
 
+import diagnosis_corpus as corpus
 import numpy as np
 import pytest
 
-import diagnosis_corpus as corpus
 import robocal as rc
 from robocal import _diagnosis as dg
 
@@ -146,7 +146,7 @@ def _files(tmp_path, case):
 def test_calibrate_names_the_cause_of_a_failed_fit_in_the_summary_the_result_and_the_report(tmp_path, cli):
     pytest.importorskip("matplotlib")
     model, data = _files(tmp_path, corpus.missed_shot("6r", 0))
-    code, out, err = cli("calibrate", model, data, "--out", tmp_path / "out", "--report")
+    code, out, _ = cli("calibrate", model, data, "--out", tmp_path / "out", "--report")
     assert code == 3
     said = out[out.index("diagnosis (most likely first):"):]
     assert "likely rows from pose 20 on hold the next pose's point" in said and "mm against" in said

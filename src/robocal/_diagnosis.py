@@ -57,10 +57,10 @@ MAX_NFEV = 15
 SHIFTS = (1, 2, 3, -1, -2, -3)
 # a change point is looked for with at least this share of the poses on each side
 EDGE_SHARE = 0.05
-# known factors between units: positions (metres, millimetres, centimetres, inches), angles, masses
+# known factors between units, as the value read over the true one: positions, angles, masses
 LENGTH_FACTORS = {1e3: "millimetres read as metres", 1e-3: "metres read as millimetres",
                   10.0: "millimetres read as centimetres", 0.1: "centimetres read as millimetres",
-                  25.4: "inches read as millimetres", 1 / 25.4: "millimetres read as inches"}
+                  25.4: "millimetres read as inches", 1 / 25.4: "inches read as millimetres"}
 ANGLE_FACTORS = {180 / np.pi: "degrees read as radians", np.pi / 180: "radians read as degrees"}
 MASS_FACTORS = {1e3: "grams read as kilograms", 1e-3: "kilograms read as grams"}
 
@@ -353,32 +353,6 @@ def rigid_misfit(moments: np.ndarray) -> np.ndarray:
 
 
 # -- hypotheses: the order of the rows -------------------------------------------------------------
-
-def _pose_misfit(result: CalibrationResult, n: int) -> np.ndarray:
-    """(n,) each pose's sum of squared position residuals in the calibration, 0 where unmeasured."""
-    v = result.residual_vectors
-    if v is None or v.shape[0] != n:
-        return np.zeros(n)
-    return np.nansum(v ** 2, axis=(1, 2))
-
-
-def change_row(values: np.ndarray, edge: int = 1) -> int:
-    """The row where the mean of ``values`` changes most (CUSUM), ``edge`` rows kept on each side.
-
-    >>> change_row(np.r_[np.zeros(10), np.ones(5)])
-    10
-    """
-    v = np.asarray(values, dtype=float)
-    n = len(v)
-    if n < 2 * edge + 1:
-        return n // 2
-    s = np.cumsum(v)
-    i = np.arange(1, n)
-    stat = np.abs(s[:-1] - i / n * s[-1]) / np.sqrt(i * (n - i))
-    stat[: edge - 1] = -1
-    stat[n - edge:] = -1
-    return int(np.argmax(stat) + 1)
-
 
 def _all_positions(fit: _Fit, data: Measurements) -> np.ndarray:
     """The nominal robot's marker positions (base at the origin) at every pose of ``data``."""
@@ -814,13 +788,13 @@ def marker_frame(model, data: Measurements, result, noise=None, *, fit: _Fit | N
 
 # -- hypotheses: the campaign's order --------------------------------------------------------------
 
-def _groups(fit: _Fit) -> list[tuple[str, np.ndarray, tuple[str, ...]]]:
+def _groups(fit: _Fit) -> list[tuple]:
     """(what changes, columns of the fit's Jacobian, items) of the parameter groups a step or a
     drift may move: the base (the instrument against the robot), each marker, everything."""
     lay = parameter_layout(fit.start)
     fam = np.array([lay[n].family for n in fit.names])
     owner = np.array([lay[n].owner for n in fit.names])
-    out = []
+    out: list[tuple] = []
     if np.any(fam == "base"):
         out.append(("the measurement frame against the robot (the instrument bumped or the robot moved)",
                     np.nonzero(fam == "base")[0], ()))
@@ -933,6 +907,8 @@ def drift(model, data: Measurements, result, noise=None, *, fit: _Fit | None = N
         score = _score(fit, ssr, len(fit.r), Z.shape[1])
         if best is None or _bic(ssr, len(fit.r), Z.shape[1]) < best[0]:
             best = (_bic(ssr, len(fit.r), Z.shape[1]), score, what, ssr)
+    if best is None:
+        return None
     _, score, what, ssr = best
     rms = fit.rms * np.sqrt(ssr / max(fit.ssr, 1e-300))
     first, last = data.labels[0], data.labels[-1]
