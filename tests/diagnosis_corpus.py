@@ -138,9 +138,14 @@ def sister_robot(robot, seed):
     return Case("half the campaign from a sister robot", m, replace(d, positions=pos), "step change")
 
 
+def _compliances(robot):
+    """The true compliances of the joints that bend under a payload, rad/(N m)."""
+    return {"j2.k_theta": 5e-6, "j3.k_theta": 6e-6} if robot == "6r" else {"j2.k_alpha": 2e-6, "j3.k_alpha": 3e-6}
+
+
 def payload_mid(robot, seed):
     m = ROBOTS[robot](masses=True)
-    k = {"j2.k_theta": 5e-6, "j3.k_theta": 6e-6} if robot == "6r" else {"j2.k_alpha": 2e-6, "j3.k_alpha": 3e-6}
+    k = _compliances(robot)
     true, d = rc.simulate(m, N_POSES, seed=seed, noise=NOISE, parameters=("geometric",), true_compliance=k)
     load = np.where(np.arange(N_POSES) >= 24, 10.0, 0.0)
     meas = _measure(true, d.q, np.random.default_rng(seed + 100), payload_mass=load)
@@ -150,7 +155,7 @@ def payload_mid(robot, seed):
 
 def payload_grams(robot, seed):
     m = ROBOTS[robot](masses=True)
-    k = {"j2.k_theta": 2e-6, "j3.k_theta": 3e-6} if robot == "6r" else {"j2.k_alpha": 2e-6, "j3.k_alpha": 3e-6}
+    k = _compliances(robot)
     rng = np.random.default_rng(seed)
     load = rng.choice([0.0, 5.0, 10.0], N_POSES)
     _true, d = rc.simulate(m, N_POSES, seed=seed, noise=NOISE, parameters=("geometric",), true_compliance=k,
