@@ -197,3 +197,15 @@ def test_the_real_campaigns_get_no_false_cause(robot):
     result = _calibrated(corpus.Case(robot, model, data, None))
     diagnosis = rc.diagnose(model, data, result)
     assert result.verdict != "pass" and diagnosis.findings == (), diagnosis.summary
+
+
+@pytest.mark.parametrize("preset", ["elastic", "gears", "cable", "scatter"])
+def test_no_cause_on_robots_with_effects_beyond_the_model(preset):
+    named = []
+    for make in corpus.ROBOTS.values():
+        m = make(masses=True)
+        true, d = rc.simulate(m, corpus.N_POSES, seed=3, noise=corpus.NOISE)
+        data = rc.sim.measure_real(true, d.q, rc.sim.PRESETS[preset], rng=3, robot_seed=3)
+        diagnosis = rc.diagnose(m, data, _calibrated(corpus.Case(preset, m, data, None)))
+        named += [diagnosis.summary] if diagnosis.findings else []
+    assert not named, named

@@ -38,7 +38,7 @@ from ._solve import solve
 from ._threads import one_blas_thread
 
 # a hypothesis is named when its refit divides the residual variance by at least this factor
-NAMED_FACTOR = 3.0
+NAMED_FACTOR = 4.0
 # others are shown beside the most likely one when their factor is within this factor of its own
 CLOSE_FACTOR = 4.0
 # added to the score (log10) of a refit that turns implausible changes into plausible ones
