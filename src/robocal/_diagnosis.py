@@ -428,7 +428,8 @@ def pose_labels_offset(model, data: Measurements, result, noise=None, *, fit: _F
         return None
     later = "later" if k > 0 else "earlier"
     return _found(fit, out, "pose labels offset", f"readings and points are paired {abs(k)} pose(s) apart: each row "
-                  f"holds the point of the pose {abs(k)} row(s) {later}" + (" (the rows wrap around)" if cyclic else ""),
+                  f"holds the point of the pose {abs(k)} row(s) {later}"
+                  + (" (the rows wrap around)" if cyclic else ""),
                   "with the points moved by that offset", 1.0 + np.log2(2 * len(SHIFTS)),
                   fix="join the readings and the points on the right pose labels (check the first label of each "
                       "file)")
