@@ -240,7 +240,6 @@ def _diagnosis_html(diag: dict | None) -> str:
     return f'<div class="diagnosis"><b>Diagnosis</b><ul>{items}</ul></div>'
 
 
-
 def _stats_table(d: dict, *, rotation: bool = False) -> str:
     """Position errors before and after, on fitted and held-out poses; the rotation errors with ``rotation``."""
     stats, unit, prefix = (d["stats"]["rotation"], "rad", "stats.rotation") if rotation else (d["stats"], "m", "stats")
