@@ -288,7 +288,7 @@ CALIBRATE = {"--parameters": "geometric", "--known": "base", "--tol": "1e-6", "-
              "--out-units": "m-rad", "--units": "mm-deg", "--sep": ",", "--decimal": ".", "--orientation": "quat_xyzw",
              "--weak": "flag", "--on-outliers": "flag", "--write-failed": None, "--register-base": None,
              "--compare": None, "--instrument": "cmm", "--nonnegative-compliance": None,
-             "--map": "=pose,tool_x_mm+j1_deg=tool_x_mm", "--header": MEASUREMENTS.splitlines()[0]}
+             "--map": "=pose,tool_x_mm+j1_deg=tool_x_mm", "--header": MEASUREMENTS.splitlines()[0], "--diagnose": None}
 SIMULATE = {"--seed": "3", "--noise-mm": "0.02", "--length-error-mm": "0.1,1", "--angle-error-deg": "0.01,0.1",
             "--parameters": "geometric", "--units": "m-rad", "--true-model": "true.yaml"}
 IDENTIFIABILITY = {"--parameters": "geometric,compliance", "--known": "base", "--tol": "1e-6", "--poses": "30",

@@ -21,7 +21,7 @@ LAYERS = [
     {"_identifiability"},
     {"_pose_selection", "_simulation", "_compensation", "_accuracy_limit", "_conversion", "_checks",
      "_contact_simulation", "_in_use", "_effects"},
-    {"_solve", "_calibration", "_campaign", "_contact_calibration", "_contact_planning"},
+    {"_solve", "_calibration", "_campaign", "_contact_calibration", "_contact_planning", "_diagnosis"},
     {"_files"},
     {"_presentation"},
     {"__init__", "errors", "kinematics", "io", "sim", "limit", "report", "identification"},

@@ -28,6 +28,7 @@ _EVERYDAY = {
     "report": ("render_report", "write_report"),
     "_measurements": ("Noise",),
     "_checks": ("Check",),
+    "_diagnosis": ("diagnose", "Diagnosis", "Finding"),
     "_calibration": ("calibrate", "compare", "register_base", "error_stats", "CalibrationResult", "Comparison",
                      "ParameterEstimate", "ErrorStats", "ErrorSummary", "LimitJudgement"),
     "_identifiability": ("identifiability", "status_table", "Absorption", "IdentifiabilityResult"),

@@ -170,9 +170,22 @@ def _in_use(doc: _Doc, d: dict | None) -> AccuracyInUse | None:
                          errors_before=np.zeros(0), errors_after=np.zeros(0), **stats)
 
 
-def result_to_json(result: CalibrationResult) -> str:
-    """The result file text of a CalibrationResult."""
-    return to_json(result_to_dict(result))
+
+def diagnosis_to_dict(diagnosis) -> dict:
+    """The file form of a ``Diagnosis`` (the ``diagnosis`` key of result.json): residuals in metres."""
+    return {"summary": diagnosis.summary, "rms_m": diagnosis.rms, "tested": list(diagnosis.tested),
+            "findings": [{"hypothesis": f.hypothesis, "cause": f.cause, "evidence": f.evidence, "score": f.score,
+                          "items": list(f.items), "rms_before_m": f.rms_before, "rms_after_m": f.rms_after,
+                          "fix": f.fix} for f in diagnosis.findings]}
+
+
+def result_to_json(result: CalibrationResult, diagnosis=None) -> str:
+    """The result file text of a CalibrationResult; with ``diagnosis`` (a ``Diagnosis``) its
+    ``diagnosis`` key."""
+    d = result_to_dict(result)
+    if diagnosis is not None:
+        d["diagnosis"] = diagnosis_to_dict(diagnosis)
+    return to_json(d)
 
 
 def sidecar_path(path) -> Path:
@@ -180,7 +193,7 @@ def sidecar_path(path) -> Path:
     return Path(path).with_suffix(".npz")
 
 
-def result_files(result: CalibrationResult, path, *, per_pose: bool = True) -> dict:
+def result_files(result: CalibrationResult, path, *, per_pose: bool = True, diagnosis=None) -> dict:
     """The files of a calibration result: ``{path: JSON text, sidecar: bytes}``.
 
     The JSON holds the summary, estimates, covariance, checks and statistics; the per-pose arrays
@@ -196,6 +209,8 @@ def result_files(result: CalibrationResult, path, *, per_pose: bool = True) -> d
     per_pose : bool
         False leaves the per-pose arrays out altogether (no sidecar; the report then has no
         per-pose plots).
+    diagnosis : Diagnosis, optional
+        The diagnosis of the result's misfit, stored under ``diagnosis``.
 
     Returns
     -------
@@ -203,6 +218,8 @@ def result_files(result: CalibrationResult, path, *, per_pose: bool = True) -> d
         {Path: str or bytes}, to write together (``write_texts``).
     """
     d = result_to_dict(result, per_pose=False)
+    if diagnosis is not None:
+        d["diagnosis"] = diagnosis_to_dict(diagnosis)
     counts = {"n_fit": int(result.errors_before.shape[0]),
               "n_validation": None if result.validation_before is None else int(result.validation_before.shape[0])}
     if not per_pose:

@@ -15,7 +15,7 @@ from datetime import datetime
 
 from .._calibration import CalibrationResult
 from .._errors import InputError
-from .._files.result import result_to_dict
+from .._files.result import diagnosis_to_dict, result_to_dict
 from .._files.text import write_texts
 from .._model import DEFAULT_LINK_DENSITY, RELATIVE_MASSES, mdh_transform
 from .._parameters import FRAME_KINDS, GEOMETRIC_KINDS, SI_UNITS, parameter_layout, parameter_vector
@@ -223,7 +223,21 @@ def _checks_html(d: dict) -> str:
                     f'<td class="wrap">{_e(c.get("summary", ""))}{detail}{named}</td></tr>')
     banner = (f'<p class="notice {STATUS_CLASS.get(verdict, "missing")} verdict">Verdict: '
               f'<b data-key="verdict">{_e(verdict)}</b> &ndash; {VERDICT_TEXT.get(verdict, "")}.</p>')
-    return banner + _table(["status", "check", "what it found"], rows, cls="checks")
+    return banner + _diagnosis_html(d.get("diagnosis")) + _table(["status", "check", "what it found"], rows,
+                                                                 cls="checks")
+
+
+def _diagnosis_html(diag: dict | None) -> str:
+    """The diagnosis of the misfit (docs/diagnosis.md): the most likely cause first, with its evidence."""
+    if not diag:
+        return ""
+    found = diag.get("findings") or []
+    if not found:
+        return f'<p class="diagnosis" data-key="diagnosis.summary"><b>Diagnosis:</b> {_e(diag.get("summary", ""))}</p>'
+    items = "".join(f'<li data-key="diagnosis.{k}"><b>{"Most likely" if k == 0 else "Or"}:</b> {_e(f["cause"])}'
+                    f' &ndash; {_e(f["evidence"])}' + (f'<br><b>fix:</b> {_e(f["fix"])}' if f.get("fix") else "")
+                    + "</li>" for k, f in enumerate(found))
+    return f'<div class="diagnosis"><b>Diagnosis</b><ul>{items}</ul></div>'
 
 
 def _stats_table(d: dict, *, rotation: bool = False) -> str:
@@ -647,15 +661,18 @@ def _list(items: list[str]) -> str:
     return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " and " + items[-1]
 
 
-def render_report(result: CalibrationResult, *, extra: dict | None = None) -> str:
+def render_report(result: CalibrationResult, *, extra: dict | None = None, diagnosis=None) -> str:
     """The HTML text of the report of ``result`` (a CalibrationResult, computed or read back).
 
-    ``extra``: optional tables for a comparison section (see ``_extra_tables``).
+    ``extra``: optional tables for a comparison section (see ``_extra_tables``); ``diagnosis``: a
+    ``Diagnosis`` of its misfit, shown in the verdict section.
     Raises RobocalError when matplotlib is missing, InputError when ``result`` is not a result.
     """
     if not isinstance(result, CalibrationResult):
         raise InputError(f"expected a CalibrationResult, got {type(result).__name__}", where="result")
     d = result_to_dict(result)
+    if diagnosis is not None:
+        d["diagnosis"] = diagnosis_to_dict(diagnosis)
     nominal, units = _nominal_values(result)
     tables = _extra_tables(extra)
     need_matplotlib()  # fail early and clearly without the extra
@@ -718,9 +735,10 @@ def render_report(result: CalibrationResult, *, extra: dict | None = None) -> st
             "units. A self-contained page: no scripts, no network.</footer>\n</main>\n</body>\n</html>\n")
 
 
-def write_report(result: CalibrationResult, path, *, force: bool = False, extra: dict | None = None) -> None:
+def write_report(result: CalibrationResult, path, *, force: bool = False, extra: dict | None = None,
+                 diagnosis=None) -> None:
     """Write the HTML report of ``result`` to ``path`` atomically (temporary file, then rename).
 
     An existing ``path`` is an InputError unless ``force``. See ``render_report``.
     """
-    write_texts({path: render_report(result, extra=extra)}, force=force)
+    write_texts({path: render_report(result, extra=extra, diagnosis=diagnosis)}, force=force)

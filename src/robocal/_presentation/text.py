@@ -61,6 +61,19 @@ def checks_lines(checks) -> list[str]:
     return lines
 
 
+def diagnosis_lines(diagnosis) -> list[str]:
+    """The diagnosis of a misfit: the most likely cause first with its evidence, the close ones after."""
+    if diagnosis is None:
+        return []
+    if not diagnosis.findings:
+        return [f"diagnosis: {diagnosis.summary}"]
+    lines = ["diagnosis (most likely first):"]
+    for k, f in enumerate(diagnosis.findings):
+        lines.append(f"  {'likely' if k == 0 else 'or    '} {f.cause}: {f.evidence}")
+        lines += [f"         fix: {f.fix}"] if f.fix else []
+    return lines
+
+
 def verdict_line(result) -> str:
     """The last line of a summary: the verdict, with what it rests on."""
     failed = [c.name for c in result.checks if c.status == "fail"]

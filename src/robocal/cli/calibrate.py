@@ -71,6 +71,9 @@ def register(sub) -> None:
                    help="hold weakly identifiable parameters at nominal (default), or keep them and warn")
     g.add_argument("--nonnegative-compliance", action="store_true", help="keep identified compliances >= 0")
     common.mass_options(p)
+    g.add_argument("--diagnose", action="store_true",
+                   help="test specific mistakes against the data and name the most likely cause of the misfit "
+                        "(done anyway when the verdict is warn or fail; docs/diagnosis.md)")
     g.add_argument("--write-failed", action="store_true",
                    help="write calibrated.yaml even when a check fails (it then carries the verdict)")
     common.csv_options(p)
@@ -107,6 +110,18 @@ def _headline(result) -> dict:
 
     out["the calibrated model"] = parameter_vector(result.calibrated_model)
     return out
+
+
+def _diagnosis(args, model, data, best, noise):
+    """The diagnosis of the chosen result when its verdict is warn or fail, or asked (--diagnose), printed."""
+    if not (args.diagnose or best.verdict != "pass"):
+        return None
+    from .._diagnosis import diagnose
+    from .._presentation.text import diagnosis_lines
+
+    diagnosis = diagnose(model, data, best, noise=noise)
+    print("\n".join(diagnosis_lines(diagnosis)))
+    return diagnosis
 
 
 def run(args) -> int:
@@ -161,14 +176,17 @@ def run(args) -> int:
         raise DegenerateDataError(f"{args.csv}: {e}") from None
     for r in results:
         common.require_finite("the calibration", _headline(r))
-    files = {p: f for n, r in zip(names, results) for p, f in result_files(r, out / n).items()}
+    diagnosis = _diagnosis(args, model, data, best, noise)
+    files = {p: f for n, r in zip(names, results)
+             for p, f in result_files(r, out / n, diagnosis=diagnosis if r is best else None).items()}
     failed = best.verdict == "fail"
     if not failed or args.write_failed:
         files[out / "calibrated.yaml"] = model_to_yaml(best.calibrated_model, units=args.out_units,
                                                        calibration=calibration_record(best))
-    rep = (report, best, out / "report.html") if report else None
-    common.write_outputs(files, force=args.force, report=rep)
-    print(f"wrote {', '.join(str(p) for p in list(files) + ([rep[2]] if rep else []))}")
+    if report:   # rendered before anything is written: a failure there leaves nothing behind
+        files[out / "report.html"] = report.render_report(best, diagnosis=diagnosis)
+    common.write_outputs(files, force=args.force)
+    print(f"wrote {', '.join(str(p) for p in files)}")
     if failed:
         print(f"not written: {out / 'calibrated.yaml'} (the calibration failed its checks; --write-failed writes it "
               "anyway, marked as failed)" if not args.write_failed else
