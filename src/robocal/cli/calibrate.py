@@ -7,7 +7,7 @@ from pathlib import Path
 
 from .._errors import DegenerateDataError, InputError
 from .._options import BACKLASH_SIDES, INSTRUMENT_NOISE, LOSSES, OUTLIER_ACTIONS, WEAK_ACTIONS
-from . import common
+from . import common, record
 
 # exit code of a calibration whose checks failed (docs/cli.md)
 FAILED = 3
@@ -74,6 +74,7 @@ def register(sub) -> None:
     g.add_argument("--write-failed", action="store_true",
                    help="write calibrated.yaml even when a check fails (it then carries the verdict)")
     common.csv_options(p)
+    record.record_options(p.add_argument_group("store of calibrations (docs/store.md)"), robot=True)
     p.set_defaults(func=run)
 
 
@@ -169,6 +170,8 @@ def run(args) -> int:
     rep = (report, best, out / "report.html") if report else None
     common.write_outputs(files, force=args.force, report=rep)
     print(f"wrote {', '.join(str(p) for p in list(files) + ([rep[2]] if rep else []))}")
+    if args.record:
+        record.record_result(args, best, args.record, str(out / "result.json"))
     if failed:
         print(f"not written: {out / 'calibrated.yaml'} (the calibration failed its checks; --write-failed writes it "
               "anyway, marked as failed)" if not args.write_failed else
