@@ -235,7 +235,7 @@ def _drawn_history(result, rng, drift=None):
             j = result.parameter_names.index(drift[0])
             x[j] += drift[1] * np.sqrt(2) * std[j]
         cals.append(replace(base, calibrated_at=at, id=k + 1,
-                            estimates=tuple(replace(e, estimate=float(v)) for e, v in zip(base.estimates, x))))
+                            estimates=tuple(e._replace(estimate=float(v)) for e, v in zip(base.estimates, x))))
     return cals
 
 
@@ -285,7 +285,7 @@ def test_robots_of_a_type_side_by_side_name_the_one_that_stands_out(location, ca
             if i == 7:
                 x[result.parameter_names.index("j2.d")] += 2e-3     # 2 mm off its type
             recs.append(replace(rec, robot=f"R{i:02d}", fingerprint=f"f{i}",
-                                estimates=tuple(replace(e, estimate=float(v)) for e, v in zip(rec.estimates, x))))
+                                estimates=tuple(e._replace(estimate=float(v)) for e, v in zip(rec.estimates, x))))
         store.add(recs, models)
         store.add([replace(recs[7], robot="other", robot_type="scara", fingerprint="x")], models)
         t = rc.type_comparison(store, "arm")

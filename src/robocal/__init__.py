@@ -39,8 +39,8 @@ _EVERYDAY = {
     "_verification": ("verify", "Verification", "Accuracy", "positional_accuracy"),
     "_store": ("Store", "open_store", "store_location", "default_store_path", "history", "type_comparison",
                "verify_robot", "judge_changes", "compare_type", "stored_calibration", "accuracy_at_calibration",
-               "History", "Change", "TypeComparison", "Outlier", "StoredCalibration", "StoredVerification",
-               "Estimate"),
+               "History", "Change", "TypeComparison", "Latest", "Outlier", "StoredCalibration", "StoredVerification",
+               "Estimate", "model_document"),
     "_presentation.history": ("change_line", "history_summary", "type_summary", "verification_summary", "render_history",
                               "write_history"),
 }

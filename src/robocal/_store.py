@@ -20,6 +20,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from datetime import datetime, timezone
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -68,8 +69,7 @@ def shown_location(location: str) -> str:
 
 # -- records --------------------------------------------------------------------------------------
 
-@dataclass(frozen=True)
-class Estimate:
+class Estimate(NamedTuple):
     """One stored parameter: SI ``unit``, its ``family``, the nominal value, the estimate and its
     standard deviation."""
 
@@ -204,6 +204,17 @@ class Outlier:
     z: float
 
 
+class Latest(NamedTuple):
+    """A robot's latest calibration as the type comparison lists it: its id, date, verdict and
+    accuracy RMS (metres, None when unknown)."""
+
+    robot: str
+    id: int
+    calibrated_at: str
+    verdict: str
+    accuracy_rms: float | None
+
+
 @dataclass(frozen=True, eq=False)
 class TypeComparison:
     """The latest calibration of each robot of one type, side by side.
@@ -216,7 +227,7 @@ class TypeComparison:
     """
 
     robot_type: str
-    calibrations: tuple[StoredCalibration, ...]
+    latest: tuple[Latest, ...]
     names: tuple[str, ...]
     units: tuple[str, ...]
     values: np.ndarray
@@ -230,7 +241,7 @@ class TypeComparison:
 
     @property
     def robots(self) -> tuple[str, ...]:
-        return tuple(c.robot for c in self.calibrations)
+        return tuple(c.robot for c in self.latest)
 
 
 # -- judgement: pure functions ----------------------------------------------------------------------
@@ -301,17 +312,35 @@ def compare_type(robot_type: str, calibrations, *, alpha: float = DEFAULT_ALPHA,
     -------
     TypeComparison
     """
-    cals = tuple(sorted(calibrations, key=lambda c: c.robot))
-    names: dict[str, str] = {}
+    cals = sorted(calibrations, key=lambda c: c.robot)
+    latest = [Latest(c.robot, c.id or 0, c.calibrated_at, c.verdict, c.accuracy.rms if c.accuracy else None)
+              for c in cals]
+    estimates = []
     for c in cals:
-        names.update((e.name, e.unit) for e in c.estimates if e.family in families and e.name not in names)
-    col = {n: j for j, n in enumerate(names)}
-    values = np.full((len(cals), len(names)), np.nan)
+        layout = [(e.name, e.unit, e.family) for e in c.estimates]
+        estimates.append((layout, np.array([e[3:] for e in c.estimates], dtype=float).reshape(-1, 3)))
+    return _compared(robot_type, latest, estimates, alpha, families)
+
+
+def _compared(robot_type: str, latest: list, estimates: list, alpha: float, families) -> TypeComparison:
+    """``compare_type`` on each robot's (layout, (n, 3) nominal/estimate/std) estimates."""
+    col: dict[str, int] = {}
+    units: list[str] = []
+    where: dict[int, tuple] = {}           # per layout: (rows kept, their columns)
+    for layout, _ in estimates:
+        if id(layout) not in where:
+            keep = [k for k, (_, _, family) in enumerate(layout) if family in families]
+            for k in keep:
+                if layout[k][0] not in col:
+                    col[layout[k][0]] = len(col)
+                    units.append(layout[k][1])
+            where[id(layout)] = (np.array(keep, dtype=int), np.array([col[layout[k][0]] for k in keep], dtype=int))
+    values = np.full((len(latest), len(col)), np.nan)
     stds = np.full_like(values, np.nan)
-    for i, c in enumerate(cals):
-        for e in c.estimates:
-            if e.name in col:
-                values[i, col[e.name]], stds[i, col[e.name]] = e.estimate, e.std
+    for i, (layout, v) in enumerate(estimates):
+        keep, cols = where[id(layout)]
+        values[i, cols], stds[i, cols] = v[keep, 1], v[keep, 2]
+    names = tuple(col)
     with np.errstate(invalid="ignore"), _quiet_nan():
         median = np.nanmedian(values, axis=0) if values.size else np.zeros(len(names))
         spread = 1.4826 * np.nanmedian(np.abs(values - median), axis=0) if values.size else np.zeros(len(names))
@@ -321,12 +350,11 @@ def compare_type(robot_type: str, calibrations, *, alpha: float = DEFAULT_ALPHA,
     enough = np.sum(np.isfinite(values), axis=0) >= 3      # a median of fewer is no reference
     z[:, ~enough] = np.nan
     threshold = sidak_threshold(alpha, int(np.sum(np.isfinite(z))))
-    units = tuple(names.values())
     hits = np.argwhere(np.abs(np.nan_to_num(z)) > threshold)
-    outliers = sorted((Outlier(cals[i].robot, tuple(names)[j], units[j], float(values[i, j]), float(median[j]),
+    outliers = sorted((Outlier(latest[i].robot, names[j], units[j], float(values[i, j]), float(median[j]),
                                float(z[i, j])) for i, j in hits), key=lambda o: -abs(o.z))
-    return TypeComparison(robot_type, cals, tuple(names), units, values, stds, median, spread, z, threshold, alpha,
-                          tuple(outliers))
+    return TypeComparison(robot_type, tuple(latest), names, tuple(units), values, stds, median, spread, z, threshold,
+                          alpha, tuple(outliers))
 
 
 @contextmanager
@@ -461,7 +489,8 @@ def stored_verification(v: Verification, calibration: StoredCalibration, *, at=N
 
 _TABLES = ("robocal_schema", "robocal_models", "robocal_calibrations", "robocal_verifications")
 _CALIBRATION_COLUMNS = ("id", "robot", "robot_type", "calibrated_at", "recorded_at", "fingerprint", "verdict",
-                        "limit_m", "accuracy", "in_use", "checks", "estimates", "nominal_model", "calibrated_model",
+                        "limit_m", "accuracy", "in_use", "checks", "parameters", "estimates", "nominal_model",
+                        "calibrated_model",
                         "source", "inputs")
 _VERIFICATION_COLUMNS = ("id", "robot", "calibration_id", "verified_at", "verdict", "document")
 # the schema, step by step: step k takes a store from version k - 1 to k
@@ -470,7 +499,7 @@ _MIGRATIONS = (
      "CREATE TABLE robocal_models (sha256 TEXT PRIMARY KEY, document {blob} NOT NULL)",
      "CREATE TABLE robocal_calibrations (id {id}, robot TEXT NOT NULL, robot_type TEXT, calibrated_at TEXT NOT NULL, "
      "recorded_at TEXT NOT NULL, fingerprint TEXT NOT NULL, verdict TEXT NOT NULL, limit_m {real}, accuracy TEXT, "
-     "in_use TEXT, checks TEXT NOT NULL, estimates TEXT NOT NULL, "
+     "in_use TEXT, checks TEXT NOT NULL, parameters TEXT NOT NULL, estimates {blob} NOT NULL, "
      "nominal_model TEXT NOT NULL REFERENCES robocal_models (sha256), "
      "calibrated_model TEXT NOT NULL REFERENCES robocal_models (sha256), source TEXT NOT NULL, inputs TEXT NOT NULL, "
      "UNIQUE (robot, calibrated_at, fingerprint))",
@@ -709,9 +738,29 @@ class Store:
     def latest_of_type(self, robot_type: str) -> tuple[StoredCalibration, ...]:
         """The latest calibration of each robot of a type, by robot."""
         cols = ", ".join(_CALIBRATION_COLUMNS)
-        sql = (f"SELECT {cols} FROM (SELECT {cols}, ROW_NUMBER() OVER (PARTITION BY robot ORDER BY calibrated_at DESC, "
-               "id DESC) AS rn FROM robocal_calibrations WHERE robot_type = ?) latest WHERE rn = 1 ORDER BY robot")
+        sql = (f"SELECT {cols} FROM robocal_calibrations WHERE id IN (SELECT id FROM (SELECT id, ROW_NUMBER() OVER "
+               "(PARTITION BY robot ORDER BY calibrated_at DESC, id DESC) AS rn FROM robocal_calibrations "
+               "WHERE robot_type = ?) latest WHERE rn = 1) ORDER BY robot")
         return self._calibrations(sql, (check_name(robot_type, "type"),))
+
+    def latest_estimates(self, robot_type: str) -> tuple[list, list]:
+        """(``Latest`` of each robot of a type, each one's estimates as (name, unit, family, nominal,
+        estimate, std) rows): what the type comparison reads, without the rest of the records."""
+        sql = ("SELECT robot, id, calibrated_at, verdict, accuracy, parameters, estimates FROM robocal_calibrations "
+               "WHERE id IN "
+               "(SELECT id FROM (SELECT id, ROW_NUMBER() OVER (PARTITION BY robot ORDER BY calibrated_at DESC, id DESC) "
+               "AS rn FROM robocal_calibrations WHERE robot_type = ?) latest WHERE rn = 1) ORDER BY robot")
+        with self._errors(), self._db.transaction(write=False) as cur:
+            rows = self._execute(cur, sql, (check_name(robot_type, "type"),)).fetchall()
+        latest, estimates, layouts = [], [], {}     # the parameter layouts of this read, each decoded once
+        for robot, i, at, verdict, acc, params, values in rows:
+            with self._errors(f"calibration #{i}"):
+                rms = None if acc is None else _float(json.loads(acc)["rms"])
+                latest.append(Latest(_text(robot), int(i), _text(at), _text(verdict), rms))
+                if params not in layouts:
+                    layouts[params] = _layout(params)
+                estimates.append(_estimate_rows(layouts[params], values))
+        return latest, estimates
 
     def _calibrations(self, sql: str, values) -> tuple[StoredCalibration, ...]:
         with self._errors(), self._db.transaction(write=False) as cur:
@@ -792,7 +841,8 @@ def _calibration_row(r: StoredCalibration) -> tuple:
     return (r.robot, r.robot_type, r.calibrated_at, r.recorded_at, r.fingerprint, r.verdict, r.limit_m,
             None if acc is None else _json(acc), None if r.in_use is None else _json(r.in_use),
             _json([list(c) for c in r.checks]),
-            _json([[e.name, e.unit, e.family, e.nominal, e.estimate, e.std] for e in r.estimates]),
+            _json([[e.name, e.unit, e.family] for e in r.estimates]),
+            np.array([e[3:] for e in r.estimates], dtype="<f8").reshape(-1).tobytes(),
             r.nominal_model, r.calibrated_model, r.source, _json(dict(r.inputs)))
 
 
@@ -810,15 +860,31 @@ def _text(v) -> str:
     return v
 
 
+def _layout(text) -> list:
+    """The (name, unit, family) of each stored estimate."""
+    rows = json.loads(text)
+    if not isinstance(rows, list) or not all(isinstance(r, list) and len(r) == 3 and all(isinstance(x, str) for x in r)
+                                             for r in rows):
+        raise ValueError("the parameters are not rows of name, unit and family")
+    return [tuple(r) for r in rows]
+
+
+def _estimate_rows(layout: list, values) -> tuple[list, np.ndarray]:
+    """(layout, (n, 3) nominal, estimate and std) of one calibration's stored estimates."""
+    v = np.frombuffer(bytes(values), dtype="<f8")
+    if v.size != 3 * len(layout):
+        raise ValueError(f"{v.size} stored values for {len(layout)} parameters")
+    return layout, v.reshape(-1, 3)
+
+
 def _calibration_from_row(row) -> StoredCalibration:
-    (i, robot, rtype, cal_at, rec_at, fp, verdict, limit_m, acc, in_use, checks, estimates, nominal, calibrated,
+    (i, robot, rtype, cal_at, rec_at, fp, verdict, limit_m, acc, in_use, checks, params, values, nominal, calibrated,
      source, inputs) = row
     a = None if acc is None else json.loads(acc)
     accuracy = None if a is None else Accuracy(rms=_nan(a["rms"]), mean=_float(a.get("mean")), n=int(a["n"]),
                                                source=_text(a["source"]), p95=_float(a.get("p95")),
                                                max=_float(a.get("max")))
-    ests = tuple(Estimate(_text(n), _text(u), _text(f), _nan(nom), _nan(est), _nan(s))
-                 for n, u, f, nom, est, s in json.loads(estimates))
+    ests = tuple(Estimate(*head, *map(float, v)) for head, v in zip(*_estimate_rows(_layout(params), values)))
     use = None if in_use is None else json.loads(in_use)
     if use is not None and not isinstance(use, dict):
         raise ValueError("in_use is not a mapping")
@@ -890,10 +956,11 @@ def type_comparison(store: Store, robot_type: str, *, alpha: float = DEFAULT_ALP
     TypeComparison
         InputError when the store holds no robot of the type.
     """
-    latest = store.latest_of_type(robot_type)
+    latest, estimates = store.latest_estimates(robot_type)
     if not latest:
         raise InputError(f"no robot of type {excerpt(robot_type)} in the store", source=store.location)
-    return compare_type(robot_type, latest, alpha=alpha, families=families)
+    with store._errors("estimates"):
+        return _compared(robot_type, latest, estimates, alpha, families)
 
 
 def verify_robot(store: Store, robot: str, data: Measurements, *, register: bool = False,

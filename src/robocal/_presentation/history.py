@@ -99,7 +99,7 @@ def _estimates_table(h: History) -> list[str]:
 def type_summary(t: TypeComparison) -> str:
     """What ``robocal history --type TYPE`` prints."""
     n_cmp = int(np.sum(np.isfinite(t.z)))
-    lines = [f"type {t.robot_type}: {len(t.calibrations)} robot(s), latest calibration of each; {len(t.names)} "
+    lines = [f"type {t.robot_type}: {len(t.latest)} robot(s), latest calibration of each; {len(t.names)} "
              f"parameter(s), each robot against the type's median in robust standard deviations, named beyond "
              f"{t.threshold:.2f} ({n_cmp} comparisons; {t.alpha:.0%} chance of naming one among alike robots)"]
     counts = {}
@@ -111,11 +111,12 @@ def type_summary(t: TypeComparison) -> str:
     if len(t.outliers) > 40:
         lines.append(f"  ... and {len(t.outliers) - 40} more")
     lines.append("robots:")
-    for c in t.calibrations[:200]:
+    for c in t.latest[:200]:
         flag = f", {counts[c.robot]} parameter(s) standing out" if c.robot in counts else ""
-        lines.append(f"  {c.robot}: #{c.id} {_day(c.calibrated_at)}, {c.verdict}, {_accuracy_text(c.accuracy)}{flag}")
-    if len(t.calibrations) > 200:
-        lines.append(f"  ... and {len(t.calibrations) - 200} more")
+        acc = "no accuracy" if c.accuracy_rms is None else f"{with_unit(c.accuracy_rms, 'm')} RMS"
+        lines.append(f"  {c.robot}: #{c.id} {_day(c.calibrated_at)}, {c.verdict}, {acc}{flag}")
+    if len(t.latest) > 200:
+        lines.append(f"  ... and {len(t.latest) - 200} more")
     return "\n".join(lines)
 
 
