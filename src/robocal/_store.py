@@ -20,7 +20,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -488,10 +488,14 @@ def stored_verification(v: Verification, calibration: StoredCalibration, *, at=N
 # -- the back-ends ----------------------------------------------------------------------------------
 
 _TABLES = ("robocal_schema", "robocal_models", "robocal_calibrations", "robocal_verifications")
+# the columns, the ones the type comparison reads first (a SQLite row's later columns may lie on
+# overflow pages of their own)
 _CALIBRATION_COLUMNS = ("id", "robot", "robot_type", "calibrated_at", "recorded_at", "fingerprint", "verdict",
-                        "limit_m", "accuracy", "in_use", "checks", "parameters", "estimates", "nominal_model",
-                        "calibrated_model",
-                        "source", "inputs")
+                        "limit_m", "accuracy", "parameters", "estimates", "nominal_model", "calibrated_model",
+                        "source", "inputs", "in_use", "checks")
+# the id of the latest calibration of each robot of a type
+_LATEST_OF_TYPE = ("SELECT id FROM (SELECT id, ROW_NUMBER() OVER (PARTITION BY robot ORDER BY calibrated_at DESC, "
+                   "id DESC) AS rn FROM robocal_calibrations WHERE robot_type = ?) latest WHERE rn = 1")
 _VERIFICATION_COLUMNS = ("id", "robot", "calibration_id", "verified_at", "verdict", "document")
 # the schema, step by step: step k takes a store from version k - 1 to k
 _MIGRATIONS = (
@@ -499,10 +503,10 @@ _MIGRATIONS = (
      "CREATE TABLE robocal_models (sha256 TEXT PRIMARY KEY, document {blob} NOT NULL)",
      "CREATE TABLE robocal_calibrations (id {id}, robot TEXT NOT NULL, robot_type TEXT, calibrated_at TEXT NOT NULL, "
      "recorded_at TEXT NOT NULL, fingerprint TEXT NOT NULL, verdict TEXT NOT NULL, limit_m {real}, accuracy TEXT, "
-     "in_use TEXT, checks TEXT NOT NULL, parameters TEXT NOT NULL, estimates {blob} NOT NULL, "
+     "parameters TEXT NOT NULL, estimates {blob} NOT NULL, "
      "nominal_model TEXT NOT NULL REFERENCES robocal_models (sha256), "
      "calibrated_model TEXT NOT NULL REFERENCES robocal_models (sha256), source TEXT NOT NULL, inputs TEXT NOT NULL, "
-     "UNIQUE (robot, calibrated_at, fingerprint))",
+     "in_use TEXT, checks TEXT NOT NULL, UNIQUE (robot, calibrated_at, fingerprint))",
      "CREATE INDEX robocal_calibrations_robot ON robocal_calibrations (robot, calibrated_at)",
      "CREATE INDEX robocal_calibrations_type ON robocal_calibrations (robot_type, robot, calibrated_at)",
      "INSERT INTO robocal_schema (version) VALUES (1)"),
@@ -515,10 +519,31 @@ _MIGRATIONS = (
 
 
 class _Backend:
-    """What the two back-ends share: a connection, and the errors of their database driver."""
+    """What the two back-ends share: a connection, the errors of their database driver, the names of
+    their column types; each says how it writes placeholders, transactions and locks."""
 
-    conn: object
+    conn: Any
+    name = ""
+    types: dict = {}
     errors: tuple = ()
+
+    def __init__(self, location: str, create: bool) -> None:
+        raise NotImplementedError
+
+    def sql(self, text: str) -> str:
+        raise NotImplementedError
+
+    def transaction(self, write: bool) -> Any:
+        raise NotImplementedError
+
+    def lock(self, cur) -> None:
+        raise NotImplementedError
+
+    def tables(self, cur) -> set:
+        raise NotImplementedError
+
+    def insert_id(self, cur, sql: str, values) -> int:
+        raise NotImplementedError
 
     def close(self) -> None:
         self.conn.close()
@@ -612,16 +637,16 @@ class Store:
     def __init__(self, location=None, *, create: bool = False):
         location = store_location(None if location is None else str(location))
         self.location = shown_location(location)
-        backend = _Postgres if is_url(location) else _SQLite
-        self._db = None
+        backend: type[_Backend] = _Postgres if is_url(location) else _SQLite
+        self._backend: _Backend | None = None
         with self._errors():
-            self._db = backend(location, create)
-            self.backend = self._db.name
+            self._backend = backend(location, create)
+            self.backend = self._backend.name
             try:
                 self.version = self._migrate(create)
             except BaseException:
-                self._db.close()
-                self._db = None
+                self._backend.close()
+                self._backend = None
                 raise
 
     def __enter__(self) -> "Store":
@@ -631,22 +656,32 @@ class Store:
         self.close()
 
     def close(self) -> None:
-        if self._db is not None:
+        if self._backend is not None:
             with self._errors():
-                self._db.close()
-            self._db = None
+                self._backend.close()
+            self._backend = None
+
+    @property
+    def _db(self) -> _Backend:
+        if self._backend is None:
+            raise InputError("the store is closed", source=self.location)
+        return self._backend
 
     @contextmanager
     def _errors(self, where: str | None = None):
+        """Errors of the database as InputErrors naming the store; with ``where`` (decoding a stored
+        record), errors of its content too."""
         try:
             yield
         except InputError:
             raise
-        except (ValueError, TypeError, KeyError, AttributeError, zlib.error) as e:  # damaged content
+        except (ValueError, TypeError, KeyError, IndexError, zlib.error) as e:
+            if where is None:
+                raise
             raise InputError(f"damaged store content ({' '.join(str(e).split())[:200]})", source=self.location,
                              where=where) from None
         except Exception as e:
-            if self._db is None or not isinstance(e, self._db.errors):
+            if self._backend is None or not isinstance(e, self._backend.errors):
                 if type(e).__module__.split(".")[0] not in ("sqlite3", "psycopg"):
                     raise
             raise InputError(f"store error: {' '.join(str(e).split())[:300] or type(e).__name__}",
@@ -738,18 +773,14 @@ class Store:
     def latest_of_type(self, robot_type: str) -> tuple[StoredCalibration, ...]:
         """The latest calibration of each robot of a type, by robot."""
         cols = ", ".join(_CALIBRATION_COLUMNS)
-        sql = (f"SELECT {cols} FROM robocal_calibrations WHERE id IN (SELECT id FROM (SELECT id, ROW_NUMBER() OVER "
-               "(PARTITION BY robot ORDER BY calibrated_at DESC, id DESC) AS rn FROM robocal_calibrations "
-               "WHERE robot_type = ?) latest WHERE rn = 1) ORDER BY robot")
+        sql = f"SELECT {cols} FROM robocal_calibrations WHERE id IN ({_LATEST_OF_TYPE}) ORDER BY robot"
         return self._calibrations(sql, (check_name(robot_type, "type"),))
 
     def latest_estimates(self, robot_type: str) -> tuple[list, list]:
         """(``Latest`` of each robot of a type, each one's estimates as (name, unit, family, nominal,
         estimate, std) rows): what the type comparison reads, without the rest of the records."""
         sql = ("SELECT robot, id, calibrated_at, verdict, accuracy, parameters, estimates FROM robocal_calibrations "
-               "WHERE id IN "
-               "(SELECT id FROM (SELECT id, ROW_NUMBER() OVER (PARTITION BY robot ORDER BY calibrated_at DESC, id DESC) "
-               "AS rn FROM robocal_calibrations WHERE robot_type = ?) latest WHERE rn = 1) ORDER BY robot")
+               f"WHERE id IN ({_LATEST_OF_TYPE}) ORDER BY robot")
         with self._errors(), self._db.transaction(write=False) as cur:
             rows = self._execute(cur, sql, (check_name(robot_type, "type"),)).fetchall()
         latest, estimates, layouts = [], [], {}     # the parameter layouts of this read, each decoded once
@@ -839,11 +870,10 @@ def _calibration_row(r: StoredCalibration) -> tuple:
     acc = None if r.accuracy is None else {k: getattr(r.accuracy, k)
                                            for k in ("rms", "mean", "n", "source", "p95", "max")}
     return (r.robot, r.robot_type, r.calibrated_at, r.recorded_at, r.fingerprint, r.verdict, r.limit_m,
-            None if acc is None else _json(acc), None if r.in_use is None else _json(r.in_use),
-            _json([list(c) for c in r.checks]),
-            _json([[e.name, e.unit, e.family] for e in r.estimates]),
+            None if acc is None else _json(acc), _json([[e.name, e.unit, e.family] for e in r.estimates]),
             np.array([e[3:] for e in r.estimates], dtype="<f8").reshape(-1).tobytes(),
-            r.nominal_model, r.calibrated_model, r.source, _json(dict(r.inputs)))
+            r.nominal_model, r.calibrated_model, r.source, _json(dict(r.inputs)),
+            None if r.in_use is None else _json(r.in_use), _json([list(c) for c in r.checks]))
 
 
 def _nan(v) -> float:
@@ -878,8 +908,8 @@ def _estimate_rows(layout: list, values) -> tuple[list, np.ndarray]:
 
 
 def _calibration_from_row(row) -> StoredCalibration:
-    (i, robot, rtype, cal_at, rec_at, fp, verdict, limit_m, acc, in_use, checks, params, values, nominal, calibrated,
-     source, inputs) = row
+    (i, robot, rtype, cal_at, rec_at, fp, verdict, limit_m, acc, params, values, nominal, calibrated, source, inputs,
+     in_use, checks) = row
     a = None if acc is None else json.loads(acc)
     accuracy = None if a is None else Accuracy(rms=_nan(a["rms"]), mean=_float(a.get("mean")), n=int(a["n"]),
                                                source=_text(a["source"]), p95=_float(a.get("p95")),

@@ -154,12 +154,13 @@ def verify(model: RobotModel, data: Measurements, then: Accuracy, *, register: b
         model = register_base(model, data)
     mi = np.array([model.marker_names.index(n) for n in data.marker_names])
     predicted = evaluate(model, data.q, payload_mass=data.payload_mass).positions[:, mi]
-    norms = np.where(data.mask, np.linalg.norm(data.positions - predicted, axis=2), np.nan)
-    v = norms[data.mask]
+    mask = np.asarray(data.mask, dtype=bool)
+    norms = np.where(mask, np.linalg.norm(data.positions - predicted, axis=2), np.nan)
+    v = norms[mask]
     if v.size < (4 if register else 1):
         raise DegenerateDataError("the verification has too few measured points")
     poses, index = _commanded_poses(data)
-    rows, markers = np.nonzero(data.mask)
+    rows, markers = np.nonzero(mask)
     # each marker of a commanded pose is its own ISO pose point; label them pose[/marker]
     key = index[rows] * len(data.marker_names) + markers
     used, inverse = np.unique(key, return_inverse=True)

@@ -65,7 +65,7 @@ def history_summary(h: History) -> str:
                  "one in an unchanged robot):")
     named = h.changes
     lines += [f"  {change_line(c)}" for c in named] or ["  none"]
-    rest = sorted((c for c in h.comparisons if not c.named), key=lambda c: -abs(c.sigma))[:3]
+    rest = sorted((c for c in h.comparisons if not c.named and c.sigma), key=lambda c: -abs(c.sigma))[:3]
     if rest:
         lines.append("  largest movements within the uncertainty: " + "; ".join(change_line(c) for c in rest))
     if h.verifications:
@@ -102,7 +102,7 @@ def type_summary(t: TypeComparison) -> str:
     lines = [f"type {t.robot_type}: {len(t.latest)} robot(s), latest calibration of each; {len(t.names)} "
              f"parameter(s), each robot against the type's median in robust standard deviations, named beyond "
              f"{t.threshold:.2f} ({n_cmp} comparisons; {t.alpha:.0%} chance of naming one among alike robots)"]
-    counts = {}
+    counts: dict[str, int] = {}
     for o in t.outliers:
         counts[o.robot] = counts.get(o.robot, 0) + 1
     lines.append("standing out:")
