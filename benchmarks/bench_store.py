@@ -13,7 +13,9 @@ names a database, in a schema made and dropped here.
 Judgement: per seed, a simulated arm calibrated twice (unchanged, or with j3.d moved by 3 or 5
 combined standard deviations between the campaigns): the share of histories naming a change, and
 the share naming the moved one; and verifications of 20 poses on the robot as calibrated and
-after a drift of 0.3 mm (j3.d).
+after a drift of 0.3 mm (j3.d). Then, for every judged parameter in turn, histories drawn from
+the first seed's covariance with that parameter moved by 3 combined standard deviations: the
+share naming it.
 """
 
 from __future__ import annotations
@@ -134,10 +136,39 @@ def judgement(seeds: int) -> None:
         for key, robot in (("unchanged", true), ("drifted", rc.model_from_vector(true, p))):
             v = rc.verify(first.calibrated_model, rc.measure(robot, q, noise=2e-5, rng=seed), then)
             verdicts[key] += v.verdict == ("within accuracy" if key == "unchanged" else "recalibrate")
+    drawn_power(seeds)
     print(f"judgement over {seeds} seeds ({time.perf_counter() - t0:.0f} s): unchanged robots naming a change "
           f"{named[0.0]}/{seeds}; j3.d moved by 3 combined std named {moved[3.0]}/{seeds}, by 5 {moved[5.0]}/{seeds}; "
           f"verification of 20 poses: unchanged 'within accuracy' {verdicts['unchanged']}/{seeds}, drifted 0.3 mm "
           f"'recalibrate' {verdicts['drifted']}/{seeds}")
+
+
+def drawn_history(result, rng, name=None, size=0.0):
+    """Two calibrations drawn about the result's estimates with its covariance; ``name`` moved by
+    ``size`` combined standard deviations between them."""
+    base = rc.stored_calibration(result, "R", at="2026-01-01")
+    truth = np.array([p.estimate for p in result.parameters])
+    cals = []
+    for k in range(2):
+        x = rng.multivariate_normal(truth, result.covariance)
+        if name and k == 1:
+            j = result.parameter_names.index(name)
+            x[j] += size * np.sqrt(2) * result.parameters[j].std
+        cals.append(replace(base, calibrated_at=f"2026-0{k + 1}-01T00:00:00+00:00", id=k + 1,
+                            estimates=tuple(e._replace(estimate=float(v)) for e, v in zip(base.estimates, x))))
+    return cals
+
+
+def drawn_power(seeds: int) -> None:
+    _, _, result = calibration(0)
+    rng = np.random.default_rng(0)
+    names = [p.name for p in result.parameters if p.family in rc.JUDGED_FAMILIES]
+    unchanged = sum(any(c.named for c in rc.judge_changes(drawn_history(result, rng))[0]) for _ in range(10 * seeds))
+    per = {n: sum(n in [c.name for c in rc.judge_changes(drawn_history(result, rng, n, 3.0))[0] if c.named]
+                  for _ in range(seeds)) for n in names}
+    print(f"drawn histories: unchanged naming a change {unchanged}/{10 * seeds}; one parameter moved by 3 combined "
+          f"std named, mean over the {len(names)} judged parameters {np.mean(list(per.values())):.0f}/{seeds} "
+          f"(fewest {min(per.values())}, {min(per, key=per.get)}; most {max(per.values())}, {max(per, key=per.get)})")
 
 
 def main() -> None:

@@ -40,7 +40,7 @@ _EVERYDAY = {
     "_store": ("Store", "open_store", "store_location", "default_store_path", "history", "type_comparison",
                "verify_robot", "judge_changes", "compare_type", "stored_calibration", "accuracy_at_calibration",
                "History", "Change", "TypeComparison", "Latest", "Outlier", "StoredCalibration", "StoredVerification",
-               "Estimate", "model_document"),
+               "Estimate", "model_document", "sidak_threshold", "JUDGED_FAMILIES"),
     "_presentation.history": ("change_line", "history_summary", "type_summary", "verification_summary", "render_history",
                               "write_history"),
 }

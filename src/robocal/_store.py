@@ -90,7 +90,8 @@ class StoredCalibration:
     ``accuracy`` the position accuracy reached (None when the result has no error statistics);
     ``in_use`` the result's predicted accuracy in use when it has one; ``limit_m`` the limit of
     absolute accuracy when known; the models by the SHA-256 of their file form
-    (``Store.model``). ``id`` is None before it is stored.
+    (``Store.model``). ``correlation`` (n, n) the correlation of the estimates (in their order),
+    or None. ``id`` is None before it is stored.
     """
 
     robot: str
@@ -109,6 +110,7 @@ class StoredCalibration:
     source: str = ""
     inputs: tuple[tuple[str, str], ...] = ()
     id: int | None = None
+    correlation: np.ndarray | None = None
 
     def estimate(self, name: str) -> Estimate | None:
         return next((e for e in self.estimates if e.name == name), None)
@@ -141,8 +143,10 @@ class StoredVerification:
 @dataclass(frozen=True)
 class Change:
     """A parameter between two consecutive calibrations: ``before`` (at ``since``) and ``after`` (at
-    ``at``), SI, ``sigma`` = change / combined standard deviation, ``named`` when beyond the
-    history's threshold."""
+    ``at``), SI. ``sigma``: the test of "this parameter alone moved", in standard deviations of
+    the combined uncertainty of both calibrations (with their correlations when stored; without
+    them, the change over its combined standard deviation); ``shift`` the move it estimates;
+    ``named`` when beyond the history's threshold."""
 
     name: str
     unit: str
@@ -152,6 +156,7 @@ class Change:
     after: float
     sigma: float
     named: bool
+    shift: float = math.nan
 
     @property
     def delta(self) -> float:
@@ -279,18 +284,77 @@ def judge_changes(calibrations, *, alpha: float = DEFAULT_ALPHA, families=JUDGED
         The comparisons, and the threshold in standard deviations they were judged against.
     """
     ordered = sorted(calibrations, key=lambda c: (c.calibrated_at, c.id or 0))
-    pairs = []
-    for a, b in zip(ordered, ordered[1:]):
-        for e in b.estimates:
-            p = a.estimate(e.name)
-            if p is None or e.family not in families:
-                continue
-            s = math.hypot(p.std, e.std)
-            if s > 0 and math.isfinite(s) and math.isfinite(e.estimate) and math.isfinite(p.estimate):
-                pairs.append((e, a.calibrated_at, b.calibrated_at, p.estimate, (e.estimate - p.estimate) / s))
-    threshold = sidak_threshold(alpha, len(pairs))
-    return tuple(Change(e.name, e.unit, since, at, before, e.estimate, z, abs(z) > threshold)
-                 for e, since, at, before, z in pairs), threshold
+    pairs = [_pair(a, b, families) for a, b in zip(ordered, ordered[1:])]
+    threshold = sidak_threshold(alpha, sum(len(p[0]) for p in pairs))
+    return tuple(c for p in pairs for c in _snooped(*p, threshold)), threshold
+
+
+def _judged(c: StoredCalibration, families) -> dict:
+    """name -> index in ``c.estimates`` of the finite estimates with a positive standard deviation."""
+    return {e.name: k for k, e in enumerate(c.estimates)
+            if e.family in families and math.isfinite(e.estimate) and e.std > 0 and math.isfinite(e.std)}
+
+
+def _covariance(c: StoredCalibration, index: list) -> np.ndarray:
+    std = np.array([c.estimates[k].std for k in index])
+    if c.correlation is None:
+        return np.diag(std ** 2)
+    return c.correlation[np.ix_(index, index)] * np.outer(std, std)
+
+
+def _pair(a: StoredCalibration, b: StoredCalibration, families):
+    """(names, template changes, differences, combined covariance) of two calibrations' common judged
+    parameters."""
+    ja, jb = _judged(a, families), _judged(b, families)
+    names = [n for n in jb if n in ja]
+    ia, ib = [ja[n] for n in names], [jb[n] for n in names]
+    d = np.array([b.estimates[kb].estimate - a.estimates[ka].estimate for ka, kb in zip(ia, ib)])
+    C = _covariance(a, ia) + _covariance(b, ib)
+    template = [Change(n, b.estimates[kb].unit, a.calibrated_at, b.calibrated_at, a.estimates[ka].estimate,
+                       b.estimates[kb].estimate, math.nan, False) for n, ka, kb in zip(names, ia, ib)]
+    return names, template, d, C
+
+
+def _w_tests(d: np.ndarray, C: np.ndarray, rest: np.ndarray) -> np.ndarray:
+    """Baarda's w test of each parameter in ``rest`` moving alone, the others outside ``rest`` free:
+    ``(C_rr^-1 d_r)_k / sqrt((C_rr^-1)_kk)``; without the correlations (a combined covariance that
+    cannot be inverted) the change over its combined standard deviation."""
+    Cr = C[np.ix_(rest, rest)]
+    if np.all(np.isfinite(Cr)) and np.linalg.cond(Cr) < 1e12:
+        W = np.linalg.inv(Cr)
+        if np.all(np.diag(W) > 0):
+            return (W @ d[rest]) / np.sqrt(np.diag(W))
+    return d[rest] / np.sqrt(np.diag(Cr))
+
+
+def _snooped(names: list, template: list, d: np.ndarray, C: np.ndarray, threshold: float) -> list:
+    """Iterative data snooping: name the parameter whose w test is largest beyond ``threshold``, free
+    it, test the others again, until none is beyond. A named change carries the w of the step that
+    named it and the shift estimated with every named parameter free; the others their last w."""
+    if not names:
+        return []
+    sigma = np.full(len(names), np.nan)
+    named: list[int] = []
+    rest = np.arange(len(names))
+    while rest.size:
+        w = _w_tests(d, C, rest)
+        k = int(np.argmax(np.abs(w)))
+        if not abs(w[k]) > threshold:
+            sigma[rest] = w
+            break
+        sigma[rest[k]] = w[k]
+        named.append(int(rest[k]))
+        rest = np.delete(rest, k)
+    shift = d.copy()
+    if named:
+        A = np.array(named)
+        try:
+            W = np.linalg.inv(C)
+            shift[A] = np.linalg.solve(W[np.ix_(A, A)], (W @ d)[A])
+        except np.linalg.LinAlgError:
+            pass                                  # the changes themselves stand for the shifts
+    return [replace(t, sigma=float(z), named=i in named, shift=float(x))
+            for i, (t, z, x) in enumerate(zip(template, sigma, shift))]
 
 
 def compare_type(robot_type: str, calibrations, *, alpha: float = DEFAULT_ALPHA,
@@ -472,7 +536,14 @@ def stored_calibration(result: CalibrationResult, robot: str, *, robot_type: str
         estimates=tuple(Estimate(p.name, p.unit, p.family, p.nominal, p.estimate, p.std) for p in result.parameters),
         accuracy=accuracy_at_calibration(d), in_use=plain(in_use) if isinstance(in_use, dict) else None,
         limit_m=_float(lim.get("limit_m")), nominal_model=model_document(result.nominal_model)[0],
-        calibrated_model=model_document(result.calibrated_model)[0], source=str(source), inputs=inputs)
+        calibrated_model=model_document(result.calibrated_model)[0], source=str(source), inputs=inputs,
+        correlation=_correlation_of(result))
+
+
+def _correlation_of(result: CalibrationResult) -> np.ndarray | None:
+    r = np.asarray(result.correlation, dtype=float)
+    k = len(result.parameters)
+    return r.copy() if r.shape == (k, k) else None
 
 
 def stored_verification(v: Verification, calibration: StoredCalibration, *, at=None, source: str = "",
@@ -491,8 +562,8 @@ _TABLES = ("robocal_schema", "robocal_models", "robocal_calibrations", "robocal_
 # the columns, the ones the type comparison reads first (a SQLite row's later columns may lie on
 # overflow pages of their own)
 _CALIBRATION_COLUMNS = ("id", "robot", "robot_type", "calibrated_at", "recorded_at", "fingerprint", "verdict",
-                        "limit_m", "accuracy", "parameters", "estimates", "nominal_model", "calibrated_model",
-                        "source", "inputs", "in_use", "checks")
+                        "limit_m", "accuracy", "parameters", "estimates", "correlation", "nominal_model",
+                        "calibrated_model", "source", "inputs", "in_use", "checks")
 # the id of the latest calibration of each robot of a type
 _LATEST_OF_TYPE = ("SELECT id FROM (SELECT id, ROW_NUMBER() OVER (PARTITION BY robot ORDER BY calibrated_at DESC, "
                    "id DESC) AS rn FROM robocal_calibrations WHERE robot_type = ?) latest WHERE rn = 1")
@@ -503,7 +574,7 @@ _MIGRATIONS = (
      "CREATE TABLE robocal_models (sha256 TEXT PRIMARY KEY, document {blob} NOT NULL)",
      "CREATE TABLE robocal_calibrations (id {id}, robot TEXT NOT NULL, robot_type TEXT, calibrated_at TEXT NOT NULL, "
      "recorded_at TEXT NOT NULL, fingerprint TEXT NOT NULL, verdict TEXT NOT NULL, limit_m {real}, accuracy TEXT, "
-     "parameters TEXT NOT NULL, estimates {blob} NOT NULL, "
+     "parameters TEXT NOT NULL, estimates {blob} NOT NULL, correlation {blob}, "
      "nominal_model TEXT NOT NULL REFERENCES robocal_models (sha256), "
      "calibrated_model TEXT NOT NULL REFERENCES robocal_models (sha256), source TEXT NOT NULL, inputs TEXT NOT NULL, "
      "in_use TEXT, checks TEXT NOT NULL, UNIQUE (robot, calibrated_at, fingerprint))",
@@ -871,7 +942,7 @@ def _calibration_row(r: StoredCalibration) -> tuple:
                                            for k in ("rms", "mean", "n", "source", "p95", "max")}
     return (r.robot, r.robot_type, r.calibrated_at, r.recorded_at, r.fingerprint, r.verdict, r.limit_m,
             None if acc is None else _json(acc), _json([[e.name, e.unit, e.family] for e in r.estimates]),
-            np.array([e[3:] for e in r.estimates], dtype="<f8").reshape(-1).tobytes(),
+            np.array([e[3:] for e in r.estimates], dtype="<f8").reshape(-1).tobytes(), _packed(r.correlation),
             r.nominal_model, r.calibrated_model, r.source, _json(dict(r.inputs)),
             None if r.in_use is None else _json(r.in_use), _json([list(c) for c in r.checks]))
 
@@ -888,6 +959,22 @@ def _text(v) -> str:
     if not isinstance(v, str):
         raise ValueError(f"expected text, got {excerpt(v)}")
     return v
+
+
+def _packed(r: np.ndarray | None) -> bytes | None:
+    """A correlation matrix as its upper triangle, little-endian float32 (plenty for a correlation)."""
+    return None if r is None else np.asarray(r, dtype="<f4")[np.triu_indices(r.shape[0])].tobytes()
+
+
+def _unpacked(blob, k: int) -> np.ndarray | None:
+    if blob is None:
+        return None
+    v = np.frombuffer(bytes(blob), dtype="<f4")
+    if v.size != k * (k + 1) // 2:
+        raise ValueError(f"{v.size} correlation values for {k} parameters")
+    r = np.zeros((k, k))
+    r[np.triu_indices(k)] = v
+    return r + np.triu(r, 1).T
 
 
 def _layout(text) -> list:
@@ -908,8 +995,8 @@ def _estimate_rows(layout: list, values) -> tuple[list, np.ndarray]:
 
 
 def _calibration_from_row(row) -> StoredCalibration:
-    (i, robot, rtype, cal_at, rec_at, fp, verdict, limit_m, acc, params, values, nominal, calibrated, source, inputs,
-     in_use, checks) = row
+    (i, robot, rtype, cal_at, rec_at, fp, verdict, limit_m, acc, params, values, corr, nominal, calibrated, source,
+     inputs, in_use, checks) = row
     a = None if acc is None else json.loads(acc)
     accuracy = None if a is None else Accuracy(rms=_nan(a["rms"]), mean=_float(a.get("mean")), n=int(a["n"]),
                                                source=_text(a["source"]), p95=_float(a.get("p95")),
@@ -925,7 +1012,7 @@ def _calibration_from_row(row) -> StoredCalibration:
         checks=tuple((_text(n), _text(s), _text(t)) for n, s, t in json.loads(checks)), estimates=ests,
         accuracy=accuracy, in_use=use, limit_m=None if limit_m is None else _nan(limit_m),
         nominal_model=_text(nominal), calibrated_model=_text(calibrated), source=_text(source),
-        inputs=tuple((_text(k), _text(v)) for k, v in inp.items()), id=int(i))
+        inputs=tuple((_text(k), _text(v)) for k, v in inp.items()), id=int(i), correlation=_unpacked(corr, len(ests)))
 
 
 def _verification_from_row(row) -> StoredVerification:
