@@ -442,3 +442,20 @@ def test_the_store_location_comes_from_option_environment_or_default(tmp_path):
     assert rc.store_location(None, {**env, "ROBOCAL_STORE": "x.sqlite"}) == "x.sqlite"
     assert rc.store_location("y.sqlite", {**env, "ROBOCAL_STORE": "x.sqlite"}) == "y.sqlite"
     assert _store.shown_location("postgresql://u:pw@h/db") == "postgresql://u:***@h/db"
+
+
+def test_a_verification_holds_the_robot_against_its_latest_calibration_that_did_not_fail(location, campaign):
+    model, true, result = campaign
+    rec, models = _record_and_models(result)
+    with rc.open_store(location, create=True) as store:
+        good, bad = store.add([rec, replace(rec, verdict="fail", calibrated_at="2026-02-01T00:00:00+00:00",
+                                            calibrated_model=rec.nominal_model)], models)
+        assert rc.latest_usable(store, "SN-1").id == good
+        data = rc.measure(true, rc.random_configurations(model, 20, np.random.default_rng(1)), noise=2e-5, rng=1)
+        v, stored = rc.verify_robot(store, "SN-1", data)
+        assert stored.calibration_id == good and v.verdict == "within accuracy"
+        (back,) = store.verifications("SN-1")
+        assert back == replace(stored, id=back.id) and back.id is not None
+        store.add([replace(rec, robot="SN-2", verdict="fail")], models)
+        with pytest.raises(rc.InputError, match="failed its checks"):
+            rc.latest_usable(store, "SN-2")

@@ -1080,9 +1080,23 @@ def type_comparison(store: Store, robot_type: str, *, alpha: float = DEFAULT_ALP
         return _compared(robot_type, latest, estimates, alpha, families)
 
 
+def latest_usable(store: Store, robot: str) -> StoredCalibration:
+    """A robot's latest calibration that did not fail its checks (what a verification holds the
+    robot against); InputError when there is none."""
+    cals = store.calibrations(robot)
+    if not cals:
+        raise InputError(f"no calibration of {excerpt(robot)} in the store", source=store.location)
+    usable = [c for c in cals if c.verdict != "fail"]
+    if not usable:
+        raise InputError(f"every calibration of {robot} in the store failed its checks: nothing to verify against",
+                         source=store.location)
+    return usable[-1]
+
+
 def verify_robot(store: Store, robot: str, data: Measurements, *, register: bool = False,
                  alpha: float = VERIFY_ALPHA, save: bool = True, at=None) -> tuple[Verification, StoredVerification]:
-    """Verify a robot against its latest stored calibration and (``save``) record the verification.
+    """Verify a robot against its latest stored calibration that did not fail its checks and
+    (``save``) record the verification.
 
     Parameters
     ----------
@@ -1105,10 +1119,7 @@ def verify_robot(store: Store, robot: str, data: Measurements, *, register: bool
     -------
     (Verification, StoredVerification)
     """
-    cals = store.calibrations(robot)
-    if not cals:
-        raise InputError(f"no calibration of {excerpt(robot)} in the store", source=store.location)
-    latest = cals[-1]
+    latest = latest_usable(store, robot)
     if latest.accuracy is None:
         raise InputError(f"the latest calibration of {robot} (#{latest.id}) has no accuracy to verify against",
                          source=store.location)

@@ -117,6 +117,8 @@ def run(args) -> int:
     from .._files.result import result_files, sidecar_path
     from .._presentation.text import calibration_summary, comparison_summary
 
+    if args.contacts and args.record:
+        raise InputError("the store keeps calibrations from measurement files; drop --contacts", where="--record")
     if args.contacts:
         from . import contacts
         return contacts.run(args)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from .._errors import InputError
 from . import common, record
 
 # exit code of a verification that says recalibrate (as a failed calibration, docs/cli.md)
@@ -37,19 +36,17 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from .._presentation.history import verification_summary
-    from .._store import check_name, verify_robot
+    from .._store import check_name, latest_usable, verify_robot
     from .._verification import FEW_POSES, MANY_POSES
     from .._verification import RECALIBRATE as SAYS_RECALIBRATE
 
     robot = check_name(args.robot, "ROBOT")
     with record.open_store(args, create=False) as store:
-        cals = store.calibrations(robot)
-        if not cals:
-            raise InputError(f"no calibration of {robot} in the store", source=store.location)
-        data = common.read_data(args, store.model(cals[-1].calibrated_model), args.csv)
+        against = latest_usable(store, robot)
+        data = common.read_data(args, store.model(against.calibrated_model), args.csv)
         v, _ = verify_robot(store, robot, data, register=args.register_base, alpha=args.alpha,
                             save=not args.no_record, at=args.at)
     if not FEW_POSES <= data.n_poses <= MANY_POSES:
         print(f"note: {data.n_poses} poses; a verification takes {FEW_POSES} to {MANY_POSES}")
-    print(verification_summary(v, robot, cals[-1]))
+    print(verification_summary(v, robot, against))
     return RECALIBRATE if v.verdict == SAYS_RECALIBRATE else 0
