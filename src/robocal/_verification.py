@@ -110,7 +110,7 @@ def ratio_threshold(n_points: int, then_n: int, *, registered: bool, alpha: floa
     re-registered on them) against three per point at calibration.
 
     >>> round(ratio_threshold(20, 60, registered=False), 3)
-    1.349
+    1.263
     """
     from scipy.stats import f as f_dist
 
