@@ -145,7 +145,7 @@ main{max-width:1100px;margin:0 auto;padding:1em 1.5em}
 table{border-collapse:collapse;margin:.5em 0;font-size:.9em}
 th,td{padding:.25em .6em;border-bottom:1px solid #e3e6ea;text-align:left}
 td.num{text-align:right;font-variant-numeric:tabular-nums}
-.bad{color:#a3262a;font-weight:bold}.ok{color:#2d7a3a}
+.bad{color:#a3262a;font-weight:bold}.ok{color:#2d7a3a}.warn{color:#9a6200}
 figure{margin:1em 0}figcaption{font-size:.85em;color:#555}
 svg{max-width:100%;height:auto}
 """
@@ -200,7 +200,7 @@ def plot_verifications(h: History) -> str:
     def draw(fig):
         ax = fig.subplots()
         ax.plot(x, [v.then_rms * k for v in vs], "s--", color="#777", ms=3, label="RMS at calibration")
-        ax.plot(x, [v.then_rms * v.threshold * k for v in vs], ":", color=BAD, label="recalibrate beyond")
+        ax.plot(x, [v.then_rms * v.threshold * k for v in vs], "v:", color=BAD, ms=4, label="recalibrate beyond")
         ax.plot(x, [v.rms * k for v in vs], "o-", color=AFTER, label="RMS now")
         ax.set_xticks(x, [_day(v.verified_at) for v in vs], rotation=30, fontsize=7)
         ax.set_ylabel("mm")
@@ -210,10 +210,13 @@ def plot_verifications(h: History) -> str:
     return plot_svg("verifications", f"verifications of {h.robot}", draw, figsize=(7, 2.6))
 
 
+_VERDICT_CLASS = {"pass": "ok", "warn": "warn", "fail": "bad"}
+
+
 def _calibration_rows(h: History) -> str:
     return "".join(
         f'<tr><td>#{c.id}</td><td>{_e(_when(c.calibrated_at))}</td><td>{_e(c.robot_type or "")}</td>'
-        f'<td class="{"bad" if c.verdict == "fail" else "ok"}">{_e(c.verdict)}</td>'
+        f'<td class="{_VERDICT_CLASS.get(c.verdict, "")}">{_e(c.verdict)}</td>'
         f'<td class="num">{fmt(c.accuracy.rms if c.accuracy else None)}</td>'
         f'<td>{_e(c.accuracy.source if c.accuracy else "")}</td><td class="num">{fmt(c.limit_m)}</td>'
         f"<td><code>{_e(c.fingerprint[:16])}</code></td><td>{_e(c.source)}</td></tr>" for c in h.calibrations)
