@@ -108,13 +108,14 @@ def test_the_same_calibration_twice_is_refused_and_nothing_stored(location, camp
         assert len(store.calibrations("SN-1")) == 1
 
 
-def test_the_accuracy_in_use_is_taken_when_the_result_predicts_it(campaign):
+def test_a_verification_is_held_against_the_accuracy_the_instrument_saw(campaign):
     d = json.loads(json.dumps(_store.result_to_dict(campaign[2])))
-    d["in_use"] = {"method": "cross-validation", "k": 5, "position_after": {"n": 60, "mean": 4e-5, "rms": 5e-5,
-                                                                           "p95": 8e-5, "max": 9e-5}}
-    acc = rc.accuracy_at_calibration(d)
-    assert (acc.rms, acc.n, acc.source, acc.p95) == (5e-5, 60, "in use (cross-validation)", 8e-5)
-    del d["in_use"]
+    d["in_use"] = {"method": "validation", "k": None, "position_after": {"n": 18, "mean": 0.0, "rms": 0.0,
+                                                                       "p95": 0.0, "max": 0.0}}
+    acc = rc.accuracy_at_calibration(d)        # the robot's accuracy in use has the noise taken out
+    assert (acc.rms, acc.n, acc.source) == (campaign[2].stats.validation_after.rms, 18, "held-out poses")
+    rec = rc.stored_calibration(campaign[2], "R")
+    assert rec.in_use == (rc.io.result_to_dict(campaign[2]).get("in_use"))
     d["stats"]["validation_after"] = {"n": 0}
     fit = rc.accuracy_at_calibration(d)
     assert fit.source == "fitted poses" and fit.rms > campaign[2].stats.fit_after.rms

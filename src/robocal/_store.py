@@ -431,15 +431,12 @@ def _quiet_nan():
 
 
 def accuracy_at_calibration(d: dict) -> Accuracy | None:
-    """The position accuracy a result (its file form) reached: the accuracy in use when the result
-    predicts it, else the held-out poses', else the fitted poses' RMS scaled up by the degrees of
-    freedom the fit took (``sqrt(n_rows / (n_rows - n_parameters))``)."""
-    in_use = d.get("in_use") or {}
-    after = in_use.get("position_after") if isinstance(in_use, dict) else None
-    if isinstance(after, dict) and _positive(after.get("rms")) and after.get("n"):
-        return Accuracy(rms=float(after["rms"]), mean=_float(after.get("mean")), n=int(after["n"]),
-                        source=f"in use ({in_use.get('method', 'validation')})", p95=_float(after.get("p95")),
-                        max=_float(after.get("max")))
+    """The position accuracy a result (its file form) reached as its instrument saw it, what a
+    verification measured the same way is held against: the held-out poses' RMS error when the
+    result has held-out poses, else the fitted poses' RMS error scaled up by the degrees of freedom
+    the fit took (``sqrt(n_rows / (n_rows - n_parameters))``). (The accuracy in use, ``in_use``, is
+    the robot's with the instrument's noise taken out: kept, and shown, but not comparable with a
+    measured verification.)"""
     stats = d.get("stats") or {}
     val = stats.get("validation_after") or {}
     if val.get("n") and _positive(val.get("rms")):

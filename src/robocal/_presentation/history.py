@@ -56,8 +56,10 @@ def history_summary(h: History) -> str:
     for c in h.calibrations:
         lim = f", limit {with_unit(c.limit_m, 'm')}" if c.limit_m is not None else ""
         kind = f" [{c.robot_type}]" if c.robot_type else ""
-        lines.append(f"  #{c.id} {_when(c.calibrated_at)}{kind}: {c.verdict}, {_accuracy_text(c.accuracy)}{lim}, "
-                     f"inputs {c.fingerprint[:12]}")
+        use = ((c.in_use or {}).get("position_after") or {}).get("rms")
+        use_text = f", in use {with_unit(use, 'm')} RMS" if isinstance(use, (int, float)) else ""
+        lines.append(f"  #{c.id} {_when(c.calibrated_at)}{kind}: {c.verdict}, {_accuracy_text(c.accuracy)}{use_text}"
+                     f"{lim}, inputs {c.fingerprint[:12]}")
     lines += _estimates_table(h)
     n = len(h.comparisons)
     lines.append(f"changes between consecutive calibrations, judged at {h.threshold:.2f} sigma of their combined "
