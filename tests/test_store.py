@@ -4,7 +4,8 @@ judged against their combined uncertainty, robots of a type compared, verificati
 the commands record, history, verify and calibrate --record.
 
 PostgreSQL: ``ROBOCAL_TEST_POSTGRES`` names a server (a ``postgresql://`` URL of a database the
-tests may make schemas in); ``.ci/run`` starts one and sets it. Each test gets a schema of its own.
+tests may make schemas in), by default the one ``.ci/run`` starts; each test gets a schema of its
+own. Where none answers, the PostgreSQL half is skipped, saying why.
 """
 
 import json
@@ -26,13 +27,12 @@ import robocal as rc
 from robocal import _store
 
 PG_ENV = "ROBOCAL_TEST_POSTGRES"
+# where .ci/run's server is when the variable is not set
+PG_DEFAULT = "postgresql://robocal:robocal@localhost:5432/robocal"
 
 
 def _pg_url():
-    url = os.environ.get(PG_ENV)
-    if not url:
-        pytest.skip(f"PostgreSQL half skipped: no server named (set {PG_ENV} to a postgresql:// URL; .ci/run starts "
-                    "one)")
+    url = os.environ.get(PG_ENV) or PG_DEFAULT
     try:
         import psycopg
     except ImportError:
@@ -40,7 +40,8 @@ def _pg_url():
     try:
         psycopg.connect(url, connect_timeout=5).close()
     except psycopg.Error as e:
-        pytest.skip(f"PostgreSQL half skipped: the server at {PG_ENV} cannot be reached ({' '.join(str(e).split())})")
+        pytest.skip(f"PostgreSQL half skipped: no server at {_store.shown_location(url)} ({' '.join(str(e).split())}); "
+                    f"set {PG_ENV} to a postgresql:// URL (.ci/run starts a server and sets it)")
     return url
 
 
