@@ -412,6 +412,8 @@ def case(draw, result_text: str | None = None):
         files["data.csv"] = draw(csv_file()) if good_model or draw(st.booleans()) else MEASUREMENTS.encode()
         argv = ["calibrate", "model.yaml", "data.csv", "--out", draw(st.sampled_from(("out", "out", "model.yaml")))]
         argv += draw(options(CALIBRATE))
+        if draw(st.integers(0, 4)) == 0:         # and keep it in a store (never the user's default one)
+            argv += ["--record", _value(draw, "R"), "--store", "store.sqlite"] + draw(options({"--type": "th8"}))
     elif command == "simulate":
         argv = ["simulate", "model.yaml", "--out", "sim.csv", "--poses", _value(draw, "20")] + draw(options(SIMULATE))
     elif command == "identifiability":
