@@ -10,9 +10,13 @@ deep nesting, cycles, duplicate keys, huge numbers, other encodings, empty and b
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import re
+import sqlite3
+import tempfile
+import zlib
 from pathlib import Path
 
 from hypothesis import strategies as st
@@ -267,6 +271,75 @@ def result_file(draw, base: str) -> bytes:
     return json.dumps(d).encode()
 
 
+# -- stores of calibrations: a real one, damaged ------------------------------------------------------
+
+@functools.lru_cache(maxsize=2)
+def store_bytes(result_text: str) -> bytes:
+    """A store holding the result twice as calibrations of robot R (type th8)."""
+    import robocal as rc
+
+    result = rc.io.result_from_dict(json.loads(result_text))
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "store.sqlite"
+        with rc.open_store(path, create=True) as store:
+            for at in ("2026-01-01", "2026-06-01"):
+                store.record(result, "R", robot_type="th8", at=at)
+        return path.read_bytes()
+
+
+# edits of a store's content that keep it a SQLite file
+STORE_EDITS = (
+    "UPDATE robocal_schema SET version = 99", "UPDATE robocal_schema SET version = 'x'", "DELETE FROM robocal_schema",
+    "INSERT INTO robocal_schema VALUES (2)", "UPDATE robocal_schema SET version = 1",
+    "DROP TABLE robocal_verifications",
+    "DROP TABLE robocal_calibrations", "UPDATE robocal_calibrations SET parameters = '[1, 2]'",
+    "UPDATE robocal_calibrations SET parameters = 'not json'", "UPDATE robocal_calibrations SET estimates = x'00'",
+    "UPDATE robocal_calibrations SET estimates = randomblob(8 * 54)",
+    "UPDATE robocal_calibrations SET checks = '[[1]]'",
+    "UPDATE robocal_calibrations SET accuracy = '{\"rms\": \"x\"}'",
+    "UPDATE robocal_calibrations SET accuracy = '{\"rms\": -1, \"n\": 0, \"source\": \"x\"}'",
+    "UPDATE robocal_calibrations SET accuracy = '[]'", "UPDATE robocal_calibrations SET in_use = '5'",
+    "UPDATE robocal_calibrations SET calibrated_model = 'nope'", "UPDATE robocal_calibrations SET inputs = '[]'",
+    "UPDATE robocal_calibrations SET calibrated_at = 'yesterday'", "UPDATE robocal_calibrations SET robot = 7",
+    "UPDATE robocal_calibrations SET verdict = x'ff'", "UPDATE robocal_models SET document = x'789c'",
+    "UPDATE robocal_models SET document = zeroblob(10)", "DELETE FROM robocal_models",
+)
+BAD_MODELS = (b'{"frames": 1}', b"[]", b"\xff\xfe", b'{"name": "x"}')
+
+
+@st.composite
+def store_file(draw, base: bytes) -> bytes:
+    kind = draw(st.sampled_from(("good",) * 3 + ("edit",) * 4 + ("model", "flip", "cut", "empty", "binary")))
+    if kind == "good":
+        return base
+    if kind == "empty":
+        return draw(st.sampled_from((b"", b"SQLite format 3\x00", b"\x00" * 4096)))
+    if kind == "binary":
+        return draw(st.binary(min_size=1, max_size=300))
+    if kind == "cut":
+        return base[:draw(st.integers(0, len(base) - 1))]
+    if kind == "flip":
+        data = bytearray(base)
+        for _ in range(draw(st.integers(1, 8))):
+            data[draw(st.integers(0, len(data) - 1))] = draw(st.integers(0, 255))
+        return bytes(data)
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "s.sqlite"
+        path.write_bytes(base)
+        with sqlite3.connect(path) as c:
+            try:
+                if kind == "model":
+                    c.execute("UPDATE robocal_models SET document = ?",
+                              (zlib.compress(draw(st.sampled_from(BAD_MODELS))),))
+                else:
+                    for edit in draw(st.lists(st.sampled_from(STORE_EDITS), min_size=1, max_size=2)):
+                        c.execute(edit)
+            except sqlite3.Error:
+                pass                    # an edit the schema refuses: the store stays as it was
+        c.close()
+        return path.read_bytes()
+
+
 # -- command lines -------------------------------------------------------------------------------
 
 def _value(draw, good):
@@ -297,6 +370,10 @@ LIMIT = {"--seed": "1", "--markers": "all", "--chunk-size": "100", "--csv-units"
 COMPENSATE_PROGRAM = {"--tool": "TOOL", "--wobj": "TOOL", "--marker": "tool", "--tol-mm": "0.001",
                       "--tol-deg": "0.0001", "--force": None}
 IMPORT_URDF = {"--base-link": "l0", "--tip-link": "l3", "--marker-mm": "tool,0,0,10", "--units": "m-rad"}
+RECORD = {"--type": "th8", "--at": "2026-09-01T00:00:00Z"}
+HISTORY = {"--alpha": "0.05", "--report": "history.html", "--force": None}
+VERIFY = {"--register-base": None, "--alpha": "0.01", "--no-record": None, "--at": "2026-10-01", "--units": "mm-deg"}
+STORE_COMMANDS = ("record", "history", "verify")
 
 
 @st.composite
@@ -324,7 +401,10 @@ def program_file(draw, base: str) -> bytes:
 def case(draw, result_text: str | None = None):
     """(files, argv) of one run of one command."""
     command = draw(st.sampled_from(("calibrate", "calibrate", "simulate", "identifiability", "limit", "import-urdf",
-                                    "compensate", "report" if result_text else "calibrate")))
+                                    "compensate", "report" if result_text else "calibrate")
+                                   + (STORE_COMMANDS if result_text else ())))
+    if command in STORE_COMMANDS:
+        return draw(store_case(command, result_text))
     good_model = draw(st.integers(0, 2)) > 0
     model = MODEL.encode() if good_model else draw(model_file())
     files = {"model.yaml": model}
@@ -332,6 +412,8 @@ def case(draw, result_text: str | None = None):
         files["data.csv"] = draw(csv_file()) if good_model or draw(st.booleans()) else MEASUREMENTS.encode()
         argv = ["calibrate", "model.yaml", "data.csv", "--out", draw(st.sampled_from(("out", "out", "model.yaml")))]
         argv += draw(options(CALIBRATE))
+        if draw(st.integers(0, 4)) == 0:         # and keep it in a store (never the user's default one)
+            argv += ["--record", _value(draw, "R"), "--store", "store.sqlite"] + draw(options({"--type": "th8"}))
     elif command == "simulate":
         argv = ["simulate", "model.yaml", "--out", "sim.csv", "--poses", _value(draw, "20")] + draw(options(SIMULATE))
     elif command == "identifiability":
@@ -366,6 +448,23 @@ def case(draw, result_text: str | None = None):
     return files, argv
 
 
+@st.composite
+def store_case(draw, command: str, result_text: str):
+    """(files, argv) of record, history or verify on a store, its result or its measurements damaged."""
+    files = {"store.sqlite": draw(store_file(store_bytes(result_text)))}
+    robot = _value(draw, "R")
+    if command == "record":
+        if draw(st.booleans()):
+            del files["store.sqlite"]           # a new store
+        files["result.json"] = draw(result_file(result_text)) if draw(st.booleans()) else result_text.encode()
+        return files, ["record", "result.json", "--robot", robot, "--store", "store.sqlite"] + draw(options(RECORD))
+    if command == "history":
+        who = [robot] if draw(st.integers(0, 2)) else ["--type", _value(draw, "th8")]
+        return files, ["history", *who, "--store", "store.sqlite"] + draw(options(HISTORY))
+    files["data.csv"] = draw(csv_file()) if draw(st.booleans()) else MEASUREMENTS.encode()
+    return files, ["verify", robot, "data.csv", "--store", "store.sqlite"] + draw(options(VERIFY))
+
+
 # -- the judge -----------------------------------------------------------------------------------
 
 OUTCOMES = ("clean error", "ok result", "traceback", "hang", "over-memory", "non-finite output", "multi-line error")
@@ -375,7 +474,7 @@ _NON_FINITE = re.compile(r"(?<![\w.])[-+]?(?:\.?nan|\.?inf|infinity)(?![\w])", r
 def non_finite(folder: Path, before: set[str]) -> str | None:
     """The first output file of a run holding a non-finite number, or None."""
     for p in sorted(folder.rglob("*")):
-        if not p.is_file() or p.name in before or p.suffix == ".html":
+        if not p.is_file() or p.name in before or p.suffix == ".html" or ".sqlite" in p.name:
             continue
         text = p.read_text(errors="replace")
         if p.suffix == ".json":

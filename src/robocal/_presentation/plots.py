@@ -68,6 +68,11 @@ def _plot(name: str, label: str, draw, *, figsize) -> str:
         return _svg(fig, name, label)
 
 
+def plot_svg(name: str, label: str, draw, *, figsize) -> str:
+    """A figure drawn by ``draw(fig)`` in the report's style, as inline SVG (for the other pages)."""
+    return _plot(name, label, draw, figsize=figsize)
+
+
 # -- the data, as arrays --------------------------------------------------------------------------
 
 def errors_array(d: dict, key: str) -> np.ndarray | None:

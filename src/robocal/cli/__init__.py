@@ -16,12 +16,12 @@ import warnings
 
 from .._errors import RobocalError, RobocalWarning
 from .._version import __version__
-from . import (calibrate, compensate, export, identifiability, import_dh, import_urdf, limit, plan, plan_sockets,
-               report, simulate)
+from . import (calibrate, compensate, export, history, identifiability, import_dh, import_urdf, limit, plan,
+               plan_sockets, record, report, simulate, verify)
 from .common import MissingExtra, Parser
 
 COMMANDS = (plan, plan_sockets, simulate, calibrate, compensate, export, identifiability, report, limit, import_urdf,
-            import_dh)
+            import_dh, record, history, verify)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from .._errors import DegenerateDataError, InputError
 from .._options import BACKLASH_SIDES, INSTRUMENT_NOISE, LOSSES, OUTLIER_ACTIONS, WEAK_ACTIONS
-from . import common
+from . import common, record
 
 # exit code of a calibration whose checks failed (docs/cli.md)
 FAILED = 3
@@ -77,6 +77,7 @@ def register(sub) -> None:
     g.add_argument("--write-failed", action="store_true",
                    help="write calibrated.yaml even when a check fails (it then carries the verdict)")
     common.csv_options(p)
+    record.record_options(p.add_argument_group("store of calibrations (docs/store.md)"), robot=True)
     p.set_defaults(func=run)
 
 
@@ -131,6 +132,8 @@ def run(args) -> int:
     from .._files.result import result_files, sidecar_path
     from .._presentation.text import calibration_summary, comparison_summary
 
+    if args.contacts and args.record:
+        raise InputError("the store keeps calibrations from measurement files; drop --contacts", where="--record")
     if args.contacts:
         from . import contacts
         return contacts.run(args)
@@ -187,6 +190,8 @@ def run(args) -> int:
         files[out / "report.html"] = report.render_report(best, diagnosis=diagnosis)
     common.write_outputs(files, force=args.force)
     print(f"wrote {', '.join(str(p) for p in files)}")
+    if args.record:
+        record.record_result(args, best, args.record, str(out / "result.json"))
     if failed:
         print(f"not written: {out / 'calibrated.yaml'} (the calibration failed its checks; --write-failed writes it "
               "anyway, marked as failed)" if not args.write_failed else
