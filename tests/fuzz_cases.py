@@ -144,7 +144,8 @@ def model_file(draw) -> bytes:
     if kind == "anchor":
         return MODEL.replace("units: {length: mm, angle: deg}", "units: &u {length: mm, angle: deg}\nx: *u").encode()
     if kind == "huge":
-        return MODEL.replace("r: 600", "r: " + draw(st.sampled_from(("1" * 400, "1e400", "-1e400", "1" * 5000)))).encode()
+        return MODEL.replace("r: 600", "r: " + draw(st.sampled_from(("1" * 400, "1e400", "-1e400",
+                                                                     "1" * 5000)))).encode()
     if kind == "empty":
         return draw(st.sampled_from((b"", b"\n", b"---\n", b"# nothing\n", b"[]", b"3", b"null")))
     if kind == "binary":
@@ -235,7 +236,8 @@ def result_file(draw, base: str) -> bytes:
     if kind == "duplicate":
         return base.replace('"loss"', '"loss": "x", "loss"', 1).encode()
     if kind == "nan":
-        return base.replace('"nfev": ', '"nfev": NaN, "x": ', 1).replace('"sigma0_m": ', '"sigma0_m": Infinity, "y": ', 1).encode()
+        return base.replace('"nfev": ', '"nfev": NaN, "x": ', 1).replace('"sigma0_m": ', '"sigma0_m": Infinity, "y": ',
+                                                                         1).encode()
     if kind == "huge":
         return base.replace('"nfev": ', '"nfev": ' + "9" * draw(st.sampled_from((30, 5000))) + ', "x": ', 1).encode()
     if kind == "empty":

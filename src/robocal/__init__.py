@@ -12,7 +12,8 @@ from ._version import __version__
 
 # name -> public module that provides it
 _EVERYDAY = {
-    "errors": ("RobocalError", "InputError", "DegenerateDataError", "RobocalWarning", "CheckWarning", "ConvergenceWarning",
+    "errors": ("RobocalError", "InputError", "DegenerateDataError", "RobocalWarning", "CheckWarning",
+               "ConvergenceWarning",
                "MisfitWarning", "IdentifiabilityWarning"),
     "kinematics": ("Frame", "Marker", "Payload", "RobotModel", "serial_model", "parallel_beta_frames",
                    "mdh_transform", "evaluate", "forward_kinematics", "jacobian", "gravity_loads", "joint_jacobian",
@@ -20,7 +21,8 @@ _EVERYDAY = {
                    "random_configurations", "default_masses"),
     "io": ("Measurements", "read_model", "write_model", "model_from_dict", "model_to_dict", "read_measurements",
            "write_measurements", "split_sets", "read_result", "write_result", "read_urdf", "write_urdf",
-           "from_standard_dh", "mdh_table", "write_mdh_csv", "read_dh_table", "urdf_text", "to_standard_dh", "read_repeatability_csv"),
+           "from_standard_dh", "mdh_table", "write_mdh_csv", "read_dh_table", "urdf_text", "to_standard_dh",
+           "read_repeatability_csv"),
     "sim": ("simulate", "measure", "perturb_model"),
     "limit": ("AccuracyLimit", "PoseRepeatability", "PrecisionResult", "PredictedPrecision", "RepeatabilityData",
               "RepeatabilityResult", "accuracy_limit", "controller_precision", "iso9283_repeatability",

@@ -16,18 +16,18 @@ only place where millimetres appear.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass, field
-from typing import Callable, Hashable, Sequence
 
 import numpy as np
 
 from ._errors import InputError, check_choice
-from ._options import LIMIT_CHUNK, LIMIT_MARKER_MODES
 from ._kinematics import evaluate, kinematic_pass, layout
 from ._model import RobotModel
+from ._options import LIMIT_CHUNK, LIMIT_MARKER_MODES
 from ._parameters import families, parameter_layout, parameter_vector
 from ._problem import sampling_box
-from ._spatial import cross
+from ._spatial import cross, vector3
 from ._threads import one_blas_thread
 
 PERCENTILES = (50.0, 90.0, 95.0, 99.0)
@@ -79,7 +79,7 @@ class PoseRepeatability:
     pose: Hashable
     n_cycles: int
     barycentre: tuple[float, float, float]
-    l: tuple[float, ...]
+    l: tuple[float, ...]  # noqa: E741 - ISO 9283's symbol l_j
     l_mean: float
     s_l: float
     rp: float
@@ -198,11 +198,11 @@ def iso9283_repeatability(pose_ids: Sequence[Hashable], points) -> Repeatability
                              where="pose_ids")
         Pj = P[rows]
         bary = Pj.mean(axis=0)
-        l = np.linalg.norm(Pj - bary, axis=1)
-        l_mean = float(l.mean())
-        s_l = float(l.std(ddof=1))
-        poses.append(PoseRepeatability(pose=pid, n_cycles=len(rows), barycentre=tuple(float(v) for v in bary),
-                                       l=tuple(float(v) for v in l), l_mean=l_mean, s_l=s_l,
+        dist = np.linalg.norm(Pj - bary, axis=1)
+        l_mean = float(dist.mean())
+        s_l = float(dist.std(ddof=1))
+        poses.append(PoseRepeatability(pose=pid, n_cycles=len(rows), barycentre=vector3(bary),
+                                       l=tuple(float(v) for v in dist), l_mean=l_mean, s_l=s_l,
                                        rp=l_mean + 3.0 * s_l))
     worst = max(poses, key=lambda r: r.rp)
     return RepeatabilityResult(poses=tuple(poses), rp=worst.rp, worst_pose=worst.pose)
@@ -231,7 +231,7 @@ def rounded_parameters(model: RobotModel, length_quantum: float, angle_quantum: 
     lay = layout(model)
     params = parameter_layout(model)
     quantum = {"length": length_quantum, "angle": angle_quantum}
-    chosen = [params[n] for n in families(model)["geometric"] 
+    chosen = [params[n] for n in families(model)["geometric"]
               if params[n].quantity == "length" or params[n].role == "frame"]
     # parameter-vector order, so the random stream does not depend on how the families list them
     chosen.sort(key=lambda prm: prm.index)
@@ -349,9 +349,11 @@ def controller_precision(model: RobotModel, *, encoder_resolution, length_quantu
         dp = (u[:, 2 * nj:] - 0.5) * rp.quanta
         ref = kinematic_pass(model, lay, p, q @ C.T).P
         ps = kinematic_pass(model, lay, p, (q + dq) @ C.T)
+        P = ps.P
+        assert ref is not None and P is not None  # passes with markers
         worst = np.zeros(m)
         for k in sel:
-            d = ps.P[k] + parameter_displacement(ps, rot, rp.steps, lay.marker_path[k, rp.steps], dp, ps.P[k])
+            d = P[k] + parameter_displacement(ps, rot, rp.steps, lay.marker_path[k, rp.steps], dp, P[k])
             worst = np.maximum(worst, np.linalg.norm(d - ref[k], axis=1))
         sq = worst * worst
         s1 += float(worst.sum())

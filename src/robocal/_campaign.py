@@ -18,10 +18,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._compensation import compensate
-from ._measurements import Measurements, approach_sides
 from ._accuracy_limit import rounded_parameters
+from ._compensation import compensate
 from ._kinematics import evaluate, gravity_loads
+from ._measurements import Measurements, approach_sides
 from ._model import RobotModel
 from ._parameters import model_from_vector, parameter_vector
 from ._threads import one_blas_thread

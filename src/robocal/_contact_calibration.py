@@ -287,7 +287,8 @@ def calibrate_contacts(model: RobotModel, contacts: Contacts, *, data: Measureme
     return ContactCalibration(
         nominal_model=model, calibrated_model=calibrated, parameters=estimates, covariance=cov.covariance[:k, :k],
         correlation=cov.correlation[:k, :k], identifiability=ident,
-        nuisance={n: (float(sol.p[prob.n_robot + i]), float(cov.std[k + i])) for i, n in enumerate(prob.nuisance_names)},
+        nuisance={n: (float(sol.p[prob.n_robot + i]), float(cov.std[k + i]))
+                  for i, n in enumerate(prob.nuisance_names)},
         fit_before=contact_errors(model, contacts), fit_after=contact_errors(calibrated, contacts),
         validation_before=None if validation is None else contact_errors(model, validation),
         validation_after=None if validation is None else contact_errors(calibrated, validation),

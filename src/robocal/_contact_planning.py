@@ -64,7 +64,7 @@ def _design(model: RobotModel, campaign: Contacts, names, placements: int, poses
     std = np.sqrt(np.diag(np.linalg.pinv(J.T @ J)))[:k]
     lay = parameter_layout(model)
     ratios = {n: s / bounds[lay[n].quantity] for n, s in zip(ident.identified, std)}
-    worst = max(ratios, key=ratios.get)
+    worst = max(ratios, key=lambda n: ratios[n])
     return SocketDesign(placements, poses, int(campaign.q.shape[0]), dict(zip(ident.identified, map(float, std))),
                         {n: lay[n].unit for n in ident.identified}, tuple(u.name for u in ident.unreachable), worst,
                         float(ratios[worst]))

@@ -17,6 +17,7 @@ from ._kinematics import evaluate
 from ._model import RobotModel
 from ._parameters import parameter_layout
 from ._problem import random_configurations, sampling_box
+from ._spatial import vector3
 
 # a 3-socket plate (m, in the plate's frame): spacings of 200, 150 and 250 mm
 PLATE = {"A": (0.0, 0.0, 0.0), "B": (0.2, 0.0, 0.0), "C": (0.0, 0.15, 0.0)}
@@ -123,7 +124,7 @@ def plane_campaign(true: RobotModel, *, planes: int = 4, poses_per_plane: int = 
         rows_q.append(qn)
         sig.append(s)
         target += [f"plane{k + 1}"] * poses_per_plane
-        known_planes.append(KnownPlane(f"plane{k + 1}", tuple(float(v) for v in R[:, 2]), float(R[:, 2] @ origin)))
+        known_planes.append(KnownPlane(f"plane{k + 1}", vector3(R[:, 2]), float(R[:, 2] @ origin)))
     q = np.vstack(rows_q)
     return Contacts(q=q, marker=(true.marker_names[marker],) * len(q), kind=("plane",) * len(q), target=tuple(target),
                     placement=("",) * len(q), sigma=np.concatenate(sig), planes=tuple(known_planes) if known else (),

@@ -18,15 +18,15 @@ parameters themselves are a choice, written down here:
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from typing import Sequence
 
 import numpy as np
 
 from ._errors import InputError
 from ._model import DEFAULT_PARALLEL_TOL, Frame, Marker, RobotModel, mdh_transform, parallel_beta_frames
 from ._parameters import KIND_QUANTITY
-from ._spatial import inverse4, matrix_tuple, pose4, rot4, rot_matrix, trans4, unit_vector
+from ._spatial import inverse4, matrix_tuple, pose4, rot4, rot_matrix, trans4, unit_vector, vector3
 from ._units import parse_units, unit_factors
 
 # the columns of an MDH table, beta to r first as the paper lists them
@@ -122,7 +122,7 @@ def from_standard_dh(rows: Sequence, *, name: str, markers: Sequence = (("tool",
     mk = []
     for mname, p, R in marker_placements(markers, "markers"):
         X = X_tail @ pose4(R, p)
-        mk.append(Marker(mname, len(frames) - 1, tuple(float(v) for v in X[:3, 3]), matrix_tuple(X[:3, :3])))
+        mk.append(Marker(mname, len(frames) - 1, vector3(X[:3, 3]), matrix_tuple(X[:3, :3])))
     if joint_limits is None:
         joint_limits = [(-math.pi, math.pi) if f.joint == "revolute" else (0.0, 1.0) for f in frames]
     if len(joint_limits) != len(frames):
@@ -134,7 +134,7 @@ def from_standard_dh(rows: Sequence, *, name: str, markers: Sequence = (("tool",
     return RobotModel(
         name=name, frames=tuple(frames), joint_names=tuple(names),
         joint_limits=tuple((float(lo), float(hi)) for lo, hi in joint_limits),
-        markers=tuple(mk), base_position=tuple(float(v) for v in X_W0[:3, 3]),
+        markers=tuple(mk), base_position=vector3(X_W0[:3, 3]),
         base_rotation=matrix_tuple(X_W0[:3, :3]),
         description="imported from classic DH",
     )
@@ -190,31 +190,31 @@ def line_frames(points: np.ndarray, axes: np.ndarray, tol: float) -> tuple[np.nd
     for j in range(n):
         zj = axes[j]
         if j + 1 == n:
-            O, x = foot, _perpendicular(zj, x_prev)
+            origin, x = foot, _perpendicular(zj, x_prev)
         else:
             zn, pn = axes[j + 1], points[j + 1]
             cr = np.cross(zj, zn)
             if np.linalg.norm(cr) <= math.sin(tol):
                 # parallel: normal through the previous foot (r_j = 0), towards the nearest point of
                 # the next axis; a slight tilt of that axis goes to beta of frame j+1
-                O = foot
-                near = pn + ((O - pn) @ zn) * zn
-                x = _perpendicular(zj, near - O) if np.linalg.norm(near - O) > 1e-12 else \
+                origin = foot
+                near = pn + ((origin - pn) @ zn) * zn
+                x = _perpendicular(zj, near - origin) if np.linalg.norm(near - origin) > 1e-12 else \
                     _perpendicular(zj, x_prev)
                 foot = near
             else:
-                # common normal: solve for the feet O = pj + s zj and near = pn + u zn
+                # common normal: solve for the feet, origin = pj + s zj and near = pn + u zn
                 pj = points[j]
                 A = np.array([[zj @ zj, -(zj @ zn)], [zj @ zn, -(zn @ zn)]])
                 rhs = np.array([(pn - pj) @ zj, (pn - pj) @ zn])
                 s, u = np.linalg.solve(A, rhs)
-                O, near = pj + s * zj, pn + u * zn
+                origin, near = pj + s * zj, pn + u * zn
                 x = unit_vector(cr)
-                if (near - O) @ x < -1e-12:
+                if (near - origin) @ x < -1e-12:
                     x = -x  # keep d >= 0 where the axes do not meet
                 foot = near
         x = unit_vector(x - (x @ zj) * zj)
-        frames.append(pose4(np.column_stack([x, np.cross(zj, x), zj]), O))
+        frames.append(pose4(np.column_stack([x, np.cross(zj, x), zj]), origin))
         x_prev = x
     return X_0B, frames
 
@@ -284,7 +284,7 @@ def _serial_frames(model: RobotModel, what: str) -> None:
 
 def frame_poses(model: RobotModel) -> list[np.ndarray]:
     """``X_Wj`` (4x4) of every frame at zero readings."""
-    out = []
+    out: list[np.ndarray] = []
     for f in model.frames:
         parent = model.X_WB if f.parent < 0 else out[f.parent]
         out.append(parent @ mdh_transform(f))

@@ -24,14 +24,14 @@ Conventions (see docs/conventions.md):
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field, fields, replace
-from typing import Sequence
 
 import numpy as np
 
 from ._errors import InputError
 from ._options import BACKLASH_SIDES
-from ._spatial import rot4, rot_matrix, trans4
+from ._spatial import rot4, rot_matrix, trans4, vector3
 
 JOINT_TYPES = ("revolute", "prismatic", "fixed")
 DEFAULT_PARALLEL_TOL = np.deg2rad(1.0)
@@ -209,7 +209,7 @@ class RobotModel:
         except ValueError:
             raise InputError(f"unknown frame {name!r}; frames are {', '.join(self.frame_names)}") from None
 
-    def replace(self, **changes) -> "RobotModel":
+    def replace(self, **changes) -> RobotModel:
         return replace(self, **changes)
 
 
@@ -255,8 +255,8 @@ def _validate(model: RobotModel) -> None:
     if model.backlash_side not in BACKLASH_SIDES:
         raise InputError(f"backlash side must be one of {', '.join(BACKLASH_SIDES)}, got {model.backlash_side!r}",
                          where="backlash.side")
-    for k, pl in enumerate(model.payloads):
-        where = "payload" if not model.other_payloads else f"payload[{k}]"
+    for n, pl in enumerate(model.payloads):
+        where = "payload" if not model.other_payloads else f"payload[{n}]"
         if pl.mass < 0 or not np.isfinite(pl.mass):
             raise InputError(f"payload mass must be non-negative, got {pl.mass}", where=where)
         if not (-1 <= pl.frame < len(model.frames)):
@@ -363,13 +363,14 @@ def default_masses(model: RobotModel, total_mass: float | None = None) -> RobotM
     >>> [round(f.mass, 3) for f in m.frames], m.frames[1].com
     ([5.0, 3.0], (0.15, 0.0, 0.0))
     """
-    lengths, centres = [], []
-    for i, f in enumerate(model.frames):
+    lengths: list[float] = []
+    centres: list[tuple[float, float, float]] = []
+    for i in range(len(model.frames)):
         ends = [mdh_transform(g)[:3, 3] for g in model.frames if g.parent == i]
         ends += [np.asarray(mk.position, dtype=float) for mk in model.markers if mk.frame == i]
         seg = np.array([np.linalg.norm(e) for e in ends]) if ends else np.zeros(0)
         lengths.append(float(seg.sum()))
-        centres.append(tuple(float(c) for c in (sum(s * e / 2 for s, e in zip(seg, ends)) / seg.sum()))
+        centres.append(vector3(sum(s * e / 2 for s, e in zip(seg, ends)) / seg.sum())
                        if seg.sum() > 0 else (0.0, 0.0, 0.0))
     total_length = sum(lengths)
     if total_length <= 0:
@@ -432,7 +433,7 @@ def serial_model(
     (('j1', 'j2'), [True, True])
     """
     frames = []
-    joint_names = []
+    joint_names: list[str] = []
     for i, row in enumerate(rows):
         row = dict(row)
         fname = row.pop("name", f"j{i + 1}")
@@ -458,10 +459,10 @@ def serial_model(
         frames=tuple(frames),
         joint_names=tuple(joint_names),
         joint_limits=tuple((float(lo), float(hi)) for lo, hi in joint_limits),
-        markers=tuple(Marker(n, last, tuple(float(v) for v in p)) for n, p in markers),
-        base_position=tuple(float(v) for v in base_position),
+        markers=tuple(Marker(n, last, vector3(p)) for n, p in markers),
+        base_position=vector3(base_position),
         base_rotation=R,
-        gravity=tuple(float(v) for v in gravity),
+        gravity=vector3(gravity),
         payload=payload if payload is not None else Payload(frame=last),
         description=description,
     )

@@ -20,15 +20,16 @@ from __future__ import annotations
 
 import fnmatch
 import types
+from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from functools import lru_cache
-from typing import Iterable
+from typing import Any
 
 import numpy as np
 
 from ._errors import InputError, excerpt
 from ._model import RobotModel
-from ._spatial import matrix_tuple, rotation_vector, small_rotation
+from ._spatial import matrix_tuple, rotation_vector, small_rotation, vector3
 
 BASE_KINDS = ("x", "y", "z", "rx", "ry", "rz")
 GEOMETRIC_KINDS = ("gamma", "b", "beta", "alpha", "d", "theta", "r")
@@ -165,7 +166,8 @@ def parameter_vector(model: RobotModel, reference: RobotModel | None = None) -> 
     if reference is not None:
         p[3:6] = rotation_vector(np.asarray(reference.base_rotation).T @ np.asarray(model.base_rotation))
         for m, (mk, mr) in enumerate(zip(model.markers, reference.markers)):
-            p[lay.marker0[m] + 3:lay.marker0[m] + 6] = rotation_vector(np.asarray(mr.rotation).T @ np.asarray(mk.rotation))
+            relative = np.asarray(mr.rotation).T @ np.asarray(mk.rotation)
+            p[lay.marker0[m] + 3:lay.marker0[m] + 6] = rotation_vector(relative)
     return p
 
 
@@ -174,16 +176,17 @@ def model_from_vector(model: RobotModel, p: np.ndarray) -> RobotModel:
     lay = parameter_layout(model)
     p = np.asarray(p, dtype=float)
     Rb = np.asarray(model.base_rotation) @ small_rotation(*p[3:6])
-    frames = tuple(
-        replace(f, **{k: float(p[lay.frame0[i] + j]) for j, k in enumerate(FRAME_KINDS)})
-        for i, f in enumerate(model.frames)
-    )
+
+    def values(i: int) -> dict[str, Any]:
+        return {k: float(p[lay.frame0[i] + j]) for j, k in enumerate(FRAME_KINDS)}
+
+    frames = tuple(replace(f, **values(i)) for i, f in enumerate(model.frames))
     markers = []
     for m, mk in enumerate(model.markers):
         q = p[lay.marker0[m]:lay.marker0[m] + len(MARKER_KINDS)]
         R = np.asarray(mk.rotation) @ small_rotation(*q[3:6])
-        markers.append(replace(mk, position=tuple(float(v) for v in q[:3]), rotation=matrix_tuple(R)))
-    return model.replace(base_position=tuple(float(v) for v in p[0:3]), base_rotation=matrix_tuple(Rb),
+        markers.append(replace(mk, position=vector3(q[:3]), rotation=matrix_tuple(R)))
+    return model.replace(base_position=vector3(p[0:3]), base_rotation=matrix_tuple(Rb),
                          frames=frames, markers=tuple(markers))
 
 

@@ -10,8 +10,8 @@ import numpy as np
 
 from ._errors import DegenerateDataError, InputError, check_choice
 from ._identifiability import ONE_SIDE, identifiability
-from ._options import POSE_CRITERIA
 from ._model import RobotModel
+from ._options import POSE_CRITERIA
 from ._parameters import has_backlash_parameters, parameter_vector
 from ._problem import design_problem, random_configurations
 from ._threads import one_blas_thread
@@ -117,10 +117,8 @@ class _Greedy:
         """Each candidate's gain if added: log det(I + H_i) (D), or the fall of tr(W M^-1),
         tr((I + H_i)^-1 F_i) (I); -inf for poses already taken."""
         S = self.H + np.eye(self.H.shape[1])
-        if self.criterion == "D":
-            g = np.linalg.slogdet(S)[1]
-        else:
-            g = np.einsum("nrs,nsr->n", _inverses(S), self.F)
+        F = self.F  # held for the I criterion only
+        g = np.linalg.slogdet(S)[1] if F is None else np.einsum("nrs,nsr->n", _inverses(S), F)
         g[self.taken] = -np.inf
         return g
 
@@ -231,9 +229,9 @@ class CampaignPrediction:
 
     ``parameters``: the parameters identifiable from these poses, in preference order, with
     ``std`` their predicted standard deviations at position noise ``noise`` (m per axis);
-    ``identifiability``: the analysis at these poses (what is eliminated, what absorbs it). ``error_rms``: the predicted RMS
-    position error of the calibrated model over ``n_workspace`` configurations within the joint
-    limits (what parameter uncertainty leaves, the instrument's noise not counted);
+    ``identifiability``: the analysis at these poses (what is eliminated, what absorbs it).
+    ``error_rms``: the predicted RMS position error of the calibrated model over ``n_workspace``
+    configurations within the joint limits (what parameter uncertainty leaves, the instrument's noise not counted);
     ``held_out_rms``: the RMS error a measurement at such a configuration would show against the
     calibrated model (the same plus the instrument's noise on that measurement)."""
 

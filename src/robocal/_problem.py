@@ -18,14 +18,21 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ._errors import InputError
-from ._kinematics import (CHUNK_POSES, LARGE_POSES, evaluate_state, frame_approach, jacobian_columns, layout,
-                          moved_state, moves_rigidly)
+from ._kinematics import (
+    CHUNK_POSES,
+    LARGE_POSES,
+    evaluate_state,
+    frame_approach,
+    jacobian_columns,
+    layout,
+    moved_state,
+    moves_rigidly,
+)
 from ._linalg import r_factor, reduced
 from ._measurements import Measurements, Noise, approach_of
 from ._model import RobotModel
 from ._parameters import has_backlash_parameters, has_compliance_parameters
 from ._threads import one_blas_thread
-
 
 # A problem keeps its last evaluations (the calibration asks for the start again after the solve,
 # and for the solution after the fit of the errors before it): up to STATES_KEPT, fewer for many
@@ -62,14 +69,14 @@ class Problem:
         self.sel = [np.nonzero(data.mask[:, j])[0] for j in range(len(data.marker_names))]
         # 6D rows mix metres and radians: without stated deviations, each part is weighed by its noise
         self.weighted = data.sigma is not None or (self.use_rot and noise is not None)
-        sp = data.sigma if data.sigma is not None else (noise.position if self.weighted else 1.0)
+        sp = data.sigma if data.sigma is not None else (noise.position if noise is not None and self.weighted else 1.0)
         self.w = [1.0 / np.broadcast_to(sp, data.mask.shape)[s, j] for j, s in enumerate(self.sel)]
         self.meas = [data.positions[s, j] for j, s in enumerate(self.sel)]
-        if self.use_rot:
+        if self.use_rot and data.rot_mask is not None:
             self.sel_r = [np.nonzero(data.rot_mask[:, j])[0] for j in range(len(data.marker_names))]
             sr = data.sigma_rot if data.sigma_rot is not None else (noise.rotation if noise is not None else 1.0)
             self.w_r = [1.0 / np.broadcast_to(sr, data.rot_mask.shape)[s, j] for j, s in enumerate(self.sel_r)]
-        self._states = {}    # shared with the problems ``over`` makes: they evaluate the same poses
+        self._states: dict = {}    # shared with the problems ``over`` makes: they evaluate the same poses
         if chunked is None:
             chunked = data.n_poses > LARGE_POSES
         if chunked and (self.use_rot or self.backlash):
@@ -218,6 +225,7 @@ class Problem:
         """(n, 3) rotation vectors of R_pred R_meas^T in W for marker j's measured orientations."""
         s = self.sel_r[j]
         Rp = st.ps.RM[self.marker_idx[j]][s]
+        assert self.data.rotations is not None  # rows of orientations exist only with them
         Rm = self.data.rotations[s, j]
         return Rotation.from_matrix(Rp @ np.swapaxes(Rm, -1, -2)).as_rotvec()
 

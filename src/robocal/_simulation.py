@@ -39,7 +39,8 @@ def perturb_model(model: RobotModel, names, *, length_error=(1e-4, 1e-3), angle_
         bounds = ranges[lay[n].quantity]
         if bounds is None:
             continue
-        p[lay[n].index] += _signed_uniform(rng, *bounds, 1)[0]
+        lo, hi = bounds
+        p[lay[n].index] += _signed_uniform(rng, lo, hi, 1)[0]
         if lay[n].quantity == "compliance" or lay[n].family == "backlash":
             p[lay[n].index] = abs(p[lay[n].index])
     return model_from_vector(model, p)

@@ -113,7 +113,8 @@ def _normal_equations(problem, p: np.ndarray, r: np.ndarray | None = None) -> _N
     from the Jacobian formed whole (its R factor through the Gram matrix when well conditioned,
     ``r_factor``)."""
     if getattr(problem, "chunked", False):
-        return _Normal(*problem.normal_equations(p), J=None, r=r)
+        R, g, cost = problem.normal_equations(p)
+        return _Normal(R=R, g=g, cost=cost, J=None, r=r)
     J = problem.jacobian(p)
     r = problem.residuals(p) if r is None else r
     R = problem.jacobian_factor(p) if hasattr(problem, "jacobian_factor") else r_factor(J)

@@ -10,6 +10,7 @@ import csv
 import io
 import math
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
@@ -62,12 +63,13 @@ def mdh_csv(model: RobotModel, *, units: str = "mm-deg") -> str:
     limits on the first frame it drives alone, then the base and marker rows."""
     names = dict(zip(("length", "angle"), parse_units(units)))
     factors = unit_factors(units)
-    first = {}
+    first: dict[int, int] = {}
     for i, f in enumerate(model.frames):
         if len(f.coupling) == 1 and f.coupling[0][1] == 1.0:
             first.setdefault(f.coupling[0][0], i)
     owner = {i: k for k, i in first.items()}
-    rows = [{**row, **_limits(model, owner.get(i), names, factors)} for i, row in enumerate(mdh_table(model, units=units))]
+    rows = [{**row, **_limits(model, owner.get(i), names, factors)}
+            for i, row in enumerate(mdh_table(model, units=units))]
     rows.insert(0, {"frame": "base", "parent": "world", "joint": "base", **_placement(model.X_WB, names, factors)})
     for mk in model.markers:
         rows.append({"frame": mk.name, "parent": model.frames[mk.frame].name, "joint": "marker",
@@ -101,7 +103,7 @@ def dh_csv(model: RobotModel, *, units: str = "mm-deg", max_offset: float | None
 class _Table:
     """The rows of a DH table file as SI numbers by column base name, with the file named in errors."""
 
-    def __init__(self, path):
+    def __init__(self, path) -> None:
         self.source = str(path)
         text, _ = read_text(path)
         numbered = [(i, ln) for i, ln in enumerate(text.splitlines(), 1) if ln.strip() and not ln.lstrip().startswith("#")]
@@ -241,7 +243,7 @@ def _classic(table: _Table, name: str) -> RobotModel:
                              where=table.where(line, "joint"))
         rows.append({"name": jname, "joint": kind, **{k: table.get(line, row, k) for k, _ in DH_KINDS}})
         limits.append(table.limits(line, row, kind))
-    mk = [(mname, X[:3, 3], X[:3, :3]) for mname, X in
+    mk: list[tuple] = [(mname, X[:3, 3], X[:3, :3]) for mname, X in
           ((m, table.placement(line, row)) for line, row, m in markers)] or [("tool", (0.0, 0.0, 0.0))]
     model = from_standard_dh(rows, name=name, markers=mk, base=base, joint_limits=limits)
     return model.replace(description=f"imported from the classic DH table {table.source}")
@@ -276,7 +278,7 @@ def _modified(table: _Table, name: str) -> RobotModel:
         if parent not in ("base", *frame_names[:i]):
             raise InputError(f"parent {parent!r} is not 'base' or an earlier frame", source=table.source,
                              where=table.where(line, "parent"))
-        coupling = []
+        coupling: list[tuple[int, float]] = []
         if kind != "fixed":
             for term in filter(None, (t.strip() for t in table.word(line, row, "reading").split("+"))):
                 coef, _, reading = term.rpartition("*")
@@ -293,7 +295,7 @@ def _modified(table: _Table, name: str) -> RobotModel:
             if not coupling:
                 raise InputError("a moving frame needs a reading", source=table.source,
                                  where=table.where(line, "reading"))
-        values = {k: table.get(line, row, k, 0.0) for k in MDH_TABLE_KINDS}
+        values: dict[str, Any] = {k: table.get(line, row, k, 0.0) for k in MDH_TABLE_KINDS}
         frames.append(Frame(name=fname, joint=kind, parent=-1 if parent == "base" else frame_names.index(parent),
                             coupling=tuple(coupling), **values))
     said = ["has_beta" in table.text and table.word(line, row, "has_beta").lower() == "true"
@@ -307,10 +309,10 @@ def _modified(table: _Table, name: str) -> RobotModel:
             raise InputError(f"marker parent {parent!r} is not a frame", source=table.source,
                              where=table.where(line, "parent"))
         X = table.placement(line, row)
-        mk.append(Marker(mname, frame_names.index(parent), tuple(float(v) for v in X[:3, 3]), matrix_tuple(X[:3, :3])))
+        mk.append(Marker(mname, frame_names.index(parent), vector3(X[:3, 3]), matrix_tuple(X[:3, :3])))
     X_WB = np.eye(4) if base is None else base
     return RobotModel(name=name, frames=tuple(frames), joint_names=tuple(readings),
                       joint_limits=tuple(limits.get(r, (-math.pi, math.pi)) for r in readings),
                       markers=tuple(mk) or (Marker("tool", len(frames) - 1),),
-                      base_position=tuple(float(v) for v in X_WB[:3, 3]), base_rotation=matrix_tuple(X_WB[:3, :3]),
+                      base_position=vector3(X_WB[:3, 3]), base_rotation=matrix_tuple(X_WB[:3, :3]),
                       description=f"imported from the modified DH table {table.source}")

@@ -69,6 +69,10 @@ def parse_orientation(text: str | None, *, source: str | None = None, where: str
                      "(any scipy sequence)", source=source, where=where)
 
 
+def _sigma_columns(marker: str) -> str:
+    return ", ".join(f"{marker}_{p}" for p in SIGMA_AXES)
+
+
 class _Columns:
     """What each header column holds, with its unit resolved (or an InputError saying how to declare it)."""
 
@@ -463,7 +467,7 @@ def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str, ta
             raise InputError(f"{len(row)} cells where the header has {width} columns",
                              source=source, where=f"line {line}")
 
-        def num(k, *, required=True):
+        def num(k, *, required=True, row=row, line=line):
             return _number(row[k], decimal, source, line, cols.names[k], required)
 
         for j, jn in enumerate(cols.joint_names):
@@ -487,7 +491,7 @@ def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str, ta
                         sigma_rot[i, m] = _sigma(num, mc, rot_parts, source, line, cols.names)
         if payload is not None:
             payload[i] = num(cols.special["payload_kg"])
-        for j, jn in enumerate(cols.joint_names if approach is not None else ()):
+        for j, jn in enumerate(cols.joint_names if cols.approach_cols else ()):
             approach[i, j] = num(cols.approach_cols[jn])
             if approach[i, j] not in (-1.0, 1.0):
                 raise InputError(f"an approach direction is +1 or -1, got {row[cols.approach_cols[jn]]!r}",
@@ -504,7 +508,7 @@ def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str, ta
         labels.append(label or f"line {line}")
     if not targets and not np.any(np.isfinite(pos)):
         raise InputError("no marker position in any row", source=source)
-    extra = {"joint_kinds": tuple(cols.joint_kinds)}
+    extra: dict[str, object] = {"joint_kinds": tuple(cols.joint_kinds)}
     if "set" in cols.special:
         extra["validation"] = validation
     if "series" in cols.special:
@@ -512,7 +516,8 @@ def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str, ta
     if approach is not None:
         extra["approach"] = approach
     return Measurements(q=q, positions=pos, marker_names=tuple(cols.markers), joint_names=tuple(cols.joint_names),
-                        rotations=rot, sigma=sigma, sigma_rot=sigma_rot, payload_mass=payload,
+                        rotations=rot if has_rot else None, sigma=sigma if has_sigma else None,
+                        sigma_rot=sigma_rot if has_sigma_rot else None, payload_mass=payload,
                         labels=tuple(labels), source=source, sha256=digest, extra=extra)
 
 
@@ -712,9 +717,9 @@ def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, 
             if data.joint_names else list(model.reading_quantities)
         joint_names = data.joint_names or model.joint_names
     else:
-        kinds = data.extra.get("joint_kinds")
+        kinds = list(data.extra.get("joint_kinds") or ())
         joint_names = data.joint_names
-        if kinds is None or not joint_names:
+        if not kinds or not joint_names:
             raise InputError("the joint types are unknown: pass the model so each joint's unit is known",
                              where="model")
     header = ["pose"]
@@ -743,9 +748,10 @@ def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, 
         buf.write(f"# orientation: {orientation}\n")
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(header)
-    rots = None
-    if has_rot:
-        R = Rotation.from_matrix(np.where(data.rot_mask[..., None, None], data.rotations, np.eye(3)).reshape(-1, 3, 3))
+    rots = np.zeros((data.n_poses, len(data.marker_names), 0))
+    rmask = data.rot_mask if data.rot_mask is not None else np.zeros(data.mask.shape, dtype=bool)
+    if data.rotations is not None:
+        R = Rotation.from_matrix(np.where(rmask[..., None, None], data.rotations, np.eye(3)).reshape(-1, 3, 3))
         if kind == "quat":
             rots = R.as_quat()                  # (x, y, z, w); scalar_first needs scipy 1.14
             if orientation == "quat_wxyz":
@@ -762,7 +768,7 @@ def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, 
             if data.sigma is not None:
                 row.append(fmt(data.sigma[i, m], L) if seen else "")
             if has_rot:
-                rseen = data.rot_mask[i, m]
+                rseen = rmask[i, m]
                 row += [fmt(v) if rseen else "" for v in rots[i, m]]
                 if data.sigma_rot is not None:
                     row.append(fmt(data.sigma_rot[i, m], A) if rseen else "")

@@ -36,8 +36,9 @@ def read_repeatability_csv(path, *, units: str | None = None) -> RepeatabilityDa
             raise InputError("the file is empty; a header pose, cycle, x, y, z is required", source=src)
         names = [h.strip().lower() for h in header]
         col, scale = _repeatability_columns(names, units, src)
-        pose_ids, cycles, points, rows_of = [], [], [], {}
-        seen = {}
+        pose_ids, cycles, points = [], [], []
+        rows_of: dict[str, list[int]] = {}
+        seen: dict[tuple[str, int], int] = {}
         for row in reader:
             if not any(cell.strip() for cell in row):
                 continue
@@ -105,11 +106,12 @@ def _repeatability_columns(names: list[str], units: str | None, src: str) -> tup
         col[c] = i
         if c not in "xyz":
             continue
-        if suffix is None and units is None:
+        unit = suffix if suffix is not None else units
+        if unit is None:
             raise InputError(f"the unit of column {c!r} is not declared: name it {c}_mm or {c}_m, or give the "
                              "units (--csv-units mm|m)", source=src, where="header")
         if suffix is not None and units is not None and suffix != units:
             raise InputError(f"column {names[i]!r} says {suffix} but units {units!r} were given",
                              source=src, where="header")
-        scale[c] = LENGTH_UNITS[suffix or units]
+        scale[c] = LENGTH_UNITS[unit]
     return col, scale

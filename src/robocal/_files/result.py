@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from .._accuracy_limit import AccuracyLimit, PoseRepeatability, PrecisionResult, RepeatabilityResult
-from .._checks import STATUSES, Check
 from .._calibration import CalibrationResult, ErrorStats, ErrorSummary, LimitJudgement, ParameterEstimate
+from .._checks import STATUSES, Check
 from .._errors import InputError, excerpt
 from .._identifiability import Absorption, IdentifiabilityResult, status_table
 from .._in_use import AccuracyInUse, Coverage, UseStats
@@ -417,7 +417,8 @@ def _errors(doc: _Doc, d: dict, n_markers: int, n_joints: int, folder: Path | No
               "positions": (n_markers, 3), "readings": (n_joints,), "rotation_before": (n_markers,),
               "rotation_after": (n_markers,)}
     required = {"fit_before", "fit_after", "fit_residual_vectors"}
-    out, n_poses = {}, {}
+    out: dict[str, np.ndarray | None] = {}
+    n_poses: dict[str, int] = {}
     for key, field in _ERROR_ARRAYS:
         which, part = key.split("_", 1)
         value = d.get(key) if stored is not None else doc.get(d, key, "errors", list, optional=key not in required)
@@ -429,8 +430,9 @@ def _errors(doc: _Doc, d: dict, n_markers: int, n_joints: int, folder: Path | No
         a = doc.array(value, f"errors.{key}", (n_poses.get(which),) + shapes[part])
         n_poses.setdefault(which, a.shape[0])
         out[field] = a
-    if out["measured_positions"] is None:
-        out["measured_positions"] = np.full(out["residual_vectors"].shape, np.nan)
+    residuals = out["residual_vectors"]
+    if out["measured_positions"] is None and residuals is not None:   # residuals are required
+        out["measured_positions"] = np.full(residuals.shape, np.nan)
     if (out["validation_before"] is None) != (out["validation_after"] is None):
         raise doc.error("errors", "validation_before and validation_after must both be given or both be null")
     return out

@@ -229,7 +229,8 @@ def load_json(text: str, source: str):
     try:
         d = json.loads(text, object_pairs_hook=pairs, parse_int=integer, parse_float=number, parse_constant=constant)
     except json.JSONDecodeError as e:
-        raise InputError(f"not valid JSON: {e.msg}", source=source, where=f"line {e.lineno}, column {e.colno}") from None
+        raise InputError(f"not valid JSON: {e.msg}", source=source,
+                         where=f"line {e.lineno}, column {e.colno}") from None
     except RecursionError:
         d = None
     if d is None or _depth(d) > MAX_DEPTH:
@@ -412,10 +413,8 @@ def write_texts(files: dict, *, force: bool = False) -> tuple[str, ...]:
                 raise InputError(f"cannot write: {e.strerror}", source=str(p)) from None
     finally:
         for tmp, _ in staged:
-            try:
+            with contextlib.suppress(FileNotFoundError):
                 os.unlink(tmp)
-            except FileNotFoundError:
-                pass
         _on_sigterm(previous)
     return removed
 

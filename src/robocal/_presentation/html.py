@@ -296,8 +296,8 @@ def _parameter_tables(d: dict, nominal: dict, units: dict, result: CalibrationRe
     frames = [row["frame"] for row in table]
     # a kind is shown where it was a candidate, or where the model holds a non-zero value of it (a
     # fixed mount's gamma and b): nothing the calibrated file keeps is hidden
-    shown = [k for k in FRAME_KINDS if k in ALWAYS_SHOWN or any(row.get(k, "-") != "-" or nominal.get(f"{row['frame']}.{k}")
-                                                                  for row in table)]
+    shown = [k for k in FRAME_KINDS
+             if k in ALWAYS_SHOWN or any(row.get(k, "-") != "-" or nominal.get(f"{row['frame']}.{k}") for row in table)]
     omitted = [k for k in FRAME_KINDS if k not in shown and k not in ("gamma", "b")]
 
     def value_cells(name, unit):
@@ -587,12 +587,12 @@ table.params td,table.params th{padding:1px 3px}td.name{white-space:normal;overf
 .panel{max-height:none;overflow:visible;border:0}h2{break-after:avoid}figure,tr,.card,.notice{break-inside:avoid}
 nav ol{columns:4}:target{outline:none;background:none}}
 @media (max-width:800px){.cards{grid-template-columns:1fr 1fr}nav ol{columns:1}}
-""" % {"before": BEFORE, "after": AFTER, "limit": LIMIT}
+""" % {"before": BEFORE, "after": AFTER, "limit": LIMIT}  # noqa: UP031 - the CSS is full of braces
 
 
 def _errors_section(d: dict, has_val: bool) -> str:
     lim = d.get("limit")
-    n = sum(len((d["errors"].get(k) or [])) for k in ("fit_before", "validation_before"))
+    n = sum(len(d["errors"].get(k) or []) for k in ("fit_before", "validation_before"))
     how = ("Position error of each measured point before (orange) and after (blue) calibration. Filled circles: "
            "fitted poses; open triangles on grey: held-out poses" if n <= DENSE else
            f"Position errors of the {n} poses before (orange) and after (blue) calibration, summarised in bins of "
@@ -609,9 +609,10 @@ def _errors_section(d: dict, has_val: bool) -> str:
 
 def _residuals_section(d: dict) -> str:
     shown, at_points, n = residual_sample(d)
-    where = ("Arrows start at the measured points and are scaled up; the bar gives their scale." if at_points is not None
-             else "The measured positions are not stored in the result, so every arrow starts at a common origin; "
-                  "the bar gives the scale.")
+    where = ("Arrows start at the measured points and are scaled up; the bar gives their scale."
+             if at_points is not None else
+             "The measured positions are not stored in the result, so every arrow starts at a common origin; "
+             "the bar gives the scale.")
     count = (f" {len(shown)} of the {n} measured points are drawn, evenly spaced through the campaign."
              if len(shown) < n else "")
     return _figure(plot_residuals(d), "Fit residuals (calibrated minus measured) of the fitted poses, projected on "
