@@ -103,13 +103,13 @@ def _unreachable(problem: ContactProblem, p: np.ndarray) -> tuple[Unreachable, .
     Jm = (met.marker_jacobian(p[:met.n_robot]) / met.contacts.sigma[:, None, None]).reshape(-1, k)
     Jm = np.vstack([J[:int(np.sum(met.row_kinds() < 2)), :k], Jm])     # tracker rows as they are
     out = []
-    hidden = [(n, _unabsorbed(J[:, i], N, np.linalg.norm(Jm[:, i]))) for i, n in enumerate(base)]
+    hidden = [(n, _unabsorbed(J[:, i], N, float(np.linalg.norm(Jm[:, i])))) for i, n in enumerate(base)]
     gone = tuple(n for n, r in hidden if r < UNREACHABLE_TOL)
     if gone:
         out.append(Unreachable("base", _WHY["base"], gone, max(r for n, r in hidden if n in gone)))
     v = p[lay.indices(lengths)]
     scale = J[:, len(base):len(base) + len(lengths)] @ v
-    r = _unabsorbed(scale, N, np.linalg.norm(Jm[:, len(base):] @ v))
+    r = _unabsorbed(scale, N, float(np.linalg.norm(Jm[:, len(base):] @ v)))
     if r < UNREACHABLE_TOL:
         out.append(Unreachable("scale", _WHY["scale"], lengths, r))
     return tuple(out)
@@ -282,7 +282,7 @@ def calibrate_contacts(model: RobotModel, contacts: Contacts, *, data: Measureme
     checks += [plausibility_check(estimates, tolerances(model), {}, workspace=reach),
                correlation_check([e.name for e in estimates], cov.correlation[:k, :k])]
     tracker = None
-    if data is not None:
+    if data is not None and design.tracker is not None:    # a tracker part exists with data
         tracker = error_stats(design.tracker.error_norms(sol.p[:prob.n_robot]))
     return ContactCalibration(
         nominal_model=model, calibrated_model=calibrated, parameters=estimates, covariance=cov.covariance[:k, :k],
@@ -327,7 +327,7 @@ def _row_checks(design: ContactProblem, sol, data, noise: Noise):
         checks += [replace(out_check, name=f"outliers among the {kind} contacts"),
                    contact_fit_check(kind, r2, s, out)]
         ratios[kind] = float(np.sqrt(np.mean((r2 / s[:, None]) ** 2)))
-    if data is not None:
+    if data is not None and design.tracker is not None:
         residuals = design.tracker.errors(sol.p[:design.n_robot])[data.mask]
         sigma = None if data.sigma is None else data.sigma[data.mask]
         rows, markers = np.nonzero(data.mask)
