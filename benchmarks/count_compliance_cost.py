@@ -25,8 +25,8 @@ import robocal as rc
 warnings.simplefilter("ignore")
 m = arm6r(True)
 both = ("geometric", "compliance")
-_, data = rc.simulate(m, int(sys.argv[2]), seed=1, parameters=both, true_compliance={"j2.k_theta": 4e-6,
-                                                                                     "j3.k_theta": 6e-6})
+_, data = rc.simulate(m, int(sys.argv[2]), seed=1, parameters=both,
+                      true_compliance={"j2.k_theta": 4e-6, "j3.k_theta": 6e-6})
 rc.calibrate(m, data, parameters=("geometric",))          # warm caches (theory analysis)
 rc.calibrate(m, data, parameters=both)
 mode = sys.argv[1]

@@ -77,8 +77,8 @@ class _Facts:
             if len(words) != 4:
                 raise InputError("expected '# distance: SOCKET SOCKET LENGTH sigma=S'", source=source, where=where)
             s = _options(words[3:], source, where).get("sigma")
-            self.distances.append(KnownDistance(words[0], words[1], self._positive(words[2], "length", mm, source,
-                                                                                   where),
+            length = self._positive(words[2], "length", mm, source, where)
+            self.distances.append(KnownDistance(words[0], words[1], length,
                                                 self._positive(s, "sigma", mm, source, where)))
         elif name == "bar":
             if len(words) != 3:

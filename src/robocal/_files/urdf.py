@@ -192,10 +192,9 @@ def _parse_joints(root: ET.Element, source: str) -> tuple[set[str], dict[str, _U
         lim = el.find("limit")
         limits = None
         if lim is not None:  # URDF: lower/upper default to 0
-            lower, upper = (_round_angle(_attr_float(lim, k, 0.0, source, where + " limit"), lim.get(k))
-                            if jtype in ("revolute", "continuous") else _attr_float(lim, k, 0.0, source,
-                                                                                    where + " limit")
-                            for k in ("lower", "upper"))
+            lower, upper = (_attr_float(lim, k, 0.0, source, where + " limit") for k in ("lower", "upper"))
+            if jtype in ("revolute", "continuous"):
+                lower, upper = _round_angle(lower, lim.get("lower")), _round_angle(upper, lim.get("upper"))
             limits = (lower, upper)
         mim = el.find("mimic")
         mimic = None
