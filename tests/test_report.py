@@ -353,7 +353,7 @@ def test_refuses_to_overwrite_and_writes_atomically(full, tmp_path):
 
 
 def test_not_a_result_is_an_input_error(full):
-    with pytest.raises(rc.InputError, match="expected a CalibrationResult, got dict"):
+    with pytest.raises(rc.InputError, match="result: must be a CalibrationResult, got a dict"):
         render_report(full)
     with pytest.raises(rc.InputError, match="nominal_model: missing key"):
         result_from_dict({"schema": "robocal.result/1"})

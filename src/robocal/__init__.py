@@ -1,9 +1,10 @@
 """robocal: identify a robot's geometric and compliance parameters from measurements.
 
-``import robocal as rc`` gives the everyday surface; the subpackages ``robocal.kinematics``,
-``robocal.io``, ``robocal.sim``, ``robocal.limit``, ``robocal.report`` and ``robocal.errors`` hold
-the rest. Conventions (frames, units, parameter order) are in docs/conventions.md. Names load on
-first use, so the command line starts without the numerical libraries.
+``import robocal as rc`` gives the everyday surface; the modules ``robocal.kinematics``,
+``robocal.io``, ``robocal.sim``, ``robocal.limit``, ``robocal.report``, ``robocal.identification``
+and ``robocal.errors`` hold the rest. Conventions (frames, units, parameter order) are in
+docs/conventions.md. Names load on first use, so the command line starts without the numerical
+libraries.
 """
 
 from importlib import import_module
@@ -13,8 +14,7 @@ from ._version import __version__
 # name -> public module that provides it
 _EVERYDAY = {
     "errors": ("RobocalError", "InputError", "DegenerateDataError", "RobocalWarning", "CheckWarning",
-               "ConvergenceWarning",
-               "MisfitWarning", "IdentifiabilityWarning"),
+               "ConvergenceWarning", "MisfitWarning", "IdentifiabilityWarning"),
     "kinematics": ("Frame", "Marker", "Payload", "RobotModel", "serial_model", "parallel_beta_frames",
                    "mdh_transform", "evaluate", "forward_kinematics", "jacobian", "gravity_loads", "joint_jacobian",
                    "parameter_names", "parameter_vector", "model_from_vector", "candidate_parameters",
@@ -40,7 +40,7 @@ _EVERYDAY = {
     "_contact_calibration": ("calibrate_contacts", "contact_errors", "ContactCalibration", "ContactErrors"),
 }
 _WHERE = {name: module for module, names in _EVERYDAY.items() for name in names}
-_SUBMODULES = ("kinematics", "io", "sim", "limit", "report", "errors", "cli")
+_SUBMODULES = ("kinematics", "io", "sim", "limit", "report", "errors", "identification", "cli")
 
 __all__ = ["__version__"] + sorted(_WHERE)
 

@@ -21,10 +21,24 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._arguments import (
+    CALLABLE,
+    NON_NEGATIVE,
+    SEED,
+    SEQUENCE,
+    checked,
+    is_a,
+    marker_of,
+    one_of,
+    optional,
+    per_joint,
+    shaped,
+    whole,
+)
 from ._errors import InputError, check_choice
 from ._kinematics import evaluate, kinematic_pass, layout
 from ._model import RobotModel
-from ._options import LIMIT_CHUNK, LIMIT_MARKER_MODES
+from ._options import LIMIT_CHUNK, LIMIT_MARKER_MODES, MAX_CHUNK, MAX_SAMPLES
 from ._parameters import families, parameter_layout, parameter_vector
 from ._problem import sampling_box
 from ._spatial import cross, vector3
@@ -167,12 +181,25 @@ class AccuracyLimit:
 
 # -- ISO 9283 repeatability --------------------------------------------------------------------
 
+@checked(pose_ids=SEQUENCE, points=shaped(None, 3))
 def iso9283_repeatability(pose_ids: Sequence[Hashable], points) -> RepeatabilityResult:
     """ISO 9283 pose repeatability of each commanded pose and the worst pose.
 
     ``pose_ids`` (n,) name the commanded pose of each attained position ``points`` (n, 3), metres.
     Per pose: barycentre, ``l_j = |P_j - barycentre|``, ``l_mean``, ``S_l`` (sample standard
     deviation, n - 1) and ``RP = l_mean + 3 S_l``. Poses are reported in order of first appearance.
+
+    Parameters
+    ----------
+    pose_ids : sequence
+        The pose of each measured point.
+    points : array_like, shape (n, 3)
+        Measured points, m.
+
+    Returns
+    -------
+    RepeatabilityResult
+        RP per pose and the worst.
 
     >>> r = iso9283_repeatability(["a"] * 2, [[0.0, 0, 0], [0.002, 0, 0]])
     >>> round(r.poses[0].l_mean, 6), round(r.poses[0].s_l, 6), round(r.rp, 6)
@@ -220,6 +247,7 @@ class _Rounded:
     quanta: np.ndarray   # (K,) metres or radians
 
 
+@checked(model=is_a(RobotModel), length_quantum=NON_NEGATIVE, angle_quantum=NON_NEGATIVE)
 def rounded_parameters(model: RobotModel, length_quantum: float, angle_quantum: float) -> _Rounded:
     """Which stored parameters the controller rounds, with their quanta.
 
@@ -227,6 +255,20 @@ def rounded_parameters(model: RobotModel, length_quantum: float, angle_quantum: 
     and b where the frame hangs off a frame other than its predecessor (elsewhere they are
     structural zeros, not stored numbers); every marker's and the base's x, y, z. Rotation
     corrections and compliances are not stored dimensions.
+
+    Parameters
+    ----------
+    model : RobotModel
+        The robot model (nominal, unless said otherwise).
+    length_quantum : float
+        Resolution lengths are stored with, m (0: exact).
+    angle_quantum : float
+        Resolution angles are stored with, rad (0: exact).
+
+    Returns
+    -------
+    _Rounded
+        The model's values as the controller stores them.
     """
     lay = layout(model)
     params = parameter_layout(model)
@@ -300,6 +342,9 @@ def parameter_displacement(ps, rot: np.ndarray, steps: np.ndarray, on_path: np.n
     return trans + turn
 
 
+@checked(model=is_a(RobotModel), encoder_resolution=per_joint(), length_quantum=NON_NEGATIVE,
+         angle_quantum=NON_NEGATIVE, n_samples=whole(1, MAX_SAMPLES), chunk_size=whole(1, MAX_CHUNK), rng=SEED,
+         progress=optional(CALLABLE), markers=one_of(LIMIT_MARKER_MODES))
 @one_blas_thread
 def controller_precision(model: RobotModel, *, encoder_resolution, length_quantum: float,
                          angle_quantum: float, n_samples: int, chunk_size: int = DEFAULT_CHUNK, rng,
@@ -326,6 +371,32 @@ def controller_precision(model: RobotModel, *, encoder_resolution, length_quantu
     kinematics works on ``chunk_size`` configurations at a time, the moments are running sums and
     the percentiles come from a fixed histogram of ``HIST_BINS`` log-spaced bins over
     [1e-12 m, 1 m] (relative resolution 0.14 %). ``progress(done, total)`` is called after each chunk.
+
+    Parameters
+    ----------
+    model : RobotModel
+        The robot model (nominal, unless said otherwise).
+    encoder_resolution : float or array_like of shape (n_joints,)
+        Encoder resolution per joint reading, rad or m per count.
+    length_quantum : float
+        Resolution lengths are stored with in the controller, m (0: exact).
+    angle_quantum : float
+        Resolution angles are stored with in the controller, rad (0: exact).
+    n_samples : int
+        Monte Carlo samples.
+    chunk_size : int
+        Configurations evaluated at once (bounds memory).
+    rng : None, int or numpy.random.Generator
+        Seed or generator of the random draws (None: fresh entropy).
+    progress : callable, optional
+        Called as ``progress(done, total)`` after each chunk.
+    markers : str
+        ``first`` marker or ``all`` markers.
+
+    Returns
+    -------
+    PrecisionResult
+        Monte Carlo statistics of the position error the control leaves.
     """
     res, rp, (lo, hi) = _error_model(model, encoder_resolution, length_quantum, angle_quantum)
     n = _count(n_samples, "n_samples", 2)
@@ -377,6 +448,9 @@ def controller_precision(model: RobotModel, *, encoder_resolution, length_quantu
         method="exact forward kinematics for joint errors, first order (J_p dp) for parameter round-off")
 
 
+@checked(model=is_a(RobotModel), encoder_resolution=per_joint(), length_quantum=NON_NEGATIVE,
+         angle_quantum=NON_NEGATIVE, n_configurations=whole(1, MAX_SAMPLES), chunk_size=whole(1, MAX_CHUNK), rng=SEED,
+         marker=marker_of())
 @one_blas_thread
 def predicted_controller_precision(model: RobotModel, *, encoder_resolution, length_quantum: float,
                                    angle_quantum: float, n_configurations: int = 20000,
@@ -392,6 +466,30 @@ def predicted_controller_precision(model: RobotModel, *, encoder_resolution, len
     first order. A mean norm depends on the distribution; ``mean_gaussian`` samples
     dP ~ N(0, Cov) (one draw per configuration, as a Gaussian-weighted sum of J's columns) and is
     only as good as the Gaussian approximation of a sum of uniform errors.
+
+    Parameters
+    ----------
+    model : RobotModel
+        The robot model (nominal, unless said otherwise).
+    encoder_resolution : float or array_like of shape (n_joints,)
+        Encoder resolution per joint reading, rad or m per count.
+    length_quantum : float
+        Resolution lengths are stored with in the controller, m (0: exact).
+    angle_quantum : float
+        Resolution angles are stored with in the controller, rad (0: exact).
+    n_configurations : int
+        Configurations the prediction is averaged over.
+    chunk_size : int
+        Configurations evaluated at once (bounds memory).
+    rng : None, int or numpy.random.Generator
+        Seed or generator of the random draws (None: fresh entropy).
+    marker : int
+        Index of the marker in the model (0 <= marker < n_markers).
+
+    Returns
+    -------
+    PredictedPrecision
+        First-order prediction of the same.
     """
     res, rp, (lo, hi) = _error_model(model, encoder_resolution, length_quantum, angle_quantum)
     n = _count(n_configurations, "n_configurations", 2)
@@ -432,6 +530,18 @@ def accuracy_limit(repeatability, precision: PrecisionResult) -> AccuracyLimit:
     """The limit of absolute accuracy: repeatability RP + the geometric control's mean deviation.
 
     ``repeatability`` is RP in metres (a float) or a ``RepeatabilityResult`` (its worst pose's RP).
+
+    Parameters
+    ----------
+    repeatability : RepeatabilityResult or float
+        ISO 9283 repeatability (RP), or its value in m.
+    precision : PrecisionResult
+        The precision of the geometric control (``controller_precision``).
+
+    Returns
+    -------
+    AccuracyLimit
+        The limit of absolute accuracy and its parts.
     """
     detail = None
     if isinstance(repeatability, RepeatabilityResult):

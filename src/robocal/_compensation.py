@@ -8,6 +8,18 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ._arguments import (
+    FLAG,
+    NON_NEGATIVE,
+    POSITIVE,
+    checked,
+    is_a,
+    marker_of,
+    optional,
+    readings_of,
+    shaped,
+    whole,
+)
 from ._kinematics import evaluate
 from ._model import RobotModel
 from ._parameters import parameter_layout, parameter_vector
@@ -16,8 +28,22 @@ from ._threads import one_blas_thread
 log = logging.getLogger(__name__)
 
 
+@checked(model=is_a(RobotModel), q=readings_of())
 def joint_jacobian(model: RobotModel, q) -> np.ndarray:
-    """d(marker pose)/d(joint readings): (N, n_markers, 6, n_joints) in W (rows dx, dy, dz, rotation)."""
+    """d(marker pose)/d(joint readings): (N, n_markers, 6, n_joints) in W (rows dx, dy, dz, rotation).
+
+    Parameters
+    ----------
+    model : RobotModel
+        The robot model (nominal, unless said otherwise).
+    q : array_like, shape (n_poses, n_joints)
+        Joint readings, rad or m.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n_poses, n_markers, 6, n_joints)
+        Derivatives of the marker poses in W by the joint readings.
+    """
     lay = parameter_layout(model)
     cols = [lay[f"{f.name}.{'r' if f.joint == 'prismatic' else 'theta'}"].index for f in model.frames]
     ev = evaluate(model, q, jacobian=True, columns=cols)
@@ -114,6 +140,37 @@ def compensate(model: RobotModel, targets_q, *, nominal: RobotModel | None = Non
     each step at most ``max_step`` rad or m per joint), batched over poses. ``residual`` tells how
     well each target was reached: out of reach, or near a singularity where the exact pose would
     need a large joint motion, the damped step settles for the nearest pose instead.
+
+    Parameters
+    ----------
+    model : RobotModel
+        The calibrated model.
+    targets_q : array_like, shape (n_poses, n_joints)
+        Joint readings at which the nominal model puts the marker on the targets.
+    nominal : RobotModel, optional
+        The model the controller computes with (default: ``model``).
+    positions : array_like, shape (n_poses, 3), optional
+        Target marker positions in W, m (default: where the nominal model puts the marker at
+        ``targets_q``).
+    rotations : array_like, shape (n_poses, 3, 3), optional
+        Target marker orientations in W.
+    marker : int
+        Index of the marker in the model (0 <= marker < n_markers).
+    orientation : bool, optional
+        Whether to match orientations too (None: when ``rotations`` are given).
+    iterations : int
+        Most Newton iterations per target.
+    tol : float
+        Position tolerance of a reached target, m.
+    damping : float
+        Damping of the least-squares steps (>= 0).
+    max_step : float
+        Largest joint step per iteration, rad or m.
+
+    Returns
+    -------
+    Compensation
+        Corrected joint commands, with what each reaches.
     """
     q0 = np.atleast_2d(np.asarray(targets_q, dtype=float))
     nominal = model if nominal is None else nominal

@@ -25,8 +25,8 @@ from ._kinematics import evaluate
 from ._measurements import Measurements, Noise
 from ._model import RobotModel
 from ._observations import ROW_KINDS, ContactProblem
-from ._options import DEFAULT_INSTRUMENT, OUTLIER_ACTIONS
-from ._parameters import candidate_parameters, model_from_vector, parameter_layout
+from ._options import DEFAULT_INSTRUMENT, INSTRUMENT_NOISE, LOSSES, OUTLIER_ACTIONS
+from ._parameters import candidate_parameters, model_from_vector, parameter_layout, parameter_names
 from ._problem import needs_compliance
 from ._solve import covariance, solve
 
@@ -115,10 +115,29 @@ def _unreachable(problem: ContactProblem, p: np.ndarray) -> tuple[Unreachable, .
     return tuple(out)
 
 
+@checked(problem=is_a(ContactProblem), names=names_in(lambda a: parameter_names(a["problem"].model)), tol=FRACTION,
+         p=optional(shaped(None)))
 def contact_identifiability(problem: ContactProblem, names, *, tol: float = DEFAULT_TOL,
                             p: np.ndarray | None = None) -> ContactIdentifiability:
     """Which of the robot parameters ``names`` the union of the problem's rows identifies (at ``p``,
-    default the start), what each kind identifies alone, and what none reaches."""
+    default the start), what each kind identifies alone, and what none reaches.
+
+    Parameters
+    ----------
+    problem : Problem or ContactProblem
+        The identification problem.
+    names : sequence of str
+        Candidate parameter names.
+    tol : float
+        Identifiability tolerance, in (0, 1).
+    p : array_like, optional
+        Parameter vector the analysis is made at (default: the problem's start).
+
+    Returns
+    -------
+    ContactIdentifiability
+        What the contacts identify, and what they cannot reach.
+    """
     p = problem.start_vector() if p is None else p
     lay = parameter_layout(problem.model)
     prob = problem.at_contact().over(tuple(names))
@@ -168,8 +187,22 @@ class ContactErrors:
         return float(np.sqrt(np.mean(np.square(list(self.distance.values()))))) if self.distance else None
 
 
+@checked(model=is_a(RobotModel), contacts=is_a(Contacts))
 def contact_errors(model: RobotModel, contacts: Contacts) -> ContactErrors:
-    """The figures of ``ContactErrors`` for ``model`` at the readings of ``contacts``."""
+    """The figures of ``ContactErrors`` for ``model`` at the readings of ``contacts``.
+
+    Parameters
+    ----------
+    model : RobotModel
+        The robot model (nominal, unless said otherwise).
+    contacts : Contacts
+        Joint-only contact recordings (sockets, planes, ball bars).
+
+    Returns
+    -------
+    ContactErrors
+        The residuals of each kind of contact.
+    """
     ev = evaluate(model, contacts.q)
     P = ev.positions[np.arange(contacts.n_rows), [model.marker_names.index(m) for m in contacts.marker]]
     centre = {}
@@ -245,6 +278,9 @@ def _check_inputs(model: RobotModel, contacts: Contacts, data, validation) -> No
                          source=data.source or "data")
 
 
+@checked(model=is_a(RobotModel), contacts=is_a(Contacts), data=optional(is_a(Measurements)),
+         validation=optional(is_a(Contacts)), parameters=NAMES, known=NAMES, noise=noise_of(Noise, INSTRUMENT_NOISE),
+         tol=FRACTION, loss=one_of(LOSSES), max_nfev=optional(whole(1)), on_outliers=one_of(OUTLIER_ACTIONS))
 def calibrate_contacts(model: RobotModel, contacts: Contacts, *, data: Measurements | None = None,
                        validation: Contacts | None = None, parameters=("geometric",), known=(), noise=None,
                        tol: float = DEFAULT_TOL, loss: str = "linear", max_nfev: int | None = None,
@@ -256,6 +292,37 @@ def calibrate_contacts(model: RobotModel, contacts: Contacts, *, data: Measureme
     deviation (a ``Noise`` or an instrument class). Each contact row weighs by its stated deviation.
     ``on_outliers``: ``"refit"`` refits with the robust loss soft_l1 when rows stand out (every row
     is in its own standard deviations, so one bend serves every kind), ``"flag"`` only names them.
+
+    Parameters
+    ----------
+    model : RobotModel
+        The robot model (nominal, unless said otherwise).
+    contacts : Contacts
+        Joint-only contact recordings (sockets, planes, ball bars).
+    data : Measurements, optional
+        Tracker measurements to calibrate on beside the contacts.
+    validation : Contacts, optional
+        Held-out recordings to judge the calibration on.
+    parameters : str or sequence of str
+        Parameter families (``geometric``, ``compliance``, ``base``, ``markers``, ``frames``,
+        ``backlash``) and/or parameter names or patterns.
+    known : str or sequence of str
+        Families, names or patterns held at their model values.
+    noise : Noise or str, optional
+        Noise of the tracker (a ``Noise`` or an instrument class; default a laser tracker's).
+    tol : float
+        Identifiability tolerance, in (0, 1).
+    loss : str
+        Least-squares loss: ``linear`` or a robust one (``soft_l1``, ``huber``, ``cauchy``, ``arctan``).
+    max_nfev : int, optional
+        Most evaluations of the residuals (None: the solver's default).
+    on_outliers : str
+        ``refit`` refits without outliers, ``flag`` only names them.
+
+    Returns
+    -------
+    ContactCalibration
+        The calibrated model, estimates, checks and verdict.
     """
     check_choice(on_outliers, OUTLIER_ACTIONS, "on_outliers")
     noise = noise if isinstance(noise, Noise) else Noise.of(noise or DEFAULT_INSTRUMENT)

@@ -23,6 +23,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ._arguments import POSITIVE_OR_INF, SEQUENCE, TEXT, UNIT_SYSTEM, checked, is_a, optional, shaped
 from ._errors import InputError
 from ._model import DEFAULT_PARALLEL_TOL, Frame, Marker, RobotModel, mdh_transform, parallel_beta_frames
 from ._parameters import KIND_QUANTITY
@@ -82,6 +83,8 @@ def _dh_row(row, i: int) -> tuple[str | None, float, float, float, float, str]:
     return name, th, d, a, al, joint
 
 
+@checked(rows=SEQUENCE, name=TEXT, markers=SEQUENCE, base=optional(shaped(4, 4)), joint_limits=optional(shaped(None,
+                                                                                                               2)))
 def from_standard_dh(rows: Sequence, *, name: str, markers: Sequence = (("tool", (0.0, 0.0, 0.0)),),
                      base=None, joint_limits: Sequence[tuple[float, float]] | None = None) -> RobotModel:
     """A model from classic (distal) DH rows, as Universal Robots publish them.
@@ -98,6 +101,26 @@ def from_standard_dh(rows: Sequence, *, name: str, markers: Sequence = (("tool",
     and, from the previous row, alpha = alpha_{i-1}, d = a_{i-1}; frame 1 starts at frame 0 with
     alpha = d = 0, so the base needs nothing; a_n and alpha_n of the last row go into every marker.
     Beta is carried where ``parallel_beta_frames`` says the axes are parallel.
+
+    Parameters
+    ----------
+    rows : sequence of dict
+        One row per joint: ``joint`` (revolute or prismatic) and the classic DH values ``d``, ``theta``,
+        ``a``, ``alpha`` (SI).
+    name : str
+        The robot's name.
+    markers : sequence
+        Markers as ``(name, (x, y, z))`` or ``(name, (x, y, z), R)`` in the last frame, SI.
+    base : array_like, shape (4, 4), optional
+        Pose of the base in W (None: identity).
+    joint_limits : sequence of (float, float), optional
+        Lower and upper limit of each joint reading, rad or m (None: +-pi for revolute, [0, 1] m for
+        prismatic).
+
+    Returns
+    -------
+    RobotModel
+        The model in modified DH, with the same forward kinematics.
 
     >>> m = from_standard_dh([(0, 0.1, 0.5, 0), (0, 0, 0.4, 0)], name="rr")
     >>> [(f.alpha, f.d, f.r) for f in m.frames], m.markers[0].position
@@ -234,6 +257,7 @@ def frames_from_lines(names, joints, couplings, X_0B, X_0F) -> list[Frame]:
 
 
 
+@checked(model=is_a(RobotModel), units=UNIT_SYSTEM)
 def mdh_table(model: RobotModel, *, units: str = "m-rad") -> list[dict]:
     """The MDH table, one dict per frame, units in the keys (``alpha_rad``, ``d_m``, ...).
 
@@ -243,7 +267,19 @@ def mdh_table(model: RobotModel, *, units: str = "m-rad") -> list[dict]:
     (prismatic) are the offsets at zero reading. ``units``: one of ``m-rad``, ``mm-deg``, ``m-deg``,
     ``mm-rad``.
 
-    >>> from robocal._model import serial_model
+    Parameters
+    ----------
+    model : RobotModel
+        The robot model (nominal, unless said otherwise).
+    units : str
+        Length and angle units of the file or table, ``"mm-deg"``, ``"m-rad"``, ...
+
+    Returns
+    -------
+    list of dict
+        One row per frame: name, joint, parent and its modified-DH values in ``units``.
+
+    >>> from robocal.kinematics import serial_model
     >>> mdh_table(serial_model("r", [dict(d=0.5)]), units="mm-deg")[0]["d_mm"]
     500.0
     """
@@ -291,6 +327,7 @@ def frame_poses(model: RobotModel) -> list[np.ndarray]:
     return out
 
 
+@checked(model=is_a(RobotModel), max_offset=optional(POSITIVE_OR_INF))
 def to_standard_dh(model: RobotModel, *, max_offset: float | None = None) -> StandardDH:
     """Classic DH of a serial model, with the same forward kinematics (exact up to a tilt below
     1e-12 rad between axes taken as parallel).
@@ -301,6 +338,18 @@ def to_standard_dh(model: RobotModel, *, max_offset: float | None = None) -> Sta
     ruins the model. Offsets beyond ``max_offset`` (default ten times the robot's extent, and at
     least 10 m) raise an InputError naming the frames; ``max_offset=inf`` accepts them (the
     returned ``offsets`` list those beyond the default).
+
+    Parameters
+    ----------
+    model : RobotModel
+        A serial model with one reading per frame.
+    max_offset : float, optional
+        Largest offset along a joint axis accepted where two axes are parallel, m.
+
+    Returns
+    -------
+    StandardDH
+        The classic DH table with the base and tool placements.
     """
     _serial_frames(model, "classic DH")
     X = frame_poses(model)

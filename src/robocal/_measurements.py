@@ -6,15 +6,30 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ._arguments import (
+    checked,
+    shaped,
+)
 from ._errors import InputError, check_choice
 from ._options import DEFAULT_INSTRUMENT, INSTRUMENT_NOISE
 
 
+@checked(q=shaped(None, None))
 def approach_sides(q) -> np.ndarray:
     """+1 or -1 per pose and joint: the sign of the last move of that joint before reaching the pose.
 
     Poses are visited in row order, the first approached from the last (as in a cycle); a joint
     that does not move keeps the side it had (+1 if it never moves). ``q`` (n_poses, n_joints).
+
+    Parameters
+    ----------
+    q : array_like, shape (n_poses, n_joints)
+        Joint readings in the order they were visited.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n_poses, n_joints)
+        Direction (+1 or -1) of each joint's last move.
     """
     q = np.atleast_2d(np.asarray(q, dtype=float))
     step = np.sign(np.diff(q, axis=0, prepend=q[-1:]))

@@ -29,6 +29,21 @@ from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
+from ._arguments import (
+    FLAG,
+    MAPPING,
+    POSITIVE,
+    SEQUENCE,
+    TEXT,
+    checked,
+    each_a,
+    in_range,
+    is_a,
+    one_of,
+    optional,
+    shaped,
+    whole,
+)
 from ._errors import InputError
 from ._options import BACKLASH_SIDES
 from ._spatial import rot4, rot_matrix, trans4, vector3
@@ -217,6 +232,41 @@ class RobotModel:
 _FRAME_NUMBERS = tuple(f.name for f in fields(Frame) if f.type == "float")
 
 
+def _rows_rule(value, name: str, args) -> None:
+    """``serial_model``'s rows: one dict per frame of Frame's keys (coupling aside), numbers finite."""
+    SEQUENCE(value, name, args)
+    allowed = {f.name for f in fields(Frame)} - {"coupling"}
+    for i, row in enumerate(value):
+        where = f"{name}[{i}]"
+        MAPPING(row, where, args)
+        unknown = sorted(str(k) for k in row if k not in allowed)
+        if unknown:
+            raise InputError(f"unknown key {unknown[0]!r}; a row holds {', '.join(sorted(allowed))}", where=where)
+        for k in _FRAME_NUMBERS:
+            if k in row:
+                in_range()(row[k], f"{where}.{k}", args)
+        if "joint" in row:
+            one_of(JOINT_TYPES)(row["joint"], f"{where}.joint", args)
+        if "parent" in row:
+            whole(-1, i - 1)(row["parent"], f"{where}.parent", args)
+        if "name" in row:
+            TEXT(row["name"], f"{where}.name", args)
+        if "com" in row:
+            shaped(3)(row["com"], f"{where}.com", args)
+        if "has_beta" in row:
+            FLAG(row["has_beta"], f"{where}.has_beta", args)
+
+
+def _markers_rule(value, name: str, args) -> None:
+    """``serial_model``'s markers: (name, (x, y, z)) pairs on the last frame."""
+    SEQUENCE(value, name, args)
+    for i, item in enumerate(value):
+        if isinstance(item, str) or not hasattr(item, "__len__") or len(item) != 2:
+            raise InputError("must be a (name, (x, y, z)) pair", where=f"{name}[{i}]")
+        TEXT(item[0], f"{name}[{i}]", args)
+        shaped(3)(item[1], f"{name}[{i}]", args)
+
+
 def _validate(model: RobotModel) -> None:
     names = [f.name for f in model.frames]
     if len(model.frames) == 0:
@@ -282,6 +332,7 @@ def _check_rotation(R, where: str) -> None:
         raise InputError("not a proper rotation matrix", where=where)
 
 
+@checked(frame=is_a(Frame), q=in_range())
 def mdh_transform(frame: Frame, q: float = 0.0) -> np.ndarray:
     """``X_pj``, the 4x4 placement of one frame in its parent at joint variable ``q`` (rad or m).
 
@@ -289,8 +340,21 @@ def mdh_transform(frame: Frame, q: float = 0.0) -> np.ndarray:
 
         X_pj = Rot(z, gamma) Trans(z, b) Rot(y, beta) Rot(x, alpha) Trans(x, d) Rot(z, theta) Trans(z, r)
 
-    with ``q`` added to theta (revolute) or r (prismatic); compliance is not applied. With
-    gamma = b = beta = 0 it is the usual modified-DH matrix: a frame turned by theta = 90 deg
+    with ``q`` added to theta (revolute) or r (prismatic); compliance is not applied.
+
+    Parameters
+    ----------
+    frame : Frame
+        One frame of a model.
+    q : float
+        The joint variable, rad or m.
+
+    Returns
+    -------
+    numpy.ndarray, shape (4, 4)
+        The frame's transform from its parent, ``X_pj``.
+
+    With gamma = b = beta = 0 it is the usual modified-DH matrix: a frame turned by theta = 90 deg
     about z, then lifted by r = 0.2 m, after alpha = 90 deg and d = 0.5 m:
 
     >>> X = mdh_transform(Frame("j2", alpha=np.pi / 2, d=0.5, r=0.2), q=np.pi / 2)
@@ -306,6 +370,7 @@ def mdh_transform(frame: Frame, q: float = 0.0) -> np.ndarray:
             @ trans4(0, frame.d) @ rot4(2, th) @ trans4(2, r))
 
 
+@checked(X=shaped(4, 4))
 def placement_parameters(X) -> dict[str, float]:
     """gamma, b, beta, alpha, d, theta, r whose ``mdh_transform`` (at q = 0) is the placement ``X``
     (4x4, a proper rotation): the inverse of ``mdh_transform`` for fixed frames given as transforms.
@@ -315,6 +380,17 @@ def placement_parameters(X) -> dict[str, float]:
     (gamma turns x towards the offset, beta and alpha tilt z, theta turns about it). The first
     divides by sin(alpha), the second by cos(beta); the better conditioned is taken, so nearly
     parallel axes never give huge offsets.
+
+    Parameters
+    ----------
+    X : array_like, shape (4, 4)
+        A homogeneous transform.
+
+    Returns
+    -------
+    dict
+        The placement's parameters by kind (``d``, ``r``, ``theta``, ``alpha``, ``beta``, ``gamma``,
+        ``b``), SI.
 
     >>> X = mdh_transform(Frame("m", joint="fixed", gamma=0.3, b=0.1, alpha=-np.pi / 2, d=0.5, theta=0.2, r=0.05))
     >>> bool(np.abs(mdh_transform(Frame("m", joint="fixed", **placement_parameters(X))) - X).max() < 1e-12)
@@ -348,6 +424,7 @@ DEFAULT_LINK_DENSITY = 10.0   # kg per metre of link
 RELATIVE_MASSES = "no total mass given: compliances are relative"  # said in the notes of such a model
 
 
+@checked(model=is_a(RobotModel), total_mass=optional(POSITIVE))
 def default_masses(model: RobotModel, total_mass: float | None = None) -> RobotModel:
     """``model`` with link masses assumed from its geometry, for compliance without CAD masses.
 
@@ -358,6 +435,18 @@ def default_masses(model: RobotModel, total_mass: float | None = None) -> RobotM
     ``DEFAULT_LINK_DENSITY`` kg per metre. Payloads are kept. Identified compliances absorb any
     common scale error of the masses, and are exact when the true masses are in these proportions;
     the summary says which masses were assumed.
+
+    Parameters
+    ----------
+    model : RobotModel
+        The robot model.
+    total_mass : float, optional
+        Total mass of the links, kg (None: a density of ``DEFAULT_LINK_DENSITY`` kg per metre).
+
+    Returns
+    -------
+    RobotModel
+        A copy of ``model`` with link masses and centres of mass.
 
     >>> m = default_masses(serial_model("rr", [dict(), dict(d=0.5)], markers=[("tool", (0.3, 0, 0))]), 8.0)
     >>> [round(f.mass, 3) for f in m.frames], m.frames[1].com
@@ -394,11 +483,24 @@ def _yxz_angles(M: np.ndarray) -> tuple[float, float, float]:
     return beta, math.atan2(-N[1, 2], N[2, 2]), math.atan2(-N[0, 1], N[0, 0])
 
 
+@checked(frames=each_a(Frame), tol=in_range(0.0, math.pi / 2, low_open=True))
 def parallel_beta_frames(frames: Sequence[Frame], tol: float = DEFAULT_PARALLEL_TOL) -> tuple[bool, ...]:
     """Which frames carry Hayati's beta: z of the parent and z of the frame parallel within ``tol``.
 
     In modified DH, z(j) is tilted from z(parent) by alpha_j about x (and beta_j about y, gamma
     does not tilt z), so the axes are parallel when the tilt angle is 0 or pi.
+
+    Parameters
+    ----------
+    frames : sequence of Frame
+        Frames of a model.
+    tol : float
+        Angle below which consecutive axes count as parallel, rad.
+
+    Returns
+    -------
+    tuple of bool
+        Whether each frame takes Hayati's beta.
     """
     out = []
     for f in frames:
@@ -408,6 +510,10 @@ def parallel_beta_frames(frames: Sequence[Frame], tol: float = DEFAULT_PARALLEL_
     return tuple(out)
 
 
+@checked(name=TEXT, rows=_rows_rule, markers=_markers_rule, joint_limits=optional(shaped(None, 2)),
+         base_position=shaped(3), base_rotation=optional(shaped(3, 3)),
+         beta_tol=in_range(0.0, math.pi / 2, low_open=True), gravity=shaped(3), payload=optional(is_a(Payload)),
+         description=TEXT)
 def serial_model(
     name: str,
     rows: Sequence[dict],
@@ -426,6 +532,36 @@ def serial_model(
     Each moving frame gets its own joint reading named after the frame; markers attach to the last
     frame; beta is carried where consecutive axes are parallel within ``beta_tol`` unless a row
     says ``has_beta`` explicitly.
+
+    Parameters
+    ----------
+    name : str
+        The robot's name.
+    rows : sequence of dict
+        One row per frame: ``Frame``'s fields by name (``joint``, ``alpha``, ``d``, ``theta``, ``r``,
+        ``mass``, ``com``, ...), SI; couplings follow the row order.
+    markers : sequence of (str, (float, float, float))
+        Markers on the last frame, SI.
+    joint_limits : sequence of (float, float), optional
+        Lower and upper limit of each joint reading, rad or m (None: +-pi for revolute, [0, 1] m for
+        prismatic).
+    base_position : array_like, shape (3,)
+        Position of the base frame in W, m.
+    base_rotation : array_like, shape (3, 3), optional
+        Orientation of the base frame in W (None: identity).
+    beta_tol : float
+        Angle below which consecutive axes count as parallel (Hayati's beta), rad.
+    gravity : array_like, shape (3,)
+        Gravity in W, m/s^2.
+    payload : Payload, optional
+        The payload (None: none, on the last frame).
+    description : str
+        Free text stored with the model.
+
+    Returns
+    -------
+    RobotModel
+        The model.
 
     >>> m = serial_model("rr", [dict(joint="revolute"), dict(joint="revolute", d=0.5)],
     ...                  markers=[("tool", (0.3, 0, 0))])

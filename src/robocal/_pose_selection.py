@@ -8,10 +8,23 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._arguments import (
+    FLAG,
+    FRACTION,
+    NAMES,
+    POSITIVE,
+    SEED,
+    checked,
+    is_a,
+    one_of,
+    optional,
+    readings_of,
+    whole,
+)
 from ._errors import DegenerateDataError, InputError, check_choice
 from ._identifiability import ONE_SIDE, identifiability
 from ._model import RobotModel
-from ._options import POSE_CRITERIA
+from ._options import MAX_POSES, POSE_CRITERIA
 from ._parameters import has_backlash_parameters, parameter_vector
 from ._problem import design_problem, random_configurations
 from ._threads import one_blas_thread
@@ -148,6 +161,9 @@ def _scaled_blocks(model: RobotModel, q, names, orientation: bool, approach=None
     return B / col, prob
 
 
+@checked(model=is_a(RobotModel), n=whole(1, MAX_POSES), candidates=optional(readings_of()),
+         n_candidates=whole(1, MAX_POSES), parameters=NAMES, known=NAMES, orientation=FLAG,
+         criterion=one_of(POSE_CRITERIA), rng=SEED, sweeps=whole(0, 100))
 @one_blas_thread
 def select_poses(model: RobotModel, n: int, *, candidates=None, n_candidates: int = 2000, parameters=("geometric",),
                  known=(), orientation: bool = False, criterion: str = "I", rng=0, sweeps: int = 2) -> PoseSelection:
@@ -166,6 +182,35 @@ def select_poses(model: RobotModel, n: int, *, candidates=None, n_candidates: in
     pose's (its load), so the criterion sees it; under the approach-sided model each candidate is
     given a random approach direction per joint, the criterion chooses among them, and the result
     says which direction to come from (``approach``).
+
+    Parameters
+    ----------
+    model : RobotModel
+        The robot model (nominal, unless said otherwise).
+    n : int
+        Number of configurations to choose.
+    candidates : array_like, shape (n_candidates, n_joints), optional
+        Joint readings to choose from (default: ``n_candidates`` drawn within the joint limits).
+    n_candidates : int
+        Candidates drawn when ``candidates`` is None.
+    parameters : str or sequence of str
+        Parameter families (``geometric``, ``compliance``, ``base``, ``markers``, ``frames``,
+        ``backlash``) and/or parameter names or patterns.
+    known : str or sequence of str
+        Families, names or patterns held at their model values.
+    orientation : bool
+        Whether orientations will be measured.
+    criterion : str
+        ``I`` (average prediction variance) or ``D`` (determinant).
+    rng : None, int or numpy.random.Generator
+        Seed or generator of the random draws (None: fresh entropy).
+    sweeps : int
+        Passes of exchanges after the greedy selection.
+
+    Returns
+    -------
+    PoseSelection
+        The chosen configurations and what measuring there will give.
     """
     check_choice(criterion, CRITERIA, "criterion")
     rng = np.random.default_rng(rng)
@@ -245,6 +290,8 @@ class CampaignPrediction:
     n_workspace: int
 
 
+@checked(model=is_a(RobotModel), q=readings_of(), parameters=NAMES, known=NAMES, noise=POSITIVE,
+         n_workspace=whole(1, MAX_POSES), tol=FRACTION, rng=SEED)
 @one_blas_thread
 def predict_campaign(model: RobotModel, q, *, parameters=("geometric",), known=(), noise: float = 2e-5,
                      n_workspace: int = 2000, tol: float = 1e-6, rng=0) -> CampaignPrediction:
@@ -253,6 +300,31 @@ def predict_campaign(model: RobotModel, q, *, parameters=("geometric",), known=(
     The linearised model at the nominal values: the parameters identifiable at ``q`` get the
     covariance C = noise^2 (J^T J)^-1 of least squares with position noise ``noise`` (m, per
     axis), and a configuration p of the workspace the position error covariance J_p C J_p^T.
+
+    Parameters
+    ----------
+    model : RobotModel
+        The robot model (nominal, unless said otherwise).
+    q : array_like, shape (n_poses, n_joints)
+        The configurations to measure at.
+    parameters : str or sequence of str
+        Parameter families (``geometric``, ``compliance``, ``base``, ``markers``, ``frames``,
+        ``backlash``) and/or parameter names or patterns.
+    known : str or sequence of str
+        Families, names or patterns held at their model values.
+    noise : float
+        Position noise of the instrument, m per axis.
+    n_workspace : int
+        Configurations within the joint limits the predicted error is averaged over.
+    tol : float
+        Rank tolerance relative to the largest singular value, in (0, 1).
+    rng : None, int or numpy.random.Generator
+        Seed or generator of the random draws (None: fresh entropy).
+
+    Returns
+    -------
+    CampaignPrediction
+        The predicted standard deviations and errors of a campaign at ``q``.
     """
     q = np.atleast_2d(np.asarray(q, dtype=float))
     if noise <= 0:

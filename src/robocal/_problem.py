@@ -17,6 +17,7 @@ import copy
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ._arguments import FLAG, SEED, checked, is_a, names_in, optional, readings_of, shaped, whole
 from ._errors import InputError
 from ._kinematics import (
     CHUNK_POSES,
@@ -31,7 +32,8 @@ from ._kinematics import (
 from ._linalg import r_factor, reduced
 from ._measurements import Measurements, Noise, approach_of
 from ._model import RobotModel
-from ._parameters import has_backlash_parameters, has_compliance_parameters
+from ._options import MAX_POSES
+from ._parameters import has_backlash_parameters, has_compliance_parameters, parameter_names
 from ._threads import one_blas_thread
 
 # A problem keeps its last evaluations (the calibration asks for the start again after the solve,
@@ -332,17 +334,53 @@ def design_measurements(model: RobotModel, q, orientation: bool = False, markers
                         extra={} if approach is None else {"approach": np.asarray(approach, dtype=float)})
 
 
+# a problem's free parameters: names of the model's parameters
+_PARAMETERS = names_in(lambda a: parameter_names(a["model"]))
+
+
+@checked(model=is_a(RobotModel), q=readings_of(), names=_PARAMETERS, orientation=FLAG,
+         approach=optional(shaped(None, None)))
 def design_problem(model: RobotModel, q, names, orientation: bool = False, approach=None) -> Problem:
-    """The problem of ``names`` at readings ``q`` with nothing measured: its Jacobian is the design's."""
+    """The problem of ``names`` at readings ``q`` with nothing measured: its Jacobian is the design's.
+
+    Parameters
+    ----------
+    model : RobotModel
+        The robot model (nominal, unless said otherwise).
+    q : array_like, shape (n_poses, n_joints)
+        Joint readings, rad or m.
+    names : sequence of str
+        The free parameters.
+    orientation : bool
+        Whether orientations are measured.
+    approach : array_like, shape (n_poses, n_joints), optional
+        Direction (+1 or -1) of each joint's last move.
+
+    Returns
+    -------
+    Problem
+        The problem; its Jacobian is the design's.
+    """
     return Problem(model, design_measurements(model, q, orientation, approach=approach), tuple(names),
                    compliance=needs_compliance(model, names))
 
 
+@checked(model=is_a(RobotModel))
 def sampling_box(model: RobotModel) -> tuple[np.ndarray, np.ndarray]:
     """Lower and upper readings within which configurations are drawn, (n_joints,) each.
 
     An unbounded revolute reading turns within +-pi (every orientation); an unbounded prismatic
     one has no such range and is refused.
+
+    Parameters
+    ----------
+    model : RobotModel
+        The robot model (nominal, unless said otherwise).
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray)
+        Lower and upper readings, (n_joints,) each.
     """
     lo, hi = model.lower_limits.copy(), model.upper_limits.copy()
     angle = np.zeros(model.n_joints, dtype=bool)
@@ -359,8 +397,24 @@ def sampling_box(model: RobotModel) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
+@checked(model=is_a(RobotModel), n=whole(0, MAX_POSES), rng=SEED)
 def random_configurations(model: RobotModel, n: int, rng=None) -> np.ndarray:
-    """``n`` joint readings (n, n_joints) drawn uniformly within ``sampling_box(model)``."""
+    """``n`` joint readings (n, n_joints) drawn uniformly within ``sampling_box(model)``.
+
+    Parameters
+    ----------
+    model : RobotModel
+        The robot model (nominal, unless said otherwise).
+    n : int
+        Number of configurations.
+    rng : None, int or numpy.random.Generator
+        Seed or generator of the random draws (None: fresh entropy).
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, n_joints)
+        Joint readings within the joint limits.
+    """
     rng = np.random.default_rng(rng)
     lo, hi = sampling_box(model)
     return rng.uniform(lo, hi, size=(n, model.n_joints))

@@ -20,6 +20,13 @@ import io
 
 import numpy as np
 
+from .._arguments import (
+    FLAG,
+    PATH,
+    UNIT_SYSTEM,
+    checked,
+    is_a,
+)
 from .._contacts import CONTACT_KINDS, Contacts, KnownDistance, KnownPlane
 from .._errors import InputError
 from .._model import RobotModel
@@ -115,8 +122,22 @@ class _Facts:
         return KnownPlane(words[0], vector3(n), offset)
 
 
+@checked(path=PATH, model=is_a(RobotModel))
 def read_contacts(path, model: RobotModel) -> Contacts:
-    """Read a contact file for ``model`` (its joints and markers name the columns); SI out."""
+    """Read a contact file for ``model`` (its joints and markers name the columns); SI out.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to read or write.
+    model : RobotModel
+        The robot model (nominal, unless said otherwise).
+
+    Returns
+    -------
+    Contacts
+        The recordings, SI.
+    """
     text, digest = read_text(path)
     source = str(path)
     facts = _Facts()
@@ -211,8 +232,24 @@ def _known_targets(facts: _Facts, kind, target, source: str) -> None:
             raise InputError(f"plane {p.name!r} is stated but no plane row touches it", source=source)
 
 
+@checked(contacts=is_a(Contacts), model=is_a(RobotModel), units=UNIT_SYSTEM)
 def contacts_to_csv(contacts: Contacts, model: RobotModel, *, units: str = "mm-deg") -> str:
-    """The text of a contact file holding ``contacts`` (SI) in ``units`` ("length-angle")."""
+    """The text of a contact file holding ``contacts`` (SI) in ``units`` ("length-angle").
+
+    Parameters
+    ----------
+    contacts : Contacts
+        Joint-only contact recordings (sockets, planes, ball bars).
+    model : RobotModel
+        The robot model (nominal, unless said otherwise).
+    units : str
+        Length and angle units of the file or table, ``"mm-deg"``, ``"m-rad"``, ...
+
+    Returns
+    -------
+    str
+        The CSV text.
+    """
     from .._units import unit_factors
 
     f = unit_factors(units)
@@ -233,8 +270,27 @@ def contacts_to_csv(contacts: Contacts, model: RobotModel, *, units: str = "mm-d
     return "\n".join(out) + "\n" + buf.getvalue()
 
 
+@checked(contacts=is_a(Contacts), path=PATH, model=is_a(RobotModel), units=UNIT_SYSTEM, force=FLAG)
 def write_contacts(contacts: Contacts, path, model: RobotModel, *, units: str = "mm-deg", force: bool = False) -> None:
-    """Write ``contacts`` as a contact file (refuses to overwrite unless ``force``)."""
+    """Write ``contacts`` as a contact file (refuses to overwrite unless ``force``).
+
+    Parameters
+    ----------
+    contacts : Contacts
+        Joint-only contact recordings (sockets, planes, ball bars).
+    path : str or os.PathLike
+        The file to read or write.
+    model : RobotModel
+        The robot model (nominal, unless said otherwise).
+    units : str
+        Length and angle units of the file or table, ``"mm-deg"``, ``"m-rad"``, ...
+    force : bool
+        Overwrite an existing file.
+
+    Returns
+    -------
+    None
+    """
     from .text import write_texts
 
     write_texts({path: contacts_to_csv(contacts, model, units=units)}, force=force)

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from .._arguments import FLAG, PATH, POSITIVE_OR_INF, TEXT, UNIT_SYSTEM, checked, is_a, optional
 from .._conversion import MDH_TABLE_KINDS, from_standard_dh, mdh_table, to_standard_dh
 from .._errors import InputError
 from .._model import Frame, Marker, RobotModel, parallel_beta_frames, serial_model
@@ -58,9 +59,23 @@ def _csv(rows: list[dict]) -> str:
     return buf.getvalue()
 
 
+@checked(model=is_a(RobotModel), units=UNIT_SYSTEM)
 def mdh_csv(model: RobotModel, *, units: str = "mm-deg") -> str:
     """The CSV text of the modified-DH table: :func:`mdh_table` per frame with each reading's
-    limits on the first frame it drives alone, then the base and marker rows."""
+    limits on the first frame it drives alone, then the base and marker rows.
+
+    Parameters
+    ----------
+    model : RobotModel
+        The robot model (nominal, unless said otherwise).
+    units : str
+        Length and angle units of the file or table, ``"mm-deg"``, ``"m-rad"``, ...
+
+    Returns
+    -------
+    str
+        The CSV text.
+    """
     names = dict(zip(("length", "angle"), parse_units(units)))
     factors = unit_factors(units)
     first: dict[int, int] = {}
@@ -77,14 +92,47 @@ def mdh_csv(model: RobotModel, *, units: str = "mm-deg") -> str:
     return _csv(rows)
 
 
+@checked(model=is_a(RobotModel), path=PATH, units=UNIT_SYSTEM, force=FLAG)
 def write_mdh_csv(model: RobotModel, path, *, units: str = "mm-deg", force: bool = False) -> None:
-    """Write :func:`mdh_csv`, atomically; full float precision."""
+    """Write :func:`mdh_csv`, atomically; full float precision.
+
+    Parameters
+    ----------
+    model : RobotModel
+        The robot model (nominal, unless said otherwise).
+    path : str or os.PathLike
+        The file to read or write.
+    units : str
+        Length and angle units of the file or table, ``"mm-deg"``, ``"m-rad"``, ...
+    force : bool
+        Overwrite an existing file.
+
+    Returns
+    -------
+    None
+    """
     write_texts({path: mdh_csv(model, units=units)}, force=force)
 
 
+@checked(model=is_a(RobotModel), units=UNIT_SYSTEM, max_offset=optional(POSITIVE_OR_INF))
 def dh_csv(model: RobotModel, *, units: str = "mm-deg", max_offset: float | None = None) -> str:
     """The CSV text of the classic DH table of ``model`` (:func:`to_standard_dh`, which refuses
-    where nearly parallel axes make it ill-conditioned)."""
+    where nearly parallel axes make it ill-conditioned).
+
+    Parameters
+    ----------
+    model : RobotModel
+        The robot model (nominal, unless said otherwise).
+    units : str
+        Length and angle units of the file or table, ``"mm-deg"``, ``"m-rad"``, ...
+    max_offset : float, optional
+        Largest offset along a joint axis accepted where two axes are parallel, m.
+
+    Returns
+    -------
+    str
+        The CSV text of the classic DH table.
+    """
     names = dict(zip(("length", "angle"), parse_units(units)))
     factors = unit_factors(units)
     dh = to_standard_dh(model, max_offset=max_offset)

@@ -17,6 +17,7 @@ from dataclasses import replace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from .._arguments import FLAG, PATH, TEXT, UNIT_SYSTEM, checked, is_a, optional
 from .._errors import InputError, excerpt, suggest
 from .._measurements import Measurements, approach_sides
 from .._model import RobotModel
@@ -262,6 +263,10 @@ def _comment_units(text: str, source: str, line: int) -> dict:
     return out
 
 
+@checked(path=PATH, model=optional(is_a(RobotModel)), units=optional(UNIT_SYSTEM), sep=optional(TEXT),
+         decimal=optional(TEXT), orientation=optional(TEXT), columns=optional(is_a(dict, ColumnMap)),
+         unknown=optional(TEXT), joints=optional(PATH), key=optional(TEXT),
+         profile=optional(is_a(str, os.PathLike, Profile)), targets=FLAG)
 def read_measurements(path, model: RobotModel | None = None, *, units: str | None = None, sep: str | None = None,
                       decimal: str | None = None, orientation: str | None = None, columns=None,
                       unknown: str | None = None, joints=None, key: str | None = None,
@@ -682,9 +687,21 @@ def _rotation(kind, seq, vals, source, line, column) -> np.ndarray:
     return Rotation.from_euler("xyz" if kind == "rpy" else seq, vals).as_matrix()
 
 
+@checked(data=is_a(Measurements))
 def split_sets(data: Measurements) -> tuple[Measurements, Measurements | None]:
     """(fit, validation) from a file's ``set`` column; (data, None) without one. Both keep the
-    approach directions of the file's visiting order (``Measurements.with_approach``)."""
+    approach directions of the file's visiting order (``Measurements.with_approach``).
+
+    Parameters
+    ----------
+    data : Measurements
+        Joint readings with what the instrument measured.
+
+    Returns
+    -------
+    (Measurements, Measurements or None)
+        The fit poses and the held-out poses (None: no ``set`` column).
+    """
     flags = data.extra.get("validation")
     if flags is None:
         return data, None
@@ -702,10 +719,28 @@ def split_sets(data: Measurements) -> tuple[Measurements, Measurements | None]:
     return fit, part(flags)
 
 
+@checked(data=is_a(Measurements), model=optional(is_a(RobotModel)), units=UNIT_SYSTEM, orientation=TEXT)
 def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, units: str = "mm-deg",
                         orientation: str = "quat_xyzw") -> str:
     """The CSV text of ``data``: every column carries its unit; orientations in the convention
-    ``orientation`` (quaternions, whose columns need no unit, or angles in the angle unit)."""
+    ``orientation`` (quaternions, whose columns need no unit, or angles in the angle unit).
+
+    Parameters
+    ----------
+    data : Measurements
+        Joint readings with what the instrument measured.
+    model : RobotModel, optional
+        The model (gives each joint's unit).
+    units : str
+        Length and angle units of the file or table, ``"mm-deg"``, ``"m-rad"``, ...
+    orientation : str
+        Convention of the written orientation columns.
+
+    Returns
+    -------
+    str
+        The CSV text.
+    """
     kind, seq = parse_orientation(orientation)
     orientation = orientation.strip()
     rot_parts = ("qw", "qx", "qy", "qz") if orientation == "quat_wxyz" else ORIENTATION_PARTS[kind]
@@ -784,11 +819,32 @@ def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, 
     return buf.getvalue()
 
 
+@checked(data=is_a(Measurements), path=PATH, units=UNIT_SYSTEM, force=FLAG, model=optional(is_a(RobotModel)),
+         orientation=TEXT)
 def write_measurements(data: Measurements, path, *, units: str = "mm-deg", force: bool = False,
                        model: RobotModel | None = None, orientation: str = "quat_xyzw") -> None:
     """Write ``data`` as a measurement CSV in ``units``, atomically; refuse to overwrite unless ``force``.
 
     Joint units follow each joint's type, from ``model`` or from the file the data were read from.
     ``orientation``: how orientations are written (``quat_xyzw``, ``quat_wxyz``, ``rpy``, ``euler:SEQ``).
+
+    Parameters
+    ----------
+    data : Measurements
+        Joint readings with what the instrument measured.
+    path : str or os.PathLike
+        The file to read or write.
+    units : str
+        Length and angle units of the file or table, ``"mm-deg"``, ``"m-rad"``, ...
+    force : bool
+        Overwrite an existing file.
+    model : RobotModel, optional
+        The model (gives each joint's unit).
+    orientation : str
+        Convention of the written orientation columns.
+
+    Returns
+    -------
+    None
     """
     write_texts({path: measurements_to_csv(data, model=model, units=units, orientation=orientation)}, force=force)

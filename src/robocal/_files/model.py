@@ -15,6 +15,17 @@ import numpy as np
 import yaml
 from scipy.spatial.transform import Rotation
 
+from .._arguments import (
+    FLAG,
+    MAPPING,
+    PATH,
+    TEXT,
+    UNIT_SYSTEM,
+    checked,
+    is_a,
+    optional,
+)
+from .._calibration import CalibrationResult
 from .._errors import InputError, excerpt, suggest
 from .._model import (
     DEFAULT_PARALLEL_TOL,
@@ -158,8 +169,22 @@ def _show(value) -> str:
     return excerpt(value)
 
 
+@checked(source=TEXT)
 def model_from_dict(d: dict, *, source: str = "<dict>") -> RobotModel:
-    """A RobotModel (SI) from the parsed model file ``d`` (docs/formats.md)."""
+    """A RobotModel (SI) from the parsed model file ``d`` (docs/formats.md).
+
+    Parameters
+    ----------
+    d : dict
+        A model as ``model_to_dict`` gives it (the parsed YAML file).
+    source : str
+        Where ``d`` came from, for messages.
+
+    Returns
+    -------
+    RobotModel
+        The model.
+    """
     rd = _Reader(source)
     L, A = _units_of(rd, d)
     name = d.get("name", Path(source).stem)
@@ -432,8 +457,20 @@ def _coupling(rd: _Reader, item: dict, where: str, fname: str, joint: str, joint
     return ((free[0], 1.0),)
 
 
+@checked(path=PATH)
 def read_model(path) -> RobotModel:
-    """Read a model file (docs/formats.md) into a RobotModel in SI units."""
+    """Read a model file (docs/formats.md) into a RobotModel in SI units.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to read or write.
+
+    Returns
+    -------
+    RobotModel
+        The model.
+    """
     source = str(path)
     d = load_yaml(read_text(path)[0], source)
     if d is None:
@@ -441,6 +478,7 @@ def read_model(path) -> RobotModel:
     return model_from_dict(d, source=source)
 
 
+@checked(model=is_a(RobotModel), units=UNIT_SYSTEM, calibration=optional(MAPPING))
 def model_to_dict(model: RobotModel, *, units: str = "mm-deg", calibration: dict | None = None) -> dict:
     """The model file form of ``model`` (plain Python types, ready for YAML or JSON).
 
@@ -525,25 +563,71 @@ def model_to_dict(model: RobotModel, *, units: str = "mm-deg", calibration: dict
     return d
 
 
+@checked(model=is_a(RobotModel), units=UNIT_SYSTEM, calibration=optional(MAPPING))
 def model_to_yaml(model: RobotModel, *, units: str = "mm-deg", calibration: dict | None = None) -> str:
-    """The model file text (see model_to_dict)."""
+    """The model file text (see model_to_dict).
+
+    Parameters
+    ----------
+    model : RobotModel
+        The robot model (nominal, unless said otherwise).
+    units : str
+        Length and angle units of the file or table, ``"mm-deg"``, ``"m-rad"``, ...
+    calibration : dict, optional
+        The calibration record to store with the model (``calibration_record``).
+
+    Returns
+    -------
+    str
+        The YAML text.
+    """
     return yaml.safe_dump(model_to_dict(model, units=units, calibration=calibration), sort_keys=False,
                           default_flow_style=None, width=110, allow_unicode=True)
 
 
+@checked(model=is_a(RobotModel), path=PATH, units=UNIT_SYSTEM, force=FLAG, calibration=optional(MAPPING))
 def write_model(model: RobotModel, path, *, units: str = "mm-deg", force: bool = False,
                 calibration: dict | None = None) -> None:
     """Write ``model`` as a model file in ``units`` ("mm-deg", "m-rad"...), atomically.
 
     An existing file is an InputError unless ``force``. ``calibration``: what a calibration said of
     the model (see ``model_to_dict``; ``robocal.io.calibration_record(result)`` gives it).
+
+    Parameters
+    ----------
+    model : RobotModel
+        The robot model (nominal, unless said otherwise).
+    path : str or os.PathLike
+        The file to read or write.
+    units : str
+        Units of the written file.
+    force : bool
+        Overwrite an existing file.
+    calibration : dict, optional
+        The calibration record to store with the model (``calibration_record``).
+
+    Returns
+    -------
+    None
     """
     write_texts({path: model_to_yaml(model, units=units, calibration=calibration)}, force=force)
 
 
+@checked(result=is_a(CalibrationResult))
 def calibration_record(result) -> dict:
     """What a calibrated model file says of its own calibration: the verdict, the date and the checks
-    that did not pass."""
+    that did not pass.
+
+    Parameters
+    ----------
+    result : CalibrationResult
+        A calibration's result.
+
+    Returns
+    -------
+    dict
+        The calibration record a model file stores (verdict, checks, date).
+    """
     out = {"verdict": result.verdict, "date": result.provenance.get("date", "")}
     data = result.provenance.get("data") or {}
     if data.get("source"):

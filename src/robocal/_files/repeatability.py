@@ -8,6 +8,12 @@ import io
 import numpy as np
 
 from .._accuracy_limit import RepeatabilityData
+from .._arguments import (
+    PATH,
+    checked,
+    one_of,
+    optional,
+)
 from .._errors import InputError, excerpt
 from .._options import MAX_POSES
 from .._units import LENGTH_UNITS
@@ -17,6 +23,7 @@ from .text import check_rows, read_text
 CSV_COLUMNS = ("pose", "cycle", "x", "y", "z")
 
 
+@checked(path=PATH, units=optional(one_of(tuple(LENGTH_UNITS))))
 def read_repeatability_csv(path, *, units: str | None = None) -> RepeatabilityData:
     """Read repeated measurements: columns ``pose, cycle, x, y, z`` (header required, any order,
     further columns ignored). The coordinates' unit is never guessed: it comes from the column
@@ -24,6 +31,18 @@ def read_repeatability_csv(path, *, units: str | None = None) -> RepeatabilityDa
     "m"); a suffix that disagrees with ``units`` is an error. The result is in metres.
 
     Errors name the file and ``row N, column 'c'`` with N the line number in the file (header = 1).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to read or write.
+    units : str, optional
+        Length unit of columns without a suffix (``mm`` or ``m``).
+
+    Returns
+    -------
+    RepeatabilityData
+        Pose ids and points, m.
     """
     if units is not None and units not in LENGTH_UNITS:
         raise InputError(f"units must be one of {', '.join(LENGTH_UNITS)}, got {units!r}", where="units")

@@ -18,6 +18,13 @@ from pathlib import Path
 import numpy as np
 
 from .._accuracy_limit import AccuracyLimit, PoseRepeatability, PrecisionResult, RepeatabilityResult
+from .._arguments import (
+    FLAG,
+    PATH,
+    TEXT,
+    checked,
+    is_a,
+)
 from .._calibration import CalibrationResult, ErrorStats, ErrorSummary, LimitJudgement, ParameterEstimate
 from .._checks import STATUSES, Check
 from .._errors import InputError, excerpt
@@ -170,8 +177,20 @@ def _in_use(doc: _Doc, d: dict | None) -> AccuracyInUse | None:
                          errors_before=np.zeros(0), errors_after=np.zeros(0), **stats)
 
 
+@checked(result=is_a(CalibrationResult))
 def result_to_json(result: CalibrationResult) -> str:
-    """The result file text of a CalibrationResult."""
+    """The result file text of a CalibrationResult.
+
+    Parameters
+    ----------
+    result : CalibrationResult
+        A calibration's result.
+
+    Returns
+    -------
+    str
+        The JSON text.
+    """
     return to_json(result_to_dict(result))
 
 
@@ -475,9 +494,21 @@ def result_from_dict(d, *, source: str = "<dict>", folder=None) -> CalibrationRe
         provenance=_provenance(doc, doc.get(d, "provenance", "", dict, optional=True) or {}))
 
 
+@checked(path=PATH)
 def read_result(path) -> CalibrationResult:
     """The CalibrationResult stored by ``write_result``; InputError if it is not a robocal result of a
-    known schema, naming the key that departs from it."""
+    known schema, naming the key that departs from it.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to read or write.
+
+    Returns
+    -------
+    CalibrationResult
+        The stored result.
+    """
     source = str(path)
     return result_from_dict(load_json(read_text(path)[0], source), source=source, folder=Path(path).parent)
 
@@ -506,8 +537,20 @@ def _precision_dict(p: PrecisionResult) -> dict:
             "method": p.method}
 
 
+@checked(limit=is_a(AccuracyLimit))
 def limit_to_dict(limit: AccuracyLimit) -> dict:
-    """The file form of the limit of absolute accuracy (metres)."""
+    """The file form of the limit of absolute accuracy (metres).
+
+    Parameters
+    ----------
+    limit : AccuracyLimit
+        The limit of absolute accuracy.
+
+    Returns
+    -------
+    dict
+        The limit as its JSON record holds it.
+    """
     return {"schema": LIMIT_SCHEMA, "unit": "m", "limit": limit.limit, "limit_p95": limit.limit_p95,
             "repeatability": limit.repeatability, "precision": limit.precision,
             "precision_p95": limit.precision_p95, "precision_statistic": limit.precision_statistic,

@@ -16,6 +16,15 @@ from pathlib import Path
 
 import numpy as np
 
+from .._arguments import (
+    FLAG,
+    PATH,
+    SEQUENCE,
+    TEXT,
+    checked,
+    is_a,
+    optional,
+)
 from .._conversion import frames_from_lines, line_frames, marker_placements
 from .._errors import InputError, excerpt
 from .._model import DEFAULT_PARALLEL_TOL, Marker, RobotModel, mdh_transform
@@ -443,6 +452,7 @@ def _clean_pose(X: np.ndarray, decimals: int) -> tuple[tuple, tuple]:
     return tuple(_clean(float(v), False, 0.0, decimals) for v in X[:3, 3]), matrix_tuple(R)
 
 
+@checked(path_or_string=PATH, base_link=optional(TEXT), tip_link=optional(TEXT), markers=optional(SEQUENCE))
 def read_urdf(path_or_string, *, base_link: str | None = None, tip_link: str | None = None,
               markers: Sequence | None = None) -> RobotModel:
     """A serial model from a URDF file (path) or URDF text (a string starting with ``<``).
@@ -470,6 +480,23 @@ def read_urdf(path_or_string, *, base_link: str | None = None, tip_link: str | N
     Raises InputError naming the source and the joint: malformed XML, DOCTYPE/ENTITY, names used
     twice, missing links, a chain that branches before the arm moves without tip_link, zero axis,
     floating/planar joints.
+
+    Parameters
+    ----------
+    path_or_string : str or os.PathLike
+        A URDF file, or its XML text.
+    base_link : str, optional
+        The link the model starts from (default: the root).
+    tip_link : str, optional
+        The link the model ends at (default: the single leaf).
+    markers : sequence, optional
+        Markers on the tip link as ``(name, (x, y, z))`` or ``(name, (x, y, z), R)`` (default: one
+        marker ``tool`` at its origin).
+
+    Returns
+    -------
+    RobotModel
+        The model in modified DH.
     """
     root, source = _load_xml(path_or_string)
     links, joints, extra = _parse_joints(root, source)
@@ -600,6 +627,7 @@ def _frame_joint(robot: ET.Element, model: RobotModel, i: int, names: _Names, pr
         ET.SubElement(j, "mimic", joint=names.joints[primary[k]], multiplier=_num(f.coupling[0][1]), offset="0")
 
 
+@checked(model=is_a(RobotModel))
 def urdf_text(model: RobotModel) -> str:
     """``model`` as URDF text (serial chains and trees).
 
@@ -615,6 +643,16 @@ def urdf_text(model: RobotModel) -> str:
     it (multiplier = coefficient). A frame driven by several readings, or a reading that drives no
     frame with coefficient 1, cannot be said in URDF and raises InputError. Masses go out as
     ``<inertial>`` with zero inertia; compliance, gravity and payload are not written.
+
+    Parameters
+    ----------
+    model : RobotModel
+        The robot model (nominal, unless said otherwise).
+
+    Returns
+    -------
+    str
+        The URDF text.
     """
     primary = _primary_frames(model)
     names = _Names(model, primary)
@@ -640,6 +678,21 @@ def urdf_text(model: RobotModel) -> str:
     return '<?xml version="1.0" encoding="utf-8"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
 
 
+@checked(model=is_a(RobotModel), path=PATH, force=FLAG)
 def write_urdf(model: RobotModel, path, *, force: bool = False) -> None:
-    """Write :func:`urdf_text` of ``model``, atomically."""
+    """Write :func:`urdf_text` of ``model``, atomically.
+
+    Parameters
+    ----------
+    model : RobotModel
+        The robot model (nominal, unless said otherwise).
+    path : str or os.PathLike
+        The file to read or write.
+    force : bool
+        Overwrite an existing file.
+
+    Returns
+    -------
+    None
+    """
     write_texts({path: urdf_text(model)}, force=force)

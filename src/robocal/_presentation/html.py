@@ -13,6 +13,14 @@ import math
 import re
 from datetime import datetime
 
+from .._arguments import (
+    FLAG,
+    MAPPING,
+    PATH,
+    checked,
+    is_a,
+    optional,
+)
 from .._calibration import CalibrationResult
 from .._errors import InputError
 from .._files.result import result_to_dict
@@ -648,11 +656,24 @@ def _list(items: list[str]) -> str:
     return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " and " + items[-1]
 
 
+@checked(result=is_a(CalibrationResult), extra=optional(MAPPING))
 def render_report(result: CalibrationResult, *, extra: dict | None = None) -> str:
     """The HTML text of the report of ``result`` (a CalibrationResult, computed or read back).
 
     ``extra``: optional tables for a comparison section (see ``_extra_tables``).
     Raises RobocalError when matplotlib is missing, InputError when ``result`` is not a result.
+
+    Parameters
+    ----------
+    result : CalibrationResult
+        A calibration's result.
+    extra : dict, optional
+        Extra sections of the report (e.g. an accuracy-limit record).
+
+    Returns
+    -------
+    str
+        The HTML page.
     """
     if not isinstance(result, CalibrationResult):
         raise InputError(f"expected a CalibrationResult, got {type(result).__name__}", where="result")
@@ -719,9 +740,25 @@ def render_report(result: CalibrationResult, *, extra: dict | None = None) -> st
             "units. A self-contained page: no scripts, no network.</footer>\n</main>\n</body>\n</html>\n")
 
 
+@checked(result=is_a(CalibrationResult), path=PATH, force=FLAG, extra=optional(MAPPING))
 def write_report(result: CalibrationResult, path, *, force: bool = False, extra: dict | None = None) -> None:
     """Write the HTML report of ``result`` to ``path`` atomically (temporary file, then rename).
 
     An existing ``path`` is an InputError unless ``force``. See ``render_report``.
+
+    Parameters
+    ----------
+    result : CalibrationResult
+        A calibration's result.
+    path : str or os.PathLike
+        The file to read or write.
+    force : bool
+        Overwrite an existing file.
+    extra : dict, optional
+        Extra sections of the report (e.g. an accuracy-limit record).
+
+    Returns
+    -------
+    None
     """
     write_texts({path: render_report(result, extra=extra)}, force=force)
