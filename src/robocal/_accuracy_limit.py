@@ -191,10 +191,7 @@ def iso9283_repeatability(pose_ids: Sequence[Hashable], points) -> Repeatability
 
     Parameters
     ----------
-    pose_ids : sequence
-        The pose of each measured point.
-    points : array_like, shape (n, 3)
-        Measured points, m.
+    {pose_ids, points}
 
     Returns
     -------
@@ -258,8 +255,7 @@ def rounded_parameters(model: RobotModel, length_quantum: float, angle_quantum: 
 
     Parameters
     ----------
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
+    {model}
     length_quantum : float
         Resolution lengths are stored with, m (0: exact).
     angle_quantum : float
@@ -374,22 +370,7 @@ def controller_precision(model: RobotModel, *, encoder_resolution, length_quantu
 
     Parameters
     ----------
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
-    encoder_resolution : float or array_like of shape (n_joints,)
-        Encoder resolution per joint reading, rad or m per count.
-    length_quantum : float
-        Resolution lengths are stored with in the controller, m (0: exact).
-    angle_quantum : float
-        Resolution angles are stored with in the controller, rad (0: exact).
-    n_samples : int
-        Monte Carlo samples.
-    chunk_size : int
-        Configurations evaluated at once (bounds memory).
-    rng : None, int or numpy.random.Generator
-        Seed or generator of the random draws (None: fresh entropy).
-    progress : callable, optional
-        Called as ``progress(done, total)`` after each chunk.
+    {model, encoder_resolution, length_quantum, angle_quantum, n_samples, chunk_size, rng, progress}
     markers : str
         ``first`` marker or ``all`` markers.
 
@@ -469,22 +450,7 @@ def predicted_controller_precision(model: RobotModel, *, encoder_resolution, len
 
     Parameters
     ----------
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
-    encoder_resolution : float or array_like of shape (n_joints,)
-        Encoder resolution per joint reading, rad or m per count.
-    length_quantum : float
-        Resolution lengths are stored with in the controller, m (0: exact).
-    angle_quantum : float
-        Resolution angles are stored with in the controller, rad (0: exact).
-    n_configurations : int
-        Configurations the prediction is averaged over.
-    chunk_size : int
-        Configurations evaluated at once (bounds memory).
-    rng : None, int or numpy.random.Generator
-        Seed or generator of the random draws (None: fresh entropy).
-    marker : int
-        Index of the marker in the model (0 <= marker < n_markers).
+    {model, encoder_resolution, length_quantum, angle_quantum, n_configurations, chunk_size, rng, marker}
 
     Returns
     -------

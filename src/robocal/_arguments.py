@@ -26,6 +26,7 @@ from collections.abc import Iterable
 import numpy as np
 
 from ._errors import InputError, excerpt, suggest
+from ._glossary import expand
 
 
 def _interval(low: float | None, high: float | None, low_open: bool, high_open: bool) -> str:
@@ -201,7 +202,8 @@ def mapping(value, name: str) -> dict:
 def checked(**rules):
     """Decorate a public function so that each argument named in ``rules`` is checked before the call.
 
-    A rule is called as ``rule(value, name, arguments)`` (``arguments``: every argument of the call
+    Its docstring's ``{name, ...}`` lines become those arguments' entries (``_glossary``). A rule is
+    called as ``rule(value, name, arguments)`` (``arguments``: every argument of the call
     by name, defaults applied, so a rule can read another argument, e.g. the model's joint count).
     """
     def wrap(fn):
@@ -209,6 +211,8 @@ def checked(**rules):
         missing = set(rules) - set(signature.parameters)
         if missing:
             raise TypeError(f"{fn.__name__} has no argument {', '.join(sorted(missing))}")
+
+        fn.__doc__ = expand(fn.__doc__)          # the shared entries of its Parameters section
 
         @functools.wraps(fn)
         def call(*args, **kwargs):

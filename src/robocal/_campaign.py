@@ -102,12 +102,7 @@ def backlash_sides(true_model: RobotModel, recorded, imp: RobotImperfections, pa
 
     Parameters
     ----------
-    true_model : RobotModel
-        The true robot the simulation measures.
-    recorded : array_like, shape (n_poses, n_joints)
-        Joint readings in the order they were visited.
-    imp : RobotImperfections
-        How the real robot, its controller and the instrument depart from the ideal.
+    {true_model, recorded, imp}
     payload_mass : float or array_like of shape (n_poses,), optional
         Payload mass, kg.
 
@@ -146,18 +141,7 @@ def measure_campaign(true_model: RobotModel, q_commanded, imp: RobotImperfection
 
     Parameters
     ----------
-    true_model : RobotModel
-        The true robot the simulation measures.
-    q_commanded : array_like, shape (n_poses, n_joints)
-        Commanded joint readings.
-    imp : RobotImperfections
-        How the real robot, its controller and the instrument depart from the ideal.
-    rng : None, int or numpy.random.Generator
-        Seed or generator of the random draws (None: fresh entropy).
-    payload_mass : float or array_like of shape (n_poses,), optional
-        Payload mass, kg, for every pose or one per pose.
-    labels : sequence of str
-        A label per pose, for messages (default ``pose i``).
+    {true_model, q_commanded, imp, rng, payload_mass, labels}
 
     Returns
     -------
@@ -178,10 +162,7 @@ def stored_model(model: RobotModel, imp: RobotImperfections) -> RobotModel:
 
     Parameters
     ----------
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
-    imp : RobotImperfections
-        How the real robot, its controller and the instrument depart from the ideal.
+    {model, imp}
 
     Returns
     -------
@@ -210,18 +191,10 @@ def accuracy_in_use(true_model: RobotModel, controller_model: RobotModel | None,
 
     Parameters
     ----------
-    true_model : RobotModel
-        The true robot the simulation measures.
-    controller_model : RobotModel, optional
-        The model the controller computes with (None: the nominal).
+    {true_model, controller_model}
     nominal : RobotModel
         The nominal model (gives the joint readings of the targets).
-    targets_q : array_like, shape (n_poses, n_joints)
-        Joint readings at which the nominal model puts the marker on the targets.
-    imp : RobotImperfections
-        How the real robot, its controller and the instrument depart from the ideal.
-    rng : None, int or numpy.random.Generator
-        Seed or generator of the random draws (None: fresh entropy).
+    {targets_q, imp, rng}
     marker : int
         Index of the marker in the nominal model.
 

@@ -34,10 +34,7 @@ def joint_jacobian(model: RobotModel, q) -> np.ndarray:
 
     Parameters
     ----------
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
-    q : array_like, shape (n_poses, n_joints)
-        Joint readings, rad or m.
+    {model, q}
 
     Returns
     -------
@@ -145,27 +142,16 @@ def compensate(model: RobotModel, targets_q, *, nominal: RobotModel | None = Non
     ----------
     model : RobotModel
         The calibrated model.
-    targets_q : array_like, shape (n_poses, n_joints)
-        Joint readings at which the nominal model puts the marker on the targets.
+    {targets_q}
     nominal : RobotModel, optional
         The model the controller computes with (default: ``model``).
-    positions : array_like, shape (n_poses, 3), optional
-        Target marker positions in W, m (default: where the nominal model puts the marker at
-        ``targets_q``).
-    rotations : array_like, shape (n_poses, 3, 3), optional
-        Target marker orientations in W.
-    marker : int
-        Index of the marker in the model (0 <= marker < n_markers).
+    {positions, rotations, marker}
     orientation : bool, optional
         Whether to match orientations too (None: when ``rotations`` are given).
-    iterations : int
-        Most Newton iterations per target.
+    {iterations}
     tol : float
         Position tolerance of a reached target, m.
-    damping : float
-        Damping of the least-squares steps (>= 0).
-    max_step : float
-        Largest joint step per iteration, rad or m.
+    {damping, max_step}
 
     Returns
     -------

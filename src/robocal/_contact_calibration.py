@@ -124,8 +124,7 @@ def contact_identifiability(problem: ContactProblem, names, *, tol: float = DEFA
 
     Parameters
     ----------
-    problem : Problem or ContactProblem
-        The identification problem.
+    {problem}
     names : sequence of str
         Candidate parameter names.
     tol : float
@@ -193,10 +192,7 @@ def contact_errors(model: RobotModel, contacts: Contacts) -> ContactErrors:
 
     Parameters
     ----------
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
-    contacts : Contacts
-        Joint-only contact recordings (sockets, planes, ball bars).
+    {model, contacts}
 
     Returns
     -------
@@ -295,29 +291,15 @@ def calibrate_contacts(model: RobotModel, contacts: Contacts, *, data: Measureme
 
     Parameters
     ----------
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
-    contacts : Contacts
-        Joint-only contact recordings (sockets, planes, ball bars).
+    {model, contacts}
     data : Measurements, optional
         Tracker measurements to calibrate on beside the contacts.
-    validation : Contacts, optional
-        Held-out recordings to judge the calibration on.
-    parameters : str or sequence of str
-        Parameter families (``geometric``, ``compliance``, ``base``, ``markers``, ``frames``,
-        ``backlash``) and/or parameter names or patterns.
-    known : str or sequence of str
-        Families, names or patterns held at their model values.
+    {validation, parameters, known}
     noise : Noise or str, optional
         Noise of the tracker (a ``Noise`` or an instrument class; default a laser tracker's).
     tol : float
         Identifiability tolerance, in (0, 1).
-    loss : str
-        Least-squares loss: ``linear`` or a robust one (``soft_l1``, ``huber``, ``cauchy``, ``arctan``).
-    max_nfev : int, optional
-        Most evaluations of the residuals (None: the solver's default).
-    on_outliers : str
-        ``refit`` refits without outliers, ``flag`` only names them.
+    {loss, max_nfev, on_outliers}
 
     Returns
     -------

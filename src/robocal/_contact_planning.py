@@ -95,21 +95,12 @@ def plan_sockets(model: RobotModel, *, placements=(3, 5, 7, 9), poses_per_socket
 
     Parameters
     ----------
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
+    {model}
     placements : sequence of int
         Numbers of plate placements to consider.
     poses_per_socket : sequence of int
         Numbers of seatings per socket to consider.
-    joint_noise : float
-        Joint-reading noise, rad or m (one standard deviation).
-    seat_noise : float
-        Scatter of the seating of a probe in a socket or on a plane, m.
-    parameters : str or sequence of str
-        Parameter families (``geometric``, ``compliance``, ``base``, ``markers``, ``frames``,
-        ``backlash``) and/or parameter names or patterns.
-    bounds : dict, optional
-        Largest acceptable standard deviation per quantity (``length`` m, ``angle`` rad).
+    {joint_noise, seat_noise, parameters, bounds}
     seed : None, int or numpy.random.Generator
         Seed of the simulated seatings.
 

@@ -58,16 +58,10 @@ def reach(model: RobotModel, targets, *, marker: int = 0, rng=None, tol: float =
     ----------
     model : RobotModel
         The robot.
-    targets : array_like, shape (n, 3)
-        Target positions of the marker in W, m.
-    marker : int
-        Index of the marker in the model (0 <= marker < n_markers).
-    rng : None, int or numpy.random.Generator
-        Seed or generator of the random draws (None: fresh entropy).
+    {targets, marker, rng}
     tol : float
         Position tolerance of a reached target, m.
-    max_rounds : int
-        Random restarts per target.
+    {max_rounds}
 
     Returns
     -------
@@ -114,12 +108,7 @@ def plate_placements(n: int, rng=None, box=WORK_BOX, tilt_deg: float = 20.0):
     ----------
     n : int
         Number of placements.
-    rng : None, int or numpy.random.Generator
-        Seed or generator of the random draws (None: fresh entropy).
-    box : array_like, shape (2, 3)
-        Lower and upper corner of the box plate centres are drawn in, m.
-    tilt_deg : float
-        Largest tilt of the plate, deg.
+    {rng, box, tilt_deg}
 
     Returns
     -------
@@ -147,26 +136,10 @@ def socket_campaign(true: RobotModel, *, placements: int = 3, poses_per_socket: 
 
     Parameters
     ----------
-    true : RobotModel
-        The true robot the campaign is simulated on.
-    placements : int
-        Number of placements of the socket plate.
-    poses_per_socket : int
-        Seatings recorded per socket and placement.
-    plate : dict
-        Socket name -> position on the plate, m.
-    joint_noise : float
-        Joint-reading noise, rad or m (one standard deviation).
-    seat_noise : float
-        Scatter of the seating of a probe in a socket or on a plane, m.
-    distance_sigma : float
-        Standard deviation of the known socket spacings, m.
+    {true, placements, poses_per_socket, plate, joint_noise, seat_noise, distance_sigma}
     marker : int
         Index of the probing marker in the model.
-    known_distances : bool
-        Whether the socket spacings are known.
-    rng : None, int or numpy.random.Generator
-        Seed or generator of the random draws (None: fresh entropy).
+    {known_distances, rng}
 
     Returns
     -------
@@ -206,24 +179,12 @@ def plane_campaign(true: RobotModel, *, planes: int = 4, poses_per_plane: int = 
 
     Parameters
     ----------
-    true : RobotModel
-        The true robot the campaign is simulated on.
-    planes : int
-        Number of planes probed.
-    poses_per_plane : int
-        Contacts recorded per plane.
-    joint_noise : float
-        Joint-reading noise, rad or m (one standard deviation).
-    seat_noise : float
-        Scatter of the seating of a probe in a socket or on a plane, m.
-    extent : float
-        Half-size of the probed area on each plane, m.
+    {true, planes, poses_per_plane, joint_noise, seat_noise, extent}
     marker : int
         Index of the probing marker in the model.
     known : bool
         Whether the planes are known (position and normal).
-    rng : None, int or numpy.random.Generator
-        Seed or generator of the random draws (None: fresh entropy).
+    {rng}
 
     Returns
     -------
@@ -255,22 +216,10 @@ def bar_campaign(true: RobotModel, *, pairs: int = 60, length: float = 0.2, leng
 
     Parameters
     ----------
-    true : RobotModel
-        The true robot the campaign is simulated on.
-    pairs : int
-        Ball-bar placements.
-    length : float
-        Ball-bar length, m.
-    length_sigma : float
-        Standard deviation of the ball-bar length, m.
-    joint_noise : float
-        Joint-reading noise, rad or m (one standard deviation).
-    seat_noise : float
-        Scatter of the seating of a probe in a socket or on a plane, m.
+    {true, pairs, length, length_sigma, joint_noise, seat_noise}
     marker : int
         Index of the probing marker in the model.
-    rng : None, int or numpy.random.Generator
-        Seed or generator of the random draws (None: fresh entropy).
+    {rng}
 
     Returns
     -------

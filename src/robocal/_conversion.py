@@ -107,15 +107,10 @@ def from_standard_dh(rows: Sequence, *, name: str, markers: Sequence = (("tool",
     rows : sequence of dict
         One row per joint: ``joint`` (revolute or prismatic) and the classic DH values ``d``, ``theta``,
         ``a``, ``alpha`` (SI).
-    name : str
-        The robot's name.
+    {name}
     markers : sequence
         Markers as ``(name, (x, y, z))`` or ``(name, (x, y, z), R)`` in the last frame, SI.
-    base : array_like, shape (4, 4), optional
-        Pose of the base in W (None: identity).
-    joint_limits : sequence of (float, float), optional
-        Lower and upper limit of each joint reading, rad or m (None: +-pi for revolute, [0, 1] m for
-        prismatic).
+    {base, joint_limits}
 
     Returns
     -------
@@ -269,10 +264,7 @@ def mdh_table(model: RobotModel, *, units: str = "m-rad") -> list[dict]:
 
     Parameters
     ----------
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
-    units : str
-        Length and angle units of the file or table, ``"mm-deg"``, ``"m-rad"``, ...
+    {model, units}
 
     Returns
     -------
@@ -343,8 +335,7 @@ def to_standard_dh(model: RobotModel, *, max_offset: float | None = None) -> Sta
     ----------
     model : RobotModel
         A serial model with one reading per frame.
-    max_offset : float, optional
-        Largest offset along a joint axis accepted where two axes are parallel, m.
+    {max_offset}
 
     Returns
     -------

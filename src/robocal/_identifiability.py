@@ -99,10 +99,7 @@ def status_table(result: IdentifiabilityResult, frame_names) -> list[dict]:
 
     Parameters
     ----------
-    result : CalibrationResult
-        A calibration's result.
-    frame_names : sequence of str
-        The model's frame names.
+    {result, frame_names}
 
     Returns
     -------
@@ -139,18 +136,14 @@ def analyse(J: np.ndarray, names, *, quantities=None, tol: float = DEFAULT_TOL, 
 
     Parameters
     ----------
-    J : array_like, shape (n_rows, n_params)
-        Identification Jacobian (columns: ``names``).
+    {J}
     names : sequence of str
         Name of each column of ``J``.
     quantities : sequence of str, optional
         Quantity of each column (default: all alike).
     tol : float
         Rank tolerance relative to the largest singular value, in (0, 1).
-    max_terms : int
-        Most terms shown in an absorbing combination.
-    n_rows : int, optional
-        Rows of the full problem when ``J`` is a reduced form (default: its rows).
+    {max_terms, n_rows}
 
     Returns
     -------
@@ -278,24 +271,16 @@ def identifiability(model: RobotModel, data: Measurements | np.ndarray | None = 
 
     Parameters
     ----------
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
+    {model}
     data : Measurements or array_like of shape (n_poses, n_joints), optional
         Measurements, or joint readings, the analysis is made at (None: ``n_random`` random
         configurations).
-    parameters : str or sequence of str
-        Parameter families (``geometric``, ``compliance``, ``base``, ``markers``, ``frames``,
-        ``backlash``) and/or parameter names or patterns.
-    known : str or sequence of str
-        Families, names or patterns held at their model values.
+    {parameters, known}
     orientation : bool, optional
         Whether orientations are measured (None: from ``data``).
     tol : float
         Rank tolerance relative to the largest singular value, in (0, 1).
-    n_random : int
-        Random configurations used when ``data`` is None.
-    rng : None, int or numpy.random.Generator
-        Seed or generator of the random draws (None: fresh entropy).
+    {n_random, rng}
     markers : str or sequence of str, optional
         Markers measured (default: those of ``data``, or all).
 
@@ -385,18 +370,10 @@ def weakly_identifiable(J: np.ndarray, names, quantities, sigma: float, *, momen
 
     Parameters
     ----------
-    J : array_like, shape (n_rows, n_params)
-        Identification Jacobian (columns: ``names``).
+    {J}
     names : sequence of str
         Name of each column of ``J``.
-    quantities : sequence of str
-        Quantity of each column: ``length``, ``angle`` or ``compliance``.
-    sigma : float
-        Noise of the rows of ``J`` (one standard deviation), in their units.
-    moments : dict, optional
-        Known moments of the parameters (prior knowledge) by name.
-    bounds : dict, optional
-        Largest acceptable standard deviation per quantity (``length`` m, ``angle`` rad).
+    {quantities, sigma, moments, bounds}
 
     Returns
     -------

@@ -344,8 +344,7 @@ def mdh_transform(frame: Frame, q: float = 0.0) -> np.ndarray:
 
     Parameters
     ----------
-    frame : Frame
-        One frame of a model.
+    {frame}
     q : float
         The joint variable, rad or m.
 
@@ -383,8 +382,7 @@ def placement_parameters(X) -> dict[str, float]:
 
     Parameters
     ----------
-    X : array_like, shape (4, 4)
-        A homogeneous transform.
+    {X}
 
     Returns
     -------
@@ -440,8 +438,7 @@ def default_masses(model: RobotModel, total_mass: float | None = None) -> RobotM
     ----------
     model : RobotModel
         The robot model.
-    total_mass : float, optional
-        Total mass of the links, kg (None: a density of ``DEFAULT_LINK_DENSITY`` kg per metre).
+    {total_mass}
 
     Returns
     -------
@@ -492,8 +489,7 @@ def parallel_beta_frames(frames: Sequence[Frame], tol: float = DEFAULT_PARALLEL_
 
     Parameters
     ----------
-    frames : sequence of Frame
-        Frames of a model.
+    {frames}
     tol : float
         Angle below which consecutive axes count as parallel, rad.
 
@@ -542,21 +538,7 @@ def serial_model(
         ``mass``, ``com``, ...), SI; couplings follow the row order.
     markers : sequence of (str, (float, float, float))
         Markers on the last frame, SI.
-    joint_limits : sequence of (float, float), optional
-        Lower and upper limit of each joint reading, rad or m (None: +-pi for revolute, [0, 1] m for
-        prismatic).
-    base_position : array_like, shape (3,)
-        Position of the base frame in W, m.
-    base_rotation : array_like, shape (3, 3), optional
-        Orientation of the base frame in W (None: identity).
-    beta_tol : float
-        Angle below which consecutive axes count as parallel (Hayati's beta), rad.
-    gravity : array_like, shape (3,)
-        Gravity in W, m/s^2.
-    payload : Payload, optional
-        The payload (None: none, on the last frame).
-    description : str
-        Free text stored with the model.
+    {joint_limits, base_position, base_rotation, beta_tol, gravity, payload, description}
 
     Returns
     -------

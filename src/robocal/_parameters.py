@@ -157,8 +157,7 @@ def parameter_names(model: RobotModel) -> tuple[str, ...]:
 
     Parameters
     ----------
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
+    {model}
 
     Returns
     -------
@@ -179,10 +178,7 @@ def parameter_vector(model: RobotModel, reference: RobotModel | None = None) -> 
 
     Parameters
     ----------
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
-    reference : RobotModel, optional
-        Model whose stored rotations the vector is relative to (default: ``model``).
+    {model, reference}
 
     Returns
     -------
@@ -210,10 +206,7 @@ def model_from_vector(model: RobotModel, p: np.ndarray) -> RobotModel:
 
     Parameters
     ----------
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
-    p : array_like, shape (n_params,)
-        Values in the model's parameter layout (``parameter_names``).
+    {model, p}
 
     Returns
     -------
@@ -259,8 +252,7 @@ def families(model: RobotModel, *, orientation: bool = False) -> dict[str, list[
 
     Parameters
     ----------
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
+    {model}
     orientation : bool
         Whether orientations are measured.
 
@@ -303,15 +295,10 @@ def candidate_parameters(model: RobotModel, parameters: Iterable[str] = ("geomet
 
     Parameters
     ----------
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
-    parameters : str or sequence of str
-        Parameter families (``geometric``, ``compliance``, ``base``, ``markers``, ``frames``,
-        ``backlash``) and/or parameter names or patterns.
+    {model, parameters}
     orientation : bool
         Whether orientations are measured (markers' rotation parameters become candidates).
-    known : str or sequence of str
-        Families, names or patterns held at their model values.
+    {known}
 
     Returns
     -------
@@ -395,8 +382,7 @@ def matched_by_pattern(model: RobotModel, parameters: Iterable[str], *,
 
     Parameters
     ----------
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
+    {model}
     parameters : str or sequence of str
         Parameter names or patterns (``j*.d``).
     orientation : bool

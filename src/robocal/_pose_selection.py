@@ -185,27 +185,13 @@ def select_poses(model: RobotModel, n: int, *, candidates=None, n_candidates: in
 
     Parameters
     ----------
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
+    {model}
     n : int
         Number of configurations to choose.
-    candidates : array_like, shape (n_candidates, n_joints), optional
-        Joint readings to choose from (default: ``n_candidates`` drawn within the joint limits).
-    n_candidates : int
-        Candidates drawn when ``candidates`` is None.
-    parameters : str or sequence of str
-        Parameter families (``geometric``, ``compliance``, ``base``, ``markers``, ``frames``,
-        ``backlash``) and/or parameter names or patterns.
-    known : str or sequence of str
-        Families, names or patterns held at their model values.
+    {candidates, n_candidates, parameters, known}
     orientation : bool
         Whether orientations will be measured.
-    criterion : str
-        ``I`` (average prediction variance) or ``D`` (determinant).
-    rng : None, int or numpy.random.Generator
-        Seed or generator of the random draws (None: fresh entropy).
-    sweeps : int
-        Passes of exchanges after the greedy selection.
+    {criterion, rng, sweeps}
 
     Returns
     -------
@@ -303,23 +289,16 @@ def predict_campaign(model: RobotModel, q, *, parameters=("geometric",), known=(
 
     Parameters
     ----------
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
+    {model}
     q : array_like, shape (n_poses, n_joints)
         The configurations to measure at.
-    parameters : str or sequence of str
-        Parameter families (``geometric``, ``compliance``, ``base``, ``markers``, ``frames``,
-        ``backlash``) and/or parameter names or patterns.
-    known : str or sequence of str
-        Families, names or patterns held at their model values.
+    {parameters, known}
     noise : float
         Position noise of the instrument, m per axis.
-    n_workspace : int
-        Configurations within the joint limits the predicted error is averaged over.
+    {n_workspace}
     tol : float
         Rank tolerance relative to the largest singular value, in (0, 1).
-    rng : None, int or numpy.random.Generator
-        Seed or generator of the random draws (None: fresh entropy).
+    {rng}
 
     Returns
     -------

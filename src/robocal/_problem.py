@@ -345,16 +345,12 @@ def design_problem(model: RobotModel, q, names, orientation: bool = False, appro
 
     Parameters
     ----------
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
-    q : array_like, shape (n_poses, n_joints)
-        Joint readings, rad or m.
+    {model, q}
     names : sequence of str
         The free parameters.
     orientation : bool
         Whether orientations are measured.
-    approach : array_like, shape (n_poses, n_joints), optional
-        Direction (+1 or -1) of each joint's last move.
+    {approach}
 
     Returns
     -------
@@ -374,8 +370,7 @@ def sampling_box(model: RobotModel) -> tuple[np.ndarray, np.ndarray]:
 
     Parameters
     ----------
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
+    {model}
 
     Returns
     -------
@@ -403,12 +398,10 @@ def random_configurations(model: RobotModel, n: int, rng=None) -> np.ndarray:
 
     Parameters
     ----------
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
+    {model}
     n : int
         Number of configurations.
-    rng : None, int or numpy.random.Generator
-        Seed or generator of the random draws (None: fresh entropy).
+    {rng}
 
     Returns
     -------

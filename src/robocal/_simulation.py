@@ -53,18 +53,10 @@ def perturb_model(model: RobotModel, names, *, length_error=(1e-4, 1e-3), angle_
 
     Parameters
     ----------
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
+    {model}
     names : sequence of str
         The parameters that get an error.
-    length_error : (float, float)
-        Range (lo, hi) of the magnitude of length errors, m.
-    angle_error : (float, float)
-        Range (lo, hi) of the magnitude of angle errors, rad.
-    compliance_error : (float, float), optional
-        Range of compliance errors, rad/(N m) (None: compliances left alone).
-    rng : None, int or numpy.random.Generator
-        Seed or generator of the random draws (None: fresh entropy).
+    {length_error, angle_error, compliance_error, rng}
 
     Returns
     -------
@@ -98,22 +90,13 @@ def measure(true_model: RobotModel, q, *, noise: float = 2e-5, noise_rot: float 
 
     Parameters
     ----------
-    true_model : RobotModel
-        The true robot the simulation measures.
+    {true_model}
     q : array_like, shape (n_poses, n_joints)
         Joint readings of the poses measured, rad or m.
-    noise : float
-        Position noise of the instrument, m (one standard deviation per axis).
-    noise_rot : float, optional
-        Orientation noise, rad (None: no orientation noise given).
+    {noise, noise_rot}
     orientation : bool
         Whether to measure orientations too.
-    payload_mass : float or array_like of shape (n_poses,), optional
-        Payload mass, kg, for every pose or one per pose.
-    rng : None, int or numpy.random.Generator
-        Seed or generator of the random draws (None: fresh entropy).
-    labels : sequence of str
-        A label per pose, for messages (default ``pose i``).
+    {payload_mass, rng, labels}
 
     Returns
     -------
@@ -156,33 +139,12 @@ def simulate(model: RobotModel, n_poses: int | None = None, *, q=None, parameter
     ----------
     model : RobotModel
         The nominal robot.
-    n_poses : int, optional
-        Random configurations measured when ``q`` is None.
-    q : array_like, shape (n_poses, n_joints)
-        Joint readings, rad or m.
-    parameters : str or sequence of str
-        Parameter families (``geometric``, ``compliance``, ``base``, ``markers``, ``frames``,
-        ``backlash``) and/or parameter names or patterns.
-    known : str or sequence of str
-        Families, names or patterns held at their model values.
-    length_error : (float, float)
-        Range (lo, hi) of the magnitude of length errors, m.
-    angle_error : (float, float)
-        Range (lo, hi) of the magnitude of angle errors, rad.
-    compliance_error : (float, float), optional
-        Range of compliance errors, rad/(N m) (None: compliances left alone).
-    true_compliance : dict, optional
-        Exact true values of compliance parameters by name, rad/(N m).
+    {n_poses, q, parameters, known, length_error, angle_error, compliance_error, true_compliance}
     noise : float
         Position noise of the instrument, m (one standard deviation per axis).
     orientation : bool
         Whether to measure orientations too.
-    noise_rot : float, optional
-        Orientation noise, rad (None: no orientation noise given).
-    payload_mass : float or array_like of shape (n_poses,), optional
-        Payload mass, kg, for every pose or one per pose.
-    seed : None, int or numpy.random.Generator
-        Seed or generator of the random draws.
+    {noise_rot, payload_mass, seed}
 
     Returns
     -------

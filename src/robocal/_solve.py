@@ -70,19 +70,11 @@ def solve(problem: Problem, p0: np.ndarray, *, loss: str = "linear", f_scale: fl
 
     Parameters
     ----------
-    problem : Problem or ContactProblem
-        The identification problem.
-    p0 : array_like, shape (n_params,)
-        Starting parameter vector (full layout).
+    {problem, p0}
     loss : str
         ``linear`` (Levenberg-Marquardt) or a robust loss (``soft_l1``, ``huber``, ``cauchy``,
         ``arctan``).
-    f_scale : float, optional
-        Residual scale at which a robust loss bends (None: estimated).
-    max_nfev : int, optional
-        Most evaluations of the residuals (None: the solver's default).
-    lower : array_like, shape (n_free,), optional
-        Lower bounds of the free parameters (-inf: none).
+    {f_scale, max_nfev, lower}
     tol : float
         Step, cost and gradient tolerance, in (0, 1).
 
@@ -267,8 +259,7 @@ def covariance(solution: Solution) -> Covariance:
 
     Parameters
     ----------
-    solution : Solution
-        A solution of ``solve``.
+    {solution}
 
     Returns
     -------

@@ -128,10 +128,7 @@ def read_contacts(path, model: RobotModel) -> Contacts:
 
     Parameters
     ----------
-    path : str or os.PathLike
-        The file to read or write.
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
+    {path, model}
 
     Returns
     -------
@@ -238,12 +235,7 @@ def contacts_to_csv(contacts: Contacts, model: RobotModel, *, units: str = "mm-d
 
     Parameters
     ----------
-    contacts : Contacts
-        Joint-only contact recordings (sockets, planes, ball bars).
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
-    units : str
-        Length and angle units of the file or table, ``"mm-deg"``, ``"m-rad"``, ...
+    {contacts, model, units}
 
     Returns
     -------
@@ -276,16 +268,7 @@ def write_contacts(contacts: Contacts, path, model: RobotModel, *, units: str = 
 
     Parameters
     ----------
-    contacts : Contacts
-        Joint-only contact recordings (sockets, planes, ball bars).
-    path : str or os.PathLike
-        The file to read or write.
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
-    units : str
-        Length and angle units of the file or table, ``"mm-deg"``, ``"m-rad"``, ...
-    force : bool
-        Overwrite an existing file.
+    {contacts, path, model, units, force}
 
     Returns
     -------

@@ -66,10 +66,7 @@ def mdh_csv(model: RobotModel, *, units: str = "mm-deg") -> str:
 
     Parameters
     ----------
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
-    units : str
-        Length and angle units of the file or table, ``"mm-deg"``, ``"m-rad"``, ...
+    {model, units}
 
     Returns
     -------
@@ -98,14 +95,7 @@ def write_mdh_csv(model: RobotModel, path, *, units: str = "mm-deg", force: bool
 
     Parameters
     ----------
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
-    path : str or os.PathLike
-        The file to read or write.
-    units : str
-        Length and angle units of the file or table, ``"mm-deg"``, ``"m-rad"``, ...
-    force : bool
-        Overwrite an existing file.
+    {model, path, units, force}
 
     Returns
     -------
@@ -121,12 +111,7 @@ def dh_csv(model: RobotModel, *, units: str = "mm-deg", max_offset: float | None
 
     Parameters
     ----------
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
-    units : str
-        Length and angle units of the file or table, ``"mm-deg"``, ``"m-rad"``, ...
-    max_offset : float, optional
-        Largest offset along a joint axis accepted where two axes are parallel, m.
+    {model, units, max_offset}
 
     Returns
     -------

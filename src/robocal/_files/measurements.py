@@ -694,8 +694,7 @@ def split_sets(data: Measurements) -> tuple[Measurements, Measurements | None]:
 
     Parameters
     ----------
-    data : Measurements
-        Joint readings with what the instrument measured.
+    {data}
 
     Returns
     -------
@@ -727,12 +726,10 @@ def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, 
 
     Parameters
     ----------
-    data : Measurements
-        Joint readings with what the instrument measured.
+    {data}
     model : RobotModel, optional
         The model (gives each joint's unit).
-    units : str
-        Length and angle units of the file or table, ``"mm-deg"``, ``"m-rad"``, ...
+    {units}
     orientation : str
         Convention of the written orientation columns.
 
@@ -830,14 +827,7 @@ def write_measurements(data: Measurements, path, *, units: str = "mm-deg", force
 
     Parameters
     ----------
-    data : Measurements
-        Joint readings with what the instrument measured.
-    path : str or os.PathLike
-        The file to read or write.
-    units : str
-        Length and angle units of the file or table, ``"mm-deg"``, ``"m-rad"``, ...
-    force : bool
-        Overwrite an existing file.
+    {data, path, units, force}
     model : RobotModel, optional
         The model (gives each joint's unit).
     orientation : str

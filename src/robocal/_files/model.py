@@ -177,8 +177,7 @@ def model_from_dict(d: dict, *, source: str = "<dict>") -> RobotModel:
     ----------
     d : dict
         A model as ``model_to_dict`` gives it (the parsed YAML file).
-    source : str
-        Where ``d`` came from, for messages.
+    {source}
 
     Returns
     -------
@@ -463,8 +462,7 @@ def read_model(path) -> RobotModel:
 
     Parameters
     ----------
-    path : str or os.PathLike
-        The file to read or write.
+    {path}
 
     Returns
     -------
@@ -569,12 +567,7 @@ def model_to_yaml(model: RobotModel, *, units: str = "mm-deg", calibration: dict
 
     Parameters
     ----------
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
-    units : str
-        Length and angle units of the file or table, ``"mm-deg"``, ``"m-rad"``, ...
-    calibration : dict, optional
-        The calibration record to store with the model (``calibration_record``).
+    {model, units, calibration}
 
     Returns
     -------
@@ -595,16 +588,10 @@ def write_model(model: RobotModel, path, *, units: str = "mm-deg", force: bool =
 
     Parameters
     ----------
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
-    path : str or os.PathLike
-        The file to read or write.
+    {model, path}
     units : str
         Units of the written file.
-    force : bool
-        Overwrite an existing file.
-    calibration : dict, optional
-        The calibration record to store with the model (``calibration_record``).
+    {force, calibration}
 
     Returns
     -------
@@ -620,8 +607,7 @@ def calibration_record(result) -> dict:
 
     Parameters
     ----------
-    result : CalibrationResult
-        A calibration's result.
+    {result}
 
     Returns
     -------

@@ -81,8 +81,7 @@ def profile_from_dict(d, *, source: str = "<dict>") -> Profile:
     ----------
     d : dict
         A profile as its YAML file holds it.
-    source : str
-        Where ``d`` came from, for messages.
+    {source}
 
     Returns
     -------
@@ -135,8 +134,7 @@ def read_profile(path) -> Profile:
 
     Parameters
     ----------
-    path : str or os.PathLike
-        The file to read or write.
+    {path}
 
     Returns
     -------

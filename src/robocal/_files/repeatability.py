@@ -34,8 +34,7 @@ def read_repeatability_csv(path, *, units: str | None = None) -> RepeatabilityDa
 
     Parameters
     ----------
-    path : str or os.PathLike
-        The file to read or write.
+    {path}
     units : str, optional
         Length unit of columns without a suffix (``mm`` or ``m``).
 

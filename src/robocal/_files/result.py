@@ -183,8 +183,7 @@ def result_to_json(result: CalibrationResult) -> str:
 
     Parameters
     ----------
-    result : CalibrationResult
-        A calibration's result.
+    {result}
 
     Returns
     -------
@@ -501,8 +500,7 @@ def read_result(path) -> CalibrationResult:
 
     Parameters
     ----------
-    path : str or os.PathLike
-        The file to read or write.
+    {path}
 
     Returns
     -------

@@ -483,12 +483,7 @@ def read_urdf(path_or_string, *, base_link: str | None = None, tip_link: str | N
 
     Parameters
     ----------
-    path_or_string : str or os.PathLike
-        A URDF file, or its XML text.
-    base_link : str, optional
-        The link the model starts from (default: the root).
-    tip_link : str, optional
-        The link the model ends at (default: the single leaf).
+    {path_or_string, base_link, tip_link}
     markers : sequence, optional
         Markers on the tip link as ``(name, (x, y, z))`` or ``(name, (x, y, z), R)`` (default: one
         marker ``tool`` at its origin).
@@ -646,8 +641,7 @@ def urdf_text(model: RobotModel) -> str:
 
     Parameters
     ----------
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
+    {model}
 
     Returns
     -------
@@ -684,12 +678,7 @@ def write_urdf(model: RobotModel, path, *, force: bool = False) -> None:
 
     Parameters
     ----------
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
-    path : str or os.PathLike
-        The file to read or write.
-    force : bool
-        Overwrite an existing file.
+    {model, path, force}
 
     Returns
     -------

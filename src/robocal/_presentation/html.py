@@ -665,10 +665,7 @@ def render_report(result: CalibrationResult, *, extra: dict | None = None) -> st
 
     Parameters
     ----------
-    result : CalibrationResult
-        A calibration's result.
-    extra : dict, optional
-        Extra sections of the report (e.g. an accuracy-limit record).
+    {result, extra}
 
     Returns
     -------
@@ -748,14 +745,7 @@ def write_report(result: CalibrationResult, path, *, force: bool = False, extra:
 
     Parameters
     ----------
-    result : CalibrationResult
-        A calibration's result.
-    path : str or os.PathLike
-        The file to read or write.
-    force : bool
-        Overwrite an existing file.
-    extra : dict, optional
-        Extra sections of the report (e.g. an accuracy-limit record).
+    {result, path, force, extra}
 
     Returns
     -------

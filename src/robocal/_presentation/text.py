@@ -69,8 +69,7 @@ def checks_lines(checks) -> list[str]:
 
     Parameters
     ----------
-    checks : sequence of Check
-        Checks of a calibration.
+    {checks}
 
     Returns
     -------
@@ -136,10 +135,7 @@ def calibration_summary(result, *, shown=(), weighted: bool = False) -> str:
     ----------
     result : CalibrationResult
         A calibration's result.
-    shown : sequence of str
-        Parameter names shown whatever their change (default: the largest changes).
-    weighted : bool
-        Show residuals weighed by their stated standard deviations.
+    {shown, weighted}
 
     Returns
     -------
@@ -221,12 +217,7 @@ def comparison_summary(comparison, *, shown=(), weighted: bool = False) -> str:
 
     Parameters
     ----------
-    comparison : Comparison
-        The result of ``compare``.
-    shown : sequence of str
-        Parameter names shown whatever their change (default: the largest changes).
-    weighted : bool
-        Show residuals weighed by their stated standard deviations.
+    {comparison, shown, weighted}
 
     Returns
     -------
@@ -270,12 +261,7 @@ def identifiability_summary(model, res, where: str) -> str:
 
     Parameters
     ----------
-    model : RobotModel
-        The robot model (nominal, unless said otherwise).
-    res : IdentifiabilityResult
-        The identifiability analysis.
-    where : str
-        What the analysis was made on (for the heading).
+    {model, res, where}
 
     Returns
     -------

@@ -49,12 +49,7 @@ def fmt(value, unit: str = "m", *, sign: bool = False) -> str:
 
     Parameters
     ----------
-    value : float or None
-        A value in SI units.
-    unit : str
-        Display unit of the value (``DISPLAY_UNITS``).
-    sign : bool
-        Always show the sign.
+    {value, unit, sign}
 
     Returns
     -------
