@@ -157,6 +157,11 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
     "f_scale": ('float, optional', 'Residual scale at which a robust loss bends (None: estimated).'),
     "lower": ('array_like, shape (n_free,), optional', 'Lower bounds of the free parameters (-inf: none).'),
     "solution": ('Solution', 'A solution of ``solve``.'),
+    "convention": ('str, optional',
+                   "What a theta, d, a, alpha table means: ``classic`` or ``modified`` DH (Craig's layout)."),
+    "per_pose": ('bool', 'Keep the per-pose arrays (in a sidecar file beside the result file).'),
+    "folder": ('str or os.PathLike, optional', 'Where the per-pose file of the result is.'),
+    "header": ('sequence of str, optional', 'The column names of a file without a header line.'),
 }
 
 

@@ -14,8 +14,17 @@ from ._files.table import ColumnMap
 from ._files.model import calibration_record, model_from_dict, model_to_dict, model_to_yaml, read_model, write_model
 from ._files.profile import Profile, profile_from_dict, read_profile
 from ._files.repeatability import read_repeatability_csv
-from ._files.result import (limit_to_dict, read_result, result_files, result_from_dict, result_to_dict,
-                            result_to_json, sidecar_path, write_result)
+from ._files.result import (
+                            limit_to_dict,
+                            read_result,
+                            result_files,
+                            result_from_dict,
+                            result_to_dict,
+                            result_to_json,
+                            sidecar_path,
+                            write_result,
+)
+from ._files.table import ColumnMap
 from ._files.urdf import read_urdf, urdf_text, write_urdf
 from ._measurements import Measurements
 

@@ -14,11 +14,21 @@ from typing import Any
 
 import numpy as np
 
-from .._arguments import FLAG, PATH, POSITIVE_OR_INF, TEXT, UNIT_SYSTEM, checked, is_a, optional
+from .._arguments import (
+    FLAG,
+    PATH,
+    POSITIVE_OR_INF,
+    TEXT,
+    UNIT_SYSTEM,
+    checked,
+    is_a,
+    one_of,
+    optional,
+)
 from .._conversion import MDH_TABLE_KINDS, from_standard_dh, mdh_table, to_standard_dh
 from .._errors import InputError
 from .._model import Frame, Marker, RobotModel, parallel_beta_frames, serial_model
-from .._spatial import matrix_rpy, matrix_tuple, pose4, rpy_matrix
+from .._spatial import matrix_rpy, matrix_tuple, pose4, rpy_matrix, vector3
 from .._units import UNITS, parse_units, unit_factors, unit_kind
 from .text import read_text, write_texts
 
@@ -136,10 +146,11 @@ def dh_csv(model: RobotModel, *, units: str = "mm-deg", max_offset: float | None
 class _Table:
     """The rows of a DH table file as SI numbers by column base name, with the file named in errors."""
 
-    def __init__(self, path) -> None:
+    def __init__(self, path):
         self.source = str(path)
         text, _ = read_text(path)
-        numbered = [(i, ln) for i, ln in enumerate(text.splitlines(), 1) if ln.strip() and not ln.lstrip().startswith("#")]
+        numbered = [(i, ln) for i, ln in enumerate(text.splitlines(), 1)
+                    if ln.strip() and not ln.lstrip().startswith("#")]
         self.convention = None  # a '# convention: classic' line before the header
         for i, ln in enumerate(text.splitlines()[:numbered[0][0] - 1 if numbered else 0], 1):
             body = ln.lstrip().lstrip("#").strip()
@@ -228,6 +239,7 @@ def _convention(text: str, source: str | None, where: str) -> str:
     return text
 
 
+@checked(path=PATH, name=optional(TEXT), convention=optional(one_of(CONVENTIONS)))
 def read_dh_table(path, *, name: str | None = None, convention: str | None = None) -> RobotModel:
     """A model from a DH table file: robocal's modified DH (the columns :func:`mdh_csv` writes:
     frame, beta, alpha, d, theta, r, ...), or a table of theta, d, a, alpha.
@@ -295,7 +307,7 @@ def _craig(table: _Table, name: str) -> RobotModel:
                          base_position=X_WB[:3, 3], base_rotation=X_WB[:3, :3],
                          description=f"imported from the modified (Craig) DH table {table.source}")
     last = len(model.frames) - 1
-    mk = [Marker(m, last, tuple(float(v) for v in X[:3, 3]), matrix_tuple(X[:3, :3]))
+    mk = [Marker(m, last, vector3(X[:3, 3]), matrix_tuple(X[:3, :3]))
           for m, X in ((m, table.placement(line, row)) for line, row, m in markers)]
     return model.replace(markers=tuple(mk)) if mk else model
 

@@ -17,14 +17,34 @@ from dataclasses import replace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .._arguments import FLAG, PATH, TEXT, UNIT_SYSTEM, checked, is_a, optional
+from .._arguments import (
+    FLAG,
+    PATH,
+    SEQUENCE,
+    TEXT,
+    UNIT_SYSTEM,
+    checked,
+    is_a,
+    optional,
+)
 from .._errors import InputError, excerpt, suggest
 from .._measurements import Measurements, approach_sides
 from .._model import RobotModel
 from .._options import MAX_POSES, POSES_PER_GB
 from .._units import ANGLE_UNITS, LENGTH_UNITS, UNITS, check_unit, parse_units
 from .profile import Profile, read_profile
-from .table import Table, Unfit, decimal_hint, join_tables, map_columns, read_columns, read_head, read_table, scan_rows
+from .table import (
+    ColumnMap,
+    Table,
+    Unfit,
+    decimal_hint,
+    join_tables,
+    map_columns,
+    read_columns,
+    read_head,
+    read_table,
+    scan_rows,
+)
 from .text import check_rows, read_text, write_texts
 
 RESERVED = ("pose", "set", "series", "payload_kg")
@@ -68,10 +88,6 @@ def parse_orientation(text: str | None, *, source: str | None = None, where: str
         return "euler", seq
     raise InputError(f"unknown orientation convention {text!r}; use quat_xyzw, quat_wxyz, rpy or euler:ZYX "
                      "(any scipy sequence)", source=source, where=where)
-
-
-def _sigma_columns(marker: str) -> str:
-    return ", ".join(f"{marker}_{p}" for p in SIGMA_AXES)
 
 
 class _Columns:
@@ -266,7 +282,7 @@ def _comment_units(text: str, source: str, line: int) -> dict:
 @checked(path=PATH, model=optional(is_a(RobotModel)), units=optional(UNIT_SYSTEM), sep=optional(TEXT),
          decimal=optional(TEXT), orientation=optional(TEXT), columns=optional(is_a(dict, ColumnMap)),
          unknown=optional(TEXT), joints=optional(PATH), key=optional(TEXT),
-         profile=optional(is_a(str, os.PathLike, Profile)), targets=FLAG)
+         profile=optional(is_a(str, os.PathLike, Profile)), targets=FLAG, header=optional(SEQUENCE))
 def read_measurements(path, model: RobotModel | None = None, *, units: str | None = None, sep: str | None = None,
                       decimal: str | None = None, orientation: str | None = None, columns=None,
                       unknown: str | None = None, joints=None, key: str | None = None,
@@ -285,6 +301,27 @@ def read_measurements(path, model: RobotModel | None = None, *, units: str | Non
     not measurements: marker columns may be absent or empty (positions NaN there). ``header``:
     the column names of a file without a header line (a sequence of names; a profile's ``header``).
     A ``series`` column (any text per pose: a series, a fold) is kept in ``extra["series"]``.
+
+    Parameters
+    ----------
+    {path}
+    model : RobotModel, optional
+        The model the file measures (gives joint order and units).
+    units : str, optional
+        Units of columns without a suffix, ``"mm-deg"`` etc.
+    {sep, decimal}
+    orientation : str, optional
+        Convention of the orientation columns (``quat_xyzw``, ``quat_wxyz``, ``rpy``, ``euler:XYZ``,
+        ...).
+    {columns, unknown, joints, key, profile}
+    targets : bool
+        Read targets, not measurements: marker columns may be absent or empty.
+    {header}
+
+    Returns
+    -------
+    Measurements
+        The measurements, SI.
     """
     source = str(path)
     prof = _profile(profile)
@@ -340,7 +377,7 @@ def _read_rows(path, joints, source: str, opts: dict, model=None):
     return table, other, digest
 
 
-def _columns(table: Table, source: str, declared: dict, orient, opts: dict, model, targets: bool) -> "_Columns":
+def _columns(table: Table, source: str, declared: dict, orient, opts: dict, model, targets: bool) -> _Columns:
     """What each column of ``table`` holds, with the units and orientation its comment lines declare."""
     declared = dict(declared)
     comment_units, comment_orient, orient_text = _directives(table)
@@ -412,7 +449,7 @@ def _summed(parts: list) -> np.ndarray:
     return total
 
 
-def _used_columns(cols: "_Columns") -> list[int]:
+def _used_columns(cols: _Columns) -> list[int]:
     """The columns of the mapped table that the reader reads (unknown ones ignored are not)."""
     used = [k for k, _ in cols.joint_cols.values()] + list(cols.special.values()) + list(cols.approach_cols.values())
     used += [k for mc in cols.marker_cols.values() for k, _ in mc.values()]
@@ -496,7 +533,8 @@ def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str, ta
                         sigma_rot[i, m] = _sigma(num, mc, rot_parts, source, line, cols.names)
         if payload is not None:
             payload[i] = num(cols.special["payload_kg"])
-        for j, jn in enumerate(cols.joint_names if cols.approach_cols else ()):
+        for j, jn in enumerate(cols.joint_names if approach is not None else ()):
+            assert approach is not None
             approach[i, j] = num(cols.approach_cols[jn])
             if approach[i, j] not in (-1.0, 1.0):
                 raise InputError(f"an approach direction is +1 or -1, got {row[cols.approach_cols[jn]]!r}",
@@ -521,8 +559,7 @@ def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str, ta
     if approach is not None:
         extra["approach"] = approach
     return Measurements(q=q, positions=pos, marker_names=tuple(cols.markers), joint_names=tuple(cols.joint_names),
-                        rotations=rot if has_rot else None, sigma=sigma if has_sigma else None,
-                        sigma_rot=sigma_rot if has_sigma_rot else None, payload_mass=payload,
+                        rotations=rot, sigma=sigma, sigma_rot=sigma_rot, payload_mass=payload,
                         labels=tuple(labels), source=source, sha256=digest, extra=extra)
 
 
@@ -578,7 +615,7 @@ def _parse_columns(arrays: dict, cols: _Columns, scan, source: str, targets: boo
         tuple(label or f"line {i + scan.first_line}" for i, label in enumerate(given))
     if not targets and not np.any(np.isfinite(pos)):
         raise Unfit
-    extra = {"joint_kinds": tuple(cols.joint_kinds)}
+    extra: dict[str, object] = {"joint_kinds": tuple(cols.joint_kinds)}
     if "set" in cols.special:
         value = arrays[cols.special["set"]]
         if not {v.lower() for v in set(value)} <= set(SETS):

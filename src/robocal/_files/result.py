@@ -24,6 +24,7 @@ from .._arguments import (
     TEXT,
     checked,
     is_a,
+    optional,
 )
 from .._calibration import CalibrationResult, ErrorStats, ErrorSummary, LimitJudgement, ParameterEstimate
 from .._checks import STATUSES, Check
@@ -93,9 +94,20 @@ def _array(a):
     return None if a is None else np.where(np.isfinite(a), a, np.nan).tolist()
 
 
+@checked(result=is_a(CalibrationResult), per_pose=FLAG)
 def result_to_dict(result: CalibrationResult, *, per_pose: bool = True) -> dict:
     """The file form of a calibration result (plain Python types); ``per_pose=False`` leaves the
-    per-pose arrays of ``errors`` out (:func:`result_files` puts them in a sidecar file)."""
+    per-pose arrays of ``errors`` out (:func:`result_files` puts them in a sidecar file).
+
+    Parameters
+    ----------
+    {result, per_pose}
+
+    Returns
+    -------
+    dict
+        The result as its JSON file holds it.
+    """
     lim = result.limit
     return {
         "schema": SCHEMA,
@@ -193,11 +205,23 @@ def result_to_json(result: CalibrationResult) -> str:
     return to_json(result_to_dict(result))
 
 
+@checked(path=PATH)
 def sidecar_path(path) -> Path:
-    """Where the per-pose arrays of the result file ``path`` go: beside it, ``.npz`` for ``.json``."""
+    """Where the per-pose arrays of the result file ``path`` go: beside it, ``.npz`` for ``.json``.
+
+    Parameters
+    ----------
+    {path}
+
+    Returns
+    -------
+    pathlib.Path
+        The per-pose file beside ``path`` (``.npz``).
+    """
     return Path(path).with_suffix(".npz")
 
 
+@checked(result=is_a(CalibrationResult), path=PATH, per_pose=FLAG)
 def result_files(result: CalibrationResult, path, *, per_pose: bool = True) -> dict:
     """The files of a calibration result: ``{path: JSON text, sidecar: bytes}``.
 
@@ -237,9 +261,19 @@ def result_files(result: CalibrationResult, path, *, per_pose: bool = True) -> d
     return {Path(path): to_json(d), sidecar: blob}
 
 
+@checked(result=is_a(CalibrationResult), path=PATH, force=FLAG, per_pose=FLAG)
 def write_result(result: CalibrationResult, path, *, force: bool = False, per_pose: bool = True) -> None:
     """Write a calibration result, atomically: the JSON at ``path`` and its per-pose arrays beside it
-    (:func:`result_files`); an existing file is an InputError unless ``force``."""
+    (:func:`result_files`); an existing file is an InputError unless ``force``.
+
+    Parameters
+    ----------
+    {result, path, force, per_pose}
+
+    Returns
+    -------
+    None
+    """
     write_texts(result_files(result, path, per_pose=per_pose), force=force)
 
 
@@ -456,9 +490,22 @@ def _errors(doc: _Doc, d: dict, n_markers: int, n_joints: int, folder: Path | No
     return out
 
 
+@checked(source=TEXT, folder=optional(PATH))
 def result_from_dict(d, *, source: str = "<dict>", folder=None) -> CalibrationResult:
     """The CalibrationResult stored in ``d`` (the parsed result file); InputError naming the key
-    where it departs from the schema. ``folder``: where its per-pose file (``errors.file``) is."""
+    where it departs from the schema. ``folder``: where its per-pose file (``errors.file``) is.
+
+    Parameters
+    ----------
+    d : dict
+        A result as ``result_to_dict`` gives it (the parsed JSON file).
+    {source, folder}
+
+    Returns
+    -------
+    CalibrationResult
+        The stored result.
+    """
     doc = _Doc(source)
     if not isinstance(d, dict) or "schema" not in d:
         raise doc.error("schema", "not a robocal result: no 'schema' key")

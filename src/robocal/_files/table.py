@@ -288,7 +288,7 @@ def _sum_columns(table: Table, sums: dict) -> Table:
         for line, row in rows:
             if len(row) == len(header):
                 row[ks[0]] = _sum_cells([row[k] for k in ks], parts, table, line)
-        for line, row in rows:
+        for _, row in rows:
             if len(row) == len(header):
                 for k in sorted(ks[1:], reverse=True):
                     del row[k]

@@ -6,6 +6,7 @@ The limits below are stated in docs/formats.md. Every error names the user's fil
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import hashlib
 import json
