@@ -14,6 +14,7 @@ import json
 import math
 import zipfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -252,8 +253,9 @@ def result_files(result: CalibrationResult, path, *, per_pose: bool = True) -> d
         d["errors"].update(counts)
         return {Path(path): to_json(d)}
     buf = io.BytesIO()
-    np.savez(buf, **{key: np.asarray(getattr(result, field), dtype=float) for key, field in _ERROR_ARRAYS
-                     if getattr(result, field) is not None})
+    arrays: dict[str, Any] = {key: np.asarray(getattr(result, field), dtype=float) for key, field in _ERROR_ARRAYS
+                              if getattr(result, field) is not None}
+    np.savez(buf, **arrays)
     blob = buf.getvalue()
     sidecar = sidecar_path(path)
     d["errors"]["file"] = {"name": sidecar.name, "format": "npz", "sha256": hashlib.sha256(blob).hexdigest(),

@@ -72,7 +72,7 @@ def check_rows(path, most: int, what: str = "poses", *, per_gb: int | None = Non
     that many per GB of memory available now. An unreadable file is left to the reader.
     """
     memory = available_memory() if per_gb else None
-    bound = most if memory is None else min(most, int(memory / 2 ** 30 * per_gb))
+    bound = most if memory is None or not per_gb else min(most, int(memory / 2 ** 30 * per_gb))
     try:
         with open(path, "rb") as fh:
             newlines = returns = 0
@@ -90,7 +90,7 @@ def check_rows(path, most: int, what: str = "poses", *, per_gb: int | None = Non
     if lines - 1 > most:
         raise InputError(f"{lines - 1:,} rows; robocal reads up to {most:,} {what} per file (docs/formats.md)",
                          source=str(path))
-    if lines - 1 > bound:
+    if memory is not None and per_gb and lines - 1 > bound:
         raise InputError(f"{lines - 1:,} rows; with {memory / 2 ** 30:.1f} GB of memory available robocal reads up "
                          f"to {bound:,} {what} ({per_gb:,} per GB, docs/formats.md)", source=str(path))
 
