@@ -3,6 +3,8 @@ in the order the documents give them (later commands use earlier outputs)."""
 
 from __future__ import annotations
 
+import os
+import re
 import shlex
 import shutil
 import subprocess

@@ -6,19 +6,19 @@ import math
 import os
 import re
 import shutil
-from dataclasses import replace
 import subprocess
 import sys
+from dataclasses import replace
 from html.parser import HTMLParser
 from pathlib import Path
 
 import numpy as np
 import pytest
-from robots import arm6r, cylindrical
+from robots import arm6r, cylindrical, humanoid
 
 import robocal as rc
 from robocal.io import result_from_dict, result_to_json
-from robots import arm6r, cylindrical, humanoid
+from robocal.report import PLOTS, render_report, write_report
 
 pytest.importorskip("matplotlib")
 
@@ -536,8 +536,7 @@ def test_6d_report_renders_in_headless_chromium(chromium, tmp_path):
     page = Page(html)
     assert "stats.rotation.validation_after.mean" in page.keyed
     assert "solver.sigma0" in page.keyed and "solver.sigma0_m" not in page.keyed  # a ratio for weighted 6D fits
-    assert "rotation error" in page.plots["histograms"]["text"]
-    assert "rotation error" in page.plots["residual-trends"]["text"]
+    assert "rotation error" in page.plots["histograms"]["text"] and "rotation error" in page.plots["residual-trends"]["text"]
     _assert_rendered(_render_in_chromium(chromium, path, "report-6d.png"), html)
 
 

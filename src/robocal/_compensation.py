@@ -122,6 +122,10 @@ def _damped_newton(model, q0, Pt, Rt, oriented, *, marker, iterations, tol, damp
     return q
 
 
+@checked(model=is_a(RobotModel), targets_q=readings_of(), nominal=optional(is_a(RobotModel)),
+         positions=optional(shaped(None, 3, finite=False)), rotations=optional(shaped(None, 3, 3, finite=False)),
+         marker=marker_of(), orientation=optional(FLAG), iterations=whole(1, 10_000), tol=POSITIVE,
+         damping=NON_NEGATIVE, max_step=POSITIVE)
 @one_blas_thread
 def compensate(model: RobotModel, targets_q, *, nominal: RobotModel | None = None, positions=None,
                rotations=None, marker: int = 0, orientation: bool | None = None, iterations: int = 50,

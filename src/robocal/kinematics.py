@@ -5,8 +5,7 @@ identification Jacobian, gravity loads, and the parameters (names, units, vector
 ``jacobian`` are the batched engine (poses first: ``q`` is (n_poses, n_joints)), tested against it.
 """
 
-from ._compensation import joint_jacobian
-from ._compensation import POSTURE, arm_chain, inverse_kinematics, posture
+from ._compensation import POSTURE, arm_chain, inverse_kinematics, joint_jacobian, posture
 from ._kinematics import Evaluation, evaluate, forward_kinematics, gravity_loads, jacobian
 from ._model import (
     Frame,

@@ -27,11 +27,27 @@ from .._files.result import result_to_dict
 from .._files.text import write_texts
 from .._model import DEFAULT_LINK_DENSITY, RELATIVE_MASSES, mdh_transform
 from .._parameters import FRAME_KINDS, GEOMETRIC_KINDS, SI_UNITS, parameter_layout, parameter_vector
-from .plots import (AFTER, BEFORE, BLOCK, DENSE, LIMIT, STRUCTURE, correlation_blocks, need_matplotlib,
-                    plot_correlation, plot_errors_per_pose, plot_histograms, plot_residual_trends, plot_residuals,
-                    residual_sample, residual_trends)
+from .plots import (
+    AFTER,
+    BEFORE,
+    BLOCK,
+    DENSE,
+    LIMIT,
+    STRUCTURE,
+    correlation_blocks,
+    need_matplotlib,
+    plot_correlation,
+    plot_errors_per_pose,
+    plot_histograms,
+    plot_residual_trends,
+    plot_residuals,
+    residual_sample,
+    residual_trends,
+)
 from .text import rotation_lines
-from .units import UNITS_SENTENCE, absorption_text, display_unit as _display, finite as _num, fmt, symbol
+from .units import UNITS_SENTENCE, absorption_text, fmt, symbol
+from .units import display_unit as _display
+from .units import finite as _num
 
 STAT_SETS = (("fit_before", "fitted poses", "before"), ("fit_after", "fitted poses", "after"),
              ("validation_before", "held-out poses", "before"), ("validation_after", "held-out poses", "after"))
