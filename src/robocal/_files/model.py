@@ -39,13 +39,13 @@ from .._model import (
 )
 from .._options import BACKLASH_SIDES
 from .._parameters import KIND_QUANTITY
-from .._spatial import nearest_rotation, pose4
+from .._spatial import nearest_rotation, pose4, vector3
 from .._units import ANGLE_UNITS, LENGTH_UNITS, check_unit, parse_units
 from .text import load_yaml, read_text, write_texts
 
 FORMAT_VERSION = 1
 # the file key is the frame's attribute; its quantity says which unit scales it
-FRAME_VALUES = {k: KIND_QUANTITY[k] for k in ("beta", "alpha", "d", "theta", "r", "gamma", "b")}
+FRAME_VALUES: dict[str, str | None] = {k: KIND_QUANTITY[k] for k in ("beta", "alpha", "d", "theta", "r", "gamma", "b")}
 FRAME_VALUES.update({"mass": None, "k_theta": None, "k_alpha": None, "k_beta": None})
 # backlash: half the lost motion (the model's units), the load friction holds and the transition's
 # width (N m on a revolute frame, N on a prismatic one, always SI); written where they differ from
@@ -116,6 +116,9 @@ class _Reader:
         if len(seq) != n:
             raise self.error(where, f"expected {n} numbers, got {len(seq)}")
         return tuple(self.number(v, f"{where}[{i}]") * scale for i, v in enumerate(seq))
+
+    def point(self, value, where: str, scale: float = 1.0) -> tuple[float, float, float]:
+        return vector3(self.vector(value, where, 3, scale))
 
     def name(self, value, where: str) -> str:
         if not isinstance(value, str) or not value.strip():
@@ -196,10 +199,10 @@ def model_from_dict(d: dict, *, source: str = "<dict>") -> RobotModel:
     if d.get("base") is not None:
         base = rd.mapping(d["base"], "base", ("position", "rotation"))
         if "position" in base:
-            base_position = rd.vector(base["position"], "base.position", 3, L)
+            base_position = rd.point(base["position"], "base.position", L)
         if "rotation" in base:
             base_rotation = rd.rotation(base["rotation"], "base.rotation", A)
-    gravity = rd.vector(d["gravity"], "gravity", 3) if "gravity" in d else (0.0, 0.0, -9.81)
+    gravity = rd.point(d["gravity"], "gravity") if "gravity" in d else (0.0, 0.0, -9.81)
     payloads = _payloads(rd, d.get("payload"), frame_names, L)
     tolerances = _tolerances(rd, d.get("tolerances"), L, A)
     if d.get("calibration") is not None:
@@ -278,7 +281,7 @@ def _frame(rd: _Reader, item, where: str, i: int, earlier: list[Frame], joint_na
     values = {k: rd.number(item[k], f"{where}.{k}") * (L if u == "length" else A if u == "angle" else 1.0)
               for k, u in FRAME_VALUES.items() if k in item}
     values.update(_placement(rd, item, where, joint, L, A))
-    com = rd.vector(item["com"], f"{where}.com", 3, L) if "com" in item else (0.0, 0.0, 0.0)
+    com = rd.point(item["com"], f"{where}.com", L) if "com" in item else (0.0, 0.0, 0.0)
     hb = item.get("has_beta", "auto")
     if hb not in (True, False, "auto"):
         raise rd.error(f"{where}.has_beta", f"expected auto, true or false, got {_show(hb)}")
@@ -299,7 +302,7 @@ def _placement(rd: _Reader, item: dict, where: str, joint: str, L: float, A: flo
         raise rd.error(f"{where}.{both[0]}",
                        f"give the placement either as position/rotation or as {', '.join(PLACEMENT_KEYS)}, "
                                              "not both")
-    p = rd.vector(item["position"], f"{where}.position", 3, L) if "position" in item else (0.0, 0.0, 0.0)
+    p = rd.point(item["position"], f"{where}.position", L) if "position" in item else (0.0, 0.0, 0.0)
     R = rd.rotation(item["rotation"], f"{where}.rotation", A) if "rotation" in item else IDENTITY
     return placement_parameters(pose4(np.asarray(R), p))
 
@@ -371,7 +374,7 @@ def _payload(rd: _Reader, value, where: str, frame_names: list[str], L: float) -
     pl = rd.mapping(value, where, ("mass", "com", "frame"))
     return Payload(
         mass=rd.number(pl["mass"], f"{where}.mass") if "mass" in pl else 0.0,
-        com=rd.vector(pl["com"], f"{where}.com", 3, L) if "com" in pl else (0.0, 0.0, 0.0),
+        com=rd.point(pl["com"], f"{where}.com", L) if "com" in pl else (0.0, 0.0, 0.0),
         frame=_frame_ref(rd, pl["frame"], f"{where}.frame", frame_names) if "frame" in pl else -1)
 
 
@@ -506,11 +509,11 @@ def model_to_dict(model: RobotModel, *, units: str = "mm-deg", calibration: dict
 
     frames = []
     for i, f in enumerate(model.frames):
-        row = {"name": f.name, "joint": f.joint}
+        row: dict[str, object] = {"name": f.name, "joint": f.joint}
         if len(f.coupling) == 1 and f.coupling[0][1] == 1.0:
             row["reading"] = model.joint_names[f.coupling[0][0]]
         elif f.coupling:
-            c = {}
+            c: dict[str, float] = {}
             for j, coef in f.coupling:
                 c[model.joint_names[j]] = c.get(model.joint_names[j], 0.0) + float(coef)
             row["coupling"] = c
