@@ -14,9 +14,19 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ._arguments import FRACTION, NAMES, checked, is_a, names_in, noise_of, one_of, optional, shaped, whole
 from ._calibration import REACH_POSES, ErrorStats, ParameterEstimate, error_stats, workspace_change
-from ._checks import (Check, contact_fit_check, convergence_check, correlation_check, fit_check, outlier_check,
-                      plausibility_check, tolerances, verdict)
+from ._checks import (
+    Check,
+    contact_fit_check,
+    convergence_check,
+    correlation_check,
+    fit_check,
+    outlier_check,
+    plausibility_check,
+    tolerances,
+    verdict,
+)
 from ._contacts import Contacts
 from ._errors import DegenerateDataError, InputError, check_choice
 from ._identifiability import DEFAULT_TOL, Absorption, IdentifiabilityResult, analyse

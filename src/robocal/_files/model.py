@@ -340,7 +340,7 @@ def _markers(rd: _Reader, value, frame_names: list[str], L: float, A: float) -> 
             raise rd.error(f"{where}.name", f"marker {mn!r} is named twice (also markers[{marker_names.index(mn)}])")
         marker_names.append(mn)
         fi = _frame_ref(rd, item["frame"], f"{where}.frame", frame_names)
-        pos = rd.vector(item["position"], f"{where}.position", 3, L) if "position" in item else (0.0, 0.0, 0.0)
+        pos = rd.point(item["position"], f"{where}.position", L) if "position" in item else (0.0, 0.0, 0.0)
         # 'rotation: unknown': the tool's orientation is not known; it starts at identity, and a
         # calibration gives its change no tolerance
         unknown = item.get("rotation") == "unknown"
