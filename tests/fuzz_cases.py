@@ -148,7 +148,8 @@ def model_file(draw) -> bytes:
     if kind == "anchor":
         return MODEL.replace("units: {length: mm, angle: deg}", "units: &u {length: mm, angle: deg}\nx: *u").encode()
     if kind == "huge":
-        return MODEL.replace("r: 600", "r: " + draw(st.sampled_from(("1" * 400, "1e400", "-1e400", "1" * 5000)))).encode()
+        value = draw(st.sampled_from(("1" * 400, "1e400", "-1e400", "1" * 5000)))
+        return MODEL.replace("r: 600", "r: " + value).encode()
     if kind == "empty":
         return draw(st.sampled_from((b"", b"\n", b"---\n", b"# nothing\n", b"[]", b"3", b"null")))
     if kind == "binary":
@@ -204,8 +205,8 @@ def urdf_file(draw) -> bytes:
         n = draw(st.sampled_from((100, 10_000, 200_000)))
         return URDF.replace("</robot>", "<a>" * n + "</a>" * n + "</robot>").encode()
     if kind == "huge":
-        return URDF.replace('xyz="0 0 0.3"', 'xyz="0 0 ' + draw(st.sampled_from(("1e400", "1" * 400, "nan"))) + '"',
-                            1).encode()
+        value = draw(st.sampled_from(("1e400", "1" * 400, "nan")))
+        return URDF.replace('xyz="0 0 0.3"', 'xyz="0 0 ' + value + '"', 1).encode()
     if kind == "empty":
         return draw(st.sampled_from((b"", b"<robot/>", b'<robot name="r"></robot>', b"<?xml version='1.0'?>")))
     if kind == "binary":
@@ -239,7 +240,8 @@ def result_file(draw, base: str) -> bytes:
     if kind == "duplicate":
         return base.replace('"loss"', '"loss": "x", "loss"', 1).encode()
     if kind == "nan":
-        return base.replace('"nfev": ', '"nfev": NaN, "x": ', 1).replace('"sigma0_m": ', '"sigma0_m": Infinity, "y": ', 1).encode()
+        text = base.replace('"nfev": ', '"nfev": NaN, "x": ', 1)
+        return text.replace('"sigma0_m": ', '"sigma0_m": Infinity, "y": ', 1).encode()
     if kind == "huge":
         return base.replace('"nfev": ', '"nfev": ' + "9" * draw(st.sampled_from((30, 5000))) + ', "x": ', 1).encode()
     if kind == "empty":

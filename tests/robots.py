@@ -21,8 +21,8 @@ def arm6r(markers=(("tool", (0.05, 0.02, 0.12)),), masses=False):
         dict(joint="revolute", alpha=-90 * DEG),
     ]
     if masses:
-        for row, m, c in zip(rows, [20, 15, 10, 5, 2, 1],
-                             [(0, 0, -0.1), (0.2, 0, 0.05), (0.1, -0.02, 0.2), (0, 0.05, 0), (0, 0, 0.05), (0, 0, 0.02)]):
+        coms = [(0, 0, -0.1), (0.2, 0, 0.05), (0.1, -0.02, 0.2), (0, 0.05, 0), (0, 0, 0.05), (0, 0, 0.02)]
+        for row, m, c in zip(rows, [20, 15, 10, 5, 2, 1], coms):
             row.update(mass=m, com=c)
     limits = [(-170 * DEG, 170 * DEG), (-120 * DEG, 60 * DEG), (-60 * DEG, 160 * DEG),
               (-170 * DEG, 170 * DEG), (-110 * DEG, 110 * DEG), (-180 * DEG, 180 * DEG)]

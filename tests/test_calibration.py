@@ -5,12 +5,11 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import z_scores
+from robots import arm6r, cylindrical
 
 import robocal as rc
-from conftest import z_scores
 from robocal import select_poses
-
-from robots import arm6r, cylindrical
 
 NOISE = 2e-5
 

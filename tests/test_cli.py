@@ -1,24 +1,21 @@
 """The command line, through ``main(argv)``: outputs, summaries, and one clear line per bad input."""
 
 import json
+import re
 import subprocess
 import sys
 from dataclasses import replace
 from pathlib import Path
 
-import re
-
 import numpy as np
 import pytest
 import yaml
-
-import robocal as rc
-from robocal.io import write_measurements
-from robocal.io import model_to_dict, read_model, write_model
 from conftest import assert_one_line_error
 from robots import TORSO, arm6r, torso
 from test_files import _cell, _drop
 
+import robocal as rc
+from robocal.io import model_to_dict, read_model, write_measurements, write_model
 
 
 @pytest.fixture
@@ -44,7 +41,8 @@ def test_calibrate_writes_model_and_result(campaign, cli):
     assert result["stats"]["validation_after"]["n"] == 10
     # the calibrated robot predicts the true robot far better than the nominal one
     q = rc.random_configurations(model, 20, 2)
-    err_cal = np.linalg.norm(rc.forward_kinematics(cal, q).positions - rc.forward_kinematics(true, q).positions, axis=-1)
+    err_cal = np.linalg.norm(rc.forward_kinematics(cal, q).positions - rc.forward_kinematics(true, q).positions,
+                             axis=-1)
     err_nom = np.linalg.norm(rc.forward_kinematics(model, q).positions - rc.forward_kinematics(true, q).positions,
                              axis=-1)
     assert err_cal.mean() < 0.05 * err_nom.mean()

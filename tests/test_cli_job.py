@@ -12,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from robots import arm6r
 
 import robocal as rc
-from robots import arm6r
 
 ROOT = Path(__file__).resolve().parent.parent
 TH8 = str(ROOT / "examples/th8/model.yaml")
@@ -228,7 +228,8 @@ def test_import_dh_bad_table(edit, words, tmp_path, cli):
 def test_compensate_unknown_marker(tmp_path, cli):
     from conftest import assert_one_line_error
 
-    code, _, err = cli("compensate", TH8, TRUE, str(ROOT / "examples/th8/targets.csv"), "--out", tmp_path / "o" / "c.csv",
+    code, _, err = cli("compensate", TH8, TRUE, str(ROOT / "examples/th8/targets.csv"), "--out",
+                       tmp_path / "o" / "c.csv",
                        "--marker", "nose")
     assert_one_line_error(code, err, ["--marker", "nose", "tool"], tmp_path / "o", command="compensate")
 

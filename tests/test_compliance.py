@@ -7,13 +7,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import z_scores
+from robots import arm6r, cylindrical
 
 import robocal as rc
-from conftest import z_scores
 from robocal import select_poses
 from robocal.kinematics import Frame
-
-from robots import arm6r, cylindrical
 
 NOISE = 2e-5
 # rad/(N m); gravity moves the tool of arm6r(masses=True) by 0.25 mm on average, 1 mm at most

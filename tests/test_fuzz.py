@@ -8,10 +8,10 @@ import os
 import tempfile
 from pathlib import Path
 
+import fuzz_cases
 import pytest
 from hypothesis import HealthCheck, given, settings
 
-import fuzz_cases
 from robocal.cli import main
 
 

@@ -9,10 +9,10 @@ import time
 from pathlib import Path
 
 import pytest
-
-import robocal as rc
 from conftest import assert_one_line_error
 from fuzz_cases import MEASUREMENTS, MODEL, REPEATABILITY, URDF, alias_bomb, deep, inline_result
+
+import robocal as rc
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "th8"
 LIMIT_ARGS = ("--encoder-resolution", "0.01deg,0.01mm,0.01mm,0.01deg,0.01deg,0.01deg", "--length-quantum-mm",

@@ -6,19 +6,19 @@ import math
 import os
 import re
 import shutil
-from dataclasses import replace
 import subprocess
 import sys
+from dataclasses import replace
 from html.parser import HTMLParser
 from pathlib import Path
 
 import numpy as np
 import pytest
+from robots import arm6r, cylindrical, humanoid
 
 import robocal as rc
-from robocal.report import PLOTS, render_report, write_report
 from robocal.io import result_from_dict, result_to_json
-from robots import arm6r, cylindrical, humanoid
+from robocal.report import PLOTS, render_report, write_report
 
 pytest.importorskip("matplotlib")
 
@@ -353,7 +353,7 @@ def test_refuses_to_overwrite_and_writes_atomically(full, tmp_path):
 
 
 def test_not_a_result_is_an_input_error(full):
-    with pytest.raises(rc.InputError, match="expected a CalibrationResult, got dict"):
+    with pytest.raises(rc.InputError, match="result: must be a CalibrationResult, got a dict"):
         render_report(full)
     with pytest.raises(rc.InputError, match="nominal_model: missing key"):
         result_from_dict({"schema": "robocal.result/1"})

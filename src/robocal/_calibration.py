@@ -342,9 +342,12 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
         Estimates, covariance, errors, the accuracy in use and the checks; ``verdict`` says whether
         it can be trusted (docs/checks.md).
     """
-    parameters, known = _as_tuple(parameters), _as_tuple(known)
     _check_inputs(model, data, validation, loss=loss, initial_base=initial_base, on_outliers=on_outliers, weak=weak,
-                  folds=folds)
+                  folds=folds, options=dict(parameters=parameters, known=known, f_scale=f_scale, tol=tol,
+                                            max_nfev=max_nfev, limit=limit, noise=noise,
+                                            nonnegative_compliance=nonnegative_compliance,
+                                            register_validation=register_validation))
+    parameters, known = _as_tuple(parameters), _as_tuple(known)
     noise = noise if isinstance(noise, Noise) else Noise.of(noise or DEFAULT_INSTRUMENT)
     limit_m = None if limit is None else float(getattr(limit, "limit", limit))
     options = _Options(loss=loss, f_scale=f_scale, max_nfev=max_nfev, on_outliers=on_outliers, weak=weak,
@@ -397,25 +400,45 @@ def _as_tuple(v) -> tuple:
 
 
 def _check_inputs(model: RobotModel, data: Measurements, validation, *, loss: str, initial_base: str,
-                  on_outliers: str, weak: str, folds: int = DEFAULT_FOLDS) -> None:
-    """Every argument checked before any work."""
+                  on_outliers: str, weak: str, folds: int = DEFAULT_FOLDS,
+                  options: dict | None = None) -> None:
+    """Every argument checked before any work: InputError naming the argument and what is allowed.
+    ``options``: the other arguments of ``calibrate`` by name."""
+    from ._accuracy_limit import AccuracyLimit
+    from ._arguments import FLAG, NAMES, POSITIVE, is_a, noise_of, number, optional, whole
+    from ._options import INSTRUMENT_NOISE
+
+    is_a(RobotModel)(model, "model", None)
+    is_a(Measurements)(data, "data", None)
+    optional(is_a(Measurements))(validation, "validation", None)
     check_choice(loss, LOSSES, "loss")
     check_choice(initial_base, INITIAL_BASES, "initial_base")
     check_choice(on_outliers, OUTLIER_ACTIONS, "on_outliers")
     check_choice(weak, WEAK_ACTIONS, "weak")
     if isinstance(folds, bool) or not isinstance(folds, (int, np.integer)) or folds < 2:
         raise InputError(f"must be an integer of at least 2, got {folds!r}", where="folds")
+    o = options or {}
+    for name, rule in (("parameters", NAMES), ("known", NAMES), ("f_scale", optional(POSITIVE)),
+                       ("max_nfev", optional(whole(1))), ("noise", noise_of(Noise, INSTRUMENT_NOISE)),
+                       ("nonnegative_compliance", FLAG), ("register_validation", FLAG)):
+        if name in o:
+            rule(o[name], name, o)
+    if "tol" in o:
+        number(o["tol"], "tol", low=0.0, high=1.0, low_open=True, high_open=True)
+    limit = o.get("limit")
+    if limit is not None:
+        number(limit.limit if isinstance(limit, AccuracyLimit) else limit, "limit", low=0.0, low_open=True)
     for what, d in (("data", data), ("validation", validation)):
         if d is None:
             continue
         src = d.source or what
         if d.q.shape[1] != model.n_joints:
             raise InputError(f"{d.q.shape[1]} joint columns for a model with {model.n_joints} joints "
-                             f"({', '.join(model.joint_names)})", source=src)
+                             f"({', '.join(model.joint_names)})", source=src, where=what)
         for n in d.marker_names:
             if n not in model.marker_names:
                 raise InputError(f"marker {n!r} is not in the model (markers: {', '.join(model.marker_names)})",
-                                 source=src)
+                                 source=src, where=what)
 
 
 def _without_copies(data: Measurements) -> tuple[Measurements, tuple[str, ...]]:

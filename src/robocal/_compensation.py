@@ -8,6 +8,18 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ._arguments import (
+    FLAG,
+    NON_NEGATIVE,
+    POSITIVE,
+    checked,
+    is_a,
+    marker_of,
+    optional,
+    readings_of,
+    shaped,
+    whole,
+)
 from ._kinematics import evaluate
 from ._model import RobotModel
 from ._parameters import parameter_layout, parameter_vector
@@ -16,8 +28,19 @@ from ._threads import one_blas_thread
 log = logging.getLogger(__name__)
 
 
+@checked(model=is_a(RobotModel), q=readings_of())
 def joint_jacobian(model: RobotModel, q) -> np.ndarray:
-    """d(marker pose)/d(joint readings): (N, n_markers, 6, n_joints) in W (rows dx, dy, dz, rotation)."""
+    """d(marker pose)/d(joint readings): (N, n_markers, 6, n_joints) in W (rows dx, dy, dz, rotation).
+
+    Parameters
+    ----------
+    {model, q}
+
+    Returns
+    -------
+    numpy.ndarray, shape (n_poses, n_markers, 6, n_joints)
+        Derivatives of the marker poses in W by the joint readings.
+    """
     lay = parameter_layout(model)
     cols = [lay[f"{f.name}.{'r' if f.joint == 'prismatic' else 'theta'}"].index for f in model.frames]
     ev = evaluate(model, q, jacobian=True, columns=cols)
@@ -99,6 +122,10 @@ def _damped_newton(model, q0, Pt, Rt, oriented, *, marker, iterations, tol, damp
     return q
 
 
+@checked(model=is_a(RobotModel), targets_q=readings_of(), nominal=optional(is_a(RobotModel)),
+         positions=optional(shaped(None, 3, finite=False)), rotations=optional(shaped(None, 3, 3, finite=False)),
+         marker=marker_of(), orientation=optional(FLAG), iterations=whole(1, 10_000), tol=POSITIVE,
+         damping=NON_NEGATIVE, max_step=POSITIVE)
 @one_blas_thread
 def compensate(model: RobotModel, targets_q, *, nominal: RobotModel | None = None, positions=None,
                rotations=None, marker: int = 0, orientation: bool | None = None, iterations: int = 50,
@@ -114,6 +141,26 @@ def compensate(model: RobotModel, targets_q, *, nominal: RobotModel | None = Non
     each step at most ``max_step`` rad or m per joint), batched over poses. ``residual`` tells how
     well each target was reached: out of reach, or near a singularity where the exact pose would
     need a large joint motion, the damped step settles for the nearest pose instead.
+
+    Parameters
+    ----------
+    model : RobotModel
+        The calibrated model.
+    {targets_q}
+    nominal : RobotModel, optional
+        The model the controller computes with (default: ``model``).
+    {positions, rotations, marker}
+    orientation : bool, optional
+        Whether to match orientations too (None: when ``rotations`` are given).
+    {iterations}
+    tol : float
+        Position tolerance of a reached target, m.
+    {damping, max_step}
+
+    Returns
+    -------
+    Compensation
+        Corrected joint commands, with what each reaches.
     """
     q0 = np.atleast_2d(np.asarray(targets_q, dtype=float))
     nominal = model if nominal is None else nominal

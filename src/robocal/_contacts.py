@@ -146,7 +146,7 @@ class Contacts:
         return [(d, sockets[(p, d.a)], sockets[(p, d.b)]) for p in placements for d in self.distances
                 if (p, d.a) in sockets and (p, d.b) in sockets]
 
-    def subset(self, index) -> "Contacts":
+    def subset(self, index) -> Contacts:
         """The rows selected by ``index`` (boolean mask or integer indices)."""
         idx = np.arange(self.n_rows)[index]
 
@@ -161,7 +161,7 @@ class Contacts:
     def placements(self) -> tuple[str, ...]:
         return tuple(dict.fromkeys(self.placement))
 
-    def split_placements(self, held_out) -> tuple["Contacts", "Contacts"]:
+    def split_placements(self, held_out) -> tuple[Contacts, Contacts]:
         """(fit, validation): the rows of the placements ``held_out`` (names) kept apart."""
         held = np.array([p in set(held_out) for p in self.placement])
         return self.subset(~held), self.subset(held)

@@ -6,15 +6,30 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ._arguments import (
+    checked,
+    shaped,
+)
 from ._errors import InputError, check_choice
 from ._options import DEFAULT_INSTRUMENT, INSTRUMENT_NOISE
 
 
+@checked(q=shaped(None, None))
 def approach_sides(q) -> np.ndarray:
     """+1 or -1 per pose and joint: the sign of the last move of that joint before reaching the pose.
 
     Poses are visited in row order, the first approached from the last (as in a cycle); a joint
     that does not move keeps the side it had (+1 if it never moves). ``q`` (n_poses, n_joints).
+
+    Parameters
+    ----------
+    q : array_like, shape (n_poses, n_joints)
+        Joint readings in the order they were visited.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n_poses, n_joints)
+        Direction (+1 or -1) of each joint's last move.
     """
     q = np.atleast_2d(np.asarray(q, dtype=float))
     step = np.sign(np.diff(q, axis=0, prepend=q[-1:]))
@@ -28,7 +43,7 @@ def approach_sides(q) -> np.ndarray:
     return np.where(last >= 0, sides, 1.0)
 
 
-def approach_of(data: "Measurements") -> np.ndarray:
+def approach_of(data: Measurements) -> np.ndarray:
     """(n_poses, n_joints) approach direction of each joint at each pose: the file's ``approach``
     columns (``extra["approach"]``) when it has them, else from the visiting order of the rows."""
     a = data.extra.get("approach")
@@ -46,7 +61,7 @@ class Noise:
 
     @staticmethod
     def of(instrument: str = DEFAULT_INSTRUMENT, *, position: float | None = None,
-           rotation: float | None = None) -> "Noise":
+           rotation: float | None = None) -> Noise:
         """An instrument class's noise (``INSTRUMENT_NOISE``), or the figures given, SI."""
         check_choice(instrument, INSTRUMENT_NOISE, "instrument")
         p, r = INSTRUMENT_NOISE[instrument]
@@ -76,7 +91,7 @@ class Measurements:
     positions: np.ndarray
     marker_names: tuple[str, ...]
     joint_names: tuple[str, ...] = ()
-    mask: np.ndarray | None = None
+    mask: np.ndarray = None  # type: ignore[assignment]  # None: where the position is finite
     rotations: np.ndarray | None = None
     rot_mask: np.ndarray | None = None
     sigma: np.ndarray | None = None
@@ -151,7 +166,7 @@ class Measurements:
     def has_orientation(self) -> bool:
         return self.rotations is not None and bool(np.any(self.rot_mask))
 
-    def subset(self, index) -> "Measurements":
+    def subset(self, index) -> Measurements:
         """The poses selected by ``index`` (boolean mask or integer indices)."""
         idx = np.arange(self.n_poses)[index]
 
@@ -168,7 +183,7 @@ class Measurements:
                    for k, v in self.extra.items()},
         )
 
-    def split(self, n_validation: int | float, *, rng=None) -> tuple["Measurements", "Measurements"]:
+    def split(self, n_validation: int | float, *, rng=None) -> tuple[Measurements, Measurements]:
         """Random split into (fit, validation); ``n_validation`` a count or a fraction. Each part keeps
         the approach directions of the visiting order of the whole (``approach_of``)."""
         rng = np.random.default_rng(rng)
@@ -177,7 +192,7 @@ class Measurements:
         whole = self.with_approach()
         return whole.subset(np.sort(order[n_val:])), whole.subset(np.sort(order[:n_val]))
 
-    def with_approach(self) -> "Measurements":
+    def with_approach(self) -> Measurements:
         """These measurements with their approach directions stored (``extra["approach"]``), so that a
         subset keeps the directions of this visiting order."""
         if "approach" in self.extra:

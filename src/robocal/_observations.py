@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import copy
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
@@ -98,11 +99,12 @@ class ContactProblem:
         self.marker_idx = np.array([model.marker_names.index(n) for n in contacts.marker], dtype=int)
         self.sockets = contacts.groups("socket")
         self.free_planes = [g for g in contacts.groups("plane") if contacts.known_plane(g.target) is None]
-        self.known_planes = [(g, contacts.known_plane(g.target)) for g in contacts.groups("plane")
-                             if contacts.known_plane(g.target) is not None]
+        self.known_planes = [(g, kp) for g in contacts.groups("plane")
+                             if (kp := contacts.known_plane(g.target)) is not None]
         self.bars = contacts.groups("bar")
         self.pairs = contacts.distance_pairs()
-        self._cache_key, self._cache = None, None
+        self._cache_key: bytes | None = None
+        self._cache: Any = None
         self._initial_nuisance(parameter_vector(model))
         self._set_free(free)
 
@@ -219,11 +221,13 @@ class ContactProblem:
                           [c.sigma[g.rows] for g in self.sockets])}
         plane = [P[g.rows] @ n - d for g, (n, d) in zip(self.free_planes, self.planes(p))]
         plane += [P[g.rows] @ np.asarray(kp.normal) - kp.offset for g, kp in self.known_planes]
-        out["plane"] = (plane, [c.sigma[g.rows] for g in self.free_planes] + [c.sigma[g.rows] for g, _ in self.known_planes])
+        out["plane"] = (plane, [c.sigma[g.rows] for g in self.free_planes]
+                        + [c.sigma[g.rows] for g, _ in self.known_planes])
         out["bar"] = ([np.atleast_1d(np.linalg.norm(P[g.rows[0]] - P[g.rows[1]]) - c.bars[g.target][0])
                        for g in self.bars], [np.atleast_1d(self._bar_sigma(g)) for g in self.bars])
         where = {(g.placement, g.target): k for k, g in enumerate(self.sockets)}
-        out["distance"] = ([np.atleast_1d(np.linalg.norm(pts[where[ga.placement, ga.target]] - pts[where[gb.placement, gb.target]]) - d.length)
+        out["distance"] = ([np.atleast_1d(np.linalg.norm(pts[where[ga.placement, ga.target]]
+                                                         - pts[where[gb.placement, gb.target]]) - d.length)
                             for d, ga, gb in self.pairs], [np.atleast_1d(d.sigma) for d, _, _ in self.pairs])
         return {k: (np.concatenate(r) if r else np.zeros((0, 3) if k == "socket" else 0),
                     np.concatenate(s) if s else np.zeros(0)) for k, (r, s) in out.items()}

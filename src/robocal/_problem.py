@@ -17,15 +17,24 @@ import copy
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ._arguments import FLAG, SEED, checked, is_a, names_in, optional, readings_of, shaped, whole
 from ._errors import InputError
-from ._kinematics import (CHUNK_POSES, LARGE_POSES, evaluate_state, frame_approach, jacobian_columns, layout,
-                          moved_state, moves_rigidly)
+from ._kinematics import (
+    CHUNK_POSES,
+    LARGE_POSES,
+    evaluate_state,
+    frame_approach,
+    jacobian_columns,
+    layout,
+    moved_state,
+    moves_rigidly,
+)
 from ._linalg import r_factor, reduced
 from ._measurements import Measurements, Noise, approach_of
 from ._model import RobotModel
-from ._parameters import has_backlash_parameters, has_compliance_parameters
+from ._options import MAX_POSES
+from ._parameters import has_backlash_parameters, has_compliance_parameters, parameter_names
 from ._threads import one_blas_thread
-
 
 # A problem keeps its last evaluations (the calibration asks for the start again after the solve,
 # and for the solution after the fit of the errors before it): up to STATES_KEPT, fewer for many
@@ -62,14 +71,14 @@ class Problem:
         self.sel = [np.nonzero(data.mask[:, j])[0] for j in range(len(data.marker_names))]
         # 6D rows mix metres and radians: without stated deviations, each part is weighed by its noise
         self.weighted = data.sigma is not None or (self.use_rot and noise is not None)
-        sp = data.sigma if data.sigma is not None else (noise.position if self.weighted else 1.0)
+        sp = data.sigma if data.sigma is not None else (noise.position if noise is not None and self.weighted else 1.0)
         self.w = [1.0 / np.broadcast_to(sp, data.mask.shape)[s, j] for j, s in enumerate(self.sel)]
         self.meas = [data.positions[s, j] for j, s in enumerate(self.sel)]
-        if self.use_rot:
+        if self.use_rot and data.rot_mask is not None:
             self.sel_r = [np.nonzero(data.rot_mask[:, j])[0] for j in range(len(data.marker_names))]
             sr = data.sigma_rot if data.sigma_rot is not None else (noise.rotation if noise is not None else 1.0)
             self.w_r = [1.0 / np.broadcast_to(sr, data.rot_mask.shape)[s, j] for j, s in enumerate(self.sel_r)]
-        self._states = {}    # shared with the problems ``over`` makes: they evaluate the same poses
+        self._states: dict = {}    # shared with the problems ``over`` makes: they evaluate the same poses
         if chunked is None:
             chunked = data.n_poses > LARGE_POSES
         if chunked and (self.use_rot or self.backlash):
@@ -218,6 +227,7 @@ class Problem:
         """(n, 3) rotation vectors of R_pred R_meas^T in W for marker j's measured orientations."""
         s = self.sel_r[j]
         Rp = st.ps.RM[self.marker_idx[j]][s]
+        assert self.data.rotations is not None  # rows of orientations exist only with them
         Rm = self.data.rotations[s, j]
         return Rotation.from_matrix(Rp @ np.swapaxes(Rm, -1, -2)).as_rotvec()
 
@@ -324,17 +334,48 @@ def design_measurements(model: RobotModel, q, orientation: bool = False, markers
                         extra={} if approach is None else {"approach": np.asarray(approach, dtype=float)})
 
 
+# a problem's free parameters: names of the model's parameters
+_PARAMETERS = names_in(lambda a: parameter_names(a["model"]))
+
+
+@checked(model=is_a(RobotModel), q=readings_of(), names=_PARAMETERS, orientation=FLAG,
+         approach=optional(shaped(None, None)))
 def design_problem(model: RobotModel, q, names, orientation: bool = False, approach=None) -> Problem:
-    """The problem of ``names`` at readings ``q`` with nothing measured: its Jacobian is the design's."""
+    """The problem of ``names`` at readings ``q`` with nothing measured: its Jacobian is the design's.
+
+    Parameters
+    ----------
+    {model, q}
+    names : sequence of str
+        The free parameters.
+    orientation : bool
+        Whether orientations are measured.
+    {approach}
+
+    Returns
+    -------
+    Problem
+        The problem; its Jacobian is the design's.
+    """
     return Problem(model, design_measurements(model, q, orientation, approach=approach), tuple(names),
                    compliance=needs_compliance(model, names))
 
 
+@checked(model=is_a(RobotModel))
 def sampling_box(model: RobotModel) -> tuple[np.ndarray, np.ndarray]:
     """Lower and upper readings within which configurations are drawn, (n_joints,) each.
 
     An unbounded revolute reading turns within +-pi (every orientation); an unbounded prismatic
     one has no such range and is refused.
+
+    Parameters
+    ----------
+    {model}
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray)
+        Lower and upper readings, (n_joints,) each.
     """
     lo, hi = model.lower_limits.copy(), model.upper_limits.copy()
     angle = np.zeros(model.n_joints, dtype=bool)
@@ -351,8 +392,22 @@ def sampling_box(model: RobotModel) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
+@checked(model=is_a(RobotModel), n=whole(0, MAX_POSES), rng=SEED)
 def random_configurations(model: RobotModel, n: int, rng=None) -> np.ndarray:
-    """``n`` joint readings (n, n_joints) drawn uniformly within ``sampling_box(model)``."""
+    """``n`` joint readings (n, n_joints) drawn uniformly within ``sampling_box(model)``.
+
+    Parameters
+    ----------
+    {model}
+    n : int
+        Number of configurations.
+    {rng}
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, n_joints)
+        Joint readings within the joint limits.
+    """
     rng = np.random.default_rng(rng)
     lo, hi = sampling_box(model)
     return rng.uniform(lo, hi, size=(n, model.n_joints))

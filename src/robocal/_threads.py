@@ -65,7 +65,8 @@ def _leave() -> None:
     with _lock:
         _depth -= 1
         if _depth == 0:
-            _restore.restore_original_limits()
+            if _restore is not None:
+                _restore.restore_original_limits()
             _restore = None
 
 

@@ -10,6 +10,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from .._arguments import (
+    PATH,
+    TEXT,
+    checked,
+)
 from .._errors import InputError, excerpt, suggest
 from .._units import parse_units
 from .table import UNKNOWN_ACTIONS, ColumnMap, check_decimal, parse_separator
@@ -68,8 +73,21 @@ def column_map(columns, *, unknown: str | None = None) -> ColumnMap:
     return ColumnMap(rename, frozenset(ignore), unknown or "refuse")
 
 
+@checked(source=TEXT)
 def profile_from_dict(d, *, source: str = "<dict>") -> Profile:
-    """A Profile from the parsed profile file ``d``."""
+    """A Profile from the parsed profile file ``d``.
+
+    Parameters
+    ----------
+    d : dict
+        A profile as its YAML file holds it.
+    {source}
+
+    Returns
+    -------
+    Profile
+        The profile.
+    """
     def error(where, message):
         return InputError(message, source=source, where=where)
 
@@ -110,8 +128,19 @@ def profile_from_dict(d, *, source: str = "<dict>") -> Profile:
                    header=tuple(c.strip() for c in header) if header is not None else None)
 
 
+@checked(path=PATH)
 def read_profile(path) -> Profile:
-    """Read an instrument profile file (docs/formats.md)."""
+    """Read an instrument profile file (docs/formats.md).
+
+    Parameters
+    ----------
+    {path}
+
+    Returns
+    -------
+    Profile
+        The profile.
+    """
     source = str(path)
     d = load_yaml(read_text(path)[0], source)
     return profile_from_dict(d, source=source)

@@ -13,17 +13,41 @@ import math
 import re
 from datetime import datetime
 
+from .._arguments import (
+    FLAG,
+    MAPPING,
+    PATH,
+    checked,
+    is_a,
+    optional,
+)
 from .._calibration import CalibrationResult
 from .._errors import InputError
 from .._files.result import diagnosis_to_dict, result_to_dict
 from .._files.text import write_texts
 from .._model import DEFAULT_LINK_DENSITY, RELATIVE_MASSES, mdh_transform
 from .._parameters import FRAME_KINDS, GEOMETRIC_KINDS, SI_UNITS, parameter_layout, parameter_vector
-from .plots import (AFTER, BEFORE, BLOCK, DENSE, LIMIT, STRUCTURE, correlation_blocks, need_matplotlib,
-                    plot_correlation, plot_errors_per_pose, plot_histograms, plot_residual_trends, plot_residuals,
-                    residual_sample, residual_trends)
+from .plots import (
+    AFTER,
+    BEFORE,
+    BLOCK,
+    DENSE,
+    LIMIT,
+    STRUCTURE,
+    correlation_blocks,
+    need_matplotlib,
+    plot_correlation,
+    plot_errors_per_pose,
+    plot_histograms,
+    plot_residual_trends,
+    plot_residuals,
+    residual_sample,
+    residual_trends,
+)
 from .text import rotation_lines
-from .units import UNITS_SENTENCE, absorption_text, display_unit as _display, finite as _num, fmt, symbol
+from .units import UNITS_SENTENCE, absorption_text, fmt, symbol
+from .units import display_unit as _display
+from .units import finite as _num
 
 STAT_SETS = (("fit_before", "fitted poses", "before"), ("fit_after", "fitted poses", "after"),
              ("validation_before", "held-out poses", "before"), ("validation_after", "held-out poses", "after"))
@@ -310,8 +334,8 @@ def _parameter_tables(d: dict, nominal: dict, units: dict, result: CalibrationRe
     frames = [row["frame"] for row in table]
     # a kind is shown where it was a candidate, or where the model holds a non-zero value of it (a
     # fixed mount's gamma and b): nothing the calibrated file keeps is hidden
-    shown = [k for k in FRAME_KINDS if k in ALWAYS_SHOWN or any(row.get(k, "-") != "-" or nominal.get(f"{row['frame']}.{k}")
-                                                                  for row in table)]
+    shown = [k for k in FRAME_KINDS
+             if k in ALWAYS_SHOWN or any(row.get(k, "-") != "-" or nominal.get(f"{row['frame']}.{k}") for row in table)]
     omitted = [k for k in FRAME_KINDS if k not in shown and k not in ("gamma", "b")]
 
     def value_cells(name, unit):
@@ -601,12 +625,12 @@ table.params td,table.params th{padding:1px 3px}td.name{white-space:normal;overf
 .panel{max-height:none;overflow:visible;border:0}h2{break-after:avoid}figure,tr,.card,.notice{break-inside:avoid}
 nav ol{columns:4}:target{outline:none;background:none}}
 @media (max-width:800px){.cards{grid-template-columns:1fr 1fr}nav ol{columns:1}}
-""" % {"before": BEFORE, "after": AFTER, "limit": LIMIT}
+""" % {"before": BEFORE, "after": AFTER, "limit": LIMIT}  # noqa: UP031 - the CSS is full of braces
 
 
 def _errors_section(d: dict, has_val: bool) -> str:
     lim = d.get("limit")
-    n = sum(len((d["errors"].get(k) or [])) for k in ("fit_before", "validation_before"))
+    n = sum(len(d["errors"].get(k) or []) for k in ("fit_before", "validation_before"))
     how = ("Position error of each measured point before (orange) and after (blue) calibration. Filled circles: "
            "fitted poses; open triangles on grey: held-out poses" if n <= DENSE else
            f"Position errors of the {n} poses before (orange) and after (blue) calibration, summarised in bins of "
@@ -623,9 +647,10 @@ def _errors_section(d: dict, has_val: bool) -> str:
 
 def _residuals_section(d: dict) -> str:
     shown, at_points, n = residual_sample(d)
-    where = ("Arrows start at the measured points and are scaled up; the bar gives their scale." if at_points is not None
-             else "The measured positions are not stored in the result, so every arrow starts at a common origin; "
-                  "the bar gives the scale.")
+    where = ("Arrows start at the measured points and are scaled up; the bar gives their scale."
+             if at_points is not None else
+             "The measured positions are not stored in the result, so every arrow starts at a common origin; "
+             "the bar gives the scale.")
     count = (f" {len(shown)} of the {n} measured points are drawn, evenly spaced through the campaign."
              if len(shown) < n else "")
     return _figure(plot_residuals(d), "Fit residuals (calibrated minus measured) of the fitted poses, projected on "
@@ -661,12 +686,24 @@ def _list(items: list[str]) -> str:
     return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " and " + items[-1]
 
 
+@checked(result=is_a(CalibrationResult), extra=optional(MAPPING))
 def render_report(result: CalibrationResult, *, extra: dict | None = None, diagnosis=None) -> str:
     """The HTML text of the report of ``result`` (a CalibrationResult, computed or read back).
 
     ``extra``: optional tables for a comparison section (see ``_extra_tables``); ``diagnosis``: a
     ``Diagnosis`` of its misfit, shown in the verdict section.
     Raises RobocalError when matplotlib is missing, InputError when ``result`` is not a result.
+
+    Parameters
+    ----------
+    {result, extra}
+    diagnosis : Diagnosis, optional
+        The diagnosis of the result's misfit, shown in the verdict section.
+
+    Returns
+    -------
+    str
+        The HTML page.
     """
     if not isinstance(result, CalibrationResult):
         raise InputError(f"expected a CalibrationResult, got {type(result).__name__}", where="result")
@@ -735,10 +772,21 @@ def render_report(result: CalibrationResult, *, extra: dict | None = None, diagn
             "units. A self-contained page: no scripts, no network.</footer>\n</main>\n</body>\n</html>\n")
 
 
+@checked(result=is_a(CalibrationResult), path=PATH, force=FLAG, extra=optional(MAPPING))
 def write_report(result: CalibrationResult, path, *, force: bool = False, extra: dict | None = None,
                  diagnosis=None) -> None:
     """Write the HTML report of ``result`` to ``path`` atomically (temporary file, then rename).
 
     An existing ``path`` is an InputError unless ``force``. See ``render_report``.
+
+    Parameters
+    ----------
+    {result, path, force, extra}
+    diagnosis : Diagnosis, optional
+        The diagnosis of the result's misfit, shown in the verdict section.
+
+    Returns
+    -------
+    None
     """
     write_texts({path: render_report(result, extra=extra, diagnosis=diagnosis)}, force=force)

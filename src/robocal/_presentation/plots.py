@@ -120,7 +120,9 @@ def _binned(ax, start: int, before: np.ndarray, after: np.ndarray, label: str, w
             if vals.size:
                 centre.append(start + (i + j - 1) / 2)
                 q = np.percentile(vals, [5, 50, 95])
-                lo.append(q[0]), mid.append(q[1]), hi.append(q[2])
+                lo.append(q[0])
+                mid.append(q[1])
+                hi.append(q[2])
         ax.fill_between(centre, lo, hi, color=colour, alpha=0.22 if label == "fitted" else 0.12, lw=0, zorder=1)
         ax.plot(centre, mid, color=colour, lw=1.3, ls="-" if label == "fitted" else "--", zorder=3,
                 label=f"{when}, {label} poses: median and 5-95 %")
@@ -381,7 +383,7 @@ def plot_residuals(d: dict) -> str:
     length = length or 1e-3
     bar = _nice(length * 0.5)
     at_points = pts is not None
-    if at_points:
+    if pts is not None:
         span = float((pts.max(axis=0) - pts.min(axis=0)).max()) or 1.0
         gain = _nice(0.08 * span / length)
     else:
@@ -434,10 +436,10 @@ def _scale_bar(ax, plane: str, gain: float, bar: float, at_points: bool) -> None
 
 def _stacked(d: dict, key: str) -> np.ndarray | None:
     """Fitted then held-out poses of ``errors.fit_<key>`` and ``errors.validation_<key>``."""
-    parts = [errors_array(d, f"{s}_{key}") for s in ("fit", "validation")]
-    if parts[0] is None:
+    fit, held_out = (errors_array(d, f"{s}_{key}") for s in ("fit", "validation"))
+    if fit is None:
         return None
-    return parts[0] if parts[1] is None else np.concatenate(parts)
+    return fit if held_out is None else np.concatenate([fit, held_out])
 
 
 def binned_median(x: np.ndarray, y: np.ndarray, bins: int = TREND_BINS) -> dict:

@@ -4,6 +4,19 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._arguments import (
+    FLAG,
+    NAMES,
+    TEXT,
+    checked,
+    each_a,
+    is_a,
+)
+from .._calibration import CalibrationResult, Comparison
+from .._checks import Check
+from .._contact_calibration import ContactCalibration
+from .._identifiability import IdentifiabilityResult
+from .._model import RobotModel
 from .._parameters import BACKLASH_KINDS, BASE_KINDS, FRAME_KINDS, MARKER_KINDS, parameter_layout
 from .units import MM, absorption_text, display_unit, with_unit
 
@@ -50,8 +63,19 @@ def in_use_lines(in_use, indent: str = "  ") -> list[str]:
     return lines
 
 
+@checked(checks=each_a(Check))
 def checks_lines(checks) -> list[str]:
-    """Every check with its figures; the likely cause and the fix of those that did not pass."""
+    """Every check with its figures; the likely cause and the fix of those that did not pass.
+
+    Parameters
+    ----------
+    {checks}
+
+    Returns
+    -------
+    list of str
+        One line per check.
+    """
     lines = ["checks:"]
     for c in checks:
         lines.append(f"  {MARKS[c.status]} {c.name}: {c.summary}")
@@ -74,8 +98,20 @@ def diagnosis_lines(diagnosis) -> list[str]:
     return lines
 
 
+@checked(result=is_a(CalibrationResult, ContactCalibration))
 def verdict_line(result) -> str:
-    """The last line of a summary: the verdict, with what it rests on."""
+    """The last line of a summary: the verdict, with what it rests on.
+
+    Parameters
+    ----------
+    result : CalibrationResult or ContactCalibration
+        A calibration's result.
+
+    Returns
+    -------
+    str
+        The verdict line.
+    """
     failed = [c.name for c in result.checks if c.status == "fail"]
     warned = [c.name for c in result.checks if c.status == "warn"]
     if failed:
@@ -104,8 +140,21 @@ def eliminated_lines(ident, units: dict) -> list[str]:
     return lines
 
 
+@checked(result=is_a(CalibrationResult), shown=NAMES, weighted=FLAG)
 def calibration_summary(result, *, shown=(), weighted: bool = False) -> str:
-    """What ``robocal calibrate`` prints about one result. ``shown``: notes already printed as warnings."""
+    """What ``robocal calibrate`` prints about one result. ``shown``: notes already printed as warnings.
+
+    Parameters
+    ----------
+    result : CalibrationResult
+        A calibration's result.
+    {shown, weighted}
+
+    Returns
+    -------
+    str
+        The text summary.
+    """
     lines = [f"calibration of {result.nominal_model.name} on {result.provenance['data']['n_poses']} poses "
              f"({', '.join(result.families)}, loss {result.loss})"]
     lines += stats_lines(result.stats)
@@ -175,8 +224,19 @@ def _candidate_units(result) -> dict:
     return {n: lay[n].unit for n in result.identifiability.candidates if n in lay}
 
 
+@checked(comparison=is_a(Comparison), shown=NAMES, weighted=FLAG)
 def comparison_summary(comparison, *, shown=(), weighted: bool = False) -> str:
-    """What ``robocal calibrate --compare`` prints: the two (or three) identifications side by side."""
+    """What ``robocal calibrate --compare`` prints: the two (or three) identifications side by side.
+
+    Parameters
+    ----------
+    {comparison, shown, weighted}
+
+    Returns
+    -------
+    str
+        The text summary.
+    """
     geo = comparison.geometric
     short = {"geometric": "geometric", "geometric and compliance": "geometric+compliance",
              "geometric, compliance and backlash": "+backlash"}
@@ -208,8 +268,19 @@ def comparison_summary(comparison, *, shown=(), weighted: bool = False) -> str:
     return "\n".join(lines)
 
 
+@checked(model=is_a(RobotModel), res=is_a(IdentifiabilityResult), where=TEXT)
 def identifiability_summary(model, res, where: str) -> str:
-    """The identifiability table in the paper's layout, base and marker statuses, what absorbs what."""
+    """The identifiability table in the paper's layout, base and marker statuses, what absorbs what.
+
+    Parameters
+    ----------
+    {model, res, where}
+
+    Returns
+    -------
+    str
+        The text summary.
+    """
     width = max([len(f) for f in model.frame_names] + [len(m) for m in model.marker_names] + [12])
     lines = [f"identifiability of {model.name} at {where}, tolerance {res.tol:g}",
              "I identified, E eliminated, - not considered"]

@@ -16,8 +16,22 @@ import warnings
 
 from .._errors import RobocalError, RobocalWarning
 from .._version import __version__
-from . import (calibrate, compensate, export, history, identifiability, import_dh, import_urdf, limit, plan,
-               plan_sockets, record, report, simulate, verify)
+from . import (
+    calibrate,
+    compensate,
+    export,
+    history,
+    identifiability,
+    import_dh,
+    import_urdf,
+    limit,
+    plan,
+    plan_sockets,
+    record,
+    report,
+    simulate,
+    verify,
+)
 from .common import MissingExtra, Parser
 
 COMMANDS = (plan, plan_sockets, simulate, calibrate, compensate, export, identifiability, report, limit, import_urdf,
@@ -38,14 +52,17 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class _CommandHandler(logging.StreamHandler):
+    """The handler the command line adds to the ``robocal`` logger (one at a time)."""
+
+
 def _configure_logging(verbose: bool) -> None:
     """The library logs progress through ``logging`` (logger ``robocal``); only here is it shown."""
     logger = logging.getLogger("robocal")
-    for h in [h for h in logger.handlers if getattr(h, "robocal_cli", False)]:
+    for h in [h for h in logger.handlers if isinstance(h, _CommandHandler)]:
         logger.removeHandler(h)          # a handler of an earlier call holds an earlier stderr
-    handler = logging.StreamHandler(sys.stderr)
+    handler = _CommandHandler(sys.stderr)
     handler.setFormatter(logging.Formatter("robocal: %(message)s"))
-    handler.robocal_cli = True
     logger.addHandler(handler)
     logger.setLevel(logging.INFO if verbose else logging.WARNING)
     logger.propagate = False

@@ -47,7 +47,8 @@ def register(sub) -> None:
                    help="position residual above which a target counts as out of reach (default 0.001)")
     p.add_argument("--tol-deg", type=common.noise_deg, default=1e-4,
                    help="orientation residual above which a target counts as out of reach (default 1e-4)")
-    p.add_argument("--out-units", type=common.units, default="mm-deg", help="units of the written file (default mm-deg)")
+    p.add_argument("--out-units", type=common.units, default="mm-deg",
+                   help="units of the written file (default mm-deg)")
     p.add_argument("--force", action="store_true", help="overwrite an existing file")
     common.csv_options(p)
     p.set_defaults(func=run)
@@ -122,7 +123,8 @@ def run(args) -> int:
     flagged = [(lab, s) for lab, s in zip(data.labels, status) if s != "ok"]
     for lab, s in flagged:
         print(f"robocal: warning: {args.targets}: {lab}: {s}", file=sys.stderr)
-    print(f"compensated {data.n_poses} targets for {calibrated.name} ({'position' if not comp.oriented.any() else 'pose'} "
+    kind = "position" if not comp.oriented.any() else "pose"
+    print(f"compensated {data.n_poses} targets for {calibrated.name} ({kind} "
           f"of marker {nominal.marker_names[m]}): {data.n_poses - len(flagged)} reached, {len(flagged)} flagged; "
           f"worst residual {comp.residual.max() * common.MM:.3g} mm: wrote {args.out}")
     return 0

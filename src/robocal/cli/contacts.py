@@ -38,7 +38,8 @@ def _result_json(result) -> str:
                        for a in ident.eliminated],
         "contributions": {k: list(v) for k, v in ident.contributions.items()}, "together": list(ident.together),
         "lost_without": {k: list(v) for k, v in ident.lost_without.items()},
-        "unreachable": [{"name": u.name, "reason": u.reason, "components": list(u.components)} for u in ident.unreachable],
+        "unreachable": [{"name": u.name, "reason": u.reason, "components": list(u.components)}
+                        for u in ident.unreachable],
         "nuisance": {k: {"estimate": v[0], "std": v[1]} for k, v in result.nuisance.items()},
         "fit_before": figures(result.fit_before), "fit_after": figures(result.fit_after),
         "validation_before": figures(result.validation_before), "validation_after": figures(result.validation_after),
