@@ -29,10 +29,10 @@ from __future__ import annotations
 import copy
 import math
 from dataclasses import dataclass, field
-from functools import lru_cache
 
 import numpy as np
 
+from ._arrays import read_only
 from ._measurements import approach_sides
 from ._model import RobotModel
 from ._parameters import BASE_KINDS, MARKER_KINDS, parameter_layout, parameter_vector
@@ -89,12 +89,23 @@ class Layout:
     marker_row: np.ndarray      # (n_markers,) first row of each marker's block
     step_rows: np.ndarray       # (2, 2, n_steps) [orientations] rows of each step's axis and point
     chain_params: np.ndarray    # indices of every parameter but the base's and the markers'
+    # the correction plans made for this layout (``_correction_plan``): immutable records, kept with it
+    plans: dict = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        for value in vars(self).values():
+            if isinstance(value, np.ndarray):
+                read_only(value)
 
 
 
-@lru_cache(maxsize=64)
 def layout(model: RobotModel) -> Layout:
-    """The step structure of ``model`` over its parameter layout (cached per model)."""
+    """The step structure of ``model`` over its parameter layout, made once per model object and kept
+    with it (an immutable record: its arrays are read-only)."""
+    return model.derived(layout, lambda: _make_layout(model))
+
+
+def _make_layout(model: RobotModel) -> Layout:
     nf, nm = model.n_frames, len(model.markers)
     params = parameter_layout(model)
     names = params.names
@@ -319,27 +330,13 @@ class _Pass:
         return self.cache["axes"]
 
 
-# readings seen lately with the cosines and sines of their frame variables: a fit evaluates the
-# same readings at every step while only the parameters move
-_TURNS: list = []
-_TURNS_KEPT, _TURNS_MAX_SIZE = 2, 600_000    # entries, and readings (poses x frames) per entry
-
-
-def _joint_turns(qf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def joint_turns(qf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """cos (n_frames, N) and (sin, -sin) (n_frames, 2, 1, N) of the frame variables ``qf``
-    (N, n_frames), remembered for the last few readings (compared by value, so a changed array is
-    never mistaken for an old one)."""
-    for entry in _TURNS:
-        # the first pose first: other readings of the same size (chunks, draws) differ there
-        if entry[0].shape == qf.shape and np.array_equal(entry[0][:1], qf[:1]) and np.array_equal(entry[0], qf):
-            return entry[1], entry[2]
+    (N, n_frames), read-only: what a pass turns each frame by. A caller that evaluates the same
+    readings again (a problem, at every step of a fit) makes them once and hands them to
+    ``kinematic_pass`` (``turns``)."""
     qt = np.ascontiguousarray(qf.T)
-    c, s = np.cos(qt), _signed_sines(qt)
-    if qf.size <= _TURNS_MAX_SIZE:
-        c.flags.writeable = s.flags.writeable = False
-        _TURNS.insert(0, (qf.copy(), c, s))
-        del _TURNS[_TURNS_KEPT:]
-    return c, s
+    return read_only(np.cos(qt)), read_only(_signed_sines(qt))
 
 
 def _signed_sines(angle: np.ndarray) -> np.ndarray:
@@ -367,13 +364,13 @@ def _turn_rows(block: np.ndarray, c, ss) -> None:
 
 
 def kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray, defl=None,
-                    orientations: bool = False, frames_only: bool = False) -> _Pass:
+                    orientations: bool = False, frames_only: bool = False, turns=None) -> _Pass:
     """One pass down the tree. Per frame, its constant part (the parent's turn, offsets, and
     theta's offset) is one (4 x 4) @ (4 x 3N) product; only the joint's turn varies per pose.
 
     ``frames_only``: frame poses without marker positions (the undeformed chain under compliance
     needs no more). Step axes and points (``U``, ``Q``) and marker orientations are built on
-    first use."""
+    first use. ``turns``: ``joint_turns(qf)`` when the caller holds them (default: made here)."""
     N = qf.shape[0]
     base_axes, Rb = _base_placement(model, p)
     vec = np.empty((lay.n_rows, 3, N))
@@ -381,7 +378,7 @@ def kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray
     ps = _Pass(vec=vec, base_axes=base_axes, base_origin=p[0:3], base_rotation=Rb, model=model, lay=lay, p=p,
                orientations=orientations, has_markers=not frames_only)
     base = np.vstack([Rb.T, p[0:3]])                       # (4, 3) the base's x, y, z and origin
-    cos_q, sin_q = _joint_turns(qf)             # sin_q: (sin, -sin)
+    cos_q, sin_q = joint_turns(qf) if turns is None else turns             # sin_q: (sin, -sin)
     for i, f in enumerate(model.frames):
         r0 = lay.frame_row[i]
         parent = base if f.parent < 0 else vec[lay.parent_row[i]:lay.parent_row[i] + 4]
@@ -464,12 +461,10 @@ def _deflected_frame(vec, r0, parent, v, be, al, th) -> None:
 
 
 def _base_placement(model: RobotModel, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The axes (6, 3) of the base steps and the rotation of frame 0 in W (read-only, remembered
-    for the last few values)."""
+    """The axes (6, 3) of the base steps and the rotation of frame 0 in W."""
     return _base_rotation(model.base_rotation, *p[3:6].tolist())
 
 
-@lru_cache(maxsize=16)
 def _base_rotation(reference: tuple, x: float, y: float, z: float) -> tuple[np.ndarray, np.ndarray]:
     """R = R_ref exp([v]x) for the rotation vector v = (x, y, z); a change dv turns the base about
     the columns of R_ref J_l(v) in W, J_l the left Jacobian (``left_jacobian``)."""
@@ -483,10 +478,7 @@ def _base_rotation(reference: tuple, x: float, y: float, z: float) -> tuple[np.n
     else:
         a, b, c = math.sin(t) / t, (1.0 - math.cos(t)) / t ** 2, (t - math.sin(t)) / t ** 3
         R, J = np.eye(3) + a * K + b * K2, np.eye(3) + b * K + c * K2
-    base_axes = np.vstack([np.eye(3), (Rref @ J).T])
-    Rb = Rref @ R
-    base_axes.flags.writeable = Rb.flags.writeable = False
-    return base_axes, Rb
+    return np.vstack([np.eye(3), (Rref @ J).T]), Rref @ R
 
 
 def _frame_block(ps: _Pass, k: int) -> np.ndarray:
@@ -695,16 +687,19 @@ class _CorrectionPlan:
     fills: tuple             # (slot, part, source slot or -1, compliance items): how each sum is made
     groups: tuple            # (row0, row1, slot): rows [row0, row1) use that slot
 
+    def __post_init__(self) -> None:
+        for value in vars(self).values():
+            if isinstance(value, np.ndarray):
+                read_only(value)
+
 
 def _correction_plan(model: RobotModel, lay: Layout, steps: np.ndarray, act: np.ndarray) -> _CorrectionPlan | None:
-    """The plan for these step columns and active compliances, made once per layout (a layout is
-    hashed by identity, which is cheaper than hashing the model)."""
-    return _cached_plan(lay, steps.tobytes(), act.tobytes())
-
-
-@lru_cache(maxsize=256)
-def _cached_plan(lay: Layout, steps: bytes, act: bytes) -> _CorrectionPlan | None:
-    return _make_correction_plan(lay, np.frombuffer(steps, dtype=int), np.frombuffer(act, dtype=int))
+    """The plan for these step columns and active compliances, made once per layout and kept with it
+    (under the index tuples, compared by value; the plan is immutable)."""
+    key = (tuple(steps.tolist()), tuple(act.tolist()))
+    if key not in lay.plans:
+        lay.plans.setdefault(key, _make_correction_plan(lay, np.array(key[0], dtype=int), np.array(key[1], dtype=int)))
+    return lay.plans[key]
 
 
 def _make_correction_plan(lay, steps, act) -> _CorrectionPlan | None:
@@ -950,20 +945,24 @@ class _Backlash:
 
 
 def evaluate_state(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray, *, compliance: bool,
-                    orientations: bool, payload_mass=None, backlash: bool = False, approach=None) -> _State:
+                    orientations: bool, payload_mass=None, backlash: bool = False, approach=None,
+                    turns=None) -> _State:
     """The kinematic pass at ``p`` and readings ``qf`` (N, n_frames), with gravity moments when
     ``compliance``, and joints resting in their lost motion when ``backlash`` (``approach``
     (N, n_frames) the direction of each frame variable's last move, see ``frame_approach``;
-    None: from the row order of ``qf``)."""
+    None: from the row order of ``qf``). ``turns``: ``joint_turns(qf)`` when the caller holds them."""
     if backlash:
         return _backlash_state(model, lay, p, qf, compliance=compliance, orientations=orientations,
-                               payload_mass=payload_mass, approach=approach)
+                               payload_mass=payload_mass, approach=approach, turns=turns)
+    turns = joint_turns(qf) if turns is None else turns
     ks = p[lay.compliant_params]
     if not compliance:
-        return _State(ps=kinematic_pass(model, lay, p, qf, orientations=orientations), compliance=False, ks=ks)
+        return _State(ps=kinematic_pass(model, lay, p, qf, orientations=orientations, turns=turns), compliance=False,
+                      ks=ks)
     deflects = bool(np.any(ks != 0.0))
     # with every compliance zero the deflected chain is the undeformed one: one pass serves both
-    ps0 = kinematic_pass(model, lay, p, qf, orientations=orientations and not deflects, frames_only=deflects)
+    ps0 = kinematic_pass(model, lay, p, qf, orientations=orientations and not deflects, frames_only=deflects,
+                         turns=turns)
     C1, msub = _mass_sums(model, lay, ps0, payload_mass)
     M, A, u = _moments(model, ps0, C1, msub)
     if not deflects:
@@ -971,7 +970,7 @@ def evaluate_state(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray
     # a zero compliance deflects nothing: a scalar keeps that frame's constant part constant
     defl = [k * Mk if k else 0.0 for k, Mk in zip(ks, M)]
     ps = kinematic_pass(model, lay, p, qf, defl=[tuple(defl[3 * i:3 * i + 3]) for i in range(model.n_frames)],
-                         orientations=orientations)
+                        orientations=orientations, turns=turns)
     return _State(ps=ps, compliance=True, ks=ks, ps0=ps0, C1=C1, msub=msub, M=M, A=A, u=u)
 
 
@@ -994,7 +993,7 @@ def _frame_loads(model: RobotModel, lay: Layout, ps0: _Pass, M: np.ndarray, msub
     return loads
 
 
-def _backlash_state(model, lay, p, qf, *, compliance, orientations, payload_mass, approach) -> _State:
+def _backlash_state(model, lay, p, qf, *, compliance, orientations, payload_mass, approach, turns) -> _State:
     """The state with each joint at q + b s (docs/conventions.md, backlash). Gravity moments,
     loads and sides are taken on the undeformed chain at the readings, so neither depends on b."""
     N, nf = qf.shape
@@ -1006,7 +1005,7 @@ def _backlash_state(model, lay, p, qf, *, compliance, orientations, payload_mass
     ps0 = C1 = msub = M = A = u = loads = slope = None
     if gravity or compliance:
         # the load derivatives need the steps' axes on this chain, so not frames only
-        ps0 = kinematic_pass(model, lay, p, qf, orientations=False, frames_only=not gravity)
+        ps0 = kinematic_pass(model, lay, p, qf, orientations=False, frames_only=not gravity, turns=turns)
         C1, msub = _mass_sums(model, lay, ps0, payload_mass)
         M, A, u = _moments(model, ps0, C1, msub)
     if gravity:
@@ -1234,7 +1233,7 @@ def forward_kinematics(model: RobotModel, q, *, frames: bool = False, payload_ma
     With ``frames=True`` also every frame's pose ``X_W<frame>`` as (N, n_frames, 4, 4).
 
     >>> import numpy as np
-    >>> from robocal._model import serial_model
+    >>> from robocal.kinematics import serial_model
     >>> m = serial_model("r", [dict(joint="revolute")], markers=[("tool", (1.0, 0, 0))])
     >>> forward_kinematics(m, [[np.pi / 2]]).positions.round(12)
     array([[[0., 1., 0.]]])
