@@ -1,8 +1,8 @@
 """robocal: identify a robot's geometric and compliance parameters from measurements.
 
 ``import robocal as rc`` gives the everyday surface; the subpackages ``robocal.kinematics``,
-``robocal.io``, ``robocal.sim``, ``robocal.limit``, ``robocal.report`` and ``robocal.errors`` hold
-the rest. Conventions (frames, units, parameter order) are in docs/conventions.md. Names load on
+``robocal.io``, ``robocal.sim``, ``robocal.limit``, ``robocal.report``, ``robocal.identification``
+and ``robocal.errors`` hold the rest. Conventions (frames, units, parameter order) are in docs/conventions.md. Names load on
 first use, so the command line starts without the numerical libraries.
 """
 
@@ -39,7 +39,7 @@ _EVERYDAY = {
     "_contact_calibration": ("calibrate_contacts", "contact_errors", "ContactCalibration", "ContactErrors"),
 }
 _WHERE = {name: module for module, names in _EVERYDAY.items() for name in names}
-_SUBMODULES = ("kinematics", "io", "sim", "limit", "report", "errors", "cli")
+_SUBMODULES = ("kinematics", "io", "sim", "limit", "report", "errors", "identification", "cli")
 
 __all__ = ["__version__"] + sorted(_WHERE)
 

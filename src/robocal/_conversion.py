@@ -243,7 +243,7 @@ def mdh_table(model: RobotModel, *, units: str = "m-rad") -> list[dict]:
     (prismatic) are the offsets at zero reading. ``units``: one of ``m-rad``, ``mm-deg``, ``m-deg``,
     ``mm-rad``.
 
-    >>> from robocal._model import serial_model
+    >>> from robocal.kinematics import serial_model
     >>> mdh_table(serial_model("r", [dict(d=0.5)]), units="mm-deg")[0]["d_mm"]
     500.0
     """
