@@ -29,13 +29,14 @@ from __future__ import annotations
 import copy
 import math
 from dataclasses import dataclass, field
+from enum import IntEnum
 
 import numpy as np
 
 from ._arrays import read_only
 from ._measurements import approach_sides
 from ._model import RobotModel
-from ._parameters import BASE_KINDS, MARKER_KINDS, parameter_layout, parameter_vector
+from ._parameters import BASE_KINDS, FRAME_KINDS, MARKER_KINDS, parameter_layout, parameter_vector
 from ._spatial import cross, left_jacobian, rot_matrix, small_rotation
 from ._threads import one_blas_thread
 
@@ -45,19 +46,65 @@ N_BASE = len(BASE_KINDS)
 LARGE_POSES = 50_000
 CHUNK_POSES = 10_000
 N_MARKER = len(MARKER_KINDS)
-# offsets of the geometric steps inside a frame's block (same order as FRAME_KINDS)
-GAMMA, B, BETA, ALPHA, D, THETA, R = range(7)
-K_THETA, K_ALPHA, K_BETA = 7, 8, 9
-# (step offset deflected, compliance offset) pairs
-COMPLIANT = ((THETA, K_THETA), (ALPHA, K_ALPHA), (BETA, K_BETA))
-_ROT_PAIRS = {0: (1, 2), 1: (2, 0), 2: (0, 1)}
-# rows of a pass's vectors (``_Pass.vec``, each row one (3, N) block): a zero row; the base's x, y,
-# z, origin and its 6 step axes; per frame a block of FRAME_ROWS; per marker MARKER_ROWS
-ZERO_ROW, BASE_ROW, FRAME_ROW0, FRAME_ROWS, MARKER_ROWS = 0, 1, 11, 10, 4
-# inside a frame's block: its rotation's columns and origin; the x and y axes before the joint's
-# turn (theta's offset included); the alpha/d axis, the beta axis, the point of the beta and alpha
-# axes, the point of the theta axis. Inside a marker's: its position, then its rotation-step axes.
-X, Y, Z, ORIGIN, XC, YC, D_AXIS, BETA_AXIS, B_POINT, THETA_POINT = range(FRAME_ROWS)
+
+
+class FrameStep(IntEnum):
+    """The elementary motions placing a frame in its parent, in the order of docs/method.md section 1,
+    ``X_pj = Rot(z, gamma) Trans(z, b) Rot(y, beta) Rot(x, alpha) Trans(x, d) Rot(z, theta)
+    Trans(z, r)``: each one's offset in the frame's steps and in its parameters (``FRAME_KINDS``)."""
+
+    GAMMA = 0
+    B = 1
+    BETA = 2
+    ALPHA = 3
+    D = 4
+    THETA = 5
+    R = 6
+
+
+N_FRAME_STEPS = len(FrameStep)
+ROTATION_STEPS = (FrameStep.GAMMA, FrameStep.BETA, FrameStep.ALPHA, FrameStep.THETA)
+# the steps gravity deflects (docs/method.md section 2), each with its compliance's offset in the frame's
+# parameters; a frame's compliant rows (3 per frame) follow this order
+COMPLIANT = tuple((step, FRAME_KINDS.index(kind)) for step, kind in
+                  ((FrameStep.THETA, "k_theta"), (FrameStep.ALPHA, "k_alpha"), (FrameStep.BETA, "k_beta")))
+# the other two components of a cross product's component c: (a x b)_c = a_j b_k - a_k b_j
+_CROSS_PAIRS = {0: (1, 2), 1: (2, 0), 2: (0, 1)}
+
+
+class FrameRow(IntEnum):
+    """The rows of a frame's block in a pass's vectors (``_Pass.vec``: each row one (3, N) block of
+    vectors in W), as docs/method.md sections 1 and 3 name them."""
+
+    X_AXIS = 0          # the frame's rotation, column by column, and its origin
+    Y_AXIS = 1
+    Z_AXIS = 2          # theta turns about it, r slides along it
+    ORIGIN = 3
+    X_UNTURNED = 4      # x and y before the joint's turn (theta's constant offset included)
+    Y_UNTURNED = 5
+    D_AXIS = 6          # the x axis alpha turns about and d slides along
+    BETA_AXIS = 7       # the parent's y axis once gamma turned it: beta turns about it
+    BETA_POINT = 8      # b along the parent's z: the point of the beta and alpha axes
+    THETA_POINT = 9     # then d along the d axis: the point of the theta axis
+
+
+class MarkerRow(IntEnum):
+    """The rows of a marker's block: its position, then the axes of its three rotation steps."""
+
+    POSITION = 0
+    ROTATION_AXES = 1
+
+
+FRAME_ROWS, MARKER_ROWS = len(FrameRow), MarkerRow.ROTATION_AXES + 3
+# a frame's placement: its first rows, x, y, z and origin (homogeneous coordinates multiply them)
+PLACEMENT_ROWS = FrameRow.ORIGIN + 1
+# the rows of a pass's vectors, in order: a zero row (the point of a translation's column); the base's
+# block (x, y, z and origin, as a frame's first rows, then its six step axes); a block of FRAME_ROWS
+# per frame; a block of MARKER_ROWS per marker
+ZERO_ROW = 0
+BASE_ROW = 1
+BASE_STEP_AXES = BASE_ROW + FrameRow.ORIGIN + 1
+FRAME_ROW0 = BASE_STEP_AXES + N_BASE
 
 
 
@@ -117,9 +164,9 @@ def _make_layout(model: RobotModel) -> Layout:
         step_is_rot.append(k >= 3)
         step_frame.append(-1)
     for i in range(nf):
-        for k in range(7):
+        for k in FrameStep:
             step_param.append(frame0[i] + k)
-            step_is_rot.append(k in (GAMMA, BETA, ALPHA, THETA))
+            step_is_rot.append(k in ROTATION_STEPS)
             step_frame.append(i)
     for m in range(nm):
         for k in range(N_MARKER):
@@ -142,7 +189,7 @@ def _make_layout(model: RobotModel) -> Layout:
         marker_path[m, :N_BASE] = True
         for k in np.nonzero(ancestors[mk.frame])[0]:
             marker_path[m, _frame_steps(k)] = True
-        s0 = N_BASE + 7 * nf + N_MARKER * m
+        s0 = N_BASE + N_FRAME_STEPS * nf + N_MARKER * m
         marker_path[m, s0:s0 + N_MARKER] = True
     csteps, cparams, anc, desc = _compliant_rows(frame0, ancestors, n_steps)
     param_step = np.full(len(names), -1, dtype=int)
@@ -175,7 +222,7 @@ def _backlash_layout(model: RobotModel, params):
         if f.joint != "fixed":
             rev = f.joint == "revolute"
             bparams[i] = params.by_name[f"{f.name}.backlash_{'theta' if rev else 'r'}"].index
-            jsteps[i] = N_BASE + 7 * i + (THETA if rev else R)
+            jsteps[i] = N_BASE + N_FRAME_STEPS * i + (FrameStep.THETA if rev else FrameStep.R)
     param_backlash = np.full(params.n_params, -1, dtype=int)
     param_backlash[bparams[bparams >= 0]] = np.nonzero(bparams >= 0)[0]
     return bparams, jsteps, param_backlash
@@ -188,25 +235,30 @@ def _vector_rows(model: RobotModel):
     frame_row = FRAME_ROW0 + FRAME_ROWS * np.arange(nf)
     parent_row = np.array([BASE_ROW if f.parent < 0 else frame_row[f.parent] for f in model.frames], dtype=int)
     marker_row = FRAME_ROW0 + FRAME_ROWS * nf + MARKER_ROWS * np.arange(nm)
-    axis = [BASE_ROW + 4 + k for k in range(N_BASE)]
-    point = [ZERO_ROW] * 3 + [BASE_ROW + ORIGIN] * 3
+    axis = [BASE_STEP_AXES + k for k in range(N_BASE)]
+    point = [ZERO_ROW] * 3 + [BASE_ROW + FrameRow.ORIGIN] * 3
     for r, pr in zip(frame_row, parent_row):
-        # gamma, b, beta, alpha, d, theta, r
-        axis += [pr + Z, pr + Z, r + BETA_AXIS, r + D_AXIS, r + D_AXIS, r + Z, r + Z]
-        point += [pr + ORIGIN, ZERO_ROW, r + B_POINT, r + B_POINT, ZERO_ROW, r + THETA_POINT, ZERO_ROW]
+        # docs/method.md section 3: gamma turns about, and b slides along, the parent's z through its
+        # origin; beta turns about its own axis, alpha about the d axis, both through b's point; d slides
+        # along the d axis; theta turns about z through theta's point, r slides along z
+        axis += [pr + FrameRow.Z_AXIS, pr + FrameRow.Z_AXIS, r + FrameRow.BETA_AXIS, r + FrameRow.D_AXIS,
+                 r + FrameRow.D_AXIS, r + FrameRow.Z_AXIS, r + FrameRow.Z_AXIS]
+        point += [pr + FrameRow.ORIGIN, ZERO_ROW, r + FrameRow.BETA_POINT, r + FrameRow.BETA_POINT, ZERO_ROW,
+                  r + FrameRow.THETA_POINT, ZERO_ROW]
+    turns = MarkerRow.ROTATION_AXES + np.arange(3)
     for mk, r in zip(model.markers, marker_row):
         fr = frame_row[mk.frame]
-        axis += [fr + X, fr + Y, fr + Z, r + 1, r + 2, r + 3]
-        point += [ZERO_ROW] * 3 + [r] * 3
+        axis += [fr + FrameRow.X_AXIS, fr + FrameRow.Y_AXIS, fr + FrameRow.Z_AXIS] + list(r + turns)
+        point += [ZERO_ROW] * 3 + [r + MarkerRow.POSITION] * 3
     rows = np.array([[axis, point]] * 2, dtype=int)
     # without orientations a marker's rotation steps move nothing: the zero row
     for r in marker_row:
-        rows[0][np.isin(rows[0], [r, r + 1, r + 2, r + 3])] = ZERO_ROW
+        rows[0][np.isin(rows[0], r + np.arange(MARKER_ROWS))] = ZERO_ROW
     return FRAME_ROW0 + FRAME_ROWS * nf + MARKER_ROWS * nm, frame_row, parent_row, marker_row, rows
 
 
 def _frame_steps(i: int) -> np.ndarray:
-    return np.arange(N_BASE + 7 * i, N_BASE + 7 * i + 7)
+    return N_BASE + N_FRAME_STEPS * i + np.arange(N_FRAME_STEPS)
 
 
 def _compliant_rows(frame0: list, ancestors: np.ndarray, n_steps: int):
@@ -220,7 +272,7 @@ def _compliant_rows(frame0: list, ancestors: np.ndarray, n_steps: int):
     for i in range(nf):
         for c, (off, koff) in enumerate(COMPLIANT):
             row = 3 * i + c
-            s = N_BASE + 7 * i + off
+            s = N_BASE + N_FRAME_STEPS * i + off
             csteps.append(s)
             cparams.append(frame0[i] + koff)
             anc[row, :N_BASE] = True
@@ -277,12 +329,12 @@ class _Pass:
     @property
     def R(self) -> np.ndarray:
         """(n_frames, N, 3, 3) rotations R_W<frame> (a view)."""
-        return self._frames()[:, X:Z + 1].transpose(0, 3, 2, 1)
+        return self._frames()[:, FrameRow.X_AXIS:FrameRow.Z_AXIS + 1].transpose(0, 3, 2, 1)
 
     @property
     def O(self) -> np.ndarray:  # noqa: E743
         """(n_frames, N, 3) origins (a view)."""
-        return self._frames()[:, ORIGIN].transpose(0, 2, 1)
+        return self._frames()[:, FrameRow.ORIGIN].transpose(0, 2, 1)
 
     @property
     def P(self) -> np.ndarray | None:
@@ -291,7 +343,7 @@ class _Pass:
             return None
         nm, r0 = len(self.model.markers), FRAME_ROW0 + FRAME_ROWS * self.model.n_frames
         blocks = self.vec[r0:r0 + MARKER_ROWS * nm].reshape((nm, MARKER_ROWS) + self.vec.shape[1:])
-        return blocks[:, 0].transpose(0, 2, 1)
+        return blocks[:, MarkerRow.POSITION].transpose(0, 2, 1)
 
     @property
     def U(self) -> np.ndarray:
@@ -348,7 +400,8 @@ def _signed_sines(angle: np.ndarray) -> np.ndarray:
 def _place(Vt: np.ndarray, parent: np.ndarray, out: np.ndarray) -> None:
     """out (k, 3, N) = the vectors whose parent-frame coordinates (homogeneous: 0 for a direction,
     1 for a point) are the rows of Vt (k, 4), placed by the parent's x, y, z, origin ``parent``:
-    (4, 3, N), or (4, 3) for the base, the same at every pose."""
+    (4, 3, N), or (4, 3) for the base, the same at every pose.
+    Reference: docs/method.md section 1: a frame's vectors from its parent's, X_W<frame> = X_W<parent> X_pj."""
     if parent.ndim == 2:
         out[...] = (Vt @ parent)[:, :, None]
     else:
@@ -357,10 +410,11 @@ def _place(Vt: np.ndarray, parent: np.ndarray, out: np.ndarray) -> None:
 
 def _turn_rows(block: np.ndarray, c, ss) -> None:
     """The x and y axes of a frame's ``block`` turned about z per pose, from those before the turn:
-    x = c xc + s yc, y = c yc - s xc, with c (N,) and ``ss`` the (s, -s) of ``_signed_sines``."""
-    xy = block[X:Y + 1]
-    np.multiply(block[XC:YC + 1], c, out=xy)
-    xy += block[YC:XC - 1:-1] * ss                 # (yc, xc) s, -s
+    x = c xc + s yc, y = c yc - s xc, with c (N,) and ``ss`` the (s, -s) of ``_signed_sines``.
+    Reference: docs/method.md section 1: the joint's Rot(z, theta) of X_pj."""
+    xy = block[FrameRow.X_AXIS:FrameRow.Y_AXIS + 1]
+    np.multiply(block[FrameRow.X_UNTURNED:FrameRow.Y_UNTURNED + 1], c, out=xy)
+    xy += block[FrameRow.Y_UNTURNED:FrameRow.X_UNTURNED - 1:-1] * ss                 # (yc, xc) s, -s
 
 
 def kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray, defl=None,
@@ -370,7 +424,8 @@ def kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray
 
     ``frames_only``: frame poses without marker positions (the undeformed chain under compliance
     needs no more). Step axes and points (``U``, ``Q``) and marker orientations are built on
-    first use. ``turns``: ``joint_turns(qf)`` when the caller holds them (default: made here)."""
+    first use. ``turns``: ``joint_turns(qf)`` when the caller holds them (default: made here).
+    Reference: docs/method.md section 1 (X_pj down the tree, the base and the markers)."""
     N = qf.shape[0]
     base_axes, Rb = _base_placement(model, p)
     vec = np.empty((lay.n_rows, 3, N))
@@ -381,28 +436,31 @@ def kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray
     cos_q, sin_q = joint_turns(qf) if turns is None else turns             # sin_q: (sin, -sin)
     for i, f in enumerate(model.frames):
         r0 = lay.frame_row[i]
-        parent = base if f.parent < 0 else vec[lay.parent_row[i]:lay.parent_row[i] + 4]
-        v = p[lay.frame0[i]:lay.frame0[i] + 7].tolist()
+        parent = base if f.parent < 0 else vec[lay.parent_row[i]:lay.parent_row[i] + PLACEMENT_ROWS]
+        v = p[lay.frame0[i]:lay.frame0[i] + N_FRAME_STEPS].tolist()
         d_th, d_al, d_be = (0.0, 0.0, 0.0) if defl is None else defl[i]
         rev = f.joint == "revolute"
         if isinstance(d_al, np.ndarray) or isinstance(d_be, np.ndarray):
-            _deflected_frame(vec, r0, parent, v, v[BETA] + d_be, v[ALPHA] + d_al,
-                             v[THETA] + d_th + (qf[:, i] if rev else 0.0))
+            _deflected_frame(vec, r0, parent, v, v[FrameStep.BETA] + d_be, v[FrameStep.ALPHA] + d_al,
+                             v[FrameStep.THETA] + d_th + (qf[:, i] if rev else 0.0))
         else:
-            ps.pending.append((i, _constant_frame(vec, r0, parent, v, v[BETA] + d_be, v[ALPHA] + d_al, d_th,
+            ps.pending.append((i, _constant_frame(vec, r0, parent, v, v[FrameStep.BETA] + d_be,
+                                                  v[FrameStep.ALPHA] + d_al, d_th,
                                                   qf[:, i] if rev else None, cos_q[i], sin_q[i])))
         if f.joint == "prismatic":
-            vec[r0 + ORIGIN] += qf[:, i] * vec[r0 + Z]
+            vec[r0 + FrameRow.ORIGIN] += qf[:, i] * vec[r0 + FrameRow.Z_AXIS]
     if not frames_only:
         _marker_positions(ps)
     return ps
 
 
 def _constant_frame(vec, r0, parent, v, be, al, d_th, q, cos_q, sin_q) -> list:
-    """Fill frame rows X, Y, Z, ORIGIN from the parent when beta and alpha are the same at every
-    pose (``v`` the frame's values as floats); return the rows of the (4, 4) product giving its
-    step axes and points (rows D_AXIS on). The constant 3-vectors are a few scalars: plain floats."""
-    cg, sg = math.cos(v[GAMMA]), math.sin(v[GAMMA])
+    """Fill a frame's rows X_AXIS to ORIGIN from its parent's when beta and alpha are the same at every
+    pose (``v`` the frame's values as floats): docs/method.md section 1's X_pj, its constant part
+    (gamma, b, beta, alpha, d, theta's offset, r) placed by one (4 x 4) product and the joint's turn
+    per pose. Return the rows of the (4, 4) product giving its step axes and points (rows D_AXIS
+    on). The constant 3-vectors are a few scalars: plain floats."""
+    cg, sg = math.cos(v[FrameStep.GAMMA]), math.sin(v[FrameStep.GAMMA])
     cb, sb = math.cos(be), math.sin(be)
     ca, sa = math.cos(al), math.sin(al)
     # in the parent's frame: Rot(z, gamma)'s y (the beta axis, yg); after Rot(y, beta) the x (the d
@@ -412,19 +470,19 @@ def _constant_frame(vec, r0, parent, v, be, al, d_th, q, cos_q, sin_q) -> list:
     zb0, zb1, zb2 = cg * sb, sg * sb, cb
     y0, y1, y2 = -ca * sg + sa * zb0, ca * cg + sa * zb1, sa * zb2
     z0, z1, z2 = ca * zb0 + sa * sg, ca * zb1 - sa * cg, ca * zb2
-    b, d, r = v[B], v[D], v[R]
+    b, d, r = v[FrameStep.B], v[FrameStep.D], v[FrameStep.R]
     per_pose = isinstance(d_th, np.ndarray)
     # theta's constant offset (and a constant deflection) turns the constant part
-    t0 = v[THETA] + (0.0 if per_pose else d_th)
+    t0 = v[FrameStep.THETA] + (0.0 if per_pose else d_th)
     c0, s0 = math.cos(t0), math.sin(t0)
     xt = (c0 * x0 + s0 * y0, c0 * x1 + s0 * y1, c0 * x2 + s0 * y2, 0.0)
     yt = (c0 * y0 - s0 * x0, c0 * y1 - s0 * x1, c0 * y2 - s0 * x2, 0.0)
     z = (z0, z1, z2, 0.0)
     origin = (d * x0 + r * z0, d * x1 + r * z1, b + d * x2 + r * z2, 1.0)
     if q is None and not per_pose:
-        _place(np.array((xt, yt, z, origin)), parent, vec[r0 + X:r0 + ORIGIN + 1])
+        _place(np.array((xt, yt, z, origin)), parent, vec[r0 + FrameRow.X_AXIS:r0 + FrameRow.ORIGIN + 1])
     else:
-        _place(np.array((z, origin, xt, yt)), parent, vec[r0 + Z:r0 + YC + 1])
+        _place(np.array((z, origin, xt, yt)), parent, vec[r0 + FrameRow.Z_AXIS:r0 + FrameRow.Y_UNTURNED + 1])
         if per_pose:
             ang = d_th if q is None else q + d_th
             cos_q, sin_q = np.cos(ang), _signed_sines(ang)
@@ -436,28 +494,30 @@ def _constant_frame(vec, r0, parent, v, be, al, d_th, q, cos_q, sin_q) -> list:
 def _deflected_frame(vec, r0, parent, v, be, al, th) -> None:
     """Fill every row of a frame whose beta or alpha is deflected pose by pose (``be``, ``al``
     scalars or (N,)), turning the parent's axes pose by pose where they vary; ``th`` its full
-    theta, (N,) or a scalar."""
-    Rg = rot_matrix(2, v[GAMMA])
+    theta, (N,) or a scalar: docs/method.md section 1's X_pj step by step, at the deflected values
+    of section 2."""
+    Rg = rot_matrix(2, v[FrameStep.GAMMA])
     G = np.empty((4, 3, vec.shape[2] if parent.ndim > 2 else 1))
     Vt = np.zeros((4, 4))
     Vt[:3, :3] = Rg.T
-    Vt[3] = (0.0, 0.0, v[B], 1.0)
+    Vt[3] = (0.0, 0.0, v[FrameStep.B], 1.0)
     _place(Vt, parent, G)
     gx, gy, gz, pb = G
     cb, sb = np.cos(be), np.sin(be)
     x = cb * gx - sb * gz                                 # after Rot(y, beta)
     zb = sb * gx + cb * gz
     ca, sa = np.cos(al), np.sin(al)
-    vec[r0 + Z] = ca * zb - sa * gy                        # after Rot(x, alpha)
+    z = vec[r0 + FrameRow.Z_AXIS]
+    z[...] = ca * zb - sa * gy                        # after Rot(x, alpha)
     y = ca * gy + sa * zb
-    vec[r0 + BETA_AXIS] = gy
-    vec[r0 + D_AXIS] = x
-    vec[r0 + B_POINT] = pb
-    vec[r0 + THETA_POINT] = pb + v[D] * x
-    vec[r0 + ORIGIN] = vec[r0 + THETA_POINT] + v[R] * vec[r0 + Z]
+    vec[r0 + FrameRow.BETA_AXIS] = gy
+    vec[r0 + FrameRow.D_AXIS] = x
+    vec[r0 + FrameRow.BETA_POINT] = pb
+    vec[r0 + FrameRow.THETA_POINT] = pb + v[FrameStep.D] * x
+    vec[r0 + FrameRow.ORIGIN] = vec[r0 + FrameRow.THETA_POINT] + v[FrameStep.R] * z
     c, s = np.cos(th), np.sin(th)
-    vec[r0 + X] = c * x + s * y
-    vec[r0 + Y] = c * y - s * x
+    vec[r0 + FrameRow.X_AXIS] = c * x + s * y
+    vec[r0 + FrameRow.Y_AXIS] = c * y - s * x
 
 
 def _base_placement(model: RobotModel, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -467,7 +527,8 @@ def _base_placement(model: RobotModel, p: np.ndarray) -> tuple[np.ndarray, np.nd
 
 def _base_rotation(reference: tuple, x: float, y: float, z: float) -> tuple[np.ndarray, np.ndarray]:
     """R = R_ref exp([v]x) for the rotation vector v = (x, y, z); a change dv turns the base about
-    the columns of R_ref J_l(v) in W, J_l the left Jacobian (``left_jacobian``)."""
+    the columns of R_ref J_l(v) in W, J_l the left Jacobian (``left_jacobian``).
+    Reference: docs/method.md section 1 and docs/conventions.md (the base pose's rotation vector)."""
     Rref = np.asarray(reference, dtype=float)
     t = math.sqrt(x * x + y * y + z * z)
     K = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
@@ -486,7 +547,7 @@ def _frame_block(ps: _Pass, k: int) -> np.ndarray:
     if ps.moved_from is not None and all(mk.frame != k for mk in ps.model.markers):
         ps.materialise()          # a moved pass holds the markers' frames only
     r0 = ps.lay.frame_row[k]
-    return ps.vec[r0:r0 + 4]
+    return ps.vec[r0:r0 + PLACEMENT_ROWS]
 
 
 def moved_state(st, p: np.ndarray):
@@ -494,7 +555,8 @@ def moved_state(st, p: np.ndarray):
     that differ from ``p`` in the base and the markers only: the chain is the same, moved rigidly
     by the change of the base. Only the markers' frames are moved at once (what their positions
     and the base's and markers' columns need); the other frames are moved when first asked for.
-    A fit of the base and markers alone evaluates this way, without a pass down the chain."""
+    A fit of the base and markers alone evaluates this way, without a pass down the chain.
+    Reference: docs/method.md section 1: the base pose X_WB moves every frame rigidly."""
     old = st.ps
     src = old if old.moved_from is None else old.moved_from[0]
     lay = src.lay
@@ -503,7 +565,7 @@ def moved_state(st, p: np.ndarray):
     shift = p[0:3] - dR @ src.base_origin               # a point x goes to dR x + shift
     vec = np.empty_like(src.vec)
     vec[ZERO_ROW] = 0.0
-    _move_rows(vec, src.vec, dR, shift, sorted({mk.frame for mk in src.model.markers}), block=4)
+    _move_rows(vec, src.vec, dR, shift, sorted({mk.frame for mk in src.model.markers}), block=PLACEMENT_ROWS)
     ps = _Pass(vec=vec, base_axes=base_axes, base_origin=p[0:3], base_rotation=Rb, model=src.model, lay=lay, p=p,
                orientations=src.orientations, has_markers=src.has_markers, pending=src.pending,
                moved_from=(src, dR, shift))
@@ -519,27 +581,30 @@ def moves_rigidly(lay: Layout, a: np.ndarray, b: np.ndarray) -> bool:
 
 def _move_rows(dst: np.ndarray, src: np.ndarray, dR: np.ndarray, shift: np.ndarray, frames, block: int = FRAME_ROWS):
     """The first ``block`` rows of each frame in ``frames`` of ``src`` turned by ``dR`` into ``dst``, and
-    its points (ORIGIN, B_POINT, THETA_POINT) shifted by ``shift``."""
+    its points (ORIGIN, BETA_POINT, THETA_POINT) shifted by ``shift``.
+    Reference: docs/method.md section 1: X_WB moves every frame rigidly."""
     for k in frames:
         r0 = FRAME_ROW0 + FRAME_ROWS * int(k)
         rows = src[r0:r0 + block]
         dst[r0:r0 + block] = (dR @ rows.transpose(1, 0, 2).reshape(3, -1)).reshape(3, block, -1).transpose(1, 0, 2)
-        for off in (ORIGIN, B_POINT, THETA_POINT):
+        for off in (FrameRow.ORIGIN, FrameRow.BETA_POINT, FrameRow.THETA_POINT):
             if off < block:
                 dst[r0 + off] += shift[:, None]
 
 
 def _marker_positions(ps: _Pass) -> None:
-    """Fill the marker rows with the marker positions in W."""
+    """Fill the marker rows with the marker positions in W.
+    Reference: docs/method.md section 1: a marker is a point in its frame."""
     model, lay, p = ps.model, ps.lay, ps.p
     for m, mk in enumerate(model.markers):
         v = np.append(p[lay.marker0[m]:lay.marker0[m] + 3], 1.0)
         r = lay.marker_row[m]
-        _place(v[None], _frame_block(ps, mk.frame), ps.vec[r:r + 1])
+        _place(v[None], _frame_block(ps, mk.frame), ps.vec[r + MarkerRow.POSITION:r + MarkerRow.POSITION + 1])
 
 
 def _marker_rotations(ps: _Pass) -> list:
-    """Per marker its orientation (N, 3, 3) in W (a view of a component-major array)."""
+    """Per marker its orientation (N, 3, 3) in W (a view of a component-major array).
+    Reference: docs/method.md section 1 and docs/conventions.md (a marker's rotation correction)."""
     model, lay, p = ps.model, ps.lay, ps.p
     out = []
     for m, mk in enumerate(model.markers):
@@ -550,7 +615,7 @@ def _marker_rotations(ps: _Pass) -> list:
 
 
 def _columns(C: np.ndarray, frame: np.ndarray) -> np.ndarray:
-    """(k, 3, N) the frame's rotation times the columns of C (3, k)."""
+    """(k, 3, N) the frame's rotation times the columns of C (3, k). Reference: docs/method.md section 1."""
     Vt = np.zeros((C.shape[1], 4))
     Vt[:, :3] = C.T
     out = np.empty((C.shape[1],) + frame.shape[1:])
@@ -561,38 +626,39 @@ def _columns(C: np.ndarray, frame: np.ndarray) -> np.ndarray:
 def _fill_step_vectors(ps: _Pass, frames: set, base_and_markers: bool) -> None:
     """Fill the rows the step axes and points come from: the base's frame and step axes and the
     markers' rotation axes (with orientations), when ``base_and_markers``; the beta and d axes
-    and the points on the beta/alpha and theta axes of the frames ``frames``."""
+    and the points on the beta/alpha and theta axes of the frames ``frames``.
+    Reference: docs/method.md section 3: each step's axis u and a point O on it."""
     model, lay, p, vec = ps.model, ps.lay, ps.p, ps.vec
     base = np.vstack([ps.base_rotation.T, ps.base_origin])
     for i, axes in ps.pending:
         if i not in frames:
             continue
         r0 = lay.frame_row[i]
-        parent = base if model.frames[i].parent < 0 else vec[lay.parent_row[i]:lay.parent_row[i] + 4]
-        _place(np.array(axes), parent, vec[r0 + D_AXIS:r0 + THETA_POINT + 1])
+        parent = base if model.frames[i].parent < 0 else vec[lay.parent_row[i]:lay.parent_row[i] + PLACEMENT_ROWS]
+        _place(np.array(axes), parent, vec[r0 + FrameRow.D_AXIS:r0 + FrameRow.THETA_POINT + 1])
     if not base_and_markers:
         return
-    vec[BASE_ROW:BASE_ROW + 3] = ps.base_rotation.T[:, :, None]
-    vec[BASE_ROW + ORIGIN] = ps.base_origin[:, None]
-    vec[BASE_ROW + 4:BASE_ROW + 10] = ps.base_axes[:, :, None]
+    vec[BASE_ROW + FrameRow.X_AXIS:BASE_ROW + FrameRow.Z_AXIS + 1] = ps.base_rotation.T[:, :, None]
+    vec[BASE_ROW + FrameRow.ORIGIN] = ps.base_origin[:, None]
+    vec[BASE_STEP_AXES:BASE_STEP_AXES + N_BASE] = ps.base_axes[:, :, None]
     for m, mk in enumerate(model.markers):
         r = lay.marker_row[m]
         if not ps.has_markers:
-            vec[r] = np.nan                         # a frames-only pass has no marker to turn about
+            vec[r + MarkerRow.POSITION] = np.nan    # a frames-only pass has no marker to turn about
         if ps.orientations:
             v = p[lay.marker0[m] + 3:lay.marker0[m] + 6]
             C = np.asarray(mk.rotation, dtype=float) @ left_jacobian(v)
-            vec[r + 1:r + 4] = _columns(C, _frame_block(ps, mk.frame))
+            vec[r + MarkerRow.ROTATION_AXES:r + MARKER_ROWS] = _columns(C, _frame_block(ps, mk.frame))
 
 
 def _mass_sums(model: RobotModel, lay: Layout, ps: _Pass, payload_mass):
     """First moments ``C1`` (3, n_frames, N), component-major, and masses ``msub`` (n_frames, N) of
-    every subtree."""
+    every subtree. Reference: docs/method.md section 2: the masses m_k and centres c_k distal to each frame."""
     nf, N = model.n_frames, ps.N
     mass = np.array([f.mass for f in model.frames], dtype=float)
     com = np.ones((nf, 1, 4))
     com[:, 0, :3] = [f.com for f in model.frames]
-    frames = ps._frames()[:, :4].reshape(nf, 4, 3 * N)
+    frames = ps._frames()[:, :PLACEMENT_ROWS].reshape(nf, PLACEMENT_ROWS, 3 * N)
     own_c1 = np.matmul(com, frames).reshape(nf, 3, N)
     own_c1 *= mass[:, None, None]
     own_m = np.repeat(mass[:, None], N, axis=1)
@@ -611,20 +677,22 @@ def _mass_sums(model: RobotModel, lay: Layout, ps: _Pass, payload_mass):
 
 def _compliant_vectors(model: RobotModel, ps: _Pass):
     """Axes ``u`` and points ``Q`` of every compliant step (theta, alpha, beta of each frame) and the
-    parents' origins ``Op``, component-major ((3, 3 n_frames, N) and (3, n_frames, N)), once per pass."""
+    parents' origins ``Op``, component-major ((3, 3 n_frames, N) and (3, n_frames, N)), once per pass.
+    Reference: docs/method.md section 2: the axis u_p and point O_p of each compliant step."""
     if "compliant" not in ps.cache:
         lay, vec = ps.lay, ps.vectors()
-        u = vec[(lay.frame_row[:, None] + [Z, D_AXIS, BETA_AXIS]).ravel()]
+        u = vec[(lay.frame_row[:, None] + [FrameRow.Z_AXIS, FrameRow.D_AXIS, FrameRow.BETA_AXIS]).ravel()]
         # theta turns about its own point, alpha and beta about the point b along the parent's z
-        Q = vec[(lay.frame_row[:, None] + [THETA_POINT, B_POINT, B_POINT]).ravel()]
-        Op = vec[lay.parent_row + ORIGIN]
+        Q = vec[(lay.frame_row[:, None] + [FrameRow.THETA_POINT, FrameRow.BETA_POINT, FrameRow.BETA_POINT]).ravel()]
+        Op = vec[lay.parent_row + FrameRow.ORIGIN]
         ps.cache["compliant"] = (u.transpose(1, 0, 2), Q.transpose(1, 0, 2), Op.transpose(1, 0, 2))
     return ps.cache["compliant"]
 
 
 def _moments(model, ps, C1, msub):
     """Gravity moments ``M`` (3 n_frames, N) about each compliant step's axis; with the axes ``u``
-    and ``A = C1 - m Q`` (3, 3 n_frames, N), component-major."""
+    and ``A = C1 - m Q`` (3, 3 n_frames, N), component-major.
+    Reference: docs/method.md section 2: M_p = sum_k ((c_k - O_p) x (m_k g)) . u_p."""
     g = np.asarray(model.gravity, dtype=float)
     u, Q, _ = _compliant_vectors(model, ps)
     A = np.repeat(C1, 3, axis=1)
@@ -651,7 +719,7 @@ def _runs(idx) -> tuple:
 
 def _cross_cm(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> np.ndarray:
     """a x b for component-major stacks (3, ...), written into ``out``."""
-    for i, (j, k) in _ROT_PAIRS.items():
+    for i, (j, k) in _CROSS_PAIRS.items():
         np.multiply(a[j], b[k], out=out[i])
         out[i] -= a[k] * b[j]
     return out
@@ -659,7 +727,7 @@ def _cross_cm(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> np.ndarray:
 
 def _gcross_cm(g, w: np.ndarray, out: np.ndarray) -> np.ndarray:
     """g x w for a constant vector g and a component-major stack w (3, ...)."""
-    for i, (j, k) in _ROT_PAIRS.items():
+    for i, (j, k) in _CROSS_PAIRS.items():
         np.multiply(w[k], g[j], out=out[i])
         out[i] -= g[k] * w[j]
     return out
@@ -677,9 +745,9 @@ class _CorrectionPlan:
 
     rows: tuple              # (step, frame or -1 for the base, offset in the frame) per row, in step order
     out_runs: tuple          # ``_runs`` of the step columns the rows correct
-    rot: np.ndarray          # (R,) 1.0 for rotations
+    rot: np.ndarray          # (n_rows,) 1.0 for rotations
     n_base: int              # the first rows are base rotations
-    axis_of: np.ndarray      # (R - n_base,) compliant row whose axis (and A) each frame row takes
+    axis_of: np.ndarray      # (n_rows - n_base,) compliant row whose axis (and A) each frame row takes
     translations: np.ndarray  # (k,) rows of translations, and their frames
     translation_frames: np.ndarray
     parent_z: tuple          # (row, frame) of gamma and b rows: the parent's z axis
@@ -714,12 +782,14 @@ def _make_correction_plan(lay, steps, act) -> _CorrectionPlan | None:
         return None
     rsteps = steps[cols]
     frame = lay.step_frame[rsteps]
-    rows = tuple((int(s), int(f), int(s - N_BASE - 7 * f) if f >= 0 else -1) for s, f in zip(rsteps, frame))
+    rows = tuple((int(s), int(f), int(s - N_BASE - N_FRAME_STEPS * f) if f >= 0 else -1) for s, f in zip(rsteps, frame))
     n_base = int(np.sum(frame == -1))
     # a frame step's axis is that of a compliant step of its frame (d: alpha's, r: theta's)
-    same_axis = {BETA: BETA, ALPHA: ALPHA, D: ALPHA, THETA: THETA, R: THETA}
-    axis_of = np.array([3 * f + _COMPLIANT_ROW[same_axis.get(o, THETA)] for _, f, o in rows[n_base:]], dtype=int)
-    parent_z = tuple((r, f) for r, (_, f, o) in enumerate(rows) if o in (GAMMA, B))
+    same_axis = {FrameStep.BETA: FrameStep.BETA, FrameStep.ALPHA: FrameStep.ALPHA, FrameStep.D: FrameStep.ALPHA,
+                 FrameStep.THETA: FrameStep.THETA, FrameStep.R: FrameStep.THETA}
+    axis_of = np.array([3 * f + _COMPLIANT_ROW[same_axis.get(o, FrameStep.THETA)] for _, f, o in rows[n_base:]],
+                       dtype=int)
+    parent_z = tuple((r, f) for r, (_, f, o) in enumerate(rows) if o in (FrameStep.GAMMA, FrameStep.B))
     tra = np.nonzero(~rot[cols])[0]
     pairs = [(frozenset(np.nonzero(desc[:, c])[0]), frozenset(np.nonzero(anc[:, c])[0])) for c in cols]
     slot_of, groups, r = {}, [], 0
@@ -751,25 +821,26 @@ _COMPLIANT_ROW = {off: c for c, (off, _) in enumerate(COMPLIANT)}
 
 
 def _plan_vectors(model, st, plan) -> np.ndarray:
-    """(6, R, N) per corrected step, on the undeformed chain: the vector dotted with the distal sum
+    """(6, n_rows, N) per corrected step, on the undeformed chain: the vector dotted with the distal sum
     (``w x (C1_j - m_j Q)`` for a rotation of frame j, ``m_j w`` for a translation), then ``g x w``
-    dotted with the proximal sum (zero for translations)."""
+    dotted with the proximal sum (zero for translations).
+    Reference: docs/method.md section 3: the geometric columns' correction through the compliances."""
     ps = st.ps0
     g = np.asarray(model.gravity, dtype=float)
-    R, N, nb = len(plan.rows), st.M.shape[1], plan.n_base
-    W = np.empty((3, R, N))                       # axes
-    B = np.empty((3, R, N))                       # C1_j - m_j Q for rotations (anything finite for others)
+    n_rows, N, nb = len(plan.rows), st.M.shape[1], plan.n_base
+    W = np.empty((3, n_rows, N))                  # axes
+    lever = np.empty((3, n_rows, N))              # C1_j - m_j Q for rotations (anything finite for others)
     W[:, :nb] = ps.base_axes[[s for s, _, _ in plan.rows[:nb]]].T[:, :, None]
-    B[:, :nb] = W[:, :nb]
+    lever[:, :nb] = W[:, :nb]
     W[:, nb:] = st.u[:, plan.axis_of]
-    B[:, nb:] = st.A[:, plan.axis_of]
+    lever[:, nb:] = st.A[:, plan.axis_of]
     for r, j in plan.parent_z:
         parent = model.frames[j].parent
         W[:, r] = (ps.R[parent][:, :, 2].T if parent >= 0 else ps.base_rotation[:, 2:])
         if plan.rot[r]:
-            np.subtract(st.C1[:, j], st.msub[j] * _compliant_vectors(model, ps)[2][:, j], out=B[:, r])
-    V = np.empty((6, R, N))
-    _cross_cm(W, B, V[:3])
+            np.subtract(st.C1[:, j], st.msub[j] * _compliant_vectors(model, ps)[2][:, j], out=lever[:, r])
+    V = np.empty((6, n_rows, N))
+    _cross_cm(W, lever, V[:3])
     V[:3, :nb] = 0.0                              # the base is distal to no compliance
     V[:3, plan.translations] = W[:, plan.translations] * st.msub[plan.translation_frames]
     _gcross_cm(g, W, V[3:])
@@ -793,6 +864,7 @@ def _add_corrections(model, st, plan, act, cpa, cols) -> None:
     Both are a dot product of a per-step vector with a per-p vector, so the sums over p of
     ``K_p (g x u_p) column_p`` and ``K_p (u_p x A_p) column_p`` are taken first, each distinct sum
     once, growing along the chain.
+    Reference: docs/method.md section 3.
     """
     if plan not in st.cache:
         g = np.asarray(model.gravity, dtype=float)
@@ -828,12 +900,13 @@ def _add_corrections(model, st, plan, act, cpa, cols) -> None:
 
 def _compliant_columns(model, lay, ps, m, csel, rows) -> np.ndarray:
     """(rows, len(csel), N) component-major columns of the compliant steps ``csel`` (rows of
-    ``compliant_steps``) for marker m."""
+    ``compliant_steps``) for marker m.
+    Reference: docs/method.md section 3: a rotation about u through O moves P by u x (P - O)."""
     u, Q, _ = _compliant_vectors(model, ps)
     u = u[:, csel]
-    D = np.subtract(ps.P[m].T[:, None, :], Q[:, csel])
+    lever = np.subtract(ps.P[m].T[:, None, :], Q[:, csel])
     out = np.empty((rows,) + u.shape[1:])
-    _cross_cm(u, D, out[:3])
+    _cross_cm(u, lever, out[:3])
     if rows == 6:
         out[3:] = u
     on = lay.marker_path[m, lay.compliant_steps[csel]]
@@ -871,6 +944,7 @@ def _step_columns(lay: Layout, ps: _Pass, m: int, steps: np.ndarray, rows: int =
     The columns are computed component-major from the pass's rows, for the asked steps only, and
     written component by component (a strided copy, much cheaper than a transposing one), in
     blocks of poses.
+    Reference: docs/method.md section 3: [u x (P - O); u] for a rotation, [u; 0] for a translation.
     """
     on = lay.marker_path[m, steps]
     is_rot = lay.step_is_rot[steps]
@@ -890,7 +964,7 @@ def _step_columns(lay: Layout, ps: _Pass, m: int, steps: np.ndarray, rows: int =
 
 def _column_block(vec, rows_of, rot, tra, poses: slice, out) -> None:
     """``_step_columns`` at the poses ``poses``: rotations ``rot`` (axis rows, point rows, marker
-    row) and translations ``tra`` (axis rows) of ``rows_of``, into ``out``."""
+    row) and translations ``tra`` (axis rows) of ``rows_of``, into ``out``. Reference: docs/method.md section 3."""
     rot_axes, rot_points, marker, tra_axes = rows_of
     rows = out.shape[2]
     if len(rot):
@@ -898,7 +972,7 @@ def _column_block(vec, rows_of, rot, tra, poses: slice, out) -> None:
         lever = vec[rot_points, :, poses]
         np.subtract(vec[marker, :, poses], lever, out=lever)
         part, other = np.empty((2,) + u.shape[:1] + u.shape[2:])
-        for c, (j, k) in _ROT_PAIRS.items():                               # u x lever
+        for c, (j, k) in _CROSS_PAIRS.items():                               # u x lever
             np.multiply(u[:, j], lever[:, k], out=part)
             np.multiply(u[:, k], lever[:, j], out=other)
             out[rot, poses, c] = np.subtract(part, other, out=part)
@@ -950,7 +1024,8 @@ def evaluate_state(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray
     """The kinematic pass at ``p`` and readings ``qf`` (N, n_frames), with gravity moments when
     ``compliance``, and joints resting in their lost motion when ``backlash`` (``approach``
     (N, n_frames) the direction of each frame variable's last move, see ``frame_approach``;
-    None: from the row order of ``qf``). ``turns``: ``joint_turns(qf)`` when the caller holds them."""
+    None: from the row order of ``qf``). ``turns``: ``joint_turns(qf)`` when the caller holds them.
+    Reference: docs/method.md sections 1 and 2, docs/conventions.md (backlash)."""
     if backlash:
         return _backlash_state(model, lay, p, qf, compliance=compliance, orientations=orientations,
                                payload_mass=payload_mass, approach=approach, turns=turns)
@@ -982,7 +1057,8 @@ def frame_approach(model: RobotModel, approach) -> np.ndarray:
 
 def _frame_loads(model: RobotModel, lay: Layout, ps0: _Pass, M: np.ndarray, msub: np.ndarray) -> np.ndarray:
     """(N, n_frames) gravity load on each frame's joint variable on the undeformed chain ``ps0``:
-    the moment about a revolute axis, the weight along a prismatic one (see ``gravity_loads``)."""
+    the moment about a revolute axis, the weight along a prismatic one (see ``gravity_loads``).
+    Reference: docs/method.md section 2 (the moments) and docs/conventions.md (backlash)."""
     g = np.asarray(model.gravity, dtype=float)
     loads = np.zeros((M.shape[1], model.n_frames))
     for i, f in enumerate(model.frames):
@@ -995,7 +1071,8 @@ def _frame_loads(model: RobotModel, lay: Layout, ps0: _Pass, M: np.ndarray, msub
 
 def _backlash_state(model, lay, p, qf, *, compliance, orientations, payload_mass, approach, turns) -> _State:
     """The state with each joint at q + b s (docs/conventions.md, backlash). Gravity moments,
-    loads and sides are taken on the undeformed chain at the readings, so neither depends on b."""
+    loads and sides are taken on the undeformed chain at the readings, so neither depends on b.
+    Reference: docs/conventions.md (backlash) on docs/method.md section 1."""
     N, nf = qf.shape
     moving = lay.backlash_params >= 0
     b = np.where(moving, p[np.maximum(lay.backlash_params, 0)], 0.0)
@@ -1028,7 +1105,8 @@ def _backlash_state(model, lay, p, qf, *, compliance, orientations, payload_mass
 
 def jacobian_columns(model: RobotModel, lay: Layout, st: _State, cols_idx: np.ndarray, m: int,
                       rows: int = 6) -> np.ndarray:
-    """(len(cols_idx), N, rows) Jacobian columns of marker m for the parameters ``cols_idx``."""
+    """(len(cols_idx), N, rows) Jacobian columns of marker m for the parameters ``cols_idx``.
+    Reference: docs/method.md section 3 (J dxi, compliance columns by the chain rule)."""
     if st.backlash is not None:
         return _backlash_columns(model, lay, st, cols_idx, m, rows)
     step_of = lay.param_step[cols_idx]
@@ -1071,7 +1149,8 @@ def jacobian_columns(model: RobotModel, lay: Layout, st: _State, cols_idx: np.nd
 def _backlash_columns(model, lay, st, cols_idx, m, rows) -> np.ndarray:
     """Columns under backlash, q_eff = q + b s: a backlash's is its joint's column (on the
     deflected chain, without compliance corrections: the moments are taken at the readings) times
-    s; under the gravity-sided model every column also gains ``b ds/dL dL/dx`` times it."""
+    s; under the gravity-sided model every column also gains ``b ds/dL dL/dx`` times it.
+    Reference: docs/method.md section 3 and docs/conventions.md (backlash)."""
     bare = copy.copy(st)
     bare.backlash = None
     out = jacobian_columns(model, lay, bare, cols_idx, m, rows)
@@ -1100,7 +1179,7 @@ def _load_derivatives(model, lay, st, i: int, steps: np.ndarray) -> np.ndarray:
     and the distal masses rigidly, dL = w . ((u x A) x g); a distal step of frame j moves the
     masses distal to it, dL = w . ((C1_j - m_j Q) x (g x u)) for a rotation through Q, m_j w .
     (g x u) for a translation. Prismatic, L = m (u . g): dL = m w . (u x g) for a proximal
-    rotation, nothing else changes it."""
+    rotation, nothing else changes it. Reference: docs/method.md section 2 and docs/conventions.md (backlash)."""
     g = np.asarray(model.gravity, dtype=float)
     ps0, row = st.ps0, 3 * i
     N = ps0.O.shape[1]
@@ -1146,6 +1225,7 @@ def evaluate(model: RobotModel, q: np.ndarray, p: np.ndarray | None = None, *, j
     ``backlash``: joints rest in their lost motion (default: when the values hold a backlash or
     backlash columns are asked for); ``approach`` (N, n_joints) the direction of each joint's last
     move (default: from the row order of ``q``, the first pose approached from the last).
+    Reference: docs/method.md sections 1 to 3.
     """
     lay = layout(model)
     q = np.atleast_2d(np.asarray(q, dtype=float))
@@ -1208,6 +1288,7 @@ def gravity_loads(model: RobotModel, q, *, payload_mass=None) -> np.ndarray:
     moment about its joint axis of every mass distal to it; for a prismatic one, that mass times
     gravity's component along the axis. Couplings map frame loads to joints by virtual work
     (``C^T``). Computed on the undeformed chain, as the compliance moments are.
+    Reference: docs/method.md section 2.
     """
     lay = layout(model)
     q = np.atleast_2d(np.asarray(q, dtype=float))
@@ -1231,6 +1312,7 @@ def forward_kinematics(model: RobotModel, q, *, frames: bool = False, payload_ma
     """Marker positions (N, n_markers, 3) and orientations in W at readings ``q`` (N, n_joints).
 
     With ``frames=True`` also every frame's pose ``X_W<frame>`` as (N, n_frames, 4, 4).
+    Reference: docs/method.md section 1.
 
     >>> import numpy as np
     >>> from robocal.kinematics import serial_model
@@ -1246,6 +1328,7 @@ def jacobian(model: RobotModel, q, *, compliance: bool | None = None, payload_ma
     """Identification Jacobian (N, n_markers, 6, n_params) over ``parameter_names(model)``.
 
     ``columns``: parameter indices or names to compute (default all, in layout order).
+    Reference: docs/method.md section 3.
     """
     if columns is not None:
         names = layout(model).names

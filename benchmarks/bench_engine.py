@@ -1,0 +1,123 @@
+"""Time calibrate() and forward kinematics against the package at an earlier commit, in one run.
+
+Run: python benchmarks/bench_engine.py [--repeat 10] [--baseline 7fe2faf] [--fk-poses 100000]
+
+Three packages take turns, twice, each in its own child process: the package at ``--baseline``
+(``git archive`` into a temporary folder, put first on ``sys.path``), this one, and this one in a
+process whose C allocator was first tuned as the baseline tuned it on its first call (a 31 MB
+block allocated and freed: glibc then keeps freed memory for reuse), which shows what that
+process-wide change was worth. Figures, on the 6-joint arm of ``bench_identify.py``:
+
+* ``calibrate()`` at 1,000 and 10,000 poses (``rc.simulate(m, n, seed=1)``, geometric), best of
+  ``--repeat`` (a fifth of it at 10,000) after three untimed calls;
+* forward kinematics at ``--fk-poses`` poses (``rc.forward_kinematics``, positions and
+  orientations), three sets of readings in turn, best of ``--repeat``.
+
+Each child also saves the calibrated parameters and the positions, and the parent checks that
+every package gives the same (1e-9 of the largest parameter, 1e-12 m).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+from bench_identify import arm6r, options  # noqa: E402
+from bench_kinematics import baseline_sources  # noqa: E402
+
+import robocal as rc  # noqa: E402
+
+POSES = (1000, 10_000)
+# what the baseline freed at its first call to retune glibc's allocator
+PRIMER_BYTES = 31 << 20
+
+
+def best(fn, repeat: int) -> float:
+    fn(), fn(), fn()
+    times = []
+    for _ in range(repeat):
+        t = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t)
+    return min(times)
+
+
+def child(repeat: int, fk_poses: int, folder: str, prime: bool) -> None:
+    """This process' figures as JSON on stdout (the package first on ``sys.path`` is timed)."""
+    if prime:
+        np.empty(PRIMER_BYTES, dtype=np.uint8)
+    m = arm6r(False)
+    out, saved = {}, {}
+    for n in POSES:
+        _, data = rc.simulate(m, n, seed=1)
+        out[f"calibrate {n}"] = best(lambda: rc.calibrate(m, data), repeat if n <= 1000 else max(3, repeat // 5))
+        saved[f"p{n}"] = [e.estimate for e in rc.calibrate(m, data).parameters]
+    qs = [rc.random_configurations(m, fk_poses, rng=k) for k in range(3)]
+    turn = iter(range(10 ** 6))
+    out["forward kinematics"] = best(lambda: rc.forward_kinematics(m, qs[next(turn) % 3]), repeat)
+    saved["fk"] = rc.forward_kinematics(m, qs[0]).positions
+    np.savez(os.path.join(folder, "out.npz"), **saved)
+    print(json.dumps(out))
+
+
+def run(src: str | None, args, folder: str, prime: bool = False) -> dict:
+    env = dict(os.environ)
+    if src is not None:
+        env["PYTHONPATH"] = os.pathsep.join([src, env.get("PYTHONPATH", "")])
+    cmd = [sys.executable, os.path.abspath(__file__), "--child", "1", "--repeat", str(args.repeat),
+           "--fk-poses", str(args.fk_poses), "--folder", folder, "--prime", str(int(prime))]
+    return json.loads(subprocess.run(cmd, env=env, check=True, capture_output=True, text=True).stdout)
+
+
+def agree(a: str, b: str) -> None:
+    with np.load(a) as x, np.load(b) as y:
+        for n in POSES:
+            k = f"p{n}"
+            assert np.abs(x[k] - y[k]).max() <= 1e-9 * np.abs(y[k]).max(), k
+        assert np.abs(x["fk"] - y["fk"]).max() <= 1e-12
+
+
+def main(argv=None):
+    args = options(__doc__, argv, repeat=10, baseline="7fe2faf", fk_poses=100_000, child=0, folder="", prime=0)
+    if args.child:
+        return child(args.repeat, args.fk_poses, args.folder, bool(args.prime))
+    print(f"# calibrate() and forward kinematics against {args.baseline}, "
+          f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {platform.machine()}, {os.cpu_count()} cores, "
+          f"numpy {np.__version__}, best of {args.repeat}; load average before "
+          f"{' '.join(f'{v:.2f}' for v in os.getloadavg())}\n")
+    labels = ("baseline", "now", "now, allocator tuned first")
+    with tempfile.TemporaryDirectory() as tmp:
+        src = baseline_sources(args.baseline, tmp)
+        dirs = {label: os.path.join(tmp, f"run{i}") for i, label in enumerate(labels)}
+        for d in dirs.values():
+            os.mkdir(d)
+        found: dict = {label: {} for label in labels}
+        for _ in range(2):
+            for label, path, prime in ((labels[0], src, False), (labels[1], None, False), (labels[2], None, True)):
+                for key, t in run(path, args, dirs[label], prime).items():
+                    found[label][key] = min(found[label].get(key, np.inf), t)
+        for label in labels[1:]:
+            agree(os.path.join(dirs[label], "out.npz"), os.path.join(dirs[labels[0]], "out.npz"))
+    keys = list(found[labels[0]])
+    print("| figure | " + " | ".join(f"{label} (ms)" for label in labels) + " | now / baseline | "
+          "tuned / baseline |")
+    print("|---" * (len(labels) + 3) + "|")
+    for key in keys:
+        name = f"forward kinematics, {args.fk_poses} poses" if key == "forward kinematics" else f"{key} poses"
+        t = [found[label][key] for label in labels]
+        print(f"| {name} | " + " | ".join(f"{v * 1e3:.2f}" for v in t) + f" | {t[1] / t[0]:.2f}x | "
+              f"{t[2] / t[0]:.2f}x |")
+    print(f"\nload average after: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
+
+
+if __name__ == "__main__":
+    main()
