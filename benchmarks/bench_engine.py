@@ -32,23 +32,13 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 from bench_identify import arm6r, options  # noqa: E402
-from bench_kinematics import baseline_sources  # noqa: E402
+from bench_kinematics import baseline_sources, best  # noqa: E402
 
 import robocal as rc  # noqa: E402
 
 POSES = (1000, 10_000)
 # what the baseline freed at its first call to retune glibc's allocator
 PRIMER_BYTES = 31 << 20
-
-
-def best(fn, repeat: int) -> float:
-    fn(), fn(), fn()
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return min(times)
 
 
 def child(repeat: int, fk_poses: int, folder: str, prime: bool) -> None:
