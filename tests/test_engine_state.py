@@ -33,6 +33,17 @@ def test_a_parameter_layout_cannot_be_written_into_and_forward_kinematics_stays_
         np.testing.assert_array_equal(rc.forward_kinematics(model, q).positions, before)
 
 
+def test_an_evaluation_holds_read_only_arrays_of_its_own():
+    m = arm6r(masses=True)
+    q = rc.random_configurations(m, 4, rng=1)
+    first = rc.evaluate(m, q, jacobian=True, orientations=True, compliance=True, frames=True)
+    for name in ("positions", "rotations", "jacobian", "moments", "frames"):
+        with pytest.raises(ValueError, match=READ_ONLY):
+            getattr(first, name)[0] += 1.0
+    again = rc.evaluate(m, q, jacobian=True, orientations=True, compliance=True, frames=True)
+    assert not np.shares_memory(first.positions, again.positions)
+
+
 def test_the_step_layout_and_correction_plans_are_read_only():
     m = arm6r(masses=True)
     lay = layout(m)

@@ -922,6 +922,7 @@ class Evaluation:
     ``positions`` (N, n_markers, 3) in W; ``rotations`` (N, n_markers, 3, 3) or None;
     ``jacobian`` (N, n_markers, 6, n_params) or None (rows: dx, dy, dz, then rotation in W);
     ``moments`` (N, 3 n_frames) gravity moments (theta, alpha, beta per frame) or None.
+    Its arrays are its own, read-only.
     """
 
     positions: np.ndarray
@@ -930,9 +931,14 @@ class Evaluation:
     moments: np.ndarray | None
     frames: np.ndarray | None = None
 
+    def __post_init__(self) -> None:
+        for value in vars(self).values():
+            if isinstance(value, np.ndarray):
+                read_only(value)
 
-# poses per block of the step columns: smaller temporaries, taken again from the allocator's
-# reserve instead of fresh pages (calibrate at 10,000 poses about 4 % faster; no change at 1,000)
+
+# poses per block of the step columns: smaller temporaries, served again from memory just freed
+# instead of fresh pages (calibrate at 10,000 poses about 4 % faster; no change at 1,000)
 COLUMN_BLOCK = 4096
 
 
