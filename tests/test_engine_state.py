@@ -175,3 +175,55 @@ def test_the_identification_module_loads_on_first_use():
     out = subprocess.run([sys.executable, "-c", "import robocal as rc; print(rc.identification.calibrate.__name__)"],
                          capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "calibrate"
+
+
+def test_a_models_workspace_takes_back_only_buffers_nobody_holds():
+    from robocal._kinematics import WORKSPACE_BYTES, workspace
+
+    m = arm6r()
+    ws = workspace(m)
+    assert ws is workspace(m) and ws is not workspace(arm6r())
+    shape = (2, 3, 5)
+    held = ws.take(shape)
+    view = held[1]                            # a view alive somewhere keeps its buffer out
+    buffers = [ws.take(shape), held]
+    free = id(buffers[0])
+    del held
+    ws.give(buffers)
+    assert [id(a) for a in ws._spare] == [free]
+    assert ws.take(shape) is not None and not ws._spare
+    assert not np.shares_memory(ws.take(shape), view), "a buffer a view still showed was handed out again"
+    big = [np.empty(WORKSPACE_BYTES // 8 // 2 + 1) for _ in range(3)]
+    ws.give(big)
+    assert sum(a.nbytes for a in ws._spare) <= WORKSPACE_BYTES
+
+
+@pytest.mark.parametrize("compliance", [False, True])
+def test_problems_reusing_a_models_buffers_give_the_same_results(compliance):
+    m = arm6r(masses=compliance)
+    _, data = rc.simulate(m, 30, seed=2)
+    names = rc.candidate_parameters(m, ("geometric", "compliance") if compliance else ("geometric",))
+    p = parameter_vector(m)
+    p[layout(m).compliant_params] = 2e-4              # deflecting: a pass of the undeformed chain, then one deflected
+    rng = np.random.default_rng(0)
+    steps = [p + 1e-4 * rng.standard_normal(len(p)) * (np.abs(p) > 0) for _ in range(12)]
+    for k in range(1, 12, 3):                          # base and markers alone: a pass moved rigidly
+        steps[k] = steps[k - 1].copy()
+        steps[k][:3] += 1e-3
+    first = Problem(m, data, names, compliance=compliance)
+    want = [(first.residuals(q), np.array(first.jacobian(q))) for q in steps]
+    del first
+    gc.collect()
+    spares = workspace_spares(m)
+    assert spares > 0
+    again = Problem(m, data, names, compliance=compliance)
+    for q, (r, J) in zip(steps, want):
+        np.testing.assert_array_equal(again.residuals(q), r)
+        np.testing.assert_array_equal(again.jacobian(q), J)
+    assert workspace_spares(m) < spares, "the second problem drew nothing from the workspace"
+
+
+def workspace_spares(model) -> int:
+    from robocal._kinematics import workspace
+
+    return len(workspace(model)._spare)

@@ -28,6 +28,8 @@ from __future__ import annotations
 
 import copy
 import math
+import sys
+import threading
 from dataclasses import dataclass, field
 from enum import IntEnum
 
@@ -148,6 +150,56 @@ def layout(model: RobotModel) -> Layout:
     """The step structure of ``model`` over its parameter layout, made once per model object and kept
     with it (an immutable record: its arrays are read-only)."""
     return model.derived(layout, lambda: _make_layout(model))
+
+
+# the most a model's workspace keeps (its problems' pass buffers, for the next ones)
+WORKSPACE_BYTES = 32 << 20
+
+
+class Workspace:
+    """Pass buffers a model's problems no longer use, kept for its next ones (``workspace(model)``).
+
+    A calibration's passes are then written into memory the process already uses instead of fresh
+    pages the system has to fault in: without it, at 1,000 poses, first writes to fresh pages take
+    about a third of a repeated calibration's time. It is the model's own (it lives and dies with
+    it) and changes nothing outside it. A buffer comes back only when nobody else holds it (no view
+    of it is alive anywhere: ``sys.getrefcount``), at most ``WORKSPACE_BYTES`` in all. What a buffer
+    held is never read: a pass writes every row before it reads it, as it must with ``np.empty``.
+    """
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._spare: list[np.ndarray] = []
+
+    def take(self, shape: tuple) -> np.ndarray:
+        """A buffer of ``shape`` (float): a spare one if one has that shape, else a new one."""
+        with self._lock:
+            for k, a in enumerate(self._spare):
+                if a.shape == shape:
+                    return self._spare.pop(k)
+        return np.empty(shape)
+
+    def give(self, arrays: list) -> None:
+        """Keep, for a later ``take``, those of ``arrays`` (buffers ``take`` gave, in a list handed
+        over and emptied here) that nothing else holds; the oldest spares go beyond the bound."""
+        with self._lock:
+            while arrays:
+                a = arrays.pop()
+                # held by ``a`` and getrefcount's argument only: no pass, view or caller has it
+                if sys.getrefcount(a) <= 2 and a.flags.owndata and a.nbytes <= WORKSPACE_BYTES:
+                    self._spare.append(a)
+            while sum(a.nbytes for a in self._spare) > WORKSPACE_BYTES:
+                self._spare.pop(0)
+
+
+def workspace(model: RobotModel) -> Workspace:
+    """The model's workspace: the pass buffers its problems gave back (kept with the model)."""
+    return model.derived(workspace, Workspace)
+
+
+def pass_buffers(st) -> list:
+    """The buffers the passes of the evaluation ``st`` were written into (for ``Workspace.give``)."""
+    return [ps.vec for ps in {id(ps): ps for ps in (st.ps, st.ps0) if ps is not None}.values()]
 
 
 def _make_layout(model: RobotModel) -> Layout:
@@ -416,17 +468,18 @@ def _turn_rows(block: np.ndarray, unturned: np.ndarray, c, ss) -> None:
 
 
 def kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray, defl=None,
-                    orientations: bool = False, frames_only: bool = False, turns=None) -> _Pass:
+                   orientations: bool = False, frames_only: bool = False, turns=None, take=np.empty) -> _Pass:
     """One pass down the tree. Per frame, its constant part (the parent's turn, offsets, and
     theta's offset) is one (4 x 4) @ (4 x 3N) product; only the joint's turn varies per pose.
 
     ``frames_only``: frame poses without marker positions (the undeformed chain under compliance
     needs no more). Step axes and points (``U``, ``Q``) and marker orientations are built on
-    first use. ``turns``: ``joint_turns(qf)`` when the caller holds them (default: made here).
+    first use. ``turns``: ``joint_turns(qf)`` when the caller holds them (default: made here);
+    ``take``: where the pass's buffer comes from (a ``Workspace.take``; default a new array).
     Reference: docs/method.md section 1 (X_pj down the tree, the base and the markers)."""
     N = qf.shape[0]
     base_axes, Rb = _base_placement(model, p)
-    vec = np.empty((lay.n_rows, 3, N))
+    vec = take((lay.n_rows, 3, N))
     unturned = np.empty((2, 3, N))           # a frame's x and y before its joint's turn, frame after frame
     vec[ZERO_ROW] = 0.0
     ps = _Pass(vec=vec, base_axes=base_axes, base_origin=p[0:3], base_rotation=Rb, model=model, lay=lay, p=p,
@@ -551,7 +604,7 @@ def _frame_block(ps: _Pass, k: int) -> np.ndarray:
     return ps.vec[r0:r0 + PLACEMENT_ROWS]
 
 
-def moved_state(st, p: np.ndarray):
+def moved_state(st, p: np.ndarray, take=np.empty):
     """The evaluation at ``p`` from ``st``, a geometric one (no compliance, no backlash) at values
     that differ from ``p`` in the base and the markers only: the chain is the same, moved rigidly
     by the change of the base. Only the markers' frames are moved at once (what their positions
@@ -564,7 +617,7 @@ def moved_state(st, p: np.ndarray):
     base_axes, Rb = _base_placement(src.model, p)
     dR = Rb @ src.base_rotation.T
     shift = p[0:3] - dR @ src.base_origin               # a point x goes to dR x + shift
-    vec = np.empty_like(src.vec)
+    vec = take(src.vec.shape)
     vec[ZERO_ROW] = 0.0
     _move_rows(vec, src.vec, dR, shift, sorted({mk.frame for mk in src.model.markers}), block=PLACEMENT_ROWS)
     ps = _Pass(vec=vec, base_axes=base_axes, base_origin=p[0:3], base_rotation=Rb, model=src.model, lay=lay, p=p,
@@ -1026,25 +1079,26 @@ class _Backlash:
 
 
 def evaluate_state(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray, *, compliance: bool,
-                    orientations: bool, payload_mass=None, backlash: bool = False, approach=None,
-                    turns=None) -> _State:
+                   orientations: bool, payload_mass=None, backlash: bool = False, approach=None,
+                   turns=None, take=np.empty) -> _State:
     """The kinematic pass at ``p`` and readings ``qf`` (N, n_frames), with gravity moments when
     ``compliance``, and joints resting in their lost motion when ``backlash`` (``approach``
     (N, n_frames) the direction of each frame variable's last move, see ``frame_approach``;
-    None: from the row order of ``qf``). ``turns``: ``joint_turns(qf)`` when the caller holds them.
+    None: from the row order of ``qf``). ``turns``: ``joint_turns(qf)`` when the caller holds them;
+    ``take``: where the passes' buffers come from (see ``kinematic_pass``).
     Reference: docs/method.md sections 1 and 2, docs/conventions.md (backlash)."""
     if backlash:
         return _backlash_state(model, lay, p, qf, compliance=compliance, orientations=orientations,
-                               payload_mass=payload_mass, approach=approach, turns=turns)
+                               payload_mass=payload_mass, approach=approach, turns=turns, take=take)
     turns = joint_turns(qf) if turns is None else turns
     ks = p[lay.compliant_params]
     if not compliance:
-        return _State(ps=kinematic_pass(model, lay, p, qf, orientations=orientations, turns=turns), compliance=False,
-                      ks=ks)
+        return _State(ps=kinematic_pass(model, lay, p, qf, orientations=orientations, turns=turns, take=take),
+                      compliance=False, ks=ks)
     deflects = bool(np.any(ks != 0.0))
     # with every compliance zero the deflected chain is the undeformed one: one pass serves both
     ps0 = kinematic_pass(model, lay, p, qf, orientations=orientations and not deflects, frames_only=deflects,
-                         turns=turns)
+                         turns=turns, take=take)
     C1, msub = _mass_sums(model, lay, ps0, payload_mass)
     M, A, u = _moments(model, ps0, C1, msub)
     if not deflects:
@@ -1052,7 +1106,7 @@ def evaluate_state(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray
     # a zero compliance deflects nothing: a scalar keeps that frame's constant part constant
     defl = [k * Mk if k else 0.0 for k, Mk in zip(ks, M)]
     ps = kinematic_pass(model, lay, p, qf, defl=[tuple(defl[3 * i:3 * i + 3]) for i in range(model.n_frames)],
-                        orientations=orientations, turns=turns)
+                        orientations=orientations, turns=turns, take=take)
     return _State(ps=ps, compliance=True, ks=ks, ps0=ps0, C1=C1, msub=msub, M=M, A=A, u=u)
 
 
@@ -1076,7 +1130,7 @@ def _frame_loads(model: RobotModel, lay: Layout, ps0: _Pass, M: np.ndarray, msub
     return loads
 
 
-def _backlash_state(model, lay, p, qf, *, compliance, orientations, payload_mass, approach, turns) -> _State:
+def _backlash_state(model, lay, p, qf, *, compliance, orientations, payload_mass, approach, turns, take) -> _State:
     """The state with each joint at q + b s (docs/conventions.md, backlash). Gravity moments,
     loads and sides are taken on the undeformed chain at the readings, so neither depends on b.
     Reference: docs/conventions.md (backlash) on docs/method.md section 1."""
@@ -1089,7 +1143,7 @@ def _backlash_state(model, lay, p, qf, *, compliance, orientations, payload_mass
     ps0 = C1 = msub = M = A = u = loads = slope = None
     if gravity or compliance:
         # the load derivatives need the steps' axes on this chain, so not frames only
-        ps0 = kinematic_pass(model, lay, p, qf, orientations=False, frames_only=not gravity, turns=turns)
+        ps0 = kinematic_pass(model, lay, p, qf, orientations=False, frames_only=not gravity, turns=turns, take=take)
         C1, msub = _mass_sums(model, lay, ps0, payload_mass)
         M, A, u = _moments(model, ps0, C1, msub)
     if gravity:
@@ -1105,7 +1159,7 @@ def _backlash_state(model, lay, p, qf, *, compliance, orientations, payload_mass
     if compliance and np.any(ks != 0.0):
         d = [k * Mk if k else 0.0 for k, Mk in zip(ks, M)]
         defl = [tuple(d[3 * i:3 * i + 3]) for i in range(nf)]
-    ps = kinematic_pass(model, lay, p, qf + sides * b, defl=defl, orientations=orientations)
+    ps = kinematic_pass(model, lay, p, qf + sides * b, defl=defl, orientations=orientations, take=take)
     return _State(ps=ps, compliance=compliance, ks=ks, ps0=ps0, C1=C1, msub=msub, M=M, A=A, u=u,
                   backlash=_Backlash(b=b, sides=sides, slope=slope, loads=loads))
 

@@ -13,14 +13,15 @@ grows with the parameters, not the poses.
 from __future__ import annotations
 
 import copy
+import weakref
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ._arrays import frozen, read_only
 from ._errors import InputError
-from ._kinematics import (CHUNK_POSES, LARGE_POSES, evaluate_state, frame_approach, jacobian_columns, joint_turns,
-                          layout, moved_state, moves_rigidly)
+from ._kinematics import (CHUNK_POSES, LARGE_POSES, Workspace, evaluate_state, frame_approach, jacobian_columns,
+                          joint_turns, layout, moved_state, moves_rigidly, pass_buffers, workspace)
 from ._linalg import r_factor, reduced
 from ._measurements import Measurements, Noise, approach_of
 from ._model import RobotModel
@@ -71,7 +72,7 @@ class Problem:
             self.sel_r = [np.nonzero(data.rot_mask[:, j])[0] for j in range(len(data.marker_names))]
             sr = data.sigma_rot if data.sigma_rot is not None else (noise.rotation if noise is not None else 1.0)
             self.w_r = [1.0 / np.broadcast_to(sr, data.rot_mask.shape)[s, j] for j, s in enumerate(self.sel_r)]
-        self._states = []    # shared with the problems ``over`` makes: they evaluate the same poses
+        self._kept = _Kept(workspace(model))    # shared with the problems ``over`` makes: the same poses
         if chunked is None:
             chunked = data.n_poses > LARGE_POSES
         if chunked and (self.use_rot or self.backlash):
@@ -169,7 +170,8 @@ class Problem:
         found by the values it was made at (its pass holds a read-only copy of them, compared by
         value), so a caller changing their own array afterwards cannot be served a stale one."""
         p = frozen(p)
-        states = self._states
+        kept = self._kept
+        states = kept.states
         at = next((k for k, s in enumerate(states) if np.array_equal(s.ps.p, p)), None)
         if at is not None:
             st = states.pop(at)
@@ -179,12 +181,13 @@ class Problem:
                 (s for s in reversed(states) if moves_rigidly(self.lay, s.ps.p, p)), None)
             if near is None and self._turns is None:
                 self._turns = joint_turns(self.qf)
-            st = moved_state(near, p) if near is not None else evaluate_state(
+            st = moved_state(near, p, take=kept.workspace.take) if near is not None else evaluate_state(
                 self.model, self.lay, p, self.qf, compliance=self.compliance, orientations=self.use_rot,
                 payload_mass=self.data.payload_mass, backlash=self.backlash, approach=self.approach,
-                turns=self._turns)
+                turns=self._turns, take=kept.workspace.take)
+            near = None
             if len(states) >= max(1, min(STATES_KEPT, STATE_POSES // max(self.data.n_poses, 1))):
-                states.pop(0)
+                kept.drop_oldest()
         states.append(st)
         return st
 
@@ -296,6 +299,27 @@ class Problem:
         rows = 6 if self.use_rot else 3
         cols = [jacobian_columns(self.model, self.lay, st, self.free_idx, m, rows) for m in self.marker_idx]
         return np.concatenate([C.transpose(1, 2, 0) for C in cols], axis=1)
+
+
+class _Kept:
+    """The evaluations a problem keeps, newest last (shared with the problems ``over`` makes from it).
+    The buffers of those it drops, and of all when the last of these problems goes, return to the
+    model's workspace (``Workspace.give`` takes only those nothing else holds)."""
+
+    def __init__(self, ws: Workspace):
+        self.workspace = ws
+        self.states: list = []
+        weakref.finalize(self, _give_back, ws, self.states)
+
+    def drop_oldest(self) -> None:
+        buffers = pass_buffers(self.states.pop(0))
+        self.workspace.give(buffers)
+
+
+def _give_back(ws: Workspace, states: list) -> None:
+    buffers = [b for st in states for b in pass_buffers(st)]
+    states.clear()
+    ws.give(buffers)
 
 
 def _taken(kept: dict, free: tuple, take):
