@@ -2,11 +2,12 @@
 
 Run: python benchmarks/bench_engine.py [--repeat 10] [--baseline 7fe2faf] [--fk-poses 100000]
 
-Three packages take turns, twice, each in its own child process: the package at ``--baseline``
-(``git archive`` into a temporary folder, put first on ``sys.path``), this one, and this one in a
-process whose C allocator was first tuned as the baseline tuned it on its first call (a 31 MB
-block allocated and freed: glibc then keeps freed memory for reuse), which shows what that
-process-wide change was worth. Figures, on the 6-joint arm of ``bench_identify.py``:
+Four configurations take turns, twice, each in its own child process: the package at
+``--baseline`` (``git archive`` into a temporary folder, put first on ``sys.path``); this one; this
+one without its models' workspaces (``WORKSPACE_BYTES = 0``: every pass in fresh memory); and this
+one in a process whose C allocator was first tuned as the baseline tuned it on its first call (a
+31 MB block allocated and freed: glibc then keeps freed memory for reuse), which shows what that
+process-wide change would still add. Figures, on the 6-joint arm of ``bench_identify.py``:
 
 * ``calibrate()`` at 1,000 and 10,000 poses (``rc.simulate(m, n, seed=1)``, geometric), best of
   ``--repeat`` (a fifth of it at 10,000) after three untimed calls;
@@ -55,10 +56,14 @@ def best(fn, repeat: int) -> tuple[float, float]:
     return min(wall), min(cpu)
 
 
-def child(repeat: int, fk_poses: int, folder: str, prime: bool) -> None:
+def child(repeat: int, fk_poses: int, folder: str, variant: str) -> None:
     """This process' figures as JSON on stdout (the package first on ``sys.path`` is timed)."""
-    if prime:
+    if variant == "tuned":
         np.empty(PRIMER_BYTES, dtype=np.uint8)
+    elif variant == "no workspace":
+        import robocal._kinematics
+
+        robocal._kinematics.WORKSPACE_BYTES = 0
     m = arm6r(False)
     out, saved = {}, {}
     for n in POSES:
@@ -73,12 +78,12 @@ def child(repeat: int, fk_poses: int, folder: str, prime: bool) -> None:
     print(json.dumps(out))
 
 
-def run(src: str | None, args, folder: str, prime: bool = False) -> dict:
+def run(src: str | None, args, folder: str, variant: str) -> dict:
     env = dict(os.environ)
     if src is not None:
         env["PYTHONPATH"] = os.pathsep.join([src, env.get("PYTHONPATH", "")])
     cmd = [sys.executable, os.path.abspath(__file__), "--child", "1", "--repeat", str(args.repeat),
-           "--fk-poses", str(args.fk_poses), "--folder", folder, "--prime", str(int(prime))]
+           "--fk-poses", str(args.fk_poses), "--folder", folder, "--variant", variant]
     return json.loads(subprocess.run(cmd, env=env, check=True, capture_output=True, text=True).stdout)
 
 
@@ -91,14 +96,15 @@ def agree(a: str, b: str) -> None:
 
 
 def main(argv=None):
-    args = options(__doc__, argv, repeat=10, baseline="7fe2faf", fk_poses=100_000, child=0, folder="", prime=0)
+    args = options(__doc__, argv, repeat=10, baseline="7fe2faf", fk_poses=100_000, child=0, folder="", variant="")
     if args.child:
-        return child(args.repeat, args.fk_poses, args.folder, bool(args.prime))
+        return child(args.repeat, args.fk_poses, args.folder, args.variant)
     print(f"# calibrate() and forward kinematics against {args.baseline}, "
           f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {platform.machine()}, {os.cpu_count()} cores, "
           f"numpy {np.__version__}, best of {args.repeat}; load average before "
           f"{' '.join(f'{v:.2f}' for v in os.getloadavg())}\n")
-    labels = ("baseline", "now", "now, allocator tuned first")
+    labels = ("baseline", "now", "now without workspace", "now, allocator tuned first")
+    variants = ("", "", "no workspace", "tuned")
     with tempfile.TemporaryDirectory() as tmp:
         src = baseline_sources(args.baseline, tmp)
         dirs = {label: os.path.join(tmp, f"run{i}") for i, label in enumerate(labels)}
@@ -106,20 +112,20 @@ def main(argv=None):
             os.mkdir(d)
         found: dict = {label: {} for label in labels}
         for _ in range(2):
-            for label, path, prime in ((labels[0], src, False), (labels[1], None, False), (labels[2], None, True)):
-                for key, t in run(path, args, dirs[label], prime).items():
+            for label, variant in zip(labels, variants):
+                for key, t in run(src if label == "baseline" else None, args, dirs[label], variant).items():
                     for clock, v in zip(("wall", "cpu"), t):
                         found[label][(key, clock)] = min(found[label].get((key, clock), np.inf), v)
         for label in labels[1:]:
             agree(os.path.join(dirs[label], "out.npz"), os.path.join(dirs[labels[0]], "out.npz"))
-    print("| figure | clock | " + " | ".join(f"{label} (ms)" for label in labels) + " | now / baseline | "
-          "tuned / baseline |")
-    print("|---" * (len(labels) + 4) + "|")
+    print("| figure | clock | " + " | ".join(f"{label} (ms)" for label in labels) + " | "
+          + " | ".join(f"{label} / baseline" for label in labels[1:]) + " |")
+    print("|---" * (2 * len(labels) + 1) + "|")
     for key, clock in found[labels[0]]:
         name = f"forward kinematics, {args.fk_poses} poses" if key == "forward kinematics" else f"{key} poses"
         t = [found[label][(key, clock)] for label in labels]
-        print(f"| {name} | {clock} | " + " | ".join(f"{v * 1e3:.2f}" for v in t) + f" | {t[1] / t[0]:.2f}x | "
-              f"{t[2] / t[0]:.2f}x |")
+        print(f"| {name} | {clock} | " + " | ".join(f"{v * 1e3:.2f}" for v in t) + " | "
+              + " | ".join(f"{v / t[0]:.2f}x" for v in t[1:]) + " |")
     print(f"\nload average after: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
 
 
