@@ -1,13 +1,14 @@
 """Time calibrate() and forward kinematics against the package at an earlier commit, in one run.
 
-Run: python benchmarks/bench_engine.py [--repeat 10] [--baseline 7fe2faf] [--fk-poses 100000]
+Run: python benchmarks/bench_engine.py [--repeat 10] [--baseline 7fe2faf] [--other REV] [--fk-poses 100000]
 
-Four configurations take turns, twice, each in its own child process: the package at
-``--baseline`` (``git archive`` into a temporary folder, put first on ``sys.path``); this one; this
-one without its models' workspaces (``WORKSPACE_BYTES = 0``: every pass in fresh memory); and this
-one in a process whose C allocator was first tuned as the baseline tuned it on its first call (a
-31 MB block allocated and freed: glibc then keeps freed memory for reuse), which shows what that
-process-wide change would still add. Figures, on the 6-joint arm of ``bench_identify.py``:
+The configurations take turns, twice, each in its own child process: the package at
+``--baseline`` (``git archive`` into a temporary folder, put first on ``sys.path``); the package
+at ``--other`` when given (the same way: for instance the commit before a change, to measure the
+change); this one; and this one in a process whose C allocator was first tuned as the baseline
+tuned it on its first call (a 31 MB block allocated and freed: glibc then keeps freed memory for
+reuse), which shows what that process-wide change would still add. Figures, on the 6-joint arm of
+``bench_identify.py``:
 
 * ``calibrate()`` at 1,000 and 10,000 poses (``rc.simulate(m, n, seed=1)``, geometric), best of
   ``--repeat`` (a fifth of it at 10,000) after three untimed calls;
@@ -60,10 +61,6 @@ def child(repeat: int, fk_poses: int, folder: str, variant: str) -> None:
     """This process' figures as JSON on stdout (the package first on ``sys.path`` is timed)."""
     if variant == "tuned":
         np.empty(PRIMER_BYTES, dtype=np.uint8)
-    elif variant == "no workspace":
-        import robocal._kinematics
-
-        robocal._kinematics.WORKSPACE_BYTES = 0
     m = arm6r(False)
     out, saved = {}, {}
     for n in POSES:
@@ -96,30 +93,35 @@ def agree(a: str, b: str) -> None:
 
 
 def main(argv=None):
-    args = options(__doc__, argv, repeat=10, baseline="7fe2faf", fk_poses=100_000, child=0, folder="", variant="")
+    args = options(__doc__, argv, repeat=10, baseline="7fe2faf", other="", fk_poses=100_000, child=0, folder="",
+                   variant="")
     if args.child:
         return child(args.repeat, args.fk_poses, args.folder, args.variant)
     print(f"# calibrate() and forward kinematics against {args.baseline}, "
           f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {platform.machine()}, {os.cpu_count()} cores, "
           f"numpy {np.__version__}, best of {args.repeat}; load average before "
           f"{' '.join(f'{v:.2f}' for v in os.getloadavg())}\n")
-    labels = ("baseline", "now", "now without workspace", "now, allocator tuned first")
-    variants = ("", "", "no workspace", "tuned")
+    revs = [args.baseline] + ([args.other] if args.other else [])
+    labels = tuple(revs) + ("now", "now, allocator tuned first")
     with tempfile.TemporaryDirectory() as tmp:
-        src = baseline_sources(args.baseline, tmp)
+        sources = {}
+        for rev in revs:
+            os.mkdir(os.path.join(tmp, rev))
+            sources[rev] = baseline_sources(rev, os.path.join(tmp, rev))
         dirs = {label: os.path.join(tmp, f"run{i}") for i, label in enumerate(labels)}
         for d in dirs.values():
             os.mkdir(d)
         found: dict = {label: {} for label in labels}
         for _ in range(2):
-            for label, variant in zip(labels, variants):
-                for key, t in run(src if label == "baseline" else None, args, dirs[label], variant).items():
+            for label in labels:
+                variant = "tuned" if label.endswith("tuned first") else ""
+                for key, t in run(sources.get(label), args, dirs[label], variant).items():
                     for clock, v in zip(("wall", "cpu"), t):
                         found[label][(key, clock)] = min(found[label].get((key, clock), np.inf), v)
         for label in labels[1:]:
             agree(os.path.join(dirs[label], "out.npz"), os.path.join(dirs[labels[0]], "out.npz"))
     print("| figure | clock | " + " | ".join(f"{label} (ms)" for label in labels) + " | "
-          + " | ".join(f"{label} / baseline" for label in labels[1:]) + " |")
+          + " | ".join(f"{label} / {labels[0]}" for label in labels[1:]) + " |")
     print("|---" * (2 * len(labels) + 1) + "|")
     for key, clock in found[labels[0]]:
         name = f"forward kinematics, {args.fk_poses} poses" if key == "forward kinematics" else f"{key} poses"

@@ -227,3 +227,13 @@ def workspace_spares(model) -> int:
     from robocal._kinematics import workspace
 
     return len(workspace(model)._spare)
+
+
+def test_evaluations_of_one_model_reuse_its_buffers_and_agree():
+    m = arm6r()
+    qs = [rc.random_configurations(m, 7, rng=k) for k in range(3)]
+    first = [rc.forward_kinematics(m, q).positions for q in qs]
+    assert workspace_spares(m) == 1                   # each call's pass went back, and the next took it
+    for q, want in zip(qs, first):
+        np.testing.assert_array_equal(rc.forward_kinematics(m, q).positions, want)
+        np.testing.assert_array_equal(rc.forward_kinematics(arm6r(), q).positions, want)

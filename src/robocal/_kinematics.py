@@ -1304,8 +1304,10 @@ def evaluate(model: RobotModel, q: np.ndarray, p: np.ndarray | None = None, *, j
         return _evaluate_in_chunks(model, q, p, orientations=orientations, compliance=compliance,
                                    payload_mass=payload_mass)
     need_or = orientations or jacobian
+    ws = workspace(model)
     st = evaluate_state(model, lay, p, qf, compliance=compliance, orientations=need_or, payload_mass=payload_mass,
-                        backlash=backlash, approach=None if approach is None else frame_approach(model, approach))
+                        backlash=backlash, approach=None if approach is None else frame_approach(model, approach),
+                        take=ws.take)
     ps = st.ps
     rotations = np.stack(ps.RM, axis=1) if need_or and ps.RM else None
     J = None
@@ -1319,9 +1321,13 @@ def evaluate(model: RobotModel, q: np.ndarray, p: np.ndarray | None = None, *, j
             frames_out[:, i, :3, :3] = ps.R[i]
             frames_out[:, i, :3, 3] = ps.O[i]
             frames_out[:, i, 3, 3] = 1.0
-    # a copy: a view would keep the whole pass alive for as long as the caller keeps the positions
-    return Evaluation(positions=np.ascontiguousarray(ps.P.transpose(1, 0, 2)), rotations=rotations, jacobian=J,
-                      moments=None if st.M is None else st.M.T, frames=frames_out)
+    # copies: the evaluation's arrays are its own, and the passes' buffers go back to the model's workspace
+    out = Evaluation(positions=ps.P.transpose(1, 0, 2).copy(), rotations=rotations, jacobian=J,
+                     moments=None if st.M is None else st.M.T, frames=frames_out)
+    buffers = pass_buffers(st)
+    del st, ps
+    ws.give(buffers)
+    return out
 
 
 def _evaluate_in_chunks(model: RobotModel, q: np.ndarray, p: np.ndarray, *, orientations: bool, compliance: bool,
