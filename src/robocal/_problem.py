@@ -167,18 +167,17 @@ class Problem:
 
     def _state(self, p):
         """The evaluation at ``p``, kept with the last few (``STATES_KEPT``, newest last). Each is
-        found by the values it was made at (its pass holds a read-only copy of them, compared by
-        value), so a caller changing their own array afterwards cannot be served a stale one."""
+        found by the values it was made at: the bytes of a read-only float copy of them, which its
+        pass holds, so a caller changing their own array afterwards cannot be served a stale one."""
         p = frozen(p)
+        key = p.tobytes()
         kept = self._kept
         states = kept.states
-        at = next((k for k, s in enumerate(states) if np.array_equal(s.ps.p, p)), None)
-        if at is not None:
-            st = states.pop(at)
-        else:
+        st = states.pop(key, None)
+        if st is None:
             # a geometric chain that only the base and markers moved from a kept evaluation is that one moved
             near = None if self.compliance or self.backlash else next(
-                (s for s in reversed(states) if moves_rigidly(self.lay, s.ps.p, p)), None)
+                (s for s in reversed(states.values()) if moves_rigidly(self.lay, s.ps.p, p)), None)
             if near is None and self._turns is None:
                 self._turns = joint_turns(self.qf)
             st = moved_state(near, p, take=kept.workspace.take) if near is not None else evaluate_state(
@@ -188,7 +187,7 @@ class Problem:
             near = None
             if len(states) >= max(1, min(STATES_KEPT, STATE_POSES // max(self.data.n_poses, 1))):
                 kept.drop_oldest()
-        states.append(st)
+        states[key] = st
         return st
 
     def _positions(self, p) -> np.ndarray:
@@ -308,16 +307,16 @@ class _Kept:
 
     def __init__(self, ws: Workspace):
         self.workspace = ws
-        self.states: list = []
+        self.states: dict = {}     # the bytes of the parameters' read-only copy -> the evaluation there
         weakref.finalize(self, _give_back, ws, self.states)
 
     def drop_oldest(self) -> None:
-        buffers = pass_buffers(self.states.pop(0))
+        buffers = pass_buffers(self.states.pop(next(iter(self.states))))
         self.workspace.give(buffers)
 
 
-def _give_back(ws: Workspace, states: list) -> None:
-    buffers = [b for st in states for b in pass_buffers(st)]
+def _give_back(ws: Workspace, states: dict) -> None:
+    buffers = [b for st in states.values() for b in pass_buffers(st)]
     states.clear()
     ws.give(buffers)
 
