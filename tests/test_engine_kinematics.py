@@ -10,6 +10,7 @@ from scipy.spatial.transform import Rotation
 from test_kinematics import _random_tree_model
 
 from robocal._kinematics import (
+    FRAME_ROWS,
     N_BASE,
     N_FRAME_STEPS,
     FrameRow,
@@ -24,7 +25,7 @@ from robocal._kinematics import (
     layout,
     moved_state,
 )
-from robocal.kinematics import Frame, mdh_transform, parameter_vector
+from robocal.kinematics import GEOMETRIC_KINDS, Frame, mdh_transform, parameter_vector
 
 TOL = 1e-13
 
@@ -88,10 +89,15 @@ def test_the_turns_a_caller_holds_give_the_pass_it_would_make():
     np.testing.assert_array_equal(held.P, made.P)
 
 
-def _partial(f: Frame, upto: FrameStep) -> np.ndarray:
-    """The product of f's steps before ``upto`` (the others zero), by ``mdh_transform``."""
-    kinds = [s.name.lower() for s in FrameStep if s < upto]
-    return mdh_transform(Frame("part", joint="fixed", **{k: getattr(f, k) for k in kinds}))
+def test_the_frame_steps_are_the_geometric_kinds_in_order():
+    assert [getattr(FrameStep, k.upper()) for k in GEOMETRIC_KINDS] == list(range(N_FRAME_STEPS))
+    rows = [v for k, v in vars(FrameRow).items() if k.isupper()]
+    assert sorted(rows) == list(range(FRAME_ROWS))
+
+
+def _partial(f: Frame, upto: int) -> np.ndarray:
+    """The product of f's steps before ``upto`` (a ``FrameStep``; the others zero), by ``mdh_transform``."""
+    return mdh_transform(Frame("part", joint="fixed", **{k: getattr(f, k) for k in GEOMETRIC_KINDS[:upto]}))
 
 
 @pytest.mark.parametrize("seed", [0, 1])
@@ -108,11 +114,10 @@ def test_step_axes_and_points_are_those_of_the_reference_transform(seed):
         at_d = parent @ _partial(f, FrameStep.D)                  # after beta and alpha
         at_theta = parent @ _partial(f, FrameStep.THETA)          # after d
         r0 = lay.frame_row[i]
-        expected = {FrameRow.BETA_AXIS: at_beta[:, :3, 1], FrameRow.BETA_POINT: at_beta[:, :3, 3],
-                    FrameRow.D_AXIS: at_d[:, :3, 0], FrameRow.THETA_POINT: at_theta[:, :3, 3],
-                    FrameRow.Z_AXIS: X[:, i, :3, 2], FrameRow.ORIGIN: X[:, i, :3, 3]}
+        expected = {"BETA_AXIS": at_beta[:, :3, 1], "BETA_POINT": at_beta[:, :3, 3], "D_AXIS": at_d[:, :3, 0],
+                    "THETA_POINT": at_theta[:, :3, 3], "Z_AXIS": X[:, i, :3, 2], "ORIGIN": X[:, i, :3, 3]}
         for row, want in expected.items():
-            np.testing.assert_allclose(vec[r0 + row].T, want, atol=TOL, err_msg=f"{f.name} {row.name}")
+            np.testing.assert_allclose(vec[r0 + getattr(FrameRow, row)].T, want, atol=TOL, err_msg=f"{f.name} {row}")
         # the steps' own rows: each step's axis and point through the layout
         s0 = N_BASE + N_FRAME_STEPS * i
         axes, points = lay.step_rows[1]
@@ -163,8 +168,8 @@ def test_gravity_moments_are_the_sums_over_the_distal_masses():
         if (payload.frame if payload.frame >= 0 else m.n_frames - 1) in distal:
             masses.append((X[:, payload.frame] @ np.append(payload.com, 1.0))[:, :3])
             weights.append(payload.mass)
-        for c, step in enumerate((FrameStep.THETA, FrameStep.ALPHA, FrameStep.BETA)):
+        for c, step in enumerate(("theta", "alpha", "beta")):
             row = 3 * i + c
             axis, point = u[:, row].T, Q[:, row].T
             want = sum(np.einsum("nk,nk->n", np.cross(ck - point, w * g), axis) for ck, w in zip(masses, weights))
-            np.testing.assert_allclose(M[row], want, atol=1e-11, err_msg=f"{m.frames[i].name} {step.name}")
+            np.testing.assert_allclose(M[row], want, atol=1e-11, err_msg=f"{m.frames[i].name} {step}")

@@ -31,7 +31,6 @@ import math
 import sys
 import threading
 from dataclasses import dataclass, field
-from enum import IntEnum
 
 import numpy as np
 
@@ -50,10 +49,12 @@ CHUNK_POSES = 10_000
 N_MARKER = len(MARKER_KINDS)
 
 
-class FrameStep(IntEnum):
+class FrameStep:
     """The elementary motions placing a frame in its parent, in the order of docs/method.md section 1,
     ``X_pj = Rot(z, gamma) Trans(z, b) Rot(y, beta) Rot(x, alpha) Trans(x, d) Rot(z, theta)
-    Trans(z, r)``: each one's offset in the frame's steps and in its parameters (``FRAME_KINDS``)."""
+    Trans(z, r)``: each one's offset in the frame's steps and in its parameters (``GEOMETRIC_KINDS``,
+    the first of ``FRAME_KINDS``). Plain integers in a namespace: they index arrays in the passes'
+    inner loops, where an enum member's lookup would cost ten times more."""
 
     GAMMA = 0
     B = 1
@@ -64,7 +65,7 @@ class FrameStep(IntEnum):
     R = 6
 
 
-N_FRAME_STEPS = len(FrameStep)
+N_FRAME_STEPS = 7
 ROTATION_STEPS = (FrameStep.GAMMA, FrameStep.BETA, FrameStep.ALPHA, FrameStep.THETA)
 # the steps gravity deflects (docs/method.md section 2), each with its compliance's offset in the frame's
 # parameters; a frame's compliant rows (3 per frame) follow this order
@@ -74,9 +75,9 @@ COMPLIANT = tuple((step, FRAME_KINDS.index(kind)) for step, kind in
 _CROSS_PAIRS = {0: (1, 2), 1: (2, 0), 2: (0, 1)}
 
 
-class FrameRow(IntEnum):
+class FrameRow:
     """The rows of a frame's block in a pass's vectors (``_Pass.vec``: each row one (3, N) block of
-    vectors in W), as docs/method.md sections 1 and 3 name them."""
+    vectors in W), as docs/method.md sections 1 and 3 name them (plain integers, as ``FrameStep``'s)."""
 
     X_AXIS = 0          # the frame's rotation, column by column, and its origin
     Y_AXIS = 1
@@ -88,14 +89,14 @@ class FrameRow(IntEnum):
     THETA_POINT = 7     # then d along the d axis: the point of the theta axis
 
 
-class MarkerRow(IntEnum):
+class MarkerRow:
     """The rows of a marker's block: its position, then the axes of its three rotation steps."""
 
     POSITION = 0
     ROTATION_AXES = 1
 
 
-FRAME_ROWS, MARKER_ROWS = len(FrameRow), MarkerRow.ROTATION_AXES + 3
+FRAME_ROWS, MARKER_ROWS = FrameRow.THETA_POINT + 1, MarkerRow.ROTATION_AXES + 3
 # a frame's placement: its first rows, x, y, z and origin (homogeneous coordinates multiply them)
 PLACEMENT_ROWS = FrameRow.ORIGIN + 1
 # the rows of a pass's vectors, in order: a zero row (the point of a translation's column); the base's
@@ -214,7 +215,7 @@ def _make_layout(model: RobotModel) -> Layout:
         step_is_rot.append(k >= 3)
         step_frame.append(-1)
     for i in range(nf):
-        for k in FrameStep:
+        for k in range(N_FRAME_STEPS):
             step_param.append(frame0[i] + k)
             step_is_rot.append(k in ROTATION_STEPS)
             step_frame.append(i)
