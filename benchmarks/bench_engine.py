@@ -65,7 +65,8 @@ def child(repeat: int, fk_poses: int, folder: str, variant: str) -> None:
     out, saved = {}, {}
     for n in POSES:
         _, data = rc.simulate(m, n, seed=1)
-        out[f"calibrate {n}"] = best(lambda: rc.calibrate(m, data), repeat if n <= 1000 else max(3, repeat // 5))
+        rep = repeat if n <= 1000 else max(3, repeat // 5)
+        out[f"calibrate {n}"] = best(lambda data=data: rc.calibrate(m, data), rep)
         saved[f"p{n}"] = [e.estimate for e in rc.calibrate(m, data).parameters]
     qs = [rc.random_configurations(m, fk_poses, rng=k) for k in range(3)]
     turn = iter(range(10 ** 6))

@@ -37,7 +37,13 @@ import numpy as np
 from ._arrays import read_only
 from ._measurements import approach_sides
 from ._model import RobotModel
-from ._parameters import BASE_KINDS, FRAME_KINDS, MARKER_KINDS, parameter_layout, parameter_vector
+from ._parameters import (
+    BASE_KINDS,
+    FRAME_KINDS,
+    MARKER_KINDS,
+    parameter_layout,
+    parameter_vector,
+)
 from ._spatial import cross, left_jacobian, rot_matrix, small_rotation
 from ._threads import one_blas_thread
 

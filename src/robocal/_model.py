@@ -24,8 +24,9 @@ Conventions (see docs/conventions.md):
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass, field, fields, replace
-from typing import Any, Callable, Hashable, Sequence
+from typing import Any
 
 import numpy as np
 
