@@ -13,8 +13,8 @@ SRC = ROOT / "src" / "robocal"
 
 # the data flow, upstream first: a module may import from its own layer or an earlier one
 LAYERS = [
-    {"_version", "_errors", "_glossary", "_arguments", "_options", "_units", "_spatial", "_misfit", "_threads",
-     "_linalg"},
+    {"_version", "_errors", "_glossary", "_arguments", "_options", "_units", "_arrays", "_spatial", "_misfit",
+     "_threads", "_linalg"},
     {"_model", "_measurements", "_contacts"},
     {"_parameters"},
     {"_kinematics"},

@@ -11,7 +11,6 @@ compute the error statistics, record the provenance.
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
 
@@ -24,7 +23,7 @@ from ._checks import (FIT_RATIO, GROSS_FACTOR, OUTLIER_RUN, OUTLIER_SHARE_MAX, C
                       limit_check, markers_check, outlier_bar, outlier_check, outlier_scores, plausibility_check, reading_units_check,
                       readings_check, support_check, tolerances, verdict)
 from ._errors import (CheckWarning, ConvergenceWarning, DegenerateDataError, IdentifiabilityWarning, InputError,
-                      MisfitWarning, check_choice)
+                      MisfitWarning, check_choice, warn)
 from ._identifiability import (DEFAULT_TOL, WEAK_STD, IdentifiabilityResult, analyse, backlash_reasons,
                                theoretical_identifiability, weakly_identifiable)
 from ._identifiability import eliminate as eliminate_parameters
@@ -915,8 +914,7 @@ def _warn(checks) -> None:
     for c in checks:
         if c.status != "pass":
             category = _WARNING_CLASS.get(c.name, CheckWarning)
-            warnings.warn(f"{c.name} ({'FAILED' if c.status == 'fail' else 'warning'}): {c.summary}", category,
-                          stacklevel=4)
+            warn(f"{c.name} ({'FAILED' if c.status == 'fail' else 'warning'}): {c.summary}", category)
 
 
 def _registered_nominal(design: _Design) -> tuple[np.ndarray, tuple[str, ...]]:

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from functools import lru_cache
 
 import numpy as np
 
@@ -331,13 +330,15 @@ def _one_side(s: np.ndarray) -> str:
     return ""
 
 
-@lru_cache(maxsize=32)
 def theoretical_identifiability(model: RobotModel, parameters: tuple, known: tuple, orientation: bool,
                                 tol: float, markers: tuple | None = None) -> IdentifiabilityResult:
     """What this robot's structure allows to identify with ``markers`` measured (default all), at
-    random configurations (fixed seed)."""
-    return identifiability(model, None, parameters=parameters, known=known, orientation=orientation, tol=tol, rng=0,
-                           markers=markers)
+    random configurations (fixed seed). Made once per model object and arguments and kept with the
+    model; each call gets its own copy of the result's dictionaries (the rest is immutable)."""
+    args = (parameters, known, orientation, tol, markers)
+    kept = model.derived((theoretical_identifiability, args), lambda: identifiability(
+        model, None, parameters=parameters, known=known, orientation=orientation, tol=tol, rng=0, markers=markers))
+    return replace(kept, observability=dict(kept.observability), column_scale=dict(kept.column_scale))
 
 
 @one_blas_thread

@@ -10,6 +10,7 @@ from ._arguments import (
     checked,
     shaped,
 )
+from ._arrays import frozen
 from ._errors import InputError, check_choice
 from ._options import DEFAULT_INSTRUMENT, INSTRUMENT_NOISE
 
@@ -84,7 +85,8 @@ class Measurements:
     ``sigma`` (n_poses, n_markers) position standard deviation per measurement in metres and
     ``sigma_rot`` in radians, or None (unweighted). ``payload_mass`` (n_poses,) kg or None.
     ``labels`` names each pose for messages (e.g. the CSV row). ``extra`` holds anything else a
-    reader found; arrays with one entry per pose follow ``subset``.
+    reader found; arrays with one entry per pose follow ``subset``. Every array is the record's own
+    read-only copy.
     """
 
     q: np.ndarray
@@ -147,11 +149,15 @@ class Measurements:
                 r = int(np.argwhere(~np.isfinite(pm) | (pm < 0))[0][0])
                 raise InputError("payload mass must be a non-negative number", source=src, where=self._label(r))
             object.__setattr__(self, "payload_mass", pm)
-        object.__setattr__(self, "q", q)
-        object.__setattr__(self, "positions", pos)
-        object.__setattr__(self, "mask", mask)
-        object.__setattr__(self, "rotations", rot)
-        object.__setattr__(self, "rot_mask", rmask)
+        # the record's arrays are its own and read-only: a caller's array changed later, or one
+        # the record handed out written into, cannot change what it holds
+        for name, value, dtype in (("q", q, float), ("positions", pos, float), ("mask", mask, bool),
+                                   ("rotations", rot, float), ("rot_mask", rmask, bool),
+                                   ("sigma", self.sigma, float), ("sigma_rot", self.sigma_rot, float),
+                                   ("payload_mass", self.payload_mass, float)):
+            object.__setattr__(self, name, None if value is None else frozen(value, dtype))
+        object.__setattr__(self, "extra", {k: frozen(v, v.dtype) if isinstance(v, np.ndarray) else v
+                                           for k, v in self.extra.items()})
         if not self.labels:
             object.__setattr__(self, "labels", tuple(f"pose {i}" for i in range(n)))
 

@@ -24,8 +24,9 @@ Conventions (see docs/conventions.md):
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass, field, fields, replace
+from typing import Any
 
 import numpy as np
 
@@ -218,14 +219,25 @@ class RobotModel:
     def has_backlash(self) -> bool:
         return any(f.backlash_theta or f.backlash_r for f in self.frames)
 
-    def frame_index(self, name: str) -> int:
-        try:
-            return self.frame_names.index(name)
-        except ValueError:
-            raise InputError(f"unknown frame {name!r}; frames are {', '.join(self.frame_names)}") from None
-
-    def replace(self, **changes) -> RobotModel:
+    def replace(self, **changes) -> "RobotModel":
         return replace(self, **changes)
+
+    def derived(self, key: Hashable, make: Callable[[], Any]) -> Any:
+        """What ``make()`` gives, made once for this model object and kept with it under ``key``.
+
+        For what the engine derives from the model's structure (its parameter layout, its step
+        layout): the values kept are immutable (records with read-only arrays), so whatever a
+        caller does with one cannot change a later result; they live and die with the model, and
+        an equal model made elsewhere makes its own. Not part of the model's value: equality,
+        hashing, copies and pickles ignore them.
+        """
+        kept = self.__dict__.setdefault("_derived", {})
+        if key not in kept:
+            kept.setdefault(key, make())
+        return kept[key]
+
+    def __getstate__(self) -> dict:
+        return {k: v for k, v in self.__dict__.items() if k != "_derived"}
 
 
 # every number a frame holds (geometry, mass, compliance) must be finite

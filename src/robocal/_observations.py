@@ -24,8 +24,9 @@ from typing import Any
 
 import numpy as np
 
+from ._arrays import frozen, read_only
 from ._contacts import Contacts
-from ._kinematics import evaluate, evaluate_state, jacobian_columns, layout
+from ._kinematics import evaluate, evaluate_state, jacobian_columns, joint_turns, layout
 from ._measurements import Measurements, Noise
 from ._model import RobotModel
 from ._parameters import parameter_vector
@@ -95,7 +96,8 @@ class ContactProblem:
             self.tracker = Problem(model, data, free, compliance=compliance, noise=noise, chunked=False)
             if not self.tracker.weighted:
                 self.tracker_scale = 1.0 / (noise.position if noise is not None else Noise.of().position)
-        self.qf = contacts.q @ model.coupling_matrix.T
+        self.qf = read_only(contacts.q @ model.coupling_matrix.T)
+        self.turns = joint_turns(self.qf)   # evaluated at every step of a fit
         self.marker_idx = np.array([model.marker_names.index(n) for n in contacts.marker], dtype=int)
         self.sockets = contacts.groups("socket")
         self.free_planes = [g for g in contacts.groups("plane") if contacts.known_plane(g.target) is None]
@@ -103,8 +105,7 @@ class ContactProblem:
                              if (kp := contacts.known_plane(g.target)) is not None]
         self.bars = contacts.groups("bar")
         self.pairs = contacts.distance_pairs()
-        self._cache_key: bytes | None = None
-        self._cache: Any = None
+        self._cache = None
         self._initial_nuisance(parameter_vector(model))
         self._set_free(free)
 
@@ -173,11 +174,11 @@ class ContactProblem:
 
     # ---- evaluation ---------------------------------------------------------------------------
     def _state(self, p_robot: np.ndarray):
-        key = p_robot.tobytes()
-        if key != self._cache_key:
-            self._cache = evaluate_state(self.model, self.lay, p_robot, self.qf, compliance=self.compliance,
-                                         orientations=False)
-            self._cache_key = key
+        """The evaluation at ``p_robot``, the last one kept (its pass holds a read-only copy of the
+        values it was made at, compared by value)."""
+        if self._cache is None or not np.array_equal(self._cache.ps.p, p_robot):
+            self._cache = evaluate_state(self.model, self.lay, frozen(p_robot), self.qf, compliance=self.compliance,
+                                         orientations=False, turns=self.turns)
         return self._cache
 
     def _positions(self, p_robot: np.ndarray) -> np.ndarray:

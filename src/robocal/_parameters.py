@@ -22,8 +22,7 @@ import fnmatch
 import types
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
-from functools import lru_cache
-from typing import Any
+from typing import Any, Iterable
 
 import numpy as np
 
@@ -35,6 +34,7 @@ from ._arguments import (
     optional,
     vector_of,
 )
+from ._arrays import read_only
 from ._errors import InputError, excerpt
 from ._model import RobotModel
 from ._spatial import matrix_tuple, rotation_vector, small_rotation, vector3
@@ -60,7 +60,6 @@ SI_UNITS = types.MappingProxyType({"length": "m", "angle": "rad", "compliance": 
 FAMILIES = ("geometric", "compliance", "backlash", "base", "markers", "frames")
 # a parameter item holding one of these is a pattern (fnmatch): "*.theta", "j2.*", "*.k_theta"
 PATTERN_CHARS = "*?["
-ROLES = ("base", "frame", "marker")
 
 
 @dataclass(frozen=True)
@@ -102,7 +101,7 @@ class ParameterLayout:
     """The parameters of one model, in vector order, with lookups by name.
 
     ``frame0`` (n_frames,) and ``marker0`` (n_markers,) give the index of each frame's and each
-    marker's first parameter.
+    marker's first parameter (read-only).
     """
 
     parameters: tuple[Parameter, ...]
@@ -128,14 +127,20 @@ class ParameterLayout:
         """Vector indices of ``names`` (KeyError for an unknown name)."""
         return np.array([self.by_name[n].index for n in names], dtype=int)
 
-    def of_quantity(self, quantity: str) -> np.ndarray:
-        """(n_params,) bool: the parameters measuring ``quantity``."""
-        return np.array([p.quantity == quantity for p in self.parameters])
 
-
-@lru_cache(maxsize=64)
 def parameter_layout(model: RobotModel) -> ParameterLayout:
-    """The parameter records of ``model`` (cached per model)."""
+    """The parameter records of ``model``, made once per model object and kept with it (an immutable
+    record: its arrays are read-only).
+
+    >>> import robocal as rc
+    >>> lay = rc.kinematics.parameter_layout(rc.serial_model("r", [dict()]))
+    >>> lay.names[6:9], int(lay.frame0[0])
+    (('j1.gamma', 'j1.b', 'j1.beta'), 6)
+    """
+    return model.derived(parameter_layout, lambda: _make_parameter_layout(model))
+
+
+def _make_parameter_layout(model: RobotModel) -> ParameterLayout:
     params: list[Parameter] = []
 
     def add(owner, role, kinds):
@@ -146,8 +151,8 @@ def parameter_layout(model: RobotModel) -> ParameterLayout:
     add("base", "base", BASE_KINDS)
     frame0 = [add(f.name, "frame", FRAME_KINDS) for f in model.frames]
     marker0 = [add(m.name, "marker", MARKER_KINDS) for m in model.markers]
-    return ParameterLayout(parameters=tuple(params), frame0=np.array(frame0, dtype=int),
-                           marker0=np.array(marker0, dtype=int),
+    return ParameterLayout(parameters=tuple(params), frame0=read_only(np.array(frame0, dtype=int)),
+                           marker0=read_only(np.array(marker0, dtype=int)),
                            by_name=types.MappingProxyType({p.name: p for p in params}))
 
 
@@ -305,16 +310,17 @@ def candidate_parameters(model: RobotModel, parameters: Iterable[str] = ("geomet
     tuple of str
         The parameter names, in preference order.
     """
-    return _candidates(model, _as_items(parameters), bool(orientation), _as_items(known))
+    args = (_as_items(parameters), bool(orientation), _as_items(known))
+    # kept with the model (a calibration asks again): a tuple of names, which nobody can change
+    return model.derived((candidate_parameters, args), lambda: _candidates(model, *args))
 
 
 def _as_items(items) -> tuple:
     return (items,) if isinstance(items, str) else tuple(items)
 
 
-@lru_cache(maxsize=128)
 def _candidates(model: RobotModel, parameters: tuple, orientation: bool, known: tuple) -> tuple[str, ...]:
-    """``candidate_parameters``, kept per model and arguments (a calibration asks for them again)."""
+    """``candidate_parameters``, made anew."""
     lay = parameter_layout(model)
     fam = families(model, orientation=orientation)
 

@@ -13,22 +13,16 @@ grows with the parameters, not the poses.
 from __future__ import annotations
 
 import copy
+import weakref
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ._arguments import FLAG, SEED, checked, is_a, names_in, optional, readings_of, shaped, whole
+from ._arrays import frozen, read_only
 from ._errors import InputError
-from ._kinematics import (
-    CHUNK_POSES,
-    LARGE_POSES,
-    evaluate_state,
-    frame_approach,
-    jacobian_columns,
-    layout,
-    moved_state,
-    moves_rigidly,
-)
+from ._kinematics import (CHUNK_POSES, LARGE_POSES, Workspace, evaluate_state, frame_approach, jacobian_columns,
+                          joint_turns, layout, moved_state, moves_rigidly, pass_buffers, workspace)
 from ._linalg import r_factor, reduced
 from ._measurements import Measurements, Noise, approach_of
 from ._model import RobotModel
@@ -65,7 +59,8 @@ class Problem:
         self.compliance = compliance
         self.backlash = model.has_backlash or has_backlash_parameters(model, free)
         self.approach = frame_approach(model, approach_of(data)) if self.backlash else None
-        self.qf = data.q @ model.coupling_matrix.T
+        self.qf = read_only(data.q @ model.coupling_matrix.T)
+        self._turns = None   # the cosines and sines of ``qf``, made at the first evaluation
         self.marker_idx = np.array([model.marker_names.index(n) for n in data.marker_names], dtype=int)
         self.use_rot = data.has_orientation
         self.sel = [np.nonzero(data.mask[:, j])[0] for j in range(len(data.marker_names))]
@@ -78,7 +73,7 @@ class Problem:
             self.sel_r = [np.nonzero(data.rot_mask[:, j])[0] for j in range(len(data.marker_names))]
             sr = data.sigma_rot if data.sigma_rot is not None else (noise.rotation if noise is not None else 1.0)
             self.w_r = [1.0 / np.broadcast_to(sr, data.rot_mask.shape)[s, j] for j, s in enumerate(self.sel_r)]
-        self._states: dict = {}    # shared with the problems ``over`` makes: they evaluate the same poses
+        self._kept = _Kept(workspace(model))    # shared with the problems ``over`` makes: the same poses
         if chunked is None:
             chunked = data.n_poses > LARGE_POSES
         if chunked and (self.use_rot or self.backlash):
@@ -124,7 +119,7 @@ class Problem:
         free = tuple(self.free_idx.tolist())
         R = _taken(kept, free, lambda R, cols: make(R[:, cols]))
         if R is None:
-            R = kept[free] = make(self.jacobian(p))
+            R = kept[free] = read_only(make(self.jacobian(p)))
         return R
 
     def _indices(self, free) -> np.ndarray:
@@ -172,19 +167,28 @@ class Problem:
         return p
 
     def _state(self, p):
-        """The evaluation at ``p``, kept with the last few (``STATES_KEPT``)."""
+        """The evaluation at ``p``, kept with the last few (``STATES_KEPT``, newest last). Each is
+        found by the values it was made at: the bytes of a read-only float copy of them, which its
+        pass holds, so a caller changing their own array afterwards cannot be served a stale one."""
+        p = frozen(p)
         key = p.tobytes()
-        st = self._states.pop(key, None)
+        kept = self._kept
+        states = kept.states
+        st = states.pop(key, None)
         if st is None:
             # a geometric chain that only the base and markers moved from a kept evaluation is that one moved
             near = None if self.compliance or self.backlash else next(
-                (s for s in reversed(self._states.values()) if moves_rigidly(self.lay, s.ps.p, p)), None)
-            st = moved_state(near, p) if near is not None else evaluate_state(
+                (s for s in reversed(states.values()) if moves_rigidly(self.lay, s.ps.p, p)), None)
+            if near is None and self._turns is None:
+                self._turns = joint_turns(self.qf)
+            st = moved_state(near, p, take=kept.workspace.take) if near is not None else evaluate_state(
                 self.model, self.lay, p, self.qf, compliance=self.compliance, orientations=self.use_rot,
-                payload_mass=self.data.payload_mass, backlash=self.backlash, approach=self.approach)
-            if len(self._states) >= max(1, min(STATES_KEPT, STATE_POSES // max(self.data.n_poses, 1))):
-                self._states.pop(next(iter(self._states)))
-        self._states[key] = st
+                payload_mass=self.data.payload_mass, backlash=self.backlash, approach=self.approach,
+                turns=self._turns, take=kept.workspace.take)
+            near = None
+            if len(states) >= max(1, min(STATES_KEPT, STATE_POSES // max(self.data.n_poses, 1))):
+                kept.drop_oldest()
+        states[key] = st
         return st
 
     def _positions(self, p) -> np.ndarray:
@@ -241,13 +245,6 @@ class Problem:
             parts += [(self._rotation_errors(st, j) * w[:, None]).ravel() for j, w in enumerate(self.w_r)]
         return np.concatenate(parts)
 
-    def rotation_residuals(self, p) -> np.ndarray | None:
-        """(n, 3) unweighted rotation residuals in rad, or None for point data."""
-        if not self.use_rot:
-            return None
-        st = self._state(p)
-        return np.concatenate([self._rotation_errors(st, j) for j in range(len(self.sel_r))])
-
     @one_blas_thread
     def jacobian(self, p) -> np.ndarray:
         """Weighted Jacobian of ``residuals`` over the free parameters: (n_rows, n_free), column-major.
@@ -259,7 +256,7 @@ class Problem:
         free = tuple(self.free_idx.tolist())
         Jt = _taken(kept, free, lambda Jt, rows: Jt[rows])
         if Jt is None:
-            Jt = kept[free] = self._jacobian_rows(st)
+            Jt = kept[free] = read_only(self._jacobian_rows(st))
         return Jt.T
 
     def _jacobian_rows(self, st) -> np.ndarray:
@@ -286,7 +283,7 @@ class Problem:
             return {n: np.concatenate([part[n] for part in parts]) for n in parts[0]}
         st = self._state(p)
         names = self.lay.names
-        return {names[k]: st.M[row] for row, k in enumerate(self.lay.compliant_params)}
+        return {names[k]: st.M[row].copy() for row, k in enumerate(self.lay.compliant_params)}
 
     def backlash_sides(self, p) -> dict:
         """Per backlash parameter name, the sides (n_poses,) in [-1, 1] its joint rests on at ``p``."""
@@ -294,7 +291,7 @@ class Problem:
             return {}
         st = self._state(p)
         names = self.lay.names
-        return {names[k]: st.backlash.sides[:, i] for i, k in enumerate(self.lay.backlash_params) if k >= 0}
+        return {names[k]: st.backlash.sides[:, i].copy() for i, k in enumerate(self.lay.backlash_params) if k >= 0}
 
     @one_blas_thread
     def pose_blocks(self, p) -> np.ndarray:
@@ -303,6 +300,27 @@ class Problem:
         rows = 6 if self.use_rot else 3
         cols = [jacobian_columns(self.model, self.lay, st, self.free_idx, m, rows) for m in self.marker_idx]
         return np.concatenate([C.transpose(1, 2, 0) for C in cols], axis=1)
+
+
+class _Kept:
+    """The evaluations a problem keeps, newest last (shared with the problems ``over`` makes from it).
+    The buffers of those it drops, and of all when the last of these problems goes, return to the
+    model's workspace (``Workspace.give`` takes only those nothing else holds)."""
+
+    def __init__(self, ws: Workspace):
+        self.workspace = ws
+        self.states: dict = {}     # the bytes of the parameters' read-only copy -> the evaluation there
+        weakref.finalize(self, _give_back, ws, self.states)
+
+    def drop_oldest(self) -> None:
+        buffers = pass_buffers(self.states.pop(next(iter(self.states))))
+        self.workspace.give(buffers)
+
+
+def _give_back(ws: Workspace, states: dict) -> None:
+    buffers = [b for st in states.values() for b in pass_buffers(st)]
+    states.clear()
+    ws.give(buffers)
 
 
 def _taken(kept: dict, free: tuple, take):
