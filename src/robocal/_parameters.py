@@ -128,9 +128,19 @@ class ParameterLayout:
         return np.array([self.by_name[n].index for n in names], dtype=int)
 
 
+@checked(model=is_a(RobotModel))
 def parameter_layout(model: RobotModel) -> ParameterLayout:
     """The parameter records of ``model``, made once per model object and kept with it (an immutable
     record: its arrays are read-only).
+
+    Parameters
+    ----------
+    {model}
+
+    Returns
+    -------
+    ParameterLayout
+        Every parameter's record (name, index, unit, family, quantity) in the vector's order.
 
     >>> import robocal as rc
     >>> lay = rc.kinematics.parameter_layout(rc.serial_model("r", [dict()]))
