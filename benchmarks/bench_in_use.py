@@ -30,7 +30,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 def _time(n: int, repeat: int, validation: bool) -> float:
     import robocal as rc
     sys.path.insert(0, HERE)
-    from bench_identify import arm6r   # noqa: E402
+    from bench_identify import arm6r  # noqa: E402
 
     m = arm6r()
     _, data = rc.simulate(m, n, seed=1)

@@ -107,7 +107,8 @@ def main() -> None:
         tmp = Path(tmp)
         t = time.perf_counter()
         result = (humanoid_campaign if args.humanoid else campaign)(tmp, args.poses)
-        print(f"campaign: {args.poses} poses, {'humanoid-sized' if args.humanoid else '6D'}, calibrated in {time.perf_counter() - t:.1f} s; "
+        print(f"campaign: {args.poses} poses, {'humanoid-sized' if args.humanoid else '6D'}, "
+              f"calibrated in {time.perf_counter() - t:.1f} s; "
               f"result.json {result.stat().st_size / 1e6:.1f} MB")
         base = tmp / "baseline"
         base.mkdir()

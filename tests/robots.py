@@ -78,7 +78,8 @@ frames:
   - {name: l5, joint: revolute, alpha: -90, r: 230}
   - {name: l6, joint: revolute, alpha: 90}
   - {name: l7, joint: revolute, alpha: -90, r: 60}
-  - {name: ltool, joint: fixed, parent: l7, position: [0, 0, 110], rotation: {matrix: [[0, 0, 1], [1, 0, 0], [0, 1, 0]]}}
+  - {name: ltool, joint: fixed, parent: l7, position: [0, 0, 110],
+     rotation: {matrix: [[0, 0, 1], [1, 0, 0], [0, 1, 0]]}}
   - {name: r1, joint: revolute, parent: t3, alpha: -90, gamma: 180, b: 0, d: 420, r: -210}
   - {name: r2, joint: revolute, alpha: 90, d: 40}
   - {name: r3, joint: revolute, alpha: -90, r: 260}
@@ -86,7 +87,8 @@ frames:
   - {name: r5, joint: revolute, alpha: -90, r: 230}
   - {name: r6, joint: revolute, alpha: 90}
   - {name: r7, joint: revolute, alpha: -90, r: 60}
-  - {name: rtool, joint: fixed, parent: r7, position: [0, 0, 110], rotation: {matrix: [[0, 1, 0], [0, 0, 1], [1, 0, 0]]}}
+  - {name: rtool, joint: fixed, parent: r7, position: [0, 0, 110],
+     rotation: {matrix: [[0, 1, 0], [0, 0, 1], [1, 0, 0]]}}
   - {name: h1, joint: revolute, parent: t3, d: 520, r: 40}
   - {name: h2, joint: revolute, alpha: -90, d: 30}
   - {name: head, joint: fixed, parent: h2, position: [60, 0, 80], rotation: {rpy: [0, 90, 0]}}
@@ -105,8 +107,9 @@ def humanoid() -> rc.RobotModel:
     """A simulated humanoid-sized tree: 19 joints (trunk, two 7-joint arms, a head), three fixed
     frames placed by matrices (the hands' tools and the head), five markers; masses assumed from the
     geometry (relative compliances)."""
-    from robocal.io import model_from_dict
     import yaml
+
+    from robocal.io import model_from_dict
 
     joints = "\n".join(f"  - {{name: {n}, limits: [-{60 if n.startswith(('t', 'h')) else 150}, "
                        f"{60 if n.startswith(('t', 'h')) else 150}]}}" for n in HUMANOID_JOINTS)

@@ -536,7 +536,8 @@ def test_6d_report_renders_in_headless_chromium(chromium, tmp_path):
     page = Page(html)
     assert "stats.rotation.validation_after.mean" in page.keyed
     assert "solver.sigma0" in page.keyed and "solver.sigma0_m" not in page.keyed  # a ratio for weighted 6D fits
-    assert "rotation error" in page.plots["histograms"]["text"] and "rotation error" in page.plots["residual-trends"]["text"]
+    assert "rotation error" in page.plots["histograms"]["text"]
+    assert "rotation error" in page.plots["residual-trends"]["text"]
     _assert_rendered(_render_in_chromium(chromium, path, "report-6d.png"), html)
 
 
@@ -748,8 +749,10 @@ def test_terminal_tables_align_for_long_names():
     owners = [line for line in lines if line.lstrip().startswith(("base ", "spherically"))]
     assert len(owners) == 2 and owners[0].index(" x:") == owners[1].index(" x:")
     _, data = rc.simulate(m, 30, seed=1)
-    rows = [line for line in calibration_summary(rc.calibrate(m, data)).splitlines() if " change " in line and " std " in line]
-    assert len(rows) > 20 and len({line.index(" change ") for line in rows}) == 1 and len({line.index(" std ") for line in rows}) == 1
+    rows = [line for line in calibration_summary(rc.calibrate(m, data)).splitlines()
+            if " change " in line and " std " in line]
+    assert len(rows) > 20
+    assert len({line.index(" change ") for line in rows}) == 1 and len({line.index(" std ") for line in rows}) == 1
 
 
 def test_summary_error_columns_stay_apart_past_999_mm():

@@ -331,7 +331,7 @@ def test_verification_says_recalibrate_after_a_drift_of_0_3_mm_and_within_otherw
     drifted = _drifted(true)
     rng = np.random.default_rng(11)
     verdicts = {"true": [], "drifted": []}
-    for seed in range(100):
+    for _seed in range(100):
         q = rc.random_configurations(model, 20, rng)
         for key, robot in (("true", true), ("drifted", drifted)):
             data = rc.measure(robot, q, noise=2e-5, rng=rng)

@@ -41,11 +41,12 @@ _EVERYDAY = {
     "_contact_calibration": ("calibrate_contacts", "contact_errors", "ContactCalibration", "ContactErrors"),
     "_verification": ("verify", "Verification", "Accuracy", "positional_accuracy"),
     "_store": ("Store", "open_store", "store_location", "default_store_path", "history", "type_comparison",
-               "verify_robot", "latest_usable", "judge_changes", "compare_type", "stored_calibration", "accuracy_at_calibration",
-               "History", "Change", "TypeComparison", "Latest", "Outlier", "StoredCalibration", "StoredVerification",
-               "Estimate", "model_document", "sidak_threshold", "JUDGED_FAMILIES"),
-    "_presentation.history": ("change_line", "history_summary", "type_summary", "verification_summary", "render_history",
-                              "write_history"),
+               "verify_robot", "latest_usable", "judge_changes", "compare_type", "stored_calibration",
+               "accuracy_at_calibration", "History", "Change", "TypeComparison", "Latest", "Outlier",
+               "StoredCalibration", "StoredVerification", "Estimate", "model_document", "sidak_threshold",
+               "JUDGED_FAMILIES"),
+    "_presentation.history": ("change_line", "history_summary", "type_summary", "verification_summary",
+                              "render_history", "write_history"),
 }
 _WHERE = {name: module for module, names in _EVERYDAY.items() for name in names}
 _SUBMODULES = ("kinematics", "io", "sim", "limit", "report", "errors", "identification", "cli")

@@ -11,31 +11,84 @@ compute the error statistics, record the provenance.
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ._checks import (FIT_RATIO, GROSS_FACTOR, OUTLIER_RUN, OUTLIER_SHARE_MAX, Check, WorkspaceChange, backlash_sign_check,
-                      cloud_size_check, compliance_sign_check, convergence_check, correlation_check, coverage_check,
-                      expected_noise, fit_check, identifiability_check, in_use_check, interchangeable_pairs,
-                      limit_check, markers_check, outlier_bar, outlier_check, outlier_scores, plausibility_check, reading_units_check,
-                      readings_check, support_check, tolerances, verdict)
-from ._errors import (CheckWarning, ConvergenceWarning, DegenerateDataError, IdentifiabilityWarning, InputError,
-                      MisfitWarning, check_choice, warn)
-from ._identifiability import (DEFAULT_TOL, WEAK_STD, IdentifiabilityResult, analyse, backlash_reasons,
-                               theoretical_identifiability, weakly_identifiable)
+from ._checks import (
+    FIT_RATIO,
+    GROSS_FACTOR,
+    OUTLIER_RUN,
+    OUTLIER_SHARE_MAX,
+    Check,
+    WorkspaceChange,
+    backlash_sign_check,
+    cloud_size_check,
+    compliance_sign_check,
+    convergence_check,
+    correlation_check,
+    coverage_check,
+    expected_noise,
+    fit_check,
+    identifiability_check,
+    in_use_check,
+    interchangeable_pairs,
+    limit_check,
+    markers_check,
+    outlier_bar,
+    outlier_check,
+    outlier_scores,
+    plausibility_check,
+    reading_units_check,
+    readings_check,
+    support_check,
+    tolerances,
+    verdict,
+)
+from ._errors import (
+    CheckWarning,
+    ConvergenceWarning,
+    DegenerateDataError,
+    IdentifiabilityWarning,
+    InputError,
+    MisfitWarning,
+    check_choice,
+    warn,
+)
+from ._identifiability import (
+    DEFAULT_TOL,
+    WEAK_STD,
+    IdentifiabilityResult,
+    analyse,
+    backlash_reasons,
+    theoretical_identifiability,
+    weakly_identifiable,
+)
 from ._identifiability import eliminate as eliminate_parameters
-from ._in_use import (DEFAULT_FOLDS, AccuracyInUse, Coverage, FoldProblems, HeldOut, accuracy_in_use, coverage, cross_validate,
-                      evaluated, fold_labels, free_names, paired_excess, with_points_aside, workspace_readings)
+from ._in_use import (
+    DEFAULT_FOLDS,
+    AccuracyInUse,
+    Coverage,
+    FoldProblems,
+    HeldOut,
+    accuracy_in_use,
+    coverage,
+    cross_validate,
+    evaluated,
+    fold_labels,
+    paired_excess,
+    with_points_aside,
+    workspace_readings,
+)
 from ._kinematics import evaluate
 from ._measurements import Measurements, Noise
-from ._options import DEFAULT_INSTRUMENT, INITIAL_BASES, LOSSES, OUTLIER_ACTIONS, WEAK_ACTIONS
 from ._misfit import characteristic_length, misfit_notes
 from ._model import RobotModel
-from ._parameters import (candidate_parameters, matched_by_pattern, model_from_vector, parameter_layout,
-                          parameter_vector)
+from ._options import DEFAULT_INSTRUMENT, INITIAL_BASES, LOSSES, OUTLIER_ACTIONS, WEAK_ACTIONS
+from ._parameters import candidate_parameters, matched_by_pattern, model_from_vector, parameter_layout, parameter_vector
 from ._problem import Problem, design_measurements, needs_compliance
 from ._solve import Covariance, Solution, covariance, solve
 from ._threads import one_blas_thread
@@ -360,7 +413,8 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
     chosen, choice_notes = _choose(start, analysis, data, noise, limit_m, options, (labels, k, fold_problems))
     design, solution = chosen.design, chosen.solution
     before, before_notes = _registered_nominal(design)
-    notes += list(copies) + list(said) + list(analysis.notes) + list(chosen.notes) + list(choice_notes) + list(before_notes)
+    notes += (list(copies) + list(said) + list(analysis.notes) + list(chosen.notes) + list(choice_notes)
+              + list(before_notes))
     cov = covariance(solution)
     estimates = _estimates(design, solution, cov)
     in_use = _in_use(model, design, chosen, before, validation, (labels, k, grouping, fold_problems),
@@ -594,10 +648,8 @@ def _choose(start: RobotModel, analysis: _Analysis, data: Measurements, noise: N
     scatter = _scatter(first)
     designs = []
     if scatter > FIT_RATIO * expected:
-        try:
+        with contextlib.suppress(DegenerateDataError):   # nothing pinned down at that scatter: the fit stands
             designs.append(_pin_down(start, analysis, noise, limit_m, eliminate=True, scatter=scatter, data=used))
-        except DegenerateDataError:
-            pass                    # nothing is pinned down at that scatter: the fit stands as it is
     designs += [first.design, _pin_down(start, analysis, noise, limit_m, eliminate=False, data=used)]
     # simplest first; a design equal to one before it is the same fit
     fits, seen = [], {}
@@ -670,8 +722,9 @@ def _fit(design: _Design, data: Measurements, noise: Noise, options: _Options, f
         notes.append(f"{int(runs.sum())} point(s) standing out in runs of consecutive poses "
                      f"({_listed_rows(data, rows[out][runs])}): a systematic error, not blunders; kept in the fit")
     if (out & ~gross).any():
-        notes.append(f"{int((out & ~gross).sum())} point(s) beyond the outlier bar but within {GROSS_FACTOR:g} times it: "
-                     "the tail of an effect the model leaves out as much as blunders; kept in the fit")
+        notes.append(f"{int((out & ~gross).sum())} point(s) beyond the outlier bar but within "
+                     f"{GROSS_FACTOR:g} times it: the tail of an effect the model leaves out as much as blunders; "
+                     "kept in the fit")
     if not blunder.any() or options.loss != "linear" or options.on_outliers != "refit":
         return _Fit(design, data, solution, _outlier_status(check, runs, aside=False), out, held, tuple(notes))
     aside = np.zeros(data.mask.shape, dtype=bool)
@@ -802,7 +855,8 @@ def _orientation_check(design: _Design, solution: Solution, data: Measurements) 
     """A wrong orientation convention converges quietly: test the rotations, with or without stated sigmas."""
     vectors = design.problem.errors(solution.p)
     rot = design.problem.rotation_errors(solution.p)[data.rot_mask]
-    found = misfit_notes(vectors[data.mask], rot, characteristic_length_m=characteristic_length(data.positions[data.mask]),
+    found = misfit_notes(vectors[data.mask], rot,
+                         characteristic_length_m=characteristic_length(data.positions[data.mask]),
                          sigma_rot_rad=None if data.sigma_rot is None else data.sigma_rot[data.rot_mask])
     rms = float(np.degrees(np.sqrt(np.mean(np.sum(rot ** 2, axis=1)))))
     if not found:

@@ -399,7 +399,8 @@ def coverage(problem: Problem, p: np.ndarray, covariance: np.ndarray, predicted_
     ratio = _spread(measured) / ws if ws > 0 else 1.0
     # the uncertainty at (at most 300 of) the measured poses and at the workspace's configurations
     if factor is not None and not problem.weighted:
-        at_measured = float(np.sqrt(max(np.trace(covariance @ (factor.T @ factor)), 0.0) / max(int(data.mask.sum()), 1)))
+        at_measured = float(np.sqrt(max(np.trace(covariance @ (factor.T @ factor)), 0.0)
+                                    / max(int(data.mask.sum()), 1)))
     else:
         pick = np.linspace(0, data.n_poses - 1, min(data.n_poses, UNCERTAINTY_POSES)).astype(int)
         at_measured = _uncertainty(problem, p, q[pick], covariance)

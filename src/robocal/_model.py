@@ -219,7 +219,7 @@ class RobotModel:
     def has_backlash(self) -> bool:
         return any(f.backlash_theta or f.backlash_r for f in self.frames)
 
-    def replace(self, **changes) -> "RobotModel":
+    def replace(self, **changes) -> RobotModel:
         return replace(self, **changes)
 
     def derived(self, key: Hashable, make: Callable[[], Any]) -> Any:

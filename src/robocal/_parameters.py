@@ -22,7 +22,7 @@ import fnmatch
 import types
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
-from typing import Any, Iterable
+from typing import Any
 
 import numpy as np
 

@@ -21,8 +21,20 @@ from scipy.spatial.transform import Rotation
 from ._arguments import FLAG, SEED, checked, is_a, names_in, optional, readings_of, shaped, whole
 from ._arrays import frozen, read_only
 from ._errors import InputError
-from ._kinematics import (CHUNK_POSES, LARGE_POSES, Workspace, evaluate_state, frame_approach, jacobian_columns,
-                          joint_turns, layout, moved_state, moves_rigidly, pass_buffers, workspace)
+from ._kinematics import (
+    CHUNK_POSES,
+    LARGE_POSES,
+    Workspace,
+    evaluate_state,
+    frame_approach,
+    jacobian_columns,
+    joint_turns,
+    layout,
+    moved_state,
+    moves_rigidly,
+    pass_buffers,
+    workspace,
+)
 from ._linalg import r_factor, reduced
 from ._measurements import Measurements, Noise, approach_of
 from ._model import RobotModel

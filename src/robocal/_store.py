@@ -717,7 +717,7 @@ class Store:
                 self._backend = None
                 raise
 
-    def __enter__(self) -> "Store":
+    def __enter__(self) -> Store:
         return self
 
     def __exit__(self, *exc) -> None:
@@ -749,9 +749,9 @@ class Store:
             raise InputError(f"damaged store content ({' '.join(str(e).split())[:200]})", source=self.location,
                              where=where) from None
         except Exception as e:
-            if self._backend is None or not isinstance(e, self._backend.errors):
-                if type(e).__module__.split(".")[0] not in ("sqlite3", "psycopg"):
-                    raise
+            if ((self._backend is None or not isinstance(e, self._backend.errors))
+                    and type(e).__module__.split(".")[0] not in ("sqlite3", "psycopg")):
+                raise
             raise InputError(f"store error: {' '.join(str(e).split())[:300] or type(e).__name__}",
                              source=self.location, where=where) from None
 

@@ -44,7 +44,8 @@ def register(sub) -> None:
     p.add_argument("--backlash-side", choices=BACKLASH_SIDES, default=None,
                    help="where each joint rests in its lost motion in this campaign: on the side its gravity load "
                         "pushes it to, or behind its last move (default: the model file's backlash.side)")
-    p.add_argument("--loss", default="linear", choices=LOSSES, help="least-squares loss (robust ones bend for outliers)")
+    p.add_argument("--loss", default="linear", choices=LOSSES,
+                   help="least-squares loss (robust ones bend for outliers)")
     p.add_argument("--register-base", action="store_true",
                    help="start the base pose from a rigid registration of the nominal robot on the data")
     p.add_argument("--limit-mm", type=common.limit_mm, metavar="X|LIMIT.json",
@@ -128,8 +129,8 @@ def _diagnosis(args, model, data, best, noise):
 def run(args) -> int:
     from .._calibration import calibrate, compare
     from .._files.model import calibration_record, model_to_yaml
-    from .._measurements import Noise
     from .._files.result import result_files, sidecar_path
+    from .._measurements import Noise
     from .._presentation.text import calibration_summary, comparison_summary
 
     if args.contacts and args.record:

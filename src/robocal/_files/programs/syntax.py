@@ -213,7 +213,7 @@ class Tokens(list):
 
     partner: list[int]
 
-    def part(self, a: int, b: int) -> "Tokens":
+    def part(self, a: int, b: int) -> Tokens:
         """Tokens ``a`` to ``b`` with their partners renumbered (a bracket whose partner is outside: -1)."""
         out = Tokens(self[a:b])
         out.partner = [p - a if a <= p < b else -1 for p in self.partner[a:b]]
