@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextlib
 from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
+from typing import cast
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -158,7 +159,7 @@ def judge_against_limit(limit, in_use: AccuracyInUse) -> LimitJudgement:
     AccuracyLimit or metres)."""
     value = float(getattr(limit, "limit", limit))
     key = "cross-validation" if in_use.method == "cross-validation" else "validation_after"
-    mean = float(in_use.position_after.mean)
+    mean = float(cast(float, in_use.position_after.mean))
     ratio = mean / value
     return LimitJudgement(limit_m=value, compared=key, mean_error_m=mean, ratio=ratio,
                           reached=bool(ratio <= LIMIT_REACHED_WITHIN))
@@ -432,7 +433,7 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
     fit = _PoseErrors.of(model, data, design.problem, before, solution.p, design)
     val = None if validation is None else _PoseErrors.of(model_from_vector(start, before), validation, None, None,
                                                          calibrated, design)
-    stats = fit.summary(val, rotation=False)
+    stats = cast(ErrorSummary, fit.summary(val, rotation=False))     # None only for rotations
     judged = None if limit is None else judge_against_limit(limit, in_use)
     if judged is not None:
         checks.append(limit_check(judged))
@@ -854,10 +855,11 @@ def _unknown_rotations(model: RobotModel) -> tuple[str, ...]:
 def _orientation_check(design: _Design, solution: Solution, data: Measurements) -> Check:
     """A wrong orientation convention converges quietly: test the rotations, with or without stated sigmas."""
     vectors = design.problem.errors(solution.p)
-    rot = design.problem.rotation_errors(solution.p)[data.rot_mask]
+    rot_mask = cast(np.ndarray, data.rot_mask)      # set: called for data with orientations only
+    rot = cast(np.ndarray, design.problem.rotation_errors(solution.p))[rot_mask]
     found = misfit_notes(vectors[data.mask], rot,
                          characteristic_length_m=characteristic_length(data.positions[data.mask]),
-                         sigma_rot_rad=None if data.sigma_rot is None else data.sigma_rot[data.rot_mask])
+                         sigma_rot_rad=None if data.sigma_rot is None else data.sigma_rot[rot_mask])
     rms = float(np.degrees(np.sqrt(np.mean(np.sum(rot ** 2, axis=1)))))
     if not found:
         return Check("orientation fit", "pass", f"rotation residuals {rms:.3g} deg RMS")
@@ -1063,7 +1065,7 @@ def _problem_of(model: RobotModel, data: Measurements, compliance: bool) -> tupl
 
 def provenance(data: Measurements, validation: Measurements | None = None) -> dict:
     """Software, date and the inputs (source, SHA-256, pose labels in the order of the error rows)."""
-    prov = {"software": "robocal", "version": __version__,
+    prov: dict[str, object] = {"software": "robocal", "version": __version__,
             "date": datetime.now(timezone.utc).isoformat(timespec="seconds")}
     for key, d in (("data", data), ("validation", validation)):
         if d is not None:
@@ -1115,7 +1117,7 @@ def _nested_test(small: CalibrationResult, large: CalibrationResult, data: Measu
     """F test of ``large`` against ``small`` nested in it, and the held-out RMS: (F, p, helped, verdict)."""
     from scipy.stats import f as f_dist
 
-    n_rows = 3 * int(data.mask.sum()) + (3 * int(data.rot_mask.sum()) if data.has_orientation else 0)
+    n_rows = 3 * int(data.mask.sum()) + (3 * int(cast(np.ndarray, data.rot_mask).sum()) if data.has_orientation else 0)
     p1, p2 = len(small.parameters), len(large.parameters)
     ssr1 = small.sigma0 ** 2 * (n_rows - p1)
     ssr2 = large.sigma0 ** 2 * (n_rows - p2)
@@ -1123,7 +1125,8 @@ def _nested_test(small: CalibrationResult, large: CalibrationResult, data: Measu
     F = max((ssr1 - ssr2) / dfn, 0.0) / (ssr2 / dfd)
     p_value = float(f_dist.sf(F, dfn, dfd))
     # in use: the held-out set's RMS, or the cross-validated one (the same folds for both fits)
-    v1, v2 = small.in_use.position_after.rms, large.in_use.position_after.rms
+    in_use1, in_use2 = cast(AccuracyInUse, small.in_use), cast(AccuracyInUse, large.in_use)
+    v1, v2 = cast(float, in_use1.position_after.rms), cast(float, in_use2.position_after.rms)
     helped = p_value < alpha and v2 < v1
     detail = f"{'held-out' if validation is not None else 'cross-validated'} RMS {v1 * 1e3:.4f} mm -> {v2 * 1e3:.4f} mm"
     verdict = (f"{what} helped: {detail}; F = {F:.3g}, p = {p_value:.2g}" if helped else

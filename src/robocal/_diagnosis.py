@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from itertools import combinations
+from typing import cast
 
 import numpy as np
 
@@ -931,7 +932,8 @@ def rotation_convention(model, data: Measurements, result, noise=None, *, fit: _
 
     fit = _fit_of(model, data, result, noise, fit)
     data = fit.data     # a change of each row alone: the poses diagnosed are enough
-    R = np.where(data.rot_mask[..., None, None], data.rotations, np.eye(3))
+    rot_mask = cast(np.ndarray, data.rot_mask)      # set: the data have orientations
+    R = np.where(rot_mask[..., None, None], cast(np.ndarray, data.rotations), np.eye(3))
     cands = [("the measured rotations are the inverses (transposes) of the marker orientations",
               np.swapaxes(R, -1, -2))]
     flat = Rotation.from_matrix(R.reshape(-1, 3, 3))
@@ -941,7 +943,7 @@ def rotation_convention(model, data: Measurements, result, noise=None, *, fit: _
         cands.append(((f"Euler angles in the sequence {seq} were read as {other} "
                       f"({'intrinsic' if other.isupper() else 'extrinsic'} for "
                       f"{'intrinsic' if seq.isupper() else 'extrinsic'})"), alt))
-    found = [_refit_found(fit, _with(data, rotations=np.where(data.rot_mask[..., None, None], Rh, np.nan)),
+    found = [_refit_found(fit, _with(data, rotations=np.where(rot_mask[..., None, None], Rh, np.nan)),
                           "rotation convention", why, "in that convention", 1.0 + np.log2(len(cands)),
                           fix="declare the orientation convention of the rotation columns (--orientation)")
              for why, Rh in cands]

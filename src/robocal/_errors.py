@@ -5,6 +5,7 @@ from __future__ import annotations
 import difflib
 import os
 import sys
+import types
 import warnings
 
 # this package's folder: a warning is attributed to the first frame outside it
@@ -92,7 +93,8 @@ def warn(message: str, category: type[Warning]) -> None:
     category : type
         A subclass of ``Warning`` (robocal's are ``RobocalWarning``'s).
     """
-    frame, level = sys._getframe(1), 2          # level 2: the frame that called this function
+    frame: types.FrameType | None = sys._getframe(1)
+    level = 2                                   # level 2: the frame that called this function
     while frame is not None and frame.f_code.co_filename.startswith(_PACKAGE):
         frame, level = frame.f_back, level + 1
     warnings.warn(message, category, stacklevel=level)

@@ -22,6 +22,7 @@ what the joint limits allow, and the parameters' uncertainty carried over the wh
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import cast
 
 import numpy as np
 
@@ -394,7 +395,8 @@ def coverage(problem: Problem, p: np.ndarray, covariance: np.ndarray, predicted_
     span = np.ptp(q, axis=0) / np.where(allowed > 0, allowed, 1.0)
     measured = data.positions[data.mask]
     pts = measured.reshape(-1, 3)
-    box = (tuple(float(v) for v in pts.min(axis=0)), tuple(float(v) for v in pts.max(axis=0)))
+    box = cast("tuple[tuple[float, float, float], tuple[float, float, float]]",   # (x, y, z) each
+               (tuple(float(v) for v in pts.min(axis=0)), tuple(float(v) for v in pts.max(axis=0))))
     ws = _spread(predicted_workspace)
     ratio = _spread(measured) / ws if ws > 0 else 1.0
     # the uncertainty at (at most 300 of) the measured poses and at the workspace's configurations

@@ -31,6 +31,7 @@ import math
 import sys
 import threading
 from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 
@@ -215,23 +216,25 @@ def _make_layout(model: RobotModel) -> Layout:
     names = params.names
     frame0, marker0 = params.frame0.tolist(), params.marker0.tolist()
 
-    step_param, step_is_rot, step_frame = [], [], []
+    params_of_steps: list[int] = []
+    step_is_rot: list[bool] = []
+    frames_of_steps: list[int] = []
     for k in range(N_BASE):
-        step_param.append(k)
+        params_of_steps.append(k)
         step_is_rot.append(k >= 3)
-        step_frame.append(-1)
+        frames_of_steps.append(-1)
     for i in range(nf):
         for k in range(N_FRAME_STEPS):
-            step_param.append(frame0[i] + k)
+            params_of_steps.append(frame0[i] + k)
             step_is_rot.append(k in ROTATION_STEPS)
-            step_frame.append(i)
+            frames_of_steps.append(i)
     for m in range(nm):
         for k in range(N_MARKER):
-            step_param.append(marker0[m] + k)
+            params_of_steps.append(marker0[m] + k)
             step_is_rot.append(k >= 3)
-            step_frame.append(-2 - m)
-    step_param = np.array(step_param)
-    step_frame = np.array(step_frame)
+            frames_of_steps.append(-2 - m)
+    step_param = np.array(params_of_steps)
+    step_frame = np.array(frames_of_steps)
     n_steps = len(step_param)
 
     ancestors = np.zeros((nf, nf), dtype=bool)  # [i, k]: k is i or an ancestor of i
@@ -244,8 +247,8 @@ def _make_layout(model: RobotModel) -> Layout:
     marker_path = np.zeros((nm, n_steps), dtype=bool)
     for m, mk in enumerate(model.markers):
         marker_path[m, :N_BASE] = True
-        for k in np.nonzero(ancestors[mk.frame])[0]:
-            marker_path[m, _frame_steps(k)] = True
+        for anc_frame in np.nonzero(ancestors[mk.frame])[0]:
+            marker_path[m, _frame_steps(anc_frame)] = True
         s0 = N_BASE + N_FRAME_STEPS * nf + N_MARKER * m
         marker_path[m, s0:s0 + N_MARKER] = True
     csteps, cparams, anc, desc = _compliant_rows(frame0, ancestors, n_steps)
@@ -314,7 +317,7 @@ def _vector_rows(model: RobotModel):
     return FRAME_ROW0 + FRAME_ROWS * nf + MARKER_ROWS * nm, frame_row, parent_row, marker_row, rows
 
 
-def _frame_steps(i: int) -> np.ndarray:
+def _frame_steps(i: int | np.integer) -> np.ndarray:
     return N_BASE + N_FRAME_STEPS * i + np.arange(N_FRAME_STEPS)
 
 
@@ -853,7 +856,8 @@ def _make_correction_plan(lay, steps, act) -> _CorrectionPlan | None:
     parent_z = tuple((r, f) for r, (_, f, o) in enumerate(rows) if o in (FrameStep.GAMMA, FrameStep.B))
     tra = np.nonzero(~rot[cols])[0]
     pairs = [(frozenset(np.nonzero(desc[:, c])[0]), frozenset(np.nonzero(anc[:, c])[0])) for c in cols]
-    slot_of, groups, r = {}, [], 0
+    slot_of: dict[tuple[frozenset, frozenset], int] = {}
+    groups, r = [], 0
     while r < len(pairs):
         r1 = r + 1
         while r1 < len(pairs) and pairs[r1] == pairs[r]:
@@ -863,11 +867,11 @@ def _make_correction_plan(lay, steps, act) -> _CorrectionPlan | None:
     # each distinct sum once, smallest first, from the largest one already built inside it
     fills = []
     for part in (0, 1):
-        built = {}
+        built: dict[frozenset, int] = {}
         for s in sorted({pair[part] for pair in slot_of}, key=len):
             users = [slot for pair, slot in slot_of.items() if pair[part] == s]
             if s:
-                base = max((t for t in built if t < s), key=len, default=frozenset())
+                base: frozenset = max((t for t in built if t < s), key=len, default=frozenset())
                 fills.append((users[0], part, built[base] if base else -1, tuple(int(i) for i in sorted(s - base))))
                 built[s] = users[0]
                 users = users[1:]
@@ -1154,6 +1158,7 @@ def _backlash_state(model, lay, p, qf, *, compliance, orientations, payload_mass
         C1, msub = _mass_sums(model, lay, ps0, payload_mass)
         M, A, u = _moments(model, ps0, C1, msub)
     if gravity:
+        assert ps0 is not None and M is not None and msub is not None    # made above: gravity is on
         loads = _frame_loads(model, lay, ps0, M, msub)
         F = np.array([f.backlash_friction for f in model.frames])
         w = np.array([f.backlash_width for f in model.frames])
@@ -1164,6 +1169,7 @@ def _backlash_state(model, lay, p, qf, *, compliance, orientations, payload_mass
     sides = sides * moving
     defl = None
     if compliance and np.any(ks != 0.0):
+        assert M is not None                # made above: compliance is on
         d = [k * Mk if k else 0.0 for k, Mk in zip(ks, M)]
         defl = [tuple(d[3 * i:3 * i + 3]) for i in range(nf)]
     ps = kinematic_pass(model, lay, p, qf + sides * b, defl=defl, orientations=orientations, take=take)
@@ -1183,10 +1189,10 @@ def jacobian_columns(model: RobotModel, lay: Layout, st: _State, cols_idx: np.nd
     if not st.compliance:
         if is_step.all():
             return _step_columns(lay, st.ps, m, steps, rows)
-        out = np.zeros((len(cols_idx), st.ps.P.shape[1], rows))
+        out = np.zeros((len(cols_idx), cast(np.ndarray, st.ps.P).shape[1], rows))
         out[is_step] = _step_columns(lay, st.ps, m, steps, rows)
         return out
-    out = np.empty((len(cols_idx), st.ps.P.shape[1], rows))
+    out = np.empty((len(cols_idx), cast(np.ndarray, st.ps.P).shape[1], rows))
     # step columns written in place when they are one block (the usual order: geometry, then K)
     sblock = _block(is_step)
     cols = _step_columns(lay, st.ps, m, steps, rows, out=None if sblock is None else out[sblock])
@@ -1207,7 +1213,7 @@ def jacobian_columns(model: RobotModel, lay: Layout, st: _State, cols_idx: np.nd
     ki = [where[int(k)] for k in kk]
     kblock = _block(is_k)
     for b in range(rows):
-        out[is_k if kblock is None else kblock, :, b] = cpc[b, ki] * st.M[kk]
+        out[is_k if kblock is None else kblock, :, b] = cpc[b, ki] * cast(np.ndarray, st.M)[kk]
     rest = ~is_step & ~is_k          # backlash: not a step, nothing moves without its state
     if rest.any():
         out[rest] = 0.0
@@ -1329,7 +1335,7 @@ def evaluate(model: RobotModel, q: np.ndarray, p: np.ndarray | None = None, *, j
             frames_out[:, i, :3, 3] = ps.O[i]
             frames_out[:, i, 3, 3] = 1.0
     # copies: the evaluation's arrays are its own, and the passes' buffers go back to the model's workspace
-    out = Evaluation(positions=ps.P.transpose(1, 0, 2).copy(), rotations=rotations, jacobian=J,
+    out = Evaluation(positions=cast(np.ndarray, ps.P).transpose(1, 0, 2).copy(), rotations=rotations, jacobian=J,
                      moments=None if st.M is None else st.M.T, frames=frames_out)
     buffers = pass_buffers(st)
     del st, ps
@@ -1372,13 +1378,14 @@ def gravity_loads(model: RobotModel, q, *, payload_mass=None) -> np.ndarray:
     p[lay.compliant_params] = 0.0
     st = evaluate_state(model, lay, p, q @ model.coupling_matrix.T, compliance=True, orientations=False,
                          payload_mass=payload_mass)
+    M, msub = cast(np.ndarray, st.M), cast(np.ndarray, st.msub)     # made: compliance is on
     g = np.asarray(model.gravity, dtype=float)
     loads = np.zeros((q.shape[0], model.n_frames))
     for i, f in enumerate(model.frames):
         if f.joint == "revolute":
-            loads[:, i] = st.M[3 * i]
+            loads[:, i] = M[3 * i]
         elif f.joint == "prismatic":
-            loads[:, i] = st.msub[i] * (st.ps.R[i][:, :, 2] @ g)
+            loads[:, i] = msub[i] * (st.ps.R[i][:, :, 2] @ g)
     return loads @ model.coupling_matrix
 
 

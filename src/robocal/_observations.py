@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import copy
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -30,6 +31,9 @@ from ._measurements import Measurements, Noise
 from ._model import RobotModel
 from ._parameters import parameter_vector
 from ._problem import Problem
+
+if TYPE_CHECKING:
+    from ._kinematics import _State
 
 ROW_KINDS = ("position", "rotation", "socket", "plane", "bar", "distance")
 
@@ -104,7 +108,7 @@ class ContactProblem:
                              if (kp := contacts.known_plane(g.target)) is not None]
         self.bars = contacts.groups("bar")
         self.pairs = contacts.distance_pairs()
-        self._cache = None
+        self._cache: _State | None = None
         self._initial_nuisance(parameter_vector(model))
         self._set_free(free)
 

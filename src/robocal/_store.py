@@ -302,7 +302,7 @@ def _covariance(c: StoredCalibration, index: list) -> np.ndarray:
     return c.correlation[np.ix_(index, index)] * np.outer(std, std)
 
 
-def _pair(a: StoredCalibration, b: StoredCalibration, families):
+def _pair(a: StoredCalibration, b: StoredCalibration, families) -> tuple[list, list, np.ndarray, np.ndarray]:
     """(names, template changes, differences, combined covariance) of two calibrations' common judged
     parameters."""
     ja, jb = _judged(a, families), _judged(b, families)

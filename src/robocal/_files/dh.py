@@ -146,7 +146,7 @@ def dh_csv(model: RobotModel, *, units: str = "mm-deg", max_offset: float | None
 class _Table:
     """The rows of a DH table file as SI numbers by column base name, with the file named in errors."""
 
-    def __init__(self, path):
+    def __init__(self, path) -> None:
         self.source = str(path)
         text, _ = read_text(path)
         numbered = [(i, ln) for i, ln in enumerate(text.splitlines(), 1)

@@ -181,7 +181,7 @@ def _in_use(doc: _Doc, d: dict | None) -> AccuracyInUse | None:
         return None
     w = "in_use"
     k = doc.get(d, "k", w, int, optional=True)
-    stats = {key: _use_stats(doc, doc.get(d, key, w, dict, optional=True), f"{w}.{key}")
+    stats: dict[str, Any] = {key: _use_stats(doc, doc.get(d, key, w, dict, optional=True), f"{w}.{key}")
              for key in ("position_before", "position_after", "rotation_before", "rotation_after", "fit_after")}
     for key in ("position_before", "position_after", "fit_after"):
         if stats[key] is None:

@@ -384,14 +384,14 @@ def _parameter_tables(d: dict, nominal: dict, units: dict, result: CalibrationRe
 
     other = [n for n in ident.get("candidates", []) if n.split(".", 1)[0] not in frames]
     other += [n for n in est if n not in other and n.split(".", 1)[0] not in frames]
-    rows = []
+    other_rows = []
     for n in other:
         unit = units.get(n, est[n]["unit"] if n in est else "")
-        rows.append(f'<tr><td class="name">{_e(n)}</td><td>{_e(_display(unit)[0])}</td>'
-                    + "".join(value_cells(n, unit)) + status_cell(n) + "</tr>")
-    other_table = (_table(["parameter", "unit", "nominal", "identified", "change", "std dev", "I / E"], rows,
+        other_rows.append(f'<tr><td class="name">{_e(n)}</td><td>{_e(_display(unit)[0])}</td>'
+                          + "".join(value_cells(n, unit)) + status_cell(n) + "</tr>")
+    other_table = (_table(["parameter", "unit", "nominal", "identified", "change", "std dev", "I / E"], other_rows,
                           cls="params", num_from=2)
-                   if rows else "<p>No base or marker parameters were considered.</p>")
+                   if other_rows else "<p>No base or marker parameters were considered.</p>")
     return frame_table, other_table, note
 
 
