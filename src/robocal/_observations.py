@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import copy
 from dataclasses import replace
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
 
@@ -31,9 +31,6 @@ from ._measurements import Measurements, Noise
 from ._model import RobotModel
 from ._parameters import parameter_vector
 from ._problem import Problem
-
-if TYPE_CHECKING:
-    from ._kinematics import _State
 
 ROW_KINDS = ("position", "rotation", "socket", "plane", "bar", "distance")
 
@@ -108,7 +105,7 @@ class ContactProblem:
                              if (kp := contacts.known_plane(g.target)) is not None]
         self.bars = contacts.groups("bar")
         self.pairs = contacts.distance_pairs()
-        self._cache: _State | None = None
+        self._cache: Any = None     # the last evaluation (the kinematics' state, a private type)
         self._initial_nuisance(parameter_vector(model))
         self._set_free(free)
 
