@@ -170,8 +170,7 @@ def test_a_passing_fit_is_diagnosed_only_on_request(tmp_path, cli):
 
 # -- the real campaigns ----------------------------------------------------------------------------------
 
-REAL = [Path(__file__).parent / "data" / "real" / "serial_robots_datasets",
-        Path("/work/shared/data/real/serial_robots_datasets")]
+REAL = [Path(__file__).parent / "data" / "real" / "serial_robots_datasets"]
 # the classic DH tables the manufacturers publish (mm, deg) and the tool point along the flange z (mm)
 DH = {"UR5": ([(89.159, 0, 90), (0, -425, 0), (0, -392.25, 0), (109.15, 0, 90), (94.65, 0, -90), (82.3, 0, 0)], 31.0),
       "WAM": ([(0, 0, -90), (0, 0, 90), (550, 45, -90), (0, -45, 90), (300, 0, -90), (0, 0, 90), (60, 0, 0)], 44.0)}
