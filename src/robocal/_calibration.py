@@ -101,8 +101,6 @@ LIMIT_REACHED_WITHIN = 1.15
 # last step taken: its errors are those of the fit run to 1e-12 within a few 1e-10 m (they are
 # shown in micrometres), and it takes one Jacobian and one pass fewer.
 REGISTRATION_TOL = 1e-6
-# configurations within the limits over which the calibrated geometry is compared with the nominal one
-REACH_POSES = 150
 
 
 @dataclass(frozen=True)
@@ -418,9 +416,9 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
               + list(before_notes))
     cov = covariance(solution)
     estimates = _estimates(design, solution, cov)
-    in_use = _in_use(model, design, chosen, before, validation, (labels, k, grouping, fold_problems),
+    in_use = _in_use(design, chosen, before, validation, (labels, k, grouping, fold_problems),
                      register_validation)
-    reach = _reach(start, design, solution.p, workspace_readings(start, REACH_POSES))
+    reach = _reach(start, design, solution.p, workspace_readings(start))
     square = solution.jacobian.shape[0] == solution.jacobian.shape[1] and solution.row_kinds is None
     cover = coverage(design.problem, solution.p, cov.covariance, reach.predicted,
                      factor=solution.jacobian if square else None)
@@ -915,7 +913,7 @@ def workspace_change(start: RobotModel, p: np.ndarray, q: np.ndarray, markers, f
                            reach_m=radius, n_poses=len(q))
 
 
-def _in_use(model: RobotModel, design: _Design, fit: _Fit, before: np.ndarray, validation: Measurements | None,
+def _in_use(design: _Design, fit: _Fit, before: np.ndarray, validation: Measurements | None,
             folds: tuple, register: bool) -> AccuracyInUse:
     """The accuracy in use before and after calibration: on ``validation`` when given (with base and
     markers registered on it for both models when ``register``), else cross-validated on the fitted

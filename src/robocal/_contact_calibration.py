@@ -15,7 +15,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ._arguments import FRACTION, NAMES, checked, is_a, names_in, noise_of, one_of, optional, shaped, whole
-from ._calibration import REACH_POSES, ErrorStats, ParameterEstimate, error_stats, workspace_change
+from ._calibration import ErrorStats, ParameterEstimate, error_stats, workspace_change
 from ._checks import (
     Check,
     contact_fit_check,
@@ -336,7 +336,7 @@ def calibrate_contacts(model: RobotModel, contacts: Contacts, *, data: Measureme
                                         float(cov.std[i]), family=lay[n].family, quantity=lay[n].quantity)
                       for i, n in enumerate(ident.identified))
     calibrated = model_from_vector(model, sol.p[:prob.n_robot])
-    reach = workspace_change(model, sol.p[:prob.n_robot], workspace_readings(model, REACH_POSES),
+    reach = workspace_change(model, sol.p[:prob.n_robot], workspace_readings(model),
                              tuple(dict.fromkeys(contacts.marker)), ident.identified)
     checks += [plausibility_check(estimates, tolerances(model), {}, workspace=reach),
                correlation_check([e.name for e in estimates], cov.correlation[:k, :k])]

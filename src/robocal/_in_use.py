@@ -41,9 +41,10 @@ MAX_FOLDS = 20
 # eigenvalues of a fold's normal matrix (unit columns) below this share of the largest are left out:
 # a fold that alone determined a direction leaves the others unable to (that direction keeps its value)
 FOLD_RCOND = 1e-12
-# configurations drawn within the joint limits to describe the workspace, and (at most) the poses
-# the parameters' uncertainty is carried to, there and at the measured poses
-WORKSPACE_POSES = 300
+# configurations drawn within the joint limits to describe the workspace (what the calibrated geometry
+# does there, the spread of its points), and (at most) the poses the parameters' uncertainty is
+# carried to, there and at the measured poses
+WORKSPACE_POSES = 150
 UNCERTAINTY_POSES = 100
 WORKSPACE_SEED = 20240601
 
@@ -406,7 +407,7 @@ def coverage(problem: Problem, p: np.ndarray, covariance: np.ndarray, predicted_
     else:
         pick = np.linspace(0, data.n_poses - 1, min(data.n_poses, UNCERTAINTY_POSES)).astype(int)
         at_measured = _uncertainty(problem, p, q[pick], covariance)
-    at_workspace = _uncertainty(problem, p, workspace_readings(problem.model)[:UNCERTAINTY_POSES], covariance)
+    at_workspace = _uncertainty(problem, p, workspace_readings(problem.model, UNCERTAINTY_POSES), covariance)
     return Coverage(joint_span=np.minimum(span, 1.0), joint_ranges=tuple((float(a), float(b)) for a, b in
                                                                        zip(q.min(axis=0), q.max(axis=0))),
                     box=box, spread_ratio=float(ratio), uncertainty_measured=at_measured,
