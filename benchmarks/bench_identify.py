@@ -21,7 +21,8 @@ import scipy
 from scipy.optimize import least_squares
 
 import robocal as rc
-from robocal.identification import Problem, solve as library_solve
+from robocal.identification import Problem
+from robocal.identification import solve as library_solve
 from robocal.kinematics import parameter_vector
 
 # the baseline's tolerances: those of the library's solve
@@ -103,8 +104,8 @@ def main(argv=None):
         rep = args.repeat if n <= 1000 else max(1, args.repeat // 2)
         t_an, sol = best_of(solve(m, data, ("geometric",), True), rep)
         t_fd, sol_fd = best_of(solve(m, data, ("geometric",), False), max(1, rep // 2))
-        warm(lambda: rc.calibrate(m, data))
-        t_cal, _ = best_of(lambda: rc.calibrate(m, data), rep)
+        warm(lambda data=data: rc.calibrate(m, data))
+        t_cal, _ = best_of(lambda data=data: rc.calibrate(m, data), rep)
         print(f"| {n} | {t_an * 1e3:.1f} | {t_fd * 1e3:.1f} | {t_fd / t_an:.1f}x | {t_cal * 1e3:.1f} | "
               f"{sol.nfev} (FD {sol_fd.nfev}) |")
     print("\n## Compliance against geometry alone, same data (6R arm with masses, compliant truth)\n")
@@ -116,10 +117,10 @@ def main(argv=None):
     for n in (48, 1000, 10_000):
         _, data = rc.simulate(m, n, seed=1, parameters=both, true_compliance={"j2.k_theta": 4e-6, "j3.k_theta": 6e-6})
         rep = args.repeat if n <= 1000 else max(1, args.repeat // 2)
-        warm(lambda: rc.calibrate(m, data))
-        t_g, _ = best_of(lambda: rc.calibrate(m, data), rep)
-        warm(lambda: rc.calibrate(m, data, parameters=both))
-        t_c, _ = best_of(lambda: rc.calibrate(m, data, parameters=both), rep)
+        warm(lambda data=data: rc.calibrate(m, data))
+        t_g, _ = best_of(lambda data=data: rc.calibrate(m, data), rep)
+        warm(lambda data=data: rc.calibrate(m, data, parameters=both))
+        t_c, _ = best_of(lambda data=data: rc.calibrate(m, data, parameters=both), rep)
         s_g, _ = best_of(solve(m, data, ("geometric",), True), rep)
         s_c, _ = best_of(solve(m, data, both, True), rep)
         s_fd, _ = best_of(solve(m, data, both, False), 1)

@@ -107,7 +107,7 @@ def bench_startup(repeats=7):
             t = time.perf_counter()
             subprocess.run(argv, stdout=subprocess.DEVNULL, check=True)
             best[label] = min(best.get(label, np.inf), time.perf_counter() - t)
-    print("\n| command | best of %d (s) | vs import numpy |" % repeats)
+    print(f"\n| command | best of {repeats} (s) | vs import numpy |")
     print("|---|---|---|")
     base = best["python -c 'import numpy'"]
     for label, t in best.items():

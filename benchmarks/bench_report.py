@@ -2,6 +2,10 @@
 
     python benchmarks/bench_report.py                      # 20,000 poses, baseline commit 2f0763d
     python benchmarks/bench_report.py --poses 2000 --baseline HEAD~3
+    python benchmarks/bench_report.py --humanoid --baseline 7fe2faf   # 135 parameters, 19 joints
+
+``--humanoid``: the humanoid-sized tree of tests/robots.py (19 joints, three fixed frames, five
+markers, masses from the geometry), 400 poses (320 fitted), geometric and compliance parameters.
 
 The campaign: a 6R arm measured with positions and orientations (a tracker with a 6D probe), 20 %
 of the poses held out, written as model YAML and measurement CSVs and calibrated by `robocal
@@ -51,6 +55,23 @@ def campaign(folder: Path, poses: int) -> Path:
     return folder / "out" / "result.json"
 
 
+def humanoid_campaign(folder: Path, poses: int) -> Path:
+    """result.json of the humanoid-sized model of tests/robots.py on ``poses`` simulated poses."""
+    sys.path.insert(0, str(ROOT / "tests"))
+    from robots import humanoid
+
+    model = humanoid()
+    _, data = rc.simulate(model, poses, parameters=("geometric", "compliance"), seed=3)
+    n_fit = int(0.8 * poses)
+    rc.write_model(model, folder / "model.yaml")
+    rc.write_measurements(data.subset(slice(0, n_fit)), folder / "fit.csv", model=model)
+    rc.write_measurements(data.subset(slice(n_fit, None)), folder / "validation.csv", model=model)
+    run([sys.executable, "-m", "robocal", "calibrate", str(folder / "model.yaml"), str(folder / "fit.csv"),
+         "--validation", str(folder / "validation.csv"), "--parameters", "geometric,compliance",
+         "--out", str(folder / "out")])
+    return folder / "out" / "result.json"
+
+
 def run(cmd, env=None) -> None:
     done = subprocess.run(cmd, env=env, capture_output=True, text=True)
     if done.returncode != 0:
@@ -78,12 +99,16 @@ def main() -> None:
     ap.add_argument("--poses", type=int, default=20_000)
     ap.add_argument("--baseline", default="2f0763d", help="commit whose report is the baseline")
     ap.add_argument("--repeat", type=int, default=2, help="best of this many runs of each report")
+    ap.add_argument("--humanoid", action="store_true", help="the humanoid-sized model (--poses default 400)")
     args = ap.parse_args()
+    if args.humanoid and args.poses == 20_000:
+        args.poses = 400
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         t = time.perf_counter()
-        result = campaign(tmp, args.poses)
-        print(f"campaign: {args.poses} poses, 6D, calibrated in {time.perf_counter() - t:.1f} s; "
+        result = (humanoid_campaign if args.humanoid else campaign)(tmp, args.poses)
+        print(f"campaign: {args.poses} poses, {'humanoid-sized' if args.humanoid else '6D'}, "
+              f"calibrated in {time.perf_counter() - t:.1f} s; "
               f"result.json {result.stat().st_size / 1e6:.1f} MB")
         base = tmp / "baseline"
         base.mkdir()

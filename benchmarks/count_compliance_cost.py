@@ -14,13 +14,19 @@ percent of one calibration.
 Mode ``none`` only prepares (imports, simulation, one warm-up call of each kind), ``g`` adds three
 geometric calibrations, ``c`` three with compliance, on the same data.
 """
-import sys, warnings
+import sys
+import warnings
+
 sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parent))
 from bench_identify import arm6r
+
 import robocal as rc
+
 warnings.simplefilter("ignore")
-m = arm6r(True); both = ("geometric", "compliance")
-_, data = rc.simulate(m, int(sys.argv[2]), seed=1, parameters=both, true_compliance={"j2.k_theta": 4e-6, "j3.k_theta": 6e-6})
+m = arm6r(True)
+both = ("geometric", "compliance")
+_, data = rc.simulate(m, int(sys.argv[2]), seed=1, parameters=both,
+                      true_compliance={"j2.k_theta": 4e-6, "j3.k_theta": 6e-6})
 rc.calibrate(m, data, parameters=("geometric",))          # warm caches (theory analysis)
 rc.calibrate(m, data, parameters=both)
 mode = sys.argv[1]

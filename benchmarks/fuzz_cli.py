@@ -40,9 +40,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 import matplotlib  # noqa: E402
 
 matplotlib.use("Agg")
+import fuzz_cases  # noqa: E402
 from hypothesis import HealthCheck, Phase, given, settings  # noqa: E402
 
-import fuzz_cases  # noqa: E402
 import robocal  # noqa: E402,F401
 import robocal.report  # noqa: E402,F401
 from robocal.cli import main  # noqa: E402
@@ -81,8 +81,8 @@ def _child(folder: Path, argv: list[str]) -> None:
         err = os.open("stderr.txt", os.O_WRONLY | os.O_CREAT | os.O_TRUNC)
         os.dup2(out, 1)
         os.dup2(err, 2)
-        sys.stdout = open(1, "w", closefd=False)
-        sys.stderr = open(2, "w", closefd=False)
+        sys.stdout = open(1, "w", closefd=False)  # noqa: SIM115 - the child's streams until it exits
+        sys.stderr = open(2, "w", closefd=False)  # noqa: SIM115
         code = main(argv)
     except BaseException:  # noqa: BLE001 - whatever escapes main is what we count
         traceback.print_exc()
@@ -118,7 +118,7 @@ class Runner:
     def reap(self) -> None:
         """Wait until one running case ends (or overruns the time limit) and count it."""
         while True:
-            for pid, (folder, start, argv, files) in list(self.running.items()):
+            for pid, (_folder, start, _argv, _files) in list(self.running.items()):
                 done, status, usage = os.wait4(pid, os.WNOHANG)
                 if done:
                     return self.count(pid, status, usage, None)

@@ -10,10 +10,14 @@ deep nesting, cycles, duplicate keys, huge numbers, other encodings, empty and b
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import re
+import sqlite3
+import tempfile
 import xml.etree.ElementTree as ET
+import zlib
 from pathlib import Path
 
 from hypothesis import strategies as st
@@ -34,6 +38,19 @@ def _urdf(n: int = 3) -> str:
 
 
 URDF = _urdf()
+
+# robot programs for the th8 model (docs/formats.md, "Robot programs"), one per dialect
+PROGRAMS = {
+    "prog.mod": (EXAMPLE / "program.mod").read_text(),
+    "prog.dat": "DEFDAT prog\nDECL E6AXIS XP1={A1 -97.3,A2 604.2,A3 324.84,A4 -68.1,A5 -17.008,A6 -169.804,E1 0.0}\n"
+                "DECL E6POS XP2={X 628.819,Y 962.752,Z 1135.675,A 10.0,B 20.0,C 30.0,S 'B011',T 'B000010'}\n"
+                "DECL FRAME TOOL={X 0.0,Y 0.0,Z 100.0,A 0.0,B 0.0,C 0.0}\nENDDAT\n",
+    "prog.src": "DEF prog( )\n  PTP {A1 -112.72, A2 469.4, A3 388.32, A4 39.23, A5 -25.59, A6 178.996} ; start\n"
+                "  LIN {X 375.660, Y -912.608, Z 929.978, A 45.0, B -30.0, C 170.0, S 6, T 2}\nEND\n",
+    "prog.script": "def prog():\n  home = [-1.698, 0.6042, 0.32484, -1.1886, -0.29684, -2.96364]\n"
+                   "  movej(home, a=1.4)\n"
+                   "  movel(p[0.628819, 0.962752, 1.135675, 0.1, 0.2, 0.3], a=1.2, v=0.25)\nend\n",
+}
 
 # values that broke number parsing, unit checks and argument types
 NASTY = ("0", "-0", "-1", "1e308", "-1e308", "1e400", "99999999999999999999999999", "9" * 5000, "nan", "inf",
@@ -132,7 +149,8 @@ def model_file(draw) -> bytes:
     if kind == "anchor":
         return MODEL.replace("units: {length: mm, angle: deg}", "units: &u {length: mm, angle: deg}\nx: *u").encode()
     if kind == "huge":
-        return MODEL.replace("r: 600", "r: " + draw(st.sampled_from(("1" * 400, "1e400", "-1e400", "1" * 5000)))).encode()
+        value = draw(st.sampled_from(("1" * 400, "1e400", "-1e400", "1" * 5000)))
+        return MODEL.replace("r: 600", "r: " + value).encode()
     if kind == "empty":
         return draw(st.sampled_from((b"", b"\n", b"---\n", b"# nothing\n", b"[]", b"3", b"null")))
     if kind == "binary":
@@ -188,8 +206,8 @@ def urdf_file(draw) -> bytes:
         n = draw(st.sampled_from((100, 10_000, 200_000)))
         return URDF.replace("</robot>", "<a>" * n + "</a>" * n + "</robot>").encode()
     if kind == "huge":
-        return URDF.replace('xyz="0 0 0.3"', 'xyz="0 0 ' + draw(st.sampled_from(("1e400", "1" * 400, "nan"))) + '"',
-                            1).encode()
+        value = draw(st.sampled_from(("1e400", "1" * 400, "nan")))
+        return URDF.replace('xyz="0 0 0.3"', 'xyz="0 0 ' + value + '"', 1).encode()
     if kind == "empty":
         return draw(st.sampled_from((b"", b"<robot/>", b'<robot name="r"></robot>', b"<?xml version='1.0'?>")))
     if kind == "binary":
@@ -223,7 +241,8 @@ def result_file(draw, base: str) -> bytes:
     if kind == "duplicate":
         return base.replace('"loss"', '"loss": "x", "loss"', 1).encode()
     if kind == "nan":
-        return base.replace('"nfev": ', '"nfev": NaN, "x": ', 1).replace('"sigma0_m": ', '"sigma0_m": Infinity, "y": ', 1).encode()
+        text = base.replace('"nfev": ', '"nfev": NaN, "x": ', 1)
+        return text.replace('"sigma0_m": ', '"sigma0_m": Infinity, "y": ', 1).encode()
     if kind == "huge":
         return base.replace('"nfev": ', '"nfev": ' + "9" * draw(st.sampled_from((30, 5000))) + ', "x": ', 1).encode()
     if kind == "empty":
@@ -255,6 +274,75 @@ def result_file(draw, base: str) -> bytes:
     return json.dumps(d).encode()
 
 
+# -- stores of calibrations: a real one, damaged ------------------------------------------------------
+
+@functools.lru_cache(maxsize=2)
+def store_bytes(result_text: str) -> bytes:
+    """A store holding the result twice as calibrations of robot R (type th8)."""
+    import robocal as rc
+
+    result = rc.io.result_from_dict(json.loads(result_text))
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "store.sqlite"
+        with rc.open_store(path, create=True) as store:
+            for at in ("2026-01-01", "2026-06-01"):
+                store.record(result, "R", robot_type="th8", at=at)
+        return path.read_bytes()
+
+
+# edits of a store's content that keep it a SQLite file
+STORE_EDITS = (
+    "UPDATE robocal_schema SET version = 99", "UPDATE robocal_schema SET version = 'x'", "DELETE FROM robocal_schema",
+    "INSERT INTO robocal_schema VALUES (2)", "UPDATE robocal_schema SET version = 1",
+    "DROP TABLE robocal_verifications",
+    "DROP TABLE robocal_calibrations", "UPDATE robocal_calibrations SET parameters = '[1, 2]'",
+    "UPDATE robocal_calibrations SET parameters = 'not json'", "UPDATE robocal_calibrations SET estimates = x'00'",
+    "UPDATE robocal_calibrations SET estimates = randomblob(8 * 54)",
+    "UPDATE robocal_calibrations SET checks = '[[1]]'",
+    "UPDATE robocal_calibrations SET accuracy = '{\"rms\": \"x\"}'",
+    "UPDATE robocal_calibrations SET accuracy = '{\"rms\": -1, \"n\": 0, \"source\": \"x\"}'",
+    "UPDATE robocal_calibrations SET accuracy = '[]'", "UPDATE robocal_calibrations SET in_use = '5'",
+    "UPDATE robocal_calibrations SET calibrated_model = 'nope'", "UPDATE robocal_calibrations SET inputs = '[]'",
+    "UPDATE robocal_calibrations SET calibrated_at = 'yesterday'", "UPDATE robocal_calibrations SET robot = 7",
+    "UPDATE robocal_calibrations SET verdict = x'ff'", "UPDATE robocal_models SET document = x'789c'",
+    "UPDATE robocal_models SET document = zeroblob(10)", "DELETE FROM robocal_models",
+)
+BAD_MODELS = (b'{"frames": 1}', b"[]", b"\xff\xfe", b'{"name": "x"}')
+
+
+@st.composite
+def store_file(draw, base: bytes) -> bytes:
+    kind = draw(st.sampled_from(("good",) * 3 + ("edit",) * 4 + ("model", "flip", "cut", "empty", "binary")))
+    if kind == "good":
+        return base
+    if kind == "empty":
+        return draw(st.sampled_from((b"", b"SQLite format 3\x00", b"\x00" * 4096)))
+    if kind == "binary":
+        return draw(st.binary(min_size=1, max_size=300))
+    if kind == "cut":
+        return base[:draw(st.integers(0, len(base) - 1))]
+    if kind == "flip":
+        data = bytearray(base)
+        for _ in range(draw(st.integers(1, 8))):
+            data[draw(st.integers(0, len(data) - 1))] = draw(st.integers(0, 255))
+        return bytes(data)
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "s.sqlite"
+        path.write_bytes(base)
+        with sqlite3.connect(path) as c:
+            try:
+                if kind == "model":
+                    c.execute("UPDATE robocal_models SET document = ?",
+                              (zlib.compress(draw(st.sampled_from(BAD_MODELS))),))
+                else:
+                    for edit in draw(st.lists(st.sampled_from(STORE_EDITS), min_size=1, max_size=2)):
+                        c.execute(edit)
+            except sqlite3.Error:
+                pass                    # an edit the schema refuses: the store stays as it was
+        c.close()
+        return path.read_bytes()
+
+
 # -- command lines -------------------------------------------------------------------------------
 
 def _value(draw, good):
@@ -282,7 +370,7 @@ DH_HEADER = next(ln for ln in DH_TABLE.splitlines() if ln.startswith("name,"))
 def _sockets() -> str:
     """The arm7 socket file cut to 8 seatings per socket on three placements."""
     lines = (ARM7 / "sockets.csv").read_text().splitlines()
-    head = [ln for ln in lines if ln.startswith("#") or ln.startswith("placement")]
+    head = [ln for ln in lines if ln.startswith(("#", "placement"))]
     rows = [ln for ln in lines[len(head):] if ln.split(",")[0] in ("P1", "P2", "P3")]
     keep = [r for k, r in enumerate(rows) if k % 20 < 8]
     return "\n".join(head + keep) + "\n"
@@ -348,7 +436,7 @@ def contacts_file(draw) -> bytes:
     if kind == "mutated":
         return draw(mutated_text(SOCKETS))
     lines = SOCKETS.splitlines()
-    head = [ln for ln in lines if ln.startswith("#") or ln.startswith("placement")]
+    head = [ln for ln in lines if ln.startswith(("#", "placement"))]
     rows = lines[len(head):]
     if kind == "distances":
         n = draw(st.sampled_from((50, 5000, 100_000)))
@@ -445,12 +533,14 @@ CALIBRATE = {"--parameters": "geometric", "--known": "base", "--tol": "1e-6", "-
              "--out-units": "m-rad", "--units": "mm-deg", "--sep": ",", "--decimal": ".", "--orientation": "quat_xyzw",
              "--weak": "flag", "--on-outliers": "flag", "--write-failed": None, "--register-base": None,
              "--compare": None, "--instrument": "cmm", "--nonnegative-compliance": None,
-             "--map": "=pose,tool_x_mm+j1_deg=tool_x_mm", "--header": MEASUREMENTS.splitlines()[0]}
+             "--map": "=pose,tool_x_mm+j1_deg=tool_x_mm", "--header": MEASUREMENTS.splitlines()[0], "--diagnose": None}
 SIMULATE = {"--seed": "3", "--noise-mm": "0.02", "--length-error-mm": "0.1,1", "--angle-error-deg": "0.01,0.1",
             "--parameters": "geometric", "--units": "m-rad", "--true-model": "true.yaml"}
 IDENTIFIABILITY = {"--parameters": "geometric,compliance", "--known": "base", "--tol": "1e-6", "--poses": "30",
                    "--seed": "2"}
 LIMIT = {"--seed": "1", "--markers": "all", "--chunk-size": "100", "--csv-units": "mm"}
+COMPENSATE_PROGRAM = {"--tool": "TOOL", "--wobj": "TOOL", "--marker": "tool", "--tol-mm": "0.001",
+                      "--tol-deg": "0.0001", "--force": None}
 IMPORT_URDF = {"--base-link": "l0", "--tip-link": "l3", "--marker-mm": "tool,0,0,10", "--units": "m-rad"}
 PLAN = {"--criterion": "D", "--parameters": "geometric", "--known": "base", "--tol": "1e-6", "--instrument": "cmm",
         "--noise-mm": "0.02", "--seed": "4", "--out-units": "m-rad"}
@@ -461,6 +551,32 @@ CONTACTS = {"--parameters": "geometric", "--known": "base", "--tol": "1e-6", "--
             "--holdout-placement": "P3", "--write-failed": None, "--instrument": "cmm", "--noise-mm": "0.02",
             "--on-outliers": "flag", "--out-units": "m-rad"}
 BIG_COUNTS = ("1000", "100000", "99999999999", "1000000")
+
+RECORD = {"--type": "th8", "--at": "2026-09-01T00:00:00Z"}
+HISTORY = {"--alpha": "0.05", "--report": "history.html", "--force": None}
+VERIFY = {"--register-base": None, "--alpha": "0.01", "--no-record": None, "--at": "2026-10-01", "--units": "mm-deg"}
+STORE_COMMANDS = ("record", "history", "verify")
+
+
+@st.composite
+def program_file(draw, base: str) -> bytes:
+    """A robot program, mutated or broken the ways that break program readers."""
+    kind = draw(st.sampled_from(("mutated",) * 6 + ("deep", "unclosed", "huge", "empty", "binary", "many")))
+    if kind == "mutated":
+        return draw(mutated_text(base))
+    if kind == "deep":
+        n = draw(st.sampled_from((40, 1000, 100_000)))
+        return (base + "\nCONST robtarget deep := " + "[" * n + "1" + "]" * n + ";\n").encode()
+    if kind == "unclosed":
+        return base.replace("]", "", 1).replace("}", "", 1).replace(")", "", 1).encode()
+    if kind == "huge":
+        return re.sub(r"\d+\.\d+", draw(st.sampled_from(("1e400", "1" * 400, "-1e308", "0.0"))), base, count=3).encode()
+    if kind == "empty":
+        return draw(st.sampled_from((b"", b"\n", b"MODULE m\nENDMODULE\n", b"DEF a()\nEND\n")))
+    if kind == "binary":
+        return bytes(range(256)) * 4
+    line = next((ln for ln in base.splitlines() if re.search(r"\d", ln)), "")
+    return (base + ("\n" + line) * draw(st.sampled_from((100, 5000)))).encode()
 
 
 # -- one strategy per command: a command or reader added later joins here and in COMMANDS ---------
@@ -479,6 +595,8 @@ def calibrate_case(draw, result_text=None):
     elif reader == 1:  # a limit file given as --limit-mm
         files["limit.json"] = draw(limit_file())
         argv += ["--limit-mm", "limit.json"]
+    elif reader == 2:  # and keep it in a store (never the user's default one)
+        argv += ["--record", _value(draw, "R"), "--store", "store.sqlite"] + draw(options({"--type": "th8"}))
     return files, argv
 
 
@@ -594,6 +712,36 @@ def contacts_case(draw, result_text=None):
     return files, argv
 
 
+@st.composite
+def compensate_program_case(draw, result_text=None):
+    """compensate on a robot program (each dialect's example, mutated), written as a program."""
+    files = {"model.yaml": _model(draw)}
+    name = draw(st.sampled_from(sorted(PROGRAMS)))
+    files[name] = draw(program_file(PROGRAMS[name])) if draw(st.integers(0, 2)) else PROGRAMS[name].encode()
+    out = draw(st.sampled_from(("out" + name[4:], "out" + name[4:], name)))
+    argv = ["compensate", "model.yaml", "model.yaml", name, "--out", out] + draw(options(COMPENSATE_PROGRAM))
+    if draw(st.integers(0, 4)) == 0:
+        argv += ["--dialect", _value(draw, {"mod": "rapid", "dat": "krl", "src": "krl"}.get(name[5:], "urscript"))]
+    return files, argv
+
+
+@st.composite
+def store_case(draw, command: str, result_text: str):
+    """(files, argv) of record, history or verify on a store, its result or its measurements damaged."""
+    files = {"store.sqlite": draw(store_file(store_bytes(result_text)))}
+    robot = _value(draw, "R")
+    if command == "record":
+        if draw(st.booleans()):
+            del files["store.sqlite"]           # a new store
+        files["result.json"] = draw(result_file(result_text)) if draw(st.booleans()) else result_text.encode()
+        return files, ["record", "result.json", "--robot", robot, "--store", "store.sqlite"] + draw(options(RECORD))
+    if command == "history":
+        who = [robot] if draw(st.integers(0, 2)) else ["--type", _value(draw, "th8")]
+        return files, ["history", *who, "--store", "store.sqlite"] + draw(options(HISTORY))
+    files["data.csv"] = draw(csv_file()) if draw(st.booleans()) else MEASUREMENTS.encode()
+    return files, ["verify", robot, "data.csv", "--store", "store.sqlite"] + draw(options(VERIFY))
+
+
 # command -> (weight, strategy of (files, argv)). The readers and commands of later work join here:
 # add a strategy above (mutations of a shipped example, the sizes that could hang it) and a line
 # below; the judge (check_output) then learns what a sound output of it is.
@@ -602,7 +750,11 @@ COMMANDS = {
     "limit": (1, limit_case), "import-urdf": (2, import_urdf_case), "report": (1, report_case),
     "plan": (2, plan_case), "plan-sockets": (1, plan_sockets_case), "import-dh": (2, import_dh_case),
     "export": (2, export_case), "compensate": (2, compensate_case), "contacts": (2, contacts_case),
+    "compensate-program": (2, compensate_program_case), "record": (1, functools.partial(store_case, "record")),
+    "history": (1, functools.partial(store_case, "history")), "verify": (1, functools.partial(store_case, "verify")),
 }
+# the commands whose cases start from a result file (``result_text``)
+NEEDS_RESULT = ("report", *STORE_COMMANDS)
 
 
 # the in-process sample of the test suite (tests/test_fuzz.py): the same cases, the slow command
@@ -614,7 +766,7 @@ SAMPLE_WEIGHTS = {**{n: 4 * w for n, (w, _) in COMMANDS.items()}, "plan-sockets"
 def case(draw, result_text: str | None = None, commands=None, weights=None):
     """(files, argv) of one run of one command (of ``commands``, default every one), drawn by
     ``weights`` (command -> whole number, default COMMANDS's)."""
-    names = [n for n in (commands or COMMANDS) if result_text or n != "report"]
+    names = [n for n in (commands or COMMANDS) if result_text or n not in NEEDS_RESULT]
     weights = weights or {n: w for n, (w, _) in COMMANDS.items()}
     command = draw(st.sampled_from([n for n in names for _ in range(weights[n])]))
     return draw(COMMANDS[command][1](result_text))
@@ -630,9 +782,13 @@ FK_TOL = 1e-9
 
 
 def non_finite(folder: Path, before: set[str]) -> str | None:
-    """The first output file of a run holding a non-finite number, or None."""
+    """The first output file of a run holding a non-finite number, or None. A compensated program
+    keeps every word of its source but its targets' numbers: those the program check reads back (the
+    program reader refuses a non-finite literal)."""
+    from robocal._files.programs import EXTENSIONS
+
     for p in sorted(folder.rglob("*")):
-        if not p.is_file() or p.name in before or p.suffix == ".html":
+        if not p.is_file() or p.name in before or p.suffix in (".html", *EXTENSIONS) or ".sqlite" in p.name:
             continue
         text = p.read_text(errors="replace")
         if p.suffix == ".json":
@@ -736,8 +892,40 @@ def _check_plan(argv, folder: Path) -> str | None:
     return None if _within(model, data.q) else "wrong output"
 
 
+def _numbers(target) -> list[float]:
+    return [n.value for part in (target.joints, target.position, target.orientation) for n in part]
+
+
+def _check_program(argv, folder: Path) -> str | None:
+    """A compensated program reads back with the same targets; the fuzz compensates a model against
+    itself, so every target reached keeps its numbers."""
+    from robocal.io import read_program
+
+    dialect = argv[argv.index("--dialect") + 1] if "--dialect" in argv else None
+    source, out = folder / argv[3], folder / argv[argv.index("--out") + 1]
+    try:
+        back = read_program(out, dialect=dialect)
+    except Exception:  # noqa: BLE001 - whatever stops the reader, the output is not a program it takes
+        return "unreadable output"
+    if source == out:
+        return None
+    before = read_program(source, dialect=dialect)
+    if [t.kind for t in back.targets] != [t.kind for t in before.targets]:  # (inline ones are named by line)
+        return "wrong output"
+    for a, b in zip(before.targets, back.targets):
+        x, y = _numbers(a), _numbers(b)
+        if len(x) != len(y) or any(abs(u - v) > 1e-6 * max(1.0, abs(u)) for u, v in zip(x, y)):
+            return "wrong output"
+    return None
+
+
 def _check_compensate(argv, folder: Path) -> str | None:
     import csv
+
+    from robocal._files.programs import EXTENSIONS
+
+    if "--dialect" in argv or Path(argv[3]).suffix.lower() in EXTENSIONS:
+        return _check_program(argv, folder)
 
     import numpy as np
 

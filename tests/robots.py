@@ -21,8 +21,8 @@ def arm6r(markers=(("tool", (0.05, 0.02, 0.12)),), masses=False):
         dict(joint="revolute", alpha=-90 * DEG),
     ]
     if masses:
-        for row, m, c in zip(rows, [20, 15, 10, 5, 2, 1],
-                             [(0, 0, -0.1), (0.2, 0, 0.05), (0.1, -0.02, 0.2), (0, 0.05, 0), (0, 0, 0.05), (0, 0, 0.02)]):
+        coms = [(0, 0, -0.1), (0.2, 0, 0.05), (0.1, -0.02, 0.2), (0, 0.05, 0), (0, 0, 0.05), (0, 0, 0.02)]
+        for row, m, c in zip(rows, [20, 15, 10, 5, 2, 1], coms):
             row.update(mass=m, com=c)
     limits = [(-170 * DEG, 170 * DEG), (-120 * DEG, 60 * DEG), (-60 * DEG, 160 * DEG),
               (-170 * DEG, 170 * DEG), (-110 * DEG, 110 * DEG), (-180 * DEG, 180 * DEG)]
@@ -57,3 +57,60 @@ TORSO = Path(__file__).resolve().parents[1] / "examples" / "torso" / "model.yaml
 def torso() -> rc.RobotModel:
     """examples/torso/model.yaml: a two-armed tree with a coupled joint."""
     return rc.read_model(TORSO)
+
+
+HUMANOID = """
+robocal_model: 1
+name: humanoid-like
+description: simulated upper body of a humanoid, 19 joints; dimensions chosen by us
+units: {length: mm, angle: deg}
+base: {position: [1800, -400, 250], rotation: {rpy: [0, 0, 20]}}
+joints:
+%(joints)s
+frames:
+  - {name: t1, joint: revolute, r: 300}
+  - {name: t2, joint: revolute, alpha: -90, theta: -90}
+  - {name: t3, joint: revolute, alpha: 90, d: 120}
+  - {name: l1, joint: revolute, alpha: -90, d: 420, r: 210}
+  - {name: l2, joint: revolute, alpha: 90, d: 40}
+  - {name: l3, joint: revolute, alpha: -90, r: 260}
+  - {name: l4, joint: revolute, alpha: 90, d: 30}
+  - {name: l5, joint: revolute, alpha: -90, r: 230}
+  - {name: l6, joint: revolute, alpha: 90}
+  - {name: l7, joint: revolute, alpha: -90, r: 60}
+  - {name: ltool, joint: fixed, parent: l7, position: [0, 0, 110],
+     rotation: {matrix: [[0, 0, 1], [1, 0, 0], [0, 1, 0]]}}
+  - {name: r1, joint: revolute, parent: t3, alpha: -90, gamma: 180, b: 0, d: 420, r: -210}
+  - {name: r2, joint: revolute, alpha: 90, d: 40}
+  - {name: r3, joint: revolute, alpha: -90, r: 260}
+  - {name: r4, joint: revolute, alpha: 90, d: 30}
+  - {name: r5, joint: revolute, alpha: -90, r: 230}
+  - {name: r6, joint: revolute, alpha: 90}
+  - {name: r7, joint: revolute, alpha: -90, r: 60}
+  - {name: rtool, joint: fixed, parent: r7, position: [0, 0, 110],
+     rotation: {matrix: [[0, 1, 0], [0, 0, 1], [1, 0, 0]]}}
+  - {name: h1, joint: revolute, parent: t3, d: 520, r: 40}
+  - {name: h2, joint: revolute, alpha: -90, d: 30}
+  - {name: head, joint: fixed, parent: h2, position: [60, 0, 80], rotation: {rpy: [0, 90, 0]}}
+markers:
+  - {name: lhand, frame: ltool, position: [20, 10, 30]}
+  - {name: lhand2, frame: ltool, position: [-30, 40, 10]}
+  - {name: rhand, frame: rtool, position: [20, -10, 30]}
+  - {name: rhand2, frame: rtool, position: [-30, -40, 10]}
+  - {name: headset, frame: head, position: [0, 50, 40]}
+"""
+HUMANOID_JOINTS = ("t1", "t2", "t3", "l1", "l2", "l3", "l4", "l5", "l6", "l7", "r1", "r2", "r3", "r4", "r5", "r6",
+                   "r7", "h1", "h2")
+
+
+def humanoid() -> rc.RobotModel:
+    """A simulated humanoid-sized tree: 19 joints (trunk, two 7-joint arms, a head), three fixed
+    frames placed by matrices (the hands' tools and the head), five markers; masses assumed from the
+    geometry (relative compliances)."""
+    import yaml
+
+    from robocal.io import model_from_dict
+
+    joints = "\n".join(f"  - {{name: {n}, limits: [-{60 if n.startswith(('t', 'h')) else 150}, "
+                       f"{60 if n.startswith(('t', 'h')) else 150}]}}" for n in HUMANOID_JOINTS)
+    return rc.default_masses(model_from_dict(yaml.safe_load(HUMANOID % {"joints": joints}), source="humanoid"))

@@ -6,15 +6,22 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import assert_one_line_error
 
 import robocal as rc
-from conftest import assert_one_line_error
-from robocal._kinematics import kinematic_pass, layout
 from robocal._accuracy_limit import parameter_displacement
 from robocal._files.result import LIMIT_SCHEMA
+from robocal._kinematics import kinematic_pass, layout
 from robocal.io import limit_to_dict, read_repeatability_csv
-from robocal.limit import (AccuracyLimit, RepeatabilityResult, accuracy_limit, controller_precision,
-                           iso9283_repeatability, predicted_controller_precision, rounded_parameters)
+from robocal.limit import (
+    AccuracyLimit,
+    RepeatabilityResult,
+    accuracy_limit,
+    controller_precision,
+    iso9283_repeatability,
+    predicted_controller_precision,
+    rounded_parameters,
+)
 
 DEG = math.pi / 180
 QUANTA = dict(encoder_resolution=0.01 * DEG, length_quantum=1e-4, angle_quantum=1e-3 * DEG)
@@ -168,8 +175,8 @@ def test_chunking_does_not_change_the_statistics():
     model = industrial_6r()
     whole = controller_precision(model, n_samples=5000, chunk_size=5000, rng=3, **QUANTA)
     seen = []
-    parts = controller_precision(model, n_samples=5000, chunk_size=777, rng=3, progress=lambda d, t: seen.append((d, t)),
-                                 **QUANTA)
+    parts = controller_precision(model, n_samples=5000, chunk_size=777, rng=3,
+                                 progress=lambda d, t: seen.append((d, t)), **QUANTA)
     for f in ("mean", "std", "rms", "max"):
         np.testing.assert_allclose(getattr(parts, f), getattr(whole, f), rtol=1e-12)
     np.testing.assert_allclose(parts.percentiles, whole.percentiles, rtol=1e-12)

@@ -5,13 +5,12 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from robots import arm6r, cylindrical
+from scipy.spatial.transform import Rotation
+from test_kinematics import _random_tree_model
 
 import robocal as rc
 from robocal.kinematics import evaluate, model_from_vector, parameter_layout, parameter_vector
-
-from robots import arm6r, cylindrical
-from test_kinematics import _random_tree_model
-from scipy.spatial.transform import Rotation
 
 ARCMIN = np.pi / 180 / 60
 
@@ -223,8 +222,8 @@ def test_a_backlash_whose_side_never_changes_is_absorbed_by_its_joint_offset():
 
 
 def test_backlash_checks_sign_tolerance_and_support():
-    from robocal._checks import backlash_sign_check, plausibility_check, support_check, DEFAULT_TOLERANCES
     from robocal._calibration import ParameterEstimate
+    from robocal._checks import DEFAULT_TOLERANCES, backlash_sign_check, plausibility_check, support_check
     e = ParameterEstimate("j1.backlash_theta", "rad", 0.0, -1e-3, 1e-5, family="backlash", quantity="angle")
     assert backlash_sign_check([e]).status == "warn"
     assert backlash_sign_check([replace(e, estimate=-1e-5)]).status == "pass"

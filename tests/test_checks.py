@@ -2,16 +2,16 @@
 command line; no false alarm on clean campaigns; outliers named; weak parameters handled."""
 
 import json
-from pathlib import Path
 import warnings
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
-
-import robocal as rc
 from conftest import z_scores
 from robots import DEG, arm6r, cylindrical
+
+import robocal as rc
 
 NOISE = 2e-5
 

@@ -1,23 +1,21 @@
 """The command line, through ``main(argv)``: outputs, summaries, and one clear line per bad input."""
 
 import json
+import re
 import subprocess
 import sys
 from dataclasses import replace
-
-import re
+from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
-
-import robocal as rc
-from robocal.io import write_measurements
-from robocal.io import model_to_dict, read_model, write_model
 from conftest import assert_one_line_error
 from robots import TORSO, arm6r, torso
 from test_files import _cell, _drop
 
+import robocal as rc
+from robocal.io import model_to_dict, read_model, write_measurements, write_model
 
 
 @pytest.fixture
@@ -43,11 +41,30 @@ def test_calibrate_writes_model_and_result(campaign, cli):
     assert result["stats"]["validation_after"]["n"] == 10
     # the calibrated robot predicts the true robot far better than the nominal one
     q = rc.random_configurations(model, 20, 2)
-    err_cal = np.linalg.norm(rc.forward_kinematics(cal, q).positions - rc.forward_kinematics(true, q).positions, axis=-1)
+    err_cal = np.linalg.norm(rc.forward_kinematics(cal, q).positions - rc.forward_kinematics(true, q).positions,
+                             axis=-1)
     err_nom = np.linalg.norm(rc.forward_kinematics(model, q).positions - rc.forward_kinematics(true, q).positions,
                              axis=-1)
     assert err_cal.mean() < 0.05 * err_nom.mean()
     assert sorted(p.name for p in (d / "run").iterdir()) == ["calibrated.yaml", "result.json", "result.npz"]
+
+
+ROOT = Path(__file__).resolve().parent.parent
+TH8_MODEL, TH8_DATA = str(ROOT / "examples/th8/model.yaml"), str(ROOT / "examples/th8/measurements.csv")
+
+
+def test_calibrated_model_says_it_is_calibrated_from_what_and_when(tmp_path, cli):
+    nominal = tmp_path / "model.yaml"
+    nominal.write_text(Path(TH8_MODEL).read_text())
+    assert "NOMINAL" in rc.read_model(nominal).description
+    code, _, err = cli("calibrate", nominal, TH8_DATA, "--out", tmp_path / "run", "--known", "markers")
+    assert code == 0, err
+    cal = rc.read_model(tmp_path / "run" / "calibrated.yaml")
+    result = json.loads((tmp_path / "run" / "result.json").read_text())
+    assert "NOMINAL" not in cal.description and cal.description.startswith("calibrated model")
+    for said in (result["nominal_model"]["name"], TH8_DATA, result["provenance"]["date"][:10], result["verdict"],
+                 f"{result['provenance']['data']['n_poses']} poses"):
+        assert str(said) in cal.description, (said, cal.description)
 
 
 def test_calibrate_semicolon_decimal_comma_missing_marker(tmp_path, cli):

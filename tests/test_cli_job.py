@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 import subprocess
 import sys
 from dataclasses import replace
@@ -11,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from robots import arm6r
 
 import robocal as rc
-from robots import arm6r
 
 ROOT = Path(__file__).resolve().parent.parent
 TH8 = str(ROOT / "examples/th8/model.yaml")
@@ -121,6 +122,23 @@ def test_export_round_trips(fmt, tmp_path, cli):
     assert np.allclose(back.joint_limits, model.joint_limits, atol=1e-12)
 
 
+def test_the_calibrated_th8_exports_to_classic_dh_and_reproduces_its_kinematics(tmp_path, cli):
+    # what the README says of its own example: the calibrated TH8's classic-DH table is written and usable
+    code, _, err = cli("calibrate", TH8, str(ROOT / "examples/th8/measurements.csv"), "--out", tmp_path / "run",
+                       "--known", "markers")
+    assert code == 0, err
+    code, _, err = cli("export", tmp_path / "run" / "calibrated.yaml", "--format", "dh-csv",
+                       "--out", tmp_path / "dh.csv")
+    assert code == 0 and "warning" not in err, err
+    code, _, err = cli("import-dh", tmp_path / "dh.csv", "--out", tmp_path / "back.yaml")
+    assert code == 0, err
+    cal = rc.read_model(tmp_path / "run" / "calibrated.yaml")
+    cal = cal.replace(frames=tuple(replace(f, k_theta=0.0, k_alpha=0.0, k_beta=0.0) for f in cal.frames))
+    back = rc.read_model(tmp_path / "back.yaml")
+    q = rc.random_configurations(cal, 200, 3)
+    assert np.abs(rc.forward_kinematics(cal, q).positions - rc.forward_kinematics(back, q).positions).max() < 1e-9
+
+
 def test_classic_dh_export_refuses_ill_conditioned_parallel_axes(tmp_path, cli):
     model = arm6r()
     true, _ = rc.simulate(model, 3, seed=1)       # a tilt between the parallel axes j2 and j3
@@ -155,6 +173,25 @@ def test_rough_edges(tmp_path, cli):
     assert limit_mm(str(limit)) == pytest.approx(0.5) and limit_mm("0.4") == 0.4
     code, _, err = cli("-v", "plan", TH8, "--poses", 10, "--n-candidates", 100, "--out", tmp_path / "p.csv")
     assert code == 0 and "robocal: " in err and "chose 10 of 100" in err
+    # after the command too, as users type it
+    code, _, err = cli("plan", TH8, "--poses", 10, "--n-candidates", 100, "--out", tmp_path / "p2.csv", "-v")
+    assert code == 0 and "chose 10 of 100" in err
+    code, _, err = cli("plan", TH8, "--poses", 10, "--n-candidates", 100, "--out", tmp_path / "p3.csv")
+    assert code == 0 and "chose 10 of 100" not in err
+
+
+def test_the_masses_advice_is_a_command_line_that_works(tmp_path, cli):
+    from robocal.cli import build_parser
+
+    with pytest.raises(rc.InputError) as e:
+        rc.calibrate(arm6r(), rc.simulate(arm6r(), 30, seed=1)[1], parameters=("geometric", "compliance"))
+    advice = re.search(r"\((--assume-masses[^)]*) on the command line\)", str(e.value)).group(1)
+    options = re.findall(r"--[\w-]+(?: [A-Z]+)?", advice)
+    assert options == ["--assume-masses", "--total-mass KG"]
+    argv = ["calibrate", TH8, "data.csv", "--out", str(tmp_path)] + [w for o in options for w in o.split()]
+    argv[-1] = "12.5"
+    args = build_parser().parse_args(argv)
+    assert args.assume_masses and args.total_mass == 12.5
 
 
 @pytest.mark.parametrize("command", ["plan", "simulate", "calibrate", "compensate", "export", "identifiability",
@@ -191,7 +228,8 @@ def test_import_dh_bad_table(edit, words, tmp_path, cli):
 def test_compensate_unknown_marker(tmp_path, cli):
     from conftest import assert_one_line_error
 
-    code, _, err = cli("compensate", TH8, TRUE, str(ROOT / "examples/th8/targets.csv"), "--out", tmp_path / "o" / "c.csv",
+    code, _, err = cli("compensate", TH8, TRUE, str(ROOT / "examples/th8/targets.csv"), "--out",
+                       tmp_path / "o" / "c.csv",
                        "--marker", "nose")
     assert_one_line_error(code, err, ["--marker", "nose", "tool"], tmp_path / "o", command="compensate")
 

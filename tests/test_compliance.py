@@ -7,13 +7,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import z_scores
+from robots import arm6r, cylindrical
 
 import robocal as rc
-from conftest import z_scores
 from robocal import select_poses
 from robocal.kinematics import Frame
-
-from robots import arm6r, cylindrical
 
 NOISE = 2e-5
 # rad/(N m); gravity moves the tool of arm6r(masses=True) by 0.25 mm on average, 1 mm at most
@@ -212,3 +211,25 @@ def test_assume_masses_on_the_command_line(tmp_path, cli):
     assert "note: masses assumed from the geometry (total 50 kg): j2 21.8 kg" in out
     code, out, err = cli(*argv, "--out", tmp_path / "c", "--assume-masses")
     assert "kg per metre, no total mass given: compliances are relative" in out
+
+
+def test_fixed_frames_get_no_compliance_candidates(tmp_path):
+    # a tool flange placed by a matrix, as users write fixed frames: it has no joint to yield
+    text = Path(__file__).resolve().parent.parent.joinpath("examples/th8/model.yaml").read_text()
+    model = rc.read_model(Path(__file__).resolve().parent.parent / "examples/th8/model.yaml")
+    last = model.frames[-1].name
+    text = text.replace("markers:", f"""  - name: flange
+    joint: fixed
+    parent: {last}
+    position: [10, 20, 80]
+    rotation: {{matrix: [[0, -1, 0], [1, 0, 0], [0, 0, 1]]}}
+markers:""", 1)
+    path = tmp_path / "model.yaml"
+    path.write_text(text)
+    flanged = rc.read_model(path)
+    assert flanged.frames[-1].name == "flange" and flanged.frames[-1].joint == "fixed"
+    names = rc.candidate_parameters(flanged, ("compliance",))
+    moving = [f.name for f in flanged.frames if f.joint != "fixed"]
+    assert names == rc.candidate_parameters(model, ("compliance",))
+    assert {n.split(".")[0] for n in names} == set(moving) and not any(n.startswith("flange.") for n in names)
+    assert not any(n.startswith("flange.k_") for n in rc.candidate_parameters(flanged, ("*.k_*",)))

@@ -10,13 +10,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import z_scores
+from robots import arm6r
 
 import robocal as rc
-from conftest import z_scores
 from robocal.identification import ContactProblem, calibrate_contacts, contact_errors, contact_identifiability
 from robocal.sim import bar_campaign, plan_sockets, plane_campaign, socket_campaign
-
-from robots import arm6r
 
 ARM7 = Path(__file__).resolve().parents[1] / "examples" / "arm7" / "model.yaml"
 ENCODER = 2e-5      # rad: encoder-level joint noise
@@ -233,7 +232,8 @@ def test_the_contact_file_reads_back_what_was_written(arm7, small_session):
     (lambda t: t.replace("P1,A,socket", "P1,A,sockett", 1), ["line 7", "kind 'sockett'"]),
     (lambda t: t.replace("# distance: A B", "# distance: A Z", 1), ["socket 'Z'"]),
     (lambda t: t.replace(",j3,", ",j33,"), ["column 'j3' is missing"]),
-    (lambda t: t.replace("# distance: A B 200.000000", "# distance: A B -200", 1), ["line 3", "length must be positive"]),
+    (lambda t: t.replace("# distance: A B 200.000000", "# distance: A B -200", 1),
+     ["line 3", "length must be positive"]),
 ])
 def test_bad_contact_files_are_refused_in_one_line(cli, arm7, small_session, tmp_path, edit, words):
     from conftest import assert_one_line_error
@@ -253,6 +253,9 @@ def test_the_command_line_calibrates_from_contacts_alone_and_next_to_a_tracker_f
     assert "held-out socket spread" in out and "unreachable: base" in out and "verdict: pass" in out
     written = rc.read_model(tmp_path / "a" / "calibrated.yaml")
     assert rc.parameter_vector(written).shape == rc.parameter_vector(arm7).shape
+    # calibrated, from what: not the nominal model's own description
+    assert written.description.startswith("calibrated model") and str(path) in written.description
+    assert arm7.name in written.description and written.description != arm7.description
     result = __import__("json").loads((tmp_path / "a" / "contacts-result.json").read_text())
     assert [u["name"] for u in result["unreachable"]] == ["base"] and result["verdict"] == "pass"
     tracker = rc.measure(true, rc.random_configurations(arm7, 15, 1), rng=1)

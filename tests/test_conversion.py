@@ -172,7 +172,8 @@ SCARA = [
     ("revolute", (0.4, 0.0, 0.02), (0.0, 0.0, 0.0), (0, 0, 1)),
     ("prismatic", (0.3, 0.05, 0.0), (0.0, 0.0, 0.0), (0, 0, -1)),
     ("fixed", (0.0, 0.0, -0.1), (0.0, 0.0, 0.7), (0, 0, 1)),
-    ("revolute", (0.0, 0.0, -0.02), (0.0, 0.0, 0.0), (float(np.sin(np.deg2rad(0.2))), 0, float(np.cos(np.deg2rad(0.2))))),
+    ("revolute", (0.0, 0.0, -0.02), (0.0, 0.0, 0.0),
+     (float(np.sin(np.deg2rad(0.2))), 0, float(np.cos(np.deg2rad(0.2))))),
     ("revolute", (0.0, 0.05, -0.03), (0.2, 0.0, 0.0), (1, 1, 1)),
     ("fixed", (0.0, 0.0, -0.06), (np.pi, 0.0, 0.0), (1, 0, 0)),
 ]
@@ -402,3 +403,18 @@ def test_malformed_urdf_file_names_file_and_line(tmp_path):
         rc.read_urdf(path)
     assert err.value.source == str(path)
     assert str(err.value).startswith(f"{path}: malformed XML") and "line 4" in str(err.value)
+
+
+@pytest.mark.parametrize("markers", [[("tcp", (0.01, 0.02, 0.12))],
+                                     [("smr1", (0.05, 0.0, 0.1)), ("smr2", (-0.05, 0.02, 0.1))]],
+                         ids=["one", "two"])
+def test_urdf_round_trip_keeps_the_marker_names(markers, tmp_path, rng):
+    # measurement files name their markers: a model exported and read back must still match them
+    model = _ur5_model().replace(markers=tuple(rc.Marker(n, 5, p) for n, p in markers))
+    path = tmp_path / "out.urdf"
+    write_urdf(model, path)
+    back = read_urdf(path)
+    assert back.marker_names == model.marker_names
+    q = _random_q(rng, model.n_joints)
+    np.testing.assert_allclose(rc.forward_kinematics(back, q).positions, rc.forward_kinematics(model, q).positions,
+                               rtol=0, atol=TOL_M)

@@ -12,13 +12,12 @@ import json
 
 import numpy as np
 import pytest
+from conftest import assert_one_line_error
+from robots import arm6r
 from scipy.spatial.transform import Rotation
 
 import robocal as rc
 from robocal.io import ColumnMap, read_measurements, read_profile, write_measurements
-from robots import arm6r
-
-from conftest import assert_one_line_error
 
 N = 24
 

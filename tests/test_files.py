@@ -5,14 +5,24 @@ import json
 import numpy as np
 import pytest
 import yaml
+from robots import arm6r, cylindrical
 from scipy.spatial.transform import Rotation
 
 import robocal as rc
-from robocal.io import measurements_to_csv, read_measurements, split_sets, write_measurements
+from robocal.io import (
+    measurements_to_csv,
+    model_from_dict,
+    model_to_dict,
+    read_measurements,
+    read_model,
+    read_result,
+    result_to_dict,
+    split_sets,
+    write_measurements,
+    write_model,
+    write_result,
+)
 from robocal.kinematics import Frame, Marker, Payload, RobotModel
-from robocal.io import model_from_dict, model_to_dict, read_model, write_model
-from robocal.io import read_result, result_to_dict, write_result
-from robots import arm6r, cylindrical
 
 DEG = np.pi / 180
 
@@ -268,7 +278,8 @@ def test_csv_orientation_conventions(tmp_path, convention, parts, columns):
     vals = rot.as_euler(seq, degrees=True) if euler else rot.as_quat(scalar_first=True)
     header = ",".join([f"{j}_deg" for j in model.joint_names] + [f"tool_{c}_mm" for c in "xyz"]
                       + [f"tool_{c}" for c in columns])
-    rows = [",".join(repr(float(v)) for v in list(np.rad2deg(data.q[i])) + list(data.positions[i, 0] * 1e3) + list(vals[i]))
+    rows = [",".join(repr(float(v))
+                     for v in list(np.rad2deg(data.q[i])) + list(data.positions[i, 0] * 1e3) + list(vals[i]))
             for i in range(6)]
     text = "# units: angle=deg\n" + header + "\n" + "\n".join(rows) + "\n"
     (tmp_path / "d.csv").write_text(text)
@@ -301,7 +312,8 @@ def test_csv_orientations_written_in_each_convention_read_back(tmp_path, convent
 def test_csv_set_column_splits_fit_and_validation(tmp_path):
     model, data = sim(8)
     text = _table(model, data).splitlines()
-    text = [text[0] + ",set"] + [row + ("," + ("validation" if i % 4 == 0 else "fit")) for i, row in enumerate(text[1:])]
+    text = [text[0] + ",set"] + [row + ("," + ("validation" if i % 4 == 0 else "fit"))
+                                 for i, row in enumerate(text[1:])]
     (tmp_path / "d.csv").write_text("\n".join(text) + "\n")
     fit, val = split_sets(read_measurements(tmp_path / "d.csv", model))
     assert (fit.n_poses, val.n_poses) == (6, 2)

@@ -453,7 +453,7 @@ def test_plan_refuses_a_selection_of_minutes_before_it_starts(files, cli, monkey
 def test_plan_never_writes_a_pose_beyond_the_joint_limits(files, cli):
     model = rc.read_model(files / "model.yaml")
     lines = MEASUREMENTS.splitlines()
-    head = [ln for ln in lines if ln.startswith("#") or ln.startswith("pose")]
+    head = [ln for ln in lines if ln.startswith(("#", "pose"))]
     rows = lines[len(head):]
     cells = rows[0].split(",")
     cells[1] = "179"                                 # j1 beyond its 150 deg limit
@@ -469,7 +469,7 @@ def _contacts(body_edit=None, head_extra=()):
     from fuzz_cases import SOCKETS
 
     lines = SOCKETS.splitlines()
-    head = [ln for ln in lines if ln.startswith("#") or ln.startswith("placement")]
+    head = [ln for ln in lines if ln.startswith(("#", "placement"))]
     rows = lines[len(head):]
     return "\n".join(head[:2] + list(head_extra) + head[2:] + (body_edit(rows) if body_edit else rows)) + "\n"
 
@@ -601,3 +601,34 @@ def test_limits_of_1e300_refused_by_the_model_reader(files, cli):
     for minutes."""
     (files / "model.yaml").write_text(MODEL.replace("limits: [0, 700]", "limits: [-1e300, 1e300]", 1))
     one_line(cli, model_commands(files)[0], ["model.yaml", "joints[1].limits[0]", "magnitude below 1e+12"])
+
+
+# -- stores --------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("argv", [("history", "R"), ("record", "result.json", "--robot", "R")])
+def test_store_with_a_damaged_schema_text_is_one_line(tmp_path, cli, result_text, argv, monkeypatch):
+    # a byte of the store's own schema (sqlite_master) not UTF-8: the decoding error escaped the store
+    from fuzz_cases import store_bytes
+
+    data = store_bytes(result_text)
+    at = data.index(b"CREATE INDEX") + len(b"CREATE INDE")
+    (tmp_path / "store.sqlite").write_bytes(data[:at] + b"\xaa" + data[at + 1:])
+    (tmp_path / "result.json").write_text(result_text)
+    monkeypatch.chdir(tmp_path)
+    one_line(cli, (*argv, "--store", "store.sqlite"), ["store.sqlite", "damaged store content"])
+
+
+@pytest.mark.parametrize("edit", ["UPDATE robocal_calibrations SET inputs = '[]'"])
+def test_store_with_damaged_calibration_content_is_one_line(tmp_path, cli, result_text, edit):
+    # a calibration whose inputs are a list, not a mapping: AttributeError escaped verify
+    import sqlite3
+
+    from fuzz_cases import store_bytes
+
+    (tmp_path / "store.sqlite").write_bytes(store_bytes(result_text))
+    with sqlite3.connect(tmp_path / "store.sqlite") as c:
+        c.execute(edit)
+    c.close()
+    (tmp_path / "data.csv").write_text(MEASUREMENTS)
+    one_line(cli, ("verify", "R", tmp_path / "data.csv", "--store", tmp_path / "store.sqlite"),
+             ["store.sqlite", "calibration #", "inputs is not a mapping"])

@@ -2,9 +2,9 @@
 
 import numpy as np
 import pytest
+from robots import arm6r, cylindrical
 
 import robocal as rc
-from robots import arm6r, cylindrical
 
 NOISE = 2e-5
 

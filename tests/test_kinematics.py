@@ -3,13 +3,20 @@ every Jacobian column against central finite differences."""
 
 import numpy as np
 import pytest
+from robots import DEG, arm6r, cylindrical
 from scipy.spatial.transform import Rotation
 
 import robocal as rc
-from robocal.kinematics import evaluate, model_from_vector, parameter_layout, parameter_vector
-from robocal.kinematics import Frame, Marker, Payload, RobotModel
-
-from robots import DEG, arm6r, cylindrical
+from robocal.kinematics import (
+    Frame,
+    Marker,
+    Payload,
+    RobotModel,
+    evaluate,
+    model_from_vector,
+    parameter_layout,
+    parameter_vector,
+)
 
 
 def _T(axis, kind, v):
@@ -191,9 +198,9 @@ def test_geometric_columns_are_the_textbook_ones():
     q = rc.random_configurations(m, 3, rng=5)
     ev = rc.forward_kinematics(m, q, frames=True)
     J = rc.jacobian(m, q, columns=["j4.theta", "j4.r"])
-    z, O = ev.frames[:, 3, :3, 2], ev.frames[:, 3, :3, 3]
+    z, origin = ev.frames[:, 3, :3, 2], ev.frames[:, 3, :3, 3]
     P = ev.positions[:, 0]
-    np.testing.assert_allclose(J[:, 0, :3, 0], np.cross(z, P - O), atol=1e-14)
+    np.testing.assert_allclose(J[:, 0, :3, 0], np.cross(z, P - origin), atol=1e-14)
     np.testing.assert_allclose(J[:, 0, 3:, 0], z, atol=1e-14)
     np.testing.assert_allclose(J[:, 0, :3, 1], z, atol=1e-14)
     np.testing.assert_allclose(J[:, 0, 3:, 1], 0.0, atol=1e-14)
@@ -251,8 +258,9 @@ def test_an_evaluation_moved_by_the_base_and_markers_equals_a_new_one(orientatio
     """A fit of the base and markers alone evaluates the chain once and moves it: positions,
     orientations, the base's and markers' columns, and (moved when first asked for) every frame
     and column equal those of a new pass, also when moved twice and on two markers' frames."""
-    import robocal._kinematics as K
     from robots import torso
+
+    import robocal._kinematics as K
 
     for m in (arm6r(), torso()):
         lay, p = K.layout(m), parameter_vector(m)
@@ -266,7 +274,7 @@ def test_an_evaluation_moved_by_the_base_and_markers_equals_a_new_one(orientatio
         p3[2] += 0.01
         assert K.moves_rigidly(lay, p, p2) and not K.moves_rigidly(lay, p, p2 + 1e-9)
 
-        def new(v):
+        def new(v, m=m, lay=lay, qf=qf):
             return K.evaluate_state(m, lay, v, qf, compliance=False, orientations=orientations)
 
         moved = K.moved_state(K.moved_state(new(p), p2), p3)      # moved twice, the first never completed

@@ -1,6 +1,8 @@
 """Robots written down as they are: fixed frames and tool centre points given as transforms, rotation
 matrices as vendors print them, several payloads."""
 
+import re
+
 import numpy as np
 import pytest
 import yaml
@@ -144,4 +146,12 @@ def test_report_and_summary_show_every_nonzero_nominal_the_calibrated_file_keeps
     summary = calibration_summary(result)
     assert f"kept at nominal, not candidates ({len(held)} non-zero)" in summary and "rtcp.gamma" in summary
     html = render_report(result)
-    assert f"{np.rad2deg(held['rtcp.gamma']):.5f}"[:7] in html   # shown in the frame table's nominal row
+    # a fixed frame's held values show as its placement, as the file writes it (position in mm, matrix)
+    for name in ("ltcp", "rtcp"):
+        placed = next(f for f in TABLE["frames"] if f["name"] == name)
+        shown = re.search(rf'data-key="{name}:nominal.position"[^>]*>([^<]*)<', html).group(1)
+        assert [float(v) for v in shown.split(",")] == pytest.approx(placed["position"], abs=5e-5)
+    moving = {n.split(".")[0] for n in held} - {"ltcp", "rtcp", "lmount", "rmount"}
+    for n in held:
+        if n.split(".")[0] in moving:
+            assert f"{np.rad2deg(held[n]):.5f}"[:7] in html   # shown in the frame table's nominal row

@@ -7,12 +7,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import assert_one_line_error, z_scores
+from robots import DEG, torso
 from scipy.spatial.transform import Rotation
 
 import robocal as rc
-from conftest import assert_one_line_error, z_scores
 from robocal._misfit import characteristic_length, misfit_notes
-from robots import DEG, torso
 
 NOISE, NOISE_ROT = 2e-5, 1e-5
 
@@ -219,9 +219,10 @@ def test_orientation_declaration_errors_through_cli(six_d, tmp_path, cli):
 def test_tool_turned_120_degrees_is_reported_without_gimbal_lock():
     """Rotation corrections are rotation vectors (axis times angle): a tool 120 deg from its guess,
     about an axis near none of its own, comes back as that one turn within 0.01 deg."""
+    from robots import arm6r
+
     from robocal._presentation.text import calibration_summary
     from robocal._spatial import small_rotation
-    from robots import arm6r
 
     model = arm6r()
     axis = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])

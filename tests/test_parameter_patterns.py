@@ -1,10 +1,10 @@
 """Parameter selection by pattern: '*.theta', 'j2.*', '*.k_theta', in the API and on the command line."""
 
 import pytest
+from robots import arm6r, torso
 
 import robocal as rc
 from robocal.kinematics import matched_by_pattern
-from robots import arm6r, torso
 
 
 def test_patterns_expand_to_the_candidates_they_match():

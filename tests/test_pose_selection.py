@@ -1,9 +1,9 @@
 """Pose selection: the chosen poses beat as many random ones on the criterion they were chosen by."""
 
 import pytest
+from robots import arm6r
 
 import robocal as rc
-from robots import arm6r
 
 
 @pytest.mark.parametrize("criterion", ["I", "D"])

@@ -5,9 +5,9 @@ these robots better, and the accuracy in use it predicts from the grid alone mus
 import warnings
 
 import pytest
+from real_campaigns import campaign, nominal
 
 import robocal as rc
-from real_campaigns import campaign, nominal
 
 FAMILIES = {"geometric": ("geometric",), "geometric and compliance": ("geometric", "compliance")}
 

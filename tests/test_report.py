@@ -8,16 +8,17 @@ import re
 import shutil
 import subprocess
 import sys
+from dataclasses import replace
 from html.parser import HTMLParser
 from pathlib import Path
 
 import numpy as np
 import pytest
+from robots import arm6r, cylindrical, humanoid
 
 import robocal as rc
-from robocal.report import PLOTS, render_report, write_report
 from robocal.io import result_from_dict, result_to_json
-from robots import arm6r, cylindrical
+from robocal.report import PLOTS, render_report, write_report
 
 pytest.importorskip("matplotlib")
 
@@ -248,6 +249,65 @@ def test_compliance_columns_in_paper_layout(compliance, tmp_path):
         _shown_equals(page, f"{p['name']}:estimate", p["estimate"])
         _shown_equals(page, f"{p['name']}:std", p["std"])
     assert "K<sub>&theta;</sub>" in text
+    # units keep their case wherever the page names them, sentences included
+    assert "deg/(kn m)" not in text
+    assert "compliances in deg/(kN m)" in text
+
+
+@pytest.fixture(scope="module")
+def humanoid_result():
+    """A humanoid-sized campaign: 19 joints, three fixed frames placed by matrices, five markers,
+    geometric and compliance parameters on masses assumed from the geometry (relative compliances)."""
+    m = humanoid()
+    _, data = rc.simulate(m, 400, parameters=("geometric", "compliance"), seed=3)
+    return rc.calibrate(m, data.subset(slice(0, 320)), validation=data.subset(slice(320, None)),
+                        parameters=("geometric", "compliance"))
+
+
+def test_fixed_frames_are_shown_as_the_position_and_matrix_written(humanoid_result, tmp_path):
+    from robocal.kinematics import mdh_transform
+
+    page, _ = _page(_roundtrip(humanoid_result), tmp_path)
+    # as tests/robots.py writes them (mm; rows of the matrix)
+    written = {"ltool": ((0, 0, 110), ((0, 0, 1), (1, 0, 0), (0, 1, 0))),
+               "rtool": ((0, 0, 110), ((0, 1, 0), (0, 0, 1), (1, 0, 0))),
+               "head": ((60, 0, 80), ((0, 0, 1), (0, 1, 0), (-1, 0, 0)))}
+    calibrated = {f.name: f for f in humanoid_result.calibrated_model.frames}
+    for name, (position, rotation) in written.items():
+        shown = [float(v) for v in page.keyed[f"{name}:nominal.position"].split(",")]
+        assert shown == pytest.approx(position, abs=5e-5)
+        rows = re.findall(r"\[([^\[\]]+)\]", page.keyed[f"{name}:nominal.rotation"])
+        assert np.abs(np.array([[float(v) for v in r.split(",")] for r in rows]) - rotation).max() < 5e-7
+        X = mdh_transform(calibrated[name])
+        cal = [float(v) for v in page.keyed[f"{name}:calibrated.position"].split(",")]
+        assert cal == pytest.approx(X[:3, 3] * 1e3, abs=5e-5)
+        # not as the converted parameters (gamma, beta... of the equivalent transform)
+        assert f"{name}.beta:nominal" not in page.keyed and f"{name}.theta:nominal" not in page.keyed
+
+
+def test_compliances_from_assumed_masses_are_shown_as_relative(humanoid_result, compliance, tmp_path):
+    from robocal._presentation.html import RELATIVE_NOTE
+
+    _, text = _page(_roundtrip(humanoid_result), tmp_path, name="humanoid.html")
+    assert "K<sub>&theta;</sub> <small>(relative)</small>" in text and RELATIVE_NOTE in text
+    assert "K<sub>&theta;</sub> <small>(deg/(kN m))</small>" not in text
+    _, text = _page(compliance, tmp_path, name="masses.html")  # masses given: absolute compliances
+    assert "K<sub>&theta;</sub> <small>(deg/(kN m))</small>" in text and RELATIVE_NOTE not in text
+
+
+def test_a_tool_turn_is_shown_as_an_angle_about_an_axis(tmp_path):
+    from scipy.spatial.transform import Rotation
+
+    m = arm6r()
+    axis = np.array([1.0, 1.0, 1.0]) / np.sqrt(3)
+    turned = m.replace(markers=tuple(replace(mk, rotation=tuple(map(tuple, Rotation.from_rotvec(
+        np.radians(120) * axis).as_matrix()))) for mk in m.markers))
+    _, data = rc.simulate(turned, 80, orientation=True, noise_rot=2e-5, parameters=("base",), seed=8)
+    page, _ = _page(_roundtrip(rc.calibrate(m, data)), tmp_path)
+    said = page.keyed["turn.tool"]
+    angle, shown_axis = re.search(r"turned ([\d.]+) deg about \(([^)]+)\)", said).groups()
+    assert float(angle) == pytest.approx(120, abs=0.01)
+    assert [float(v) for v in shown_axis.split(",")] == pytest.approx(axis, abs=1e-3)
 
 
 def test_geometric_only_omits_compliance_columns(full, tmp_path):
@@ -293,7 +353,7 @@ def test_refuses_to_overwrite_and_writes_atomically(full, tmp_path):
 
 
 def test_not_a_result_is_an_input_error(full):
-    with pytest.raises(rc.InputError, match="expected a CalibrationResult, got dict"):
+    with pytest.raises(rc.InputError, match="result: must be a CalibrationResult, got a dict"):
         render_report(full)
     with pytest.raises(rc.InputError, match="nominal_model: missing key"):
         result_from_dict({"schema": "robocal.result/1"})
@@ -352,6 +412,46 @@ def chromium():
             browser.close()
 
 
+# In the page as laid out: every text's rendered size (CSS px; SVG text scaled by its transforms and
+# the picture's own scaling to the page) and every pair of texts of a plot whose boxes overlap by
+# more than a pixel each way.
+MEASURE_TEXT = """
+() => {
+  const out = {small: [], overlaps: [], texts: 0};
+  const walker = document.createTreeWalker(document.body, NodeFilter.SHOW_TEXT);
+  while (walker.nextNode()) {
+    const t = walker.currentNode;
+    if (!t.textContent.trim()) continue;
+    const el = t.parentElement;
+    if (el.closest('svg')) continue;
+    out.texts++;
+    const fs = parseFloat(getComputedStyle(el).fontSize);
+    if (fs < 9) out.small.push({where: el.tagName, text: t.textContent.trim().slice(0, 40), size: fs});
+  }
+  for (const svg of document.querySelectorAll('svg[data-plot]')) {
+    const boxes = [];
+    for (const t of svg.querySelectorAll('text')) {
+      if (!t.textContent.trim()) continue;
+      out.texts++;
+      const m = t.getScreenCTM();
+      const scale = Math.sqrt(Math.abs(m.a * m.d - m.b * m.c));
+      const fs = parseFloat(getComputedStyle(t).fontSize) * scale;
+      if (fs < 9) out.small.push({where: svg.dataset.plot, text: t.textContent.trim().slice(0, 40), size: fs});
+      const r = t.getBoundingClientRect();
+      boxes.push({l: r.left, r: r.right, t: r.top, b: r.bottom, text: t.textContent.trim().slice(0, 40)});
+    }
+    for (let i = 0; i < boxes.length; i++) for (let j = i + 1; j < boxes.length; j++) {
+      const a = boxes[i], b = boxes[j];
+      const w = Math.min(a.r, b.r) - Math.max(a.l, b.l), h = Math.min(a.b, b.b) - Math.max(a.t, b.t);
+      if (w > 1 && h > 1) out.overlaps.push({where: svg.dataset.plot, a: a.text, b: b.text, w: w, h: h});
+    }
+  }
+  return out;
+}
+"""
+SMALLEST_TEXT_PX = 9
+
+
 def _render_in_chromium(browser, path: Path, shot_name: str):
     """Load ``path`` as a user opens it and print it to PDF: console messages, requests, plots, title,
     screenshot, how far the page is wider than the window, the PDF's outline."""
@@ -369,6 +469,7 @@ def _render_in_chromium(browser, path: Path, shot_name: str):
         overflow = page.evaluate("Math.max(document.documentElement.scrollWidth, document.body.scrollWidth)"
                                  " - document.documentElement.clientWidth")
         title = page.title()
+        text = page.evaluate(MEASURE_TEXT)
         ARTIFACTS.mkdir(exist_ok=True)
         shot = ARTIFACTS / shot_name
         page.screenshot(path=str(shot), full_page=True)
@@ -378,7 +479,7 @@ def _render_in_chromium(browser, path: Path, shot_name: str):
         page.close()
     outline = [t.decode("latin-1") for t in re.findall(rb"/Title\s*\(([^)]*)\)", pdf)]
     return {"console": console, "requests": requests, "plots": plots, "title": title, "shot": shot, "url": url,
-            "overflow": overflow, "outline": outline}
+            "overflow": overflow, "outline": outline, "text": text}
 
 
 def _assert_rendered(r: dict, html: str):
@@ -390,6 +491,10 @@ def _assert_rendered(r: dict, html: str):
         assert pl["width"] > 300 and pl["height"] > 150 and pl["n"] > 20, pl
     assert r["shot"].stat().st_size > 50_000
     assert r["overflow"] <= 0, f"the page is {r['overflow']} px wider than the window"
+    # readable: no text smaller than 9 px as laid out, no two labels of a plot on top of each other
+    assert r["text"]["texts"] > 100
+    assert r["text"]["small"] == [], r["text"]["small"][:10]
+    assert r["text"]["overlaps"] == [], r["text"]["overlaps"][:10]
     # the printed PDF holds every section: each section heading is in its outline
     sections = re.findall(r'<section id="[^"]+"><h2>([^<]+)</h2>', html)
     assert len(sections) >= 10 and set(sections) <= set(r["outline"]), (sections, r["outline"])
@@ -431,7 +536,8 @@ def test_6d_report_renders_in_headless_chromium(chromium, tmp_path):
     page = Page(html)
     assert "stats.rotation.validation_after.mean" in page.keyed
     assert "solver.sigma0" in page.keyed and "solver.sigma0_m" not in page.keyed  # a ratio for weighted 6D fits
-    assert "rotation error" in page.plots["histograms"]["text"] and "rotation error" in page.plots["residual-trends"]["text"]
+    assert "rotation error" in page.plots["histograms"]["text"]
+    assert "rotation error" in page.plots["residual-trends"]["text"]
     _assert_rendered(_render_in_chromium(chromium, path, "report-6d.png"), html)
 
 
@@ -442,6 +548,18 @@ def test_20000_pose_report_is_small_and_renders_in_headless_chromium(chromium, b
     html = path.read_text(encoding="utf-8")
     assert "300 of the 16000 measured points are drawn" in html
     _assert_rendered(_render_in_chromium(chromium, path, "report-20000.png"), html)
+
+
+def test_humanoid_sized_report_is_readable_in_headless_chromium(chromium, humanoid_result, tmp_path):
+    # a model of 100+ parameters and 19 joints: every label at 9 px or more, none overlapping
+    assert len(humanoid_result.parameters) >= 117 and humanoid_result.nominal_model.n_joints >= 19
+    path = tmp_path / "report.html"
+    write_report(humanoid_result, path)
+    assert path.stat().st_size < 5e6
+    html = path.read_text(encoding="utf-8")
+    page = Page(html)
+    assert all(p.name in page.plots["correlation"]["text"] for p in humanoid_result.parameters)
+    _assert_rendered(_render_in_chromium(chromium, path, "report-humanoid.png"), html)
 
 
 # -- absorptions in display units, against the Jacobian -------------------------------------------
@@ -548,8 +666,9 @@ def test_an_unmodelled_joint_error_shows_as_a_trend_against_that_joint_only():
     # an error the model cannot absorb: 0.3 mm along world z, three periods over joint 2's reading
     bump = 3e-4 * np.sin(3 * data.q[:, 1])
     data = replace(data, positions=data.positions + bump[:, None, None] * np.array([0.0, 0.0, 1.0]))
-    d = _roundtrip(rc.calibrate(m, data))
-    trends = residual_trends(d, m.joint_names, ["rad"] * 6, m.base_position)
+    result = rc.calibrate(m, data)
+    d = _roundtrip(result)
+    trends = residual_trends(d, m.joint_names, ["rad"] * 6, result.calibrated_model.X_WB)
     spread = {x: np.ptp(trends["trends"][("dz", x)]["median"]) for x, _ in trends["columns"]}
     joint2 = f"{m.joint_names[1]} reading"
     # reach and height follow joint 2 too (it lifts the arm); the other joints do not
@@ -562,6 +681,64 @@ def test_an_unmodelled_joint_error_shows_as_a_trend_against_that_joint_only():
     assert np.corrcoef(t["median"], shape)[0, 1] > 0.9
 
 
+def test_trends_are_drawn_only_against_joints_that_show_structure():
+    from dataclasses import replace
+
+    from robocal._presentation.plots import STRUCTURE, residual_trends, structure
+
+    m = arm6r()
+    _, data = rc.simulate(m, 2000, seed=4)
+    clean = rc.calibrate(m, data)
+    bumped = replace(data, positions=data.positions + 3e-4 * np.sin(3 * data.q[:, 1])[:, None, None]
+                     * np.array([0.0, 0.0, 1.0]))
+    joint2 = f"{m.joint_names[1]} reading"
+    shown = {}
+    for name, result in (("clean", clean), ("bumped", rc.calibrate(m, bumped))):
+        trends = residual_trends(_roundtrip(result), m.joint_names, ["rad"] * 6, result.calibrated_model.X_WB)
+        shown[name] = [c for c in trends["structured"] if c.endswith("reading")]
+        # what "structured" says is what the measure says, row by row
+        for c, _ in trends["columns"]:
+            assert (c in trends["structured"]) == any(structure(trends["trends"][(r, c)]) >= STRUCTURE
+                                                      for r, _ in trends["rows"])
+    assert shown["clean"] == []  # noise alone shows no trend
+    assert joint2 in shown["bumped"] and len(shown["bumped"]) < 6
+    html = _render(_roundtrip(rc.calibrate(m, bumped)))
+    trends_svg = html[html.index('data-plot="residual-trends"'):]
+    trends_svg = trends_svg[:trends_svg.index("</svg>")]
+    assert f"{joint2} (deg)" in trends_svg and f"{m.joint_names[0]} reading" not in trends_svg
+
+
+def test_reach_and_height_are_measured_from_the_calibrated_base():
+    from robocal._presentation.plots import residual_trends
+
+    true, data = rc.simulate(arm6r(), 400, parameters=("base",), seed=6)
+    at_tracker = true.replace(base_position=(0.0, 0.0, 0.0),  # the base unknown
+                              base_rotation=((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)))
+    result = rc.calibrate(at_tracker, data)
+    trends = residual_trends(_roundtrip(result), true.joint_names, ["rad"] * 6, result.calibrated_model.X_WB)
+    # the marker's distance from the true base's vertical axis, and its height above the base
+    rel = (data.positions[:, 0] - np.asarray(true.base_position)) @ np.asarray(true.base_rotation)
+    reach, height = np.hypot(rel[:, 0], rel[:, 1]) * 1e3, rel[:, 2] * 1e3
+    for label, truth in (("reach", reach), ("height", height)):
+        x = trends["trends"][("dx", label)]["x"]
+        assert truth.min() - 1 <= x.min() and x.max() <= truth.max() + 1, (label, x, truth.min(), truth.max())
+    assert np.hypot(*true.base_position[:2]) * 1e3 > reach.max() + 500  # the tracker's distance would differ
+
+
+def test_each_histogram_has_its_own_axis(full):
+    from robocal._presentation.plots import histogram_panels
+
+    d = json.loads(json.dumps(full))
+    d["limit"] = dict(d["limit"], limit_m=1e-2)  # a limit far beyond the errors after calibration
+    panels = {p["when"]: p for p in histogram_panels(d)}
+    after = max(panels["after"]["fit"].max(), panels["after"]["validation"].max())
+    before = max(panels["before"]["fit"].max(), panels["before"]["validation"].max())
+    assert before > 10 * after
+    assert panels["after"]["top"] == pytest.approx(after) and panels["before"]["top"] == pytest.approx(before)
+    d["limit"] = dict(d["limit"], limit_m=2 * after * 1e-3)  # a limit within reach is on the axis
+    assert [p["top"] for p in histogram_panels(d) if p["when"] == "after"] == [pytest.approx(2 * after)]
+
+
 def test_terminal_tables_align_for_long_names():
     from robocal.report import calibration_summary, identifiability_summary
 
@@ -572,5 +749,27 @@ def test_terminal_tables_align_for_long_names():
     owners = [line for line in lines if line.lstrip().startswith(("base ", "spherically"))]
     assert len(owners) == 2 and owners[0].index(" x:") == owners[1].index(" x:")
     _, data = rc.simulate(m, 30, seed=1)
-    rows = [line for line in calibration_summary(rc.calibrate(m, data)).splitlines() if " change " in line and " std " in line]
-    assert len(rows) > 20 and len({line.index(" change ") for line in rows}) == 1 and len({line.index(" std ") for line in rows}) == 1
+    rows = [line for line in calibration_summary(rc.calibrate(m, data)).splitlines()
+            if " change " in line and " std " in line]
+    assert len(rows) > 20
+    assert len({line.index(" change ") for line in rows}) == 1 and len({line.index(" std ") for line in rows}) == 1
+
+
+def test_summary_error_columns_stay_apart_past_999_mm():
+    from robocal._calibration import ErrorStats
+    from robocal._presentation.text import stats_lines
+
+    big = {"fit_before": ErrorStats(36, 3.252, 1.06, 3.4, 12.5), "fit_after": ErrorStats(36, 4e-4, 2e-4, 5e-4, 1e-3),
+           "validation_before": ErrorStats(12, 1.0004, 0.998, 1.5, 2.75),
+           "validation_after": ErrorStats(0, None, None, None, None)}
+    lines = stats_lines(big)
+    head = lines[0]
+    for line, key in zip(lines[1:], ("fit_before", "fit_after", "validation_before")):
+        s = big[key]
+        cells = line[24:].split()  # after the row label: n and four numbers, each its own word
+        assert [int(cells[0])] + [float(c) for c in cells[1:]] == pytest.approx(
+            [s.n] + [v * 1e3 for v in (s.mean, s.std, s.rms, s.max)], abs=5e-4)
+        # each number ends under its column's name
+        for name, cell in zip(("mean", "std", "RMS", "max"), cells[1:]):
+            assert head.index(name) + len(name) == line.index(cell) + len(cell)
+    assert len(lines) == 4

@@ -6,10 +6,10 @@ import json
 
 import numpy as np
 import pytest
-
-import robocal as rc
 from conftest import assert_one_line_error
 from fuzz_cases import MEASUREMENTS, MODEL
+
+import robocal as rc
 from robocal.io import result_files, result_to_dict
 
 

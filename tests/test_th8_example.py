@@ -8,11 +8,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from robots import arm6r
 
 import robocal as rc
 from robocal.sim import RobotImperfections, accuracy_in_use, measure_campaign, stored_model
-
-from robots import arm6r
 
 TH8 = Path(__file__).resolve().parents[1] / "examples" / "th8"
 
@@ -261,9 +260,10 @@ def test_backlash_under_gravity_rests_on_the_side_gravity_pushes_to():
 
 
 def test_loaded_joints_give_way_to_gravity_and_iso_repeatability_still_misses_it():
-    from robocal.sim import approach_sides, backlash_sides
-    from robocal.kinematics import gravity_loads
     from robots import cylindrical
+
+    from robocal.kinematics import gravity_loads
+    from robocal.sim import approach_sides, backlash_sides
     m = cylindrical(masses=True)
     friction = (0.5, 5.0, 5.0, 0.2, 0.2, 0.2)
     imp = RobotImperfections(encoder_resolution=(1e-5,) * 6, repeatability_sigma=3e-5, instrument_noise_per_m=0.0,

@@ -1,12 +1,11 @@
 """robocal's calls run BLAS on one thread and give the caller's setting back."""
 
 import pytest
+from robots import arm6r
 from threadpoolctl import threadpool_info, threadpool_limits
 
 import robocal as rc
 from robocal._threads import one_blas_thread
-
-from robots import arm6r
 
 
 def _blas_threads():

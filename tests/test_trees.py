@@ -9,11 +9,11 @@ reported std over the identified parameters.
 
 import numpy as np
 import yaml
+from conftest import z_scores
+from robots import DEG, torso
 from scipy.spatial.transform import Rotation
 
 import robocal as rc
-from conftest import z_scores
-from robots import DEG, torso
 
 NOISE = 2e-5
 

@@ -61,7 +61,8 @@ def sockets(m, rng):
     without = contact_identifiability(ContactProblem(m, replace(fit, distances=()), names, compliance=False), names)
     ratio = res.validation_after.mean_spread / contact_errors(true, val).mean_spread
     return dict(placements=placements, poses=poses, z=z_scores(res, true, m), ratio=ratio,
-                named=[u.name for u in res.identifiability.unreachable], named_without=[u.name for u in without.unreachable])
+                named=[u.name for u in res.identifiability.unreachable],
+                named_without=[u.name for u in without.unreachable])
 
 
 def with_tracker(m, rng):

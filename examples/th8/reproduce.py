@@ -30,9 +30,8 @@ from pathlib import Path
 import numpy as np
 
 import robocal as rc
-
-from robocal.sim import RobotImperfections, accuracy_in_use, measure_campaign
 from robocal.report import checks_lines, verdict_line
+from robocal.sim import RobotImperfections, accuracy_in_use, measure_campaign
 
 HERE = Path(__file__).resolve().parent
 DEG = np.pi / 180
@@ -184,7 +183,8 @@ def table(rows, limit) -> list[str]:
         cells = [f"{_mm(m)} ({_mm(s)})" for m, s in (r["fit"], r["held_out"], r["in_use"])]
         out.append(f"| {key} | {_paper(key)} | " + " | ".join(cells) + " |")
     out.append(f"| repeatability RP (ISO 9283) | {PAPER['repeatability']:.2f} | {_mm(limit.repeatability)} | | |")
-    out.append(f"| precision of the geometric control | {PAPER['controller precision']:.2f} | {_mm(limit.precision)} | | |")
+    out.append(f"| precision of the geometric control | {PAPER['controller precision']:.2f} "
+               f"| {_mm(limit.precision)} | | |")
     out.append(f"| limit of absolute accuracy | {PAPER['limit']:.2f} | {_mm(limit.limit)} | | |")
     return out
 
@@ -199,7 +199,8 @@ def backlash_lines(cmp) -> list[str]:
     out = []
     for e in res.parameters:
         if e.family == "backlash":
-            size = f"{np.degrees(e.estimate) * 60:.2f} arcmin" if e.quantity == "angle" else f"{e.estimate * 1e3:.4f} mm"
+            size = (f"{np.degrees(e.estimate) * 60:.2f} arcmin" if e.quantity == "angle"
+                    else f"{e.estimate * 1e3:.4f} mm")
             std = f"{np.degrees(e.std) * 60:.2f} arcmin" if e.quantity == "angle" else f"{e.std * 1e3:.4f} mm"
             out.append(f"- {e.name}: half lost motion {size} +- {std}")
     for a in res.identifiability.eliminated:

@@ -1,9 +1,10 @@
 """robocal: identify a robot's geometric and compliance parameters from measurements.
 
-``import robocal as rc`` gives the everyday surface; the subpackages ``robocal.kinematics``,
-``robocal.io``, ``robocal.sim``, ``robocal.limit``, ``robocal.report`` and ``robocal.errors`` hold
-the rest. Conventions (frames, units, parameter order) are in docs/conventions.md. Names load on
-first use, so the command line starts without the numerical libraries.
+``import robocal as rc`` gives the everyday surface; the modules ``robocal.kinematics``,
+``robocal.io``, ``robocal.sim``, ``robocal.limit``, ``robocal.report``, ``robocal.identification``
+and ``robocal.errors`` hold the rest. Conventions (frames, units, parameter order) are in
+docs/conventions.md. Names load on first use, so the command line starts without the numerical
+libraries.
 """
 
 from importlib import import_module
@@ -12,15 +13,16 @@ from ._version import __version__
 
 # name -> public module that provides it
 _EVERYDAY = {
-    "errors": ("RobocalError", "InputError", "DegenerateDataError", "RobocalWarning", "CheckWarning", "ConvergenceWarning",
-               "MisfitWarning", "IdentifiabilityWarning"),
+    "errors": ("RobocalError", "InputError", "DegenerateDataError", "RobocalWarning", "CheckWarning",
+               "ConvergenceWarning", "MisfitWarning", "IdentifiabilityWarning"),
     "kinematics": ("Frame", "Marker", "Payload", "RobotModel", "serial_model", "parallel_beta_frames",
                    "mdh_transform", "evaluate", "forward_kinematics", "jacobian", "gravity_loads", "joint_jacobian",
                    "parameter_names", "parameter_vector", "model_from_vector", "candidate_parameters",
                    "random_configurations", "default_masses"),
     "io": ("Measurements", "read_model", "write_model", "model_from_dict", "model_to_dict", "read_measurements",
            "write_measurements", "split_sets", "read_result", "write_result", "read_urdf", "write_urdf",
-           "from_standard_dh", "mdh_table", "write_mdh_csv", "read_dh_table", "urdf_text", "to_standard_dh", "read_repeatability_csv"),
+           "from_standard_dh", "mdh_table", "write_mdh_csv", "read_dh_table", "urdf_text", "to_standard_dh",
+           "read_repeatability_csv"),
     "sim": ("simulate", "measure", "perturb_model"),
     "limit": ("AccuracyLimit", "PoseRepeatability", "PrecisionResult", "PredictedPrecision", "RepeatabilityData",
               "RepeatabilityResult", "accuracy_limit", "controller_precision", "iso9283_repeatability",
@@ -28,16 +30,26 @@ _EVERYDAY = {
     "report": ("render_report", "write_report"),
     "_measurements": ("Noise",),
     "_checks": ("Check",),
+    "_diagnosis": ("diagnose", "Diagnosis", "Finding"),
     "_calibration": ("calibrate", "compare", "register_base", "error_stats", "CalibrationResult", "Comparison",
                      "ParameterEstimate", "ErrorStats", "ErrorSummary", "LimitJudgement"),
     "_identifiability": ("identifiability", "status_table", "Absorption", "IdentifiabilityResult"),
     "_pose_selection": ("select_poses", "PoseSelection", "predict_campaign", "CampaignPrediction"),
-    "_compensation": ("compensate", "Compensation"),
+    "_compensation": ("compensate", "Compensation", "compensate_poses", "PoseCompensation", "inverse_kinematics",
+                      "InverseKinematics", "posture"),
     "_contacts": ("Contacts", "KnownDistance", "KnownPlane"),
     "_contact_calibration": ("calibrate_contacts", "contact_errors", "ContactCalibration", "ContactErrors"),
+    "_verification": ("verify", "Verification", "Accuracy", "positional_accuracy"),
+    "_store": ("Store", "open_store", "store_location", "default_store_path", "history", "type_comparison",
+               "verify_robot", "latest_usable", "judge_changes", "compare_type", "stored_calibration",
+               "accuracy_at_calibration", "History", "Change", "TypeComparison", "Latest", "Outlier",
+               "StoredCalibration", "StoredVerification", "Estimate", "model_document", "sidak_threshold",
+               "JUDGED_FAMILIES"),
+    "_presentation.history": ("change_line", "history_summary", "type_summary", "verification_summary",
+                              "render_history", "write_history"),
 }
 _WHERE = {name: module for module, names in _EVERYDAY.items() for name in names}
-_SUBMODULES = ("kinematics", "io", "sim", "limit", "report", "errors", "cli")
+_SUBMODULES = ("kinematics", "io", "sim", "limit", "report", "errors", "identification", "cli")
 
 __all__ = ["__version__"] + sorted(_WHERE)
 

@@ -16,18 +16,32 @@ only place where millimetres appear.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass, field
-from typing import Callable, Hashable, Sequence
 
 import numpy as np
 
+from ._arguments import (
+    CALLABLE,
+    NON_NEGATIVE,
+    SEED,
+    SEQUENCE,
+    checked,
+    is_a,
+    marker_of,
+    one_of,
+    optional,
+    per_joint,
+    shaped,
+    whole,
+)
 from ._errors import InputError, check_choice
-from ._options import LIMIT_CHUNK, LIMIT_MARKER_MODES
 from ._kinematics import evaluate, kinematic_pass, layout
 from ._model import RobotModel
+from ._options import LIMIT_CHUNK, LIMIT_MARKER_MODES, MAX_CHUNK, MAX_SAMPLES
 from ._parameters import families, parameter_layout, parameter_vector
 from ._problem import sampling_box
-from ._spatial import cross
+from ._spatial import cross, vector3
 from ._threads import one_blas_thread
 
 PERCENTILES = (50.0, 90.0, 95.0, 99.0)
@@ -79,7 +93,7 @@ class PoseRepeatability:
     pose: Hashable
     n_cycles: int
     barycentre: tuple[float, float, float]
-    l: tuple[float, ...]
+    l: tuple[float, ...]  # noqa: E741 - ISO 9283's symbol l_j
     l_mean: float
     s_l: float
     rp: float
@@ -167,12 +181,22 @@ class AccuracyLimit:
 
 # -- ISO 9283 repeatability --------------------------------------------------------------------
 
+@checked(pose_ids=SEQUENCE, points=shaped(None, 3))
 def iso9283_repeatability(pose_ids: Sequence[Hashable], points) -> RepeatabilityResult:
     """ISO 9283 pose repeatability of each commanded pose and the worst pose.
 
     ``pose_ids`` (n,) name the commanded pose of each attained position ``points`` (n, 3), metres.
     Per pose: barycentre, ``l_j = |P_j - barycentre|``, ``l_mean``, ``S_l`` (sample standard
     deviation, n - 1) and ``RP = l_mean + 3 S_l``. Poses are reported in order of first appearance.
+
+    Parameters
+    ----------
+    {pose_ids, points}
+
+    Returns
+    -------
+    RepeatabilityResult
+        RP per pose and the worst.
 
     >>> r = iso9283_repeatability(["a"] * 2, [[0.0, 0, 0], [0.002, 0, 0]])
     >>> round(r.poses[0].l_mean, 6), round(r.poses[0].s_l, 6), round(r.rp, 6)
@@ -198,11 +222,11 @@ def iso9283_repeatability(pose_ids: Sequence[Hashable], points) -> Repeatability
                              where="pose_ids")
         Pj = P[rows]
         bary = Pj.mean(axis=0)
-        l = np.linalg.norm(Pj - bary, axis=1)
-        l_mean = float(l.mean())
-        s_l = float(l.std(ddof=1))
-        poses.append(PoseRepeatability(pose=pid, n_cycles=len(rows), barycentre=tuple(float(v) for v in bary),
-                                       l=tuple(float(v) for v in l), l_mean=l_mean, s_l=s_l,
+        dist = np.linalg.norm(Pj - bary, axis=1)
+        l_mean = float(dist.mean())
+        s_l = float(dist.std(ddof=1))
+        poses.append(PoseRepeatability(pose=pid, n_cycles=len(rows), barycentre=vector3(bary),
+                                       l=tuple(float(v) for v in dist), l_mean=l_mean, s_l=s_l,
                                        rp=l_mean + 3.0 * s_l))
     worst = max(poses, key=lambda r: r.rp)
     return RepeatabilityResult(poses=tuple(poses), rp=worst.rp, worst_pose=worst.pose)
@@ -220,6 +244,7 @@ class _Rounded:
     quanta: np.ndarray   # (K,) metres or radians
 
 
+@checked(model=is_a(RobotModel), length_quantum=NON_NEGATIVE, angle_quantum=NON_NEGATIVE)
 def rounded_parameters(model: RobotModel, length_quantum: float, angle_quantum: float) -> _Rounded:
     """Which stored parameters the controller rounds, with their quanta.
 
@@ -227,11 +252,24 @@ def rounded_parameters(model: RobotModel, length_quantum: float, angle_quantum: 
     and b where the frame hangs off a frame other than its predecessor (elsewhere they are
     structural zeros, not stored numbers); every marker's and the base's x, y, z. Rotation
     corrections and compliances are not stored dimensions.
+
+    Parameters
+    ----------
+    {model}
+    length_quantum : float
+        Resolution lengths are stored with, m (0: exact).
+    angle_quantum : float
+        Resolution angles are stored with, rad (0: exact).
+
+    Returns
+    -------
+    _Rounded
+        The model's values as the controller stores them.
     """
     lay = layout(model)
     params = parameter_layout(model)
     quantum = {"length": length_quantum, "angle": angle_quantum}
-    chosen = [params[n] for n in families(model)["geometric"] 
+    chosen = [params[n] for n in families(model)["geometric"]
               if params[n].quantity == "length" or params[n].role == "frame"]
     # parameter-vector order, so the random stream does not depend on how the families list them
     chosen.sort(key=lambda prm: prm.index)
@@ -300,6 +338,9 @@ def parameter_displacement(ps, rot: np.ndarray, steps: np.ndarray, on_path: np.n
     return trans + turn
 
 
+@checked(model=is_a(RobotModel), encoder_resolution=per_joint(), length_quantum=NON_NEGATIVE,
+         angle_quantum=NON_NEGATIVE, n_samples=whole(1, MAX_SAMPLES), chunk_size=whole(1, MAX_CHUNK), rng=SEED,
+         progress=optional(CALLABLE), markers=one_of(LIMIT_MARKER_MODES))
 @one_blas_thread
 def controller_precision(model: RobotModel, *, encoder_resolution, length_quantum: float,
                          angle_quantum: float, n_samples: int, chunk_size: int = DEFAULT_CHUNK, rng,
@@ -326,6 +367,17 @@ def controller_precision(model: RobotModel, *, encoder_resolution, length_quantu
     kinematics works on ``chunk_size`` configurations at a time, the moments are running sums and
     the percentiles come from a fixed histogram of ``HIST_BINS`` log-spaced bins over
     [1e-12 m, 1 m] (relative resolution 0.14 %). ``progress(done, total)`` is called after each chunk.
+
+    Parameters
+    ----------
+    {model, encoder_resolution, length_quantum, angle_quantum, n_samples, chunk_size, rng, progress}
+    markers : str
+        ``first`` marker or ``all`` markers.
+
+    Returns
+    -------
+    PrecisionResult
+        Monte Carlo statistics of the position error the control leaves.
     """
     res, rp, (lo, hi) = _error_model(model, encoder_resolution, length_quantum, angle_quantum)
     n = _count(n_samples, "n_samples", 2)
@@ -349,9 +401,11 @@ def controller_precision(model: RobotModel, *, encoder_resolution, length_quantu
         dp = (u[:, 2 * nj:] - 0.5) * rp.quanta
         ref = kinematic_pass(model, lay, p, q @ C.T).P
         ps = kinematic_pass(model, lay, p, (q + dq) @ C.T)
+        P = ps.P
+        assert ref is not None and P is not None  # passes with markers
         worst = np.zeros(m)
         for k in sel:
-            d = ps.P[k] + parameter_displacement(ps, rot, rp.steps, lay.marker_path[k, rp.steps], dp, ps.P[k])
+            d = P[k] + parameter_displacement(ps, rot, rp.steps, lay.marker_path[k, rp.steps], dp, P[k])
             worst = np.maximum(worst, np.linalg.norm(d - ref[k], axis=1))
         sq = worst * worst
         s1 += float(worst.sum())
@@ -375,6 +429,9 @@ def controller_precision(model: RobotModel, *, encoder_resolution, length_quantu
         method="exact forward kinematics for joint errors, first order (J_p dp) for parameter round-off")
 
 
+@checked(model=is_a(RobotModel), encoder_resolution=per_joint(), length_quantum=NON_NEGATIVE,
+         angle_quantum=NON_NEGATIVE, n_configurations=whole(1, MAX_SAMPLES), chunk_size=whole(1, MAX_CHUNK), rng=SEED,
+         marker=marker_of())
 @one_blas_thread
 def predicted_controller_precision(model: RobotModel, *, encoder_resolution, length_quantum: float,
                                    angle_quantum: float, n_configurations: int = 20000,
@@ -390,6 +447,15 @@ def predicted_controller_precision(model: RobotModel, *, encoder_resolution, len
     first order. A mean norm depends on the distribution; ``mean_gaussian`` samples
     dP ~ N(0, Cov) (one draw per configuration, as a Gaussian-weighted sum of J's columns) and is
     only as good as the Gaussian approximation of a sum of uniform errors.
+
+    Parameters
+    ----------
+    {model, encoder_resolution, length_quantum, angle_quantum, n_configurations, chunk_size, rng, marker}
+
+    Returns
+    -------
+    PredictedPrecision
+        First-order prediction of the same.
     """
     res, rp, (lo, hi) = _error_model(model, encoder_resolution, length_quantum, angle_quantum)
     n = _count(n_configurations, "n_configurations", 2)
@@ -430,6 +496,18 @@ def accuracy_limit(repeatability, precision: PrecisionResult) -> AccuracyLimit:
     """The limit of absolute accuracy: repeatability RP + the geometric control's mean deviation.
 
     ``repeatability`` is RP in metres (a float) or a ``RepeatabilityResult`` (its worst pose's RP).
+
+    Parameters
+    ----------
+    repeatability : RepeatabilityResult or float
+        ISO 9283 repeatability (RP), or its value in m.
+    precision : PrecisionResult
+        The precision of the geometric control (``controller_precision``).
+
+    Returns
+    -------
+    AccuracyLimit
+        The limit of absolute accuracy and its parts.
     """
     detail = None
     if isinstance(repeatability, RepeatabilityResult):

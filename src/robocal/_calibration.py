@@ -11,32 +11,85 @@ compute the error statistics, record the provenance.
 
 from __future__ import annotations
 
-import warnings
+import contextlib
 from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
+from typing import cast
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ._checks import (FIT_RATIO, GROSS_FACTOR, OUTLIER_RUN, OUTLIER_SHARE_MAX, Check, WorkspaceChange, backlash_sign_check,
-                      cloud_size_check, compliance_sign_check, convergence_check, correlation_check, coverage_check,
-                      expected_noise, fit_check, identifiability_check, in_use_check, interchangeable_pairs,
-                      limit_check, markers_check, outlier_bar, outlier_check, outlier_scores, plausibility_check, reading_units_check,
-                      readings_check, support_check, tolerances, verdict)
-from ._errors import (CheckWarning, ConvergenceWarning, DegenerateDataError, IdentifiabilityWarning, InputError,
-                      MisfitWarning, check_choice)
-from ._identifiability import (DEFAULT_TOL, WEAK_STD, IdentifiabilityResult, analyse, backlash_reasons,
-                               theoretical_identifiability, weakly_identifiable)
+from ._checks import (
+    FIT_RATIO,
+    GROSS_FACTOR,
+    OUTLIER_RUN,
+    OUTLIER_SHARE_MAX,
+    Check,
+    WorkspaceChange,
+    backlash_sign_check,
+    cloud_size_check,
+    compliance_sign_check,
+    convergence_check,
+    correlation_check,
+    coverage_check,
+    expected_noise,
+    fit_check,
+    identifiability_check,
+    in_use_check,
+    interchangeable_pairs,
+    limit_check,
+    markers_check,
+    outlier_bar,
+    outlier_check,
+    outlier_scores,
+    plausibility_check,
+    reading_units_check,
+    readings_check,
+    support_check,
+    tolerances,
+    verdict,
+)
+from ._errors import (
+    CheckWarning,
+    ConvergenceWarning,
+    DegenerateDataError,
+    IdentifiabilityWarning,
+    InputError,
+    MisfitWarning,
+    check_choice,
+    warn,
+)
+from ._identifiability import (
+    DEFAULT_TOL,
+    WEAK_STD,
+    IdentifiabilityResult,
+    analyse,
+    backlash_reasons,
+    theoretical_identifiability,
+    weakly_identifiable,
+)
 from ._identifiability import eliminate as eliminate_parameters
-from ._in_use import (DEFAULT_FOLDS, AccuracyInUse, Coverage, HeldOut, accuracy_in_use, coverage, cross_validate,
-                      evaluated, fold_labels, free_names, paired_excess, with_points_aside, workspace_readings)
+from ._in_use import (
+    DEFAULT_FOLDS,
+    AccuracyInUse,
+    Coverage,
+    FoldProblems,
+    HeldOut,
+    accuracy_in_use,
+    coverage,
+    cross_validate,
+    evaluated,
+    fold_labels,
+    paired_excess,
+    with_points_aside,
+    workspace_readings,
+)
 from ._kinematics import evaluate
 from ._measurements import Measurements, Noise
-from ._options import DEFAULT_INSTRUMENT, INITIAL_BASES, LOSSES, OUTLIER_ACTIONS, WEAK_ACTIONS
 from ._misfit import characteristic_length, misfit_notes
 from ._model import RobotModel
-from ._parameters import (candidate_parameters, matched_by_pattern, model_from_vector, parameter_layout,
-                          parameter_vector)
+from ._options import DEFAULT_INSTRUMENT, INITIAL_BASES, LOSSES, OUTLIER_ACTIONS, WEAK_ACTIONS
+from ._parameters import candidate_parameters, matched_by_pattern, model_from_vector, parameter_layout, parameter_vector
 from ._problem import Problem, design_measurements, needs_compliance
 from ._solve import Covariance, Solution, covariance, solve
 from ._threads import one_blas_thread
@@ -104,7 +157,7 @@ def judge_against_limit(limit, in_use: AccuracyInUse) -> LimitJudgement:
     AccuracyLimit or metres)."""
     value = float(getattr(limit, "limit", limit))
     key = "cross-validation" if in_use.method == "cross-validation" else "validation_after"
-    mean = float(in_use.position_after.mean)
+    mean = float(cast(float, in_use.position_after.mean))
     ratio = mean / value
     return LimitJudgement(limit_m=value, compared=key, mean_error_m=mean, ratio=ratio,
                           reached=bool(ratio <= LIMIT_REACHED_WITHIN))
@@ -340,26 +393,35 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
         Estimates, covariance, errors, the accuracy in use and the checks; ``verdict`` says whether
         it can be trusted (docs/checks.md).
     """
-    parameters, known = _as_tuple(parameters), _as_tuple(known)
     _check_inputs(model, data, validation, loss=loss, initial_base=initial_base, on_outliers=on_outliers, weak=weak,
-                  folds=folds)
+                  folds=folds, options=dict(parameters=parameters, known=known, f_scale=f_scale, tol=tol,
+                                            max_nfev=max_nfev, limit=limit, noise=noise,
+                                            nonnegative_compliance=nonnegative_compliance,
+                                            register_validation=register_validation))
+    parameters, known = _as_tuple(parameters), _as_tuple(known)
     noise = noise if isinstance(noise, Noise) else Noise.of(noise or DEFAULT_INSTRUMENT)
     limit_m = None if limit is None else float(getattr(limit, "limit", limit))
     options = _Options(loss=loss, f_scale=f_scale, max_nfev=max_nfev, on_outliers=on_outliers, weak=weak,
                        nonnegative_compliance=nonnegative_compliance, folds=folds)
     notes = list(model.notes) + list(data.extra.get("notes", ()))  # what the readers decided for the user
+    data, copies = _without_copies(data)
     start, said = _starting_model(model, data, initial_base)
     analysis = _analyse(start, data, parameters, known + _unmeasured(model, data), tol, noise=noise)
     labels, k, grouping = fold_labels(data, folds)
-    chosen, choice_notes = _choose(start, analysis, data, noise, limit_m, options, (labels, k))
+    fold_problems = FoldProblems(labels, k)
+    chosen, choice_notes = _choose(start, analysis, data, noise, limit_m, options, (labels, k, fold_problems))
     design, solution = chosen.design, chosen.solution
     before, before_notes = _registered_nominal(design)
-    notes += list(said) + list(analysis.notes) + list(chosen.notes) + list(choice_notes) + list(before_notes)
+    notes += (list(copies) + list(said) + list(analysis.notes) + list(chosen.notes) + list(choice_notes)
+              + list(before_notes))
     cov = covariance(solution)
     estimates = _estimates(design, solution, cov)
-    in_use = _in_use(model, design, chosen, before, validation, (labels, k, grouping), register_validation)
+    in_use = _in_use(design, chosen, before, validation, (labels, k, grouping, fold_problems),
+                     register_validation)
     reach = _reach(start, design, solution.p, workspace_readings(start))
-    cover = coverage(design.problem, solution.p, cov.covariance, reach.predicted)
+    square = solution.jacobian.shape[0] == solution.jacobian.shape[1] and solution.row_kinds is None
+    cover = coverage(design.problem, solution.p, cov.covariance, reach.predicted,
+                     factor=solution.jacobian if square else None)
     checks = [readings_check(model, data), reading_units_check(model, data),
               cloud_size_check(model, data, analysis.problem.predicted(design.p0)[0]), markers_check(model, data),
               chosen.outlier_check]
@@ -369,7 +431,7 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
     fit = _PoseErrors.of(model, data, design.problem, before, solution.p, design)
     val = None if validation is None else _PoseErrors.of(model_from_vector(start, before), validation, None, None,
                                                          calibrated, design)
-    stats = fit.summary(val, rotation=False)
+    stats = cast(ErrorSummary, fit.summary(val, rotation=False))     # None only for rotations
     judged = None if limit is None else judge_against_limit(limit, in_use)
     if judged is not None:
         checks.append(limit_check(judged))
@@ -390,25 +452,64 @@ def _as_tuple(v) -> tuple:
 
 
 def _check_inputs(model: RobotModel, data: Measurements, validation, *, loss: str, initial_base: str,
-                  on_outliers: str, weak: str, folds: int = DEFAULT_FOLDS) -> None:
-    """Every argument checked before any work."""
+                  on_outliers: str, weak: str, folds: int = DEFAULT_FOLDS,
+                  options: dict | None = None) -> None:
+    """Every argument checked before any work: InputError naming the argument and what is allowed.
+    ``options``: the other arguments of ``calibrate`` by name."""
+    from ._accuracy_limit import AccuracyLimit
+    from ._arguments import FLAG, NAMES, POSITIVE, is_a, noise_of, number, optional, whole
+    from ._options import INSTRUMENT_NOISE
+
+    is_a(RobotModel)(model, "model", None)
+    is_a(Measurements)(data, "data", None)
+    optional(is_a(Measurements))(validation, "validation", None)
     check_choice(loss, LOSSES, "loss")
     check_choice(initial_base, INITIAL_BASES, "initial_base")
     check_choice(on_outliers, OUTLIER_ACTIONS, "on_outliers")
     check_choice(weak, WEAK_ACTIONS, "weak")
     if isinstance(folds, bool) or not isinstance(folds, (int, np.integer)) or folds < 2:
         raise InputError(f"must be an integer of at least 2, got {folds!r}", where="folds")
+    o = options or {}
+    for name, rule in (("parameters", NAMES), ("known", NAMES), ("f_scale", optional(POSITIVE)),
+                       ("max_nfev", optional(whole(1))), ("noise", noise_of(Noise, INSTRUMENT_NOISE)),
+                       ("nonnegative_compliance", FLAG), ("register_validation", FLAG)):
+        if name in o:
+            rule(o[name], name, o)
+    if "tol" in o:
+        number(o["tol"], "tol", low=0.0, high=1.0, low_open=True, high_open=True)
+    limit = o.get("limit")
+    if limit is not None:
+        number(limit.limit if isinstance(limit, AccuracyLimit) else limit, "limit", low=0.0, low_open=True)
     for what, d in (("data", data), ("validation", validation)):
         if d is None:
             continue
         src = d.source or what
         if d.q.shape[1] != model.n_joints:
             raise InputError(f"{d.q.shape[1]} joint columns for a model with {model.n_joints} joints "
-                             f"({', '.join(model.joint_names)})", source=src)
+                             f"({', '.join(model.joint_names)})", source=src, where=what)
         for n in d.marker_names:
             if n not in model.marker_names:
                 raise InputError(f"marker {n!r} is not in the model (markers: {', '.join(model.marker_names)})",
-                                 source=src)
+                                 source=src, where=what)
+
+
+def _without_copies(data: Measurements) -> tuple[Measurements, tuple[str, ...]]:
+    """``data`` with rows that repeat an earlier row exactly (readings and every measured value)
+    counted once: a copy adds no measurement, and counting it would shrink the standard deviations
+    as if it did. Repeated readings with their own measurements stay (they average the instrument's
+    noise)."""
+    if _distinct_rows(data.q) == data.n_poses:
+        return data, ()
+    rows = np.ascontiguousarray(np.hstack([data.q, np.nan_to_num(data.positions.reshape(data.n_poses, -1), nan=1e300),
+                                           data.mask.astype(float)]) + 0.0)
+    _, first = np.unique(rows.view(np.dtype((np.void, rows.dtype.itemsize * rows.shape[1]))).ravel(),
+                         return_index=True)
+    if len(first) == data.n_poses:
+        return data, ()
+    kept = np.sort(first)
+    return data.with_approach().subset(kept), (
+        f"{data.n_poses - len(kept)} of {data.n_poses} rows repeat an earlier row exactly (readings and measurements): "
+        "counted once",)
 
 
 def _unmeasured(model: RobotModel, data: Measurements) -> tuple[str, ...]:
@@ -546,10 +647,8 @@ def _choose(start: RobotModel, analysis: _Analysis, data: Measurements, noise: N
     scatter = _scatter(first)
     designs = []
     if scatter > FIT_RATIO * expected:
-        try:
+        with contextlib.suppress(DegenerateDataError):   # nothing pinned down at that scatter: the fit stands
             designs.append(_pin_down(start, analysis, noise, limit_m, eliminate=True, scatter=scatter, data=used))
-        except DegenerateDataError:
-            pass                    # nothing is pinned down at that scatter: the fit stands as it is
     designs += [first.design, _pin_down(start, analysis, noise, limit_m, eliminate=False, data=used)]
     # simplest first; a design equal to one before it is the same fit
     fits, seen = [], {}
@@ -600,8 +699,8 @@ def _fit(design: _Design, data: Measurements, noise: Noise, options: _Options, f
     the other points is lower (the model is then the one the rows' deletion gives). ``outliers``: a
     fit whose outlier check and mask stand (a design fitted on the points it left)."""
     solution = _solve(design, options)
-    labels, k = folds
-    held = cross_validate(design.problem, solution.p, labels, k)
+    labels, k, subs = folds
+    held = cross_validate(design.problem, solution.p, labels, k, folds=subs)
     if outliers is not None:
         return _Fit(design, data, solution, outliers.outlier_check, outliers.outlying, held)
     check, out, gross = _outliers(design.problem, solution, data, noise)
@@ -622,8 +721,9 @@ def _fit(design: _Design, data: Measurements, noise: Noise, options: _Options, f
         notes.append(f"{int(runs.sum())} point(s) standing out in runs of consecutive poses "
                      f"({_listed_rows(data, rows[out][runs])}): a systematic error, not blunders; kept in the fit")
     if (out & ~gross).any():
-        notes.append(f"{int((out & ~gross).sum())} point(s) beyond the outlier bar but within {GROSS_FACTOR:g} times it: "
-                     "the tail of an effect the model leaves out as much as blunders; kept in the fit")
+        notes.append(f"{int((out & ~gross).sum())} point(s) beyond the outlier bar but within "
+                     f"{GROSS_FACTOR:g} times it: the tail of an effect the model leaves out as much as blunders; "
+                     "kept in the fit")
     if not blunder.any() or options.loss != "linear" or options.on_outliers != "refit":
         return _Fit(design, data, solution, _outlier_status(check, runs, aside=False), out, held, tuple(notes))
     aside = np.zeros(data.mask.shape, dtype=bool)
@@ -635,7 +735,7 @@ def _fit(design: _Design, data: Measurements, noise: Noise, options: _Options, f
     # judged on every point, those set aside too (predicted without them): blunders are no better
     # predicted either way, while points whose only fault is an effect the model leaves out are
     # predicted worse once their like are set aside
-    held2 = cross_validate(again.problem, solution2.p, labels, k, on=design.problem)
+    held2 = cross_validate(again.problem, solution2.p, labels, k, on=design.problem, folds=subs)
     excess, _ = paired_excess(held2.norms, held.norms, data.mask)
     if excess > 0:
         notes.append(f"{int(blunder.sum())} outlier(s) named; setting them aside did not lower the cross-validated "
@@ -747,15 +847,17 @@ def _loose(estimates, moments: dict) -> set:
 
 def _unknown_rotations(model: RobotModel) -> tuple[str, ...]:
     """The markers whose orientation the model declares unknown: their rotation gets no tolerance."""
-    return tuple(m.name for m in model.markers if not getattr(m, "rotation_known", True))
+    return tuple(m.name for m in model.markers if not m.rotation_known)
 
 
 def _orientation_check(design: _Design, solution: Solution, data: Measurements) -> Check:
     """A wrong orientation convention converges quietly: test the rotations, with or without stated sigmas."""
     vectors = design.problem.errors(solution.p)
-    rot = design.problem.rotation_errors(solution.p)[data.rot_mask]
-    found = misfit_notes(vectors[data.mask], rot, characteristic_length_m=characteristic_length(data.positions[data.mask]),
-                         sigma_rot_rad=None if data.sigma_rot is None else data.sigma_rot[data.rot_mask])
+    rot_mask = cast(np.ndarray, data.rot_mask)      # set: called for data with orientations only
+    rot = cast(np.ndarray, design.problem.rotation_errors(solution.p))[rot_mask]
+    found = misfit_notes(vectors[data.mask], rot,
+                         characteristic_length_m=characteristic_length(data.positions[data.mask]),
+                         sigma_rot_rad=None if data.sigma_rot is None else data.sigma_rot[rot_mask])
     rms = float(np.degrees(np.sqrt(np.mean(np.sum(rot ** 2, axis=1)))))
     if not found:
         return Check("orientation fit", "pass", f"rotation residuals {rms:.3g} deg RMS")
@@ -775,40 +877,48 @@ class _Reach:
 
 def _reach(start: RobotModel, design: _Design, p: np.ndarray, q: np.ndarray) -> _Reach:
     """The calibrated markers at the workspace's configurations ``q``, and how far the calibrated
-    geometry moves them from the nominal one's once base and markers are registered (the change
-    of what the robot does, whatever the parametrisation: equivalent ones move nothing)."""
-    lay = parameter_layout(start)
+    geometry moves them from the nominal one's (``workspace_change``)."""
     data = design.problem.data
-    measured = {n for j, n in enumerate(data.marker_names) if data.mask[:, j].any()}
-    geometry = np.array([lay[n].family not in ("compliance", "backlash") for n in lay.names])
-    p_geom = np.where(geometry, p, design.p0)
+    measured = tuple(n for j, n in enumerate(data.marker_names) if data.mask[:, j].any())
     at_q = design_measurements(start, q, markers=data.marker_names)
     predicted = Problem(start, at_q, (), compliance=design.compliance).predicted(p)[0]
-    target = Problem(start, at_q, (), compliance=start.has_compliance).predicted(p_geom)[0]
+    return _Reach(predicted=predicted, judgement=workspace_change(start, p, q, measured,
+                                                                  design.identifiability.identified))
+
+
+def workspace_change(start: RobotModel, p: np.ndarray, q: np.ndarray, markers, free) -> WorkspaceChange:
+    """How far the geometry of the vector ``p`` (the layout of ``start``) moves the ``markers`` from
+    where ``start``'s puts them at readings ``q``, once the nominal's base and the ``free`` markers'
+    parameters are registered onto it: the change of what the robot does, whatever the
+    parametrisation (equivalent ones move nothing). Compliance and backlash are left out: their
+    own tolerances judge them."""
+    lay = parameter_layout(start)
+    p0 = parameter_vector(start)
+    geometry = np.array([lay[n].family not in ("compliance", "backlash") for n in lay.names])
+    p_geom = np.where(geometry, p, p0)
+    target = Problem(start, design_measurements(start, q, markers=markers), (),
+                     compliance=start.has_compliance).predicted(p_geom)[0]
     tol = tolerances(start)
     t_len, t_ang = tol.get(("frames", "length")), tol.get(("frames", "angle"))
-    origin = np.asarray(start.base_position, dtype=float)
-    radius = float(np.max(np.linalg.norm(target - origin, axis=2)))
+    radius = float(np.max(np.linalg.norm(target - np.asarray(start.base_position, dtype=float), axis=2)))
     placed = tuple(n for n in lay.names if lay[n].family == "base"
-                   or (lay[n].role == "marker" and lay[n].owner in measured and n in design.identifiability.identified))
-    ws = Measurements(q=q, positions=target, marker_names=data.marker_names, joint_names=start.joint_names)
+                   or (lay[n].role == "marker" and lay[n].owner in set(markers) and n in set(free)))
+    ws = Measurements(q=q, positions=target, marker_names=tuple(markers), joint_names=start.joint_names)
     nominal = Problem(start, ws, placed, compliance=start.has_compliance)
-    p_start = design.p0.copy()
+    p_start = p0.copy()
     p_start[lay.indices(placed)] = p[lay.indices(placed)]
-    moved = solve(nominal, p_start, tol=REGISTRATION_TOL)
-    d = nominal.error_norms(moved.p)
+    d = nominal.error_norms(solve(nominal, p_start, tol=REGISTRATION_TOL).p)
     bar = None if t_len is None or t_ang is None else float(t_len + t_ang * radius)
-    return _Reach(predicted=predicted, judgement=WorkspaceChange(
-        max_m=float(np.nanmax(d)), rms_m=float(np.sqrt(np.nanmean(d ** 2))), tolerance_m=bar, reach_m=radius,
-        n_poses=len(q)))
+    return WorkspaceChange(max_m=float(np.nanmax(d)), rms_m=float(np.sqrt(np.nanmean(d ** 2))), tolerance_m=bar,
+                           reach_m=radius, n_poses=len(q))
 
 
-def _in_use(model: RobotModel, design: _Design, fit: _Fit, before: np.ndarray, validation: Measurements | None,
+def _in_use(design: _Design, fit: _Fit, before: np.ndarray, validation: Measurements | None,
             folds: tuple, register: bool) -> AccuracyInUse:
     """The accuracy in use before and after calibration: on ``validation`` when given (with base and
     markers registered on it for both models when ``register``), else cross-validated on the fitted
     poses (the nominal's registration of base and markers refitted on each fold's complement too)."""
-    labels, k, grouping = folds
+    labels, k, grouping, subs = folds
     problem, p = design.problem, fit.solution.p
     fit_after = problem.error_norms(p)[fit.data.mask]
     noise = _instrument_variance(problem.noise, fit.data)
@@ -817,7 +927,8 @@ def _in_use(model: RobotModel, design: _Design, fit: _Fit, before: np.ndarray, v
         placed = tuple(n for n in design.identifiability.identified if lay[n].family in ("base", "markers"))
         only = len(placed) == len(design.identifiability.identified)
         held_before = fit.held_out if only else (
-            cross_validate(problem.over(placed), before, labels, k) if placed else evaluated(problem, before))
+            cross_validate(problem.over(placed), before, labels, k, folds=subs) if placed else
+            evaluated(problem, before))
         return accuracy_in_use("cross-validation", k, grouping, held_before, fit.held_out, fit_after,
                                registration_only=only, noise=noise)
     start = design.start
@@ -857,8 +968,7 @@ def _warn(checks) -> None:
     for c in checks:
         if c.status != "pass":
             category = _WARNING_CLASS.get(c.name, CheckWarning)
-            warnings.warn(f"{c.name} ({'FAILED' if c.status == 'fail' else 'warning'}): {c.summary}", category,
-                          stacklevel=4)
+            warn(f"{c.name} ({'FAILED' if c.status == 'fail' else 'warning'}): {c.summary}", category)
 
 
 def _registered_nominal(design: _Design) -> tuple[np.ndarray, tuple[str, ...]]:
@@ -953,7 +1063,7 @@ def _problem_of(model: RobotModel, data: Measurements, compliance: bool) -> tupl
 
 def provenance(data: Measurements, validation: Measurements | None = None) -> dict:
     """Software, date and the inputs (source, SHA-256, pose labels in the order of the error rows)."""
-    prov = {"software": "robocal", "version": __version__,
+    prov: dict[str, object] = {"software": "robocal", "version": __version__,
             "date": datetime.now(timezone.utc).isoformat(timespec="seconds")}
     for key, d in (("data", data), ("validation", validation)):
         if d is not None:
@@ -1005,7 +1115,7 @@ def _nested_test(small: CalibrationResult, large: CalibrationResult, data: Measu
     """F test of ``large`` against ``small`` nested in it, and the held-out RMS: (F, p, helped, verdict)."""
     from scipy.stats import f as f_dist
 
-    n_rows = 3 * int(data.mask.sum()) + (3 * int(data.rot_mask.sum()) if data.has_orientation else 0)
+    n_rows = 3 * int(data.mask.sum()) + (3 * int(cast(np.ndarray, data.rot_mask).sum()) if data.has_orientation else 0)
     p1, p2 = len(small.parameters), len(large.parameters)
     ssr1 = small.sigma0 ** 2 * (n_rows - p1)
     ssr2 = large.sigma0 ** 2 * (n_rows - p2)
@@ -1013,7 +1123,8 @@ def _nested_test(small: CalibrationResult, large: CalibrationResult, data: Measu
     F = max((ssr1 - ssr2) / dfn, 0.0) / (ssr2 / dfd)
     p_value = float(f_dist.sf(F, dfn, dfd))
     # in use: the held-out set's RMS, or the cross-validated one (the same folds for both fits)
-    v1, v2 = small.in_use.position_after.rms, large.in_use.position_after.rms
+    in_use1, in_use2 = cast(AccuracyInUse, small.in_use), cast(AccuracyInUse, large.in_use)
+    v1, v2 = cast(float, in_use1.position_after.rms), cast(float, in_use2.position_after.rms)
     helped = p_value < alpha and v2 < v1
     detail = f"{'held-out' if validation is not None else 'cross-validated'} RMS {v1 * 1e3:.4f} mm -> {v2 * 1e3:.4f} mm"
     verdict = (f"{what} helped: {detail}; F = {F:.3g}, p = {p_value:.2g}" if helped else

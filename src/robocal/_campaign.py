@@ -18,10 +18,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._compensation import compensate
-from ._measurements import Measurements, approach_sides
 from ._accuracy_limit import rounded_parameters
+from ._arguments import (
+    MASSES,
+    SEED,
+    SEQUENCE,
+    checked,
+    is_a,
+    marker_of,
+    optional,
+    readings_of,
+)
+from ._compensation import compensate
+from ._errors import InputError
 from ._kinematics import evaluate, gravity_loads
+from ._measurements import Measurements, approach_sides
 from ._model import RobotModel
 from ._parameters import model_from_vector, parameter_vector
 from ._threads import one_blas_thread
@@ -58,12 +69,12 @@ class RobotImperfections:
         n = len(self.encoder_resolution)
         b = np.asarray(self.backlash, dtype=float)
         if len(b) and (len(b) != n or not np.all(np.isfinite(b)) or np.any(b < 0)):
-            raise ValueError("backlash must be empty or one finite, non-negative value per joint")
+            raise InputError("must be empty or one finite, non-negative value per joint", where="backlash")
         f = np.asarray(self.backlash_friction, dtype=float)
         if len(f) and (len(f) != n or np.any(np.isnan(f)) or np.any(f < 0)):
-            raise ValueError("backlash_friction must be empty or one non-negative value per joint")
+            raise InputError("must be empty or one non-negative value per joint", where="backlash_friction")
         if len(f) and not len(b):
-            raise ValueError("backlash_friction needs backlash")
+            raise InputError("needs backlash", where="backlash_friction")
 
     def repeatability_rp(self) -> float:
         """ISO 9283 RP = l_mean + 3 S_l expected for isotropic Gaussian scatter of this sigma.
@@ -81,11 +92,24 @@ def _quantise(q, res):
     return np.where(res > 0, np.round(q / safe) * safe, q)
 
 
+@checked(true_model=is_a(RobotModel), recorded=readings_of("true_model"), imp=is_a(RobotImperfections),
+         payload_mass=optional(MASSES))
 def backlash_sides(true_model: RobotModel, recorded, imp: RobotImperfections, payload_mass=None) -> np.ndarray:
     """+1 or -1 per pose and joint: the side of its gap, relative to the reading, where the arm rests.
 
     Behind the last move (``-approach_sides``) unless gravity's load on the joint exceeds
     ``imp.backlash_friction``; then on the side the load pushes it to. Returns (n_poses, n_joints).
+
+    Parameters
+    ----------
+    {true_model, recorded, imp}
+    payload_mass : float or array_like of shape (n_poses,), optional
+        Payload mass, kg.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n_poses, n_joints)
+        The side (+1 or -1) each joint rests on.
     """
     side = -approach_sides(recorded)
     if len(imp.backlash_friction):
@@ -108,10 +132,22 @@ def _attain(true_model: RobotModel, recorded, imp: RobotImperfections, rng, payl
     return P + rng.normal(0.0, 1.0, P.shape) * imp.instrument_noise_per_m * dist
 
 
+@checked(true_model=is_a(RobotModel), q_commanded=readings_of("true_model"), imp=is_a(RobotImperfections), rng=SEED,
+         payload_mass=optional(MASSES), labels=SEQUENCE)
 @one_blas_thread
 def measure_campaign(true_model: RobotModel, q_commanded, imp: RobotImperfections, *, rng=None,
                      payload_mass=None, labels=()) -> Measurements:
-    """Measurements of a campaign at the commanded configurations: readings are encoder counts."""
+    """Measurements of a campaign at the commanded configurations: readings are encoder counts.
+
+    Parameters
+    ----------
+    {true_model, q_commanded, imp, rng, payload_mass, labels}
+
+    Returns
+    -------
+    Measurements
+        What the instrument records, SI.
+    """
     rng = np.random.default_rng(rng)
     recorded = _quantise(np.atleast_2d(np.asarray(q_commanded, dtype=float)), imp.encoder_resolution)
     P = _attain(true_model, recorded, imp, rng, payload_mass)
@@ -120,8 +156,19 @@ def measure_campaign(true_model: RobotModel, q_commanded, imp: RobotImperfection
                         source="simulated campaign", extra={"approach": approach_sides(recorded)})
 
 
+@checked(model=is_a(RobotModel), imp=is_a(RobotImperfections))
 def stored_model(model: RobotModel, imp: RobotImperfections) -> RobotModel:
-    """The model as the controller stores it: dimensions and angles rounded to its quanta."""
+    """The model as the controller stores it: dimensions and angles rounded to its quanta.
+
+    Parameters
+    ----------
+    {model, imp}
+
+    Returns
+    -------
+    RobotModel
+        The model as the controller stores it (rounded).
+    """
     if imp.length_quantum <= 0 and imp.angle_quantum <= 0:
         return model
     rp = rounded_parameters(model, imp.length_quantum, imp.angle_quantum)
@@ -130,6 +177,8 @@ def stored_model(model: RobotModel, imp: RobotImperfections) -> RobotModel:
     return model_from_vector(model, p)
 
 
+@checked(true_model=is_a(RobotModel), controller_model=optional(is_a(RobotModel)), nominal=is_a(RobotModel),
+         targets_q=readings_of("nominal"), imp=is_a(RobotImperfections), rng=SEED, marker=marker_of("nominal"))
 @one_blas_thread
 def accuracy_in_use(true_model: RobotModel, controller_model: RobotModel | None, nominal: RobotModel, targets_q,
                     imp: RobotImperfections, *, rng=None, marker: int = 0) -> np.ndarray:
@@ -139,6 +188,20 @@ def accuracy_in_use(true_model: RobotModel, controller_model: RobotModel | None,
     Without ``controller_model`` the controller commands the targets' readings as they are (an
     uncalibrated robot); with it, it stores that model rounded to its quanta and commands the
     compensated readings. Returns (n_targets,).
+
+    Parameters
+    ----------
+    {true_model, controller_model}
+    nominal : RobotModel
+        The nominal model (gives the joint readings of the targets).
+    {targets_q, imp, rng}
+    marker : int
+        Index of the marker in the nominal model.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n_poses,)
+        Position error at each target, m.
     """
     rng = np.random.default_rng(rng)
     q = np.atleast_2d(np.asarray(targets_q, dtype=float))

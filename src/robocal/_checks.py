@@ -475,7 +475,8 @@ def correlation_check(names, corr: np.ndarray, loose=None) -> Check:
                  fix="to separate them, add poses that move the joints more widely (robocal plan)", items=pairs)
 
 
-def identifiability_check(lost, weak, *, weak_kept: bool = False, interchangeable=(), kept_in_use: bool = False) -> Check:
+def identifiability_check(lost, weak, *, weak_kept: bool = False, interchangeable=(),
+                          kept_in_use: bool = False) -> Check:
     """Parameters the structure allows but the poses cannot separate (``lost``: a warning), and those
     they cannot pin down (``weak``: (name, predicted std text) pairs). Weak ones are held at nominal
     and named, which is the right handling (a pass), unless they were kept (``weak_kept``: a warning).
@@ -565,7 +566,8 @@ def in_use_check(in_use) -> Check:
                      f"({_mm(se)})", cause="errors the model cannot take up (repeatability, unmodelled effects)",
                      fix="calibrate with the compliance or backlash families if the robot has them, or keep the "
                          "nominal model")
-    if seen_fit.n and seen.mean > OVERFIT_RATIO * seen_fit.mean and seen.mean - seen_fit.mean > 3 * in_use.standard_error:
+    if (seen_fit.n and seen.mean > OVERFIT_RATIO * seen_fit.mean
+            and seen.mean - seen_fit.mean > 3 * in_use.standard_error):
         return Check(name, "warn", summary + f": {seen.mean / seen_fit.mean:.3g} times the fitted poses' error "
                      "(overfitting)", cause="more parameters than the poses pin down, or poses that do not cover "
                      "where the model is used", fix="measure more poses over the workspace (robocal plan); hold "

@@ -14,18 +14,29 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ._calibration import ErrorStats, ParameterEstimate, error_stats
-from ._checks import (Check, contact_fit_check, convergence_check, correlation_check, fit_check, outlier_check,
-                      plausibility_check, tolerances, verdict)
+from ._arguments import FRACTION, NAMES, checked, is_a, names_in, noise_of, one_of, optional, shaped, whole
+from ._calibration import ErrorStats, ParameterEstimate, error_stats, workspace_change
+from ._checks import (
+    Check,
+    contact_fit_check,
+    convergence_check,
+    correlation_check,
+    fit_check,
+    outlier_check,
+    plausibility_check,
+    tolerances,
+    verdict,
+)
 from ._contacts import Contacts
 from ._errors import DegenerateDataError, InputError, check_choice
 from ._identifiability import DEFAULT_TOL, Absorption, IdentifiabilityResult, analyse
+from ._in_use import workspace_readings
 from ._kinematics import evaluate
 from ._measurements import Measurements, Noise
 from ._model import RobotModel
 from ._observations import ROW_KINDS, ContactProblem
-from ._options import DEFAULT_INSTRUMENT, OUTLIER_ACTIONS
-from ._parameters import candidate_parameters, model_from_vector, parameter_layout
+from ._options import DEFAULT_INSTRUMENT, INSTRUMENT_NOISE, LOSSES, OUTLIER_ACTIONS
+from ._parameters import candidate_parameters, model_from_vector, parameter_layout, parameter_names
 from ._problem import needs_compliance
 from ._solve import covariance, solve
 
@@ -102,22 +113,40 @@ def _unreachable(problem: ContactProblem, p: np.ndarray) -> tuple[Unreachable, .
     Jm = (met.marker_jacobian(p[:met.n_robot]) / met.contacts.sigma[:, None, None]).reshape(-1, k)
     Jm = np.vstack([J[:int(np.sum(met.row_kinds() < 2)), :k], Jm])     # tracker rows as they are
     out = []
-    hidden = [(n, _unabsorbed(J[:, i], N, np.linalg.norm(Jm[:, i]))) for i, n in enumerate(base)]
+    hidden = [(n, _unabsorbed(J[:, i], N, float(np.linalg.norm(Jm[:, i])))) for i, n in enumerate(base)]
     gone = tuple(n for n, r in hidden if r < UNREACHABLE_TOL)
     if gone:
         out.append(Unreachable("base", _WHY["base"], gone, max(r for n, r in hidden if n in gone)))
     v = p[lay.indices(lengths)]
     scale = J[:, len(base):len(base) + len(lengths)] @ v
-    r = _unabsorbed(scale, N, np.linalg.norm(Jm[:, len(base):] @ v))
+    r = _unabsorbed(scale, N, float(np.linalg.norm(Jm[:, len(base):] @ v)))
     if r < UNREACHABLE_TOL:
         out.append(Unreachable("scale", _WHY["scale"], lengths, r))
     return tuple(out)
 
 
+@checked(problem=is_a(ContactProblem), names=names_in(lambda a: parameter_names(a["problem"].model)), tol=FRACTION,
+         p=optional(shaped(None)))
 def contact_identifiability(problem: ContactProblem, names, *, tol: float = DEFAULT_TOL,
                             p: np.ndarray | None = None) -> ContactIdentifiability:
     """Which of the robot parameters ``names`` the union of the problem's rows identifies (at ``p``,
-    default the start), what each kind identifies alone, and what none reaches."""
+    default the start), what each kind identifies alone, and what none reaches.
+
+    Parameters
+    ----------
+    {problem}
+    names : sequence of str
+        Candidate parameter names.
+    tol : float
+        Identifiability tolerance, in (0, 1).
+    p : array_like, optional
+        Parameter vector the analysis is made at (default: the problem's start).
+
+    Returns
+    -------
+    ContactIdentifiability
+        What the contacts identify, and what they cannot reach.
+    """
     p = problem.start_vector() if p is None else p
     lay = parameter_layout(problem.model)
     prob = problem.at_contact().over(tuple(names))
@@ -167,8 +196,19 @@ class ContactErrors:
         return float(np.sqrt(np.mean(np.square(list(self.distance.values()))))) if self.distance else None
 
 
+@checked(model=is_a(RobotModel), contacts=is_a(Contacts))
 def contact_errors(model: RobotModel, contacts: Contacts) -> ContactErrors:
-    """The figures of ``ContactErrors`` for ``model`` at the readings of ``contacts``."""
+    """The figures of ``ContactErrors`` for ``model`` at the readings of ``contacts``.
+
+    Parameters
+    ----------
+    {model, contacts}
+
+    Returns
+    -------
+    ContactErrors
+        The residuals of each kind of contact.
+    """
     ev = evaluate(model, contacts.q)
     P = ev.positions[np.arange(contacts.n_rows), [model.marker_names.index(m) for m in contacts.marker]]
     centre = {}
@@ -244,6 +284,9 @@ def _check_inputs(model: RobotModel, contacts: Contacts, data, validation) -> No
                          source=data.source or "data")
 
 
+@checked(model=is_a(RobotModel), contacts=is_a(Contacts), data=optional(is_a(Measurements)),
+         validation=optional(is_a(Contacts)), parameters=NAMES, known=NAMES, noise=noise_of(Noise, INSTRUMENT_NOISE),
+         tol=FRACTION, loss=one_of(LOSSES), max_nfev=optional(whole(1)), on_outliers=one_of(OUTLIER_ACTIONS))
 def calibrate_contacts(model: RobotModel, contacts: Contacts, *, data: Measurements | None = None,
                        validation: Contacts | None = None, parameters=("geometric",), known=(), noise=None,
                        tol: float = DEFAULT_TOL, loss: str = "linear", max_nfev: int | None = None,
@@ -255,6 +298,23 @@ def calibrate_contacts(model: RobotModel, contacts: Contacts, *, data: Measureme
     deviation (a ``Noise`` or an instrument class). Each contact row weighs by its stated deviation.
     ``on_outliers``: ``"refit"`` refits with the robust loss soft_l1 when rows stand out (every row
     is in its own standard deviations, so one bend serves every kind), ``"flag"`` only names them.
+
+    Parameters
+    ----------
+    {model, contacts}
+    data : Measurements, optional
+        Tracker measurements to calibrate on beside the contacts.
+    {validation, parameters, known}
+    noise : Noise or str, optional
+        Noise of the tracker (a ``Noise`` or an instrument class; default a laser tracker's).
+    tol : float
+        Identifiability tolerance, in (0, 1).
+    {loss, max_nfev, on_outliers}
+
+    Returns
+    -------
+    ContactCalibration
+        The calibrated model, estimates, checks and verdict.
     """
     check_choice(on_outliers, OUTLIER_ACTIONS, "on_outliers")
     noise = noise if isinstance(noise, Noise) else Noise.of(noise or DEFAULT_INSTRUMENT)
@@ -276,15 +336,18 @@ def calibrate_contacts(model: RobotModel, contacts: Contacts, *, data: Measureme
                                         float(cov.std[i]), family=lay[n].family, quantity=lay[n].quantity)
                       for i, n in enumerate(ident.identified))
     calibrated = model_from_vector(model, sol.p[:prob.n_robot])
-    checks += [plausibility_check(estimates, tolerances(model), {}),
+    reach = workspace_change(model, sol.p[:prob.n_robot], workspace_readings(model),
+                             tuple(dict.fromkeys(contacts.marker)), ident.identified)
+    checks += [plausibility_check(estimates, tolerances(model), {}, workspace=reach),
                correlation_check([e.name for e in estimates], cov.correlation[:k, :k])]
     tracker = None
-    if data is not None:
+    if data is not None and design.tracker is not None:    # a tracker part exists with data
         tracker = error_stats(design.tracker.error_norms(sol.p[:prob.n_robot]))
     return ContactCalibration(
         nominal_model=model, calibrated_model=calibrated, parameters=estimates, covariance=cov.covariance[:k, :k],
         correlation=cov.correlation[:k, :k], identifiability=ident,
-        nuisance={n: (float(sol.p[prob.n_robot + i]), float(cov.std[k + i])) for i, n in enumerate(prob.nuisance_names)},
+        nuisance={n: (float(sol.p[prob.n_robot + i]), float(cov.std[k + i]))
+                  for i, n in enumerate(prob.nuisance_names)},
         fit_before=contact_errors(model, contacts), fit_after=contact_errors(calibrated, contacts),
         validation_before=None if validation is None else contact_errors(model, validation),
         validation_after=None if validation is None else contact_errors(calibrated, validation),
@@ -323,7 +386,7 @@ def _row_checks(design: ContactProblem, sol, data, noise: Noise):
         checks += [replace(out_check, name=f"outliers among the {kind} contacts"),
                    contact_fit_check(kind, r2, s, out)]
         ratios[kind] = float(np.sqrt(np.mean((r2 / s[:, None]) ** 2)))
-    if data is not None:
+    if data is not None and design.tracker is not None:
         residuals = design.tracker.errors(sol.p[:design.n_robot])[data.mask]
         sigma = None if data.sigma is None else data.sigma[data.mask]
         rows, markers = np.nonzero(data.mask)

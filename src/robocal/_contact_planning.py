@@ -16,6 +16,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._arguments import (
+    MAPPING,
+    NAMES,
+    NON_NEGATIVE,
+    SEED,
+    checked,
+    is_a,
+    optional,
+    wholes,
+)
 from ._contact_calibration import contact_identifiability
 from ._contact_simulation import PLATE, socket_campaign
 from ._contacts import Contacts
@@ -25,7 +35,6 @@ from ._model import RobotModel
 from ._observations import ContactProblem
 from ._options import MAX_GRID_ROWS, MAX_SEATINGS
 from ._parameters import candidate_parameters, parameter_layout
-
 
 # the cost of a seating simulated and of a row linearised, seconds (benchmarks/README.md), for messages
 SECONDS = {"seat": 1.5e-3, "rows": 1e-4}
@@ -69,7 +78,7 @@ def _design(model: RobotModel, campaign: Contacts, names, placements: int, poses
     std = np.sqrt(np.diag(np.linalg.pinv(J.T @ J)))[:k]
     lay = parameter_layout(model)
     ratios = {n: s / bounds[lay[n].quantity] for n, s in zip(ident.identified, std)}
-    worst = max(ratios, key=ratios.get)
+    worst = max(ratios, key=lambda n: ratios[n])
     return SocketDesign(placements, poses, int(campaign.q.shape[0]), dict(zip(ident.identified, map(float, std))),
                         {n: lay[n].unit for n in ident.identified}, tuple(u.name for u in ident.unreachable), worst,
                         float(ratios[worst]))
@@ -85,6 +94,8 @@ def _check_cost(placements, per, n_sockets: int) -> None:
                              "compare fewer or smaller designs", where="placements")
 
 
+@checked(model=is_a(RobotModel), placements=wholes(1, 1000), poses_per_socket=wholes(1, 10_000),
+         joint_noise=NON_NEGATIVE, seat_noise=NON_NEGATIVE, parameters=NAMES, bounds=optional(MAPPING), seed=SEED)
 def plan_sockets(model: RobotModel, *, placements=(3, 5, 7, 9), poses_per_socket=(20, 25, 30, 35),
                  joint_noise: float = 2e-5, seat_noise: float = 5e-6, parameters=("geometric",),
                  bounds: dict | None = None, seed: int = 0) -> SocketPlan:
@@ -95,6 +106,22 @@ def plan_sockets(model: RobotModel, *, placements=(3, 5, 7, 9), poses_per_socket
     state; ``bounds`` the standard deviation each quantity must stay within (``{"length": m,
     "angle": rad}``, default ``WEAK_STD``); ``seed`` draws the simulated seatings and placements. What
     the plate identifies and cannot reach is the structure's, found once on the smallest design.
+
+    Parameters
+    ----------
+    {model}
+    placements : sequence of int
+        Numbers of plate placements to consider.
+    poses_per_socket : sequence of int
+        Numbers of seatings per socket to consider.
+    {joint_noise, seat_noise, parameters, bounds}
+    seed : None, int or numpy.random.Generator
+        Seed of the simulated seatings.
+
+    Returns
+    -------
+    SocketPlan
+        Each design's predicted standard deviations and the recommended one.
 
     >>> import robocal as rc
     >>> plan = plan_sockets(rc.read_model("examples/arm7/model.yaml"), placements=(3,), poses_per_socket=(20,))

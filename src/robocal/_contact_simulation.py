@@ -12,12 +12,26 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ._arguments import (
+    FLAG,
+    MAPPING,
+    NON_NEGATIVE,
+    POSITIVE,
+    SEED,
+    checked,
+    in_range,
+    is_a,
+    marker_of,
+    shaped,
+    whole,
+)
 from ._contacts import Contacts, KnownDistance, KnownPlane
-from ._errors import DegenerateDataError
+from ._errors import InputError
 from ._kinematics import evaluate
 from ._model import RobotModel
 from ._parameters import parameter_layout
 from ._problem import random_configurations, sampling_box
+from ._spatial import vector3
 
 # a 3-socket plate (m, in the plate's frame): spacings of 200, 150 and 250 mm
 PLATE = {"A": (0.0, 0.0, 0.0), "B": (0.2, 0.0, 0.0), "C": (0.0, 0.15, 0.0)}
@@ -34,10 +48,27 @@ def _joint_jacobian(model: RobotModel, q: np.ndarray, marker: int) -> tuple[np.n
     return ev.positions[:, marker], ev.jacobian[:, marker, :3] @ model.coupling_matrix
 
 
+@checked(model=is_a(RobotModel), targets=shaped(None, 3), marker=marker_of(), rng=SEED, tol=POSITIVE,
+         max_rounds=whole(1, 1000))
 def reach(model: RobotModel, targets, *, marker: int = 0, rng=None, tol: float = 1e-10, max_rounds: int = 40):
     """Readings (N, n_joints) within the joint limits that put ``marker`` on each of ``targets`` (N, 3),
-    each from its own random start (damped least squares). Targets no start reaches raise
-    DegenerateDataError (out of the robot's reach, e.g. a plate placed where the arm cannot seat)."""
+    each from its own random start (damped least squares). Targets no start reaches raise InputError
+    (out of the robot's reach, e.g. a plate placed where the arm cannot seat).
+
+    Parameters
+    ----------
+    model : RobotModel
+        The robot.
+    {targets, marker, rng}
+    tol : float
+        Position tolerance of a reached target, m.
+    {max_rounds}
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, n_joints)
+        Joint readings within the limits that reach the targets.
+    """
     rng = np.random.default_rng(rng)
     targets = np.atleast_2d(np.asarray(targets, dtype=float))
     lo, hi = sampling_box(model)
@@ -62,8 +93,8 @@ def reach(model: RobotModel, targets, *, marker: int = 0, rng=None, tol: float =
         if not len(todo):
             return out
     x, y, z = targets[todo[0]]
-    raise DegenerateDataError(f"{len(todo)} of {len(targets)} target(s) out of the robot's reach within its joint "
-                              f"limits, e.g. ({x:.4g}, {y:.4g}, {z:.4g}) m in W")
+    raise InputError(f"{len(todo)} of {len(targets)} target(s) out of the robot's reach within its joint limits, "
+                     f"e.g. ({x:.4g}, {y:.4g}, {z:.4g}) m in W", where="targets")
 
 
 def _recorded(model, q, marker, rng, joint_noise, seat_noise):
@@ -74,9 +105,22 @@ def _recorded(model, q, marker, rng, joint_noise, seat_noise):
     return q + rng.normal(0.0, joint_noise, q.shape), np.hypot(seat_noise, moved)
 
 
+@checked(n=whole(1, 1000), rng=SEED, box=shaped(2, 3), tilt_deg=in_range(0.0, 90.0))
 def plate_placements(n: int, rng=None, box=WORK_BOX, tilt_deg: float = 20.0):
     """``n`` plate poses (origin (3,), rotation (3, 3)) in ``box``: turned freely about z, tilted up
-    to ``tilt_deg``."""
+    to ``tilt_deg``.
+
+    Parameters
+    ----------
+    n : int
+        Number of placements.
+    {rng, box, tilt_deg}
+
+    Returns
+    -------
+    list of numpy.ndarray
+        The plate poses in W, (4, 4) each.
+    """
     rng = np.random.default_rng(rng)
     out = []
     for _ in range(n):
@@ -86,12 +130,28 @@ def plate_placements(n: int, rng=None, box=WORK_BOX, tilt_deg: float = 20.0):
     return out
 
 
+@checked(true=is_a(RobotModel), placements=whole(1, 1000), poses_per_socket=whole(1, 10_000), plate=MAPPING,
+         joint_noise=NON_NEGATIVE, seat_noise=NON_NEGATIVE, distance_sigma=POSITIVE, marker=marker_of("true"),
+         known_distances=FLAG, rng=SEED)
 def socket_campaign(true: RobotModel, *, placements: int = 3, poses_per_socket: int = 25, plate=PLATE,
                     joint_noise: float = 2e-5, seat_noise: float = 5e-6, distance_sigma: float = 2e-6,
                     marker: int = 0, known_distances: bool = True, rng=None) -> Contacts:
     """The true robot's ball seated ``poses_per_socket`` times in each socket of ``plate`` (name ->
     position in the plate, m) at ``placements`` random placements; ``known_distances`` states every
-    spacing of the plate (with ``distance_sigma``)."""
+    spacing of the plate (with ``distance_sigma``).
+
+    Parameters
+    ----------
+    {true, placements, poses_per_socket, plate, joint_noise, seat_noise, distance_sigma}
+    marker : int
+        Index of the probing marker in the model.
+    {known_distances, rng}
+
+    Returns
+    -------
+    Contacts
+        The simulated recordings.
+    """
     rng = np.random.default_rng(rng)
     names = tuple(plate)
     local = np.array([plate[s] for s in names])
@@ -115,11 +175,28 @@ def socket_campaign(true: RobotModel, *, placements: int = 3, poses_per_socket: 
                     joint_names=true.joint_names, source="simulated")
 
 
+@checked(true=is_a(RobotModel), planes=whole(1, 1000), poses_per_plane=whole(1, 10_000), joint_noise=NON_NEGATIVE,
+         seat_noise=NON_NEGATIVE, extent=POSITIVE, marker=marker_of("true"), known=FLAG, rng=SEED)
 def plane_campaign(true: RobotModel, *, planes: int = 4, poses_per_plane: int = 30, joint_noise: float = 2e-5,
                    seat_noise: float = 5e-6, extent: float = 0.15, marker: int = 0, known: bool = False,
                    rng=None) -> Contacts:
     """The true robot's marker on ``planes`` random planes (tilted up to 45 deg), ``poses_per_plane``
-    points each within ``extent`` (m) of the plane's centre; ``known`` states the planes."""
+    points each within ``extent`` (m) of the plane's centre; ``known`` states the planes.
+
+    Parameters
+    ----------
+    {true, planes, poses_per_plane, joint_noise, seat_noise, extent}
+    marker : int
+        Index of the probing marker in the model.
+    known : bool
+        Whether the planes are known (position and normal).
+    {rng}
+
+    Returns
+    -------
+    Contacts
+        The simulated recordings.
+    """
     rng = np.random.default_rng(rng)
     rows_q, target, sig, known_planes = [], [], [], []
     for k, (origin, R) in enumerate(plate_placements(planes, rng, tilt_deg=45.0)):
@@ -130,16 +207,31 @@ def plane_campaign(true: RobotModel, *, planes: int = 4, poses_per_plane: int = 
         rows_q.append(qn)
         sig.append(s)
         target += [f"plane{k + 1}"] * poses_per_plane
-        known_planes.append(KnownPlane(f"plane{k + 1}", tuple(float(v) for v in R[:, 2]), float(R[:, 2] @ origin)))
+        known_planes.append(KnownPlane(f"plane{k + 1}", vector3(R[:, 2]), float(R[:, 2] @ origin)))
     q = np.vstack(rows_q)
     return Contacts(q=q, marker=(true.marker_names[marker],) * len(q), kind=("plane",) * len(q), target=tuple(target),
                     placement=("",) * len(q), sigma=np.concatenate(sig), planes=tuple(known_planes) if known else (),
                     joint_names=true.joint_names, source="simulated")
 
 
+@checked(true=is_a(RobotModel), pairs=whole(1, 100_000), length=POSITIVE, length_sigma=POSITIVE,
+         joint_noise=NON_NEGATIVE, seat_noise=NON_NEGATIVE, marker=marker_of("true"), rng=SEED)
 def bar_campaign(true: RobotModel, *, pairs: int = 60, length: float = 0.2, length_sigma: float = 2e-6,
                  joint_noise: float = 2e-5, seat_noise: float = 5e-6, marker: int = 0, rng=None) -> Contacts:
-    """``pairs`` ball-bar measurements: the marker at two poses ``length`` (m) apart, ends in the work box."""
+    """``pairs`` ball-bar measurements: the marker at two poses ``length`` (m) apart, ends in the work box.
+
+    Parameters
+    ----------
+    {true, pairs, length, length_sigma, joint_noise, seat_noise}
+    marker : int
+        Index of the probing marker in the model.
+    {rng}
+
+    Returns
+    -------
+    Contacts
+        The simulated recordings.
+    """
     rng = np.random.default_rng(rng)
     lo, hi = np.asarray(WORK_BOX[0]), np.asarray(WORK_BOX[1])
     a, b = np.zeros((0, 3)), np.zeros((0, 3))

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._arrays import frozen, read_only
 from ._errors import InputError
 
 CONTACT_KINDS = ("socket", "plane", "bar")
@@ -65,7 +66,7 @@ class Contacts:
     Shapes: ``q`` (n_rows, n_joints) rad or m; ``marker``, ``kind``, ``target``, ``placement`` one
     string per row; ``sigma`` (n_rows,) the standard deviation of a contact in metres (per axis for
     a socket, along the normal for a plane; a bar's row states that of its end). ``bars`` maps a
-    bar's name to its (length, sigma) in metres.
+    bar's name to its (length, sigma) in metres. The arrays are the record's own, read-only.
     """
 
     q: np.ndarray
@@ -87,8 +88,9 @@ class Contacts:
         n = q.shape[0]
         src = self.source or "contacts"
         sigma = np.broadcast_to(np.asarray(self.sigma, dtype=float), (n,)).copy()
-        object.__setattr__(self, "q", q)
-        object.__setattr__(self, "sigma", sigma)
+        # the record's own read-only arrays: nothing a caller does to theirs, or to these, changes it
+        object.__setattr__(self, "q", frozen(q))
+        object.__setattr__(self, "sigma", read_only(sigma))
         if not self.labels:
             object.__setattr__(self, "labels", tuple(f"row {i}" for i in range(n)))
         for name in ("marker", "kind", "target", "placement"):
@@ -133,7 +135,7 @@ class Contacts:
         first: dict = {}
         for i, key in enumerate(zip(self.placement, self.target)):
             first.setdefault(key, []).append(i)
-        out = [Group(self.kind[rows[0]], p, t, np.array(rows, dtype=int)) for (p, t), rows in first.items()]
+        out = [Group(self.kind[rows[0]], p, t, read_only(np.array(rows, dtype=int))) for (p, t), rows in first.items()]
         return [g for g in out if kind is None or g.kind == kind]
 
     def known_plane(self, target: str) -> KnownPlane | None:
@@ -146,7 +148,7 @@ class Contacts:
         return [(d, sockets[(p, d.a)], sockets[(p, d.b)]) for p in placements for d in self.distances
                 if (p, d.a) in sockets and (p, d.b) in sockets]
 
-    def subset(self, index) -> "Contacts":
+    def subset(self, index) -> Contacts:
         """The rows selected by ``index`` (boolean mask or integer indices)."""
         idx = np.arange(self.n_rows)[index]
 
@@ -161,7 +163,7 @@ class Contacts:
     def placements(self) -> tuple[str, ...]:
         return tuple(dict.fromkeys(self.placement))
 
-    def split_placements(self, held_out) -> tuple["Contacts", "Contacts"]:
+    def split_placements(self, held_out) -> tuple[Contacts, Contacts]:
         """(fit, validation): the rows of the placements ``held_out`` (names) kept apart."""
         held = np.array([p in set(held_out) for p in self.placement])
         return self.subset(~held), self.subset(held)

@@ -18,15 +18,16 @@ parameters themselves are a choice, written down here:
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from typing import Sequence
 
 import numpy as np
 
+from ._arguments import POSITIVE_OR_INF, SEQUENCE, TEXT, UNIT_SYSTEM, checked, is_a, optional, shaped
 from ._errors import InputError
 from ._model import DEFAULT_PARALLEL_TOL, Frame, Marker, RobotModel, mdh_transform, parallel_beta_frames
 from ._parameters import KIND_QUANTITY
-from ._spatial import inverse4, matrix_tuple, pose4, rot4, rot_matrix, trans4, unit_vector
+from ._spatial import inverse4, matrix_tuple, pose4, rot4, rot_matrix, trans4, unit_vector, vector3
 from ._units import parse_units, unit_factors
 
 # the columns of an MDH table, beta to r first as the paper lists them
@@ -82,6 +83,8 @@ def _dh_row(row, i: int) -> tuple[str | None, float, float, float, float, str]:
     return name, th, d, a, al, joint
 
 
+@checked(rows=SEQUENCE, name=TEXT, markers=SEQUENCE, base=optional(shaped(4, 4)), joint_limits=optional(shaped(None,
+                                                                                                               2)))
 def from_standard_dh(rows: Sequence, *, name: str, markers: Sequence = (("tool", (0.0, 0.0, 0.0)),),
                      base=None, joint_limits: Sequence[tuple[float, float]] | None = None) -> RobotModel:
     """A model from classic (distal) DH rows, as Universal Robots publish them.
@@ -98,6 +101,21 @@ def from_standard_dh(rows: Sequence, *, name: str, markers: Sequence = (("tool",
     and, from the previous row, alpha = alpha_{i-1}, d = a_{i-1}; frame 1 starts at frame 0 with
     alpha = d = 0, so the base needs nothing; a_n and alpha_n of the last row go into every marker.
     Beta is carried where ``parallel_beta_frames`` says the axes are parallel.
+
+    Parameters
+    ----------
+    rows : sequence of dict
+        One row per joint: ``joint`` (revolute or prismatic) and the classic DH values ``d``, ``theta``,
+        ``a``, ``alpha`` (SI).
+    {name}
+    markers : sequence
+        Markers as ``(name, (x, y, z))`` or ``(name, (x, y, z), R)`` in the last frame, SI.
+    {base, joint_limits}
+
+    Returns
+    -------
+    RobotModel
+        The model in modified DH, with the same forward kinematics.
 
     >>> m = from_standard_dh([(0, 0.1, 0.5, 0), (0, 0, 0.4, 0)], name="rr")
     >>> [(f.alpha, f.d, f.r) for f in m.frames], m.markers[0].position
@@ -122,7 +140,7 @@ def from_standard_dh(rows: Sequence, *, name: str, markers: Sequence = (("tool",
     mk = []
     for mname, p, R in marker_placements(markers, "markers"):
         X = X_tail @ pose4(R, p)
-        mk.append(Marker(mname, len(frames) - 1, tuple(float(v) for v in X[:3, 3]), matrix_tuple(X[:3, :3])))
+        mk.append(Marker(mname, len(frames) - 1, vector3(X[:3, 3]), matrix_tuple(X[:3, :3])))
     if joint_limits is None:
         joint_limits = [(-math.pi, math.pi) if f.joint == "revolute" else (0.0, 1.0) for f in frames]
     if len(joint_limits) != len(frames):
@@ -134,7 +152,7 @@ def from_standard_dh(rows: Sequence, *, name: str, markers: Sequence = (("tool",
     return RobotModel(
         name=name, frames=tuple(frames), joint_names=tuple(names),
         joint_limits=tuple((float(lo), float(hi)) for lo, hi in joint_limits),
-        markers=tuple(mk), base_position=tuple(float(v) for v in X_W0[:3, 3]),
+        markers=tuple(mk), base_position=vector3(X_W0[:3, 3]),
         base_rotation=matrix_tuple(X_W0[:3, :3]),
         description="imported from classic DH",
     )
@@ -190,31 +208,31 @@ def line_frames(points: np.ndarray, axes: np.ndarray, tol: float) -> tuple[np.nd
     for j in range(n):
         zj = axes[j]
         if j + 1 == n:
-            O, x = foot, _perpendicular(zj, x_prev)
+            origin, x = foot, _perpendicular(zj, x_prev)
         else:
             zn, pn = axes[j + 1], points[j + 1]
             cr = np.cross(zj, zn)
             if np.linalg.norm(cr) <= math.sin(tol):
                 # parallel: normal through the previous foot (r_j = 0), towards the nearest point of
                 # the next axis; a slight tilt of that axis goes to beta of frame j+1
-                O = foot
-                near = pn + ((O - pn) @ zn) * zn
-                x = _perpendicular(zj, near - O) if np.linalg.norm(near - O) > 1e-12 else \
+                origin = foot
+                near = pn + ((origin - pn) @ zn) * zn
+                x = _perpendicular(zj, near - origin) if np.linalg.norm(near - origin) > 1e-12 else \
                     _perpendicular(zj, x_prev)
                 foot = near
             else:
-                # common normal: the feet O = pj + s zj and near = pn + u zn, in closed form over
+                # common normal: the feet origin = pj + s zj and near = pn + u zn, in closed form over
                 # |zj x zn|^2 (a 2x2 solve was singular in round-off for a tilt of ~1e-9 rad)
                 pj = points[j]
                 s = np.cross(pn - pj, zn) @ cr / (cr @ cr)
                 u = np.cross(pn - pj, zj) @ cr / (cr @ cr)
-                O, near = pj + s * zj, pn + u * zn
+                origin, near = pj + s * zj, pn + u * zn
                 x = unit_vector(cr)
-                if (near - O) @ x < -1e-12:
+                if (near - origin) @ x < -1e-12:
                     x = -x  # keep d >= 0 where the axes do not meet
                 foot = near
         x = unit_vector(x - (x @ zj) * zj)
-        frames.append(pose4(np.column_stack([x, np.cross(zj, x), zj]), O))
+        frames.append(pose4(np.column_stack([x, np.cross(zj, x), zj]), origin))
         x_prev = x
     return X_0B, frames
 
@@ -234,6 +252,7 @@ def frames_from_lines(names, joints, couplings, X_0B, X_0F) -> list[Frame]:
 
 
 
+@checked(model=is_a(RobotModel), units=UNIT_SYSTEM)
 def mdh_table(model: RobotModel, *, units: str = "m-rad") -> list[dict]:
     """The MDH table, one dict per frame, units in the keys (``alpha_rad``, ``d_m``, ...).
 
@@ -243,7 +262,16 @@ def mdh_table(model: RobotModel, *, units: str = "m-rad") -> list[dict]:
     (prismatic) are the offsets at zero reading. ``units``: one of ``m-rad``, ``mm-deg``, ``m-deg``,
     ``mm-rad``.
 
-    >>> from robocal._model import serial_model
+    Parameters
+    ----------
+    {model, units}
+
+    Returns
+    -------
+    list of dict
+        One row per frame: name, joint, parent and its modified-DH values in ``units``.
+
+    >>> from robocal.kinematics import serial_model
     >>> mdh_table(serial_model("r", [dict(d=0.5)]), units="mm-deg")[0]["d_mm"]
     500.0
     """
@@ -284,13 +312,14 @@ def _serial_frames(model: RobotModel, what: str) -> None:
 
 def frame_poses(model: RobotModel) -> list[np.ndarray]:
     """``X_Wj`` (4x4) of every frame at zero readings."""
-    out = []
+    out: list[np.ndarray] = []
     for f in model.frames:
         parent = model.X_WB if f.parent < 0 else out[f.parent]
         out.append(parent @ mdh_transform(f))
     return out
 
 
+@checked(model=is_a(RobotModel), max_offset=optional(POSITIVE_OR_INF))
 def to_standard_dh(model: RobotModel, *, max_offset: float | None = None) -> StandardDH:
     """Classic DH of a serial model, with the same forward kinematics (exact up to a tilt below
     1e-12 rad between axes taken as parallel).
@@ -301,6 +330,17 @@ def to_standard_dh(model: RobotModel, *, max_offset: float | None = None) -> Sta
     ruins the model. Offsets beyond ``max_offset`` (default ten times the robot's extent, and at
     least 10 m) raise an InputError naming the frames; ``max_offset=inf`` accepts them (the
     returned ``offsets`` list those beyond the default).
+
+    Parameters
+    ----------
+    model : RobotModel
+        A serial model with one reading per frame.
+    {max_offset}
+
+    Returns
+    -------
+    StandardDH
+        The classic DH table with the base and tool placements.
     """
     _serial_frames(model, "classic DH")
     X = frame_poses(model)

@@ -108,11 +108,13 @@ def attained(true_model: RobotModel, q, effects: UnmodelledEffects, *, warmth, r
     if effects.elasticity or effects.bending:
         load = gravity_loads(true_model, q, payload_mass=payload_mass)
     if effects.elasticity:
+        assert load is not None             # computed above whenever elasticity is on
         actual[:, angle] += (effects.elasticity * load * (1.0 + np.abs(load) / effects.load_scale))[:, angle]
     P = evaluate(true_model, actual, payload_mass=payload_mass).positions
     if effects.bending:
         g = np.asarray(true_model.gravity, dtype=float)
         down = g / max(float(np.linalg.norm(g)), 1e-12)
+        assert load is not None             # computed above whenever bending is on
         sag = effects.bending * np.sum(np.abs(load[:, angle]), axis=1)
         P = P + sag[:, None, None] * down
     if effects.drift:

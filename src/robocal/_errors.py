@@ -3,6 +3,13 @@
 from __future__ import annotations
 
 import difflib
+import os
+import sys
+import types
+import warnings
+
+# this package's folder: a warning is attributed to the first frame outside it
+_PACKAGE = os.path.dirname(os.path.abspath(__file__)) + os.sep
 
 # an offending value is quoted in a message at most this long: a huge cell must not flood a terminal
 EXCERPT = 60
@@ -73,3 +80,21 @@ def check_choice(value, options, where: str):
     if isinstance(value, str) and value in options:
         return value
     raise InputError(f"must be one of {', '.join(map(str, options))}, got {excerpt(value)}", where=where)
+
+
+def warn(message: str, category: type[Warning]) -> None:
+    """Issue ``message`` as a warning of ``category`` attributed to the user's line: the first
+    caller outside robocal, however deep inside robocal (decorators included) it was raised.
+
+    Parameters
+    ----------
+    message : str
+        What the warning says.
+    category : type
+        A subclass of ``Warning`` (robocal's are ``RobocalWarning``'s).
+    """
+    frame: types.FrameType | None = sys._getframe(1)
+    level = 2                                   # level 2: the frame that called this function
+    while frame is not None and frame.f_code.co_filename.startswith(_PACKAGE):
+        frame, level = frame.f_back, level + 1
+    warnings.warn(message, category, stacklevel=level)

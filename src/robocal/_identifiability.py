@@ -12,13 +12,28 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from functools import lru_cache
 
 import numpy as np
 
+from ._arguments import (
+    FLAG,
+    FRACTION,
+    MAPPING,
+    NAMES,
+    POSITIVE,
+    SEED,
+    checked,
+    columns_of,
+    is_a,
+    optional,
+    readings_of,
+    shaped,
+    whole,
+)
 from ._linalg import reduced, solve_upper
 from ._measurements import Measurements
 from ._model import RobotModel
+from ._options import MAX_POSES
 from ._parameters import FRAME_KINDS, candidate_parameters, parameter_layout, parameter_vector
 from ._problem import Problem, design_measurements, needs_compliance, random_configurations
 from ._threads import one_blas_thread
@@ -77,8 +92,19 @@ class IdentifiabilityResult:
 
 
 
+@checked(result=is_a(IdentifiabilityResult), frame_names=NAMES)
 def status_table(result: IdentifiabilityResult, frame_names) -> list[dict]:
-    """Per frame, the status (I, E or -) of each of its parameter kinds: the paper's table."""
+    """Per frame, the status (I, E or -) of each of its parameter kinds: the paper's table.
+
+    Parameters
+    ----------
+    {result, frame_names}
+
+    Returns
+    -------
+    list of dict
+        One row per frame: each kind's status (identified, eliminated, fixed).
+    """
     return [{"frame": f, **{k: result.status(f"{f}.{k}") for k in FRAME_KINDS}} for f in frame_names]
 
 
@@ -95,6 +121,8 @@ def singular_values(A: np.ndarray, vectors: bool = False):
     return np.linalg.svd(A, compute_uv=False)
 
 
+@checked(J=shaped(None, None), names=columns_of("J"), quantities=optional(columns_of("J")), tol=FRACTION,
+         max_terms=whole(1, 1000), n_rows=optional(whole(1)))
 @one_blas_thread
 def analyse(J: np.ndarray, names, *, quantities=None, tol: float = DEFAULT_TOL, max_terms: int = 6,
             n_rows: int | None = None) -> IdentifiabilityResult:
@@ -104,6 +132,22 @@ def analyse(J: np.ndarray, names, *, quantities=None, tol: float = DEFAULT_TOL, 
     has no effect when it is round-off next to the largest column of the same quantity. Default:
     all alike. ``J`` may be replaced by any matrix with the same Gram matrix (``reduced(J)``);
     ``n_rows`` then gives the rows it stands for (the observability index O1 divides by them).
+
+    Parameters
+    ----------
+    {J}
+    names : sequence of str
+        Name of each column of ``J``.
+    quantities : sequence of str, optional
+        Quantity of each column (default: all alike).
+    tol : float
+        Rank tolerance relative to the largest singular value, in (0, 1).
+    {max_terms, n_rows}
+
+    Returns
+    -------
+    IdentifiabilityResult
+        Rank, identified and eliminated parameters, absorbing combinations.
     """
     names = tuple(names)
     J = np.asarray(J, dtype=float)
@@ -205,6 +249,15 @@ def _observability(s: np.ndarray, m: int) -> tuple[dict, float]:
     return {k: 0.0 for k in ("O1", "O2", "O3", "O4", "O5")}, float("inf")
 
 
+def _data_rule(value, name: str, args) -> None:
+    """Measurements, or joint readings (n_poses, n_joints) of the model, or None (random poses)."""
+    if value is not None and not isinstance(value, Measurements):
+        readings_of()(value, name, args)
+
+
+@checked(model=is_a(RobotModel), data=_data_rule, parameters=NAMES,
+         known=NAMES, orientation=optional(FLAG), tol=FRACTION, n_random=whole(1, MAX_POSES), rng=SEED,
+         markers=optional(NAMES))
 @one_blas_thread
 def identifiability(model: RobotModel, data: Measurements | np.ndarray | None = None, *,
                     parameters=("geometric",), known=(), orientation: bool | None = None,
@@ -214,6 +267,26 @@ def identifiability(model: RobotModel, data: Measurements | np.ndarray | None = 
     With ``data=None`` the analysis uses ``n_random`` configurations drawn within the joint limits:
     what theory allows for this robot, whatever the poses. ``markers``: the markers measured, when
     ``data`` does not say (default all).
+
+    Parameters
+    ----------
+    {model}
+    data : Measurements or array_like of shape (n_poses, n_joints), optional
+        Measurements, or joint readings, the analysis is made at (None: ``n_random`` random
+        configurations).
+    {parameters, known}
+    orientation : bool, optional
+        Whether orientations are measured (None: from ``data``).
+    tol : float
+        Rank tolerance relative to the largest singular value, in (0, 1).
+    {n_random, rng}
+    markers : str or sequence of str, optional
+        Markers measured (default: those of ``data``, or all).
+
+    Returns
+    -------
+    IdentifiabilityResult
+        What is identifiable, what is eliminated and what absorbs it.
     """
     if data is None:
         q = random_configurations(model, n_random, rng)
@@ -257,13 +330,15 @@ def _one_side(s: np.ndarray) -> str:
     return ""
 
 
-@lru_cache(maxsize=32)
 def theoretical_identifiability(model: RobotModel, parameters: tuple, known: tuple, orientation: bool,
                                 tol: float, markers: tuple | None = None) -> IdentifiabilityResult:
     """What this robot's structure allows to identify with ``markers`` measured (default all), at
-    random configurations (fixed seed)."""
-    return identifiability(model, None, parameters=parameters, known=known, orientation=orientation, tol=tol, rng=0,
-                           markers=markers)
+    random configurations (fixed seed). Made once per model object and arguments and kept with the
+    model; each call gets its own copy of the result's dictionaries (the rest is immutable)."""
+    args = (parameters, known, orientation, tol, markers)
+    kept = model.derived((theoretical_identifiability, args), lambda: identifiability(
+        model, None, parameters=parameters, known=known, orientation=orientation, tol=tol, rng=0, markers=markers))
+    return replace(kept, observability=dict(kept.observability), column_scale=dict(kept.column_scale))
 
 
 @one_blas_thread
@@ -278,6 +353,8 @@ def predicted_std(J: np.ndarray, sigma: float) -> np.ndarray:
     return sigma * np.sqrt(np.diag(inv)) / col
 
 
+@checked(J=shaped(None, None), names=columns_of("J"), quantities=columns_of("J"), sigma=POSITIVE,
+         moments=optional(MAPPING), bounds=optional(MAPPING))
 @one_blas_thread
 def weakly_identifiable(J: np.ndarray, names, quantities, sigma: float, *, moments: dict | None = None,
                         bounds: dict | None = None) -> list[tuple[str, str, float, float]]:
@@ -291,6 +368,18 @@ def weakly_identifiable(J: np.ndarray, names, quantities, sigma: float, *, momen
     kept one beyond its bound is eliminated (the later member of a near-dependent group goes, as
     the later member of an exactly dependent one does). Returns, in order, (name, the parameter
     beyond its bound with it: itself or an earlier one, that one's predicted effect, its bound).
+
+    Parameters
+    ----------
+    {J}
+    names : sequence of str
+        Name of each column of ``J``.
+    {quantities, sigma, moments, bounds}
+
+    Returns
+    -------
+    list of (str, str, float, float)
+        Each weak parameter with its quantity, predicted standard deviation and bound.
     """
     bounds = WEAK_STD if bounds is None else bounds
     names, quantities = list(names), list(quantities)
@@ -312,7 +401,7 @@ def weakly_identifiable(J: np.ndarray, names, quantities, sigma: float, *, momen
         # R' = [[R, proj], [0, s]]: its inverse gains the column [-R^-1 proj / s; 1 / s]
         with np.errstate(divide="ignore", invalid="ignore"):
             c = -(Rinv[:j, :j] @ proj) / s
-            trial_diag = np.append(inv_diag[:j] + c ** 2, 1.0 / s ** 2)
+            trial_diag = np.append(inv_diag[:j] + c ** 2, 1.0 / np.float64(s) ** 2)  # inf: in the span
         trial = kept + [k]
         effect = sigma * np.sqrt(np.nan_to_num(trial_diag, nan=np.inf)) / norms[trial] * scale[trial]
         ratio = np.where(np.isinf(limit[trial]), 0.0, effect / limit[trial])    # an unbounded quantity never fails

@@ -22,6 +22,7 @@ what the joint limits allow, and the parameters' uncertainty carried over the wh
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import cast
 
 import numpy as np
 
@@ -40,8 +41,11 @@ MAX_FOLDS = 20
 # eigenvalues of a fold's normal matrix (unit columns) below this share of the largest are left out:
 # a fold that alone determined a direction leaves the others unable to (that direction keeps its value)
 FOLD_RCOND = 1e-12
-# configurations drawn within the joint limits to describe the workspace
-WORKSPACE_POSES = 300
+# configurations drawn within the joint limits to describe the workspace (what the calibrated geometry
+# does there, the spread of its points), and (at most) the poses the parameters' uncertainty is
+# carried to, there and at the measured poses
+WORKSPACE_POSES = 150
+UNCERTAINTY_POSES = 100
 WORKSPACE_SEED = 20240601
 
 
@@ -112,9 +116,19 @@ def fold_labels(data: Measurements, folds: int = DEFAULT_FOLDS) -> tuple[np.ndar
         labels, how = np.arange(n) * k // n, f"{k} folds of consecutive poses"
     else:
         labels, how = np.random.default_rng(FOLD_SEED).permutation(n) % k, f"{k} folds drawn at random"
-    _, first, inverse = np.unique(np.ascontiguousarray(data.q + 0.0), axis=0, return_index=True, return_inverse=True)
-    labels = labels[first[np.ravel(inverse)]]
-    return labels.astype(int), k, how
+    return _repeats_together(data.q, labels).astype(int), k, how
+
+
+def _repeats_together(q: np.ndarray, labels: np.ndarray) -> np.ndarray:
+    """``labels`` with each configuration repeated exactly given the label of its first occurrence.
+    Rows with distinct projections on a fixed direction are distinct: only when two tie are the rows
+    compared whole."""
+    rows = np.ascontiguousarray(q + 0.0)
+    h = rows @ (1.0 / np.sqrt(np.arange(2.0, rows.shape[1] + 2.0)))
+    if len(np.unique(h)) == len(h):
+        return labels
+    _, first, inverse = np.unique(rows, axis=0, return_index=True, return_inverse=True)
+    return labels[first[np.ravel(inverse)]]
 
 
 def ordered(q: np.ndarray) -> bool:
@@ -147,9 +161,8 @@ def point_loss(problem: Problem, p: np.ndarray) -> np.ndarray:
     """(n_poses, n_markers) each measured point's sum of squared weighted residuals at ``p``."""
     r = problem.residuals(p)
     poses, markers = problem.row_points()
-    out = np.zeros(problem.data.mask.shape)
-    np.add.at(out, (poses, markers), r * r)
-    return out
+    n, m = problem.data.mask.shape
+    return np.bincount(poses * m + markers, weights=r * r, minlength=n * m).reshape(n, m)
 
 
 def evaluated(problem: Problem, p: np.ndarray) -> HeldOut:
@@ -186,24 +199,39 @@ def fold_steps(problem: Problem, p: np.ndarray, labels: np.ndarray, k: int) -> l
     return steps
 
 
+class FoldProblems:
+    """The problems on each fold's poses of a campaign, made once for one calibration and taken
+    over the free parameters of each model it compares (``of``). Held by the calibration call that
+    made it, and gone with it."""
+
+    def __init__(self, labels: np.ndarray, k: int):
+        self.labels, self.k = labels, k
+        self._made: dict = {}
+
+    def of(self, problem: Problem) -> list:
+        """(poses, problem over ``problem``'s free parameters) of each fold that has poses."""
+        key = (id(problem.data), problem.compliance, problem.backlash)
+        if key not in self._made:
+            self._made[key] = (problem.data, [(idx, _sub_problem(problem, idx)) for idx in
+                                              (np.nonzero(self.labels == g)[0] for g in range(self.k)) if len(idx)])
+        return [(idx, sub.over(free_names(problem))) for idx, sub in self._made[key][1]]
+
+
 def cross_validate(problem: Problem, p: np.ndarray, labels: np.ndarray, k: int, *,
-                   on: Problem | None = None) -> HeldOut:
+                   on: Problem | None = None, folds: FoldProblems | None = None) -> HeldOut:
     """Each pose's errors under the model fitted on the other folds (``fold_steps``); ``on``: the
     problem whose points are predicted (default ``problem``; e.g. the whole campaign when
-    ``problem`` has points set aside)."""
+    ``problem`` has points set aside); ``folds``: the fold problems to reuse."""
     steps = fold_steps(problem, p, labels, k)
     problem = problem if on is None else on
+    folds = FoldProblems(labels, k) if folds is None else folds
     data = problem.data
     pos = np.full(data.positions.shape, np.nan)
     rot = np.full(data.positions.shape, np.nan) if data.has_orientation else None
     loss = np.zeros(data.mask.shape)
-    for g, step in enumerate(steps):
-        index = np.nonzero(labels == g)[0]
-        if not len(index):
-            continue
-        sub = _sub_problem(problem, index)
+    for index, sub in folds.of(problem):
         pg = p.copy()
-        pg[problem.free_idx] += step
+        pg[problem.free_idx] += steps[int(labels[index[0]])]
         out = evaluated(sub, pg)
         pos[index], loss[index] = out.positions, out.loss
         if rot is not None and out.rotations is not None:
@@ -355,9 +383,12 @@ def workspace_readings(model, n: int = WORKSPACE_POSES) -> np.ndarray:
     return random_configurations(model, n, np.random.default_rng(WORKSPACE_SEED))
 
 
-def coverage(problem: Problem, p: np.ndarray, covariance: np.ndarray, predicted_workspace: np.ndarray) -> Coverage:
+def coverage(problem: Problem, p: np.ndarray, covariance: np.ndarray, predicted_workspace: np.ndarray, *,
+             factor: np.ndarray | None = None) -> Coverage:
     """The campaign of ``problem`` against the workspace (``Coverage``); ``predicted_workspace``
-    (n, n_markers, 3) the markers at random configurations (``workspace_readings``)."""
+    (n, n_markers, 3) the markers at random configurations (``workspace_readings``); ``factor``: an
+    R factor of the problem's (unweighted) Jacobian at ``p``, when at hand: the uncertainty at the
+    measured poses is then its mean over all of them, trace(C R^T R) / n, without a Jacobian more."""
     data = problem.data
     lo, hi = sampling_box(problem.model)
     allowed = np.where(np.isfinite(hi - lo), hi - lo, 2 * np.pi)
@@ -365,13 +396,18 @@ def coverage(problem: Problem, p: np.ndarray, covariance: np.ndarray, predicted_
     span = np.ptp(q, axis=0) / np.where(allowed > 0, allowed, 1.0)
     measured = data.positions[data.mask]
     pts = measured.reshape(-1, 3)
-    box = (tuple(float(v) for v in pts.min(axis=0)), tuple(float(v) for v in pts.max(axis=0)))
+    box = cast("tuple[tuple[float, float, float], tuple[float, float, float]]",   # (x, y, z) each
+               (tuple(float(v) for v in pts.min(axis=0)), tuple(float(v) for v in pts.max(axis=0))))
     ws = _spread(predicted_workspace)
     ratio = _spread(measured) / ws if ws > 0 else 1.0
     # the uncertainty at (at most 300 of) the measured poses and at the workspace's configurations
-    pick = np.linspace(0, data.n_poses - 1, min(data.n_poses, WORKSPACE_POSES)).astype(int)
-    at_measured = _uncertainty(problem, p, q[pick], covariance)
-    at_workspace = _uncertainty(problem, p, workspace_readings(problem.model), covariance)
+    if factor is not None and not problem.weighted:
+        at_measured = float(np.sqrt(max(np.trace(covariance @ (factor.T @ factor)), 0.0)
+                                    / max(int(data.mask.sum()), 1)))
+    else:
+        pick = np.linspace(0, data.n_poses - 1, min(data.n_poses, UNCERTAINTY_POSES)).astype(int)
+        at_measured = _uncertainty(problem, p, q[pick], covariance)
+    at_workspace = _uncertainty(problem, p, workspace_readings(problem.model, UNCERTAINTY_POSES), covariance)
     return Coverage(joint_span=np.minimum(span, 1.0), joint_ranges=tuple((float(a), float(b)) for a, b in
                                                                        zip(q.min(axis=0), q.max(axis=0))),
                     box=box, spread_ratio=float(ratio), uncertainty_measured=at_measured,

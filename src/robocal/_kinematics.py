@@ -28,14 +28,23 @@ from __future__ import annotations
 
 import copy
 import math
+import sys
+import threading
 from dataclasses import dataclass, field
-from functools import lru_cache
+from typing import cast
 
 import numpy as np
 
+from ._arrays import read_only
 from ._measurements import approach_sides
 from ._model import RobotModel
-from ._parameters import BASE_KINDS, MARKER_KINDS, parameter_layout, parameter_vector
+from ._parameters import (
+    BASE_KINDS,
+    FRAME_KINDS,
+    MARKER_KINDS,
+    parameter_layout,
+    parameter_vector,
+)
 from ._spatial import cross, left_jacobian, rot_matrix, small_rotation
 from ._threads import one_blas_thread
 
@@ -45,19 +54,65 @@ N_BASE = len(BASE_KINDS)
 LARGE_POSES = 50_000
 CHUNK_POSES = 10_000
 N_MARKER = len(MARKER_KINDS)
-# offsets of the geometric steps inside a frame's block (same order as FRAME_KINDS)
-GAMMA, B, BETA, ALPHA, D, THETA, R = range(7)
-K_THETA, K_ALPHA, K_BETA = 7, 8, 9
-# (step offset deflected, compliance offset) pairs
-COMPLIANT = ((THETA, K_THETA), (ALPHA, K_ALPHA), (BETA, K_BETA))
-_ROT_PAIRS = {0: (1, 2), 1: (2, 0), 2: (0, 1)}
-# rows of a pass's vectors (``_Pass.vec``, each row one (3, N) block): a zero row; the base's x, y,
-# z, origin and its 6 step axes; per frame a block of FRAME_ROWS; per marker MARKER_ROWS
-ZERO_ROW, BASE_ROW, FRAME_ROW0, FRAME_ROWS, MARKER_ROWS = 0, 1, 11, 10, 4
-# inside a frame's block: its rotation's columns and origin; the x and y axes before the joint's
-# turn (theta's offset included); the alpha/d axis, the beta axis, the point of the beta and alpha
-# axes, the point of the theta axis. Inside a marker's: its position, then its rotation-step axes.
-X, Y, Z, ORIGIN, XC, YC, D_AXIS, BETA_AXIS, B_POINT, THETA_POINT = range(FRAME_ROWS)
+
+
+class FrameStep:
+    """The elementary motions placing a frame in its parent, in the order of docs/method.md section 1,
+    ``X_pj = Rot(z, gamma) Trans(z, b) Rot(y, beta) Rot(x, alpha) Trans(x, d) Rot(z, theta)
+    Trans(z, r)``: each one's offset in the frame's steps and in its parameters (``GEOMETRIC_KINDS``,
+    the first of ``FRAME_KINDS``). Plain integers in a namespace: they index arrays in the passes'
+    inner loops, where an enum member's lookup would cost ten times more."""
+
+    GAMMA = 0
+    B = 1
+    BETA = 2
+    ALPHA = 3
+    D = 4
+    THETA = 5
+    R = 6
+
+
+N_FRAME_STEPS = 7
+ROTATION_STEPS = (FrameStep.GAMMA, FrameStep.BETA, FrameStep.ALPHA, FrameStep.THETA)
+# the steps gravity deflects (docs/method.md section 2), each with its compliance's offset in the frame's
+# parameters; a frame's compliant rows (3 per frame) follow this order
+COMPLIANT = tuple((step, FRAME_KINDS.index(kind)) for step, kind in
+                  ((FrameStep.THETA, "k_theta"), (FrameStep.ALPHA, "k_alpha"), (FrameStep.BETA, "k_beta")))
+# the other two components of a cross product's component c: (a x b)_c = a_j b_k - a_k b_j
+_CROSS_PAIRS = {0: (1, 2), 1: (2, 0), 2: (0, 1)}
+
+
+class FrameRow:
+    """The rows of a frame's block in a pass's vectors (``_Pass.vec``: each row one (3, N) block of
+    vectors in W), as docs/method.md sections 1 and 3 name them (plain integers, as ``FrameStep``'s)."""
+
+    X_AXIS = 0          # the frame's rotation, column by column, and its origin
+    Y_AXIS = 1
+    Z_AXIS = 2          # theta turns about it, r slides along it
+    ORIGIN = 3
+    D_AXIS = 4          # the x axis alpha turns about and d slides along
+    BETA_AXIS = 5       # the parent's y axis once gamma turned it: beta turns about it
+    BETA_POINT = 6      # b along the parent's z: the point of the beta and alpha axes
+    THETA_POINT = 7     # then d along the d axis: the point of the theta axis
+
+
+class MarkerRow:
+    """The rows of a marker's block: its position, then the axes of its three rotation steps."""
+
+    POSITION = 0
+    ROTATION_AXES = 1
+
+
+FRAME_ROWS, MARKER_ROWS = FrameRow.THETA_POINT + 1, MarkerRow.ROTATION_AXES + 3
+# a frame's placement: its first rows, x, y, z and origin (homogeneous coordinates multiply them)
+PLACEMENT_ROWS = FrameRow.ORIGIN + 1
+# the rows of a pass's vectors, in order: a zero row (the point of a translation's column); the base's
+# block (x, y, z and origin, as a frame's first rows, then its six step axes); a block of FRAME_ROWS
+# per frame; a block of MARKER_ROWS per marker
+ZERO_ROW = 0
+BASE_ROW = 1
+BASE_STEP_AXES = BASE_ROW + FrameRow.ORIGIN + 1
+FRAME_ROW0 = BASE_STEP_AXES + N_BASE
 
 
 
@@ -89,34 +144,97 @@ class Layout:
     marker_row: np.ndarray      # (n_markers,) first row of each marker's block
     step_rows: np.ndarray       # (2, 2, n_steps) [orientations] rows of each step's axis and point
     chain_params: np.ndarray    # indices of every parameter but the base's and the markers'
+    # the correction plans made for this layout (``_correction_plan``): immutable records, kept with it
+    plans: dict = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        for value in vars(self).values():
+            if isinstance(value, np.ndarray):
+                read_only(value)
 
 
 
-@lru_cache(maxsize=64)
 def layout(model: RobotModel) -> Layout:
-    """The step structure of ``model`` over its parameter layout (cached per model)."""
+    """The step structure of ``model`` over its parameter layout, made once per model object and kept
+    with it (an immutable record: its arrays are read-only)."""
+    return model.derived(layout, lambda: _make_layout(model))
+
+
+# the most a model's workspace keeps (its problems' pass buffers, for the next ones)
+WORKSPACE_BYTES = 32 << 20
+
+
+class Workspace:
+    """Pass buffers a model's problems no longer use, kept for its next ones (``workspace(model)``).
+
+    A calibration's passes are then written into memory the process already uses instead of fresh
+    pages the system has to fault in: without it, at 1,000 poses, first writes to fresh pages take
+    about a third of a repeated calibration's time. It is the model's own (it lives and dies with
+    it) and changes nothing outside it. A buffer comes back only when nobody else holds it (no view
+    of it is alive anywhere: ``sys.getrefcount``), at most ``WORKSPACE_BYTES`` in all. What a buffer
+    held is never read: a pass writes every row before it reads it, as it must with ``np.empty``.
+    """
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._spare: list[np.ndarray] = []
+
+    def take(self, shape: tuple) -> np.ndarray:
+        """A buffer of ``shape`` (float): a spare one if one has that shape, else a new one."""
+        with self._lock:
+            for k, a in enumerate(self._spare):
+                if a.shape == shape:
+                    return self._spare.pop(k)
+        return np.empty(shape)
+
+    def give(self, arrays: list) -> None:
+        """Keep, for a later ``take``, those of ``arrays`` (buffers ``take`` gave, in a list handed
+        over and emptied here) that nothing else holds; the oldest spares go beyond the bound."""
+        with self._lock:
+            while arrays:
+                a = arrays.pop()
+                # held by ``a`` and getrefcount's argument only: no pass, view or caller has it
+                if sys.getrefcount(a) <= 2 and a.flags.owndata and a.nbytes <= WORKSPACE_BYTES:
+                    self._spare.append(a)
+            while sum(a.nbytes for a in self._spare) > WORKSPACE_BYTES:
+                self._spare.pop(0)
+
+
+def workspace(model: RobotModel) -> Workspace:
+    """The model's workspace: the pass buffers its problems gave back (kept with the model)."""
+    return model.derived(workspace, Workspace)
+
+
+def pass_buffers(st) -> list:
+    """The buffers the passes of the evaluation ``st`` were written into (for ``Workspace.give``)."""
+    return [ps.vec for ps in {id(ps): ps for ps in (st.ps, st.ps0) if ps is not None}.values()]
+
+
+def _make_layout(model: RobotModel) -> Layout:
     nf, nm = model.n_frames, len(model.markers)
     params = parameter_layout(model)
     names = params.names
     frame0, marker0 = params.frame0.tolist(), params.marker0.tolist()
 
-    step_param, step_is_rot, step_frame = [], [], []
+    params_of_steps: list[int] = []
+    step_is_rot: list[bool] = []
+    frames_of_steps: list[int] = []
     for k in range(N_BASE):
-        step_param.append(k)
+        params_of_steps.append(k)
         step_is_rot.append(k >= 3)
-        step_frame.append(-1)
+        frames_of_steps.append(-1)
     for i in range(nf):
-        for k in range(7):
-            step_param.append(frame0[i] + k)
-            step_is_rot.append(k in (GAMMA, BETA, ALPHA, THETA))
-            step_frame.append(i)
+        for k in range(N_FRAME_STEPS):
+            params_of_steps.append(frame0[i] + k)
+            step_is_rot.append(k in ROTATION_STEPS)
+            frames_of_steps.append(i)
     for m in range(nm):
         for k in range(N_MARKER):
-            step_param.append(marker0[m] + k)
+            params_of_steps.append(marker0[m] + k)
             step_is_rot.append(k >= 3)
-            step_frame.append(-2 - m)
-    step_param = np.array(step_param)
-    step_frame = np.array(step_frame)
+            frames_of_steps.append(-2 - m)
+    step_param = np.array(params_of_steps)
+    step_frame = np.array(frames_of_steps)
     n_steps = len(step_param)
 
     ancestors = np.zeros((nf, nf), dtype=bool)  # [i, k]: k is i or an ancestor of i
@@ -129,9 +247,9 @@ def layout(model: RobotModel) -> Layout:
     marker_path = np.zeros((nm, n_steps), dtype=bool)
     for m, mk in enumerate(model.markers):
         marker_path[m, :N_BASE] = True
-        for k in np.nonzero(ancestors[mk.frame])[0]:
-            marker_path[m, _frame_steps(k)] = True
-        s0 = N_BASE + 7 * nf + N_MARKER * m
+        for anc_frame in np.nonzero(ancestors[mk.frame])[0]:
+            marker_path[m, _frame_steps(anc_frame)] = True
+        s0 = N_BASE + N_FRAME_STEPS * nf + N_MARKER * m
         marker_path[m, s0:s0 + N_MARKER] = True
     csteps, cparams, anc, desc = _compliant_rows(frame0, ancestors, n_steps)
     param_step = np.full(len(names), -1, dtype=int)
@@ -164,7 +282,7 @@ def _backlash_layout(model: RobotModel, params):
         if f.joint != "fixed":
             rev = f.joint == "revolute"
             bparams[i] = params.by_name[f"{f.name}.backlash_{'theta' if rev else 'r'}"].index
-            jsteps[i] = N_BASE + 7 * i + (THETA if rev else R)
+            jsteps[i] = N_BASE + N_FRAME_STEPS * i + (FrameStep.THETA if rev else FrameStep.R)
     param_backlash = np.full(params.n_params, -1, dtype=int)
     param_backlash[bparams[bparams >= 0]] = np.nonzero(bparams >= 0)[0]
     return bparams, jsteps, param_backlash
@@ -177,25 +295,30 @@ def _vector_rows(model: RobotModel):
     frame_row = FRAME_ROW0 + FRAME_ROWS * np.arange(nf)
     parent_row = np.array([BASE_ROW if f.parent < 0 else frame_row[f.parent] for f in model.frames], dtype=int)
     marker_row = FRAME_ROW0 + FRAME_ROWS * nf + MARKER_ROWS * np.arange(nm)
-    axis = [BASE_ROW + 4 + k for k in range(N_BASE)]
-    point = [ZERO_ROW] * 3 + [BASE_ROW + ORIGIN] * 3
+    axis = [BASE_STEP_AXES + k for k in range(N_BASE)]
+    point = [ZERO_ROW] * 3 + [BASE_ROW + FrameRow.ORIGIN] * 3
     for r, pr in zip(frame_row, parent_row):
-        # gamma, b, beta, alpha, d, theta, r
-        axis += [pr + Z, pr + Z, r + BETA_AXIS, r + D_AXIS, r + D_AXIS, r + Z, r + Z]
-        point += [pr + ORIGIN, ZERO_ROW, r + B_POINT, r + B_POINT, ZERO_ROW, r + THETA_POINT, ZERO_ROW]
+        # docs/method.md section 3: gamma turns about, and b slides along, the parent's z through its
+        # origin; beta turns about its own axis, alpha about the d axis, both through b's point; d slides
+        # along the d axis; theta turns about z through theta's point, r slides along z
+        axis += [pr + FrameRow.Z_AXIS, pr + FrameRow.Z_AXIS, r + FrameRow.BETA_AXIS, r + FrameRow.D_AXIS,
+                 r + FrameRow.D_AXIS, r + FrameRow.Z_AXIS, r + FrameRow.Z_AXIS]
+        point += [pr + FrameRow.ORIGIN, ZERO_ROW, r + FrameRow.BETA_POINT, r + FrameRow.BETA_POINT, ZERO_ROW,
+                  r + FrameRow.THETA_POINT, ZERO_ROW]
+    turns = MarkerRow.ROTATION_AXES + np.arange(3)
     for mk, r in zip(model.markers, marker_row):
         fr = frame_row[mk.frame]
-        axis += [fr + X, fr + Y, fr + Z, r + 1, r + 2, r + 3]
-        point += [ZERO_ROW] * 3 + [r] * 3
+        axis += [fr + FrameRow.X_AXIS, fr + FrameRow.Y_AXIS, fr + FrameRow.Z_AXIS] + list(r + turns)
+        point += [ZERO_ROW] * 3 + [r + MarkerRow.POSITION] * 3
     rows = np.array([[axis, point]] * 2, dtype=int)
     # without orientations a marker's rotation steps move nothing: the zero row
     for r in marker_row:
-        rows[0][np.isin(rows[0], [r, r + 1, r + 2, r + 3])] = ZERO_ROW
+        rows[0][np.isin(rows[0], r + np.arange(MARKER_ROWS))] = ZERO_ROW
     return FRAME_ROW0 + FRAME_ROWS * nf + MARKER_ROWS * nm, frame_row, parent_row, marker_row, rows
 
 
-def _frame_steps(i: int) -> np.ndarray:
-    return np.arange(N_BASE + 7 * i, N_BASE + 7 * i + 7)
+def _frame_steps(i: int | np.integer) -> np.ndarray:
+    return N_BASE + N_FRAME_STEPS * i + np.arange(N_FRAME_STEPS)
 
 
 def _compliant_rows(frame0: list, ancestors: np.ndarray, n_steps: int):
@@ -209,7 +332,7 @@ def _compliant_rows(frame0: list, ancestors: np.ndarray, n_steps: int):
     for i in range(nf):
         for c, (off, koff) in enumerate(COMPLIANT):
             row = 3 * i + c
-            s = N_BASE + 7 * i + off
+            s = N_BASE + N_FRAME_STEPS * i + off
             csteps.append(s)
             cparams.append(frame0[i] + koff)
             anc[row, :N_BASE] = True
@@ -266,12 +389,12 @@ class _Pass:
     @property
     def R(self) -> np.ndarray:
         """(n_frames, N, 3, 3) rotations R_W<frame> (a view)."""
-        return self._frames()[:, X:Z + 1].transpose(0, 3, 2, 1)
+        return self._frames()[:, FrameRow.X_AXIS:FrameRow.Z_AXIS + 1].transpose(0, 3, 2, 1)
 
     @property
     def O(self) -> np.ndarray:  # noqa: E743
         """(n_frames, N, 3) origins (a view)."""
-        return self._frames()[:, ORIGIN].transpose(0, 2, 1)
+        return self._frames()[:, FrameRow.ORIGIN].transpose(0, 2, 1)
 
     @property
     def P(self) -> np.ndarray | None:
@@ -280,7 +403,7 @@ class _Pass:
             return None
         nm, r0 = len(self.model.markers), FRAME_ROW0 + FRAME_ROWS * self.model.n_frames
         blocks = self.vec[r0:r0 + MARKER_ROWS * nm].reshape((nm, MARKER_ROWS) + self.vec.shape[1:])
-        return blocks[:, 0].transpose(0, 2, 1)
+        return blocks[:, MarkerRow.POSITION].transpose(0, 2, 1)
 
     @property
     def U(self) -> np.ndarray:
@@ -319,27 +442,13 @@ class _Pass:
         return self.cache["axes"]
 
 
-# readings seen lately with the cosines and sines of their frame variables: a fit evaluates the
-# same readings at every step while only the parameters move
-_TURNS: list = []
-_TURNS_KEPT, _TURNS_MAX_SIZE = 2, 600_000    # entries, and readings (poses x frames) per entry
-
-
-def _joint_turns(qf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def joint_turns(qf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """cos (n_frames, N) and (sin, -sin) (n_frames, 2, 1, N) of the frame variables ``qf``
-    (N, n_frames), remembered for the last few readings (compared by value, so a changed array is
-    never mistaken for an old one)."""
-    for entry in _TURNS:
-        # the first pose first: other readings of the same size (chunks, draws) differ there
-        if entry[0].shape == qf.shape and np.array_equal(entry[0][:1], qf[:1]) and np.array_equal(entry[0], qf):
-            return entry[1], entry[2]
+    (N, n_frames), read-only: what a pass turns each frame by. A caller that evaluates the same
+    readings again (a problem, at every step of a fit) makes them once and hands them to
+    ``kinematic_pass`` (``turns``)."""
     qt = np.ascontiguousarray(qf.T)
-    c, s = np.cos(qt), _signed_sines(qt)
-    if qf.size <= _TURNS_MAX_SIZE:
-        c.flags.writeable = s.flags.writeable = False
-        _TURNS.insert(0, (qf.copy(), c, s))
-        del _TURNS[_TURNS_KEPT:]
-    return c, s
+    return read_only(np.cos(qt)), read_only(_signed_sines(qt))
 
 
 def _signed_sines(angle: np.ndarray) -> np.ndarray:
@@ -351,61 +460,70 @@ def _signed_sines(angle: np.ndarray) -> np.ndarray:
 def _place(Vt: np.ndarray, parent: np.ndarray, out: np.ndarray) -> None:
     """out (k, 3, N) = the vectors whose parent-frame coordinates (homogeneous: 0 for a direction,
     1 for a point) are the rows of Vt (k, 4), placed by the parent's x, y, z, origin ``parent``:
-    (4, 3, N), or (4, 3) for the base, the same at every pose."""
+    (4, 3, N), or (4, 3) for the base, the same at every pose.
+    Reference: docs/method.md section 1: a frame's vectors from its parent's, X_W<frame> = X_W<parent> X_pj."""
     if parent.ndim == 2:
         out[...] = (Vt @ parent)[:, :, None]
     else:
         np.matmul(Vt, parent.reshape(4, -1), out=out.reshape(len(Vt), -1))
 
 
-def _turn_rows(block: np.ndarray, c, ss) -> None:
-    """The x and y axes of a frame's ``block`` turned about z per pose, from those before the turn:
-    x = c xc + s yc, y = c yc - s xc, with c (N,) and ``ss`` the (s, -s) of ``_signed_sines``."""
-    xy = block[X:Y + 1]
-    np.multiply(block[XC:YC + 1], c, out=xy)
-    xy += block[YC:XC - 1:-1] * ss                 # (yc, xc) s, -s
+def _turn_rows(block: np.ndarray, unturned: np.ndarray, c, ss) -> None:
+    """The x and y axes of a frame's ``block`` turned about z per pose from those before the turn,
+    ``unturned`` (xc, yc) (2, 3, N): x = c xc + s yc, y = c yc - s xc, with c (N,) and ``ss`` the
+    (s, -s) of ``_signed_sines``. Reference: docs/method.md section 1: the joint's Rot(z, theta) of X_pj."""
+    xy = block[FrameRow.X_AXIS:FrameRow.Y_AXIS + 1]
+    np.multiply(unturned, c, out=xy)
+    xy += unturned[::-1] * ss                 # (yc, xc) s, -s
 
 
 def kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray, defl=None,
-                    orientations: bool = False, frames_only: bool = False) -> _Pass:
+                   orientations: bool = False, frames_only: bool = False, turns=None, take=np.empty) -> _Pass:
     """One pass down the tree. Per frame, its constant part (the parent's turn, offsets, and
     theta's offset) is one (4 x 4) @ (4 x 3N) product; only the joint's turn varies per pose.
 
     ``frames_only``: frame poses without marker positions (the undeformed chain under compliance
     needs no more). Step axes and points (``U``, ``Q``) and marker orientations are built on
-    first use."""
+    first use. ``turns``: ``joint_turns(qf)`` when the caller holds them (default: made here);
+    ``take``: where the pass's buffer comes from (a ``Workspace.take``; default a new array).
+    Reference: docs/method.md section 1 (X_pj down the tree, the base and the markers)."""
     N = qf.shape[0]
     base_axes, Rb = _base_placement(model, p)
-    vec = np.empty((lay.n_rows, 3, N))
+    vec = take((lay.n_rows, 3, N))
+    unturned = np.empty((2, 3, N))           # a frame's x and y before its joint's turn, frame after frame
     vec[ZERO_ROW] = 0.0
     ps = _Pass(vec=vec, base_axes=base_axes, base_origin=p[0:3], base_rotation=Rb, model=model, lay=lay, p=p,
                orientations=orientations, has_markers=not frames_only)
     base = np.vstack([Rb.T, p[0:3]])                       # (4, 3) the base's x, y, z and origin
-    cos_q, sin_q = _joint_turns(qf)             # sin_q: (sin, -sin)
+    cos_q, sin_q = joint_turns(qf) if turns is None else turns             # sin_q: (sin, -sin)
     for i, f in enumerate(model.frames):
         r0 = lay.frame_row[i]
-        parent = base if f.parent < 0 else vec[lay.parent_row[i]:lay.parent_row[i] + 4]
-        v = p[lay.frame0[i]:lay.frame0[i] + 7].tolist()
+        parent = base if f.parent < 0 else vec[lay.parent_row[i]:lay.parent_row[i] + PLACEMENT_ROWS]
+        v = p[lay.frame0[i]:lay.frame0[i] + N_FRAME_STEPS].tolist()
         d_th, d_al, d_be = (0.0, 0.0, 0.0) if defl is None else defl[i]
         rev = f.joint == "revolute"
         if isinstance(d_al, np.ndarray) or isinstance(d_be, np.ndarray):
-            _deflected_frame(vec, r0, parent, v, v[BETA] + d_be, v[ALPHA] + d_al,
-                             v[THETA] + d_th + (qf[:, i] if rev else 0.0))
+            _deflected_frame(vec, r0, parent, v, v[FrameStep.BETA] + d_be, v[FrameStep.ALPHA] + d_al,
+                             v[FrameStep.THETA] + d_th + (qf[:, i] if rev else 0.0))
         else:
-            ps.pending.append((i, _constant_frame(vec, r0, parent, v, v[BETA] + d_be, v[ALPHA] + d_al, d_th,
-                                                  qf[:, i] if rev else None, cos_q[i], sin_q[i])))
+            ps.pending.append((i, _constant_frame(vec, r0, parent, v, v[FrameStep.BETA] + d_be,
+                                                  v[FrameStep.ALPHA] + d_al, d_th,
+                                                  qf[:, i] if rev else None, cos_q[i], sin_q[i], unturned)))
         if f.joint == "prismatic":
-            vec[r0 + ORIGIN] += qf[:, i] * vec[r0 + Z]
+            vec[r0 + FrameRow.ORIGIN] += qf[:, i] * vec[r0 + FrameRow.Z_AXIS]
     if not frames_only:
         _marker_positions(ps)
     return ps
 
 
-def _constant_frame(vec, r0, parent, v, be, al, d_th, q, cos_q, sin_q) -> list:
-    """Fill frame rows X, Y, Z, ORIGIN from the parent when beta and alpha are the same at every
-    pose (``v`` the frame's values as floats); return the rows of the (4, 4) product giving its
-    step axes and points (rows D_AXIS on). The constant 3-vectors are a few scalars: plain floats."""
-    cg, sg = math.cos(v[GAMMA]), math.sin(v[GAMMA])
+def _constant_frame(vec, r0, parent, v, be, al, d_th, q, cos_q, sin_q, unturned) -> list:
+    """Fill a frame's rows X_AXIS to ORIGIN from its parent's when beta and alpha are the same at every
+    pose (``v`` the frame's values as floats): docs/method.md section 1's X_pj, its constant part
+    (gamma, b, beta, alpha, d, theta's offset, r) placed by one (4 x 4) product and the joint's turn
+    per pose (through ``unturned``, (2, 3, N) room for x and y before the turn). Return the rows of
+    the (4, 4) product giving its step axes and points (rows D_AXIS on). The constant 3-vectors are
+    a few scalars: plain floats."""
+    cg, sg = math.cos(v[FrameStep.GAMMA]), math.sin(v[FrameStep.GAMMA])
     cb, sb = math.cos(be), math.sin(be)
     ca, sa = math.cos(al), math.sin(al)
     # in the parent's frame: Rot(z, gamma)'s y (the beta axis, yg); after Rot(y, beta) the x (the d
@@ -415,23 +533,24 @@ def _constant_frame(vec, r0, parent, v, be, al, d_th, q, cos_q, sin_q) -> list:
     zb0, zb1, zb2 = cg * sb, sg * sb, cb
     y0, y1, y2 = -ca * sg + sa * zb0, ca * cg + sa * zb1, sa * zb2
     z0, z1, z2 = ca * zb0 + sa * sg, ca * zb1 - sa * cg, ca * zb2
-    b, d, r = v[B], v[D], v[R]
+    b, d, r = v[FrameStep.B], v[FrameStep.D], v[FrameStep.R]
     per_pose = isinstance(d_th, np.ndarray)
     # theta's constant offset (and a constant deflection) turns the constant part
-    t0 = v[THETA] + (0.0 if per_pose else d_th)
+    t0 = v[FrameStep.THETA] + (0.0 if per_pose else d_th)
     c0, s0 = math.cos(t0), math.sin(t0)
     xt = (c0 * x0 + s0 * y0, c0 * x1 + s0 * y1, c0 * x2 + s0 * y2, 0.0)
     yt = (c0 * y0 - s0 * x0, c0 * y1 - s0 * x1, c0 * y2 - s0 * x2, 0.0)
     z = (z0, z1, z2, 0.0)
     origin = (d * x0 + r * z0, d * x1 + r * z1, b + d * x2 + r * z2, 1.0)
     if q is None and not per_pose:
-        _place(np.array((xt, yt, z, origin)), parent, vec[r0 + X:r0 + ORIGIN + 1])
+        _place(np.array((xt, yt, z, origin)), parent, vec[r0 + FrameRow.X_AXIS:r0 + FrameRow.ORIGIN + 1])
     else:
-        _place(np.array((z, origin, xt, yt)), parent, vec[r0 + Z:r0 + YC + 1])
+        _place(np.array((z, origin)), parent, vec[r0 + FrameRow.Z_AXIS:r0 + FrameRow.ORIGIN + 1])
+        _place(np.array((xt, yt)), parent, unturned)
         if per_pose:
             ang = d_th if q is None else q + d_th
             cos_q, sin_q = np.cos(ang), _signed_sines(ang)
-        _turn_rows(vec[r0:r0 + FRAME_ROWS], cos_q, sin_q)
+        _turn_rows(vec[r0:r0 + FRAME_ROWS], unturned, cos_q, sin_q)
     # in the parent's frame: the d axis, the beta axis (Rot(z, gamma)'s y), b's point, theta's point
     return [(x0, x1, x2, 0.0), (-sg, cg, 0.0, 0.0), (0.0, 0.0, b, 1.0), (d * x0, d * x1, b + d * x2, 1.0)]
 
@@ -439,40 +558,41 @@ def _constant_frame(vec, r0, parent, v, be, al, d_th, q, cos_q, sin_q) -> list:
 def _deflected_frame(vec, r0, parent, v, be, al, th) -> None:
     """Fill every row of a frame whose beta or alpha is deflected pose by pose (``be``, ``al``
     scalars or (N,)), turning the parent's axes pose by pose where they vary; ``th`` its full
-    theta, (N,) or a scalar."""
-    Rg = rot_matrix(2, v[GAMMA])
+    theta, (N,) or a scalar: docs/method.md section 1's X_pj step by step, at the deflected values
+    of section 2."""
+    Rg = rot_matrix(2, v[FrameStep.GAMMA])
     G = np.empty((4, 3, vec.shape[2] if parent.ndim > 2 else 1))
     Vt = np.zeros((4, 4))
     Vt[:3, :3] = Rg.T
-    Vt[3] = (0.0, 0.0, v[B], 1.0)
+    Vt[3] = (0.0, 0.0, v[FrameStep.B], 1.0)
     _place(Vt, parent, G)
     gx, gy, gz, pb = G
     cb, sb = np.cos(be), np.sin(be)
     x = cb * gx - sb * gz                                 # after Rot(y, beta)
     zb = sb * gx + cb * gz
     ca, sa = np.cos(al), np.sin(al)
-    vec[r0 + Z] = ca * zb - sa * gy                        # after Rot(x, alpha)
+    z = vec[r0 + FrameRow.Z_AXIS]
+    z[...] = ca * zb - sa * gy                        # after Rot(x, alpha)
     y = ca * gy + sa * zb
-    vec[r0 + BETA_AXIS] = gy
-    vec[r0 + D_AXIS] = x
-    vec[r0 + B_POINT] = pb
-    vec[r0 + THETA_POINT] = pb + v[D] * x
-    vec[r0 + ORIGIN] = vec[r0 + THETA_POINT] + v[R] * vec[r0 + Z]
+    vec[r0 + FrameRow.BETA_AXIS] = gy
+    vec[r0 + FrameRow.D_AXIS] = x
+    vec[r0 + FrameRow.BETA_POINT] = pb
+    vec[r0 + FrameRow.THETA_POINT] = pb + v[FrameStep.D] * x
+    vec[r0 + FrameRow.ORIGIN] = vec[r0 + FrameRow.THETA_POINT] + v[FrameStep.R] * z
     c, s = np.cos(th), np.sin(th)
-    vec[r0 + X] = c * x + s * y
-    vec[r0 + Y] = c * y - s * x
+    vec[r0 + FrameRow.X_AXIS] = c * x + s * y
+    vec[r0 + FrameRow.Y_AXIS] = c * y - s * x
 
 
 def _base_placement(model: RobotModel, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The axes (6, 3) of the base steps and the rotation of frame 0 in W (read-only, remembered
-    for the last few values)."""
+    """The axes (6, 3) of the base steps and the rotation of frame 0 in W."""
     return _base_rotation(model.base_rotation, *p[3:6].tolist())
 
 
-@lru_cache(maxsize=16)
 def _base_rotation(reference: tuple, x: float, y: float, z: float) -> tuple[np.ndarray, np.ndarray]:
     """R = R_ref exp([v]x) for the rotation vector v = (x, y, z); a change dv turns the base about
-    the columns of R_ref J_l(v) in W, J_l the left Jacobian (``left_jacobian``)."""
+    the columns of R_ref J_l(v) in W, J_l the left Jacobian (``left_jacobian``).
+    Reference: docs/method.md section 1 and docs/conventions.md (the base pose's rotation vector)."""
     Rref = np.asarray(reference, dtype=float)
     t = math.sqrt(x * x + y * y + z * z)
     K = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
@@ -483,10 +603,7 @@ def _base_rotation(reference: tuple, x: float, y: float, z: float) -> tuple[np.n
     else:
         a, b, c = math.sin(t) / t, (1.0 - math.cos(t)) / t ** 2, (t - math.sin(t)) / t ** 3
         R, J = np.eye(3) + a * K + b * K2, np.eye(3) + b * K + c * K2
-    base_axes = np.vstack([np.eye(3), (Rref @ J).T])
-    Rb = Rref @ R
-    base_axes.flags.writeable = Rb.flags.writeable = False
-    return base_axes, Rb
+    return np.vstack([np.eye(3), (Rref @ J).T]), Rref @ R
 
 
 def _frame_block(ps: _Pass, k: int) -> np.ndarray:
@@ -494,24 +611,25 @@ def _frame_block(ps: _Pass, k: int) -> np.ndarray:
     if ps.moved_from is not None and all(mk.frame != k for mk in ps.model.markers):
         ps.materialise()          # a moved pass holds the markers' frames only
     r0 = ps.lay.frame_row[k]
-    return ps.vec[r0:r0 + 4]
+    return ps.vec[r0:r0 + PLACEMENT_ROWS]
 
 
-def moved_state(st, p: np.ndarray):
+def moved_state(st, p: np.ndarray, take=np.empty):
     """The evaluation at ``p`` from ``st``, a geometric one (no compliance, no backlash) at values
     that differ from ``p`` in the base and the markers only: the chain is the same, moved rigidly
     by the change of the base. Only the markers' frames are moved at once (what their positions
     and the base's and markers' columns need); the other frames are moved when first asked for.
-    A fit of the base and markers alone evaluates this way, without a pass down the chain."""
+    A fit of the base and markers alone evaluates this way, without a pass down the chain.
+    Reference: docs/method.md section 1: the base pose X_WB moves every frame rigidly."""
     old = st.ps
     src = old if old.moved_from is None else old.moved_from[0]
     lay = src.lay
     base_axes, Rb = _base_placement(src.model, p)
     dR = Rb @ src.base_rotation.T
     shift = p[0:3] - dR @ src.base_origin               # a point x goes to dR x + shift
-    vec = np.empty_like(src.vec)
+    vec = take(src.vec.shape)
     vec[ZERO_ROW] = 0.0
-    _move_rows(vec, src.vec, dR, shift, sorted({mk.frame for mk in src.model.markers}), block=4)
+    _move_rows(vec, src.vec, dR, shift, sorted({mk.frame for mk in src.model.markers}), block=PLACEMENT_ROWS)
     ps = _Pass(vec=vec, base_axes=base_axes, base_origin=p[0:3], base_rotation=Rb, model=src.model, lay=lay, p=p,
                orientations=src.orientations, has_markers=src.has_markers, pending=src.pending,
                moved_from=(src, dR, shift))
@@ -527,27 +645,30 @@ def moves_rigidly(lay: Layout, a: np.ndarray, b: np.ndarray) -> bool:
 
 def _move_rows(dst: np.ndarray, src: np.ndarray, dR: np.ndarray, shift: np.ndarray, frames, block: int = FRAME_ROWS):
     """The first ``block`` rows of each frame in ``frames`` of ``src`` turned by ``dR`` into ``dst``, and
-    its points (ORIGIN, B_POINT, THETA_POINT) shifted by ``shift``."""
+    its points (ORIGIN, BETA_POINT, THETA_POINT) shifted by ``shift``.
+    Reference: docs/method.md section 1: X_WB moves every frame rigidly."""
     for k in frames:
         r0 = FRAME_ROW0 + FRAME_ROWS * int(k)
         rows = src[r0:r0 + block]
         dst[r0:r0 + block] = (dR @ rows.transpose(1, 0, 2).reshape(3, -1)).reshape(3, block, -1).transpose(1, 0, 2)
-        for off in (ORIGIN, B_POINT, THETA_POINT):
+        for off in (FrameRow.ORIGIN, FrameRow.BETA_POINT, FrameRow.THETA_POINT):
             if off < block:
                 dst[r0 + off] += shift[:, None]
 
 
 def _marker_positions(ps: _Pass) -> None:
-    """Fill the marker rows with the marker positions in W."""
+    """Fill the marker rows with the marker positions in W.
+    Reference: docs/method.md section 1: a marker is a point in its frame."""
     model, lay, p = ps.model, ps.lay, ps.p
     for m, mk in enumerate(model.markers):
         v = np.append(p[lay.marker0[m]:lay.marker0[m] + 3], 1.0)
         r = lay.marker_row[m]
-        _place(v[None], _frame_block(ps, mk.frame), ps.vec[r:r + 1])
+        _place(v[None], _frame_block(ps, mk.frame), ps.vec[r + MarkerRow.POSITION:r + MarkerRow.POSITION + 1])
 
 
 def _marker_rotations(ps: _Pass) -> list:
-    """Per marker its orientation (N, 3, 3) in W (a view of a component-major array)."""
+    """Per marker its orientation (N, 3, 3) in W (a view of a component-major array).
+    Reference: docs/method.md section 1 and docs/conventions.md (a marker's rotation correction)."""
     model, lay, p = ps.model, ps.lay, ps.p
     out = []
     for m, mk in enumerate(model.markers):
@@ -558,7 +679,7 @@ def _marker_rotations(ps: _Pass) -> list:
 
 
 def _columns(C: np.ndarray, frame: np.ndarray) -> np.ndarray:
-    """(k, 3, N) the frame's rotation times the columns of C (3, k)."""
+    """(k, 3, N) the frame's rotation times the columns of C (3, k). Reference: docs/method.md section 1."""
     Vt = np.zeros((C.shape[1], 4))
     Vt[:, :3] = C.T
     out = np.empty((C.shape[1],) + frame.shape[1:])
@@ -569,38 +690,39 @@ def _columns(C: np.ndarray, frame: np.ndarray) -> np.ndarray:
 def _fill_step_vectors(ps: _Pass, frames: set, base_and_markers: bool) -> None:
     """Fill the rows the step axes and points come from: the base's frame and step axes and the
     markers' rotation axes (with orientations), when ``base_and_markers``; the beta and d axes
-    and the points on the beta/alpha and theta axes of the frames ``frames``."""
+    and the points on the beta/alpha and theta axes of the frames ``frames``.
+    Reference: docs/method.md section 3: each step's axis u and a point O on it."""
     model, lay, p, vec = ps.model, ps.lay, ps.p, ps.vec
     base = np.vstack([ps.base_rotation.T, ps.base_origin])
     for i, axes in ps.pending:
         if i not in frames:
             continue
         r0 = lay.frame_row[i]
-        parent = base if model.frames[i].parent < 0 else vec[lay.parent_row[i]:lay.parent_row[i] + 4]
-        _place(np.array(axes), parent, vec[r0 + D_AXIS:r0 + THETA_POINT + 1])
+        parent = base if model.frames[i].parent < 0 else vec[lay.parent_row[i]:lay.parent_row[i] + PLACEMENT_ROWS]
+        _place(np.array(axes), parent, vec[r0 + FrameRow.D_AXIS:r0 + FrameRow.THETA_POINT + 1])
     if not base_and_markers:
         return
-    vec[BASE_ROW:BASE_ROW + 3] = ps.base_rotation.T[:, :, None]
-    vec[BASE_ROW + ORIGIN] = ps.base_origin[:, None]
-    vec[BASE_ROW + 4:BASE_ROW + 10] = ps.base_axes[:, :, None]
+    vec[BASE_ROW + FrameRow.X_AXIS:BASE_ROW + FrameRow.Z_AXIS + 1] = ps.base_rotation.T[:, :, None]
+    vec[BASE_ROW + FrameRow.ORIGIN] = ps.base_origin[:, None]
+    vec[BASE_STEP_AXES:BASE_STEP_AXES + N_BASE] = ps.base_axes[:, :, None]
     for m, mk in enumerate(model.markers):
         r = lay.marker_row[m]
         if not ps.has_markers:
-            vec[r] = np.nan                         # a frames-only pass has no marker to turn about
+            vec[r + MarkerRow.POSITION] = np.nan    # a frames-only pass has no marker to turn about
         if ps.orientations:
             v = p[lay.marker0[m] + 3:lay.marker0[m] + 6]
             C = np.asarray(mk.rotation, dtype=float) @ left_jacobian(v)
-            vec[r + 1:r + 4] = _columns(C, _frame_block(ps, mk.frame))
+            vec[r + MarkerRow.ROTATION_AXES:r + MARKER_ROWS] = _columns(C, _frame_block(ps, mk.frame))
 
 
 def _mass_sums(model: RobotModel, lay: Layout, ps: _Pass, payload_mass):
     """First moments ``C1`` (3, n_frames, N), component-major, and masses ``msub`` (n_frames, N) of
-    every subtree."""
+    every subtree. Reference: docs/method.md section 2: the masses m_k and centres c_k distal to each frame."""
     nf, N = model.n_frames, ps.N
     mass = np.array([f.mass for f in model.frames], dtype=float)
     com = np.ones((nf, 1, 4))
     com[:, 0, :3] = [f.com for f in model.frames]
-    frames = ps._frames()[:, :4].reshape(nf, 4, 3 * N)
+    frames = ps._frames()[:, :PLACEMENT_ROWS].reshape(nf, PLACEMENT_ROWS, 3 * N)
     own_c1 = np.matmul(com, frames).reshape(nf, 3, N)
     own_c1 *= mass[:, None, None]
     own_m = np.repeat(mass[:, None], N, axis=1)
@@ -619,20 +741,22 @@ def _mass_sums(model: RobotModel, lay: Layout, ps: _Pass, payload_mass):
 
 def _compliant_vectors(model: RobotModel, ps: _Pass):
     """Axes ``u`` and points ``Q`` of every compliant step (theta, alpha, beta of each frame) and the
-    parents' origins ``Op``, component-major ((3, 3 n_frames, N) and (3, n_frames, N)), once per pass."""
+    parents' origins ``Op``, component-major ((3, 3 n_frames, N) and (3, n_frames, N)), once per pass.
+    Reference: docs/method.md section 2: the axis u_p and point O_p of each compliant step."""
     if "compliant" not in ps.cache:
         lay, vec = ps.lay, ps.vectors()
-        u = vec[(lay.frame_row[:, None] + [Z, D_AXIS, BETA_AXIS]).ravel()]
+        u = vec[(lay.frame_row[:, None] + [FrameRow.Z_AXIS, FrameRow.D_AXIS, FrameRow.BETA_AXIS]).ravel()]
         # theta turns about its own point, alpha and beta about the point b along the parent's z
-        Q = vec[(lay.frame_row[:, None] + [THETA_POINT, B_POINT, B_POINT]).ravel()]
-        Op = vec[lay.parent_row + ORIGIN]
+        Q = vec[(lay.frame_row[:, None] + [FrameRow.THETA_POINT, FrameRow.BETA_POINT, FrameRow.BETA_POINT]).ravel()]
+        Op = vec[lay.parent_row + FrameRow.ORIGIN]
         ps.cache["compliant"] = (u.transpose(1, 0, 2), Q.transpose(1, 0, 2), Op.transpose(1, 0, 2))
     return ps.cache["compliant"]
 
 
 def _moments(model, ps, C1, msub):
     """Gravity moments ``M`` (3 n_frames, N) about each compliant step's axis; with the axes ``u``
-    and ``A = C1 - m Q`` (3, 3 n_frames, N), component-major."""
+    and ``A = C1 - m Q`` (3, 3 n_frames, N), component-major.
+    Reference: docs/method.md section 2: M_p = sum_k ((c_k - O_p) x (m_k g)) . u_p."""
     g = np.asarray(model.gravity, dtype=float)
     u, Q, _ = _compliant_vectors(model, ps)
     A = np.repeat(C1, 3, axis=1)
@@ -659,7 +783,7 @@ def _runs(idx) -> tuple:
 
 def _cross_cm(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> np.ndarray:
     """a x b for component-major stacks (3, ...), written into ``out``."""
-    for i, (j, k) in _ROT_PAIRS.items():
+    for i, (j, k) in _CROSS_PAIRS.items():
         np.multiply(a[j], b[k], out=out[i])
         out[i] -= a[k] * b[j]
     return out
@@ -667,7 +791,7 @@ def _cross_cm(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> np.ndarray:
 
 def _gcross_cm(g, w: np.ndarray, out: np.ndarray) -> np.ndarray:
     """g x w for a constant vector g and a component-major stack w (3, ...)."""
-    for i, (j, k) in _ROT_PAIRS.items():
+    for i, (j, k) in _CROSS_PAIRS.items():
         np.multiply(w[k], g[j], out=out[i])
         out[i] -= g[k] * w[j]
     return out
@@ -685,9 +809,9 @@ class _CorrectionPlan:
 
     rows: tuple              # (step, frame or -1 for the base, offset in the frame) per row, in step order
     out_runs: tuple          # ``_runs`` of the step columns the rows correct
-    rot: np.ndarray          # (R,) 1.0 for rotations
+    rot: np.ndarray          # (n_rows,) 1.0 for rotations
     n_base: int              # the first rows are base rotations
-    axis_of: np.ndarray      # (R - n_base,) compliant row whose axis (and A) each frame row takes
+    axis_of: np.ndarray      # (n_rows - n_base,) compliant row whose axis (and A) each frame row takes
     translations: np.ndarray  # (k,) rows of translations, and their frames
     translation_frames: np.ndarray
     parent_z: tuple          # (row, frame) of gamma and b rows: the parent's z axis
@@ -695,16 +819,19 @@ class _CorrectionPlan:
     fills: tuple             # (slot, part, source slot or -1, compliance items): how each sum is made
     groups: tuple            # (row0, row1, slot): rows [row0, row1) use that slot
 
+    def __post_init__(self) -> None:
+        for value in vars(self).values():
+            if isinstance(value, np.ndarray):
+                read_only(value)
+
 
 def _correction_plan(model: RobotModel, lay: Layout, steps: np.ndarray, act: np.ndarray) -> _CorrectionPlan | None:
-    """The plan for these step columns and active compliances, made once per layout (a layout is
-    hashed by identity, which is cheaper than hashing the model)."""
-    return _cached_plan(lay, steps.tobytes(), act.tobytes())
-
-
-@lru_cache(maxsize=256)
-def _cached_plan(lay: Layout, steps: bytes, act: bytes) -> _CorrectionPlan | None:
-    return _make_correction_plan(lay, np.frombuffer(steps, dtype=int), np.frombuffer(act, dtype=int))
+    """The plan for these step columns and active compliances, made once per layout and kept with it
+    (under the index tuples, compared by value; the plan is immutable)."""
+    key = (tuple(steps.tolist()), tuple(act.tolist()))
+    if key not in lay.plans:
+        lay.plans.setdefault(key, _make_correction_plan(lay, np.array(key[0], dtype=int), np.array(key[1], dtype=int)))
+    return lay.plans[key]
 
 
 def _make_correction_plan(lay, steps, act) -> _CorrectionPlan | None:
@@ -719,15 +846,18 @@ def _make_correction_plan(lay, steps, act) -> _CorrectionPlan | None:
         return None
     rsteps = steps[cols]
     frame = lay.step_frame[rsteps]
-    rows = tuple((int(s), int(f), int(s - N_BASE - 7 * f) if f >= 0 else -1) for s, f in zip(rsteps, frame))
+    rows = tuple((int(s), int(f), int(s - N_BASE - N_FRAME_STEPS * f) if f >= 0 else -1) for s, f in zip(rsteps, frame))
     n_base = int(np.sum(frame == -1))
     # a frame step's axis is that of a compliant step of its frame (d: alpha's, r: theta's)
-    same_axis = {BETA: BETA, ALPHA: ALPHA, D: ALPHA, THETA: THETA, R: THETA}
-    axis_of = np.array([3 * f + _COMPLIANT_ROW[same_axis.get(o, THETA)] for _, f, o in rows[n_base:]], dtype=int)
-    parent_z = tuple((r, f) for r, (_, f, o) in enumerate(rows) if o in (GAMMA, B))
+    same_axis = {FrameStep.BETA: FrameStep.BETA, FrameStep.ALPHA: FrameStep.ALPHA, FrameStep.D: FrameStep.ALPHA,
+                 FrameStep.THETA: FrameStep.THETA, FrameStep.R: FrameStep.THETA}
+    axis_of = np.array([3 * f + _COMPLIANT_ROW[same_axis.get(o, FrameStep.THETA)] for _, f, o in rows[n_base:]],
+                       dtype=int)
+    parent_z = tuple((r, f) for r, (_, f, o) in enumerate(rows) if o in (FrameStep.GAMMA, FrameStep.B))
     tra = np.nonzero(~rot[cols])[0]
     pairs = [(frozenset(np.nonzero(desc[:, c])[0]), frozenset(np.nonzero(anc[:, c])[0])) for c in cols]
-    slot_of, groups, r = {}, [], 0
+    slot_of: dict[tuple[frozenset, frozenset], int] = {}
+    groups, r = [], 0
     while r < len(pairs):
         r1 = r + 1
         while r1 < len(pairs) and pairs[r1] == pairs[r]:
@@ -737,11 +867,11 @@ def _make_correction_plan(lay, steps, act) -> _CorrectionPlan | None:
     # each distinct sum once, smallest first, from the largest one already built inside it
     fills = []
     for part in (0, 1):
-        built = {}
+        built: dict[frozenset, int] = {}
         for s in sorted({pair[part] for pair in slot_of}, key=len):
             users = [slot for pair, slot in slot_of.items() if pair[part] == s]
             if s:
-                base = max((t for t in built if t < s), key=len, default=frozenset())
+                base: frozenset = max((t for t in built if t < s), key=len, default=frozenset())
                 fills.append((users[0], part, built[base] if base else -1, tuple(int(i) for i in sorted(s - base))))
                 built[s] = users[0]
                 users = users[1:]
@@ -756,25 +886,26 @@ _COMPLIANT_ROW = {off: c for c, (off, _) in enumerate(COMPLIANT)}
 
 
 def _plan_vectors(model, st, plan) -> np.ndarray:
-    """(6, R, N) per corrected step, on the undeformed chain: the vector dotted with the distal sum
+    """(6, n_rows, N) per corrected step, on the undeformed chain: the vector dotted with the distal sum
     (``w x (C1_j - m_j Q)`` for a rotation of frame j, ``m_j w`` for a translation), then ``g x w``
-    dotted with the proximal sum (zero for translations)."""
+    dotted with the proximal sum (zero for translations).
+    Reference: docs/method.md section 3: the geometric columns' correction through the compliances."""
     ps = st.ps0
     g = np.asarray(model.gravity, dtype=float)
-    R, N, nb = len(plan.rows), st.M.shape[1], plan.n_base
-    W = np.empty((3, R, N))                       # axes
-    B = np.empty((3, R, N))                       # C1_j - m_j Q for rotations (anything finite for others)
+    n_rows, N, nb = len(plan.rows), st.M.shape[1], plan.n_base
+    W = np.empty((3, n_rows, N))                  # axes
+    lever = np.empty((3, n_rows, N))              # C1_j - m_j Q for rotations (anything finite for others)
     W[:, :nb] = ps.base_axes[[s for s, _, _ in plan.rows[:nb]]].T[:, :, None]
-    B[:, :nb] = W[:, :nb]
+    lever[:, :nb] = W[:, :nb]
     W[:, nb:] = st.u[:, plan.axis_of]
-    B[:, nb:] = st.A[:, plan.axis_of]
+    lever[:, nb:] = st.A[:, plan.axis_of]
     for r, j in plan.parent_z:
         parent = model.frames[j].parent
         W[:, r] = (ps.R[parent][:, :, 2].T if parent >= 0 else ps.base_rotation[:, 2:])
         if plan.rot[r]:
-            np.subtract(st.C1[:, j], st.msub[j] * _compliant_vectors(model, ps)[2][:, j], out=B[:, r])
-    V = np.empty((6, R, N))
-    _cross_cm(W, B, V[:3])
+            np.subtract(st.C1[:, j], st.msub[j] * _compliant_vectors(model, ps)[2][:, j], out=lever[:, r])
+    V = np.empty((6, n_rows, N))
+    _cross_cm(W, lever, V[:3])
     V[:3, :nb] = 0.0                              # the base is distal to no compliance
     V[:3, plan.translations] = W[:, plan.translations] * st.msub[plan.translation_frames]
     _gcross_cm(g, W, V[3:])
@@ -798,6 +929,7 @@ def _add_corrections(model, st, plan, act, cpa, cols) -> None:
     Both are a dot product of a per-step vector with a per-p vector, so the sums over p of
     ``K_p (g x u_p) column_p`` and ``K_p (u_p x A_p) column_p`` are taken first, each distinct sum
     once, growing along the chain.
+    Reference: docs/method.md section 3.
     """
     if plan not in st.cache:
         g = np.asarray(model.gravity, dtype=float)
@@ -833,12 +965,13 @@ def _add_corrections(model, st, plan, act, cpa, cols) -> None:
 
 def _compliant_columns(model, lay, ps, m, csel, rows) -> np.ndarray:
     """(rows, len(csel), N) component-major columns of the compliant steps ``csel`` (rows of
-    ``compliant_steps``) for marker m."""
+    ``compliant_steps``) for marker m.
+    Reference: docs/method.md section 3: a rotation about u through O moves P by u x (P - O)."""
     u, Q, _ = _compliant_vectors(model, ps)
     u = u[:, csel]
-    D = np.subtract(ps.P[m].T[:, None, :], Q[:, csel])
+    lever = np.subtract(ps.P[m].T[:, None, :], Q[:, csel])
     out = np.empty((rows,) + u.shape[1:])
-    _cross_cm(u, D, out[:3])
+    _cross_cm(u, lever, out[:3])
     if rows == 6:
         out[3:] = u
     on = lay.marker_path[m, lay.compliant_steps[csel]]
@@ -854,6 +987,7 @@ class Evaluation:
     ``positions`` (N, n_markers, 3) in W; ``rotations`` (N, n_markers, 3, 3) or None;
     ``jacobian`` (N, n_markers, 6, n_params) or None (rows: dx, dy, dz, then rotation in W);
     ``moments`` (N, 3 n_frames) gravity moments (theta, alpha, beta per frame) or None.
+    Its arrays are its own, read-only.
     """
 
     positions: np.ndarray
@@ -862,9 +996,14 @@ class Evaluation:
     moments: np.ndarray | None
     frames: np.ndarray | None = None
 
+    def __post_init__(self) -> None:
+        for value in vars(self).values():
+            if isinstance(value, np.ndarray):
+                read_only(value)
 
-# poses per block of the step columns: smaller temporaries, taken again from the allocator's
-# reserve instead of fresh pages (calibrate at 10,000 poses about 4 % faster; no change at 1,000)
+
+# poses per block of the step columns: smaller temporaries, served again from memory just freed
+# instead of fresh pages (calibrate at 10,000 poses about 4 % faster; no change at 1,000)
 COLUMN_BLOCK = 4096
 
 
@@ -876,6 +1015,7 @@ def _step_columns(lay: Layout, ps: _Pass, m: int, steps: np.ndarray, rows: int =
     The columns are computed component-major from the pass's rows, for the asked steps only, and
     written component by component (a strided copy, much cheaper than a transposing one), in
     blocks of poses.
+    Reference: docs/method.md section 3: [u x (P - O); u] for a rotation, [u; 0] for a translation.
     """
     on = lay.marker_path[m, steps]
     is_rot = lay.step_is_rot[steps]
@@ -895,7 +1035,7 @@ def _step_columns(lay: Layout, ps: _Pass, m: int, steps: np.ndarray, rows: int =
 
 def _column_block(vec, rows_of, rot, tra, poses: slice, out) -> None:
     """``_step_columns`` at the poses ``poses``: rotations ``rot`` (axis rows, point rows, marker
-    row) and translations ``tra`` (axis rows) of ``rows_of``, into ``out``."""
+    row) and translations ``tra`` (axis rows) of ``rows_of``, into ``out``. Reference: docs/method.md section 3."""
     rot_axes, rot_points, marker, tra_axes = rows_of
     rows = out.shape[2]
     if len(rot):
@@ -903,7 +1043,7 @@ def _column_block(vec, rows_of, rot, tra, poses: slice, out) -> None:
         lever = vec[rot_points, :, poses]
         np.subtract(vec[marker, :, poses], lever, out=lever)
         part, other = np.empty((2,) + u.shape[:1] + u.shape[2:])
-        for c, (j, k) in _ROT_PAIRS.items():                               # u x lever
+        for c, (j, k) in _CROSS_PAIRS.items():                               # u x lever
             np.multiply(u[:, j], lever[:, k], out=part)
             np.multiply(u[:, k], lever[:, j], out=other)
             out[rot, poses, c] = np.subtract(part, other, out=part)
@@ -950,20 +1090,26 @@ class _Backlash:
 
 
 def evaluate_state(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray, *, compliance: bool,
-                    orientations: bool, payload_mass=None, backlash: bool = False, approach=None) -> _State:
+                   orientations: bool, payload_mass=None, backlash: bool = False, approach=None,
+                   turns=None, take=np.empty) -> _State:
     """The kinematic pass at ``p`` and readings ``qf`` (N, n_frames), with gravity moments when
     ``compliance``, and joints resting in their lost motion when ``backlash`` (``approach``
     (N, n_frames) the direction of each frame variable's last move, see ``frame_approach``;
-    None: from the row order of ``qf``)."""
+    None: from the row order of ``qf``). ``turns``: ``joint_turns(qf)`` when the caller holds them;
+    ``take``: where the passes' buffers come from (see ``kinematic_pass``).
+    Reference: docs/method.md sections 1 and 2, docs/conventions.md (backlash)."""
     if backlash:
         return _backlash_state(model, lay, p, qf, compliance=compliance, orientations=orientations,
-                               payload_mass=payload_mass, approach=approach)
+                               payload_mass=payload_mass, approach=approach, turns=turns, take=take)
+    turns = joint_turns(qf) if turns is None else turns
     ks = p[lay.compliant_params]
     if not compliance:
-        return _State(ps=kinematic_pass(model, lay, p, qf, orientations=orientations), compliance=False, ks=ks)
+        return _State(ps=kinematic_pass(model, lay, p, qf, orientations=orientations, turns=turns, take=take),
+                      compliance=False, ks=ks)
     deflects = bool(np.any(ks != 0.0))
     # with every compliance zero the deflected chain is the undeformed one: one pass serves both
-    ps0 = kinematic_pass(model, lay, p, qf, orientations=orientations and not deflects, frames_only=deflects)
+    ps0 = kinematic_pass(model, lay, p, qf, orientations=orientations and not deflects, frames_only=deflects,
+                         turns=turns, take=take)
     C1, msub = _mass_sums(model, lay, ps0, payload_mass)
     M, A, u = _moments(model, ps0, C1, msub)
     if not deflects:
@@ -971,7 +1117,7 @@ def evaluate_state(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray
     # a zero compliance deflects nothing: a scalar keeps that frame's constant part constant
     defl = [k * Mk if k else 0.0 for k, Mk in zip(ks, M)]
     ps = kinematic_pass(model, lay, p, qf, defl=[tuple(defl[3 * i:3 * i + 3]) for i in range(model.n_frames)],
-                         orientations=orientations)
+                        orientations=orientations, turns=turns, take=take)
     return _State(ps=ps, compliance=True, ks=ks, ps0=ps0, C1=C1, msub=msub, M=M, A=A, u=u)
 
 
@@ -983,7 +1129,8 @@ def frame_approach(model: RobotModel, approach) -> np.ndarray:
 
 def _frame_loads(model: RobotModel, lay: Layout, ps0: _Pass, M: np.ndarray, msub: np.ndarray) -> np.ndarray:
     """(N, n_frames) gravity load on each frame's joint variable on the undeformed chain ``ps0``:
-    the moment about a revolute axis, the weight along a prismatic one (see ``gravity_loads``)."""
+    the moment about a revolute axis, the weight along a prismatic one (see ``gravity_loads``).
+    Reference: docs/method.md section 2 (the moments) and docs/conventions.md (backlash)."""
     g = np.asarray(model.gravity, dtype=float)
     loads = np.zeros((M.shape[1], model.n_frames))
     for i, f in enumerate(model.frames):
@@ -994,9 +1141,10 @@ def _frame_loads(model: RobotModel, lay: Layout, ps0: _Pass, M: np.ndarray, msub
     return loads
 
 
-def _backlash_state(model, lay, p, qf, *, compliance, orientations, payload_mass, approach) -> _State:
+def _backlash_state(model, lay, p, qf, *, compliance, orientations, payload_mass, approach, turns, take) -> _State:
     """The state with each joint at q + b s (docs/conventions.md, backlash). Gravity moments,
-    loads and sides are taken on the undeformed chain at the readings, so neither depends on b."""
+    loads and sides are taken on the undeformed chain at the readings, so neither depends on b.
+    Reference: docs/conventions.md (backlash) on docs/method.md section 1."""
     N, nf = qf.shape
     moving = lay.backlash_params >= 0
     b = np.where(moving, p[np.maximum(lay.backlash_params, 0)], 0.0)
@@ -1006,10 +1154,11 @@ def _backlash_state(model, lay, p, qf, *, compliance, orientations, payload_mass
     ps0 = C1 = msub = M = A = u = loads = slope = None
     if gravity or compliance:
         # the load derivatives need the steps' axes on this chain, so not frames only
-        ps0 = kinematic_pass(model, lay, p, qf, orientations=False, frames_only=not gravity)
+        ps0 = kinematic_pass(model, lay, p, qf, orientations=False, frames_only=not gravity, turns=turns, take=take)
         C1, msub = _mass_sums(model, lay, ps0, payload_mass)
         M, A, u = _moments(model, ps0, C1, msub)
     if gravity:
+        assert ps0 is not None and M is not None and msub is not None    # made above: gravity is on
         loads = _frame_loads(model, lay, ps0, M, msub)
         F = np.array([f.backlash_friction for f in model.frames])
         w = np.array([f.backlash_width for f in model.frames])
@@ -1020,16 +1169,18 @@ def _backlash_state(model, lay, p, qf, *, compliance, orientations, payload_mass
     sides = sides * moving
     defl = None
     if compliance and np.any(ks != 0.0):
+        assert M is not None                # made above: compliance is on
         d = [k * Mk if k else 0.0 for k, Mk in zip(ks, M)]
         defl = [tuple(d[3 * i:3 * i + 3]) for i in range(nf)]
-    ps = kinematic_pass(model, lay, p, qf + sides * b, defl=defl, orientations=orientations)
+    ps = kinematic_pass(model, lay, p, qf + sides * b, defl=defl, orientations=orientations, take=take)
     return _State(ps=ps, compliance=compliance, ks=ks, ps0=ps0, C1=C1, msub=msub, M=M, A=A, u=u,
                   backlash=_Backlash(b=b, sides=sides, slope=slope, loads=loads))
 
 
 def jacobian_columns(model: RobotModel, lay: Layout, st: _State, cols_idx: np.ndarray, m: int,
                       rows: int = 6) -> np.ndarray:
-    """(len(cols_idx), N, rows) Jacobian columns of marker m for the parameters ``cols_idx``."""
+    """(len(cols_idx), N, rows) Jacobian columns of marker m for the parameters ``cols_idx``.
+    Reference: docs/method.md section 3 (J dxi, compliance columns by the chain rule)."""
     if st.backlash is not None:
         return _backlash_columns(model, lay, st, cols_idx, m, rows)
     step_of = lay.param_step[cols_idx]
@@ -1038,10 +1189,10 @@ def jacobian_columns(model: RobotModel, lay: Layout, st: _State, cols_idx: np.nd
     if not st.compliance:
         if is_step.all():
             return _step_columns(lay, st.ps, m, steps, rows)
-        out = np.zeros((len(cols_idx), st.ps.P.shape[1], rows))
+        out = np.zeros((len(cols_idx), cast(np.ndarray, st.ps.P).shape[1], rows))
         out[is_step] = _step_columns(lay, st.ps, m, steps, rows)
         return out
-    out = np.empty((len(cols_idx), st.ps.P.shape[1], rows))
+    out = np.empty((len(cols_idx), cast(np.ndarray, st.ps.P).shape[1], rows))
     # step columns written in place when they are one block (the usual order: geometry, then K)
     sblock = _block(is_step)
     cols = _step_columns(lay, st.ps, m, steps, rows, out=None if sblock is None else out[sblock])
@@ -1062,7 +1213,7 @@ def jacobian_columns(model: RobotModel, lay: Layout, st: _State, cols_idx: np.nd
     ki = [where[int(k)] for k in kk]
     kblock = _block(is_k)
     for b in range(rows):
-        out[is_k if kblock is None else kblock, :, b] = cpc[b, ki] * st.M[kk]
+        out[is_k if kblock is None else kblock, :, b] = cpc[b, ki] * cast(np.ndarray, st.M)[kk]
     rest = ~is_step & ~is_k          # backlash: not a step, nothing moves without its state
     if rest.any():
         out[rest] = 0.0
@@ -1072,7 +1223,8 @@ def jacobian_columns(model: RobotModel, lay: Layout, st: _State, cols_idx: np.nd
 def _backlash_columns(model, lay, st, cols_idx, m, rows) -> np.ndarray:
     """Columns under backlash, q_eff = q + b s: a backlash's is its joint's column (on the
     deflected chain, without compliance corrections: the moments are taken at the readings) times
-    s; under the gravity-sided model every column also gains ``b ds/dL dL/dx`` times it."""
+    s; under the gravity-sided model every column also gains ``b ds/dL dL/dx`` times it.
+    Reference: docs/method.md section 3 and docs/conventions.md (backlash)."""
     bare = copy.copy(st)
     bare.backlash = None
     out = jacobian_columns(model, lay, bare, cols_idx, m, rows)
@@ -1101,7 +1253,7 @@ def _load_derivatives(model, lay, st, i: int, steps: np.ndarray) -> np.ndarray:
     and the distal masses rigidly, dL = w . ((u x A) x g); a distal step of frame j moves the
     masses distal to it, dL = w . ((C1_j - m_j Q) x (g x u)) for a rotation through Q, m_j w .
     (g x u) for a translation. Prismatic, L = m (u . g): dL = m w . (u x g) for a proximal
-    rotation, nothing else changes it."""
+    rotation, nothing else changes it. Reference: docs/method.md section 2 and docs/conventions.md (backlash)."""
     g = np.asarray(model.gravity, dtype=float)
     ps0, row = st.ps0, 3 * i
     N = ps0.O.shape[1]
@@ -1147,6 +1299,7 @@ def evaluate(model: RobotModel, q: np.ndarray, p: np.ndarray | None = None, *, j
     ``backlash``: joints rest in their lost motion (default: when the values hold a backlash or
     backlash columns are asked for); ``approach`` (N, n_joints) the direction of each joint's last
     move (default: from the row order of ``q``, the first pose approached from the last).
+    Reference: docs/method.md sections 1 to 3.
     """
     lay = layout(model)
     q = np.atleast_2d(np.asarray(q, dtype=float))
@@ -1164,8 +1317,10 @@ def evaluate(model: RobotModel, q: np.ndarray, p: np.ndarray | None = None, *, j
         return _evaluate_in_chunks(model, q, p, orientations=orientations, compliance=compliance,
                                    payload_mass=payload_mass)
     need_or = orientations or jacobian
+    ws = workspace(model)
     st = evaluate_state(model, lay, p, qf, compliance=compliance, orientations=need_or, payload_mass=payload_mass,
-                        backlash=backlash, approach=None if approach is None else frame_approach(model, approach))
+                        backlash=backlash, approach=None if approach is None else frame_approach(model, approach),
+                        take=ws.take)
     ps = st.ps
     rotations = np.stack(ps.RM, axis=1) if need_or and ps.RM else None
     J = None
@@ -1179,9 +1334,13 @@ def evaluate(model: RobotModel, q: np.ndarray, p: np.ndarray | None = None, *, j
             frames_out[:, i, :3, :3] = ps.R[i]
             frames_out[:, i, :3, 3] = ps.O[i]
             frames_out[:, i, 3, 3] = 1.0
-    # a copy: a view would keep the whole pass alive for as long as the caller keeps the positions
-    return Evaluation(positions=np.ascontiguousarray(ps.P.transpose(1, 0, 2)), rotations=rotations, jacobian=J,
-                      moments=None if st.M is None else st.M.T, frames=frames_out)
+    # copies: the evaluation's arrays are its own, and the passes' buffers go back to the model's workspace
+    out = Evaluation(positions=cast(np.ndarray, ps.P).transpose(1, 0, 2).copy(), rotations=rotations, jacobian=J,
+                     moments=None if st.M is None else st.M.T, frames=frames_out)
+    buffers = pass_buffers(st)
+    del st, ps
+    ws.give(buffers)
+    return out
 
 
 def _evaluate_in_chunks(model: RobotModel, q: np.ndarray, p: np.ndarray, *, orientations: bool, compliance: bool,
@@ -1209,6 +1368,7 @@ def gravity_loads(model: RobotModel, q, *, payload_mass=None) -> np.ndarray:
     moment about its joint axis of every mass distal to it; for a prismatic one, that mass times
     gravity's component along the axis. Couplings map frame loads to joints by virtual work
     (``C^T``). Computed on the undeformed chain, as the compliance moments are.
+    Reference: docs/method.md section 2.
     """
     lay = layout(model)
     q = np.atleast_2d(np.asarray(q, dtype=float))
@@ -1218,13 +1378,14 @@ def gravity_loads(model: RobotModel, q, *, payload_mass=None) -> np.ndarray:
     p[lay.compliant_params] = 0.0
     st = evaluate_state(model, lay, p, q @ model.coupling_matrix.T, compliance=True, orientations=False,
                          payload_mass=payload_mass)
+    M, msub = cast(np.ndarray, st.M), cast(np.ndarray, st.msub)     # made: compliance is on
     g = np.asarray(model.gravity, dtype=float)
     loads = np.zeros((q.shape[0], model.n_frames))
     for i, f in enumerate(model.frames):
         if f.joint == "revolute":
-            loads[:, i] = st.M[3 * i]
+            loads[:, i] = M[3 * i]
         elif f.joint == "prismatic":
-            loads[:, i] = st.msub[i] * (st.ps.R[i][:, :, 2] @ g)
+            loads[:, i] = msub[i] * (st.ps.R[i][:, :, 2] @ g)
     return loads @ model.coupling_matrix
 
 
@@ -1232,9 +1393,10 @@ def forward_kinematics(model: RobotModel, q, *, frames: bool = False, payload_ma
     """Marker positions (N, n_markers, 3) and orientations in W at readings ``q`` (N, n_joints).
 
     With ``frames=True`` also every frame's pose ``X_W<frame>`` as (N, n_frames, 4, 4).
+    Reference: docs/method.md section 1.
 
     >>> import numpy as np
-    >>> from robocal._model import serial_model
+    >>> from robocal.kinematics import serial_model
     >>> m = serial_model("r", [dict(joint="revolute")], markers=[("tool", (1.0, 0, 0))])
     >>> forward_kinematics(m, [[np.pi / 2]]).positions.round(12)
     array([[[0., 1., 0.]]])
@@ -1247,6 +1409,7 @@ def jacobian(model: RobotModel, q, *, compliance: bool | None = None, payload_ma
     """Identification Jacobian (N, n_markers, 6, n_params) over ``parameter_names(model)``.
 
     ``columns``: parameter indices or names to compute (default all, in layout order).
+    Reference: docs/method.md section 3.
     """
     if columns is not None:
         names = layout(model).names

@@ -34,14 +34,15 @@ def reduced(A: np.ndarray) -> np.ndarray:
 
 
 def r_factor(A: np.ndarray) -> np.ndarray:
-    """An upper triangular R (k, k) with ``R^T R = A^T A`` for a tall ``A`` (n_rows, k).
+    """An upper triangular R (k, k) with ``R^T R = A^T A`` for a tall ``A`` (n_rows, k) (``A`` itself
+    when it is not tall).
 
     From the Cholesky factor of the column-scaled Gram matrix when it is well conditioned
     (``GRAM_COND_MAX``): one matrix product over the rows instead of a QR of them, several times
     cheaper. Otherwise the QR factor of ``A``.
     """
     if A.shape[0] <= A.shape[1]:
-        return reduced(A) if A.shape[0] == A.shape[1] else A
+        return A
     G = A.T @ A
     col = np.sqrt(np.diag(G))
     if np.all(col > 0) and np.all(np.isfinite(G)):

@@ -6,15 +6,31 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ._arguments import (
+    checked,
+    shaped,
+)
+from ._arrays import frozen
 from ._errors import InputError, check_choice
 from ._options import DEFAULT_INSTRUMENT, INSTRUMENT_NOISE
 
 
+@checked(q=shaped(None, None))
 def approach_sides(q) -> np.ndarray:
     """+1 or -1 per pose and joint: the sign of the last move of that joint before reaching the pose.
 
     Poses are visited in row order, the first approached from the last (as in a cycle); a joint
     that does not move keeps the side it had (+1 if it never moves). ``q`` (n_poses, n_joints).
+
+    Parameters
+    ----------
+    q : array_like, shape (n_poses, n_joints)
+        Joint readings in the order they were visited.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n_poses, n_joints)
+        Direction (+1 or -1) of each joint's last move.
     """
     q = np.atleast_2d(np.asarray(q, dtype=float))
     step = np.sign(np.diff(q, axis=0, prepend=q[-1:]))
@@ -28,7 +44,7 @@ def approach_sides(q) -> np.ndarray:
     return np.where(last >= 0, sides, 1.0)
 
 
-def approach_of(data: "Measurements") -> np.ndarray:
+def approach_of(data: Measurements) -> np.ndarray:
     """(n_poses, n_joints) approach direction of each joint at each pose: the file's ``approach``
     columns (``extra["approach"]``) when it has them, else from the visiting order of the rows."""
     a = data.extra.get("approach")
@@ -46,7 +62,7 @@ class Noise:
 
     @staticmethod
     def of(instrument: str = DEFAULT_INSTRUMENT, *, position: float | None = None,
-           rotation: float | None = None) -> "Noise":
+           rotation: float | None = None) -> Noise:
         """An instrument class's noise (``INSTRUMENT_NOISE``), or the figures given, SI."""
         check_choice(instrument, INSTRUMENT_NOISE, "instrument")
         p, r = INSTRUMENT_NOISE[instrument]
@@ -69,14 +85,15 @@ class Measurements:
     ``sigma`` (n_poses, n_markers) position standard deviation per measurement in metres and
     ``sigma_rot`` in radians, or None (unweighted). ``payload_mass`` (n_poses,) kg or None.
     ``labels`` names each pose for messages (e.g. the CSV row). ``extra`` holds anything else a
-    reader found; arrays with one entry per pose follow ``subset``.
+    reader found; arrays with one entry per pose follow ``subset``. Every array is the record's own
+    read-only copy.
     """
 
     q: np.ndarray
     positions: np.ndarray
     marker_names: tuple[str, ...]
     joint_names: tuple[str, ...] = ()
-    mask: np.ndarray | None = None
+    mask: np.ndarray = None  # type: ignore[assignment]  # None: where the position is finite
     rotations: np.ndarray | None = None
     rot_mask: np.ndarray | None = None
     sigma: np.ndarray | None = None
@@ -132,11 +149,15 @@ class Measurements:
                 r = int(np.argwhere(~np.isfinite(pm) | (pm < 0))[0][0])
                 raise InputError("payload mass must be a non-negative number", source=src, where=self._label(r))
             object.__setattr__(self, "payload_mass", pm)
-        object.__setattr__(self, "q", q)
-        object.__setattr__(self, "positions", pos)
-        object.__setattr__(self, "mask", mask)
-        object.__setattr__(self, "rotations", rot)
-        object.__setattr__(self, "rot_mask", rmask)
+        # the record's arrays are its own and read-only: a caller's array changed later, or one
+        # the record handed out written into, cannot change what it holds
+        for name, value, dtype in (("q", q, float), ("positions", pos, float), ("mask", mask, bool),
+                                   ("rotations", rot, float), ("rot_mask", rmask, bool),
+                                   ("sigma", self.sigma, float), ("sigma_rot", self.sigma_rot, float),
+                                   ("payload_mass", self.payload_mass, float)):
+            object.__setattr__(self, name, None if value is None else frozen(value, dtype))
+        object.__setattr__(self, "extra", {k: frozen(v, v.dtype) if isinstance(v, np.ndarray) else v
+                                           for k, v in self.extra.items()})
         if not self.labels:
             object.__setattr__(self, "labels", tuple(f"pose {i}" for i in range(n)))
 
@@ -151,7 +172,7 @@ class Measurements:
     def has_orientation(self) -> bool:
         return self.rotations is not None and bool(np.any(self.rot_mask))
 
-    def subset(self, index) -> "Measurements":
+    def subset(self, index) -> Measurements:
         """The poses selected by ``index`` (boolean mask or integer indices)."""
         idx = np.arange(self.n_poses)[index]
 
@@ -168,7 +189,7 @@ class Measurements:
                    for k, v in self.extra.items()},
         )
 
-    def split(self, n_validation: int | float, *, rng=None) -> tuple["Measurements", "Measurements"]:
+    def split(self, n_validation: int | float, *, rng=None) -> tuple[Measurements, Measurements]:
         """Random split into (fit, validation); ``n_validation`` a count or a fraction. Each part keeps
         the approach directions of the visiting order of the whole (``approach_of``)."""
         rng = np.random.default_rng(rng)
@@ -177,7 +198,7 @@ class Measurements:
         whole = self.with_approach()
         return whole.subset(np.sort(order[n_val:])), whole.subset(np.sort(order[:n_val]))
 
-    def with_approach(self) -> "Measurements":
+    def with_approach(self) -> Measurements:
         """These measurements with their approach directions stored (``extra["approach"]``), so that a
         subset keeps the directions of this visiting order."""
         if "approach" in self.extra:

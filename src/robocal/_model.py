@@ -24,14 +24,30 @@ Conventions (see docs/conventions.md):
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass, field, fields, replace
-from typing import Sequence
+from typing import Any
 
 import numpy as np
 
+from ._arguments import (
+    FLAG,
+    MAPPING,
+    POSITIVE,
+    SEQUENCE,
+    TEXT,
+    checked,
+    each_a,
+    in_range,
+    is_a,
+    one_of,
+    optional,
+    shaped,
+    whole,
+)
 from ._errors import InputError
 from ._options import BACKLASH_SIDES, MAX_FRAMES, MAX_MARKERS
-from ._spatial import rot4, rot_matrix, trans4
+from ._spatial import rot4, rot_matrix, trans4, vector3
 
 JOINT_TYPES = ("revolute", "prismatic", "fixed")
 DEFAULT_PARALLEL_TOL = np.deg2rad(1.0)
@@ -80,12 +96,15 @@ class Marker:
 
     ``position`` is the point in that frame, metres. ``rotation`` (3x3, row-major nested tuple)
     orients the marker's own frame in that frame; it matters only for 6D measurements.
+    ``rotation_known`` False: the orientation is not known (it starts at identity and a calibration
+    gives its change no tolerance).
     """
 
     name: str
     frame: int
     position: tuple[float, float, float] = (0.0, 0.0, 0.0)
     rotation: tuple[tuple[float, ...], ...] = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+    rotation_known: bool = True
 
 
 @dataclass(frozen=True)
@@ -201,18 +220,64 @@ class RobotModel:
     def has_backlash(self) -> bool:
         return any(f.backlash_theta or f.backlash_r for f in self.frames)
 
-    def frame_index(self, name: str) -> int:
-        try:
-            return self.frame_names.index(name)
-        except ValueError:
-            raise InputError(f"unknown frame {name!r}; frames are {', '.join(self.frame_names)}") from None
-
-    def replace(self, **changes) -> "RobotModel":
+    def replace(self, **changes) -> RobotModel:
         return replace(self, **changes)
+
+    def derived(self, key: Hashable, make: Callable[[], Any]) -> Any:
+        """What ``make()`` gives, made once for this model object and kept with it under ``key``.
+
+        For what the engine derives from the model's structure (its parameter layout, its step
+        layout): the values kept are immutable (records with read-only arrays), so whatever a
+        caller does with one cannot change a later result; they live and die with the model, and
+        an equal model made elsewhere makes its own. Not part of the model's value: equality,
+        hashing, copies and pickles ignore them.
+        """
+        kept = self.__dict__.setdefault("_derived", {})
+        if key not in kept:
+            kept.setdefault(key, make())
+        return kept[key]
+
+    def __getstate__(self) -> dict:
+        return {k: v for k, v in self.__dict__.items() if k != "_derived"}
 
 
 # every number a frame holds (geometry, mass, compliance) must be finite
 _FRAME_NUMBERS = tuple(f.name for f in fields(Frame) if f.type == "float")
+
+
+def _rows_rule(value, name: str, args) -> None:
+    """``serial_model``'s rows: one dict per frame of Frame's keys (coupling aside), numbers finite."""
+    SEQUENCE(value, name, args)
+    allowed = {f.name for f in fields(Frame)} - {"coupling"}
+    for i, row in enumerate(value):
+        where = f"{name}[{i}]"
+        MAPPING(row, where, args)
+        unknown = sorted(str(k) for k in row if k not in allowed)
+        if unknown:
+            raise InputError(f"unknown key {unknown[0]!r}; a row holds {', '.join(sorted(allowed))}", where=where)
+        for k in _FRAME_NUMBERS:
+            if k in row:
+                in_range()(row[k], f"{where}.{k}", args)
+        if "joint" in row:
+            one_of(JOINT_TYPES)(row["joint"], f"{where}.joint", args)
+        if "parent" in row:
+            whole(-1, i - 1)(row["parent"], f"{where}.parent", args)
+        if "name" in row:
+            TEXT(row["name"], f"{where}.name", args)
+        if "com" in row:
+            shaped(3)(row["com"], f"{where}.com", args)
+        if "has_beta" in row:
+            FLAG(row["has_beta"], f"{where}.has_beta", args)
+
+
+def _markers_rule(value, name: str, args) -> None:
+    """``serial_model``'s markers: (name, (x, y, z)) pairs on the last frame."""
+    SEQUENCE(value, name, args)
+    for i, item in enumerate(value):
+        if isinstance(item, str) or not hasattr(item, "__len__") or len(item) != 2:
+            raise InputError("must be a (name, (x, y, z)) pair", where=f"{name}[{i}]")
+        TEXT(item[0], f"{name}[{i}]", args)
+        shaped(3)(item[1], f"{name}[{i}]", args)
 
 
 def _validate(model: RobotModel) -> None:
@@ -256,8 +321,8 @@ def _validate(model: RobotModel) -> None:
     if model.backlash_side not in BACKLASH_SIDES:
         raise InputError(f"backlash side must be one of {', '.join(BACKLASH_SIDES)}, got {model.backlash_side!r}",
                          where="backlash.side")
-    for k, pl in enumerate(model.payloads):
-        where = "payload" if not model.other_payloads else f"payload[{k}]"
+    for n, pl in enumerate(model.payloads):
+        where = "payload" if not model.other_payloads else f"payload[{n}]"
         if pl.mass < 0 or not np.isfinite(pl.mass):
             raise InputError(f"payload mass must be non-negative, got {pl.mass}", where=where)
         if not (-1 <= pl.frame < len(model.frames)):
@@ -283,6 +348,7 @@ def _check_rotation(R, where: str) -> None:
         raise InputError("not a proper rotation matrix", where=where)
 
 
+@checked(frame=is_a(Frame), q=in_range())
 def mdh_transform(frame: Frame, q: float = 0.0) -> np.ndarray:
     """``X_pj``, the 4x4 placement of one frame in its parent at joint variable ``q`` (rad or m).
 
@@ -290,8 +356,20 @@ def mdh_transform(frame: Frame, q: float = 0.0) -> np.ndarray:
 
         X_pj = Rot(z, gamma) Trans(z, b) Rot(y, beta) Rot(x, alpha) Trans(x, d) Rot(z, theta) Trans(z, r)
 
-    with ``q`` added to theta (revolute) or r (prismatic); compliance is not applied. With
-    gamma = b = beta = 0 it is the usual modified-DH matrix: a frame turned by theta = 90 deg
+    with ``q`` added to theta (revolute) or r (prismatic); compliance is not applied.
+
+    Parameters
+    ----------
+    {frame}
+    q : float
+        The joint variable, rad or m.
+
+    Returns
+    -------
+    numpy.ndarray, shape (4, 4)
+        The frame's transform from its parent, ``X_pj``.
+
+    With gamma = b = beta = 0 it is the usual modified-DH matrix: a frame turned by theta = 90 deg
     about z, then lifted by r = 0.2 m, after alpha = 90 deg and d = 0.5 m:
 
     >>> X = mdh_transform(Frame("j2", alpha=np.pi / 2, d=0.5, r=0.2), q=np.pi / 2)
@@ -307,6 +385,7 @@ def mdh_transform(frame: Frame, q: float = 0.0) -> np.ndarray:
             @ trans4(0, frame.d) @ rot4(2, th) @ trans4(2, r))
 
 
+@checked(X=shaped(4, 4))
 def placement_parameters(X) -> dict[str, float]:
     """gamma, b, beta, alpha, d, theta, r whose ``mdh_transform`` (at q = 0) is the placement ``X``
     (4x4, a proper rotation): the inverse of ``mdh_transform`` for fixed frames given as transforms.
@@ -316,6 +395,16 @@ def placement_parameters(X) -> dict[str, float]:
     (gamma turns x towards the offset, beta and alpha tilt z, theta turns about it). The first
     divides by sin(alpha), the second by cos(beta); the better conditioned is taken, so nearly
     parallel axes never give huge offsets.
+
+    Parameters
+    ----------
+    {X}
+
+    Returns
+    -------
+    dict
+        The placement's parameters by kind (``d``, ``r``, ``theta``, ``alpha``, ``beta``, ``gamma``,
+        ``b``), SI.
 
     >>> X = mdh_transform(Frame("m", joint="fixed", gamma=0.3, b=0.1, alpha=-np.pi / 2, d=0.5, theta=0.2, r=0.05))
     >>> bool(np.abs(mdh_transform(Frame("m", joint="fixed", **placement_parameters(X))) - X).max() < 1e-12)
@@ -346,8 +435,10 @@ def placement_parameters(X) -> dict[str, float]:
 # the default mass model's linear density when no total mass is given: masses are then relative,
 # and identified compliances relative compliances (docs/conventions.md)
 DEFAULT_LINK_DENSITY = 10.0   # kg per metre of link
+RELATIVE_MASSES = "no total mass given: compliances are relative"  # said in the notes of such a model
 
 
+@checked(model=is_a(RobotModel), total_mass=optional(POSITIVE))
 def default_masses(model: RobotModel, total_mass: float | None = None) -> RobotModel:
     """``model`` with link masses assumed from its geometry, for compliance without CAD masses.
 
@@ -359,17 +450,29 @@ def default_masses(model: RobotModel, total_mass: float | None = None) -> RobotM
     common scale error of the masses, and are exact when the true masses are in these proportions;
     the summary says which masses were assumed.
 
+    Parameters
+    ----------
+    model : RobotModel
+        The robot model.
+    {total_mass}
+
+    Returns
+    -------
+    RobotModel
+        A copy of ``model`` with link masses and centres of mass.
+
     >>> m = default_masses(serial_model("rr", [dict(), dict(d=0.5)], markers=[("tool", (0.3, 0, 0))]), 8.0)
     >>> [round(f.mass, 3) for f in m.frames], m.frames[1].com
     ([5.0, 3.0], (0.15, 0.0, 0.0))
     """
-    lengths, centres = [], []
-    for i, f in enumerate(model.frames):
+    lengths: list[float] = []
+    centres: list[tuple[float, float, float]] = []
+    for i in range(len(model.frames)):
         ends = [mdh_transform(g)[:3, 3] for g in model.frames if g.parent == i]
         ends += [np.asarray(mk.position, dtype=float) for mk in model.markers if mk.frame == i]
         seg = np.array([np.linalg.norm(e) for e in ends]) if ends else np.zeros(0)
         lengths.append(float(seg.sum()))
-        centres.append(tuple(float(c) for c in (sum(s * e / 2 for s, e in zip(seg, ends)) / seg.sum()))
+        centres.append(vector3(sum(s * e / 2 for s, e in zip(seg, ends)) / seg.sum())
                        if seg.sum() > 0 else (0.0, 0.0, 0.0))
     total_length = sum(lengths)
     if total_length <= 0:
@@ -379,7 +482,7 @@ def default_masses(model: RobotModel, total_mass: float | None = None) -> RobotM
     scale = (total_mass / total_length) if total_mass is not None else DEFAULT_LINK_DENSITY
     frames = tuple(replace(f, mass=scale * L, com=c) for f, L, c in zip(model.frames, lengths, centres))
     said = (f"total {total_mass:g} kg" if total_mass is not None else
-            f"{DEFAULT_LINK_DENSITY:g} kg per metre, no total mass given: compliances are relative")
+            f"{DEFAULT_LINK_DENSITY:g} kg per metre, {RELATIVE_MASSES}")
     listed = ", ".join(f"{f.name} {f.mass:.3g} kg" for f in frames if f.mass > 0)
     note = f"masses assumed from the geometry ({said}): {listed}"
     return model.replace(frames=frames, notes=model.notes + (note,))
@@ -393,11 +496,23 @@ def _yxz_angles(M: np.ndarray) -> tuple[float, float, float]:
     return beta, math.atan2(-N[1, 2], N[2, 2]), math.atan2(-N[0, 1], N[0, 0])
 
 
+@checked(frames=each_a(Frame), tol=in_range(0.0, math.pi / 2, low_open=True))
 def parallel_beta_frames(frames: Sequence[Frame], tol: float = DEFAULT_PARALLEL_TOL) -> tuple[bool, ...]:
     """Which frames carry Hayati's beta: z of the parent and z of the frame parallel within ``tol``.
 
     In modified DH, z(j) is tilted from z(parent) by alpha_j about x (and beta_j about y, gamma
     does not tilt z), so the axes are parallel when the tilt angle is 0 or pi.
+
+    Parameters
+    ----------
+    {frames}
+    tol : float
+        Angle below which consecutive axes count as parallel, rad.
+
+    Returns
+    -------
+    tuple of bool
+        Whether each frame takes Hayati's beta.
     """
     out = []
     for f in frames:
@@ -407,6 +522,10 @@ def parallel_beta_frames(frames: Sequence[Frame], tol: float = DEFAULT_PARALLEL_
     return tuple(out)
 
 
+@checked(name=TEXT, rows=_rows_rule, markers=_markers_rule, joint_limits=optional(shaped(None, 2)),
+         base_position=shaped(3), base_rotation=optional(shaped(3, 3)),
+         beta_tol=in_range(0.0, math.pi / 2, low_open=True), gravity=shaped(3), payload=optional(is_a(Payload)),
+         description=TEXT)
 def serial_model(
     name: str,
     rows: Sequence[dict],
@@ -426,13 +545,29 @@ def serial_model(
     frame; beta is carried where consecutive axes are parallel within ``beta_tol`` unless a row
     says ``has_beta`` explicitly.
 
+    Parameters
+    ----------
+    name : str
+        The robot's name.
+    rows : sequence of dict
+        One row per frame: ``Frame``'s fields by name (``joint``, ``alpha``, ``d``, ``theta``, ``r``,
+        ``mass``, ``com``, ...), SI; couplings follow the row order.
+    markers : sequence of (str, (float, float, float))
+        Markers on the last frame, SI.
+    {joint_limits, base_position, base_rotation, beta_tol, gravity, payload, description}
+
+    Returns
+    -------
+    RobotModel
+        The model.
+
     >>> m = serial_model("rr", [dict(joint="revolute"), dict(joint="revolute", d=0.5)],
     ...                  markers=[("tool", (0.3, 0, 0))])
     >>> m.joint_names, [f.has_beta for f in m.frames]
     (('j1', 'j2'), [True, True])
     """
     frames = []
-    joint_names = []
+    joint_names: list[str] = []
     for i, row in enumerate(rows):
         row = dict(row)
         fname = row.pop("name", f"j{i + 1}")
@@ -458,10 +593,10 @@ def serial_model(
         frames=tuple(frames),
         joint_names=tuple(joint_names),
         joint_limits=tuple((float(lo), float(hi)) for lo, hi in joint_limits),
-        markers=tuple(Marker(n, last, tuple(float(v) for v in p)) for n, p in markers),
-        base_position=tuple(float(v) for v in base_position),
+        markers=tuple(Marker(n, last, vector3(p)) for n, p in markers),
+        base_position=vector3(base_position),
         base_rotation=R,
-        gravity=tuple(float(v) for v in gravity),
+        gravity=vector3(gravity),
         payload=payload if payload is not None else Payload(frame=last),
         description=description,
     )

@@ -20,11 +20,13 @@ from __future__ import annotations
 
 import copy
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
+from ._arrays import frozen, read_only
 from ._contacts import Contacts
-from ._kinematics import evaluate, evaluate_state, jacobian_columns, layout
+from ._kinematics import evaluate, evaluate_state, jacobian_columns, joint_turns, layout
 from ._measurements import Measurements, Noise
 from ._model import RobotModel
 from ._parameters import parameter_vector
@@ -94,15 +96,16 @@ class ContactProblem:
             self.tracker = Problem(model, data, free, compliance=compliance, noise=noise, chunked=False)
             if not self.tracker.weighted:
                 self.tracker_scale = 1.0 / (noise.position if noise is not None else Noise.of().position)
-        self.qf = contacts.q @ model.coupling_matrix.T
+        self.qf = read_only(contacts.q @ model.coupling_matrix.T)
+        self.turns = joint_turns(self.qf)   # evaluated at every step of a fit
         self.marker_idx = np.array([model.marker_names.index(n) for n in contacts.marker], dtype=int)
         self.sockets = contacts.groups("socket")
         self.free_planes = [g for g in contacts.groups("plane") if contacts.known_plane(g.target) is None]
-        self.known_planes = [(g, contacts.known_plane(g.target)) for g in contacts.groups("plane")
-                             if contacts.known_plane(g.target) is not None]
+        self.known_planes = [(g, kp) for g in contacts.groups("plane")
+                             if (kp := contacts.known_plane(g.target)) is not None]
         self.bars = contacts.groups("bar")
         self.pairs = contacts.distance_pairs()
-        self._cache_key, self._cache = None, None
+        self._cache: Any = None     # the last evaluation (the kinematics' state, a private type)
         self._initial_nuisance(parameter_vector(model))
         self._set_free(free)
 
@@ -171,11 +174,11 @@ class ContactProblem:
 
     # ---- evaluation ---------------------------------------------------------------------------
     def _state(self, p_robot: np.ndarray):
-        key = p_robot.tobytes()
-        if key != self._cache_key:
-            self._cache = evaluate_state(self.model, self.lay, p_robot, self.qf, compliance=self.compliance,
-                                         orientations=False)
-            self._cache_key = key
+        """The evaluation at ``p_robot``, the last one kept (its pass holds a read-only copy of the
+        values it was made at, compared by value)."""
+        if self._cache is None or not np.array_equal(self._cache.ps.p, p_robot):
+            self._cache = evaluate_state(self.model, self.lay, frozen(p_robot), self.qf, compliance=self.compliance,
+                                         orientations=False, turns=self.turns)
         return self._cache
 
     def _positions(self, p_robot: np.ndarray) -> np.ndarray:
@@ -219,11 +222,13 @@ class ContactProblem:
                           [c.sigma[g.rows] for g in self.sockets])}
         plane = [P[g.rows] @ n - d for g, (n, d) in zip(self.free_planes, self.planes(p))]
         plane += [P[g.rows] @ np.asarray(kp.normal) - kp.offset for g, kp in self.known_planes]
-        out["plane"] = (plane, [c.sigma[g.rows] for g in self.free_planes] + [c.sigma[g.rows] for g, _ in self.known_planes])
+        out["plane"] = (plane, [c.sigma[g.rows] for g in self.free_planes]
+                        + [c.sigma[g.rows] for g, _ in self.known_planes])
         out["bar"] = ([np.atleast_1d(np.linalg.norm(P[g.rows[0]] - P[g.rows[1]]) - c.bars[g.target][0])
                        for g in self.bars], [np.atleast_1d(self._bar_sigma(g)) for g in self.bars])
         where = {(g.placement, g.target): k for k, g in enumerate(self.sockets)}
-        out["distance"] = ([np.atleast_1d(np.linalg.norm(pts[where[ga.placement, ga.target]] - pts[where[gb.placement, gb.target]]) - d.length)
+        out["distance"] = ([np.atleast_1d(np.linalg.norm(pts[where[ga.placement, ga.target]]
+                                                         - pts[where[gb.placement, gb.target]]) - d.length)
                             for d, ga, gb in self.pairs], [np.atleast_1d(d.sigma) for d, _, _ in self.pairs])
         return {k: (np.concatenate(r) if r else np.zeros((0, 3) if k == "socket" else 0),
                     np.concatenate(s) if s else np.zeros(0)) for k, (r, s) in out.items()}

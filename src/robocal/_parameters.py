@@ -20,15 +20,24 @@ from __future__ import annotations
 
 import fnmatch
 import types
+from collections.abc import Iterable
 from dataclasses import dataclass, replace
-from functools import lru_cache
-from typing import Iterable
+from typing import Any
 
 import numpy as np
 
+from ._arguments import (
+    FLAG,
+    NAMES,
+    checked,
+    is_a,
+    optional,
+    vector_of,
+)
+from ._arrays import read_only
 from ._errors import InputError, excerpt
 from ._model import RobotModel
-from ._spatial import matrix_tuple, rotation_vector, small_rotation
+from ._spatial import matrix_tuple, rotation_vector, small_rotation, vector3
 
 BASE_KINDS = ("x", "y", "z", "rx", "ry", "rz")
 GEOMETRIC_KINDS = ("gamma", "b", "beta", "alpha", "d", "theta", "r")
@@ -51,7 +60,6 @@ SI_UNITS = types.MappingProxyType({"length": "m", "angle": "rad", "compliance": 
 FAMILIES = ("geometric", "compliance", "backlash", "base", "markers", "frames")
 # a parameter item holding one of these is a pattern (fnmatch): "*.theta", "j2.*", "*.k_theta"
 PATTERN_CHARS = "*?["
-ROLES = ("base", "frame", "marker")
 
 
 @dataclass(frozen=True)
@@ -93,7 +101,7 @@ class ParameterLayout:
     """The parameters of one model, in vector order, with lookups by name.
 
     ``frame0`` (n_frames,) and ``marker0`` (n_markers,) give the index of each frame's and each
-    marker's first parameter.
+    marker's first parameter (read-only).
     """
 
     parameters: tuple[Parameter, ...]
@@ -119,14 +127,30 @@ class ParameterLayout:
         """Vector indices of ``names`` (KeyError for an unknown name)."""
         return np.array([self.by_name[n].index for n in names], dtype=int)
 
-    def of_quantity(self, quantity: str) -> np.ndarray:
-        """(n_params,) bool: the parameters measuring ``quantity``."""
-        return np.array([p.quantity == quantity for p in self.parameters])
 
-
-@lru_cache(maxsize=64)
+@checked(model=is_a(RobotModel))
 def parameter_layout(model: RobotModel) -> ParameterLayout:
-    """The parameter records of ``model`` (cached per model)."""
+    """The parameter records of ``model``, made once per model object and kept with it (an immutable
+    record: its arrays are read-only).
+
+    Parameters
+    ----------
+    {model}
+
+    Returns
+    -------
+    ParameterLayout
+        Every parameter's record (name, index, unit, family, quantity) in the vector's order.
+
+    >>> import robocal as rc
+    >>> lay = rc.kinematics.parameter_layout(rc.serial_model("r", [dict()]))
+    >>> lay.names[6:9], int(lay.frame0[0])
+    (('j1.gamma', 'j1.b', 'j1.beta'), 6)
+    """
+    return model.derived(parameter_layout, lambda: _make_parameter_layout(model))
+
+
+def _make_parameter_layout(model: RobotModel) -> ParameterLayout:
     params: list[Parameter] = []
 
     def add(owner, role, kinds):
@@ -137,16 +161,28 @@ def parameter_layout(model: RobotModel) -> ParameterLayout:
     add("base", "base", BASE_KINDS)
     frame0 = [add(f.name, "frame", FRAME_KINDS) for f in model.frames]
     marker0 = [add(m.name, "marker", MARKER_KINDS) for m in model.markers]
-    return ParameterLayout(parameters=tuple(params), frame0=np.array(frame0, dtype=int),
-                           marker0=np.array(marker0, dtype=int),
+    return ParameterLayout(parameters=tuple(params), frame0=read_only(np.array(frame0, dtype=int)),
+                           marker0=read_only(np.array(marker0, dtype=int)),
                            by_name=types.MappingProxyType({p.name: p for p in params}))
 
 
+@checked(model=is_a(RobotModel))
 def parameter_names(model: RobotModel) -> tuple[str, ...]:
-    """Names of the full parameter vector: ``base.x``..., ``<frame>.<kind>``, ``<marker>.<kind>``."""
+    """Names of the full parameter vector: ``base.x``..., ``<frame>.<kind>``, ``<marker>.<kind>``.
+
+    Parameters
+    ----------
+    {model}
+
+    Returns
+    -------
+    tuple of str
+        Every parameter's name, in the layout order.
+    """
     return parameter_layout(model).names
 
 
+@checked(model=is_a(RobotModel), reference=optional(is_a(RobotModel)))
 def parameter_vector(model: RobotModel, reference: RobotModel | None = None) -> np.ndarray:
     """The model's values in the layout of ``parameter_names`` (SI).
 
@@ -154,6 +190,15 @@ def parameter_vector(model: RobotModel, reference: RobotModel | None = None) -> 
     ``reference`` of the same structure they are the corrections that turn the reference's stored
     rotations into this model's (R = R_ref exp([rx, ry, rz]x), a rotation vector), so that
     ``model_from_vector(reference, parameter_vector(model, reference))`` is ``model``.
+
+    Parameters
+    ----------
+    {model, reference}
+
+    Returns
+    -------
+    numpy.ndarray, shape (n_params,)
+        The model's values, SI.
     """
     lay = parameter_layout(model)
     p = np.zeros(lay.n_params)
@@ -165,25 +210,38 @@ def parameter_vector(model: RobotModel, reference: RobotModel | None = None) -> 
     if reference is not None:
         p[3:6] = rotation_vector(np.asarray(reference.base_rotation).T @ np.asarray(model.base_rotation))
         for m, (mk, mr) in enumerate(zip(model.markers, reference.markers)):
-            p[lay.marker0[m] + 3:lay.marker0[m] + 6] = rotation_vector(np.asarray(mr.rotation).T @ np.asarray(mk.rotation))
+            relative = np.asarray(mr.rotation).T @ np.asarray(mk.rotation)
+            p[lay.marker0[m] + 3:lay.marker0[m] + 6] = rotation_vector(relative)
     return p
 
 
+@checked(model=is_a(RobotModel), p=vector_of(lambda a: parameter_layout(a["model"]).n_params))
 def model_from_vector(model: RobotModel, p: np.ndarray) -> RobotModel:
-    """A new model holding the values ``p`` (rotation corrections composed into stored rotations)."""
+    """A new model holding the values ``p`` (rotation corrections composed into stored rotations).
+
+    Parameters
+    ----------
+    {model, p}
+
+    Returns
+    -------
+    RobotModel
+        A new model holding the values ``p``.
+    """
     lay = parameter_layout(model)
     p = np.asarray(p, dtype=float)
     Rb = np.asarray(model.base_rotation) @ small_rotation(*p[3:6])
-    frames = tuple(
-        replace(f, **{k: float(p[lay.frame0[i] + j]) for j, k in enumerate(FRAME_KINDS)})
-        for i, f in enumerate(model.frames)
-    )
+
+    def values(i: int) -> dict[str, Any]:
+        return {k: float(p[lay.frame0[i] + j]) for j, k in enumerate(FRAME_KINDS)}
+
+    frames = tuple(replace(f, **values(i)) for i, f in enumerate(model.frames))
     markers = []
     for m, mk in enumerate(model.markers):
         q = p[lay.marker0[m]:lay.marker0[m] + len(MARKER_KINDS)]
         R = np.asarray(mk.rotation) @ small_rotation(*q[3:6])
-        markers.append(replace(mk, position=tuple(float(v) for v in q[:3]), rotation=matrix_tuple(R)))
-    return model.replace(base_position=tuple(float(v) for v in p[0:3]), base_rotation=matrix_tuple(Rb),
+        markers.append(replace(mk, position=vector3(q[:3]), rotation=matrix_tuple(R)))
+    return model.replace(base_position=vector3(p[0:3]), base_rotation=matrix_tuple(Rb),
                          frames=frames, markers=tuple(markers))
 
 
@@ -201,10 +259,22 @@ def _frame_geometric(model: RobotModel, i: int) -> list[str]:
     return [f"{f.name}.{k}" for k in kinds]
 
 
+@checked(model=is_a(RobotModel), orientation=FLAG)
 def families(model: RobotModel, *, orientation: bool = False) -> dict[str, list[str]]:
     """The names each family stands for, in preference order.
 
     ``orientation``: the data hold orientations, so marker rotations belong to ``markers``.
+
+    Parameters
+    ----------
+    {model}
+    orientation : bool
+        Whether orientations are measured.
+
+    Returns
+    -------
+    dict
+        Family name -> parameter names.
     """
     base = [f"base.{k}" for k in BASE_KINDS]
     marker_kinds = MARKER_KINDS if orientation else MARKER_KINDS[:3]
@@ -215,7 +285,8 @@ def families(model: RobotModel, *, orientation: bool = False) -> dict[str, list[
     branching = {f.parent for f in model.frames if sum(g.parent == f.parent for g in model.frames) > 1}
     last = [f"{model.frames[i].name}.{k}" for i in sorted(branching - {-1}) for k in ("theta", "r")]
     frames = [n for n in frames if n not in last] + last
-    compliance = [f"{f.name}.{k}" for f in model.frames for k in COMPLIANCE_KINDS]
+    # a fixed frame (a placement, often written as a matrix) has no joint to yield: no compliance
+    compliance = [f"{f.name}.{k}" for f in model.frames if f.joint != "fixed" for k in COMPLIANCE_KINDS]
     return {"base": base, "markers": markers, "frames": frames, "geometric": base + markers + frames,
             "compliance": compliance, "backlash": backlash_names(model)}
 
@@ -226,6 +297,7 @@ def backlash_names(model: RobotModel) -> list[str]:
             if f.joint != "fixed"]
 
 
+@checked(model=is_a(RobotModel), parameters=NAMES, orientation=FLAG, known=NAMES)
 def candidate_parameters(model: RobotModel, parameters: Iterable[str] = ("geometric",), *,
                          orientation: bool = False, known: Iterable[str] = ()) -> tuple[str, ...]:
     """Parameter names to consider, in preference order.
@@ -235,17 +307,30 @@ def candidate_parameters(model: RobotModel, parameters: Iterable[str] = ("geomet
     patterns such as ``*.theta`` or ``j2.*`` (see ``matched_by_pattern``).
     ``orientation``: the data hold orientations, so marker rotations are candidates too.
     ``known``: families or names to hold fixed at their model values (e.g. ``("base",)``).
+
+    Parameters
+    ----------
+    {model, parameters}
+    orientation : bool
+        Whether orientations are measured (markers' rotation parameters become candidates).
+    {known}
+
+    Returns
+    -------
+    tuple of str
+        The parameter names, in preference order.
     """
-    return _candidates(model, _as_items(parameters), bool(orientation), _as_items(known))
+    args = (_as_items(parameters), bool(orientation), _as_items(known))
+    # kept with the model (a calibration asks again): a tuple of names, which nobody can change
+    return model.derived((candidate_parameters, args), lambda: _candidates(model, *args))
 
 
 def _as_items(items) -> tuple:
     return (items,) if isinstance(items, str) else tuple(items)
 
 
-@lru_cache(maxsize=128)
 def _candidates(model: RobotModel, parameters: tuple, orientation: bool, known: tuple) -> tuple[str, ...]:
-    """``candidate_parameters``, kept per model and arguments (a calibration asks for them again)."""
+    """``candidate_parameters``, made anew."""
     lay = parameter_layout(model)
     fam = families(model, orientation=orientation)
 
@@ -268,7 +353,8 @@ def _candidates(model: RobotModel, parameters: tuple, orientation: bool, known: 
     if any(lay[n].family == "compliance" for n in chosen) and not model.has_masses:
         raise InputError("compliance parameters need link masses (or a payload); the model has none: "
                          "assume them from the geometry with robocal.default_masses(model, total_mass) "
-                         "(--assume-masses [TOTAL_KG] on the command line)",
+                         "(--assume-masses, with --total-mass KG for compliances in absolute units, on the "
+                         "command line)",
                          where="parameters")
     if model.backlash_side == "gravity" and any(lay[n].family == "backlash" for n in chosen) \
             and not model.has_masses:
@@ -300,6 +386,7 @@ def _matching(model: RobotModel, pattern: str, fam: dict, what: str) -> list[str
     return found
 
 
+@checked(model=is_a(RobotModel), parameters=NAMES, orientation=FLAG)
 def matched_by_pattern(model: RobotModel, parameters: Iterable[str], *,
                        orientation: bool = False) -> tuple[tuple[str, tuple[str, ...]], ...]:
     """``(pattern, names)`` for each pattern among ``parameters``: the candidate names it matches.
@@ -309,7 +396,20 @@ def matched_by_pattern(model: RobotModel, parameters: Iterable[str], *,
     masses): ``*.theta`` every joint offset, ``j2.*`` frame j2's parameters, ``*.k_theta`` every
     torsion compliance.
 
-    >>> from robocal._model import serial_model
+    Parameters
+    ----------
+    {model}
+    parameters : str or sequence of str
+        Parameter names or patterns (``j*.d``).
+    orientation : bool
+        Whether orientations are measured.
+
+    Returns
+    -------
+    tuple of (str, tuple of str)
+        Each pattern with the names it matches.
+
+    >>> from robocal.kinematics import serial_model
     >>> m = serial_model("rr", [dict(), dict(d=0.5)])
     >>> matched_by_pattern(m, ["geometric", "*.theta"])
     (('*.theta', ('j1.theta', 'j2.theta')),)

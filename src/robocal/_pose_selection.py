@@ -8,10 +8,23 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._arguments import (
+    FLAG,
+    FRACTION,
+    NAMES,
+    POSITIVE,
+    SEED,
+    checked,
+    is_a,
+    one_of,
+    optional,
+    readings_of,
+    whole,
+)
 from ._errors import DegenerateDataError, InputError, check_choice
 from ._identifiability import ONE_SIDE, identifiability
-from ._options import MAX_SELECTION_BLOCKS, MAX_SELECTION_WORK, POSE_CRITERIA
 from ._model import RobotModel
+from ._options import MAX_POSES, MAX_SELECTION_BLOCKS, MAX_SELECTION_WORK, POSE_CRITERIA
 from ._parameters import has_backlash_parameters, parameter_vector
 from ._problem import design_problem, random_configurations
 from ._threads import one_blas_thread
@@ -119,10 +132,8 @@ class _Greedy:
         """Each candidate's gain if added: log det(I + H_i) (D), or the fall of tr(W M^-1),
         tr((I + H_i)^-1 F_i) (I); -inf for poses already taken."""
         S = self.H + np.eye(self.H.shape[1])
-        if self.criterion == "D":
-            g = np.linalg.slogdet(S)[1]
-        else:
-            g = np.einsum("nrs,nsr->n", _inverses(S), self.F)
+        F = self.F  # held for the I criterion only
+        g = np.linalg.slogdet(S)[1] if F is None else np.einsum("nrs,nsr->n", _inverses(S), F)
         g[self.taken] = -np.inf
         return g
 
@@ -152,7 +163,6 @@ def _scaled_blocks(model: RobotModel, q, names, orientation: bool, approach=None
     return B / col, prob
 
 
-@one_blas_thread
 def _check_cost(n: int, n_cand: int, rows: int, k: int, sweeps: int) -> None:
     """Refuse, before the work, a selection whose updates (each O(candidates x rows x k^2)) or whose
     candidate blocks would take minutes or gigabytes (MAX_SELECTION_WORK, MAX_SELECTION_BLOCKS)."""
@@ -165,6 +175,10 @@ def _check_cost(n: int, n_cand: int, rows: int, k: int, sweeps: int) -> None:
                          where="n")
 
 
+@checked(model=is_a(RobotModel), n=whole(1, MAX_POSES), candidates=optional(readings_of()),
+         n_candidates=whole(1, MAX_POSES), parameters=NAMES, known=NAMES, orientation=FLAG,
+         criterion=one_of(POSE_CRITERIA), rng=SEED, sweeps=whole(0, 100))
+@one_blas_thread
 def select_poses(model: RobotModel, n: int, *, candidates=None, n_candidates: int = 2000, parameters=("geometric",),
                  known=(), orientation: bool = False, criterion: str = "I", rng=0, sweeps: int = 2) -> PoseSelection:
     """Pick ``n`` configurations for identifying the identifiable parameters.
@@ -182,6 +196,21 @@ def select_poses(model: RobotModel, n: int, *, candidates=None, n_candidates: in
     pose's (its load), so the criterion sees it; under the approach-sided model each candidate is
     given a random approach direction per joint, the criterion chooses among them, and the result
     says which direction to come from (``approach``).
+
+    Parameters
+    ----------
+    {model}
+    n : int
+        Number of configurations to choose.
+    {candidates, n_candidates, parameters, known}
+    orientation : bool
+        Whether orientations will be measured.
+    {criterion, rng, sweeps}
+
+    Returns
+    -------
+    PoseSelection
+        The chosen configurations and what measuring there will give.
     """
     check_choice(criterion, CRITERIA, "criterion")
     rng = np.random.default_rng(rng)
@@ -246,9 +275,9 @@ class CampaignPrediction:
 
     ``parameters``: the parameters identifiable from these poses, in preference order, with
     ``std`` their predicted standard deviations at position noise ``noise`` (m per axis);
-    ``identifiability``: the analysis at these poses (what is eliminated, what absorbs it). ``error_rms``: the predicted RMS
-    position error of the calibrated model over ``n_workspace`` configurations within the joint
-    limits (what parameter uncertainty leaves, the instrument's noise not counted);
+    ``identifiability``: the analysis at these poses (what is eliminated, what absorbs it).
+    ``error_rms``: the predicted RMS position error of the calibrated model over ``n_workspace``
+    configurations within the joint limits (what parameter uncertainty leaves, the instrument's noise not counted);
     ``held_out_rms``: the RMS error a measurement at such a configuration would show against the
     calibrated model (the same plus the instrument's noise on that measurement)."""
 
@@ -262,6 +291,8 @@ class CampaignPrediction:
     n_workspace: int
 
 
+@checked(model=is_a(RobotModel), q=readings_of(), parameters=NAMES, known=NAMES, noise=POSITIVE,
+         n_workspace=whole(1, MAX_POSES), tol=FRACTION, rng=SEED)
 @one_blas_thread
 def predict_campaign(model: RobotModel, q, *, parameters=("geometric",), known=(), noise: float = 2e-5,
                      n_workspace: int = 2000, tol: float = 1e-6, rng=0) -> CampaignPrediction:
@@ -270,6 +301,24 @@ def predict_campaign(model: RobotModel, q, *, parameters=("geometric",), known=(
     The linearised model at the nominal values: the parameters identifiable at ``q`` get the
     covariance C = noise^2 (J^T J)^-1 of least squares with position noise ``noise`` (m, per
     axis), and a configuration p of the workspace the position error covariance J_p C J_p^T.
+
+    Parameters
+    ----------
+    {model}
+    q : array_like, shape (n_poses, n_joints)
+        The configurations to measure at.
+    {parameters, known}
+    noise : float
+        Position noise of the instrument, m per axis.
+    {n_workspace}
+    tol : float
+        Rank tolerance relative to the largest singular value, in (0, 1).
+    {rng}
+
+    Returns
+    -------
+    CampaignPrediction
+        The predicted standard deviations and errors of a campaign at ``q``.
     """
     q = np.atleast_2d(np.asarray(q, dtype=float))
     if noise <= 0:

@@ -13,19 +13,34 @@ grows with the parameters, not the poses.
 from __future__ import annotations
 
 import copy
+import weakref
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ._arguments import FLAG, SEED, checked, is_a, names_in, optional, readings_of, shaped, whole
+from ._arrays import frozen, read_only
 from ._errors import InputError
-from ._kinematics import (CHUNK_POSES, LARGE_POSES, evaluate_state, frame_approach, jacobian_columns, layout,
-                          moved_state, moves_rigidly)
+from ._kinematics import (
+    CHUNK_POSES,
+    LARGE_POSES,
+    Workspace,
+    evaluate_state,
+    frame_approach,
+    jacobian_columns,
+    joint_turns,
+    layout,
+    moved_state,
+    moves_rigidly,
+    pass_buffers,
+    workspace,
+)
 from ._linalg import r_factor, reduced
 from ._measurements import Measurements, Noise, approach_of
 from ._model import RobotModel
-from ._parameters import has_backlash_parameters, has_compliance_parameters
+from ._options import MAX_POSES
+from ._parameters import has_backlash_parameters, has_compliance_parameters, parameter_names
 from ._threads import one_blas_thread
-
 
 # A problem keeps its last evaluations (the calibration asks for the start again after the solve,
 # and for the solution after the fit of the errors before it): up to STATES_KEPT, fewer for many
@@ -56,20 +71,21 @@ class Problem:
         self.compliance = compliance
         self.backlash = model.has_backlash or has_backlash_parameters(model, free)
         self.approach = frame_approach(model, approach_of(data)) if self.backlash else None
-        self.qf = data.q @ model.coupling_matrix.T
+        self.qf = read_only(data.q @ model.coupling_matrix.T)
+        self._turns = None   # the cosines and sines of ``qf``, made at the first evaluation
         self.marker_idx = np.array([model.marker_names.index(n) for n in data.marker_names], dtype=int)
         self.use_rot = data.has_orientation
         self.sel = [np.nonzero(data.mask[:, j])[0] for j in range(len(data.marker_names))]
         # 6D rows mix metres and radians: without stated deviations, each part is weighed by its noise
         self.weighted = data.sigma is not None or (self.use_rot and noise is not None)
-        sp = data.sigma if data.sigma is not None else (noise.position if self.weighted else 1.0)
+        sp = data.sigma if data.sigma is not None else (noise.position if noise is not None and self.weighted else 1.0)
         self.w = [1.0 / np.broadcast_to(sp, data.mask.shape)[s, j] for j, s in enumerate(self.sel)]
         self.meas = [data.positions[s, j] for j, s in enumerate(self.sel)]
-        if self.use_rot:
+        if self.use_rot and data.rot_mask is not None:
             self.sel_r = [np.nonzero(data.rot_mask[:, j])[0] for j in range(len(data.marker_names))]
             sr = data.sigma_rot if data.sigma_rot is not None else (noise.rotation if noise is not None else 1.0)
             self.w_r = [1.0 / np.broadcast_to(sr, data.rot_mask.shape)[s, j] for j, s in enumerate(self.sel_r)]
-        self._states = {}    # shared with the problems ``over`` makes: they evaluate the same poses
+        self._kept = _Kept(workspace(model))    # shared with the problems ``over`` makes: the same poses
         if chunked is None:
             chunked = data.n_poses > LARGE_POSES
         if chunked and (self.use_rot or self.backlash):
@@ -115,7 +131,7 @@ class Problem:
         free = tuple(self.free_idx.tolist())
         R = _taken(kept, free, lambda R, cols: make(R[:, cols]))
         if R is None:
-            R = kept[free] = make(self.jacobian(p))
+            R = kept[free] = read_only(make(self.jacobian(p)))
         return R
 
     def _indices(self, free) -> np.ndarray:
@@ -163,19 +179,28 @@ class Problem:
         return p
 
     def _state(self, p):
-        """The evaluation at ``p``, kept with the last few (``STATES_KEPT``)."""
+        """The evaluation at ``p``, kept with the last few (``STATES_KEPT``, newest last). Each is
+        found by the values it was made at: the bytes of a read-only float copy of them, which its
+        pass holds, so a caller changing their own array afterwards cannot be served a stale one."""
+        p = frozen(p)
         key = p.tobytes()
-        st = self._states.pop(key, None)
+        kept = self._kept
+        states = kept.states
+        st = states.pop(key, None)
         if st is None:
             # a geometric chain that only the base and markers moved from a kept evaluation is that one moved
             near = None if self.compliance or self.backlash else next(
-                (s for s in reversed(self._states.values()) if moves_rigidly(self.lay, s.ps.p, p)), None)
-            st = moved_state(near, p) if near is not None else evaluate_state(
+                (s for s in reversed(states.values()) if moves_rigidly(self.lay, s.ps.p, p)), None)
+            if near is None and self._turns is None:
+                self._turns = joint_turns(self.qf)
+            st = moved_state(near, p, take=kept.workspace.take) if near is not None else evaluate_state(
                 self.model, self.lay, p, self.qf, compliance=self.compliance, orientations=self.use_rot,
-                payload_mass=self.data.payload_mass, backlash=self.backlash, approach=self.approach)
-            if len(self._states) >= max(1, min(STATES_KEPT, STATE_POSES // max(self.data.n_poses, 1))):
-                self._states.pop(next(iter(self._states)))
-        self._states[key] = st
+                payload_mass=self.data.payload_mass, backlash=self.backlash, approach=self.approach,
+                turns=self._turns, take=kept.workspace.take)
+            near = None
+            if len(states) >= max(1, min(STATES_KEPT, STATE_POSES // max(self.data.n_poses, 1))):
+                kept.drop_oldest()
+        states[key] = st
         return st
 
     def _positions(self, p) -> np.ndarray:
@@ -218,6 +243,7 @@ class Problem:
         """(n, 3) rotation vectors of R_pred R_meas^T in W for marker j's measured orientations."""
         s = self.sel_r[j]
         Rp = st.ps.RM[self.marker_idx[j]][s]
+        assert self.data.rotations is not None  # rows of orientations exist only with them
         Rm = self.data.rotations[s, j]
         return Rotation.from_matrix(Rp @ np.swapaxes(Rm, -1, -2)).as_rotvec()
 
@@ -231,13 +257,6 @@ class Problem:
             parts += [(self._rotation_errors(st, j) * w[:, None]).ravel() for j, w in enumerate(self.w_r)]
         return np.concatenate(parts)
 
-    def rotation_residuals(self, p) -> np.ndarray | None:
-        """(n, 3) unweighted rotation residuals in rad, or None for point data."""
-        if not self.use_rot:
-            return None
-        st = self._state(p)
-        return np.concatenate([self._rotation_errors(st, j) for j in range(len(self.sel_r))])
-
     @one_blas_thread
     def jacobian(self, p) -> np.ndarray:
         """Weighted Jacobian of ``residuals`` over the free parameters: (n_rows, n_free), column-major.
@@ -249,7 +268,7 @@ class Problem:
         free = tuple(self.free_idx.tolist())
         Jt = _taken(kept, free, lambda Jt, rows: Jt[rows])
         if Jt is None:
-            Jt = kept[free] = self._jacobian_rows(st)
+            Jt = kept[free] = read_only(self._jacobian_rows(st))
         return Jt.T
 
     def _jacobian_rows(self, st) -> np.ndarray:
@@ -276,7 +295,7 @@ class Problem:
             return {n: np.concatenate([part[n] for part in parts]) for n in parts[0]}
         st = self._state(p)
         names = self.lay.names
-        return {names[k]: st.M[row] for row, k in enumerate(self.lay.compliant_params)}
+        return {names[k]: st.M[row].copy() for row, k in enumerate(self.lay.compliant_params)}
 
     def backlash_sides(self, p) -> dict:
         """Per backlash parameter name, the sides (n_poses,) in [-1, 1] its joint rests on at ``p``."""
@@ -284,7 +303,7 @@ class Problem:
             return {}
         st = self._state(p)
         names = self.lay.names
-        return {names[k]: st.backlash.sides[:, i] for i, k in enumerate(self.lay.backlash_params) if k >= 0}
+        return {names[k]: st.backlash.sides[:, i].copy() for i, k in enumerate(self.lay.backlash_params) if k >= 0}
 
     @one_blas_thread
     def pose_blocks(self, p) -> np.ndarray:
@@ -293,6 +312,27 @@ class Problem:
         rows = 6 if self.use_rot else 3
         cols = [jacobian_columns(self.model, self.lay, st, self.free_idx, m, rows) for m in self.marker_idx]
         return np.concatenate([C.transpose(1, 2, 0) for C in cols], axis=1)
+
+
+class _Kept:
+    """The evaluations a problem keeps, newest last (shared with the problems ``over`` makes from it).
+    The buffers of those it drops, and of all when the last of these problems goes, return to the
+    model's workspace (``Workspace.give`` takes only those nothing else holds)."""
+
+    def __init__(self, ws: Workspace):
+        self.workspace = ws
+        self.states: dict = {}     # the bytes of the parameters' read-only copy -> the evaluation there
+        weakref.finalize(self, _give_back, ws, self.states)
+
+    def drop_oldest(self) -> None:
+        buffers = pass_buffers(self.states.pop(next(iter(self.states))))
+        self.workspace.give(buffers)
+
+
+def _give_back(ws: Workspace, states: dict) -> None:
+    buffers = [b for st in states.values() for b in pass_buffers(st)]
+    states.clear()
+    ws.give(buffers)
 
 
 def _taken(kept: dict, free: tuple, take):
@@ -324,17 +364,48 @@ def design_measurements(model: RobotModel, q, orientation: bool = False, markers
                         extra={} if approach is None else {"approach": np.asarray(approach, dtype=float)})
 
 
+# a problem's free parameters: names of the model's parameters
+_PARAMETERS = names_in(lambda a: parameter_names(a["model"]))
+
+
+@checked(model=is_a(RobotModel), q=readings_of(), names=_PARAMETERS, orientation=FLAG,
+         approach=optional(shaped(None, None)))
 def design_problem(model: RobotModel, q, names, orientation: bool = False, approach=None) -> Problem:
-    """The problem of ``names`` at readings ``q`` with nothing measured: its Jacobian is the design's."""
+    """The problem of ``names`` at readings ``q`` with nothing measured: its Jacobian is the design's.
+
+    Parameters
+    ----------
+    {model, q}
+    names : sequence of str
+        The free parameters.
+    orientation : bool
+        Whether orientations are measured.
+    {approach}
+
+    Returns
+    -------
+    Problem
+        The problem; its Jacobian is the design's.
+    """
     return Problem(model, design_measurements(model, q, orientation, approach=approach), tuple(names),
                    compliance=needs_compliance(model, names))
 
 
+@checked(model=is_a(RobotModel))
 def sampling_box(model: RobotModel) -> tuple[np.ndarray, np.ndarray]:
     """Lower and upper readings within which configurations are drawn, (n_joints,) each.
 
     An unbounded revolute reading turns within +-pi (every orientation); an unbounded prismatic
     one has no such range and is refused.
+
+    Parameters
+    ----------
+    {model}
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray)
+        Lower and upper readings, (n_joints,) each.
     """
     lo, hi = model.lower_limits.copy(), model.upper_limits.copy()
     angle = np.zeros(model.n_joints, dtype=bool)
@@ -357,8 +428,22 @@ def sampling_box(model: RobotModel) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
+@checked(model=is_a(RobotModel), n=whole(0, MAX_POSES), rng=SEED)
 def random_configurations(model: RobotModel, n: int, rng=None) -> np.ndarray:
-    """``n`` joint readings (n, n_joints) drawn uniformly within ``sampling_box(model)``."""
+    """``n`` joint readings (n, n_joints) drawn uniformly within ``sampling_box(model)``.
+
+    Parameters
+    ----------
+    {model}
+    n : int
+        Number of configurations.
+    {rng}
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, n_joints)
+        Joint readings within the joint limits.
+    """
     rng = np.random.default_rng(rng)
     lo, hi = sampling_box(model)
     return rng.uniform(lo, hi, size=(n, model.n_joints))

@@ -8,11 +8,29 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ._arguments import (
+    FLAG,
+    MAPPING,
+    MASSES,
+    NAMES,
+    NON_NEGATIVE,
+    PAIR,
+    SEED,
+    SEQUENCE,
+    checked,
+    is_a,
+    names_in,
+    optional,
+    readings_of,
+    whole,
+)
+from ._errors import InputError
 from ._identifiability import identifiability
 from ._kinematics import evaluate
 from ._measurements import Measurements, approach_sides
 from ._model import RobotModel
-from ._parameters import model_from_vector, parameter_layout, parameter_vector
+from ._options import MAX_POSES
+from ._parameters import model_from_vector, parameter_layout, parameter_names, parameter_vector
 from ._problem import random_configurations
 from ._threads import one_blas_thread
 
@@ -22,6 +40,8 @@ def _signed_uniform(rng, lo, hi, n):
     return rng.uniform(lo, hi, n) * rng.choice([-1.0, 1.0], n)
 
 
+@checked(model=is_a(RobotModel), names=names_in(lambda a: parameter_names(a["model"])), length_error=PAIR,
+         angle_error=PAIR, compliance_error=optional(PAIR), rng=SEED)
 def perturb_model(model: RobotModel, names, *, length_error=(1e-4, 1e-3), angle_error=(np.deg2rad(0.01),
                   np.deg2rad(0.1)), compliance_error=None, rng=None) -> RobotModel:
     """A copy of ``model`` with random errors on the parameters ``names``.
@@ -30,6 +50,18 @@ def perturb_model(model: RobotModel, names, *, length_error=(1e-4, 1e-3), angle_
     random sign. Compliance parameters need ``compliance_error`` (else they are left alone); a
     compliance stays non-negative (a robot is not stiffer than rigid): a negative draw is mirrored,
     and so does a backlash (a lost motion is not negative), drawn in the length and angle ranges.
+
+    Parameters
+    ----------
+    {model}
+    names : sequence of str
+        The parameters that get an error.
+    {length_error, angle_error, compliance_error, rng}
+
+    Returns
+    -------
+    RobotModel
+        A copy of ``model`` with the errors.
     """
     rng = np.random.default_rng(rng)
     lay = parameter_layout(model)
@@ -39,12 +71,15 @@ def perturb_model(model: RobotModel, names, *, length_error=(1e-4, 1e-3), angle_
         bounds = ranges[lay[n].quantity]
         if bounds is None:
             continue
-        p[lay[n].index] += _signed_uniform(rng, *bounds, 1)[0]
+        lo, hi = bounds
+        p[lay[n].index] += _signed_uniform(rng, lo, hi, 1)[0]
         if lay[n].quantity == "compliance" or lay[n].family == "backlash":
             p[lay[n].index] = abs(p[lay[n].index])
     return model_from_vector(model, p)
 
 
+@checked(true_model=is_a(RobotModel), q=readings_of("true_model"), noise=NON_NEGATIVE,
+         noise_rot=optional(NON_NEGATIVE), orientation=FLAG, payload_mass=optional(MASSES), rng=SEED, labels=SEQUENCE)
 def measure(true_model: RobotModel, q, *, noise: float = 2e-5, noise_rot: float | None = None,
             orientation: bool = False, payload_mass=None, rng=None, labels=()) -> Measurements:
     """Measurements of ``true_model`` at readings ``q`` with isotropic Gaussian noise (std, metres).
@@ -52,6 +87,21 @@ def measure(true_model: RobotModel, q, *, noise: float = 2e-5, noise_rot: float 
     ``noise_rot`` (rad) perturbs measured orientations when ``orientation`` is set. The poses are
     visited in row order: a robot with backlash rests on the sides that order gives, and the
     measurements keep its approach directions (``extra["approach"]``).
+
+    Parameters
+    ----------
+    {true_model}
+    q : array_like, shape (n_poses, n_joints)
+        Joint readings of the poses measured, rad or m.
+    {noise, noise_rot}
+    orientation : bool
+        Whether to measure orientations too.
+    {payload_mass, rng, labels}
+
+    Returns
+    -------
+    Measurements
+        The simulated measurements, SI.
     """
     rng = np.random.default_rng(rng)
     q = np.atleast_2d(np.asarray(q, dtype=float))
@@ -68,6 +118,10 @@ def measure(true_model: RobotModel, q, *, noise: float = 2e-5, noise_rot: float 
                         source="simulated", extra={"approach": approach_sides(q)})
 
 
+@checked(model=is_a(RobotModel), n_poses=optional(whole(1, MAX_POSES)), q=optional(readings_of()), parameters=NAMES,
+         known=NAMES, length_error=PAIR, angle_error=PAIR, compliance_error=optional(PAIR),
+         true_compliance=optional(MAPPING), noise=NON_NEGATIVE, orientation=FLAG, noise_rot=optional(NON_NEGATIVE),
+         payload_mass=optional(MASSES), seed=SEED)
 @one_blas_thread
 def simulate(model: RobotModel, n_poses: int | None = None, *, q=None, parameters=("geometric",), known=(),
              length_error=(1e-4, 1e-3), angle_error=(np.deg2rad(0.01), np.deg2rad(0.1)),
@@ -80,7 +134,25 @@ def simulate(model: RobotModel, n_poses: int | None = None, *, q=None, parameter
     the requested families, so the truth is unambiguous; ``true_compliance`` maps parameter names
     to exact true values (rad/(N m)) set after the random errors.
     Returns ``(true_model, measurements)``.
+
+    Parameters
+    ----------
+    model : RobotModel
+        The nominal robot.
+    {n_poses, q, parameters, known, length_error, angle_error, compliance_error, true_compliance}
+    noise : float
+        Position noise of the instrument, m (one standard deviation per axis).
+    orientation : bool
+        Whether to measure orientations too.
+    {noise_rot, payload_mass, seed}
+
+    Returns
+    -------
+    (RobotModel, Measurements)
+        The true robot and its measurements.
     """
+    if q is None and n_poses is None:
+        raise InputError("give n_poses or q", where="n_poses")
     rng = np.random.default_rng(seed)
     ident = identifiability(model, None, parameters=parameters, known=known, orientation=orientation, rng=rng)
     true = perturb_model(model, ident.identified, length_error=length_error, angle_error=angle_error,
@@ -92,8 +164,6 @@ def simulate(model: RobotModel, n_poses: int | None = None, *, q=None, parameter
             p[lay[n].index] = v
         true = model_from_vector(true, p)
     if q is None:
-        if n_poses is None:
-            raise ValueError("give n_poses or q")
         q = random_configurations(model, n_poses, rng)
     data = measure(true, q, noise=noise, noise_rot=noise_rot, orientation=orientation,
                    payload_mass=payload_mass, rng=rng)

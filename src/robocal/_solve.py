@@ -10,9 +10,20 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
+from ._arguments import (
+    FRACTION,
+    POSITIVE,
+    checked,
+    is_a,
+    one_of,
+    optional,
+    shaped,
+    whole,
+)
 from ._errors import DegenerateDataError, InputError, check_choice
 from ._identifiability import singular_values
 from ._linalg import r_factor, reduced, solve_upper
+from ._observations import ContactProblem
 from ._options import LOSSES
 from ._problem import LARGE_POSES, Problem
 from ._threads import one_blas_thread
@@ -43,6 +54,8 @@ class Solution:
     row_kinds: np.ndarray | None = None
 
 
+@checked(problem=is_a(Problem, ContactProblem), p0=shaped(None), loss=one_of(LOSSES), f_scale=optional(POSITIVE),
+         max_nfev=optional(whole(1)), lower=optional(shaped(None, finite=False)), tol=FRACTION)
 @one_blas_thread
 def solve(problem: Problem, p0: np.ndarray, *, loss: str = "linear", f_scale: float | None = None,
           max_nfev: int | None = None, lower: np.ndarray | None = None, tol: float = SOLVER_TOL) -> Solution:
@@ -54,6 +67,21 @@ def solve(problem: Problem, p0: np.ndarray, *, loss: str = "linear", f_scale: fl
     of the residuals, re-estimated from the robust fit until it settles: the first, non-robust fit
     spreads outliers over every residual. ``lower`` (n_free,): lower bounds (-inf for none), which
     need the trust-region solver. ``tol``: the step, cost and gradient tolerances.
+
+    Parameters
+    ----------
+    {problem, p0}
+    loss : str
+        ``linear`` (Levenberg-Marquardt) or a robust loss (``soft_l1``, ``huber``, ``cauchy``,
+        ``arctan``).
+    {f_scale, max_nfev, lower}
+    tol : float
+        Step, cost and gradient tolerance, in (0, 1).
+
+    Returns
+    -------
+    Solution
+        The estimate, residuals, cost and solver status.
     """
     check_choice(loss, LOSSES, "loss")
     bounded = lower is not None and bool(np.any(np.isfinite(lower)))
@@ -113,7 +141,8 @@ def _normal_equations(problem, p: np.ndarray, r: np.ndarray | None = None) -> _N
     from the Jacobian formed whole (its R factor through the Gram matrix when well conditioned,
     ``r_factor``)."""
     if getattr(problem, "chunked", False):
-        return _Normal(*problem.normal_equations(p), J=None, r=r)
+        R, g, cost = problem.normal_equations(p)
+        return _Normal(R=R, g=g, cost=cost, J=None, r=r)
     J = problem.jacobian(p)
     r = problem.residuals(p) if r is None else r
     R = problem.jacobian_factor(p) if hasattr(problem, "jacobian_factor") else r_factor(J)
@@ -216,6 +245,7 @@ def robust_weights(residuals: np.ndarray, loss: str, f_scale: float) -> np.ndarr
     return np.ones_like(z)
 
 
+@checked(solution=is_a(Solution))
 @one_blas_thread
 def covariance(solution: Solution) -> Covariance:
     """The estimates' covariance at the solution.
@@ -226,6 +256,15 @@ def covariance(solution: Solution) -> Covariance:
     stated (or default) noise of one kind is off. With a robust loss W holds each residual's weight
     (``robust_weights``), so outliers neither move nor widen it. Columns mix metres, radians and
     rad/(N m): the normal matrix is inverted in unit-column scaling.
+
+    Parameters
+    ----------
+    {solution}
+
+    Returns
+    -------
+    Covariance
+        Covariance, standard deviations and correlations of the estimate.
     """
     J, r = solution.jacobian, solution.residuals
     w = robust_weights(r, solution.loss, solution.f_scale) if solution.f_scale else np.ones_like(r)

@@ -128,6 +128,16 @@ def unit_vector(v: np.ndarray) -> np.ndarray:
     return v / np.linalg.norm(v)
 
 
+def vector3(v) -> tuple[float, float, float]:
+    """The three components of ``v`` as a tuple of floats (a record's point or direction).
+
+    >>> vector3(np.array([1, 2, 3]))
+    (1.0, 2.0, 3.0)
+    """
+    x, y, z = (float(c) for c in v)
+    return x, y, z
+
+
 def matrix_tuple(R) -> tuple:
     """A 3x3 matrix as the nested tuple of floats the frozen model records hold."""
     return tuple(tuple(float(v) for v in row) for row in R)

@@ -34,7 +34,8 @@ def parse_units(text: str, *, source: str | None = None, where: str | None = "un
     """
     parts = str(text).strip().split("-")
     if len(parts) != 2:
-        raise InputError(f"units must look like 'mm-deg' (length-angle), got {excerpt(text)}", source=source, where=where)
+        raise InputError(f"units must look like 'mm-deg' (length-angle), got {excerpt(text)}", source=source,
+                         where=where)
     length, angle = parts
     check_unit(length, "length", source=source, where=where)
     check_unit(angle, "angle", source=source, where=where)

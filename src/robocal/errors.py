@@ -5,8 +5,16 @@
 ``RobocalWarning``.
 """
 
-from ._errors import (CheckWarning, ConvergenceWarning, DegenerateDataError, IdentifiabilityWarning, InputError, MisfitWarning,
-                      RobocalError, RobocalWarning)
+from ._errors import (
+    CheckWarning,
+    ConvergenceWarning,
+    DegenerateDataError,
+    IdentifiabilityWarning,
+    InputError,
+    MisfitWarning,
+    RobocalError,
+    RobocalWarning,
+)
 
 __all__ = ["RobocalError", "InputError", "DegenerateDataError", "RobocalWarning", "CheckWarning", "ConvergenceWarning",
            "MisfitWarning", "IdentifiabilityWarning"]

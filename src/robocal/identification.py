@@ -3,20 +3,44 @@ and Jacobian of a model on a set of poses), the identifiability analysis, the so
 covariance that ``calibrate`` runs, and the checks it records (docs/checks.md); the same for
 joint-only contacts (sockets, planes, ball bars, known distances), alone or with a tracker."""
 
-from ._calibration import (CalibrationResult, Comparison, ErrorStats, ErrorSummary, LimitJudgement, ParameterEstimate,
-                           calibrate, compare, error_stats, register_base)
+from ._calibration import (
+    CalibrationResult,
+    Comparison,
+    ErrorStats,
+    ErrorSummary,
+    LimitJudgement,
+    ParameterEstimate,
+    calibrate,
+    compare,
+    error_stats,
+    register_base,
+)
 from ._checks import Check, outlier_bar, outlier_check, verdict
-from ._contact_calibration import (ContactCalibration, ContactErrors, ContactIdentifiability, Unreachable,
-                                   calibrate_contacts, contact_errors, contact_identifiability)
-from ._identifiability import (Absorption, IdentifiabilityResult, analyse, identifiability, status_table,
-                               weakly_identifiable)
+from ._contact_calibration import (
+    ContactCalibration,
+    ContactErrors,
+    ContactIdentifiability,
+    Unreachable,
+    calibrate_contacts,
+    contact_errors,
+    contact_identifiability,
+)
+from ._identifiability import (
+    Absorption,
+    IdentifiabilityResult,
+    analyse,
+    identifiability,
+    status_table,
+    weakly_identifiable,
+)
 from ._measurements import Noise
 from ._observations import ROW_KINDS, ContactProblem
 from ._problem import Problem, design_problem
 from ._solve import Covariance, Solution, covariance, solve
 
 __all__ = ["calibrate", "compare", "register_base", "error_stats", "CalibrationResult", "Comparison",
-           "ParameterEstimate", "ErrorStats", "ErrorSummary", "LimitJudgement", "Check", "verdict", "outlier_check", "outlier_bar", "Noise",
+           "ParameterEstimate", "ErrorStats", "ErrorSummary", "LimitJudgement", "Check", "verdict", "outlier_check",
+           "outlier_bar", "Noise",
            "identifiability", "analyse", "weakly_identifiable", "status_table", "Absorption",
            "IdentifiabilityResult", "Problem", "design_problem", "solve", "Solution", "covariance", "Covariance",
            "ContactProblem", "ROW_KINDS", "calibrate_contacts", "contact_identifiability", "contact_errors",

@@ -3,8 +3,13 @@ summaries the command line prints, all pure functions of the result records."""
 
 from ._presentation.html import render_report, write_report
 from ._presentation.plots import PLOTS
-from ._presentation.text import (calibration_summary, checks_lines, comparison_summary, identifiability_summary,
-                                 verdict_line)
+from ._presentation.text import (
+    calibration_summary,
+    checks_lines,
+    comparison_summary,
+    identifiability_summary,
+    verdict_line,
+)
 from ._presentation.units import DISPLAY_UNITS, fmt
 
 __all__ = ["render_report", "write_report", "PLOTS", "calibration_summary", "comparison_summary",

@@ -3,8 +3,7 @@ campaigns with a real robot's imperfections (encoder counts, scatter, instrument
 joint-only campaigns of sockets, planes and ball bars, and the planning of a socket campaign; robots with
 effects beyond the model (elasticity, gear errors, drift, scatter) and their accuracy in use."""
 
-from ._campaign import (RobotImperfections, accuracy_in_use, backlash_sides, measure_campaign,
-                        stored_model)
+from ._campaign import RobotImperfections, accuracy_in_use, backlash_sides, measure_campaign, stored_model
 from ._contact_planning import SocketDesign, SocketPlan, plan_sockets
 from ._contact_simulation import bar_campaign, plane_campaign, plate_placements, reach, socket_campaign
 from ._effects import PRESETS, UnmodelledEffects, attained, measure_real, placement_errors

@@ -4,7 +4,7 @@ with the fixture's known facts (socket spacings, ball-bar lengths, known planes)
     # units: length=mm angle=deg
     # distance: A B 200.000 sigma=0.002
     # bar: bar200 200.000 sigma=0.002
-    # plane: table normal=0,0,1 offset=0 
+    # plane: table normal=0,0,1 offset=0
     # sigma: 0.010
     placement,target,kind,marker,j1,j2,...,sigma
 
@@ -20,10 +20,18 @@ import io
 
 import numpy as np
 
+from .._arguments import (
+    FLAG,
+    PATH,
+    UNIT_SYSTEM,
+    checked,
+    is_a,
+)
 from .._contacts import CONTACT_KINDS, Contacts, KnownDistance, KnownPlane
 from .._errors import InputError
 from .._model import RobotModel
 from .._options import MAX_CONTACTS, MAX_DIRECTIVES, MAX_GROUPS
+from .._spatial import vector3
 from .._units import UNITS, check_unit
 from .measurements import MAX_MAGNITUDE
 from .text import read_text
@@ -59,9 +67,12 @@ def _float(text, what, source, where) -> float:
 class _Facts:
     """What the directives state, SI."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         self.units: dict = {}
-        self.distances, self.planes, self.bars, self.sigma = [], [], {}, None
+        self.distances: list[KnownDistance] = []
+        self.planes: list[KnownPlane] = []
+        self.bars: dict[str, tuple[float, float]] = {}
+        self.sigma: float | None = None
 
     def add(self, name: str, body: str, source: str, where: str) -> None:
         words = body.replace(",", " ").split() if name == "units" else body.split()
@@ -78,7 +89,8 @@ class _Facts:
             if len(words) != 4:
                 raise InputError("expected '# distance: SOCKET SOCKET LENGTH sigma=S'", source=source, where=where)
             s = _options(words[3:], source, where).get("sigma")
-            self.distances.append(KnownDistance(words[0], words[1], self._positive(words[2], "length", mm, source, where),
+            length = self._positive(words[2], "length", mm, source, where)
+            self.distances.append(KnownDistance(words[0], words[1], length,
                                                 self._positive(s, "sigma", mm, source, where)))
         elif name == "bar":
             if len(words) != 3:
@@ -111,11 +123,23 @@ class _Facts:
         if len(n) != 3 or not np.linalg.norm(n) > 0:
             raise InputError("a plane's normal has three components, not all zero", source=source, where=where)
         n = n / np.linalg.norm(n)
-        return KnownPlane(words[0], tuple(float(v) for v in n), _float(opts["offset"], "offset", source, where) * factor)
+        offset = _float(opts["offset"], "offset", source, where) * factor
+        return KnownPlane(words[0], vector3(n), offset)
 
 
+@checked(path=PATH, model=is_a(RobotModel))
 def read_contacts(path, model: RobotModel) -> Contacts:
-    """Read a contact file for ``model`` (its joints and markers name the columns); SI out."""
+    """Read a contact file for ``model`` (its joints and markers name the columns); SI out.
+
+    Parameters
+    ----------
+    {path, model}
+
+    Returns
+    -------
+    Contacts
+        The recordings, SI.
+    """
     text, digest = read_text(path, lines=MAX_CONTACTS + MAX_DIRECTIVES + 1)
     source = str(path)
     facts = _Facts()
@@ -185,7 +209,8 @@ def _rows(rows, header, first_line, model: RobotModel, facts: _Facts, source: st
             raise InputError(f"marker {m!r} is not in the model", source=source, where=f"{where}, column 'marker'")
         q.append([_float(cell[j], f"joint {j}", source, f"{where}, column {j!r}") for j in model.joint_names])
         s = facts.sigma if "sigma" not in col else \
-            _Facts._positive(cell["sigma"], "sigma", facts._length_unit(source, where), source, f"{where}, column 'sigma'")
+            _Facts._positive(cell["sigma"], "sigma", facts._length_unit(source, where), source,
+                             f"{where}, column 'sigma'")
         marker.append(m)
         kind.append(cell["kind"])
         target.append(cell["target"])
@@ -221,8 +246,19 @@ def _known_targets(facts: _Facts, kind, target, source: str) -> None:
             raise InputError(f"plane {p.name!r} is stated but no plane row touches it", source=source)
 
 
+@checked(contacts=is_a(Contacts), model=is_a(RobotModel), units=UNIT_SYSTEM)
 def contacts_to_csv(contacts: Contacts, model: RobotModel, *, units: str = "mm-deg") -> str:
-    """The text of a contact file holding ``contacts`` (SI) in ``units`` ("length-angle")."""
+    """The text of a contact file holding ``contacts`` (SI) in ``units`` ("length-angle").
+
+    Parameters
+    ----------
+    {contacts, model, units}
+
+    Returns
+    -------
+    str
+        The CSV text.
+    """
     from .._units import unit_factors
 
     f = unit_factors(units)
@@ -243,8 +279,18 @@ def contacts_to_csv(contacts: Contacts, model: RobotModel, *, units: str = "mm-d
     return "\n".join(out) + "\n" + buf.getvalue()
 
 
+@checked(contacts=is_a(Contacts), path=PATH, model=is_a(RobotModel), units=UNIT_SYSTEM, force=FLAG)
 def write_contacts(contacts: Contacts, path, model: RobotModel, *, units: str = "mm-deg", force: bool = False) -> None:
-    """Write ``contacts`` as a contact file (refuses to overwrite unless ``force``)."""
+    """Write ``contacts`` as a contact file (refuses to overwrite unless ``force``).
+
+    Parameters
+    ----------
+    {contacts, path, model, units, force}
+
+    Returns
+    -------
+    None
+    """
     from .text import write_texts
 
     write_texts({path: contacts_to_csv(contacts, model, units=units)}, force=force)

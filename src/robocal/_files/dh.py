@@ -10,14 +10,26 @@ import csv
 import io
 import math
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
+from .._arguments import (
+    FLAG,
+    PATH,
+    POSITIVE_OR_INF,
+    TEXT,
+    UNIT_SYSTEM,
+    checked,
+    is_a,
+    one_of,
+    optional,
+)
 from .._conversion import MDH_TABLE_KINDS, from_standard_dh, mdh_table, to_standard_dh
 from .._errors import InputError
 from .._model import Frame, Marker, RobotModel, parallel_beta_frames, serial_model
 from .._options import MAX_FRAMES, MAX_MARKERS, MAX_MODEL_BYTES
-from .._spatial import matrix_rpy, matrix_tuple, pose4, rpy_matrix
+from .._spatial import matrix_rpy, matrix_tuple, pose4, rpy_matrix, vector3
 from .._units import UNITS, parse_units, unit_factors, unit_kind
 from .text import read_text, write_texts
 
@@ -58,17 +70,29 @@ def _csv(rows: list[dict]) -> str:
     return buf.getvalue()
 
 
+@checked(model=is_a(RobotModel), units=UNIT_SYSTEM)
 def mdh_csv(model: RobotModel, *, units: str = "mm-deg") -> str:
     """The CSV text of the modified-DH table: :func:`mdh_table` per frame with each reading's
-    limits on the first frame it drives alone, then the base and marker rows."""
+    limits on the first frame it drives alone, then the base and marker rows.
+
+    Parameters
+    ----------
+    {model, units}
+
+    Returns
+    -------
+    str
+        The CSV text.
+    """
     names = dict(zip(("length", "angle"), parse_units(units)))
     factors = unit_factors(units)
-    first = {}
+    first: dict[int, int] = {}
     for i, f in enumerate(model.frames):
         if len(f.coupling) == 1 and f.coupling[0][1] == 1.0:
             first.setdefault(f.coupling[0][0], i)
     owner = {i: k for k, i in first.items()}
-    rows = [{**row, **_limits(model, owner.get(i), names, factors)} for i, row in enumerate(mdh_table(model, units=units))]
+    rows = [{**row, **_limits(model, owner.get(i), names, factors)}
+            for i, row in enumerate(mdh_table(model, units=units))]
     rows.insert(0, {"frame": "base", "parent": "world", "joint": "base", **_placement(model.X_WB, names, factors)})
     for mk in model.markers:
         rows.append({"frame": mk.name, "parent": model.frames[mk.frame].name, "joint": "marker",
@@ -76,14 +100,35 @@ def mdh_csv(model: RobotModel, *, units: str = "mm-deg") -> str:
     return _csv(rows)
 
 
+@checked(model=is_a(RobotModel), path=PATH, units=UNIT_SYSTEM, force=FLAG)
 def write_mdh_csv(model: RobotModel, path, *, units: str = "mm-deg", force: bool = False) -> None:
-    """Write :func:`mdh_csv`, atomically; full float precision."""
+    """Write :func:`mdh_csv`, atomically; full float precision.
+
+    Parameters
+    ----------
+    {model, path, units, force}
+
+    Returns
+    -------
+    None
+    """
     write_texts({path: mdh_csv(model, units=units)}, force=force)
 
 
+@checked(model=is_a(RobotModel), units=UNIT_SYSTEM, max_offset=optional(POSITIVE_OR_INF))
 def dh_csv(model: RobotModel, *, units: str = "mm-deg", max_offset: float | None = None) -> str:
     """The CSV text of the classic DH table of ``model`` (:func:`to_standard_dh`, which refuses
-    where nearly parallel axes make it ill-conditioned)."""
+    where nearly parallel axes make it ill-conditioned).
+
+    Parameters
+    ----------
+    {model, units, max_offset}
+
+    Returns
+    -------
+    str
+        The CSV text of the classic DH table.
+    """
     names = dict(zip(("length", "angle"), parse_units(units)))
     factors = unit_factors(units)
     dh = to_standard_dh(model, max_offset=max_offset)
@@ -102,10 +147,11 @@ def dh_csv(model: RobotModel, *, units: str = "mm-deg", max_offset: float | None
 class _Table:
     """The rows of a DH table file as SI numbers by column base name, with the file named in errors."""
 
-    def __init__(self, path):
+    def __init__(self, path) -> None:
         self.source = str(path)
         text, _ = read_text(path, limit=MAX_MODEL_BYTES)
-        numbered = [(i, ln) for i, ln in enumerate(text.splitlines(), 1) if ln.strip() and not ln.lstrip().startswith("#")]
+        numbered = [(i, ln) for i, ln in enumerate(text.splitlines(), 1)
+                    if ln.strip() and not ln.lstrip().startswith("#")]
         self.convention = None  # a '# convention: classic' line before the header
         for i, ln in enumerate(text.splitlines()[:numbered[0][0] - 1 if numbered else 0], 1):
             body = ln.lstrip().lstrip("#").strip()
@@ -200,6 +246,7 @@ def _convention(text: str, source: str | None, where: str) -> str:
     return text
 
 
+@checked(path=PATH, name=optional(TEXT), convention=optional(one_of(CONVENTIONS)))
 def read_dh_table(path, *, name: str | None = None, convention: str | None = None) -> RobotModel:
     """A model from a DH table file: robocal's modified DH (the columns :func:`mdh_csv` writes:
     frame, beta, alpha, d, theta, r, ...), or a table of theta, d, a, alpha.
@@ -248,7 +295,7 @@ def _classic(table: _Table, name: str) -> RobotModel:
                              where=table.where(line, "joint"))
         rows.append({"name": jname, "joint": kind, **{k: table.get(line, row, k) for k, _ in DH_KINDS}})
         limits.append(table.limits(line, row, kind))
-    mk = [(mname, X[:3, 3], X[:3, :3]) for mname, X in
+    mk: list[tuple] = [(mname, X[:3, 3], X[:3, :3]) for mname, X in
           ((m, table.placement(line, row)) for line, row, m in markers)] or [("tool", (0.0, 0.0, 0.0))]
     model = from_standard_dh(rows, name=name, markers=mk, base=base, joint_limits=limits)
     return model.replace(description=f"imported from the classic DH table {table.source}")
@@ -267,7 +314,7 @@ def _craig(table: _Table, name: str) -> RobotModel:
                          base_position=X_WB[:3, 3], base_rotation=X_WB[:3, :3],
                          description=f"imported from the modified (Craig) DH table {table.source}")
     last = len(model.frames) - 1
-    mk = [Marker(m, last, tuple(float(v) for v in X[:3, 3]), matrix_tuple(X[:3, :3]))
+    mk = [Marker(m, last, vector3(X[:3, 3]), matrix_tuple(X[:3, :3]))
           for m, X in ((m, table.placement(line, row)) for line, row, m in markers)]
     return model.replace(markers=tuple(mk)) if mk else model
 
@@ -283,7 +330,7 @@ def _modified(table: _Table, name: str) -> RobotModel:
         if parent not in ("base", *frame_names[:i]):
             raise InputError(f"parent {parent!r} is not 'base' or an earlier frame", source=table.source,
                              where=table.where(line, "parent"))
-        coupling = []
+        coupling: list[tuple[int, float]] = []
         if kind != "fixed":
             for term in filter(None, (t.strip() for t in table.word(line, row, "reading").split("+"))):
                 coef, _, reading = term.rpartition("*")
@@ -300,7 +347,7 @@ def _modified(table: _Table, name: str) -> RobotModel:
             if not coupling:
                 raise InputError("a moving frame needs a reading", source=table.source,
                                  where=table.where(line, "reading"))
-        values = {k: table.get(line, row, k, 0.0) for k in MDH_TABLE_KINDS}
+        values: dict[str, Any] = {k: table.get(line, row, k, 0.0) for k in MDH_TABLE_KINDS}
         frames.append(Frame(name=fname, joint=kind, parent=-1 if parent == "base" else frame_names.index(parent),
                             coupling=tuple(coupling), **values))
     said = ["has_beta" in table.text and table.word(line, row, "has_beta").lower() == "true"
@@ -314,10 +361,10 @@ def _modified(table: _Table, name: str) -> RobotModel:
             raise InputError(f"marker parent {parent!r} is not a frame", source=table.source,
                              where=table.where(line, "parent"))
         X = table.placement(line, row)
-        mk.append(Marker(mname, frame_names.index(parent), tuple(float(v) for v in X[:3, 3]), matrix_tuple(X[:3, :3])))
+        mk.append(Marker(mname, frame_names.index(parent), vector3(X[:3, 3]), matrix_tuple(X[:3, :3])))
     X_WB = np.eye(4) if base is None else base
     return RobotModel(name=name, frames=tuple(frames), joint_names=tuple(readings),
                       joint_limits=tuple(limits.get(r, (-math.pi, math.pi)) for r in readings),
                       markers=tuple(mk) or (Marker("tool", len(frames) - 1),),
-                      base_position=tuple(float(v) for v in X_WB[:3, 3]), base_rotation=matrix_tuple(X_WB[:3, :3]),
+                      base_position=vector3(X_WB[:3, 3]), base_rotation=matrix_tuple(X_WB[:3, :3]),
                       description=f"imported from the modified DH table {table.source}")

@@ -17,13 +17,34 @@ from dataclasses import replace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from .._arguments import (
+    FLAG,
+    PATH,
+    SEQUENCE,
+    TEXT,
+    UNIT_SYSTEM,
+    checked,
+    is_a,
+    optional,
+)
 from .._errors import InputError, excerpt, suggest
 from .._measurements import Measurements, approach_sides
 from .._model import RobotModel
 from .._options import MAX_POSES, POSES_PER_GB
 from .._units import ANGLE_UNITS, LENGTH_UNITS, UNITS, check_unit, parse_units
 from .profile import Profile, read_profile
-from .table import Table, Unfit, decimal_hint, join_tables, map_columns, read_columns, read_head, read_table, scan_rows
+from .table import (
+    ColumnMap,
+    Table,
+    Unfit,
+    decimal_hint,
+    join_tables,
+    map_columns,
+    read_columns,
+    read_head,
+    read_table,
+    scan_rows,
+)
 from .text import check_rows, read_text, write_texts
 
 RESERVED = ("pose", "set", "series", "payload_kg")
@@ -258,6 +279,10 @@ def _comment_units(text: str, source: str, line: int) -> dict:
     return out
 
 
+@checked(path=PATH, model=optional(is_a(RobotModel)), units=optional(UNIT_SYSTEM), sep=optional(TEXT),
+         decimal=optional(TEXT), orientation=optional(TEXT), columns=optional(is_a(dict, ColumnMap)),
+         unknown=optional(TEXT), joints=optional(PATH), key=optional(TEXT),
+         profile=optional(is_a(str, os.PathLike, Profile)), targets=FLAG, header=optional(SEQUENCE))
 def read_measurements(path, model: RobotModel | None = None, *, units: str | None = None, sep: str | None = None,
                       decimal: str | None = None, orientation: str | None = None, columns=None,
                       unknown: str | None = None, joints=None, key: str | None = None,
@@ -276,6 +301,27 @@ def read_measurements(path, model: RobotModel | None = None, *, units: str | Non
     not measurements: marker columns may be absent or empty (positions NaN there). ``header``:
     the column names of a file without a header line (a sequence of names; a profile's ``header``).
     A ``series`` column (any text per pose: a series, a fold) is kept in ``extra["series"]``.
+
+    Parameters
+    ----------
+    {path}
+    model : RobotModel, optional
+        The model the file measures (gives joint order and units).
+    units : str, optional
+        Units of columns without a suffix, ``"mm-deg"`` etc.
+    {sep, decimal}
+    orientation : str, optional
+        Convention of the orientation columns (``quat_xyzw``, ``quat_wxyz``, ``rpy``, ``euler:XYZ``,
+        ...).
+    {columns, unknown, joints, key, profile}
+    targets : bool
+        Read targets, not measurements: marker columns may be absent or empty.
+    {header}
+
+    Returns
+    -------
+    Measurements
+        The measurements, SI.
     """
     source = str(path)
     prof = _profile(profile)
@@ -292,7 +338,7 @@ def read_measurements(path, model: RobotModel | None = None, *, units: str | Non
     if fast is not None:
         (data, table, cols), other = fast, None
     else:
-        table, other, digest = _read_rows(path, joints, source, opts)
+        table, other, digest = _read_rows(path, joints, source, opts, model)
         cols = _columns(table, source, declared, orient, opts, model, targets)
         if not table.rows:
             raise InputError("no data rows after the header", source=source)
@@ -313,21 +359,25 @@ def _size(path) -> int:
         return 0
 
 
-def _read_rows(path, joints, source: str, opts: dict):
-    """The file's table, read row by row (joined with the joint file's), the joint file's table and
-    the SHA-256 of the file's bytes."""
+def _read_rows(path, joints, source: str, opts: dict, model=None):
+    """The file's table, read row by row (joined with the joint file's, or a robot program's joint
+    targets: ``model`` says their units), the joint file's table and the SHA-256 of the file's bytes."""
     text, digest = read_text(path)
     table = map_columns(read_table(text, source, sep=opts["sep"], decimal=opts["decimal"], header=opts["header"]),
                         opts["columns"])
     other = None
     if joints is not None:
-        other = map_columns(read_table(read_text(joints)[0], str(joints), sep=opts["sep"], decimal=opts["decimal"]),
-                            opts["columns"])
+        # joint readings logged as controller code: a robot program's joint targets
+        from .programs import is_program, program_joint_table
+
+        raw = program_joint_table(joints, model, opts["key"] or "pose") if is_program(joints) else \
+            read_table(read_text(joints)[0], str(joints), sep=opts["sep"], decimal=opts["decimal"])
+        other = map_columns(raw, opts["columns"])
         table = join_tables(table, other, opts["key"] or "pose")
     return table, other, digest
 
 
-def _columns(table: Table, source: str, declared: dict, orient, opts: dict, model, targets: bool) -> "_Columns":
+def _columns(table: Table, source: str, declared: dict, orient, opts: dict, model, targets: bool) -> _Columns:
     """What each column of ``table`` holds, with the units and orientation its comment lines declare."""
     declared = dict(declared)
     comment_units, comment_orient, orient_text = _directives(table)
@@ -399,7 +449,7 @@ def _summed(parts: list) -> np.ndarray:
     return total
 
 
-def _used_columns(cols: "_Columns") -> list[int]:
+def _used_columns(cols: _Columns) -> list[int]:
     """The columns of the mapped table that the reader reads (unknown ones ignored are not)."""
     used = [k for k, _ in cols.joint_cols.values()] + list(cols.special.values()) + list(cols.approach_cols.values())
     used += [k for mc in cols.marker_cols.values() for k, _ in mc.values()]
@@ -459,7 +509,7 @@ def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str, ta
             raise InputError(f"{len(row)} cells where the header has {width} columns",
                              source=source, where=f"line {line}")
 
-        def num(k, *, required=True):
+        def num(k, *, required=True, row=row, line=line):
             return _number(row[k], decimal, source, line, cols.names[k], required)
 
         for j, jn in enumerate(cols.joint_names):
@@ -484,6 +534,7 @@ def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str, ta
         if payload is not None:
             payload[i] = num(cols.special["payload_kg"])
         for j, jn in enumerate(cols.joint_names if approach is not None else ()):
+            assert approach is not None
             approach[i, j] = num(cols.approach_cols[jn])
             if approach[i, j] not in (-1.0, 1.0):
                 raise InputError(f"an approach direction is +1 or -1, got {row[cols.approach_cols[jn]]!r}",
@@ -500,7 +551,7 @@ def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str, ta
         labels.append(label or f"line {line}")
     if not targets and not np.any(np.isfinite(pos)):
         raise InputError("no marker position in any row", source=source)
-    extra = {"joint_kinds": tuple(cols.joint_kinds)}
+    extra: dict[str, object] = {"joint_kinds": tuple(cols.joint_kinds)}
     if "set" in cols.special:
         extra["validation"] = validation
     if "series" in cols.special:
@@ -564,7 +615,7 @@ def _parse_columns(arrays: dict, cols: _Columns, scan, source: str, targets: boo
         tuple(label or f"line {i + scan.first_line}" for i, label in enumerate(given))
     if not targets and not np.any(np.isfinite(pos)):
         raise Unfit
-    extra = {"joint_kinds": tuple(cols.joint_kinds)}
+    extra: dict[str, object] = {"joint_kinds": tuple(cols.joint_kinds)}
     if "set" in cols.special:
         value = arrays[cols.special["set"]]
         if not {v.lower() for v in set(value)} <= set(SETS):
@@ -673,9 +724,20 @@ def _rotation(kind, seq, vals, source, line, column) -> np.ndarray:
     return Rotation.from_euler("xyz" if kind == "rpy" else seq, vals).as_matrix()
 
 
+@checked(data=is_a(Measurements))
 def split_sets(data: Measurements) -> tuple[Measurements, Measurements | None]:
     """(fit, validation) from a file's ``set`` column; (data, None) without one. Both keep the
-    approach directions of the file's visiting order (``Measurements.with_approach``)."""
+    approach directions of the file's visiting order (``Measurements.with_approach``).
+
+    Parameters
+    ----------
+    {data}
+
+    Returns
+    -------
+    (Measurements, Measurements or None)
+        The fit poses and the held-out poses (None: no ``set`` column).
+    """
     flags = data.extra.get("validation")
     if flags is None:
         return data, None
@@ -693,10 +755,26 @@ def split_sets(data: Measurements) -> tuple[Measurements, Measurements | None]:
     return fit, part(flags)
 
 
+@checked(data=is_a(Measurements), model=optional(is_a(RobotModel)), units=UNIT_SYSTEM, orientation=TEXT)
 def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, units: str = "mm-deg",
                         orientation: str = "quat_xyzw") -> str:
     """The CSV text of ``data``: every column carries its unit; orientations in the convention
-    ``orientation`` (quaternions, whose columns need no unit, or angles in the angle unit)."""
+    ``orientation`` (quaternions, whose columns need no unit, or angles in the angle unit).
+
+    Parameters
+    ----------
+    {data}
+    model : RobotModel, optional
+        The model (gives each joint's unit).
+    {units}
+    orientation : str
+        Convention of the written orientation columns.
+
+    Returns
+    -------
+    str
+        The CSV text.
+    """
     kind, seq = parse_orientation(orientation)
     orientation = orientation.strip()
     rot_parts = ("qw", "qx", "qy", "qz") if orientation == "quat_wxyz" else ORIENTATION_PARTS[kind]
@@ -708,9 +786,9 @@ def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, 
             if data.joint_names else list(model.reading_quantities)
         joint_names = data.joint_names or model.joint_names
     else:
-        kinds = data.extra.get("joint_kinds")
+        kinds = list(data.extra.get("joint_kinds") or ())
         joint_names = data.joint_names
-        if kinds is None or not joint_names:
+        if not kinds or not joint_names:
             raise InputError("the joint types are unknown: pass the model so each joint's unit is known",
                              where="model")
     header = ["pose"]
@@ -739,9 +817,10 @@ def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, 
         buf.write(f"# orientation: {orientation}\n")
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(header)
-    rots = None
-    if has_rot:
-        R = Rotation.from_matrix(np.where(data.rot_mask[..., None, None], data.rotations, np.eye(3)).reshape(-1, 3, 3))
+    rots = np.zeros((data.n_poses, len(data.marker_names), 0))
+    rmask = data.rot_mask if data.rot_mask is not None else np.zeros(data.mask.shape, dtype=bool)
+    if data.rotations is not None:
+        R = Rotation.from_matrix(np.where(rmask[..., None, None], data.rotations, np.eye(3)).reshape(-1, 3, 3))
         if kind == "quat":
             rots = R.as_quat()                  # (x, y, z, w); scalar_first needs scipy 1.14
             if orientation == "quat_wxyz":
@@ -758,7 +837,7 @@ def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, 
             if data.sigma is not None:
                 row.append(fmt(data.sigma[i, m], L) if seen else "")
             if has_rot:
-                rseen = data.rot_mask[i, m]
+                rseen = rmask[i, m]
                 row += [fmt(v) if rseen else "" for v in rots[i, m]]
                 if data.sigma_rot is not None:
                     row.append(fmt(data.sigma_rot[i, m], A) if rseen else "")
@@ -774,11 +853,25 @@ def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, 
     return buf.getvalue()
 
 
+@checked(data=is_a(Measurements), path=PATH, units=UNIT_SYSTEM, force=FLAG, model=optional(is_a(RobotModel)),
+         orientation=TEXT)
 def write_measurements(data: Measurements, path, *, units: str = "mm-deg", force: bool = False,
                        model: RobotModel | None = None, orientation: str = "quat_xyzw") -> None:
     """Write ``data`` as a measurement CSV in ``units``, atomically; refuse to overwrite unless ``force``.
 
     Joint units follow each joint's type, from ``model`` or from the file the data were read from.
     ``orientation``: how orientations are written (``quat_xyzw``, ``quat_wxyz``, ``rpy``, ``euler:SEQ``).
+
+    Parameters
+    ----------
+    {data, path, units, force}
+    model : RobotModel, optional
+        The model (gives each joint's unit).
+    orientation : str
+        Convention of the written orientation columns.
+
+    Returns
+    -------
+    None
     """
     write_texts({path: measurements_to_csv(data, model=model, units=units, orientation=orientation)}, force=force)

@@ -15,18 +15,37 @@ import numpy as np
 import yaml
 from scipy.spatial.transform import Rotation
 
+from .._arguments import (
+    FLAG,
+    MAPPING,
+    PATH,
+    TEXT,
+    UNIT_SYSTEM,
+    checked,
+    is_a,
+    optional,
+)
+from .._calibration import CalibrationResult
 from .._errors import InputError, excerpt, suggest
+from .._model import (
+    DEFAULT_PARALLEL_TOL,
+    JOINT_TYPES,
+    Frame,
+    Marker,
+    Payload,
+    RobotModel,
+    parallel_beta_frames,
+    placement_parameters,
+)
+from .._options import BACKLASH_SIDES, MAX_MODEL_BYTES
+from .._parameters import KIND_QUANTITY
+from .._spatial import nearest_rotation, pose4, vector3
 from .._units import ANGLE_UNITS, LENGTH_UNITS, check_unit, parse_units
 from .text import load_yaml, read_text, write_texts
-from .._parameters import KIND_QUANTITY
-from .._options import BACKLASH_SIDES, MAX_MODEL_BYTES
-from .._model import (DEFAULT_PARALLEL_TOL, JOINT_TYPES, Frame, Marker, Payload, RobotModel,
-                     parallel_beta_frames, placement_parameters)
-from .._spatial import nearest_rotation, pose4
 
 FORMAT_VERSION = 1
 # the file key is the frame's attribute; its quantity says which unit scales it
-FRAME_VALUES = {k: KIND_QUANTITY[k] for k in ("beta", "alpha", "d", "theta", "r", "gamma", "b")}
+FRAME_VALUES: dict[str, str | None] = {k: KIND_QUANTITY[k] for k in ("beta", "alpha", "d", "theta", "r", "gamma", "b")}
 FRAME_VALUES.update({"mass": None, "k_theta": None, "k_alpha": None, "k_beta": None})
 # backlash: half the lost motion (the model's units), the load friction holds and the transition's
 # width (N m on a revolute frame, N on a prismatic one, always SI); written where they differ from
@@ -100,6 +119,9 @@ class _Reader:
             raise self.error(where, f"expected {n} numbers, got {len(seq)}")
         return tuple(self.number(v, f"{where}[{i}]") * scale for i, v in enumerate(seq))
 
+    def point(self, value, where: str, scale: float = 1.0) -> tuple[float, float, float]:
+        return vector3(self.vector(value, where, 3, scale))
+
     def name(self, value, where: str) -> str:
         if not isinstance(value, str) or not value.strip():
             raise self.error(where, f"expected a name (text), got {_show(value)}")
@@ -134,7 +156,8 @@ class _Reader:
             raise self.error(where, "a reflection (determinant -1), not a rotation: check the signs")
         if deviation > ROTATION_TOLERANCE:
             raise self.error(where, f"not a rotation matrix: an entry is {deviation:.2g} from the nearest rotation; "
-                                    f"printed matrices are accepted within {ROTATION_TOLERANCE} (and re-orthonormalised)")
+                                    f"printed matrices are accepted within {ROTATION_TOLERANCE} "
+                                    "(and re-orthonormalised)")
         if deviation > 1e-9:
             self.notes.append(f"{where}: re-orthonormalised (the largest entry moved by {deviation:.1e})")
         return R
@@ -148,8 +171,21 @@ def _show(value) -> str:
     return excerpt(value)
 
 
+@checked(source=TEXT)
 def model_from_dict(d: dict, *, source: str = "<dict>") -> RobotModel:
-    """A RobotModel (SI) from the parsed model file ``d`` (docs/formats.md)."""
+    """A RobotModel (SI) from the parsed model file ``d`` (docs/formats.md).
+
+    Parameters
+    ----------
+    d : dict
+        A model as ``model_to_dict`` gives it (the parsed YAML file).
+    {source}
+
+    Returns
+    -------
+    RobotModel
+        The model.
+    """
     rd = _Reader(source)
     L, A = _units_of(rd, d)
     name = d.get("name", Path(source).stem)
@@ -165,14 +201,15 @@ def model_from_dict(d: dict, *, source: str = "<dict>") -> RobotModel:
     if d.get("base") is not None:
         base = rd.mapping(d["base"], "base", ("position", "rotation"))
         if "position" in base:
-            base_position = rd.vector(base["position"], "base.position", 3, L)
+            base_position = rd.point(base["position"], "base.position", L)
         if "rotation" in base:
             base_rotation = rd.rotation(base["rotation"], "base.rotation", A)
-    gravity = rd.vector(d["gravity"], "gravity", 3) if "gravity" in d else (0.0, 0.0, -9.81)
+    gravity = rd.point(d["gravity"], "gravity") if "gravity" in d else (0.0, 0.0, -9.81)
     payloads = _payloads(rd, d.get("payload"), frame_names, L)
     tolerances = _tolerances(rd, d.get("tolerances"), L, A)
     if d.get("calibration") is not None:
-        rd.mapping(d["calibration"], "calibration", ("verdict", "failed", "warned", "date"))
+        rd.mapping(d["calibration"], "calibration", ("verdict", "failed", "warned", "date", "data", "poses",
+                                                      "families", "nominal"))
     try:
         return RobotModel(name=str(name), frames=tuple(frames), joint_names=tuple(joint_names),
                           joint_limits=tuple(limits), markers=tuple(markers), base_position=base_position,
@@ -246,7 +283,7 @@ def _frame(rd: _Reader, item, where: str, i: int, earlier: list[Frame], joint_na
     values = {k: rd.number(item[k], f"{where}.{k}") * (L if u == "length" else A if u == "angle" else 1.0)
               for k, u in FRAME_VALUES.items() if k in item}
     values.update(_placement(rd, item, where, joint, L, A))
-    com = rd.vector(item["com"], f"{where}.com", 3, L) if "com" in item else (0.0, 0.0, 0.0)
+    com = rd.point(item["com"], f"{where}.com", L) if "com" in item else (0.0, 0.0, 0.0)
     hb = item.get("has_beta", "auto")
     if hb not in (True, False, "auto"):
         raise rd.error(f"{where}.has_beta", f"expected auto, true or false, got {_show(hb)}")
@@ -264,9 +301,10 @@ def _placement(rd: _Reader, item: dict, where: str, joint: str, L: float, A: flo
                                               "frame's placement is its DH values (alpha, d, theta, r...)")
     both = [k for k in PLACEMENT_KEYS if k in item]
     if both:
-        raise rd.error(f"{where}.{both[0]}", f"give the placement either as position/rotation or as {', '.join(PLACEMENT_KEYS)}, "
+        raise rd.error(f"{where}.{both[0]}",
+                       f"give the placement either as position/rotation or as {', '.join(PLACEMENT_KEYS)}, "
                                              "not both")
-    p = rd.vector(item["position"], f"{where}.position", 3, L) if "position" in item else (0.0, 0.0, 0.0)
+    p = rd.point(item["position"], f"{where}.position", L) if "position" in item else (0.0, 0.0, 0.0)
     R = rd.rotation(item["rotation"], f"{where}.rotation", A) if "rotation" in item else IDENTITY
     return placement_parameters(pose4(np.asarray(R), p))
 
@@ -304,9 +342,12 @@ def _markers(rd: _Reader, value, frame_names: list[str], L: float, A: float) -> 
             raise rd.error(f"{where}.name", f"marker {mn!r} is named twice (also markers[{marker_names.index(mn)}])")
         marker_names.append(mn)
         fi = _frame_ref(rd, item["frame"], f"{where}.frame", frame_names)
-        pos = rd.vector(item["position"], f"{where}.position", 3, L) if "position" in item else (0.0, 0.0, 0.0)
-        rot = rd.rotation(item["rotation"], f"{where}.rotation", A) if "rotation" in item else IDENTITY
-        markers.append(Marker(mn, fi, pos, rot))
+        pos = rd.point(item["position"], f"{where}.position", L) if "position" in item else (0.0, 0.0, 0.0)
+        # 'rotation: unknown': the tool's orientation is not known; it starts at identity, and a
+        # calibration gives its change no tolerance
+        unknown = item.get("rotation") == "unknown"
+        rot = rd.rotation(item["rotation"], f"{where}.rotation", A) if "rotation" in item and not unknown else IDENTITY
+        markers.append(Marker(mn, fi, pos, rot, rotation_known=not unknown))
     return markers
 
 
@@ -335,7 +376,7 @@ def _payload(rd: _Reader, value, where: str, frame_names: list[str], L: float) -
     pl = rd.mapping(value, where, ("mass", "com", "frame"))
     return Payload(
         mass=rd.number(pl["mass"], f"{where}.mass") if "mass" in pl else 0.0,
-        com=rd.vector(pl["com"], f"{where}.com", 3, L) if "com" in pl else (0.0, 0.0, 0.0),
+        com=rd.point(pl["com"], f"{where}.com", L) if "com" in pl else (0.0, 0.0, 0.0),
         frame=_frame_ref(rd, pl["frame"], f"{where}.frame", frame_names) if "frame" in pl else -1)
 
 
@@ -417,8 +458,19 @@ def _coupling(rd: _Reader, item: dict, where: str, fname: str, joint: str, joint
     return ((free[0], 1.0),)
 
 
+@checked(path=PATH)
 def read_model(path) -> RobotModel:
-    """Read a model file (docs/formats.md) into a RobotModel in SI units."""
+    """Read a model file (docs/formats.md) into a RobotModel in SI units.
+
+    Parameters
+    ----------
+    {path}
+
+    Returns
+    -------
+    RobotModel
+        The model.
+    """
     source = str(path)
     d = load_yaml(read_text(path, limit=MAX_MODEL_BYTES)[0], source)
     if d is None:
@@ -426,11 +478,22 @@ def read_model(path) -> RobotModel:
     return model_from_dict(d, source=source)
 
 
+@checked(model=is_a(RobotModel), units=UNIT_SYSTEM, calibration=optional(MAPPING))
 def model_to_dict(model: RobotModel, *, units: str = "mm-deg", calibration: dict | None = None) -> dict:
     """The model file form of ``model`` (plain Python types, ready for YAML or JSON).
 
     ``calibration``: what a calibration said of this model (its verdict and the checks that did not
-    pass), written under the key of that name so that nobody mistakes a failed result for a good one.
+    pass), written under the key of that name so that nobody mistakes a failed result for a good one;
+    the description then says the model is calibrated, from what and when (``calibrated_description``).
+
+    Parameters
+    ----------
+    {model, units, calibration}
+
+    Returns
+    -------
+    dict
+        The model as the YAML file holds it.
     """
     lu, au = parse_units(units)
     L, A = LENGTH_UNITS[lu], ANGLE_UNITS[au]
@@ -448,11 +511,11 @@ def model_to_dict(model: RobotModel, *, units: str = "mm-deg", calibration: dict
 
     frames = []
     for i, f in enumerate(model.frames):
-        row = {"name": f.name, "joint": f.joint}
+        row: dict[str, object] = {"name": f.name, "joint": f.joint}
         if len(f.coupling) == 1 and f.coupling[0][1] == 1.0:
             row["reading"] = model.joint_names[f.coupling[0][0]]
         elif f.coupling:
-            c = {}
+            c: dict[str, float] = {}
             for j, coef in f.coupling:
                 c[model.joint_names[j]] = c.get(model.joint_names[j], 0.0) + float(coef)
             row["coupling"] = c
@@ -478,13 +541,16 @@ def model_to_dict(model: RobotModel, *, units: str = "mm-deg", calibration: dict
         row = {"name": mk.name, "frame": model.frames[mk.frame].name, "position": vec(mk.position, scale["length"])}
         if not np.array_equal(np.asarray(mk.rotation), np.eye(3)):
             row["rotation"] = matrix(mk.rotation)  # a matrix keeps a calibrated rotation exact
+        elif not mk.rotation_known:
+            row["rotation"] = "unknown"
         markers.append(row)
     base = {"position": vec(model.base_position, scale["length"])}
     if not np.array_equal(np.asarray(model.base_rotation), np.eye(3)):
         base["rotation"] = matrix(model.base_rotation)
     d = {"robocal_model": FORMAT_VERSION, "name": model.name}
-    if model.description:
-        d["description"] = model.description
+    description = calibrated_description(calibration) if calibration else model.description  # not the nominal's
+    if description:
+        d["description"] = description
     d.update({"units": {"length": lu, "angle": au}, "base": base, "gravity": vec(model.gravity),
               "joints": joints, "frames": frames, "markers": markers})
     payloads = []
@@ -506,28 +572,88 @@ def model_to_dict(model: RobotModel, *, units: str = "mm-deg", calibration: dict
     return d
 
 
+@checked(model=is_a(RobotModel), units=UNIT_SYSTEM, calibration=optional(MAPPING))
 def model_to_yaml(model: RobotModel, *, units: str = "mm-deg", calibration: dict | None = None) -> str:
-    """The model file text (see model_to_dict)."""
+    """The model file text (see model_to_dict).
+
+    Parameters
+    ----------
+    {model, units, calibration}
+
+    Returns
+    -------
+    str
+        The YAML text.
+    """
     return yaml.safe_dump(model_to_dict(model, units=units, calibration=calibration), sort_keys=False,
                           default_flow_style=None, width=110, allow_unicode=True)
 
 
+@checked(model=is_a(RobotModel), path=PATH, units=UNIT_SYSTEM, force=FLAG, calibration=optional(MAPPING))
 def write_model(model: RobotModel, path, *, units: str = "mm-deg", force: bool = False,
                 calibration: dict | None = None) -> None:
     """Write ``model`` as a model file in ``units`` ("mm-deg", "m-rad"...), atomically.
 
     An existing file is an InputError unless ``force``. ``calibration``: what a calibration said of
     the model (see ``model_to_dict``; ``robocal.io.calibration_record(result)`` gives it).
+
+    Parameters
+    ----------
+    {model, path}
+    units : str
+        Units of the written file.
+    {force, calibration}
+
+    Returns
+    -------
+    None
     """
     write_texts({path: model_to_yaml(model, units=units, calibration=calibration)}, force=force)
 
 
+@checked(result=is_a(CalibrationResult))
 def calibration_record(result) -> dict:
     """What a calibrated model file says of its own calibration: the verdict, the date and the checks
-    that did not pass."""
+    that did not pass.
+
+    Parameters
+    ----------
+    {result}
+
+    Returns
+    -------
+    dict
+        The calibration record a model file stores (verdict, checks, date).
+    """
     out = {"verdict": result.verdict, "date": result.provenance.get("date", "")}
+    data = result.provenance.get("data") or {}
+    if data.get("source"):
+        out["data"] = str(data["source"])
+    if data.get("n_poses"):
+        out["poses"] = int(data["n_poses"])
+    out["families"] = list(result.families)
+    out["nominal"] = result.nominal_model.name
     for status, key in (("fail", "failed"), ("warn", "warned")):
         names = [c.name for c in result.checks if c.status == status]
         if names:
             out[key] = names
     return out
+
+
+def calibrated_description(calibration: dict) -> str:
+    """What a calibrated model file says it is, from its ``calibration`` record: calibrated, from
+    which nominal model and data, when, with which verdict (never the nominal model's own words).
+
+    >>> calibrated_description({"verdict": "pass", "date": "2026-01-31", "nominal": "th8",
+    ...                         "families": ["geometric"], "data": "m.csv", "poses": 36})[37:]
+    'geometric parameters identified from 36 poses of m.csv, on 2026-01-31 (verdict: pass)'
+    """
+    what = ", ".join(calibration.get("families") or []) or "its"
+    data = calibration.get("data")
+    poses = calibration.get("poses")
+    source = (f" from {poses} poses of {data}" if poses and data else f" from {data}" if data
+              else f" from {poses} poses" if poses else "")
+    nominal = f"nominal model {calibration['nominal']}, " if calibration.get("nominal") else ""
+    when = f", on {str(calibration['date'])[:10]}" if calibration.get("date") else ""  # the day; the time below
+    return (f"calibrated model: {nominal}{what} parameters identified{source}{when} "
+            f"(verdict: {calibration.get('verdict', 'not recorded')})")

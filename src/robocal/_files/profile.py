@@ -10,6 +10,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from .._arguments import (
+    PATH,
+    TEXT,
+    checked,
+)
 from .._errors import InputError, excerpt, suggest
 from .._options import MAX_MODEL_BYTES
 from .._units import parse_units
@@ -69,8 +74,21 @@ def column_map(columns, *, unknown: str | None = None) -> ColumnMap:
     return ColumnMap(rename, frozenset(ignore), unknown or "refuse")
 
 
+@checked(source=TEXT)
 def profile_from_dict(d, *, source: str = "<dict>") -> Profile:
-    """A Profile from the parsed profile file ``d``."""
+    """A Profile from the parsed profile file ``d``.
+
+    Parameters
+    ----------
+    d : dict
+        A profile as its YAML file holds it.
+    {source}
+
+    Returns
+    -------
+    Profile
+        The profile.
+    """
     def error(where, message):
         return InputError(message, source=source, where=where)
 
@@ -111,8 +129,19 @@ def profile_from_dict(d, *, source: str = "<dict>") -> Profile:
                    header=tuple(c.strip() for c in header) if header is not None else None)
 
 
+@checked(path=PATH)
 def read_profile(path) -> Profile:
-    """Read an instrument profile file (docs/formats.md)."""
+    """Read an instrument profile file (docs/formats.md).
+
+    Parameters
+    ----------
+    {path}
+
+    Returns
+    -------
+    Profile
+        The profile.
+    """
     source = str(path)
     d = load_yaml(read_text(path, limit=MAX_MODEL_BYTES)[0], source)
     return profile_from_dict(d, source=source)

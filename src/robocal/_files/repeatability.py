@@ -8,6 +8,12 @@ import io
 import numpy as np
 
 from .._accuracy_limit import RepeatabilityData
+from .._arguments import (
+    PATH,
+    checked,
+    one_of,
+    optional,
+)
 from .._errors import InputError, excerpt
 from .._options import MAX_HEADER_LINES, MAX_POSES
 from .._units import LENGTH_UNITS
@@ -17,6 +23,7 @@ from .text import check_rows, read_text
 CSV_COLUMNS = ("pose", "cycle", "x", "y", "z")
 
 
+@checked(path=PATH, units=optional(one_of(tuple(LENGTH_UNITS))))
 def read_repeatability_csv(path, *, units: str | None = None) -> RepeatabilityData:
     """Read repeated measurements: columns ``pose, cycle, x, y, z`` (header required, any order,
     further columns ignored). The coordinates' unit is never guessed: it comes from the column
@@ -24,6 +31,17 @@ def read_repeatability_csv(path, *, units: str | None = None) -> RepeatabilityDa
     "m"); a suffix that disagrees with ``units`` is an error. The result is in metres.
 
     Errors name the file and ``row N, column 'c'`` with N the line number in the file (header = 1).
+
+    Parameters
+    ----------
+    {path}
+    units : str, optional
+        Length unit of columns without a suffix (``mm`` or ``m``).
+
+    Returns
+    -------
+    RepeatabilityData
+        Pose ids and points, m.
     """
     if units is not None and units not in LENGTH_UNITS:
         raise InputError(f"units must be one of {', '.join(LENGTH_UNITS)}, got {units!r}", where="units")
@@ -36,8 +54,9 @@ def read_repeatability_csv(path, *, units: str | None = None) -> RepeatabilityDa
             raise InputError("the file is empty; a header pose, cycle, x, y, z is required", source=src)
         names = [h.strip().lower() for h in header]
         col, scale = _repeatability_columns(names, units, src)
-        pose_ids, cycles, points, rows_of = [], [], [], {}
-        seen = {}
+        pose_ids, cycles, points = [], [], []
+        rows_of: dict[str, list[int]] = {}
+        seen: dict[tuple[str, int], int] = {}
         for row in reader:
             if not any(cell.strip() for cell in row):
                 continue
@@ -105,11 +124,12 @@ def _repeatability_columns(names: list[str], units: str | None, src: str) -> tup
         col[c] = i
         if c not in "xyz":
             continue
-        if suffix is None and units is None:
+        unit = suffix if suffix is not None else units
+        if unit is None:
             raise InputError(f"the unit of column {c!r} is not declared: name it {c}_mm or {c}_m, or give the "
                              "units (--csv-units mm|m)", source=src, where="header")
         if suffix is not None and units is not None and suffix != units:
             raise InputError(f"column {names[i]!r} says {suffix} but units {units!r} were given",
                              source=src, where="header")
-        scale[c] = LENGTH_UNITS[suffix or units]
+        scale[c] = LENGTH_UNITS[unit]
     return col, scale

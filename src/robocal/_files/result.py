@@ -14,12 +14,21 @@ import json
 import math
 import zipfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from .._accuracy_limit import AccuracyLimit, PoseRepeatability, PrecisionResult, RepeatabilityResult
-from .._checks import STATUSES, Check
+from .._arguments import (
+    FLAG,
+    PATH,
+    TEXT,
+    checked,
+    is_a,
+    optional,
+)
 from .._calibration import CalibrationResult, ErrorStats, ErrorSummary, LimitJudgement, ParameterEstimate
+from .._checks import STATUSES, Check
 from .._errors import InputError, excerpt
 from .._identifiability import Absorption, IdentifiabilityResult, status_table
 from .._in_use import AccuracyInUse, Coverage, UseStats
@@ -86,9 +95,20 @@ def _array(a):
     return None if a is None else np.where(np.isfinite(a), a, np.nan).tolist()
 
 
+@checked(result=is_a(CalibrationResult), per_pose=FLAG)
 def result_to_dict(result: CalibrationResult, *, per_pose: bool = True) -> dict:
     """The file form of a calibration result (plain Python types); ``per_pose=False`` leaves the
-    per-pose arrays of ``errors`` out (:func:`result_files` puts them in a sidecar file)."""
+    per-pose arrays of ``errors`` out (:func:`result_files` puts them in a sidecar file).
+
+    Parameters
+    ----------
+    {result, per_pose}
+
+    Returns
+    -------
+    dict
+        The result as its JSON file holds it.
+    """
     lim = result.limit
     return {
         "schema": SCHEMA,
@@ -161,7 +181,7 @@ def _in_use(doc: _Doc, d: dict | None) -> AccuracyInUse | None:
         return None
     w = "in_use"
     k = doc.get(d, "k", w, int, optional=True)
-    stats = {key: _use_stats(doc, doc.get(d, key, w, dict, optional=True), f"{w}.{key}")
+    stats: dict[str, Any] = {key: _use_stats(doc, doc.get(d, key, w, dict, optional=True), f"{w}.{key}")
              for key in ("position_before", "position_after", "rotation_before", "rotation_after", "fit_after")}
     for key in ("position_before", "position_after", "fit_after"):
         if stats[key] is None:
@@ -170,17 +190,53 @@ def _in_use(doc: _Doc, d: dict | None) -> AccuracyInUse | None:
                          errors_before=np.zeros(0), errors_after=np.zeros(0), **stats)
 
 
-def result_to_json(result: CalibrationResult) -> str:
-    """The result file text of a CalibrationResult."""
-    return to_json(result_to_dict(result))
+def diagnosis_to_dict(diagnosis) -> dict:
+    """The file form of a ``Diagnosis`` (the ``diagnosis`` key of result.json): residuals in metres."""
+    return {"summary": diagnosis.summary, "rms_m": diagnosis.rms, "tested": list(diagnosis.tested),
+            "findings": [{"hypothesis": f.hypothesis, "cause": f.cause, "evidence": f.evidence, "score": f.score,
+                          "items": list(f.items), "rms_before_m": f.rms_before, "rms_after_m": f.rms_after,
+                          "fix": f.fix} for f in diagnosis.findings]}
 
 
+@checked(result=is_a(CalibrationResult))
+def result_to_json(result: CalibrationResult, diagnosis=None) -> str:
+    """The result file text of a CalibrationResult.
+
+    Parameters
+    ----------
+    {result}
+    diagnosis : Diagnosis, optional
+        Written under the ``diagnosis`` key.
+
+    Returns
+    -------
+    str
+        The JSON text.
+    """
+    d = result_to_dict(result)
+    if diagnosis is not None:
+        d["diagnosis"] = diagnosis_to_dict(diagnosis)
+    return to_json(d)
+
+
+@checked(path=PATH)
 def sidecar_path(path) -> Path:
-    """Where the per-pose arrays of the result file ``path`` go: beside it, ``.npz`` for ``.json``."""
+    """Where the per-pose arrays of the result file ``path`` go: beside it, ``.npz`` for ``.json``.
+
+    Parameters
+    ----------
+    {path}
+
+    Returns
+    -------
+    pathlib.Path
+        The per-pose file beside ``path`` (``.npz``).
+    """
     return Path(path).with_suffix(".npz")
 
 
-def result_files(result: CalibrationResult, path, *, per_pose: bool = True) -> dict:
+@checked(result=is_a(CalibrationResult), path=PATH, per_pose=FLAG)
+def result_files(result: CalibrationResult, path, *, per_pose: bool = True, diagnosis=None) -> dict:
     """The files of a calibration result: ``{path: JSON text, sidecar: bytes}``.
 
     The JSON holds the summary, estimates, covariance, checks and statistics; the per-pose arrays
@@ -196,6 +252,8 @@ def result_files(result: CalibrationResult, path, *, per_pose: bool = True) -> d
     per_pose : bool
         False leaves the per-pose arrays out altogether (no sidecar; the report then has no
         per-pose plots).
+    diagnosis : Diagnosis, optional
+        The diagnosis of the result's misfit, stored under ``diagnosis``.
 
     Returns
     -------
@@ -203,6 +261,8 @@ def result_files(result: CalibrationResult, path, *, per_pose: bool = True) -> d
         {Path: str or bytes}, to write together (``write_texts``).
     """
     d = result_to_dict(result, per_pose=False)
+    if diagnosis is not None:
+        d["diagnosis"] = diagnosis_to_dict(diagnosis)
     counts = {"n_fit": int(result.errors_before.shape[0]),
               "n_validation": None if result.validation_before is None else int(result.validation_before.shape[0])}
     if not per_pose:
@@ -210,8 +270,9 @@ def result_files(result: CalibrationResult, path, *, per_pose: bool = True) -> d
         d["errors"].update(counts)
         return {Path(path): to_json(d)}
     buf = io.BytesIO()
-    np.savez(buf, **{key: np.asarray(getattr(result, field), dtype=float) for key, field in _ERROR_ARRAYS
-                     if getattr(result, field) is not None})
+    arrays: dict[str, Any] = {key: np.asarray(getattr(result, field), dtype=float) for key, field in _ERROR_ARRAYS
+                              if getattr(result, field) is not None}
+    np.savez(buf, **arrays)
     blob = buf.getvalue()
     sidecar = sidecar_path(path)
     d["errors"]["file"] = {"name": sidecar.name, "format": "npz", "sha256": hashlib.sha256(blob).hexdigest(),
@@ -219,9 +280,19 @@ def result_files(result: CalibrationResult, path, *, per_pose: bool = True) -> d
     return {Path(path): to_json(d), sidecar: blob}
 
 
+@checked(result=is_a(CalibrationResult), path=PATH, force=FLAG, per_pose=FLAG)
 def write_result(result: CalibrationResult, path, *, force: bool = False, per_pose: bool = True) -> None:
     """Write a calibration result, atomically: the JSON at ``path`` and its per-pose arrays beside it
-    (:func:`result_files`); an existing file is an InputError unless ``force``."""
+    (:func:`result_files`); an existing file is an InputError unless ``force``.
+
+    Parameters
+    ----------
+    {result, path, force, per_pose}
+
+    Returns
+    -------
+    None
+    """
     write_texts(result_files(result, path, per_pose=per_pose), force=force)
 
 
@@ -417,7 +488,8 @@ def _errors(doc: _Doc, d: dict, n_markers: int, n_joints: int, folder: Path | No
               "positions": (n_markers, 3), "readings": (n_joints,), "rotation_before": (n_markers,),
               "rotation_after": (n_markers,)}
     required = {"fit_before", "fit_after", "fit_residual_vectors"}
-    out, n_poses = {}, {}
+    out: dict[str, np.ndarray | None] = {}
+    n_poses: dict[str, int] = {}
     for key, field in _ERROR_ARRAYS:
         which, part = key.split("_", 1)
         value = d.get(key) if stored is not None else doc.get(d, key, "errors", list, optional=key not in required)
@@ -429,16 +501,30 @@ def _errors(doc: _Doc, d: dict, n_markers: int, n_joints: int, folder: Path | No
         a = doc.array(value, f"errors.{key}", (n_poses.get(which),) + shapes[part])
         n_poses.setdefault(which, a.shape[0])
         out[field] = a
-    if out["measured_positions"] is None:
-        out["measured_positions"] = np.full(out["residual_vectors"].shape, np.nan)
+    residuals = out["residual_vectors"]
+    if out["measured_positions"] is None and residuals is not None:   # residuals are required
+        out["measured_positions"] = np.full(residuals.shape, np.nan)
     if (out["validation_before"] is None) != (out["validation_after"] is None):
         raise doc.error("errors", "validation_before and validation_after must both be given or both be null")
     return out
 
 
+@checked(source=TEXT, folder=optional(PATH))
 def result_from_dict(d, *, source: str = "<dict>", folder=None) -> CalibrationResult:
     """The CalibrationResult stored in ``d`` (the parsed result file); InputError naming the key
-    where it departs from the schema. ``folder``: where its per-pose file (``errors.file``) is."""
+    where it departs from the schema. ``folder``: where its per-pose file (``errors.file``) is.
+
+    Parameters
+    ----------
+    d : dict
+        A result as ``result_to_dict`` gives it (the parsed JSON file).
+    {source, folder}
+
+    Returns
+    -------
+    CalibrationResult
+        The stored result.
+    """
     doc = _Doc(source)
     if not isinstance(d, dict) or "schema" not in d:
         raise doc.error("schema", "not a robocal result: no 'schema' key")
@@ -473,9 +559,20 @@ def result_from_dict(d, *, source: str = "<dict>", folder=None) -> CalibrationRe
         provenance=_provenance(doc, doc.get(d, "provenance", "", dict, optional=True) or {}))
 
 
+@checked(path=PATH)
 def read_result(path) -> CalibrationResult:
     """The CalibrationResult stored by ``write_result``; InputError if it is not a robocal result of a
-    known schema, naming the key that departs from it."""
+    known schema, naming the key that departs from it.
+
+    Parameters
+    ----------
+    {path}
+
+    Returns
+    -------
+    CalibrationResult
+        The stored result.
+    """
     source = str(path)
     return result_from_dict(load_json(read_text(path)[0], source), source=source, folder=Path(path).parent)
 
@@ -504,8 +601,20 @@ def _precision_dict(p: PrecisionResult) -> dict:
             "method": p.method}
 
 
+@checked(limit=is_a(AccuracyLimit))
 def limit_to_dict(limit: AccuracyLimit) -> dict:
-    """The file form of the limit of absolute accuracy (metres)."""
+    """The file form of the limit of absolute accuracy (metres).
+
+    Parameters
+    ----------
+    limit : AccuracyLimit
+        The limit of absolute accuracy.
+
+    Returns
+    -------
+    dict
+        The limit as its JSON record holds it.
+    """
     return {"schema": LIMIT_SCHEMA, "unit": "m", "limit": limit.limit, "limit_p95": limit.limit_p95,
             "repeatability": limit.repeatability, "precision": limit.precision,
             "precision_p95": limit.precision_p95, "precision_statistic": limit.precision_statistic,

@@ -12,8 +12,8 @@ from __future__ import annotations
 import csv
 import io
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
-from typing import Mapping
 
 import numpy as np
 
@@ -60,7 +60,7 @@ class Table:
         """Where messages place the header: its line, or the names given for a file without one."""
         return "the given column names (header)" if self.header_given else f"line {self.header_line}"
 
-    def with_notes(self, *notes: str) -> "Table":
+    def with_notes(self, *notes: str) -> Table:
         return replace(self, notes=self.notes + tuple(n for n in notes if n))
 
 
@@ -81,7 +81,7 @@ class ColumnMap:
         object.__setattr__(self, "rename", dict(self.rename))
         object.__setattr__(self, "ignore", frozenset(self.ignore))
 
-    def merged(self, other: "ColumnMap | None") -> "ColumnMap":
+    def merged(self, other: ColumnMap | None) -> ColumnMap:
         """This map with ``other``'s entries (and its unknown-column action) on top."""
         if other is None:
             return self
@@ -196,7 +196,7 @@ def _detect_separator(header: str, sample: list[str]) -> str:
     if consistent:
         return consistent[0]
     if counts:
-        return max(counts, key=counts.get)
+        return max(counts, key=lambda s: counts[s])
     return WHITESPACE if len(header.split()) > 1 else ","
 
 
@@ -288,7 +288,7 @@ def _sum_columns(table: Table, sums: dict) -> Table:
         for line, row in rows:
             if len(row) == len(header):
                 row[ks[0]] = _sum_cells([row[k] for k in ks], parts, table, line)
-        for line, row in rows:
+        for _, row in rows:
             if len(row) == len(header):
                 for k in sorted(ks[1:], reverse=True):
                     del row[k]

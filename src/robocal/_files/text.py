@@ -6,6 +6,7 @@ The limits below are stated in docs/formats.md. Every error names the user's fil
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import hashlib
 import json
@@ -75,7 +76,7 @@ def check_rows(path, most: int, what: str = "poses", *, per_gb: int | None = Non
     that many per GB of memory available now. An unreadable file is left to the reader.
     """
     memory = available_memory() if per_gb else None
-    bound = most if memory is None else min(most, int(memory / 2 ** 30 * per_gb))
+    bound = most if memory is None or not per_gb else min(most, int(memory / 2 ** 30 * per_gb))
     try:
         with open(path, "rb") as fh:
             newlines = returns = 0
@@ -93,7 +94,7 @@ def check_rows(path, most: int, what: str = "poses", *, per_gb: int | None = Non
     if lines - 1 > most:
         raise InputError(f"{lines - 1:,} rows; robocal reads up to {most:,} {what} per file (docs/formats.md)",
                          source=str(path))
-    if lines - 1 > bound:
+    if memory is not None and per_gb and lines - 1 > bound:
         raise InputError(f"{lines - 1:,} rows; with {memory / 2 ** 30:.1f} GB of memory available robocal reads up "
                          f"to {bound:,} {what} ({per_gb:,} per GB, docs/formats.md)", source=str(path))
 
@@ -253,7 +254,8 @@ def load_json(text: str, source: str):
     try:
         d = json.loads(text, object_pairs_hook=pairs, parse_int=integer, parse_float=number, parse_constant=constant)
     except json.JSONDecodeError as e:
-        raise InputError(f"not valid JSON: {e.msg}", source=source, where=f"line {e.lineno}, column {e.colno}") from None
+        raise InputError(f"not valid JSON: {e.msg}", source=source,
+                         where=f"line {e.lineno}, column {e.colno}") from None
     except RecursionError:
         d = None
     if d is None or _depth(d) > MAX_DEPTH:
@@ -436,10 +438,8 @@ def write_texts(files: dict, *, force: bool = False) -> tuple[str, ...]:
                 raise InputError(f"cannot write: {e.strerror}", source=str(p)) from None
     finally:
         for tmp, _ in staged:
-            try:
+            with contextlib.suppress(FileNotFoundError):
                 os.unlink(tmp)
-            except FileNotFoundError:
-                pass
         _on_sigterm(previous)
     return removed
 

@@ -7,21 +7,30 @@ from __future__ import annotations
 
 import math
 import os
-from decimal import Decimal
 import re
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from decimal import Decimal
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
-from .._errors import InputError, excerpt
+from .._arguments import (
+    FLAG,
+    PATH,
+    SEQUENCE,
+    TEXT,
+    checked,
+    is_a,
+    optional,
+)
 from .._conversion import frames_from_lines, line_frames, marker_placements
+from .._errors import InputError, excerpt
 from .._model import DEFAULT_PARALLEL_TOL, Marker, RobotModel, mdh_transform
-from .._spatial import axis_angle_matrix, inverse4, matrix_rpy, matrix_tuple, pose4, rpy_matrix, unit_vector
-from .._units import ANGLE_UNITS
 from .._options import MAX_MODEL_BYTES
+from .._spatial import axis_angle_matrix, inverse4, matrix_rpy, matrix_tuple, pose4, rpy_matrix, unit_vector, vector3
+from .._units import ANGLE_UNITS
 from .text import read_bytes, write_texts
 
 # ----------------------------------------------------------------------------------------------
@@ -55,11 +64,19 @@ def _floats(text: str | None, n: int, default, source: str, where: str) -> np.nd
     return vals
 
 
+def _exponent(text: str) -> int:
+    """The decimal exponent of a number as written (-3 for 0.125); ValueError for nan and inf."""
+    e = Decimal(text).as_tuple().exponent
+    if not isinstance(e, int):
+        raise ValueError(f"not a finite number: {text!r}")
+    return e
+
+
 def _round_angle(v: float, text: str | None) -> float:
     """An angle written in radians to some decimals (0.820304748437) as the whole degrees or
     fraction it stands for to that precision (47 deg): the file's precision, shown in degrees."""
     try:
-        written = 0.5 * 10.0 ** Decimal((text or "0").strip()).as_tuple().exponent
+        written = 0.5 * 10.0 ** _exponent((text or "0").strip())
     except (ArithmeticError, TypeError, ValueError):
         return v
     if written > 1e-6:   # a short number (-1.0) is the angle it says, not a rounded degree value
@@ -126,7 +143,8 @@ def check_tree(root: ET.Element, source: str) -> None:
             parent_of[ce.get("link")] = (pe.get("link"), el.get("name"))
     done: set = set()
     for start in parent_of:
-        path, link = {}, start  # insertion-ordered: the links walked so far
+        path: dict[str, None] = {}  # insertion-ordered: the links walked so far
+        link = start
         while link in parent_of and link not in done:
             if link in path:
                 loop = list(path)[list(path).index(link):]
@@ -165,8 +183,8 @@ def _parse_joints(root: ET.Element, source: str) -> tuple[set[str], dict[str, _U
             raise InputError("joint named twice", source=source, where=where)
         jtype = el.get("type")
         pe, ce = el.find("parent"), el.find("child")
-        parent = None if pe is None else pe.get("link")
-        child = None if ce is None else ce.get("link")
+        parent = "" if pe is None else pe.get("link", "")
+        child = "" if ce is None else ce.get("link", "")
         for role, lk in (("parent", parent), ("child", child)):
             if not lk:
                 raise InputError(f"<{role} link=...> is missing", source=source, where=where)
@@ -184,15 +202,17 @@ def _parse_joints(root: ET.Element, source: str) -> tuple[set[str], dict[str, _U
         lim = el.find("limit")
         limits = None
         if lim is not None:  # URDF: lower/upper default to 0
-            limits = tuple(_round_angle(_attr_float(lim, k, 0.0, source, where + " limit"), lim.get(k))
-                           if jtype in ("revolute", "continuous") else _attr_float(lim, k, 0.0, source, where + " limit")
-                           for k in ("lower", "upper"))
+            lower, upper = (_attr_float(lim, k, 0.0, source, where + " limit") for k in ("lower", "upper"))
+            if jtype in ("revolute", "continuous"):
+                lower, upper = _round_angle(lower, lim.get("lower")), _round_angle(upper, lim.get("upper"))
+            limits = (lower, upper)
         mim = el.find("mimic")
         mimic = None
         if mim is not None:
-            if not mim.get("joint"):
+            master = mim.get("joint")
+            if not master:
                 raise InputError("<mimic> needs joint=...", source=source, where=where)
-            mimic = (mim.get("joint"), _attr_float(mim, "multiplier", 1.0, source, where + " mimic"),
+            mimic = (master, _attr_float(mim, "multiplier", 1.0, source, where + " mimic"),
                      _attr_float(mim, "offset", 0.0, source, where + " mimic"))
         joints[jname] = _UJoint(jname, jtype or "", parent, child, pose4(rpy_matrix(rpy), xyz), axis,
                                 limits, mimic)
@@ -233,6 +253,25 @@ def _default_tip(base_link: str, children, joints, source: str) -> str:
         arm_moved |= nxt.type != "fixed"
         link = nxt.child
     return link
+
+
+def _default_markers(chain, links, joints) -> list[tuple[str, np.ndarray]]:
+    """The markers of a URDF read without ``markers``: (name, X_tip_marker).
+
+    A tool point reached through fixed joints at the chain's end keeps its link's name; where the tip
+    holds several leaf links on fixed joints named ``<link>_joint`` (the markers of a model
+    :func:`urdf_text` wrote), each is a marker named after its link; otherwise one marker ``"tool"``
+    at the tip link's origin.
+    """
+    tip = chain[-1].child
+    if chain[-1].type == "fixed":
+        return [(tip, np.eye(4))]
+    children = _children(links, joints)
+    leaves = [joints[j] for j in children[tip]]
+    if len(leaves) > 1 and all(j.type == "fixed" and not children[j.child] and j.name == f"{j.child}_joint"
+                               for j in leaves):
+        return [(j.child, j.X_origin) for j in leaves]
+    return [("tool", np.eye(4))]
 
 
 def _chain(links, joints, child_of, base_link, tip_link, source) -> list[_UJoint]:
@@ -287,7 +326,7 @@ def _readings(moving, joints, source: str) -> tuple[list[str], dict[str, tuple[i
     """The readings (every moving joint that mimics no other, and masters off the chain) and, per
     moving joint, (reading index, multiplier, offset)."""
     reading_of: dict[str, tuple[int, float, float]] = {}
-    readings = []
+    readings: list[str] = []
     for jn in moving:
         if joints[jn].mimic is None:
             reading_of[jn] = (len(readings), 1.0, 0.0)
@@ -352,7 +391,7 @@ def _with_masses(frames, walk: _Walk, X_0F, inertials) -> list:
             cF = inverse4(X_0F[i]) @ np.append(c0, 1.0)
             mass[i] += m
             first[i] += m * cF[:3]
-    return [replace(f, mass=float(mass[i]), com=tuple(float(v) for v in first[i] / mass[i]))
+    return [replace(f, mass=float(mass[i]), com=vector3(first[i] / mass[i]))
             if mass[i] > 0 else f for i, f in enumerate(frames)]
 
 
@@ -366,7 +405,7 @@ def _source_angle_tol(root: ET.Element) -> float:
     for el in root.iter("origin"):
         for part in _NUM.split((el.get("rpy") or "").strip()):
             try:
-                v, written = float(part), 0.5 * 10.0 ** Decimal(part).as_tuple().exponent
+                v, written = float(part), 0.5 * 10.0 ** _exponent(part)
             except (ValueError, ArithmeticError, TypeError):
                 continue
             gap = abs(v - round(v / (math.pi / 2)) * (math.pi / 2))
@@ -382,7 +421,7 @@ def _source_decimals(root: ET.Element) -> int:
     for el in root.iter("origin"):
         for part in _NUM.split((el.get("xyz") or "").strip()):
             try:
-                most = max(most, -Decimal(part).as_tuple().exponent)
+                most = max(most, -_exponent(part))
             except (ArithmeticError, TypeError, ValueError):
                 continue
     return min(most, 14)
@@ -414,6 +453,7 @@ def _clean_pose(X: np.ndarray, decimals: int) -> tuple[tuple, tuple]:
     return tuple(_clean(float(v), False, 0.0, decimals) for v in X[:3, 3]), matrix_tuple(R)
 
 
+@checked(path_or_string=PATH, base_link=optional(TEXT), tip_link=optional(TEXT), markers=optional(SEQUENCE))
 def read_urdf(path_or_string, *, base_link: str | None = None, tip_link: str | None = None,
               markers: Sequence | None = None) -> RobotModel:
     """A serial model from a URDF file (path) or URDF text (a string starting with ``<``).
@@ -431,14 +471,28 @@ def read_urdf(path_or_string, *, base_link: str | None = None, tip_link: str | N
     ``X_WB`` places the robot frame 0 (on the first axis) in it. Values are cleaned of the
     source's round-off (``_clean``): the forward kinematics moves by less than 1e-9 m.
 
-    ``markers``: ``(name, xyz)`` or ``(name, xyz, R)`` in the tip link's frame; by default one
-    marker ``"tool"`` at the tip link's origin with its orientation.
+    ``markers``: ``(name, xyz)`` or ``(name, xyz, R)`` in the tip link's frame; by default the tip
+    link itself when the chain ends in fixed joints (a tool point: the marker keeps the link's name),
+    the leaf links on fixed joints ``<link>_joint`` at the tip when there are several (the markers
+    of an exported model), else one marker ``"tool"`` at the tip link's origin with its orientation.
     Link masses (``<inertial><mass>``, centre of mass from its origin) of links on the chain are
     summed per frame; inertias and links off the chain are ignored.
 
     Raises InputError naming the source and the joint: malformed XML, DOCTYPE/ENTITY, names used
     twice, missing links, a chain that branches before the arm moves without tip_link, zero axis,
     floating/planar joints.
+
+    Parameters
+    ----------
+    {path_or_string, base_link, tip_link}
+    markers : sequence, optional
+        Markers on the tip link as ``(name, (x, y, z))`` or ``(name, (x, y, z), R)`` (default: one
+        marker ``tool`` at its origin).
+
+    Returns
+    -------
+    RobotModel
+        The model in modified DH.
     """
     root, source = _load_xml(path_or_string)
     links, joints, extra = _parse_joints(root, source)
@@ -455,11 +509,16 @@ def read_urdf(path_or_string, *, base_link: str | None = None, tip_link: str | N
     tip = chain[-1].child
     X_nT = inverse4(X_0F[-1]) @ walk.X_link[tip]
     mk = []
-    for mname, p, R in marker_placements(markers if markers is not None else [("tool", (0.0, 0.0, 0.0))], "markers"):
-        position, rotation = _clean_pose(X_nT @ pose4(R, p), decimals if markers is None else 14)
+    if markers is None:
+        for mname, X_TM in _default_markers(chain, links, joints):
+            position, rotation = _clean_pose(X_nT @ X_TM, decimals)
+            mk.append(Marker(mname, len(frames) - 1, position, rotation))
+    for mname, p, R in marker_placements(markers or [], "markers"):
+        position, rotation = _clean_pose(X_nT @ pose4(R, p), 14)
         mk.append(Marker(mname, len(frames) - 1, position, rotation))
     limits = [(-math.pi, math.pi) if joints[jn].type == "continuous" else
-              tuple(_clean(v, joints[jn].type == "revolute", tol) for v in joints[jn].limits) for jn in readings]
+              tuple(_clean(v, joints[jn].type == "revolute", tol) for v in joints[jn].limits or ())
+              for jn in readings]  # a reading's limits are given (checked as the joints are read)
     base_position, base_rotation = _clean_pose(X_0B, decimals)
     return RobotModel(
         name=root.get("name") or "robot", frames=tuple(frames), joint_names=tuple(readings),
@@ -560,10 +619,11 @@ def _frame_joint(robot: ET.Element, model: RobotModel, i: int, names: _Names, pr
         ET.SubElement(j, "axis", xyz="0 0 1")
     if jtype in ("revolute", "prismatic"):
         ET.SubElement(j, "limit", lower=_num(lo), upper=_num(hi), effort="0", velocity="0")
-    if mimic:
+    if mimic and k is not None:
         ET.SubElement(j, "mimic", joint=names.joints[primary[k]], multiplier=_num(f.coupling[0][1]), offset="0")
 
 
+@checked(model=is_a(RobotModel))
 def urdf_text(model: RobotModel) -> str:
     """``model`` as URDF text (serial chains and trees).
 
@@ -579,6 +639,15 @@ def urdf_text(model: RobotModel) -> str:
     it (multiplier = coefficient). A frame driven by several readings, or a reading that drives no
     frame with coefficient 1, cannot be said in URDF and raises InputError. Masses go out as
     ``<inertial>`` with zero inertia; compliance, gravity and payload are not written.
+
+    Parameters
+    ----------
+    {model}
+
+    Returns
+    -------
+    str
+        The URDF text.
     """
     primary = _primary_frames(model)
     names = _Names(model, primary)
@@ -604,6 +673,16 @@ def urdf_text(model: RobotModel) -> str:
     return '<?xml version="1.0" encoding="utf-8"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
 
 
+@checked(model=is_a(RobotModel), path=PATH, force=FLAG)
 def write_urdf(model: RobotModel, path, *, force: bool = False) -> None:
-    """Write :func:`urdf_text` of ``model``, atomically."""
+    """Write :func:`urdf_text` of ``model``, atomically.
+
+    Parameters
+    ----------
+    {model, path, force}
+
+    Returns
+    -------
+    None
+    """
     write_texts({path: urdf_text(model)}, force=force)

@@ -13,14 +13,41 @@ import math
 import re
 from datetime import datetime
 
+from .._arguments import (
+    FLAG,
+    MAPPING,
+    PATH,
+    checked,
+    is_a,
+    optional,
+)
 from .._calibration import CalibrationResult
 from .._errors import InputError
-from .._files.result import result_to_dict
+from .._files.result import diagnosis_to_dict, result_to_dict
 from .._files.text import write_texts
+from .._model import DEFAULT_LINK_DENSITY, RELATIVE_MASSES, mdh_transform
 from .._parameters import FRAME_KINDS, GEOMETRIC_KINDS, SI_UNITS, parameter_layout, parameter_vector
-from .plots import (AFTER, BEFORE, DENSE, LIMIT, need_matplotlib, plot_correlation, plot_errors_per_pose,
-                    plot_histograms, plot_residual_trends, plot_residuals, residual_sample, residual_trends)
-from .units import UNITS_SENTENCE, absorption_text, display_unit as _display, finite as _num, fmt, symbol
+from .plots import (
+    AFTER,
+    BEFORE,
+    BLOCK,
+    DENSE,
+    LIMIT,
+    STRUCTURE,
+    correlation_blocks,
+    need_matplotlib,
+    plot_correlation,
+    plot_errors_per_pose,
+    plot_histograms,
+    plot_residual_trends,
+    plot_residuals,
+    residual_sample,
+    residual_trends,
+)
+from .text import rotation_lines
+from .units import UNITS_SENTENCE, absorption_text, fmt, symbol
+from .units import display_unit as _display
+from .units import finite as _num
 
 STAT_SETS = (("fit_before", "fitted poses", "before"), ("fit_after", "fitted poses", "after"),
              ("validation_before", "held-out poses", "before"), ("validation_after", "held-out poses", "after"))
@@ -39,6 +66,11 @@ CORRELATED = 0.9  # |r| from which a pair is listed below the correlation map
 def _ratio(v, spec: str) -> str:
     v = _num(v)
     return "–" if v is None else format(v, spec)
+
+
+def _sentence(text: str) -> str:
+    """``text`` with its first letter upper case and the rest as written (units keep their case: kN)."""
+    return text[:1].upper() + text[1:]
 
 
 def _e(text) -> str:
@@ -215,7 +247,21 @@ def _checks_html(d: dict) -> str:
                     f'<td class="wrap">{_e(c.get("summary", ""))}{detail}{named}</td></tr>')
     banner = (f'<p class="notice {STATUS_CLASS.get(verdict, "missing")} verdict">Verdict: '
               f'<b data-key="verdict">{_e(verdict)}</b> &ndash; {VERDICT_TEXT.get(verdict, "")}.</p>')
-    return banner + _table(["status", "check", "what it found"], rows, cls="checks")
+    return banner + _diagnosis_html(d.get("diagnosis")) + _table(["status", "check", "what it found"], rows,
+                                                                 cls="checks")
+
+
+def _diagnosis_html(diag: dict | None) -> str:
+    """The diagnosis of the misfit (docs/diagnosis.md): the most likely cause first, with its evidence."""
+    if not diag:
+        return ""
+    found = diag.get("findings") or []
+    if not found:
+        return f'<p class="diagnosis" data-key="diagnosis.summary"><b>Diagnosis:</b> {_e(diag.get("summary", ""))}</p>'
+    items = "".join(f'<li data-key="diagnosis.{k}"><b>{"Most likely" if k == 0 else "Or"}:</b> {_e(f["cause"])}'
+                    f' &ndash; {_e(f["evidence"])}' + (f'<br><b>fix:</b> {_e(f["fix"])}' if f.get("fix") else "")
+                    + "</li>" for k, f in enumerate(found))
+    return f'<div class="diagnosis"><b>Diagnosis</b><ul>{items}</ul></div>'
 
 
 def _stats_table(d: dict, *, rotation: bool = False) -> str:
@@ -259,9 +305,27 @@ def _nominal_values(result: CalibrationResult) -> tuple[dict, dict]:
     return ({p.name: float(values[p.index]) for p in lay.parameters}, {p.name: p.unit for p in lay.parameters})
 
 
-def _parameter_tables(d: dict, nominal: dict, units: dict) -> tuple[str, str, str]:
-    """The per-frame table (the paper's layout), the base and marker table, a note on omitted columns."""
+def _placement_text(frame, key: str) -> str:
+    """A fixed frame's placement in its parent as users write it: position (mm) and rotation matrix."""
+    X = mdh_transform(frame)
+    position = ", ".join(f"{v * 1e3:.4f}" for v in X[:3, 3])
+    rows = "; ".join("[" + ", ".join(f"{v:.6f}".replace("-0.000000", "0.000000") for v in row) + "]"
+                     for row in X[:3, :3])
+    return (f'position (<span data-key="{_e(key)}.position" data-unit="mm">{position}</span>) mm, rotation '
+            f'<span data-key="{_e(key)}.rotation">[{rows}]</span>')
+
+
+def _parameter_tables(d: dict, nominal: dict, units: dict, result: CalibrationResult | None = None,
+                      relative: bool = False) -> tuple[str, str, str]:
+    """The per-frame table (the paper's layout), the base and marker table, a note on omitted columns.
+
+    Fixed frames (placements, often written as a matrix) show their placement as position and
+    rotation matrix, nominal and calibrated, beside the corrections the fit made. With ``relative``
+    the compliances are headed as relative (masses assumed without a total mass)."""
     est = {p["name"]: p for p in d["parameters"]}
+    fixed = {} if result is None else {f.name: (f, g) for f, g in zip(result.nominal_model.frames,
+                                                                      result.calibrated_model.frames)
+                                       if f.joint == "fixed"}
     ident = d["identifiability"]
     status = {n: "-" for n in ident.get("candidates", [])}
     status.update({n: "I" for n in ident.get("identified", [])})
@@ -270,8 +334,8 @@ def _parameter_tables(d: dict, nominal: dict, units: dict) -> tuple[str, str, st
     frames = [row["frame"] for row in table]
     # a kind is shown where it was a candidate, or where the model holds a non-zero value of it (a
     # fixed mount's gamma and b): nothing the calibrated file keeps is hidden
-    shown = [k for k in FRAME_KINDS if k in ALWAYS_SHOWN or any(row.get(k, "-") != "-" or nominal.get(f"{row['frame']}.{k}")
-                                                                  for row in table)]
+    shown = [k for k in FRAME_KINDS
+             if k in ALWAYS_SHOWN or any(row.get(k, "-") != "-" or nominal.get(f"{row['frame']}.{k}") for row in table)]
     omitted = [k for k in FRAME_KINDS if k not in shown and k not in ("gamma", "b")]
 
     def value_cells(name, unit):
@@ -294,12 +358,24 @@ def _parameter_tables(d: dict, nominal: dict, units: dict) -> tuple[str, str, st
     body = []
     for f in frames:
         cols = [value_cells(f"{f}.{k}", units[f"{f}.{k}"]) for k in shown]
-        body.append(f'<tr class="frame-start"><th rowspan="5" class="frame">{_e(f)}</th><td class="what">I / E</td>'
+        rows = [(label, "".join(c[i] for c in cols)) for i, label in enumerate(("nominal", "identified", "change",
+                                                                                 "std dev"))]
+        if f in fixed:  # a placement: shown as written, the fit's corrections below it
+            nom, cal = fixed[f]
+            rows = [("placement", f'<td colspan="{len(shown)}" class="placement">{_placement_text(nom, f"{f}:nominal")}'
+                                  "</td>"),
+                    ("calibrated", f'<td colspan="{len(shown)}" class="placement">'
+                                   f'{_placement_text(cal, f"{f}:calibrated")}</td>')] + rows[2:]
+        body.append(f'<tr class="frame-start"><th rowspan="{1 + len(rows)}" class="frame">{_e(f)}'
+                    + ('<br><small>fixed</small>' if f in fixed else "") + '</th><td class="what">I / E</td>'
                     + "".join(status_cell(f"{f}.{k}") for k in shown) + "</tr>")
-        for i, label in enumerate(("nominal", "identified", "change", "std dev")):
-            body.append(f'<tr><td class="what">{label}</td>' + "".join(c[i] for c in cols) + "</tr>")
-    head = ["frame", ""] + [f"{symbol(k)} <small>({_e(_display(units[f'{frames[0]}.{k}'])[0])})</small>"
-                            if frames else symbol(k) for k in shown]
+        body += [f'<tr><td class="what">{label}</td>{cells}</tr>' for label, cells in rows]
+
+    def unit_label(k):
+        if relative and k.startswith("k_"):
+            return "relative"
+        return _e(_display(units[f"{frames[0]}.{k}"])[0])
+    head = ["frame", ""] + [f"{symbol(k)} <small>({unit_label(k)})</small>" if frames else symbol(k) for k in shown]
     note = ""
     if omitted:
         note = ("Columns " + ", ".join(symbol(k) for k in omitted)
@@ -308,15 +384,26 @@ def _parameter_tables(d: dict, nominal: dict, units: dict) -> tuple[str, str, st
 
     other = [n for n in ident.get("candidates", []) if n.split(".", 1)[0] not in frames]
     other += [n for n in est if n not in other and n.split(".", 1)[0] not in frames]
-    rows = []
+    other_rows = []
     for n in other:
         unit = units.get(n, est[n]["unit"] if n in est else "")
-        rows.append(f'<tr><td class="name">{_e(n)}</td><td>{_e(_display(unit)[0])}</td>'
-                    + "".join(value_cells(n, unit)) + status_cell(n) + "</tr>")
-    other_table = (_table(["parameter", "unit", "nominal", "identified", "change", "std dev", "I / E"], rows,
+        other_rows.append(f'<tr><td class="name">{_e(n)}</td><td>{_e(_display(unit)[0])}</td>'
+                          + "".join(value_cells(n, unit)) + status_cell(n) + "</tr>")
+    other_table = (_table(["parameter", "unit", "nominal", "identified", "change", "std dev", "I / E"], other_rows,
                           cls="params", num_from=2)
-                   if rows else "<p>No base or marker parameters were considered.</p>")
+                   if other_rows else "<p>No base or marker parameters were considered.</p>")
     return frame_table, other_table, note
+
+
+RELATIVE_NOTE = ("Compliances (K) are relative: the link masses were assumed from the geometry at a density of "
+                 f"{DEFAULT_LINK_DENSITY:g} kg per metre with no total mass given, so only their ratios hold; give "
+                 f"the arm's mass (<code>--total-mass KG</code>) for compliances in {_display('rad/(N m)')[0]}.")
+
+
+def _relative_compliance(d: dict) -> bool:
+    """Whether the result's compliances rest on masses assumed without a total mass (a note says so)."""
+    return any(RELATIVE_MASSES in str(n) for n in d.get("notes") or []) and any(
+        p.get("family") == "compliance" for p in d["parameters"])
 
 
 def _eliminated_table(d: dict, units: dict) -> str:
@@ -354,6 +441,18 @@ def _correlated_pairs(d: dict, k: int = 12) -> str:
     return _table(["parameter", "parameter", "r"], rows, num_from=2, cls="pairs",
                   caption=f"The {min(k, len(pairs))} strongest of {len(pairs)} pairs; {strong} with |r| &ge; "
                           f"{CORRELATED} (in bold)")
+
+
+def _correlation_section(d: dict) -> str:
+    """The strongest pairs first (they name what a map of many parameters cannot), then the map:
+    whole for a few parameters, in per-family blocks for many, in a scrollable panel."""
+    blocks = correlation_blocks(d)
+    how = ("Correlation coefficients from the covariance of the estimates (red positive, blue negative)"
+           + ("." if len(blocks) == 1 else f", within each family in {len(blocks)} blocks of at most {BLOCK} "
+              "parameters; pairs across blocks are in the table above."))
+    k = 12 if len(d["parameters"]) <= 30 else 25
+    return (_correlated_pairs(d, k)
+            + f'<div class="panel">{_figure(plot_correlation(d), how)}</div>')
 
 
 def _solver_table(d: dict) -> str:
@@ -515,23 +614,23 @@ span.status.fail{background:#fbe5e5;color:var(--limit)}
 table.checks{width:100%%}table.checks td.wrap{overflow-wrap:anywhere}
 .verdict{font-size:16px}:target{outline:2px solid var(--after);background:#eaf2fb}
 footer{margin-top:36px;padding-top:8px;border-top:1px solid var(--line);font-size:12px;color:var(--muted)}
-.side{display:grid;grid-template-columns:minmax(0,1fr) minmax(250px,max-content);gap:18px;align-items:start}
 table.pairs tr.strong td{font-weight:650}
+td.placement{font-family:var(--mono);font-size:12px;white-space:normal}
+.panel{max-height:1100px;overflow:auto;border:1px solid var(--line);border-radius:6px;padding:0 8px}
 table.params{font-size:12.5px}table.params td,table.params th{padding:3px 7px}
 @page{size:A4;margin:12mm}
 @media print{body{background:#fff;font-size:11px}main{padding:0;max-width:none;min-height:0}
 .scroll{overflow:visible}table{font-size:10px}th,td{padding:2px 5px}table.params{font-size:9px}
 table.params td,table.params th{padding:1px 3px}td.name{white-space:normal;overflow-wrap:anywhere}
-.side{display:block}h2{break-after:avoid}figure,tr,.card,.notice{break-inside:avoid}
+.panel{max-height:none;overflow:visible;border:0}h2{break-after:avoid}figure,tr,.card,.notice{break-inside:avoid}
 nav ol{columns:4}:target{outline:none;background:none}}
-@media (max-width:900px){.side{display:block}}
 @media (max-width:800px){.cards{grid-template-columns:1fr 1fr}nav ol{columns:1}}
-""" % {"before": BEFORE, "after": AFTER, "limit": LIMIT}
+""" % {"before": BEFORE, "after": AFTER, "limit": LIMIT}  # noqa: UP031 - the CSS is full of braces
 
 
 def _errors_section(d: dict, has_val: bool) -> str:
     lim = d.get("limit")
-    n = sum(len((d["errors"].get(k) or [])) for k in ("fit_before", "validation_before"))
+    n = sum(len(d["errors"].get(k) or []) for k in ("fit_before", "validation_before"))
     how = ("Position error of each measured point before (orange) and after (blue) calibration. Filled circles: "
            "fitted poses; open triangles on grey: held-out poses" if n <= DENSE else
            f"Position errors of the {n} poses before (orange) and after (blue) calibration, summarised in bins of "
@@ -548,9 +647,10 @@ def _errors_section(d: dict, has_val: bool) -> str:
 
 def _residuals_section(d: dict) -> str:
     shown, at_points, n = residual_sample(d)
-    where = ("Arrows start at the measured points and are scaled up; the bar gives their scale." if at_points is not None
-             else "The measured positions are not stored in the result, so every arrow starts at a common origin; "
-                  "the bar gives the scale.")
+    where = ("Arrows start at the measured points and are scaled up; the bar gives their scale."
+             if at_points is not None else
+             "The measured positions are not stored in the result, so every arrow starts at a common origin; "
+             "the bar gives the scale.")
     count = (f" {len(shown)} of the {n} measured points are drawn, evenly spaced through the campaign."
              if len(shown) < n else "")
     return _figure(plot_residuals(d), "Fit residuals (calibrated minus measured) of the fitted poses, projected on "
@@ -560,27 +660,56 @@ def _residuals_section(d: dict) -> str:
 def _trends_section(d: dict, result: CalibrationResult) -> str:
     model = result.nominal_model
     trends = residual_trends(d, model.joint_names, [SI_UNITS[q] for q in model.reading_quantities],
-                             model.base_position)
+                             result.calibrated_model.X_WB)
     if trends is None:
         return "<p>The result holds no measured points and joint readings: no trends to draw.</p>"
+    joints = [c for c, _ in trends["columns"][2:]]
+    drawn = [c for c in joints if c in trends["structured"]]
+    flat = [c.removesuffix(" reading") for c in joints if c not in drawn]
+    said = (f" Against {_list(flat)} the medians stay within the noise (within {STRUCTURE:g} standard errors of a "
+            "bin's median): not drawn." if flat else "")
     return ("<p>Where a model term is missing (backlash, compliance, a wrong encoder ratio, a thermal drift), the "
             "residuals follow the robot's posture: a trend here against one joint's reading and not against the "
-            "others points at that joint.</p>"
-            + _figure(plot_residual_trends(trends), f"Residual components after calibration (calibrated minus "
-                      f"measured, world axes) of all {trends['points']} measured points, fitted and held-out, against "
-                      "the horizontal distance from the base axis (reach), the height above the base origin and each "
-                      "joint's reading. Line: median in bins of equal counts of points; band: the middle half."))
+            "others points at that joint. Reach and height are always drawn; a joint's reading only where the "
+            "residuals show structure against it.</p>"
+            + _figure(plot_residual_trends(trends, ["reach", "height"] + drawn),
+                      f"Residual components after calibration (calibrated minus measured, world axes) of all "
+                      f"{trends['points']} measured points, fitted and held-out, against the distance from the "
+                      "calibrated base's vertical axis (reach), the height above the calibrated base and the "
+                      "readings of the joints that show structure. Line: median in bins of equal counts of points; "
+                      f"band: the middle half.{said}"))
 
 
-def render_report(result: CalibrationResult, *, extra: dict | None = None) -> str:
+def _list(items: list[str]) -> str:
+    """'a, b and c'."""
+    items = [_e(i) for i in items]
+    return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " and " + items[-1]
+
+
+@checked(result=is_a(CalibrationResult), extra=optional(MAPPING))
+def render_report(result: CalibrationResult, *, extra: dict | None = None, diagnosis=None) -> str:
     """The HTML text of the report of ``result`` (a CalibrationResult, computed or read back).
 
-    ``extra``: optional tables for a comparison section (see ``_extra_tables``).
+    ``extra``: optional tables for a comparison section (see ``_extra_tables``); ``diagnosis``: a
+    ``Diagnosis`` of its misfit, shown in the verdict section.
     Raises RobocalError when matplotlib is missing, InputError when ``result`` is not a result.
+
+    Parameters
+    ----------
+    {result, extra}
+    diagnosis : Diagnosis, optional
+        The diagnosis of the result's misfit, shown in the verdict section.
+
+    Returns
+    -------
+    str
+        The HTML page.
     """
     if not isinstance(result, CalibrationResult):
         raise InputError(f"expected a CalibrationResult, got {type(result).__name__}", where="result")
     d = result_to_dict(result)
+    if diagnosis is not None:
+        d["diagnosis"] = diagnosis_to_dict(diagnosis)
     nominal, units = _nominal_values(result)
     tables = _extra_tables(extra)
     need_matplotlib()  # fail early and clearly without the extra
@@ -597,21 +726,27 @@ def render_report(result: CalibrationResult, *, extra: dict | None = None) -> st
 
     title = "Position and rotation errors" if d["stats"].get("rotation") else "Position errors"
     sections = [("errors", title, _errors_section(d, has_val))]
-    frame_table, other_table, note = _parameter_tables(d, nominal, units)
+    relative = _relative_compliance(d)
+    frame_table, other_table, note = _parameter_tables(d, nominal, units, result, relative)
+    turns = rotation_lines(result.parameters)
+    if turns:
+        other_table += ("<p>Rotation corrections as one turn about one axis (rx, ry, rz above are the components "
+                        "of its rotation vector):</p><ul class=\"notes\">"
+                        + "".join(f'<li data-key="turn.{_e(t.split(" rotation:")[0].strip())}">{_e(t.strip())}</li>'
+                                  for t in turns) + "</ul>")
+    if relative:
+        note = ((note + " ") if note else "") + RELATIVE_NOTE
     sections.append(("parameters", "Parameters",
                      "<p>Per frame, in the paper's layout: I identified, E eliminated (held at its nominal value, "
                      "its effect carried by identified parameters), &ndash; not a candidate. "
-                     f"{_e(UNITS_SENTENCE).capitalize()}; std dev is the standard deviation of the estimate.</p>"
+                     f"{_e(_sentence(UNITS_SENTENCE))}; std dev is the standard deviation of the estimate.</p>"
                      + frame_table + (f'<p class="muted">{note}</p>' if note else "")
                      + "<h3>Base and marker parameters</h3>" + other_table))
     sections.append(("identifiability", "Eliminated parameters and what absorbs them",
                      "<p>An eliminated parameter cannot be told apart from a combination of identified ones: a "
                      "change of one display unit in it moves the tool as the changes shown do.</p>"
                      + _eliminated_table(d, units)))
-    sections.append(("correlation", "Correlation of the identified parameters",
-                     '<div class="side">' + _figure(plot_correlation(d), "Correlation coefficients from the "
-                                                    "covariance of the estimates (red positive, blue negative).")
-                     + _correlated_pairs(d) + "</div>"))
+    sections.append(("correlation", "Correlation of the identified parameters", _correlation_section(d)))
     sections.append(("residuals", "Residual vectors after calibration", _residuals_section(d)))
     sections.append(("trends", "Residuals against reach, height and joint readings", _trends_section(d, result)))
     if tables:
@@ -633,13 +768,25 @@ def render_report(result: CalibrationResult, *, extra: dict | None = None) -> st
             f'<header><h1>Calibration report &ndash; <span class="robot">{_e(robot)}</span></h1>'
             f'<p class="meta">{" &middot; ".join(_e(m) for m in meta if m)}</p></header>\n'
             f"{first}{_headline(d)}{''.join(notices)}<nav><ol>{toc}</ol></nav>\n{''.join(rest)}"
-            f"<footer>{_e(UNITS_SENTENCE).capitalize()}; the result file keeps SI "
+            f"<footer>{_e(_sentence(UNITS_SENTENCE))}; the result file keeps SI "
             "units. A self-contained page: no scripts, no network.</footer>\n</main>\n</body>\n</html>\n")
 
 
-def write_report(result: CalibrationResult, path, *, force: bool = False, extra: dict | None = None) -> None:
+@checked(result=is_a(CalibrationResult), path=PATH, force=FLAG, extra=optional(MAPPING))
+def write_report(result: CalibrationResult, path, *, force: bool = False, extra: dict | None = None,
+                 diagnosis=None) -> None:
     """Write the HTML report of ``result`` to ``path`` atomically (temporary file, then rename).
 
     An existing ``path`` is an InputError unless ``force``. See ``render_report``.
+
+    Parameters
+    ----------
+    {result, path, force, extra}
+    diagnosis : Diagnosis, optional
+        The diagnosis of the result's misfit, shown in the verdict section.
+
+    Returns
+    -------
+    None
     """
-    write_texts({path: render_report(result, extra=extra)}, force=force)
+    write_texts({path: render_report(result, extra=extra, diagnosis=diagnosis)}, force=force)

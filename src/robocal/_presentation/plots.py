@@ -68,6 +68,11 @@ def _plot(name: str, label: str, draw, *, figsize) -> str:
         return _svg(fig, name, label)
 
 
+def plot_svg(name: str, label: str, draw, *, figsize) -> str:
+    """A figure drawn by ``draw(fig)`` in the report's style, as inline SVG (for the other pages)."""
+    return _plot(name, label, draw, figsize=figsize)
+
+
 # -- the data, as arrays --------------------------------------------------------------------------
 
 def errors_array(d: dict, key: str) -> np.ndarray | None:
@@ -115,7 +120,9 @@ def _binned(ax, start: int, before: np.ndarray, after: np.ndarray, label: str, w
             if vals.size:
                 centre.append(start + (i + j - 1) / 2)
                 q = np.percentile(vals, [5, 50, 95])
-                lo.append(q[0]), mid.append(q[1]), hi.append(q[2])
+                lo.append(q[0])
+                mid.append(q[1])
+                hi.append(q[2])
         ax.fill_between(centre, lo, hi, color=colour, alpha=0.22 if label == "fitted" else 0.12, lw=0, zorder=1)
         ax.plot(centre, mid, color=colour, lw=1.3, ls="-" if label == "fitted" else "--", zorder=3,
                 label=f"{when}, {label} poses: median and 5-95 %")
@@ -180,70 +187,165 @@ def plot_errors_per_pose(d: dict) -> str:
                  figsize=(9.0, 3.4 * len(panels)))
 
 
-def _hist(ax, fit: np.ndarray, val: np.ndarray, colour: str, top: float, lim: float | None, unit: str) -> None:
+def histogram_panels(d: dict) -> list[dict]:
+    """What the histograms draw, one dict per panel: {"what", "when", "unit", "fit", "validation"
+    (errors in display units), "limit" (display units, or None), "top"}: the x axis ends at ``top``,
+    the panel's own largest error (after calibration the errors are far smaller than before), or at
+    the limit when that lies within three times the largest error; a farther limit is only named."""
+    lim = _limit_mm(d)
+    kinds = [("position", "", MM, "mm", lim)]
+    if errors_array(d, "fit_rotation_after") is not None:
+        kinds.append(("rotation", "rotation_", DEG, "deg", None))
+    panels = []
+    for what, part, k, unit, line in kinds:
+        for when in ("before", "after"):
+            fit, val = (_finite(errors_array(d, f"{s}_{part}{when}")) * k for s in ("fit", "validation"))
+            top = max([float(v.max()) for v in (fit, val) if v.size] + [1e-9])
+            if line is not None and line <= 3 * top:
+                top = max(top, line)
+            panels.append({"what": what, "when": when, "unit": unit, "fit": fit, "validation": val, "limit": line,
+                           "top": top})
+    return panels
+
+
+def _hist(ax, p: dict, colour: str) -> None:
+    fit, val, top, lim, unit = p["fit"], p["validation"], p["top"], p["limit"], p["unit"]
     bins = np.linspace(0, top * 1.02, 25)
     data, colours, labels = [fit], [colour], ["fitted poses"]
     if val.size:
         data, colours, labels = [fit, val], [colour, "white"], ["fitted poses", "held-out poses"]
     _, _, patches = ax.hist(data, bins=bins, stacked=True, color=colours, edgecolor=colour, lw=0.8, label=labels)
     if val.size:
-        for p in patches[1]:
-            p.set_hatch("////")
-    if lim is not None:
+        for patch in patches[1]:
+            patch.set_hatch("////")
+    if lim is not None and lim > bins[-1]:
+        ax.plot([], [], color=LIMIT, ls="--", lw=1.2, label=f"limit ({lim:.3f} {unit}), beyond the axis")
+    elif lim is not None:
         ax.axvline(lim, color=LIMIT, ls="--", lw=1.2, label=f"limit ({lim:.3f} {unit})")
     ax.set_xlim(0, bins[-1])
     ax.set_ylabel("number of measured points")
     ax.yaxis.get_major_locator().set_params(integer=True)
-    ax.set_ylim(top=ax.get_ylim()[1] * 1.3)  # room for the legend
-    ax.legend(loc="upper right", fontsize=7.5)
+    ax.set_ylim(top=ax.get_ylim()[1] * 1.4)  # room for the legend
+    ax.legend(loc="upper right")
 
 
 def plot_histograms(d: dict) -> str:
-    """Histograms of the position errors before and after, with the limit as a vertical line, and of
-    the rotation errors below them when the data hold orientations (SVG)."""
-    lim = _limit_mm(d)
-    kinds = [("position", "", MM, "mm", lim)]
-    if errors_array(d, "fit_rotation_after") is not None:
-        kinds.append(("rotation", "rotation_", DEG, "deg", None))
+    """Histograms of the position errors before and after, each on its own axis, with the limit as a
+    vertical line, and of the rotation errors below them when the data hold orientations (SVG)."""
+    panels = histogram_panels(d)
+    rows = len(panels) // 2
 
     def draw(fig):
-        axes = np.atleast_2d(fig.subplots(len(kinds), 2))
-        for row, (what, part, k, unit, line) in zip(axes, kinds):
-            vals = {(s, w): _finite(errors_array(d, f"{s}_{part}{w}")) * k
-                    for s in ("fit", "validation") for w in ("before", "after")}
-            top = max([float(v.max()) for v in vals.values() if v.size] + ([line] if line else []) + [1e-9])
-            for ax, when, colour in zip(row, ("before", "after"), (BEFORE, AFTER)):
-                _hist(ax, vals[("fit", when)], vals[("validation", when)], colour, top, line, unit)
-                ax.set_title(f"{what} errors {when} calibration", color=colour)
-                ax.set_xlabel(f"{what} error ({unit})")
-        fig.subplots_adjust(wspace=0.25, hspace=0.55)
+        axes = np.atleast_2d(fig.subplots(rows, 2)).ravel()
+        for ax, p in zip(axes, panels):
+            colour = BEFORE if p["when"] == "before" else AFTER
+            _hist(ax, p, colour)
+            ax.set_title(f"{p['what']} errors {p['when']} calibration", color=colour)
+            ax.set_xlabel(f"{p['what']} error ({p['unit']})")
+        fig.subplots_adjust(wspace=0.3, hspace=0.6)
     return _plot("histograms", "histograms of the position (and rotation) errors before and after calibration",
-                 draw, figsize=(10.5, 3.4 * len(kinds)))
+                 draw, figsize=(10.5, 3.6 * rows))
 
 
 # -- correlation ------------------------------------------------------------------------------------
 
-def plot_correlation(d: dict) -> str:
-    """The correlation matrix of the identified parameters as a heatmap, every label in full (SVG)."""
-    names = [p["name"] for p in d["parameters"]]
-    corr = np.asarray([[np.nan if v is None else v for v in row] for row in d["correlation"]], dtype=float)
-    n = len(names)
-    size = max(3.5, 0.16 * n + 1.6)
-    font = 7 if n <= 40 else 5.5
+BLOCK = 24        # parameters in one correlation block at most (labels stay 8 pt)
+WHOLE_MAP = 30    # up to this many parameters the correlation map is drawn whole
 
-    def draw(fig):
-        ax = fig.subplots()
-        im = ax.imshow(corr.reshape(n, n), cmap="RdBu_r", vmin=-1, vmax=1, interpolation="nearest")
-        ax.set_xticks(range(n), names, rotation=90, fontsize=font)
-        ax.set_yticks(range(n), names, fontsize=font)
-        ax.grid(False)
-        ax.set_xticks([i - 0.5 for i in range(1, n)], minor=True)
-        ax.set_yticks([i - 0.5 for i in range(1, n)], minor=True)
-        ax.grid(which="minor", color="white", lw=0.5)
-        ax.tick_params(which="minor", length=0)
-        cb = fig.colorbar(im, ax=ax, fraction=0.035, pad=0.02, shrink=0.8)
-        cb.set_label("correlation coefficient")
-    return _plot("correlation", "correlation map of the identified parameters", draw, figsize=(size + 0.9, size))
+
+def correlation_blocks(d: dict) -> list[tuple[str, list[int]]]:
+    """The blocks the correlation map is drawn in: (title, parameter indices). One block of every
+    parameter up to ``WHOLE_MAP`` of them; beyond, each family (base, markers, frames, compliance,
+    backlash) in blocks of at most ``BLOCK`` consecutive parameters, small families sharing one."""
+    params = d["parameters"]
+    n = len(params)
+    if n <= WHOLE_MAP:
+        return [("all identified parameters", list(range(n)))]
+    by_family: dict[str, list[int]] = {}
+    for i, p in enumerate(params):
+        by_family.setdefault(p.get("family") or "other", []).append(i)
+    blocks: list[tuple[str, list[int]]] = []
+    small: list[tuple[str, list[int]]] = []
+    for family, idx in by_family.items():
+        if len(idx) <= BLOCK // 2:
+            small.append((family, idx))
+            continue
+        parts = math.ceil(len(idx) / BLOCK)
+        size = math.ceil(len(idx) / parts)
+        for k in range(parts):
+            blocks.append((family + (f" ({k + 1} of {parts})" if parts > 1 else ""), idx[k * size:(k + 1) * size]))
+    while small:  # families of a few parameters share a block
+        title, idx = small.pop(0)
+        while small and len(idx) + len(small[0][1]) <= BLOCK:
+            t, more = small.pop(0)
+            title, idx = f"{title} and {t}", idx + more
+        blocks.append((title, idx))
+    return blocks
+
+
+CELL, CORR_FONT, COLOURBAR = 13, 10, 70  # correlation cell and label size (CSS px), colour bar width
+
+
+def _rdbu(r: float, cmap) -> str:
+    """The colour of a correlation coefficient ``r`` (red positive, blue negative)."""
+    if not math.isfinite(r):
+        return "#ffffff"
+    red, green, blue, _ = cmap(0.5 + 0.5 * max(-1.0, min(1.0, r)))
+    return f"#{round(red * 255):02x}{round(green * 255):02x}{round(blue * 255):02x}"
+
+
+def _text_width(text: str, size: float) -> float:
+    """A generous width of ``text`` at font ``size`` (DejaVu Sans averages under 0.62 em a character)."""
+    return 0.62 * size * len(text)
+
+
+def plot_correlation(d: dict) -> str:
+    """The correlation matrix of the identified parameters as heatmaps, every label in full at 10 px
+    (SVG, written directly: matplotlib takes seconds over a hundred labels): whole up to ``WHOLE_MAP``
+    parameters, else one block per family (``correlation_blocks``), two blocks side by side; the
+    pairs across blocks are in the strongest-pairs table beside it."""
+    matplotlib, _ = need_matplotlib()
+    cmap = matplotlib.colormaps["RdBu_r"]
+    names = [p["name"] for p in d["parameters"]]
+    n = len(names)
+    corr = np.asarray([[np.nan if v is None else v for v in row] for row in d["correlation"]],
+                      dtype=float).reshape(n, n)
+    blocks = correlation_blocks(d)
+    label = max([_text_width(nm, CORR_FONT) for nm in names] + [20.0]) + 6
+    sizes = [(label + len(idx) * CELL, 22 * (len(blocks) > 1) + len(idx) * CELL + label) for _, idx in blocks]
+    cols = 1 if len(blocks) == 1 else 2
+    col_w = max(w for w, _ in sizes) + 24
+    row_h = [max(h for _, h in sizes[i:i + cols]) + 18 for i in range(0, len(blocks), cols)]
+    width, height = cols * col_w + COLOURBAR, sum(row_h)
+    out = [f'<svg data-plot="correlation" role="img" aria-label="correlation map of the identified parameters" '
+           f'xmlns="http://www.w3.org/2000/svg" viewBox="0 0 {width:.0f} {height:.0f}" width="{width:.0f}" '
+           f'height="{height:.0f}" font-family="DejaVu Sans, Helvetica, Arial, sans-serif" font-size="{CORR_FONT}" '
+           'fill="#222">']
+    for b, (title, idx) in enumerate(blocks):
+        x0 = (b % cols) * col_w + label
+        y0 = sum(row_h[:b // cols]) + (22 if len(blocks) > 1 else 4)
+        k = len(idx)
+        if len(blocks) > 1:
+            out.append(f'<text x="{x0 + k * CELL / 2:.1f}" y="{y0 - 8}" text-anchor="middle" font-size="11" '
+                       f'font-weight="bold">{html.escape(title)}</text>')
+        for a, i in enumerate(idx):
+            out.append(f'<text x="{x0 - 4}" y="{y0 + a * CELL + CELL - 3}" text-anchor="end">'
+                       f"{html.escape(names[i])}</text>")
+            cx = x0 + a * CELL + CELL / 2 + 3.5
+            out.append(f'<text transform="translate({cx:.1f} {y0 + k * CELL + 4}) rotate(-90)" text-anchor="end">'
+                       f"{html.escape(names[i])}</text>")
+            cells = "".join(f'<rect x="{x0 + c * CELL}" y="{y0 + a * CELL}" width="{CELL - 1}" height="{CELL - 1}" '
+                            f'fill="{_rdbu(corr[i, j], cmap)}"/>' for c, j in enumerate(idx))
+            out.append(cells)
+    # the colour bar
+    bx, by, bh = cols * col_w + 8, 24, min(240, height - 48)
+    steps = 24
+    out += [f'<rect x="{bx}" y="{by + bh * s_ / steps:.1f}" width="14" height="{bh / steps + 0.5:.1f}" '
+            f'fill="{_rdbu(1 - 2 * (s_ + 0.5) / steps, cmap)}"/>' for s_ in range(steps)]
+    out += [f'<text x="{bx + 18}" y="{by + bh * (1 - v) / 2 + 3.5:.1f}">{f"{v:+g}" if v else "0"}</text>'
+            for v in (1, 0.5, 0, -0.5, -1)]
+    out.append(f'<text x="{bx}" y="{by - 10}" font-size="10">r</text>')
+    return "".join(out) + "</svg>"
 
 
 # -- residual vectors -------------------------------------------------------------------------------
@@ -281,7 +383,7 @@ def plot_residuals(d: dict) -> str:
     length = length or 1e-3
     bar = _nice(length * 0.5)
     at_points = pts is not None
-    if at_points:
+    if pts is not None:
         span = float((pts.max(axis=0) - pts.min(axis=0)).max()) or 1.0
         gain = _nice(0.08 * span / length)
     else:
@@ -334,45 +436,64 @@ def _scale_bar(ax, plane: str, gain: float, bar: float, at_points: bool) -> None
 
 def _stacked(d: dict, key: str) -> np.ndarray | None:
     """Fitted then held-out poses of ``errors.fit_<key>`` and ``errors.validation_<key>``."""
-    parts = [errors_array(d, f"{s}_{key}") for s in ("fit", "validation")]
-    if parts[0] is None:
+    fit, held_out = (errors_array(d, f"{s}_{key}") for s in ("fit", "validation"))
+    if fit is None:
         return None
-    return parts[0] if parts[1] is None else np.concatenate(parts)
+    return fit if held_out is None else np.concatenate([fit, held_out])
 
 
 def binned_median(x: np.ndarray, y: np.ndarray, bins: int = TREND_BINS) -> dict:
     """The trend of ``y`` against ``x``: median and quartiles of ``y`` in bins of equal counts of points.
 
-    Returns {"x": bin centres (median x), "median", "q25", "q75"} as arrays (empty without data).
+    Returns {"x": bin centres (median x), "median", "q25", "q75", "n": points per bin} as arrays
+    (empty without data).
     """
     ok = np.isfinite(x) & np.isfinite(y)
     x, y = x[ok], y[ok]
     bins = min(bins, len(x) // 8)
     if bins < 2:
-        return {k: np.zeros(0) for k in ("x", "median", "q25", "q75")}
+        return {k: np.zeros(0) for k in ("x", "median", "q25", "q75", "n")}
     order = np.argsort(x, kind="stable")
     groups = np.array_split(order, bins)
     return {"x": np.array([np.median(x[g]) for g in groups]),
             "median": np.array([np.median(y[g]) for g in groups]),
             "q25": np.array([np.percentile(y[g], 25) for g in groups]),
-            "q75": np.array([np.percentile(y[g], 75) for g in groups])}
+            "q75": np.array([np.percentile(y[g], 75) for g in groups]),
+            "n": np.array([len(g) for g in groups])}
 
 
-def residual_trends(d: dict, joint_names, joint_units, base_position) -> dict | None:
+STRUCTURE = 6.0  # a trend shows structure when its medians spread this many standard errors
+
+
+def structure(t: dict) -> float:
+    """How far a trend's bin medians spread, in standard errors of a bin median: the range of the
+    medians over the typical standard error (1.2533 sigma / sqrt(n), sigma from the interquartile
+    range). About 3 for noise over 16 bins; 0 without data."""
+    if len(t["median"]) < 2:
+        return 0.0
+    sigma = (t["q75"] - t["q25"]) / 1.349
+    se = float(np.median(1.2533 * sigma / np.sqrt(t["n"])))
+    spread = float(np.ptp(t["median"]))
+    return spread / se if se > 0 else (math.inf if spread > 0 else 0.0)
+
+
+def residual_trends(d: dict, joint_names, joint_units, X_WB) -> dict | None:
     """What the trend plot draws: residual components after calibration against reach, height and
     each joint's reading, fitted and held-out poses together.
 
-    ``joint_names``/``joint_units`` (SI unit per reading), ``base_position`` (m, in W). Reach is the
-    horizontal distance of the measured point from the base's vertical axis, height its height above
-    the base origin. Returns {"rows": [(label, unit)], "columns": [(label, unit)], "points": n,
-    "trends": {(row label, column label): binned_median(...)}}
+    ``joint_names``/``joint_units`` (SI unit per reading), ``X_WB`` (4x4, m: the calibrated base
+    in the measurement frame). Reach is the distance of the measured point from the base's z axis,
+    height its height along that axis above the base origin. Returns {"rows": [(label, unit)],
+    "columns": [(label, unit)], "points": n, "trends": {(row label, column label): binned_median(...)},
+    "structured": column labels whose trend in some row spreads beyond ``STRUCTURE`` standard errors}
     or None when the result holds no measured points.
     """
     vec, pos, q = _stacked(d, "residual_vectors"), _stacked(d, "positions"), _stacked(d, "readings")
     if vec is None or pos is None or q is None or pos.shape != vec.shape or len(q) != len(vec):
         return None
     n, m = vec.shape[:2]
-    rel = pos - np.asarray(base_position, dtype=float)
+    X_WB = np.asarray(X_WB, dtype=float)
+    rel = (pos - X_WB[:3, 3]) @ X_WB[:3, :3]  # in the base frame
     xs = [("reach", "mm", np.hypot(rel[..., 0], rel[..., 1]) * MM), ("height", "mm", rel[..., 2] * MM)]
     for j, (name, unit) in enumerate(zip(joint_names, joint_units)):
         shown = "deg" if unit == "rad" else "mm"
@@ -382,8 +503,9 @@ def residual_trends(d: dict, joint_names, joint_units, base_position) -> dict | 
     if rot is not None and rot.shape == (n, m):
         ys.append(("rotation error", "deg", rot * DEG))
     trends = {(ylab, xlab): binned_median(x.ravel(), y.ravel()) for ylab, _, y in ys for xlab, _, x in xs}
+    structured = [xlab for xlab, _, _ in xs if max(structure(trends[(ylab, xlab)]) for ylab, _, _ in ys) >= STRUCTURE]
     return {"rows": [(lab, u) for lab, u, _ in ys], "columns": [(lab, u) for lab, u, _ in xs], "points": n * m,
-            "trends": trends}
+            "trends": trends, "structured": structured}
 
 
 def _ticks(lo: float, hi: float, n: int = 3) -> list[float]:
@@ -400,45 +522,54 @@ def _span(values: list[np.ndarray]) -> tuple[float, float]:
     return lo - pad, hi + pad
 
 
-# panel size, gaps and margins of the trend grid (SVG user units, about pixels)
-PANEL_W, PANEL_H, GAP, LEFT, BOTTOM = 150, 92, 10, 62, 40
+# panel size, gaps and margins of the trend grid (SVG user units, CSS pixels at the page's width)
+PANEL_W, PANEL_H, GAP, LEFT, BOTTOM, TOP = 140, 92, 20, 66, 44, 24
+TREND_COLUMNS = 6  # panels side by side; more columns go on to a further band below
 
 
-def plot_residual_trends(trends: dict) -> str:
-    """A grid of small panels: each residual component (rows) against reach, height and each joint's
-    reading (columns), the binned median as a line over the interquartile band (SVG, written
-    directly: a grid of dozens of panels would take matplotlib seconds)."""
-    rows, cols, data = trends["rows"], trends["columns"], trends["trends"]
+def plot_residual_trends(trends: dict, columns: list | None = None) -> str:
+    """Panels of each residual component (rows) against reach, height and each joint's reading
+    (``columns``: the column labels to draw, default all), the binned median as a line over the
+    interquartile band, in bands of at most ``TREND_COLUMNS`` columns one below the other, every
+    panel its own axis labels (SVG, written directly: dozens of panels would take matplotlib seconds;
+    laid out at the page's width so that no text is scaled below its size)."""
+    rows, data = trends["rows"], trends["trends"]
+    cols = [(c, u) for c, u in trends["columns"] if columns is None or c in columns]
     yspan = [_span([data[(r, c)][k] for c, _ in cols for k in ("q25", "q75", "median")] + [np.zeros(1)])
              for r, _ in rows]
-    xspan = [_span([data[(r, c)]["x"] for r, _ in rows]) for c, _ in cols]
-    width = LEFT + len(cols) * (PANEL_W + GAP)
-    height = 8 + len(rows) * (PANEL_H + GAP) + BOTTOM
+    bands = [cols[i:i + TREND_COLUMNS] for i in range(0, len(cols), TREND_COLUMNS)] or [[]]
+    band_h = TOP + len(rows) * (PANEL_H + GAP) - GAP + BOTTOM
+    width = LEFT + min(len(cols), TREND_COLUMNS) * (PANEL_W + GAP)
+    height = len(bands) * band_h
     out = [f'<svg data-plot="residual-trends" role="img" aria-label="residual components against reach, height and '
            f'each joint\'s reading" xmlns="http://www.w3.org/2000/svg" viewBox="0 0 {width} {height}" '
            f'width="{width}" height="{height}" font-family="DejaVu Sans, Helvetica, Arial, sans-serif" '
-           'font-size="9" fill="#444">']
-    for i, (r, runit) in enumerate(rows):
-        y0 = 8 + i * (PANEL_H + GAP)
-        lo, hi = yspan[i]
+           'font-size="10" fill="#444">']
+    for b, band in enumerate(bands):
+        top = b * band_h + TOP
+        for i, (r, runit) in enumerate(rows):
+            y0 = top + i * (PANEL_H + GAP)
+            lo, hi = yspan[i]
 
-        def py(v, y0=y0, lo=lo, hi=hi):
-            return y0 + PANEL_H * (hi - v) / (hi - lo)
-        out.append(f'<text transform="translate(12 {y0 + PANEL_H / 2:.1f}) rotate(-90)" text-anchor="middle" '
-                   f'font-size="10" fill="#222">{html.escape(r)} ({runit})</text>')
-        out += [f'<text x="{LEFT - 4}" y="{py(t) + 3:.1f}" text-anchor="end">{t:.3g}</text>' for t in _ticks(lo, hi)]
-        for j, (c, _) in enumerate(cols):
+            def py(v, y0=y0, lo=lo, hi=hi):
+                return y0 + PANEL_H * (hi - v) / (hi - lo)
+            out.append(f'<text transform="translate(13 {y0 + PANEL_H / 2:.1f}) rotate(-90)" text-anchor="middle" '
+                       f'font-size="11" fill="#222">{html.escape(r)} ({runit})</text>')
+            out += [f'<text x="{LEFT - 5}" y="{py(t) + 3.5:.1f}" text-anchor="end">{t:.3g}</text>'
+                    for t in _ticks(lo, hi)]
+            for j, (c, _) in enumerate(band):
+                x0 = LEFT + j * (PANEL_W + GAP)
+                xl, xh = _span([data[(rr, c)]["x"] for rr, _ in rows])
+                out.append(_trend_panel(data[(r, c)], x0, y0, (xl, xh), py))
+        base = top + len(rows) * (PANEL_H + GAP) - GAP
+        for j, (c, cunit) in enumerate(band):
             x0 = LEFT + j * (PANEL_W + GAP)
-            xl, xh = xspan[j]
-            out.append(_trend_panel(data[(r, c)], x0, y0, (xl, xh), py))
-    for j, (c, cunit) in enumerate(cols):
-        x0 = LEFT + j * (PANEL_W + GAP)
-        xl, xh = xspan[j]
-        base = 8 + len(rows) * (PANEL_H + GAP) - GAP
-        out += [f'<text x="{x0 + PANEL_W * (t - xl) / (xh - xl):.1f}" y="{base + 11}" text-anchor="middle">{t:.4g}</text>'
-                for t in _ticks(xl, xh)]
-        out.append(f'<text x="{x0 + PANEL_W / 2}" y="{base + 26}" text-anchor="middle" font-size="10" fill="#222">'
-                   f"{html.escape(c)} ({cunit})</text>")
+            xl, xh = _span([data[(rr, c)]["x"] for rr, _ in rows])
+            ticks = [t for t in _ticks(xl, xh) if x0 + 14 <= x0 + PANEL_W * (t - xl) / (xh - xl) <= x0 + PANEL_W - 14]
+            out += [f'<text x="{x0 + PANEL_W * (t - xl) / (xh - xl):.1f}" y="{base + 13}" text-anchor="middle">'
+                    f"{t:.4g}</text>" for t in ticks]
+            out.append(f'<text x="{x0 + PANEL_W / 2}" y="{base + 30}" text-anchor="middle" font-size="11" '
+                       f'fill="#222">{html.escape(c)} ({cunit})</text>')
     return "".join(out) + "</svg>"
 
 

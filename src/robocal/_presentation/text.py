@@ -4,6 +4,19 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._arguments import (
+    FLAG,
+    NAMES,
+    TEXT,
+    checked,
+    each_a,
+    is_a,
+)
+from .._calibration import CalibrationResult, Comparison
+from .._checks import Check
+from .._contact_calibration import ContactCalibration
+from .._identifiability import IdentifiabilityResult
+from .._model import RobotModel
 from .._parameters import BACKLASH_KINDS, BASE_KINDS, FRAME_KINDS, MARKER_KINDS, parameter_layout
 from .units import MM, absorption_text, display_unit, with_unit
 
@@ -16,16 +29,15 @@ def stats_lines(stats, indent: str = "  ", *, unit: str = "m") -> list[str]:
     """The error table before and after, on fitted and held-out poses, in display units."""
     shown, k, _ = display_unit(unit)
     label = "position error" if unit == "m" else "rotation error"
-
-    def cell(v):
-        return f"{'-':>8}" if v is None else f"{v * k:8.3f}"
-
-    lines = [f"{indent}{f'{label} ({shown})':<24}{'n':>5}{'mean':>8}{'std':>8}{'RMS':>8}{'max':>8}"]
-    for key in STAT_ROWS:
-        s = stats[key]
-        if s.n:
-            lines.append(f"{indent}{key.replace('_', ', '):<24}{s.n:>5}{cell(s.mean)}{cell(s.std)}{cell(s.rms)}"
-                         f"{cell(s.max)}")
+    rows = [(key, stats[key]) for key in STAT_ROWS if stats[key].n]
+    texts = {(key, f): "-" if getattr(s, f) is None else f"{getattr(s, f) * k:.3f}"
+             for key, s in rows for f in ("mean", "std", "rms", "max")}
+    # columns at least one space apart however large the errors (1234.567 mm)
+    w = max([7] + [len(t) for t in texts.values()]) + 1
+    lines = [f"{indent}{f'{label} ({shown})':<24}{'n':>5}{'mean':>{w}}{'std':>{w}}{'RMS':>{w}}{'max':>{w}}"]
+    for key, s in rows:
+        lines.append(f"{indent}{key.replace('_', ', '):<24}{s.n:>5}"
+                     + "".join(f"{texts[(key, f)]:>{w}}" for f in ("mean", "std", "rms", "max")))
     return lines
 
 
@@ -51,8 +63,19 @@ def in_use_lines(in_use, indent: str = "  ") -> list[str]:
     return lines
 
 
+@checked(checks=each_a(Check))
 def checks_lines(checks) -> list[str]:
-    """Every check with its figures; the likely cause and the fix of those that did not pass."""
+    """Every check with its figures; the likely cause and the fix of those that did not pass.
+
+    Parameters
+    ----------
+    {checks}
+
+    Returns
+    -------
+    list of str
+        One line per check.
+    """
     lines = ["checks:"]
     for c in checks:
         lines.append(f"  {MARKS[c.status]} {c.name}: {c.summary}")
@@ -62,8 +85,33 @@ def checks_lines(checks) -> list[str]:
     return lines
 
 
+def diagnosis_lines(diagnosis) -> list[str]:
+    """The diagnosis of a misfit: the most likely cause first with its evidence, the close ones after."""
+    if diagnosis is None:
+        return []
+    if not diagnosis.findings:
+        return [f"diagnosis: {diagnosis.summary}"]
+    lines = ["diagnosis (most likely first):"]
+    for k, f in enumerate(diagnosis.findings):
+        lines.append(f"  {'likely' if k == 0 else 'or    '} {f.cause}: {f.evidence}")
+        lines += [f"         fix: {f.fix}"] if f.fix else []
+    return lines
+
+
+@checked(result=is_a(CalibrationResult, ContactCalibration))
 def verdict_line(result) -> str:
-    """The last line of a summary: the verdict, with what it rests on."""
+    """The last line of a summary: the verdict, with what it rests on.
+
+    Parameters
+    ----------
+    result : CalibrationResult or ContactCalibration
+        A calibration's result.
+
+    Returns
+    -------
+    str
+        The verdict line.
+    """
     failed = [c.name for c in result.checks if c.status == "fail"]
     warned = [c.name for c in result.checks if c.status == "warn"]
     if failed:
@@ -92,8 +140,21 @@ def eliminated_lines(ident, units: dict) -> list[str]:
     return lines
 
 
+@checked(result=is_a(CalibrationResult), shown=NAMES, weighted=FLAG)
 def calibration_summary(result, *, shown=(), weighted: bool = False) -> str:
-    """What ``robocal calibrate`` prints about one result. ``shown``: notes already printed as warnings."""
+    """What ``robocal calibrate`` prints about one result. ``shown``: notes already printed as warnings.
+
+    Parameters
+    ----------
+    result : CalibrationResult
+        A calibration's result.
+    {shown, weighted}
+
+    Returns
+    -------
+    str
+        The text summary.
+    """
     lines = [f"calibration of {result.nominal_model.name} on {result.provenance['data']['n_poses']} poses "
              f"({', '.join(result.families)}, loss {result.loss})"]
     lines += stats_lines(result.stats)
@@ -163,8 +224,19 @@ def _candidate_units(result) -> dict:
     return {n: lay[n].unit for n in result.identifiability.candidates if n in lay}
 
 
+@checked(comparison=is_a(Comparison), shown=NAMES, weighted=FLAG)
 def comparison_summary(comparison, *, shown=(), weighted: bool = False) -> str:
-    """What ``robocal calibrate --compare`` prints: the two (or three) identifications side by side."""
+    """What ``robocal calibrate --compare`` prints: the two (or three) identifications side by side.
+
+    Parameters
+    ----------
+    {comparison, shown, weighted}
+
+    Returns
+    -------
+    str
+        The text summary.
+    """
     geo = comparison.geometric
     short = {"geometric": "geometric", "geometric and compliance": "geometric+compliance",
              "geometric, compliance and backlash": "+backlash"}
@@ -196,8 +268,19 @@ def comparison_summary(comparison, *, shown=(), weighted: bool = False) -> str:
     return "\n".join(lines)
 
 
+@checked(model=is_a(RobotModel), res=is_a(IdentifiabilityResult), where=TEXT)
 def identifiability_summary(model, res, where: str) -> str:
-    """The identifiability table in the paper's layout, base and marker statuses, what absorbs what."""
+    """The identifiability table in the paper's layout, base and marker statuses, what absorbs what.
+
+    Parameters
+    ----------
+    {model, res, where}
+
+    Returns
+    -------
+    str
+        The text summary.
+    """
     width = max([len(f) for f in model.frame_names] + [len(m) for m in model.marker_names] + [12])
     lines = [f"identifiability of {model.name} at {where}, tolerance {res.tol:g}",
              "I identified, E eliminated, - not considered"]

@@ -9,6 +9,13 @@ from __future__ import annotations
 import math
 from html.entities import html5
 
+from .._arguments import (
+    FLAG,
+    REAL,
+    checked,
+    one_of,
+    optional,
+)
 from .._parameters import SI_UNITS
 
 # SI unit -> (display unit, factor from SI, decimals)
@@ -36,8 +43,18 @@ def display_unit(unit: str) -> tuple[str, float, int | None]:
     return DISPLAY_UNITS.get(unit, (unit, 1.0, None))
 
 
+@checked(value=optional(REAL), unit=one_of(tuple(DISPLAY_UNITS)), sign=FLAG)
 def fmt(value, unit: str = "m", *, sign: bool = False) -> str:
     """``value`` (SI, in ``unit``) as display text without the unit; an en dash when absent.
+
+    Parameters
+    ----------
+    {value, unit, sign}
+
+    Returns
+    -------
+    str
+        The value as text, without the unit; an en dash when absent.
 
     >>> fmt(0.0012345), fmt(math.pi / 2, "rad"), fmt(-1e-6, "rad/(N m)", sign=True), fmt(None)
     ('1.2345', '90.00000', '-0.0573', '–')

@@ -7,6 +7,7 @@ nothing written). This package is the only place that prints or configures loggi
 
 from __future__ import annotations
 
+import argparse
 import logging
 import os
 import signal
@@ -15,12 +16,26 @@ import warnings
 
 from .._errors import RobocalError, RobocalWarning
 from .._version import __version__
-from . import (calibrate, compensate, export, identifiability, import_dh, import_urdf, limit, plan, plan_sockets,
-               report, simulate)
+from . import (
+    calibrate,
+    compensate,
+    export,
+    history,
+    identifiability,
+    import_dh,
+    import_urdf,
+    limit,
+    plan,
+    plan_sockets,
+    record,
+    report,
+    simulate,
+    verify,
+)
 from .common import MissingExtra, Parser
 
 COMMANDS = (plan, plan_sockets, simulate, calibrate, compensate, export, identifiability, report, limit, import_urdf,
-            import_dh)
+            import_dh, record, history, verify)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -31,17 +46,23 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for command in COMMANDS:
         command.register(sub)
+    for command_parser in sub.choices.values():  # `robocal COMMAND -v` as well as `robocal -v COMMAND`
+        command_parser.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS,
+                                    help="log progress")
     return parser
+
+
+class _CommandHandler(logging.StreamHandler):
+    """The handler the command line adds to the ``robocal`` logger (one at a time)."""
 
 
 def _configure_logging(verbose: bool) -> None:
     """The library logs progress through ``logging`` (logger ``robocal``); only here is it shown."""
     logger = logging.getLogger("robocal")
-    for h in [h for h in logger.handlers if getattr(h, "robocal_cli", False)]:
+    for h in [h for h in logger.handlers if isinstance(h, _CommandHandler)]:
         logger.removeHandler(h)          # a handler of an earlier call holds an earlier stderr
-    handler = logging.StreamHandler(sys.stderr)
+    handler = _CommandHandler(sys.stderr)
     handler.setFormatter(logging.Formatter("robocal: %(message)s"))
-    handler.robocal_cli = True
     logger.addHandler(handler)
     logger.setLevel(logging.INFO if verbose else logging.WARNING)
     logger.propagate = False

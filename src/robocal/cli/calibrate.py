@@ -7,7 +7,7 @@ from pathlib import Path
 
 from .._errors import DegenerateDataError, InputError
 from .._options import BACKLASH_SIDES, INSTRUMENT_NOISE, LOSSES, OUTLIER_ACTIONS, WEAK_ACTIONS
-from . import common
+from . import common, record
 
 # exit code of a calibration whose checks failed (docs/cli.md)
 FAILED = 3
@@ -44,7 +44,8 @@ def register(sub) -> None:
     p.add_argument("--backlash-side", choices=BACKLASH_SIDES, default=None,
                    help="where each joint rests in its lost motion in this campaign: on the side its gravity load "
                         "pushes it to, or behind its last move (default: the model file's backlash.side)")
-    p.add_argument("--loss", default="linear", choices=LOSSES, help="least-squares loss (robust ones bend for outliers)")
+    p.add_argument("--loss", default="linear", choices=LOSSES,
+                   help="least-squares loss (robust ones bend for outliers)")
     p.add_argument("--register-base", action="store_true",
                    help="start the base pose from a rigid registration of the nominal robot on the data")
     p.add_argument("--limit-mm", type=common.limit_mm, metavar="X|LIMIT.json",
@@ -71,9 +72,13 @@ def register(sub) -> None:
                    help="hold weakly identifiable parameters at nominal (default), or keep them and warn")
     g.add_argument("--nonnegative-compliance", action="store_true", help="keep identified compliances >= 0")
     common.mass_options(p)
+    g.add_argument("--diagnose", action="store_true",
+                   help="test specific mistakes against the data and name the most likely cause of the misfit "
+                        "(done anyway when the verdict is warn or fail; docs/diagnosis.md)")
     g.add_argument("--write-failed", action="store_true",
                    help="write calibrated.yaml even when a check fails (it then carries the verdict)")
     common.csv_options(p)
+    record.record_options(p.add_argument_group("store of calibrations (docs/store.md)"), robot=True)
     p.set_defaults(func=run)
 
 
@@ -109,13 +114,27 @@ def _headline(result) -> dict:
     return out
 
 
+def _diagnosis(args, model, data, best, noise):
+    """The diagnosis of the chosen result when its verdict is warn or fail, or asked (--diagnose), printed."""
+    if not (args.diagnose or best.verdict != "pass"):
+        return None
+    from .._diagnosis import diagnose
+    from .._presentation.text import diagnosis_lines
+
+    diagnosis = diagnose(model, data, best, noise=noise)
+    print("\n".join(diagnosis_lines(diagnosis)))
+    return diagnosis
+
+
 def run(args) -> int:
     from .._calibration import calibrate, compare
     from .._files.model import calibration_record, model_to_yaml
-    from .._measurements import Noise
     from .._files.result import result_files, sidecar_path
+    from .._measurements import Noise
     from .._presentation.text import calibration_summary, comparison_summary
 
+    if args.contacts and args.record:
+        raise InputError("the store keeps calibrations from measurement files; drop --contacts", where="--record")
     if args.contacts:
         from . import contacts
         return contacts.run(args)
@@ -161,14 +180,19 @@ def run(args) -> int:
         raise DegenerateDataError(f"{args.csv}: {e}") from None
     for r in results:
         common.require_finite("the calibration", _headline(r))
-    files = {p: f for n, r in zip(names, results) for p, f in result_files(r, out / n).items()}
+    diagnosis = _diagnosis(args, model, data, best, noise)
+    files = {p: f for n, r in zip(names, results)
+             for p, f in result_files(r, out / n, diagnosis=diagnosis if r is best else None).items()}
     failed = best.verdict == "fail"
     if not failed or args.write_failed:
         files[out / "calibrated.yaml"] = model_to_yaml(best.calibrated_model, units=args.out_units,
                                                        calibration=calibration_record(best))
-    rep = (report, best, out / "report.html") if report else None
-    common.write_outputs(files, force=args.force, report=rep)
-    print(f"wrote {', '.join(str(p) for p in list(files) + ([rep[2]] if rep else []))}")
+    if report:   # rendered before anything is written: a failure there leaves nothing behind
+        files[out / "report.html"] = report.render_report(best, diagnosis=diagnosis)
+    common.write_outputs(files, force=args.force)
+    print(f"wrote {', '.join(str(p) for p in files)}")
+    if args.record:
+        record.record_result(args, best, args.record, str(out / "result.json"))
     if failed:
         print(f"not written: {out / 'calibrated.yaml'} (the calibration failed its checks; --write-failed writes it "
               "anyway, marked as failed)" if not args.write_failed else

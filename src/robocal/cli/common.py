@@ -238,7 +238,8 @@ def write_imported_model(args, model, what: str, source: str | None = None) -> N
     from .._files.model import model_to_yaml
 
     text = model_to_yaml(model, units=args.units)
-    check_model_text(model, text, source=source or args.out)  # never a model file robocal would refuse, or another model
+    # never a model file robocal would refuse, or another model
+    check_model_text(model, text, source=source or args.out)
     write_outputs({args.out: text}, force=args.force)
     print(f"{model.name}: {model.n_joints} joints ({', '.join(model.joint_names)}), {what}markers "
           f"{', '.join(model.marker_names)}: wrote {args.out}")

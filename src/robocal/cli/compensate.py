@@ -3,12 +3,18 @@
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 from .._errors import InputError
 from . import common
 
-EXAMPLE = """example:
+EXAMPLE = """examples:
   robocal compensate examples/th8/model.yaml runs/th8/calibrated.yaml examples/th8/targets.csv --out commands.csv
+  robocal compensate model.yaml calibrated.yaml program.mod --out program-compensated.mod --tool tGripper
+
+A robot program (ABB RAPID .mod/.prg/.sys, KUKA KRL .src/.dat, URScript .script; or --dialect)
+is written back with only its targets' numbers changed; a target out of reach or beyond a joint
+limit is left unchanged and flagged in a comment (docs/formats.md, "Robot programs").
 
 TARGETS.csv has the measurement-file layout: joint columns (the readings the nominal controller
 would command) and, optionally, marker columns. A row with a marker position (and orientation) is a
@@ -24,8 +30,16 @@ def register(sub) -> None:
                        example=EXAMPLE,
                        inputs=[("nominal", "NOMINAL", "the model the controller holds (YAML)"),
                                ("calibrated", "CALIBRATED", "the calibrated model (YAML)"),
-                               ("targets", "TARGETS.csv", "targets: joint readings, or positions/poses in W")])
-    p.add_argument("--out", required=True, metavar="CSV", help="corrected commands to write")
+                               ("targets", "TARGETS", "targets: a CSV of joint readings or positions/poses in W, "
+                                                      "or a robot program")])
+    p.add_argument("--out", required=True, metavar="FILE", help="corrected commands (CSV) or the compensated program")
+    g = p.add_argument_group("robot program")
+    g.add_argument("--dialect", choices=("rapid", "krl", "urscript"),
+                   help="the program's language (default: from its extension)")
+    g.add_argument("--tool", metavar="NAME", help="a tool the program declares (tooldata, FRAME or TOOL_DATA[n], "
+                                                  "a pose variable), on the frame of the model's tool point")
+    g.add_argument("--wobj", metavar="NAME", help="a work object the program declares (wobjdata, FRAME or "
+                                                  "BASE_DATA[n], a pose variable) that its Cartesian targets are in")
     p.add_argument("--marker", help="the marker to place (default the file's first marker, else the model's)")
     p.add_argument("--position-only", action="store_true",
                    help="match the marker's position only, even with six joints or more")
@@ -33,7 +47,8 @@ def register(sub) -> None:
                    help="position residual above which a target counts as out of reach (default 0.001)")
     p.add_argument("--tol-deg", type=common.noise_deg, default=1e-4,
                    help="orientation residual above which a target counts as out of reach (default 1e-4)")
-    p.add_argument("--out-units", type=common.units, default="mm-deg", help="units of the written file (default mm-deg)")
+    p.add_argument("--out-units", type=common.units, default="mm-deg",
+                   help="units of the written file (default mm-deg)")
     p.add_argument("--force", action="store_true", help="overwrite an existing file")
     common.csv_options(p)
     p.set_defaults(func=run)
@@ -45,6 +60,42 @@ def _marker(args, model, data) -> tuple[int, int | None]:
     if name not in model.marker_names:
         raise InputError(f"no marker {name!r}; the model has {', '.join(model.marker_names)}", where="--marker")
     return model.marker_names.index(name), (data.marker_names.index(name) if name in data.marker_names else None)
+
+
+def _is_program(args) -> bool:
+    from .._files.programs import EXTENSIONS
+
+    return args.dialect is not None or Path(args.targets).suffix.lower() in EXTENSIONS
+
+
+def _run_program(args, nominal, calibrated) -> int:
+    """Compensate a robot program; a line per target (mm, deg), the flagged ones also on stderr."""
+    from .._files.programs import read_program
+    from .._files.programs.compensation import compensate_program
+
+    program = read_program(args.targets, dialect=args.dialect)
+    name = args.marker or nominal.marker_names[0]
+    if name not in nominal.marker_names:
+        raise InputError(f"no marker {name!r}; the model has {', '.join(nominal.marker_names)}", where="--marker")
+    m = nominal.marker_names.index(name)
+    result = compensate_program(program, nominal, calibrated, marker=m, tool=args.tool, wobj=args.wobj,
+                                tol=args.tol_mm / common.MM, tol_rot=args.tol_deg / common.DEG)
+    common.write_outputs({args.out: result.text}, force=args.force)
+    for r in result.targets:
+        if r.status == "ok":
+            conf = f"; configuration {r.configuration}" if r.configuration else ""
+            print(f"{r.name} (line {r.line}, {r.kind}): moved {r.moved * common.MM:.4f} mm, turned "
+                  f"{r.turned * common.DEG:.5f} deg; joints by up to {r.angle_change * common.DEG:.5f} deg"
+                  f"{f', {r.length_change * common.MM:.4f} mm' if r.length_change else ''}{conf}")
+        else:
+            print(f"{r.name} (line {r.line}, {r.kind}): {r.status}")
+    for r in result.flagged:
+        print(f"robocal: warning: {args.targets}: {r.name} (line {r.line}): {r.status}; left unchanged",
+              file=sys.stderr)
+    done = sum(r.status == "ok" for r in result.targets)
+    print(f"compensated {done} of {len(result.targets)} targets of {args.targets} ({program.dialect}) for "
+          f"{calibrated.name}: {len(result.flagged)} flagged; wrote {args.out}")
+    return 0
 
 
 def run(args) -> int:
@@ -59,6 +110,8 @@ def run(args) -> int:
     if calibrated.joint_names != nominal.joint_names:
         raise InputError(f"joints {', '.join(calibrated.joint_names)} differ from the nominal model's "
                          f"({', '.join(nominal.joint_names)})", source=args.calibrated)
+    if _is_program(args):
+        return _run_program(args, nominal, calibrated)
     data = common.read_data(args, nominal, args.targets, targets=True)
     m, col = _marker(args, nominal, data)
     comp = compensate(calibrated, data.q, nominal=nominal, marker=m,
@@ -74,7 +127,8 @@ def run(args) -> int:
     flagged = [(lab, s) for lab, s in zip(data.labels, status) if s != "ok"]
     for lab, s in flagged:
         print(f"robocal: warning: {args.targets}: {lab}: {s}", file=sys.stderr)
-    print(f"compensated {data.n_poses} targets for {calibrated.name} ({'position' if not comp.oriented.any() else 'pose'} "
+    kind = "position" if not comp.oriented.any() else "pose"
+    print(f"compensated {data.n_poses} targets for {calibrated.name} ({kind} "
           f"of marker {nominal.marker_names[m]}): {data.n_poses - len(flagged)} reached, {len(flagged)} flagged; "
           f"worst residual {comp.residual.max() * common.MM:.3g} mm: wrote {args.out}")
     return 0

@@ -12,6 +12,15 @@ from . import common
 FAILED = 3
 
 
+def _record(result, args) -> dict:
+    """What calibrated.yaml says of its calibration from contacts (see ``calibration_record``)."""
+    from datetime import datetime, timezone
+
+    data = str(args.contacts) + (f" and {args.csv}" if args.csv else "")
+    return {"verdict": result.verdict, "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+            "data": data, "families": list(args.parameters or ("geometric",)), "nominal": result.nominal_model.name}
+
+
 def _result_json(result) -> str:
     """The parameters, the analysis, the kit's figures and the checks, SI (keys say the units)."""
     ident = result.identifiability
@@ -29,7 +38,8 @@ def _result_json(result) -> str:
                        for a in ident.eliminated],
         "contributions": {k: list(v) for k, v in ident.contributions.items()}, "together": list(ident.together),
         "lost_without": {k: list(v) for k, v in ident.lost_without.items()},
-        "unreachable": [{"name": u.name, "reason": u.reason, "components": list(u.components)} for u in ident.unreachable],
+        "unreachable": [{"name": u.name, "reason": u.reason, "components": list(u.components)}
+                        for u in ident.unreachable],
         "nuisance": {k: {"estimate": v[0], "std": v[1]} for k, v in result.nuisance.items()},
         "fit_before": figures(result.fit_before), "fit_after": figures(result.fit_after),
         "validation_before": figures(result.validation_before), "validation_after": figures(result.validation_after),
@@ -80,7 +90,8 @@ def run(args) -> int:
     files = {out / "contacts-result.json": _result_json(result)}
     failed = result.verdict == "fail"
     if not failed or args.write_failed:
-        files[out / "calibrated.yaml"] = model_to_yaml(result.calibrated_model, units=args.out_units)
+        files[out / "calibrated.yaml"] = model_to_yaml(result.calibrated_model, units=args.out_units,
+                                                       calibration=_record(result, args))
     common.write_outputs(files, force=args.force)
     print(f"wrote {', '.join(str(p) for p in files)}")
     return FAILED if failed else 0

@@ -5,7 +5,6 @@ from __future__ import annotations
 from .._errors import DegenerateDataError
 from . import common
 
-
 EXAMPLE = """examples:
   robocal identifiability examples/th8/model.yaml --parameters geometric,compliance
   robocal identifiability examples/th8/model.yaml examples/th8/measurements.csv"""
@@ -20,7 +19,8 @@ def register(sub) -> None:
                                ("csv", "CSV", "measurement file (its poses); default random poses", "?")])
     common.parameter_options(p)
     common.mass_options(p)
-    p.add_argument("--poses", type=common.poses, default=200, metavar="N", help="random poses without CSV (default 200)")
+    p.add_argument("--poses", type=common.poses, default=200, metavar="N",
+                   help="random poses without CSV (default 200)")
     p.add_argument("--seed", type=common.seed, default=0, help="seed of the random poses (default 0)")
     common.csv_options(p)
     p.set_defaults(func=run)

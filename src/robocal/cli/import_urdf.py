@@ -7,7 +7,6 @@ from pathlib import Path
 from .._errors import InputError
 from . import common
 
-
 EXAMPLE = """example:
   robocal import-urdf examples/urdf/gen3_like.urdf --out gen3.yaml --marker-mm tcp,0,0,120
 

@@ -10,7 +10,9 @@ import re
 import sys
 
 from .._errors import InputError
-from .._options import LIMIT_CHUNK as DEFAULT_CHUNK, LIMIT_MARKER_MODES as MARKER_MODES, MAX_CHUNK, MAX_SAMPLES
+from .._options import LIMIT_CHUNK as DEFAULT_CHUNK
+from .._options import LIMIT_MARKER_MODES as MARKER_MODES
+from .._options import MAX_CHUNK, MAX_SAMPLES
 from .._units import LENGTH_UNITS, UNITS, unit_kind
 from . import common
 
@@ -43,7 +45,8 @@ def register(sub) -> None:
                    help="round-off quantum of stored lengths, mm")
     p.add_argument("--angle-quantum-deg", required=True, type=common.angle_deg, metavar="X",
                    help="round-off quantum of stored angles, degrees")
-    p.add_argument("--samples", type=common.integer(1, MAX_SAMPLES), default=100_000, metavar="N", help="Monte Carlo samples (default 100000)")
+    p.add_argument("--samples", type=common.integer(1, MAX_SAMPLES), default=100_000, metavar="N",
+                   help="Monte Carlo samples (default 100000)")
     p.add_argument("--seed", type=common.seed, default=0, metavar="S", help="random seed (default 0)")
     p.add_argument("--chunk-size", type=common.integer(1, MAX_CHUNK), default=DEFAULT_CHUNK, metavar="N",
                    help=f"configurations per vectorised chunk (default {DEFAULT_CHUNK})")
@@ -64,7 +67,7 @@ def parse_resolution(text: str, is_angle) -> list[float]:
     for j, (entry, angle) in enumerate(zip(entries, is_angle)):
         m = _ENTRY.match(entry)
         kind = unit_kind(m.group(2)) if m else None
-        if kind is None:
+        if m is None or kind is None:
             raise InputError(f"joint {j + 1}: expected a number with a unit (deg, rad, mm, m), got {entry.strip()!r}",
                              where="--encoder-resolution")
         scale, unit_is_angle = UNITS[kind][m.group(2)], kind == "angle"

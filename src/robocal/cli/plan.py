@@ -38,7 +38,8 @@ def register(sub) -> None:
     p.add_argument("--noise-mm", type=common.noise_mm, metavar="X", help="measurement noise, mm per axis "
                                                                        "(overrides the instrument's)")
     p.add_argument("--seed", type=common.seed, default=0, help="random seed (default 0)")
-    p.add_argument("--out-units", type=common.units, default="mm-deg", help="units of the written file (default mm-deg)")
+    p.add_argument("--out-units", type=common.units, default="mm-deg",
+                   help="units of the written file (default mm-deg)")
     p.add_argument("--force", action="store_true", help="overwrite an existing file")
     common.csv_options(p)
     p.set_defaults(func=run)

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from . import common
 
-
 EXAMPLE = """example:
   robocal report runs/mine/result.json --out report.html"""
 

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from . import common
 
-
 EXAMPLE = """example:
   robocal simulate examples/th8/model.yaml --out sim.csv --poses 60 --seed 1 --true-model true.yaml"""
 
@@ -18,7 +17,8 @@ def register(sub) -> None:
     p.add_argument("--noise-mm", type=common.length_mm, default=0.02, help="measurement noise std, mm (default 0.02)")
     p.add_argument("--length-error-mm", type=common.floats(2, 1e3, ordered=True), default=(0.1, 1.0), metavar="LO,HI",
                    help="range of length errors, mm (default 0.1,1)")
-    p.add_argument("--angle-error-deg", type=common.floats(2, 180.0, ordered=True), default=(0.01, 0.1), metavar="LO,HI",
+    p.add_argument("--angle-error-deg", type=common.floats(2, 180.0, ordered=True), default=(0.01, 0.1),
+                   metavar="LO,HI",
                    help="range of angle errors, deg (default 0.01,0.1)")
     p.add_argument("--parameters", type=common.names, default=("geometric",), help="families to perturb")
     p.add_argument("--true-model", metavar="OUT.yaml", help="also write the true model")

@@ -1,0 +1,48 @@
+"""Read-only arrays: what a record or a cache hands out cannot be changed behind its back.
+
+Records (measurements, contacts, layouts) and what an object keeps between calls (a problem's
+evaluations, a model's layouts) hold their arrays read-only: writing into one raises
+``ValueError: assignment destination is read-only`` instead of silently moving every later result.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def read_only(a: np.ndarray) -> np.ndarray:
+    """``a`` itself, marked read-only (for an array just made and owned by the caller).
+
+    Parameters
+    ----------
+    a : numpy.ndarray
+        An array nobody else holds a writeable reference to.
+
+    Returns
+    -------
+    numpy.ndarray
+        The same array, no longer writeable.
+    """
+    a.flags.writeable = False
+    return a
+
+
+def frozen(a, dtype=float) -> np.ndarray:
+    """A read-only copy of ``a`` as ``dtype`` (no copy when ``a`` is already a read-only array of
+    that type that owns its data, which nobody can change).
+
+    Parameters
+    ----------
+    a : array_like
+        The values, from a caller who may keep and change their own array.
+    dtype : numpy dtype, optional
+        The type to hold them as (float by default).
+
+    Returns
+    -------
+    numpy.ndarray
+        A read-only array with the values of ``a``.
+    """
+    if isinstance(a, np.ndarray) and a.dtype == dtype and not a.flags.writeable and a.base is None:
+        return a
+    return read_only(np.array(a, dtype=dtype))

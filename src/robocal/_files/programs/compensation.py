@@ -1,0 +1,247 @@
+"""A robot program compensated: each target replaced by the one the nominal controller must be given
+for the calibrated robot to land where the program meant (docs/formats.md, "Robot programs")."""
+
+from __future__ import annotations
+
+import bisect
+import math
+import re
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..._compensation import arm_chain, compensate, compensate_poses, posture
+from ..._errors import InputError, suggest
+from ..._kinematics import evaluate
+from ..._model import Marker, RobotModel
+from . import (
+    BEYOND,
+    DIALECTS,
+    DIGITS,
+    KEEP,
+    NO_SOLUTION,
+    REACHED,
+    UNREACHED,
+    joint_units,
+    joint_values,
+)
+from .syntax import SLACK, Program, edited, format_number
+
+
+@dataclass(frozen=True)
+class TargetResult:
+    """What became of one target: ``status`` (``ok`` or why it was left unchanged, or ``read only: ...``
+    for a target that is not a literal), how far the nominal model's tool point moved (``moved``, m)
+    and turned (``turned``, rad) between the old target and the new one, the largest change of a
+    revolute and of a prismatic reading (rad, m), and ``configuration`` ("old -> new" where the
+    configuration data changed, else empty)."""
+
+    name: str
+    line: int
+    kind: str
+    status: str
+    moved: float = 0.0
+    turned: float = 0.0
+    angle_change: float = 0.0
+    length_change: float = 0.0
+    configuration: str = ""
+
+
+@dataclass(frozen=True)
+class ProgramCompensation:
+    """The compensated program's ``text`` and a ``TargetResult`` per target, in source order."""
+
+    text: str
+    targets: tuple[TargetResult, ...]
+
+    @property
+    def flagged(self) -> tuple[TargetResult, ...]:
+        return tuple(t for t in self.targets if t.status != REACHED and not t.status.startswith("read only"))
+
+
+def _named(program: Program, name: str, kinds, option: str):
+    found = [f for f in program.frames if f.name == name]
+    source = None if option.startswith("--") else program.source       # else the line that uses it
+    if not found:
+        names = [f.name for f in program.frames if f.kind in kinds]
+        hint = suggest(name, names) if names else "; the program declares none"
+        raise InputError(f"no {'tool' if 'tool' in kinds else 'work object'} {name!r} in {program.source}{hint}",
+                         source=source, where=option)
+    if found[-1].kind not in kinds:
+        raise InputError(f"{name!r} is a {found[-1].kind}, not something robocal can use here", source=source,
+                         where=option)
+    return found[-1].X
+
+
+def _tool_models(program, nominal, calibrated, marker, tool, where: str):
+    """The models with the named tool as their only marker, on the frame of the model's own tool point."""
+    if tool is None:
+        return nominal, calibrated, marker
+    X = _named(program, tool, ("tool", "frame"), where)
+    mk = Marker(tool, nominal.markers[marker].frame, tuple(X[:3, 3]), tuple(map(tuple, X[:3, :3])))
+    return nominal.replace(markers=(mk,)), calibrated.replace(markers=(mk,)), 0
+
+
+def _angle(Ra, Rb) -> np.ndarray:
+    """(N,) angle (rad) of the rotation between Ra and Rb, accurate near zero."""
+    return Rotation.from_matrix(Ra @ np.swapaxes(Rb, -1, -2)).magnitude()
+
+
+def _status(solved, comp, tol, tol_rot) -> list[str]:
+    reached = comp.reached(tol, tol_rot)
+    return [NO_SOLUTION if not s else UNREACHED if not r else BEYOND if not inside else REACHED
+            for s, r, inside in zip(solved, reached, comp.within_limits)]
+
+
+def _changes(model, q_old, q_new):
+    angle = np.array([k == "angle" for k in model.reading_quantities])
+    d = np.abs(q_new - q_old)
+    return np.where(angle, d, 0).max(axis=1), np.where(angle, 0, d).max(axis=1)
+
+
+def _joint_edits(program, model, targets, q_new, edits):
+    units = joint_units(model, DIALECTS[program.dialect])
+    for t, q in zip(targets, q_new):
+        for n, v, u in zip(t.joints, q, units):
+            edits.append((n.start, n.end, format_number(v / u, n, digits=DIGITS[u], keep=KEEP / u)))
+
+
+def _pose_edits(module, targets, X_new, X_old, q, bits, edits) -> list[str]:
+    """Edits of the pose targets' numbers (an orientation rewritten only where it turned by more than
+    KEEP); per target "old -> new" where the configuration data change."""
+    changed = []
+    L, U = module.LENGTH, module.ORIENTATION
+    turned = _angle(X_new[:, :3, :3], X_old[:, :3, :3])
+    orientations = module.orientation_values(X_new[:, :3, :3], targets)        # file units
+    for i, t in enumerate(targets):
+        for n, v in zip(t.position, X_new[i, :3, 3] / L):
+            edits.append((n.start, n.end, format_number(v, n, digits=DIGITS[L], keep=KEEP / L)))
+        if turned[i] > KEEP:
+            for n, v in zip(t.orientation, orientations[i]):
+                edits.append((n.start, n.end, format_number(v, n, digits=DIGITS[U], keep=0.0)))
+        new = module.configuration_values(q[i], bits[i], t, SLACK) if t.configuration else []
+        old = [int(n.value) for n in t.configuration]
+        for n, v in zip(t.configuration, new):
+            edits.append((n.start, n.end, module.format_configuration(v, n)))
+        changed.append(f"{','.join(map(str, old))} -> {','.join(map(str, new))}" if new and new != old else "")
+    return changed
+
+def _pose_targets(program, module, nominal, calibrated, marker, X_WO, targets, hints, tol, tol_rot, edits):
+    """Compensate the pose targets; their results (the joint targets' results are made alongside)."""
+    chain = arm_chain(nominal, marker)
+    if nominal.n_joints != 6 or len(chain) != 6:
+        raise InputError(f"Cartesian targets need a six-axis arm, {nominal.name} has {nominal.n_joints} joints and "
+                         f"{len(chain)} moving frames to its tool point (first target at line {targets[0].line})",
+                         source=program.source)
+    X_W = X_WO @ module.poses(targets)
+    conf = [module.wanted(t, 6) if t.configuration else (np.full(3, -1), np.full(6, np.nan)) for t in targets]
+    pc = compensate_poses(nominal, calibrated, X_W[:, :3, 3], X_W[:, :3, :3], marker=marker,
+                          want=np.array([c[0] for c in conf]), turn_from=np.array([c[1] for c in conf]),
+                          hints=hints)
+    status = _status(pc.solved, pc.compensation, tol, tol_rot)
+    ok = np.array([s == REACHED for s in status])
+    X_new = np.tile(np.eye(4), (len(targets), 1, 1))
+    X_new[:, :3, :3], X_new[:, :3, 3] = pc.rotations, pc.positions
+    X_new = np.linalg.inv(X_WO) @ X_new
+    kept = [t for t, k in zip(targets, ok) if k]
+    X_old = np.linalg.inv(X_WO) @ X_W
+    changed = iter(_pose_edits(module, kept, X_new[ok], X_old[ok], pc.q[ok], posture(nominal, pc.q[ok], marker=marker),
+                               edits) if kept else [])
+    ang, lin = _changes(nominal, np.nan_to_num(pc.q_nominal), pc.q)
+    moved = np.linalg.norm(pc.positions - X_W[:, :3, 3], axis=1)
+    turned = _angle(pc.rotations, X_W[:, :3, :3])
+    return [TargetResult(t.name, t.line, t.kind, s, *((moved[i], turned[i], ang[i], lin[i], next(changed))
+                                                       if ok[i] else ()))
+            for i, (t, s) in enumerate(zip(targets, status))]
+
+
+def compensate_program(program: Program, nominal: RobotModel, calibrated: RobotModel, *, marker: int = 0,
+                       tool: str | None = None, wobj: str | None = None, tol: float = 1e-6,
+                       tol_rot: float = math.radians(1e-4)) -> ProgramCompensation:
+    """The program with every literal target compensated for the calibrated robot.
+
+    Joint targets become the readings at which ``calibrated`` reaches the pose ``nominal`` reaches
+    at the old ones (``compensate``); Cartesian targets become the poses whose nominal inverse
+    kinematics, in the target's configuration, gives those readings (``compensate_poses``), with
+    their configuration data recomputed. A target out of reach, or whose new readings pass a joint
+    limit, is left unchanged and flagged in a comment on the line before it.
+
+    Parameters
+    ----------
+    program : Program
+        As ``read_program`` gives it.
+    nominal, calibrated : RobotModel
+        The model the controller holds and the calibrated model.
+    marker : int
+        The model's tool point (default its first marker).
+    tool, wobj : str, optional
+        A tool (tooldata, FRAME or TOOL_DATA[n], pose variable) in the frame of the tool point's
+        frame, and a work object (wobjdata, FRAME or BASE_DATA[n], pose variable) in the robot's
+        base frame, declared in the program, that its Cartesian targets use.
+    tol, tol_rot : float
+        Residuals (m, rad) above which a target counts as out of reach.
+
+    Returns
+    -------
+    ProgramCompensation
+    """
+    module = DIALECTS[program.dialect]
+    live = [t for t in program.targets if not t.skip and t.name not in (tool, wobj)]
+    joints = [t for t in live if t.kind == "joint"]
+    edits: list[tuple[int, int, str]] = []
+    results: dict[int, TargetResult] = {}
+    if joints:
+        n_, c_, m_ = _tool_models(program, nominal, calibrated, marker, tool, "--tool")
+        results.update(_joint_targets(program, n_, c_, m_, joints, tol, tol_rot, edits))
+    groups: dict[tuple, list] = {}
+    for t in live:
+        if t.kind == "pose":          # the command line's tool and work object win over the program's
+            groups.setdefault((tool or t.tool or None, wobj or t.wobj or None), []).append(t)
+    for (tool_name, wobj_name), poses in groups.items():
+        where = f"line {poses[0].line}"
+        n_, c_, m_ = _tool_models(program, nominal, calibrated, marker, tool_name, "--tool" if tool else where)
+        X_BO = np.eye(4) if wobj_name is None else _named(program, wobj_name, ("wobj", "frame"),
+                                                           "--wobj" if wobj else where)
+        hints = _hints(program, n_, poses)
+        for t, r in zip(poses, _pose_targets(program, module, n_, c_, m_, n_.X_WB @ X_BO, poses, hints,
+                                             tol, tol_rot, edits)):
+            results[id(t)] = r
+    rows = [results.get(id(t), TargetResult(t.name, t.line, t.kind, f"read only: {t.skip or 'a frame in use'}"))
+            for t in program.targets]
+    starts = [0] + [m.end() for m in re.finditer(r"\r\n|\r|\n", program.text)]
+    comments = [(t.anchor if t.anchor >= 0 else starts[t.line - 1] + t.column - 1,
+                 f"{r.name}: {r.status}; left unchanged")
+                for t, r in zip(program.targets, rows) if r.status != REACHED and not r.status.startswith("read only")]
+    return ProgramCompensation(text=edited(program.text, edits, comments, comment=module.COMMENT), targets=tuple(rows))
+
+
+def _joint_targets(program, nominal, calibrated, marker, joints, tol, tol_rot, edits) -> dict:
+    """Compensate the joint targets; their results by ``id``."""
+    q = joint_values(program, joints, nominal)
+    comp = compensate(calibrated, q, nominal=nominal, marker=marker)
+    status = _status(np.ones(len(q), dtype=bool), comp, tol, tol_rot)
+    ok = np.array([s == REACHED for s in status])
+    _joint_edits(program, nominal, [t for t, k in zip(joints, ok) if k], comp.q[ok], edits)
+    a, b = evaluate(nominal, q, orientations=True), evaluate(nominal, comp.q, orientations=True)
+    moved = np.linalg.norm(a.positions[:, marker] - b.positions[:, marker], axis=1)
+    turned = _angle(a.rotations[:, marker], b.rotations[:, marker])
+    ang, lin = _changes(nominal, q, comp.q)
+    return {id(t): TargetResult(t.name, t.line, t.kind, s, *((moved[i], turned[i], ang[i], lin[i]) if ok[i] else ()))
+            for i, (t, s) in enumerate(zip(joints, status))}
+
+
+def _hints(program: Program, nominal: RobotModel, poses) -> np.ndarray:
+    """Per pose target without configuration data, the readings of the joint target before it in the
+    program (the controller's current joints), NaN where there is none."""
+    out = np.full((len(poses), nominal.n_joints), np.nan)
+    joints = [t for t in program.targets if t.kind == "joint" and not t.skip and len(t.joints) >= nominal.n_joints]
+    if not joints:
+        return out
+    q = joint_values(program, joints, nominal)
+    key = [(t.line, t.column) for t in joints]
+    for i, t in enumerate(poses):
+        k = bisect.bisect_left(key, (t.line, t.column)) - 1
+        if not t.configuration and k >= 0:
+            out[i] = q[k]
+    return out

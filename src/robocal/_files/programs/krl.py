@@ -1,0 +1,201 @@
+"""KUKA KRL programs: ``.dat`` declarations (``E6POS``, ``POS``, ``FRAME``, ``E6AXIS``, ``AXIS``,
+with or without ``DECL`` and ``GLOBAL``), ``TOOL_DATA[n]``/``BASE_DATA[n]`` assignments as named
+frames, and the targets written inline in ``.src`` motions (``PTP``, ``LIN``, ``CIRC``, ``SPTP``,
+``SLIN``, ``SCIRC``).
+
+A Cartesian target is ``{X, Y, Z, A, B, C, S, T, E1...}``: mm, deg with R = Rz(A) Ry(B) Rx(C), the
+Status and Turn bits; an axis target ``{A1, ..., A6, E1...}``: deg (mm for a linear axis). External
+axes (E1...) and any other member are never changed. A structure is written on one line.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .syntax import (
+    SLACK,
+    Aggregate,
+    Field,
+    NamedFrame,
+    Number,
+    Program,
+    Scanner,
+    Target,
+    Token,
+    aggregate,
+    check_finite,
+    closing,
+)
+
+NAME = "krl"
+EXTENSIONS = (".src", ".dat", ".sub")
+COMMENT = ";"
+LENGTH, ANGLE = 1e-3, math.pi / 180
+ORIENTATION = ANGLE
+POSES, AXES = ("E6POS", "POS", "FRAME"), ("E6AXIS", "AXIS")
+MOTION = ("PTP", "LIN", "CIRC", "SPTP", "SLIN", "SCIRC")
+CARTESIAN, JOINTS = ("X", "Y", "Z", "A", "B", "C"), tuple(f"A{i}" for i in range(1, 7))
+
+
+def read(text: str, source: str) -> Program:
+    """The program's targets and named frames; a malformed line is an InputError at its line and column."""
+    sc = Scanner(text, source, comment=COMMENT, quotes="\"'", newlines=True, names=r"[A-Za-z_$][A-Za-z0-9_$]*",
+                 flat=False)
+    toks = sc.tokens()
+    targets: list[Target] = []
+    frames: list[NamedFrame] = []
+    a = 0
+    for b in [i for i, t in enumerate(toks) if t.kind == "nl"] + [len(toks)]:
+        if b > a:
+            _line(toks.part(a, b), sc, targets, frames)
+        a = b + 1
+    return Program(source=source, dialect=NAME, text=text, targets=tuple(targets), frames=tuple(frames))
+
+
+def _balanced(toks, sc) -> None:
+    """Every bracket closed on its own line (KRL has no continuation lines)."""
+    for t, p in zip(toks, toks.partner):
+        if p < 0 and t.kind == "op" and t.text in "([{":
+            raise sc.error(t.start, f"{t.text} is not closed on its line")
+
+
+def _line(toks, sc, targets, frames) -> None:
+    _balanced(toks, sc)
+    words = [t.text.upper() for t in toks]
+    k = 0
+    while k < len(words) and words[k] in ("DECL", "GLOBAL", "CONST"):
+        k += 1
+    if k + 3 < len(toks) and words[k] in POSES + AXES and toks[k + 1].kind == "name" and words[k + 2] == "=" \
+            and words[k + 3] == "{":
+        agg, _ = aggregate(toks, k + 3, sc)
+        target = _target(toks[k + 1].text, words[k], agg, sc)
+        targets.append(target)
+        if words[k] == "FRAME" and not target.skip:
+            frames.append(NamedFrame(toks[k + 1].text, "frame", poses([target])[0]))
+        return
+    if len(toks) > 5 and words[1] == "[" and words[3] == "]" and words[4] == "=" and words[5] == "{":
+        agg, _ = aggregate(toks, 5, sc)
+        name = "".join(t.text for t in toks[:4])
+        target = _target(name, "FRAME", agg, sc)
+        if not target.skip:
+            kind = {"TOOL_DATA": "tool", "BASE_DATA": "wobj"}.get(words[0], "frame")
+            frames.append(NamedFrame(name, kind, poses([target])[0]))
+        return
+    if words[0] in MOTION:
+        j = 1
+        while j < len(toks):
+            if toks[j].text == "{":
+                agg, j = aggregate(toks, j, sc)
+                line = sc.line_col(agg.start)[0]
+                targets.append(_target(f"line {line}", "", agg, sc))
+            elif toks[j].text in "([":
+                j = closing(toks, j, sc) + 1
+            else:
+                j += 1
+
+
+def _members(agg: Aggregate, sc) -> dict:
+    out = {}
+    for item in agg.items:
+        if not isinstance(item, Field):
+            where = item.start if hasattr(item, "start") else agg.start
+            raise sc.error(where, "a KRL structure lists members as NAME value, e.g. {X 10.0, Y 0.0}")
+        if item.name.upper() in out:
+            raise sc.error(item.start, f"member {item.name} given twice")
+        out[item.name.upper()] = item.value
+    return out
+
+
+def _status(value, sc) -> Number | None:
+    """S or T as written: a number, or a bit string 'B010'."""
+    if isinstance(value, Number):
+        if value.value != int(value.value) or value.value < 0:
+            raise sc.error(value.start, f"Status and Turn are whole numbers of 0 or more, got {value.text}")
+        return value
+    if isinstance(value, Token) and value.kind == "str" and value.text[1:2].upper() == "B":
+        bits = value.text[2:-1]
+        if not bits or set(bits) - {"0", "1"}:
+            raise sc.error(value.start, f"a bit string is 'B' then 0s and 1s, got {value.text}")
+        return Number(float(int(bits, 2)), value.text, value.start, value.end)
+    return None
+
+
+def _target(name: str, kind: str, agg: Aggregate, sc) -> Target:
+    m = _members(agg, sc)
+    line, column = sc.line_col(agg.start)
+    joint = kind in AXES or (not kind and "A1" in m)
+    need = JOINTS if joint else CARTESIAN
+    if not all(isinstance(m.get(f), Number) for f in need):
+        missing = [f for f in need if not isinstance(m.get(f), Number)]
+        return Target(name, "joint" if joint else "pose", line, column, skip=f"no literal {', '.join(missing)}")
+    check_finite([m[f] for f in need], sc, name)
+    if joint:
+        return Target(name, "joint", line, column, joints=tuple(m[f] for f in JOINTS))
+    status = [_status(m[f], sc) for f in ("S", "T") if f in m]
+    conf = tuple(c for c in status if c is not None)
+    conf = conf if len(conf) == 2 else ()
+    return Target(name, "pose", line, column, position=tuple(m[f] for f in "XYZ"),
+                  orientation=tuple(m[f] for f in "ABC"), configuration=conf)
+
+
+def zyx_matrix(a, b, c) -> np.ndarray:
+    """Rz(a) Ry(b) Rx(c), angles in radians (scalars, or arrays: the matrix's last axes are theirs)."""
+    ca, sa, cb, sb, cc, sc = np.cos(a), np.sin(a), np.cos(b), np.sin(b), np.cos(c), np.sin(c)
+    return np.array([[ca * cb, ca * sb * sc - sa * cc, ca * sb * cc + sa * sc],
+                     [sa * cb, sa * sb * sc + ca * cc, sa * sb * cc - ca * sc],
+                     [-sb, cb * sc, cb * cc]])
+
+
+# -- the compensation's view ----------------------------------------------------------------------------
+
+def poses(targets) -> np.ndarray:
+    """(N, 4, 4) X (SI) of pose targets in their base frame."""
+    v = np.array([[n.value for n in (*t.position, *t.orientation)] for t in targets]).reshape(-1, 6)
+    X = np.tile(np.eye(4), (len(v), 1, 1))
+    X[:, :3, :3] = zyx_matrix(*(v[:, 3:] * ANGLE).T).transpose(2, 0, 1) if len(v) else X[:, :3, :3]
+    X[:, :3, 3] = v[:, :3] * LENGTH
+    return X
+
+
+def orientation_values(R: np.ndarray, targets) -> np.ndarray:
+    """(N, 3) A, B, C (deg) of rotations ``R`` (N, 3, 3): of the two ZYX triples, the one nearest
+    the target's own, each angle within half a turn of its old value."""
+    b = np.arctan2(-R[:, 2, 0], np.hypot(R[:, 0, 0], R[:, 1, 0]))
+    a, c = np.arctan2(R[:, 1, 0], R[:, 0, 0]), np.arctan2(R[:, 2, 1], R[:, 2, 2])
+    old = np.array([[n.value for n in t.orientation] for t in targets]).reshape(-1, 3)
+    one = np.degrees(np.stack([a, b, c], axis=1))
+    other = np.degrees(np.stack([a + np.pi, np.pi - b, c + np.pi], axis=1))
+    one, other = (old + (x - old + 180.0) % 360.0 - 180.0 for x in (one, other))
+    closer = np.abs(other - old).sum(axis=1) < np.abs(one - old).sum(axis=1) - 1e-9
+    return np.where(closer[:, None], other, one)
+
+
+def wanted(target: Target, n_joints: int) -> tuple[np.ndarray, np.ndarray]:
+    """Posture bits from Status bits 0-2 and turn windows from the Turn bits (bit i: axis i+1 negative)."""
+    s, t = (int(n.value) for n in target.configuration)
+    turn = np.array([SLACK - 2 * math.pi if (t >> j) & 1 else -SLACK for j in range(n_joints)])
+    return np.array([s & 1, (s >> 1) & 1, (s >> 2) & 1]), turn
+
+
+def configuration_values(q: np.ndarray, bits: np.ndarray, target: Target, slack: float) -> list[int]:
+    """S and T of readings ``q`` (SI) with posture ``bits``; S's higher bits kept as they were, and a
+    Turn bit while its axis is within ``slack`` (rad) of its side."""
+    s_old, t_old = (int(n.value) for n in target.configuration)
+    s = (s_old & ~7) | int(bits[0]) | int(bits[1]) << 1 | int(bits[2]) << 2
+    t = t_old & ~63
+    for j in range(min(len(q), 6)):
+        negative = (t_old >> j) & 1
+        keep = q[j] < slack if negative else q[j] > -slack
+        t |= (negative if keep else int(q[j] < 0)) << j
+    return [s, t]
+
+
+def format_configuration(value: int, old: Number) -> str:
+    if value == old.value:
+        return old.text
+    if old.text.startswith("'"):
+        width = len(old.text) - 3
+        return f"{old.text[:2]}{value:0{width}b}'"
+    return str(value)

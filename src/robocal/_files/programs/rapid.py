@@ -1,0 +1,263 @@
+"""ABB RAPID modules: ``jointtarget`` and ``robtarget`` declarations (CONST, PERS, VAR, LOCAL, TASK,
+arrays) and the targets written inline in motion instructions (``MoveAbsJ``, ``MoveJ``, ``MoveL``,
+``MoveC``...); ``tooldata`` and ``wobjdata`` declarations as named frames.
+
+A robtarget is ``[[x, y, z], [q1, q2, q3, q4], [cf1, cf4, cf6, cfx], [eax_a, ..., eax_f]]``: mm,
+a unit quaternion w first, the quadrants of axes 1, 4 and 6 and the posture number; a jointtarget
+``[[rax_1, ..., rax_6], [eax_a, ..., eax_f]]``: deg (mm for a linear axis). External axes are
+never read nor changed.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from .syntax import Aggregate, NamedFrame, Number, Program, Scanner, Target, aggregate, check_finite, closing, numbers
+
+NAME = "rapid"
+EXTENSIONS = (".mod", ".modx", ".prg", ".sys", ".sysx")
+COMMENT = "!"
+LENGTH, ANGLE = 1e-3, math.pi / 180            # file units to SI
+ORIENTATION = 1.0                              # a quaternion's components
+JOINT_TARGET = "[[rax_1, ..., rax_6], [eax_a, ..., eax_f]]"
+ROB_TARGET = "[[x, y, z], [q1, q2, q3, q4], [cf1, cf4, cf6, cfx], [eax_a, ..., eax_f]]"
+DECLARES = ("const", "pers", "var")
+MOTION = ("move", "trigg", "search")           # instructions whose literal targets are read
+TURN_JOINTS = (0, 3, 5)                         # cf1, cf4, cf6: quadrants of axes 1, 4 and 6
+
+
+def read(text: str, source: str) -> Program:
+    """The program's targets and named frames; a malformed module is an InputError at its line and column."""
+    sc = Scanner(text, source, comment=COMMENT)
+    toks = sc.tokens()
+    targets: list[Target] = []
+    frames: list[NamedFrame] = []
+    uses: dict[str, set] = {}
+    i = 0
+    while i < len(toks):
+        k = i
+        while k < len(toks) and toks[k].text != ";":
+            k = closing(toks, k, sc) + 1 if toks[k].text in "([{" and toks[k].kind == "op" else k + 1
+        _statement(toks, i, k, sc, targets, frames, uses)
+        i = k + 1
+    return Program(source=source, dialect=NAME, text=text, targets=tuple(_used(targets, uses)), frames=tuple(frames))
+
+
+def _used(targets, uses):
+    """Declared targets with the tool and work object the motions that name them use; one named with
+    several is read only."""
+    for t in targets:
+        seen = uses.get(t.name)
+        if seen and len(seen) > 1:
+            yield replace(t, skip="moved to with several tools or work objects")
+        elif seen:
+            tool, wobj = next(iter(seen))
+            yield replace(t, tool=tool, wobj=wobj)
+        else:
+            yield t
+
+
+def _statement(toks, i: int, end: int, sc, targets, frames, uses) -> None:
+    """The targets or frames of the statement ``toks[i:end]`` (a declaration or a motion)."""
+    for d in range(i, end - 3):
+        if toks[d].kind == "name" and toks[d].text.lower() in DECLARES and toks[d + 1].kind == "name" \
+                and toks[d + 2].kind == "name":
+            _declaration(toks, d, end, sc, targets, frames)
+            return
+    for m in range(i, end):
+        if toks[m].kind == "name" and toks[m].text.lower().startswith(MOTION):
+            _motion(toks, m, end, sc, targets, uses)
+            return
+
+
+def _arguments(toks, j: int, end: int) -> list[tuple[list, list]]:
+    """A motion's arguments: per comma at depth 0, its main tokens and its switches (``\\WObj:=w``)."""
+    out: list[tuple[list, list]] = [([], [])]
+    while j < end:
+        t = toks[j]
+        nxt = toks.partner[j] + 1 if t.kind == "op" and t.text in "([{" else j + 1
+        if t.text == ",":
+            out.append(([], []))
+        elif t.text == "\\" or out[-1][1]:
+            out[-1][1].extend(toks[j:nxt])
+        else:
+            out[-1][0].extend(range(j, nxt))
+        j = nxt
+    return out
+
+
+def _motion(toks, m: int, end: int, sc, targets, uses) -> None:
+    """The literal targets of a motion instruction, and the tool and work object it moves them with
+    (the last positional argument; ``\\WObj:=``), recorded in ``uses`` for the targets it names."""
+    args = _arguments(toks, m + 1, end)
+    last = args[-1][0]
+    tool = toks[last[0]].text if len(last) == 1 and toks[last[0]].kind == "name" else ""
+    wobj = ""
+    for _, switches in args:
+        for k in range(len(switches) - 3):
+            if switches[k].text == "\\" and switches[k + 1].text.lower() == "wobj" and switches[k + 2].text == ":=":
+                wobj = switches[k + 3].text
+    tool, wobj = ("" if tool.lower() == "tool0" else tool), ("" if wobj.lower() == "wobj0" else wobj)
+    for main, _ in args[:-1]:
+        if not main:
+            continue
+        first = toks[main[0]]
+        if first.text[:1] == "[":
+            agg, _ = aggregate(toks, main[0], sc)
+            _inline(agg, sc, targets, toks[m].start, tool, wobj)
+        elif first.kind == "name":
+            key = "".join(toks[k].text for k in main) if len(main) > 1 else first.text
+            uses.setdefault(key, set()).add((tool, wobj))
+
+
+def _declaration(toks, d: int, end: int, sc, targets, frames) -> None:
+    kind, name, j = toks[d + 1].text.lower(), toks[d + 2].text, d + 3
+    if kind not in ("jointtarget", "robtarget", "tooldata", "wobjdata"):
+        return
+    array = j < end and toks[j].text == "{"
+    if array:
+        j = closing(toks, j, sc) + 1
+    if j + 1 >= end or toks[j].text != ":=" or toks[j + 1].text[:1] != "[":
+        return                                   # declared without a literal value
+    value, _ = aggregate(toks, j + 1, sc)
+    if kind in ("tooldata", "wobjdata"):
+        frames.append(_frame(kind, name, value, sc))
+        return
+    items = value.items if array else (value,)
+    first = d
+    while first > 0 and toks[first - 1].kind == "name" and toks[first - 1].text.lower() in ("local", "task"):
+        first -= 1
+    for n, item in enumerate(items, 1):
+        label = f"{name}{{{n}}}" if array else name
+        targets.append(_target(kind, label, item, sc, anchor=toks[first].start))
+
+
+def _inline(agg: Aggregate, sc, targets, anchor: int, tool: str, wobj: str) -> None:
+    line = sc.line_col(agg.start)[0]
+    for kind in ("jointtarget", "robtarget"):
+        if _shape(kind, agg):
+            targets.append(_target(kind, f"line {line}", agg, sc, anchor=anchor, tool=tool, wobj=wobj))
+
+
+def _shape(kind: str, agg) -> bool:
+    if not isinstance(agg, Aggregate):
+        return False
+    sizes = (6, 6) if kind == "jointtarget" else (3, 4, 4, 6)
+    return len(agg.items) == len(sizes) and all(numbers(a, n) is not None for a, n in zip(agg.items, sizes))
+
+
+def _literal(agg) -> bool:
+    """Whether every leaf of ``agg`` is a number (a value computed in RAPID is read, never changed)."""
+    return all(_literal(x) if isinstance(x, Aggregate) else isinstance(x, Number) for x in agg.items)
+
+
+def _target(kind: str, name: str, agg, sc, **where) -> Target:
+    """The target of a jointtarget or robtarget literal; ``where``: its anchor, tool and work object."""
+    line, column = sc.line_col(agg.start)
+    if not _shape(kind, agg):
+        if isinstance(agg, Aggregate) and _literal(agg):
+            raise sc.error(agg.start, f"{name}: a {kind} is {JOINT_TARGET if kind == 'jointtarget' else ROB_TARGET}")
+        return Target(name, "joint" if kind == "jointtarget" else "pose", line, column,
+                      skip="not a literal value", **where)
+    check_finite([n for part in agg.items[:1 if kind == "jointtarget" else 3] for n in part.items], sc, name)
+    if kind == "jointtarget":
+        return Target(name, "joint", line, column, joints=agg.items[0].items, **where)
+    quat = agg.items[1].items
+    norm = math.sqrt(sum(n.value ** 2 for n in quat))
+    if not 0.9 < norm < 1.1:
+        raise sc.error(quat[0].start, f"{name}: the quaternion's norm is {norm:.3g}, not 1")
+    conf = agg.items[2].items
+    for c in conf:
+        if c.value != int(c.value) or not (0 <= c.value <= 7 or c is not conf[3]):
+            raise sc.error(c.start, f"{name}: configuration data are whole numbers, cfx 0 to 7; got {c.text}")
+    return Target(name, "pose", line, column, position=agg.items[0].items, orientation=agg.items[1].items,
+                  configuration=conf, **where)
+
+
+def _pose(pos, quat, sc, name) -> np.ndarray:
+    w, x, y, z = (n.value for n in quat)
+    norm = math.sqrt(w * w + x * x + y * y + z * z)
+    if not 0.9 < norm < 1.1:
+        raise sc.error(quat[0].start, f"{name}: the quaternion's norm is {norm:.3g}, not 1")
+    X = np.eye(4)
+    X[:3, :3] = quaternion_matrix(np.array([w, x, y, z]) / norm)
+    X[:3, 3] = [n.value * LENGTH for n in pos]
+    return X
+
+
+def _frame(kind, name, value, sc) -> NamedFrame:
+    """A tooldata's tool frame (in the flange) or a wobjdata's user frame times object frame (in the base)."""
+    at, count = (1, 1) if kind == "tooldata" else (3, 2)
+    parts = value.items[at:at + count]
+    X = np.eye(4)
+    if len(parts) != count:
+        raise sc.error(value.start, f"{name}: a {kind} has {at + count} parts or more, this one {len(value.items)}")
+    for part in parts:
+        if not (isinstance(part, Aggregate) and len(part.items) == 2 and numbers(part.items[0], 3)
+                and numbers(part.items[1], 4)):
+            raise sc.error(value.start, f"{name}: a {kind} frame is [[x, y, z], [q1, q2, q3, q4]]")
+        X = X @ _pose(part.items[0].items, part.items[1].items, sc, name)
+    held = value.items[0]
+    robot_holds = hasattr(held, "text") and held.text.upper() == "TRUE"
+    fixed = kind == "tooldata" or (len(value.items) > 1 and getattr(value.items[1], "text", "").upper() == "TRUE")
+    if robot_holds != (kind == "tooldata") or not fixed:
+        kind = "stationary " + kind if kind == "tooldata" else "moving " + kind   # not one robocal can use
+    return NamedFrame(name, "tool" if kind == "tooldata" else ("wobj" if kind == "wobjdata" else kind), X)
+
+
+def quaternion_matrix(wxyz) -> np.ndarray:
+    """The rotation matrix of a unit quaternion (w, x, y, z)."""
+    w, x, y, z = wxyz
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+# -- the compensation's view: SI poses, configurations, and new values --------------------------------
+
+def poses(targets) -> np.ndarray:
+    """(N, 4, 4) X (SI) of pose targets in their work object."""
+    v = np.array([[n.value for n in (*t.position, *t.orientation)] for t in targets]).reshape(-1, 7)
+    q = v[:, 3:] / np.linalg.norm(v[:, 3:], axis=1, keepdims=True)
+    X = np.tile(np.eye(4), (len(v), 1, 1))
+    X[:, :3, :3] = quaternion_matrix(q.T).transpose(2, 0, 1) if len(v) else X[:, :3, :3]
+    X[:, :3, 3] = v[:, :3] * LENGTH
+    return X
+
+
+def orientation_values(R: np.ndarray, targets) -> np.ndarray:
+    """(N, 4) quaternions (w first) of rotations ``R`` (N, 3, 3), each on the side of the sphere of
+    its target's own."""
+    from scipy.spatial.transform import Rotation
+
+    q = Rotation.from_matrix(R).as_quat()[:, [3, 0, 1, 2]]
+    old = np.array([[n.value for n in t.orientation] for t in targets]).reshape(-1, 4)
+    return np.where(np.einsum("ni,ni->n", q, old)[:, None] < 0, -q, q)
+
+
+def wanted(target: Target, n_joints: int) -> tuple[np.ndarray, np.ndarray]:
+    """Posture bits (3,) and turn windows (n_joints,) that the target's configuration data ask for."""
+    cf1, cf4, cf6, cfx = (int(n.value) for n in target.configuration)
+    turn = np.full(n_joints, np.nan)
+    for j, cf in zip(TURN_JOINTS, (cf1, cf4, cf6)):
+        if j < n_joints:
+            turn[j] = (cf + 0.5) * math.pi / 2 - math.pi
+    return np.array([(cfx >> 2) & 1, (cfx >> 1) & 1, cfx & 1]), turn
+
+
+def configuration_values(q: np.ndarray, bits: np.ndarray, target: Target, slack: float) -> list[int]:
+    """cf1, cf4, cf6 and cfx of readings ``q`` (SI) with posture ``bits``; a quadrant stays as it was
+    while its axis is within ``slack`` (rad) of it."""
+    out = []
+    for j, old in zip(TURN_JOINTS, target.configuration[:3]):
+        cf = int(old.value)
+        inside = j >= len(q) or cf * math.pi / 2 - slack <= q[j] <= (cf + 1) * math.pi / 2 + slack
+        out.append(cf if inside else int(math.floor(q[j] / (math.pi / 2))))
+    return out + [int(4 * bits[0] + 2 * bits[1] + bits[2])]
+
+
+def format_configuration(value: int, old: Number) -> str:
+    return old.text if value == old.value else str(value)

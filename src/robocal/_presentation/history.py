@@ -1,0 +1,264 @@
+"""A robot's history, robots of one type side by side, and a verification: the text the command
+line prints and the HTML report of a robot with history (each parameter's drift with its
+uncertainty band, the verifications over time). Pure functions of the store's records; matplotlib
+is imported only when the report is drawn.
+"""
+
+from __future__ import annotations
+
+import html
+from datetime import datetime
+
+import numpy as np
+
+from .._files.text import write_texts
+from .._store import History, TypeComparison
+from .._verification import Verification
+from .plots import need_matplotlib, plot_svg
+from .units import display_unit, fmt, with_unit
+
+BAND = 2.0          # the drift plots' band: estimate +- BAND standard deviations
+SHOWN_CALIBRATIONS = 6   # the text table's columns: the latest calibrations
+AFTER, BAD = "#2266b0", "#a3262a"
+
+
+def _day(text: str) -> str:
+    """'2026-03-02' of an ISO date (other text unchanged)."""
+    try:
+        return datetime.fromisoformat(text).strftime("%Y-%m-%d")
+    except ValueError:
+        return str(text)
+
+
+def _when(text: str) -> str:
+    try:
+        return datetime.fromisoformat(text).strftime("%Y-%m-%d %H:%M UTC")
+    except ValueError:
+        return str(text)
+
+
+def _sigma(v: float) -> str:
+    return f"{abs(v):.1f} sigma"
+
+
+def change_line(c) -> str:
+    """'j2.theta +0.031 deg since 2026-03-02, 5.1 sigma'."""
+    return f"{c.name} {with_unit(c.delta, c.unit, sign=True)} since {_day(c.since)}, {_sigma(c.sigma)}"
+
+
+def _accuracy_text(acc) -> str:
+    return "no accuracy" if acc is None else f"{with_unit(acc.rms, 'm')} RMS ({acc.source})"
+
+
+def history_summary(h: History) -> str:
+    """What ``robocal history ROBOT`` prints."""
+    lines = [f"robot {h.robot}: {len(h.calibrations)} calibration(s), {len(h.verifications)} verification(s)"]
+    for c in h.calibrations:
+        lim = f", limit {with_unit(c.limit_m, 'm')}" if c.limit_m is not None else ""
+        kind = f" [{c.robot_type}]" if c.robot_type else ""
+        use = ((c.in_use or {}).get("position_after") or {}).get("rms")
+        use_text = f", in use {with_unit(use, 'm')} RMS" if isinstance(use, (int, float)) else ""
+        lines.append(f"  #{c.id} {_when(c.calibrated_at)}{kind}: {c.verdict}, {_accuracy_text(c.accuracy)}{use_text}"
+                     f"{lim}, inputs {c.fingerprint[:12]}")
+    lines += _estimates_table(h)
+    n = len(h.comparisons)
+    lines.append(f"changes between consecutive calibrations, judged at {h.threshold:.2f} sigma of their combined "
+                 f"uncertainty ({n} comparisons of {', '.join(h.families)} parameters; {h.alpha:.0%} chance of naming "
+                 "one in an unchanged robot):")
+    named = h.changes
+    lines += [f"  {change_line(c)}" for c in named] or ["  none"]
+    rest = sorted((c for c in h.comparisons if not c.named and c.sigma), key=lambda c: -abs(c.sigma))[:3]
+    if rest:
+        lines.append("  largest movements within the uncertainty: " + "; ".join(change_line(c) for c in rest))
+    if h.verifications:
+        lines.append("verifications:")
+        lines += [f"  {_when(v.verified_at)} against #{v.calibration_id}: {v.verdict}, {with_unit(v.rms, 'm')} RMS "
+                  f"now against {with_unit(v.then_rms, 'm')} (ratio {v.ratio:.2f}, recalibrate beyond "
+                  f"{v.threshold:.2f}), ISO 9283 AP {with_unit(v.ap_max, 'm')}" for v in h.verifications]
+    return "\n".join(lines)
+
+
+def _estimates_table(h: History) -> list[str]:
+    """Each parameter's estimate +- std at the latest calibrations (display units)."""
+    cals = h.calibrations[-SHOWN_CALIBRATIONS:]
+    more = f" (the latest {len(cals)})" if len(h.calibrations) > len(cals) else ""
+    head = ["parameter", "unit"] + [f"#{c.id} {_day(c.calibrated_at)}" for c in cals]
+    rows = []
+    for name in h.parameter_names:
+        unit = next(e.unit for c in h.calibrations if (e := c.estimate(name)))
+        cells = []
+        for c in cals:
+            e = c.estimate(name)
+            cells.append("–" if e is None else f"{fmt(e.estimate, unit)} ± {fmt(e.std, unit)}")
+        rows.append([name, display_unit(unit)[0]] + cells)
+    widths = [max(len(r[i]) for r in [head] + rows) for i in range(len(head))]
+    out = [f"estimates ± standard deviation{more}:"]
+    out += ["  " + "  ".join(cell.ljust(w) if i < 2 else cell.rjust(w) for i, (cell, w) in enumerate(zip(r, widths)))
+            for r in [head] + rows]
+    return out
+
+
+def type_summary(t: TypeComparison) -> str:
+    """What ``robocal history --type TYPE`` prints."""
+    n_cmp = int(np.sum(np.isfinite(t.z)))
+    lines = [f"type {t.robot_type}: {len(t.latest)} robot(s), latest calibration of each; {len(t.names)} "
+             f"parameter(s), each robot against the type's median in robust standard deviations, named beyond "
+             f"{t.threshold:.2f} ({n_cmp} comparisons; {t.alpha:.0%} chance of naming one among alike robots)"]
+    counts: dict[str, int] = {}
+    for o in t.outliers:
+        counts[o.robot] = counts.get(o.robot, 0) + 1
+    lines.append("standing out:")
+    lines += [f"  {o.robot} {o.name} {with_unit(o.value - o.median, o.unit, sign=True)} from the type's median, "
+              f"{_sigma(o.z)}" for o in t.outliers[:40]] or ["  none"]
+    if len(t.outliers) > 40:
+        lines.append(f"  ... and {len(t.outliers) - 40} more")
+    lines.append("robots:")
+    for c in t.latest[:200]:
+        flag = f", {counts[c.robot]} parameter(s) standing out" if c.robot in counts else ""
+        acc = "no accuracy" if c.accuracy_rms is None else f"{with_unit(c.accuracy_rms, 'm')} RMS"
+        lines.append(f"  {c.robot}: #{c.id} {_day(c.calibrated_at)}, {c.verdict}, {acc}{flag}")
+    if len(t.latest) > 200:
+        lines.append(f"  ... and {len(t.latest) - 200} more")
+    return "\n".join(lines)
+
+
+def verification_summary(v: Verification, robot: str, calibration) -> str:
+    """What ``robocal verify`` prints."""
+    reg = ", base re-registered on them" if v.registered_base else ""
+    worst = int(np.nanargmax(v.ap)) if v.ap.size else 0
+    return "\n".join([
+        f"verification of {robot} against calibration #{calibration.id} ({_day(calibration.calibrated_at)}): "
+        f"{v.n_poses} poses, {v.n_points} measured points{reg}",
+        f"  now:            RMS {with_unit(v.rms, 'm')}, mean {with_unit(v.mean, 'm')}, p95 {with_unit(v.p95, 'm')}, "
+        f"max {with_unit(v.max, 'm')}",
+        f"  at calibration: RMS {with_unit(v.then.rms, 'm')} ({v.then.source})",
+        f"  ISO 9283 positional accuracy AP (worst pose, {v.poses[worst] if v.poses else '-'}): "
+        f"{with_unit(v.ap_max, 'm')}",
+        f"  ratio now / at calibration {v.ratio:.2f}; recalibrate beyond {v.threshold:.2f} (an unchanged robot "
+        f"exceeds it in {v.alpha:.0%} of verifications)",
+        f"verdict: {v.verdict}"])
+
+
+# -- the HTML report ----------------------------------------------------------------------------------
+
+_CSS = """
+body{font-family:system-ui,sans-serif;margin:0;color:#222;background:#fafbfc}
+main{max-width:1100px;margin:0 auto;padding:1em 1.5em}
+table{border-collapse:collapse;margin:.5em 0;font-size:.9em}
+th,td{padding:.25em .6em;border-bottom:1px solid #e3e6ea;text-align:left}
+td.num{text-align:right;font-variant-numeric:tabular-nums}
+.bad{color:#a3262a;font-weight:bold}.ok{color:#2d7a3a}.warn{color:#9a6200}
+figure{margin:1em 0}figcaption{font-size:.85em;color:#555}
+svg{max-width:100%;height:auto}
+"""
+
+
+def _e(text) -> str:
+    return html.escape(str(text), quote=True)
+
+
+def _judged_names(h: History) -> list[str]:
+    return [n for n in h.parameter_names
+            if any((e := c.estimate(n)) is not None and e.family in h.families for c in h.calibrations)]
+
+
+def plot_drift(h: History) -> str:
+    """Each judged parameter's estimates over the calibrations with a band of +-2 standard deviations."""
+    names = _judged_names(h)
+    if not names:
+        return ""
+    cols = min(4, len(names))
+    rows = -(-len(names) // cols)
+    named = {c.name for c in h.changes}
+
+    def draw(fig):
+        axes = fig.subplots(rows, cols, squeeze=False)
+        for ax, name in zip(axes.ravel(), names):
+            dates, est, std = h.series(name)
+            unit = next(e.unit for c in h.calibrations if (e := c.estimate(name)))
+            k = display_unit(unit)[1]
+            x = np.arange(len(dates))
+            ax.fill_between(x, (est - BAND * std) * k, (est + BAND * std) * k, color=AFTER, alpha=0.2, lw=0)
+            ax.plot(x, est * k, "o-", color=BAD if name in named else AFTER, ms=3, lw=1)
+            ax.set_title(name + (" (changed)" if name in named else ""), fontsize=8)
+            ax.set_ylabel(display_unit(unit)[0])
+            ax.set_xticks(x, [_day(d)[2:] for d in dates], rotation=45, fontsize=6)
+        for ax in axes.ravel()[len(names):]:
+            ax.set_visible(False)
+        fig.tight_layout()
+
+    return plot_svg("drift", f"drift of {len(names)} parameters of {h.robot}", draw,
+                    figsize=(2.6 * cols, 1.9 * rows))
+
+
+def plot_verifications(h: History) -> str:
+    """The RMS error of each verification against the accuracy at calibration and the threshold."""
+    if not h.verifications:
+        return ""
+    k = display_unit("m")[1]
+    vs = h.verifications
+    x = np.arange(len(vs))
+
+    def draw(fig):
+        ax = fig.subplots()
+        ax.plot(x, [v.then_rms * k for v in vs], "s--", color="#777", ms=3, label="RMS at calibration")
+        ax.plot(x, [v.then_rms * v.threshold * k for v in vs], "v:", color=BAD, ms=4, label="recalibrate beyond")
+        ax.plot(x, [v.rms * k for v in vs], "o-", color=AFTER, label="RMS now")
+        ax.set_xticks(x, [_day(v.verified_at) for v in vs], rotation=30, fontsize=7)
+        ax.set_ylabel("mm")
+        ax.legend(fontsize=7)
+        fig.tight_layout()
+
+    return plot_svg("verifications", f"verifications of {h.robot}", draw, figsize=(7, 2.6))
+
+
+_VERDICT_CLASS = {"pass": "ok", "warn": "warn", "fail": "bad"}
+
+
+def _calibration_rows(h: History) -> str:
+    return "".join(
+        f'<tr><td>#{c.id}</td><td>{_e(_when(c.calibrated_at))}</td><td>{_e(c.robot_type or "")}</td>'
+        f'<td class="{_VERDICT_CLASS.get(c.verdict, "")}">{_e(c.verdict)}</td>'
+        f'<td class="num">{fmt(c.accuracy.rms if c.accuracy else None)}</td>'
+        f'<td>{_e(c.accuracy.source if c.accuracy else "")}</td><td class="num">{fmt(c.limit_m)}</td>'
+        f"<td><code>{_e(c.fingerprint[:16])}</code></td><td>{_e(c.source)}</td></tr>" for c in h.calibrations)
+
+
+def render_history(h: History) -> str:
+    """The HTML text of a robot's history report (needs matplotlib)."""
+    need_matplotlib()
+    changes = "".join(f"<li>{_e(change_line(c))}</li>" for c in h.changes) or "<li>none</li>"
+    verifs = "".join(
+        f'<tr><td>{_e(_when(v.verified_at))}</td><td>#{v.calibration_id}</td>'
+        f'<td class="{"bad" if v.verdict != "within accuracy" else "ok"}">{_e(v.verdict)}</td>'
+        f'<td class="num">{fmt(v.rms)}</td><td class="num">{fmt(v.then_rms)}</td><td class="num">{v.ratio:.2f}</td>'
+        f'<td class="num">{v.threshold:.2f}</td><td class="num">{fmt(v.ap_max)}</td><td class="num">{v.n_points}</td>'
+        f"</tr>" for v in h.verifications)
+    drift, vplot = plot_drift(h), plot_verifications(h)
+    body = [
+        f"<h1>Calibration history &ndash; {_e(h.robot)}</h1>",
+        f"<p>{len(h.calibrations)} calibration(s), {len(h.verifications)} verification(s). Lengths in mm.</p>",
+        "<h2>Calibrations</h2><table><thead><tr><th>#</th><th>calibrated</th><th>type</th><th>verdict</th>"
+        "<th>accuracy RMS (mm)</th><th>from</th><th>limit (mm)</th><th>inputs SHA-256</th><th>source</th></tr>"
+        f"</thead><tbody>{_calibration_rows(h)}</tbody></table>",
+        f"<h2>Changes</h2><p>Between consecutive calibrations, judged at {h.threshold:.2f} standard deviations of "
+        f"their combined uncertainty ({len(h.comparisons)} comparisons; a {h.alpha:.0%} chance of naming one in an "
+        f"unchanged robot's history).</p><ul>{changes}</ul>",
+        "<h2>Drift of each parameter</h2>" + (f"<figure>{drift}<figcaption>Estimates at each calibration with a band "
+                                              f"of &plusmn;{BAND:g} standard deviations; red: a change named."
+                                              "</figcaption></figure>" if drift else "<p>No parameter judged.</p>"),
+        "<h2>Verifications</h2>" + (
+            f"<figure>{vplot}<figcaption>RMS position error of each verification, against the calibration's and the "
+            "ratio beyond which it says recalibrate.</figcaption></figure><table><thead><tr><th>verified</th>"
+            "<th>against</th><th>verdict</th><th>RMS now (mm)</th><th>RMS then (mm)</th><th>ratio</th>"
+            "<th>threshold</th><th>ISO 9283 AP (mm)</th><th>points</th></tr></thead>"
+            f"<tbody>{verifs}</tbody></table>" if h.verifications else "<p>No verification yet.</p>")]
+    return ('<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
+            f"<title>Calibration history: {_e(h.robot)}</title>\n<style>{_CSS}</style>\n</head>\n<body>\n<main>\n"
+            + "\n".join(body) + "\n</main>\n</body>\n</html>\n")
+
+
+def write_history(h: History, path, *, force: bool = False) -> None:
+    """Write the history report of ``h`` to ``path`` atomically; an existing file is an InputError
+    unless ``force``."""
+    write_texts({path: render_history(h)}, force=force)

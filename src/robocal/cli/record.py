@@ -1,0 +1,105 @@
+"""``robocal record``: keep a calibration result in the store of calibrations (docs/store.md)."""
+
+from __future__ import annotations
+
+from . import common
+
+EXAMPLE = """examples:
+  robocal record runs/mine/result.json --robot SN-1042 --type kr16
+  robocal record runs/mine/result.json --robot SN-1042 --store postgresql://cal@plant-db/robocal
+
+The store is --store, else $ROBOCAL_STORE, else ~/.local/share/robocal/store.sqlite (docs/store.md)."""
+
+
+def store_option(p) -> None:
+    """--store: a SQLite file or a postgresql:// URL."""
+    p.add_argument("--store", metavar="PATH|URL", help="the store: a SQLite file or a postgresql:// URL (default "
+                                                       "$ROBOCAL_STORE, else ~/.local/share/robocal/store.sqlite)")
+
+
+def open_store(args, *, create: bool = False):
+    """The store the options name, open; MissingExtra for PostgreSQL without psycopg."""
+    from .._store import is_url
+    from .._store import open_store as open_
+
+    location = _location(args)
+    if is_url(location):
+        try:
+            import psycopg  # noqa: F401
+        except ImportError:
+            raise common.MissingExtra("a PostgreSQL store needs psycopg (pip install 'robocal[store-pg]')") from None
+    return open_(location, create=create)
+
+
+def _location(args) -> str:
+    from .._store import store_location
+
+    return store_location(args.store)
+
+
+def register(sub) -> None:
+    p = common.command(sub, "record", summary="keep a calibration result in the store of calibrations",
+                       description="Store a result.json as a calibration of a robot: its models, every estimate "
+                                   "with its standard deviation, the verdict and checks, the accuracy reached, the "
+                                   "limit and a fingerprint of the input files.", example=EXAMPLE,
+                       inputs=[("result", "RESULT.json", "a result file of robocal calibrate")])
+    p.add_argument("--robot", required=True, type=common.checked_by(_name("--robot")), metavar="ROBOT",
+                   help="the robot's serial or name")
+    record_options(p)
+    p.add_argument("--at", type=common.checked_by(_date("--at")), metavar="ISO-DATE",
+                   help="when the calibration was made, e.g. 2026-03-02T10:00:00Z (default: the result's date)")
+    p.set_defaults(func=run)
+
+
+def record_options(p, *, robot: bool = False) -> None:
+    """--type and --store (and with ``robot``, calibrate's --record ROBOT)."""
+    if robot:
+        p.add_argument("--record", type=common.checked_by(_name("--record")), metavar="ROBOT",
+                       help="also keep the result in the store of calibrations as a calibration of ROBOT")
+    p.add_argument("--type", dest="robot_type", type=common.checked_by(_name("--type")), metavar="TYPE",
+                   help="the robot's type, to compare robots of one type (robocal history --type)")
+    store_option(p)
+
+
+def _name(option: str):
+    def check(text: str) -> str:
+        from .._store import check_name
+
+        return check_name(text, option)
+    return check
+
+
+def _date(option: str):
+    def check(text: str) -> str:
+        from .._store import utc_text
+
+        return utc_text(text, where=option)
+    return check
+
+
+def recorded_line(rec, location: str) -> str:
+    return (f"recorded calibration #{rec.id} of {rec.robot} ({rec.calibrated_at}, verdict {rec.verdict}) in "
+            f"{location}")
+
+
+def record_result(args, result, robot: str, source: str, at=None) -> None:
+    """Store ``result`` and say so, with the changes since the robot's previous calibration."""
+    from .._presentation.history import change_line
+    from .._store import history
+
+    with open_store(args, create=True) as store:
+        rec = store.record(result, robot, robot_type=args.robot_type, at=at, source=source)
+        print(recorded_line(rec, store.location))
+        h = history(store, robot)
+    changes = [c for c in h.changes if c.at == rec.calibrated_at]
+    if len(h.calibrations) > 1:
+        print("changes since the previous calibration: " + ("; ".join(change_line(c) for c in changes)
+                                                             if changes else f"none beyond {h.threshold:.2f} sigma"))
+
+
+def run(args) -> int:
+    from .._files.result import read_result
+
+    result = read_result(args.result)
+    record_result(args, result, args.robot, str(args.result), at=args.at)
+    return 0

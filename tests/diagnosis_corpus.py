@@ -1,0 +1,360 @@
+"""Simulated mistakes with a known cause, and clean or imperfect campaigns with none, for the
+diagnosis (docs/diagnosis.md): each case is built from a seed on a 6R arm or a TH8-like
+cylindrical arm with robocal's simulation, and names the hypothesis that should come first.
+
+Used by tests/test_diagnosis.py (a few seeds) and benchmarks/bench_diagnosis.py (the whole corpus).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from robots import DEG, arm6r, cylindrical
+from scipy.spatial.transform import Rotation
+
+import robocal as rc
+
+NOISE = 2e-5
+N_POSES = 48
+TWO_MARKERS = (("tool", (0.05, 0.02, 0.12)), ("tool2", (-0.06, 0.03, 0.1)))
+
+
+@dataclass(frozen=True, eq=False)
+class Case:
+    """A campaign to calibrate and diagnose: the model given to the calibration, the data, the
+    calibration's keyword arguments, and the hypothesis that should come first (None: no cause)."""
+
+    name: str
+    model: rc.RobotModel
+    data: rc.Measurements
+    expected: str | None
+    options: dict = field(default_factory=dict)
+
+    def run(self):
+        """(calibration result, diagnosis)."""
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            result = rc.calibrate(self.model, self.data, **self.options)
+            return result, rc.diagnose(self.model, self.data, result, noise=self.options.get("noise"))
+
+
+ROBOTS = {"6r": arm6r, "cylindrical": cylindrical}
+
+
+def _sim(robot, seed, n=N_POSES, **kw):
+    m = ROBOTS[robot](masses=kw.pop("masses", False))
+    if "markers" in kw:
+        last = m.markers[0].frame
+        m = m.replace(markers=tuple(rc.Marker(name, last, pos) for name, pos in kw.pop("markers")))
+    true, data = rc.simulate(m, n, seed=seed, noise=NOISE, **kw)
+    return m, true, data
+
+
+def _measure(true, q, rng, **kw):
+    return rc.sim.measure(true, q, noise=NOISE, rng=rng, **kw)
+
+
+def _angle_joint(m, prefer=1):
+    angles = [j for j, k in enumerate(m.reading_quantities) if k == "angle"]
+    return angles[prefer] if prefer < len(angles) else angles[0]
+
+
+# -- each mistake: (robot, seed) -> Case ------------------------------------------------------------
+
+def missed_shot(robot, seed):
+    m, _, d = _sim(robot, seed)
+    pos = d.positions.copy()
+    pos[20:-1] = d.positions[21:]            # the shot at row 20 was missed: every later row holds the next
+    return Case("missed shot at row 20", m, replace(d, positions=pos), "rows shifted")
+
+
+def labels_offset(robot, seed):
+    m, _, d = _sim(robot, seed)
+    joined = replace(d.subset(np.arange(1, d.n_poses)), positions=d.positions[:-1], mask=d.mask[:-1])
+    return Case("pose labels off by one in a join", m, joined, "pose labels offset")
+
+
+def left_handed(robot, seed):
+    m, _, d = _sim(robot, seed)
+    pos = d.positions.copy()
+    pos[..., 1] *= -1
+    return Case("left-handed tracker frame", m, replace(d, positions=pos), "mirrored frame")
+
+
+def axes_in_marker(robot, seed):
+    m, _, d = _sim(robot, seed, markers=TWO_MARKERS)
+    pos = d.positions.copy()
+    pos[:, 1, [0, 1]] = pos[:, 1, [1, 0]]
+    return Case("x and y swapped in one marker", m, replace(d, positions=pos), "axes swapped")
+
+
+def marker_copied(robot, seed):
+    m, _, d = _sim(robot, seed, markers=TWO_MARKERS)
+    pos = d.positions.copy()
+    pos[:, 1] = pos[:, 0]
+    return Case("one marker filled with another's values", m, replace(d, positions=pos), "marker copied")
+
+
+def _gear(robot, seed, ratio):
+    m, true, d = _sim(robot, seed)
+    j = _angle_joint(m)
+    q_true = d.q.copy()
+    q_true[:, j] *= ratio
+    meas = _measure(true, q_true, np.random.default_rng(seed + 100))
+    return Case(f"joint turns {ratio}x its reading", m, replace(meas, q=d.q), "joint scale")
+
+
+def gear_small(robot, seed):
+    return _gear(robot, seed, 1.002)
+
+
+def gear_large(robot, seed):
+    return _gear(robot, seed, 1.02)
+
+
+def joint_sign(robot, seed):
+    m, _, d = _sim(robot, seed)
+    q = d.q.copy()
+    q[:, 4] *= -1                             # the wrist pitch
+    return Case("one joint's sign flipped", m, replace(d, q=q), "joint sign")
+
+
+def joint_still(robot, seed):
+    m = ROBOTS[robot]()
+    rng = np.random.default_rng(seed)
+    q = rc.sim.random_configurations(m, N_POSES, rng)
+    q[:, 4] = 0.3
+    _, d = rc.simulate(m, q=q, seed=seed, noise=NOISE)
+    return Case("one joint never moves", m, d, "joint still")
+
+
+def sister_robot(robot, seed):
+    m, _true, d = _sim(robot, seed)
+    _other, d2 = rc.simulate(m, q=d.q[24:], seed=seed + 1000, noise=NOISE)
+    pos = np.concatenate([d.positions[:24], d2.positions])
+    return Case("half the campaign from a sister robot", m, replace(d, positions=pos), "step change")
+
+
+def _compliances(robot):
+    """The true compliances of the joints that bend under a payload, rad/(N m)."""
+    return {"j2.k_theta": 5e-6, "j3.k_theta": 6e-6} if robot == "6r" else {"j2.k_alpha": 2e-6, "j3.k_alpha": 3e-6}
+
+
+def payload_mid(robot, seed):
+    m = ROBOTS[robot](masses=True)
+    k = _compliances(robot)
+    true, d = rc.simulate(m, N_POSES, seed=seed, noise=NOISE, parameters=("geometric",), true_compliance=k)
+    load = np.where(np.arange(N_POSES) >= 24, 10.0, 0.0)
+    meas = _measure(true, d.q, np.random.default_rng(seed + 100), payload_mass=load)
+    return Case("10 kg payload put on mid-campaign", m, replace(meas, payload_mass=None), "step change",
+                {"parameters": ("geometric", "compliance")})
+
+
+def payload_grams(robot, seed):
+    m = ROBOTS[robot](masses=True)
+    k = _compliances(robot)
+    rng = np.random.default_rng(seed)
+    load = rng.choice([0.0, 5.0, 10.0], N_POSES)
+    _true, d = rc.simulate(m, N_POSES, seed=seed, noise=NOISE, parameters=("geometric",), true_compliance=k,
+                          payload_mass=load)
+    data = replace(d, payload_mass=load * 1000.0)
+    return Case("payload column in grams", m, data, "unit factor", {"parameters": ("geometric", "compliance")})
+
+
+def reflector_moved(robot, seed):
+    m, true, d = _sim(robot, seed)
+    mk = true.markers[0]
+    moved = true.replace(markers=(replace(mk, position=tuple(np.add(mk.position, (1e-3, 0, 0)))),))
+    later = _measure(moved, d.q[30:], np.random.default_rng(seed + 100))
+    pos = np.concatenate([d.positions[:30], later.positions])
+    return Case("reflector moved 1 mm at row 30", m, replace(d, positions=pos), "step change")
+
+
+def tracker_bumped(robot, seed):
+    m, _, d = _sim(robot, seed)
+    R = Rotation.from_rotvec([0, 0, 0.01 * DEG]).as_matrix()
+    pos = d.positions.copy()
+    pos[24:] = pos[24:] @ R.T
+    return Case("tracker bumped by 0.01 deg at row 24", m, replace(d, positions=pos), "step change")
+
+
+def thermal_drift(robot, seed):
+    m, _, d = _sim(robot, seed)
+    t = np.linspace(0.0, 1.0, d.n_poses)[:, None, None]
+    pos = d.positions + t * np.array([0.3e-3, 0.0, 0.0]) / np.sqrt(1.0)
+    return Case("slow thermal drift of 0.3 mm", m, replace(d, positions=pos), "drift")
+
+
+def rotations_inverted(robot, seed):
+    m, _, d = _sim(robot, seed, orientation=True, noise_rot=1e-4)
+    return Case("rotations given as their inverses", m, replace(d, rotations=np.swapaxes(d.rotations, -1, -2)),
+                "rotation convention")
+
+
+def euler_convention(robot, seed):
+    m, _, d = _sim(robot, seed, orientation=True, noise_rot=1e-4)
+    flat = Rotation.from_matrix(d.rotations.reshape(-1, 3, 3))
+    R = Rotation.from_euler("xyz", flat.as_euler("XYZ")).as_matrix().reshape(d.rotations.shape)
+    return Case("Euler XYZ read as xyz", m, replace(d, rotations=R), "rotation convention")
+
+
+def noise_small(robot, seed):
+    m, _, d = _sim(robot, seed)
+    return Case("stated noise 10x too small", m, d, "noise stated", {"noise": rc.Noise.of(position=NOISE / 10)})
+
+
+def noise_large(robot, seed):
+    m, _, d = _sim(robot, seed)
+    return Case("stated noise 10x too large", m, d, "noise stated", {"noise": rc.Noise.of(position=NOISE * 10)})
+
+
+def _positions_scaled(robot, seed, f, name):
+    m, _, d = _sim(robot, seed)
+    return Case(name, m, replace(d, positions=d.positions * f), "unit factor")
+
+
+def metres_as_mm(robot, seed):
+    return _positions_scaled(robot, seed, 1e-3, "metres declared as millimetres")
+
+
+def mm_as_metres(robot, seed):
+    return _positions_scaled(robot, seed, 1e3, "millimetres declared as metres")
+
+
+def _joints_scaled(robot, seed, f, joints, name):
+    m, _, d = _sim(robot, seed)
+    q = d.q.copy()
+    cols = [j for j, k in enumerate(m.reading_quantities) if k == joints] if isinstance(joints, str) else joints
+    q[:, cols] *= f
+    return Case(name, m, replace(d, q=q), "unit factor")
+
+
+def degrees_as_radians(robot, seed):
+    return _joints_scaled(robot, seed, 180 / np.pi, "angle", "degrees declared as radians")
+
+
+def radians_as_degrees(robot, seed):
+    return _joints_scaled(robot, seed, np.pi / 180, "angle", "radians declared as degrees")
+
+
+def one_joint_unit(robot, seed):
+    return _joints_scaled(robot, seed, np.pi / 180, [3], "one joint's radians declared as degrees")
+
+
+def prismatic_mm_as_m(robot, seed):
+    if robot != "cylindrical":
+        return None
+    return _joints_scaled(robot, seed, 1e3, "length", "prismatic millimetres declared as metres")
+
+
+def model_sign(robot, seed):
+    m, _, d = _sim(robot, seed)
+    if robot == "6r":
+        wrong = m.replace(frames=tuple(replace(f, d=-f.d) if f.name == "j3" else f for f in m.frames))
+    else:
+        wrong = m.replace(frames=tuple(replace(f, alpha=-f.alpha) if f.name == "j5" else f for f in m.frames))
+    return Case("a sign error in the model", wrong, d, "model sign")
+
+
+def markers_swapped(robot, seed):
+    m, _, d = _sim(robot, seed, markers=TWO_MARKERS)
+    return Case("two markers swapped", m, replace(d, positions=d.positions[:, ::-1].copy()), "markers swapped",
+                {"known": ("markers",)})
+
+
+def reading_typo(robot, seed):
+    m, _, d = _sim(robot, seed)
+    q = d.q.copy()
+    q[5, 5] += 40 * DEG
+    return Case("one reading mistyped", m, replace(d, q=q), "blunders")
+
+
+def joints_swapped(robot, seed):
+    m, _, d = _sim(robot, seed)
+    a, b = (1, 2) if robot == "6r" else (3, 4)
+    q = d.q.copy()
+    q[:, [a, b]] = q[:, [b, a]]
+    return Case("two joint columns swapped", m, replace(d, q=q), "joints swapped")
+
+
+def marker_frame(robot, seed):
+    m, _, d = _sim(robot, seed)
+    wrong = m.replace(markers=(replace(m.markers[0], frame=m.markers[0].frame - 1),))
+    return Case("the marker on the wrong frame in the model", wrong, d, "marker frame")
+
+
+def another_robot(robot, seed):
+    m = ROBOTS[robot]()
+    bigger = m.replace(frames=tuple(replace(f, d=f.d * 1.3, r=f.r * 1.3) for f in m.frames))
+    _, d = rc.simulate(bigger, N_POSES, seed=seed, noise=NOISE)
+    return Case("the file of a bigger robot", m, d, "robot size")
+
+
+def labels_cyclic(robot, seed):
+    m, _, d = _sim(robot, seed)
+    return Case("pose column shifted by one row", m, replace(d, q=np.roll(d.q, -1, axis=0)), "pose labels offset")
+
+
+def blunder(robot, seed):
+    m, _, d = _sim(robot, seed)
+    pos = d.positions.copy()
+    pos[7, 0, 0] += 5e-3
+    return Case("one value off by 5 mm", m, replace(d, positions=pos), "blunders")
+
+
+MISTAKES = (missed_shot, labels_offset, left_handed, axes_in_marker, marker_copied, gear_small, gear_large,
+            joint_sign, joint_still, sister_robot, payload_mid, payload_grams, reflector_moved, tracker_bumped,
+            thermal_drift, rotations_inverted, euler_convention, noise_small, noise_large, metres_as_mm,
+            mm_as_metres, degrees_as_radians, radians_as_degrees, one_joint_unit, prismatic_mm_as_m, model_sign,
+            markers_swapped, reading_typo, joints_swapped, marker_frame, another_robot, labels_cyclic, blunder)
+
+
+def mistakes(robot: str, seed: int):
+    """Every mistake that applies to ``robot``, built from ``seed``."""
+    return [c for c in (make(robot, seed) for make in MISTAKES) if c is not None]
+
+
+# -- no cause: clean campaigns and robots with effects beyond the model ------------------------------
+
+def clean(robot, seed):
+    m, _, d = _sim(robot, seed, n=int(np.random.default_rng(seed).integers(30, 120)))
+    return Case("clean", m, d, None)
+
+
+def gear_errors(robot, seed):
+    """Each joint off its reading by a small periodic error of its gears (a few arc seconds)."""
+    m, true, d = _sim(robot, seed)
+    rng = np.random.default_rng(seed + 7)
+    amp = rng.uniform(1, 3, m.n_joints) * 4.8e-6 * np.array([q == "angle" for q in m.reading_quantities])
+    q_true = d.q + amp * np.sin(rng.integers(20, 80, m.n_joints) * d.q + rng.uniform(0, 2 * np.pi, m.n_joints))
+    meas = _measure(true, q_true, rng)
+    return Case("gear errors", m, replace(meas, q=d.q), None)
+
+
+def pose_scatter(robot, seed):
+    """The arm scatters about each pose by its repeatability (0.02 mm per axis), all markers alike."""
+    m, _, d = _sim(robot, seed)
+    rng = np.random.default_rng(seed + 8)
+    return Case("per-pose scatter", m, replace(d, positions=d.positions + rng.normal(0, 2e-5, (d.n_poses, 1, 3))),
+                None)
+
+
+def elasticity(robot, seed):
+    """Joints that bend under gravity, calibrated as rigid."""
+    m = ROBOTS[robot](masses=True)
+    k = {"j2.k_theta": 1e-6, "j3.k_theta": 1.5e-6} if robot == "6r" else {"j1.k_theta": 1e-6, "j4.k_theta": 1.5e-6}
+    _, d = rc.simulate(m, N_POSES, seed=seed, noise=NOISE, true_compliance=k)
+    return Case("link elasticity", m, d, None)
+
+
+def slow_drift(robot, seed):
+    """The instrument creeps by 0.02 mm over the campaign."""
+    m, _, d = _sim(robot, seed)
+    t = np.linspace(0.0, 1.0, d.n_poses)[:, None, None]
+    return Case("slow drift", m, replace(d, positions=d.positions + t * np.array([0.0, 2e-5, 0.0])), None)
+
+
+NO_CAUSE = (clean, gear_errors, pose_scatter, elasticity, slow_drift)

@@ -1,0 +1,390 @@
+"""Robot programs in, compensated programs out (docs/formats.md, "Robot programs"): each dialect read
+and written back byte for byte, compensated joint and Cartesian targets checked through the models
+(the Cartesian ones through the nominal inverse kinematics in the written configuration), targets
+out of reach flagged, malformed programs refused at their line and column."""
+
+import codecs
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import assert_one_line_error
+from robots import arm6r
+from scipy.spatial.transform import Rotation
+
+import robocal as rc
+from robocal._files.programs import DIALECTS
+from robocal.io import compensate_program, program_joints, read_program, read_program_joints
+from robocal.kinematics import inverse_kinematics, posture
+from robocal.sim import perturb_model
+
+HERE = Path(__file__).resolve().parent / "programs"
+EXAMPLES = ["example.mod", "example.dat", "example.src", "example.script"]
+TOL_MM, TOL_DEG = 1e-6, 1e-6
+
+
+@pytest.fixture(scope="module")
+def models():
+    nominal = arm6r()
+    names = rc.candidate_parameters(nominal, ("geometric",))
+    return nominal, perturb_model(nominal, names, rng=3)
+
+
+def _reread(tmp_path, text, name):
+    path = tmp_path / name
+    path.write_bytes(text.encode("utf-8"))
+    return read_program(path)
+
+
+@pytest.mark.parametrize("name", EXAMPLES)
+def test_nominal_as_calibrated_writes_the_program_back_byte_for_byte(name, models):
+    nominal, _ = models
+    program = read_program(HERE / name)
+    assert len([t for t in program.targets if not t.skip]) >= 5
+    result = compensate_program(program, nominal, nominal)
+    assert result.text.encode("utf-8") == (HERE / name).read_bytes()
+    assert all(r.status == "ok" or r.status.startswith("read only") for r in result.targets)
+
+
+@pytest.mark.parametrize("name", EXAMPLES)
+def test_byte_order_mark_and_crlf_lines_survive(name, tmp_path, models):
+    nominal, calibrated = models
+    raw = codecs.BOM_UTF8 + (HERE / name).read_bytes().replace(b"\n", b"\r\n")
+    (tmp_path / f"crlf{Path(name).suffix}").write_bytes(raw)
+    program = read_program(tmp_path / f"crlf{Path(name).suffix}")
+    assert compensate_program(program, nominal, nominal).text.encode("utf-8") == raw
+    changed = compensate_program(program, nominal, calibrated).text.encode("utf-8")
+    assert changed.startswith(codecs.BOM_UTF8) and b"\n" not in changed.replace(b"\r\n", b"")
+    # only the targets' numbers changed: every line without a target's number is the same
+    text = program.text
+    held = {text.count("\n", 0, n.start) for t in program.targets
+            for n in (*t.joints, *t.position, *t.orientation, *t.configuration)}
+    new_lines = [ln for ln in changed.split(b"\r\n") if b"robocal: " not in ln]
+    old_lines = raw.split(b"\r\n")
+    assert len(new_lines) == len(old_lines) and len(held) >= 3
+    assert all(a == b for k, (a, b) in enumerate(zip(old_lines, new_lines)) if k not in held)
+    assert any(a != b for a, b in zip(old_lines, new_lines))
+
+
+def test_numbers_keep_their_style():
+    from robocal._files.programs.syntax import Number, format_number
+
+    def fmt(value, old, digits=7):
+        return format_number(value, Number(float(old), old, 0, 0), digits=digits, keep=1e-12)
+
+    assert fmt(12.0, "12") == "12" and fmt(12.5, "12") == "12.5" and fmt(12.25, "12.0000") == "12.2500"
+    assert fmt(-1e-11, "0.0") == "0.0" and fmt(-0.00000001, "0.000") == "0.000"   # no "-0"
+    assert fmt(2.5, "+1.0") == "+2.5" and fmt(-2.5, "+1.0") == "-2.5"
+    assert fmt(1.234567891234, "1.5", digits=9) == "1.234567891"
+
+
+def _tool_pose(model, q):
+    ev = rc.evaluate(model, q, orientations=True)
+    return ev.positions[:, 0], ev.rotations[:, 0]
+
+
+def _assert_same_pose(P, R, P_goal, R_goal):
+    assert np.abs(P - P_goal).max() * 1e3 < TOL_MM
+    angle = Rotation.from_matrix(R @ np.swapaxes(R_goal, 1, 2)).magnitude()
+    assert np.degrees(angle).max() < TOL_DEG
+
+
+@pytest.mark.parametrize("name", EXAMPLES)
+def test_compensated_joint_targets_land_where_the_nominal_ones_did(name, models, tmp_path):
+    nominal, calibrated = models
+    program = read_program(HERE / name)
+    labels, q_old = program_joints(program, nominal)
+    result = compensate_program(program, nominal, calibrated)
+    new = _reread(tmp_path, result.text, name)
+    labels_new, q_new = program_joints(new, nominal)
+    assert labels_new == labels and np.abs(q_new - q_old).max() > 1e-4   # they did change
+    _assert_same_pose(*_tool_pose(calibrated, q_new), *_tool_pose(nominal, q_old))
+
+
+@pytest.mark.parametrize("name", EXAMPLES)
+def test_compensated_cartesian_targets_through_the_nominal_ik_land_on_the_intended_pose(name, models, tmp_path):
+    nominal, calibrated = models
+    module = DIALECTS[read_program(HERE / name).dialect]
+    program = read_program(HERE / name)
+    result = compensate_program(program, nominal, calibrated)
+    new = _reread(tmp_path, result.text, name)
+    ok = {r.name for r in result.targets if r.status == "ok"}
+    pairs = [(a, b) for a, b in zip(program.targets, new.targets) if a.kind == "pose" and a.name in ok]
+    assert len(pairs) >= 3
+    X_WB = nominal.X_WB
+    goal = X_WB @ module.poses([a for a, _ in pairs])
+    given = X_WB @ module.poses([b for _, b in pairs])
+    assert np.abs(given[:, :3, 3] - goal[:, :3, 3]).max() > 1e-4          # the targets moved
+    want, turn = zip(*[module.wanted(b, 6) if b.configuration else (np.full(3, -1), np.full(6, np.nan))
+                       for _, b in pairs])
+    hints = [None if b.configuration else q for (_, b), q in zip(pairs, _hint_rows(new, nominal, pairs))]
+    ik = inverse_kinematics(nominal, given[:, :3, 3], given[:, :3, :3], want=np.array(want),
+                            turn_from=np.array(turn), hints=np.array([np.full(6, np.nan) if h is None else h
+                                                                      for h in hints]))
+    assert ik.solved.all()
+    _assert_same_pose(*_tool_pose(calibrated, ik.q), goal[:, :3, 3], goal[:, :3, :3])
+    has_conf = np.array([bool(b.configuration) for _, b in pairs])
+    assert np.all((np.array(want) < 0) | (posture(nominal, ik.q) == (np.array(want) > 0))) and (
+        has_conf.any() or module.NAME == "urscript")
+
+
+def _hint_rows(program, model, pairs):
+    """The joint target before each pose target (what the compensation seeds a target without
+    configuration data from)."""
+    out, last = [], None
+    targets = sorted(program.targets, key=lambda t: (t.line, t.column))
+    wanted = {(b.line, b.column) for _, b in pairs}
+    for t in targets:
+        if t.kind == "joint" and not t.skip:
+            last = program_joints(type(program)(program.source, program.dialect, program.text, (t,)), model)[1][0]
+        elif (t.line, t.column) in wanted:
+            out.append(last)
+    return out
+
+
+def test_configuration_data_are_recomputed_where_the_compensated_joints_need_another(models, tmp_path):
+    nominal, calibrated = models
+    program = read_program(HERE / "example.mod")
+    result = compensate_program(program, nominal, calibrated)
+    row = next(r for r in result.targets if r.name == "line 30")
+    assert row.configuration == "0,0,0,0 -> -1,-1,0,0"       # axes 1 and 4 sat on 0 deg and moved below
+    new = next(t for t in _reread(tmp_path, result.text, "x.mod").targets if t.name == "line 30")
+    assert [int(n.value) for n in new.configuration] == [-1, -1, 0, 0]
+
+
+@pytest.mark.parametrize("name, far, comment", [
+    ("example.mod", "CONST robtarget pFar := [[5000,0,0],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n", "!"),
+    ("example.dat", "DECL E6POS XFAR={X 5000.0,Y 0.0,Z 0.0,A 0.0,B 0.0,C 0.0,S 0,T 0}\n", ";"),
+    ("example.script", "  far = p[5.0, 0.0, 0.0, 0.0, 0.0, 0.0]\n  movel(far)\n", "#"),
+])
+def test_out_of_reach_targets_are_flagged_and_left_unchanged(name, far, comment, models, tmp_path):
+    nominal, calibrated = models
+    lines = (HERE / name).read_text().splitlines(keepends=True)
+    lines.insert(len(lines) - 2, far)
+    path = tmp_path / name
+    path.write_text("".join(lines))
+    result = compensate_program(read_program(path), nominal, calibrated)
+    flagged = [r for r in result.flagged if "far" in r.name.lower()]
+    assert len(flagged) == 1 and flagged[0].status.startswith("no nominal solution")
+    out = result.text.splitlines(keepends=True)
+    i = out.index(far.splitlines(keepends=True)[0])
+    assert out[i - 1].strip().startswith(f"{comment} robocal: ") and "left unchanged" in out[i - 1]
+    # the flagged program reads back with the same targets
+    assert len(_reread(tmp_path, result.text, "again" + path.suffix).targets) == len(read_program(path).targets)
+
+
+def test_a_compensation_beyond_a_joint_limit_is_flagged(models):
+    nominal, calibrated = models
+    lo, hi = nominal.lower_limits.copy(), nominal.upper_limits.copy()
+    lo[0] = np.radians(9.999)                               # jHome's axis 1 is 10 deg and moves below it
+    narrow = nominal.replace(joint_limits=tuple(zip(lo, hi)))
+    result = compensate_program(read_program(HERE / "example.mod"), narrow, calibrated.replace(
+        joint_limits=tuple(zip(lo, hi))))
+    row = next(r for r in result.targets if r.name == "jHome")
+    assert row.status == "beyond a joint limit"
+    flag = "! robocal: jHome: beyond a joint limit; left unchanged\n"
+    assert flag + "  CONST jointtarget jHome := [[10, -30" in result.text
+
+
+def test_a_work_object_is_the_frame_of_the_targets(models, tmp_path):
+    nominal, calibrated = models
+    frames = "[[0, 0, 0], [1, 0, 0, 0]], [[0, 0, 0], [1, 0, 0, 0]]];"
+    text = (HERE / "example.mod").read_text().replace(frames, frames.replace("[[0, 0, 0]", "[[100, 0, 0]", 1))
+    shifted = text.replace("[[231.980,68.259,", "[[131.980,68.259,")
+    (tmp_path / "w.mod").write_text(shifted)
+    base = compensate_program(read_program(HERE / "example.mod"), nominal, calibrated)
+    inwobj = compensate_program(read_program(tmp_path / "w.mod"), nominal, calibrated, wobj="wTable")
+    a = next(r for r in base.targets if r.name == "pApproach")
+    b = next(r for r in inwobj.targets if r.name == "pApproach")
+    assert a.status == b.status == "ok" and abs(a.moved - b.moved) < 1e-9 and abs(a.turned - b.turned) < 1e-9
+
+
+def test_program_joints_read_a_campaign_written_as_controller_code(tmp_path):
+    model = arm6r()
+    ext = "[9E9,9E9,9E9,9E9,9E9,9E9]"
+    (tmp_path / "log.mod").write_text(f"MODULE log\n  ! readings\n"
+                                      f"  MoveAbsJ [[1,2,3,4,5,6],{ext}]\\NoEOffs, v10, fine, tool0;\n"
+                                      f"  MoveAbsJ [[-1.5,0,0.25,0,90,-180],{ext}], v10, fine, tool0;\n"
+                                      "ENDMODULE\n")
+    labels, q = read_program_joints(tmp_path / "log.mod", model)
+    assert labels == ["line 3", "line 4"]
+    assert np.allclose(q, np.radians([[1, 2, 3, 4, 5, 6], [-1.5, 0, 0.25, 0, 90, -180]]))
+
+
+@pytest.mark.parametrize("suffix, text, line, at", [
+    (".mod", "MODULE m\n  CONST robtarget p1 := [[1,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9];\nENDMODULE\n",
+     2, ":= [" ),
+    (".mod", "MODULE m\n  CONST robtarget p1 := [[1,2],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\nENDMODULE\n",
+     2, ":= ["),
+    (".mod", "MODULE m\n  CONST robtarget p1 := [[1,2,3],[1,0,0,0],[0,0,0,9],[9E9,9E9,9E9,9E9,9E9,9E9]];\n", 2, "9]"),
+    (".mod", 'MODULE m\n  CONST string s := "open;\n', 2, '"'),
+    (".dat", "DEFDAT d\nDECL E6POS XP1={X 1,Y 2,Z 3,A 0,B 0,C 0,S 0,T 0\nENDDAT\n", 2, "={"),
+    (".dat", "DEFDAT d\nDECL E6POS XP1={X 1,Y 2,Z 3,A 0,B 0,C 0,S 'B012',T 0}\nENDDAT\n", 2, "'B012'"),
+    (".src", "DEF a()\n  PTP {A1 0, A2 0, A3 0, A4 0, A5 0, A6 0}}\nEND\n", 2, "}}"),
+    (".script", "def a():\n  movej([0, 0, 0, 0, 0, 0], a=1.4))\nend\n", 2, "))"),
+    (".script", "def a():\n  movej([0, 0, 0,\n    0, 0, 0,], a=1.4)\nend\n", 3, ",]"),
+])
+def test_a_malformed_program_is_one_line_naming_file_line_and_column(suffix, text, line, at, tmp_path, cli):
+    nominal = arm6r()
+    rc.write_model(nominal, tmp_path / "m.yaml")
+    (tmp_path / f"p{suffix}").write_text(text)
+    row = text.splitlines()[line - 1]
+    column = row.index(at) + 1 + {":= [": 3, "={": 1, "}}": 1, "))": 1, "9]": 0, '"': 0, "'B012'": 0, ",]": 0}[at]
+    code, _, err = cli("compensate", tmp_path / "m.yaml", tmp_path / "m.yaml", tmp_path / f"p{suffix}",
+                       "--out", tmp_path / "o" / f"out{suffix}")
+    assert_one_line_error(code, err, [f"p{suffix}", f"line {line}, column {column}:"], tmp_path / "o",
+                          command="compensate")
+
+
+def test_cli_compensates_a_program_and_prints_each_target(models, tmp_path, cli):
+    nominal, calibrated = models
+    rc.write_model(nominal, tmp_path / "nominal.yaml")
+    rc.write_model(calibrated, tmp_path / "calibrated.yaml")
+    far = "LIN {X 5000.0, Y 0.0, Z 0.0, A 0.0, B 0.0, C 0.0, S 0, T 0}\n"
+    (tmp_path / "prog.txt").write_text((HERE / "example.src").read_text().replace("END\n", far + "END\n"))
+    code, out, err = cli("compensate", tmp_path / "nominal.yaml", tmp_path / "calibrated.yaml", tmp_path / "prog.txt",
+                         "--dialect", "krl", "--out", tmp_path / "prog-compensated.src")
+    assert code == 0, err
+    assert "line 10 (line 10, joint): moved " in out and " mm, turned " in out
+    assert "line 18 (line 18, pose): no nominal solution" in out and "line 18 (line 18): no nominal solution" in err
+    assert "compensated 5 of 6 targets" in out and "1 flagged" in out
+    assert (tmp_path / "prog-compensated.src").read_text() != (HERE / "example.src").read_text()
+    code, _, err = cli("compensate", tmp_path / "nominal.yaml", tmp_path / "calibrated.yaml", HERE / "example.mod",
+                       "--tool", "tGriper", "--out", tmp_path / "t.mod")
+    assert_one_line_error(code, err, ["--tool", "tGriper", "tGripper"], command="compensate")
+    assert not (tmp_path / "t.mod").exists()
+
+
+def test_a_campaign_whose_joint_readings_are_controller_code_is_read(tmp_path, cli):
+    """The tracker's file holds the points; the joint readings are the MoveAbsJ lines of a RAPID log."""
+    model = arm6r()
+    true, data = rc.simulate(model, 30, seed=5)
+    rc.write_model(model, tmp_path / "model.yaml")
+    rc.write_measurements(data, tmp_path / "all.csv", model=model)
+    rows = (tmp_path / "all.csv").read_text().splitlines()
+    header = rows[0].split(",")
+    keep = [i for i, h in enumerate(header) if not h.startswith("j")]
+    points = "\n".join(",".join(r.split(",")[i] for i in keep) for r in rows) + "\n"
+    (tmp_path / "points.csv").write_text(points.replace("pose ", "p"))
+    labels_rapid = [label.replace("pose ", "p") for label in data.labels]
+    deg = np.degrees(data.q)
+    moves = "".join(f"  CONST jointtarget {label} := [[{', '.join(repr(float(v)) for v in row)}], "
+                    f"[9E9,9E9,9E9,9E9,9E9,9E9]];  ! pose {k}\n"
+                    for k, (label, row) in enumerate(zip(labels_rapid, deg)))
+    (tmp_path / "joints.mod").write_text(f"MODULE campaign\n{moves}ENDMODULE\n")
+    labels, q = read_program_joints(tmp_path / "joints.mod", model)
+    assert labels == labels_rapid and np.allclose(q, data.q, rtol=0, atol=1e-12)
+    joined = rc.read_measurements(tmp_path / "points.csv", model, joints=tmp_path / "joints.mod")
+    assert np.allclose(joined.q, data.q, rtol=0, atol=1e-12) and np.allclose(joined.positions, data.positions)
+    code, out, err = cli("identifiability", tmp_path / "model.yaml", tmp_path / "points.csv", "--joints",
+                         tmp_path / "joints.mod")
+    assert code == 0, err
+    assert out.splitlines()[0].startswith("identifiability of arm6r at the 30 poses of ")
+
+
+def test_inverse_kinematics_keeps_the_posture_and_turns_asked_for():
+    """The same tool pose in two postures (wrist flipped: axes 4 and 6 turned by half a turn, axis 5
+    negated): each request gets its own solution back, and the turn window picks the axis-6 turn."""
+    model = arm6r()
+    q = np.radians([[20.0, -40.0, 60.0, 30.0, 50.0, 40.0]])
+    flipped = q + np.radians([[0, 0, 0, 180.0, 0, 180.0]])
+    flipped[0, 4] = -q[0, 4]
+    P, R = _tool_pose(model, q)
+    P2, R2 = _tool_pose(model, flipped)
+    _assert_same_pose(P2, R2, P, R)                                   # one pose, two postures
+    bits, bits2 = posture(model, q)[0], posture(model, flipped)[0]
+    assert bits[2] != bits2[2] and (bits[:2] == bits2[:2]).all()
+    for want, expected in ((bits, q), (bits2, flipped)):
+        ik = inverse_kinematics(model, P, R, want=want[None].astype(int))
+        assert ik.solved.all()
+        assert np.allclose(np.angle(np.exp(1j * (ik.q - expected))), 0, atol=1e-7)
+    turn = np.full((1, 6), np.nan)
+    turn[0, 5] = np.radians(300.0) - np.pi                            # axis 6 in [120, 480) deg
+    ik = inverse_kinematics(model, P, R, want=bits[None].astype(int), turn_from=turn)
+    assert np.isclose(ik.q[0, 5], q[0, 5] + 2 * np.pi) and not ik.within_limits[0]
+
+
+def test_elbow_bit_separates_the_two_arm_solutions(models):
+    nominal, _ = models
+    rng = np.random.default_rng(2)
+    q = rng.uniform(nominal.lower_limits * 0.8, nominal.upper_limits * 0.8, (200, 6))
+    P, R = _tool_pose(nominal, q)
+    want = posture(nominal, q).astype(int)
+    want[:, 1] = 1 - want[:, 1]                                     # the other elbow
+    ik = inverse_kinematics(nominal, P, R, want=want)
+    found = ik.solved
+    assert found.mean() > 0.5
+    _assert_same_pose(*_tool_pose(nominal, ik.q[found]), P[found], R[found])
+    assert np.all(posture(nominal, ik.q[found]) == want[found].astype(bool))
+    assert np.all(np.abs(ik.q[found] - q[found]).max(axis=1) > 1e-3)   # other joints than the sampled ones
+
+
+def test_a_named_tool_is_the_model_with_that_tool_point(models, tmp_path):
+    nominal, calibrated = models
+    calibrated = calibrated.replace(markers=nominal.markers)        # a named tool is exact in both models
+    text = (HERE / "example.mod").read_text().replace("[[0, 0, 0], [1, 0, 0, 0]], [1.5,",
+                                                      "[[50, 20, 120], [1, 0, 0, 0]], [1.5,")
+    (tmp_path / "tool.mod").write_text(text)
+    with_tool = compensate_program(read_program(tmp_path / "tool.mod"), nominal, calibrated, tool="tGripper")
+    # arm6r's own tool point is (50, 20, 120) mm on the last frame, with the frame's axes
+    default = compensate_program(read_program(HERE / "example.mod"), nominal, calibrated)
+    assert [r.status for r in with_tool.targets] == [r.status for r in default.targets]
+    assert all(abs(a.moved - b.moved) < 1e-10 for a, b in zip(with_tool.targets, default.targets))
+    moved = compensate_program(read_program(HERE / "example.mod"), nominal, calibrated, tool="tGripper")
+    assert any(abs(a.moved - b.moved) > 1e-6 for a, b in zip(moved.targets, default.targets) if a.status == "ok")
+
+
+@pytest.mark.parametrize("dialect", ["rapid", "krl", "urscript"])
+def test_orientations_are_written_in_the_dialects_convention(dialect):
+    """A rotation through the dialect's writer and back through its reader is the same rotation,
+    and the form written is the one nearest the old (quaternion sign, ZYX triple, rotation vector)."""
+    module = DIALECTS[dialect]
+    rng = np.random.default_rng(1)
+    R = Rotation.random(50, random_state=rng).as_matrix()
+    size = {"rapid": 4, "krl": 3, "urscript": 3}[dialect]
+    olds = rng.normal(size=(50, size)) * (1 if dialect != "krl" else 100)
+    targets = [module.Target("t", "pose", 1, 1, position=_numbers([0, 0, 0]), orientation=_numbers(o)) for o in olds]
+    values = module.orientation_values(R, targets)
+    back = [module.Target("t", "pose", 1, 1, position=_numbers([0, 0, 0]), orientation=_numbers(v)) for v in values]
+    X = module.poses(back)
+    assert np.abs(X[:, :3, :3] - R).max() < 1e-12
+    if dialect == "rapid":
+        assert np.all(np.einsum("ni,ni->n", values, olds) >= 0)
+    if dialect == "krl":
+        assert np.all(np.abs(values - olds) <= 180.0 + 1e-9)
+
+
+def _numbers(values):
+    from robocal._files.programs.syntax import Number
+
+    return tuple(Number(float(v), repr(float(v)), 0, 0) for v in values)
+
+
+def test_cartesian_targets_need_a_six_axis_arm(tmp_path, cli):
+    four = rc.serial_model("four", [dict(joint="revolute"), dict(joint="revolute", alpha=np.pi / 2),
+                                    dict(joint="revolute", d=0.4), dict(joint="revolute", d=0.3)],
+                           markers=[("tool", (0.1, 0, 0))])
+    rc.write_model(four, tmp_path / "four.yaml")
+    (tmp_path / "p.script").write_text("def a():\n  movel(p[0.3, 0.1, 0.2, 0, 3.14, 0], a=1)\nend\n")
+    code, _, err = cli("compensate", tmp_path / "four.yaml", tmp_path / "four.yaml", tmp_path / "p.script",
+                       "--out", tmp_path / "o.script")
+    assert_one_line_error(code, err, ["p.script", "six-axis arm", "4 joints", "line 2"], command="compensate")
+
+
+def test_rapid_targets_take_the_tool_and_work_object_their_motions_use(models):
+    """tests/programs/tools.mod: p1 is moved to with tool tA and work object wB, p3{1} with wB alone,
+    the inline target with tA; p2 with two tools is read only. The same figures as when the tool and
+    work object are given on the command line."""
+    nominal, calibrated = models
+    calibrated = calibrated.replace(markers=nominal.markers)
+    program = read_program(HERE / "tools.mod")
+    uses = {t.name: (t.tool, t.wobj, t.skip) for t in program.targets}
+    assert uses == {"p1": ("tA", "wB", ""), "p2": ("", "", "moved to with several tools or work objects"),
+                    "p3{1}": ("", "wB", ""), "p3{2}": ("", "", ""), "line 13": ("tA", "", "")}
+    rows = {r.name: r for r in compensate_program(program, nominal, calibrated).targets}
+    for name, tool, wobj in (("p1", "tA", "wB"), ("p3{1}", None, "wB"), ("line 13", "tA", None),
+                             ("p3{2}", None, None)):
+        alone = {r.name: r for r in compensate_program(program, nominal, calibrated, tool=tool, wobj=wobj).targets}
+        assert rows[name].status == "ok" and abs(rows[name].moved - alone[name].moved) < 1e-12
+    assert len({round(rows[n].moved, 9) for n in ("p1", "p3{1}", "p3{2}", "line 13")}) == 4   # four frames
+    assert rows["p2"].status.startswith("read only")

@@ -1,0 +1,463 @@
+"""The store of calibrations (docs/store.md), the same tests on SQLite and on a PostgreSQL server:
+records read back whole, the schema upgraded in place, concurrent and killed writers, changes
+judged against their combined uncertainty, robots of a type compared, verification verdicts, and
+the commands record, history, verify and calibrate --record.
+
+PostgreSQL: ``ROBOCAL_TEST_POSTGRES`` names a server (a ``postgresql://`` URL of a database the
+tests may make schemas in), by default the one ``.ci/run`` starts; each test gets a schema of its
+own. Where none answers, the PostgreSQL half is skipped, saying why.
+"""
+
+import json
+import multiprocessing as mp
+import os
+import signal
+import sqlite3
+import sys
+import time
+import uuid
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from conftest import assert_one_line_error
+from robots import arm6r
+
+import robocal as rc
+from robocal import _store
+
+PG_ENV = "ROBOCAL_TEST_POSTGRES"
+# where .ci/run's server is when the variable is not set
+PG_DEFAULT = "postgresql://robocal:robocal@localhost:5432/robocal"
+
+
+def _pg_url():
+    url = os.environ.get(PG_ENV) or PG_DEFAULT
+    try:
+        import psycopg
+    except ImportError:
+        pytest.skip("PostgreSQL half skipped: psycopg is not installed (pip install 'robocal[store-pg]')")
+    try:
+        psycopg.connect(url, connect_timeout=5).close()
+    except psycopg.Error as e:
+        pytest.skip(f"PostgreSQL half skipped: no server at {_store.shown_location(url)} ({' '.join(str(e).split())}); "
+                    f"set {PG_ENV} to a postgresql:// URL (.ci/run starts a server and sets it)")
+    return url
+
+
+@pytest.fixture(params=["sqlite", "postgresql"])
+def location(request, tmp_path):
+    """A fresh, empty store location of each back-end."""
+    if request.param == "sqlite":
+        yield str(tmp_path / "store.sqlite")
+        return
+    import psycopg
+
+    url = _pg_url()
+    schema = "t_" + uuid.uuid4().hex[:12]
+    with psycopg.connect(url, autocommit=True) as c:
+        c.execute(f"CREATE SCHEMA {schema}")
+    sep = "&" if "?" in url else "?"
+    yield f"{url}{sep}options=-csearch_path%3D{schema}"
+    with psycopg.connect(url, autocommit=True) as c:
+        c.execute(f"DROP SCHEMA {schema} CASCADE")
+
+
+@pytest.fixture(scope="module")
+def campaign():
+    """A simulated arm calibrated on 42 poses and judged on 18 held out: (model, true robot, result)."""
+    model = arm6r()
+    true, data = rc.simulate(model, 60, seed=1, noise=2e-5)
+    fit, val = data.split(0.3, rng=0)
+    return model, true, rc.calibrate(model, fit, validation=val)
+
+
+@pytest.fixture(scope="module")
+def result_file(campaign, tmp_path_factory):
+    path = tmp_path_factory.mktemp("store") / "result.json"
+    rc.io.write_result(campaign[2], path)
+    return path
+
+
+# -- records ----------------------------------------------------------------------------------------
+
+def test_a_record_reads_back_whole(location, campaign):
+    result = campaign[2]
+    with rc.open_store(location, create=True) as store:
+        rec = store.record(result, "SN-1", robot_type="arm", at="2026-03-02T10:00:00Z", source="r.json")
+        assert store.version == _store.SCHEMA_VERSION
+    with rc.open_store(location) as store:
+        (back,) = store.calibrations("SN-1")
+        assert back.id == rec.id and back.calibrated_at == "2026-03-02T10:00:00+00:00"
+        assert [(e.name, e.estimate, e.std) for e in back.estimates] == \
+               [(p.name, p.estimate, p.std) for p in result.parameters]
+        assert back.verdict == result.verdict and len(back.checks) == len(result.checks)
+        assert back.accuracy.rms == result.stats.validation_after.rms and back.accuracy.n == 18
+        assert back.accuracy.source == "held-out poses"
+        assert rc.parameter_vector(store.model(back.calibrated_model)) == \
+               pytest.approx(rc.parameter_vector(result.calibrated_model), abs=1e-12)
+        assert store.model(back.nominal_model).name == result.nominal_model.name
+        assert dict(back.inputs)["data"] == result.provenance["data"]["sha256"]
+        assert store.robots() == (("SN-1", "arm", 1),)
+
+
+def test_the_same_calibration_twice_is_refused_and_nothing_stored(location, campaign):
+    with rc.open_store(location, create=True) as store:
+        store.record(campaign[2], "SN-1", at="2026-03-02")
+        with pytest.raises(rc.InputError, match="stored already"):
+            store.record(campaign[2], "SN-1", at="2026-03-02")
+        assert len(store.calibrations("SN-1")) == 1
+
+
+def test_a_verification_is_held_against_the_accuracy_the_instrument_saw(campaign):
+    d = json.loads(json.dumps(_store.result_to_dict(campaign[2])))
+    d["in_use"] = {"method": "validation", "k": None, "position_after": {"n": 18, "mean": 0.0, "rms": 0.0,
+                                                                       "p95": 0.0, "max": 0.0}}
+    acc = rc.accuracy_at_calibration(d)        # the robot's accuracy in use has the noise taken out
+    assert (acc.rms, acc.n, acc.source) == (campaign[2].stats.validation_after.rms, 18, "held-out poses")
+    rec = rc.stored_calibration(campaign[2], "R")
+    assert rec.in_use == (rc.io.result_to_dict(campaign[2]).get("in_use"))
+    d["stats"]["validation_after"] = {"n": 0}
+    fit = rc.accuracy_at_calibration(d)
+    assert fit.source == "fitted poses" and fit.rms > campaign[2].stats.fit_after.rms
+
+
+def test_an_older_schema_is_upgraded_in_place(location, campaign):
+    store = rc.open_store(location, create=True)
+    store.close()
+    with rc.open_store(location) as store, store._db.transaction(write=True) as cur:   # back to version 1
+        store._execute(cur, "DROP TABLE robocal_verifications")
+        store._execute(cur, "UPDATE robocal_schema SET version = 1")
+    with rc.open_store(location, create=True) as store:
+        assert store.version == 1 + 1
+        store.record(campaign[2], "SN-1", at="2026-01-01")
+    with rc.open_store(location, create=True) as store:
+        store.record(campaign[2], "SN-1", at="2026-02-01")
+        assert len(store.calibrations("SN-1")) == 2 and store.verifications("SN-1") == ()
+
+
+def test_a_newer_schema_a_missing_store_and_a_foreign_file_are_refused(location, tmp_path):
+    if location.endswith(".sqlite"):
+        with pytest.raises(rc.InputError, match="no store here"):
+            rc.open_store(location)
+        (tmp_path / "junk.sqlite").write_bytes(b"not a database at all" * 100)
+        with pytest.raises(rc.InputError, match="junk.sqlite"):
+            rc.open_store(tmp_path / "junk.sqlite", create=True)
+        other = tmp_path / "other.sqlite"
+        with sqlite3.connect(other) as c:
+            c.execute("CREATE TABLE invoices (n INTEGER)")
+        with pytest.raises(rc.InputError, match="something else"):
+            rc.open_store(other, create=True)
+    with rc.open_store(location, create=True) as store, store._db.transaction(write=True) as cur:
+        store._execute(cur, "UPDATE robocal_schema SET version = 99")
+    with pytest.raises(rc.InputError, match="newer"):
+        rc.open_store(location)
+
+
+# -- writers at once, and killed ----------------------------------------------------------------------
+
+def _writer(location, record, models, tag, n, start):
+    start.wait()
+    with rc.open_store(location, create=True) as store:
+        for i in range(n):
+            store.add([replace(record, calibrated_at="2026-01-01T00:00:00+00:00", fingerprint=f"{tag}-{i:04d}")],
+                      models)
+
+
+def _recorder(location, record, models, ready):
+    with rc.open_store(location, create=True) as store:
+        for i in range(100_000):
+            store.add([replace(record, fingerprint=f"k-{i:06d}")], models)
+            if i == 20:
+                ready.set()
+
+
+def _record_and_models(result):
+    rec = rc.stored_calibration(result, "SN-1", robot_type="arm", at="2026-01-01")
+    return rec, [_store.model_document(result.nominal_model), _store.model_document(result.calibrated_model)]
+
+
+def test_two_processes_recording_500_each_lose_and_duplicate_nothing(location, campaign):
+    rec, models = _record_and_models(campaign[2])
+    rc.open_store(location, create=True).close()
+    ctx = mp.get_context("fork")
+    start = ctx.Event()
+    procs = [ctx.Process(target=_writer, args=(location, rec, models, tag, 500, start)) for tag in ("a", "b")]
+    for p in procs:
+        p.start()
+    start.set()
+    for p in procs:
+        p.join(300)
+    assert [p.exitcode for p in procs] == [0, 0]
+    with rc.open_store(location) as store:
+        cals = store.calibrations("SN-1")
+    tags = [c.fingerprint for c in cals]
+    assert len(tags) == 1000 and len(set(tags)) == 1000 and len({c.id for c in cals}) == 1000
+    assert sorted(tags) == sorted([f"{t}-{i:04d}" for t in "ab" for i in range(500)])
+
+
+def test_a_process_killed_while_recording_leaves_whole_records_only(location, campaign):
+    rec, models = _record_and_models(campaign[2])
+    rc.open_store(location, create=True).close()
+    ctx = mp.get_context("fork")
+    ready = ctx.Event()
+    p = ctx.Process(target=_recorder, args=(location, rec, models, ready))
+    p.start()
+    assert ready.wait(120)
+    time.sleep(0.05 + 0.1 * np.random.default_rng().random())
+    os.kill(p.pid, signal.SIGKILL)
+    p.join()
+    assert p.exitcode == -signal.SIGKILL
+    with rc.open_store(location, create=True) as store:
+        cals = store.calibrations("SN-1")              # every row decodes: no partial record
+        n = len(cals)
+        assert n > 20 and [c.fingerprint for c in cals] == [f"k-{i:06d}" for i in range(n)]
+        assert all(len(c.estimates) == len(rec.estimates) and store.model(c.calibrated_model) for c in cals[-3:])
+        with store._db.transaction(write=False) as cur:
+            orphans = store._execute(cur, "SELECT COUNT(*) FROM robocal_models WHERE sha256 NOT IN "
+                                          "(SELECT nominal_model FROM robocal_calibrations UNION "
+                                          "SELECT calibrated_model FROM robocal_calibrations)").fetchone()[0]
+        assert orphans == 0
+        store.add([replace(rec, fingerprint="after")], models)
+        assert len(store.calibrations("SN-1")) == n + 1
+
+
+# -- changes between calibrations -------------------------------------------------------------------
+
+def _drawn_history(result, rng, drift=None):
+    """Two calibrations of one robot: estimates drawn about the same truth with the result's
+    covariance; ``drift`` (name, size in combined standard deviations) moves one between them."""
+    base = rc.stored_calibration(result, "R", at="2026-01-01")
+    std = np.array([p.std for p in result.parameters])
+    truth = np.array([p.estimate for p in result.parameters])
+    cals = []
+    for k, at in enumerate(("2026-01-01T00:00:00+00:00", "2026-06-01T00:00:00+00:00")):
+        x = rng.multivariate_normal(truth, result.covariance)
+        if drift and k == 1:
+            j = result.parameter_names.index(drift[0])
+            x[j] += drift[1] * np.sqrt(2) * std[j]
+        cals.append(replace(base, calibrated_at=at, id=k + 1,
+                            estimates=tuple(e._replace(estimate=float(v)) for e, v in zip(base.estimates, x))))
+    return cals
+
+
+def test_unchanged_robots_name_a_change_in_at_most_5_percent(campaign):
+    rng = np.random.default_rng(7)
+    named = [any(c.named for c in rc.judge_changes(_drawn_history(campaign[2], rng))[0]) for _ in range(100)]
+    assert sum(named) <= 5
+
+
+def _gain(result, name):
+    """How much the correlations sharpen the test of ``name`` moving alone: sqrt((C^-1)_jj C_jj)
+    over the judged parameters (each calibration of a drawn history has the same covariance)."""
+    idx = [i for i, p in enumerate(result.parameters) if p.family in rc.JUDGED_FAMILIES]
+    C = result.covariance[np.ix_(idx, idx)]
+    j = [result.parameters[i].name for i in idx].index(name)
+    return float(np.sqrt(np.linalg.inv(C)[j, j] * C[j, j]))
+
+
+def test_a_drift_of_3_std_is_named_as_often_as_its_size_allows(campaign):
+    from scipy.stats import norm
+
+    result = campaign[2]
+    rng = np.random.default_rng(3)
+    for size, at_least in ((3.0, 0.8), (5.0, 0.95)):
+        hits, wrong = 0, 0
+        for _ in range(100):
+            changes, threshold = rc.judge_changes(_drawn_history(result, rng, ("j3.d", size)))
+            named = [c.name for c in changes if c.named]
+            hits += "j3.d" in named
+            wrong += bool(set(named) - {"j3.d"})
+        mean = size * _gain(result, "j3.d")          # the test statistic's mean under this drift
+        power = norm.sf(threshold - mean) + norm.cdf(-threshold - mean)
+        assert abs(hits / 100 - power) < 0.12, (size, hits, power)
+        assert hits >= 100 * at_least and wrong <= 10, (size, hits, wrong)
+
+
+def test_without_correlations_a_change_is_its_difference_over_the_combined_std(campaign):
+    cals = [replace(c, correlation=None) for c in _drawn_history(campaign[2], np.random.default_rng(1))]
+    changes, threshold = rc.judge_changes(cals)
+    a, b = cals
+    for c in changes:
+        s = np.hypot(a.estimate(c.name).std, b.estimate(c.name).std)
+        assert c.sigma == pytest.approx(c.delta / s) and c.shift == pytest.approx(c.delta)
+    assert threshold == pytest.approx(rc.sidak_threshold(0.05, len(changes)))
+
+
+def test_a_change_reads_in_display_units_with_its_sigma(campaign):
+    rng = np.random.default_rng(0)
+    cals = _drawn_history(campaign[2], rng, ("j2.theta", 40.0))
+    assert cals[0].correlation is not None
+    with_drift = rc.judge_changes(cals)[0]
+    (c,) = [c for c in with_drift if c.name == "j2.theta"]
+    assert c.named and c.since == "2026-01-01T00:00:00+00:00"
+    line = rc.change_line(c)
+    assert line.startswith("j2.theta +") and line.endswith(f"since 2026-01-01, {abs(c.sigma):.1f} sigma")
+    assert f"{np.degrees(c.delta):.5f}".lstrip("-") in line
+
+
+def test_robots_of_a_type_side_by_side_name_the_one_that_stands_out(location, campaign):
+    result = campaign[2]
+    rng = np.random.default_rng(5)
+    with rc.open_store(location, create=True) as store:
+        rec, models = _record_and_models(result)
+        recs = []
+        for i in range(12):
+            x = rng.multivariate_normal([p.estimate for p in result.parameters], result.covariance)
+            if i == 7:
+                x[result.parameter_names.index("j2.d")] += 2e-3     # 2 mm off its type
+            recs.append(replace(rec, robot=f"R{i:02d}", fingerprint=f"f{i}",
+                                estimates=tuple(e._replace(estimate=float(v)) for e, v in zip(rec.estimates, x))))
+        store.add(recs, models)
+        store.add([replace(recs[7], robot="other", robot_type="scara", fingerprint="x")], models)
+        t = rc.type_comparison(store, "arm")
+    assert t.robots == tuple(f"R{i:02d}" for i in range(12))
+    assert [(o.robot, o.name) for o in t.outliers] == [("R07", "j2.d")]
+    assert t.z.shape == (12, len(t.names)) and "base.x" not in t.names
+
+
+# -- verification -----------------------------------------------------------------------------------
+
+def _drifted(true, name="j3.d", by=3e-4):
+    lay = rc.parameter_names(true)
+    p = rc.parameter_vector(true)
+    p[lay.index(name)] += by
+    return rc.model_from_vector(true, p)
+
+
+def test_verification_says_recalibrate_after_a_drift_of_0_3_mm_and_within_otherwise(campaign):
+    model, true, result = campaign
+    then = rc.accuracy_at_calibration(_store.result_to_dict(result))
+    drifted = _drifted(true)
+    rng = np.random.default_rng(11)
+    verdicts = {"true": [], "drifted": []}
+    for _seed in range(100):
+        q = rc.random_configurations(model, 20, rng)
+        for key, robot in (("true", true), ("drifted", drifted)):
+            data = rc.measure(robot, q, noise=2e-5, rng=rng)
+            verdicts[key].append(rc.verify(result.calibrated_model, data, then).verdict)
+    assert verdicts["true"].count("within accuracy") >= 95
+    assert verdicts["drifted"].count("recalibrate") >= 95
+
+
+def test_verification_with_the_base_re_registered_and_iso_terms(campaign):
+    model, true, result = campaign
+    then = rc.accuracy_at_calibration(_store.result_to_dict(result))
+    moved = true.replace(base_position=tuple(np.add(true.base_position, (0.01, -0.02, 0.005))))
+    q = rc.random_configurations(model, 20, np.random.default_rng(2))
+    data = rc.measure(moved, np.repeat(q, 2, axis=0), noise=2e-5, rng=3, labels=[f"P{i // 2}" for i in range(40)])
+    assert rc.verify(result.calibrated_model, data, then).verdict == "recalibrate"   # the tracker moved
+    v = rc.verify(result.calibrated_model, data, then, register=True)
+    assert v.verdict == "within accuracy" and v.registered_base and len(v.poses) == 20
+    # AP_p: each pose's barycentre of its two visits against the commanded point
+    reg = rc.register_base(result.calibrated_model, data)
+    pred = rc.evaluate(reg, data.q).positions[:, 0]
+    bary = (data.positions[0::2, 0] + data.positions[1::2, 0]) / 2
+    assert v.ap == pytest.approx(np.linalg.norm(bary - pred[0::2], axis=1), abs=1e-9)
+    assert v.ap_max == pytest.approx(v.ap.max())
+
+
+# -- the commands -----------------------------------------------------------------------------------
+
+def _measure_csv(tmp_path, robot, model, n=20, seed=4):
+    q = rc.random_configurations(model, n, np.random.default_rng(seed))
+    path = tmp_path / f"check-{seed}.csv"
+    rc.write_measurements(rc.measure(robot, q, noise=2e-5, rng=seed), path, model=model)
+    return path
+
+
+def test_record_history_and_verify_from_the_command_line(cli, location, campaign, result_file, tmp_path):
+    model, true, result = campaign
+    code, out, err = cli("record", result_file, "--robot", "SN-1", "--type", "arm", "--store", location,
+                         "--at", "2026-03-02T10:00:00Z")
+    assert code == 0 and "recorded calibration #1 of SN-1" in out, err
+    code, out, err = cli("record", result_file, "--robot", "SN-1", "--store", location, "--at", "2026-09-01")
+    assert code == 0 and "changes since the previous calibration: none beyond" in out, err
+    code, out, err = cli("verify", "SN-1", _measure_csv(tmp_path, true, model), "--store", location)
+    assert code == 0 and out.strip().endswith("verdict: within accuracy"), out + err
+    code, out, err = cli("verify", "SN-1", _measure_csv(tmp_path, _drifted(true), model, seed=5), "--store", location)
+    assert code == 3 and out.strip().endswith("verdict: recalibrate"), out + err
+    code, out, err = cli("history", "SN-1", "--store", location)
+    assert code == 0 and "2 calibration(s), 2 verification(s)" in out and "ISO 9283 AP" in out
+    assert "j3.d" in out and "none" in out.split("changes between consecutive")[1]
+    code, out, err = cli("history", "--type", "arm", "--store", location)
+    assert code == 0 and "type arm: 1 robot(s)" in out
+
+
+def test_calibrate_record_keeps_the_result(cli, tmp_path, campaign):
+    model, true, _ = campaign
+    rc.write_model(model, tmp_path / "model.yaml")
+    q = rc.random_configurations(model, 40, np.random.default_rng(9))
+    rc.write_measurements(rc.measure(true, q, noise=2e-5, rng=9), tmp_path / "m.csv", model=model)
+    store = tmp_path / "s.sqlite"
+    code, out, err = cli("calibrate", tmp_path / "model.yaml", tmp_path / "m.csv", "--out", tmp_path / "o",
+                         "--record", "SN-9", "--type", "arm", "--store", store)
+    assert code == 0 and "recorded calibration #1 of SN-9" in out, err
+    with rc.open_store(store) as s:
+        (c,) = s.calibrations("SN-9")
+    written = rc.read_result(tmp_path / "o" / "result.json")
+    assert [e.estimate for e in c.estimates] == [p.estimate for p in written.parameters]
+
+
+def test_history_report_shows_drift_and_verifications(cli, tmp_path, campaign, result_file):
+    pytest.importorskip("matplotlib")
+    model, true, _ = campaign
+    store = tmp_path / "s.sqlite"
+    for at in ("2026-01-01", "2026-02-01"):
+        assert cli("record", result_file, "--robot", "R", "--store", store, "--at", at)[0] == 0
+    assert cli("verify", "R", _measure_csv(tmp_path, true, model), "--store", store)[0] == 0
+    code, out, err = cli("history", "R", "--store", store, "--report", tmp_path / "h.html")
+    assert code == 0, err
+    page = (tmp_path / "h.html").read_text()
+    assert 'data-plot="drift"' in page and 'data-plot="verifications"' in page and "j3.d" in page
+    assert page.count("<tr><td>#") == 2
+
+
+def test_bad_input_to_the_commands_is_one_line(cli, tmp_path, result_file):
+    store = tmp_path / "s.sqlite"
+    code, out, err = cli("history", "R", "--store", store)
+    assert_one_line_error(code, err, [str(store), "no store"], command="history")
+    assert not store.exists()
+    code, out, err = cli("record", result_file, "--robot", "\x07bell", "--store", store)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and not store.exists()
+    assert cli("record", result_file, "--robot", "R", "--store", store)[0] == 0
+    code, out, err = cli("history", "nobody", "--store", store)
+    assert_one_line_error(code, err, ["no calibration of 'nobody'"], command="history")
+    code, out, err = cli("history", "R", "--type", "t", "--store", store)
+    assert_one_line_error(code, err, ["give a robot or --type"], command="history")
+    (tmp_path / "bad.sqlite").write_bytes(b"SQLite format 3\x00" + b"\x13" * 3000)
+    code, out, err = cli("history", "R", "--store", tmp_path / "bad.sqlite")
+    assert_one_line_error(code, err, ["bad.sqlite"], command="history")
+    code, out, err = cli("record", result_file, "--robot", "R", "--at", "yesterday", "--store", store)
+    assert code == 2 and "--at" in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_postgresql_store_without_psycopg_says_which_extra(cli, monkeypatch, result_file):
+    monkeypatch.setitem(sys.modules, "psycopg", None)
+    code, out, err = cli("record", result_file, "--robot", "R", "--store", "postgresql://u:secret@nowhere/db")
+    assert code == 1 and "store-pg" in err and "secret" not in err
+
+
+def test_the_store_location_comes_from_option_environment_or_default(tmp_path):
+    env = {"HOME": str(tmp_path), "XDG_DATA_HOME": str(tmp_path / "data")}
+    assert rc.store_location(None, env) == str(tmp_path / "data" / "robocal" / "store.sqlite")
+    assert rc.store_location(None, {**env, "ROBOCAL_STORE": "x.sqlite"}) == "x.sqlite"
+    assert rc.store_location("y.sqlite", {**env, "ROBOCAL_STORE": "x.sqlite"}) == "y.sqlite"
+    assert _store.shown_location("postgresql://u:pw@h/db") == "postgresql://u:***@h/db"
+
+
+def test_a_verification_holds_the_robot_against_its_latest_calibration_that_did_not_fail(location, campaign):
+    model, true, result = campaign
+    rec, models = _record_and_models(result)
+    with rc.open_store(location, create=True) as store:
+        good, bad = store.add([rec, replace(rec, verdict="fail", calibrated_at="2026-02-01T00:00:00+00:00",
+                                            calibrated_model=rec.nominal_model)], models)
+        assert rc.latest_usable(store, "SN-1").id == good
+        data = rc.measure(true, rc.random_configurations(model, 20, np.random.default_rng(1)), noise=2e-5, rng=1)
+        v, stored = rc.verify_robot(store, "SN-1", data)
+        assert stored.calibration_id == good and v.verdict == "within accuracy"
+        (back,) = store.verifications("SN-1")
+        assert back == replace(stored, id=back.id) and back.id is not None
+        store.add([replace(rec, robot="SN-2", verdict="fail")], models)
+        with pytest.raises(rc.InputError, match="failed its checks"):
+            rc.latest_usable(store, "SN-2")
