@@ -96,12 +96,13 @@ class Runner:
     def __init__(self, show: int, keep: Path | None, jobs: int):
         self.keep, self.jobs, self.running, self.started = keep, jobs, {}, 0
         self.counts = collections.Counter()
+        self.by_command: dict[str, collections.Counter] = collections.defaultdict(collections.Counter)
         self.examples = collections.defaultdict(list)
         self.show = show
         self.times = []
         self.root = Path(tempfile.mkdtemp(prefix="robocal-fuzz-"))
 
-    def run(self, files: dict, argv: list[str]) -> None:
+    def run(self, command: str, files: dict, argv: list[str]) -> None:
         """Start one case; with ``jobs`` cases running, first wait for one to finish."""
         while len(self.running) >= self.jobs:
             self.reap()
@@ -113,12 +114,12 @@ class Runner:
         pid = os.fork()
         if pid == 0:
             _child(folder, argv)
-        self.running[pid] = (folder, time.monotonic(), argv, files)
+        self.running[pid] = (folder, time.monotonic(), argv, files, command)
 
     def reap(self) -> None:
         """Wait until one running case ends (or overruns the time limit) and count it."""
         while True:
-            for pid, (_folder, start, _argv, _files) in list(self.running.items()):
+            for pid, (_folder, start, *_) in list(self.running.items()):
                 done, status, usage = os.wait4(pid, os.WNOHANG)
                 if done:
                     return self.count(pid, status, usage, None)
@@ -129,7 +130,7 @@ class Runner:
             time.sleep(0.005)
 
     def count(self, pid, status, usage, outcome) -> None:
-        folder, start, argv, files = self.running.pop(pid)
+        folder, start, argv, files, command = self.running.pop(pid)
         self.times.append(time.monotonic() - start)
         err = (folder / "stderr.txt").read_text(errors="replace") if (folder / "stderr.txt").exists() else ""
         if outcome is None:
@@ -142,6 +143,7 @@ class Runner:
                 before = set(files) | {"stdout.txt", "stderr.txt"}
                 outcome = fuzz_cases.judge(os.WEXITSTATUS(status), err, folder, before, argv)
         self.counts[outcome] += 1
+        self.by_command[command][outcome] += 1
         if outcome not in ("clean error", "ok result") and len(self.examples[outcome]) < self.show:
             self.examples[outcome].append((argv, {k: v[:300] for k, v in files.items()}, err[-1500:]))
         if self.keep and outcome not in ("clean error", "ok result"):
@@ -215,6 +217,10 @@ def main_fuzz(argv=None) -> int:
     print(f"\n{n} cases in {wall:.0f} s (median {times[n // 2]:.2f} s, slowest {times[-1]:.1f} s per case)")
     for outcome in fuzz_cases.OUTCOMES:
         print(f"  {outcome:18s} {runner.counts.get(outcome, 0)}")
+    print("\nper command (cases: " + ", ".join(fuzz_cases.OUTCOMES) + ")")
+    for command, counts in sorted(runner.by_command.items()):
+        row = " ".join(str(counts.get(o, 0)) for o in fuzz_cases.OUTCOMES)
+        print(f"  {command:18s} {sum(counts.values()):6d}: {row}")
     shutil.rmtree(runner.root, ignore_errors=True)
     bad = sum(runner.counts.get(o, 0) for o in fuzz_cases.OUTCOMES[2:])
     return 1 if bad else 0

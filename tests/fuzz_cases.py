@@ -52,6 +52,24 @@ PROGRAMS = {
                    "  movel(p[0.628819, 0.962752, 1.135675, 0.1, 0.2, 0.3], a=1.2, v=0.25)\nend\n",
 }
 
+
+def _joint_programs() -> tuple[str, dict]:
+    """The measurement file split as a campaign logged by a controller: the instrument's points
+    (pose label, marker columns, set) and the joint readings as controller code, one joint target
+    per pose named by its label (RAPID jointtarget, KRL E6AXIS; mm and deg like the file's)."""
+    rows = [ln.split(",") for ln in MEASUREMENTS.splitlines()]
+    joints = [i for i, h in enumerate(rows[0]) if h.startswith("j")]
+    points = "\n".join(",".join(c for i, c in enumerate(r) if i not in joints) for r in rows) + "\n"
+    rapid = "".join(f"  CONST jointtarget {r[0]} := [[{', '.join(r[i] for i in joints)}], "
+                    "[9E9, 9E9, 9E9, 9E9, 9E9, 9E9]];\n" for r in rows[1:])
+    krl = "".join(f"DECL E6AXIS {r[0]}={{{','.join(f'A{k + 1} {r[i]}' for k, i in enumerate(joints))},E1 0.0}}\n"
+                  for r in rows[1:])
+    return points, {"joints.mod": f"MODULE campaign\n{rapid}ENDMODULE\n",
+                    "joints.dat": f"DEFDAT campaign\n{krl}ENDDAT\n"}
+
+
+POINTS, JOINT_PROGRAMS = _joint_programs()
+
 # values that broke number parsing, unit checks and argument types
 NASTY = ("0", "-0", "-1", "1e308", "-1e308", "1e400", "99999999999999999999999999", "9" * 5000, "nan", "inf",
          "-inf", ".nan", ".inf", "abc", "", " ", "1,0", "0,1", ",", "1e-320", "0x10", "true", "null", "[]", "{}",
@@ -533,7 +551,8 @@ CALIBRATE = {"--parameters": "geometric", "--known": "base", "--tol": "1e-6", "-
              "--out-units": "m-rad", "--units": "mm-deg", "--sep": ",", "--decimal": ".", "--orientation": "quat_xyzw",
              "--weak": "flag", "--on-outliers": "flag", "--write-failed": None, "--register-base": None,
              "--compare": None, "--instrument": "cmm", "--nonnegative-compliance": None,
-             "--map": "=pose,tool_x_mm+j1_deg=tool_x_mm", "--header": MEASUREMENTS.splitlines()[0], "--diagnose": None}
+             "--map": "=pose,tool_x_mm+j1_deg=tool_x_mm", "--header": MEASUREMENTS.splitlines()[0], "--diagnose": None,
+             "--folds": "3", "--register-validation": None}
 SIMULATE = {"--seed": "3", "--noise-mm": "0.02", "--length-error-mm": "0.1,1", "--angle-error-deg": "0.01,0.1",
             "--parameters": "geometric", "--units": "m-rad", "--true-model": "true.yaml"}
 IDENTIFIABILITY = {"--parameters": "geometric,compliance", "--known": "base", "--tol": "1e-6", "--poses": "30",
@@ -597,6 +616,9 @@ def calibrate_case(draw, result_text=None):
         argv += ["--limit-mm", "limit.json"]
     elif reader == 2:  # and keep it in a store (never the user's default one)
         argv += ["--record", _value(draw, "R"), "--store", "store.sqlite"] + draw(options({"--type": "th8"}))
+    elif reader == 3:  # held-out measurements to judge on, maybe from another set-up
+        files["val.csv"] = draw(csv_file()) if draw(st.booleans()) else MEASUREMENTS.encode()
+        argv += ["--validate", "val.csv"] + (["--register-validation"] if draw(st.booleans()) else [])
     return files, argv
 
 
@@ -742,6 +764,114 @@ def store_case(draw, command: str, result_text: str):
     return files, ["verify", robot, "data.csv", "--store", "store.sqlite"] + draw(options(VERIFY))
 
 
+@st.composite
+def joints_program_case(draw, result_text=None):
+    """calibrate or identifiability on an instrument's points whose joint readings are controller
+    code (``--joints joints.mod``), either file mutated."""
+    name = draw(st.sampled_from(sorted(JOINT_PROGRAMS)))
+    files = {"model.yaml": _model(draw)}
+    files["points.csv"] = draw(csv_file(POINTS)) if draw(st.integers(0, 2)) == 0 else POINTS.encode()
+    files[name] = draw(program_file(JOINT_PROGRAMS[name])) if draw(st.integers(0, 2)) else JOINT_PROGRAMS[name].encode()
+    if draw(st.booleans()):
+        argv = ["calibrate", "model.yaml", "points.csv", "--out", "out"] + draw(options(CALIBRATE))
+    else:
+        argv = ["identifiability", "model.yaml", "points.csv"] + draw(options(IDENTIFIABILITY))
+    argv += ["--joints", name] + (["--key", _value(draw, "pose")] if draw(st.integers(0, 4)) == 0 else [])
+    return files, argv
+
+
+@functools.lru_cache(maxsize=2)
+def sidecar_files(result_text: str) -> tuple[str, bytes, dict]:
+    """The result as calibrate writes it: result.json naming its per-pose file result.npz, that
+    file's bytes, and its arrays."""
+    import io
+
+    import numpy as np
+
+    import robocal as rc
+    from robocal.io import result_files
+
+    result = rc.io.result_from_dict(json.loads(result_text))
+    with tempfile.TemporaryDirectory() as folder:
+        files = result_files(result, Path(folder) / "result.json")
+        text, blob = (files[Path(folder) / n] for n in ("result.json", "result.npz"))
+    with np.load(io.BytesIO(blob), allow_pickle=False) as z:
+        return text, blob, {k: z[k] for k in z.files}
+
+
+def _npz(arrays: dict) -> bytes:
+    import io
+
+    import numpy as np
+
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    return buf.getvalue()
+
+
+@st.composite
+def sidecar_pair(draw, result_text: str) -> dict:
+    """result.json and result.npz, one of them damaged; where the arrays are changed the JSON's
+    SHA-256 follows (else only the hash check would be reached)."""
+    import hashlib
+
+    import numpy as np
+
+    text, blob, arrays = sidecar_files(result_text)
+    kind = draw(st.sampled_from(("good", "array", "array", "array", "flip", "cut", "missing", "name", "json")))
+    if kind == "flip":
+        data = bytearray(blob)
+        for _ in range(draw(st.integers(1, 4))):
+            data[draw(st.integers(0, len(data) - 1))] = draw(st.integers(0, 255))
+        blob = bytes(data)
+    elif kind == "cut":
+        blob = blob[:draw(st.integers(0, len(blob) - 1))]
+    elif kind == "array":
+        arrays = dict(arrays)
+        key = draw(st.sampled_from(sorted(arrays)))
+        edit = draw(st.sampled_from(("drop", "nan", "inf", "shape", "int", "empty", "extra", "huge", "text", "3d")))
+        a = arrays[key]
+        if edit == "drop":
+            del arrays[key]
+        elif edit in ("nan", "inf", "huge"):
+            a = a.copy()
+            a.flat[draw(st.integers(0, max(a.size - 1, 0)))] = {"nan": np.nan, "inf": np.inf, "huge": 1e308}[edit] \
+                if a.size else 0.0
+            arrays[key] = a
+        elif edit == "shape":
+            arrays[key] = a[:-1] if len(a) else a
+        elif edit == "int":
+            arrays[key] = a.astype(np.int64)
+        elif edit == "empty":
+            arrays[key] = np.empty((0,) + a.shape[1:])
+        elif edit == "extra":
+            arrays["x"] = np.zeros(3)
+        elif edit == "text":
+            arrays[key] = np.array(["a"] * max(len(a), 1))
+        else:
+            arrays[key] = a.reshape(a.shape + (1,))
+        blob = _npz(arrays)
+        text = text.replace(hashlib.sha256(sidecar_files(result_text)[1]).hexdigest(), hashlib.sha256(blob).hexdigest())
+    files = {"result.json": text.encode(), "result.npz": blob}
+    if kind == "missing":
+        del files["result.npz"]
+    elif kind == "name":
+        name = draw(st.sampled_from(("../result.npz", "/tmp/result.npz", "result.json", "x.npz", "", "r\x00.npz")))
+        files["result.json"] = text.replace('"name": "result.npz"', f'"name": {json.dumps(name)}').encode()
+    elif kind == "json":
+        files["result.json"] = draw(result_file(text))
+    return files
+
+
+@st.composite
+def sidecar_case(draw, result_text=None):
+    """report or record on a result whose per-pose arrays are in its result.npz sidecar."""
+    files = draw(sidecar_pair(result_text))
+    if draw(st.booleans()):
+        return files, ["report", "result.json", "--out", "report.html"]
+    return files, ["record", "result.json", "--robot", _value(draw, "R"), "--store", "store.sqlite"]
+
+
 # command -> (weight, strategy of (files, argv)). The readers and commands of later work join here:
 # add a strategy above (mutations of a shipped example, the sizes that could hang it) and a line
 # below; the judge (check_output) then learns what a sound output of it is.
@@ -752,9 +882,12 @@ COMMANDS = {
     "export": (2, export_case), "compensate": (2, compensate_case), "contacts": (2, contacts_case),
     "compensate-program": (2, compensate_program_case), "record": (1, functools.partial(store_case, "record")),
     "history": (1, functools.partial(store_case, "history")), "verify": (1, functools.partial(store_case, "verify")),
+    "joints-program": (2, joints_program_case), "sidecar": (2, sidecar_case),
+    # a folder of seatings (calibrate --contacts FOLDER, _files/seatings.py) joins here as
+    # "seatings": (2, seatings_case), its strategy a shipped folder with files mutated, missing or extra
 }
 # the commands whose cases start from a result file (``result_text``)
-NEEDS_RESULT = ("report", *STORE_COMMANDS)
+NEEDS_RESULT = ("report", *STORE_COMMANDS, "sidecar")
 
 
 # the in-process sample of the test suite (tests/test_fuzz.py): the same cases, the slow command
@@ -764,12 +897,13 @@ SAMPLE_WEIGHTS = {**{n: 4 * w for n, (w, _) in COMMANDS.items()}, "plan-sockets"
 
 @st.composite
 def case(draw, result_text: str | None = None, commands=None, weights=None):
-    """(files, argv) of one run of one command (of ``commands``, default every one), drawn by
-    ``weights`` (command -> whole number, default COMMANDS's)."""
+    """(command, files, argv) of one run of one command (of ``commands``, default every one), drawn by
+    ``weights`` (command -> whole number, default COMMANDS's); ``command`` is the COMMANDS key."""
     names = [n for n in (commands or COMMANDS) if result_text or n not in NEEDS_RESULT]
     weights = weights or {n: w for n, (w, _) in COMMANDS.items()}
     command = draw(st.sampled_from([n for n in names for _ in range(weights[n])]))
-    return draw(COMMANDS[command][1](result_text))
+    files, argv = draw(COMMANDS[command][1](result_text))
+    return command, files, argv
 
 
 # -- the judge -----------------------------------------------------------------------------------
@@ -784,11 +918,12 @@ FK_TOL = 1e-9
 def non_finite(folder: Path, before: set[str]) -> str | None:
     """The first output file of a run holding a non-finite number, or None. A compensated program
     keeps every word of its source but its targets' numbers: those the program check reads back (the
-    program reader refuses a non-finite literal)."""
+    program reader refuses a non-finite literal); a result's per-pose file (.npz) is read back with
+    its result by the calibrate check."""
     from robocal._files.programs import EXTENSIONS
 
     for p in sorted(folder.rglob("*")):
-        if not p.is_file() or p.name in before or p.suffix in (".html", *EXTENSIONS) or ".sqlite" in p.name:
+        if not p.is_file() or p.name in before or p.suffix in (".html", ".npz", *EXTENSIONS) or ".sqlite" in p.name:
             continue
         text = p.read_text(errors="replace")
         if p.suffix == ".json":
@@ -959,9 +1094,26 @@ def _check_sockets(argv, folder: Path) -> str | None:
     return None
 
 
+def _check_calibrate(argv, folder: Path) -> str | None:
+    """The result reads back with its per-pose file, and the calibrated model (when written) too."""
+    import robocal as rc
+
+    out = folder / argv[argv.index("--out") + 1]
+    if not (out / "result.json").exists():
+        return None
+    try:
+        rc.read_result(out / "result.json")
+        if (out / "calibrated.yaml").exists():
+            rc.read_model(out / "calibrated.yaml")
+    except rc.InputError:
+        return "unreadable output"
+    return None
+
+
 # what a sound output of each command is, beyond finite numbers: it reads back and, for the
 # writers of models and commands, reproduces its source (later commands add their check here)
-OUTPUT_CHECKS = {"export": _check_export, "import-dh": _check_model, "import-urdf": _check_model,
+OUTPUT_CHECKS = {"calibrate": _check_calibrate, "export": _check_export, "import-dh": _check_model,
+                 "import-urdf": _check_model,
                  "plan": _check_plan, "compensate": _check_compensate, "plan-sockets": _check_sockets}
 
 

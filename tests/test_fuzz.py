@@ -68,7 +68,7 @@ def _share(job) -> list:
               suppress_health_check=list(HealthCheck))
     @given(fuzz_cases.case(text, weights=fuzz_cases.SAMPLE_WEIGHTS))
     def each(c):
-        files, argv = c
+        _, files, argv = c
         signal.setitimer(signal.ITIMER_PROF, HANG_SECONDS)
         try:
             outcome, err = run_case(files, argv)
