@@ -26,13 +26,10 @@ for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 import collections  # noqa: E402
 import importlib.util  # noqa: E402
 import pkgutil  # noqa: E402
-import resource  # noqa: E402
 import shutil  # noqa: E402
-import signal  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
-import traceback  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
@@ -49,47 +46,10 @@ from robocal.cli import main  # noqa: E402
 
 fuzz_cases.every_reader()  # the compiled measurement reader on the small fuzzed files too
 
-# per case: 20 s of CPU time (the machine may be shared: wall-clock time is not the program's), and
-# a wall-clock backstop for a case that sleeps or waits; 1 GB of memory beyond the parent's
 # every module imported once here, not in every child (and not from files edited during a run)
 for _m in pkgutil.walk_packages(importlib.util.find_spec("robocal").submodule_search_locations, "robocal."):
     if not _m.name.endswith(".__main__"):
         importlib.import_module(_m.name)
-
-TIME_LIMIT = 20
-WALL_LIMIT = 120.0
-MEMORY_LIMIT = 1 << 30
-
-
-def _vm_size() -> int:
-    with open("/proc/self/status") as fh:
-        for line in fh:
-            if line.startswith("VmSize:"):
-                return int(line.split()[1]) * 1024
-    return 0
-
-
-def _child(folder: Path, argv: list[str]) -> None:
-    """In the forked child: limits, output to files, run, exit with the code."""
-    code = 99
-    try:
-        os.chdir(folder)
-        limit = _vm_size() + MEMORY_LIMIT
-        resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
-        resource.setrlimit(resource.RLIMIT_CPU, (TIME_LIMIT, TIME_LIMIT + 5))
-        out = os.open("stdout.txt", os.O_WRONLY | os.O_CREAT | os.O_TRUNC)
-        err = os.open("stderr.txt", os.O_WRONLY | os.O_CREAT | os.O_TRUNC)
-        os.dup2(out, 1)
-        os.dup2(err, 2)
-        sys.stdout = open(1, "w", closefd=False)  # noqa: SIM115 - the child's streams until it exits
-        sys.stderr = open(2, "w", closefd=False)  # noqa: SIM115
-        code = main(argv)
-    except BaseException:  # noqa: BLE001 - whatever escapes main is what we count
-        traceback.print_exc()
-    finally:
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os._exit(code if isinstance(code, int) and 0 <= code < 99 else 99)
 
 
 class Runner:
@@ -111,45 +71,50 @@ class Runner:
         folder.mkdir()
         for name, data in files.items():
             (folder / name).write_bytes(data)
-        pid = os.fork()
-        if pid == 0:
-            _child(folder, argv)
+        pid = fuzz_cases.fork_case(folder, argv)
         self.running[pid] = (folder, time.monotonic(), argv, files, command)
 
+    def run_here(self, command: str, files: dict, argv: list[str]) -> None:
+        """Run one case in this process (fuzz_cases.run_guarded); one that ends badly runs again in a
+        forked child, under the operating system's limits, and that outcome is counted."""
+        start = time.monotonic()
+        outcome, err = fuzz_cases.run_guarded(files, argv)
+        if outcome not in ("clean error", "ok result"):
+            outcome, err = fuzz_cases.run_forked(files, argv)
+        self.times.append(time.monotonic() - start)
+        self.tally(command, outcome, files, argv, err, None)
+
     def reap(self) -> None:
-        """Wait until one running case ends (or overruns the time limit) and count it."""
+        """Wait until one running case ends (or overruns the wall-clock backstop) and count it."""
         while True:
             for pid, (_folder, start, *_) in list(self.running.items()):
-                done, status, usage = os.wait4(pid, os.WNOHANG)
-                if done:
-                    return self.count(pid, status, usage, None)
-                if time.monotonic() - start > WALL_LIMIT:
-                    os.kill(pid, signal.SIGKILL)
-                    _, status, usage = os.wait4(pid, 0)
-                    return self.count(pid, status, usage, "hang")
+                ended = fuzz_cases.poll_case(pid, start)
+                if ended:
+                    return self.count(pid, *ended)
             time.sleep(0.005)
 
-    def count(self, pid, status, usage, outcome) -> None:
+    def count(self, pid, status, usage, killed) -> None:
         folder, start, argv, files, command = self.running.pop(pid)
         self.times.append(time.monotonic() - start)
-        err = (folder / "stderr.txt").read_text(errors="replace") if (folder / "stderr.txt").exists() else ""
-        if outcome is None:
-            if os.WIFSIGNALED(status) and os.WTERMSIG(status) in (signal.SIGXCPU, signal.SIGKILL) and \
-                    usage.ru_utime + usage.ru_stime >= TIME_LIMIT:
-                outcome = "hang"
-            elif os.WIFSIGNALED(status) or usage.ru_maxrss * 1024 > MEMORY_LIMIT + (400 << 20) or "MemoryError" in err:
-                outcome = "over-memory"
-            else:
-                before = set(files) | {"stdout.txt", "stderr.txt"}
-                outcome = fuzz_cases.judge(os.WEXITSTATUS(status), err, folder, before, argv)
+        outcome, err = fuzz_cases.forked_outcome(status, usage, killed, folder, files, argv)
+        self.tally(command, outcome, files, argv, err, folder)
+        shutil.rmtree(folder, ignore_errors=True)
+
+    def tally(self, command, outcome, files, argv, err, folder) -> None:
+        """Count one outcome; keep and show a few bad ones."""
         self.counts[outcome] += 1
         self.by_command[command][outcome] += 1
         if outcome not in ("clean error", "ok result") and len(self.examples[outcome]) < self.show:
             self.examples[outcome].append((argv, {k: v[:300] for k, v in files.items()}, err[-1500:]))
         if self.keep and outcome not in ("clean error", "ok result"):
-            (folder / "argv.txt").write_text("\n".join(argv) + "\n")
-            shutil.copytree(folder, self.keep / f"{outcome.replace(' ', '-')}-{folder.name}")
-        shutil.rmtree(folder, ignore_errors=True)
+            kept = self.keep / f"{outcome.replace(' ', '-')}-{sum(self.counts.values())}"
+            if folder is not None:
+                shutil.copytree(folder, kept)
+            else:
+                kept.mkdir()
+                for name, data in files.items():
+                    (kept / name).write_bytes(data)
+            (kept / "argv.txt").write_text("\n".join(argv) + "\n")
         n = sum(self.counts.values())
         if n % 100 == 0:
             print(f"{n} cases: {dict(self.counts)}", file=sys.stderr, flush=True)
@@ -181,6 +146,9 @@ def main_fuzz(argv=None) -> int:
                                                  "cases run; for a shared machine's time slot)")
     p.add_argument("--commands", help="only these commands of tests/fuzz_cases.py's COMMANDS (comma-separated; "
                                       "default every one)")
+    p.add_argument("--in-process", action="store_true",
+                   help="run each case in this process under a CPU-time and a memory guard (about twice as many "
+                        "cases a second), a case that ends badly run again in a forked child, whose outcome counts")
     p.add_argument("--keep", type=Path, help="copy the folder of every bad case here (argv.txt holds its command)")
     args = p.parse_args(argv)
     import random
@@ -189,6 +157,7 @@ def main_fuzz(argv=None) -> int:
     if args.keep:
         args.keep.mkdir(parents=True, exist_ok=True)
     result_text = base_result()
+    fuzz_cases.install_guard()
 
     @settings(max_examples=args.cases, database=None, deadline=None, phases=[Phase.generate],
               suppress_health_check=list(HealthCheck))
@@ -196,7 +165,10 @@ def main_fuzz(argv=None) -> int:
     def each(c):
         if args.seconds is not None and time.monotonic() - t0 > args.seconds:
             raise _TimeUp
-        runner.run(*c)
+        if args.in_process:
+            runner.run_here(*c)
+        else:
+            runner.run(*c)
 
     random.seed(args.seed)
     t0 = time.monotonic()

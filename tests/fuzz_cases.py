@@ -893,13 +893,19 @@ NEEDS_RESULT = ("report", *STORE_COMMANDS, "sidecar")
 # the in-process sample of the test suite (tests/test_fuzz.py): the same cases, the slow command
 # (plan-sockets simulates its seatings, about a second a run) drawn less often
 SAMPLE_WEIGHTS = {**{n: 4 * w for n, (w, _) in COMMANDS.items()}, "plan-sockets": 1}
+# its share run in forked children (fork_case): the commands whose cases ask for the most work or
+# memory (large counts, long chains and tables, bombs), where a guard inside the process could come
+# too late (a long call into compiled code) and the operating system's limits are the real test
+FORKED_WEIGHTS = {"plan": 3, "plan-sockets": 1, "import-urdf": 3, "import-dh": 3, "contacts": 2,
+                  "compensate-program": 2, "calibrate": 2, "joints-program": 1}
 
 
 @st.composite
 def case(draw, result_text: str | None = None, commands=None, weights=None):
-    """(command, files, argv) of one run of one command (of ``commands``, default every one), drawn by
-    ``weights`` (command -> whole number, default COMMANDS's); ``command`` is the COMMANDS key."""
-    names = [n for n in (commands or COMMANDS) if result_text or n not in NEEDS_RESULT]
+    """(command, files, argv) of one run of one command (of ``commands``, default those ``weights``
+    names or every one), drawn by ``weights`` (command -> whole number, default COMMANDS's);
+    ``command`` is the COMMANDS key."""
+    names = [n for n in (commands or weights or COMMANDS) if result_text or n not in NEEDS_RESULT]
     weights = weights or {n: w for n, (w, _) in COMMANDS.items()}
     command = draw(st.sampled_from([n for n in names for _ in range(weights[n])]))
     files, argv = draw(COMMANDS[command][1](result_text))
@@ -1132,7 +1138,170 @@ def judge(code, err: str, folder: Path, before: set[str], argv=None) -> str:
         return "traceback"
     if code in (1, 2):
         lines = [ln for ln in err.splitlines() if not ln.startswith("robocal: warning:")]
+        if len(lines) == 1 and ": error: out of memory" in lines[0]:  # the CLI's word for a MemoryError
+            return "over-memory"
         return "clean error" if len(lines) == 1 and len(lines[0]) < 1000 else "multi-line error"
     if non_finite(folder, before):
         return "non-finite output"
     return (check_output(argv, folder) if code == 0 else None) or "ok result"
+
+
+# -- one case in a forked child, under limits the operating system enforces -----------------------
+# (benchmarks/fuzz_cli.py runs every case so, tests/test_fuzz.py a share of its sample): 20 s of CPU
+# time (the machine may be shared: wall-clock time is not the program's), a wall-clock backstop for
+# a case that sleeps or waits, and 1 GB of memory beyond what the parent already holds
+
+CPU_SECONDS = 20
+WALL_SECONDS = 120.0
+MEMORY_BYTES = 1 << 30
+
+
+def _vm_size() -> int:
+    with open("/proc/self/status") as fh:
+        for line in fh:
+            if line.startswith("VmSize:"):
+                return int(line.split()[1]) * 1024
+    return 0
+
+
+def fork_case(folder: Path, argv: list[str]) -> int:
+    """Start ``robocal.cli.main(argv)`` in a forked child running in ``folder`` (its streams to
+    stdout.txt and stderr.txt there); the child's pid."""
+    import os
+    import resource
+    import sys
+    import traceback
+
+    pid = os.fork()
+    if pid:
+        return pid
+    code = 99
+    try:
+        from robocal.cli import main
+
+        os.chdir(folder)
+        limit = _vm_size() + MEMORY_BYTES
+        resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+        resource.setrlimit(resource.RLIMIT_CPU, (CPU_SECONDS, CPU_SECONDS + 5))
+        out = os.open("stdout.txt", os.O_WRONLY | os.O_CREAT | os.O_TRUNC)
+        err = os.open("stderr.txt", os.O_WRONLY | os.O_CREAT | os.O_TRUNC)
+        os.dup2(out, 1)
+        os.dup2(err, 2)
+        sys.stdout = open(1, "w", closefd=False)  # noqa: SIM115 - the child's streams until it exits
+        sys.stderr = open(2, "w", closefd=False)  # noqa: SIM115
+        code = main(argv)
+    except BaseException:  # noqa: BLE001 - whatever escapes main is what we count
+        traceback.print_exc()
+    finally:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code if isinstance(code, int) and 0 <= code < 99 else 99)
+
+
+def poll_case(pid: int, start: float):
+    """(status, rusage, killed) of the child once it has ended, killing it past WALL_SECONDS from
+    ``start`` (time.monotonic); None while it runs."""
+    import os
+    import signal
+    import time
+
+    done, status, usage = os.wait4(pid, os.WNOHANG)
+    if done:
+        return status, usage, False
+    if time.monotonic() - start > WALL_SECONDS:
+        os.kill(pid, signal.SIGKILL)
+        _, status, usage = os.wait4(pid, 0)
+        return status, usage, True
+    return None
+
+
+def forked_outcome(status, usage, killed: bool, folder: Path, files: dict, argv: list[str]) -> tuple[str, str]:
+    """The outcome of a forked case (``judge``'s, or hang and over-memory from how the child ended)
+    and its stderr."""
+    import os
+    import signal
+
+    err = (folder / "stderr.txt").read_text(errors="replace") if (folder / "stderr.txt").exists() else ""
+    cpu = usage.ru_utime + usage.ru_stime
+    if killed or (os.WIFSIGNALED(status) and os.WTERMSIG(status) in (signal.SIGXCPU, signal.SIGKILL)
+                  and cpu >= CPU_SECONDS):
+        return "hang", err
+    if os.WIFSIGNALED(status) or usage.ru_maxrss * 1024 > MEMORY_BYTES + (400 << 20) or "MemoryError" in err:
+        return "over-memory", err
+    return judge(os.WEXITSTATUS(status), err, folder, set(files) | {"stdout.txt", "stderr.txt"}, argv), err
+
+
+def run_forked(files: dict, argv: list) -> tuple[str, str]:
+    """Run one case in a forked child (``fork_case``) in a fresh folder; its outcome and stderr."""
+    import time
+
+    with tempfile.TemporaryDirectory() as folder:
+        for name, data in files.items():
+            Path(folder, name).write_bytes(data)
+        start = time.monotonic()
+        pid = fork_case(Path(folder), argv)
+        while (ended := poll_case(pid, start)) is None:
+            time.sleep(0.002)
+        return forked_outcome(*ended, Path(folder), files, argv)
+
+
+# -- one case in this process, under guards (tests/test_fuzz.py's sample, fuzz_cli.py --in-process) ----
+
+class Hang(BaseException):
+    """The CPU-time guard went off (a BaseException: no handler of the program swallows it)."""
+
+
+def _alarm(signum, frame):
+    raise Hang
+
+
+def install_guard() -> None:
+    """Let ``run_guarded``'s CPU-time guard interrupt a case (SIGPROF raises Hang)."""
+    import signal
+
+    signal.signal(signal.SIGPROF, _alarm)
+
+
+def run_in_process(files: dict, argv: list) -> tuple[str, str]:
+    """Run one case in-process in a fresh folder; its outcome (``judge``) and its stderr."""
+    import contextlib
+    import io
+    import os
+
+    from robocal.cli import main
+
+    here = os.getcwd()
+    with tempfile.TemporaryDirectory() as folder:
+        for name, data in files.items():
+            Path(folder, name).write_bytes(data)
+        err = io.StringIO()
+        try:
+            os.chdir(folder)
+            with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+                code = main(argv)
+        finally:
+            os.chdir(here)
+        return judge(code, err.getvalue(), Path(folder), set(files), argv), err.getvalue()
+
+
+def run_guarded(files: dict, argv: list) -> tuple[str, str]:
+    """``run_in_process`` with CPU_SECONDS of CPU time (after ``install_guard``) and MEMORY_BYTES of
+    address space beyond the process's; an exception escaping the program counts as a traceback."""
+    import resource
+    import signal
+    import traceback
+
+    _, hard = resource.getrlimit(resource.RLIMIT_AS)
+    resource.setrlimit(resource.RLIMIT_AS, (_vm_size() + MEMORY_BYTES, hard))
+    signal.setitimer(signal.ITIMER_PROF, CPU_SECONDS)
+    try:
+        return run_in_process(files, argv)
+    except Hang:
+        return "hang", ""
+    except MemoryError:
+        return "over-memory", ""
+    except Exception:  # noqa: BLE001 - whatever escapes main is what we count
+        return "traceback", traceback.format_exc()
+    finally:
+        signal.setitimer(signal.ITIMER_PROF, 0)
+        resource.setrlimit(resource.RLIMIT_AS, (hard, hard))
