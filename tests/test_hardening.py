@@ -632,3 +632,14 @@ def test_store_with_damaged_calibration_content_is_one_line(tmp_path, cli, resul
     (tmp_path / "data.csv").write_text(MEASUREMENTS)
     one_line(cli, ("verify", "R", tmp_path / "data.csv", "--store", tmp_path / "store.sqlite"),
              ["store.sqlite", "calibration #", "inputs is not a mapping"])
+
+
+def test_a_result_with_its_sidecar_reads_under_an_address_space_limit(result_text):
+    # the sidecar was read with a 4 GB buffer reserved for a file of a few kB: under 1 GB of address
+    # space beyond the process's (ulimit -v) every result with per-pose arrays was out of memory
+    from fuzz_cases import run_forked, sidecar_files
+
+    text, blob, _ = sidecar_files(result_text)
+    files = {"result.json": text.encode(), "result.npz": blob}
+    outcome, err = run_forked(files, ["record", "result.json", "--robot", "R", "--store", "store.sqlite"])
+    assert outcome == "ok result", err

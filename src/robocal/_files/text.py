@@ -27,6 +27,8 @@ MAX_FILE_BYTES = 256 * 2 ** 20
 MAX_LINE_BYTES = 2 ** 20
 # nesting of YAML/JSON collections: model and result files need 6; the rest is a bomb or a mistake
 MAX_DEPTH = 32
+# bytes read at a time where a file's size is not known in advance
+READ_CHUNK = 16 * 2 ** 20
 # one text value (a name, a description): longer is a pasted file, not a value
 MAX_SCALAR = 100_000
 # digits of an integer in a YAML/JSON file: more cannot be a robocal value and cannot become a float
@@ -41,7 +43,17 @@ def read_bytes(path, *, limit: int = MAX_FILE_BYTES) -> bytes:
             if size > limit:
                 raise InputError(f"the file is {size / 2 ** 20:.0f} MB; robocal reads files up to "
                                  f"{limit / 2 ** 20:.0f} MB", source=str(path))
-            raw = fh.read(limit + 1)
+            # read what the file holds, not ``limit`` bytes: a read of n bytes reserves n first, and
+            # gigabytes reserved for a small file fail under an address-space limit (ulimit -v)
+            parts = [fh.read(min(size, limit) + 1)] if size else []
+            total = sum(map(len, parts))
+            while total <= limit:  # a file that grew since, or one whose size the system does not say
+                part = fh.read(min(READ_CHUNK, limit + 1 - total))
+                if not part:
+                    break
+                parts.append(part)
+                total += len(part)
+            raw = b"".join(parts)
     except FileNotFoundError:
         raise InputError("cannot read: file not found", source=str(path)) from None
     except InputError:  # too large (an InputError is a ValueError too)
