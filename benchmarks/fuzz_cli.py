@@ -1,18 +1,22 @@
 """Run many malformed inputs through every command and count how each run ended.
 
-    python benchmarks/fuzz_cli.py --cases 20000 [--seed 0] [--jobs 2] [--show 3] [--keep DIR] [--commands a,b]
-                                   [--seconds S]
+    python benchmarks/fuzz_cli.py --cases 20000 [--seed 0] [--jobs 2] [--in-process] [--show 3] [--keep DIR]
+                                   [--commands a,b] [--seconds S]
 
 Cases come from the hypothesis strategies in tests/fuzz_cases.py, one per command of its COMMANDS
-table (model files, measurement, repeatability, target and contact CSVs, profiles, limit files, DH
-tables, URDFs, result files, command lines). Each runs ``robocal.cli.main(argv)`` in a
-forked child, in a folder of its own, under a limit of 20 s of CPU time (wall-clock time on a
-shared machine is not the program's; a 120 s wall-clock backstop too) and 1 GB of memory (on top
-of the address space the parent already holds). Outcomes (fuzz_cases.OUTCOMES): clean error,
-ok result, traceback, hang, over-memory, non-finite output, unreadable output (an output robocal's
-own reader refuses), wrong output (an output that does not reproduce its source: an export's
-forward kinematics, planned poses or 'ok' commands beyond the joint limits), multi-line error. A
-few examples of each bad outcome are printed with the command line and the last lines of stderr.
+table (model files, measurement, repeatability, target and contact CSVs, robot programs, stores,
+result files and their per-pose sidecars, profiles, limit files, DH tables, URDFs, command lines).
+Each runs ``robocal.cli.main(argv)`` in a forked child, in a folder of its own, under a limit of
+20 s of CPU time (wall-clock time on a shared machine is not the program's; a 120 s wall-clock
+backstop too) and 1 GB of memory (on top of the address space the parent already holds); with
+--in-process, in this process under the same limits as guards (a CPU-time signal, a soft
+address-space limit), a case that ends badly run again in a forked child and that outcome
+counted. Outcomes (fuzz_cases.OUTCOMES): clean error, ok result, traceback, hang, over-memory,
+non-finite output, unreadable output (an output robocal's own reader refuses), wrong output (an
+output that does not reproduce its source: an export's forward kinematics, planned poses or 'ok'
+commands beyond the joint limits, a program compensated against its own model whose targets
+moved), multi-line error; in total and per command. A few examples of each bad outcome are
+printed with the command line and the last lines of stderr.
 """
 
 from __future__ import annotations
