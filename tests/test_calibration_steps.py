@@ -17,8 +17,8 @@ import pytest
 
 import robocal as rc
 from robocal._calibration import (
-    _Analysis,
     _analyse,
+    _Analysis,
     _choose,
     _Design,
     _Fit,
