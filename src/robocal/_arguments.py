@@ -446,20 +446,24 @@ def masses_for(q: str = "q"):
     return rule
 
 
+def items(value, name: str, item: tuple[int, ...], n: int | None = None, *, finite: bool = True) -> np.ndarray:
+    """A float array of ``n`` (None: any number of) items of shape ``item``; one item may be given
+    alone. Finite, or with ``finite`` False finite or NaN."""
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"must be an array of numbers of shape {_shape((n,) + item)}, got {excerpt(value)}",
+                         where=name) from None
+    a = array(a[None] if a.ndim == len(item) else a, name, (n,) + item, finite=finite)
+    if not finite and np.any(np.isinf(a)):
+        raise InputError("must hold finite numbers or NaN (no inf)", where=name)
+    return a
+
+
 def rows_for(q: str, width, *, finite: bool = True):
     """An array (n_poses, ``width(arguments)``), one row per pose of the argument ``q``; a single
     row may be given flat."""
-    def rule(value, name, args):
-        n, k = _n_poses(args[q]), width(args)
-        try:
-            a = np.asarray(value, dtype=float)
-        except (TypeError, ValueError):
-            raise InputError(f"must be an array of numbers of shape ({n}, {k}), got {excerpt(value)}",
-                             where=name) from None
-        a = array(a.reshape(1, -1) if a.ndim == 1 and a.size == k else a, name, (n, k), finite=finite)
-        if not finite and np.any(np.isinf(a)):
-            raise InputError("must hold finite numbers or NaN (no inf)", where=name)
-    return rule
+    return lambda value, name, args: items(value, name, (width(args),), _n_poses(args[q]), finite=finite)
 
 
 def same_robot_as(other: str):
@@ -507,14 +511,6 @@ def _instant(value, name, _):
 
 
 INSTANT = _instant
-
-
-def _nonempty_text(value, name, _):
-    if not isinstance(value, str) or not value.strip():
-        raise InputError(f"must be non-empty text, got {excerpt(value)}", where=name)
-
-
-NAME = _nonempty_text
 
 
 def parameter_columns(names, *, by_name: bool = False):

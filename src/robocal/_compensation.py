@@ -12,10 +12,10 @@ from ._arguments import (
     FLAG,
     NON_NEGATIVE,
     POSITIVE,
-    array,
     both,
     checked,
     is_a,
+    items,
     marker_of,
     optional,
     readings_of,
@@ -337,21 +337,12 @@ def _seed_order(table_f, table_post, features, want, k: int) -> np.ndarray:
 
 def _points(value, name, _):
     """Positions (n, 3), finite; one may be given as (3,)."""
-    try:
-        a = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        a = np.array(np.nan)
-    array(a[None] if a.ndim == 1 else a, name, (None, 3))
+    items(value, name, (3,))
 
 
 def _rotations(value, name, args):
     """Rotation matrices, one per position: (n, 3, 3), finite; one may be given as (3, 3)."""
-    n = len(np.atleast_2d(np.asarray(args["positions"], dtype=float)))
-    try:
-        a = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        a = np.array(np.nan)
-    array(a[None] if a.ndim == 2 else a, name, (n, 3, 3))
+    items(value, name, (3, 3), len(np.atleast_2d(np.asarray(args["positions"], dtype=float))))
 
 
 def _bits(value, name, args):
