@@ -1438,14 +1438,7 @@ def gravity_loads(model: RobotModel, q, *, payload_mass=None) -> np.ndarray:
     st = evaluate_state(model, lay, p, q @ model.coupling_matrix.T, compliance=True, orientations=False,
                          payload_mass=payload_mass)
     M, msub = cast(np.ndarray, st.M), cast(np.ndarray, st.msub)     # made: compliance is on
-    g = np.asarray(model.gravity, dtype=float)
-    loads = np.zeros((q.shape[0], model.n_frames))
-    for i, f in enumerate(model.frames):
-        if f.joint == "revolute":
-            loads[:, i] = M[3 * i]
-        elif f.joint == "prismatic":
-            loads[:, i] = msub[i] * (st.ps.R[i][:, :, 2] @ g)
-    return loads @ model.coupling_matrix
+    return _frame_loads(model, lay, st.ps, M, msub) @ model.coupling_matrix
 
 
 @checked(**_MODEL_AND_READINGS, frames=FLAG)
