@@ -193,6 +193,8 @@ POSTURE = ("shoulder_back", "elbow_back", "wrist_negative")
 # seeds of the inverse kinematics: this many configurations sampled over the joint limits, and
 # at most this many tried per target (nearest pose first)
 N_SEEDS, SEED_TRIES = 4096, 6
+HALTON_PRIMES = (2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37, 41, 43, 47, 53)
+MAX_SEEDED_JOINTS = len(HALTON_PRIMES)
 
 
 @checked(model=is_a(RobotModel), marker=marker_of())
@@ -277,7 +279,7 @@ def _seed_table(model: RobotModel, marker: int):
 
 def _halton(n: int, d: int) -> np.ndarray:
     """(n, d) points of the Halton sequence in [0, 1) (radical inverses in the first d primes), from the second on."""
-    primes = [2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37, 41, 43, 47, 53][:d]
+    primes = HALTON_PRIMES[:d]
     if len(primes) < d:
         raise ValueError(f"seeds for up to {len(primes)} joints, not {d}")
     k = np.arange(1, n + 1)
@@ -356,12 +358,20 @@ def _joints(args) -> int:
     return next(iter(args.values())).n_joints        # of the model, the first argument
 
 
+def _seeded(value, name, args):
+    """A six-axis arm (``_six_axes``) with at most as many joints as the seeds' Halton sequence has primes."""
+    _six_axes(value, name, args)
+    if value.n_joints > MAX_SEEDED_JOINTS:
+        raise InputError(f"must have at most {MAX_SEEDED_JOINTS} joints for the inverse kinematics, got "
+                         f"{value.n_joints}", where=name)
+
+
 _TARGETS = dict(positions=_points, rotations=_rotations, want=optional(_bits),
                 turn_from=optional(rows_for("positions", _joints, finite=False)),
                 hints=optional(rows_for("positions", _joints, finite=False)))
 
 
-@checked(model=_six_axes, **_TARGETS, tol=POSITIVE, iterations=whole(1, 10_000))
+@checked(model=_seeded, **_TARGETS, tol=POSITIVE, iterations=whole(1, 10_000))
 @one_blas_thread
 def inverse_kinematics(model: RobotModel, positions, rotations, *, marker: int = 0, want=None, turn_from=None,
                        hints=None, tol: float = 1e-10, iterations: int = 100) -> InverseKinematics:
@@ -453,7 +463,7 @@ class PoseCompensation:
     compensation: Compensation
 
 
-@checked(nominal=_six_axes,
+@checked(nominal=_seeded,
          calibrated=both(is_a(RobotModel), same_robot_as("nominal")), **_TARGETS)
 def compensate_poses(nominal: RobotModel, calibrated: RobotModel, positions, rotations, *, marker: int = 0,
                      want=None, turn_from=None, hints=None) -> PoseCompensation:
