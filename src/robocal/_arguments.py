@@ -418,3 +418,127 @@ def _positive_or_inf(value, name, _):
 
 
 POSITIVE_OR_INF = _positive_or_inf
+
+
+def _mapping_like(value, name, _):
+    from collections.abc import Mapping
+
+    if not isinstance(value, Mapping):
+        raise InputError(f"must be a mapping (a dict or os.environ), got {excerpt(value)}", where=name)
+
+
+MAPPING_LIKE = _mapping_like
+
+
+def _n_poses(value) -> int:
+    return len(np.atleast_2d(np.asarray(value, dtype=float)))
+
+
+def masses_for(q: str = "q"):
+    """None, a mass in kg >= 0, or one per pose of the readings passed as argument ``q``."""
+    def rule(value, name, args):
+        if value is None:
+            return
+        _masses(value, name, args)
+        n = _n_poses(args[q])
+        if np.ndim(value) == 1 and len(value) != n:
+            raise InputError(f"must be one mass or {n} (one per pose), got {len(value)}", where=name)
+    return rule
+
+
+def items(value, name: str, item: tuple[int, ...], n: int | None = None, *, finite: bool = True) -> np.ndarray:
+    """A float array of ``n`` (None: any number of) items of shape ``item``; one item may be given
+    alone. Finite, or with ``finite`` False finite or NaN."""
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"must be an array of numbers of shape {_shape((n,) + item)}, got {excerpt(value)}",
+                         where=name) from None
+    a = array(a[None] if a.ndim == len(item) else a, name, (n,) + item, finite=finite)
+    if not finite and np.any(np.isinf(a)):
+        raise InputError("must hold finite numbers or NaN (no inf)", where=name)
+    return a
+
+
+def rows_for(q: str, width, *, finite: bool = True):
+    """An array (n_poses, ``width(arguments)``), one row per pose of the argument ``q``; a single
+    row may be given flat."""
+    return lambda value, name, args: items(value, name, (width(args),), _n_poses(args[q]), finite=finite)
+
+
+def same_robot_as(other: str):
+    """A model with the joints and markers of the model passed as argument ``other``."""
+    def rule(value, name, args):
+        mine, theirs = value, args[other]
+        if (mine.n_joints, mine.marker_names) != (theirs.n_joints, theirs.marker_names):
+            raise InputError(f"must have the joints and markers of {other} ({theirs.n_joints} joints, markers "
+                             f"{', '.join(theirs.marker_names)}), got {mine.n_joints} joints, markers "
+                             f"{', '.join(mine.marker_names)}", where=name)
+    return rule
+
+
+def measured_on(model: str = "model"):
+    """Measurements of the model passed as argument ``model``: its joint count, its markers."""
+    def rule(value, name, args):
+        m = args[model]
+        if value.q.shape[1] != m.n_joints:
+            raise InputError(f"{value.q.shape[1]} joint columns for a model with {m.n_joints} joints", where=name)
+        missing = [n for n in value.marker_names if n not in m.marker_names]
+        if missing:
+            raise InputError(f"marker(s) {', '.join(missing)} are not in the model (markers: "
+                             f"{', '.join(m.marker_names)})", where=name)
+    return rule
+
+
+def both(*rules):
+    """Every rule of ``rules``, in order."""
+    def rule(value, name, args):
+        for r in rules:
+            r(value, name, args)
+    return rule
+
+
+def _instant(value, name, _):
+    """None, a datetime, or ISO 8601 text."""
+    from datetime import datetime
+
+    if value is None or isinstance(value, datetime):
+        return
+    try:
+        datetime.fromisoformat(text(value, name).strip().replace("Z", "+00:00"))
+    except ValueError:
+        raise InputError(f"must be a datetime or ISO 8601 text, got {excerpt(value)}", where=name) from None
+
+
+INSTANT = _instant
+
+
+def parameter_columns(names, *, by_name: bool = False):
+    """None, or parameter indices into ``names(arguments)`` (the model's parameter names; with
+    ``by_name`` a column may be given by its name too)."""
+    def rule(value, name, args):
+        if value is None:
+            return
+        _sequence(value, name, args)
+        known = names(args)
+        for c in value:
+            if by_name and isinstance(c, str):
+                if c not in known:
+                    raise InputError(f"{excerpt(c)} is not a parameter of the model{suggest(c, known)}", where=name)
+            else:
+                integer(c, name, low=0, high=len(known) - 1)
+    return rule
+
+
+def _norms(value, name, _):
+    """Error norms: numbers >= 0 of any shape, NaN where not measured."""
+    try:
+        v = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        v = np.array(-1.0)
+    if np.any(np.isinf(v)) or np.any(v < 0):
+        raise InputError(f"must be error norms: numbers >= 0, NaN where not measured, got {excerpt(value)}",
+                         where=name)
+
+
+NORMS = _norms

@@ -19,6 +19,7 @@ from typing import cast
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ._arguments import FLAG, FRACTION, NORMS, both, checked, is_a, measured_on, optional
 from ._checks import (
     FIT_RATIO,
     GROSS_FACTOR,
@@ -114,8 +115,20 @@ class ErrorStats:
     max: float | None
 
 
+@checked(norms=NORMS)
 def error_stats(norms) -> ErrorStats:
-    """The statistics of error norms; NaN entries were not measured."""
+    """The statistics of error norms; NaN entries were not measured.
+
+    Parameters
+    ----------
+    norms : array_like
+        Error norms, m (any shape; NaN where not measured).
+
+    Returns
+    -------
+    ErrorStats
+        Their count, mean, standard deviation, RMS and maximum (None when there are none).
+    """
     v = np.asarray(norms, dtype=float).ravel()
     v = v[np.isfinite(v)]
     if v.size == 0:
@@ -256,11 +269,21 @@ class CalibrationResult:
                      if p.name not in considered and values[p.index] != 0.0)
 
 
+@checked(model=is_a(RobotModel), data=both(is_a(Measurements), measured_on()))
 def register_base(model: RobotModel, data: Measurements) -> RobotModel:
     """The model with ``X_WB`` from a closed-form rigid registration (Kabsch/Horn, via scipy).
 
     The nominal marker positions in frame 0 are matched to the measured ones in W; needs three
     non-collinear measured points.
+
+    Parameters
+    ----------
+    {model, data}
+
+    Returns
+    -------
+    RobotModel
+        ``model`` with the registered base pose.
     """
     origin = model.replace(base_position=(0.0, 0.0, 0.0),
                            base_rotation=((1.0, 0, 0), (0, 1.0, 0), (0, 0, 1.0)))
@@ -353,15 +376,19 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
         The nominal robot; the solve starts from it.
     data : Measurements
         The fitted campaign.
-    parameters, known : families or names
-        What to identify (``geometric``, ``compliance``, ``backlash``, ``base``, ``markers``,
-        ``frames`` or parameter names and patterns) and what to hold at the model's values.
+    parameters : str or sequence of str
+        What to identify: families (``geometric``, ``compliance``, ``backlash``, ``base``,
+        ``markers``, ``frames``) or parameter names and patterns.
+    known : str or sequence of str
+        Families, names or patterns held at the model's values.
     validation : Measurements, optional
         Held-out poses to judge the result on; without them it is judged by ``folds``-fold
         cross-validation (docs/checks.md, "Accuracy in use").
-    loss, f_scale : str, float
-        Least-squares loss (``linear`` or a robust one of scipy's) and, for a robust one, the
-        residual size where it bends (m, or standard deviations when the data state them).
+    loss : str
+        Least-squares loss: ``linear`` or a robust one of scipy's.
+    f_scale : float, optional
+        For a robust loss, the residual size where it bends (m, or standard deviations when the
+        data state them; None: estimated).
     tol : float
         Identifiability tolerance, in (0, 1).
     max_nfev : int, optional
@@ -1132,6 +1159,8 @@ def _nested_test(small: CalibrationResult, large: CalibrationResult, data: Measu
     return float(F), p_value, bool(helped), verdict
 
 
+@checked(model=is_a(RobotModel), data=both(is_a(Measurements), measured_on()),
+         validation=optional(both(is_a(Measurements), measured_on())), alpha=FRACTION, backlash=FLAG)
 @one_blas_thread
 def compare(model: RobotModel, data: Measurements, *, validation: Measurements | None = None, alpha: float = 0.01,
             backlash: bool = False, **kwargs) -> Comparison:
@@ -1139,6 +1168,26 @@ def compare(model: RobotModel, data: Measurements, *, validation: Measurements |
     and with ``backlash`` a third, geometric + compliance + backlash, tested against the second.
 
     Keyword arguments other than ``parameters`` go to every ``calibrate`` call.
+
+    Parameters
+    ----------
+    model : RobotModel
+        The nominal robot.
+    data : Measurements
+        The fitted campaign.
+    validation : Measurements, optional
+        Held-out poses to judge the calibrations on (None: cross-validation).
+    alpha : float
+        Significance level of the F tests, in (0, 1).
+    backlash : bool
+        Also calibrate with backlash and test it against geometric + compliance.
+    **kwargs
+        Further arguments of ``calibrate`` (``parameters`` excepted), for every calibration.
+
+    Returns
+    -------
+    Comparison
+        The calibrations, the F statistics, p-values and the verdict on what helped.
     """
     kwargs.pop("parameters", None)
     geo = calibrate(model, data, parameters=("geometric",), validation=validation, **kwargs)

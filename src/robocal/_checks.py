@@ -12,6 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import gammainccinv
 
+from ._arguments import checked, each_a, is_a, optional, shaped, whole
+from ._errors import InputError, excerpt
 from ._measurements import Measurements, Noise
 from ._model import RobotModel
 
@@ -113,8 +115,19 @@ class Check:
     items: tuple[str, ...] = ()
 
 
+@checked(checks=each_a(Check))
 def verdict(checks) -> str:
-    """The worst status among ``checks`` ("pass" when there are none)."""
+    """The worst status among ``checks`` ("pass" when there are none).
+
+    Parameters
+    ----------
+    {checks}
+
+    Returns
+    -------
+    str
+        ``pass``, ``warn`` or ``fail``.
+    """
     return max((c.status for c in checks), key=STATUSES.index, default="pass")
 
 
@@ -266,10 +279,21 @@ def fit_check(residuals: np.ndarray, sigma: np.ndarray | None, noise: Noise, lim
     return Check(name, "pass", summary)
 
 
+@checked(n_points=whole(0))
 def outlier_bar(n_points: int) -> float:
     """The outlier threshold in robust standard deviations for ``n_points`` 3D residuals: 5, or more
     where n points of pure Gaussian noise would put one beyond 5 in more than ``OUTLIER_FALSE_ALARM``
     of campaigns (the norm over sigma is chi-distributed with 3 degrees of freedom).
+
+    Parameters
+    ----------
+    n_points : int
+        Measured points judged (>= 0).
+
+    Returns
+    -------
+    float
+        The threshold, robust standard deviations.
 
     >>> outlier_bar(48), round(outlier_bar(1_000_000), 2)
     (5.0, 6.33)
@@ -291,6 +315,23 @@ def outlier_scores(residuals: np.ndarray, sigma: np.ndarray | None, noise: Noise
     return np.linalg.norm(u, axis=1) / max(robust, OUTLIER_SCALE_FLOOR)
 
 
+def _deviations(value, name, args):
+    """(n,) positive finite standard deviations, one per row of ``residuals``."""
+    a = shaped(len(args["residuals"]))(value, name, args)
+    if np.any(a <= 0):
+        raise InputError("must be positive standard deviations", where=name)
+
+
+def _row_labels(value, name, args):
+    """A label per row of ``residuals`` (any sized, indexable sequence)."""
+    if isinstance(value, (str, bytes)) or not (hasattr(value, "__len__") and hasattr(value, "__getitem__")):
+        raise InputError(f"must be a sequence of labels, got {excerpt(value)}", where=name)
+    if len(value) != len(args["residuals"]):
+        raise InputError(f"must hold one label per row of residuals ({len(args['residuals'])}), got {len(value)}",
+                         where=name)
+
+
+@checked(residuals=shaped(None, None), sigma=optional(_deviations), noise=is_a(Noise), labels=_row_labels)
 def outlier_check(residuals: np.ndarray, sigma: np.ndarray | None, noise: Noise, labels) -> tuple[Check, np.ndarray]:
     """Measured points whose residual norm exceeds ``OUTLIER_SIGMAS`` robust standard deviations.
 
@@ -300,6 +341,22 @@ def outlier_check(residuals: np.ndarray, sigma: np.ndarray | None, noise: Noise,
     far too large hides no blunder); with stated deviations, the robust spread of the residuals in
     those deviations.
     Returns the check and the (n,) outlier mask.
+
+    Parameters
+    ----------
+    residuals : array_like, shape (n, k)
+        Residual vector of each measured point (k = 3 for a point), m.
+    sigma : array_like, shape (n,), optional
+        Stated standard deviation of each point (None: none stated).
+    noise : Noise
+        The instrument's expected noise.
+    labels : sequence of str
+        A label per point, for messages.
+
+    Returns
+    -------
+    (Check, numpy.ndarray)
+        The check and the (n,) outlier mask.
     """
     name = "outliers"
     z = outlier_scores(residuals, sigma, noise)

@@ -12,14 +12,19 @@ from ._arguments import (
     FLAG,
     NON_NEGATIVE,
     POSITIVE,
+    both,
     checked,
     is_a,
+    items,
     marker_of,
     optional,
     readings_of,
+    rows_for,
+    same_robot_as,
     shaped,
     whole,
 )
+from ._errors import InputError
 from ._kinematics import evaluate
 from ._model import RobotModel
 from ._parameters import parameter_layout, parameter_vector
@@ -188,10 +193,23 @@ POSTURE = ("shoulder_back", "elbow_back", "wrist_negative")
 # seeds of the inverse kinematics: this many configurations sampled over the joint limits, and
 # at most this many tried per target (nearest pose first)
 N_SEEDS, SEED_TRIES = 4096, 6
+HALTON_PRIMES = (2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37, 41, 43, 47, 53)
+MAX_SEEDED_JOINTS = len(HALTON_PRIMES)
 
 
+@checked(model=is_a(RobotModel), marker=marker_of())
 def arm_chain(model: RobotModel, marker: int = 0) -> tuple[int, ...]:
-    """Indices of the moving frames from the base to ``marker``'s frame, base first."""
+    """Indices of the moving frames from the base to ``marker``'s frame, base first.
+
+    Parameters
+    ----------
+    {model, marker}
+
+    Returns
+    -------
+    tuple of int
+        Frame indices, base first.
+    """
     chain, i = [], model.markers[marker].frame
     while i >= 0:
         if model.frames[i].joint != "fixed":
@@ -200,6 +218,16 @@ def arm_chain(model: RobotModel, marker: int = 0) -> tuple[int, ...]:
     return tuple(reversed(chain))
 
 
+def _six_axes(value, name, args):
+    """A model with six moving frames on the chain to the marker (checked after ``marker``)."""
+    is_a(RobotModel)(value, name, args)
+    marker_of(name)(args.get("marker", 0), "marker", args)
+    n = len(arm_chain(value, args.get("marker", 0)))
+    if n < 6:
+        raise InputError(f"must have six moving frames on the chain to the marker, got {n}", where=name)
+
+
+@checked(model=_six_axes, q=readings_of(), marker=marker_of())
 def posture(model: RobotModel, q, *, marker: int = 0) -> np.ndarray:
     """(N, 3) posture bits of a six-axis arm at readings ``q`` (N, n_joints), columns ``POSTURE``.
 
@@ -220,7 +248,7 @@ def posture(model: RobotModel, q, *, marker: int = 0) -> np.ndarray:
 
     Returns
     -------
-    ndarray
+    numpy.ndarray
         (N, 3) booleans.
     """
     chain = arm_chain(model, marker)
@@ -251,7 +279,7 @@ def _seed_table(model: RobotModel, marker: int):
 
 def _halton(n: int, d: int) -> np.ndarray:
     """(n, d) points of the Halton sequence in [0, 1) (radical inverses in the first d primes), from the second on."""
-    primes = [2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37, 41, 43, 47, 53][:d]
+    primes = HALTON_PRIMES[:d]
     if len(primes) < d:
         raise ValueError(f"seeds for up to {len(primes)} joints, not {d}")
     k = np.arange(1, n + 1)
@@ -309,6 +337,41 @@ def _seed_order(table_f, table_post, features, want, k: int) -> np.ndarray:
     return order
 
 
+def _points(value, name, _):
+    """Positions (n, 3), finite; one may be given as (3,)."""
+    items(value, name, (3,))
+
+
+def _rotations(value, name, args):
+    """Rotation matrices, one per position: (n, 3, 3), finite; one may be given as (3, 3)."""
+    items(value, name, (3, 3), len(np.atleast_2d(np.asarray(args["positions"], dtype=float))))
+
+
+def _bits(value, name, args):
+    """Posture bits per pose (n, 3): 0, 1, or -1 where free."""
+    rows_for("positions", lambda _: 3)(value, name, args)
+    if not np.all(np.isin(np.asarray(value, dtype=float), (-1, 0, 1))):
+        raise InputError("must hold posture bits 0 or 1, -1 where free", where=name)
+
+
+def _joints(args) -> int:
+    return next(iter(args.values())).n_joints        # of the model, the first argument
+
+
+def _seeded(value, name, args):
+    """A six-axis arm (``_six_axes``) with at most as many joints as the seeds' Halton sequence has primes."""
+    _six_axes(value, name, args)
+    if value.n_joints > MAX_SEEDED_JOINTS:
+        raise InputError(f"must have at most {MAX_SEEDED_JOINTS} joints for the inverse kinematics, got "
+                         f"{value.n_joints}", where=name)
+
+
+_TARGETS = dict(positions=_points, rotations=_rotations, want=optional(_bits),
+                turn_from=optional(rows_for("positions", _joints, finite=False)),
+                hints=optional(rows_for("positions", _joints, finite=False)))
+
+
+@checked(model=_seeded, **_TARGETS, tol=POSITIVE, iterations=whole(1, 10_000))
 @one_blas_thread
 def inverse_kinematics(model: RobotModel, positions, rotations, *, marker: int = 0, want=None, turn_from=None,
                        hints=None, tol: float = 1e-10, iterations: int = 100) -> InverseKinematics:
@@ -328,12 +391,18 @@ def inverse_kinematics(model: RobotModel, positions, rotations, *, marker: int =
     ----------
     model : RobotModel
         The model the controller holds.
-    positions, rotations : array_like
-        (N, 3) and (N, 3, 3): the poses of ``marker`` to reach, W.
+    positions : array_like, shape (N, 3)
+        Positions of ``marker`` to reach, W, m.
+    rotations : array_like, shape (N, 3, 3)
+        Orientations of ``marker`` to reach, W.
     marker : int
         The marker (tool point) placed on the poses.
-    want, turn_from, hints : array_like, optional
-        As above; None leaves the posture, the turns and the first guesses free.
+    want : array_like, shape (N, 3), optional
+        Posture bits asked for (None: free).
+    turn_from : array_like, shape (N, n_joints), optional
+        Start of each revolute reading's turn, NaN where free (None: all free).
+    hints : array_like, shape (N, n_joints), optional
+        First starting guesses, NaN where none (None: none).
     tol : float
         Position (m) and rotation (rad) residual at which a pose counts as reached (within 10 tol).
     iterations : int
@@ -342,6 +411,7 @@ def inverse_kinematics(model: RobotModel, positions, rotations, *, marker: int =
     Returns
     -------
     InverseKinematics
+        The readings, whether each pose was reached and whether they respect the joint limits.
     """
     P = np.asarray(positions, dtype=float).reshape(-1, 3)
     R = np.asarray(rotations, dtype=float).reshape(-1, 3, 3)
@@ -393,6 +463,8 @@ class PoseCompensation:
     compensation: Compensation
 
 
+@checked(nominal=_seeded,
+         calibrated=both(is_a(RobotModel), same_robot_as("nominal")), **_TARGETS)
 def compensate_poses(nominal: RobotModel, calibrated: RobotModel, positions, rotations, *, marker: int = 0,
                      want=None, turn_from=None, hints=None) -> PoseCompensation:
     """Targets for a controller holding ``nominal`` so that the calibrated robot reaches the poses
@@ -405,18 +477,27 @@ def compensate_poses(nominal: RobotModel, calibrated: RobotModel, positions, rot
 
     Parameters
     ----------
-    nominal, calibrated : RobotModel
-        The model the controller holds and the calibrated one (same joints and markers).
-    positions, rotations : array_like
-        (N, 3) and (N, 3, 3): the intended poses of ``marker`` in W.
+    nominal : RobotModel
+        The model the controller holds (a six-axis arm).
+    calibrated : RobotModel
+        The calibrated model (the nominal's joints and markers).
+    positions : array_like, shape (N, 3)
+        Intended positions of ``marker`` in W, m.
+    rotations : array_like, shape (N, 3, 3)
+        Intended orientations of ``marker`` in W.
     marker : int
         The marker (tool point) placed on the targets.
-    want, turn_from, hints
+    want : array_like, shape (N, 3), optional
+        As in ``inverse_kinematics``.
+    turn_from : array_like, shape (N, n_joints), optional
+        As in ``inverse_kinematics``.
+    hints : array_like, shape (N, n_joints), optional
         As in ``inverse_kinematics``.
 
     Returns
     -------
     PoseCompensation
+        Readings, targets to send and the calibrated robot's residuals.
     """
     P = np.asarray(positions, dtype=float).reshape(-1, 3)
     R = np.asarray(rotations, dtype=float).reshape(-1, 3, 3)

@@ -21,13 +21,14 @@ from typing import cast
 
 import numpy as np
 
+from ._arguments import both, checked, is_a, measured_on, names_in, noise_of, optional
 from ._calibration import CalibrationResult, register_base
 from ._checks import outlier_bar, tolerances
 from ._errors import DegenerateDataError, InputError
 from ._kinematics import evaluate
 from ._measurements import Measurements, Noise
 from ._model import Payload, RobotModel
-from ._options import DEFAULT_INSTRUMENT
+from ._options import DEFAULT_INSTRUMENT, INSTRUMENT_NOISE
 from ._parameters import (
     candidate_parameters,
     model_from_vector,
@@ -977,11 +978,23 @@ def noise_stated(model, data: Measurements, result, noise=None, *, fit: _Fit | N
 
 # -- the ranking -------------------------------------------------------------------------------------
 
+def _identified(value, name, args):
+    """Names (at least one) of parameters the calibration ``result`` identified."""
+    names_in(lambda a: [e.name for e in a["result"].parameters], "a parameter the calibration identified")(
+        value, name, args)
+    if not len(value):
+        raise InputError("must name at least one parameter the calibration identified (None: all)", where=name)
+
+
+
+
 HYPOTHESES = (rows_shifted, pose_labels_offset, mirrored_frame, axes_swapped, markers_swapped, marker_copied,
               blunders, unit_factor, joint_scale, joint_sign, joints_swapped, joint_still, model_sign, robot_size,
               marker_frame, step_change, drift, rotation_convention)
 
 
+@checked(model=is_a(RobotModel), data=both(is_a(Measurements), measured_on()), result=is_a(CalibrationResult),
+         noise=noise_of(Noise, INSTRUMENT_NOISE), parameters=optional(_identified))
 @one_blas_thread
 def diagnose(model: RobotModel, data: Measurements, result: CalibrationResult, *, noise=None, parameters=None
              ) -> Diagnosis:

@@ -25,9 +25,25 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._arguments import (
+    NON_NEGATIVE,
+    SEED,
+    SEQUENCE,
+    both,
+    checked,
+    is_a,
+    marker_of,
+    masses_for,
+    readings_of,
+    same_robot_as,
+    shaped,
+    whole,
+)
+from ._errors import InputError
 from ._kinematics import evaluate, gravity_loads
 from ._measurements import Measurements, approach_sides
 from ._model import RobotModel
+from ._options import MAX_POSES
 from ._problem import random_configurations
 
 
@@ -91,13 +107,43 @@ def _angles(model: RobotModel) -> np.ndarray:
     return angle
 
 
+def _warmth(value, name, args):
+    """(n_poses,) numbers in [0, 1]."""
+    a = shaped(len(np.atleast_2d(np.asarray(args["q"], dtype=float))))(value, name, args)
+    if np.any((a < 0) | (a > 1)):
+        raise InputError("must be numbers in [0, 1] (0 cold, 1 warm)", where=name)
+
+
+_REAL_ROBOT = dict(true_model=is_a(RobotModel), q=readings_of("true_model"), rng=SEED, robot_seed=whole(0),
+                   payload_mass=masses_for())
+
+
+@checked(**_REAL_ROBOT, effects=is_a(UnmodelledEffects), warmth=_warmth)
 def attained(true_model: RobotModel, q, effects: UnmodelledEffects, *, warmth, rng, robot_seed: int = 0,
              payload_mass=None) -> np.ndarray:
     """Where the real robot's markers go at readings ``q`` (n, n_markers, 3), W, m.
 
     ``warmth`` (n,) in [0, 1]: the thermal state at each pose (0 cold, 1 warm); ``rng`` draws the
     scatter; ``robot_seed`` fixes the robot's own gear phases.
+
+    Parameters
+    ----------
+    {true_model, q}
+    effects : UnmodelledEffects
+        What the real robot does beyond the model.
+    warmth : array_like, shape (n_poses,)
+        Thermal state at each pose, in [0, 1] (0 cold, 1 warm).
+    {rng}
+    robot_seed : int
+        Fixes the robot's own gear phases (>= 0).
+    {payload_mass}
+
+    Returns
+    -------
+    numpy.ndarray, shape (n_poses, n_markers, 3)
+        The markers' positions in W, m.
     """
+    rng = np.random.default_rng(rng)
     q = np.atleast_2d(np.asarray(q, dtype=float))
     actual = q.copy()
     angle = _angles(true_model)
@@ -125,10 +171,27 @@ def attained(true_model: RobotModel, q, effects: UnmodelledEffects, *, warmth, r
     return P
 
 
+@checked(**_REAL_ROBOT, effects=is_a(UnmodelledEffects), noise=NON_NEGATIVE, labels=SEQUENCE)
 def measure_real(true_model: RobotModel, q, effects: UnmodelledEffects, *, noise: float = 2e-5, rng=None,
                  robot_seed: int = 0, payload_mass=None, labels=()) -> Measurements:
     """A campaign of the real robot at readings ``q``, visited in row order (the arm warming along
-    it), measured by an instrument of per-axis ``noise`` (m)."""
+    it), measured by an instrument of per-axis ``noise`` (m).
+
+    Parameters
+    ----------
+    {true_model, q}
+    effects : UnmodelledEffects
+        What the real robot does beyond the model.
+    {noise, rng}
+    robot_seed : int
+        Fixes the robot's own gear phases (>= 0).
+    {payload_mass, labels}
+
+    Returns
+    -------
+    Measurements
+        The simulated campaign, SI.
+    """
     rng = np.random.default_rng(rng)
     q = np.atleast_2d(np.asarray(q, dtype=float))
     warmth = warm_up(np.linspace(0.0, 1.0, len(q)))
@@ -139,11 +202,33 @@ def measure_real(true_model: RobotModel, q, effects: UnmodelledEffects, *, noise
                         extra={"approach": approach_sides(q)})
 
 
+@checked(true_model=is_a(RobotModel), model=both(is_a(RobotModel), same_robot_as("true_model")),
+         effects=is_a(UnmodelledEffects), n=whole(1, MAX_POSES), rng=SEED, robot_seed=whole(0), marker=marker_of())
 def placement_errors(true_model: RobotModel, model: RobotModel, effects: UnmodelledEffects, *, n: int = 300,
                      rng=None, robot_seed: int = 0, marker: int = 0) -> np.ndarray:
     """How far ``model``'s predictions are from where the real robot goes, at ``n`` random
     configurations within the limits, at random times of a working day as long as the campaign
-    (the arm warming up as it did then): (n,) norms, m."""
+    (the arm warming up as it did then): (n,) norms, m.
+
+    Parameters
+    ----------
+    {true_model}
+    model : RobotModel
+        The model whose predictions are judged (the true robot's joints and markers).
+    effects : UnmodelledEffects
+        What the real robot does beyond the model.
+    n : int
+        Configurations drawn.
+    {rng}
+    robot_seed : int
+        Fixes the robot's own gear phases (>= 0).
+    {marker}
+
+    Returns
+    -------
+    numpy.ndarray, shape (n,)
+        The distances, m.
+    """
     rng = np.random.default_rng(rng)
     q = random_configurations(true_model, n, rng)
     real = attained(true_model, q, effects, warmth=warm_up(rng.uniform(0.0, 1.0, n)), rng=rng, robot_seed=robot_seed)

@@ -162,6 +162,9 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
     "per_pose": ('bool', 'Keep the per-pose arrays (in a sidecar file beside the result file).'),
     "folder": ('str or os.PathLike, optional', 'Where the per-pose file of the result is.'),
     "header": ('sequence of str, optional', 'The column names of a file without a header line.'),
+    "store": ('Store', 'An open store of calibrations (``open_store``).'),
+    "robot": ('str', "The robot's serial or name."),
+    "h": ('History', "A robot's history (``history``)."),
 }
 
 

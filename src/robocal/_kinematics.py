@@ -35,6 +35,17 @@ from typing import cast
 
 import numpy as np
 
+from ._arguments import (
+    FLAG,
+    checked,
+    is_a,
+    masses_for,
+    optional,
+    parameter_columns,
+    readings_of,
+    rows_for,
+    vector_of,
+)
 from ._arrays import read_only
 from ._measurements import approach_sides
 from ._model import RobotModel
@@ -1285,6 +1296,17 @@ def _block(mask: np.ndarray) -> slice | None:
     return None
 
 
+def _names(args) -> tuple[str, ...]:
+    return layout(args["model"]).names
+
+
+_JOINTS = lambda args: args["model"].n_joints  # noqa: E731
+_MODEL_AND_READINGS = dict(model=is_a(RobotModel), q=readings_of(), payload_mass=masses_for())
+
+
+@checked(**_MODEL_AND_READINGS, p=optional(vector_of(lambda args: len(_names(args)))), jacobian=FLAG,
+         orientations=FLAG, compliance=optional(FLAG), frames=FLAG, columns=parameter_columns(_names),
+         backlash=optional(FLAG), approach=optional(rows_for("q", _JOINTS)))
 @one_blas_thread
 def evaluate(model: RobotModel, q: np.ndarray, p: np.ndarray | None = None, *, jacobian: bool = False,
              orientations: bool = False, compliance: bool | None = None, payload_mass=None,
@@ -1300,6 +1322,33 @@ def evaluate(model: RobotModel, q: np.ndarray, p: np.ndarray | None = None, *, j
     backlash columns are asked for); ``approach`` (N, n_joints) the direction of each joint's last
     move (default: from the row order of ``q``, the first pose approached from the last).
     Reference: docs/method.md sections 1 to 3.
+
+    Parameters
+    ----------
+    {model, q}
+    p : array_like, shape (n_params,), optional
+        Values in the model's parameter layout (``parameter_names``); None: the model's own.
+    jacobian : bool
+        Compute the identification Jacobian too.
+    orientations : bool
+        Compute the markers' orientations too.
+    compliance : bool, optional
+        Apply gravity deflections (None: when the values hold a compliance).
+    {payload_mass}
+    frames : bool
+        Return every frame's pose too.
+    columns : sequence of int, optional
+        Indices into the parameter vector of the Jacobian columns wanted (None: all).
+    backlash : bool, optional
+        Joints rest in their lost motion (None: when the values hold a backlash or backlash columns
+        are asked for).
+    approach : array_like, shape (n_poses, n_joints), optional
+        Direction (+1 or -1) of each joint's last move (None: from the row order of ``q``).
+
+    Returns
+    -------
+    Evaluation
+        Marker positions (n_poses, n_markers, 3) in W, m, and what else was asked for.
     """
     lay = layout(model)
     q = np.atleast_2d(np.asarray(q, dtype=float))
@@ -1360,6 +1409,7 @@ def _evaluate_in_chunks(model: RobotModel, q: np.ndarray, p: np.ndarray, *, orie
                       moments=joined("moments"))
 
 
+@checked(**_MODEL_AND_READINGS)
 @one_blas_thread
 def gravity_loads(model: RobotModel, q, *, payload_mass=None) -> np.ndarray:
     """Generalised gravity force on each joint (N, n_joints): N m for revolute, N for prismatic.
@@ -1369,6 +1419,15 @@ def gravity_loads(model: RobotModel, q, *, payload_mass=None) -> np.ndarray:
     gravity's component along the axis. Couplings map frame loads to joints by virtual work
     (``C^T``). Computed on the undeformed chain, as the compliance moments are.
     Reference: docs/method.md section 2.
+
+    Parameters
+    ----------
+    {model, q, payload_mass}
+
+    Returns
+    -------
+    numpy.ndarray, shape (n_poses, n_joints)
+        The load on each joint, N m or N.
     """
     lay = layout(model)
     q = np.atleast_2d(np.asarray(q, dtype=float))
@@ -1379,21 +1438,27 @@ def gravity_loads(model: RobotModel, q, *, payload_mass=None) -> np.ndarray:
     st = evaluate_state(model, lay, p, q @ model.coupling_matrix.T, compliance=True, orientations=False,
                          payload_mass=payload_mass)
     M, msub = cast(np.ndarray, st.M), cast(np.ndarray, st.msub)     # made: compliance is on
-    g = np.asarray(model.gravity, dtype=float)
-    loads = np.zeros((q.shape[0], model.n_frames))
-    for i, f in enumerate(model.frames):
-        if f.joint == "revolute":
-            loads[:, i] = M[3 * i]
-        elif f.joint == "prismatic":
-            loads[:, i] = msub[i] * (st.ps.R[i][:, :, 2] @ g)
-    return loads @ model.coupling_matrix
+    return _frame_loads(model, lay, st.ps, M, msub) @ model.coupling_matrix
 
 
+@checked(**_MODEL_AND_READINGS, frames=FLAG)
 def forward_kinematics(model: RobotModel, q, *, frames: bool = False, payload_mass=None) -> Evaluation:
     """Marker positions (N, n_markers, 3) and orientations in W at readings ``q`` (N, n_joints).
 
     With ``frames=True`` also every frame's pose ``X_W<frame>`` as (N, n_frames, 4, 4).
     Reference: docs/method.md section 1.
+
+    Parameters
+    ----------
+    {model, q}
+    frames : bool
+        Return every frame's pose too.
+    {payload_mass}
+
+    Returns
+    -------
+    Evaluation
+        ``positions`` (n_poses, n_markers, 3) and ``rotations`` (n_poses, n_markers, 3, 3) in W.
 
     >>> import numpy as np
     >>> from robocal.kinematics import serial_model
@@ -1404,12 +1469,27 @@ def forward_kinematics(model: RobotModel, q, *, frames: bool = False, payload_ma
     return evaluate(model, q, orientations=True, frames=frames, payload_mass=payload_mass)
 
 
+@checked(**_MODEL_AND_READINGS, compliance=optional(FLAG), columns=parameter_columns(_names, by_name=True))
 def jacobian(model: RobotModel, q, *, compliance: bool | None = None, payload_mass=None,
              columns=None) -> np.ndarray:
     """Identification Jacobian (N, n_markers, 6, n_params) over ``parameter_names(model)``.
 
     ``columns``: parameter indices or names to compute (default all, in layout order).
     Reference: docs/method.md section 3.
+
+    Parameters
+    ----------
+    {model, q}
+    compliance : bool, optional
+        Include gravity deflections and the compliance columns (None: when the model has compliance).
+    {payload_mass}
+    columns : sequence of int or str, optional
+        Parameter indices or names of the columns computed (None: all, in layout order).
+
+    Returns
+    -------
+    numpy.ndarray, shape (n_poses, n_markers, 6, n_columns)
+        Derivatives of each marker's position (m) and small rotation (rad) by each parameter.
     """
     if columns is not None:
         names = layout(model).names

@@ -24,12 +24,29 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from ._arguments import (
+    FLAG,
+    FRACTION,
+    INSTANT,
+    MAPPING,
+    MAPPING_LIKE,
+    PATH,
+    TEXT,
+    checked,
+    each_a,
+    in_range,
+    is_a,
+    names_in,
+    optional,
+    whole,
+)
 from ._calibration import CalibrationResult
 from ._errors import InputError, excerpt
 from ._files.model import model_from_dict, model_to_dict
 from ._files.result import plain, result_to_dict
 from ._measurements import Measurements
 from ._model import RobotModel
+from ._parameters import FAMILIES
 from ._verification import DEFAULT_ALPHA as VERIFY_ALPHA
 from ._verification import Accuracy, Verification, verify
 
@@ -44,16 +61,49 @@ MAX_NAME = 200
 
 # -- where the store is ---------------------------------------------------------------------------
 
+def _name(value, name, _):
+    check_name(value, name)
+
+
+_FAMILIES = names_in(lambda _: [f for f in FAMILIES if f != "geometric"], "a parameter family")
+_JUDGED = dict(alpha=FRACTION, families=_FAMILIES)
+
+@checked(environ=optional(MAPPING_LIKE))
 def default_store_path(environ=None) -> Path:
     """The store used when none is named: ``$XDG_DATA_HOME/robocal/store.sqlite`` (by default
-    ``~/.local/share/robocal/store.sqlite``)."""
+    ``~/.local/share/robocal/store.sqlite``).
+
+    Parameters
+    ----------
+    environ : mapping, optional
+        The environment variables (None: ``os.environ``).
+
+    Returns
+    -------
+    pathlib.Path
+        The default store's file.
+    """
     environ = os.environ if environ is None else environ
     base = environ.get("XDG_DATA_HOME") or str(Path.home() / ".local" / "share")
     return Path(base) / "robocal" / "store.sqlite"
 
 
+@checked(option=optional(PATH), environ=optional(MAPPING_LIKE))
 def store_location(option: str | None = None, environ=None) -> str:
-    """The store to open: ``option`` (``--store``), else ``$ROBOCAL_STORE``, else the default path."""
+    """The store to open: ``option`` (``--store``), else ``$ROBOCAL_STORE``, else the default path.
+
+    Parameters
+    ----------
+    option : str or os.PathLike, optional
+        The store named (a SQLite file or a ``postgresql://`` URL).
+    environ : mapping, optional
+        The environment variables (None: ``os.environ``).
+
+    Returns
+    -------
+    str
+        The store's file path or URL.
+    """
     environ = os.environ if environ is None else environ
     return str(option or environ.get(ENVIRONMENT) or default_store_path(environ))
 
@@ -251,9 +301,22 @@ class TypeComparison:
 
 # -- judgement: pure functions ----------------------------------------------------------------------
 
+@checked(alpha=FRACTION, m=whole(0))
 def sidak_threshold(alpha: float, m: int) -> float:
     """The |z| beyond which at least one of ``m`` independent standard normal variables falls with
     probability ``alpha`` (two-sided, Šidák).
+
+    Parameters
+    ----------
+    alpha : float
+        The chance, in (0, 1).
+    m : int
+        The number of variables (>= 0; 0 counts as 1).
+
+    Returns
+    -------
+    float
+        The threshold, standard deviations.
 
     >>> round(sidak_threshold(0.05, 1), 3), round(sidak_threshold(0.05, 20), 3)
     (1.96, 3.016)
@@ -266,6 +329,7 @@ def sidak_threshold(alpha: float, m: int) -> float:
     return float(norm.isf(per / 2))
 
 
+@checked(calibrations=each_a(StoredCalibration), **_JUDGED)
 def judge_changes(calibrations, *, alpha: float = DEFAULT_ALPHA, families=JUDGED_FAMILIES):
     """Every parameter's change between consecutive calibrations (sorted by date) and the threshold.
 
@@ -357,6 +421,7 @@ def _snooped(names: list, template: list, d: np.ndarray, C: np.ndarray, threshol
             for i, (t, z, x) in enumerate(zip(template, sigma, shift))]
 
 
+@checked(robot_type=_name, calibrations=each_a(StoredCalibration), **_JUDGED)
 def compare_type(robot_type: str, calibrations, *, alpha: float = DEFAULT_ALPHA,
                  families=JUDGED_FAMILIES) -> TypeComparison:
     """Robots of one type side by side: which ones stand out, parameter by parameter.
@@ -430,13 +495,25 @@ def _quiet_nan():
         yield
 
 
+@checked(d=MAPPING)
 def accuracy_at_calibration(d: dict) -> Accuracy | None:
     """The position accuracy a result (its file form) reached as its instrument saw it, what a
     verification measured the same way is held against: the held-out poses' RMS error when the
     result has held-out poses, else the fitted poses' RMS error scaled up by the degrees of freedom
     the fit took (``sqrt(n_rows / (n_rows - n_parameters))``). (The accuracy in use, ``in_use``, is
     the robot's with the instrument's noise taken out: kept, and shown, but not comparable with a
-    measured verification.)"""
+    measured verification.)
+
+    Parameters
+    ----------
+    d : dict
+        The result in its file form (``result_to_dict``).
+
+    Returns
+    -------
+    Accuracy or None
+        The accuracy, or None when the result has no position errors.
+    """
     stats = d.get("stats") or {}
     val = stats.get("validation_after") or {}
     if val.get("n") and _positive(val.get("rms")):
@@ -487,12 +564,25 @@ def check_name(value, where: str) -> str:
     return value.strip()
 
 
+@checked(model=is_a(RobotModel))
 def model_document(model: RobotModel) -> tuple[str, bytes]:
-    """(SHA-256, stored bytes) of a model's file form."""
+    """(SHA-256, stored bytes) of a model's file form.
+
+    Parameters
+    ----------
+    {model}
+
+    Returns
+    -------
+    (str, bytes)
+        The SHA-256 of the model's canonical JSON and that JSON compressed.
+    """
     text = json.dumps(plain(model_to_dict(model)), sort_keys=True, separators=(",", ":"), allow_nan=False)
     return hashlib.sha256(text.encode()).hexdigest(), zlib.compress(text.encode(), 6)
 
 
+@checked(result=is_a(CalibrationResult), robot=_name, robot_type=optional(_name), at=INSTANT,
+         source=TEXT, recorded_at=INSTANT)
 def stored_calibration(result: CalibrationResult, robot: str, *, robot_type: str | None = None, at=None,
                        source: str = "", recorded_at=None) -> StoredCalibration:
     """The record the store keeps of ``result`` (not yet stored).
@@ -912,6 +1002,7 @@ class _Upgrade(InputError):
         super().__init__("the store needs an upgrade")
 
 
+@checked(location=optional(PATH), create=FLAG)
 def open_store(location=None, *, create: bool = False) -> Store:
     """Open a store: a SQLite file path or a ``postgresql://`` URL (default: ``store_location()``).
 
@@ -1029,15 +1120,13 @@ def _verification_from_row(row) -> StoredVerification:
 
 # -- what the commands ask --------------------------------------------------------------------------
 
+@checked(store=is_a(Store), robot=_name, **_JUDGED)
 def history(store: Store, robot: str, *, alpha: float = DEFAULT_ALPHA, families=JUDGED_FAMILIES) -> History:
     """A robot's history: its calibrations, verifications and judged changes.
 
     Parameters
     ----------
-    store : Store
-        An open store.
-    robot : str
-        The robot.
+    {store, robot}
     alpha : float
         The chance of naming any change in the history of a robot that did not change.
     families : tuple of str
@@ -1055,14 +1144,14 @@ def history(store: Store, robot: str, *, alpha: float = DEFAULT_ALPHA, families=
     return History(robot, cals, store.verifications(robot), comparisons, threshold, alpha, tuple(families))
 
 
+@checked(store=is_a(Store), robot_type=_name, **_JUDGED)
 def type_comparison(store: Store, robot_type: str, *, alpha: float = DEFAULT_ALPHA,
                     families=JUDGED_FAMILIES) -> TypeComparison:
     """The robots of one type side by side (``compare_type`` on their latest calibrations).
 
     Parameters
     ----------
-    store : Store
-        An open store.
+    {store}
     robot_type : str
         The type.
     alpha : float
@@ -1082,9 +1171,20 @@ def type_comparison(store: Store, robot_type: str, *, alpha: float = DEFAULT_ALP
         return _compared(robot_type, latest, estimates, alpha, families)
 
 
+@checked(store=is_a(Store), robot=_name)
 def latest_usable(store: Store, robot: str) -> StoredCalibration:
     """A robot's latest calibration that did not fail its checks (what a verification holds the
-    robot against); InputError when there is none."""
+    robot against); InputError when there is none.
+
+    Parameters
+    ----------
+    {store, robot}
+
+    Returns
+    -------
+    StoredCalibration
+        Its latest calibration whose verdict is not "fail".
+    """
     cals = store.calibrations(robot)
     if not cals:
         raise InputError(f"no calibration of {excerpt(robot)} in the store", source=store.location)
@@ -1095,6 +1195,8 @@ def latest_usable(store: Store, robot: str) -> StoredCalibration:
     return usable[-1]
 
 
+@checked(store=is_a(Store), robot=_name, data=is_a(Measurements), register=FLAG,
+         alpha=in_range(0.0, 0.5, low_open=True, high_open=True), save=FLAG, at=INSTANT)
 def verify_robot(store: Store, robot: str, data: Measurements, *, register: bool = False,
                  alpha: float = VERIFY_ALPHA, save: bool = True, at=None) -> tuple[Verification, StoredVerification]:
     """Verify a robot against its latest stored calibration that did not fail its checks and
@@ -1102,10 +1204,7 @@ def verify_robot(store: Store, robot: str, data: Measurements, *, register: bool
 
     Parameters
     ----------
-    store : Store
-        An open store.
-    robot : str
-        The robot.
+    {store, robot}
     data : Measurements
         The verification campaign (10 to 30 poses).
     register : bool

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._arguments import FLAG, both, checked, in_range, is_a, measured_on, shaped, whole
 from ._calibration import register_base
 from ._errors import DegenerateDataError, InputError
 from ._kinematics import evaluate
@@ -86,11 +87,37 @@ def _commanded_poses(data: Measurements) -> tuple[tuple[str, ...], np.ndarray]:
     return tuple(str(n) for n in names[order]), rank[inverse]
 
 
+def _pose_index(value, name, args):
+    """(n,) whole numbers in [0, n_commanded), one per row of ``predicted``."""
+    a = shaped(len(args["predicted"]))(value, name, args)
+    if np.any(a != np.round(a)) or np.any(a < 0) or np.any(a >= args["n_commanded"]):
+        raise InputError(f"must be whole numbers in [0, {args['n_commanded'] - 1}], one per point", where=name)
+
+
+@checked(n_commanded=whole(1), predicted=shaped(None, 3),
+         measured=lambda value, name, args: shaped(len(args["predicted"]), 3)(value, name, args),
+         pose_index=_pose_index)
 def positional_accuracy(predicted, measured, pose_index, n_commanded: int) -> np.ndarray:
     """ISO 9283 positional accuracy ``AP_p`` of each commanded pose: the distance between the
     barycentre of its attained positions and the commanded position, metres.
 
     ``predicted``/``measured`` (n, 3) points; ``pose_index`` (n,) the commanded pose of each row.
+
+    Parameters
+    ----------
+    predicted : array_like, shape (n, 3)
+        The commanded (predicted) position of each point, m.
+    measured : array_like, shape (n, 3)
+        The attained (measured) position of each point, m.
+    pose_index : array_like of int, shape (n,)
+        The commanded pose of each point, in [0, n_commanded).
+    n_commanded : int
+        The number of commanded poses.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n_commanded,)
+        ``AP_p`` of each commanded pose, m (NaN for a pose without points).
 
     >>> positional_accuracy([[0, 0, 0.0]] * 2, [[0.001, 0, 0], [0.003, 0, 0]], [0, 0], 1).round(6).tolist()
     [0.002]
@@ -119,6 +146,8 @@ def ratio_threshold(n_points: int, then_n: int, *, registered: bool, alpha: floa
     return float(np.sqrt(f_dist.isf(alpha, d1, d2)))
 
 
+@checked(model=is_a(RobotModel), data=both(is_a(Measurements), measured_on()), then=is_a(Accuracy), register=FLAG,
+         alpha=in_range(0.0, 0.5, low_open=True, high_open=True))
 def verify(model: RobotModel, data: Measurements, then: Accuracy, *, register: bool = False,
            alpha: float = DEFAULT_ALPHA) -> Verification:
     """Hold a short campaign ``data`` against the calibrated ``model`` and judge it against ``then``.

@@ -29,6 +29,7 @@ from .._arguments import (
 )
 from .._calibration import CalibrationResult, ErrorStats, ErrorSummary, LimitJudgement, ParameterEstimate
 from .._checks import STATUSES, Check
+from .._diagnosis import Diagnosis
 from .._errors import InputError, excerpt
 from .._identifiability import Absorption, IdentifiabilityResult, status_table
 from .._in_use import AccuracyInUse, Coverage, UseStats
@@ -198,7 +199,10 @@ def diagnosis_to_dict(diagnosis) -> dict:
                           "fix": f.fix} for f in diagnosis.findings]}
 
 
-@checked(result=is_a(CalibrationResult))
+DIAGNOSIS = optional(is_a(Diagnosis))
+
+
+@checked(result=is_a(CalibrationResult), diagnosis=DIAGNOSIS)
 def result_to_json(result: CalibrationResult, diagnosis=None) -> str:
     """The result file text of a CalibrationResult.
 
@@ -235,7 +239,7 @@ def sidecar_path(path) -> Path:
     return Path(path).with_suffix(".npz")
 
 
-@checked(result=is_a(CalibrationResult), path=PATH, per_pose=FLAG)
+@checked(result=is_a(CalibrationResult), path=PATH, per_pose=FLAG, diagnosis=DIAGNOSIS)
 def result_files(result: CalibrationResult, path, *, per_pose: bool = True, diagnosis=None) -> dict:
     """The files of a calibration result: ``{path: JSON text, sidecar: bytes}``.
 

@@ -11,8 +11,9 @@ from datetime import datetime
 
 import numpy as np
 
+from .._arguments import FLAG, PATH, TEXT, checked, is_a
 from .._files.text import write_texts
-from .._store import History, TypeComparison
+from .._store import Change, History, StoredCalibration, TypeComparison
 from .._verification import Verification
 from .plots import need_matplotlib, plot_svg
 from .units import display_unit, fmt, with_unit
@@ -41,8 +42,20 @@ def _sigma(v: float) -> str:
     return f"{abs(v):.1f} sigma"
 
 
+@checked(c=is_a(Change))
 def change_line(c) -> str:
-    """'j2.theta +0.031 deg since 2026-03-02, 5.1 sigma'."""
+    """'j2.theta +0.031 deg since 2026-03-02, 5.1 sigma'.
+
+    Parameters
+    ----------
+    c : Change
+        A parameter's change between two calibrations.
+
+    Returns
+    -------
+    str
+        One line.
+    """
     return f"{c.name} {with_unit(c.delta, c.unit, sign=True)} since {_day(c.since)}, {_sigma(c.sigma)}"
 
 
@@ -50,8 +63,22 @@ def _accuracy_text(acc) -> str:
     return "no accuracy" if acc is None else f"{with_unit(acc.rms, 'm')} RMS ({acc.source})"
 
 
+_HISTORY = is_a(History)
+
+
+@checked(h=_HISTORY)
 def history_summary(h: History) -> str:
-    """What ``robocal history ROBOT`` prints."""
+    """What ``robocal history ROBOT`` prints.
+
+    Parameters
+    ----------
+    {h}
+
+    Returns
+    -------
+    str
+        Its calibrations, verifications and named changes, as text.
+    """
     lines = [f"robot {h.robot}: {len(h.calibrations)} calibration(s), {len(h.verifications)} verification(s)"]
     for c in h.calibrations:
         lim = f", limit {with_unit(c.limit_m, 'm')}" if c.limit_m is not None else ""
@@ -98,8 +125,20 @@ def _estimates_table(h: History) -> list[str]:
     return out
 
 
+@checked(t=is_a(TypeComparison))
 def type_summary(t: TypeComparison) -> str:
-    """What ``robocal history --type TYPE`` prints."""
+    """What ``robocal history --type TYPE`` prints.
+
+    Parameters
+    ----------
+    t : TypeComparison
+        Robots of one type side by side (``robocal.type_comparison``).
+
+    Returns
+    -------
+    str
+        The robots standing out and each robot's latest calibration, as text.
+    """
     n_cmp = int(np.sum(np.isfinite(t.z)))
     lines = [f"type {t.robot_type}: {len(t.latest)} robot(s), latest calibration of each; {len(t.names)} "
              f"parameter(s), each robot against the type's median in robust standard deviations, named beyond "
@@ -122,8 +161,24 @@ def type_summary(t: TypeComparison) -> str:
     return "\n".join(lines)
 
 
+@checked(v=is_a(Verification), robot=TEXT, calibration=is_a(StoredCalibration))
 def verification_summary(v: Verification, robot: str, calibration) -> str:
-    """What ``robocal verify`` prints."""
+    """What ``robocal verify`` prints.
+
+    Parameters
+    ----------
+    v : Verification
+        The verification (``robocal.verify``).
+    robot : str
+        The robot verified.
+    calibration : StoredCalibration
+        The stored calibration it was held against.
+
+    Returns
+    -------
+    str
+        The errors now and then, the ratio and the verdict, as text.
+    """
     reg = ", base re-registered on them" if v.registered_base else ""
     worst = int(np.nanargmax(v.ap)) if v.ap.size else 0
     return "\n".join([
@@ -224,8 +279,19 @@ def _calibration_rows(h: History) -> str:
         f"<td><code>{_e(c.fingerprint[:16])}</code></td><td>{_e(c.source)}</td></tr>" for c in h.calibrations)
 
 
+@checked(h=_HISTORY)
 def render_history(h: History) -> str:
-    """The HTML text of a robot's history report (needs matplotlib)."""
+    """The HTML text of a robot's history report (needs matplotlib).
+
+    Parameters
+    ----------
+    {h}
+
+    Returns
+    -------
+    str
+        A self-contained HTML page.
+    """
     need_matplotlib()
     changes = "".join(f"<li>{_e(change_line(c))}</li>" for c in h.changes) or "<li>none</li>"
     verifs = "".join(
@@ -258,7 +324,17 @@ def render_history(h: History) -> str:
             + "\n".join(body) + "\n</main>\n</body>\n</html>\n")
 
 
+@checked(h=_HISTORY, path=PATH, force=FLAG)
 def write_history(h: History, path, *, force: bool = False) -> None:
     """Write the history report of ``h`` to ``path`` atomically; an existing file is an InputError
-    unless ``force``."""
+    unless ``force``.
+
+    Parameters
+    ----------
+    {h, path, force}
+
+    Returns
+    -------
+    None
+    """
     write_texts({path: render_history(h)}, force=force)

@@ -23,7 +23,7 @@ from .._arguments import (
 )
 from .._calibration import CalibrationResult
 from .._errors import InputError
-from .._files.result import diagnosis_to_dict, result_to_dict
+from .._files.result import DIAGNOSIS, diagnosis_to_dict, result_to_dict
 from .._files.text import write_texts
 from .._model import DEFAULT_LINK_DENSITY, RELATIVE_MASSES, mdh_transform
 from .._parameters import FRAME_KINDS, GEOMETRIC_KINDS, SI_UNITS, parameter_layout, parameter_vector
@@ -686,7 +686,7 @@ def _list(items: list[str]) -> str:
     return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " and " + items[-1]
 
 
-@checked(result=is_a(CalibrationResult), extra=optional(MAPPING))
+@checked(result=is_a(CalibrationResult), extra=optional(MAPPING), diagnosis=DIAGNOSIS)
 def render_report(result: CalibrationResult, *, extra: dict | None = None, diagnosis=None) -> str:
     """The HTML text of the report of ``result`` (a CalibrationResult, computed or read back).
 
@@ -772,7 +772,7 @@ def render_report(result: CalibrationResult, *, extra: dict | None = None, diagn
             "units. A self-contained page: no scripts, no network.</footer>\n</main>\n</body>\n</html>\n")
 
 
-@checked(result=is_a(CalibrationResult), path=PATH, force=FLAG, extra=optional(MAPPING))
+@checked(result=is_a(CalibrationResult), path=PATH, force=FLAG, extra=optional(MAPPING), diagnosis=DIAGNOSIS)
 def write_report(result: CalibrationResult, path, *, force: bool = False, extra: dict | None = None,
                  diagnosis=None) -> None:
     """Write the HTML report of ``result`` to ``path`` atomically (temporary file, then rename).

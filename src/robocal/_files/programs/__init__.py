@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..._arguments import PATH, checked, is_a, one_of, optional
 from ..._errors import InputError, suggest
 from ..._model import RobotModel
 from ..._options import MAX_POSES
@@ -49,6 +50,10 @@ def dialect_of(path, dialect: str | None = None) -> str:
     return EXTENSIONS[ext]
 
 
+_DIALECT = optional(one_of(tuple(DIALECTS)))
+
+
+@checked(path=PATH, dialect=_DIALECT)
 def read_program(path, *, dialect: str | None = None) -> Program:
     """Read a robot program.
 
@@ -91,6 +96,7 @@ def joint_values(program: Program, targets, model: RobotModel) -> np.ndarray:
     return values * joint_units(model, DIALECTS[program.dialect])
 
 
+@checked(program=is_a(Program), model=is_a(RobotModel))
 def program_joints(program: Program, model: RobotModel) -> tuple[list[str], np.ndarray]:
     """The program's joint targets as readings: labels (the target names) and q (N, n_joints), SI.
 
@@ -106,8 +112,8 @@ def program_joints(program: Program, model: RobotModel) -> tuple[list[str], np.n
 
     Returns
     -------
-    labels : list of str
-    q : ndarray, (N, n_joints), SI
+    (list of str, numpy.ndarray)
+        The labels (the target names) and the readings q (N, n_joints), SI.
     """
     targets = [t for t in program.targets if t.kind == "joint" and not t.skip]
     if not targets:
@@ -115,6 +121,7 @@ def program_joints(program: Program, model: RobotModel) -> tuple[list[str], np.n
     return [t.name for t in targets], joint_values(program, targets, model)
 
 
+@checked(path=PATH, model=is_a(RobotModel), dialect=_DIALECT)
 def read_program_joints(path, model: RobotModel, *, dialect: str | None = None) -> tuple[list[str], np.ndarray]:
     """Joint readings written as a robot program (``program_joints`` of ``read_program``).
 
@@ -129,8 +136,8 @@ def read_program_joints(path, model: RobotModel, *, dialect: str | None = None) 
 
     Returns
     -------
-    labels : list of str
-    q : ndarray, (N, n_joints), SI
+    (list of str, numpy.ndarray)
+        The labels (the target names) and the readings q (N, n_joints), SI.
     """
     return program_joints(read_program(path, dialect=dialect), model)
 

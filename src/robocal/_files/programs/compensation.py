@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..._arguments import POSITIVE, TEXT, both, checked, is_a, marker_of, optional, same_robot_as
 from ..._compensation import arm_chain, compensate, compensate_poses, posture
 from ..._errors import InputError, suggest
 from ..._kinematics import evaluate
@@ -156,6 +157,8 @@ def _pose_targets(program, module, nominal, calibrated, marker, X_WO, targets, h
             for i, (t, s) in enumerate(zip(targets, status))]
 
 
+@checked(program=is_a(Program), nominal=is_a(RobotModel), calibrated=both(is_a(RobotModel), same_robot_as("nominal")),
+         marker=marker_of("nominal"), tool=optional(TEXT), wobj=optional(TEXT), tol=POSITIVE, tol_rot=POSITIVE)
 def compensate_program(program: Program, nominal: RobotModel, calibrated: RobotModel, *, marker: int = 0,
                        tool: str | None = None, wobj: str | None = None, tol: float = 1e-6,
                        tol_rot: float = math.radians(1e-4)) -> ProgramCompensation:
@@ -171,20 +174,27 @@ def compensate_program(program: Program, nominal: RobotModel, calibrated: RobotM
     ----------
     program : Program
         As ``read_program`` gives it.
-    nominal, calibrated : RobotModel
-        The model the controller holds and the calibrated model.
+    nominal : RobotModel
+        The model the controller holds.
+    calibrated : RobotModel
+        The calibrated model (the nominal's joints and markers).
     marker : int
         The model's tool point (default its first marker).
-    tool, wobj : str, optional
+    tool : str, optional
         A tool (tooldata, FRAME or TOOL_DATA[n], pose variable) in the frame of the tool point's
-        frame, and a work object (wobjdata, FRAME or BASE_DATA[n], pose variable) in the robot's
-        base frame, declared in the program, that its Cartesian targets use.
-    tol, tol_rot : float
-        Residuals (m, rad) above which a target counts as out of reach.
+        frame, declared in the program, that its Cartesian targets use.
+    wobj : str, optional
+        A work object (wobjdata, FRAME or BASE_DATA[n], pose variable) in the robot's base frame,
+        declared in the program, that its Cartesian targets use.
+    tol : float
+        Position residual above which a target counts as out of reach, m.
+    tol_rot : float
+        Rotation residual above which a target counts as out of reach, rad.
 
     Returns
     -------
     ProgramCompensation
+        The compensated program text and what happened to each target.
     """
     module = DIALECTS[program.dialect]
     live = [t for t in program.targets if not t.skip and t.name not in (tool, wobj)]
