@@ -643,3 +643,24 @@ def test_a_result_with_its_sidecar_reads_under_an_address_space_limit(result_tex
     files = {"result.json": text.encode(), "result.npz": blob}
     outcome, err = run_forked(files, ["record", "result.json", "--robot", "R", "--store", "store.sqlite"])
     assert outcome == "ok result", err
+
+
+@pytest.mark.parametrize("value", [1e308, np.inf])
+def test_a_sidecar_error_beyond_any_magnitude_is_refused_by_the_reader(tmp_path, cli, result_text, value):
+    # an error of 1e308 m in result.npz (its SHA-256 in result.json following) read as a result:
+    # the report's histogram then had an infinite axis (ValueError from matplotlib)
+    import hashlib
+
+    from fuzz_cases import _npz, sidecar_files
+
+    text, blob, arrays = sidecar_files(result_text)
+    before = arrays["fit_before"].copy()
+    before[0, 0] = value
+    spoiled = _npz({**arrays, "fit_before": before})
+    (tmp_path / "result.json").write_text(text.replace(hashlib.sha256(blob).hexdigest(),
+                                                       hashlib.sha256(spoiled).hexdigest()))
+    (tmp_path / "result.npz").write_bytes(spoiled)
+    with pytest.raises(rc.InputError, match=r"errors\.fit_before: .* beyond any error"):
+        rc.read_result(tmp_path / "result.json")
+    one_line(cli, ("record", tmp_path / "result.json", "--robot", "R", "--store", tmp_path / "s.sqlite"),
+             ["result.json", "errors.fit_before"])

@@ -34,6 +34,7 @@ from .._errors import InputError, excerpt
 from .._identifiability import Absorption, IdentifiabilityResult, status_table
 from .._in_use import AccuracyInUse, Coverage, UseStats
 from .._parameters import parameter_layout
+from .measurements import MAX_MAGNITUDE
 from .model import model_from_dict, model_to_dict
 from .text import MAX_FILE_BYTES, load_json, read_bytes, read_text, write_texts
 
@@ -503,6 +504,10 @@ def _errors(doc: _Doc, d: dict, n_markers: int, n_joints: int, folder: Path | No
             out[field] = None
             continue
         a = doc.array(value, f"errors.{key}", (n_poses.get(which),) + shapes[part])
+        far = np.abs(a) > MAX_MAGNITUDE  # NaN compares False: a point not measured
+        if far.any():
+            raise doc.error(f"errors.{key}", f"{a[far].flat[0]:g} is beyond any error, position or reading "
+                                             f"(magnitude up to {MAX_MAGNITUDE:g}, SI)")
         n_poses.setdefault(which, a.shape[0])
         out[field] = a
     residuals = out["residual_vectors"]
