@@ -96,6 +96,13 @@ def _array(a):
     return None if a is None else np.where(np.isfinite(a), a, np.nan).tolist()
 
 
+def per_pose_arrays(result: CalibrationResult) -> dict[str, np.ndarray]:
+    """The per-pose arrays of ``result`` under their keys of ``errors`` (the sidecar's names), as
+    float arrays; those the result does not hold are left out."""
+    return {key: np.asarray(getattr(result, field), dtype=float) for key, field in _ERROR_ARRAYS
+            if getattr(result, field) is not None}
+
+
 @checked(result=is_a(CalibrationResult), per_pose=FLAG)
 def result_to_dict(result: CalibrationResult, *, per_pose: bool = True) -> dict:
     """The file form of a calibration result (plain Python types); ``per_pose=False`` leaves the
@@ -274,8 +281,7 @@ def result_files(result: CalibrationResult, path, *, per_pose: bool = True, diag
         d["errors"].update(counts)
         return {Path(path): to_json(d)}
     buf = io.BytesIO()
-    arrays: dict[str, Any] = {key: np.asarray(getattr(result, field), dtype=float) for key, field in _ERROR_ARRAYS
-                              if getattr(result, field) is not None}
+    arrays: dict[str, Any] = per_pose_arrays(result)
     np.savez(buf, **arrays)
     blob = buf.getvalue()
     sidecar = sidecar_path(path)
