@@ -174,12 +174,13 @@ class Measurements:
 
     def subset(self, index) -> Measurements:
         """The poses selected by ``index`` (a slice, boolean mask or integer indices)."""
+        idx: slice | np.ndarray
         if isinstance(index, slice):    # a block of poses (a chunk): cut by the slice itself, no index array
-            idx: slice | np.ndarray = slice(*index.indices(self.n_poses))
+            idx = slice(*index.indices(self.n_poses))
             labels = self.labels[idx]
         else:
-            idx = np.arange(self.n_poses)[index]
-            labels = tuple(map(self.labels.__getitem__, idx.tolist()))
+            picked = np.arange(self.n_poses)[index]
+            idx, labels = picked, tuple(map(self.labels.__getitem__, picked.tolist()))
 
         def cut(a):
             return None if a is None else a[idx]

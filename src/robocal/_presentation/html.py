@@ -89,17 +89,18 @@ def _worst_poses(d: dict, flagged=frozenset(), k: int = WORST_POSES) -> str:
     in ``flagged`` (named by a check), each pose's first row anchored for the checks to link to."""
     err, prov = d["errors"], d.get("provenance") or {}
     markers = err.get("markers") or []
-    after_all, before_all, sets, set_at, pose_at, marker_at, flag_at = [], [], [], [], [], [], []
+    after_all, before_all, set_at, pose_at, marker_at, flag_at = [], [], [], [], [], []
+    sets: list[tuple[str, list]] = []
     for key, when, src in (("fit", "fitted", "data"), ("validation", "held-out", "validation")):
         before, after = errors_array(d, f"{key}_before"), errors_array(d, f"{key}_after")
         if before is None or after is None:
             continue
         n, m = min(len(before), len(after)), min(before.shape[1], after.shape[1])
-        b, a = before[:n, :m], after[:n, :m]
-        poses, cols = np.nonzero(np.isfinite(a) & np.isfinite(b))    # pose by pose, marker by marker
+        b_k, a_k = before[:n, :m], after[:n, :m]
+        poses, cols = np.nonzero(np.isfinite(a_k) & np.isfinite(b_k))    # pose by pose, marker by marker
         labels = (prov.get(src) or {}).get("labels") or []
-        after_all.append(a[poses, cols])
-        before_all.append(b[poses, cols])
+        after_all.append(a_k[poses, cols])
+        before_all.append(b_k[poses, cols])
         set_at.append(np.full(len(poses), len(sets)))
         sets.append((when, labels))
         pose_at.append(poses)
