@@ -44,9 +44,13 @@ LIMIT_SCHEMA = "robocal.limit/1"
 
 def plain(obj):
     """JSON-ready copy: numpy types to Python, NaN and infinities to null."""
+    if isinstance(obj, str):
+        return obj
     if isinstance(obj, dict):
         return {str(k): plain(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
+        if all(type(v) is str for v in obj):    # pose labels: a million of them in a large campaign
+            return list(obj)
         return [plain(v) for v in obj]
     if isinstance(obj, np.ndarray):
         return plain(obj.tolist())
