@@ -2,8 +2,6 @@
 the same Measurements, bit for bit, as row by row, and every fault must still be named by file,
 line and column (the row reader takes over wherever the compiled one cannot vouch for a file)."""
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 from fuzz_cases import MEASUREMENTS, MODEL
@@ -262,48 +260,3 @@ def test_joint_file_faults_are_named_as_before(tmp_path, model, monkeypatch, fau
     for w in words:
         assert w in str(e.value), (w, str(e.value))
 
-
-CONTACTS = Path(__file__).resolve().parents[1] / "examples" / "arm7"
-
-
-@pytest.mark.parametrize("change", ["as-is", "labels-and-no-sigma-column", "blank-line", "bad-kind"])
-def test_contact_files_read_by_the_compiled_parser_as_row_by_row(tmp_path, monkeypatch, change):
-    import robocal._files.contacts as contacts
-
-    arm7 = rc.read_model(CONTACTS / "model.yaml")
-    lines = (CONTACTS / "sockets.csv").read_text().splitlines()
-    body = lines.index(next(ln for ln in lines if ln.startswith("placement")))
-    if change == "labels-and-no-sigma-column":
-        labels = ["label"] + [f"s{i}" if i % 3 else "" for i in range(1, len(lines) - body)]   # some left empty
-        lines = lines[:body] + ["# sigma: 0.01"] + [ln[:ln.rindex(",")] + "," + label
-                                                     for ln, label in zip(lines[body:], labels)]
-    elif change == "blank-line":
-        lines.insert(body + 4, "")
-    elif change == "bad-kind":
-        lines[body + 6] = lines[body + 6].replace(",socket,", ",sockett,")
-    (tmp_path / "c.csv").write_text("\n".join(lines) + "\n")
-    taken = []
-    real = contacts._read_fast
-    monkeypatch.setattr(contacts, "FAST_BYTES", 0)
-    monkeypatch.setattr(contacts, "_read_fast", lambda *a, **k: taken.append(real(*a, **k)) or taken[-1])
-
-    def read():
-        try:
-            return rc.io.read_contacts(tmp_path / "c.csv", arm7)
-        except rc.InputError as e:
-            return str(e)
-
-    fast = read()
-    assert (taken[0] is not None) == (change in ("as-is", "labels-and-no-sigma-column"))
-    monkeypatch.setattr(contacts, "_read_fast", lambda *a, **k: None)
-    slow = read()
-    if change == "bad-kind":
-        assert fast == slow and "line 12, column 'kind'" in fast and "sockett" in fast
-        return
-    for name in ("q", "sigma"):
-        x, y = getattr(fast, name), getattr(slow, name)
-        assert x.dtype == y.dtype and x.shape == y.shape and np.array_equal(x, y), name
-    for name in ("marker", "kind", "target", "placement", "labels", "distances", "planes", "bars", "source", "sha256",
-                 "joint_names"):
-        assert getattr(fast, name) == getattr(slow, name), name
-    assert fast.n_rows == sum(1 for ln in lines if ln and not ln.startswith(("#", "placement")))

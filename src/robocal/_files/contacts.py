@@ -33,8 +33,7 @@ from .._model import RobotModel
 from .._options import MAX_CONTACTS, MAX_DIRECTIVES, MAX_GROUPS
 from .._spatial import vector3
 from .._units import UNITS, check_unit
-from .measurements import FAST_BYTES, MAX_MAGNITUDE
-from .table import Unfit, read_columns, read_head, scan_rows
+from .measurements import MAX_MAGNITUDE
 from .text import read_text
 
 REQUIRED = ("placement", "target", "kind")
@@ -164,48 +163,12 @@ def read_contacts(path, model: RobotModel) -> Contacts:
             ("lines before the header", body_start, MAX_DIRECTIVES)
         raise InputError(f"{what[1]:,} {what[0]}; a contact file holds up to {what[2]:,} (docs/formats.md)",
                          source=source)
-    if len(text) >= FAST_BYTES:
-        fast = _read_fast(path, source, model, facts, digest)
-        if fast is not None:
-            return fast
     try:
         rows = list(csv.reader(io.StringIO("\n".join(lines[body_start:]))))
     except csv.Error as e:
         raise InputError(f"not readable as CSV: {e}", source=source) from None
     header = [h.strip() for h in rows[0]]
     return _rows(rows[1:], header, body_start + 1, model, facts, source, digest)
-
-
-def _read_fast(path, source: str, model: RobotModel, facts: _Facts, digest: str) -> Contacts | None:
-    """The rows read by the compiled parser a chunk at a time (``read_columns``), or None wherever
-    it cannot vouch for them as ``_rows`` reads them: that reader then reads them or names the fault."""
-    try:
-        head = read_head(path, source, sep=",", decimal=".")
-        col = _columns(list(head.header), model, facts, source)
-        scan = scan_rows(path, head)
-        texts = [c for c in ("placement", "target", "kind", "marker", "label") if c in col]
-        numbers = list(model.joint_names) + (["sigma"] if "sigma" in col else [])
-        read = read_columns(path, head, scan, {col[c]: "text" for c in texts} | {col[c]: "number" for c in numbers})
-        cell = {c: read[col[c]] for c in texts + numbers}
-        n = scan.n_rows
-        q = np.stack([cell[j] for j in model.joint_names], axis=-1)
-        sigma = cell["sigma"] * facts._length_unit(source, "") if "sigma" in col else np.full(n, facts.sigma)
-        marker = cell.get("marker", [model.marker_names[0]] * n)
-        numbers_read = [cell[c] for c in numbers]
-        if not (all(np.all(np.abs(v) <= MAX_MAGNITUDE) for v in numbers_read) and np.all(sigma > 0)
-                and set(cell["kind"]) <= set(CONTACT_KINDS) and set(marker) <= set(model.marker_names)
-                and len(set(zip(cell["placement"], cell["target"]))) <= MAX_GROUPS):
-            raise Unfit  # the row reader names the line and column
-        _known_targets(facts, cell["kind"], cell["target"], source)
-    except (Unfit, InputError):
-        return None
-    labels = [label or f"line {scan.first_line + k}" for k, label in enumerate(cell.get("label", [""] * n))]
-    scale = np.array([facts.units.get("angle", 1.0) if k == "angle" else facts.units["length"]
-                      for k in model.reading_quantities])
-    return Contacts(q=q * scale, marker=tuple(marker), kind=tuple(cell["kind"]), target=tuple(cell["target"]),
-                    placement=tuple(cell["placement"]), sigma=sigma, distances=tuple(facts.distances),
-                    planes=tuple(facts.planes), bars=facts.bars, joint_names=model.joint_names,
-                    labels=tuple(labels), source=source, sha256=digest)
 
 
 def _columns(header, model: RobotModel, facts: _Facts, source: str) -> dict:
