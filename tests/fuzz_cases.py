@@ -579,6 +579,16 @@ def program_file(draw, base: str) -> bytes:
     return (base + ("\n" + line) * draw(st.sampled_from((100, 5000)))).encode()
 
 
+def split_joints(base: str = MEASUREMENTS) -> tuple[str, str]:
+    """``base`` as a file of points (every column but the joints') and a file of joint readings
+    (``pose`` and the joints' columns), joined on ``pose`` (``--joints``)."""
+    rows = [ln.split(",") for ln in base.splitlines()]
+    joints = [k for k, c in enumerate(rows[0]) if k == 0 or c.startswith("j")]
+    points = [k for k in range(len(rows[0])) if k == 0 or k not in joints]
+    texts = ["".join(",".join(r[k] for k in cols if k < len(r)) + "\n" for r in rows) for cols in (points, joints)]
+    return texts[0], texts[1]
+
+
 # -- one strategy per command: a command or reader added later joins here and in COMMANDS ---------
 
 @st.composite
@@ -597,6 +607,12 @@ def calibrate_case(draw, result_text=None):
         argv += ["--limit-mm", "limit.json"]
     elif reader == 2:  # and keep it in a store (never the user's default one)
         argv += ["--record", _value(draw, "R"), "--store", "store.sqlite"] + draw(options({"--type": "th8"}))
+    elif reader == 3:  # the joint readings in a file of their own, joined on pose; one of the two mutated
+        points, joints = split_joints()
+        mutated = draw(st.integers(0, 2))
+        files["data.csv"] = draw(csv_file(points)) if mutated == 0 else points.encode()
+        files["joints.csv"] = draw(csv_file(joints)) if mutated == 1 else joints.encode()
+        argv += ["--joints", "joints.csv"]
     return files, argv
 
 

@@ -5,6 +5,8 @@ line and column (the row reader takes over wherever the compiled one cannot vouc
 import numpy as np
 import pytest
 from fuzz_cases import MEASUREMENTS, MODEL
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from robots import arm6r
 
 import robocal as rc
@@ -260,3 +262,39 @@ def test_joint_file_faults_are_named_as_before(tmp_path, model, monkeypatch, fau
     for w in words:
         assert w in str(e.value), (w, str(e.value))
 
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=list(HealthCheck), derandomize=True)
+@given(data=st.data())
+def test_mutated_files_read_the_same_by_both_readers(tmp_path_factory, model, data):
+    """The fuzz's mutations of the example, alone or as points and joint readings joined on pose:
+    the compiled reader gives the row reader's Measurements bit for bit, or the same one-line error."""
+    from fuzz_cases import csv_file, split_joints
+
+    folder = tmp_path_factory.mktemp("fuzz")
+    joined = data.draw(st.booleans())
+    if joined:
+        points, joints = split_joints()
+        which = data.draw(st.integers(0, 1))
+        (folder / "d.csv").write_bytes(data.draw(csv_file(points)) if which == 0 else points.encode())
+        (folder / "j.csv").write_bytes(data.draw(csv_file(joints)) if which == 1 else joints.encode())
+    else:
+        (folder / "d.csv").write_bytes(data.draw(csv_file()))
+    kw = {"joints": folder / "j.csv"} if joined else {}
+
+    def read(fast: bool):
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(reader, "FAST_BYTES", 0)
+            if not fast:
+                mp.setattr(reader, "_read_fast", lambda *a, **k: None)
+            try:
+                return rc.read_measurements(folder / "d.csv", model, **kw)
+            except rc.InputError as e:
+                return str(e)
+
+    fast, slow = read(True), read(False)
+    if isinstance(slow, str) or isinstance(fast, str):
+        assert fast == slow
+    else:
+        identical(fast, slow)
+        assert fast.extra.get("notes") == slow.extra.get("notes")
