@@ -598,6 +598,16 @@ def program_file(draw, base: str) -> bytes:
     return (base + ("\n" + line) * draw(st.sampled_from((100, 5000)))).encode()
 
 
+def split_joints(base: str = MEASUREMENTS) -> tuple[str, str]:
+    """``base`` as a file of points (every column but the joints') and a file of joint readings
+    (``pose`` and the joints' columns), joined on ``pose`` (``--joints``)."""
+    rows = [ln.split(",") for ln in base.splitlines()]
+    joints = [k for k, c in enumerate(rows[0]) if k == 0 or c.startswith("j")]
+    points = [k for k in range(len(rows[0])) if k == 0 or k not in joints]
+    texts = ["".join(",".join(r[k] for k in cols if k < len(r)) + "\n" for r in rows) for cols in (points, joints)]
+    return texts[0], texts[1]
+
+
 # -- one strategy per command: a command or reader added later joins here and in COMMANDS ---------
 
 @st.composite
@@ -607,7 +617,7 @@ def calibrate_case(draw, result_text=None):
     files["data.csv"] = draw(csv_file()) if good_model or draw(st.booleans()) else MEASUREMENTS.encode()
     argv = ["calibrate", "model.yaml", "data.csv", "--out", draw(st.sampled_from(("out", "out", "model.yaml")))]
     argv += draw(options(CALIBRATE))
-    reader = draw(st.integers(0, 5))
+    reader = draw(st.integers(0, 6))
     if reader == 0:   # an instrument profile
         files["profile.yaml"] = draw(profile_file())
         argv += ["--profile", "profile.yaml"]
@@ -619,6 +629,12 @@ def calibrate_case(draw, result_text=None):
     elif reader == 3:  # held-out measurements to judge on, maybe from another set-up
         files["val.csv"] = draw(csv_file()) if draw(st.booleans()) else MEASUREMENTS.encode()
         argv += ["--validate", "val.csv"] + (["--register-validation"] if draw(st.booleans()) else [])
+    elif reader == 4:  # the joint readings in a file of their own, joined on pose; one of the two mutated
+        points, joints = split_joints()
+        mutated = draw(st.integers(0, 2))
+        files["data.csv"] = draw(csv_file(points)) if mutated == 0 else points.encode()
+        files["joints.csv"] = draw(csv_file(joints)) if mutated == 1 else joints.encode()
+        argv += ["--joints", "joints.csv"]
     return files, argv
 
 

@@ -295,3 +295,21 @@ def test_a_limit_does_not_turn_a_mistake_into_a_pass():
         warnings.simplefilter("ignore")
         result = rc.calibrate(wrong, data, limit=0.15e-3)
     assert result.verdict == "fail" and not result.limit.reached
+
+
+@pytest.mark.parametrize("chunked", [False, True])
+def test_point_losses_from_the_errors_at_hand_are_the_residuals_own(chunked):
+    """A held-out evaluation takes each point's loss from the errors it has just computed: the
+    same numbers, bit for bit, as from the residuals (weighted, masked, two markers, in chunks)."""
+    from robocal._in_use import point_loss
+
+    robot = arm6r(markers=(("a", (0.05, 0.02, 0.12)), ("b", (0.0, 0.1, 0.05))))
+    _, data = rc.simulate(robot, 300, seed=3)
+    rng = np.random.default_rng(4)
+    mask = data.mask & (rng.random(data.mask.shape) > 0.2)
+    data = replace(data, mask=mask, positions=np.where(mask[..., None], data.positions, np.nan),
+                   sigma=rng.uniform(1e-5, 3e-5, mask.shape))
+    prob = Problem(robot, data, ("j2.d", "j3.theta"), compliance=False, chunked=chunked)
+    p = rc.parameter_vector(robot) + 1e-4
+    a, b = point_loss(prob, p), point_loss(prob, p, prob.errors(p))
+    assert a.shape == mask.shape and np.array_equal(a, b) and np.all(a[~mask] == 0) and np.all(a[mask] > 0)

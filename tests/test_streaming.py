@@ -5,6 +5,8 @@ line and column (the row reader takes over wherever the compiled one cannot vouc
 import numpy as np
 import pytest
 from fuzz_cases import MEASUREMENTS, MODEL
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from robots import arm6r
 
 import robocal as rc
@@ -195,3 +197,104 @@ def test_sums_of_columns_read_the_same(tmp_path, model, monkeypatch):
     (tmp_path / "d.csv").write_text(",".join(head) + "\n" + "".join(",".join(r) + "\n" for r in out))
     with pytest.raises(rc.InputError, match="line 8, column 'x_dif'"):
         rc.read_measurements(tmp_path / "d.csv", model, columns=sums)
+
+
+def _split_files(tmp_path, *, points_sep=",", joints_sep=",", decimal=".", drop=(), extra_joint_rows=()):
+    """The example as a file of points and a file of joint readings joined on ``pose`` (rows
+    ``drop`` of the joint file left out, ``extra_joint_rows`` pose labels only the joint file has)."""
+    lines = MEASUREMENTS.splitlines()
+    header, rows = lines[0].split(","), [ln.split(",") for ln in lines[1:]]
+    joint_cols = [k for k, c in enumerate(header) if c.startswith("j")]
+    point_cols = [k for k in range(len(header)) if k not in joint_cols]
+
+    def text(sep, cols, body):
+        return "".join(sep.join(c.replace(".", decimal) for c in r) + "\n" for r in
+                       [[header[k] for k in cols]] + [[r[k] for k in cols] for r in body])
+
+    (tmp_path / "points.csv").write_text(text(points_sep, point_cols, rows))
+    jrows = [r for i, r in enumerate(rows) if i not in drop][::-1] + [[p] + rows[0][1:] for p in extra_joint_rows]
+    (tmp_path / "joints.csv").write_text(text(joints_sep, [0] + joint_cols, jrows))
+    return tmp_path / "points.csv", tmp_path / "joints.csv"
+
+
+@pytest.mark.parametrize("case", ["plain", "rows-left-out", "decimal-commas", "other-separator", "mapped"])
+def test_joint_files_are_joined_by_the_compiled_parser_as_row_by_row(tmp_path, model, monkeypatch, case):
+    kw: dict = {}
+    if case == "decimal-commas":
+        points, joints = _split_files(tmp_path, points_sep=";", joints_sep=";", decimal=",")
+    elif case == "other-separator":
+        points, joints = _split_files(tmp_path, joints_sep="\t")
+    else:
+        points, joints = _split_files(tmp_path, drop=(2, 7) if case == "rows-left-out" else (),
+                                      extra_joint_rows=("Z1", "Z2") if case == "rows-left-out" else ())
+    if case == "mapped":
+        kw["columns"] = {"j1_deg": "j1_deg", "set": None}
+    fast, slow = both(points, model, monkeypatch, joints=joints, **kw)
+    identical(fast, slow)
+    assert fast.extra.get("notes") == slow.extra.get("notes") and fast.extra["notes"]
+    n = len(MEASUREMENTS.splitlines()) - 1
+    assert fast.n_poses == (n - 2 if case == "rows-left-out" else n)
+    if case == "rows-left-out":
+        assert any("2 row(s) of" in note and "Z1, Z2" in note for note in fast.extra["notes"])
+
+
+@pytest.mark.parametrize("fault, words", [
+    ("repeated-key", ["appears twice"]), ("empty-key", ["empty key cell"]), ("no-match", ["no pose value is in both"]),
+    ("column-in-both", ["is in both"]), ("text-reading", ["line 4", "expected a number"]),
+])
+def test_joint_file_faults_are_named_as_before(tmp_path, model, monkeypatch, fault, words):
+    points, joints = _split_files(tmp_path)
+    lines = joints.read_text().splitlines()
+    if fault == "repeated-key":
+        lines[5] = lines[3].split(",")[0] + lines[5][lines[5].index(","):]
+    elif fault == "empty-key":
+        lines[5] = lines[5][lines[5].index(","):]
+    elif fault == "no-match":
+        lines[1:] = ["X" + ln for ln in lines[1:]]
+    elif fault == "column-in-both":
+        lines = [ln + ",0" for ln in lines]
+        lines[0] = lines[0][:-2] + ",tool_x_mm"
+    else:
+        lines[3] = lines[3][:lines[3].rindex(",")] + ",1x"
+    joints.write_text("\n".join(lines) + "\n")
+    with pytest.raises(rc.InputError) as e:
+        rc.read_measurements(points, model, joints=joints)
+    for w in words:
+        assert w in str(e.value), (w, str(e.value))
+
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=list(HealthCheck), derandomize=True)
+@given(data=st.data())
+def test_mutated_files_read_the_same_by_both_readers(tmp_path_factory, model, data):
+    """The fuzz's mutations of the example, alone or as points and joint readings joined on pose:
+    the compiled reader gives the row reader's Measurements bit for bit, or the same one-line error."""
+    from fuzz_cases import csv_file, split_joints
+
+    folder = tmp_path_factory.mktemp("fuzz")
+    joined = data.draw(st.booleans())
+    if joined:
+        points, joints = split_joints()
+        which = data.draw(st.integers(0, 1))
+        (folder / "d.csv").write_bytes(data.draw(csv_file(points)) if which == 0 else points.encode())
+        (folder / "j.csv").write_bytes(data.draw(csv_file(joints)) if which == 1 else joints.encode())
+    else:
+        (folder / "d.csv").write_bytes(data.draw(csv_file()))
+    kw = {"joints": folder / "j.csv"} if joined else {}
+
+    def read(fast: bool):
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(reader, "FAST_BYTES", 0)
+            if not fast:
+                mp.setattr(reader, "_read_fast", lambda *a, **k: None)
+            try:
+                return rc.read_measurements(folder / "d.csv", model, **kw)
+            except rc.InputError as e:
+                return str(e)
+
+    fast, slow = read(True), read(False)
+    if isinstance(slow, str) or isinstance(fast, str):
+        assert fast == slow
+    else:
+        identical(fast, slow)
+        assert fast.extra.get("notes") == slow.extra.get("notes")

@@ -157,9 +157,15 @@ def free_names(problem: Problem) -> tuple[str, ...]:
     return tuple(problem.lay.names[i] for i in problem.free_idx)
 
 
-def point_loss(problem: Problem, p: np.ndarray) -> np.ndarray:
-    """(n_poses, n_markers) each measured point's sum of squared weighted residuals at ``p``."""
-    r = problem.residuals(p)
+def point_loss(problem: Problem, p: np.ndarray, errors: np.ndarray | None = None) -> np.ndarray:
+    """(n_poses, n_markers) each measured point's sum of squared weighted residuals at ``p``.
+    ``errors``: ``problem.errors(p)`` when at hand; for point data the residuals are then those
+    errors weighted (the same numbers, without evaluating the campaign again)."""
+    if errors is not None and not problem.use_rot:
+        r = np.concatenate([(errors[s, j] * w[:, None]).ravel() for j, (s, w) in enumerate(zip(problem.sel, problem.w))]
+                           + [np.zeros(0)])
+    else:
+        r = problem.residuals(p)
     poses, markers = problem.row_points()
     n, m = problem.data.mask.shape
     return np.bincount(poses * m + markers, weights=r * r, minlength=n * m).reshape(n, m)
@@ -167,7 +173,8 @@ def point_loss(problem: Problem, p: np.ndarray) -> np.ndarray:
 
 def evaluated(problem: Problem, p: np.ndarray) -> HeldOut:
     """The errors of the vector ``p`` at every pose of ``problem`` (none of them fitted with it)."""
-    return HeldOut(problem.errors(p), problem.rotation_errors(p), point_loss(problem, p))
+    errors = problem.errors(p)
+    return HeldOut(errors, problem.rotation_errors(p), point_loss(problem, p, errors))
 
 
 def fold_steps(problem: Problem, p: np.ndarray, labels: np.ndarray, k: int) -> list[np.ndarray]:

@@ -173,8 +173,14 @@ class Measurements:
         return self.rotations is not None and bool(np.any(self.rot_mask))
 
     def subset(self, index) -> Measurements:
-        """The poses selected by ``index`` (boolean mask or integer indices)."""
-        idx = np.arange(self.n_poses)[index]
+        """The poses selected by ``index`` (a slice, boolean mask or integer indices)."""
+        idx: slice | np.ndarray
+        if isinstance(index, slice):    # a block of poses (a chunk): cut by the slice itself, no index array
+            idx = slice(*index.indices(self.n_poses))
+            labels = self.labels[idx]
+        else:
+            picked = np.arange(self.n_poses)[index]
+            idx, labels = picked, tuple(map(self.labels.__getitem__, picked.tolist()))
 
         def cut(a):
             return None if a is None else a[idx]
@@ -183,7 +189,7 @@ class Measurements:
             q=self.q[idx], positions=self.positions[idx], marker_names=self.marker_names,
             joint_names=self.joint_names, mask=self.mask[idx], rotations=cut(self.rotations),
             rot_mask=cut(self.rot_mask), sigma=cut(self.sigma), sigma_rot=cut(self.sigma_rot),
-            payload_mass=cut(self.payload_mass), labels=tuple(self.labels[i] for i in idx),
+            payload_mass=cut(self.payload_mass), labels=labels,
             source=self.source, sha256=self.sha256,
             extra={k: (v[idx] if isinstance(v, np.ndarray) and v.shape[:1] == (self.n_poses,) else v)
                    for k, v in self.extra.items()},

@@ -73,6 +73,7 @@ class Problem:
         self.approach = frame_approach(model, approach_of(data)) if self.backlash else None
         self.qf = read_only(data.q @ model.coupling_matrix.T)
         self._turns = None   # the cosines and sines of ``qf``, made at the first evaluation
+        self._chunk_turns: list = []   # each chunk's, made at its first evaluation (shared with ``over``'s)
         self.marker_idx = np.array([model.marker_names.index(n) for n in data.marker_names], dtype=int)
         self.use_rot = data.has_orientation
         self.sel = [np.nonzero(data.mask[:, j])[0] for j in range(len(data.marker_names))]
@@ -95,11 +96,15 @@ class Problem:
     def _chunks(self):
         """The problem over each chunk of ``CHUNK_POSES`` poses in turn (made when reached, so that
         one chunk's evaluation is held at a time)."""
-        for a in range(0, self.data.n_poses, CHUNK_POSES):
+        for c, a in enumerate(range(0, self.data.n_poses, CHUNK_POSES)):
             sub = Problem(self.model, self.data.subset(slice(a, a + CHUNK_POSES)), (), compliance=self.compliance,
                           noise=self.noise, chunked=False)
             sub.free_idx = self.free_idx
+            if c < len(self._chunk_turns):
+                sub._turns = self._chunk_turns[c]
             yield sub
+            if c == len(self._chunk_turns) and sub._turns is not None:
+                self._chunk_turns.append(sub._turns)
 
     @one_blas_thread
     def normal_equations(self, p) -> tuple[np.ndarray, np.ndarray, float]:

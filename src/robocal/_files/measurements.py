@@ -38,7 +38,10 @@ from .table import (
     Table,
     Unfit,
     decimal_hint,
+    join_notes,
+    join_rows,
     join_tables,
+    joined_header,
     map_columns,
     read_columns,
     read_head,
@@ -333,10 +336,10 @@ def read_measurements(path, model: RobotModel | None = None, *, units: str | Non
         if p is not None:
             check_rows(p, MAX_POSES, per_gb=POSES_PER_GB)
     fast = None
-    if joints is None and _size(path) >= FAST_BYTES:
-        fast = _read_fast(path, source, opts, declared, orient, model, targets)
+    if _size(path) + (0 if joints is None else _size(joints)) >= FAST_BYTES and not _is_program(joints):
+        fast = _read_fast(path, source, opts, declared, orient, model, targets, joints=joints)
     if fast is not None:
-        (data, table, cols), other = fast, None
+        data, table, cols, other = fast
     else:
         table, other, digest = _read_rows(path, joints, source, opts, model)
         cols = _columns(table, source, declared, orient, opts, model, targets)
@@ -393,28 +396,76 @@ def _columns(table: Table, source: str, declared: dict, orient, opts: dict, mode
                     unknown=opts["columns"].unknown, targets=targets)
 
 
-def _read_fast(path, source, opts, declared, orient, model, targets):
-    """(Measurements, head table, columns) read by the compiled parser a chunk at a time, or None
-    where it cannot vouch for the file (the row-by-row reader then reads it or names the fault)."""
+def _is_program(joints) -> bool:
+    """Whether ``joints`` names a robot program (its joint targets are read from the code)."""
+    if joints is None:
+        return False
+    from .programs import is_program
+
+    return is_program(joints)
+
+
+def _read_fast(path, source, opts, declared, orient, model, targets, *, joints=None):
+    """(Measurements, head table, columns, the joint file's head table or None) read by the compiled
+    parser a chunk at a time (with ``joints``, both files, joined on the key as ``join_tables``
+    joins them), or None where it cannot vouch for the files (the row-by-row reader then reads
+    them or names the fault)."""
     try:
         head = read_head(path, source, sep=opts["sep"], decimal=opts["decimal"], header=opts["header"])
-        raw_header = head.header
         table = map_columns(head, opts["columns"])
+        # per file: its head, and for each of its columns in the table read, the file's columns
+        files = [(path, head, _file_columns(head.header, opts["columns"]))]
+        other = None
+        if joints is not None:
+            jhead = read_head(joints, str(joints), sep=opts["sep"], decimal=opts["decimal"])
+            other = map_columns(jhead, opts["columns"])
+            key = opts["key"] or "pose"
+            header, kr = joined_header(table, other, key)
+            table = replace(table, header=header)
+            jraw = _file_columns(jhead.header, opts["columns"])
+            files.append((joints, jhead, jraw))
+            keys = [table.header.index(key), len(header)]   # the key: in the first file, then the second's (last)
         cols = _columns(table, source, declared, orient, opts, model, targets)
-        scan = scan_rows(path, head)
-        if scan.n_rows > MAX_POSES:
+        scans = [scan_rows(p, h) for p, h, _ in files]
+        if any(scan.n_rows > MAX_POSES for scan in scans):
             return None  # the row reader says so, in its words
-        raw = _file_columns(raw_header, opts["columns"])  # column of the mapped table -> the file's
-        texts = [cols.special.get(c) for c in ("pose", "set", "series")]
-        wanted = {r: "text" if k in texts else "number" for k in _used_columns(cols) for r in raw[k]}
-        if any(len(raw[k]) > 1 and wanted[raw[k][0]] == "text" for k in _used_columns(cols)):
-            raise Unfit  # a sum of text columns: the row reader says what is wrong
-        arrays = read_columns(path, head, scan, wanted)
-        data = _parse_columns({k: _summed([arrays[r] for r in raw[k]]) for k in _used_columns(cols)}, cols, scan,
-                              source, targets)
+        # each column of the table read -> (file, its columns in that file)
+        raw = [(0, r) for r in files[0][2]]
+        if joints is not None:
+            raw += [(1, r) for k, r in enumerate(files[1][2]) if k != kr] + [(1, files[1][2][kr])]
+        texts = [cols.special.get(c) for c in ("pose", "set", "series")] + ([keys[0], keys[1]] if joints else [])
+        used = _used_columns(cols) + (keys if joints is not None else [])
+        wanted = [{} for _ in files]
+        for k in used:
+            f, parts = raw[k]
+            if len(parts) > 1 and k in texts:
+                raise Unfit  # a sum of text columns: the row reader says what is wrong
+            wanted[f].update({r: "text" if k in texts else "number" for r in parts})
+        read = [read_columns(p, h, scan, w) for (p, h, _), scan, w in zip(files, scans, wanted)]
+        scan, take = scans[0], [None] * len(files)
+        if joints is not None:
+            rows, jrows, lost, jlost = join_rows(*(read[f][raw[k][1][0]] for f, k in zip((0, 1), keys)))
+            if "pose" not in cols.special:
+                raise Unfit  # poses named by their lines: the joined lines name both files (the row reader)
+            table = table.with_notes(*join_notes(table, other, key, len(rows), lost, jlost))
+            scan, take = replace(scan, n_rows=len(rows)), [rows, jrows]
+        arrays = {k: _summed([_taken(read[raw[k][0]][r], take[raw[k][0]]) for r in raw[k][1]])
+                  for k in _used_columns(cols)}
+        if joints is not None and "" in arrays[cols.special["pose"]]:
+            raise Unfit
+        data = _parse_columns(arrays, cols, scan, source, targets)
     except (Unfit, InputError):
         return None
-    return data, table, cols
+    return data, table, cols, other
+
+
+def _taken(column, rows):
+    """A column read (float array or list of text) at ``rows`` (all of it for None)."""
+    if rows is None:
+        return column
+    if isinstance(column, np.ndarray):
+        return column[rows]
+    return [column[i] for i in rows.tolist()]
 
 
 def _file_columns(header, columns) -> list[list[int]]:

@@ -45,9 +45,13 @@ LIMIT_SCHEMA = "robocal.limit/1"
 
 def plain(obj):
     """JSON-ready copy: numpy types to Python, NaN and infinities to null."""
+    if isinstance(obj, str):
+        return obj
     if isinstance(obj, dict):
         return {str(k): plain(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
+        if all(type(v) is str for v in obj):    # pose labels: a million of them in a large campaign
+            return list(obj)
         return [plain(v) for v in obj]
     if isinstance(obj, np.ndarray):
         return plain(obj.tolist())
@@ -95,6 +99,13 @@ def _stats_dict(s: ErrorStats) -> dict:
 
 def _array(a):
     return None if a is None else np.where(np.isfinite(a), a, np.nan).tolist()
+
+
+def per_pose_arrays(result: CalibrationResult) -> dict[str, np.ndarray]:
+    """The per-pose arrays of ``result`` under their keys of ``errors`` (the sidecar's names), as
+    float arrays; those the result does not hold are left out."""
+    return {key: np.asarray(getattr(result, field), dtype=float) for key, field in _ERROR_ARRAYS
+            if getattr(result, field) is not None}
 
 
 @checked(result=is_a(CalibrationResult), per_pose=FLAG)
@@ -275,8 +286,7 @@ def result_files(result: CalibrationResult, path, *, per_pose: bool = True, diag
         d["errors"].update(counts)
         return {Path(path): to_json(d)}
     buf = io.BytesIO()
-    arrays: dict[str, Any] = {key: np.asarray(getattr(result, field), dtype=float) for key, field in _ERROR_ARRAYS
-                              if getattr(result, field) is not None}
+    arrays: dict[str, Any] = per_pose_arrays(result)
     np.savez(buf, **arrays)
     blob = buf.getvalue()
     sidecar = sidecar_path(path)

@@ -345,15 +345,49 @@ def join_tables(points: Table, readings: Table, key: str) -> Table:
     if not rows:
         raise InputError(f"no {key} value is in both files ({_few(seen)} in {points.source}; {_few(by_key)} "
                          f"in {readings.source})", source=points.source, where=f"column {key!r}")
-    notes = []
-    for t, mine, other, what in ((points, seen, by_key, "joint readings"), (readings, by_key, seen, "measurement")):
-        lost = [v for v in mine if v not in other]
-        if lost:
-            notes.append(f"{len(lost)} row(s) of {t.source} have no {what} in the other file and are left out "
-                         f"({key} {_few(lost)})")
+    lost = [[v for v in mine if v not in other] for mine, other in ((seen, by_key), (by_key, seen))]
     header = points.header + tuple(c for k, c in enumerate(readings.header) if k != kr)
     return replace(points, header=header, rows=tuple(rows)).with_notes(
-        f"joined with {readings.source} on column {key!r}: {len(rows)} poses", *notes)
+        *join_notes(points, readings, key, len(rows), *lost))
+
+
+def join_notes(points: Table, readings: Table, key: str, n: int, lost_points, lost_readings) -> tuple[str, ...]:
+    """What a join of ``n`` poses says: the file joined, and the keys of each file's rows left out."""
+    notes = [f"joined with {readings.source} on column {key!r}: {n} poses"]
+    for t, lost, what in ((points, lost_points, "joint readings"), (readings, lost_readings, "measurement")):
+        if len(lost):
+            notes.append(f"{len(lost)} row(s) of {t.source} have no {what} in the other file and are left out "
+                         f"({key} {_few(lost)})")
+    return tuple(notes)
+
+
+def joined_header(points: Table, readings: Table, key: str) -> tuple[tuple[str, ...], int]:
+    """The header :func:`join_tables` gives and the key's column in ``readings``; ``Unfit`` where it
+    would stop with an error (it names the fault)."""
+    if key not in points.header or key not in readings.header or any(
+            c in points.header and c != key for c in readings.header):
+        raise Unfit
+    kr = readings.header.index(key)
+    return points.header + tuple(c for k, c in enumerate(readings.header) if k != kr), kr
+
+
+def join_rows(keys_points: list, keys_readings: list) -> tuple[np.ndarray, np.ndarray, list, list]:
+    """The rows of two files' key columns that :func:`join_tables` pairs (indices into each, in the
+    order of ``keys_points``) and the keys of each file left out; ``Unfit`` where it would stop
+    with an error (an empty or repeated key, no key in both)."""
+    at = {v: i for i, v in enumerate(keys_readings)}
+    if len(at) != len(keys_readings) or "" in at or len(set(keys_points)) != len(keys_points) or "" in keys_points:
+        raise Unfit
+    found = np.fromiter((at.get(v, -1) for v in keys_points), dtype=np.int64, count=len(keys_points))
+    paired = found >= 0
+    if not paired.any():
+        raise Unfit
+    rows_points, rows_readings = np.nonzero(paired)[0], found[paired]
+    taken = np.zeros(len(keys_readings), dtype=bool)
+    taken[rows_readings] = True
+    lost_points = [v for v, ok in zip(keys_points, paired.tolist()) if not ok]
+    lost_readings = [v for v, ok in zip(keys_readings, taken.tolist()) if not ok]
+    return rows_points, rows_readings, lost_points, lost_readings
 
 
 def _keyed(table: Table, k: int) -> dict:

@@ -9,9 +9,10 @@ says.
 from __future__ import annotations
 
 import html
-import math
 import re
 from datetime import datetime
+
+import numpy as np
 
 from .._arguments import (
     FLAG,
@@ -23,7 +24,7 @@ from .._arguments import (
 )
 from .._calibration import CalibrationResult
 from .._errors import InputError
-from .._files.result import DIAGNOSIS, diagnosis_to_dict, result_to_dict
+from .._files.result import DIAGNOSIS, diagnosis_to_dict, per_pose_arrays, result_to_dict
 from .._files.text import write_texts
 from .._model import DEFAULT_LINK_DENSITY, RELATIVE_MASSES, mdh_transform
 from .._parameters import FRAME_KINDS, GEOMETRIC_KINDS, SI_UNITS, parameter_layout, parameter_vector
@@ -35,6 +36,7 @@ from .plots import (
     LIMIT,
     STRUCTURE,
     correlation_blocks,
+    errors_array,
     need_matplotlib,
     plot_correlation,
     plot_errors_per_pose,
@@ -87,19 +89,40 @@ def _worst_poses(d: dict, flagged=frozenset(), k: int = WORST_POSES) -> str:
     in ``flagged`` (named by a check), each pose's first row anchored for the checks to link to."""
     err, prov = d["errors"], d.get("provenance") or {}
     markers = err.get("markers") or []
-    rows = []
+    after_all, before_all, set_at, pose_at, marker_at, flag_at = [], [], [], [], [], []
+    sets: list[tuple[str, list]] = []
     for key, when, src in (("fit", "fitted", "data"), ("validation", "held-out", "validation")):
-        before, after = err.get(f"{key}_before") or [], err.get(f"{key}_after") or []
+        before, after = errors_array(d, f"{key}_before"), errors_array(d, f"{key}_after")
+        if before is None or after is None:
+            continue
+        n, m = min(len(before), len(after)), min(before.shape[1], after.shape[1])
+        b_k, a_k = before[:n, :m], after[:n, :m]
+        poses, cols = np.nonzero(np.isfinite(a_k) & np.isfinite(b_k))    # pose by pose, marker by marker
         labels = (prov.get(src) or {}).get("labels") or []
-        for i, (rb, ra) in enumerate(zip(before, after)):
-            for m, (b, a) in enumerate(zip(rb, ra)):
-                if a is not None and b is not None and math.isfinite(a) and math.isfinite(b):
-                    name = labels[i] if i < len(labels) else f"pose {i}"
-                    rows.append((a, b, name, when, markers[m] if m < len(markers) else str(m)))
-    if not rows:
+        after_all.append(a_k[poses, cols])
+        before_all.append(b_k[poses, cols])
+        set_at.append(np.full(len(poses), len(sets)))
+        sets.append((when, labels))
+        pose_at.append(poses)
+        marker_at.append(cols)
+        if flagged:
+            named = np.fromiter((_pose_name(labels, i) in flagged for i in range(n)), dtype=bool, count=n)
+            flag_at.append(named[poses])
+    if not sum(len(v) for v in after_all):
         return ""
-    rows.sort(key=lambda r: -r[0])
-    shown = rows[:k] + [r for r in rows[k:] if r[2] in flagged]
+    a_pts, b_pts = np.concatenate(after_all), np.concatenate(before_all)
+    set_pts, pose_pts, marker_pts = (np.concatenate(v) for v in (set_at, pose_at, marker_at))
+    order = np.argsort(-a_pts, kind="stable")          # largest first, ties in the order of the points
+    picked = list(order[:k])
+    if flagged:
+        rest = order[k:]
+        picked += list(rest[np.concatenate(flag_at)[rest]])
+    shown = []
+    for i in picked:
+        when, labels = sets[int(set_pts[i])]
+        m = int(marker_pts[i])
+        shown.append((float(a_pts[i]), float(b_pts[i]), _pose_name(labels, int(pose_pts[i])), when,
+                     markers[m] if m < len(markers) else str(m)))
     anchored, body = set(), []
     for j, (a, b, name, when, mk) in enumerate(shown):
         anchor = f' id="{_anchor("pose", name)}"' if name not in anchored else ""
@@ -110,8 +133,13 @@ def _worst_poses(d: dict, flagged=frozenset(), k: int = WORST_POSES) -> str:
     more = f", then the {len(shown) - k} other points of poses a check named" if len(shown) > k else ""
     return ("<h3>Largest errors after calibration</h3>"
             + _table(["pose", "poses", "marker", "before (mm)", "after (mm)"], body, num_from=3,
-                     caption=f"The {min(k, len(rows))} measured points with the largest error after calibration"
+                     caption=f"The {min(k, len(a_pts))} measured points with the largest error after calibration"
                              f"{more}, by the pose labels of the input files."))
+
+
+def _pose_name(labels: list, i: int) -> str:
+    """The label of pose ``i`` in the input file, or "pose i" without one."""
+    return labels[i] if i < len(labels) else f"pose {i}"
 
 
 def _anchor(kind: str, name: str) -> str:
@@ -630,7 +658,7 @@ nav ol{columns:4}:target{outline:none;background:none}}
 
 def _errors_section(d: dict, has_val: bool) -> str:
     lim = d.get("limit")
-    n = sum(len(d["errors"].get(k) or []) for k in ("fit_before", "validation_before"))
+    n = sum(len(v) for v in (errors_array(d, k) for k in ("fit_before", "validation_before")) if v is not None)
     how = ("Position error of each measured point before (orange) and after (blue) calibration. Filled circles: "
            "fitted poses; open triangles on grey: held-out poses" if n <= DENSE else
            f"Position errors of the {n} poses before (orange) and after (blue) calibration, summarised in bins of "
@@ -668,13 +696,15 @@ def _trends_section(d: dict, result: CalibrationResult) -> str:
     flat = [c.removesuffix(" reading") for c in joints if c not in drawn]
     said = (f" Against {_list(flat)} the medians stay within the noise (within {STRUCTURE:g} standard errors of a "
             "bin's median): not drawn." if flat else "")
+    which = (f"all {trends['points']}" if trends["points"] == trends["of"] else
+             f"{trends['points']} (whole poses evenly spaced through the campaign) of the {trends['of']}")
     return ("<p>Where a model term is missing (backlash, compliance, a wrong encoder ratio, a thermal drift), the "
             "residuals follow the robot's posture: a trend here against one joint's reading and not against the "
             "others points at that joint. Reach and height are always drawn; a joint's reading only where the "
             "residuals show structure against it.</p>"
             + _figure(plot_residual_trends(trends, ["reach", "height"] + drawn),
-                      f"Residual components after calibration (calibrated minus measured, world axes) of all "
-                      f"{trends['points']} measured points, fitted and held-out, against the distance from the "
+                      f"Residual components after calibration (calibrated minus measured, world axes) of {which} "
+                      "measured points, fitted and held-out, against the distance from the "
                       "calibrated base's vertical axis (reach), the height above the calibrated base and the "
                       "readings of the joints that show structure. Line: median in bins of equal counts of points; "
                       f"band: the middle half.{said}"))
@@ -707,7 +737,8 @@ def render_report(result: CalibrationResult, *, extra: dict | None = None, diagn
     """
     if not isinstance(result, CalibrationResult):
         raise InputError(f"expected a CalibrationResult, got {type(result).__name__}", where="result")
-    d = result_to_dict(result)
+    d = result_to_dict(result, per_pose=False)
+    d["errors"].update(per_pose_arrays(result))    # arrays as they are: a million poses are no lists
     if diagnosis is not None:
         d["diagnosis"] = diagnosis_to_dict(diagnosis)
     nominal, units = _nominal_values(result)

@@ -24,6 +24,7 @@ BEFORE, AFTER, LIMIT, GRID = "#e0812f", "#2266b0", "#a3262a", "#d9dde3"
 DENSE = 600      # poses beyond which the error per pose is summarised in bins
 VECTORS = 300    # residual arrows drawn at most
 TREND_BINS = 16  # bins of a trend (equal counts of points)
+TREND_POINTS = 200_000  # measured points a trend is taken over at most (whole poses, evenly spaced)
 
 
 # -- the figure machinery ------------------------------------------------------------------------
@@ -442,18 +443,21 @@ def _stacked(d: dict, key: str) -> np.ndarray | None:
     return fit if held_out is None else np.concatenate([fit, held_out])
 
 
-def binned_median(x: np.ndarray, y: np.ndarray, bins: int = TREND_BINS) -> dict:
+def binned_median(x: np.ndarray, y: np.ndarray, bins: int = TREND_BINS, *, order: np.ndarray | None = None) -> dict:
     """The trend of ``y`` against ``x``: median and quartiles of ``y`` in bins of equal counts of points.
 
-    Returns {"x": bin centres (median x), "median", "q25", "q75", "n": points per bin} as arrays
-    (empty without data).
+    ``order``: ``np.argsort(x, kind="stable")`` when at hand (several ``y`` against one ``x``); it
+    is used only where every ``x`` and ``y`` is finite. Returns {"x": bin centres (median x),
+    "median", "q25", "q75", "n": points per bin} as arrays (empty without data).
     """
     ok = np.isfinite(x) & np.isfinite(y)
-    x, y = x[ok], y[ok]
+    if order is None or not ok.all():
+        x, y = x[ok], y[ok]
+        order = None
     bins = min(bins, len(x) // 8)
     if bins < 2:
         return {k: np.zeros(0) for k in ("x", "median", "q25", "q75", "n")}
-    order = np.argsort(x, kind="stable")
+    order = np.argsort(x, kind="stable") if order is None else order
     groups = np.array_split(order, bins)
     return {"x": np.array([np.median(x[g]) for g in groups]),
             "median": np.array([np.median(y[g]) for g in groups]),
@@ -486,12 +490,17 @@ def residual_trends(d: dict, joint_names, joint_units, X_WB) -> dict | None:
     height its height along that axis above the base origin. Returns {"rows": [(label, unit)],
     "columns": [(label, unit)], "points": n, "trends": {(row label, column label): binned_median(...)},
     "structured": column labels whose trend in some row spreads beyond ``STRUCTURE`` standard errors}
-    or None when the result holds no measured points.
+    or None when the result holds no measured points. Beyond ``TREND_POINTS`` points the trends are
+    taken over that many, whole poses evenly spaced through the campaign (``points``; ``of``: all).
     """
     vec, pos, q = _stacked(d, "residual_vectors"), _stacked(d, "positions"), _stacked(d, "readings")
     if vec is None or pos is None or q is None or pos.shape != vec.shape or len(q) != len(vec):
         return None
     n, m = vec.shape[:2]
+    total = n * m
+    if total > TREND_POINTS:    # evenly spaced poses: 12,500 points a bin still place its median well
+        keep = np.unique(np.linspace(0, n - 1, max(TREND_POINTS // m, 1)).round().astype(int))
+        vec, pos, q, n = vec[keep], pos[keep], q[keep], len(keep)
     X_WB = np.asarray(X_WB, dtype=float)
     rel = (pos - X_WB[:3, 3]) @ X_WB[:3, :3]  # in the base frame
     xs = [("reach", "mm", np.hypot(rel[..., 0], rel[..., 1]) * MM), ("height", "mm", rel[..., 2] * MM)]
@@ -500,12 +509,16 @@ def residual_trends(d: dict, joint_names, joint_units, X_WB) -> dict | None:
         xs.append((f"{name} reading", shown, np.repeat(q[:, j:j + 1], m, axis=1) * (DEG if unit == "rad" else MM)))
     ys = [(f"d{c}", "mm", vec[..., i] * MM) for i, c in enumerate("xyz")]
     rot = _stacked(d, "rotation_after")
+    if rot is not None and total > TREND_POINTS and len(rot) == total // m:
+        rot = rot[keep]
     if rot is not None and rot.shape == (n, m):
         ys.append(("rotation error", "deg", rot * DEG))
-    trends = {(ylab, xlab): binned_median(x.ravel(), y.ravel()) for ylab, _, y in ys for xlab, _, x in xs}
+    orders = {xlab: np.argsort(x.ravel(), kind="stable") for xlab, _, x in xs}   # one sort per abscissa
+    trends = {(ylab, xlab): binned_median(x.ravel(), y.ravel(), order=orders[xlab]) for ylab, _, y in ys
+              for xlab, _, x in xs}
     structured = [xlab for xlab, _, _ in xs if max(structure(trends[(ylab, xlab)]) for ylab, _, _ in ys) >= STRUCTURE]
     return {"rows": [(lab, u) for lab, u, _ in ys], "columns": [(lab, u) for lab, u, _ in xs], "points": n * m,
-            "trends": trends, "structured": structured}
+            "of": total, "trends": trends, "structured": structured}
 
 
 def _ticks(lo: float, hi: float, n: int = 3) -> list[float]:
