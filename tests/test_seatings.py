@@ -198,6 +198,8 @@ BAD = [
     ("files", _limit("MAX_SOCKET_FILES", 5), ["campaign", "more than 5 socket files"]),
     ("rows", _limit("MAX_SEATINGS", 50), ["hole_", "more than 50 seatings"]),
     ("entries", _limit("MAX_ENTRIES", 3), ["campaign", "more than 3 entries"]),
+    ("bytes", _limit("MAX_CAMPAIGN_BYTES", 1000), ["campaign", "bytes; a folder of seatings holds up to 1,000"]),
+    ("row", _limit("MAX_ROW_CHARS", 20), ["P1/hole_0.csv", "line 1", "characters; a joint file's rows hold up to 20"]),
 ]
 
 

@@ -42,6 +42,8 @@ MAX_SOCKET_FILES = 1_000
 MAX_SEATINGS = 20_000
 MAX_ENTRIES = 10_000
 MAX_CAMPAIGN_BYTES = MAX_FILE_BYTES
+# characters of one row: a row of 100 joints written to 30 digits is 3,200
+MAX_ROW_CHARS = 10_000
 _CELLS = re.compile(r"\s*,\s*|\s+")
 
 
@@ -159,14 +161,17 @@ def _number(cell: str, source: str, where: str) -> float:
 def _joint_rows(text: str, source: str, joints: tuple[str, ...], room: int) -> list[tuple[int, list[float]]]:
     """(line number, readings in the file's column order) of each seating; no header, no blank cells."""
     n = len(joints)
-    lines = text.splitlines()
-    if len(lines) > room:
+    if text.count("\n") > room:
         raise InputError(f"the campaign holds more than {MAX_SEATINGS:,} seatings; a folder of seatings holds "
                          "up to that many (docs/formats.md)", source=source)
+    lines = text.split("\n")                # counted before it is split; a '\r' ending is stripped
     out: list[tuple[int, list[float]]] = []
     for k, line in enumerate(lines, start=1):
         if not line.strip():
             continue
+        if len(line) > MAX_ROW_CHARS:
+            raise InputError(f"a row of {len(line):,} characters; a joint file's rows hold up to {MAX_ROW_CHARS:,}",
+                             source=source, where=f"line {k}")
         cells = _CELLS.split(line.strip())
         if not out and not any(_is_number(c) for c in cells):
             raise InputError(f"a header ({excerpt(line.strip())}): joint files have no header; {MANIFEST}'s "
@@ -222,11 +227,13 @@ def read_seatings(path, model: RobotModel) -> Contacts:
     target: list[str] = []
     placement: list[str] = []
     labels: list[str] = []
-    budget = MAX_CAMPAIGN_BYTES
+    size = sum(os.stat(f).st_size for _, _, f in files)
+    if size > MAX_CAMPAIGN_BYTES:
+        raise InputError(f"the joint files hold {size:,} bytes; a folder of seatings holds up to "
+                         f"{MAX_CAMPAIGN_BYTES:,} (docs/formats.md)", source=str(folder))
     for name, socket, file in files:
         source = str(file)
-        data = read_bytes(file, limit=budget)
-        budget -= len(data)
+        data = read_bytes(file)
         digest.update(f"{name}/{file.name}\0".encode() + hashlib.sha256(data).digest())
         rows = _joint_rows(decode(data, source), source, manifest.order, MAX_SEATINGS - len(q))
         q += [r for _, r in rows]
