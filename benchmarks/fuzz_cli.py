@@ -4,11 +4,11 @@
                                    [--seconds S]
 
 Cases come from the hypothesis strategies in tests/fuzz_cases.py, one per command of its COMMANDS
-table (model files, measurement, repeatability, target and contact CSVs, profiles, limit files, DH
-tables, URDFs, result files, command lines). Each runs ``robocal.cli.main(argv)`` in a
-forked child, in a folder of its own, under a limit of 20 s of CPU time (wall-clock time on a
-shared machine is not the program's; a 120 s wall-clock backstop too) and 1 GB of memory (on top
-of the address space the parent already holds). Outcomes (fuzz_cases.OUTCOMES): clean error,
+table (model files, measurement, repeatability, target and contact CSVs, folders of seatings,
+profiles, limit files, DH tables, URDFs, result files, command lines). Each runs
+``robocal.cli.main(argv)`` in a forked child, in a folder of its own, under a limit of 20 s of CPU
+time (wall-clock time on a shared machine is not the program's; a 120 s wall-clock backstop too)
+and 1 GB of memory (on top of the address space the parent already holds). Outcomes (fuzz_cases.OUTCOMES): clean error,
 ok result, traceback, hang, over-memory, non-finite output, unreadable output (an output robocal's
 own reader refuses), wrong output (an output that does not reproduce its source: an export's
 forward kinematics, planned poses or 'ok' commands beyond the joint limits), multi-line error. A
@@ -109,6 +109,7 @@ class Runner:
         folder = self.root / f"case{self.started}"
         folder.mkdir()
         for name, data in files.items():
+            (folder / name).parent.mkdir(parents=True, exist_ok=True)
             (folder / name).write_bytes(data)
         pid = os.fork()
         if pid == 0:

@@ -38,6 +38,7 @@ def run_case(files: dict, argv: list) -> tuple[str, str]:
     here = os.getcwd()
     with tempfile.TemporaryDirectory() as folder:
         for name, data in files.items():
+            Path(folder, name).parent.mkdir(parents=True, exist_ok=True)
             Path(folder, name).write_bytes(data)
         err = io.StringIO()
         try:

@@ -26,6 +26,7 @@ import numpy as np
 from .._contacts import Contacts, KnownDistance
 from .._errors import InputError, excerpt, suggest
 from .._model import RobotModel
+from .._options import MAX_CONTACTS, MAX_GROUPS, MAX_MODEL_BYTES
 from .._units import UNITS, parse_units
 from .measurements import MAX_MAGNITUDE
 from .text import MAX_FILE_BYTES, decode, load_yaml, read_bytes
@@ -36,10 +37,11 @@ REQUIRED_KEYS = ("units", "joints", "sigma")
 # a placement's folder and a socket's file: letters, digits, '_', '-' (a placement also '.' and '+')
 PLACEMENT_NAME = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9_.+-]{0,63}")
 SOCKET_FILE = re.compile(r"(?P<socket>[A-Za-z0-9_-]{1,64})\.csv")
-# bounds of a campaign (docs/formats.md): socket files (each a socket group, three unknowns of the
-# fit), seatings (rows) over all files, entries looked at in one folder, and bytes over all files
-MAX_SOCKET_FILES = 1_000
-MAX_SEATINGS = 20_000
+# bounds of a campaign (docs/formats.md), those of a contact file: socket files (each a socket group,
+# three unknowns of the fit) and seatings (rows) over all files; and entries looked at in one folder,
+# bytes over all files
+MAX_SOCKET_FILES = MAX_GROUPS
+MAX_SEATINGS = MAX_CONTACTS
 MAX_ENTRIES = 10_000
 MAX_CAMPAIGN_BYTES = MAX_FILE_BYTES
 # characters of one row: a row of 100 joints written to 30 digits is 3,200
@@ -218,7 +220,7 @@ def read_seatings(path, model: RobotModel) -> Contacts:
                          "(docs/formats.md)", source=str(folder))
     if not Path(os.path.realpath(manifest_path)).is_relative_to(root):
         raise InputError("a link out of the campaign folder", source=str(manifest_path))
-    raw = read_bytes(manifest_path)
+    raw = read_bytes(manifest_path, limit=MAX_MODEL_BYTES)
     digest = hashlib.sha256()
     digest.update(hashlib.sha256(raw).digest())
     manifest = _Manifest(load_yaml(decode(raw, str(manifest_path)), str(manifest_path)), model, str(manifest_path))
