@@ -51,7 +51,8 @@ _CELLS = re.compile(r"\s*,\s*|\s+")
 
 def _natural(name: str) -> list:
     """Sort key putting P2 before P10 and hole_2 before hole_10."""
-    return [(0, int(t), "") if t.isdigit() else (1, 0, t) for t in re.split(r"(\d+)", name) if t]
+    return [(0, len(t.lstrip("0")), t.lstrip("0")) if t.isdigit() else (1, 0, t) for t in re.split(r"(\d+)", name)
+            if t]
 
 
 def _entries(folder: Path, root: Path) -> list[os.DirEntry]:
@@ -59,12 +60,12 @@ def _entries(folder: Path, root: Path) -> list[os.DirEntry]:
     out: list[os.DirEntry] = []
     try:
         with os.scandir(folder) as it:
-            for e in it:
-                if e.name.startswith("."):
-                    continue
-                if len(out) == MAX_ENTRIES:
+            for seen, e in enumerate(it):
+                if seen == MAX_ENTRIES:
                     raise InputError(f"more than {MAX_ENTRIES:,} entries; a campaign folder holds up to that many "
                                      "per folder (docs/formats.md)", source=str(folder))
+                if e.name.startswith("."):
+                    continue
                 if e.is_symlink():
                     target = Path(os.path.realpath(e.path))
                     if not target.is_relative_to(root):
