@@ -342,7 +342,7 @@ def calibrate_contacts(model: RobotModel, contacts: Contacts, *, data: Measureme
                correlation_check([e.name for e in estimates], cov.correlation[:k, :k])]
     tracker = None
     if data is not None and design.tracker is not None:    # a tracker part exists with data
-        tracker = error_stats(design.tracker.error_norms(sol.p[:prob.n_robot]))
+        tracker = error_stats(design.tracker.problem.error_norms(sol.p[:prob.n_robot]))
     return ContactCalibration(
         nominal_model=model, calibrated_model=calibrated, parameters=estimates, covariance=cov.covariance[:k, :k],
         correlation=cov.correlation[:k, :k], identifiability=ident,
@@ -387,7 +387,7 @@ def _row_checks(design: ContactProblem, sol, data, noise: Noise):
                    contact_fit_check(kind, r2, s, out)]
         ratios[kind] = float(np.sqrt(np.mean((r2 / s[:, None]) ** 2)))
     if data is not None and design.tracker is not None:
-        residuals = design.tracker.errors(sol.p[:design.n_robot])[data.mask]
+        residuals = design.tracker.problem.errors(sol.p[:design.n_robot])[data.mask]
         sigma = None if data.sigma is None else data.sigma[data.mask]
         rows, markers = np.nonzero(data.mask)
         out_check, out = outlier_check(residuals, sigma, noise, [f"{data.labels[i]}, marker {data.marker_names[j]}"

@@ -22,7 +22,7 @@ from ._arguments import (
 )
 from ._errors import DegenerateDataError, InputError, check_choice
 from ._identifiability import singular_values
-from ._linalg import r_factor, reduced, solve_upper
+from ._linalg import reduced, solve_upper
 from ._observations import ContactProblem
 from ._options import LOSSES
 from ._problem import LARGE_POSES, Problem
@@ -87,7 +87,7 @@ def solve(problem: Problem, p0: np.ndarray, *, loss: str = "linear", f_scale: fl
     bounded = lower is not None and bool(np.any(np.isfinite(lower)))
     if loss == "linear" and not bounded:
         return _levenberg_marquardt(problem, p0, max_nfev, tol)
-    if getattr(problem, "chunked", False):   # problems of other observations are solved whole
+    if problem.chunked:
         raise InputError(f"a campaign of over {LARGE_POSES} poses is solved in chunks, with the linear loss and "
                          "without bounds only")
     return _trust_region(problem, p0, loss, f_scale, max_nfev, lower if bounded else None, tol)
@@ -140,12 +140,12 @@ def _normal_equations(problem, p: np.ndarray, r: np.ndarray | None = None) -> _N
     """At ``p`` (``r``: the residuals there, when known): chunk by chunk for a large campaign, else
     from the Jacobian formed whole (its R factor through the Gram matrix when well conditioned,
     ``r_factor``)."""
-    if getattr(problem, "chunked", False):
+    if problem.chunked:
         R, g, cost = problem.normal_equations(p)
         return _Normal(R=R, g=g, cost=cost, J=None, r=r)
     J = problem.jacobian(p)
     r = problem.residuals(p) if r is None else r
-    R = problem.jacobian_factor(p) if hasattr(problem, "jacobian_factor") else r_factor(J)
+    R = problem.jacobian_factor(p)
     return _Normal(R=R, g=J.T @ r, cost=float(r @ r), J=J, r=r)
 
 
