@@ -111,6 +111,57 @@ def test_sockets_with_known_spacing_recover_the_arm_and_the_held_out_spread(arm7
     assert res.fit_after.distance_rms < 5 * fit.distances[0].sigma + 1e-5
 
 
+def _by_hand(model, contacts):
+    """Per socket the (mean, max) distance of each seating's ball centre from the socket's mean
+    centre, and per placement and known distance the calibrated spacing minus the known one, by
+    plain loops over the rows."""
+    sockets = {}
+    for i in range(contacts.n_rows):
+        p = rc.forward_kinematics(model, contacts.q[i:i + 1]).positions[0, model.marker_names.index(contacts.marker[i])]
+        sockets.setdefault((contacts.placement[i], contacts.target[i]), []).append(p)
+    centre = {key: sum(ps) / len(ps) for key, ps in sockets.items()}
+    consistency = {}
+    for (placement, socket), ps in sockets.items():
+        d = [float(np.sqrt(sum((p[k] - centre[placement, socket][k]) ** 2 for k in range(3)))) for p in ps]
+        consistency[f"{placement}/{socket}"] = (sum(d) / len(d), max(d))
+    spacing = {}
+    for placement in dict.fromkeys(contacts.placement):
+        for d in contacts.distances:
+            a, b = centre[placement, d.a], centre[placement, d.b]
+            spacing[f"{placement}: {d.a}-{d.b}"] = float(np.sqrt(sum((a[k] - b[k]) ** 2 for k in range(3)))) - d.length
+    return consistency, spacing
+
+
+def test_socket_consistency_and_spacing_error_match_a_hand_computation(arm7, socket_run):
+    """The community's figures, fitted and held out, before and after, to 1e-9 m."""
+    _, fit, val = socket_run
+    res = calibrate_contacts(arm7, fit, validation=val)
+    for model, figures, contacts in ((arm7, res.fit_before, fit), (res.calibrated_model, res.fit_after, fit),
+                                     (arm7, res.validation_before, val),
+                                     (res.calibrated_model, res.validation_after, val)):
+        consistency, spacing = _by_hand(model, contacts)
+        assert figures.consistency.keys() == consistency.keys() and figures.distance.keys() == spacing.keys()
+        for key, (mean, worst) in consistency.items():
+            assert abs(figures.consistency[key][0] - mean) < 1e-9 and abs(figures.consistency[key][1] - worst) < 1e-9
+        for key, e in spacing.items():
+            assert abs(figures.distance[key] - e) < 1e-9
+        every = [d for key in consistency for d in _seating_distances(model, contacts, key)]
+        assert abs(figures.consistency_mean - sum(every) / len(every)) < 1e-9
+        assert abs(figures.consistency_max - max(w for _, w in consistency.values())) < 1e-9
+        assert abs(figures.spacing_max - max(abs(e) for e in spacing.values())) < 1e-9
+        assert abs(figures.spacing_mean - sum(abs(e) for e in spacing.values()) / len(spacing)) < 1e-9
+    # the calibration makes the held-out seatings consistent: far below the nominal's
+    assert res.validation_after.consistency_mean < res.validation_before.consistency_mean / 20
+
+
+def _seating_distances(model, contacts, key):
+    placement, socket = key.split("/")
+    rows = [i for i in range(contacts.n_rows) if contacts.placement[i] == placement and contacts.target[i] == socket]
+    P = rc.forward_kinematics(model, contacts.q[rows]).positions[:, model.marker_names.index(contacts.marker[rows[0]])]
+    c = P.mean(axis=0)
+    return [float(np.linalg.norm(p - c)) for p in P]
+
+
 def test_without_a_known_distance_the_scale_is_named_unreachable(arm7, socket_run):
     _, fit, _ = socket_run
     names = rc.candidate_parameters(arm7, ("geometric",))
@@ -258,6 +309,10 @@ def test_the_command_line_calibrates_from_contacts_alone_and_next_to_a_tracker_f
     assert arm7.name in written.description and written.description != arm7.description
     result = __import__("json").loads((tmp_path / "a" / "contacts-result.json").read_text())
     assert [u["name"] for u in result["unreachable"]] == ["base"] and result["verdict"] == "pass"
+    assert "held-out socket consistency" in out and "held-out spacing error" in out
+    held = result["validation_after"]
+    assert held["consistency_mean_m"] > 0 and held["consistency_max_m"] >= held["consistency_mean_m"]
+    assert set(held["consistency_m"]) == {f"P4/{s}" for s in "ABC"} and held["spacing_error_max_m"] is not None
     tracker = rc.measure(true, rc.random_configurations(arm7, 15, 1), rng=1)
     rc.write_measurements(tracker, tmp_path / "tracker.csv", model=arm7)
     code, out, err = cli("calibrate", ARM7, tmp_path / "tracker.csv", "--contacts", path, "--out", tmp_path / "b")

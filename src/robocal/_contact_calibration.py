@@ -15,6 +15,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ._arguments import FRACTION, NAMES, checked, is_a, names_in, noise_of, one_of, optional, shaped, whole
+from ._arrays import read_only
 from ._calibration import ErrorStats, ParameterEstimate, error_stats, workspace_change
 from ._checks import (
     Check,
@@ -180,12 +181,17 @@ class ContactErrors:
     ``spread`` per socket (placement/socket) the RMS distance of the marker positions from their
     centroid; ``distance`` per placement and pair the centroids' distance minus the known length;
     ``plane`` per plane the RMS distance of its contacts from the plane (the known one, else the
-    best-fitting); ``bar`` per pair the distance of the two ends minus the bar's length."""
+    best-fitting); ``bar`` per pair the distance of the two ends minus the bar's length;
+    ``consistency`` per socket the (mean, max) distance of its seated ball centres from their mean
+    centre, the figure socket campaigns are judged by (``distance`` is then the spacing error:
+    calibrated spacing minus the known one)."""
 
     spread: dict
     distance: dict
     plane: dict
     bar: dict
+    consistency: dict = field(default_factory=dict)
+    seatings: dict = field(default_factory=dict)
 
     @property
     def mean_spread(self) -> float | None:
@@ -194,6 +200,27 @@ class ContactErrors:
     @property
     def distance_rms(self) -> float | None:
         return float(np.sqrt(np.mean(np.square(list(self.distance.values()))))) if self.distance else None
+
+    @property
+    def consistency_mean(self) -> float | None:
+        """The mean distance of every seated ball centre from its socket's mean centre (m)."""
+        d = list(self.seatings.values())
+        return float(np.mean(np.concatenate(d))) if d else None
+
+    @property
+    def consistency_max(self) -> float | None:
+        """The largest distance of a seated ball centre from its socket's mean centre (m)."""
+        return float(max(m for _, m in self.consistency.values())) if self.consistency else None
+
+    @property
+    def spacing_mean(self) -> float | None:
+        """The mean absolute spacing error (calibrated minus known distance, m)."""
+        return float(np.mean(np.abs(list(self.distance.values())))) if self.distance else None
+
+    @property
+    def spacing_max(self) -> float | None:
+        """The largest absolute spacing error (m)."""
+        return float(np.max(np.abs(list(self.distance.values())))) if self.distance else None
 
 
 @checked(model=is_a(RobotModel), contacts=is_a(Contacts))
@@ -212,10 +239,13 @@ def contact_errors(model: RobotModel, contacts: Contacts) -> ContactErrors:
     ev = evaluate(model, contacts.q)
     P = ev.positions[np.arange(contacts.n_rows), [model.marker_names.index(m) for m in contacts.marker]]
     centre = {}
-    spread = {}
+    spread, consistency, seatings = {}, {}, {}
     for g in contacts.groups("socket"):
         centre[g.placement, g.target] = P[g.rows].mean(axis=0)
-        spread[g.label] = float(np.sqrt(np.mean(np.sum((P[g.rows] - centre[g.placement, g.target]) ** 2, axis=1))))
+        d = np.linalg.norm(P[g.rows] - centre[g.placement, g.target], axis=1)
+        spread[g.label] = float(np.sqrt(np.mean(d ** 2)))
+        consistency[g.label] = (float(d.mean()), float(d.max()))
+        seatings[g.label] = read_only(d)
     distance = {f"{ga.placement}: {d.a}-{d.b}": float(np.linalg.norm(centre[ga.placement, d.a] -
                                                                       centre[gb.placement, d.b]) - d.length)
                 for d, ga, gb in contacts.distance_pairs()}
@@ -230,7 +260,7 @@ def contact_errors(model: RobotModel, contacts: Contacts) -> ContactErrors:
         plane[g.label] = float(np.sqrt(np.mean(dist ** 2)))
     bar = {g.label: float(np.linalg.norm(P[g.rows[0]] - P[g.rows[1]]) - contacts.bars[g.target][0])
            for g in contacts.groups("bar")}
-    return ContactErrors(spread, distance, plane, bar)
+    return ContactErrors(spread, distance, plane, bar, consistency, seatings)
 
 
 @dataclass(frozen=True, eq=False)

@@ -23,9 +23,15 @@ def _figures(label: str, before, after) -> list[str]:
     if before.spread:
         out.append(f"  {label} socket spread (RMS about each socket's centre, mean over {len(before.spread)}): "
                    f"{_mm(before.mean_spread)} -> {_mm(after.mean_spread)}")
+    if before.consistency:
+        out.append(f"  {label} socket consistency (each seating's distance from its socket's mean centre), "
+                   f"mean: {_mm(before.consistency_mean)} -> {_mm(after.consistency_mean)}; "
+                   f"max: {_mm(before.consistency_max)} -> {_mm(after.consistency_max)}")
     if before.distance:
         out.append(f"  {label} known distances, RMS error over {len(before.distance)}: "
                    f"{_mm(before.distance_rms)} -> {_mm(after.distance_rms)}")
+        out.append(f"  {label} spacing error (calibrated minus known), mean |e|: {_mm(before.spacing_mean)} -> "
+                   f"{_mm(after.spacing_mean)}; max |e|: {_mm(before.spacing_max)} -> {_mm(after.spacing_max)}")
     for name, kind in (("plane", "plane contacts, RMS distance to their plane"), ("bar", "ball-bar length error")):
         b, a = getattr(before, name), getattr(after, name)
         if b:

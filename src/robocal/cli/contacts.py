@@ -26,8 +26,11 @@ def _result_json(result) -> str:
     ident = result.identifiability
 
     def figures(e):
-        return None if e is None else {"spread_m": e.spread, "distance_error_m": e.distance, "plane_rms_m": e.plane,
-                                       "bar_error_m": e.bar}
+        return None if e is None else {
+            "spread_m": e.spread, "distance_error_m": e.distance, "plane_rms_m": e.plane, "bar_error_m": e.bar,
+            "consistency_m": {k: {"mean": m, "max": x} for k, (m, x) in e.consistency.items()},
+            "consistency_mean_m": e.consistency_mean, "consistency_max_m": e.consistency_max,
+            "spacing_error_mean_m": e.spacing_mean, "spacing_error_max_m": e.spacing_max}
 
     out = {
         "robocal_contacts_result": 1, "verdict": result.verdict,
