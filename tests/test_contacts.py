@@ -361,3 +361,50 @@ def test_a_socket_plan_recommends_the_smallest_design_within_the_bounds(arm7):
     assert plan.campaign.q.shape[0] == plan.chosen.n_seatings
     assert plan_sockets(arm7, placements=(3,), poses_per_socket=(20,), bounds={"length": 1e-9}).chosen is None
 
+
+
+def test_the_only_spacing_row_is_kept_by_the_robust_refit_and_named(arm7):
+    """One placement, one known distance stated 5 mm wrong, and a socket row read while the arm moved
+    (which starts the robust refit): the distance alone fixes the scale, so the refit keeps it in
+    full (the stated spacing is met) and a check says that nothing else checks it. With three
+    placements no distance row carries the scale alone and no such check appears."""
+    from robocal._solve import carried_alone
+
+    true = rc.perturb_model(arm7, rc.identifiability(arm7, parameters=("frames", "markers")).identified, rng=0)
+    runs = {}
+    for placements in (1, 3):
+        c = socket_campaign(true, placements=placements, poses_per_socket=25, joint_noise=ENCODER, rng=1)
+        q = c.q.copy()
+        q[5, 1] += 1e-3
+        wrong = replace(c, q=q, distances=(replace(c.distances[0], length=c.distances[0].length + 5e-3),))
+        names = rc.candidate_parameters(arm7, ("geometric",))
+        prob = ContactProblem(arm7, wrong, names, compliance=False)
+        design = prob.over(contact_identifiability(prob, names).identified)
+        alone = carried_alone(design.jacobian(design.start_vector()))
+        kinds = [rc.identification.ROW_KINDS[k] for k in design.row_kinds()[alone]]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            runs[placements] = (kinds, calibrate_contacts(arm7, wrong))
+    kinds, res = runs[1]
+    assert kinds == ["distance"]
+    check = next(c for c in res.checks if c.name == "rows carried alone")
+    assert check.status == "warn" and "P1: A-B" in check.summary and "the scale" in check.summary
+    assert abs(res.fit_after.distance["P1: A-B"]) < 5 * 2e-6            # the stated spacing is met
+    assert any(c.name.startswith("outliers") and "soft_l1" in c.summary for c in res.checks)
+    kinds, res = runs[3]
+    assert kinds == [] and not any(c.name == "rows carried alone" for c in res.checks)
+
+
+@pytest.mark.parametrize("loss", ["soft_l1", "huber", "cauchy", "arctan"])
+def test_a_partly_robust_loss_is_the_loss_with_the_kept_rows_linear(loss):
+    from robocal._solve import _partly_robust, robust_weights
+
+    z = np.array([0.0, 0.3, 0.9, 1.5, 4.0, 30.0, 0.3, 30.0])
+    keep = np.array([False] * 6 + [True, True])
+    rho = _partly_robust(loss, keep)
+    out, up, down = rho(z), rho(z * (1 + 1e-7) + 1e-9), rho(z * (1 - 1e-7) - 1e-9)
+    h = (z * (1 + 1e-7) + 1e-9) - (z * (1 - 1e-7) - 1e-9)
+    assert np.allclose(out[1], (up[0] - down[0]) / h, rtol=1e-5, atol=1e-7)        # rho' of rho
+    assert np.allclose(out[2], (up[1] - down[1]) / h, rtol=1e-4, atol=1e-6)        # rho'' of rho'
+    assert np.allclose(out[1, ~keep], robust_weights(np.sqrt(z[~keep]), loss, 1.0))
+    assert np.array_equal(out[:, keep], np.vstack([z[keep], np.ones(2), np.zeros(2)]))

@@ -39,7 +39,7 @@ from ._observations import ROW_KINDS, ContactProblem
 from ._options import DEFAULT_INSTRUMENT, INSTRUMENT_NOISE, LOSSES, OUTLIER_ACTIONS
 from ._parameters import candidate_parameters, model_from_vector, parameter_layout, parameter_names
 from ._problem import needs_compliance
-from ._solve import covariance, solve
+from ._solve import carried_alone, covariance, solve
 
 # the part of a direction's effect the nuisance parameters leave (relative) below which it is unreachable
 UNREACHABLE_TOL = 1e-6
@@ -392,12 +392,34 @@ def _solve(design: ContactProblem, p0, data, noise: Noise, *, loss: str, max_nfe
     checks, ratios, outlying = _row_checks(design, sol, data, noise)
     if not (outlying and loss == "linear" and on_outliers == "refit"):
         return sol, checks, ratios
-    sol = solve(design, p0, loss="soft_l1", max_nfev=max_nfev)
+    alone = carried_alone(design.jacobian(sol.p))
+    sol = solve(design, p0, loss="soft_l1", max_nfev=max_nfev, linear_rows=alone if alone.any() else None)
     checks, ratios, _ = _row_checks(design, sol, data, noise)
     said = f"; the robust loss {sol.loss} sets them aside"
-    return sol, [replace(c, status="warn", summary=c.summary + said, fix="check those rows; remove them to fit "
-                         "without them") if c.name.startswith("outliers") and c.status != "pass" else c
-                 for c in checks], ratios
+    checks = [replace(c, status="warn", summary=c.summary + said, fix="check those rows; remove them to fit "
+                      "without them") if c.name.startswith("outliers") and c.status != "pass" else c
+              for c in checks]
+    if alone.any():
+        checks.append(_kept_alone(design, alone))
+    return sol, checks, ratios
+
+
+_CARRIES = {"distance": "the scale", "bar": "the scale", "plane": "a plane's position", "socket": "a socket's point",
+            "position": "a direction of the robot", "rotation": "a direction of the robot"}
+
+
+def _kept_alone(design: ContactProblem, alone: np.ndarray) -> Check:
+    """The rows the robust refit kept in full because they alone carry a quantity (``carried_alone``)."""
+    labels = np.array(design.row_labels(), dtype=object)[alone]
+    kinds = [ROW_KINDS[k] for k in design.row_kinds()[alone]]
+    what = ", ".join(dict.fromkeys(_CARRIES[k] for k in kinds))
+    listed = ", ".join(dict.fromkeys(str(v) for v in labels[:6])) + (" and more" if len(labels) > 6 else "")
+    return Check("rows carried alone", "warn",
+                 f"{listed}: the only rows fixing {what}; kept in full in the robust refit (setting them aside would "
+                 "leave it free), so nothing else in these data checks them",
+                 cause="one observation alone fixes a quantity of the fit",
+                 fix="state a second known distance or more contacts of that kind, so that one mistake shows",
+                 items=tuple(str(v) for v in labels))
 
 
 def _row_checks(design: ContactProblem, sol, data, noise: Noise):

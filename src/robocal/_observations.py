@@ -433,6 +433,13 @@ class ContactProblem:
                 "bar": [f"{lab[g.rows[0]]}, {lab[g.rows[1]]} ({g.label})" for g in self.bars],
                 "distance": [f"{ga.placement}: {d.a}-{d.b}" for d, ga, _ in self.pairs]}
 
+    def row_labels(self) -> list[str]:
+        """A label for each row of ``residuals``: the tracker's rows by number, then each contact's."""
+        out = [] if self.tracker is None else [f"tracker row {i + 1}" for i in range(self.tracker.n_rows)]
+        labels = self.contact_labels()
+        out += [f"{lab} ({axis})" for lab in labels["socket"] for axis in "xyz"]
+        return out + [f"{lab} ({kind})" for kind in ("plane", "bar", "distance") for lab in labels[kind]]
+
     def _stack(self) -> list:
         return ([] if self.tracker is None else [self.tracker]) + list(self.blocks)
 
