@@ -408,3 +408,91 @@ def test_a_partly_robust_loss_is_the_loss_with_the_kept_rows_linear(loss):
     assert np.allclose(out[2], (up[1] - down[1]) / h, rtol=1e-4, atol=1e-6)        # rho'' of rho'
     assert np.allclose(out[1, ~keep], robust_weights(np.sqrt(z[~keep]), loss, 1.0))
     assert np.array_equal(out[:, keep], np.vstack([z[keep], np.ones(2), np.zeros(2)]))
+
+
+@pytest.fixture(scope="module")
+def narrow_run(arm7):
+    """One placement with the last joint held within 0.06 rad: the seatings barely turn it, and four
+    pairs of parameters become interchangeable (r = -1.0000); the same readings as tracker data."""
+    limits = list(arm7.joint_limits)
+    limits[6] = (0.57, 0.63)
+    narrow = arm7.replace(joint_limits=tuple(limits))
+    true = rc.perturb_model(narrow, rc.identifiability(arm7, parameters=("frames", "markers")).identified, rng=0)
+    sockets = socket_campaign(true, placements=1, poses_per_socket=20, joint_noise=ENCODER, rng=1)
+    return narrow, sockets, rc.measure(true, sockets.q, rng=1)
+
+
+@pytest.mark.parametrize("weak", ["eliminate", "flag"])
+def test_interchangeable_parameters_are_held_back_or_flagged_as_on_tracker_data(narrow_run, weak):
+    narrow, sockets, tracker = narrow_run
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        by_contacts = calibrate_contacts(narrow, sockets, weak=weak)
+        by_tracker = rc.calibrate(narrow, tracker, weak=weak)
+    checks = [{c.name: c for c in r.checks}["identifiability at these poses"] for r in (by_contacts, by_tracker)]
+    if weak == "eliminate":
+        assert [n for n, _ in by_contacts.weak] == ["j7.alpha", "j7.d"]
+        assert not {"j7.alpha", "j7.d"} & set(by_tracker.parameter_names)
+        assert not {"j7.alpha", "j7.d"} & {p.name for p in by_contacts.parameters}
+        assert [c.status for c in checks] == ["pass", "pass"]
+        assert all("held at their nominal values" in c.summary for c in checks)
+        assert max(abs(p.change) for p in by_contacts.parameters if p.quantity == "length") < 2e-3
+    else:
+        pairs = [{i for i in c.items if "~" in i} for c in checks]
+        assert [c.status for c in checks] == ["warn", "warn"] and pairs[0] == pairs[1] and len(pairs[0]) == 4
+        assert "ball.z ~ j7.alpha (r = -1.0000)" in pairs[0]
+
+
+def test_calibrate_takes_contacts_and_holds_out_each_placement_in_turn(arm7, socket_run):
+    _, fit, _ = socket_run
+    res = rc.calibrate(arm7, contacts=fit)
+    alias = calibrate_contacts(arm7, fit)
+    assert [p.estimate for p in res.parameters] == [p.estimate for p in alias.parameters]
+    held, fitted, before = res.held_out, res.fit_after, res.fit_before
+    assert set(held.consistency) == set(fitted.consistency) and set(held.distance) == set(fitted.distance)
+    # each placement predicted by the others: worse than fitted, far better than the nominal
+    assert fitted.consistency_mean < held.consistency_mean < before.consistency_mean / 20
+    for option, value in (("f_scale", 1.0), ("initial_base", "register"), ("register_validation", True)):
+        with pytest.raises(rc.InputError) as e:
+            rc.calibrate(arm7, contacts=fit, **{option: value})
+        assert e.value.where == option
+    with pytest.raises(rc.InputError) as e:
+        rc.calibrate(arm7)
+    assert e.value.where == "data"
+
+
+def _result(tmp_path, name):
+    return __import__("json").loads((tmp_path / name / "contacts-result.json").read_text())
+
+
+def test_every_option_of_calibrate_works_with_contacts(cli, arm7, small_session, narrow_run, tmp_path):
+    from robocal.io import write_contacts
+
+    _, _, path = small_session
+    narrow, sockets, _ = narrow_run
+    write_contacts(sockets, tmp_path / "narrow.csv", narrow)
+    runs = {"held": [], "flag": ["--weak", "flag"]}
+    for name, extra in runs.items():
+        code, out, err = cli("calibrate", ARM7, "--contacts", tmp_path / "narrow.csv", "--out", tmp_path / name, *extra)
+        assert code in (0, 3), err
+    held, flagged = _result(tmp_path, "held"), _result(tmp_path, "flag")
+    assert [w["name"] for w in held["weak"]] == ["j7.alpha", "j7.d"] == [w["name"] for w in flagged["weak"]]
+    assert not held["weak_kept"] and flagged["weak_kept"]
+    assert "j7.alpha" not in {p["name"] for p in held["parameters"]} <= {p["name"] for p in flagged["parameters"]}
+    assert "j7.alpha" in {p["name"] for p in flagged["parameters"]}
+    # the limit: weak parameters judged at the robot's scatter, and kept where the held-out placements gain
+    for name, extra in (("plain", []), ("limit", ["--limit-mm", "2"])):
+        assert cli("calibrate", ARM7, "--contacts", path, "--out", tmp_path / name, *extra)[0] == 0
+    assert _result(tmp_path, "plain")["weak"] == [] and _result(tmp_path, "limit")["weak"]
+    assert _result(tmp_path, "limit")["weak_kept"]
+    # masses from the geometry make compliance identifiable; the bound keeps it non-negative
+    compliance = ["--parameters", "geometric,compliance"]
+    for name, extra in (("masses", ["--assume-masses"]), ("bounded", ["--assume-masses", "--nonnegative-compliance"])):
+        code, _, err = cli("calibrate", ARM7, "--contacts", path, "--out", tmp_path / name, *compliance, *extra)
+        assert code == 0, err
+    k = {name: [p["estimate"] for p in _result(tmp_path, name)["parameters"] if ".k_" in p["name"]]
+         for name in ("masses", "bounded")}
+    assert len(k["masses"]) == len(k["bounded"]) > 5
+    assert min(k["masses"]) < 0 <= min(k["bounded"])
+    code, _, err = cli("calibrate", ARM7, "--contacts", path, "--out", tmp_path / "none", *compliance)
+    assert code == 2 and "--assume-masses" in err and not (tmp_path / "none").exists()

@@ -47,6 +47,8 @@ def contact_summary(result) -> str:
     lines += _figures("fitted", result.fit_before, result.fit_after)
     if result.validation_before is not None:
         lines += _figures("held-out", result.validation_before, result.validation_after)
+    if result.held_out is not None:
+        lines += _figures("each placement predicted by the others,", result.fit_before, result.held_out)
     if result.tracker_after is not None:
         lines.append(f"  tracker points after: {_mm(result.tracker_after.rms)} RMS over {result.tracker_after.n}")
     lines.append(f"identified {len(ident.identified)} parameters; each kind alone identifies:")
@@ -59,6 +61,9 @@ def contact_summary(result) -> str:
     for u in ident.unreachable:
         lines.append(f"unreachable: {u.name} ({', '.join(u.components) if u.name == 'base' else 'every length alike'})"
                      f": {u.reason}")
+    if result.weak:
+        lines.append(("weakly identifiable, kept: " if result.weak_kept else "weakly identifiable, held at nominal: ")
+                     + ", ".join(f"{n} (predicted std {s})" for n, s in result.weak))
     lines.append("parameters (change from nominal +- std):")
     for p in result.parameters:
         lines.append(f"  {p.name:<12} {with_unit(p.change, p.unit, sign=True)} +- {with_unit(p.std, p.unit)}")

@@ -46,6 +46,8 @@ def _result_json(result) -> str:
         "nuisance": {k: {"estimate": v[0], "std": v[1]} for k, v in result.nuisance.items()},
         "fit_before": figures(result.fit_before), "fit_after": figures(result.fit_after),
         "validation_before": figures(result.validation_before), "validation_after": figures(result.validation_after),
+        "held_out_by_placement": figures(result.held_out),
+        "weak": [{"name": n, "predicted_std": s} for n, s in result.weak], "weak_kept": result.weak_kept,
         "checks": [{"name": c.name, "status": c.status, "summary": c.summary} for c in result.checks],
     }
     return json.dumps(out, indent=1) + "\n"
@@ -54,20 +56,23 @@ def _result_json(result) -> str:
 def run(args) -> int:
     import numpy as np
 
-    from .._contact_calibration import calibrate_contacts
+    from .._calibration import calibrate
     from .._files.contacts import read_contacts
     from .._files.model import model_to_yaml, read_model
     from .._measurements import Noise
     from .._presentation.contacts import contact_summary
 
     for flag, value in (("--compare", args.compare), ("--validation", args.validation), ("--holdout", args.holdout),
-                        ("--report", args.report), ("--register-base", args.register_base)):
+                        ("--report", args.report), ("--register-base", args.register_base),
+                        ("--register-validation", args.register_validation), ("--diagnose", args.diagnose)):
         if value:
             raise InputError("is not available with --contacts (hold out placements with --holdout-placement)",
                              where=flag)
     out = Path(args.out)
     common.refuse_existing([out / "calibrated.yaml", out / "contacts-result.json"], args.force)
-    model = read_model(args.model)
+    model = common.masses_as_asked(args, read_model(args.model))
+    if args.backlash_side is not None:
+        model = model.replace(backlash_side=args.backlash_side)
     contacts = read_contacts(args.contacts, model)
     validation = None
     if args.holdout_placement:
@@ -77,11 +82,14 @@ def run(args) -> int:
                              source=args.contacts, where="--holdout-placement")
         contacts, validation = contacts.split_placements(args.holdout_placement)
     data = common.read_data(args, model, args.csv) if args.csv else None
-    noise = Noise.of(args.instrument, position=None if args.noise_mm is None else args.noise_mm / common.MM)
+    noise = Noise.of(args.instrument, position=None if args.noise_mm is None else args.noise_mm / common.MM,
+                     rotation=None if args.noise_deg is None else args.noise_deg / common.DEG)
     try:
-        result = calibrate_contacts(model, contacts, data=data, validation=validation,
-                                    parameters=args.parameters or ("geometric",), known=args.known, noise=noise,
-                                    tol=args.tol, loss=args.loss, on_outliers=args.on_outliers)
+        result = calibrate(model, data, contacts=contacts, validation=validation,
+                           parameters=args.parameters or ("geometric",), known=args.known, noise=noise, tol=args.tol,
+                           loss=args.loss, on_outliers=args.on_outliers, weak=args.weak,
+                           limit=None if args.limit_mm is None else args.limit_mm / common.MM,
+                           nonnegative_compliance=args.nonnegative_compliance, folds=args.folds)
     except DegenerateDataError as e:
         raise DegenerateDataError(f"{args.contacts}: {e}") from None
     except np.linalg.LinAlgError as e:  # what the numbers leave of the fit is singular: the data's to fix
