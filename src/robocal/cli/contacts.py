@@ -63,13 +63,14 @@ def run(args) -> int:
     from .._presentation.contacts import contact_summary
 
     for flag, value in (("--compare", args.compare), ("--validation", args.validation), ("--holdout", args.holdout),
-                        ("--report", args.report), ("--register-base", args.register_base),
+                        ("--register-base", args.register_base),
                         ("--register-validation", args.register_validation), ("--diagnose", args.diagnose)):
         if value:
             raise InputError("is not available with --contacts (hold out placements with --holdout-placement)",
                              where=flag)
     out = Path(args.out)
-    common.refuse_existing([out / "calibrated.yaml", out / "contacts-result.json"], args.force)
+    common.refuse_existing([out / "calibrated.yaml", out / "contacts-result.json"]
+                           + ([out / "report.html"] if args.report else []), args.force)
     model = common.masses_as_asked(args, read_model(args.model))
     if args.backlash_side is not None:
         model = model.replace(backlash_side=args.backlash_side)
@@ -103,6 +104,10 @@ def run(args) -> int:
     if not failed or args.write_failed:
         files[out / "calibrated.yaml"] = model_to_yaml(result.calibrated_model, units=args.out_units,
                                                        calibration=_record(result, args))
+    if args.report:
+        from .._presentation.html import render_contact_report
+
+        files[out / "report.html"] = render_contact_report(result)
     common.write_outputs(files, force=args.force)
     print(f"wrote {', '.join(str(p) for p in files)}")
     return FAILED if failed else 0
