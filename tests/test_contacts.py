@@ -496,3 +496,20 @@ def test_every_option_of_calibrate_works_with_contacts(cli, arm7, small_session,
     assert min(k["masses"]) < 0 <= min(k["bounded"])
     code, _, err = cli("calibrate", ARM7, "--contacts", path, "--out", tmp_path / "none", *compliance)
     assert code == 2 and "--assume-masses" in err and not (tmp_path / "none").exists()
+
+
+def test_held_out_seatings_judge_the_calibration_in_use(arm7, socket_run):
+    _, fit, val = socket_run
+    res = calibrate_contacts(arm7, fit, validation=val)
+    check = {c.name: c for c in res.checks}["accuracy in use"]
+    assert check.status == "pass" and "held-out placements" in check.summary
+    by_placement = {c.name: c for c in rc.calibrate(arm7, contacts=fit).checks}["accuracy in use"]
+    assert by_placement.status == "pass" and "predicted by the others" in by_placement.summary
+    # half of socket A's held-out seatings labelled B: nothing the fit explains
+    target = list(val.target)
+    rows = [i for i, t in enumerate(target) if t == "A"]
+    for i in rows[::2]:
+        target[i] = "B"
+    wrong = calibrate_contacts(arm7, fit, validation=replace(val, target=tuple(target)))
+    check = {c.name: c for c in wrong.checks}["accuracy in use"]
+    assert check.status == "fail" and "beyond anything the fit explains" in check.summary

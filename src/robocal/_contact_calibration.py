@@ -31,6 +31,9 @@ from ._arguments import (
 from ._arrays import read_only
 from ._checks import (
     MEAN_NORM_PER_SIGMA,
+    OVERFIT_GROSS,
+    OVERFIT_GROSS_EXCESS,
+    OVERFIT_RATIO,
     Check,
     contact_fit_check,
     convergence_check,
@@ -420,6 +423,12 @@ def calibrate_contacts(model: RobotModel, contacts: Contacts, *, data: Measureme
         correlation_check([e.name for e in estimates], corr, loose),
         identifiability_check((), weak_found, weak_kept=kept, kept_in_use=kept_in_use,
                               interchangeable=interchangeable_pairs(list(free), corr, loose))]
+    held = fit.held_out if validation is None else contact_errors(calibrated, validation)
+    if held is not None:
+        checks.append(_held_out_check(contact_errors(model, contacts if validation is None else validation),
+                                      contact_errors(calibrated, contacts), held,
+                                      "each placement predicted by the others" if validation is None else
+                                      "the held-out placements"))
     tracker = None
     if data is not None and fit.design.tracker is not None:    # a tracker part exists with data
         tracker = error_stats(fit.design.tracker.problem.error_norms(sol.p[:prob.n_robot]))
@@ -504,6 +513,30 @@ def _choose(prob: ContactProblem, p0: np.ndarray, identified: tuple[str, ...], h
     losses = [np.concatenate([d[k] ** 2 for k in labels]) for d in (simple.held_out.seatings, other)]
     excess, se = paired_excess(losses[0], losses[1], np.ones(len(losses[0]), dtype=bool))
     return (full, True) if excess > se else (simple, False)
+
+
+def _held_out_check(before: ContactErrors, fitted: ContactErrors, held: ContactErrors, how: str) -> Check:
+    """The socket consistency of seatings the fit did not see (``held``: the calibrated model on
+    them, ``before``: the nominal's), judged as the accuracy in use of measured points is: worse
+    than the nominal fails, beyond ``OVERFIT_GROSS`` times the fitted seatings' (and a millimetre
+    more) fails, beyond ``OVERFIT_RATIO`` times them warns (overfitting)."""
+    name = "accuracy in use"
+    a, b, f = held.consistency_mean, before.consistency_mean, fitted.consistency_mean
+    if a is None or b is None or f is None:
+        return Check(name, "pass", f"no socket seatings held out ({how}): judged by the fit's checks alone")
+    summary = (f"socket consistency of {how}: mean {a * 1e3:.4g} mm after, {b * 1e3:.4g} mm before calibration; "
+               f"{f * 1e3:.4g} mm on the fitted seatings")
+    if a > OVERFIT_GROSS * f and a > f + OVERFIT_GROSS_EXCESS:
+        return Check(name, "fail", summary + ": beyond anything the fit explains", cause="a placement or socket "
+                     "mislabelled, or a set-up that moved", fix="check the placements' labels and seatings")
+    if a >= b:
+        return Check(name, "fail", summary + ": no better than before calibration", cause="a model or data "
+                     "mistake", fix="read the checks above; check joint order, signs and the contact file")
+    if a > OVERFIT_RATIO * f:
+        return Check(name, "warn", summary + f": {a / f:.3g} times the fitted seatings' (overfitting)",
+                     cause="too few placements or seatings for the parameters", fix="add placements, or hold "
+                     "parameters at nominal (--known)")
+    return Check(name, "pass", summary)
 
 
 def _row_scatter(contacts: Contacts, limit: float | None) -> float:
