@@ -513,3 +513,20 @@ def test_held_out_seatings_judge_the_calibration_in_use(arm7, socket_run):
     wrong = calibrate_contacts(arm7, fit, validation=replace(val, target=tuple(target)))
     check = {c.name: c for c in wrong.checks}["accuracy in use"]
     assert check.status == "fail" and "beyond anything the fit explains" in check.summary
+
+
+def test_total_mass_scales_the_contact_compliances_and_nothing_else(cli, small_session, tmp_path):
+    """--total-mass spreads a stated mass as --assume-masses spreads relative ones: every compliance
+    scales by one factor, the geometry is the same."""
+    _, _, path = small_session
+    estimates = {}
+    for name, extra in (("relative", ["--assume-masses"]), ("absolute", ["--total-mass", "20"])):
+        code, _, err = cli("calibrate", ARM7, "--contacts", path, "--out", tmp_path / name,
+                           "--parameters", "geometric,compliance", *extra)
+        assert code == 0, err
+        estimates[name] = {p["name"]: p["estimate"] for p in _result(tmp_path, name)["parameters"]}
+    rel, absolute = estimates["relative"], estimates["absolute"]
+    assert rel.keys() == absolute.keys()
+    ratios = np.array([rel[n] / absolute[n] for n in rel if ".k_" in n])
+    assert len(ratios) > 5 and abs(ratios[0] - 1.0) > 0.1 and np.ptp(ratios) < 1e-6 * abs(ratios[0])
+    assert max(abs(rel[n] - absolute[n]) for n in rel if ".k_" not in n) < 1e-12

@@ -57,7 +57,7 @@ from ._model import RobotModel
 from ._observations import ROW_KINDS, ContactProblem
 from ._options import DEFAULT_INSTRUMENT, INSTRUMENT_NOISE, LOSSES, OUTLIER_ACTIONS, WEAK_ACTIONS
 from ._parameters import candidate_parameters, model_from_vector, parameter_layout, parameter_names
-from ._problem import needs_compliance
+from ._problem import Problem, design_measurements, needs_compliance
 from ._solve import Solution, carried_alone, covariance, solve
 
 # the part of a direction's effect the nuisance parameters leave (relative) below which it is unreachable
@@ -560,7 +560,12 @@ def _weak(design: ContactProblem, p0: np.ndarray, sigma: float) -> list[tuple[st
         U = U[:, s > s[0] * 1e-10]
         Jr = Jr - U @ (U.T @ Jr)
     lay = parameter_layout(design.model)
-    found = weakly_identifiable(Jr, design.free_names, [lay[n].quantity for n in design.free_names], sigma)
+    moments = {}
+    if design.compliance:      # a compliance is judged by the deflection it predicts, as for measured points
+        readings = design_measurements(design.model, design.contacts.q, markers=design.model.marker_names[:1])
+        moments = Problem(design.model, readings, (), compliance=True).compliance_moments(p0[:design.n_robot])
+    found = weakly_identifiable(Jr, design.free_names, [lay[n].quantity for n in design.free_names], sigma,
+                                moments=moments)
     return [(n, effect_text(e, lay[by].quantity) + ("" if by == n else f" of {by} with it")) for n, by, e, _ in found]
 
 
