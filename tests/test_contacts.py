@@ -530,3 +530,20 @@ def test_total_mass_scales_the_contact_compliances_and_nothing_else(cli, small_s
     ratios = np.array([rel[n] / absolute[n] for n in rel if ".k_" in n])
     assert len(ratios) > 5 and abs(ratios[0] - 1.0) > 0.1 and np.ptp(ratios) < 1e-6 * abs(ratios[0])
     assert max(abs(rel[n] - absolute[n]) for n in rel if ".k_" not in n) < 1e-12
+
+
+def test_the_only_rows_of_a_plane_are_carried_alone(arm7):
+    """A plane touched three times: its three rows alone fix its offset and tilt (leverage 1), so a
+    robust refit must keep them; the rows of well-sampled planes carry nothing alone."""
+    from robocal._solve import carried_alone
+
+    c = plane_campaign(arm7, planes=4, poses_per_plane=30, joint_noise=ENCODER, rng=2)
+    last = [i for i, t in enumerate(c.target) if t == c.target[-1]]
+    keep = np.setdiff1d(np.arange(c.n_rows), last[3:])
+    few = c.subset(keep)
+    names = rc.candidate_parameters(arm7, ("geometric",))
+    prob = ContactProblem(arm7, few, names, compliance=False)
+    design = prob.over(contact_identifiability(prob, names).identified)
+    alone = np.nonzero(carried_alone(design.jacobian(design.start_vector())))[0]
+    labels = np.array(design.row_labels())[alone]
+    assert len(alone) == 3 and all(f"({c.target[-1]})" in label for label in labels), labels
