@@ -549,8 +549,7 @@ COMPENSATE = {"--marker": "tool", "--position-only": None, "--tol-mm": "0.001", 
               "--out-units": "m-rad", "--units": "mm-deg"}
 CONTACTS = {"--parameters": "geometric", "--known": "base", "--tol": "1e-6", "--loss": "soft_l1",
             "--holdout-placement": "P3", "--write-failed": None, "--instrument": "cmm", "--noise-mm": "0.02",
-            "--on-outliers": "flag", "--out-units": "m-rad", "--weak": "flag", "--limit-mm": "2",
-            "--nonnegative-compliance": None, "--assume-masses": None, "--folds": "3"}
+            "--on-outliers": "flag", "--out-units": "m-rad"}
 BIG_COUNTS = ("1000", "100000", "99999999999", "1000000")
 
 RECORD = {"--type": "th8", "--at": "2026-09-01T00:00:00Z"}
