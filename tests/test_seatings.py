@@ -121,6 +121,19 @@ def test_the_example_folder_of_seatings_calibrates(cli, arm7, tmp_path):
     assert c.placements() == ("P1", "P2", "P3") and c.n_rows == 90 and len(c.distances) == 3
 
 
+def test_sockets_whose_seatings_are_copies_of_one_reading_are_refused_in_one_line(cli, tmp_path):
+    """Every socket file holding the same joint reading puts the spaced sockets at one point: the
+    stated spacing has no direction to fit along (once a NaN Jacobian and an internal argument's name)."""
+    import shutil
+    folder = tmp_path / "copies"
+    shutil.copytree(ROOT / "examples" / "arm7" / "seatings", folder)
+    row = (folder / "P1" / "hole_0.csv").read_text().splitlines()[0] + "\n"
+    for f in folder.glob("P*/hole_*.csv"):
+        f.write_text(row * 10)
+    code, _, err = cli("calibrate", ARM7, "--contacts", folder, "--out", tmp_path / "run")
+    assert_one_line_error(code, err, ["sit at one point", "hole_0", "hole_1", "P1"], tmp_path / "run")
+
+
 def _edit(rel, fn):
     def apply(folder: Path) -> None:
         p = folder / rel

@@ -26,6 +26,7 @@ import numpy as np
 
 from ._arrays import frozen, read_only
 from ._contacts import Contacts
+from ._errors import InputError
 from ._kinematics import evaluate, evaluate_state, jacobian_columns, joint_turns, layout
 from ._linalg import r_factor
 from ._measurements import Measurements, Noise
@@ -304,6 +305,7 @@ class ContactProblem:
         self.pairs = contacts.distance_pairs()
         self._cache: Any = None     # the last evaluation (the kinematics' state, a private type)
         self._initial_nuisance(parameter_vector(model))
+        self._check_distinct()
         self.blocks = self._blocks()
         self._set_free(free)
 
@@ -328,6 +330,24 @@ class ContactProblem:
         self.nuisance0 = np.array(values, dtype=float)
         self.nuisance_names = tuple(names)
         self.nuisance_quantities = tuple(quantities)
+
+    def _check_distinct(self) -> None:
+        """A stated distance between two points that the readings put at one place has no direction to
+        fit along: the seatings' readings coincide (copied files), which no model explains."""
+        where = {(g.placement, g.target): 3 * s for s, g in enumerate(self.sockets)}
+        nu = self.nuisance0
+        for d, ga, gb in self.pairs:
+            a, b = where[ga.placement, ga.target], where[gb.placement, gb.target]
+            if np.linalg.norm(nu[a:a + 3] - nu[b:b + 3]) < 1e-9 and d.length > 0:
+                raise InputError(f"sockets {d.a} and {d.b} of placement {ga.placement or '-'} sit at one point at the "
+                                 f"model's readings (their seatings' joint readings coincide), so their stated "
+                                 f"distance of {d.length * 1e3:.3f} mm cannot be fitted: check both sockets' seatings",
+                                 source=self.contacts.source or "contacts")
+        P = self._positions(parameter_vector(self.model))
+        for g in self.bars:
+            if np.linalg.norm(P[g.rows[0]] - P[g.rows[1]]) < 1e-9 and self.contacts.bars[g.target][0] > 0:
+                raise InputError(f"the ball bar {g.label}'s two ends have the same joint readings, so its length "
+                                 f"cannot be fitted: check its rows", source=self.contacts.source or "contacts")
 
     def _blocks(self) -> tuple:
         """The contact blocks, in the order rows are stacked (after the tracker's)."""
