@@ -4,7 +4,7 @@
                                    [--commands a,b] [--seconds S]
 
 Cases come from the hypothesis strategies in tests/fuzz_cases.py, one per command of its COMMANDS
-table (model files, measurement, repeatability, target and contact CSVs, robot programs, stores,
+table (model files, measurement, repeatability, target and contact CSVs, folders of seatings, robot programs, stores,
 result files and their per-pose sidecars, profiles, limit files, DH tables, URDFs, command lines).
 Each runs ``robocal.cli.main(argv)`` in a forked child, in a folder of its own, under a limit of
 20 s of CPU time (wall-clock time on a shared machine is not the program's; a 120 s wall-clock
@@ -74,6 +74,7 @@ class Runner:
         folder = self.root / f"case{self.started}"
         folder.mkdir()
         for name, data in files.items():
+            (folder / name).parent.mkdir(parents=True, exist_ok=True)
             (folder / name).write_bytes(data)
         pid = fuzz_cases.fork_case(folder, argv)
         self.running[pid] = (folder, time.monotonic(), argv, files, command)
@@ -117,6 +118,7 @@ class Runner:
             else:
                 kept.mkdir()
                 for name, data in files.items():
+                    (kept / name).parent.mkdir(parents=True, exist_ok=True)
                     (kept / name).write_bytes(data)
             (kept / "argv.txt").write_text("\n".join(argv) + "\n")
         n = sum(self.counts.values())

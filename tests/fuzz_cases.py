@@ -2,7 +2,8 @@
 
 Shared by the bounded fuzz test (tests/test_fuzz.py, in-process) and the large run
 (benchmarks/fuzz_cli.py, one forked process per case with time and memory limits). A case is
-``(files, argv)``: file name -> bytes, written into an empty folder, and the command line run there.
+``(files, argv)``: file path -> bytes (a path may hold folders: a folder of seatings), written into
+an empty folder, and the command line run there.
 Files are mutated from the shipped th8 example (cut small so a well-formed case runs quickly) and
 from a small URDF chain; the mutations are the ones that broke readers: alias and entity bombs,
 deep nesting, cycles, duplicate keys, huge numbers, other encodings, empty and binary files.
@@ -750,6 +751,69 @@ def contacts_case(draw, result_text=None):
     return files, argv
 
 
+def _seatings() -> dict[str, str]:
+    """The arm7 folder of seatings (relative path -> text), cut to 4 seatings per socket."""
+    root = ARM7 / "seatings"
+    out = {}
+    for p in sorted(root.rglob("*")):
+        if p.is_file():
+            text = p.read_text()
+            out[p.relative_to(root).as_posix()] = text if p.suffix != ".csv" else \
+                "".join(text.splitlines(keepends=True)[:4])
+    return out
+
+
+SEATINGS = _seatings()
+_SEATING_ROW = next(v for k, v in SEATINGS.items() if k.endswith(".csv")).splitlines()[0] + "\n"
+SEATING_NAMES = ("P1/hole 0.csv", "P1/hole_0.txt", "hole_0.csv", "P1/.hole_0.csv", "P 1/hole_0.csv",
+                 "P1/hole_0.CSV", "P1/" + "h" * 100 + ".csv", "P1/sub/hole_0.csv", "P4/hole_0.csv", "README.md",
+                 "P1/hole_é.csv", "P1/hole_00.csv", "P10/hole_1.csv")
+
+
+@st.composite
+def seatings_folder(draw) -> dict[str, bytes]:
+    """A folder of seatings under ``campaign/`` (path -> bytes): the manifest or a joint file mutated,
+    files renamed, dropped or added, the bounds stretched (rows, files), empty and binary files."""
+    files = {k: v.encode() for k, v in SEATINGS.items()}
+    csvs = sorted(k for k in files if k.endswith(".csv"))
+    kind = draw(st.sampled_from(("manifest",) * 4 + ("joints",) * 4 + ("rename", "drop", "extra", "rows", "files",
+                                                                         "wide", "empty", "binary")))
+    if kind == "manifest":
+        files["seatings.yaml"] = draw(mutated_text(SEATINGS["seatings.yaml"]))
+    elif kind == "joints":
+        name = draw(st.sampled_from(csvs))
+        files[name] = draw(mutated_text(SEATINGS[name]))
+    elif kind == "rename":
+        files[draw(st.sampled_from(SEATING_NAMES))] = files.pop(draw(st.sampled_from(csvs)))
+    elif kind == "drop":
+        for name in draw(st.sets(st.sampled_from(sorted(files)), min_size=1)):
+            del files[name]
+    elif kind == "extra":
+        files[draw(st.sampled_from(SEATING_NAMES))] = draw(st.sampled_from((b"", b"1,2,3\n", files[csvs[0]])))
+    elif kind == "rows":
+        files[draw(st.sampled_from(csvs))] = _SEATING_ROW.encode() * draw(st.sampled_from((2_000, 30_000)))
+    elif kind == "files":
+        n = draw(st.sampled_from((60, 1_200)))
+        files.update({f"P{k // 3 + 1}/hole_{k % 3}.csv": _SEATING_ROW.encode() * 2 for k in range(n)})
+    elif kind == "wide":
+        wide = (_SEATING_ROW.strip() + ",") * draw(st.sampled_from((2, 5_000))) + "1\n"
+        files[draw(st.sampled_from(csvs))] = wide.encode()
+    elif kind == "empty":
+        files[draw(st.sampled_from(csvs))] = draw(st.sampled_from((b"", b"\n", b"\n\n\n", b" , \n")))
+    else:
+        files[draw(st.sampled_from(csvs + ["seatings.yaml"]))] = draw(st.binary(min_size=1, max_size=200))
+    return {"campaign/" + k: v for k, v in files.items()}
+
+
+@st.composite
+def seatings_case(draw, result_text=None):
+    """calibrate --contacts on a folder of seatings (_files/seatings.py), the folder damaged."""
+    files = {"model.yaml": _model(draw, ARM7_MODEL)}
+    files.update(draw(seatings_folder()) if draw(st.integers(0, 3)) else
+                 {"campaign/" + k: v.encode() for k, v in SEATINGS.items()})
+    return files, ["calibrate", "model.yaml", "--contacts", "campaign", "--out", "out"] + draw(options(CONTACTS))
+
+
 @st.composite
 def compensate_program_case(draw, result_text=None):
     """compensate on a robot program (each dialect's example, mutated), written as a program."""
@@ -898,9 +962,7 @@ COMMANDS = {
     "export": (2, export_case), "compensate": (2, compensate_case), "contacts": (2, contacts_case),
     "compensate-program": (2, compensate_program_case), "record": (1, functools.partial(store_case, "record")),
     "history": (1, functools.partial(store_case, "history")), "verify": (1, functools.partial(store_case, "verify")),
-    "joints-program": (2, joints_program_case), "sidecar": (2, sidecar_case),
-    # a folder of seatings (calibrate --contacts FOLDER, _files/seatings.py) joins here as
-    # "seatings": (2, seatings_case), its strategy a shipped folder with files mutated, missing or extra
+    "joints-program": (2, joints_program_case), "sidecar": (2, sidecar_case), "seatings": (2, seatings_case),
 }
 # the commands whose cases start from a result file (``result_text``)
 NEEDS_RESULT = ("report", *STORE_COMMANDS, "sidecar")
@@ -945,7 +1007,8 @@ def non_finite(folder: Path, before: set[str]) -> str | None:
     from robocal._files.programs import EXTENSIONS
 
     for p in sorted(folder.rglob("*")):
-        if not p.is_file() or p.name in before or p.suffix in (".html", ".npz", *EXTENSIONS) or ".sqlite" in p.name:
+        given = p.relative_to(folder).as_posix() in before   # an input (a path: a folder of seatings holds some)
+        if not p.is_file() or given or p.suffix in (".html", ".npz", *EXTENSIONS) or ".sqlite" in p.name:
             continue
         text = p.read_text(errors="replace")
         if p.suffix == ".json":
@@ -1253,6 +1316,7 @@ def run_forked(files: dict, argv: list) -> tuple[str, str]:
 
     with tempfile.TemporaryDirectory() as folder:
         for name, data in files.items():
+            Path(folder, name).parent.mkdir(parents=True, exist_ok=True)
             Path(folder, name).write_bytes(data)
         start = time.monotonic()
         pid = fork_case(Path(folder), argv)
@@ -1289,6 +1353,7 @@ def run_in_process(files: dict, argv: list) -> tuple[str, str]:
     here = os.getcwd()
     with tempfile.TemporaryDirectory() as folder:
         for name, data in files.items():
+            Path(folder, name).parent.mkdir(parents=True, exist_ok=True)
             Path(folder, name).write_bytes(data)
         err = io.StringIO()
         try:

@@ -111,6 +111,57 @@ def test_sockets_with_known_spacing_recover_the_arm_and_the_held_out_spread(arm7
     assert res.fit_after.distance_rms < 5 * fit.distances[0].sigma + 1e-5
 
 
+def _by_hand(model, contacts):
+    """Per socket the (mean, max) distance of each seating's ball centre from the socket's mean
+    centre, and per placement and known distance the calibrated spacing minus the known one, by
+    plain loops over the rows."""
+    sockets = {}
+    for i in range(contacts.n_rows):
+        p = rc.forward_kinematics(model, contacts.q[i:i + 1]).positions[0, model.marker_names.index(contacts.marker[i])]
+        sockets.setdefault((contacts.placement[i], contacts.target[i]), []).append(p)
+    centre = {key: sum(ps) / len(ps) for key, ps in sockets.items()}
+    consistency = {}
+    for (placement, socket), ps in sockets.items():
+        d = [float(np.sqrt(sum((p[k] - centre[placement, socket][k]) ** 2 for k in range(3)))) for p in ps]
+        consistency[f"{placement}/{socket}"] = (sum(d) / len(d), max(d))
+    spacing = {}
+    for placement in dict.fromkeys(contacts.placement):
+        for d in contacts.distances:
+            a, b = centre[placement, d.a], centre[placement, d.b]
+            spacing[f"{placement}: {d.a}-{d.b}"] = float(np.sqrt(sum((a[k] - b[k]) ** 2 for k in range(3)))) - d.length
+    return consistency, spacing
+
+
+def test_socket_consistency_and_spacing_error_match_a_hand_computation(arm7, socket_run):
+    """The community's figures, fitted and held out, before and after, to 1e-9 m."""
+    _, fit, val = socket_run
+    res = calibrate_contacts(arm7, fit, validation=val)
+    for model, figures, contacts in ((arm7, res.fit_before, fit), (res.calibrated_model, res.fit_after, fit),
+                                     (arm7, res.validation_before, val),
+                                     (res.calibrated_model, res.validation_after, val)):
+        consistency, spacing = _by_hand(model, contacts)
+        assert figures.consistency.keys() == consistency.keys() and figures.distance.keys() == spacing.keys()
+        for key, (mean, worst) in consistency.items():
+            assert abs(figures.consistency[key][0] - mean) < 1e-9 and abs(figures.consistency[key][1] - worst) < 1e-9
+        for key, e in spacing.items():
+            assert abs(figures.distance[key] - e) < 1e-9
+        every = [d for key in consistency for d in _seating_distances(model, contacts, key)]
+        assert abs(figures.consistency_mean - sum(every) / len(every)) < 1e-9
+        assert abs(figures.consistency_max - max(w for _, w in consistency.values())) < 1e-9
+        assert abs(figures.spacing_max - max(abs(e) for e in spacing.values())) < 1e-9
+        assert abs(figures.spacing_mean - sum(abs(e) for e in spacing.values()) / len(spacing)) < 1e-9
+    # the calibration makes the held-out seatings consistent: far below the nominal's
+    assert res.validation_after.consistency_mean < res.validation_before.consistency_mean / 20
+
+
+def _seating_distances(model, contacts, key):
+    placement, socket = key.split("/")
+    rows = [i for i in range(contacts.n_rows) if contacts.placement[i] == placement and contacts.target[i] == socket]
+    P = rc.forward_kinematics(model, contacts.q[rows]).positions[:, model.marker_names.index(contacts.marker[rows[0]])]
+    c = P.mean(axis=0)
+    return [float(np.linalg.norm(p - c)) for p in P]
+
+
 def test_without_a_known_distance_the_scale_is_named_unreachable(arm7, socket_run):
     _, fit, _ = socket_run
     names = rc.candidate_parameters(arm7, ("geometric",))
@@ -258,6 +309,10 @@ def test_the_command_line_calibrates_from_contacts_alone_and_next_to_a_tracker_f
     assert arm7.name in written.description and written.description != arm7.description
     result = __import__("json").loads((tmp_path / "a" / "contacts-result.json").read_text())
     assert [u["name"] for u in result["unreachable"]] == ["base"] and result["verdict"] == "pass"
+    assert "held-out socket consistency" in out and "held-out spacing error" in out
+    held = result["validation_after"]
+    assert held["consistency_mean_m"] > 0 and held["consistency_max_m"] >= held["consistency_mean_m"]
+    assert set(held["consistency_m"]) == {f"P4/{s}" for s in "ABC"} and held["spacing_error_max_m"] is not None
     tracker = rc.measure(true, rc.random_configurations(arm7, 15, 1), rng=1)
     rc.write_measurements(tracker, tmp_path / "tracker.csv", model=arm7)
     code, out, err = cli("calibrate", ARM7, tmp_path / "tracker.csv", "--contacts", path, "--out", tmp_path / "b")
@@ -306,3 +361,189 @@ def test_a_socket_plan_recommends_the_smallest_design_within_the_bounds(arm7):
     assert plan.campaign.q.shape[0] == plan.chosen.n_seatings
     assert plan_sockets(arm7, placements=(3,), poses_per_socket=(20,), bounds={"length": 1e-9}).chosen is None
 
+
+
+def test_the_only_spacing_row_is_kept_by_the_robust_refit_and_named(arm7):
+    """One placement, one known distance stated 5 mm wrong, and a socket row read while the arm moved
+    (which starts the robust refit): the distance alone fixes the scale, so the refit keeps it in
+    full (the stated spacing is met) and a check says that nothing else checks it. With three
+    placements no distance row carries the scale alone and no such check appears."""
+    from robocal._solve import carried_alone
+
+    true = rc.perturb_model(arm7, rc.identifiability(arm7, parameters=("frames", "markers")).identified, rng=0)
+    runs = {}
+    for placements in (1, 3):
+        c = socket_campaign(true, placements=placements, poses_per_socket=25, joint_noise=ENCODER, rng=1)
+        q = c.q.copy()
+        q[5, 1] += 1e-3
+        wrong = replace(c, q=q, distances=(replace(c.distances[0], length=c.distances[0].length + 5e-3),))
+        names = rc.candidate_parameters(arm7, ("geometric",))
+        prob = ContactProblem(arm7, wrong, names, compliance=False)
+        design = prob.over(contact_identifiability(prob, names).identified)
+        alone = carried_alone(design.jacobian(design.start_vector()))
+        kinds = [rc.identification.ROW_KINDS[k] for k in design.row_kinds()[alone]]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            runs[placements] = (kinds, calibrate_contacts(arm7, wrong))
+    kinds, res = runs[1]
+    assert kinds == ["distance"]
+    check = next(c for c in res.checks if c.name == "rows carried alone")
+    assert check.status == "warn" and "P1: A-B" in check.summary and "the scale" in check.summary
+    assert abs(res.fit_after.distance["P1: A-B"]) < 5 * 2e-6            # the stated spacing is met
+    assert any(c.name.startswith("outliers") and "soft_l1" in c.summary for c in res.checks)
+    kinds, res = runs[3]
+    assert kinds == [] and not any(c.name == "rows carried alone" for c in res.checks)
+
+
+@pytest.mark.parametrize("loss", ["soft_l1", "huber", "cauchy", "arctan"])
+def test_a_partly_robust_loss_is_the_loss_with_the_kept_rows_linear(loss):
+    from robocal._solve import _partly_robust, robust_weights
+
+    z = np.array([0.0, 0.3, 0.9, 1.5, 4.0, 30.0, 0.3, 30.0])
+    keep = np.array([False] * 6 + [True, True])
+    rho = _partly_robust(loss, keep)
+    out, up, down = rho(z), rho(z * (1 + 1e-7) + 1e-9), rho(z * (1 - 1e-7) - 1e-9)
+    h = (z * (1 + 1e-7) + 1e-9) - (z * (1 - 1e-7) - 1e-9)
+    assert np.allclose(out[1], (up[0] - down[0]) / h, rtol=1e-5, atol=1e-7)        # rho' of rho
+    assert np.allclose(out[2], (up[1] - down[1]) / h, rtol=1e-4, atol=1e-6)        # rho'' of rho'
+    assert np.allclose(out[1, ~keep], robust_weights(np.sqrt(z[~keep]), loss, 1.0))
+    assert np.array_equal(out[:, keep], np.vstack([z[keep], np.ones(2), np.zeros(2)]))
+
+
+@pytest.fixture(scope="module")
+def narrow_run(arm7):
+    """One placement with the last joint held within 0.06 rad: the seatings barely turn it, and four
+    pairs of parameters become interchangeable (r = -1.0000); the same readings as tracker data."""
+    limits = list(arm7.joint_limits)
+    limits[6] = (0.57, 0.63)
+    narrow = arm7.replace(joint_limits=tuple(limits))
+    true = rc.perturb_model(narrow, rc.identifiability(arm7, parameters=("frames", "markers")).identified, rng=0)
+    sockets = socket_campaign(true, placements=1, poses_per_socket=20, joint_noise=ENCODER, rng=1)
+    return narrow, sockets, rc.measure(true, sockets.q, rng=1)
+
+
+@pytest.mark.parametrize("weak", ["eliminate", "flag"])
+def test_interchangeable_parameters_are_held_back_or_flagged_as_on_tracker_data(narrow_run, weak):
+    narrow, sockets, tracker = narrow_run
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        by_contacts = calibrate_contacts(narrow, sockets, weak=weak)
+        by_tracker = rc.calibrate(narrow, tracker, weak=weak)
+    checks = [{c.name: c for c in r.checks}["identifiability at these poses"] for r in (by_contacts, by_tracker)]
+    if weak == "eliminate":
+        assert [n for n, _ in by_contacts.weak] == ["j7.alpha", "j7.d"]
+        assert not {"j7.alpha", "j7.d"} & set(by_tracker.parameter_names)
+        assert not {"j7.alpha", "j7.d"} & {p.name for p in by_contacts.parameters}
+        assert [c.status for c in checks] == ["pass", "pass"]
+        assert all("held at their nominal values" in c.summary for c in checks)
+        assert max(abs(p.change) for p in by_contacts.parameters if p.quantity == "length") < 2e-3
+    else:
+        pairs = [{i for i in c.items if "~" in i} for c in checks]
+        assert [c.status for c in checks] == ["warn", "warn"] and pairs[0] == pairs[1] and len(pairs[0]) == 4
+        assert "ball.z ~ j7.alpha (r = -1.0000)" in pairs[0]
+
+
+def test_calibrate_takes_contacts_and_holds_out_each_placement_in_turn(arm7, socket_run):
+    _, fit, _ = socket_run
+    res = rc.calibrate(arm7, contacts=fit)
+    alias = calibrate_contacts(arm7, fit)
+    assert [p.estimate for p in res.parameters] == [p.estimate for p in alias.parameters]
+    held, fitted, before = res.held_out, res.fit_after, res.fit_before
+    assert set(held.consistency) == set(fitted.consistency) and set(held.distance) == set(fitted.distance)
+    # each placement predicted by the others: worse than fitted, far better than the nominal
+    assert fitted.consistency_mean < held.consistency_mean < before.consistency_mean / 20
+    for option, value in (("f_scale", 1.0), ("initial_base", "register"), ("register_validation", True)):
+        with pytest.raises(rc.InputError) as e:
+            rc.calibrate(arm7, contacts=fit, **{option: value})
+        assert e.value.where == option
+    with pytest.raises(rc.InputError) as e:
+        rc.calibrate(arm7)
+    assert e.value.where == "data"
+
+
+def _result(tmp_path, name):
+    return __import__("json").loads((tmp_path / name / "contacts-result.json").read_text())
+
+
+def test_every_option_of_calibrate_works_with_contacts(cli, arm7, small_session, narrow_run, tmp_path):
+    from robocal.io import write_contacts
+
+    _, _, path = small_session
+    narrow, sockets, _ = narrow_run
+    write_contacts(sockets, tmp_path / "narrow.csv", narrow)
+    runs = {"held": [], "flag": ["--weak", "flag"]}
+    for name, extra in runs.items():
+        code, out, err = cli("calibrate", ARM7, "--contacts", tmp_path / "narrow.csv", "--out", tmp_path / name, *extra)
+        assert code in (0, 3), err
+    held, flagged = _result(tmp_path, "held"), _result(tmp_path, "flag")
+    assert [w["name"] for w in held["weak"]] == ["j7.alpha", "j7.d"] == [w["name"] for w in flagged["weak"]]
+    assert not held["weak_kept"] and flagged["weak_kept"]
+    assert "j7.alpha" not in {p["name"] for p in held["parameters"]} <= {p["name"] for p in flagged["parameters"]}
+    assert "j7.alpha" in {p["name"] for p in flagged["parameters"]}
+    # the limit: weak parameters judged at the robot's scatter, and kept where the held-out placements gain
+    for name, extra in (("plain", []), ("limit", ["--limit-mm", "2"])):
+        assert cli("calibrate", ARM7, "--contacts", path, "--out", tmp_path / name, *extra)[0] == 0
+    assert _result(tmp_path, "plain")["weak"] == [] and _result(tmp_path, "limit")["weak"]
+    assert _result(tmp_path, "limit")["weak_kept"]
+    # masses from the geometry make compliance identifiable; the bound keeps it non-negative
+    compliance = ["--parameters", "geometric,compliance"]
+    for name, extra in (("masses", ["--assume-masses"]), ("bounded", ["--assume-masses", "--nonnegative-compliance"])):
+        code, _, err = cli("calibrate", ARM7, "--contacts", path, "--out", tmp_path / name, *compliance, *extra)
+        assert code == 0, err
+    k = {name: [p["estimate"] for p in _result(tmp_path, name)["parameters"] if ".k_" in p["name"]]
+         for name in ("masses", "bounded")}
+    assert len(k["masses"]) == len(k["bounded"]) > 5
+    assert min(k["masses"]) < 0 <= min(k["bounded"])
+    code, _, err = cli("calibrate", ARM7, "--contacts", path, "--out", tmp_path / "none", *compliance)
+    assert code == 2 and "--assume-masses" in err and not (tmp_path / "none").exists()
+
+
+def test_held_out_seatings_judge_the_calibration_in_use(arm7, socket_run):
+    _, fit, val = socket_run
+    res = calibrate_contacts(arm7, fit, validation=val)
+    check = {c.name: c for c in res.checks}["accuracy in use"]
+    assert check.status == "pass" and "held-out placements" in check.summary
+    by_placement = {c.name: c for c in rc.calibrate(arm7, contacts=fit).checks}["accuracy in use"]
+    assert by_placement.status == "pass" and "predicted by the others" in by_placement.summary
+    # half of socket A's held-out seatings labelled B: nothing the fit explains
+    target = list(val.target)
+    rows = [i for i, t in enumerate(target) if t == "A"]
+    for i in rows[::2]:
+        target[i] = "B"
+    wrong = calibrate_contacts(arm7, fit, validation=replace(val, target=tuple(target)))
+    check = {c.name: c for c in wrong.checks}["accuracy in use"]
+    assert check.status == "fail" and "beyond anything the fit explains" in check.summary
+
+
+def test_total_mass_scales_the_contact_compliances_and_nothing_else(cli, small_session, tmp_path):
+    """--total-mass spreads a stated mass as --assume-masses spreads relative ones: every compliance
+    scales by one factor, the geometry is the same."""
+    _, _, path = small_session
+    estimates = {}
+    for name, extra in (("relative", ["--assume-masses"]), ("absolute", ["--total-mass", "20"])):
+        code, _, err = cli("calibrate", ARM7, "--contacts", path, "--out", tmp_path / name,
+                           "--parameters", "geometric,compliance", *extra)
+        assert code == 0, err
+        estimates[name] = {p["name"]: p["estimate"] for p in _result(tmp_path, name)["parameters"]}
+    rel, absolute = estimates["relative"], estimates["absolute"]
+    assert rel.keys() == absolute.keys()
+    ratios = np.array([rel[n] / absolute[n] for n in rel if ".k_" in n])
+    assert len(ratios) > 5 and abs(ratios[0] - 1.0) > 0.1 and np.ptp(ratios) < 1e-6 * abs(ratios[0])
+    assert max(abs(rel[n] - absolute[n]) for n in rel if ".k_" not in n) < 1e-12
+
+
+def test_the_only_rows_of_a_plane_are_carried_alone(arm7):
+    """A plane touched three times: its three rows alone fix its offset and tilt (leverage 1), so a
+    robust refit must keep them; the rows of well-sampled planes carry nothing alone."""
+    from robocal._solve import carried_alone
+
+    c = plane_campaign(arm7, planes=4, poses_per_plane=30, joint_noise=ENCODER, rng=2)
+    last = [i for i, t in enumerate(c.target) if t == c.target[-1]]
+    keep = np.setdiff1d(np.arange(c.n_rows), last[3:])
+    few = c.subset(keep)
+    names = rc.candidate_parameters(arm7, ("geometric",))
+    prob = ContactProblem(arm7, few, names, compliance=False)
+    design = prob.over(contact_identifiability(prob, names).identified)
+    alone = np.nonzero(carried_alone(design.jacobian(design.start_vector())))[0]
+    labels = np.array(design.row_labels())[alone]
+    assert len(alone) == 3 and all(f"({c.target[-1]})" in label for label in labels), labels

@@ -173,6 +173,20 @@ def test_out_of_reach_targets_are_flagged_and_left_unchanged(name, far, comment,
     assert len(_reread(tmp_path, result.text, "again" + path.suffix).targets) == len(read_program(path).targets)
 
 
+def test_a_target_at_the_largest_float_is_flagged_without_overflow(models, tmp_path):
+    """A KRL target at Z -1e308 mm once sent the seed lookup past its table (IndexError) and the
+    inverse kinematics into overflowing steps: it is out of reach, flagged, nothing else."""
+    nominal, calibrated = models
+    path = tmp_path / "example.src"
+    path.write_text((HERE / "example.src").read_text().replace("Z -229.637", "Z -1e308"))
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        result = compensate_program(read_program(path), nominal, calibrated)
+    assert [r.line for r in result.flagged] == [12]
+    assert result.flagged[0].status.startswith("no nominal solution")
+
+
 def test_a_compensation_beyond_a_joint_limit_is_flagged(models):
     nominal, calibrated = models
     lo, hi = nominal.lower_limits.copy(), nominal.upper_limits.copy()

@@ -773,3 +773,38 @@ def test_summary_error_columns_stay_apart_past_999_mm():
         for name, cell in zip(("mean", "std", "RMS", "max"), cells[1:]):
             assert head.index(name) + len(name) == line.index(cell) + len(cell)
     assert len(lines) == 4
+
+
+def test_a_contact_calibration_report_renders_in_headless_chromium(chromium, cli, tmp_path):
+    """``calibrate --contacts --report``: the verdict, the kit's figures (socket consistency and
+    spacing error, fitted and each placement predicted by the others) as in contacts-result.json,
+    readable in a browser and printable."""
+    from robocal.io import write_contacts
+    from robocal.sim import socket_campaign
+
+    arm7 = rc.read_model(ROOT / "examples" / "arm7" / "model.yaml")
+    true = rc.perturb_model(arm7, rc.identifiability(arm7, parameters=("frames", "markers")).identified, rng=3)
+    write_contacts(socket_campaign(true, placements=3, poses_per_socket=10, joint_noise=2e-5, rng=3),
+                   tmp_path / "sockets.csv", arm7)
+    code, _, err = cli("calibrate", ROOT / "examples" / "arm7" / "model.yaml", "--contacts", tmp_path / "sockets.csv",
+                       "--out", tmp_path / "out", "--report")
+    assert code == 0, err
+    path = tmp_path / "out" / "report.html"
+    html = path.read_text()
+    saved = json.loads((tmp_path / "out" / "contacts-result.json").read_text())
+    from robocal._presentation.units import fmt
+
+    for key, figure, saved_as in (("fit_after", "consistency_mean", "consistency_mean_m"),
+                                  ("held_out", "consistency_mean", "consistency_mean_m"),
+                                  ("held_out", "spacing_max", "spacing_error_max_m")):
+        value = saved["fit_after" if key == "fit_after" else "held_out_by_placement"][saved_as]
+        assert f'data-key="{key}.{figure}">{fmt(value, "m")}<' in html
+    for socket, figures in saved["held_out_by_placement"]["consistency_m"].items():
+        assert f'data-key="held_out.consistency.{socket}.max">{fmt(figures["max"], "m")}<' in html
+    r = _render_in_chromium(chromium, path, "report-contacts.png")
+    assert [m for m in r["console"] if m[0] in ("error", "pageerror")] == []
+    assert r["requests"] == [r["url"]] and r["title"].startswith("Calibration report")
+    assert r["overflow"] <= 0, f"the page is {r['overflow']} px wider than the window"
+    assert r["text"]["texts"] > 100 and r["text"]["small"] == [], r["text"]["small"][:10]
+    sections = re.findall(r'<section id="[^"]+"><h2>([^<]+)</h2>', html)
+    assert len(sections) == 6 and set(sections) <= set(r["outline"]), (sections, r["outline"])

@@ -2,6 +2,7 @@
 
     python examples/arm7/contacts_campaigns.py [--campaigns 10] [--seed 0]
     python examples/arm7/contacts_campaigns.py --write-sockets examples/arm7/sockets.csv
+    python examples/arm7/contacts_campaigns.py --write-seatings examples/arm7/seatings
 
 Each campaign draws a true arm (errors of 0.1 to 1 mm and 0.01 to 0.1 deg on what the campaign can
 identify), puts a 3-socket plate at 3 to 9 placements plus one held out, seats the ball 20 to 35
@@ -109,15 +110,46 @@ def write_sockets(m, path: Path, seed: int) -> None:
                          path, m, force=True)
 
 
+def write_seatings(m, folder: Path, seed: int) -> None:
+    """The shipped folder of seatings: a simulated arm with errors, a plate of sockets hole_0, hole_1,
+    hole_2 at 3 placements, 10 seatings per socket, one headerless joint file (rad) per socket and
+    placement, and seatings.yaml stating the joint order, the units, the deviation and the spacings."""
+    if folder.exists():
+        raise SystemExit(f"{folder}: exists; remove it first")
+    rng = np.random.default_rng(seed)
+    plate = {"hole_0": (0.0, 0.0, 0.0), "hole_1": (0.2, 0.0, 0.0), "hole_2": (0.0, 0.15, 0.0)}
+
+    def campaign(robot, r):
+        return socket_campaign(robot, placements=3, poses_per_socket=10, plate=plate, joint_noise=ENCODER, rng=r)
+
+    c = campaign(truth_for(m, campaign, rng), rng)
+    spacings = "".join(f"  - {{sockets: [{d.a}, {d.b}], length: {d.length * 1e3:.3f}, sigma: {d.sigma * 1e3:g}}}\n"
+                       for d in c.distances)
+    files = {folder / "seatings.yaml": (
+        "# simulated (examples/arm7/contacts_campaigns.py --write-seatings)\n"
+        f"units: mm-rad\njoints: [{', '.join(m.joint_names)}]\nmarker: {c.marker[0]}\n"
+        f"sigma: {np.sqrt(np.mean(c.sigma ** 2)) * 1e3:.3f}\ndistances:\n{spacings}")}
+    for g in c.groups():
+        files[folder / g.placement / f"{g.target}.csv"] = "".join(
+            ",".join(f"{v:.9f}" for v in c.q[i]) + "\n" for i in g.rows)
+    for path, text in files.items():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--campaigns", type=int, default=10)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--write-sockets", type=Path, metavar="CSV", help="write the simulated socket file that ships")
+    ap.add_argument("--write-seatings", type=Path, metavar="FOLDER",
+                    help="write the simulated folder of seatings that ships")
     args = ap.parse_args(argv)
     m = rc.read_model(MODEL)
     if args.write_sockets:
         return write_sockets(m, args.write_sockets, args.seed)
+    if args.write_seatings:
+        return write_seatings(m, args.write_seatings, args.seed)
     rng = np.random.default_rng(args.seed)
     t0 = time.perf_counter()
     runs = [sockets(m, rng) for _ in range(args.campaigns)]

@@ -14,12 +14,12 @@ from __future__ import annotations
 import contextlib
 from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
-from typing import cast
+from typing import TYPE_CHECKING, cast, overload
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ._arguments import FLAG, FRACTION, NORMS, both, checked, is_a, measured_on, optional
+from ._arguments import FLAG, FRACTION, both, checked, is_a, measured_on, optional
 from ._checks import (
     FIT_RATIO,
     GROSS_FACTOR,
@@ -50,6 +50,7 @@ from ._checks import (
     tolerances,
     verdict,
 )
+from ._contacts import Contacts
 from ._errors import (
     CheckWarning,
     ConvergenceWarning,
@@ -59,6 +60,14 @@ from ._errors import (
     MisfitWarning,
     check_choice,
     warn,
+)
+from ._estimates import (
+    REGISTRATION_TOL,
+    ErrorStats,
+    ParameterEstimate,
+    effect_text,
+    error_stats,
+    workspace_change,
 )
 from ._identifiability import (
     DEFAULT_TOL,
@@ -96,45 +105,11 @@ from ._solve import Covariance, Solution, covariance, solve
 from ._threads import one_blas_thread
 from ._version import __version__
 
+if TYPE_CHECKING:
+    from ._contact_calibration import ContactCalibration
+
 # the limit is a mean-error bar; within this factor of it counts as reaching it
 LIMIT_REACHED_WITHIN = 1.15
-# The fit of base and markers behind the errors before calibration stops at this tolerance, its
-# last step taken: its errors are those of the fit run to 1e-12 within a few 1e-10 m (they are
-# shown in micrometres), and it takes one Jacobian and one pass fewer.
-REGISTRATION_TOL = 1e-6
-
-
-@dataclass(frozen=True)
-class ErrorStats:
-    """Mean, standard deviation, RMS and maximum of ``n`` error norms (m or rad); None when n = 0."""
-
-    n: int
-    mean: float | None
-    std: float | None
-    rms: float | None
-    max: float | None
-
-
-@checked(norms=NORMS)
-def error_stats(norms) -> ErrorStats:
-    """The statistics of error norms; NaN entries were not measured.
-
-    Parameters
-    ----------
-    norms : array_like
-        Error norms, m (any shape; NaN where not measured).
-
-    Returns
-    -------
-    ErrorStats
-        Their count, mean, standard deviation, RMS and maximum (None when there are none).
-    """
-    v = np.asarray(norms, dtype=float).ravel()
-    v = v[np.isfinite(v)]
-    if v.size == 0:
-        return ErrorStats(0, None, None, None, None)
-    return ErrorStats(n=int(v.size), mean=float(v.mean()), std=float(v.std(ddof=1)) if v.size > 1 else 0.0,
-                      rms=float(np.sqrt(np.mean(v ** 2))), max=float(v.max()))
 
 
 @dataclass(frozen=True)
@@ -174,24 +149,6 @@ def judge_against_limit(limit, in_use: AccuracyInUse) -> LimitJudgement:
     ratio = mean / value
     return LimitJudgement(limit_m=value, compared=key, mean_error_m=mean, ratio=ratio,
                           reached=bool(ratio <= LIMIT_REACHED_WITHIN))
-
-
-@dataclass(frozen=True)
-class ParameterEstimate:
-    """One identified parameter: its SI unit, the value the solve started from, the estimate and
-    its standard deviation."""
-
-    name: str
-    unit: str
-    nominal: float
-    estimate: float
-    std: float
-    family: str = ""
-    quantity: str = ""
-
-    @property
-    def change(self) -> float:
-        return self.estimate - self.nominal
 
 
 @dataclass(frozen=True, eq=False)
@@ -361,29 +318,46 @@ class _Fit:
     notes: tuple[str, ...] = ()
 
 
+@overload
+def calibrate(model: RobotModel, data: Measurements, *, contacts: None = None, **options) -> CalibrationResult: ...
+
+
+@overload
+def calibrate(model: RobotModel, data: Measurements | None = None, *, contacts: Contacts,
+              **options) -> ContactCalibration: ...
+
+
 @one_blas_thread
-def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",), known=(),
-              validation: Measurements | None = None, loss: str = "linear", f_scale: float | None = None,
-              tol: float = DEFAULT_TOL, max_nfev: int | None = None, initial_base: str = "model",
-              limit=None, noise=None, on_outliers: str = "refit", weak: str = "eliminate",
-              nonnegative_compliance: bool = False, folds: int = DEFAULT_FOLDS,
-              register_validation: bool = False) -> CalibrationResult:
-    """Identify the identifiable parameters of ``model`` from ``data``, and judge the result in use.
+def calibrate(model: RobotModel, data: Measurements | None = None, *, contacts: Contacts | None = None,
+              parameters=("geometric",), known=(), validation=None, loss: str = "linear",
+              f_scale: float | None = None, tol: float = DEFAULT_TOL, max_nfev: int | None = None,
+              initial_base: str = "model", limit=None, noise=None, on_outliers: str = "refit",
+              weak: str = "eliminate", nonnegative_compliance: bool = False, folds: int = DEFAULT_FOLDS,
+              register_validation: bool = False):
+    """Identify the identifiable parameters of ``model`` from ``data`` (measured points or poses)
+    and/or ``contacts`` (sockets, planes, ball bars, known distances), and judge the result.
 
     Parameters
     ----------
     model : RobotModel
         The nominal robot; the solve starts from it.
-    data : Measurements
-        The fitted campaign.
+    data : Measurements, optional
+        The fitted campaign of measured points or poses (may be left out with ``contacts``).
+    contacts : Contacts, optional
+        Joint-only contact recordings, fitted alone or beside ``data`` in one problem (its rows in
+        their stated standard deviations); the result is then a ``ContactCalibration``, with the
+        kit's figures (socket consistency, spacing error) fitted and held out by placement, and
+        ``validation`` held-out ``Contacts``. ``f_scale``, ``initial_base="register"`` and
+        ``register_validation`` do not apply to contacts and are refused.
     parameters : str or sequence of str
         What to identify: families (``geometric``, ``compliance``, ``backlash``, ``base``,
         ``markers``, ``frames``) or parameter names and patterns.
     known : str or sequence of str
         Families, names or patterns held at the model's values.
-    validation : Measurements, optional
-        Held-out poses to judge the result on; without them it is judged by ``folds``-fold
-        cross-validation (docs/checks.md, "Accuracy in use").
+    validation : Measurements or Contacts, optional
+        Held-out poses (with ``contacts``: held-out contacts) to judge the result on; without them
+        it is judged by ``folds``-fold cross-validation (docs/checks.md, "Accuracy in use"), and
+        contacts placement by placement.
     loss : str
         Least-squares loss: ``linear`` or a robust one of scipy's.
     f_scale : float, optional
@@ -418,8 +392,15 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
     -------
     CalibrationResult
         Estimates, covariance, errors, the accuracy in use and the checks; ``verdict`` says whether
-        it can be trusted (docs/checks.md).
+        it can be trusted (docs/checks.md). With ``contacts``: a ``ContactCalibration``.
     """
+    if contacts is not None:
+        return _from_contacts(model, data, contacts, validation, dict(
+            parameters=parameters, known=known, loss=loss, tol=tol, max_nfev=max_nfev, noise=noise,
+            on_outliers=on_outliers, weak=weak, nonnegative_compliance=nonnegative_compliance, folds=folds),
+            limit=limit, refused=dict(f_scale=f_scale is not None, initial_base=initial_base != "model",
+                                      register_validation=register_validation))
+    data = cast(Measurements, data)       # checked below: required without contacts
     _check_inputs(model, data, validation, loss=loss, initial_base=initial_base, on_outliers=on_outliers, weak=weak,
                   folds=folds, options=dict(parameters=parameters, known=known, f_scale=f_scale, tol=tol,
                                             max_nfev=max_nfev, limit=limit, noise=noise,
@@ -472,6 +453,18 @@ def calibrate(model: RobotModel, data: Measurements, *, parameters=("geometric",
         rotation_stats=fit.summary(val, rotation=True), in_use=in_use, coverage=cover,
         **fit.fields("fit"), **(val.fields("validation") if val is not None else {}),
     )
+
+
+def _from_contacts(model: RobotModel, data, contacts, validation, options: dict, *, limit, refused: dict):
+    """``calibrate`` with contacts: the options that apply to them passed on, the others refused by name."""
+    from ._contact_calibration import calibrate_contacts
+
+    for name, given in refused.items():
+        if given:
+            raise InputError("does not apply to contacts (their rows are in stated standard deviations and "
+                             "their frame is unknown)", where=name)
+    return calibrate_contacts(model, contacts, data=data, validation=validation,
+                              limit=None if limit is None else float(getattr(limit, "limit", limit)), **options)
 
 
 def _as_tuple(v) -> tuple:
@@ -635,21 +628,16 @@ def _weak(prob: Problem, J: np.ndarray, names, ident: IdentifiabilityResult, noi
         cols = [list(names).index(n) for n in result.identified]
         found = weakly_identifiable(J[:, cols], result.identified, [quantities[k] for k in cols], sigma,
                                     moments=moments)
-        said += [(n, _effect(e, lay[by].quantity) + ("" if by == n else f" of {by} with it")) for n, by, e, _ in found]
+        said += [(n, effect_text(e, lay[by].quantity) + ("" if by == n else f" of {by} with it"))
+                 for n, by, e, _ in found]
         if not found or not eliminate:
             return result, tuple(said), expected
         if {n for n, _, _, _ in found} | set(dropped) >= set(ident.identified):
             raise DegenerateDataError(f"no parameter can be pinned down at a scatter of {expected * 1e3:.3g} mm")
-        dropped.update({n: "is weakly identifiable: " + (f"predicted std {_effect(e, lay[n].quantity)} exceeds "
-                           if by == n else f"with it, {by}'s predicted std {_effect(e, lay[by].quantity)} exceeds ")
-                        + _effect(b, lay[by].quantity) for n, by, e, b in found})
+        dropped.update({n: "is weakly identifiable: " + (f"predicted std {effect_text(e, lay[n].quantity)} exceeds "
+                           if by == n else f"with it, {by}'s predicted std {effect_text(e, lay[by].quantity)} exceeds ")
+                        + effect_text(b, lay[by].quantity) for n, by, e, b in found})
         result = eliminate_parameters(ident, J, names, quantities, dropped, n_rows=prob.n_rows)
-
-
-def _effect(v: float, quantity: str) -> str:
-    if quantity == "length":
-        return f"{v * 1e3:.3g} mm"
-    return f"{np.degrees(v):.3g} deg" + (" of deflection" if quantity == "compliance" else "")
 
 
 def _choose(start: RobotModel, analysis: _Analysis, data: Measurements, noise: Noise, limit_m: float | None,
@@ -911,33 +899,6 @@ def _reach(start: RobotModel, design: _Design, p: np.ndarray, q: np.ndarray) -> 
     predicted = Problem(start, at_q, (), compliance=design.compliance).predicted(p)[0]
     return _Reach(predicted=predicted, judgement=workspace_change(start, p, q, measured,
                                                                   design.identifiability.identified))
-
-
-def workspace_change(start: RobotModel, p: np.ndarray, q: np.ndarray, markers, free) -> WorkspaceChange:
-    """How far the geometry of the vector ``p`` (the layout of ``start``) moves the ``markers`` from
-    where ``start``'s puts them at readings ``q``, once the nominal's base and the ``free`` markers'
-    parameters are registered onto it: the change of what the robot does, whatever the
-    parametrisation (equivalent ones move nothing). Compliance and backlash are left out: their
-    own tolerances judge them."""
-    lay = parameter_layout(start)
-    p0 = parameter_vector(start)
-    geometry = np.array([lay[n].family not in ("compliance", "backlash") for n in lay.names])
-    p_geom = np.where(geometry, p, p0)
-    target = Problem(start, design_measurements(start, q, markers=markers), (),
-                     compliance=start.has_compliance).predicted(p_geom)[0]
-    tol = tolerances(start)
-    t_len, t_ang = tol.get(("frames", "length")), tol.get(("frames", "angle"))
-    radius = float(np.max(np.linalg.norm(target - np.asarray(start.base_position, dtype=float), axis=2)))
-    placed = tuple(n for n in lay.names if lay[n].family == "base"
-                   or (lay[n].role == "marker" and lay[n].owner in set(markers) and n in set(free)))
-    ws = Measurements(q=q, positions=target, marker_names=tuple(markers), joint_names=start.joint_names)
-    nominal = Problem(start, ws, placed, compliance=start.has_compliance)
-    p_start = p0.copy()
-    p_start[lay.indices(placed)] = p[lay.indices(placed)]
-    d = nominal.error_norms(solve(nominal, p_start, tol=REGISTRATION_TOL).p)
-    bar = None if t_len is None or t_ang is None else float(t_len + t_ang * radius)
-    return WorkspaceChange(max_m=float(np.nanmax(d)), rms_m=float(np.sqrt(np.nanmean(d ** 2))), tolerance_m=bar,
-                           reach_m=radius, n_poses=len(q))
 
 
 def _in_use(design: _Design, fit: _Fit, before: np.ndarray, validation: Measurements | None,

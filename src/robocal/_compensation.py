@@ -333,6 +333,7 @@ def _seed_order(table_f, table_post, features, want, k: int) -> np.ndarray:
         kk = min(k, len(pool))
         _, idx = cKDTree(table_f[pool]).query(features[rows], k=kk)
         idx = np.asarray(idx).reshape(int(rows.sum()), kk)
+        idx[idx >= len(pool)] = 0    # a target too far for any finite distance: any seed, it will not solve
         order[rows] = pool[np.concatenate([idx, np.repeat(idx[:, -1:], k - kk, axis=1)], axis=1)]
     return order
 
@@ -426,6 +427,12 @@ def inverse_kinematics(model: RobotModel, positions, rotations, *, marker: int =
                                                       for k in range(len(seeds))]
     q = np.full((n, model.n_joints), np.nan)
     state = np.zeros(n, dtype=int)              # 0 nothing yet, 1 solved beyond the limits, 2 solved
+    # a target farther than twice the reach seen over the joint ranges is out of reach: not solved for
+    # (Newton's steps on it would overflow), its seed kept as the attempt
+    reach = np.max(np.linalg.norm(table_f[:, :3], axis=1))
+    far = ~np.all(np.abs(P) <= 2.0 * reach + 1.0, axis=1)
+    q[far] = seeds[0][far]
+    state[far] = 2
     p = parameter_vector(model)
     for seed in seeds:
         todo = np.flatnonzero(state < 2)
@@ -443,7 +450,7 @@ def inverse_kinematics(model: RobotModel, positions, rotations, *, marker: int =
         q[todo[better]] = qk[better]
         state[todo] = np.maximum(state[todo], level)
     inside = np.all((q >= model.lower_limits) & (q <= model.upper_limits), axis=1)
-    return InverseKinematics(q=q, solved=state > 0, within_limits=inside)
+    return InverseKinematics(q=q, solved=(state > 0) & ~far, within_limits=inside)
 
 
 @dataclass(frozen=True)

@@ -14,14 +14,33 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ._arguments import FRACTION, NAMES, checked, is_a, names_in, noise_of, one_of, optional, shaped, whole
-from ._calibration import ErrorStats, ParameterEstimate, error_stats, workspace_change
+from ._arguments import (
+    FLAG,
+    FRACTION,
+    NAMES,
+    POSITIVE,
+    checked,
+    is_a,
+    names_in,
+    noise_of,
+    one_of,
+    optional,
+    shaped,
+    whole,
+)
+from ._arrays import read_only
 from ._checks import (
+    MEAN_NORM_PER_SIGMA,
+    OVERFIT_GROSS,
+    OVERFIT_GROSS_EXCESS,
+    OVERFIT_RATIO,
     Check,
     contact_fit_check,
     convergence_check,
     correlation_check,
     fit_check,
+    identifiability_check,
+    interchangeable_pairs,
     outlier_check,
     plausibility_check,
     tolerances,
@@ -29,16 +48,17 @@ from ._checks import (
 )
 from ._contacts import Contacts
 from ._errors import DegenerateDataError, InputError, check_choice
-from ._identifiability import DEFAULT_TOL, Absorption, IdentifiabilityResult, analyse
-from ._in_use import workspace_readings
+from ._estimates import ErrorStats, ParameterEstimate, effect_text, error_stats, workspace_change
+from ._identifiability import DEFAULT_TOL, WEAK_STD, Absorption, IdentifiabilityResult, analyse, weakly_identifiable
+from ._in_use import DEFAULT_FOLDS, paired_excess, workspace_readings
 from ._kinematics import evaluate
 from ._measurements import Measurements, Noise
 from ._model import RobotModel
 from ._observations import ROW_KINDS, ContactProblem
-from ._options import DEFAULT_INSTRUMENT, INSTRUMENT_NOISE, LOSSES, OUTLIER_ACTIONS
+from ._options import DEFAULT_INSTRUMENT, INSTRUMENT_NOISE, LOSSES, OUTLIER_ACTIONS, WEAK_ACTIONS
 from ._parameters import candidate_parameters, model_from_vector, parameter_layout, parameter_names
-from ._problem import needs_compliance
-from ._solve import covariance, solve
+from ._problem import Problem, design_measurements, needs_compliance
+from ._solve import Solution, carried_alone, covariance, solve
 
 # the part of a direction's effect the nuisance parameters leave (relative) below which it is unreachable
 UNREACHABLE_TOL = 1e-6
@@ -180,12 +200,17 @@ class ContactErrors:
     ``spread`` per socket (placement/socket) the RMS distance of the marker positions from their
     centroid; ``distance`` per placement and pair the centroids' distance minus the known length;
     ``plane`` per plane the RMS distance of its contacts from the plane (the known one, else the
-    best-fitting); ``bar`` per pair the distance of the two ends minus the bar's length."""
+    best-fitting); ``bar`` per pair the distance of the two ends minus the bar's length;
+    ``consistency`` per socket the (mean, max) distance of its seated ball centres from their mean
+    centre, the figure socket campaigns are judged by (``distance`` is then the spacing error:
+    calibrated spacing minus the known one)."""
 
     spread: dict
     distance: dict
     plane: dict
     bar: dict
+    consistency: dict = field(default_factory=dict)
+    seatings: dict = field(default_factory=dict)
 
     @property
     def mean_spread(self) -> float | None:
@@ -194,6 +219,27 @@ class ContactErrors:
     @property
     def distance_rms(self) -> float | None:
         return float(np.sqrt(np.mean(np.square(list(self.distance.values()))))) if self.distance else None
+
+    @property
+    def consistency_mean(self) -> float | None:
+        """The mean distance of every seated ball centre from its socket's mean centre (m)."""
+        d = list(self.seatings.values())
+        return float(np.mean(np.concatenate(d))) if d else None
+
+    @property
+    def consistency_max(self) -> float | None:
+        """The largest distance of a seated ball centre from its socket's mean centre (m)."""
+        return float(max(m for _, m in self.consistency.values())) if self.consistency else None
+
+    @property
+    def spacing_mean(self) -> float | None:
+        """The mean absolute spacing error (calibrated minus known distance, m)."""
+        return float(np.mean(np.abs(list(self.distance.values())))) if self.distance else None
+
+    @property
+    def spacing_max(self) -> float | None:
+        """The largest absolute spacing error (m)."""
+        return float(np.max(np.abs(list(self.distance.values())))) if self.distance else None
 
 
 @checked(model=is_a(RobotModel), contacts=is_a(Contacts))
@@ -212,10 +258,13 @@ def contact_errors(model: RobotModel, contacts: Contacts) -> ContactErrors:
     ev = evaluate(model, contacts.q)
     P = ev.positions[np.arange(contacts.n_rows), [model.marker_names.index(m) for m in contacts.marker]]
     centre = {}
-    spread = {}
+    spread, consistency, seatings = {}, {}, {}
     for g in contacts.groups("socket"):
         centre[g.placement, g.target] = P[g.rows].mean(axis=0)
-        spread[g.label] = float(np.sqrt(np.mean(np.sum((P[g.rows] - centre[g.placement, g.target]) ** 2, axis=1))))
+        d = np.linalg.norm(P[g.rows] - centre[g.placement, g.target], axis=1)
+        spread[g.label] = float(np.sqrt(np.mean(d ** 2)))
+        consistency[g.label] = (float(d.mean()), float(d.max()))
+        seatings[g.label] = read_only(d)
     distance = {f"{ga.placement}: {d.a}-{d.b}": float(np.linalg.norm(centre[ga.placement, d.a] -
                                                                       centre[gb.placement, d.b]) - d.length)
                 for d, ga, gb in contacts.distance_pairs()}
@@ -230,7 +279,7 @@ def contact_errors(model: RobotModel, contacts: Contacts) -> ContactErrors:
         plane[g.label] = float(np.sqrt(np.mean(dist ** 2)))
     bar = {g.label: float(np.linalg.norm(P[g.rows[0]] - P[g.rows[1]]) - contacts.bars[g.target][0])
            for g in contacts.groups("bar")}
-    return ContactErrors(spread, distance, plane, bar)
+    return ContactErrors(spread, distance, plane, bar, consistency, seatings)
 
 
 @dataclass(frozen=True, eq=False)
@@ -240,7 +289,10 @@ class ContactCalibration:
     each socket point coordinate and plane parameter (SI), ``fit_before``/``fit_after`` and
     ``validation_before``/``validation_after`` the kit's figures (``ContactErrors``, validation None
     without held-out contacts), ``tracker_after`` the fitted tracker points' error norms (or None),
-    ``noise_ratio`` per kind of row the RMS residual in stated standard deviations."""
+    ``noise_ratio`` per kind of row the RMS residual in stated standard deviations; ``weak`` the
+    parameters the rows cannot pin down (name, predicted std), held at nominal unless ``weak_kept``;
+    ``held_out`` the figures of each placement predicted by the fit on the others (None with a
+    validation set or one placement)."""
 
     nominal_model: RobotModel
     calibrated_model: RobotModel
@@ -259,6 +311,9 @@ class ContactCalibration:
     success: bool
     message: str
     nfev: int
+    weak: tuple[tuple[str, str], ...] = ()
+    weak_kept: bool = False
+    held_out: ContactErrors | None = None
 
     @property
     def verdict(self) -> str:
@@ -286,18 +341,27 @@ def _check_inputs(model: RobotModel, contacts: Contacts, data, validation) -> No
 
 @checked(model=is_a(RobotModel), contacts=is_a(Contacts), data=optional(is_a(Measurements)),
          validation=optional(is_a(Contacts)), parameters=NAMES, known=NAMES, noise=noise_of(Noise, INSTRUMENT_NOISE),
-         tol=FRACTION, loss=one_of(LOSSES), max_nfev=optional(whole(1)), on_outliers=one_of(OUTLIER_ACTIONS))
+         tol=FRACTION, loss=one_of(LOSSES), max_nfev=optional(whole(1)), on_outliers=one_of(OUTLIER_ACTIONS),
+         weak=one_of(WEAK_ACTIONS), limit=optional(POSITIVE), nonnegative_compliance=FLAG, folds=whole(2))
 def calibrate_contacts(model: RobotModel, contacts: Contacts, *, data: Measurements | None = None,
                        validation: Contacts | None = None, parameters=("geometric",), known=(), noise=None,
                        tol: float = DEFAULT_TOL, loss: str = "linear", max_nfev: int | None = None,
-                       on_outliers: str = "refit") -> ContactCalibration:
-    """Identify the parameters of ``model`` that ``contacts`` (and tracker ``data``, if given) reach.
+                       on_outliers: str = "refit", weak: str = "eliminate", limit: float | None = None,
+                       nonnegative_compliance: bool = False, folds: int = DEFAULT_FOLDS) -> ContactCalibration:
+    """Identify the parameters of ``model`` that ``contacts`` (and tracker ``data``, if given) reach:
+    what ``calibrate(model, data, contacts=contacts)`` runs.
 
     ``parameters``/``known`` as for ``calibrate``; ``validation``: held-out contacts (e.g. a
-    placement) judged with the calibrated model; ``noise`` weighs tracker rows that state no
-    deviation (a ``Noise`` or an instrument class). Each contact row weighs by its stated deviation.
-    ``on_outliers``: ``"refit"`` refits with the robust loss soft_l1 when rows stand out (every row
-    is in its own standard deviations, so one bend serves every kind), ``"flag"`` only names them.
+    placement) judged with the calibrated model; without them and with two placements or more, each
+    placement is held out in turn (``held_out``: the figures of every placement predicted by the
+    fit on the others). ``noise`` weighs tracker rows that state no deviation (a ``Noise`` or an
+    instrument class). Each contact row weighs by its stated deviation. ``on_outliers``:
+    ``"refit"`` refits with the robust loss soft_l1 when rows stand out (every row is in its own
+    standard deviations, so one bend serves every kind), keeping in full the rows that alone carry
+    a quantity; ``"flag"`` only names them. ``weak``, ``limit`` and ``nonnegative_compliance`` as
+    for ``calibrate``: parameters the rows cannot pin down (their predicted standard deviation, the
+    points and planes taken out, beyond the bound of practical identifiability at the stated
+    deviations, or at the scatter the limit implies) are held at nominal, or kept and named.
 
     Parameters
     ----------
@@ -310,6 +374,15 @@ def calibrate_contacts(model: RobotModel, contacts: Contacts, *, data: Measureme
     tol : float
         Identifiability tolerance, in (0, 1).
     {loss, max_nfev, on_outliers}
+    weak : {{"eliminate", "flag"}}
+        Hold weakly identifiable parameters at nominal, or keep them all and warn.
+    limit : float, optional
+        The limit of absolute accuracy (m): weak parameters are judged at the scatter it implies.
+    nonnegative_compliance : bool
+        Keep compliances >= 0.
+    folds : int
+        Not used by contacts (their folds are the placements); accepted so that every option of
+        ``calibrate`` is.
 
     Returns
     -------
@@ -321,53 +394,236 @@ def calibrate_contacts(model: RobotModel, contacts: Contacts, *, data: Measureme
     _check_inputs(model, contacts, data, validation)
     names = candidate_parameters(model, parameters if not isinstance(parameters, str) else (parameters,),
                                  known=(known,) if isinstance(known, str) else known)
-    prob = ContactProblem(model, contacts, names, compliance=needs_compliance(model, names), data=data, noise=noise)
+    compliance = needs_compliance(model, names)
+    prob = ContactProblem(model, contacts, names, compliance=compliance, data=data, noise=noise)
     p0 = prob.start_vector()
     ident = contact_identifiability(prob, names, tol=tol, p=p0)
-    design = prob.over(ident.identified)
-    if not ident.identified or design.n_rows <= len(design.free_idx):
-        raise DegenerateDataError(f"{design.n_rows} equations for {len(ident.identified)} identifiable robot "
-                                  f"parameters and {prob.n_nuisance} unknowns of points and planes")
-    sol, checks, ratios = _solve(design, p0, data, noise, loss=loss, max_nfev=max_nfev, on_outliers=on_outliers)
+    if not ident.identified:
+        raise DegenerateDataError(f"no robot parameter is identifiable from these contacts ({prob.n_rows} rows)")
+    weak_found = _weak(prob.over(ident.identified), p0, _row_scatter(contacts, limit))
+    settings = _Settings(data, noise, loss, max_nfev, on_outliers, nonnegative_compliance,
+                         validation is None and len(contacts.placements()) > 1)
+    held_back = tuple(n for n in ident.identified if n not in {w for w, _ in weak_found})
+    fit, kept_in_use = _choose(prob, p0, ident.identified, held_back if weak == "eliminate" else None, settings)
+    free, sol = fit.design.free_names, fit.solution
     cov = covariance(sol)
-    k = len(ident.identified)
+    k = len(free)
     lay = parameter_layout(model)
     estimates = tuple(ParameterEstimate(n, lay[n].unit, float(p0[lay[n].index]), float(sol.p[lay[n].index]),
                                         float(cov.std[i]), family=lay[n].family, quantity=lay[n].quantity)
-                      for i, n in enumerate(ident.identified))
+                      for i, n in enumerate(free))
     calibrated = model_from_vector(model, sol.p[:prob.n_robot])
     reach = workspace_change(model, sol.p[:prob.n_robot], workspace_readings(model),
-                             tuple(dict.fromkeys(contacts.marker)), ident.identified)
-    checks += [plausibility_check(estimates, tolerances(model), {}, workspace=reach),
-               correlation_check([e.name for e in estimates], cov.correlation[:k, :k])]
+                             tuple(dict.fromkeys(contacts.marker)), free)
+    loose = {e.name for e in estimates if e.std > WEAK_STD.get(e.quantity, np.inf)}
+    corr = cov.correlation[:k, :k]
+    kept = weak != "eliminate" or kept_in_use
+    checks = list(fit.checks) + [
+        plausibility_check(estimates, tolerances(model), {}, workspace=reach),
+        correlation_check([e.name for e in estimates], corr, loose),
+        identifiability_check((), weak_found, weak_kept=kept, kept_in_use=kept_in_use,
+                              interchangeable=interchangeable_pairs(list(free), corr, loose))]
+    held = fit.held_out if validation is None else contact_errors(calibrated, validation)
+    if held is not None:
+        checks.append(_held_out_check(contact_errors(model, contacts if validation is None else validation),
+                                      contact_errors(calibrated, contacts), held,
+                                      "each placement predicted by the others" if validation is None else
+                                      "the held-out placements"))
     tracker = None
-    if data is not None and design.tracker is not None:    # a tracker part exists with data
-        tracker = error_stats(design.tracker.error_norms(sol.p[:prob.n_robot]))
+    if data is not None and fit.design.tracker is not None:    # a tracker part exists with data
+        tracker = error_stats(fit.design.tracker.problem.error_norms(sol.p[:prob.n_robot]))
     return ContactCalibration(
         nominal_model=model, calibrated_model=calibrated, parameters=estimates, covariance=cov.covariance[:k, :k],
-        correlation=cov.correlation[:k, :k], identifiability=ident,
+        correlation=corr, identifiability=ident,
         nuisance={n: (float(sol.p[prob.n_robot + i]), float(cov.std[k + i]))
                   for i, n in enumerate(prob.nuisance_names)},
         fit_before=contact_errors(model, contacts), fit_after=contact_errors(calibrated, contacts),
         validation_before=None if validation is None else contact_errors(model, validation),
         validation_after=None if validation is None else contact_errors(calibrated, validation),
-        tracker_after=tracker, noise_ratio=ratios, checks=tuple(checks), success=sol.success, message=sol.message,
-        nfev=sol.nfev)
+        tracker_after=tracker, noise_ratio=fit.ratios, checks=tuple(checks), success=sol.success,
+        message=sol.message, nfev=sol.nfev, weak=tuple(weak_found), weak_kept=kept, held_out=fit.held_out)
 
 
-def _solve(design: ContactProblem, p0, data, noise: Noise, *, loss: str, max_nfev, on_outliers: str):
+@dataclass(frozen=True)
+class _Settings:
+    """How a design of contacts is fitted: the tracker data beside them, the noise, the solver's
+    options, and whether each placement is predicted by the others (``by_placement``)."""
+
+    data: Measurements | None
+    noise: Noise
+    loss: str
+    max_nfev: int | None
+    on_outliers: str
+    nonnegative_compliance: bool
+    by_placement: bool
+
+
+@dataclass(frozen=True, eq=False)
+class _ContactFit:
+    """One design of contacts solved: its problem, solution, row checks, each kind's residual ratio
+    and, when asked, each placement's figures predicted by the others."""
+
+    design: ContactProblem
+    solution: Solution
+    checks: tuple[Check, ...]
+    ratios: dict
+    held_out: ContactErrors | None
+
+
+def _lower(problem: ContactProblem, nonnegative_compliance: bool) -> np.ndarray | None:
+    """Lower bounds of the free robot parameters and every nuisance: 0 on compliances, if asked."""
+    if not nonnegative_compliance:
+        return None
+    lay = parameter_layout(problem.model)
+    return np.r_[[0.0 if lay[n].family == "compliance" else -np.inf for n in problem.free_names],
+                 np.full(problem.n_nuisance, -np.inf)]
+
+
+def _fit_design(prob: ContactProblem, p0: np.ndarray, free: tuple[str, ...], how: _Settings) -> _ContactFit:
+    design = prob.over(free)
+    if not free or design.n_rows <= len(design.free_idx):
+        raise DegenerateDataError(f"{design.n_rows} equations for {len(free)} identifiable robot "
+                                  f"parameters and {prob.n_nuisance} unknowns of points and planes")
+    sol, checks, ratios = _solve(design, p0, how.data, how.noise, loss=how.loss, max_nfev=how.max_nfev,
+                                 on_outliers=how.on_outliers, lower=_lower(design, how.nonnegative_compliance))
+    held = _by_placement(prob.model, prob.contacts, free, sol.p[:prob.n_robot], how) if how.by_placement else None
+    return _ContactFit(design, sol, tuple(checks), ratios, held)
+
+
+def _choose(prob: ContactProblem, p0: np.ndarray, identified: tuple[str, ...], held_back: tuple[str, ...] | None,
+            how: _Settings) -> tuple[_ContactFit, bool]:
+    """The design the held-out placements support, and whether weak parameters were kept for it.
+    ``held_back``: the design without the weak parameters (None: they are kept by choice). As for
+    measured points, the simpler design is kept unless each placement predicted by the others is
+    worse with it by more than one standard error (over the seatings' squared distances from their
+    socket's mean centre); with one placement, or a validation set, it is kept."""
+    if held_back is None or held_back == identified:
+        return _fit_design(prob, p0, identified, how), False
+    if not held_back:
+        raise DegenerateDataError("no robot parameter can be pinned down by these contacts at their stated "
+                                  "deviations")
+    simple = _fit_design(prob, p0, held_back, how)
+    if simple.held_out is None:
+        return simple, False
+    full = _fit_design(prob, p0, identified, how)
+    other = full.held_out.seatings if full.held_out is not None else {}
+    labels = [k for k in simple.held_out.seatings if k in other]
+    if not labels:
+        return simple, False
+    losses = [np.concatenate([d[k] ** 2 for k in labels]) for d in (simple.held_out.seatings, other)]
+    excess, se = paired_excess(losses[0], losses[1], np.ones(len(losses[0]), dtype=bool))
+    return (full, True) if excess > se else (simple, False)
+
+
+def _held_out_check(before: ContactErrors, fitted: ContactErrors, held: ContactErrors, how: str) -> Check:
+    """The socket consistency of seatings the fit did not see (``held``: the calibrated model on
+    them, ``before``: the nominal's), judged as the accuracy in use of measured points is: worse
+    than the nominal fails, beyond ``OVERFIT_GROSS`` times the fitted seatings' (and a millimetre
+    more) fails, beyond ``OVERFIT_RATIO`` times them warns (overfitting)."""
+    name = "accuracy in use"
+    a, b, f = held.consistency_mean, before.consistency_mean, fitted.consistency_mean
+    if a is None or b is None or f is None:
+        return Check(name, "pass", f"no socket seatings held out ({how}): judged by the fit's checks alone")
+    summary = (f"socket consistency of {how}: mean {a * 1e3:.4g} mm after, {b * 1e3:.4g} mm before calibration; "
+               f"{f * 1e3:.4g} mm on the fitted seatings")
+    if a > OVERFIT_GROSS * f and a > f + OVERFIT_GROSS_EXCESS:
+        return Check(name, "fail", summary + ": beyond anything the fit explains", cause="a placement or socket "
+                     "mislabelled, or a set-up that moved", fix="check the placements' labels and seatings")
+    if a >= b:
+        return Check(name, "fail", summary + ": no better than before calibration", cause="a model or data "
+                     "mistake", fix="read the checks above; check joint order, signs and the contact file")
+    if a > OVERFIT_RATIO * f:
+        return Check(name, "warn", summary + f": {a / f:.3g} times the fitted seatings' (overfitting)",
+                     cause="too few placements or seatings for the parameters", fix="add placements, or hold "
+                     "parameters at nominal (--known)")
+    return Check(name, "pass", summary)
+
+
+def _row_scatter(contacts: Contacts, limit: float | None) -> float:
+    """The scatter weak parameters are judged at, in the rows' units (stated standard deviations):
+    1, or with a limit of absolute accuracy the robot's own scatter it implies beside the stated
+    deviations (their median)."""
+    if limit is None:
+        return 1.0
+    return float(np.hypot(1.0, limit / MEAN_NORM_PER_SIGMA / float(np.median(contacts.sigma))))
+
+
+def _weak(design: ContactProblem, p0: np.ndarray, sigma: float) -> list[tuple[str, str]]:
+    """The robot parameters of ``design`` the rows cannot pin down at a scatter ``sigma`` (rows'
+    units), with their predicted standard deviation as text: ``weakly_identifiable`` on the robot's
+    columns once what the points and planes absorb is taken out of them."""
+    J = design.jacobian(p0)
+    k = len(design.robot_idx)
+    Jr, N = J[:, :k], J[:, k:]
+    if N.shape[1]:
+        U, s, _ = np.linalg.svd(N / np.maximum(np.linalg.norm(N, axis=0), 1e-300), full_matrices=False)
+        U = U[:, s > s[0] * 1e-10]
+        Jr = Jr - U @ (U.T @ Jr)
+    lay = parameter_layout(design.model)
+    moments = {}
+    if design.compliance:      # a compliance is judged by the deflection it predicts, as for measured points
+        readings = design_measurements(design.model, design.contacts.q, markers=design.model.marker_names[:1])
+        moments = Problem(design.model, readings, (), compliance=True).compliance_moments(p0[:design.n_robot])
+    found = weakly_identifiable(Jr, design.free_names, [lay[n].quantity for n in design.free_names], sigma,
+                                moments=moments)
+    return [(n, effect_text(e, lay[by].quantity) + ("" if by == n else f" of {by} with it")) for n, by, e, _ in found]
+
+
+def _by_placement(model: RobotModel, contacts: Contacts, free, p_robot: np.ndarray, how: _Settings) -> ContactErrors:
+    """Each placement's figures predicted by the calibration on the other placements (the points
+    and planes of the others refitted, the robot started from the full solution): the held-out
+    consistency and spacing error, a placement at a time."""
+    start = model_from_vector(model, p_robot)
+    compliance = needs_compliance(model, free)
+    parts = []
+    for placement in contacts.placements():
+        rest, held = contacts.split_placements([placement])
+        prob = ContactProblem(start, rest, free, compliance=compliance, data=how.data, noise=how.noise)
+        try:
+            sol = solve(prob, prob.start_vector(), lower=_lower(prob, how.nonnegative_compliance))
+        except DegenerateDataError:      # the others alone cannot fix the fit: no prediction for it
+            continue
+        parts.append(contact_errors(model_from_vector(model, sol.p[:prob.n_robot]), held))
+    return ContactErrors(*({k: v for e in parts for k, v in getattr(e, f).items()}
+                           for f in ("spread", "distance", "plane", "bar", "consistency", "seatings")))
+
+
+def _solve(design: ContactProblem, p0, data, noise: Noise, *, loss: str, max_nfev, on_outliers: str, lower=None):
     """The solution, the checks of its rows and each kind's residual ratio; a linear fit that leaves
     outliers is refitted with a robust loss when ``on_outliers`` is "refit"."""
-    sol = solve(design, p0, loss=loss, max_nfev=max_nfev)
+    sol = solve(design, p0, loss=loss, max_nfev=max_nfev, lower=lower)
     checks, ratios, outlying = _row_checks(design, sol, data, noise)
     if not (outlying and loss == "linear" and on_outliers == "refit"):
         return sol, checks, ratios
-    sol = solve(design, p0, loss="soft_l1", max_nfev=max_nfev)
+    alone = carried_alone(design.jacobian(sol.p))
+    sol = solve(design, p0, loss="soft_l1", max_nfev=max_nfev, linear_rows=alone if alone.any() else None,
+                lower=lower)
     checks, ratios, _ = _row_checks(design, sol, data, noise)
     said = f"; the robust loss {sol.loss} sets them aside"
-    return sol, [replace(c, status="warn", summary=c.summary + said, fix="check those rows; remove them to fit "
-                         "without them") if c.name.startswith("outliers") and c.status != "pass" else c
-                 for c in checks], ratios
+    checks = [replace(c, status="warn", summary=c.summary + said, fix="check those rows; remove them to fit "
+                      "without them") if c.name.startswith("outliers") and c.status != "pass" else c
+              for c in checks]
+    if alone.any():
+        checks.append(_kept_alone(design, alone))
+    return sol, checks, ratios
+
+
+_CARRIES = {"distance": "the scale", "bar": "the scale", "plane": "a plane's position", "socket": "a socket's point",
+            "position": "a direction of the robot", "rotation": "a direction of the robot"}
+
+
+def _kept_alone(design: ContactProblem, alone: np.ndarray) -> Check:
+    """The rows the robust refit kept in full because they alone carry a quantity (``carried_alone``)."""
+    labels = np.array(design.row_labels(), dtype=object)[alone]
+    kinds = [ROW_KINDS[k] for k in design.row_kinds()[alone]]
+    what = ", ".join(dict.fromkeys(_CARRIES[k] for k in kinds))
+    listed = ", ".join(dict.fromkeys(str(v) for v in labels[:6])) + (" and more" if len(labels) > 6 else "")
+    return Check("rows carried alone", "warn",
+                 f"{listed}: the only rows fixing {what}; kept in full in the robust refit (setting them aside would "
+                 "leave it free), so nothing else in these data checks them",
+                 cause="one observation alone fixes a quantity of the fit",
+                 fix="state a second known distance or more contacts of that kind, so that one mistake shows",
+                 items=tuple(str(v) for v in labels))
 
 
 def _row_checks(design: ContactProblem, sol, data, noise: Noise):
@@ -387,7 +643,7 @@ def _row_checks(design: ContactProblem, sol, data, noise: Noise):
                    contact_fit_check(kind, r2, s, out)]
         ratios[kind] = float(np.sqrt(np.mean((r2 / s[:, None]) ** 2)))
     if data is not None and design.tracker is not None:
-        residuals = design.tracker.errors(sol.p[:design.n_robot])[data.mask]
+        residuals = design.tracker.problem.errors(sol.p[:design.n_robot])[data.mask]
         sigma = None if data.sigma is None else data.sigma[data.mask]
         rows, markers = np.nonzero(data.mask)
         out_check, out = outlier_check(residuals, sigma, noise, [f"{data.labels[i]}, marker {data.marker_names[j]}"

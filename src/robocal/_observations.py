@@ -26,7 +26,9 @@ import numpy as np
 
 from ._arrays import frozen, read_only
 from ._contacts import Contacts
+from ._errors import InputError
 from ._kinematics import evaluate, evaluate_state, jacobian_columns, joint_turns, layout
+from ._linalg import r_factor
 from ._measurements import Measurements, Noise
 from ._model import RobotModel
 from ._parameters import parameter_vector
@@ -73,10 +75,207 @@ def met_readings(model: RobotModel, contacts: Contacts, marker_idx: np.ndarray, 
     return q
 
 
+class _At:
+    """One evaluation point shared by every block: the full vector ``p``, the robot's part, the
+    nuisance part, and (made when a block first asks) the contact rows' marker positions ``P``
+    (n_rows, 3) and their Jacobian ``Jm`` (n_rows, 3, n_free_robot); ``k`` free robot columns then
+    ``nn`` nuisance columns."""
+
+    def __init__(self, problem: ContactProblem, p: np.ndarray):
+        self.problem, self.p = problem, p
+        self.robot, self.nu = p[:problem.n_robot], p[problem.n_robot:]
+        self.k, self.nn = len(problem.robot_idx), problem.n_nuisance
+        self._P: np.ndarray | None = None
+        self._Jm: np.ndarray | None = None
+
+    @property
+    def P(self) -> np.ndarray:
+        if self._P is None:
+            self._P = self.problem._positions(self.robot)
+        return self._P
+
+    @property
+    def Jm(self) -> np.ndarray:
+        if self._Jm is None:
+            self._Jm = self.problem.marker_jacobian(self.robot)
+        return self._Jm
+
+    def zeros(self, *shape: int) -> np.ndarray:
+        return np.zeros((*shape, self.k + self.nn))
+
+
+class _Block:
+    """One kind of observation over some rows: its unweighted ``errors`` (m), the standard deviations
+    ``sigma`` they are divided by (one per observation), and the weighted Jacobian of
+    ``errors / sigma`` over the free robot columns then every nuisance column. ``kind`` names it in
+    ``ROW_KINDS``; ``width`` is the number of rows per observation (3 for a socket's marker)."""
+
+    kind = ""
+    width = 1
+    sigma: np.ndarray
+
+    @property
+    def n_rows(self) -> int:
+        return self.width * len(self.sigma)
+
+    def errors(self, at: _At) -> np.ndarray:
+        raise NotImplementedError
+
+    def residuals(self, at: _At) -> np.ndarray:
+        e = self.errors(at)
+        return (e / (self.sigma[:, None] if self.width > 1 else self.sigma)).ravel()
+
+    def jacobian(self, at: _At) -> np.ndarray:
+        raise NotImplementedError
+
+
+class SocketBlock(_Block):
+    """The marker seated in one socket: marker minus the socket's unknown point (nuisance columns
+    ``col``..``col + 2``), 3 rows per seating."""
+
+    kind, width = "socket", 3
+
+    def __init__(self, rows: np.ndarray, col: int, sigma: np.ndarray):
+        self.rows, self.col, self.sigma = rows, col, sigma
+
+    def point(self, at: _At) -> np.ndarray:
+        return at.nu[self.col:self.col + 3]
+
+    def errors(self, at: _At) -> np.ndarray:
+        return at.P[self.rows] - self.point(at)
+
+    def jacobian(self, at: _At) -> np.ndarray:
+        B = at.zeros(len(self.rows), 3)         # d(P - c)/dp, -I on the point
+        B[:, :, :at.k] = at.Jm[self.rows]
+        B[:, :, at.k + self.col:at.k + self.col + 3] = -np.eye(3)
+        return (B / self.sigma[:, None, None]).reshape(-1, at.k + at.nn)
+
+
+class PlaneBlock(_Block):
+    """The marker on an unknown plane ``n . x = d`` (nuisance ``a, b, d`` at ``col``): the signed
+    distance, one row per contact; ``axes``: the plane's starting normal and two tangents."""
+
+    kind = "plane"
+
+    def __init__(self, rows: np.ndarray, col: int, axes: tuple, sigma: np.ndarray):
+        self.rows, self.col, self.axes, self.sigma = rows, col, axes, sigma
+
+    def plane(self, at: _At):
+        """Unit normal, offset and the derivatives of the normal over (a, b)."""
+        n0, t1, t2 = self.axes
+        a, b, d = at.nu[self.col:self.col + 3]
+        v = n0 + a * t1 + b * t2
+        L = np.linalg.norm(v)
+        n = v / L
+        return n, d, [(t - n * (n @ t)) / L for t in (t1, t2)]
+
+    def errors(self, at: _At) -> np.ndarray:
+        n, d, _ = self.plane(at)
+        return at.P[self.rows] @ n - d
+
+    def jacobian(self, at: _At) -> np.ndarray:
+        n, _, dn = self.plane(at)                 # n on the robot, P dn and -1 on the plane
+        B = at.zeros(len(self.rows))
+        B[:, :at.k] = np.einsum("j,njk->nk", n, at.Jm[self.rows])
+        col = at.k + self.col
+        B[:, col] = at.P[self.rows] @ dn[0]
+        B[:, col + 1] = at.P[self.rows] @ dn[1]
+        B[:, col + 2] = -1.0
+        return B / self.sigma[:, None]
+
+
+class KnownPlaneBlock(_Block):
+    """The marker on a plane known in W: the signed distance, robot columns only."""
+
+    kind = "plane"
+
+    def __init__(self, rows: np.ndarray, normal, offset: float, sigma: np.ndarray):
+        self.rows, self.normal, self.offset, self.sigma = rows, np.asarray(normal, dtype=float), offset, sigma
+
+    def errors(self, at: _At) -> np.ndarray:
+        return at.P[self.rows] @ self.normal - self.offset
+
+    def jacobian(self, at: _At) -> np.ndarray:
+        B = at.zeros(len(self.rows))
+        B[:, :at.k] = np.einsum("j,njk->nk", self.normal, at.Jm[self.rows])
+        return B / self.sigma[:, None]
+
+
+class BarBlock(_Block):
+    """A ball bar between the markers of rows ``i`` and ``j``: their distance minus its length."""
+
+    kind = "bar"
+
+    def __init__(self, i: int, j: int, length: float, sigma: float):
+        self.i, self.j, self.length, self.sigma = i, j, length, np.array([sigma])
+
+    def errors(self, at: _At) -> np.ndarray:
+        return np.atleast_1d(np.linalg.norm(at.P[self.i] - at.P[self.j]) - self.length)
+
+    def jacobian(self, at: _At) -> np.ndarray:
+        d = at.P[self.i] - at.P[self.j]
+        B = at.zeros(1)
+        B[0, :at.k] = (d / np.linalg.norm(d)) @ (at.Jm[self.i] - at.Jm[self.j]) / self.sigma[0]
+        return B
+
+
+class DistanceBlock(_Block):
+    """A known distance between two sockets' points (nuisance columns ``col_a``, ``col_b``): their
+    distance minus the length."""
+
+    kind = "distance"
+
+    def __init__(self, col_a: int, col_b: int, length: float, sigma: float):
+        self.col_a, self.col_b, self.length, self.sigma = col_a, col_b, length, np.array([sigma])
+
+    def errors(self, at: _At) -> np.ndarray:
+        a, b = at.nu[self.col_a:self.col_a + 3], at.nu[self.col_b:self.col_b + 3]
+        return np.atleast_1d(np.linalg.norm(a - b) - self.length)
+
+    def jacobian(self, at: _At) -> np.ndarray:
+        a, b = at.nu[self.col_a:self.col_a + 3], at.nu[self.col_b:self.col_b + 3]
+        u = (a - b) / np.linalg.norm(a - b) / self.sigma[0]
+        B = at.zeros(1)
+        B[0, at.k + self.col_a:at.k + self.col_a + 3] = u
+        B[0, at.k + self.col_b:at.k + self.col_b + 3] = -u
+        return B
+
+
+class MeasuredBlock:
+    """Measured points (and poses) of a tracker: the rows of a ``Problem`` over the same robot
+    parameters, divided by ``scale`` (1 / the position noise when the data state no deviation),
+    with zero nuisance columns."""
+
+    kind = "tracker"
+
+    def __init__(self, problem: Problem, scale: float):
+        self.problem, self.scale = problem, scale
+
+    def over(self, free: tuple[str, ...]) -> MeasuredBlock:
+        return MeasuredBlock(self.problem.over(free), self.scale)
+
+    @property
+    def n_rows(self) -> int:
+        return self.problem.n_rows
+
+    def row_kinds(self) -> np.ndarray:
+        return self.problem.row_kinds()
+
+    def residuals(self, at: _At) -> np.ndarray:
+        return self.problem.residuals(at.robot) * self.scale
+
+    def jacobian(self, at: _At) -> np.ndarray:
+        Jt = self.problem.jacobian(at.robot) * self.scale
+        return np.hstack([Jt, np.zeros((Jt.shape[0], at.nn))])
+
+
 class ContactProblem:
     """Residuals and Jacobian of ``model`` on ``contacts`` (and optionally tracker ``data``) over the
-    robot parameters ``free`` (names) and every nuisance parameter. Same interface as ``Problem``
-    (what ``solve`` needs): ``free_idx``, ``full``, ``residuals``, ``jacobian``, ``row_kinds``.
+    robot parameters ``free`` (names) and every nuisance parameter: the stack of its observation
+    blocks (``blocks``: measured points first, then sockets, unknown planes, known planes, ball
+    bars, known distances), each with its own residual and exact Jacobian. Same interface as
+    ``Problem`` (what ``solve`` needs): ``free_idx``, ``full``, ``residuals``, ``jacobian``,
+    ``jacobian_factor``, ``row_kinds``, ``chunked``.
 
     Tracker rows without stated deviations are divided by ``noise.position`` so that they weigh
     against the contacts by their noise. The nuisance parameters start at the points and planes of
@@ -89,13 +288,12 @@ class ContactProblem:
         self.chunked = False       # what ``solve`` asks: the Jacobian is formed whole
         self.lay = layout(model)
         self.n_robot = len(self.lay.names)
-        self.tracker = None
-        self.tracker_scale = 1.0
+        self.tracker: MeasuredBlock | None = None
         if data is not None:
             # whole, not in chunks: its rows stack with the contacts' in one Jacobian
-            self.tracker = Problem(model, data, free, compliance=compliance, noise=noise, chunked=False)
-            if not self.tracker.weighted:
-                self.tracker_scale = 1.0 / (noise.position if noise is not None else Noise.of().position)
+            tracker = Problem(model, data, free, compliance=compliance, noise=noise, chunked=False)
+            scale = 1.0 if tracker.weighted else 1.0 / (noise.position if noise is not None else Noise.of().position)
+            self.tracker = MeasuredBlock(tracker, scale)
         self.qf = read_only(contacts.q @ model.coupling_matrix.T)
         self.turns = joint_turns(self.qf)   # evaluated at every step of a fit
         self.marker_idx = np.array([model.marker_names.index(n) for n in contacts.marker], dtype=int)
@@ -107,6 +305,8 @@ class ContactProblem:
         self.pairs = contacts.distance_pairs()
         self._cache: Any = None     # the last evaluation (the kinematics' state, a private type)
         self._initial_nuisance(parameter_vector(model))
+        self._check_distinct()
+        self.blocks = self._blocks()
         self._set_free(free)
 
     # ---- parameters -------------------------------------------------------------------------
@@ -130,6 +330,40 @@ class ContactProblem:
         self.nuisance0 = np.array(values, dtype=float)
         self.nuisance_names = tuple(names)
         self.nuisance_quantities = tuple(quantities)
+
+    def _check_distinct(self) -> None:
+        """A stated distance between two points that the readings put at one place has no direction to
+        fit along: the seatings' readings coincide (copied files), which no model explains."""
+        where = {(g.placement, g.target): 3 * s for s, g in enumerate(self.sockets)}
+        nu = self.nuisance0
+        for d, ga, gb in self.pairs:
+            a, b = where[ga.placement, ga.target], where[gb.placement, gb.target]
+            if np.linalg.norm(nu[a:a + 3] - nu[b:b + 3]) < 1e-9 and d.length > 0:
+                raise InputError(f"sockets {d.a} and {d.b} of placement {ga.placement or '-'} sit at one point at the "
+                                 f"model's readings (their seatings' joint readings coincide), so their stated "
+                                 f"distance of {d.length * 1e3:.3f} mm cannot be fitted: check both sockets' seatings",
+                                 source=self.contacts.source or "contacts")
+        P = self._positions(parameter_vector(self.model))
+        for g in self.bars:
+            if np.linalg.norm(P[g.rows[0]] - P[g.rows[1]]) < 1e-9 and self.contacts.bars[g.target][0] > 0:
+                raise InputError(f"the ball bar {g.label}'s two ends have the same joint readings, so its length "
+                                 f"cannot be fitted: check its rows", source=self.contacts.source or "contacts")
+
+    def _blocks(self) -> tuple:
+        """The contact blocks, in the order rows are stacked (after the tracker's)."""
+        c = self.contacts
+        n_points = 3 * len(self.sockets)
+        blocks: list[_Block] = [SocketBlock(g.rows, 3 * i, c.sigma[g.rows]) for i, g in enumerate(self.sockets)]
+        blocks += [PlaneBlock(g.rows, n_points + 3 * i, self.plane_axes[i], c.sigma[g.rows])
+                   for i, g in enumerate(self.free_planes)]
+        blocks += [KnownPlaneBlock(g.rows, kp.normal, kp.offset, c.sigma[g.rows]) for g, kp in self.known_planes]
+        blocks += [BarBlock(g.rows[0], g.rows[1], c.bars[g.target][0],
+                            float(np.sqrt(c.bars[g.target][1] ** 2 + np.sum(c.sigma[g.rows] ** 2))))
+                   for g in self.bars]
+        where = {(g.placement, g.target): 3 * s for s, g in enumerate(self.sockets)}
+        blocks += [DistanceBlock(where[ga.placement, ga.target], where[gb.placement, gb.target], d.length, d.sigma)
+                   for d, ga, gb in self.pairs]
+        return tuple(blocks)
 
     def _set_free(self, free: tuple[str, ...]) -> None:
         index = {n: i for i, n in enumerate(self.lay.names)}
@@ -155,7 +389,7 @@ class ContactProblem:
         identifiable. The nudge is of the size of that scatter over the reach (milliradians)."""
         contacts = replace(self.contacts, q=met_readings(self.model, self.contacts, self.marker_idx))
         other = ContactProblem(self.model, contacts, self.free_names, compliance=self.compliance, noise=None)
-        other.tracker, other.tracker_scale = self.tracker, self.tracker_scale
+        other.tracker = self.tracker
         return other
 
     def start_vector(self, p_robot: np.ndarray | None = None) -> np.ndarray:
@@ -190,46 +424,23 @@ class ContactProblem:
         """(n_rows, 3) each contact row's marker position at the full vector ``p``."""
         return self._positions(p[:self.n_robot])
 
-    def _plane(self, nu: np.ndarray, k: int):
-        """Unit normal, offset and the derivatives of the normal over (a, b) of free plane k."""
-        n0, t1, t2 = self.plane_axes[k]
-        a, b, d = nu[3 * len(self.sockets) + 3 * k: 3 * len(self.sockets) + 3 * k + 3]
-        v = n0 + a * t1 + b * t2
-        L = np.linalg.norm(v)
-        n = v / L
-        return n, d, [(t - n * (n @ t)) / L for t in (t1, t2)]
-
     def planes(self, p: np.ndarray) -> list[tuple[np.ndarray, float]]:
         """(normal, offset) of each free plane at ``p``, in the order of ``free_planes``."""
-        nu = p[self.n_robot:]
-        return [self._plane(nu, k)[:2] for k in range(len(self.free_planes))]
+        at = _At(self, p)
+        return [b.plane(at)[:2] for b in self.blocks if isinstance(b, PlaneBlock)]
 
     def points(self, p: np.ndarray) -> np.ndarray:
         """(n_sockets, 3) the socket points at ``p``, in the order of ``sockets``."""
         return p[self.n_robot:self.n_robot + 3 * len(self.sockets)].reshape(-1, 3)
 
-    def _bar_sigma(self, g) -> float:
-        length, s = self.contacts.bars[g.target]
-        return float(np.sqrt(s ** 2 + np.sum(self.contacts.sigma[g.rows] ** 2)))
-
     def contact_errors(self, p: np.ndarray) -> dict:
         """Unweighted residuals per kind (m): ``socket`` (n, 3), ``plane`` (n,), ``bar`` (n_pairs,),
         ``distance`` (n_distances,), each with the standard deviations it is divided by."""
-        c = self.contacts
-        P = self.positions(p)
-        pts = self.points(p)
-        out = {"socket": ([P[g.rows] - pts[k] for k, g in enumerate(self.sockets)],
-                          [c.sigma[g.rows] for g in self.sockets])}
-        plane = [P[g.rows] @ n - d for g, (n, d) in zip(self.free_planes, self.planes(p))]
-        plane += [P[g.rows] @ np.asarray(kp.normal) - kp.offset for g, kp in self.known_planes]
-        out["plane"] = (plane, [c.sigma[g.rows] for g in self.free_planes]
-                        + [c.sigma[g.rows] for g, _ in self.known_planes])
-        out["bar"] = ([np.atleast_1d(np.linalg.norm(P[g.rows[0]] - P[g.rows[1]]) - c.bars[g.target][0])
-                       for g in self.bars], [np.atleast_1d(self._bar_sigma(g)) for g in self.bars])
-        where = {(g.placement, g.target): k for k, g in enumerate(self.sockets)}
-        out["distance"] = ([np.atleast_1d(np.linalg.norm(pts[where[ga.placement, ga.target]]
-                                                         - pts[where[gb.placement, gb.target]]) - d.length)
-                            for d, ga, gb in self.pairs], [np.atleast_1d(d.sigma) for d, _, _ in self.pairs])
+        at = _At(self, p)
+        out: dict = {k: ([], []) for k in ("socket", "plane", "bar", "distance")}
+        for b in self.blocks:
+            out[b.kind][0].append(b.errors(at))
+            out[b.kind][1].append(b.sigma)
         return {k: (np.concatenate(r) if r else np.zeros((0, 3) if k == "socket" else 0),
                     np.concatenate(s) if s else np.zeros(0)) for k, (r, s) in out.items()}
 
@@ -242,27 +453,30 @@ class ContactProblem:
                 "bar": [f"{lab[g.rows[0]]}, {lab[g.rows[1]]} ({g.label})" for g in self.bars],
                 "distance": [f"{ga.placement}: {d.a}-{d.b}" for d, ga, _ in self.pairs]}
 
+    def row_labels(self) -> list[str]:
+        """A label for each row of ``residuals``: the tracker's rows by number, then each contact's."""
+        out = [] if self.tracker is None else [f"tracker row {i + 1}" for i in range(self.tracker.n_rows)]
+        labels = self.contact_labels()
+        out += [f"{lab} ({axis})" for lab in labels["socket"] for axis in "xyz"]
+        return out + [f"{lab} ({kind})" for kind in ("plane", "bar", "distance") for lab in labels[kind]]
+
+    def _stack(self) -> list:
+        return ([] if self.tracker is None else [self.tracker]) + list(self.blocks)
+
     def residuals(self, p: np.ndarray) -> np.ndarray:
-        parts = []
-        if self.tracker is not None:
-            parts.append(self.tracker.residuals(p[:self.n_robot]) * self.tracker_scale)
-        for kind, (r, s) in self.contact_errors(p).items():
-            parts.append((r / (s[:, None] if kind == "socket" else s)).ravel())
-        return np.concatenate(parts)
+        """Weighted residuals of every block at the full vector ``p``, stacked."""
+        at = _At(self, p)
+        return np.concatenate([b.residuals(at) for b in self._stack()])
 
     def row_kinds(self) -> np.ndarray:
         """(n_rows,) index into ``ROW_KINDS`` of each row: each kind has its own noise."""
         parts = [] if self.tracker is None else [self.tracker.row_kinds()]
-        c = self.contacts
-        counts = {"socket": 3 * sum(len(g.rows) for g in self.sockets),
-                  "plane": sum(len(g.rows) for g in c.groups("plane")), "bar": len(self.bars),
-                  "distance": len(self.pairs)}
-        parts += [np.full(n, ROW_KINDS.index(k), dtype=int) for k, n in counts.items()]
-        return np.concatenate(parts)
+        parts += [np.full(b.n_rows, ROW_KINDS.index(b.kind), dtype=int) for b in self.blocks]
+        return np.concatenate(parts) if parts else np.zeros(0, dtype=int)
 
     @property
     def n_rows(self) -> int:
-        return len(self.row_kinds())
+        return sum(b.n_rows for b in self._stack())
 
     def marker_jacobian(self, p_robot: np.ndarray) -> np.ndarray:
         """(n_rows, 3, n_free_robot) the position Jacobian of each contact row's marker."""
@@ -276,57 +490,9 @@ class ContactProblem:
 
     def jacobian(self, p: np.ndarray) -> np.ndarray:
         """Weighted Jacobian of ``residuals`` over the free robot parameters, then every nuisance."""
-        k, nn = len(self.robot_idx), self.n_nuisance
-        blocks = []
-        if self.tracker is not None:
-            Jt = self.tracker.jacobian(p[:self.n_robot]) * self.tracker_scale
-            blocks.append(np.hstack([Jt, np.zeros((Jt.shape[0], nn))]))
-        blocks += self._contact_jacobian(p, k, nn)
-        return np.vstack(blocks)
+        at = _At(self, p)
+        return np.vstack([b.jacobian(at) for b in self._stack()])
 
-    def _contact_jacobian(self, p: np.ndarray, k: int, nn: int) -> list[np.ndarray]:
-        c = self.contacts
-        Jm = self.marker_jacobian(p[:self.n_robot])
-        P = self.positions(p)
-        nu = p[self.n_robot:]
-        blocks = []
-        for i, g in enumerate(self.sockets):        # d(P - c)/dp, -I on the point
-            B = np.zeros((len(g.rows), 3, k + nn))
-            B[:, :, :k] = Jm[g.rows]
-            B[:, :, k + 3 * i:k + 3 * i + 3] = -np.eye(3)
-            blocks.append((B / c.sigma[g.rows][:, None, None]).reshape(-1, k + nn))
-        for i, g in enumerate(self.free_planes):     # d(n . P - d): n on the robot, P dn and -1 on the plane
-            n, _, dn = self._plane(nu, i)
-            B = np.zeros((len(g.rows), k + nn))
-            B[:, :k] = np.einsum("j,njk->nk", n, Jm[g.rows])
-            col = k + 3 * len(self.sockets) + 3 * i
-            B[:, col] = P[g.rows] @ dn[0]
-            B[:, col + 1] = P[g.rows] @ dn[1]
-            B[:, col + 2] = -1.0
-            blocks.append(B / c.sigma[g.rows][:, None])
-        for g, kp in self.known_planes:
-            B = np.zeros((len(g.rows), k + nn))
-            B[:, :k] = np.einsum("j,njk->nk", np.asarray(kp.normal), Jm[g.rows])
-            blocks.append(B / c.sigma[g.rows][:, None])
-        blocks += self._length_jacobian(p, Jm, P, k, nn)
-        return blocks
-
-    def _length_jacobian(self, p, Jm, P, k: int, nn: int) -> list[np.ndarray]:
-        """Rows of ball bars (robot columns) and known distances (point columns): u . d(difference)."""
-        blocks = []
-        for g in self.bars:
-            i, j = g.rows
-            u = (P[i] - P[j]) / np.linalg.norm(P[i] - P[j])
-            B = np.zeros((1, k + nn))
-            B[0, :k] = u @ (Jm[i] - Jm[j]) / self._bar_sigma(g)
-            blocks.append(B)
-        pts = self.points(p)
-        where = {(g.placement, g.target): s for s, g in enumerate(self.sockets)}
-        for d, ga, gb in self.pairs:
-            a, b = where[ga.placement, ga.target], where[gb.placement, gb.target]
-            u = (pts[a] - pts[b]) / np.linalg.norm(pts[a] - pts[b])
-            B = np.zeros((1, k + nn))
-            B[0, k + 3 * a:k + 3 * a + 3] = u / d.sigma
-            B[0, k + 3 * b:k + 3 * b + 3] = -u / d.sigma
-            blocks.append(B)
-        return blocks
+    def jacobian_factor(self, p: np.ndarray) -> np.ndarray:
+        """An R factor (n_free, n_free) of the weighted Jacobian at ``p`` (``r_factor``)."""
+        return r_factor(self.jacobian(p))

@@ -22,7 +22,7 @@ from ._arguments import (
 )
 from ._errors import DegenerateDataError, InputError, check_choice
 from ._identifiability import singular_values
-from ._linalg import r_factor, reduced, solve_upper
+from ._linalg import reduced, solve_upper
 from ._observations import ContactProblem
 from ._options import LOSSES
 from ._problem import LARGE_POSES, Problem
@@ -52,13 +52,16 @@ class Solution:
     loss: str
     f_scale: float | None
     row_kinds: np.ndarray | None = None
+    linear_rows: np.ndarray | None = None
 
 
 @checked(problem=is_a(Problem, ContactProblem), p0=shaped(None), loss=one_of(LOSSES), f_scale=optional(POSITIVE),
-         max_nfev=optional(whole(1)), lower=optional(shaped(None, finite=False)), tol=FRACTION)
+         max_nfev=optional(whole(1)), lower=optional(shaped(None, finite=False)), tol=FRACTION,
+         linear_rows=optional(shaped(None)))
 @one_blas_thread
 def solve(problem: Problem, p0: np.ndarray, *, loss: str = "linear", f_scale: float | None = None,
-          max_nfev: int | None = None, lower: np.ndarray | None = None, tol: float = SOLVER_TOL) -> Solution:
+          max_nfev: int | None = None, lower: np.ndarray | None = None, tol: float = SOLVER_TOL,
+          linear_rows: np.ndarray | None = None) -> Solution:
     """Minimise the problem's residuals over its free parameters, starting from ``p0`` (full vector).
 
     ``loss="linear"`` is Levenberg-Marquardt on the normal equations with the analytic Jacobian
@@ -66,7 +69,9 @@ def solve(problem: Problem, p0: np.ndarray, *, loss: str = "linear", f_scale: fl
     it bends at ``ROBUST_SCALE_SIGMAS`` robust standard deviations (median absolute deviation)
     of the residuals, re-estimated from the robust fit until it settles: the first, non-robust fit
     spreads outliers over every residual. ``lower`` (n_free,): lower bounds (-inf for none), which
-    need the trust-region solver. ``tol``: the step, cost and gradient tolerances.
+    need the trust-region solver. ``tol``: the step, cost and gradient tolerances. ``linear_rows``
+    (n_rows,): rows a robust loss leaves linear (``carried_alone``: rows that alone carry a
+    quantity, which no other row can outvote).
 
     Parameters
     ----------
@@ -77,6 +82,8 @@ def solve(problem: Problem, p0: np.ndarray, *, loss: str = "linear", f_scale: fl
     {f_scale, max_nfev, lower}
     tol : float
         Step, cost and gradient tolerance, in (0, 1).
+    linear_rows : array_like, optional
+        (n_rows,) true for the rows a robust loss leaves linear.
 
     Returns
     -------
@@ -87,15 +94,40 @@ def solve(problem: Problem, p0: np.ndarray, *, loss: str = "linear", f_scale: fl
     bounded = lower is not None and bool(np.any(np.isfinite(lower)))
     if loss == "linear" and not bounded:
         return _levenberg_marquardt(problem, p0, max_nfev, tol)
-    if getattr(problem, "chunked", False):   # problems of other observations are solved whole
+    if problem.chunked:
         raise InputError(f"a campaign of over {LARGE_POSES} poses is solved in chunks, with the linear loss and "
                          "without bounds only")
-    return _trust_region(problem, p0, loss, f_scale, max_nfev, lower if bounded else None, tol)
+    keep = None if linear_rows is None or loss == "linear" else np.asarray(linear_rows, dtype=float) > 0
+    return _trust_region(problem, p0, loss, f_scale, max_nfev, lower if bounded else None, tol, keep)
 
 
-def _trust_region(problem: Problem, p0: np.ndarray, loss: str, f_scale, max_nfev, lower, tol: float) -> Solution:
-    """scipy's solvers, for a robust loss or bounds."""
+def _partly_robust(loss: str, keep: np.ndarray):
+    """scipy's callable form of ``loss`` (rho(z), rho'(z), rho''(z) of z = r^2, scipy's
+    definitions) with the rows ``keep`` left linear (rho(z) = z at every scale)."""
+    def rho(z):
+        out = np.vstack(_ROBUST_RHO[loss](z))
+        out[0, keep], out[1, keep], out[2, keep] = z[keep], 1.0, 0.0
+        return out
+    return rho
+
+
+def _huber(z):
+    big = z > 1.0
+    s = np.sqrt(np.where(big, z, 1.0))
+    return np.where(big, 2.0 * s - 1.0, z), np.where(big, 1.0 / s, 1.0), np.where(big, -0.5 / s ** 3, 0.0)
+
+
+_ROBUST_RHO = {"soft_l1": lambda z: (2.0 * (np.sqrt(1.0 + z) - 1.0), (1.0 + z) ** -0.5, -0.5 * (1.0 + z) ** -1.5),
+               "huber": _huber,
+               "cauchy": lambda z: (np.log1p(z), 1.0 / (1.0 + z), -1.0 / (1.0 + z) ** 2),
+               "arctan": lambda z: (np.arctan(z), 1.0 / (1.0 + z ** 2), -2.0 * z / (1.0 + z ** 2) ** 2)}
+
+
+def _trust_region(problem: Problem, p0: np.ndarray, loss: str, f_scale, max_nfev, lower, tol: float,
+                  keep: np.ndarray | None = None) -> Solution:
+    """scipy's solvers, for a robust loss or bounds; ``keep``: rows the robust loss leaves linear."""
     x0 = p0[problem.free_idx]
+    robust = loss if keep is None or loss == "linear" else _partly_robust(loss, keep)
 
     def fun(x):
         return problem.residuals(problem.full(x, p0))
@@ -108,7 +140,7 @@ def _trust_region(problem: Problem, p0: np.ndarray, loss: str, f_scale, max_nfev
         x0 = np.maximum(x0, lower)
         kw["bounds"] = (lower, np.full(len(x0), np.inf))
     if loss == "linear" or f_scale is not None:
-        sol = least_squares(fun, x0, method="trf", loss=loss, f_scale=f_scale or 1.0, **kw)
+        sol = least_squares(fun, x0, method="trf", loss=robust, f_scale=f_scale or 1.0, **kw)
     else:
         sol = least_squares(fun, x0, method="trf" if lower is not None else "lm", **kw)
         for _ in range(6):
@@ -117,11 +149,12 @@ def _trust_region(problem: Problem, p0: np.ndarray, loss: str, f_scale, max_nfev
             if f_scale is not None and abs(new_scale - f_scale) < 0.05 * f_scale:
                 break
             f_scale = new_scale
-            sol = least_squares(fun, sol.x, method="trf", loss=loss, f_scale=f_scale, **kw)
+            sol = least_squares(fun, sol.x, method="trf", loss=robust, f_scale=f_scale, **kw)
     p = problem.full(sol.x, p0)
     return Solution(p=p, residuals=problem.residuals(p), jacobian=problem.jacobian(p), success=bool(sol.status > 0),
                     status=int(sol.status), message=str(sol.message), nfev=int(sol.nfev), loss=loss,
-                    f_scale=None if loss == "linear" else float(f_scale), row_kinds=problem.row_kinds())
+                    f_scale=None if loss == "linear" else float(f_scale), row_kinds=problem.row_kinds(),
+                    linear_rows=keep)
 
 
 @dataclass(frozen=True, eq=False)
@@ -140,12 +173,12 @@ def _normal_equations(problem, p: np.ndarray, r: np.ndarray | None = None) -> _N
     """At ``p`` (``r``: the residuals there, when known): chunk by chunk for a large campaign, else
     from the Jacobian formed whole (its R factor through the Gram matrix when well conditioned,
     ``r_factor``)."""
-    if getattr(problem, "chunked", False):
+    if problem.chunked:
         R, g, cost = problem.normal_equations(p)
         return _Normal(R=R, g=g, cost=cost, J=None, r=r)
     J = problem.jacobian(p)
     r = problem.residuals(p) if r is None else r
-    R = problem.jacobian_factor(p) if hasattr(problem, "jacobian_factor") else r_factor(J)
+    R = problem.jacobian_factor(p)
     return _Normal(R=R, g=J.T @ r, cost=float(r @ r), J=J, r=r)
 
 
@@ -218,6 +251,25 @@ def _levenberg_marquardt(problem, p0: np.ndarray, max_nfev: int | None, tol: flo
                     f_scale=None, row_kinds=kinds if several else None)
 
 
+# a row whose leverage exceeds this carries a direction of the parameters (almost) alone: the other
+# rows determine less than 1 % of its fitted value, so they cannot outvote it
+CARRIED_ALONE = 0.99
+
+
+def carried_alone(jacobian: np.ndarray) -> np.ndarray:
+    """(n_rows,) whether each row of the weighted Jacobian (n_rows, n_free) carries some direction of
+    the parameters alone: its leverage (the diagonal of the hat matrix ``J (J^T J)^-1 J^T``, taken in
+    unit-column scaling over the directions the rows determine) exceeds ``CARRIED_ALONE``. The only
+    known distance fixing the scale, the only rows fixing a plane's offset: a robust loss must not
+    set them aside, for nothing else would fix what they fix."""
+    J = np.asarray(jacobian, dtype=float)
+    col = np.linalg.norm(J, axis=0)
+    col[col == 0] = 1.0
+    U, s, _ = np.linalg.svd(J / col, full_matrices=False)
+    rank = int(np.sum(s > s[0] * 1e-10)) if s.size and s[0] > 0 else 0
+    return np.sum(U[:, :rank] ** 2, axis=1) > CARRIED_ALONE
+
+
 @dataclass(frozen=True, eq=False)
 class Covariance:
     """Covariance of the free parameters (SI), their standard deviations and correlations, and the
@@ -268,6 +320,8 @@ def covariance(solution: Solution) -> Covariance:
     """
     J, r = solution.jacobian, solution.residuals
     w = robust_weights(r, solution.loss, solution.f_scale) if solution.f_scale else np.ones_like(r)
+    if solution.linear_rows is not None:
+        w = np.where(solution.linear_rows, 1.0, w)
     if len(J) == len(r):          # else the R factor of a campaign solved in chunks: linear, one kind of row
         J = J * np.sqrt(w)[:, None]
     k = J.shape[1]

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import csv
 import io
+import os
 
 import numpy as np
 
@@ -34,6 +35,7 @@ from .._options import MAX_CONTACTS, MAX_DIRECTIVES, MAX_GROUPS
 from .._spatial import vector3
 from .._units import UNITS, check_unit
 from .measurements import MAX_MAGNITUDE
+from .seatings import read_seatings
 from .text import read_text
 
 REQUIRED = ("placement", "target", "kind")
@@ -129,17 +131,22 @@ class _Facts:
 
 @checked(path=PATH, model=is_a(RobotModel))
 def read_contacts(path, model: RobotModel) -> Contacts:
-    """Read a contact file for ``model`` (its joints and markers name the columns); SI out.
+    """Read a contact file for ``model`` (its joints and markers name the columns), or a folder of
+    seatings (one joint file per socket, one folder per placement, ``seatings.yaml``); SI out.
 
     Parameters
     ----------
-    {path, model}
+    path : str or os.PathLike
+        The contact file, or the folder of seatings (docs/formats.md).
+    {model}
 
     Returns
     -------
     Contacts
         The recordings, SI.
     """
+    if os.path.isdir(path):
+        return read_seatings(path, model)
     text, digest = read_text(path, lines=MAX_CONTACTS + MAX_DIRECTIVES + 1)
     source = str(path)
     facts = _Facts()

@@ -231,7 +231,31 @@ def _moves(link: str, children, joints) -> bool:
     return any(joints[j].type != "fixed" or _moves(joints[j].child, children, joints) for j in children[link])
 
 
-def _default_tip(base_link: str, children, joints, source: str) -> str:
+@dataclass(frozen=True)
+class ChainEnd:
+    """Where a URDF's chain ends when no tip link is given, and why.
+
+    ``link`` is the chain's last link; ``reason`` says why it goes no further (no child, moving
+    branches parting, several fixed branches); ``further`` names the links below it reached through
+    fixed joints only that hold nothing more (a ball, a tool point): each could be the tip link.
+    """
+
+    link: str
+    reason: str
+    further: tuple[str, ...] = ()
+
+
+def _fixed_leaves(link: str, children, joints) -> list[str]:
+    """The links below ``link`` reached through fixed joints only that have no child, in tree order."""
+    out: list[str] = []
+    for j in children[link]:
+        if joints[j].type == "fixed":
+            child = joints[j].child
+            out += _fixed_leaves(child, children, joints) if children[child] else [child]
+    return out
+
+
+def _default_tip(base_link: str, children, joints, source: str) -> ChainEnd:
     """The end of the arm below ``base_link``: follow the one branch that moves; branches that hold
     only fixed links (a flange, a tool point) are not branches of the arm; where two or more moving
     branches part after the arm has moved (a gripper's fingers), stop, and go on only into a single
@@ -249,10 +273,17 @@ def _default_tip(base_link: str, children, joints, source: str) -> str:
         elif len(fixed) == 1:
             nxt = fixed[0]
         else:
-            return link
+            why = []
+            if moving:
+                why.append(f"{len(moving)} moving branches part there (joints {', '.join(j.name for j in moving)}: "
+                           "a gripper's fingers, not imported)")
+            if fixed:
+                why.append(f"it holds {len(fixed)} fixed branches (links {', '.join(j.child for j in fixed)}) and "
+                           "which one is the tool is not known")
+            return ChainEnd(link, " and ".join(why), tuple(_fixed_leaves(link, children, joints)))
         arm_moved |= nxt.type != "fixed"
         link = nxt.child
-    return link
+    return ChainEnd(link, "it has no child link")
 
 
 def _default_markers(chain, links, joints) -> list[tuple[str, np.ndarray]]:
@@ -274,19 +305,25 @@ def _default_markers(chain, links, joints) -> list[tuple[str, np.ndarray]]:
     return [("tool", np.eye(4))]
 
 
-def _chain(links, joints, child_of, base_link, tip_link, source) -> list[_UJoint]:
-    """Joints from ``base_link`` to ``tip_link`` in order (defaults: the unique root, and
-    :func:`_default_tip`)."""
+def _base(links, child_of, base_link, source) -> str:
+    """``base_link``, or the unique root link when it is None."""
     if base_link is None:
         roots = sorted(lk for lk in links if lk not in child_of)
         if len(roots) != 1:
             raise InputError(f"expected one root link, found {roots}; give the base link", source=source,
                              where="base_link")
-        base_link = roots[0]
-    elif base_link not in links:
+        return roots[0]
+    if base_link not in links:
         raise InputError(f"base link {base_link!r} is not defined", source=source, where="base_link")
+    return base_link
+
+
+def _chain(links, joints, child_of, base_link, tip_link, source) -> list[_UJoint]:
+    """Joints from ``base_link`` to ``tip_link`` in order (defaults: the unique root, and
+    :func:`_default_tip`)."""
+    base_link = _base(links, child_of, base_link, source)
     if tip_link is None:
-        tip_link = _default_tip(base_link, _children(links, joints), joints, source)
+        tip_link = _default_tip(base_link, _children(links, joints), joints, source).link
     elif tip_link not in links:
         raise InputError(f"tip link {tip_link!r} is not defined", source=source, where="tip_link")
     chain, link = [], tip_link
@@ -298,6 +335,26 @@ def _chain(links, joints, child_of, base_link, tip_link, source) -> list[_UJoint
         chain.append(j)
         link = j.parent
     return chain[::-1]
+
+
+@checked(path_or_string=PATH, base_link=optional(TEXT))
+def chain_end(path_or_string, *, base_link: str | None = None) -> ChainEnd:
+    """Where :func:`read_urdf` without ``tip_link`` ends the chain of a URDF, and why.
+
+    Parameters
+    ----------
+    {path_or_string, base_link}
+
+    Returns
+    -------
+    ChainEnd
+        The last link, the reason the chain goes no further, and the links below it reached through
+        fixed joints only (candidates for ``tip_link``).
+    """
+    root, source = _load_xml(path_or_string)
+    links, joints, extra = _parse_joints(root, source)
+    base = _base(links, extra["child_of"], base_link, source)
+    return _default_tip(base, _children(links, joints), joints, source)
 
 
 def _moving_joints(chain, source: str) -> list[str]:

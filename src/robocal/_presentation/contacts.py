@@ -23,9 +23,15 @@ def _figures(label: str, before, after) -> list[str]:
     if before.spread:
         out.append(f"  {label} socket spread (RMS about each socket's centre, mean over {len(before.spread)}): "
                    f"{_mm(before.mean_spread)} -> {_mm(after.mean_spread)}")
+    if before.consistency:
+        out.append(f"  {label} socket consistency (each seating's distance from its socket's mean centre), "
+                   f"mean: {_mm(before.consistency_mean)} -> {_mm(after.consistency_mean)}; "
+                   f"max: {_mm(before.consistency_max)} -> {_mm(after.consistency_max)}")
     if before.distance:
         out.append(f"  {label} known distances, RMS error over {len(before.distance)}: "
                    f"{_mm(before.distance_rms)} -> {_mm(after.distance_rms)}")
+        out.append(f"  {label} spacing error (calibrated minus known), mean |e|: {_mm(before.spacing_mean)} -> "
+                   f"{_mm(after.spacing_mean)}; max |e|: {_mm(before.spacing_max)} -> {_mm(after.spacing_max)}")
     for name, kind in (("plane", "plane contacts, RMS distance to their plane"), ("bar", "ball-bar length error")):
         b, a = getattr(before, name), getattr(after, name)
         if b:
@@ -41,6 +47,8 @@ def contact_summary(result) -> str:
     lines += _figures("fitted", result.fit_before, result.fit_after)
     if result.validation_before is not None:
         lines += _figures("held-out", result.validation_before, result.validation_after)
+    if result.held_out is not None:
+        lines += _figures("each placement predicted by the others,", result.fit_before, result.held_out)
     if result.tracker_after is not None:
         lines.append(f"  tracker points after: {_mm(result.tracker_after.rms)} RMS over {result.tracker_after.n}")
     lines.append(f"identified {len(ident.identified)} parameters; each kind alone identifies:")
@@ -53,6 +61,9 @@ def contact_summary(result) -> str:
     for u in ident.unreachable:
         lines.append(f"unreachable: {u.name} ({', '.join(u.components) if u.name == 'base' else 'every length alike'})"
                      f": {u.reason}")
+    if result.weak:
+        lines.append(("weakly identifiable, kept: " if result.weak_kept else "weakly identifiable, held at nominal: ")
+                     + ", ".join(f"{n} (predicted std {s})" for n, s in result.weak))
     lines.append("parameters (change from nominal +- std):")
     for p in result.parameters:
         lines.append(f"  {p.name:<12} {with_unit(p.change, p.unit, sign=True)} +- {with_unit(p.std, p.unit)}")

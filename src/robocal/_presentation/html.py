@@ -23,6 +23,7 @@ from .._arguments import (
     optional,
 )
 from .._calibration import CalibrationResult
+from .._contact_calibration import ContactCalibration, ContactErrors
 from .._errors import InputError
 from .._files.result import DIAGNOSIS, diagnosis_to_dict, per_pose_arrays, result_to_dict
 from .._files.text import write_texts
@@ -47,7 +48,7 @@ from .plots import (
     residual_trends,
 )
 from .text import rotation_lines
-from .units import UNITS_SENTENCE, absorption_text, fmt, symbol
+from .units import UNITS_SENTENCE, absorption_text, fmt, symbol, with_unit
 from .units import display_unit as _display
 from .units import finite as _num
 
@@ -821,3 +822,117 @@ def write_report(result: CalibrationResult, path, *, force: bool = False, extra:
     None
     """
     write_texts({path: render_report(result, extra=extra, diagnosis=diagnosis)}, force=force)
+
+
+# -- the report of a calibration from contacts -----------------------------------------------------
+
+def _contact_cell(value, key: str) -> str:
+    return f'<td class="num" data-key="{_e(key)}">{_e(fmt(value, "m"))}</td>'
+
+
+def _contact_sets(result: ContactCalibration) -> list[tuple[str, str, ContactErrors]]:
+    """(key, heading, ContactErrors) of every set of figures the result holds."""
+    out = [("fit_before", "fitted, nominal", result.fit_before), ("fit_after", "fitted, calibrated", result.fit_after)]
+    if result.validation_after is not None and result.validation_before is not None:
+        out += [("validation_before", "held out, nominal", result.validation_before),
+                ("validation_after", "held out, calibrated", result.validation_after)]
+    if result.held_out is not None:
+        out.append(("held_out", "each placement predicted by the others", result.held_out))
+    return out
+
+
+def _contact_figures(result: ContactCalibration) -> str:
+    """The kit's figures, one column per set: consistency, spacing, spread, planes and bars."""
+    sets = _contact_sets(result)
+    rows = []
+    for name, label, pick in (
+            ("consistency_mean", "socket consistency, mean distance from the socket's centre",
+             lambda e: e.consistency_mean),
+            ("consistency_max", "socket consistency, largest distance", lambda e: e.consistency_max),
+            ("spacing_mean", "spacing error, mean |calibrated &minus; known|", lambda e: e.spacing_mean),
+            ("spacing_max", "spacing error, largest", lambda e: e.spacing_max),
+            ("spread", "socket spread, RMS about the centre (mean over sockets)", lambda e: e.mean_spread),
+            ("plane", "plane contacts, RMS distance to their plane",
+             lambda e: float(np.sqrt(np.mean(np.square(list(e.plane.values()))))) if e.plane else None),
+            ("bar", "ball-bar length error, RMS",
+             lambda e: float(np.sqrt(np.mean(np.square(list(e.bar.values()))))) if e.bar else None)):
+        values = [pick(e) for _, _, e in sets]
+        if all(v is None for v in values):
+            continue
+        rows.append(f"<tr><td>{label}</td>" + "".join(_contact_cell(v, f"{key}.{name}")
+                                                       for (key, _, _), v in zip(sets, values)) + "</tr>")
+    head = ["figure (" + _e(_display("m")[0]) + ")"] + [label for _, label, _ in sets]
+    return _table(head, rows, cls="contacts", num_from=1)
+
+
+def _contact_sockets(result: ContactCalibration) -> str:
+    """Per socket the mean and largest distance of its seatings from its centre; per known distance
+    the spacing error; in every set."""
+    sets = _contact_sets(result)
+    labels = list(result.fit_before.consistency)
+    rows = [f"<tr><td>{_e(s)}</td>" + "".join(
+        _contact_cell((e.consistency.get(s) or (None, None))[i], f"{key}.consistency.{s}.{'mean' if i == 0 else 'max'}")
+        for key, _, e in sets for i in (0, 1)) + "</tr>" for s in labels]
+    head = ["socket"] + [f"{label}: {what}" for _, label, _ in sets for what in ("mean", "max")]
+    out = _table(head, rows, cls="contacts", num_from=1) if rows else "<p>No socket contacts.</p>"
+    pairs = list(result.fit_before.distance)
+    if pairs:
+        rows = [f"<tr><td>{_e(p)}</td>" + "".join(_contact_cell(e.distance.get(p), f"{key}.spacing.{p}")
+                                                   for key, _, e in sets) + "</tr>" for p in pairs]
+        out += "<h3>Spacing error (calibrated minus known distance)</h3>" + _table(
+            ["placement: sockets"] + [label for _, label, _ in sets], rows, cls="contacts", num_from=1)
+    return out
+
+
+def _contact_parameters(result: ContactCalibration) -> str:
+    rows = [f'<tr id="{_anchor("param", p.name)}"><td>{_e(p.name)}</td>'
+            f'<td class="num" data-key="param.{_e(p.name)}.change">{_e(with_unit(p.change, p.unit, sign=True))}</td>'
+            f'<td class="num" data-key="param.{_e(p.name)}.std">{_e(with_unit(p.std, p.unit))}</td></tr>'
+            for p in result.parameters]
+    weak = "".join(f"<li>{_e(n)} (predicted std {_e(s)})</li>" for n, s in result.weak)
+    said = ("kept: the placements predicted by the others are better with them, or as asked" if result.weak_kept
+            else "held at their nominal values")
+    return (_table(["parameter", "change from nominal", "std dev"], rows, num_from=1)
+            + (f"<p>Weakly identifiable, {said}:</p><ul class=\"notes\">{weak}</ul>" if weak else ""))
+
+
+def _contact_reach(result: ContactCalibration) -> str:
+    ident = result.identifiability
+    rows = [f"<tr><td>{_e(kind)}</td><td class=\"wrap\">{_e(', '.join(names) or 'nothing alone')}</td></tr>"
+            for kind, names in ident.contributions.items()]
+    out = _table(["kind of contact", "identifies alone"], rows)
+    if ident.together:
+        out += f"<p>Only the kinds together: {_e(', '.join(ident.together))}.</p>"
+    out += "".join(f'<p class="notice missing">Unreachable: {_e(u.name)} ({_e(", ".join(u.components))}): '
+                   f"{_e(u.reason)}.</p>" for u in ident.unreachable)
+    return out
+
+
+def render_contact_report(result: ContactCalibration) -> str:
+    """The HTML page of a calibration from contacts (a ``ContactCalibration``): the verdict and its
+    checks, the kit's figures (socket consistency, spacing error, ...) fitted and held out, per
+    socket and known distance, the parameters and what each kind of contact reaches. A
+    self-contained page, no plots."""
+    d = {"checks": [{"name": c.name, "status": c.status, "summary": c.summary, "cause": c.cause, "fix": c.fix,
+                     "items": list(c.items)} for c in result.checks],
+         "verdict": result.verdict, "parameters": [{"name": p.name} for p in result.parameters]}
+    robot = result.nominal_model.name
+    sections = [("checks", "Verdict and checks", _checks_html(d)),
+                ("figures", "What the kit shows", _contact_figures(result)),
+                ("sockets", "Each socket and each known distance", _contact_sockets(result)),
+                ("parameters", "Parameters", _contact_parameters(result)),
+                ("reach", "What each kind of contact identifies", _contact_reach(result)),
+                ("solver", "Solver", _kv([("converged", _e("yes" if result.success else "no"), "success"),
+                                          ("message", _e(result.message), "message"),
+                                          ("evaluations", _e(str(result.nfev)), "nfev")]))]
+    toc = "".join(f'<li><a href="#{i}">{t}</a></li>' for i, t, _ in sections)
+    first, *rest = [f'<section id="{i}"><h2>{t}</h2>{b}</section>\n' for i, t, b in sections]
+    return ('<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
+            '<meta name="viewport" content="width=device-width, initial-scale=1">\n'
+            f'<link rel="icon" href="data:,">\n<title>Calibration report: {_e(robot)} (contacts)</title>\n'
+            f"<style>{_CSS}</style>\n</head>\n<body>\n<main>\n"
+            f'<header><h1>Calibration report &ndash; <span class="robot">{_e(robot)}</span></h1>'
+            '<p class="meta">calibration from contacts</p></header>\n'
+            f"{first}<nav><ol>{toc}</ol></nav>\n{''.join(rest)}"
+            f"<footer>{_e(_sentence(UNITS_SENTENCE))}; the result file keeps SI "
+            "units. A self-contained page: no scripts, no network.</footer>\n</main>\n</body>\n</html>\n")

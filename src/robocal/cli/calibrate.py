@@ -27,8 +27,8 @@ def register(sub) -> None:
                        example=EXAMPLE,
                        inputs=[("model", "MODEL", "model file (YAML)"),
                                ("csv", "CSV", "measurement file (may be left out with --contacts)", "?")])
-    p.add_argument("--contacts", metavar="FILE", help="contact file: joint-only recordings of sockets, planes and "
-                   "ball bars (docs/formats.md), fitted alone or with CSV")
+    p.add_argument("--contacts", metavar="FILE", help="contact file, or folder of seatings: joint-only recordings of "
+                   "sockets, planes and ball bars (docs/formats.md), fitted alone or with CSV")
     p.add_argument("--holdout-placement", type=common.names, metavar="NAMES",
                    help="with --contacts: hold out these placements (comma-separated) to judge the result on")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder (created)")

@@ -26,8 +26,11 @@ def _result_json(result) -> str:
     ident = result.identifiability
 
     def figures(e):
-        return None if e is None else {"spread_m": e.spread, "distance_error_m": e.distance, "plane_rms_m": e.plane,
-                                       "bar_error_m": e.bar}
+        return None if e is None else {
+            "spread_m": e.spread, "distance_error_m": e.distance, "plane_rms_m": e.plane, "bar_error_m": e.bar,
+            "consistency_m": {k: {"mean": m, "max": x} for k, (m, x) in e.consistency.items()},
+            "consistency_mean_m": e.consistency_mean, "consistency_max_m": e.consistency_max,
+            "spacing_error_mean_m": e.spacing_mean, "spacing_error_max_m": e.spacing_max}
 
     out = {
         "robocal_contacts_result": 1, "verdict": result.verdict,
@@ -43,6 +46,8 @@ def _result_json(result) -> str:
         "nuisance": {k: {"estimate": v[0], "std": v[1]} for k, v in result.nuisance.items()},
         "fit_before": figures(result.fit_before), "fit_after": figures(result.fit_after),
         "validation_before": figures(result.validation_before), "validation_after": figures(result.validation_after),
+        "held_out_by_placement": figures(result.held_out),
+        "weak": [{"name": n, "predicted_std": s} for n, s in result.weak], "weak_kept": result.weak_kept,
         "checks": [{"name": c.name, "status": c.status, "summary": c.summary} for c in result.checks],
     }
     return json.dumps(out, indent=1) + "\n"
@@ -51,20 +56,24 @@ def _result_json(result) -> str:
 def run(args) -> int:
     import numpy as np
 
-    from .._contact_calibration import calibrate_contacts
+    from .._calibration import calibrate
     from .._files.contacts import read_contacts
     from .._files.model import model_to_yaml, read_model
     from .._measurements import Noise
     from .._presentation.contacts import contact_summary
 
     for flag, value in (("--compare", args.compare), ("--validation", args.validation), ("--holdout", args.holdout),
-                        ("--report", args.report), ("--register-base", args.register_base)):
+                        ("--register-base", args.register_base),
+                        ("--register-validation", args.register_validation), ("--diagnose", args.diagnose)):
         if value:
             raise InputError("is not available with --contacts (hold out placements with --holdout-placement)",
                              where=flag)
     out = Path(args.out)
-    common.refuse_existing([out / "calibrated.yaml", out / "contacts-result.json"], args.force)
-    model = read_model(args.model)
+    common.refuse_existing([out / "calibrated.yaml", out / "contacts-result.json"]
+                           + ([out / "report.html"] if args.report else []), args.force)
+    model = common.masses_as_asked(args, read_model(args.model))
+    if args.backlash_side is not None:
+        model = model.replace(backlash_side=args.backlash_side)
     contacts = read_contacts(args.contacts, model)
     validation = None
     if args.holdout_placement:
@@ -74,11 +83,14 @@ def run(args) -> int:
                              source=args.contacts, where="--holdout-placement")
         contacts, validation = contacts.split_placements(args.holdout_placement)
     data = common.read_data(args, model, args.csv) if args.csv else None
-    noise = Noise.of(args.instrument, position=None if args.noise_mm is None else args.noise_mm / common.MM)
+    noise = Noise.of(args.instrument, position=None if args.noise_mm is None else args.noise_mm / common.MM,
+                     rotation=None if args.noise_deg is None else args.noise_deg / common.DEG)
     try:
-        result = calibrate_contacts(model, contacts, data=data, validation=validation,
-                                    parameters=args.parameters or ("geometric",), known=args.known, noise=noise,
-                                    tol=args.tol, loss=args.loss, on_outliers=args.on_outliers)
+        result = calibrate(model, data, contacts=contacts, validation=validation,
+                           parameters=args.parameters or ("geometric",), known=args.known, noise=noise, tol=args.tol,
+                           loss=args.loss, on_outliers=args.on_outliers, weak=args.weak,
+                           limit=None if args.limit_mm is None else args.limit_mm / common.MM,
+                           nonnegative_compliance=args.nonnegative_compliance, folds=args.folds)
     except DegenerateDataError as e:
         raise DegenerateDataError(f"{args.contacts}: {e}") from None
     except np.linalg.LinAlgError as e:  # what the numbers leave of the fit is singular: the data's to fix
@@ -92,6 +104,10 @@ def run(args) -> int:
     if not failed or args.write_failed:
         files[out / "calibrated.yaml"] = model_to_yaml(result.calibrated_model, units=args.out_units,
                                                        calibration=_record(result, args))
+    if args.report:
+        from .._presentation.html import render_contact_report
+
+        files[out / "report.html"] = render_contact_report(result)
     common.write_outputs(files, force=args.force)
     print(f"wrote {', '.join(str(p) for p in files)}")
     return FAILED if failed else 0

@@ -12,7 +12,8 @@ EXAMPLE = """example:
 
 Without --tip-link the chain ends where the arm ends: branches of fixed links only (a flange, a
 tool point) are not branches, and joints beyond the point where a gripper's fingers part are
-not imported."""
+not imported. The command says at which link the chain ended and why, and names the links
+further down (through fixed joints: a ball, a tool) that --tip-link could end it at."""
 
 def register(sub) -> None:
     p = common.command(sub, "import-urdf", summary="write a robocal model file from a URDF serial chain",
@@ -30,7 +31,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from .._files.model import model_from_dict, model_to_dict
-    from .._files.urdf import read_urdf
+    from .._files.urdf import chain_end, read_urdf
 
     common.refuse_existing([args.out], args.force)
     if not Path(args.urdf).is_file():
@@ -50,4 +51,16 @@ def run(args) -> int:
         raise InputError(f"the model it gives cannot be written as a robocal model: {e.where or ''} {e.detail}",
                          source=args.urdf) from None
     common.write_imported_model(args, model, f"{len(model.frames)} frames, ", source=args.urdf)
+    print(_end_line(chain_end(args.urdf, base_link=args.base_link)) if args.tip_link is None else
+          f"the chain ends at link {args.tip_link!r} (--tip-link)")
     return 0
+
+
+def _end_line(end) -> str:
+    """Where the chain ended and why; the links further down that could end it, as --tip-link."""
+    line = f"the chain ends at link {end.link!r}: {end.reason}"
+    if end.further:
+        shown = ", ".join(end.further[:5]) + (f" and {len(end.further) - 5} more" if len(end.further) > 5 else "")
+        line += (f"; to end at a link further down give --tip-link NAME (links below it through fixed joints: "
+                 f"{shown})")
+    return line

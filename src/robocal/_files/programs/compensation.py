@@ -150,7 +150,8 @@ def _pose_targets(program, module, nominal, calibrated, marker, X_WO, targets, h
     changed = iter(_pose_edits(module, kept, X_new[ok], X_old[ok], pc.q[ok], posture(nominal, pc.q[ok], marker=marker),
                                edits) if kept else [])
     ang, lin = _changes(nominal, np.nan_to_num(pc.q_nominal), pc.q)
-    moved = np.linalg.norm(pc.positions - X_W[:, :3, 3], axis=1)
+    with np.errstate(over="ignore"):            # a target far out of reach: not reported, its distance may overflow
+        moved = np.linalg.norm(pc.positions - X_W[:, :3, 3], axis=1)
     turned = _angle(pc.rotations, X_W[:, :3, :3])
     return [TargetResult(t.name, t.line, t.kind, s, *((moved[i], turned[i], ang[i], lin[i], next(changed))
                                                        if ok[i] else ()))
