@@ -65,6 +65,8 @@ LENGTH_FACTORS = {1e3: "millimetres read as metres", 1e-3: "metres read as milli
                   25.4: "millimetres read as inches", 1 / 25.4: "inches read as millimetres"}
 ANGLE_FACTORS = {180 / np.pi: "degrees read as radians", np.pi / 180: "radians read as degrees"}
 MASS_FACTORS = {1e3: "grams read as kilograms", 1e-3: "kilograms read as grams"}
+# payloads heavier than this many times the robot's moving links (the model's masses) are implausible
+HEAVY_PAYLOAD = 10.0
 
 
 @dataclass(frozen=True)
@@ -598,13 +600,30 @@ def unit_factor(model, data: Measurements, result, noise=None, *, fit: _Fit | No
     return max((f for f in (found, masses) if f is not None), key=lambda f: f.score, default=None)
 
 
+def _heavy_payload(model: RobotModel, masses: np.ndarray) -> bool:
+    """Whether payload ``masses`` (kg) are implausible for ``model``: heavier than ``HEAVY_PAYLOAD``
+    times the mass of its moving links (False when the model states no link masses)."""
+    links = sum(f.mass for f in model.frames)
+    return bool(links > 0 and masses.size and np.max(masses) > HEAVY_PAYLOAD * links)
+
+
 def _payload_unit(fit: _Fit, data: Measurements) -> Finding | None:
+    """Payload masses in another unit: each factor refitted. Payloads many times heavier than the
+    robot's links that the factor brings within reach count as implausible values made plausible
+    (``PLAUSIBLE_BONUS``) when the refit also fits better."""
     if data.payload_mass is None or not np.any(data.payload_mass):
         return None
-    found = [_refit_found(fit, _with(data, payload_mass=data.payload_mass / f), "unit factor",
-                          f"payload masses: {why}", "in that unit", 1.0, ("payload",),
-                          "declare the payload column's unit (payload_kg) and calibrate again", registered=False)
-             for f, why in MASS_FACTORS.items()]
+    heavy = _heavy_payload(fit.model, data.payload_mass)
+    found = []
+    for f, why in MASS_FACTORS.items():
+        got = _refit_found(fit, _with(data, payload_mass=data.payload_mass / f), "unit factor",
+                           f"payload masses: {why}", "in that unit", 1.0, ("payload",),
+                           "declare the payload column's unit (payload_kg) and calibrate again", registered=False)
+        if got is not None and heavy and got.score > 0 and not _heavy_payload(fit.model, data.payload_mass / f):
+            got = replace(got, score=got.score + PLAUSIBLE_BONUS, evidence=got.evidence + (
+                f"; the payloads read, up to {np.max(data.payload_mass):.4g} kg, are over {HEAVY_PAYLOAD:g} "
+                f"times the robot's links ({sum(fr.mass for fr in fit.model.frames):.4g} kg)"))
+        found.append(got)
     return max((f for f in found if f is not None), key=lambda f: f.score, default=None)
 
 
