@@ -381,11 +381,12 @@ def judge_changes(calibrations, *, alpha: float = DEFAULT_ALPHA, families=JUDGED
         The comparisons, and the threshold in standard deviations they were judged against.
     """
     pairs = _pairs(calibrations, families)
-    threshold = sidak_threshold(_checked_alpha(alpha) * (1.0 - OVERALL_SHARE),
+    threshold = sidak_threshold(alpha * (1.0 - OVERALL_SHARE),
                                 sum(int(np.sum(_identified(_pseudo_inverse(p[3], p[4])[0]) > 0)) for p in pairs))
     return tuple(c for p in pairs for c in _snooped(*p, threshold)), threshold
 
 
+@checked(calibrations=each_a(StoredCalibration), **_JUDGED)
 def judge_overall(calibrations, *, alpha: float = DEFAULT_ALPHA, families=JUDGED_FAMILIES) -> tuple[Overall, ...]:
     """Whether anything changed between consecutive calibrations (sorted by date): the chi-square of
     the judged parameters' differences against their combined covariance.
@@ -407,7 +408,7 @@ def judge_overall(calibrations, *, alpha: float = DEFAULT_ALPHA, families=JUDGED
     from scipy.stats import chi2
 
     pairs = _pairs(calibrations, families)
-    level = -math.expm1(math.log1p(-_checked_alpha(alpha) * OVERALL_SHARE) / max(len(pairs), 1))
+    level = -math.expm1(math.log1p(-alpha * OVERALL_SHARE) / max(len(pairs), 1))
     out = []
     for _names, template, d, C, rcond in pairs:
         Sp, rank = _pseudo_inverse(C, rcond)
@@ -416,12 +417,6 @@ def judge_overall(calibrations, *, alpha: float = DEFAULT_ALPHA, families=JUDGED
         since, at = (template[0].since, template[0].at) if template else ("", "")
         out.append(Overall(since, at, stat, rank, p, p < level))
     return tuple(out)
-
-
-def _checked_alpha(alpha) -> float:
-    if isinstance(alpha, bool) or not isinstance(alpha, (int, float)) or not 0 < alpha < 1:
-        raise InputError(f"must be between 0 and 1, got {alpha!r}", where="alpha")
-    return float(alpha)
 
 
 def _pairs(calibrations, families) -> list[tuple[list, list, np.ndarray, np.ndarray, float]]:
