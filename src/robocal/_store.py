@@ -1169,8 +1169,12 @@ def _unpacked(blob, k: int) -> np.ndarray | None:
     if len(raw) not in (4 * n, 8 * n):
         raise ValueError(f"{len(raw)} bytes of correlations for {k} parameters")
     v = np.frombuffer(raw, dtype="<f8" if len(raw) == 8 * n and n else "<f4")
+    if not (np.all(np.isfinite(v)) and np.all(np.abs(v) <= 1.0 + 1e-6)):
+        raise ValueError("correlations that are not numbers between -1 and 1")
     r = np.zeros((k, k), dtype=v.dtype.newbyteorder("="))
     r[np.triu_indices(k)] = v
+    if not np.allclose(np.diag(r), 1.0, rtol=0, atol=1e-6):
+        raise ValueError("a correlation matrix whose diagonal is not 1")
     return r + np.triu(r, 1).T
 
 
