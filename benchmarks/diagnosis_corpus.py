@@ -8,7 +8,8 @@ Every mistake of tests/diagnosis_corpus.py on the 6R arm and the TH8-like cylind
 Then clean simulated campaigns (CLEAN seeds per robot, 30 to 120 poses) and campaigns of robots with
 effects the model does not hold (gear errors, per-pose scatter, link elasticity, slow drift; EFFECTS
 seeds each per robot), and of `robocal.sim`'s robots with effects beyond the model (`PRESETS`,
-PRESETS seeds each per robot, both arms with masses): the share in which a cause is named.
+PRESETS seeds each per robot, both arms with masses): the share in which a cause is named. Last,
+the real UR5 and WAM campaigns of tests/data/real: the cause named, if any (none expected).
 """
 
 from __future__ import annotations
@@ -87,6 +88,17 @@ def presets(seeds: int) -> None:
                                                                                    else ""), flush=True)
 
 
+def real() -> None:
+    """The published UR5 and WAM tracker campaigns (tests/data/real, both files of each): no cause
+    should be named."""
+    import real_campaigns
+
+    for robot in ("UR5", "WAM"):
+        for kind in ("grid", "random"):
+            got = _first(corpus.Case(robot, real_campaigns.nominal(robot), real_campaigns.campaign(robot, kind), None))
+            print(f"real {robot} {kind:<7} cause named: {got}", flush=True)
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=20)
@@ -94,11 +106,14 @@ def main(argv=None) -> None:
     ap.add_argument("--clean", type=int, default=60)
     ap.add_argument("--effects", type=int, default=20)
     ap.add_argument("--presets", type=int, default=10, help="seeds per robot of each of robocal.sim.PRESETS")
+    ap.add_argument("--no-real", dest="real", action="store_false", help="skip the real UR5 and WAM campaigns")
     args = ap.parse_args(argv)
     t = time.perf_counter()
     mistakes(args.seeds, args.first)
     no_cause(args.clean, args.effects)
     presets(args.presets)
+    if args.real:
+        real()
     print(f"({time.perf_counter() - t:.0f} s)")
 
 

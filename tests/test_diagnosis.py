@@ -212,6 +212,17 @@ def test_the_real_campaigns_get_no_false_cause(robot):
     assert result.verdict != "pass" and diagnosis.findings == (), diagnosis.summary
 
 
+@pytest.mark.parametrize("robot, kind", [("UR5", "random"), ("WAM", "random")])
+def test_the_real_test_poses_get_no_false_cause(robot, kind):
+    import real_campaigns
+
+    if not real_campaigns.FILES.exists():
+        pytest.skip("the real campaigns are not here")
+    case = corpus.Case(robot, real_campaigns.nominal(robot), real_campaigns.campaign(robot, kind), None)
+    _, diagnosis = case.run()
+    assert diagnosis.findings == (), diagnosis.summary      # 20 (UR5) poses: a robot-wide drift is not tested
+
+
 @pytest.mark.parametrize("preset", ["elastic", "gears", "cable", "scatter"])
 def test_no_cause_on_robots_with_effects_beyond_the_model(preset):
     named = []

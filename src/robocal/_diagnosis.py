@@ -860,6 +860,13 @@ def _by_pose(fit: _Fit, A: np.ndarray) -> np.ndarray:
     return out
 
 
+def _determined(fit: _Fit, freedom: int) -> bool:
+    """Whether a hypothesis adding ``freedom`` parameters leaves at least as many residual degrees
+    of freedom as it adds: one that leaves fewer fits systematic residuals of any origin (a 20-pose
+    campaign's robot-wide drift) and tells no cause from a fit."""
+    return len(fit.r) - len(fit.names) - freedom >= freedom
+
+
 def _split_gains(fit: _Fit, Z: np.ndarray, edge: int) -> tuple[int, float]:
     """The pose (of the poses diagnosed) from which letting parameters with the Jacobian columns
     ``Z`` (n_rows, g) change reduces the sum of squares most, and the reduction (Gauss-Newton, from
@@ -897,7 +904,7 @@ def step_change(model, data: Measurements, result, noise=None, *, fit: _Fit | No
     for what, cols, items in _groups(fit):
         Z = _columns(fit, cols)
         side = max(edge, Z.shape[1] // 3 + 2)      # each side holds more rows than the group has parameters
-        if n - 2 * side < 1:
+        if n - 2 * side < 1 or not _determined(fit, Z.shape[1]):
             continue
         row, gain = _split_gains(fit, Z, side)
         ssr = max(fit.ssr - gain, 0.0)
@@ -924,6 +931,8 @@ def drift(model, data: Measurements, result, noise=None, *, fit: _Fit | None = N
         if what.startswith("marker"):
             continue
         Z = _columns(fit, cols) * t[:, None]
+        if not _determined(fit, Z.shape[1]):
+            continue
         gain, _coef = _projected_gain(fit, Z)
         ssr = max(fit.ssr - gain, 0.0)
         score = _score(fit, ssr, len(fit.r), Z.shape[1])
