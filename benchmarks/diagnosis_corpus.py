@@ -1,13 +1,15 @@
 """How often the diagnosis names the true cause of a simulated mistake, and how often it names a
 cause where there is none (docs/diagnosis.md).
 
-Run: python benchmarks/diagnosis_corpus.py [--seeds 20] [--first 0] [--clean 60] [--effects 20]
+Run: python benchmarks/diagnosis_corpus.py [--seeds 20] [--first 0] [--clean 60] [--effects 20] [--presets 10]
 
 Every mistake of tests/diagnosis_corpus.py on the 6R arm and the TH8-like cylindrical arm, seeds
 0..SEEDS-1: the share of campaigns whose first finding is the true cause, per mistake and robot.
 Then clean simulated campaigns (CLEAN seeds per robot, 30 to 120 poses) and campaigns of robots with
 effects the model does not hold (gear errors, per-pose scatter, link elasticity, slow drift; EFFECTS
-seeds each per robot): the share in which a cause is named.
+seeds each per robot), and of `robocal.sim`'s robots with effects beyond the model (`PRESETS`,
+PRESETS seeds each per robot, both arms with masses): the share in which a cause is named. Last,
+the real UR5 and WAM campaigns of tests/data/real: the cause named, if any (none expected).
 """
 
 from __future__ import annotations
@@ -65,7 +67,36 @@ def no_cause(clean: int, effects: int) -> None:
                 if got is not None:
                     named.append(f"{robot} {1000 + seed}: {got}")
         print(f"{make.__name__:<14} a cause named in {len(named)}/{n} campaigns" + (f": {'; '.join(named)}" if named
-                                                                                       else ""))
+                                                                                       else ""), flush=True)
+
+
+def presets(seeds: int) -> None:
+    import robocal as rc
+
+    for kind in sorted(rc.sim.PRESETS):
+        named, n = [], 0
+        for robot, make in corpus.ROBOTS.items():
+            for seed in range(seeds):
+                m = make(masses=True)
+                true, d = rc.simulate(m, corpus.N_POSES, seed=2000 + seed, noise=corpus.NOISE)
+                data = rc.sim.measure_real(true, d.q, rc.sim.PRESETS[kind], rng=2000 + seed, robot_seed=2000 + seed)
+                got = _first(corpus.Case(kind, m, data, None))
+                n += 1
+                if got is not None:
+                    named.append(f"{robot} {2000 + seed}: {got}")
+        print(f"preset {kind:<8} a cause named in {len(named)}/{n} campaigns" + (f": {'; '.join(named)}" if named
+                                                                                   else ""), flush=True)
+
+
+def real() -> None:
+    """The published UR5 and WAM tracker campaigns (tests/data/real, both files of each): no cause
+    should be named."""
+    import real_campaigns
+
+    for robot in ("UR5", "WAM"):
+        for kind in ("grid", "random"):
+            got = _first(corpus.Case(robot, real_campaigns.nominal(robot), real_campaigns.campaign(robot, kind), None))
+            print(f"real {robot} {kind:<7} cause named: {got}", flush=True)
 
 
 def main(argv=None) -> None:
@@ -74,10 +105,15 @@ def main(argv=None) -> None:
     ap.add_argument("--first", type=int, default=0, help="the first seed (to continue an interrupted run)")
     ap.add_argument("--clean", type=int, default=60)
     ap.add_argument("--effects", type=int, default=20)
+    ap.add_argument("--presets", type=int, default=10, help="seeds per robot of each of robocal.sim.PRESETS")
+    ap.add_argument("--no-real", dest="real", action="store_false", help="skip the real UR5 and WAM campaigns")
     args = ap.parse_args(argv)
     t = time.perf_counter()
     mistakes(args.seeds, args.first)
     no_cause(args.clean, args.effects)
+    presets(args.presets)
+    if args.real:
+        real()
     print(f"({time.perf_counter() - t:.0f} s)")
 
 

@@ -325,6 +325,9 @@ STORE_EDITS = (
     "UPDATE robocal_calibrations SET calibrated_at = 'yesterday'", "UPDATE robocal_calibrations SET robot = 7",
     "UPDATE robocal_calibrations SET verdict = x'ff'", "UPDATE robocal_models SET document = x'789c'",
     "UPDATE robocal_models SET document = zeroblob(10)", "DELETE FROM robocal_models",
+    "UPDATE robocal_calibrations SET correlation = x'00'",
+    "UPDATE robocal_calibrations SET correlation = randomblob(length(correlation))",
+    "UPDATE robocal_calibrations SET correlation = substr(correlation, 1, length(correlation) / 2)",
 )
 BAD_MODELS = (b'{"frames": 1}', b"[]", b"\xff\xfe", b'{"name": "x"}')
 

@@ -111,6 +111,20 @@ def test_the_true_cause_comes_first_in_nearly_every_mistake(robot, seed):
     assert len(missed) <= 0.1 * len(cases), missed
 
 
+def test_a_payload_column_in_grams_is_named_by_its_implausible_masses_and_one_in_kilograms_is_not():
+    case = corpus.payload_grams("cylindrical", 3)
+    _, diagnosis = case.run()
+    assert diagnosis.cause.hypothesis == "unit factor" and "grams read as kilograms" in diagnosis.cause.cause
+    assert "times the robot's links" in diagnosis.cause.evidence
+    in_kg = replace(case, data=replace(case.data, payload_mass=case.data.payload_mass / 1000.0))
+    _, diagnosis = in_kg.run()
+    assert all(f.hypothesis != "unit factor" for f in diagnosis.findings), diagnosis.summary
+    # without link masses in the model there is no robot to weigh a payload against
+    bare = case.model.replace(frames=tuple(replace(f, mass=0.0) for f in case.model.frames))
+    assert not dg._heavy_payload(bare, case.data.payload_mass) and dg._heavy_payload(case.model,
+                                                                                     case.data.payload_mass)
+
+
 @pytest.mark.parametrize("make", corpus.NO_CAUSE, ids=[m.__name__ for m in corpus.NO_CAUSE])
 def test_no_cause_is_named_where_there_is_none(make):
     named = []
@@ -196,6 +210,17 @@ def test_the_real_campaigns_get_no_false_cause(robot):
     result = _calibrated(corpus.Case(robot, model, data, None))
     diagnosis = rc.diagnose(model, data, result)
     assert result.verdict != "pass" and diagnosis.findings == (), diagnosis.summary
+
+
+@pytest.mark.parametrize("robot, kind", [("UR5", "random"), ("WAM", "random")])
+def test_the_real_test_poses_get_no_false_cause(robot, kind):
+    import real_campaigns
+
+    if not real_campaigns.FILES.exists():
+        pytest.skip("the real campaigns are not here")
+    case = corpus.Case(robot, real_campaigns.nominal(robot), real_campaigns.campaign(robot, kind), None)
+    _, diagnosis = case.run()
+    assert diagnosis.findings == (), diagnosis.summary      # 20 (UR5) poses: a robot-wide drift is not tested
 
 
 @pytest.mark.parametrize("preset", ["elastic", "gears", "cable", "scatter"])

@@ -99,6 +99,30 @@ def test_a_record_reads_back_whole(location, campaign):
         assert store.model(back.nominal_model).name == result.nominal_model.name
         assert dict(back.inputs)["data"] == result.provenance["data"]["sha256"]
         assert store.robots() == (("SN-1", "arm", 1),)
+        assert back.correlation.dtype == np.float64
+        assert np.allclose(back.correlation, result.correlation, rtol=0, atol=1e-15)     # not single precision
+
+
+def test_a_version_2_store_keeps_its_single_precision_correlations_and_judges_with_them(location, campaign):
+    result = campaign[2]
+    with rc.open_store(location, create=True) as store:
+        store.record(result, "SN-1", at="2026-01-01")
+    single = np.asarray(result.correlation, dtype="<f4")[np.triu_indices(len(result.parameters))].tobytes()
+    with rc.open_store(location) as store, store._db.transaction(write=True) as cur:   # as version 2 wrote it
+        store._execute(cur, "UPDATE robocal_calibrations SET correlation = ?", (single,))
+        store._execute(cur, "UPDATE robocal_schema SET version = 2")
+    with rc.open_store(location, create=True) as store:
+        assert store.version == 3
+        second = rc.stored_calibration(result, "SN-1", at="2026-02-01")
+        moved = tuple(e._replace(estimate=e.estimate + 6 * np.sqrt(2) * e.std) if e.name == "j5.theta" else e
+                      for e in second.estimates)
+        store.add([replace(second, estimates=moved)], [rc.model_document(result.nominal_model),
+                                                       rc.model_document(result.calibrated_model)])
+        old, new = store.calibrations("SN-1")
+        h = rc.history(store, "SN-1")
+    assert old.correlation.dtype == np.float32 and new.correlation.dtype == np.float64
+    assert np.allclose(old.correlation, result.correlation, atol=1e-7)
+    assert [c.name for c in h.changes] == ["j5.theta"] and h.overall[0].named
 
 
 def test_the_same_calibration_twice_is_refused_and_nothing_stored(location, campaign):
@@ -129,7 +153,7 @@ def test_an_older_schema_is_upgraded_in_place(location, campaign):
         store._execute(cur, "DROP TABLE robocal_verifications")
         store._execute(cur, "UPDATE robocal_schema SET version = 1")
     with rc.open_store(location, create=True) as store:
-        assert store.version == 1 + 1
+        assert store.version == _store.SCHEMA_VERSION
         store.record(campaign[2], "SN-1", at="2026-01-01")
     with rc.open_store(location, create=True) as store:
         store.record(campaign[2], "SN-1", at="2026-02-01")
@@ -274,6 +298,81 @@ def test_a_drift_of_3_std_is_named_as_often_as_its_size_allows(campaign):
         assert hits >= 100 * at_least and wrong <= 10, (size, hits, wrong)
 
 
+def test_an_overall_test_names_a_change_spread_over_every_parameter(campaign):
+    from scipy.stats import chi2, ncx2
+
+    result = campaign[2]
+    rng = np.random.default_rng(11)
+    idx = [i for i, p in enumerate(result.parameters) if p.family in rc.JUDGED_FAMILIES]
+    C = 2 * result.covariance[np.ix_(idx, idx)]
+    overall, either = 0, 0
+    for _ in range(100):
+        cals = _drawn_history(result, rng)
+        step = rng.normal(0, 1, len(idx))
+        step *= 5.0 / np.sqrt(step @ np.linalg.solve(C, step))      # 5 standard deviations in all, spread
+        b = cals[1]
+        x = np.array([e.estimate for e in b.estimates])
+        x[idx] += step
+        cals[1] = replace(b, estimates=tuple(e._replace(estimate=float(v)) for e, v in zip(b.estimates, x)))
+        overall += rc.judge_overall(cals)[0].named
+        either += rc.judge_overall(cals)[0].named or any(c.named for c in rc.judge_changes(cals)[0])
+    (o,) = rc.judge_overall(_drawn_history(result, rng))
+    assert o.dof == len(idx) and 0 <= o.p <= 1
+    power = ncx2.sf(chi2.isf(0.05 * _store.OVERALL_SHARE, len(idx)), len(idx), 25.0)    # noncentrality 5 ** 2
+    assert abs(overall / 100 - power) < 0.12 and either >= overall, (overall, power, either)
+
+
+def test_a_singular_combined_covariance_is_judged_on_the_directions_it_identifies(campaign):
+    base = rc.stored_calibration(campaign[2], "R", at="2026-01-01")
+    est = tuple(rc.Estimate(n, "m", "frames", 0.0, 0.0, 1e-4) for n in ("j1.d", "j2.d", "j3.d"))
+    corr = np.array([[1.0, 1.0, 0.0], [1.0, 1.0, 0.0], [0.0, 0.0, 1.0]])    # j1.d and j2.d one direction
+    rng = np.random.default_rng(2)
+    named, hits = 0, 0
+    for k in range(200):
+        x0, x1 = rng.normal(0, 1e-4, (2, 2))
+        a = replace(base, id=1, estimates=tuple(e._replace(estimate=float(v)) for e, v in zip(est, [x0[0], x0[0],
+                                                                                                  x0[1]])),
+                    correlation=corr)
+        moved = x1[1] + (6 * np.sqrt(2) * 1e-4 if k % 2 else 0.0)
+        b = replace(a, id=2, calibrated_at="2026-06-01T00:00:00+00:00",
+                    estimates=tuple(e._replace(estimate=float(v)) for e, v in zip(est, [x1[0], x1[0], moved])))
+        changes, threshold = rc.judge_changes([a, b])
+        (o,) = rc.judge_overall([a, b])
+        assert o.dof == 2 and np.isfinite(threshold) and all(np.isfinite(c.sigma) for c in changes)
+        if k % 2:
+            hits += [c.name for c in changes if c.named] == ["j3.d"]
+        else:
+            named += any(c.named for c in changes) or o.named
+    assert named <= 10 and hits >= 95, (named, hits)
+
+
+def _judged_through_the_store(location, result, histories, prefix):
+    """Each drawn history recorded as a robot of its own, then judged by ``rc.history``."""
+    models = [rc.model_document(result.nominal_model), rc.model_document(result.calibrated_model)]
+    recs = [replace(c, robot=f"{prefix}{i:03d}", id=None, fingerprint=f"{i}-{k}")
+            for i, cals in enumerate(histories) for k, c in enumerate(cals)]
+    with rc.open_store(location, create=True) as store:
+        store.add(recs, models)
+        return [rc.history(store, f"{prefix}{i:03d}") for i in range(len(histories))]
+
+
+def test_judged_through_either_back_end_unchanged_robots_name_nothing_and_moves_are_named(location, campaign):
+    from scipy.stats import norm
+
+    result = campaign[2]
+    rng = np.random.default_rng(17)
+    unchanged = _judged_through_the_store(location, result, [_drawn_history(result, rng) for _ in range(100)],
+                                          "U")
+    assert sum(bool(h.changes) or any(o.named for o in h.overall) for h in unchanged) <= 5
+    for name in ("j5.theta", "j3.d"):
+        moved = _judged_through_the_store(location, result, [_drawn_history(result, rng, (name, 3.0))
+                                                             for _ in range(100)], name)
+        hits = sum(name in [c.name for c in h.changes] for h in moved)
+        mean = 3.0 * _gain(result, name)
+        power = norm.sf(moved[0].threshold - mean)
+        assert abs(hits / 100 - power) < 0.12, (name, hits, power)
+
+
 def test_without_correlations_a_change_is_its_difference_over_the_combined_std(campaign):
     cals = [replace(c, correlation=None) for c in _drawn_history(campaign[2], np.random.default_rng(1))]
     changes, threshold = rc.judge_changes(cals)
@@ -281,7 +380,7 @@ def test_without_correlations_a_change_is_its_difference_over_the_combined_std(c
     for c in changes:
         s = np.hypot(a.estimate(c.name).std, b.estimate(c.name).std)
         assert c.sigma == pytest.approx(c.delta / s) and c.shift == pytest.approx(c.delta)
-    assert threshold == pytest.approx(rc.sidak_threshold(0.05, len(changes)))
+    assert threshold == pytest.approx(rc.sidak_threshold(0.05 * (1 - _store.OVERALL_SHARE), len(changes)))
 
 
 def test_a_change_reads_in_display_units_with_its_sigma(campaign):

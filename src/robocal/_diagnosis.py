@@ -65,6 +65,8 @@ LENGTH_FACTORS = {1e3: "millimetres read as metres", 1e-3: "metres read as milli
                   25.4: "millimetres read as inches", 1 / 25.4: "inches read as millimetres"}
 ANGLE_FACTORS = {180 / np.pi: "degrees read as radians", np.pi / 180: "radians read as degrees"}
 MASS_FACTORS = {1e3: "grams read as kilograms", 1e-3: "kilograms read as grams"}
+# payloads heavier than this many times the robot's moving links (the model's masses) are implausible
+HEAVY_PAYLOAD = 10.0
 
 
 @dataclass(frozen=True)
@@ -598,13 +600,30 @@ def unit_factor(model, data: Measurements, result, noise=None, *, fit: _Fit | No
     return max((f for f in (found, masses) if f is not None), key=lambda f: f.score, default=None)
 
 
+def _heavy_payload(model: RobotModel, masses: np.ndarray) -> bool:
+    """Whether payload ``masses`` (kg) are implausible for ``model``: heavier than ``HEAVY_PAYLOAD``
+    times the mass of its moving links (False when the model states no link masses)."""
+    links = sum(f.mass for f in model.frames)
+    return bool(links > 0 and masses.size and np.max(masses) > HEAVY_PAYLOAD * links)
+
+
 def _payload_unit(fit: _Fit, data: Measurements) -> Finding | None:
+    """Payload masses in another unit: each factor refitted. Payloads many times heavier than the
+    robot's links that the factor brings within reach count as implausible values made plausible
+    (``PLAUSIBLE_BONUS``) when the refit also fits better."""
     if data.payload_mass is None or not np.any(data.payload_mass):
         return None
-    found = [_refit_found(fit, _with(data, payload_mass=data.payload_mass / f), "unit factor",
-                          f"payload masses: {why}", "in that unit", 1.0, ("payload",),
-                          "declare the payload column's unit (payload_kg) and calibrate again", registered=False)
-             for f, why in MASS_FACTORS.items()]
+    heavy = _heavy_payload(fit.model, data.payload_mass)
+    found = []
+    for f, why in MASS_FACTORS.items():
+        got = _refit_found(fit, _with(data, payload_mass=data.payload_mass / f), "unit factor",
+                           f"payload masses: {why}", "in that unit", 1.0, ("payload",),
+                           "declare the payload column's unit (payload_kg) and calibrate again", registered=False)
+        if got is not None and heavy and got.score > 0 and not _heavy_payload(fit.model, data.payload_mass / f):
+            got = replace(got, score=got.score + PLAUSIBLE_BONUS, evidence=got.evidence + (
+                f"; the payloads read, up to {np.max(data.payload_mass):.4g} kg, are over {HEAVY_PAYLOAD:g} "
+                f"times the robot's links ({sum(fr.mass for fr in fit.model.frames):.4g} kg)"))
+        found.append(got)
     return max((f for f in found if f is not None), key=lambda f: f.score, default=None)
 
 
@@ -841,6 +860,13 @@ def _by_pose(fit: _Fit, A: np.ndarray) -> np.ndarray:
     return out
 
 
+def _determined(fit: _Fit, freedom: int) -> bool:
+    """Whether a hypothesis adding ``freedom`` parameters leaves at least as many residual degrees
+    of freedom as it adds: one that leaves fewer fits systematic residuals of any origin (a 20-pose
+    campaign's robot-wide drift) and tells no cause from a fit."""
+    return len(fit.r) - len(fit.names) - freedom >= freedom
+
+
 def _split_gains(fit: _Fit, Z: np.ndarray, edge: int) -> tuple[int, float]:
     """The pose (of the poses diagnosed) from which letting parameters with the Jacobian columns
     ``Z`` (n_rows, g) change reduces the sum of squares most, and the reduction (Gauss-Newton, from
@@ -878,7 +904,7 @@ def step_change(model, data: Measurements, result, noise=None, *, fit: _Fit | No
     for what, cols, items in _groups(fit):
         Z = _columns(fit, cols)
         side = max(edge, Z.shape[1] // 3 + 2)      # each side holds more rows than the group has parameters
-        if n - 2 * side < 1:
+        if n - 2 * side < 1 or not _determined(fit, Z.shape[1]):
             continue
         row, gain = _split_gains(fit, Z, side)
         ssr = max(fit.ssr - gain, 0.0)
@@ -905,6 +931,8 @@ def drift(model, data: Measurements, result, noise=None, *, fit: _Fit | None = N
         if what.startswith("marker"):
             continue
         Z = _columns(fit, cols) * t[:, None]
+        if not _determined(fit, Z.shape[1]):
+            continue
         gain, _coef = _projected_gain(fit, Z)
         ssr = max(fit.ssr - gain, 0.0)
         score = _score(fit, ssr, len(fit.r), Z.shape[1])

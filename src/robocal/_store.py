@@ -16,7 +16,7 @@ import math
 import os
 import re
 import zlib
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass, replace
 from datetime import datetime, timezone
 from pathlib import Path
@@ -50,12 +50,19 @@ from ._parameters import FAMILIES
 from ._verification import DEFAULT_ALPHA as VERIFY_ALPHA
 from ._verification import Accuracy, Verification, verify
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 ENVIRONMENT = "ROBOCAL_STORE"
 # the share of unchanged robots (histories) or of fleets in which a change is named
 DEFAULT_ALPHA = 0.05
 # the parameters whose changes are judged: the base and the markers are placed anew for each campaign
 JUDGED_FAMILIES = ("frames", "compliance", "backlash")
+# the share of a history's alpha spent on the overall chi-square test of each pair of calibrations
+# ("something changed"); the single-parameter tests get the rest (Bonferroni between the two)
+OVERALL_SHARE = 0.2
+# directions of a combined covariance (in its correlation form) whose eigenvalue is below this
+# share of the largest are not identified and left out of the tests: for correlations kept at
+# double precision, and at single precision (stores written before schema version 3)
+RCOND = {8: 1e-10, 4: 1e-4}
 MAX_NAME = 200
 
 
@@ -196,7 +203,8 @@ class Change:
     ``at``), SI. ``sigma``: the test of "this parameter alone moved", in standard deviations of
     the combined uncertainty of both calibrations (with their correlations when stored; without
     them, the change over its combined standard deviation); ``shift`` the move it estimates;
-    ``named`` when beyond the history's threshold."""
+    ``named`` when beyond the history's threshold. NaN ``sigma``: the parameter's change is not
+    identified apart from the others' (its direction lies where the combined covariance is singular)."""
 
     name: str
     unit: str
@@ -213,11 +221,28 @@ class Change:
         return self.after - self.before
 
 
+@dataclass(frozen=True)
+class Overall:
+    """Whether anything changed between two consecutive calibrations (at ``since`` and ``at``): the
+    chi-square of the judged parameters' differences against their combined covariance, on the
+    ``dof`` directions both identify; ``p`` its p-value; ``named`` when below the history's level
+    for it (``OVERALL_SHARE`` of its alpha, Šidák over the pairs)."""
+
+    since: str
+    at: str
+    chi2: float
+    dof: int
+    p: float
+    named: bool
+
+
 @dataclass(frozen=True, eq=False)
 class History:
     """A robot's calibrations (oldest first), its verifications, and every parameter's change
-    between consecutive calibrations judged at ``threshold`` standard deviations: the Šidák bound
-    that keeps the chance of naming any change in an unchanged robot's whole history at ``alpha``."""
+    between consecutive calibrations judged at ``threshold`` standard deviations, and each pair's
+    overall test (``overall``): together they name a change in an unchanged robot's whole history
+    with a chance of at most ``alpha`` (the single-parameter tests at the Šidák bound of
+    ``1 - OVERALL_SHARE`` of it, the overall tests at the rest)."""
 
     robot: str
     calibrations: tuple[StoredCalibration, ...]
@@ -226,6 +251,7 @@ class History:
     threshold: float
     alpha: float
     families: tuple[str, ...]
+    overall: tuple[Overall, ...] = ()
 
     @property
     def changes(self) -> tuple[Change, ...]:
@@ -333,12 +359,19 @@ def sidak_threshold(alpha: float, m: int) -> float:
 def judge_changes(calibrations, *, alpha: float = DEFAULT_ALPHA, families=JUDGED_FAMILIES):
     """Every parameter's change between consecutive calibrations (sorted by date) and the threshold.
 
+    Each parameter is tested as the only one that moved, the others held where the two
+    calibrations' combined covariance ``S`` puts them: the generalised least-squares shift along it
+    of the differences ``d``, ``(e' S^+ d) / (e' S^+ e)``, over its standard deviation
+    ``1 / sqrt(e' S^+ e)`` (``S^+`` the pseudo-inverse on the directions ``S`` identifies); the
+    largest beyond the threshold is named, freed, and the others tested again (docs/store.md).
+
     Parameters
     ----------
     calibrations : sequence of StoredCalibration
         One robot's calibrations, in any order.
     alpha : float
-        The chance of naming a change anywhere in the history of a robot that did not change.
+        The chance of naming a change anywhere in the history of a robot that did not change, with
+        the overall tests of ``judge_overall`` (these tests get ``1 - OVERALL_SHARE`` of it).
     families : tuple of str
         The parameter families judged (the base and markers are placed anew for each campaign).
 
@@ -347,10 +380,48 @@ def judge_changes(calibrations, *, alpha: float = DEFAULT_ALPHA, families=JUDGED
     (tuple of Change, float)
         The comparisons, and the threshold in standard deviations they were judged against.
     """
-    ordered = sorted(calibrations, key=lambda c: (c.calibrated_at, c.id or 0))
-    pairs = [_pair(a, b, families) for a, b in zip(ordered, ordered[1:])]
-    threshold = sidak_threshold(alpha, sum(len(p[0]) for p in pairs))
+    pairs = _pairs(calibrations, families)
+    threshold = sidak_threshold(alpha * (1.0 - OVERALL_SHARE),
+                                sum(int(np.sum(_identified(_pseudo_inverse(p[3], p[4])[0]) > 0)) for p in pairs))
     return tuple(c for p in pairs for c in _snooped(*p, threshold)), threshold
+
+
+@checked(calibrations=each_a(StoredCalibration), **_JUDGED)
+def judge_overall(calibrations, *, alpha: float = DEFAULT_ALPHA, families=JUDGED_FAMILIES) -> tuple[Overall, ...]:
+    """Whether anything changed between consecutive calibrations (sorted by date): the chi-square of
+    the judged parameters' differences against their combined covariance.
+
+    Parameters
+    ----------
+    calibrations : sequence of StoredCalibration
+        One robot's calibrations, in any order.
+    alpha : float
+        As for ``judge_changes``: these tests get ``OVERALL_SHARE`` of it, Šidák over the pairs.
+    families : tuple of str
+        The parameter families judged.
+
+    Returns
+    -------
+    tuple of Overall
+        One per pair of consecutive calibrations.
+    """
+    from scipy.stats import chi2
+
+    pairs = _pairs(calibrations, families)
+    level = -math.expm1(math.log1p(-alpha * OVERALL_SHARE) / max(len(pairs), 1))
+    out = []
+    for _names, template, d, C, rcond in pairs:
+        Sp, rank = _pseudo_inverse(C, rcond)
+        stat = float(d @ Sp @ d) if rank else 0.0
+        p = float(chi2.sf(stat, rank)) if rank else 1.0
+        since, at = (template[0].since, template[0].at) if template else ("", "")
+        out.append(Overall(since, at, stat, rank, p, p < level))
+    return tuple(out)
+
+
+def _pairs(calibrations, families) -> list[tuple[list, list, np.ndarray, np.ndarray, float]]:
+    ordered = sorted(calibrations, key=lambda c: (c.calibrated_at, c.id or 0))
+    return [_pair(a, b, families) for a, b in zip(ordered, ordered[1:])]
 
 
 def _judged(c: StoredCalibration, families) -> dict:
@@ -363,12 +434,37 @@ def _covariance(c: StoredCalibration, index: list) -> np.ndarray:
     std = np.array([c.estimates[k].std for k in index])
     if c.correlation is None:
         return np.diag(std ** 2)
-    return c.correlation[np.ix_(index, index)] * np.outer(std, std)
+    return np.asarray(c.correlation[np.ix_(index, index)], dtype=float) * np.outer(std, std)
 
 
-def _pair(a: StoredCalibration, b: StoredCalibration, families) -> tuple[list, list, np.ndarray, np.ndarray]:
-    """(names, template changes, differences, combined covariance) of two calibrations' common judged
-    parameters."""
+def _pseudo_inverse(C: np.ndarray, rcond: float = RCOND[8]) -> tuple[np.ndarray, int]:
+    """The pseudo-inverse of a covariance on the directions it identifies (eigenvalues of its
+    correlation form above ``rcond`` of the largest), and their number.
+
+    >>> Sp, rank = _pseudo_inverse(np.array([[4.0, 4.0], [4.0, 4.0]]))
+    >>> rank, np.round(Sp * 16, 6).tolist()
+    (1, [[1.0, 1.0], [1.0, 1.0]])
+    """
+    if not C.size:
+        return C.copy(), 0
+    s = np.sqrt(np.diag(C))
+    vals, vecs = np.linalg.eigh(C / np.outer(s, s))
+    keep = vals > rcond * vals.max()
+    V = vecs[:, keep]
+    return (V / vals[keep]) @ V.T / np.outer(s, s), int(keep.sum())
+
+
+def _identified(Sp: np.ndarray) -> np.ndarray:
+    """The information ``e' S^+ e`` along each parameter, zero where it is not identified."""
+    info = np.diag(Sp).copy()
+    info[info <= 1e-12 * max(float(info.max(initial=0.0)), 1e-300)] = 0.0
+    return info
+
+
+def _pair(a: StoredCalibration, b: StoredCalibration, families) -> tuple[list, list, np.ndarray, np.ndarray, float]:
+    """(names, template changes, differences, combined covariance, the share of its largest
+    eigenvalue below which a direction is not identified) of two calibrations' common judged
+    parameters: ``RCOND`` at the coarser precision of their kept correlations."""
     ja, jb = _judged(a, families), _judged(b, families)
     names = [n for n in jb if n in ja]
     ia, ib = [ja[n] for n in names], [jb[n] for n in names]
@@ -376,22 +472,26 @@ def _pair(a: StoredCalibration, b: StoredCalibration, families) -> tuple[list, l
     C = _covariance(a, ia) + _covariance(b, ib)
     template = [Change(n, b.estimates[kb].unit, a.calibrated_at, b.calibrated_at, a.estimates[ka].estimate,
                        b.estimates[kb].estimate, math.nan, False) for n, ka, kb in zip(names, ia, ib)]
-    return names, template, d, C
+    kept = min((c.correlation.dtype.itemsize for c in (a, b) if c.correlation is not None), default=8)
+    return names, template, d, C, RCOND[kept]
 
 
-def _w_tests(d: np.ndarray, C: np.ndarray, rest: np.ndarray) -> np.ndarray:
-    """Baarda's w test of each parameter in ``rest`` moving alone, the others outside ``rest`` free:
-    ``(C_rr^-1 d_r)_k / sqrt((C_rr^-1)_kk)``; without the correlations (a combined covariance that
-    cannot be inverted) the change over its combined standard deviation."""
+def _w_tests(d: np.ndarray, C: np.ndarray, rest: np.ndarray, rcond: float = RCOND[8]) -> np.ndarray:
+    """The test of each parameter in ``rest`` moving alone, the others outside ``rest`` free (Baarda's
+    w): its generalised least-squares shift over its standard deviation, ``(S^+ d)_k / sqrt(S^+_kk)``
+    with ``S^+`` the pseudo-inverse of the covariance of ``rest`` on the directions it identifies;
+    NaN where a parameter's move is not identified. Without correlations: the change over its
+    combined standard deviation."""
     Cr = C[np.ix_(rest, rest)]
-    if np.all(np.isfinite(Cr)) and np.linalg.cond(Cr) < 1e12:
-        W = np.linalg.inv(Cr)
-        if np.all(np.diag(W) > 0):
-            return (W @ d[rest]) / np.sqrt(np.diag(W))
-    return d[rest] / np.sqrt(np.diag(Cr))
+    if not np.all(np.isfinite(Cr)):
+        return d[rest] / np.sqrt(np.diag(Cr))
+    Sp, _ = _pseudo_inverse(Cr, rcond)
+    info = _identified(Sp)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(info > 0, (Sp @ d[rest]) / np.sqrt(info), np.nan)
 
 
-def _snooped(names: list, template: list, d: np.ndarray, C: np.ndarray, threshold: float) -> list:
+def _snooped(names: list, template: list, d: np.ndarray, C: np.ndarray, rcond: float, threshold: float) -> list:
     """Iterative data snooping: name the parameter whose w test is largest beyond ``threshold``, free
     it, test the others again, until none is beyond. A named change carries the w of the step that
     named it and the shift estimated with every named parameter free; the others their last w."""
@@ -401,8 +501,8 @@ def _snooped(names: list, template: list, d: np.ndarray, C: np.ndarray, threshol
     named: list[int] = []
     rest = np.arange(len(names))
     while rest.size:
-        w = _w_tests(d, C, rest)
-        k = int(np.argmax(np.abs(w)))
+        w = _w_tests(d, C, rest, rcond)
+        k = int(np.argmax(np.nan_to_num(np.abs(w), nan=-1.0)))
         if not abs(w[k]) > threshold:
             sigma[rest] = w
             break
@@ -412,11 +512,9 @@ def _snooped(names: list, template: list, d: np.ndarray, C: np.ndarray, threshol
     shift = d.copy()
     if named:
         A = np.array(named)
-        try:
-            W = np.linalg.inv(C)
+        W, _ = _pseudo_inverse(C, rcond)
+        with suppress(np.linalg.LinAlgError):     # else the changes themselves stand for the shifts
             shift[A] = np.linalg.solve(W[np.ix_(A, A)], (W @ d)[A])
-        except np.linalg.LinAlgError:
-            pass                                  # the changes themselves stand for the shifts
     return [replace(t, sigma=float(z), named=i in named, shift=float(x))
             for i, (t, z, x) in enumerate(zip(template, sigma, shift))]
 
@@ -673,6 +771,9 @@ _MIGRATIONS = (
      "verdict TEXT NOT NULL, document TEXT NOT NULL)",
      "CREATE INDEX robocal_verifications_robot ON robocal_verifications (robot, verified_at)",
      "UPDATE robocal_schema SET version = 2"),
+    # correlations written at double precision from here on (the rows before keep single precision,
+    # told apart by their size)
+    ("UPDATE robocal_schema SET version = 3",),
 )
 
 
@@ -1053,18 +1154,27 @@ def _text(v) -> str:
 
 
 def _packed(r: np.ndarray | None) -> bytes | None:
-    """A correlation matrix as its upper triangle, little-endian float32 (plenty for a correlation)."""
-    return None if r is None else np.asarray(r, dtype="<f4")[np.triu_indices(r.shape[0])].tobytes()
+    """A correlation matrix as its upper triangle, little-endian float64 (single precision before
+    schema version 3 lost the directions that strongly correlated parameters are told apart by)."""
+    return None if r is None else np.asarray(r, dtype="<f8")[np.triu_indices(r.shape[0])].tobytes()
 
 
 def _unpacked(blob, k: int) -> np.ndarray | None:
+    """A stored correlation matrix, at the precision it was kept at (float64, or float32 as written
+    before schema version 3)."""
     if blob is None:
         return None
-    v = np.frombuffer(bytes(blob), dtype="<f4")
-    if v.size != k * (k + 1) // 2:
-        raise ValueError(f"{v.size} correlation values for {k} parameters")
-    r = np.zeros((k, k))
+    raw = bytes(blob)
+    n = k * (k + 1) // 2
+    if len(raw) not in (4 * n, 8 * n):
+        raise ValueError(f"{len(raw)} bytes of correlations for {k} parameters")
+    v = np.frombuffer(raw, dtype="<f8" if len(raw) == 8 * n and n else "<f4")
+    if not (np.all(np.isfinite(v)) and np.all(np.abs(v) <= 1.0 + 1e-6)):
+        raise ValueError("correlations that are not numbers between -1 and 1")
+    r = np.zeros((k, k), dtype=v.dtype.newbyteorder("="))
     r[np.triu_indices(k)] = v
+    if not np.allclose(np.diag(r), 1.0, rtol=0, atol=1e-6):
+        raise ValueError("a correlation matrix whose diagonal is not 1")
     return r + np.triu(r, 1).T
 
 
@@ -1141,7 +1251,8 @@ def history(store: Store, robot: str, *, alpha: float = DEFAULT_ALPHA, families=
     if not cals:
         raise InputError(f"no calibration of {excerpt(robot)} in the store", source=store.location)
     comparisons, threshold = judge_changes(cals, alpha=alpha, families=families)
-    return History(robot, cals, store.verifications(robot), comparisons, threshold, alpha, tuple(families))
+    return History(robot, cals, store.verifications(robot), comparisons, threshold, alpha, tuple(families),
+                   judge_overall(cals, alpha=alpha, families=families))
 
 
 @checked(store=is_a(Store), robot_type=_name, **_JUDGED)

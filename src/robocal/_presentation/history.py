@@ -59,6 +59,12 @@ def change_line(c) -> str:
     return f"{c.name} {with_unit(c.delta, c.unit, sign=True)} since {_day(c.since)}, {_sigma(c.sigma)}"
 
 
+def overall_line(o) -> str:
+    """'something changed since 2026-03-02: chi-square 61.2 on 18 directions, p = 2.1e-06'."""
+    return (f"something changed since {_day(o.since)}: chi-square {o.chi2:.1f} on {o.dof} directions, "
+            f"p = {o.p:.2g}")
+
+
 def _accuracy_text(acc) -> str:
     return "no accuracy" if acc is None else f"{with_unit(acc.rms, 'm')} RMS ({acc.source})"
 
@@ -92,8 +98,8 @@ def history_summary(h: History) -> str:
     lines.append(f"changes between consecutive calibrations, judged at {h.threshold:.2f} sigma of their combined "
                  f"uncertainty ({n} comparisons of {', '.join(h.families)} parameters; {h.alpha:.0%} chance of naming "
                  "one in an unchanged robot):")
-    named = h.changes
-    lines += [f"  {change_line(c)}" for c in named] or ["  none"]
+    named = [change_line(c) for c in h.changes] + [overall_line(o) for o in h.overall if o.named]
+    lines += [f"  {line}" for line in named] or ["  none"]
     rest = sorted((c for c in h.comparisons if not c.named and c.sigma), key=lambda c: -abs(c.sigma))[:3]
     if rest:
         lines.append("  largest movements within the uncertainty: " + "; ".join(change_line(c) for c in rest))
@@ -309,7 +315,8 @@ def render_history(h: History) -> str:
         f"</thead><tbody>{_calibration_rows(h)}</tbody></table>",
         f"<h2>Changes</h2><p>Between consecutive calibrations, judged at {h.threshold:.2f} standard deviations of "
         f"their combined uncertainty ({len(h.comparisons)} comparisons; a {h.alpha:.0%} chance of naming one in an "
-        f"unchanged robot's history).</p><ul>{changes}</ul>",
+        f"unchanged robot's history, with the overall tests).</p><ul>{changes}</ul>"
+        + "".join(f"<p>{_e(overall_line(o))}</p>" for o in h.overall if o.named),
         "<h2>Drift of each parameter</h2>" + (f"<figure>{drift}<figcaption>Estimates at each calibration with a band "
                                               f"of &plusmn;{BAND:g} standard deviations; red: a change named."
                                               "</figcaption></figure>" if drift else "<p>No parameter judged.</p>"),

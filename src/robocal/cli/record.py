@@ -84,17 +84,18 @@ def recorded_line(rec, location: str) -> str:
 
 def record_result(args, result, robot: str, source: str, at=None) -> None:
     """Store ``result`` and say so, with the changes since the robot's previous calibration."""
-    from .._presentation.history import change_line
+    from .._presentation.history import change_line, overall_line
     from .._store import history
 
     with open_store(args, create=True) as store:
         rec = store.record(result, robot, robot_type=args.robot_type, at=at, source=source)
         print(recorded_line(rec, store.location))
         h = history(store, robot)
-    changes = [c for c in h.changes if c.at == rec.calibrated_at]
+    changes = [change_line(c) for c in h.changes if c.at == rec.calibrated_at]
+    changes += [overall_line(o) for o in h.overall if o.named and o.at == rec.calibrated_at]
     if len(h.calibrations) > 1:
-        print("changes since the previous calibration: " + ("; ".join(change_line(c) for c in changes)
-                                                             if changes else f"none beyond {h.threshold:.2f} sigma"))
+        print("changes since the previous calibration: " + ("; ".join(changes) if changes
+                                                             else f"none beyond {h.threshold:.2f} sigma"))
 
 
 def run(args) -> int:
