@@ -156,6 +156,15 @@ def test_urdf_cycle_refused_before_walking(tmp_path, cli, urdf):
         one_line(cli, ("import-urdf", tmp_path / "r.urdf", "--out", tmp_path / "m.yaml", *extra), ["cycle"])
 
 
+def test_urdf_origin_beyond_a_models_bound_is_refused(tmp_path, cli):
+    """A joint origin 1e308 m away once turned to NaN in the conversion to modified DH (a traceback
+    from rounding a NaN angle; found by the fuzz)."""
+    urdf = URDF.replace('<origin xyz="0 0 0.3"', '<origin xyz="1e308 0 0.3"', 1)
+    (tmp_path / "r.urdf").write_text(urdf)
+    one_line(cli, ("import-urdf", tmp_path / "r.urdf", "--out", tmp_path / "m.yaml"), ["origin xyz", "too large"])
+    assert not (tmp_path / "m.yaml").exists()
+
+
 def test_urdf_depth_and_entity_bombs(tmp_path, cli):
     (tmp_path / "r.urdf").write_text(URDF.replace("</robot>", "<a>" * 100_000 + "</a>" * 100_000 + "</robot>"))
     one_line(cli, ("import-urdf", tmp_path / "r.urdf", "--out", tmp_path / "m.yaml"), ["nested"])

@@ -31,6 +31,7 @@ from .._model import DEFAULT_PARALLEL_TOL, Marker, RobotModel, mdh_transform
 from .._options import MAX_MODEL_BYTES
 from .._spatial import axis_angle_matrix, inverse4, matrix_rpy, matrix_tuple, pose4, rpy_matrix, unit_vector, vector3
 from .._units import ANGLE_UNITS
+from .model import MAX_MAGNITUDE
 from .text import read_bytes, write_texts
 
 # ----------------------------------------------------------------------------------------------
@@ -61,6 +62,8 @@ def _floats(text: str | None, n: int, default, source: str, where: str) -> np.nd
         raise InputError(f"expected {n} numbers, got {text!r}", source=source, where=where) from None
     if vals.shape != (n,) or not np.all(np.isfinite(vals)):
         raise InputError(f"expected {n} finite numbers, got {text!r}", source=source, where=where)
+    if not np.all(np.abs(vals) < MAX_MAGNITUDE):     # a model's own bound (a 1e308 m origin overflows to NaN)
+        raise InputError(f"{text!r} is too large (magnitude below {MAX_MAGNITUDE:g})", source=source, where=where)
     return vals
 
 
