@@ -331,10 +331,14 @@ class ContactProblem:
         self.nuisance_names = tuple(names)
         self.nuisance_quantities = tuple(quantities)
 
+    def _socket_columns(self) -> dict:
+        """Each socket's first nuisance column, by (placement, socket)."""
+        return {(g.placement, g.target): 3 * s for s, g in enumerate(self.sockets)}
+
     def _check_distinct(self) -> None:
         """A stated distance between two points that the readings put at one place has no direction to
         fit along: the seatings' readings coincide (copied files), which no model explains."""
-        where = {(g.placement, g.target): 3 * s for s, g in enumerate(self.sockets)}
+        where = self._socket_columns()
         nu = self.nuisance0
         for d, ga, gb in self.pairs:
             a, b = where[ga.placement, ga.target], where[gb.placement, gb.target]
@@ -360,7 +364,7 @@ class ContactProblem:
         blocks += [BarBlock(g.rows[0], g.rows[1], c.bars[g.target][0],
                             float(np.sqrt(c.bars[g.target][1] ** 2 + np.sum(c.sigma[g.rows] ** 2))))
                    for g in self.bars]
-        where = {(g.placement, g.target): 3 * s for s, g in enumerate(self.sockets)}
+        where = self._socket_columns()
         blocks += [DistanceBlock(where[ga.placement, ga.target], where[gb.placement, gb.target], d.length, d.sigma)
                    for d, ga, gb in self.pairs]
         return tuple(blocks)
