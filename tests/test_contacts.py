@@ -18,6 +18,7 @@ from robocal.identification import ContactProblem, calibrate_contacts, contact_e
 from robocal.sim import bar_campaign, plan_sockets, plane_campaign, socket_campaign
 
 ARM7 = Path(__file__).resolve().parents[1] / "examples" / "arm7" / "model.yaml"
+TH8 = rc.read_model(Path(__file__).resolve().parents[1] / "examples" / "th8" / "model.yaml")
 ENCODER = 2e-5      # rad: encoder-level joint noise
 
 
@@ -56,11 +57,13 @@ def _worst_column_error(prob, p):
     return worst
 
 
-@pytest.mark.parametrize("case", ["arm7 geometric with tracker points", "arm6r compliance"])
+@pytest.mark.parametrize("case", ["arm7 geometric with tracker points", "arm6r compliance", "th8 backlash"])
 def test_every_contact_jacobian_column_agrees_with_central_differences(arm7, case):
     if case.startswith("arm7"):
         m, families, compliance = arm7, ("geometric",), False
         data = rc.simulate(m, 10, seed=3)[1]
+    elif case.startswith("th8"):      # joints resting in their lost motion, with compliance
+        m, families, compliance, data = TH8, ("geometric", "compliance", "backlash"), True, None
     else:
         m, families, compliance, data = arm6r(masses=True), ("geometric", "compliance"), True, None
     names = rc.candidate_parameters(m, families)
@@ -73,6 +76,10 @@ def test_every_contact_jacobian_column_agrees_with_central_differences(arm7, cas
         p[k] += 3e-4 if "k_" not in n else 1e-5                        # compliances deflect: corrections on
     assert set(np.unique(prob.row_kinds())) >= {2, 3, 4, 5} and len(lay) == prob.n_robot
     assert _worst_column_error(prob, p) < 1e-6
+    J = prob.jacobian(p)
+    lost = [i for i, n in enumerate(names) if ".backlash_" in n]
+    assert len(lost) == (6 if case.startswith("th8") else 0)
+    assert all(np.abs(J[:, i]).max() > 1e-3 for i in lost)      # the contacts see each joint's lost motion
 
 
 def _truth_for(m, campaign, seed):
@@ -99,16 +106,16 @@ def test_sockets_with_known_spacing_recover_the_arm_and_the_held_out_spread(arm7
     z = z_scores(res, true, arm7)
     assert np.all(np.abs(z) < 3), dict(zip([p.name for p in res.parameters], z.round(2)))
     assert res.verdict == "pass", [(c.name, c.summary) for c in res.checks if c.status != "pass"]
-    ident = res.identifiability
+    ident = res.contacts.identifiability
     assert [u.name for u in ident.unreachable] == ["base"] and len(ident.unreachable[0].components) == 6
     assert not any(n.startswith("base.") for n in ident.identified)
     # the spacing alone identifies nothing, but with the sockets it fixes the scale
     assert ident.contributions["distance"] == () and ident.together
     assert len(ident.lost_without["distance"]) == 1 and ident.lost_without["socket"] == ident.identified
     noise_alone = contact_errors(true, val).mean_spread
-    assert res.validation_before.mean_spread > 50 * noise_alone
-    assert res.validation_after.mean_spread < 1.2 * noise_alone
-    assert res.fit_after.distance_rms < 5 * fit.distances[0].sigma + 1e-5
+    assert res.contacts.validation_before.mean_spread > 50 * noise_alone
+    assert res.contacts.validation_after.mean_spread < 1.2 * noise_alone
+    assert res.contacts.fit_after.distance_rms < 5 * fit.distances[0].sigma + 1e-5
 
 
 def _by_hand(model, contacts):
@@ -136,9 +143,10 @@ def test_socket_consistency_and_spacing_error_match_a_hand_computation(arm7, soc
     """The community's figures, fitted and held out, before and after, to 1e-9 m."""
     _, fit, val = socket_run
     res = calibrate_contacts(arm7, fit, validation=val)
-    for model, figures, contacts in ((arm7, res.fit_before, fit), (res.calibrated_model, res.fit_after, fit),
-                                     (arm7, res.validation_before, val),
-                                     (res.calibrated_model, res.validation_after, val)):
+    c = res.contacts
+    for model, figures, contacts in ((arm7, c.fit_before, fit), (res.calibrated_model, c.fit_after, fit),
+                                     (arm7, res.contacts.validation_before, val),
+                                     (res.calibrated_model, res.contacts.validation_after, val)):
         consistency, spacing = _by_hand(model, contacts)
         assert figures.consistency.keys() == consistency.keys() and figures.distance.keys() == spacing.keys()
         for key, (mean, worst) in consistency.items():
@@ -151,7 +159,7 @@ def test_socket_consistency_and_spacing_error_match_a_hand_computation(arm7, soc
         assert abs(figures.spacing_max - max(abs(e) for e in spacing.values())) < 1e-9
         assert abs(figures.spacing_mean - sum(abs(e) for e in spacing.values()) / len(spacing)) < 1e-9
     # the calibration makes the held-out seatings consistent: far below the nominal's
-    assert res.validation_after.consistency_mean < res.validation_before.consistency_mean / 20
+    assert res.contacts.validation_after.consistency_mean < res.contacts.validation_before.consistency_mean / 20
 
 
 def _seating_distances(model, contacts, key):
@@ -181,7 +189,7 @@ def test_plane_contacts_recover_the_arm(arm7, known):
     res = calibrate_contacts(arm7, campaign(true, np.random.default_rng(3)))
     z = z_scores(res, true, arm7)
     assert np.all(np.abs(z) < 3), dict(zip([p.name for p in res.parameters], z.round(2)))
-    unreachable = [u.name for u in res.identifiability.unreachable]
+    unreachable = [u.name for u in res.contacts.identifiability.unreachable]
     # known planes fix the measurement frame and, lying off the base, the scale
     assert unreachable == ([] if known else ["base", "scale"])
     assert res.verdict == "pass"
@@ -195,7 +203,7 @@ def test_ball_bar_recovers_the_arm_and_its_scale(arm7):
     res = calibrate_contacts(arm7, campaign(true, np.random.default_rng(4)))
     z = z_scores(res, true, arm7)
     assert np.all(np.abs(z) < 3), dict(zip([p.name for p in res.parameters], z.round(2)))
-    assert [u.name for u in res.identifiability.unreachable] == ["base"]
+    assert [u.name for u in res.contacts.identifiability.unreachable] == ["base"]
     assert res.verdict == "pass"
 
 
@@ -307,17 +315,17 @@ def test_the_command_line_calibrates_from_contacts_alone_and_next_to_a_tracker_f
     # calibrated, from what: not the nominal model's own description
     assert written.description.startswith("calibrated model") and str(path) in written.description
     assert arm7.name in written.description and written.description != arm7.description
-    result = __import__("json").loads((tmp_path / "a" / "contacts-result.json").read_text())
-    assert [u["name"] for u in result["unreachable"]] == ["base"] and result["verdict"] == "pass"
+    result = __import__("json").loads((tmp_path / "a" / "result.json").read_text())
+    assert [u["name"] for u in result["contacts"]["unreachable"]] == ["base"] and result["verdict"] == "pass"
     assert "held-out socket consistency" in out and "held-out spacing error" in out
-    held = result["validation_after"]
+    held = result["contacts"]["validation_after"]
     assert held["consistency_mean_m"] > 0 and held["consistency_max_m"] >= held["consistency_mean_m"]
     assert set(held["consistency_m"]) == {f"P4/{s}" for s in "ABC"} and held["spacing_error_max_m"] is not None
     tracker = rc.measure(true, rc.random_configurations(arm7, 15, 1), rng=1)
     rc.write_measurements(tracker, tmp_path / "tracker.csv", model=arm7)
     code, out, err = cli("calibrate", ARM7, tmp_path / "tracker.csv", "--contacts", path, "--out", tmp_path / "b")
     assert code == 0, err
-    assert "tracker points after" in out and "unreachable" not in out
+    assert "tracker points:" in out and "unreachable" not in out
     code, _, err = cli("calibrate", ARM7, "--contacts", path, "--out", tmp_path / "c", "--holdout-placement", "P9")
     assert code == 2 and "no placement 'P9'" in err
 
@@ -389,7 +397,7 @@ def test_the_only_spacing_row_is_kept_by_the_robust_refit_and_named(arm7):
     assert kinds == ["distance"]
     check = next(c for c in res.checks if c.name == "rows carried alone")
     assert check.status == "warn" and "P1: A-B" in check.summary and "the scale" in check.summary
-    assert abs(res.fit_after.distance["P1: A-B"]) < 5 * 2e-6            # the stated spacing is met
+    assert abs(res.contacts.fit_after.distance["P1: A-B"]) < 5 * 2e-6            # the stated spacing is met
     assert any(c.name.startswith("outliers") and "soft_l1" in c.summary for c in res.checks)
     kinds, res = runs[3]
     assert kinds == [] and not any(c.name == "rows carried alone" for c in res.checks)
@@ -431,7 +439,7 @@ def test_interchangeable_parameters_are_held_back_or_flagged_as_on_tracker_data(
         by_tracker = rc.calibrate(narrow, tracker, weak=weak)
     checks = [{c.name: c for c in r.checks}["identifiability at these poses"] for r in (by_contacts, by_tracker)]
     if weak == "eliminate":
-        assert [n for n, _ in by_contacts.weak] == ["j7.alpha", "j7.d"]
+        assert [n for n, _ in by_contacts.contacts.weak] == ["j7.alpha", "j7.d"]
         assert not {"j7.alpha", "j7.d"} & set(by_tracker.parameter_names)
         assert not {"j7.alpha", "j7.d"} & {p.name for p in by_contacts.parameters}
         assert [c.status for c in checks] == ["pass", "pass"]
@@ -448,21 +456,23 @@ def test_calibrate_takes_contacts_and_holds_out_each_placement_in_turn(arm7, soc
     res = rc.calibrate(arm7, contacts=fit)
     alias = calibrate_contacts(arm7, fit)
     assert [p.estimate for p in res.parameters] == [p.estimate for p in alias.parameters]
-    held, fitted, before = res.held_out, res.fit_after, res.fit_before
+    held, fitted, before = res.contacts.held_out, res.contacts.fit_after, res.contacts.fit_before
     assert set(held.consistency) == set(fitted.consistency) and set(held.distance) == set(fitted.distance)
     # each placement predicted by the others: worse than fitted, far better than the nominal
     assert fitted.consistency_mean < held.consistency_mean < before.consistency_mean / 20
-    for option, value in (("f_scale", 1.0), ("initial_base", "register"), ("register_validation", True)):
-        with pytest.raises(rc.InputError) as e:
-            rc.calibrate(arm7, contacts=fit, **{option: value})
-        assert e.value.where == option
+    # contacts alone fix no frame: registering the base needs measured points beside them
+    with pytest.raises(rc.InputError, match="no frame") as e:
+        rc.calibrate(arm7, contacts=fit, initial_base="register")
+    assert e.value.where == "initial_base"
     with pytest.raises(rc.InputError) as e:
         rc.calibrate(arm7)
     assert e.value.where == "data"
 
 
 def _result(tmp_path, name):
-    return __import__("json").loads((tmp_path / name / "contacts-result.json").read_text())
+    """The result file's parameters and its contacts' part, as one mapping."""
+    d = __import__("json").loads((tmp_path / name / "result.json").read_text())
+    return {"parameters": d["parameters"], **d["contacts"]}
 
 
 def test_every_option_of_calibrate_works_with_contacts(cli, arm7, small_session, narrow_run, tmp_path):

@@ -34,7 +34,7 @@ def writers(d: Path, result_json: Path | None = None):
     out = [(("calibrate", d / "model.yaml", d / "data.csv", "--out", "OUT"), "result.json"),
            (("calibrate", d / "model.yaml", d / "data.csv", "--out", "OUT", "--report"), "report.html"),
            (("calibrate", EXAMPLES / "arm7" / "model.yaml", "--contacts", EXAMPLES / "arm7" / "sockets.csv",
-             "--out", "OUT"), "contacts-result.json"),
+             "--out", "OUT"), "result.json"),
            (("simulate", d / "model.yaml", "--out", "OUT", "--poses", "5"), None),
            (("limit", d / "model.yaml", *LIMIT_ARGS, "--out", "OUT"), None),
            (("plan", d / "model.yaml", "--poses", "10", "--out", "OUT"), None),

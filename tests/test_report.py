@@ -777,7 +777,7 @@ def test_summary_error_columns_stay_apart_past_999_mm():
 
 def test_a_contact_calibration_report_renders_in_headless_chromium(chromium, cli, tmp_path):
     """``calibrate --contacts --report``: the verdict, the kit's figures (socket consistency and
-    spacing error, fitted and each placement predicted by the others) as in contacts-result.json,
+    spacing error, fitted and each placement predicted by the others) as in result.json,
     readable in a browser and printable."""
     from robocal.io import write_contacts
     from robocal.sim import socket_campaign
@@ -791,7 +791,7 @@ def test_a_contact_calibration_report_renders_in_headless_chromium(chromium, cli
     assert code == 0, err
     path = tmp_path / "out" / "report.html"
     html = path.read_text()
-    saved = json.loads((tmp_path / "out" / "contacts-result.json").read_text())
+    saved = json.loads((tmp_path / "out" / "result.json").read_text())["contacts"]
     from robocal._presentation.units import fmt
 
     for key, figure, saved_as in (("fit_after", "consistency_mean", "consistency_mean_m"),

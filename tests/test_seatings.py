@@ -105,9 +105,9 @@ def test_the_command_line_calibrates_a_folder_of_seatings_as_it_does_the_contact
                              "--holdout-placement", "P4")
         assert code == 0, err
         assert "held-out socket spread" in out and "verdict: pass" in out
-        runs[name] = json.loads((tmp_path / name / "contacts-result.json").read_text())
+        runs[name] = json.loads((tmp_path / name / "result.json").read_text())
     assert runs["folder"]["parameters"] == runs["file"]["parameters"]
-    assert runs["folder"]["validation_after"] == runs["file"]["validation_after"]
+    assert runs["folder"]["contacts"]["validation_after"] == runs["file"]["contacts"]["validation_after"]
     assert str(folder) in rc.read_model(tmp_path / "folder" / "calibrated.yaml").description
 
 

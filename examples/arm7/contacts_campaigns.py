@@ -60,9 +60,9 @@ def sockets(m, rng):
     res = calibrate_contacts(m, fit, validation=val)
     names = rc.candidate_parameters(m, ("geometric",))
     without = contact_identifiability(ContactProblem(m, replace(fit, distances=()), names, compliance=False), names)
-    ratio = res.validation_after.mean_spread / contact_errors(true, val).mean_spread
+    ratio = res.contacts.validation_after.mean_spread / contact_errors(true, val).mean_spread
     return dict(placements=placements, poses=poses, z=z_scores(res, true, m), ratio=ratio,
-                named=[u.name for u in res.identifiability.unreachable],
+                named=[u.name for u in res.contacts.identifiability.unreachable],
                 named_without=[u.name for u in without.unreachable])
 
 

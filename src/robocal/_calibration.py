@@ -106,7 +106,7 @@ from ._threads import one_blas_thread
 from ._version import __version__
 
 if TYPE_CHECKING:
-    from ._contact_calibration import ContactCalibration
+    from ._contact_calibration import ContactFigures
 
 # the limit is a mean-error bar; within this factor of it counts as reaching it
 LIMIT_REACHED_WITHIN = 1.15
@@ -164,6 +164,12 @@ class CalibrationResult:
     None. ``stats`` summarises the position errors, ``rotation_stats`` the rotation errors (rad) or
     None. ``correlation`` is indexed like ``parameters``. ``sigma0`` is the residual standard
     deviation (m, or in stated standard deviations when the data carry them).
+
+    A calibration that fitted contacts holds the kit's figures in ``contacts`` (``ContactFigures``:
+    socket consistency and spacing error, fitted and held out, what each kind of contact reaches);
+    its per-point fields are those of the tracker data fitted beside them (no rows without), and
+    its ``in_use`` the socket consistency of each placement predicted by the others (or of the
+    held-out placements).
     """
 
     nominal_model: RobotModel
@@ -201,6 +207,7 @@ class CalibrationResult:
     rotation_validation_after: np.ndarray | None = None
     in_use: AccuracyInUse | None = None
     coverage: Coverage | None = None
+    contacts: ContactFigures | None = None
 
     @property
     def verdict(self) -> str:
@@ -324,7 +331,7 @@ def calibrate(model: RobotModel, data: Measurements, *, contacts: None = None, *
 
 @overload
 def calibrate(model: RobotModel, data: Measurements | None = None, *, contacts: Contacts,
-              **options) -> ContactCalibration: ...
+              **options) -> CalibrationResult: ...
 
 
 @one_blas_thread
@@ -345,10 +352,12 @@ def calibrate(model: RobotModel, data: Measurements | None = None, *, contacts: 
         The fitted campaign of measured points or poses (may be left out with ``contacts``).
     contacts : Contacts, optional
         Joint-only contact recordings, fitted alone or beside ``data`` in one problem (its rows in
-        their stated standard deviations); the result is then a ``ContactCalibration``, with the
+        their stated standard deviations, ``f_scale`` too); the result's ``contacts`` then holds the
         kit's figures (socket consistency, spacing error) fitted and held out by placement, and
-        ``validation`` held-out ``Contacts``. ``f_scale``, ``initial_base="register"`` and
-        ``register_validation`` do not apply to contacts and are refused.
+        ``validation`` is held-out ``Contacts`` or measured points (without ``data`` the base and
+        tool are registered on them). ``initial_base="register"`` needs ``data`` (contacts
+        alone fix no frame); ``register_validation`` has nothing to register on held-out contacts
+        (their figures do not depend on the frame) and ``folds`` gives way to the placements.
     parameters : str or sequence of str
         What to identify: families (``geometric``, ``compliance``, ``backlash``, ``base``,
         ``markers``, ``frames``) or parameter names and patterns.
@@ -392,20 +401,21 @@ def calibrate(model: RobotModel, data: Measurements | None = None, *, contacts: 
     -------
     CalibrationResult
         Estimates, covariance, errors, the accuracy in use and the checks; ``verdict`` says whether
-        it can be trusted (docs/checks.md). With ``contacts``: a ``ContactCalibration``.
+        it can be trusted (docs/checks.md).
     """
-    if contacts is not None:
-        return _from_contacts(model, data, contacts, validation, dict(
-            parameters=parameters, known=known, loss=loss, tol=tol, max_nfev=max_nfev, noise=noise,
-            on_outliers=on_outliers, weak=weak, nonnegative_compliance=nonnegative_compliance, folds=folds),
-            limit=limit, refused=dict(f_scale=f_scale is not None, initial_base=initial_base != "model",
-                                      register_validation=register_validation))
-    data = cast(Measurements, data)       # checked below: required without contacts
     _check_inputs(model, data, validation, loss=loss, initial_base=initial_base, on_outliers=on_outliers, weak=weak,
                   folds=folds, options=dict(parameters=parameters, known=known, f_scale=f_scale, tol=tol,
                                             max_nfev=max_nfev, limit=limit, noise=noise,
                                             nonnegative_compliance=nonnegative_compliance,
-                                            register_validation=register_validation))
+                                            register_validation=register_validation), contacts=contacts)
+    if contacts is not None:
+        return _from_contacts(model, data, contacts, validation, dict(
+            parameters=_as_tuple(parameters), known=_as_tuple(known), loss=loss, f_scale=f_scale, tol=tol,
+            max_nfev=max_nfev, noise=noise if isinstance(noise, Noise) else Noise.of(noise or DEFAULT_INSTRUMENT),
+            on_outliers=on_outliers, weak=weak, nonnegative_compliance=nonnegative_compliance,
+            limit=None if limit is None else float(getattr(limit, "limit", limit))),
+            initial_base=initial_base, register_validation=register_validation)
+    data = cast(Measurements, data)       # checked above: required without contacts
     parameters, known = _as_tuple(parameters), _as_tuple(known)
     noise = noise if isinstance(noise, Noise) else Noise.of(noise or DEFAULT_INSTRUMENT)
     limit_m = None if limit is None else float(getattr(limit, "limit", limit))
@@ -455,34 +465,128 @@ def calibrate(model: RobotModel, data: Measurements | None = None, *, contacts: 
     )
 
 
-def _from_contacts(model: RobotModel, data, contacts, validation, options: dict, *, limit, refused: dict):
-    """``calibrate`` with contacts: the options that apply to them passed on, the others refused by name."""
-    from ._contact_calibration import calibrate_contacts
+@checked(model=is_a(RobotModel), contacts=is_a(Contacts), data=optional(is_a(Measurements)))
+def calibrate_contacts(model: RobotModel, contacts: Contacts, *, data: Measurements | None = None, **options):
+    """``calibrate(model, data, contacts=contacts, **options)``, kept under this name: calibrations
+    from contacts go through ``calibrate`` and give the same ``CalibrationResult``, with the kit's
+    figures in its ``contacts``.
 
-    for name, given in refused.items():
-        if given:
-            raise InputError("does not apply to contacts (their rows are in stated standard deviations and "
-                             "their frame is unknown)", where=name)
-    return calibrate_contacts(model, contacts, data=data, validation=validation,
-                              limit=None if limit is None else float(getattr(limit, "limit", limit)), **options)
+    Parameters
+    ----------
+    {model, contacts}
+    data : Measurements, optional
+        Tracker measurements to calibrate on beside the contacts.
+    **options
+        Any option of ``calibrate``.
+
+    Returns
+    -------
+    CalibrationResult
+        The calibrated model, estimates, checks and verdict; ``contacts`` holds the kit's figures.
+    """
+    return calibrate(model, data, contacts=contacts, **options)
+
+
+def _from_contacts(model: RobotModel, data: Measurements | None, contacts: Contacts, validation, options: dict, *,
+                   initial_base: str, register_validation: bool) -> CalibrationResult:
+    """``calibrate`` with contacts: the contact problem solved and checked (``fit_contacts``), and
+    its record made as for measured points, the tracker data's errors in the per-point fields."""
+    from ._contact_calibration import contact_in_use, fit_contacts
+
+    notes = list(model.notes) + ([] if data is None else list(data.extra.get("notes", ())))
+    start = model
+    if initial_base == "register":
+        if data is None:
+            raise InputError("contacts alone fix no frame to register the base in; give measured points beside "
+                             "them, or leave the base at the model's", where="initial_base")
+        start = register_base(model, data)
+        notes.append("the base started from a rigid registration of the nominal robot on the measured points")
+    points = validation if isinstance(validation, Measurements) else None     # measured points held out
+    validation = None if points is not None else validation
+    if register_validation and points is None:
+        notes.append("held-out contacts are judged by socket consistency and spacing, which do not depend on "
+                     "the frame: nothing to register")
+    out = fit_contacts(start, contacts, data=data, validation=validation, **options)
+    sol, calibrated = out.solution, out.calibrated_model
+    fit = None if data is None else _PoseErrors.between(model, calibrated, data, out.compliance)
+    checks, in_use = list(out.checks), contact_in_use(out.figures, validation is not None)
+    fields = fit.fields("fit") if fit is not None else _PoseErrors.no_poses(model)
+    val = None
+    if points is not None:
+        register = register_validation or data is None
+        if register and not register_validation:
+            notes.append("contacts alone fix no frame: base and tool registered on the validation points, for the "
+                         "models before and after alike")
+        in_use, val = _points_in_use(start, calibrated, points, fit, out.compliance, options["noise"], register)
+        fields.update(val.fields("validation"))
+        checks = [replace(c, name="accuracy in use, placements predicted by the others")
+                  if c.name == "accuracy in use" else c for c in checks] + [in_use_check(in_use)]
+    if fit is not None:
+        stats = cast(ErrorSummary, fit.summary(val, rotation=False))
+        rotation_stats = fit.summary(val, rotation=True)
+    elif val is not None:
+        held = cast(ErrorSummary, val.summary(None, rotation=False))     # its own figures, in the validation's place
+        stats = ErrorSummary(held.validation_before, held.validation_after, held.fit_before, held.fit_after)
+        rotation_stats = None
+    else:
+        stats, rotation_stats = _PoseErrors.summary_of_none(), None
+    candidates = candidate_parameters(model, options["parameters"], known=options["known"])
+    ident = out.figures.identifiability
+    robot_view = replace(ident.analysis, candidates=candidates, identified=ident.identified,
+                         eliminated=ident.eliminated, rank=len(ident.identified),
+                         column_scale={k: v for k, v in ident.analysis.column_scale.items() if k in set(candidates)})
+    prov = provenance(data, points)
+    for key, c in (("contacts", contacts), ("validation_contacts", validation)):
+        if c is not None:
+            prov[key] = {"source": c.source, "sha256": c.sha256, "n_rows": c.n_rows,
+                         "placements": list(c.placements())}
+    return CalibrationResult(
+        nominal_model=model, calibrated_model=calibrated, parameters=out.parameters, covariance=out.covariance,
+        correlation=out.correlation, identifiability=robot_view, success=sol.success, status=sol.status,
+        message=sol.message, nfev=sol.nfev, sigma0=float(np.sqrt(out.s2)), families=options["parameters"],
+        loss=sol.loss, notes=tuple(notes), checks=tuple(checks), provenance=prov, stats=stats,
+        rotation_stats=rotation_stats, in_use=in_use, contacts=out.figures, **fields)
+
+
+def _points_in_use(start: RobotModel, calibrated: RobotModel, points: Measurements, fit: _PoseErrors | None,
+                   compliance: bool, noise: Noise, register: bool) -> tuple[AccuracyInUse, _PoseErrors]:
+    """Measured points held out from a calibration on contacts: the nominal (``start``) and the
+    calibrated model on them, base and the measured markers registered on them for both when
+    ``register`` (contacts alone fix no frame); the accuracy in use they give and their errors."""
+    val = Problem(start, points, (), compliance=compliance, noise=noise)
+    vectors = [parameter_vector(start), parameter_vector(calibrated)]
+    if register:
+        vectors = _registered(val, vectors)
+    before, after = evaluated(val, vectors[0]), evaluated(val, vectors[1])
+    fit_after = np.empty(0) if fit is None else np.linalg.norm(fit.after, axis=2)[fit.data.mask]
+    method = "validation, base and tool registered on it" if register else "validation"
+    in_use = accuracy_in_use(method, None, "the validation set", before, after, fit_after,
+                             noise=_instrument_variance(noise, points))
+    return in_use, _PoseErrors(points, before.positions, after.positions, before.rotations, after.rotations)
 
 
 def _as_tuple(v) -> tuple:
     return (v,) if isinstance(v, str) else tuple(v)
 
 
-def _check_inputs(model: RobotModel, data: Measurements, validation, *, loss: str, initial_base: str,
+def _check_inputs(model: RobotModel, data: Measurements | None, validation, *, loss: str, initial_base: str,
                   on_outliers: str, weak: str, folds: int = DEFAULT_FOLDS,
-                  options: dict | None = None) -> None:
+                  options: dict | None = None, contacts=None) -> None:
     """Every argument checked before any work: InputError naming the argument and what is allowed.
-    ``options``: the other arguments of ``calibrate`` by name."""
+    ``options``: the other arguments of ``calibrate`` by name; with ``contacts``, ``data`` may be
+    None and ``validation`` is held-out contacts."""
     from ._accuracy_limit import AccuracyLimit
     from ._arguments import FLAG, NAMES, POSITIVE, is_a, noise_of, number, optional, whole
     from ._options import INSTRUMENT_NOISE
 
     is_a(RobotModel)(model, "model", None)
-    is_a(Measurements)(data, "data", None)
-    optional(is_a(Measurements))(validation, "validation", None)
+    if contacts is None:
+        is_a(Measurements)(data, "data", None)
+        optional(is_a(Measurements))(validation, "validation", None)
+    else:
+        is_a(Contacts)(contacts, "contacts", None)
+        optional(is_a(Measurements))(data, "data", None)
+        optional(is_a(Contacts, Measurements))(validation, "validation", None)
     check_choice(loss, LOSSES, "loss")
     check_choice(initial_base, INITIAL_BASES, "initial_base")
     check_choice(on_outliers, OUTLIER_ACTIONS, "on_outliers")
@@ -501,7 +605,7 @@ def _check_inputs(model: RobotModel, data: Measurements, validation, *, loss: st
     if limit is not None:
         number(limit.limit if isinstance(limit, AccuracyLimit) else limit, "limit", low=0.0, low_open=True)
     for what, d in (("data", data), ("validation", validation)):
-        if d is None:
+        if d is None or not isinstance(d, Measurements):      # contacts are checked by their own step
             continue
         src = d.source or what
         if d.q.shape[1] != model.n_joints:
@@ -924,14 +1028,20 @@ def _in_use(design: _Design, fit: _Fit, before: np.ndarray, validation: Measurem
                   noise=problem.noise)
     vectors = [before, p]
     if register:
-        lay = parameter_layout(start)
-        placed = tuple(n for n in lay.names if lay[n].family == "base" or (
-            lay[n].role == "marker" and lay[n].owner in validation.marker_names))
-        reg = val.over(placed)
-        vectors = [solve(reg, v, tol=REGISTRATION_TOL).p for v in vectors]
+        vectors = _registered(val, vectors)
     method = "validation, base and tool registered on it" if register else "validation"
     return accuracy_in_use(method, None, "the validation set", evaluated(val, vectors[0]), evaluated(val, vectors[1]),
                            fit_after, noise=_instrument_variance(problem.noise, validation))
+
+
+def _registered(val: Problem, vectors: list[np.ndarray]) -> list[np.ndarray]:
+    """``vectors`` with the base and the markers ``val``'s points measure refitted on them: another
+    set-up's frame, the same for every model judged there."""
+    lay = parameter_layout(val.model)
+    placed = tuple(n for n in lay.names if lay[n].family == "base" or (
+        lay[n].role == "marker" and lay[n].owner in val.data.marker_names))
+    reg = val.over(placed)
+    return [solve(reg, v, tol=REGISTRATION_TOL).p for v in vectors]
 
 
 def _instrument_variance(noise: Noise | None, data: Measurements) -> tuple[float, float]:
@@ -1014,6 +1124,27 @@ class _PoseErrors:
             prob_after, p_after = _problem_of(after, data, design.compliance)
         return _PoseErrors(data, vb, prob_after.errors(p_after), rb, prob_after.rotation_errors(p_after))
 
+    @staticmethod
+    def between(nominal: RobotModel, calibrated: RobotModel, data: Measurements, compliance: bool) -> _PoseErrors:
+        """The nominal and the calibrated model (with compliance, if modelled) evaluated on ``data``."""
+        prob_before, p_before = _problem_of(nominal, data, nominal.has_compliance)
+        prob_after, p_after = _problem_of(calibrated, data, compliance)
+        return _PoseErrors(data, prob_before.errors(p_before), prob_after.errors(p_after),
+                           prob_before.rotation_errors(p_before), prob_after.rotation_errors(p_after))
+
+    @staticmethod
+    def summary_of_none() -> ErrorSummary:
+        """The statistics of a calibration that fitted no measured point (each with n = 0)."""
+        return ErrorSummary(*(error_stats([]) for _ in ErrorSummary.KEYS))
+
+    @staticmethod
+    def no_poses(model: RobotModel) -> dict:
+        """The per-point fields of a calibration that fitted no measured point: arrays of no rows."""
+        m = len(model.marker_names)
+        return {"errors_before": np.zeros((0, m)), "errors_after": np.zeros((0, m)),
+                "residual_vectors": np.zeros((0, m, 3)), "measured_positions": np.zeros((0, m, 3)),
+                "readings": np.zeros((0, model.n_joints))}
+
     def summary(self, other: _PoseErrors | None, *, rotation: bool) -> ErrorSummary | None:
         """Statistics of the error norms here (fit) and on ``other`` (held out), positions or rotations."""
         if rotation and self.rotation_after is None:
@@ -1049,7 +1180,7 @@ def _problem_of(model: RobotModel, data: Measurements, compliance: bool) -> tupl
     return Problem(model, data, (), compliance=compliance), parameter_vector(model)
 
 
-def provenance(data: Measurements, validation: Measurements | None = None) -> dict:
+def provenance(data: Measurements | None, validation: Measurements | None = None) -> dict:
     """Software, date and the inputs (source, SHA-256, pose labels in the order of the error rows)."""
     prov: dict[str, object] = {"software": "robocal", "version": __version__,
             "date": datetime.now(timezone.utc).isoformat(timespec="seconds")}
@@ -1098,33 +1229,45 @@ class Comparison:
         return out
 
 
-def _nested_test(small: CalibrationResult, large: CalibrationResult, data: Measurements, validation, alpha: float,
-                 what: str):
+def _nested_test(small: CalibrationResult, large: CalibrationResult, data: Measurements | None, validation,
+                 alpha: float, what: str):
     """F test of ``large`` against ``small`` nested in it, and the held-out RMS: (F, p, helped, verdict)."""
     from scipy.stats import f as f_dist
 
-    n_rows = 3 * int(data.mask.sum()) + (3 * int(cast(np.ndarray, data.rot_mask).sum()) if data.has_orientation else 0)
-    p1, p2 = len(small.parameters), len(large.parameters)
-    ssr1 = small.sigma0 ** 2 * (n_rows - p1)
-    ssr2 = large.sigma0 ** 2 * (n_rows - p2)
-    dfn, dfd = max(p2 - p1, 1), n_rows - p2
+    if small.contacts is not None and large.contacts is not None:     # the points and planes are fitted too
+        dof1, dof2 = small.contacts.residual_dof, large.contacts.residual_dof
+    else:
+        data = cast(Measurements, data)
+        n_rows = 3 * int(data.mask.sum()) + (3 * int(cast(np.ndarray, data.rot_mask).sum())
+                                             if data.has_orientation else 0)
+        dof1, dof2 = n_rows - len(small.parameters), n_rows - len(large.parameters)
+    ssr1, ssr2 = small.sigma0 ** 2 * dof1, large.sigma0 ** 2 * dof2
+    dfn, dfd = max(dof1 - dof2, 1), dof2
     F = max((ssr1 - ssr2) / dfn, 0.0) / (ssr2 / dfd)
     p_value = float(f_dist.sf(F, dfn, dfd))
     # in use: the held-out set's RMS, or the cross-validated one (the same folds for both fits)
-    in_use1, in_use2 = cast(AccuracyInUse, small.in_use), cast(AccuracyInUse, large.in_use)
-    v1, v2 = cast(float, in_use1.position_after.rms), cast(float, in_use2.position_after.rms)
+    if small.in_use is None or large.in_use is None:    # contacts of one placement: nothing held out
+        verdict = (f"{what} not judged in use: no placement held out, the simpler identification is kept; "
+                   f"F = {F:.3g}, p = {p_value:.2g}")
+        return float(F), p_value, False, verdict
+    v1, v2 = cast(float, small.in_use.position_after.rms), cast(float, large.in_use.position_after.rms)
     helped = p_value < alpha and v2 < v1
-    detail = f"{'held-out' if validation is not None else 'cross-validated'} RMS {v1 * 1e3:.4f} mm -> {v2 * 1e3:.4f} mm"
+    kind = "held-out" if validation is not None else "cross-validated"
+    if small.contacts is not None:
+        kind = "held-out placements' socket consistency" if validation is not None else \
+            "socket consistency of each placement predicted by the others,"
+    detail = f"{kind} RMS {v1 * 1e3:.4f} mm -> {v2 * 1e3:.4f} mm"
     verdict = (f"{what} helped: {detail}; F = {F:.3g}, p = {p_value:.2g}" if helped else
                f"{what} did not help: {detail}; F = {F:.3g}, p = {p_value:.2g} (threshold {alpha})")
     return float(F), p_value, bool(helped), verdict
 
 
-@checked(model=is_a(RobotModel), data=both(is_a(Measurements), measured_on()),
-         validation=optional(both(is_a(Measurements), measured_on())), alpha=FRACTION, backlash=FLAG)
+@checked(model=is_a(RobotModel), data=optional(both(is_a(Measurements), measured_on())),
+         contacts=optional(is_a(Contacts)), validation=optional(is_a(Measurements, Contacts)), alpha=FRACTION,
+         backlash=FLAG)
 @one_blas_thread
-def compare(model: RobotModel, data: Measurements, *, validation: Measurements | None = None, alpha: float = 0.01,
-            backlash: bool = False, **kwargs) -> Comparison:
+def compare(model: RobotModel, data: Measurements | None = None, *, contacts: Contacts | None = None,
+            validation=None, alpha: float = 0.01, backlash: bool = False, **kwargs) -> Comparison:
     """Run geometric and geometric-plus-compliance identifications on the same data (the paper's two),
     and with ``backlash`` a third, geometric + compliance + backlash, tested against the second.
 
@@ -1134,10 +1277,14 @@ def compare(model: RobotModel, data: Measurements, *, validation: Measurements |
     ----------
     model : RobotModel
         The nominal robot.
-    data : Measurements
-        The fitted campaign.
-    validation : Measurements, optional
-        Held-out poses to judge the calibrations on (None: cross-validation).
+    data : Measurements, optional
+        The fitted campaign (may be left out with ``contacts``).
+    contacts : Contacts, optional
+        Contacts fitted alone or beside ``data``; each calibration is then judged in use by the
+        socket consistency of its held-out placements (none with one placement: the simpler kept).
+    validation : Measurements or Contacts, optional
+        Held-out poses (with ``contacts``: held-out contacts) to judge the calibrations on (None:
+        cross-validation, or each placement predicted by the others).
     alpha : float
         Significance level of the F tests, in (0, 1).
     backlash : bool
@@ -1151,6 +1298,9 @@ def compare(model: RobotModel, data: Measurements, *, validation: Measurements |
         The calibrations, the F statistics, p-values and the verdict on what helped.
     """
     kwargs.pop("parameters", None)
+    if data is None and contacts is None:
+        raise InputError("give measurements or contacts to compare the identifications on", where="data")
+    kwargs["contacts"] = contacts
     geo = calibrate(model, data, parameters=("geometric",), validation=validation, **kwargs)
     both = calibrate(model, data, parameters=("geometric", "compliance"), validation=validation, **kwargs)
     F, p_value, helped, verdict = _nested_test(geo, both, data, validation, alpha, "compliance")

@@ -606,7 +606,8 @@ def in_use_check(in_use) -> Check:
                      f"(95 % within {_mm(a.p95)}, max {_mm(a.max)}) on {a.n} held-out point(s) ({how}), the robot's "
                      "kinematics unchanged")
     summary = (f"mean error {_mm(b.mean)} before, {_mm(a.mean)} after (95 % within {_mm(a.p95)}, max {_mm(a.max)}) "
-               f"on {a.n} held-out point(s) ({how}); {_mm(fit.mean)} on the fitted ones")
+               f"on {a.n} held-out point(s) ({how})" + (f"; {_mm(fit.mean)} on the fitted ones" if fit.n else
+                                                         "; no measured point fitted"))
     seen, seen_fit = in_use.measured_after or a, in_use.measured_fit or fit
     if seen_fit.n and seen.mean > OVERFIT_GROSS * seen_fit.mean and seen.mean > seen_fit.mean + OVERFIT_GROSS_EXCESS:
         return Check(name, "fail", summary + ": the held-out errors are beyond anything the fit explains",

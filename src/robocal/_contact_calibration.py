@@ -15,18 +15,12 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ._arguments import (
-    FLAG,
     FRACTION,
-    NAMES,
-    POSITIVE,
     checked,
     is_a,
     names_in,
-    noise_of,
-    one_of,
     optional,
     shaped,
-    whole,
 )
 from ._arrays import read_only
 from ._checks import (
@@ -44,18 +38,16 @@ from ._checks import (
     outlier_check,
     plausibility_check,
     tolerances,
-    verdict,
 )
 from ._contacts import Contacts
-from ._errors import DegenerateDataError, InputError, check_choice
-from ._estimates import ErrorStats, ParameterEstimate, effect_text, error_stats, workspace_change
+from ._errors import DegenerateDataError, InputError
+from ._estimates import ParameterEstimate, effect_text, workspace_change
 from ._identifiability import DEFAULT_TOL, WEAK_STD, Absorption, IdentifiabilityResult, analyse, weakly_identifiable
-from ._in_use import DEFAULT_FOLDS, paired_excess, workspace_readings
+from ._in_use import AccuracyInUse, paired_excess, use_stats, workspace_readings
 from ._kinematics import evaluate
 from ._measurements import Measurements, Noise
 from ._model import RobotModel
 from ._observations import ROW_KINDS, ContactProblem
-from ._options import DEFAULT_INSTRUMENT, INSTRUMENT_NOISE, LOSSES, OUTLIER_ACTIONS, WEAK_ACTIONS
 from ._parameters import candidate_parameters, model_from_vector, parameter_layout, parameter_names
 from ._problem import Problem, design_measurements, needs_compliance
 from ._solve import Solution, carried_alone, covariance, solve
@@ -283,44 +275,59 @@ def contact_errors(model: RobotModel, contacts: Contacts) -> ContactErrors:
 
 
 @dataclass(frozen=True, eq=False)
-class ContactCalibration:
-    """Everything a calibration from contacts produced. ``parameters`` the identified robot
-    parameters (``covariance``/``correlation`` indexed alike), ``nuisance`` name -> (estimate, std) of
-    each socket point coordinate and plane parameter (SI), ``fit_before``/``fit_after`` and
-    ``validation_before``/``validation_after`` the kit's figures (``ContactErrors``, validation None
-    without held-out contacts), ``tracker_after`` the fitted tracker points' error norms (or None),
+class ContactFigures:
+    """What contacts add to the ``CalibrationResult`` of a calibration that fitted them (its
+    ``contacts``): ``identifiability`` what each kind of contact reaches and what none does;
+    ``nuisance`` name -> (estimate, std) of each socket point coordinate and plane parameter (SI);
+    ``fit_before``/``fit_after`` and ``validation_before``/``validation_after`` the kit's figures
+    (``ContactErrors``; validation None without held-out contacts); ``held_out`` the figures of each
+    placement predicted by the fit on the others (None with a validation set or one placement);
     ``noise_ratio`` per kind of row the RMS residual in stated standard deviations; ``weak`` the
     parameters the rows cannot pin down (name, predicted std), held at nominal unless ``weak_kept``;
-    ``held_out`` the figures of each placement predicted by the fit on the others (None with a
-    validation set or one placement)."""
+    ``rows`` the number of rows of each kind; ``source`` the contact file or folder;
+    ``residual_dof`` the fit's degrees of freedom (rows less the robot's and the points' and
+    planes' unknowns: what ``compare``'s F test counts)."""
 
-    nominal_model: RobotModel
-    calibrated_model: RobotModel
-    parameters: tuple[ParameterEstimate, ...]
-    covariance: np.ndarray
-    correlation: np.ndarray
     identifiability: ContactIdentifiability
     nuisance: dict
     fit_before: ContactErrors
     fit_after: ContactErrors
-    validation_before: ContactErrors | None
-    validation_after: ContactErrors | None
-    tracker_after: ErrorStats | None
-    noise_ratio: dict
-    checks: tuple[Check, ...]
-    success: bool
-    message: str
-    nfev: int
+    validation_before: ContactErrors | None = None
+    validation_after: ContactErrors | None = None
+    held_out: ContactErrors | None = None
+    noise_ratio: dict = field(default_factory=dict)
     weak: tuple[tuple[str, str], ...] = ()
     weak_kept: bool = False
-    held_out: ContactErrors | None = None
+    rows: dict = field(default_factory=dict)
+    source: str = ""
+    residual_dof: float = 0.0
 
-    @property
-    def verdict(self) -> str:
-        return verdict(self.checks)
 
-    def estimate(self, name: str) -> ParameterEstimate:
-        return next(p for p in self.parameters if p.name == name)
+@dataclass(frozen=True, eq=False)
+class ContactOutcome:
+    """A calibration from contacts solved and checked, before ``calibrate`` makes its record:
+    ``figures`` for ``CalibrationResult.contacts``, the estimates with their covariance and
+    correlation, the solution, the calibrated model, the checks and whether compliance was modelled."""
+
+    figures: ContactFigures
+    parameters: tuple[ParameterEstimate, ...]
+    covariance: np.ndarray
+    correlation: np.ndarray
+    s2: float
+    solution: Solution
+    calibrated_model: RobotModel
+    checks: tuple[Check, ...]
+    compliance: bool
+
+
+def _recordings(contacts: Contacts, data: Measurements | None) -> dict:
+    """The number of recordings of each kind: seatings, plane contacts, bar ends, known distances
+    (one per placement and pair) and tracker poses."""
+    out = {k: int(sum(1 for x in contacts.kind if x == k)) for k in dict.fromkeys(contacts.kind)}
+    pairs = len(contacts.distance_pairs())
+    out.update({"distance": pairs} if pairs else {})
+    out.update({"tracker": int(data.n_poses)} if data is not None else {})
+    return out
 
 
 def _check_inputs(model: RobotModel, contacts: Contacts, data, validation) -> None:
@@ -339,61 +346,48 @@ def _check_inputs(model: RobotModel, contacts: Contacts, data, validation) -> No
                          source=data.source or "data")
 
 
-@checked(model=is_a(RobotModel), contacts=is_a(Contacts), data=optional(is_a(Measurements)),
-         validation=optional(is_a(Contacts)), parameters=NAMES, known=NAMES, noise=noise_of(Noise, INSTRUMENT_NOISE),
-         tol=FRACTION, loss=one_of(LOSSES), max_nfev=optional(whole(1)), on_outliers=one_of(OUTLIER_ACTIONS),
-         weak=one_of(WEAK_ACTIONS), limit=optional(POSITIVE), nonnegative_compliance=FLAG, folds=whole(2))
-def calibrate_contacts(model: RobotModel, contacts: Contacts, *, data: Measurements | None = None,
-                       validation: Contacts | None = None, parameters=("geometric",), known=(), noise=None,
-                       tol: float = DEFAULT_TOL, loss: str = "linear", max_nfev: int | None = None,
-                       on_outliers: str = "refit", weak: str = "eliminate", limit: float | None = None,
-                       nonnegative_compliance: bool = False, folds: int = DEFAULT_FOLDS) -> ContactCalibration:
-    """Identify the parameters of ``model`` that ``contacts`` (and tracker ``data``, if given) reach:
-    what ``calibrate(model, data, contacts=contacts)`` runs.
+def contact_in_use(figures: ContactFigures, validated: bool) -> AccuracyInUse | None:
+    """The socket consistency of seatings the fit did not see as the calibration's accuracy in use:
+    each seated ball centre's distance from its socket's mean centre, for the nominal and the
+    calibrated model, on the held-out placements (``validated``) or on each placement predicted by
+    the fit on the others; None when no seating was held out."""
+    held = figures.validation_after if validated else figures.held_out
+    nominal = figures.validation_before if validated else figures.fit_before
+    if held is None or nominal is None:
+        return None
+    labels = [k for k in held.seatings if k in nominal.seatings]
+    if not labels:
+        return None
+    after = np.concatenate([held.seatings[k] for k in labels])
+    before = np.concatenate([nominal.seatings[k] for k in labels])
+    fitted = use_stats(np.concatenate(list(figures.fit_after.seatings.values())))
+    placements = dict.fromkeys(k.split("/")[0] for k in labels)
+    return AccuracyInUse(
+        method="socket consistency of the held-out placements" if validated else
+        "socket consistency of each placement predicted by the others", folds=None if validated else len(placements),
+        grouping="placement", position_before=use_stats(before), position_after=use_stats(after),
+        rotation_before=None, rotation_after=None, fit_after=fitted, errors_before=read_only(before),
+        errors_after=read_only(after), measured_after=use_stats(after), measured_fit=fitted)
 
-    ``parameters``/``known`` as for ``calibrate``; ``validation``: held-out contacts (e.g. a
-    placement) judged with the calibrated model; without them and with two placements or more, each
-    placement is held out in turn (``held_out``: the figures of every placement predicted by the
-    fit on the others). ``noise`` weighs tracker rows that state no deviation (a ``Noise`` or an
-    instrument class). Each contact row weighs by its stated deviation. ``on_outliers``:
-    ``"refit"`` refits with the robust loss soft_l1 when rows stand out (every row is in its own
-    standard deviations, so one bend serves every kind), keeping in full the rows that alone carry
-    a quantity; ``"flag"`` only names them. ``weak``, ``limit`` and ``nonnegative_compliance`` as
-    for ``calibrate``: parameters the rows cannot pin down (their predicted standard deviation, the
-    points and planes taken out, beyond the bound of practical identifiability at the stated
-    deviations, or at the scatter the limit implies) are held at nominal, or kept and named.
 
-    Parameters
-    ----------
-    {model, contacts}
-    data : Measurements, optional
-        Tracker measurements to calibrate on beside the contacts.
-    {validation, parameters, known}
-    noise : Noise or str, optional
-        Noise of the tracker (a ``Noise`` or an instrument class; default a laser tracker's).
-    tol : float
-        Identifiability tolerance, in (0, 1).
-    {loss, max_nfev, on_outliers}
-    weak : {{"eliminate", "flag"}}
-        Hold weakly identifiable parameters at nominal, or keep them all and warn.
-    limit : float, optional
-        The limit of absolute accuracy (m): weak parameters are judged at the scatter it implies.
-    nonnegative_compliance : bool
-        Keep compliances >= 0.
-    folds : int
-        Not used by contacts (their folds are the placements); accepted so that every option of
-        ``calibrate`` is.
+def fit_contacts(model: RobotModel, contacts: Contacts, *, data: Measurements | None, validation: Contacts | None,
+                 parameters: tuple, known: tuple, noise: Noise, tol: float, loss: str, f_scale: float | None,
+                 max_nfev: int | None, on_outliers: str, weak: str, limit: float | None,
+                 nonnegative_compliance: bool) -> ContactOutcome:
+    """The steps of ``calibrate`` for contacts (its arguments checked there), up to its record.
 
-    Returns
-    -------
-    ContactCalibration
-        The calibrated model, estimates, checks and verdict.
+    ``validation``: held-out contacts (e.g. a placement) judged with the calibrated model; without
+    them and with two placements or more, each placement is held out in turn. Each contact row
+    weighs by its stated deviation, tracker rows by their own or ``noise``. ``on_outliers="refit"``
+    refits with the robust loss soft_l1 when rows stand out (every row is in its own standard
+    deviations, so one bend serves every kind; ``f_scale`` in those units), keeping in full the rows
+    that alone carry a quantity. Parameters the rows cannot pin down (their predicted standard
+    deviation, the points and planes taken out, beyond the bound of practical identifiability at the
+    stated deviations, or at the scatter ``limit`` implies) are held at nominal with
+    ``weak="eliminate"``, unless each placement predicted by the others is worse without them.
     """
-    check_choice(on_outliers, OUTLIER_ACTIONS, "on_outliers")
-    noise = noise if isinstance(noise, Noise) else Noise.of(noise or DEFAULT_INSTRUMENT)
     _check_inputs(model, contacts, data, validation)
-    names = candidate_parameters(model, parameters if not isinstance(parameters, str) else (parameters,),
-                                 known=(known,) if isinstance(known, str) else known)
+    names = candidate_parameters(model, parameters, known=known)
     compliance = needs_compliance(model, names)
     prob = ContactProblem(model, contacts, names, compliance=compliance, data=data, noise=noise)
     p0 = prob.start_vector()
@@ -401,7 +395,7 @@ def calibrate_contacts(model: RobotModel, contacts: Contacts, *, data: Measureme
     if not ident.identified:
         raise DegenerateDataError(f"no robot parameter is identifiable from these contacts ({prob.n_rows} rows)")
     weak_found = _weak(prob.over(ident.identified), p0, _row_scatter(contacts, limit))
-    settings = _Settings(data, noise, loss, max_nfev, on_outliers, nonnegative_compliance,
+    settings = _Settings(data, noise, loss, f_scale, max_nfev, on_outliers, nonnegative_compliance,
                          validation is None and len(contacts.placements()) > 1)
     held_back = tuple(n for n in ident.identified if n not in {w for w, _ in weak_found})
     fit, kept_in_use = _choose(prob, p0, ident.identified, held_back if weak == "eliminate" else None, settings)
@@ -429,19 +423,18 @@ def calibrate_contacts(model: RobotModel, contacts: Contacts, *, data: Measureme
                                       contact_errors(calibrated, contacts), held,
                                       "each placement predicted by the others" if validation is None else
                                       "the held-out placements"))
-    tracker = None
-    if data is not None and fit.design.tracker is not None:    # a tracker part exists with data
-        tracker = error_stats(fit.design.tracker.problem.error_norms(sol.p[:prob.n_robot]))
-    return ContactCalibration(
-        nominal_model=model, calibrated_model=calibrated, parameters=estimates, covariance=cov.covariance[:k, :k],
-        correlation=corr, identifiability=ident,
+    figures = ContactFigures(
+        identifiability=ident,
         nuisance={n: (float(sol.p[prob.n_robot + i]), float(cov.std[k + i]))
                   for i, n in enumerate(prob.nuisance_names)},
         fit_before=contact_errors(model, contacts), fit_after=contact_errors(calibrated, contacts),
         validation_before=None if validation is None else contact_errors(model, validation),
         validation_after=None if validation is None else contact_errors(calibrated, validation),
-        tracker_after=tracker, noise_ratio=fit.ratios, checks=tuple(checks), success=sol.success,
-        message=sol.message, nfev=sol.nfev, weak=tuple(weak_found), weak_kept=kept, held_out=fit.held_out)
+        held_out=fit.held_out, noise_ratio=fit.ratios, weak=tuple(weak_found), weak_kept=kept,
+        rows=_recordings(contacts, data),
+        source=contacts.source or "", residual_dof=float(cov.dof))
+    return ContactOutcome(figures, estimates, cov.covariance[:k, :k], corr, float(cov.s2), sol, calibrated,
+                          tuple(checks), compliance)
 
 
 @dataclass(frozen=True)
@@ -452,6 +445,7 @@ class _Settings:
     data: Measurements | None
     noise: Noise
     loss: str
+    f_scale: float | None
     max_nfev: int | None
     on_outliers: str
     nonnegative_compliance: bool
@@ -484,7 +478,8 @@ def _fit_design(prob: ContactProblem, p0: np.ndarray, free: tuple[str, ...], how
     if not free or design.n_rows <= len(design.free_idx):
         raise DegenerateDataError(f"{design.n_rows} equations for {len(free)} identifiable robot "
                                   f"parameters and {prob.n_nuisance} unknowns of points and planes")
-    sol, checks, ratios = _solve(design, p0, how.data, how.noise, loss=how.loss, max_nfev=how.max_nfev,
+    sol, checks, ratios = _solve(design, p0, how.data, how.noise, loss=how.loss, f_scale=how.f_scale,
+                                 max_nfev=how.max_nfev,
                                  on_outliers=how.on_outliers, lower=_lower(design, how.nonnegative_compliance))
     held = _by_placement(prob.model, prob.contacts, free, sol.p[:prob.n_robot], how) if how.by_placement else None
     return _ContactFit(design, sol, tuple(checks), ratios, held)
@@ -588,16 +583,18 @@ def _by_placement(model: RobotModel, contacts: Contacts, free, p_robot: np.ndarr
                            for f in ("spread", "distance", "plane", "bar", "consistency", "seatings")))
 
 
-def _solve(design: ContactProblem, p0, data, noise: Noise, *, loss: str, max_nfev, on_outliers: str, lower=None):
+def _solve(design: ContactProblem, p0, data, noise: Noise, *, loss: str, f_scale: float | None, max_nfev,
+           on_outliers: str, lower=None):
     """The solution, the checks of its rows and each kind's residual ratio; a linear fit that leaves
-    outliers is refitted with a robust loss when ``on_outliers`` is "refit"."""
-    sol = solve(design, p0, loss=loss, max_nfev=max_nfev, lower=lower)
+    outliers is refitted with a robust loss when ``on_outliers`` is "refit" (bending at ``f_scale``
+    stated deviations, or where scipy estimates)."""
+    sol = solve(design, p0, loss=loss, f_scale=None if loss == "linear" else f_scale, max_nfev=max_nfev, lower=lower)
     checks, ratios, outlying = _row_checks(design, sol, data, noise)
     if not (outlying and loss == "linear" and on_outliers == "refit"):
         return sol, checks, ratios
     alone = carried_alone(design.jacobian(sol.p))
-    sol = solve(design, p0, loss="soft_l1", max_nfev=max_nfev, linear_rows=alone if alone.any() else None,
-                lower=lower)
+    sol = solve(design, p0, loss="soft_l1", f_scale=f_scale, max_nfev=max_nfev,
+                linear_rows=alone if alone.any() else None, lower=lower)
     checks, ratios, _ = _row_checks(design, sol, data, noise)
     said = f"; the robust loss {sol.loss} sets them aside"
     checks = [replace(c, status="warn", summary=c.summary + said, fix="check those rows; remove them to fit "

@@ -27,11 +27,11 @@ import numpy as np
 from ._arrays import frozen, read_only
 from ._contacts import Contacts
 from ._errors import InputError
-from ._kinematics import evaluate, evaluate_state, jacobian_columns, joint_turns, layout
+from ._kinematics import evaluate, evaluate_state, frame_approach, jacobian_columns, joint_turns, layout
 from ._linalg import r_factor
-from ._measurements import Measurements, Noise
+from ._measurements import Measurements, Noise, approach_sides
 from ._model import RobotModel
-from ._parameters import parameter_vector
+from ._parameters import has_backlash_parameters, parameter_vector
 from ._problem import Problem
 
 ROW_KINDS = ("position", "rotation", "socket", "plane", "bar", "distance")
@@ -296,6 +296,9 @@ class ContactProblem:
             self.tracker = MeasuredBlock(tracker, scale)
         self.qf = read_only(contacts.q @ model.coupling_matrix.T)
         self.turns = joint_turns(self.qf)   # evaluated at every step of a fit
+        # joints resting in their lost motion: approached as the rows are visited, in file order
+        self.backlash = model.has_backlash or has_backlash_parameters(model, free)
+        self.approach = frame_approach(model, approach_sides(contacts.q)) if self.backlash else None
         self.marker_idx = np.array([model.marker_names.index(n) for n in contacts.marker], dtype=int)
         self.sockets = contacts.groups("socket")
         self.free_planes = [g for g in contacts.groups("plane") if contacts.known_plane(g.target) is None]
@@ -393,7 +396,8 @@ class ContactProblem:
         identifiable. The nudge is of the size of that scatter over the reach (milliradians)."""
         contacts = replace(self.contacts, q=met_readings(self.model, self.contacts, self.marker_idx))
         other = ContactProblem(self.model, contacts, self.free_names, compliance=self.compliance, noise=None)
-        other.tracker = self.tracker
+        other.tracker, other.approach = self.tracker, self.approach     # the nudge moves no joint's side
+        other._cache = None
         return other
 
     def start_vector(self, p_robot: np.ndarray | None = None) -> np.ndarray:
@@ -416,7 +420,8 @@ class ContactProblem:
         values it was made at, compared by value)."""
         if self._cache is None or not np.array_equal(self._cache.ps.p, p_robot):
             self._cache = evaluate_state(self.model, self.lay, frozen(p_robot), self.qf, compliance=self.compliance,
-                                         orientations=False, turns=self.turns)
+                                         orientations=False, turns=self.turns, backlash=self.backlash,
+                                         approach=self.approach)
         return self._cache
 
     def _positions(self, p_robot: np.ndarray) -> np.ndarray:

@@ -11,17 +11,17 @@ from ._calibration import (
     LimitJudgement,
     ParameterEstimate,
     calibrate,
+    calibrate_contacts,
     compare,
     error_stats,
     register_base,
 )
 from ._checks import Check, outlier_bar, outlier_check, verdict
 from ._contact_calibration import (
-    ContactCalibration,
     ContactErrors,
+    ContactFigures,
     ContactIdentifiability,
     Unreachable,
-    calibrate_contacts,
     contact_errors,
     contact_identifiability,
 )
@@ -44,4 +44,4 @@ __all__ = ["calibrate", "compare", "register_base", "error_stats", "CalibrationR
            "identifiability", "analyse", "weakly_identifiable", "status_table", "Absorption",
            "IdentifiabilityResult", "Problem", "design_problem", "solve", "Solution", "covariance", "Covariance",
            "ContactProblem", "ROW_KINDS", "calibrate_contacts", "contact_identifiability", "contact_errors",
-           "ContactCalibration", "ContactIdentifiability", "ContactErrors", "Unreachable"]
+           "ContactFigures", "ContactIdentifiability", "ContactErrors", "Unreachable"]

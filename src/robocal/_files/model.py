@@ -627,8 +627,9 @@ def calibration_record(result) -> dict:
     """
     out = {"verdict": result.verdict, "date": result.provenance.get("date", "")}
     data = result.provenance.get("data") or {}
-    if data.get("source"):
-        out["data"] = str(data["source"])
+    sources = [str(d["source"]) for d in (result.provenance.get("contacts") or {}, data) if d.get("source")]
+    if sources:
+        out["data"] = " and ".join(sources)
     if data.get("n_poses"):
         out["poses"] = int(data["n_poses"])
     out["families"] = list(result.families)

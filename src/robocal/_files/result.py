@@ -34,6 +34,7 @@ from .._errors import InputError, excerpt
 from .._identifiability import Absorption, IdentifiabilityResult, status_table
 from .._in_use import AccuracyInUse, Coverage, UseStats
 from .._parameters import parameter_layout
+from .contact_result import contacts_from_dict, contacts_to_dict
 from .measurements import MAX_MAGNITUDE
 from .model import model_from_dict, model_to_dict
 from .text import MAX_FILE_BYTES, load_json, read_bytes, read_text, write_texts
@@ -147,6 +148,7 @@ def result_to_dict(result: CalibrationResult, *, per_pose: bool = True) -> dict:
                                            "reached": lim.reached},
         "in_use": in_use_to_dict(result.in_use),
         "coverage": coverage_to_dict(result.coverage),
+        "contacts": contacts_to_dict(result.contacts),
         "provenance": result.provenance,
         "nominal_model": model_to_dict(result.nominal_model),
         "calibrated_model": model_to_dict(result.calibrated_model),
@@ -560,11 +562,12 @@ def result_from_dict(d, *, source: str = "<dict>", folder=None) -> CalibrationRe
                                           f"{list(nominal.marker_names)}")
     stats = doc.get(d, "stats", "", dict)
     rotation = doc.get(stats, "rotation", "stats", dict, optional=True)
+    ident = _identifiability(doc, doc.get(d, "identifiability", "", dict))
     return CalibrationResult(
         nominal_model=nominal, calibrated_model=calibrated, parameters=params,
         covariance=doc.array(doc.get(d, "covariance", "", list), "covariance", (k, k)),
         correlation=doc.array(doc.get(d, "correlation", "", list), "correlation", (k, k)),
-        identifiability=_identifiability(doc, doc.get(d, "identifiability", "", dict)),
+        identifiability=ident, contacts=contacts_from_dict(doc, doc.get(d, "contacts", "", dict, optional=True), ident),
         stats=_stats(doc, stats), rotation_stats=None if rotation is None else _stats(doc, rotation, "stats.rotation"),
         **_errors(doc, errors, len(markers), nominal.n_joints, None if folder is None else Path(folder)),
         success=doc.get(d, "success", "", bool), status=doc.get(d, "status", "", int),

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .text import checks_lines, verdict_line
+from .text import checks_lines, in_use_lines, verdict_line
 from .units import with_unit
 
 
@@ -40,17 +40,25 @@ def _figures(label: str, before, after) -> list[str]:
     return out
 
 
-def contact_summary(result) -> str:
-    """The text summary of a ``ContactCalibration``."""
-    ident = result.identifiability
-    lines = ["calibration from contacts", "what the kit shows (before -> after):"]
-    lines += _figures("fitted", result.fit_before, result.fit_after)
-    if result.validation_before is not None:
-        lines += _figures("held-out", result.validation_before, result.validation_after)
-    if result.held_out is not None:
-        lines += _figures("each placement predicted by the others,", result.fit_before, result.held_out)
-    if result.tracker_after is not None:
-        lines.append(f"  tracker points after: {_mm(result.tracker_after.rms)} RMS over {result.tracker_after.n}")
+def contact_summary(result, shown=()) -> str:
+    """The text summary of a ``CalibrationResult`` that fitted contacts (its ``contacts`` figures);
+    ``shown``: notes already printed as warnings."""
+    c = result.contacts
+    ident = c.identifiability
+    rows = ", ".join(f"{n} {kind}" for kind, n in c.rows.items())
+    lines = [f"calibration of {result.nominal_model.name} from contacts ({rows}; {', '.join(result.families)}, "
+             f"loss {result.loss})", "what the kit shows (before -> after):"]
+    lines += _figures("fitted", c.fit_before, c.fit_after)
+    if c.validation_before is not None:
+        lines += _figures("held-out", c.validation_before, c.validation_after)
+    if c.held_out is not None:
+        lines += _figures("each placement predicted by the others,", c.fit_before, c.held_out)
+    tracker, held = result.stats["fit_after"], result.stats["validation_after"]
+    if tracker.n:
+        lines.append(f"  tracker points: {_mm(result.stats['fit_before'].rms)} -> {_mm(tracker.rms)} RMS over "
+                     f"{tracker.n}")
+    if held.n:
+        lines += in_use_lines(result.in_use)
     lines.append(f"identified {len(ident.identified)} parameters; each kind alone identifies:")
     for kind, names in ident.contributions.items():
         lost = ident.lost_without.get(kind)
@@ -61,12 +69,13 @@ def contact_summary(result) -> str:
     for u in ident.unreachable:
         lines.append(f"unreachable: {u.name} ({', '.join(u.components) if u.name == 'base' else 'every length alike'})"
                      f": {u.reason}")
-    if result.weak:
-        lines.append(("weakly identifiable, kept: " if result.weak_kept else "weakly identifiable, held at nominal: ")
-                     + ", ".join(f"{n} (predicted std {s})" for n, s in result.weak))
+    if c.weak:
+        lines.append(("weakly identifiable, kept: " if c.weak_kept else "weakly identifiable, held at nominal: ")
+                     + ", ".join(f"{n} (predicted std {s})" for n, s in c.weak))
     lines.append("parameters (change from nominal +- std):")
     for p in result.parameters:
         lines.append(f"  {p.name:<12} {with_unit(p.change, p.unit, sign=True)} +- {with_unit(p.std, p.unit)}")
+    lines += [f"note: {n}" for n in result.notes if n not in shown]
     lines += checks_lines(result.checks)       # the same checks block and verdict line as a tracker fit
     lines.append(verdict_line(result))
     return "\n".join(lines)

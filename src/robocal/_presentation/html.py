@@ -11,6 +11,7 @@ from __future__ import annotations
 import html
 import re
 from datetime import datetime
+from typing import cast
 
 import numpy as np
 
@@ -23,7 +24,7 @@ from .._arguments import (
     optional,
 )
 from .._calibration import CalibrationResult
-from .._contact_calibration import ContactCalibration, ContactErrors
+from .._contact_calibration import ContactErrors, ContactFigures
 from .._errors import InputError
 from .._files.result import DIAGNOSIS, diagnosis_to_dict, per_pose_arrays, result_to_dict
 from .._files.text import write_texts
@@ -738,6 +739,8 @@ def render_report(result: CalibrationResult, *, extra: dict | None = None, diagn
     """
     if not isinstance(result, CalibrationResult):
         raise InputError(f"expected a CalibrationResult, got {type(result).__name__}", where="result")
+    if result.contacts is not None:
+        return render_contact_report(result, diagnosis)
     d = result_to_dict(result, per_pose=False)
     d["errors"].update(per_pose_arrays(result))    # arrays as they are: a million poses are no lists
     if diagnosis is not None:
@@ -830,20 +833,20 @@ def _contact_cell(value, key: str) -> str:
     return f'<td class="num" data-key="{_e(key)}">{_e(fmt(value, "m"))}</td>'
 
 
-def _contact_sets(result: ContactCalibration) -> list[tuple[str, str, ContactErrors]]:
-    """(key, heading, ContactErrors) of every set of figures the result holds."""
-    out = [("fit_before", "fitted, nominal", result.fit_before), ("fit_after", "fitted, calibrated", result.fit_after)]
-    if result.validation_after is not None and result.validation_before is not None:
-        out += [("validation_before", "held out, nominal", result.validation_before),
-                ("validation_after", "held out, calibrated", result.validation_after)]
-    if result.held_out is not None:
-        out.append(("held_out", "each placement predicted by the others", result.held_out))
+def _contact_sets(c: ContactFigures) -> list[tuple[str, str, ContactErrors]]:
+    """(key, heading, ContactErrors) of every set of figures the calibration holds."""
+    out = [("fit_before", "fitted, nominal", c.fit_before), ("fit_after", "fitted, calibrated", c.fit_after)]
+    if c.validation_after is not None and c.validation_before is not None:
+        out += [("validation_before", "held out, nominal", c.validation_before),
+                ("validation_after", "held out, calibrated", c.validation_after)]
+    if c.held_out is not None:
+        out.append(("held_out", "each placement predicted by the others", c.held_out))
     return out
 
 
-def _contact_figures(result: ContactCalibration) -> str:
+def _contact_figures(c: ContactFigures) -> str:
     """The kit's figures, one column per set: consistency, spacing, spread, planes and bars."""
-    sets = _contact_sets(result)
+    sets = _contact_sets(c)
     rows = []
     for name, label, pick in (
             ("consistency_mean", "socket consistency, mean distance from the socket's centre",
@@ -865,17 +868,17 @@ def _contact_figures(result: ContactCalibration) -> str:
     return _table(head, rows, cls="contacts", num_from=1)
 
 
-def _contact_sockets(result: ContactCalibration) -> str:
+def _contact_sockets(c: ContactFigures) -> str:
     """Per socket the mean and largest distance of its seatings from its centre; per known distance
     the spacing error; in every set."""
-    sets = _contact_sets(result)
-    labels = list(result.fit_before.consistency)
+    sets = _contact_sets(c)
+    labels = list(c.fit_before.consistency)
     rows = [f"<tr><td>{_e(s)}</td>" + "".join(
         _contact_cell((e.consistency.get(s) or (None, None))[i], f"{key}.consistency.{s}.{'mean' if i == 0 else 'max'}")
         for key, _, e in sets for i in (0, 1)) + "</tr>" for s in labels]
     head = ["socket"] + [f"{label}: {what}" for _, label, _ in sets for what in ("mean", "max")]
     out = _table(head, rows, cls="contacts", num_from=1) if rows else "<p>No socket contacts.</p>"
-    pairs = list(result.fit_before.distance)
+    pairs = list(c.fit_before.distance)
     if pairs:
         rows = [f"<tr><td>{_e(p)}</td>" + "".join(_contact_cell(e.distance.get(p), f"{key}.spacing.{p}")
                                                    for key, _, e in sets) + "</tr>" for p in pairs]
@@ -884,20 +887,21 @@ def _contact_sockets(result: ContactCalibration) -> str:
     return out
 
 
-def _contact_parameters(result: ContactCalibration) -> str:
+def _contact_parameters(result: CalibrationResult) -> str:
     rows = [f'<tr id="{_anchor("param", p.name)}"><td>{_e(p.name)}</td>'
             f'<td class="num" data-key="param.{_e(p.name)}.change">{_e(with_unit(p.change, p.unit, sign=True))}</td>'
             f'<td class="num" data-key="param.{_e(p.name)}.std">{_e(with_unit(p.std, p.unit))}</td></tr>'
             for p in result.parameters]
-    weak = "".join(f"<li>{_e(n)} (predicted std {_e(s)})</li>" for n, s in result.weak)
-    said = ("kept: the placements predicted by the others are better with them, or as asked" if result.weak_kept
+    c = cast(ContactFigures, result.contacts)
+    weak = "".join(f"<li>{_e(n)} (predicted std {_e(s)})</li>" for n, s in c.weak)
+    said = ("kept: the placements predicted by the others are better with them, or as asked" if c.weak_kept
             else "held at their nominal values")
     return (_table(["parameter", "change from nominal", "std dev"], rows, num_from=1)
             + (f"<p>Weakly identifiable, {said}:</p><ul class=\"notes\">{weak}</ul>" if weak else ""))
 
 
-def _contact_reach(result: ContactCalibration) -> str:
-    ident = result.identifiability
+def _contact_reach(c: ContactFigures) -> str:
+    ident = c.identifiability
     rows = [f"<tr><td>{_e(kind)}</td><td class=\"wrap\">{_e(', '.join(names) or 'nothing alone')}</td></tr>"
             for kind, names in ident.contributions.items()]
     out = _table(["kind of contact", "identifies alone"], rows)
@@ -908,20 +912,27 @@ def _contact_reach(result: ContactCalibration) -> str:
     return out
 
 
-def render_contact_report(result: ContactCalibration) -> str:
-    """The HTML page of a calibration from contacts (a ``ContactCalibration``): the verdict and its
-    checks, the kit's figures (socket consistency, spacing error, ...) fitted and held out, per
-    socket and known distance, the parameters and what each kind of contact reaches. A
-    self-contained page, no plots."""
-    d = {"checks": [{"name": c.name, "status": c.status, "summary": c.summary, "cause": c.cause, "fix": c.fix,
-                     "items": list(c.items)} for c in result.checks],
-         "verdict": result.verdict, "parameters": [{"name": p.name} for p in result.parameters]}
+def render_contact_report(result: CalibrationResult, diagnosis=None) -> str:
+    """The HTML page of a calibration that fitted contacts (its ``contacts`` figures): the verdict
+    and its checks (and ``diagnosis``), the kit's figures (socket consistency, spacing error, ...)
+    fitted and held out, per socket and known distance, the tracker points fitted beside them, the
+    parameters and what each kind of contact reaches. A self-contained page, no plots."""
+    c = cast(ContactFigures, result.contacts)
+    d: dict = {"checks": [{"name": k.name, "status": k.status, "summary": k.summary, "cause": k.cause, "fix": k.fix,
+                           "items": list(k.items)} for k in result.checks],
+               "verdict": result.verdict, "parameters": [{"name": p.name} for p in result.parameters]}
+    if diagnosis is not None:
+        d["diagnosis"] = diagnosis_to_dict(diagnosis)
     robot = result.nominal_model.name
+    tracker = result.stats["fit_after"]
     sections = [("checks", "Verdict and checks", _checks_html(d)),
-                ("figures", "What the kit shows", _contact_figures(result)),
-                ("sockets", "Each socket and each known distance", _contact_sockets(result)),
+                ("figures", "What the kit shows", _contact_figures(c) + (
+                    f'<p>Tracker points fitted beside the contacts: <span data-key="tracker.rms">'
+                    f'{_e(fmt(result.stats["fit_before"].rms, "m"))} &rarr; {_e(fmt(tracker.rms, "m"))}</span> RMS '
+                    f"over {tracker.n}.</p>" if tracker.n else "")),
+                ("sockets", "Each socket and each known distance", _contact_sockets(c)),
                 ("parameters", "Parameters", _contact_parameters(result)),
-                ("reach", "What each kind of contact identifies", _contact_reach(result)),
+                ("reach", "What each kind of contact identifies", _contact_reach(c)),
                 ("solver", "Solver", _kv([("converged", _e("yes" if result.success else "no"), "success"),
                                           ("message", _e(result.message), "message"),
                                           ("evaluations", _e(str(result.nfev)), "nfev")]))]

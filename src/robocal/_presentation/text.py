@@ -14,7 +14,6 @@ from .._arguments import (
 )
 from .._calibration import CalibrationResult, Comparison
 from .._checks import Check
-from .._contact_calibration import ContactCalibration
 from .._identifiability import IdentifiabilityResult
 from .._model import RobotModel
 from .._parameters import BACKLASH_KINDS, BASE_KINDS, FRAME_KINDS, MARKER_KINDS, parameter_layout
@@ -98,13 +97,13 @@ def diagnosis_lines(diagnosis) -> list[str]:
     return lines
 
 
-@checked(result=is_a(CalibrationResult, ContactCalibration))
+@checked(result=is_a(CalibrationResult))
 def verdict_line(result) -> str:
     """The last line of a summary: the verdict, with what it rests on.
 
     Parameters
     ----------
-    result : CalibrationResult or ContactCalibration
+    result : CalibrationResult
         A calibration's result.
 
     Returns
@@ -155,6 +154,10 @@ def calibration_summary(result, *, shown=(), weighted: bool = False) -> str:
     str
         The text summary.
     """
+    if result.contacts is not None:
+        from .contacts import contact_summary
+
+        return contact_summary(result, shown)
     lines = [f"calibration of {result.nominal_model.name} on {result.provenance['data']['n_poses']} poses "
              f"({', '.join(result.families)}, loss {result.loss})"]
     lines += stats_lines(result.stats)
@@ -241,9 +244,17 @@ def comparison_summary(comparison, *, shown=(), weighted: bool = False) -> str:
     short = {"geometric": "geometric", "geometric and compliance": "geometric+compliance",
              "geometric, compliance and backlash": "+backlash"}
     cols = tuple((short[k], r) for k, r in comparison.results.items())
-    lines = [f"comparison on {geo.provenance['data']['n_poses']} poses",
+    on = (f"contacts ({', '.join(f'{n} {k}' for k, n in geo.contacts.rows.items())})" if geo.contacts
+          else f"{geo.provenance['data']['n_poses']} poses")
+    lines = [f"comparison on {on}",
              f"  {'':<30}" + "".join(f"{name:>24}" for name, _ in cols),
              f"  {'parameters identified':<30}" + "".join(f"{len(r.parameters):>24}" for _, r in cols)]
+    if geo.contacts is not None:
+        for label, pick in (("socket consistency, fitted", lambda r: r.contacts.fit_after.consistency_mean),
+                            ("socket consistency, in use", lambda r: r.in_use and r.in_use.position_after.mean)):
+            values = [pick(r) for _, r in cols]
+            if all(v is not None for v in values):
+                lines.append(f"  {label + ' (mm)':<30}" + "".join(f"{v * MM:>24.4f}" for v in values))
     for key in STAT_ROWS:
         if not geo.stats[key].n:
             continue

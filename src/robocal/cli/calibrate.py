@@ -83,13 +83,28 @@ def register(sub) -> None:
 
 
 def _inputs(args):
-    """The model, the fitted data and the held-out data (or None) the options name."""
+    """The model, the fitted data (or None with contacts alone), the held-out data (or None) and
+    the contacts (or None) the options name; with contacts, the held-out set is their placements."""
     from .._files.measurements import split_sets
     from .._files.model import read_model
 
     model = common.masses_as_asked(args, read_model(args.model))
     if args.backlash_side is not None:
         model = model.replace(backlash_side=args.backlash_side)
+    contacts = validation = data = None
+    if args.contacts:
+        contacts = _contacts(args, model)
+        held = args.holdout_placement or (_drawn_placements(contacts, args) if args.holdout else None)
+        if held:
+            contacts, validation = contacts.split_placements(held)
+        elif args.validation:       # measured points held out
+            validation = common.read_data(args, model, args.validation)
+        if args.csv is not None:
+            data, held = split_sets(common.read_data(args, model, args.csv))
+            if held is not None:
+                raise InputError("the file marks validation rows (column 'set'); with --contacts the held-out set is "
+                                 "their placements (--holdout-placement)", source=args.csv)
+        return model, data, validation, contacts
     data, validation = split_sets(common.read_data(args, model, args.csv))
     if validation is not None and (args.validation or args.holdout):
         raise InputError("the file marks validation rows (column 'set') and --validation/--holdout was given; "
@@ -98,7 +113,41 @@ def _inputs(args):
         validation = common.read_data(args, model, args.validation)
     elif args.holdout:
         data, validation = data.split(args.holdout, rng=args.seed)
-    return model, data, validation
+    return model, data, validation, contacts
+
+
+def _contacts(args, model):
+    """The contact file or folder of seatings, its placements checked against --holdout-placement."""
+    from .._files.contacts import read_contacts
+
+    contacts = read_contacts(args.contacts, model)
+    missing = [p for p in args.holdout_placement or () if p not in contacts.placements()]
+    if missing:
+        raise InputError(f"no placement {missing[0]!r} (placements: {', '.join(contacts.placements())})",
+                         source=args.contacts, where="--holdout-placement")
+    return contacts
+
+
+def _drawn_placements(contacts, args) -> list[str]:
+    """--holdout with contacts: that fraction of the placements (at least one, never all), drawn with --seed."""
+    import numpy as np
+
+    names = contacts.placements()
+    if len(names) < 2:
+        raise InputError(f"holds out placements, and {args.contacts} has {len(names)}", where="--holdout")
+    k = min(max(1, round(args.holdout * len(names))), len(names) - 1)
+    held = sorted(np.random.default_rng(args.seed).choice(len(names), k, replace=False))
+    print(f"held out placement(s) {', '.join(names[i] for i in held)} of {len(names)} (--holdout {args.holdout:g}, "
+          f"--seed {args.seed})")
+    return [names[i] for i in held]
+
+
+def _one_held_out_set(args) -> None:
+    """With contacts, one held-out set: measured points, or placements (named or drawn)."""
+    given = [f for f, v in (("--validation", args.validation), ("--holdout", args.holdout),
+                            ("--holdout-placement", args.holdout_placement)) if v]
+    if len(given) > 1:
+        raise InputError(f"give one held-out set: {' or '.join(given)}", where=given[1])
 
 
 def _headline(result) -> dict:
@@ -114,9 +163,11 @@ def _headline(result) -> dict:
     return out
 
 
-def _diagnosis(args, model, data, best, noise):
+def _diagnosis(args, model, data, contacts, best, noise):
     """The diagnosis of the chosen result when its verdict is warn or fail, or asked (--diagnose), printed."""
     if not (args.diagnose or best.verdict != "pass"):
+        return None
+    if contacts is not None:
         return None
     from .._diagnosis import diagnose
     from .._presentation.text import diagnosis_lines
@@ -127,20 +178,19 @@ def _diagnosis(args, model, data, best, noise):
 
 
 def run(args) -> int:
+    import numpy as np
+
     from .._calibration import calibrate, compare
     from .._files.model import calibration_record, model_to_yaml
     from .._files.result import result_files, sidecar_path
     from .._measurements import Noise
     from .._presentation.text import calibration_summary, comparison_summary
 
-    if args.contacts and args.record:
-        raise InputError("the store keeps calibrations from measurement files; drop --contacts", where="--record")
     if args.contacts:
-        from . import contacts
-        return contacts.run(args)
-    if args.csv is None:
+        _one_held_out_set(args)
+    elif args.csv is None:
         raise InputError("give a measurement file (CSV) or a contact file (--contacts)", where="calibrate")
-    if args.holdout_placement:
+    elif args.holdout_placement:
         raise InputError("needs --contacts", where="--holdout-placement")
     if args.compare and args.parameters:
         raise InputError("--compare chooses the parameters itself; drop --parameters", where="--compare")
@@ -155,17 +205,19 @@ def run(args) -> int:
     common.refuse_existing([out / "calibrated.yaml"] + [out / n for n in names]
                            + [sidecar_path(out / n) for n in names] + ([out / "report.html"] if report else []),
                            args.force)
-    model, data, validation = _inputs(args)
-    logging.getLogger("robocal").info("read %s: %d poses to fit, %d held out", args.csv, data.n_poses,
-                                      0 if validation is None else validation.n_poses)
+    model, data, validation, contacts = _inputs(args)
+    if contacts is None:
+        logging.getLogger("robocal").info("read %s: %d poses to fit, %d held out", args.csv, data.n_poses,
+                                          0 if validation is None else validation.n_poses)
     noise = Noise.of(args.instrument, position=None if args.noise_mm is None else args.noise_mm / common.MM,
                      rotation=None if args.noise_deg is None else args.noise_deg / common.DEG)
     options = dict(known=args.known, validation=validation, loss=args.loss, tol=args.tol,
                    initial_base="register" if args.register_base else "model",
                    limit=None if args.limit_mm is None else args.limit_mm / common.MM, noise=noise,
                    on_outliers=args.on_outliers, weak=args.weak, nonnegative_compliance=args.nonnegative_compliance,
-                   folds=args.folds, register_validation=args.register_validation)
-    weighted = data.sigma is not None or data.has_orientation
+                   folds=args.folds, register_validation=args.register_validation, contacts=contacts)
+    weighted = contacts is not None or data.sigma is not None or data.has_orientation
+    source = args.contacts if contacts is not None else args.csv
     try:
         if args.compare:
             comparison = compare(model, data, backlash=args.backlash, **options)
@@ -177,10 +229,12 @@ def run(args) -> int:
             results = [best]
             print(calibration_summary(best, shown=args.shown_warnings, weighted=weighted))
     except DegenerateDataError as e:  # name the file: the data, not the program, fall short
-        raise DegenerateDataError(f"{args.csv}: {e}") from None
+        raise DegenerateDataError(f"{source}: {e}") from None
+    except np.linalg.LinAlgError as e:  # what the numbers leave of the fit is singular: the data's to fix
+        raise DegenerateDataError(f"{source}: the fit is numerically singular on these data ({e})") from None
     for r in results:
         common.require_finite("the calibration", _headline(r))
-    diagnosis = _diagnosis(args, model, data, best, noise)
+    diagnosis = _diagnosis(args, model, data, contacts, best, noise)
     files = {p: f for n, r in zip(names, results)
              for p, f in result_files(r, out / n, diagnosis=diagnosis if r is best else None).items()}
     failed = best.verdict == "fail"
