@@ -46,7 +46,6 @@ from hypothesis import HealthCheck, Phase, given, settings  # noqa: E402
 
 import robocal  # noqa: E402,F401
 import robocal.report  # noqa: E402,F401
-from robocal.cli import main  # noqa: E402
 
 fuzz_cases.every_reader()  # the compiled measurement reader on the small fuzzed files too
 
@@ -126,16 +125,12 @@ class Runner:
             print(f"{n} cases: {dict(self.counts)}", file=sys.stderr, flush=True)
 
 
-def base_result() -> str:
-    """A real result.json of the small example campaign, the seed of the result-file cases."""
+def base_result() -> tuple[str, str]:
+    """Real result.json files (measured points, contacts), the seeds of the result-file cases."""
     folder = Path(tempfile.mkdtemp(prefix="robocal-fuzz-base-"))
-    (folder / "m.yaml").write_text(fuzz_cases.MODEL)
-    (folder / "d.csv").write_text(fuzz_cases.MEASUREMENTS)
-    code = main(["calibrate", str(folder / "m.yaml"), str(folder / "d.csv"), "--out", str(folder / "o")])
-    assert code in (0, 3), code
-    text = fuzz_cases.inline_result(folder / "o" / "result.json")
+    texts = fuzz_cases.base_results(folder)
     shutil.rmtree(folder)
-    return text
+    return texts
 
 
 class _TimeUp(Exception):

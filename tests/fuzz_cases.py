@@ -97,6 +97,28 @@ def inline_result(path) -> str:
     return result_to_json(read_result(path))
 
 
+def base_results(folder: Path) -> tuple[str, str]:
+    """The seeds of the result-file cases, made in ``folder``: real results of the small example
+    campaign (measured points) and of the cut arm7 socket file (contacts), per-pose arrays inline."""
+    from robocal.cli import main
+
+    (folder / "m.yaml").write_text(MODEL)
+    (folder / "d.csv").write_text(MEASUREMENTS)
+    (folder / "arm7.yaml").write_text(ARM7_MODEL)
+    (folder / "sockets.csv").write_text(SOCKETS)
+    for argv in ([str(folder / "m.yaml"), str(folder / "d.csv"), "--out", str(folder / "points")],
+                 [str(folder / "arm7.yaml"), "--contacts", str(folder / "sockets.csv"),
+                  "--out", str(folder / "contacts")]):
+        code = main(["calibrate", *argv])
+        assert code in (0, 3), (argv, code)
+    return inline_result(folder / "points" / "result.json"), inline_result(folder / "contacts" / "result.json")
+
+
+def _base(draw, result_text) -> str:
+    """One of the seeds of the result-file cases (``result_text``: one, or a tuple of them)."""
+    return result_text if isinstance(result_text, str) else draw(st.sampled_from(result_text))
+
+
 # -- text mutations ------------------------------------------------------------------------------
 
 @st.composite
@@ -572,7 +594,10 @@ COMPENSATE = {"--marker": "tool", "--position-only": None, "--tol-mm": "0.001", 
               "--out-units": "m-rad", "--units": "mm-deg"}
 CONTACTS = {"--parameters": "geometric", "--known": "base", "--tol": "1e-6", "--loss": "soft_l1",
             "--holdout-placement": "P3", "--write-failed": None, "--instrument": "cmm", "--noise-mm": "0.02",
-            "--on-outliers": "flag", "--out-units": "m-rad"}
+            "--on-outliers": "flag", "--out-units": "m-rad", "--holdout": "0.4", "--seed": "2", "--compare": None,
+            "--register-validation": None, "--register-base": None, "--diagnose": None, "--weak": "flag",
+            "--limit-mm": "0.5", "--backlash-side": "approach", "--noise-deg": "0.01", "--folds": "3",
+            "--nonnegative-compliance": None, "--report": None}
 BIG_COUNTS = ("1000", "100000", "99999999999", "1000000")
 
 RECORD = {"--type": "th8", "--at": "2026-09-01T00:00:00Z"}
@@ -682,7 +707,8 @@ def import_urdf_case(draw, result_text=None):
 
 @st.composite
 def report_case(draw, result_text=None):
-    return {"result.json": draw(result_file(result_text))}, ["report", "result.json", "--out", "report.html"]
+    return {"result.json": draw(result_file(_base(draw, result_text)))}, ["report", "result.json", "--out",
+                                                                         "report.html"]
 
 
 @st.composite
@@ -751,6 +777,8 @@ def contacts_case(draw, result_text=None):
     files = {"model.yaml": _model(draw, ARM7_MODEL)}
     files["sockets.csv"] = draw(contacts_file()) if draw(st.integers(0, 2)) else SOCKETS.encode()
     argv = ["calibrate", "model.yaml", "--contacts", "sockets.csv", "--out", "out"] + draw(options(CONTACTS))
+    if draw(st.integers(0, 3)) == 0:    # and keep it in a store (never the user's default one)
+        argv += ["--record", _value(draw, "R"), "--store", "store.sqlite"]
     return files, argv
 
 
@@ -831,8 +859,9 @@ def compensate_program_case(draw, result_text=None):
 
 
 @st.composite
-def store_case(draw, command: str, result_text: str):
+def store_case(draw, command: str, result_text):
     """(files, argv) of record, history or verify on a store, its result or its measurements damaged."""
+    result_text = _base(draw, result_text)
     files = {"store.sqlite": draw(store_file(store_bytes(result_text)))}
     robot = _value(draw, "R")
     if command == "record":
@@ -917,9 +946,12 @@ def sidecar_pair(draw, result_text: str) -> dict:
         if edit == "drop":
             del arrays[key]
         elif edit in ("nan", "inf", "huge"):
-            a = a.copy()
-            a.flat[draw(st.integers(0, max(a.size - 1, 0)))] = {"nan": np.nan, "inf": np.inf, "huge": 1e308}[edit] \
-                if a.size else 0.0
+            value = {"nan": np.nan, "inf": np.inf, "huge": 1e308}[edit]
+            if a.size:
+                a = a.copy()
+                a.flat[draw(st.integers(0, a.size - 1))] = value
+            else:       # no poses (a calibration from contacts alone): a row of it where none belongs
+                a = np.full((1,) + a.shape[1:], value)
             arrays[key] = a
         elif edit == "shape":
             arrays[key] = a[:-1] if len(a) else a
@@ -949,7 +981,7 @@ def sidecar_pair(draw, result_text: str) -> dict:
 @st.composite
 def sidecar_case(draw, result_text=None):
     """report or record on a result whose per-pose arrays are in its result.npz sidecar."""
-    files = draw(sidecar_pair(result_text))
+    files = draw(sidecar_pair(_base(draw, result_text)))
     if draw(st.booleans()):
         return files, ["report", "result.json", "--out", "report.html"]
     return files, ["record", "result.json", "--robot", _value(draw, "R"), "--store", "store.sqlite"]

@@ -11,8 +11,6 @@ import fuzz_cases
 import pytest
 from hypothesis import HealthCheck, Phase, given, seed, settings
 
-from robocal.cli import main
-
 # cases of the sample run in-process (fuzz_cases.run_guarded: 20 s of CPU time, 1 GB of memory
 # beyond the worker's) and in forked children (fuzz_cases.fork_case), split over this many forked
 # workers, each its own seed
@@ -23,11 +21,7 @@ WORKERS = 2
 
 @pytest.fixture(scope="module")
 def result_text(tmp_path_factory):
-    d = tmp_path_factory.mktemp("fuzz")
-    (d / "m.yaml").write_text(fuzz_cases.MODEL)
-    (d / "d.csv").write_text(fuzz_cases.MEASUREMENTS)
-    assert main(["calibrate", str(d / "m.yaml"), str(d / "d.csv"), "--out", str(d / "o")]) in (0, 3)
-    return fuzz_cases.inline_result(d / "o" / "result.json")
+    return fuzz_cases.base_results(tmp_path_factory.mktemp("fuzz"))
 
 
 def _share(job) -> list:
