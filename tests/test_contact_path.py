@@ -183,6 +183,12 @@ def test_measured_points_judge_a_contact_calibration_in_use(cli, arm7, kit, tmp_
     assert use.position_after.mean < use.position_before.mean / 20
     assert back.validation_after.shape == (30, 1) and back.stats["validation_after"].n == 30
     assert {c.name for c in back.checks} >= {"accuracy in use", "accuracy in use, placements predicted by the others"}
+    from robocal._presentation.units import fmt
+    from robocal.report import render_report
+
+    page = render_report(back)
+    assert f'data-key="in_use.mean">{fmt(use.position_before.mean, "m")} &rarr; {fmt(use.position_after.mean, "m")}<' \
+        in page
     code, _, err = cli("calibrate", ARM7, "--contacts", folder / "sockets.csv", "--out", tmp_path / "w",
                        "--validation", tmp_path / "val.csv", "--holdout-placement", "P2")
     assert_one_line_error(code, err, ["--validation", "--holdout-placement"], tmp_path / "w")

@@ -924,12 +924,18 @@ def render_contact_report(result: CalibrationResult, diagnosis=None) -> str:
     if diagnosis is not None:
         d["diagnosis"] = diagnosis_to_dict(diagnosis)
     robot = result.nominal_model.name
-    tracker = result.stats["fit_after"]
+    tracker, use = result.stats["fit_after"], result.in_use
+    points = ""
+    if tracker.n:
+        points += (f'<p>Tracker points fitted beside the contacts: <span data-key="tracker.rms">'
+                   f'{_e(fmt(result.stats["fit_before"].rms, "m"))} &rarr; {_e(fmt(tracker.rms, "m"))}</span> RMS '
+                   f"over {tracker.n}.</p>")
+    if result.stats["validation_after"].n and use is not None:
+        points += (f'<p>Measured points held out ({_e(use.method)}): mean error <span data-key="in_use.mean">'
+                   f'{_e(fmt(use.position_before.mean, "m"))} &rarr; {_e(fmt(use.position_after.mean, "m"))}</span> '
+                   f"over {use.position_after.n}, the instrument's noise taken out.</p>")
     sections = [("checks", "Verdict and checks", _checks_html(d)),
-                ("figures", "What the kit shows", _contact_figures(c) + (
-                    f'<p>Tracker points fitted beside the contacts: <span data-key="tracker.rms">'
-                    f'{_e(fmt(result.stats["fit_before"].rms, "m"))} &rarr; {_e(fmt(tracker.rms, "m"))}</span> RMS '
-                    f"over {tracker.n}.</p>" if tracker.n else "")),
+                ("figures", "What the kit shows", _contact_figures(c) + points),
                 ("sockets", "Each socket and each known distance", _contact_sockets(c)),
                 ("parameters", "Parameters", _contact_parameters(result)),
                 ("reach", "What each kind of contact identifies", _contact_reach(c)),
