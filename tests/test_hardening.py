@@ -673,3 +673,15 @@ def test_a_sidecar_error_beyond_any_magnitude_is_refused_by_the_reader(tmp_path,
         rc.read_result(tmp_path / "result.json")
     one_line(cli, ("record", tmp_path / "result.json", "--robot", "R", "--store", tmp_path / "s.sqlite"),
              ["result.json", "errors.fit_before"])
+
+
+def test_an_empty_triangular_system_is_solved_without_lapack_complaining(capfd):
+    """A fit with nothing free solved R x = b with R of shape (0, 0): LAPACK refused the leading
+    dimension 0 and printed "On entry to DTRTRS parameter number 7 had an illegal value" on stderr
+    (seen 18 times in 3,000 fuzz cases of contacts and result files)."""
+    from robocal._linalg import solve_upper
+
+    for b in (np.zeros((0, 3)), np.zeros(0)):
+        x = solve_upper(np.zeros((0, 0)), b)
+        assert x.shape == b.shape
+    assert "DTRTRS" not in capfd.readouterr().err

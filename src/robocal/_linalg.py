@@ -57,7 +57,10 @@ def r_factor(A: np.ndarray) -> np.ndarray:
 
 def solve_upper(R: np.ndarray, b: np.ndarray, *, transposed: bool = False) -> np.ndarray:
     """``R^-1 b`` (or ``R^-T b``) for an upper triangular ``R`` by LAPACK's dtrtrs, NaN where ``R`` is
-    singular (scipy's checking wrapper costs several times the solve at these sizes)."""
+    singular (scipy's checking wrapper costs several times the solve at these sizes). An empty
+    system has an empty solution (LAPACK would refuse its leading dimension of 0 on stderr)."""
+    if R.shape[0] == 0:
+        return np.zeros(b.shape)
     x, info = lapack.dtrtrs(R, b if b.ndim == 2 else b[:, None], lower=0, trans=int(transposed))
     if info != 0:
         x = np.full(x.shape, np.nan)
