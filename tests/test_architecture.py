@@ -23,6 +23,7 @@ LAYERS = [
     {"_pose_selection", "_simulation", "_compensation", "_accuracy_limit", "_conversion", "_checks",
      "_contact_simulation", "_in_use", "_effects"},
     {"_solve", "_estimates", "_calibration", "_campaign", "_contact_calibration", "_contact_planning", "_diagnosis",
+     "_contact_diagnosis",
      "_verification"},
     {"_files"},
     {"_store"},

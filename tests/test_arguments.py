@@ -58,7 +58,7 @@ def world():
     return dict(
         rep=rep, repeatability=rc.iso9283_repeatability(rep.pose_ids, rep.points), model=model, true=true,
         data=data, result=result, comparison=comparison, q=data.q[:5], names=names,
-        contacts=contacts, arm7=arm7, arm7_names=arm7_names,
+        contacts=contacts, arm7=arm7, arm7_names=arm7_names, cresult=rc.calibrate_contacts(arm7, contacts),
         cproblem=ContactProblem(arm7, contacts, arm7_names, compliance=False),
         precision=rc.controller_precision(model, encoder_resolution=(1e-5,) * 3, length_quantum=1e-5,
                                           angle_quantum=1e-5, n_samples=200, rng=0),
@@ -250,6 +250,7 @@ def valid_calls(tmp: Path) -> dict:
         "compensate_program": ((prog, arm, arm), {}),
         # diagnosis, verification and the store
         "diagnose": ((m, data, res), {}),
+        "diagnose_contacts": ((w["arm7"], w["contacts"], w["cresult"]), {}),
         "verify": ((m, data, w["then"]), {}),
         "positional_accuracy": ((np.zeros((3, 3)), np.ones((3, 3)), [0, 1, 1], 2), {}),
         "accuracy_at_calibration": ((rc.io.result_to_dict(res),), {}),
@@ -318,6 +319,9 @@ BAD = [
     ("compensate_program", "tol_rot", 0.0),
     ("diagnose", "result", None), ("diagnose", "noise", "laser"), ("diagnose", "parameters", 3),
     ("diagnose", "data", Q2),
+    ("diagnose_contacts", "contacts", None), ("diagnose_contacts", "result", None),
+    ("diagnose_contacts", "result", "result.json"), ("diagnose_contacts", "noise", "laser"),
+    ("diagnose_contacts", "data", Q2), ("diagnose_contacts", "model", "arm7"),
     ("verify", "then", None), ("verify", "alpha", 0.7), ("verify", "register", "no"), ("verify", "data", None),
     ("positional_accuracy", "measured", np.zeros((2, 3))), ("positional_accuracy", "pose_index", [0, 1, 2]),
     ("positional_accuracy", "n_commanded", 0), ("positional_accuracy", "predicted", [[NAN, 0.0, 0.0]] * 3),

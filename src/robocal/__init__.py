@@ -31,6 +31,7 @@ _EVERYDAY = {
     "_measurements": ("Noise",),
     "_checks": ("Check",),
     "_diagnosis": ("diagnose", "Diagnosis", "Finding"),
+    "_contact_diagnosis": ("diagnose_contacts",),
     "_calibration": ("calibrate", "calibrate_contacts", "compare", "register_base", "error_stats",
                      "CalibrationResult", "Comparison", "ParameterEstimate", "ErrorStats", "ErrorSummary",
                      "LimitJudgement"),

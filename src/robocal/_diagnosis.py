@@ -177,7 +177,7 @@ def _position_rms(prob: Problem, p: np.ndarray) -> float:
     return float(np.sqrt(np.mean(e ** 2))) if e.size else 0.0
 
 
-def _count_implausible(model: RobotModel, start: np.ndarray, p: np.ndarray, names) -> int:
+def count_implausible(model: RobotModel, start: np.ndarray, p: np.ndarray, names) -> int:
     """How many of ``names`` moved from ``start`` beyond their family's tolerance (compliances aside)."""
     lay = parameter_layout(model)
     tol = tolerances(model)
@@ -216,7 +216,7 @@ def baseline(model: RobotModel, data: Measurements, result: CalibrationResult, n
     return _Fit(model=model, start=start, names=names, data=work, rows=rows, noise=as_noise(noise), p=sol.p,
                 r=sol.residuals, J=J, row_pose=_row_pose(prob), ssr=float(sol.residuals @ sol.residuals),
                 rms=_position_rms(prob, sol.p),
-                implausible=_count_implausible(model, parameter_vector(model), sol.p, names),
+                implausible=count_implausible(model, parameter_vector(model), sol.p, names),
                 base_free=any(lay[n].family == "base" for n in names),
                 positions0=_nominal_positions(model, work), Q=np.linalg.qr(J)[0], load=_load_columns(start, work,
                                                                                                    sol.p, fit_noise))
@@ -248,7 +248,7 @@ def _refit(fit: _Fit, data: Measurements, *, model: RobotModel | None = None, re
         return None
     start = parameter_vector(fit.model if model is None else model) if not registered else p0
     return _Outcome(ssr=ssr, n_rows=len(sol.residuals), rms=_position_rms(prob, sol.p),
-                    implausible=_count_implausible(m, start, sol.p, fit.names))
+                    implausible=count_implausible(m, start, sol.p, fit.names))
 
 
 def _score(fit: _Fit, ssr: float, n_rows: int, freedom: float, implausible: int | None = None) -> float:
@@ -1051,15 +1051,24 @@ def diagnose(model: RobotModel, data: Measurements, result: CalibrationResult, *
         result = replace(result, parameters=tuple(e for e in result.parameters if e.name in set(parameters)))
     fit = baseline(model, data, result, noise)
     found = [f for f in (h(model, data, result, noise, fit=fit) for h in HYPOTHESES) if f is not None]
+    return ranked(found, HYPOTHESES + (noise_stated,), fit.rms, f"{_mm(fit.rms)} RMS per axis",
+                  lambda: noise_stated(model, data, result, noise, fit=fit))
+
+
+def ranked(found, hypotheses, rms: float, misfit: str, fallback=None) -> Diagnosis:
+    """The diagnosis from the ``found`` findings of ``hypotheses`` (functions): those named (their
+    factor at least ``NAMED_FACTOR``), most likely first, the others only within ``CLOSE_FACTOR`` of
+    it; when none is, what ``fallback()`` finds (or nothing) and a summary saying so of the
+    ``misfit`` (its words) and ``rms`` (m)."""
     named = sorted((f for f in found if f.score >= np.log10(NAMED_FACTOR)), key=lambda f: -f.score)
-    if not named:
-        extra = noise_stated(model, data, result, noise, fit=fit)
+    if not named and fallback is not None:
+        extra = fallback()
         named = [extra] if extra is not None else []
     shown = tuple(f for f in named if f.score >= named[0].score - np.log10(CLOSE_FACTOR)) if named else ()
-    tested = tuple(h.__name__.replace("_", " ") for h in HYPOTHESES + (noise_stated,))
+    tested = tuple(h.__name__.replace("_", " ") for h in hypotheses)
     if shown:
         summary = f"most likely: {shown[0].cause} ({shown[0].evidence})"
     else:
-        summary = (f"nothing tested explains the misfit ({_mm(fit.rms)} RMS per axis): none of the "
+        summary = (f"nothing tested explains the misfit ({misfit}): none of the "
                    f"{len(tested)} explanations tested reduces it by a factor of {NAMED_FACTOR:g}")
-    return Diagnosis(findings=shown, tested=tested, summary=summary, rms=fit.rms)
+    return Diagnosis(findings=shown, tested=tested, summary=summary, rms=rms)

@@ -25,6 +25,7 @@ from ._contact_calibration import (
     contact_errors,
     contact_identifiability,
 )
+from ._contact_diagnosis import diagnose_contacts
 from ._identifiability import (
     Absorption,
     IdentifiabilityResult,
@@ -44,4 +45,5 @@ __all__ = ["calibrate", "compare", "register_base", "error_stats", "CalibrationR
            "identifiability", "analyse", "weakly_identifiable", "status_table", "Absorption",
            "IdentifiabilityResult", "Problem", "design_problem", "solve", "Solution", "covariance", "Covariance",
            "ContactProblem", "ROW_KINDS", "calibrate_contacts", "contact_identifiability", "contact_errors",
-           "ContactFigures", "ContactIdentifiability", "ContactErrors", "Unreachable"]
+           "ContactFigures", "ContactIdentifiability", "ContactErrors", "Unreachable",
+           "diagnose_contacts"]
