@@ -2,6 +2,7 @@
 cause where there is none (docs/diagnosis.md).
 
 Run: python benchmarks/diagnosis_corpus.py [--seeds 20] [--first 0] [--clean 60] [--effects 20] [--presets 10]
+     python benchmarks/diagnosis_corpus.py --contacts [--seeds 5] [--clean 20]
 
 Every mistake of tests/diagnosis_corpus.py on the 6R arm and the TH8-like cylindrical arm, seeds
 0..SEEDS-1: the share of campaigns whose first finding is the true cause, per mistake and robot.
@@ -10,6 +11,14 @@ effects the model does not hold (gear errors, per-pose scatter, link elasticity,
 seeds each per robot), and of `robocal.sim`'s robots with effects beyond the model (`PRESETS`,
 PRESETS seeds each per robot, both arms with masses): the share in which a cause is named. Last,
 the real UR5 and WAM campaigns of tests/data/real: the cause named, if any (none expected).
+
+With ``--contacts``, calibrations from contacts instead (``diagnose_contacts``): every mistake of
+tests/test_contact_diagnosis.py injected into socket campaigns of the 6R arm (3 placements of a
+3-socket plate, 12 seatings a socket, spacings stated), SEEDS seeds each, calibrated as a user would
+(``calibrate_contacts`` with its defaults); then CLEAN seeds each of clean campaigns, of an arm whose
+shoulder and elbow bend under gravity and of one with gear errors, calibrated as geometric; last the
+time of ``diagnose_contacts`` on 3-placement campaigns of 25 seatings a socket against the
+calibration's it explains.
 """
 
 from __future__ import annotations
@@ -99,6 +108,71 @@ def real() -> None:
             print(f"real {robot} {kind:<7} cause named: {got}", flush=True)
 
 
+def _contact_run(contacts, model=None):
+    """(first cause or None, calibration seconds, diagnosis seconds), or None when the calibration fails."""
+    import warnings
+
+    import test_contact_diagnosis as cases
+
+    from robocal.errors import RobocalError
+    from robocal.identification import calibrate_contacts, diagnose_contacts
+
+    model = model or cases.arm()
+    t0 = time.process_time()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            result = calibrate_contacts(model, contacts)
+    except RobocalError as e:
+        print(f"    calibration failed: {e}", flush=True)
+        return None
+    t1 = time.process_time()
+    diagnosis = diagnose_contacts(model, contacts, result)
+    t2 = time.process_time()
+    return (diagnosis.cause.hypothesis if diagnosis.cause else None), t1 - t0, t2 - t1
+
+
+def contacts(seeds: int, clean: int) -> None:
+    import numpy as np
+    import test_contact_diagnosis as cases
+
+    from robocal.sim import socket_campaign
+
+    for mistake in cases.MISTAKES:
+        hits, n, failed, missed = 0, 0, 0, []
+        for seed in range(seeds):
+            changed, expected, _ = cases.injected(mistake, seed)
+            got = _contact_run(changed)
+            if got is None:
+                failed += 1
+                continue
+            n += 1
+            hits += got[0] == expected
+            if got[0] != expected:
+                missed.append(f"{seed}: {got[0]}")
+        print(f"{mistake.__name__:<22} true cause first {hits}/{n}" + (f", {failed} calibration(s) failed" if failed
+                                                                       else "") + (f"  missed: {', '.join(missed)}"
+                                                                                   if missed else ""), flush=True)
+    for effect in ("", "compliance", "gears"):
+        named = []
+        for seed in range(100, 100 + clean):
+            got = _contact_run(cases.campaign(seed, effect), cases.arm(masses=bool(effect)))
+            if got is not None and got[0] is not None:
+                named.append(f"{seed}: {got[0]}")
+        print(f"{effect or 'clean':<22} a cause named in {len(named)}/{clean}" + (f": {'; '.join(named)}" if named
+                                                                                  else ""), flush=True)
+    times = []
+    for seed in range(3):
+        c = socket_campaign(cases.truth(seed), placements=3, poses_per_socket=25, joint_noise=cases.ENCODER, rng=seed)
+        got = _contact_run(c)
+        if got is not None:
+            times.append(got[1:])
+    cal, diag = np.array(times).T
+    print(f"3 placements x 3 sockets x 25 seatings ({c.n_rows} rows), 6R arm, CPU s over {len(times)} campaigns: "
+          f"diagnose_contacts {diag.mean():.2f} (max {diag.max():.2f}), the calibration it explains {cal.mean():.2f} "
+          f"(max {cal.max():.2f})", flush=True)
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=20)
@@ -107,8 +181,14 @@ def main(argv=None) -> None:
     ap.add_argument("--effects", type=int, default=20)
     ap.add_argument("--presets", type=int, default=10, help="seeds per robot of each of robocal.sim.PRESETS")
     ap.add_argument("--no-real", dest="real", action="store_false", help="skip the real UR5 and WAM campaigns")
+    ap.add_argument("--contacts", action="store_true", help="calibrations from contacts instead (SEEDS seeds a "
+                    "mistake, CLEAN seeds a robot without one)")
     args = ap.parse_args(argv)
     t = time.perf_counter()
+    if args.contacts:
+        contacts(args.seeds, args.clean)
+        print(f"({time.perf_counter() - t:.0f} s)")
+        return
     mistakes(args.seeds, args.first)
     no_cause(args.clean, args.effects)
     presets(args.presets)

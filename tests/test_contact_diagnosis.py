@@ -130,7 +130,7 @@ def placement_merged(seed, rng):
     placement's seatings lie on two set-ups."""
     c = campaign(seed)
     first = c.labels[c.placement.index("P3")]
-    return replace(c, placement=tuple("P2" if p == "P3" else p for p in c.placement)), "set-up moved", \
+    return replace(c, placement=tuple("P2" if p == "P3" else p for p in c.placement)), "setup moved", \
         (f"from {first} on", "placement P2")
 
 
@@ -148,7 +148,7 @@ def plate_moved(seed, rng):
     goal = P.mean(axis=0) + (P - P.mean(axis=0)) @ turn.T + 3e-3 * shift / np.linalg.norm(shift)
     q = c.q.copy()
     q[moved] = rc.sim.reach(true, goal, rng=rng) + rng.normal(0.0, ENCODER, (len(moved), 6))
-    return replace(c, q=q), "set-up moved", (f"from {c.labels[start]} on", "placement P2")
+    return replace(c, q=q), "setup moved", (f"from {c.labels[start]} on", "placement P2")
 
 
 def spacing_typo(seed, rng):
@@ -267,3 +267,10 @@ def test_contacts_of_another_robot_and_results_without_a_calibration_are_refused
     with pytest.raises(InputError) as err:
         diagnose_contacts(rc.read_model(ARM7), c, result)
     assert err.value.where == "contacts"
+
+
+def test_the_docs_list_every_hypothesis():
+    text = (ARM7.parents[2] / "docs" / "diagnosis.md").read_text()
+    section = text.split("## Calibrations from contacts")[1].split("\n## ")[0]
+    assert [h.__name__.replace("_", " ") for h in cd.CONTACT_HYPOTHESES] == \
+        [line.split("|")[1].strip() for line in section.splitlines() if line.startswith("| ") and "---" not in line][1:]

@@ -375,7 +375,7 @@ def setup_moved(case: _Case) -> Finding | None:
     out = _refit(case, replace(c, placement=tuple(places)))
     if out is None:
         return None
-    return _found(case, out, "set-up moved", f"from {label} on, placement {placement or '-'}'s seatings lie on "
+    return _found(case, out, "setup moved", f"from {label} on, placement {placement or '-'}'s seatings lie on "
                   "another set-up (the plate moved, or those seatings belong to another placement)",
                   "with them as a placement of their own", float(np.log2(max(tried, 2))), (placement, label),
                   f"check the placement of the seatings from {label} on (their folder or label); if the plate "
