@@ -210,6 +210,9 @@ def test_tracker_points_beside_the_contacts_stay_in_every_refit(seed):
     assert any(p.name.startswith("base.") for p in result.parameters)
     assert diagnosis.cause is not None and diagnosis.cause.hypothesis == expected, diagnosis.summary
     assert diagnosed(campaign(seed), data=data)[1].findings == ()
+    away = arm().replace(base_position=(0.05, -0.03, 0.02))       # a nominal base 6 cm from the true one
+    assert diagnosed(campaign(seed), model=away, data=data)[1].findings == ()
+    assert diagnosed(contacts, model=away, data=data)[1].cause.hypothesis == expected
 
 
 def test_a_finding_names_what_to_check():

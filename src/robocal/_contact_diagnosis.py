@@ -135,9 +135,11 @@ def _thinned(contacts: Contacts, most: int = MAX_ROWS) -> Contacts:
 
 
 def _problem(model: RobotModel, contacts: Contacts, names: tuple[str, ...], compliance: bool,
-             data: Measurements | None, noise: Noise) -> ContactProblem:
-    if data is not None and any(parameter_layout(model)[n].family == "base" for n in names):
-        model = register_base(model, data)     # the tracker fixes the base: start from it registered
+             data: Measurements | None, noise: Noise, *, registered: bool = True) -> ContactProblem:
+    """The contact problem of ``model`` (its base registered on the tracker points when they fix it
+    and ``registered``: a refit from the nominal model)."""
+    if registered and data is not None and any(parameter_layout(model)[n].family == "base" for n in names):
+        model = register_base(model, data)
     return ContactProblem(model, contacts, names, compliance=compliance, data=data, noise=noise)
 
 
@@ -468,7 +470,7 @@ def _reference(model: RobotModel, contacts: Contacts, result, data: Measurements
     if data is not None and data.n_poses > MAX_POSES:
         data = data.subset(_evenly(data.n_poses, MAX_POSES))
     compliance = needs_compliance(result.calibrated_model, names)
-    prob = _problem(result.calibrated_model, work, names, compliance, data, noise)
+    prob = _problem(result.calibrated_model, work, names, compliance, data, noise, registered=False)
     sol = solve(prob, prob.start_vector(), max_nfev=MAX_NFEV)
     return _Case(model, names, work, data, noise, compliance, _outcome(prob, sol.p, model, names))
 
