@@ -34,6 +34,7 @@ from ._contacts import Contacts, KnownDistance
 from ._diagnosis import (
     ANGLE_FACTORS,
     MAX_POSES,
+    NOISE_FACTOR,
     PLAUSIBLE_BONUS,
     Diagnosis,
     Finding,
@@ -156,14 +157,16 @@ def _outcome(prob: ContactProblem, p: np.ndarray, nominal: RobotModel, names) ->
 @one_blas_thread
 def _refit(case: _Case, contacts: Contacts) -> _Fit | None:
     """The fit of ``contacts`` (changed as a hypothesis says) from the nominal model, None when the
-    changed contacts cannot be fitted."""
+    changed contacts cannot be fitted, or fit better than they can be measured: a residual variance
+    below ``NOISE_FACTOR``**-2 of the stated deviations' is a collapse (unknown planes fit exactly by
+    points that fall on a line), not a cause."""
     try:
         prob = _problem(case.model, contacts, case.names, case.compliance, case.data, case.noise)
         sol = solve(prob, prob.start_vector(), max_nfev=MAX_NFEV)
     except _SOLVE_ERRORS:
         return None
     out = _outcome(prob, sol.p, case.model, case.names)
-    return out if np.isfinite(out.ssr) else None
+    return out if np.isfinite(out.ssr) and out.variance >= NOISE_FACTOR ** -2 else None
 
 
 def _screen(case: _Case, contacts: Contacts) -> float:
