@@ -232,6 +232,15 @@ def test_a_finding_names_what_to_check():
     assert cause.items == (f"{wrong.a}-{wrong.b}",) and f"{wrong.length * 1e3:.3g} mm stated" in cause.fix
 
 
+def test_a_split_is_found_where_the_calibration_is_dragged_far_from_the_robot():
+    """Seed 5's merged placements drag the calibration to 51 mm RMS with 15 implausible changes: at
+    its marker positions the best split is 6 seatings late; at the nominal robot's it is the first
+    seating of the third placement, as it should be."""
+    contacts, _, _ = injected(placement_merged, 5)
+    cause = diagnosed(contacts)[1].cause
+    assert cause is not None and cause.items == ("P2", contacts.labels[campaign(5).placement.index("P3")])
+
+
 def test_one_wrong_spacing_alone_scales_the_robot_and_is_named_by_its_implausible_changes():
     """With a single stated spacing, a wrong one fits as well as the right one (the robot and the
     points scale alike): the calibration's changes are implausible, the refit at the spacing the

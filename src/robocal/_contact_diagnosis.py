@@ -335,56 +335,69 @@ def _within(w: np.ndarray, X: np.ndarray) -> np.ndarray:
     return cxx - np.sum(cx ** 2, axis=1) / np.maximum(cw, 1e-300)
 
 
-def _split_gains(case: _Case, rows: np.ndarray) -> np.ndarray:
+def _split_gains(contacts: Contacts, P: np.ndarray, rows: np.ndarray) -> np.ndarray:
     """(len(rows) - 2 MIN_SIDE + 1,) how much the weighted sum of squares about the socket points
-    falls (at the reference fit's positions) when the seatings ``rows`` (one placement's, in order)
-    from each split on stand on a set-up of their own."""
-    c, fit = case.contacts, case.fit
-    P = fit.problem.positions(fit.p)[rows]
-    w = 1.0 / c.sigma[rows] ** 2
+    falls, at the marker positions ``P`` (n_rows, 3), when the seatings ``rows`` (one placement's, in
+    order) from each split on stand on a set-up of their own."""
+    X = P[rows]
+    w = 1.0 / contacts.sigma[rows] ** 2
     splits = np.arange(MIN_SIDE, len(rows) - MIN_SIDE + 1)
     gain = np.zeros(len(splits))
-    for target in dict.fromkeys(c.target[i] for i in rows):
-        m = np.array([c.target[i] == target for i in rows], dtype=float)
-        before = _within(w * m, P)
-        after = _within((w * m)[::-1], P[::-1])[::-1]
+    for target in dict.fromkeys(contacts.target[i] for i in rows):
+        m = np.array([contacts.target[i] == target for i in rows], dtype=float)
+        before = _within(w * m, X)
+        after = _within((w * m)[::-1], X[::-1])[::-1]
         gain += before[-1] - before[splits] - after[splits]
     return gain
+
+
+def _best_split(contacts: Contacts, P: np.ndarray) -> tuple[tuple[str, int] | None, int]:
+    """(placement, first moved row) of the split whose set-up of its own explains most at the marker
+    positions ``P`` (None: no placement has seatings enough to split), and the splits tried."""
+    best, tried, gain_best = None, 0, 0.0
+    for placement in contacts.placements():
+        rows = np.array([i for i in range(contacts.n_rows) if contacts.placement[i] == placement
+                         and contacts.kind[i] == "socket"], dtype=int)
+        if len(rows) < 2 * MIN_SIDE:
+            continue
+        gain = _split_gains(contacts, P, rows)
+        tried += len(gain)
+        k = int(np.argmax(gain))
+        if gain[k] > gain_best:
+            best, gain_best = (placement, int(rows[MIN_SIDE + k])), float(gain[k])
+    return best, tried
+
+
+def _moved_from(contacts: Contacts, placement: str, first: int) -> Contacts:
+    """``contacts`` with the socket seatings of ``placement`` from row ``first`` on as a placement of their own."""
+    new = f"{placement} from {contacts.labels[first]}"
+    return replace(contacts, placement=tuple(new if (i >= first and p == placement and contacts.kind[i] == "socket")
+                                             else p for i, p in enumerate(contacts.placement)))
 
 
 def setup_moved(case: _Case) -> Finding | None:
     """A placement whose seatings from some row on stand on another set-up (the plate moved, or those
     seatings belong to another placement): every split of every placement's seatings screened at
-    once at the reference fit (cumulative sums), the best refitted with the rows from it on as a
-    placement of their own."""
-    c = case.contacts
-    best, tried = (0.0, "", np.zeros(0, dtype=int)), 0
-    for placement in c.placements():
-        rows = np.array([i for i in range(c.n_rows) if c.placement[i] == placement and c.kind[i] == "socket"],
-                        dtype=int)
-        if len(rows) < 2 * MIN_SIDE:
+    once by cumulative sums, at the reference fit's marker positions and at the nominal robot's (a
+    mistake can drag the calibration far from the robot), the best of each refitted with the seatings
+    from it on as a placement of their own."""
+    c, fit = case.contacts, case.fit
+    nominal = ContactProblem(case.model, c, (), compliance=case.compliance)
+    choices = [_best_split(c, P) for P in (fit.problem.positions(fit.p), nominal.positions(nominal.start_vector()))]
+    tried = sum(n for _, n in choices)
+    found = []
+    for placement, first in dict.fromkeys(best for best, _ in choices if best is not None):
+        out = _refit(case, _moved_from(c, placement, first))
+        if out is None:
             continue
-        gain = _split_gains(case, rows)
-        tried += len(gain)
-        k = int(np.argmax(gain))
-        if gain[k] > best[0]:
-            best = (float(gain[k]), placement, rows[MIN_SIDE + k:])
-    _, placement, moved = best
-    if not len(moved):
-        return None
-    label = c.labels[moved[0]]
-    new = f"{placement} from {label}"
-    places = list(c.placement)
-    for i in moved:
-        places[i] = new
-    out = _refit(case, replace(c, placement=tuple(places)))
-    if out is None:
-        return None
-    return _found(case, out, "setup moved", f"from {label} on, placement {placement or '-'}'s seatings lie on "
-                  "another set-up (the plate moved, or those seatings belong to another placement)",
-                  "with them as a placement of their own", float(np.log2(max(tried, 2))), (placement, label),
-                  f"check the placement of the seatings from {label} on (their folder or label); if the plate "
-                  "moved, give them a placement of their own, or record that placement again")
+        label = c.labels[first]
+        found.append(_found(case, out, "setup moved", f"from {label} on, placement {placement or '-'}'s seatings "
+                            "lie on another set-up (the plate moved, or those seatings belong to another placement)",
+                            "with them as a placement of their own", float(np.log2(max(tried, 2))),
+                            (placement, label), f"check the placement of the seatings from {label} on (their folder "
+                            "or label); if the plate moved, give them a placement of their own, or record that "
+                            "placement again"))
+    return max(found, key=lambda f: f.score, default=None)
 
 
 # -- hypotheses: the stated distances ----------------------------------------------------------------
