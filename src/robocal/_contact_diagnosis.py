@@ -504,9 +504,10 @@ def diagnose_contacts(model: RobotModel, contacts: Contacts, result, *, data: Me
         The nominal model the calibration started from.
     contacts : Contacts
         The contacts it fitted, in their campaign order.
-    result : CalibrationResult or ContactCalibration
-        The calibration of ``model`` on ``contacts``: its identified ``parameters`` are refitted,
-        from its ``calibrated_model`` for the reference and from ``model`` for each hypothesis.
+    result : CalibrationResult
+        The calibration of ``model`` on ``contacts`` (and ``data``): its identified ``parameters``
+        are refitted, from its ``calibrated_model`` for the reference and from ``model`` for each
+        hypothesis.
     data : Measurements, optional
         Tracker measurements fitted beside the contacts (kept in every refit).
     noise : Noise, str or None
