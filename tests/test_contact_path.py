@@ -296,3 +296,25 @@ def test_compare_with_contacts_keeps_compliance_only_where_the_held_out_placemen
         files = {f.name for f in (tmp_path / name).iterdir()}
         assert {"result-geometric.json", "result-compliance.json", "result.json"} <= files
     assert chosen == {"rigid": "geometric", "bending": "geometric+compliance"}
+
+
+def test_diagnose_names_the_mistake_of_a_contact_campaign(cli, arm7, kit, tmp_path):
+    """Joint j4's readings written with the wrong sign: the calibration fails on implausible changes
+    and the diagnosis (run on any failure) names the joint; its finding is in result.json and on the
+    page. A clean campaign with --diagnose: nothing is named."""
+    _, c, folder = kit
+    q = c.q.copy()
+    q[:, 3] *= -1
+    write_contacts(replace(c, q=q), tmp_path / "sign.csv", arm7)
+    code, out, err = cli("calibrate", ARM7, "--contacts", tmp_path / "sign.csv", "--out", tmp_path / "sign", "--report")
+    assert code == 3, err
+    assert "likely joint j4's readings have the wrong sign" in out
+    saved = json.loads((tmp_path / "sign" / "result.json").read_text())
+    first = saved["diagnosis"]["findings"][0]
+    assert first["hypothesis"] == "joint sign" and first["items"] == ["j4"]
+    assert "joint j4" in (tmp_path / "sign" / "report.html").read_text()
+    code, out, err = cli("calibrate", ARM7, "--contacts", folder / "sockets.csv", "--out", tmp_path / "clean",
+                         "--diagnose")
+    assert code == 0, err
+    assert "diagnosis: nothing tested explains the misfit" in out
+    assert json.loads((tmp_path / "clean" / "result.json").read_text())["diagnosis"]["findings"] == []

@@ -575,7 +575,8 @@ def _by_placement(model: RobotModel, contacts: Contacts, free, p_robot: np.ndarr
         rest, held = contacts.split_placements([placement])
         prob = ContactProblem(start, rest, free, compliance=compliance, data=how.data, noise=how.noise)
         try:
-            sol = solve(prob, prob.start_vector(), lower=_lower(prob, how.nonnegative_compliance))
+            sol = solve(prob, prob.start_vector(), max_nfev=how.max_nfev,
+                        lower=_lower(prob, how.nonnegative_compliance))
         except DegenerateDataError:      # the others alone cannot fix the fit: no prediction for it
             continue
         parts.append(contact_errors(model_from_vector(model, sol.p[:prob.n_robot]), held))

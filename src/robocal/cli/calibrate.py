@@ -167,12 +167,16 @@ def _diagnosis(args, model, data, contacts, best, noise):
     """The diagnosis of the chosen result when its verdict is warn or fail, or asked (--diagnose), printed."""
     if not (args.diagnose or best.verdict != "pass"):
         return None
-    if contacts is not None:
-        return None
-    from .._diagnosis import diagnose
     from .._presentation.text import diagnosis_lines
 
-    diagnosis = diagnose(model, data, best, noise=noise)
+    if contacts is not None:
+        from .._contact_diagnosis import diagnose_contacts
+
+        diagnosis = diagnose_contacts(model, contacts, best, data=data, noise=noise)
+    else:
+        from .._diagnosis import diagnose
+
+        diagnosis = diagnose(model, data, best, noise=noise)
     print("\n".join(diagnosis_lines(diagnosis)))
     return diagnosis
 
