@@ -318,3 +318,61 @@ def test_diagnose_names_the_mistake_of_a_contact_campaign(cli, arm7, kit, tmp_pa
     assert code == 0, err
     assert "diagnosis: nothing tested explains the misfit" in out
     assert json.loads((tmp_path / "clean" / "result.json").read_text())["diagnosis"]["findings"] == []
+
+
+def test_the_remaining_options_of_calibrate_work_with_contacts(cli, arm7, kit, tmp_path):
+    """--known, --tol, --out-units, --force, --write-failed, --type (with --record), --instrument and
+    --noise-mm (tracker points beside the contacts), --folds (the placements are the folds) and
+    --compare --backlash, each doing with contacts what it does with measured points."""
+    true, c, folder = kit
+    sockets = folder / "sockets.csv"
+
+    def run(name, *extra, data=()):
+        code, out, err = cli("calibrate", ARM7, *data, "--contacts", sockets, "--out", tmp_path / name, *extra)
+        assert code in (0, 3), err
+        return code, out, json.loads((tmp_path / name / "result.json").read_text())
+
+    _, _, plain = run("plain")
+    names = {p["name"] for p in plain["parameters"]}
+    # --known holds a family at nominal; --tol is the identifiability tolerance
+    _, _, known = run("known", "--known", "markers")
+    assert not any(n.startswith("ball.") for n in {p["name"] for p in known["parameters"]}) and \
+        any(n.startswith("ball.") for n in names)
+    assert run("tol", "--tol", "0.5")[2]["identifiability"]["tol"] == 0.5
+    # --out-units: the calibrated model in metres and radians
+    run("units", "--out-units", "m-rad")
+    np.testing.assert_allclose(rc.parameter_vector(rc.read_model(tmp_path / "units" / "calibrated.yaml")),
+                               rc.parameter_vector(rc.read_model(tmp_path / "plain" / "calibrated.yaml")),
+                               rtol=1e-12, atol=1e-15)
+    assert "units: {length: m, angle: rad}" in (tmp_path / "units" / "calibrated.yaml").read_text().replace("'", "")
+    # --force overwrites, without it nothing is overwritten
+    code, _, err = cli("calibrate", ARM7, "--contacts", sockets, "--out", tmp_path / "plain")
+    assert code == 2 and "--force" in err
+    assert run("plain", "--force")[0] == 0
+    # --folds gives way to the placements: the same calibration
+    assert run("folds", "--folds", "3")[2]["parameters"] == plain["parameters"]
+    # --write-failed writes the failed calibration's model, marked
+    q = c.q.copy()
+    q[:, 3] *= -1
+    write_contacts(replace(c, q=q), tmp_path / "sign.csv", arm7)
+    for name, extra in (("failed", []), ("written", ["--write-failed"])):
+        code, _, err = cli("calibrate", ARM7, "--contacts", tmp_path / "sign.csv", "--out", tmp_path / name, *extra)
+        assert code == 3, err
+    assert not (tmp_path / "failed" / "calibrated.yaml").exists()
+    assert "verdict: fail" in (tmp_path / "written" / "calibrated.yaml").read_text()
+    # --type is stored with --record
+    code, out, err = cli("calibrate", ARM7, "--contacts", sockets, "--out", tmp_path / "rec", "--record", "sn9",
+                         "--type", "arm7", "--store", tmp_path / "s.sqlite")
+    assert code == 0, err
+    code, out, err = cli("history", "--type", "arm7", "--store", tmp_path / "s.sqlite")
+    assert code == 0 and "sn9" in out, (out, err)
+    # the instrument's noise weighs tracker points that state none against the contacts
+    tracker = [folder / "tracker.csv"]
+    ratios = {name: run(name, *extra, data=tracker)[2]["contacts"]["noise_ratio"]["tracker"]
+              for name, extra in (("tracker", []), ("cmm", ["--instrument", "cmm"]), ("mm", ["--noise-mm", "0.2"]))}
+    # in the instrument's deviations: 0.2 mm ten times the tracker's 0.02, the CMM's 0.005 a quarter
+    assert ratios["tracker"] / 12 < ratios["mm"] < ratios["tracker"] / 8
+    assert ratios["cmm"] > 3 * ratios["tracker"]
+    # --compare --backlash: a third identification with backlash beside the contacts
+    code, out, _ = run("three", "--compare", "--backlash", "--assume-masses")
+    assert "+backlash" in out and (tmp_path / "three" / "result-backlash.json").exists()
