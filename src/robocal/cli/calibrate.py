@@ -22,8 +22,8 @@ with --write-failed."""
 
 def register(sub) -> None:
     p = common.command(sub, "calibrate", summary="identify the parameters from measurements",
-                       description="Identify the robot's parameters from measured marker positions; write "
-                                   "OUT/calibrated.yaml and OUT/result.json.",
+                       description="Identify the robot's parameters from measured marker positions and/or contacts "
+                                   "(--contacts); write OUT/calibrated.yaml and OUT/result.json.",
                        example=EXAMPLE,
                        inputs=[("model", "MODEL", "model file (YAML)"),
                                ("csv", "CSV", "measurement file (may be left out with --contacts)", "?")])
