@@ -1112,17 +1112,11 @@ class _PoseErrors:
     def of(nominal: RobotModel, data: Measurements, problem, p0, after, design: _Design) -> _PoseErrors:
         """On the fitted poses ``problem`` evaluates both (``after`` a parameter vector); on held-out
         poses (``problem`` None) the nominal and the calibrated model (``after``) are evaluated."""
-        if problem is not None:
-            # the before vector is in the start's layout (its base registered where the fit moves it)
-            prob_before, p_before = problem, p0
-        else:
-            prob_before, p_before = _problem_of(nominal, data, nominal.has_compliance)
-        vb, rb = prob_before.errors(p_before), prob_before.rotation_errors(p_before)
-        if problem is not None:
-            prob_after, p_after = problem, after      # the solution's pass is cached from the last Jacobian
-        else:
-            prob_after, p_after = _problem_of(after, data, design.compliance)
-        return _PoseErrors(data, vb, prob_after.errors(p_after), rb, prob_after.rotation_errors(p_after))
+        if problem is None:
+            return _PoseErrors.between(nominal, after, data, design.compliance)
+        # the before vector is in the start's layout (its base registered where the fit moves it)
+        vb, rb = problem.errors(p0), problem.rotation_errors(p0)
+        return _PoseErrors(data, vb, problem.errors(after), rb, problem.rotation_errors(after))
 
     @staticmethod
     def between(nominal: RobotModel, calibrated: RobotModel, data: Measurements, compliance: bool) -> _PoseErrors:
