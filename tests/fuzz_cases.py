@@ -1089,7 +1089,7 @@ def _fk_gap(model, back, markers=None) -> float:
     markers to ``model``'s (default by name)."""
     import numpy as np
 
-    from robocal._kinematics import evaluate
+    from robocal._model.kinematics import evaluate
 
     q = _sample_q(model)
     qb = q[:, [model.joint_names.index(n) for n in back.joint_names]]

@@ -9,9 +9,9 @@ import pytest
 from conftest import assert_one_line_error
 
 import robocal as rc
-from robocal._accuracy_limit import parameter_displacement
+from robocal._accuracy.limit import parameter_displacement
 from robocal._files.result import LIMIT_SCHEMA
-from robocal._kinematics import kinematic_pass, layout
+from robocal._model.kinematics import kinematic_pass, layout
 from robocal.io import limit_to_dict, read_repeatability_csv
 from robocal.limit import (
     AccuracyLimit,

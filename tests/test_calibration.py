@@ -174,8 +174,8 @@ def test_validation_without_data_keeps_fields_present():
 def test_a_campaign_solved_in_chunks_gives_the_in_memory_answer(monkeypatch):
     """Large campaigns are evaluated a chunk of poses at a time and solved on normal equations;
     small chunks here make the same path run on a small campaign."""
-    import robocal._kinematics as kinematics
-    import robocal._problem as problem
+    import robocal._identification.problem as problem
+    import robocal._model.kinematics as kinematics
     from robocal.identification import Problem
 
     m = arm6r()
@@ -228,7 +228,7 @@ def test_an_ill_conditioned_factor_comes_from_qr():
     """The R factor is taken from the Gram matrix only where that is accurate: for columns so
     nearly dependent that the Gram matrix would lose them, it matches a QR factor to high
     relative precision, and it is exact for well-conditioned ones too."""
-    from robocal._linalg import GRAM_COND_MAX, r_factor
+    from robocal._base.linalg import GRAM_COND_MAX, r_factor
 
     rng = np.random.default_rng(0)
     A = rng.standard_normal((500, 6)) * np.array([1.0, 1e-3, 1e3, 1.0, 1.0, 1.0])
@@ -250,8 +250,8 @@ def test_a_campaign_in_chunks_holds_one_chunk_at_a_time(monkeypatch):
     keeps no chunk's evaluation beyond the chunk (traced numpy memory, against one chunk's)."""
     import tracemalloc
 
-    import robocal._kinematics as kinematics
-    import robocal._problem as problem
+    import robocal._identification.problem as problem
+    import robocal._model.kinematics as kinematics
     from robocal.identification import Problem
     from robocal.kinematics import parameter_vector
 

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import robocal as rc
-from robocal._calibration import (
+from robocal._identification.calibrate import (
     _analyse,
     _Analysis,
     _choose,
@@ -28,7 +28,7 @@ from robocal._calibration import (
     _starting_model,
     _without_copies,
 )
-from robocal._in_use import FoldProblems, fold_labels
+from robocal._identification.holdout import FoldProblems, fold_labels
 from robocal.errors import DegenerateDataError
 
 NOISE = rc.Noise.of("tracker", position=2e-5)

@@ -18,8 +18,8 @@ from robots import arm6r
 from scipy.spatial.transform import Rotation
 
 import robocal as rc
-from robocal import _contact_diagnosis as cd
-from robocal import _diagnosis as dg
+from robocal._diagnosis import contacts as cd
+from robocal._diagnosis import measured as dg
 from robocal.errors import InputError
 from robocal.identification import calibrate_contacts, diagnose_contacts
 from robocal.sim import bar_campaign, plane_campaign, socket_campaign

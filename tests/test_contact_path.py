@@ -244,7 +244,7 @@ def test_backlash_side_says_where_the_contacts_joints_rest(cli, arm7, tmp_path):
     """A true arm whose joints rest on the side gravity pushes them to (lost motion of 1-3 arcmin):
     calibrated with backlash, the gravity side recovers each joint's lost motion within its reported
     uncertainty and predicts the held-out placements; the wrong side (behind the last move) does not."""
-    from robocal._model import default_masses
+    from robocal._model.robot import default_masses
 
     nom = default_masses(arm7)
     nom = nom.replace(frames=tuple(replace(f, backlash_width=0.01, backlash_friction=0.0) for f in nom.frames),
@@ -273,7 +273,7 @@ def test_backlash_side_says_where_the_contacts_joints_rest(cli, arm7, tmp_path):
 def test_compare_with_contacts_keeps_compliance_only_where_the_held_out_placements_gain(cli, arm7, tmp_path):
     """A rigid arm: compliance does not help in use and the geometric model is chosen; the same arm
     bending under its own weight: it helps, and geometric+compliance is chosen."""
-    from robocal._model import default_masses
+    from robocal._model.robot import default_masses
 
     nom = default_masses(arm7)
     names = rc.candidate_parameters(nom, ("geometric",))

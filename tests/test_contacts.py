@@ -376,7 +376,7 @@ def test_the_only_spacing_row_is_kept_by_the_robust_refit_and_named(arm7):
     (which starts the robust refit): the distance alone fixes the scale, so the refit keeps it in
     full (the stated spacing is met) and a check says that nothing else checks it. With three
     placements no distance row carries the scale alone and no such check appears."""
-    from robocal._solve import carried_alone
+    from robocal._identification.solve import carried_alone
 
     true = rc.perturb_model(arm7, rc.identifiability(arm7, parameters=("frames", "markers")).identified, rng=0)
     runs = {}
@@ -405,7 +405,7 @@ def test_the_only_spacing_row_is_kept_by_the_robust_refit_and_named(arm7):
 
 @pytest.mark.parametrize("loss", ["soft_l1", "huber", "cauchy", "arctan"])
 def test_a_partly_robust_loss_is_the_loss_with_the_kept_rows_linear(loss):
-    from robocal._solve import _partly_robust, robust_weights
+    from robocal._identification.solve import _partly_robust, robust_weights
 
     z = np.array([0.0, 0.3, 0.9, 1.5, 4.0, 30.0, 0.3, 30.0])
     keep = np.array([False] * 6 + [True, True])
@@ -545,7 +545,7 @@ def test_total_mass_scales_the_contact_compliances_and_nothing_else(cli, small_s
 def test_the_only_rows_of_a_plane_are_carried_alone(arm7):
     """A plane touched three times: its three rows alone fix its offset and tilt (leverage 1), so a
     robust refit must keep them; the rows of well-sampled planes carry nothing alone."""
-    from robocal._solve import carried_alone
+    from robocal._identification.solve import carried_alone
 
     c = plane_campaign(arm7, planes=4, poses_per_plane=30, joint_noise=ENCODER, rng=2)
     last = [i for i, t in enumerate(c.target) if t == c.target[-1]]

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import robocal as rc
-from robocal import _diagnosis as dg
+from robocal._diagnosis import measured as dg
 
 NAMED = np.log10(dg.NAMED_FACTOR)
 

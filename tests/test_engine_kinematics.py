@@ -9,7 +9,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 from test_kinematics import _random_tree_model
 
-from robocal._kinematics import (
+from robocal._model.kinematics import (
     FRAME_ROWS,
     N_BASE,
     N_FRAME_STEPS,

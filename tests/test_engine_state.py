@@ -13,7 +13,7 @@ import pytest
 from robots import arm6r
 
 import robocal as rc
-from robocal._kinematics import _correction_plan, layout
+from robocal._model.kinematics import _correction_plan, layout
 from robocal.identification import Problem
 from robocal.kinematics import parameter_layout, parameter_vector
 
@@ -148,7 +148,7 @@ def test_what_a_problem_keeps_cannot_be_changed_through_what_it_returned(masses)
 
 
 def test_a_kept_identifiability_result_hands_out_its_own_dictionaries():
-    from robocal._identifiability import theoretical_identifiability
+    from robocal._identification.identifiability import theoretical_identifiability
 
     m = arm6r()
     first = theoretical_identifiability(m, ("geometric",), (), False, 1e-6)
@@ -178,7 +178,7 @@ def test_the_identification_module_loads_on_first_use():
 
 
 def test_a_models_workspace_takes_back_only_buffers_nobody_holds():
-    from robocal._kinematics import WORKSPACE_BYTES, workspace
+    from robocal._model.kinematics import WORKSPACE_BYTES, workspace
 
     m = arm6r()
     ws = workspace(m)
@@ -224,7 +224,7 @@ def test_problems_reusing_a_models_buffers_give_the_same_results(compliance):
 
 
 def workspace_spares(model) -> int:
-    from robocal._kinematics import workspace
+    from robocal._model.kinematics import workspace
 
     return len(workspace(model)._spare)
 

@@ -327,12 +327,12 @@ def test_sigterm_leaves_no_temporary_file(tmp_path):
 
 
 def test_memory_error_is_one_line_with_the_size(files, cli, monkeypatch):
-    import robocal._calibration
+    import robocal._identification.calibrate
 
     def oom(*a, **k):
         raise MemoryError("Unable to allocate 13.3 GiB for an array with shape (1000000, 1784) and data type float64")
 
-    monkeypatch.setattr(robocal._calibration, "calibrate", oom)
+    monkeypatch.setattr(robocal._identification.calibrate, "calibrate", oom)
     one_line(cli, model_commands(files)[0], ["out of memory", "13.3 GiB"])
 
 
@@ -450,7 +450,7 @@ def test_plan_sockets_design_grid_refused_before_the_work_with_its_cost(tmp_path
     (("--poses", "20", "--n-candidates", "100000"), []),
 ])
 def test_plan_refuses_a_selection_of_minutes_before_it_starts(files, cli, monkeypatch, argv, words):
-    import robocal._pose_selection as ps
+    import robocal._simulation.poses as ps
 
     if not words:   # the blocks bound alone: the same refusal, from a smaller selection
         monkeypatch.setattr(ps, "MAX_SELECTION_BLOCKS", 1e5)
@@ -526,7 +526,7 @@ def test_export_of_a_sound_model_reproduces_it(tmp_path, cli, model, fmt):
 
 
 def test_reduced_of_no_column():
-    from robocal._linalg import reduced
+    from robocal._base.linalg import reduced
 
     assert reduced(np.ones((5, 0))).shape == (0, 0)    # LAPACK's error: a block of no column
 
@@ -534,7 +534,7 @@ def test_reduced_of_no_column():
 def test_line_frames_of_axes_tilted_by_round_off():
     """Axes tilted by 1e-9 rad: past the parallel test, yet the 2x2 solve of the common normal was
     singular in round-off (LinAlgError). The feet found lie on both axes."""
-    from robocal._conversion import line_frames
+    from robocal._model.conversion import line_frames
 
     pts = np.array([[0.0, 0, 0], [0.3, 0, 0.1], [0.6, 0.1, 0.2]])
     axes = np.array([[0.0, 0, 1], [np.sin(1e-9), 0, np.cos(1e-9)], [0, 1.0, 0]])
@@ -590,7 +590,7 @@ def test_contact_result_with_a_non_finite_deviation_is_not_written(tmp_path, cli
     """A contacts result once went out with a standard deviation of NaN, exit 0: the writer checks."""
     from dataclasses import replace
 
-    import robocal._contact_calibration as cc
+    import robocal._identification.contact_figures as cc
 
     real = cc.fit_contacts
 
@@ -679,7 +679,7 @@ def test_an_empty_triangular_system_is_solved_without_lapack_complaining(capfd):
     """A fit with nothing free solved R x = b with R of shape (0, 0): LAPACK refused the leading
     dimension 0 and printed "On entry to DTRTRS parameter number 7 had an illegal value" on stderr
     (seen 18 times in 3,000 fuzz cases of contacts and result files)."""
-    from robocal._linalg import solve_upper
+    from robocal._base.linalg import solve_upper
 
     for b in (np.zeros((0, 3)), np.zeros(0)):
         x = solve_upper(np.zeros((0, 0)), b)

@@ -62,7 +62,7 @@ def test_cross_validation_by_one_step_equals_refitting_each_fold():
     for g in range(5):
         sol = solve(Problem(m, data.subset(labels != g), names, compliance=False), full.p)
         refit[labels == g] = Problem(m, data.subset(labels == g), names, compliance=False).error_norms(sol.p)[:, 0]
-    from robocal._in_use import cross_validate  # the engine of the figure tested against refits
+    from robocal._identification.holdout import cross_validate  # the engine of the figure tested against refits
     one_step = cross_validate(Problem(m, data, names, compliance=False), full.p, labels, 5).norms[:, 0]
     assert np.max(np.abs(one_step - refit)) < 1e-3 * refit.mean()
 
@@ -118,8 +118,8 @@ def test_a_validation_campaign_of_another_set_up_fails_unless_registered_on():
 
 def test_worse_in_use_fails():
     """Held-out poses the calibration places worse than the nominal model: a failure, whatever the fit."""
-    from robocal._checks import in_use_check  # the check on its own, with figures made to order
-    from robocal._in_use import HeldOut, accuracy_in_use
+    from robocal._identification.checks import in_use_check  # the check on its own, with figures made to order
+    from robocal._identification.holdout import HeldOut, accuracy_in_use
     rng = np.random.default_rng(0)
     before = rng.normal(scale=1e-4, size=(60, 1, 3))
     after = before * 3.0
@@ -184,7 +184,11 @@ def test_a_run_of_consecutive_rows_is_a_systematic_error_not_blunders():
 def test_plausibility_judges_what_the_robot_does_not_raw_numbers():
     """An equivalent parametrisation (a large change of two parameters that moves the tool nowhere)
     passes; a marker rotation declared unknown gets no tolerance; a 100 mm model error fails."""
-    from robocal._checks import DEFAULT_TOLERANCES, WorkspaceChange, plausibility_check  # the check alone
+    from robocal._identification.checks import (  # the check alone
+        DEFAULT_TOLERANCES,
+        WorkspaceChange,
+        plausibility_check,
+    )
     from robocal.identification import ParameterEstimate
     turn = ParameterEstimate("j5.theta", "rad", 0.0, np.pi, 1e-4, family="frames", quantity="angle")
     still = WorkspaceChange(max_m=2.2e-4, rms_m=1e-4, tolerance_m=0.045, reach_m=1.0, n_poses=300)
@@ -209,7 +213,7 @@ def test_a_wrong_link_length_of_100_mm_fails_on_what_the_robot_does():
 
 
 def test_interchangeable_parameters_cannot_pass_as_identified():
-    from robocal._checks import correlation_check, identifiability_check, interchangeable_pairs
+    from robocal._identification.checks import correlation_check, identifiability_check, interchangeable_pairs
     corr = np.array([[1.0, -1.0], [-1.0, 1.0]])
     names = ["j2.d", "j3.d"]
     assert correlation_check(names, corr, loose={"j2.d"}).status == "warn"
@@ -276,8 +280,8 @@ def test_a_tool_orientation_declared_unknown_gets_no_tolerance(tmp_path):
 def test_a_worse_worst_error_in_use_is_said():
     """Another series whose mean error falls but whose worst grows (2.71 -> 3.62 mm on a UR10): a
     warning naming it."""
-    from robocal._checks import in_use_check  # the check on its own, with figures made to order
-    from robocal._in_use import HeldOut, accuracy_in_use
+    from robocal._identification.checks import in_use_check  # the check on its own, with figures made to order
+    from robocal._identification.holdout import HeldOut, accuracy_in_use
     rng = np.random.default_rng(1)
     before = rng.normal(scale=1e-3, size=(80, 1, 3))
     before *= np.minimum(1.0, 2.71e-3 / np.linalg.norm(before, axis=2, keepdims=True))   # worst 2.71 mm
@@ -301,7 +305,7 @@ def test_a_limit_does_not_turn_a_mistake_into_a_pass():
 def test_point_losses_from_the_errors_at_hand_are_the_residuals_own(chunked):
     """A held-out evaluation takes each point's loss from the errors it has just computed: the
     same numbers, bit for bit, as from the residuals (weighted, masked, two markers, in chunks)."""
-    from robocal._in_use import point_loss
+    from robocal._identification.holdout import point_loss
 
     robot = arm6r(markers=(("a", (0.05, 0.02, 0.12)), ("b", (0.0, 0.1, 0.05))))
     _, data = rc.simulate(robot, 300, seed=3)

@@ -234,7 +234,7 @@ def test_coupled_joint_follows_readings():
 
 def test_columns_in_blocks_of_poses_equal_those_in_one_block(monkeypatch):
     # the step columns are computed a block of poses at a time: blocks of 7 poses, the last one short
-    import robocal._kinematics as kin
+    import robocal._model.kinematics as kin
 
     m = arm6r(markers=(("a", (0.05, 0.02, 0.12)), ("b", (-0.1, 0.0, 0.05))))
     q = rc.random_configurations(m, 30, rng=2)
@@ -260,7 +260,7 @@ def test_an_evaluation_moved_by_the_base_and_markers_equals_a_new_one(orientatio
     and column equal those of a new pass, also when moved twice and on two markers' frames."""
     from robots import torso
 
-    import robocal._kinematics as K
+    import robocal._model.kinematics as K
 
     for m in (arm6r(), torso()):
         lay, p = K.layout(m), parameter_vector(m)

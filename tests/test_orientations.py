@@ -12,7 +12,7 @@ from robots import DEG, torso
 from scipy.spatial.transform import Rotation
 
 import robocal as rc
-from robocal._misfit import characteristic_length, misfit_notes
+from robocal._identification.misfit import characteristic_length, misfit_notes
 
 NOISE, NOISE_ROT = 2e-5, 1e-5
 
@@ -221,8 +221,8 @@ def test_tool_turned_120_degrees_is_reported_without_gimbal_lock():
     about an axis near none of its own, comes back as that one turn within 0.01 deg."""
     from robots import arm6r
 
+    from robocal._base.spatial import small_rotation
     from robocal._presentation.text import calibration_summary
-    from robocal._spatial import small_rotation
 
     model = arm6r()
     axis = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])

@@ -24,7 +24,7 @@ from conftest import assert_one_line_error
 from robots import arm6r
 
 import robocal as rc
-from robocal import _store
+from robocal._store import store as _store
 
 PG_ENV = "ROBOCAL_TEST_POSTGRES"
 # where .ci/run's server is when the variable is not set

@@ -5,7 +5,7 @@ from robots import arm6r
 from threadpoolctl import threadpool_info, threadpool_limits
 
 import robocal as rc
-from robocal._threads import one_blas_thread
+from robocal._base.threads import one_blas_thread
 
 
 def _blas_threads():

@@ -5,7 +5,7 @@
 ``RobocalWarning``.
 """
 
-from ._errors import (
+from ._base.errors import (
     CheckWarning,
     ConvergenceWarning,
     DegenerateDataError,

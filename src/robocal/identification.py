@@ -3,7 +3,8 @@ and Jacobian of a model on a set of poses), the identifiability analysis, the so
 covariance that ``calibrate`` runs, and the checks it records (docs/checks.md); the same for
 joint-only contacts (sockets, planes, ball bars, known distances), alone or with a tracker."""
 
-from ._calibration import (
+from ._diagnosis.contacts import diagnose_contacts
+from ._identification.calibrate import (
     CalibrationResult,
     Comparison,
     ErrorStats,
@@ -16,8 +17,9 @@ from ._calibration import (
     error_stats,
     register_base,
 )
-from ._checks import Check, outlier_bar, outlier_check, verdict
-from ._contact_calibration import (
+from ._identification.checks import Check, outlier_bar, outlier_check, verdict
+from ._identification.contact_blocks import ROW_KINDS, ContactProblem
+from ._identification.contact_figures import (
     ContactErrors,
     ContactFigures,
     ContactIdentifiability,
@@ -25,8 +27,7 @@ from ._contact_calibration import (
     contact_errors,
     contact_identifiability,
 )
-from ._contact_diagnosis import diagnose_contacts
-from ._identifiability import (
+from ._identification.identifiability import (
     Absorption,
     IdentifiabilityResult,
     analyse,
@@ -34,10 +35,9 @@ from ._identifiability import (
     status_table,
     weakly_identifiable,
 )
-from ._measurements import Noise
-from ._observations import ROW_KINDS, ContactProblem
-from ._problem import Problem, design_problem
-from ._solve import Covariance, Solution, covariance, solve
+from ._identification.problem import Problem, design_problem
+from ._identification.solve import Covariance, Solution, covariance, solve
+from ._model.measurements import Noise
 
 __all__ = ["calibrate", "compare", "register_base", "error_stats", "CalibrationResult", "Comparison",
            "ParameterEstimate", "ErrorStats", "ErrorSummary", "LimitJudgement", "Check", "verdict", "outlier_check",

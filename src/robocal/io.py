@@ -2,7 +2,6 @@
 measurement files (CSV), contact files (CSV), result files (JSON), repeatability files (CSV), URDF, DH tables,
 robot programs (ABB RAPID, KUKA KRL, URScript)."""
 
-from ._conversion import StandardDH, from_standard_dh, mdh_table, to_standard_dh
 from ._files.contacts import contacts_to_csv, read_contacts, write_contacts
 from ._files.dh import dh_csv, mdh_csv, read_dh_table, write_mdh_csv
 from ._files.measurements import measurements_to_csv, read_measurements, split_sets, write_measurements
@@ -24,7 +23,8 @@ from ._files.result import (
 )
 from ._files.table import ColumnMap
 from ._files.urdf import read_urdf, urdf_text, write_urdf
-from ._measurements import Measurements
+from ._model.conversion import StandardDH, from_standard_dh, mdh_table, to_standard_dh
+from ._model.measurements import Measurements
 
 __all__ = ["read_model", "write_model", "calibration_record", "model_from_dict", "model_to_dict", "model_to_yaml",
            "Measurements",

@@ -5,20 +5,10 @@ identification Jacobian, gravity loads, and the parameters (names, units, vector
 ``jacobian`` are the batched engine (poses first: ``q`` is (n_poses, n_joints)), tested against it.
 """
 
-from ._compensation import POSTURE, arm_chain, inverse_kinematics, joint_jacobian, posture
-from ._kinematics import Evaluation, evaluate, forward_kinematics, gravity_loads, jacobian
-from ._model import (
-    Frame,
-    Marker,
-    Payload,
-    RobotModel,
-    default_masses,
-    mdh_transform,
-    parallel_beta_frames,
-    placement_parameters,
-    serial_model,
-)
-from ._parameters import (
+from ._accuracy.compensation import POSTURE, arm_chain, inverse_kinematics, joint_jacobian, posture
+from ._identification.problem import random_configurations, sampling_box
+from ._model.kinematics import Evaluation, evaluate, forward_kinematics, gravity_loads, jacobian
+from ._model.parameters import (
     BASE_KINDS,
     COMPLIANCE_KINDS,
     FAMILIES,
@@ -37,7 +27,17 @@ from ._parameters import (
     parameter_names,
     parameter_vector,
 )
-from ._problem import random_configurations, sampling_box
+from ._model.robot import (
+    Frame,
+    Marker,
+    Payload,
+    RobotModel,
+    default_masses,
+    mdh_transform,
+    parallel_beta_frames,
+    placement_parameters,
+    serial_model,
+)
 
 __all__ = ["Frame", "Marker", "Payload", "RobotModel", "serial_model", "parallel_beta_frames", "mdh_transform",
            "placement_parameters", "default_masses",

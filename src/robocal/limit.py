@@ -1,7 +1,7 @@
 """The limit of absolute accuracy (docs/method.md section 5): ISO 9283 repeatability plus the
 precision of the geometric control system."""
 
-from ._accuracy_limit import (
+from ._accuracy.limit import (
     AccuracyLimit,
     PoseRepeatability,
     PrecisionResult,

@@ -3,13 +3,13 @@ campaigns with a real robot's imperfections (encoder counts, scatter, instrument
 joint-only campaigns of sockets, planes and ball bars, and the planning of a socket campaign; robots with
 effects beyond the model (elasticity, gear errors, drift, scatter) and their accuracy in use."""
 
-from ._campaign import RobotImperfections, accuracy_in_use, backlash_sides, measure_campaign, stored_model
-from ._contact_planning import SocketDesign, SocketPlan, plan_sockets
-from ._contact_simulation import bar_campaign, plane_campaign, plate_placements, reach, socket_campaign
-from ._effects import PRESETS, UnmodelledEffects, attained, measure_real, placement_errors
-from ._measurements import approach_sides
-from ._problem import random_configurations
-from ._simulation import measure, perturb_model, simulate
+from ._identification.problem import random_configurations
+from ._model.measurements import approach_sides
+from ._simulation.campaign import RobotImperfections, accuracy_in_use, backlash_sides, measure_campaign, stored_model
+from ._simulation.contacts import bar_campaign, plane_campaign, plate_placements, reach, socket_campaign
+from ._simulation.effects import PRESETS, UnmodelledEffects, attained, measure_real, placement_errors
+from ._simulation.simulate import measure, perturb_model, simulate
+from ._simulation.sockets import SocketDesign, SocketPlan, plan_sockets
 
 __all__ = ["simulate", "measure", "perturb_model", "random_configurations", "RobotImperfections",
            "measure_campaign", "accuracy_in_use", "approach_sides", "backlash_sides", "stored_model",

@@ -12,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .._errors import InputError
-from .._kinematics import evaluate
-from .._model import RobotModel
+from .._base.errors import InputError
+from .._model.kinematics import evaluate
+from .._model.robot import RobotModel
 
 # metres: how far a marker of a written model may be from the source model's
 FK_TOL = 1e-9

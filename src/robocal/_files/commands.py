@@ -5,9 +5,9 @@ from __future__ import annotations
 import csv
 import io
 
-from .._compensation import Compensation
-from .._model import RobotModel
-from .._units import ANGLE_UNITS, LENGTH_UNITS, parse_units
+from .._accuracy.compensation import Compensation
+from .._base.units import ANGLE_UNITS, LENGTH_UNITS, parse_units
+from .._model.robot import RobotModel
 
 # what the status column says of a target
 REACHED, UNREACHED, BEYOND_LIMITS = "ok", "out of reach", "beyond joint limits"

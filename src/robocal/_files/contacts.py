@@ -21,19 +21,19 @@ import os
 
 import numpy as np
 
-from .._arguments import (
+from .._base.arguments import (
     FLAG,
     PATH,
     UNIT_SYSTEM,
     checked,
     is_a,
 )
-from .._contacts import CONTACT_KINDS, Contacts, KnownDistance, KnownPlane
-from .._errors import InputError
-from .._model import RobotModel
-from .._options import MAX_CONTACTS, MAX_DIRECTIVES, MAX_GROUPS
-from .._spatial import vector3
-from .._units import UNITS, check_unit
+from .._base.errors import InputError
+from .._base.options import MAX_CONTACTS, MAX_DIRECTIVES, MAX_GROUPS
+from .._base.spatial import vector3
+from .._base.units import UNITS, check_unit
+from .._model.contacts import CONTACT_KINDS, Contacts, KnownDistance, KnownPlane
+from .._model.robot import RobotModel
 from .measurements import MAX_MAGNITUDE
 from .seatings import read_seatings
 from .text import read_text
@@ -266,7 +266,7 @@ def contacts_to_csv(contacts: Contacts, model: RobotModel, *, units: str = "mm-d
     str
         The CSV text.
     """
-    from .._units import unit_factors
+    from .._base.units import unit_factors
 
     f = unit_factors(units)
     length, angle = units.split("-")

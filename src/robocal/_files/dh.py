@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from .._arguments import (
+from .._base.arguments import (
     FLAG,
     PATH,
     POSITIVE_OR_INF,
@@ -25,12 +25,12 @@ from .._arguments import (
     one_of,
     optional,
 )
-from .._conversion import MDH_TABLE_KINDS, from_standard_dh, mdh_table, to_standard_dh
-from .._errors import InputError
-from .._model import Frame, Marker, RobotModel, parallel_beta_frames, serial_model
-from .._options import MAX_FRAMES, MAX_MARKERS, MAX_MODEL_BYTES
-from .._spatial import matrix_rpy, matrix_tuple, pose4, rpy_matrix, vector3
-from .._units import UNITS, parse_units, unit_factors, unit_kind
+from .._base.errors import InputError
+from .._base.options import MAX_FRAMES, MAX_MARKERS, MAX_MODEL_BYTES
+from .._base.spatial import matrix_rpy, matrix_tuple, pose4, rpy_matrix, vector3
+from .._base.units import UNITS, parse_units, unit_factors, unit_kind
+from .._model.conversion import MDH_TABLE_KINDS, from_standard_dh, mdh_table, to_standard_dh
+from .._model.robot import Frame, Marker, RobotModel, parallel_beta_frames, serial_model
 from .text import read_text, write_texts
 
 PLACEMENT = (("x", "length"), ("y", "length"), ("z", "length"), ("roll", "angle"), ("pitch", "angle"),

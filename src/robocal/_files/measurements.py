@@ -17,7 +17,7 @@ from dataclasses import replace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .._arguments import (
+from .._base.arguments import (
     FLAG,
     PATH,
     SEQUENCE,
@@ -27,11 +27,11 @@ from .._arguments import (
     is_a,
     optional,
 )
-from .._errors import InputError, excerpt, suggest
-from .._measurements import Measurements, approach_sides
-from .._model import RobotModel
-from .._options import MAX_POSES, POSES_PER_GB
-from .._units import ANGLE_UNITS, LENGTH_UNITS, UNITS, check_unit, parse_units
+from .._base.errors import InputError, excerpt, suggest
+from .._base.options import MAX_POSES, POSES_PER_GB
+from .._base.units import ANGLE_UNITS, LENGTH_UNITS, UNITS, check_unit, parse_units
+from .._model.measurements import Measurements, approach_sides
+from .._model.robot import RobotModel
 from .profile import Profile, read_profile
 from .table import (
     ColumnMap,

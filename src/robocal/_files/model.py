@@ -15,7 +15,7 @@ import numpy as np
 import yaml
 from scipy.spatial.transform import Rotation
 
-from .._arguments import (
+from .._base.arguments import (
     FLAG,
     MAPPING,
     PATH,
@@ -25,9 +25,13 @@ from .._arguments import (
     is_a,
     optional,
 )
-from .._calibration import CalibrationResult
-from .._errors import InputError, excerpt, suggest
-from .._model import (
+from .._base.errors import InputError, excerpt, suggest
+from .._base.options import BACKLASH_SIDES, MAX_MODEL_BYTES
+from .._base.spatial import nearest_rotation, pose4, vector3
+from .._base.units import ANGLE_UNITS, LENGTH_UNITS, check_unit, parse_units
+from .._identification.calibrate import CalibrationResult
+from .._model.parameters import KIND_QUANTITY
+from .._model.robot import (
     DEFAULT_PARALLEL_TOL,
     JOINT_TYPES,
     Frame,
@@ -37,10 +41,6 @@ from .._model import (
     parallel_beta_frames,
     placement_parameters,
 )
-from .._options import BACKLASH_SIDES, MAX_MODEL_BYTES
-from .._parameters import KIND_QUANTITY
-from .._spatial import nearest_rotation, pose4, vector3
-from .._units import ANGLE_UNITS, LENGTH_UNITS, check_unit, parse_units
 from .text import load_yaml, read_text, write_texts
 
 FORMAT_VERSION = 1

@@ -10,14 +10,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from .._arguments import (
+from .._base.arguments import (
     PATH,
     TEXT,
     checked,
 )
-from .._errors import InputError, excerpt, suggest
-from .._options import MAX_MODEL_BYTES
-from .._units import parse_units
+from .._base.errors import InputError, excerpt, suggest
+from .._base.options import MAX_MODEL_BYTES
+from .._base.units import parse_units
 from .table import UNKNOWN_ACTIONS, ColumnMap, check_decimal, parse_separator
 from .text import load_yaml, read_text
 

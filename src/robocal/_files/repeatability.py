@@ -7,16 +7,16 @@ import io
 
 import numpy as np
 
-from .._accuracy_limit import RepeatabilityData
-from .._arguments import (
+from .._accuracy.limit import RepeatabilityData
+from .._base.arguments import (
     PATH,
     checked,
     one_of,
     optional,
 )
-from .._errors import InputError, excerpt
-from .._options import MAX_HEADER_LINES, MAX_POSES
-from .._units import LENGTH_UNITS
+from .._base.errors import InputError, excerpt
+from .._base.options import MAX_HEADER_LINES, MAX_POSES
+from .._base.units import LENGTH_UNITS
 from .measurements import MAX_MAGNITUDE
 from .text import check_rows, read_text
 

@@ -18,8 +18,8 @@ from typing import Any
 
 import numpy as np
 
-from .._accuracy_limit import AccuracyLimit, PoseRepeatability, PrecisionResult, RepeatabilityResult
-from .._arguments import (
+from .._accuracy.limit import AccuracyLimit, PoseRepeatability, PrecisionResult, RepeatabilityResult
+from .._base.arguments import (
     FLAG,
     PATH,
     TEXT,
@@ -27,13 +27,13 @@ from .._arguments import (
     is_a,
     optional,
 )
-from .._calibration import CalibrationResult, ErrorStats, ErrorSummary, LimitJudgement, ParameterEstimate
-from .._checks import STATUSES, Check
-from .._diagnosis import Diagnosis
-from .._errors import InputError, excerpt
-from .._identifiability import Absorption, IdentifiabilityResult, status_table
-from .._in_use import AccuracyInUse, Coverage, UseStats
-from .._parameters import parameter_layout
+from .._base.errors import InputError, excerpt
+from .._diagnosis.measured import Diagnosis
+from .._identification.calibrate import CalibrationResult, ErrorStats, ErrorSummary, LimitJudgement, ParameterEstimate
+from .._identification.checks import STATUSES, Check
+from .._identification.holdout import AccuracyInUse, Coverage, UseStats
+from .._identification.identifiability import Absorption, IdentifiabilityResult, status_table
+from .._model.parameters import parameter_layout
 from .contact_result import contacts_from_dict, contacts_to_dict
 from .measurements import MAX_MAGNITUDE
 from .model import model_from_dict, model_to_dict

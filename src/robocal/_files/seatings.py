@@ -23,11 +23,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .._contacts import Contacts, KnownDistance
-from .._errors import InputError, excerpt, suggest
-from .._model import RobotModel
-from .._options import MAX_CONTACTS, MAX_GROUPS, MAX_MODEL_BYTES
-from .._units import UNITS, parse_units
+from .._base.errors import InputError, excerpt, suggest
+from .._base.options import MAX_CONTACTS, MAX_GROUPS, MAX_MODEL_BYTES
+from .._base.units import UNITS, parse_units
+from .._model.contacts import Contacts, KnownDistance
+from .._model.robot import RobotModel
 from .measurements import MAX_MAGNITUDE
 from .text import MAX_FILE_BYTES, decode, load_yaml, read_bytes
 

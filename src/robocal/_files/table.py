@@ -17,7 +17,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .._errors import InputError, excerpt
+from .._base.errors import InputError, excerpt
 
 # separators tried when none is given, in order of preference ("," last: decimal-comma files hold
 # commas in their numbers); "whitespace" means runs of spaces and tabs

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import yaml
 
-from .._errors import InputError, excerpt
+from .._base.errors import InputError, excerpt
 
 # a file larger than this is refused before it is read (the largest sensible campaign is ~100 MB)
 MAX_FILE_BYTES = 256 * 2 ** 20

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._arguments import (
+from .._base.arguments import (
     FLAG,
     PATH,
     SEQUENCE,
@@ -25,12 +25,21 @@ from .._arguments import (
     is_a,
     optional,
 )
-from .._conversion import frames_from_lines, line_frames, marker_placements
-from .._errors import InputError, excerpt
-from .._model import DEFAULT_PARALLEL_TOL, Marker, RobotModel, mdh_transform
-from .._options import MAX_MODEL_BYTES
-from .._spatial import axis_angle_matrix, inverse4, matrix_rpy, matrix_tuple, pose4, rpy_matrix, unit_vector, vector3
-from .._units import ANGLE_UNITS
+from .._base.errors import InputError, excerpt
+from .._base.options import MAX_MODEL_BYTES
+from .._base.spatial import (
+    axis_angle_matrix,
+    inverse4,
+    matrix_rpy,
+    matrix_tuple,
+    pose4,
+    rpy_matrix,
+    unit_vector,
+    vector3,
+)
+from .._base.units import ANGLE_UNITS
+from .._model.conversion import frames_from_lines, line_frames, marker_placements
+from .._model.robot import DEFAULT_PARALLEL_TOL, Marker, RobotModel, mdh_transform
 from .model import MAX_MAGNITUDE
 from .text import read_bytes, write_texts
 

@@ -11,10 +11,10 @@ from datetime import datetime
 
 import numpy as np
 
-from .._arguments import FLAG, PATH, TEXT, checked, is_a
+from .._accuracy.verification import Verification
+from .._base.arguments import FLAG, PATH, TEXT, checked, is_a
 from .._files.text import write_texts
-from .._store import Change, History, StoredCalibration, TypeComparison
-from .._verification import Verification
+from .._store.store import Change, History, StoredCalibration, TypeComparison
 from .plots import need_matplotlib, plot_svg
 from .units import display_unit, fmt, with_unit
 

@@ -15,7 +15,7 @@ from typing import cast
 
 import numpy as np
 
-from .._arguments import (
+from .._base.arguments import (
     FLAG,
     MAPPING,
     PATH,
@@ -23,13 +23,13 @@ from .._arguments import (
     is_a,
     optional,
 )
-from .._calibration import CalibrationResult
-from .._contact_calibration import ContactErrors, ContactFigures
-from .._errors import InputError
+from .._base.errors import InputError
 from .._files.result import DIAGNOSIS, diagnosis_to_dict, per_pose_arrays, result_to_dict
 from .._files.text import write_texts
-from .._model import DEFAULT_LINK_DENSITY, RELATIVE_MASSES, mdh_transform
-from .._parameters import FRAME_KINDS, GEOMETRIC_KINDS, SI_UNITS, parameter_layout, parameter_vector
+from .._identification.calibrate import CalibrationResult
+from .._identification.contact_figures import ContactErrors, ContactFigures
+from .._model.parameters import FRAME_KINDS, GEOMETRIC_KINDS, SI_UNITS, parameter_layout, parameter_vector
+from .._model.robot import DEFAULT_LINK_DENSITY, RELATIVE_MASSES, mdh_transform
 from .plots import (
     AFTER,
     BEFORE,

@@ -15,7 +15,7 @@ import re
 
 import numpy as np
 
-from .._errors import RobocalError
+from .._base.errors import RobocalError
 from .units import DEG, MM
 
 PLOTS = ("errors-per-pose", "histograms", "correlation", "residuals", "residual-trends")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._arguments import (
+from .._base.arguments import (
     FLAG,
     NAMES,
     TEXT,
@@ -12,11 +12,11 @@ from .._arguments import (
     each_a,
     is_a,
 )
-from .._calibration import CalibrationResult, Comparison
-from .._checks import Check
-from .._identifiability import IdentifiabilityResult
-from .._model import RobotModel
-from .._parameters import BACKLASH_KINDS, BASE_KINDS, FRAME_KINDS, MARKER_KINDS, parameter_layout
+from .._identification.calibrate import CalibrationResult, Comparison
+from .._identification.checks import Check
+from .._identification.identifiability import IdentifiabilityResult
+from .._model.parameters import BACKLASH_KINDS, BASE_KINDS, FRAME_KINDS, MARKER_KINDS, parameter_layout
+from .._model.robot import RobotModel
 from .units import MM, absorption_text, display_unit, with_unit
 
 STAT_ROWS = ("fit_before", "fit_after", "validation_before", "validation_after")

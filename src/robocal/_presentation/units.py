@@ -9,14 +9,14 @@ from __future__ import annotations
 import math
 from html.entities import html5
 
-from .._arguments import (
+from .._base.arguments import (
     FLAG,
     REAL,
     checked,
     one_of,
     optional,
 )
-from .._parameters import SI_UNITS
+from .._model.parameters import SI_UNITS
 
 # SI unit -> (display unit, factor from SI, decimals)
 DISPLAY_UNITS = {

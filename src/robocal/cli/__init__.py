@@ -14,7 +14,7 @@ import signal
 import sys
 import warnings
 
-from .._errors import RobocalError, RobocalWarning
+from .._base.errors import RobocalError, RobocalWarning
 from .._version import __version__
 from . import (
     calibrate,

@@ -5,8 +5,8 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
-from .._errors import DegenerateDataError, InputError
-from .._options import BACKLASH_SIDES, INSTRUMENT_NOISE, LOSSES, OUTLIER_ACTIONS, WEAK_ACTIONS
+from .._base.errors import DegenerateDataError, InputError
+from .._base.options import BACKLASH_SIDES, INSTRUMENT_NOISE, LOSSES, OUTLIER_ACTIONS, WEAK_ACTIONS
 from . import common, record
 
 # exit code of a calibration whose checks failed (docs/cli.md)
@@ -157,7 +157,7 @@ def _headline(result) -> dict:
     for key in ("fit_before", "fit_after"):
         s = result.stats[key]
         out.update({f"{key} {f}": getattr(s, f) for f in ("mean", "rms", "max") if s.n})
-    from .._parameters import parameter_vector
+    from .._model.parameters import parameter_vector
 
     out["the calibrated model"] = parameter_vector(result.calibrated_model)
     return out
@@ -170,11 +170,11 @@ def _diagnosis(args, model, data, contacts, best, noise):
     from .._presentation.text import diagnosis_lines
 
     if contacts is not None:
-        from .._contact_diagnosis import diagnose_contacts
+        from .._diagnosis.contacts import diagnose_contacts
 
         diagnosis = diagnose_contacts(model, contacts, best, data=data, noise=noise)
     else:
-        from .._diagnosis import diagnose
+        from .._diagnosis.measured import diagnose
 
         diagnosis = diagnose(model, data, best, noise=noise)
     print("\n".join(diagnosis_lines(diagnosis)))
@@ -184,10 +184,10 @@ def _diagnosis(args, model, data, contacts, best, noise):
 def run(args) -> int:
     import numpy as np
 
-    from .._calibration import calibrate, compare
     from .._files.model import calibration_record, model_to_yaml
     from .._files.result import result_files, sidecar_path
-    from .._measurements import Noise
+    from .._identification.calibrate import calibrate, compare
+    from .._model.measurements import Noise
     from .._presentation.text import calibration_summary, comparison_summary
 
     if args.contacts:

@@ -12,9 +12,9 @@ import math
 import re
 from pathlib import Path
 
-from .._errors import DegenerateDataError, InputError, excerpt
-from .._options import MAX_POSES
-from .._units import parse_units
+from .._base.errors import DegenerateDataError, InputError, excerpt
+from .._base.options import MAX_POSES
+from .._base.units import parse_units
 
 MM = 1e3
 DEG = 180.0 / math.pi
@@ -267,7 +267,7 @@ def masses_as_asked(args, model):
     """``model``, or with --assume-masses/--total-mass the model with masses from its geometry."""
     if not args.assume_masses and args.total_mass is None:
         return model
-    from .._model import default_masses
+    from .._model.robot import default_masses
 
     return default_masses(model, args.total_mass)
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from .._errors import InputError
+from .._base.errors import InputError
 from . import common
 
 EXAMPLE = """examples:
@@ -99,7 +99,7 @@ def _run_program(args, nominal, calibrated) -> int:
 
 
 def run(args) -> int:
-    from .._compensation import compensate
+    from .._accuracy.compensation import compensate
     from .._files.checked import within_limits
     from .._files.commands import BEYOND_LIMITS, REACHED, command_status, commands_to_csv
     from .._files.model import read_model

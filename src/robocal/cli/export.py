@@ -34,11 +34,11 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from .._conversion import to_standard_dh
     from .._files.checked import check_export
     from .._files.dh import dh_csv, mdh_csv
     from .._files.model import read_model
     from .._files.urdf import urdf_text
+    from .._model.conversion import to_standard_dh
 
     common.refuse_existing([args.out], args.force)
     model = read_model(args.model)

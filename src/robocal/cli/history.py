@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .._errors import InputError
+from .._base.errors import InputError
 from . import common, record
 
 EXAMPLE = """examples:
@@ -33,7 +33,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from .._presentation.history import history_summary, type_summary
-    from .._store import check_name, history, type_comparison
+    from .._store.store import check_name, history, type_comparison
 
     if (args.robot is None) == (args.robot_type is None):
         raise InputError("give a robot or --type TYPE (one of them)", where="history")

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .._errors import DegenerateDataError
+from .._base.errors import DegenerateDataError
 from . import common
 
 EXAMPLE = """examples:
@@ -28,7 +28,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from .._files.model import read_model
-    from .._identifiability import identifiability
+    from .._identification.identifiability import identifiability
     from .._presentation.text import identifiability_summary
 
     model = common.masses_as_asked(args, read_model(args.model))
@@ -41,7 +41,7 @@ def run(args) -> int:
     where = f"the {data.n_poses} poses of {args.csv}" if data is not None else \
         f"{args.poses} random poses (seed {args.seed}) within the joint limits"
     print(identifiability_summary(model, res, where))
-    from .._parameters import matched_by_pattern
+    from .._model.parameters import matched_by_pattern
 
     orientation = data is not None and data.has_orientation
     for pattern, names in matched_by_pattern(model, args.parameters or (), orientation=orientation):

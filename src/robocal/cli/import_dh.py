@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .._errors import InputError
+from .._base.errors import InputError
 from . import common
 
 EXAMPLE = """example:

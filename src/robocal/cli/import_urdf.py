@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .._errors import InputError
+from .._base.errors import InputError
 from . import common
 
 EXAMPLE = """example:

@@ -9,11 +9,11 @@ import math
 import re
 import sys
 
-from .._errors import InputError
-from .._options import LIMIT_CHUNK as DEFAULT_CHUNK
-from .._options import LIMIT_MARKER_MODES as MARKER_MODES
-from .._options import MAX_CHUNK, MAX_SAMPLES
-from .._units import LENGTH_UNITS, UNITS, unit_kind
+from .._base.errors import InputError
+from .._base.options import LIMIT_CHUNK as DEFAULT_CHUNK
+from .._base.options import LIMIT_MARKER_MODES as MARKER_MODES
+from .._base.options import MAX_CHUNK, MAX_SAMPLES
+from .._base.units import LENGTH_UNITS, UNITS, unit_kind
 from . import common
 
 PROG = "robocal limit"
@@ -95,7 +95,7 @@ def _progress_bar():
 
 def run(args) -> int:
     """Run ``robocal limit``; 0 on success, 2 on bad input (one line on stderr, from ``main``)."""
-    from .._accuracy_limit import accuracy_limit, controller_precision, iso9283_repeatability
+    from .._accuracy.limit import accuracy_limit, controller_precision, iso9283_repeatability
     from .._files.model import read_model
     from .._files.repeatability import read_repeatability_csv
     from .._files.result import limit_to_dict, to_json

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import sys
 
-from .._errors import DegenerateDataError, InputError
-from .._options import INSTRUMENT_NOISE, POSE_CRITERIA
+from .._base.errors import DegenerateDataError, InputError
+from .._base.options import INSTRUMENT_NOISE, POSE_CRITERIA
 from . import common
 
 EXAMPLE = """examples:
@@ -51,9 +51,9 @@ def run(args) -> int:
     from .._files.checked import within_limits
     from .._files.measurements import measurements_to_csv
     from .._files.model import read_model
-    from .._measurements import Measurements, Noise
-    from .._pose_selection import predict_campaign, select_poses
+    from .._model.measurements import Measurements, Noise
     from .._presentation.text import plan_summary
+    from .._simulation.poses import predict_campaign, select_poses
 
     common.refuse_existing([args.out], args.force)
     model = read_model(args.model)

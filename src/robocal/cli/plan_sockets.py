@@ -43,10 +43,10 @@ def register(sub) -> None:
 def run(args) -> int:
     import math
 
-    from .._contact_planning import plan_sockets
     from .._files.contacts import contacts_to_csv
     from .._files.model import read_model
     from .._presentation.contacts import socket_plan_summary
+    from .._simulation.sockets import plan_sockets
 
     if args.out:
         common.refuse_existing([args.out], args.force)

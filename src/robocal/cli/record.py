@@ -19,8 +19,8 @@ def store_option(p) -> None:
 
 def open_store(args, *, create: bool = False):
     """The store the options name, open; MissingExtra for PostgreSQL without psycopg."""
-    from .._store import is_url
-    from .._store import open_store as open_
+    from .._store.store import is_url
+    from .._store.store import open_store as open_
 
     location = _location(args)
     if is_url(location):
@@ -32,7 +32,7 @@ def open_store(args, *, create: bool = False):
 
 
 def _location(args) -> str:
-    from .._store import store_location
+    from .._store.store import store_location
 
     return store_location(args.store)
 
@@ -63,7 +63,7 @@ def record_options(p, *, robot: bool = False) -> None:
 
 def _name(option: str):
     def check(text: str) -> str:
-        from .._store import check_name
+        from .._store.store import check_name
 
         return check_name(text, option)
     return check
@@ -71,7 +71,7 @@ def _name(option: str):
 
 def _date(option: str):
     def check(text: str) -> str:
-        from .._store import utc_text
+        from .._store.store import utc_text
 
         return utc_text(text, where=option)
     return check
@@ -85,7 +85,7 @@ def recorded_line(rec, location: str) -> str:
 def record_result(args, result, robot: str, source: str, at=None) -> None:
     """Store ``result`` and say so, with the changes since the robot's previous calibration."""
     from .._presentation.history import change_line, overall_line
-    from .._store import history
+    from .._store.store import history
 
     with open_store(args, create=True) as store:
         rec = store.record(result, robot, robot_type=args.robot_type, at=at, source=source)

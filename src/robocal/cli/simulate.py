@@ -30,8 +30,8 @@ def register(sub) -> None:
 def run(args) -> int:
     from .._files.measurements import measurements_to_csv
     from .._files.model import model_to_yaml, read_model
-    from .._parameters import parameter_vector
-    from .._simulation import simulate
+    from .._model.parameters import parameter_vector
+    from .._simulation.simulate import simulate
 
     files = [args.out] + ([args.true_model] if args.true_model else [])
     common.refuse_existing(files, args.force)

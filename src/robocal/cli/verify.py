@@ -35,10 +35,10 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    from .._accuracy.verification import FEW_POSES, MANY_POSES
+    from .._accuracy.verification import RECALIBRATE as SAYS_RECALIBRATE
     from .._presentation.history import verification_summary
-    from .._store import check_name, latest_usable, verify_robot
-    from .._verification import FEW_POSES, MANY_POSES
-    from .._verification import RECALIBRATE as SAYS_RECALIBRATE
+    from .._store.store import check_name, latest_usable, verify_robot
 
     robot = check_name(args.robot, "ROBOT")
     with record.open_store(args, create=False) as store:

@@ -15,10 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..._arguments import PATH, checked, is_a, one_of, optional
-from ..._errors import InputError, suggest
-from ..._model import RobotModel
-from ..._options import MAX_POSES
+from ..._base.arguments import PATH, checked, is_a, one_of, optional
+from ..._base.errors import InputError, suggest
+from ..._base.options import MAX_POSES
+from ..._model.robot import RobotModel
 from ..text import decode, read_bytes
 from . import krl, rapid, urscript
 from .syntax import Program

@@ -11,11 +11,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..._arguments import POSITIVE, TEXT, both, checked, is_a, marker_of, optional, same_robot_as
-from ..._compensation import arm_chain, compensate, compensate_poses, posture
-from ..._errors import InputError, suggest
-from ..._kinematics import evaluate
-from ..._model import Marker, RobotModel
+from ..._accuracy.compensation import arm_chain, compensate, compensate_poses, posture
+from ..._base.arguments import POSITIVE, TEXT, both, checked, is_a, marker_of, optional, same_robot_as
+from ..._base.errors import InputError, suggest
+from ..._model.kinematics import evaluate
+from ..._model.robot import Marker, RobotModel
 from . import (
     BEYOND,
     DIALECTS,

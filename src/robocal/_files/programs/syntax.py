@@ -17,7 +17,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..._errors import InputError, excerpt
+from ..._base.errors import InputError, excerpt
 
 # a turn or quadrant of the configuration data stays as written while its axis is this close to it
 # (rad, about 0.006 deg): a target on the boundary, read back, must not flip its configuration

@@ -1,0 +1,668 @@
+"""Checks on a calibration: each names what it looked at, says pass, warn or fail with the figures
+behind it and, where one exists, the likely cause and the fix (docs/checks.md).
+
+A result that fails a check cannot be mistaken for a good one: its verdict is "fail". Every
+threshold is a named constant here, and docs/checks.md gives each one with its reason.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.special import gammainccinv
+
+from .._base.arguments import checked, each_a, is_a, optional, shaped, whole
+from .._base.errors import InputError, excerpt
+from .._model.measurements import Measurements, Noise
+from .._model.robot import RobotModel
+
+STATUSES = ("pass", "warn", "fail")
+
+# residual RMS per axis over the expected noise beyond which the fit leaves more than the noise
+# explains (a warning: a robot's repeatability and unmodelled effects do; whether the model still
+# places the robot better is the accuracy in use's question); below its inverse, the stated noise
+# is too large
+FIT_RATIO = 3.0
+# a measured point is an outlier beyond this many robust standard deviations (3D residual norm),
+# raised on large campaigns so that clean Gaussian noise names a point in at most this share of them
+OUTLIER_SIGMAS = 5.0
+OUTLIER_FALSE_ALARM = 0.01
+# beyond this share of outliers the data do not fit: setting them aside would hide a real misfit
+OUTLIER_SHARE_MAX = 0.2
+# only points beyond this factor times the outlier bar are set aside as blunders: between the bar and
+# this, a point is as likely the tail of an effect the model leaves out (an elastic robot's residuals
+# reach 5 to 9 robust standard deviations at its extreme poses) and is named, not set aside
+GROSS_FACTOR = 2.0
+# outliers at this many consecutive poses or more are a systematic error (a bump, a payload, a
+# drift), not blunders: they are named, not set aside
+OUTLIER_RUN = 4
+# the robust scale of the outlier test does not fall below this share of the expected noise (a
+# noise-free fit names nothing), so that a noise stated far too large cannot hide a blunder
+OUTLIER_SCALE_FLOOR = 0.01
+# an estimate within this many standard deviations of its nominal is not supported by the data
+SIGNIFICANCE_SIGMAS = 2.0
+# a compliance this many standard deviations below zero is non-physical, not noise (a stricter bar
+# than significance: a robot has a dozen compliances, and each is a one-sided test)
+NEGATIVE_COMPLIANCE_SIGMAS = 4.0
+# a backlash (half a lost motion) this many standard deviations below zero is non-physical: the same
+# one-sided bar as the compliances'
+NEGATIVE_BACKLASH_SIGMAS = NEGATIVE_COMPLIANCE_SIGMAS
+# pairs of identified parameters correlated beyond this are named
+CORRELATION_MAX = 0.99
+# ... and beyond this they are interchangeable at these poses (each estimate trades one for one
+# against the other; only their combination is determined): a warning
+CORRELATION_SINGULAR = 0.9999
+# the accuracy in use: held-out errors this many times those of the fitted poses are overfitting
+# (a warning), and beyond OVERFIT_GROSS times (and a millimetre more) they do not come from the
+# fitted set-up at all (a failure)
+OVERFIT_RATIO = 2.0
+OVERFIT_GROSS = 10.0
+OVERFIT_GROSS_EXCESS = 1e-3
+# worse in use than before beyond this many standard errors of the (paired) difference is a failure;
+# within it, "no better" is a warning (a handful of held-out poses cannot tell the two apart)
+WORSE_SIGMAS = 2.0
+# coverage: a campaign whose points spread less than this share of the workspace's, or whose
+# parameters' uncertainty grows more than EXTRAPOLATION_MAX times from the measured poses to the
+# workspace, is validated only near its poses (a warning)
+COVERAGE_SPREAD_MIN = 0.25
+EXTRAPOLATION_MAX = 3.0
+# the measured cloud against the robot's predicted one: a size ratio outside these bounds fails
+CLOUD_RATIO = (0.67, 1.5)
+# known unit mix-ups, as the factor between the measured and the predicted sizes
+UNIT_FACTORS = {1000.0: "metres declared as millimetres (or the reverse)", 25.4: "inches declared as millimetres",
+                10.0: "centimetres declared as millimetres"}
+# half-width (relative) within which a size ratio names a unit factor
+UNIT_FACTOR_TOL = 0.2
+# readings whose largest magnitude is within pi degrees look like radians declared as degrees
+RADIANS_AS_DEGREES = np.pi * np.pi / 180
+# a mean limit error corresponds to this many per-axis standard deviations (the mean of a 3D
+# Gaussian error's norm is 2 sqrt(2/pi) sigma)
+MEAN_NORM_PER_SIGMA = 2.0 * np.sqrt(2.0 / np.pi)
+
+
+# how far a parameter may move from its nominal before the change is implausible, per (family,
+# quantity), SI; None for no bound (a base pose is often only guessed). Compliances are bounded by
+# the largest deflection they give under the poses' gravity moments. A model file's 'tolerances'
+# key overrides these.
+DEFAULT_TOLERANCES = {
+    ("frames", "length"): 10e-3, ("frames", "angle"): np.deg2rad(2.0),
+    ("markers", "length"): 0.1, ("markers", "angle"): np.deg2rad(10.0),
+    ("base", "length"): None, ("base", "angle"): None,
+    ("compliance", "compliance"): np.deg2rad(1.0),
+    # half a lost motion: gear trains are specified in arc minutes, worn ones reach a few tenths of
+    # a degree; ball screws in hundredths of a millimetre
+    ("backlash", "angle"): np.deg2rad(0.5), ("backlash", "length"): 0.5e-3,
+}
+
+
+def tolerances(model: RobotModel) -> dict:
+    """The plausibility tolerances for ``model``: the defaults, with the model file's own over them."""
+    out = dict(DEFAULT_TOLERANCES)
+    out.update({(family, quantity): value for family, quantity, value in model.tolerances})
+    return out
+
+
+@dataclass(frozen=True)
+class Check:
+    """One check of a result. ``items`` names what it found (parameters, pose labels and markers)."""
+
+    name: str
+    status: str
+    summary: str
+    cause: str = ""
+    fix: str = ""
+    items: tuple[str, ...] = ()
+
+
+@checked(checks=each_a(Check))
+def verdict(checks) -> str:
+    """The worst status among ``checks`` ("pass" when there are none).
+
+    Parameters
+    ----------
+    {checks}
+
+    Returns
+    -------
+    str
+        ``pass``, ``warn`` or ``fail``.
+    """
+    return max((c.status for c in checks), key=STATUSES.index, default="pass")
+
+
+def _listed(items, n: int = 6) -> str:
+    items = list(items)
+    return ", ".join(items[:n]) + (f" and {len(items) - n} more" if len(items) > n else "")
+
+
+# -- the inputs, before solving --------------------------------------------------------------------
+
+def readings_check(model: RobotModel, data: Measurements) -> Check:
+    """Every joint reading within the model's limits; readings beyond them named by pose and joint."""
+    name = "joint readings within the limits"
+    lo, hi = model.lower_limits, model.upper_limits
+    slack = 1e-9 * np.maximum(1.0, np.abs(np.where(np.isfinite(hi - lo), hi - lo, 0.0)))
+    out = (data.q < lo - slack) | (data.q > hi + slack)
+    if not out.any():
+        return Check(name, "pass", f"all {data.n_poses} poses within the joint limits")
+    rows, cols = np.nonzero(out)
+    angle = np.array([q == "angle" for q in model.reading_quantities])
+    items = tuple(f"{data.labels[r]}: {model.joint_names[c]} = {_reading(data.q[r, c], angle[c])}" for r, c in
+                  zip(rows, cols))
+    cause = "a mistyped reading, a reading in another unit, or limits in the model that are too narrow"
+    if np.any(np.abs(data.q[:, angle][out[:, angle]]) > 2 * np.pi):
+        cause = "readings of several turns: degrees declared as radians, or a mistyped reading"
+    return Check(name, "fail", f"{out.sum()} reading(s) in {len(set(rows))} pose(s) beyond the joint limits: "
+                 f"{_listed(items, 3)}", cause=cause,
+                 fix="correct or remove those rows, declare the joint units, or widen the limits in the model file",
+                 items=items)
+
+
+def _reading(v: float, angle: bool) -> str:
+    return f"{np.degrees(v):.6g} deg" if angle else f"{v * 1e3:.6g} mm"
+
+
+def reading_units_check(model: RobotModel, data: Measurements) -> Check:
+    """A revolute reading that moves but stays within pi degrees, where its limits allow far more,
+    looks like radians declared as degrees: a failure when every moving angle reading does so (no
+    campaign keeps every joint within three degrees), a warning for some (a joint may barely move)."""
+    name = "joint reading units"
+    angle = np.array([q == "angle" for q in model.reading_quantities])
+    span = model.upper_limits - model.lower_limits
+    moving = angle & (span > 4 * RADIANS_AS_DEGREES) & (np.ptp(data.q, axis=0) > 0)
+    small = moving & (np.abs(data.q).max(axis=0) <= RADIANS_AS_DEGREES)
+    if not small.any():
+        return Check(name, "pass", "every moving angle reading spans more than a few degrees")
+    joints = tuple(model.joint_names[j] for j in np.nonzero(small)[0])
+    status = "fail" if small.sum() == moving.sum() else "warn"
+    return Check(name, status, f"every reading of {_listed(joints)} stays within 3.14 degrees, where the limits "
+                 "allow far more", cause="joint angles in radians declared as degrees, or a joint the poses "
+                 "barely move", fix="declare the joint columns in rad (j1_rad, or --units ...-rad); or move "
+                 "those joints over their range (robocal plan)", items=joints)
+
+
+def cloud_size_check(model: RobotModel, data: Measurements, predicted: np.ndarray) -> Check:
+    """The measured points' spread against the spread the nominal robot predicts at the same readings.
+
+    ``predicted`` (n_poses, n_data_markers, 3): nominal marker positions, any base pose (the spread
+    does not depend on it).
+    """
+    name = "measured points against the robot's size"
+    m = data.mask
+    measured, nominal = _spread(data.positions[m]), _spread(predicted[m])
+    if nominal <= 0 or measured <= 0:
+        return Check(name, "pass", "too few distinct points to compare sizes")
+    ratio = measured / nominal
+    summary = f"the measured points spread {measured * 1e3:.4g} mm, the nominal robot's {nominal * 1e3:.4g} mm " \
+              f"(ratio {ratio:.4g})"
+    if CLOUD_RATIO[0] <= ratio <= CLOUD_RATIO[1]:
+        return Check(name, "pass", summary)
+    factor = max(ratio, 1.0 / ratio)
+    known = next((why for f, why in UNIT_FACTORS.items() if abs(factor / f - 1.0) < UNIT_FACTOR_TOL), None)
+    cause = known or "the measured points do not come from this robot's workspace: another robot's file, wrong " \
+                     "marker columns, joint readings in another unit or order"
+    return Check(name, "fail", summary, cause=cause,
+                 fix="declare the units of the marker columns (x_mm or x_m) and check the file belongs to this model")
+
+
+def _spread(points: np.ndarray) -> float:
+    p = np.asarray(points, dtype=float).reshape(-1, 3)
+    return float(np.sqrt(np.mean(np.sum((p - p.mean(axis=0)) ** 2, axis=1)))) if len(p) > 1 else 0.0
+
+
+def markers_check(model: RobotModel, data: Measurements) -> Check:
+    """Every marker of the model has measured values; the parameters of the others are held."""
+    name = "every marker measured"
+    seen = {n for j, n in enumerate(data.marker_names) if data.mask[:, j].any()}
+    missing = tuple(n for n in model.marker_names if n not in seen)
+    if not missing:
+        return Check(name, "pass", f"all {len(model.marker_names)} marker(s) measured")
+    return Check(name, "warn", f"marker(s) {_listed(missing)} never measured: their parameters are held at nominal",
+                 cause="no columns (or only empty cells) for them in the measurement file",
+                 fix="measure them, or remove them from the model if they are not used", items=missing)
+
+
+# -- the solution --------------------------------------------------------------------------------
+
+def convergence_check(success: bool, message: str, nfev: int) -> Check:
+    name = "solver convergence"
+    if success:
+        return Check(name, "pass", f"converged after {nfev} evaluations")
+    return Check(name, "fail", f"the solver stopped without converging after {nfev} evaluations: {message}",
+                 cause="a start far from the truth (units, a rough base guess) or data the model cannot fit",
+                 fix="check the other checks first; start from a registered base (--register-base)")
+
+
+def expected_noise(noise: Noise, limit_m: float | None) -> tuple[float, str]:
+    """Per-axis scatter (m) a good fit leaves: the instrument's and, with a limit of absolute
+    accuracy, the robot's own (its mean error converted to a per-axis standard deviation)."""
+    if limit_m is None:
+        return noise.position, f"the instrument's {noise.position * 1e3:.3g} mm ({noise.source})"
+    robot = limit_m / MEAN_NORM_PER_SIGMA
+    total = float(np.hypot(noise.position, robot))
+    return total, f"{total * 1e3:.3g} mm (instrument {noise.position * 1e3:.3g} mm, robot {robot * 1e3:.3g} mm " \
+                  "from the limit of absolute accuracy)"
+
+
+def fit_check(residuals: np.ndarray, sigma: np.ndarray | None, noise: Noise, limit_m: float | None,
+              outliers: np.ndarray, *, stated: bool = False) -> Check:
+    """The position residuals (n, 3) against what the instrument (and the robot's limit) explain.
+
+    Never a failure: a robot's repeatability and unmodelled effects leave residuals of any size, and
+    whether the model still places the robot better is the accuracy in use's question (a mistake
+    shows there, in the plausibility of the changes, or in the diagnosis). A warning beyond
+    ``FIT_RATIO`` times the expected noise, and below its inverse when the noise (or each point's
+    deviation) was stated: then the stated figures are too large, and so are the standard deviations.
+    ``sigma`` (n,) stated standard deviations per point, or None; ``outliers`` (n,) bool, left out.
+    """
+    name = "fit against the instrument"
+    keep = ~outliers
+    r = residuals[keep]
+    if not len(r):
+        return Check(name, "warn", "every measured point is an outlier")
+    expected, said = expected_noise(noise, limit_m)
+    per_axis = float(np.sqrt(np.mean(r ** 2)))
+    scale = expected if sigma is None else np.hypot(sigma[keep], expected if limit_m is not None else 0.0)
+    ratio = float(np.sqrt(np.mean((r / np.reshape(scale, (-1, 1))) ** 2)))
+    source = "the stated standard deviations" if sigma is not None else said
+    summary = f"residuals {per_axis * 1e3:.4g} mm RMS per axis, {ratio:.3g} times {source}"
+    if ratio > FIT_RATIO:
+        return Check(name, "warn", summary, cause="the robot's own repeatability and effects the model leaves out "
+                     "(elasticity, gear errors, drift), or a mistake in the data: the accuracy in use and the "
+                     "diagnosis tell which", fix="give the limit of absolute accuracy (--limit-mm) or the expected "
+                     "noise (--noise-mm) to judge against; read the diagnosis")
+    if ratio < 1.0 / FIT_RATIO and (stated or sigma is not None):
+        return Check(name, "warn", summary + f": {1 / ratio:.3g} times below what was stated",
+                     cause="a stated noise (or stated deviations) too large: the standard deviations are "
+                     "overstated by as much", fix="state the instrument's real noise (--noise-mm) or deviations")
+    return Check(name, "pass", summary)
+
+
+@checked(n_points=whole(0))
+def outlier_bar(n_points: int) -> float:
+    """The outlier threshold in robust standard deviations for ``n_points`` 3D residuals: 5, or more
+    where n points of pure Gaussian noise would put one beyond 5 in more than ``OUTLIER_FALSE_ALARM``
+    of campaigns (the norm over sigma is chi-distributed with 3 degrees of freedom).
+
+    Parameters
+    ----------
+    n_points : int
+        Measured points judged (>= 0).
+
+    Returns
+    -------
+    float
+        The threshold, robust standard deviations.
+
+    >>> outlier_bar(48), round(outlier_bar(1_000_000), 2)
+    (5.0, 6.33)
+    """
+    tail = OUTLIER_FALSE_ALARM / max(n_points, 1)
+    return max(OUTLIER_SIGMAS, float(np.sqrt(2.0 * gammainccinv(1.5, tail))))
+
+
+def outlier_scores(residuals: np.ndarray, sigma: np.ndarray | None, noise: Noise) -> np.ndarray:
+    """(n,) each 3D residual's norm in robust standard deviations (see ``outlier_check``)."""
+    if sigma is None:
+        comps = residuals.ravel()
+        robust = 1.4826 * float(np.median(np.abs(comps - np.median(comps)))) if comps.size else 0.0
+        return np.linalg.norm(residuals, axis=1) / max(robust, OUTLIER_SCALE_FLOOR * noise.position)
+    # in stated deviations: the robust spread of the standardised residuals sets the scale
+    u = residuals / np.reshape(sigma, (-1, 1))
+    comps = u.ravel()
+    robust = 1.4826 * float(np.median(np.abs(comps - np.median(comps)))) if comps.size else 0.0
+    return np.linalg.norm(u, axis=1) / max(robust, OUTLIER_SCALE_FLOOR)
+
+
+def _deviations(value, name, args):
+    """(n,) positive finite standard deviations, one per row of ``residuals``."""
+    a = shaped(len(args["residuals"]))(value, name, args)
+    if np.any(a <= 0):
+        raise InputError("must be positive standard deviations", where=name)
+
+
+def _row_labels(value, name, args):
+    """A label per row of ``residuals`` (any sized, indexable sequence)."""
+    if isinstance(value, (str, bytes)) or not (hasattr(value, "__len__") and hasattr(value, "__getitem__")):
+        raise InputError(f"must be a sequence of labels, got {excerpt(value)}", where=name)
+    if len(value) != len(args["residuals"]):
+        raise InputError(f"must hold one label per row of residuals ({len(args['residuals'])}), got {len(value)}",
+                         where=name)
+
+
+@checked(residuals=shaped(None, None), sigma=optional(_deviations), noise=is_a(Noise), labels=_row_labels)
+def outlier_check(residuals: np.ndarray, sigma: np.ndarray | None, noise: Noise, labels) -> tuple[Check, np.ndarray]:
+    """Measured points whose residual norm exceeds ``OUTLIER_SIGMAS`` robust standard deviations.
+
+    ``residuals`` (n, 3) of the measured points named by ``labels`` (n,). The scale is the larger of
+    the residuals' own robust spread (median absolute deviation), floored at
+    ``OUTLIER_SCALE_FLOOR`` of the instrument's noise (a noise-free fit flags nothing, a noise stated
+    far too large hides no blunder); with stated deviations, the robust spread of the residuals in
+    those deviations.
+    Returns the check and the (n,) outlier mask.
+
+    Parameters
+    ----------
+    residuals : array_like, shape (n, k)
+        Residual vector of each measured point (k = 3 for a point), m.
+    sigma : array_like, shape (n,), optional
+        Stated standard deviation of each point (None: none stated).
+    noise : Noise
+        The instrument's expected noise.
+    labels : sequence of str
+        A label per point, for messages.
+
+    Returns
+    -------
+    (Check, numpy.ndarray)
+        The check and the (n,) outlier mask.
+    """
+    name = "outliers"
+    z = outlier_scores(residuals, sigma, noise)
+    bar = outlier_bar(len(z))
+    out = z > bar
+    if not out.any():
+        return Check(name, "pass", f"no measured point beyond {bar:.3g} robust standard deviations"), out
+    order = np.argsort(-z[out])
+    items = tuple(f"{labels[i]}: {np.linalg.norm(residuals[i]) * 1e3:.3g} mm, {z[i]:.3g} sd"
+                  for i in np.nonzero(out)[0][order])
+    return Check(name, "warn", f"{out.sum()} of {len(z)} measured point(s) beyond {bar:.3g} robust standard "
+                 f"deviations: {_listed(items, 3)}", cause="a blunder: a mistyped or misassigned measurement, a "
+                 "reading taken while the robot moved", fix="remove them, or let the calibration set them aside "
+                 "(--on-outliers refit)", items=items), out
+
+
+@dataclass(frozen=True)
+class WorkspaceChange:
+    """How far the calibrated geometry moves the measured markers from where the nominal one puts
+    them, over ``n_poses`` configurations within the joint limits, once base and markers are
+    registered (m): ``max_m`` and ``rms_m``; ``tolerance_m`` the bar (None for none) and ``reach_m`` the
+    largest distance of the markers from the base over those configurations."""
+
+    max_m: float
+    rms_m: float
+    tolerance_m: float | None
+    reach_m: float
+    n_poses: int
+
+
+def plausibility_check(estimates, tolerances: dict, deflections: dict, *, workspace: WorkspaceChange | None = None,
+                       unknown_rotations=()) -> Check:
+    """What the calibrated robot does, against what a real robot's errors can be.
+
+    The geometry is judged by its effect over the workspace (``workspace``): equivalent
+    parametrisations and interchangeable pairs move the tool nowhere, a model error of a hundred
+    millimetres does; the bar is the frames' length tolerance plus their angle tolerance over the
+    reach. Markers, compliances (by the largest deflection, ``deflections[name]``, rad) and backlash
+    keep their family's tolerance on each parameter (``tolerances[(family, quantity)]``, SI, None for
+    none); a marker's rotation declared unknown (``unknown_rotations``: marker names) has none.
+    """
+    name = "plausible changes"
+    bad = []
+    for e in estimates:
+        family, quantity = e.family, e.quantity
+        if family in ("frames", "base") or (family == "markers" and quantity == "angle" and
+                                            e.name.split(".")[0] in set(unknown_rotations)):
+            continue
+        tol = tolerances.get((family, quantity))
+        value = abs(deflections.get(e.name, 0.0)) if quantity == "compliance" else abs(e.change)
+        if tol is not None and value > tol:
+            bad.append(f"{e.name}: {_size(value, quantity)} (tolerance {_size(tol, quantity)})")
+    moved = ""
+    if workspace is not None:
+        moved = (f"the calibrated geometry moves the tool up to {workspace.max_m * 1e3:.4g} mm "
+                 f"({workspace.rms_m * 1e3:.4g} mm RMS) from the nominal's over {workspace.n_poses} configurations "
+                 "within the limits, base and markers registered")
+        if workspace.tolerance_m is not None and workspace.max_m > workspace.tolerance_m:
+            bad.insert(0, moved + f", beyond {workspace.tolerance_m * 1e3:.4g} mm (the frames' tolerances over a "
+                       f"reach of {workspace.reach_m * 1e3:.4g} mm)")
+            moved = ""
+    if not bad:
+        return Check(name, "pass", "every change within its family's tolerance" + (f"; {moved}" if moved else ""))
+    return Check(name, "fail", f"{len(bad)} implausible change(s): {_listed(bad, 3)}",
+                 cause="the data pull the model somewhere no real robot is: a sign or unit error in the model file, "
+                       "data in the wrong unit or order, or a parameter the data cannot pin down",
+                 fix="check those parameters' nominal values and the data's units; the tolerances are in the model "
+                     "file's 'tolerances' key", items=tuple(bad))
+
+
+def _size(v: float, quantity: str) -> str:
+    return f"{v * 1e3:.4g} mm" if quantity == "length" else f"{np.degrees(v):.4g} deg"
+
+
+def support_check(estimates) -> Check:
+    """Estimates whose change is within ``SIGNIFICANCE_SIGMAS`` standard deviations of zero.
+
+    They are named, not failed: a parameter already at its true value changes by noise. A
+    compliance (or backlash) family none of whose estimates the data support is a warning: the
+    model without it explains the data.
+    """
+    name = "estimates supported by the data"
+    weak = [e for e in estimates if abs(e.change) < SIGNIFICANCE_SIGMAS * e.std]
+    items = tuple(f"{e.name} ({e.change / e.std:+.2g} sd)" for e in weak)
+    comp = [e for e in estimates if e.quantity == "compliance"]
+    if comp and all(e in weak for e in comp):
+        return Check(name, "warn", f"no compliance differs from zero by {SIGNIFICANCE_SIGMAS:g} standard deviations",
+                     cause="the data do not show compliance (too little load, too few poses, or none to find)",
+                     fix="calibrate the geometry alone, or measure with a payload and more poses", items=items)
+    lost = [e for e in estimates if e.family == "backlash"]
+    if lost and all(e in weak for e in lost):
+        return Check(name, "warn", f"no backlash differs from zero by {SIGNIFICANCE_SIGMAS:g} standard deviations",
+                     cause="the data do not show lost motion (too little, or sides not visited both ways)",
+                     fix="calibrate without the backlash family, or approach the poses from both sides", items=items)
+    if not weak:
+        return Check(name, "pass", f"every change beyond {SIGNIFICANCE_SIGMAS:g} standard deviations")
+    return Check(name, "pass", f"{len(weak)} change(s) within {SIGNIFICANCE_SIGMAS:g} standard deviations of zero, "
+                 "kept at their estimates (the data do not distinguish them from nominal)", items=items)
+
+
+def compliance_sign_check(estimates) -> Check:
+    """Compliances are stiffnesses' inverses: one significantly negative is non-physical. Negative
+    estimates within their uncertainty are named (noise around zero), not failed."""
+    name = "physical compliances"
+    neg = [e for e in estimates if e.quantity == "compliance" and e.estimate < 0]
+    if not neg:
+        return Check(name, "pass", "no negative compliance")
+    significant = [e for e in neg if -e.estimate > NEGATIVE_COMPLIANCE_SIGMAS * e.std]
+    if significant:
+        items = tuple(f"{e.name} ({e.estimate / e.std:+.2g} sd)" for e in significant)
+        return Check(name, "warn", f"{len(significant)} compliance(s) significantly negative: {_listed(items, 3)}",
+                     cause="masses or centres of mass on the wrong side, gravity in the wrong direction, or another "
+                           "effect the compliance takes up (the accuracy in use says whether it helps)",
+                     fix="check the masses, centres of mass and gravity in the model file; --nonnegative-compliance "
+                         "keeps them at zero or above", items=items)
+    items = tuple(f"{e.name} ({e.estimate / e.std:+.2g} sd)" for e in neg)
+    return Check(name, "pass", f"{len(neg)} compliance(s) negative within their uncertainty (noise about zero): "
+                 f"{_listed(items, 3)}; --nonnegative-compliance keeps them at zero or above", items=items)
+
+
+def backlash_sign_check(estimates) -> Check:
+    """A backlash is half a lost motion: one significantly negative is non-physical (the side
+    model or the load's sign is wrong). Negative estimates within their uncertainty are named."""
+    name = "physical backlash"
+    neg = [e for e in estimates if e.family == "backlash" and e.estimate < 0]
+    if not neg:
+        return Check(name, "pass", "no negative backlash")
+    items = tuple(f"{e.name} ({e.estimate / e.std:+.2g} sd)" for e in neg)
+    significant = [i for e, i in zip(neg, items) if -e.estimate > NEGATIVE_BACKLASH_SIGMAS * e.std]
+    if significant:
+        return Check(name, "warn", f"{len(significant)} backlash(es) significantly negative: {_listed(significant, 3)}",
+                     cause="the joints rest on the other side than the model says: gravity in the wrong direction, "
+                           "masses on the wrong side, or approach directions reversed",
+                     fix="check gravity and the masses in the model file, the backlash side model and the approach "
+                         "columns", items=tuple(significant))
+    return Check(name, "pass", f"{len(neg)} backlash(es) negative within their uncertainty (noise about zero): "
+                 f"{_listed(items, 3)}", items=items)
+
+
+def interchangeable_pairs(names, corr: np.ndarray, loose=None) -> tuple[str, ...]:
+    """Pairs of identified parameters correlated beyond ``CORRELATION_SINGULAR`` of which one at
+    least is not pinned down (``loose``: the names whose standard deviation exceeds the bound of
+    practical identifiability; None: every name), as text. Two well-determined parameters may be
+    that correlated (a joint's two flexions under gravity): only their estimates' spread matters."""
+    iu = np.triu_indices(len(names), 1)
+    high = np.abs(corr[iu]) > CORRELATION_SINGULAR
+    loose = set(names) if loose is None else set(loose)
+    return tuple(f"{names[i]} ~ {names[j]} (r = {corr[i, j]:+.4f})" for i, j in zip(iu[0][high], iu[1][high])
+                 if names[i] in loose or names[j] in loose)
+
+
+def correlation_check(names, corr: np.ndarray, loose=None) -> Check:
+    """Pairs of identified parameters correlated beyond ``CORRELATION_MAX``, named. Their standard
+    deviations already include the correlation (and practical identifiability bounds them), so the
+    pairs are information for the engineer; beyond ``CORRELATION_SINGULAR`` the two are
+    interchangeable at these poses, which is a warning when one of them is not pinned down
+    (``loose``, see ``interchangeable_pairs``)."""
+    name = "correlated parameters"
+    iu = np.triu_indices(len(names), 1)
+    high = np.abs(corr[iu]) > CORRELATION_MAX
+    if not high.any():
+        return Check(name, "pass", f"no pair of identified parameters correlated beyond |r| = {CORRELATION_MAX:g}")
+    pairs = tuple(f"{names[i]} ~ {names[j]} (r = {corr[i, j]:+.4f})" for i, j in zip(iu[0][high], iu[1][high]))
+    singular = interchangeable_pairs(names, corr, loose)
+    if singular:
+        return Check(name, "warn", f"{len(singular)} pair(s) interchangeable at these poses (|r| > "
+                     f"{CORRELATION_SINGULAR:g}): {_listed(singular, 3)}; only their combination is determined",
+                     cause="poses that do not separate the two (a joint barely moved, a tool point near an axis)",
+                     fix="add poses that move the joints more widely (robocal plan), or hold one of each pair "
+                         "(--known NAME)", items=pairs)
+    return Check(name, "pass", f"{len(pairs)} pair(s) correlated beyond |r| = {CORRELATION_MAX:g}, each estimate "
+                 f"trading against the other (their standard deviations include it): {_listed(pairs, 3)}",
+                 fix="to separate them, add poses that move the joints more widely (robocal plan)", items=pairs)
+
+
+def identifiability_check(lost, weak, *, weak_kept: bool = False, interchangeable=(),
+                          kept_in_use: bool = False) -> Check:
+    """Parameters the structure allows but the poses cannot separate (``lost``: a warning), and those
+    they cannot pin down (``weak``: (name, predicted std text) pairs). Weak ones are held at nominal
+    and named, which is the right handling (a pass), unless they were kept (``weak_kept``: a warning).
+    Identified pairs that are interchangeable (``interchangeable``) are a warning too: the analysis
+    cannot say every parameter is pinned down beside them. ``kept_in_use``: the weak ones were kept
+    because the accuracy in use is better with them (a pass)."""
+    name = "identifiability at these poses"
+    items = tuple(lost) + tuple(f"{n} (predicted std {s})" for n, s in weak) + tuple(interchangeable)
+    if interchangeable:
+        return Check(name, "warn", f"kept but interchangeable at these poses: {_listed(interchangeable, 3)}",
+                     cause="poses that do not separate the two", fix="add poses over the whole workspace (robocal "
+                     "plan), or hold one of each pair at its nominal value (--known NAME)", items=items)
+    if not items:
+        return Check(name, "pass", "every parameter the robot's structure allows is identified")
+    summary = []
+    if lost:
+        summary.append(f"the poses cannot separate {_listed(lost)}; they are held at their nominal values")
+    if weak:
+        summary.append(f"weakly identifiable (predicted standard deviation beyond its bound): "
+                       f"{_listed(n for n, _ in weak)}" + (
+                           "; kept, as the accuracy in use (cross-validated) is better with them" if kept_in_use else
+                           "; kept, their estimates are unreliable" if weak_kept else "; held at their nominal values"))
+    status = "warn" if lost or (weak_kept and not kept_in_use) else "pass"
+    return Check(name, status, "; ".join(summary),
+                 cause="poses that do not move the joints widely enough, or a tool point nearly on an axis",
+                 fix="add poses over the whole workspace (robocal plan); or accept the nominal values", items=items)
+
+
+def contact_fit_check(kind: str, residuals: np.ndarray, sigma: np.ndarray, outliers: np.ndarray) -> Check:
+    """The residuals of one kind of contact row (n, d) in metres against their stated standard
+    deviations (n,), outliers (n,) left out. Each kind is judged on its own: a socket's scatter, a
+    plane's distances and a ball bar's length errors are different noises (docs/checks.md)."""
+    name = f"fit of the {kind} contacts"
+    keep = ~outliers
+    r = np.reshape(residuals, (len(sigma), -1))[keep]
+    if not len(r):
+        return Check(name, "fail", f"every {kind} contact is an outlier")
+    ratio = float(np.sqrt(np.mean((r / sigma[keep, None]) ** 2)))
+    summary = f"residuals {np.sqrt(np.mean(r ** 2)) * 1e3:.4g} mm RMS, {ratio:.3g} times the stated deviations"
+    if ratio <= FIT_RATIO:
+        return Check(name, "pass", summary)
+    return Check(name, "fail", summary, cause=f"the {kind} contacts do not fit the model: a mislabelled socket or "
+                 "placement, a ball not seated, a wrong stated length or deviation, joint order or sign",
+                 fix="read the outliers; compare the spread of each group of rows before calibration")
+
+
+# -- in use ---------------------------------------------------------------------------------------
+
+def _mm(v: float) -> str:
+    return f"{v * 1e3:.4g} mm"
+
+
+def in_use_check(in_use) -> Check:
+    """Will the model place the robot better than the nominal one, and how well (``AccuracyInUse``)?
+
+    A failure when the mean error in use is worse after calibration than before (beyond
+    ``WORSE_SIGMAS`` standard errors of the paired difference), or when the held-out
+    errors are beyond anything the fit explains (``OVERFIT_GROSS`` times the fitted poses' and a
+    millimetre more: another set-up, or a mistake). A warning when it is no better than before within
+    a standard error, when its worst error grew, or when held-out errors are ``OVERFIT_RATIO`` times
+    those of the fitted poses (overfitting). Otherwise a pass, with the figures."""
+    name = "accuracy in use"
+    b, a, fit = in_use.position_before, in_use.position_after, in_use.fit_after
+    how = in_use.method + (f", {in_use.grouping}" if in_use.method == "cross-validation" else "")
+    if not a.n:
+        return Check(name, "warn", "no held-out position to judge the calibration in use")
+    gain, se = in_use.improvement
+    if in_use.registration_only:
+        return Check(name, "pass", f"a registration of base and markers only: mean error {_mm(a.mean)} "
+                     f"(95 % within {_mm(a.p95)}, max {_mm(a.max)}) on {a.n} held-out point(s) ({how}), the robot's "
+                     "kinematics unchanged")
+    summary = (f"mean error {_mm(b.mean)} before, {_mm(a.mean)} after (95 % within {_mm(a.p95)}, max {_mm(a.max)}) "
+               f"on {a.n} held-out point(s) ({how})" + (f"; {_mm(fit.mean)} on the fitted ones" if fit.n else
+                                                         "; no measured point fitted"))
+    seen, seen_fit = in_use.measured_after or a, in_use.measured_fit or fit
+    if seen_fit.n and seen.mean > OVERFIT_GROSS * seen_fit.mean and seen.mean > seen_fit.mean + OVERFIT_GROSS_EXCESS:
+        return Check(name, "fail", summary + ": the held-out errors are beyond anything the fit explains",
+                     cause="held-out poses of another set-up (base or tool moved) or another robot, or a mistake in "
+                           "the data", fix="for a campaign of another set-up, register base and tool on it "
+                           "(--register-validation); else check the files")
+    if gain < -WORSE_SIGMAS * se:
+        return Check(name, "fail", summary + ": worse than before calibration",
+                     cause="a model that fits the fitted poses but not others: too many parameters for the poses, "
+                           "or data that do not belong together", fix="read the other checks and the diagnosis; "
+                           "measure more poses over the workspace (robocal plan)")
+    if gain <= se:
+        return Check(name, "warn", summary + ": no better than before within its standard error "
+                     f"({_mm(se)})", cause="errors the model cannot take up (repeatability, unmodelled effects)",
+                     fix="calibrate with the compliance or backlash families if the robot has them, or keep the "
+                         "nominal model")
+    if (seen_fit.n and seen.mean > OVERFIT_RATIO * seen_fit.mean
+            and seen.mean - seen_fit.mean > 3 * in_use.standard_error):
+        return Check(name, "warn", summary + f": {seen.mean / seen_fit.mean:.3g} times the fitted poses' error "
+                     "(overfitting)", cause="more parameters than the poses pin down, or poses that do not cover "
+                     "where the model is used", fix="measure more poses over the workspace (robocal plan); hold "
+                     "weak parameters (--weak eliminate)")
+    if b.max is not None and a.max > b.max:
+        return Check(name, "warn", summary + f": the worst error grew ({_mm(b.max)} before)",
+                     cause="a few poses the model places worse than the nominal one",
+                     fix="look at the held-out poses with the largest errors in the report")
+    return Check(name, "pass", summary)
+
+
+def coverage_check(cover, in_use) -> Check:
+    """Where the accuracy in use holds: the campaign's points against the workspace's spread, and
+    the parameters' uncertainty carried from the measured poses to the workspace (``Coverage``)."""
+    name = "where the model holds"
+    joints = ", ".join(f"{100 * s:.0f} %" for s in cover.joint_span)
+    summary = (f"the measured points spread {100 * cover.spread_ratio:.3g} % of the workspace's (joints over "
+               f"{joints} of their ranges); the parameters' uncertainty is {_mm(cover.uncertainty_measured)} RMS at "
+               f"the measured poses, {_mm(cover.uncertainty_workspace)} over the workspace")
+    small = cover.spread_ratio < COVERAGE_SPREAD_MIN
+    grows = cover.extrapolation > EXTRAPOLATION_MAX and cover.uncertainty_workspace > 0.5 * (
+        in_use.position_after.rms or 0.0)
+    if not (small or grows):
+        return Check(name, "pass", summary)
+    return Check(name, "warn", summary + ": the accuracy in use holds near the measured poses only",
+                 cause="a campaign that covers a small part of the workspace", fix="measure poses over the whole "
+                 "workspace the robot will use (robocal plan), or use the model only where it was measured")
+
+
+def limit_check(judged) -> Check:
+    """The mean error in use against the limit of absolute accuracy (``LimitJudgement``): a warning
+    when not reached (the robot is placed better, but not as well as it could be)."""
+    name = "limit of absolute accuracy"
+    summary = (f"mean error in use {_mm(judged.mean_error_m)}, {judged.ratio:.3g} times the limit of "
+               f"{_mm(judged.limit_m)}")
+    if judged.reached:
+        return Check(name, "pass", summary + " (reached)")
+    return Check(name, "warn", summary + " (not reached)", cause="errors the model leaves out (compliance, backlash, "
+                 "thermal drift), or poses that do not pin the parameters down",
+                 fix="add the compliance or backlash families, or poses over the workspace")

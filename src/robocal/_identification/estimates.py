@@ -1,0 +1,107 @@
+"""What a calibration of any kind of observation reports per parameter and per error, and what
+its geometry does over the workspace: the records and functions that the calibration from
+measured points and the one from contacts share."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._base.arguments import NORMS, checked
+from .._model.measurements import Measurements
+from .._model.parameters import parameter_layout, parameter_vector
+from .._model.robot import RobotModel
+from .checks import WorkspaceChange, tolerances
+from .problem import Problem, design_measurements
+from .solve import solve
+
+# The fit of base and markers behind the errors before calibration stops at this tolerance, its
+# last step taken: its errors are those of the fit run to 1e-12 within a few 1e-10 m (they are
+# shown in micrometres), and it takes one Jacobian and one pass fewer.
+REGISTRATION_TOL = 1e-6
+
+
+@dataclass(frozen=True)
+class ErrorStats:
+    """Mean, standard deviation, RMS and maximum of ``n`` error norms (m or rad); None when n = 0."""
+
+    n: int
+    mean: float | None
+    std: float | None
+    rms: float | None
+    max: float | None
+
+
+@checked(norms=NORMS)
+def error_stats(norms) -> ErrorStats:
+    """The statistics of error norms; NaN entries were not measured.
+
+    Parameters
+    ----------
+    norms : array_like
+        Error norms, m (any shape; NaN where not measured).
+
+    Returns
+    -------
+    ErrorStats
+        Their count, mean, standard deviation, RMS and maximum (None when there are none).
+    """
+    v = np.asarray(norms, dtype=float).ravel()
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return ErrorStats(0, None, None, None, None)
+    return ErrorStats(n=int(v.size), mean=float(v.mean()), std=float(v.std(ddof=1)) if v.size > 1 else 0.0,
+                      rms=float(np.sqrt(np.mean(v ** 2))), max=float(v.max()))
+
+
+@dataclass(frozen=True)
+class ParameterEstimate:
+    """One identified parameter: its SI unit, the value the solve started from, the estimate and
+    its standard deviation."""
+
+    name: str
+    unit: str
+    nominal: float
+    estimate: float
+    std: float
+    family: str = ""
+    quantity: str = ""
+
+    @property
+    def change(self) -> float:
+        return self.estimate - self.nominal
+
+
+def effect_text(v: float, quantity: str) -> str:
+    """A predicted standard deviation as text: mm for a length, degrees (of deflection) otherwise."""
+    if quantity == "length":
+        return f"{v * 1e3:.3g} mm"
+    return f"{np.degrees(v):.3g} deg" + (" of deflection" if quantity == "compliance" else "")
+
+
+def workspace_change(start: RobotModel, p: np.ndarray, q: np.ndarray, markers, free) -> WorkspaceChange:
+    """How far the geometry of the vector ``p`` (the layout of ``start``) moves the ``markers`` from
+    where ``start``'s puts them at readings ``q``, once the nominal's base and the ``free`` markers'
+    parameters are registered onto it: the change of what the robot does, whatever the
+    parametrisation (equivalent ones move nothing). Compliance and backlash are left out: their
+    own tolerances judge them."""
+    lay = parameter_layout(start)
+    p0 = parameter_vector(start)
+    geometry = np.array([lay[n].family not in ("compliance", "backlash") for n in lay.names])
+    p_geom = np.where(geometry, p, p0)
+    target = Problem(start, design_measurements(start, q, markers=markers), (),
+                     compliance=start.has_compliance).predicted(p_geom)[0]
+    tol = tolerances(start)
+    t_len, t_ang = tol.get(("frames", "length")), tol.get(("frames", "angle"))
+    radius = float(np.max(np.linalg.norm(target - np.asarray(start.base_position, dtype=float), axis=2)))
+    placed = tuple(n for n in lay.names if lay[n].family == "base"
+                   or (lay[n].role == "marker" and lay[n].owner in set(markers) and n in set(free)))
+    ws = Measurements(q=q, positions=target, marker_names=tuple(markers), joint_names=start.joint_names)
+    nominal = Problem(start, ws, placed, compliance=start.has_compliance)
+    p_start = p0.copy()
+    p_start[lay.indices(placed)] = p[lay.indices(placed)]
+    d = nominal.error_norms(solve(nominal, p_start, tol=REGISTRATION_TOL).p)
+    bar = None if t_len is None or t_ang is None else float(t_len + t_ang * radius)
+    return WorkspaceChange(max_m=float(np.nanmax(d)), rms_m=float(np.sqrt(np.nanmean(d ** 2))), tolerance_m=bar,
+                           reach_m=radius, n_poses=len(q))

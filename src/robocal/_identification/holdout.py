@@ -1,0 +1,428 @@
+"""Accuracy in use: how well a model places the robot at poses it was not fitted on.
+
+A calibration answers its user's question, "will this model place my robot better than what it
+has now, and how well?", from poses the fit did not see: a validation set when one is given, else
+k-fold cross-validation (docs/checks.md, "Accuracy in use"). Folds are contiguous blocks of the
+campaign's order where consecutive poses are neighbours (a grid, a path), or its series when the
+file names them: poses measured together share their drift and their corner of the workspace, so
+holding out a block asks what use asks (a pose elsewhere, at another time), where random folds
+would let a pose's neighbours vouch for it. Where consecutive poses are not neighbours (a random
+plan), a block holds out no region and folds are drawn at random. Repeated configurations stay
+in one fold.
+
+Each fold's model is the full solution moved by one Gauss-Newton step on the other folds' rows
+(the normal equations less the fold's: a solve of the size of the parameters), then evaluated
+exactly at the fold's poses. From a converged fit that step lands on the refitted minimum to
+second order in the change, which is small; the tests hold it against refits.
+
+The campaign's coverage says where that accuracy holds: the measured readings and points against
+what the joint limits allow, and the parameters' uncertainty carried over the whole workspace.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import cast
+
+import numpy as np
+
+from .._model.measurements import Measurements
+from .problem import Problem, random_configurations, sampling_box
+
+# folds of a cross-validation without a series column
+DEFAULT_FOLDS = 5
+# consecutive poses closer than this share of the typical distance between poses are neighbours: the
+# campaign's order is spatial (a grid, a path) and folds are blocks of it; otherwise they are drawn
+# at random (a block of a random plan holds out no region, only a stretch of time)
+NEIGHBOURS = 0.5
+FOLD_SEED = 20240602
+# a series column with more series than this is grouped into this many folds (contiguous series)
+MAX_FOLDS = 20
+# eigenvalues of a fold's normal matrix (unit columns) below this share of the largest are left out:
+# a fold that alone determined a direction leaves the others unable to (that direction keeps its value)
+FOLD_RCOND = 1e-12
+# configurations drawn within the joint limits to describe the workspace (what the calibrated geometry
+# does there, the spread of its points), and (at most) the poses the parameters' uncertainty is
+# carried to, there and at the measured poses
+WORKSPACE_POSES = 150
+UNCERTAINTY_POSES = 100
+WORKSPACE_SEED = 20240601
+
+
+@dataclass(frozen=True)
+class UseStats:
+    """Mean, RMS, 95th percentile and maximum of ``n`` error norms (m or rad); None when n = 0."""
+
+    n: int
+    mean: float | None
+    rms: float | None
+    p95: float | None
+    max: float | None
+
+
+def use_stats(norms) -> UseStats:
+    """The statistics of error norms; NaN entries (not measured) are left out.
+
+    >>> use_stats([3.0, 4.0]).rms
+    3.5355339059327378
+    """
+    v = np.asarray(norms, dtype=float).ravel()
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return UseStats(0, None, None, None, None)
+    return UseStats(int(v.size), float(v.mean()), float(np.sqrt(np.mean(v * v))), float(np.percentile(v, 95)),
+                    float(v.max()))
+
+
+@dataclass(frozen=True, eq=False)
+class HeldOut:
+    """One model's errors at poses it was not fitted on. ``positions`` (n_poses, n_markers, 3)
+    predicted minus measured, m (NaN where not measured); ``rotations`` likewise in rad or None;
+    ``loss`` (n_poses, n_markers) each point's sum of squared weighted residuals (the fit's own
+    weighting: what the fit minimises, so models compare on it)."""
+
+    positions: np.ndarray
+    rotations: np.ndarray | None
+    loss: np.ndarray
+
+    @property
+    def norms(self) -> np.ndarray:
+        return np.linalg.norm(self.positions, axis=2)
+
+    @property
+    def rotation_norms(self) -> np.ndarray | None:
+        return None if self.rotations is None else np.linalg.norm(self.rotations, axis=2)
+
+
+def fold_labels(data: Measurements, folds: int = DEFAULT_FOLDS) -> tuple[np.ndarray, int, str]:
+    """The fold of each pose, the number of folds and how they were made.
+
+    With a ``series`` column (``data.extra["series"]``) of two or more series, each series is a fold
+    (more than ``MAX_FOLDS`` are grouped in order); else ``folds`` contiguous blocks of the poses'
+    order. A configuration repeated exactly goes to the fold of its first occurrence.
+    """
+    n = data.n_poses
+    series = data.extra.get("series")
+    if series is not None and len(set(np.asarray(series).tolist())) >= 2:
+        names, first = np.unique(np.asarray(series), return_index=True)
+        order = np.argsort(np.argsort(first))             # series numbered by first appearance
+        labels = order[np.unique(np.asarray(series), return_inverse=True)[1]]
+        k = len(names)
+        if k > MAX_FOLDS:
+            labels, k = labels * MAX_FOLDS // k, MAX_FOLDS
+        return labels.astype(int), int(k), f"{k} folds by series"
+    k = int(min(max(folds, 2), n))
+    if ordered(data.q):
+        labels, how = np.arange(n) * k // n, f"{k} folds of consecutive poses"
+    else:
+        labels, how = np.random.default_rng(FOLD_SEED).permutation(n) % k, f"{k} folds drawn at random"
+    return _repeats_together(data.q, labels).astype(int), k, how
+
+
+def _repeats_together(q: np.ndarray, labels: np.ndarray) -> np.ndarray:
+    """``labels`` with each configuration repeated exactly given the label of its first occurrence.
+    Rows with distinct projections on a fixed direction are distinct: only when two tie are the rows
+    compared whole."""
+    rows = np.ascontiguousarray(q + 0.0)
+    h = rows @ (1.0 / np.sqrt(np.arange(2.0, rows.shape[1] + 2.0)))
+    if len(np.unique(h)) == len(h):
+        return labels
+    _, first, inverse = np.unique(rows, axis=0, return_index=True, return_inverse=True)
+    return labels[first[np.ravel(inverse)]]
+
+
+def ordered(q: np.ndarray) -> bool:
+    """Whether consecutive poses are neighbours (a grid, a path): the median step between them, in
+    each joint's spread, is below ``NEIGHBOURS`` of the median distance between poses taken at random."""
+    q = np.asarray(q, dtype=float)
+    if len(q) < 4:
+        return True
+    spread = np.std(q, axis=0)
+    x = q / np.where(spread > 0, spread, 1.0)
+    step = np.median(np.linalg.norm(np.diff(x, axis=0), axis=1))
+    other = np.median(np.linalg.norm(x - x[np.random.default_rng(FOLD_SEED).permutation(len(x))], axis=1))
+    return bool(step < NEIGHBOURS * other)
+
+
+def _sub_problem(problem: Problem, index: np.ndarray) -> Problem:
+    """The problem on the poses ``index`` of ``problem``'s data, over the same free parameters."""
+    data = problem.data.with_approach() if problem.backlash else problem.data
+    return Problem(problem.model, data.subset(index), free_names(problem), compliance=problem.compliance,
+                   noise=problem.noise)
+
+
+def free_names(problem: Problem) -> tuple[str, ...]:
+    """The names of ``problem``'s free parameters (they decide, e.g., whether joints rest in their
+    lost motion)."""
+    return tuple(problem.lay.names[i] for i in problem.free_idx)
+
+
+def point_loss(problem: Problem, p: np.ndarray, errors: np.ndarray | None = None) -> np.ndarray:
+    """(n_poses, n_markers) each measured point's sum of squared weighted residuals at ``p``.
+    ``errors``: ``problem.errors(p)`` when at hand; for point data the residuals are then those
+    errors weighted (the same numbers, without evaluating the campaign again)."""
+    if errors is not None and not problem.use_rot:
+        r = np.concatenate([(errors[s, j] * w[:, None]).ravel() for j, (s, w) in enumerate(zip(problem.sel, problem.w))]
+                           + [np.zeros(0)])
+    else:
+        r = problem.residuals(p)
+    poses, markers = problem.row_points()
+    n, m = problem.data.mask.shape
+    return np.bincount(poses * m + markers, weights=r * r, minlength=n * m).reshape(n, m)
+
+
+def evaluated(problem: Problem, p: np.ndarray) -> HeldOut:
+    """The errors of the vector ``p`` at every pose of ``problem`` (none of them fitted with it)."""
+    errors = problem.errors(p)
+    return HeldOut(errors, problem.rotation_errors(p), point_loss(problem, p, errors))
+
+
+def fold_steps(problem: Problem, p: np.ndarray, labels: np.ndarray, k: int) -> list[np.ndarray]:
+    """For each fold, the Gauss-Newton step from ``p`` (a solution on every row) to the fit on the
+    rows of the other folds: ``-(A - A_g)^+ (b - b_g)`` over the free parameters, ``A = J^T J``,
+    ``b = J^T r`` (``A_g``, ``b_g`` the fold's part), in unit-column scaling."""
+    n_free = len(problem.free_idx)
+    A, b = np.zeros((n_free, n_free)), np.zeros(n_free)
+    Ag, bg = np.zeros((k, n_free, n_free)), np.zeros((k, n_free))
+    for J, r, poses in problem.pieces(p):
+        f = labels[poses]
+        A += J.T @ J
+        b += J.T @ r
+        for g in np.unique(f):
+            rows = f == g
+            Jg = J[rows]
+            Ag[g] += Jg.T @ Jg
+            bg[g] += Jg.T @ r[rows]
+    col = np.sqrt(np.diag(A))
+    col[col == 0] = 1.0
+    steps = []
+    for g in range(k):
+        M = (A - Ag[g]) / np.outer(col, col)
+        w, V = np.linalg.eigh(0.5 * (M + M.T))
+        keep = w > FOLD_RCOND * max(float(w.max()), 0.0)
+        v = (b - bg[g]) / col
+        x = V[:, keep] @ ((V[:, keep].T @ v) / w[keep])
+        steps.append(-x / col)
+    return steps
+
+
+class FoldProblems:
+    """The problems on each fold's poses of a campaign, made once for one calibration and taken
+    over the free parameters of each model it compares (``of``). Held by the calibration call that
+    made it, and gone with it."""
+
+    def __init__(self, labels: np.ndarray, k: int):
+        self.labels, self.k = labels, k
+        self._made: dict = {}
+
+    def of(self, problem: Problem) -> list:
+        """(poses, problem over ``problem``'s free parameters) of each fold that has poses."""
+        key = (id(problem.data), problem.compliance, problem.backlash)
+        if key not in self._made:
+            self._made[key] = (problem.data, [(idx, _sub_problem(problem, idx)) for idx in
+                                              (np.nonzero(self.labels == g)[0] for g in range(self.k)) if len(idx)])
+        return [(idx, sub.over(free_names(problem))) for idx, sub in self._made[key][1]]
+
+
+def cross_validate(problem: Problem, p: np.ndarray, labels: np.ndarray, k: int, *,
+                   on: Problem | None = None, folds: FoldProblems | None = None) -> HeldOut:
+    """Each pose's errors under the model fitted on the other folds (``fold_steps``); ``on``: the
+    problem whose points are predicted (default ``problem``; e.g. the whole campaign when
+    ``problem`` has points set aside); ``folds``: the fold problems to reuse."""
+    steps = fold_steps(problem, p, labels, k)
+    problem = problem if on is None else on
+    folds = FoldProblems(labels, k) if folds is None else folds
+    data = problem.data
+    pos = np.full(data.positions.shape, np.nan)
+    rot = np.full(data.positions.shape, np.nan) if data.has_orientation else None
+    loss = np.zeros(data.mask.shape)
+    for index, sub in folds.of(problem):
+        pg = p.copy()
+        pg[problem.free_idx] += steps[int(labels[index[0]])]
+        out = evaluated(sub, pg)
+        pos[index], loss[index] = out.positions, out.loss
+        if rot is not None and out.rotations is not None:
+            rot[index] = out.rotations
+    return HeldOut(pos, rot, loss)
+
+
+def paired_excess(simple: np.ndarray, complex_: np.ndarray, mask: np.ndarray) -> tuple[float, float]:
+    """How much more the simpler model loses over the points ``mask`` than the other, per point, and
+    the standard error of that mean (the two are compared on the same points, so their difference
+    is measured far more precisely than either)."""
+    d = (simple - complex_)[mask]
+    if d.size < 2:
+        return float(d.mean()) if d.size else 0.0, 0.0
+    return float(d.mean()), float(d.std(ddof=1) / np.sqrt(d.size))
+
+
+@dataclass(frozen=True, eq=False)
+class AccuracyInUse:
+    """The accuracy a calibration predicts in use, before and after it, from poses not fitted.
+
+    ``method``: "validation" (a held-out set), "validation, base and tool registered on it", or
+    "cross-validation" (``folds`` folds, made as ``grouping`` says). ``position_before`` and
+    ``position_after``: statistics of the held-out position error norms (m) of the nominal model
+    (its base and tool registered on the fitted poses, as the calibration's) and of the calibrated
+    one; ``rotation_*`` the same for rotations (rad) or None; ``fit_after`` the calibrated model on
+    the fitted poses themselves. ``errors_before``/``errors_after`` (n_points,) the held-out norms.
+    Every figure is the robot's: the instrument's noise is taken out (``without_instrument``);
+    ``measured_after`` and ``measured_fit`` are the held-out and fitted errors as the instrument saw
+    them (what overfitting is judged on: the same noise in both).
+    """
+
+    method: str
+    folds: int | None
+    grouping: str
+    position_before: UseStats
+    position_after: UseStats
+    rotation_before: UseStats | None
+    rotation_after: UseStats | None
+    fit_after: UseStats
+    errors_before: np.ndarray
+    errors_after: np.ndarray
+    registration_only: bool = False
+    measured_after: UseStats | None = None
+    measured_fit: UseStats | None = None
+
+    @property
+    def standard_error(self) -> float:
+        """The standard error of the mean error after calibration (m)."""
+        e = self.errors_after
+        return float(e.std(ddof=1) / np.sqrt(e.size)) if e.size > 1 else 0.0
+
+    @property
+    def improvement(self) -> tuple[float, float]:
+        """The mean error before minus after (m) and its standard error (paired over the points)."""
+        d = self.errors_before - self.errors_after
+        return float(d.mean()), float(d.std(ddof=1) / np.sqrt(d.size)) if d.size > 1 else 0.0
+
+
+def without_instrument(norms: np.ndarray, variance: float) -> np.ndarray:
+    """Error norms of 3D vectors with an instrument's share taken out: scaled so that their mean
+    square loses three times its per-axis ``variance`` (what the robot's placement errors would
+    show without the instrument between; none left when the instrument explains it all)."""
+    v = np.asarray(norms, dtype=float)
+    ms = float(np.nanmean(v * v)) if np.isfinite(v).any() else 0.0
+    if ms <= 0 or variance <= 0:
+        return v
+    return v * np.sqrt(max(1.0 - 3.0 * variance / ms, 0.0))
+
+
+def accuracy_in_use(method: str, folds: int | None, grouping: str, before: HeldOut, after: HeldOut,
+                    fit_after: np.ndarray, *, registration_only: bool = False, noise: tuple[float, float] = (0.0, 0.0)
+                    ) -> AccuracyInUse:
+    """The record of held-out errors before and after (``HeldOut``); ``fit_after`` the error norms
+    on the fitted points; ``registration_only``: only base and markers were identified (the robot's
+    kinematics are the nominal ones, before as after). ``noise``: the instrument's per-axis variance
+    of positions (m^2) and rotations (rad^2), taken out of every figure (``without_instrument``):
+    the accuracy in use is the robot's."""
+    raw_after, raw_fit = use_stats(after.norms.ravel()), use_stats(fit_after)
+    eb, ea = without_instrument(before.norms.ravel(), noise[0]), without_instrument(after.norms.ravel(), noise[0])
+    fit_after = without_instrument(fit_after, noise[0])
+    both = np.isfinite(eb) & np.isfinite(ea)
+    rb, ra = before.rotation_norms, after.rotation_norms
+    rb = None if rb is None else without_instrument(rb, noise[1])
+    ra = None if ra is None else without_instrument(ra, noise[1])
+    return AccuracyInUse(method=method, folds=folds, grouping=grouping, position_before=use_stats(eb[both]),
+                         position_after=use_stats(ea[both]), rotation_before=None if rb is None else use_stats(rb),
+                         rotation_after=None if ra is None else use_stats(ra), fit_after=use_stats(fit_after),
+                         errors_before=eb[both], errors_after=ea[both], registration_only=registration_only,
+                         measured_after=raw_after, measured_fit=raw_fit)
+
+
+@dataclass(frozen=True, eq=False)
+class Coverage:
+    """Where the calibration was measured, against where the robot can go.
+
+    ``joint_span`` (n_joints,) the measured span of each reading over its allowed span (limits; an
+    unbounded revolute joint one turn); ``joint_ranges`` ((lo, hi), ...) the measured readings (SI);
+    ``box`` ((xmin, ymin, zmin), (xmax, ymax, zmax)) the measured points (m, W); ``spread_ratio`` the
+    RMS spread of the measured points over that of the robot's points at random configurations within
+    the limits; ``uncertainty_measured`` and ``uncertainty_workspace`` the RMS position uncertainty
+    (m, one standard deviation as a norm) the parameters' covariance gives at the measured poses and
+    at those random configurations.
+    """
+
+    joint_span: np.ndarray
+    joint_ranges: tuple[tuple[float, float], ...]
+    box: tuple[tuple[float, float, float], tuple[float, float, float]]
+    spread_ratio: float
+    uncertainty_measured: float
+    uncertainty_workspace: float
+
+    @property
+    def extrapolation(self) -> float:
+        """How much larger the parameters' uncertainty is over the workspace than where measured."""
+        if self.uncertainty_measured <= 0:
+            return 1.0
+        return self.uncertainty_workspace / self.uncertainty_measured
+
+
+def _spread(points: np.ndarray) -> float:
+    p = np.asarray(points, dtype=float).reshape(-1, 3)
+    p = p[np.all(np.isfinite(p), axis=1)]
+    return float(np.sqrt(np.mean(np.sum((p - p.mean(axis=0)) ** 2, axis=1)))) if len(p) > 1 else 0.0
+
+
+def _uncertainty(problem: Problem, p: np.ndarray, q: np.ndarray, covariance: np.ndarray) -> float:
+    """RMS over the readings ``q`` of the position uncertainty (norm of one standard deviation) of
+    every marker the data measure, from the free parameters' covariance."""
+    design = _design_like(problem, q)
+    blocks = design.pose_blocks(p)[:, :, :]             # (n, rows, n_free), unweighted
+    pos = blocks.reshape(len(q), -1, 3 if not design.use_rot else 6, blocks.shape[-1])[:, :, :3]
+    var = np.einsum("nmak,kl,nmal->nm", pos, covariance, pos)
+    return float(np.sqrt(np.mean(np.maximum(var, 0.0))))
+
+
+def _design_like(problem: Problem, q: np.ndarray) -> Problem:
+    """A problem at readings ``q`` with the markers, free parameters and model of ``problem``."""
+    data = problem.data
+    n, m = len(q), len(data.marker_names)
+    fake = Measurements(q=q, positions=np.zeros((n, m, 3)), marker_names=data.marker_names,
+                        joint_names=data.joint_names,
+                        extra={"approach": np.ones((n, q.shape[1]))} if problem.backlash else {})
+    return Problem(problem.model, fake, free_names(problem), compliance=problem.compliance, chunked=False)
+
+
+def workspace_readings(model, n: int = WORKSPACE_POSES) -> np.ndarray:
+    """``n`` configurations drawn (with a fixed seed) within the joint limits, (n, n_joints)."""
+    return random_configurations(model, n, np.random.default_rng(WORKSPACE_SEED))
+
+
+def coverage(problem: Problem, p: np.ndarray, covariance: np.ndarray, predicted_workspace: np.ndarray, *,
+             factor: np.ndarray | None = None) -> Coverage:
+    """The campaign of ``problem`` against the workspace (``Coverage``); ``predicted_workspace``
+    (n, n_markers, 3) the markers at random configurations (``workspace_readings``); ``factor``: an
+    R factor of the problem's (unweighted) Jacobian at ``p``, when at hand: the uncertainty at the
+    measured poses is then its mean over all of them, trace(C R^T R) / n, without a Jacobian more."""
+    data = problem.data
+    lo, hi = sampling_box(problem.model)
+    allowed = np.where(np.isfinite(hi - lo), hi - lo, 2 * np.pi)
+    q = data.q
+    span = np.ptp(q, axis=0) / np.where(allowed > 0, allowed, 1.0)
+    measured = data.positions[data.mask]
+    pts = measured.reshape(-1, 3)
+    box = cast("tuple[tuple[float, float, float], tuple[float, float, float]]",   # (x, y, z) each
+               (tuple(float(v) for v in pts.min(axis=0)), tuple(float(v) for v in pts.max(axis=0))))
+    ws = _spread(predicted_workspace)
+    ratio = _spread(measured) / ws if ws > 0 else 1.0
+    # the uncertainty at (at most 300 of) the measured poses and at the workspace's configurations
+    if factor is not None and not problem.weighted:
+        at_measured = float(np.sqrt(max(np.trace(covariance @ (factor.T @ factor)), 0.0)
+                                    / max(int(data.mask.sum()), 1)))
+    else:
+        pick = np.linspace(0, data.n_poses - 1, min(data.n_poses, UNCERTAINTY_POSES)).astype(int)
+        at_measured = _uncertainty(problem, p, q[pick], covariance)
+    at_workspace = _uncertainty(problem, p, workspace_readings(problem.model, UNCERTAINTY_POSES), covariance)
+    return Coverage(joint_span=np.minimum(span, 1.0), joint_ranges=tuple((float(a), float(b)) for a, b in
+                                                                       zip(q.min(axis=0), q.max(axis=0))),
+                    box=box, spread_ratio=float(ratio), uncertainty_measured=at_measured,
+                    uncertainty_workspace=at_workspace)
+
+
+def with_points_aside(data: Measurements, aside: np.ndarray) -> Measurements:
+    """``data`` with the points ``aside`` (n_poses, n_markers) masked: set aside, not deleted."""
+    mask = data.mask & ~aside
+    rot_mask = None if data.rot_mask is None else data.rot_mask & ~aside
+    return replace(data, mask=mask, rot_mask=rot_mask)

@@ -1,0 +1,212 @@
+"""The measurement set: joint readings and what the instrument saw, in SI and the measurement frame."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from .._base.arguments import (
+    checked,
+    shaped,
+)
+from .._base.arrays import frozen
+from .._base.errors import InputError, check_choice
+from .._base.options import DEFAULT_INSTRUMENT, INSTRUMENT_NOISE
+
+
+@checked(q=shaped(None, None))
+def approach_sides(q) -> np.ndarray:
+    """+1 or -1 per pose and joint: the sign of the last move of that joint before reaching the pose.
+
+    Poses are visited in row order, the first approached from the last (as in a cycle); a joint
+    that does not move keeps the side it had (+1 if it never moves). ``q`` (n_poses, n_joints).
+
+    Parameters
+    ----------
+    q : array_like, shape (n_poses, n_joints)
+        Joint readings in the order they were visited.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n_poses, n_joints)
+        Direction (+1 or -1) of each joint's last move.
+    """
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    step = np.sign(np.diff(q, axis=0, prepend=q[-1:]))
+    n = len(q)
+    # forward-fill over the rows where a joint did not move, cycling once so the first poses
+    # inherit the side of the last move before them
+    rows = np.arange(2 * n)[:, None]
+    twice = np.vstack([step, step])
+    last = np.maximum.accumulate(np.where(twice != 0, rows, -1), axis=0)[n:]
+    sides = np.take_along_axis(twice, np.maximum(last, 0), axis=0)
+    return np.where(last >= 0, sides, 1.0)
+
+
+def approach_of(data: Measurements) -> np.ndarray:
+    """(n_poses, n_joints) approach direction of each joint at each pose: the file's ``approach``
+    columns (``extra["approach"]``) when it has them, else from the visiting order of the rows."""
+    a = data.extra.get("approach")
+    return approach_sides(data.q) if a is None else np.asarray(a, dtype=float)
+
+
+@dataclass(frozen=True)
+class Noise:
+    """The expected scatter of measurements about a perfect model, one standard deviation per axis:
+    ``position`` (m) and ``rotation`` (rad); ``source`` says where the figures come from."""
+
+    position: float
+    rotation: float
+    source: str
+
+    @staticmethod
+    def of(instrument: str = DEFAULT_INSTRUMENT, *, position: float | None = None,
+           rotation: float | None = None) -> Noise:
+        """An instrument class's noise (``INSTRUMENT_NOISE``), or the figures given, SI."""
+        check_choice(instrument, INSTRUMENT_NOISE, "instrument")
+        p, r = INSTRUMENT_NOISE[instrument]
+        for name, v in (("position", position), ("rotation", rotation)):
+            if v is not None and not (isinstance(v, (int, float)) and 0 < v < np.inf):
+                raise InputError(f"must be a positive number, got {v!r}", where=f"noise {name}")
+        given = [n for n, v in (("position", position), ("rotation", rotation)) if v is not None]
+        source = f"{instrument} (default)" if not given else f"stated ({', '.join(given)})"
+        return Noise(position=float(position or p), rotation=float(rotation or r), source=source)
+
+
+@dataclass(frozen=True, eq=False)
+class Measurements:
+    """Joint readings with measured marker positions (and optionally orientations) per pose.
+
+    Shapes: ``q`` (n_poses, n_joints) in rad or m; ``positions`` (n_poses, n_markers, 3) in metres
+    in the measurement frame W, NaN where a marker was not seen; ``mask`` (n_poses, n_markers) True
+    where a position was measured (rows are masked, never dropped). ``rotations`` (n_poses,
+    n_markers, 3, 3) marker orientations in W (``rot_mask`` likewise) or None for points only.
+    ``sigma`` (n_poses, n_markers) position standard deviation per measurement in metres and
+    ``sigma_rot`` in radians, or None (unweighted). ``payload_mass`` (n_poses,) kg or None.
+    ``labels`` names each pose for messages (e.g. the CSV row). ``extra`` holds anything else a
+    reader found; arrays with one entry per pose follow ``subset``. Every array is the record's own
+    read-only copy.
+    """
+
+    q: np.ndarray
+    positions: np.ndarray
+    marker_names: tuple[str, ...]
+    joint_names: tuple[str, ...] = ()
+    mask: np.ndarray = None  # type: ignore[assignment]  # None: where the position is finite
+    rotations: np.ndarray | None = None
+    rot_mask: np.ndarray | None = None
+    sigma: np.ndarray | None = None
+    sigma_rot: np.ndarray | None = None
+    payload_mass: np.ndarray | None = None
+    labels: tuple[str, ...] = ()
+    source: str = ""
+    sha256: str = ""
+    extra: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        q = np.atleast_2d(np.asarray(self.q, dtype=float))
+        pos = np.asarray(self.positions, dtype=float)
+        if pos.ndim == 2:
+            pos = pos[:, None, :]
+        n = q.shape[0]
+        src = self.source or "measurements"
+        if pos.shape != (n, len(self.marker_names), 3):
+            raise InputError(f"positions must have shape ({n}, {len(self.marker_names)}, 3), got {pos.shape}",
+                             source=src)
+        if not np.all(np.isfinite(q)):
+            r, c = np.argwhere(~np.isfinite(q))[0]
+            raise InputError("joint reading is not a finite number", source=src,
+                             where=f"{self._label(r)}, joint {c}")
+        mask = np.all(np.isfinite(pos), axis=2) if self.mask is None else np.asarray(self.mask, dtype=bool)
+        if mask.shape != (n, len(self.marker_names)):
+            raise InputError("mask shape does not match positions", source=src)
+        bad = mask & ~np.all(np.isfinite(pos), axis=2)
+        if bad.any():
+            r, m = np.argwhere(bad)[0]
+            raise InputError(f"marker {self.marker_names[m]!r} position is not finite", source=src,
+                             where=self._label(r))
+        rot = self.rotations
+        rmask = self.rot_mask
+        if rot is not None:
+            rot = np.asarray(rot, dtype=float)
+            if rot.shape != (n, len(self.marker_names), 3, 3):
+                raise InputError("rotations must have shape (n_poses, n_markers, 3, 3)", source=src)
+            rmask = np.all(np.isfinite(rot), axis=(2, 3)) if rmask is None else np.asarray(rmask, dtype=bool)
+        for name in ("sigma", "sigma_rot"):
+            s = getattr(self, name)
+            if s is not None:
+                s = np.broadcast_to(np.asarray(s, dtype=float), (n, len(self.marker_names))).copy()
+                used = mask if name == "sigma" else (rmask if rmask is not None else mask)
+                if np.any(used & ~(s > 0)):
+                    r, m = np.argwhere(used & ~(s > 0))[0]
+                    raise InputError(f"{name} must be a positive number", source=src,
+                                     where=f"{self._label(r)}, marker {self.marker_names[m]!r}")
+                object.__setattr__(self, name, s)
+        if self.payload_mass is not None:
+            pm = np.broadcast_to(np.asarray(self.payload_mass, dtype=float), (n,)).copy()
+            if np.any(~np.isfinite(pm) | (pm < 0)):
+                r = int(np.argwhere(~np.isfinite(pm) | (pm < 0))[0][0])
+                raise InputError("payload mass must be a non-negative number", source=src, where=self._label(r))
+            object.__setattr__(self, "payload_mass", pm)
+        # the record's arrays are its own and read-only: a caller's array changed later, or one
+        # the record handed out written into, cannot change what it holds
+        for name, value, dtype in (("q", q, float), ("positions", pos, float), ("mask", mask, bool),
+                                   ("rotations", rot, float), ("rot_mask", rmask, bool),
+                                   ("sigma", self.sigma, float), ("sigma_rot", self.sigma_rot, float),
+                                   ("payload_mass", self.payload_mass, float)):
+            object.__setattr__(self, name, None if value is None else frozen(value, dtype))
+        object.__setattr__(self, "extra", {k: frozen(v, v.dtype) if isinstance(v, np.ndarray) else v
+                                           for k, v in self.extra.items()})
+        if not self.labels:
+            object.__setattr__(self, "labels", tuple(f"pose {i}" for i in range(n)))
+
+    def _label(self, i: int) -> str:
+        return self.labels[i] if self.labels else f"pose {i}"
+
+    @property
+    def n_poses(self) -> int:
+        return self.q.shape[0]
+
+    @property
+    def has_orientation(self) -> bool:
+        return self.rotations is not None and bool(np.any(self.rot_mask))
+
+    def subset(self, index) -> Measurements:
+        """The poses selected by ``index`` (a slice, boolean mask or integer indices)."""
+        idx: slice | np.ndarray
+        if isinstance(index, slice):    # a block of poses (a chunk): cut by the slice itself, no index array
+            idx = slice(*index.indices(self.n_poses))
+            labels = self.labels[idx]
+        else:
+            picked = np.arange(self.n_poses)[index]
+            idx, labels = picked, tuple(map(self.labels.__getitem__, picked.tolist()))
+
+        def cut(a):
+            return None if a is None else a[idx]
+
+        return Measurements(
+            q=self.q[idx], positions=self.positions[idx], marker_names=self.marker_names,
+            joint_names=self.joint_names, mask=self.mask[idx], rotations=cut(self.rotations),
+            rot_mask=cut(self.rot_mask), sigma=cut(self.sigma), sigma_rot=cut(self.sigma_rot),
+            payload_mass=cut(self.payload_mass), labels=labels,
+            source=self.source, sha256=self.sha256,
+            extra={k: (v[idx] if isinstance(v, np.ndarray) and v.shape[:1] == (self.n_poses,) else v)
+                   for k, v in self.extra.items()},
+        )
+
+    def split(self, n_validation: int | float, *, rng=None) -> tuple[Measurements, Measurements]:
+        """Random split into (fit, validation); ``n_validation`` a count or a fraction. Each part keeps
+        the approach directions of the visiting order of the whole (``approach_of``)."""
+        rng = np.random.default_rng(rng)
+        n_val = int(round(n_validation * self.n_poses)) if 0 < n_validation < 1 else int(n_validation)
+        order = rng.permutation(self.n_poses)
+        whole = self.with_approach()
+        return whole.subset(np.sort(order[n_val:])), whole.subset(np.sort(order[:n_val]))
+
+    def with_approach(self) -> Measurements:
+        """These measurements with their approach directions stored (``extra["approach"]``), so that a
+        subset keeps the directions of this visiting order."""
+        if "approach" in self.extra:
+            return self
+        return replace(self, extra={**self.extra, "approach": approach_sides(self.q)})

@@ -1,0 +1,154 @@
+"""Planning a socket-plate campaign before the robot is booked: how many placements of the plate and
+how many seatings per socket, from the standard deviations each design predicts.
+
+The largest design is simulated on the nominal robot (``socket_campaign``: random seatings within
+the joint limits, the plate at random placements) and each smaller one is its first placements and
+first seatings per socket (so more placements or seatings never predict worse). Each design's
+contact problem is linearised there, and the covariance the fit would report with the stated
+deviations is ``(J^T J)^-1`` (every row is already divided by its deviation). The recommended
+design is the smallest of the grid (fewest seatings) whose predicted standard deviations all stay
+within the practical-identifiability bounds (``WEAK_STD``, docs/checks.md).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._base.arguments import (
+    MAPPING,
+    NAMES,
+    NON_NEGATIVE,
+    SEED,
+    checked,
+    is_a,
+    optional,
+    wholes,
+)
+from .._base.errors import InputError
+from .._base.options import MAX_GRID_ROWS, MAX_SEATINGS
+from .._identification.contact_blocks import ContactProblem
+from .._identification.contact_figures import contact_identifiability
+from .._identification.identifiability import WEAK_STD
+from .._model.contacts import Contacts
+from .._model.parameters import candidate_parameters, parameter_layout
+from .._model.robot import RobotModel
+from .contacts import PLATE, socket_campaign
+
+# the cost of a seating simulated and of a row linearised, seconds (benchmarks/README.md), for messages
+SECONDS = {"seat": 1.5e-3, "rows": 1e-4}
+
+
+@dataclass(frozen=True)
+class SocketDesign:
+    """One design of the grid: ``placements`` of the plate, ``poses_per_socket`` seatings of each
+    socket, the robot parameters it identifies with their predicted standard deviations (SI), the
+    directions it cannot reach, and the parameter furthest beyond (or closest to) its bound."""
+
+    placements: int
+    poses_per_socket: int
+    n_seatings: int
+    predicted_std: dict
+    units: dict                 # each parameter's SI unit
+    unreachable: tuple[str, ...]
+    worst: str
+    worst_ratio: float          # predicted std over its bound for ``worst``
+
+    @property
+    def meets_bounds(self) -> bool:
+        return self.worst_ratio <= 1.0
+
+
+@dataclass(frozen=True)
+class SocketPlan:
+    """Every design of the grid, the recommended one (None when none meets the bounds) and its
+    simulated seatings, ready to be written as a contact file and measured."""
+
+    designs: tuple[SocketDesign, ...]
+    chosen: SocketDesign | None
+    campaign: Contacts | None
+
+
+def _design(model: RobotModel, campaign: Contacts, names, placements: int, poses: int, ident,
+            bounds: dict) -> SocketDesign:
+    prob = ContactProblem(model, campaign, names, compliance=False)
+    k = len(ident.identified)
+    J = prob.at_contact().over(ident.identified).jacobian(prob.start_vector())
+    std = np.sqrt(np.diag(np.linalg.pinv(J.T @ J)))[:k]
+    lay = parameter_layout(model)
+    ratios = {n: s / bounds[lay[n].quantity] for n, s in zip(ident.identified, std)}
+    worst = max(ratios, key=lambda n: ratios[n])
+    return SocketDesign(placements, poses, int(campaign.q.shape[0]), dict(zip(ident.identified, map(float, std))),
+                        {n: lay[n].unit for n in ident.identified}, tuple(u.name for u in ident.unreachable), worst,
+                        float(ratios[worst]))
+
+
+def _check_cost(placements, per, n_sockets: int) -> None:
+    """Refuse, before any work, a grid whose simulation or linearisation would run for minutes."""
+    largest, grid = n_sockets * placements[-1] * per[-1], n_sockets * sum(placements) * sum(per)
+    for what, n, top in (("seatings to simulate for the largest design", largest, MAX_SEATINGS),
+                         (f"rows to linearise over the {len(placements) * len(per)} designs", grid, MAX_GRID_ROWS)):
+        if n > top:
+            raise InputError(f"{n:,} {what}; robocal plans up to {top:,} (about {top * SECONDS[what[:4]]:.0f} s): "
+                             "compare fewer or smaller designs", where="placements")
+
+
+@checked(model=is_a(RobotModel), placements=wholes(1, 1000), poses_per_socket=wholes(1, 10_000),
+         joint_noise=NON_NEGATIVE, seat_noise=NON_NEGATIVE, parameters=NAMES, bounds=optional(MAPPING), seed=SEED)
+def plan_sockets(model: RobotModel, *, placements=(3, 5, 7, 9), poses_per_socket=(20, 25, 30, 35),
+                 joint_noise: float = 2e-5, seat_noise: float = 5e-6, parameters=("geometric",),
+                 bounds: dict | None = None, seed: int = 0) -> SocketPlan:
+    """The predicted standard deviations of every design of the grid ``placements`` x
+    ``poses_per_socket`` (the default 3-socket plate with known spacing), and the recommended one.
+
+    ``joint_noise`` (rad or m per reading) and ``seat_noise`` (m) are the deviations the fit will
+    state; ``bounds`` the standard deviation each quantity must stay within (``{"length": m,
+    "angle": rad}``, default ``WEAK_STD``); ``seed`` draws the simulated seatings and placements. What
+    the plate identifies and cannot reach is the structure's, found once on the smallest design.
+
+    Parameters
+    ----------
+    {model}
+    placements : sequence of int
+        Numbers of plate placements to consider.
+    poses_per_socket : sequence of int
+        Numbers of seatings per socket to consider.
+    {joint_noise, seat_noise, parameters, bounds}
+    seed : None, int or numpy.random.Generator
+        Seed of the simulated seatings.
+
+    Returns
+    -------
+    SocketPlan
+        Each design's predicted standard deviations and the recommended one.
+
+    >>> import robocal as rc
+    >>> plan = plan_sockets(rc.read_model("examples/arm7/model.yaml"), placements=(3,), poses_per_socket=(20,))
+    >>> plan.designs[0].n_seatings, plan.designs[0].unreachable
+    (180, ('base',))
+    """
+    if not placements or not poses_per_socket or min(placements) < 1 or min(poses_per_socket) < 1:
+        raise InputError("placements and poses per socket must be positive counts", where="placements")
+    names = candidate_parameters(model, parameters)
+    bounds = {**WEAK_STD, **(bounds or {})}
+    placements, per = sorted(set(placements)), sorted(set(poses_per_socket))
+    _check_cost(placements, per, len(PLATE))
+    # one campaign of the largest design; each smaller one takes its first placements and first
+    # seatings of each socket, so a larger design holds every row of a smaller one (never predicts worse)
+    full = socket_campaign(model, placements=placements[-1], poses_per_socket=per[-1], joint_noise=joint_noise,
+                           seat_noise=seat_noise, rng=np.random.default_rng(seed))
+    row = np.arange(full.n_rows)
+    seating, placement = row % per[-1], row // (full.n_rows // placements[-1])     # rows: placement, socket, seating
+    designs, campaigns, ident = [], {}, None
+    for n_pl in placements:
+        for n_po in per:
+            c = full.subset((placement < n_pl) & (seating < n_po))
+            if ident is None:
+                ident = contact_identifiability(ContactProblem(model, c, names, compliance=False), names)
+            designs.append(_design(model, c, names, n_pl, n_po, ident, bounds))
+            campaigns[(n_pl, n_po)] = c
+    good = [d for d in designs if d.meets_bounds]
+    chosen = min(good, key=lambda d: (d.n_seatings, d.placements)) if good else None
+    return SocketPlan(tuple(designs), chosen,
+                      None if chosen is None else campaigns[(chosen.placements, chosen.poses_per_socket)])
