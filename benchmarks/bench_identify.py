@@ -69,7 +69,7 @@ def solve(model, data, families, jac):
     def problem():
         # a new problem for every run: a problem keeps its last evaluations, and a solve repeated on
         # the same one would find them all kept
-        return Problem(model, data, ident.identified, compliance="compliance" in families)
+        return Problem(model, ident.identified, data=data, compliance="compliance" in families)
 
     if jac:
         return lambda: library_solve(problem(), p0)

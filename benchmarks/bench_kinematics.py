@@ -60,7 +60,7 @@ def step_times(m, n: int, repeat: int, out: str) -> dict:
     parameters are saved to ``out`` (an .npz) for the comparison."""
     _, data = rc.simulate(m, n, seed=1)
     names = rc.identifiability(m, data, parameters=("geometric",)).identified
-    prob = Problem(m, data, names, compliance=False)
+    prob = Problem(m, names, data=data, compliance=False)
     p0 = parameter_vector(m)
     rng = np.random.default_rng(0)
     moves = iter([prob.full(p0[prob.free_idx] + 1e-6 * rng.standard_normal(len(names)), p0)

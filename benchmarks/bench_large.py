@@ -54,8 +54,8 @@ def main(argv=None):
     sub = data.subset(slice(0, args.check_poses))
     names = rc.identifiability(m, sub).identified
     p0 = parameter_vector(m)
-    chunked = solve(Problem(m, sub, names, compliance=False, chunked=True), p0)
-    whole = solve(Problem(m, sub, names, compliance=False, chunked=False), p0)
+    chunked = solve(Problem(m, names, data=sub, compliance=False, chunked=True), p0)
+    whole = solve(Problem(m, names, data=sub, compliance=False, chunked=False), p0)
     scale = np.maximum(np.abs(whole.p), 1e-300)
     print(f"{args.check_poses}-pose subset, chunked against in-memory solve: largest relative difference "
           f"{np.max(np.abs(chunked.p - whole.p) / scale):.1e} (nfev {chunked.nfev} and {whole.nfev})")

@@ -15,7 +15,7 @@ the real UR5 and WAM campaigns of tests/data/real: the cause named, if any (none
 With ``--contacts``, calibrations from contacts instead (``diagnose_contacts``): every mistake of
 tests/test_contact_diagnosis.py injected into socket campaigns of the 6R arm (3 placements of a
 3-socket plate, 12 seatings a socket, spacings stated), SEEDS seeds each, calibrated as a user would
-(``calibrate_contacts`` with its defaults); then CLEAN seeds each of clean campaigns, of an arm whose
+(``calibrate`` with contacts and its defaults); then CLEAN seeds each of clean campaigns, of an arm whose
 shoulder and elbow bend under gravity and of one with gear errors, calibrated as geometric; last the
 time of ``diagnose_contacts`` on 3-placement campaigns of 25 seatings a socket against the
 calibration's it explains.
@@ -115,14 +115,14 @@ def _contact_run(contacts, model=None):
     import test_contact_diagnosis as cases
 
     from robocal.errors import RobocalError
-    from robocal.identification import calibrate_contacts, diagnose_contacts
+    from robocal.identification import calibrate, diagnose_contacts
 
     model = model or cases.arm()
     t0 = time.process_time()
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            result = calibrate_contacts(model, contacts)
+            result = calibrate(model, contacts=contacts)
     except RobocalError as e:
         print(f"    calibration failed: {e}", flush=True)
         return None

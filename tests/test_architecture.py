@@ -22,12 +22,14 @@ LAYERS = [
     {"_files"},
     {"_store"},
     {"_presentation"},
-    {"__init__", "errors", "kinematics", "io", "sim", "limit", "report", "identification"},
+    {"__init__", "errors", "kinematics", "io", "sim", "limit", "report", "identification", "store"},
     {"cli", "__main__"},
 ]
 LAYER = {name: i for i, names in enumerate(LAYERS) for name in names}
 MAX_FUNCTION_LINES = 80
 MAX_CALIBRATE_LINES = 60
+# the package's top: the public facades, the entry points and the version, nothing else
+MAX_TOP_MODULES = 12
 
 
 def _modules():
@@ -63,6 +65,19 @@ def _imports(path: Path):
             for a in node.names:
                 if a.name.startswith("robocal."):
                     yield a.name.split(".")[1], [], node.lineno
+
+
+def test_the_top_of_the_package_holds_facades_and_folders_only():
+    top = sorted(p.name for p in SRC.glob("*.py"))
+    assert len(top) <= MAX_TOP_MODULES, top
+    private = [n for n in top if n.startswith("_") and n not in ("__init__.py", "__main__.py", "_version.py")]
+    assert not private, f"private modules belong in a folder: {private}"
+
+
+def test_each_folder_says_what_lives_there_and_what_it_may_import():
+    for init in SRC.glob("_*/__init__.py"):
+        doc = ast.get_docstring(ast.parse(init.read_text()))
+        assert doc and "May import:" in doc, f"{init.relative_to(SRC)} does not say what it may import"
 
 
 def test_every_module_has_a_layer():
@@ -186,7 +201,8 @@ def test_every_public_module_is_an_attribute_of_a_fresh_robocal():
     import sys
 
     code = ("import robocal as rc; "
-            "[getattr(rc, m) for m in ('kinematics', 'io', 'sim', 'limit', 'report', 'errors', 'identification')]")
+            "[getattr(rc, m) for m in ('kinematics', 'io', 'sim', 'limit', 'report', 'errors', 'identification', "
+            "'store')]")
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          env={"PYTHONPATH": str(ROOT / "src"), "PATH": ""})
     assert run.returncode == 0, run.stderr

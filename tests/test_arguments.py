@@ -34,7 +34,7 @@ def public_functions() -> dict[str, object]:
 @functools.cache
 def world():
     """A small robot, its data, results and files, shared by the valid calls below."""
-    from robocal.identification import ContactProblem, Problem
+    from robocal.identification import Problem
     from robocal.sim import RobotImperfections, socket_campaign
 
     model = rc.default_masses(rc.serial_model("rrr", [dict(), dict(alpha=-np.pi / 2, r=0.1), dict(d=0.4)],
@@ -49,7 +49,7 @@ def world():
     contacts = socket_campaign(arm7, placements=3, poses_per_socket=6, rng=0)
     arm7_names = rc.candidate_parameters(arm7)
     ident = rc.identifiability(model, data)
-    problem = Problem(model, data, ident.identified, compliance=False)
+    problem = Problem(model, ident.identified, data=data, compliance=False)
     from robocal.identification import solve
     solution = solve(problem, rc.parameter_vector(model))
     J = rc.jacobian(model, data.q)[:, 0, :3, :].transpose(0, 2, 1).reshape(-1, len(rc.parameter_names(model)))
@@ -58,8 +58,8 @@ def world():
     return dict(
         rep=rep, repeatability=rc.iso9283_repeatability(rep.pose_ids, rep.points), model=model, true=true,
         data=data, result=result, comparison=comparison, q=data.q[:5], names=names,
-        contacts=contacts, arm7=arm7, arm7_names=arm7_names, cresult=rc.calibrate_contacts(arm7, contacts),
-        cproblem=ContactProblem(arm7, contacts, arm7_names, compliance=False),
+        contacts=contacts, arm7=arm7, arm7_names=arm7_names, cresult=rc.calibrate(arm7, contacts=contacts),
+        cproblem=Problem(arm7, arm7_names, contacts=contacts, compliance=False),
         precision=rc.controller_precision(model, encoder_resolution=(1e-5,) * 3, length_quantum=1e-5,
                                           angle_quantum=1e-5, n_samples=200, rng=0),
         imp=RobotImperfections(encoder_resolution=(1e-5,) * 3, repeatability_sigma=1e-5,
@@ -219,7 +219,6 @@ def valid_calls(tmp: Path) -> dict:
         "placement_errors": ((w["true"], m, rc.sim.UnmodelledEffects()), {"n": 5, "rng": 0}),
         "reach": ((m, rc.forward_kinematics(m, q).positions[:, 0]), {"rng": 0}),
         # identification
-        "calibrate_contacts": ((w["arm7"], w["contacts"]), {}),
         "contact_errors": ((w["arm7"], w["contacts"]), {}),
         "contact_identifiability": ((w["cproblem"], w["arm7_names"]), {}),
         "analyse": ((w["J"], w["all_names"]), {}),
@@ -415,10 +414,6 @@ BAD = [
     ("bar_campaign", "pairs", 0), ("bar_campaign", "length", INF), ("plate_placements", "n", 0),
     ("plate_placements", "tilt_deg", 100.0), ("plate_placements", "box", np.zeros(3)),
     ("reach", "targets", np.zeros((2, 2))), ("reach", "targets", np.full((1, 3), 9.0)), ("reach", "max_rounds", 0),
-    ("calibrate_contacts", "tol", 0.0), ("calibrate_contacts", "loss", "l1"), ("calibrate_contacts", "contacts", None),
-    ("calibrate_contacts", "max_nfev", 0), ("calibrate_contacts", "weak", "drop"),
-    ("calibrate_contacts", "limit", -1.0), ("calibrate_contacts", "nonnegative_compliance", "yes"),
-    ("calibrate_contacts", "folds", 1),
     ("calibrate", "contacts", "c.csv"), ("solve", "linear_rows", np.zeros((2, 2))),
     ("contact_errors", "contacts", "c.csv"),
     ("contact_identifiability", "names", ["j1.nope"]), ("contact_identifiability", "tol", 1.0),

@@ -222,13 +222,13 @@ def test_a_backlash_whose_side_never_changes_is_absorbed_by_its_joint_offset():
 
 
 def test_backlash_checks_sign_tolerance_and_support():
-    from robocal._identification.calibrate import ParameterEstimate
     from robocal._identification.checks import (
         DEFAULT_TOLERANCES,
         backlash_sign_check,
         plausibility_check,
         support_check,
     )
+    from robocal._identification.estimates import ParameterEstimate
     e = ParameterEstimate("j1.backlash_theta", "rad", 0.0, -1e-3, 1e-5, family="backlash", quantity="angle")
     assert backlash_sign_check([e]).status == "warn"
     assert backlash_sign_check([replace(e, estimate=-1e-5)]).status == "pass"

@@ -174,7 +174,7 @@ def test_validation_without_data_keeps_fields_present():
 def test_a_campaign_solved_in_chunks_gives_the_in_memory_answer(monkeypatch):
     """Large campaigns are evaluated a chunk of poses at a time and solved on normal equations;
     small chunks here make the same path run on a small campaign."""
-    import robocal._identification.problem as problem
+    import robocal._identification.points as problem
     import robocal._model.kinematics as kinematics
     from robocal.identification import Problem
 
@@ -186,7 +186,7 @@ def test_a_campaign_solved_in_chunks_gives_the_in_memory_answer(monkeypatch):
     for module in (kinematics, problem):
         monkeypatch.setattr(module, "LARGE_POSES", 150)
         monkeypatch.setattr(module, "CHUNK_POSES", 70)
-    assert Problem(m, data, whole.parameter_names, compliance=False).chunked
+    assert Problem(m, whole.parameter_names, data=data, compliance=False).chunked
     chunked = rc.calibrate(m, data)
     assert chunked.parameter_names == whole.parameter_names and chunked.success
     est = [np.array([(e.estimate, e.std) for e in r.parameters]) for r in (chunked, whole)]
@@ -211,7 +211,7 @@ def test_the_solve_on_normal_equations_lands_where_minpack_does(make):
     m = make()
     _, data = rc.simulate(m, 80, seed=5, noise=NOISE)
     names = rc.identifiability(m, data).identified
-    prob = Problem(m, data, names, compliance=False)
+    prob = Problem(m, names, data=data, compliance=False)
     p0 = parameter_vector(m)
     ours = solve(prob, p0)
     ref = least_squares(lambda x: prob.residuals(prob.full(x, p0)), p0[prob.free_idx],
@@ -250,7 +250,7 @@ def test_a_campaign_in_chunks_holds_one_chunk_at_a_time(monkeypatch):
     keeps no chunk's evaluation beyond the chunk (traced numpy memory, against one chunk's)."""
     import tracemalloc
 
-    import robocal._identification.problem as problem
+    import robocal._identification.points as problem
     import robocal._model.kinematics as kinematics
     from robocal.identification import Problem
     from robocal.kinematics import parameter_vector
@@ -265,7 +265,7 @@ def test_a_campaign_in_chunks_holds_one_chunk_at_a_time(monkeypatch):
     def peak(d):
         # an equal model of its own each time: a model's workspace keeps the pass buffers of its
         # earlier problems, which the next one would write into untraced
-        prob = Problem(arm6r(), d, ("j1.theta",), compliance=False)
+        prob = Problem(arm6r(), ("j1.theta",), data=d, compliance=False)
         tracemalloc.start()
         prob.residuals(p)
         out = tracemalloc.get_traced_memory()[1]

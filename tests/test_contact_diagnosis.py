@@ -21,7 +21,7 @@ import robocal as rc
 from robocal._diagnosis import contacts as cd
 from robocal._diagnosis import measured as dg
 from robocal.errors import InputError
-from robocal.identification import calibrate_contacts, diagnose_contacts
+from robocal.identification import diagnose_contacts
 from robocal.sim import bar_campaign, plane_campaign, socket_campaign
 
 SEEDS = range(5)
@@ -78,7 +78,7 @@ def diagnosed(contacts, model=None, data=None):
     first = contacts.subset(np.array(contacts.placement) == contacts.placement[0])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        result = calibrate_contacts(model, contacts, data=data, validation=first, on_outliers="flag",
+        result = rc.calibrate(model, contacts=contacts, data=data, validation=first, on_outliers="flag",
                                     max_nfev=MAX_NFEV)
     return result, diagnose_contacts(model, contacts, result, data=data)
 

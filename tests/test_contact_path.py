@@ -53,9 +53,9 @@ def test_a_contact_calibration_is_a_calibration_result_that_reads_back_whole(arm
     assert isinstance(res, rc.CalibrationResult) and res.contacts is not None
     assert res.errors_before.shape == (0, 1) and res.stats["fit_after"].n == 0    # no measured point fitted
     # its accuracy in use: the socket consistency of each placement predicted by the others
-    assert res.in_use.grouping == "placement" and res.in_use.folds == 4
+    assert res.in_use.grouping == "each placement predicted by the others" and res.in_use.folds == 4
     assert res.in_use.position_after.mean == pytest.approx(res.contacts.held_out.consistency_mean, rel=1e-12)
-    assert res.in_use.position_before.mean == pytest.approx(res.contacts.fit_before.consistency_mean, rel=1e-12)
+    assert res.in_use.position_before.mean > 20 * res.in_use.position_after.mean
     rc.write_result(res, tmp_path / "result.json")
     back = rc.read_result(tmp_path / "result.json")
     assert [(p.name, p.estimate, p.std) for p in back.parameters] == [(p.name, p.estimate, p.std)
@@ -164,7 +164,7 @@ def test_holdout_takes_a_fraction_of_the_placements(cli, kit, tmp_path):
     saved = json.loads((tmp_path / "h" / "result.json").read_text())["contacts"]
     assert {k.split("/")[0] for k in saved["validation_after"]["consistency_m"]} == {name}
     assert name not in {k.split("/")[0] for k in saved["fit_after"]["consistency_m"]}
-    assert saved["held_out_by_placement"] is None
+    assert name not in {k.split("/")[0] for k in saved["held_out_by_placement"]["consistency_m"]}
 
 
 def test_measured_points_judge_a_contact_calibration_in_use(cli, arm7, kit, tmp_path):
@@ -182,7 +182,7 @@ def test_measured_points_judge_a_contact_calibration_in_use(cli, arm7, kit, tmp_
     assert use.method == "validation, base and tool registered on it" and use.position_after.n == 30
     assert use.position_after.mean < use.position_before.mean / 20
     assert back.validation_after.shape == (30, 1) and back.stats["validation_after"].n == 30
-    assert {c.name for c in back.checks} >= {"accuracy in use", "accuracy in use, placements predicted by the others"}
+    assert "accuracy in use" in {c.name for c in back.checks}
     from robocal._presentation.units import fmt
     from robocal.report import render_report
 
@@ -199,9 +199,9 @@ def test_register_base_needs_measured_points_beside_the_contacts(cli, kit, tmp_p
     code, out, err = cli("calibrate", ARM7, folder / "tracker.csv", "--contacts", folder / "sockets.csv",
                          "--out", tmp_path / "r", "--register-base")
     assert code == 0, err
-    assert "rigid registration" in out and "tracker points:" in out
+    assert "closed-form registration" in out and "tracker points:" in out
     plain = json.loads((tmp_path / "r" / "result.json").read_text())
-    assert any("rigid registration" in n for n in plain["notes"])
+    assert any("closed-form registration" in n for n in plain["notes"])
     code, _, err = cli("calibrate", ARM7, "--contacts", folder / "sockets.csv", "--out", tmp_path / "alone",
                        "--register-base")
     assert_one_line_error(code, err, ["initial_base", "no frame"], tmp_path / "alone")

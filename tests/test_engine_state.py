@@ -110,7 +110,7 @@ def test_contacts_hold_their_own_read_only_arrays():
 def _problem(model, n=30, seed=1):
     _, data = rc.simulate(model, n, seed=seed)
     names = rc.candidate_parameters(model, ("geometric",) if not model.has_masses else ("geometric", "compliance"))
-    return Problem(model, data, names, compliance=model.has_masses)
+    return Problem(model, names, data=data, compliance=model.has_masses)
 
 
 @pytest.mark.parametrize("masses", [False, True])
@@ -177,25 +177,45 @@ def test_the_identification_module_loads_on_first_use():
     assert out.stdout.strip() == "calibrate"
 
 
-def test_a_models_workspace_takes_back_only_buffers_nobody_holds():
+def test_a_models_workspace_keeps_what_owners_give_back_within_its_bound():
+    """Buffers go back by their owner's word, never by counting references: the workspace keeps what
+    it is given (within ``WORKSPACE_BYTES``) and hands a spare out once."""
     from robocal._model.kinematics import WORKSPACE_BYTES, workspace
 
     m = arm6r()
     ws = workspace(m)
     assert ws is workspace(m) and ws is not workspace(arm6r())
     shape = (2, 3, 5)
-    held = ws.take(shape)
-    view = held[1]                            # a view alive somewhere keeps its buffer out
-    buffers = [ws.take(shape), held]
-    free = id(buffers[0])
-    del held
-    ws.give(buffers)
-    assert [id(a) for a in ws._spare] == [free]
-    assert ws.take(shape) is not None and not ws._spare
-    assert not np.shares_memory(ws.take(shape), view), "a buffer a view still showed was handed out again"
+    a, b = ws.take(shape), ws.take(shape)
+    ws.give([a, b])
+    assert {id(x) for x in ws._spare} == {id(a), id(b)}
+    assert id(ws.take(shape)) in (id(a), id(b)) and len(ws._spare) == 1
     big = [np.empty(WORKSPACE_BYTES // 8 // 2 + 1) for _ in range(3)]
     ws.give(big)
-    assert sum(a.nbytes for a in ws._spare) <= WORKSPACE_BYTES
+    assert sum(x.nbytes for x in ws._spare) <= WORKSPACE_BYTES
+
+
+def test_a_problem_gives_back_only_evaluations_nothing_of_it_reads():
+    """An evaluation moved rigidly from a dropped one reads the dropped one's buffers: those go back
+    only when the moved one goes too; the problem's outputs are copies, never views of a buffer."""
+    from robocal._identification import points
+    from robocal._model.kinematics import workspace
+
+    m = arm6r()
+    _, data = rc.simulate(m, 20, seed=3)
+    prob = points.Points(m, data, rc.candidate_parameters(m), compliance=False)
+    p = parameter_vector(m)
+    out = prob.predicted(p)[0]
+    assert not any(np.shares_memory(out, st.ps.vec) for st in prob._kept.states.values())
+    moved = p.copy()
+    moved[:3] += 1e-3                                   # base only: an evaluation moved from the first
+    prob.residuals(moved)
+    source = next(iter(prob._kept.states.values()))
+    prob._kept.drop_oldest()                            # the first goes, but the moved one reads it
+    assert prob._kept.read and prob._kept.read[0] is source
+    assert not any(b is source.ps.vec for b in workspace(m)._spare)
+    prob._kept.drop_oldest()                            # the moved one goes: both give their buffers back
+    assert not prob._kept.read and any(b is source.ps.vec for b in workspace(m)._spare)
 
 
 @pytest.mark.parametrize("compliance", [False, True])
@@ -210,13 +230,13 @@ def test_problems_reusing_a_models_buffers_give_the_same_results(compliance):
     for k in range(1, 12, 3):                          # base and markers alone: a pass moved rigidly
         steps[k] = steps[k - 1].copy()
         steps[k][:3] += 1e-3
-    first = Problem(m, data, names, compliance=compliance)
+    first = Problem(m, names, data=data, compliance=compliance)
     want = [(first.residuals(q), np.array(first.jacobian(q))) for q in steps]
     del first
     gc.collect()
     spares = workspace_spares(m)
     assert spares > 0
-    again = Problem(m, data, names, compliance=compliance)
+    again = Problem(m, names, data=data, compliance=compliance)
     for q, (r, J) in zip(steps, want):
         np.testing.assert_array_equal(again.residuals(q), r)
         np.testing.assert_array_equal(again.jacobian(q), J)

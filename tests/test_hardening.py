@@ -590,15 +590,15 @@ def test_contact_result_with_a_non_finite_deviation_is_not_written(tmp_path, cli
     """A contacts result once went out with a standard deviation of NaN, exit 0: the writer checks."""
     from dataclasses import replace
 
-    import robocal._identification.contact_figures as cc
+    import robocal._identification.calibrate as face
 
-    real = cc.fit_contacts
+    real = face.run
 
     def nan_std(*a, **k):
         res = real(*a, **k)
         return replace(res, parameters=(replace(res.parameters[0], std=float("nan")),) + res.parameters[1:])
 
-    monkeypatch.setattr(cc, "fit_contacts", nan_std)
+    monkeypatch.setattr(face, "run", nan_std)
     (tmp_path / "c.csv").write_text(_contacts())
     one_line(cli, ("calibrate", ARM7 / "model.yaml", "--contacts", tmp_path / "c.csv", "--out", tmp_path / "o"),
              ["non-finite", " std"], seconds=120)

@@ -13,7 +13,7 @@ import pytest
 from robots import arm6r
 
 import robocal as rc
-from robocal.identification import Problem, solve
+from robocal.identification import Points, Problem, solve
 from robocal.sim import PRESETS, UnmodelledEffects, measure_real, placement_errors
 
 NOISE = 2e-5
@@ -58,12 +58,16 @@ def test_cross_validation_by_one_step_equals_refitting_each_fold():
     names = result.parameter_names
     labels = np.arange(100) * 5 // 100
     refit = np.zeros(100)
-    full = solve(Problem(m, data, names, compliance=False), rc.parameter_vector(m))
+    full = solve(Problem(m, names, data=data, compliance=False), rc.parameter_vector(m))
     for g in range(5):
-        sol = solve(Problem(m, data.subset(labels != g), names, compliance=False), full.p)
-        refit[labels == g] = Problem(m, data.subset(labels == g), names, compliance=False).error_norms(sol.p)[:, 0]
-    from robocal._identification.holdout import cross_validate  # the engine of the figure tested against refits
-    one_step = cross_validate(Problem(m, data, names, compliance=False), full.p, labels, 5).norms[:, 0]
+        sol = solve(Problem(m, names, data=data.subset(labels != g), compliance=False), full.p)
+        held = Problem(m, names, data=data.subset(labels == g), compliance=False)
+        refit[labels == g] = held.points.error_norms(sol.p)[:, 0]
+    # the engine of the figure tested against refits
+    from robocal._identification.holdout import Holdout, cross_validate
+    whole = Problem(m, names, data=data, compliance=False)
+    holdout = Holdout(labels, 5, "5 folds of consecutive poses", labels, 5)
+    one_step = cross_validate(whole, full.p, holdout).norms[:, 0]
     assert np.max(np.abs(one_step - refit)) < 1e-3 * refit.mean()
 
 
@@ -313,7 +317,7 @@ def test_point_losses_from_the_errors_at_hand_are_the_residuals_own(chunked):
     mask = data.mask & (rng.random(data.mask.shape) > 0.2)
     data = replace(data, mask=mask, positions=np.where(mask[..., None], data.positions, np.nan),
                    sigma=rng.uniform(1e-5, 3e-5, mask.shape))
-    prob = Problem(robot, data, ("j2.d", "j3.theta"), compliance=False, chunked=chunked)
+    prob = Points(robot, data, ("j2.d", "j3.theta"), compliance=False, chunked=chunked)
     p = rc.parameter_vector(robot) + 1e-4
     a, b = point_loss(prob, p), point_loss(prob, p, prob.errors(p))
     assert a.shape == mask.shape and np.array_equal(a, b) and np.all(a[~mask] == 0) and np.all(a[mask] > 0)

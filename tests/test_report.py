@@ -756,7 +756,7 @@ def test_terminal_tables_align_for_long_names():
 
 
 def test_summary_error_columns_stay_apart_past_999_mm():
-    from robocal._identification.calibrate import ErrorStats
+    from robocal._identification.estimates import ErrorStats
     from robocal._presentation.text import stats_lines
 
     big = {"fit_before": ErrorStats(36, 3.252, 1.06, 3.4, 12.5), "fit_after": ErrorStats(36, 4e-4, 2e-4, 5e-4, 1e-3),

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 import robocal as rc
-from robocal.identification import ContactProblem, calibrate_contacts, contact_errors, contact_identifiability
+from robocal.identification import Problem, contact_errors, contact_identifiability
 from robocal.sim import bar_campaign, plane_campaign, socket_campaign
 
 MODEL = Path(__file__).resolve().parent / "model.yaml"
@@ -43,7 +43,7 @@ def z_scores(result, true, nominal) -> np.ndarray:
 def truth_for(m, campaign, rng):
     """A true arm with errors on what ``campaign`` identifies (found on the nominal arm)."""
     names = rc.candidate_parameters(m, ("geometric",))
-    ident = contact_identifiability(ContactProblem(m, campaign(m, rng), names, compliance=False), names)
+    ident = contact_identifiability(Problem(m, names, contacts=campaign(m, rng), compliance=False), names)
     return rc.perturb_model(m, [n for n in ident.identified if not n.startswith("base.")], rng=rng)
 
 
@@ -57,9 +57,9 @@ def sockets(m, rng):
     c = campaign(true, rng)
     held = c.placements()[-1]
     fit, val = c.split_placements([held])
-    res = calibrate_contacts(m, fit, validation=val)
+    res = rc.calibrate(m, contacts=fit, validation=val)
     names = rc.candidate_parameters(m, ("geometric",))
-    without = contact_identifiability(ContactProblem(m, replace(fit, distances=()), names, compliance=False), names)
+    without = contact_identifiability(Problem(m, names, contacts=replace(fit, distances=()), compliance=False), names)
     ratio = res.contacts.validation_after.mean_spread / contact_errors(true, val).mean_spread
     return dict(placements=placements, poses=poses, z=z_scores(res, true, m), ratio=ratio,
                 named=[u.name for u in res.contacts.identifiability.unreachable],
@@ -77,8 +77,8 @@ def with_tracker(m, rng):
     c = socket_campaign(true, placements=3, poses_per_socket=20, joint_noise=ENCODER, rng=rng)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        models = [rc.calibrate(m, fit_t).calibrated_model, calibrate_contacts(m, c).calibrated_model,
-                  calibrate_contacts(m, c, data=fit_t).calibrated_model, true]
+        models = [rc.calibrate(m, fit_t).calibrated_model, rc.calibrate(m, contacts=c).calibrated_model,
+                  rc.calibrate(m, contacts=c, data=fit_t).calibrated_model, true]
     return [float(np.sqrt(np.mean(np.sum((rc.forward_kinematics(x, val_t.q).positions - val_t.positions) ** 2,
                                          axis=2)))) for x in models]
 
@@ -90,7 +90,7 @@ def others(m, rng, kind):
         return bar_campaign(robot, pairs=90, joint_noise=ENCODER, rng=r)
 
     true = truth_for(m, campaign, rng)
-    return z_scores(calibrate_contacts(m, campaign(true, rng)), true, m)
+    return z_scores(rc.calibrate(m, contacts=campaign(true, rng)), true, m)
 
 
 def _z_line(label, zs):

@@ -1,10 +1,10 @@
 """robocal: identify a robot's geometric and compliance parameters from measurements.
 
-``import robocal as rc`` gives the everyday surface; the modules ``robocal.kinematics``,
-``robocal.io``, ``robocal.sim``, ``robocal.limit``, ``robocal.report``, ``robocal.identification``
-and ``robocal.errors`` hold the rest. Conventions (frames, units, parameter order) are in
-docs/conventions.md. Names load on first use, so the command line starts without the numerical
-libraries.
+``import robocal as rc`` gives the everyday surface, each name served by the public module that
+holds it: ``robocal.kinematics``, ``robocal.io``, ``robocal.sim``, ``robocal.limit``,
+``robocal.report``, ``robocal.identification``, ``robocal.store`` and ``robocal.errors``.
+Conventions (frames, units, parameter order) are in docs/conventions.md. Names load on first use,
+so the command line starts without the numerical libraries.
 """
 
 from importlib import import_module
@@ -18,40 +18,32 @@ _EVERYDAY = {
     "kinematics": ("Frame", "Marker", "Payload", "RobotModel", "serial_model", "parallel_beta_frames",
                    "mdh_transform", "evaluate", "forward_kinematics", "jacobian", "gravity_loads", "joint_jacobian",
                    "parameter_names", "parameter_vector", "model_from_vector", "candidate_parameters",
-                   "random_configurations", "default_masses"),
-    "io": ("Measurements", "read_model", "write_model", "model_from_dict", "model_to_dict", "read_measurements",
-           "write_measurements", "split_sets", "read_result", "write_result", "read_urdf", "write_urdf",
-           "from_standard_dh", "mdh_table", "write_mdh_csv", "read_dh_table", "urdf_text", "to_standard_dh",
-           "read_repeatability_csv"),
-    "sim": ("simulate", "measure", "perturb_model"),
+                   "random_configurations", "default_masses", "inverse_kinematics", "InverseKinematics", "posture",
+                   "compensate", "Compensation", "compensate_poses", "PoseCompensation"),
+    "io": ("Measurements", "Noise", "Contacts", "KnownDistance", "KnownPlane", "read_model", "write_model",
+           "model_from_dict", "model_to_dict", "read_measurements", "write_measurements", "split_sets", "read_result",
+           "write_result", "read_urdf", "write_urdf", "from_standard_dh", "mdh_table", "write_mdh_csv",
+           "read_dh_table", "urdf_text", "to_standard_dh", "read_repeatability_csv"),
+    "sim": ("simulate", "measure", "perturb_model", "select_poses", "PoseSelection", "predict_campaign",
+            "CampaignPrediction"),
     "limit": ("AccuracyLimit", "PoseRepeatability", "PrecisionResult", "PredictedPrecision", "RepeatabilityData",
               "RepeatabilityResult", "accuracy_limit", "controller_precision", "iso9283_repeatability",
-              "predicted_controller_precision"),
-    "report": ("render_report", "write_report"),
-    "_model.measurements": ("Noise",),
-    "_identification.checks": ("Check",),
-    "_diagnosis.measured": ("diagnose", "Diagnosis", "Finding"),
-    "_diagnosis.contacts": ("diagnose_contacts",),
-    "_identification.calibrate": ("calibrate", "calibrate_contacts", "compare", "register_base", "error_stats",
-                     "CalibrationResult", "Comparison", "ParameterEstimate", "ErrorStats", "ErrorSummary",
-                     "LimitJudgement"),
-    "_identification.identifiability": ("identifiability", "status_table", "Absorption", "IdentifiabilityResult"),
-    "_simulation.poses": ("select_poses", "PoseSelection", "predict_campaign", "CampaignPrediction"),
-    "_accuracy.compensation": ("compensate", "Compensation", "compensate_poses", "PoseCompensation",
-                               "inverse_kinematics", "InverseKinematics", "posture"),
-    "_model.contacts": ("Contacts", "KnownDistance", "KnownPlane"),
-    "_identification.contact_figures": ("contact_errors", "ContactFigures", "ContactErrors"),
-    "_accuracy.verification": ("verify", "Verification", "Accuracy", "positional_accuracy"),
-    "_store.store": ("Store", "open_store", "store_location", "default_store_path", "history", "type_comparison",
-               "verify_robot", "latest_usable", "judge_changes", "judge_overall", "compare_type", "stored_calibration",
-               "accuracy_at_calibration", "History", "Change", "Overall", "TypeComparison", "Latest", "Outlier",
-               "StoredCalibration", "StoredVerification", "Estimate", "model_document", "sidak_threshold",
-               "JUDGED_FAMILIES"),
-    "_presentation.history": ("change_line", "history_summary", "type_summary", "verification_summary",
-                              "render_history", "write_history"),
+              "predicted_controller_precision", "verify", "Verification", "Accuracy", "positional_accuracy"),
+    "report": ("render_report", "write_report", "change_line", "history_summary", "type_summary",
+               "verification_summary", "render_history", "write_history"),
+    "identification": ("calibrate", "compare", "register_base", "error_stats",
+                       "CalibrationResult", "Comparison", "ParameterEstimate", "ErrorStats", "ErrorSummary",
+                       "LimitJudgement", "Check", "diagnose", "Diagnosis", "Finding", "diagnose_contacts",
+                       "identifiability", "status_table", "Absorption", "IdentifiabilityResult", "contact_errors",
+                       "ContactFigures", "ContactErrors"),
+    "store": ("Store", "open_store", "store_location", "default_store_path", "history", "type_comparison",
+              "verify_robot", "latest_usable", "judge_changes", "judge_overall", "compare_type", "stored_calibration",
+              "accuracy_at_calibration", "History", "Change", "Overall", "TypeComparison", "Latest", "Outlier",
+              "StoredCalibration", "StoredVerification", "Estimate", "model_document", "sidak_threshold",
+              "JUDGED_FAMILIES"),
 }
 _WHERE = {name: module for module, names in _EVERYDAY.items() for name in names}
-_SUBMODULES = ("kinematics", "io", "sim", "limit", "report", "errors", "identification", "cli")
+_SUBMODULES = ("kinematics", "io", "sim", "limit", "report", "errors", "identification", "store", "cli")
 
 __all__ = ["__version__"] + sorted(_WHERE)
 

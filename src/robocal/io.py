@@ -23,11 +23,12 @@ from ._files.result import (
 )
 from ._files.table import ColumnMap
 from ._files.urdf import read_urdf, urdf_text, write_urdf
+from ._model.contacts import Contacts, KnownDistance, KnownPlane
 from ._model.conversion import StandardDH, from_standard_dh, mdh_table, to_standard_dh
-from ._model.measurements import Measurements
+from ._model.measurements import Measurements, Noise
 
 __all__ = ["read_model", "write_model", "calibration_record", "model_from_dict", "model_to_dict", "model_to_yaml",
-           "Measurements",
+           "Measurements", "Noise", "Contacts", "KnownDistance", "KnownPlane",
            "read_measurements", "write_measurements", "read_profile", "profile_from_dict",
            "Profile", "ColumnMap", "measurements_to_csv", "split_sets", "read_result",
            "write_result", "result_files", "sidecar_path", "result_from_dict", "result_to_dict", "result_to_json",

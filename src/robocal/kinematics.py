@@ -5,8 +5,19 @@ identification Jacobian, gravity loads, and the parameters (names, units, vector
 ``jacobian`` are the batched engine (poses first: ``q`` is (n_poses, n_joints)), tested against it.
 """
 
-from ._accuracy.compensation import POSTURE, arm_chain, inverse_kinematics, joint_jacobian, posture
-from ._identification.problem import random_configurations, sampling_box
+from ._accuracy.compensation import (
+    POSTURE,
+    Compensation,
+    InverseKinematics,
+    PoseCompensation,
+    arm_chain,
+    compensate,
+    compensate_poses,
+    inverse_kinematics,
+    joint_jacobian,
+    posture,
+)
+from ._model.configurations import random_configurations, sampling_box
 from ._model.kinematics import Evaluation, evaluate, forward_kinematics, gravity_loads, jacobian
 from ._model.parameters import (
     BASE_KINDS,
@@ -47,4 +58,5 @@ __all__ = ["Frame", "Marker", "Payload", "RobotModel", "serial_model", "parallel
            "sampling_box",
            "BASE_KINDS", "GEOMETRIC_KINDS", "COMPLIANCE_KINDS", "FRAME_KINDS", "MARKER_KINDS", "KIND_QUANTITY",
            "SI_UNITS", "FAMILIES"]
-__all__ += ["POSTURE", "arm_chain", "posture", "inverse_kinematics"]
+__all__ += ["POSTURE", "arm_chain", "posture", "inverse_kinematics", "InverseKinematics", "compensate", "Compensation",
+            "compensate_poses", "PoseCompensation"]

@@ -39,7 +39,7 @@ from .._base.errors import InputError, check_choice
 from .._base.options import LIMIT_CHUNK, LIMIT_MARKER_MODES, MAX_CHUNK, MAX_SAMPLES
 from .._base.spatial import cross, vector3
 from .._base.threads import one_blas_thread
-from .._identification.problem import sampling_box
+from .._model.configurations import sampling_box
 from .._model.kinematics import evaluate, kinematic_pass, layout
 from .._model.parameters import families, parameter_layout, parameter_vector
 from .._model.robot import RobotModel

@@ -16,7 +16,7 @@ import numpy as np
 
 from .._base.arguments import FLAG, both, checked, in_range, is_a, measured_on, shaped, whole
 from .._base.errors import DegenerateDataError, InputError
-from .._identification.calibrate import register_base
+from .._identification.registration import rigid_base as register_base
 from .._model.kinematics import evaluate
 from .._model.measurements import Measurements
 from .._model.robot import RobotModel

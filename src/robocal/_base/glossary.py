@@ -75,7 +75,7 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
     "weighted": ('bool', 'Show residuals weighed by their stated standard deviations.'),
     "J": ('array_like, shape (n_rows, n_params)', 'Identification Jacobian (columns: ``names``).'),
     "quantities": ('sequence of str', 'Quantity of each column: ``length``, ``angle`` or ``compliance``.'),
-    "problem": ('Problem or ContactProblem', 'The identification problem.'),
+    "problem": ('Problem', 'The identification problem: a model on a stack of observation blocks.'),
     "repeatability": ('RepeatabilityResult or float', 'ISO 9283 repeatability (RP), or its value in m.'),
     "precision": ('PrecisionResult', 'The precision of the geometric control (``controller_precision``).'),
     "validation": ('Contacts, optional', 'Held-out recordings to judge the calibration on.'),

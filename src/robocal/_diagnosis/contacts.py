@@ -24,6 +24,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from itertools import combinations
+from typing import cast
 
 import numpy as np
 
@@ -31,15 +32,15 @@ from .._base.arguments import both, checked, is_a, measured_on, noise_of, option
 from .._base.errors import DegenerateDataError, InputError, excerpt
 from .._base.options import INSTRUMENT_NOISE
 from .._base.threads import one_blas_thread
-from .._identification.calibrate import register_base
 from .._identification.checks import outlier_bar
-from .._identification.contact_blocks import ContactProblem
+from .._identification.contact_blocks import ContactRows
 from .._identification.estimates import ParameterEstimate
-from .._identification.problem import needs_compliance
+from .._identification.problem import Problem
+from .._identification.registration import rigid_base as register_base
 from .._identification.solve import solve
 from .._model.contacts import Contacts, KnownDistance
 from .._model.measurements import Measurements, Noise
-from .._model.parameters import parameter_layout, parameter_names, parameter_vector
+from .._model.parameters import needs_compliance, parameter_layout, parameter_names, parameter_vector
 from .._model.robot import RobotModel
 from .measured import (
     ANGLE_FACTORS,
@@ -79,7 +80,7 @@ class _Fit:
     the RMS of the residuals in stated deviations, of the contact errors in metres, and the number of
     implausible changes from the nominal model."""
 
-    problem: ContactProblem
+    problem: Problem
     p: np.ndarray
     ssr: float
     n_rows: int
@@ -136,17 +137,17 @@ def _thinned(contacts: Contacts, most: int = MAX_ROWS) -> Contacts:
 
 
 def _problem(model: RobotModel, contacts: Contacts, names: tuple[str, ...], compliance: bool,
-             data: Measurements | None, noise: Noise, *, registered: bool = True) -> ContactProblem:
+             data: Measurements | None, noise: Noise, *, registered: bool = True) -> Problem:
     """The contact problem of ``model`` (its base registered on the tracker points when they fix it
     and ``registered``: a refit from the nominal model)."""
     if registered and data is not None and any(parameter_layout(model)[n].family == "base" for n in names):
         model = register_base(model, data)
-    return ContactProblem(model, contacts, names, compliance=compliance, data=data, noise=noise)
+    return Problem(model, names, data=data, contacts=contacts, compliance=compliance, noise=noise)
 
 
-def _outcome(prob: ContactProblem, p: np.ndarray, nominal: RobotModel, names) -> _Fit:
+def _outcome(prob: Problem, p: np.ndarray, nominal: RobotModel, names) -> _Fit:
     r = prob.residuals(p)
-    errors = [np.ravel(e) for e, _ in prob.contact_errors(p).values()]
+    errors = [np.ravel(e) for kind, (e, _, _) in prob.observation_errors(p).items() if kind != "tracker"]
     e = np.concatenate(errors)
     ssr = float(r @ r)
     return _Fit(problem=prob, p=p, ssr=ssr, n_rows=len(r), n_free=len(prob.free_idx),
@@ -173,7 +174,7 @@ def _screen(case: _Case, contacts: Contacts) -> float:
     """The nominal robot's weighted misfit on ``contacts``, the socket points and planes at their
     best for it (one kinematics pass): cheap, to choose what to refit."""
     try:
-        prob = ContactProblem(case.model, contacts, (), compliance=case.compliance)
+        prob = Problem(case.model, (), contacts=contacts, compliance=case.compliance)
         r = prob.residuals(prob.start_vector())
     except _SOLVE_ERRORS:
         return np.inf
@@ -281,10 +282,10 @@ def _relabelled(case: _Case) -> dict:
     (beyond the outlier bar, in robust units of their stated deviations) and near another socket's
     of the same placement (``NEAR_SHARE``)."""
     c, fit = case.contacts, case.fit
-    sockets = fit.problem.sockets
+    sockets = cast(ContactRows, fit.problem.contacts).sockets
     if not sockets:
         return {}
-    P, points = fit.problem.positions(fit.p), fit.problem.points(fit.p)
+    P, points = fit.problem.contact_positions(fit.p), fit.problem.socket_points(fit.p)
     own = np.empty(c.n_rows, dtype=int)
     for s, g in enumerate(sockets):
         own[g.rows] = s
@@ -382,8 +383,9 @@ def setup_moved(case: _Case) -> Finding | None:
     mistake can drag the calibration far from the robot), the best of each refitted with the seatings
     from it on as a placement of their own."""
     c, fit = case.contacts, case.fit
-    nominal = ContactProblem(case.model, c, (), compliance=case.compliance)
-    choices = [_best_split(c, P) for P in (fit.problem.positions(fit.p), nominal.positions(nominal.start_vector()))]
+    nominal = Problem(case.model, (), contacts=c, compliance=case.compliance)
+    choices = [_best_split(c, P) for P in (fit.problem.contact_positions(fit.p),
+                                           nominal.contact_positions(nominal.start_vector()))]
     tried = sum(n for _, n in choices)
     found = []
     for placement, first in dict.fromkeys(best for best, _ in choices if best is not None):
@@ -402,12 +404,14 @@ def setup_moved(case: _Case) -> Finding | None:
 
 # -- hypotheses: the stated distances ----------------------------------------------------------------
 
-def _spacing(prob: ContactProblem, p: np.ndarray, d: KnownDistance) -> float | None:
+def _spacing(prob: Problem, p: np.ndarray, d: KnownDistance) -> float | None:
     """The mean distance of sockets ``d.a`` and ``d.b`` over the placements holding both, at ``p``."""
-    where = {(g.placement, g.target): s for s, g in enumerate(prob.sockets)}
-    points = prob.points(p)
+    rows = cast(ContactRows, prob.contacts)
+    where = {(g.placement, g.target): s for s, g in enumerate(rows.sockets)}
+    points = prob.socket_points(p)
+    placements = dict.fromkeys(g.placement for g in rows.sockets)
     got = [float(np.linalg.norm(points[where[p_, d.a]] - points[where[p_, d.b]]))
-           for p_ in dict.fromkeys(g.placement for g in prob.sockets) if (p_, d.a) in where and (p_, d.b) in where]
+           for p_ in placements if (p_, d.a) in where and (p_, d.b) in where]
     return float(np.mean(got)) if got else None
 
 
@@ -418,7 +422,7 @@ def spacing_stated(case: _Case) -> Finding | None:
     c = case.contacts
     if not c.distance_pairs():
         return None
-    nominal = ContactProblem(case.model, c, (), compliance=case.compliance)
+    nominal = Problem(case.model, (), contacts=c, compliance=case.compliance)
     found = []
     for k, d in enumerate(c.distances):
         others = c.distances[:k] + c.distances[k + 1:]

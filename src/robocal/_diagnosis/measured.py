@@ -25,15 +25,18 @@ from .._base.arguments import both, checked, is_a, measured_on, names_in, noise_
 from .._base.errors import DegenerateDataError, InputError
 from .._base.options import DEFAULT_INSTRUMENT, INSTRUMENT_NOISE
 from .._base.threads import one_blas_thread
-from .._identification.calibrate import CalibrationResult, register_base
 from .._identification.checks import outlier_bar, tolerances
-from .._identification.problem import Problem, needs_compliance
+from .._identification.points import Points
+from .._identification.problem import Problem
+from .._identification.registration import rigid_base as register_base
+from .._identification.result import CalibrationResult
 from .._identification.solve import solve
 from .._model.kinematics import evaluate
 from .._model.measurements import Measurements, Noise
 from .._model.parameters import (
     candidate_parameters,
     model_from_vector,
+    needs_compliance,
     parameter_layout,
     parameter_vector,
 )
@@ -164,7 +167,7 @@ def _working_rows(n: int, most: int = MAX_POSES) -> np.ndarray:
     return np.arange(n) if n <= most else np.unique(np.linspace(0, n - 1, most).round().astype(int))
 
 
-def _row_pose(prob: Problem) -> np.ndarray:
+def _row_pose(prob: Points) -> np.ndarray:
     """The pose of each residual row of ``prob`` (markers, then poses, x y z; then rotations)."""
     parts = [np.repeat(s, 3) for s in prob.sel]
     if prob.use_rot:
@@ -172,7 +175,7 @@ def _row_pose(prob: Problem) -> np.ndarray:
     return np.concatenate(parts)
 
 
-def _position_rms(prob: Problem, p: np.ndarray) -> float:
+def _position_rms(prob: Points, p: np.ndarray) -> float:
     e = prob.errors(p)[prob.data.mask]
     return float(np.sqrt(np.mean(e ** 2))) if e.size else 0.0
 
@@ -209,13 +212,14 @@ def baseline(model: RobotModel, data: Measurements, result: CalibrationResult, n
     names = tuple(result.parameter_names)
     start = result.calibrated_model
     fit_noise = as_noise(noise)
-    prob = Problem(start, work, names, compliance=needs_compliance(start, names), noise=fit_noise)
+    prob = Problem(start, names, data=work, compliance=needs_compliance(start, names), noise=fit_noise)
     sol = solve(prob, parameter_vector(start), max_nfev=MAX_NFEV)
     J = np.array(prob.jacobian(sol.p))
     lay = parameter_layout(model)
     return _Fit(model=model, start=start, names=names, data=work, rows=rows, noise=as_noise(noise), p=sol.p,
-                r=sol.residuals, J=J, row_pose=_row_pose(prob), ssr=float(sol.residuals @ sol.residuals),
-                rms=_position_rms(prob, sol.p),
+                r=sol.residuals, J=J, row_pose=_row_pose(cast(Points, prob.points)),
+                ssr=float(sol.residuals @ sol.residuals),
+                rms=_position_rms(cast(Points, prob.points), sol.p),
                 implausible=count_implausible(model, parameter_vector(model), sol.p, names),
                 base_free=any(lay[n].family == "base" for n in names),
                 positions0=_nominal_positions(model, work), Q=np.linalg.qr(J)[0], load=_load_columns(start, work,
@@ -238,7 +242,7 @@ def _refit(fit: _Fit, data: Measurements, *, model: RobotModel | None = None, re
     try:
         if registered and fit.base_free:
             m = register_base(m, work)
-        prob = Problem(m, work, fit.names, compliance=needs_compliance(m, fit.names), noise=fit.noise)
+        prob = Problem(m, fit.names, data=work, compliance=needs_compliance(m, fit.names), noise=fit.noise)
         p0 = parameter_vector(m)
         sol = solve(prob, p0, max_nfev=MAX_NFEV)
     except (DegenerateDataError, InputError, np.linalg.LinAlgError, ValueError):
@@ -247,7 +251,7 @@ def _refit(fit: _Fit, data: Measurements, *, model: RobotModel | None = None, re
     if not np.isfinite(ssr):
         return None
     start = parameter_vector(fit.model if model is None else model) if not registered else p0
-    return _Outcome(ssr=ssr, n_rows=len(sol.residuals), rms=_position_rms(prob, sol.p),
+    return _Outcome(ssr=ssr, n_rows=len(sol.residuals), rms=_position_rms(cast(Points, prob.points), sol.p),
                     implausible=count_implausible(m, start, sol.p, fit.names))
 
 
@@ -568,7 +572,7 @@ def blunders(model, data: Measurements, result, noise=None, *, fit: _Fit | None 
 def _point_errors(fit: _Fit) -> np.ndarray:
     """(n_poses, n_markers, 3) the original fit's position errors on the poses diagnosed (0 where
     not measured)."""
-    prob = Problem(fit.start, fit.data, (), compliance=needs_compliance(fit.start, fit.names), noise=fit.noise)
+    prob = Points(fit.start, fit.data, (), compliance=needs_compliance(fit.start, fit.names), noise=fit.noise)
     e = prob.errors(fit.p)
     return np.where(fit.data.mask[..., None], e, 0.0)
 
@@ -648,7 +652,7 @@ def _joint_scale_columns(fit: _Fit, h: float = 1e-6) -> np.ndarray:
     compliance = needs_compliance(fit.start, fit.names)
     cols = []
     for j in range(fit.data.q.shape[1]):
-        prob = Problem(fit.start, _scaled(fit.data, j, 1.0 + h), fit.names, compliance=compliance, noise=fit.noise)
+        prob = Problem(fit.start, fit.names, data=_scaled(fit.data, j, 1.0 + h), compliance=compliance, noise=fit.noise)
         cols.append((prob.residuals(fit.p) - fit.r) / h)
     return np.stack(cols, axis=1)
 
@@ -840,7 +844,7 @@ def _load_columns(start: RobotModel, data: Measurements, p: np.ndarray, noise: N
                          other_payloads=())
     names = tuple(n for n in candidate_parameters(bare, ("compliance",)) if n.endswith(".k_theta"))
     loaded = _with(data, payload_mass=np.ones(data.n_poses))
-    prob = Problem(bare, loaded, names, compliance=True, noise=noise)
+    prob = Problem(bare, names, data=loaded, compliance=True, noise=noise)
     lay = parameter_layout(bare)
     q = parameter_vector(bare)
     for par in lay.parameters:

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._identification.contact_figures import ContactErrors, ContactFigures, ContactIdentifiability, Unreachable
-from .._identification.identifiability import IdentifiabilityResult
+from .._identification.contact_figures import ContactErrors, ContactFigures
+from .._identification.identifiability import ContactIdentifiability, IdentifiabilityResult, Unreachable
 
 # the figures of a ``ContactErrors`` by their file keys (SI), and the summaries written beside them
 _FIGURES = (("spread_m", "spread"), ("distance_error_m", "distance"), ("plane_rms_m", "plane"),

@@ -29,7 +29,7 @@ from .._base.errors import InputError, excerpt, suggest
 from .._base.options import BACKLASH_SIDES, MAX_MODEL_BYTES
 from .._base.spatial import nearest_rotation, pose4, vector3
 from .._base.units import ANGLE_UNITS, LENGTH_UNITS, check_unit, parse_units
-from .._identification.calibrate import CalibrationResult
+from .._identification.result import CalibrationResult
 from .._model.parameters import KIND_QUANTITY
 from .._model.robot import (
     DEFAULT_PARALLEL_TOL,

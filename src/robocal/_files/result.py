@@ -29,10 +29,11 @@ from .._base.arguments import (
 )
 from .._base.errors import InputError, excerpt
 from .._diagnosis.measured import Diagnosis
-from .._identification.calibrate import CalibrationResult, ErrorStats, ErrorSummary, LimitJudgement, ParameterEstimate
 from .._identification.checks import STATUSES, Check
+from .._identification.estimates import ErrorStats, ParameterEstimate
 from .._identification.holdout import AccuracyInUse, Coverage, UseStats
 from .._identification.identifiability import Absorption, IdentifiabilityResult, status_table
+from .._identification.result import CalibrationResult, ErrorSummary, LimitJudgement
 from .._model.parameters import parameter_layout
 from .contact_result import contacts_from_dict, contacts_to_dict
 from .measurements import MAX_MAGNITUDE

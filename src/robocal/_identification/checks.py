@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import gammainccinv
+from scipy.special import gammainc, gammainccinv
 
 from .._base.arguments import checked, each_a, is_a, optional, shaped, whole
 from .._base.errors import InputError, excerpt
@@ -24,6 +24,12 @@ STATUSES = ("pass", "warn", "fail")
 # places the robot better is the accuracy in use's question); below its inverse, the stated noise
 # is too large
 FIT_RATIO = 3.0
+# a reading this share of its joint's range beyond a limit is still within it: a joint driven to its
+# limit reads beyond it by its encoder's noise
+READING_SLACK = 1e-3
+# residuals below a third of what was stated warn only when as small a scatter has less than this
+# chance under the stated figures (a chi-squared lower tail over the rows' degrees of freedom)
+BELOW_STATED_P = 1e-3
 # a measured point is an outlier beyond this many robust standard deviations (3D residual norm),
 # raised on large campaigns so that clean Gaussian noise names a point in at most this share of them
 OUTLIER_SIGMAS = 5.0
@@ -138,20 +144,22 @@ def _listed(items, n: int = 6) -> str:
 
 # -- the inputs, before solving --------------------------------------------------------------------
 
-def readings_check(model: RobotModel, data: Measurements) -> Check:
-    """Every joint reading within the model's limits; readings beyond them named by pose and joint."""
+def readings_check(model: RobotModel, q: np.ndarray, labels) -> Check:
+    """Every joint reading ``q`` (n, n_joints) within the model's limits; readings beyond them named
+    by pose (``labels``) and joint."""
     name = "joint readings within the limits"
     lo, hi = model.lower_limits, model.upper_limits
-    slack = 1e-9 * np.maximum(1.0, np.abs(np.where(np.isfinite(hi - lo), hi - lo, 0.0)))
-    out = (data.q < lo - slack) | (data.q > hi + slack)
+    span = np.abs(np.where(np.isfinite(hi - lo), hi - lo, 0.0))
+    slack = np.maximum(1e-9 * np.maximum(1.0, span), READING_SLACK * span)
+    out = (q < lo - slack) | (q > hi + slack)
     if not out.any():
-        return Check(name, "pass", f"all {data.n_poses} poses within the joint limits")
+        return Check(name, "pass", f"all {len(q)} poses within the joint limits")
     rows, cols = np.nonzero(out)
-    angle = np.array([q == "angle" for q in model.reading_quantities])
-    items = tuple(f"{data.labels[r]}: {model.joint_names[c]} = {_reading(data.q[r, c], angle[c])}" for r, c in
+    angle = np.array([k == "angle" for k in model.reading_quantities])
+    items = tuple(f"{labels[r]}: {model.joint_names[c]} = {_reading(q[r, c], angle[c])}" for r, c in
                   zip(rows, cols))
     cause = "a mistyped reading, a reading in another unit, or limits in the model that are too narrow"
-    if np.any(np.abs(data.q[:, angle][out[:, angle]]) > 2 * np.pi):
+    if np.any(np.abs(q[:, angle][out[:, angle]]) > 2 * np.pi):
         cause = "readings of several turns: degrees declared as radians, or a mistyped reading"
     return Check(name, "fail", f"{out.sum()} reading(s) in {len(set(rows))} pose(s) beyond the joint limits: "
                  f"{_listed(items, 3)}", cause=cause,
@@ -163,15 +171,15 @@ def _reading(v: float, angle: bool) -> str:
     return f"{np.degrees(v):.6g} deg" if angle else f"{v * 1e3:.6g} mm"
 
 
-def reading_units_check(model: RobotModel, data: Measurements) -> Check:
+def reading_units_check(model: RobotModel, q: np.ndarray) -> Check:
     """A revolute reading that moves but stays within pi degrees, where its limits allow far more,
     looks like radians declared as degrees: a failure when every moving angle reading does so (no
     campaign keeps every joint within three degrees), a warning for some (a joint may barely move)."""
     name = "joint reading units"
-    angle = np.array([q == "angle" for q in model.reading_quantities])
+    angle = np.array([k == "angle" for k in model.reading_quantities])
     span = model.upper_limits - model.lower_limits
-    moving = angle & (span > 4 * RADIANS_AS_DEGREES) & (np.ptp(data.q, axis=0) > 0)
-    small = moving & (np.abs(data.q).max(axis=0) <= RADIANS_AS_DEGREES)
+    moving = angle & (span > 4 * RADIANS_AS_DEGREES) & (np.ptp(q, axis=0) > 0)
+    small = moving & (np.abs(q).max(axis=0) <= RADIANS_AS_DEGREES)
     if not small.any():
         return Check(name, "pass", "every moving angle reading spans more than a few degrees")
     joints = tuple(model.joint_names[j] for j in np.nonzero(small)[0])
@@ -211,10 +219,9 @@ def _spread(points: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum((p - p.mean(axis=0)) ** 2, axis=1)))) if len(p) > 1 else 0.0
 
 
-def markers_check(model: RobotModel, data: Measurements) -> Check:
-    """Every marker of the model has measured values; the parameters of the others are held."""
+def markers_check(model: RobotModel, seen) -> Check:
+    """Every marker of the model is observed (``seen``: the names); the parameters of the others are held."""
     name = "every marker measured"
-    seen = {n for j, n in enumerate(data.marker_names) if data.mask[:, j].any()}
     missing = tuple(n for n in model.marker_names if n not in seen)
     if not missing:
         return Check(name, "pass", f"all {len(model.marker_names)} marker(s) measured")
@@ -246,24 +253,33 @@ def expected_noise(noise: Noise, limit_m: float | None) -> tuple[float, str]:
 
 
 def fit_check(residuals: np.ndarray, sigma: np.ndarray | None, noise: Noise, limit_m: float | None,
-              outliers: np.ndarray, *, stated: bool = False) -> Check:
-    """The position residuals (n, 3) against what the instrument (and the robot's limit) explain.
+              outliers: np.ndarray, *, stated: bool = False, kind: str = "tracker", dof: float | None = None) -> Check:
+    """The residuals (n, k) of one kind of observation against what the instrument (and the
+    robot's limit) explain.
 
     Never a failure: a robot's repeatability and unmodelled effects leave residuals of any size, and
     whether the model still places the robot better is the accuracy in use's question (a mistake
     shows there, in the plausibility of the changes, or in the diagnosis). A warning beyond
-    ``FIT_RATIO`` times the expected noise, and below its inverse when the noise (or each point's
-    deviation) was stated: then the stated figures are too large, and so are the standard deviations.
-    ``sigma`` (n,) stated standard deviations per point, or None; ``outliers`` (n,) bool, left out.
+    ``FIT_RATIO`` times the expected scatter, and below its inverse when the noise (or each
+    observation's deviation) was stated: then the stated figures are too large, and so are the
+    standard deviations. ``sigma`` (n,) stated standard deviations, or None (measured points: the
+    instrument's noise); with a limit of absolute accuracy the robot's own scatter is added to them.
+    ``outliers`` (n,) bool, left out. ``kind``: "tracker" for measured points ("fit against the
+    instrument"), else a kind of contact ("fit of the socket contacts"). ``dof``: the residual
+    degrees of freedom of these rows (default their number): a fit below the stated figures warns
+    only when that many rows make it significant (``BELOW_STATED_P``), so that three known
+    distances the fit nearly determines do not.
     """
-    name = "fit against the instrument"
+    name = "fit against the instrument" if kind == "tracker" else f"fit of the {kind} contacts"
     keep = ~outliers
-    r = residuals[keep]
+    r = np.reshape(residuals, (len(outliers), -1))[keep]
     if not len(r):
-        return Check(name, "warn", "every measured point is an outlier")
+        return Check(name, "warn", f"every {'measured point' if kind == 'tracker' else kind + ' contact'} is an "
+                     "outlier")
     expected, said = expected_noise(noise, limit_m)
+    robot = 0.0 if limit_m is None else limit_m / MEAN_NORM_PER_SIGMA
     per_axis = float(np.sqrt(np.mean(r ** 2)))
-    scale = expected if sigma is None else np.hypot(sigma[keep], expected if limit_m is not None else 0.0)
+    scale = expected if sigma is None else np.hypot(sigma[keep], robot)
     ratio = float(np.sqrt(np.mean((r / np.reshape(scale, (-1, 1))) ** 2)))
     source = "the stated standard deviations" if sigma is not None else said
     summary = f"residuals {per_axis * 1e3:.4g} mm RMS per axis, {ratio:.3g} times {source}"
@@ -272,7 +288,9 @@ def fit_check(residuals: np.ndarray, sigma: np.ndarray | None, noise: Noise, lim
                      "(elasticity, gear errors, drift), or a mistake in the data: the accuracy in use and the "
                      "diagnosis tell which", fix="give the limit of absolute accuracy (--limit-mm) or the expected "
                      "noise (--noise-mm) to judge against; read the diagnosis")
-    if ratio < 1.0 / FIT_RATIO and (stated or sigma is not None):
+    n_dof = float(r.size if dof is None else dof)
+    below = n_dof > 0 and gammainc(n_dof / 2.0, n_dof * ratio ** 2 / 2.0) < BELOW_STATED_P
+    if ratio < 1.0 / FIT_RATIO and (stated or sigma is not None) and below:
         return Check(name, "warn", summary + f": {1 / ratio:.3g} times below what was stated",
                      cause="a stated noise (or stated deviations) too large: the standard deviations are "
                      "overstated by as much", fix="state the instrument's real noise (--noise-mm) or deviations")
@@ -308,11 +326,12 @@ def outlier_scores(residuals: np.ndarray, sigma: np.ndarray | None, noise: Noise
         comps = residuals.ravel()
         robust = 1.4826 * float(np.median(np.abs(comps - np.median(comps)))) if comps.size else 0.0
         return np.linalg.norm(residuals, axis=1) / max(robust, OUTLIER_SCALE_FLOOR * noise.position)
-    # in stated deviations: the robust spread of the standardised residuals sets the scale
+    # in stated deviations: the robust spread of the standardised residuals sets the scale, never
+    # below the stated deviation itself (a kind of one row has no spread of its own)
     u = residuals / np.reshape(sigma, (-1, 1))
     comps = u.ravel()
     robust = 1.4826 * float(np.median(np.abs(comps - np.median(comps)))) if comps.size else 0.0
-    return np.linalg.norm(u, axis=1) / max(robust, OUTLIER_SCALE_FLOOR)
+    return np.linalg.norm(u, axis=1) / max(robust, 1.0)
 
 
 def _deviations(value, name, args):
@@ -335,11 +354,12 @@ def _row_labels(value, name, args):
 def outlier_check(residuals: np.ndarray, sigma: np.ndarray | None, noise: Noise, labels) -> tuple[Check, np.ndarray]:
     """Measured points whose residual norm exceeds ``OUTLIER_SIGMAS`` robust standard deviations.
 
-    ``residuals`` (n, 3) of the measured points named by ``labels`` (n,). The scale is the larger of
-    the residuals' own robust spread (median absolute deviation), floored at
-    ``OUTLIER_SCALE_FLOOR`` of the instrument's noise (a noise-free fit flags nothing, a noise stated
-    far too large hides no blunder); with stated deviations, the robust spread of the residuals in
-    those deviations.
+    ``residuals`` (n, k) of the observations named by ``labels`` (n,). The scale is the residuals'
+    own robust spread (median absolute deviation), floored at ``OUTLIER_SCALE_FLOOR`` of the
+    instrument's noise (a noise-free fit flags nothing, a noise stated far too large hides no
+    blunder); with stated deviations, the robust spread of the residuals in those deviations, never
+    below the stated deviation (a kind of a single row has no spread of its own, and is no outlier
+    by construction).
     Returns the check and the (n,) outlier mask.
 
     Parameters
@@ -560,24 +580,6 @@ def identifiability_check(lost, weak, *, weak_kept: bool = False, interchangeabl
     return Check(name, status, "; ".join(summary),
                  cause="poses that do not move the joints widely enough, or a tool point nearly on an axis",
                  fix="add poses over the whole workspace (robocal plan); or accept the nominal values", items=items)
-
-
-def contact_fit_check(kind: str, residuals: np.ndarray, sigma: np.ndarray, outliers: np.ndarray) -> Check:
-    """The residuals of one kind of contact row (n, d) in metres against their stated standard
-    deviations (n,), outliers (n,) left out. Each kind is judged on its own: a socket's scatter, a
-    plane's distances and a ball bar's length errors are different noises (docs/checks.md)."""
-    name = f"fit of the {kind} contacts"
-    keep = ~outliers
-    r = np.reshape(residuals, (len(sigma), -1))[keep]
-    if not len(r):
-        return Check(name, "fail", f"every {kind} contact is an outlier")
-    ratio = float(np.sqrt(np.mean((r / sigma[keep, None]) ** 2)))
-    summary = f"residuals {np.sqrt(np.mean(r ** 2)) * 1e3:.4g} mm RMS, {ratio:.3g} times the stated deviations"
-    if ratio <= FIT_RATIO:
-        return Check(name, "pass", summary)
-    return Check(name, "fail", summary, cause=f"the {kind} contacts do not fit the model: a mislabelled socket or "
-                 "placement, a ball not seated, a wrong stated length or deviation, joint order or sign",
-                 fix="read the outliers; compare the spread of each group of rows before calibration")
 
 
 # -- in use ---------------------------------------------------------------------------------------

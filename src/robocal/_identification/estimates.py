@@ -5,15 +5,18 @@ measured points and the one from contacts share."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
 from .._base.arguments import NORMS, checked
+from .._model.configurations import design_measurements
 from .._model.measurements import Measurements
 from .._model.parameters import parameter_layout, parameter_vector
 from .._model.robot import RobotModel
 from .checks import WorkspaceChange, tolerances
-from .problem import Problem, design_measurements
+from .points import Points
+from .problem import Problem
 from .solve import solve
 
 # The fit of base and markers behind the errors before calibration stops at this tolerance, its
@@ -90,18 +93,18 @@ def workspace_change(start: RobotModel, p: np.ndarray, q: np.ndarray, markers, f
     p0 = parameter_vector(start)
     geometry = np.array([lay[n].family not in ("compliance", "backlash") for n in lay.names])
     p_geom = np.where(geometry, p, p0)
-    target = Problem(start, design_measurements(start, q, markers=markers), (),
-                     compliance=start.has_compliance).predicted(p_geom)[0]
+    target = Points(start, design_measurements(start, q, markers=markers), (),
+                    compliance=start.has_compliance).predicted(p_geom)[0]
     tol = tolerances(start)
     t_len, t_ang = tol.get(("frames", "length")), tol.get(("frames", "angle"))
     radius = float(np.max(np.linalg.norm(target - np.asarray(start.base_position, dtype=float), axis=2)))
     placed = tuple(n for n in lay.names if lay[n].family == "base"
                    or (lay[n].role == "marker" and lay[n].owner in set(markers) and n in set(free)))
     ws = Measurements(q=q, positions=target, marker_names=tuple(markers), joint_names=start.joint_names)
-    nominal = Problem(start, ws, placed, compliance=start.has_compliance)
+    nominal = Problem(start, placed, data=ws, compliance=start.has_compliance)
     p_start = p0.copy()
     p_start[lay.indices(placed)] = p[lay.indices(placed)]
-    d = nominal.error_norms(solve(nominal, p_start, tol=REGISTRATION_TOL).p)
+    d = cast(Points, nominal.points).error_norms(solve(nominal, p_start, tol=REGISTRATION_TOL).p)
     bar = None if t_len is None or t_ang is None else float(t_len + t_ang * radius)
     return WorkspaceChange(max_m=float(np.nanmax(d)), rms_m=float(np.sqrt(np.nanmean(d ** 2))), tolerance_m=bar,
                            reach_m=radius, n_poses=len(q))

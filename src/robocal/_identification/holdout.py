@@ -21,13 +21,16 @@ what the joint limits allow, and the parameters' uncertainty carried over the wh
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import cast
 
 import numpy as np
 
+from .._model.configurations import random_configurations, sampling_box
 from .._model.measurements import Measurements
-from .problem import Problem, random_configurations, sampling_box
+from .contact_blocks import ContactRows
+from .points import Points
+from .problem import Problem
 
 # folds of a cross-validation without a series column
 DEFAULT_FOLDS = 5
@@ -72,26 +75,6 @@ def use_stats(norms) -> UseStats:
         return UseStats(0, None, None, None, None)
     return UseStats(int(v.size), float(v.mean()), float(np.sqrt(np.mean(v * v))), float(np.percentile(v, 95)),
                     float(v.max()))
-
-
-@dataclass(frozen=True, eq=False)
-class HeldOut:
-    """One model's errors at poses it was not fitted on. ``positions`` (n_poses, n_markers, 3)
-    predicted minus measured, m (NaN where not measured); ``rotations`` likewise in rad or None;
-    ``loss`` (n_poses, n_markers) each point's sum of squared weighted residuals (the fit's own
-    weighting: what the fit minimises, so models compare on it)."""
-
-    positions: np.ndarray
-    rotations: np.ndarray | None
-    loss: np.ndarray
-
-    @property
-    def norms(self) -> np.ndarray:
-        return np.linalg.norm(self.positions, axis=2)
-
-    @property
-    def rotation_norms(self) -> np.ndarray | None:
-        return None if self.rotations is None else np.linalg.norm(self.rotations, axis=2)
 
 
 def fold_labels(data: Measurements, folds: int = DEFAULT_FOLDS) -> tuple[np.ndarray, int, str]:
@@ -144,20 +127,20 @@ def ordered(q: np.ndarray) -> bool:
     return bool(step < NEIGHBOURS * other)
 
 
-def _sub_problem(problem: Problem, index: np.ndarray) -> Problem:
-    """The problem on the poses ``index`` of ``problem``'s data, over the same free parameters."""
+def _sub_problem(problem: Points, index: np.ndarray) -> Points:
+    """The measured points of the poses ``index`` of ``problem``'s data, over the same free parameters."""
     data = problem.data.with_approach() if problem.backlash else problem.data
-    return Problem(problem.model, data.subset(index), free_names(problem), compliance=problem.compliance,
-                   noise=problem.noise)
+    return Points(problem.model, data.subset(index), free_names(problem), compliance=problem.compliance,
+                  noise=problem.noise)
 
 
-def free_names(problem: Problem) -> tuple[str, ...]:
+def free_names(problem: Points) -> tuple[str, ...]:
     """The names of ``problem``'s free parameters (they decide, e.g., whether joints rest in their
     lost motion)."""
     return tuple(problem.lay.names[i] for i in problem.free_idx)
 
 
-def point_loss(problem: Problem, p: np.ndarray, errors: np.ndarray | None = None) -> np.ndarray:
+def point_loss(problem: Points, p: np.ndarray, errors: np.ndarray | None = None) -> np.ndarray:
     """(n_poses, n_markers) each measured point's sum of squared weighted residuals at ``p``.
     ``errors``: ``problem.errors(p)`` when at hand; for point data the residuals are then those
     errors weighted (the same numbers, without evaluating the campaign again)."""
@@ -171,24 +154,111 @@ def point_loss(problem: Problem, p: np.ndarray, errors: np.ndarray | None = None
     return np.bincount(poses * m + markers, weights=r * r, minlength=n * m).reshape(n, m)
 
 
-def evaluated(problem: Problem, p: np.ndarray) -> HeldOut:
+@dataclass(frozen=True, eq=False)
+class HeldOut:
+    """One model's errors at observations it was not fitted on. Measured points: ``positions``
+    (n_poses, n_markers, 3) predicted minus measured, m (NaN where not measured); ``rotations``
+    likewise in rad or None; ``loss`` (n_poses, n_markers) each point's sum of squared weighted
+    residuals (the fit's own weighting: what the fit minimises, so models compare on it); no poses
+    without points. Contacts: ``contact_errors`` (n_contact_observations, 3) each observation's error
+    with its own unknowns from its own rows (``ContactRows.own_errors``; NaN where not predicted) and
+    ``contact_loss`` the same squared in stated deviations, or None without contacts."""
+
+    positions: np.ndarray
+    rotations: np.ndarray | None
+    loss: np.ndarray
+    contact_errors: np.ndarray | None = None
+    contact_loss: np.ndarray | None = None
+
+    @property
+    def norms(self) -> np.ndarray:
+        return np.linalg.norm(self.positions, axis=2)
+
+    @property
+    def rotation_norms(self) -> np.ndarray | None:
+        return None if self.rotations is None else np.linalg.norm(self.rotations, axis=2)
+
+    def observation_loss(self, mask: np.ndarray) -> np.ndarray:
+        """(n_observations,) the loss of each observation of the problem whose measured points are
+        ``mask`` (n_poses, n_markers): points in mask order, then contacts."""
+        parts = [self.loss[mask]] + ([] if self.contact_loss is None else [self.contact_loss])
+        return np.concatenate(parts)
+
+    def observation_norms(self, mask: np.ndarray) -> np.ndarray:
+        """(n_observations,) each observation's error norm (m), as ``observation_loss`` orders them."""
+        parts = [self.norms[mask]] + ([] if self.contact_errors is None else
+                                      [np.sqrt(np.nansum(self.contact_errors ** 2, axis=1))])
+        return np.concatenate(parts)
+
+
+def evaluated(problem: Points, p: np.ndarray) -> HeldOut:
     """The errors of the vector ``p`` at every pose of ``problem`` (none of them fitted with it)."""
     errors = problem.errors(p)
     return HeldOut(errors, problem.rotation_errors(p), point_loss(problem, p, errors))
 
 
-def fold_steps(problem: Problem, p: np.ndarray, labels: np.ndarray, k: int) -> list[np.ndarray]:
-    """For each fold, the Gauss-Newton step from ``p`` (a solution on every row) to the fit on the
-    rows of the other folds: ``-(A - A_g)^+ (b - b_g)`` over the free parameters, ``A = J^T J``,
-    ``b = J^T r`` (``A_g``, ``b_g`` the fold's part), in unit-column scaling."""
+def contact_held_out(rows: ContactRows, p_robot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each contact observation's error with its own unknowns from its own rows at ``p_robot``
+    (n_obs, 3), and its loss in stated deviations (n_obs,)."""
+    e = rows.own_errors(p_robot)
+    return e, np.nansum(e ** 2, axis=1) / rows.sigma() ** 2
+
+
+@dataclass(frozen=True, eq=False)
+class Holdout:
+    """How a problem's observations are held out: ``groups`` (n_observations,) the group of each
+    (-1: never held out), ``k`` groups, ``description`` (how they were made, for messages),
+    ``pose_labels`` (n_poses,) the fold of each pose of the measured points (None without),
+    ``point_folds`` how many of the groups are folds of poses (the others are placements of the
+    contacts, in ``placements`` order)."""
+
+    groups: np.ndarray
+    k: int
+    description: str
+    pose_labels: np.ndarray | None
+    point_folds: int
+    placements: tuple[str, ...] = ()
+
+    @property
+    def grouping(self) -> str:
+        return self.description
+
+
+def holdout_of(problem: Problem, folds: int = DEFAULT_FOLDS) -> Holdout:
+    """The held-out groups of ``problem``'s observations: folds of the measured points' poses (their
+    series, or ``folds`` blocks of consecutive poses, or folds drawn at random: ``fold_labels``) and,
+    with two placements or more, each placement of the contacts."""
+    obs = problem.observations()
+    groups = np.full(len(obs), -1, dtype=int)
+    labels, k_points, said = None, 0, []
+    if problem.points is not None:
+        d = problem.points.data
+        labels, k_points, how = fold_labels(d, folds)
+        groups[:obs.n_points] = labels[np.nonzero(d.mask)[0]]
+        said.append(how)
+    placements: tuple[str, ...] = ()
+    if problem.contacts is not None and len(problem.contacts.contacts.placements()) > 1:
+        placements = problem.contacts.contacts.placements()
+        where = {name: k_points + i for i, name in enumerate(placements)}
+        groups[obs.n_points:] = [where[p] for p in obs.placement[obs.n_points:]]
+        said.append("each placement predicted by the others")
+    return Holdout(groups, k_points + len(placements), "; ".join(said), labels, k_points, placements)
+
+
+def fold_steps(problem: Problem, p: np.ndarray, holdout: Holdout) -> list[np.ndarray]:
+    """For each group, the Gauss-Newton step from ``p`` (a solution on every row) to the fit on the
+    rows of the other groups: ``-(A - A_g)^+ (b - b_g)`` over the free parameters, ``A = J^T J``,
+    ``b = J^T r`` (``A_g``, ``b_g`` the group's part), in unit-column scaling. A group's own unknowns
+    (a placement's socket points) have no row left: they keep their value."""
+    k = holdout.k
     n_free = len(problem.free_idx)
     A, b = np.zeros((n_free, n_free)), np.zeros(n_free)
     Ag, bg = np.zeros((k, n_free, n_free)), np.zeros((k, n_free))
-    for J, r, poses in problem.pieces(p):
-        f = labels[poses]
+    for J, r, obs in problem.pieces(p):
+        f = holdout.groups[obs]
         A += J.T @ J
         b += J.T @ r
-        for g in np.unique(f):
+        for g in np.unique(f[f >= 0]):
             rows = f == g
             Jg = J[rows]
             Ag[g] += Jg.T @ Jg
@@ -207,43 +277,75 @@ def fold_steps(problem: Problem, p: np.ndarray, labels: np.ndarray, k: int) -> l
 
 
 class FoldProblems:
-    """The problems on each fold's poses of a campaign, made once for one calibration and taken
-    over the free parameters of each model it compares (``of``). Held by the calibration call that
-    made it, and gone with it."""
+    """The problems on each group's observations of a campaign, made once for one calibration and
+    taken over the free parameters of each model it compares (``points``, ``contacts``). Held by the
+    calibration call that made it, and gone with it."""
 
-    def __init__(self, labels: np.ndarray, k: int):
-        self.labels, self.k = labels, k
+    def __init__(self, holdout: Holdout):
+        self.holdout = holdout
         self._made: dict = {}
 
-    def of(self, problem: Problem) -> list:
-        """(poses, problem over ``problem``'s free parameters) of each fold that has poses."""
+    def points(self, problem: Points) -> list:
+        """(poses, problem over ``problem``'s free parameters) of each fold of poses that has poses."""
+        labels, k = cast(np.ndarray, self.holdout.pose_labels), self.holdout.point_folds
         key = (id(problem.data), problem.compliance, problem.backlash)
         if key not in self._made:
             self._made[key] = (problem.data, [(idx, _sub_problem(problem, idx)) for idx in
-                                              (np.nonzero(self.labels == g)[0] for g in range(self.k)) if len(idx)])
+                                              (np.nonzero(labels == g)[0] for g in range(k)) if len(idx)])
         return [(idx, sub.over(free_names(problem))) for idx, sub in self._made[key][1]]
 
+    def contacts(self, rows: ContactRows) -> list:
+        """(group, observations, the rows of the group's placement) of each placement held out."""
+        key = (id(rows.contacts), rows.compliance, rows.backlash)
+        if key not in self._made:
+            h, out = self.holdout, []
+            obs_placement = np.array(rows.obs_placement, dtype=object)
+            for i, name in enumerate(h.placements):
+                index = np.nonzero(obs_placement == name)[0]
+                sub = rows.contacts.subset(np.array([p == name for p in rows.contacts.placement]))
+                part = ContactRows(rows.model, sub, compliance=rows.compliance, backlash=rows.backlash)
+                if len(part.obs_kind) != len(index):      # the same observations, in the same order
+                    raise AssertionError("a placement's observations differ from the campaign's")
+                out.append((h.point_folds + i, index, part))
+            self._made[key] = (rows.contacts, out)
+        return self._made[key][1]
 
-def cross_validate(problem: Problem, p: np.ndarray, labels: np.ndarray, k: int, *,
-                   on: Problem | None = None, folds: FoldProblems | None = None) -> HeldOut:
-    """Each pose's errors under the model fitted on the other folds (``fold_steps``); ``on``: the
-    problem whose points are predicted (default ``problem``; e.g. the whole campaign when
-    ``problem`` has points set aside); ``folds``: the fold problems to reuse."""
-    steps = fold_steps(problem, p, labels, k)
-    problem = problem if on is None else on
-    folds = FoldProblems(labels, k) if folds is None else folds
-    data = problem.data
-    pos = np.full(data.positions.shape, np.nan)
-    rot = np.full(data.positions.shape, np.nan) if data.has_orientation else None
-    loss = np.zeros(data.mask.shape)
-    for index, sub in folds.of(problem):
-        pg = p.copy()
-        pg[problem.free_idx] += steps[int(labels[index[0]])]
-        out = evaluated(sub, pg)
-        pos[index], loss[index] = out.positions, out.loss
-        if rot is not None and out.rotations is not None:
-            rot[index] = out.rotations
-    return HeldOut(pos, rot, loss)
+
+def cross_validate(problem: Problem, p: np.ndarray, holdout: Holdout, *, on: Problem | None = None,
+                   folds: FoldProblems | None = None) -> HeldOut:
+    """Each observation's errors under the model fitted on the other groups (``fold_steps``); ``on``:
+    the problem whose observations are predicted (default ``problem``; e.g. the whole campaign when
+    ``problem`` has observations set aside); ``folds``: the group problems to reuse."""
+    steps = fold_steps(problem, p, holdout)
+    target = problem if on is None else on
+    folds = FoldProblems(holdout) if folds is None else folds
+    pos: np.ndarray | None = None
+    rot: np.ndarray | None = None
+    loss = np.zeros((0, 0))
+    if target.points is not None:
+        pts = target.points
+        data = pts.data
+        pos = np.full(data.positions.shape, np.nan)
+        rot = np.full(data.positions.shape, np.nan) if data.has_orientation else None
+        loss = np.zeros(data.mask.shape)
+        for index, sub in folds.points(pts):
+            pg = p.copy()
+            pg[problem.free_idx] += steps[int(cast(np.ndarray, holdout.pose_labels)[index[0]])]
+            out = evaluated(sub, pg[:problem.n_robot])
+            pos[index], loss[index] = out.positions, out.loss
+            if rot is not None and out.rotations is not None:
+                rot[index] = out.rotations
+    c_err = c_loss = None
+    if target.contacts is not None:
+        n_obs = len(target.contacts.obs_kind)
+        c_err, c_loss = np.full((n_obs, 3), np.nan), np.full(n_obs, np.nan)
+        for g, index, part in folds.contacts(target.contacts):
+            pg = p.copy()
+            pg[problem.free_idx] += steps[g]
+            c_err[index], c_loss[index] = contact_held_out(part, pg[:problem.n_robot])
+    if pos is None:
+        pos, loss = np.zeros((0, 0, 3)), np.zeros((0, 0))
+    return HeldOut(pos, rot, loss, c_err, c_loss)
 
 
 def paired_excess(simple: np.ndarray, complex_: np.ndarray, mask: np.ndarray) -> tuple[float, float]:
@@ -310,25 +412,37 @@ def without_instrument(norms: np.ndarray, variance: float) -> np.ndarray:
 
 
 def accuracy_in_use(method: str, folds: int | None, grouping: str, before: HeldOut, after: HeldOut,
-                    fit_after: np.ndarray, *, registration_only: bool = False, noise: tuple[float, float] = (0.0, 0.0)
-                    ) -> AccuracyInUse:
+                    fit_after: np.ndarray, *, registration_only: bool = False, noise: tuple[float, float] = (0.0, 0.0),
+                    seatings: np.ndarray | None = None, fit_seatings: np.ndarray | None = None) -> AccuracyInUse:
     """The record of held-out errors before and after (``HeldOut``); ``fit_after`` the error norms
-    on the fitted points; ``registration_only``: only base and markers were identified (the robot's
-    kinematics are the nominal ones, before as after). ``noise``: the instrument's per-axis variance
-    of positions (m^2) and rotations (rad^2), taken out of every figure (``without_instrument``):
-    the accuracy in use is the robot's."""
-    raw_after, raw_fit = use_stats(after.norms.ravel()), use_stats(fit_after)
+    on the fitted points (and seatings); ``registration_only``: only base and markers were identified
+    (the robot's kinematics are the nominal ones, before as after). ``noise``: the instrument's
+    per-axis variance of positions (m^2) and rotations (rad^2), taken out of every measured point's
+    figure (``without_instrument``): the accuracy in use is the robot's. ``seatings``
+    (n_contact_observations,): the contact observations whose held-out errors are positions of the
+    robot (seatings: their distance from their socket's mean centre), judged beside the points;
+    ``fit_seatings`` the fitted seatings' distances."""
     eb, ea = without_instrument(before.norms.ravel(), noise[0]), without_instrument(after.norms.ravel(), noise[0])
-    fit_after = without_instrument(fit_after, noise[0])
+    raw_after = after.norms.ravel()
+    fit_raw = np.asarray(fit_after, dtype=float)
+    fitted = without_instrument(fit_raw, noise[0])
+    if fit_seatings is not None:
+        fit_raw, fitted = np.r_[fit_raw, fit_seatings], np.r_[fitted, fit_seatings]
+    if seatings is not None and after.contact_errors is not None and before.contact_errors is not None:
+        cb, ca = (np.linalg.norm(np.nan_to_num(cast(np.ndarray, e.contact_errors)[seatings]), axis=1)
+                  for e in (before, after))
+        held = np.isfinite(after.contact_errors[seatings, 0])
+        eb, ea = np.r_[eb, cb[held]], np.r_[ea, ca[held]]
+        raw_after = np.r_[raw_after, ca[held]]
     both = np.isfinite(eb) & np.isfinite(ea)
     rb, ra = before.rotation_norms, after.rotation_norms
     rb = None if rb is None else without_instrument(rb, noise[1])
     ra = None if ra is None else without_instrument(ra, noise[1])
     return AccuracyInUse(method=method, folds=folds, grouping=grouping, position_before=use_stats(eb[both]),
                          position_after=use_stats(ea[both]), rotation_before=None if rb is None else use_stats(rb),
-                         rotation_after=None if ra is None else use_stats(ra), fit_after=use_stats(fit_after),
+                         rotation_after=None if ra is None else use_stats(ra), fit_after=use_stats(fitted),
                          errors_before=eb[both], errors_after=ea[both], registration_only=registration_only,
-                         measured_after=raw_after, measured_fit=raw_fit)
+                         measured_after=use_stats(raw_after), measured_fit=use_stats(fit_raw))
 
 
 @dataclass(frozen=True, eq=False)
@@ -365,7 +479,7 @@ def _spread(points: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum((p - p.mean(axis=0)) ** 2, axis=1)))) if len(p) > 1 else 0.0
 
 
-def _uncertainty(problem: Problem, p: np.ndarray, q: np.ndarray, covariance: np.ndarray) -> float:
+def _uncertainty(problem: Points, p: np.ndarray, q: np.ndarray, covariance: np.ndarray) -> float:
     """RMS over the readings ``q`` of the position uncertainty (norm of one standard deviation) of
     every marker the data measure, from the free parameters' covariance."""
     design = _design_like(problem, q)
@@ -375,14 +489,14 @@ def _uncertainty(problem: Problem, p: np.ndarray, q: np.ndarray, covariance: np.
     return float(np.sqrt(np.mean(np.maximum(var, 0.0))))
 
 
-def _design_like(problem: Problem, q: np.ndarray) -> Problem:
+def _design_like(problem: Points, q: np.ndarray) -> Points:
     """A problem at readings ``q`` with the markers, free parameters and model of ``problem``."""
     data = problem.data
     n, m = len(q), len(data.marker_names)
     fake = Measurements(q=q, positions=np.zeros((n, m, 3)), marker_names=data.marker_names,
                         joint_names=data.joint_names,
                         extra={"approach": np.ones((n, q.shape[1]))} if problem.backlash else {})
-    return Problem(problem.model, fake, free_names(problem), compliance=problem.compliance, chunked=False)
+    return Points(problem.model, fake, free_names(problem), compliance=problem.compliance, chunked=False)
 
 
 def workspace_readings(model, n: int = WORKSPACE_POSES) -> np.ndarray:
@@ -390,7 +504,7 @@ def workspace_readings(model, n: int = WORKSPACE_POSES) -> np.ndarray:
     return random_configurations(model, n, np.random.default_rng(WORKSPACE_SEED))
 
 
-def coverage(problem: Problem, p: np.ndarray, covariance: np.ndarray, predicted_workspace: np.ndarray, *,
+def coverage(problem: Points, p: np.ndarray, covariance: np.ndarray, predicted_workspace: np.ndarray, *,
              factor: np.ndarray | None = None) -> Coverage:
     """The campaign of ``problem`` against the workspace (``Coverage``); ``predicted_workspace``
     (n, n_markers, 3) the markers at random configurations (``workspace_readings``); ``factor``: an
@@ -419,10 +533,3 @@ def coverage(problem: Problem, p: np.ndarray, covariance: np.ndarray, predicted_
                                                                        zip(q.min(axis=0), q.max(axis=0))),
                     box=box, spread_ratio=float(ratio), uncertainty_measured=at_measured,
                     uncertainty_workspace=at_workspace)
-
-
-def with_points_aside(data: Measurements, aside: np.ndarray) -> Measurements:
-    """``data`` with the points ``aside`` (n_poses, n_markers) masked: set aside, not deleted."""
-    mask = data.mask & ~aside
-    rot_mask = None if data.rot_mask is None else data.rot_mask & ~aside
-    return replace(data, mask=mask, rot_mask=rot_mask)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from typing import cast
 
 import numpy as np
 
@@ -25,6 +26,7 @@ from .._base.arguments import (
     checked,
     columns_of,
     is_a,
+    names_in,
     optional,
     readings_of,
     shaped,
@@ -33,10 +35,20 @@ from .._base.arguments import (
 from .._base.linalg import reduced, solve_upper
 from .._base.options import MAX_POSES
 from .._base.threads import one_blas_thread
+from .._model.configurations import design_measurements, random_configurations
 from .._model.measurements import Measurements
-from .._model.parameters import FRAME_KINDS, candidate_parameters, parameter_layout, parameter_vector
+from .._model.parameters import (
+    FRAME_KINDS,
+    candidate_parameters,
+    needs_compliance,
+    parameter_layout,
+    parameter_names,
+    parameter_vector,
+)
 from .._model.robot import RobotModel
-from .problem import Problem, design_measurements, needs_compliance, random_configurations
+from .contact_blocks import ContactRows
+from .points import Points
+from .problem import ROW_KINDS, Problem
 
 DEFAULT_TOL = 1e-6
 NO_EFFECT = 1e-10
@@ -298,22 +310,21 @@ def identifiability(model: RobotModel, data: Measurements | np.ndarray | None = 
     if orientation is None:
         orientation = meas.has_orientation
     names = candidate_parameters(model, parameters, orientation=orientation, known=known)
-    prob = Problem(model, meas, names, compliance=needs_compliance(model, names))
+    prob = Points(model, meas, names, compliance=needs_compliance(model, names))
     return analyse_problem(prob, names, tol=tol)
 
 
-def analyse_problem(prob: Problem, names, *, tol: float = DEFAULT_TOL) -> IdentifiabilityResult:
+def analyse_problem(prob: Points, names, *, tol: float = DEFAULT_TOL) -> IdentifiabilityResult:
     """``analyse`` of a problem's Jacobian at its model's values (``backlash_reasons`` added)."""
     lay = parameter_layout(prob.model)
     p = parameter_vector(prob.model)
     res = analyse(prob.jacobian(p), names, tol=tol, quantities=[lay[n].quantity for n in names])
-    return backlash_reasons(res, prob)
+    return backlash_reasons(res, prob.backlash_sides(p))
 
 
-def backlash_reasons(res: IdentifiabilityResult, prob: Problem) -> IdentifiabilityResult:
+def backlash_reasons(res: IdentifiabilityResult, sides: dict) -> IdentifiabilityResult:
     """``res`` with each eliminated backlash saying why when its joint rests on one side (or
-    mid-gap) at every pose of ``prob``, at its model's values."""
-    sides = prob.backlash_sides(parameter_vector(prob.model))
+    mid-gap) at every pose (``sides``: per backlash parameter, the sides its joint rests on)."""
     if not any(a.name in sides for a in res.eliminated):
         return res
     return replace(res, eliminated=tuple(replace(a, reason=a.reason + _one_side(sides[a.name])) if a.name in sides
@@ -490,3 +501,202 @@ def eliminate(result: IdentifiabilityResult, J: np.ndarray, names, quantities, d
                                  tol=kept.tol, rank=kept.rank, condition_number=kept.condition_number,
                                  singular_values=kept.singular_values, observability=kept.observability,
                                  n_rows=kept.n_rows, column_scale=result.column_scale)
+
+
+# the part of a direction's effect the nuisance parameters leave (relative) below which it is unreachable
+UNREACHABLE_TOL = 1e-6
+
+_WHY = {
+    "base": "a rigid motion of the whole robot carries every contact with it: the unknown socket points and "
+            "planes follow, and nothing in these data is fixed in the measurement frame (a tracker, or a known "
+            "plane, fixes it)",
+    "scale": "socket and plane contacts fix shape, not size: the robot and every unknown point scaled alike "
+             "give the same readings (a known distance between sockets, a ball bar or a tracker fixes it)",
+}
+
+
+@dataclass(frozen=True)
+class Unreachable:
+    """A direction of the robot's parameters no observation in the data can see, and why.
+    ``components``: the parameters it moves (for the base, those of its six it cannot reach);
+    ``residual``: the relative part of its effect left once the nuisance parameters take theirs."""
+
+    name: str
+    reason: str
+    components: tuple[str, ...]
+    residual: float
+
+
+@dataclass(frozen=True, eq=False)
+class ContactIdentifiability:
+    """What each kind of observation reaches, for a problem with contacts. ``analysis`` holds
+    nuisance and robot columns (nuisance first: what they absorb is eliminated from the robot);
+    ``identified``/``eliminated`` are the robot's; ``contributions`` maps each kind present to the
+    robot parameters its rows identify alone, ``lost_without`` to those the others cannot identify
+    without it; ``together`` those only the kinds together identify; ``unreachable`` the directions
+    no kind reaches."""
+
+    analysis: IdentifiabilityResult
+    identified: tuple[str, ...]
+    eliminated: tuple[Absorption, ...]
+    contributions: dict
+    together: tuple[str, ...]
+    unreachable: tuple[Unreachable, ...]
+    lost_without: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True, eq=False)
+class StackAnalysis:
+    """The identifiability of a problem's robot parameters, whatever its blocks: ``result`` (the
+    robot's view: nuisance absorbed, the analysis' figures over every column), ``full`` the analysis
+    with the nuisance columns first, ``J`` a matrix with the Gram matrix of the robot columns once
+    the nuisance columns take their part (what weak parameters are judged on), ``R`` the reduced
+    Jacobian over nuisance then robot columns, and ``names`` the candidates."""
+
+    result: IdentifiabilityResult
+    full: IdentifiabilityResult
+    J: np.ndarray
+    R: np.ndarray
+    names: tuple[str, ...]
+
+
+def _robot_part(R: np.ndarray, nn: int) -> np.ndarray:
+    """The robot columns of ``R`` (after ``nn`` nuisance columns) less their projection on the span
+    of the nuisance columns: the same Gram matrix as the robot's columns of the Jacobian once the
+    nuisance takes its part."""
+    Jr, N = R[:, nn:], R[:, :nn]
+    if not nn:
+        return Jr
+    U, s, _ = np.linalg.svd(N / np.maximum(np.linalg.norm(N, axis=0), 1e-300), full_matrices=False)
+    U = U[:, s > s[0] * 1e-10]
+    return Jr - U @ (U.T @ Jr)
+
+
+def analyse_stack(problem: Problem, names: tuple[str, ...], p: np.ndarray, *, tol: float) -> StackAnalysis:
+    """The identifiability of the robot parameters ``names`` (the problem's free ones) at ``p``: one
+    analysis over every block, nuisance columns first (what a socket point or a plane absorbs leaves
+    the robot), structurally at readings where the model meets every contact exactly."""
+    lay = parameter_layout(problem.model)
+    at = problem.at_contact()
+    R = at.reduced_jacobian(p)
+    k, nn = len(names), problem.n_nuisance
+    order = np.r_[np.arange(k, k + nn), np.arange(k)].astype(int)
+    R = R[:, order]
+    all_names = problem.nuisance_names + tuple(names)
+    full = analyse(R, all_names, quantities=problem.nuisance_quantities + tuple(lay[n].quantity for n in names),
+                   tol=tol, n_rows=problem.n_rows)
+    result = full
+    if nn:
+        robot = set(names)
+        identified = tuple(n for n in full.identified if n in robot)
+        result = replace(full, candidates=tuple(names), identified=identified,
+                         eliminated=tuple(a for a in full.eliminated if a.name in robot),
+                         rank=full.rank - (len(full.identified) - len(identified)),
+                         column_scale={n: v for n, v in full.column_scale.items() if n in robot})
+    result = backlash_reasons(result, problem.backlash_sides(p))
+    return StackAnalysis(result, full, _robot_part(R, nn), R, tuple(names))
+
+
+def _kind_rows(problem: Problem) -> dict:
+    """Row masks per kind present, tracker positions and rotations together."""
+    kinds = np.asarray(problem.row_kinds())
+    names = np.array(["tracker" if k < 2 else ROW_KINDS[k] for k in kinds], dtype=object)
+    return {str(n): names == n for n in dict.fromkeys(names)}
+
+
+def kinds_reach(problem: Problem, analysis: StackAnalysis, p: np.ndarray) -> ContactIdentifiability:
+    """What each kind of observation of ``problem`` identifies alone, what the others lose without
+    it, what only they together identify, and what none reaches (``unreachable``)."""
+    names, tol = analysis.names, analysis.full.tol
+    lay = parameter_layout(problem.model)
+    at = problem.at_contact()
+    k, nn = len(names), problem.n_nuisance
+    order = np.r_[np.arange(k, k + nn), np.arange(k)].astype(int)
+    all_names = problem.nuisance_names + tuple(names)
+    quantities = problem.nuisance_quantities + tuple(lay[n].quantity for n in names)
+    robot = set(names)
+    identified = analysis.result.identified
+    groups = _kind_rows(at)
+    contributions, lost = {}, {}
+    if len(groups) == 1:
+        contributions[next(iter(groups))] = identified
+    else:
+        J = at.jacobian(p)[:, order]
+        for kind, rows in groups.items():
+            alone = analyse(J[rows], all_names, quantities=quantities, tol=tol)
+            contributions[kind] = tuple(n for n in alone.identified if n in robot)
+            rest = set(analyse(J[~rows], all_names, quantities=quantities, tol=tol).identified)
+            lost[kind] = tuple(n for n in identified if n not in rest)
+    seen = set().union(*contributions.values()) if contributions else set()
+    return ContactIdentifiability(
+        analysis=analysis.full, identified=identified, eliminated=analysis.result.eliminated,
+        contributions=contributions, together=tuple(n for n in identified if n not in seen),
+        unreachable=unreachable(problem, p) if problem.contacts is not None else (), lost_without=lost)
+
+
+def _unabsorbed(v: np.ndarray, N: np.ndarray, ref: float) -> float:
+    """The norm of ``v`` outside the span of the columns of ``N``, relative to ``ref`` (the size of
+    the direction's effect on the marker positions: a ball bar sees a rotation of the whole robot
+    as round-off, not as zero)."""
+    if ref == 0:
+        return 0.0
+    if N.shape[1] == 0:
+        return float(np.linalg.norm(v) / ref)
+    c = np.linalg.lstsq(N, v, rcond=None)[0]
+    return float(np.linalg.norm(v - N @ c) / ref)
+
+
+def unreachable(problem: Problem, p: np.ndarray) -> tuple[Unreachable, ...]:
+    """The base's components and the scale whose effect the nuisance parameters absorb entirely."""
+    lay = parameter_layout(problem.model)
+    base = tuple(n for n in lay.names if lay[n].role == "base")
+    lengths = tuple(n for n in lay.names if lay[n].quantity == "length" and lay[n].role != "base")
+    met = problem.at_contact().over(base + lengths)
+    J = met.jacobian(p)
+    k = len(base) + len(lengths)
+    N = J[:, k:]
+    N = N / np.maximum(np.linalg.norm(N, axis=0), 1e-300)
+    # the effect on the marker positions, in the rows' weights: what "absorbed" is relative to
+    rows = cast(ContactRows, met.contacts)
+    Jm = (rows.marker_jacobian(p[:met.n_robot], met.robot_idx) / rows.contacts.sigma[:, None, None]).reshape(-1, k)
+    n_points = 0 if met.points is None else met.points.n_rows
+    Jm = np.vstack([J[:n_points, :k], Jm])     # measured points as they are
+    out = []
+    hidden = [(n, _unabsorbed(J[:, i], N, float(np.linalg.norm(Jm[:, i])))) for i, n in enumerate(base)]
+    gone = tuple(n for n, r in hidden if r < UNREACHABLE_TOL)
+    if gone:
+        out.append(Unreachable("base", _WHY["base"], gone, max(r for n, r in hidden if n in gone)))
+    v = p[lay.indices(lengths)]
+    scale = J[:, len(base):k] @ v
+    r = _unabsorbed(scale, N, float(np.linalg.norm(Jm[:, len(base):] @ v)))
+    if r < UNREACHABLE_TOL:
+        out.append(Unreachable("scale", _WHY["scale"], lengths, r))
+    return tuple(out)
+
+
+@checked(problem=is_a(Problem), names=names_in(lambda a: parameter_names(a["problem"].model)), tol=FRACTION,
+         p=optional(shaped(None)))
+def contact_identifiability(problem: Problem, names, *, tol: float = DEFAULT_TOL,
+                            p: np.ndarray | None = None) -> ContactIdentifiability:
+    """Which of the robot parameters ``names`` the union of the problem's observations identifies
+    (at the full vector ``p``, default the start), what each kind identifies alone, and what none
+    reaches.
+
+    Parameters
+    ----------
+    {problem}
+    names : sequence of str
+        Candidate parameter names (the problem's free ones).
+    tol : float
+        Identifiability tolerance, in (0, 1).
+    p : array_like, optional
+        Parameter vector the analysis is made at (default: the problem's start).
+
+    Returns
+    -------
+    ContactIdentifiability
+        What the observations identify, and what they cannot reach.
+    """
+    p = problem.start_vector() if p is None else np.asarray(p, dtype=float)
+    stack = analyse_stack(problem.over(tuple(names)), tuple(names), p, tol=tol)
+    return kinds_reach(problem.over(tuple(names)), stack, p)

@@ -1,181 +1,168 @@
-"""A calibration problem: residuals and the stacked Jacobian of one model on one set of poses.
+"""The identification problem: one model on a stack of observation blocks, whatever was observed.
 
-Identifiability, pose selection, simulation and identification all start here. Rows are ordered
-marker by marker, then pose by pose (x, y, z), then, with orientations, the rotation rows in the
-same order; each row is divided by its stated standard deviation when the data carry one.
+Measured points (and poses) of an instrument are one block (``Points``); contacts are blocks of
+sockets, planes, ball bars and known distances (``ContactRows``). The full parameter vector is the
+robot's (the model's layout) followed by the nuisance parameters of the contacts (socket points,
+planes). Rows of every block are in the units the fit weighs them in: measured points in metres
+when they are alone and state no deviation, else every row in its standard deviations.
 
-A large campaign of point data (over ``LARGE_POSES`` poses) is evaluated ``CHUNK_POSES`` poses at a
-time: its positions and residuals are assembled from the chunks, and instead of its Jacobian the
-solve and the analysis take ``normal_equations`` (the Jacobian's R factor and gradient), so memory
-grows with the parameters, not the poses.
+What the solver, the identifiability analysis and the held-out scheme ask of a problem is the
+``Solvable`` protocol; ``Problem`` is its one implementation. Beside it, each observation (a
+measured point, a seating, a plane contact, a bar, a known distance) has a kind, a label, a hold-out
+group (a fold of poses or series, a placement) and a stated deviation: what the steps of
+``calibrate`` judge per kind.
 """
 
 from __future__ import annotations
 
 import copy
-import weakref
+from dataclasses import dataclass
+from typing import Protocol, cast
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
-from .._base.arguments import FLAG, SEED, checked, is_a, names_in, optional, readings_of, shaped, whole
-from .._base.arrays import frozen, read_only
-from .._base.errors import InputError
+from .._base.arrays import read_only
 from .._base.linalg import r_factor, reduced
-from .._base.options import MAX_POSES
-from .._base.threads import one_blas_thread
-from .._model.kinematics import (
-    CHUNK_POSES,
-    LARGE_POSES,
-    Workspace,
-    evaluate_state,
-    frame_approach,
-    jacobian_columns,
-    joint_turns,
-    layout,
-    moved_state,
-    moves_rigidly,
-    pass_buffers,
-    workspace,
-)
-from .._model.measurements import Measurements, Noise, approach_of
-from .._model.parameters import has_backlash_parameters, has_compliance_parameters, parameter_names
+from .._model.contacts import Contacts
+from .._model.kinematics import layout
+from .._model.measurements import Measurements, Noise
+from .._model.parameters import parameter_vector
 from .._model.robot import RobotModel
+from .contact_blocks import ContactRows
+from .points import Points
 
-# A problem keeps its last evaluations (the calibration asks for the start again after the solve,
-# and for the solution after the fit of the errors before it): up to STATES_KEPT, fewer for many
-# poses so that they hold no more than about STATE_POSES poses' worth (one at the least).
-STATES_KEPT = 8
-STATE_POSES = 40_000
+
+class Solvable(Protocol):
+    """What ``solve``, ``covariance`` and the analyses use of a problem."""
+
+    free_idx: np.ndarray
+    chunked: bool
+
+    def full(self, x, p0) -> np.ndarray: ...
+
+    def residuals(self, p) -> np.ndarray: ...
+
+    def jacobian(self, p) -> np.ndarray: ...
+
+    def jacobian_factor(self, p) -> np.ndarray: ...
+
+    def normal_equations(self, p) -> tuple[np.ndarray, np.ndarray, float]: ...
+
+    def row_kinds(self) -> np.ndarray | None: ...
+
+
+# row kinds, in the order of ``Problem.row_kinds``' indices: each kind has its own noise
+ROW_KINDS = ("position", "rotation", "socket", "plane", "bar", "distance")
+
+
+@dataclass(frozen=True, eq=False)
+class Observations:
+    """Every observation of a problem, measured points first (pose by pose in the data's mask
+    order), then the contacts' (``ContactRows`` order). ``kind`` ("tracker" or a contact kind),
+    ``label``, ``order`` (the pose or contact row: what consecutive means), ``placement`` (contacts;
+    "" for points)."""
+
+    kind: tuple[str, ...]
+    label: tuple[str, ...]
+    order: np.ndarray
+    placement: tuple[str, ...]
+    n_points: int
+
+    def __len__(self) -> int:
+        return len(self.kind)
+
+    def kinds(self) -> tuple[str, ...]:
+        return tuple(dict.fromkeys(self.kind))
+
+    def of(self, kind: str) -> np.ndarray:
+        return np.array([k == kind for k in self.kind], dtype=bool)
 
 
 class Problem:
-    """Residuals and Jacobian of ``model`` on ``data`` over the free parameters ``free`` (names).
+    """Residuals and Jacobian of ``model`` on its observation blocks over the robot parameters
+    ``free`` (names) and every nuisance parameter: measured points ``data`` and/or ``contacts``.
 
-    The Jacobian is returned column-major (a transposed view): one contiguous row per parameter, so
-    J^T J and J^T r are products of contiguous rows.
-    ``residuals`` and ``jacobian`` at the same parameters share one kinematic pass. Joints rest in
-    their lost motion when the model has backlash or ``free`` holds some, on the sides of the
-    model's ``backlash_side`` (the approach directions from ``approach_of(data)``). ``chunked``:
-    evaluate ``CHUNK_POSES`` poses at a time and solve on normal equations (default: point data of
-    over ``LARGE_POSES`` poses; data with orientations or lost motion are evaluated whole).
+    ``compliance``: gravity moments are evaluated (the model or ``free`` holds compliance);
+    ``noise``: the instrument's, which weighs measured points without stated deviations beside
+    contacts (and rotations against positions); ``chunked``: a large campaign of points alone is
+    evaluated a chunk of poses at a time (``Points``).
     """
 
-    def __init__(self, model: RobotModel, data: Measurements, free: tuple[str, ...], *, compliance: bool,
-                 noise: Noise | None = None, chunked: bool | None = None):
-        self.model = model
-        self.data = data
-        self.noise = noise
+    def __init__(self, model: RobotModel, free: tuple[str, ...], *, data: Measurements | None = None,
+                 contacts: Contacts | ContactRows | None = None, compliance: bool, noise: Noise | None = None,
+                 chunked: bool | None = None):
+        self.model, self.compliance, self.noise = model, compliance, noise
         self.lay = layout(model)
-        self.free_idx = self._indices(free)
-        self.compliance = compliance
-        self.backlash = model.has_backlash or has_backlash_parameters(model, free)
-        self.approach = frame_approach(model, approach_of(data)) if self.backlash else None
-        self.qf = read_only(data.q @ model.coupling_matrix.T)
-        self._turns = None   # the cosines and sines of ``qf``, made at the first evaluation
-        self._chunk_turns: list = []   # each chunk's, made at its first evaluation (shared with ``over``'s)
-        self.marker_idx = np.array([model.marker_names.index(n) for n in data.marker_names], dtype=int)
-        self.use_rot = data.has_orientation
-        self.sel = [np.nonzero(data.mask[:, j])[0] for j in range(len(data.marker_names))]
-        # 6D rows mix metres and radians: without stated deviations, each part is weighed by its noise
-        self.weighted = data.sigma is not None or (self.use_rot and noise is not None)
-        sp = data.sigma if data.sigma is not None else (noise.position if noise is not None and self.weighted else 1.0)
-        self.w = [1.0 / np.broadcast_to(sp, data.mask.shape)[s, j] for j, s in enumerate(self.sel)]
-        self.meas = [data.positions[s, j] for j, s in enumerate(self.sel)]
-        if self.use_rot and data.rot_mask is not None:
-            self.sel_r = [np.nonzero(data.rot_mask[:, j])[0] for j in range(len(data.marker_names))]
-            sr = data.sigma_rot if data.sigma_rot is not None else (noise.rotation if noise is not None else 1.0)
-            self.w_r = [1.0 / np.broadcast_to(sr, data.rot_mask.shape)[s, j] for j, s in enumerate(self.sel_r)]
-        self._kept = _Kept(workspace(model))    # shared with the problems ``over`` makes: the same poses
-        if chunked is None:
-            chunked = data.n_poses > LARGE_POSES
-        if chunked and (self.use_rot or self.backlash):
-            chunked = False   # orientations and lost motion are evaluated whole
-        self.chunked = chunked
+        self.n_robot = len(self.lay.names)
+        alone = contacts is None
+        self.points = None if data is None else Points(model, data, tuple(free), compliance=compliance, noise=noise,
+                                                       chunked=chunked if alone else False)
+        self.contacts = contacts if isinstance(contacts, ContactRows) or contacts is None else \
+            ContactRows.of(model, contacts, free, compliance=compliance)
+        # measured points stacked with contacts are in their noise's units, as every contact row is
+        self.point_scale = 1.0
+        if self.points is not None and not alone and not self.points.weighted:
+            self.point_scale = 1.0 / (noise.position if noise is not None else Noise.of().position)
+        self.chunked = self.points is not None and alone and self.points.chunked
+        # the measured points' observation numbers, kept when some are set aside (``without``)
+        self.point_mask = read_only(np.zeros((0, 0), dtype=bool) if data is None else data.mask.copy())
+        self._point_index = np.full(self.point_mask.shape, -1)
+        self._point_index[self.point_mask] = np.arange(int(self.point_mask.sum()))
+        self._set_free(tuple(free))
 
-    def _chunks(self):
-        """The problem over each chunk of ``CHUNK_POSES`` poses in turn (made when reached, so that
-        one chunk's evaluation is held at a time)."""
-        for c, a in enumerate(range(0, self.data.n_poses, CHUNK_POSES)):
-            sub = Problem(self.model, self.data.subset(slice(a, a + CHUNK_POSES)), (), compliance=self.compliance,
-                          noise=self.noise, chunked=False)
-            sub.free_idx = self.free_idx
-            if c < len(self._chunk_turns):
-                sub._turns = self._chunk_turns[c]
-            yield sub
-            if c == len(self._chunk_turns) and sub._turns is not None:
-                self._chunk_turns.append(sub._turns)
+    # ---- parameters -------------------------------------------------------------------------
+    @property
+    def nuisance0(self) -> np.ndarray:
+        return self.contacts.nuisance0 if self.contacts is not None else np.zeros(0)
 
-    @one_blas_thread
-    def normal_equations(self, p) -> tuple[np.ndarray, np.ndarray, float]:
-        """At ``p``: the R factor (n_free, n_free) of the weighted Jacobian (``R^T R = J^T J``), the
-        gradient ``J^T r`` and the sum of squared weighted residuals, taken chunk by chunk (what a
-        large campaign is solved on; a problem held whole is solved on its Jacobian)."""
-        k = len(self.free_idx)
-        R, g, cost = np.zeros((0, k)), np.zeros(k), 0.0
-        for sub in self._chunks():
-            J, r = sub.jacobian(p), sub.residuals(p)
-            R = reduced(np.vstack([R, J]))
-            g += J.T @ r
-            cost += float(r @ r)
-        return R, g, cost
+    @property
+    def nuisance_names(self) -> tuple[str, ...]:
+        return self.contacts.nuisance_names if self.contacts is not None else ()
 
-    def reduced_jacobian(self, p) -> np.ndarray:
-        """The R factor of the weighted Jacobian at ``p`` (by QR: the candidates' columns may be
-        dependent): a (k, k) matrix with the same Gram matrix, which is all the identifiability
-        analysis needs."""
-        return self.normal_equations(p)[0] if self.chunked else self._factor(p, reduced)
+    @property
+    def nuisance_quantities(self) -> tuple[str, ...]:
+        return self.contacts.nuisance_quantities if self.contacts is not None else ()
 
-    def jacobian_factor(self, p) -> np.ndarray:
-        """An R factor (n_free, n_free) of the weighted Jacobian at ``p`` (``r_factor``), taken from
-        the factor of more columns when one was made at ``p`` (the analysis' at the start)."""
-        return self._factor(p, r_factor)
+    @property
+    def n_nuisance(self) -> int:
+        return len(self.nuisance0)
 
-    def _factor(self, p, make) -> np.ndarray:
-        kept = self._state(p).cache.setdefault("factors", {})
-        free = tuple(self.free_idx.tolist())
-        R = _taken(kept, free, lambda R, cols: make(R[:, cols]))
-        if R is None:
-            R = kept[free] = read_only(make(self.jacobian(p)))
-        return R
-
-    def _indices(self, free) -> np.ndarray:
+    def _set_free(self, free: tuple[str, ...]) -> None:
         index = {n: i for i, n in enumerate(self.lay.names)}
-        return np.array([index[n] for n in free], dtype=int)
+        self.free_names = free
+        self.robot_idx = np.array([index[n] for n in free], dtype=int)
+        self.free_idx = np.concatenate([self.robot_idx, self.n_robot + np.arange(self.n_nuisance)]).astype(int)
 
     def over(self, free: tuple[str, ...]) -> Problem:
-        """The same problem over other free parameters, keeping the evaluation already made."""
+        """The same problem over other free robot parameters (every nuisance stays free), keeping
+        the evaluations already made."""
         other = copy.copy(self)
-        other.free_idx = self._indices(free)
+        if self.points is not None:
+            other.points = self.points.over(tuple(free))
+        other._set_free(tuple(free))
         return other
 
     @property
-    def n_rows(self) -> int:
-        return 3 * sum(len(s) for s in self.sel) + (3 * sum(len(s) for s in self.sel_r) if self.use_rot else 0)
+    def n_points(self) -> int:
+        """The number of measured points observed (set aside or not)."""
+        return int(self.point_mask.sum())
 
-    def row_kinds(self) -> np.ndarray:
-        """(n_rows,) 0 for position rows, 1 for rotation rows: their noise differs in kind."""
-        n_pos = 3 * sum(len(s) for s in self.sel)
-        return np.concatenate([np.zeros(n_pos, dtype=int), np.ones(self.n_rows - n_pos, dtype=int)])
+    def without(self, aside: np.ndarray) -> Problem:
+        """The same problem with the observations ``aside`` (n_observations,) set aside too."""
+        other = copy.copy(self)
+        n = self.n_points
+        if self.points is not None and aside[:n].any():
+            points = np.zeros(self.point_mask.shape, dtype=bool)
+            points[self.point_mask] = aside[:n]
+            other.points = self.points.without(points)
+        if self.contacts is not None and aside[n:].any():
+            other.contacts = self.contacts.without(aside[n:])
+        return other
 
-    def row_points(self) -> tuple[np.ndarray, np.ndarray]:
-        """(n_rows,) each row's pose and (data) marker index, in the order of ``residuals``."""
-        poses = [np.repeat(s, 3) for s in self.sel] + ([np.repeat(s, 3) for s in self.sel_r] if self.use_rot else [])
-        markers = [np.full(3 * len(s), j) for j, s in enumerate(self.sel)]
-        if self.use_rot:
-            markers += [np.full(3 * len(s), j) for j, s in enumerate(self.sel_r)]
-        if not poses:
-            return np.zeros(0, dtype=int), np.zeros(0, dtype=int)
-        return np.concatenate(poses), np.concatenate(markers)
-
-    def pieces(self, p):
-        """``(jacobian, residuals, row poses)`` at ``p``, whole or, for a campaign solved in chunks, a
-        chunk of poses at a time (row poses then index the whole campaign's poses)."""
-        if not self.chunked:
-            yield self.jacobian(p), self.residuals(p), self.row_points()[0]
-            return
-        for a, sub in zip(range(0, self.data.n_poses, CHUNK_POSES), self._chunks()):
-            yield sub.jacobian(p), sub.residuals(p), a + sub.row_points()[0]
+    def start_vector(self, p_robot: np.ndarray | None = None) -> np.ndarray:
+        """The full vector: the robot's parameters (default the model's) and the starting nuisance."""
+        p_robot = parameter_vector(self.model) if p_robot is None else p_robot
+        return np.concatenate([p_robot, self.nuisance0]) if self.n_nuisance else np.asarray(p_robot, dtype=float)
 
     def full(self, x, p0) -> np.ndarray:
         """The full parameter vector: ``p0`` with the free parameters set to ``x``."""
@@ -183,272 +170,161 @@ class Problem:
         p[self.free_idx] = x
         return p
 
-    def _state(self, p):
-        """The evaluation at ``p``, kept with the last few (``STATES_KEPT``, newest last). Each is
-        found by the values it was made at: the bytes of a read-only float copy of them, which its
-        pass holds, so a caller changing their own array afterwards cannot be served a stale one."""
-        p = frozen(p)
-        key = p.tobytes()
-        kept = self._kept
-        states = kept.states
-        st = states.pop(key, None)
-        if st is None:
-            # a geometric chain that only the base and markers moved from a kept evaluation is that one moved
-            near = None if self.compliance or self.backlash else next(
-                (s for s in reversed(states.values()) if moves_rigidly(self.lay, s.ps.p, p)), None)
-            if near is None and self._turns is None:
-                self._turns = joint_turns(self.qf)
-            st = moved_state(near, p, take=kept.workspace.take) if near is not None else evaluate_state(
-                self.model, self.lay, p, self.qf, compliance=self.compliance, orientations=self.use_rot,
-                payload_mass=self.data.payload_mass, backlash=self.backlash, approach=self.approach,
-                turns=self._turns, take=kept.workspace.take)
-            near = None
-            if len(states) >= max(1, min(STATES_KEPT, STATE_POSES // max(self.data.n_poses, 1))):
-                kept.drop_oldest()
-        states[key] = st
-        return st
+    def at_contact(self) -> Problem:
+        """The same problem with the contacts at readings where the model meets them exactly
+        (``ContactRows.at_contact``): what a structural analysis is made at."""
+        if self.contacts is None:
+            return self
+        other = copy.copy(self)
+        other.contacts = self.contacts.at_contact()
+        return other
 
-    def _positions(self, p) -> np.ndarray:
-        """(n_model_markers, n_poses, 3) marker positions at ``p``."""
-        if self.chunked:
-            # copies: a chunk's positions are a view that would keep its whole evaluation alive
-            return np.concatenate([sub._positions(p).copy() for sub in self._chunks()], axis=1)
-        return self._state(p).ps.P
+    # ---- evaluation ---------------------------------------------------------------------------
+    @property
+    def n_rows(self) -> int:
+        return (0 if self.points is None else self.points.n_rows) + (0 if self.contacts is None else
+                                                                     self.contacts.n_rows)
 
-    def predicted(self, p):
-        """Marker positions (n_poses, n_data_markers, 3) and orientations (or None) at ``p``."""
-        pos = self._positions(p)[self.marker_idx].transpose(1, 0, 2)
-        if not self.use_rot:
-            return pos, None
-        st = self._state(p)
-        rot = np.stack([st.ps.RM[m] for m in self.marker_idx], axis=1)
-        return pos, rot
+    def _at(self, p):
+        return cast(ContactRows, self.contacts).at(p[:self.n_robot], p[self.n_robot:], self.robot_idx)
 
-    def errors(self, p) -> np.ndarray:
-        """(n_poses, n_data_markers, 3) predicted minus measured positions, NaN where not measured."""
-        pos, _ = self.predicted(p)
-        return np.where(self.data.mask[..., None], pos - self.data.positions, np.nan)
-
-    def error_norms(self, p) -> np.ndarray:
-        """(n_poses, n_data_markers) position error norms, NaN where not measured."""
-        return np.linalg.norm(self.errors(p), axis=2)
-
-    def rotation_errors(self, p) -> np.ndarray | None:
-        """(n_poses, n_data_markers, 3) rotation vectors (rad, in W) of R_pred R_meas^T, NaN where no
-        orientation was measured; None for point data."""
-        if not self.use_rot:
-            return None
-        st = self._state(p)
-        out = np.full(self.data.positions.shape, np.nan)
-        for j, s in enumerate(self.sel_r):
-            out[s, j] = self._rotation_errors(st, j)
-        return out
-
-    def _rotation_errors(self, st, j) -> np.ndarray:
-        """(n, 3) rotation vectors of R_pred R_meas^T in W for marker j's measured orientations."""
-        s = self.sel_r[j]
-        Rp = st.ps.RM[self.marker_idx[j]][s]
-        assert self.data.rotations is not None  # rows of orientations exist only with them
-        Rm = self.data.rotations[s, j]
-        return Rotation.from_matrix(Rp @ np.swapaxes(Rm, -1, -2)).as_rotvec()
-
-    @one_blas_thread
     def residuals(self, p) -> np.ndarray:
-        P = self._positions(p)
-        parts = [((P[m][s] - meas) * w[:, None]).ravel()
-                 for m, s, meas, w in zip(self.marker_idx, self.sel, self.meas, self.w)]
-        if self.use_rot:
-            st = self._state(p)
-            parts += [(self._rotation_errors(st, j) * w[:, None]).ravel() for j, w in enumerate(self.w_r)]
-        return np.concatenate(parts)
+        """Weighted residuals of every block at the full vector ``p``, stacked."""
+        if self.contacts is None:
+            return cast(Points, self.points).residuals(p)
+        parts = [] if self.points is None else [self.points.residuals(p[:self.n_robot]) * self.point_scale]
+        return np.concatenate(parts + [self.contacts.residuals(self._at(p))])
 
-    @one_blas_thread
     def jacobian(self, p) -> np.ndarray:
-        """Weighted Jacobian of ``residuals`` over the free parameters: (n_rows, n_free), column-major.
-
-        Kept with the evaluation at ``p``: asked again, or for fewer parameters (the solve after
-        the analysis, at the same start), its columns are taken instead of built again."""
-        st = self._state(p)
-        kept = st.cache.setdefault("jacobians", {})
-        free = tuple(self.free_idx.tolist())
-        Jt = _taken(kept, free, lambda Jt, rows: Jt[rows])
-        if Jt is None:
-            Jt = kept[free] = read_only(self._jacobian_rows(st))
-        return Jt.T
-
-    def _jacobian_rows(self, st) -> np.ndarray:
-        """(n_free, n_rows) the transposed weighted Jacobian at the evaluation ``st``."""
-        rows = 6 if self.use_rot else 3
-        k = len(self.free_idx)
-        cols = [jacobian_columns(self.model, self.lay, st, self.free_idx, m, rows) for m in self.marker_idx]
+        """Weighted Jacobian of ``residuals`` over the free robot parameters, then every nuisance."""
+        if self.contacts is None:
+            return cast(Points, self.points).jacobian(p)
+        at = self._at(p)
         parts = []
-        for C, s, w in zip(cols, self.sel, self.w):
-            if len(s) == C.shape[1] and not self.weighted:
-                parts.append(C[:, :, :3].reshape(k, -1))
-            else:
-                parts.append((C[:, s, :3] * w[None, :, None]).reshape(k, -1))
-        if self.use_rot:
-            parts += [(C[:, s, 3:] * w[None, :, None]).reshape(k, -1) for C, s, w in zip(cols, self.sel_r, self.w_r)]
-        return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)
+        if self.points is not None:
+            Jt = self.points.jacobian(p[:self.n_robot]) * self.point_scale
+            parts.append(np.hstack([Jt, np.zeros((Jt.shape[0], self.n_nuisance))]))
+        return np.vstack(parts + [self.contacts.jacobian(at)])
 
-    def compliance_moments(self, p) -> dict:
-        """Per compliance parameter name, the gravity moments (n_poses,) it multiplies (N m), at ``p``."""
-        if not self.compliance:
-            return {}
+    def jacobian_factor(self, p) -> np.ndarray:
+        """An R factor (n_free, n_free) of the weighted Jacobian at ``p``."""
+        if self.contacts is None:
+            return cast(Points, self.points).jacobian_factor(p)
+        return r_factor(self.jacobian(p))
+
+    def reduced_jacobian(self, p) -> np.ndarray:
+        """A (n_free, n_free) matrix with the Gram matrix of the weighted Jacobian at ``p`` (by QR:
+        its columns may be dependent)."""
+        if self.contacts is None:
+            return cast(Points, self.points).reduced_jacobian(p)
+        return reduced(self.jacobian(p))
+
+    def normal_equations(self, p) -> tuple[np.ndarray, np.ndarray, float]:
+        """The R factor, gradient and sum of squares at ``p`` (a large campaign chunk by chunk)."""
         if self.chunked:
-            parts = [sub.compliance_moments(p) for sub in self._chunks()]
-            return {n: np.concatenate([part[n] for part in parts]) for n in parts[0]}
-        st = self._state(p)
-        names = self.lay.names
-        return {names[k]: st.M[row].copy() for row, k in enumerate(self.lay.compliant_params)}
+            return cast(Points, self.points).normal_equations(p)
+        J, r = self.jacobian(p), self.residuals(p)
+        return r_factor(J), J.T @ r, float(r @ r)
+
+    def row_kinds(self) -> np.ndarray:
+        """(n_rows,) index into ``ROW_KINDS`` of each row."""
+        parts = [] if self.points is None else [self.points.row_kinds()]
+        if self.contacts is not None:
+            parts.append(np.array([ROW_KINDS.index(k) for k in self.contacts.row_kinds()], dtype=int))
+        return np.concatenate(parts) if parts else np.zeros(0, dtype=int)
 
     def backlash_sides(self, p) -> dict:
-        """Per backlash parameter name, the sides (n_poses,) in [-1, 1] its joint rests on at ``p``."""
-        if not self.backlash:
-            return {}
-        st = self._state(p)
-        names = self.lay.names
-        return {names[k]: st.backlash.sides[:, i].copy() for i, k in enumerate(self.lay.backlash_params) if k >= 0}
+        """Per backlash parameter name, the sides in [-1, 1] its joint rests on at every pose and
+        contact row, at the full vector ``p``."""
+        parts = [b.backlash_sides(p[:self.n_robot]) for b in (self.points, self.contacts) if b is not None]
+        names = dict.fromkeys(n for part in parts for n in part)
+        return {n: np.concatenate([part[n] for part in parts if n in part]) for n in names}
 
-    @one_blas_thread
-    def pose_blocks(self, p) -> np.ndarray:
-        """(n_poses, rows_per_pose, n_free) unweighted Jacobian grouped by pose (all markers seen)."""
-        st = self._state(p)
-        rows = 6 if self.use_rot else 3
-        cols = [jacobian_columns(self.model, self.lay, st, self.free_idx, m, rows) for m in self.marker_idx]
-        return np.concatenate([C.transpose(1, 2, 0) for C in cols], axis=1)
+    def compliance_moments(self, p) -> dict:
+        """Per compliance parameter name, the gravity moments (N m) it multiplies at every pose and
+        contact row, at the full vector ``p``."""
+        parts = [b.compliance_moments(p[:self.n_robot]) for b in (self.points, self.contacts) if b is not None]
+        names = dict.fromkeys(n for part in parts for n in part)
+        return {n: np.concatenate([part[n] for part in parts if n in part]) for n in names}
 
+    def contact_positions(self, p) -> np.ndarray:
+        """(n_contact_rows, 3) each contact row's marker position at the full vector ``p``."""
+        return cast(ContactRows, self.contacts).positions(p[:self.n_robot])
 
-class _Kept:
-    """The evaluations a problem keeps, newest last (shared with the problems ``over`` makes from it).
-    The buffers of those it drops, and of all when the last of these problems goes, return to the
-    model's workspace (``Workspace.give`` takes only those nothing else holds)."""
+    def socket_points(self, p) -> np.ndarray:
+        """(n_sockets, 3) the socket points at the full vector ``p``, in the contacts' socket order."""
+        return p[self.n_robot:self.n_robot + 3 * len(cast(ContactRows, self.contacts).sockets)].reshape(-1, 3)
 
-    def __init__(self, ws: Workspace):
-        self.workspace = ws
-        self.states: dict = {}     # the bytes of the parameters' read-only copy -> the evaluation there
-        weakref.finalize(self, _give_back, ws, self.states)
+    # ---- observations -------------------------------------------------------------------------
+    def observations(self) -> Observations:
+        """Every observation's kind, label, order and placement (``Observations``), those set aside
+        included."""
+        kinds, labels, placements, order = [], [], [], []
+        n_points = self.n_points
+        if self.points is not None:
+            d = self.points.data
+            rows, markers = np.nonzero(self.point_mask)
+            kinds += ["tracker"] * n_points
+            labels += [f"{d.labels[i]}, marker {d.marker_names[j]}" for i, j in zip(rows, markers)]
+            placements += [""] * n_points
+            order.append(rows)
+        if self.contacts is not None:
+            c = self.contacts
+            kinds += list(c.obs_kind)
+            labels += list(c.obs_label)
+            placements += list(c.obs_placement)
+            order.append(c.obs_row)
+        return Observations(tuple(kinds), tuple(labels), np.concatenate(order) if order else np.zeros(0, dtype=int),
+                            tuple(placements), n_points)
 
-    def drop_oldest(self) -> None:
-        buffers = pass_buffers(self.states.pop(next(iter(self.states))))
-        self.workspace.give(buffers)
+    def row_observations(self) -> np.ndarray:
+        """(n_rows,) the observation (index into ``observations``) each row belongs to."""
+        parts = []
+        if self.points is not None:
+            poses, markers = self.points.row_points()
+            parts.append(self._point_index[poses, markers])
+        if self.contacts is not None:
+            parts.append(self.n_points + self.contacts.row_observations())
+        return np.concatenate(parts) if parts else np.zeros(0, dtype=int)
 
+    def observation_groups(self) -> np.ndarray:
+        """(n_observations,) the group each observation belongs to: a measured marker, or a socket,
+        plane, ball bar or known distance (``ContactRows.obs_groups``)."""
+        parts = []
+        n_markers = 0
+        if self.points is not None:
+            n_markers = self.point_mask.shape[1]
+            parts.append(np.nonzero(self.point_mask)[1])
+        if self.contacts is not None:
+            groups = np.zeros(len(self.contacts.obs_kind), dtype=int)
+            for g, (_, _, idx) in enumerate(self.contacts.obs_groups):
+                groups[idx] = n_markers + g
+            parts.append(groups)
+        return np.concatenate(parts) if parts else np.zeros(0, dtype=int)
 
-def _give_back(ws: Workspace, states: dict) -> None:
-    buffers = [b for st in states.values() for b in pass_buffers(st)]
-    states.clear()
-    ws.give(buffers)
+    def row_labels(self) -> list[str]:
+        """A label for each row: its observation's."""
+        labels = self.observations().label
+        return [labels[o] for o in self.row_observations()]
 
+    def pieces(self, p):
+        """``(jacobian, residuals, row observations)`` at ``p``: whole, or for a large campaign of
+        points a chunk of poses at a time."""
+        if not self.chunked:
+            yield self.jacobian(p), self.residuals(p), self.row_observations()
+            return
+        for J, r, poses, markers in cast(Points, self.points).pieces(p):
+            yield J, r, self._point_index[poses, markers]
 
-def _taken(kept: dict, free: tuple, take):
-    """What an evaluation keeps for the parameters ``free`` (indices): ``kept[free]``, or
-    ``take(entry, positions of free in it)`` from an entry kept for more parameters; None if neither."""
-    for have, entry in kept.items():
-        if have == free:
-            return entry
-        if set(free) <= set(have):
-            where = {c: i for i, c in enumerate(have)}
-            return take(entry, [where[c] for c in free])
-    return None
-
-
-def needs_compliance(model: RobotModel, names) -> bool:
-    """Whether evaluating ``names`` on ``model`` needs the gravity moments."""
-    return model.has_compliance or has_compliance_parameters(model, names)
-
-
-def design_measurements(model: RobotModel, q, orientation: bool = False, markers=None, approach=None) -> Measurements:
-    """Configurations without measured values, for what depends on the poses only (the Jacobian).
-
-    ``markers``: the names of the markers measured (default all the model's); ``approach``
-    (n, n_joints) the direction each joint comes from (default: the row order)."""
-    names = model.marker_names if markers is None else tuple(markers)
-    n, m = len(q), len(names)
-    return Measurements(q=q, positions=np.zeros((n, m, 3)), marker_names=names,
-                        rotations=np.broadcast_to(np.eye(3), (n, m, 3, 3)) if orientation else None,
-                        extra={} if approach is None else {"approach": np.asarray(approach, dtype=float)})
-
-
-# a problem's free parameters: names of the model's parameters
-_PARAMETERS = names_in(lambda a: parameter_names(a["model"]))
-
-
-@checked(model=is_a(RobotModel), q=readings_of(), names=_PARAMETERS, orientation=FLAG,
-         approach=optional(shaped(None, None)))
-def design_problem(model: RobotModel, q, names, orientation: bool = False, approach=None) -> Problem:
-    """The problem of ``names`` at readings ``q`` with nothing measured: its Jacobian is the design's.
-
-    Parameters
-    ----------
-    {model, q}
-    names : sequence of str
-        The free parameters.
-    orientation : bool
-        Whether orientations are measured.
-    {approach}
-
-    Returns
-    -------
-    Problem
-        The problem; its Jacobian is the design's.
-    """
-    return Problem(model, design_measurements(model, q, orientation, approach=approach), tuple(names),
-                   compliance=needs_compliance(model, names))
-
-
-@checked(model=is_a(RobotModel))
-def sampling_box(model: RobotModel) -> tuple[np.ndarray, np.ndarray]:
-    """Lower and upper readings within which configurations are drawn, (n_joints,) each.
-
-    An unbounded revolute reading turns within +-pi (every orientation); an unbounded prismatic
-    one has no such range and is refused.
-
-    Parameters
-    ----------
-    {model}
-
-    Returns
-    -------
-    (numpy.ndarray, numpy.ndarray)
-        Lower and upper readings, (n_joints,) each.
-    """
-    lo, hi = model.lower_limits.copy(), model.upper_limits.copy()
-    angle = np.zeros(model.n_joints, dtype=bool)
-    for f in model.frames:
-        for j, _ in f.coupling:
-            angle[j] |= f.joint == "revolute"
-    open_ = ~(np.isfinite(lo) & np.isfinite(hi))
-    if np.any(open_ & ~angle):
-        j = int(np.argmax(open_ & ~angle))
-        raise InputError(f"joint {model.joint_names[j]!r} slides without finite limits: configurations cannot be "
-                         "drawn; give its limits", where=f"joints[{j}].limits")
-    lo[open_] = np.maximum(lo[open_], -np.pi)
-    hi[open_] = np.minimum(hi[open_], np.pi)
-    empty = ~(lo <= hi) | ~np.isfinite(hi - lo)  # e.g. limits [inf, inf]: nothing to draw from
-    if np.any(empty):
-        j = int(np.argmax(empty))
-        raise InputError(f"joint {model.joint_names[j]!r} has no finite range of readings within its limits "
-                         f"({model.lower_limits[j]:g}, {model.upper_limits[j]:g}): configurations cannot be drawn",
-                         where=f"joints[{j}].limits")
-    return lo, hi
-
-
-@checked(model=is_a(RobotModel), n=whole(0, MAX_POSES), rng=SEED)
-def random_configurations(model: RobotModel, n: int, rng=None) -> np.ndarray:
-    """``n`` joint readings (n, n_joints) drawn uniformly within ``sampling_box(model)``.
-
-    Parameters
-    ----------
-    {model}
-    n : int
-        Number of configurations.
-    {rng}
-
-    Returns
-    -------
-    numpy.ndarray, shape (n, n_joints)
-        Joint readings within the joint limits.
-    """
-    rng = np.random.default_rng(rng)
-    lo, hi = sampling_box(model)
-    return rng.uniform(lo, hi, size=(n, model.n_joints))
+    def observation_errors(self, p) -> dict:
+        """Per kind, the errors (n, width) in m of the observations fitted, their stated standard
+        deviations (n,) or None, and their indices among ``observations`` (n,)."""
+        out = {}
+        if self.points is not None:
+            d = self.points.data
+            errors = self.points.errors(p[:self.n_robot])[d.mask]
+            out["tracker"] = (errors, None if d.sigma is None else d.sigma[d.mask], self._point_index[d.mask])
+        if self.contacts is not None:
+            for kind, (e, s, o) in self.contacts.errors(self._at(p)).items():
+                out[kind] = (e, s, self.n_points + o)
+        return out

@@ -24,9 +24,9 @@ from .._base.errors import DegenerateDataError, InputError, check_choice
 from .._base.linalg import reduced, solve_upper
 from .._base.options import LOSSES
 from .._base.threads import one_blas_thread
-from .contact_blocks import ContactProblem
+from .._model.kinematics import LARGE_POSES
 from .identifiability import singular_values
-from .problem import LARGE_POSES, Problem
+from .problem import Problem
 
 # step, cost and gradient tolerances (ours and least_squares'): Gauss-Newton converges quadratically
 # here, so the step that meets them leaves an error far below them (noise-free recovery is ~1e-16)
@@ -55,7 +55,7 @@ class Solution:
     linear_rows: np.ndarray | None = None
 
 
-@checked(problem=is_a(Problem, ContactProblem), p0=shaped(None), loss=one_of(LOSSES), f_scale=optional(POSITIVE),
+@checked(problem=is_a(Problem), p0=shaped(None), loss=one_of(LOSSES), f_scale=optional(POSITIVE),
          max_nfev=optional(whole(1)), lower=optional(shaped(None, finite=False)), tol=FRACTION,
          linear_rows=optional(shaped(None)))
 @one_blas_thread
@@ -256,18 +256,21 @@ def _levenberg_marquardt(problem, p0: np.ndarray, max_nfev: int | None, tol: flo
 CARRIED_ALONE = 0.99
 
 
-def carried_alone(jacobian: np.ndarray) -> np.ndarray:
-    """(n_rows,) whether each row of the weighted Jacobian (n_rows, n_free) carries some direction of
-    the parameters alone: its leverage (the diagonal of the hat matrix ``J (J^T J)^-1 J^T``, taken in
+def carried_alone(jacobian: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+    """Whether each row of the weighted Jacobian (n_rows, n_free) carries some direction of the
+    parameters alone: its leverage (the diagonal of the hat matrix ``J (J^T J)^-1 J^T``, taken in
     unit-column scaling over the directions the rows determine) exceeds ``CARRIED_ALONE``. The only
     known distance fixing the scale, the only rows fixing a plane's offset: a robust loss must not
-    set them aside, for nothing else would fix what they fix."""
+    set them aside, for nothing else would fix what they fix. ``rows`` (n_rows,) bool: only those
+    rows are judged (the result has one entry per row judged)."""
     J = np.asarray(jacobian, dtype=float)
     col = np.linalg.norm(J, axis=0)
     col[col == 0] = 1.0
-    U, s, _ = np.linalg.svd(J / col, full_matrices=False)
-    rank = int(np.sum(s > s[0] * 1e-10)) if s.size and s[0] > 0 else 0
-    return np.sum(U[:, :rank] ** 2, axis=1) > CARRIED_ALONE
+    A = J / col
+    w, V = np.linalg.eigh(A.T @ A)
+    keep = w > max(float(w.max()), 0.0) * 1e-20 if w.size else np.zeros(0, dtype=bool)
+    B = (A if rows is None else A[rows]) @ V[:, keep]
+    return np.sum(B ** 2 / w[keep], axis=1) > CARRIED_ALONE
 
 
 @dataclass(frozen=True, eq=False)

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import copy
 import math
-import sys
 import threading
 from dataclasses import dataclass, field
 from typing import cast
@@ -176,14 +175,16 @@ WORKSPACE_BYTES = 32 << 20
 
 
 class Workspace:
-    """Pass buffers a model's problems no longer use, kept for its next ones (``workspace(model)``).
+    """Pass buffers a model's problems gave back, kept for its next ones (``workspace(model)``).
 
     A calibration's passes are then written into memory the process already uses instead of fresh
     pages the system has to fault in: without it, at 1,000 poses, first writes to fresh pages take
     about a third of a repeated calibration's time. It is the model's own (it lives and dies with
-    it) and changes nothing outside it. A buffer comes back only when nobody else holds it (no view
-    of it is alive anywhere: ``sys.getrefcount``), at most ``WORKSPACE_BYTES`` in all. What a buffer
-    held is never read: a pass writes every row before it reads it, as it must with ``np.empty``.
+    it) and changes nothing outside it. A buffer is taken by one evaluation of one problem, which
+    owns it, and is given back by its owner when it is done with it (nothing of it handed out: what
+    a problem returns is computed or copied from it), at most ``WORKSPACE_BYTES`` kept in all. What
+    a buffer held is never read: a pass writes every row before it reads it, as it must with
+    ``np.empty``.
     """
 
     def __init__(self) -> None:
@@ -199,13 +200,12 @@ class Workspace:
         return np.empty(shape)
 
     def give(self, arrays: list) -> None:
-        """Keep, for a later ``take``, those of ``arrays`` (buffers ``take`` gave, in a list handed
-        over and emptied here) that nothing else holds; the oldest spares go beyond the bound."""
+        """Keep, for a later ``take``, ``arrays`` (buffers ``take`` gave, whose owner is done with
+        them, in a list handed over and emptied here); the oldest spares go beyond the bound."""
         with self._lock:
             while arrays:
                 a = arrays.pop()
-                # held by ``a`` and getrefcount's argument only: no pass, view or caller has it
-                if sys.getrefcount(a) <= 2 and a.flags.owndata and a.nbytes <= WORKSPACE_BYTES:
+                if a.flags.owndata and a.nbytes <= WORKSPACE_BYTES:
                     self._spare.append(a)
             while sum(a.nbytes for a in self._spare) > WORKSPACE_BYTES:
                 self._spare.pop(0)

@@ -210,3 +210,8 @@ class Measurements:
         if "approach" in self.extra:
             return self
         return replace(self, extra={**self.extra, "approach": approach_sides(self.q)})
+
+    def without(self, aside: np.ndarray) -> Measurements:
+        """The same poses with the points ``aside`` (n_poses, n_markers) masked: set aside, not deleted."""
+        return replace(self, mask=self.mask & ~aside,
+                       rot_mask=None if self.rot_mask is None else self.rot_mask & ~aside)

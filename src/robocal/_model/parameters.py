@@ -429,3 +429,8 @@ def has_backlash_parameters(model: RobotModel, names: Iterable[str]) -> bool:
     """Whether any of ``names`` is a backlash of ``model``."""
     lay = parameter_layout(model)
     return any(lay[n].family == "backlash" for n in names)
+
+
+def needs_compliance(model: RobotModel, names) -> bool:
+    """Whether evaluating ``names`` on ``model`` needs the gravity moments."""
+    return model.has_compliance or has_compliance_parameters(model, names)

@@ -26,8 +26,8 @@ from .._base.arguments import (
 from .._base.errors import InputError
 from .._files.result import DIAGNOSIS, diagnosis_to_dict, per_pose_arrays, result_to_dict
 from .._files.text import write_texts
-from .._identification.calibrate import CalibrationResult
 from .._identification.contact_figures import ContactErrors, ContactFigures
+from .._identification.result import CalibrationResult
 from .._model.parameters import FRAME_KINDS, GEOMETRIC_KINDS, SI_UNITS, parameter_layout, parameter_vector
 from .._model.robot import DEFAULT_LINK_DENSITY, RELATIVE_MASSES, mdh_transform
 from .plots import (

@@ -12,9 +12,9 @@ from .._base.arguments import (
     each_a,
     is_a,
 )
-from .._identification.calibrate import CalibrationResult, Comparison
 from .._identification.checks import Check
 from .._identification.identifiability import IdentifiabilityResult
+from .._identification.result import CalibrationResult, Comparison
 from .._model.parameters import BACKLASH_KINDS, BASE_KINDS, FRAME_KINDS, MARKER_KINDS, parameter_layout
 from .._model.robot import RobotModel
 from .units import MM, absorption_text, display_unit, with_unit

@@ -27,7 +27,7 @@ from .._base.arguments import (
 )
 from .._base.errors import InputError
 from .._base.spatial import vector3
-from .._identification.problem import random_configurations, sampling_box
+from .._model.configurations import random_configurations, sampling_box
 from .._model.contacts import Contacts, KnownDistance, KnownPlane
 from .._model.kinematics import evaluate
 from .._model.parameters import parameter_layout

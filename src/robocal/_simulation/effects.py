@@ -41,7 +41,7 @@ from .._base.arguments import (
 )
 from .._base.errors import InputError
 from .._base.options import MAX_POSES
-from .._identification.problem import random_configurations
+from .._model.configurations import random_configurations
 from .._model.kinematics import evaluate, gravity_loads
 from .._model.measurements import Measurements, approach_sides
 from .._model.robot import RobotModel

@@ -25,7 +25,8 @@ from .._base.errors import DegenerateDataError, InputError, check_choice
 from .._base.options import MAX_POSES, MAX_SELECTION_BLOCKS, MAX_SELECTION_WORK, POSE_CRITERIA
 from .._base.threads import one_blas_thread
 from .._identification.identifiability import ONE_SIDE, identifiability
-from .._identification.problem import design_problem, random_configurations
+from .._identification.points import design_problem
+from .._model.configurations import random_configurations
 from .._model.parameters import has_backlash_parameters, parameter_vector
 from .._model.robot import RobotModel
 

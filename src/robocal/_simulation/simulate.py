@@ -28,7 +28,7 @@ from .._base.errors import InputError
 from .._base.options import MAX_POSES
 from .._base.threads import one_blas_thread
 from .._identification.identifiability import identifiability
-from .._identification.problem import random_configurations
+from .._model.configurations import random_configurations
 from .._model.kinematics import evaluate
 from .._model.measurements import Measurements, approach_sides
 from .._model.parameters import model_from_vector, parameter_layout, parameter_names, parameter_vector

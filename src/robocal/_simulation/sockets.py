@@ -28,9 +28,8 @@ from .._base.arguments import (
 )
 from .._base.errors import InputError
 from .._base.options import MAX_GRID_ROWS, MAX_SEATINGS
-from .._identification.contact_blocks import ContactProblem
-from .._identification.contact_figures import contact_identifiability
-from .._identification.identifiability import WEAK_STD
+from .._identification.identifiability import WEAK_STD, contact_identifiability
+from .._identification.problem import Problem
 from .._model.contacts import Contacts
 from .._model.parameters import candidate_parameters, parameter_layout
 from .._model.robot import RobotModel
@@ -72,7 +71,7 @@ class SocketPlan:
 
 def _design(model: RobotModel, campaign: Contacts, names, placements: int, poses: int, ident,
             bounds: dict) -> SocketDesign:
-    prob = ContactProblem(model, campaign, names, compliance=False)
+    prob = Problem(model, names, contacts=campaign, compliance=False)
     k = len(ident.identified)
     J = prob.at_contact().over(ident.identified).jacobian(prob.start_vector())
     std = np.sqrt(np.diag(np.linalg.pinv(J.T @ J)))[:k]
@@ -145,7 +144,7 @@ def plan_sockets(model: RobotModel, *, placements=(3, 5, 7, 9), poses_per_socket
         for n_po in per:
             c = full.subset((placement < n_pl) & (seating < n_po))
             if ident is None:
-                ident = contact_identifiability(ContactProblem(model, c, names, compliance=False), names)
+                ident = contact_identifiability(Problem(model, names, contacts=c, compliance=False), names)
             designs.append(_design(model, c, names, n_pl, n_po, ident, bounds))
             campaigns[(n_pl, n_po)] = c
     good = [d for d in designs if d.meets_bounds]

@@ -45,7 +45,7 @@ from .._base.arguments import (
 from .._base.errors import InputError, excerpt
 from .._files.model import model_from_dict, model_to_dict
 from .._files.result import plain, result_to_dict
-from .._identification.calibrate import CalibrationResult
+from .._identification.result import CalibrationResult
 from .._model.measurements import Measurements
 from .._model.parameters import FAMILIES
 from .._model.robot import RobotModel

@@ -1,0 +1,446 @@
+"""The last steps of a calibration, for every kind of observation: the accuracy in use, what the
+calibrated geometry does over the workspace and where the campaign holds, the checks and the
+verdict, the warnings, and the record (``CalibrationResult``)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import cast
+
+import numpy as np
+
+from .._base.errors import CheckWarning, ConvergenceWarning, IdentifiabilityWarning, MisfitWarning, warn
+from .._model.configurations import design_measurements
+from .._model.measurements import Measurements, Noise
+from .._model.parameters import model_from_vector, parameter_layout
+from .._model.robot import RobotModel
+from .checks import (
+    Check,
+    WorkspaceChange,
+    backlash_sign_check,
+    cloud_size_check,
+    compliance_sign_check,
+    convergence_check,
+    correlation_check,
+    coverage_check,
+    fit_check,
+    identifiability_check,
+    in_use_check,
+    interchangeable_pairs,
+    limit_check,
+    markers_check,
+    plausibility_check,
+    reading_units_check,
+    readings_check,
+    support_check,
+    tolerances,
+)
+from .contact_blocks import CARRIES, ContactRows
+from .contact_figures import ContactFigures, figures, recordings
+from .estimates import ParameterEstimate, workspace_change
+from .holdout import (
+    AccuracyInUse,
+    Coverage,
+    FoldProblems,
+    HeldOut,
+    Holdout,
+    accuracy_in_use,
+    contact_held_out,
+    coverage,
+    cross_validate,
+    evaluated,
+    workspace_readings,
+)
+from .identifiability import WEAK_STD
+from .misfit import characteristic_length, misfit_notes
+from .points import Points
+from .problem import Problem
+from .result import CalibrationResult, ErrorSummary, PoseErrors, judge_against_limit, provenance
+from .solve import Covariance
+from .steps import (
+    Analysis,
+    Design,
+    Fit,
+    Inputs,
+    Options,
+    alone_observations,
+    observed_markers,
+    placed_parameters,
+    registered,
+)
+
+# the kinds whose held-out errors are positions of the robot: what the accuracy in use is made of
+POSITION_KINDS = ("tracker", "socket")
+
+
+def estimates(design: Design, p: np.ndarray, cov: Covariance) -> tuple[ParameterEstimate, ...]:
+    """Each identified parameter against the start of the solve: the user's model, or with
+    registration the registered base (rotation corrections are small angles about it)."""
+    lay = parameter_layout(design.start)
+    idx = design.problem.robot_idx
+    return tuple(ParameterEstimate(n, lay[n].unit, float(design.p0[idx[k]]), float(p[idx[k]]),
+                                   float(cov.std[k]), family=lay[n].family, quantity=lay[n].quantity)
+                 for k, n in enumerate(design.identifiability.identified))
+
+
+def instrument_variance(noise: Noise | None, data: Measurements) -> tuple[float, float]:
+    """The instrument's per-axis variance of positions and rotations: the stated deviations' mean
+    square where the data state them, else the expected noise's."""
+    pos = noise.position ** 2 if noise is not None else 0.0
+    rot = noise.rotation ** 2 if noise is not None else 0.0
+    if data.sigma is not None:
+        pos = float(np.mean(data.sigma[data.mask] ** 2))
+    if data.sigma_rot is not None and data.rot_mask is not None and data.rot_mask.any():
+        rot = float(np.mean(data.sigma_rot[data.rot_mask] ** 2))
+    return pos, rot
+
+
+def _seatings(problem: Problem) -> np.ndarray | None:
+    """The contact observations whose errors are positions of the robot (``POSITION_KINDS``)."""
+    if problem.contacts is None:
+        return None
+    return np.array([k in POSITION_KINDS for k in problem.contacts.obs_kind], dtype=bool)
+
+
+def _fitted_seatings(problem: Problem, p: np.ndarray) -> np.ndarray | None:
+    """The fitted seatings' distances from their socket's mean centre (m), or None without contacts."""
+    if problem.contacts is None:
+        return None
+    e = problem.contacts.own_errors(p[:problem.n_robot])
+    keep = _seatings(problem) & ~problem.contacts.aside
+    return np.linalg.norm(e[keep], axis=1)
+
+
+def _fitted_points(fit: Fit) -> np.ndarray:
+    """The fitted points' error norms (m), none without measured points."""
+    pts = fit.problem.points
+    return np.empty(0) if pts is None else pts.error_norms(fit.solution.p[:fit.problem.n_robot])[pts.data.mask]
+
+
+def in_use(fit: Fit, before: np.ndarray, inputs: Inputs, holdout: Holdout, folds: FoldProblems,
+           options: Options) -> tuple[AccuracyInUse | None, PoseErrors | None, tuple[str, ...]]:
+    """The accuracy in use before and after calibration, and the errors on held-out measured points:
+    on the validation set when given (base and markers registered on it for both models when asked,
+    or when nothing fitted fixes a frame), else each observation predicted by the fit on the other
+    groups (the nominal's registration of base and markers refitted there too)."""
+    design, problem, p = fit.design, fit.problem, fit.solution.p
+    if inputs.validation is not None:
+        return _validation_points(fit, before, inputs.validation, options)
+    if inputs.validation_contacts is not None:
+        return _validation_contacts(fit, before, inputs.validation_contacts), None, ()
+    if holdout.k == 0:
+        return None, None, ()
+    placed = placed_parameters(design)
+    only = len(placed) == len(design.identifiability.identified)
+    held_before = fit.held_out if only else (
+        cross_validate(problem.over(placed), before, holdout, folds=folds) if placed else _everywhere(problem, before))
+    noise = (0.0, 0.0) if problem.points is None else instrument_variance(problem.noise, problem.points.data)
+    record = accuracy_in_use("cross-validation", holdout.k, holdout.description, held_before, fit.held_out,
+                             _fitted_points(fit), registration_only=only, noise=noise, seatings=_seatings(problem),
+                             fit_seatings=_fitted_seatings(problem, p))
+    return (record if record.position_after.n else None), None, ()
+
+
+def _everywhere(problem: Problem, p: np.ndarray) -> HeldOut:
+    """The errors of ``p`` at every observation (none fitted with it)."""
+    held = evaluated(problem.points, p[:problem.n_robot]) if problem.points is not None else \
+        HeldOut(np.zeros((0, 0, 3)), None, np.zeros((0, 0)))
+    if problem.contacts is None:
+        return held
+    e, loss = contact_held_out(problem.contacts, p[:problem.n_robot])
+    return HeldOut(held.positions, held.rotations, held.loss, e, loss)
+
+
+def _validation_points(fit: Fit, before: np.ndarray, points: Measurements, options: Options):
+    """Measured points held out: the nominal and the calibrated model on them, base and the measured
+    markers registered on them for both when asked or when the fit fixed no frame (contacts alone)."""
+    design, problem = fit.design, fit.problem
+    n = problem.n_robot
+    val = Problem(design.start, design.identifiability.identified, data=points, compliance=design.compliance,
+                  noise=problem.noise)
+    vectors = [before[:n], fit.solution.p[:n]]
+    register = options.register_validation or problem.points is None
+    if register:
+        vectors = registered(val, vectors)
+    pts = cast(Points, val.points)
+    b, a = evaluated(pts, vectors[0]), evaluated(pts, vectors[1])
+    method = "validation, base and tool registered on it" if register else "validation"
+    record = accuracy_in_use(method, None, "the validation set", b, a, _fitted_points(fit),
+                             noise=instrument_variance(problem.noise, points))
+    said = () if options.register_validation or not register else (
+        "nothing fitted fixes a frame (contacts alone): base and tool registered on the validation points, for "
+        "the models before and after alike",)
+    return record, PoseErrors(points, b.positions, a.positions, b.rotations, a.rotations), said
+
+
+def _validation_contacts(fit: Fit, before: np.ndarray, contacts) -> AccuracyInUse:
+    """Contacts held out: each observation with its own unknowns from its own rows, for the nominal
+    and the calibrated model (their figures do not depend on the frame)."""
+    design, problem = fit.design, fit.problem
+    n = problem.n_robot
+    rows = ContactRows.of(design.start, contacts, design.identifiability.identified, compliance=design.compliance)
+    b, a = (HeldOut(np.zeros((0, 0, 3)), None, np.zeros((0, 0)), *contact_held_out(rows, v[:n]))
+            for v in (before, fit.solution.p))
+    seatings = np.array([k in POSITION_KINDS for k in rows.obs_kind], dtype=bool)
+    return accuracy_in_use("held-out placements", None, "the held-out placements", b, a, np.empty(0), seatings=seatings,
+                           fit_seatings=_fitted_seatings(problem, fit.solution.p))
+
+
+@dataclass(frozen=True, eq=False)
+class Reach:
+    """The calibrated model against the nominal one over the workspace: ``predicted`` (n, n_markers,
+    3) the calibrated measured markers at random configurations within the limits (None without
+    measured points), and the judgement of the change (``WorkspaceChange``)."""
+
+    predicted: np.ndarray | None
+    judgement: WorkspaceChange | None
+
+
+def reach(inputs: Inputs, design: Design, p: np.ndarray) -> Reach:
+    """The calibrated markers at the workspace's configurations, and how far the calibrated geometry
+    moves the observed markers from the nominal one's (``workspace_change``)."""
+    start, n = design.start, design.problem.n_robot
+    q = workspace_readings(start)
+    predicted = None
+    if inputs.data is not None:
+        at_q = design_measurements(start, q, markers=inputs.data.marker_names)
+        predicted = Points(start, at_q, (), compliance=design.compliance).predicted(p[:n])[0]
+    seen = observed_markers(inputs.data, inputs.contacts)
+    return Reach(predicted, workspace_change(start, p[:n], q, seen, design.identifiability.identified))
+
+
+def campaign_coverage(fit: Fit, cov: Covariance, where: Reach) -> Coverage | None:
+    """Where the measured points' accuracy in use holds (``coverage``), None without them."""
+    problem, solution = fit.problem, fit.solution
+    if problem.points is None or where.predicted is None:
+        return None
+    k = len(problem.robot_idx)
+    square = problem.contacts is None and solution.jacobian.shape[0] == solution.jacobian.shape[1] and \
+        solution.row_kinds is None
+    return coverage(problem.points, solution.p[:problem.n_robot], cov.covariance[:k, :k], where.predicted,
+                    factor=solution.jacobian if square else None)
+
+
+# -- the checks ------------------------------------------------------------------------------------
+
+def input_checks(inputs: Inputs, analysis: Analysis) -> list[Check]:
+    """The readings within the limits and in their declared units, the measured points' size against
+    the robot's, every marker observed."""
+    model, data, contacts = inputs.model, inputs.data, inputs.contacts
+    parts = [(d.q, d.labels) for d in (data, contacts) if d is not None]
+    q = np.vstack([a for a, _ in parts])
+    labels = [lab for _, labs in parts for lab in labs]
+    out = [readings_check(model, q, labels), reading_units_check(model, q)]
+    if data is not None:
+        pts = cast(Points, analysis.problem.points)
+        out.append(cloud_size_check(model, data, pts.predicted(analysis.problem.start_vector()[:pts.lay.n_params])[0]))
+    return out + [markers_check(model, observed_markers(data, contacts))]
+
+
+def fit_checks(fit: Fit, options: Options) -> list[Check]:
+    """Convergence, then each kind's residuals against what the instrument explains, and the
+    orientations of 6D data."""
+    solution, noise = fit.solution, options.noise
+    out = [convergence_check(solution.success, solution.message, solution.nfev)]
+    errors = fit.problem.observation_errors(solution.p)
+    dof = kind_dof(fit.problem, solution, errors)
+    for kind, (e, s, _) in errors.items():
+        out.append(fit_check(e, s, noise, options.limit_m, np.zeros(len(e), dtype=bool),
+                             stated=noise.source.startswith("stated"), kind=kind, dof=dof[kind]))
+    pts = fit.problem.points
+    if pts is not None and pts.data.has_orientation:
+        out.append(_orientation_check(pts, solution.p[:fit.problem.n_robot]))
+    return out
+
+
+def kind_dof(problem: Problem, solution, errors: dict) -> dict:
+    """Each kind's residual degrees of freedom: its rows less what the fit takes from them (the sum
+    of their leverages). One kind: its rows less the free parameters."""
+    if len(errors) == 1:
+        kind, (e, _, _) = next(iter(errors.items()))
+        return {kind: float(e.size * (1.0 - len(problem.free_idx) / max(problem.n_rows, 1)))}
+    J = solution.jacobian if len(solution.jacobian) == problem.n_rows else problem.jacobian(solution.p)
+    col = np.linalg.norm(J, axis=0)
+    U, s, _ = np.linalg.svd(J / np.where(col > 0, col, 1.0), full_matrices=False)
+    rank = int(np.sum(s > s[0] * 1e-10)) if s.size and s[0] > 0 else 0
+    leverage = np.sum(U[:, :rank] ** 2, axis=1)
+    kinds = problem.observations().kind
+    row_kind = np.array([kinds[o] for o in problem.row_observations()], dtype=object)
+    return {kind: float(np.sum(1.0 - leverage[row_kind == kind])) for kind in errors}
+
+
+def _orientation_check(pts: Points, p: np.ndarray) -> Check:
+    """A wrong orientation convention converges quietly: test the rotations, with or without stated sigmas."""
+    data = pts.data
+    vectors = pts.errors(p)
+    rot_mask = cast(np.ndarray, data.rot_mask)      # set: called for data with orientations only
+    rot = cast(np.ndarray, pts.rotation_errors(p))[rot_mask]
+    found = misfit_notes(vectors[data.mask], rot,
+                         characteristic_length_m=characteristic_length(data.positions[data.mask]),
+                         sigma_rot_rad=None if data.sigma_rot is None else data.sigma_rot[rot_mask])
+    rms = float(np.degrees(np.sqrt(np.mean(np.sum(rot ** 2, axis=1)))))
+    if not found:
+        return Check("orientation fit", "pass", f"rotation residuals {rms:.3g} deg RMS")
+    return Check("orientation fit", "fail", found[0], cause="a wrong orientation convention or angle unit",
+                 fix="declare the convention (--orientation) and the angle unit of the rotation columns")
+
+
+def result_checks(fit: Fit, cov: Covariance, found: tuple[ParameterEstimate, ...], where: Reach) -> list[Check]:
+    """What the estimates say: plausible changes, support, physical signs, correlations,
+    identifiability at these observations."""
+    design = fit.design
+    moments = fit.problem.compliance_moments(fit.solution.p)
+    deflections = {e.name: e.estimate * float(np.max(np.abs(moments[e.name]))) for e in found if e.name in moments}
+    names = [e.name for e in found]
+    k = len(names)
+    corr = cov.correlation[:k, :k]
+    loose = _loose(found, moments)
+    unknown = tuple(m.name for m in design.start.markers if not m.rotation_known)
+    return [plausibility_check(found, tolerances(design.start), deflections, workspace=where.judgement,
+                               unknown_rotations=unknown),
+            support_check(found), compliance_sign_check(found), backlash_sign_check(found),
+            correlation_check(names, corr, loose),
+            identifiability_check(design.lost, design.weak, weak_kept=design.weak_kept,
+                                  interchangeable=interchangeable_pairs(names, corr, loose),
+                                  kept_in_use=design.kept_in_use)]
+
+
+def _loose(found, moments: dict) -> set:
+    """The estimates whose standard deviation exceeds the bound of practical identifiability
+    (``WEAK_STD``; a compliance's as a deflection at the RMS moment of the poses)."""
+    out = set()
+    for e in found:
+        scale = float(np.sqrt(np.mean(moments[e.name] ** 2))) if e.name in moments else 1.0
+        if e.std * scale > WEAK_STD.get(e.quantity, np.inf):
+            out.add(e.name)
+    return out
+
+
+def alone_check(fit: Fit) -> list[Check]:
+    """Observations one of whose rows alone fixes a quantity of the fit (``alone_observations``): a
+    mistake in them moves the calibration and nothing else in the data checks them (a warning)."""
+    problem = fit.problem
+    obs = problem.observations()
+    flagged = alone_observations(problem, fit.solution.p)
+    if not flagged.any():
+        return []
+    idx = np.nonzero(flagged)[0]
+    labels = [obs.label[i] for i in idx]
+    what = ", ".join(dict.fromkeys(CARRIES.get(obs.kind[i], "a direction of the robot") for i in idx))
+    listed = ", ".join(labels[:6]) + (" and more" if len(labels) > 6 else "")
+    return [Check("rows carried alone", "warn",
+                  f"{listed}: the only rows fixing {what}; kept in full (setting them aside would leave it free), "
+                  "so nothing else in these data checks them",
+                  cause="one observation alone fixes a quantity of the fit",
+                  fix="state a second known distance or more contacts of that kind, so that one mistake shows",
+                  items=tuple(labels))]
+
+
+def use_checks(in_use_record: AccuracyInUse | None, cover: Coverage | None, options: Options):
+    """The accuracy in use, where it holds, and the limit of absolute accuracy."""
+    if in_use_record is None:
+        return [Check("accuracy in use", "pass", "no position held out (contacts of one placement, or no seating "
+                      "among them): judged by the fit's checks alone",
+                      fix="measure on two placements or more, or hold out measured points (--validation)")], None
+    out = [in_use_check(in_use_record)]
+    if cover is not None:
+        out.append(coverage_check(cover, in_use_record))
+    judged = None if options.limit_m is None else judge_against_limit(options.limit_m, in_use_record)
+    if judged is not None:
+        out.append(limit_check(judged))
+    return out, judged
+
+
+_WARNING_CLASS = {"solver convergence": ConvergenceWarning, "fit against the instrument": MisfitWarning,
+                  "orientation fit": MisfitWarning, "identifiability at these poses": IdentifiabilityWarning,
+                  "accuracy in use": MisfitWarning}
+
+
+def warn_checks(checks) -> None:
+    """Every check that did not pass, as a warning users can filter (pointing at the caller's line)."""
+    for c in checks:
+        if c.status != "pass":
+            category = _WARNING_CLASS.get(c.name, MisfitWarning if c.name.startswith("fit of") else CheckWarning)
+            warn(f"{c.name} ({'FAILED' if c.status == 'fail' else 'warning'}): {c.summary}", category)
+
+
+# -- the record ------------------------------------------------------------------------------------
+
+def contact_figures(inputs: Inputs, analysis: Analysis, fit: Fit, before: np.ndarray, cov: Covariance
+                    ) -> ContactFigures | None:
+    """What contacts add to the record: the kit's figures before and after, fitted, held out by
+    placement and on held-out contacts, the nuisance estimates, each kind's residual ratio."""
+    problem, p = fit.problem, fit.solution.p
+    if problem.contacts is None or inputs.contacts is None or analysis.reach is None:
+        return None
+    rows, n = problem.contacts, problem.n_robot
+    k = len(problem.robot_idx)
+    val_rows = None if inputs.validation_contacts is None else ContactRows.of(
+        fit.design.start, inputs.validation_contacts, fit.design.identifiability.identified,
+        compliance=fit.design.compliance)
+    held = fit.held_out.contact_errors
+    held_figures = figures(rows, held) if held is not None and np.isfinite(held[:, 0]).any() else None
+    ratios = {kind: float(np.sqrt(np.mean((e / (s if s is not None else np.full(len(e), options_noise(problem)))
+                                           [:, None]) ** 2)))
+              for kind, (e, s, _) in problem.observation_errors(p).items()}
+    return ContactFigures(
+        identifiability=analysis.reach,
+        nuisance={name: (float(p[n + i]), float(cov.std[k + i])) for i, name in enumerate(problem.nuisance_names)},
+        fit_before=figures(rows, rows.own_errors(before[:n])), fit_after=figures(rows, rows.own_errors(p[:n])),
+        validation_before=None if val_rows is None else figures(val_rows, val_rows.own_errors(before[:n])),
+        validation_after=None if val_rows is None else figures(val_rows, val_rows.own_errors(p[:n])),
+        held_out=held_figures, noise_ratio=ratios, weak=fit.design.weak, weak_kept=fit.design.weak_kept,
+        rows=recordings(inputs.contacts, inputs.data), source=inputs.contacts.source or "",
+        residual_dof=float(cov.dof))
+
+
+def options_noise(problem: Problem) -> float:
+    """The per-axis noise measured points without stated deviations are weighed by (m)."""
+    return problem.noise.position if problem.noise is not None else Noise.of().position
+
+
+def fit_errors(inputs: Inputs, fit: Fit, before: np.ndarray) -> PoseErrors | None:
+    """The errors before and after on the fitted measured points (None without them)."""
+    pts = fit.problem.points
+    if inputs.data is None or pts is None:
+        return None
+    n = fit.problem.n_robot
+    b, a = before[:n], fit.solution.p[:n]
+    return PoseErrors(inputs.data, pts.errors(b), pts.errors(a), pts.rotation_errors(b), pts.rotation_errors(a))
+
+
+def record(inputs: Inputs, analysis: Analysis, fit: Fit, before: np.ndarray, cov: Covariance,
+           found: tuple[ParameterEstimate, ...], judged: tuple, options: Options, notes: tuple[str, ...]
+           ) -> CalibrationResult:
+    """The calibration's record: estimates, covariance, errors before and after, the accuracy in
+    use, the checks."""
+    checks, in_use_record, val, cover, limit = judged
+    solution, design = fit.solution, fit.design
+    k = len(found)
+    fitted = fit_errors(inputs, fit, before)
+    fields = fitted.fields("fit") if fitted is not None else PoseErrors.no_poses(inputs.model)
+    if val is not None:
+        fields.update(val.fields("validation"))
+    if fitted is not None:
+        stats, rotation_stats = cast(ErrorSummary, fitted.summary(val, rotation=False)), fitted.summary(
+            val, rotation=True)
+    elif val is not None:
+        held = cast(ErrorSummary, val.summary(None, rotation=False))     # its own figures, in the validation's place
+        stats, rotation_stats = ErrorSummary(held.validation_before, held.validation_after, held.fit_before,
+                                             held.fit_after), None
+    else:
+        stats, rotation_stats = PoseErrors.summary_of_none(), None
+    return CalibrationResult(
+        nominal_model=inputs.model, calibrated_model=model_from_vector(design.start, solution.p[:fit.problem.n_robot]),
+        parameters=found, covariance=cov.covariance[:k, :k], correlation=cov.correlation[:k, :k],
+        identifiability=design.identifiability, success=solution.success, status=solution.status,
+        message=solution.message, nfev=solution.nfev, sigma0=float(np.sqrt(cov.s2)), families=options.parameters,
+        loss=solution.loss, notes=notes, limit=limit, checks=tuple(checks),
+        provenance=provenance(inputs.data, inputs.validation, inputs.contacts, inputs.validation_contacts),
+        stats=stats, rotation_stats=rotation_stats, in_use=in_use_record, coverage=cover,
+        contacts=contact_figures(inputs, analysis, fit, before, cov), residual_dof=float(cov.dof), **fields)
+
+
+def nominal_model_of(design: Design, before: np.ndarray) -> RobotModel:
+    """The nominal geometry with its base and markers registered (what errors before are taken at)."""
+    return model_from_vector(design.start, before[:design.problem.n_robot])
