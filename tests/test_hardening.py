@@ -3,8 +3,10 @@ clear line (exit 2) or a sound result, quickly, and leaves nothing behind."""
 
 import json
 import os
+import signal
 import subprocess
 import sys
+import textwrap
 import time
 from pathlib import Path
 
@@ -324,6 +326,75 @@ def test_sigterm_leaves_no_temporary_file(tmp_path):
     _, err = p.communicate(timeout=60)
     assert "Traceback" not in err
     assert not [q for q in tmp_path.iterdir() if q.name.endswith(".tmp")]
+
+
+# the command line, its writes sending SIGTERM to itself between the temporary and the rename
+SIGTERM_IN_WRITE = textwrap.dedent("""
+    import os, signal, sys
+    from robocal._files import text
+    from robocal.cli import main
+    real = text.os.fsync
+    def terminated(fd):
+        real(fd)
+        os.kill(os.getpid(), signal.SIGTERM)
+    text.os.fsync = terminated
+    code = main(sys.argv[1:])
+    print(code, signal.getsignal(signal.SIGTERM) is signal.SIG_DFL)
+""")
+
+
+def test_the_command_line_cleans_up_after_sigterm_and_killed_runs(files):
+    out = files / "run"
+    out.mkdir()
+    orphan = out / ".result.json.robocal-999999999-0123456789abcdef.tmp"   # an earlier run's, killed
+    orphan.write_text("{")
+    env = {**os.environ, "PYTHONPATH": str(Path(rc.__file__).parents[1])}
+    p = subprocess.run([sys.executable, "-c", SIGTERM_IN_WRITE, "calibrate", str(files / "model.yaml"),
+                        str(files / "data.csv"), "--out", str(out)], env=env, capture_output=True, text=True,
+                       timeout=120)
+    assert p.returncode == 0 and p.stdout.split()[-2:] == ["130", "True"], (p.stdout, p.stderr)
+    assert "interrupted; nothing was written" in p.stderr and "Traceback" not in p.stderr
+    assert list(out.iterdir()) == []   # the orphan gone, no temporary of this run, no half of the outputs
+
+
+def test_a_library_write_leaves_the_hosts_sigterm_handler_alone(tmp_path, monkeypatch):
+    from robocal._files import text
+
+    received = []
+    real = os.fsync
+
+    def terminated(fd):   # the host is sent SIGTERM while robocal writes for it
+        real(fd)
+        os.kill(os.getpid(), signal.SIGTERM)
+
+    def host(signum, frame):
+        received.append(signum)
+
+    previous = signal.signal(signal.SIGTERM, host)
+    try:
+        monkeypatch.setattr(text.os, "fsync", terminated)
+        text.write_texts({tmp_path / "a.txt": "a", tmp_path / "b.txt": "b"})
+        assert signal.getsignal(signal.SIGTERM) is host
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert received == [signal.SIGTERM, signal.SIGTERM]   # the host's handler ran, the write went on
+    assert sorted(q.name for q in tmp_path.iterdir()) == ["a.txt", "b.txt"]
+
+
+def test_a_library_write_leaves_other_temporaries_alone(files):
+    """A temporary whose process is not running here may be another machine's live run (a shared
+    folder): only the robocal command removes such files, and only in its own output folders."""
+    out = files / "shared"
+    out.mkdir()
+    foreign = [out / ".model.yaml.robocal-999999999-0123456789abcdef.tmp",
+               out / ".data.csv.robocal-999999998-0123456789abcdef.tmp"]
+    for f in foreign:
+        f.write_text("another run's")
+    model = rc.read_model(files / "model.yaml")
+    rc.io.write_model(model, out / "model.yaml")
+    rc.io.write_measurements(rc.read_measurements(files / "data.csv", model), out / "data.csv", model=model)
+    assert all(f.read_text() == "another run's" for f in foreign)
+    assert sorted(q.name for q in out.iterdir()) == sorted([f.name for f in foreign] + ["data.csv", "model.yaml"])
 
 
 def test_memory_error_is_one_line_with_the_size(files, cli, monkeypatch):

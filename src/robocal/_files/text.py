@@ -13,7 +13,6 @@ import json
 import os
 import re
 import secrets
-import signal
 import stat
 from pathlib import Path
 
@@ -289,14 +288,6 @@ def _depth(obj) -> int:
 
 # -- writing ------------------------------------------------------------------------------------
 
-class Interrupted(KeyboardInterrupt):
-    """SIGTERM, raised as an exception so that temporary files are removed on the way out."""
-
-
-def _terminate(signum, frame):
-    raise Interrupted(f"terminated by signal {signum}")
-
-
 # the temporary file of an output NAME: ``.NAME.robocal-PID-RANDOM.tmp`` beside it; the process id
 # tells a live run's temporary from the orphan of a run that was killed (SIGKILL, a power cut)
 _TEMPORARY = re.compile(r"^\..+\.robocal-(?P<pid>[1-9][0-9]{0,9})-[0-9a-f]{16}\.tmp$")
@@ -368,7 +359,10 @@ def _create(p: Path) -> tuple[int, str]:
 
 def remove_orphans(folder) -> tuple[str, ...]:
     """Remove the temporary files an earlier robocal run left in ``folder`` when it was killed (their
-    process is gone); the names removed. Links, folders and live runs' temporaries are left alone."""
+    process is gone); the names removed. Links, folders and live runs' temporaries are left alone.
+
+    For the ``robocal`` command in its own output folders only: a process id says nothing about
+    another machine's run in a shared folder, so the library writers never call this."""
     removed = []
     try:
         entries = list(os.scandir(folder))
@@ -399,7 +393,7 @@ def _alive(pid: int) -> bool:
     return True
 
 
-def write_texts(files: dict, *, force: bool = False) -> tuple[str, ...]:
+def write_texts(files: dict, *, force: bool = False) -> None:
     """Write several files ({path: text, or bytes for a binary file}) all-or-nothing: refuse if any
     exists (unless ``force``) or is not a regular file (a device, a FIFO, a link to one:
     ``check_replaceable``), write each to a fresh temporary file in its own folder (created
@@ -408,23 +402,17 @@ def write_texts(files: dict, *, force: bool = False) -> tuple[str, ...]:
 
     The rename is atomic per file (``os.replace``; a link at the final name is replaced, not
     followed), so a reader never sees half a file. Files get the mode the umask gives a new file
-    (0666 & ~umask). Temporary files are removed on every path the process controls: errors, Ctrl-C
-    and SIGTERM; those of an earlier run that was killed are removed from each output's folder
-    before writing. Errors name the user's path.
-
-    Returns
-    -------
-    tuple of str
-        The orphan temporary files of earlier runs that were removed.
+    (0666 & ~umask). The temporary files are removed on every exception, Ctrl-C included; signal
+    handlers and other files in the folders are the host program's and are left alone (the
+    ``robocal`` command turns SIGTERM into an exception and removes its own orphans: ``cli``).
+    Errors name the user's path.
     """
     paths = [Path(p) for p in files]
     for p in paths:
         check_replaceable(p)
         if not force and (p.exists() or p.is_symlink()):
             raise InputError("exists; pass force=True (--force) to overwrite", source=str(p))
-    removed = tuple(r for folder in dict.fromkeys(p.parent for p in paths) for r in remove_orphans(folder))
     staged = []
-    previous = _on_sigterm(_terminate)
     try:
         for p, text in zip(paths, files.values()):
             try:
@@ -452,15 +440,3 @@ def write_texts(files: dict, *, force: bool = False) -> tuple[str, ...]:
         for tmp, _ in staged:
             with contextlib.suppress(FileNotFoundError):
                 os.unlink(tmp)
-        _on_sigterm(previous)
-    return removed
-
-
-def _on_sigterm(handler):
-    """Install ``handler`` for SIGTERM (main thread only); the previous one, or None."""
-    if handler is None:
-        return None
-    try:
-        return signal.signal(signal.SIGTERM, handler)
-    except ValueError:  # not the main thread: leave signals alone
-        return None

@@ -8,6 +8,7 @@ nothing written). This package is the only place that prints or configures loggi
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
 import os
 import signal
@@ -101,11 +102,28 @@ def main(argv=None) -> int:
         warnings.showwarning = show
         args.shown_warnings = shown
         logging.getLogger("robocal").info("%s: started", args.command)
-        return _run(args)
+        with _sigterm_unwinds():
+            return _run(args)
 
 
 def _terminate(signum, frame):
     raise KeyboardInterrupt  # unwinds like Ctrl-C: the writers remove their temporary files
+
+
+@contextlib.contextmanager
+def _sigterm_unwinds():
+    """SIGTERM raises KeyboardInterrupt for the command's run, the host's handler restored after.
+
+    Here and not in the library: a program that imports robocal owns its signal handlers."""
+    try:
+        previous = signal.signal(signal.SIGTERM, _terminate)
+    except ValueError:  # not the main thread: leave signals alone
+        previous = None
+    try:
+        yield
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 def _run(args) -> int:
@@ -114,10 +132,6 @@ def _run(args) -> int:
         print(f"robocal {args.command}: {message}", file=sys.stderr)
         return code
 
-    try:
-        previous = signal.signal(signal.SIGTERM, _terminate)
-    except ValueError:  # not the main thread
-        previous = None
     try:
         return args.func(args)
     except RobocalError as e:
@@ -135,9 +149,6 @@ def _run(args) -> int:
         return fail(f"error: out of memory{f' ({one_line(e)})' if str(e) else ''}; use fewer poses or samples")
     except KeyboardInterrupt:
         return fail("interrupted; nothing was written", 130)
-    finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
 
 
 def one_line(e: BaseException) -> str:

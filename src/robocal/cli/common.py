@@ -317,9 +317,10 @@ def require_finite(what: str, values: dict) -> None:
 def write_outputs(files: dict, *, force: bool, report=None) -> None:
     """Write ``files`` ({path: text}) all-or-nothing; ``report`` = (module, result, path) too.
 
-    The report is rendered first, so a failure there leaves nothing behind.
+    The report is rendered first, so a failure there leaves nothing behind. The temporary files
+    of earlier runs that were killed are removed from the output folders first.
     """
-    from .._files.text import write_texts
+    from .._files.text import remove_orphans, write_texts
 
     files = dict(files)
     if report is not None:
@@ -329,6 +330,8 @@ def write_outputs(files: dict, *, force: bool, report=None) -> None:
     made = [p for p in sorted(parents) if not p.exists()]
     for p in made:
         p.mkdir(parents=True, exist_ok=True)
+    for p in sorted(parents):  # the command's own folders: temporaries its killed runs left behind
+        remove_orphans(p)
     try:
         write_texts(files, force=force)
     except BaseException:
