@@ -49,6 +49,14 @@ STATES_KEPT = 8
 STATE_POSES = 40_000
 
 
+def _measured_rows(mask: np.ndarray, sigma: np.ndarray | None, default) -> tuple[list, list]:
+    """Per marker (a column of ``mask``, n_poses x n_markers), the poses it was measured at and
+    their weights: one over the stated deviation ``sigma`` (broadcast to ``mask``), else ``default``."""
+    sel = [np.nonzero(mask[:, j])[0] for j in range(mask.shape[1])]
+    sd = np.broadcast_to(sigma if sigma is not None else default, mask.shape)
+    return sel, [1.0 / sd[s, j] for j, s in enumerate(sel)]
+
+
 class Points:
     """Residuals and Jacobian of ``model`` on ``data`` over the free parameters ``free`` (names).
 
@@ -76,22 +84,19 @@ class Points:
         self._chunk_turns: list = []   # each chunk's, made at its first evaluation (shared with ``over``'s)
         self.marker_idx = np.array([model.marker_names.index(n) for n in data.marker_names], dtype=int)
         self.use_rot = data.has_orientation
-        self.sel = [np.nonzero(data.mask[:, j])[0] for j in range(len(data.marker_names))]
         # 6D rows mix metres and radians: without stated deviations, each part is weighed by its noise
         self.weighted = data.sigma is not None or (self.use_rot and noise is not None)
-        sp = data.sigma if data.sigma is not None else (noise.position if noise is not None and self.weighted else 1.0)
-        self.w = [1.0 / np.broadcast_to(sp, data.mask.shape)[s, j] for j, s in enumerate(self.sel)]
+        self.sel, self.w = _measured_rows(data.mask, data.sigma,
+                                          noise.position if noise is not None and self.weighted else 1.0)
         self.meas = [data.positions[s, j] for j, s in enumerate(self.sel)]
         if self.use_rot and data.rot_mask is not None:
-            self.sel_r = [np.nonzero(data.rot_mask[:, j])[0] for j in range(len(data.marker_names))]
-            sr = data.sigma_rot if data.sigma_rot is not None else (noise.rotation if noise is not None else 1.0)
-            self.w_r = [1.0 / np.broadcast_to(sr, data.rot_mask.shape)[s, j] for j, s in enumerate(self.sel_r)]
+            self.sel_r, self.w_r = _measured_rows(data.rot_mask, data.sigma_rot,
+                                                  noise.rotation if noise is not None else 1.0)
         self._kept = _Kept(workspace(model))    # shared with the problems ``over`` makes: the same poses
         if chunked is None:
             chunked = data.n_poses > LARGE_POSES
-        if chunked and (self.use_rot or self.backlash):
-            chunked = False   # orientations and lost motion are evaluated whole
-        self.chunked = chunked
+        # orientations and lost motion are evaluated whole
+        self.chunked = chunked and not (self.use_rot or self.backlash)
 
     def _chunks(self):
         """The problem over each chunk of ``CHUNK_POSES`` poses in turn (made when reached, so that

@@ -226,14 +226,11 @@ def _levenberg_marquardt(problem, p0: np.ndarray, max_nfev: int | None, tol: flo
         if not np.all(np.isfinite(dx)):      # a singular factor: damp until the step exists
             lam = max(10.0 * lam, 1e-3)
             continue
-        small_step = np.linalg.norm(scale * dx) <= tol * (tol + np.linalg.norm(scale * x))
-        little_promised = -(2.0 * float(ne.g @ dx) + float(np.sum((ne.R @ dx) ** 2))) <= tol * ne.cost
         r_new = problem.residuals(problem.full(x + dx, p0))
         nfev += 1
         cost_new = float(r_new @ r_new)
-        last = small_step or little_promised or (cost_new <= ne.cost and ne.cost - cost_new <= tol * ne.cost)
-        if last:
-            status = 4 if small_step and little_promised else (3 if small_step else 2)
+        status = _last_step(ne, x, dx, scale, cost_new, tol)
+        if status:
             if cost_new <= ne.cost:      # else x is the minimum to round-off
                 x, r_end = x + dx, r_new
             break
@@ -242,7 +239,22 @@ def _levenberg_marquardt(problem, p0: np.ndarray, max_nfev: int | None, tol: flo
             continue
         x, ne = x + dx, _normal_equations(problem, problem.full(x + dx, p0), r_new)
         lam = lam / 10.0 if lam > 1e-12 else 0.0
-    p = problem.full(x, p0)
+    return _lm_solution(problem, problem.full(x, p0), ne, r_end, status, nfev)
+
+
+def _last_step(ne: _Normal, x: np.ndarray, dx: np.ndarray, scale: np.ndarray, cost_new: float, tol: float) -> int:
+    """The status (``_MESSAGES``) when the step ``dx`` from ``x``, giving the sum of squares
+    ``cost_new``, ends the fit (MINPACK's xtol and ftol tests); 0 when the fit goes on."""
+    small_step = np.linalg.norm(scale * dx) <= tol * (tol + np.linalg.norm(scale * x))
+    little_promised = -(2.0 * float(ne.g @ dx) + float(np.sum((ne.R @ dx) ** 2))) <= tol * ne.cost
+    if small_step or little_promised or (cost_new <= ne.cost and ne.cost - cost_new <= tol * ne.cost):
+        return 4 if small_step and little_promised else (3 if small_step else 2)
+    return 0
+
+
+def _lm_solution(problem, p: np.ndarray, ne: _Normal, r_end: np.ndarray | None, status: int, nfev: int) -> Solution:
+    """The solution at ``p``: its residuals ``r_end`` when the last step evaluated them, else those
+    of ``ne`` (the normal equations there), and the Jacobian (or its R factor) of ``ne``."""
     kinds = problem.row_kinds()
     several = kinds is not None and len(kinds) > 0 and kinds.min() != kinds.max()
     r = r_end if r_end is not None else (ne.r if ne.r is not None else problem.residuals(p))

@@ -859,14 +859,28 @@ def _make_correction_plan(lay, steps, act) -> _CorrectionPlan | None:
     frame = lay.step_frame[rsteps]
     rows = tuple((int(s), int(f), int(s - N_BASE - N_FRAME_STEPS * f) if f >= 0 else -1) for s, f in zip(rsteps, frame))
     n_base = int(np.sum(frame == -1))
-    # a frame step's axis is that of a compliant step of its frame (d: alpha's, r: theta's)
-    same_axis = {FrameStep.BETA: FrameStep.BETA, FrameStep.ALPHA: FrameStep.ALPHA, FrameStep.D: FrameStep.ALPHA,
-                 FrameStep.THETA: FrameStep.THETA, FrameStep.R: FrameStep.THETA}
-    axis_of = np.array([3 * f + _COMPLIANT_ROW[same_axis.get(o, FrameStep.THETA)] for _, f, o in rows[n_base:]],
-                       dtype=int)
     parent_z = tuple((r, f) for r, (_, f, o) in enumerate(rows) if o in (FrameStep.GAMMA, FrameStep.B))
     tra = np.nonzero(~rot[cols])[0]
     pairs = [(frozenset(np.nonzero(desc[:, c])[0]), frozenset(np.nonzero(anc[:, c])[0])) for c in cols]
+    slot_of, groups = _slot_groups(pairs)
+    return _CorrectionPlan(rows=rows, out_runs=_runs(cols), rot=rot[cols].astype(float), n_base=n_base,
+                           axis_of=_axis_rows(rows[n_base:]), translations=tra, translation_frames=frame[tra],
+                           parent_z=parent_z, n_slots=len(slot_of), fills=_fills(slot_of), groups=groups)
+
+
+# a frame step's axis is that of a compliant step of its frame (d: alpha's, r: theta's)
+_SAME_AXIS = {FrameStep.BETA: FrameStep.BETA, FrameStep.ALPHA: FrameStep.ALPHA, FrameStep.D: FrameStep.ALPHA,
+              FrameStep.THETA: FrameStep.THETA, FrameStep.R: FrameStep.THETA}
+
+
+def _axis_rows(frame_rows) -> np.ndarray:
+    """The compliant row whose axis (and A) each of ``frame_rows`` (step, frame, offset) takes."""
+    return np.array([3 * f + _COMPLIANT_ROW[_SAME_AXIS.get(o, FrameStep.THETA)] for _, f, o in frame_rows], dtype=int)
+
+
+def _slot_groups(pairs: list) -> tuple[dict, tuple]:
+    """The slot of each distinct pair of sums (distal, proximal compliances), and the groups: runs
+    of consecutive rows with the same pair, as (row0, row1, slot)."""
     slot_of: dict[tuple[frozenset, frozenset], int] = {}
     groups, r = [], 0
     while r < len(pairs):
@@ -875,7 +889,12 @@ def _make_correction_plan(lay, steps, act) -> _CorrectionPlan | None:
             r1 += 1
         groups.append((r, r1, slot_of.setdefault(pairs[r], len(slot_of))))
         r = r1
-    # each distinct sum once, smallest first, from the largest one already built inside it
+    return slot_of, tuple(groups)
+
+
+def _fills(slot_of: dict) -> tuple:
+    """How each slot's sums are made (``_CorrectionPlan.fills``): each distinct sum once, smallest
+    first, from the largest one already built inside it."""
     fills = []
     for part in (0, 1):
         built: dict[frozenset, int] = {}
@@ -887,9 +906,7 @@ def _make_correction_plan(lay, steps, act) -> _CorrectionPlan | None:
                 built[s] = users[0]
                 users = users[1:]
             fills += [(slot, part, built.get(s, -1), ()) for slot in users]   # copies, or zeros
-    return _CorrectionPlan(rows=rows, out_runs=_runs(cols), rot=rot[cols].astype(float), n_base=n_base,
-                           axis_of=axis_of, translations=tra, translation_frames=frame[tra], parent_z=parent_z,
-                           n_slots=len(slot_of), fills=tuple(fills), groups=tuple(groups))
+    return tuple(fills)
 
 
 # frame step -> row of its compliance within the frame
@@ -1351,44 +1368,63 @@ def evaluate(model: RobotModel, q: np.ndarray, p: np.ndarray | None = None, *, j
         Marker positions (n_poses, n_markers, 3) in W, m, and what else was asked for.
     """
     lay = layout(model)
-    q = np.atleast_2d(np.asarray(q, dtype=float))
-    if q.shape[1] != model.n_joints:
-        raise ValueError(f"q must have {model.n_joints} columns, got {q.shape[1]}")
+    q = _readings(model, q)
     p = parameter_vector(model) if p is None else np.asarray(p, dtype=float)
-    qf = q @ model.coupling_matrix.T
+    cols_idx = np.arange(lay.n_params) if columns is None else np.asarray(columns, dtype=int)
     if compliance is None:
         compliance = bool(np.any(p[lay.compliant_params] != 0.0))
-    cols_idx = np.arange(lay.n_params) if columns is None else np.asarray(columns, dtype=int)
     if backlash is None:
-        backlash = bool(np.any(p[lay.backlash_params[lay.backlash_params >= 0]] != 0.0)) or (
-            jacobian and bool(np.any(lay.param_backlash[cols_idx] >= 0)))
+        backlash = _holds_backlash(lay, p) or (jacobian and bool(np.any(lay.param_backlash[cols_idx] >= 0)))
     if len(q) > LARGE_POSES and not (jacobian or frames or backlash):
         return _evaluate_in_chunks(model, q, p, orientations=orientations, compliance=compliance,
                                    payload_mass=payload_mass)
-    need_or = orientations or jacobian
     ws = workspace(model)
-    st = evaluate_state(model, lay, p, qf, compliance=compliance, orientations=need_or, payload_mass=payload_mass,
-                        backlash=backlash, approach=None if approach is None else frame_approach(model, approach),
-                        take=ws.take)
+    st = evaluate_state(model, lay, p, q @ model.coupling_matrix.T, compliance=compliance,
+                        orientations=orientations or jacobian, payload_mass=payload_mass, backlash=backlash,
+                        approach=None if approach is None else frame_approach(model, approach), take=ws.take)
+    out = _evaluation(model, lay, st, cols_idx if jacobian else None, orientations=orientations or jacobian,
+                      frames=frames)
+    buffers = pass_buffers(st)
+    del st
+    ws.give(buffers)
+    return out
+
+
+def _readings(model: RobotModel, q) -> np.ndarray:
+    """``q`` as (N, n_joints) floats; another number of columns is a ValueError."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    if q.shape[1] != model.n_joints:
+        raise ValueError(f"q must have {model.n_joints} columns, got {q.shape[1]}")
+    return q
+
+
+def _holds_backlash(lay: Layout, p: np.ndarray) -> bool:
+    """Whether the values ``p`` hold a lost motion."""
+    return bool(np.any(p[lay.backlash_params[lay.backlash_params >= 0]] != 0.0))
+
+
+def _evaluation(model: RobotModel, lay: Layout, st: _State, cols_idx: np.ndarray | None, *, orientations: bool,
+                frames: bool) -> Evaluation:
+    """What ``evaluate`` returns from the state ``st``: the Jacobian's columns ``cols_idx`` (None:
+    no Jacobian), the orientations and every frame's pose when asked. Copies: the evaluation's
+    arrays are its own, and the passes' buffers go back to the model's workspace."""
     ps = st.ps
-    rotations = np.stack(ps.RM, axis=1) if need_or and ps.RM else None
     J = None
-    if jacobian:
+    if cols_idx is not None:
         J = np.stack([jacobian_columns(model, lay, st, cols_idx, m).transpose(1, 2, 0)
                       for m in range(len(model.markers))], axis=1)
-    frames_out = None
-    if frames:
-        frames_out = np.zeros((q.shape[0], model.n_frames, 4, 4))
-        for i in range(model.n_frames):
-            frames_out[:, i, :3, :3] = ps.R[i]
-            frames_out[:, i, :3, 3] = ps.O[i]
-            frames_out[:, i, 3, 3] = 1.0
-    # copies: the evaluation's arrays are its own, and the passes' buffers go back to the model's workspace
-    out = Evaluation(positions=cast(np.ndarray, ps.P).transpose(1, 0, 2).copy(), rotations=rotations, jacobian=J,
-                     moments=None if st.M is None else st.M.T, frames=frames_out)
-    buffers = pass_buffers(st)
-    del st, ps
-    ws.give(buffers)
+    return Evaluation(positions=cast(np.ndarray, ps.P).transpose(1, 0, 2).copy(),
+                      rotations=np.stack(ps.RM, axis=1) if orientations and ps.RM else None, jacobian=J,
+                      moments=None if st.M is None else st.M.T, frames=_frame_poses(ps) if frames else None)
+
+
+def _frame_poses(ps: _Pass) -> np.ndarray:
+    """(N, n_frames, 4, 4) every frame's pose ``X_W<frame>`` in the pass ``ps``."""
+    out = np.zeros((ps.N, ps.model.n_frames, 4, 4))
+    for i in range(ps.model.n_frames):
+        out[:, i, :3, :3] = ps.R[i]
+        out[:, i, :3, 3] = ps.O[i]
+        out[:, i, 3, 3] = 1.0
     return out
 
 
@@ -1430,9 +1466,7 @@ def gravity_loads(model: RobotModel, q, *, payload_mass=None) -> np.ndarray:
         The load on each joint, N m or N.
     """
     lay = layout(model)
-    q = np.atleast_2d(np.asarray(q, dtype=float))
-    if q.shape[1] != model.n_joints:
-        raise ValueError(f"q must have {model.n_joints} columns, got {q.shape[1]}")
+    q = _readings(model, q)
     p = parameter_vector(model)
     p[lay.compliant_params] = 0.0
     st = evaluate_state(model, lay, p, q @ model.coupling_matrix.T, compliance=True, orientations=False,
