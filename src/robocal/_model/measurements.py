@@ -118,37 +118,10 @@ class Measurements:
             r, c = np.argwhere(~np.isfinite(q))[0]
             raise InputError("joint reading is not a finite number", source=src,
                              where=f"{self._label(r)}, joint {c}")
-        mask = np.all(np.isfinite(pos), axis=2) if self.mask is None else np.asarray(self.mask, dtype=bool)
-        if mask.shape != (n, len(self.marker_names)):
-            raise InputError("mask shape does not match positions", source=src)
-        bad = mask & ~np.all(np.isfinite(pos), axis=2)
-        if bad.any():
-            r, m = np.argwhere(bad)[0]
-            raise InputError(f"marker {self.marker_names[m]!r} position is not finite", source=src,
-                             where=self._label(r))
-        rot = self.rotations
-        rmask = self.rot_mask
-        if rot is not None:
-            rot = np.asarray(rot, dtype=float)
-            if rot.shape != (n, len(self.marker_names), 3, 3):
-                raise InputError("rotations must have shape (n_poses, n_markers, 3, 3)", source=src)
-            rmask = np.all(np.isfinite(rot), axis=(2, 3)) if rmask is None else np.asarray(rmask, dtype=bool)
-        for name in ("sigma", "sigma_rot"):
-            s = getattr(self, name)
-            if s is not None:
-                s = np.broadcast_to(np.asarray(s, dtype=float), (n, len(self.marker_names))).copy()
-                used = mask if name == "sigma" else (rmask if rmask is not None else mask)
-                if np.any(used & ~(s > 0)):
-                    r, m = np.argwhere(used & ~(s > 0))[0]
-                    raise InputError(f"{name} must be a positive number", source=src,
-                                     where=f"{self._label(r)}, marker {self.marker_names[m]!r}")
-                object.__setattr__(self, name, s)
-        if self.payload_mass is not None:
-            pm = np.broadcast_to(np.asarray(self.payload_mass, dtype=float), (n,)).copy()
-            if np.any(~np.isfinite(pm) | (pm < 0)):
-                r = int(np.argwhere(~np.isfinite(pm) | (pm < 0))[0][0])
-                raise InputError("payload mass must be a non-negative number", source=src, where=self._label(r))
-            object.__setattr__(self, "payload_mass", pm)
+        mask = self._position_mask(pos, src)
+        rot, rmask = self._rotations(n, src)
+        self._own_sigmas(mask, rmask, src)
+        self._own_payload(n, src)
         # the record's arrays are its own and read-only: a caller's array changed later, or one
         # the record handed out written into, cannot change what it holds
         for name, value, dtype in (("q", q, float), ("positions", pos, float), ("mask", mask, bool),
@@ -160,6 +133,50 @@ class Measurements:
                                            for k, v in self.extra.items()})
         if not self.labels:
             object.__setattr__(self, "labels", tuple(f"pose {i}" for i in range(n)))
+
+    def _position_mask(self, pos: np.ndarray, src: str) -> np.ndarray:
+        """The mask given (or where ``pos`` is finite), checked against the positions."""
+        mask = np.all(np.isfinite(pos), axis=2) if self.mask is None else np.asarray(self.mask, dtype=bool)
+        if mask.shape != pos.shape[:2]:
+            raise InputError("mask shape does not match positions", source=src)
+        bad = mask & ~np.all(np.isfinite(pos), axis=2)
+        if bad.any():
+            r, m = np.argwhere(bad)[0]
+            raise InputError(f"marker {self.marker_names[m]!r} position is not finite", source=src,
+                             where=self._label(r))
+        return mask
+
+    def _rotations(self, n: int, src: str) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """The rotations (shape checked) and their mask (given, or where they are finite)."""
+        rot, rmask = self.rotations, self.rot_mask
+        if rot is not None:
+            rot = np.asarray(rot, dtype=float)
+            if rot.shape != (n, len(self.marker_names), 3, 3):
+                raise InputError("rotations must have shape (n_poses, n_markers, 3, 3)", source=src)
+            rmask = np.all(np.isfinite(rot), axis=(2, 3)) if rmask is None else np.asarray(rmask, dtype=bool)
+        return rot, rmask
+
+    def _own_sigmas(self, mask: np.ndarray, rmask: np.ndarray | None, src: str) -> None:
+        """``sigma`` and ``sigma_rot`` one per pose and marker, positive wherever they are used."""
+        for name in ("sigma", "sigma_rot"):
+            s = getattr(self, name)
+            if s is not None:
+                s = np.broadcast_to(np.asarray(s, dtype=float), mask.shape).copy()
+                used = mask if name == "sigma" else (rmask if rmask is not None else mask)
+                if np.any(used & ~(s > 0)):
+                    r, m = np.argwhere(used & ~(s > 0))[0]
+                    raise InputError(f"{name} must be a positive number", source=src,
+                                     where=f"{self._label(r)}, marker {self.marker_names[m]!r}")
+                object.__setattr__(self, name, s)
+
+    def _own_payload(self, n: int, src: str) -> None:
+        """``payload_mass`` one per pose, finite and non-negative."""
+        if self.payload_mass is not None:
+            pm = np.broadcast_to(np.asarray(self.payload_mass, dtype=float), (n,)).copy()
+            if np.any(~np.isfinite(pm) | (pm < 0)):
+                r = int(np.argwhere(~np.isfinite(pm) | (pm < 0))[0][0])
+                raise InputError("payload mass must be a non-negative number", source=src, where=self._label(r))
+            object.__setattr__(self, "payload_mass", pm)
 
     def _label(self, i: int) -> str:
         return self.labels[i] if self.labels else f"pose {i}"

@@ -281,63 +281,85 @@ def _markers_rule(value, name: str, args) -> None:
 
 
 def _validate(model: RobotModel) -> None:
-    names = [f.name for f in model.frames]
+    _check_sizes(model)
+    _refuse_repeats([f.name for f in model.frames], "frame", "frames")
+    _refuse_repeats(model.joint_names, "joint", "joints")
+    _check_joint_limits(model)
+    for i, f in enumerate(model.frames):
+        _check_frame(f, i, len(model.joint_names))
+    if model.backlash_side not in BACKLASH_SIDES:
+        raise InputError(f"backlash side must be one of {', '.join(BACKLASH_SIDES)}, got {model.backlash_side!r}",
+                         where="backlash.side")
+    _check_payloads(model)
+    _check_markers(model)
+    _check_rotation(model.base_rotation, "base.rotation")
+
+
+def _check_sizes(model: RobotModel) -> None:
+    """At least one frame; no more frames or markers than a model holds."""
     if len(model.frames) == 0:
         raise InputError("a model needs at least one frame", where="frames")
     for what, n, top in (("frames", len(model.frames), MAX_FRAMES), ("markers", len(model.markers), MAX_MARKERS)):
         if n > top:
             raise InputError(f"{n:,} {what}; a robocal model holds up to {top} (docs/formats.md)", where=what)
+
+
+def _refuse_repeats(names: Sequence[str], what: str, where: str) -> None:
+    """An InputError naming the first of ``names`` given twice (``what``: frame, joint, marker)."""
     if len(set(names)) != len(names):
         dup = next(n for n in names if names.count(n) > 1)
-        raise InputError(f"frame name {dup!r} is used twice", where="frames")
-    if len(set(model.joint_names)) != len(model.joint_names):
-        dup = next(n for n in model.joint_names if model.joint_names.count(n) > 1)
-        raise InputError(f"joint name {dup!r} is used twice", where="joints")
+        raise InputError(f"{what} name {dup!r} is used twice", where=where)
+
+
+def _check_joint_limits(model: RobotModel) -> None:
     if len(model.joint_limits) != len(model.joint_names):
         raise InputError("one (lower, upper) limit pair is needed per joint", where="joint_limits")
     for j, (lo, hi) in enumerate(model.joint_limits):
         if not (lo <= hi):
             raise InputError(f"lower limit {lo} exceeds upper limit {hi}", where=f"joints[{j}].limits")
-    for i, f in enumerate(model.frames):
-        where = f"frames[{i}] ({f.name})"
-        if f.joint not in JOINT_TYPES:
-            raise InputError(f"joint type must be one of {', '.join(JOINT_TYPES)}, got {f.joint!r}", where=where)
-        if not (-1 <= f.parent < i):
-            raise InputError("a frame's parent must come before it (or be the base, -1)", where=where)
-        if f.joint == "fixed" and f.coupling:
-            raise InputError("a fixed frame has no joint variable", where=where)
-        if f.joint != "fixed" and not f.coupling:
-            raise InputError("a moving frame needs a joint reading (coupling)", where=where)
-        for j, _ in f.coupling:
-            if not (0 <= j < len(model.joint_names)):
-                raise InputError(f"coupling refers to joint {j}, which does not exist", where=where)
-        if f.mass < 0 or not math.isfinite(f.mass):
-            raise InputError(f"mass must be a non-negative number, got {f.mass}", where=where)
-        for k in _FRAME_NUMBERS:
-            if not math.isfinite(getattr(f, k)):
-                raise InputError(f"{k} is not a finite number", where=where)
-        if not (f.backlash_width > 0 and f.backlash_friction >= 0):
-            raise InputError("backlash_width must be positive and backlash_friction non-negative", where=where)
-    if model.backlash_side not in BACKLASH_SIDES:
-        raise InputError(f"backlash side must be one of {', '.join(BACKLASH_SIDES)}, got {model.backlash_side!r}",
-                         where="backlash.side")
+
+
+def _check_frame(f: Frame, i: int, n_joints: int) -> None:
+    """Frame ``i``: its joint type, parent, joint readings and numbers."""
+    where = f"frames[{i}] ({f.name})"
+    if f.joint not in JOINT_TYPES:
+        raise InputError(f"joint type must be one of {', '.join(JOINT_TYPES)}, got {f.joint!r}", where=where)
+    if not (-1 <= f.parent < i):
+        raise InputError("a frame's parent must come before it (or be the base, -1)", where=where)
+    if f.joint == "fixed" and f.coupling:
+        raise InputError("a fixed frame has no joint variable", where=where)
+    if f.joint != "fixed" and not f.coupling:
+        raise InputError("a moving frame needs a joint reading (coupling)", where=where)
+    for j, _ in f.coupling:
+        if not (0 <= j < n_joints):
+            raise InputError(f"coupling refers to joint {j}, which does not exist", where=where)
+    if f.mass < 0 or not math.isfinite(f.mass):
+        raise InputError(f"mass must be a non-negative number, got {f.mass}", where=where)
+    for k in _FRAME_NUMBERS:
+        if not math.isfinite(getattr(f, k)):
+            raise InputError(f"{k} is not a finite number", where=where)
+    if not (f.backlash_width > 0 and f.backlash_friction >= 0):
+        raise InputError("backlash_width must be positive and backlash_friction non-negative", where=where)
+
+
+def _check_payloads(model: RobotModel) -> None:
     for n, pl in enumerate(model.payloads):
         where = "payload" if not model.other_payloads else f"payload[{n}]"
         if pl.mass < 0 or not np.isfinite(pl.mass):
             raise InputError(f"payload mass must be non-negative, got {pl.mass}", where=where)
         if not (-1 <= pl.frame < len(model.frames)):
             raise InputError("payload frame does not exist", where=where)
-    mnames = [m.name for m in model.markers]
-    if len(set(mnames)) != len(mnames):
-        dup = next(n for n in mnames if mnames.count(n) > 1)
-        raise InputError(f"marker name {dup!r} is used twice", where="markers")
+
+
+def _check_markers(model: RobotModel) -> None:
+    """At least one marker, each named once, on a frame of the model, with a proper rotation."""
+    _refuse_repeats([m.name for m in model.markers], "marker", "markers")
     if not model.markers:
         raise InputError("a model needs at least one marker (tool point)", where="markers")
     for i, m in enumerate(model.markers):
         if not (0 <= m.frame < len(model.frames)):
             raise InputError(f"marker {m.name!r} is attached to a frame that does not exist", where=f"markers[{i}]")
         _check_rotation(m.rotation, f"markers[{i}].rotation")
-    _check_rotation(model.base_rotation, "base.rotation")
 
 
 def _check_rotation(R, where: str) -> None:
