@@ -89,23 +89,15 @@ def profile_from_dict(d, *, source: str = "<dict>") -> Profile:
     Profile
         The profile.
     """
-    def error(where, message):
-        return InputError(message, source=source, where=where)
-
     if not isinstance(d, dict):
-        raise error(None, "expected a mapping (key: value) at the top")
+        raise InputError("expected a mapping (key: value) at the top", source=source, where=None)
     for k in d:
         if k not in PROFILE_KEYS:
-            raise error(str(k), f"unknown key {k!r}{suggest(str(k), PROFILE_KEYS)}")
+            raise InputError(f"unknown key {k!r}{suggest(str(k), PROFILE_KEYS)}", source=source, where=str(k))
     if d.get("robocal_profile") != PROFILE_VERSION:
-        raise error("robocal_profile", f"expected robocal_profile: {PROFILE_VERSION}, got "
-                                       f"{excerpt(d.get('robocal_profile'))}")
-    texts = {}
-    for k in ("name", "sep", "decimal", "units", "orientation", "key"):
-        v = d.get(k)
-        if v is not None and not isinstance(v, str):
-            raise error(k, f"expected text, got {excerpt(v)}")
-        texts[k] = v
+        raise InputError(f"expected robocal_profile: {PROFILE_VERSION}, got {excerpt(d.get('robocal_profile'))}",
+                         source=source, where="robocal_profile")
+    texts = _texts(d, source)
     try:
         sep = parse_separator(texts["sep"])
         check_decimal(texts["decimal"], sep)
@@ -113,20 +105,42 @@ def profile_from_dict(d, *, source: str = "<dict>") -> Profile:
             parse_units(texts["units"])
         cmap = column_map(d.get("columns") or {}, unknown=d.get("unknown") or "refuse")
     except InputError as e:
-        raise error(e.where, e.detail) from None
-    ignore = d.get("ignore") or []
-    if not isinstance(ignore, list) or not all(isinstance(c, str) for c in ignore):
-        raise error("ignore", f"expected a list of column names, got {excerpt(ignore)}")
-    if cmap.unknown not in UNKNOWN_ACTIONS:
-        raise error("unknown", f"expected {' or '.join(UNKNOWN_ACTIONS)}, got {excerpt(cmap.unknown)}")
-    cmap = ColumnMap(cmap.rename, cmap.ignore | frozenset(ignore), cmap.unknown)
-    header = d.get("header")
-    if header is not None and (not isinstance(header, list) or not header
-                               or not all(isinstance(c, str) and c.strip() for c in header)):
-        raise error("header", f"expected a list of column names (a file without a header line), got {excerpt(header)}")
+        raise InputError(e.detail, source=source, where=e.where) from None
+    cmap = _with_ignored(cmap, d.get("ignore") or [], source)
     return Profile(name=texts["name"] or "", sep=sep, decimal=texts["decimal"], units=texts["units"],
                    orientation=texts["orientation"], columns=cmap, key=texts["key"],
-                   header=tuple(c.strip() for c in header) if header is not None else None)
+                   header=_header(d.get("header"), source))
+
+
+def _texts(d: dict, source: str) -> dict:
+    """The profile's text values (None where it gives none)."""
+    texts = {}
+    for k in ("name", "sep", "decimal", "units", "orientation", "key"):
+        v = d.get(k)
+        if v is not None and not isinstance(v, str):
+            raise InputError(f"expected text, got {excerpt(v)}", source=source, where=k)
+        texts[k] = v
+    return texts
+
+
+def _with_ignored(cmap: ColumnMap, ignore, source: str) -> ColumnMap:
+    """``cmap`` with the profile's ``ignore`` list of columns added to its ignored ones."""
+    if not isinstance(ignore, list) or not all(isinstance(c, str) for c in ignore):
+        raise InputError(f"expected a list of column names, got {excerpt(ignore)}", source=source, where="ignore")
+    if cmap.unknown not in UNKNOWN_ACTIONS:
+        raise InputError(f"expected {' or '.join(UNKNOWN_ACTIONS)}, got {excerpt(cmap.unknown)}", source=source,
+                         where="unknown")
+    return ColumnMap(cmap.rename, cmap.ignore | frozenset(ignore), cmap.unknown)
+
+
+def _header(header, source: str) -> tuple[str, ...] | None:
+    """The column names of a file without a header line, or None."""
+    if header is None:
+        return None
+    if not isinstance(header, list) or not header or not all(isinstance(c, str) and c.strip() for c in header):
+        raise InputError(f"expected a list of column names (a file without a header line), got {excerpt(header)}",
+                         source=source, where="header")
+    return tuple(c.strip() for c in header)
 
 
 @checked(path=PATH)

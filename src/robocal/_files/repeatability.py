@@ -52,46 +52,19 @@ def read_repeatability_csv(path, *, units: str | None = None) -> RepeatabilityDa
         header = next(reader, None)
         if header is None:
             raise InputError("the file is empty; a header pose, cycle, x, y, z is required", source=src)
-        names = [h.strip().lower() for h in header]
-        col, scale = _repeatability_columns(names, units, src)
+        col, scale = _repeatability_columns([h.strip().lower() for h in header], units, src)
         pose_ids, cycles, points = [], [], []
-        rows_of: dict[str, list[int]] = {}
-        seen: dict[tuple[str, int], int] = {}
+        seen: dict[tuple[str, int], int] = {}    # (pose, cycle) -> its row, in the file's order
         for row in reader:
             if not any(cell.strip() for cell in row):
                 continue
             line = reader.line_num
-            cells = {}
-            for c in CSV_COLUMNS:
-                where = f"row {line}, column {c!r}"
-                if col[c] >= len(row) or not row[col[c]].strip():
-                    raise InputError("empty cell", source=src, where=where)
-                cells[c] = row[col[c]].strip()
-            try:
-                cycle = int(cells["cycle"]) if len(cells["cycle"]) < 10 else None
-                if cycle is None:
-                    raise ValueError
-            except ValueError:
-                raise InputError(f"expected an integer cycle number, got {excerpt(cells['cycle'])}",
-                                 source=src, where=f"row {line}, column 'cycle'") from None
-            xyz = []
-            for c in "xyz":
-                where = f"row {line}, column {c!r}"
-                try:
-                    v = float(cells[c])
-                except ValueError:
-                    raise InputError(f"expected a number, got {excerpt(cells[c])}", source=src, where=where) from None
-                if not abs(v) <= MAX_MAGNITUDE:
-                    raise InputError(f"expected a finite number of magnitude up to {MAX_MAGNITUDE:g}, got "
-                                     f"{excerpt(cells[c])}", source=src, where=where)
-                xyz.append(v * scale[c])
-            key = (cells["pose"], cycle)
-            if key in seen:
-                raise InputError(f"pose {excerpt(cells['pose'])} cycle {cycle} already given in row {seen[key]}",
+            pose, cycle, xyz = _repeatability_row(row, col, scale, src, line)
+            if (pose, cycle) in seen:
+                raise InputError(f"pose {excerpt(pose)} cycle {cycle} already given in row {seen[pose, cycle]}",
                                  source=src, where=f"row {line}")
-            seen[key] = line
-            rows_of.setdefault(cells["pose"], []).append(line)
-            pose_ids.append(cells["pose"])
+            seen[pose, cycle] = line
+            pose_ids.append(pose)
             cycles.append(cycle)
             points.append(xyz)
     except csv.Error as e:
@@ -101,12 +74,56 @@ def read_repeatability_csv(path, *, units: str | None = None) -> RepeatabilityDa
     if len(points) > MAX_POSES:
         raise InputError(f"{len(points):,} rows; robocal reads up to {MAX_POSES:,} per file (docs/formats.md)",
                          source=src)
-    for pose, lines in rows_of.items():
-        if len(lines) < 2:
-            raise InputError(f"pose {excerpt(pose)} has a single cycle; repeatability needs at least two",
-                             source=src, where=f"row {lines[0]}")
+    _refuse_single_cycles(seen, src)
     return RepeatabilityData(pose_ids=tuple(pose_ids), cycles=np.array(cycles, dtype=int),
                              points=np.array(points, dtype=float), source=src)
+
+
+def _repeatability_row(row: list[str], col: dict, scale: dict, src: str, line: int) -> tuple[str, int, list[float]]:
+    """(pose, cycle, [x, y, z] in metres) of one row (``line``: its line in the file)."""
+    cells = {}
+    for c in CSV_COLUMNS:
+        if col[c] >= len(row) or not row[col[c]].strip():
+            raise InputError("empty cell", source=src, where=f"row {line}, column {c!r}")
+        cells[c] = row[col[c]].strip()
+    return cells["pose"], _cycle(cells["cycle"], src, line), [_coordinate(cells[c], c, src, line) * scale[c]
+                                                               for c in "xyz"]
+
+
+def _cycle(text: str, src: str, line: int) -> int:
+    if len(text) < 10:     # a cycle number, not a long run of digits
+        try:
+            return int(text)
+        except ValueError:
+            pass
+    raise InputError(f"expected an integer cycle number, got {excerpt(text)}", source=src,
+                     where=f"row {line}, column 'cycle'")
+
+
+def _coordinate(text: str, column: str, src: str, line: int) -> float:
+    """The number in a coordinate's cell, in the file's unit."""
+    where = f"row {line}, column {column!r}"
+    try:
+        v = float(text)
+    except ValueError:
+        raise InputError(f"expected a number, got {excerpt(text)}", source=src, where=where) from None
+    if not abs(v) <= MAX_MAGNITUDE:
+        raise InputError(f"expected a finite number of magnitude up to {MAX_MAGNITUDE:g}, got {excerpt(text)}",
+                         source=src, where=where)
+    return v
+
+
+def _refuse_single_cycles(seen: dict[tuple[str, int], int], src: str) -> None:
+    """An InputError at the first row of the first pose measured in one cycle only."""
+    first: dict[str, int] = {}
+    count: dict[str, int] = {}
+    for (pose, _), line in seen.items():
+        first.setdefault(pose, line)
+        count[pose] = count.get(pose, 0) + 1
+    for pose, n in count.items():
+        if n < 2:
+            raise InputError(f"pose {excerpt(pose)} has a single cycle; repeatability needs at least two",
+                             source=src, where=f"row {first[pose]}")
 
 
 def _repeatability_columns(names: list[str], units: str | None, src: str) -> tuple[dict, dict]:

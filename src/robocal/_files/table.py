@@ -124,54 +124,95 @@ def read_table(text: str, source: str, *, sep: str | None = None, decimal: str |
     check_decimal(decimal, sep)
     lines = _LINES.split(text)  # the csv module's line ends; str.splitlines knows more (\x1e, \u2028...)
     content = [(k + 1, ln) for k, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")]
-    if header is not None:
-        header = tuple(str(c).strip() for c in header)
-        if not header or not all(header) or len(set(header)) < len(header):
-            raise InputError(f"expected distinct column names, got {excerpt(','.join(header))}", where="header")
+    header = _given_header(header)
     if not content:
         raise InputError("no header line (and no data)" if header is None else "no data rows", source=source)
     data = content[1:] if header is None else content
     notes = []
     if sep is None:
-        sample = [ln for _, ln in data[:_SAMPLE + 1]]
-        sep = _detect_separator(content[0][1], sample[1:] if header is not None else sample)
+        sep = _sampled_separator(content[0][1], data, header is not None)
         notes.append(f"separator {show_separator(sep)} (detected)")
     header_line = content[0][0]
-    comments = tuple((k + 1, ln) for k, ln in enumerate(lines[:header_line - 1]) if ln.lstrip().startswith("#"))
     cells = _split(text, sep, source)
-    if header is not None:
-        names = list(header)
-    elif header_line not in cells:
-        raise InputError("a quoted cell runs over several lines (a quote not closed?)", source=source,
-                         where=f"line {header_line}")
-    else:
-        names = [c.strip() for c in cells[header_line]]
-        _refuse_other_separator(names, sep, source, header_line)
-        _refuse_numbers(names, source, header_line)
+    names = list(header) if header is not None else _header_names(cells, sep, source, header_line)
     while names and not names[-1]:
         names.pop()  # a separator at the end of every line
-    rows = []
-    for line, _ in data:
-        row = cells.get(line)
-        if row is None:
-            raise InputError("a quoted cell runs over several lines (a quote not closed?)", source=source,
-                             where=f"line {line}")
-        rows.append((str(line), row))
-    if sep == WHITESPACE and header is None and rows and len(names) > len(rows[0][1]):
-        spaced = [c for c in re.split(r"\t|\s{2,}", lines[header_line - 1].strip()) if c]
-        if len(spaced) == len(rows[0][1]):  # names holding single spaces, columns apart by more
-            names = spaced
-            notes.append("header names hold spaces: columns told apart by tabs or two or more spaces")
-    width = len(names)
-    rows = [(line, row[:width] if len(row) > width and not any(c.strip() for c in row[width:]) else row)
-            for line, row in rows]
+    rows = _data_rows(data, cells, source)
+    if sep == WHITESPACE and header is None:
+        names, note = _spaced_names(lines[header_line - 1], names, rows)
+        notes += [note] if note else []
+    rows = _trimmed(rows, len(names))
     if decimal is None:
         decimal = _detect_decimal(sep, rows)
         if decimal != ".":
             notes.append(f"decimal mark {decimal!r} (detected)")
     check_decimal(decimal, sep)
     return Table(header=tuple(names), rows=tuple(rows), source=source, header_line=header_line,
-                 comments=comments, sep=sep, decimal=decimal, notes=tuple(notes), header_given=header is not None)
+                 comments=_comments(lines, header_line), sep=sep, decimal=decimal, notes=tuple(notes),
+                 header_given=header is not None)
+
+
+def _sampled_separator(header: str, data: list[tuple[int, str]], given: bool) -> str:
+    """The separator detected from the ``header`` line and the first data lines (``given``: the
+    header is given, so the first line is data)."""
+    sample = [ln for _, ln in data[:_SAMPLE + 1]]
+    return _detect_separator(header, sample[1:] if given else sample)
+
+
+def _comments(lines: list[str], header_line: int) -> tuple[tuple[int, str], ...]:
+    """(line, text) of the comment lines before the header."""
+    return tuple((k + 1, ln) for k, ln in enumerate(lines[:header_line - 1]) if ln.lstrip().startswith("#"))
+
+
+def _data_rows(data: list[tuple[int, str]], cells: dict[int, list[str]], source: str) -> list:
+    """(line, cells) of each data line."""
+    try:
+        return [(str(line), cells[line]) for line, _ in data]
+    except KeyError as e:
+        raise _quote_not_closed(e.args[0], source) from None
+
+
+def _given_header(header) -> tuple[str, ...] | None:
+    """The column names given for a file without a header line (stripped, distinct), or None."""
+    if header is None:
+        return None
+    header = tuple(str(c).strip() for c in header)
+    if not header or not all(header) or len(set(header)) < len(header):
+        raise InputError(f"expected distinct column names, got {excerpt(','.join(header))}", where="header")
+    return header
+
+
+def _header_names(cells: dict[int, list[str]], sep: str, source: str, line: int) -> list[str]:
+    """The column names on the header ``line``; refused where they look like another separator's or data."""
+    if line not in cells:
+        raise _quote_not_closed(line, source)
+    names = [c.strip() for c in cells[line]]
+    _refuse_other_separator(names, sep, source, line)
+    _refuse_numbers(names, source, line)
+    return names
+
+
+def _quote_not_closed(line: int, source: str) -> InputError:
+    """The error of a ``line`` swallowed by a quoted cell begun on an earlier one."""
+    return InputError("a quoted cell runs over several lines (a quote not closed?)", source=source,
+                      where=f"line {line}")
+
+
+def _spaced_names(text: str, names: list[str], rows: list) -> tuple[list[str], str]:
+    """A whitespace-separated header ``text`` with more names than the rows have cells: its names told
+    apart by tabs or two or more spaces where that gives one per cell (and the note saying so)."""
+    if not rows or len(names) <= len(rows[0][1]):
+        return names, ""
+    spaced = [c for c in re.split(r"\t|\s{2,}", text.strip()) if c]
+    if len(spaced) == len(rows[0][1]):  # names holding single spaces, columns apart by more
+        return spaced, "header names hold spaces: columns told apart by tabs or two or more spaces"
+    return names, ""
+
+
+def _trimmed(rows: list, width: int) -> list:
+    """``rows`` without the empty cells past ``width`` (a separator at the end of a line)."""
+    return [(line, row[:width] if len(row) > width and not any(c.strip() for c in row[width:]) else row)
+            for line, row in rows]
 
 
 def _split(text: str, sep: str, source: str) -> dict[int, list[str]]:
