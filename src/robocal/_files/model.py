@@ -498,71 +498,19 @@ def model_to_dict(model: RobotModel, *, units: str = "mm-deg", calibration: dict
     lu, au = parse_units(units)
     L, A = LENGTH_UNITS[lu], ANGLE_UNITS[au]
     scale = {"length": 1.0 / L, "angle": 1.0 / A, None: 1.0}
-
-    def num(x, s=1.0):
-        # 15 digits drop the conversion's last-bit noise (-119.99999999999999 deg); still exact to 1e-15
-        return float(f"{float(x) * s:.15g}") if s != 1.0 else float(x)
-
-    def vec(v, s=1.0):
-        return [num(x, s) for x in v]
-
-    def matrix(R):
-        return {"matrix": [vec(row) for row in R]}
-
-    frames = []
-    for i, f in enumerate(model.frames):
-        row: dict[str, object] = {"name": f.name, "joint": f.joint}
-        if len(f.coupling) == 1 and f.coupling[0][1] == 1.0:
-            row["reading"] = model.joint_names[f.coupling[0][0]]
-        elif f.coupling:
-            c: dict[str, float] = {}
-            for j, coef in f.coupling:
-                c[model.joint_names[j]] = c.get(model.joint_names[j], 0.0) + float(coef)
-            row["coupling"] = c
-        if f.parent != i - 1:
-            row["parent"] = "base" if f.parent < 0 else model.frames[f.parent].name
-        for k, u in FRAME_VALUES.items():
-            if k in ("gamma", "b") and f.parent == i - 1 and getattr(f, k) == 0.0:
-                continue  # tree offsets: only worth showing where they are used
-            if getattr(f, k) == BACKLASH_VALUES.get(k):
-                continue
-            row[k] = num(getattr(f, k), scale[u])
-            if k == "r":
-                row["has_beta"] = bool(f.has_beta)
-            if k == "mass":
-                row["com"] = vec(f.com, scale["length"])
-        frames.append(row)
-    joints = []
-    for j, jn in enumerate(model.joint_names):
-        s = scale[model.reading_quantities[j]]
-        joints.append({"name": jn, "limits": vec(model.joint_limits[j], s)})
-    markers = []
-    for mk in model.markers:
-        row = {"name": mk.name, "frame": model.frames[mk.frame].name, "position": vec(mk.position, scale["length"])}
-        if not np.array_equal(np.asarray(mk.rotation), np.eye(3)):
-            row["rotation"] = matrix(mk.rotation)  # a matrix keeps a calibrated rotation exact
-        elif not mk.rotation_known:
-            row["rotation"] = "unknown"
-        markers.append(row)
-    base = {"position": vec(model.base_position, scale["length"])}
-    if not np.array_equal(np.asarray(model.base_rotation), np.eye(3)):
-        base["rotation"] = matrix(model.base_rotation)
     d = {"robocal_model": FORMAT_VERSION, "name": model.name}
     description = calibrated_description(calibration) if calibration else model.description  # not the nominal's
     if description:
         d["description"] = description
-    d.update({"units": {"length": lu, "angle": au}, "base": base, "gravity": vec(model.gravity),
-              "joints": joints, "frames": frames, "markers": markers})
-    payloads = []
-    for pl in model.payloads:
-        payloads.append({"mass": float(pl.mass), "com": vec(pl.com, scale["length"])})
-        if pl.frame != -1:  # -1 means the last frame; keep it so
-            payloads[-1]["frame"] = model.frames[pl.frame].name
-    pl = model.payload
-    if model.other_payloads:
-        d["payload"] = payloads
-    elif pl.mass or any(pl.com) or pl.frame != -1:
-        d["payload"] = payloads[0]
+    d.update({"units": {"length": lu, "angle": au}, "base": _base_dict(model, scale["length"]),
+              "gravity": _vec(model.gravity),
+              "joints": [{"name": jn, "limits": _vec(model.joint_limits[j], scale[model.reading_quantities[j]])}
+                         for j, jn in enumerate(model.joint_names)],
+              "frames": [_frame_dict(model, i, scale) for i in range(len(model.frames))],
+              "markers": [_marker_dict(model, mk, scale["length"]) for mk in model.markers]})
+    payload = _payload_dict(model, scale["length"])
+    if payload is not None:
+        d["payload"] = payload
     if model.tolerances:
         d["tolerances"] = _tolerances_dict(model, L, A)
     if model.backlash_side != "gravity" or model.has_backlash:
@@ -570,6 +518,81 @@ def model_to_dict(model: RobotModel, *, units: str = "mm-deg", calibration: dict
     if calibration:
         d["calibration"] = calibration
     return d
+
+
+def _num(x, s: float = 1.0) -> float:
+    """``x`` in the file's unit (``s``: file units per SI unit)."""
+    # 15 digits drop the conversion's last-bit noise (-119.99999999999999 deg); still exact to 1e-15
+    return float(f"{float(x) * s:.15g}") if s != 1.0 else float(x)
+
+
+def _vec(v, s: float = 1.0) -> list[float]:
+    return [_num(x, s) for x in v]
+
+
+def _matrix(R) -> dict:
+    return {"matrix": [_vec(row) for row in R]}  # a matrix keeps a calibrated rotation exact
+
+
+def _frame_dict(model: RobotModel, i: int, scale: dict) -> dict:
+    """Frame ``i`` as the file holds it: what differs from the defaults of a serial chain."""
+    f = model.frames[i]
+    row: dict[str, object] = {"name": f.name, "joint": f.joint, **_reading_dict(model, f)}
+    if f.parent != i - 1:
+        row["parent"] = "base" if f.parent < 0 else model.frames[f.parent].name
+    for k, u in FRAME_VALUES.items():
+        if k in ("gamma", "b") and f.parent == i - 1 and getattr(f, k) == 0.0:
+            continue  # tree offsets: only worth showing where they are used
+        if getattr(f, k) == BACKLASH_VALUES.get(k):
+            continue
+        row[k] = _num(getattr(f, k), scale[u])
+        if k == "r":
+            row["has_beta"] = bool(f.has_beta)
+        if k == "mass":
+            row["com"] = _vec(f.com, scale["length"])
+    return row
+
+
+def _reading_dict(model: RobotModel, f: Frame) -> dict:
+    """A frame's joint variable: one joint's reading, a sum of readings (coupling), or none (fixed)."""
+    if len(f.coupling) == 1 and f.coupling[0][1] == 1.0:
+        return {"reading": model.joint_names[f.coupling[0][0]]}
+    c: dict[str, float] = {}
+    for j, coef in f.coupling:
+        c[model.joint_names[j]] = c.get(model.joint_names[j], 0.0) + float(coef)
+    return {"coupling": c} if c else {}
+
+
+def _marker_dict(model: RobotModel, mk: Marker, length: float) -> dict:
+    row: dict[str, object] = {"name": mk.name, "frame": model.frames[mk.frame].name,
+                              "position": _vec(mk.position, length)}
+    if not np.array_equal(np.asarray(mk.rotation), np.eye(3)):
+        row["rotation"] = _matrix(mk.rotation)
+    elif not mk.rotation_known:
+        row["rotation"] = "unknown"
+    return row
+
+
+def _base_dict(model: RobotModel, length: float) -> dict:
+    base: dict[str, object] = {"position": _vec(model.base_position, length)}
+    if not np.array_equal(np.asarray(model.base_rotation), np.eye(3)):
+        base["rotation"] = _matrix(model.base_rotation)
+    return base
+
+
+def _payload_dict(model: RobotModel, length: float) -> list | dict | None:
+    """The payloads (a list), the one payload, or None where there is none to write."""
+    payloads = []
+    for pl in model.payloads:
+        payloads.append({"mass": float(pl.mass), "com": _vec(pl.com, length)})
+        if pl.frame != -1:  # -1 means the last frame; keep it so
+            payloads[-1]["frame"] = model.frames[pl.frame].name
+    pl = model.payload
+    if model.other_payloads:
+        return payloads
+    if pl.mass or any(pl.com) or pl.frame != -1:
+        return payloads[0]
+    return None
 
 
 @checked(model=is_a(RobotModel), units=UNIT_SYSTEM, calibration=optional(MAPPING))
