@@ -330,30 +330,55 @@ def _modified(table: _Table, name: str) -> RobotModel:
         if parent not in ("base", *frame_names[:i]):
             raise InputError(f"parent {parent!r} is not 'base' or an earlier frame", source=table.source,
                              where=table.where(line, "parent"))
-        coupling: list[tuple[int, float]] = []
-        if kind != "fixed":
-            for term in filter(None, (t.strip() for t in table.word(line, row, "reading").split("+"))):
-                coef, _, reading = term.rpartition("*")
-                try:
-                    c = float(coef) if coef else 1.0
-                except ValueError:
-                    raise InputError(f"a reading is NAME or COEF*NAME, got {term!r}", source=table.source,
-                                     where=table.where(line, "reading")) from None
-                if reading not in readings:
-                    readings.append(reading)
-                if c == 1.0 and len(coupling) == 0:
-                    limits.setdefault(reading, table.limits(line, row, kind))
-                coupling.append((readings.index(reading), c))
-            if not coupling:
-                raise InputError("a moving frame needs a reading", source=table.source,
-                                 where=table.where(line, "reading"))
+        coupling = _coupling(table, line, row, kind, readings, limits)
         values: dict[str, Any] = {k: table.get(line, row, k, 0.0) for k in MDH_TABLE_KINDS}
         frames.append(Frame(name=fname, joint=kind, parent=-1 if parent == "base" else frame_names.index(parent),
-                            coupling=tuple(coupling), **values))
+                            coupling=coupling, **values))
+    frames = _with_beta(table, joints, frames)
+    X_WB = np.eye(4) if base is None else base
+    return RobotModel(name=name, frames=tuple(frames), joint_names=tuple(readings),
+                      joint_limits=tuple(limits.get(r, (-math.pi, math.pi)) for r in readings),
+                      markers=_markers(table, markers, frame_names) or (Marker("tool", len(frames) - 1),),
+                      base_position=vector3(X_WB[:3, 3]), base_rotation=matrix_tuple(X_WB[:3, :3]),
+                      description=f"imported from the modified DH table {table.source}")
+
+
+def _coupling(table: _Table, line: int, row, kind: str, readings: list[str],
+              limits: dict[str, tuple[float, float]]) -> tuple[tuple[int, float], ...]:
+    """A frame's joint readings from its ``reading`` cell (NAME or COEF*NAME terms joined by +), none
+    for a fixed frame. A reading met for the first time joins ``readings``; the limits of the first
+    frame it drives alone join ``limits``."""
+    if kind == "fixed":
+        return ()
+    coupling: list[tuple[int, float]] = []
+    for term in filter(None, (t.strip() for t in table.word(line, row, "reading").split("+"))):
+        coef, _, reading = term.rpartition("*")
+        try:
+            c = float(coef) if coef else 1.0
+        except ValueError:
+            raise InputError(f"a reading is NAME or COEF*NAME, got {term!r}", source=table.source,
+                             where=table.where(line, "reading")) from None
+        if reading not in readings:
+            readings.append(reading)
+        if c == 1.0 and len(coupling) == 0:
+            limits.setdefault(reading, table.limits(line, row, kind))
+        coupling.append((readings.index(reading), c))
+    if not coupling:
+        raise InputError("a moving frame needs a reading", source=table.source, where=table.where(line, "reading"))
+    return tuple(coupling)
+
+
+def _with_beta(table: _Table, joints: list, frames: list[Frame]) -> list[Frame]:
+    """``frames`` with Hayati's beta where the table says so (``has_beta``), where the axes are nearly
+    parallel or where beta is not zero."""
     said = ["has_beta" in table.text and table.word(line, row, "has_beta").lower() == "true"
             for line, row, _, _ in joints]
     flags = parallel_beta_frames(frames)
-    frames = [replace(f, has_beta=flag or s or f.beta != 0.0) for f, flag, s in zip(frames, flags, said)]
+    return [replace(f, has_beta=flag or s or f.beta != 0.0) for f, flag, s in zip(frames, flags, said)]
+
+
+def _markers(table: _Table, markers: list, frame_names: list[str]) -> tuple[Marker, ...]:
+    """The marker rows as markers on the frames their ``parent`` names."""
     mk = []
     for line, row, mname in markers:
         parent = table.word(line, row, "parent")
@@ -362,9 +387,4 @@ def _modified(table: _Table, name: str) -> RobotModel:
                              where=table.where(line, "parent"))
         X = table.placement(line, row)
         mk.append(Marker(mname, frame_names.index(parent), vector3(X[:3, 3]), matrix_tuple(X[:3, :3])))
-    X_WB = np.eye(4) if base is None else base
-    return RobotModel(name=name, frames=tuple(frames), joint_names=tuple(readings),
-                      joint_limits=tuple(limits.get(r, (-math.pi, math.pi)) for r in readings),
-                      markers=tuple(mk) or (Marker("tool", len(frames) - 1),),
-                      base_position=vector3(X_WB[:3, 3]), base_rotation=matrix_tuple(X_WB[:3, :3]),
-                      description=f"imported from the modified DH table {table.source}")
+    return tuple(mk)

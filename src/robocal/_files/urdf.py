@@ -168,6 +168,27 @@ def check_tree(root: ET.Element, source: str) -> None:
 
 
 def _parse_joints(root: ET.Element, source: str) -> tuple[set[str], dict[str, _UJoint], dict]:
+    links, inertials = _parse_links(root, source)
+    joints: dict[str, _UJoint] = {}
+    child_of: dict[str, str] = {}
+    for el in root.findall("joint"):
+        jname = el.get("name")
+        if not jname:
+            raise InputError("a <joint> has no name", source=source, where="joint")
+        where = f"joint {jname!r}"
+        if jname in joints:
+            raise InputError("joint named twice", source=source, where=where)
+        parent, child = (_joint_link(el, role, links, source, where) for role in ("parent", "child"))
+        if child in child_of:
+            raise InputError(f"link {child!r} is the child of two joints ({child_of[child]!r})",
+                             source=source, where=where)
+        child_of[child] = jname
+        joints[jname] = _parse_joint(el, jname, parent, child, source, where)
+    return links, joints, {"child_of": child_of, "inertials": inertials}
+
+
+def _parse_links(root: ET.Element, source: str) -> tuple[set[str], dict[str, tuple[float, np.ndarray]]]:
+    """The link names, and the mass and centre of mass of each link with an inertial."""
     links: set[str] = set()
     inertials: dict[str, tuple[float, np.ndarray]] = {}
     for el in root.findall("link"):
@@ -184,51 +205,44 @@ def _parse_joints(root: ET.Element, source: str) -> tuple[set[str], dict[str, _U
             org = iner.find("origin")
             com = _floats(None if org is None else org.get("xyz"), 3, [0, 0, 0], source, where)
             inertials[lname] = (m, com)
-    joints: dict[str, _UJoint] = {}
-    child_of: dict[str, str] = {}
-    for el in root.findall("joint"):
-        jname = el.get("name")
-        if not jname:
-            raise InputError("a <joint> has no name", source=source, where="joint")
-        where = f"joint {jname!r}"
-        if jname in joints:
-            raise InputError("joint named twice", source=source, where=where)
-        jtype = el.get("type")
-        pe, ce = el.find("parent"), el.find("child")
-        parent = "" if pe is None else pe.get("link", "")
-        child = "" if ce is None else ce.get("link", "")
-        for role, lk in (("parent", parent), ("child", child)):
-            if not lk:
-                raise InputError(f"<{role} link=...> is missing", source=source, where=where)
-            if lk not in links:
-                raise InputError(f"{role} link {lk!r} is not defined", source=source, where=where)
-        if child in child_of:
-            raise InputError(f"link {child!r} is the child of two joints ({child_of[child]!r})",
-                             source=source, where=where)
-        child_of[child] = jname
-        org = el.find("origin")
-        xyz = _floats(None if org is None else org.get("xyz"), 3, [0, 0, 0], source, where + " origin xyz")
-        rpy = _floats(None if org is None else org.get("rpy"), 3, [0, 0, 0], source, where + " origin rpy")
-        ax = el.find("axis")
-        axis = _floats(None if ax is None else ax.get("xyz"), 3, [1, 0, 0], source, where + " axis")
-        lim = el.find("limit")
-        limits = None
-        if lim is not None:  # URDF: lower/upper default to 0
-            lower, upper = (_attr_float(lim, k, 0.0, source, where + " limit") for k in ("lower", "upper"))
-            if jtype in ("revolute", "continuous"):
-                lower, upper = _round_angle(lower, lim.get("lower")), _round_angle(upper, lim.get("upper"))
-            limits = (lower, upper)
-        mim = el.find("mimic")
-        mimic = None
-        if mim is not None:
-            master = mim.get("joint")
-            if not master:
-                raise InputError("<mimic> needs joint=...", source=source, where=where)
-            mimic = (master, _attr_float(mim, "multiplier", 1.0, source, where + " mimic"),
-                     _attr_float(mim, "offset", 0.0, source, where + " mimic"))
-        joints[jname] = _UJoint(jname, jtype or "", parent, child, pose4(rpy_matrix(rpy), xyz), axis,
-                                limits, mimic)
-    return links, joints, {"child_of": child_of, "inertials": inertials}
+    return links, inertials
+
+
+def _joint_link(el: ET.Element, role: str, links: set[str], source: str, where: str) -> str:
+    """The joint's ``role`` ("parent" or "child") link, which must be defined."""
+    found = el.find(role)
+    link = "" if found is None else found.get("link", "")
+    if not link:
+        raise InputError(f"<{role} link=...> is missing", source=source, where=where)
+    if link not in links:
+        raise InputError(f"{role} link {link!r} is not defined", source=source, where=where)
+    return link
+
+
+def _parse_joint(el: ET.Element, jname: str, parent: str, child: str, source: str, where: str) -> _UJoint:
+    """A joint's origin, axis, limits and mimic."""
+    jtype = el.get("type")
+    org = el.find("origin")
+    xyz = _floats(None if org is None else org.get("xyz"), 3, [0, 0, 0], source, where + " origin xyz")
+    rpy = _floats(None if org is None else org.get("rpy"), 3, [0, 0, 0], source, where + " origin rpy")
+    ax = el.find("axis")
+    axis = _floats(None if ax is None else ax.get("xyz"), 3, [1, 0, 0], source, where + " axis")
+    lim = el.find("limit")
+    limits = None
+    if lim is not None:  # URDF: lower/upper default to 0
+        lower, upper = (_attr_float(lim, k, 0.0, source, where + " limit") for k in ("lower", "upper"))
+        if jtype in ("revolute", "continuous"):
+            lower, upper = _round_angle(lower, lim.get("lower")), _round_angle(upper, lim.get("upper"))
+        limits = (lower, upper)
+    mim = el.find("mimic")
+    mimic = None
+    if mim is not None:
+        master = mim.get("joint")
+        if not master:
+            raise InputError("<mimic> needs joint=...", source=source, where=where)
+        mimic = (master, _attr_float(mim, "multiplier", 1.0, source, where + " mimic"),
+                 _attr_float(mim, "offset", 0.0, source, where + " mimic"))
+    return _UJoint(jname, jtype or "", parent, child, pose4(rpy_matrix(rpy), xyz), axis, limits, mimic)
 
 
 def _children(links, joints) -> dict[str, list[str]]:
