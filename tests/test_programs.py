@@ -348,6 +348,32 @@ def test_a_named_tool_is_the_model_with_that_tool_point(models, tmp_path):
     assert any(abs(a.moved - b.moved) > 1e-6 for a, b in zip(moved.targets, default.targets) if a.status == "ok")
 
 
+def test_krl_tool_and_base_data_are_named_frames_not_targets(models, tmp_path):
+    """KRL ``TOOL_DATA[n]`` is a tool, ``BASE_DATA[n]`` a work object and another array's element a
+    frame, each by its whole name; one without six literal numbers is no frame."""
+    nominal, calibrated = models
+    calibrated = calibrated.replace(markers=nominal.markers)        # a named tool is exact in both models
+    data = ("TOOL_DATA[1]={X 50.0,Y 20.0,Z 120.0,A 0.0,B 0.0,C 0.0}\n"
+            "BASE_DATA[2]={X 100.0,Y 0.0,Z 0.0,A 0.0,B 0.0,C 0.0}\n"
+            "MY_FRAMES[3]={X 1.0,Y 2.0,Z 3.0,A 90.0,B 0.0,C 0.0}\nTOOL_DATA[4]={X 1.0,Y 0.0}\n")
+    (tmp_path / "frames.src").write_text((HERE / "example.src").read_text().replace("; inline", data + "; inline"))
+    program = read_program(tmp_path / "frames.src")
+    frames = {f.name: f for f in program.frames}
+    assert {name: f.kind for name, f in frames.items()} == {"TOOL_DATA[1]": "tool", "BASE_DATA[2]": "wobj",
+                                                             "MY_FRAMES[3]": "frame"}
+    assert np.allclose(frames["MY_FRAMES[3]"].X[:3, 3], [0.001, 0.002, 0.003])
+    assert np.allclose(frames["MY_FRAMES[3]"].X[:3, :3], Rotation.from_euler("z", 90, degrees=True).as_matrix())
+    own = read_program(HERE / "example.src").targets                 # the same targets, four lines down
+    assert [(t.kind, t.line) for t in program.targets] == [(t.kind, t.line + 4) for t in own]
+    # arm6r's own tool point is (50, 20, 120) mm on the last frame, with the frame's axes
+    with_tool = compensate_program(program, nominal, calibrated, tool="TOOL_DATA[1]")
+    default = compensate_program(program, nominal, calibrated)
+    assert [r.status for r in with_tool.targets] == [r.status for r in default.targets]
+    assert all(abs(a.moved - b.moved) < 1e-10 for a, b in zip(with_tool.targets, default.targets))
+    with pytest.raises(rc.errors.InputError, match=r"'BASE_DATA\[2\]' is a wobj"):
+        compensate_program(program, nominal, calibrated, tool="BASE_DATA[2]")
+
+
 @pytest.mark.parametrize("dialect", ["rapid", "krl", "urscript"])
 def test_orientations_are_written_in_the_dialects_convention(dialect):
     """A rotation through the dialect's writer and back through its reader is the same rotation,

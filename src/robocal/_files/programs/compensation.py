@@ -58,7 +58,12 @@ class ProgramCompensation:
 
     @property
     def flagged(self) -> tuple[TargetResult, ...]:
-        return tuple(t for t in self.targets if t.status != REACHED and not t.status.startswith("read only"))
+        return tuple(t for t in self.targets if _is_flagged(t))
+
+
+def _is_flagged(result: TargetResult) -> bool:
+    """Whether a target was left unchanged for a reason the user must see (not one only read)."""
+    return result.status != REACHED and not result.status.startswith("read only")
 
 
 def _named(program: Program, name: str, kinds, option: str):
@@ -205,11 +210,7 @@ def compensate_program(program: Program, nominal: RobotModel, calibrated: RobotM
     if joints:
         n_, c_, m_ = _tool_models(program, nominal, calibrated, marker, tool, "--tool")
         results.update(_joint_targets(program, n_, c_, m_, joints, tol, tol_rot, edits))
-    groups: dict[tuple, list] = {}
-    for t in live:
-        if t.kind == "pose":          # the command line's tool and work object win over the program's
-            groups.setdefault((tool or t.tool or None, wobj or t.wobj or None), []).append(t)
-    for (tool_name, wobj_name), poses in groups.items():
+    for (tool_name, wobj_name), poses in _pose_groups(live, tool, wobj).items():
         where = f"line {poses[0].line}"
         n_, c_, m_ = _tool_models(program, nominal, calibrated, marker, tool_name, "--tool" if tool else where)
         X_BO = np.eye(4) if wobj_name is None else _named(program, wobj_name, ("wobj", "frame"),
@@ -220,11 +221,24 @@ def compensate_program(program: Program, nominal: RobotModel, calibrated: RobotM
             results[id(t)] = r
     rows = [results.get(id(t), TargetResult(t.name, t.line, t.kind, f"read only: {t.skip or 'a frame in use'}"))
             for t in program.targets]
+    return ProgramCompensation(text=edited(program.text, edits, _flags(program, rows), comment=module.COMMENT),
+                               targets=tuple(rows))
+
+
+def _pose_groups(live, tool: str | None, wobj: str | None) -> dict[tuple, list]:
+    """The pose targets by (tool, work object) used: the command line's win over the program's."""
+    groups: dict[tuple, list] = {}
+    for t in live:
+        if t.kind == "pose":
+            groups.setdefault((tool or t.tool or None, wobj or t.wobj or None), []).append(t)
+    return groups
+
+
+def _flags(program: Program, rows) -> list[tuple[int, str]]:
+    """The comments flagging the targets left unchanged, each where its target is written."""
     starts = [0] + [m.end() for m in re.finditer(r"\r\n|\r|\n", program.text)]
-    comments = [(t.anchor if t.anchor >= 0 else starts[t.line - 1] + t.column - 1,
-                 f"{r.name}: {r.status}; left unchanged")
-                for t, r in zip(program.targets, rows) if r.status != REACHED and not r.status.startswith("read only")]
-    return ProgramCompensation(text=edited(program.text, edits, comments, comment=module.COMMENT), targets=tuple(rows))
+    return [(t.anchor if t.anchor >= 0 else starts[t.line - 1] + t.column - 1, f"{r.name}: {r.status}; left unchanged")
+            for t, r in zip(program.targets, rows) if _is_flagged(r)]
 
 
 def _joint_targets(program, nominal, calibrated, marker, joints, tol, tol_rot, edits) -> dict:

@@ -64,36 +64,54 @@ def _balanced(toks, sc) -> None:
 def _line(toks, sc, targets, frames) -> None:
     _balanced(toks, sc)
     words = [t.text.upper() for t in toks]
+    if _declaration(toks, words, sc, targets, frames) or _frame_data(toks, words, sc, frames):
+        return
+    if words[0] in MOTION:
+        _motion(toks, sc, targets)
+
+
+def _declaration(toks, words: list[str], sc, targets, frames) -> bool:
+    """``[DECL] [GLOBAL] [CONST] TYPE NAME = {...}`` of a position or axis type: its target (a FRAME's
+    also a named frame); whether the line is one."""
     k = 0
     while k < len(words) and words[k] in ("DECL", "GLOBAL", "CONST"):
         k += 1
-    if k + 3 < len(toks) and words[k] in POSES + AXES and toks[k + 1].kind == "name" and words[k + 2] == "=" \
-            and words[k + 3] == "{":
-        agg, _ = aggregate(toks, k + 3, sc)
-        target = _target(toks[k + 1].text, words[k], agg, sc)
-        targets.append(target)
-        if words[k] == "FRAME" and not target.skip:
-            frames.append(NamedFrame(toks[k + 1].text, "frame", poses([target])[0]))
-        return
-    if len(toks) > 5 and words[1] == "[" and words[3] == "]" and words[4] == "=" and words[5] == "{":
-        agg, _ = aggregate(toks, 5, sc)
-        name = "".join(t.text for t in toks[:4])
-        target = _target(name, "FRAME", agg, sc)
-        if not target.skip:
-            kind = {"TOOL_DATA": "tool", "BASE_DATA": "wobj"}.get(words[0], "frame")
-            frames.append(NamedFrame(name, kind, poses([target])[0]))
-        return
-    if words[0] in MOTION:
-        j = 1
-        while j < len(toks):
-            if toks[j].text == "{":
-                agg, j = aggregate(toks, j, sc)
-                line = sc.line_col(agg.start)[0]
-                targets.append(_target(f"line {line}", "", agg, sc))
-            elif toks[j].text in "([":
-                j = closing(toks, j, sc) + 1
-            else:
-                j += 1
+    if not (k + 3 < len(toks) and words[k] in POSES + AXES and toks[k + 1].kind == "name" and words[k + 2] == "="
+            and words[k + 3] == "{"):
+        return False
+    agg, _ = aggregate(toks, k + 3, sc)
+    target = _target(toks[k + 1].text, words[k], agg, sc)
+    targets.append(target)
+    if words[k] == "FRAME" and not target.skip:
+        frames.append(NamedFrame(toks[k + 1].text, "frame", poses([target])[0]))
+    return True
+
+
+def _frame_data(toks, words: list[str], sc, frames) -> bool:
+    """``NAME[n] = {...}`` (``TOOL_DATA[1]``, ``BASE_DATA[2]``): a named frame; whether the line is one."""
+    if not (len(toks) > 5 and words[1] == "[" and words[3] == "]" and words[4] == "=" and words[5] == "{"):
+        return False
+    agg, _ = aggregate(toks, 5, sc)
+    name = "".join(t.text for t in toks[:4])
+    target = _target(name, "FRAME", agg, sc)
+    if not target.skip:
+        kind = {"TOOL_DATA": "tool", "BASE_DATA": "wobj"}.get(words[0], "frame")
+        frames.append(NamedFrame(name, kind, poses([target])[0]))
+    return True
+
+
+def _motion(toks, sc, targets) -> None:
+    """The targets written inline in a motion's arguments."""
+    j = 1
+    while j < len(toks):
+        if toks[j].text == "{":
+            agg, j = aggregate(toks, j, sc)
+            line = sc.line_col(agg.start)[0]
+            targets.append(_target(f"line {line}", "", agg, sc))
+        elif toks[j].text in "([":
+            j = closing(toks, j, sc) + 1
+        else:
+            j += 1
 
 
 def _members(agg: Aggregate, sc) -> dict:

@@ -27,29 +27,7 @@ MOTION = ("movej", "movel", "movep", "movec", "servoj")
 def read(text: str, source: str) -> Program:
     """The program's targets and named frames; a malformed script is an InputError at its line and column."""
     sc = Scanner(text, source, comment=COMMENT, quotes="\"'")
-    toks = sc.tokens()
-    literals: list = []
-    moved: list = []
-    used: set[str] = set()
-    j = 0
-    while j < len(toks):
-        t = toks[j]
-        after = toks[j + 1].text if j + 1 < len(toks) else ""
-        if t.kind == "name" and after == "=" and j + 2 < len(toks):
-            is_pose = toks[j + 2].text == "p" and j + 3 < len(toks) and toks[j + 3].text[:1] == "["
-            if is_pose or toks[j + 2].text[:1] == "[":
-                start = toks[j + 2].start
-                anchor = toks[j - 1].start if j and toks[j - 1].text in ("global", "local") else t.start
-                agg, j = aggregate(toks, j + 2 + is_pose, sc)
-                literals.append((t.text, Aggregate(agg.items, start, agg.end, "p" if is_pose else ""), anchor))
-                continue
-        if t.kind == "name" and t.text.lower() in MOTION and after == "(":
-            end = closing(toks, j + 1, sc)
-            moved.extend(replace(t_, anchor=t.start) for t_ in _arguments(toks, j + 2, end, sc, used))
-            j = end + 1
-            continue
-        j = closing(toks, j, sc) + 1 if t.text in "([{" else j + 1
-    targets = list(moved)
+    literals, targets, used = _walk(sc.tokens(), sc)
     frames = []
     for name, agg, anchor in literals:
         line = sc.line_col(agg.start)[0]
@@ -61,17 +39,51 @@ def read(text: str, source: str) -> Program:
     return Program(source=source, dialect=NAME, text=text, targets=tuple(targets), frames=tuple(frames))
 
 
+def _walk(toks, sc) -> tuple[list, list[Target], set[str]]:
+    """One pass over the tokens: the variables assigned a literal (name, literal, where the
+    assignment begins), the targets written in motions and the names of variables motions use."""
+    literals: list = []
+    moved: list[Target] = []
+    used: set[str] = set()
+    j = 0
+    while j < len(toks):
+        t = toks[j]
+        after = toks[j + 1].text if j + 1 < len(toks) else ""
+        found = _literal(toks, j + 2, len(toks), sc) if t.kind == "name" and after == "=" else None
+        if found is not None:
+            anchor = toks[j - 1].start if j and toks[j - 1].text in ("global", "local") else t.start
+            literals.append((t.text, found[0], anchor))
+            j = found[1]
+        elif t.kind == "name" and t.text.lower() in MOTION and after == "(":
+            end = closing(toks, j + 1, sc)
+            moved.extend(replace(t_, anchor=t.start) for t_ in _arguments(toks, j + 2, end, sc, used))
+            j = end + 1
+        else:
+            j = closing(toks, j, sc) + 1 if t.text in "([{" else j + 1
+    return literals, moved, used
+
+
+def _literal(toks, k: int, end: int, sc) -> tuple[Aggregate, int] | None:
+    """The list ``[...]`` or pose ``p[...]`` written at token ``k`` (of the tokens before ``end``) and
+    the token after it; None where none begins there."""
+    if k >= end:
+        return None
+    is_pose = toks[k].text == "p" and k + 1 < end and toks[k + 1].text[:1] == "["
+    if not is_pose and toks[k].text[:1] != "[":
+        return None
+    agg, after = aggregate(toks, k + is_pose, sc)
+    return Aggregate(agg.items, toks[k].start, agg.end, "p" if is_pose else ""), after
+
+
 def _arguments(toks, j, end, sc, used):
     """Targets among a motion's arguments (literals) and the names of variables it uses."""
     out = []
     while j < end:
         t = toks[j]
-        if t.text == "p" and j + 1 < end and toks[j + 1].text[:1] == "[" or t.text[:1] == "[":
-            k = j + (t.text == "p")
-            agg, j = aggregate(toks, k, sc)
-            agg = Aggregate(agg.items, t.start, agg.end, "p" if t.text == "p" else "")
-            line = sc.line_col(t.start)[0]
-            out.append(_target(f"line {line}", agg, sc))
+        found = _literal(toks, j, end, sc)
+        if found is not None:
+            agg, j = found
+            out.append(_target(f"line {sc.line_col(agg.start)[0]}", agg, sc))
             continue
         if t.kind == "name" and (j + 1 >= end or toks[j + 1].text == ","):
             used.add(t.text)
