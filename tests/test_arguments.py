@@ -8,6 +8,7 @@ import functools
 import importlib
 import inspect
 import math
+import sys
 import warnings
 from pathlib import Path
 
@@ -490,3 +491,33 @@ def test_every_public_function_has_numpy_parameters_and_returns_sections(name):
     wanted = [("**" if p.kind is p.VAR_KEYWORD else "") + p.name
               for p in inspect.signature(fn).parameters.values()]
     assert listed == wanted, (name, listed, wanted)
+
+
+def _calls(fn, *codes) -> list[int]:
+    """How many times each code object runs during ``fn()``."""
+    counts = [0] * len(codes)
+
+    def profile(frame, event, arg):
+        if event == "call" and frame.f_code in codes:
+            counts[codes.index(frame.f_code)] += 1
+
+    sys.setprofile(profile)
+    try:
+        fn()
+    finally:
+        sys.setprofile(None)
+    return counts
+
+
+def test_a_calibration_runs_the_argument_checks_of_calibrate_only():
+    """The checks run once, at the public face: robocal's own calls between its functions (the
+    solve, the covariance, the analysis, the statistics...) check nothing again."""
+    from robocal._identification.calibrate import check_inputs
+
+    w = world()
+    checking = rc.parameter_vector.__code__         # what every checked public function runs first
+    assert _calls(lambda: rc.parameter_vector(w["model"]), checking) == [1]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert _calls(lambda: rc.calibrate(w["model"], w["data"]), checking, check_inputs.__code__) == [0, 1]
+        assert _calls(lambda: rc.compare(w["model"], w["data"], tol=1e-8), checking, check_inputs.__code__) == [1, 1]

@@ -3,6 +3,7 @@ a stack of observation blocks: measured points, sockets, planes, ball bars, know
 identifiability analysis, the solve and the covariance that ``calibrate`` runs, the checks it
 records (docs/checks.md), the kit's figures of contacts, and the diagnosis."""
 
+from ._base import arguments as _arguments
 from ._diagnosis.contacts import diagnose_contacts
 from ._diagnosis.measured import Diagnosis, Finding, diagnose
 from ._identification.calibrate import calibrate, compare, register_base
@@ -34,3 +35,6 @@ __all__ = ["calibrate", "compare", "register_base", "error_stats", "CalibrationR
            "covariance", "Covariance", "ROW_KINDS", "contact_identifiability", "contact_errors",
            "ContactFigures", "ContactIdentifiability", "ContactErrors", "Unreachable",
            "diagnose", "Diagnosis", "Finding", "diagnose_contacts"]
+
+# the functions users call check their arguments; robocal's own code calls them unchecked
+_arguments.export_checked(globals())

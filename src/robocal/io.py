@@ -2,6 +2,7 @@
 measurement files (CSV), contact files (CSV), result files (JSON), repeatability files (CSV), URDF, DH tables,
 robot programs (ABB RAPID, KUKA KRL, URScript)."""
 
+from ._base import arguments as _arguments
 from ._files.contacts import contacts_to_csv, read_contacts, write_contacts
 from ._files.dh import dh_csv, mdh_csv, read_dh_table, write_mdh_csv
 from ._files.measurements import measurements_to_csv, read_measurements, split_sets, write_measurements
@@ -38,3 +39,6 @@ __all__ = ["read_model", "write_model", "calibration_record", "model_from_dict",
            "dh_csv", "read_dh_table"]
 __all__ += ["read_program", "read_program_joints", "program_joints", "compensate_program", "Program", "Target",
             "ProgramCompensation", "TargetResult"]
+
+# the functions users call check their arguments; robocal's own code calls them unchecked
+_arguments.export_checked(globals())

@@ -17,6 +17,7 @@ from ._accuracy.compensation import (
     joint_jacobian,
     posture,
 )
+from ._base import arguments as _arguments
 from ._model.configurations import random_configurations, sampling_box
 from ._model.kinematics import Evaluation, evaluate, forward_kinematics, gravity_loads, jacobian
 from ._model.parameters import (
@@ -60,3 +61,6 @@ __all__ = ["Frame", "Marker", "Payload", "RobotModel", "serial_model", "parallel
            "SI_UNITS", "FAMILIES"]
 __all__ += ["POSTURE", "arm_chain", "posture", "inverse_kinematics", "InverseKinematics", "compensate", "Compensation",
             "compensate_poses", "PoseCompensation"]
+
+# the functions users call check their arguments; robocal's own code calls them unchecked
+_arguments.export_checked(globals())

@@ -16,8 +16,12 @@ from ._accuracy.limit import (
     rounded_parameters,
 )
 from ._accuracy.verification import Accuracy, Verification, positional_accuracy, verify
+from ._base import arguments as _arguments
 
 __all__ = ["AccuracyLimit", "PoseRepeatability", "PrecisionResult", "PredictedPrecision", "RepeatabilityData",
            "RepeatabilityResult", "accuracy_limit", "controller_precision", "iso9283_repeatability",
            "predicted_controller_precision", "rounded_parameters", "verify", "Verification", "Accuracy",
            "positional_accuracy"]
+
+# the functions users call check their arguments; robocal's own code calls them unchecked
+_arguments.export_checked(globals())

@@ -3,6 +3,7 @@ campaigns with a real robot's imperfections (encoder counts, scatter, instrument
 joint-only campaigns of sockets, planes and ball bars, and the planning of a socket campaign; robots with
 effects beyond the model (elasticity, gear errors, drift, scatter) and their accuracy in use."""
 
+from ._base import arguments as _arguments
 from ._model.configurations import random_configurations
 from ._model.measurements import approach_sides
 from ._simulation.campaign import RobotImperfections, accuracy_in_use, backlash_sides, measure_campaign, stored_model
@@ -17,3 +18,6 @@ __all__ = ["simulate", "measure", "perturb_model", "random_configurations", "Rob
            "socket_campaign", "plane_campaign", "bar_campaign", "plate_placements", "reach", "plan_sockets",
            "SocketPlan", "SocketDesign", "UnmodelledEffects", "PRESETS", "attained", "measure_real",
            "placement_errors", "select_poses", "PoseSelection", "predict_campaign", "CampaignPrediction"]
+
+# the functions users call check their arguments; robocal's own code calls them unchecked
+_arguments.export_checked(globals())

@@ -1,6 +1,7 @@
 """The store of calibrations (docs/store.md): each robot's calibrations over the years in SQLite or
 PostgreSQL, its history and judged changes, quick verifications, robots of one type compared."""
 
+from ._base import arguments as _arguments
 from ._store.store import (
     JUDGED_FAMILIES,
     Change,
@@ -34,3 +35,6 @@ __all__ = ["Store", "open_store", "store_location", "default_store_path", "histo
            "accuracy_at_calibration", "History", "Change", "Overall", "TypeComparison", "Latest", "Outlier",
            "StoredCalibration", "StoredVerification", "Estimate", "model_document", "sidak_threshold",
            "JUDGED_FAMILIES"]
+
+# the functions users call check their arguments; robocal's own code calls them unchecked
+_arguments.export_checked(globals())

@@ -12,8 +12,8 @@ from .._base.arguments import (
     FLAG,
     NON_NEGATIVE,
     POSITIVE,
+    accepts,
     both,
-    checked,
     is_a,
     items,
     marker_of,
@@ -33,7 +33,7 @@ from .._model.robot import RobotModel
 log = logging.getLogger(__name__)
 
 
-@checked(model=is_a(RobotModel), q=readings_of())
+@accepts(model=is_a(RobotModel), q=readings_of())
 def joint_jacobian(model: RobotModel, q) -> np.ndarray:
     """d(marker pose)/d(joint readings): (N, n_markers, 6, n_joints) in W (rows dx, dy, dz, rotation).
 
@@ -129,7 +129,7 @@ def _damped_newton(model, q0, Pt, Rt, oriented, *, marker, iterations, tol, damp
     return q
 
 
-@checked(model=is_a(RobotModel), targets_q=readings_of(), nominal=optional(is_a(RobotModel)),
+@accepts(model=is_a(RobotModel), targets_q=readings_of(), nominal=optional(is_a(RobotModel)),
          positions=optional(shaped(None, 3, finite=False)), rotations=optional(shaped(None, 3, 3, finite=False)),
          marker=marker_of(), orientation=optional(FLAG), iterations=whole(1, 10_000), tol=POSITIVE,
          damping=NON_NEGATIVE, max_step=POSITIVE)
@@ -197,7 +197,7 @@ HALTON_PRIMES = (2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37, 41, 43, 47, 53)
 MAX_SEEDED_JOINTS = len(HALTON_PRIMES)
 
 
-@checked(model=is_a(RobotModel), marker=marker_of())
+@accepts(model=is_a(RobotModel), marker=marker_of())
 def arm_chain(model: RobotModel, marker: int = 0) -> tuple[int, ...]:
     """Indices of the moving frames from the base to ``marker``'s frame, base first.
 
@@ -227,7 +227,7 @@ def _six_axes(value, name, args):
         raise InputError(f"must have six moving frames on the chain to the marker, got {n}", where=name)
 
 
-@checked(model=_six_axes, q=readings_of(), marker=marker_of())
+@accepts(model=_six_axes, q=readings_of(), marker=marker_of())
 def posture(model: RobotModel, q, *, marker: int = 0) -> np.ndarray:
     """(N, 3) posture bits of a six-axis arm at readings ``q`` (N, n_joints), columns ``POSTURE``.
 
@@ -372,7 +372,7 @@ _TARGETS = dict(positions=_points, rotations=_rotations, want=optional(_bits),
                 hints=optional(rows_for("positions", _joints, finite=False)))
 
 
-@checked(model=_seeded, **_TARGETS, tol=POSITIVE, iterations=whole(1, 10_000))
+@accepts(model=_seeded, **_TARGETS, tol=POSITIVE, iterations=whole(1, 10_000))
 @one_blas_thread
 def inverse_kinematics(model: RobotModel, positions, rotations, *, marker: int = 0, want=None, turn_from=None,
                        hints=None, tol: float = 1e-10, iterations: int = 100) -> InverseKinematics:
@@ -470,7 +470,7 @@ class PoseCompensation:
     compensation: Compensation
 
 
-@checked(nominal=_seeded,
+@accepts(nominal=_seeded,
          calibrated=both(is_a(RobotModel), same_robot_as("nominal")), **_TARGETS)
 def compensate_poses(nominal: RobotModel, calibrated: RobotModel, positions, rotations, *, marker: int = 0,
                      want=None, turn_from=None, hints=None) -> PoseCompensation:

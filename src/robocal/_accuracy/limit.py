@@ -26,7 +26,7 @@ from .._base.arguments import (
     NON_NEGATIVE,
     SEED,
     SEQUENCE,
-    checked,
+    accepts,
     is_a,
     marker_of,
     one_of,
@@ -181,7 +181,7 @@ class AccuracyLimit:
 
 # -- ISO 9283 repeatability --------------------------------------------------------------------
 
-@checked(pose_ids=SEQUENCE, points=shaped(None, 3))
+@accepts(pose_ids=SEQUENCE, points=shaped(None, 3))
 def iso9283_repeatability(pose_ids: Sequence[Hashable], points) -> RepeatabilityResult:
     """ISO 9283 pose repeatability of each commanded pose and the worst pose.
 
@@ -244,7 +244,7 @@ class _Rounded:
     quanta: np.ndarray   # (K,) metres or radians
 
 
-@checked(model=is_a(RobotModel), length_quantum=NON_NEGATIVE, angle_quantum=NON_NEGATIVE)
+@accepts(model=is_a(RobotModel), length_quantum=NON_NEGATIVE, angle_quantum=NON_NEGATIVE)
 def rounded_parameters(model: RobotModel, length_quantum: float, angle_quantum: float) -> _Rounded:
     """Which stored parameters the controller rounds, with their quanta.
 
@@ -338,7 +338,7 @@ def parameter_displacement(ps, rot: np.ndarray, steps: np.ndarray, on_path: np.n
     return trans + turn
 
 
-@checked(model=is_a(RobotModel), encoder_resolution=per_joint(), length_quantum=NON_NEGATIVE,
+@accepts(model=is_a(RobotModel), encoder_resolution=per_joint(), length_quantum=NON_NEGATIVE,
          angle_quantum=NON_NEGATIVE, n_samples=whole(1, MAX_SAMPLES), chunk_size=whole(1, MAX_CHUNK), rng=SEED,
          progress=optional(CALLABLE), markers=one_of(LIMIT_MARKER_MODES))
 @one_blas_thread
@@ -429,7 +429,7 @@ def controller_precision(model: RobotModel, *, encoder_resolution, length_quantu
         method="exact forward kinematics for joint errors, first order (J_p dp) for parameter round-off")
 
 
-@checked(model=is_a(RobotModel), encoder_resolution=per_joint(), length_quantum=NON_NEGATIVE,
+@accepts(model=is_a(RobotModel), encoder_resolution=per_joint(), length_quantum=NON_NEGATIVE,
          angle_quantum=NON_NEGATIVE, n_configurations=whole(1, MAX_SAMPLES), chunk_size=whole(1, MAX_CHUNK), rng=SEED,
          marker=marker_of())
 @one_blas_thread

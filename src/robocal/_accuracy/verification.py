@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._base.arguments import FLAG, both, checked, in_range, is_a, measured_on, shaped, whole
+from .._base.arguments import FLAG, accepts, both, in_range, is_a, measured_on, shaped, whole
 from .._base.errors import DegenerateDataError, InputError
 from .._identification.registration import rigid_base as register_base
 from .._model.kinematics import evaluate
@@ -94,7 +94,7 @@ def _pose_index(value, name, args):
         raise InputError(f"must be whole numbers in [0, {args['n_commanded'] - 1}], one per point", where=name)
 
 
-@checked(n_commanded=whole(1), predicted=shaped(None, 3),
+@accepts(n_commanded=whole(1), predicted=shaped(None, 3),
          measured=lambda value, name, args: shaped(len(args["predicted"]), 3)(value, name, args),
          pose_index=_pose_index)
 def positional_accuracy(predicted, measured, pose_index, n_commanded: int) -> np.ndarray:
@@ -146,7 +146,7 @@ def ratio_threshold(n_points: int, then_n: int, *, registered: bool, alpha: floa
     return float(np.sqrt(f_dist.isf(alpha, d1, d2)))
 
 
-@checked(model=is_a(RobotModel), data=both(is_a(Measurements), measured_on()), then=is_a(Accuracy), register=FLAG,
+@accepts(model=is_a(RobotModel), data=both(is_a(Measurements), measured_on()), then=is_a(Accuracy), register=FLAG,
          alpha=in_range(0.0, 0.5, low_open=True, high_open=True))
 def verify(model: RobotModel, data: Measurements, then: Accuracy, *, register: bool = False,
            alpha: float = DEFAULT_ALPHA) -> Verification:

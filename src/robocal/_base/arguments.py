@@ -2,8 +2,10 @@
 
 Each check returns the value in the form the function uses, or raises ``InputError`` whose
 ``where`` is the argument's name and whose message says what is allowed and what was given. A
-public function calls them first, so no internal error (numpy's, LAPACK's, a ``TypeError`` or an
-``AttributeError``) reaches its caller for a bad argument.
+public function declares its arguments' rules (``accepts``) and the public modules export it
+checked (``export_checked``): the rules run once, on the user's call, so no internal error
+(numpy's, LAPACK's, a ``TypeError`` or an ``AttributeError``) reaches its caller for a bad
+argument, and robocal's own calls between its functions check nothing again.
 
 >>> number(0.5, "tol", low=0.0, high=1.0, low_open=True, high_open=True)
 0.5
@@ -197,21 +199,27 @@ def mapping(value, name: str) -> dict:
     return value
 
 
-# -- rules: the checks above declared per argument, applied by ``checked`` -----------------------------
+# -- rules: the checks above declared per argument, applied at the public face ----------------------
 
-def checked(**rules):
-    """Decorate a public function so that each argument named in ``rules`` is checked before the call.
+# a function that declares what it accepts -> its checked form, the one the public modules export
+_CHECKED: dict = {}
 
+
+def accepts(**rules):
+    """Declare what a public function accepts: a rule for each argument named in ``rules``.
+
+    The function is returned as it is: robocal's own code calls it without checks, for its
+    arguments are robocal's own. The public modules export its checked form (``checked``), which
+    runs the rules before each call, so a user's arguments are checked once, where they come in.
     Its docstring's ``{name, ...}`` lines become those arguments' entries (``_glossary``). A rule is
-    called as ``rule(value, name, arguments)`` (``arguments``: every argument of the call
-    by name, defaults applied, so a rule can read another argument, e.g. the model's joint count).
+    called as ``rule(value, name, arguments)`` (``arguments``: every argument of the call by name,
+    defaults applied, so a rule can read another argument, e.g. the model's joint count).
     """
-    def wrap(fn):
+    def declare(fn):
         signature = inspect.signature(fn)
         missing = set(rules) - set(signature.parameters)
         if missing:
             raise TypeError(f"{fn.__name__} has no argument {', '.join(sorted(missing))}")
-
         fn.__doc__ = expand(fn.__doc__)          # the shared entries of its Parameters section
 
         @functools.wraps(fn)
@@ -222,9 +230,23 @@ def checked(**rules):
                 rule(bound.arguments[name], name, bound.arguments)
             return fn(*args, **kwargs)
 
-        return call
+        _CHECKED[fn] = call
+        return fn
 
-    return wrap
+    return declare
+
+
+def checked(fn):
+    """``fn``'s checked form: the rules it declares (``accepts``) run before each call."""
+    return _CHECKED[fn]
+
+
+def export_checked(namespace: dict) -> None:
+    """Give a public module's functions their checked form: each function in ``namespace`` (the
+    module's ``globals()``) that declares what it accepts is replaced there by ``checked(function)``."""
+    for name, value in list(namespace.items()):
+        if inspect.isfunction(value) and value in _CHECKED:
+            namespace[name] = checked(value)
 
 
 def is_a(*classes: type):

@@ -1,7 +1,7 @@
 """The one description of each argument name public functions share (numpy docstring entries).
 
 A docstring's Parameters section names shared arguments in braces, ``{model, q, rng}``, on a line of
-its own; ``checked`` writes each one's entry there (``name : type`` and its description), so an
+its own; ``accepts`` writes each one's entry there (``name : type`` and its description), so an
 argument means the same everywhere and is described once.
 """
 

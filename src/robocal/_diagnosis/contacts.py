@@ -28,7 +28,7 @@ from typing import cast
 
 import numpy as np
 
-from .._base.arguments import both, checked, is_a, measured_on, noise_of, optional
+from .._base.arguments import accepts, both, is_a, measured_on, noise_of, optional
 from .._base.errors import DegenerateDataError, InputError, excerpt
 from .._base.options import INSTRUMENT_NOISE
 from .._base.threads import one_blas_thread
@@ -495,7 +495,7 @@ def _reference(model: RobotModel, contacts: Contacts, result, data: Measurements
     return _Case(model, names, work, data, noise, compliance, _outcome(prob, sol.p, model, names))
 
 
-@checked(model=is_a(RobotModel), contacts=both(is_a(Contacts), _recorded_on), result=_calibration_of,
+@accepts(model=is_a(RobotModel), contacts=both(is_a(Contacts), _recorded_on), result=_calibration_of,
          data=optional(both(is_a(Measurements), measured_on())), noise=noise_of(Noise, INSTRUMENT_NOISE))
 def diagnose_contacts(model: RobotModel, contacts: Contacts, result, *, data: Measurements | None = None,
                       noise=None) -> Diagnosis:

@@ -21,7 +21,7 @@ from typing import cast
 
 import numpy as np
 
-from .._base.arguments import both, checked, is_a, measured_on, names_in, noise_of, optional
+from .._base.arguments import accepts, both, is_a, measured_on, names_in, noise_of, optional
 from .._base.errors import DegenerateDataError, InputError
 from .._base.options import DEFAULT_INSTRUMENT, INSTRUMENT_NOISE
 from .._base.threads import one_blas_thread
@@ -1025,7 +1025,7 @@ HYPOTHESES = (rows_shifted, pose_labels_offset, mirrored_frame, axes_swapped, ma
               marker_frame, step_change, drift, rotation_convention)
 
 
-@checked(model=is_a(RobotModel), data=both(is_a(Measurements), measured_on()), result=is_a(CalibrationResult),
+@accepts(model=is_a(RobotModel), data=both(is_a(Measurements), measured_on()), result=is_a(CalibrationResult),
          noise=noise_of(Noise, INSTRUMENT_NOISE), parameters=optional(_identified))
 @one_blas_thread
 def diagnose(model: RobotModel, data: Measurements, result: CalibrationResult, *, noise=None, parameters=None

@@ -25,7 +25,7 @@ from .._base.arguments import (
     FLAG,
     PATH,
     UNIT_SYSTEM,
-    checked,
+    accepts,
     is_a,
 )
 from .._base.errors import InputError
@@ -129,7 +129,7 @@ class _Facts:
         return KnownPlane(words[0], vector3(n), offset)
 
 
-@checked(path=PATH, model=is_a(RobotModel))
+@accepts(path=PATH, model=is_a(RobotModel))
 def read_contacts(path, model: RobotModel) -> Contacts:
     """Read a contact file for ``model`` (its joints and markers name the columns), or a folder of
     seatings (one joint file per socket, one folder per placement, ``seatings.yaml``); SI out.
@@ -253,7 +253,7 @@ def _known_targets(facts: _Facts, kind, target, source: str) -> None:
             raise InputError(f"plane {p.name!r} is stated but no plane row touches it", source=source)
 
 
-@checked(contacts=is_a(Contacts), model=is_a(RobotModel), units=UNIT_SYSTEM)
+@accepts(contacts=is_a(Contacts), model=is_a(RobotModel), units=UNIT_SYSTEM)
 def contacts_to_csv(contacts: Contacts, model: RobotModel, *, units: str = "mm-deg") -> str:
     """The text of a contact file holding ``contacts`` (SI) in ``units`` ("length-angle").
 
@@ -286,7 +286,7 @@ def contacts_to_csv(contacts: Contacts, model: RobotModel, *, units: str = "mm-d
     return "\n".join(out) + "\n" + buf.getvalue()
 
 
-@checked(contacts=is_a(Contacts), path=PATH, model=is_a(RobotModel), units=UNIT_SYSTEM, force=FLAG)
+@accepts(contacts=is_a(Contacts), path=PATH, model=is_a(RobotModel), units=UNIT_SYSTEM, force=FLAG)
 def write_contacts(contacts: Contacts, path, model: RobotModel, *, units: str = "mm-deg", force: bool = False) -> None:
     """Write ``contacts`` as a contact file (refuses to overwrite unless ``force``).
 

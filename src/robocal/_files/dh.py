@@ -20,7 +20,7 @@ from .._base.arguments import (
     POSITIVE_OR_INF,
     TEXT,
     UNIT_SYSTEM,
-    checked,
+    accepts,
     is_a,
     one_of,
     optional,
@@ -70,7 +70,7 @@ def _csv(rows: list[dict]) -> str:
     return buf.getvalue()
 
 
-@checked(model=is_a(RobotModel), units=UNIT_SYSTEM)
+@accepts(model=is_a(RobotModel), units=UNIT_SYSTEM)
 def mdh_csv(model: RobotModel, *, units: str = "mm-deg") -> str:
     """The CSV text of the modified-DH table: :func:`mdh_table` per frame with each reading's
     limits on the first frame it drives alone, then the base and marker rows.
@@ -100,7 +100,7 @@ def mdh_csv(model: RobotModel, *, units: str = "mm-deg") -> str:
     return _csv(rows)
 
 
-@checked(model=is_a(RobotModel), path=PATH, units=UNIT_SYSTEM, force=FLAG)
+@accepts(model=is_a(RobotModel), path=PATH, units=UNIT_SYSTEM, force=FLAG)
 def write_mdh_csv(model: RobotModel, path, *, units: str = "mm-deg", force: bool = False) -> None:
     """Write :func:`mdh_csv`, atomically; full float precision.
 
@@ -115,7 +115,7 @@ def write_mdh_csv(model: RobotModel, path, *, units: str = "mm-deg", force: bool
     write_texts({path: mdh_csv(model, units=units)}, force=force)
 
 
-@checked(model=is_a(RobotModel), units=UNIT_SYSTEM, max_offset=optional(POSITIVE_OR_INF))
+@accepts(model=is_a(RobotModel), units=UNIT_SYSTEM, max_offset=optional(POSITIVE_OR_INF))
 def dh_csv(model: RobotModel, *, units: str = "mm-deg", max_offset: float | None = None) -> str:
     """The CSV text of the classic DH table of ``model`` (:func:`to_standard_dh`, which refuses
     where nearly parallel axes make it ill-conditioned).
@@ -246,7 +246,7 @@ def _convention(text: str, source: str | None, where: str) -> str:
     return text
 
 
-@checked(path=PATH, name=optional(TEXT), convention=optional(one_of(CONVENTIONS)))
+@accepts(path=PATH, name=optional(TEXT), convention=optional(one_of(CONVENTIONS)))
 def read_dh_table(path, *, name: str | None = None, convention: str | None = None) -> RobotModel:
     """A model from a DH table file: robocal's modified DH (the columns :func:`mdh_csv` writes:
     frame, beta, alpha, d, theta, r, ...), or a table of theta, d, a, alpha.

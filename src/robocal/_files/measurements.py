@@ -23,7 +23,7 @@ from .._base.arguments import (
     SEQUENCE,
     TEXT,
     UNIT_SYSTEM,
-    checked,
+    accepts,
     is_a,
     optional,
 )
@@ -282,7 +282,7 @@ def _comment_units(text: str, source: str, line: int) -> dict:
     return out
 
 
-@checked(path=PATH, model=optional(is_a(RobotModel)), units=optional(UNIT_SYSTEM), sep=optional(TEXT),
+@accepts(path=PATH, model=optional(is_a(RobotModel)), units=optional(UNIT_SYSTEM), sep=optional(TEXT),
          decimal=optional(TEXT), orientation=optional(TEXT), columns=optional(is_a(dict, ColumnMap)),
          unknown=optional(TEXT), joints=optional(PATH), key=optional(TEXT),
          profile=optional(is_a(str, os.PathLike, Profile)), targets=FLAG, header=optional(SEQUENCE))
@@ -775,7 +775,7 @@ def _rotation(kind, seq, vals, source, line, column) -> np.ndarray:
     return Rotation.from_euler("xyz" if kind == "rpy" else seq, vals).as_matrix()
 
 
-@checked(data=is_a(Measurements))
+@accepts(data=is_a(Measurements))
 def split_sets(data: Measurements) -> tuple[Measurements, Measurements | None]:
     """(fit, validation) from a file's ``set`` column; (data, None) without one. Both keep the
     approach directions of the file's visiting order (``Measurements.with_approach``).
@@ -806,7 +806,7 @@ def split_sets(data: Measurements) -> tuple[Measurements, Measurements | None]:
     return fit, part(flags)
 
 
-@checked(data=is_a(Measurements), model=optional(is_a(RobotModel)), units=UNIT_SYSTEM, orientation=TEXT)
+@accepts(data=is_a(Measurements), model=optional(is_a(RobotModel)), units=UNIT_SYSTEM, orientation=TEXT)
 def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, units: str = "mm-deg",
                         orientation: str = "quat_xyzw") -> str:
     """The CSV text of ``data``: every column carries its unit; orientations in the convention
@@ -904,7 +904,7 @@ def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, 
     return buf.getvalue()
 
 
-@checked(data=is_a(Measurements), path=PATH, units=UNIT_SYSTEM, force=FLAG, model=optional(is_a(RobotModel)),
+@accepts(data=is_a(Measurements), path=PATH, units=UNIT_SYSTEM, force=FLAG, model=optional(is_a(RobotModel)),
          orientation=TEXT)
 def write_measurements(data: Measurements, path, *, units: str = "mm-deg", force: bool = False,
                        model: RobotModel | None = None, orientation: str = "quat_xyzw") -> None:

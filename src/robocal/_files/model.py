@@ -21,7 +21,7 @@ from .._base.arguments import (
     PATH,
     TEXT,
     UNIT_SYSTEM,
-    checked,
+    accepts,
     is_a,
     optional,
 )
@@ -171,7 +171,7 @@ def _show(value) -> str:
     return excerpt(value)
 
 
-@checked(source=TEXT)
+@accepts(source=TEXT)
 def model_from_dict(d: dict, *, source: str = "<dict>") -> RobotModel:
     """A RobotModel (SI) from the parsed model file ``d`` (docs/formats.md).
 
@@ -458,7 +458,7 @@ def _coupling(rd: _Reader, item: dict, where: str, fname: str, joint: str, joint
     return ((free[0], 1.0),)
 
 
-@checked(path=PATH)
+@accepts(path=PATH)
 def read_model(path) -> RobotModel:
     """Read a model file (docs/formats.md) into a RobotModel in SI units.
 
@@ -478,7 +478,7 @@ def read_model(path) -> RobotModel:
     return model_from_dict(d, source=source)
 
 
-@checked(model=is_a(RobotModel), units=UNIT_SYSTEM, calibration=optional(MAPPING))
+@accepts(model=is_a(RobotModel), units=UNIT_SYSTEM, calibration=optional(MAPPING))
 def model_to_dict(model: RobotModel, *, units: str = "mm-deg", calibration: dict | None = None) -> dict:
     """The model file form of ``model`` (plain Python types, ready for YAML or JSON).
 
@@ -595,7 +595,7 @@ def _payload_dict(model: RobotModel, length: float) -> list | dict | None:
     return None
 
 
-@checked(model=is_a(RobotModel), units=UNIT_SYSTEM, calibration=optional(MAPPING))
+@accepts(model=is_a(RobotModel), units=UNIT_SYSTEM, calibration=optional(MAPPING))
 def model_to_yaml(model: RobotModel, *, units: str = "mm-deg", calibration: dict | None = None) -> str:
     """The model file text (see model_to_dict).
 
@@ -612,7 +612,7 @@ def model_to_yaml(model: RobotModel, *, units: str = "mm-deg", calibration: dict
                           default_flow_style=None, width=110, allow_unicode=True)
 
 
-@checked(model=is_a(RobotModel), path=PATH, units=UNIT_SYSTEM, force=FLAG, calibration=optional(MAPPING))
+@accepts(model=is_a(RobotModel), path=PATH, units=UNIT_SYSTEM, force=FLAG, calibration=optional(MAPPING))
 def write_model(model: RobotModel, path, *, units: str = "mm-deg", force: bool = False,
                 calibration: dict | None = None) -> None:
     """Write ``model`` as a model file in ``units`` ("mm-deg", "m-rad"...), atomically.
@@ -634,7 +634,7 @@ def write_model(model: RobotModel, path, *, units: str = "mm-deg", force: bool =
     write_texts({path: model_to_yaml(model, units=units, calibration=calibration)}, force=force)
 
 
-@checked(result=is_a(CalibrationResult))
+@accepts(result=is_a(CalibrationResult))
 def calibration_record(result) -> dict:
     """What a calibrated model file says of its own calibration: the verdict, the date and the checks
     that did not pass.

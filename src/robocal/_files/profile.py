@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from .._base.arguments import (
     PATH,
     TEXT,
-    checked,
+    accepts,
 )
 from .._base.errors import InputError, excerpt, suggest
 from .._base.options import MAX_MODEL_BYTES
@@ -74,7 +74,7 @@ def column_map(columns, *, unknown: str | None = None) -> ColumnMap:
     return ColumnMap(rename, frozenset(ignore), unknown or "refuse")
 
 
-@checked(source=TEXT)
+@accepts(source=TEXT)
 def profile_from_dict(d, *, source: str = "<dict>") -> Profile:
     """A Profile from the parsed profile file ``d``.
 
@@ -143,7 +143,7 @@ def _header(header, source: str) -> tuple[str, ...] | None:
     return tuple(c.strip() for c in header)
 
 
-@checked(path=PATH)
+@accepts(path=PATH)
 def read_profile(path) -> Profile:
     """Read an instrument profile file (docs/formats.md).
 

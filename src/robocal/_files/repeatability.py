@@ -10,7 +10,7 @@ import numpy as np
 from .._accuracy.limit import RepeatabilityData
 from .._base.arguments import (
     PATH,
-    checked,
+    accepts,
     one_of,
     optional,
 )
@@ -23,7 +23,7 @@ from .text import check_rows, read_text
 CSV_COLUMNS = ("pose", "cycle", "x", "y", "z")
 
 
-@checked(path=PATH, units=optional(one_of(tuple(LENGTH_UNITS))))
+@accepts(path=PATH, units=optional(one_of(tuple(LENGTH_UNITS))))
 def read_repeatability_csv(path, *, units: str | None = None) -> RepeatabilityData:
     """Read repeated measurements: columns ``pose, cycle, x, y, z`` (header required, any order,
     further columns ignored). The coordinates' unit is never guessed: it comes from the column

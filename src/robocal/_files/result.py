@@ -23,7 +23,7 @@ from .._base.arguments import (
     FLAG,
     PATH,
     TEXT,
-    checked,
+    accepts,
     is_a,
     optional,
 )
@@ -110,7 +110,7 @@ def per_pose_arrays(result: CalibrationResult) -> dict[str, np.ndarray]:
             if getattr(result, field) is not None}
 
 
-@checked(result=is_a(CalibrationResult), per_pose=FLAG)
+@accepts(result=is_a(CalibrationResult), per_pose=FLAG)
 def result_to_dict(result: CalibrationResult, *, per_pose: bool = True) -> dict:
     """The file form of a calibration result (plain Python types); ``per_pose=False`` leaves the
     per-pose arrays of ``errors`` out (:func:`result_files` puts them in a sidecar file).
@@ -217,7 +217,7 @@ def diagnosis_to_dict(diagnosis) -> dict:
 DIAGNOSIS = optional(is_a(Diagnosis))
 
 
-@checked(result=is_a(CalibrationResult), diagnosis=DIAGNOSIS)
+@accepts(result=is_a(CalibrationResult), diagnosis=DIAGNOSIS)
 def result_to_json(result: CalibrationResult, diagnosis=None) -> str:
     """The result file text of a CalibrationResult.
 
@@ -238,7 +238,7 @@ def result_to_json(result: CalibrationResult, diagnosis=None) -> str:
     return to_json(d)
 
 
-@checked(path=PATH)
+@accepts(path=PATH)
 def sidecar_path(path) -> Path:
     """Where the per-pose arrays of the result file ``path`` go: beside it, ``.npz`` for ``.json``.
 
@@ -254,7 +254,7 @@ def sidecar_path(path) -> Path:
     return Path(path).with_suffix(".npz")
 
 
-@checked(result=is_a(CalibrationResult), path=PATH, per_pose=FLAG, diagnosis=DIAGNOSIS)
+@accepts(result=is_a(CalibrationResult), path=PATH, per_pose=FLAG, diagnosis=DIAGNOSIS)
 def result_files(result: CalibrationResult, path, *, per_pose: bool = True, diagnosis=None) -> dict:
     """The files of a calibration result: ``{path: JSON text, sidecar: bytes}``.
 
@@ -298,7 +298,7 @@ def result_files(result: CalibrationResult, path, *, per_pose: bool = True, diag
     return {Path(path): to_json(d), sidecar: blob}
 
 
-@checked(result=is_a(CalibrationResult), path=PATH, force=FLAG, per_pose=FLAG)
+@accepts(result=is_a(CalibrationResult), path=PATH, force=FLAG, per_pose=FLAG)
 def write_result(result: CalibrationResult, path, *, force: bool = False, per_pose: bool = True) -> None:
     """Write a calibration result, atomically: the JSON at ``path`` and its per-pose arrays beside it
     (:func:`result_files`); an existing file is an InputError unless ``force``.
@@ -531,7 +531,7 @@ def _errors(doc: _Doc, d: dict, n_markers: int, n_joints: int, folder: Path | No
     return out
 
 
-@checked(source=TEXT, folder=optional(PATH))
+@accepts(source=TEXT, folder=optional(PATH))
 def result_from_dict(d, *, source: str = "<dict>", folder=None) -> CalibrationResult:
     """The CalibrationResult stored in ``d`` (the parsed result file); InputError naming the key
     where it departs from the schema. ``folder``: where its per-pose file (``errors.file``) is.
@@ -582,7 +582,7 @@ def result_from_dict(d, *, source: str = "<dict>", folder=None) -> CalibrationRe
         provenance=_provenance(doc, doc.get(d, "provenance", "", dict, optional=True) or {}))
 
 
-@checked(path=PATH)
+@accepts(path=PATH)
 def read_result(path) -> CalibrationResult:
     """The CalibrationResult stored by ``write_result``; InputError if it is not a robocal result of a
     known schema, naming the key that departs from it.
@@ -624,7 +624,7 @@ def _precision_dict(p: PrecisionResult) -> dict:
             "method": p.method}
 
 
-@checked(limit=is_a(AccuracyLimit))
+@accepts(limit=is_a(AccuracyLimit))
 def limit_to_dict(limit: AccuracyLimit) -> dict:
     """The file form of the limit of absolute accuracy (metres).
 

@@ -21,7 +21,7 @@ from .._base.arguments import (
     PATH,
     SEQUENCE,
     TEXT,
-    checked,
+    accepts,
     is_a,
     optional,
 )
@@ -363,7 +363,7 @@ def _chain(links, joints, child_of, base_link, tip_link, source) -> list[_UJoint
     return chain[::-1]
 
 
-@checked(path_or_string=PATH, base_link=optional(TEXT))
+@accepts(path_or_string=PATH, base_link=optional(TEXT))
 def chain_end(path_or_string, *, base_link: str | None = None) -> ChainEnd:
     """Where :func:`read_urdf` without ``tip_link`` ends the chain of a URDF, and why.
 
@@ -536,7 +536,7 @@ def _clean_pose(X: np.ndarray, decimals: int) -> tuple[tuple, tuple]:
     return tuple(_clean(float(v), False, 0.0, decimals) for v in X[:3, 3]), matrix_tuple(R)
 
 
-@checked(path_or_string=PATH, base_link=optional(TEXT), tip_link=optional(TEXT), markers=optional(SEQUENCE))
+@accepts(path_or_string=PATH, base_link=optional(TEXT), tip_link=optional(TEXT), markers=optional(SEQUENCE))
 def read_urdf(path_or_string, *, base_link: str | None = None, tip_link: str | None = None,
               markers: Sequence | None = None) -> RobotModel:
     """A serial model from a URDF file (path) or URDF text (a string starting with ``<``).
@@ -706,7 +706,7 @@ def _frame_joint(robot: ET.Element, model: RobotModel, i: int, names: _Names, pr
         ET.SubElement(j, "mimic", joint=names.joints[primary[k]], multiplier=_num(f.coupling[0][1]), offset="0")
 
 
-@checked(model=is_a(RobotModel))
+@accepts(model=is_a(RobotModel))
 def urdf_text(model: RobotModel) -> str:
     """``model`` as URDF text (serial chains and trees).
 
@@ -756,7 +756,7 @@ def urdf_text(model: RobotModel) -> str:
     return '<?xml version="1.0" encoding="utf-8"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
 
 
-@checked(model=is_a(RobotModel), path=PATH, force=FLAG)
+@accepts(model=is_a(RobotModel), path=PATH, force=FLAG)
 def write_urdf(model: RobotModel, path, *, force: bool = False) -> None:
     """Write :func:`urdf_text` of ``model``, atomically.
 

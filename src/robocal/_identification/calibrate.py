@@ -4,6 +4,7 @@ judged in use. The arguments are checked here, once; the steps below never check
 
 from __future__ import annotations
 
+import inspect
 from typing import cast, overload
 
 import numpy as np
@@ -13,8 +14,8 @@ from .._base.arguments import (
     FRACTION,
     NAMES,
     POSITIVE,
+    accepts,
     both,
-    checked,
     is_a,
     measured_on,
     noise_of,
@@ -127,17 +128,22 @@ def calibrate(model: RobotModel, data: Measurements | None = None, *, contacts: 
         Estimates, covariance, errors, the accuracy in use and the checks; ``verdict`` says whether
         it can be trusted (docs/checks.md).
     """
-    check_inputs(model, data, contacts, validation, dict(
-        parameters=parameters, known=known, loss=loss, f_scale=f_scale, tol=tol, max_nfev=max_nfev,
-        initial_base=initial_base, limit=limit, noise=noise, on_outliers=on_outliers, weak=weak,
-        nonnegative_compliance=nonnegative_compliance, folds=folds, register_validation=register_validation))
-    options = Options(parameters=_as_tuple(parameters), known=_as_tuple(known),
-                      noise=noise if isinstance(noise, Noise) else Noise.of(noise or DEFAULT_INSTRUMENT), tol=tol,
-                      loss=loss, f_scale=f_scale, max_nfev=max_nfev, on_outliers=on_outliers, weak=weak,
-                      nonnegative_compliance=nonnegative_compliance, folds=folds,
-                      limit_m=None if limit is None else float(getattr(limit, "limit", limit)),
-                      initial_base=initial_base, register_validation=register_validation)
-    return run(model, data, contacts, validation, options)
+    options = dict(parameters=parameters, known=known, loss=loss, f_scale=f_scale, tol=tol, max_nfev=max_nfev,
+                   initial_base=initial_base, limit=limit, noise=noise, on_outliers=on_outliers, weak=weak,
+                   nonnegative_compliance=nonnegative_compliance, folds=folds, register_validation=register_validation)
+    check_inputs(model, data, contacts, validation, options)
+    return run(model, data, contacts, validation, _options(options))
+
+
+def _options(o: dict) -> Options:
+    """The options of ``calibrate`` (checked) as the steps take them."""
+    noise, limit = o["noise"], o["limit"]
+    return Options(parameters=_as_tuple(o["parameters"]), known=_as_tuple(o["known"]),
+                   noise=noise if isinstance(noise, Noise) else Noise.of(noise or DEFAULT_INSTRUMENT), tol=o["tol"],
+                   loss=o["loss"], f_scale=o["f_scale"], max_nfev=o["max_nfev"], on_outliers=o["on_outliers"],
+                   weak=o["weak"], nonnegative_compliance=o["nonnegative_compliance"], folds=o["folds"],
+                   limit_m=None if limit is None else float(getattr(limit, "limit", limit)),
+                   initial_base=o["initial_base"], register_validation=o["register_validation"])
 
 
 def run(model: RobotModel, data: Measurements | None, contacts: Contacts | None, validation,
@@ -215,7 +221,7 @@ def _check_observed(model: RobotModel, d, what: str) -> None:
                              source=src, where=what)
 
 
-@checked(model=is_a(RobotModel), data=both(is_a(Measurements), measured_on()))
+@accepts(model=is_a(RobotModel), data=both(is_a(Measurements), measured_on()))
 def register_base(model: RobotModel, data: Measurements) -> RobotModel:
     """The model with ``X_WB`` from a closed-form rigid registration (Kabsch/Horn, via scipy).
 
@@ -260,7 +266,7 @@ def _nested_test(small: CalibrationResult, large: CalibrationResult, validation,
     return float(F), p_value, bool(helped), verdict
 
 
-@checked(model=is_a(RobotModel), data=optional(both(is_a(Measurements), measured_on())),
+@accepts(model=is_a(RobotModel), data=optional(both(is_a(Measurements), measured_on())),
          contacts=optional(is_a(Contacts)), validation=optional(is_a(Measurements, Contacts)), alpha=FRACTION,
          backlash=FLAG)
 @one_blas_thread
@@ -298,14 +304,21 @@ def compare(model: RobotModel, data: Measurements | None = None, *, contacts: Co
     kwargs.pop("parameters", None)
     if data is None and contacts is None:
         raise InputError("give measurements or contacts to compare the identifications on", where="data")
-    kwargs["contacts"] = contacts
-    geo = calibrate(model, data, parameters=("geometric",), validation=validation, **kwargs)
-    both = calibrate(model, data, parameters=("geometric", "compliance"), validation=validation, **kwargs)
+    # calibrate's options, with its defaults, checked once for the calibrations that share them
+    given = inspect.signature(calibrate).bind(model, data, contacts=contacts, validation=validation, **kwargs)
+    given.apply_defaults()
+    options = {k: v for k, v in given.arguments.items() if k not in ("model", "data", "contacts", "validation")}
+    check_inputs(model, data, contacts, validation, options)
+
+    def fit(*families: str) -> CalibrationResult:
+        return run(model, data, contacts, validation, _options({**options, "parameters": families}))
+
+    geo = fit("geometric")
+    both = fit("geometric", "compliance")
     F, p_value, helped, verdict = _nested_test(geo, both, validation, alpha, "compliance")
     third = {}
     if backlash:
-        res = calibrate(model, data, parameters=("geometric", "compliance", "backlash"), validation=validation,
-                        **kwargs)
+        res = fit("geometric", "compliance", "backlash")
         bF, bp, bh, bv = _nested_test(both, res, validation, alpha, "backlash")
         third = dict(backlash=res, backlash_f=bF, backlash_p=bp, backlash_helped=bh)
         verdict = f"{verdict}\n{bv}"

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import gammainc, gammainccinv
 
-from .._base.arguments import checked, each_a, is_a, optional, shaped, whole
+from .._base.arguments import accepts, each_a, is_a, optional, shaped, whole
 from .._base.errors import InputError, excerpt
 from .._model.measurements import Measurements, Noise
 from .._model.robot import RobotModel
@@ -121,7 +121,7 @@ class Check:
     items: tuple[str, ...] = ()
 
 
-@checked(checks=each_a(Check))
+@accepts(checks=each_a(Check))
 def verdict(checks) -> str:
     """The worst status among ``checks`` ("pass" when there are none).
 
@@ -297,7 +297,7 @@ def fit_check(residuals: np.ndarray, sigma: np.ndarray | None, noise: Noise, lim
     return Check(name, "pass", summary)
 
 
-@checked(n_points=whole(0))
+@accepts(n_points=whole(0))
 def outlier_bar(n_points: int) -> float:
     """The outlier threshold in robust standard deviations for ``n_points`` 3D residuals: 5, or more
     where n points of pure Gaussian noise would put one beyond 5 in more than ``OUTLIER_FALSE_ALARM``
@@ -350,7 +350,7 @@ def _row_labels(value, name, args):
                          where=name)
 
 
-@checked(residuals=shaped(None, None), sigma=optional(_deviations), noise=is_a(Noise), labels=_row_labels)
+@accepts(residuals=shaped(None, None), sigma=optional(_deviations), noise=is_a(Noise), labels=_row_labels)
 def outlier_check(residuals: np.ndarray, sigma: np.ndarray | None, noise: Noise, labels) -> tuple[Check, np.ndarray]:
     """Measured points whose residual norm exceeds ``OUTLIER_SIGMAS`` robust standard deviations.
 

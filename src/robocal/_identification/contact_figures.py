@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._base.arguments import checked, is_a
+from .._base.arguments import accepts, is_a
 from .._base.arrays import read_only
 from .._model.contacts import Contacts
 from .._model.measurements import Measurements
@@ -91,7 +91,7 @@ def figures(rows: ContactRows, errors: np.ndarray) -> ContactErrors:
     return ContactErrors(**out)
 
 
-@checked(model=is_a(RobotModel), contacts=is_a(Contacts))
+@accepts(model=is_a(RobotModel), contacts=is_a(Contacts))
 def contact_errors(model: RobotModel, contacts: Contacts) -> ContactErrors:
     """The figures of ``ContactErrors`` for ``model`` at the readings of ``contacts``.
 

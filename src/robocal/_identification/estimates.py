@@ -9,7 +9,7 @@ from typing import cast
 
 import numpy as np
 
-from .._base.arguments import NORMS, checked
+from .._base.arguments import NORMS, accepts
 from .._model.configurations import design_measurements
 from .._model.measurements import Measurements
 from .._model.parameters import parameter_layout, parameter_vector
@@ -36,7 +36,7 @@ class ErrorStats:
     max: float | None
 
 
-@checked(norms=NORMS)
+@accepts(norms=NORMS)
 def error_stats(norms) -> ErrorStats:
     """The statistics of error norms; NaN entries were not measured.
 

@@ -23,7 +23,7 @@ from .._base.arguments import (
     NAMES,
     POSITIVE,
     SEED,
-    checked,
+    accepts,
     columns_of,
     is_a,
     names_in,
@@ -104,7 +104,7 @@ class IdentifiabilityResult:
 
 
 
-@checked(result=is_a(IdentifiabilityResult), frame_names=NAMES)
+@accepts(result=is_a(IdentifiabilityResult), frame_names=NAMES)
 def status_table(result: IdentifiabilityResult, frame_names) -> list[dict]:
     """Per frame, the status (I, E or -) of each of its parameter kinds: the paper's table.
 
@@ -133,7 +133,7 @@ def singular_values(A: np.ndarray, vectors: bool = False):
     return np.linalg.svd(A, compute_uv=False)
 
 
-@checked(J=shaped(None, None), names=columns_of("J"), quantities=optional(columns_of("J")), tol=FRACTION,
+@accepts(J=shaped(None, None), names=columns_of("J"), quantities=optional(columns_of("J")), tol=FRACTION,
          max_terms=whole(1, 1000), n_rows=optional(whole(1)))
 @one_blas_thread
 def analyse(J: np.ndarray, names, *, quantities=None, tol: float = DEFAULT_TOL, max_terms: int = 6,
@@ -267,7 +267,7 @@ def _data_rule(value, name: str, args) -> None:
         readings_of()(value, name, args)
 
 
-@checked(model=is_a(RobotModel), data=_data_rule, parameters=NAMES,
+@accepts(model=is_a(RobotModel), data=_data_rule, parameters=NAMES,
          known=NAMES, orientation=optional(FLAG), tol=FRACTION, n_random=whole(1, MAX_POSES), rng=SEED,
          markers=optional(NAMES))
 @one_blas_thread
@@ -364,7 +364,7 @@ def predicted_std(J: np.ndarray, sigma: float) -> np.ndarray:
     return sigma * np.sqrt(np.diag(inv)) / col
 
 
-@checked(J=shaped(None, None), names=columns_of("J"), quantities=columns_of("J"), sigma=POSITIVE,
+@accepts(J=shaped(None, None), names=columns_of("J"), quantities=columns_of("J"), sigma=POSITIVE,
          moments=optional(MAPPING), bounds=optional(MAPPING))
 @one_blas_thread
 def weakly_identifiable(J: np.ndarray, names, quantities, sigma: float, *, moments: dict | None = None,
@@ -674,7 +674,7 @@ def unreachable(problem: Problem, p: np.ndarray) -> tuple[Unreachable, ...]:
     return tuple(out)
 
 
-@checked(problem=is_a(Problem), names=names_in(lambda a: parameter_names(a["problem"].model)), tol=FRACTION,
+@accepts(problem=is_a(Problem), names=names_in(lambda a: parameter_names(a["problem"].model)), tol=FRACTION,
          p=optional(shaped(None)))
 def contact_identifiability(problem: Problem, names, *, tol: float = DEFAULT_TOL,
                             p: np.ndarray | None = None) -> ContactIdentifiability:

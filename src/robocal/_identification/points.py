@@ -19,7 +19,7 @@ import weakref
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .._base.arguments import FLAG, checked, is_a, names_in, optional, readings_of, shaped
+from .._base.arguments import FLAG, accepts, is_a, names_in, optional, readings_of, shaped
 from .._base.arrays import frozen, read_only
 from .._base.linalg import r_factor, reduced
 from .._base.threads import one_blas_thread
@@ -375,7 +375,7 @@ def _taken(kept: dict, free: tuple, take):
 _PARAMETERS = names_in(lambda a: parameter_names(a["model"]))
 
 
-@checked(model=is_a(RobotModel), q=readings_of(), names=_PARAMETERS, orientation=FLAG,
+@accepts(model=is_a(RobotModel), q=readings_of(), names=_PARAMETERS, orientation=FLAG,
          approach=optional(shaped(None, None)))
 def design_problem(model: RobotModel, q, names, orientation: bool = False, approach=None) -> Points:
     """The problem of ``names`` at readings ``q`` with nothing measured: its Jacobian is the design's.

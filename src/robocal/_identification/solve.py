@@ -13,14 +13,14 @@ from scipy.optimize import least_squares
 from .._base.arguments import (
     FRACTION,
     POSITIVE,
-    checked,
+    accepts,
     is_a,
     one_of,
     optional,
     shaped,
     whole,
 )
-from .._base.errors import DegenerateDataError, InputError, check_choice
+from .._base.errors import DegenerateDataError, InputError
 from .._base.linalg import reduced, solve_upper
 from .._base.options import LOSSES
 from .._base.threads import one_blas_thread
@@ -55,7 +55,7 @@ class Solution:
     linear_rows: np.ndarray | None = None
 
 
-@checked(problem=is_a(Problem), p0=shaped(None), loss=one_of(LOSSES), f_scale=optional(POSITIVE),
+@accepts(problem=is_a(Problem), p0=shaped(None), loss=one_of(LOSSES), f_scale=optional(POSITIVE),
          max_nfev=optional(whole(1)), lower=optional(shaped(None, finite=False)), tol=FRACTION,
          linear_rows=optional(shaped(None)))
 @one_blas_thread
@@ -90,7 +90,6 @@ def solve(problem: Problem, p0: np.ndarray, *, loss: str = "linear", f_scale: fl
     Solution
         The estimate, residuals, cost and solver status.
     """
-    check_choice(loss, LOSSES, "loss")
     bounded = lower is not None and bool(np.any(np.isfinite(lower)))
     if loss == "linear" and not bounded:
         return _levenberg_marquardt(problem, p0, max_nfev, tol)
@@ -312,7 +311,7 @@ def robust_weights(residuals: np.ndarray, loss: str, f_scale: float) -> np.ndarr
     return np.ones_like(z)
 
 
-@checked(solution=is_a(Solution))
+@accepts(solution=is_a(Solution))
 @one_blas_thread
 def covariance(solution: Solution) -> Covariance:
     """The estimates' covariance at the solution.

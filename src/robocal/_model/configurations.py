@@ -5,14 +5,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._base.arguments import SEED, checked, is_a, whole
+from .._base.arguments import SEED, accepts, is_a, whole
 from .._base.errors import InputError
 from .._base.options import MAX_POSES
 from .measurements import Measurements
 from .robot import RobotModel
 
 
-@checked(model=is_a(RobotModel))
+@accepts(model=is_a(RobotModel))
 def sampling_box(model: RobotModel) -> tuple[np.ndarray, np.ndarray]:
     """Lower and upper readings within which configurations are drawn, (n_joints,) each.
 
@@ -49,7 +49,7 @@ def sampling_box(model: RobotModel) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
-@checked(model=is_a(RobotModel), n=whole(0, MAX_POSES), rng=SEED)
+@accepts(model=is_a(RobotModel), n=whole(0, MAX_POSES), rng=SEED)
 def random_configurations(model: RobotModel, n: int, rng=None) -> np.ndarray:
     """``n`` joint readings (n, n_joints) drawn uniformly within ``sampling_box(model)``.
 

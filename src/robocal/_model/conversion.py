@@ -23,7 +23,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .._base.arguments import POSITIVE_OR_INF, SEQUENCE, TEXT, UNIT_SYSTEM, checked, is_a, optional, shaped
+from .._base.arguments import POSITIVE_OR_INF, SEQUENCE, TEXT, UNIT_SYSTEM, accepts, is_a, optional, shaped
 from .._base.errors import InputError
 from .._base.spatial import inverse4, matrix_tuple, pose4, rot4, rot_matrix, trans4, unit_vector, vector3
 from .._base.units import parse_units, unit_factors
@@ -83,7 +83,7 @@ def _dh_row(row, i: int) -> tuple[str | None, float, float, float, float, str]:
     return name, th, d, a, al, joint
 
 
-@checked(rows=SEQUENCE, name=TEXT, markers=SEQUENCE, base=optional(shaped(4, 4)), joint_limits=optional(shaped(None,
+@accepts(rows=SEQUENCE, name=TEXT, markers=SEQUENCE, base=optional(shaped(4, 4)), joint_limits=optional(shaped(None,
                                                                                                                2)))
 def from_standard_dh(rows: Sequence, *, name: str, markers: Sequence = (("tool", (0.0, 0.0, 0.0)),),
                      base=None, joint_limits: Sequence[tuple[float, float]] | None = None) -> RobotModel:
@@ -252,7 +252,7 @@ def frames_from_lines(names, joints, couplings, X_0B, X_0F) -> list[Frame]:
 
 
 
-@checked(model=is_a(RobotModel), units=UNIT_SYSTEM)
+@accepts(model=is_a(RobotModel), units=UNIT_SYSTEM)
 def mdh_table(model: RobotModel, *, units: str = "m-rad") -> list[dict]:
     """The MDH table, one dict per frame, units in the keys (``alpha_rad``, ``d_m``, ...).
 
@@ -319,7 +319,7 @@ def frame_poses(model: RobotModel) -> list[np.ndarray]:
     return out
 
 
-@checked(model=is_a(RobotModel), max_offset=optional(POSITIVE_OR_INF))
+@accepts(model=is_a(RobotModel), max_offset=optional(POSITIVE_OR_INF))
 def to_standard_dh(model: RobotModel, *, max_offset: float | None = None) -> StandardDH:
     """Classic DH of a serial model, with the same forward kinematics (exact up to a tilt below
     1e-12 rad between axes taken as parallel).

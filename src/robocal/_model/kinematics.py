@@ -36,7 +36,7 @@ import numpy as np
 
 from .._base.arguments import (
     FLAG,
-    checked,
+    accepts,
     is_a,
     masses_for,
     optional,
@@ -1321,7 +1321,7 @@ _JOINTS = lambda args: args["model"].n_joints  # noqa: E731
 _MODEL_AND_READINGS = dict(model=is_a(RobotModel), q=readings_of(), payload_mass=masses_for())
 
 
-@checked(**_MODEL_AND_READINGS, p=optional(vector_of(lambda args: len(_names(args)))), jacobian=FLAG,
+@accepts(**_MODEL_AND_READINGS, p=optional(vector_of(lambda args: len(_names(args)))), jacobian=FLAG,
          orientations=FLAG, compliance=optional(FLAG), frames=FLAG, columns=parameter_columns(_names),
          backlash=optional(FLAG), approach=optional(rows_for("q", _JOINTS)))
 @one_blas_thread
@@ -1445,7 +1445,7 @@ def _evaluate_in_chunks(model: RobotModel, q: np.ndarray, p: np.ndarray, *, orie
                       moments=joined("moments"))
 
 
-@checked(**_MODEL_AND_READINGS)
+@accepts(**_MODEL_AND_READINGS)
 @one_blas_thread
 def gravity_loads(model: RobotModel, q, *, payload_mass=None) -> np.ndarray:
     """Generalised gravity force on each joint (N, n_joints): N m for revolute, N for prismatic.
@@ -1475,7 +1475,7 @@ def gravity_loads(model: RobotModel, q, *, payload_mass=None) -> np.ndarray:
     return _frame_loads(model, lay, st.ps, M, msub) @ model.coupling_matrix
 
 
-@checked(**_MODEL_AND_READINGS, frames=FLAG)
+@accepts(**_MODEL_AND_READINGS, frames=FLAG)
 def forward_kinematics(model: RobotModel, q, *, frames: bool = False, payload_mass=None) -> Evaluation:
     """Marker positions (N, n_markers, 3) and orientations in W at readings ``q`` (N, n_joints).
 
@@ -1503,7 +1503,7 @@ def forward_kinematics(model: RobotModel, q, *, frames: bool = False, payload_ma
     return evaluate(model, q, orientations=True, frames=frames, payload_mass=payload_mass)
 
 
-@checked(**_MODEL_AND_READINGS, compliance=optional(FLAG), columns=parameter_columns(_names, by_name=True))
+@accepts(**_MODEL_AND_READINGS, compliance=optional(FLAG), columns=parameter_columns(_names, by_name=True))
 def jacobian(model: RobotModel, q, *, compliance: bool | None = None, payload_mass=None,
              columns=None) -> np.ndarray:
     """Identification Jacobian (N, n_markers, 6, n_params) over ``parameter_names(model)``.

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .._base.arguments import (
-    checked,
+    accepts,
     shaped,
 )
 from .._base.arrays import frozen
@@ -15,7 +15,7 @@ from .._base.errors import InputError, check_choice
 from .._base.options import DEFAULT_INSTRUMENT, INSTRUMENT_NOISE
 
 
-@checked(q=shaped(None, None))
+@accepts(q=shaped(None, None))
 def approach_sides(q) -> np.ndarray:
     """+1 or -1 per pose and joint: the sign of the last move of that joint before reaching the pose.
 

@@ -29,7 +29,7 @@ import numpy as np
 from .._base.arguments import (
     FLAG,
     NAMES,
-    checked,
+    accepts,
     is_a,
     optional,
     vector_of,
@@ -128,7 +128,7 @@ class ParameterLayout:
         return np.array([self.by_name[n].index for n in names], dtype=int)
 
 
-@checked(model=is_a(RobotModel))
+@accepts(model=is_a(RobotModel))
 def parameter_layout(model: RobotModel) -> ParameterLayout:
     """The parameter records of ``model``, made once per model object and kept with it (an immutable
     record: its arrays are read-only).
@@ -166,7 +166,7 @@ def _make_parameter_layout(model: RobotModel) -> ParameterLayout:
                            by_name=types.MappingProxyType({p.name: p for p in params}))
 
 
-@checked(model=is_a(RobotModel))
+@accepts(model=is_a(RobotModel))
 def parameter_names(model: RobotModel) -> tuple[str, ...]:
     """Names of the full parameter vector: ``base.x``..., ``<frame>.<kind>``, ``<marker>.<kind>``.
 
@@ -182,7 +182,7 @@ def parameter_names(model: RobotModel) -> tuple[str, ...]:
     return parameter_layout(model).names
 
 
-@checked(model=is_a(RobotModel), reference=optional(is_a(RobotModel)))
+@accepts(model=is_a(RobotModel), reference=optional(is_a(RobotModel)))
 def parameter_vector(model: RobotModel, reference: RobotModel | None = None) -> np.ndarray:
     """The model's values in the layout of ``parameter_names`` (SI).
 
@@ -215,7 +215,7 @@ def parameter_vector(model: RobotModel, reference: RobotModel | None = None) -> 
     return p
 
 
-@checked(model=is_a(RobotModel), p=vector_of(lambda a: parameter_layout(a["model"]).n_params))
+@accepts(model=is_a(RobotModel), p=vector_of(lambda a: parameter_layout(a["model"]).n_params))
 def model_from_vector(model: RobotModel, p: np.ndarray) -> RobotModel:
     """A new model holding the values ``p`` (rotation corrections composed into stored rotations).
 
@@ -259,7 +259,7 @@ def _frame_geometric(model: RobotModel, i: int) -> list[str]:
     return [f"{f.name}.{k}" for k in kinds]
 
 
-@checked(model=is_a(RobotModel), orientation=FLAG)
+@accepts(model=is_a(RobotModel), orientation=FLAG)
 def families(model: RobotModel, *, orientation: bool = False) -> dict[str, list[str]]:
     """The names each family stands for, in preference order.
 
@@ -297,7 +297,7 @@ def backlash_names(model: RobotModel) -> list[str]:
             if f.joint != "fixed"]
 
 
-@checked(model=is_a(RobotModel), parameters=NAMES, orientation=FLAG, known=NAMES)
+@accepts(model=is_a(RobotModel), parameters=NAMES, orientation=FLAG, known=NAMES)
 def candidate_parameters(model: RobotModel, parameters: Iterable[str] = ("geometric",), *,
                          orientation: bool = False, known: Iterable[str] = ()) -> tuple[str, ...]:
     """Parameter names to consider, in preference order.
@@ -386,7 +386,7 @@ def _matching(model: RobotModel, pattern: str, fam: dict, what: str) -> list[str
     return found
 
 
-@checked(model=is_a(RobotModel), parameters=NAMES, orientation=FLAG)
+@accepts(model=is_a(RobotModel), parameters=NAMES, orientation=FLAG)
 def matched_by_pattern(model: RobotModel, parameters: Iterable[str], *,
                        orientation: bool = False) -> tuple[tuple[str, tuple[str, ...]], ...]:
     """``(pattern, names)`` for each pattern among ``parameters``: the candidate names it matches.

@@ -36,7 +36,7 @@ from .._base.arguments import (
     POSITIVE,
     SEQUENCE,
     TEXT,
-    checked,
+    accepts,
     each_a,
     in_range,
     is_a,
@@ -370,7 +370,7 @@ def _check_rotation(R, where: str) -> None:
         raise InputError("not a proper rotation matrix", where=where)
 
 
-@checked(frame=is_a(Frame), q=in_range())
+@accepts(frame=is_a(Frame), q=in_range())
 def mdh_transform(frame: Frame, q: float = 0.0) -> np.ndarray:
     """``X_pj``, the 4x4 placement of one frame in its parent at joint variable ``q`` (rad or m).
 
@@ -407,7 +407,7 @@ def mdh_transform(frame: Frame, q: float = 0.0) -> np.ndarray:
             @ trans4(0, frame.d) @ rot4(2, th) @ trans4(2, r))
 
 
-@checked(X=shaped(4, 4))
+@accepts(X=shaped(4, 4))
 def placement_parameters(X) -> dict[str, float]:
     """gamma, b, beta, alpha, d, theta, r whose ``mdh_transform`` (at q = 0) is the placement ``X``
     (4x4, a proper rotation): the inverse of ``mdh_transform`` for fixed frames given as transforms.
@@ -460,7 +460,7 @@ DEFAULT_LINK_DENSITY = 10.0   # kg per metre of link
 RELATIVE_MASSES = "no total mass given: compliances are relative"  # said in the notes of such a model
 
 
-@checked(model=is_a(RobotModel), total_mass=optional(POSITIVE))
+@accepts(model=is_a(RobotModel), total_mass=optional(POSITIVE))
 def default_masses(model: RobotModel, total_mass: float | None = None) -> RobotModel:
     """``model`` with link masses assumed from its geometry, for compliance without CAD masses.
 
@@ -518,7 +518,7 @@ def _yxz_angles(M: np.ndarray) -> tuple[float, float, float]:
     return beta, math.atan2(-N[1, 2], N[2, 2]), math.atan2(-N[0, 1], N[0, 0])
 
 
-@checked(frames=each_a(Frame), tol=in_range(0.0, math.pi / 2, low_open=True))
+@accepts(frames=each_a(Frame), tol=in_range(0.0, math.pi / 2, low_open=True))
 def parallel_beta_frames(frames: Sequence[Frame], tol: float = DEFAULT_PARALLEL_TOL) -> tuple[bool, ...]:
     """Which frames carry Hayati's beta: z of the parent and z of the frame parallel within ``tol``.
 
@@ -544,7 +544,7 @@ def parallel_beta_frames(frames: Sequence[Frame], tol: float = DEFAULT_PARALLEL_
     return tuple(out)
 
 
-@checked(name=TEXT, rows=_rows_rule, markers=_markers_rule, joint_limits=optional(shaped(None, 2)),
+@accepts(name=TEXT, rows=_rows_rule, markers=_markers_rule, joint_limits=optional(shaped(None, 2)),
          base_position=shaped(3), base_rotation=optional(shaped(3, 3)),
          beta_tol=in_range(0.0, math.pi / 2, low_open=True), gravity=shaped(3), payload=optional(is_a(Payload)),
          description=TEXT)

@@ -12,7 +12,7 @@ from datetime import datetime
 import numpy as np
 
 from .._accuracy.verification import Verification
-from .._base.arguments import FLAG, PATH, TEXT, checked, is_a
+from .._base.arguments import FLAG, PATH, TEXT, accepts, is_a
 from .._files.text import write_texts
 from .._store.store import Change, History, StoredCalibration, TypeComparison
 from .plots import need_matplotlib, plot_svg
@@ -42,7 +42,7 @@ def _sigma(v: float) -> str:
     return f"{abs(v):.1f} sigma"
 
 
-@checked(c=is_a(Change))
+@accepts(c=is_a(Change))
 def change_line(c) -> str:
     """'j2.theta +0.031 deg since 2026-03-02, 5.1 sigma'.
 
@@ -72,7 +72,7 @@ def _accuracy_text(acc) -> str:
 _HISTORY = is_a(History)
 
 
-@checked(h=_HISTORY)
+@accepts(h=_HISTORY)
 def history_summary(h: History) -> str:
     """What ``robocal history ROBOT`` prints.
 
@@ -131,7 +131,7 @@ def _estimates_table(h: History) -> list[str]:
     return out
 
 
-@checked(t=is_a(TypeComparison))
+@accepts(t=is_a(TypeComparison))
 def type_summary(t: TypeComparison) -> str:
     """What ``robocal history --type TYPE`` prints.
 
@@ -167,7 +167,7 @@ def type_summary(t: TypeComparison) -> str:
     return "\n".join(lines)
 
 
-@checked(v=is_a(Verification), robot=TEXT, calibration=is_a(StoredCalibration))
+@accepts(v=is_a(Verification), robot=TEXT, calibration=is_a(StoredCalibration))
 def verification_summary(v: Verification, robot: str, calibration) -> str:
     """What ``robocal verify`` prints.
 
@@ -285,7 +285,7 @@ def _calibration_rows(h: History) -> str:
         f"<td><code>{_e(c.fingerprint[:16])}</code></td><td>{_e(c.source)}</td></tr>" for c in h.calibrations)
 
 
-@checked(h=_HISTORY)
+@accepts(h=_HISTORY)
 def render_history(h: History) -> str:
     """The HTML text of a robot's history report (needs matplotlib).
 
@@ -331,7 +331,7 @@ def render_history(h: History) -> str:
             + "\n".join(body) + "\n</main>\n</body>\n</html>\n")
 
 
-@checked(h=_HISTORY, path=PATH, force=FLAG)
+@accepts(h=_HISTORY, path=PATH, force=FLAG)
 def write_history(h: History, path, *, force: bool = False) -> None:
     """Write the history report of ``h`` to ``path`` atomically; an existing file is an InputError
     unless ``force``.

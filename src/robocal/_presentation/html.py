@@ -19,7 +19,7 @@ from .._base.arguments import (
     FLAG,
     MAPPING,
     PATH,
-    checked,
+    accepts,
     is_a,
     optional,
 )
@@ -718,7 +718,7 @@ def _list(items: list[str]) -> str:
     return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " and " + items[-1]
 
 
-@checked(result=is_a(CalibrationResult), extra=optional(MAPPING), diagnosis=DIAGNOSIS)
+@accepts(result=is_a(CalibrationResult), extra=optional(MAPPING), diagnosis=DIAGNOSIS)
 def render_report(result: CalibrationResult, *, extra: dict | None = None, diagnosis=None) -> str:
     """The HTML text of the report of ``result`` (a CalibrationResult, computed or read back).
 
@@ -807,7 +807,7 @@ def render_report(result: CalibrationResult, *, extra: dict | None = None, diagn
             "units. A self-contained page: no scripts, no network.</footer>\n</main>\n</body>\n</html>\n")
 
 
-@checked(result=is_a(CalibrationResult), path=PATH, force=FLAG, extra=optional(MAPPING), diagnosis=DIAGNOSIS)
+@accepts(result=is_a(CalibrationResult), path=PATH, force=FLAG, extra=optional(MAPPING), diagnosis=DIAGNOSIS)
 def write_report(result: CalibrationResult, path, *, force: bool = False, extra: dict | None = None,
                  diagnosis=None) -> None:
     """Write the HTML report of ``result`` to ``path`` atomically (temporary file, then rename).

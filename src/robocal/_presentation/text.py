@@ -8,7 +8,7 @@ from .._base.arguments import (
     FLAG,
     NAMES,
     TEXT,
-    checked,
+    accepts,
     each_a,
     is_a,
 )
@@ -62,7 +62,7 @@ def in_use_lines(in_use, indent: str = "  ") -> list[str]:
     return lines
 
 
-@checked(checks=each_a(Check))
+@accepts(checks=each_a(Check))
 def checks_lines(checks) -> list[str]:
     """Every check with its figures; the likely cause and the fix of those that did not pass.
 
@@ -97,7 +97,7 @@ def diagnosis_lines(diagnosis) -> list[str]:
     return lines
 
 
-@checked(result=is_a(CalibrationResult))
+@accepts(result=is_a(CalibrationResult))
 def verdict_line(result) -> str:
     """The last line of a summary: the verdict, with what it rests on.
 
@@ -139,7 +139,7 @@ def eliminated_lines(ident, units: dict) -> list[str]:
     return lines
 
 
-@checked(result=is_a(CalibrationResult), shown=NAMES, weighted=FLAG)
+@accepts(result=is_a(CalibrationResult), shown=NAMES, weighted=FLAG)
 def calibration_summary(result, *, shown=(), weighted: bool = False) -> str:
     """What ``robocal calibrate`` prints about one result. ``shown``: notes already printed as warnings.
 
@@ -227,7 +227,7 @@ def _candidate_units(result) -> dict:
     return {n: lay[n].unit for n in result.identifiability.candidates if n in lay}
 
 
-@checked(comparison=is_a(Comparison), shown=NAMES, weighted=FLAG)
+@accepts(comparison=is_a(Comparison), shown=NAMES, weighted=FLAG)
 def comparison_summary(comparison, *, shown=(), weighted: bool = False) -> str:
     """What ``robocal calibrate --compare`` prints: the two (or three) identifications side by side.
 
@@ -279,7 +279,7 @@ def comparison_summary(comparison, *, shown=(), weighted: bool = False) -> str:
     return "\n".join(lines)
 
 
-@checked(model=is_a(RobotModel), res=is_a(IdentifiabilityResult), where=TEXT)
+@accepts(model=is_a(RobotModel), res=is_a(IdentifiabilityResult), where=TEXT)
 def identifiability_summary(model, res, where: str) -> str:
     """The identifiability table in the paper's layout, base and marker statuses, what absorbs what.
 

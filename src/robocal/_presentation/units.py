@@ -12,7 +12,7 @@ from html.entities import html5
 from .._base.arguments import (
     FLAG,
     REAL,
-    checked,
+    accepts,
     one_of,
     optional,
 )
@@ -43,7 +43,7 @@ def display_unit(unit: str) -> tuple[str, float, int | None]:
     return DISPLAY_UNITS.get(unit, (unit, 1.0, None))
 
 
-@checked(value=optional(REAL), unit=one_of(tuple(DISPLAY_UNITS)), sign=FLAG)
+@accepts(value=optional(REAL), unit=one_of(tuple(DISPLAY_UNITS)), sign=FLAG)
 def fmt(value, unit: str = "m", *, sign: bool = False) -> str:
     """``value`` (SI, in ``unit``) as display text without the unit; an en dash when absent.
 

@@ -24,7 +24,7 @@ from .._base.arguments import (
     MASSES,
     SEED,
     SEQUENCE,
-    checked,
+    accepts,
     is_a,
     marker_of,
     optional,
@@ -92,7 +92,7 @@ def _quantise(q, res):
     return np.where(res > 0, np.round(q / safe) * safe, q)
 
 
-@checked(true_model=is_a(RobotModel), recorded=readings_of("true_model"), imp=is_a(RobotImperfections),
+@accepts(true_model=is_a(RobotModel), recorded=readings_of("true_model"), imp=is_a(RobotImperfections),
          payload_mass=optional(MASSES))
 def backlash_sides(true_model: RobotModel, recorded, imp: RobotImperfections, payload_mass=None) -> np.ndarray:
     """+1 or -1 per pose and joint: the side of its gap, relative to the reading, where the arm rests.
@@ -132,7 +132,7 @@ def _attain(true_model: RobotModel, recorded, imp: RobotImperfections, rng, payl
     return P + rng.normal(0.0, 1.0, P.shape) * imp.instrument_noise_per_m * dist
 
 
-@checked(true_model=is_a(RobotModel), q_commanded=readings_of("true_model"), imp=is_a(RobotImperfections), rng=SEED,
+@accepts(true_model=is_a(RobotModel), q_commanded=readings_of("true_model"), imp=is_a(RobotImperfections), rng=SEED,
          payload_mass=optional(MASSES), labels=SEQUENCE)
 @one_blas_thread
 def measure_campaign(true_model: RobotModel, q_commanded, imp: RobotImperfections, *, rng=None,
@@ -156,7 +156,7 @@ def measure_campaign(true_model: RobotModel, q_commanded, imp: RobotImperfection
                         source="simulated campaign", extra={"approach": approach_sides(recorded)})
 
 
-@checked(model=is_a(RobotModel), imp=is_a(RobotImperfections))
+@accepts(model=is_a(RobotModel), imp=is_a(RobotImperfections))
 def stored_model(model: RobotModel, imp: RobotImperfections) -> RobotModel:
     """The model as the controller stores it: dimensions and angles rounded to its quanta.
 
@@ -177,7 +177,7 @@ def stored_model(model: RobotModel, imp: RobotImperfections) -> RobotModel:
     return model_from_vector(model, p)
 
 
-@checked(true_model=is_a(RobotModel), controller_model=optional(is_a(RobotModel)), nominal=is_a(RobotModel),
+@accepts(true_model=is_a(RobotModel), controller_model=optional(is_a(RobotModel)), nominal=is_a(RobotModel),
          targets_q=readings_of("nominal"), imp=is_a(RobotImperfections), rng=SEED, marker=marker_of("nominal"))
 @one_blas_thread
 def accuracy_in_use(true_model: RobotModel, controller_model: RobotModel | None, nominal: RobotModel, targets_q,

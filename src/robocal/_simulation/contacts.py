@@ -18,7 +18,7 @@ from .._base.arguments import (
     NON_NEGATIVE,
     POSITIVE,
     SEED,
-    checked,
+    accepts,
     in_range,
     is_a,
     marker_of,
@@ -48,7 +48,7 @@ def _joint_jacobian(model: RobotModel, q: np.ndarray, marker: int) -> tuple[np.n
     return ev.positions[:, marker], ev.jacobian[:, marker, :3] @ model.coupling_matrix
 
 
-@checked(model=is_a(RobotModel), targets=shaped(None, 3), marker=marker_of(), rng=SEED, tol=POSITIVE,
+@accepts(model=is_a(RobotModel), targets=shaped(None, 3), marker=marker_of(), rng=SEED, tol=POSITIVE,
          max_rounds=whole(1, 1000))
 def reach(model: RobotModel, targets, *, marker: int = 0, rng=None, tol: float = 1e-10, max_rounds: int = 40):
     """Readings (N, n_joints) within the joint limits that put ``marker`` on each of ``targets`` (N, 3),
@@ -105,7 +105,7 @@ def _recorded(model, q, marker, rng, joint_noise, seat_noise):
     return q + rng.normal(0.0, joint_noise, q.shape), np.hypot(seat_noise, moved)
 
 
-@checked(n=whole(1, 1000), rng=SEED, box=shaped(2, 3), tilt_deg=in_range(0.0, 90.0))
+@accepts(n=whole(1, 1000), rng=SEED, box=shaped(2, 3), tilt_deg=in_range(0.0, 90.0))
 def plate_placements(n: int, rng=None, box=WORK_BOX, tilt_deg: float = 20.0):
     """``n`` plate poses (origin (3,), rotation (3, 3)) in ``box``: turned freely about z, tilted up
     to ``tilt_deg``.
@@ -130,7 +130,7 @@ def plate_placements(n: int, rng=None, box=WORK_BOX, tilt_deg: float = 20.0):
     return out
 
 
-@checked(true=is_a(RobotModel), placements=whole(1, 1000), poses_per_socket=whole(1, 10_000), plate=MAPPING,
+@accepts(true=is_a(RobotModel), placements=whole(1, 1000), poses_per_socket=whole(1, 10_000), plate=MAPPING,
          joint_noise=NON_NEGATIVE, seat_noise=NON_NEGATIVE, distance_sigma=POSITIVE, marker=marker_of("true"),
          known_distances=FLAG, rng=SEED)
 def socket_campaign(true: RobotModel, *, placements: int = 3, poses_per_socket: int = 25, plate=PLATE,
@@ -175,7 +175,7 @@ def socket_campaign(true: RobotModel, *, placements: int = 3, poses_per_socket: 
                     joint_names=true.joint_names, source="simulated")
 
 
-@checked(true=is_a(RobotModel), planes=whole(1, 1000), poses_per_plane=whole(1, 10_000), joint_noise=NON_NEGATIVE,
+@accepts(true=is_a(RobotModel), planes=whole(1, 1000), poses_per_plane=whole(1, 10_000), joint_noise=NON_NEGATIVE,
          seat_noise=NON_NEGATIVE, extent=POSITIVE, marker=marker_of("true"), known=FLAG, rng=SEED)
 def plane_campaign(true: RobotModel, *, planes: int = 4, poses_per_plane: int = 30, joint_noise: float = 2e-5,
                    seat_noise: float = 5e-6, extent: float = 0.15, marker: int = 0, known: bool = False,
@@ -214,7 +214,7 @@ def plane_campaign(true: RobotModel, *, planes: int = 4, poses_per_plane: int = 
                     joint_names=true.joint_names, source="simulated")
 
 
-@checked(true=is_a(RobotModel), pairs=whole(1, 100_000), length=POSITIVE, length_sigma=POSITIVE,
+@accepts(true=is_a(RobotModel), pairs=whole(1, 100_000), length=POSITIVE, length_sigma=POSITIVE,
          joint_noise=NON_NEGATIVE, seat_noise=NON_NEGATIVE, marker=marker_of("true"), rng=SEED)
 def bar_campaign(true: RobotModel, *, pairs: int = 60, length: float = 0.2, length_sigma: float = 2e-6,
                  joint_noise: float = 2e-5, seat_noise: float = 5e-6, marker: int = 0, rng=None) -> Contacts:

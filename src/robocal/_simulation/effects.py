@@ -29,8 +29,8 @@ from .._base.arguments import (
     NON_NEGATIVE,
     SEED,
     SEQUENCE,
+    accepts,
     both,
-    checked,
     is_a,
     marker_of,
     masses_for,
@@ -118,7 +118,7 @@ _REAL_ROBOT = dict(true_model=is_a(RobotModel), q=readings_of("true_model"), rng
                    payload_mass=masses_for())
 
 
-@checked(**_REAL_ROBOT, effects=is_a(UnmodelledEffects), warmth=_warmth)
+@accepts(**_REAL_ROBOT, effects=is_a(UnmodelledEffects), warmth=_warmth)
 def attained(true_model: RobotModel, q, effects: UnmodelledEffects, *, warmth, rng, robot_seed: int = 0,
              payload_mass=None) -> np.ndarray:
     """Where the real robot's markers go at readings ``q`` (n, n_markers, 3), W, m.
@@ -171,7 +171,7 @@ def attained(true_model: RobotModel, q, effects: UnmodelledEffects, *, warmth, r
     return P
 
 
-@checked(**_REAL_ROBOT, effects=is_a(UnmodelledEffects), noise=NON_NEGATIVE, labels=SEQUENCE)
+@accepts(**_REAL_ROBOT, effects=is_a(UnmodelledEffects), noise=NON_NEGATIVE, labels=SEQUENCE)
 def measure_real(true_model: RobotModel, q, effects: UnmodelledEffects, *, noise: float = 2e-5, rng=None,
                  robot_seed: int = 0, payload_mass=None, labels=()) -> Measurements:
     """A campaign of the real robot at readings ``q``, visited in row order (the arm warming along
@@ -202,7 +202,7 @@ def measure_real(true_model: RobotModel, q, effects: UnmodelledEffects, *, noise
                         extra={"approach": approach_sides(q)})
 
 
-@checked(true_model=is_a(RobotModel), model=both(is_a(RobotModel), same_robot_as("true_model")),
+@accepts(true_model=is_a(RobotModel), model=both(is_a(RobotModel), same_robot_as("true_model")),
          effects=is_a(UnmodelledEffects), n=whole(1, MAX_POSES), rng=SEED, robot_seed=whole(0), marker=marker_of())
 def placement_errors(true_model: RobotModel, model: RobotModel, effects: UnmodelledEffects, *, n: int = 300,
                      rng=None, robot_seed: int = 0, marker: int = 0) -> np.ndarray:

@@ -14,7 +14,7 @@ from .._base.arguments import (
     NAMES,
     POSITIVE,
     SEED,
-    checked,
+    accepts,
     is_a,
     one_of,
     optional,
@@ -176,7 +176,7 @@ def _check_cost(n: int, n_cand: int, rows: int, k: int, sweeps: int) -> None:
                          where="n")
 
 
-@checked(model=is_a(RobotModel), n=whole(1, MAX_POSES), candidates=optional(readings_of()),
+@accepts(model=is_a(RobotModel), n=whole(1, MAX_POSES), candidates=optional(readings_of()),
          n_candidates=whole(1, MAX_POSES), parameters=NAMES, known=NAMES, orientation=FLAG,
          criterion=one_of(POSE_CRITERIA), rng=SEED, sweeps=whole(0, 100))
 @one_blas_thread
@@ -292,7 +292,7 @@ class CampaignPrediction:
     n_workspace: int
 
 
-@checked(model=is_a(RobotModel), q=readings_of(), parameters=NAMES, known=NAMES, noise=POSITIVE,
+@accepts(model=is_a(RobotModel), q=readings_of(), parameters=NAMES, known=NAMES, noise=POSITIVE,
          n_workspace=whole(1, MAX_POSES), tol=FRACTION, rng=SEED)
 @one_blas_thread
 def predict_campaign(model: RobotModel, q, *, parameters=("geometric",), known=(), noise: float = 2e-5,

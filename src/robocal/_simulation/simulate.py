@@ -17,7 +17,7 @@ from .._base.arguments import (
     PAIR,
     SEED,
     SEQUENCE,
-    checked,
+    accepts,
     is_a,
     names_in,
     optional,
@@ -40,7 +40,7 @@ def _signed_uniform(rng, lo, hi, n):
     return rng.uniform(lo, hi, n) * rng.choice([-1.0, 1.0], n)
 
 
-@checked(model=is_a(RobotModel), names=names_in(lambda a: parameter_names(a["model"])), length_error=PAIR,
+@accepts(model=is_a(RobotModel), names=names_in(lambda a: parameter_names(a["model"])), length_error=PAIR,
          angle_error=PAIR, compliance_error=optional(PAIR), rng=SEED)
 def perturb_model(model: RobotModel, names, *, length_error=(1e-4, 1e-3), angle_error=(np.deg2rad(0.01),
                   np.deg2rad(0.1)), compliance_error=None, rng=None) -> RobotModel:
@@ -78,7 +78,7 @@ def perturb_model(model: RobotModel, names, *, length_error=(1e-4, 1e-3), angle_
     return model_from_vector(model, p)
 
 
-@checked(true_model=is_a(RobotModel), q=readings_of("true_model"), noise=NON_NEGATIVE,
+@accepts(true_model=is_a(RobotModel), q=readings_of("true_model"), noise=NON_NEGATIVE,
          noise_rot=optional(NON_NEGATIVE), orientation=FLAG, payload_mass=optional(MASSES), rng=SEED, labels=SEQUENCE)
 def measure(true_model: RobotModel, q, *, noise: float = 2e-5, noise_rot: float | None = None,
             orientation: bool = False, payload_mass=None, rng=None, labels=()) -> Measurements:
@@ -118,7 +118,7 @@ def measure(true_model: RobotModel, q, *, noise: float = 2e-5, noise_rot: float 
                         source="simulated", extra={"approach": approach_sides(q)})
 
 
-@checked(model=is_a(RobotModel), n_poses=optional(whole(1, MAX_POSES)), q=optional(readings_of()), parameters=NAMES,
+@accepts(model=is_a(RobotModel), n_poses=optional(whole(1, MAX_POSES)), q=optional(readings_of()), parameters=NAMES,
          known=NAMES, length_error=PAIR, angle_error=PAIR, compliance_error=optional(PAIR),
          true_compliance=optional(MAPPING), noise=NON_NEGATIVE, orientation=FLAG, noise_rot=optional(NON_NEGATIVE),
          payload_mass=optional(MASSES), seed=SEED)

@@ -21,7 +21,7 @@ from .._base.arguments import (
     NAMES,
     NON_NEGATIVE,
     SEED,
-    checked,
+    accepts,
     is_a,
     optional,
     wholes,
@@ -93,7 +93,7 @@ def _check_cost(placements, per, n_sockets: int) -> None:
                              "compare fewer or smaller designs", where="placements")
 
 
-@checked(model=is_a(RobotModel), placements=wholes(1, 1000), poses_per_socket=wholes(1, 10_000),
+@accepts(model=is_a(RobotModel), placements=wholes(1, 1000), poses_per_socket=wholes(1, 10_000),
          joint_noise=NON_NEGATIVE, seat_noise=NON_NEGATIVE, parameters=NAMES, bounds=optional(MAPPING), seed=SEED)
 def plan_sockets(model: RobotModel, *, placements=(3, 5, 7, 9), poses_per_socket=(20, 25, 30, 35),
                  joint_noise: float = 2e-5, seat_noise: float = 5e-6, parameters=("geometric",),

@@ -34,7 +34,7 @@ from .._base.arguments import (
     MAPPING_LIKE,
     PATH,
     TEXT,
-    checked,
+    accepts,
     each_a,
     in_range,
     is_a,
@@ -75,7 +75,7 @@ def _name(value, name, _):
 _FAMILIES = names_in(lambda _: [f for f in FAMILIES if f != "geometric"], "a parameter family")
 _JUDGED = dict(alpha=FRACTION, families=_FAMILIES)
 
-@checked(environ=optional(MAPPING_LIKE))
+@accepts(environ=optional(MAPPING_LIKE))
 def default_store_path(environ=None) -> Path:
     """The store used when none is named: ``$XDG_DATA_HOME/robocal/store.sqlite`` (by default
     ``~/.local/share/robocal/store.sqlite``).
@@ -95,7 +95,7 @@ def default_store_path(environ=None) -> Path:
     return Path(base) / "robocal" / "store.sqlite"
 
 
-@checked(option=optional(PATH), environ=optional(MAPPING_LIKE))
+@accepts(option=optional(PATH), environ=optional(MAPPING_LIKE))
 def store_location(option: str | None = None, environ=None) -> str:
     """The store to open: ``option`` (``--store``), else ``$ROBOCAL_STORE``, else the default path.
 
@@ -327,7 +327,7 @@ class TypeComparison:
 
 # -- judgement: pure functions ----------------------------------------------------------------------
 
-@checked(alpha=FRACTION, m=whole(0))
+@accepts(alpha=FRACTION, m=whole(0))
 def sidak_threshold(alpha: float, m: int) -> float:
     """The |z| beyond which at least one of ``m`` independent standard normal variables falls with
     probability ``alpha`` (two-sided, Šidák).
@@ -355,7 +355,7 @@ def sidak_threshold(alpha: float, m: int) -> float:
     return float(norm.isf(per / 2))
 
 
-@checked(calibrations=each_a(StoredCalibration), **_JUDGED)
+@accepts(calibrations=each_a(StoredCalibration), **_JUDGED)
 def judge_changes(calibrations, *, alpha: float = DEFAULT_ALPHA, families=JUDGED_FAMILIES):
     """Every parameter's change between consecutive calibrations (sorted by date) and the threshold.
 
@@ -386,7 +386,7 @@ def judge_changes(calibrations, *, alpha: float = DEFAULT_ALPHA, families=JUDGED
     return tuple(c for p in pairs for c in _snooped(*p, threshold)), threshold
 
 
-@checked(calibrations=each_a(StoredCalibration), **_JUDGED)
+@accepts(calibrations=each_a(StoredCalibration), **_JUDGED)
 def judge_overall(calibrations, *, alpha: float = DEFAULT_ALPHA, families=JUDGED_FAMILIES) -> tuple[Overall, ...]:
     """Whether anything changed between consecutive calibrations (sorted by date): the chi-square of
     the judged parameters' differences against their combined covariance.
@@ -519,7 +519,7 @@ def _snooped(names: list, template: list, d: np.ndarray, C: np.ndarray, rcond: f
             for i, (t, z, x) in enumerate(zip(template, sigma, shift))]
 
 
-@checked(robot_type=_name, calibrations=each_a(StoredCalibration), **_JUDGED)
+@accepts(robot_type=_name, calibrations=each_a(StoredCalibration), **_JUDGED)
 def compare_type(robot_type: str, calibrations, *, alpha: float = DEFAULT_ALPHA,
                  families=JUDGED_FAMILIES) -> TypeComparison:
     """Robots of one type side by side: which ones stand out, parameter by parameter.
@@ -593,7 +593,7 @@ def _quiet_nan():
         yield
 
 
-@checked(d=MAPPING)
+@accepts(d=MAPPING)
 def accuracy_at_calibration(d: dict) -> Accuracy | None:
     """The position accuracy a result (its file form) reached as its instrument saw it, what a
     verification measured the same way is held against: the held-out poses' RMS error when the
@@ -662,7 +662,7 @@ def check_name(value, where: str) -> str:
     return value.strip()
 
 
-@checked(model=is_a(RobotModel))
+@accepts(model=is_a(RobotModel))
 def model_document(model: RobotModel) -> tuple[str, bytes]:
     """(SHA-256, stored bytes) of a model's file form.
 
@@ -679,7 +679,7 @@ def model_document(model: RobotModel) -> tuple[str, bytes]:
     return hashlib.sha256(text.encode()).hexdigest(), zlib.compress(text.encode(), 6)
 
 
-@checked(result=is_a(CalibrationResult), robot=_name, robot_type=optional(_name), at=INSTANT,
+@accepts(result=is_a(CalibrationResult), robot=_name, robot_type=optional(_name), at=INSTANT,
          source=TEXT, recorded_at=INSTANT)
 def stored_calibration(result: CalibrationResult, robot: str, *, robot_type: str | None = None, at=None,
                        source: str = "", recorded_at=None) -> StoredCalibration:
@@ -1103,7 +1103,7 @@ class _Upgrade(InputError):
         super().__init__("the store needs an upgrade")
 
 
-@checked(location=optional(PATH), create=FLAG)
+@accepts(location=optional(PATH), create=FLAG)
 def open_store(location=None, *, create: bool = False) -> Store:
     """Open a store: a SQLite file path or a ``postgresql://`` URL (default: ``store_location()``).
 
@@ -1230,7 +1230,7 @@ def _verification_from_row(row) -> StoredVerification:
 
 # -- what the commands ask --------------------------------------------------------------------------
 
-@checked(store=is_a(Store), robot=_name, **_JUDGED)
+@accepts(store=is_a(Store), robot=_name, **_JUDGED)
 def history(store: Store, robot: str, *, alpha: float = DEFAULT_ALPHA, families=JUDGED_FAMILIES) -> History:
     """A robot's history: its calibrations, verifications and judged changes.
 
@@ -1255,7 +1255,7 @@ def history(store: Store, robot: str, *, alpha: float = DEFAULT_ALPHA, families=
                    judge_overall(cals, alpha=alpha, families=families))
 
 
-@checked(store=is_a(Store), robot_type=_name, **_JUDGED)
+@accepts(store=is_a(Store), robot_type=_name, **_JUDGED)
 def type_comparison(store: Store, robot_type: str, *, alpha: float = DEFAULT_ALPHA,
                     families=JUDGED_FAMILIES) -> TypeComparison:
     """The robots of one type side by side (``compare_type`` on their latest calibrations).
@@ -1282,7 +1282,7 @@ def type_comparison(store: Store, robot_type: str, *, alpha: float = DEFAULT_ALP
         return _compared(robot_type, latest, estimates, alpha, families)
 
 
-@checked(store=is_a(Store), robot=_name)
+@accepts(store=is_a(Store), robot=_name)
 def latest_usable(store: Store, robot: str) -> StoredCalibration:
     """A robot's latest calibration that did not fail its checks (what a verification holds the
     robot against); InputError when there is none.
@@ -1306,7 +1306,7 @@ def latest_usable(store: Store, robot: str) -> StoredCalibration:
     return usable[-1]
 
 
-@checked(store=is_a(Store), robot=_name, data=is_a(Measurements), register=FLAG,
+@accepts(store=is_a(Store), robot=_name, data=is_a(Measurements), register=FLAG,
          alpha=in_range(0.0, 0.5, low_open=True, high_open=True), save=FLAG, at=INSTANT)
 def verify_robot(store: Store, robot: str, data: Measurements, *, register: bool = False,
                  alpha: float = VERIFY_ALPHA, save: bool = True, at=None) -> tuple[Verification, StoredVerification]:

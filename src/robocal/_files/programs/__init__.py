@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..._base.arguments import PATH, checked, is_a, one_of, optional
+from ..._base.arguments import PATH, accepts, is_a, one_of, optional
 from ..._base.errors import InputError, suggest
 from ..._base.options import MAX_POSES
 from ..._model.robot import RobotModel
@@ -53,7 +53,7 @@ def dialect_of(path, dialect: str | None = None) -> str:
 _DIALECT = optional(one_of(tuple(DIALECTS)))
 
 
-@checked(path=PATH, dialect=_DIALECT)
+@accepts(path=PATH, dialect=_DIALECT)
 def read_program(path, *, dialect: str | None = None) -> Program:
     """Read a robot program.
 
@@ -96,7 +96,7 @@ def joint_values(program: Program, targets, model: RobotModel) -> np.ndarray:
     return values * joint_units(model, DIALECTS[program.dialect])
 
 
-@checked(program=is_a(Program), model=is_a(RobotModel))
+@accepts(program=is_a(Program), model=is_a(RobotModel))
 def program_joints(program: Program, model: RobotModel) -> tuple[list[str], np.ndarray]:
     """The program's joint targets as readings: labels (the target names) and q (N, n_joints), SI.
 
@@ -121,7 +121,7 @@ def program_joints(program: Program, model: RobotModel) -> tuple[list[str], np.n
     return [t.name for t in targets], joint_values(program, targets, model)
 
 
-@checked(path=PATH, model=is_a(RobotModel), dialect=_DIALECT)
+@accepts(path=PATH, model=is_a(RobotModel), dialect=_DIALECT)
 def read_program_joints(path, model: RobotModel, *, dialect: str | None = None) -> tuple[list[str], np.ndarray]:
     """Joint readings written as a robot program (``program_joints`` of ``read_program``).
 

@@ -12,7 +12,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..._accuracy.compensation import arm_chain, compensate, compensate_poses, posture
-from ..._base.arguments import POSITIVE, TEXT, both, checked, is_a, marker_of, optional, same_robot_as
+from ..._base.arguments import POSITIVE, TEXT, accepts, both, is_a, marker_of, optional, same_robot_as
 from ..._base.errors import InputError, suggest
 from ..._model.kinematics import evaluate
 from ..._model.robot import Marker, RobotModel
@@ -163,7 +163,7 @@ def _pose_targets(program, module, nominal, calibrated, marker, X_WO, targets, h
             for i, (t, s) in enumerate(zip(targets, status))]
 
 
-@checked(program=is_a(Program), nominal=is_a(RobotModel), calibrated=both(is_a(RobotModel), same_robot_as("nominal")),
+@accepts(program=is_a(Program), nominal=is_a(RobotModel), calibrated=both(is_a(RobotModel), same_robot_as("nominal")),
          marker=marker_of("nominal"), tool=optional(TEXT), wobj=optional(TEXT), tol=POSITIVE, tol_rot=POSITIVE)
 def compensate_program(program: Program, nominal: RobotModel, calibrated: RobotModel, *, marker: int = 0,
                        tool: str | None = None, wobj: str | None = None, tol: float = 1e-6,
