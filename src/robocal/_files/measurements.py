@@ -13,6 +13,7 @@ import io
 import os
 import re
 from dataclasses import replace
+from typing import NamedTuple
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -101,22 +102,12 @@ class _Columns:
         """``line``: where messages place the header (``"line 3"``)."""
         self.source, self.line = source, line
         self.names = header
-        where = line
-        for k, c in enumerate(header):
-            if not c:
-                raise InputError(f"column {k + 1} has no name", source=source, where=where)
-            if header.count(c) > 1:
-                raise InputError(f"column {c!r} appears twice", source=source, where=where)
+        self._check_names(header)
         if model is not None:
-            joint_names = list(model.joint_names)
-            kinds = list(model.reading_quantities)
+            joint_names, kinds = list(model.joint_names), list(model.reading_quantities)
             marker_names = list(model.marker_names)
         else:
-            marker_names = []
-            for c in header:
-                mt = _MARKER_COLUMN.match(c)
-                if mt and mt["part"] == "x" and mt["m"] not in marker_names:
-                    marker_names.append(mt["m"])
+            marker_names = _markers_named(header)
             joint_names, kinds = self._joints_without_model(header, marker_names, unknown)
         self.joint_names, self.joint_kinds = joint_names, kinds
         self.declared = declared
@@ -124,58 +115,85 @@ class _Columns:
         self.marker_cols: dict[str, dict[str, tuple[int, float]]] = {}
         self.special: dict[str, int] = {}
         self.approach_cols: dict[str, int] = {}
+        self.ignored = self._assign(header, model, marker_names, unknown)
+        self._check_complete(marker_names, targets)
+        self.orientation = {mn: self._marker_checked(mn, parts, orientation) for mn, parts in self.marker_cols.items()}
+        # markers in the model's order (or the file's, without a model)
+        self.markers = [m for m in marker_names if m in self.marker_cols]
+
+    def _check_names(self, header) -> None:
+        for k, c in enumerate(header):
+            if not c:
+                raise InputError(f"column {k + 1} has no name", source=self.source, where=self.line)
+            if header.count(c) > 1:
+                raise InputError(f"column {c!r} appears twice", source=self.source, where=self.line)
+
+    def _assign(self, header, model, marker_names, unknown) -> tuple[str, ...]:
+        """Each column to what it holds (its unit resolved); the unknown columns ignored, or an
+        InputError naming the first."""
         ignored = []
         for k, c in enumerate(header):
-            if c.startswith(APPROACH_PREFIX) and c[len(APPROACH_PREFIX):] in joint_names:
+            if c.startswith(APPROACH_PREFIX) and c[len(APPROACH_PREFIX):] in self.joint_names:
                 self.approach_cols[c[len(APPROACH_PREFIX):]] = k
                 continue
             mn, part, unit = _marker_part(c, marker_names)
-            jn = c if c in joint_names else next(
-                (j for j in joint_names if c.startswith(j + "_") and c[len(j) + 1:].isalpha()), None)
+            jn = _joint_of(c, self.joint_names)
             if c in RESERVED:
                 self.special[c] = k
             elif mn is not None:
                 self.marker_cols.setdefault(mn, {})[part] = (k, self._part_scale(c, part, unit))
             elif jn is not None:
                 if jn in self.joint_cols:
-                    raise InputError(f"joint {jn!r} has two columns", source=source, where=where)
-                self.joint_cols[jn] = (k, self._scale(c, c[len(jn) + 1:] or None, kinds[joint_names.index(jn)]))
+                    raise InputError(f"joint {jn!r} has two columns", source=self.source, where=self.line)
+                kind = self.joint_kinds[self.joint_names.index(jn)]
+                self.joint_cols[jn] = (k, self._scale(c, c[len(jn) + 1:] or None, kind))
             elif unknown == "ignore":
                 ignored.append(c)
             else:
-                valid = list(RESERVED) + joint_names + [f"{m}_{p}" for m in marker_names for p in POSITION]
-                known = f"; the model has joints {', '.join(joint_names)} and markers {', '.join(marker_names)}" \
-                    if model is not None else ""
-                raise InputError(f"unknown column {c!r}{suggest(c, valid)}{known}; map it (--map '{c}=NAME'), "
-                                 f"ignore it (--ignore '{c}') or ignore every unknown column (--unknown ignore)",
-                                 source=source, where=where)
-        self.ignored = tuple(ignored)
+                raise self._unknown(c, model, marker_names)
+        return tuple(ignored)
+
+    def _unknown(self, column: str, model, marker_names) -> InputError:
+        """The error of a column robocal does not know: what it might be, and how to map or ignore it."""
+        joint_names = self.joint_names
+        valid = list(RESERVED) + joint_names + [f"{m}_{p}" for m in marker_names for p in POSITION]
+        known = f"; the model has joints {', '.join(joint_names)} and markers {', '.join(marker_names)}" \
+            if model is not None else ""
+        return InputError(f"unknown column {column!r}{suggest(column, valid)}{known}; map it (--map '{column}=NAME'), "
+                          f"ignore it (--ignore '{column}') or ignore every unknown column (--unknown ignore)",
+                          source=self.source, where=self.line)
+
+    def _check_complete(self, marker_names, targets: bool) -> None:
+        """Approach directions for every joint or none, a column per joint, and a marker's columns
+        (unless the file lists targets)."""
+        joint_names = self.joint_names
         if self.approach_cols and len(self.approach_cols) != len(joint_names):
             lacking = next(j for j in joint_names if j not in self.approach_cols)
             raise InputError(f"missing column {APPROACH_PREFIX}{lacking}: approach directions are given per joint, "
-                             "for every joint or none", source=source, where=where)
+                             "for every joint or none", source=self.source, where=self.line)
         missing = [j for j in joint_names if j not in self.joint_cols]
         if missing:
             have = len(self.joint_cols)
             raise InputError(f"missing column {missing[0]!r}: the model has {len(joint_names)} joints "
-                             f"({', '.join(joint_names)}), the file has {have} of them", source=source, where=where)
+                             f"({', '.join(joint_names)}), the file has {have} of them", source=self.source,
+                             where=self.line)
         if not self.marker_cols and not targets:
             raise InputError("no marker columns (like tool_x, tool_y, tool_z)"
                              + (f"; the model's markers are {', '.join(marker_names)}" if marker_names else ""),
-                             source=source, where=where)
-        self.orientation = {}
-        for mn, parts in self.marker_cols.items():
-            for p in POSITION:
-                if p not in parts:
-                    raise InputError(f"missing column {mn}_{p}", source=source, where=where)
-            for one, axes in (("sigma", SIGMA_AXES), ("sigma_rot", SIGMA_ROT_AXES)):
-                given = [p for p in axes if p in parts]
-                if given and (len(given) < 3 or one in parts):
-                    raise InputError(f"marker {mn!r}: give {mn}_{one} or all of {', '.join(f'{mn}_{p}' for p in axes)}"
-                                     ", not a part of them", source=source, where=where)
-            self.orientation[mn] = self._orientation_of(mn, parts, orientation)
-        # markers in the model's order (or the file's, without a model)
-        self.markers = [m for m in marker_names if m in self.marker_cols]
+                             source=self.source, where=self.line)
+
+    def _marker_checked(self, mn: str, parts, declared):
+        """A marker's orientation convention (None without orientation columns), once its columns are
+        checked: a whole position, standard deviations one per point or one per axis."""
+        for p in POSITION:
+            if p not in parts:
+                raise InputError(f"missing column {mn}_{p}", source=self.source, where=self.line)
+        for one, axes in (("sigma", SIGMA_AXES), ("sigma_rot", SIGMA_ROT_AXES)):
+            given = [p for p in axes if p in parts]
+            if given and (len(given) < 3 or one in parts):
+                raise InputError(f"marker {mn!r}: give {mn}_{one} or all of {', '.join(f'{mn}_{p}' for p in axes)}"
+                                 ", not a part of them", source=self.source, where=self.line)
+        return self._orientation_of(mn, parts, declared)
 
     def _joints_without_model(self, header, marker_names, unknown):
         names, kinds = [], []
@@ -252,6 +270,23 @@ def _marker_part(column: str, markers):
             if part is not None:
                 return mn, part, unit
     return None, None, None
+
+
+def _markers_named(header) -> list[str]:
+    """The markers of a file read without a model: the names before ``_x`` columns, in the file's order."""
+    names: list[str] = []
+    for c in header:
+        mt = _MARKER_COLUMN.match(c)
+        if mt and mt["part"] == "x" and mt["m"] not in names:
+            names.append(mt["m"])
+    return names
+
+
+def _joint_of(column: str, joint_names) -> str | None:
+    """The joint whose column ``column`` is (its name, or its name and a unit suffix), else None."""
+    if column in joint_names:
+        return column
+    return next((j for j in joint_names if column.startswith(j + "_") and column[len(j) + 1:].isalpha()), None)
 
 
 def _split_part(rest: str):
@@ -411,43 +446,19 @@ def _read_fast(path, source, opts, declared, orient, model, targets, *, joints=N
     joins them), or None where it cannot vouch for the files (the row-by-row reader then reads
     them or names the fault)."""
     try:
-        head = read_head(path, source, sep=opts["sep"], decimal=opts["decimal"], header=opts["header"])
-        table = map_columns(head, opts["columns"])
-        # per file: its head, and for each of its columns in the table read, the file's columns
-        files = [(path, head, _file_columns(head.header, opts["columns"]))]
-        other = None
-        if joints is not None:
-            jhead = read_head(joints, str(joints), sep=opts["sep"], decimal=opts["decimal"])
-            other = map_columns(jhead, opts["columns"])
-            key = opts["key"] or "pose"
-            header, kr = joined_header(table, other, key)
-            table = replace(table, header=header)
-            jraw = _file_columns(jhead.header, opts["columns"])
-            files.append((joints, jhead, jraw))
-            keys = [table.header.index(key), len(header)]   # the key: in the first file, then the second's (last)
+        table, other, files, raw, keys = _heads(path, source, opts, joints)
         cols = _columns(table, source, declared, orient, opts, model, targets)
-        scans = [scan_rows(p, h) for p, h, _ in files]
+        scans = [scan_rows(p, h) for p, h in files]
         if any(scan.n_rows > MAX_POSES for scan in scans):
             return None  # the row reader says so, in its words
-        # each column of the table read -> (file, its columns in that file)
-        raw = [(0, r) for r in files[0][2]]
-        if joints is not None:
-            raw += [(1, r) for k, r in enumerate(files[1][2]) if k != kr] + [(1, files[1][2][kr])]
-        texts = [cols.special.get(c) for c in ("pose", "set", "series")] + ([keys[0], keys[1]] if joints else [])
-        used = _used_columns(cols) + (keys if joints is not None else [])
-        wanted = [{} for _ in files]
-        for k in used:
-            f, parts = raw[k]
-            if len(parts) > 1 and k in texts:
-                raise Unfit  # a sum of text columns: the row reader says what is wrong
-            wanted[f].update({r: "text" if k in texts else "number" for r in parts})
-        read = [read_columns(p, h, scan, w) for (p, h, _), scan, w in zip(files, scans, wanted)]
+        wanted = _wanted(cols, raw, keys, len(files))
+        read = [read_columns(p, h, scan, w) for (p, h), scan, w in zip(files, scans, wanted)]
         scan, take = scans[0], [None] * len(files)
         if joints is not None:
             rows, jrows, lost, jlost = join_rows(*(read[f][raw[k][1][0]] for f, k in zip((0, 1), keys)))
             if "pose" not in cols.special:
                 raise Unfit  # poses named by their lines: the joined lines name both files (the row reader)
-            table = table.with_notes(*join_notes(table, other, key, len(rows), lost, jlost))
+            table = table.with_notes(*join_notes(table, other, opts["key"] or "pose", len(rows), lost, jlost))
             scan, take = replace(scan, n_rows=len(rows)), [rows, jrows]
         arrays = {k: _summed([_taken(read[raw[k][0]][r], take[raw[k][0]]) for r in raw[k][1]])
                   for k in _used_columns(cols)}
@@ -457,6 +468,38 @@ def _read_fast(path, source, opts, declared, orient, model, targets, *, joints=N
     except (Unfit, InputError):
         return None
     return data, table, cols, other
+
+
+def _heads(path, source, opts, joints):
+    """What the compiled parser reads from the files' heads: the table of the file's head (joined on
+    the key with the joint file's, as :func:`join_tables` joins them), the joint file's table or None,
+    (path, head) per file, for each column of the table (its file, its columns in that file) and the
+    key's columns in the table (in the first file, then the second's, last), or [] without ``joints``."""
+    head = read_head(path, source, sep=opts["sep"], decimal=opts["decimal"], header=opts["header"])
+    table = map_columns(head, opts["columns"])
+    raw = [(0, r) for r in _file_columns(head.header, opts["columns"])]
+    if joints is None:
+        return table, None, [(path, head)], raw, []
+    jhead = read_head(joints, str(joints), sep=opts["sep"], decimal=opts["decimal"])
+    other = map_columns(jhead, opts["columns"])
+    key = opts["key"] or "pose"
+    header, kr = joined_header(table, other, key)
+    jraw = _file_columns(jhead.header, opts["columns"])
+    raw += [(1, r) for k, r in enumerate(jraw) if k != kr] + [(1, jraw[kr])]
+    return replace(table, header=header), other, [(path, head), (joints, jhead)], raw, [header.index(key), len(header)]
+
+
+def _wanted(cols: _Columns, raw, keys: list[int], n_files: int) -> list[dict[int, str]]:
+    """Per file, the columns to read, each as "text" or "number"; ``Unfit`` for a sum of text columns
+    (the row reader says what is wrong)."""
+    texts = [cols.special.get(c) for c in ("pose", "set", "series")] + keys
+    wanted: list[dict[int, str]] = [{} for _ in range(n_files)]
+    for k in _used_columns(cols) + keys:
+        f, parts = raw[k]
+        if len(parts) > 1 and k in texts:
+            raise Unfit
+        wanted[f].update({r: "text" if k in texts else "number" for r in parts})
+    return wanted
 
 
 def _taken(column, rows):
@@ -534,25 +577,58 @@ def _directives(table: Table):
     return comment_units, comment_orient, orient_text
 
 
-def _empty_arrays(cols: _Columns, n: int):
+class _Marker(NamedTuple):
+    """One marker's columns as both readers take them: ``cols`` part -> (column, SI per file unit),
+    the parts of its position's and its orientation's standard deviations (``_sigma_parts``) and its
+    orientation convention ((kind, Euler sequence), or None without orientation columns)."""
+
+    name: str
+    cols: dict[str, tuple[int, float]]
+    sigma: tuple[str, ...]
+    orientation: tuple[str, str | None] | None
+    sigma_rot: tuple[str, ...]
+
+
+def _markers(cols: _Columns) -> list[_Marker]:
+    """The file's markers, in the order they are read."""
+    return [_Marker(mn, cols.marker_cols[mn], _sigma_parts(cols.marker_cols[mn], "sigma", SIGMA_AXES),
+                    cols.orientation[mn], _sigma_parts(cols.marker_cols[mn], "sigma_rot", SIGMA_ROT_AXES))
+            for mn in cols.markers]
+
+
+class _PerPose(NamedTuple):
+    """The columns of one value per pose besides joints and markers: payload mass (kg), approach
+    directions, the set (True: validation) and the series; None where the file has no such column."""
+
+    payload: np.ndarray | None
+    approach: np.ndarray | None
+    validation: np.ndarray | None
+    series: list | None
+
+
+def _empty_arrays(markers: list[_Marker], n: int):
     """(positions, sigma, rotations, sigma_rot) of ``n`` poses, NaN (unseen) until read; None where the
     file has no such columns."""
-    nm = len(cols.markers)
-    has_sigma = any(_sigma_parts(cols.marker_cols[m], "sigma", SIGMA_AXES) for m in cols.markers)
-    has_rot = any(cols.orientation[m] for m in cols.markers)
-    has_sigma_rot = any(_sigma_parts(cols.marker_cols[m], "sigma_rot", SIGMA_ROT_AXES) for m in cols.markers)
+    nm = len(markers)
+    has_sigma = any(mk.sigma for mk in markers)
+    has_rot = any(mk.orientation for mk in markers)
+    has_sigma_rot = any(mk.sigma_rot for mk in markers)
     return (np.full((n, nm, 3), np.nan), np.full((n, nm), np.nan) if has_sigma else None,
             np.full((n, nm, 3, 3), np.nan) if has_rot else None, np.full((n, nm), np.nan) if has_sigma_rot else None)
 
 
 def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str, targets: bool = False) -> Measurements:
+    """The measurements in ``rows`` ((line, cells) of the table), read cell by cell: a fault is an
+    InputError at its line and column."""
     n = len(rows)
     q = np.empty((n, len(cols.joint_names)))
-    pos, sigma, rot, sigma_rot = _empty_arrays(cols, n)
-    payload = np.empty(n) if "payload_kg" in cols.special else None
-    validation = np.zeros(n, dtype=bool)
-    series = []
-    approach = np.empty((n, len(cols.joint_names))) if cols.approach_cols else None
+    markers = _markers(cols)
+    arrays = _empty_arrays(markers, n)
+    special = cols.special
+    per_pose = _PerPose(np.empty(n) if "payload_kg" in special else None,
+                        np.empty((n, len(cols.joint_names))) if cols.approach_cols else None,
+                        np.zeros(n, dtype=bool) if "set" in special else None, [] if "series" in special else None)
+    joints = [cols.joint_cols[jn] for jn in cols.joint_names]
     labels = []
     width = len(cols.names)
     for i, (line, row) in enumerate(rows):
@@ -563,55 +639,71 @@ def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str, ta
         def num(k, *, required=True, row=row, line=line):
             return _number(row[k], decimal, source, line, cols.names[k], required)
 
-        for j, jn in enumerate(cols.joint_names):
-            k, s = cols.joint_cols[jn]
+        for j, (k, s) in enumerate(joints):
             q[i, j] = num(k) * s
-        for m, mn in enumerate(cols.markers):
-            mc = cols.marker_cols[mn]
-            xyz = _group(row, mc, POSITION, num, source, line, mn, cols.names)
-            if xyz is not None:
-                pos[i, m] = xyz
-                if _sigma_parts(mc, "sigma", SIGMA_AXES):
-                    sigma[i, m] = _sigma(num, mc, _sigma_parts(mc, "sigma", SIGMA_AXES), source, line, cols.names)
-            if cols.orientation[mn]:
-                kind, seq = cols.orientation[mn]
-                vals = _group(row, mc, ORIENTATION_PARTS[kind], num, source, line, mn, cols.names)
-                if vals is not None:
-                    rot[i, m] = _rotation(kind, seq, vals, source, line, cols.names[mc["qx" if kind == "quat" else
-                                                                                          ORIENTATION_PARTS[kind][0]][0]])
-                    rot_parts = _sigma_parts(mc, "sigma_rot", SIGMA_ROT_AXES)
-                    if rot_parts:
-                        sigma_rot[i, m] = _sigma(num, mc, rot_parts, source, line, cols.names)
-        if payload is not None:
-            payload[i] = num(cols.special["payload_kg"])
-        for j, jn in enumerate(cols.joint_names if approach is not None else ()):
-            assert approach is not None
-            approach[i, j] = num(cols.approach_cols[jn])
-            if approach[i, j] not in (-1.0, 1.0):
+        for m, mk in enumerate(markers):
+            _marker_cells(mk, i, m, arrays, num, source, line, cols.names)
+        _per_pose_cells(per_pose, i, row, line, num, cols, source)
+        label = row[special["pose"]].strip() if "pose" in special else ""
+        labels.append(label or f"line {line}")
+    if not targets and not np.any(np.isfinite(arrays[0])):
+        raise InputError("no marker position in any row", source=source)
+    return _measurements(cols, q, arrays, per_pose, tuple(labels), source, digest)
+
+
+def _marker_cells(mk: _Marker, i: int, m: int, arrays, num, source: str, line, names) -> None:
+    """Marker ``m``'s cells in row ``i`` into ``arrays`` (positions, sigma, rotations, sigma_rot); a
+    group of cells left empty (the marker not seen) stays NaN."""
+    pos, sigma, rot, sigma_rot = arrays
+    xyz = _group(mk.cols, POSITION, num, source, line, mk.name, names)
+    if xyz is not None:
+        pos[i, m] = xyz
+        if mk.sigma:
+            sigma[i, m] = _sigma(num, mk.cols, mk.sigma, source, line, names)
+    if mk.orientation:
+        kind, seq = mk.orientation
+        vals = _group(mk.cols, ORIENTATION_PARTS[kind], num, source, line, mk.name, names)
+        if vals is not None:
+            rot[i, m] = _rotation(kind, seq, vals, source, line, names[mk.cols[ORIENTATION_PARTS[kind][0]][0]])
+            if mk.sigma_rot:
+                sigma_rot[i, m] = _sigma(num, mk.cols, mk.sigma_rot, source, line, names)
+
+
+def _per_pose_cells(per_pose: _PerPose, i: int, row, line, num, cols: _Columns, source: str) -> None:
+    """Row ``i``'s payload, approach directions, set and series into ``per_pose``."""
+    if per_pose.payload is not None:
+        per_pose.payload[i] = num(cols.special["payload_kg"])
+    if per_pose.approach is not None:
+        for j, jn in enumerate(cols.joint_names):
+            per_pose.approach[i, j] = num(cols.approach_cols[jn])
+            if per_pose.approach[i, j] not in (-1.0, 1.0):
                 raise InputError(f"an approach direction is +1 or -1, got {row[cols.approach_cols[jn]]!r}",
                                  source=source, where=f"line {line}, column {APPROACH_PREFIX + jn!r}")
-        if "set" in cols.special:
-            value = row[cols.special["set"]].strip().lower()
-            if value not in SETS:
-                raise InputError(f"set must be fit or validation, got {row[cols.special['set']]!r}", source=source,
-                                 where=f"line {line}, column 'set'")
-            validation[i] = value == "validation"
-        if "series" in cols.special:
-            series.append(row[cols.special["series"]].strip())
-        label = row[cols.special["pose"]].strip() if "pose" in cols.special else ""
-        labels.append(label or f"line {line}")
-    if not targets and not np.any(np.isfinite(pos)):
-        raise InputError("no marker position in any row", source=source)
+    if per_pose.validation is not None:
+        value = row[cols.special["set"]].strip().lower()
+        if value not in SETS:
+            raise InputError(f"set must be fit or validation, got {row[cols.special['set']]!r}", source=source,
+                             where=f"line {line}, column 'set'")
+        per_pose.validation[i] = value == "validation"
+    if per_pose.series is not None:
+        per_pose.series.append(row[cols.special["series"]].strip())
+
+
+def _measurements(cols: _Columns, q: np.ndarray, arrays, per_pose: _PerPose, labels: tuple[str, ...], source: str,
+                  digest: str) -> Measurements:
+    """The record both readers make of what they read (``arrays``: positions, sigma, rotations,
+    sigma_rot)."""
+    pos, sigma, rot, sigma_rot = arrays
     extra: dict[str, object] = {"joint_kinds": tuple(cols.joint_kinds)}
-    if "set" in cols.special:
-        extra["validation"] = validation
-    if "series" in cols.special:
-        extra["series"] = np.array(series, dtype=str)
-    if approach is not None:
-        extra["approach"] = approach
+    if per_pose.validation is not None:
+        extra["validation"] = per_pose.validation
+    if per_pose.series is not None:
+        extra["series"] = np.array(per_pose.series, dtype=str)
+    if per_pose.approach is not None:
+        extra["approach"] = per_pose.approach
     return Measurements(q=q, positions=pos, marker_names=tuple(cols.markers), joint_names=tuple(cols.joint_names),
-                        rotations=rot, sigma=sigma, sigma_rot=sigma_rot, payload_mass=payload,
-                        labels=tuple(labels), source=source, sha256=digest, extra=extra)
+                        rotations=rot, sigma=sigma, sigma_rot=sigma_rot, payload_mass=per_pose.payload,
+                        labels=labels, source=source, sha256=digest, extra=extra)
 
 
 def _parse_columns(arrays: dict, cols: _Columns, scan, source: str, targets: bool) -> Measurements:
@@ -621,64 +713,76 @@ def _parse_columns(arrays: dict, cols: _Columns, scan, source: str, targets: boo
     numbers = [a for a in arrays.values() if isinstance(a, np.ndarray)]
     if any(np.any(np.abs(a) > MAX_MAGNITUDE) for a in numbers):
         raise Unfit
-
-    def need(k, scale=1.0):
-        a = arrays[k]
-        if np.isnan(a).any():
-            raise Unfit  # an empty cell where a value is required
-        return a * scale
-
     q = np.empty((n, len(cols.joint_names)))
     for j, jn in enumerate(cols.joint_names):
-        q[:, j] = need(*cols.joint_cols[jn])
-    pos, sigma, rot, sigma_rot = _empty_arrays(cols, n)
-    for m, mn in enumerate(cols.markers):
-        mc = cols.marker_cols[mn]
-        seen = _group_seen(arrays, mc, POSITION)
-        pos[seen, m] = np.stack([arrays[mc[p][0]][seen] * mc[p][1] for p in POSITION], axis=-1)
-        parts = _sigma_parts(mc, "sigma", SIGMA_AXES)
-        if parts:
-            sigma[seen, m] = _sigma_column(arrays, mc, parts, seen)
-        if cols.orientation[mn]:
-            kind, seq = cols.orientation[mn]
-            rseen = _group_seen(arrays, mc, ORIENTATION_PARTS[kind])
-            vals = np.stack([arrays[mc[p][0]][rseen] * mc[p][1] for p in ORIENTATION_PARTS[kind]], axis=-1)
-            if kind == "quat":
-                norm = np.linalg.norm(vals, axis=-1)
-                if not np.all((norm > 1e-12) & (norm < np.inf)):
-                    raise Unfit
-                R = Rotation.from_quat(vals).as_matrix() if len(vals) else np.empty((0, 3, 3))
-            else:
-                R = Rotation.from_euler("xyz" if kind == "rpy" else seq, vals).as_matrix() if len(vals) else \
-                    np.empty((0, 3, 3))
-            rot[rseen, m] = R
-            rparts = _sigma_parts(mc, "sigma_rot", SIGMA_ROT_AXES)
-            if rparts:
-                sigma_rot[rseen, m] = _sigma_column(arrays, mc, rparts, rseen)
-    payload = need(cols.special["payload_kg"]) if "payload_kg" in cols.special else None
-    approach = None
-    if cols.approach_cols:
-        approach = np.stack([need(cols.approach_cols[jn]) for jn in cols.joint_names], axis=-1)
-        if not np.all(np.abs(approach) == 1.0):
-            raise Unfit
+        q[:, j] = _needed(arrays, *cols.joint_cols[jn])
+    markers = _markers(cols)
+    out = _empty_arrays(markers, n)
+    for m, mk in enumerate(markers):
+        _marker_column(mk, m, arrays, out)
+    per_pose = _per_pose_columns(arrays, cols)
     given = arrays[cols.special["pose"]] if "pose" in cols.special else [""] * n
     labels = tuple(given) if "" not in given else \
         tuple(label or f"line {i + scan.first_line}" for i, label in enumerate(given))
-    if not targets and not np.any(np.isfinite(pos)):
+    if not targets and not np.any(np.isfinite(out[0])):
         raise Unfit
-    extra: dict[str, object] = {"joint_kinds": tuple(cols.joint_kinds)}
-    if "set" in cols.special:
-        value = arrays[cols.special["set"]]
+    return _measurements(cols, q, out, per_pose, labels, source, scan.sha256)
+
+
+def _needed(arrays, k: int, scale: float = 1.0) -> np.ndarray:
+    """Column ``k`` times ``scale``; ``Unfit`` for an empty cell where a value is required."""
+    a = arrays[k]
+    if np.isnan(a).any():
+        raise Unfit
+    return a * scale
+
+
+def _marker_column(mk: _Marker, m: int, arrays, out) -> None:
+    """Marker ``m``'s columns into ``out`` (positions, sigma, rotations, sigma_rot)."""
+    pos, sigma, rot, sigma_rot = out
+    seen = _group_seen(arrays, mk.cols, POSITION)
+    pos[seen, m] = _scaled(arrays, mk.cols, POSITION, seen)
+    if mk.sigma:
+        sigma[seen, m] = _sigma_column(arrays, mk.cols, mk.sigma, seen)
+    if mk.orientation:
+        kind, seq = mk.orientation
+        rseen = _group_seen(arrays, mk.cols, ORIENTATION_PARTS[kind])
+        rot[rseen, m] = _rotation_column(kind, seq, _scaled(arrays, mk.cols, ORIENTATION_PARTS[kind], rseen))
+        if mk.sigma_rot:
+            sigma_rot[rseen, m] = _sigma_column(arrays, mk.cols, mk.sigma_rot, rseen)
+
+
+def _scaled(arrays, mc, parts, seen) -> np.ndarray:
+    """(n_seen, len(parts)) values of a marker's group of ``parts`` at the rows ``seen``, SI."""
+    return np.stack([arrays[mc[p][0]][seen] * mc[p][1] for p in parts], axis=-1)
+
+
+def _rotation_column(kind: str, seq: str | None, vals: np.ndarray) -> np.ndarray:
+    """:func:`_rotation` over rows of orientation values; ``Unfit`` for a quaternion of zero norm."""
+    if kind == "quat":
+        norm = np.linalg.norm(vals, axis=-1)
+        if not np.all((norm > 1e-12) & (norm < np.inf)):
+            raise Unfit
+    return _matrices(kind, seq, vals) if len(vals) else np.empty((0, 3, 3))
+
+
+def _per_pose_columns(arrays, cols: _Columns) -> _PerPose:
+    """:func:`_per_pose_cells` over whole columns; ``Unfit`` for an approach direction other than
+    +1 or -1 or a set other than fit or validation."""
+    special = cols.special
+    payload = _needed(arrays, special["payload_kg"]) if "payload_kg" in special else None
+    approach = None
+    if cols.approach_cols:
+        approach = np.stack([_needed(arrays, cols.approach_cols[jn]) for jn in cols.joint_names], axis=-1)
+        if not np.all(np.abs(approach) == 1.0):
+            raise Unfit
+    validation = None
+    if "set" in special:
+        value = arrays[special["set"]]
         if not {v.lower() for v in set(value)} <= set(SETS):
             raise Unfit
-        extra["validation"] = np.array([v.lower() == "validation" for v in value], dtype=bool)
-    if "series" in cols.special:
-        extra["series"] = np.array(arrays[cols.special["series"]], dtype=str)
-    if approach is not None:
-        extra["approach"] = approach
-    return Measurements(q=q, positions=pos, marker_names=tuple(cols.markers), joint_names=tuple(cols.joint_names),
-                        rotations=rot, sigma=sigma, sigma_rot=sigma_rot, payload_mass=payload,
-                        labels=labels, source=source, sha256=scan.sha256, extra=extra)
+        validation = np.array([v.lower() == "validation" for v in value], dtype=bool)
+    return _PerPose(payload, approach, validation, arrays[special["series"]] if "series" in special else None)
 
 
 def _group_seen(arrays, mc, parts) -> np.ndarray:
@@ -730,7 +834,7 @@ def _number(text: str, decimal: str, source: str, line: int, column: str, requir
     return v
 
 
-def _group(row, mc, parts, num, source, line, marker, names):
+def _group(mc, parts, num, source, line, marker, names):
     """The values of ``parts`` of one marker, or None when all their cells are empty."""
     vals = [num(mc[p][0], required=False) for p in parts]
     empty = [np.isnan(v) for v in vals]
@@ -767,10 +871,15 @@ def _positive(num, col, source, line, names) -> float:
 
 
 def _rotation(kind, seq, vals, source, line, column) -> np.ndarray:
+    if kind == "quat" and not 1e-12 < np.linalg.norm(vals) < np.inf:
+        raise InputError("quaternion of zero norm (or too large)", source=source,
+                         where=f"line {line}, column {column!r}")
+    return _matrices(kind, seq, vals)
+
+
+def _matrices(kind: str, seq: str | None, vals) -> np.ndarray:
+    """The rotation matrix of orientation values ``vals`` (or one per row of them) in convention ``kind``."""
     if kind == "quat":
-        if not 1e-12 < np.linalg.norm(vals) < np.inf:
-            raise InputError("quaternion of zero norm (or too large)", source=source,
-                             where=f"line {line}, column {column!r}")
         return Rotation.from_quat(vals).as_matrix()  # scalar-last (x, y, z, w): the column names say which
     return Rotation.from_euler("xyz" if kind == "rpy" else seq, vals).as_matrix()
 
@@ -828,80 +937,119 @@ def measurements_to_csv(data: Measurements, *, model: RobotModel | None = None, 
     """
     kind, seq = parse_orientation(orientation)
     orientation = orientation.strip()
-    rot_parts = ("qw", "qx", "qy", "qz") if orientation == "quat_wxyz" else ORIENTATION_PARTS[kind]
     lu, au = parse_units(units)
+    joint_names, kinds = _joint_kinds(data, model)
+    rot_parts = ("qw", "qx", "qy", "qz") if orientation == "quat_wxyz" else ORIENTATION_PARTS[kind]
     rot_unit = "" if kind == "quat" else f"_{au}"      # a quaternion component has no unit
-    L, A = LENGTH_UNITS[lu], ANGLE_UNITS[au]
-    if model is not None:
-        kinds = [model.reading_quantities[model.joint_names.index(jn)] for jn in data.joint_names] \
-            if data.joint_names else list(model.reading_quantities)
-        joint_names = data.joint_names or model.joint_names
-    else:
-        kinds = list(data.extra.get("joint_kinds") or ())
-        joint_names = data.joint_names
-        if not kinds or not joint_names:
-            raise InputError("the joint types are unknown: pass the model so each joint's unit is known",
-                             where="model")
-    header = ["pose"]
-    header += [f"{jn}_{lu if k == 'length' else au}" for jn, k in zip(joint_names, kinds)]
-    has_rot = data.rotations is not None
-    for mn in data.marker_names:
-        header += [f"{mn}_{p}_{lu}" for p in POSITION]
-        if data.sigma is not None:
-            header.append(f"{mn}_sigma_{lu}")
-        if has_rot:
-            header += [f"{mn}_{p}{rot_unit}" for p in rot_parts]
-            if data.sigma_rot is not None:
-                header.append(f"{mn}_sigma_rot_{au}")
-    if data.payload_mass is not None:
-        header.append("payload_kg")
-    flags, series = data.extra.get("validation"), data.extra.get("series")
-    header += [name for name, v in (("set", flags), ("series", series)) if v is not None]
     approach = _approach_to_write(data)
-    if approach is not None:
-        header += [APPROACH_PREFIX + jn for jn in joint_names]
-
-    def fmt(v, s=1.0):
-        return "" if not np.isfinite(v) else repr(float(v) / s)
     buf = io.StringIO()
-    if has_rot:
+    if data.rotations is not None:
         buf.write(f"# orientation: {orientation}\n")
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(header)
-    rots = np.zeros((data.n_poses, len(data.marker_names), 0))
+    w.writerow(_csv_header(data, joint_names, kinds, lu, au, [p + rot_unit for p in rot_parts], approach))
+    L, A = LENGTH_UNITS[lu], ANGLE_UNITS[au]
     rmask = data.rot_mask if data.rot_mask is not None else np.zeros(data.mask.shape, dtype=bool)
-    if data.rotations is not None:
-        R = Rotation.from_matrix(np.where(rmask[..., None, None], data.rotations, np.eye(3)).reshape(-1, 3, 3))
-        if kind == "quat":
-            rots = R.as_quat()                  # (x, y, z, w); scalar_first needs scipy 1.14
-            if orientation == "quat_wxyz":
-                rots = np.roll(rots, 1, axis=-1)
-        else:
-            rots = R.as_euler("xyz" if kind == "rpy" else seq) / A
-        rots = rots.reshape(data.n_poses, len(data.marker_names), -1)
+    w.writerows(_csv_rows(data, kinds, L, A, _written_rotations(data, kind, seq, orientation, A, rmask), rmask,
+                          approach))
+    return buf.getvalue()
+
+
+def _csv_header(data: Measurements, joint_names, kinds: list[str], lu: str, au: str, rot_names: list[str],
+                approach) -> list[str]:
+    """The header of the CSV text: every column with its unit (``rot_names``: the orientation's
+    parts with theirs)."""
+    flags, series = data.extra.get("validation"), data.extra.get("series")
+    header = ["pose"] + [f"{jn}_{lu if k == 'length' else au}" for jn, k in zip(joint_names, kinds)]
+    for mn in data.marker_names:
+        header += _marker_header(data, mn, lu, au, rot_names)
+    if data.payload_mass is not None:
+        header.append("payload_kg")
+    header += [name for name, v in (("set", flags), ("series", series)) if v is not None]
+    if approach is not None:
+        header += [APPROACH_PREFIX + jn for jn in joint_names]
+    return header
+
+
+def _csv_rows(data: Measurements, kinds: list[str], L: float, A: float, rots: np.ndarray, rmask: np.ndarray,
+              approach):
+    """The rows under :func:`_csv_header`, one per pose (``rots``: the orientations as written)."""
+    flags, series = data.extra.get("validation"), data.extra.get("series")
     for i in range(data.n_poses):
         row = [data.labels[i]]
-        row += [fmt(v, L if k == "length" else A) for v, k in zip(data.q[i], kinds)]
+        row += [_cell(v, L if k == "length" else A) for v, k in zip(data.q[i], kinds)]
         for m in range(len(data.marker_names)):
-            seen = data.mask[i, m]
-            row += [fmt(v, L) if seen else "" for v in data.positions[i, m]]
-            if data.sigma is not None:
-                row.append(fmt(data.sigma[i, m], L) if seen else "")
-            if has_rot:
-                rseen = rmask[i, m]
-                row += [fmt(v) if rseen else "" for v in rots[i, m]]
-                if data.sigma_rot is not None:
-                    row.append(fmt(data.sigma_rot[i, m], A) if rseen else "")
+            row += _marker_row(data, i, m, rots[i, m], rmask[i, m], L, A)
         if data.payload_mass is not None:
-            row.append(fmt(data.payload_mass[i]))
+            row.append(_cell(data.payload_mass[i]))
         if flags is not None:
             row.append("validation" if flags[i] else "fit")
         if series is not None:
             row.append(str(series[i]))
         if approach is not None:
             row += [f"{int(v):+d}" for v in approach[i]]
-        w.writerow(row)
-    return buf.getvalue()
+        yield row
+
+
+def _joint_kinds(data: Measurements, model: RobotModel | None) -> tuple[tuple[str, ...], list[str]]:
+    """The joints to write and each one's quantity (length or angle): from ``model``, or from the
+    file the data were read from."""
+    if model is not None:
+        kinds = [model.reading_quantities[model.joint_names.index(jn)] for jn in data.joint_names] \
+            if data.joint_names else list(model.reading_quantities)
+        return data.joint_names or model.joint_names, kinds
+    kinds = list(data.extra.get("joint_kinds") or ())
+    if not kinds or not data.joint_names:
+        raise InputError("the joint types are unknown: pass the model so each joint's unit is known",
+                         where="model")
+    return data.joint_names, kinds
+
+
+def _marker_header(data: Measurements, mn: str, lu: str, au: str, rot_names: list[str]) -> list[str]:
+    """The columns of marker ``mn``: its position, sigma, orientation (``rot_names``: the parts with
+    their unit) and sigma_rot, those the data hold."""
+    header = [f"{mn}_{p}_{lu}" for p in POSITION]
+    if data.sigma is not None:
+        header.append(f"{mn}_sigma_{lu}")
+    if data.rotations is not None:
+        header += [f"{mn}_{p}" for p in rot_names]
+        if data.sigma_rot is not None:
+            header.append(f"{mn}_sigma_rot_{au}")
+    return header
+
+
+def _marker_row(data: Measurements, i: int, m: int, rot, rot_seen, L: float, A: float) -> list[str]:
+    """The cells of marker ``m`` in pose ``i`` under :func:`_marker_header` (``rot``: the orientation
+    as written); empty where it was not measured."""
+    seen = data.mask[i, m]
+    row = [_cell(v, L) if seen else "" for v in data.positions[i, m]]
+    if data.sigma is not None:
+        row.append(_cell(data.sigma[i, m], L) if seen else "")
+    if data.rotations is not None:
+        row += [_cell(v) if rot_seen else "" for v in rot]
+        if data.sigma_rot is not None:
+            row.append(_cell(data.sigma_rot[i, m], A) if rot_seen else "")
+    return row
+
+
+def _cell(v, s: float = 1.0) -> str:
+    """``v`` in the file's unit (``s``: SI per file unit), exact; empty for NaN."""
+    return "" if not np.isfinite(v) else repr(float(v) / s)
+
+
+def _written_rotations(data: Measurements, kind: str, seq: str | None, orientation: str, A: float,
+                       rmask: np.ndarray) -> np.ndarray:
+    """(n_poses, n_markers, parts) orientations in the convention written (angles in the angle unit
+    ``A``); the identity's where none was measured."""
+    if data.rotations is None:
+        return np.zeros((data.n_poses, len(data.marker_names), 0))
+    R = Rotation.from_matrix(np.where(rmask[..., None, None], data.rotations, np.eye(3)).reshape(-1, 3, 3))
+    if kind == "quat":
+        rots = R.as_quat()                  # (x, y, z, w); scalar_first needs scipy 1.14
+        if orientation == "quat_wxyz":
+            rots = np.roll(rots, 1, axis=-1)
+    else:
+        rots = R.as_euler("xyz" if kind == "rpy" else seq) / A
+    return rots.reshape(data.n_poses, len(data.marker_names), -1)
 
 
 @accepts(data=is_a(Measurements), path=PATH, units=UNIT_SYSTEM, force=FLAG, model=optional(is_a(RobotModel)),
