@@ -18,7 +18,7 @@ from .._base.arguments import (
 from .._base.errors import InputError, excerpt, suggest
 from .._base.options import MAX_MODEL_BYTES
 from .._base.units import parse_units
-from .table import UNKNOWN_ACTIONS, ColumnMap, check_decimal, parse_separator
+from .table import ColumnMap, check_decimal, parse_separator
 from .text import load_yaml, read_text
 
 PROFILE_VERSION = 1
@@ -124,12 +124,10 @@ def _texts(d: dict, source: str) -> dict:
 
 
 def _with_ignored(cmap: ColumnMap, ignore, source: str) -> ColumnMap:
-    """``cmap`` with the profile's ``ignore`` list of columns added to its ignored ones."""
+    """``cmap`` with the profile's ``ignore`` list of columns added to its ignored ones (its unknown-column
+    action is checked where ``column_map`` makes it)."""
     if not isinstance(ignore, list) or not all(isinstance(c, str) for c in ignore):
         raise InputError(f"expected a list of column names, got {excerpt(ignore)}", source=source, where="ignore")
-    if cmap.unknown not in UNKNOWN_ACTIONS:
-        raise InputError(f"expected {' or '.join(UNKNOWN_ACTIONS)}, got {excerpt(cmap.unknown)}", source=source,
-                         where="unknown")
     return ColumnMap(cmap.rename, cmap.ignore | frozenset(ignore), cmap.unknown)
 
 

@@ -1,0 +1,244 @@
+"""Each fault a reader finds, and each inconsistent record, is an InputError saying where it is and
+what is wrong, in these words: measurement files (the same words whichever reader, row by row or
+compiled, reads them), URDF, modified DH tables, profiles, repeatability files, models and
+measurement records."""
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import yaml
+from fuzz_cases import MDH_TABLE, MEASUREMENTS, MODEL, PROFILE, REPEATABILITY, URDF
+from robots import arm6r
+
+import robocal as rc
+from robocal.errors import InputError
+from robocal.kinematics import Frame, Marker, Payload
+
+LINES = MEASUREMENTS.splitlines()
+HEADER = LINES[0]   # pose, j1_deg ... j6_deg, tool_x_mm, tool_y_mm, tool_z_mm, set
+
+
+def _added(columns: str, values: str) -> str:
+    return "\n".join([HEADER + "," + columns] + [ln + "," + values for ln in LINES[1:]]) + "\n"
+
+
+def _renamed(old: str, new: str) -> str:
+    return MEASUREMENTS.replace(HEADER, HEADER.replace(old, new), 1)
+
+
+def _cell(row: int, column: str, value: str) -> str:
+    rows = [ln.split(",") for ln in LINES]
+    rows[row][rows[0].index(column)] = value
+    return "\n".join(",".join(r) for r in rows) + "\n"
+
+
+def _fault(read) -> tuple:
+    with pytest.raises(InputError) as e:
+        read()
+    return e.value.where, e.value.detail
+
+
+ORIENTATION = "tool_qx,tool_qy,tool_qz,tool_qw"
+APPROACH = ",".join(f"approach_j{j}" for j in range(1, 7))
+NOT_CLOSED = "a quoted cell runs over several lines (a quote not closed?)"
+UNSEEN = "\n".join([HEADER] + [",".join("" if 7 <= k <= 9 else c for k, c in enumerate(ln.split(",")))
+                               for ln in LINES[1:]]) + "\n"
+
+MEASUREMENT_FAULTS = [
+    (_added(",x", "1,2"), {}, "line 1", "column 12 has no name"),
+    (_added("set", "fit"), {}, "line 1", "column 'set' appears twice"),
+    (_added("j1_rad", "0.1"), {}, "line 1", "joint 'j1' has two columns"),
+    (_added("temp_C", "21"), {}, "line 1",
+     "unknown column 'temp_C'; expected one of pose, set, series, payload_kg, j1, j2, j3, j4, j5, j6, tool_x, tool_y, "
+     "tool_z; the model has joints j1, j2, j3, j4, j5, j6 and markers tool; map it (--map 'temp_C=NAME'), ignore it "
+     "(--ignore 'temp_C') or ignore every unknown column (--unknown ignore)"),
+    (_added("approach_j1", "1"), {}, "line 1",
+     "missing column approach_j2: approach directions are given per joint, for every joint or none"),
+    (_renamed("j1_deg", "jx_deg"), {"unknown": "ignore"}, "line 1",
+     "missing column 'j1': the model has 6 joints (j1, j2, j3, j4, j5, j6), the file has 5 of them"),
+    (_renamed("tool_x_mm,tool_y_mm,tool_z_mm", "a_mm,b_mm,c_mm"), {"unknown": "ignore"}, "line 1",
+     "no marker columns (like tool_x, tool_y, tool_z); the model's markers are tool"),
+    (_renamed("tool_z_mm", "z_mm"), {"unknown": "ignore"}, "line 1", "missing column tool_z"),
+    (_added("tool_sigma_x_mm", "0.01"), {}, "line 1",
+     "marker 'tool': give tool_sigma or all of tool_sigma_x, tool_sigma_y, tool_sigma_z, not a part of them"),
+    (_added(ORIENTATION.replace("qx", "qx_deg"), "0,0,0,1"), {}, "line 1, column 'tool_qx_deg'",
+     "a quaternion component has no unit"),
+    (_added(ORIENTATION + ",tool_roll_deg", "0,0,0,1,0"), {}, "line 1",
+     "marker 'tool' has orientation columns of two conventions (quat and rpy)"),
+    (_added("tool_e1_deg,tool_e2_deg,tool_e3_deg", "0,0,0"), {}, "line 1",
+     "columns tool_e1.. need the Euler sequence: orientation='euler:ZYX' (--orientation euler:ZYX) or a line "
+     "'# orientation: euler:ZYX' before the header"),
+    (_added("tool_sigma_rot_deg", "0.1"), {}, "line 1", "column tool_sigma_rot without orientation columns"),
+    (_added("tool_roll_deg,tool_pitch_deg,tool_yaw_deg", "0,0,0"), {"orientation": "quat_xyzw"}, "line 1",
+     "orientation columns of marker 'tool' are rpy, but the declared convention is quat"),
+    (_cell(3, "set", "fit,extra"), {}, "line 4", "12 cells where the header has 11 columns"),
+    (_added(APPROACH, "1,1,0,1,1,1"), {}, "line 2, column 'approach_j3'", "an approach direction is +1 or -1, got '0'"),
+    (_cell(4, "set", "train"), {}, "line 5, column 'set'", "set must be fit or validation, got 'train'"),
+    (_added(ORIENTATION, "0,0,0,0"), {}, "line 2, column 'tool_qx'", "quaternion of zero norm (or too large)"),
+    (_cell(5, "tool_y_mm", ""), {}, "line 6, column 'tool_y_mm'",
+     "empty cell while other tool cells of this group are filled; leave all of tool_x, tool_y, tool_z empty when the "
+     "marker was not seen"),
+    (_added("tool_sigma_mm", "-0.02"), {}, "line 2, column 'tool_sigma_mm'",
+     "a standard deviation must be positive, got -0.02"),
+    (UNSEEN, {}, None, "no marker position in any row"),
+    (MEASUREMENTS.replace("\nP03,", '\n"P03,', 1), {}, "line 5", NOT_CLOSED),
+    ('# note,"open\n' + MEASUREMENTS, {}, "line 2", NOT_CLOSED),
+    ("\n".join(LINES[1:]) + "\n", {"header": HEADER.replace("set", "pose").split(",")}, "header",
+     "expected distinct column names, got 'pose,j1_deg,j2_mm,j3_mm,j4_deg,j5_deg,j6_deg,tool_x_mm...' (81 characters)"),
+]
+
+
+@pytest.mark.parametrize("compiled", [False, True], ids=["rows", "compiled"])
+@pytest.mark.parametrize("text, options, where, detail", MEASUREMENT_FAULTS,
+                         ids=[f"{k}-{fault[3][:30]}" for k, fault in enumerate(MEASUREMENT_FAULTS)])
+def test_a_measurement_files_fault_is_named_where_it_is(text, options, where, detail, compiled, tmp_path,
+                                                         monkeypatch):
+    """The compiled reader steps back wherever the file is at fault: the row reader names it."""
+    import robocal._files.measurements as measurements
+
+    if compiled:
+        pytest.importorskip("pandas")
+        monkeypatch.setattr(measurements, "FAST_BYTES", 0)
+    (tmp_path / "model.yaml").write_text(MODEL)
+    (tmp_path / "d.csv").write_text(text)
+    model = rc.read_model(tmp_path / "model.yaml")
+    assert _fault(lambda: rc.read_measurements(tmp_path / "d.csv", model, **options)) == (where, detail)
+
+
+@pytest.mark.parametrize("old, new, where, detail", [
+    ('<link name="l1">', "<link>", "link", "a <link> has no name"),
+    ('<link name="l1">', '<link name="l0">', "link 'l0'", "link named twice"),
+    ('<joint name="j1"', "<joint", "joint", "a <joint> has no name"),
+    ('<joint name="j2"', '<joint name="j1"', "joint 'j1'", "joint named twice"),
+    ('<parent link="l0"/>', "", "joint 'j1'", "<parent link=...> is missing"),
+    ('<child link="l1"/>', '<child link="lx"/>', "joint 'j1'", "child link 'lx' is not defined"),
+    ('<child link="l2"/>', '<child link="l1"/>', "joint 'j2'", "link 'l1' is the child of two joints ('j1')"),
+    ('upper="1"/></joint>', 'upper="1"/><mimic multiplier="2"/></joint>', "joint 'j1'", "<mimic> needs joint=..."),
+])
+def test_a_urdf_links_and_joints_faults(old, new, where, detail):
+    assert _fault(lambda: rc.io.read_urdf(URDF.replace(old, new, 1))) == (where, detail)
+
+
+@pytest.mark.parametrize("old, new, where, detail", [
+    ("j3,j2,revolute,j3,", "j3,j2,revolute,x*j3,", "line 5, column 'reading'",
+     "a reading is NAME or COEF*NAME, got 'x*j3'"),
+    ("j3,j2,revolute,j3,", "j3,j2,revolute,,", "line 5, column 'reading'", "a moving frame needs a reading"),
+    ("j2,j1,revolute", "j2,j3,revolute", "line 4, column 'parent'", "parent 'j3' is not 'base' or an earlier frame"),
+    ("ball,j3,marker", "ball,j7,marker", "line 6, column 'parent'", "marker parent 'j7' is not a frame"),
+])
+def test_a_modified_dh_tables_faults(old, new, where, detail, tmp_path):
+    (tmp_path / "t.csv").write_text(MDH_TABLE.replace(old, new))
+    assert _fault(lambda: rc.io.read_dh_table(tmp_path / "t.csv")) == (where, detail)
+
+
+def test_coupled_readings_in_a_modified_dh_table(tmp_path):
+    """A reading that is a sum of coefficients times readings; the limits come from the first frame a
+    reading drives alone."""
+    (tmp_path / "t.csv").write_text(MDH_TABLE.replace("j3,j2,revolute,j3,", "j3,j2,revolute,j3 + 0.5*j2,"))
+    model = rc.io.read_dh_table(tmp_path / "t.csv")
+    assert [f.coupling for f in model.frames] == [((0, 1.0),), ((1, 1.0),), ((2, 1.0), (1, 0.5))]
+    assert model.joint_names == ("j1", "j2", "j3")
+    assert np.allclose(np.degrees(model.joint_limits), [(-170, 170), (-120, 120), (-170, 170)])
+
+
+GOOD_PROFILE = yaml.safe_load(PROFILE)
+
+
+@pytest.mark.parametrize("d, where, detail", [
+    ([1], None, "expected a mapping (key: value) at the top"),
+    ({**GOOD_PROFILE, "sepp": ";"}, "sepp", "unknown key 'sepp'; did you mean 'sep'?"),
+    ({**GOOD_PROFILE, "robocal_profile": 2}, "robocal_profile", "expected robocal_profile: 1, got 2"),
+    ({**GOOD_PROFILE, "key": 3}, "key", "expected text, got 3"),
+    ({**GOOD_PROFILE, "sep": "ab"}, "sep", "a separator is one character, '\\t' or 'whitespace'; got 'ab'"),
+    ({**GOOD_PROFILE, "ignore": "x"}, "ignore", "expected a list of column names, got 'x'"),
+    ({**GOOD_PROFILE, "unknown": "maybe"}, "unknown", "unknown columns must be 'refuse' or 'ignore', got 'maybe'"),
+    ({**GOOD_PROFILE, "header": ["a", " "]}, "header",
+     "expected a list of column names (a file without a header line), got ['a', ' ']"),
+])
+def test_a_profiles_faults(d, where, detail):
+    assert _fault(lambda: rc.io.profile_from_dict(d, source="p.yaml")) == (where, detail)
+
+
+REPEATED = REPEATABILITY.splitlines()   # pose, cycle, x_mm, y_mm, z_mm; row 4 is pose 3, cycle 1
+
+
+@pytest.mark.parametrize("text, units, where, detail", [
+    (REPEATABILITY.replace(REPEATED[3], REPEATED[3].rsplit(",", 1)[0] + ","), None, "row 4, column 'z'", "empty cell"),
+    (REPEATABILITY.replace(REPEATED[3], REPEATED[3].replace(",1,", ",1.5,", 1)), None, "row 4, column 'cycle'",
+     "expected an integer cycle number, got '1.5'"),
+    (REPEATABILITY.replace(REPEATED[3], REPEATED[3].replace(",1,", ",1234567890,", 1)), None, "row 4, column 'cycle'",
+     "expected an integer cycle number, got '1234567890'"),
+    (REPEATABILITY.replace(REPEATED[3], REPEATED[3].rsplit(",", 1)[0] + ",x"), None, "row 4, column 'z'",
+     "expected a number, got 'x'"),
+    (REPEATABILITY.replace(REPEATED[3], REPEATED[3].rsplit(",", 1)[0] + ",1e400"), None, "row 4, column 'z'",
+     "expected a finite number of magnitude up to 1e+12, got '1e400'"),
+    (REPEATABILITY + REPEATED[3] + "\n", None, "row 42", "pose '3' cycle 1 already given in row 4"),
+    ("\n".join(REPEATED[:3] + [REPEATED[1].replace("1,1,", "99,1,", 1)]) + "\n", None, "row 2",
+     "pose '1' has a single cycle; repeatability needs at least two"),
+    (REPEATABILITY, "m", "header", "column 'x_mm' says mm but units 'm' were given"),
+])
+def test_a_repeatability_files_faults(text, units, where, detail, tmp_path):
+    (tmp_path / "r.csv").write_text(text)
+    assert _fault(lambda: rc.io.read_repeatability_csv(tmp_path / "r.csv", units=units)) == (where, detail)
+
+
+ARM = arm6r()
+F = ARM.frames
+
+
+@pytest.mark.parametrize("changes, where, detail", [
+    ({"frames": ()}, "frames", "a model needs at least one frame"),
+    ({"frames": (F[0], replace(F[1], name="j1")) + F[2:]}, "frames", "frame name 'j1' is used twice"),
+    ({"joint_names": ("j1",) * 6}, "joints", "joint name 'j1' is used twice"),
+    ({"joint_limits": ARM.joint_limits[:5]}, "joint_limits", "one (lower, upper) limit pair is needed per joint"),
+    ({"joint_limits": ((1.0, -1.0),) + ARM.joint_limits[1:]}, "joints[0].limits",
+     "lower limit 1.0 exceeds upper limit -1.0"),
+    ({"frames": (replace(F[0], joint="ball"),) + F[1:]}, "frames[0] (j1)",
+     "joint type must be one of revolute, prismatic, fixed, got 'ball'"),
+    ({"frames": (F[0], replace(F[1], parent=3)) + F[2:]}, "frames[1] (j2)",
+     "a frame's parent must come before it (or be the base, -1)"),
+    ({"frames": F + (Frame("flange", joint="fixed", coupling=((0, 1.0),)),)}, "frames[6] (flange)",
+     "a fixed frame has no joint variable"),
+    ({"frames": (replace(F[0], coupling=()),) + F[1:]}, "frames[0] (j1)",
+     "a moving frame needs a joint reading (coupling)"),
+    ({"frames": (replace(F[0], coupling=((7, 1.0),)),) + F[1:]}, "frames[0] (j1)",
+     "coupling refers to joint 7, which does not exist"),
+    ({"frames": (replace(F[0], mass=-1.0),) + F[1:]}, "frames[0] (j1)", "mass must be a non-negative number, got -1.0"),
+    ({"frames": (replace(F[0], d=math.inf),) + F[1:]}, "frames[0] (j1)", "d is not a finite number"),
+    ({"frames": (replace(F[0], backlash_width=0.0),) + F[1:]}, "frames[0] (j1)",
+     "backlash_width must be positive and backlash_friction non-negative"),
+    ({"backlash_side": "left"}, "backlash.side", "backlash side must be one of gravity, approach, got 'left'"),
+    ({"payload": Payload(mass=-2.0)}, "payload", "payload mass must be non-negative, got -2.0"),
+    ({"other_payloads": (Payload(mass=1.0, frame=9),)}, "payload[1]", "payload frame does not exist"),
+    ({"markers": ARM.markers * 2}, "markers", "marker name 'tool' is used twice"),
+    ({"markers": ()}, "markers", "a model needs at least one marker (tool point)"),
+    ({"markers": (Marker("tool", 9),)}, "markers[0]", "marker 'tool' is attached to a frame that does not exist"),
+    ({"markers": (Marker("tool", 5, rotation=((1, 0, 0), (0, 1, 0), (0, 0, -1))),)}, "markers[0].rotation",
+     "not a proper rotation matrix"),
+    ({"base_rotation": ((2, 0, 0), (0, 1, 0), (0, 0, 1))}, "base.rotation", "not a proper rotation matrix"),
+])
+def test_a_models_faults(changes, where, detail):
+    assert _fault(lambda: ARM.replace(**changes)) == (where, detail)
+
+
+NAN = np.nan
+
+
+@pytest.mark.parametrize("changes, where, detail", [
+    ({"positions": np.zeros((2, 1, 3))}, None, "positions must have shape (3, 1, 3), got (2, 1, 3)"),
+    ({"q": [[0, 0], [0, NAN], [0, 0]]}, "b, joint 1", "joint reading is not a finite number"),
+    ({"mask": np.ones((3, 2), bool)}, None, "mask shape does not match positions"),
+    ({"positions": [[[0, 0, 0]], [[NAN, 0, 0]], [[0, 0, 0]]], "mask": np.ones((3, 1), bool)}, "b",
+     "marker 'tool' position is not finite"),
+    ({"rotations": np.zeros((3, 1, 3))}, None, "rotations must have shape (n_poses, n_markers, 3, 3)"),
+    ({"sigma": [[1.0], [0.0], [1.0]]}, "b, marker 'tool'", "sigma must be a positive number"),
+    ({"rotations": np.tile(np.eye(3), (3, 1, 1, 1)), "sigma_rot": -1.0}, "a, marker 'tool'",
+     "sigma_rot must be a positive number"),
+    ({"payload_mass": [1.0, -1.0, 1.0]}, "b", "payload mass must be a non-negative number"),
+])
+def test_a_measurement_records_faults(changes, where, detail):
+    fields = {"q": np.zeros((3, 2)), "positions": np.zeros((3, 1, 3)), "marker_names": ("tool",),
+              "labels": ("a", "b", "c"), "source": "m.csv"}
+    assert _fault(lambda: rc.io.Measurements(**{**fields, **changes})) == (where, detail)
