@@ -147,13 +147,15 @@ def test_what_a_problem_keeps_cannot_be_changed_through_what_it_returned(masses)
     assert bool(moments) == masses
 
 
-def test_a_kept_identifiability_result_hands_out_its_own_dictionaries():
+def test_a_kept_identifiability_result_cannot_be_changed_by_a_caller():
     from robocal._identification.identifiability import theoretical_identifiability
 
     m = arm6r()
     first = theoretical_identifiability(m, ("geometric",), (), False, 1e-6)
-    first.observability["O1"] = -1.0
-    first.column_scale.clear()
+    with pytest.raises(TypeError):
+        first.observability["O1"] = -1.0        # type: ignore[index]
+    with pytest.raises(AttributeError):
+        first.column_scale.clear()              # type: ignore[attr-defined]
     again = theoretical_identifiability(m, ("geometric",), (), False, 1e-6)
     assert again.observability["O1"] > 0 and again.column_scale
 

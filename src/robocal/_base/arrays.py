@@ -1,11 +1,15 @@
-"""Read-only arrays: what a record or a cache hands out cannot be changed behind its back.
+"""Read-only arrays and mappings: what a record or a cache hands out cannot be changed behind its back.
 
-Records (measurements, contacts, layouts) and what an object keeps between calls (a problem's
-evaluations, a model's layouts) hold their arrays read-only: writing into one raises
+Records (measurements, contacts, layouts, results) and what an object keeps between calls (a
+problem's evaluations, a model's layouts) hold their arrays read-only: writing into one raises
 ``ValueError: assignment destination is read-only`` instead of silently moving every later result.
+Their mappings are read-only views (writing raises ``TypeError``), their lists tuples.
 """
 
 from __future__ import annotations
+
+import types
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -46,3 +50,30 @@ def frozen(a, dtype=float) -> np.ndarray:
     if isinstance(a, np.ndarray) and a.dtype == dtype and not a.flags.writeable and a.base is None:
         return a
     return read_only(np.array(a, dtype=dtype))
+
+
+def frozen_mapping(m: Mapping) -> Mapping:
+    """A read-only copy of the mapping ``m``, and of what it holds: mappings inside are read-only
+    too, lists and tuples become tuples, arrays read-only copies (:func:`frozen`, their type kept).
+
+    Parameters
+    ----------
+    m : Mapping
+        The mapping, from a caller who may keep and change it.
+
+    Returns
+    -------
+    Mapping
+        A read-only mapping (``types.MappingProxyType``) with the keys and values of ``m``.
+    """
+    return types.MappingProxyType({k: _frozen_value(v) for k, v in m.items()})
+
+
+def _frozen_value(v):
+    if isinstance(v, Mapping):
+        return frozen_mapping(v)
+    if isinstance(v, (list, tuple)):
+        return tuple(_frozen_value(x) for x in v)
+    if isinstance(v, np.ndarray):
+        return frozen(v, v.dtype)
+    return v

@@ -111,7 +111,23 @@ def tolerances(model: RobotModel) -> dict:
 
 @dataclass(frozen=True)
 class Check:
-    """One check of a result. ``items`` names what it found (parameters, pose labels and markers)."""
+    """One check of a result.
+
+    Attributes
+    ----------
+    name : str
+        What is checked ("solver convergence", "accuracy in use", ...; docs/checks.md).
+    status : str
+        "pass", "warn" or "fail".
+    summary : str
+        What it found, with its figures.
+    cause : str
+        The likely cause of a warning or failure ("" when it passed).
+    fix : str
+        What to do about it ("" when it passed).
+    items : tuple of str
+        What it names: parameters, pose labels and markers.
+    """
 
     name: str
     status: str
@@ -119,6 +135,9 @@ class Check:
     cause: str = ""
     fix: str = ""
     items: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "items", tuple(self.items))
 
 
 @accepts(checks=each_a(Check))

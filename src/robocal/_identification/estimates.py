@@ -27,7 +27,21 @@ REGISTRATION_TOL = 1e-6
 
 @dataclass(frozen=True)
 class ErrorStats:
-    """Mean, standard deviation, RMS and maximum of ``n`` error norms (m or rad); None when n = 0."""
+    """Statistics of ``n`` error norms (m for positions, rad for rotations).
+
+    Attributes
+    ----------
+    n : int
+        How many norms (points measured).
+    mean : float or None
+        Their mean; None when n = 0 (likewise below).
+    std : float or None
+        Their standard deviation (n - 1 in the denominator; 0 for one norm).
+    rms : float or None
+        Their root mean square.
+    max : float or None
+        The largest.
+    """
 
     n: int
     mean: float | None
@@ -60,8 +74,25 @@ def error_stats(norms) -> ErrorStats:
 
 @dataclass(frozen=True)
 class ParameterEstimate:
-    """One identified parameter: its SI unit, the value the solve started from, the estimate and
-    its standard deviation."""
+    """One identified parameter (``change`` is the estimate less the nominal value).
+
+    Attributes
+    ----------
+    name : str
+        The parameter's name ("j2.alpha", "base.x", "tool.y").
+    unit : str
+        Its SI unit: "m", "rad" or "rad/(N m)".
+    nominal : float
+        The value the solve started from (the model's, or the registered base's), SI.
+    estimate : float
+        The identified value, SI.
+    std : float
+        The standard deviation of the estimate, SI.
+    family : str
+        Its family ("geometric", "compliance", "backlash", "base", "markers").
+    quantity : str
+        What it measures: "length", "angle" or "compliance".
+    """
 
     name: str
     unit: str

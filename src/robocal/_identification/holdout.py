@@ -26,6 +26,7 @@ from typing import cast
 
 import numpy as np
 
+from .._base.arrays import frozen
 from .._model.configurations import random_configurations, sampling_box
 from .._model.measurements import Measurements
 from .contact_blocks import ContactRows
@@ -54,7 +55,21 @@ WORKSPACE_SEED = 20240601
 
 @dataclass(frozen=True)
 class UseStats:
-    """Mean, RMS, 95th percentile and maximum of ``n`` error norms (m or rad); None when n = 0."""
+    """Statistics of ``n`` error norms in use (m for positions, rad for rotations).
+
+    Attributes
+    ----------
+    n : int
+        How many norms (points held out).
+    mean : float or None
+        Their mean; None when n = 0 (likewise below).
+    rms : float or None
+        Their root mean square.
+    p95 : float or None
+        Their 95th percentile.
+    max : float or None
+        The largest.
+    """
 
     n: int
     mean: float | None
@@ -362,15 +377,40 @@ def paired_excess(simple: np.ndarray, complex_: np.ndarray, mask: np.ndarray) ->
 class AccuracyInUse:
     """The accuracy a calibration predicts in use, before and after it, from poses not fitted.
 
-    ``method``: "validation" (a held-out set), "validation, base and tool registered on it", or
-    "cross-validation" (``folds`` folds, made as ``grouping`` says). ``position_before`` and
-    ``position_after``: statistics of the held-out position error norms (m) of the nominal model
-    (its base and tool registered on the fitted poses, as the calibration's) and of the calibrated
-    one; ``rotation_*`` the same for rotations (rad) or None; ``fit_after`` the calibrated model on
-    the fitted poses themselves. ``errors_before``/``errors_after`` (n_points,) the held-out norms.
-    Every figure is the robot's: the instrument's noise is taken out (``without_instrument``);
-    ``measured_after`` and ``measured_fit`` are the held-out and fitted errors as the instrument saw
-    them (what overfitting is judged on: the same noise in both).
+    Every figure is the robot's: the instrument's noise is taken out (``without_instrument``),
+    except in ``measured_after`` and ``measured_fit`` (what overfitting is judged on: the same
+    noise in both).
+
+    Attributes
+    ----------
+    method : str
+        "validation" (a held-out set), "validation, base and tool registered on it",
+        "cross-validation" or "held-out placements".
+    folds : int or None
+        The folds of the cross-validation; None with a held-out set.
+    grouping : str
+        How the held-out groups were made (consecutive poses, the file's series, placements).
+    position_before : UseStats
+        The held-out position error norms of the nominal model (its base and tool registered on
+        the fitted poses, as the calibration's), m.
+    position_after : UseStats
+        The same of the calibrated model, m.
+    rotation_before : UseStats or None
+        The held-out rotation error angles of the nominal model, rad; None for point data.
+    rotation_after : UseStats or None
+        The same of the calibrated model, rad; None for point data.
+    fit_after : UseStats
+        The calibrated model on the fitted poses themselves, m.
+    errors_before : numpy.ndarray
+        (n_points,) the held-out position error norms of the nominal model, m (read-only).
+    errors_after : numpy.ndarray
+        (n_points,) those of the calibrated model, m (read-only).
+    registration_only : bool
+        Only base and markers were identified: the robot's kinematics are the nominal ones.
+    measured_after : UseStats or None
+        The held-out errors after calibration as the instrument saw them, m.
+    measured_fit : UseStats or None
+        The fitted errors after calibration as the instrument saw them, m.
     """
 
     method: str
@@ -386,6 +426,10 @@ class AccuracyInUse:
     registration_only: bool = False
     measured_after: UseStats | None = None
     measured_fit: UseStats | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "errors_before", frozen(self.errors_before))
+        object.__setattr__(self, "errors_after", frozen(self.errors_after))
 
     @property
     def standard_error(self) -> float:
@@ -449,13 +493,23 @@ def accuracy_in_use(method: str, folds: int | None, grouping: str, before: HeldO
 class Coverage:
     """Where the calibration was measured, against where the robot can go.
 
-    ``joint_span`` (n_joints,) the measured span of each reading over its allowed span (limits; an
-    unbounded revolute joint one turn); ``joint_ranges`` ((lo, hi), ...) the measured readings (SI);
-    ``box`` ((xmin, ymin, zmin), (xmax, ymax, zmax)) the measured points (m, W); ``spread_ratio`` the
-    RMS spread of the measured points over that of the robot's points at random configurations within
-    the limits; ``uncertainty_measured`` and ``uncertainty_workspace`` the RMS position uncertainty
-    (m, one standard deviation as a norm) the parameters' covariance gives at the measured poses and
-    at those random configurations.
+    Attributes
+    ----------
+    joint_span : numpy.ndarray
+        (n_joints,) the measured span of each reading over its allowed span (limits; an unbounded
+        revolute joint one turn), read-only.
+    joint_ranges : tuple of (float, float)
+        (lo, hi) of each joint's measured readings, SI (rad, m).
+    box : tuple of two (float, float, float)
+        ((xmin, ymin, zmin), (xmax, ymax, zmax)) of the measured points, m, in W.
+    spread_ratio : float
+        The RMS spread of the measured points over that of the robot's points at random
+        configurations within the limits.
+    uncertainty_measured : float
+        The RMS position uncertainty (m, one standard deviation as a norm) the parameters'
+        covariance gives at the measured poses.
+    uncertainty_workspace : float
+        The same at those random configurations.
     """
 
     joint_span: np.ndarray
@@ -464,6 +518,9 @@ class Coverage:
     spread_ratio: float
     uncertainty_measured: float
     uncertainty_workspace: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "joint_span", frozen(self.joint_span))
 
     @property
     def extrapolation(self) -> float:

@@ -11,6 +11,7 @@ least squares on the kept columns gives the linear combination that absorbs it.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from typing import cast
 
@@ -32,6 +33,7 @@ from .._base.arguments import (
     shaped,
     whole,
 )
+from .._base.arrays import frozen_mapping
 from .._base.linalg import reduced, solve_upper
 from .._base.options import MAX_POSES
 from .._base.threads import one_blas_thread
@@ -74,10 +76,31 @@ class Absorption:
 class IdentifiabilityResult:
     """Outcome of the identifiability analysis.
 
-    ``identified`` and ``eliminated`` partition ``candidates``; ``singular_values`` are those of the
-    column-scaled Jacobian of the identified parameters; ``observability`` holds the indices O1..O5
-    of Borm-Menq and Nahvi-Hollerbach (O1 = geometric mean of singular values / sqrt(n_rows),
-    O2 = min/max, O3 = min, O4 = min^2/max, O5 = 1 / sum(1/sigma)).
+    Attributes
+    ----------
+    candidates : tuple of str
+        The parameters considered.
+    identified : tuple of str
+        Those identified; with ``eliminated`` they partition ``candidates``.
+    eliminated : tuple of Absorption
+        Those held at nominal, each with the combination of identified ones that absorbs it.
+    tol : float
+        The rank tolerance, relative to the largest singular value.
+    rank : int
+        The rank of the column-scaled Jacobian of the candidates.
+    condition_number : float
+        That of the column-scaled Jacobian of the identified parameters.
+    singular_values : tuple of float
+        Its singular values.
+    observability : Mapping
+        The indices O1..O5 of Borm-Menq and Nahvi-Hollerbach (O1 = geometric mean of singular
+        values / sqrt(n_rows), O2 = min/max, O3 = min, O4 = min^2/max, O5 = 1 / sum(1/sigma));
+        read-only.
+    n_rows : int
+        The rows (equations) of the Jacobian.
+    column_scale : Mapping
+        name -> the norm its Jacobian column was scaled by (the rows' units per unit of the
+        parameter); read-only.
     """
 
     candidates: tuple[str, ...]
@@ -87,9 +110,14 @@ class IdentifiabilityResult:
     rank: int
     condition_number: float
     singular_values: tuple[float, ...]
-    observability: dict
+    observability: Mapping[str, float]
     n_rows: int
-    column_scale: dict = field(default_factory=dict)
+    column_scale: Mapping[str, float] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "singular_values", tuple(self.singular_values))
+        object.__setattr__(self, "observability", frozen_mapping(self.observability))
+        object.__setattr__(self, "column_scale", frozen_mapping(self.column_scale))
 
     def status(self, name: str) -> str:
         """'I' identified, 'E' eliminated, '-' not considered."""
@@ -345,11 +373,10 @@ def theoretical_identifiability(model: RobotModel, parameters: tuple, known: tup
                                 tol: float, markers: tuple | None = None) -> IdentifiabilityResult:
     """What this robot's structure allows to identify with ``markers`` measured (default all), at
     random configurations (fixed seed). Made once per model object and arguments and kept with the
-    model; each call gets its own copy of the result's dictionaries (the rest is immutable)."""
+    model; every caller gets the same record, which nobody can change (its mappings are read-only)."""
     args = (parameters, known, orientation, tol, markers)
-    kept = model.derived((theoretical_identifiability, args), lambda: identifiability(
+    return model.derived((theoretical_identifiability, args), lambda: identifiability(
         model, None, parameters=parameters, known=known, orientation=orientation, tol=tol, rng=0, markers=markers))
-    return replace(kept, observability=dict(kept.observability), column_scale=dict(kept.column_scale))
 
 
 @one_blas_thread
@@ -539,10 +566,14 @@ class ContactIdentifiability:
     analysis: IdentifiabilityResult
     identified: tuple[str, ...]
     eliminated: tuple[Absorption, ...]
-    contributions: dict
+    contributions: Mapping[str, tuple[str, ...]]
     together: tuple[str, ...]
     unreachable: tuple[Unreachable, ...]
-    lost_without: dict = field(default_factory=dict)
+    lost_without: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "contributions", frozen_mapping(self.contributions))
+        object.__setattr__(self, "lost_without", frozen_mapping(self.lost_without))
 
 
 @dataclass(frozen=True, eq=False)
