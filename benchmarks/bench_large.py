@@ -43,8 +43,9 @@ def main(argv=None):
     t = time.perf_counter()
     result = rc.calibrate(m, data)
     elapsed = time.perf_counter() - t
+    solver = result.solver
     print(f"calibrate({args.poses} poses): {elapsed:.1f} s, peak {peak_mb():.0f} MB, {len(result.parameters)} "
-          f"parameters, nfev {result.nfev}, verdict {result.verdict}, sigma0 {result.sigma0 * 1e3:.4f} mm")
+          f"parameters, nfev {solver.nfev}, verdict {result.verdict}, sigma0 {solver.sigma0 * 1e3:.4f} mm")
     for c in result.checks:
         if c.status != "pass":
             print(f"check {c.name}: {c.status}, {c.summary}")

@@ -192,7 +192,7 @@ def test_without_lost_motion_backlash_is_found_zero_and_the_comparison_says_it_d
         cmp = rc.compare(m, fit, validation=val, backlash=True)
     est = [e for e in cmp.backlash.parameters if e.family == "backlash"]
     assert len(est) >= 4 and all(abs(e.estimate) < 3 * e.std for e in est), [(e.name, e.estimate / e.std) for e in est]
-    assert not cmp.backlash_helped and "backlash did not help" in cmp.verdict
+    assert not cmp.backlash_test.helped and "backlash did not help" in cmp.verdict
     assert cmp.best is not cmp.backlash
     assert list(cmp.results) == ["geometric", "geometric and compliance", "geometric, compliance and backlash"]
 

@@ -38,7 +38,7 @@ def test_recovers_parameters_within_three_reported_std(make):
     design = select_poses(m, 48, rng=0).q
     true, fit, val = _campaign(m, design, 0)
     res = rc.calibrate(m, fit, validation=val)
-    assert res.success
+    assert res.solver.success
     z = z_scores(res, true, m)
     assert np.all(np.abs(z) < 3), dict(zip(res.parameter_names, z.round(2)))
     assert res.stats.validation_before.rms > 20 * _noise_floor(true, val)
@@ -133,7 +133,7 @@ def test_robust_loss_resists_outliers():
     assert plain.verdict == "warn" and outliers.status == "warn"
     assert {item.split(",")[0] for item in outliers.items} == {data.labels[i] for i in range(0, 80, 10)}
     refit = rc.calibrate(m, bad)
-    assert refit.loss == "linear" and refit.verdict == "warn" and any("set aside" in n for n in refit.notes)
+    assert refit.solver.loss == "linear" and refit.verdict == "warn" and any("set aside" in n for n in refit.notes)
     deleted = rc.calibrate(m, data.subset(np.arange(80) % 10 != 0))
     np.testing.assert_allclose([e.estimate for e in refit.parameters], [e.estimate for e in deleted.parameters],
                                rtol=0, atol=1e-6 * max(e.std for e in deleted.parameters))
@@ -144,7 +144,7 @@ def test_closed_form_registration_needs_no_base_guess():
     true, data = rc.simulate(m, 48, noise=NOISE, seed=9)
     blind = m.replace(base_position=(0.0, 0.0, 0.0), base_rotation=((1.0, 0, 0), (0, 1.0, 0), (0, 0, 1.0)))
     res = rc.calibrate(blind, data, initial_base="register")
-    assert res.success and res.stats.fit_after.rms < 2 * np.sqrt(3) * NOISE
+    assert res.solver.success and res.stats.fit_after.rms < 2 * np.sqrt(3) * NOISE
     np.testing.assert_allclose(res.calibrated_model.base_position, true.base_position, atol=1e-4)
 
 
@@ -153,7 +153,7 @@ def test_non_convergence_is_reported():
     _, data = rc.simulate(m, 48, seed=1)
     with pytest.warns(rc.ConvergenceWarning):
         res = rc.calibrate(m, data, max_nfev=1)
-    assert not res.success and res.status == 0
+    assert not res.solver.success and res.solver.status == 0
 
 
 def test_validation_without_data_keeps_fields_present():
@@ -162,10 +162,10 @@ def test_validation_without_data_keeps_fields_present():
     with warnings.catch_warnings():
         warnings.simplefilter("error")          # a clean campaign raises no warning
         res = rc.calibrate(m, data)
-    assert res.verdict == "pass" and res.validation_after is None and res.validation_before is None
+    assert res.verdict == "pass" and res.validation is None
     assert res.stats.validation_after.n == 0 and res.stats.validation_after.mean is None
-    assert res.rotation_stats is None and res.rotation_errors_after is None      # point data
-    assert res.readings.shape == (40, 6) and res.errors_after.shape == (40, 1)
+    assert res.rotation_stats is None and res.fit.rotation_errors_after is None      # point data
+    assert res.fit.readings.shape == (40, 6) and res.fit.errors_after.shape == (40, 1)
     np.testing.assert_allclose(np.diag(res.correlation), 1.0)
 
 
@@ -188,11 +188,11 @@ def test_a_campaign_solved_in_chunks_gives_the_in_memory_answer(monkeypatch):
         monkeypatch.setattr(module, "CHUNK_POSES", 70)
     assert Problem(m, whole.parameter_names, data=data, compliance=False).chunked
     chunked = rc.calibrate(m, data)
-    assert chunked.parameter_names == whole.parameter_names and chunked.success
+    assert chunked.parameter_names == whole.parameter_names and chunked.solver.success
     est = [np.array([(e.estimate, e.std) for e in r.parameters]) for r in (chunked, whole)]
     np.testing.assert_allclose(est[0], est[1], rtol=1e-9, atol=1e-15)
-    np.testing.assert_allclose(chunked.errors_after, whole.errors_after, rtol=1e-9, atol=1e-15)
-    np.testing.assert_allclose(chunked.errors_before, whole.errors_before, rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(chunked.fit.errors_after, whole.fit.errors_after, rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(chunked.fit.errors_before, whole.fit.errors_before, rtol=1e-9, atol=1e-15)
     assert chunked.identifiability.observability == pytest.approx(whole.identifiability.observability, rel=1e-9)
     fk_chunked = rc.forward_kinematics(m, q)
     np.testing.assert_allclose(fk_chunked.positions, fk.positions, rtol=0, atol=1e-15)

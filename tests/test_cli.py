@@ -88,7 +88,7 @@ def test_calibrate_semicolon_decimal_comma_missing_marker(tmp_path, cli):
     assert result["stats"]["fit_after"]["rms"] < 1e-4
     # the result says which pose of the file each row of its errors is
     assert result["provenance"]["data"]["labels"] == [f"P{i}" for i in range(data.n_poses)]
-    assert rc.read_result(tmp_path / "o" / "result.json").errors_after.shape[0] == data.n_poses
+    assert rc.read_result(tmp_path / "o" / "result.json").fit.errors_after.shape[0] == data.n_poses
 
 
 def test_calibrate_validation_file_and_limit(campaign, cli):
@@ -103,7 +103,7 @@ def test_calibrate_validation_file_and_limit(campaign, cli):
     assert result["provenance"]["validation"]["n_poses"] == 10
     assert result["provenance"]["validation"]["labels"] == list(rc.read_measurements(d / "val.csv", model).labels)
     stored = rc.read_result(d / "run" / "result.json")
-    assert len(result["provenance"]["validation"]["labels"]) == stored.validation_after.shape[0] == 10
+    assert len(result["provenance"]["validation"]["labels"]) == stored.validation.errors_after.shape[0] == 10
     assert not any(p["name"].startswith("tool.") for p in result["parameters"])
 
 

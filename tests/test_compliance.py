@@ -63,7 +63,7 @@ def test_compliance_is_recovered_and_helps(design):
     z = dict(zip(cmp.combined.parameter_names, z_scores(cmp.combined, true, m)))
     z = {n: v for n, v in z.items() if cmp.combined.estimate(n).family == "compliance"}
     assert len(z) >= 10 and all(abs(v) < 3 for v in z.values()), z
-    assert cmp.helped and cmp.verdict.startswith("compliance helped")
+    assert cmp.compliance_test.helped and cmp.verdict.startswith("compliance helped")
     assert cmp.best is cmp.combined
 
 
@@ -85,7 +85,7 @@ def test_zero_compliance_is_found_zero_and_reported_useless(design):
     cmp = rc.compare(m, fit, validation=val)
     k = {e.name: e for e in cmp.combined.parameters if ".k_" in e.name}
     assert all(abs(e.estimate) < 3 * e.std for e in k.values()), {n: e.estimate / e.std for n, e in k.items()}
-    assert not cmp.helped and cmp.verdict.startswith("compliance did not help")
+    assert not cmp.compliance_test.helped and cmp.verdict.startswith("compliance did not help")
     assert cmp.best is cmp.geometric
 
 

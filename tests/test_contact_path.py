@@ -51,7 +51,7 @@ def test_a_contact_calibration_is_a_calibration_result_that_reads_back_whole(arm
     _, c, _ = kit
     res = _quiet(rc.calibrate, arm7, contacts=c)
     assert isinstance(res, rc.CalibrationResult) and res.contacts is not None
-    assert res.errors_before.shape == (0, 1) and res.stats["fit_after"].n == 0    # no measured point fitted
+    assert res.fit.errors_before.shape == (0, 1) and res.stats.fit_after.n == 0    # no measured point fitted
     # its accuracy in use: the socket consistency of each placement predicted by the others
     assert res.in_use.grouping == "each placement predicted by the others" and res.in_use.folds == 4
     assert res.in_use.position_after.mean == pytest.approx(res.contacts.held_out.consistency_mean, rel=1e-12)
@@ -72,7 +72,7 @@ def test_a_contact_calibration_is_a_calibration_result_that_reads_back_whole(arm
     assert [u.name for u in b.identifiability.unreachable] == ["base"]
     assert [u.name for u in a.identifiability.unreachable] == ["base"]
     assert b.nuisance == a.nuisance and b.weak == a.weak and b.rows == a.rows == {"socket": 120, "distance": 12}
-    assert b.residual_dof == a.residual_dof > 0
+    assert back.solver.residual_dof == res.solver.residual_dof > 0
     assert back.in_use.position_after.mean == res.in_use.position_after.mean and back.verdict == res.verdict
     from robocal.report import render_report
 
@@ -149,7 +149,7 @@ def test_f_scale_sets_where_a_robust_loss_bends_on_contact_rows(arm7, kit):
         return float(np.max(np.abs(np.array([p.estimate - e.estimate for p, e in zip(r.parameters, clean.parameters)])
                                    / std)))
 
-    assert runs[1.0].loss == runs[1e4].loss == "soft_l1"
+    assert runs[1.0].solver.loss == runs[1e4].solver.loss == "soft_l1"
     assert off(runs[1.0]) < 3 and off(runs[1e4]) > 10 * off(runs[1.0]), (off(runs[1.0]), off(runs[1e4]))
 
 
@@ -181,7 +181,7 @@ def test_measured_points_judge_a_contact_calibration_in_use(cli, arm7, kit, tmp_
     use = back.in_use
     assert use.method == "validation, base and tool registered on it" and use.position_after.n == 30
     assert use.position_after.mean < use.position_before.mean / 20
-    assert back.validation_after.shape == (30, 1) and back.stats["validation_after"].n == 30
+    assert back.validation.errors_after.shape == (30, 1) and back.stats.validation_after.n == 30
     assert "accuracy in use" in {c.name for c in back.checks}
     from robocal._presentation.units import fmt
     from robocal.report import render_report

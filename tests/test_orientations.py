@@ -154,7 +154,7 @@ def test_wrong_orientation_convention_is_a_misfit(six_d, written, declared):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", rc.MisfitWarning)  # once calibrate warns itself
         result = rc.calibrate(m, wrong)
-    assert result.success  # the solver alone does not notice
+    assert result.solver.success  # the solver alone does not notice
     notes = notes_for(result, wrong)
     assert len(notes) == 1 and "orientation convention" in notes[0] and "degrees RMS" in notes[0]
 

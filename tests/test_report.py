@@ -759,13 +759,14 @@ def test_summary_error_columns_stay_apart_past_999_mm():
     from robocal._identification.estimates import ErrorStats
     from robocal._presentation.text import stats_lines
 
-    big = {"fit_before": ErrorStats(36, 3.252, 1.06, 3.4, 12.5), "fit_after": ErrorStats(36, 4e-4, 2e-4, 5e-4, 1e-3),
-           "validation_before": ErrorStats(12, 1.0004, 0.998, 1.5, 2.75),
-           "validation_after": ErrorStats(0, None, None, None, None)}
+    big = rc.ErrorSummary(fit_before=ErrorStats(36, 3.252, 1.06, 3.4, 12.5),
+                          fit_after=ErrorStats(36, 4e-4, 2e-4, 5e-4, 1e-3),
+                          validation_before=ErrorStats(12, 1.0004, 0.998, 1.5, 2.75),
+                          validation_after=ErrorStats(0, None, None, None, None))
     lines = stats_lines(big)
     head = lines[0]
     for line, key in zip(lines[1:], ("fit_before", "fit_after", "validation_before")):
-        s = big[key]
+        s = getattr(big, key)
         cells = line[24:].split()  # after the row label: n and four numbers, each its own word
         assert [int(cells[0])] + [float(c) for c in cells[1:]] == pytest.approx(
             [s.n] + [v * 1e3 for v in (s.mean, s.std, s.rms, s.max)], abs=5e-4)

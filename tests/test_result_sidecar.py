@@ -24,9 +24,8 @@ def run(tmp_path_factory):
     return d / "o"
 
 
-ARRAYS = ("errors_before", "errors_after", "residual_vectors", "measured_positions", "readings",
-          "validation_before", "validation_after", "validation_residual_vectors", "validation_positions",
-          "validation_readings")
+ARRAYS = tuple((which, name) for which in ("fit", "validation")
+               for name in ("errors_before", "errors_after", "residual_vectors", "measured_positions", "readings"))
 
 
 def test_the_json_holds_no_per_pose_array_and_reads_back_whole(run):
@@ -35,11 +34,11 @@ def test_the_json_holds_no_per_pose_array_and_reads_back_whole(run):
     assert d["errors"]["file"]["name"] == "result.npz" and d["errors"]["file"]["n_fit"] > 0
     result = rc.read_result(run / "result.json")
     inline = rc.io.result_from_dict(result_to_dict(result))
-    for name in ARRAYS:
-        a, b = getattr(result, name), getattr(inline, name)
-        assert a is not None and a.shape[0] > 0 and np.array_equal(a, b, equal_nan=True), name
+    for which, name in ARRAYS:
+        a, b = getattr(getattr(result, which), name), getattr(getattr(inline, which), name)
+        assert a is not None and a.shape[0] > 0 and np.array_equal(a, b, equal_nan=True), (which, name)
     with np.load(run / "result.npz", allow_pickle=False) as z:
-        assert np.array_equal(z["fit_after"], result.errors_after)
+        assert np.array_equal(z["fit_after"], result.fit.errors_after)
 
 
 def test_the_json_does_not_grow_with_the_campaign(run):
@@ -59,7 +58,7 @@ def test_left_out_on_request(run, tmp_path):
     rc.write_result(result, tmp_path / "r.json", per_pose=False)
     assert [p.name for p in tmp_path.iterdir()] == ["r.json"]
     back = rc.read_result(tmp_path / "r.json")
-    assert back.errors_after.shape == (0, 1) and back.stats["fit_after"].n == result.stats["fit_after"].n
+    assert back.fit.errors_after.shape == (0, 1) and back.stats.fit_after.n == result.stats.fit_after.n
 
 
 @pytest.mark.parametrize("spoil, words", [

@@ -87,7 +87,7 @@ def test_torso_recovers_identifiable_parameters():
     assert data.mask.all()  # both markers in every row
     result = rc.calibrate(m, data)
     names = result.parameter_names
-    assert result.success and len(names) == 44
+    assert result.solver.success and len(names) == 44
     assert {"r1.gamma", "l4.d", "l4.alpha", "base.rz"} <= set(names)
     z = z_scores(result, true, m)
     assert np.abs(z).max() < 3.0, dict(zip(names, z.round(2)))
@@ -152,7 +152,7 @@ def test_far_base_converges_from_registration():
     true, data = rc.simulate(placed, 60, noise=NOISE, seed=5)
     nominal = m.replace(base_position=(0.0, 0.0, 0.0), base_rotation=((1.0, 0, 0), (0, 1.0, 0), (0, 0, 1.0)))
     result = rc.calibrate(nominal, data, initial_base="register")
-    assert result.success
+    assert result.solver.success
     # "before" is the nominal geometry with its base registered too: the robot's own error, not the guess's
     assert result.stats.fit_before.mean < 0.01 and any("base and markers fitted" in n for n in result.notes)
     assert result.stats.fit_after.rms < 2.5 * NOISE * np.sqrt(3)

@@ -169,8 +169,8 @@ def figures(cmp, in_use):
     rows = {}
     for key, res in (("before", None), *cmp.results.items()):
         r = cmp.geometric if res is None else res
-        fit = r.stats["fit_before" if res is None else "fit_after"]
-        val = r.stats["validation_before" if res is None else "validation_after"]
+        fit = r.stats.fit_before if res is None else r.stats.fit_after
+        val = r.stats.validation_before if res is None else r.stats.validation_after
         rows[key] = {"fit": (fit.mean, fit.std), "held_out": (val.mean, val.std),
                      "in_use": (float(in_use[key].mean()), float(in_use[key].std(ddof=1)))}
     return rows

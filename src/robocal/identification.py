@@ -23,12 +23,21 @@ from ._identification.identifiability import (
 )
 from ._identification.points import Points, design_problem
 from ._identification.problem import ROW_KINDS, Problem, Solvable
-from ._identification.result import CalibrationResult, Comparison, ErrorSummary, LimitJudgement
+from ._identification.result import (
+    CalibrationResult,
+    Comparison,
+    ErrorSummary,
+    LimitJudgement,
+    NestedTest,
+    PoseSet,
+    SolverRecord,
+)
 from ._identification.solve import Covariance, Solution, covariance, solve
 from ._model.measurements import Noise
 
 __all__ = ["calibrate", "compare", "register_base", "error_stats", "CalibrationResult", "Comparison",
-           "ParameterEstimate", "ErrorStats", "ErrorSummary", "LimitJudgement", "Check", "verdict", "outlier_check",
+           "ParameterEstimate", "ErrorStats", "ErrorSummary", "LimitJudgement", "SolverRecord", "PoseSet",
+           "NestedTest", "Check", "verdict", "outlier_check",
            "outlier_bar", "Noise",
            "identifiability", "analyse", "weakly_identifiable", "status_table", "Absorption",
            "IdentifiabilityResult", "Problem", "Points", "Solvable", "design_problem", "solve", "Solution",

@@ -29,8 +29,9 @@ def _errors_dict(e: ContactErrors | None) -> dict | None:
             **{key: getattr(e, name) for key, name in _SUMMARIES}}
 
 
-def contacts_to_dict(c: ContactFigures | None) -> dict | None:
-    """The file form of a result's ``contacts`` (None without contacts)."""
+def contacts_to_dict(c: ContactFigures | None, residual_dof: float) -> dict | None:
+    """The file form of a result's ``contacts`` (None without contacts); ``residual_dof`` the fit's
+    (the solver's), stored with them."""
     if c is None:
         return None
     ident = c.identifiability
@@ -44,7 +45,7 @@ def contacts_to_dict(c: ContactFigures | None) -> dict | None:
         **{key: _errors_dict(getattr(c, name)) for key, name in _SETS},
         "noise_ratio": dict(c.noise_ratio),
         "weak": [{"name": n, "predicted_std": s} for n, s in c.weak], "weak_kept": c.weak_kept,
-        "residual_dof": c.residual_dof,
+        "residual_dof": residual_dof,
     }
 
 
@@ -123,5 +124,12 @@ def contacts_from_dict(doc, d: dict | None, identifiability: IdentifiabilityResu
     return ContactFigures(identifiability=ident, nuisance=nuisance, fit_before=fit_before, fit_after=fit_after, **sets,
                           noise_ratio=_numbers(doc, doc.get(d, "noise_ratio", w, dict), f"{w}.noise_ratio"),
                           weak=tuple(weak), weak_kept=doc.get(d, "weak_kept", w, bool), rows=rows,
-                          source=doc.get(d, "source", w, str),
-                          residual_dof=doc.get(d, "residual_dof", w, float, optional=True) or 0.0)
+                          source=doc.get(d, "source", w, str))
+
+
+def contact_residual_dof(doc, d: dict | None) -> float:
+    """The fit's residual degrees of freedom a result file's ``contacts`` holds (0 without them, or
+    in a file written before they were stored)."""
+    if d is None:
+        return 0.0
+    return doc.get(d, "residual_dof", "contacts", float, optional=True) or 0.0

@@ -13,8 +13,9 @@ import io
 import json
 import math
 import zipfile
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -33,9 +34,9 @@ from .._identification.checks import STATUSES, Check
 from .._identification.estimates import ErrorStats, ParameterEstimate
 from .._identification.holdout import AccuracyInUse, Coverage, UseStats
 from .._identification.identifiability import Absorption, IdentifiabilityResult, status_table
-from .._identification.result import CalibrationResult, ErrorSummary, LimitJudgement
+from .._identification.result import CalibrationResult, ErrorSummary, LimitJudgement, PoseSet, SolverRecord
 from .._model.parameters import parameter_layout
-from .contact_result import contacts_from_dict, contacts_to_dict
+from .contact_result import contact_residual_dof, contacts_from_dict, contacts_to_dict
 from .measurements import MAX_MAGNITUDE
 from .model import model_from_dict, model_to_dict
 from .text import MAX_FILE_BYTES, load_json, read_bytes, read_text, write_texts
@@ -46,10 +47,10 @@ LIMIT_SCHEMA = "robocal.limit/1"
 
 
 def plain(obj):
-    """JSON-ready copy: numpy types to Python, NaN and infinities to null."""
+    """JSON-ready copy: numpy types to Python, mappings to dicts, NaN and infinities to null."""
     if isinstance(obj, str):
         return obj
-    if isinstance(obj, dict):
+    if isinstance(obj, Mapping):
         return {str(k): plain(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
         if all(type(v) is str for v in obj):    # pose labels: a million of them in a large campaign
@@ -83,31 +84,37 @@ def identifiability_to_dict(ident: IdentifiabilityResult) -> dict:
             "n_rows": ident.n_rows}
 
 
-# result.json "errors" key -> CalibrationResult field (fitted poses first, then held-out ones)
-_ERROR_ARRAYS = (
-    ("fit_before", "errors_before"), ("fit_after", "errors_after"), ("fit_residual_vectors", "residual_vectors"),
-    ("fit_positions", "measured_positions"), ("fit_readings", "readings"),
-    ("fit_rotation_before", "rotation_errors_before"), ("fit_rotation_after", "rotation_errors_after"),
-    ("validation_before", "validation_before"), ("validation_after", "validation_after"),
-    ("validation_residual_vectors", "validation_residual_vectors"), ("validation_positions", "validation_positions"),
-    ("validation_readings", "validation_readings"), ("validation_rotation_before", "rotation_validation_before"),
-    ("validation_rotation_after", "rotation_validation_after"),
-)
+# result.json "errors" key "{set}_{part}": the set (the result's ``fit`` or ``validation``), and
+# each part's ``PoseSet`` field; fitted poses first, then held-out ones
+_SETS = ("fit", "validation")
+_PARTS = (("before", "errors_before"), ("after", "errors_after"), ("residual_vectors", "residual_vectors"),
+          ("positions", "measured_positions"), ("readings", "readings"),
+          ("rotation_before", "rotation_errors_before"), ("rotation_after", "rotation_errors_after"))
+_ERROR_ARRAYS = tuple((f"{which}_{part}", which, field) for which in _SETS for part, field in _PARTS)
 
 
 def _stats_dict(s: ErrorStats) -> dict:
     return {"n": s.n, "mean": s.mean, "std": s.std, "rms": s.rms, "max": s.max}
 
 
+def _summary_dict(summary: ErrorSummary) -> dict:
+    return {k: _stats_dict(getattr(summary, k)) for k in ErrorSummary.KEYS}
+
+
 def _array(a):
     return None if a is None else np.where(np.isfinite(a), a, np.nan).tolist()
+
+
+def _pose_arrays(result: CalibrationResult) -> dict[str, np.ndarray | None]:
+    """Every per-pose array under its key of ``errors``, None where the result holds none."""
+    sets = {"fit": result.fit, "validation": result.validation}
+    return {key: None if sets[which] is None else getattr(sets[which], field) for key, which, field in _ERROR_ARRAYS}
 
 
 def per_pose_arrays(result: CalibrationResult) -> dict[str, np.ndarray]:
     """The per-pose arrays of ``result`` under their keys of ``errors`` (the sidecar's names), as
     float arrays; those the result does not hold are left out."""
-    return {key: np.asarray(getattr(result, field), dtype=float) for key, field in _ERROR_ARRAYS
-            if getattr(result, field) is not None}
+    return {key: np.asarray(a, dtype=float) for key, a in _pose_arrays(result).items() if a is not None}
 
 
 @accepts(result=is_a(CalibrationResult), per_pose=FLAG)
@@ -124,22 +131,21 @@ def result_to_dict(result: CalibrationResult, *, per_pose: bool = True) -> dict:
     dict
         The result as its JSON file holds it.
     """
-    lim = result.limit
+    lim, solver = result.limit, result.solver
     return {
         "schema": SCHEMA,
-        "success": result.success, "status": result.status, "message": result.message, "nfev": result.nfev,
-        "families": list(result.families), "loss": result.loss, "sigma0_m": result.sigma0,
+        "success": solver.success, "status": solver.status, "message": solver.message, "nfev": solver.nfev,
+        "families": list(result.families), "loss": solver.loss, "sigma0_m": solver.sigma0,
         "parameters": [{"name": p.name, "unit": p.unit, "family": p.family, "quantity": p.quantity,
                         "nominal": p.nominal, "estimate": p.estimate, "change": p.change, "std": p.std}
                        for p in result.parameters],
         "correlation": result.correlation.tolist(), "covariance": result.covariance.tolist(),
         "identifiability": identifiability_to_dict(result.identifiability),
         "identifiability_table": status_table(result.identifiability, result.nominal_model.frame_names),
-        "stats": {**{k: _stats_dict(result.stats[k]) for k in ErrorSummary.KEYS},
-                  "rotation": None if result.rotation_stats is None else
-                  {k: _stats_dict(result.rotation_stats[k]) for k in ErrorSummary.KEYS}},
+        "stats": {**_summary_dict(result.stats),
+                  "rotation": None if result.rotation_stats is None else _summary_dict(result.rotation_stats)},
         "errors": {"unit": "m", "rotation_unit": "rad", "markers": list(result.nominal_model.marker_names),
-                   **({key: _array(getattr(result, field)) for key, field in _ERROR_ARRAYS} if per_pose else {})},
+                   **({key: _array(a) for key, a in _pose_arrays(result).items()} if per_pose else {})},
         "notes": list(result.notes),
         "verdict": result.verdict,
         "checks": [{"name": c.name, "status": c.status, "summary": c.summary, "cause": c.cause, "fix": c.fix,
@@ -149,8 +155,8 @@ def result_to_dict(result: CalibrationResult, *, per_pose: bool = True) -> dict:
                                            "reached": lim.reached},
         "in_use": in_use_to_dict(result.in_use),
         "coverage": coverage_to_dict(result.coverage),
-        "contacts": contacts_to_dict(result.contacts),
-        "provenance": result.provenance,
+        "contacts": contacts_to_dict(result.contacts, result.solver.residual_dof),
+        "provenance": plain(result.provenance),
         "nominal_model": model_to_dict(result.nominal_model),
         "calibrated_model": model_to_dict(result.calibrated_model),
     }
@@ -282,8 +288,8 @@ def result_files(result: CalibrationResult, path, *, per_pose: bool = True, diag
     d = result_to_dict(result, per_pose=False)
     if diagnosis is not None:
         d["diagnosis"] = diagnosis_to_dict(diagnosis)
-    counts = {"n_fit": int(result.errors_before.shape[0]),
-              "n_validation": None if result.validation_before is None else int(result.validation_before.shape[0])}
+    counts = {"n_fit": int(result.fit.errors_before.shape[0]),
+              "n_validation": None if result.validation is None else int(result.validation.errors_before.shape[0])}
     if not per_pose:
         d["errors"]["file"] = None
         d["errors"].update(counts)
@@ -402,6 +408,14 @@ def _stats(doc: _Doc, d: dict, where: str = "stats") -> ErrorSummary:
     return ErrorSummary(**parts)
 
 
+def _solver(doc: _Doc, d: dict) -> SolverRecord:
+    """The solver's record; its residual degrees of freedom are stored with contacts only (else 0)."""
+    dof = contact_residual_dof(doc, doc.get(d, "contacts", "", dict, optional=True))
+    return SolverRecord(success=doc.get(d, "success", "", bool), status=doc.get(d, "status", "", int),
+                        message=doc.get(d, "message", "", str), nfev=doc.get(d, "nfev", "", int),
+                        loss=doc.get(d, "loss", "", str), sigma0=doc.get(d, "sigma0_m", "", float), residual_dof=dof)
+
+
 def _limit_judgement(doc: _Doc, d: dict | None) -> LimitJudgement | None:
     if d is None:
         return None
@@ -489,12 +503,13 @@ def _sidecar(doc: _Doc, d: dict, folder: Path | None) -> dict | None:
     return out
 
 
-def _errors(doc: _Doc, d: dict, n_markers: int, n_joints: int, folder: Path | None = None) -> dict:
-    """The per-point arrays (inline, or in the sidecar ``errors.file``); every set's arrays agree in
-    their number of poses."""
+def _errors(doc: _Doc, d: dict, n_markers: int, n_joints: int, folder: Path | None = None
+            ) -> tuple[PoseSet, PoseSet | None]:
+    """The fitted and held-out poses' arrays (inline, or in the sidecar ``errors.file``); every
+    set's arrays agree in their number of poses."""
     stored = _sidecar(doc, d, folder)
     if stored is not None:
-        known = {key for key, _ in _ERROR_ARRAYS}
+        known = {key for key, _, _ in _ERROR_ARRAYS}
         extra = sorted(set(stored) - known)
         if extra:
             raise doc.error("errors.file", f"the per-pose file holds an unknown array {excerpt(extra[0])}")
@@ -508,13 +523,13 @@ def _errors(doc: _Doc, d: dict, n_markers: int, n_joints: int, folder: Path | No
     required = {"fit_before", "fit_after", "fit_residual_vectors"}
     out: dict[str, np.ndarray | None] = {}
     n_poses: dict[str, int] = {}
-    for key, field in _ERROR_ARRAYS:
-        which, part = key.split("_", 1)
+    for key, which, _ in _ERROR_ARRAYS:
+        part = key.removeprefix(f"{which}_")
         value = d.get(key) if stored is not None else doc.get(d, key, "errors", list, optional=key not in required)
         if value is None and key in required:
             raise doc.error(f"errors.{key}", "missing array")
         if value is None:
-            out[field] = None
+            out[key] = None
             continue
         a = doc.array(value, f"errors.{key}", (n_poses.get(which),) + shapes[part])
         far = np.abs(a) > MAX_MAGNITUDE  # NaN compares False: a point not measured
@@ -522,13 +537,17 @@ def _errors(doc: _Doc, d: dict, n_markers: int, n_joints: int, folder: Path | No
             raise doc.error(f"errors.{key}", f"{a[far].flat[0]:g} is beyond any error, position or reading "
                                              f"(magnitude up to {MAX_MAGNITUDE:g}, SI)")
         n_poses.setdefault(which, a.shape[0])
-        out[field] = a
-    residuals = out["residual_vectors"]
-    if out["measured_positions"] is None and residuals is not None:   # residuals are required
-        out["measured_positions"] = np.full(residuals.shape, np.nan)
-    if (out["validation_before"] is None) != (out["validation_after"] is None):
-        raise doc.error("errors", "validation_before and validation_after must both be given or both be null")
-    return out
+        out[key] = a
+    if out["fit_positions"] is None:
+        out["fit_positions"] = np.full(cast(np.ndarray, out["fit_residual_vectors"]).shape, np.nan)
+    held = [key for key, which, _ in _ERROR_ARRAYS if which == "validation" and out[key] is not None]
+    if held and (out["validation_before"] is None or out["validation_after"] is None):
+        raise doc.error("errors", "validation_before and validation_after must both be given or both be null (and "
+                                  "null with every other validation array)")
+    def pose_set(which: str) -> PoseSet:
+        return PoseSet(**cast("dict[str, Any]", {field: out[key] for key, w, field in _ERROR_ARRAYS if w == which}))
+
+    return pose_set("fit"), pose_set("validation") if held else None
 
 
 @accepts(source=TEXT, folder=optional(PATH))
@@ -564,17 +583,15 @@ def result_from_dict(d, *, source: str = "<dict>", folder=None) -> CalibrationRe
     stats = doc.get(d, "stats", "", dict)
     rotation = doc.get(stats, "rotation", "stats", dict, optional=True)
     ident = _identifiability(doc, doc.get(d, "identifiability", "", dict))
+    fit, validation = _errors(doc, errors, len(markers), nominal.n_joints, None if folder is None else Path(folder))
     return CalibrationResult(
         nominal_model=nominal, calibrated_model=calibrated, parameters=params,
         covariance=doc.array(doc.get(d, "covariance", "", list), "covariance", (k, k)),
         correlation=doc.array(doc.get(d, "correlation", "", list), "correlation", (k, k)),
-        identifiability=ident, contacts=contacts_from_dict(doc, doc.get(d, "contacts", "", dict, optional=True), ident),
+        identifiability=ident, solver=_solver(doc, d),
+        families=doc.strings(doc.get(d, "families", "", list), "families"), fit=fit, validation=validation,
         stats=_stats(doc, stats), rotation_stats=None if rotation is None else _stats(doc, rotation, "stats.rotation"),
-        **_errors(doc, errors, len(markers), nominal.n_joints, None if folder is None else Path(folder)),
-        success=doc.get(d, "success", "", bool), status=doc.get(d, "status", "", int),
-        message=doc.get(d, "message", "", str), nfev=doc.get(d, "nfev", "", int),
-        sigma0=doc.get(d, "sigma0_m", "", float),
-        families=doc.strings(doc.get(d, "families", "", list), "families"), loss=doc.get(d, "loss", "", str),
+        contacts=contacts_from_dict(doc, doc.get(d, "contacts", "", dict, optional=True), ident),
         notes=doc.strings(doc.get(d, "notes", "", list), "notes"),
         limit=_limit_judgement(doc, doc.get(d, "limit", "", dict, optional=True)),
         checks=_checks(doc, doc.get(d, "checks", "", list, optional=True) or []),

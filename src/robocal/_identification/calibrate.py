@@ -45,7 +45,7 @@ from .judgement import (
     warn_checks,
 )
 from .registration import rigid_base
-from .result import CalibrationResult, Comparison
+from .result import CalibrationResult, Comparison, NestedTest
 from .solve import covariance
 from .steps import Options, analyse, choose, prepare, registered_nominal
 
@@ -240,12 +240,13 @@ def register_base(model: RobotModel, data: Measurements) -> RobotModel:
     return rigid_base(model, data)
 
 
-def _nested_test(small: CalibrationResult, large: CalibrationResult, validation, alpha: float, what: str):
-    """F test of ``large`` against ``small`` nested in it, and the held-out RMS: (F, p, helped, verdict)."""
+def _nested_test(small: CalibrationResult, large: CalibrationResult, validation, alpha: float,
+                 what: str) -> NestedTest:
+    """F test of ``large`` against ``small`` nested in it, and the held-out RMS."""
     from scipy.stats import f as f_dist
 
-    dof1, dof2 = small.residual_dof, large.residual_dof
-    ssr1, ssr2 = small.sigma0 ** 2 * dof1, large.sigma0 ** 2 * dof2
+    dof1, dof2 = small.solver.residual_dof, large.solver.residual_dof
+    ssr1, ssr2 = small.solver.sigma0 ** 2 * dof1, large.solver.sigma0 ** 2 * dof2
     dfn, dfd = max(dof1 - dof2, 1), dof2
     F = max((ssr1 - ssr2) / dfn, 0.0) / (ssr2 / dfd)
     p_value = float(f_dist.sf(F, dfn, dfd))
@@ -253,7 +254,7 @@ def _nested_test(small: CalibrationResult, large: CalibrationResult, validation,
     if small.in_use is None or large.in_use is None:    # contacts of one placement: nothing held out
         verdict = (f"{what} not judged in use: no placement held out, the simpler identification is kept; "
                    f"F = {F:.3g}, p = {p_value:.2g}")
-        return float(F), p_value, False, verdict
+        return NestedTest(float(F), p_value, False, verdict)
     v1, v2 = cast(float, small.in_use.position_after.rms), cast(float, large.in_use.position_after.rms)
     helped = p_value < alpha and v2 < v1
     kind = "held-out" if validation is not None else "cross-validated"
@@ -263,7 +264,7 @@ def _nested_test(small: CalibrationResult, large: CalibrationResult, validation,
     detail = f"{kind} RMS {v1 * 1e3:.4f} mm -> {v2 * 1e3:.4f} mm"
     verdict = (f"{what} helped: {detail}; F = {F:.3g}, p = {p_value:.2g}" if helped else
                f"{what} did not help: {detail}; F = {F:.3g}, p = {p_value:.2g} (threshold {alpha})")
-    return float(F), p_value, bool(helped), verdict
+    return NestedTest(float(F), p_value, bool(helped), verdict)
 
 
 @accepts(model=is_a(RobotModel), data=optional(both(is_a(Measurements), measured_on())),
@@ -315,12 +316,9 @@ def compare(model: RobotModel, data: Measurements | None = None, *, contacts: Co
 
     geo = fit("geometric")
     both = fit("geometric", "compliance")
-    F, p_value, helped, verdict = _nested_test(geo, both, validation, alpha, "compliance")
-    third = {}
-    if backlash:
-        res = fit("geometric", "compliance", "backlash")
-        bF, bp, bh, bv = _nested_test(both, res, validation, alpha, "backlash")
-        third = dict(backlash=res, backlash_f=bF, backlash_p=bp, backlash_helped=bh)
-        verdict = f"{verdict}\n{bv}"
-    return Comparison(geometric=geo, combined=both, f_statistic=F, p_value=p_value, helped=helped, verdict=verdict,
-                      **third)
+    tested = _nested_test(geo, both, validation, alpha, "compliance")
+    if not backlash:
+        return Comparison(geometric=geo, combined=both, compliance_test=tested)
+    third = fit("geometric", "compliance", "backlash")
+    return Comparison(geometric=geo, combined=both, compliance_test=tested, backlash=third,
+                      backlash_test=_nested_test(both, third, validation, alpha, "backlash"))

@@ -9,12 +9,13 @@ its contacts. The same numbers judge the fitted placements, the held-out ones an
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
 from .._base.arguments import accepts, is_a
-from .._base.arrays import read_only
+from .._base.arrays import frozen_mapping, read_only
 from .._model.contacts import Contacts
 from .._model.measurements import Measurements
 from .._model.parameters import parameter_vector
@@ -25,21 +26,39 @@ from .identifiability import ContactIdentifiability
 
 @dataclass(frozen=True, eq=False)
 class ContactErrors:
-    """What a kit's user judges a calibration by, for one model on one set of contacts (m):
-    ``spread`` per socket (placement/socket) the RMS distance of the marker positions from their
-    centroid; ``distance`` per placement and pair the centroids' distance minus the known length;
-    ``plane`` per plane the RMS distance of its contacts from the plane (the known one, else the
-    best-fitting); ``bar`` per pair the distance of the two ends minus the bar's length;
-    ``consistency`` per socket the (mean, max) distance of its seated ball centres from their mean
-    centre, the figure socket campaigns are judged by (``distance`` is then the spacing error:
-    calibrated spacing minus the known one); ``seatings`` per socket each seating's distance."""
+    """What a kit's user judges a calibration by, for one model on one set of contacts; every
+    mapping read-only.
 
-    spread: dict
-    distance: dict
-    plane: dict
-    bar: dict
-    consistency: dict = field(default_factory=dict)
-    seatings: dict = field(default_factory=dict)
+    Attributes
+    ----------
+    spread : Mapping
+        Per socket ("placement/socket") the RMS distance of the marker positions from their
+        centroid, m.
+    distance : Mapping
+        Per placement and pair the centroids' distance minus the known length, m (for sockets the
+        spacing error: calibrated spacing minus the known one).
+    plane : Mapping
+        Per plane the RMS distance of its contacts from the plane (the known one, else the
+        best-fitting), m.
+    bar : Mapping
+        Per pair the distance of the two ends minus the bar's length, m.
+    consistency : Mapping
+        Per socket the (mean, max) distance of its seated ball centres from their mean centre, m:
+        the figure socket campaigns are judged by.
+    seatings : Mapping
+        Per socket each seating's distance from that centre, m (read-only arrays).
+    """
+
+    spread: Mapping[str, float]
+    distance: Mapping[str, float]
+    plane: Mapping[str, float]
+    bar: Mapping[str, float]
+    consistency: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    seatings: Mapping[str, np.ndarray] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            object.__setattr__(self, f.name, frozen_mapping(getattr(self, f.name)))
 
     @property
     def mean_spread(self) -> float | None:
@@ -111,30 +130,56 @@ def contact_errors(model: RobotModel, contacts: Contacts) -> ContactErrors:
 @dataclass(frozen=True, eq=False)
 class ContactFigures:
     """What contacts add to the ``CalibrationResult`` of a calibration that fitted them (its
-    ``contacts``): ``identifiability`` what each kind of contact reaches and what none does;
-    ``nuisance`` name -> (estimate, std) of each socket point coordinate and plane parameter (SI);
-    ``fit_before``/``fit_after`` and ``validation_before``/``validation_after`` the kit's figures
-    (``ContactErrors``; validation None without held-out contacts); ``held_out`` the figures of each
-    placement predicted by the fit on the others (None with a validation set or one placement);
-    ``noise_ratio`` per kind of row the RMS residual in stated standard deviations; ``weak`` the
-    parameters the rows cannot pin down (name, predicted std), held at nominal unless ``weak_kept``;
-    ``rows`` the number of rows of each kind; ``source`` the contact file or folder;
-    ``residual_dof`` the fit's degrees of freedom (rows less the robot's and the points' and
-    planes' unknowns: what ``compare``'s F test counts)."""
+    ``contacts``). The fit's degrees of freedom (the rows less the robot's and the points' and
+    planes' unknowns) are the result's ``solver.residual_dof``.
+
+    Attributes
+    ----------
+    identifiability : ContactIdentifiability
+        What each kind of contact reaches and what none does.
+    nuisance : Mapping
+        name -> (estimate, std) of each socket point coordinate and plane parameter, SI (m, rad),
+        in the measurement frame W.
+    fit_before : ContactErrors
+        The kit's figures of the nominal model on the fitted contacts.
+    fit_after : ContactErrors
+        Those of the calibrated model.
+    validation_before : ContactErrors or None
+        The nominal model's on held-out contacts; None without them.
+    validation_after : ContactErrors or None
+        The calibrated model's on held-out contacts; None without them.
+    held_out : ContactErrors or None
+        The figures of each placement predicted by the fit on the others; None with a validation
+        set or one placement.
+    noise_ratio : Mapping
+        Per kind of row the RMS residual in stated standard deviations.
+    weak : tuple of (str, str)
+        The parameters the rows cannot pin down: (name, predicted standard deviation as text).
+    weak_kept : bool
+        Whether they were kept (else held at nominal).
+    rows : Mapping
+        The number of recordings of each kind.
+    source : str
+        The contact file or folder.
+    """
 
     identifiability: ContactIdentifiability
-    nuisance: dict
+    nuisance: Mapping[str, tuple[float, float]]
     fit_before: ContactErrors
     fit_after: ContactErrors
     validation_before: ContactErrors | None = None
     validation_after: ContactErrors | None = None
     held_out: ContactErrors | None = None
-    noise_ratio: dict = field(default_factory=dict)
+    noise_ratio: Mapping[str, float] = field(default_factory=dict)
     weak: tuple[tuple[str, str], ...] = ()
     weak_kept: bool = False
-    rows: dict = field(default_factory=dict)
+    rows: Mapping[str, int] = field(default_factory=dict)
     source: str = ""
-    residual_dof: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("nuisance", "noise_ratio", "rows"):
+            object.__setattr__(self, name, frozen_mapping(getattr(self, name)))
+        object.__setattr__(self, "weak", tuple(tuple(w) for w in self.weak))
 
 
 def recordings(contacts: Contacts, data: Measurements | None) -> dict:

@@ -55,7 +55,15 @@ from .identifiability import WEAK_STD
 from .misfit import characteristic_length, misfit_notes
 from .points import Points
 from .problem import Problem
-from .result import CalibrationResult, ErrorSummary, PoseErrors, judge_against_limit, provenance
+from .result import (
+    CalibrationResult,
+    ErrorSummary,
+    PoseErrors,
+    PoseSet,
+    SolverRecord,
+    judge_against_limit,
+    provenance,
+)
 from .solve import Covariance
 from .steps import (
     Analysis,
@@ -390,8 +398,7 @@ def contact_figures(inputs: Inputs, analysis: Analysis, fit: Fit, before: np.nda
         validation_before=None if val_rows is None else figures(val_rows, val_rows.own_errors(before[:n])),
         validation_after=None if val_rows is None else figures(val_rows, val_rows.own_errors(p[:n])),
         held_out=held_figures, noise_ratio=ratios, weak=fit.design.weak, weak_kept=fit.design.weak_kept,
-        rows=recordings(inputs.contacts, inputs.data), source=inputs.contacts.source or "",
-        residual_dof=float(cov.dof))
+        rows=recordings(inputs.contacts, inputs.data), source=inputs.contacts.source or "")
 
 
 def options_noise(problem: Problem) -> float:
@@ -409,6 +416,17 @@ def fit_errors(inputs: Inputs, fit: Fit, before: np.ndarray) -> PoseErrors | Non
     return PoseErrors(inputs.data, pts.errors(b), pts.errors(a), pts.rotation_errors(b), pts.rotation_errors(a))
 
 
+def error_summaries(fitted: PoseErrors | None, val: PoseErrors | None) -> tuple[ErrorSummary, ErrorSummary | None]:
+    """The statistics of the position and rotation errors, fitted and held out; with held-out
+    measured points and no fitted ones (contacts fitted), theirs in the fitted rows."""
+    if fitted is not None:
+        return cast(ErrorSummary, fitted.summary(val, rotation=False)), fitted.summary(val, rotation=True)
+    if val is not None:
+        held = cast(ErrorSummary, val.summary(None, rotation=False))     # its own figures, in the validation's place
+        return ErrorSummary(held.validation_before, held.validation_after, held.fit_before, held.fit_after), None
+    return PoseErrors.summary_of_none(), None
+
+
 def record(inputs: Inputs, analysis: Analysis, fit: Fit, before: np.ndarray, cov: Covariance,
            found: tuple[ParameterEstimate, ...], judged: tuple, options: Options, notes: tuple[str, ...]
            ) -> CalibrationResult:
@@ -418,27 +436,20 @@ def record(inputs: Inputs, analysis: Analysis, fit: Fit, before: np.ndarray, cov
     solution, design = fit.solution, fit.design
     k = len(found)
     fitted = fit_errors(inputs, fit, before)
-    fields = fitted.fields("fit") if fitted is not None else PoseErrors.no_poses(inputs.model)
-    if val is not None:
-        fields.update(val.fields("validation"))
-    if fitted is not None:
-        stats, rotation_stats = cast(ErrorSummary, fitted.summary(val, rotation=False)), fitted.summary(
-            val, rotation=True)
-    elif val is not None:
-        held = cast(ErrorSummary, val.summary(None, rotation=False))     # its own figures, in the validation's place
-        stats, rotation_stats = ErrorSummary(held.validation_before, held.validation_after, held.fit_before,
-                                             held.fit_after), None
-    else:
-        stats, rotation_stats = PoseErrors.summary_of_none(), None
+    stats, rotation_stats = error_summaries(fitted, val)
     return CalibrationResult(
         nominal_model=inputs.model, calibrated_model=model_from_vector(design.start, solution.p[:fit.problem.n_robot]),
         parameters=found, covariance=cov.covariance[:k, :k], correlation=cov.correlation[:k, :k],
-        identifiability=design.identifiability, success=solution.success, status=solution.status,
-        message=solution.message, nfev=solution.nfev, sigma0=float(np.sqrt(cov.s2)), families=options.parameters,
-        loss=solution.loss, notes=notes, limit=limit, checks=tuple(checks),
-        provenance=provenance(inputs.data, inputs.validation, inputs.contacts, inputs.validation_contacts),
-        stats=stats, rotation_stats=rotation_stats, in_use=in_use_record, coverage=cover,
-        contacts=contact_figures(inputs, analysis, fit, before, cov), residual_dof=float(cov.dof), **fields)
+        identifiability=design.identifiability,
+        solver=SolverRecord(success=solution.success, status=solution.status, message=solution.message,
+                            nfev=solution.nfev, loss=solution.loss, sigma0=float(np.sqrt(cov.s2)),
+                            residual_dof=float(cov.dof)),
+        families=options.parameters,
+        fit=fitted.pose_set() if fitted is not None else PoseSet.empty(inputs.model),
+        validation=None if val is None else val.pose_set(), stats=stats, rotation_stats=rotation_stats,
+        in_use=in_use_record, coverage=cover, limit=limit, contacts=contact_figures(inputs, analysis, fit, before, cov),
+        checks=tuple(checks), notes=notes,
+        provenance=provenance(inputs.data, inputs.validation, inputs.contacts, inputs.validation_contacts))
 
 
 def nominal_model_of(design: Design, before: np.ndarray) -> RobotModel:

@@ -4,12 +4,15 @@ of identifications. Records are read, never changed."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
 from datetime import datetime, timezone
+from types import MappingProxyType
 from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
+from .._base.arrays import frozen, frozen_mapping
 from .._base.errors import InputError
 from .._model.contacts import Contacts
 from .._model.measurements import Measurements
@@ -30,7 +33,20 @@ LIMIT_REACHED_WITHIN = 1.15
 
 @dataclass(frozen=True)
 class ErrorSummary:
-    """Position error statistics before and after calibration on the fitted and held-out poses."""
+    """Error statistics before and after calibration on the fitted and held-out poses (position
+    error norms in m, or rotation error angles in rad).
+
+    Attributes
+    ----------
+    fit_before : ErrorStats
+        The nominal model on the fitted poses.
+    fit_after : ErrorStats
+        The calibrated model on the fitted poses.
+    validation_before : ErrorStats
+        The nominal model on the held-out poses (n = 0 without them).
+    validation_after : ErrorStats
+        The calibrated model on the held-out poses (n = 0 without them).
+    """
 
     fit_before: ErrorStats
     fit_after: ErrorStats
@@ -39,15 +55,25 @@ class ErrorSummary:
 
     KEYS = ("fit_before", "fit_after", "validation_before", "validation_after")
 
-    def __getitem__(self, key: str) -> ErrorStats:
-        return getattr(self, key)
-
 
 @dataclass(frozen=True)
 class LimitJudgement:
-    """The mean error in use after calibration (``compared``: "validation_after" for a validation
-    set, "cross-validation" otherwise) against the limit of absolute accuracy, metres; ``reached``
-    within ``LIMIT_REACHED_WITHIN`` of it."""
+    """The mean error in use after calibration against the limit of absolute accuracy.
+
+    Attributes
+    ----------
+    limit_m : float
+        The limit of absolute accuracy, m.
+    compared : str
+        What was held against it: "validation_after" for a validation set, "cross-validation"
+        otherwise.
+    mean_error_m : float
+        The mean position error in use after calibration, m.
+    ratio : float
+        ``mean_error_m / limit_m``.
+    reached : bool
+        Whether the ratio is within ``LIMIT_REACHED_WITHIN`` of 1 or below.
+    """
 
     limit_m: float
     compared: str
@@ -68,24 +94,148 @@ def judge_against_limit(limit, in_use: AccuracyInUse) -> LimitJudgement:
 
 
 @dataclass(frozen=True, eq=False)
+class SolverRecord:
+    """How the least-squares solve of a calibration went.
+
+    Attributes
+    ----------
+    success : bool
+        Whether the solver converged.
+    status : int
+        The solver's termination status (scipy's ``least_squares``).
+    message : str
+        The solver's termination message.
+    nfev : int
+        The evaluations of the residuals it took.
+    loss : str
+        The least-squares loss: "linear" or a robust one of scipy's.
+    sigma0 : float
+        The residual standard deviation: m, or in stated standard deviations when the data state
+        them (contacts, 6D data, a sigma column).
+    residual_dof : float
+        The residual degrees of freedom: the rows less what the fit takes from them (what
+        ``compare``'s F test counts).
+    """
+
+    success: bool
+    status: int
+    message: str
+    nfev: int
+    loss: str
+    sigma0: float
+    residual_dof: float
+
+
+@dataclass(frozen=True, eq=False)
+class PoseSet:
+    """The errors before and after calibration on one set of poses (the fitted ones, or those held
+    out), pose by pose and marker by marker; every array is read-only, and NaN where a marker was
+    not measured.
+
+    Attributes
+    ----------
+    readings : numpy.ndarray or None
+        (n_poses, n_joints) the joint readings, SI (rad, m); None in a result file that does not
+        hold them.
+    measured_positions : numpy.ndarray or None
+        (n_poses, n_markers, 3) the measured marker positions, m, in the measurement frame W; NaN
+        throughout on the fitted poses of a result file that does not hold them (None on held-out
+        ones).
+    errors_before : numpy.ndarray
+        (n_poses, n_markers) the position error norms of the nominal geometry (the base and
+        marker parameters the calibration identifies fitted to the data first), m.
+    errors_after : numpy.ndarray
+        (n_poses, n_markers) the position error norms of the calibrated model, m.
+    residual_vectors : numpy.ndarray or None
+        (n_poses, n_markers, 3) calibrated minus measured positions, m, in W; None on held-out
+        poses of a result file that does not hold them.
+    rotation_errors_before : numpy.ndarray or None
+        (n_poses, n_markers) the rotation error angles of the nominal model, rad; None for point
+        data.
+    rotation_errors_after : numpy.ndarray or None
+        (n_poses, n_markers) the rotation error angles of the calibrated model, rad; None for
+        point data.
+    """
+
+    readings: np.ndarray | None
+    measured_positions: np.ndarray | None
+    errors_before: np.ndarray
+    errors_after: np.ndarray
+    residual_vectors: np.ndarray | None
+    rotation_errors_before: np.ndarray | None = None
+    rotation_errors_after: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            a = getattr(self, f.name)
+            if a is not None:
+                object.__setattr__(self, f.name, frozen(a))
+
+    @staticmethod
+    def empty(model: RobotModel) -> PoseSet:
+        """The fitted poses of a calibration that fitted no measured point: arrays of no rows."""
+        m = len(model.marker_names)
+        return PoseSet(readings=np.zeros((0, model.n_joints)), measured_positions=np.zeros((0, m, 3)),
+                       errors_before=np.zeros((0, m)), errors_after=np.zeros((0, m)),
+                       residual_vectors=np.zeros((0, m, 3)))
+
+
+@dataclass(frozen=True, eq=False, kw_only=True)
 class CalibrationResult:
-    """Everything a calibration produced. Fields are always present; absent data are None.
+    """Everything a calibration produced, grouped by what it describes. Read, never changed: every
+    array is read-only, every mapping a read-only view; absent data are None.
 
-    Per measured point, on the fitted poses: ``errors_before``/``errors_after`` (n_poses, n_markers)
-    position error norms in metres (NaN where not measured), ``residual_vectors`` (n_poses,
-    n_markers, 3) calibrated minus measured and ``measured_positions`` likewise, metres in W,
-    ``readings`` (n_poses, n_joints) the joint readings (SI), and for 6D data
-    ``rotation_errors_before``/``rotation_errors_after`` (n_poses, n_markers) rotation error angles in
-    radians (None for point data). The ``validation_*`` fields are the same on held-out poses, or
-    None. ``stats`` summarises the position errors, ``rotation_stats`` the rotation errors (rad) or
-    None. ``correlation`` is indexed like ``parameters``. ``sigma0`` is the residual standard
-    deviation (m, or in stated standard deviations when the data carry them).
+    A calibration that fitted contacts holds the kit's figures in ``contacts``; its ``fit`` poses
+    are those of the tracker data fitted beside them (no rows without), and its ``in_use`` the
+    socket consistency of each placement predicted by the others (or of the held-out placements).
 
-    A calibration that fitted contacts holds the kit's figures in ``contacts`` (``ContactFigures``:
-    socket consistency and spacing error, fitted and held out, what each kind of contact reaches);
-    its per-point fields are those of the tracker data fitted beside them (no rows without), and
-    its ``in_use`` the socket consistency of each placement predicted by the others (or of the
-    held-out placements).
+    Attributes
+    ----------
+    nominal_model : RobotModel
+        The model the calibration started from.
+    calibrated_model : RobotModel
+        The model with the identified parameters (SI).
+    parameters : tuple of ParameterEstimate
+        Each identified parameter: nominal, estimate, change and standard deviation (SI units).
+    covariance : numpy.ndarray
+        (n_parameters, n_parameters) the covariance of the estimates, indexed like ``parameters``
+        (SI units squared).
+    correlation : numpy.ndarray
+        (n_parameters, n_parameters) their correlation coefficients, indexed likewise.
+    identifiability : IdentifiabilityResult
+        Which candidates were identified and which eliminated, and what absorbs them.
+    solver : SolverRecord
+        How the solve went: convergence, loss, the residual standard deviation.
+    families : tuple of str
+        What was asked to be identified: families, names or patterns.
+    fit : PoseSet
+        The errors before and after on the fitted poses.
+    validation : PoseSet or None
+        The same on the held-out poses (a validation set); None without them.
+    stats : ErrorSummary
+        Statistics of the position error norms (m) before and after, fitted and held out (with
+        held-out measured points and no fitted ones, theirs in the fitted rows).
+    rotation_stats : ErrorSummary or None
+        The same of the rotation error angles (rad) for 6D data; None for point data.
+    in_use : AccuracyInUse or None
+        The accuracy in use before and after, from observations not fitted; None when nothing
+        was held out.
+    coverage : Coverage or None
+        Where the measured points were taken against the workspace; None without them.
+    limit : LimitJudgement or None
+        The accuracy in use against the limit of absolute accuracy; None when none was given.
+    contacts : ContactFigures or None
+        The kit's figures (socket consistency and spacing error, fitted and held out, what each
+        kind of contact reaches); None without contacts.
+    checks : tuple of Check
+        Every check, its status and what it found (``verdict`` the worst).
+    notes : tuple of str
+        What the calibration decided on the user's behalf.
+    provenance : Mapping
+        Software, version, date (ISO 8601 UTC) and the inputs: for measured points ``data`` (and
+        ``validation``) {source, sha256, n_poses, labels}, labels in the order of the pose rows;
+        for contacts ``contacts`` (and ``validation_contacts``) {source, sha256, n_rows,
+        placements}.
     """
 
     nominal_model: RobotModel
@@ -94,37 +244,26 @@ class CalibrationResult:
     covariance: np.ndarray
     correlation: np.ndarray
     identifiability: IdentifiabilityResult
-    stats: ErrorSummary
-    errors_before: np.ndarray
-    errors_after: np.ndarray
-    residual_vectors: np.ndarray
-    measured_positions: np.ndarray
-    success: bool
-    status: int
-    message: str
-    nfev: int
-    sigma0: float
+    solver: SolverRecord
     families: tuple[str, ...]
-    loss: str
-    notes: tuple[str, ...] = ()
-    limit: LimitJudgement | None = None
-    provenance: dict = field(default_factory=dict)
-    checks: tuple[Check, ...] = ()
-    readings: np.ndarray | None = None
-    validation_before: np.ndarray | None = None
-    validation_after: np.ndarray | None = None
-    rotation_errors_before: np.ndarray | None = None
-    rotation_errors_after: np.ndarray | None = None
+    fit: PoseSet
+    validation: PoseSet | None = None
+    stats: ErrorSummary
     rotation_stats: ErrorSummary | None = None
-    validation_readings: np.ndarray | None = None
-    validation_residual_vectors: np.ndarray | None = None
-    validation_positions: np.ndarray | None = None
-    rotation_validation_before: np.ndarray | None = None
-    rotation_validation_after: np.ndarray | None = None
     in_use: AccuracyInUse | None = None
     coverage: Coverage | None = None
+    limit: LimitJudgement | None = None
     contacts: ContactFigures | None = None
-    residual_dof: float = 0.0
+    checks: tuple[Check, ...] = ()
+    notes: tuple[str, ...] = ()
+    provenance: Mapping[str, object] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        for name in ("parameters", "families", "checks", "notes"):
+            object.__setattr__(self, name, tuple(getattr(self, name)))
+        object.__setattr__(self, "covariance", frozen(self.covariance))
+        object.__setattr__(self, "correlation", frozen(self.correlation))
+        object.__setattr__(self, "provenance", frozen_mapping(self.provenance))
 
     @property
     def verdict(self) -> str:
@@ -155,11 +294,10 @@ class CalibrationResult:
                      if p.name not in considered and values[p.index] != 0.0)
 
 
-
 @dataclass(frozen=True, eq=False)
 class PoseErrors:
-    """Errors before and after calibration on one set of poses: position vectors (n, m, 3) in m and,
-    for 6D data, rotation vectors (n, m, 3) in rad; NaN where not measured."""
+    """Errors before and after calibration on one set of poses, as computed: position vectors (n, m,
+    3) in m and, for 6D data, rotation vectors (n, m, 3) in rad; NaN where not measured."""
 
     data: Measurements
     before: np.ndarray
@@ -171,14 +309,6 @@ class PoseErrors:
     def summary_of_none() -> ErrorSummary:
         """The statistics of a calibration that fitted no measured point (each with n = 0)."""
         return ErrorSummary(*(error_stats([]) for _ in ErrorSummary.KEYS))
-
-    @staticmethod
-    def no_poses(model: RobotModel) -> dict:
-        """The per-point fields of a calibration that fitted no measured point: arrays of no rows."""
-        m = len(model.marker_names)
-        return {"errors_before": np.zeros((0, m)), "errors_after": np.zeros((0, m)),
-                "residual_vectors": np.zeros((0, m, 3)), "measured_positions": np.zeros((0, m, 3)),
-                "readings": np.zeros((0, model.n_joints))}
 
     def summary(self, other: PoseErrors | None, *, rotation: bool) -> ErrorSummary | None:
         """Statistics of the error norms here (fit) and on ``other`` (held out), positions or rotations."""
@@ -193,22 +323,16 @@ class PoseErrors:
 
         return ErrorSummary(stats(self, "before"), stats(self, "after"), stats(other, "before"), stats(other, "after"))
 
-    def fields(self, which: str) -> dict:
-        """The result fields of this set (``which``: "fit" or "validation")."""
-        norms = {k: None if v is None else np.linalg.norm(v, axis=2)
-                 for k, v in (("before", self.before), ("after", self.after),
-                              ("rotation_before", self.rotation_before), ("rotation_after", self.rotation_after))}
-        positions = np.where(self.data.mask[..., None], self.data.positions, np.nan)
-        if which == "fit":
-            return {"errors_before": norms["before"], "errors_after": norms["after"], "residual_vectors": self.after,
-                    "measured_positions": positions, "readings": self.data.q,
-                    "rotation_errors_before": norms["rotation_before"],
-                    "rotation_errors_after": norms["rotation_after"]}
-        return {"validation_before": norms["before"], "validation_after": norms["after"],
-                "validation_residual_vectors": self.after, "validation_positions": positions,
-                "validation_readings": self.data.q, "rotation_validation_before": norms["rotation_before"],
-                "rotation_validation_after": norms["rotation_after"]}
+    def pose_set(self) -> PoseSet:
+        """The record of this set: error norms, residual vectors, measured positions, readings."""
+        def norms(v):
+            return None if v is None else np.linalg.norm(v, axis=2)
 
+        return PoseSet(readings=self.data.q,
+                       measured_positions=np.where(self.data.mask[..., None], self.data.positions, np.nan),
+                       errors_before=norms(self.before), errors_after=norms(self.after), residual_vectors=self.after,
+                       rotation_errors_before=norms(self.rotation_before),
+                       rotation_errors_after=norms(self.rotation_after))
 
 
 def provenance(data: Measurements | None, validation: Measurements | None = None, contacts: Contacts | None = None,
@@ -228,41 +352,70 @@ def provenance(data: Measurements | None, validation: Measurements | None = None
 
 
 @dataclass(frozen=True, eq=False)
+class NestedTest:
+    """One identification against a simpler one nested in it, on the same data.
+
+    Attributes
+    ----------
+    f_statistic : float
+        The nested-model F statistic on the fitted residuals: does adding the parameters reduce
+        the residual more than their number explains?
+    p_value : float
+        Its p-value.
+    helped : bool
+        True when p < ``alpha`` and the RMS error in use (held-out poses, else cross-validated on
+        the same folds) fell too: a model choice is checked by what it does in use.
+    summary : str
+        What the test found, in one sentence.
+    """
+
+    f_statistic: float
+    p_value: float
+    helped: bool
+    summary: str
+
+
+@dataclass(frozen=True, eq=False)
 class Comparison:
     """Geometric-only against geometric-and-compliance identification on the same data, and, when
     asked, against geometric, compliance and backlash together (the third).
 
-    ``f_statistic``/``p_value``: the nested-model F test on the fitted residuals (does adding the
-    compliance parameters reduce the residual more than their number explains?). ``helped`` is
-    True when p < ``alpha`` and the RMS error in use (held-out poses, else cross-validated on the
-    same folds) fell too: a model choice is checked by what it does in use.
-    ``backlash``, ``backlash_f``, ``backlash_p``, ``backlash_helped``: the same test of the third
-    against the second (None and False without it). ``verdict`` says both.
+    Attributes
+    ----------
+    geometric : CalibrationResult
+        The geometric identification.
+    combined : CalibrationResult
+        The geometric and compliance identification.
+    compliance_test : NestedTest
+        ``combined`` against ``geometric``: did the compliances help?
+    backlash : CalibrationResult or None
+        The geometric, compliance and backlash identification; None unless asked.
+    backlash_test : NestedTest or None
+        ``backlash`` against ``combined``; None unless asked.
     """
 
     geometric: CalibrationResult
     combined: CalibrationResult
-    f_statistic: float
-    p_value: float
-    helped: bool
-    verdict: str
+    compliance_test: NestedTest
     backlash: CalibrationResult | None = None
-    backlash_f: float | None = None
-    backlash_p: float | None = None
-    backlash_helped: bool = False
+    backlash_test: NestedTest | None = None
+
+    @property
+    def verdict(self) -> str:
+        """What the tests found, one line each."""
+        return "\n".join(t.summary for t in (self.compliance_test, self.backlash_test) if t is not None)
 
     @property
     def best(self) -> CalibrationResult:
-        if self.backlash is not None and self.backlash_helped:
+        """The identification chosen: the largest that helped in use."""
+        if self.backlash is not None and self.backlash_test is not None and self.backlash_test.helped:
             return self.backlash
-        return self.combined if self.helped else self.geometric
+        return self.combined if self.compliance_test.helped else self.geometric
 
     @property
-    def results(self) -> dict:
-        """The identifications side by side, by what they identify."""
+    def results(self) -> Mapping[str, CalibrationResult]:
+        """The identifications side by side, by what they identify (a read-only mapping)."""
         out = {"geometric": self.geometric, "geometric and compliance": self.combined}
         if self.backlash is not None:
             out["geometric, compliance and backlash"] = self.backlash
-        return out
-
-
+        return MappingProxyType(out)

@@ -47,15 +47,15 @@ def contact_summary(result, shown=()) -> str:
     ident = c.identifiability
     rows = ", ".join(f"{n} {kind}" for kind, n in c.rows.items())
     lines = [f"calibration of {result.nominal_model.name} from contacts ({rows}; {', '.join(result.families)}, "
-             f"loss {result.loss})", "what the kit shows (before -> after):"]
+             f"loss {result.solver.loss})", "what the kit shows (before -> after):"]
     lines += _figures("fitted", c.fit_before, c.fit_after)
     if c.validation_before is not None:
         lines += _figures("held-out", c.validation_before, c.validation_after)
     if c.held_out is not None:
         lines += _figures("each placement predicted by the others,", c.fit_before, c.held_out)
-    tracker, held = result.stats["fit_after"], result.stats["validation_after"]
+    tracker, held = result.stats.fit_after, result.stats.validation_after
     if tracker.n:
-        lines.append(f"  tracker points: {_mm(result.stats['fit_before'].rms)} -> {_mm(tracker.rms)} RMS over "
+        lines.append(f"  tracker points: {_mm(result.stats.fit_before.rms)} -> {_mm(tracker.rms)} RMS over "
                      f"{tracker.n}")
     if held.n:
         lines += in_use_lines(result.in_use)

@@ -924,13 +924,13 @@ def render_contact_report(result: CalibrationResult, diagnosis=None) -> str:
     if diagnosis is not None:
         d["diagnosis"] = diagnosis_to_dict(diagnosis)
     robot = result.nominal_model.name
-    tracker, use = result.stats["fit_after"], result.in_use
+    tracker, use = result.stats.fit_after, result.in_use
     points = ""
     if tracker.n:
         points += (f'<p>Tracker points fitted beside the contacts: <span data-key="tracker.rms">'
-                   f'{_e(fmt(result.stats["fit_before"].rms, "m"))} &rarr; {_e(fmt(tracker.rms, "m"))}</span> RMS '
+                   f'{_e(fmt(result.stats.fit_before.rms, "m"))} &rarr; {_e(fmt(tracker.rms, "m"))}</span> RMS '
                    f"over {tracker.n}.</p>")
-    if result.stats["validation_after"].n and use is not None:
+    if result.stats.validation_after.n and use is not None:
         points += (f'<p>Measured points held out ({_e(use.method)}): mean error <span data-key="in_use.mean">'
                    f'{_e(fmt(use.position_before.mean, "m"))} &rarr; {_e(fmt(use.position_after.mean, "m"))}</span> '
                    f"over {use.position_after.n}, the instrument's noise taken out.</p>")
@@ -939,9 +939,9 @@ def render_contact_report(result: CalibrationResult, diagnosis=None) -> str:
                 ("sockets", "Each socket and each known distance", _contact_sockets(c)),
                 ("parameters", "Parameters", _contact_parameters(result)),
                 ("reach", "What each kind of contact identifies", _contact_reach(c)),
-                ("solver", "Solver", _kv([("converged", _e("yes" if result.success else "no"), "success"),
-                                          ("message", _e(result.message), "message"),
-                                          ("evaluations", _e(str(result.nfev)), "nfev")]))]
+                ("solver", "Solver", _kv([("converged", _e("yes" if result.solver.success else "no"), "success"),
+                                          ("message", _e(result.solver.message), "message"),
+                                          ("evaluations", _e(str(result.solver.nfev)), "nfev")]))]
     toc = "".join(f'<li><a href="#{i}">{t}</a></li>' for i, t, _ in sections)
     first, *rest = [f'<section id="{i}"><h2>{t}</h2>{b}</section>\n' for i, t, b in sections]
     return ('<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'

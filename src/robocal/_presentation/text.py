@@ -28,7 +28,7 @@ def stats_lines(stats, indent: str = "  ", *, unit: str = "m") -> list[str]:
     """The error table before and after, on fitted and held-out poses, in display units."""
     shown, k, _ = display_unit(unit)
     label = "position error" if unit == "m" else "rotation error"
-    rows = [(key, stats[key]) for key in STAT_ROWS if stats[key].n]
+    rows = [(key, getattr(stats, key)) for key in STAT_ROWS if getattr(stats, key).n]
     texts = {(key, f): "-" if getattr(s, f) is None else f"{getattr(s, f) * k:.3f}"
              for key, s in rows for f in ("mean", "std", "rms", "max")}
     # columns at least one space apart however large the errors (1234.567 mm)
@@ -158,8 +158,9 @@ def calibration_summary(result, *, shown=(), weighted: bool = False) -> str:
         from .contacts import contact_summary
 
         return contact_summary(result, shown)
+    solver = result.solver
     lines = [f"calibration of {result.nominal_model.name} on {result.provenance['data']['n_poses']} poses "
-             f"({', '.join(result.families)}, loss {result.loss})"]
+             f"({', '.join(result.families)}, loss {solver.loss})"]
     lines += stats_lines(result.stats)
     if result.rotation_stats is not None:
         lines += stats_lines(result.rotation_stats, unit="rad")
@@ -177,13 +178,13 @@ def calibration_summary(result, *, shown=(), weighted: bool = False) -> str:
     ident = result.identifiability
     lines.append(f"identified {len(ident.identified)} of {len(ident.candidates)} candidates; condition number of "
                  f"those kept {ident.condition_number:.4g}")
-    lines.append(f"solver: {'converged' if result.success else 'NOT converged'} (status {result.status}, "
-                 f"{result.nfev} evaluations): {result.message}")
+    lines.append(f"solver: {'converged' if solver.success else 'NOT converged'} (status {solver.status}, "
+                 f"{solver.nfev} evaluations): {solver.message}")
     if weighted:
-        lines.append(f"residual standard deviation: {result.sigma0:.3g} times the expected measurement standard "
+        lines.append(f"residual standard deviation: {solver.sigma0:.3g} times the expected measurement standard "
                      "deviations")
     else:
-        lines.append(f"residual standard deviation: {result.sigma0 * MM:.4f} mm")
+        lines.append(f"residual standard deviation: {solver.sigma0 * MM:.4f} mm")
     if result.limit:
         lim = result.limit
         lines.append(f"limit of absolute accuracy {lim.limit_m * MM:.3f} mm: mean error in use "
@@ -256,16 +257,17 @@ def comparison_summary(comparison, *, shown=(), weighted: bool = False) -> str:
             if all(v is not None for v in values):
                 lines.append(f"  {label + ' (mm)':<30}" + "".join(f"{v * MM:>24.4f}" for v in values))
     for key in STAT_ROWS:
-        if not geo.stats[key].n:
+        if not getattr(geo.stats, key).n:
             continue
         for q in ("mean", "std", "rms", "max"):
             label = f"{key.replace('_', ', ')} {q} (mm)"
-            lines.append(f"  {label:<30}" + "".join(f"{getattr(r.stats[key], q) * MM:>24.3f}" for _, r in cols))
+            lines.append(f"  {label:<30}" + "".join(f"{getattr(getattr(r.stats, key), q) * MM:>24.3f}"
+                                                     for _, r in cols))
     if weighted:
-        lines.append(f"  {'residual std (stated stds)':<30}" + "".join(f"{r.sigma0:>24.4g}" for _, r in cols))
+        lines.append(f"  {'residual std (stated stds)':<30}" + "".join(f"{r.solver.sigma0:>24.4g}" for _, r in cols))
     else:
-        lines.append(f"  {'residual std (mm)':<30}" + "".join(f"{r.sigma0 * MM:>24.4f}" for _, r in cols))
-    lines.append(f"  {'solver':<30}" + "".join(f"{'converged' if r.success else 'NOT converged':>24}"
+        lines.append(f"  {'residual std (mm)':<30}" + "".join(f"{r.solver.sigma0 * MM:>24.4f}" for _, r in cols))
+    lines.append(f"  {'solver':<30}" + "".join(f"{'converged' if r.solver.success else 'NOT converged':>24}"
                                                 for _, r in cols))
     lines.append(f"  {'verdict':<30}" + "".join(f"{r.verdict:>24}" for _, r in cols))
     lines.append(comparison.verdict)

@@ -155,7 +155,7 @@ def _headline(result) -> dict:
     out = {f"{p.name} estimate": p.estimate for p in result.parameters}
     out.update({f"{p.name} std": p.std for p in result.parameters})
     for key in ("fit_before", "fit_after"):
-        s = result.stats[key]
+        s = getattr(result.stats, key)
         out.update({f"{key} {f}": getattr(s, f) for f in ("mean", "rms", "max") if s.n})
     from .._model.parameters import parameter_vector
 
