@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import html
 import re
+from dataclasses import dataclass
 from datetime import datetime
 from typing import cast
 
@@ -345,6 +346,41 @@ def _placement_text(frame, key: str) -> str:
             f'<span data-key="{_e(key)}.rotation">[{rows}]</span>')
 
 
+@dataclass(frozen=True)
+class _Values:
+    """What the parameter tables show of each parameter: its estimate (file form), its status (I
+    identified, E eliminated, - not a candidate) and its nominal value (SI)."""
+
+    est: dict
+    status: dict
+    nominal: dict
+
+    def cells(self, name: str, unit: str) -> list[str]:
+        """nominal, identified, change, std dev"""
+        p = self.est.get(name)
+        if p is not None:
+            return [_cell(p["nominal"], unit, f"{name}:nominal"), _cell(p["estimate"], unit, f"{name}:estimate"),
+                    _cell(p["change"], unit, f"{name}:change", sign=True), _cell(p["std"], unit, f"{name}:std")]
+        st = self.status.get(name, "-")
+        nom = self.nominal.get(name) if st != "-" or self.nominal.get(name) else None
+        held = '<td class="num muted">held</td>' if st == "E" else "<td></td>"
+        return [f'<td class="num muted">{fmt(nom, unit) if nom is not None else ""}</td>', held,
+                "<td></td>", "<td></td>"]
+
+    def status_cell(self, name: str) -> str:
+        st = self.status.get(name, "-")
+        text = {"I": '<span class="badge si">I</span>', "E": '<span class="badge se">E</span>', "-": "–"}[st]
+        return f'<td class="status" id="{_anchor("param", name)}" data-key="{_e(name)}:status">{text}</td>'
+
+
+def _statuses(ident: dict) -> dict:
+    """Each candidate's status: I identified, E eliminated, - neither."""
+    status = {n: "-" for n in ident.get("candidates", [])}
+    status.update({n: "I" for n in ident.get("identified", [])})
+    status.update({a["name"]: "E" for a in ident.get("eliminated", [])})
+    return status
+
+
 def _parameter_tables(d: dict, nominal: dict, units: dict, result: CalibrationResult | None = None,
                       relative: bool = False) -> tuple[str, str, str]:
     """The per-frame table (the paper's layout), the base and marker table, a note on omitted columns.
@@ -352,77 +388,72 @@ def _parameter_tables(d: dict, nominal: dict, units: dict, result: CalibrationRe
     Fixed frames (placements, often written as a matrix) show their placement as position and
     rotation matrix, nominal and calibrated, beside the corrections the fit made. With ``relative``
     the compliances are headed as relative (masses assumed without a total mass)."""
-    est = {p["name"]: p for p in d["parameters"]}
+    values = _Values({p["name"]: p for p in d["parameters"]}, _statuses(d["identifiability"]), nominal)
     fixed = {} if result is None else {f.name: (f, g) for f, g in zip(result.nominal_model.frames,
                                                                       result.calibrated_model.frames)
                                        if f.joint == "fixed"}
-    ident = d["identifiability"]
-    status = {n: "-" for n in ident.get("candidates", [])}
-    status.update({n: "I" for n in ident.get("identified", [])})
-    status.update({a["name"]: "E" for a in ident.get("eliminated", [])})
     table = d.get("identifiability_table") or []
     frames = [row["frame"] for row in table]
-    # a kind is shown where it was a candidate, or where the model holds a non-zero value of it (a
-    # fixed mount's gamma and b): nothing the calibrated file keeps is hidden
-    shown = [k for k in FRAME_KINDS
-             if k in ALWAYS_SHOWN or any(row.get(k, "-") != "-" or nominal.get(f"{row['frame']}.{k}") for row in table)]
+    shown = _shown_kinds(table, nominal)
     omitted = [k for k in FRAME_KINDS if k not in shown and k not in ("gamma", "b")]
-
-    def value_cells(name, unit):
-        """nominal, identified, change, std dev"""
-        p = est.get(name)
-        if p is not None:
-            return [_cell(p["nominal"], unit, f"{name}:nominal"), _cell(p["estimate"], unit, f"{name}:estimate"),
-                    _cell(p["change"], unit, f"{name}:change", sign=True), _cell(p["std"], unit, f"{name}:std")]
-        st = status.get(name, "-")
-        nom = nominal.get(name) if st != "-" or nominal.get(name) else None
-        held = '<td class="num muted">held</td>' if st == "E" else "<td></td>"
-        return [f'<td class="num muted">{fmt(nom, unit) if nom is not None else ""}</td>', held,
-                "<td></td>", "<td></td>"]
-
-    def status_cell(name):
-        st = status.get(name, "-")
-        text = {"I": '<span class="badge si">I</span>', "E": '<span class="badge se">E</span>', "-": "–"}[st]
-        return f'<td class="status" id="{_anchor("param", name)}" data-key="{_e(name)}:status">{text}</td>'
-
-    body = []
-    for f in frames:
-        cols = [value_cells(f"{f}.{k}", units[f"{f}.{k}"]) for k in shown]
-        rows = [(label, "".join(c[i] for c in cols)) for i, label in enumerate(("nominal", "identified", "change",
-                                                                                 "std dev"))]
-        if f in fixed:  # a placement: shown as written, the fit's corrections below it
-            nom, cal = fixed[f]
-            rows = [("placement", f'<td colspan="{len(shown)}" class="placement">{_placement_text(nom, f"{f}:nominal")}'
-                                  "</td>"),
-                    ("calibrated", f'<td colspan="{len(shown)}" class="placement">'
-                                   f'{_placement_text(cal, f"{f}:calibrated")}</td>')] + rows[2:]
-        body.append(f'<tr class="frame-start"><th rowspan="{1 + len(rows)}" class="frame">{_e(f)}'
-                    + ('<br><small>fixed</small>' if f in fixed else "") + '</th><td class="what">I / E</td>'
-                    + "".join(status_cell(f"{f}.{k}") for k in shown) + "</tr>")
-        body += [f'<tr><td class="what">{label}</td>{cells}</tr>' for label, cells in rows]
-
-    def unit_label(k):
-        if relative and k.startswith("k_"):
-            return "relative"
-        return _e(_display(units[f"{frames[0]}.{k}"])[0])
-    head = ["frame", ""] + [f"{symbol(k)} <small>({unit_label(k)})</small>" if frames else symbol(k) for k in shown]
+    body = [row for f in frames for row in _frame_rows(f, shown, units, values, fixed.get(f))]
+    head = ["frame", ""] + [_kind_head(k, frames, units, relative) for k in shown]
     note = ""
     if omitted:
         note = ("Columns " + ", ".join(symbol(k) for k in omitted)
                 + " are not shown: those parameters were not among the candidates.")
     frame_table = _table(head, body, cls="params", num_from=2)
+    return frame_table, _other_table(d["identifiability"], values, frames, units), note
 
+
+def _shown_kinds(table: list[dict], nominal: dict) -> list[str]:
+    """The kinds the per-frame table shows: those always shown, those that were a candidate, and
+    those the model holds a non-zero value of (a fixed mount's gamma and b): nothing the calibrated
+    file keeps is hidden."""
+    return [k for k in FRAME_KINDS
+            if k in ALWAYS_SHOWN or any(row.get(k, "-") != "-" or nominal.get(f"{row['frame']}.{k}") for row in table)]
+
+
+def _kind_head(kind: str, frames: list, units: dict, relative: bool) -> str:
+    """The head of a kind's column, with its display unit ("relative" for relative compliances)."""
+    if not frames:
+        return symbol(kind)
+    unit = "relative" if relative and kind.startswith("k_") else _e(_display(units[f"{frames[0]}.{kind}"])[0])
+    return f"{symbol(kind)} <small>({unit})</small>"
+
+
+def _frame_rows(f: str, shown: list, units: dict, values: _Values, fixed) -> list[str]:
+    """The rows of frame ``f`` in the per-frame table: statuses, then nominal, identified, change and
+    std dev of each kind shown; a fixed frame's placement (``fixed``: nominal and calibrated frame)
+    as written in place of its nominal and identified rows."""
+    cols = [values.cells(f"{f}.{k}", units[f"{f}.{k}"]) for k in shown]
+    rows = [(label, "".join(c[i] for c in cols)) for i, label in enumerate(("nominal", "identified", "change",
+                                                                             "std dev"))]
+    if fixed is not None:  # a placement: shown as written, the fit's corrections below it
+        nom, cal = fixed
+        rows = [("placement", f'<td colspan="{len(shown)}" class="placement">{_placement_text(nom, f"{f}:nominal")}'
+                              "</td>"),
+                ("calibrated", f'<td colspan="{len(shown)}" class="placement">'
+                               f'{_placement_text(cal, f"{f}:calibrated")}</td>')] + rows[2:]
+    first = (f'<tr class="frame-start"><th rowspan="{1 + len(rows)}" class="frame">{_e(f)}'
+             + ('<br><small>fixed</small>' if fixed is not None else "") + '</th><td class="what">I / E</td>'
+             + "".join(values.status_cell(f"{f}.{k}") for k in shown) + "</tr>")
+    return [first] + [f'<tr><td class="what">{label}</td>{cells}</tr>' for label, cells in rows]
+
+
+def _other_table(ident: dict, values: _Values, frames: list, units: dict) -> str:
+    """The base and marker parameters (those of no frame): candidates, then the other estimates."""
     other = [n for n in ident.get("candidates", []) if n.split(".", 1)[0] not in frames]
-    other += [n for n in est if n not in other and n.split(".", 1)[0] not in frames]
-    other_rows = []
+    other += [n for n in values.est if n not in other and n.split(".", 1)[0] not in frames]
+    rows = []
     for n in other:
-        unit = units.get(n, est[n]["unit"] if n in est else "")
-        other_rows.append(f'<tr><td class="name">{_e(n)}</td><td>{_e(_display(unit)[0])}</td>'
-                          + "".join(value_cells(n, unit)) + status_cell(n) + "</tr>")
-    other_table = (_table(["parameter", "unit", "nominal", "identified", "change", "std dev", "I / E"], other_rows,
-                          cls="params", num_from=2)
-                   if other_rows else "<p>No base or marker parameters were considered.</p>")
-    return frame_table, other_table, note
+        unit = units.get(n, values.est[n]["unit"] if n in values.est else "")
+        rows.append(f'<tr><td class="name">{_e(n)}</td><td>{_e(_display(unit)[0])}</td>'
+                    + "".join(values.cells(n, unit)) + values.status_cell(n) + "</tr>")
+    if not rows:
+        return "<p>No base or marker parameters were considered.</p>"
+    return _table(["parameter", "unit", "nominal", "identified", "change", "std dev", "I / E"], rows,
+                  cls="params", num_from=2)
 
 
 RELATIVE_NOTE = ("Compliances (K) are relative: the link masses were assumed from the geometry at a density of "
@@ -535,25 +566,27 @@ def _extra_tables(extra) -> list[dict]:
         return []
     if not isinstance(extra, dict):
         raise InputError(f"expected a dict, got {type(extra).__name__}", where="extra")
-    tables = []
-    for key, value in extra.items():
-        items = value if isinstance(value, list) else [value]
-        if items and all(isinstance(t, dict) and "rows" in t for t in items):
-            for t in items:
-                cols, rows = list(t.get("columns") or []), t["rows"]
-                if not all(isinstance(r, (list, tuple)) and len(r) == len(cols) for r in rows):
-                    raise InputError(f"each row of table {t.get('title', key)!r} needs {len(cols)} cells",
-                                     where=f"extra[{key!r}]")
-                tables.append({"title": str(t.get("title", key)), "columns": cols, "rows": rows,
-                               "note": t.get("note", "")})
-        elif items and all(isinstance(r, dict) for r in items):
-            cols = list(dict.fromkeys(k for r in items for k in r))
-            tables.append({"title": str(key), "columns": cols, "note": "",
-                           "rows": [[r.get(c, "") for c in cols] for r in items]})
-        else:
-            raise InputError("expected a table {'title', 'columns', 'rows'}, a list of them, or a list of records",
-                             where=f"extra[{key!r}]")
-    return tables
+    return [t for key, value in extra.items() for t in _extra_entry(key, value)]
+
+
+def _extra_entry(key, value) -> list[dict]:
+    """The tables of one entry of ``extra``: titled tables, or one table of records titled ``key``."""
+    items = value if isinstance(value, list) else [value]
+    if items and all(isinstance(t, dict) and "rows" in t for t in items):
+        return [_titled_table(key, t) for t in items]
+    if items and all(isinstance(r, dict) for r in items):
+        cols = list(dict.fromkeys(k for r in items for k in r))
+        return [{"title": str(key), "columns": cols, "note": "", "rows": [[r.get(c, "") for c in cols] for r in items]}]
+    raise InputError("expected a table {'title', 'columns', 'rows'}, a list of them, or a list of records",
+                     where=f"extra[{key!r}]")
+
+
+def _titled_table(key, t: dict) -> dict:
+    """A table ``{"title", "columns", "rows"[, "note"]}`` of ``extra[key]``, every row checked."""
+    cols, rows = list(t.get("columns") or []), t["rows"]
+    if not all(isinstance(r, (list, tuple)) and len(r) == len(cols) for r in rows):
+        raise InputError(f"each row of table {t.get('title', key)!r} needs {len(cols)} cells", where=f"extra[{key!r}]")
+    return {"title": str(t.get("title", key)), "columns": cols, "rows": rows, "note": t.get("note", "")}
 
 
 def _extra_cell(v) -> str:
@@ -745,22 +778,53 @@ def render_report(result: CalibrationResult, *, extra: dict | None = None, diagn
     d["errors"].update(per_pose_arrays(result))    # arrays as they are: a million poses are no lists
     if diagnosis is not None:
         d["diagnosis"] = diagnosis_to_dict(diagnosis)
-    nominal, units = _nominal_values(result)
     tables = _extra_tables(extra)
     need_matplotlib()  # fail early and clearly without the extra
-    robot = (d.get("nominal_model") or {}).get("name", "robot")
     has_val = bool((d["stats"].get("validation_after") or {}).get("n"))
     prov = d.get("provenance") or {}
-    lim = d.get("limit")
+    meta = [", ".join(d.get("families") or []) + " identification", _date(prov.get("date", "date not recorded")),
+            f'{prov.get("software", "")} {prov.get("version", "")}'.strip()]
+    robot = (d.get("nominal_model") or {}).get("name", "robot")
+    return _page(f"Calibration report: {_e(robot)}", robot, " &middot; ".join(_e(m) for m in meta if m),
+                 _report_sections(d, result, has_val, tables), _headline(d) + "".join(_notices(d, has_val)))
 
+
+def _notices(d: dict, has_val: bool) -> list[str]:
+    """What the page says is missing (held-out poses, the limit) or went wrong (the solver)."""
     notices = [] if has_val else [_notice(MISSING_VALIDATION)]
-    if not lim:
+    if not d.get("limit"):
         notices.append(_notice(MISSING_LIMIT))
     if not d.get("success"):
         notices.append(_notice(f"The solver did not converge: {_e(d.get('message'))}", "bad"))
+    return notices
 
+
+def _report_sections(d: dict, result: CalibrationResult, has_val: bool, tables: list[dict]) -> list[tuple]:
+    """(id, heading, HTML) of every section of the report, in page order."""
+    nominal, units = _nominal_values(result)
     title = "Position and rotation errors" if d["stats"].get("rotation") else "Position errors"
-    sections = [("errors", title, _errors_section(d, has_val))]
+    sections = [("checks", "Verdict and checks", _checks_html(d)), ("errors", title, _errors_section(d, has_val)),
+                ("parameters", "Parameters", _parameters_section(d, result, nominal, units)),
+                ("identifiability", "Eliminated parameters and what absorbs them",
+                 "<p>An eliminated parameter cannot be told apart from a combination of identified ones: a "
+                 "change of one display unit in it moves the tool as the changes shown do.</p>"
+                 + _eliminated_table(d, units)),
+                ("correlation", "Correlation of the identified parameters", _correlation_section(d)),
+                ("residuals", "Residual vectors after calibration", _residuals_section(d)),
+                ("trends", "Residuals against reach, height and joint readings", _trends_section(d, result))]
+    if tables:
+        sections.append(("comparison", "Comparison", _extra_html(tables)))
+    sections.append(("solver", "Solver and identifiability", _solver_table(d)))
+    notes = d.get("notes") or []
+    sections.append(("notes", "Notes", '<ul class="notes">' + "".join(f"<li>{_e(n)}</li>" for n in notes) + "</ul>"
+                     if notes else "<p>No notes beyond the checks at the top of the page.</p>"))
+    sections.append(("provenance", "Provenance", _provenance(d)))
+    return sections
+
+
+def _parameters_section(d: dict, result: CalibrationResult, nominal: dict, units: dict) -> str:
+    """The per-frame table, the base and marker table with the rotation corrections as turns, and
+    the notes on what is not shown and on relative compliances."""
     relative = _relative_compliance(d)
     frame_table, other_table, note = _parameter_tables(d, nominal, units, result, relative)
     turns = rotation_lines(result.parameters)
@@ -771,38 +835,25 @@ def render_report(result: CalibrationResult, *, extra: dict | None = None, diagn
                                   for t in turns) + "</ul>")
     if relative:
         note = ((note + " ") if note else "") + RELATIVE_NOTE
-    sections.append(("parameters", "Parameters",
-                     "<p>Per frame, in the paper's layout: I identified, E eliminated (held at its nominal value, "
-                     "its effect carried by identified parameters), &ndash; not a candidate. "
-                     f"{_e(_sentence(UNITS_SENTENCE))}; std dev is the standard deviation of the estimate.</p>"
-                     + frame_table + (f'<p class="muted">{note}</p>' if note else "")
-                     + "<h3>Base and marker parameters</h3>" + other_table))
-    sections.append(("identifiability", "Eliminated parameters and what absorbs them",
-                     "<p>An eliminated parameter cannot be told apart from a combination of identified ones: a "
-                     "change of one display unit in it moves the tool as the changes shown do.</p>"
-                     + _eliminated_table(d, units)))
-    sections.append(("correlation", "Correlation of the identified parameters", _correlation_section(d)))
-    sections.append(("residuals", "Residual vectors after calibration", _residuals_section(d)))
-    sections.append(("trends", "Residuals against reach, height and joint readings", _trends_section(d, result)))
-    if tables:
-        sections.append(("comparison", "Comparison", _extra_html(tables)))
-    sections.append(("solver", "Solver and identifiability", _solver_table(d)))
-    notes = d.get("notes") or []
-    sections.append(("notes", "Notes", '<ul class="notes">' + "".join(f"<li>{_e(n)}</li>" for n in notes) + "</ul>"
-                     if notes else "<p>No notes beyond the checks at the top of the page.</p>"))
-    sections.append(("provenance", "Provenance", _provenance(d)))
-    sections.insert(0, ("checks", "Verdict and checks", _checks_html(d)))
+    return ("<p>Per frame, in the paper's layout: I identified, E eliminated (held at its nominal value, "
+            "its effect carried by identified parameters), &ndash; not a candidate. "
+            f"{_e(_sentence(UNITS_SENTENCE))}; std dev is the standard deviation of the estimate.</p>"
+            + frame_table + (f'<p class="muted">{note}</p>' if note else "")
+            + "<h3>Base and marker parameters</h3>" + other_table)
+
+
+def _page(title: str, robot: str, meta: str, sections: list[tuple], after_first: str = "") -> str:
+    """The self-contained HTML page: head, the sections with a table of contents after the first
+    one (``after_first`` between them), the footer."""
     toc = "".join(f'<li><a href="#{i}">{t}</a></li>' for i, t, _ in sections)
     first, *rest = [f'<section id="{i}"><h2>{t}</h2>{b}</section>\n' for i, t, b in sections]
-    meta = [", ".join(d.get("families") or []) + " identification", _date(prov.get("date", "date not recorded")),
-            f'{prov.get("software", "")} {prov.get("version", "")}'.strip()]
     return ('<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
             '<meta name="viewport" content="width=device-width, initial-scale=1">\n'
-            f'<link rel="icon" href="data:,">\n<title>Calibration report: {_e(robot)}</title>\n'
+            f'<link rel="icon" href="data:,">\n<title>{title}</title>\n'
             f"<style>{_CSS}</style>\n</head>\n<body>\n<main>\n"
             f'<header><h1>Calibration report &ndash; <span class="robot">{_e(robot)}</span></h1>'
-            f'<p class="meta">{" &middot; ".join(_e(m) for m in meta if m)}</p></header>\n'
-            f"{first}{_headline(d)}{''.join(notices)}<nav><ol>{toc}</ol></nav>\n{''.join(rest)}"
+            f'<p class="meta">{meta}</p></header>\n'
+            f"{first}{after_first}<nav><ol>{toc}</ol></nav>\n{''.join(rest)}"
             f"<footer>{_e(_sentence(UNITS_SENTENCE))}; the result file keeps SI "
             "units. A self-contained page: no scripts, no network.</footer>\n</main>\n</body>\n</html>\n")
 
@@ -942,14 +993,4 @@ def render_contact_report(result: CalibrationResult, diagnosis=None) -> str:
                 ("solver", "Solver", _kv([("converged", _e("yes" if result.solver.success else "no"), "success"),
                                           ("message", _e(result.solver.message), "message"),
                                           ("evaluations", _e(str(result.solver.nfev)), "nfev")]))]
-    toc = "".join(f'<li><a href="#{i}">{t}</a></li>' for i, t, _ in sections)
-    first, *rest = [f'<section id="{i}"><h2>{t}</h2>{b}</section>\n' for i, t, b in sections]
-    return ('<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
-            '<meta name="viewport" content="width=device-width, initial-scale=1">\n'
-            f'<link rel="icon" href="data:,">\n<title>Calibration report: {_e(robot)} (contacts)</title>\n'
-            f"<style>{_CSS}</style>\n</head>\n<body>\n<main>\n"
-            f'<header><h1>Calibration report &ndash; <span class="robot">{_e(robot)}</span></h1>'
-            '<p class="meta">calibration from contacts</p></header>\n'
-            f"{first}<nav><ol>{toc}</ol></nav>\n{''.join(rest)}"
-            f"<footer>{_e(_sentence(UNITS_SENTENCE))}; the result file keeps SI "
-            "units. A self-contained page: no scripts, no network.</footer>\n</main>\n</body>\n</html>\n")
+    return _page(f"Calibration report: {_e(robot)} (contacts)", robot, "calibration from contacts", sections)

@@ -493,24 +493,13 @@ def residual_trends(d: dict, joint_names, joint_units, X_WB) -> dict | None:
     or None when the result holds no measured points. Beyond ``TREND_POINTS`` points the trends are
     taken over that many, whole poses evenly spaced through the campaign (``points``; ``of``: all).
     """
-    vec, pos, q = _stacked(d, "residual_vectors"), _stacked(d, "positions"), _stacked(d, "readings")
-    if vec is None or pos is None or q is None or pos.shape != vec.shape or len(q) != len(vec):
+    picked = _trend_points(d)
+    if picked is None:
         return None
+    vec, pos, q, rot, total = picked
     n, m = vec.shape[:2]
-    total = n * m
-    if total > TREND_POINTS:    # evenly spaced poses: 12,500 points a bin still place its median well
-        keep = np.unique(np.linspace(0, n - 1, max(TREND_POINTS // m, 1)).round().astype(int))
-        vec, pos, q, n = vec[keep], pos[keep], q[keep], len(keep)
-    X_WB = np.asarray(X_WB, dtype=float)
-    rel = (pos - X_WB[:3, 3]) @ X_WB[:3, :3]  # in the base frame
-    xs = [("reach", "mm", np.hypot(rel[..., 0], rel[..., 1]) * MM), ("height", "mm", rel[..., 2] * MM)]
-    for j, (name, unit) in enumerate(zip(joint_names, joint_units)):
-        shown = "deg" if unit == "rad" else "mm"
-        xs.append((f"{name} reading", shown, np.repeat(q[:, j:j + 1], m, axis=1) * (DEG if unit == "rad" else MM)))
+    xs = _abscissae(pos, q, X_WB, joint_names, joint_units)
     ys = [(f"d{c}", "mm", vec[..., i] * MM) for i, c in enumerate("xyz")]
-    rot = _stacked(d, "rotation_after")
-    if rot is not None and total > TREND_POINTS and len(rot) == total // m:
-        rot = rot[keep]
     if rot is not None and rot.shape == (n, m):
         ys.append(("rotation error", "deg", rot * DEG))
     orders = {xlab: np.argsort(x.ravel(), kind="stable") for xlab, _, x in xs}   # one sort per abscissa
@@ -519,6 +508,36 @@ def residual_trends(d: dict, joint_names, joint_units, X_WB) -> dict | None:
     structured = [xlab for xlab, _, _ in xs if max(structure(trends[(ylab, xlab)]) for ylab, _, _ in ys) >= STRUCTURE]
     return {"rows": [(lab, u) for lab, u, _ in ys], "columns": [(lab, u) for lab, u, _ in xs], "points": n * m,
             "of": total, "trends": trends, "structured": structured}
+
+
+def _trend_points(d: dict):
+    """The residual vectors, measured positions, readings and rotation errors after calibration of
+    the fitted and held-out poses together, and the number of points of all; beyond
+    ``TREND_POINTS`` points, whole poses evenly spaced. None without residuals, positions and
+    readings of the same poses."""
+    vec, pos, q = _stacked(d, "residual_vectors"), _stacked(d, "positions"), _stacked(d, "readings")
+    if vec is None or pos is None or q is None or pos.shape != vec.shape or len(q) != len(vec):
+        return None
+    rot = _stacked(d, "rotation_after")
+    n, m = vec.shape[:2]
+    if n * m > TREND_POINTS:    # evenly spaced poses: 12,500 points a bin still place its median well
+        keep = np.unique(np.linspace(0, n - 1, max(TREND_POINTS // m, 1)).round().astype(int))
+        vec, pos, q = vec[keep], pos[keep], q[keep]
+        rot = rot[keep] if rot is not None and len(rot) == n else rot
+    return vec, pos, q, rot, n * m
+
+
+def _abscissae(pos: np.ndarray, q: np.ndarray, X_WB, joint_names, joint_units) -> list[tuple]:
+    """(label, display unit, values (n, m)) of reach and height in the base frame, and of each
+    joint's reading (the same for every marker of a pose)."""
+    m = pos.shape[1]
+    X_WB = np.asarray(X_WB, dtype=float)
+    rel = (pos - X_WB[:3, 3]) @ X_WB[:3, :3]  # in the base frame
+    xs = [("reach", "mm", np.hypot(rel[..., 0], rel[..., 1]) * MM), ("height", "mm", rel[..., 2] * MM)]
+    for j, (name, unit) in enumerate(zip(joint_names, joint_units)):
+        shown = "deg" if unit == "rad" else "mm"
+        xs.append((f"{name} reading", shown, np.repeat(q[:, j:j + 1], m, axis=1) * (DEG if unit == "rad" else MM)))
+    return xs
 
 
 def _ticks(lo: float, hi: float, n: int = 3) -> list[float]:

@@ -242,43 +242,59 @@ def comparison_summary(comparison, *, shown=(), weighted: bool = False) -> str:
         The text summary.
     """
     geo = comparison.geometric
-    short = {"geometric": "geometric", "geometric and compliance": "geometric+compliance",
-             "geometric, compliance and backlash": "+backlash"}
-    cols = tuple((short[k], r) for k, r in comparison.results.items())
+    cols = tuple((COMPARED[k], r) for k, r in comparison.results.items())
     on = (f"contacts ({', '.join(f'{n} {k}' for k, n in geo.contacts.rows.items())})" if geo.contacts
           else f"{geo.provenance['data']['n_poses']} poses")
-    lines = [f"comparison on {on}",
-             f"  {'':<30}" + "".join(f"{name:>24}" for name, _ in cols),
-             f"  {'parameters identified':<30}" + "".join(f"{len(r.parameters):>24}" for _, r in cols)]
-    if geo.contacts is not None:
-        for label, pick in (("socket consistency, fitted", lambda r: r.contacts.fit_after.consistency_mean),
-                            ("socket consistency, in use", lambda r: r.in_use and r.in_use.position_after.mean)):
-            values = [pick(r) for _, r in cols]
-            if all(v is not None for v in values):
-                lines.append(f"  {label + ' (mm)':<30}" + "".join(f"{v * MM:>24.4f}" for v in values))
-    for key in STAT_ROWS:
-        if not getattr(geo.stats, key).n:
-            continue
-        for q in ("mean", "std", "rms", "max"):
-            label = f"{key.replace('_', ', ')} {q} (mm)"
-            lines.append(f"  {label:<30}" + "".join(f"{getattr(getattr(r.stats, key), q) * MM:>24.3f}"
-                                                     for _, r in cols))
+    lines = [f"comparison on {on}", _compared("", [f"{name:>24}" for name, _ in cols]),
+             _compared("parameters identified", [f"{len(r.parameters):>24}" for _, r in cols])]
+    lines += _compared_contacts(cols) + _compared_stats(cols)
     if weighted:
-        lines.append(f"  {'residual std (stated stds)':<30}" + "".join(f"{r.solver.sigma0:>24.4g}" for _, r in cols))
+        lines.append(_compared("residual std (stated stds)", [f"{r.solver.sigma0:>24.4g}" for _, r in cols]))
     else:
-        lines.append(f"  {'residual std (mm)':<30}" + "".join(f"{r.solver.sigma0 * MM:>24.4f}" for _, r in cols))
-    lines.append(f"  {'solver':<30}" + "".join(f"{'converged' if r.solver.success else 'NOT converged':>24}"
-                                                for _, r in cols))
-    lines.append(f"  {'verdict':<30}" + "".join(f"{r.verdict:>24}" for _, r in cols))
-    lines.append(comparison.verdict)
-    chosen = next(name for name, r in cols if r is comparison.best)
-    lines.append(f"calibrated model chosen: {chosen}")
+        lines.append(_compared("residual std (mm)", [f"{r.solver.sigma0 * MM:>24.4f}" for _, r in cols]))
+    lines.append(_compared("solver", [f"{'converged' if r.solver.success else 'NOT converged':>24}" for _, r in cols]))
+    lines.append(_compared("verdict", [f"{r.verdict:>24}" for _, r in cols]))
+    best = comparison.best
+    lines += [comparison.verdict, f"calibrated model chosen: {next(name for name, r in cols if r is best)}"]
     for name, r in cols:
         lines += [f"note ({name}): {n}" for n in r.notes if n not in shown]
-    best = comparison.best
     lines += checks_lines(best.checks)
     lines.append(verdict_line(best))
     return "\n".join(lines)
+
+
+# the column heads of a comparison, by what each identification identifies
+COMPARED = {"geometric": "geometric", "geometric and compliance": "geometric+compliance",
+            "geometric, compliance and backlash": "+backlash"}
+
+
+def _compared(label: str, cells: list[str]) -> str:
+    """A row of the comparison: its label, then one cell per identification."""
+    return f"  {label:<30}" + "".join(cells)
+
+
+def _compared_contacts(cols) -> list[str]:
+    """The socket consistency of each identification, fitted and in use (with contacts; mm)."""
+    if cols[0][1].contacts is None:
+        return []
+    lines = []
+    for label, pick in (("socket consistency, fitted", lambda r: r.contacts.fit_after.consistency_mean),
+                        ("socket consistency, in use", lambda r: r.in_use and r.in_use.position_after.mean)):
+        values = [pick(r) for _, r in cols]
+        if all(v is not None for v in values):
+            lines.append(_compared(label + " (mm)", [f"{v * MM:>24.4f}" for v in values]))
+    return lines
+
+
+def _compared_stats(cols) -> list[str]:
+    """The position error statistics of each identification, on the sets the first one has (mm)."""
+    first = cols[0][1].stats
+    lines = []
+    for key in (k for k in STAT_ROWS if getattr(first, k).n):
+        for q in ("mean", "std", "rms", "max"):
+            lines.append(_compared(f"{key.replace('_', ', ')} {q} (mm)",
+                                   [f"{getattr(getattr(r.stats, key), q) * MM:>24.3f}" for _, r in cols]))
+    return lines
 
 
 @accepts(model=is_a(RobotModel), res=is_a(IdentifiabilityResult), where=TEXT)
