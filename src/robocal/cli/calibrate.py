@@ -181,15 +181,9 @@ def _diagnosis(args, model, data, contacts, best, noise):
     return diagnosis
 
 
-def run(args) -> int:
-    import numpy as np
-
-    from .._files.model import calibration_record, model_to_yaml
-    from .._files.result import result_files, sidecar_path
-    from .._identification.calibrate import calibrate, compare
-    from .._model.measurements import Noise
-    from .._presentation.text import calibration_summary, comparison_summary
-
+def _check_arguments(args) -> None:
+    """The options that go together: a measurement file or contacts, one held-out set, --compare
+    without --parameters, --backlash with --compare."""
     if args.contacts:
         _one_held_out_set(args)
     elif args.csv is None:
@@ -198,13 +192,79 @@ def run(args) -> int:
         raise InputError("needs --contacts", where="--holdout-placement")
     if args.compare and args.parameters:
         raise InputError("--compare chooses the parameters itself; drop --parameters", where="--compare")
-    out = Path(args.out)
     if args.backlash and not args.compare:
         raise InputError("--backlash adds a third identification to --compare; for one identification name the "
                          "family: --parameters geometric compliance backlash", where="--backlash")
-    # with --compare, result.json is the chosen one (what report and compensate take), beside each
+
+
+def _result_names(args) -> list[str]:
+    """The result files: with --compare each identification's, then the chosen one as result.json
+    (what report and compensate take)."""
     names = ["result-geometric.json", "result-compliance.json"] + (["result-backlash.json"] if args.backlash else [])
-    names = names + ["result.json"] if args.compare else ["result.json"]
+    return names + ["result.json"] if args.compare else ["result.json"]
+
+
+def _calibrate_options(args, validation, contacts) -> dict:
+    """The keyword arguments of ``calibrate`` (and ``compare``) the options give, in SI."""
+    from .._model.measurements import Noise
+
+    noise = Noise.of(args.instrument, position=None if args.noise_mm is None else args.noise_mm / common.MM,
+                     rotation=None if args.noise_deg is None else args.noise_deg / common.DEG)
+    return dict(known=args.known, validation=validation, loss=args.loss, tol=args.tol,
+                initial_base="register" if args.register_base else "model",
+                limit=None if args.limit_mm is None else args.limit_mm / common.MM, noise=noise,
+                on_outliers=args.on_outliers, weak=args.weak, nonnegative_compliance=args.nonnegative_compliance,
+                folds=args.folds, register_validation=args.register_validation, contacts=contacts)
+
+
+def _identified(args, model, data, options: dict) -> tuple:
+    """The chosen result and every result to write (with --compare each identification's, then the
+    chosen one), their summary printed; a failure the data cause names the file."""
+    import numpy as np
+
+    from .._identification.calibrate import calibrate, compare
+    from .._presentation.text import calibration_summary, comparison_summary
+
+    contacts = options["contacts"]
+    weighted = contacts is not None or data.sigma is not None or data.has_orientation
+    source = args.contacts if contacts is not None else args.csv
+    try:
+        if args.compare:
+            comparison = compare(model, data, backlash=args.backlash, **options)
+            best = comparison.best
+            print(comparison_summary(comparison, shown=args.shown_warnings, weighted=weighted))
+            return best, [*comparison.results.values(), best]
+        best = calibrate(model, data, parameters=args.parameters or ("geometric",), **options)
+        print(calibration_summary(best, shown=args.shown_warnings, weighted=weighted))
+        return best, [best]
+    except DegenerateDataError as e:  # name the file: the data, not the program, fall short
+        raise DegenerateDataError(f"{source}: {e}") from None
+    except np.linalg.LinAlgError as e:  # what the numbers leave of the fit is singular: the data's to fix
+        raise DegenerateDataError(f"{source}: the fit is numerically singular on these data ({e})") from None
+
+
+def _output_files(args, out: Path, named: dict, best, diagnosis, report) -> dict:
+    """The files to write: each result (``named``: file name -> result) with its per-pose file, the
+    calibrated model unless the calibration failed (or --write-failed), the report when asked."""
+    from .._files.model import calibration_record, model_to_yaml
+    from .._files.result import result_files
+
+    files = {p: f for n, r in named.items()
+             for p, f in result_files(r, out / n, diagnosis=diagnosis if r is best else None).items()}
+    if best.verdict != "fail" or args.write_failed:
+        files[out / "calibrated.yaml"] = model_to_yaml(best.calibrated_model, units=args.out_units,
+                                                       calibration=calibration_record(best))
+    if report:   # rendered before anything is written: a failure there leaves nothing behind
+        files[out / "report.html"] = report.render_report(best, diagnosis=diagnosis)
+    return files
+
+
+def run(args) -> int:
+    from .._files.result import sidecar_path
+
+    _check_arguments(args)
+    out = Path(args.out)
+    names = _result_names(args)
     report = common.report_module() if args.report else None
     common.refuse_existing([out / "calibrated.yaml"] + [out / n for n in names]
                            + [sidecar_path(out / n) for n in names] + ([out / "report.html"] if report else []),
@@ -213,45 +273,17 @@ def run(args) -> int:
     if contacts is None:
         logging.getLogger("robocal").info("read %s: %d poses to fit, %d held out", args.csv, data.n_poses,
                                           0 if validation is None else validation.n_poses)
-    noise = Noise.of(args.instrument, position=None if args.noise_mm is None else args.noise_mm / common.MM,
-                     rotation=None if args.noise_deg is None else args.noise_deg / common.DEG)
-    options = dict(known=args.known, validation=validation, loss=args.loss, tol=args.tol,
-                   initial_base="register" if args.register_base else "model",
-                   limit=None if args.limit_mm is None else args.limit_mm / common.MM, noise=noise,
-                   on_outliers=args.on_outliers, weak=args.weak, nonnegative_compliance=args.nonnegative_compliance,
-                   folds=args.folds, register_validation=args.register_validation, contacts=contacts)
-    weighted = contacts is not None or data.sigma is not None or data.has_orientation
-    source = args.contacts if contacts is not None else args.csv
-    try:
-        if args.compare:
-            comparison = compare(model, data, backlash=args.backlash, **options)
-            best = comparison.best
-            results = [*comparison.results.values(), best]
-            print(comparison_summary(comparison, shown=args.shown_warnings, weighted=weighted))
-        else:
-            best = calibrate(model, data, parameters=args.parameters or ("geometric",), **options)
-            results = [best]
-            print(calibration_summary(best, shown=args.shown_warnings, weighted=weighted))
-    except DegenerateDataError as e:  # name the file: the data, not the program, fall short
-        raise DegenerateDataError(f"{source}: {e}") from None
-    except np.linalg.LinAlgError as e:  # what the numbers leave of the fit is singular: the data's to fix
-        raise DegenerateDataError(f"{source}: the fit is numerically singular on these data ({e})") from None
+    options = _calibrate_options(args, validation, contacts)
+    best, results = _identified(args, model, data, options)
     for r in results:
         common.require_finite("the calibration", _headline(r))
-    diagnosis = _diagnosis(args, model, data, contacts, best, noise)
-    files = {p: f for n, r in zip(names, results)
-             for p, f in result_files(r, out / n, diagnosis=diagnosis if r is best else None).items()}
-    failed = best.verdict == "fail"
-    if not failed or args.write_failed:
-        files[out / "calibrated.yaml"] = model_to_yaml(best.calibrated_model, units=args.out_units,
-                                                       calibration=calibration_record(best))
-    if report:   # rendered before anything is written: a failure there leaves nothing behind
-        files[out / "report.html"] = report.render_report(best, diagnosis=diagnosis)
+    diagnosis = _diagnosis(args, model, data, contacts, best, options["noise"])
+    files = _output_files(args, out, dict(zip(names, results)), best, diagnosis, report)
     common.write_outputs(files, force=args.force)
     print(f"wrote {', '.join(str(p) for p in files)}")
     if args.record:
         record.record_result(args, best, args.record, str(out / "result.json"))
-    if failed:
+    if best.verdict == "fail":
         print(f"not written: {out / 'calibrated.yaml'} (the calibration failed its checks; --write-failed writes it "
               "anyway, marked as failed)" if not args.write_failed else
               f"{out / 'calibrated.yaml'} carries the verdict FAIL")
