@@ -121,6 +121,25 @@ def test_the_example_folder_of_seatings_calibrates(cli, arm7, tmp_path):
     assert c.placements() == ("P1", "P2", "P3") and c.n_rows == 90 and len(c.distances) == 3
 
 
+def test_notes_and_other_files_in_a_placement_are_skipped_and_listed(arm7, session, tmp_path):
+    """A campaign folder as published: a notes file and the robot's own pose files beside the socket
+    files. The manifest names the socket files; the others are skipped, never read as sockets, and
+    the reader says which sockets it read in each placement and which files it skipped."""
+    _, path = session
+    folder = as_seatings(path, tmp_path / "campaign", arm7.joint_names)
+    plain = rc.io.read_contacts(folder, arm7)
+    for p in folder.iterdir():
+        if p.is_dir():
+            (p / "comments.txt").write_text("plate on the left of the table\n")
+            (p / "hole_0_pose.csv").write_text("0.1,0.2,0.3,0,0,0,1\n")
+    manifest = folder / "seatings.yaml"
+    manifest.write_text(manifest.read_text() + 'sockets: "hole_?.csv"\n')
+    got = rc.io.read_contacts(folder, arm7)
+    assert np.array_equal(got.q, plain.q) and got.target == plain.target and got.placement == plain.placement
+    assert got.notes[0].startswith("sockets read: P1 hole_0, hole_1, hole_2")
+    assert got.notes[1].startswith(f"{2 * len(plain.placements())} file(s) not socket files, skipped: P1/comments.txt")
+
+
 def test_sockets_whose_seatings_are_copies_of_one_reading_are_refused_in_one_line(cli, tmp_path):
     """Every socket file holding the same joint reading puts the spaced sockets at one point: the
     stated spacing has no direction to fit along (once a NaN Jacobian and an internal argument's name)."""
@@ -183,7 +202,8 @@ BAD = [
     ("empty placement", lambda f: (f / "P5").mkdir(), ["P5", "no socket file"]),
     ("file name", lambda f: (f / "P2" / "hole_1.csv").rename(f / "P2" / "hole 1.csv"),
      ["P2/hole 1.csv", "not a socket file"]),
-    ("other file", lambda f: (f / "P2" / "notes.txt").write_text("x"), ["P2/notes.txt", "not a socket file"]),
+    ("pattern", _manifest("sigma:", "sockets: hole_?.txt\nsigma:"), ["seatings.yaml", "sockets", "ending in .csv"]),
+    ("no file matches", _manifest("sigma:", "sockets: peg_?.csv\nsigma:"), ["P1", "no socket file (peg_?.csv)"]),
     ("top csv", lambda f: (f / "hole_0.csv").write_text("1,2,3,4,5,6,7\n"),
      ["campaign/hole_0.csv", "outside a placement folder"]),
     ("placement name", lambda f: (f / "P2").rename(f / "P 2"), ["P 2", "placement folder's name"]),

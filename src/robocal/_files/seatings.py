@@ -15,6 +15,7 @@ socket group, named by the placement's folder and the file's name.
 
 from __future__ import annotations
 
+import fnmatch
 import hashlib
 import math
 import os
@@ -32,7 +33,7 @@ from .measurements import MAX_MAGNITUDE
 from .text import MAX_FILE_BYTES, decode, load_yaml, read_bytes
 
 MANIFEST = "seatings.yaml"
-MANIFEST_KEYS = ("units", "joints", "marker", "sigma", "distances")
+MANIFEST_KEYS = ("units", "joints", "marker", "sigma", "distances", "sockets")
 REQUIRED_KEYS = ("units", "joints", "sigma")
 # a placement's folder and a socket's file: letters, digits, '_', '-' (a placement also '.' and '+')
 PLACEMENT_NAME = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9_.+-]{0,63}")
@@ -113,6 +114,15 @@ class _Manifest:
             raise error("distances", f"expected a list of {{sockets: [A, B], length: L, sigma: S}}, got "
                                      f"{excerpt(spacings)}")
         self.distances = tuple(self._distance(e, f"distances[{i}]", error) for i, e in enumerate(spacings))
+        self.sockets = self._pattern(d.get("sockets", "*.csv"), error)
+
+    @staticmethod
+    def _pattern(value, error) -> str:
+        """The names of a placement's socket files: a pattern of ``*``, ``?`` and ``[...]``, ending in .csv."""
+        if not isinstance(value, str) or not value.lower().endswith(".csv") or "/" in value or len(value) > 64:
+            raise error("sockets", f"expected a file name pattern ending in .csv (hole_?.csv, *.csv), got "
+                                   f"{excerpt(value)}")
+        return value
 
     @staticmethod
     def _joints(joints, model: RobotModel, error) -> tuple[str, ...]:
@@ -225,7 +235,7 @@ def read_seatings(path, model: RobotModel) -> Contacts:
     digest = hashlib.sha256()
     digest.update(hashlib.sha256(raw).digest())
     manifest = _Manifest(load_yaml(decode(raw, str(manifest_path)), str(manifest_path)), model, str(manifest_path))
-    files = _socket_files(folder, root)
+    files, skipped = _socket_files(folder, root, manifest.sockets)
     q: list[list[float]] = []
     target: list[str] = []
     placement: list[str] = []
@@ -253,12 +263,28 @@ def read_seatings(path, model: RobotModel) -> Contacts:
     return Contacts(q=np.array(q)[:, manifest.columns] * manifest.scale, marker=(manifest.marker,) * n,
                     kind=("socket",) * n, target=tuple(target), placement=tuple(placement),
                     sigma=np.full(n, manifest.sigma), distances=manifest.distances, joint_names=model.joint_names,
-                    labels=tuple(labels), source=str(folder), sha256=digest.hexdigest())
+                    labels=tuple(labels), source=str(folder), sha256=digest.hexdigest(),
+                    notes=_read_notes(files, skipped))
 
 
-def _socket_files(folder: Path, root: Path) -> list[tuple[str, str, Path]]:
-    """(placement, socket, path) of every socket file, placements and sockets in natural order."""
+def _read_notes(files, skipped: list[str]) -> tuple[str, ...]:
+    """What the reader tells the user: the sockets read per placement, the files it skipped."""
+    per: dict[str, list[str]] = {}
+    for name, socket, _ in files:
+        per.setdefault(name, []).append(socket)
+    notes = ["sockets read: " + "; ".join(f"{p} {', '.join(s)}" for p, s in per.items())]
+    if skipped:
+        shown = ", ".join(skipped[:8]) + (f" and {len(skipped) - 8} more" if len(skipped) > 8 else "")
+        notes.append(f"{len(skipped)} file(s) not socket files, skipped: {shown}")
+    return tuple(notes)
+
+
+def _socket_files(folder: Path, root: Path, pattern: str) -> tuple[list[tuple[str, str, Path]], list[str]]:
+    """(placement, socket, path) of every socket file (the files of a placement folder whose names match
+    ``pattern``), placements and sockets in natural order; and the files of placement folders skipped
+    (notes, the robot's own pose files: anything that does not match)."""
     out: list[tuple[str, str, Path]] = []
+    skipped: list[str] = []
     placements = 0
     for e in _entries(folder, root):
         if not e.is_dir():
@@ -270,20 +296,29 @@ def _socket_files(folder: Path, root: Path) -> list[tuple[str, str, Path]]:
             raise InputError("a placement folder's name is letters, digits, '_', '-', '.', '+' (up to 64)",
                              source=e.path)
         placements += 1
-        found = 0
-        for f in _entries(Path(e.path), root):
-            m = SOCKET_FILE.fullmatch(f.name)
-            if not m or not f.is_file():
-                raise InputError("not a socket file: a placement folder holds one file SOCKET.csv per socket "
-                                 "(SOCKET of letters, digits, '_', '-')", source=f.path)
-            if len(out) == MAX_SOCKET_FILES:
-                raise InputError(f"more than {MAX_SOCKET_FILES:,} socket files; a folder of seatings holds up to "
-                                 "that many (docs/formats.md)", source=str(folder))
-            out.append((e.name, m["socket"], Path(f.path)))
-            found += 1
+        found = _placement_files(e, root, pattern, out, skipped)
         if not found:
-            raise InputError("no socket file in this placement folder", source=e.path)
+            raise InputError(f"no socket file ({pattern}) in this placement folder", source=e.path)
     if not placements:
         raise InputError("no placement folder: a folder of seatings holds one folder per placement, each holding "
                          "one file per socket (docs/formats.md)", source=str(folder))
-    return out
+    return out, skipped
+
+
+def _placement_files(e: os.DirEntry, root: Path, pattern: str, out: list, skipped: list) -> int:
+    """Add a placement folder's socket files to ``out`` and the others to ``skipped``; how many found."""
+    found = 0
+    for f in _entries(Path(e.path), root):
+        if not fnmatch.fnmatchcase(f.name, pattern):
+            skipped.append(f"{e.name}/{f.name}")
+            continue
+        m = SOCKET_FILE.fullmatch(f.name)
+        if not m or not f.is_file():
+            raise InputError("not a socket file: a socket file is named SOCKET.csv (SOCKET of letters, digits, "
+                             "'_', '-')", source=f.path)
+        if len(out) == MAX_SOCKET_FILES:
+            raise InputError(f"more than {MAX_SOCKET_FILES:,} socket files; a folder of seatings holds up to "
+                             "that many (docs/formats.md)", source=str(e.path))
+        out.append((e.name, m["socket"], Path(f.path)))
+        found += 1
+    return found

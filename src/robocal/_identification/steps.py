@@ -98,6 +98,7 @@ def prepare(model: RobotModel, data: Measurements | None, contacts: Contacts | N
     """The inputs of the steps: exact copies of a row counted once, the start (the model, or with
     its base registered on the measured points), and the held-out set by kind."""
     notes = list(model.notes) + ([] if data is None else list(data.extra.get("notes", ())))
+    notes += [] if contacts is None else list(contacts.notes)
     copies: tuple[str, ...] = ()
     if data is not None:
         data, copies = without_copies(data)

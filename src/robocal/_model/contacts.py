@@ -66,7 +66,8 @@ class Contacts:
     Shapes: ``q`` (n_rows, n_joints) rad or m; ``marker``, ``kind``, ``target``, ``placement`` one
     string per row; ``sigma`` (n_rows,) the standard deviation of a contact in metres (per axis for
     a socket, along the normal for a plane; a bar's row states that of its end). ``bars`` maps a
-    bar's name to its (length, sigma) in metres. The arrays are the record's own, read-only.
+    bar's name to its (length, sigma) in metres; ``notes`` what the reader decided for the user
+    (the sockets read, the files skipped). The arrays are the record's own, read-only.
     """
 
     q: np.ndarray
@@ -82,6 +83,7 @@ class Contacts:
     labels: tuple[str, ...] = ()
     source: str = ""
     sha256: str = ""
+    notes: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         q = np.atleast_2d(np.asarray(self.q, dtype=float))
@@ -158,7 +160,7 @@ class Contacts:
         return Contacts(q=self.q[idx], marker=pick(self.marker), kind=pick(self.kind), target=pick(self.target),
                         placement=pick(self.placement), sigma=self.sigma[idx], distances=self.distances,
                         planes=self.planes, bars=self.bars, joint_names=self.joint_names, labels=pick(self.labels),
-                        source=self.source, sha256=self.sha256)
+                        source=self.source, sha256=self.sha256, notes=self.notes)
 
     def placements(self) -> tuple[str, ...]:
         return tuple(dict.fromkeys(self.placement))
