@@ -236,7 +236,8 @@ def test_backlash_checks_sign_tolerance_and_support():
     big = replace(e, estimate=0.02)
     assert plausibility_check([big], DEFAULT_TOLERANCES, {}).status == "fail"
     noise = replace(e, estimate=1e-5)
-    assert support_check([noise]).status == "warn" and "no backlash" in support_check([noise]).summary
+    # a family the data do not show is said, not warned: the accuracy in use judges the model with it
+    assert support_check([noise]).status == "pass" and "no backlash" in support_check([noise]).summary
     assert support_check([e]).status == "pass"
 
 

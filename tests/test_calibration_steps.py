@@ -226,3 +226,33 @@ def test_measured_points_contacts_and_both_run_the_same_steps(monkeypatch):
     both = _sequence(monkeypatch, lambda: run(arm7, data, arm7_sockets, None, options))
     assert tracker == contacts == both
     assert set(tracker) == {name for _, name in STEPS}
+
+
+def test_rows_that_carry_the_scale_together_are_never_set_aside(monkeypatch):
+    """Known distances carry the robot's scale together (none alone): however far one stands out, the
+    refit keeps it, while a real blunder among the sockets beside it is set aside."""
+    from pathlib import Path
+
+    from robocal.sim import socket_campaign
+
+    arm7 = rc.read_model(Path(__file__).parent.parent / "examples" / "arm7" / "model.yaml")
+    true = rc.perturb_model(arm7, rc.identifiability(arm7, parameters=("frames",)).identified, rng=0)
+    sockets = socket_campaign(true, placements=4, poses_per_socket=15, joint_noise=2e-5, rng=3)
+    q = sockets.q.copy()
+    q[5, 1] += 0.01                                                   # one seating read 10 mrad off
+    sockets = dataclasses.replace(sockets, q=q)
+    options = dataclasses.replace(OPTIONS, noise=rc.Noise.of("tracker"))
+    real = steps.find_outliers
+
+    def distances_standing_out(problem, solution, noise):
+        found = real(problem, solution, noise)
+        first = np.array([k == "distance" for k in problem.observations().kind]).cumsum() == 1
+        far = found.out | (first & np.array([k == "distance" for k in problem.observations().kind]))
+        return dataclasses.replace(found, out=far, gross=found.gross | far, apart=found.apart | far)
+
+    monkeypatch.setattr(steps, "find_outliers", distances_standing_out)
+    a = analyse(prepare(arm7, None, sockets, None, options, rigid_base), options)
+    refit = fit(pin_down(a, options.noise, None, eliminate=False), options, *held(a))
+    kind = np.array(a.problem.observations().kind)
+    assert refit.aside.any() and not refit.aside[kind == "distance"].any()
+    assert refit.aside[5] and kind[5] == "socket"                     # the seating read off

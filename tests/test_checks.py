@@ -91,6 +91,15 @@ def _assert_fails(code, out, result, check, *words):
     assert "verdict: FAIL" in out
 
 
+def _assert_warns(code, out, result, check, *words):
+    """A model the data place right despite a large change: exit 0, verdict warn, ``check`` warns with
+    ``words`` in what it says, and the calibrated model is written."""
+    assert code == 0 and result["verdict"] == "warn", out
+    said = json.dumps(next(c for c in result["checks"] if c["name"] == check))
+    assert '"status": "warn"' in said and all(w in said for w in words), said
+    assert "verdict: warn" in out
+
+
 def test_clean_campaign_passes_and_writes_its_verdict(tmp_path, cli):
     m, true, data = _campaign()
     code, out, err, result = _calibrate(tmp_path, cli, m, _csv(data, m))
@@ -153,7 +162,9 @@ def test_sign_error_in_the_model(tmp_path, cli):
     lines = _csv(data, m)
     wrong = m.replace(frames=tuple(replace(f, d=-f.d) if f.name == "j3" else f for f in m.frames))
     code, out, _, result = _calibrate(tmp_path, cli, wrong, lines)
-    _assert_fails(code, out, result, "plausible changes", "moves the tool up to")
+    # the data correct the file's sign and the model places the robot right in use: said, not failed
+    _assert_warns(code, out, result, "plausible changes", "moves the tool up to", "tolerances.")
+    assert (tmp_path / "out" / "calibrated.yaml").exists()
 
 
 def test_two_markers_swapped(tmp_path, cli):
@@ -198,7 +209,8 @@ def test_file_from_another_robot(tmp_path, cli):
     bigger = m.replace(frames=tuple(replace(f, d=f.d * 1.3, r=f.r * 1.3) for f in m.frames))
     _, data = rc.simulate(bigger, 48, seed=3, noise=NOISE)
     code, out, _, result = _calibrate(tmp_path, cli, m, _csv(data, bigger))
-    _assert_fails(code, out, result, "plausible changes", "moves the tool up to")
+    # the model becomes the other robot's and places it right in use: said, not failed
+    _assert_warns(code, out, result, "plausible changes", "moves the tool up to", "tolerances.")
 
 
 def test_pose_column_shifted_by_one_row(tmp_path, cli):
@@ -246,8 +258,9 @@ def test_noise_only_data_calibrated_with_compliance(tmp_path, cli):
     true, data = rc.simulate(m, 60, seed=5, noise=NOISE)        # a rigid robot
     code, out, _, result = _calibrate(tmp_path, cli, m, _csv(data, m), "--parameters", "geometric,compliance")
     support = next(c for c in result["checks"] if c["name"] == "estimates supported by the data")
-    assert code == 0 and result["verdict"] != "pass" and support["status"] == "warn"
-    assert "no compliance differs from zero" in support["summary"]
+    # said, not warned: compliances at zero do the robot in use no harm, and the accuracy in use judges it
+    assert code == 0 and support["status"] == "pass", out
+    assert "no compliance differs from zero" in support["summary"] and "--compare" in support["fix"]
 
 
 def test_marker_never_measured_is_named(tmp_path, cli):
@@ -402,8 +415,8 @@ def test_fair_before_registers_base_and_tool():
 
 def test_weak_parameters_are_judged_at_the_scatter_the_fit_shows():
     """Residuals of the robot's own size and no limit given: the shipped TH8 campaign holds back what
-    the limit-aware calibration holds back (each choice by the cross-validated error), and only the
-    fit against the instrument warns; with the limit, reached in use, it passes."""
+    the limit-aware calibration holds back (each choice by the cross-validated error); the fit says
+    the scatter beyond the instrument is the robot's own; with the limit, reached in use, it passes."""
     th8 = Path(__file__).resolve().parents[1] / "examples" / "th8"
     nominal = rc.read_model(th8 / "model.yaml")
     fit, val = rc.split_sets(rc.read_measurements(th8 / "measurements.csv", nominal))
@@ -415,8 +428,11 @@ def test_weak_parameters_are_judged_at_the_scatter_the_fit_shows():
     def weak(r):
         return {a.name for a in r.identifiability.eliminated if a.reason.startswith("is weakly identifiable")}
     assert weak(plain) and weak(plain) == weak(aware)
-    assert {c.name for c in plain.checks if c.status != "pass"} == {"fit against the instrument"}
-    assert plain.verdict == "warn" and any("model choice by cross-validated error" in n for n in plain.notes)
+    # residuals 13 times the tracker's, as large on held-out poses, and better in use: the robot's own
+    # scatter, said by the fit check as a pass
+    fit_check = next(c for c in plain.checks if c.name == "fit against the instrument")
+    assert fit_check.status == "pass" and "the robot's own scatter" in fit_check.summary
+    assert plain.verdict == "pass" and any("model choice by cross-validated error" in n for n in plain.notes)
     assert aware.verdict == "pass" and aware.limit.reached
 
 

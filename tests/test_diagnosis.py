@@ -209,7 +209,8 @@ def test_the_real_campaigns_get_no_false_cause(robot):
     model, data = _real(robot)
     result = _calibrated(corpus.Case(robot, model, data, None))
     diagnosis = rc.diagnose(model, data, result)
-    assert result.verdict != "pass" and diagnosis.findings == (), diagnosis.summary
+    # the grid campaigns pass as they are, and the diagnosis asked anyway names nothing that is not there
+    assert result.verdict == "pass" and diagnosis.findings == (), diagnosis.summary
 
 
 @pytest.mark.parametrize("robot, kind", [("UR5", "random"), ("WAM", "random")])

@@ -94,16 +94,17 @@ def test_a_limit_a_larger_noise_or_stated_deviations_never_cost_accuracy_in_use(
 # -- the cases users met ------------------------------------------------------------------------------
 
 def test_an_elastic_robot_with_millimetres_left_is_not_failed():
-    """A humanoid-like elastic arm measured by motion capture leaves millimetres: better in use, a
-    warning, not a failure (the fit's size alone never fails)."""
+    """A humanoid-like elastic arm measured by motion capture leaves millimetres: better in use, and
+    held-out poses show the same scatter: the robot's own, said, not failed (the fit's size alone
+    never fails)."""
     effects = UnmodelledEffects(elasticity=6e-5, bending=2e-5, scatter=3e-4)
     m, true, data = _real_campaign(effects, 7, n=300, noise=1e-4)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         result = rc.calibrate(m, data, noise="camera")
     fit = next(c for c in result.checks if c.name == "fit against the instrument")
-    assert result.stats.fit_after.rms > 1e-3 and fit.status == "warn"
-    assert result.verdict == "warn" and result.in_use.position_after.mean < result.in_use.position_before.mean
+    assert result.stats.fit_after.rms > 1e-3 and fit.status == "pass" and "the robot's own scatter" in fit.summary
+    assert result.verdict != "fail" and result.in_use.position_after.mean < result.in_use.position_before.mean
 
 
 def test_a_validation_campaign_of_another_set_up_fails_unless_registered_on():
@@ -172,7 +173,8 @@ def test_a_noise_stated_ten_times_too_large_is_said_and_hides_no_blunder():
 
 def test_a_run_of_consecutive_rows_is_a_systematic_error_not_blunders():
     """A base-and-tool fit over a campaign where 16 consecutive poses carry an offset (a bump of the
-    instrument): named as a run and kept, not set aside as blunders."""
+    instrument): named as a run and kept, not set aside as blunders; a systematic effect, which the
+    accuracy in use judges, so the outlier check says it without warning."""
     m = arm6r()
     true, data = rc.simulate(m, 80, seed=3, noise=NOISE, parameters=("base",))
     pos = data.positions.copy()
@@ -181,8 +183,10 @@ def test_a_run_of_consecutive_rows_is_a_systematic_error_not_blunders():
         warnings.simplefilter("ignore")
         result = rc.calibrate(m, replace(data, positions=pos), parameters=("base", "markers"))
     outliers = next(c for c in result.checks if c.name == "outliers")
-    assert outliers.status == "warn" and "runs of consecutive poses" in outliers.summary
+    assert outliers.status == "pass" and "runs of consecutive poses" in outliers.summary
+    assert {item.split(",")[0] for item in outliers.items} <= {f"pose {i}" for i in range(30, 46)}
     assert not any("set aside" in n for n in result.notes)
+    assert any("a systematic error, not blunders" in n for n in result.notes)
 
 
 def test_plausibility_judges_what_the_robot_does_not_raw_numbers():
@@ -205,7 +209,9 @@ def test_plausibility_judges_what_the_robot_does_not_raw_numbers():
     assert check.status == "fail" and "moves the tool up to 100 mm" in check.summary
 
 
-def test_a_wrong_link_length_of_100_mm_fails_on_what_the_robot_does():
+def test_a_wrong_link_length_of_100_mm_is_said_by_what_the_robot_does():
+    """The data correct a link 100 mm off and the model places the robot right in use: the change is
+    said with what it does to the tool and the key of its tolerance, not failed."""
     m = arm6r()
     true, data = rc.simulate(m, 60, seed=2, noise=NOISE)
     wrong = m.replace(frames=tuple(replace(f, d=f.d + 0.1) if f.name == "j3" else f for f in m.frames))
@@ -213,7 +219,9 @@ def test_a_wrong_link_length_of_100_mm_fails_on_what_the_robot_does():
         warnings.simplefilter("ignore")
         result = rc.calibrate(wrong, data)
     check = next(c for c in result.checks if c.name == "plausible changes")
-    assert check.status == "fail" and result.verdict == "fail"
+    assert check.status == "warn" and result.verdict == "warn"
+    assert "moves the tool up to" in check.summary and "tolerances.frames.length" in check.summary + check.fix
+    assert result.in_use.position_after.mean < 1e-4
 
 
 def test_interchangeable_parameters_cannot_pass_as_identified():
@@ -276,7 +284,9 @@ def test_a_tool_orientation_declared_unknown_gets_no_tolerance(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         stated, declared = rc.calibrate(m, data), rc.calibrate(rc.read_model(tmp_path / "m.yaml"), data)
-    assert next(c for c in stated.checks if c.name == "plausible changes").status == "fail"
+    said = next(c for c in stated.checks if c.name == "plausible changes")
+    # better in use, so said rather than failed, with the way to declare it
+    assert said.status == "warn" and "rotation: unknown" in said.fix
     assert next(c for c in declared.checks if c.name == "plausible changes").status == "pass"
     assert declared.verdict != "fail"
 

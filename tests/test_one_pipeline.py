@@ -67,9 +67,11 @@ def test_a_failing_calibration_from_contacts_warns_as_one_from_measured_points(a
     with pytest.warns(rc.CheckWarning, match="FAILED"):
         res = rc.calibrate(arm7, contacts=c)
     assert res.verdict == "fail"
-    data = rc.measure(wrong, rc.random_configurations(arm7, 40, 4), rng=4)
+    q = rc.random_configurations(arm7, 40, 4)
+    data = rc.measure(arm7, q, rng=4)
+    q[7, 2] += 4 * np.pi                                  # a reading two turns beyond its limit
     with pytest.warns(rc.CheckWarning, match="FAILED"):
-        assert rc.calibrate(arm7, data).verdict == "fail"
+        assert rc.calibrate(arm7, replace(data, q=q)).verdict == "fail"
 
 
 def test_rows_that_alone_fix_a_quantity_are_kept_linear_for_measured_points_too(arm7, true_arm):

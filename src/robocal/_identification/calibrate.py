@@ -38,6 +38,8 @@ from .judgement import (
     fit_checks,
     in_use,
     input_checks,
+    placed_better,
+    point_misfit,
     reach,
     record,
     result_checks,
@@ -47,7 +49,7 @@ from .judgement import (
 from .registration import rigid_base
 from .result import CalibrationResult, Comparison, NestedTest
 from .solve import covariance
-from .steps import Options, analyse, choose, prepare, registered_nominal
+from .steps import Options, analyse, choose, observed_markers, prepare, registered_nominal
 
 
 @overload
@@ -161,9 +163,12 @@ def run(model: RobotModel, data: Measurements | None, contacts: Contacts | None,
     notes = inputs.notes + analysis.notes + chosen.notes + choice_notes + before_notes + use_notes
     where = reach(inputs, chosen.design, chosen.solution.p)
     cover = campaign_coverage(chosen, cov, where)
-    use, limit = use_checks(in_use_record, cover, options)
-    checks = (input_checks(inputs, analysis) + list(chosen.outliers.checks) + fit_checks(chosen, options)
-              + result_checks(chosen, cov, found, where) + alone_check(chosen) + use)
+    use, limit = use_checks(in_use_record, cover, options, point_misfit(chosen, options), where)
+    better = placed_better(in_use_record, where, chosen.problem, inputs.validation)
+    checks = (input_checks(inputs, analysis) + list(chosen.outliers.checks)
+              + fit_checks(chosen, options, in_use_record, better)
+              + result_checks(chosen, cov, found, where, better, observed_markers(inputs.data, inputs.contacts))
+              + alone_check(chosen) + use)
     warn_checks(checks)
     judged = (checks, in_use_record, validation_errors, cover, limit)
     return record(inputs, analysis, chosen, before, cov, found, judged, options, notes)

@@ -39,6 +39,9 @@ from .._model.robot import RobotModel
 
 CONTACT_KINDS = ("socket", "plane", "bar", "distance")
 # what the rows of each kind fix when they alone fix it (a robust refit or an outlier step must keep them)
+# kinds whose rows state a known length and carry the scale together (no one alone): never set aside,
+# and kept linear under a robust loss, or the robot would shrink or grow to meet the others
+TOGETHER = ("distance", "bar")
 CARRIES = {"distance": "the scale", "bar": "the scale", "plane": "a plane's position", "socket": "a socket's point",
            "tracker": "a direction of the robot"}
 

@@ -75,6 +75,15 @@ class ContactErrors:
         return float(np.mean(np.concatenate(d))) if d else None
 
     @property
+    def consistency_by_placement(self) -> float | None:
+        """The mean over placements of each placement's mean seating distance from its socket's mean
+        centre (m): the aggregate published per placement, beside the pooled ``consistency_mean``."""
+        per: dict = {}
+        for label, d in self.seatings.items():
+            per.setdefault(label.split("/")[0], []).append(np.asarray(d))
+        return float(np.mean([np.mean(np.concatenate(v)) for v in per.values()])) if per else None
+
+    @property
     def consistency_max(self) -> float | None:
         """The largest distance of a seated ball centre from its socket's mean centre (m)."""
         return float(max(m for _, m in self.consistency.values())) if self.consistency else None

@@ -26,8 +26,8 @@ from typing import cast
 
 import numpy as np
 
-from .._base.arrays import frozen
-from .._model.configurations import random_configurations, sampling_box
+from .._base.arrays import frozen, read_only
+from .._model.configurations import sampling_box
 from .._model.measurements import Measurements
 from .contact_blocks import ContactRows
 from .points import Points
@@ -45,6 +45,9 @@ MAX_FOLDS = 20
 # eigenvalues of a fold's normal matrix (unit columns) below this share of the largest are left out:
 # a fold that alone determined a direction leaves the others unable to (that direction keeps its value)
 FOLD_RCOND = 1e-12
+# a joint whose limits allow a full turn or more is taken to be used over the campaign's range of it,
+# widened by this share of that range on each side
+USE_MARGIN = 0.1
 # configurations drawn within the joint limits to describe the workspace (what the calibrated geometry
 # does there, the spread of its points), and (at most) the poses the parameters' uncertainty is
 # carried to, there and at the measured poses
@@ -411,6 +414,17 @@ class AccuracyInUse:
         The held-out errors after calibration as the instrument saw them, m.
     measured_fit : UseStats or None
         The fitted errors after calibration as the instrument saw them, m.
+    registered_after : UseStats or None
+        With a validation set not registered: the calibrated model's errors on it once base and
+        tool are registered on it, m (what tells another set-up from overfitting).
+    cross_validated : UseStats or None
+        With a validation set: the fitted campaign's own held-out errors as measured, m (what
+        tells other poses from overfitting).
+    spacing_before : numpy.ndarray or None
+        With contacts: (n,) the absolute errors of the known distances between held-out sockets'
+        mean centres of the nominal model, m (read-only): the scale in use.
+    spacing_after : numpy.ndarray or None
+        The same of the calibrated model, m (read-only).
     """
 
     method: str
@@ -426,6 +440,10 @@ class AccuracyInUse:
     registration_only: bool = False
     measured_after: UseStats | None = None
     measured_fit: UseStats | None = None
+    registered_after: UseStats | None = None
+    cross_validated: UseStats | None = None
+    spacing_before: np.ndarray | None = None
+    spacing_after: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "errors_before", frozen(self.errors_before))
@@ -457,7 +475,8 @@ def without_instrument(norms: np.ndarray, variance: float) -> np.ndarray:
 
 def accuracy_in_use(method: str, folds: int | None, grouping: str, before: HeldOut, after: HeldOut,
                     fit_after: np.ndarray, *, registration_only: bool = False, noise: tuple[float, float] = (0.0, 0.0),
-                    seatings: np.ndarray | None = None, fit_seatings: np.ndarray | None = None) -> AccuracyInUse:
+                    seatings: np.ndarray | None = None, fit_seatings: np.ndarray | None = None,
+                    spacings: np.ndarray | None = None) -> AccuracyInUse:
     """The record of held-out errors before and after (``HeldOut``); ``fit_after`` the error norms
     on the fitted points (and seatings); ``registration_only``: only base and markers were identified
     (the robot's kinematics are the nominal ones, before as after). ``noise``: the instrument's
@@ -465,7 +484,8 @@ def accuracy_in_use(method: str, folds: int | None, grouping: str, before: HeldO
     figure (``without_instrument``): the accuracy in use is the robot's. ``seatings``
     (n_contact_observations,): the contact observations whose held-out errors are positions of the
     robot (seatings: their distance from their socket's mean centre), judged beside the points;
-    ``fit_seatings`` the fitted seatings' distances."""
+    ``fit_seatings`` the fitted seatings' distances; ``spacings`` (n_contact_observations,) the
+    known distances, whose held-out errors are kept beside (``spacing_before``, ``spacing_after``)."""
     eb, ea = without_instrument(before.norms.ravel(), noise[0]), without_instrument(after.norms.ravel(), noise[0])
     raw_after = after.norms.ravel()
     fit_raw = np.asarray(fit_after, dtype=float)
@@ -482,11 +502,17 @@ def accuracy_in_use(method: str, folds: int | None, grouping: str, before: HeldO
     rb, ra = before.rotation_norms, after.rotation_norms
     rb = None if rb is None else without_instrument(rb, noise[1])
     ra = None if ra is None else without_instrument(ra, noise[1])
+    sb = sa = None
+    eb_c, ea_c = before.contact_errors, after.contact_errors
+    if spacings is not None and spacings.any() and ea_c is not None and eb_c is not None:
+        held = spacings & np.isfinite(ea_c[:, 0])
+        sb, sa = read_only(np.abs(eb_c[held, 0])), read_only(np.abs(ea_c[held, 0]))
     return AccuracyInUse(method=method, folds=folds, grouping=grouping, position_before=use_stats(eb[both]),
                          position_after=use_stats(ea[both]), rotation_before=None if rb is None else use_stats(rb),
                          rotation_after=None if ra is None else use_stats(ra), fit_after=use_stats(fitted),
                          errors_before=eb[both], errors_after=ea[both], registration_only=registration_only,
-                         measured_after=use_stats(raw_after), measured_fit=use_stats(fit_raw))
+                         measured_after=use_stats(raw_after), measured_fit=use_stats(fit_raw), spacing_before=sb,
+                         spacing_after=sa)
 
 
 @dataclass(frozen=True, eq=False)
@@ -556,9 +582,32 @@ def _design_like(problem: Points, q: np.ndarray) -> Points:
     return Points(problem.model, fake, free_names(problem), compliance=problem.compliance, chunked=False)
 
 
-def workspace_readings(model, n: int = WORKSPACE_POSES) -> np.ndarray:
-    """``n`` configurations drawn (with a fixed seed) within the joint limits, (n, n_joints)."""
-    return random_configurations(model, n, np.random.default_rng(WORKSPACE_SEED))
+def use_box(model, q: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper readings of the configurations the robot reaches in use: its joint limits
+    (``sampling_box``), except for a revolute joint whose limits allow a full turn or more (a DH
+    table's nominal +-360 deg says nothing of its use): there the campaign's range of that joint
+    (``q``, readings of the campaign), widened by ``USE_MARGIN`` of it on each side."""
+    lo, hi = sampling_box(model)
+    if q is None or not len(q):
+        return lo, hi
+    angle = np.zeros(model.n_joints, dtype=bool)
+    for f in model.frames:
+        for j, _ in f.coupling:
+            angle[j] |= f.joint == "revolute"
+    nominal = angle & ~(model.upper_limits - model.lower_limits < 2 * np.pi - 1e-9)
+    q = np.asarray(q, dtype=float)
+    qlo, qhi = q.min(axis=0), q.max(axis=0)
+    margin = USE_MARGIN * (qhi - qlo)
+    lo = np.where(nominal, np.maximum(qlo - margin, model.lower_limits), lo)
+    hi = np.where(nominal, np.minimum(qhi + margin, model.upper_limits), hi)
+    return lo, hi
+
+
+def workspace_readings(model, n: int = WORKSPACE_POSES, q: np.ndarray | None = None) -> np.ndarray:
+    """``n`` configurations drawn (with a fixed seed) within the box of use (``use_box``; the joint
+    limits without ``q``), (n, n_joints)."""
+    lo, hi = use_box(model, q)
+    return np.random.default_rng(WORKSPACE_SEED).uniform(lo, hi, size=(n, model.n_joints))
 
 
 def coverage(problem: Points, p: np.ndarray, covariance: np.ndarray, predicted_workspace: np.ndarray, *,
@@ -568,9 +617,9 @@ def coverage(problem: Points, p: np.ndarray, covariance: np.ndarray, predicted_w
     R factor of the problem's (unweighted) Jacobian at ``p``, when at hand: the uncertainty at the
     measured poses is then its mean over all of them, trace(C R^T R) / n, without a Jacobian more."""
     data = problem.data
-    lo, hi = sampling_box(problem.model)
-    allowed = np.where(np.isfinite(hi - lo), hi - lo, 2 * np.pi)
     q = data.q
+    lo, hi = use_box(problem.model, q)
+    allowed = np.where(np.isfinite(hi - lo), hi - lo, 2 * np.pi)
     span = np.ptp(q, axis=0) / np.where(allowed > 0, allowed, 1.0)
     measured = data.positions[data.mask]
     pts = measured.reshape(-1, 3)
@@ -585,7 +634,7 @@ def coverage(problem: Points, p: np.ndarray, covariance: np.ndarray, predicted_w
     else:
         pick = np.linspace(0, data.n_poses - 1, min(data.n_poses, UNCERTAINTY_POSES)).astype(int)
         at_measured = _uncertainty(problem, p, q[pick], covariance)
-    at_workspace = _uncertainty(problem, p, workspace_readings(problem.model, UNCERTAINTY_POSES), covariance)
+    at_workspace = _uncertainty(problem, p, workspace_readings(problem.model, UNCERTAINTY_POSES, q), covariance)
     return Coverage(joint_span=np.minimum(span, 1.0), joint_ranges=tuple((float(a), float(b)) for a, b in
                                                                        zip(q.min(axis=0), q.max(axis=0))),
                     box=box, spread_ratio=float(ratio), uncertainty_measured=at_measured,

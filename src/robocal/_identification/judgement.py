@@ -4,7 +4,7 @@ verdict, the warnings, and the record (``CalibrationResult``)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import cast
 
 import numpy as np
@@ -15,9 +15,11 @@ from .._model.measurements import Measurements, Noise
 from .._model.parameters import model_from_vector, parameter_layout
 from .._model.robot import RobotModel
 from .checks import (
+    OVERFIT_RATIO,
     Check,
     WorkspaceChange,
     backlash_sign_check,
+    better_in_use,
     cloud_size_check,
     compliance_sign_check,
     convergence_check,
@@ -28,10 +30,12 @@ from .checks import (
     in_use_check,
     interchangeable_pairs,
     limit_check,
+    markers_apart_check,
     markers_check,
     plausibility_check,
     reading_units_check,
     readings_check,
+    spacing_check,
     support_check,
     tolerances,
 )
@@ -49,6 +53,7 @@ from .holdout import (
     coverage,
     cross_validate,
     evaluated,
+    use_stats,
     workspace_readings,
 )
 from .identifiability import WEAK_STD
@@ -75,6 +80,7 @@ from .steps import (
     observed_markers,
     placed_parameters,
     registered,
+    repeated_in,
 )
 
 # the kinds whose held-out errors are positions of the robot: what the accuracy in use is made of
@@ -91,15 +97,21 @@ def estimates(design: Design, p: np.ndarray, cov: Covariance) -> tuple[Parameter
                  for k, n in enumerate(design.identifiability.identified))
 
 
-def instrument_variance(noise: Noise | None, data: Measurements) -> tuple[float, float]:
-    """The instrument's per-axis variance of positions and rotations: the stated deviations' mean
-    square where the data state them, else the expected noise's."""
-    pos = noise.position ** 2 if noise is not None else 0.0
-    rot = noise.rotation ** 2 if noise is not None else 0.0
+def instrument_variance(noise: Noise | None, data: Measurements, fitted: np.ndarray | None = None
+                        ) -> tuple[float, float]:
+    """The instrument's per-axis variance of positions and rotations, what the accuracy in use takes
+    out: the stated deviations' mean square where the data state them, else the instrument's share
+    of the expected noise (a stated noise may hold the robot's repeatability, which is part of its
+    error in use: only the instrument class's own noise is taken out of it), and never more than the
+    fitted points' own scatter per axis (``fitted``: their residual vectors, n x 3): the data cannot
+    hold more instrument noise than they scatter."""
+    pos, rot = (0.0, 0.0) if noise is None else tuple(v * v for v in noise.instrument_share())
     if data.sigma is not None:
         pos = float(np.mean(data.sigma[data.mask] ** 2))
     if data.sigma_rot is not None and data.rot_mask is not None and data.rot_mask.any():
         rot = float(np.mean(data.sigma_rot[data.rot_mask] ** 2))
+    if fitted is not None and fitted.size:
+        pos = min(pos, float(np.mean(fitted ** 2)))
     return pos, rot
 
 
@@ -108,6 +120,11 @@ def _seatings(problem: Problem) -> np.ndarray | None:
     if problem.contacts is None:
         return None
     return np.array([k in POSITION_KINDS for k in problem.contacts.obs_kind], dtype=bool)
+
+
+def _spacings(kinds) -> np.ndarray:
+    """The contact observations that are known distances (their held-out errors: the scale in use)."""
+    return np.array([k == "distance" for k in kinds], dtype=bool)
 
 
 def _fitted_seatings(problem: Problem, p: np.ndarray) -> np.ndarray | None:
@@ -142,10 +159,13 @@ def in_use(fit: Fit, before: np.ndarray, inputs: Inputs, holdout: Holdout, folds
     only = len(placed) == len(design.identifiability.identified)
     held_before = fit.held_out if only else (
         cross_validate(problem.over(placed), before, holdout, folds=folds) if placed else _everywhere(problem, before))
-    noise = (0.0, 0.0) if problem.points is None else instrument_variance(problem.noise, problem.points.data)
+    pts = problem.points
+    noise = (0.0, 0.0) if pts is None else instrument_variance(problem.noise, pts.data,
+                                                               pts.errors(p[:problem.n_robot])[pts.data.mask])
     record = accuracy_in_use("cross-validation", holdout.k, holdout.description, held_before, fit.held_out,
                              _fitted_points(fit), registration_only=only, noise=noise, seatings=_seatings(problem),
-                             fit_seatings=_fitted_seatings(problem, p))
+                             fit_seatings=_fitted_seatings(problem, p),
+                             spacings=None if problem.contacts is None else _spacings(problem.contacts.obs_kind))
     return (record if record.position_after.n else None), None, ()
 
 
@@ -168,13 +188,21 @@ def _validation_points(fit: Fit, before: np.ndarray, points: Measurements, optio
                   noise=problem.noise)
     vectors = [before[:n], fit.solution.p[:n]]
     register = options.register_validation or problem.points is None
+    other = None
     if register:
         vectors = registered(val, vectors)
+    else:        # what registering would give: another set-up is told from overfitting by it
+        other = registered(val, vectors[1:])[0]
     pts = cast(Points, val.points)
     b, a = evaluated(pts, vectors[0]), evaluated(pts, vectors[1])
     method = "validation, base and tool registered on it" if register else "validation"
+    fitted = None if problem.points is None else problem.points.errors(fit.solution.p[:n])[problem.points.data.mask]
     record = accuracy_in_use(method, None, "the validation set", b, a, _fitted_points(fit),
-                             noise=instrument_variance(problem.noise, points))
+                             noise=instrument_variance(problem.noise, points, fitted))
+    k = fit.problem.n_points
+    held = fit.held_out.observation_norms(fit.problem.point_mask)[:k][fit.steady()[:k]]
+    record = replace(record, registered_after=None if other is None else use_stats(evaluated(pts, other).norms),
+                     cross_validated=use_stats(held))
     said = () if options.register_validation or not register else (
         "nothing fitted fixes a frame (contacts alone): base and tool registered on the validation points, for "
         "the models before and after alike",)
@@ -191,7 +219,7 @@ def _validation_contacts(fit: Fit, before: np.ndarray, contacts) -> AccuracyInUs
             for v in (before, fit.solution.p))
     seatings = np.array([k in POSITION_KINDS for k in rows.obs_kind], dtype=bool)
     return accuracy_in_use("held-out placements", None, "the held-out placements", b, a, np.empty(0), seatings=seatings,
-                           fit_seatings=_fitted_seatings(problem, fit.solution.p))
+                           fit_seatings=_fitted_seatings(problem, fit.solution.p), spacings=_spacings(rows.obs_kind))
 
 
 @dataclass(frozen=True, eq=False)
@@ -208,7 +236,7 @@ def reach(inputs: Inputs, design: Design, p: np.ndarray) -> Reach:
     """The calibrated markers at the workspace's configurations, and how far the calibrated geometry
     moves the observed markers from the nominal one's (``workspace_change``)."""
     start, n = design.start, design.problem.n_robot
-    q = workspace_readings(start)
+    q = workspace_readings(start, q=np.vstack([d.q for d in (inputs.data, inputs.contacts) if d is not None]))
     predicted = None
     if inputs.data is not None:
         at_q = design_measurements(start, q, markers=inputs.data.marker_names)
@@ -242,19 +270,42 @@ def input_checks(inputs: Inputs, analysis: Analysis) -> list[Check]:
     if data is not None:
         pts = cast(Points, analysis.problem.points)
         out.append(cloud_size_check(model, data, pts.predicted(analysis.problem.start_vector()[:pts.lay.n_params])[0]))
-    return out + [markers_check(model, observed_markers(data, contacts))]
+    out.append(markers_check(model, observed_markers(data, contacts)))
+    if inputs.validation is not None and data is not None:
+        out.append(held_apart_check(repeated_in(data, inputs.validation)))
+    return out
 
 
-def fit_checks(fit: Fit, options: Options) -> list[Check]:
-    """Convergence, then each kind's residuals against what the instrument explains, and the
-    orientations of 6D data."""
+def held_apart_check(repeated: np.ndarray) -> Check:
+    """The validation poses apart from the fitted ones: those a validation set repeats are not held out."""
+    name = "validation set apart from the fitted one"
+    if not repeated.any():
+        return Check(name, "pass", f"none of its {len(repeated)} poses repeats a fitted one")
+    return Check(name, "warn", f"{int(repeated.sum())} of its {len(repeated)} poses repeat fitted poses exactly: they "
+                 "are not held out, and the accuracy in use counts them as if they were", cause="a validation file "
+                 "cut from the fitted one, or the fitted file given again", fix="give poses the fit did not see")
+
+
+def explained_in_use(in_use, better: bool) -> bool:
+    """The calibration places the robot better in use (``better``: ``placed_better``) and its held-out
+    errors scatter as its fitted ones do: residuals beyond the instrument's are the robot's own."""
+    if not better:
+        return False
+    seen, fitted = in_use.measured_after, in_use.measured_fit
+    return seen is None or fitted is None or not fitted.n or seen.mean <= OVERFIT_RATIO * fitted.mean
+
+
+def fit_checks(fit: Fit, options: Options, in_use_record: AccuracyInUse | None, better: bool) -> list[Check]:
+    """Convergence, then each kind's residuals against what the instrument explains (judged by what
+    the accuracy in use shows), and the orientations of 6D data."""
     solution, noise = fit.solution, options.noise
     out = [convergence_check(solution.success, solution.message, solution.nfev)]
     errors = fit.problem.observation_errors(solution.p)
     dof = kind_dof(fit.problem, solution, errors)
+    explained = explained_in_use(in_use_record, better)
     for kind, (e, s, _) in errors.items():
         out.append(fit_check(e, s, noise, options.limit_m, np.zeros(len(e), dtype=bool),
-                             stated=noise.source.startswith("stated"), kind=kind, dof=dof[kind]))
+                             stated=noise.stated, kind=kind, dof=dof[kind], explained=explained))
     pts = fit.problem.points
     if pts is not None and pts.data.has_orientation:
         out.append(_orientation_check(pts, solution.p[:fit.problem.n_robot]))
@@ -293,7 +344,8 @@ def _orientation_check(pts: Points, p: np.ndarray) -> Check:
                  fix="declare the convention (--orientation) and the angle unit of the rotation columns")
 
 
-def result_checks(fit: Fit, cov: Covariance, found: tuple[ParameterEstimate, ...], where: Reach) -> list[Check]:
+def result_checks(fit: Fit, cov: Covariance, found: tuple[ParameterEstimate, ...], where: Reach, better: bool,
+                  seen) -> list[Check]:
     """What the estimates say: plausible changes, support, physical signs, correlations,
     identifiability at these observations."""
     design = fit.design
@@ -304,8 +356,12 @@ def result_checks(fit: Fit, cov: Covariance, found: tuple[ParameterEstimate, ...
     corr = cov.correlation[:k, :k]
     loose = _loose(found, moments)
     unknown = tuple(m.name for m in design.start.markers if not m.rotation_known)
+    calibrated = model_from_vector(design.start, fit.solution.p[:fit.problem.n_robot])
+    frames = [m.frame for m in design.start.markers if m.name in set(seen)]
+    apart = [markers_apart_check(design.start, calibrated, seen)] if len(set(frames)) < len(frames) else []
     return [plausibility_check(found, tolerances(design.start), deflections, workspace=where.judgement,
-                               unknown_rotations=unknown),
+                               unknown_rotations=unknown, better=better),
+            *apart,
             support_check(found), compliance_sign_check(found), backlash_sign_check(found),
             correlation_check(names, corr, loose),
             identifiability_check(design.lost, design.weak, weak_kept=design.weak_kept,
@@ -344,13 +400,30 @@ def alone_check(fit: Fit) -> list[Check]:
                   items=tuple(labels))]
 
 
-def use_checks(in_use_record: AccuracyInUse | None, cover: Coverage | None, options: Options):
-    """The accuracy in use, where it holds, and the limit of absolute accuracy."""
+def placed_better(in_use_record: AccuracyInUse | None, where: Reach, problem: Problem,
+                  validation: Measurements | None) -> bool:
+    """Whether measured points show that the calibration places the robot better in use
+    (``better_in_use``). Contacts alone show how consistent the robot is with itself, not where it
+    is: a model that shrinks or twists can make seatings consistent, so they do not vouch for a
+    change beyond a tolerance."""
+    points = problem.points is not None or validation is not None
+    return points and better_in_use(in_use_record, reach_of(where))
+
+
+def reach_of(where: Reach) -> float | None:
+    """The robot's reach (m): the markers' largest distance from the base over the configurations of use."""
+    return None if where.judgement is None else where.judgement.reach_m
+
+
+def use_checks(in_use_record: AccuracyInUse | None, cover: Coverage | None, options: Options, misfit: float | None,
+               where: Reach):
+    """The accuracy in use (``misfit``: the measured points' fit against the instrument), where it
+    holds, and the limit of absolute accuracy."""
     if in_use_record is None:
         return [Check("accuracy in use", "pass", "no position held out (contacts of one placement, or no seating "
                       "among them): judged by the fit's checks alone",
                       fix="measure on two placements or more, or hold out measured points (--validation)")], None
-    out = [in_use_check(in_use_record)]
+    out = [in_use_check(in_use_record, misfit, reach_of(where))] + spacing_check(in_use_record)
     if cover is not None:
         out.append(coverage_check(cover, in_use_record))
     judged = None if options.limit_m is None else judge_against_limit(options.limit_m, in_use_record)
@@ -399,6 +472,18 @@ def contact_figures(inputs: Inputs, analysis: Analysis, fit: Fit, before: np.nda
         validation_after=None if val_rows is None else figures(val_rows, val_rows.own_errors(p[:n])),
         held_out=held_figures, noise_ratio=ratios, weak=fit.design.weak, weak_kept=fit.design.weak_kept,
         rows=recordings(inputs.contacts, inputs.data), source=inputs.contacts.source or "")
+
+
+def point_misfit(fit: Fit, options: Options) -> float | None:
+    """The measured points' residual RMS per axis over the expected noise (their stated deviations
+    where given), or None without measured points."""
+    pts = fit.problem.points
+    if pts is None:
+        return None
+    errors = fit.problem.observation_errors(fit.solution.p)["tracker"]
+    e, s = errors[0], errors[1]
+    scale = options.noise.position if s is None else s[:, None]
+    return float(np.sqrt(np.mean((e / scale) ** 2))) if e.size else None
 
 
 def options_noise(problem: Problem) -> float:

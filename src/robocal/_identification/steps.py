@@ -29,17 +29,20 @@ from .._model.parameters import (
 )
 from .._model.robot import RobotModel
 from .checks import (
+    BLUNDER_SEPARATION,
     FIT_RATIO,
     GROSS_FACTOR,
     MEAN_NORM_PER_SIGMA,
     OUTLIER_RUN,
     OUTLIER_SHARE_MAX,
+    REFIT_GAIN_SIGMAS,
     Check,
     expected_noise,
     outlier_bar,
     outlier_check,
     outlier_scores,
 )
+from .contact_blocks import TOGETHER
 from .estimates import REGISTRATION_TOL, effect_text
 from .holdout import FoldProblems, HeldOut, Holdout, cross_validate, paired_excess
 from .identifiability import (
@@ -112,10 +115,33 @@ def prepare(model: RobotModel, data: Measurements | None, contacts: Contacts | N
                   "base parameters are reported against the registered base (nominal column), not the model file's"]
     points = validation if isinstance(validation, Measurements) else None
     held = validation if isinstance(validation, Contacts) else None
+    if points is not None and data is not None:
+        _held_apart(data, points)
     if held is not None and options.register_validation:
         notes.append("held-out contacts are judged by socket consistency and spacing, which do not depend on "
                      "the frame: nothing to register")
     return Inputs(model, start, data, contacts, points, held, tuple(notes) + copies)
+
+
+def _rows_as_bytes(d: Measurements) -> np.ndarray:
+    """Each pose's readings and measured values as one comparable item."""
+    rows = np.ascontiguousarray(np.hstack([d.q, np.nan_to_num(d.positions.reshape(d.n_poses, -1), nan=1e300)]) + 0.0)
+    return rows.view(np.dtype((np.void, rows.dtype.itemsize * rows.shape[1]))).ravel()
+
+
+def repeated_in(fitted: Measurements, held: Measurements) -> np.ndarray:
+    """(n_held,) whether each held-out pose repeats a fitted one exactly (readings and measured values)."""
+    if fitted.q.shape[1] != held.q.shape[1] or fitted.positions.shape[1:] != held.positions.shape[1:]:
+        return np.zeros(held.n_poses, dtype=bool)
+    return np.isin(_rows_as_bytes(held), _rows_as_bytes(fitted))
+
+
+def _held_apart(data: Measurements, validation: Measurements) -> None:
+    """Refuse a validation set whose every pose is a fitted one: nothing would be held out."""
+    if repeated_in(data, validation).all():
+        raise InputError(f"every one of its {validation.n_poses} poses repeats a fitted pose (readings and measured "
+                         "values): nothing is held out; give poses the fit did not see, or leave --validation out "
+                         "(cross-validation)", source=validation.source or "validation", where="validation")
 
 
 def without_copies(data: Measurements) -> tuple[Measurements, tuple[str, ...]]:
@@ -317,14 +343,18 @@ def _scatter_text(problem: Problem, sigma: float) -> str:
 @dataclass(frozen=True, eq=False)
 class Outliers:
     """What stood out in a fit: one check per kind, and over ``observations`` of the first fit's
-    problem, those beyond the bar (``out``), beyond ``GROSS_FACTOR`` times it (``gross``), in runs of
-    consecutive poses or rows (``runs``) and carrying a quantity alone (``alone``)."""
+    problem, those beyond the bar (``out``), beyond ``GROSS_FACTOR`` times it (``gross``: those a
+    refit may set aside), of those the ones standing apart from the rest of the scores (``apart``:
+    blunders by their scores alone, when no refit judges them), in runs of consecutive poses or rows
+    (``runs``) and carrying a quantity alone (``alone``)."""
 
     checks: tuple[Check, ...]
     out: np.ndarray
     gross: np.ndarray
+    apart: np.ndarray
     runs: np.ndarray
     alone: np.ndarray
+    kinds: tuple[np.ndarray, ...] = ()
 
 
 @dataclass(frozen=True, eq=False)
@@ -360,8 +390,9 @@ def solve_design(design: Design, problem: Problem, options: Options) -> Solution
                       np.full(problem.n_nuisance, -np.inf)]
     linear = None
     if options.loss != "linear" and not problem.chunked:
-        alone = alone_observations(problem, design.p0)[problem.row_observations()]
-        linear = alone if alone.any() else None
+        kept = alone_observations(problem, design.p0) | together(problem)
+        rows = kept[problem.row_observations()]
+        linear = rows if rows.any() else None
     return solve(problem, design.p0, loss=options.loss, f_scale=options.f_scale, max_nfev=options.max_nfev,
                  lower=lower, linear_rows=linear)
 
@@ -373,20 +404,24 @@ def find_outliers(problem: Problem, solution: Solution, noise: Noise) -> Outlier
     obs = problem.observations()
     n = len(obs)
     out, gross, alone = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
-    checks = []
+    standing = np.zeros(n, dtype=bool)
+    checks, kinds = [], []
     for kind, (errors, sigma, index) in problem.observation_errors(solution.p).items():
         labels = [obs.label[i] for i in index]
         check, o = outlier_check(errors, sigma, noise, labels)
         checks.append(check if kind == "tracker" else replace(check, name=f"outliers among the {kind} contacts"))
+        kinds.append(index)
         out[index] = o
-        gross[index] = o & (outlier_scores(errors, sigma, noise) > GROSS_FACTOR * outlier_bar(len(o)))
+        scores, bar = outlier_scores(errors, sigma, noise), outlier_bar(len(o))
+        gross[index] = o & (scores > GROSS_FACTOR * bar)
+        standing[index] = o & apart(scores, bar)
     if out.any():
         alone = alone_observations(problem, solution.p)
     runs = np.zeros(n, dtype=bool)
     for kind in obs.kinds():
         sel = obs.of(kind) & out
         runs[sel] = in_runs(obs.order[sel])
-    return Outliers(tuple(checks), out, gross, runs, alone)
+    return Outliers(tuple(checks), out, gross, standing, runs, alone, tuple(kinds))
 
 
 # a group of observations (a measured marker, a socket, a plane, a known distance) this small may hold
@@ -411,6 +446,22 @@ def alone_observations(problem: Problem, p: np.ndarray) -> np.ndarray:
     flags = carried_alone(problem.jacobian(p), rows)
     out[np.unique(row_obs[rows][flags])] = True
     return out
+
+
+def together(problem: Problem) -> np.ndarray:
+    """(n_observations,) those of the kinds whose rows carry the scale together (``TOGETHER``)."""
+    return np.array([k in TOGETHER for k in problem.observations().kind], dtype=bool)
+
+
+def apart(scores: np.ndarray, bar: float) -> np.ndarray:
+    """Scores of blunders: beyond ``GROSS_FACTOR`` times the bar and apart from the rest: with no
+    score between the bar and that, every one; else only those ``BLUNDER_SEPARATION`` times past the
+    largest of them (a continuous tail from the bar on is an effect the model leaves out)."""
+    gross = scores > GROSS_FACTOR * bar
+    tail = (scores > bar) & ~gross
+    if not tail.any():
+        return gross
+    return gross & (scores > BLUNDER_SEPARATION * float(scores[tail].max()))
 
 
 def in_runs(order: np.ndarray) -> np.ndarray:
@@ -438,8 +489,8 @@ def fit(design: Design, options: Options, holdout: Holdout, folds: FoldProblems,
     solution = solve_design(design, problem, options)
     held = cross_validate(problem, solution.p, holdout, folds=folds)
     groups = holdout.groups
-    if outliers is not None:
-        return Fit(design, problem, solution, outliers.outliers, outliers.aside, held, groups)
+    if outliers is not None:      # fitted on what that fit left: its outliers and their notes stand
+        return Fit(design, problem, solution, outliers.outliers, outliers.aside, held, groups, outliers.notes)
     found = find_outliers(problem, solution, options.noise)
     none = np.zeros(len(found.out), dtype=bool)
     if not found.out.any():
@@ -459,10 +510,14 @@ def _set_aside(design: Design, solution: Solution, found: Outliers, held: HeldOu
                                "robust loss would hide the misfit") if c.status != "pass" else c for c in found.checks)
         return Fit(design, problem, solution, replace(found, checks=checks), none, held, holdout.groups)
     out = found.out
-    blunder = out & ~found.runs & found.gross & ~found.alone
+    # candidates: far beyond the bar; whether they are blunders, the refit's cross-validated error says
+    blunder = out & ~found.runs & found.gross & ~found.alone & ~together(problem)
+    judged = bool((holdout.groups >= 0).any())
+    if not judged:          # nothing held out to judge a refit by: blunders by their scores alone
+        blunder &= found.apart
     notes = _outlier_notes(problem, found)
     if not blunder.any() or options.loss != "linear" or options.on_outliers != "refit":
-        return Fit(design, problem, solution, _outlier_status(found, aside=False), none, held, holdout.groups, notes)
+        return Fit(design, problem, solution, _outlier_status(found), none, held, holdout.groups, notes)
     kept = problem.without(blunder)
     again = replace(design, problem=kept)
     solution2 = solve_design(again, kept, options)
@@ -471,13 +526,14 @@ def _set_aside(design: Design, solution: Solution, found: Outliers, held: HeldOu
     # out are predicted worse once their like are set aside
     held2 = cross_validate(kept, solution2.p, holdout, on=problem, folds=folds)
     mask = problem.point_mask
-    excess, _ = paired_excess(held2.observation_norms(mask), held.observation_norms(mask), holdout.groups >= 0)
-    if excess > 0:
-        notes += (f"{int(blunder.sum())} outlier(s) named; setting them aside did not lower the cross-validated "
-                  "error of the other points, so they stay in the fit",)
-        return Fit(design, problem, solution, _outlier_status(found, aside=False), none, held, holdout.groups, notes)
+    excess, se = paired_excess(held2.observation_norms(mask), held.observation_norms(mask), holdout.groups >= 0)
+    if judged and not excess < -REFIT_GAIN_SIGMAS * se:
+        notes += (f"{int(blunder.sum())} point(s) far beyond the outlier bar; setting them aside did not lower the "
+                  f"cross-validated error of the points by {REFIT_GAIN_SIGMAS:g} standard errors, so they stay in "
+                  "the fit",)
+        return Fit(design, problem, solution, _outlier_status(found), none, held, holdout.groups, notes)
     notes += (f"{int(blunder.sum())} outlier(s) set aside and the calibration fitted again without them",)
-    return Fit(again, kept, solution2, _outlier_status(found, aside=True), blunder, _masked(held2, kept),
+    return Fit(again, kept, solution2, _outlier_status(found, blunder), blunder, _masked(held2, kept),
                holdout.groups, notes)
 
 
@@ -512,20 +568,32 @@ def _outlier_notes(problem: Problem, found: Outliers) -> tuple[str, ...]:
     return tuple(notes)
 
 
-def _outlier_status(found: Outliers, *, aside: bool) -> Outliers:
-    """The outlier checks once their observations are handled: set aside (named, a warning), kept."""
-    said = "; set aside, and the calibration fitted again without them" if aside else "; kept in the fit"
+def _outlier_status(found: Outliers, aside: np.ndarray | None = None) -> Outliers:
+    """The outlier checks once their observations are handled. Blunders warn, set aside or kept:
+    those a refit set aside because that lowered the cross-validated error (``aside``), else those
+    standing apart from the rest of the scores (``Outliers.apart``), not in a run. Points in the
+    tail or in runs of consecutive poses are named and kept: the tail and the runs of effects the
+    model leaves out (an elastic arm's extreme poses, a drift), which the accuracy in use judges."""
     checks = []
-    for c in found.checks:
-        if c.status == "pass":
+    for c, index in zip(found.checks, found.kinds or (np.arange(len(found.out)),) * len(found.checks)):
+        out = found.out[index]
+        if c.status == "pass" or not out.any():
             checks.append(c)
-        elif found.runs[found.out].all():
-            checks.append(replace(c, status="warn", summary=c.summary + "; they come in runs of consecutive poses: "
-                                  "a systematic error (a bump, a payload, a drift), kept in the fit",
-                                  cause="an effect that changes along the campaign", fix="read the diagnosis"))
+            continue
+        blunders = (found.apart & ~found.runs if aside is None else aside)[index][out]
+        runs = found.runs[index][out]
+        if not blunders.any():
+            said = ("in runs of consecutive poses (an effect that changes along the campaign: a drift, a payload)"
+                    if runs.all() else "in a tail that runs on from the bar or in runs: effects the model leaves "
+                    "out rather than blunders")
+            checks.append(replace(c, status="pass", summary=c.summary + f"; {said}, kept in the fit", cause="",
+                                  fix=""))
         else:
+            said = "; set aside, and the calibration fitted again without them" if aside is not None else \
+                "; kept in the fit"
             checks.append(replace(c, status="warn", summary=c.summary + said,
-                                  fix="check those measurements; the result is the one their deletion gives" if aside
+                                  fix="check those measurements; the result is the one their deletion gives"
+                                  if aside is not None
                                   else "check those measurements; remove them, or calibrate with --on-outliers refit"))
     return replace(found, checks=tuple(checks))
 

@@ -54,11 +54,24 @@ def approach_of(data: Measurements) -> np.ndarray:
 @dataclass(frozen=True)
 class Noise:
     """The expected scatter of measurements about a perfect model, one standard deviation per axis:
-    ``position`` (m) and ``rotation`` (rad); ``source`` says where the figures come from."""
+    ``position`` (m) and ``rotation`` (rad); ``source`` says where the figures come from;
+    ``instrument`` the class of instrument (``INSTRUMENT_NOISE``) whose own noise the stated figures
+    may exceed (a stated noise may hold the robot's repeatability too)."""
 
     position: float
     rotation: float
     source: str
+    instrument: str = DEFAULT_INSTRUMENT
+
+    @property
+    def stated(self) -> bool:
+        return self.source.startswith("stated")
+
+    def instrument_share(self) -> tuple[float, float]:
+        """The part of the figures (position m, rotation rad) that is the instrument's own: the class's
+        noise at most, when the figures were stated."""
+        p, r = INSTRUMENT_NOISE[self.instrument]
+        return (min(self.position, p), min(self.rotation, r)) if self.stated else (self.position, self.rotation)
 
     @staticmethod
     def of(instrument: str = DEFAULT_INSTRUMENT, *, position: float | None = None,
@@ -71,7 +84,8 @@ class Noise:
                 raise InputError(f"must be a positive number, got {v!r}", where=f"noise {name}")
         given = [n for n, v in (("position", position), ("rotation", rotation)) if v is not None]
         source = f"{instrument} (default)" if not given else f"stated ({', '.join(given)})"
-        return Noise(position=float(position or p), rotation=float(rotation or r), source=source)
+        return Noise(position=float(position or p), rotation=float(rotation or r), source=source,
+                     instrument=instrument)
 
 
 @dataclass(frozen=True, eq=False)

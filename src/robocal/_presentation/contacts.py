@@ -25,7 +25,9 @@ def _figures(label: str, before, after) -> list[str]:
                    f"{_mm(before.mean_spread)} -> {_mm(after.mean_spread)}")
     if before.consistency:
         out.append(f"  {label} socket consistency (each seating's distance from its socket's mean centre), "
-                   f"mean: {_mm(before.consistency_mean)} -> {_mm(after.consistency_mean)}; "
+                   f"mean over seatings: {_mm(before.consistency_mean)} -> {_mm(after.consistency_mean)}; "
+                   f"mean over placements: {_mm(before.consistency_by_placement)} -> "
+                   f"{_mm(after.consistency_by_placement)}; "
                    f"max: {_mm(before.consistency_max)} -> {_mm(after.consistency_max)}")
     if before.distance:
         out.append(f"  {label} known distances, RMS error over {len(before.distance)}: "

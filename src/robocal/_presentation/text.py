@@ -44,21 +44,28 @@ MARKS = {"pass": "ok  ", "warn": "WARN", "fail": "FAIL"}
 
 
 def in_use_lines(in_use, indent: str = "  ") -> list[str]:
-    """The accuracy in use before and after calibration (``AccuracyInUse``), mm and deg."""
+    """The accuracy in use before and after calibration (``AccuracyInUse``), mm and deg: the robot's
+    figures, and beside them the held-out errors as the instrument measured them when the two differ.
+    Columns keep apart at any size."""
     if in_use is None or not in_use.position_after.n:
         return []
     how = in_use.method + (f", {in_use.grouping}" if in_use.method == "cross-validation" else "")
-    lines = [f"accuracy in use ({how}), on {in_use.position_after.n} held-out point(s):",
-             f"{indent}{'position error (mm)':<24}{'mean':>8}{'RMS':>8}{'95 %':>8}{'max':>8}"]
-
-    def row(label, s, k=MM):
-        return f"{indent}{label:<24}" + "".join(f"{getattr(s, f) * k:8.3f}" for f in ("mean", "rms", "p95", "max"))
-
-    lines += [row("before", in_use.position_before), row("after", in_use.position_after)]
+    rows = [("before", in_use.position_before, MM), ("after", in_use.position_after, MM)]
+    seen = in_use.measured_after
+    if seen is not None and seen.n and seen.mean != in_use.position_after.mean:
+        rows.append(("after, as measured", seen, MM))
     if in_use.rotation_after is not None and in_use.rotation_after.n:
         k = 180.0 / np.pi
-        lines += [f"{indent}{'rotation error (deg)':<24}", row("before", in_use.rotation_before, k),
-                  row("after", in_use.rotation_after, k)]
+        rows += [("rotation error (deg)", None, k), ("before", in_use.rotation_before, k),
+                 ("after", in_use.rotation_after, k)]
+    cells = [[f"{getattr(s, f) * k:.3f}" for f in ("mean", "rms", "p95", "max")] for _, s, k in rows if s is not None]
+    width = max([8] + [len(c) + 2 for row in cells for c in row])
+    lines = [f"accuracy in use ({how}), on {in_use.position_after.n} held-out point(s):",
+             f"{indent}{'position error (mm)':<24}" + "".join(f"{h:>{width}}" for h in ("mean", "RMS", "95 %", "max"))]
+    for label, s, k in rows:
+        lines.append(f"{indent}{label:<24}" + ("" if s is None else
+                                              "".join(f"{getattr(s, f) * k:>{width}.3f}"
+                                                      for f in ("mean", "rms", "p95", "max"))))
     return lines
 
 
