@@ -715,7 +715,6 @@ def in_use_check(in_use, misfit: float | None = None, reach_m: float | None = No
     how = in_use.method + (f", {in_use.grouping}" if in_use.method == "cross-validation" else "")
     if not a.n:
         return Check(name, "warn", "no held-out position to judge the calibration in use")
-    gain, se = in_use.improvement
     if in_use.registration_only:
         return Check(name, "pass", f"a registration of base and markers only: mean error {_mm(a.mean)} "
                      f"(95 % within {_mm(a.p95)}, max {_mm(a.max)}) on {a.n} held-out point(s) ({how}), the robot's "
@@ -723,47 +722,68 @@ def in_use_check(in_use, misfit: float | None = None, reach_m: float | None = No
     summary = (f"mean error {_mm(b.mean)} before, {_mm(a.mean)} after (95 % within {_mm(a.p95)}, max {_mm(a.max)}) "
                f"on {a.n} held-out point(s) ({how})" + (f"; {_mm(fit.mean)} on the fitted ones" if fit.n else
                                                          "; no measured point fitted"))
-    seen, seen_fit = in_use.measured_after or a, in_use.measured_fit or fit
+    for judge in (_beyond_the_fit, _no_better, _held_out_larger, _worst_grew):
+        check = judge(in_use, summary, misfit, reach_m)
+        if check is not None:
+            return check
+    return Check(name, "pass", summary)
+
+
+def _beyond_the_fit(in_use, summary: str, misfit, reach_m) -> Check | None:
+    """Held-out errors no model of this robot explains: another set-up (when registering base and
+    tool on the validation set explains them), else data that do not belong to the model."""
+    a, seen, seen_fit = in_use.position_after, in_use.measured_after or in_use.position_after, \
+        in_use.measured_fit or in_use.fit_after
     far = seen_fit.n and seen.mean > OVERFIT_GROSS * seen_fit.mean and seen.mean > seen_fit.mean + OVERFIT_GROSS_EXCESS
+    off_reach = reach_m is not None and a.mean > IN_USE_SHARE_MAX * reach_m
     moved = _registration_explains(in_use)
-    if moved is not None and (far or (reach_m is not None and a.mean > IN_USE_SHARE_MAX * reach_m)):
-        return Check(name, "fail", summary + f": the held-out errors are beyond anything the fit explains; with base "
-                     f"and tool registered on the validation set, {_mm(moved.mean)}",
+    if moved is not None and (far or off_reach):
+        return Check("accuracy in use", "fail", summary + ": the held-out errors are beyond anything the fit "
+                     f"explains; with base and tool registered on the validation set, {_mm(moved.mean)}",
                      cause="held-out poses of another set-up (the instrument or the base moved, another tool)",
                      fix="register base and tool on the validation set (--register-validation)")
-    if reach_m is not None and a.mean > IN_USE_SHARE_MAX * reach_m:
-        return Check(name, "fail", summary + f": {100 * a.mean / reach_m:.3g} % of the robot's reach "
+    if off_reach:
+        return Check("accuracy in use", "fail", summary + f": {100 * a.mean / reach_m:.3g} % of the robot's reach "
                      f"({_mm(reach_m)}), where no model of it places it", cause="data that do not come from this "
                      "model: rows shuffled against the readings, another robot's file, joints in another order",
                      fix="read the diagnosis; check the files")
     if far:
-        return Check(name, "fail", summary + ": the held-out errors are beyond anything the fit explains",
+        return Check("accuracy in use", "fail", summary + ": the held-out errors are beyond anything the fit explains",
                      cause="held-out poses of another set-up (base or tool moved) or another robot, or a mistake in "
                            "the data", fix="for a campaign of another set-up, register base and tool on it "
                            "(--register-validation); else check the files")
+    return None
+
+
+def _no_better(in_use, summary: str, misfit, reach_m) -> Check | None:
+    """Worse than before (a failure), or no better within a standard error: a failure when the fit
+    leaves ``GROSS_MISFIT`` times what the instrument explains, else a warning."""
+    gain, se = in_use.improvement
     if gain < -WORSE_SIGMAS * se:
-        return Check(name, "fail", summary + ": worse than before calibration",
+        return Check("accuracy in use", "fail", summary + ": worse than before calibration",
                      cause="a model that fits the fitted poses but not others: too many parameters for the poses, "
                            "or data that do not belong together", fix="read the other checks and the diagnosis; "
                            "measure more poses over the workspace (robocal plan)")
-    if gain <= se:
-        if misfit is not None and misfit > GROSS_MISFIT:
-            return Check(name, "fail", summary + f": no better than before, while the fit leaves {misfit:.3g} times "
-                         "what the instrument explains", cause="data that do not come from this model: a mistake in "
-                         "the data or the model file, not the robot's own errors", fix="read the diagnosis; check "
-                         "joint order, signs, units and the marker columns")
-        return Check(name, "warn", summary + ": no better than before within its standard error "
-                     f"({_mm(se)})", cause="errors the model cannot take up (repeatability, unmodelled effects)",
-                     fix="calibrate with the compliance or backlash families if the robot has them, or keep the "
-                         "nominal model")
-    if (seen_fit.n and seen.mean > OVERFIT_RATIO * seen_fit.mean
-            and seen.mean - seen_fit.mean > 3 * in_use.standard_error):
-        return _held_out_larger(in_use, summary + f": {seen.mean / seen_fit.mean:.3g} times the fitted poses' error")
+    if gain > se:
+        return None
+    if misfit is not None and misfit > GROSS_MISFIT:
+        return Check("accuracy in use", "fail", summary + f": no better than before, while the fit leaves "
+                     f"{misfit:.3g} times what the instrument explains", cause="data that do not come from this "
+                     "model: a mistake in the data or the model file, not the robot's own errors",
+                     fix="read the diagnosis; check joint order, signs, units and the marker columns")
+    return Check("accuracy in use", "warn", summary + f": no better than before within its standard error "
+                 f"({_mm(se)})", cause="errors the model cannot take up (repeatability, unmodelled effects)",
+                 fix="calibrate with the compliance or backlash families if the robot has them, or keep the "
+                     "nominal model")
+
+
+def _worst_grew(in_use, summary: str, misfit, reach_m) -> Check | None:
+    b, a = in_use.position_before, in_use.position_after
     if b.max is not None and a.max > b.max:
-        return Check(name, "warn", summary + f": the worst error grew ({_mm(b.max)} before)",
+        return Check("accuracy in use", "warn", summary + f": the worst error grew ({_mm(b.max)} before)",
                      cause="a few poses the model places worse than the nominal one",
                      fix="look at the held-out poses with the largest errors in the report")
-    return Check(name, "pass", summary)
+    return None
 
 
 def spacing_check(in_use) -> list[Check]:
@@ -796,9 +816,14 @@ def _registration_explains(in_use):
     return None
 
 
-def _held_out_larger(in_use, summary: str) -> Check:
-    """Held-out errors well above the fitted ones, named by what explains them."""
+def _held_out_larger(in_use, summary: str, misfit=None, reach_m=None) -> Check | None:
+    """Held-out errors ``OVERFIT_RATIO`` times the fitted ones (as measured), named by what explains
+    them; None when they are not."""
     name, fit = "accuracy in use", in_use.measured_fit or in_use.fit_after
+    seen = in_use.measured_after or in_use.position_after
+    if not (fit.n and seen.mean > OVERFIT_RATIO * fit.mean and seen.mean - fit.mean > 3 * in_use.standard_error):
+        return None
+    summary += f": {seen.mean / fit.mean:.3g} times the fitted poses' error"
     reg, cv = _registration_explains(in_use), in_use.cross_validated
     if reg is not None:
         return Check(name, "warn", summary + f"; with base and tool registered on the validation set, "
