@@ -119,7 +119,7 @@ def names(value, name: str) -> tuple[str, ...]:
     raise InputError(f"must be a name or a sequence of names (text), got {excerpt(value)}", where=name)
 
 
-def array(value, name: str, shape: tuple[int | None, ...], *, finite: bool = True) -> np.ndarray:
+def float_array(value, name: str, shape: tuple[int | None, ...], *, finite: bool = True) -> np.ndarray:
     """A float array of ``shape`` (None: any length on that axis); finite unless said otherwise."""
     try:
         a = np.asarray(value, dtype=float)
@@ -299,7 +299,7 @@ PAIR = lambda value, name, _: pair(value, name)  # noqa: E731
 
 def shaped(*shape: int | None, finite: bool = True):
     """A float array of ``shape`` (None: any length on that axis)."""
-    return lambda value, name, _: array(value, name, shape, finite=finite)
+    return lambda value, name, _: float_array(value, name, shape, finite=finite)
 
 
 def readings_of(model: str = "model"):
@@ -320,7 +320,7 @@ def per_joint(model: str = "model", *, low: float = 0.0):
         if isinstance(value, numbers.Number):
             number(value, name, low=low)
             return
-        a = array(value, name, (n,))
+        a = float_array(value, name, (n,))
         if np.any(a < low):
             raise InputError(f"must be {n} numbers >= {low:g}, got {excerpt(value)}", where=name)
     return rule
@@ -419,7 +419,7 @@ def columns_of(matrix: str):
 
 def vector_of(size):
     """A finite float vector whose length ``size(arguments)`` gives (e.g. the model's parameter count)."""
-    return lambda value, name, args: array(value, name, (size(args),))
+    return lambda value, name, args: float_array(value, name, (size(args),))
 
 
 def names_in(allowed, what: str = "a parameter of the model"):
@@ -476,7 +476,7 @@ def items(value, name: str, item: tuple[int, ...], n: int | None = None, *, fini
     except (TypeError, ValueError):
         raise InputError(f"must be an array of numbers of shape {_shape((n,) + item)}, got {excerpt(value)}",
                          where=name) from None
-    a = array(a[None] if a.ndim == len(item) else a, name, (n,) + item, finite=finite)
+    a = float_array(a[None] if a.ndim == len(item) else a, name, (n,) + item, finite=finite)
     if not finite and np.any(np.isinf(a)):
         raise InputError("must hold finite numbers or NaN (no inf)", where=name)
     return a
