@@ -118,6 +118,18 @@ def test_no_import_cycle():
         visit(node, [])
 
 
+def test_tests_import_what_they_test_by_its_name_in_its_folder():
+    """A unit test imports from the module of its folder that holds what it tests, never a private
+    (underscored) name: what a test needs is that folder's own interface."""
+    wrong = []
+    for path in sorted((ROOT / "tests").glob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("robocal"):
+                wrong += [f"tests/{path.name}:{node.lineno} imports {a.name} from {node.module}" for a in node.names
+                          if a.name.startswith("_") and not a.name.endswith("__")]
+    assert not wrong, "\n".join(wrong)
+
+
 def test_no_function_over_a_screen():
     long = []
     for path in _modules():

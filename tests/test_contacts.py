@@ -409,11 +409,11 @@ def test_the_only_spacing_row_is_kept_and_named(arm7):
 
 @pytest.mark.parametrize("loss", ["soft_l1", "huber", "cauchy", "arctan"])
 def test_a_partly_robust_loss_is_the_loss_with_the_kept_rows_linear(loss):
-    from robocal._identification.solve import _partly_robust, robust_weights
+    from robocal._identification.solve import partly_robust, robust_weights
 
     z = np.array([0.0, 0.3, 0.9, 1.5, 4.0, 30.0, 0.3, 30.0])
     keep = np.array([False] * 6 + [True, True])
-    rho = _partly_robust(loss, keep)
+    rho = partly_robust(loss, keep)
     out, up, down = rho(z), rho(z * (1 + 1e-7) + 1e-9), rho(z * (1 - 1e-7) - 1e-9)
     h = (z * (1 + 1e-7) + 1e-9) - (z * (1 - 1e-7) - 1e-9)
     assert np.allclose(out[1], (up[0] - down[0]) / h, rtol=1e-5, atol=1e-7)        # rho' of rho

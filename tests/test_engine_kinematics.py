@@ -15,14 +15,14 @@ from robocal._model.kinematics import (
     N_FRAME_STEPS,
     FrameRow,
     FrameStep,
-    _base_rotation,
-    _compliant_vectors,
-    _mass_sums,
-    _moments,
+    base_rotation_of,
+    compliant_vectors,
     evaluate_state,
+    joint_moments,
     joint_turns,
     kinematic_pass,
     layout,
+    mass_sums,
     moved_state,
 )
 from robocal.kinematics import GEOMETRIC_KINDS, Frame, mdh_transform, parameter_vector
@@ -143,7 +143,7 @@ def test_a_pass_moved_by_its_base_is_the_reference_chain_on_the_moved_base():
     moved = p.copy()
     moved[:6] += (0.02, -0.01, 0.03, 0.01, -0.02, 0.015)
     ps = moved_state(st, moved).ps
-    Rb = _base_rotation(m.base_rotation, *moved[3:6])[1]
+    Rb = base_rotation_of(m.base_rotation, *moved[3:6])[1]
     Rref = np.asarray(m.base_rotation)
     np.testing.assert_allclose(Rb, Rref @ Rotation.from_rotvec(moved[3:6]).as_matrix(), atol=TOL)
     X = _reference_frames(m.replace(base_position=tuple(moved[:3]), base_rotation=tuple(map(tuple, Rb))), qf)
@@ -151,13 +151,13 @@ def test_a_pass_moved_by_its_base_is_the_reference_chain_on_the_moved_base():
 
 
 def test_gravity_moments_are_the_sums_over_the_distal_masses():
-    # _mass_sums, _compliant_vectors, _moments: M_p = sum_k ((c_k - O_p) x (m_k g)) . u_p (section 2)
+    # mass_sums, compliant_vectors, joint_moments: M_p = sum_k ((c_k - O_p) x (m_k g)) . u_p (section 2)
     m, qf = _model_and_readings(5)
     lay = layout(m)
     ps = kinematic_pass(m, lay, parameter_vector(m), qf)
-    C1, msub = _mass_sums(m, lay, ps, None)
-    M, _, _ = _moments(m, ps, C1, msub)
-    u, Q, _ = _compliant_vectors(m, ps)
+    C1, msub = mass_sums(m, lay, ps, None)
+    M, _, _ = joint_moments(m, ps, C1, msub)
+    u, Q, _ = compliant_vectors(m, ps)
     X = _reference_frames(m, qf)
     g = np.asarray(m.gravity)
     payload = m.payload

@@ -13,7 +13,7 @@ import pytest
 from robots import arm6r
 
 import robocal as rc
-from robocal._model.kinematics import _correction_plan, layout
+from robocal._model.kinematics import correction_plan, layout
 from robocal.identification import Problem
 from robocal.kinematics import parameter_layout, parameter_vector
 
@@ -50,8 +50,8 @@ def test_the_step_layout_and_correction_plans_are_read_only():
     arrays = [v for v in vars(lay).values() if isinstance(v, np.ndarray)]
     assert len(arrays) > 20 and not any(a.flags.writeable for a in arrays)
     steps = lay.param_step[lay.param_step >= 0]
-    plan = _correction_plan(m, lay, steps, np.arange(len(lay.compliant_params)))
-    assert plan is not None and plan is _correction_plan(m, lay, steps.copy(), np.arange(len(lay.compliant_params)))
+    plan = correction_plan(m, lay, steps, np.arange(len(lay.compliant_params)))
+    assert plan is not None and plan is correction_plan(m, lay, steps.copy(), np.arange(len(lay.compliant_params)))
     with pytest.raises(ValueError, match=READ_ONLY):
         plan.rot[0] = 5.0
 

@@ -100,7 +100,7 @@ def solve(problem: Problem, p0: np.ndarray, *, loss: str = "linear", f_scale: fl
     return _trust_region(problem, p0, loss, f_scale, max_nfev, lower if bounded else None, tol, keep)
 
 
-def _partly_robust(loss: str, keep: np.ndarray):
+def partly_robust(loss: str, keep: np.ndarray):
     """scipy's callable form of ``loss`` (rho(z), rho'(z), rho''(z) of z = r^2, scipy's
     definitions) with the rows ``keep`` left linear (rho(z) = z at every scale)."""
     def rho(z):
@@ -126,7 +126,7 @@ def _trust_region(problem: Problem, p0: np.ndarray, loss: str, f_scale, max_nfev
                   keep: np.ndarray | None = None) -> Solution:
     """scipy's solvers, for a robust loss or bounds; ``keep``: rows the robust loss leaves linear."""
     x0 = p0[problem.free_idx]
-    robust = loss if keep is None or loss == "linear" else _partly_robust(loss, keep)
+    robust = loss if keep is None or loss == "linear" else partly_robust(loss, keep)
 
     def fun(x):
         return problem.residuals(problem.full(x, p0))

@@ -154,7 +154,7 @@ class Layout:
     marker_row: np.ndarray      # (n_markers,) first row of each marker's block
     step_rows: np.ndarray       # (2, 2, n_steps) [orientations] rows of each step's axis and point
     chain_params: np.ndarray    # indices of every parameter but the base's and the markers'
-    # the correction plans made for this layout (``_correction_plan``): immutable records, kept with it
+    # the correction plans made for this layout (``correction_plan``): immutable records, kept with it
     plans: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
@@ -597,10 +597,10 @@ def _deflected_frame(vec, r0, parent, v, be, al, th) -> None:
 
 def _base_placement(model: RobotModel, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The axes (6, 3) of the base steps and the rotation of frame 0 in W."""
-    return _base_rotation(model.base_rotation, *p[3:6].tolist())
+    return base_rotation_of(model.base_rotation, *p[3:6].tolist())
 
 
-def _base_rotation(reference: tuple, x: float, y: float, z: float) -> tuple[np.ndarray, np.ndarray]:
+def base_rotation_of(reference: tuple, x: float, y: float, z: float) -> tuple[np.ndarray, np.ndarray]:
     """R = R_ref exp([v]x) for the rotation vector v = (x, y, z); a change dv turns the base about
     the columns of R_ref J_l(v) in W, J_l the left Jacobian (``left_jacobian``).
     Reference: docs/method.md section 1 and docs/conventions.md (the base pose's rotation vector)."""
@@ -726,7 +726,7 @@ def _fill_step_vectors(ps: _Pass, frames: set, base_and_markers: bool) -> None:
             vec[r + MarkerRow.ROTATION_AXES:r + MARKER_ROWS] = _columns(C, _frame_block(ps, mk.frame))
 
 
-def _mass_sums(model: RobotModel, lay: Layout, ps: _Pass, payload_mass):
+def mass_sums(model: RobotModel, lay: Layout, ps: _Pass, payload_mass):
     """First moments ``C1`` (3, n_frames, N), component-major, and masses ``msub`` (n_frames, N) of
     every subtree. Reference: docs/method.md section 2: the masses m_k and centres c_k distal to each frame."""
     nf, N = model.n_frames, ps.N
@@ -750,7 +750,7 @@ def _mass_sums(model: RobotModel, lay: Layout, ps: _Pass, payload_mass):
     return sub @ own_c1.transpose(1, 0, 2), sub @ own_m
 
 
-def _compliant_vectors(model: RobotModel, ps: _Pass):
+def compliant_vectors(model: RobotModel, ps: _Pass):
     """Axes ``u`` and points ``Q`` of every compliant step (theta, alpha, beta of each frame) and the
     parents' origins ``Op``, component-major ((3, 3 n_frames, N) and (3, n_frames, N)), once per pass.
     Reference: docs/method.md section 2: the axis u_p and point O_p of each compliant step."""
@@ -764,12 +764,12 @@ def _compliant_vectors(model: RobotModel, ps: _Pass):
     return ps.cache["compliant"]
 
 
-def _moments(model, ps, C1, msub):
+def joint_moments(model, ps, C1, msub):
     """Gravity moments ``M`` (3 n_frames, N) about each compliant step's axis; with the axes ``u``
     and ``A = C1 - m Q`` (3, 3 n_frames, N), component-major.
     Reference: docs/method.md section 2: M_p = sum_k ((c_k - O_p) x (m_k g)) . u_p."""
     g = np.asarray(model.gravity, dtype=float)
-    u, Q, _ = _compliant_vectors(model, ps)
+    u, Q, _ = compliant_vectors(model, ps)
     A = np.repeat(C1, 3, axis=1)
     A -= np.repeat(msub, 3, axis=0) * Q
     gA = _gcross_cm(g, A, np.empty_like(A))
@@ -836,7 +836,7 @@ class _CorrectionPlan:
                 read_only(value)
 
 
-def _correction_plan(model: RobotModel, lay: Layout, steps: np.ndarray, act: np.ndarray) -> _CorrectionPlan | None:
+def correction_plan(model: RobotModel, lay: Layout, steps: np.ndarray, act: np.ndarray) -> _CorrectionPlan | None:
     """The plan for these step columns and active compliances, made once per layout and kept with it
     (under the index tuples, compared by value; the plan is immutable)."""
     key = (tuple(steps.tolist()), tuple(act.tolist()))
@@ -931,7 +931,7 @@ def _plan_vectors(model, st, plan) -> np.ndarray:
         parent = model.frames[j].parent
         W[:, r] = (ps.R[parent][:, :, 2].T if parent >= 0 else ps.base_rotation[:, 2:])
         if plan.rot[r]:
-            np.subtract(st.C1[:, j], st.msub[j] * _compliant_vectors(model, ps)[2][:, j], out=lever[:, r])
+            np.subtract(st.C1[:, j], st.msub[j] * compliant_vectors(model, ps)[2][:, j], out=lever[:, r])
     V = np.empty((6, n_rows, N))
     _cross_cm(W, lever, V[:3])
     V[:3, :nb] = 0.0                              # the base is distal to no compliance
@@ -995,7 +995,7 @@ def _compliant_columns(model, lay, ps, m, csel, rows) -> np.ndarray:
     """(rows, len(csel), N) component-major columns of the compliant steps ``csel`` (rows of
     ``compliant_steps``) for marker m.
     Reference: docs/method.md section 3: a rotation about u through O moves P by u x (P - O)."""
-    u, Q, _ = _compliant_vectors(model, ps)
+    u, Q, _ = compliant_vectors(model, ps)
     u = u[:, csel]
     lever = np.subtract(ps.P[m].T[:, None, :], Q[:, csel])
     out = np.empty((rows,) + u.shape[1:])
@@ -1138,8 +1138,8 @@ def evaluate_state(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray
     # with every compliance zero the deflected chain is the undeformed one: one pass serves both
     ps0 = kinematic_pass(model, lay, p, qf, orientations=orientations and not deflects, frames_only=deflects,
                          turns=turns, take=take)
-    C1, msub = _mass_sums(model, lay, ps0, payload_mass)
-    M, A, u = _moments(model, ps0, C1, msub)
+    C1, msub = mass_sums(model, lay, ps0, payload_mass)
+    M, A, u = joint_moments(model, ps0, C1, msub)
     if not deflects:
         return _State(ps=ps0, compliance=True, ks=ks, ps0=ps0, C1=C1, msub=msub, M=M, A=A, u=u)
     # a zero compliance deflects nothing: a scalar keeps that frame's constant part constant
@@ -1183,8 +1183,8 @@ def _backlash_state(model, lay, p, qf, *, compliance, orientations, payload_mass
     if gravity or compliance:
         # the load derivatives need the steps' axes on this chain, so not frames only
         ps0 = kinematic_pass(model, lay, p, qf, orientations=False, frames_only=not gravity, turns=turns, take=take)
-        C1, msub = _mass_sums(model, lay, ps0, payload_mass)
-        M, A, u = _moments(model, ps0, C1, msub)
+        C1, msub = mass_sums(model, lay, ps0, payload_mass)
+        M, A, u = joint_moments(model, ps0, C1, msub)
     if gravity:
         assert ps0 is not None and M is not None and msub is not None    # made above: gravity is on
         loads = _frame_loads(model, lay, ps0, M, msub)
@@ -1228,7 +1228,7 @@ def jacobian_columns(model: RobotModel, lay: Layout, st: _State, cols_idx: np.nd
     is_k = k_slot >= 0
     kk = k_slot[is_k]
     act = np.nonzero(st.ks)[0]
-    plan = _correction_plan(model, lay, steps, act) if len(act) else None
+    plan = correction_plan(model, lay, steps, act) if len(act) else None
     # compliant columns needed: the active ones (corrections), then those of requested K not among them
     csel = act if plan is not None else act[:0]
     csel = np.concatenate([csel, [k for k in kk if k not in set(csel.tolist())]]).astype(int)
