@@ -131,7 +131,7 @@ def test_a_validation_of_another_set_up_names_register_validation_not_overfittin
     assert "--register-validation" in check.fix and "overfitting" not in check.summary
     registered = _quiet(rc.calibrate, model, fit, validation=held, register_validation=True)
     assert registered.in_use.position_after.mean < 0.1e-3
-    assert np.nanmax(registered.validation_after) < 0.2e-3        # the rows shown are the registered ones
+    assert np.nanmax(registered.validation.errors_after) < 0.2e-3        # the rows shown are the registered ones
 
 
 def test_an_implausible_tool_rotation_names_rotation_unknown():
