@@ -30,6 +30,7 @@ MAX_FUNCTION_LINES = 80
 MAX_CALIBRATE_LINES = 60
 # the package's top: the public facades, the entry points and the version, nothing else
 MAX_TOP_MODULES = 12
+MAX_COMPLEXITY = 20         # radon's grade C at most
 
 
 def _modules():
@@ -142,6 +143,16 @@ def test_no_function_over_a_screen():
                 if n > limit:
                     long.append(f"{path.relative_to(SRC)}:{node.lineno} {node.name}: {n} lines")
     assert not long, "\n".join(long)
+
+
+def test_no_block_of_tangled_branches():
+    """No function or method at cyclomatic grade D or worse (complexity above ``MAX_COMPLEXITY``):
+    a reader follows each of them in one go."""
+    cc = pytest.importorskip("radon.complexity", reason="radon is in the test extra")
+    tangled = [f"{path.relative_to(SRC)}:{block.lineno} {block.fullname}: {block.complexity}"
+               for path in _modules() for block in cc.cc_visit(path.read_text())
+               if block.complexity > MAX_COMPLEXITY]
+    assert not tangled, "\n".join(tangled)
 
 
 # -- one table each ---------------------------------------------------------------------------------
