@@ -557,6 +557,17 @@ def _size(v: float, quantity: str) -> str:
     return f"{v * 1e3:.4g} mm" if quantity == "length" else f"{np.degrees(v):.4g} deg"
 
 
+# families whose estimates may all be noise about zero: (said as, which estimates, why none shows, fix)
+_UNSEEN_FAMILIES = (
+    ("compliance", lambda e: e.quantity == "compliance", "the data show none to find (too little load, too few "
+     "poses)", "calibrate the geometry alone (--compare tells which places the robot better), or measure with a "
+     "payload and more poses"),
+    ("backlash", lambda e: e.family == "backlash", "the data show no lost motion (too little, or sides not visited "
+     "both ways)", "calibrate without the backlash family (--compare tells which is better), or approach the poses "
+     "from both sides"),
+)
+
+
 def support_check(estimates) -> Check:
     """Estimates whose change is within ``SIGNIFICANCE_SIGMAS`` standard deviations of zero.
 
@@ -567,18 +578,11 @@ def support_check(estimates) -> Check:
     name = "estimates supported by the data"
     weak = [e for e in estimates if abs(e.change) < SIGNIFICANCE_SIGMAS * e.std]
     items = tuple(f"{e.name} ({e.change / e.std:+.2g} sd)" for e in weak)
-    comp = [e for e in estimates if e.quantity == "compliance"]
-    if comp and all(e in weak for e in comp):
-        return Check(name, "pass", f"no compliance differs from zero by {SIGNIFICANCE_SIGMAS:g} standard deviations: "
-                     "the data show none to find (too little load, too few poses); the accuracy in use judges the "
-                     "model with them", fix="calibrate the geometry alone (--compare tells which places the robot "
-                     "better), or measure with a payload and more poses", items=items)
-    lost = [e for e in estimates if e.family == "backlash"]
-    if lost and all(e in weak for e in lost):
-        return Check(name, "pass", f"no backlash differs from zero by {SIGNIFICANCE_SIGMAS:g} standard deviations: the "
-                     "data show no lost motion (too little, or sides not visited both ways); the accuracy in use "
-                     "judges the model with it", fix="calibrate without the backlash family (--compare tells which "
-                     "is better), or approach the poses from both sides", items=items)
+    for label, belongs, why, fix in _UNSEEN_FAMILIES:
+        family = [e for e in estimates if belongs(e)]
+        if family and all(e in weak for e in family):
+            return Check(name, "pass", f"no {label} differs from zero by {SIGNIFICANCE_SIGMAS:g} standard deviations: "
+                         f"{why}; the accuracy in use judges the model with it", fix=fix, items=items)
     if not weak:
         return Check(name, "pass", f"every change beyond {SIGNIFICANCE_SIGMAS:g} standard deviations")
     return Check(name, "pass", f"{len(weak)} change(s) within {SIGNIFICANCE_SIGMAS:g} standard deviations of zero, "
