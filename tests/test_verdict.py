@@ -169,6 +169,22 @@ def test_two_markers_calibrated_to_one_point_fail():
     assert _checks(res)["markers apart"].status == "fail" and res.verdict == "fail"
 
 
+def test_no_gain_in_use_with_a_misfit_far_beyond_the_instrument_fails_and_only_then():
+    """A model no better than the nominal one in use: a warning when the fit leaves what a robot
+    leaves (tens of times the instrument), a failure at a thousand times it, where it cannot be the
+    robot's own errors (a mistake in the data or the model file)."""
+    from robocal._identification.checks import in_use_check  # the check on its own, figures made to order
+    from robocal._identification.holdout import HeldOut, accuracy_in_use
+    rng = np.random.default_rng(0)
+    before = rng.normal(scale=1e-3, size=(60, 1, 3))
+    after = before * rng.uniform(0.97, 1.03, size=(60, 1, 1))        # no better within a standard error
+    held = [HeldOut(v, None, np.sum(v ** 2, axis=2)) for v in (before, after)]
+    record = accuracy_in_use("validation", None, "set", *held, np.full(60, 1e-3))
+    assert in_use_check(record, misfit=30.0).status == "warn"
+    mistaken = in_use_check(record, misfit=1000.0)
+    assert mistaken.status == "fail" and "1e+03 times what the instrument explains" in mistaken.summary
+
+
 def test_a_misfit_far_beyond_the_instrument_with_a_model_no_better_fails():
     """Joint readings shuffled against the points: the fit leaves a thousand times the instrument and
     the model places the robot no better than the nominal one."""
