@@ -250,3 +250,20 @@ def test_clean_campaigns_of_robots_with_effects_beyond_the_model_name_no_blunder
         res = _quiet(rc.calibrate, nominal, data, parameters=("geometric", "compliance"))
         assert not any("set aside" in n for n in res.notes), (k, preset, res.notes)
         assert _checks(res)["outliers"].status == "pass", (k, preset, _checks(res)["outliers"].summary)
+
+
+def test_the_held_out_errors_as_measured_are_written_beside_the_robots_and_read_back(tmp_path):
+    """A stated noise takes the instrument's share out of the accuracy in use: the check, result.json
+    and the result read back keep the figure as measured beside it."""
+    from robocal.io import read_result, write_result
+
+    model = arm6r()
+    data = rc.measure(model, rc.random_configurations(model, 60, 4), noise=5e-5, rng=4)
+    res = _quiet(rc.calibrate, model, data, noise=rc.Noise.of("tracker", position=5e-5))
+    seen, robot = res.in_use.measured_after, res.in_use.position_after
+    assert seen.mean > robot.mean
+    assert "as measured" in _checks(res)["accuracy in use"].summary
+    write_result(res, tmp_path / "result.json")
+    back = read_result(tmp_path / "result.json")
+    assert back.in_use.measured_after.mean == pytest.approx(seen.mean, rel=1e-12)
+    assert back.in_use.cross_validated is None and back.in_use.spacing_after is None

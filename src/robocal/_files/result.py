@@ -176,7 +176,11 @@ def in_use_to_dict(in_use: AccuracyInUse | None) -> dict | None:
     return {"method": in_use.method, "k": in_use.folds, "grouping": in_use.grouping,
             "position_before": _use_dict(in_use.position_before), "position_after": _use_dict(in_use.position_after),
             "rotation_before": _use_dict(in_use.rotation_before), "rotation_after": _use_dict(in_use.rotation_after),
-            "fit_after": _use_dict(in_use.fit_after)}
+            "fit_after": _use_dict(in_use.fit_after), "measured_after": _use_dict(in_use.measured_after),
+            "measured_fit": _use_dict(in_use.measured_fit), "registered_after": _use_dict(in_use.registered_after),
+            "cross_validated": _use_dict(in_use.cross_validated),
+            "spacing_before_m": None if in_use.spacing_before is None else in_use.spacing_before.tolist(),
+            "spacing_after_m": None if in_use.spacing_after is None else in_use.spacing_after.tolist()}
 
 
 def coverage_to_dict(cover: Coverage | None) -> dict | None:
@@ -204,7 +208,11 @@ def _in_use(doc: _Doc, d: dict | None) -> AccuracyInUse | None:
     w = "in_use"
     k = doc.get(d, "k", w, int, optional=True)
     stats: dict[str, Any] = {key: _use_stats(doc, doc.get(d, key, w, dict, optional=True), f"{w}.{key}")
-             for key in ("position_before", "position_after", "rotation_before", "rotation_after", "fit_after")}
+             for key in ("position_before", "position_after", "rotation_before", "rotation_after", "fit_after",
+                         "measured_after", "measured_fit", "registered_after", "cross_validated")}
+    for key in ("spacing_before", "spacing_after"):
+        values = doc.get(d, key + "_m", w, list, optional=True)
+        stats[key] = None if values is None else doc.array(values, f"{w}.{key}_m", (None,))
     for key in ("position_before", "position_after", "fit_after"):
         if stats[key] is None:
             raise doc.error(f"{w}.{key}", "missing key")

@@ -726,6 +726,9 @@ def in_use_check(in_use, misfit: float | None = None, reach_m: float | None = No
     summary = (f"mean error {_mm(b.mean)} before, {_mm(a.mean)} after (95 % within {_mm(a.p95)}, max {_mm(a.max)}) "
                f"on {a.n} held-out point(s) ({how})" + (f"; {_mm(fit.mean)} on the fitted ones" if fit.n else
                                                          "; no measured point fitted"))
+    seen = in_use.measured_after
+    if seen is not None and seen.n and seen.mean != a.mean:     # the robot's figure beside what was measured
+        summary += f"; held out as measured (the instrument's noise in) {_mm(seen.mean)}"
     for judge in (_beyond_the_fit, _no_better, _held_out_larger, _worst_grew):
         check = judge(in_use, summary, misfit, reach_m)
         if check is not None:

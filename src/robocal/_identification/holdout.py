@@ -448,6 +448,9 @@ class AccuracyInUse:
     def __post_init__(self) -> None:
         object.__setattr__(self, "errors_before", frozen(self.errors_before))
         object.__setattr__(self, "errors_after", frozen(self.errors_after))
+        for name in ("spacing_before", "spacing_after"):
+            if getattr(self, name) is not None:
+                object.__setattr__(self, name, frozen(getattr(self, name)))
 
     @property
     def standard_error(self) -> float:
