@@ -83,7 +83,10 @@ def test_compensate_reaches_every_reachable_target_and_flags_the_rest(tmp_path, 
     assert [r["pose"] for r in rows] == [f"T{i}" for i in range(8)] + ["far"]       # none dropped
     assert [r["status"] for r in rows] == ["ok"] * 8 + ["out of reach"] and "far: out of reach" in err
     got = np.array([[float(r[c]) / s for c, s in zip(header[1:7], scale)] for r in rows[:8]])
-    want = rc.forward_kinematics(nominal, q)
+    # the nominal pose on the calibrated robot's base: the nominal base (a guess of where the
+    # instrument stood) moves no target
+    on_true_base = nominal.replace(base_position=true.base_position, base_rotation=true.base_rotation)
+    want = rc.forward_kinematics(on_true_base, q)
     reached = rc.forward_kinematics(true, got)
     assert np.abs(reached.positions - want.positions).max() < 1e-6
     assert np.abs(reached.rotations - want.rotations).max() < 1e-6

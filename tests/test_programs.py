@@ -4,6 +4,7 @@ and written back byte for byte, compensated joint and Cartesian targets checked 
 out of reach flagged, malformed programs refused at their line and column."""
 
 import codecs
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -83,6 +84,14 @@ def _tool_pose(model, q):
     return ev.positions[:, 0], ev.rotations[:, 0]
 
 
+def _on_base(model, tool_of=None):
+    """``model`` in the robot's base frame (its base at the identity), with the markers of
+    ``tool_of``: a program's targets are in the robot's base frame, its tool exact in both models."""
+    eye = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+    return model.replace(base_position=(0.0, 0.0, 0.0), base_rotation=eye,
+                         markers=(tool_of or model).markers)
+
+
 def _assert_same_pose(P, R, P_goal, R_goal):
     assert np.abs(P - P_goal).max() * 1e3 < TOL_MM
     angle = Rotation.from_matrix(R @ np.swapaxes(R_goal, 1, 2)).magnitude()
@@ -98,7 +107,7 @@ def test_compensated_joint_targets_land_where_the_nominal_ones_did(name, models,
     new = _reread(tmp_path, result.text, name)
     labels_new, q_new = program_joints(new, nominal)
     assert labels_new == labels and np.abs(q_new - q_old).max() > 1e-4   # they did change
-    _assert_same_pose(*_tool_pose(calibrated, q_new), *_tool_pose(nominal, q_old))
+    _assert_same_pose(*_tool_pose(_on_base(calibrated, nominal), q_new), *_tool_pose(_on_base(nominal), q_old))
 
 
 @pytest.mark.parametrize("name", EXAMPLES)
@@ -111,18 +120,17 @@ def test_compensated_cartesian_targets_through_the_nominal_ik_land_on_the_intend
     ok = {r.name for r in result.targets if r.status == "ok"}
     pairs = [(a, b) for a, b in zip(program.targets, new.targets) if a.kind == "pose" and a.name in ok]
     assert len(pairs) >= 3
-    X_WB = nominal.X_WB
-    goal = X_WB @ module.poses([a for a, _ in pairs])
-    given = X_WB @ module.poses([b for _, b in pairs])
+    goal = module.poses([a for a, _ in pairs])                            # in the robot's base frame
+    given = module.poses([b for _, b in pairs])
     assert np.abs(given[:, :3, 3] - goal[:, :3, 3]).max() > 1e-4          # the targets moved
     want, turn = zip(*[module.wanted(b, 6) if b.configuration else (np.full(3, -1), np.full(6, np.nan))
                        for _, b in pairs])
     hints = [None if b.configuration else q for (_, b), q in zip(pairs, _hint_rows(new, nominal, pairs))]
-    ik = inverse_kinematics(nominal, given[:, :3, 3], given[:, :3, :3], want=np.array(want),
+    ik = inverse_kinematics(_on_base(nominal), given[:, :3, 3], given[:, :3, :3], want=np.array(want),
                             turn_from=np.array(turn), hints=np.array([np.full(6, np.nan) if h is None else h
                                                                       for h in hints]))
     assert ik.solved.all()
-    _assert_same_pose(*_tool_pose(calibrated, ik.q), goal[:, :3, 3], goal[:, :3, :3])
+    _assert_same_pose(*_tool_pose(_on_base(calibrated, nominal), ik.q), goal[:, :3, 3], goal[:, :3, :3])
     has_conf = np.array([bool(b.configuration) for _, b in pairs])
     assert np.all((np.array(want) < 0) | (posture(nominal, ik.q) == (np.array(want) > 0))) and (
         has_conf.any() or module.NAME == "urscript")
@@ -142,14 +150,73 @@ def _hint_rows(program, model, pairs):
     return out
 
 
-def test_configuration_data_are_recomputed_where_the_compensated_joints_need_another(models, tmp_path):
+def test_configuration_data_are_kept_as_written_where_they_reach_the_compensated_joints(models, tmp_path):
+    """RAPID's quadrants are windows the controller solves in: axes 1 and 4 sat on 0 deg and move
+    below it, and the written [0,0,0,0] still reaches them, so it stays as written."""
     nominal, calibrated = models
     program = read_program(HERE / "example.mod")
     result = compensate_program(program, nominal, calibrated)
-    row = next(r for r in result.targets if r.name == "line 30")
-    assert row.configuration == "0,0,0,0 -> -1,-1,0,0"       # axes 1 and 4 sat on 0 deg and moved below
+    assert next(r for r in result.targets if r.name == "line 30").status == "ok"
+    old = next(t for t in program.targets if t.name == "line 30")
     new = next(t for t in _reread(tmp_path, result.text, "x.mod").targets if t.name == "line 30")
-    assert [int(n.value) for n in new.configuration] == [-1, -1, 0, 0]
+    assert [n.text for n in new.configuration] == [n.text for n in old.configuration] == ["0"] * 4
+    assert [n.text for n in new.position] != [n.text for n in old.position]
+
+
+def test_a_target_its_configuration_data_no_longer_reach_is_flagged_and_left_unchanged(models, tmp_path):
+    """KRL's Turn bit 0 says an axis is at or above 0 deg: a home pose taught with axes 1 and 4 at
+    0 deg whose compensated axes go below would make the controller turn them by a whole turn."""
+    nominal, calibrated = models
+    text = (HERE / "example.src").read_text().replace("T 'B001011'", "T 'B000010'")
+    (tmp_path / "home.src").write_text(text)
+    result = compensate_program(read_program(tmp_path / "home.src"), nominal, calibrated)
+    row = next(r for r in result.targets if r.line == 12)
+    assert row.status == "its configuration data no longer fit: the compensated joints need 0,11, not 0,2"
+    assert row in result.flagged
+    assert "; robocal: line 12: its configuration data no longer fit" in result.text
+    line = next(ln for ln in result.text.splitlines() if ln.startswith("LIN {X 103.185"))
+    assert line in text                                          # left as written
+
+
+def _th8_glue(tmp_path, cfx):
+    """A TH8 program of taught robtargets with the given cfx (the TH8 has one shoulder and one
+    elbow configuration: only the wrist bit of cfx means something)."""
+    model = rc.read_model(HERE.parent.parent / "examples" / "th8" / "model.yaml")
+    q = rc.random_configurations(model, 12, rng=4) * 0.8
+    q[:, 4] = np.where(cfx & 1, -1.0, 1.0) * np.abs(q[:, 4])
+    P, R = _tool_pose(_on_base(model), q)
+    quat = Rotation.from_matrix(R).as_quat()[:, [3, 0, 1, 2]]
+    lines = ["MODULE Glue", "  PERS tooldata tSphere := [TRUE, [[30, 0, 120], [1, 0, 0, 0]], [1, [0, 0, 50], "
+             "[1, 0, 0, 0], 0, 0, 0]];"]
+    for i in range(len(q)):
+        cf = [int(np.floor(q[i, j] / (np.pi / 2))) for j in (0, 3, 5)]
+        lines.append(f"  CONST robtarget p{i} := [[{', '.join(f'{v:.6f}' for v in P[i] * 1e3)}], "
+                     f"[{', '.join(f'{v:.8f}' for v in quat[i])}], [{cf[0]}, {cf[1]}, {cf[2]}, {cfx}], "
+                     "[9E9, 9E9, 9E9, 9E9, 9E9, 9E9]];")
+    lines += ["  PROC main()"] + [f"    MoveL p{i}, v100, fine, tSphere;" for i in range(len(q))]
+    text = "\n".join(lines + ["  ENDPROC", "ENDMODULE", ""])
+    (tmp_path / "glue.mod").write_text(text)
+    return model, read_program(tmp_path / "glue.mod"), text
+
+
+@pytest.mark.parametrize("cfx", [0, 3, 4, 7])
+def test_posture_bits_a_robot_does_not_have_ask_nothing(cfx, tmp_path):
+    """The TH8's shoulder and elbow tests are round-off (1e-16): whatever bits 4 and 2 of cfx say,
+    taught targets are solved, 1e-12 rad changes leave their configuration data as written, and
+    the nominal model as calibrated gives the program back as it was."""
+    model, program, text = _th8_glue(tmp_path, cfx)
+    same = compensate_program(program, model, model)
+    assert same.text == text and {r.status for r in same.targets} == {"ok"}
+    assert same.notes == ("th8-like has no distinct shoulder or elbow configurations (the posture tests are zero "
+                          "over its joint ranges): the configuration data's shoulder, elbow bits are kept as "
+                          "written and ask nothing",)
+    for k, name in enumerate(("j1", "j4", "j5")):
+        frames = list(model.frames)
+        i = model.frame_names.index(name)
+        frames[i] = dataclasses.replace(frames[i], theta=frames[i].theta + (-1) ** k * 1e-12)
+        nudged = compensate_program(program, model, model.replace(frames=tuple(frames)))
+        assert {r.status for r in nudged.targets} == {"ok"}
+        assert nudged.text.count(f"{cfx}], [9E9") == len(nudged.targets)
 
 
 @pytest.mark.parametrize("name, far, comment", [
@@ -428,3 +495,49 @@ def test_rapid_targets_take_the_tool_and_work_object_their_motions_use(models):
         assert rows[name].status == "ok" and abs(rows[name].moved - alone[name].moved) < 1e-12
     assert len({round(rows[n].moved, 9) for n in ("p1", "p3{1}", "p3{2}", "line 13")}) == 4   # four frames
     assert rows["p2"].status.startswith("read only")
+
+
+def _base_moved(model, seed):
+    """``model`` with its base moved by a random rigid transform (metres, any rotation)."""
+    rng = np.random.default_rng(seed)
+    R = Rotation.random(random_state=rng).as_matrix()
+    return model.replace(base_position=tuple(rng.uniform(-3.0, 3.0, 3)), base_rotation=tuple(map(tuple, R)))
+
+
+@pytest.mark.parametrize("name", EXAMPLES)
+def test_where_the_instrument_stood_never_moves_a_target(name, models):
+    """A model's base is where the tracker saw the robot: moving only the nominal base by any rigid
+    transform changes no target, and a calibrated robot that differs from the nominal only in its
+    base (its tracker stood 50 mm elsewhere) leaves the program as it was."""
+    nominal, calibrated = models
+    program = read_program(HERE / name)
+    ref = compensate_program(program, nominal, calibrated)
+    assert sum(r.status == "ok" for r in ref.targets) >= 3
+    for seed in range(3):
+        moved = compensate_program(program, _base_moved(nominal, seed), calibrated)
+        assert moved.text == ref.text
+        assert all(abs(a.moved - b.moved) < 1e-12 for a, b in zip(moved.targets, ref.targets))
+    elsewhere = nominal.replace(base_position=tuple(np.add(nominal.base_position, (0.05, 0.0, 0.0))))
+    assert compensate_program(program, nominal, elsewhere).text == program.text
+
+
+def test_the_csv_path_is_blind_to_the_nominal_base(models, tmp_path, cli):
+    """Joint targets in a CSV: the same commands whatever the nominal model's base."""
+    nominal, calibrated = models
+    q = np.radians([[10, -30, 40, 20, 50, -30], [-45, -50, 70, -100, -60, 120], [0, -40, 60, 0, 45, 0]])
+    rows = ["pose,j1_rad,j2_rad,j3_rad,j4_rad,j5_rad,j6_rad"] + [f"P{i}," + ",".join(repr(float(v)) for v in r)
+                                                                 for i, r in enumerate(q)]
+    (tmp_path / "targets.csv").write_text("\n".join(rows) + "\n")
+    rc.write_model(calibrated, tmp_path / "calibrated.yaml")
+    written = []
+    for k, model in enumerate([nominal, _base_moved(nominal, 1), _base_moved(nominal, 2)]):
+        rc.write_model(model, tmp_path / f"nominal{k}.yaml")
+        code, _, err = cli("compensate", tmp_path / f"nominal{k}.yaml", tmp_path / "calibrated.yaml",
+                           tmp_path / "targets.csv", "--out", tmp_path / f"commands{k}.csv")
+        assert code == 0, err
+        written.append(np.genfromtxt(tmp_path / f"commands{k}.csv", delimiter=",", names=True))
+    moved = [np.array([w[n] for n in written[0].dtype.names if n.startswith("j")]).T for w in written]
+    assert np.abs(moved[0] - np.degrees(q)).max() > 1e-3                    # they were compensated
+    assert all(np.abs(m - moved[0]).max() < 1e-9 for m in moved[1:])        # deg
+    # in the robot's base frame the calibrated robot lands where the nominal one would have
+    _assert_same_pose(*_tool_pose(_on_base(calibrated), np.radians(moved[0])), *_tool_pose(_on_base(nominal), q))

@@ -72,6 +72,23 @@ class Compensation:
         return (self.residual <= tol) & (self.residual_rot <= tol_rot)
 
 
+def registered(model: RobotModel, on: RobotModel) -> RobotModel:
+    """``model`` placed on the base of ``on`` (the same ``X_WB``).
+
+    A model's base is where the instrument saw the robot stand: the nominal model's is a guess, the
+    calibrated model's the registration its campaign measured (with whatever of the first joint's
+    placement no campaign tells apart from it). Neither is a property of the robot that a target
+    written in the robot's base frame should feel, so a compensation compares the two models on
+    one base (docs/method.md, "Compensation").
+    """
+    return model.replace(base_position=on.base_position, base_rotation=on.base_rotation)
+
+
+def on_robot_base(model: RobotModel) -> RobotModel:
+    """``model`` with its base at the identity: W is the robot's own base frame."""
+    return model.replace(base_position=(0.0, 0.0, 0.0), base_rotation=tuple(map(tuple, np.eye(3))))
+
+
 def _targets(model, nominal, q0, positions, rotations, marker, orientation):
     """Target positions and rotations in W (N, 3), (N, 3, 3) and which rows match orientation."""
     target = evaluate(nominal, q0, orientations=True)
@@ -137,9 +154,12 @@ def _damped_newton(model, q0, Pt, Rt, oriented, *, marker, iterations, tol, damp
 def compensate(model: RobotModel, targets_q, *, nominal: RobotModel | None = None, positions=None,
                rotations=None, marker: int = 0, orientation: bool | None = None, iterations: int = 50,
                tol: float = 1e-10, damping: float = 1e-6, max_step: float = 0.05) -> Compensation:
-    """Readings q' at which ``model`` reaches the pose ``nominal`` reaches at ``targets_q``.
+    """Readings q' at which ``model`` reaches the pose ``nominal`` reaches at ``targets_q``, both
+    on ``model``'s base.
 
-    This is what a controller holding the nominal model needs to send to the identified robot.
+    This is what a controller holding the nominal model needs to send to the identified robot. The
+    nominal model is placed on ``model``'s base (``registered``): its own base, a guess of where the
+    instrument stood, never moves a target.
     With six or more joints the full pose of ``marker`` is matched (``orientation`` default True),
     otherwise its position only (least-norm correction). ``positions`` (N, 3) and ``rotations``
     (N, 3, 3), W: Cartesian targets instead, where a row is finite; ``targets_q`` is then the
@@ -155,7 +175,7 @@ def compensate(model: RobotModel, targets_q, *, nominal: RobotModel | None = Non
         The calibrated model.
     {targets_q}
     nominal : RobotModel, optional
-        The model the controller computes with (default: ``model``).
+        The model the controller computes with (default: ``model``); its base is not used.
     {positions, rotations, marker}
     orientation : bool, optional
         Whether to match orientations too (None: when ``rotations`` are given).
@@ -170,7 +190,7 @@ def compensate(model: RobotModel, targets_q, *, nominal: RobotModel | None = Non
         Corrected joint commands, with what each reaches.
     """
     q0 = np.atleast_2d(np.asarray(targets_q, dtype=float))
-    nominal = model if nominal is None else nominal
+    nominal = model if nominal is None else registered(nominal, model)
     Pt, Rt, oriented = _targets(model, nominal, q0,
                                 None if positions is None else np.asarray(positions, dtype=float).reshape(-1, 3),
                                 None if rotations is None else np.asarray(rotations, dtype=float).reshape(-1, 3, 3),
@@ -235,7 +255,8 @@ def posture(model: RobotModel, q, *, marker: int = 0) -> np.ndarray:
     joint i's axis z_i, MDH) and the wrist centre c = O_5: ``shoulder_back`` when c lies behind
     axis 1, ``(c - O_1) . x_1 < 0``; ``elbow_back`` when c lies on the negative side of the lower
     arm, ``((O_3 - O_2) x (c - O_2)) . z_2 < 0`` (the elbow singularity is where the two agree in
-    line); ``wrist_negative`` when joint 5's reading is negative.
+    line); ``wrist_negative`` when joint 5's reading is negative. A bit whose test is within
+    ``POSTURE_TOL`` of zero (``posture_margins``) is on its boundary: either value describes it.
 
     Parameters
     ----------
@@ -251,6 +272,17 @@ def posture(model: RobotModel, q, *, marker: int = 0) -> np.ndarray:
     numpy.ndarray
         (N, 3) booleans.
     """
+    return posture_margins(model, q, marker=marker) < 0
+
+
+# a posture test (a ratio of lengths, or joint 5's reading in rad) this close to zero is on its
+# boundary: round-off, not a configuration (a cylindrical arm's shoulder and elbow tests are 1e-16)
+POSTURE_TOL = 1e-9
+
+
+def posture_margins(model: RobotModel, q, *, marker: int = 0) -> np.ndarray:
+    """(N, 3) signed tests of the posture bits (``posture``), each scaled to no unit: the shoulder's
+    by |c - O_1|, the elbow's by |O_3 - O_2| |c - O_2|; joint 5's reading (rad)."""
     chain = arm_chain(model, marker)
     if len(chain) < 6:
         raise ValueError(f"a posture needs six moving frames to the marker, the model has {len(chain)}")
@@ -258,10 +290,44 @@ def posture(model: RobotModel, q, *, marker: int = 0) -> np.ndarray:
     X = evaluate(model, q, frames=True).frames
     f1, f2, f3, _, f5, _ = chain[:6]
     origin, wc = X[:, :, :3, 3], X[:, f5, :3, 3]
-    shoulder = np.einsum("ni,ni->n", wc - origin[:, f1], X[:, f1, :3, 0]) < 0
-    elbow = np.einsum("ni,ni->n", np.cross(origin[:, f3] - origin[:, f2], wc - origin[:, f2]), X[:, f2, :3, 2]) < 0
+    arm, lower = wc - origin[:, f1], origin[:, f3] - origin[:, f2]
+    reach = wc - origin[:, f2]
+    tiny = np.finfo(float).tiny
+    shoulder = np.einsum("ni,ni->n", arm, X[:, f1, :3, 0]) / np.maximum(np.linalg.norm(arm, axis=1), tiny)
+    elbow = np.einsum("ni,ni->n", np.cross(lower, reach), X[:, f2, :3, 2]) / np.maximum(
+        np.linalg.norm(lower, axis=1) * np.linalg.norm(reach, axis=1), tiny)
     j5 = model.frames[f5].coupling[0][0] if model.frames[f5].coupling else 4
-    return np.stack([shoulder, elbow, q[:, j5] < 0], axis=1)
+    return np.stack([shoulder, elbow, q[:, j5]], axis=1)
+
+
+def distinct_postures(model: RobotModel, marker: int = 0) -> np.ndarray:
+    """(3,) whether each posture bit (``POSTURE``) tells two configurations of ``model`` apart: its
+    test takes both signs beyond ``POSTURE_TOL`` over the joint ranges (a cylindrical arm has one
+    shoulder and one elbow configuration only)."""
+    m = _seed_table(model, marker)[2]
+    return _distinct(m)
+
+
+def _distinct(margins) -> np.ndarray:
+    return np.any(margins > POSTURE_TOL, axis=0) & np.any(margins < -POSTURE_TOL, axis=0)
+
+
+def posture_fits(margins, want, distinct) -> np.ndarray:
+    """(N,) whether postures with ``margins`` (N, 3) are the ones ``want`` (N, 3: 0, 1, -1 free) asks
+    for: a bit that is free, on its boundary, or that tells no configurations apart (``distinct``)
+    always fits."""
+    free = (want < 0) | ~np.asarray(distinct)[None] | (np.abs(margins) <= POSTURE_TOL)
+    return np.all(free | ((margins < 0) == (want > 0)), axis=1)
+
+
+def configuration_fits(model: RobotModel, q, want, turn_from, *, marker: int = 0) -> np.ndarray:
+    """(N,) whether readings ``q`` (N, n_joints) are the solution the nominal inverse kinematics gives
+    in the configuration asked for: the posture ``want`` (N, 3) (``posture_fits``, on ``model``'s
+    distinct postures) and each revolute reading inside its turn ``[turn_from, turn_from + 2 pi)``
+    where finite (as in ``inverse_kinematics``)."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    fits = posture_fits(posture_margins(model, q, marker=marker), np.asarray(want), distinct_postures(model, marker))
+    return fits & np.all(np.abs(_turned(model, q, np.asarray(turn_from, dtype=float)) - q) < 1e-9, axis=1)
 
 
 def _seed_table(model: RobotModel, marker: int):
@@ -274,7 +340,7 @@ def _seed_table(model: RobotModel, marker: int):
     lo[wide], hi[wide] = mid[wide] - np.pi, mid[wide] + np.pi
     q = lo + (hi - lo) * _halton(N_SEEDS, model.n_joints)
     ev = evaluate(model, q, orientations=True)
-    return q, _features(ev.positions[:, marker], ev.rotations[:, marker]), posture(model, q, marker=marker)
+    return q, _features(ev.positions[:, marker], ev.rotations[:, marker]), posture_margins(model, q, marker=marker)
 
 
 def _halton(n: int, d: int) -> np.ndarray:
@@ -320,7 +386,7 @@ class InverseKinematics:
     within_limits: np.ndarray
 
 
-def _seed_order(table_f, table_post, features, want, k: int) -> np.ndarray:
+def _seed_order(table_f, table_margins, features, want, k: int) -> np.ndarray:
     """(N, k) indices of the table's configurations nearest each target's pose among those of the
     posture ``want`` (N, 3) (0/1, -1 where a bit is free)."""
     from scipy.spatial import cKDTree
@@ -328,7 +394,7 @@ def _seed_order(table_f, table_post, features, want, k: int) -> np.ndarray:
     order = np.zeros((len(features), k), dtype=int)
     for pattern in np.unique(want, axis=0):
         rows = np.all(want == pattern, axis=1)
-        fits = np.all((pattern < 0) | (table_post == (pattern > 0)), axis=1)
+        fits = posture_fits(table_margins, pattern[None], np.ones(3, dtype=bool))
         pool = np.flatnonzero(fits) if fits.any() else np.arange(len(table_f))
         kk = min(k, len(pool))
         _, idx = cKDTree(table_f[pool]).query(features[rows], k=kk)
@@ -419,8 +485,10 @@ def inverse_kinematics(model: RobotModel, positions, rotations, *, marker: int =
     n = len(P)
     want = np.full((n, 3), -1) if want is None else np.asarray(want, dtype=int).reshape(n, 3)
     turn_from = np.full((n, model.n_joints), np.nan) if turn_from is None else np.asarray(turn_from, dtype=float)
-    table_q, table_f, table_post = _seed_table(model, marker)
-    seeds = [table_q[i] for i in _seed_order(table_f, table_post, _features(P, R), want, SEED_TRIES).T]
+    table_q, table_f, table_margins = _seed_table(model, marker)
+    distinct = _distinct(table_margins)
+    want = np.where(distinct[None], want, -1)      # a bit that tells no configurations apart asks nothing
+    seeds = [table_q[i] for i in _seed_order(table_f, table_margins, _features(P, R), want, SEED_TRIES).T]
     if hints is not None:                       # first the hint, then the table's seeds one round later
         hinted = np.all(np.isfinite(np.asarray(hints, dtype=float)), axis=1, keepdims=True)
         seeds = [np.where(hinted, hints, seeds[0])] + [np.where(hinted, seeds[k], seeds[min(k + 1, len(seeds) - 1)])
@@ -443,7 +511,7 @@ def inverse_kinematics(model: RobotModel, positions, rotations, *, marker: int =
         qk = _turned(model, qk, turn_from[todo])
         e_pos, e_rot = _errors(model, qk, p, marker, P[todo], R[todo])
         good = (np.linalg.norm(e_pos, axis=1) <= 10 * tol) & (np.linalg.norm(e_rot, axis=1) <= 10 * tol)
-        good &= np.all((want[todo] < 0) | (posture(model, qk, marker=marker) == (want[todo] > 0)), axis=1)
+        good &= posture_fits(posture_margins(model, qk, marker=marker), want[todo], distinct)
         inside = np.all((qk >= model.lower_limits) & (qk <= model.upper_limits), axis=1)
         level = np.where(good, np.where(inside, 2, 1), 0)
         better = (level > state[todo]) | np.isnan(q[todo, 0])
@@ -475,7 +543,9 @@ class PoseCompensation:
 def compensate_poses(nominal: RobotModel, calibrated: RobotModel, positions, rotations, *, marker: int = 0,
                      want=None, turn_from=None, hints=None) -> PoseCompensation:
     """Targets for a controller holding ``nominal`` so that the calibrated robot reaches the poses
-    (``positions`` (N, 3), ``rotations`` (N, 3, 3), W) the nominal model gives them.
+    (``positions`` (N, 3), ``rotations`` (N, 3, 3), W) the nominal model gives them, both models on
+    ``calibrated``'s base (``registered``: the nominal base, a guess of where the instrument stood,
+    never moves a target; with both bases at the identity, W is the robot's base frame).
 
     The nominal inverse kinematics (``inverse_kinematics``, in the configuration ``want`` and
     ``turn_from`` ask for) gives the readings the controller would command; ``compensate`` gives
@@ -489,9 +559,9 @@ def compensate_poses(nominal: RobotModel, calibrated: RobotModel, positions, rot
     calibrated : RobotModel
         The calibrated model (the nominal's joints and markers).
     positions : array_like, shape (N, 3)
-        Intended positions of ``marker`` in W, m.
+        Intended positions of ``marker`` in W (``calibrated``'s), m.
     rotations : array_like, shape (N, 3, 3)
-        Intended orientations of ``marker`` in W.
+        Intended orientations of ``marker`` in W (``calibrated``'s).
     marker : int
         The marker (tool point) placed on the targets.
     want : array_like, shape (N, 3), optional
@@ -508,6 +578,7 @@ def compensate_poses(nominal: RobotModel, calibrated: RobotModel, positions, rot
     """
     P = np.asarray(positions, dtype=float).reshape(-1, 3)
     R = np.asarray(rotations, dtype=float).reshape(-1, 3, 3)
+    nominal = registered(nominal, calibrated)
     ik = inverse_kinematics(nominal, P, R, marker=marker, want=want, turn_from=turn_from, hints=hints)
     start = np.where(ik.solved[:, None], ik.q, 0.0)
     comp = compensate(calibrated, start, nominal=nominal, positions=np.where(ik.solved[:, None], P, np.nan),

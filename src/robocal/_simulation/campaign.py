@@ -205,9 +205,12 @@ def accuracy_in_use(true_model: RobotModel, controller_model: RobotModel | None,
     """
     rng = np.random.default_rng(rng)
     q = np.atleast_2d(np.asarray(targets_q, dtype=float))
-    target = evaluate(nominal, q).positions[:, marker]
+    ev = evaluate(nominal, q, orientations=True)
+    target = ev.positions[:, marker]
     if controller_model is not None:
-        q = compensate(stored_model(controller_model, imp), q, nominal=nominal, marker=marker).q
+        # the targets as the instrument's frame holds them: the nominal base is part of them here
+        q = compensate(stored_model(controller_model, imp), q, nominal=nominal, positions=target,
+                       rotations=ev.rotations[:, marker] if nominal.n_joints >= 6 else None, marker=marker).q
     recorded = _quantise(q, imp.encoder_resolution)
     P = _attain(true_model, recorded, imp, rng)[:, marker]
     return np.linalg.norm(P - target, axis=1)

@@ -83,12 +83,13 @@ def _run_program(args, nominal, calibrated) -> int:
     common.write_outputs({args.out: result.text}, force=args.force)
     for r in result.targets:
         if r.status == "ok":
-            conf = f"; configuration {r.configuration}" if r.configuration else ""
             print(f"{r.name} (line {r.line}, {r.kind}): moved {r.moved * common.MM:.4f} mm, turned "
                   f"{r.turned * common.DEG:.5f} deg; joints by up to {r.angle_change * common.DEG:.5f} deg"
-                  f"{f', {r.length_change * common.MM:.4f} mm' if r.length_change else ''}{conf}")
+                  f"{f', {r.length_change * common.MM:.4f} mm' if r.length_change else ''}")
         else:
             print(f"{r.name} (line {r.line}, {r.kind}): {r.status}")
+    for note in result.notes:
+        print(f"note: {note}")
     for r in result.flagged:
         print(f"robocal: warning: {args.targets}: {r.name} (line {r.line}): {r.status}; left unchanged",
               file=sys.stderr)

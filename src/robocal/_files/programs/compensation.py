@@ -11,13 +11,23 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..._accuracy.compensation import arm_chain, compensate, compensate_poses, posture
+from ..._accuracy.compensation import (
+    POSTURE_TOL,
+    arm_chain,
+    compensate,
+    compensate_poses,
+    configuration_fits,
+    distinct_postures,
+    on_robot_base,
+    posture_margins,
+)
 from ..._base.arguments import POSITIVE, TEXT, accepts, both, is_a, marker_of, optional, same_robot_as
 from ..._base.errors import InputError, suggest
 from ..._model.kinematics import evaluate
 from ..._model.robot import Marker, RobotModel
 from . import (
     BEYOND,
+    CONFIGURATION,
     DIALECTS,
     DIGITS,
     KEEP,
@@ -35,8 +45,7 @@ class TargetResult:
     """What became of one target: ``status`` (``ok`` or why it was left unchanged, or ``read only: ...``
     for a target that is not a literal), how far the nominal model's tool point moved (``moved``, m)
     and turned (``turned``, rad) between the old target and the new one, the largest change of a
-    revolute and of a prismatic reading (rad, m), and ``configuration`` ("old -> new" where the
-    configuration data changed, else empty)."""
+    revolute and of a prismatic reading (rad, m)."""
 
     name: str
     line: int
@@ -46,15 +55,16 @@ class TargetResult:
     turned: float = 0.0
     angle_change: float = 0.0
     length_change: float = 0.0
-    configuration: str = ""
 
 
 @dataclass(frozen=True)
 class ProgramCompensation:
-    """The compensated program's ``text`` and a ``TargetResult`` per target, in source order."""
+    """The compensated program's ``text``, a ``TargetResult`` per target in source order, and
+    ``notes``: what the user should know of the whole (posture bits the robot does not have)."""
 
     text: str
     targets: tuple[TargetResult, ...]
+    notes: tuple[str, ...] = ()
 
     @property
     def flagged(self) -> tuple[TargetResult, ...]:
@@ -81,9 +91,11 @@ def _named(program: Program, name: str, kinds, option: str):
 
 
 def _tool_models(program, nominal, calibrated, marker, tool, where: str):
-    """The models with the named tool as their only marker, on the frame of the model's own tool point."""
+    """The models with the named tool as their only marker, on the frame of the model's own tool point;
+    without one, the nominal tool point on both (a tool is exact in both models: the calibrated
+    marker is the instrument's target, not the program's tool)."""
     if tool is None:
-        return nominal, calibrated, marker
+        return nominal, calibrated.replace(markers=nominal.markers), marker
     X = _named(program, tool, ("tool", "frame"), where)
     mk = Marker(tool, nominal.markers[marker].frame, tuple(X[:3, 3]), tuple(map(tuple, X[:3, :3])))
     return nominal.replace(markers=(mk,)), calibrated.replace(markers=(mk,)), 0
@@ -113,10 +125,9 @@ def _joint_edits(program, model, targets, q_new, edits):
             edits.append((n.start, n.end, format_number(v / u, n, digits=DIGITS[u], keep=KEEP / u)))
 
 
-def _pose_edits(module, targets, X_new, X_old, q, bits, edits) -> list[str]:
+def _pose_edits(module, targets, X_new, X_old, edits) -> None:
     """Edits of the pose targets' numbers (an orientation rewritten only where it turned by more than
-    KEEP); per target "old -> new" where the configuration data change."""
-    changed = []
+    KEEP); configuration data are never rewritten."""
     L, U = module.LENGTH, module.ORIENTATION
     turned = _angle(X_new[:, :3, :3], X_old[:, :3, :3])
     orientations = module.orientation_values(X_new[:, :3, :3], targets)        # file units
@@ -126,40 +137,53 @@ def _pose_edits(module, targets, X_new, X_old, q, bits, edits) -> list[str]:
         if turned[i] > KEEP:
             for n, v in zip(t.orientation, orientations[i]):
                 edits.append((n.start, n.end, format_number(v, n, digits=DIGITS[U], keep=0.0)))
-        new = module.configuration_values(q[i], bits[i], t, SLACK) if t.configuration else []
-        old = [int(n.value) for n in t.configuration]
-        for n, v in zip(t.configuration, new):
-            edits.append((n.start, n.end, module.format_configuration(v, n)))
-        changed.append(f"{','.join(map(str, old))} -> {','.join(map(str, new))}" if new and new != old else "")
-    return changed
 
-def _pose_targets(program, module, nominal, calibrated, marker, X_WO, targets, hints, tol, tol_rot, edits):
-    """Compensate the pose targets; their results (the joint targets' results are made alongside)."""
+
+def _configurations(module, targets):
+    """Per pose target the posture bits (3,) and turn windows (6,) its configuration data ask for
+    (all free where it has none)."""
+    conf = [module.wanted(t, 6) if t.configuration else (np.full(3, -1), np.full(6, np.nan)) for t in targets]
+    return np.array([c[0] for c in conf]).reshape(-1, 3), np.array([c[1] for c in conf]).reshape(-1, 6)
+
+
+def _needs(module, nominal, marker, target, q, want) -> str:
+    """Why the written configuration data do not reach the compensated readings ``q``: what they would be."""
+    margins = posture_margins(nominal, q[None], marker=marker)[0]
+    decided = distinct_postures(nominal, marker) & (np.abs(margins) > POSTURE_TOL)
+    bits = np.where(decided, margins < 0, want > 0)
+    new = module.configuration_values(q, bits, target, SLACK)
+    old = [int(n.value) for n in target.configuration]
+    return f"{CONFIGURATION}: the compensated joints need {','.join(map(str, new))}, not {','.join(map(str, old))}"
+
+
+def _pose_targets(program, module, nominal, calibrated, marker, X_BO, targets, hints, tol, tol_rot, edits):
+    """Compensate the pose targets (``X_BO``: their work object in the robot's base frame); their
+    results (the joint targets' results are made alongside)."""
     chain = arm_chain(nominal, marker)
     if nominal.n_joints != 6 or len(chain) != 6:
         raise InputError(f"Cartesian targets need a six-axis arm, {nominal.name} has {nominal.n_joints} joints and "
                          f"{len(chain)} moving frames to its tool point (first target at line {targets[0].line})",
                          source=program.source)
-    X_W = X_WO @ module.poses(targets)
-    conf = [module.wanted(t, 6) if t.configuration else (np.full(3, -1), np.full(6, np.nan)) for t in targets]
-    pc = compensate_poses(nominal, calibrated, X_W[:, :3, 3], X_W[:, :3, :3], marker=marker,
-                          want=np.array([c[0] for c in conf]), turn_from=np.array([c[1] for c in conf]),
-                          hints=hints)
+    X_B = X_BO @ module.poses(targets)
+    want, turn = _configurations(module, targets)
+    pc = compensate_poses(nominal, calibrated, X_B[:, :3, 3], X_B[:, :3, :3], marker=marker, want=want,
+                          turn_from=turn, hints=hints)
     status = _status(pc.solved, pc.compensation, tol, tol_rot)
+    # the configuration data stay as written: a target they no longer reach is left unchanged
+    fits = configuration_fits(nominal, pc.q, want, turn, marker=marker)
+    status = [_needs(module, nominal, marker, t, pc.q[i], want[i]) if s == REACHED and not fits[i] else s
+              for i, (t, s) in enumerate(zip(targets, status))]
     ok = np.array([s == REACHED for s in status])
     X_new = np.tile(np.eye(4), (len(targets), 1, 1))
     X_new[:, :3, :3], X_new[:, :3, 3] = pc.rotations, pc.positions
-    X_new = np.linalg.inv(X_WO) @ X_new
-    kept = [t for t, k in zip(targets, ok) if k]
-    X_old = np.linalg.inv(X_WO) @ X_W
-    changed = iter(_pose_edits(module, kept, X_new[ok], X_old[ok], pc.q[ok], posture(nominal, pc.q[ok], marker=marker),
-                               edits) if kept else [])
+    X_new = np.linalg.inv(X_BO) @ X_new
+    if ok.any():
+        _pose_edits(module, [t for t, k in zip(targets, ok) if k], X_new[ok], module.poses(targets)[ok], edits)
     ang, lin = _changes(nominal, np.nan_to_num(pc.q_nominal), pc.q)
     with np.errstate(over="ignore"):            # a target far out of reach: not reported, its distance may overflow
-        moved = np.linalg.norm(pc.positions - X_W[:, :3, 3], axis=1)
-    turned = _angle(pc.rotations, X_W[:, :3, :3])
-    return [TargetResult(t.name, t.line, t.kind, s, *((moved[i], turned[i], ang[i], lin[i], next(changed))
-                                                       if ok[i] else ()))
+        moved = np.linalg.norm(pc.positions - X_B[:, :3, 3], axis=1)
+    turned = _angle(pc.rotations, X_B[:, :3, :3])
+    return [TargetResult(t.name, t.line, t.kind, s, *((moved[i], turned[i], ang[i], lin[i]) if ok[i] else ()))
             for i, (t, s) in enumerate(zip(targets, status))]
 
 
@@ -170,11 +194,14 @@ def compensate_program(program: Program, nominal: RobotModel, calibrated: RobotM
                        tol_rot: float = math.radians(1e-4)) -> ProgramCompensation:
     """The program with every literal target compensated for the calibrated robot.
 
-    Joint targets become the readings at which ``calibrated`` reaches the pose ``nominal`` reaches
-    at the old ones (``compensate``); Cartesian targets become the poses whose nominal inverse
-    kinematics, in the target's configuration, gives those readings (``compensate_poses``), with
-    their configuration data recomputed. A target out of reach, or whose new readings pass a joint
-    limit, is left unchanged and flagged in a comment on the line before it.
+    Targets are in the robot's base frame: both models are taken on it (``on_robot_base``), so
+    neither model's base (where an instrument saw the robot) moves a target. Joint targets become
+    the readings at which ``calibrated`` reaches the pose ``nominal`` reaches at the old ones
+    (``compensate``); Cartesian targets become the poses whose nominal inverse kinematics, in the
+    target's configuration, gives those readings (``compensate_poses``). Configuration data are
+    kept as written. A target out of reach, whose new readings pass a joint limit or that its
+    configuration data no longer reach is left unchanged and flagged in a comment on the line
+    before it.
 
     Parameters
     ----------
@@ -203,6 +230,8 @@ def compensate_program(program: Program, nominal: RobotModel, calibrated: RobotM
         The compensated program text and what happened to each target.
     """
     module = DIALECTS[program.dialect]
+    # a program's targets are in the robot's base frame: both models on it, the instrument's frame gone
+    nominal, calibrated = on_robot_base(nominal), on_robot_base(calibrated)
     live = [t for t in program.targets if not t.skip and t.name not in (tool, wobj)]
     joints = [t for t in live if t.kind == "joint"]
     edits: list[tuple[int, int, str]] = []
@@ -216,13 +245,25 @@ def compensate_program(program: Program, nominal: RobotModel, calibrated: RobotM
         X_BO = np.eye(4) if wobj_name is None else _named(program, wobj_name, ("wobj", "frame"),
                                                            "--wobj" if wobj else where)
         hints = _hints(program, n_, poses)
-        for t, r in zip(poses, _pose_targets(program, module, n_, c_, m_, n_.X_WB @ X_BO, poses, hints,
+        for t, r in zip(poses, _pose_targets(program, module, n_, c_, m_, X_BO, poses, hints,
                                              tol, tol_rot, edits)):
             results[id(t)] = r
     rows = [results.get(id(t), TargetResult(t.name, t.line, t.kind, f"read only: {t.skip or 'a frame in use'}"))
             for t in program.targets]
     return ProgramCompensation(text=edited(program.text, edits, _flags(program, rows), comment=module.COMMENT),
-                               targets=tuple(rows))
+                               targets=tuple(rows), notes=_posture_notes(nominal, marker, live))
+
+
+def _posture_notes(nominal: RobotModel, marker: int, live) -> tuple[str, ...]:
+    """A note where the configuration data hold posture bits the robot's geometry does not have."""
+    if not any(t.kind == "pose" and t.configuration for t in live) or len(arm_chain(nominal, marker)) < 6:
+        return ()
+    missing = [name for name, d in zip(("shoulder", "elbow", "wrist"), distinct_postures(nominal, marker)) if not d]
+    if not missing:
+        return ()
+    return (f"{nominal.name} has no distinct {' or '.join(missing)} configurations (the posture tests are zero "
+            f"over its joint ranges): the configuration data's {', '.join(missing)} bits are kept as written "
+            "and ask nothing",)
 
 
 def _pose_groups(live, tool: str | None, wobj: str | None) -> dict[tuple, list]:

@@ -208,12 +208,3 @@ def configuration_values(q: np.ndarray, bits: np.ndarray, target: Target, slack:
         keep = q[j] < slack if negative else q[j] > -slack
         t |= (negative if keep else int(q[j] < 0)) << j
     return [s, t]
-
-
-def format_configuration(value: int, old: Number) -> str:
-    if value == old.value:
-        return old.text
-    if old.text.startswith("'"):
-        width = len(old.text) - 3
-        return f"{old.text[:2]}{value:0{width}b}'"
-    return str(value)

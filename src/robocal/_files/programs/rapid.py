@@ -257,7 +257,3 @@ def configuration_values(q: np.ndarray, bits: np.ndarray, target: Target, slack:
         inside = j >= len(q) or cf * math.pi / 2 - slack <= q[j] <= (cf + 1) * math.pi / 2 + slack
         out.append(cf if inside else int(math.floor(q[j] / (math.pi / 2))))
     return out + [int(4 * bits[0] + 2 * bits[1] + bits[2])]
-
-
-def format_configuration(value: int, old: Number) -> str:
-    return old.text if value == old.value else str(value)

@@ -14,7 +14,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from .syntax import Aggregate, NamedFrame, Number, Program, Scanner, Target, aggregate, check_finite, closing, numbers
+from .syntax import Aggregate, NamedFrame, Program, Scanner, Target, aggregate, check_finite, closing, numbers
 
 NAME = "urscript"
 EXTENSIONS = (".script", ".urscript")
@@ -141,7 +141,3 @@ def wanted(target: Target, n_joints: int):
 
 def configuration_values(q, bits, target, slack) -> list[int]:
     return []
-
-
-def format_configuration(value: int, old: Number) -> str:
-    return old.text
