@@ -4,9 +4,9 @@
 %%%
 
 MODULE PickPlace
-  ! Targets for the arm6r test robot (tests/robots.py), in its base frame.
+  ! Targets for the arm6r test robot (tests/robots.py) and its tool point, in its base frame.
   ! Written by hand: every declaration kind, continuation lines, external axes.
-  TASK PERS tooldata tGripper := [TRUE, [[0, 0, 0], [1, 0, 0, 0]], [1.5, [0, 0, 50], [1, 0, 0, 0], 0, 0, 0]];
+  TASK PERS tooldata tGripper := [TRUE, [[50, 20, 120], [1, 0, 0, 0]], [1.5, [0, 0, 50], [1, 0, 0, 0], 0, 0, 0]];
   PERS wobjdata wTable := [FALSE, TRUE, "", [[0, 0, 0], [1, 0, 0, 0]], [[0, 0, 0], [1, 0, 0, 0]]];
   CONST jointtarget jHome := [[10, -30, 40, 20, 50, -30], [9E9, 9E9, 9E9, 9E9, 9E9, 9E9]];
   PERS jointtarget jPark := [[-45.0,-50.0,70.0,-100.0,-60.0,120.0],[0,9E+09,9E+09,9E+09,9E+09,9E+09]];
@@ -26,11 +26,11 @@ MODULE PickPlace
     ! MoveAbsJ with the target written inline, as a controller's log writes it
     MoveAbsJ [[0,-40,60,0,45,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]]\NoEOffs, v1000, z50, tool0;
     MoveAbsJ jHome, v1000, fine, tool0;
-    MoveJ pApproach, v1000, z50, tool0;
+    MoveJ pApproach, v1000, z50, tGripper;
     MoveL [[103.185,-20.000,-229.637],[0,0.84339145,0,-0.53729961],[0,0,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]],
-          v200, fine, tool0;   ! inline robtarget on a continued line
-    MoveL Offs(pPick, 0, 0, 100), v500, z10, tool0;
-    MoveC pPath{1}, pPath{2}, v100, z5, tool0;
-    MoveAbsJ jPark, v1000, fine, tool0;
+          v200, fine, tGripper;   ! inline robtarget on a continued line
+    MoveL Offs(pPick, 0, 0, 100), v500, z10, tGripper;
+    MoveC pPath{1}, pPath{2}, v100, z5, tGripper;
+    MoveAbsJ jPark, v1000, fine, tool0; MoveL pLeave, v100, fine, tGripper;
   ENDPROC
 ENDMODULE

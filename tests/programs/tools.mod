@@ -7,9 +7,9 @@ MODULE m
      [[231.980,68.259,-325.384],[-0.14399393,0.85724371,0.13836302,-0.47460999],[0,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]]];
   PROC main()
     MoveL p1, v100, fine, tA\WObj:=wB;
-    MoveL p2, v100, fine, tool0;
     MoveL p2, v100, fine, tA;
-    MoveJ p3{1}, v100\T:=3, z10\Inpos:=inpos20, tool0\WObj:=wB;
+    MoveL p2, v100, fine, TA;
+    FOR i FROM 1 TO 2 DO MoveJ Offs(p3{i}, 0, 0, 10), v100\T:=3, z10\Inpos:=inpos20, tool0\WObj:=wB; ENDFOR
     MoveL [[231.980,68.259,-325.384],[-0.14399393,0.85724371,0.13836302,-0.47460999],[0,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]], v100, fine, tA;
   ENDPROC
 ENDMODULE

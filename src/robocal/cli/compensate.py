@@ -40,6 +40,10 @@ def register(sub) -> None:
                                                   "a pose variable), on the frame of the model's tool point")
     g.add_argument("--wobj", metavar="NAME", help="a work object the program declares (wobjdata, FRAME or "
                                                   "BASE_DATA[n], a pose variable) that its Cartesian targets are in")
+    g.add_argument("--include", metavar="FILE", action="append", default=[],
+                   help="another file of the program, in its dialect, whose tools and work objects it uses (a KRL "
+                        "$config.dat, a RAPID module of tooldata); repeatable. A KRL .src's .dat and a .dat's "
+                        ".src (same name, same folder) are read with it without asking")
     p.add_argument("--marker", help="the marker to place (default the file's first marker, else the model's)")
     p.add_argument("--position-only", action="store_true",
                    help="match the marker's position only, even with six joints or more")
@@ -78,25 +82,50 @@ def _run_program(args, nominal, calibrated) -> int:
     if name not in nominal.marker_names:
         raise InputError(f"no marker {name!r}; the model has {', '.join(nominal.marker_names)}", where="--marker")
     m = nominal.marker_names.index(name)
+    companions = [read_program(path, dialect=program.dialect) for path in _companions(args, program)]
     result = compensate_program(program, nominal, calibrated, marker=m, tool=args.tool, wobj=args.wobj,
-                                tol=args.tol_mm / common.MM, tol_rot=args.tol_deg / common.DEG)
+                                companions=companions, tol=args.tol_mm / common.MM, tol_rot=args.tol_deg / common.DEG)
     common.write_outputs({args.out: result.text}, force=args.force)
+    if companions:
+        print(f"read with {', '.join(c.source for c in companions)}")
     for r in result.targets:
-        if r.status == "ok":
-            print(f"{r.name} (line {r.line}, {r.kind}): moved {r.moved * common.MM:.4f} mm, turned "
-                  f"{r.turned * common.DEG:.5f} deg; joints by up to {r.angle_change * common.DEG:.5f} deg"
-                  f"{f', {r.length_change * common.MM:.4f} mm' if r.length_change else ''}")
-        else:
-            print(f"{r.name} (line {r.line}, {r.kind}): {r.status}")
+        print(_summary(r))
     for note in result.notes:
         print(f"note: {note}")
     for r in result.flagged:
         print(f"robocal: warning: {args.targets}: {r.name} (line {r.line}): {r.status}; left unchanged",
               file=sys.stderr)
     done = sum(r.status == "ok" for r in result.targets)
+    through = sum(r.status.startswith("not compensated") for r in result.targets)
     print(f"compensated {done} of {len(result.targets)} targets of {args.targets} ({program.dialect}) for "
-          f"{calibrated.name}: {len(result.flagged)} flagged; wrote {args.out}")
+          f"{calibrated.name}: {len(result.flagged)} flagged"
+          f"{f', {through} reached only through expressions' if through else ''}; wrote {args.out}")
     return 0
+
+
+def _companions(args, program) -> list[str]:
+    """The files read with the program: ``--include``, and a KRL file's other half beside it."""
+    paths = list(args.include)
+    if program.dialect == "krl":
+        path = Path(args.targets)
+        other = {".src": ".dat", ".dat": ".src"}.get(path.suffix.lower())
+        sibling = next((p for p in path.parent.glob(f"{path.stem}.*") if p.suffix.lower() == other), None) \
+            if other else None
+        if sibling is not None and str(sibling) not in paths:
+            paths.append(str(sibling))
+    return paths
+
+
+def _summary(r) -> str:
+    """A target's line: its frames and how far it moved, or why it was not compensated."""
+    frames = f"; tool {r.tool}, work object {r.wobj}" if r.tool else ""
+    through = f"; also through {r.through}" if r.through and r.status == "ok" else ""
+    head = f"{r.name} (line {r.line}, {r.kind}{frames})"
+    if r.status != "ok":
+        return f"{head}: {r.status}"
+    linear = f", {r.length_change * common.MM:.4f} mm" if r.length_change else ""
+    return (f"{head}: moved {r.moved * common.MM:.4f} mm, turned {r.turned * common.DEG:.5f} deg; joints by up to "
+            f"{r.angle_change * common.DEG:.5f} deg{linear}{through}")
 
 
 def run(args) -> int:

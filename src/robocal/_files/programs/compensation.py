@@ -4,6 +4,7 @@ for the calibrated robot to land where the program meant (docs/formats.md, "Robo
 from __future__ import annotations
 
 import bisect
+import dataclasses
 import math
 import re
 from dataclasses import dataclass
@@ -21,7 +22,7 @@ from ..._accuracy.compensation import (
     on_robot_base,
     posture_margins,
 )
-from ..._base.arguments import POSITIVE, TEXT, accepts, both, is_a, marker_of, optional, same_robot_as
+from ..._base.arguments import POSITIVE, TEXT, accepts, both, each_a, is_a, marker_of, optional, same_robot_as
 from ..._base.errors import InputError, suggest
 from ..._model.kinematics import evaluate
 from ..._model.robot import Marker, RobotModel
@@ -37,15 +38,18 @@ from . import (
     joint_units,
     joint_values,
 )
+from .frames import Catalogue, frames_of
 from .syntax import SLACK, Program, edited, format_number
 
 
 @dataclass(frozen=True)
 class TargetResult:
-    """What became of one target: ``status`` (``ok`` or why it was left unchanged, or ``read only: ...``
-    for a target that is not a literal), how far the nominal model's tool point moved (``moved``, m)
-    and turned (``turned``, rad) between the old target and the new one, the largest change of a
-    revolute and of a prismatic reading (rad, m)."""
+    """What became of one target: ``status`` (``ok`` or why it was left unchanged; ``read only: ...``
+    for a target that is not a literal, ``not compensated: ...`` for one motions reach only through
+    expressions), the ``tool`` and work object ``wobj`` a pose target was solved with, how far its
+    tool moved (``moved``, m) and turned (``turned``, rad) between the old target and the new one,
+    the largest change of a revolute and of a prismatic reading (rad, m), and ``through``: the
+    expressions motions also reach it through (``Offs (line 30)``)."""
 
     name: str
     line: int
@@ -55,6 +59,9 @@ class TargetResult:
     turned: float = 0.0
     angle_change: float = 0.0
     length_change: float = 0.0
+    tool: str = ""
+    wobj: str = ""
+    through: str = ""
 
 
 @dataclass(frozen=True)
@@ -72,32 +79,32 @@ class ProgramCompensation:
 
 
 def _is_flagged(result: TargetResult) -> bool:
-    """Whether a target was left unchanged for a reason the user must see (not one only read)."""
-    return result.status != REACHED and not result.status.startswith("read only")
+    """Whether a target was left unchanged for a reason the user must see (not one only read, nor
+    one reached only through expressions)."""
+    return result.status != REACHED and not result.status.startswith(("read only", "not compensated"))
 
 
-def _named(program: Program, name: str, kinds, option: str):
-    found = [f for f in program.frames if f.name == name]
-    source = None if option.startswith("--") else program.source       # else the line that uses it
-    if not found:
-        names = [f.name for f in program.frames if f.kind in kinds]
+TOOLS, WOBJS = ("tool", "frame"), ("wobj", "frame")
+
+
+def _given(catalogue: Catalogue, program: Program, name: str | None, kinds, option: str) -> None:
+    """A frame named on the command line exists and is of a kind robocal can use, or an InputError."""
+    if name is None:
+        return
+    found = catalogue.find(name, kinds)
+    if isinstance(found, str):
+        names = catalogue.names(kinds)
         hint = suggest(name, names) if names else "; the program declares none"
-        raise InputError(f"no {'tool' if 'tool' in kinds else 'work object'} {name!r} in {program.source}{hint}",
-                         source=source, where=option)
-    if found[-1].kind not in kinds:
-        raise InputError(f"{name!r} is a {found[-1].kind}, not something robocal can use here", source=source,
-                         where=option)
-    return found[-1].X
+        what = "tool" if "tool" in kinds else "work object"
+        kind = catalogue.frames.get(catalogue.module.key(name))
+        raise InputError(f"{name!r} is a {kind.kind}, not something robocal can use here" if kind else
+                         f"no {what} {name!r} in {program.source}{hint}", where=option)
 
 
-def _tool_models(program, nominal, calibrated, marker, tool, where: str):
-    """The models with the named tool as their only marker, on the frame of the model's own tool point;
-    without one, the nominal tool point on both (a tool is exact in both models: the calibrated
-    marker is the instrument's target, not the program's tool)."""
-    if tool is None:
-        return nominal, calibrated.replace(markers=nominal.markers), marker
-    X = _named(program, tool, ("tool", "frame"), where)
-    mk = Marker(tool, nominal.markers[marker].frame, tuple(X[:3, 3]), tuple(map(tuple, X[:3, :3])))
+def _tool_models(nominal, calibrated, marker, name: str, X):
+    """The models with the tool ``X`` (in the flange: the frame the model's tool point hangs on) as
+    their only marker: a program's tool is exact in both models."""
+    mk = Marker(name, nominal.markers[marker].frame, tuple(X[:3, 3]), tuple(map(tuple, X[:3, :3])))
     return nominal.replace(markers=(mk,)), calibrated.replace(markers=(mk,)), 0
 
 
@@ -188,9 +195,10 @@ def _pose_targets(program, module, nominal, calibrated, marker, X_BO, targets, h
 
 
 @accepts(program=is_a(Program), nominal=is_a(RobotModel), calibrated=both(is_a(RobotModel), same_robot_as("nominal")),
-         marker=marker_of("nominal"), tool=optional(TEXT), wobj=optional(TEXT), tol=POSITIVE, tol_rot=POSITIVE)
+         marker=marker_of("nominal"), tool=optional(TEXT), wobj=optional(TEXT), companions=each_a(Program),
+         tol=POSITIVE, tol_rot=POSITIVE)
 def compensate_program(program: Program, nominal: RobotModel, calibrated: RobotModel, *, marker: int = 0,
-                       tool: str | None = None, wobj: str | None = None, tol: float = 1e-6,
+                       tool: str | None = None, wobj: str | None = None, companions=(), tol: float = 1e-6,
                        tol_rot: float = math.radians(1e-4)) -> ProgramCompensation:
     """The program with every literal target compensated for the calibrated robot.
 
@@ -212,13 +220,19 @@ def compensate_program(program: Program, nominal: RobotModel, calibrated: RobotM
     calibrated : RobotModel
         The calibrated model (the nominal's joints and markers).
     marker : int
-        The model's tool point (default its first marker).
+        The model's tool point (default its first marker): the frame it hangs on is the flange.
     tool : str, optional
-        A tool (tooldata, FRAME or TOOL_DATA[n], pose variable) in the frame of the tool point's
-        frame, declared in the program, that its Cartesian targets use.
+        A tool (tooldata, FRAME or TOOL_DATA[n], pose variable) in the flange, declared in the
+        program or a companion, that every Cartesian target uses (default: each target's own, from
+        the motions that move to it).
     wobj : str, optional
         A work object (wobjdata, FRAME or BASE_DATA[n], pose variable) in the robot's base frame,
-        declared in the program, that its Cartesian targets use.
+        declared in the program or a companion, that every Cartesian target is in (default: each
+        target's own). With ``tool``, targets whose frames the program does not tell are solved too.
+    companions : sequence of Program
+        Files read with the program, of its dialect: their tools and work objects (a KRL
+        ``$config.dat``, a RAPID module of tooldata) and their motions' uses of the program's
+        declared targets (a KRL ``.src`` for its ``.dat``).
     tol : float
         Position residual above which a target counts as out of reach, m.
     tol_rot : float
@@ -232,22 +246,30 @@ def compensate_program(program: Program, nominal: RobotModel, calibrated: RobotM
     module = DIALECTS[program.dialect]
     # a program's targets are in the robot's base frame: both models on it, the instrument's frame gone
     nominal, calibrated = on_robot_base(nominal), on_robot_base(calibrated)
+    catalogue = Catalogue(module, program, companions)
+    _given(catalogue, program, tool, TOOLS, "--tool")
+    _given(catalogue, program, wobj, WOBJS, "--wobj")
     live = [t for t in program.targets if not t.skip and t.name not in (tool, wobj)]
     joints = [t for t in live if t.kind == "joint"]
     edits: list[tuple[int, int, str]] = []
     results: dict[int, TargetResult] = {}
-    if joints:
-        n_, c_, m_ = _tool_models(program, nominal, calibrated, marker, tool, "--tool")
-        results.update(_joint_targets(program, n_, c_, m_, joints, tol, tol_rot, edits))
-    for (tool_name, wobj_name), poses in _pose_groups(live, tool, wobj).items():
-        where = f"line {poses[0].line}"
-        n_, c_, m_ = _tool_models(program, nominal, calibrated, marker, tool_name, "--tool" if tool else where)
-        X_BO = np.eye(4) if wobj_name is None else _named(program, wobj_name, ("wobj", "frame"),
-                                                           "--wobj" if wobj else where)
-        hints = _hints(program, n_, poses)
-        for t, r in zip(poses, _pose_targets(program, module, n_, c_, m_, X_BO, poses, hints,
-                                             tol, tol_rot, edits)):
-            results[id(t)] = r
+    if joints:      # a six-axis arm's joint targets match the flange's pose, which carries any tool
+        results.update(_joint_targets(program, nominal, calibrated.replace(markers=nominal.markers), marker,
+                                      joints, tol, tol_rot, edits))
+    uses = program.uses + tuple(u for c in companions for u in c.uses)
+    for (tool_name, wobj_name), poses in _pose_groups(module, live, uses, tool, wobj, results).items():
+        X_FT, X_BO = catalogue.find(tool_name, TOOLS), catalogue.find(wobj_name, WOBJS)
+        names = dict(tool=catalogue.canonical(tool_name), wobj=catalogue.canonical(wobj_name))
+        if isinstance(X_FT, str) or isinstance(X_BO, str):
+            why = X_FT if isinstance(X_FT, str) else X_BO
+            results.update({id(t): TargetResult(t.name, t.line, t.kind, str(why), through=through,
+                                                tool=names["tool"], wobj=names["wobj"]) for t, through in poses})
+            continue
+        n_, c_, m_ = _tool_models(nominal, calibrated, marker, tool_name, X_FT)
+        targets = [t for t, _ in poses]
+        done = _pose_targets(program, module, n_, c_, m_, X_BO, targets, _hints(program, n_, targets), tol,
+                             tol_rot, edits)
+        results.update({id(t): dataclasses.replace(r, through=via, **names) for (t, via), r in zip(poses, done)})
     rows = [results.get(id(t), TargetResult(t.name, t.line, t.kind, f"read only: {t.skip or 'a frame in use'}"))
             for t in program.targets]
     return ProgramCompensation(text=edited(program.text, edits, _flags(program, rows), comment=module.COMMENT),
@@ -266,12 +288,19 @@ def _posture_notes(nominal: RobotModel, marker: int, live) -> tuple[str, ...]:
             "and ask nothing",)
 
 
-def _pose_groups(live, tool: str | None, wobj: str | None) -> dict[tuple, list]:
-    """The pose targets by (tool, work object) used: the command line's win over the program's."""
+def _pose_groups(module, live, uses, tool: str | None, wobj: str | None, results) -> dict[tuple, list]:
+    """The pose targets (with the expressions they are also reached through) by the (tool, work
+    object) they move with, the command line's winning over the program's; a target whose frames
+    are not known gets its result in ``results``."""
     groups: dict[tuple, list] = {}
     for t in live:
-        if t.kind == "pose":
-            groups.setdefault((tool or t.tool or None, wobj or t.wobj or None), []).append(t)
+        if t.kind != "pose":
+            continue
+        f = frames_of(module, t, uses)
+        if f.unknown and not (tool and wobj):
+            results[id(t)] = TargetResult(t.name, t.line, t.kind, f.unknown, through=f.through)
+        else:
+            groups.setdefault((tool or f.tool, wobj or f.wobj), []).append((t, f.through))
     return groups
 
 

@@ -11,6 +11,8 @@ axes (E1...) and any other member are never changed. A structure is written on o
 from __future__ import annotations
 
 import math
+import re
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -24,9 +26,9 @@ from .syntax import (
     Scanner,
     Target,
     Token,
+    Use,
     aggregate,
     check_finite,
-    closing,
 )
 
 NAME = "krl"
@@ -37,21 +39,46 @@ ORIENTATION = ANGLE
 POSES, AXES = ("E6POS", "POS", "FRAME"), ("E6AXIS", "AXIS")
 MOTION = ("PTP", "LIN", "CIRC", "SPTP", "SLIN", "SCIRC")
 CARTESIAN, JOINTS = ("X", "Y", "Z", "A", "B", "C"), tuple(f"A{i}" for i in range(1, 7))
+# the flange and the robot's base ($ROBROOT taken as the world, a robot not configured elsewhere);
+# no expression keeps a target's frames
+BUILTIN = {"$NULLFRAME": "frame"}
+FOLLOWED: tuple[str, ...] = ()
 
 
 def read(text: str, source: str) -> Program:
-    """The program's targets and named frames; a malformed line is an InputError at its line and column."""
+    """The program's targets, named frames and the motions' uses of declared targets, with the tool
+    and base each motion moves with (``$TOOL``/``$BASE``, an FDAT's ``TOOL_NO``/``BASE_NO``, in the
+    order of the text); a malformed line is an InputError at its line and column."""
     sc = Scanner(text, source, comment=COMMENT, quotes="\"'", newlines=True, names=r"[A-Za-z_$][A-Za-z0-9_$]*",
                  flat=False)
     toks = sc.tokens()
-    targets: list[Target] = []
-    frames: list[NamedFrame] = []
+    state = _State([], [], [])
     a = 0
     for b in [i for i, t in enumerate(toks) if t.kind == "nl"] + [len(toks)]:
         if b > a:
-            _line(toks.part(a, b), sc, targets, frames)
+            _line(toks.part(a, b), sc, state)
         a = b + 1
-    return Program(source=source, dialect=NAME, text=text, targets=tuple(targets), frames=tuple(frames))
+    return Program(source=source, dialect=NAME, text=text, targets=tuple(state.targets), frames=tuple(state.frames),
+                   uses=tuple(state.uses))
+
+
+def key(name: str) -> str:
+    """A name as KRL compares it: without regard to case."""
+    return name.upper()
+
+
+@dataclass
+class _State:
+    """What the lines read so far made: targets, frames, uses, and the tool and base in force (""
+    with ``unknown`` saying why where the program has not set them)."""
+
+    targets: list
+    frames: list
+    uses: list
+    tool: str = ""
+    base: str = ""
+    unknown: str = "no $TOOL and $BASE set before it"
+    fdat: str = ""
 
 
 def _balanced(toks, sc) -> None:
@@ -61,18 +88,131 @@ def _balanced(toks, sc) -> None:
             raise sc.error(t.start, f"{t.text} is not closed on its line")
 
 
-def _line(toks, sc, targets, frames) -> None:
+def _line(toks, sc, state: _State) -> None:
     _balanced(toks, sc)
     words = [t.text.upper() for t in toks]
-    if _declaration(toks, words, sc, targets, frames) or _frame_data(toks, words, sc, frames):
+    if _declaration(toks, words, sc, state.targets, state.frames) or _frame_data(toks, words, sc, state.frames) \
+            or _fdat(toks, words, state.frames):
         return
-    if words[0] in MOTION:
-        _motion(toks, sc, targets)
+    line = sc.line_col(toks[0].start)[0]
+    if len(words) > 2 and words[0] in ("$TOOL", "$BASE") and words[1] == "=":
+        _set(state, words[0], _frame_name(toks[2:], words[0]), line)
+    elif len(words) > 2 and words[0] == "FDAT_ACT" and words[1] == "=":
+        state.fdat = toks[2].text if len(toks) == 3 else ""
+    elif len(words) > 5 and words[:3] == ["BAS", "(", "#"]:
+        _bas(words, state, line)
+    elif words[0] in MOTION:
+        _motion(toks, words, sc, state, line)
+
+
+def _frame_name(toks, variable: str) -> str:
+    """The frame an assignment to ``$TOOL`` or ``$BASE`` names (``TOOL_DATA[1]``, ``$NULLFRAME``, a
+    FRAME variable; ``STOOL2(FP1)``, ``SBASE(FP1.BASE_NO)`` through an FDAT), "" for an expression."""
+    text = "".join(t.text for t in toks)
+    member = "TOOL_NO" if variable == "$TOOL" else "BASE_NO"
+    call = re.fullmatch(r"(?i)(?:STOOL2|SBASE)\((\w+)(?:\.\w+)?\)", text)
+    if call:
+        return f"{call.group(1)}.{member}"
+    return text if re.fullmatch(r"(?i)\$?\w+(?:\[\d+\])?", text) else ""
+
+
+def _set(state: _State, variable: str, name: str, line: int) -> None:
+    if variable == "$TOOL":
+        state.tool = name
+    else:
+        state.base = name
+    if not name:
+        state.unknown = f"{variable} is set by an expression at line {line}"
+    elif state.tool and state.base:
+        state.unknown = ""
+    elif not state.unknown.startswith("$"):
+        state.unknown = f"no {'$BASE' if state.tool else '$TOOL'} set before it"
+
+
+def _bas(words: list[str], state: _State, line: int) -> None:
+    """``BAS(#PTP_PARAMS, ...)`` and ``BAS(#CP_PARAMS, ...)`` set the tool and base of ``FDAT_ACT``;
+    ``BAS(#TOOL, n)`` and ``BAS(#BASE, n)`` those of number n."""
+    if words[3] in ("PTP_PARAMS", "CP_PARAMS") and state.fdat:
+        _set(state, "$TOOL", f"{state.fdat}.TOOL_NO", line)
+        _set(state, "$BASE", f"{state.fdat}.BASE_NO", line)
+    elif words[3] in ("TOOL", "BASE") and words[4] == "," and words[5].isdigit():
+        n = int(words[5])
+        _set(state, f"${words[3]}", f"{words[3]}_DATA[{n}]" if n else "$NULLFRAME", line)
+
+
+def _fdat(toks, words: list[str], frames) -> bool:
+    """``DECL FDAT F={TOOL_NO n, BASE_NO m, IPO_FRAME #BASE, ...}``: ``F.TOOL_NO`` and ``F.BASE_NO``
+    as names of ``TOOL_DATA[n]`` and ``BASE_DATA[m]`` (0: the flange, the robot's base); with
+    ``IPO_FRAME #TCP`` the robot holds the work piece, a set-up robocal does not solve."""
+    k = next((i for i, w in enumerate(words) if w == "FDAT"), -1)
+    if k < 0 or k + 2 >= len(toks) or words[k + 2] != "=":
+        return False
+    name, found = toks[k + 1].text, dict[str, object]()
+    for i in range(k + 3, len(words) - 1):
+        if words[i] in ("TOOL_NO", "BASE_NO") and toks[i + 1].kind == "num":
+            found[words[i]] = int(float(toks[i + 1].text))
+        elif words[i] == "IPO_FRAME" and i + 2 < len(words):
+            found[words[i]] = words[i + 2]
+    for member, array in (("TOOL_NO", "TOOL_DATA"), ("BASE_NO", "BASE_DATA")):
+        if found.get("IPO_FRAME") == "TCP":
+            frames.append(NamedFrame(f"{name}.{member}", "frame of a robot-held work piece (IPO_FRAME #TCP)",
+                                     np.eye(4)))
+        elif member in found:
+            n = found[member]
+            frames.append(NamedFrame(f"{name}.{member}", "", np.eye(4), alias=f"{array}[{n}]" if n else "$NULLFRAME"))
+    return True
+
+
+def _motion(toks, words: list[str], sc, state: _State, line: int) -> None:
+    """A motion: its inline targets and its uses of declared targets, with the tool and base in
+    force (or those its ``WITH $TOOL = ..., $BASE = ...`` gives it)."""
+    tool, base, unknown = state.tool, state.base, state.unknown
+    end = words.index("WITH") if "WITH" in words else len(words)
+    if end < len(words):
+        tool, base, unknown = _with(toks, words, end, (tool, base, unknown))
+    for a, b in _arguments(toks, words, 1, end):
+        if toks[a].text == "{":
+            agg, _ = aggregate(toks, a, sc)
+            state.targets.append(_target(f"line {line}", "", agg, sc, tool=tool, wobj=base, unknown=unknown))
+        elif toks[a].kind == "name":
+            names = [t.text for t in toks[a:b] if t.kind == "name"]
+            how = "" if b - a == 1 else "".join(t.text for t in toks[a:b])
+            state.uses.extend(Use(n, line, tool, base, how, unknown) for n in names)
+
+
+APPROXIMATION = ("C_DIS", "C_PTP", "C_ORI", "C_VEL", "C_SPL", "CA")
+
+
+def _arguments(toks, words: list[str], j: int, end: int) -> list[tuple[int, int]]:
+    """The spans of a motion's target arguments (split at commas; approximation words ended)."""
+    out, start = [], j
+    while j < end:
+        if words[j] in APPROXIMATION:
+            break
+        if toks[j].text == ",":
+            out.append((start, j))
+            start = j + 1
+        j = toks.partner[j] + 1 if toks[j].text in "([{" and toks.partner[j] > j else j + 1
+    if j > start:
+        out.append((start, j))
+    return [(a, b) for a, b in out if b > a]
+
+
+def _with(toks, words: list[str], at: int, current) -> tuple[str, str, str]:
+    """The tool, base and why either is unknown, after a motion's ``WITH`` list."""
+    tool, base, unknown = current
+    for a, b in _arguments(toks, words, at + 1, len(words)):
+        if b - a > 2 and words[a] in ("$TOOL", "$BASE") and words[a + 1] == "=":
+            name = _frame_name(toks[a + 2:b], words[a])
+            tool, base = (name, base) if words[a] == "$TOOL" else (tool, name)
+            if not name:
+                return tool, base, f"its {words[a]} is an expression"
+    return tool, base, "" if tool and base else unknown
 
 
 def _declaration(toks, words: list[str], sc, targets, frames) -> bool:
-    """``[DECL] [GLOBAL] [CONST] TYPE NAME = {...}`` of a position or axis type: its target (a FRAME's
-    also a named frame); whether the line is one."""
+    """``[DECL] [GLOBAL] [CONST] TYPE NAME = {...}`` of a position or axis type: its target (a FRAME
+    is a named frame, not a target); whether the line is one."""
     k = 0
     while k < len(words) and words[k] in ("DECL", "GLOBAL", "CONST"):
         k += 1
@@ -81,8 +221,9 @@ def _declaration(toks, words: list[str], sc, targets, frames) -> bool:
         return False
     agg, _ = aggregate(toks, k + 3, sc)
     target = _target(toks[k + 1].text, words[k], agg, sc)
-    targets.append(target)
-    if words[k] == "FRAME" and not target.skip:
+    if words[k] != "FRAME":
+        targets.append(target)
+    elif not target.skip:           # a frame (a base, an offset), never a motion target
         frames.append(NamedFrame(toks[k + 1].text, "frame", poses([target])[0]))
     return True
 
@@ -98,20 +239,6 @@ def _frame_data(toks, words: list[str], sc, frames) -> bool:
         kind = {"TOOL_DATA": "tool", "BASE_DATA": "wobj"}.get(words[0], "frame")
         frames.append(NamedFrame(name, kind, poses([target])[0]))
     return True
-
-
-def _motion(toks, sc, targets) -> None:
-    """The targets written inline in a motion's arguments."""
-    j = 1
-    while j < len(toks):
-        if toks[j].text == "{":
-            agg, j = aggregate(toks, j, sc)
-            line = sc.line_col(agg.start)[0]
-            targets.append(_target(f"line {line}", "", agg, sc))
-        elif toks[j].text in "([":
-            j = closing(toks, j, sc) + 1
-        else:
-            j += 1
 
 
 def _members(agg: Aggregate, sc) -> dict:
@@ -140,14 +267,15 @@ def _status(value, sc) -> Number | None:
     return None
 
 
-def _target(name: str, kind: str, agg: Aggregate, sc) -> Target:
+def _target(name: str, kind: str, agg: Aggregate, sc, **frames) -> Target:
     m = _members(agg, sc)
     line, column = sc.line_col(agg.start)
     joint = kind in AXES or (not kind and "A1" in m)
     need = JOINTS if joint else CARTESIAN
     if not all(isinstance(m.get(f), Number) for f in need):
         missing = [f for f in need if not isinstance(m.get(f), Number)]
-        return Target(name, "joint" if joint else "pose", line, column, skip=f"no literal {', '.join(missing)}")
+        return Target(name, "joint" if joint else "pose", line, column, skip=f"no literal {', '.join(missing)}",
+                      **frames)
     check_finite([m[f] for f in need], sc, name)
     if joint:
         return Target(name, "joint", line, column, joints=tuple(m[f] for f in JOINTS))
@@ -155,7 +283,7 @@ def _target(name: str, kind: str, agg: Aggregate, sc) -> Target:
     conf = tuple(c for c in status if c is not None)
     conf = conf if len(conf) == 2 else ()
     return Target(name, "pose", line, column, position=tuple(m[f] for f in "XYZ"),
-                  orientation=tuple(m[f] for f in "ABC"), configuration=conf)
+                  orientation=tuple(m[f] for f in "ABC"), configuration=conf, **frames)
 
 
 def zyx_matrix(a, b, c) -> np.ndarray:

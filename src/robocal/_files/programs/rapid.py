@@ -11,11 +11,22 @@ never read nor changed.
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 
 import numpy as np
 
-from .syntax import Aggregate, NamedFrame, Number, Program, Scanner, Target, aggregate, check_finite, closing, numbers
+from .syntax import (
+    Aggregate,
+    NamedFrame,
+    Number,
+    Program,
+    Scanner,
+    Target,
+    Use,
+    aggregate,
+    check_finite,
+    closing,
+    numbers,
+)
 
 NAME = "rapid"
 EXTENSIONS = (".mod", ".modx", ".prg", ".sys", ".sysx")
@@ -27,15 +38,20 @@ ROB_TARGET = "[[x, y, z], [q1, q2, q3, q4], [cf1, cf4, cf6, cfx], [eax_a, ..., e
 DECLARES = ("const", "pers", "var")
 MOTION = ("move", "trigg", "search")           # instructions whose literal targets are read
 TURN_JOINTS = (0, 3, 5)                         # cf1, cf4, cf6: quadrants of axes 1, 4 and 6
+# the flange and the robot's base as the controller names them (wobj0 is the world frame, the base
+# of a robot not configured elsewhere), and the functions a target keeps its frames through
+BUILTIN = {"tool0": "tool", "wobj0": "wobj"}
+FOLLOWED = ("offs", "reltool")
 
 
 def read(text: str, source: str) -> Program:
-    """The program's targets and named frames; a malformed module is an InputError at its line and column."""
+    """The program's targets, named frames and the motions' uses of declared targets; a malformed
+    module is an InputError at its line and column."""
     sc = Scanner(text, source, comment=COMMENT)
     toks = sc.tokens()
     targets: list[Target] = []
     frames: list[NamedFrame] = []
-    uses: dict[str, set] = {}
+    uses: list[Use] = []
     i = 0
     while i < len(toks):
         k = i
@@ -43,21 +59,13 @@ def read(text: str, source: str) -> Program:
             k = closing(toks, k, sc) + 1 if toks[k].text in "([{" and toks[k].kind == "op" else k + 1
         _statement(toks, i, k, sc, targets, frames, uses)
         i = k + 1
-    return Program(source=source, dialect=NAME, text=text, targets=tuple(_used(targets, uses)), frames=tuple(frames))
+    return Program(source=source, dialect=NAME, text=text, targets=tuple(targets), frames=tuple(frames),
+                   uses=tuple(uses))
 
 
-def _used(targets, uses):
-    """Declared targets with the tool and work object the motions that name them use; one named with
-    several is read only."""
-    for t in targets:
-        seen = uses.get(t.name)
-        if seen and len(seen) > 1:
-            yield replace(t, skip="moved to with several tools or work objects")
-        elif seen:
-            tool, wobj = next(iter(seen))
-            yield replace(t, tool=tool, wobj=wobj)
-        else:
-            yield t
+def key(name: str) -> str:
+    """A name as RAPID compares it: without regard to case."""
+    return name.lower()
 
 
 def _statement(toks, i: int, end: int, sc, targets, frames, uses) -> None:
@@ -89,28 +97,58 @@ def _arguments(toks, j: int, end: int) -> list[tuple[list, list]]:
     return out
 
 
-def _motion(toks, m: int, end: int, sc, targets, uses) -> None:
-    """The literal targets of a motion instruction, and the tool and work object it moves them with
-    (the last positional argument; ``\\WObj:=``), recorded in ``uses`` for the targets it names."""
-    args = _arguments(toks, m + 1, end)
+def _frames(toks, args) -> tuple[str, str, str]:
+    """The tool (the last positional argument) and work object (``\\WObj:=``, else ``wobj0``) a
+    motion moves with, and why either is not known where it is an expression."""
     last = args[-1][0]
     tool = toks[last[0]].text if len(last) == 1 and toks[last[0]].kind == "name" else ""
-    wobj = ""
+    wobj, unknown = "wobj0", "" if tool else "its tool is not a name"
     for _, switches in args:
         for k in range(len(switches) - 3):
             if switches[k].text == "\\" and switches[k + 1].text.lower() == "wobj" and switches[k + 2].text == ":=":
-                wobj = switches[k + 3].text
-    tool, wobj = ("" if tool.lower() == "tool0" else tool), ("" if wobj.lower() == "wobj0" else wobj)
+                simple = switches[k + 3].kind == "name" and (k + 4 == len(switches) or switches[k + 4].text == "\\")
+                wobj = switches[k + 3].text if simple else ""
+                unknown = unknown or ("" if simple else "its work object is not a name")
+    return tool, wobj, unknown
+
+
+def _named(toks, main: list) -> list[tuple[str, str]]:
+    """The declared targets a motion argument names (``p``, ``p{2}``; ``p{*}`` where the index is
+    computed) and the function it goes through ("" for the target itself)."""
+    how = toks[main[0]].text if len(main) > 1 and toks[main[0]].kind == "name" and toks[main[1]].text == "(" else ""
+    out, j = [], 0
+    while j < len(main):
+        t = toks[main[j]]
+        after = toks[main[j + 1]].text if j + 1 < len(main) else ""
+        if t.kind != "name" or after == "(":
+            j += 1
+            continue
+        if after == "{":
+            close = main.index(toks.partner[main[j + 1]], j)
+            index = [toks[k] for k in main[j + 2:close]]
+            element = index[0].text if len(index) == 1 and index[0].kind == "num" else "*"
+            out.append((f"{t.text}{{{element}}}", how))
+            j = close + 1
+        else:
+            out.append((t.text, how))
+            j += 1
+    return out
+
+
+def _motion(toks, m: int, end: int, sc, targets, uses) -> None:
+    """The literal targets of a motion instruction, with the tool and work object it moves them
+    with, and its uses of declared targets (by name, by index, through ``Offs`` or ``RelTool``)."""
+    args = _arguments(toks, m + 1, end)
+    tool, wobj, unknown = _frames(toks, args)
+    line = sc.line_col(toks[m].start)[0]
     for main, _ in args[:-1]:
         if not main:
             continue
-        first = toks[main[0]]
-        if first.text[:1] == "[":
+        if toks[main[0]].text[:1] == "[":
             agg, _ = aggregate(toks, main[0], sc)
-            _inline(agg, sc, targets, toks[m].start, tool, wobj)
-        elif first.kind == "name":
-            key = "".join(toks[k].text for k in main) if len(main) > 1 else first.text
-            uses.setdefault(key, set()).add((tool, wobj))
+            _inline(agg, sc, targets, toks[m].start, tool=tool, wobj=wobj, unknown=unknown)
+        else:
+            uses.extend(Use(name, line, tool, wobj, how, unknown) for name, how in _named(toks, main))
 
 
 def _declaration(toks, d: int, end: int, sc, targets, frames) -> None:
@@ -135,11 +173,11 @@ def _declaration(toks, d: int, end: int, sc, targets, frames) -> None:
         targets.append(_target(kind, label, item, sc, anchor=toks[first].start))
 
 
-def _inline(agg: Aggregate, sc, targets, anchor: int, tool: str, wobj: str) -> None:
+def _inline(agg: Aggregate, sc, targets, anchor: int, **frames) -> None:
     line = sc.line_col(agg.start)[0]
     for kind in ("jointtarget", "robtarget"):
         if _shape(kind, agg):
-            targets.append(_target(kind, f"line {line}", agg, sc, anchor=anchor, tool=tool, wobj=wobj))
+            targets.append(_target(kind, f"line {line}", agg, sc, anchor=anchor, **frames))
 
 
 def _shape(kind: str, agg) -> bool:

@@ -108,7 +108,9 @@ class Target:
     ``orientation`` in the dialect's convention, ``configuration`` its configuration data, possibly
     empty). ``name``: the declared name (``name{2}`` for an array's element) or ``line N`` for a
     target written inline; ``line`` and ``column`` where its literal begins; ``skip``: why the target
-    is read but never changed (empty when it is compensated).
+    is read but never changed (empty when it is compensated). A target written inline in a motion
+    holds the ``tool`` and work object ``wobj`` it moves with (names; "" with ``unknown`` saying
+    why where the program does not tell); a declared one learns them from the program's ``Use``s.
     """
 
     name: str
@@ -123,27 +125,48 @@ class Target:
     anchor: int = -1
     tool: str = ""
     wobj: str = ""
+    unknown: str = ""
+
+
+@dataclass(frozen=True)
+class Use:
+    """A motion's use of a declared target: its ``name`` as the motion writes it (an array's
+    element ``p{2}``, ``p{*}`` for one chosen at run time), the ``line``, the ``tool`` and work
+    object ``wobj`` the motion moves with ("" where the program does not say, ``unknown`` then
+    saying why), and the expression the target goes through (``how``: "" for the target itself,
+    else the function or operator, e.g. ``Offs``)."""
+
+    name: str
+    line: int
+    tool: str = ""
+    wobj: str = ""
+    how: str = ""
+    unknown: str = ""
 
 
 @dataclass(frozen=True)
 class NamedFrame:
     """A tool or work object declared in a program: its pose ``X`` (4x4, SI) relative to the
-    flange (tool) or the robot base (work object)."""
+    flange (tool) or the robot base (work object); or ``alias``, the name of the frame it stands
+    for (a KRL FDAT's ``F.TOOL_NO`` for ``TOOL_DATA[n]``)."""
 
     name: str
     kind: str
     X: np.ndarray = field(repr=False)
+    alias: str = ""
 
 
 @dataclass(frozen=True)
 class Program:
-    """A robot program as read: its text, dialect, targets in source order and named frames."""
+    """A robot program as read: its text, dialect, targets in source order, named frames and the
+    motions' uses of declared targets."""
 
     source: str
     dialect: str
     text: str
     targets: tuple[Target, ...]
     frames: tuple[NamedFrame, ...] = ()
+    uses: tuple[Use, ...] = ()
 
 
 class Scanner:

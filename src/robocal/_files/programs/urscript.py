@@ -14,7 +14,19 @@ from dataclasses import replace
 
 import numpy as np
 
-from .syntax import Aggregate, NamedFrame, Program, Scanner, Target, aggregate, check_finite, closing, numbers
+from .frames import THROUGH
+from .syntax import (
+    Aggregate,
+    NamedFrame,
+    Program,
+    Scanner,
+    Target,
+    Use,
+    aggregate,
+    check_finite,
+    closing,
+    numbers,
+)
 
 NAME = "urscript"
 EXTENSIONS = (".script", ".urscript")
@@ -22,45 +34,124 @@ COMMENT = "#"
 LENGTH, ANGLE = 1.0, 1.0
 ORIENTATION = ANGLE
 MOTION = ("movej", "movel", "movep", "movec", "servoj")
+# a pose in a motion is in the robot's base frame; no expression keeps a target's frames (a
+# feature's pose_trans and an offset's pose_add look alike)
+BASE = "robot base"
+BUILTIN = {BASE: "wobj"}
+FOLLOWED: tuple[str, ...] = ()
 
 
 def read(text: str, source: str) -> Program:
-    """The program's targets and named frames; a malformed script is an InputError at its line and column."""
+    """The program's targets, named frames and the motions' uses of variables, with the TCP each
+    motion moves with (the last ``set_tcp`` before it in the text); a malformed script is an
+    InputError at its line and column."""
     sc = Scanner(text, source, comment=COMMENT, quotes="\"'")
-    literals, targets, used = _walk(sc.tokens(), sc)
-    frames = []
-    for name, agg, anchor in literals:
-        line = sc.line_col(agg.start)[0]
+    walk = _Walk(sc)
+    walk.run(sc.tokens())
+    frames = list(walk.frames)
+    for name, agg, _ in walk.literals:
         if agg.label == "p" and numbers(agg, 6) is not None and all(math.isfinite(n.value) for n in agg.items):
             frames.append(NamedFrame(name, "frame", _pose_matrix([n.value for n in agg.items])[0]))
+    used = {u.name for u in walk.uses}
+    targets = list(walk.moved)
+    for name, agg, anchor in walk.literals:
         if name in used:
+            line = sc.line_col(agg.start)[0]
             targets.append(replace(_target(f"{name} (line {line})", agg, sc), anchor=anchor))
     targets.sort(key=lambda t: (t.line, t.column))
-    return Program(source=source, dialect=NAME, text=text, targets=tuple(targets), frames=tuple(frames))
+    lines: dict[str, list[int]] = {}
+    for name, agg, _ in walk.literals:
+        lines.setdefault(name, []).append(sc.line_col(agg.start)[0])
+    # the uses under the names the variables' targets get (``approach (line 5)``)
+    uses = [replace(u, name=f"{u.name} (line {n})") for u in walk.uses for n in lines.get(u.name, ())]
+    return Program(source=source, dialect=NAME, text=text, targets=tuple(targets), frames=tuple(frames),
+                   uses=tuple(uses))
 
 
-def _walk(toks, sc) -> tuple[list, list[Target], set[str]]:
-    """One pass over the tokens: the variables assigned a literal (name, literal, where the
-    assignment begins), the targets written in motions and the names of variables motions use."""
-    literals: list = []
-    moved: list[Target] = []
-    used: set[str] = set()
-    j = 0
-    while j < len(toks):
-        t = toks[j]
-        after = toks[j + 1].text if j + 1 < len(toks) else ""
-        found = _literal(toks, j + 2, len(toks), sc) if t.kind == "name" and after == "=" else None
-        if found is not None:
-            anchor = toks[j - 1].start if j and toks[j - 1].text in ("global", "local") else t.start
-            literals.append((t.text, found[0], anchor))
-            j = found[1]
-        elif t.kind == "name" and t.text.lower() in MOTION and after == "(":
-            end = closing(toks, j + 1, sc)
-            moved.extend(replace(t_, anchor=t.start) for t_ in _arguments(toks, j + 2, end, sc, used))
-            j = end + 1
+def key(name: str) -> str:
+    """A name as URScript compares it: as written."""
+    return name
+
+
+class _Walk:
+    """One pass over a script's tokens: the variables assigned a literal (name, literal, where the
+    assignment begins), the targets written in motions, the motions' uses of variables and the
+    TCP in force (``set_tcp``; "" with ``unknown`` saying why before any)."""
+
+    def __init__(self, sc):
+        self.sc = sc
+        self.literals: list = []
+        self.moved: list[Target] = []
+        self.uses: list[Use] = []
+        self.frames: list[NamedFrame] = []
+        self.tool, self.unknown = "", "no set_tcp before it: its TCP is the installation's"
+
+    def run(self, toks) -> None:
+        j = 0
+        while j < len(toks):
+            t = toks[j]
+            after = toks[j + 1].text if j + 1 < len(toks) else ""
+            found = _literal(toks, j + 2, len(toks), self.sc) if t.kind == "name" and after == "=" else None
+            if found is not None:
+                anchor = toks[j - 1].start if j and toks[j - 1].text in ("global", "local") else t.start
+                self.literals.append((t.text, found[0], anchor))
+                j = found[1]
+            elif t.kind == "name" and after == "(" and t.text in ("set_tcp",) + MOTION:
+                end = closing(toks, j + 1, self.sc)
+                self._call(toks, j, end)
+                j = end + 1
+            else:
+                j = closing(toks, j, self.sc) + 1 if t.text in "([{" else j + 1
+
+    def _call(self, toks, j: int, end: int) -> None:
+        line = self.sc.line_col(toks[j].start)[0]
+        if toks[j].text == "set_tcp":
+            self._tcp(toks, j + 2, end, line)
+            return
+        for a, b in _spans(toks, j + 2, end):
+            self._argument(toks, a, b, line, anchor=toks[j].start)
+
+    def _tcp(self, toks, a: int, b: int, line: int) -> None:
+        found = _literal(toks, a, b, self.sc)
+        self.tool, self.unknown = "", f"set_tcp is given an expression at line {line}"
+        if found is not None and found[1] == b and found[0].label == "p" and numbers(found[0], 6) is not None:
+            self.tool, self.unknown = f"set_tcp (line {line})", ""
+            self.frames.append(NamedFrame(self.tool, "tool", _pose_matrix([n.value for n in found[0].items])[0]))
+        elif b == a + 1 and toks[a].kind == "name":
+            self.tool, self.unknown = toks[a].text, ""
+
+    def _argument(self, toks, a: int, b: int, line: int, anchor: int) -> None:
+        """One argument of a motion: a literal (a target), a variable, or an expression whose
+        variables and literals are listed as reached only through it."""
+        frames = dict(tool=self.tool, wobj=BASE, unknown=self.unknown)
+        found = _literal(toks, a, b, self.sc)
+        if found is not None and found[1] == b:
+            self.moved.append(replace(_target(f"line {line}", found[0], self.sc), anchor=anchor, **frames))
+        elif b == a + 1 and toks[a].kind == "name":
+            self.uses.append(Use(toks[a].text, line, self.tool, BASE, "", self.unknown))
+        elif toks[a].kind == "name" and a + 1 < b and toks[a + 1].text == "(":
+            how = toks[a].text
+            for k in range(a + 2, b):
+                inner = _literal(toks, k, b, self.sc)
+                if inner is not None and (toks[k - 1].text in ",(" or toks[k].text == "p" and toks[k - 1].text != "p"):
+                    t = _target(f"line {line}", inner[0], self.sc)
+                    self.moved.append(replace(t, anchor=anchor, unknown=f"{THROUGH} {how} (line {line})"))
+                elif toks[k].kind == "name" and toks[k + 1].text in ",)" and toks[k - 1].text in ",(":
+                    self.uses.append(Use(toks[k].text, line, self.tool, BASE, how, self.unknown))
+
+
+def _spans(toks, j: int, end: int) -> list[tuple[int, int]]:
+    """The token spans of a call's arguments (``a=1.4`` keyword arguments left out)."""
+    out, start = [], j
+    while j <= end:
+        if j == end or toks[j].text == ",":
+            if j > start and not (j > start + 1 and toks[start + 1].text == "="):
+                out.append((start, j))
+            start = j + 1
+            j += 1
         else:
-            j = closing(toks, j, sc) + 1 if t.text in "([{" else j + 1
-    return literals, moved, used
+            j = toks.partner[j] + 1 if toks[j].text in "([{" and toks.partner[j] > j else j + 1
+    return out
 
 
 def _literal(toks, k: int, end: int, sc) -> tuple[Aggregate, int] | None:
@@ -73,22 +164,6 @@ def _literal(toks, k: int, end: int, sc) -> tuple[Aggregate, int] | None:
         return None
     agg, after = aggregate(toks, k + is_pose, sc)
     return Aggregate(agg.items, toks[k].start, agg.end, "p" if is_pose else ""), after
-
-
-def _arguments(toks, j, end, sc, used):
-    """Targets among a motion's arguments (literals) and the names of variables it uses."""
-    out = []
-    while j < end:
-        t = toks[j]
-        found = _literal(toks, j, end, sc)
-        if found is not None:
-            agg, j = found
-            out.append(_target(f"line {sc.line_col(agg.start)[0]}", agg, sc))
-            continue
-        if t.kind == "name" and (j + 1 >= end or toks[j + 1].text == ","):
-            used.add(t.text)
-        j = closing(toks, j, sc) + 1 if t.text in "([{" else j + 1
-    return out
 
 
 def _target(name: str, agg: Aggregate, sc) -> Target:
