@@ -3,7 +3,8 @@
     python benchmarks/bench_programs.py --targets 10000 --repeat 3
 
 An ABB RAPID module of a 6R arm, half jointtargets and half robtargets (random configurations
-within the limits, away from the wrist and elbow singularities), each on its own line; a calibrated model with
+within the limits, away from the wrist and elbow singularities), each on its own line, the robtargets
+moved to by a ``MoveL`` each with the tool ``tTool`` (the model's tool point); a calibrated model with
 errors of 0.1 to 1 mm and 0.01 to 0.1 deg. Timed: reading the module, compensating it and the text
 written back, best of ``--repeat`` runs; the baseline in the same run is ``rc.compensate`` on the
 same joint targets as an array (what ``robocal compensate`` does with a CSV), and the Cartesian
@@ -52,6 +53,7 @@ def module(model: rc.RobotModel, n: int, rng) -> tuple[str, np.ndarray]:
     ev = rc.evaluate(model, q, orientations=True)
     bits = posture(model, q)
     lines, eax = ["MODULE Bench", "  ! generated targets"], "[9E9,9E9,9E9,9E9,9E9,9E9]"
+    lines.append("  PERS tooldata tTool := [TRUE,[[0,0,100],[1,0,0,0]],[1,[0,0,0],[1,0,0,0],0,0,0]];")
     for i in range(n):
         if i % 2 == 0:
             lines.append(f"  CONST jointtarget j{i} := [[{','.join(f'{v:.4f}' for v in q[i] / DEG)}],{eax}];")
@@ -62,7 +64,8 @@ def module(model: rc.RobotModel, n: int, rng) -> tuple[str, np.ndarray]:
         p = ev.positions[i, 0] * 1e3
         lines.append(f"  CONST robtarget p{i} := [[{p[0]:.3f},{p[1]:.3f},{p[2]:.3f}],[{w:.8f},{x:.8f},{y:.8f},"
                      f"{z:.8f}],[{cf[0]},{cf[1]},{cf[2]},{cfx}],{eax}];")
-    return "\n".join(lines + ["ENDMODULE", ""]), q[::2]
+    motions = [f"    MoveL p{i}, v100, fine, tTool;" for i in range(1, n, 2)]
+    return "\n".join(lines + ["  PROC main()", *motions, "  ENDPROC", "ENDMODULE", ""]), q[::2]
 
 
 def best(fn, repeat: int) -> tuple[str, object]:

@@ -38,7 +38,7 @@ from . import (
     joint_units,
     joint_values,
 )
-from .frames import Catalogue, frames_of
+from .frames import Catalogue, frames_of, index_uses
 from .syntax import SLACK, Program, edited, format_number
 
 
@@ -293,10 +293,11 @@ def _pose_groups(module, live, uses, tool: str | None, wobj: str | None, results
     object) they move with, the command line's winning over the program's; a target whose frames
     are not known gets its result in ``results``."""
     groups: dict[tuple, list] = {}
+    index = index_uses(module, uses)
     for t in live:
         if t.kind != "pose":
             continue
-        f = frames_of(module, t, uses)
+        f = frames_of(module, t, index)
         if f.unknown and not (tool and wobj):
             results[id(t)] = TargetResult(t.name, t.line, t.kind, f.unknown, through=f.through)
         else:

@@ -31,17 +31,28 @@ class TargetFrames:
     through: str = ""
 
 
-def _matches(module, target: Target, use: Use) -> bool:
+def index_uses(module, uses) -> dict[str, list[tuple[int, Use]]]:
+    """``uses`` by the name they use (as the dialect compares names), each with its place in ``uses``."""
+    index: dict[str, list[tuple[int, Use]]] = {}
+    for k, u in enumerate(uses):
+        index.setdefault(module.key(u.name), []).append((k, u))
+    return index
+
+
+def _uses_of(module, target: Target, index) -> list[Use]:
+    """The uses of ``target``: of its name, and of its array's (``p{*}``, an index computed at run time)."""
     name = module.key(target.name)
     array = name.split("{", 1)[0]
-    return module.key(use.name) in (name, array, f"{array}{{*}}")
+    found = [p for k in dict.fromkeys((name, array, f"{array}{{*}}")) for p in index.get(k, ())]
+    return [u for _, u in sorted(found, key=lambda p: p[0])]
 
 
-def frames_of(module, target: Target, uses) -> TargetFrames:
-    """The frames ``target`` moves with, from its own motion (inline) or from ``uses``."""
+def frames_of(module, target: Target, index) -> TargetFrames:
+    """The frames ``target`` moves with, from its own motion (inline) or from the uses ``index``
+    (``index_uses``) holds."""
     if target.tool or target.wobj or target.unknown:
         return TargetFrames(target.tool, target.wobj, target.unknown)
-    mine = [u for u in uses if _matches(module, target, u)]
+    mine = _uses_of(module, target, index)
     if not mine:
         return TargetFrames(unknown=NOT_MOVED)
     direct = [u for u in mine if not u.how or u.how.lower() in module.FOLLOWED]
