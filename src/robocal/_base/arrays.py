@@ -70,10 +70,12 @@ def frozen_mapping(m: Mapping) -> Mapping:
 
 
 def _frozen_value(v):
+    if isinstance(v, (str, int, float)) or v is None:   # most values; the Mapping check is slow
+        return v
     if isinstance(v, Mapping):
         return frozen_mapping(v)
     if isinstance(v, (list, tuple)):
-        return tuple(_frozen_value(x) for x in v)
+        return tuple(map(_frozen_value, v))
     if isinstance(v, np.ndarray):
         return frozen(v, v.dtype)
     return v

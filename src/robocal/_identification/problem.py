@@ -108,6 +108,7 @@ class Problem:
         self.point_mask = read_only(np.zeros((0, 0), dtype=bool) if data is None else data.mask.copy())
         self._point_index = np.full(self.point_mask.shape, -1)
         self._point_index[self.point_mask] = np.arange(int(self.point_mask.sum()))
+        self._observations: Observations | None = None   # built once: the steps ask it often
         self._set_free(tuple(free))
 
     # ---- parameters -------------------------------------------------------------------------
@@ -259,13 +260,19 @@ class Problem:
     def observations(self) -> Observations:
         """Every observation's kind, label, order and placement (``Observations``), those set aside
         included."""
+        if self._observations is None:
+            self._observations = self._listed_observations()
+        return self._observations
+
+    def _listed_observations(self) -> Observations:
         kinds, labels, placements, order = [], [], [], []
         n_points = self.n_points
         if self.points is not None:
             d = self.points.data
             rows, markers = np.nonzero(self.point_mask)
             kinds += ["tracker"] * n_points
-            labels += [f"{d.labels[i]}, marker {d.marker_names[j]}" for i, j in zip(rows, markers)]
+            pose_labels, marker_names = list(d.labels), list(d.marker_names)
+            labels += [f"{pose_labels[i]}, marker {marker_names[j]}" for i, j in zip(rows.tolist(), markers.tolist())]
             placements += [""] * n_points
             order.append(rows)
         if self.contacts is not None:
@@ -274,7 +281,8 @@ class Problem:
             labels += list(c.obs_label)
             placements += list(c.obs_placement)
             order.append(c.obs_row)
-        return Observations(tuple(kinds), tuple(labels), np.concatenate(order) if order else np.zeros(0, dtype=int),
+        return Observations(tuple(kinds), tuple(labels),
+                            read_only(np.concatenate(order) if order else np.zeros(0, dtype=int)),
                             tuple(placements), n_points)
 
     def row_observations(self) -> np.ndarray:
