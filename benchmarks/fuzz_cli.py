@@ -47,8 +47,6 @@ from hypothesis import HealthCheck, Phase, given, settings  # noqa: E402
 import robocal  # noqa: E402,F401
 import robocal.report  # noqa: E402,F401
 
-fuzz_cases.every_reader()  # the compiled measurement reader on the small fuzzed files too
-
 # every module imported once here, not in every child (and not from files edited during a run)
 for _m in pkgutil.walk_packages(importlib.util.find_spec("robocal").submodule_search_locations, "robocal."):
     if not _m.name.endswith(".__main__"):

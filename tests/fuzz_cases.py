@@ -81,14 +81,6 @@ WORDS = ("geometric", "compliance", "base", "markers", "frames", "j2.alpha", "j1
 _NUMBER = re.compile(r"(?<![\w.])-?\d+(?:\.\d+)?(?:e[-+]?\d+)?(?![\w.])")
 
 
-def every_reader() -> None:
-    """Fuzzed measurement files (small) through the compiled parser too, which by default starts at a
-    few MB: each case then meets both readers (the row reader wherever the compiled one steps back)."""
-    import robocal._files.measurements as measurements
-
-    measurements.FAST_BYTES = 0
-
-
 def inline_result(path) -> str:
     """The result file at ``path`` with its per-pose arrays inline (the seed of the result-file cases:
     one file to mutate, as result_to_dict writes it)."""

@@ -49,12 +49,8 @@ def _share(job) -> list:
     return bad
 
 
-def test_fuzz_sample(result_text, monkeypatch):
+def test_fuzz_sample(result_text):
     pytest.importorskip("matplotlib")
-    import robocal._files.measurements as measurements
-
-    monkeypatch.setattr(measurements, "FAST_BYTES", measurements.FAST_BYTES)  # restored after the test
-    fuzz_cases.every_reader()                                                 # the workers inherit it
     jobs = [(k, SAMPLE // WORKERS, FORKED // WORKERS, result_text) for k in range(WORKERS)]
     with multiprocessing.get_context("fork").Pool(WORKERS) as pool:
         bad = [b for share in pool.map(_share, jobs) for b in share]

@@ -98,9 +98,11 @@ def test_a_measurement_files_fault_is_named_where_it_is(text, options, where, de
     """The compiled reader steps back wherever the file is at fault: the row reader names it."""
     import robocal._files.measurements as measurements
 
-    if compiled:
-        pytest.importorskip("pandas")
-        monkeypatch.setattr(measurements, "FAST_BYTES", 0)
+    def rows_only(*args, **kwargs):
+        raise measurements.Unfit
+
+    if not compiled:
+        monkeypatch.setattr(measurements, "_read_fast", rows_only)
     (tmp_path / "model.yaml").write_text(MODEL)
     (tmp_path / "d.csv").write_text(text)
     model = rc.read_model(tmp_path / "model.yaml")

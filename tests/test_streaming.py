@@ -1,6 +1,9 @@
-"""Large measurement files are read by a compiled parser a chunk at a time; every file must read to
-the same Measurements, bit for bit, as row by row, and every fault must still be named by file,
-line and column (the row reader takes over wherever the compiled one cannot vouch for a file)."""
+"""Measurement files are read by numpy's compiled parser; every file must read to the same
+Measurements, bit for bit, as row by row, and every fault must still be named by file, line and
+column (the row reader takes over wherever the compiled one cannot vouch for a file, and the
+summary says so)."""
+
+import sys
 
 import numpy as np
 import pytest
@@ -11,15 +14,17 @@ from robots import arm6r
 
 import robocal as rc
 import robocal._files.measurements as reader
-import robocal._files.table as table
 
-pandas = pytest.importorskip("pandas")
+ROW_BY_ROW = "read row by row, not by the compiled parser"
 
 
-@pytest.fixture(autouse=True)
-def every_file_compiled(monkeypatch):
-    """The compiled parser on these small files too (by default it starts at a few MB)."""
-    monkeypatch.setattr(reader, "FAST_BYTES", 0)
+def rows_only(*args, **kwargs):
+    """The compiled parser stepping back without a word: the row reader reads every file."""
+    raise reader.Unfit
+
+
+def fallback_notes(data) -> list:
+    return [n for n in data.extra.get("notes", ()) if ROW_BY_ROW in n]
 
 
 @pytest.fixture
@@ -30,20 +35,11 @@ def model(tmp_path):
 
 def both(path, model, monkeypatch, **kw):
     """(compiled, row by row) readings of ``path``; the compiled parser must have read it."""
-    taken = []
-    real = reader._read_fast
-
-    def spy(*a, **k):
-        out = real(*a, **k)
-        taken.append(out is not None)
-        return out
-
-    monkeypatch.setattr(reader, "_read_fast", spy)
     fast = rc.read_measurements(path, model, **kw)
-    assert taken == [True], "the compiled parser did not read this file"
-    monkeypatch.setattr(reader, "_read_fast", lambda *a, **k: None)
-    slow = rc.read_measurements(path, model, **kw)
-    monkeypatch.setattr(reader, "_read_fast", real)
+    assert not fallback_notes(fast), "the compiled parser did not read this file"
+    with monkeypatch.context() as m:
+        m.setattr(reader, "_read_fast", rows_only)
+        slow = rc.read_measurements(path, model, **kw)
     return fast, slow
 
 
@@ -59,6 +55,8 @@ def identical(a, b):
     for k in a.extra:
         if isinstance(a.extra[k], np.ndarray):
             assert np.array_equal(a.extra[k], b.extra[k]) and a.extra[k].dtype.kind == b.extra[k].dtype.kind, k
+        elif k == "notes":  # the same notes, but the one saying which reader read the file
+            assert [n for n in a.extra[k] if ROW_BY_ROW not in n] == [n for n in b.extra[k] if ROW_BY_ROW not in n]
         else:
             assert a.extra[k] == b.extra[k], k
 
@@ -131,13 +129,13 @@ def test_faults_are_named_as_before(tmp_path, model, edit, words):
         assert w in str(e.value), (w, str(e.value))
 
 
-def test_chunks_join_up(tmp_path, model, monkeypatch):
+@pytest.mark.parametrize("end", ["", "\n\n\n", "\r\n\r\n"], ids=["no-line-end", "blank-lines", "crlf-blank-lines"])
+def test_the_last_rows_and_what_follows_them(tmp_path, model, monkeypatch, end):
     lines = MEASUREMENTS.splitlines()
     body = lines[1:] * 40
-    (tmp_path / "d.csv").write_text(lines[0] + "\n" + "\n".join(f"Q{i}" + b[b.index(","):] for i, b in
-                                                                enumerate(body)))  # no line end at the end
-    monkeypatch.setattr(table, "CHUNK_ROWS", 7)
-    monkeypatch.setattr(table, "_SCAN_BYTES", 100)
+    newline = "\r\n" if end.startswith("\r") else "\n"
+    (tmp_path / "d.csv").write_text(lines[0] + newline + newline.join(f"Q{i}" + b[b.index(","):] for i, b in
+                                                                      enumerate(body)) + end, newline="")
     fast, slow = both(tmp_path / "d.csv", model, monkeypatch)
     identical(fast, slow)
     assert fast.n_poses == len(body) and fast.labels[-1] == f"Q{len(body) - 1}"
@@ -163,7 +161,7 @@ def test_files_the_compiled_parser_leaves_to_the_row_reader_read_the_same(tmp_pa
         text = "\n".join(", ".join(ln.split(",")) for ln in lines) + "\n"
     (tmp_path / "d.csv").write_text(text, newline="")
     fast = rc.read_measurements(tmp_path / "d.csv", model)
-    monkeypatch.setattr(reader, "_read_fast", lambda *a, **k: None)
+    monkeypatch.setattr(reader, "_read_fast", rows_only)
     identical(fast, rc.read_measurements(tmp_path / "d.csv", model))
 
 
@@ -231,7 +229,7 @@ def test_joint_files_are_joined_by_the_compiled_parser_as_row_by_row(tmp_path, m
         kw["columns"] = {"j1_deg": "j1_deg", "set": None}
     fast, slow = both(points, model, monkeypatch, joints=joints, **kw)
     identical(fast, slow)
-    assert fast.extra.get("notes") == slow.extra.get("notes") and fast.extra["notes"]
+    assert fast.extra["notes"]
     n = len(MEASUREMENTS.splitlines()) - 1
     assert fast.n_poses == (n - 2 if case == "rows-left-out" else n)
     if case == "rows-left-out":
@@ -284,9 +282,8 @@ def test_mutated_files_read_the_same_by_both_readers(tmp_path_factory, model, da
 
     def read(fast: bool):
         with pytest.MonkeyPatch.context() as mp:
-            mp.setattr(reader, "FAST_BYTES", 0)
             if not fast:
-                mp.setattr(reader, "_read_fast", lambda *a, **k: None)
+                mp.setattr(reader, "_read_fast", rows_only)
             try:
                 return rc.read_measurements(folder / "d.csv", model, **kw)
             except rc.InputError as e:
@@ -297,4 +294,57 @@ def test_mutated_files_read_the_same_by_both_readers(tmp_path_factory, model, da
         assert fast == slow
     else:
         identical(fast, slow)
-        assert fast.extra.get("notes") == slow.extra.get("notes")
+
+
+def _large(lines: list[str], rows: int) -> str:
+    """The example's header and its rows repeated to ``rows`` poses of their own labels (a few MB)."""
+    body = lines[1:]
+    return lines[0] + "\n" + "".join(f"Q{i}" + body[i % len(body)][body[i % len(body)].index(","):] + "\n"
+                                     for i in range(rows))
+
+
+def test_a_large_file_is_read_compiled_without_pandas(tmp_path, model, monkeypatch):
+    """The install the README gives has no pandas: a 4 MB tracker export is still parsed by the
+    compiled reader, never cell by cell in Python."""
+    (tmp_path / "d.csv").write_text(_large(MEASUREMENTS.splitlines(), 45_000))
+    assert (tmp_path / "d.csv").stat().st_size > 4 * 2 ** 20
+    monkeypatch.setitem(sys.modules, "pandas", None)  # import pandas fails, as in that install
+    parsed = []
+    real = reader._parse_rows
+    monkeypatch.setattr(reader, "_parse_rows", lambda *a, **k: parsed.append(1) or real(*a, **k))
+    data = rc.read_measurements(tmp_path / "d.csv", model)
+    assert data.n_poses == 45_000 and not parsed and not fallback_notes(data)
+
+
+@pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "rows"])
+def test_a_value_beyond_a_trailing_separator_is_refused_by_both_readers(tmp_path, model, monkeypatch, compiled):
+    """A header that ends with a separator names no column there: a row with a value in that cell is
+    refused, whichever reader reads the file (and however large it is)."""
+    lines = _large(MEASUREMENTS.splitlines(), 45_000).splitlines()
+    lines = [ln + "," for ln in lines]
+    lines[3000] += "21.5"
+    (tmp_path / "d.csv").write_text("\n".join(lines) + "\n")
+    if not compiled:
+        monkeypatch.setattr(reader, "_read_fast", rows_only)
+    width = len(lines[0].split(",")) - 1
+    with pytest.raises(rc.InputError) as e:
+        rc.read_measurements(tmp_path / "d.csv", model)
+    assert (e.value.where, e.value.detail) == ("line 3001", f"{width + 1} cells where the header has {width} columns")
+    lines[3000] = lines[3000][:-len("21.5")]        # the same file with that cell empty: read, the same
+    (tmp_path / "d.csv").write_text("\n".join(lines) + "\n")
+    assert rc.read_measurements(tmp_path / "d.csv", model).n_poses == 45_000
+
+
+def test_the_summary_says_when_the_row_reader_read_the_file(tmp_path, cli):
+    (tmp_path / "model.yaml").write_text(MODEL)
+    lines = MEASUREMENTS.splitlines()
+    (tmp_path / "plain.csv").write_text(MEASUREMENTS)
+    (tmp_path / "quoted.csv").write_text("\n".join(lines[:3] + ['"P,3"' + lines[3][3:]] + lines[4:]) + "\n")
+    said = {}
+    for name in ("plain", "quoted"):
+        code, out, err = cli("calibrate", tmp_path / "model.yaml", tmp_path / f"{name}.csv", "--out",
+                             tmp_path / name)
+        assert code in (0, 3), err
+        said[name] = [ln for ln in out.splitlines() if ROW_BY_ROW in ln]
+    assert said["plain"] == []
+    assert len(said["quoted"]) == 1 and said["quoted"][0].endswith(f"quoted.csv: {ROW_BY_ROW}: quoted cells")

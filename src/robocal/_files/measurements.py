@@ -9,6 +9,7 @@ kept and the marker masked.
 from __future__ import annotations
 
 import csv
+import hashlib
 import io
 import os
 import re
@@ -49,7 +50,7 @@ from .table import (
     read_table,
     scan_rows,
 )
-from .text import check_rows, read_text, write_texts
+from .text import decode, read_bytes, write_texts
 
 RESERVED = ("pose", "set", "series", "payload_kg")
 # approach_<joint>: the direction (+1 or -1) of the joint's last move before the pose (backlash)
@@ -68,9 +69,6 @@ _NOT_FINITE = re.compile(r"^[+-]?(nan|inf|infinity)$", re.IGNORECASE)
 SETS = ("fit", "validation")
 # no coordinate, joint reading or sigma in any unit comes near this; beyond it arithmetic overflows
 MAX_MAGNITUDE = 1e12
-# files from this size on are read by the compiled parser (below it, importing pandas takes longer
-# than reading the rows one by one)
-FAST_BYTES = 4 * 2 ** 20
 
 
 def parse_orientation(text: str | None, *, source: str | None = None, where: str = "orientation"):
@@ -367,52 +365,50 @@ def read_measurements(path, model: RobotModel | None = None, *, units: str | Non
                         unknown=unknown, key=key, header=header)
     declared = dict(zip(("length", "angle"), parse_units(opts["units"]))) if opts["units"] is not None else {}
     orient = parse_orientation(opts["orientation"])
-    for p in (path, joints):
-        if p is not None:
-            check_rows(p, MAX_POSES, per_gb=POSES_PER_GB)
-    fast = None
-    if _size(path) + (0 if joints is None else _size(joints)) >= FAST_BYTES and not _is_program(joints):
-        fast = _read_fast(path, source, opts, declared, orient, model, targets, joints=joints)
-    if fast is not None:
-        data, table, cols, other = fast
-    else:
-        table, other, digest = _read_rows(path, joints, source, opts, model)
-        cols = _columns(table, source, declared, orient, opts, model, targets)
-        if not table.rows:
-            raise InputError("no data rows after the header", source=source)
-        if len(table.rows) > MAX_POSES:
-            raise InputError(f"{len(table.rows):,} rows; robocal reads up to {MAX_POSES:,} poses per file "
-                             "(docs/formats.md)", source=source)
-        data = _parse_rows(table.rows, cols, table.decimal, source, digest, targets)
-    notes = tuple(f"reading {source}: {n}" for n in table.notes + _unknown_note(cols.ignored, other, exclude=True))
+    raw = _table_bytes(path)
+    jraw = None if joints is None or _is_program(joints) else _table_bytes(joints)
+    digest = hashlib.sha256(raw).hexdigest()
+    try:
+        data, table, cols, other = _read_fast(raw, jraw, digest, source, opts, declared, orient, model, targets,
+                                              joints=joints)
+        slow: tuple[str, ...] = ()
+    except Unfit as e:  # the row reader reads the files or names their fault
+        data, table, cols, other = _read_slow(raw, jraw, digest, source, opts, declared, orient, model, targets,
+                                              joints=joints)
+        slow = (f"read row by row, not by the compiled parser: {e.why}",)
+    notes = tuple(f"reading {source}: {n}"
+                  for n in table.notes + _unknown_note(cols.ignored, other, exclude=True) + slow)
     if other is not None:
         notes += tuple(f"reading {other.source}: {n}" for n in other.notes + _unknown_note(cols.ignored, other))
     return replace(data, extra={**data.extra, "notes": notes}) if notes else data
 
 
-def _size(path) -> int:
-    try:
-        return os.path.getsize(path)
-    except (OSError, ValueError):
-        return 0
+def _table_bytes(path) -> bytes:
+    """The bytes of a measurement or joint file (read once, within the budget of rows and bytes)."""
+    return read_bytes(path, rows=(MAX_POSES, "poses", POSES_PER_GB))
 
 
-def _read_rows(path, joints, source: str, opts: dict, model=None):
-    """The file's table, read row by row (joined with the joint file's, or a robot program's joint
-    targets: ``model`` says their units), the joint file's table and the SHA-256 of the file's bytes."""
-    text, digest = read_text(path)
-    table = map_columns(read_table(text, source, sep=opts["sep"], decimal=opts["decimal"], header=opts["header"]),
-                        opts["columns"])
+def _read_slow(raw: bytes, jraw: bytes | None, digest: str, source, opts, declared, orient, model, targets, *,
+               joints=None):
+    """What :func:`_read_fast` returns, read row by row: every fault named at its line and column."""
+    table = map_columns(read_table(decode(raw, source), source, sep=opts["sep"], decimal=opts["decimal"],
+                                   header=opts["header"]), opts["columns"])
     other = None
     if joints is not None:
         # joint readings logged as controller code: a robot program's joint targets
-        from .programs import is_program, program_joint_table
+        from .programs import program_joint_table
 
-        raw = program_joint_table(joints, model, opts["key"] or "pose") if is_program(joints) else \
-            read_table(read_text(joints)[0], str(joints), sep=opts["sep"], decimal=opts["decimal"])
-        other = map_columns(raw, opts["columns"])
+        raw_table = program_joint_table(joints, model, opts["key"] or "pose") if jraw is None else \
+            read_table(decode(jraw, str(joints)), str(joints), sep=opts["sep"], decimal=opts["decimal"])
+        other = map_columns(raw_table, opts["columns"])
         table = join_tables(table, other, opts["key"] or "pose")
-    return table, other, digest
+    cols = _columns(table, source, declared, orient, opts, model, targets)
+    if not table.rows:
+        raise InputError("no data rows after the header", source=source)
+    if len(table.rows) > MAX_POSES:
+        raise InputError(f"{len(table.rows):,} rows; robocal reads up to {MAX_POSES:,} poses per file "
+                         "(docs/formats.md)", source=source)
+    return _parse_rows(table.rows, cols, table.decimal, source, digest, targets), table, cols, other
 
 
 def _columns(table: Table, source: str, declared: dict, orient, opts: dict, model, targets: bool) -> _Columns:
@@ -440,53 +436,56 @@ def _is_program(joints) -> bool:
     return is_program(joints)
 
 
-def _read_fast(path, source, opts, declared, orient, model, targets, *, joints=None):
-    """(Measurements, head table, columns, the joint file's head table or None) read by the compiled
-    parser a chunk at a time (with ``joints``, both files, joined on the key as ``join_tables``
-    joins them), or None where it cannot vouch for the files (the row-by-row reader then reads
-    them or names the fault)."""
+def _read_fast(raw: bytes, jraw: bytes | None, digest: str, source, opts, declared, orient, model, targets, *,
+               joints=None):
+    """(Measurements, head table, columns, the joint file's head table or None) parsed by numpy's
+    compiled parser from the files' bytes (with ``joints``, both files, joined on the key as
+    ``join_tables`` joins them); ``Unfit`` where it cannot vouch for the files (the row-by-row
+    reader then reads them or names the fault)."""
+    if joints is not None and jraw is None:
+        raise Unfit("the joint readings are a robot program's")
     try:
-        table, other, files, raw, keys = _heads(path, source, opts, joints)
+        table, other, files, raw_cols, keys = _heads(raw, jraw, source, opts, joints)
         cols = _columns(table, source, declared, orient, opts, model, targets)
-        scans = [scan_rows(p, h) for p, h in files]
-        if any(scan.n_rows > MAX_POSES for scan in scans):
-            return None  # the row reader says so, in its words
-        wanted = _wanted(cols, raw, keys, len(files))
-        read = [read_columns(p, h, scan, w) for (p, h), scan, w in zip(files, scans, wanted)]
-        scan, take = scans[0], [None] * len(files)
+        scans = [scan_rows(b, h) for b, h in files]
+        wanted = _wanted(cols, raw_cols, keys, len(files))
+        read = [read_columns(b, h, scan, w) for (b, h), scan, w in zip(files, scans, wanted)]
+        n_rows = scans[0].n_rows
+        take: list = [None] * len(files)
         if joints is not None:
-            rows, jrows, lost, jlost = join_rows(*(read[f][raw[k][1][0]] for f, k in zip((0, 1), keys)))
+            rows, jrows, lost, jlost = join_rows(*(read[f][raw_cols[k][1][0]] for f, k in zip((0, 1), keys)))
             if "pose" not in cols.special:
-                raise Unfit  # poses named by their lines: the joined lines name both files (the row reader)
+                raise Unfit("poses without a pose label in a join")  # the joined lines name both files
             table = table.with_notes(*join_notes(table, other, opts["key"] or "pose", len(rows), lost, jlost))
-            scan, take = replace(scan, n_rows=len(rows)), [rows, jrows]
-        arrays = {k: _summed([_taken(read[raw[k][0]][r], take[raw[k][0]]) for r in raw[k][1]])
+            n_rows, take = len(rows), [rows, jrows]
+        arrays = {k: _summed([_taken(read[raw_cols[k][0]][r], take[raw_cols[k][0]]) for r in raw_cols[k][1]])
                   for k in _used_columns(cols)}
         if joints is not None and "" in arrays[cols.special["pose"]]:
             raise Unfit
-        data = _parse_columns(arrays, cols, scan, source, targets)
-    except (Unfit, InputError):
-        return None
+        data = _parse_columns(arrays, cols, n_rows, scans[0].first_line, source, digest, targets)
+    except InputError:
+        raise Unfit from None
     return data, table, cols, other
 
 
-def _heads(path, source, opts, joints):
+def _heads(raw: bytes, jraw: bytes | None, source, opts, joints):
     """What the compiled parser reads from the files' heads: the table of the file's head (joined on
     the key with the joint file's, as :func:`join_tables` joins them), the joint file's table or None,
-    (path, head) per file, for each column of the table (its file, its columns in that file) and the
+    (bytes, head) per file, for each column of the table (its file, its columns in that file) and the
     key's columns in the table (in the first file, then the second's, last), or [] without ``joints``."""
-    head = read_head(path, source, sep=opts["sep"], decimal=opts["decimal"], header=opts["header"])
+    head = read_head(raw, source, sep=opts["sep"], decimal=opts["decimal"], header=opts["header"])
     table = map_columns(head, opts["columns"])
-    raw = [(0, r) for r in _file_columns(head.header, opts["columns"])]
-    if joints is None:
-        return table, None, [(path, head)], raw, []
-    jhead = read_head(joints, str(joints), sep=opts["sep"], decimal=opts["decimal"])
+    raw_cols = [(0, r) for r in _file_columns(head.header, opts["columns"])]
+    if joints is None or jraw is None:
+        return table, None, [(raw, head)], raw_cols, []
+    jhead = read_head(jraw, str(joints), sep=opts["sep"], decimal=opts["decimal"])
     other = map_columns(jhead, opts["columns"])
     key = opts["key"] or "pose"
     header, kr = joined_header(table, other, key)
-    jraw = _file_columns(jhead.header, opts["columns"])
-    raw += [(1, r) for k, r in enumerate(jraw) if k != kr] + [(1, jraw[kr])]
-    return replace(table, header=header), other, [(path, head), (joints, jhead)], raw, [header.index(key), len(header)]
+    jraw_cols = _file_columns(jhead.header, opts["columns"])
+    raw_cols += [(1, r) for k, r in enumerate(jraw_cols) if k != kr] + [(1, jraw_cols[kr])]
+    return replace(table, header=header), other, [(raw, head), (jraw, jhead)], raw_cols, \
+        [header.index(key), len(header)]
 
 
 def _wanted(cols: _Columns, raw, keys: list[int], n_files: int) -> list[dict[int, str]]:
@@ -706,10 +705,11 @@ def _measurements(cols: _Columns, q: np.ndarray, arrays, per_pose: _PerPose, lab
                         labels=labels, source=source, sha256=digest, extra=extra)
 
 
-def _parse_columns(arrays: dict, cols: _Columns, scan, source: str, targets: bool) -> Measurements:
-    """:func:`_parse_rows` over whole columns (``arrays``: column -> float array, NaN where empty, or
-    list of str); ``Unfit`` wherever that reader would stop with an error, so that it names the cell."""
-    n = scan.n_rows
+def _parse_columns(arrays: dict, cols: _Columns, n: int, first_line: int, source: str, digest: str,
+                   targets: bool) -> Measurements:
+    """:func:`_parse_rows` over whole columns of ``n`` rows, the first on line ``first_line``
+    (``arrays``: column -> float array, NaN where empty, or list of str); ``Unfit`` wherever that
+    reader would stop with an error, so that it names the cell."""
     numbers = [a for a in arrays.values() if isinstance(a, np.ndarray)]
     if any(np.any(np.abs(a) > MAX_MAGNITUDE) for a in numbers):
         raise Unfit
@@ -723,10 +723,10 @@ def _parse_columns(arrays: dict, cols: _Columns, scan, source: str, targets: boo
     per_pose = _per_pose_columns(arrays, cols)
     given = arrays[cols.special["pose"]] if "pose" in cols.special else [""] * n
     labels = tuple(given) if "" not in given else \
-        tuple(label or f"line {i + scan.first_line}" for i, label in enumerate(given))
+        tuple(label or f"line {i + first_line}" for i, label in enumerate(given))
     if not targets and not np.any(np.isfinite(out[0])):
         raise Unfit
-    return _measurements(cols, q, out, per_pose, labels, source, scan.sha256)
+    return _measurements(cols, q, out, per_pose, labels, source, digest)
 
 
 def _needed(arrays, k: int, scale: float = 1.0) -> np.ndarray:

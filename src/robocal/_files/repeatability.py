@@ -18,7 +18,7 @@ from .._base.errors import InputError, excerpt
 from .._base.options import MAX_HEADER_LINES, MAX_POSES
 from .._base.units import LENGTH_UNITS
 from .measurements import MAX_MAGNITUDE
-from .text import check_rows, read_text
+from .text import read_text
 
 CSV_COLUMNS = ("pose", "cycle", "x", "y", "z")
 
@@ -46,8 +46,8 @@ def read_repeatability_csv(path, *, units: str | None = None) -> RepeatabilityDa
     if units is not None and units not in LENGTH_UNITS:
         raise InputError(f"units must be one of {', '.join(LENGTH_UNITS)}, got {units!r}", where="units")
     src = str(path)
-    check_rows(path, MAX_POSES, "rows")
-    reader = csv.reader(io.StringIO(read_text(path, lines=MAX_POSES + MAX_HEADER_LINES)[0], newline=""))
+    text = read_text(path, lines=MAX_POSES + MAX_HEADER_LINES, rows=(MAX_POSES, "rows", None))[0]
+    reader = csv.reader(io.StringIO(text, newline=""))
     try:
         header = next(reader, None)
         if header is None:

@@ -313,9 +313,12 @@ def _placement_files(e: os.DirEntry, root: Path, pattern: str, out: list, skippe
             skipped.append(f"{e.name}/{f.name}")
             continue
         m = SOCKET_FILE.fullmatch(f.name)
-        if not m or not f.is_file():
+        if not m:
             raise InputError("not a socket file: a socket file is named SOCKET.csv (SOCKET of letters, digits, "
                              "'_', '-')", source=f.path)
+        if not f.is_file():
+            raise InputError("not a regular file (a folder, a FIFO, a device...): a socket's seatings are read from "
+                             "a file", source=f.path)
         if len(out) == MAX_SOCKET_FILES:
             raise InputError(f"more than {MAX_SOCKET_FILES:,} socket files; a folder of seatings holds up to "
                              "that many (docs/formats.md)", source=str(e.path))

@@ -449,142 +449,159 @@ def _few(values, n: int = 5) -> str:
     return ", ".join(values[:n]) + (f" and {len(values) - n} more" if len(values) > n else "")
 
 
-# -- large files: the same tables read by a compiled parser, a chunk of rows at a time ---------------
+# -- the same tables read by numpy's compiled text parser ----------------------------------------
 
-# rows parsed per chunk: the parser's temporaries stay a few tens of MB whatever the file's length
-CHUNK_ROWS = 250_000
-# bytes the scan reads at a time (then on to the end of that line)
-_SCAN_BYTES = 4 * 2 ** 20
-# what the compiled parser would read differently from read_table: a quote, a NUL, a comment line
-# among the rows (a blank line or a row of another width shows in the count of separators, NaN and
-# infinite text in the parsed numbers)
+# what numpy's parser would read differently from read_table, found in the bytes before it runs: a
+# quote, a comment line among the rows, a carriage return that does not end a line (a blank line or
+# a row of another width shows in the count of rows and separators, NaN and infinite text in the
+# parsed numbers)
 _COMMENT_LINE = re.compile(rb"(^|\n)[ \t]*#")
+# an empty cell as numpy's parser is given it: text it reads as NaN in a number column
+_EMPTY = b"nan"
+# a decimal comma read as a point, and a point made a comma, which no number then parses
+_SWAP_DECIMAL = bytes.maketrans(b".,", b",.")
+_SWAP_BACK = str.maketrans(".,", ",.")
 
 
 class Unfit(Exception):
     """The compiled parser cannot vouch for this file as read_table would read it (quotes, comments
     or blank lines among the rows, a row of another width, text where a number is expected...): the
-    caller reads it row by row instead, which either reads it or says exactly what is wrong."""
+    caller reads it row by row instead, which either reads it or says exactly what is wrong.
+    ``args[0]``, when given, says why in words for the summary."""
+
+    @property
+    def why(self) -> str:
+        return self.args[0] if self.args else "a cell it cannot vouch for"
 
 
 @dataclass(frozen=True)
 class Scan:
-    """What one pass over a file's bytes found: its SHA-256, its data rows and their first line."""
+    """Where a file's data rows are in its bytes: ``n_rows`` rows from byte ``start``, the first on
+    line ``first_line``, each of ``width`` cells (trailing cells without a column name included)."""
 
-    sha256: str
     n_rows: int
     first_line: int
+    start: int
+    width: int
 
 
-def read_head(path, source: str, *, sep: str | None = None, decimal: str | None = None,
+def read_head(raw: bytes, source: str, *, sep: str | None = None, decimal: str | None = None,
               header: tuple[str, ...] | None = None) -> Table:
-    """The table of the file's comments, header and first rows (enough to detect the separator and
-    the decimal mark as :func:`read_table` does on the whole file); ``Unfit`` if it cannot be read."""
-    lines, content = [], 0
-    with open(path, "rb") as fh:
-        while content < _SAMPLE + 2:
-            line = fh.readline(2 ** 20)
-            if not line:
-                break
-            lines.append(line)
-            content += bool(line.strip()) and not line.lstrip().startswith(b"#")
+    """The table of the file's comments, header and first rows in ``raw`` (enough to detect the
+    separator and the decimal mark as :func:`read_table` does on the whole file); ``Unfit`` if it
+    cannot be read."""
+    end = content = 0
+    while content < _SAMPLE + 2 and end < len(raw):
+        after = raw.find(b"\n", end) + 1 or len(raw)
+        line = raw[end:after]
+        content += bool(line.strip()) and not line.lstrip().startswith(b"#")
+        end = after
     try:
-        text = b"".join(lines).decode("utf-8-sig")
-        return read_table(text, source, sep=sep, decimal=decimal, header=header)
+        return read_table(raw[:end].decode("utf-8-sig"), source, sep=sep, decimal=decimal, header=header)
     except (UnicodeDecodeError, InputError):
         raise Unfit from None
 
 
-def scan_rows(path, head: Table) -> Scan:
-    """One pass over the file a few MB at a time: its SHA-256, and ``Unfit`` unless every data row is
-    a plain line of the header's width (``head``: :func:`read_head`'s table)."""
-    import hashlib
-
+def scan_rows(raw: bytes, head: Table) -> Scan:
+    """Where the data rows of ``raw`` are (``head``: :func:`read_head`'s table), once the bytes show
+    that each is a plain line of the header's width; ``Unfit`` (saying why) otherwise."""
     if head.sep == WHITESPACE:
-        raise Unfit  # a row's width is not checked by counting separators
-    digest = hashlib.sha256()
+        raise Unfit("whitespace as the separator")  # a row's width is not checked by counting separators
     first = head.header_line if head.header_given else head.header_line + 1
-    sep = head.sep.encode()
-    newlines = seps = 0
-    width = len(head.header) if head.header_given else None
-    tail = b""
-    with open(path, "rb") as fh:
-        chunk = fh.read(_SCAN_BYTES) + fh.readline()
-        digest.update(chunk)
-        start = 0
-        for _ in range(first - 1):  # the comments and the header: read_head's
-            start = chunk.find(b"\n", start) + 1
-            if start == 0:
-                raise Unfit
-        if width is None:
-            header_start = chunk.rfind(b"\n", 0, start - 1) + 1
-            width = chunk.count(sep, header_start, start) + 1
-        newlines = first - 1
-        while chunk:
-            body = chunk[start:]
-            newlines += body.count(b"\n")
-            seps += body.count(sep)
-            if _unfit(body):
-                raise Unfit
-            tail = chunk
-            chunk, start = fh.read(_SCAN_BYTES), 0
-            if chunk:
-                chunk += fh.readline()
-                digest.update(chunk)
-    last = tail[tail.rfind(b"\n") + 1:]
-    if last.strip(b" \t"):
-        newlines += 1  # a last row without its line end
-    elif last:
-        raise Unfit  # spaces after the last line end
-    n_rows = newlines - (first - 1)
-    if n_rows <= 0 or width < 2 or seps != n_rows * (width - 1):
-        raise Unfit
-    return Scan(sha256=digest.hexdigest(), n_rows=n_rows, first_line=first)
-
-
-def _texts(a: np.ndarray) -> list:
-    """The stripped text of an object column (empty cells, NaN there, as "")."""
-    cells = a.tolist()
-    if all(type(c) is str and (not c or (c[0] > " " and c[-1] > " ")) for c in cells):  # nothing to strip
-        return cells
-    return [c.strip() if isinstance(c, str) else "" for c in cells]
-
-
-def _unfit(body: bytes) -> bool:
-    """Whether ``body`` (whole lines) holds what the compiled parser reads otherwise than read_table."""
-    if b'"' in body or b"\x00" in body:
-        return True
-    if b"\r" in body and body.count(b"\r") != body.count(b"\r\n"):
-        return True  # a carriage return that does not end a line
-    return b"#" in body and _COMMENT_LINE.search(body) is not None
-
-
-def read_columns(path, head: Table, scan: Scan, columns: Mapping[int, str]) -> dict:
-    """The file's columns ``{index: "number" or "text"}`` over its data rows: float arrays (NaN
-    where a cell is empty) or lists of str (stripped), parsed by pandas' compiled reader a chunk of rows at
-    a time; ``Unfit`` without pandas or where a number does not parse."""
-    try:
-        import pandas as pd
-    except ImportError:
-        raise Unfit from None
-    dtypes = {k: (np.float64 if kind == "number" else object) for k, kind in columns.items()}
-    parts: dict[int, list] = {k: [] for k in columns}
-    try:
-        reader = pd.read_csv(path, sep=r"\s+" if head.sep == WHITESPACE else head.sep, header=None,
-                             skiprows=scan.first_line - 1, usecols=sorted(columns), dtype=dtypes,
-                             decimal=head.decimal, keep_default_na=False, na_values=[""], quoting=3,
-                             skip_blank_lines=False, chunksize=CHUNK_ROWS, encoding="utf-8", engine="c",
-                             skipinitialspace=True)
-        with reader:
-            for chunk in reader:
-                for k in columns:
-                    parts[k].append(chunk[k].to_numpy())
-    except (ValueError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError):
-        raise Unfit from None
-    out = {}
-    for k, kind in columns.items():
-        a = np.concatenate(parts[k]) if parts[k] else np.empty(0)
-        if len(a) != scan.n_rows:
+    start = header_start = 0
+    for _ in range(first - 1):  # the comments and the header: read_head's
+        header_start, start = start, raw.find(b"\n", start) + 1
+        if start == 0:
             raise Unfit
-        out[k] = a if kind == "number" else _texts(a)
+    end = _end_of_rows(raw, start)
+    sep = head.sep.encode()
+    width = len(head.header) if head.header_given else raw.count(sep, header_start, start) + 1
+    n_rows = raw.count(b"\n", start, end) + 1 if end > start else 0
+    if raw.find(b'"', start, end) >= 0:
+        raise Unfit("quoted cells")
+    if raw.find(b"\r", start, end) >= 0 and raw.count(b"\r", start, end) != raw.count(b"\r\n", start, end):
+        raise Unfit("lines ended by a carriage return alone")
+    if raw.find(b"#", start, end) >= 0 and _COMMENT_LINE.search(raw, max(start - 1, 0), end):
+        raise Unfit("comment lines among the rows")
+    if n_rows <= 0 or width < 2 or raw.count(sep, start, end) != n_rows * (width - 1):
+        raise Unfit("rows of another width than the header, or blank lines among them")
+    return Scan(n_rows=n_rows, first_line=first, start=start, width=width)
+
+
+def _end_of_rows(raw: bytes, start: int) -> int:
+    """Where the rows from ``start`` end: before the line ends (blank lines) at the end of ``raw``."""
+    end = len(raw)
+    while end > start and raw[end - 1] in b"\r\n":
+        end -= 1
+    return end
+
+
+def read_columns(raw: bytes, head: Table, scan: Scan, columns: Mapping[int, str]) -> dict:
+    """The file's columns ``{index: "number" or "text"}`` over its data rows, parsed by numpy's
+    compiled text reader: float arrays (NaN where a cell is empty) or lists of str (stripped);
+    ``Unfit`` where a number does not parse or a row is not as the scan found it."""
+    numbers = sorted(k for k, kind in columns.items() if kind == "number")
+    body, skip, filled, values = _numbers(raw, head, scan, numbers)
+    # the texts asked for, the cells beyond the header's names (to be empty) and the last cell (which
+    # makes numpy check that every row has the scan's width); every cell when empty ones were filled
+    asked = {k for k, kind in columns.items() if kind == "text"} | set(range(len(head.header), scan.width))
+    texts = sorted((asked | (set(range(scan.width)) if filled else {scan.width - 1})) - set(numbers))
+    cells = _parsed(body, head.sep, skip, texts, object, scan.n_rows)
+    if len(values) != scan.n_rows or len(cells) != scan.n_rows:
+        raise Unfit("blank lines among the rows")
+    empties = cells == _EMPTY.decode() if filled else np.zeros(cells.shape, dtype=bool)
+    if np.count_nonzero(np.isnan(values)) + np.count_nonzero(empties) != filled:
+        raise Unfit  # NaN text in the file (or a text cell reading "nan"): the row reader names it
+    out: dict = {k: values[:, j] for j, k in enumerate(numbers)}
+    for j, k in enumerate(texts):
+        column = _texts(np.where(empties[:, j], "", cells[:, j]), head.decimal)
+        if k >= len(head.header) and any(column):
+            raise Unfit  # a cell beyond the header's columns: the row reader names its row
+        if k in columns:
+            out[k] = column
     return out
+
+
+def _numbers(raw: bytes, head: Table, scan: Scan, numbers: list[int]) -> tuple[bytes, int, int, np.ndarray]:
+    """The bytes the number columns were parsed from (empty cells filled where there are any), the
+    lines before the rows in them, how many cells were filled, and the numbers (rows, columns)."""
+    body = raw if head.decimal == "." else raw.translate(_SWAP_DECIMAL)
+    try:
+        return body, scan.first_line - 1, 0, _parsed(body, head.sep, scan.first_line - 1, numbers, float, scan.n_rows)
+    except ValueError:  # an empty cell, or text where a number belongs (the row reader names it)
+        pass
+    body, filled = _filled(body[scan.start:_end_of_rows(body, scan.start)], head.sep.encode())
+    try:
+        return body, 0, filled, _parsed(body, head.sep, 0, numbers, float, scan.n_rows)
+    except ValueError:
+        raise Unfit from None
+
+
+def _parsed(body: bytes, sep: str, skip: int, usecols: list[int], dtype, n_rows: int) -> np.ndarray:
+    """(rows, len(usecols)) cells of ``body`` after its first ``skip`` lines, by numpy's parser
+    (``n_rows`` empty rows when no column is asked for)."""
+    if not usecols:
+        return np.empty((n_rows, 0), dtype=dtype)
+    return np.loadtxt(io.BytesIO(body), delimiter=sep, skiprows=skip, usecols=usecols, dtype=dtype, comments=None,
+                      quotechar=None, encoding="utf-8", ndmin=2)
+
+
+def _filled(body: bytes, sep: bytes) -> tuple[bytes, int]:
+    """``body`` (whole lines) with _EMPTY in every empty cell, and how many there were."""
+    filled = body.replace(sep + sep, sep + _EMPTY + sep).replace(sep + sep, sep + _EMPTY + sep)
+    filled = filled.replace(b"\n" + sep, b"\n" + _EMPTY + sep).replace(sep + b"\n", sep + _EMPTY + b"\n")
+    filled = filled.replace(sep + b"\r", sep + _EMPTY + b"\r")
+    if filled.startswith(sep):
+        filled = _EMPTY + filled
+    if filled.endswith(sep):
+        filled += _EMPTY
+    return filled, (len(filled) - len(body)) // len(_EMPTY)
+
+
+def _texts(a: np.ndarray, decimal: str) -> list:
+    """The stripped text of an object column (its decimal marks swapped back where the number
+    columns were read with them swapped)."""
+    column = [c.strip() for c in a.tolist()]
+    if decimal != "." and any("." in c or "," in c for c in column):
+        return [c.translate(_SWAP_BACK) for c in column]
+    return column

@@ -9,16 +9,20 @@ from __future__ import annotations
 import contextlib
 import errno
 import hashlib
+import io
 import json
 import os
 import re
 import secrets
+import select
 import stat
 from pathlib import Path
+from typing import NamedTuple
 
 import yaml
 
 from .._base.errors import InputError, excerpt
+from .._base.options import MAX_HEADER_LINES
 
 # a file larger than this is refused before it is read (the largest sensible campaign is ~100 MB)
 MAX_FILE_BYTES = 256 * 2 ** 20
@@ -28,44 +32,119 @@ MAX_LINE_BYTES = 2 ** 20
 MAX_DEPTH = 32
 # bytes read at a time where a file's size is not known in advance
 READ_CHUNK = 16 * 2 ** 20
+# a FIFO that no program has opened for writing yet: how long to wait for one before refusing it
+FIFO_WAIT_SECONDS = 2.0
 # one text value (a name, a description): longer is a pasted file, not a value
 MAX_SCALAR = 100_000
 # digits of an integer in a YAML/JSON file: more cannot be a robocal value and cannot become a float
 MAX_DIGITS = 30
 
 
-def read_bytes(path, *, limit: int = MAX_FILE_BYTES) -> bytes:
-    """The file's bytes; a missing, unreadable or oversized file is an InputError."""
+def read_bytes(path, *, limit: int = MAX_FILE_BYTES, text: bool = True, lines: int | None = None,
+               rows: tuple[int, str, int | None] | None = None) -> bytes:
+    """The file's bytes, opened once and read once within a budget; a missing, unreadable or
+    oversized file is an InputError naming it.
+
+    The budget: ``limit`` bytes; ``lines`` lines when given; and for a table of ``rows`` = (most,
+    what, per_gb), at most ``most`` data rows (and ``per_gb`` per GB of memory available, when
+    given) besides MAX_HEADER_LINES other lines (``check_rows``). A regular file is refused by its
+    size before anything is read; its lines, and a stream's (a FIFO, a pipe such as ``<(command)``,
+    a device), are counted a chunk at a time as they are read, which stops as soon as the budget
+    runs out or, for ``text``, at a NUL character (``/dev/zero``, ``/dev/urandom``). A FIFO that no
+    program writes into is refused after FIFO_WAIT_SECONDS.
+    """
+    source = str(path)
     try:
-        with open(path, "rb") as fh:
-            size = os.fstat(fh.fileno()).st_size
-            if size > limit:
-                raise InputError(f"the file is {size / 2 ** 20:.0f} MB; robocal reads files up to "
-                                 f"{limit / 2 ** 20:.0f} MB", source=str(path))
-            # read what the file holds, not ``limit`` bytes: a read of n bytes reserves n first, and
-            # gigabytes reserved for a small file fail under an address-space limit (ulimit -v)
-            parts = [fh.read(min(size, limit) + 1)] if size else []
-            total = sum(map(len, parts))
-            while total <= limit:  # a file that grew since, or one whose size the system does not say
-                part = fh.read(min(READ_CHUNK, limit + 1 - total))
-                if not part:
-                    break
-                parts.append(part)
-                total += len(part)
-            raw = b"".join(parts)
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
     except FileNotFoundError:
-        raise InputError("cannot read: file not found", source=str(path)) from None
+        raise InputError("cannot read: file not found", source=source) from None
+    except ValueError:  # a NUL in the name
+        raise InputError("not a valid file name", source=excerpt(source)) from None
+    except OSError as e:
+        raise InputError(f"cannot read: {e.strerror}", source=source) from None
+    budget = _Budget.of(limit, lines, rows)
+    try:
+        st = os.fstat(fd)
+        if stat.S_ISDIR(st.st_mode):
+            raise InputError("is a folder, not a file", source=source)
+        if stat.S_ISREG(st.st_mode) and st.st_size > limit:
+            raise InputError(f"the file is {st.st_size / 2 ** 20:.0f} MB; robocal reads files up to "
+                             f"{limit / 2 ** 20:.0f} MB", source=source)
+        first = _first_of_fifo(fd, source) if stat.S_ISFIFO(st.st_mode) else b""
+        os.set_blocking(fd, True)
+        with os.fdopen(fd, "rb", buffering=0) as fh:
+            fd = -1  # closed with fh
+            raw = budget.read(fh, first, source, text)
     except InputError:  # too large (an InputError is a ValueError too)
         raise
-    except ValueError:  # a NUL in the name
-        raise InputError("not a valid file name", source=excerpt(str(path))) from None
-    except IsADirectoryError:
-        raise InputError("is a folder, not a file", source=str(path)) from None
     except OSError as e:
-        raise InputError(f"cannot read: {e.strerror}", source=str(path)) from None
-    if len(raw) > limit:
-        raise InputError(f"the file exceeds {limit / 2 ** 20:.0f} MB", source=str(path))
+        raise InputError(f"cannot read: {e.strerror}", source=source) from None
+    finally:
+        if fd >= 0:
+            os.close(fd)
+    if rows is not None:
+        check_rows(raw, source, *rows)
     return raw
+
+
+def _first_of_fifo(fd: int, source: str) -> bytes:
+    """What a FIFO holds already (b"" when a writer has written nothing yet); refused when no program
+    opens it for writing within FIFO_WAIT_SECONDS."""
+    try:
+        first = os.read(fd, READ_CHUNK)
+    except BlockingIOError:  # a writer is there, nothing written yet: its stream is read as it comes
+        return b""
+    if first:
+        return first
+    poll = select.poll()  # no writer yet (or one that wrote nothing and left: the poll says so at once)
+    poll.register(fd, select.POLLIN)
+    if not poll.poll(FIFO_WAIT_SECONDS * 1000):
+        raise InputError(f"a FIFO that no program writes into (nothing came in {FIFO_WAIT_SECONDS:g} s); start "
+                         "the program that writes it first, or give a file", source=source)
+    return b""
+
+
+class _Budget(NamedTuple):
+    """What a read may take: ``limit`` bytes and ``lines`` line ends (None: any number), and the
+    words of the refusal when the lines run out."""
+
+    limit: int
+    lines: int | None
+    said: str
+
+    @classmethod
+    def of(cls, limit: int, lines: int | None, rows: tuple[int, str, int | None] | None) -> _Budget:
+        if rows is None:
+            return cls(limit, lines, f"{lines or 0:,} from this kind of file (docs/formats.md)")
+        most, what, per_gb = rows
+        bound, memory = _row_bound(most, per_gb)
+        room = f"with {memory / 2 ** 30:.1f} GB of memory available " if memory is not None and bound < most else ""
+        said = f"{room}{bound:,} {what} and {MAX_HEADER_LINES:,} other lines per file (docs/formats.md)"
+        return cls(limit, bound + MAX_HEADER_LINES if lines is None else min(lines, bound + MAX_HEADER_LINES),
+                   said)
+
+    def read(self, fh, first: bytes, source: str, text: bool) -> bytes:
+        """``first`` and the rest of ``fh`` a chunk at a time, refused as soon as they run over the
+        budget or (``text``) hold a NUL character."""
+        out = io.BytesIO()  # grown in place: its value is handed out without a copy
+        newlines, part = 0, first
+        while True:
+            if part:
+                if text and b"\x00" in part:
+                    line = newlines + part[:part.index(b"\x00")].count(b"\n") + 1
+                    raise InputError("a NUL character: this is a binary file, not text", source=source,
+                                     where=f"line {line}")
+                newlines += part.count(b"\n")
+                out.write(part)
+                if out.tell() > self.limit:
+                    raise InputError(f"the file exceeds {self.limit / 2 ** 20:.0f} MB", source=source)
+                if self.lines is not None and newlines > self.lines:  # a count so far: the rest is not read
+                    raise InputError(f"{newlines:,} lines; robocal reads up to {self.said}", source=source)
+            # a chunk at a time, never ``limit`` bytes: a read of n bytes reserves n first, and
+            # gigabytes reserved for a small file fail under an address-space limit (ulimit -v)
+            part = fh.read(min(READ_CHUNK, self.limit + 1 - out.tell()))
+            if not part:
+                return out.getvalue()
 
 
 def available_memory() -> float | None:
@@ -80,34 +159,28 @@ def available_memory() -> float | None:
     return None
 
 
-def check_rows(path, most: int, what: str = "poses", *, per_gb: int | None = None) -> None:
-    """Refuse ``path`` when it holds more than ``most`` data rows (lines that are not blank, not a
-    ``#`` comment, and not the header), counted by a scan a megabyte at a time: a file over the limit
-    is refused before it is read, without growing memory. ``per_gb``: also refuse more rows than
-    that many per GB of memory available now. An unreadable file is left to the reader.
-    """
+def _row_bound(most: int, per_gb: int | None) -> tuple[int, float | None]:
+    """(the most data rows a table may hold now, the memory available or None where not counted)."""
     memory = available_memory() if per_gb else None
-    bound = most if memory is None or not per_gb else min(most, int(memory / 2 ** 30 * per_gb))
-    try:
-        with open(path, "rb") as fh:
-            newlines = returns = 0
-            for chunk in iter(lambda: fh.read(2 ** 20), b""):
-                newlines += chunk.count(b"\n")
-                returns += chunk.count(b"\r")
-            if max(newlines, returns) <= bound:  # at most bound + 1 lines: a header and ``bound`` rows
-                return
-            fh.seek(0)
-            lines = sum(1 for ln in fh if ln.strip() and not ln.lstrip().startswith(b"#"))
-    except (OSError, ValueError):
+    return (most if memory is None or not per_gb else min(most, int(memory / 2 ** 30 * per_gb))), memory
+
+
+def check_rows(raw: bytes, source: str, most: int, what: str = "poses", per_gb: int | None = None) -> None:
+    """Refuse a file's bytes ``raw`` when they hold more than ``most`` data rows (lines that are not
+    blank, not a ``#`` comment, and not the header), before any cell is parsed. ``per_gb``: also
+    refuse more rows than that many per GB of memory available now."""
+    bound, memory = _row_bound(most, per_gb)
+    newlines = raw.count(b"\n")
+    returns = raw.count(b"\r") if b"\r" in raw else 0
+    if max(newlines, returns) <= bound:  # at most bound + 1 lines: a header and ``bound`` rows
         return
-    if returns > newlines:  # lines ended by a carriage return alone: the count above saw one line
-        lines = returns + 1
-    if lines - 1 > most:
-        raise InputError(f"{lines - 1:,} rows; robocal reads up to {most:,} {what} per file (docs/formats.md)",
-                         source=str(path))
-    if memory is not None and per_gb and lines - 1 > bound:
-        raise InputError(f"{lines - 1:,} rows; with {memory / 2 ** 30:.1f} GB of memory available robocal reads up "
-                         f"to {bound:,} {what} ({per_gb:,} per GB, docs/formats.md)", source=str(path))
+    rows = sum(1 for ln in raw.splitlines() if ln.strip() and not ln.lstrip().startswith(b"#")) - 1
+    if rows > most:
+        raise InputError(f"{rows:,} rows; robocal reads up to {most:,} {what} per file (docs/formats.md)",
+                         source=source)
+    if memory is not None and rows > bound:
+        raise InputError(f"{rows:,} rows; with {memory / 2 ** 30:.1f} GB of memory available robocal reads up "
+                         f"to {bound:,} {what} ({per_gb:,} per GB, docs/formats.md)", source=source)
 
 
 def decode(raw: bytes, source: str) -> str:
@@ -124,16 +197,13 @@ def decode(raw: bytes, source: str) -> str:
     return text
 
 
-def read_text(path, *, limit: int = MAX_FILE_BYTES, lines: int | None = None) -> tuple[str, str]:
+def read_text(path, *, limit: int = MAX_FILE_BYTES, lines: int | None = None,
+              rows: tuple[int, str, int | None] | None = None) -> tuple[str, str]:
     """The file's text (UTF-8, a BOM allowed) and the SHA-256 of its bytes; a missing, unreadable,
-    oversized (``limit`` bytes, ``lines`` lines when given: counted before the text is parsed) or
+    oversized (``limit`` bytes, ``lines`` lines and ``rows`` when given: ``read_bytes``) or
     non-UTF-8 file is an InputError."""
-    raw = read_bytes(path, limit=limit)
-    if lines is not None:  # a table: its lines and their length, before the cells are split
-        n = raw.count(b"\n")
-        if n > lines:
-            raise InputError(f"{n:,} lines; robocal reads up to {lines:,} from this kind of file (docs/formats.md)",
-                             source=str(path))
+    raw = read_bytes(path, limit=limit, lines=lines, rows=rows)
+    if lines is not None:  # a table: the length of its lines, before the cells are split
         longest = max(map(len, raw.split(b"\n")))
         if longest > MAX_LINE_BYTES:
             raise InputError(f"a line of {longest:,} bytes; robocal reads lines of up to {MAX_LINE_BYTES:,} in a "
