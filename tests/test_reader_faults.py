@@ -85,6 +85,8 @@ MEASUREMENT_FAULTS = [
     (UNSEEN, {}, None, "no marker position in any row"),
     (MEASUREMENTS.replace("\nP03,", '\n"P03,', 1), {}, "line 5", NOT_CLOSED),
     ('# note,"open\n' + MEASUREMENTS, {}, "line 2", NOT_CLOSED),
+    (_cell(3, "pose", "P" + "x" * 200_000), {}, "line 4",
+     "not readable as CSV: field larger than field limit (131072)"),
     ("\n".join(LINES[1:]) + "\n", {"header": HEADER.replace("set", "pose").split(",")}, "header",
      "expected distinct column names, got 'pose,j1_deg,j2_mm,j3_mm,j4_deg,j5_deg,j6_deg,tool_x_mm...' (81 characters)"),
 ]

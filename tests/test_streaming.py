@@ -348,3 +348,70 @@ def test_the_summary_says_when_the_row_reader_read_the_file(tmp_path, cli):
         said[name] = [ln for ln in out.splitlines() if ROW_BY_ROW in ln]
     assert said["plain"] == []
     assert len(said["quoted"]) == 1 and said["quoted"][0].endswith(f"quoted.csv: {ROW_BY_ROW}: quoted cells")
+
+
+@pytest.fixture(scope="module")
+def arm7():
+    from pathlib import Path
+
+    return rc.read_model(Path(__file__).resolve().parents[1] / "examples" / "arm7" / "model.yaml")
+
+
+def _contacts_both(path, model):
+    """(compiled, row by row) readings of a contact file, each a Contacts or its one-line error."""
+    import robocal._files.contacts as contacts
+    from robocal.io import read_contacts
+
+    def read():
+        try:
+            return read_contacts(path, model)
+        except rc.InputError as e:
+            return str(e)
+
+    fast = read()
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(contacts, "_compiled", rows_only)
+        slow = read()
+    return fast, slow
+
+
+def same_contacts(a, b) -> None:
+    if isinstance(a, str) or isinstance(b, str):
+        assert a == b
+        return
+    for name in ("q", "sigma"):
+        x, y = getattr(a, name), getattr(b, name)
+        assert x.dtype == y.dtype and np.array_equal(x, y), name
+    for name in ("marker", "kind", "target", "placement", "labels", "distances", "planes", "bars", "sha256"):
+        assert getattr(a, name) == getattr(b, name), name
+    assert [n for n in a.notes if ROW_BY_ROW not in n] == [n for n in b.notes if ROW_BY_ROW not in n]
+
+
+def test_a_contact_file_is_read_compiled_as_row_by_row(tmp_path, arm7):
+    from fuzz_cases import SOCKETS
+
+    lines = SOCKETS.splitlines()
+    k = next(i for i, ln in enumerate(lines) if ln.startswith("placement"))
+    labelled = lines[:k] + [lines[k] + ",label"] + [ln + f", s{i} " for i, ln in enumerate(lines[k + 1:])]
+    for name, text in (("plain", SOCKETS), ("labelled", "\n".join(labelled) + "\n")):
+        (tmp_path / f"{name}.csv").write_text(text)
+        fast, slow = _contacts_both(tmp_path / f"{name}.csv", arm7)
+        same_contacts(fast, slow)
+        assert not [n for n in fast.notes if ROW_BY_ROW in n]
+    assert fast.labels[0] == "s0" and fast.labels[-1] == f"s{len(lines) - k - 2}"
+    quoted = "\n".join(lines[:k + 1] + ['"' + lines[k + 1].replace(",", '","') + '"'] + lines[k + 2:]) + "\n"
+    (tmp_path / "quoted.csv").write_text(quoted)
+    fast, slow = _contacts_both(tmp_path / "quoted.csv", arm7)
+    same_contacts(fast, slow)
+    said = [n for n in fast.notes if ROW_BY_ROW in n]
+    assert said == [f"reading {tmp_path / 'quoted.csv'}: {ROW_BY_ROW}: quoted cells"]
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=list(HealthCheck), derandomize=True)
+@given(data=st.data())
+def test_mutated_contact_files_read_the_same_by_both_readers(tmp_path_factory, arm7, data):
+    from fuzz_cases import contacts_file
+
+    path = tmp_path_factory.mktemp("contacts") / "c.csv"
+    path.write_bytes(data.draw(contacts_file()))
+    same_contacts(*_contacts_both(path, arm7))

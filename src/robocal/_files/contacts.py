@@ -18,6 +18,7 @@ from __future__ import annotations
 import csv
 import io
 import os
+from dataclasses import replace
 
 import numpy as np
 
@@ -36,6 +37,7 @@ from .._model.contacts import CONTACT_KINDS, Contacts, KnownDistance, KnownPlane
 from .._model.robot import RobotModel
 from .measurements import MAX_MAGNITUDE
 from .seatings import read_seatings
+from .table import Table, Unfit, read_columns, scan_rows
 from .text import read_text
 
 REQUIRED = ("placement", "target", "kind")
@@ -170,12 +172,51 @@ def read_contacts(path, model: RobotModel) -> Contacts:
             ("lines before the header", body_start, MAX_DIRECTIVES)
         raise InputError(f"{what[1]:,} {what[0]}; a contact file holds up to {what[2]:,} (docs/formats.md)",
                          source=source)
+    body = "\n".join(lines[body_start:])
     try:
-        rows = list(csv.reader(io.StringIO("\n".join(lines[body_start:]))))
+        return _compiled(body, body_start + 1, model, facts, source, digest)
+    except Unfit as e:  # the row reader reads the file or names its fault
+        why = (f"reading {source}: read row by row, not by the compiled parser: {e.why}",)
+    try:
+        rows = list(csv.reader(io.StringIO(body)))
     except csv.Error as e:
         raise InputError(f"not readable as CSV: {e}", source=source) from None
     header = [h.strip() for h in rows[0]]
-    return _rows(rows[1:], header, body_start + 1, model, facts, source, digest)
+    contacts = _rows(rows[1:], header, body_start + 1, model, facts, source, digest)
+    return replace(contacts, notes=contacts.notes + why)
+
+
+def _compiled(body: str, first_line: int, model: RobotModel, facts: _Facts, source: str, digest: str) -> Contacts:
+    """The contacts in ``body`` (the header, on line ``first_line``, and the rows) parsed by numpy's
+    compiled text reader; ``Unfit`` wherever :func:`_rows` would read them otherwise or stop."""
+    head_line = body.split("\n", 1)[0]
+    header = [h.strip() for h in head_line.split(",")]
+    if '"' in head_line:
+        raise Unfit("quoted cells")
+    try:
+        col = _columns(header, model, facts, source)
+    except InputError:
+        raise Unfit from None  # the row reader names it, after any fault among the rows it meets first
+    raw = body.encode()
+    head = Table(header=tuple(header), rows=(), source=source, sep=",", decimal=".")
+    scan = scan_rows(raw, head)
+    texts = ("placement", "target", "kind", "marker", "label")
+    cells = read_columns(raw, head, scan, {i: "text" if h in texts else "number" for h, i in col.items()})
+    n = scan.n_rows
+    kind, target, placement = (cells[col[h]] for h in ("kind", "target", "placement"))
+    marker = cells[col["marker"]] if "marker" in col else [model.marker_names[0]] * n
+    q = np.column_stack([cells[col[j]] for j in model.joint_names])
+    sigma = cells[col["sigma"]] if "sigma" in col else np.full(n, facts.sigma)
+    if not (set(kind) <= set(CONTACT_KINDS) and set(marker) <= set(model.marker_names)
+            and np.all(np.abs(q) <= MAX_MAGNITUDE) and np.all((sigma > 0) & (sigma <= MAX_MAGNITUDE))):
+        raise Unfit  # a cell the row reader refuses, naming it
+    if "sigma" in col:
+        if "length" not in facts.units:
+            raise Unfit
+        sigma = sigma * facts.units["length"]
+    lines = [f"line {first_line + 1 + k}" for k in range(n)]
+    labels = [label or line for label, line in zip(cells[col["label"]], lines)] if "label" in col else lines
+    return _contacts(q, marker, kind, target, placement, sigma, labels, model, facts, source, digest)
 
 
 def _columns(header, model: RobotModel, facts: _Facts, source: str) -> dict:
@@ -197,8 +238,6 @@ def _columns(header, model: RobotModel, facts: _Facts, source: str) -> dict:
 
 def _rows(rows, header, first_line, model: RobotModel, facts: _Facts, source: str, digest: str) -> Contacts:
     col = _columns(header, model, facts, source)
-    scale = np.array([facts.units.get("angle", 1.0) if k == "angle" else facts.units["length"]
-                      for k in model.reading_quantities])
     q, marker, kind, target, placement, sigma, labels = [], [], [], [], [], [], []
     for k, row in enumerate(rows):
         line = first_line + 1 + k
@@ -226,13 +265,22 @@ def _rows(rows, header, first_line, model: RobotModel, facts: _Facts, source: st
         labels.append(cell.get("label") or where)
     if not q:
         raise InputError("no contact rows", source=source)
+    return _contacts(np.array(q), marker, kind, target, placement, np.array(sigma), labels, model, facts, source,
+                     digest)
+
+
+def _contacts(q: np.ndarray, marker, kind, target, placement, sigma: np.ndarray, labels, model: RobotModel,
+              facts: _Facts, source: str, digest: str) -> Contacts:
+    """The record both readers make of the rows read (``q`` in the file's units, ``sigma`` SI)."""
+    scale = np.array([facts.units.get("angle", 1.0) if k == "angle" else facts.units["length"]
+                      for k in model.reading_quantities])
     groups = len(set(zip(placement, target)))
     if groups > MAX_GROUPS:  # each group adds unknowns to the fit: its cost grows with their square
         raise InputError(f"{groups:,} groups (placement, target); a contact file holds up to {MAX_GROUPS:,} "
                          "(docs/formats.md)", source=source)
     _known_targets(facts, kind, target, source)
-    return Contacts(q=np.array(q) * scale, marker=tuple(marker), kind=tuple(kind), target=tuple(target),
-                    placement=tuple(placement), sigma=np.array(sigma), distances=tuple(facts.distances),
+    return Contacts(q=q * scale, marker=tuple(marker), kind=tuple(kind), target=tuple(target),
+                    placement=tuple(placement), sigma=sigma, distances=tuple(facts.distances),
                     planes=tuple(facts.planes), bars=facts.bars, joint_names=model.joint_names,
                     labels=tuple(labels), source=source, sha256=digest)
 
