@@ -8,8 +8,9 @@ Each figure comes from a fresh process, so its peak (``VmHWM``, the process's ow
 is that step's alone; each is given as wall-clock time and as CPU time (``process_time``: the
 process's user and system time), the one other processes on a shared machine disturb least:
 
-- ``read``: ``robocal.read_measurements`` (the compiled parser when pandas is installed);
-- ``read (rows)``: the same without pandas (every file row by row, up to ``--baseline-poses``);
+- ``read``: ``robocal.read_measurements`` (numpy's compiled text parser);
+- ``read (rows)``: the same file with its first label quoted, which the compiled parser leaves to
+  the row reader (up to ``--baseline-poses``);
 - ``read, --joints``: the same campaign as two files, points and joint readings, joined on ``pose``;
 - ``calibrate()``: the library's solve on the measurements, without files;
 - ``write``: ``write_result`` (result.json and result.npz) and ``write_model`` (calibrated.yaml);
@@ -48,10 +49,9 @@ STEPS = {
         t = time.perf_counter(); data = rc.read_measurements(DATA, model); seconds = time.perf_counter() - t
     """,
     "read (rows)": """
-        sys.modules["pandas"] = None  # robocal without its 'fast' extra: every file read row by row
         import robocal as rc
         model = rc.read_model(MODEL)
-        t = time.perf_counter(); data = rc.read_measurements(DATA, model); seconds = time.perf_counter() - t
+        t = time.perf_counter(); data = rc.read_measurements(ROWS, model); seconds = time.perf_counter() - t
     """,
     "read, --joints": """
         import robocal as rc
@@ -88,8 +88,9 @@ STEPS = {
 
 
 def tracker_file(model, n: int, folder: Path) -> None:
-    """A tracker export of ``n`` simulated poses (written with numpy, not the reader under test), and
-    the same campaign as a file of points and a file of joint readings."""
+    """A tracker export of ``n`` simulated poses (written with numpy, not the reader under test), the
+    same with its first label quoted (rows.csv), and the same campaign as a file of points and a file
+    of joint readings."""
     _, data = rc.simulate(model, n, seed=1)
     deg = np.rad2deg(data.q)
     mm = data.positions[:, 0] * 1e3
@@ -100,6 +101,8 @@ def tracker_file(model, n: int, folder: Path) -> None:
                                 ("joints.csv", f"pose,{joints}", np.column_stack([np.arange(n), deg]))):
         np.savetxt(folder / name, table, delimiter=",", header=header, comments="",
                    fmt=["P%d"] + ["%.15g"] * (table.shape[1] - 1))
+    raw = (folder / "data.csv").read_bytes()
+    (folder / "rows.csv").write_bytes(raw.replace(b"\nP0,", b'\n"P0",', 1))
 
 
 def run_step(name: str, folder: Path, src: str | None) -> tuple[float, float, float]:
@@ -110,7 +113,7 @@ def run_step(name: str, folder: Path, src: str | None) -> tuple[float, float, fl
     body = textwrap.dedent(STEPS[name]).replace("time.perf_counter()", clocks)
     body = body.replace(f"seconds = {clocks} - t", f"now = {clocks}; seconds = now[0] - t[0]; cpu = now[1] - t[1]")
     for key, file in (("MODEL", "model.yaml"), ("DATA", "data.csv"), ("POINTS", "points.csv"),
-                      ("JOINTS", "joints.csv")):
+                      ("JOINTS", "joints.csv"), ("ROWS", "rows.csv")):
         body = body.replace(key, repr(str(folder / file)))
     code += body.replace("OUT", repr(str(folder / "run"))) + f"\nprint(seconds, cpu, {HWM})\n"
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
