@@ -456,8 +456,6 @@ def _few(values, n: int = 5) -> str:
 # a row of another width shows in the count of rows and separators, NaN and infinite text in the
 # parsed numbers)
 _COMMENT_LINE = re.compile(rb"(^|\n)[ \t]*#")
-# bytes looked at a time where the rows' bytes are scanned by numpy
-_SCAN_BYTES = 16 * 2 ** 20
 # an empty cell as numpy's parser is given it: text it reads as NaN in a number column
 _EMPTY = b"nan"
 # a decimal comma read as a point, and a point made a comma, which no number then parses
@@ -527,19 +525,21 @@ def scan_rows(raw: bytes, head: Table) -> Scan:
         raise Unfit("comment lines among the rows")
     if n_rows <= 0 or width < 2 or raw.count(sep, start, end) != n_rows * (width - 1):
         raise Unfit("rows of another width than the header, or blank lines among them")
-    if end - start > csv.field_size_limit() and _longest_line(raw, start, end) > csv.field_size_limit():
+    if _line_longer_than(raw, start, end, csv.field_size_limit()):
         raise Unfit("a line longer than the row reader's longest cell")  # which it may refuse
     return Scan(n_rows=n_rows, first_line=first, start=start, width=width)
 
 
-def _longest_line(raw: bytes, start: int, end: int) -> int:
-    """The length of the longest line of ``raw[start:end]``, found a few MB at a time."""
-    ends = [np.array([start - 1])]
-    for at in range(start, end, _SCAN_BYTES):
-        part = np.frombuffer(raw, dtype=np.uint8, count=min(_SCAN_BYTES, end - at), offset=at)
-        ends.append(np.flatnonzero(part == ord("\n")) + at)
-    ends.append(np.array([end]))
-    return int(np.max(np.diff(np.concatenate(ends)))) - 1
+def _line_longer_than(raw: bytes, start: int, end: int, most: int) -> bool:
+    """Whether a line of ``raw[start:end]`` (``start`` a line's first byte) is longer than ``most``
+    bytes: each step looks for the last line end within ``most`` bytes of the line it is at."""
+    at = start
+    while end - at > most:
+        line_end = raw.rfind(b"\n", at, at + most + 1)
+        if line_end < 0:
+            return True
+        at = line_end + 1
+    return False
 
 
 def _end_of_rows(raw: bytes, start: int) -> int:

@@ -9,7 +9,6 @@ from __future__ import annotations
 import contextlib
 import errno
 import hashlib
-import io
 import json
 import os
 import re
@@ -74,7 +73,7 @@ def read_bytes(path, *, limit: int = MAX_FILE_BYTES, text: bool = True, lines: i
         os.set_blocking(fd, True)
         with os.fdopen(fd, "rb", buffering=0) as fh:
             fd = -1  # closed with fh
-            raw = budget.read(fh, first, source, text)
+            raw, newlines = budget.read(fh, first, source, text, st.st_size if stat.S_ISREG(st.st_mode) else 0)
     except InputError:  # too large (an InputError is a ValueError too)
         raise
     except OSError as e:
@@ -83,7 +82,7 @@ def read_bytes(path, *, limit: int = MAX_FILE_BYTES, text: bool = True, lines: i
         if fd >= 0:
             os.close(fd)
     if rows is not None:
-        check_rows(raw, source, *rows)
+        check_rows(raw, source, *rows, newlines=newlines)
     return raw
 
 
@@ -123,11 +122,13 @@ class _Budget(NamedTuple):
         return cls(limit, bound + MAX_HEADER_LINES if lines is None else min(lines, bound + MAX_HEADER_LINES),
                    said)
 
-    def read(self, fh, first: bytes, source: str, text: bool) -> bytes:
-        """``first`` and the rest of ``fh`` a chunk at a time, refused as soon as they run over the
-        budget or (``text``) hold a NUL character."""
-        out = io.BytesIO()  # grown in place: its value is handed out without a copy
-        newlines, part = 0, first
+    def read(self, fh, first: bytes, source: str, text: bool, size: int) -> tuple[bytes, int]:
+        """(``first`` and the rest of ``fh``, their line ends), read a chunk at a time (a regular
+        file of ``size`` bytes in one read) and refused as soon as they run over the budget or
+        (``text``) hold a NUL character."""
+        parts: list[bytes] = []
+        total = newlines = 0
+        part = first
         while True:
             if part:
                 if text and b"\x00" in part:
@@ -135,16 +136,18 @@ class _Budget(NamedTuple):
                     raise InputError("a NUL character: this is a binary file, not text", source=source,
                                      where=f"line {line}")
                 newlines += part.count(b"\n")
-                out.write(part)
-                if out.tell() > self.limit:
+                parts.append(part)
+                total += len(part)
+                if total > self.limit:
                     raise InputError(f"the file exceeds {self.limit / 2 ** 20:.0f} MB", source=source)
                 if self.lines is not None and newlines > self.lines:  # a count so far: the rest is not read
                     raise InputError(f"{newlines:,} lines; robocal reads up to {self.said}", source=source)
-            # a chunk at a time, never ``limit`` bytes: a read of n bytes reserves n first, and
-            # gigabytes reserved for a small file fail under an address-space limit (ulimit -v)
-            part = fh.read(min(READ_CHUNK, self.limit + 1 - out.tell()))
+            # what the file holds, else a chunk at a time, never ``limit`` bytes: a read of n bytes
+            # reserves n first, and gigabytes reserved for a small file fail under an address-space
+            # limit (ulimit -v)
+            part = fh.read(min(max(size + 1 - total, READ_CHUNK), self.limit + 1 - total))
             if not part:
-                return out.getvalue()
+                return (parts[0] if len(parts) == 1 else b"".join(parts)), newlines
 
 
 def available_memory() -> float | None:
@@ -165,12 +168,14 @@ def _row_bound(most: int, per_gb: int | None) -> tuple[int, float | None]:
     return (most if memory is None or not per_gb else min(most, int(memory / 2 ** 30 * per_gb))), memory
 
 
-def check_rows(raw: bytes, source: str, most: int, what: str = "poses", per_gb: int | None = None) -> None:
+def check_rows(raw: bytes, source: str, most: int, what: str = "poses", per_gb: int | None = None, *,
+               newlines: int | None = None) -> None:
     """Refuse a file's bytes ``raw`` when they hold more than ``most`` data rows (lines that are not
     blank, not a ``#`` comment, and not the header), before any cell is parsed. ``per_gb``: also
-    refuse more rows than that many per GB of memory available now."""
+    refuse more rows than that many per GB of memory available now. ``newlines``: the line ends of
+    ``raw`` when counted already."""
     bound, memory = _row_bound(most, per_gb)
-    newlines = raw.count(b"\n")
+    newlines = raw.count(b"\n") if newlines is None else newlines
     returns = raw.count(b"\r") if b"\r" in raw else 0
     if max(newlines, returns) <= bound:  # at most bound + 1 lines: a header and ``bound`` rows
         return
