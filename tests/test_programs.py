@@ -653,6 +653,18 @@ def test_krl_targets_take_the_tool_and_base_of_their_fdat_and_of_tool_and_base_f
         assert {(r.tool, r.wobj) for r in result.targets if r.kind == "pose"} == {("TOOL_DATA[1]", "BASE_DATA[2]")}
 
 
+def test_krl_targets_whose_tool_data_are_not_read_are_flagged_and_left_unchanged():
+    """Without the controller's $config.dat, TOOL_DATA[1] is not known: every pose target that uses
+    it is flagged, naming the file that holds it, and its line stays as written."""
+    program, companions, (nominal, calibrated) = _cell("pick.src")
+    without = tuple(c for c in companions if not c.source.endswith("$config.dat"))
+    result = compensate_program(program, nominal, calibrated, companions=without)
+    (row,) = result.flagged
+    assert row.status.startswith("its tool TOOL_DATA[1] is declared neither") and "$config.dat" in row.status
+    kept = [ln for ln in result.text.splitlines() if not ln.lstrip().startswith(";")]
+    assert kept == [ln for ln in program.text.splitlines() if not ln.lstrip().startswith(";")]
+
+
 def test_krl_frame_declarations_are_never_moved():
     """Why 4: the fixture's FRAME in the .dat is a frame, not a motion target: its line stays."""
     program, companions, (nominal, calibrated) = _cell("pick.dat")

@@ -98,7 +98,8 @@ class Catalogue:
             name = f"{f.alias} ({name})"
             f = self.frames.get(self.module.key(f.alias))
         if f is None:
-            return f"its {what} {name} is declared neither in the program nor in the files read with it"
+            hint = getattr(self.module, "DECLARED_IN", {}).get(self.module.key(name).split("[", 1)[0], "")
+            return f"its {what} {name} is declared neither in the program nor in the files read with it{hint}"
         if f.kind not in kinds:
             return f"its {what} {name} is a {f.kind}, not one robocal can use"
         return f.X

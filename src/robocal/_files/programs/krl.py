@@ -43,6 +43,9 @@ CARTESIAN, JOINTS = ("X", "Y", "Z", "A", "B", "C"), tuple(f"A{i}" for i in range
 # no expression keeps a target's frames
 BUILTIN = {"$NULLFRAME": "frame"}
 FOLLOWED: tuple[str, ...] = ()
+# where the controller keeps the frames a program names by number (what a flag says when they are missing)
+DECLARED_IN = {k: f" ({k}[n] live in the controller's $config.dat: read it with the program)"
+               for k in ("TOOL_DATA", "BASE_DATA")}
 
 
 def read(text: str, source: str) -> Program:
