@@ -49,7 +49,7 @@ def unit_factors(units: str) -> dict[str, float]:
     0.001
     """
     length, angle = parse_units(units)
-    return {"length": LENGTH_UNITS[length], "angle": ANGLE_UNITS[angle], "compliance": 1.0}
+    return {"length": LENGTH_UNITS[length], "angle": ANGLE_UNITS[angle], "compliance": 1.0, "ratio": 1.0}
 
 
 def unit_kind(unit: str) -> str | None:

@@ -34,6 +34,7 @@ from .._model.parameters import KIND_QUANTITY
 from .._model.robot import (
     DEFAULT_PARALLEL_TOL,
     JOINT_TYPES,
+    TRANSMISSION_KINDS,
     Frame,
     Marker,
     Payload,
@@ -51,7 +52,13 @@ FRAME_VALUES.update({"mass": None, "k_theta": None, "k_alpha": None, "k_beta": N
 # width (N m on a revolute frame, N on a prismatic one, always SI); written where they differ from
 # these defaults
 BACKLASH_VALUES = {"backlash_theta": 0.0, "backlash_r": 0.0, "backlash_friction": 0.0, "backlash_width": 1.0}
+# written where they differ from these (zero: no transmission error, no stated ratio)
+DEFAULT_VALUES = {**BACKLASH_VALUES, **{k: 0.0 for k in TRANSMISSION_KINDS + ("reduction",)}}
 FRAME_VALUES.update({k: KIND_QUANTITY.get(k) for k in BACKLASH_VALUES})
+# transmission (docs/conventions.md): the stated reduction ratio (motor turns per joint turn) and the
+# identified terms, the gear scale a plain ratio, the harmonics angles in the model's unit
+FRAME_VALUES.update({k: None if KIND_QUANTITY[k] == "ratio" else KIND_QUANTITY[k] for k in TRANSMISSION_KINDS})
+FRAME_VALUES["reduction"] = None
 FRAME_KEYS = ("name", "joint", "reading", "coupling", "parent", "has_beta", "com", "position",
               "rotation") + tuple(FRAME_VALUES)
 # the placement a fixed frame may give as a transform instead
@@ -63,7 +70,7 @@ TOP_KEYS = ("robocal_model", "name", "description", "units", "base", "gravity", 
             "markers", "payload", "tolerances", "calibration", "backlash")
 # tolerances: family -> the quantities a file may bound, and the unit each is given in
 TOLERANCE_KEYS = {"frames": ("length", "angle"), "markers": ("length", "angle"), "base": ("length", "angle"),
-                  "compliance": ("deflection",), "backlash": ("length", "angle")}
+                  "compliance": ("deflection",), "backlash": ("length", "angle"), "transmission": ("ratio", "angle")}
 IDENTITY = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
 # base.* names the base pose parameters, so no frame or marker may be called "base"
 RESERVED_NAMES = ("base",)
@@ -393,7 +400,7 @@ def _tolerances(rd: _Reader, value, L: float, A: float) -> tuple:
                 v = rd.number(v, f"{where}.{key}")
                 if v <= 0:
                     raise rd.error(f"{where}.{key}", f"a tolerance must be positive (or null for none), got {v}")
-                v *= L if key == "length" else A
+                v *= L if key == "length" else 1.0 if key == "ratio" else A
             out.append((family, "compliance" if key == "deflection" else key, v))
     return tuple(out)
 
@@ -402,7 +409,8 @@ def _tolerances_dict(model: RobotModel, L: float, A: float) -> dict:
     out: dict = {}
     for family, quantity, v in model.tolerances:
         key = "deflection" if quantity == "compliance" else quantity
-        out.setdefault(family, {})[key] = None if v is None else float(f"{v / (L if key == 'length' else A):.15g}")
+        unit = L if key == "length" else 1.0 if key == "ratio" else A
+        out.setdefault(family, {})[key] = None if v is None else float(f"{v / unit:.15g}")
     return out
 
 
@@ -543,7 +551,7 @@ def _frame_dict(model: RobotModel, i: int, scale: dict) -> dict:
     for k, u in FRAME_VALUES.items():
         if k in ("gamma", "b") and f.parent == i - 1 and getattr(f, k) == 0.0:
             continue  # tree offsets: only worth showing where they are used
-        if getattr(f, k) == BACKLASH_VALUES.get(k):
+        if getattr(f, k) == DEFAULT_VALUES.get(k):
             continue
         row[k] = _num(getattr(f, k), scale[u])
         if k == "r":

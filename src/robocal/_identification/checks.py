@@ -122,6 +122,9 @@ DEFAULT_TOLERANCES = {
     # half a lost motion: gear trains are specified in arc minutes, worn ones reach a few tenths of
     # a degree; ball screws in hundredths of a millimetre
     ("backlash", "angle"): np.deg2rad(0.5), ("backlash", "length"): 0.5e-3,
+    # a gear ratio off by a few percent (a wrong ratio entered), harmonics of eccentric gears in
+    # hundredths to tenths of a degree
+    ("transmission", "ratio"): 0.05, ("transmission", "angle"): np.deg2rad(0.5),
 }
 
 

@@ -59,7 +59,7 @@ NO_EFFECT = 1e-10
 # the deflection their uncertainty gives at the RMS moment of the poses.
 # a joint counts as resting on a side of its lost motion where |side| exceeds this
 ONE_SIDE = 0.5
-WEAK_STD = {"length": 1e-3, "angle": np.deg2rad(0.1), "compliance": np.deg2rad(0.1)}
+WEAK_STD = {"length": 1e-3, "angle": np.deg2rad(0.1), "compliance": np.deg2rad(0.1), "ratio": 1e-3}
 
 
 @dataclass(frozen=True)

@@ -18,6 +18,11 @@ gravity moment about that step's own axis of every mass distal to it, computed o
 chain at the current parameters. Geometric columns then gain ``sum_p K_p dM_p/dx * column_p``, with
 dM/dx from rigid-motion identities (see ``_add_corrections``).
 
+Transmission errors (docs/conventions.md): the arm reaches each frame variable at
+``q_eff = q + B(q) t``, B the basis of a frame's terms (q, the harmonics of q and of its motor's angle)
+and t their values. The pass runs at q_eff; a term's column is its joint's whole column (compliance
+and backlash included, as theta or r enter the chain exactly as q_eff does) times the basis at q.
+
 A pass keeps its vectors component-major, one (3, N) row each (``_Pass``): elementwise work runs
 over contiguous rows of poses, a frame's constant part is one (4 x 4) @ (4 x 3N) product with its
 parent's axes and origin, and the Jacobian reads the rows of just the steps asked for. The layouts
@@ -56,7 +61,7 @@ from .parameters import (
     parameter_layout,
     parameter_vector,
 )
-from .robot import RobotModel
+from .robot import TRANSMISSION_KINDS, RobotModel
 
 N_BASE = len(BASE_KINDS)
 # above this many poses, what needs no Jacobian is evaluated CHUNK_POSES poses at a time (and a
@@ -148,6 +153,8 @@ class Layout:
     backlash_params: np.ndarray  # (n_frames,) parameter index of each frame's backlash, -1 if fixed
     joint_steps: np.ndarray     # (n_frames,) step its joint variable moves (theta or r), -1 if fixed
     param_backlash: np.ndarray  # (n_params,) frame of a backlash parameter, else -1
+    transmission_params: np.ndarray  # (n_frames, n_terms) parameter index of each transmission term
+    param_transmission: np.ndarray  # (n_params,) frame of a transmission term, else -1
     n_rows: int                 # rows of a pass's vectors
     frame_row: np.ndarray       # (n_frames,) first row of each frame's block
     parent_row: np.ndarray      # (n_frames,) first row of its parent's block (BASE_ROW for the root)
@@ -268,8 +275,13 @@ def _make_layout(model: RobotModel) -> Layout:
     param_compliant = np.full(len(names), -1, dtype=int)
     param_compliant[np.array(cparams, dtype=int)] = np.arange(len(cparams))
     bparams, jsteps, param_backlash = _backlash_layout(model, params)
+    tparams = np.array(frame0, dtype=int)[:, None] + FRAME_KINDS.index(TRANSMISSION_KINDS[0]) + \
+        np.arange(len(TRANSMISSION_KINDS))
+    param_transmission = np.full(len(names), -1, dtype=int)
+    param_transmission[tparams] = np.arange(nf)[:, None]
     rows = _vector_rows(model)
     return Layout(
+        transmission_params=tparams.reshape(nf, len(TRANSMISSION_KINDS)), param_transmission=param_transmission,
         n_rows=rows[0], frame_row=rows[1], parent_row=rows[2], marker_row=rows[3], step_rows=rows[4],
         chain_params=np.array([k for k, pr in enumerate(params.parameters) if pr.role not in ("base", "marker")],
                               dtype=int),
@@ -646,7 +658,7 @@ def moved_state(st, p: np.ndarray, take=np.empty):
                moved_from=(src, dR, shift))
     if ps.has_markers:
         _marker_positions(ps)
-    return _State(ps=ps, compliance=False, ks=p[lay.compliant_params])
+    return _State(ps=ps, compliance=False, ks=p[lay.compliant_params], readings=st.readings)
 
 
 def moves_rigidly(lay: Layout, a: np.ndarray, b: np.ndarray) -> bool:
@@ -1100,6 +1112,7 @@ class _State:
     u: np.ndarray | None = None
     cache: dict = field(default_factory=dict)   # what the Jacobian derives from this state
     backlash: _Backlash | None = None
+    readings: np.ndarray | None = None          # (N, n_frames) the frame variables read, before transmission
 
 
 @dataclass(frozen=True)
@@ -1124,8 +1137,58 @@ def evaluate_state(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray
     ``compliance``, and joints resting in their lost motion when ``backlash`` (``approach``
     (N, n_frames) the direction of each frame variable's last move, see ``frame_approach``;
     None: from the row order of ``qf``). ``turns``: ``joint_turns(qf)`` when the caller holds them;
-    ``take``: where the passes' buffers come from (see ``kinematic_pass``).
-    Reference: docs/method.md sections 1 and 2, docs/conventions.md (backlash)."""
+    ``take``: where the passes' buffers come from (see ``kinematic_pass``). Where ``p`` holds
+    transmission terms the chain is evaluated at the variables the arm reaches (``transmitted``).
+    Reference: docs/method.md sections 1 and 2, docs/conventions.md (backlash, transmission)."""
+    t = p[lay.transmission_params]
+    if np.any(t):
+        if backlash and approach is None:       # the readings' order, not the reached variables', sets sides
+            approach = approach_sides(qf)
+        st = _evaluate_state(model, lay, p, transmitted(model, qf, t), compliance=compliance,
+                             orientations=orientations, payload_mass=payload_mass, backlash=backlash,
+                             approach=approach, turns=None, take=take)
+    else:
+        st = _evaluate_state(model, lay, p, qf, compliance=compliance, orientations=orientations,
+                             payload_mass=payload_mass, backlash=backlash, approach=approach, turns=turns, take=take)
+    st.readings = qf
+    return st
+
+
+def transmission_basis(model: RobotModel, qf: np.ndarray) -> np.ndarray:
+    """(N, n_frames, n_terms) each transmission term's function of the frame variables read ``qf``
+    (N, n_frames), in the order of ``TRANSMISSION_KINDS``: q, cos q, sin q, cos 2q, sin 2q, then the
+    same two harmonics of the motor angle n q (n the frame's reduction). Zero for a fixed frame.
+    Reference: docs/conventions.md (transmission)."""
+    moving = np.array([f.joint != "fixed" for f in model.frames])
+    angles = qf[..., None] * _rates(model)                                      # (N, nf, 4)
+    waves = np.stack([np.cos(angles), np.sin(angles)], axis=-1).reshape(angles.shape[:2] + (8,))
+    return np.concatenate([qf[..., None], waves], axis=-1) * moving[:, None]
+
+
+def transmitted(model: RobotModel, qf: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """(N, n_frames) the frame variables the arm reaches, q + B(q) t, at readings ``qf`` with the
+    transmission terms ``t`` (n_frames, n_terms). Reference: docs/conventions.md (transmission)."""
+    return qf + np.einsum("nft,ft->nf", transmission_basis(model, qf), t)
+
+
+def transmission_slope(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray) -> np.ndarray:
+    """(N, n_frames) d q_eff / d q: how fast each reached frame variable turns with its reading
+    (1 without transmission terms). Reference: docs/conventions.md (transmission)."""
+    t = p[lay.transmission_params]
+    w = _rates(model)                                                            # (nf, 4)
+    a = qf[..., None] * w                                                        # (N, nf, 4)
+    return 1.0 + t[:, 0] + np.sum(w * (t[:, 2::2] * np.cos(a) - t[:, 1::2] * np.sin(a)), axis=-1)
+
+
+def _rates(model: RobotModel) -> np.ndarray:
+    """(n_frames, 4) the rates of the harmonics: 1, 2, n, 2n (n the frame's reduction ratio)."""
+    n = np.array([f.reduction for f in model.frames])
+    return np.stack([np.ones_like(n), 2.0 * np.ones_like(n), n, 2.0 * n], axis=-1)
+
+
+def _evaluate_state(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray, *, compliance: bool,
+                    orientations: bool, payload_mass, backlash: bool, approach, turns, take) -> _State:
+    """``evaluate_state`` at the frame variables ``qf`` the arm reaches."""
     if backlash:
         return _backlash_state(model, lay, p, qf, compliance=compliance, orientations=orientations,
                                payload_mass=payload_mass, approach=approach, turns=turns, take=take)
@@ -1209,6 +1272,38 @@ def jacobian_columns(model: RobotModel, lay: Layout, st: _State, cols_idx: np.nd
                       rows: int = 6) -> np.ndarray:
     """(len(cols_idx), N, rows) Jacobian columns of marker m for the parameters ``cols_idx``.
     Reference: docs/method.md section 3 (J dxi, compliance columns by the chain rule)."""
+    frame_of = lay.param_transmission[cols_idx]
+    terms = frame_of >= 0
+    if not terms.any():
+        return _parameter_columns(model, lay, st, cols_idx, m, rows)
+    out = np.zeros((len(cols_idx), cast(np.ndarray, st.ps.P).shape[1], rows))
+    if not terms.all():
+        out[~terms] = _parameter_columns(model, lay, st, cols_idx[~terms], m, rows)
+    _transmission_columns(model, lay, st, cols_idx[terms], frame_of[terms], m, out, np.nonzero(terms)[0])
+    return out
+
+
+def _transmission_columns(model, lay, st, cols, frames, m, out, where) -> None:
+    """Transmission terms' columns into ``out[where]``: q_eff = q + B(q) t, so a term's column is
+    its joint's whole column (theta or r: they enter the chain as q_eff does) times its basis
+    function at the readings. Reference: docs/conventions.md (transmission), docs/method.md section 3."""
+    steps = lay.joint_steps[frames]
+    moving = steps >= 0
+    if not moving.any():
+        return
+    joints, slot = np.unique(lay.step_param[steps[moving]], return_inverse=True)
+    joint_cols = _parameter_columns(model, lay, st, joints, m, out.shape[2])
+    if "transmission_basis" not in st.cache:
+        st.cache["transmission_basis"] = transmission_basis(model, cast(np.ndarray, st.readings))
+    basis = st.cache["transmission_basis"]
+    term = cols - lay.transmission_params[frames, 0]
+    for k, c in enumerate(np.nonzero(moving)[0]):
+        out[where[c]] = joint_cols[slot[k]] * basis[:, frames[c], term[c], None]
+
+
+def _parameter_columns(model: RobotModel, lay: Layout, st: _State, cols_idx: np.ndarray, m: int,
+                       rows: int = 6) -> np.ndarray:
+    """``jacobian_columns`` of every parameter but the transmission terms."""
     if st.backlash is not None:
         return _backlash_columns(model, lay, st, cols_idx, m, rows)
     step_of = lay.param_step[cols_idx]

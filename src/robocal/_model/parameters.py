@@ -13,7 +13,9 @@ The preference order of ``candidate_parameters`` decides which of a dependent gr
 (earlier wins). It follows the paper and the habit of tracker users: the base first (so it absorbs
 what frame 1 cannot show), then the markers, then frames from the base outwards (beta, alpha, d,
 theta, r within a frame, so r of the second of two parallel axes is the one eliminated), then
-compliances, then backlash (so a joint offset absorbs a backlash whose side never changes).
+compliances, then backlash (so a joint offset absorbs a backlash whose side never changes), then
+transmission errors (so the offset carries a constant, and the geometry what a harmonic cannot be told
+from).
 """
 
 from __future__ import annotations
@@ -37,14 +39,14 @@ from .._base.arguments import (
 from .._base.arrays import read_only
 from .._base.errors import InputError, excerpt
 from .._base.spatial import matrix_tuple, rotation_vector, small_rotation, vector3
-from .robot import RobotModel
+from .robot import TRANSMISSION_KINDS, RobotModel
 
 BASE_KINDS = ("x", "y", "z", "rx", "ry", "rz")
 GEOMETRIC_KINDS = ("gamma", "b", "beta", "alpha", "d", "theta", "r")
 COMPLIANCE_KINDS = ("k_theta", "k_alpha", "k_beta")
 # half the lost motion of a revolute (theta) or prismatic (r) joint: the one matching the joint is used
 BACKLASH_KINDS = ("backlash_theta", "backlash_r")
-FRAME_KINDS = GEOMETRIC_KINDS + COMPLIANCE_KINDS + BACKLASH_KINDS
+FRAME_KINDS = GEOMETRIC_KINDS + COMPLIANCE_KINDS + BACKLASH_KINDS + TRANSMISSION_KINDS
 MARKER_KINDS = ("x", "y", "z", "rx", "ry", "rz")
 
 # the one table of kinds: the quantity each one measures, and the SI unit of each quantity
@@ -53,11 +55,12 @@ KIND_QUANTITY = types.MappingProxyType({
     "gamma": "angle", "b": "length", "beta": "angle", "alpha": "angle", "d": "length", "theta": "angle",
     "r": "length", "k_theta": "compliance", "k_alpha": "compliance", "k_beta": "compliance",
     "backlash_theta": "angle", "backlash_r": "length",
+    **{k: "ratio" if k == "gear_scale" else "angle" for k in TRANSMISSION_KINDS},
 })
-SI_UNITS = types.MappingProxyType({"length": "m", "angle": "rad", "compliance": "rad/(N m)"})
+SI_UNITS = types.MappingProxyType({"length": "m", "angle": "rad", "compliance": "rad/(N m)", "ratio": "1"})
 
 # families a user names; "geometric" is base + markers + frames
-FAMILIES = ("geometric", "compliance", "backlash", "base", "markers", "frames")
+FAMILIES = ("geometric", "compliance", "backlash", "transmission", "base", "markers", "frames")
 # a parameter item holding one of these is a pattern (fnmatch): "*.theta", "j2.*", "*.k_theta"
 PATTERN_CHARS = "*?["
 
@@ -78,20 +81,23 @@ class Parameter:
 
     @property
     def quantity(self) -> str:
-        """"length", "angle" or "compliance"."""
+        """"length", "angle", "compliance" or "ratio"."""
         return KIND_QUANTITY[self.kind]
 
     @property
     def unit(self) -> str:
-        """The SI unit: m, rad or rad/(N m)."""
+        """The SI unit: m, rad, rad/(N m) or 1."""
         return SI_UNITS[self.quantity]
 
     @property
     def family(self) -> str:
-        """"base", "markers", "frames" (geometric kinds of a frame), "compliance" or "backlash"."""
+        """"base", "markers", "frames" (geometric kinds of a frame), "compliance", "backlash" or
+        "transmission"."""
         if self.role == "frame":
             if self.kind in BACKLASH_KINDS:
                 return "backlash"
+            if self.kind in TRANSMISSION_KINDS:
+                return "transmission"
             return "compliance" if self.kind in COMPLIANCE_KINDS else "frames"
         return "base" if self.role == "base" else "markers"
 
@@ -288,7 +294,7 @@ def families(model: RobotModel, *, orientation: bool = False) -> dict[str, list[
     # a fixed frame (a placement, often written as a matrix) has no joint to yield: no compliance
     compliance = [f"{f.name}.{k}" for f in model.frames if f.joint != "fixed" for k in COMPLIANCE_KINDS]
     return {"base": base, "markers": markers, "frames": frames, "geometric": base + markers + frames,
-            "compliance": compliance, "backlash": backlash_names(model)}
+            "compliance": compliance, "backlash": backlash_names(model), "transmission": transmission_names(model)}
 
 
 def backlash_names(model: RobotModel) -> list[str]:
@@ -297,14 +303,30 @@ def backlash_names(model: RobotModel) -> list[str]:
             if f.joint != "fixed"]
 
 
+def transmission_terms(model: RobotModel, i: int) -> tuple[str, ...]:
+    """The transmission kinds frame ``i`` can carry: a moving joint's gear scale; a revolute joint's
+    harmonics of its angle, and of its motor's where the frame states a reduction ratio."""
+    f = model.frames[i]
+    if f.joint == "fixed":
+        return ()
+    if f.joint == "prismatic":
+        return ("gear_scale",)
+    return tuple(k for k in TRANSMISSION_KINDS if f.reduction or not k.startswith("motor_"))
+
+
+def transmission_names(model: RobotModel) -> list[str]:
+    """The transmission parameters of every moving frame (``transmission_terms``), frame by frame."""
+    return [f"{f.name}.{k}" for i, f in enumerate(model.frames) for k in transmission_terms(model, i)]
+
+
 @accepts(model=is_a(RobotModel), parameters=NAMES, orientation=FLAG, known=NAMES)
 def candidate_parameters(model: RobotModel, parameters: Iterable[str] = ("geometric",), *,
                          orientation: bool = False, known: Iterable[str] = ()) -> tuple[str, ...]:
     """Parameter names to consider, in preference order.
 
     ``parameters`` holds family names (``geometric`` = base + markers + frames, ``compliance``,
-    ``backlash``, ``base``, ``markers``, ``frames``), explicit parameter names such as ``j2.alpha`` and/or
-    patterns such as ``*.theta`` or ``j2.*`` (see ``matched_by_pattern``).
+    ``backlash``, ``transmission``, ``base``, ``markers``, ``frames``), explicit parameter names such
+    as ``j2.alpha`` and/or patterns such as ``*.theta`` or ``j2.*`` (see ``matched_by_pattern``).
     ``orientation``: the data hold orientations, so marker rotations are candidates too.
     ``known``: families or names to hold fixed at their model values (e.g. ``("base",)``).
 
@@ -360,7 +382,7 @@ def _candidates(model: RobotModel, parameters: tuple, orientation: bool, known: 
             and not model.has_masses:
         raise InputError("gravity-sided backlash needs link masses (or a payload); the model has none: give "
                          "masses or choose the approach-sided model", where="parameters")
-    order = fam["geometric"] + fam["compliance"] + fam["backlash"]
+    order = fam["geometric"] + fam["compliance"] + fam["backlash"] + fam["transmission"]
     extra = [n for n in chosen if n not in order]  # explicit names outside the default families
     out = tuple(n for n in order + sorted(extra) if n in chosen and n not in fixed)
     if not out:
@@ -423,6 +445,12 @@ def has_compliance_parameters(model: RobotModel, names: Iterable[str]) -> bool:
     """Whether any of ``names`` is a compliance of ``model``."""
     lay = parameter_layout(model)
     return any(lay[n].family == "compliance" for n in names)
+
+
+def has_transmission_parameters(model: RobotModel, names: Iterable[str]) -> bool:
+    """Whether any of ``names`` is a transmission term of ``model``."""
+    lay = parameter_layout(model)
+    return any(lay[n].family == "transmission" for n in names)
 
 
 def has_backlash_parameters(model: RobotModel, names: Iterable[str]) -> bool:

@@ -17,6 +17,9 @@ Conventions (see docs/conventions.md):
 * Backlash (docs/conventions.md): a joint's arm rests ``backlash_theta`` (revolute) or ``backlash_r``
   (prismatic), half its lost motion, to one side of its reading: q_eff = q + b s, with the side s
   set per pose by the model's ``backlash_side`` (the gravity load or the approach direction).
+* Transmission (docs/conventions.md): the joint variable the arm reaches is
+  q_eff = q (1 + gear_scale) + a_k cos(k q) + b_k sin(k q) + the same in the motor angle n q, with
+  n the frame's stated ``reduction`` ratio (0: not stated, no motor terms).
 * The base pose ``X_WB`` and a marker's orientation carry small rotation corrections rx, ry, rz that
   are zero in any stored model: identification composes them into the stored rotation.
 """
@@ -51,6 +54,9 @@ from .._base.spatial import rot4, rot_matrix, trans4, vector3
 
 JOINT_TYPES = ("revolute", "prismatic", "fixed")
 DEFAULT_PARALLEL_TOL = np.deg2rad(1.0)
+# the transmission terms of a frame, in the order of the parameter layout (docs/conventions.md)
+TRANSMISSION_KINDS = ("gear_scale", "gear_cos1", "gear_sin1", "gear_cos2", "gear_sin2",
+                      "motor_cos1", "motor_sin1", "motor_cos2", "motor_sin2")
 
 
 @dataclass(frozen=True)
@@ -65,6 +71,10 @@ class Frame:
     the prismatic joint variable. ``backlash_friction`` and ``backlash_width`` (N m on a revolute
     frame, N on a prismatic one) shape the gravity-sided side ``tanh((L - a F) / w)``: F the load the
     transmission's friction holds (0: gravity alone decides), w the width of the smooth transition.
+    Transmission errors (docs/conventions.md): ``gear_scale`` the gear ratio's relative error, and
+    harmonics of the joint angle (``gear_cos1`` ... ``gear_sin2``, rad) and, where the frame states its
+    ``reduction`` ratio (motor turns per joint turn; 0: not stated), of the motor angle
+    (``motor_cos1`` ... ``motor_sin2``, rad). Harmonics belong to revolute joints only.
     """
 
     name: str
@@ -88,6 +98,16 @@ class Frame:
     backlash_r: float = 0.0
     backlash_friction: float = 0.0
     backlash_width: float = 1.0
+    gear_scale: float = 0.0
+    gear_cos1: float = 0.0
+    gear_sin1: float = 0.0
+    gear_cos2: float = 0.0
+    gear_sin2: float = 0.0
+    motor_cos1: float = 0.0
+    motor_sin1: float = 0.0
+    motor_cos2: float = 0.0
+    motor_sin2: float = 0.0
+    reduction: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -220,6 +240,10 @@ class RobotModel:
     def has_backlash(self) -> bool:
         return any(f.backlash_theta or f.backlash_r for f in self.frames)
 
+    @property
+    def has_transmission(self) -> bool:
+        return any(getattr(f, k) for f in self.frames for k in TRANSMISSION_KINDS)
+
     def replace(self, **changes) -> RobotModel:
         return replace(self, **changes)
 
@@ -340,6 +364,22 @@ def _check_frame(f: Frame, i: int, n_joints: int) -> None:
             raise InputError(f"{k} is not a finite number", where=where)
     if not (f.backlash_width > 0 and f.backlash_friction >= 0):
         raise InputError("backlash_width must be positive and backlash_friction non-negative", where=where)
+    _check_transmission(f, where)
+
+
+def _check_transmission(f: Frame, where: str) -> None:
+    """A frame's transmission terms: harmonics on a revolute joint, motor terms with a stated ratio."""
+    if f.reduction < 0:
+        raise InputError(f"reduction (motor turns per joint turn) must be positive, or 0 for not stated, "
+                         f"got {f.reduction}", where=where)
+    held = [k for k in TRANSMISSION_KINDS if getattr(f, k)]
+    if f.joint == "fixed" and (held or f.reduction):
+        raise InputError("a fixed frame has no transmission", where=where)
+    if f.joint == "prismatic" and any(k != "gear_scale" for k in held):
+        raise InputError("harmonics of the joint angle belong to revolute joints; a prismatic joint carries "
+                         "gear_scale only", where=where)
+    if not f.reduction and any(k.startswith("motor_") for k in held):
+        raise InputError("motor harmonics need the joint's reduction ratio (reduction)", where=where)
 
 
 def _check_payloads(model: RobotModel) -> None:

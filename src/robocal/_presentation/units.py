@@ -1,7 +1,7 @@
 """How values are shown to people: the one table of display units, and formatting.
 
 Results hold SI; every summary, table and plot converts here: lengths in mm, angles in degrees,
-compliances in deg/(kN m).
+compliances in deg/(kN m), ratios (a gear's scale error) in %.
 """
 
 from __future__ import annotations
@@ -23,8 +23,9 @@ DISPLAY_UNITS = {
     "m": ("mm", 1e3, 4),
     "rad": ("deg", 180.0 / math.pi, 5),
     "rad/(N m)": ("deg/(kN m)", 180.0 / math.pi * 1e3, 4),
+    "1": ("%", 100.0, 5),
 }
-# "lengths in mm, angles in deg, compliances in deg/(kN m)"
+# "lengths in mm, angles in deg, compliances in deg/(kN m), ratios in %"
 UNITS_SENTENCE = ", ".join(f"{q}s in {DISPLAY_UNITS[u][0]}" for q, u in SI_UNITS.items())
 MM = DISPLAY_UNITS["m"][1]
 DEG = DISPLAY_UNITS["rad"][1]
