@@ -121,9 +121,12 @@ def test_calibrate_compare(tmp_path, cli):
                          "--holdout", "0.3")
     assert code == 0, err
     assert "geometric+compliance" in out and "compliance helped" in out
-    assert sorted(p.name for p in (d / "cmp").iterdir()) == ["calibrated.yaml", "result-compliance.json",
-                                                             "result-compliance.npz", "result-geometric.json",
-                                                             "result-geometric.npz", "result.json", "result.npz"]
+    # transmission terms tried on the better, and (the robot has none) not kept
+    assert "+transmission" in out and "transmission (gear scale and first harmonic) did not help" in out
+    assert "calibrated model chosen: geometric+compliance" in out
+    assert sorted(p.name for p in (d / "cmp").iterdir()) == [
+        "calibrated.yaml", "result-compliance.json", "result-compliance.npz", "result-geometric.json",
+        "result-geometric.npz", "result-transmission.json", "result-transmission.npz", "result.json", "result.npz"]
 
 
 def test_force_overwrites(campaign, cli):

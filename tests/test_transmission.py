@@ -66,3 +66,89 @@ def test_columns_at_zero_terms_are_the_joint_columns_times_the_basis():
     J = evaluate(m, q, jacobian=True, columns=lay.indices(["j2.theta", "j2.gear_cos2", "j2.gear_scale"])).jacobian
     np.testing.assert_allclose(J[..., 1], J[..., 0] * np.cos(2 * q[:, 1])[:, None, None], atol=1e-15)
     np.testing.assert_allclose(J[..., 2], J[..., 0] * q[:, 1][:, None, None], atol=1e-15)
+
+
+def test_joint_targets_compensated_on_a_model_with_transmission_reach_their_targets():
+    """The compensated commands invert the transmission error: within 1e-6 mm of the target."""
+    rng = np.random.default_rng(4)
+    nominal = arm6r()
+    calibrated = _with_transmission(nominal, rng, reduction=50.0, scale=2e-2)
+    targets = rc.random_configurations(nominal, 30, rng=5)
+    comp = rc.compensate(calibrated, targets, nominal=nominal, orientation=False)
+    reached = rc.forward_kinematics(calibrated, comp.q).positions[:, 0]
+    wanted = rc.forward_kinematics(nominal, targets).positions[:, 0]
+    assert np.abs(reached - wanted).max() < 1e-9
+    assert comp.residual.max() < 1e-9
+    # the commands differ from the targets by about the transmission error, not by nothing
+    assert np.abs(comp.q - targets).max() > 1e-3
+
+
+NOISE = 2e-5
+
+
+def _campaign(true, nominal, n=200, seed=2):
+    fit = rc.sim.measure(true, rc.random_configurations(nominal, n, rng=seed), noise=NOISE, rng=seed + 10)
+    held = rc.sim.measure(true, rc.random_configurations(nominal, 100, rng=seed + 1), noise=NOISE, rng=seed + 11)
+    return fit, held
+
+
+def _true_arm(errors):
+    """arm6r with geometric errors and the transmission ``errors`` {frame index: {kind: value}}."""
+    nominal = arm6r()
+    true = rc.sim.perturb_model(nominal, rc.identifiability(nominal, None).identified, rng=1)
+    frames = list(true.frames)
+    for i, kinds in errors.items():
+        frames[int(i)] = replace(frames[int(i)], **kinds)
+    return nominal, true.replace(frames=tuple(frames))
+
+
+# first harmonics of 0.02 to 0.03 deg on joints 2 and 3
+HARMONICS = {1: dict(gear_cos1=0.025 * DEG, gear_sin1=-0.02 * DEG),
+             2: dict(gear_cos1=-0.03 * DEG, gear_sin1=0.022 * DEG)}
+
+
+@pytest.mark.parametrize("errors", [HARMONICS, {2: dict(gear_scale=0.02)}], ids=["harmonics", "ratio 1.02"])
+def test_transmission_errors_are_recovered_and_the_error_in_use_falls_to_the_noise(errors):
+    nominal, true = _true_arm(errors)
+    fit, held = _campaign(true, nominal)
+    geo = rc.calibrate(nominal, fit, validation=held)
+    tr = rc.calibrate(nominal, fit, validation=held, parameters=("geometric", "transmission"))
+    # held-out errors as measured (the instrument's noise in them): the mean norm of a 3D Gaussian
+    # error of NOISE per axis is 1.6 NOISE
+    after, before = np.mean(tr.validation.errors_after), np.mean(geo.validation.errors_after)
+    assert after < 1.6 * NOISE * 1.15 and after < 0.3 * before, (after, before)
+    for e in tr.parameters:
+        if e.family == "transmission":
+            frame, kind = e.name.split(".")
+            truth = getattr(true.frames[true.frame_names.index(frame)], kind)
+            assert abs(e.estimate - truth) < 3 * e.std, (e.name, e.estimate, truth, e.std)
+
+
+@pytest.mark.parametrize("errors", [HARMONICS, {2: dict(gear_scale=0.02)}, {}], ids=["harmonics", "ratio", "none"])
+def test_compare_chooses_transmission_terms_when_the_robot_has_them_and_only_then(errors):
+    nominal, true = _true_arm(errors)
+    fit, _ = _campaign(true, nominal)
+    cmp = rc.compare(nominal, fit)
+    assert cmp.transmission_test.helped == bool(errors), cmp.verdict
+    assert (cmp.best is cmp.transmission) == bool(errors)
+    # a model without link masses: compliance is skipped and said, the rest compared
+    assert cmp.combined is None and cmp.compliance_test is None
+    assert "compliance not compared: the model has no link masses" in cmp.verdict
+
+
+def test_compare_on_the_command_line_without_masses_compares_what_it_can(tmp_path, cli):
+    """A gear ratio 1.02 on joint 3 of a model without link masses: --compare fits, says compliance was
+    not compared and why, keeps the transmission terms and writes the ratio into calibrated.yaml."""
+    nominal, true = _true_arm({2: dict(gear_scale=0.02)})
+    fit, _ = _campaign(true, nominal, n=80)
+    rc.write_model(nominal, tmp_path / "model.yaml")
+    rc.write_measurements(fit, tmp_path / "data.csv", model=nominal)
+    code, out, err = cli("calibrate", tmp_path / "model.yaml", tmp_path / "data.csv", "--out", tmp_path / "run",
+                         "--compare")
+    assert code == 0, err
+    assert "compliance not compared: the model has no link masses" in out
+    assert "calibrated model chosen: +transmission" in out
+    assert sorted(p.name for p in (tmp_path / "run").glob("*.json")) == [
+        "result-geometric.json", "result-transmission.json", "result.json"]
+    written = rc.read_model(tmp_path / "run" / "calibrated.yaml")
+    assert abs(written.frames[2].gear_scale - 0.02) < 1e-3

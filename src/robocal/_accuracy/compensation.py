@@ -26,7 +26,7 @@ from .._base.arguments import (
 )
 from .._base.errors import InputError
 from .._base.threads import one_blas_thread
-from .._model.kinematics import evaluate
+from .._model.kinematics import evaluate, layout, transmission_slope
 from .._model.parameters import parameter_layout, parameter_vector
 from .._model.robot import RobotModel
 
@@ -50,7 +50,10 @@ def joint_jacobian(model: RobotModel, q) -> np.ndarray:
     cols = [lay[f"{f.name}.{'r' if f.joint == 'prismatic' else 'theta'}"].index for f in model.frames]
     ev = evaluate(model, q, jacobian=True, columns=cols)
     moving = np.array([f.joint != "fixed" for f in model.frames])
-    Jf = np.where(moving, ev.jacobian, 0.0)                     # per frame variable
+    # per frame variable; a transmission error turns the arm's variable d q_eff / d q per reading's turn
+    qf = np.atleast_2d(q) @ model.coupling_matrix.T
+    slope = transmission_slope(model, layout(model), parameter_vector(model), qf)
+    Jf = np.where(moving, ev.jacobian, 0.0) * slope[:, None, None, :]
     return Jf @ model.coupling_matrix
 
 

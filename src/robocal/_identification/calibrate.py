@@ -28,6 +28,7 @@ from .._base.options import DEFAULT_INSTRUMENT, INITIAL_BASES, INSTRUMENT_NOISE,
 from .._base.threads import one_blas_thread
 from .._model.contacts import Contacts
 from .._model.measurements import Measurements, Noise
+from .._model.parameters import transmission_names
 from .._model.robot import RobotModel
 from .holdout import DEFAULT_FOLDS, FoldProblems, holdout_of
 from .identifiability import DEFAULT_TOL
@@ -274,12 +275,15 @@ def _nested_test(small: CalibrationResult, large: CalibrationResult, validation,
 
 @accepts(model=is_a(RobotModel), data=optional(both(is_a(Measurements), measured_on())),
          contacts=optional(is_a(Contacts)), validation=optional(is_a(Measurements, Contacts)), alpha=FRACTION,
-         backlash=FLAG)
+         backlash=FLAG, transmission=FLAG)
 @one_blas_thread
 def compare(model: RobotModel, data: Measurements | None = None, *, contacts: Contacts | None = None,
-            validation=None, alpha: float = 0.01, backlash: bool = False, **kwargs) -> Comparison:
+            validation=None, alpha: float = 0.01, backlash: bool = False, transmission: bool = True,
+            **kwargs) -> Comparison:
     """Run geometric and geometric-plus-compliance identifications on the same data (the paper's two),
-    and with ``backlash`` a third, geometric + compliance + backlash, tested against the second.
+    with ``backlash`` a third (geometric, compliance and backlash, tested against the second), and
+    with ``transmission`` the transmission terms added to the best of these, their harmonics chosen
+    by the error in use. A model without link masses skips what needs them and says so (``skipped``).
 
     Keyword arguments other than ``parameters`` go to every ``calibrate`` call.
 
@@ -299,6 +303,9 @@ def compare(model: RobotModel, data: Measurements | None = None, *, contacts: Co
         Significance level of the F tests, in (0, 1).
     backlash : bool
         Also calibrate with backlash and test it against geometric + compliance.
+    transmission : bool
+        Also calibrate with transmission terms (``TRANSMISSION_LEVELS``) on the best identification
+        so far, and test them against it.
     **kwargs
         Further arguments of ``calibrate`` (``parameters`` excepted), for every calibration.
 
@@ -319,11 +326,69 @@ def compare(model: RobotModel, data: Measurements | None = None, *, contacts: Co
     def fit(*families: str) -> CalibrationResult:
         return run(model, data, contacts, validation, _options({**options, "parameters": families}))
 
-    geo = fit("geometric")
-    both = fit("geometric", "compliance")
-    tested = _nested_test(geo, both, validation, alpha, "compliance")
-    if not backlash:
-        return Comparison(geometric=geo, combined=both, compliance_test=tested)
-    third = fit("geometric", "compliance", "backlash")
-    return Comparison(geometric=geo, combined=both, compliance_test=tested, backlash=third,
-                      backlash_test=_nested_test(both, third, validation, alpha, "backlash"))
+    found: dict = {"geometric": fit("geometric"), "skipped": []}
+    _compare_compliance(model, fit, found, validation, alpha)
+    if backlash:
+        _compare_backlash(model, fit, found, validation, alpha)
+    if transmission:
+        _compare_transmission(model, fit, found, validation, alpha)
+    return Comparison(skipped=tuple(found.pop("skipped")), **found)
+
+
+NO_MASSES = "the model has no link masses (--assume-masses assumes them from the geometry)"
+
+
+def _compare_compliance(model: RobotModel, fit, found: dict, validation, alpha: float) -> None:
+    """Geometric and compliance against geometric, when the model has masses."""
+    if not model.has_masses:
+        found["skipped"].append(f"compliance not compared: {NO_MASSES}")
+        return
+    found["combined"] = fit("geometric", "compliance")
+    found["compliance_test"] = _nested_test(found["geometric"], found["combined"], validation, alpha, "compliance")
+
+
+def _compare_backlash(model: RobotModel, fit, found: dict, validation, alpha: float) -> None:
+    """Backlash added to geometric and compliance (to geometric alone without masses, when the
+    approach-sided model needs none)."""
+    if not model.has_masses and model.backlash_side == "gravity":
+        found["skipped"].append(f"backlash not compared: its gravity-sided model needs masses and {NO_MASSES}")
+        return
+    small = found.get("combined", found["geometric"])
+    found["backlash"] = fit(*small.families, "backlash")
+    found["backlash_test"] = _nested_test(small, found["backlash"], validation, alpha, "backlash")
+
+
+# the transmission terms the comparison offers, each level adding to the one before: the gear's scale
+# and the first harmonic of the joint angle, the second harmonic, the motor's (where a ratio is stated)
+TRANSMISSION_LEVELS = (("gear scale and first harmonic", ("gear_scale", "gear_cos1", "gear_sin1")),
+                       ("second harmonic", ("gear_cos2", "gear_sin2")),
+                       ("motor harmonics", ("motor_cos1", "motor_sin1", "motor_cos2", "motor_sin2")))
+
+
+def _compare_transmission(model: RobotModel, fit, found: dict, validation, alpha: float) -> None:
+    """Transmission terms added to the best identification so far, level after level; the level
+    kept is the one with the smallest error in use among those that helped (else the first)."""
+    small = Comparison(skipped=(), **{k: v for k, v in found.items() if k != "skipped"}).best
+    names = transmission_names(model)
+    kinds: tuple = ()
+    tried: list[tuple[str, CalibrationResult, tuple, NestedTest]] = []
+    for label, level in TRANSMISSION_LEVELS:
+        kinds += level
+        terms = tuple(n for n in names if n.rsplit(".", 1)[1] in kinds)
+        if tried and terms == tried[-1][2]:
+            continue                    # nothing new at this level (no stated ratio)
+        large = fit(*small.families, *terms)
+        tried.append((label, large, terms, _nested_test(small, large, validation, alpha, f"transmission ({label})")))
+    if not tried:
+        found["skipped"].append("transmission not compared: no joint can carry a transmission term")
+        return
+    helped = [t for t in tried if t[3].helped]
+    _, large, _, test = min(helped, key=lambda t: _in_use_rms(t[1])) if helped else tried[0]
+    others = "".join(f"; up to the {lab}: RMS in use {_in_use_rms(r) * 1e3:.4f} mm" for lab, r, _, _ in tried
+                     if r is not large)
+    found["transmission"] = large
+    found["transmission_test"] = NestedTest(test.f_statistic, test.p_value, test.helped, test.summary + others)
+
+
+def _in_use_rms(r: CalibrationResult) -> float:
+    return np.inf if r.in_use is None else cast(float, r.in_use.position_after.rms)

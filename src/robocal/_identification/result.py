@@ -378,44 +378,74 @@ class NestedTest:
 @dataclass(frozen=True, eq=False)
 class Comparison:
     """Geometric-only against geometric-and-compliance identification on the same data, and, when
-    asked, against geometric, compliance and backlash together (the third).
+    asked, against geometric, compliance and backlash together (the third) and with transmission
+    terms added to the best of these. What the model cannot support (compliance without link
+    masses) is skipped and said.
 
     Attributes
     ----------
     geometric : CalibrationResult
         The geometric identification.
-    combined : CalibrationResult
-        The geometric and compliance identification.
-    compliance_test : NestedTest
-        ``combined`` against ``geometric``: did the compliances help?
+    combined : CalibrationResult or None
+        The geometric and compliance identification; None when skipped.
+    compliance_test : NestedTest or None
+        ``combined`` against ``geometric``: did the compliances help? None when skipped.
     backlash : CalibrationResult or None
-        The geometric, compliance and backlash identification; None unless asked.
+        Backlash added to the geometric and compliance identification; None unless asked.
     backlash_test : NestedTest or None
-        ``backlash`` against ``combined``; None unless asked.
+        ``backlash`` against the identification it adds to; None unless asked.
+    transmission : CalibrationResult or None
+        Transmission terms added to the best of the above, at the level of harmonics that did
+        best in use; None unless asked.
+    transmission_test : NestedTest or None
+        ``transmission`` against the identification it adds to; None unless asked.
+    skipped : tuple of str
+        The identifications not compared, and why.
     """
 
     geometric: CalibrationResult
-    combined: CalibrationResult
-    compliance_test: NestedTest
+    combined: CalibrationResult | None = None
+    compliance_test: NestedTest | None = None
     backlash: CalibrationResult | None = None
     backlash_test: NestedTest | None = None
+    transmission: CalibrationResult | None = None
+    transmission_test: NestedTest | None = None
+    skipped: tuple[str, ...] = ()
 
     @property
     def verdict(self) -> str:
-        """What the tests found, one line each."""
-        return "\n".join(t.summary for t in (self.compliance_test, self.backlash_test) if t is not None)
+        """What the tests found, one line each, then what was skipped."""
+        tests = (self.compliance_test, self.backlash_test, self.transmission_test)
+        return "\n".join([t.summary for t in tests if t is not None] + list(self.skipped))
 
     @property
     def best(self) -> CalibrationResult:
         """The identification chosen: the largest that helped in use."""
+        if self.transmission is not None and self.transmission_test is not None and self.transmission_test.helped:
+            return self.transmission
         if self.backlash is not None and self.backlash_test is not None and self.backlash_test.helped:
             return self.backlash
-        return self.combined if self.compliance_test.helped else self.geometric
+        if self.combined is not None and self.compliance_test is not None and self.compliance_test.helped:
+            return self.combined
+        return self.geometric
 
     @property
     def results(self) -> Mapping[str, CalibrationResult]:
         """The identifications side by side, by what they identify (a read-only mapping)."""
-        out = {"geometric": self.geometric, "geometric and compliance": self.combined}
-        if self.backlash is not None:
-            out["geometric, compliance and backlash"] = self.backlash
+        out = {"geometric": self.geometric}
+        for r in (self.combined, self.backlash, self.transmission):
+            if r is not None:
+                out[compared_name(r.families)] = r
         return MappingProxyType(out)
+
+
+def compared_name(families) -> str:
+    """An identification of a comparison by the families it identifies: "geometric and compliance",
+    "geometric, compliance and backlash", "geometric and transmission" (terms named one by one
+    count as their family)."""
+    named = []
+    for f in families:
+        fam = "transmission" if "." in f else f
+        if fam not in named:
+            named.append(fam)
+    return named[0] if len(named) == 1 else f"{', '.join(named[:-1])} and {named[-1]}"

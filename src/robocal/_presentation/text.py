@@ -249,7 +249,7 @@ def comparison_summary(comparison, *, shown=(), weighted: bool = False) -> str:
         The text summary.
     """
     geo = comparison.geometric
-    cols = tuple((COMPARED[k], r) for k, r in comparison.results.items())
+    cols = tuple((compared_head(k), r) for k, r in comparison.results.items())
     on = (f"contacts ({', '.join(f'{n} {k}' for k, n in geo.contacts.rows.items())})" if geo.contacts
           else f"{geo.provenance['data']['n_poses']} poses")
     lines = [f"comparison on {on}", _compared("", [f"{name:>24}" for name, _ in cols]),
@@ -271,8 +271,12 @@ def comparison_summary(comparison, *, shown=(), weighted: bool = False) -> str:
 
 
 # the column heads of a comparison, by what each identification identifies
-COMPARED = {"geometric": "geometric", "geometric and compliance": "geometric+compliance",
-            "geometric, compliance and backlash": "+backlash"}
+COMPARED = {"geometric": "geometric", "geometric and compliance": "geometric+compliance"}
+
+
+def compared_head(name: str) -> str:
+    """A comparison's column head: the first two by name, a later one by the family it adds."""
+    return COMPARED.get(name, "+" + name.rsplit(" ", 1)[-1])
 
 
 def _compared(label: str, cells: list[str]) -> str:

@@ -38,7 +38,10 @@ def register(sub) -> None:
     v.add_argument("--holdout", type=common.fraction, metavar="FRACTION", help="hold out this fraction of the poses")
     common.parameter_options(p)
     p.add_argument("--compare", action="store_true",
-                   help="fit geometric and geometric+compliance on the same data and compare them")
+                   help="fit geometric and geometric+compliance on the same data, then transmission terms on the "
+                        "better, and keep what helps in use")
+    p.add_argument("--no-transmission", dest="transmission", action="store_false",
+                   help="with --compare: leave the transmission terms out")
     p.add_argument("--backlash", action="store_true",
                    help="with --compare: a third identification, geometric+compliance+backlash")
     p.add_argument("--backlash-side", choices=BACKLASH_SIDES, default=None,
@@ -183,7 +186,7 @@ def _diagnosis(args, model, data, contacts, best, noise):
 
 def _check_arguments(args) -> None:
     """The options that go together: a measurement file or contacts, one held-out set, --compare
-    without --parameters, --backlash with --compare."""
+    without --parameters, --backlash and --no-transmission with --compare."""
     if args.contacts:
         _one_held_out_set(args)
     elif args.csv is None:
@@ -195,13 +198,22 @@ def _check_arguments(args) -> None:
     if args.backlash and not args.compare:
         raise InputError("--backlash adds a third identification to --compare; for one identification name the "
                          "family: --parameters geometric compliance backlash", where="--backlash")
+    if not args.transmission and not args.compare:
+        raise InputError("--no-transmission leaves the transmission terms out of --compare; without --compare "
+                         "name the families: --parameters", where="--no-transmission")
 
 
 def _result_names(args) -> list[str]:
-    """The result files: with --compare each identification's, then the chosen one as result.json
-    (what report and compensate take)."""
-    names = ["result-geometric.json", "result-compliance.json"] + (["result-backlash.json"] if args.backlash else [])
+    """The result files that may be written: with --compare each identification's, then the
+    chosen one as result.json (what report and compensate take)."""
+    names = ["result-geometric.json", "result-compliance.json"] + (["result-backlash.json"] if args.backlash else []) \
+        + (["result-transmission.json"] if args.transmission else [])
     return names + ["result.json"] if args.compare else ["result.json"]
+
+
+def _result_file(name: str) -> str:
+    """The file of a comparison's identification, by the family it adds: result-compliance.json ..."""
+    return f"result-{name.rsplit(' ', 1)[-1]}.json"
 
 
 def _calibrate_options(args, validation, contacts) -> dict:
@@ -218,8 +230,9 @@ def _calibrate_options(args, validation, contacts) -> dict:
 
 
 def _identified(args, model, data, options: dict) -> tuple:
-    """The chosen result and every result to write (with --compare each identification's, then the
-    chosen one), their summary printed; a failure the data cause names the file."""
+    """The chosen result and every result to write by file name (with --compare each
+    identification's, then the chosen one), their summary printed; a failure the data cause names
+    the file."""
     import numpy as np
 
     from .._identification.calibrate import calibrate, compare
@@ -230,13 +243,14 @@ def _identified(args, model, data, options: dict) -> tuple:
     source = args.contacts if contacts is not None else args.csv
     try:
         if args.compare:
-            comparison = compare(model, data, backlash=args.backlash, **options)
+            comparison = compare(model, data, backlash=args.backlash, transmission=args.transmission, **options)
             best = comparison.best
             print(comparison_summary(comparison, shown=args.shown_warnings, weighted=weighted))
-            return best, [*comparison.results.values(), best]
+            named = {_result_file(k): r for k, r in comparison.results.items()}
+            return best, {**named, "result.json": best}
         best = calibrate(model, data, parameters=args.parameters or ("geometric",), **options)
         print(calibration_summary(best, shown=args.shown_warnings, weighted=weighted))
-        return best, [best]
+        return best, {"result.json": best}
     except DegenerateDataError as e:  # name the file: the data, not the program, fall short
         raise DegenerateDataError(f"{source}: {e}") from None
     except np.linalg.LinAlgError as e:  # what the numbers leave of the fit is singular: the data's to fix
@@ -275,10 +289,10 @@ def run(args) -> int:
                                           0 if validation is None else validation.n_poses)
     options = _calibrate_options(args, validation, contacts)
     best, results = _identified(args, model, data, options)
-    for r in results:
+    for r in results.values():
         common.require_finite("the calibration", _headline(r))
     diagnosis = _diagnosis(args, model, data, contacts, best, options["noise"])
-    files = _output_files(args, out, dict(zip(names, results)), best, diagnosis, report)
+    files = _output_files(args, out, results, best, diagnosis, report)
     common.write_outputs(files, force=args.force)
     print(f"wrote {', '.join(str(p) for p in files)}")
     if args.record:

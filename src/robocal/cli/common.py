@@ -247,7 +247,8 @@ def write_imported_model(args, model, what: str, source: str | None = None) -> N
 
 def parameter_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--parameters", type=names,
-                   help="comma-separated families (geometric, compliance, base, markers, frames), names "
+                   help="comma-separated families (geometric, compliance, backlash, transmission, base, markers, "
+                        "frames), names "
                         "like j2.alpha or patterns like '*.theta' and 'j2.*' (default geometric)")
     p.add_argument("--known", type=names, default=(), help="families, names or patterns held at the model's "
                                                            "values, e.g. base,markers")
