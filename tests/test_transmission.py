@@ -152,3 +152,34 @@ def test_compare_on_the_command_line_without_masses_compares_what_it_can(tmp_pat
         "result-geometric.json", "result-transmission.json", "result.json"]
     written = rc.read_model(tmp_path / "run" / "calibrated.yaml")
     assert abs(written.frames[2].gear_scale - 0.02) < 1e-3
+
+
+def test_simulate_adds_transmission_errors_and_export_says_it_cannot_carry_them(tmp_path, cli):
+    rc.write_model(arm6r(), tmp_path / "model.yaml")
+    code, out, err = cli("simulate", tmp_path / "model.yaml", "--out", tmp_path / "sim.csv", "--poses", "30",
+                         "--parameters", "geometric,transmission", "--true-model", tmp_path / "true.yaml")
+    assert code == 0, err
+    true = rc.read_model(tmp_path / "true.yaml")
+    assert true.has_transmission and 1e-4 <= abs(true.frames[1].gear_scale) <= 2e-3
+    code, out, err = cli("export", tmp_path / "true.yaml", "--format", "urdf", "--out", tmp_path / "true.urdf")
+    assert code == 0, err
+    assert err.count("transmission errors (gear scales, harmonics) are not exported") == 1
+    back = rc.read_urdf(tmp_path / "true.urdf", markers=[("tool", true.markers[0].position)])
+    assert not back.has_transmission and len(back.frames) >= 6
+
+
+def test_the_store_judges_a_drift_of_a_transmission_term():
+    """A gear whose first harmonic moved by 5 combined standard deviations between two calibrations
+    is named by the store's drift test, and unchanged histories name something as rarely as the test's level."""
+    from test_store import _drawn_history
+
+    nominal, true = _true_arm(HARMONICS)
+    fit, _ = _campaign(true, nominal, n=80)
+    result = rc.calibrate(nominal, fit, parameters=("geometric", "j2.gear_cos1", "j2.gear_sin1", "j3.gear_cos1",
+                                                     "j3.gear_sin1"))
+    rng = np.random.default_rng(1)
+    hits = sum("j3.gear_cos1" in [c.name for c in rc.judge_changes(
+        _drawn_history(result, rng, ("j3.gear_cos1", 5.0)))[0] if c.named] for _ in range(20))
+    quiet = sum(any(c.named for c in rc.judge_changes(_drawn_history(result, rng))[0]) for _ in range(100))
+    # a test at 5 % names something in at most 9 of 100 unchanged histories (the binomial's 95th percentile)
+    assert hits >= 18 and quiet <= 9, (hits, quiet)

@@ -8,13 +8,15 @@ from __future__ import annotations
 
 import tempfile
 import xml.etree.ElementTree as ET
+from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from .._base.errors import InputError
 from .._model.kinematics import evaluate
-from .._model.robot import RobotModel
+from .._model.robot import TRANSMISSION_KINDS, RobotModel
 
 # metres: how far a marker of a written model may be from the source model's
 FK_TOL = 1e-9
@@ -80,12 +82,21 @@ def marker_gap(model: RobotModel, back: RobotModel, pairs) -> float:
     float
     """
     q = sample_readings(model)
+    model = without_transmission(model)       # an export carries the geometry only
     with np.errstate(all="ignore"):
         a = evaluate(model, q, compliance=False, backlash=False).positions
         b = evaluate(back, q[:, [model.joint_names.index(n) for n in back.joint_names]], compliance=False,
                      backlash=False).positions
         gap = np.max(np.linalg.norm(a[:, [i for i, _ in pairs]] - b[:, [j for _, j in pairs]], axis=-1))
     return float(gap) if np.isfinite(gap) else float("inf")
+
+
+def without_transmission(model: RobotModel) -> RobotModel:
+    """``model`` with its transmission terms zero: the geometry an export carries."""
+    if not model.has_transmission:
+        return model
+    zero: dict[str, Any] = dict.fromkeys(TRANSMISSION_KINDS, 0.0)
+    return model.replace(frames=tuple(replace(f, **zero) for f in model.frames))
 
 
 def check_reproduces(model: RobotModel, back: RobotModel, what: str, *, source: str | None = None,

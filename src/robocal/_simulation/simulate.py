@@ -49,7 +49,8 @@ def perturb_model(model: RobotModel, names, *, length_error=(1e-4, 1e-3), angle_
     Each error's magnitude is uniform in the (lo, hi) range of its kind (m, rad, rad/(N m)) with a
     random sign. Compliance parameters need ``compliance_error`` (else they are left alone); a
     compliance stays non-negative (a robot is not stiffer than rigid): a negative draw is mirrored,
-    and so does a backlash (a lost motion is not negative), drawn in the length and angle ranges.
+    and so does a backlash (a lost motion is not negative), drawn in the length and angle ranges; a
+    transmission's gear scale (a ratio) is drawn in the angle range, as radians per radian.
 
     Parameters
     ----------
@@ -66,7 +67,8 @@ def perturb_model(model: RobotModel, names, *, length_error=(1e-4, 1e-3), angle_
     rng = np.random.default_rng(rng)
     lay = parameter_layout(model)
     p = parameter_vector(model)
-    ranges = {"length": length_error, "angle": angle_error, "compliance": compliance_error}
+    # a gear scale error as a ratio: the angle range's magnitudes over a radian (0.01 deg: 1.7e-4)
+    ranges = {"length": length_error, "angle": angle_error, "compliance": compliance_error, "ratio": angle_error}
     for n in names:
         bounds = ranges[lay[n].quantity]
         if bounds is None:

@@ -55,7 +55,7 @@ ENVIRONMENT = "ROBOCAL_STORE"
 # the share of unchanged robots (histories) or of fleets in which a change is named
 DEFAULT_ALPHA = 0.05
 # the parameters whose changes are judged: the base and the markers are placed anew for each campaign
-JUDGED_FAMILIES = ("frames", "compliance", "backlash")
+JUDGED_FAMILIES = ("frames", "compliance", "backlash", "transmission")
 # the share of a history's alpha spent on the overall chi-square test of each pair of calibrations
 # ("something changed"); the single-parameter tests get the rest (Bonferroni between the two)
 OVERALL_SHARE = 0.2

@@ -56,6 +56,9 @@ def run(args) -> int:
     if model.has_compliance:
         print(f"robocal: warning: {args.model}: compliance is not exported; {args.format} holds the geometry only",
               file=sys.stderr)
+    if model.has_transmission:
+        print(f"robocal: warning: {args.model}: transmission errors (gear scales, harmonics) are not exported; "
+              f"{args.format} cannot carry them and holds the geometry only", file=sys.stderr)
     common.write_outputs({args.out: text}, force=args.force)
     print(f"{model.name}: {args.format} of {model.n_joints} joints, markers {', '.join(model.marker_names)}: "
           f"wrote {args.out}")
