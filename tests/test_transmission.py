@@ -183,3 +183,16 @@ def test_the_store_judges_a_drift_of_a_transmission_term():
     quiet = sum(any(c.named for c in rc.judge_changes(_drawn_history(result, rng))[0]) for _ in range(100))
     # a test at 5 % names something in at most 9 of 100 unchanged histories (the binomial's 95th percentile)
     assert hits >= 18 and quiet <= 9, (hits, quiet)
+
+
+def test_the_report_draws_each_joints_transmission_curve_with_the_data_beside_it():
+    from robocal.report import render_report
+
+    nominal, true = _true_arm(HARMONICS)
+    fit, _ = _campaign(true, nominal, n=80)
+    terms = ("j2.gear_cos1", "j2.gear_sin1", "j3.gear_cos1", "j3.gear_sin1")
+    page = render_report(rc.calibrate(nominal, fit, parameters=("geometric",) + terms))
+    assert page.count('data-plot="transmission"') == 1 and 'id="transmission"' in page
+    svg = page.split('data-plot="transmission"', 1)[1].split("</svg>", 1)[0]
+    assert "j2 reading (deg)" in svg and "j3 reading (deg)" in svg and "j1 reading" not in svg
+    assert 'data-plot="transmission"' not in render_report(rc.calibrate(nominal, fit))

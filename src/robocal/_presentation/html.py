@@ -29,6 +29,7 @@ from .._files.result import DIAGNOSIS, diagnosis_to_dict, per_pose_arrays, resul
 from .._files.text import write_texts
 from .._identification.contact_figures import ContactErrors, ContactFigures
 from .._identification.result import CalibrationResult
+from .._model.kinematics import evaluate, layout, transmission_basis
 from .._model.parameters import FRAME_KINDS, GEOMETRIC_KINDS, SI_UNITS, parameter_layout, parameter_vector
 from .._model.robot import DEFAULT_LINK_DENSITY, RELATIVE_MASSES, mdh_transform
 from .plots import (
@@ -46,6 +47,7 @@ from .plots import (
     plot_histograms,
     plot_residual_trends,
     plot_residuals,
+    plot_transmission,
     residual_sample,
     residual_trends,
 )
@@ -799,6 +801,47 @@ def _notices(d: dict, has_val: bool) -> list[str]:
     return notices
 
 
+def _transmission_section(result: CalibrationResult) -> str:
+    """Each revolute joint's identified transmission error against its reading, the data beside it."""
+    curves = transmission_curves(result)
+    if not curves:
+        return "<p>The calibrated model's transmission terms are on joints no fitted point was measured at.</p>"
+    return _figure(plot_transmission(curves),
+                   "The angle each joint reaches minus its reading, as identified (the line: the gear's scale error "
+                   "and its harmonics), against the reading over the fitted poses; each dot is a fitted pose's "
+                   "residual turned into that joint's angle (along the joint's column) and added to the line, so the "
+                   "dots scatter about the line where the terms carry what the data show.")
+
+
+def transmission_curves(result: CalibrationResult) -> list[dict]:
+    """Per revolute frame with transmission terms: its curve over the fitted readings' range and the
+    fitted poses' residuals (first marker) as that joint's angle, all in degrees. Reference:
+    docs/conventions.md (transmission)."""
+    model, fit = result.calibrated_model, result.fit
+    if fit.readings is None or fit.residual_vectors is None or not len(fit.readings):
+        return []
+    lay = layout(model)
+    t = parameter_vector(model)[lay.transmission_params]
+    seen = np.all(np.isfinite(fit.residual_vectors[:, 0]), axis=1)
+    q, r = fit.readings[seen], fit.residual_vectors[seen, 0]
+    qf = q @ model.coupling_matrix.T
+    out = []
+    for i, f in enumerate(model.frames):
+        if f.joint != "revolute" or not np.any(t[i]) or not len(q):
+            continue
+        grid = np.zeros((200, model.n_frames))
+        grid[:, i] = np.linspace(qf[:, i].min(), qf[:, i].max(), 200)
+        J = evaluate(model, q, jacobian=True, columns=[lay.frame0[i] + FRAME_KINDS.index("theta")]).jacobian
+        J = J[:, 0, :3, 0]
+        # residual = predicted - measured = -J (reached - modelled): the angle the data say the joint missed
+        missed = -np.einsum("nk,nk->n", J, r) / np.maximum(np.einsum("nk,nk->n", J, J), 1e-30)
+        curve = transmission_basis(model, grid)[:, i] @ t[i]
+        at = transmission_basis(model, qf)[:, i] @ t[i]
+        out.append({"joint": f.name, "x": np.degrees(grid[:, i]), "y": np.degrees(curve),
+                    "points_x": np.degrees(qf[:, i]), "points_y": np.degrees(at + missed)})
+    return out
+
+
 def _report_sections(d: dict, result: CalibrationResult, has_val: bool, tables: list[dict]) -> list[tuple]:
     """(id, heading, HTML) of every section of the report, in page order."""
     nominal, units = _nominal_values(result)
@@ -812,6 +855,8 @@ def _report_sections(d: dict, result: CalibrationResult, has_val: bool, tables: 
                 ("correlation", "Correlation of the identified parameters", _correlation_section(d)),
                 ("residuals", "Residual vectors after calibration", _residuals_section(d)),
                 ("trends", "Residuals against reach, height and joint readings", _trends_section(d, result))]
+    if result.calibrated_model.has_transmission:
+        sections.append(("transmission", "Transmission errors", _transmission_section(result)))
     if tables:
         sections.append(("comparison", "Comparison", _extra_html(tables)))
     sections.append(("solver", "Solver and identifiability", _solver_table(d)))

@@ -621,3 +621,31 @@ def _trend_panel(t: dict, x0: float, y0: float, xspan: tuple, py) -> str:
         line = "L".join(f"{px(x):.1f} {py(v):.1f}" for x, v in zip(t["x"], t["median"]))
         parts.append(f'<path d="M{line}" fill="none" stroke="{AFTER}" stroke-width="1.4"/>')
     return "".join(parts)
+
+
+# -- transmission ------------------------------------------------------------------------------------
+
+CURVES_PER_ROW = 4
+
+
+def plot_transmission(curves: list[dict]) -> str:
+    """Each joint's identified transmission error against its reading (a line over the fitted
+    poses' range), with each fitted pose's residual turned into that joint's angle beside it
+    (``curves``: joint, x, y, points_x, points_y, in degrees) (SVG)."""
+    rows = -(-len(curves) // CURVES_PER_ROW)
+    cols = min(len(curves), CURVES_PER_ROW)
+
+    def draw(fig):
+        axes = np.atleast_2d(fig.subplots(rows, cols, squeeze=False)).ravel()
+        for ax, c in zip(axes, curves):
+            ax.plot(c["points_x"], c["points_y"], ".", color=BEFORE, ms=2.5, alpha=0.5, label="the data")
+            ax.plot(c["x"], c["y"], color=AFTER, lw=1.6, label="identified")
+            ax.set_title(c["joint"])
+            ax.set_xlabel(f"{c['joint']} reading (deg)")
+            ax.set_ylabel("error of the joint (deg)")
+        for ax in axes[len(curves):]:
+            ax.set_visible(False)
+        axes[0].legend(loc="best")
+        fig.subplots_adjust(wspace=0.45, hspace=0.6)
+    return _plot("transmission", "each joint's transmission error against its reading, with the data beside it",
+                 draw, figsize=(2.8 * cols + 0.6, 2.8 * rows))
