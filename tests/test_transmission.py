@@ -196,3 +196,13 @@ def test_the_report_draws_each_joints_transmission_curve_with_the_data_beside_it
     svg = page.split('data-plot="transmission"', 1)[1].split("</svg>", 1)[0]
     assert "j2 reading (deg)" in svg and "j3 reading (deg)" in svg and "j1 reading" not in svg
     assert 'data-plot="transmission"' not in render_report(rc.calibrate(nominal, fit))
+
+
+def test_plan_predicts_the_transmission_terms_a_campaign_will_identify(tmp_path, cli):
+    rc.write_model(arm6r(), tmp_path / "model.yaml")
+    code, out, err = cli("plan", tmp_path / "model.yaml", "--poses", "40", "--n-candidates", "500", "--parameters",
+                         "geometric,transmission", "--out", tmp_path / "poses.csv")
+    assert code == 0, err
+    stds = {line.split()[0]: line.split()[2:] for line in out.splitlines() if "gear_" in line and " std " in line}
+    assert stds["j3.gear_cos1"][1] == "deg" and stds["j3.gear_scale"][1] == "%"
+    assert 0.0 < float(stds["j3.gear_cos1"][0]) < 0.05
