@@ -39,7 +39,7 @@ from .._model.kinematics import (
     workspace,
 )
 from .._model.measurements import Measurements, Noise, approach_of
-from .._model.parameters import has_backlash_parameters, needs_compliance, parameter_names
+from .._model.parameters import has_backlash_parameters, needs_compliance, parameter_layout, parameter_names
 from .._model.robot import RobotModel
 
 # A problem keeps its last evaluations (the calibration asks for the start again after the solve,
@@ -145,8 +145,7 @@ class Points:
         return R
 
     def _indices(self, free) -> np.ndarray:
-        index = {n: i for i, n in enumerate(self.lay.names)}
-        return np.array([index[n] for n in free], dtype=int)
+        return parameter_layout(self.model).indices(free)
 
     def over(self, free: tuple[str, ...]) -> Points:
         """The same problem over other free parameters, keeping the evaluation already made."""

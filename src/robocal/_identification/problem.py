@@ -26,7 +26,7 @@ from .._base.linalg import r_factor, reduced
 from .._model.contacts import Contacts
 from .._model.kinematics import layout
 from .._model.measurements import Measurements, Noise
-from .._model.parameters import parameter_vector
+from .._model.parameters import parameter_layout, parameter_vector
 from .._model.robot import RobotModel
 from .contact_blocks import ContactRows
 from .points import Points
@@ -129,9 +129,8 @@ class Problem:
         return len(self.nuisance0)
 
     def _set_free(self, free: tuple[str, ...]) -> None:
-        index = {n: i for i, n in enumerate(self.lay.names)}
         self.free_names = free
-        self.robot_idx = np.array([index[n] for n in free], dtype=int)
+        self.robot_idx = parameter_layout(self.model).indices(free)
         self.free_idx = np.concatenate([self.robot_idx, self.n_robot + np.arange(self.n_nuisance)]).astype(int)
 
     def over(self, free: tuple[str, ...]) -> Problem:
