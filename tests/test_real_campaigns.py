@@ -5,6 +5,7 @@ these robots better, and the accuracy in use it predicts from the grid alone mus
 import warnings
 from pathlib import Path
 
+import numpy as np
 import pytest
 from real_campaigns import campaign, nominal
 
@@ -67,3 +68,31 @@ def test_a_sphere_in_socket_campaign_read_as_its_authors_publish_it():
         assert res.verdict != "fail", [c.summary for c in res.checks if c.status == "fail"]
         assert res.in_use.position_after.mean < 0.26e-3
         assert res.in_use.position_after.mean < res.in_use.position_before.mean / 5
+
+
+def _compared(robot):
+    """``compare`` with the authors' split: fitted on the grid, judged on the 20 random poses."""
+    model = rc.default_masses(nominal(robot))
+    grid, test = campaign(robot, "grid", model), campaign(robot, "random", model)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return rc.compare(model, grid, validation=test)
+
+
+def test_the_ur5_through_compare_keeps_transmission_terms_and_beats_compliance_alone():
+    """Geometric 0.100 mm and compliance 0.095 mm on the test poses; the gear scales and first
+    harmonics added to compliance, chosen in use, bring it below both."""
+    cmp = _compared("UR5")
+    assert cmp.best is cmp.transmission and cmp.transmission_test.helped, cmp.verdict
+    # the mean error on the test poses as measured, as the authors report it
+    assert _test_mean(cmp.best) <= 0.095e-3 and _test_mean(cmp.best) < _test_mean(cmp.combined)
+    assert {"compliance", "transmission"} <= {e.family for e in cmp.best.parameters}
+
+
+def _test_mean(result) -> float:
+    return float(np.mean(result.validation.errors_after))
+
+
+def test_the_wam_through_compare_keeps_nothing_that_places_it_worse_on_the_test_poses():
+    cmp = _compared("WAM")
+    assert all(_test_mean(cmp.best) <= _test_mean(r) for r in cmp.results.values()), cmp.verdict
