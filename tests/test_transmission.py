@@ -206,3 +206,13 @@ def test_plan_predicts_the_transmission_terms_a_campaign_will_identify(tmp_path,
     stds = {line.split()[0]: line.split()[2:] for line in out.splitlines() if "gear_" in line and " std " in line}
     assert stds["j3.gear_cos1"][1] == "deg" and stds["j3.gear_scale"][1] == "%"
     assert 0.0 < float(stds["j3.gear_cos1"][0]) < 0.05
+
+
+def test_terms_a_robot_does_not_have_are_found_zero_and_the_checks_say_so():
+    nominal, true = _true_arm({})
+    fit, _ = _campaign(true, nominal, n=120)
+    terms = ("j2.gear_cos1", "j2.gear_sin1", "j3.gear_cos1", "j3.gear_sin1")
+    result = rc.calibrate(nominal, fit, parameters=("geometric",) + terms)
+    assert all(abs(result.estimate(n).estimate) < 3 * result.estimate(n).std for n in terms)
+    support = next(c for c in result.checks if c.name == "estimates supported by the data")
+    assert support.summary.startswith("no transmission term differs from zero"), support.summary

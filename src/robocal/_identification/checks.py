@@ -568,6 +568,9 @@ _UNSEEN_FAMILIES = (
     ("backlash", lambda e: e.family == "backlash", "the data show no lost motion (too little, or sides not visited "
      "both ways)", "calibrate without the backlash family (--compare tells which is better), or approach the poses "
      "from both sides"),
+    ("transmission term", lambda e: e.family == "transmission", "the data show no gear error (none to find, or a "
+     "joint's range too short to tell its harmonics from its offset and scale)", "calibrate without the transmission "
+     "family (--compare tells which is better), or spread the poses over each joint's range"),
 )
 
 
@@ -575,7 +578,7 @@ def support_check(estimates) -> Check:
     """Estimates whose change is within ``SIGNIFICANCE_SIGMAS`` standard deviations of zero.
 
     They are named, not failed: a parameter already at its true value changes by noise. A
-    compliance (or backlash) family none of whose estimates the data support is said, with the
+    compliance (backlash, transmission) family none of whose estimates the data support is said, with the
     advice to leave it out: what it does to the robot in use is the accuracy in use's question.
     """
     name = "estimates supported by the data"
