@@ -80,19 +80,24 @@ def _compared(robot):
 
 
 def test_the_ur5_through_compare_keeps_transmission_terms_and_beats_compliance_alone():
-    """Geometric 0.100 mm and compliance 0.095 mm on the test poses; the gear scales and first
-    harmonics added to compliance, chosen in use, bring it below both."""
+    """Geometric 0.100 mm and compliance 0.095 mm on the test poses; transmission terms chosen in
+    use bring it below both (the gear scales and first harmonics: 0.085 mm)."""
     cmp = _compared("UR5")
     assert cmp.best is cmp.transmission and cmp.transmission_test.helped, cmp.verdict
     # the mean error on the test poses as measured, as the authors report it
     assert _test_mean(cmp.best) <= 0.095e-3 and _test_mean(cmp.best) < _test_mean(cmp.combined)
-    assert {"compliance", "transmission"} <= {e.family for e in cmp.best.parameters}
+    assert "transmission" in {e.family for e in cmp.best.parameters}
 
 
 def _test_mean(result) -> float:
     return float(np.mean(result.validation.errors_after))
 
 
-def test_the_wam_through_compare_keeps_nothing_that_places_it_worse_on_the_test_poses():
+def test_the_wam_through_compare_beats_the_published_hybrid_method():
+    """The cable-driven WAM: compliance alone places it worse (3.57 mm against 3.09 mm geometric),
+    but beside the gear scales it takes (the cables' capstan ratios) it reaches below the 2.92 mm
+    of the published geometric calibration plus neural network."""
     cmp = _compared("WAM")
-    assert all(_test_mean(cmp.best) <= _test_mean(r) for r in cmp.results.values()), cmp.verdict
+    assert cmp.best is cmp.transmission, cmp.verdict
+    assert _test_mean(cmp.best) < 2.92e-3 and _test_mean(cmp.best) < _test_mean(cmp.geometric)
+    assert {"compliance", "transmission"} <= {e.family for e in cmp.best.parameters}

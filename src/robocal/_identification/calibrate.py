@@ -48,7 +48,7 @@ from .judgement import (
     warn_checks,
 )
 from .registration import rigid_base
-from .result import CalibrationResult, Comparison, NestedTest
+from .result import CalibrationResult, Comparison, NestedTest, compared_name
 from .solve import covariance
 from .steps import Options, analyse, choose, observed_markers, prepare, registered_nominal
 
@@ -282,8 +282,8 @@ def compare(model: RobotModel, data: Measurements | None = None, *, contacts: Co
             **kwargs) -> Comparison:
     """Run geometric and geometric-plus-compliance identifications on the same data (the paper's two),
     with ``backlash`` a third (geometric, compliance and backlash, tested against the second), and
-    with ``transmission`` the transmission terms added to the best of these, their harmonics chosen
-    by the error in use. A model without link masses skips what needs them and says so (``skipped``).
+    with ``transmission`` the transmission terms added to each of these, the terms kept chosen by
+    the error in use. A model without link masses skips what needs them and says so (``skipped``).
 
     Keyword arguments other than ``parameters`` go to every ``calibrate`` call.
 
@@ -304,8 +304,8 @@ def compare(model: RobotModel, data: Measurements | None = None, *, contacts: Co
     backlash : bool
         Also calibrate with backlash and test it against geometric + compliance.
     transmission : bool
-        Also calibrate with transmission terms (``TRANSMISSION_LEVELS``) on the best identification
-        so far, and test them against it.
+        Also calibrate with transmission terms (``TRANSMISSION_LEVELS``) added to each
+        identification so far, test them against it, and keep the best in use of those that helped.
     **kwargs
         Further arguments of ``calibrate`` (``parameters`` excepted), for every calibration.
 
@@ -358,36 +358,51 @@ def _compare_backlash(model: RobotModel, fit, found: dict, validation, alpha: fl
     found["backlash_test"] = _nested_test(small, found["backlash"], validation, alpha, "backlash")
 
 
-# the transmission terms the comparison offers, each level adding to the one before: the gear's scale
-# and the first harmonic of the joint angle, the second harmonic, the motor's (where a ratio is stated)
-TRANSMISSION_LEVELS = (("gear scale and first harmonic", ("gear_scale", "gear_cos1", "gear_sin1")),
+# the transmission terms the comparison offers, each level adding to the one before: the gears'
+# scales (one term a joint), the first harmonic of the joint angle, the second, the motor's (where a
+# ratio is stated)
+TRANSMISSION_LEVELS = (("gear scale", ("gear_scale",)), ("first harmonic", ("gear_cos1", "gear_sin1")),
                        ("second harmonic", ("gear_cos2", "gear_sin2")),
                        ("motor harmonics", ("motor_cos1", "motor_sin1", "motor_cos2", "motor_sin2")))
 
 
 def _compare_transmission(model: RobotModel, fit, found: dict, validation, alpha: float) -> None:
-    """Transmission terms added to the best identification so far, level after level; the level
-    kept is the one with the smallest error in use among those that helped (else the first)."""
-    small = Comparison(skipped=(), **{k: v for k, v in found.items() if k != "skipped"}).best
+    """Transmission terms added, level after level, to each identification so far (a gear's error
+    may show only beside the compliance that takes the rest); kept: the one with the smallest error
+    in use among those that helped against what they add to and do better in use than the best so
+    far (else the one that did best in use, not kept)."""
+    bases = [r for r in (found["geometric"], found.get("combined"), found.get("backlash")) if r is not None]
+    best_rms = _in_use_rms(Comparison(skipped=(), **{k: v for k, v in found.items() if k != "skipped"}).best)
     names = transmission_names(model)
-    kinds: tuple = ()
-    tried: list[tuple[str, CalibrationResult, tuple, NestedTest]] = []
-    for label, level in TRANSMISSION_LEVELS:
-        kinds += level
-        terms = tuple(n for n in names if n.rsplit(".", 1)[1] in kinds)
-        if tried and terms == tried[-1][2]:
-            continue                    # nothing new at this level (no stated ratio)
-        large = fit(*small.families, *terms)
-        tried.append((label, large, terms, _nested_test(small, large, validation, alpha, f"transmission ({label})")))
+    tried = [t for small in bases for t in _transmission_levels(small, names, fit, validation, alpha)]
     if not tried:
         found["skipped"].append("transmission not compared: no joint can carry a transmission term")
         return
-    helped = [t for t in tried if t[3].helped]
-    _, large, _, test = min(helped, key=lambda t: _in_use_rms(t[1])) if helped else tried[0]
-    others = "".join(f"; up to the {lab}: RMS in use {_in_use_rms(r) * 1e3:.4f} mm" for lab, r, _, _ in tried
-                     if r is not large)
+    helped = [t for t in tried if t[2].helped and _in_use_rms(t[1]) < best_rms]
+    _, large, test = min(helped or tried, key=lambda t: _in_use_rms(t[1]))
+    if not helped and test.helped:
+        test = NestedTest(test.f_statistic, test.p_value, False,
+                          test.summary + f"; not kept: the best so far does better in use ({best_rms * 1e3:.4f} mm)")
+    others = "".join(f"; {w}: RMS in use {_in_use_rms(r) * 1e3:.4f} mm" for w, r, _ in tried if r is not large)
     found["transmission"] = large
-    found["transmission_test"] = NestedTest(test.f_statistic, test.p_value, test.helped, test.summary + others)
+    found["transmission_test"] = NestedTest(test.f_statistic, test.p_value, bool(helped), test.summary + others)
+
+
+def _transmission_levels(small: CalibrationResult, names, fit, validation, alpha: float) -> list:
+    """(what, result, test) of each level of transmission terms added to ``small``."""
+    tried = []
+    kinds: tuple = ()
+    done: tuple = ()
+    for label, level in TRANSMISSION_LEVELS:
+        kinds += level
+        terms = tuple(n for n in names if n.rsplit(".", 1)[1] in kinds)
+        if terms == done:
+            continue                    # nothing new at this level (no stated ratio)
+        done = terms
+        large = fit(*small.families, *terms)
+        what = f"transmission (up to the {label}, on {compared_name(small.families)})"
+        tried.append((what, large, _nested_test(small, large, validation, alpha, what)))
+    return tried
 
 
 def _in_use_rms(r: CalibrationResult) -> float:

@@ -379,7 +379,7 @@ class NestedTest:
 class Comparison:
     """Geometric-only against geometric-and-compliance identification on the same data, and, when
     asked, against geometric, compliance and backlash together (the third) and with transmission
-    terms added to the best of these. What the model cannot support (compliance without link
+    terms added to one of these. What the model cannot support (compliance without link
     masses) is skipped and said.
 
     Attributes
@@ -395,8 +395,8 @@ class Comparison:
     backlash_test : NestedTest or None
         ``backlash`` against the identification it adds to; None unless asked.
     transmission : CalibrationResult or None
-        Transmission terms added to the best of the above, at the level of harmonics that did
-        best in use; None unless asked.
+        Transmission terms added to one of the above, the level and the identification they add
+        to that did best in use; None unless asked.
     transmission_test : NestedTest or None
         ``transmission`` against the identification it adds to; None unless asked.
     skipped : tuple of str
