@@ -216,3 +216,25 @@ def test_terms_a_robot_does_not_have_are_found_zero_and_the_checks_say_so():
     assert all(abs(result.estimate(n).estimate) < 3 * result.estimate(n).std for n in terms)
     support = next(c for c in result.checks if c.name == "estimates supported by the data")
     assert support.summary.startswith("no transmission term differs from zero"), support.summary
+
+
+def test_the_model_file_and_result_json_carry_the_ratio_and_the_terms(tmp_path):
+    """A stated reduction and identified terms survive the model file (harmonics in the file's angle
+    unit) and result.json, read back as written."""
+    rng = np.random.default_rng(6)
+    nominal = arm6r()
+    true = _with_transmission(nominal, rng, reduction=101.0)
+    rc.write_model(true, tmp_path / "true.yaml")
+    back = rc.read_model(tmp_path / "true.yaml")
+    for f, b in zip(true.frames, back.frames):
+        assert b.reduction == f.reduction and b.gear_scale == pytest.approx(f.gear_scale, rel=1e-12)
+        assert b.motor_sin2 == pytest.approx(f.motor_sin2, rel=1e-12, abs=1e-18)
+    text = (tmp_path / "true.yaml").read_text()
+    assert "reduction: 101" in text
+    fit, _ = _campaign(_true_arm(HARMONICS)[1], nominal, n=80)
+    result = rc.calibrate(nominal, fit, parameters=("geometric", "j2.gear_cos1", "j2.gear_sin1"))
+    rc.write_result(result, tmp_path / "result.json")
+    read = rc.read_result(tmp_path / "result.json")
+    assert read.estimate("j2.gear_cos1").estimate == result.estimate("j2.gear_cos1").estimate
+    written = result.calibrated_model.frames[1].gear_sin1
+    assert written != 0.0 and read.calibrated_model.frames[1].gear_sin1 == pytest.approx(written, rel=1e-12)
