@@ -238,3 +238,26 @@ def test_the_model_file_and_result_json_carry_the_ratio_and_the_terms(tmp_path):
     assert read.estimate("j2.gear_cos1").estimate == result.estimate("j2.gear_cos1").estimate
     written = result.calibrated_model.frames[1].gear_sin1
     assert written != 0.0 and read.calibrated_model.frames[1].gear_sin1 == pytest.approx(written, rel=1e-12)
+
+
+@pytest.mark.parametrize("name", ["example.script", "example.src"])
+def test_a_robot_programs_joint_targets_compensated_for_transmission_errors_land_where_the_nominal_ones_did(
+        name, tmp_path):
+    from pathlib import Path
+
+    from scipy.spatial.transform import Rotation
+
+    from robocal.io import compensate_program, program_joints, read_program
+
+    nominal = arm6r()
+    calibrated = _with_transmission(nominal, np.random.default_rng(7), reduction=50.0, scale=2e-2)
+    program = read_program(Path(__file__).parent / "programs" / name)
+    labels, q_old = program_joints(program, nominal)
+    (tmp_path / name).write_text(compensate_program(program, nominal, calibrated).text)
+    labels_new, q_new = program_joints(read_program(tmp_path / name), nominal)
+    assert labels_new == labels and np.abs(q_new - q_old).max() > 1e-3     # they did change
+    new = rc.evaluate(calibrated, q_new, orientations=True)
+    old = rc.evaluate(nominal, q_old, orientations=True)
+    assert np.abs(new.positions - old.positions).max() < 1e-9                # 1e-6 mm
+    turned = Rotation.from_matrix(new.rotations[:, 0] @ np.swapaxes(old.rotations[:, 0], 1, 2)).magnitude()
+    assert np.degrees(turned).max() < 1e-6
