@@ -261,3 +261,22 @@ def test_a_robot_programs_joint_targets_compensated_for_transmission_errors_land
     assert np.abs(new.positions - old.positions).max() < 1e-9                # 1e-6 mm
     turned = Rotation.from_matrix(new.rotations[:, 0] @ np.swapaxes(old.rotations[:, 0], 1, 2)).magnitude()
     assert np.degrees(turned).max() < 1e-6
+
+
+def test_identifiability_says_which_terms_a_campaign_can_separate_and_what_absorbs_the_others():
+    """Motor harmonics of readings that all fall on one motor phase are the joint's offset or
+    nothing; a joint that never moves shows none of its terms; spread readings separate them all."""
+    m = arm6r()
+    m = m.replace(frames=tuple(replace(f, reduction=50.0) if i == 3 else f for i, f in enumerate(m.frames)))
+    q = rc.random_configurations(m, 60, rng=1)
+    spread = rc.identifiability(m, q, parameters=("geometric", "transmission"))
+    assert {f"j4.{k}" for k in ("gear_scale", "gear_cos1", "motor_cos1", "motor_sin2")} <= set(spread.identified)
+    q[:, 5] = 0.3                                                   # j6 never moves
+    q[:, 3] = np.round(q[:, 3] / (2 * np.pi / 50)) * (2 * np.pi / 50)  # j4 on one motor phase
+    narrow = rc.identifiability(m, q, parameters=("geometric", "transmission"))
+    for k in ("motor_cos1", "motor_sin1", "motor_cos2", "motor_sin2"):
+        a = narrow.absorption(f"j4.{k}")
+        assert a is not None and [n for n, _ in a.absorbers] in ([], ["j4.theta"]), a
+    assert {f"j4.{k}" for k in ("gear_scale", "gear_cos1", "gear_sin2")} <= set(narrow.identified)
+    assert not [n for n in narrow.identified if n.startswith("j6.gear")]
+    assert narrow.absorption("j6.gear_cos1").reason == "is a combination of identified parameters"
