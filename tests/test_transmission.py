@@ -280,3 +280,13 @@ def test_identifiability_says_which_terms_a_campaign_can_separate_and_what_absor
     assert {f"j4.{k}" for k in ("gear_scale", "gear_cos1", "gear_sin2")} <= set(narrow.identified)
     assert not [n for n in narrow.identified if n.startswith("j6.gear")]
     assert narrow.absorption("j6.gear_cos1").reason == "is a combination of identified parameters"
+
+
+def test_the_identifiability_table_shows_transmission_columns_only_where_considered(tmp_path, cli):
+    rc.write_model(arm6r(), tmp_path / "model.yaml")
+    code, out, err = cli("identifiability", tmp_path / "model.yaml", "--poses", "60")
+    assert code == 0 and "gear_scale" not in out, err
+    code, out, err = cli("identifiability", tmp_path / "model.yaml", "--poses", "60", "--parameters",
+                         "geometric,transmission")
+    head = next(line for line in out.splitlines() if line.strip().startswith("frame"))
+    assert code == 0 and head.split()[-5:] == ["gear_scale", "gear_cos1", "gear_sin1", "gear_cos2", "gear_sin2"], head

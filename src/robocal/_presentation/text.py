@@ -16,12 +16,12 @@ from .._identification.checks import Check
 from .._identification.identifiability import IdentifiabilityResult
 from .._identification.result import CalibrationResult, Comparison
 from .._model.parameters import BACKLASH_KINDS, BASE_KINDS, FRAME_KINDS, MARKER_KINDS, parameter_layout
-from .._model.robot import RobotModel
+from .._model.robot import TRANSMISSION_KINDS, RobotModel
 from .units import MM, absorption_text, display_unit, with_unit
 
 STAT_ROWS = ("fit_before", "fit_after", "validation_before", "validation_after")
 # the paper's table shows these kinds; gamma and b join them where a tree uses them
-PAPER_KINDS = tuple(k for k in FRAME_KINDS[2:] if k not in BACKLASH_KINDS)
+PAPER_KINDS = tuple(k for k in FRAME_KINDS[2:] if k not in BACKLASH_KINDS + TRANSMISSION_KINDS)
 
 
 def stats_lines(stats, indent: str = "  ", *, unit: str = "m") -> list[str]:
@@ -326,7 +326,9 @@ def identifiability_summary(model, res, where: str) -> str:
              "I identified, E eliminated, - not considered"]
     kinds = [k for k in ("gamma", "b") if any(res.status(f"{f}.{k}") != "-" for f in model.frame_names)]
     kinds += list(PAPER_KINDS)
-    kinds += [k for k in BACKLASH_KINDS if any(res.status(f"{f}.{k}") != "-" for f in model.frame_names)]
+    # backlash and transmission where considered
+    kinds += [k for k in BACKLASH_KINDS + TRANSMISSION_KINDS
+              if any(res.status(f"{f}.{k}") != "-" for f in model.frame_names)]
     cols = [max(9, len(k) + 2) for k in kinds]  # long kind names (backlash_theta) widen their column
     lines.append(f"  {'frame':<{width}}" + "".join(f"{k:>{w}}" for k, w in zip(kinds, cols)))
     for f in model.frame_names:
