@@ -240,7 +240,7 @@ def test_the_model_file_and_result_json_carry_the_ratio_and_the_terms(tmp_path):
     assert written != 0.0 and read.calibrated_model.frames[1].gear_sin1 == pytest.approx(written, rel=1e-12)
 
 
-@pytest.mark.parametrize("name", ["example.script", "example.src"])
+@pytest.mark.parametrize("name", ["example.script", "example.mod"])
 def test_a_robot_programs_joint_targets_compensated_for_transmission_errors_land_where_the_nominal_ones_did(
         name, tmp_path):
     from pathlib import Path
