@@ -9,6 +9,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import hashlib
+import io
 import json
 import os
 import re
@@ -126,7 +127,8 @@ class _Budget(NamedTuple):
         """(``first`` and the rest of ``fh``, their line ends), read a chunk at a time (a regular
         file of ``size`` bytes in one read) and refused as soon as they run over the budget or
         (``text``) hold a NUL character."""
-        parts: list[bytes] = []
+        out = io.BytesIO()  # a stream's parts, grown in place: its value is handed out without a copy
+        last = b""  # the latest part, kept apart: a file read in one part is handed out as it is
         total = newlines = 0
         part = first
         while True:
@@ -136,7 +138,8 @@ class _Budget(NamedTuple):
                     raise InputError("a NUL character: this is a binary file, not text", source=source,
                                      where=f"line {line}")
                 newlines += part.count(b"\n")
-                parts.append(part)
+                out.write(last)
+                last = part
                 total += len(part)
                 if total > self.limit:
                     raise InputError(f"the file exceeds {self.limit / 2 ** 20:.0f} MB", source=source)
@@ -147,7 +150,10 @@ class _Budget(NamedTuple):
             # limit (ulimit -v)
             part = fh.read(min(max(size + 1 - total, READ_CHUNK), self.limit + 1 - total))
             if not part:
-                return (parts[0] if len(parts) == 1 else b"".join(parts)), newlines
+                if not out.tell():
+                    return last, newlines
+                out.write(last)
+                return out.getvalue(), newlines
 
 
 def available_memory() -> float | None:
