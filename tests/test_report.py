@@ -562,6 +562,31 @@ def test_humanoid_sized_report_is_readable_in_headless_chromium(chromium, humano
     _assert_rendered(_render_in_chromium(chromium, path, "report-humanoid.png"), html)
 
 
+def test_history_page_is_readable_in_headless_chromium(chromium, tmp_path):
+    # a robot calibrated four times and verified three times: the drift and verification plots' date
+    # labels rendered at 8 px (32a3abb); every text at 9 px or more, none overlapping
+    th8 = ROOT / "examples" / "th8"
+    nominal = rc.read_model(th8 / "model.yaml")
+    fit, val = rc.split_sets(rc.read_measurements(th8 / "measurements.csv", nominal))
+    result = rc.calibrate(nominal, fit, validation=val, known=("markers",))
+    check = rc.read_measurements(th8 / "verification.csv", nominal)
+    with rc.open_store(tmp_path / "s.sqlite", create=True) as store:
+        for k, at in enumerate(("2026-01-05", "2026-04-12", "2026-08-30", "2027-01-17")):
+            store.record(result, "TH8-01", robot_type="th8", at=at)
+            if k:
+                rc.verify_robot(store, "TH8-01", check, at=f"{at[:8]}20")
+        h = rc.history(store, "TH8-01")
+    path = tmp_path / "history.html"
+    rc.write_history(h, path)
+    r = _render_in_chromium(chromium, path, "history.png")
+    assert [m for m in r["console"] if m[0] in ("error", "pageerror")] == []
+    assert sorted(p["name"] for p in r["plots"]) == ["drift", "verifications"]
+    assert r["text"]["texts"] > 50
+    assert r["text"]["small"] == [], r["text"]["small"][:10]
+    assert r["text"]["overlaps"] == [], r["text"]["overlaps"][:10]
+    assert r["overflow"] <= 0
+
+
 # -- absorptions in display units, against the Jacobian -------------------------------------------
 
 TERM = re.compile(r"([+-]\d[\d.]*(?:e[+-]?\d+)?) (mm|deg|deg/\(kN m\)) (\S+)")

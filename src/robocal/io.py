@@ -6,7 +6,7 @@ from ._base import arguments as _arguments
 from ._files.contacts import contacts_to_csv, read_contacts, write_contacts
 from ._files.dh import dh_csv, mdh_csv, read_dh_table, write_mdh_csv
 from ._files.measurements import measurements_to_csv, read_measurements, split_sets, write_measurements
-from ._files.model import calibration_record, model_from_dict, model_to_dict, model_to_yaml, read_model, write_model
+from ._files.model import model_from_dict, model_to_dict, model_to_yaml, read_model, write_model
 from ._files.profile import Profile, profile_from_dict, read_profile
 from ._files.programs import program_joints, read_program, read_program_joints
 from ._files.programs.compensation import ProgramCompensation, TargetResult, compensate_program
@@ -24,6 +24,7 @@ from ._files.result import (
 )
 from ._files.table import ColumnMap
 from ._files.urdf import read_urdf, urdf_text, write_urdf
+from ._identification.result import calibration_record
 from ._model.contacts import Contacts, KnownDistance, KnownPlane
 from ._model.conversion import StandardDH, from_standard_dh, mdh_table, to_standard_dh
 from ._model.measurements import Measurements, Noise

@@ -66,6 +66,8 @@ from .result import (
     PoseErrors,
     PoseSet,
     SolverRecord,
+    calibrated_description,
+    calibration_record,
     judge_against_limit,
     provenance,
 )
@@ -522,7 +524,7 @@ def record(inputs: Inputs, analysis: Analysis, fit: Fit, before: np.ndarray, cov
     k = len(found)
     fitted = fit_errors(inputs, fit, before)
     stats, rotation_stats = error_summaries(fitted, val)
-    return CalibrationResult(
+    result = CalibrationResult(
         nominal_model=inputs.model, calibrated_model=model_from_vector(design.start, solution.p[:fit.problem.n_robot]),
         parameters=found, covariance=cov.covariance[:k, :k], correlation=cov.correlation[:k, :k],
         identifiability=design.identifiability,
@@ -535,6 +537,9 @@ def record(inputs: Inputs, analysis: Analysis, fit: Fit, before: np.ndarray, cov
         in_use=in_use_record, coverage=cover, limit=limit, contacts=contact_figures(inputs, analysis, fit, before, cov),
         checks=tuple(checks), notes=notes,
         provenance=provenance(inputs.data, inputs.validation, inputs.contacts, inputs.validation_contacts))
+    # the calibrated model says what it is, wherever it is written (never the nominal model's words)
+    described = replace(result.calibrated_model, description=calibrated_description(calibration_record(result)))
+    return replace(result, calibrated_model=described)
 
 
 def nominal_model_of(design: Design, before: np.ndarray) -> RobotModel:

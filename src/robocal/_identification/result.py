@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
+from .._base.arguments import accepts, is_a
 from .._base.arrays import frozen, frozen_mapping
 from .._base.errors import InputError
 from .._model.contacts import Contacts
@@ -449,3 +450,52 @@ def compared_name(families) -> str:
         if fam not in named:
             named.append(fam)
     return named[0] if len(named) == 1 else f"{', '.join(named[:-1])} and {named[-1]}"
+
+
+@accepts(result=is_a(CalibrationResult))
+def calibration_record(result) -> dict:
+    """What a calibrated model file says of its own calibration: the verdict, the date and the checks
+    that did not pass.
+
+    Parameters
+    ----------
+    {result}
+
+    Returns
+    -------
+    dict
+        The calibration record a model file stores (verdict, checks, date).
+    """
+    out = {"verdict": result.verdict, "date": result.provenance.get("date", "")}
+    data = result.provenance.get("data") or {}
+    sources = [str(d["source"]) for d in (result.provenance.get("contacts") or {}, data) if d.get("source")]
+    if sources:
+        out["data"] = " and ".join(sources)
+    if data.get("n_poses"):
+        out["poses"] = int(data["n_poses"])
+    out["families"] = list(result.families)
+    out["nominal"] = result.nominal_model.name
+    for status, key in (("fail", "failed"), ("warn", "warned")):
+        names = [c.name for c in result.checks if c.status == status]
+        if names:
+            out[key] = names
+    return out
+
+
+def calibrated_description(calibration: dict) -> str:
+    """What a calibrated model file says it is, from its ``calibration`` record: calibrated, from
+    which nominal model and data, when, with which verdict (never the nominal model's own words).
+
+    >>> calibrated_description({"verdict": "pass", "date": "2026-01-31", "nominal": "th8",
+    ...                         "families": ["geometric"], "data": "m.csv", "poses": 36})[37:]
+    'geometric parameters identified from 36 poses of m.csv, on 2026-01-31 (verdict: pass)'
+    """
+    what = ", ".join(calibration.get("families") or []) or "its"
+    data = calibration.get("data")
+    poses = calibration.get("poses")
+    source = (f" from {poses} poses of {data}" if poses and data else f" from {data}" if data
+              else f" from {poses} poses" if poses else "")
+    nominal = f"nominal model {calibration['nominal']}, " if calibration.get("nominal") else ""
+    when = f", on {str(calibration['date'])[:10]}" if calibration.get("date") else ""  # the day; the time below
+    return (f"calibrated model: {nominal}{what} parameters identified{source}{when} "
+            f"(verdict: {calibration.get('verdict', 'not recorded')})")

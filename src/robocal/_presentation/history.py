@@ -196,8 +196,20 @@ def verification_summary(v: Verification, robot: str, calibration) -> str:
         f"  ISO 9283 positional accuracy AP (worst pose, {v.poses[worst] if v.poses else '-'}): "
         f"{with_unit(v.ap_max, 'm')}",
         f"  ratio now / at calibration {v.ratio:.2f}; recalibrate beyond {v.threshold:.2f} (an unchanged robot "
-        f"exceeds it in {v.alpha:.0%} of verifications)",
+        f"exceeds it in {v.alpha:.0%} of verifications)", *_if_registered(v),
         f"verdict: {v.verdict}"])
+
+
+def _if_registered(v: Verification) -> list[str]:
+    """What re-registering the base would say, when the verdict is recalibrate without it."""
+    if v.if_registered is None:
+        return []
+    ratio, threshold = v.if_registered
+    if ratio <= threshold:
+        return [f"  with the base re-registered on these poses the ratio is {ratio:.2f} (within {threshold:.2f}): "
+                "if the instrument was set up again since the calibration, verify with --register-base"]
+    return [f"  with the base re-registered on these poses the ratio is still {ratio:.2f} (beyond {threshold:.2f}): "
+            "not a new set-up of the instrument alone"]
 
 
 # -- the HTML report ----------------------------------------------------------------------------------
@@ -243,7 +255,7 @@ def plot_drift(h: History) -> str:
             ax.plot(x, est * k, "o-", color=BAD if name in named else AFTER, ms=3, lw=1)
             ax.set_title(name + (" (changed)" if name in named else ""), fontsize=8)
             ax.set_ylabel(display_unit(unit)[0])
-            ax.set_xticks(x, [_day(d)[2:] for d in dates], rotation=45, fontsize=6)
+            ax.set_xticks(x, [_day(d)[2:] for d in dates], rotation=45, fontsize=7)
         for ax in axes.ravel()[len(names):]:
             ax.set_visible(False)
         fig.tight_layout()
@@ -265,7 +277,7 @@ def plot_verifications(h: History) -> str:
         ax.plot(x, [v.then_rms * k for v in vs], "s--", color="#777", ms=3, label="RMS at calibration")
         ax.plot(x, [v.then_rms * v.threshold * k for v in vs], "v:", color=BAD, ms=4, label="recalibrate beyond")
         ax.plot(x, [v.rms * k for v in vs], "o-", color=AFTER, label="RMS now")
-        ax.set_xticks(x, [_day(v.verified_at) for v in vs], rotation=30, fontsize=7)
+        ax.set_xticks(x, [_day(v.verified_at) for v in vs], rotation=30, fontsize=8)
         ax.set_ylabel("mm")
         ax.legend(fontsize=7)
         fig.tight_layout()

@@ -5,6 +5,8 @@ Every random function takes an explicit seed or ``numpy.random.Generator``.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 from scipy.spatial.transform import Rotation
 
@@ -77,7 +79,9 @@ def perturb_model(model: RobotModel, names, *, length_error=(1e-4, 1e-3), angle_
         p[lay[n].index] += _signed_uniform(rng, lo, hi, 1)[0]
         if lay[n].quantity == "compliance" or lay[n].family == "backlash":
             p[lay[n].index] = abs(p[lay[n].index])
-    return model_from_vector(model, p)
+    # another robot than the model: never the model's own words (a nominal model's, say)
+    return replace(model_from_vector(model, p), description=f"a simulated robot: the model {model.name} with "
+                   f"random errors on {len(names)} of its parameters (perturb_model)")
 
 
 @accepts(true_model=is_a(RobotModel), q=readings_of("true_model"), noise=NON_NEGATIVE,

@@ -347,12 +347,12 @@ def sidak_threshold(alpha: float, m: int) -> float:
     >>> round(sidak_threshold(0.05, 1), 3), round(sidak_threshold(0.05, 20), 3)
     (1.96, 3.016)
     """
-    from scipy.stats import norm
+    from scipy.special import ndtri  # the normal quantile, without importing scipy.stats (1.8 s)
 
     if not 0 < alpha < 1:
         raise InputError(f"must be between 0 and 1, got {alpha!r}", where="alpha")
     per = -math.expm1(math.log1p(-alpha) / max(int(m), 1))
-    return float(norm.isf(per / 2))
+    return float(-ndtri(per / 2))
 
 
 @accepts(calibrations=each_a(StoredCalibration), **_JUDGED)
@@ -405,7 +405,7 @@ def judge_overall(calibrations, *, alpha: float = DEFAULT_ALPHA, families=JUDGED
     tuple of Overall
         One per pair of consecutive calibrations.
     """
-    from scipy.stats import chi2
+    from scipy.special import chdtrc  # the chi-square survival function, without scipy.stats
 
     pairs = _pairs(calibrations, families)
     level = -math.expm1(math.log1p(-alpha * OVERALL_SHARE) / max(len(pairs), 1))
@@ -413,7 +413,7 @@ def judge_overall(calibrations, *, alpha: float = DEFAULT_ALPHA, families=JUDGED
     for _names, template, d, C, rcond in pairs:
         Sp, rank = _pseudo_inverse(C, rcond)
         stat = float(d @ Sp @ d) if rank else 0.0
-        p = float(chi2.sf(stat, rank)) if rank else 1.0
+        p = float(chdtrc(rank, stat)) if rank else 1.0
         since, at = (template[0].since, template[0].at) if template else ("", "")
         out.append(Overall(since, at, stat, rank, p, p < level))
     return tuple(out)
@@ -821,6 +821,8 @@ class _SQLite(_Backend):
             if not create:
                 raise InputError("no store here (record a calibration first)", source=location)
             path.parent.mkdir(parents=True, exist_ok=True)
+            # made here, with the mode the umask gives every output (SQLite's own would be 0644)
+            os.close(os.open(path, os.O_WRONLY | os.O_CREAT, 0o666))
         elif not path.is_file():
             raise InputError("not a file", source=location)
         self.conn = sqlite3.connect(str(path), timeout=120.0, isolation_level=None, check_same_thread=False)

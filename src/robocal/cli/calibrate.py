@@ -14,8 +14,10 @@ FAILED = 3
 
 
 EXAMPLE = """examples:
-  robocal calibrate examples/th8/model.yaml examples/th8/measurements.csv --out runs/mine --compare --known markers
-  robocal calibrate examples/th8/model.yaml examples/th8/measurements.csv --out runs/geo --limit-mm limit.json
+  robocal calibrate examples/th8/model.yaml examples/th8/measurements.csv --out runs/compare --compare --known markers
+  robocal calibrate examples/th8/model.yaml examples/th8/measurements.csv --out runs/geo --limit-mm runs/th8/limit.json
+
+(runs/th8/limit.json: the limit of absolute accuracy 'make demo' writes, or 'robocal limit --out'.)
 
 Exit code 3 when a check fails (docs/checks.md): result.json is written, calibrated.yaml only
 with --write-failed."""
@@ -48,7 +50,7 @@ def register(sub) -> None:
                    help="where each joint rests in its lost motion in this campaign: on the side its gravity load "
                         "pushes it to, or behind its last move (default: the model file's backlash.side)")
     p.add_argument("--loss", default="linear", choices=LOSSES,
-                   help="least-squares loss (robust ones bend for outliers)")
+                   help="least-squares loss: linear (default) or a robust one that bends for outliers")
     p.add_argument("--register-base", action="store_true",
                    help="start the base pose from a rigid registration of the nominal robot on the data")
     p.add_argument("--limit-mm", type=common.limit_mm, metavar="X|LIMIT.json",
@@ -260,8 +262,9 @@ def _identified(args, model, data, options: dict) -> tuple:
 def _output_files(args, out: Path, named: dict, best, diagnosis, report) -> dict:
     """The files to write: each result (``named``: file name -> result) with its per-pose file, the
     calibrated model unless the calibration failed (or --write-failed), the report when asked."""
-    from .._files.model import calibration_record, model_to_yaml
+    from .._files.model import model_to_yaml
     from .._files.result import result_files
+    from .._identification.result import calibration_record
 
     files = {p: f for n, r in named.items()
              for p, f in result_files(r, out / n, diagnosis=diagnosis if r is best else None).items()}
