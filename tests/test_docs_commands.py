@@ -1,8 +1,13 @@
-"""Every ``robocal`` command in README.md and docs/cli.md runs as written, on the files that ship,
-in the order the documents give them (later commands use earlier outputs)."""
+"""Every ``robocal`` command of the documents (README.md, docs/*.md, examples/*/README.md) and of every
+``--help`` runs as written, on the files that ship, in a scratch folder after ``make demo`` and in
+the order each gives them (later commands use earlier outputs); no two of them write the same file.
+README's demo block is what ``make demo`` prints."""
 
 from __future__ import annotations
 
+import argparse
+import contextlib
+import io
 import os
 import re
 import shlex
@@ -12,27 +17,42 @@ from pathlib import Path
 
 import pytest
 
+from robocal.cli import build_parser
+
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def commands(path: Path, prompt: str) -> list[str]:
-    """The commands of ``path``: lines starting with ``prompt`` + "robocal ", with their
-    backslash-continued lines."""
+def commands(path: Path, prompts=("    ", "$ ")) -> list[str]:
+    """The commands of ``path``: lines starting with one of ``prompts`` + "robocal ", with their
+    backslash-continued lines, in the order they appear."""
+    return continued(path.read_text().splitlines(), prompts)
+
+
+def continued(lines, prompts) -> list[str]:
+    """The ``robocal`` commands of ``lines`` (after a prompt), each with its continuation lines."""
     out, current = [], None
-    for line in path.read_text().splitlines():
+    for line in lines:
         if current is not None:
             current += " " + line.strip().rstrip("\\").strip()
             if not line.rstrip().endswith("\\"):
                 out.append(current)
                 current = None
             continue
-        if line.startswith(prompt + "robocal "):
+        prompt = next((p for p in prompts if line.startswith(p + "robocal ")), None)
+        if prompt is not None:
             text = line[len(prompt):].rstrip()
             if text.endswith("\\"):
                 current = text.rstrip("\\").strip()
             else:
                 out.append(text)
     return out
+
+
+def help_examples() -> list[str]:
+    """The example commands of ``robocal --help`` and of each command's ``--help``, in that order."""
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return [c for p in (parser, *sub.choices.values()) for c in continued((p.epilog or "").splitlines(), ("  ",))]
 
 
 def console_outputs(path: Path) -> dict[str, list[str]]:
@@ -50,8 +70,13 @@ def console_outputs(path: Path) -> dict[str, list[str]]:
     return out
 
 
-README = commands(ROOT / "README.md", "    ")
-CLI_MD = commands(ROOT / "docs" / "cli.md", "$ ")
+README = commands(ROOT / "README.md")
+CLI_MD = commands(ROOT / "docs" / "cli.md")
+# every document that shows a robocal command, and the help's examples: each run on its own
+EXAMPLES = {str(p.relative_to(ROOT)): commands(p)
+            for p in [ROOT / "README.md", *sorted(ROOT.glob("docs/*.md")), *sorted(ROOT.glob("examples/*/README.md"))]
+            if commands(p)}
+EXAMPLES["--help"] = help_examples()
 
 
 def test_the_documents_have_their_commands():
@@ -67,7 +92,8 @@ def _rounded_off(line: str) -> str:
 
 @pytest.fixture(scope="module")
 def after_demo(tmp_path_factory):
-    """A folder as `make demo` leaves it: the examples, and runs/th8 written by the demo."""
+    """A folder as `make demo` leaves it (the examples, and runs/th8 written by the demo), and what
+    the demo printed."""
     import importlib.util
 
     folder = tmp_path_factory.mktemp("clone")
@@ -75,25 +101,79 @@ def after_demo(tmp_path_factory):
     spec = importlib.util.spec_from_file_location("th8_reproduce", ROOT / "examples" / "th8" / "reproduce.py")
     demo = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(demo)
-    assert demo.main(["--out", str(folder / "runs" / "th8")]) == 0
-    return folder
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        assert demo.main(["--out", str(folder / "runs" / "th8")]) == 0
+    return folder, printed.getvalue()
 
 
-@pytest.mark.parametrize("document", ["README", "cli.md"])
-def test_every_documented_command_runs_as_written(document, after_demo, tmp_path, monkeypatch, cli, capsys):
+@pytest.mark.parametrize("document", list(EXAMPLES))
+def test_every_example_runs_as_written(document, after_demo, tmp_path, monkeypatch, cli, capsys):
+    # in a scratch folder as `make demo` leaves a clone, with a store of its own (the default one)
     capsys.readouterr()
-    shutil.copytree(after_demo, tmp_path / "clone", symlinks=True)
+    shutil.copytree(after_demo[0], tmp_path / "clone", symlinks=True)
     monkeypatch.chdir(tmp_path / "clone")
-    shown = console_outputs(ROOT / "docs" / "cli.md") if document == "cli.md" else {}
-    for command in README if document == "README" else CLI_MD:
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    monkeypatch.setenv("ROBOCAL_STORE", str(tmp_path / "home" / "store.sqlite"))
+    shown = console_outputs(ROOT / document) if document.endswith(".md") else {}
+    for command in EXAMPLES[document]:
         code, out, err = cli(*shlex.split(command)[1:])
-        assert code == 0, f"{command}\n{err}"
+        assert code == 0, f"{document}: {command}\n{err}"
         lines = shown.get(command, [])
         if lines and not lines[0].startswith("# ("):  # not marked illustrative: the output as printed
             printed = [_rounded_off(line) for line in (out + err).splitlines()]
             for line in lines:
                 if not line.strip().startswith("..."):
                     assert _rounded_off(line) in printed, f"{command}: shown but not printed: {line!r}"
+
+
+OUTPUTS = ("out", "true_model", "report", "store")
+
+
+def _outputs(command: str) -> set[Path]:
+    """The files and folders ``command`` writes, as its options name them."""
+    args = build_parser().parse_args(shlex.split(command)[1:])
+    return {Path(v) for dest in OUTPUTS if isinstance(v := getattr(args, dest, None), str)}
+
+
+def test_no_two_examples_write_the_same_file_and_none_the_demos(after_demo, monkeypatch):
+    # a newcomer runs README's commands, then docs/cli.md's, then a command's --help example: none
+    # refuses to overwrite another's output, and none touches what `make demo` wrote
+    monkeypatch.chdir(after_demo[0])  # where the options' files are read as they are parsed
+    def clash(a: Path, b: Path) -> bool:
+        return a == b or a in b.parents or b in a.parents
+
+    found = []
+    written = {document: [(c, o) for c in cs for o in _outputs(c)] for document, cs in EXAMPLES.items()}
+    for document, outs in written.items():
+        found += [f"{document}: {c} writes into the demo's runs/th8" for c, o in outs if clash(o, Path("runs/th8"))]
+        for other, theirs in written.items():
+            if other > document:
+                found += [f"{document}: {c} and {other}: {d} both write {o} / {p}" for c, o in outs for d, p in theirs
+                          if clash(o, p)]
+    assert found == [], "\n".join(found)
+
+
+def test_the_readme_shows_what_make_demo_prints(after_demo):
+    # README's block of the demo's output, line by line in the order printed ("..." skips lines)
+    text = (ROOT / "README.md").read_text()
+    block = text.split("Its output (shortened):", 1)[1].split("```text\n", 1)[1].split("```", 1)[0]
+    printed = [line.rstrip() for line in after_demo[1].splitlines()]
+    at = 0
+    for line in block.splitlines():
+        if line.strip() in ("", "...") or line.strip().endswith("(...)") and line.startswith("- "):
+            continue
+        assert line.rstrip() in printed[at:], f"README shows, the demo does not print (after line {at}): {line!r}"
+        at = printed.index(line.rstrip(), at) + 1
+
+
+def test_the_readme_says_when_the_postgresql_tests_are_skipped():
+    store_tests = (ROOT / "tests" / "test_store.py").read_text()
+    readme = (ROOT / "README.md").read_text()
+    variable = re.search(r'PG_ENV = "(\w+)"', store_tests).group(1)
+    default = re.search(r'PG_DEFAULT = "([^"]+)"', store_tests).group(1)
+    assert f"`{variable}`" in readme and default in readme
+    assert re.search(r"Without a server the PostgreSQL half .* is skipped", " ".join(readme.split()))
 
 
 def test_make_demo_installs_what_the_demo_needs_and_make_test_the_tests():

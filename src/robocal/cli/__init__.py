@@ -33,15 +33,22 @@ from . import (
     simulate,
     verify,
 )
-from .common import MissingExtra, Parser
+from .common import Formatter, MissingExtra, Parser
 
 COMMANDS = (plan, plan_sockets, simulate, calibrate, compensate, export, identifiability, report, limit, import_urdf,
             import_dh, record, history, verify)
 
 
+EXAMPLE = """example:
+  robocal calibrate examples/th8/model.yaml examples/th8/measurements.csv --out runs/first --known markers
+
+Each command has its own help with examples: robocal COMMAND --help (docs/cli.md)."""
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = Parser(prog="robocal", description="Robot calibration: geometric and compliance "
-                                     "parameters, identifiability, the limit of absolute accuracy.")
+                                     "parameters, identifiability, the limit of absolute accuracy.",
+                    epilog=EXAMPLE, formatter_class=Formatter)
     parser.add_argument("--version", action="version", version=f"robocal {__version__}")
     parser.add_argument("-v", "--verbose", action="store_true", help="log progress")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")

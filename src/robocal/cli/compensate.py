@@ -10,7 +10,8 @@ from . import common
 
 EXAMPLE = """examples:
   robocal compensate examples/th8/model.yaml runs/th8/calibrated.yaml examples/th8/targets.csv --out commands.csv
-  robocal compensate model.yaml calibrated.yaml program.mod --out program-compensated.mod --tool tGripper
+  robocal compensate examples/th8/model.yaml runs/th8/calibrated.yaml examples/th8/program.mod \\
+      --out program-compensated.mod
 
 A robot program (ABB RAPID .mod/.prg/.sys, KUKA KRL .src/.dat, URScript .script; or --dialect)
 is written back with only its targets' numbers changed; a target out of reach or beyond a joint

@@ -8,7 +8,7 @@ from . import common, record
 EXAMPLE = """examples:
   robocal history SN-1042
   robocal history SN-1042 --report sn-1042.html
-  robocal history --type kr16
+  robocal history --type th8
 
 Changes between consecutive calibrations are judged against their combined uncertainty, at a threshold
 that names a change in an unchanged robot's whole history in 5 % of robots (--alpha)."""

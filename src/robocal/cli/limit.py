@@ -51,7 +51,7 @@ def register(sub) -> None:
     p.add_argument("--chunk-size", type=common.integer(1, MAX_CHUNK), default=DEFAULT_CHUNK, metavar="N",
                    help=f"configurations per vectorised chunk (default {DEFAULT_CHUNK})")
     p.add_argument("--markers", choices=MARKER_MODES, default="first",
-                   help="deviation of the first marker, or the worst over all markers")
+                   help="deviation of the first marker (default), or the worst over all markers")
     p.add_argument("--out", required=True, metavar="FILE.json", help="where to write the result")
     p.add_argument("--force", action="store_true", help="overwrite --out if it exists")
     p.set_defaults(func=run)

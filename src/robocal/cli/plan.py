@@ -10,7 +10,7 @@ from . import common
 
 EXAMPLE = """examples:
   robocal plan examples/th8/model.yaml --poses 50 --out poses.csv
-  robocal plan examples/th8/model.yaml --poses 30 --candidates examples/th8/measurements.csv --out poses.csv
+  robocal plan examples/th8/model.yaml --poses 30 --candidates examples/th8/measurements.csv --out poses-30.csv
 
 The poses are written in the measurement-file layout with empty marker columns: measure them,
 fill the columns in, and run 'robocal calibrate'. The predictions assume the instrument's noise

@@ -7,7 +7,7 @@ from . import common
 
 EXAMPLE = """example:
   robocal plan-sockets examples/arm7/model.yaml --placements 3,6 --poses-per-socket 20,30 \\
-      --length-std-mm 0.02 --angle-std-deg 0.002 --out runs/plan/sockets.csv
+      --length-std-mm 0.02 --angle-std-deg 0.002 --out sockets.csv
 
 The plate is the default 3-socket plate with known spacing (docs/formats.md). The written file
 holds the chosen design's seatings on the nominal robot, as joint targets near which to seat the

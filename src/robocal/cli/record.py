@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from . import common
 
-EXAMPLE = """examples:
-  robocal record runs/mine/result.json --robot SN-1042 --type kr16
-  robocal record runs/mine/result.json --robot SN-1042 --store postgresql://cal@plant-db/robocal
+EXAMPLE = """example:
+  robocal record runs/compare/result.json --robot SN-1042 --type th8
 
-The store is --store, else $ROBOCAL_STORE, else ~/.local/share/robocal/store.sqlite (docs/store.md)."""
+The store is --store, else $ROBOCAL_STORE, else ~/.local/share/robocal/store.sqlite (docs/store.md); a
+plant's store on a PostgreSQL server: --store postgresql://cal@plant-db/robocal."""
 
 
 def store_option(p) -> None:

@@ -5,14 +5,14 @@ from __future__ import annotations
 from . import common
 
 EXAMPLE = """example:
-  robocal report runs/mine/result.json --out report.html"""
+  robocal report runs/compare/result.json --out report.html"""
 
 def register(sub) -> None:
     p = common.command(sub, "report", summary="write an HTML report of a result.json (needs robocal[report])",
                        description="Write the self-contained HTML report of a calibration result file.",
                        example=EXAMPLE)
-    p.add_argument("result", metavar="RESULT.json")
-    p.add_argument("--out", required=True, metavar="FILE.html")
+    p.add_argument("result", metavar="RESULT.json", help="a result file of robocal calibrate")
+    p.add_argument("--out", required=True, metavar="FILE.html", help="the report to write (one file, plots inline)")
     p.add_argument("--force", action="store_true", help="overwrite an existing file")
     p.set_defaults(func=run)
 

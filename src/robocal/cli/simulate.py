@@ -20,7 +20,8 @@ def register(sub) -> None:
     p.add_argument("--angle-error-deg", type=common.floats(2, 180.0, ordered=True), default=(0.01, 0.1),
                    metavar="LO,HI",
                    help="range of angle errors, deg (default 0.01,0.1)")
-    p.add_argument("--parameters", type=common.names, default=("geometric",), help="families to perturb")
+    p.add_argument("--parameters", type=common.names, default=("geometric",),
+                   help="families to perturb (default geometric)")
     p.add_argument("--true-model", metavar="OUT.yaml", help="also write the true model")
     p.add_argument("--units", type=common.units, default="mm-deg", help="units of the written files (default mm-deg)")
     p.add_argument("--force", action="store_true", help="overwrite existing output files")

@@ -8,8 +8,8 @@ from . import common, record
 RECALIBRATE = 3
 
 EXAMPLE = """examples:
-  robocal verify SN-1042 check.csv
-  robocal verify SN-1042 check.csv --register-base --no-record
+  robocal verify SN-1042 examples/th8/verification.csv
+  robocal verify SN-1042 examples/th8/verification.csv --register-base --no-record
 
 10 to 30 poses measured as for a calibration. Exit code 3 when the verdict is recalibrate."""
 
