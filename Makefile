@@ -1,7 +1,7 @@
 # Quick start: `make demo` and `make test` each set up a virtual environment first.
 # `make demo` installs robocal with the report extra only (numpy, scipy, PyYAML, threadpoolctl,
 # matplotlib), without precompiled bytecode (Python compiles what it imports);
-# `make test` adds the test extra (pytest, hypothesis, playwright, example-robot-data).
+# `make test` adds the test extra (pytest, hypothesis, playwright, example-robot-data, rosbags).
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import importlib.util
 import io
 import os
 import re
@@ -94,8 +95,6 @@ def _rounded_off(line: str) -> str:
 def after_demo(tmp_path_factory):
     """A folder as `make demo` leaves it (the examples, and runs/th8 written by the demo), and what
     the demo printed."""
-    import importlib.util
-
     folder = tmp_path_factory.mktemp("clone")
     (folder / "examples").symlink_to(ROOT / "examples")
     spec = importlib.util.spec_from_file_location("th8_reproduce", ROOT / "examples" / "th8" / "reproduce.py")
@@ -116,7 +115,11 @@ def test_every_example_runs_as_written(document, after_demo, tmp_path, monkeypat
     monkeypatch.setenv("HOME", str(tmp_path / "home"))
     monkeypatch.setenv("ROBOCAL_STORE", str(tmp_path / "home" / "store.sqlite"))
     shown = console_outputs(ROOT / document) if document.endswith(".md") else {}
+    not_run = []
     for command in EXAMPLES[document]:
+        if command.split()[1] == "import-bag" and importlib.util.find_spec("rosbags") is None:
+            not_run.append(command)                   # no later example reads what it writes
+            continue
         code, out, err = cli(*shlex.split(command)[1:])
         assert code == 0, f"{document}: {command}\n{err}"
         lines = shown.get(command, [])
@@ -125,6 +128,8 @@ def test_every_example_runs_as_written(document, after_demo, tmp_path, monkeypat
             for line in lines:
                 if not line.strip().startswith("..."):
                     assert _rounded_off(line) in printed, f"{command}: shown but not printed: {line!r}"
+    if not_run:
+        pytest.skip(f"{len(not_run)} import-bag example(s) not run: the ros extra is not installed")
 
 
 OUTPUTS = ("out", "true_model", "report", "store")

@@ -1,8 +1,9 @@
 """Files in and out, the only place units are converted (docs/formats.md): model files (YAML),
 measurement files (CSV), contact files (CSV), result files (JSON), repeatability files (CSV), URDF, DH tables,
-robot programs (ABB RAPID, KUKA KRL, URScript)."""
+robot programs (ABB RAPID, KUKA KRL, URScript), campaigns recorded as ROS bags (the ``ros`` extra)."""
 
 from ._base import arguments as _arguments
+from ._files.bags import BagCampaign, read_bag
 from ._files.contacts import contacts_to_csv, read_contacts, write_contacts
 from ._files.dh import dh_csv, mdh_csv, read_dh_table, write_mdh_csv
 from ._files.measurements import measurements_to_csv, read_measurements, split_sets, write_measurements
@@ -22,6 +23,7 @@ from ._files.result import (
                             sidecar_path,
                             write_result,
 )
+from ._files.stills import Left, StillRules
 from ._files.table import ColumnMap
 from ._files.urdf import read_urdf, urdf_text, write_urdf
 from ._identification.result import calibration_record
@@ -39,7 +41,7 @@ __all__ = ["read_model", "write_model", "calibration_record", "model_from_dict",
            "from_standard_dh", "mdh_table", "write_mdh_csv", "urdf_text", "to_standard_dh", "StandardDH", "mdh_csv",
            "dh_csv", "read_dh_table"]
 __all__ += ["read_program", "read_program_joints", "program_joints", "compensate_program", "Program", "Target",
-            "ProgramCompensation", "TargetResult"]
+            "ProgramCompensation", "TargetResult", "read_bag", "BagCampaign", "StillRules", "Left"]
 
 # the functions users call check their arguments; robocal's own code calls them unchecked
 _arguments.export_checked(globals())

@@ -23,6 +23,7 @@ from . import (
     export,
     history,
     identifiability,
+    import_bag,
     import_dh,
     import_urdf,
     limit,
@@ -36,7 +37,7 @@ from . import (
 from .common import Formatter, MissingExtra, Parser
 
 COMMANDS = (plan, plan_sockets, simulate, calibrate, compensate, export, identifiability, report, limit, import_urdf,
-            import_dh, record, history, verify)
+            import_dh, import_bag, record, history, verify)
 
 
 EXAMPLE = """example:
