@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import functools
 import importlib
+import importlib.util
 import inspect
 import math
 import sys
@@ -59,6 +60,7 @@ def world():
     return dict(
         rep=rep, repeatability=rc.iso9283_repeatability(rep.pose_ids, rep.points), model=model, true=true,
         data=data, result=result, comparison=comparison, q=data.q[:5], names=names,
+        th8=rc.read_model(ROOT / "examples" / "th8" / "model.yaml"),
         contacts=contacts, arm7=arm7, arm7_names=arm7_names, cresult=rc.calibrate(arm7, contacts=contacts),
         cproblem=Problem(arm7, arm7_names, contacts=contacts, compliance=False),
         precision=rc.controller_precision(model, encoder_resolution=(1e-5,) * 3, length_quantum=1e-5,
@@ -185,6 +187,9 @@ def valid_calls(tmp: Path) -> dict:
         "limit_to_dict": ((rc.accuracy_limit(w["repeatability"], w["precision"]),), {}),
         "read_repeatability_csv": ((files["rep"],), {}),
         "read_urdf": ((files["urdf"],), {}),
+        "read_bag": ((ROOT / "examples" / "th8" / "mocap.bag", w["th8"]),
+                     {"joints": "/joint_states", "markers": {"tool": "/mocap/tool/pose"},
+                      "rules": rc.io.StillRules(clock_offset=0.37)}),
         "urdf_text": ((m,), {}),
         "write_urdf": ((m, tmp / "out" / "r.urdf"), {"force": True}),
         "read_dh_table": ((files["dh"],), {}),
@@ -391,6 +396,9 @@ BAD = [
     ("read_result", "path", None), ("result_files", "per_pose", "yes"), ("sidecar_path", "path", 3),
     ("read_dh_table", "convention", "craig"), ("write_result", "result", None), ("result_from_dict", "source", None),
     ("result_to_dict", "result", 1), ("result_to_json", "result", "x"), ("limit_to_dict", "limit", 1.0),
+    ("read_bag", "path", 3), ("read_bag", "model", "model.yaml"), ("read_bag", "joints", 3),
+    ("read_bag", "markers", {"tool": "mocap"}), ("read_bag", "markers", {}), ("read_bag", "joint_names", 3),
+    ("read_bag", "rules", {"clock_offset": 0.37}), ("read_bag", "orientation", "yes"),
     ("read_repeatability_csv", "units", "inch"), ("read_urdf", "tip_link", 3), ("urdf_text", "model", None),
     ("write_urdf", "force", 1), ("read_dh_table", "name", 1), ("write_mdh_csv", "units", "deg"),
     ("mdh_csv", "model", None), ("dh_csv", "max_offset", 0.0),
@@ -432,6 +440,8 @@ BAD = [
 
 
 def _call(name, tmp_path, argument=None, value=None):
+    if name == "read_bag" and importlib.util.find_spec("rosbags") is None:
+        pytest.skip("the ros extra is not installed (pip install 'robocal[ros]')")
     fn = public_functions()[name]
     args, kwargs = valid_calls(tmp_path)[name]
     args, kwargs = list(args), dict(kwargs)

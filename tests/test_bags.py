@@ -179,6 +179,19 @@ def test_a_bag_without_the_topics_truncated_or_of_another_type_is_one_line(stora
     refused([str(cut), "not a readable ROS bag"], cut, "--joints", "/joint_states", "--marker", f"tool={topic}")
 
 
+@needs_rosbags
+def test_a_path_that_is_no_bag_is_one_line(tmp_path, cli):
+    (tmp_path / "notes.bag").write_text("not a bag\n")
+    (tmp_path / "folder").mkdir()
+    for bag, words in [(tmp_path / "none.bag", "no such file or folder"),
+                       (tmp_path / "notes.bag", "not a readable ROS bag"),
+                       (tmp_path / "folder", "a folder without metadata.yaml is not a ROS 2 bag")]:
+        code, _, err = cli("import-bag", bag, "--model", TH8 / "model.yaml", "--joints", "/joint_states", "--marker",
+                           "tool=/p", "--out", tmp_path / "c.csv")
+        assert_one_line_error(code, err, [str(bag), words], command="import-bag")
+    assert not (tmp_path / "c.csv").exists()
+
+
 def test_without_the_ros_extra_the_command_says_which_and_exits_1(cli, tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "rosbags", None)
     code, out, err = cli("import-bag", tmp_path / "any.bag", "--joints", "/joint_states", "--marker", "tool=/p",

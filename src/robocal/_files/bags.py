@@ -106,6 +106,11 @@ def read_bag(path, model: RobotModel | None = None, *, joints: str, markers: Map
     highlevel, errors = _rosbags()
     source, rules, from_bag = str(path), rules or StillRules(), model is None
     specs = _marker_specs(markers)
+    if not Path(path).exists():
+        raise InputError("no such file or folder", source=source)
+    if Path(path).is_dir() and not (Path(path) / "metadata.yaml").is_file():
+        raise InputError("a folder without metadata.yaml is not a ROS 2 bag (give the bag's folder, or its .db3 or "
+                         ".mcap file)", source=source)
     with _as_input_errors(source, errors), highlevel.AnyReader([Path(path)]) as reader:
         topics = _topics(reader, source, joints, specs, from_bag)
         decoded = _read(reader, topics, source)
@@ -140,8 +145,6 @@ def _as_input_errors(source: str, errors: tuple):
     except (*errors, struct.error, EOFError, UnicodeDecodeError) as e:
         raise InputError(f"not a readable ROS bag ({' '.join(str(e).split()) or type(e).__name__})",
                          source=source) from None
-    except FileNotFoundError as e:
-        raise InputError(f"no such bag ({excerpt(str(e))})", source=source) from None
 
 
 def _topics(reader, source: str, joints: str, specs: dict[str, str], description: bool) -> dict:
