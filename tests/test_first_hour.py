@@ -148,7 +148,8 @@ def test_every_argument_is_described_and_every_default_stated():
             what = f"{name} {'/'.join(action.option_strings) or action.metavar or action.dest}"
             if not action.help:
                 missing.append(what)
-            elif action.option_strings and not _unset(action.default) and "default" not in action.help:
+            elif action.option_strings and not _unset(action.default) and "default" not in action.help \
+                    and not isinstance(action, argparse._StoreFalseAction):   # a flag: by default not given
                 unstated.append(f"{what} (default {action.default!r})")
     assert missing == [] and unstated == [], (missing, unstated)
 
