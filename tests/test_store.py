@@ -108,7 +108,7 @@ def test_a_version_2_store_keeps_its_single_precision_correlations_and_judges_wi
     with rc.open_store(location, create=True) as store:
         store.record(result, "SN-1", at="2026-01-01")
     single = np.asarray(result.correlation, dtype="<f4")[np.triu_indices(len(result.parameters))].tobytes()
-    with rc.open_store(location) as store, store._db.transaction(write=True) as cur:   # as version 2 wrote it
+    with rc.open_store(location, write=True) as store, store._db.transaction(write=True) as cur:  # as version 2
         store._execute(cur, "UPDATE robocal_calibrations SET correlation = ?", (single,))
         store._execute(cur, "UPDATE robocal_schema SET version = 2")
     with rc.open_store(location, create=True) as store:
@@ -149,7 +149,7 @@ def test_a_verification_is_held_against_the_accuracy_the_instrument_saw(campaign
 def test_an_older_schema_is_upgraded_in_place(location, campaign):
     store = rc.open_store(location, create=True)
     store.close()
-    with rc.open_store(location) as store, store._db.transaction(write=True) as cur:   # back to version 1
+    with rc.open_store(location, write=True) as store, store._db.transaction(write=True) as cur:  # back to version 1
         store._execute(cur, "DROP TABLE robocal_verifications")
         store._execute(cur, "UPDATE robocal_schema SET version = 1")
     with rc.open_store(location, create=True) as store:

@@ -64,6 +64,9 @@ OVERALL_SHARE = 0.2
 # double precision, and at single precision (stores written before schema version 3)
 RCOND = {8: 1e-10, 4: 1e-4}
 MAX_NAME = 200
+# seconds a write waits for another process's write lock, and before it says it waits
+LOCK_WAIT = 120.0
+WAIT_NOTICE = 1.0
 
 
 # -- where the store is ---------------------------------------------------------------------------
@@ -117,6 +120,14 @@ def store_location(option: str | None = None, environ=None) -> str:
 
 def is_url(location: str) -> bool:
     return bool(re.match(r"postgres(ql)?://", str(location)))
+
+
+def _check_scheme(location: str) -> None:
+    """A URL of any scheme but PostgreSQL's is refused: never taken as a relative path."""
+    scheme = re.match(r"([A-Za-z][A-Za-z0-9+.-]*)://", location)
+    if scheme and not is_url(location):
+        raise InputError(f"a store is a SQLite file or a postgresql:// URL; robocal has no {scheme[1]!r} back-end",
+                         source=shown_location(location))
 
 
 def shown_location(location: str) -> str:
@@ -786,8 +797,14 @@ class _Backend:
     types: dict = {}
     errors: tuple = ()
 
-    def __init__(self, location: str, create: bool) -> None:
+    def __init__(self, location: str, create: bool, write: bool) -> None:
         raise NotImplementedError
+
+    def ready(self) -> None:
+        """The database is a store and will be written: what writing needs (SQLite: its log)."""
+
+    def check(self) -> None:
+        """Damage the database can find in itself, as an InputError naming the store."""
 
     def sql(self, text: str) -> str:
         raise NotImplementedError
@@ -812,10 +829,11 @@ class _SQLite(_Backend):
     name = "sqlite"
     types = {"id": "INTEGER PRIMARY KEY AUTOINCREMENT", "blob": "BLOB", "real": "REAL"}
 
-    def __init__(self, location: str, create: bool):
+    def __init__(self, location: str, create: bool, write: bool):
         import sqlite3
 
         self.errors = (sqlite3.Error,)
+        self.location = location
         path = Path(location)
         if not path.exists():
             if not create:
@@ -825,27 +843,82 @@ class _SQLite(_Backend):
             os.close(os.open(path, os.O_WRONLY | os.O_CREAT, 0o666))
         elif not path.is_file():
             raise InputError("not a file", source=location)
-        self.conn = sqlite3.connect(str(path), timeout=120.0, isolation_level=None, check_same_thread=False)
+        elif write and not (os.access(path, os.W_OK) and os.access(path.parent, os.W_OK)):
+            # refused before SQLite opens it: a read-only store keeps no log files of a refused write
+            raise InputError(f"read-only {'folder' if os.access(path, os.W_OK) else 'store'}: nothing can be "
+                             "recorded here", source=location)
+        self.conn = self._connect(path, write, create)
         try:
             self.conn.execute("PRAGMA foreign_keys = ON")
-            if create:
-                self.conn.execute("PRAGMA journal_mode = WAL")
         except sqlite3.Error:
             self.conn.close()
             raise
+
+    @staticmethod
+    def _connect(path: Path, write: bool, create: bool):
+        """A connection that writes only when asked. A reading one in a folder it cannot write
+        (a shared store) reads the file as it is when no write-ahead log is beside it."""
+        import sqlite3
+        from urllib.parse import quote
+
+        uri = "file:" + quote(str(path.resolve()))
+        if write:
+            return sqlite3.connect(uri + ("?mode=rwc" if create else "?mode=rw"), uri=True, timeout=WAIT_NOTICE,
+                                   isolation_level=None, check_same_thread=False)
+        conn = sqlite3.connect(uri + "?mode=ro", uri=True, timeout=LOCK_WAIT, isolation_level=None,
+                               check_same_thread=False)
+        try:
+            conn.execute("SELECT count(*) FROM sqlite_master").fetchall()
+            return conn
+        except sqlite3.OperationalError:
+            conn.close()
+            if Path(f"{path}-wal").exists():
+                raise
+        return sqlite3.connect(uri + "?immutable=1", uri=True, isolation_level=None, check_same_thread=False)
+
+    def ready(self) -> None:
+        self.conn.execute("PRAGMA journal_mode = WAL")
+
+    def check(self) -> None:
+        rows = [r[0] for r in self.conn.execute("PRAGMA quick_check(5)").fetchall()]
+        if rows != ["ok"]:
+            raise InputError(f"damaged store: {'; '.join(map(str, rows))[:300]}; nothing recorded",
+                             source=self.location)
 
     def sql(self, text: str) -> str:
         return text
 
     @contextmanager
     def transaction(self, write: bool):
-        self.conn.execute("BEGIN IMMEDIATE" if write else "BEGIN")
+        if write:
+            self._begin_write()
+        else:
+            self.conn.execute("BEGIN")
         try:
             yield self.conn
         except BaseException:
             self.conn.execute("ROLLBACK")
             raise
         self.conn.execute("COMMIT")
+
+    def _begin_write(self) -> None:
+        """BEGIN IMMEDIATE; when another process holds the write lock, say so and wait for it."""
+        import logging
+        import sqlite3
+
+        try:
+            self.conn.execute("BEGIN IMMEDIATE")
+            return
+        except sqlite3.OperationalError as e:
+            if "locked" not in str(e) and "busy" not in str(e):
+                raise
+        logging.getLogger("robocal").warning("%s: another process is writing the store; waiting for it (up to %d s)",
+                                             self.location, LOCK_WAIT)
+        self.conn.execute(f"PRAGMA busy_timeout = {int(LOCK_WAIT * 1000)}")
+        try:
+            self.conn.execute("BEGIN IMMEDIATE")
+        finally:
+            self.conn.execute(f"PRAGMA busy_timeout = {int(WAIT_NOTICE * 1000)}")
 
     def lock(self, cur) -> None:
         """The migration's lock: BEGIN IMMEDIATE holds the file's write lock already."""
@@ -861,7 +934,7 @@ class _Postgres(_Backend):
     name = "postgresql"
     types = {"id": "BIGINT GENERATED BY DEFAULT AS IDENTITY PRIMARY KEY", "blob": "BYTEA", "real": "DOUBLE PRECISION"}
 
-    def __init__(self, location: str, create: bool):
+    def __init__(self, location: str, create: bool, write: bool):
         import psycopg
 
         self.errors = (psycopg.Error,)
@@ -891,20 +964,26 @@ class Store:
     """A store of calibrations, open: SQLite (a file path) or PostgreSQL (a ``postgresql://`` URL).
 
     Use as a context manager, or call ``close``. ``create``: make the store (and its tables) when
-    it does not exist yet; otherwise a missing store is an InputError. Errors of the database
-    (unreadable file, refused connection, damaged content) are InputErrors naming the store.
+    it does not exist yet; otherwise a missing store is an InputError. ``write`` (default
+    ``create``): the store will be written; without it a SQLite store is opened read-only (a store
+    in a folder one cannot write is read as it is). Errors of the database (unreadable file,
+    refused connection, damaged content) are InputErrors naming the store.
     """
 
-    def __init__(self, location=None, *, create: bool = False):
+    def __init__(self, location=None, *, create: bool = False, write: bool | None = None):
         location = store_location(None if location is None else str(location))
+        _check_scheme(location)
         self.location = shown_location(location)
         backend: type[_Backend] = _Postgres if is_url(location) else _SQLite
         self._backend: _Backend | None = None
+        write = create if write is None else write
         with self._errors():
-            self._backend = backend(location, create)
+            self._backend = backend(location, create, write or create)
             self.backend = self._backend.name
             try:
                 self.version = self._migrate(create)
+                if write or create:
+                    self._backend.ready()     # only now: a database of something else is left as it was
             except BaseException:
                 self._backend.close()
                 self._backend = None
@@ -982,6 +1061,12 @@ class Store:
 
     # -- writing -----------------------------------------------------------------------------------
 
+    def check(self) -> None:
+        """Damage the database finds in itself (SQLite's quick check), as an InputError: what a
+        command that records asks before it writes anything."""
+        with self._errors():
+            self._db.check()
+
     def add(self, records, models=()) -> tuple[int, ...]:
         """Store calibration records in one transaction; their ids.
 
@@ -989,6 +1074,13 @@ class Store:
         (``model_document``), stored once each. A record of the same robot, date and input
         fingerprint as one stored already is an InputError, and then nothing is stored.
         """
+        with self._adding(records, models) as ids:
+            return ids
+
+    @contextmanager
+    def _adding(self, records, models):
+        """``add``'s transaction, open while the body runs: committed when it ends, rolled back
+        when it raises."""
         records = list(records)
         columns = _CALIBRATION_COLUMNS[1:]
         insert = (f"INSERT INTO robocal_calibrations ({', '.join(columns)}) "
@@ -1005,15 +1097,24 @@ class Store:
                     raise InputError(f"this calibration of {r.robot} ({r.calibrated_at}) is stored already, as "
                                      f"#{found[0]}", source=self.location)
                 ids.append(self._db.insert_id(cur, self._db.sql(insert), _calibration_row(r)))
-        return tuple(ids)
+            yield tuple(ids)
 
     def record(self, result: CalibrationResult, robot: str, *, robot_type: str | None = None, at=None,
                source: str = "") -> StoredCalibration:
         """Store one calibration (see ``stored_calibration``); the stored record, with its id."""
+        with self.recording(result, robot, robot_type=robot_type, at=at, source=source) as rec:
+            return rec
+
+    @contextmanager
+    def recording(self, result: CalibrationResult, robot: str, *, robot_type: str | None = None, at=None,
+                  source: str = ""):
+        """``record`` as one outcome with the caller's own work: the record (with its id) is
+        stored when the body ends and not at all when it raises (e.g. writing the result's files
+        failed)."""
         rec = stored_calibration(result, robot, robot_type=robot_type, at=at, source=source)
         models = [model_document(result.nominal_model), model_document(result.calibrated_model)]
-        (i,) = self.add([rec], models)
-        return replace(rec, id=i)
+        with self._adding([rec], models) as (i,):
+            yield replace(rec, id=i)
 
     def add_verification(self, v: StoredVerification) -> StoredVerification:
         """Store a verification (one transaction); the stored record, with its id."""
@@ -1051,7 +1152,7 @@ class Store:
         for robot, i, at, verdict, acc, params, values in rows:
             with self._errors(f"calibration #{i}"):
                 rms = None if acc is None else _float(json.loads(acc)["rms"])
-                latest.append(Latest(_text(robot), int(i), _text(at), _text(verdict), rms))
+                latest.append(Latest(_text(robot), int(i), _date(at), _text(verdict), rms))
                 if params not in layouts:
                     layouts[params] = _layout(params)
                 estimates.append(_estimate_rows(layouts[params], values))
@@ -1105,8 +1206,8 @@ class _Upgrade(InputError):
         super().__init__("the store needs an upgrade")
 
 
-@accepts(location=optional(PATH), create=FLAG)
-def open_store(location=None, *, create: bool = False) -> Store:
+@accepts(location=optional(PATH), create=FLAG, write=optional(FLAG))
+def open_store(location=None, *, create: bool = False, write: bool | None = None) -> Store:
     """Open a store: a SQLite file path or a ``postgresql://`` URL (default: ``store_location()``).
 
     Parameters
@@ -1115,6 +1216,8 @@ def open_store(location=None, *, create: bool = False) -> Store:
         The store; None: ``$ROBOCAL_STORE``, else ``default_store_path()``.
     create : bool
         Make the store when it does not exist (else an InputError).
+    write : bool, optional
+        The store will be written (default ``create``); else it is opened read-only.
 
     Returns
     -------
@@ -1122,7 +1225,7 @@ def open_store(location=None, *, create: bool = False) -> Store:
         Open; an older schema is upgraded in place first.
     """
     try:
-        return Store(location, create=create)
+        return Store(location, create=create, write=write)
     except _Upgrade:
         return Store(location, create=True)
 
@@ -1152,6 +1255,17 @@ def _nan(v) -> float:
 def _text(v) -> str:
     if not isinstance(v, str):
         raise ValueError(f"expected text, got {excerpt(v)}")
+    return v
+
+
+def _date(v) -> str:
+    """A stored date: ISO 8601 UTC text as the store writes it."""
+    try:
+        ok = utc_text(_text(v)) == v
+    except InputError:
+        ok = False
+    if not ok:
+        raise ValueError(f"expected an ISO 8601 UTC date, got {excerpt(v)}")
     return v
 
 
@@ -1212,8 +1326,8 @@ def _calibration_from_row(row) -> StoredCalibration:
     if not isinstance(inp, dict):
         raise ValueError("inputs is not a mapping")
     return StoredCalibration(
-        robot=_text(robot), robot_type=None if rtype is None else _text(rtype), calibrated_at=_text(cal_at),
-        recorded_at=_text(rec_at), fingerprint=_text(fp), verdict=_text(verdict),
+        robot=_text(robot), robot_type=None if rtype is None else _text(rtype), calibrated_at=_date(cal_at),
+        recorded_at=_date(rec_at), fingerprint=_text(fp), verdict=_text(verdict),
         checks=tuple((_text(n), _text(s), _text(t)) for n, s, t in json.loads(checks)), estimates=ests,
         accuracy=accuracy, in_use=use, limit_m=None if limit_m is None else _nan(limit_m),
         nominal_model=_text(nominal), calibrated_model=_text(calibrated), source=_text(source),
@@ -1223,7 +1337,7 @@ def _calibration_from_row(row) -> StoredCalibration:
 def _verification_from_row(row) -> StoredVerification:
     i, robot, cal, at, verdict, document = row
     d = json.loads(document)
-    return StoredVerification(robot=_text(robot), calibration_id=int(cal), verified_at=_text(at),
+    return StoredVerification(robot=_text(robot), calibration_id=int(cal), verified_at=_date(at),
                               verdict=_text(verdict), **{k: _nan(d[k]) for k in ("rms", "mean", "p95", "max", "ap_max",
                                                                                  "then_rms", "ratio", "threshold")},
                               n_points=int(d["n_points"]), registered_base=bool(d["registered_base"]),

@@ -296,10 +296,11 @@ def run(args) -> int:
         common.require_finite("the calibration", _headline(r))
     diagnosis = _diagnosis(args, model, data, contacts, best, options["noise"])
     files = _output_files(args, out, results, best, diagnosis, report)
-    common.write_outputs(files, force=args.force)
-    print(f"wrote {', '.join(str(p) for p in files)}")
-    if args.record:
-        record.record_result(args, best, args.record, str(out / "result.json"))
+    if args.record:     # the files and the record: both or neither
+        record.record_result(args, best, args.record, str(out / "result.json"), files=files)
+    else:
+        common.write_outputs(files, force=args.force)
+        print(f"wrote {', '.join(str(p) for p in files)}")
     if best.verdict == "fail":
         print(f"not written: {out / 'calibrated.yaml'} (the calibration failed its checks; --write-failed writes it "
               "anyway, marked as failed)" if not args.write_failed else

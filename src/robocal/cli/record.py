@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
+from .._base.errors import InputError
 from . import common
 
 EXAMPLE = """example:
@@ -17,8 +20,9 @@ def store_option(p) -> None:
                                                        "$ROBOCAL_STORE, else ~/.local/share/robocal/store.sqlite)")
 
 
-def open_store(args, *, create: bool = False):
-    """The store the options name, open; MissingExtra for PostgreSQL without psycopg."""
+def open_store(args, *, create: bool = False, write: bool | None = None):
+    """The store the options name, open (read-only unless ``create`` or ``write``); MissingExtra
+    for PostgreSQL without psycopg."""
     from .._store.store import is_url
     from .._store.store import open_store as open_
 
@@ -28,7 +32,7 @@ def open_store(args, *, create: bool = False):
             import psycopg  # noqa: F401
         except ImportError:
             raise common.MissingExtra("a PostgreSQL store needs psycopg (pip install 'robocal[store-pg]')") from None
-    return open_(location, create=create)
+    return open_(location, create=create, write=write)
 
 
 def _location(args) -> str:
@@ -82,15 +86,46 @@ def recorded_line(rec, location: str) -> str:
             f"{location}")
 
 
-def record_result(args, result, robot: str, source: str, at=None) -> None:
-    """Store ``result`` and say so, with the changes since the robot's previous calibration."""
-    from .._presentation.history import change_line, overall_line
+def record_result(args, result, robot: str, source: str, at=None, files=None) -> None:
+    """Store ``result`` and write ``files`` ({path: text}, with --force as ``args.force``) as one
+    outcome, both or neither; then say so, with the changes since the robot's previous calibration.
+
+    The store is checked first (ours, writable, whole; the robot's earlier records readable), so
+    an unusable store leaves nothing written. Once the record is committed, reading the history
+    can no longer fail the command: damage found then is reported on stderr."""
+    import logging
+
     from .._store.store import history
 
     with open_store(args, create=True) as store:
-        rec = store.record(result, robot, robot_type=args.robot_type, at=at, source=source)
+        store.check()
+        store.calibrations(robot), store.verifications(robot)   # damaged earlier records: nothing written
+        written = False
+        try:
+            with store.recording(result, robot, robot_type=args.robot_type, at=at, source=source) as rec:
+                if files:
+                    common.write_outputs(files, force=args.force)
+                    written = True
+        except BaseException:
+            if written:     # the record did not commit: the files it belongs with go too
+                for p in files or ():
+                    Path(p).unlink(missing_ok=True)
+            raise
+        if files:
+            print(f"wrote {', '.join(str(p) for p in files)}")
         print(recorded_line(rec, store.location))
-        h = history(store, robot)
+        try:
+            h = history(store, robot)
+        except InputError as e:
+            logging.getLogger("robocal").warning("recorded, but the earlier records of %s cannot be read for the "
+                                                 "changes: %s", robot, e)
+            return
+    _print_changes(h, rec)
+
+
+def _print_changes(h, rec) -> None:
+    from .._presentation.history import change_line, overall_line
+
     changes = [change_line(c) for c in h.changes if c.at == rec.calibrated_at]
     changes += [overall_line(o) for o in h.overall if o.named and o.at == rec.calibrated_at]
     if len(h.calibrations) > 1:

@@ -41,7 +41,7 @@ def run(args) -> int:
     from .._store.store import check_name, latest_usable, verify_robot
 
     robot = check_name(args.robot, "ROBOT")
-    with record.open_store(args, create=False) as store:
+    with record.open_store(args, create=False, write=not args.no_record) as store:
         against = latest_usable(store, robot)
         data = common.read_data(args, store.model(against.calibrated_model), args.csv)
         v, _ = verify_robot(store, robot, data, register=args.register_base, alpha=args.alpha,
