@@ -689,7 +689,7 @@ def test_a_urscript_pose_reached_only_through_pose_add_is_listed_as_not_compensa
     code, out, err = cli("compensate", tmp_path / "n.yaml", tmp_path / "c.yaml", CELLS / "pick.script",
                          "--out", tmp_path / "out.script")
     assert code == 0, err
-    assert "place (line 6) (line 6, pose): not compensated: moved to only through pose_add (line 14)" in out
+    assert "place (line 6, pose): not compensated: moved to only through pose_add (line 14)" in out
     assert "2 reached only through expressions" in out
 
 

@@ -231,9 +231,11 @@ def model_from_dict(d: dict, *, source: str = "<dict>") -> RobotModel:
 def _units_of(rd: _Reader, d) -> tuple[float, float]:
     """The top-level checks and the file's (length, angle) units as SI factors."""
     rd.mapping(d, "", TOP_KEYS, required=("robocal_model", "units", "joints", "frames", "markers"))
-    if d["robocal_model"] != FORMAT_VERSION:
-        raise rd.error("robocal_model", f"unsupported format version {d['robocal_model']!r}; "
-                                        f"this robocal reads version {FORMAT_VERSION}")
+    version = d["robocal_model"]
+    if version != FORMAT_VERSION or isinstance(version, bool):
+        raise rd.error("robocal_model", f"the format version is the number {FORMAT_VERSION}, written without quotes; "
+                                        f"got the text {version!r}" if str(version).strip() == str(FORMAT_VERSION) else
+                       f"unsupported format version {excerpt(version)}; this robocal reads version {FORMAT_VERSION}")
     units = rd.mapping(d["units"], "units", ("length", "angle"), required=("length", "angle"))
     L = LENGTH_UNITS[check_unit(units["length"], "length", source=rd.source, where="units.length")]
     A = ANGLE_UNITS[check_unit(units["angle"], "angle", source=rd.source, where="units.angle")]

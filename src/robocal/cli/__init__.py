@@ -107,6 +107,9 @@ def main(argv=None) -> int:
 
     with warnings.catch_warnings():
         warnings.simplefilter("always", RobocalWarning)
+        # numpy's overflow and invalid-value warnings speak of its internals: the results they
+        # touch are checked finite and a command says what is wrong in its own words
+        warnings.simplefilter("ignore", RuntimeWarning)
         warnings.showwarning = show
         args.shown_warnings = shown
         logging.getLogger("robocal").info("%s: started", args.command)

@@ -102,6 +102,9 @@ def _inputs(args):
         held = args.holdout_placement or (_drawn_placements(contacts, args) if args.holdout else None)
         if held:
             contacts, validation = contacts.split_placements(held)
+            if not contacts.n_rows:
+                raise InputError(f"holds out every placement ({', '.join(held)}); keep one to fit on",
+                                 source=args.contacts, where="--holdout-placement")
         elif args.validation:       # measured points held out
             validation = common.read_data(args, model, args.validation)
         if args.csv is not None:

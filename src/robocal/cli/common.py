@@ -87,7 +87,7 @@ def number_in(ok, what: str):
     """An argparse type: a float that passes ``ok``, else a usage error saying ``what`` was expected."""
     def parse(text: str) -> float:
         try:
-            v = float(text)
+            v = float(text) + 0.0   # -0 is 0: numpy refuses a negative zero scale
         except ValueError:
             v = float("nan")
         if not ok(v):
@@ -111,7 +111,11 @@ def limit_mm(text: str) -> float:
 def _limit_from_file(path: str) -> float:
     from .._files.text import load_json, read_text
 
-    if not Path(path).exists():
+    try:
+        found = Path(path).exists()
+    except OSError:     # a name longer than the system takes
+        found = False
+    if not found:
         raise argparse.ArgumentTypeError(f"{excerpt(path)}: no such file (expected mm or a limit file)")
     try:
         doc = load_json(read_text(path)[0], path)  # bounded and checked like every robocal file
@@ -134,9 +138,10 @@ positive = number_in(lambda v: 0.0 < v < math.inf, "a positive number")
 length_mm = number_in(lambda v: 0.0 <= v <= 1e3, "a number from 0 to 1000 (mm)")
 angle_deg = number_in(lambda v: 0.0 <= v <= 180.0, "a number from 0 to 180 (degrees)")
 tolerance = number_in(lambda v: 0.0 < v < 1.0, "a tolerance between 0 and 1 (exclusive)")
-# noise of an instrument, mm and degrees: beyond a metre or half a turn it is not a measurement
-noise_mm = number_in(lambda v: 0.0 < v <= 1e3, "a positive number up to 1000 (mm)")
-noise_deg = number_in(lambda v: 0.0 < v <= 180.0, "a positive number up to 180 (degrees)")
+# noise of an instrument, mm and degrees: beyond a metre or half a turn it is not a measurement,
+# below a nanometre or a nanodegree no instrument's (the checks' ratios to it overflow)
+noise_mm = number_in(lambda v: 1e-6 <= v <= 1e3, "a number from 0.000001 to 1000 (mm)")
+noise_deg = number_in(lambda v: 1e-9 <= v <= 180.0, "a number from 0.000000001 to 180 (degrees)")
 
 
 def marker_mm(text: str) -> tuple[str, tuple[float, float, float]]:

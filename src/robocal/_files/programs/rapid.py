@@ -204,7 +204,7 @@ def _target(kind: str, name: str, agg, sc, **where) -> Target:
     if kind == "jointtarget":
         return Target(name, "joint", line, column, joints=agg.items[0].items, **where)
     quat = agg.items[1].items
-    norm = math.sqrt(sum(n.value ** 2 for n in quat))
+    norm = math.hypot(*(n.value for n in quat))   # no overflow for a huge component
     if not 0.9 < norm < 1.1:
         raise sc.error(quat[0].start, f"{name}: the quaternion's norm is {norm:.3g}, not 1")
     conf = agg.items[2].items
@@ -217,7 +217,7 @@ def _target(kind: str, name: str, agg, sc, **where) -> Target:
 
 def _pose(pos, quat, sc, name) -> np.ndarray:
     w, x, y, z = (n.value for n in quat)
-    norm = math.sqrt(w * w + x * x + y * y + z * z)
+    norm = math.hypot(w, x, y, z)
     if not 0.9 < norm < 1.1:
         raise sc.error(quat[0].start, f"{name}: the quaternion's norm is {norm:.3g}, not 1")
     X = np.eye(4)

@@ -53,19 +53,25 @@ def read(text: str, source: str) -> Program:
         if agg.label == "p" and numbers(agg, 6) is not None and all(math.isfinite(n.value) for n in agg.items):
             frames.append(NamedFrame(name, "frame", _pose_matrix([n.value for n in agg.items])[0]))
     used = {u.name for u in walk.uses}
-    targets = list(walk.moved)
-    for name, agg, anchor in walk.literals:
-        if name in used:
-            line = sc.line_col(agg.start)[0]
-            targets.append(replace(_target(f"{name} (line {line})", agg, sc), anchor=anchor))
-    targets.sort(key=lambda t: (t.line, t.column))
     lines: dict[str, list[int]] = {}
     for name, agg, _ in walk.literals:
         lines.setdefault(name, []).append(sc.line_col(agg.start)[0])
-    # the uses under the names the variables' targets get (``approach (line 5)``)
-    uses = [replace(u, name=f"{u.name} (line {n})") for u in walk.uses for n in lines.get(u.name, ())]
+    targets = list(walk.moved)
+    for name, agg, anchor in walk.literals:
+        if name in used:
+            label = _label(name, sc.line_col(agg.start)[0], lines)
+            targets.append(replace(_target(label, agg, sc), anchor=anchor))
+    targets.sort(key=lambda t: (t.line, t.column))
+    # the uses under the names the variables' targets get
+    uses = [replace(u, name=_label(u.name, n, lines)) for u in walk.uses for n in lines.get(u.name, ())]
     return Program(source=source, dialect=NAME, text=text, targets=tuple(targets), frames=tuple(frames),
                    uses=tuple(uses))
+
+
+def _label(name: str, line: int, lines: dict) -> str:
+    """A variable's target: its declared name; one assigned more than once, each with its line
+    (``approach (line 5)``)."""
+    return name if len(lines[name]) == 1 else f"{name} (line {line})"
 
 
 def key(name: str) -> str:

@@ -1,0 +1,94 @@
+"""Edges of the commands found by fuzzing from outside: each one a line on stderr and exit 2, or the
+right output, never a traceback or numpy's own words."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import assert_one_line_error
+from robots import arm6r
+
+import robocal as rc
+from robocal.io import read_program, read_program_joints, write_contacts
+from robocal.sim import socket_campaign
+
+ROOT = Path(__file__).resolve().parents[1]
+TH8 = ROOT / "examples" / "th8"
+ARM7 = ROOT / "examples" / "arm7" / "model.yaml"
+
+
+def test_a_negative_zero_noise_simulates_without_noise(cli, tmp_path):
+    code, out, err = cli("simulate", TH8 / "model.yaml", "--out", tmp_path / "s.csv", "--poses", "10",
+                         "--noise-mm", "-0")
+    assert code == 0 and "noise 0.0 mm" in out and err == "", err
+    assert rc.read_measurements(tmp_path / "s.csv", rc.read_model(TH8 / "model.yaml")).n_poses == 10
+
+
+def test_a_limit_file_name_longer_than_the_system_takes_is_one_line(cli, tmp_path):
+    code, _, err = cli("calibrate", TH8 / "model.yaml", TH8 / "measurements.csv", "--out", tmp_path / "o",
+                       "--limit-mm", "x" * 300)
+    assert code == 2 and "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert "--limit-mm" in err and "no such file" in err and not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("noise", ["1e-300", "1e-7", "0"])
+def test_a_noise_no_instrument_has_is_refused(cli, tmp_path, noise):
+    code, _, err = cli("calibrate", TH8 / "model.yaml", TH8 / "measurements.csv", "--out", tmp_path / "o",
+                       "--noise-mm", noise)
+    assert code == 2 and "--noise-mm" in err and "0.000001 to 1000" in err and "inf" not in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_holding_out_every_placement_of_a_mixed_campaign_is_refused(cli, tmp_path):
+    arm7 = rc.read_model(ARM7)
+    write_contacts(socket_campaign(arm7, placements=2, poses_per_socket=6, rng=7), tmp_path / "sockets.csv", arm7)
+    rc.write_measurements(rc.measure(arm7, rc.random_configurations(arm7, 15, 1), rng=1), tmp_path / "t.csv",
+                          model=arm7)
+    code, _, err = cli("calibrate", ARM7, tmp_path / "t.csv", "--contacts", tmp_path / "sockets.csv", "--out",
+                       tmp_path / "o", "--holdout-placement", "P1,P2")
+    assert_one_line_error(code, err, ["--holdout-placement", "every placement", "sockets.csv"], tmp_path / "o")
+
+
+@pytest.mark.parametrize("component", ["1e308", "-1e308", "1e200"])
+def test_a_huge_rapid_quaternion_component_is_refused_at_its_place(tmp_path, component):
+    path = tmp_path / "p.mod"
+    path.write_text("MODULE m\n  CONST robtarget p1 := [[1,2,3],[" + component + ",0,0,0],[0,0,0,0],"
+                    "[9E9,9E9,9E9,9E9,9E9,9E9]];\n  MoveL p1, v10, fine, tool0;\nENDMODULE\n")
+    with pytest.raises(rc.InputError, match="quaternion's norm") as e:
+        read_program(path)
+    assert "line 2" in str(e.value)
+
+
+def test_urscript_joint_readings_are_labelled_by_their_declared_name(tmp_path):
+    path = tmp_path / "log.script"
+    path.write_text("def log():\n  home = [0, -1.57, 1.57, 0, 0, 0]\n  movej(home)\n"
+                    "  q = [0.1, -1.2, 1.1, 0.2, 0.3, 0.4]\n  movej(q)\n  q = [0.2, -1.1, 1.0, 0.1, 0.2, 0.3]\n"
+                    "  movej(q)\n  movej([0, 0, 0, 0, 0, 0])\nend\n")
+    labels, q = read_program_joints(path, arm6r())
+    # a name assigned once is the pose label; one assigned twice needs its line to tell them apart
+    assert labels == ["home", "q (line 4)", "q (line 6)", "line 8"]
+    assert np.allclose(q[0], [0, -1.57, 1.57, 0, 0, 0])
+
+
+def test_numpy_runtime_warnings_never_reach_the_user(cli, tmp_path, monkeypatch):
+    import robocal.cli.simulate as command
+
+    def overflowing(args):
+        np.float64(1e308) * np.float64(10.0)        # what numpy says of its internals
+        print("done")
+        return 0
+
+    monkeypatch.setattr(command, "run", overflowing)
+    code, out, err = cli("simulate", TH8 / "model.yaml", "--out", tmp_path / "s.csv", "--poses", "10")
+    assert code == 0 and out == "done\n" and err == ""
+
+
+def test_a_format_version_written_as_text_is_named_so(cli, tmp_path):
+    text = (TH8 / "model.yaml").read_text()
+    assert "robocal_model: 1\n" in text
+    (tmp_path / "m.yaml").write_text(text.replace("robocal_model: 1\n", "robocal_model: '1'\n"))
+    code, _, err = cli("calibrate", tmp_path / "m.yaml", TH8 / "measurements.csv", "--out", tmp_path / "o")
+    assert_one_line_error(code, err, ["robocal_model", "the number 1", "without quotes"], tmp_path / "o")
+    assert "reads version 1" not in err
