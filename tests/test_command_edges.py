@@ -92,3 +92,15 @@ def test_a_format_version_written_as_text_is_named_so(cli, tmp_path):
     code, _, err = cli("calibrate", tmp_path / "m.yaml", TH8 / "measurements.csv", "--out", tmp_path / "o")
     assert_one_line_error(code, err, ["robocal_model", "the number 1", "without quotes"], tmp_path / "o")
     assert "reads version 1" not in err
+
+
+def test_argument_messages_say_what_the_argument_holds():
+    from robocal.identification import analyse
+    from robocal.kinematics import forward_kinematics
+
+    arm7 = rc.read_model(ARM7)
+    with pytest.raises(rc.InputError, match=r"joint readings: a row per pose, a column for each of the model's 7 "
+                                            r"joints.*got 6 column\(s\)"):
+        forward_kinematics(arm7, np.zeros((3, 6)))
+    with pytest.raises(rc.InputError, match="the Jacobian .* must hold finite numbers"):
+        analyse(np.array([[1.0, np.nan]]), ["a", "b"])

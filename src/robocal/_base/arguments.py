@@ -119,17 +119,23 @@ def names(value, name: str) -> tuple[str, ...]:
     raise InputError(f"must be a name or a sequence of names (text), got {excerpt(value)}", where=name)
 
 
+# what the arguments named by a letter hold, for messages that name them
+MEANING = {"J": "the Jacobian (a row per equation, a column per parameter)",
+           "q": "the joint readings (a row per pose, a column per joint)"}
+
+
 def float_array(value, name: str, shape: tuple[int | None, ...], *, finite: bool = True) -> np.ndarray:
     """A float array of ``shape`` (None: any length on that axis); finite unless said otherwise."""
+    what = f"{MEANING[name]} " if name in MEANING else ""
     try:
         a = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
-        raise InputError(f"must be an array of numbers of shape {_shape(shape)}, got {excerpt(value)}",
+        raise InputError(f"{what}must be an array of numbers of shape {_shape(shape)}, got {excerpt(value)}",
                          where=name) from None
     if a.ndim != len(shape) or any(n is not None and n != m for n, m in zip(shape, a.shape)):
-        raise InputError(f"must have shape {_shape(shape)}, got {a.shape}", where=name)
+        raise InputError(f"{what}must have shape {_shape(shape)}, got {a.shape}", where=name)
     if finite and not np.all(np.isfinite(a)):
-        raise InputError("must hold finite numbers only (no NaN or inf)", where=name)
+        raise InputError(f"{what}must hold finite numbers only (no NaN or inf)", where=name)
     return a
 
 
@@ -139,17 +145,18 @@ def _shape(shape: tuple[int | None, ...]) -> str:
 
 def readings(q, n_joints: int, name: str = "q") -> np.ndarray:
     """Joint readings (n_poses, n_joints), finite; one pose may be given as (n_joints,)."""
+    what = f"joint readings: a row per pose, a column for each of the model's {n_joints} joints"
     try:
         a = np.asarray(q, dtype=float)
     except (TypeError, ValueError):
-        raise InputError(f"must be an array of numbers of shape (n_poses, {n_joints}), got {excerpt(q)}",
-                         where=name) from None
+        raise InputError(f"expected {what}; got {excerpt(q)}", where=name) from None
     if a.ndim == 1:
         a = a[None, :]
     if a.ndim != 2 or a.shape[1] != n_joints or a.shape[0] == 0:
-        raise InputError(f"must have shape (n_poses, {n_joints}) with n_poses >= 1, got {np.shape(q)}", where=name)
+        got = "no pose" if a.ndim == 2 and a.shape[1] == n_joints else f"{a.shape[-1] if a.ndim else 0} column(s)"
+        raise InputError(f"expected {what} (at least one pose); got {got}, shape {np.shape(q)}", where=name)
     if not np.all(np.isfinite(a)):
-        raise InputError("must hold finite numbers only (no NaN or inf)", where=name)
+        raise InputError("joint readings must be finite numbers (no NaN or inf)", where=name)
     return a
 
 
