@@ -172,6 +172,17 @@ def test_a_store_in_a_read_only_folder_is_read(cli, campaign, tmp_path):
     assert _beside(store) == ["s.sqlite"] and _digest(store) == before
 
 
+def test_reading_a_store_leaves_nothing_beside_it(cli, campaign, tmp_path):
+    store = tmp_path / "s.sqlite"
+    assert cli("record", campaign / "result.json", "--robot", "R", "--type", "arm", "--store", store)[0] == 0
+    before = _digest(store)
+    for argv in (("history", "R"), ("history", "nobody"), ("history", "--type", "arm"),
+                 ("verify", "R", campaign / "m.csv", "--no-record")):
+        cli(*argv, "--store", store)
+        assert _beside(store) == ["s.sqlite"], argv
+    assert _digest(store) == before
+
+
 # -- item 5: URL schemes ------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("url", ["mysql://cal@plant/robocal", "sqlite:///tmp/x.sqlite", "https://host/s"])

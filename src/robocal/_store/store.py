@@ -856,15 +856,18 @@ class _SQLite(_Backend):
 
     @staticmethod
     def _connect(path: Path, write: bool, create: bool):
-        """A connection that writes only when asked. A reading one in a folder it cannot write
-        (a shared store) reads the file as it is when no write-ahead log is beside it."""
+        """A connection that writes only when asked. One that may write cleans up the write-ahead
+        log's files when it closes, so reading goes through one where it may; elsewhere (a shared
+        store, another user's) a read-only one, which reads the file as it is when no write-ahead
+        log is beside it."""
         import sqlite3
         from urllib.parse import quote
 
         uri = "file:" + quote(str(path.resolve()))
-        if write:
-            return sqlite3.connect(uri + ("?mode=rwc" if create else "?mode=rw"), uri=True, timeout=WAIT_NOTICE,
-                                   isolation_level=None, check_same_thread=False)
+        if write or (os.access(path, os.W_OK) and os.access(path.parent, os.W_OK)):
+            return sqlite3.connect(uri + ("?mode=rwc" if create else "?mode=rw"), uri=True,
+                                   timeout=WAIT_NOTICE if write else LOCK_WAIT, isolation_level=None,
+                                   check_same_thread=False)
         conn = sqlite3.connect(uri + "?mode=ro", uri=True, timeout=LOCK_WAIT, isolation_level=None,
                                check_same_thread=False)
         try:
