@@ -344,13 +344,32 @@ STORE_EDITS = (
     "UPDATE robocal_calibrations SET correlation = substr(correlation, 1, length(correlation) / 2)",
 )
 BAD_MODELS = (b'{"frames": 1}', b"[]", b"\xff\xfe", b'{"name": "x"}')
+# another application's SQLite databases: never made a store, left byte for byte
+FOREIGN_TABLES = ("CREATE TABLE accounts (id INTEGER PRIMARY KEY, name TEXT)",
+                  "CREATE TABLE robocal_schema (version INTEGER); CREATE TABLE invoices (n INTEGER)",
+                  "CREATE TABLE t (x); PRAGMA user_version = 7")
+# --store values that name no SQLite file: URLs of other schemes
+OTHER_URLS = ("mysql://cal@plant/robocal", "sqlite:///store.sqlite", "https://plant/store", "file:store.sqlite")
+
+
+@functools.lru_cache(maxsize=len(FOREIGN_TABLES))
+def foreign_bytes(script: str) -> bytes:
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "other.db"
+        c = sqlite3.connect(path)
+        c.executescript(script)
+        c.commit()
+        c.close()
+        return path.read_bytes()
 
 
 @st.composite
 def store_file(draw, base: bytes) -> bytes:
-    kind = draw(st.sampled_from(("good",) * 3 + ("edit",) * 4 + ("model", "flip", "cut", "empty", "binary")))
+    kind = draw(st.sampled_from(("good",) * 3 + ("edit",) * 4 + ("model", "flip", "cut", "empty", "binary", "foreign")))
     if kind == "good":
         return base
+    if kind == "foreign":
+        return foreign_bytes(draw(st.sampled_from(FOREIGN_TABLES)))
     if kind == "empty":
         return draw(st.sampled_from((b"", b"SQLite format 3\x00", b"\x00" * 4096)))
     if kind == "binary":
@@ -856,16 +875,17 @@ def store_case(draw, command: str, result_text):
     result_text = _base(draw, result_text)
     files = {"store.sqlite": draw(store_file(store_bytes(result_text)))}
     robot = _value(draw, "R")
+    store = "store.sqlite" if draw(st.integers(0, 9)) else draw(st.sampled_from(OTHER_URLS))
     if command == "record":
         if draw(st.booleans()):
             del files["store.sqlite"]           # a new store
         files["result.json"] = draw(result_file(result_text)) if draw(st.booleans()) else result_text.encode()
-        return files, ["record", "result.json", "--robot", robot, "--store", "store.sqlite"] + draw(options(RECORD))
+        return files, ["record", "result.json", "--robot", robot, "--store", store] + draw(options(RECORD))
     if command == "history":
         who = [robot] if draw(st.integers(0, 2)) else ["--type", _value(draw, "th8")]
-        return files, ["history", *who, "--store", "store.sqlite"] + draw(options(HISTORY))
+        return files, ["history", *who, "--store", store] + draw(options(HISTORY))
     files["data.csv"] = draw(csv_file()) if draw(st.booleans()) else MEASUREMENTS.encode()
-    return files, ["verify", robot, "data.csv", "--store", "store.sqlite"] + draw(options(VERIFY))
+    return files, ["verify", robot, "data.csv", "--store", store] + draw(options(VERIFY))
 
 
 @st.composite
@@ -1020,7 +1040,7 @@ def case(draw, result_text: str | None = None, commands=None, weights=None):
 # -- the judge -----------------------------------------------------------------------------------
 
 OUTCOMES = ("clean error", "ok result", "traceback", "hang", "over-memory", "non-finite output", "unreadable output",
-            "wrong output", "multi-line error")
+            "wrong output", "multi-line error", "written beside a failure")
 _NON_FINITE = re.compile(r"(?<![\w.])[-+]?(?:\.?nan|\.?inf|infinity)(?![\w])", re.IGNORECASE)
 # an output's forward kinematics against its source's, metres (the writers' own check)
 FK_TOL = 1e-9
@@ -1238,14 +1258,25 @@ def check_output(argv, folder: Path) -> str | None:
         return "unreadable output"
 
 
-def judge(code, err: str, folder: Path, before: set[str], argv=None) -> str:
-    """The outcome of one finished run: exit code, its stderr, the folder it ran in, its command line."""
+def written_beside(folder: Path, files: dict) -> bool:
+    """Whether a failed run left a file that was not there (its streams aside) or changed a store."""
+    there = {p.relative_to(folder).as_posix() for p in folder.rglob("*") if p.is_file()}
+    if there - set(files) - {"stdout.txt", "stderr.txt"}:
+        return True
+    return "store.sqlite" in files and (folder / "store.sqlite").read_bytes() != files["store.sqlite"]
+
+
+def judge(code, err: str, folder: Path, before: set[str], argv=None, files=None) -> str:
+    """The outcome of one finished run: exit code, its stderr, the folder it ran in, its command line
+    (and with ``files``, the inputs it was given, which a failed run leaves as they were)."""
     if "Traceback" in err or code not in (0, 1, 2, 3):
         return "traceback"
     if code in (1, 2):
         lines = [ln for ln in err.splitlines() if not ln.startswith("robocal: warning:")]
         if len(lines) == 1 and ": error: out of memory" in lines[0]:  # the CLI's word for a MemoryError
             return "over-memory"
+        if files is not None and argv and argv[0] in STORE_COMMANDS and written_beside(folder, files):
+            return "written beside a failure"
         return "clean error" if len(lines) == 1 and len(lines[0]) < 1000 else "multi-line error"
     if non_finite(folder, before):
         return "non-finite output"
@@ -1334,7 +1365,7 @@ def forked_outcome(status, usage, killed: bool, folder: Path, files: dict, argv:
         return "hang", err
     if os.WIFSIGNALED(status) or usage.ru_maxrss * 1024 > MEMORY_BYTES + (400 << 20) or "MemoryError" in err:
         return "over-memory", err
-    return judge(os.WEXITSTATUS(status), err, folder, set(files) | {"stdout.txt", "stderr.txt"}, argv), err
+    return judge(os.WEXITSTATUS(status), err, folder, set(files) | {"stdout.txt", "stderr.txt"}, argv, files), err
 
 
 def run_forked(files: dict, argv: list) -> tuple[str, str]:
@@ -1389,7 +1420,7 @@ def run_in_process(files: dict, argv: list) -> tuple[str, str]:
                 code = main(argv)
         finally:
             os.chdir(here)
-        return judge(code, err.getvalue(), Path(folder), set(files), argv), err.getvalue()
+        return judge(code, err.getvalue(), Path(folder), set(files), argv, files), err.getvalue()
 
 
 def run_guarded(files: dict, argv: list) -> tuple[str, str]:
