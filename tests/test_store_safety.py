@@ -113,6 +113,23 @@ def test_a_stored_calibration_refused_again_leaves_no_files_and_a_retry_records(
     assert _count(store) == 1
 
 
+def test_an_earlier_record_with_a_deviation_of_1e300_neither_fails_a_record_nor_its_history(cli, campaign,
+                                                                                              tmp_path):
+    store = tmp_path / "s.sqlite"
+    assert cli("record", campaign / "result.json", "--robot", "R", "--store", store, "--at", "2026-01-01")[0] == 0
+    c = sqlite3.connect(store)
+    v = np.frombuffer(c.execute("SELECT estimates FROM robocal_calibrations").fetchone()[0], "<f8").reshape(-1, 3)
+    v = v.copy()
+    v[:, 2] = 1e300
+    c.execute("UPDATE robocal_calibrations SET estimates = ?", (v.tobytes(),))
+    c.commit()
+    c.close()
+    code, out, err = cli("record", campaign / "result.json", "--robot", "R", "--store", store, "--at", "2026-02-01")
+    assert code == 0 and "recorded calibration #2" in out and "changes since the previous calibration" in out, err
+    code, out, err = cli("history", "R", "--store", store)
+    assert code == 0 and "changes between consecutive calibrations" in out, err
+
+
 # -- item 3: only its own databases, changed only by its own writes ------------------------------------
 
 def test_a_foreign_database_is_left_byte_for_byte(cli, campaign, tmp_path):

@@ -64,6 +64,8 @@ OVERALL_SHARE = 0.2
 # double precision, and at single precision (stores written before schema version 3)
 RCOND = {8: 1e-10, 4: 1e-4}
 MAX_NAME = 200
+# the largest standard deviation judged: its square, a variance, still a float
+MAX_STD = 1e150
 # seconds a write waits for another process's write lock, and before it says it waits
 LOCK_WAIT = 120.0
 WAIT_NOTICE = 1.0
@@ -436,9 +438,10 @@ def _pairs(calibrations, families) -> list[tuple[list, list, np.ndarray, np.ndar
 
 
 def _judged(c: StoredCalibration, families) -> dict:
-    """name -> index in ``c.estimates`` of the finite estimates with a positive standard deviation."""
+    """name -> index in ``c.estimates`` of the finite estimates with a positive standard deviation
+    whose variance is a number (a deviation of 1e300, damage or no information, is not judged)."""
     return {e.name: k for k, e in enumerate(c.estimates)
-            if e.family in families and math.isfinite(e.estimate) and e.std > 0 and math.isfinite(e.std)}
+            if e.family in families and math.isfinite(e.estimate) and 0 < e.std < MAX_STD}
 
 
 def _covariance(c: StoredCalibration, index: list) -> np.ndarray:
@@ -1369,9 +1372,10 @@ def history(store: Store, robot: str, *, alpha: float = DEFAULT_ALPHA, families=
     cals = store.calibrations(robot)
     if not cals:
         raise InputError(f"no calibration of {excerpt(robot)} in the store", source=store.location)
-    comparisons, threshold = judge_changes(cals, alpha=alpha, families=families)
-    return History(robot, cals, store.verifications(robot), comparisons, threshold, alpha, tuple(families),
-                   judge_overall(cals, alpha=alpha, families=families))
+    with store._errors("the changes between its calibrations"):    # numbers no calibration gives
+        comparisons, threshold = judge_changes(cals, alpha=alpha, families=families)
+        overall = judge_overall(cals, alpha=alpha, families=families)
+    return History(robot, cals, store.verifications(robot), comparisons, threshold, alpha, tuple(families), overall)
 
 
 @accepts(store=is_a(Store), robot_type=_name, **_JUDGED)
