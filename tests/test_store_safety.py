@@ -113,6 +113,22 @@ def test_a_stored_calibration_refused_again_leaves_no_files_and_a_retry_records(
     assert _count(store) == 1
 
 
+def test_a_damaged_page_no_record_reads_is_found_before_anything_is_written(cli, campaign, tmp_path):
+    store = tmp_path / "s.sqlite"
+    assert cli("record", campaign / "result.json", "--robot", "R", "--store", store, "--at", "2026-01-01")[0] == 0
+    c = sqlite3.connect(store)
+    page = c.execute("SELECT rootpage FROM sqlite_master WHERE name = 'robocal_verifications'").fetchone()[0]
+    size = c.execute("PRAGMA page_size").fetchone()[0]
+    c.close()
+    with open(store, "r+b") as fh:       # the verifications' table page: a record writes nowhere near it
+        fh.seek((page - 1) * size)
+        fh.write(b"\xff")
+    before = _digest(store)
+    code, _, err = cli("record", campaign / "result.json", "--robot", "R", "--store", store, "--at", "2026-02-01")
+    assert_one_line_error(code, err, [str(store), "damaged store", "nothing recorded"], command="record")
+    assert _digest(store) == before
+
+
 def test_an_earlier_record_with_a_deviation_of_1e300_neither_fails_a_record_nor_its_history(cli, campaign,
                                                                                               tmp_path):
     store = tmp_path / "s.sqlite"
