@@ -127,6 +127,8 @@ class _Budget(NamedTuple):
         """(``first`` and the rest of ``fh``, their line ends), read a chunk at a time (a regular
         file of ``size`` bytes in one read) and refused as soon as they run over the budget or
         (``text``) hold a NUL character."""
+        if self.lines is not None and size > 64 * (self.lines + 1):
+            size = 0  # a file that may hold more lines than the budget: a chunk at a time, to stop early
         out = io.BytesIO()  # a stream's parts, grown in place: its value is handed out without a copy
         last = b""  # the latest part, kept apart: a file read in one part is handed out as it is
         total = newlines = 0
