@@ -1,24 +1,25 @@
-"""How often the diagnosis names the true cause of a simulated mistake, and how often it names a
-cause where there is none (docs/diagnosis.md).
+"""How well the diagnosis decides (docs/diagnosis.md): mistakes caught and named, no cause where there
+is none, and no wrong model written as good.
 
-Run: python benchmarks/diagnosis_corpus.py [--seeds 20] [--first 0] [--clean 60] [--effects 20] [--presets 10]
+Run: python benchmarks/diagnosis_corpus.py [--seeds 1] [--subsets 25] [--simulated 50] [--no-real]
      python benchmarks/diagnosis_corpus.py --contacts [--seeds 5] [--clean 20]
 
-Every mistake of tests/diagnosis_corpus.py on the 6R arm and the TH8-like cylindrical arm, seeds
-0..SEEDS-1: the share of campaigns whose first finding is the true cause, per mistake and robot.
-Then clean simulated campaigns (CLEAN seeds per robot, 30 to 120 poses) and campaigns of robots with
-effects the model does not hold (gear errors, per-pose scatter, link elasticity, slow drift; EFFECTS
-seeds each per robot), and of `robocal.sim`'s robots with effects beyond the model (`PRESETS`,
-PRESETS seeds each per robot, both arms with masses): the share in which a cause is named. Last,
-the real UR5 and WAM campaigns of tests/data/real: the cause named, if any (none expected).
+* **Mistakes**: every mistake of tests/diagnosis_corpus.py on the 6R arm and the TH8-like
+  cylindrical arm (SEEDS seeds from 0) and every mistake of tests/real_mistakes.py injected into the
+  published UR5 and WAM campaigns, each calibrated as a user would (``robocal.calibrate``, which
+  diagnoses). Per case: the verdict, the first cause named and its strength, whether it is one of the
+  expected ones, and how far the calibrated model places the robot from the truth (the true robot,
+  or for the real campaigns the calibration of the whole clean grid, at its test poses). A case is
+  **caught** when the verdict fails or a cause is named; a model is **wrong** beyond ``WRONG``
+  (0.3 mm RMS); a wrong model is **written as good** when its verdict is not "fail" (the command
+  line writes it and exits 0).
+* **No cause**: SUBSETS random subsets (60 to 400 poses) of each real grid and SIMULATED campaigns
+  of simulated robots with effects beyond the model (``robocal.sim.PRESETS``), calibrated as a user
+  would: how often a cause is named, and how often the verdict fails.
+* **Real campaigns**: the UR5 and WAM grids and test poses, and the MUKCa Panda's sockets.
 
-With ``--contacts``, calibrations from contacts instead (``diagnose_contacts``): every mistake of
-tests/test_contact_diagnosis.py injected into socket campaigns of the 6R arm (3 placements of a
-3-socket plate, 12 seatings a socket, spacings stated), SEEDS seeds each, calibrated as a user would
-(``calibrate`` with contacts and its defaults); then CLEAN seeds each of clean campaigns, of an arm whose
-shoulder and elbow bend under gravity and of one with gear errors, calibrated as geometric; last the
-time of ``diagnose_contacts`` on 3-placement campaigns of 25 seatings a socket against the
-calibration's it explains.
+With ``--contacts``, calibrations from contacts instead: every mistake of
+tests/test_contact_diagnosis.py injected into socket campaigns of the 6R arm, then clean campaigns.
 """
 
 from __future__ import annotations
@@ -27,173 +28,190 @@ import argparse
 import os
 import sys
 import time
-from collections import defaultdict
+import warnings
+from collections import Counter
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
+import numpy as np
 
-import diagnosis_corpus as corpus
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.join(HERE, "..", "tests"))
 
+import diagnosis_corpus as corpus  # noqa: E402
+import real_campaigns as real  # noqa: E402
+import real_mistakes  # noqa: E402
 
-def _first(case):
-    _, diagnosis = case.run()
-    return diagnosis.cause.hypothesis if diagnosis.cause else None
+import robocal as rc  # noqa: E402
+from robocal.errors import InputError, RobocalError  # noqa: E402
+from robocal.sim import PRESETS, measure_real  # noqa: E402
 
-
-def mistakes(seeds: int, first: int = 0) -> None:
-    hits, total, wrong = defaultdict(int), defaultdict(int), defaultdict(list)
-    for seed in range(first, seeds):
-        for robot in corpus.ROBOTS:
-            for make in corpus.MISTAKES:
-                case = make(robot, seed)
-                if case is None:
-                    continue
-                got = _first(case)
-                print(f"  {robot} {seed} {make.__name__}: {'ok' if got == case.expected else 'MISSED'} ({got})",
-                      flush=True)
-                key = (case.name, robot)
-                total[key] += 1
-                hits[key] += got == case.expected
-                if got != case.expected:
-                    wrong[key].append(f"{seed}: {got}")
-    print(f"{'mistake':<45}{'robot':<13}{'named first':>12}")
-    for key in total:
-        print(f"{key[0]:<45}{key[1]:<13}{hits[key]:>7}/{total[key]:<4}" + (f"  missed: {', '.join(wrong[key])}"
-                                                                           if wrong[key] else ""))
-    n, h = sum(total.values()), sum(hits.values())
-    if n:
-            print(f"all: {h}/{n} = {100 * h / n:.1f} % named first; mistakes (per robot) below 90 %: "
-              f"{sum(hits[k] < 0.9 * total[k] for k in total)} of {len(total)}")
+# a calibrated model this far (RMS, m) from the truth is wrong
+WRONG = 0.3e-3
 
 
-def no_cause(clean: int, effects: int) -> None:
-    for make in corpus.NO_CAUSE:
-        seeds = clean if make is corpus.clean else effects
-        named, n = [], 0
-        for robot in corpus.ROBOTS:
-            for seed in range(seeds):
-                got = _first(make(robot, 1000 + seed))
-                n += 1
-                if got is not None:
-                    named.append(f"{robot} {1000 + seed}: {got}")
-        print(f"{make.__name__:<14} a cause named in {len(named)}/{n} campaigns" + (f": {'; '.join(named)}" if named
-                                                                                       else ""), flush=True)
+def _first(result) -> tuple[str | None, str]:
+    d = result.diagnosis
+    cause = d.cause if d is not None else None
+    return (None, "") if cause is None else (cause.hypothesis, cause.status)
 
 
-def presets(seeds: int) -> None:
-    import robocal as rc
-
-    for kind in sorted(rc.sim.PRESETS):
-        named, n = [], 0
-        for robot, make in corpus.ROBOTS.items():
-            for seed in range(seeds):
-                m = make(masses=True)
-                true, d = rc.simulate(m, corpus.N_POSES, seed=2000 + seed, noise=corpus.NOISE)
-                data = rc.sim.measure_real(true, d.q, rc.sim.PRESETS[kind], rng=2000 + seed, robot_seed=2000 + seed)
-                got = _first(corpus.Case(kind, m, data, None))
-                n += 1
-                if got is not None:
-                    named.append(f"{robot} {2000 + seed}: {got}")
-        print(f"preset {kind:<8} a cause named in {len(named)}/{n} campaigns" + (f": {'; '.join(named)}" if named
-                                                                                   else ""), flush=True)
+def _one(case) -> dict:
+    """The outcome of one mistake: verdict, first cause, its strength, model error (m)."""
+    try:
+        result = case.run()
+        if isinstance(result, tuple):
+            result = result[0]
+    except InputError as e:          # refused before any fit: the message names the cause
+        said = "validation repeated" if "repeat" in str(e) else "input refused"
+        return {"verdict": "refused", "cause": said, "status": "fail", "error": None, "message": str(e)[:120]}
+    except RobocalError as e:
+        return {"verdict": "error", "cause": None, "status": "", "error": None, "message": str(e)[:120]}
+    cause, status = _first(result)
+    return {"verdict": result.verdict, "cause": cause, "status": status, "error": case.model_error(result),
+            "message": result.diagnosis.summary[:160] if result.diagnosis else ""}
 
 
-def real() -> None:
-    """The published UR5 and WAM tracker campaigns (tests/data/real, both files of each): no cause
-    should be named."""
-    import real_campaigns
+def mistakes(seeds: int, with_real: bool) -> None:
+    cases = [c for seed in range(seeds) for robot in corpus.ROBOTS for c in corpus.mistakes(robot, seed)]
+    names = [f"{c.name} ({robot} {seed})" for seed in range(seeds) for robot in corpus.ROBOTS
+             for c in corpus.mistakes(robot, seed)]
+    if with_real:
+        cases += real_mistakes.mistakes()
+        names += [c.name for c in real_mistakes.mistakes()]
+    tally = Counter()
+    for name, case in zip(names, cases):
+        out = _one(case)
+        caught = out["verdict"] in ("fail", "refused") or out["cause"] is not None
+        right = out["cause"] in case.expected
+        wrong = out["error"] is not None and out["error"] > WRONG
+        good = wrong and out["verdict"] not in ("fail", "refused", "error")
+        real_case = name.startswith(("UR5", "WAM"))
+        tally.update({"n": 1, "caught": caught, "right": right, "real": real_case, "real right": real_case and right,
+                      "decisive": out["status"] == "fail", "wrong written": good,
+                      "wrong written, decisive": good and out["status"] == "fail"})
+        err = "-" if out["error"] is None else f"{out['error'] * 1e3:.3g} mm"
+        print(f"  {'ok ' if right else ('~  ' if caught else 'MISSED')} {name}: {out['verdict']}, "
+              f"{out['cause']} ({out['status'] or '-'}), model {err}{'  WRITTEN WRONG' if good else ''}"
+              + ("" if right else f"  | {out['message']}"), flush=True)
+    n = max(tally["n"], 1)
+    print(f"mistakes: {tally['n']} ({tally['real']} injected into the real campaigns); caught {tally['caught']} "
+          f"({100 * tally['caught'] / n:.0f} %), right cause first {tally['right']} ({100 * tally['right'] / n:.0f} %; "
+          f"real {tally['real right']} of {tally['real']}), decisive {tally['decisive']}; wrong models written as "
+          f"good {tally['wrong written']}, of them with a decisive cause {tally['wrong written, decisive']}")
 
+
+def _calibrated(model, data, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return rc.calibrate(model, data, **kw)
+
+
+def no_cause(subsets: int, simulated: int, seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    named, failed, n = [], [], 0
+    for robot, k, model, subset in real.subsets(subsets, rng):
+        n += 1
+        _tally(f"{robot} subset {k} ({subset.n_poses} poses)", _calibrated(model, subset), named, failed)
+    robots = [("arm6r", corpus.arm6r(masses=True)), ("cylindrical", corpus.cylindrical(masses=True))]
+    for k in range(simulated):
+        name, nominal = robots[k % 2]
+        preset = sorted(PRESETS)[k % len(PRESETS)]
+        true = rc.perturb_model(nominal, rc.identifiability(nominal).identified, rng=int(rng.integers(1 << 30)))
+        q = rc.random_configurations(nominal, int(rng.integers(60, 301)), rng=int(rng.integers(1 << 30)))
+        data = measure_real(true, q, PRESETS[preset], noise=2e-5, rng=int(rng.integers(1 << 30)), robot_seed=k)
+        families = ("geometric", "compliance") if preset in ("elastic", "cable") else ("geometric",)
+        res = _calibrated(nominal, data, parameters=families)
+        n += 1
+        _tally(f"{name} {preset} #{k} ({len(q)} poses)", res, named, failed)
+    print(f"clean campaigns: {n}; a cause named in {len(named)}, the verdict failed in {len(failed)}")
+    for line in named + failed:
+        print(f"  {line}")
+
+
+def _tally(name, res, named, failed) -> None:
+    cause, status = _first(res)
+    if cause is not None:
+        named.append(f"{name}: {cause} ({status}): {res.diagnosis.summary[:160]}")
+    if res.verdict == "fail":
+        failed.append(f"{name}: failed ({', '.join(c.name for c in res.checks if c.status == 'fail')})")
+    print(f"  {name}: {res.verdict}, cause {cause}", flush=True)
+
+
+def real_campaigns() -> None:
+    """Every real campaign as published: no cause, no fail."""
     for robot in ("UR5", "WAM"):
         for kind in ("grid", "random"):
-            got = _first(corpus.Case(robot, real_campaigns.nominal(robot), real_campaigns.campaign(robot, kind), None))
-            print(f"real {robot} {kind:<7} cause named: {got}", flush=True)
-
-
-def _contact_run(contacts, model=None):
-    """(first cause or None, calibration seconds, diagnosis seconds), or None when the calibration fails."""
-    import warnings
-
-    import test_contact_diagnosis as cases
-
-    from robocal.errors import RobocalError
-    from robocal.identification import calibrate, diagnose_contacts
-
-    model = model or cases.arm()
-    t0 = time.process_time()
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            result = calibrate(model, contacts=contacts)
-    except RobocalError as e:
-        print(f"    calibration failed: {e}", flush=True)
-        return None
-    t1 = time.process_time()
-    diagnosis = diagnose_contacts(model, contacts, result)
-    t2 = time.process_time()
-    return (diagnosis.cause.hypothesis if diagnosis.cause else None), t1 - t0, t2 - t1
+            model = real.nominal(robot)
+            res = _calibrated(model, real.campaign(robot, kind, model))
+            print(f"real {robot} {kind}: {res.verdict}, cause {_first(res)[0]}: {res.diagnosis.summary[:120]}",
+                  flush=True)
+    mukca = os.path.join(HERE, "..", "tests", "data", "real", "mukca")
+    model = rc.read_urdf(os.path.join(mukca, "panda.urdf"), tip_link="ball_link", markers=[("ball", (0.0, 0.0, 0.0))])
+    contacts = rc.io.read_contacts(os.path.join(mukca, "panda_3"), model)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = rc.calibrate(model, contacts=contacts)
+    print(f"real MUKCa Panda sockets: {res.verdict}, cause {_first(res)[0]}: {res.diagnosis.summary[:120]}")
 
 
 def contacts(seeds: int, clean: int) -> None:
-    import numpy as np
     import test_contact_diagnosis as cases
 
-    from robocal.sim import socket_campaign
-
     for mistake in cases.MISTAKES:
-        hits, n, failed, missed = 0, 0, 0, []
+        hits, n, missed = 0, 0, []
         for seed in range(seeds):
             changed, expected, _ = cases.injected(mistake, seed)
-            got = _contact_run(changed)
-            if got is None:
-                failed += 1
+            try:
+                res = _calibrated_contacts(changed)
+            except RobocalError as e:
+                missed.append(f"{seed}: calibration failed ({e})")
                 continue
             n += 1
-            hits += got[0] == expected
-            if got[0] != expected:
-                missed.append(f"{seed}: {got[0]}")
-        print(f"{mistake.__name__:<22} true cause first {hits}/{n}" + (f", {failed} calibration(s) failed" if failed
-                                                                       else "") + (f"  missed: {', '.join(missed)}"
-                                                                                   if missed else ""), flush=True)
+            got = _first(res)[0]
+            hits += got == expected
+            if got != expected:
+                missed.append(f"{seed}: {got}")
+        print(f"{mistake.__name__:<22} true cause first {hits}/{n}" + (f"  missed: {', '.join(missed)}" if missed
+                                                                       else ""), flush=True)
     for effect in ("", "compliance", "gears"):
         named = []
         for seed in range(100, 100 + clean):
-            got = _contact_run(cases.campaign(seed, effect), cases.arm(masses=bool(effect)))
-            if got is not None and got[0] is not None:
-                named.append(f"{seed}: {got[0]}")
+            res = _calibrated_contacts(cases.campaign(seed, effect), cases.arm(masses=bool(effect)))
+            if _first(res)[0] is not None:
+                named.append(f"{seed}: {_first(res)[0]}")
         print(f"{effect or 'clean':<22} a cause named in {len(named)}/{clean}" + (f": {'; '.join(named)}" if named
                                                                                   else ""), flush=True)
-    times = []
-    for seed in range(3):
-        c = socket_campaign(cases.truth(seed), placements=3, poses_per_socket=25, joint_noise=cases.ENCODER, rng=seed)
-        got = _contact_run(c)
-        if got is not None:
-            times.append(got[1:])
-    cal, diag = np.array(times).T
-    print(f"3 placements x 3 sockets x 25 seatings ({c.n_rows} rows), 6R arm, CPU s over {len(times)} campaigns: "
-          f"diagnose_contacts {diag.mean():.2f} (max {diag.max():.2f}), the calibration it explains {cal.mean():.2f} "
-          f"(max {cal.max():.2f})", flush=True)
+
+
+def _calibrated_contacts(c, model=None):
+    import test_contact_diagnosis as cases
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return rc.calibrate(model or cases.arm(), contacts=c)
 
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", type=int, default=20)
-    ap.add_argument("--first", type=int, default=0, help="the first seed (to continue an interrupted run)")
-    ap.add_argument("--clean", type=int, default=60)
-    ap.add_argument("--effects", type=int, default=20)
-    ap.add_argument("--presets", type=int, default=10, help="seeds per robot of each of robocal.sim.PRESETS")
-    ap.add_argument("--no-real", dest="real", action="store_false", help="skip the real UR5 and WAM campaigns")
-    ap.add_argument("--contacts", action="store_true", help="calibrations from contacts instead (SEEDS seeds a "
-                    "mistake, CLEAN seeds a robot without one)")
+    ap.add_argument("--seeds", type=int, default=1, help="seeds of each simulated mistake and robot (default 1)")
+    ap.add_argument("--subsets", type=int, default=25, help="random subsets of each real grid (default 25)")
+    ap.add_argument("--simulated", type=int, default=50, help="simulated robots beyond the model (default 50)")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--no-real", dest="real", action="store_false", help="leave the real campaigns out")
+    ap.add_argument("--no-mistakes", dest="mistakes", action="store_false", help="leave the mistakes out")
+    ap.add_argument("--contacts", action="store_true", help="calibrations from contacts instead")
+    ap.add_argument("--clean", type=int, default=20, help="with --contacts: clean campaigns per robot")
     args = ap.parse_args(argv)
     t = time.perf_counter()
+    print(f"# diagnosis corpus, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}")
     if args.contacts:
         contacts(args.seeds, args.clean)
-        print(f"({time.perf_counter() - t:.0f} s)")
-        return
-    mistakes(args.seeds, args.first)
-    no_cause(args.clean, args.effects)
-    presets(args.presets)
-    if args.real:
-        real()
+    else:
+        if args.mistakes:
+            mistakes(args.seeds, args.real)
+        if args.subsets or args.simulated:
+            no_cause(args.subsets, args.simulated, args.seed)
+        if args.real:
+            real_campaigns()
     print(f"({time.perf_counter() - t:.0f} s)")
 
 

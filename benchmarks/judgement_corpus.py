@@ -61,13 +61,8 @@ def _tally() -> dict:
 def real_subsets(n: int, seed: int) -> dict:
     rng = np.random.default_rng(seed)
     tally = _tally()
-    for robot in ("UR5", "WAM"):
-        model = real.nominal(robot)
-        grid = real.campaign(robot, "grid", model)
-        for k in range(n):
-            size = int(rng.integers(60, min(400, grid.n_poses) + 1))
-            pick = np.sort(rng.choice(grid.n_poses, size, replace=False))
-            _record(tally, f"{robot} subset {k} ({size} poses)", _calibrate(model, grid.subset(pick)))
+    for robot, k, model, subset in real.subsets(n, rng):
+        _record(tally, f"{robot} subset {k} ({subset.n_poses} poses)", _calibrate(model, subset))
     return tally
 
 

@@ -31,3 +31,14 @@ def campaign(robot: str, kind: str, model=None):
     return rc.Measurements(q=q, positions=measured[:, None, :], marker_names=model.marker_names[:1],
                            joint_names=model.joint_names, labels=tuple(f"step {int(s)}" for s in table["step_order"]),
                            source=str(path))
+
+
+def subsets(n: int, rng):
+    """``n`` random subsets (60 to 400 poses) of each real grid, drawn from ``rng`` in the order of the
+    benchmarks' corpora: yields (robot, k, nominal model, the grid's subset)."""
+    for robot in ("UR5", "WAM"):
+        model = nominal(robot)
+        grid = campaign(robot, "grid", model)
+        for k in range(n):
+            size = int(rng.integers(60, min(400, grid.n_poses) + 1))
+            yield robot, k, model, grid.subset(np.sort(rng.choice(grid.n_poses, size, replace=False)))

@@ -4,9 +4,10 @@ identifiability analysis, the solve and the covariance that ``calibrate`` runs, 
 records (docs/checks.md), the kit's figures of contacts, and the diagnosis."""
 
 from ._base import arguments as _arguments
+from ._diagnosis.calibrate import calibrate, compare
 from ._diagnosis.contacts import diagnose_contacts
-from ._diagnosis.measured import Diagnosis, Finding, diagnose
-from ._identification.calibrate import calibrate, compare, register_base
+from ._diagnosis.measured import diagnose
+from ._identification.calibrate import register_base
 from ._identification.checks import Check, outlier_bar, outlier_check, verdict
 from ._identification.contact_figures import ContactErrors, ContactFigures, contact_errors
 from ._identification.estimates import ErrorStats, ParameterEstimate, error_stats
@@ -26,7 +27,9 @@ from ._identification.problem import ROW_KINDS, Problem, Solvable
 from ._identification.result import (
     CalibrationResult,
     Comparison,
+    Diagnosis,
     ErrorSummary,
+    Finding,
     LimitJudgement,
     NestedTest,
     PoseSet,

@@ -37,22 +37,22 @@ from .._identification.contact_blocks import ContactRows
 from .._identification.estimates import ParameterEstimate
 from .._identification.problem import Problem
 from .._identification.registration import rigid_base as register_base
+from .._identification.result import Diagnosis, Finding
 from .._identification.solve import solve
 from .._model.contacts import Contacts, KnownDistance
 from .._model.measurements import Measurements, Noise
 from .._model.parameters import needs_compliance, parameter_layout, parameter_names, parameter_vector
 from .._model.robot import RobotModel
-from .measured import (
-    ANGLE_FACTORS,
-    MAX_POSES,
-    NOISE_FACTOR,
-    PLAUSIBLE_BONUS,
-    Diagnosis,
-    Finding,
-    as_noise,
-    count_implausible,
-    ranked,
-)
+from .joints import ANGLE_FACTORS
+from .measured import ranked
+from .reference import MAX_POSES, NAMED_FACTOR, as_noise, count_implausible
+
+# a refit that turns implausible changes into plausible ones names its cause at a factor this many
+# times (log10) smaller: a possible cause, never a decisive one (a flip the model absorbs with a
+# mirrored joint fits as well, and only the changes tell)
+PLAUSIBLE_BONUS = 1.0
+# a refit leaving a residual variance below NOISE_FACTOR**-2 of the stated deviations' has collapsed
+NOISE_FACTOR = 5.0
 
 # diagnose at most this many contact rows (spread evenly within each group, ball bars by whole pairs)
 MAX_ROWS = 2000
@@ -69,6 +69,8 @@ NEAR_SHARE = 0.5
 MOST_RELABELLED = 0.1
 # a set-up split keeps at least this many of its placement's seatings on each side
 MIN_SIDE = 3
+
+NAMED = float(np.log10(NAMED_FACTOR))
 
 _SOLVE_ERRORS = (DegenerateDataError, InputError, np.linalg.LinAlgError, ValueError)
 
@@ -207,7 +209,11 @@ def _found(case: _Case, out: _Fit, hypothesis: str, cause: str, how: str, freedo
                 f"({_mm(out.rms)} against {_mm(fit.rms)})")
     if fit.implausible and not out.implausible:
         evidence += f", and the {fit.implausible} implausible change(s) become plausible"
-    return Finding(hypothesis, cause, evidence, _score(case, out, freedom), tuple(items), fit.rms, out.rms, fix)
+    score = _score(case, out, freedom)
+    after = max(out.ssr, 1e-300) / max(out.n_rows - out.n_free - freedom, 1.0)
+    # decisive when the refit alone divides the residual variance by the naming factor
+    status = "fail" if fit.variance / after >= NAMED_FACTOR else "warn"
+    return Finding(hypothesis, cause, evidence, score, tuple(items), fit.rms, out.rms, fix, status)
 
 
 def _best_of(case: _Case, candidates: list, hypothesis: str, how: str) -> Finding | None:
@@ -526,6 +532,6 @@ def diagnose_contacts(model: RobotModel, contacts: Contacts, result, *, data: Me
         the contact errors in metres.
     """
     case = _reference(model, contacts, result, data, as_noise(noise))
-    found = [f for f in (h(case) for h in CONTACT_HYPOTHESES) if f is not None]
-    return ranked(found, CONTACT_HYPOTHESES, case.fit.rms,
+    found = [f for f in (h(case) for h in CONTACT_HYPOTHESES) if f is not None and f.score >= NAMED]
+    return ranked(found, tuple(h.__name__.replace("_", " ") for h in CONTACT_HYPOTHESES), case.fit.rms,
                   f"{case.fit.rms_sd:.3g} stated deviations RMS, {_mm(case.fit.rms)}")

@@ -29,12 +29,19 @@ from .._base.arguments import (
     optional,
 )
 from .._base.errors import InputError, excerpt
-from .._diagnosis.measured import Diagnosis
 from .._identification.checks import STATUSES, Check
 from .._identification.estimates import ErrorStats, ParameterEstimate
 from .._identification.holdout import AccuracyInUse, Coverage, UseStats
 from .._identification.identifiability import Absorption, IdentifiabilityResult, status_table
-from .._identification.result import CalibrationResult, ErrorSummary, LimitJudgement, PoseSet, SolverRecord
+from .._identification.result import (
+    CalibrationResult,
+    Diagnosis,
+    ErrorSummary,
+    Finding,
+    LimitJudgement,
+    PoseSet,
+    SolverRecord,
+)
 from .._model.parameters import parameter_layout
 from .contact_result import contact_residual_dof, contacts_from_dict, contacts_to_dict
 from .measurements import MAX_MAGNITUDE
@@ -159,6 +166,7 @@ def result_to_dict(result: CalibrationResult, *, per_pose: bool = True) -> dict:
         "provenance": plain(result.provenance),
         "nominal_model": model_to_dict(result.nominal_model),
         "calibrated_model": model_to_dict(result.calibrated_model),
+        **({} if result.diagnosis is None else {"diagnosis": diagnosis_to_dict(result.diagnosis)}),
     }
 
 
@@ -220,36 +228,53 @@ def _in_use(doc: _Doc, d: dict | None) -> AccuracyInUse | None:
                          errors_before=np.zeros(0), errors_after=np.zeros(0), **stats)
 
 
-def diagnosis_to_dict(diagnosis) -> dict:
+def diagnosis_to_dict(diagnosis: Diagnosis) -> dict:
     """The file form of a ``Diagnosis`` (the ``diagnosis`` key of result.json): residuals in metres."""
-    return {"summary": diagnosis.summary, "rms_m": diagnosis.rms, "tested": list(diagnosis.tested),
-            "findings": [{"hypothesis": f.hypothesis, "cause": f.cause, "evidence": f.evidence, "score": f.score,
-                          "items": list(f.items), "rms_before_m": f.rms_before, "rms_after_m": f.rms_after,
-                          "fix": f.fix} for f in diagnosis.findings]}
+    return {"status": diagnosis.status, "summary": diagnosis.summary, "rms_m": diagnosis.rms,
+            "tested": list(diagnosis.tested), "untestable": list(diagnosis.untestable),
+            "refitted": list(diagnosis.refitted),
+            "findings": [{"hypothesis": f.hypothesis, "status": f.status, "cause": f.cause, "evidence": f.evidence,
+                          "score": f.score, "items": list(f.items), "rms_before_m": f.rms_before,
+                          "rms_after_m": f.rms_after, "fix": f.fix} for f in diagnosis.findings]}
 
 
-DIAGNOSIS = optional(is_a(Diagnosis))
+def _diagnosis(doc: _Doc, d: dict | None) -> Diagnosis | None:
+    """The diagnosis of a result file (None where it holds none)."""
+    if d is None:
+        return None
+    found = []
+    for w, f in _mappings(doc, doc.get(d, "findings", "diagnosis", list), "diagnosis.findings"):
+        status = doc.get(f, "status", w, str)
+        if status not in STATUSES[1:]:
+            raise doc.error(f"{w}.status", f"expected warn or fail, got {excerpt(status)}")
+        found.append(Finding(doc.get(f, "hypothesis", w, str), doc.get(f, "cause", w, str),
+                             doc.get(f, "evidence", w, str), doc.get(f, "score", w, float),
+                             doc.strings(doc.get(f, "items", w, list), f"{w}.items"),
+                             doc.get(f, "rms_before_m", w, float, optional=True),
+                             doc.get(f, "rms_after_m", w, float, optional=True), doc.get(f, "fix", w, str), status))
+
+    def names(key):
+        return doc.strings(doc.get(d, key, "diagnosis", list), f"diagnosis.{key}")
+
+    return Diagnosis(findings=tuple(found), tested=names("tested"), summary=doc.get(d, "summary", "diagnosis", str),
+                     rms=doc.get(d, "rms_m", "diagnosis", float), untestable=names("untestable"),
+                     refitted=names("refitted"))
 
 
-@accepts(result=is_a(CalibrationResult), diagnosis=DIAGNOSIS)
-def result_to_json(result: CalibrationResult, diagnosis=None) -> str:
-    """The result file text of a CalibrationResult.
+@accepts(result=is_a(CalibrationResult))
+def result_to_json(result: CalibrationResult) -> str:
+    """The result file text of a CalibrationResult (its diagnosis under the ``diagnosis`` key).
 
     Parameters
     ----------
     {result}
-    diagnosis : Diagnosis, optional
-        Written under the ``diagnosis`` key.
 
     Returns
     -------
     str
         The JSON text.
     """
-    d = result_to_dict(result)
-    if diagnosis is not None:
-        d["diagnosis"] = diagnosis_to_dict(diagnosis)
-    return to_json(d)
+    return to_json(result_to_dict(result))
 
 
 @accepts(path=PATH)
@@ -268,8 +293,8 @@ def sidecar_path(path) -> Path:
     return Path(path).with_suffix(".npz")
 
 
-@accepts(result=is_a(CalibrationResult), path=PATH, per_pose=FLAG, diagnosis=DIAGNOSIS)
-def result_files(result: CalibrationResult, path, *, per_pose: bool = True, diagnosis=None) -> dict:
+@accepts(result=is_a(CalibrationResult), path=PATH, per_pose=FLAG)
+def result_files(result: CalibrationResult, path, *, per_pose: bool = True) -> dict:
     """The files of a calibration result: ``{path: JSON text, sidecar: bytes}``.
 
     The JSON holds the summary, estimates, covariance, checks and statistics; the per-pose arrays
@@ -285,8 +310,6 @@ def result_files(result: CalibrationResult, path, *, per_pose: bool = True, diag
     per_pose : bool
         False leaves the per-pose arrays out altogether (no sidecar; the report then has no
         per-pose plots).
-    diagnosis : Diagnosis, optional
-        The diagnosis of the result's misfit, stored under ``diagnosis``.
 
     Returns
     -------
@@ -294,8 +317,6 @@ def result_files(result: CalibrationResult, path, *, per_pose: bool = True, diag
         {Path: str or bytes}, to write together (``write_texts``).
     """
     d = result_to_dict(result, per_pose=False)
-    if diagnosis is not None:
-        d["diagnosis"] = diagnosis_to_dict(diagnosis)
     counts = {"n_fit": int(result.fit.errors_before.shape[0]),
               "n_validation": None if result.validation is None else int(result.validation.errors_before.shape[0])}
     if not per_pose:
@@ -604,7 +625,8 @@ def result_from_dict(d, *, source: str = "<dict>", folder=None) -> CalibrationRe
         limit=_limit_judgement(doc, doc.get(d, "limit", "", dict, optional=True)),
         checks=_checks(doc, doc.get(d, "checks", "", list, optional=True) or []),
         in_use=_in_use(doc, doc.get(d, "in_use", "", dict, optional=True)),
-        provenance=_provenance(doc, doc.get(d, "provenance", "", dict, optional=True) or {}))
+        provenance=_provenance(doc, doc.get(d, "provenance", "", dict, optional=True) or {}),
+        diagnosis=_diagnosis(doc, doc.get(d, "diagnosis", "", dict, optional=True)))
 
 
 @accepts(path=PATH)

@@ -204,12 +204,41 @@ def readings_check(model: RobotModel, q: np.ndarray, labels) -> Check:
     items = tuple(f"{labels[r]}: {model.joint_names[c]} = {_reading(q[r, c], angle[c])}" for r, c in
                   zip(rows, cols))
     cause = "a mistyped reading, a reading in another unit, or limits in the model that are too narrow"
-    if np.any(np.abs(q[:, angle][out[:, angle]]) > 2 * np.pi):
+    turns = whole_turns(model, q)
+    if np.any(turns[out.any(axis=0)] != 0) and np.all(turns[out.any(axis=0)] != 0):
+        cause = ("readings a whole number of turns off the joint's range: a turn count of the controller or an "
+                 "unwrapped log (the kinematics are the same a turn away)")
+    elif np.any(np.abs(q[:, angle][out[:, angle]]) > 2 * np.pi):
         cause = "readings of several turns: degrees declared as radians, or a mistyped reading"
     return Check(name, "fail", f"{out.sum()} reading(s) in {len(set(rows))} pose(s) beyond the joint limits: "
                  f"{_listed(items, 3)}", cause=cause,
                  fix="correct or remove those rows, declare the joint units, or widen the limits in the model file",
                  items=items)
+
+
+# readings off by more turns than this are no turn count (degrees read as radians spread over dozens)
+MOST_TURNS = 2
+
+
+def whole_turns(model: RobotModel, q: np.ndarray) -> np.ndarray:
+    """(n_joints,) per revolute joint the whole number of turns by which every one of its readings
+    ``q`` beyond the limits lies off them (one count for them all, at most ``MOST_TURNS``, each reading
+    within the limits once it is taken off); 0 where none is beyond, or where turns do not explain them."""
+    lo, hi = model.lower_limits, model.upper_limits
+    out = np.zeros(q.shape[1], dtype=int)
+    for j, kind in enumerate(model.reading_quantities):
+        if kind != "angle" or not (np.isfinite(lo[j]) and np.isfinite(hi[j])):
+            continue
+        v = q[:, j]
+        beyond = (v < lo[j]) | (v > hi[j])
+        if not beyond.any():
+            continue
+        k = np.where(v[beyond] > hi[j], np.ceil((v[beyond] - hi[j]) / (2 * np.pi)),
+                     np.floor((v[beyond] - lo[j]) / (2 * np.pi)))
+        back = v[beyond] - 2 * np.pi * k
+        if 0 < abs(k[0]) <= MOST_TURNS and np.all(k == k[0]) and np.all((back >= lo[j]) & (back <= hi[j])):
+            out[j] = int(k[0])
+    return out
 
 
 def _reading(v: float, angle: bool) -> str:

@@ -500,7 +500,8 @@ def fit_errors(inputs: Inputs, fit: Fit, before: np.ndarray) -> PoseErrors | Non
         return None
     n = fit.problem.n_robot
     b, a = before[:n], fit.solution.p[:n]
-    return PoseErrors(inputs.data, pts.errors(b), pts.errors(a), pts.rotation_errors(b), pts.rotation_errors(a))
+    return PoseErrors(inputs.data, pts.errors(b), pts.errors(a), pts.rotation_errors(b), pts.rotation_errors(a),
+                      set_aside=inputs.data.mask & ~pts.data.mask)
 
 
 def error_summaries(fitted: PoseErrors | None, val: PoseErrors | None) -> tuple[ErrorSummary, ErrorSummary | None]:

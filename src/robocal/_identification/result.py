@@ -20,7 +20,7 @@ from .._model.measurements import Measurements
 from .._model.parameters import parameter_layout, parameter_vector
 from .._model.robot import RobotModel
 from .._version import __version__
-from .checks import Check, verdict
+from .checks import STATUSES, Check, verdict
 from .estimates import ErrorStats, ParameterEstimate, error_stats
 from .holdout import AccuracyInUse, Coverage
 from .identifiability import IdentifiabilityResult
@@ -156,6 +156,9 @@ class PoseSet:
     rotation_errors_after : numpy.ndarray or None
         (n_poses, n_markers) the rotation error angles of the calibrated model, rad; None for
         point data.
+    set_aside : numpy.ndarray or None
+        (n_poses, n_markers) the measured points the calibration set aside as blunders (docs/checks.md,
+        "outliers"); None where not known (held-out poses, a result file).
     """
 
     readings: np.ndarray | None
@@ -165,12 +168,13 @@ class PoseSet:
     residual_vectors: np.ndarray | None
     rotation_errors_before: np.ndarray | None = None
     rotation_errors_after: np.ndarray | None = None
+    set_aside: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         for f in fields(self):
             a = getattr(self, f.name)
             if a is not None:
-                object.__setattr__(self, f.name, frozen(a))
+                object.__setattr__(self, f.name, frozen(a, bool if f.name == "set_aside" else float))
 
     @staticmethod
     def empty(model: RobotModel) -> PoseSet:
@@ -179,6 +183,91 @@ class PoseSet:
         return PoseSet(readings=np.zeros((0, model.n_joints)), measured_positions=np.zeros((0, m, 3)),
                        errors_before=np.zeros((0, m)), errors_after=np.zeros((0, m)),
                        residual_vectors=np.zeros((0, m, 3)))
+
+
+@dataclass(frozen=True)
+class Finding:
+    """A cause the diagnosis names (docs/diagnosis.md).
+
+    Attributes
+    ----------
+    hypothesis : str
+        The hypothesis tested ("rows shifted", "joint scale", ...).
+    cause : str
+        The cause in words.
+    evidence : str
+        What shows it: the refit with the cause repaired against the calibration, or the fact found.
+    score : float
+        log10 of the factor by which the repair divides the residual variance (its own freedom
+        counted): comparable across hypotheses, most likely first.
+    items : tuple of str
+        The rows, joints, markers or parameters it names.
+    rms_before : float or None
+        The calibration's residual RMS per axis (m) on the poses diagnosed.
+    rms_after : float or None
+        The repaired refit's (m); None when the cause needs no refit.
+    fix : str
+        How to act on it.
+    status : str
+        "fail": decisive (the repair explains the data and places the robot better in use: the
+        calibration is wrong as it is); "warn": a possible cause with weaker evidence, or one the
+        calibration already carries (a mistake of the nominal model, blunders set aside).
+    """
+
+    hypothesis: str
+    cause: str
+    evidence: str
+    score: float
+    items: tuple[str, ...] = ()
+    rms_before: float | None = None
+    rms_after: float | None = None
+    fix: str = ""
+    status: str = "warn"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "items", tuple(self.items))
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    """Why a calibration's data do not fit, tested against them (docs/diagnosis.md).
+
+    Attributes
+    ----------
+    findings : tuple of Finding
+        The causes named, decisive first, then most likely first (others only when close to it).
+    tested : tuple of str
+        The hypotheses tested.
+    summary : str
+        One line: the most likely cause, or that nothing tested explains the misfit.
+    rms : float
+        The calibration's residual RMS per axis on the poses diagnosed (m; contacts: their errors).
+    untestable : tuple of str
+        Hypotheses these data cannot separate, each with the reason (never named as likely).
+    refitted : tuple of str
+        The hypotheses the cheap statistics did not rule out, refitted.
+    """
+
+    findings: tuple[Finding, ...]
+    tested: tuple[str, ...]
+    summary: str
+    rms: float
+    untestable: tuple[str, ...] = ()
+    refitted: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        for name in ("findings", "tested", "untestable", "refitted"):
+            object.__setattr__(self, name, tuple(getattr(self, name)))
+
+    @property
+    def cause(self) -> Finding | None:
+        """The most likely cause, or None."""
+        return self.findings[0] if self.findings else None
+
+    @property
+    def status(self) -> str:
+        """"fail" when a cause is decisive, "warn" when one is possible, else "pass"."""
+        return max((f.status for f in self.findings), key=STATUSES.index, default="pass")
 
 
 @dataclass(frozen=True, eq=False, kw_only=True)
@@ -237,6 +326,9 @@ class CalibrationResult:
         ``validation``) {source, sha256, n_poses, labels}, labels in the order of the pose rows;
         for contacts ``contacts`` (and ``validation_contacts``) {source, sha256, n_rows,
         placements}.
+    diagnosis : Diagnosis or None
+        The mistakes tested against the data and the causes named (docs/diagnosis.md); its verdict
+        is the check "diagnosis". None for a result not screened (the identification alone).
     """
 
     nominal_model: RobotModel
@@ -258,6 +350,7 @@ class CalibrationResult:
     checks: tuple[Check, ...] = ()
     notes: tuple[str, ...] = ()
     provenance: Mapping[str, object] = field(default_factory=dict)
+    diagnosis: Diagnosis | None = None
 
     def __post_init__(self) -> None:
         for name in ("parameters", "families", "checks", "notes"):
@@ -305,6 +398,7 @@ class PoseErrors:
     after: np.ndarray
     rotation_before: np.ndarray | None
     rotation_after: np.ndarray | None
+    set_aside: np.ndarray | None = None
 
     @staticmethod
     def summary_of_none() -> ErrorSummary:
@@ -333,7 +427,7 @@ class PoseErrors:
                        measured_positions=np.where(self.data.mask[..., None], self.data.positions, np.nan),
                        errors_before=norms(self.before), errors_after=norms(self.after), residual_vectors=self.after,
                        rotation_errors_before=norms(self.rotation_before),
-                       rotation_errors_after=norms(self.rotation_after))
+                       rotation_errors_after=norms(self.rotation_after), set_aside=self.set_aside)
 
 
 def provenance(data: Measurements | None, validation: Measurements | None = None, contacts: Contacts | None = None,

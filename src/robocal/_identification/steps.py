@@ -129,19 +129,38 @@ def _rows_as_bytes(d: Measurements) -> np.ndarray:
     return rows.view(np.dtype((np.void, rows.dtype.itemsize * rows.shape[1]))).ravel()
 
 
+# a held-out pose repeats a fitted one when its readings are within this of the fitted one's (rad or m)
+# and its measured values within REPEAT_POSITION (m): a copy written with fewer digits, not a pose
+# measured again (which differs by the instrument's noise, tens of micrometres)
+REPEAT_READING = 2e-5
+REPEAT_POSITION = 5e-6
+
+
 def repeated_in(fitted: Measurements, held: Measurements) -> np.ndarray:
-    """(n_held,) whether each held-out pose repeats a fitted one exactly (readings and measured values)."""
+    """(n_held,) whether each held-out pose repeats a fitted one (readings and measured values, exactly
+    or to the rounding of a copy: ``REPEAT_READING``, ``REPEAT_POSITION``)."""
+    from scipy.spatial import cKDTree
+
     if fitted.q.shape[1] != held.q.shape[1] or fitted.positions.shape[1:] != held.positions.shape[1:]:
         return np.zeros(held.n_poses, dtype=bool)
-    return np.isin(_rows_as_bytes(held), _rows_as_bytes(fitted))
+    exact = np.isin(_rows_as_bytes(held), _rows_as_bytes(fitted))
+    if exact.all() or not len(fitted.q):
+        return exact
+    dist, near = cKDTree(fitted.q).query(held.q, distance_upper_bound=REPEAT_READING * np.sqrt(held.q.shape[1]))
+    close = np.isfinite(dist)
+    k = np.minimum(near, len(fitted.q) - 1)
+    same = (held.mask == fitted.mask[k]).all(axis=1)
+    gap = np.where(held.mask[..., None], np.abs(held.positions - fitted.positions[k]), 0.0).max(axis=(1, 2))
+    return exact | (close & same & (gap <= REPEAT_POSITION))
 
 
 def _held_apart(data: Measurements, validation: Measurements) -> None:
     """Refuse a validation set whose every pose is a fitted one: nothing would be held out."""
     if repeated_in(data, validation).all():
         raise InputError(f"every one of its {validation.n_poses} poses repeats a fitted pose (readings and measured "
-                         "values): nothing is held out; give poses the fit did not see, or leave --validation out "
-                         "(cross-validation)", source=validation.source or "validation", where="validation")
+                         "values, to the digits a copy keeps): nothing is held out; give poses the fit did not see, or "
+                         "leave --validation out (cross-validation)", source=validation.source or "validation",
+                         where="validation")
 
 
 def without_copies(data: Measurements) -> tuple[Measurements, tuple[str, ...]]:

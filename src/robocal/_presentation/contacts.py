@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .text import checks_lines, in_use_lines, verdict_line
+from .text import cause_lines, checks_lines, in_use_lines, verdict_line
 from .units import with_unit
 
 
@@ -48,8 +48,9 @@ def contact_summary(result, shown=()) -> str:
     c = result.contacts
     ident = c.identifiability
     rows = ", ".join(f"{n} {kind}" for kind, n in c.rows.items())
-    lines = [f"calibration of {result.nominal_model.name} from contacts ({rows}; {', '.join(result.families)}, "
-             f"loss {result.solver.loss})", "what the kit shows (before -> after):"]
+    lines = cause_lines(result) + [f"calibration of {result.nominal_model.name} from contacts ({rows}; "
+                                   f"{', '.join(result.families)}, loss {result.solver.loss})",
+                                   "what the kit shows (before -> after):"]
     lines += _figures("fitted", c.fit_before, c.fit_after)
     if c.validation_before is not None:
         lines += _figures("held-out", c.validation_before, c.validation_after)

@@ -25,7 +25,7 @@ from .._base.arguments import (
     optional,
 )
 from .._base.errors import InputError
-from .._files.result import DIAGNOSIS, diagnosis_to_dict, per_pose_arrays, result_to_dict
+from .._files.result import diagnosis_to_dict, per_pose_arrays, result_to_dict
 from .._files.text import write_texts
 from .._identification.contact_figures import ContactErrors, ContactFigures
 from .._identification.result import CalibrationResult
@@ -291,10 +291,17 @@ def _diagnosis_html(diag: dict | None) -> str:
     found = diag.get("findings") or []
     if not found:
         return f'<p class="diagnosis" data-key="diagnosis.summary"><b>Diagnosis:</b> {_e(diag.get("summary", ""))}</p>'
-    items = "".join(f'<li data-key="diagnosis.{k}"><b>{"Most likely" if k == 0 else "Or"}:</b> {_e(f["cause"])}'
+    items = "".join(f'<li data-key="diagnosis.{k}"><b>{_strength(f, k)}:</b> {_e(f["cause"])}'
                     f' &ndash; {_e(f["evidence"])}' + (f'<br><b>fix:</b> {_e(f["fix"])}' if f.get("fix") else "")
                     + "</li>" for k, f in enumerate(found))
     return f'<div class="diagnosis"><b>Diagnosis</b><ul>{items}</ul></div>'
+
+
+def _strength(f: dict, k: int) -> str:
+    """How a finding is introduced: decisive, a possible cause, or another beside the first."""
+    if k:
+        return "Or"
+    return "Decisive" if f.get("status") == "fail" else "Possible cause"
 
 
 def _stats_table(d: dict, *, rotation: bool = False) -> str:
@@ -753,19 +760,17 @@ def _list(items: list[str]) -> str:
     return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " and " + items[-1]
 
 
-@accepts(result=is_a(CalibrationResult), extra=optional(MAPPING), diagnosis=DIAGNOSIS)
-def render_report(result: CalibrationResult, *, extra: dict | None = None, diagnosis=None) -> str:
-    """The HTML text of the report of ``result`` (a CalibrationResult, computed or read back).
+@accepts(result=is_a(CalibrationResult), extra=optional(MAPPING))
+def render_report(result: CalibrationResult, *, extra: dict | None = None) -> str:
+    """The HTML text of the report of ``result`` (a CalibrationResult, computed or read back), its
+    diagnosis in the verdict section.
 
-    ``extra``: optional tables for a comparison section (see ``_extra_tables``); ``diagnosis``: a
-    ``Diagnosis`` of its misfit, shown in the verdict section.
+    ``extra``: optional tables for a comparison section (see ``_extra_tables``).
     Raises RobocalError when matplotlib is missing, InputError when ``result`` is not a result.
 
     Parameters
     ----------
     {result, extra}
-    diagnosis : Diagnosis, optional
-        The diagnosis of the result's misfit, shown in the verdict section.
 
     Returns
     -------
@@ -775,11 +780,9 @@ def render_report(result: CalibrationResult, *, extra: dict | None = None, diagn
     if not isinstance(result, CalibrationResult):
         raise InputError(f"expected a CalibrationResult, got {type(result).__name__}", where="result")
     if result.contacts is not None:
-        return render_contact_report(result, diagnosis)
+        return render_contact_report(result)
     d = result_to_dict(result, per_pose=False)
     d["errors"].update(per_pose_arrays(result))    # arrays as they are: a million poses are no lists
-    if diagnosis is not None:
-        d["diagnosis"] = diagnosis_to_dict(diagnosis)
     tables = _extra_tables(extra)
     need_matplotlib()  # fail early and clearly without the extra
     has_val = bool((d["stats"].get("validation_after") or {}).get("n"))
@@ -903,9 +906,8 @@ def _page(title: str, robot: str, meta: str, sections: list[tuple], after_first:
             "units. A self-contained page: no scripts, no network.</footer>\n</main>\n</body>\n</html>\n")
 
 
-@accepts(result=is_a(CalibrationResult), path=PATH, force=FLAG, extra=optional(MAPPING), diagnosis=DIAGNOSIS)
-def write_report(result: CalibrationResult, path, *, force: bool = False, extra: dict | None = None,
-                 diagnosis=None) -> None:
+@accepts(result=is_a(CalibrationResult), path=PATH, force=FLAG, extra=optional(MAPPING))
+def write_report(result: CalibrationResult, path, *, force: bool = False, extra: dict | None = None) -> None:
     """Write the HTML report of ``result`` to ``path`` atomically (temporary file, then rename).
 
     An existing ``path`` is an InputError unless ``force``. See ``render_report``.
@@ -913,14 +915,12 @@ def write_report(result: CalibrationResult, path, *, force: bool = False, extra:
     Parameters
     ----------
     {result, path, force, extra}
-    diagnosis : Diagnosis, optional
-        The diagnosis of the result's misfit, shown in the verdict section.
 
     Returns
     -------
     None
     """
-    write_texts({path: render_report(result, extra=extra, diagnosis=diagnosis)}, force=force)
+    write_texts({path: render_report(result, extra=extra)}, force=force)
 
 
 # -- the report of a calibration from contacts -----------------------------------------------------
@@ -1008,17 +1008,17 @@ def _contact_reach(c: ContactFigures) -> str:
     return out
 
 
-def render_contact_report(result: CalibrationResult, diagnosis=None) -> str:
+def render_contact_report(result: CalibrationResult) -> str:
     """The HTML page of a calibration that fitted contacts (its ``contacts`` figures): the verdict
-    and its checks (and ``diagnosis``), the kit's figures (socket consistency, spacing error, ...)
+    and its checks (and its diagnosis), the kit's figures (socket consistency, spacing error, ...)
     fitted and held out, per socket and known distance, the tracker points fitted beside them, the
     parameters and what each kind of contact reaches. A self-contained page, no plots."""
     c = cast(ContactFigures, result.contacts)
     d: dict = {"checks": [{"name": k.name, "status": k.status, "summary": k.summary, "cause": k.cause, "fix": k.fix,
                            "items": list(k.items)} for k in result.checks],
                "verdict": result.verdict, "parameters": [{"name": p.name} for p in result.parameters]}
-    if diagnosis is not None:
-        d["diagnosis"] = diagnosis_to_dict(diagnosis)
+    if result.diagnosis is not None:
+        d["diagnosis"] = diagnosis_to_dict(result.diagnosis)
     robot = result.nominal_model.name
     tracker, use = result.stats.fit_after, result.in_use
     points = ""

@@ -91,17 +91,30 @@ def checks_lines(checks) -> list[str]:
     return lines
 
 
-def diagnosis_lines(diagnosis) -> list[str]:
-    """The diagnosis of a misfit: the most likely cause first with its evidence, the close ones after."""
+def diagnosis_lines(diagnosis, *, full: bool = False) -> list[str]:
+    """The diagnosis: each cause named, decisive first, with its evidence and its fix; ``full`` adds what
+    was tested, what survived the screen and was refitted, and what these data cannot tell."""
     if diagnosis is None:
         return []
     if not diagnosis.findings:
-        return [f"diagnosis: {diagnosis.summary}"]
-    lines = ["diagnosis (most likely first):"]
-    for k, f in enumerate(diagnosis.findings):
-        lines.append(f"  {'likely' if k == 0 else 'or    '} {f.cause}: {f.evidence}")
-        lines += [f"         fix: {f.fix}"] if f.fix else []
+        lines = [f"diagnosis: {diagnosis.summary}"]
+    else:
+        lines = ["diagnosis:"]
+        for k, f in enumerate(diagnosis.findings):
+            strength = ("DECISIVE" if f.status == "fail" else "possible cause") if k == 0 else "or"
+            lines.append(f"  {strength}: {f.cause}: {f.evidence}")
+            lines += [f"    fix: {f.fix}"] if f.fix else []
+    if full:
+        lines.append(f"  tested: {', '.join(diagnosis.tested)}")
+        lines.append(f"  refitted: {', '.join(diagnosis.refitted) or 'none (the statistics ruled every repair out)'}")
+        lines += [f"  not testable here: {u}" for u in diagnosis.untestable]
     return lines
+
+
+def cause_lines(result) -> list[str]:
+    """The causes a result's diagnosis names, printed before anything else (none when it names none)."""
+    d = getattr(result, "diagnosis", None)
+    return diagnosis_lines(d) if d is not None and d.findings else []
 
 
 @accepts(result=is_a(CalibrationResult))
@@ -166,8 +179,9 @@ def calibration_summary(result, *, shown=(), weighted: bool = False) -> str:
 
         return contact_summary(result, shown)
     solver = result.solver
-    lines = [f"calibration of {result.nominal_model.name} on {result.provenance['data']['n_poses']} poses "
-             f"({', '.join(result.families)}, loss {solver.loss})"]
+    lines = cause_lines(result) + [f"calibration of {result.nominal_model.name} on "
+                                   f"{result.provenance['data']['n_poses']} poses ({', '.join(result.families)}, "
+                                   f"loss {solver.loss})"]
     lines += stats_lines(result.stats)
     if result.rotation_stats is not None:
         lines += stats_lines(result.rotation_stats, unit="rad")
@@ -252,7 +266,7 @@ def comparison_summary(comparison, *, shown=(), weighted: bool = False) -> str:
     cols = tuple((compared_head(k), r) for k, r in comparison.results.items())
     on = (f"contacts ({', '.join(f'{n} {k}' for k, n in geo.contacts.rows.items())})" if geo.contacts
           else f"{geo.provenance['data']['n_poses']} poses")
-    lines = [f"comparison on {on}", _compared("", [f"{name:>24}" for name, _ in cols]),
+    lines = cause_lines(comparison.best) + [f"comparison on {on}", _compared("", [f"{name:>24}" for name, _ in cols]),
              _compared("parameters identified", [f"{len(r.parameters):>24}" for _, r in cols])]
     lines += _compared_contacts(cols) + _compared_stats(cols)
     if weighted:

@@ -78,8 +78,8 @@ def register(sub) -> None:
     g.add_argument("--nonnegative-compliance", action="store_true", help="keep identified compliances >= 0")
     common.mass_options(p)
     g.add_argument("--diagnose", action="store_true",
-                   help="test specific mistakes against the data and name the most likely cause of the misfit "
-                        "(done anyway when the verdict is warn or fail; docs/diagnosis.md)")
+                   help="print the diagnosis in full: every hypothesis tested, those refitted, those these data cannot "
+                        "tell (every calibration is diagnosed; a cause it names is printed first; docs/diagnosis.md)")
     g.add_argument("--write-failed", action="store_true",
                    help="write calibrated.yaml even when a check fails (it then carries the verdict)")
     common.csv_options(p)
@@ -171,22 +171,13 @@ def _headline(result) -> dict:
     return out
 
 
-def _diagnosis(args, model, data, contacts, best, noise):
-    """The diagnosis of the chosen result when its verdict is warn or fail, or asked (--diagnose), printed."""
-    if not (args.diagnose or best.verdict != "pass"):
-        return None
+def _diagnosis(args, best) -> None:
+    """With --diagnose, the diagnosis in full: what was tested, refitted and cannot be told here."""
+    if not args.diagnose or best.diagnosis is None:
+        return
     from .._presentation.text import diagnosis_lines
 
-    if contacts is not None:
-        from .._diagnosis.contacts import diagnose_contacts
-
-        diagnosis = diagnose_contacts(model, contacts, best, data=data, noise=noise)
-    else:
-        from .._diagnosis.measured import diagnose
-
-        diagnosis = diagnose(model, data, best, noise=noise)
-    print("\n".join(diagnosis_lines(diagnosis)))
-    return diagnosis
+    print("\n".join(diagnosis_lines(best.diagnosis, full=True)))
 
 
 def _check_arguments(args) -> None:
@@ -240,7 +231,7 @@ def _identified(args, model, data, options: dict) -> tuple:
     the file."""
     import numpy as np
 
-    from .._identification.calibrate import calibrate, compare
+    from .._diagnosis.calibrate import calibrate, compare
     from .._presentation.text import calibration_summary, comparison_summary
 
     contacts = options["contacts"]
@@ -262,20 +253,19 @@ def _identified(args, model, data, options: dict) -> tuple:
         raise DegenerateDataError(f"{source}: the fit is numerically singular on these data ({e})") from None
 
 
-def _output_files(args, out: Path, named: dict, best, diagnosis, report) -> dict:
+def _output_files(args, out: Path, named: dict, best, report) -> dict:
     """The files to write: each result (``named``: file name -> result) with its per-pose file, the
     calibrated model unless the calibration failed (or --write-failed), the report when asked."""
     from .._files.model import model_to_yaml
     from .._files.result import result_files
     from .._identification.result import calibration_record
 
-    files = {p: f for n, r in named.items()
-             for p, f in result_files(r, out / n, diagnosis=diagnosis if r is best else None).items()}
+    files = {p: f for n, r in named.items() for p, f in result_files(r, out / n).items()}
     if best.verdict != "fail" or args.write_failed:
         files[out / "calibrated.yaml"] = model_to_yaml(best.calibrated_model, units=args.out_units,
                                                        calibration=calibration_record(best))
     if report:   # rendered before anything is written: a failure there leaves nothing behind
-        files[out / "report.html"] = report.render_report(best, diagnosis=diagnosis)
+        files[out / "report.html"] = report.render_report(best)
     return files
 
 
@@ -297,8 +287,8 @@ def run(args) -> int:
     best, results = _identified(args, model, data, options)
     for r in results.values():
         common.require_finite("the calibration", _headline(r))
-    diagnosis = _diagnosis(args, model, data, contacts, best, options["noise"])
-    files = _output_files(args, out, results, best, diagnosis, report)
+    _diagnosis(args, best)
+    files = _output_files(args, out, results, best, report)
     if args.record:     # the files and the record: both or neither
         record.record_result(args, best, args.record, str(out / "result.json"), files=files)
     else:

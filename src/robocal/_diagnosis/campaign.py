@@ -1,0 +1,487 @@
+"""Hypotheses along the campaign's order and across its rows (docs/diagnosis.md): rows shifted
+against their readings, pose labels offset, a step or a drift of the base, the load or the whole
+robot, joint readings that lag the measurements, a marker elsewhere on some rows (a reflector in
+another nest, moved in its nest, the tool changed), marker labels swapped on some rows.
+
+Each returns candidates (``reference.Candidate``): what cheap statistics predict, and the repair to
+refit or the columns to step when the prediction survives the screen."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from functools import partial
+from itertools import combinations
+from typing import cast
+
+import numpy as np
+
+from .._identification.holdout import ordered
+from .._identification.problem import Problem
+from .._model.kinematics import evaluate
+from .._model.measurements import Measurements
+from .._model.parameters import candidate_parameters, parameter_layout, parameter_vector
+from .._model.robot import Marker, Payload
+from .reference import Candidate, Linear, Reference, Repair, mm, projected_gain, row_layout, with_arrays
+from .rigid import gross, moments, registered, rigid_misfit
+
+# row shifts tried (rows from a row on hold the point of the pose this many rows later)
+SHIFTS = (1, 2, 3, -1, -2, -3)
+# a change point is looked for with at least this share of the poses on each side
+EDGE_SHARE = 0.05
+# a marker is elsewhere on some rows, or its labels swapped, on at least this many rows
+MIN_ROWS = 3
+# a change point is first looked for at this many rows spread evenly, then about the best of them
+SPLITS = 64
+
+
+def _predicted(ref: Reference, gain: float, freedom: float) -> float:
+    """The factor a fit that lowers the reference's sum of squares by ``gain`` (``freedom``
+    parameters more) divides its residual variance by."""
+    after = max(ref.ssr - gain, 1e-300) / max(ref.dof - freedom, 1.0)
+    return float(ref.ssr / ref.dof / after)
+
+
+def _label(ref: Reference, pose: int) -> str:
+    """The campaign label of a pose diagnosed."""
+    return ref.campaign.labels[int(ref.rows[pose])]
+
+
+# -- the order of the rows --------------------------------------------------------------------------
+
+def shifted_rows(n: int, row: int, k: int, *, cyclic: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """The rows of readings and of points to pair when, from ``row`` on, each row holds the point of
+    the pose ``k`` rows later (a missed shot for k > 0, an extra one for k < 0): (reading rows, point
+    rows). Without ``cyclic`` the rows left without a partner are dropped.
+
+    >>> [a.tolist() for a in shifted_rows(5, 2, 1)]
+    [[0, 1, 3, 4], [0, 1, 2, 3]]
+    >>> [a.tolist() for a in shifted_rows(4, 0, -1, cyclic=True)]
+    [[3, 0, 1, 2], [0, 1, 2, 3]]
+    """
+    r = np.arange(n)
+    if cyclic:
+        return np.where(r >= row, row + (r - row + k) % max(n - row, 1), r), r
+    src = np.where(r >= row, r + k, r)
+    keep = (r < row) | ((src >= row) & (src < n))
+    return src[keep], r[keep]
+
+
+def paired(data: Measurements, q_rows: np.ndarray, point_rows: np.ndarray) -> Measurements:
+    """The readings of ``q_rows`` with the measured values of ``point_rows``."""
+    base = data.with_approach().subset(q_rows)
+
+    def take(a):
+        return None if a is None else a[point_rows]
+
+    return replace(base, positions=data.positions[point_rows], mask=data.mask[point_rows],
+                   rotations=take(data.rotations), rot_mask=take(data.rot_mask), sigma=take(data.sigma),
+                   sigma_rot=take(data.sigma_rot))
+
+
+def _campaign_positions(ref: Reference) -> np.ndarray:
+    """The nominal robot's marker positions at every pose of the campaign."""
+    from .reference import nominal_positions
+
+    if ref.campaign.n_poses == ref.data.n_poses:
+        return ref.positions0
+    return ref.cached("campaign_positions", lambda: nominal_positions(ref.model, ref.campaign))
+
+
+def _shift_misfits(P: np.ndarray, data: Measurements, k: int) -> np.ndarray:
+    """(n,) per row i the rigid misfit per point of the nominal positions ``P`` to the points when,
+    from row i on, each row holds the point of the pose ``k`` rows later: cumulative sums of the
+    rigid match's statistics, so every row is tried at once."""
+    n = data.n_poses
+    same = moments(P, data.positions, data.mask)
+    r = np.arange(n)
+    src = np.clip(r + k, 0, n - 1)
+    moved = moments(P[src], data.positions, data.mask) * ((r + k >= 0) & (r + k < n))[:, None]
+    before = np.vstack([np.zeros(18), np.cumsum(same, axis=0)])             # rows < i
+    after = np.vstack([np.cumsum(moved[::-1], axis=0)[::-1], np.zeros(18)])  # rows >= j
+    i = np.arange(n)
+    total = before[i] + after[np.minimum(i + max(0, -k), n)]
+    return rigid_misfit(total) / np.maximum(total[:, 0], 1.0)
+
+
+def _rigid_whole(ref: Reference) -> tuple[np.ndarray, float]:
+    """The nominal robot's positions along the whole campaign, and its rigid match's misfit per point."""
+    data, P = ref.campaign, _campaign_positions(ref)
+    return P, float(rigid_misfit(moments(P, data.positions, data.mask).sum(0))) / max(data.mask.sum(), 1)
+
+
+def rows_shifted(ref: Reference) -> list[Candidate]:
+    """From some row on, each row holds the point of another pose (a missed or an extra shot): every
+    row and shift in ``SHIFTS`` screened at once by a rigid match of the nominal robot."""
+    data, n = ref.campaign, ref.campaign.n_poses
+    if n < 8 or not gross(ref):
+        return []
+    P, whole = _rigid_whole(ref)
+    best = (whole, 0, 0)
+    for k in SHIFTS:
+        m = _shift_misfits(P, data, k)[1: n - 2]
+        j = int(np.argmin(m))
+        if m[j] < best[0]:
+            best = (float(m[j]), j + 1, k)
+    misfit, row, k = best
+    if k == 0:
+        return []
+    label = data.labels[row]
+    what = "next" if k == 1 else (f"{k} rows later" if k > 0 else ("previous" if k == -1 else f"{-k} rows earlier"))
+    pose = f"the {what} pose's point" if abs(k) == 1 else f"the point of the pose {what}"
+    q_rows, p_rows = shifted_rows(n, row, k)
+    return [Candidate("rows shifted", f"rows from {label} on hold {pose} ({'a missed' if k > 0 else 'an extra'} "
+                      "shot)", "with that shift", f"re-pair the rows from {label} on with their poses (or remove "
+                      "them) and calibrate again", (label,), whole / max(misfit, 1e-300), 2.0 + np.log2(n),
+                      lambda: Repair(paired(data, q_rows, p_rows), pose_rows=p_rows))]
+
+
+def pose_labels_offset(ref: Reference) -> list[Candidate]:
+    """Readings and points joined with pose labels off by a few (P00.. against P01..): every row holds
+    another pose's point, cyclically or with the rows at the end left unpaired."""
+    data, n = ref.campaign, ref.campaign.n_poses
+    if n < 8 or not gross(ref):
+        return []
+    P, whole = _rigid_whole(ref)
+    best = (whole, 0, False)
+    for k in SHIFTS:
+        for cyclic in (False, True):
+            qr, pr = shifted_rows(n, 0, k, cyclic=cyclic)
+            mo = moments(P[qr], data.positions[pr], data.mask[pr]).sum(0)
+            v = float(rigid_misfit(mo)) / max(mo[0], 1.0)
+            if v < best[0]:
+                best = (v, k, cyclic)
+    misfit, k, cyclic = best
+    if k == 0:
+        return []
+    later = "later" if k > 0 else "earlier"
+    q_rows, p_rows = shifted_rows(n, 0, k, cyclic=cyclic)
+    return [Candidate("pose labels offset", f"readings and points are paired {abs(k)} pose(s) apart: each row "
+                      f"holds the point of the pose {abs(k)} row(s) {later}" + (" (the rows wrap around)" if cyclic
+                                                                              else ""),
+                      "with the points moved by that offset", "join the readings and the points on the right pose "
+                      "labels (check the first label of each file)", (), whole / max(misfit, 1e-300),
+                      1.0 + np.log2(2 * len(SHIFTS)), lambda: Repair(paired(data, q_rows, p_rows), pose_rows=p_rows))]
+
+
+# -- a step or a drift along the campaign ----------------------------------------------------------
+
+def _groups(ref: Reference) -> list[tuple]:
+    """(what changes, columns of the reference's Jacobian or ``"load"``) of the groups a step or a
+    drift may move: the base (the instrument against the robot), the load, the whole robot."""
+    lay = parameter_layout(ref.start)
+    fam = np.array([lay[n].family for n in ref.names])
+    out: list[tuple] = []
+    if np.any(fam == "base"):
+        out.append(("the measurement frame against the robot (the instrument bumped or the robot moved)",
+                    np.nonzero(fam == "base")[0]))
+    if any(f.mass for f in ref.start.frames) and any(lay[n].family == "compliance" for n in ref.names):
+        out.append(("the load on the robot (a payload the data do not state)", "load"))
+    out.append(("the robot itself (another robot, or a load the model does not know)", np.arange(len(ref.names))))
+    return out
+
+
+def _columns(ref: Reference, cols) -> np.ndarray:
+    return ref.cached("load", lambda: _load_columns(ref)) if isinstance(cols, str) else ref.J[:, cols]
+
+
+def _load_columns(ref: Reference) -> np.ndarray:
+    """(n_rows, n_joints) how the joints' torsional compliances bend the robot under a unit mass at
+    its last frame (the robot's own masses left out), at the calibration's values."""
+    start, data = ref.start, ref.data
+    bare = start.replace(frames=tuple(replace(f, mass=0.0) for f in start.frames), payload=Payload(mass=1.0),
+                         other_payloads=())
+    names = tuple(n for n in candidate_parameters(bare, ("compliance",)) if n.endswith(".k_theta"))
+    loaded = with_arrays(data, payload_mass=np.ones(data.n_poses))
+    prob = Problem(bare, names, data=loaded, compliance=True, noise=ref.noise)
+    lay = parameter_layout(bare)
+    q = parameter_vector(bare)
+    for par in lay.parameters:
+        if par.family != "compliance":
+            q[par.index] = ref.p[par.index]
+    return np.array(prob.jacobian(q))
+
+
+def _row_pose(ref: Reference) -> np.ndarray:
+    return row_layout(ref)[0]
+
+
+def _split_gains(ref: Reference, Z: np.ndarray, edge: int) -> tuple[int, float]:
+    """The pose from which letting parameters with the columns ``Z`` (n_rows, g) change lowers the sum
+    of squares most, and by how much (one Gauss-Newton step, from the gradient and Gram matrices
+    summed over the poses after each split): first on a coarse grid of ``SPLITS`` rows, then row by
+    row about its best."""
+    n = ref.data.n_poses
+    if n - 2 * edge < 0:
+        return n // 2, 0.0
+    order = ref.cached("rows_by_pose", lambda: np.argsort(_row_pose(ref), kind="stable"))
+    first = np.searchsorted(_row_pose(ref)[order], np.arange(n + 1))      # each pose's first row in ``order``
+    Zo, Jo, ro = Z[order], ref.J[order], ref.r[order]
+    inverse = np.linalg.pinv(ref.J.T @ ref.J, hermitian=True)
+
+    def suffix(bounds):   # the sums over the poses from each bound on (bounds ascending, the last n)
+        blocks = [_sums(Zo[first[a]:first[b]], Jo[first[a]:first[b]], ro[first[a]:first[b]])
+                  for a, b in zip(bounds[:-1], bounds[1:])]
+        return [np.cumsum(np.array(x)[::-1], axis=0)[::-1] for x in zip(*blocks)]
+
+    coarse = np.unique(np.linspace(edge, n - edge, min(SPLITS, n - 2 * edge + 1)).round().astype(int))
+    sums = suffix(np.r_[coarse, n])
+    k = _best_split(sums, inverse)
+    row, gain = int(coarse[k]), _gain(sums, inverse, k)
+    step = int(coarse[1] - coarse[0]) if len(coarse) > 1 else 1
+    if step > 1:                      # the rows about it, each
+        near = np.arange(max(edge, row - step), min(n - edge, row + step) + 1)
+        sums = suffix(np.r_[near, n])
+        k = _best_split(sums, inverse)
+        row, gain = int(near[k]), _gain(sums, inverse, k)
+    return row, gain
+
+
+def _sums(Z: np.ndarray, J: np.ndarray, r: np.ndarray) -> tuple:
+    """Over some residual rows: the gradient ``Z^T r`` and the Gram matrices ``Z^T J`` and ``Z^T Z``."""
+    return Z.T @ r, Z.T @ J, Z.T @ Z
+
+
+def _split_solutions(sums: list, inverse: np.ndarray) -> np.ndarray:
+    """The sum of squares each split's Gauss-Newton step takes away (``sums``: gradients, ``Z^T J``, ``Z^T Z``
+    over the poses after each split)."""
+    g, HG, ZZ = sums
+    M = ZZ - HG @ inverse @ np.swapaxes(HG, 1, 2)
+    ridge = (1e-10 * np.trace(M, axis1=1, axis2=2)[:, None, None] + 1e-300) * np.eye(M.shape[-1])
+    sol = np.linalg.solve(M + ridge, g[..., None])[..., 0]
+    return np.einsum("si,si->s", g, sol)
+
+
+def _best_split(sums: list, inverse: np.ndarray) -> int:
+    return int(np.argmax(_split_solutions(sums, inverse)))
+
+
+def _gain(sums: list, inverse: np.ndarray, k: int) -> float:
+    return float(max(_split_solutions([x[k:k + 1] for x in sums], inverse)[0], 0.0))
+
+
+def _determined(ref: Reference, freedom: int) -> bool:
+    """Whether a hypothesis adding ``freedom`` parameters leaves at least as many residual degrees of
+    freedom as it adds: one that leaves fewer fits systematic residuals of any origin."""
+    return len(ref.r) - len(ref.names) - freedom >= freedom
+
+
+def step_change(ref: Reference) -> list[Candidate]:
+    """A step along the campaign's order: from some row on the base, the load or the whole robot
+    differs (a bumped instrument, a payload, a sister robot); each group's best row from cumulative
+    sums of the calibration's gradient and Gram matrix, its columns stepped."""
+    n = ref.data.n_poses
+    edge = max(3, int(EDGE_SHARE * n))
+    out = []
+    for what, cols in _groups(ref):
+        Z = _columns(ref, cols)
+        side = max(edge, Z.shape[1] // 3 + 2)      # each side holds more rows than the group has parameters
+        if n - 2 * side < 1 or not _determined(ref, Z.shape[1]):
+            continue
+        row, gain = _split_gains(ref, Z, side)
+        freedom = Z.shape[1] + np.log2(max(n, 2))
+        label = _label(ref, row)
+        after = (_row_pose(ref) >= row)[:, None]
+        out.append(Candidate("step change", f"from {label} on, {what} changed", "", f"look at what happened at "
+                             f"{label}; calibrate the rows before and after it apart, or measure again", (label,),
+                             _predicted(ref, gain, freedom), np.log2(max(n, 2)),
+                             partial(Linear, Z * after), generic=what.startswith("the robot")))
+    return out
+
+
+def drift(ref: Reference) -> list[Candidate]:
+    """A slow drift along the campaign's order (warming up, the instrument creeping): the base, the load
+    or the whole robot changing in proportion to the row (its columns stepped)."""
+    t = ref.rows[_row_pose(ref)] / max(ref.campaign.n_poses - 1, 1) - 0.5
+    out = []
+    for what, cols in _groups(ref):
+        Z = _columns(ref, cols) * t[:, None]
+        if not _determined(ref, Z.shape[1]):
+            continue
+        gain = projected_gain(ref, Z)
+        first, last = ref.campaign.labels[0], ref.campaign.labels[-1]
+        out.append(Candidate("drift", f"{what.split(' (')[0]} drifts slowly along the campaign (warming up, the "
+                             "instrument creeping)", "", "let the robot and the instrument warm up, check the "
+                             "instrument's reference, measure again", (first, last),
+                             _predicted(ref, gain, Z.shape[1]), 0.0, partial(Linear, Z),
+                             generic=what.startswith("the robot")))
+    return out
+
+
+# -- the joint readings against the measurements ------------------------------------------------------
+
+def readings_lag(ref: Reference) -> list[Candidate]:
+    """The joint readings lag (or lead) the measurements: on a path, each pose's readings are those of a
+    fraction of a row earlier; the readings' change along the rows stepped as one column."""
+    from .joints import joint_columns
+
+    q = ref.data.q
+    if ref.data.n_poses < 8 or not ordered(q):
+        return []
+    dq = np.gradient(q, axis=0)
+    C = joint_columns(ref)                                    # (n_rows, n_joints) per unit reading change
+    Z = np.einsum("rj,rj->r", C, dq[_row_pose(ref)])[:, None]
+    gain = projected_gain(ref, Z)
+    return [Candidate("readings lag", "the joint readings lag (or lead) the measurements: each pose's readings "
+                      "are those of another moment along the path", "", "synchronise the joint log with the "
+                      "instrument (a time offset between them), or measure at rest", (),
+                      _predicted(ref, gain, 1.0), 1.0, lambda: Linear(Z))]
+
+
+# -- a marker elsewhere on some rows, labels swapped on some rows -----------------------------------------
+
+def _marker_frame_residuals(ref: Reference) -> np.ndarray:
+    """(n_poses, n_markers, 3) the calibration's residuals (calibrated minus measured) in each marker's
+    own frame on the robot."""
+    def make():
+        ev = evaluate(ref.start, ref.data.q, orientations=True, payload_mass=ref.data.payload_mass)
+        idx = [ref.start.marker_names.index(n) for n in ref.data.marker_names]
+        R = ev.rotations[:, idx]
+        return np.einsum("nmji,nmj->nmi", R, ref.errors)
+
+    return ref.cached("marker_frame_residuals", make)
+
+
+def _two_groups(v: np.ndarray) -> tuple[np.ndarray, float]:
+    """Split the vectors ``v`` (n, 3) in two groups about their principal direction, the split whose
+    groups' means lie furthest apart: the rows of the smaller group and the sum of squares the two
+    means take up."""
+    n = len(v)
+    if n < 2 * MIN_ROWS:
+        return np.zeros(0, dtype=int), 0.0
+    c = v - v.mean(0)
+    order = np.argsort(c @ np.linalg.eigh(c.T @ c)[1][:, -1], kind="stable")
+    s = np.cumsum(c[order], axis=0)[:-1]
+    k = np.arange(1, n)
+    between = np.sum(s ** 2, axis=1) * n / (k * (n - k))
+    j = MIN_ROWS - 1 + int(np.argmax(between[MIN_ROWS - 1:n - MIN_ROWS]))
+    first, rest = order[:j + 1], order[j + 1:]
+    return np.sort(rest if len(rest) <= len(first) else first), float(between[j])
+
+
+def _added_column(a: np.ndarray | None, m: int, on: np.ndarray, fill) -> np.ndarray | None:
+    """``a`` (n, n_markers, ...) with one more marker column: marker ``m``'s values on the rows ``on``,
+    ``fill`` elsewhere."""
+    if a is None:
+        return None
+    where = on.reshape((-1,) + (1,) * (a.ndim - 2))
+    return np.concatenate([a, np.where(where, a[:, m], fill)[:, None]], axis=1)
+
+
+def _with_marker_on(ref: Reference, m: int, rows: np.ndarray) -> Repair:
+    """The poses diagnosed with marker ``m`` on ``rows`` read as another marker of the same frame
+    (its position free), refitted from the calibration."""
+    d = ref.data
+    name = d.marker_names[m]
+    other = f"{name}'"
+    mk = ref.start.markers[ref.start.marker_names.index(name)]
+    model = ref.start.replace(markers=ref.start.markers + (Marker(other, mk.frame, mk.position, mk.rotation,
+                                                                   mk.rotation_known),))
+    on = np.zeros(d.n_poses, dtype=bool)
+    on[rows] = True
+    moved = on[:, None] & (np.arange(len(d.marker_names)) == m)
+    mask = np.concatenate([d.mask & ~moved, (on & d.mask[:, m])[:, None]], axis=1)
+    rot_mask = None if d.rot_mask is None else np.concatenate([d.rot_mask & ~moved, (on & d.rot_mask[:, m])[:, None]],
+                                                              axis=1)
+    pos = cast(np.ndarray, _added_column(d.positions, m, on, np.nan))
+    data = replace(d.with_approach(), positions=np.where(mask[..., None], pos, np.nan), mask=mask, rot_mask=rot_mask,
+                   marker_names=d.marker_names + (other,), rotations=_added_column(d.rotations, m, on, np.nan),
+                   sigma=_added_column(d.sigma, m, on, 1.0), sigma_rot=_added_column(d.sigma_rot, m, on, 1.0))
+    lay = parameter_layout(model)
+    own = ("x", "y", "z") + (("rx", "ry", "rz") if d.has_orientation else ())
+    nominal = ref.model.replace(markers=ref.model.markers + (replace(
+        ref.model.markers[ref.model.marker_names.index(name)], name=other),))
+    return Repair(data, model=model, registered=False, nominal=nominal,
+                  names=ref.refit_names + tuple(f"{other}.{k}" for k in own if f"{other}.{k}" in lay.names))
+
+
+def _marker_columns(ref: Reference, name: str) -> np.ndarray:
+    """(n_rows, 3) the reference's residual rows per unit move of marker ``name`` on the robot."""
+    names = tuple(f"{name}.{k}" for k in ("x", "y", "z"))
+    return np.array(ref.problem.over(names).jacobian(ref.p))
+
+
+def marker_elsewhere(ref: Reference) -> list[Candidate]:
+    """A marker elsewhere on the robot on some rows: from one row on (the tool changed, the reflector
+    moved in its nest: the row from cumulative sums of the calibration's gradient and Gram matrix with
+    the marker's columns) or on rows here and there (a reflector put in another nest: the calibration's
+    residuals in the marker's own frame split in two groups); the rows refitted as another marker."""
+    E = _marker_frame_residuals(ref)
+    n_all = ref.data.n_poses
+    out = []
+    for m, name in enumerate(ref.data.marker_names):
+        seen = np.nonzero(ref.data.mask[:, m])[0]
+        if len(seen) < 4 * MIN_ROWS:
+            continue
+        row, gain_tail = _split_gains(ref, _marker_columns(ref, name), max(MIN_ROWS, int(EDGE_SHARE * n_all)))
+        some, gain_some = _two_groups(E[seen, m])
+        tail = _predicted(ref, gain_tail, 3.0 + np.log2(n_all))
+        scattered = _predicted(ref, _metres_to_rows(ref, gain_some), 3.0 + len(some))
+        if tail >= scattered:
+            rows, predicted, freedom = seen[seen >= row], tail, 3.0 + np.log2(n_all)
+            where = f"from {_label(ref, row)} on"
+            cause = f"{where}, marker {name} sat elsewhere on the robot: the tool changed, or the reflector moved " \
+                    "in its nest"
+        else:
+            rows, predicted, freedom = seen[some], scattered, 3.0 + len(some)
+            where = f"on {len(rows)} rows ({', '.join(_label(ref, r) for r in rows[:4])}" \
+                    + (" ..." if len(rows) > 4 else "") + ")"
+            cause = f"marker {name} sat elsewhere {where}: a reflector put in another nest"
+        if not MIN_ROWS <= len(rows) < len(seen):
+            continue
+        offset = E[rows, m].mean(0) - np.delete(E[seen, m], np.searchsorted(seen, rows), axis=0).mean(0)
+        out.append(Candidate("marker moved", cause + f" (about {mm(float(np.linalg.norm(offset)))} away)",
+                             "with those rows as another marker", f"calibrate the rows {where} as a marker of "
+                             "their own (or apart), or measure them again with the reflector in its nest",
+                             (name, _label(ref, rows[0])), predicted, freedom,
+                             partial(_with_marker_on, ref, m, rows)))
+    return out
+
+
+def _metres_to_rows(ref: Reference, ss: float) -> float:
+    """A sum of squares in metres as one of the reference's rows (their stated deviations, when weighted)."""
+    metres = row_layout(ref)[1]
+    pos = np.isfinite(metres)
+    return ss / float(np.mean(metres[pos] ** 2)) if pos.any() else ss
+
+
+def _swapped_rows(P: np.ndarray, d, a: int, b: int) -> tuple[np.ndarray, float, float]:
+    """The rows where markers ``a`` and ``b``'s points match the nominal robot's ``P`` (registered on the
+    rows not swapped) far better swapped, and the sums of squares as measured and with them swapped."""
+    both = d.mask[:, a] & d.mask[:, b]
+    rows = np.zeros(0, dtype=int)
+    for _ in range(2):              # registered on every row, then on the rows not swapped
+        keep = d.mask.copy()
+        keep[rows] = False
+        Pr = registered(P, d.positions, keep)
+        now = np.sum((Pr[:, a] - d.positions[:, a]) ** 2 + (Pr[:, b] - d.positions[:, b]) ** 2, axis=1)
+        swapped = np.sum((Pr[:, a] - d.positions[:, b]) ** 2 + (Pr[:, b] - d.positions[:, a]) ** 2, axis=1)
+        rows = np.nonzero(both & (swapped < now / 4.0))[0]
+    return rows, float(np.sum(now[both])), float(np.sum(np.where(np.isin(np.arange(len(now)), rows), swapped,
+                                                                 now)[both]))
+
+
+def labels_swapped(ref: Reference) -> list[Candidate]:
+    """Two markers' labels swapped on some rows (not all: that is markers swapped): the rows where the
+    nominal robot, rigidly placed on the others, matches the points far better swapped."""
+    d = ref.data
+    if len(d.marker_names) < 2:
+        return []
+    best = None
+    for a, b in combinations(range(len(d.marker_names)), 2):
+        rows, now, after = _swapped_rows(ref.positions0, d, a, b)
+        if MIN_ROWS <= len(rows) < (d.mask[:, a] & d.mask[:, b]).sum() and (best is None or now / after > best[0]):
+            best = (now / max(after, 1e-300), a, b, rows)
+    if best is None:
+        return []
+    ratio, a, b, rows = best
+    names = (d.marker_names[a], d.marker_names[b])
+
+    def repair():
+        pos = d.positions.copy()
+        pos[np.ix_(rows, [a, b])] = pos[np.ix_(rows, [b, a])]
+        return Repair(with_arrays(d, positions=pos))
+
+    listed = ", ".join(_label(ref, r) for r in rows[:4]) + (" ..." if len(rows) > 4 else "")
+    return [Candidate("labels swapped", f"markers {names[0]} and {names[1]} are swapped on {len(rows)} of the "
+                      f"rows ({listed})", "with them swapped back on those rows", f"swap the columns (or labels) of "
+                      f"markers {names[0]} and {names[1]} back on those rows", names, ratio, float(len(rows)), repair)]
