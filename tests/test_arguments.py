@@ -349,8 +349,6 @@ BAD = [
     ("verification_summary", "v", None), ("verification_summary", "robot", 3),
     ("verification_summary", "calibration", None), ("render_history", "h", "SN-1"),
     ("write_history", "h", None), ("write_history", "force", "yes"), ("write_history", "path", 3),
-    ("render_report", "diagnosis", "x"), ("write_report", "diagnosis", 1), ("result_to_json", "diagnosis", []),
-    ("result_files", "diagnosis", {}),
     ("identifiability", "tol", -1.0), ("identifiability", "n_random", 0), ("identifiability", "rng", -1),
     ("identifiability", "data", Q2), ("identifiability", "parameters", None), ("identifiability", "orientation", 1),
     ("status_table", "result", None), ("status_table", "frame_names", 3),

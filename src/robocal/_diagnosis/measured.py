@@ -19,7 +19,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from .._base.arguments import accepts, both, is_a, measured_on, names_in, noise_of, optional
+from .._base.arguments import accepts, both, is_a, measured_on, names_in, noise_of, number, optional, whole
 from .._base.errors import InputError
 from .._base.options import INSTRUMENT_NOISE
 from .._base.threads import one_blas_thread
@@ -55,8 +55,14 @@ def _identified(value, name, args):
         raise InputError("must name at least one parameter the calibration identified (None: all)", where=name)
 
 
+def _limit(value, name, _):
+    """A limit of absolute accuracy: an ``AccuracyLimit`` or a positive number of metres."""
+    number(getattr(value, "limit", value), name, low=0.0, low_open=True)
+
+
 @accepts(model=is_a(RobotModel), data=both(is_a(Measurements), measured_on()), result=is_a(CalibrationResult),
-         noise=noise_of(Noise, INSTRUMENT_NOISE), parameters=optional(_identified))
+         noise=noise_of(Noise, INSTRUMENT_NOISE), parameters=optional(_identified), limit=optional(_limit),
+         folds=whole(2))
 @one_blas_thread
 def diagnose(model: RobotModel, data: Measurements, result: CalibrationResult, *, noise=None, parameters=None,
              limit=None, folds: int = 5) -> Diagnosis:
