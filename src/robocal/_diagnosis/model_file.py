@@ -7,15 +7,17 @@ from __future__ import annotations
 
 from dataclasses import replace
 from functools import partial
+from typing import cast
 
 import numpy as np
 
 from .._identification.checks import tolerances
 from .._identification.result import Finding
+from .._model.kinematics import evaluate
 from .._model.parameters import model_from_vector, parameter_layout, parameter_vector
 from .facts import NOTED_SCORE
 from .reference import Candidate, Reference, Repair
-from .rigid import gross, predicted, screen_data, screened_model
+from .rigid import gross, per_point, predicted, screen_data, screen_positions, screened_model
 from .values import model_scaled
 
 # a common scale of the frames' lengths the data give this far from 1 is another robot's size
@@ -88,24 +90,28 @@ def robot_size(ref: Reference) -> list[Candidate]:
 
 def marker_frame(ref: Reference) -> list[Candidate]:
     """A marker on another frame than the model says: for each marker the frame the nominal robot
-    matches best (the marker's coordinates kept)."""
+    matches best (the marker's coordinates kept), every frame's pose from one evaluation."""
     if not gross(ref):
         return []
-    model = ref.model
+    model, d = ref.model, screen_data(ref)
+    X = cast(np.ndarray, evaluate(model, d.q, frames=True, payload_mass=d.payload_mass).frames)
     out = []
-    for name in screen_data(ref).marker_names:
+    for j, name in enumerate(d.marker_names):
         k = model.marker_names.index(name)
-        here = model.markers[k].frame
+        here = model.markers[k].frame % len(model.frames)
         others = [f for f in range(len(model.frames)) if f != here]
-        moved = [model.replace(markers=tuple(replace(mk, frame=f) if i == k else mk
-                                             for i, mk in enumerate(model.markers))) for f in others]
-        misfits = [screened_model(ref, m) for m in moved]
+        Xo = X[:, others]
+        on = Xo[..., :3, :3] @ np.asarray(model.markers[k].position) + Xo[..., :3, 3]
+        misfits = [per_point(np.concatenate([P0[:, :j], on[:, [i]], P0[:, j + 1:]], axis=1), d)
+                   for P0 in (screen_positions(ref),) for i in range(len(others))]
         i = int(np.argmin(misfits))
         frame = model.frames[others[i]].name
+        moved = model.replace(markers=tuple(replace(mk, frame=others[i]) if n == k else mk
+                                            for n, mk in enumerate(model.markers)))
         out.append(Candidate("marker frame", f"marker {name} is on frame {frame}, not {model.frames[here].name}",
                              "with it there", f"put marker {name} on frame {frame} in the model file", (name, frame),
                              predicted(ref, misfits[i]), np.log2(len(others)),
-                             partial(Repair, ref.data, model=moved[i]), model_file=True))
+                             partial(Repair, ref.data, model=moved), model_file=True))
     return out
 
 
