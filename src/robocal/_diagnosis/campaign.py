@@ -311,7 +311,9 @@ def drift(ref: Reference) -> list[Candidate]:
 
 def readings_lag(ref: Reference) -> list[Candidate]:
     """The joint readings lag (or lead) the measurements: on a path, each pose's readings are those of a
-    fraction of a row earlier; the readings' change along the rows stepped as one column."""
+    fraction of a row earlier. The readings' change along the rows, as one column, screens it and gives
+    the lag (one Gauss-Newton step); the readings moved by that lag are refitted from the calibration (a
+    lag of half a row on a fast path is too far from linear for the step alone to judge)."""
     from .joints import joint_columns
 
     q = ref.data.q
@@ -321,10 +323,25 @@ def readings_lag(ref: Reference) -> list[Candidate]:
     C = joint_columns(ref)                                    # (n_rows, n_joints) per unit reading change
     Z = np.einsum("rj,rj->r", C, dq[_row_pose(ref)])[:, None]
     gain = projected_gain(ref, Z)
-    return [Candidate("readings lag", "the joint readings lag (or lead) the measurements: each pose's readings "
-                      "are those of another moment along the path", "", "synchronise the joint log with the "
-                      "instrument (a time offset between them), or measure at rest", (),
-                      _predicted(ref, gain, 1.0), 1.0, lambda: Linear(Z))]
+    Zp = ref.project(Z)[:, 0]
+    lag = float(-(Zp @ ref.settled) / max(float(Zp @ Zp), 1e-300))
+    if not np.isfinite(lag) or abs(lag) > max(SHIFTS) or lag == 0.0:
+        return []
+    return [Candidate("readings lag", f"the joint readings {'lag' if lag > 0 else 'lead'} the measurements by about "
+                      f"{abs(lag):.2g} of a row: each pose's readings are those of another moment along the path",
+                      "with the readings moved by that lag", "synchronise the joint log with the instrument (a time "
+                      "offset between them), or measure at rest", (), _predicted(ref, gain, 1.0), 1.0,
+                      partial(Repair, with_arrays(ref.data, q=unlagged(q, lag)), registered=False))]
+
+
+def unlagged(q: np.ndarray, lag: float, steps: int = 4) -> np.ndarray:
+    """The readings ``q`` (n_poses, n_joints) along a path moved ``lag`` rows later: the readings ``u``
+    with ``u - lag * gradient(u) = q`` (a log that lags by ``lag`` rows), by fixed-point steps; a first
+    order step alone leaves a fast path's curvature."""
+    u = q.copy()
+    for _ in range(steps):
+        u = q + lag * np.gradient(u, axis=0)
+    return u
 
 
 # -- a marker elsewhere on some rows, labels swapped on some rows -----------------------------------------
