@@ -167,7 +167,9 @@ def pose_labels_offset(ref: Reference) -> list[Candidate]:
 
 def _groups(ref: Reference) -> list[tuple]:
     """(what changes, columns of the reference's Jacobian or ``"load"``) of the groups a step or a
-    drift may move: the base (the instrument against the robot), the load, the whole robot."""
+    drift may move: the base (the instrument against the robot), the load, the whole robot (only when
+    the calibration shows a mistake, ``Reference.shows``: the costliest, and another robot partway
+    leaves a misfit)."""
     lay = parameter_layout(ref.start)
     fam = np.array([lay[n].family for n in ref.names])
     out: list[tuple] = []
@@ -176,7 +178,8 @@ def _groups(ref: Reference) -> list[tuple]:
                     np.nonzero(fam == "base")[0]))
     if any(f.mass for f in ref.start.frames) and any(lay[n].family == "compliance" for n in ref.names):
         out.append(("the load on the robot (a payload the data do not state)", "load"))
-    out.append(("the robot itself (another robot, or a load the model does not know)", np.arange(len(ref.names))))
+    if ref.shows:
+        out.append(("the robot itself (another robot, or a load the model does not know)", np.arange(len(ref.names))))
     return out
 
 

@@ -124,6 +124,13 @@ class Reference:
                                                                     self.names, self.data))
 
     @property
+    def shows(self) -> bool:
+        """Whether the calibration shows a mistake at all: it misfits beyond ``FIT_RATIO`` times the
+        expected scatter, or it made changes beyond their tolerances. One that fits with plausible
+        changes holds no gross mistake and no change of the whole robot along the campaign."""
+        return self.rms > FIT_RATIO * self.expected or self.implausible > 0
+
+    @property
     def base_free(self) -> bool:
         lay = parameter_layout(self.model)
         return any(lay[n].family == "base" for n in self.names)

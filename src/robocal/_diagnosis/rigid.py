@@ -63,15 +63,17 @@ def plain(ref: Reference) -> float:
 
 
 def gross(ref: Reference) -> bool:
-    """Whether the nominal robot's rigid match leaves more than ``GROSS_SHARE`` of the measured cloud's
-    spread, or the calibration found points beyond the outlier bar: only then can a gross mistake be in
-    the data."""
+    """Whether a gross mistake can be in the data: the calibration found points beyond the outlier bar,
+    or the nominal robot's rigid match leaves more than ``GROSS_SHARE`` of the measured cloud's spread
+    and the calibration shows a mistake (``Reference.shows``). A calibration that fits with plausible
+    changes holds no sign, swap, unit or shift: the nominal robot is merely far from the real one."""
     def make():
+        if any(c.name == "outliers" and c.items for c in ref.result.checks):
+            return True
         d = screen_data(ref)
         X = d.positions[d.mask]
         spread = float(np.sqrt(np.mean(np.sum((X - X.mean(0)) ** 2, axis=1)))) if len(X) else 0.0
-        outliers = any(c.name == "outliers" and c.items for c in ref.result.checks)
-        return bool(np.sqrt(plain(ref)) > GROSS_SHARE * spread or outliers)
+        return bool(ref.shows and np.sqrt(plain(ref)) > GROSS_SHARE * spread)
 
     return ref.cached("gross", make)
 
