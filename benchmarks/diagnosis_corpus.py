@@ -75,8 +75,9 @@ def mistakes(seeds: int, with_real: bool) -> None:
     names = [f"{c.name} ({robot} {seed})" for seed in range(seeds) for robot in corpus.ROBOTS
              for c in corpus.mistakes(robot, seed)]
     if with_real:
-        cases += real_mistakes.mistakes()
-        names += [c.name for c in real_mistakes.mistakes()]
+        injected = real_mistakes.mistakes()
+        cases += injected
+        names += [c.name for c in injected]
     tally = Counter()
     for name, case in zip(names, cases):
         out = _one(case)

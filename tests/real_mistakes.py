@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, replace
-from functools import cache
+from functools import cache, partial
 
 import diagnosis_corpus as corpus
 import numpy as np
@@ -127,7 +127,8 @@ def link_off(robot: str, frame: int = 2, error: float = 0.1) -> Case:
     model, grid, _, _ = clean(robot)
     frames = list(model.frames)
     frames[frame] = replace(frames[frame], d=frames[frame].d + error)
-    return _case(f"a link {error * 1e3:.0f} mm off in the model file", robot, grid, ("model values",),
+    return _case(f"a link ({frames[frame].name}.d) {error * 1e3:.0f} mm off in the model file", robot, grid,
+                 ("model values",),
                  model=model.replace(frames=tuple(frames)))
 
 
@@ -211,12 +212,14 @@ def validation_repeated(robot: str) -> Case:
     return _case("a validation file repeating fitted poses", robot, grid, ("validation repeated",), validation=val)
 
 
-UR5_MISTAKES = (tool_changed, reflector_moved, second_nest, gear_ratio, whole_turn, targets, link_off, model_in_metres,
-                missed_shot, mirrored, joint_sign, joints_swapped, millimetres_as_metres, tracker_bumped, reading_typo,
-                readings_lag, validation_repeated)
-WAM_MISTAKES = (tool_changed, gear_ratio, missed_shot, joint_sign, link_off, whole_turn)
+MISTAKES = (tool_changed, reflector_moved, second_nest, gear_ratio, whole_turn, targets, link_off, model_in_metres,
+            missed_shot, mirrored, joint_sign, joints_swapped, millimetres_as_metres, tracker_bumped, reading_typo,
+            readings_lag, validation_repeated)
+# the same mistakes elsewhere: another joint, link, ratio, row and tool
+VARIANTS = (partial(gear_ratio, ratio=0.99, joint=2), partial(whole_turn, joint=0), partial(joint_sign, joint=1),
+            partial(link_off, frame=1, error=0.05), partial(tool_changed, row_share=0.3, offset=(0.0, 0.01, 0.0)))
 
 
 def mistakes() -> list[Case]:
-    """Every mistake injected into the real campaigns."""
-    return [make("UR5") for make in UR5_MISTAKES] + [make("WAM") for make in WAM_MISTAKES]
+    """Every mistake injected into the real campaigns, on the UR5 and on the WAM."""
+    return [make(robot) for robot in ("UR5", "WAM") for make in MISTAKES + VARIANTS]
