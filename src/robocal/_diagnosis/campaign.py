@@ -219,7 +219,7 @@ def _split_gains(ref: Reference, Z: np.ndarray, edge: int) -> tuple[int, float]:
     order = ref.cached("rows_by_pose", lambda: np.argsort(_row_pose(ref), kind="stable"))
     first = np.searchsorted(_row_pose(ref)[order], np.arange(n + 1))      # each pose's first row in ``order``
     Zo, Jo, ro = Z[order], ref.J[order], ref.r[order]
-    inverse = np.linalg.pinv(ref.J.T @ ref.J, hermitian=True)
+    inverse = ref.cached("gram_inverse", lambda: np.linalg.pinv(ref.J.T @ ref.J, hermitian=True))
 
     def suffix(bounds):   # the sums over the poses from each bound on (bounds ascending, the last n)
         blocks = [_sums(Zo[first[a]:first[b]], Jo[first[a]:first[b]], ro[first[a]:first[b]])
