@@ -145,13 +145,14 @@ def real_campaigns() -> None:
             res = _calibrated(model, real.campaign(robot, kind, model))
             print(f"real {robot} {kind}: {res.verdict}, cause {_first(res)[0]}: {res.diagnosis.summary[:120]}",
                   flush=True)
-    mukca = os.path.join(HERE, "..", "tests", "data", "real", "mukca")
+    mukca = os.path.join(HERE, "..", "tests", "data", "real", "mukca")   # the same files as shared/data/real
     model = rc.read_urdf(os.path.join(mukca, "panda.urdf"), tip_link="ball_link", markers=[("ball", (0.0, 0.0, 0.0))])
     contacts = rc.io.read_contacts(os.path.join(mukca, "panda_3"), model)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res = rc.calibrate(model, contacts=contacts)
-    print(f"real MUKCa Panda sockets: {res.verdict}, cause {_first(res)[0]}: {res.diagnosis.summary[:120]}")
+    print(f"real MUKCa Panda sockets: {res.verdict}, cause {_first(res)[0]}: {res.diagnosis.summary[:120]}",
+          flush=True)
 
 
 def contacts(seeds: int, clean: int) -> None:

@@ -424,13 +424,15 @@ def marker_elsewhere(ref: Reference) -> list[Candidate]:
     """A marker elsewhere on the robot on some rows: from one row on (the tool changed, the reflector
     moved in its nest: the row from cumulative sums of the calibration's gradient and Gram matrix with
     the marker's columns) or on rows here and there (a reflector put in another nest: the calibration's
-    residuals in the marker's own frame split in two groups); the rows refitted as another marker."""
+    residuals in the marker's own frame split in two groups); the rows refitted as another marker.
+    Only markers whose position the calibration fitted: one held at the model's (``known``) misfits on
+    every row when the model has it wrong, and freeing it on nearly every row would name a move."""
     E = _marker_frame_residuals(ref)
     n_all = ref.data.n_poses
     out = []
     for m, name in enumerate(ref.data.marker_names):
         seen = np.nonzero(ref.data.mask[:, m])[0]
-        if len(seen) < 4 * MIN_ROWS:
+        if len(seen) < 4 * MIN_ROWS or not any(n.startswith(f"{name}.") for n in ref.names):
             continue
         row, gain_tail = _split_gains(ref, _marker_columns(ref, name), max(MIN_ROWS, int(EDGE_SHARE * n_all)))
         some, gain_some = _two_groups(E[seen, m])
