@@ -300,7 +300,7 @@ def test_compare_with_contacts_keeps_compliance_only_where_the_held_out_placemen
 
 def test_diagnose_names_the_mistake_of_a_contact_campaign(cli, arm7, kit, tmp_path):
     """Joint j4's readings written with the wrong sign: the calibration fails on implausible changes
-    and the diagnosis (run on any failure) names the joint; its finding is in result.json and on the
+    and the diagnosis (run on every calibration) names the joint; its finding is in result.json and on the
     page. A clean campaign with --diagnose: nothing is named."""
     _, c, folder = kit
     q = c.q.copy()
@@ -308,7 +308,7 @@ def test_diagnose_names_the_mistake_of_a_contact_campaign(cli, arm7, kit, tmp_pa
     write_contacts(replace(c, q=q), tmp_path / "sign.csv", arm7)
     code, out, err = cli("calibrate", ARM7, "--contacts", tmp_path / "sign.csv", "--out", tmp_path / "sign", "--report")
     assert code == 3, err
-    assert "likely joint j4's readings have the wrong sign" in out
+    assert "possible cause: joint j4's readings have the wrong sign" in out
     saved = json.loads((tmp_path / "sign" / "result.json").read_text())
     first = saved["diagnosis"]["findings"][0]
     assert first["hypothesis"] == "joint sign" and first["items"] == ["j4"]
