@@ -398,12 +398,12 @@ def test_a_library_write_leaves_other_temporaries_alone(files):
 
 
 def test_memory_error_is_one_line_with_the_size(files, cli, monkeypatch):
-    import robocal._identification.calibrate
+    import robocal._diagnosis.calibrate
 
     def oom(*a, **k):
         raise MemoryError("Unable to allocate 13.3 GiB for an array with shape (1000000, 1784) and data type float64")
 
-    monkeypatch.setattr(robocal._identification.calibrate, "calibrate", oom)
+    monkeypatch.setattr(robocal._diagnosis.calibrate, "calibrate", oom)
     one_line(cli, model_commands(files)[0], ["out of memory", "13.3 GiB"])
 
 
@@ -661,7 +661,7 @@ def test_contact_result_with_a_non_finite_deviation_is_not_written(tmp_path, cli
     """A contacts result once went out with a standard deviation of NaN, exit 0: the writer checks."""
     from dataclasses import replace
 
-    import robocal._identification.calibrate as face
+    import robocal._diagnosis.calibrate as face        # the public calibrate, which runs the sequence
 
     real = face.run
 
