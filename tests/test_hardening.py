@@ -661,7 +661,7 @@ def test_contact_result_with_a_non_finite_deviation_is_not_written(tmp_path, cli
     """A contacts result once went out with a standard deviation of NaN, exit 0: the writer checks."""
     from dataclasses import replace
 
-    import robocal._diagnosis.calibrate as face        # the public calibrate, which runs the sequence
+    import robocal._diagnosis.calibrate as face  # the public calibrate, which runs the sequence
 
     real = face.run
 

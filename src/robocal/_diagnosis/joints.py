@@ -60,7 +60,7 @@ def joint_scale(ref: Reference) -> list[Candidate]:
         q[:, j] *= 1.0 + s
         return Repair(with_arrays(data, q=q), registered=False)
 
-    return [Candidate("joint scale", f"joint {name} moves {1.0 + s:.4g} times its reading (a gear ratio or a "
+    return [Candidate("joint scale", f"joint {name} moves {1.0 + s:.6g} times its reading (a gear ratio or a "
                       "reading scale off)", "with that scale", f"correct the gear ratio (or scale) of joint {name} in "
                       f"the controller or the readings; a robot whose joint turns so carries it in the "
                       f"'{TRANSMISSION}' parameters (--parameters geometric,{TRANSMISSION})", (name,),
