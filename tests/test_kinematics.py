@@ -243,6 +243,32 @@ def test_columns_in_blocks_of_poses_equal_those_in_one_block(monkeypatch):
     np.testing.assert_array_equal(evaluate(m, q, jacobian=True, orientations=True).jacobian, whole)
 
 
+def test_forward_kinematics_in_chunks_allocates_its_outputs_and_little_more(monkeypatch):
+    """Poses beyond LARGE_POSES are evaluated a chunk at a time: the chunks' results go straight
+    into the outputs, so a call's memory is its outputs and one chunk's work (its pass in the
+    model's workspace). Gathered and joined, the chunks' results took twice the outputs' memory,
+    which the C heap took from the system and gave back at each call (fresh pages faulted in, or
+    not, depending on what the process had done before: benchmarks/bench_fk_processes.py)."""
+    import tracemalloc
+
+    import robocal._model.kinematics as kin
+
+    monkeypatch.setattr(kin, "LARGE_POSES", 1000)
+    monkeypatch.setattr(kin, "CHUNK_POSES", 500)
+    m = arm6r(markers=(("a", (0.05, 0.02, 0.12)), ("b", (-0.1, 0.0, 0.05))))
+    q = rc.random_configurations(m, 16_001, rng=4)
+    rc.forward_kinematics(m, q)                # the workspace's buffers made
+    tracemalloc.start()
+    ev = rc.forward_kinematics(m, q)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    outputs = ev.positions.nbytes + ev.rotations.nbytes
+    assert peak < 1.3 * outputs, (peak, outputs)
+    whole = evaluate(m, q[:900], orientations=True)
+    np.testing.assert_array_equal(ev.positions[:900], whole.positions)
+    np.testing.assert_array_equal(ev.rotations[:900], whole.rotations)
+
+
 def test_readings_changed_in_place_are_not_taken_for_the_old_ones():
     # the cosines of the readings are remembered between passes, by value, not by the array
     m = arm6r()

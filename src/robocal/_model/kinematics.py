@@ -1525,19 +1525,33 @@ def _frame_poses(ps: _Pass) -> np.ndarray:
 
 def _evaluate_in_chunks(model: RobotModel, q: np.ndarray, p: np.ndarray, *, orientations: bool, compliance: bool,
                         payload_mass) -> Evaluation:
-    """``evaluate`` of positions (and orientations, moments) ``CHUNK_POSES`` poses at a time: the
-    per-frame arrays of one chunk are held at a time."""
-    parts = []
-    for a in range(0, len(q), CHUNK_POSES):
-        pm = payload_mass if np.ndim(payload_mass) == 0 else np.asarray(payload_mass)[a:a + CHUNK_POSES]
-        parts.append(evaluate(model, q[a:a + CHUNK_POSES], p, orientations=orientations, compliance=compliance,
-                              payload_mass=pm, backlash=False))
-
-    def joined(field):
-        return None if getattr(parts[0], field) is None else np.concatenate([getattr(e, field) for e in parts])
-
-    return Evaluation(positions=joined("positions"), rotations=joined("rotations"), jacobian=None,
-                      moments=joined("moments"))
+    """``evaluate`` of positions (and orientations, moments) ``CHUNK_POSES`` poses at a time, each
+    chunk's pass in one buffer of the model's workspace and its results written straight into the
+    outputs. The call allocates its outputs and little more: were the chunks' results gathered and
+    joined, their memory (twice the outputs') would grow the C heap at each call and go back to
+    the system after it, and each call would fault fresh pages in, or not, depending on what the
+    process had allocated and freed before (benchmarks/bench_fk_processes.py)."""
+    ws = workspace(model)
+    n, nm = len(q), len(model.markers)
+    positions = np.empty((n, nm, 3))
+    rotations = np.empty((n, nm, 3, 3)) if orientations and nm else None
+    moments = None
+    for a in range(0, n, CHUNK_POSES):
+        rows = slice(a, a + CHUNK_POSES)
+        pm = payload_mass if np.ndim(payload_mass) == 0 else np.asarray(payload_mass)[rows]
+        st = evaluate_state(model, layout(model), p, q[rows] @ model.coupling_matrix.T, compliance=compliance,
+                            orientations=orientations, payload_mass=pm, backlash=False, approach=None, take=ws.take)
+        positions[rows] = cast(np.ndarray, st.ps.P).transpose(1, 0, 2)
+        if rotations is not None:
+            for m, rm in enumerate(st.ps.RM):
+                rotations[rows, m] = rm
+        if st.M is not None:
+            moments = np.empty((n, len(st.M))) if moments is None else moments
+            moments[rows] = st.M.T
+        buffers = pass_buffers(st)
+        del st
+        ws.give(buffers)
+    return Evaluation(positions=positions, rotations=rotations, jacobian=None, moments=moments)
 
 
 @accepts(**_MODEL_AND_READINGS)
