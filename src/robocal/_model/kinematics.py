@@ -476,8 +476,10 @@ def joint_turns(qf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _signed_sines(angle: np.ndarray) -> np.ndarray:
     """(..., 2, 1, N) sin and -sin of ``angle`` (..., N), as ``_turn_rows`` takes them."""
-    s = np.sin(angle)
-    return np.stack([s, -s], axis=-2)[..., None, :]
+    out = np.empty(angle.shape[:-1] + (2, 1, angle.shape[-1]))
+    np.sin(angle, out=out[..., 0, 0, :])
+    np.negative(out[..., 0, 0, :], out=out[..., 1, 0, :])
+    return out
 
 
 def _place(Vt: np.ndarray, parent: np.ndarray, out: np.ndarray) -> None:
