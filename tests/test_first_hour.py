@@ -53,6 +53,23 @@ assert "scipy.stats" not in sys.modules, "scipy.stats was imported"
     assert "verdict: within accuracy" in run.stdout and "2 calibration(s), 1 verification(s)" in run.stdout
 
 
+def test_a_missing_input_is_refused_before_scipy_is_imported(tmp_path):
+    # the refusal of a file that is not there needs the reader and no analysis: scipy (the
+    # optimizer, the special functions, the rotations' spatial package) took about 2 s of CPU
+    # under load before `robocal calibrate` said the file was missing
+    code = f"""
+import sys
+from robocal.cli import main
+for argv in (["calibrate", {str(tmp_path / "m.yaml")!r}, {str(tmp_path / "d.csv")!r}, "--out", {str(tmp_path / "o")!r}],
+             ["identifiability", {str(tmp_path / "m.yaml")!r}]):
+    assert main(argv) == 2, argv
+assert not [m for m in sys.modules if m.startswith("scipy")], "scipy was imported"
+"""
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    assert run.stderr.count("m.yaml: cannot read: file not found") == 2, run.stderr
+
+
 def test_the_quantiles_are_the_distributions_ones():
     from scipy.stats import norm
 

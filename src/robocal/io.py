@@ -20,11 +20,11 @@ from ._files.result import (
                             result_from_dict,
                             result_to_dict,
                             result_to_json,
-                            sidecar_path,
                             write_result,
 )
 from ._files.stills import Left, StillRules
 from ._files.table import ColumnMap
+from ._files.text import sidecar_path
 from ._files.urdf import read_urdf, urdf_text, write_urdf
 from ._identification.result import calibration_record
 from ._model.contacts import Contacts, KnownDistance, KnownPlane

@@ -17,7 +17,6 @@ from dataclasses import replace
 from typing import NamedTuple
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from .._base.arguments import (
     FLAG,
@@ -82,6 +81,8 @@ def parse_orientation(text: str | None, *, source: str | None = None, where: str
         return "rpy", None
     if text.startswith("euler:"):
         seq = text.split(":", 1)[1]
+        from scipy.spatial.transform import Rotation  # here: half a second of imports a refusal needs not
+
         try:
             Rotation.from_euler(seq, [0.0, 0.0, 0.0])
         except ValueError:
@@ -879,6 +880,8 @@ def _rotation(kind, seq, vals, source, line, column) -> np.ndarray:
 
 def _matrices(kind: str, seq: str | None, vals) -> np.ndarray:
     """The rotation matrix of orientation values ``vals`` (or one per row of them) in convention ``kind``."""
+    from scipy.spatial.transform import Rotation
+
     if kind == "quat":
         return Rotation.from_quat(vals).as_matrix()  # scalar-last (x, y, z, w): the column names say which
     return Rotation.from_euler("xyz" if kind == "rpy" else seq, vals).as_matrix()
@@ -1042,6 +1045,8 @@ def _written_rotations(data: Measurements, kind: str, seq: str | None, orientati
     ``A``); the identity's where none was measured."""
     if data.rotations is None:
         return np.zeros((data.n_poses, len(data.marker_names), 0))
+    from scipy.spatial.transform import Rotation
+
     R = Rotation.from_matrix(np.where(rmask[..., None, None], data.rotations, np.eye(3)).reshape(-1, 3, 3))
     if kind == "quat":
         rots = R.as_quat()                  # (x, y, z, w); scalar_first needs scipy 1.14

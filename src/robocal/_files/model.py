@@ -13,7 +13,6 @@ from pathlib import Path
 
 import numpy as np
 import yaml
-from scipy.spatial.transform import Rotation
 
 from .._base.arguments import (
     FLAG,
@@ -29,7 +28,6 @@ from .._base.errors import InputError, excerpt, suggest
 from .._base.options import BACKLASH_SIDES, MAX_MODEL_BYTES
 from .._base.spatial import nearest_rotation, pose4, vector3
 from .._base.units import ANGLE_UNITS, LENGTH_UNITS, check_unit, parse_units
-from .._identification.result import calibrated_description
 from .._model.parameters import KIND_QUANTITY
 from .._model.robot import (
     DEFAULT_PARALLEL_TOL,
@@ -142,6 +140,8 @@ class _Reader:
             raise self.error(where, "give exactly one of rpy, matrix, quaternion_xyzw")
         (kind, v), = d.items()
         w = f"{where}.{kind}"
+        from scipy.spatial.transform import Rotation  # here: half a second of imports a refusal needs not
+
         if kind == "rpy":
             R = Rotation.from_euler("xyz", self.vector(v, w, 3, angle)).as_matrix()  # extrinsic: Rz Ry Rx
         elif kind == "quaternion_xyzw":
@@ -509,7 +509,11 @@ def model_to_dict(model: RobotModel, *, units: str = "mm-deg", calibration: dict
     L, A = LENGTH_UNITS[lu], ANGLE_UNITS[au]
     scale = {"length": 1.0 / L, "angle": 1.0 / A, None: 1.0}
     d = {"robocal_model": FORMAT_VERSION, "name": model.name}
-    description = calibrated_description(calibration) if calibration else model.description  # not the nominal's
+    description = model.description
+    if calibration:     # not the nominal's; imported here, as reading a model needs none of the results
+        from .._identification.result import calibrated_description
+
+        description = calibrated_description(calibration)
     if description:
         d["description"] = description
     d.update({"units": {"length": lu, "angle": au}, "base": _base_dict(model, scale["length"]),

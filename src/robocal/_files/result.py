@@ -46,7 +46,7 @@ from .._model.parameters import parameter_layout
 from .contact_result import contact_residual_dof, contacts_from_dict, contacts_to_dict
 from .measurements import MAX_MAGNITUDE
 from .model import model_from_dict, model_to_dict
-from .text import MAX_FILE_BYTES, load_json, read_bytes, read_text, write_texts
+from .text import MAX_FILE_BYTES, load_json, read_bytes, read_text, sidecar_path, write_texts
 
 SCHEMA = "robocal.result/1"
 SCHEMAS = (SCHEMA,)
@@ -275,22 +275,6 @@ def result_to_json(result: CalibrationResult) -> str:
         The JSON text.
     """
     return to_json(result_to_dict(result))
-
-
-@accepts(path=PATH)
-def sidecar_path(path) -> Path:
-    """Where the per-pose arrays of the result file ``path`` go: beside it, ``.npz`` for ``.json``.
-
-    Parameters
-    ----------
-    {path}
-
-    Returns
-    -------
-    pathlib.Path
-        The per-pose file beside ``path`` (``.npz``).
-    """
-    return Path(path).with_suffix(".npz")
 
 
 @accepts(result=is_a(CalibrationResult), path=PATH, per_pose=FLAG)

@@ -21,6 +21,7 @@ from typing import NamedTuple
 
 import yaml
 
+from .._base.arguments import PATH, accepts
 from .._base.errors import InputError, excerpt
 from .._base.options import MAX_HEADER_LINES
 
@@ -378,6 +379,24 @@ _TEMPORARY = re.compile(r"^\..+\.robocal-(?P<pid>[1-9][0-9]{0,9})-[0-9a-f]{16}\.
 _NAME_IN_TEMPORARY = 100
 _KINDS = ((stat.S_ISCHR, "a character device (a terminal, /dev/null...)"), (stat.S_ISBLK, "a block device"),
           (stat.S_ISFIFO, "a FIFO (a named or anonymous pipe)"), (stat.S_ISSOCK, "a socket"))
+
+
+@accepts(path=PATH)
+def sidecar_path(path) -> Path:
+    """Where the per-pose arrays of the result file ``path`` go: beside it, ``.npz`` for ``.json``.
+    (Here, with the other files' handling, so that a command names its outputs before it imports
+    the results' machinery.)
+
+    Parameters
+    ----------
+    {path}
+
+    Returns
+    -------
+    pathlib.Path
+        The per-pose file beside ``path`` (``.npz``).
+    """
+    return Path(path).with_suffix(".npz")
 
 
 def check_replaceable(path) -> None:

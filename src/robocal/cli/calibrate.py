@@ -270,7 +270,7 @@ def _output_files(args, out: Path, named: dict, best, report) -> dict:
 
 
 def run(args) -> int:
-    from .._files.result import sidecar_path
+    from .._files.text import sidecar_path
 
     _check_arguments(args)
     out = Path(args.out)

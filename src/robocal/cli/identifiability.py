@@ -28,11 +28,13 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from .._files.model import read_model
-    from .._identification.identifiability import identifiability
-    from .._presentation.text import identifiability_summary
 
     model = common.masses_as_asked(args, read_model(args.model))
     data = common.read_data(args, model, args.csv) if args.csv else None
+    # imported once the inputs are read: refusing them needs none of the analysis (a second of imports)
+    from .._identification.identifiability import identifiability
+    from .._presentation.text import identifiability_summary
+
     res = identifiability(model, data, parameters=args.parameters or ("geometric",), known=args.known, tol=args.tol,
                           n_random=args.poses, rng=args.seed)
     if not res.identified:
