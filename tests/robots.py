@@ -103,14 +103,17 @@ HUMANOID_JOINTS = ("t1", "t2", "t3", "l1", "l2", "l3", "l4", "l5", "l6", "l7", "
                    "r7", "h1", "h2")
 
 
-def humanoid() -> rc.RobotModel:
+def humanoid(markers=None) -> rc.RobotModel:
     """A simulated humanoid-sized tree: 19 joints (trunk, two 7-joint arms, a head), three fixed
-    frames placed by matrices (the hands' tools and the head), five markers; masses assumed from the
-    geometry (relative compliances)."""
+    frames placed by matrices (the hands' tools and the head), five markers (or those named in
+    ``markers``); masses assumed from the geometry (relative compliances)."""
     import yaml
 
     from robocal.io import model_from_dict
 
     joints = "\n".join(f"  - {{name: {n}, limits: [-{60 if n.startswith(('t', 'h')) else 150}, "
                        f"{60 if n.startswith(('t', 'h')) else 150}]}}" for n in HUMANOID_JOINTS)
-    return rc.default_masses(model_from_dict(yaml.safe_load(HUMANOID % {"joints": joints}), source="humanoid"))
+    d = yaml.safe_load(HUMANOID % {"joints": joints})
+    if markers is not None:
+        d["markers"] = [mk for mk in d["markers"] if mk["name"] in markers]
+    return rc.default_masses(model_from_dict(d, source="humanoid"))
