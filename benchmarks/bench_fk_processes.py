@@ -6,20 +6,21 @@ Run: python benchmarks/bench_fk_processes.py [--baseline 7fe2faf] [--processes 1
 Forward kinematics (``rc.forward_kinematics``, positions and orientations) of the 6-joint arm of
 ``bench_identify.py`` at ``--fk-poses`` poses, three sets of readings in turn, timed in CPU time
 (``process_time``) by the package at ``--baseline`` (``git archive`` into a temporary folder, first on
-``sys.path``) and by this one, each in child processes of its own:
+``sys.path``) and by this one, each in a child process of its own. The two children of a pair run
+side by side and take turns call by call (the one called first alternating), so that both see the
+same moment of a shared machine's load; the ratio of a pair is that of the medians of its calls.
 
-* **fresh processes**: ``--processes`` pairs of new processes, the two packages taking turns (the
-  baseline first in every other pair); in each, three untimed calls, then the best and the median of
-  ``--repeat`` timed ones, and the page faults (minor) per timed call;
-* **a long-lived process mixed with other work**: one process per package runs ``--rounds`` rounds;
-  each does other work first, the same for both packages (drawn from one seed): calibrations at
-  1,000 and 10,000 poses, an HTML report when matplotlib is there, arrays of 64 kB to 64 MB written
-  and freed, some kept for later rounds; then one timed call. Its best and median over the rounds.
+* **fresh processes**: ``--processes`` pairs of new processes; in each, three untimed calls, then
+  ``--repeat`` timed ones;
+* **a long-lived process mixed with other work**: one pair runs ``--rounds`` rounds; in each round
+  both first do the same other work (drawn from one seed): a calibration at 1,000 or 10,000 poses,
+  an HTML report every sixth round when matplotlib is there, arrays of 64 kB to 64 MB written and
+  freed, some kept for later rounds; then one timed call each.
 
 The C allocator keeps or returns freed memory by thresholds that what the process did before sets:
 memory a call takes and gives back each time is faulted in again (a page fault a 4 kB page) when the
-allocator returned it to the system, and not when it kept it. The faults per call show which. The
-two packages' positions are checked to agree to 1e-12 m.
+allocator returned it to the system, and not when it kept it. The page faults (minor) per timed call
+show which. The two packages' positions are checked to agree to 1e-12 m.
 """
 
 from __future__ import annotations
@@ -48,28 +49,6 @@ def faults() -> int:
     return resource.getrusage(resource.RUSAGE_SELF).ru_minflt
 
 
-def timed(fn) -> tuple[float, int]:
-    """CPU time and minor page faults of one call."""
-    f, c = faults(), time.process_time()
-    fn()
-    return time.process_time() - c, faults() - f
-
-
-def summary(calls: list) -> dict:
-    cpu = [c for c, _ in calls]
-    return {"best": min(cpu), "median": statistics.median(cpu), "faults": statistics.mean(f for _, f in calls)}
-
-
-def fresh(m, qs, repeat: int) -> dict:
-    turn = iter(range(10 ** 6))
-
-    def fk():
-        return rc.forward_kinematics(m, qs[next(turn) % 3])
-    for _ in range(3):
-        fk()
-    return summary([timed(fk) for _ in range(repeat)])
-
-
 def other_work(m, data: dict, rng, kept: list, k: int) -> None:
     """One round's work besides the timed call: a calibration, a report every sixth round, arrays."""
     res = rc.calibrate(m, data[1000 if k % 3 else 10_000])
@@ -88,46 +67,88 @@ def other_work(m, data: dict, rng, kept: list, k: int) -> None:
         kept.pop(int(rng.integers(len(kept))))
 
 
-def mixed(m, qs, rounds: int) -> dict:
-    rng = np.random.default_rng(0)
-    data = {n: rc.simulate(m, n, seed=1)[1] for n in (1000, 10_000)}
-    kept: list = []
-    calls = []
-    for k in range(rounds):
-        other_work(m, data, rng, kept, k)
-        calls.append(timed(lambda k=k: rc.forward_kinematics(m, qs[k % 3])))
-    return summary(calls)
-
-
 def child(args) -> None:
-    """This process' figures as JSON on stdout (the package first on ``sys.path`` is timed)."""
+    """Serve the parent's requests, one a line: ``fk`` (a timed call: its CPU time and page faults
+    as JSON), ``work K`` (round K's other work), ``save`` (the positions at the first readings)."""
     import warnings
     warnings.simplefilter("ignore")
     m = arm6r(False)
     qs = [rc.random_configurations(m, args.fk_poses, rng=k) for k in range(3)]
-    out = fresh(m, qs, args.repeat) if args.child == "fresh" else mixed(m, qs, args.rounds)
-    np.save(os.path.join(args.folder, "fk.npy"), rc.forward_kinematics(m, qs[0]).positions)
-    print(json.dumps(out))
+    data: dict = {}
+    rng, kept, turn = np.random.default_rng(0), [], 0
+    print("ready", flush=True)
+    for line in sys.stdin:
+        what = line.split()
+        if what[0] == "fk":
+            f, c = faults(), time.process_time()
+            rc.forward_kinematics(m, qs[turn % 3])
+            print(json.dumps([time.process_time() - c, faults() - f]), flush=True)
+            turn += 1
+        elif what[0] == "work":
+            data = data or {n: rc.simulate(m, n, seed=1)[1] for n in (1000, 10_000)}
+            other_work(m, data, rng, kept, int(what[1]))
+            print("done", flush=True)
+        else:
+            np.save(os.path.join(args.folder, "fk.npy"), rc.forward_kinematics(m, qs[0]).positions)
+            print("saved", flush=True)
 
 
-def run(src: str | None, args, kind: str, folder: str) -> dict:
-    env = dict(os.environ)
-    if src is not None:
-        env["PYTHONPATH"] = os.pathsep.join([src, env.get("PYTHONPATH", "")])
-    cmd = [sys.executable, os.path.abspath(__file__), "--child", kind, "--repeat", str(args.repeat),
-           "--rounds", str(args.rounds), "--fk-poses", str(args.fk_poses), "--folder", folder]
-    return json.loads(subprocess.run(cmd, env=env, check=True, capture_output=True, text=True).stdout)
+class Child:
+    """A child process of the package in ``src`` (None: this one), answering requests."""
+
+    def __init__(self, src: str | None, args, folder: str):
+        env = dict(os.environ)
+        if src is not None:
+            env["PYTHONPATH"] = os.pathsep.join([src, env.get("PYTHONPATH", "")])
+        cmd = [sys.executable, os.path.abspath(__file__), "--child", "1", "--fk-poses", str(args.fk_poses),
+               "--folder", folder]
+        self.proc = subprocess.Popen(cmd, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        self.ask(None)
+
+    def ask(self, request: str | None) -> str:
+        assert self.proc.stdin is not None and self.proc.stdout is not None
+        if request is not None:
+            self.proc.stdin.write(request + "\n")
+            self.proc.stdin.flush()
+        answer = self.proc.stdout.readline()
+        if not answer:
+            raise RuntimeError(f"the child stopped (exit {self.proc.wait()})")
+        return answer
+
+    def close(self) -> None:
+        assert self.proc.stdin is not None
+        self.proc.stdin.close()
+        self.proc.wait()
 
 
-def row(name: str, base: dict, now: dict) -> str:
-    return (f"| {name} | {base['best'] * 1e3:.1f} | {now['best'] * 1e3:.1f} | {now['best'] / base['best']:.2f}x | "
-            f"{base['median'] * 1e3:.1f} | {now['median'] * 1e3:.1f} | {now['median'] / base['median']:.2f}x | "
-            f"{base['faults']:.0f} | {now['faults']:.0f} |")
+def paired(children: dict, calls: int, work: bool) -> dict:
+    """``calls`` timed calls of each child, taking turns (with ``work``: each round's other work
+    first); per child the CPU times and page faults of its calls."""
+    found: dict = {label: [] for label in children}
+    order = list(children)
+    for k in range(calls):
+        if work:
+            for label in order:
+                children[label].ask(f"work {k}")
+        for label in order[::1 if k % 2 == 0 else -1]:
+            found[label].append(json.loads(children[label].ask("fk")))
+    return found
+
+
+def row(name: str, found: dict) -> tuple[str, float]:
+    cpu = {label: [c for c, _ in calls] for label, calls in found.items()}
+    best = {label: min(v) for label, v in cpu.items()}
+    med = {label: statistics.median(v) for label, v in cpu.items()}
+    fl = {label: statistics.mean(f for _, f in calls) for label, calls in found.items()}
+    ratio = med["now"] / med["base"]
+    line = (f"| {name} | {best['base'] * 1e3:.1f} | {best['now'] * 1e3:.1f} | {best['now'] / best['base']:.2f}x | "
+            f"{med['base'] * 1e3:.1f} | {med['now'] * 1e3:.1f} | {ratio:.2f}x | {fl['base']:.0f} | {fl['now']:.0f} |")
+    return line, ratio
 
 
 def main(argv=None):
     args = options(__doc__, argv, baseline="7fe2faf", processes=10, repeat=10, rounds=24, fk_poses=100_000,
-                   child="", folder="")
+                   child=0, folder="")
     if args.child:
         return child(args)
     print(f"# forward kinematics at {args.fk_poses} poses in fresh and long-lived processes against {args.baseline}, "
@@ -142,13 +163,21 @@ def main(argv=None):
         for d in folders.values():
             os.mkdir(d)
         ratios = []
-        for k in range(args.processes):
-            order = (("base", src), ("now", None))[::1 if k % 2 == 0 else -1]
-            got = {label: run(path, args, "fresh", folders[label]) for label, path in order}
-            ratios.append(got["now"]["median"] / got["base"]["median"])
-            print(row(f"fresh #{k + 1}", got["base"], got["now"]), flush=True)
-        got = {label: run(path, args, "mixed", folders[label]) for label, path in (("base", src), ("now", None))}
-        print(row(f"long-lived, {args.rounds} rounds of other work", got["base"], got["now"]))
+        for k in range(args.processes + 1):
+            fresh = k < args.processes
+            children = {label: Child(path, args, folders[label])
+                        for label, path in (("base", src), ("now", None))[::1 if k % 2 == 0 else -1]}
+            if fresh:
+                for _ in range(3):
+                    for c in children.values():
+                        c.ask("fk")
+            found = paired(children, args.repeat if fresh else args.rounds, work=not fresh)
+            line, ratio = row(f"fresh #{k + 1}" if fresh else f"long-lived, {args.rounds} rounds of other work", found)
+            print(line, flush=True)
+            ratios += [ratio] if fresh else []
+            for c in children.values():
+                c.ask("save")
+                c.close()
         a, b = (np.load(os.path.join(folders[label], "fk.npy")) for label in ("base", "now"))
         assert np.abs(a - b).max() <= 1e-12, np.abs(a - b).max()
     print(f"\nfresh processes, ratio of medians: worst {max(ratios):.2f}x, median {statistics.median(ratios):.2f}x; "
