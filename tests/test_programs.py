@@ -710,3 +710,44 @@ def test_a_cell_is_blind_to_where_the_instrument_stood(name):
     for seed in range(2):
         moved = compensate_program(program, _base_moved(nominal, seed), calibrated, companions=companions)
         assert moved.text == ref.text
+
+
+# peak memory of a process that reads a program, MB (Linux reports ru_maxrss in kB)
+READ_PEAK = """import resource, sys
+from robocal.io import read_program
+try:
+    read_program(sys.argv[1])
+except Exception as e:
+    print(e)
+print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
+"""
+
+
+def test_a_program_of_a_million_targets_is_refused_in_little_memory(tmp_path):
+    """A million literal moves (21 MB, under the byte bound) are refused by their tokens, counted
+    before any is made: under 200 MB of the process, where reading the tokens first took 937 MB
+    and 12 s."""
+    import subprocess
+    import sys
+    path = tmp_path / "long.script"
+    path.write_text("def p():\n" + "movej([0,0,0,0,0,0])\n" * 1_000_000 + "end\n")
+    out = subprocess.run([sys.executable, "-c", READ_PEAK, str(path)], capture_output=True, text=True,
+                         check=True).stdout.splitlines()
+    assert float(out[1]) < 200, out
+    assert "more than 1,000,000 tokens: not a robot program" in out[0] and "line 250000" in out[0]
+
+
+def test_a_program_beyond_its_targets_is_refused_where_the_next_begins(tmp_path):
+    """The targets are counted as they are read: the 30,001st is named, line and column."""
+    path = tmp_path / "many.script"
+    path.write_text("def p():\n" + "movej([0,0,0,0,0,0])\n" * 30_001 + "end\n")
+    with pytest.raises(rc.InputError, match=r"line 30002, column 7: more than 30,000 targets"):
+        read_program(path)
+
+
+def test_a_program_over_its_bytes_is_refused_by_its_size(tmp_path):
+    path = tmp_path / "large.mod"
+    with open(path, "wb") as f:
+        f.truncate(33 * 2 ** 20)
+    with pytest.raises(rc.InputError, match="robocal reads files up to 32 MB"):
+        read_program(path)

@@ -17,14 +17,13 @@ import numpy as np
 
 from ..._base.arguments import PATH, accepts, is_a, one_of, optional
 from ..._base.errors import InputError, suggest
-from ..._base.options import MAX_POSES
 from ..._model.robot import RobotModel
 from ..text import decode, read_bytes
 from . import krl, rapid, urscript
 from .syntax import Program
 
-# a program of 100,000 targets is about 20 MB
-MAX_PROGRAM_BYTES = 64 * 2 ** 20
+# a program of 30,000 targets as RAPID or KRL writes them is about 6 MB and fits syntax.MAX_TOKENS
+MAX_PROGRAM_BYTES = 32 * 2 ** 20
 DIALECTS = {"rapid": rapid, "krl": krl, "urscript": urscript}
 EXTENSIONS = {ext: name for name, module in DIALECTS.items() for ext in module.EXTENSIONS}
 # a new number replaces the old one only where they differ by more than this (SI: m, rad, or a
@@ -76,11 +75,8 @@ def read_program(path, *, dialect: str | None = None) -> Program:
     text = decode(raw, str(path))
     if raw.startswith(codecs.BOM_UTF8):          # kept, so that the program is written back as it came
         text = "\ufeff" + text
-    program = DIALECTS[name].read(text, str(path))
-    if len(program.targets) > MAX_POSES:
-        raise InputError(f"{len(program.targets)} targets; robocal compensates up to {MAX_POSES} per program",
-                         source=str(path))
-    return program
+    del raw
+    return DIALECTS[name].read(text, str(path))
 
 
 def joint_units(model: RobotModel, module) -> np.ndarray:

@@ -272,7 +272,7 @@ def _status(value, sc) -> Number | None:
 
 def _target(name: str, kind: str, agg: Aggregate, sc, **frames) -> Target:
     m = _members(agg, sc)
-    line, column = sc.line_col(agg.start)
+    line, column = sc.target_at(agg.start)
     joint = kind in AXES or (not kind and "A1" in m)
     need = JOINTS if joint else CARTESIAN
     if not all(isinstance(m.get(f), Number) for f in need):

@@ -194,7 +194,7 @@ def _literal(agg) -> bool:
 
 def _target(kind: str, name: str, agg, sc, **where) -> Target:
     """The target of a jointtarget or robtarget literal; ``where``: its anchor, tool and work object."""
-    line, column = sc.line_col(agg.start)
+    line, column = sc.target_at(agg.start)
     if not _shape(kind, agg):
         if isinstance(agg, Aggregate) and _literal(agg):
             raise sc.error(agg.start, f"{name}: a {kind} is {JOINT_TARGET if kind == 'jointtarget' else ROB_TARGET}")

@@ -8,9 +8,9 @@ the dialect modules say what they mean and the compensation converts them to SI.
 
 from __future__ import annotations
 
-import bisect
 import math
 import re
+from array import array
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import NamedTuple
@@ -22,8 +22,12 @@ from ..._base.errors import InputError, excerpt
 # a turn or quadrant of the configuration data stays as written while its axis is this close to it
 # (rad, about 0.006 deg): a target on the boundary, read back, must not flip its configuration
 SLACK = 1e-4
-# tokens of one program: a 100,000-target program has about 3 million (KRL); more is not a program
-MAX_TOKENS = 4_000_000
+# tokens of one program: a target takes 4 (a URScript move of a literal list) to about 40 (KRL); more
+# is not a program. They are counted before any is made: a Token costs about 170 bytes, its place in
+# the count 17. Targets are counted as they are read (about 2 kB each): the bounds' cost is measured
+# in benchmarks/README.md
+MAX_TOKENS = 1_000_000
+MAX_TARGETS = 30_000
 # nesting of a program's bracketed values: targets need 3 (an array of robtargets); more is a mistake
 MAX_DEPTH = 32
 
@@ -175,7 +179,7 @@ class Scanner:
     def __init__(self, text: str, source: str, *, comment: str, quotes: str = '"', newlines: bool = False,
                  names: str = r"[A-Za-z_][A-Za-z0-9_]*", flat: bool = True):
         self.text, self.source = text, source
-        self.line_starts = [0] + [m.end() for m in re.finditer(r"\r\n|\r|\n", text)]
+        self.line_starts = _line_starts(text)
         q = "".join(re.escape(c) for c in quotes)
         strings = "|".join(f"{re.escape(c)}[^{re.escape(c)}\\r\\n]*{re.escape(c)}" for c in quotes)
         parts = [r"(?P<nl>\r\n|\r|\n)", r"(?P<ws>[ \t\f\v]+)", rf"(?P<comment>{re.escape(comment)}[^\r\n]*)",
@@ -184,28 +188,42 @@ class Scanner:
                  r"(?P<op>:=|==|<=|>=|<>|!=|\S)"]
         self.pattern = re.compile("|".join(parts))
         self.newlines = newlines
+        self.n_targets = 0
 
     def where(self, offset: int) -> str:
         return "line {}, column {}".format(*self.line_col(offset))
 
     def line_col(self, offset: int) -> tuple[int, int]:
-        line = bisect.bisect_right(self.line_starts, offset)
-        return line, offset - self.line_starts[line - 1] + 1
+        line = int(np.searchsorted(self.line_starts, offset, side="right"))
+        return line, offset - int(self.line_starts[line - 1]) + 1
+
+    def target_at(self, offset: int) -> tuple[int, int]:
+        """The line and column of one more target, refused beyond ``MAX_TARGETS``."""
+        self.n_targets += 1
+        if self.n_targets > MAX_TARGETS:
+            raise self.error(offset, f"more than {MAX_TARGETS:,} targets; robocal compensates up to {MAX_TARGETS:,} "
+                                     "per program")
+        return self.line_col(offset)
 
     def error(self, offset: int, message: str) -> InputError:
         return InputError(message, source=self.source, where=self.where(offset))
 
     def tokens(self) -> Tokens:
-        keep = {"num", "name", "op", "str", "flat"} | ({"nl"} if self.newlines else set())
-        out, new = Tokens(), tuple.__new__        # a NamedTuple made without its Python-level __new__
+        keep = ("num", "name", "op", "str", "flat") + (("nl",) if self.newlines else ())
+        code = {k: i for i, k in enumerate(keep)}
+        kinds, starts, ends = bytearray(), array("q"), array("q")
         for m in self.pattern.finditer(self.text):
             kind = m.lastgroup
-            if kind in keep:
-                out.append(new(Token, (kind, m.group(), m.start(), m.end())))
-                if len(out) > MAX_TOKENS:
+            if kind in code:
+                kinds.append(code[kind])
+                starts.append(m.start())
+                ends.append(m.end())
+                if len(kinds) > MAX_TOKENS:
                     raise self.error(m.start(), f"more than {MAX_TOKENS:,} tokens: not a robot program robocal reads")
             elif kind == "open":
                 raise self.error(m.start(), f"a string opened with {m.group()} is not closed on its line")
+        new, text = tuple.__new__, self.text      # a NamedTuple made without its Python-level __new__
+        out = Tokens(new(Token, (keep[k], text[a:b], a, b)) for k, a, b in zip(kinds, starts, ends))
         out.partner = self._pairs(out)
         return out
 
@@ -229,6 +247,13 @@ class Scanner:
 
 
 _PAIRS, _CLOSERS = {"[": "]", "{": "}", "(": ")"}, {"]", "}", ")"}
+
+
+def _line_starts(text: str) -> np.ndarray:
+    """The offset of every line's first character (lines end at \\r\\n, \\r or \\n), as an array: a
+    file of line breaks alone would make a list of tens of millions of numbers."""
+    ends = re.finditer(r"\r\n|\r|\n", text)
+    return np.concatenate([[0], np.fromiter((m.end() for m in ends), dtype=np.int64)])
 
 
 class Tokens(list):
@@ -349,11 +374,11 @@ def edited(text: str, replacements, comments, *, comment: str) -> str:
     """``text`` with ``replacements`` [(start, end, new text)] made and each of ``comments``
     [(offset, message)] inserted as a comment line before the line holding ``offset``, indented
     as it is; every other character stays as it was."""
-    line_starts = [0] + [m.end() for m in re.finditer(r"\r\n|\r|\n", text)]
+    line_starts = _line_starts(text)
     newline = m.group() if (m := re.search(r"\r\n|\r|\n", text)) else "\n"
     edits = list(replacements)
     for offset, message in comments:
-        start = line_starts[bisect.bisect_right(line_starts, offset) - 1]
+        start = int(line_starts[np.searchsorted(line_starts, offset, side="right") - 1])
         m = _INDENT.match(text, start)
         indent = m.group() if m else ""
         edits.append((start, start, f"{indent}{comment} robocal: {message}{newline}"))

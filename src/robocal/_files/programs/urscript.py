@@ -173,7 +173,7 @@ def _literal(toks, k: int, end: int, sc) -> tuple[Aggregate, int] | None:
 
 
 def _target(name: str, agg: Aggregate, sc) -> Target:
-    line, column = sc.line_col(agg.start)
+    line, column = sc.target_at(agg.start)
     values = numbers(agg, 6)
     kind = "pose" if agg.label == "p" else "joint"
     if values is None:
