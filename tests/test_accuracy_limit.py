@@ -320,3 +320,24 @@ def test_cli_main_with_progress_on_a_terminal(model_file, tmp_path, capsys, monk
     assert "3000/3000" in captured.err and "limit of absolute accuracy" in captured.out
     d = json.loads(out.read_text())
     assert d["repeatability"] == pytest.approx(0.03e-3, rel=1e-12) and d["run"]["seed"] == 0
+
+
+def test_a_monte_carlo_beyond_its_work_is_refused_before_it_starts():
+    """The work is samples x frames x (1 + markers evaluated / 5): ten markers on a six-joint arm
+    make 10^7 samples about 45 s (over the 30 s bound), one marker 18 s (within it)."""
+    many = industrial_6r(markers=tuple((f"m{i}", (0.0, 0.0, 0.01 * i)) for i in range(10)))
+    with pytest.raises(rc.InputError) as exc:
+        controller_precision(many, n_samples=10 ** 7, rng=0, markers="all", **QUANTA)
+    assert exc.value.where == "n_samples"
+    assert "about 45 s; robocal runs up to about 30 s, 6,666,666 samples of this model" in str(exc.value)
+
+
+def test_cli_refuses_the_samples_of_hours(model_file, tmp_path):
+    """10^8 samples (what --samples allowed) ran over 120 s: refused at once, in one line."""
+    import subprocess
+    out = tmp_path / "x.json"
+    run = subprocess.run([sys.executable, "-m", "robocal", "limit", str(model_file), "--repeatability-mm", "0.03",
+                          "--encoder-resolution", "0.01deg,0.01deg,0.01deg,0.01deg,0.01deg,0.01deg",
+                          "--length-quantum-mm", "0.1", "--angle-quantum-deg", "0.001", "--samples", "100000000",
+                          "--out", str(out)], capture_output=True, text=True, timeout=60)
+    assert_one_line_error(run.returncode, run.stderr, ["--samples", "from 1 to 10,000,000"], out, command="limit")

@@ -36,7 +36,7 @@ from .._base.arguments import (
     whole,
 )
 from .._base.errors import InputError, check_choice
-from .._base.options import LIMIT_CHUNK, LIMIT_MARKER_MODES, MAX_CHUNK, MAX_SAMPLES
+from .._base.options import LIMIT_CHUNK, LIMIT_MARKER_MODES, MAX_CHUNK, MAX_LIMIT_WORK, MAX_SAMPLES
 from .._base.spatial import cross, vector3
 from .._base.threads import one_blas_thread
 from .._model.configurations import sampling_box
@@ -338,6 +338,22 @@ def parameter_displacement(ps, rot: np.ndarray, steps: np.ndarray, on_path: np.n
     return trans + turn
 
 
+# seconds of one unit of the Monte Carlo's work (a sample on a frame, ``check_work``), for messages
+SECONDS_PER_WORK = 2.5e-7
+
+
+def check_work(model: RobotModel, n: int, markers: str, where: str = "n_samples") -> None:
+    """Refuse, before it starts, a Monte Carlo that would run for minutes: each sample costs two
+    passes down the frames and a displacement along each marker's path."""
+    evaluated = len(model.markers) if markers == "all" else 1
+    per = len(model.frames) * (1 + evaluated / 5)
+    if n * per > MAX_LIMIT_WORK:
+        raise InputError(f"{n:,} samples of a model of {len(model.frames)} frames ({evaluated} marker(s) evaluated) "
+                         f"take about {n * per * SECONDS_PER_WORK:.0f} s; robocal runs up to about "
+                         f"{MAX_LIMIT_WORK * SECONDS_PER_WORK:.0f} s, {int(MAX_LIMIT_WORK / per):,} samples of this "
+                         "model: fewer samples", where=where)
+
+
 @accepts(model=is_a(RobotModel), encoder_resolution=per_joint(), length_quantum=NON_NEGATIVE,
          angle_quantum=NON_NEGATIVE, n_samples=whole(1, MAX_SAMPLES), chunk_size=whole(1, MAX_CHUNK), rng=SEED,
          progress=optional(CALLABLE), markers=one_of(LIMIT_MARKER_MODES))
@@ -383,6 +399,7 @@ def controller_precision(model: RobotModel, *, encoder_resolution, length_quantu
     n = _count(n_samples, "n_samples", 2)
     chunk = _count(chunk_size, "chunk_size", 1)
     check_choice(markers, MARKER_MODES, "markers")
+    check_work(model, n, markers)
     gen = _generator(rng)
     lay = layout(model)
     p = parameter_vector(model)

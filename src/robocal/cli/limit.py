@@ -95,7 +95,7 @@ def _progress_bar():
 
 def run(args) -> int:
     """Run ``robocal limit``; 0 on success, 2 on bad input (one line on stderr, from ``main``)."""
-    from .._accuracy.limit import accuracy_limit, controller_precision, iso9283_repeatability
+    from .._accuracy.limit import accuracy_limit, check_work, controller_precision, iso9283_repeatability
     from .._files.model import read_model
     from .._files.repeatability import read_repeatability_csv
     from .._files.result import limit_to_dict, to_json
@@ -103,6 +103,7 @@ def run(args) -> int:
     common.refuse_existing([args.out], args.force)
     model = read_model(args.model)
     resolution = parse_resolution(args.encoder_resolution, [q == "angle" for q in model.reading_quantities])
+    check_work(model, args.samples, args.markers, where="--samples")
     if args.repeatability_csv is not None:
         data = read_repeatability_csv(args.repeatability_csv, units=args.csv_units)
         repeatability = iso9283_repeatability(data.pose_ids, data.points)
