@@ -510,6 +510,10 @@ def test_plan_sockets_out_of_reach_is_one_line(tmp_path, cli):
     (("--placements", "1000", "--poses-per-socket", "20"), ["60,000 seatings", "up to 5,000", "s)"]),
     (("--placements", ",".join(map(str, range(1, 41))), "--poses-per-socket", "10,11,12,13,14"),
      ["147,600 rows to linearise over the 200 designs", "up to 100,000"]),
+    # 3,000 seatings, but a solve per placement and 9,000 socket unknowns beside the robot's: ran 70 s to 3.2 GB
+    (("--placements", "1000", "--poses-per-socket", "1"), ["1,000 placements to simulate", "up to 50 (about 5 s)"]),
+    (("--placements", "50", "--poses-per-socket", "10"), ["rows x columns^2 to analyse in the largest design",
+                                                          "(4,650 x 488^2)", "up to 1,000,000,000 (about 7 s)"]),
 ])
 def test_plan_sockets_design_grid_refused_before_the_work_with_its_cost(tmp_path, cli, argv, words):
     one_line(cli, ("plan-sockets", ARM7 / "model.yaml", *argv, "--out", tmp_path / "s.csv"), words, seconds=10)

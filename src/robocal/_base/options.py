@@ -34,10 +34,15 @@ MAX_SELECTION_BLOCKS = 4e6
 MAX_CONTACTS = 20_000
 MAX_DIRECTIVES = 1_000
 MAX_GROUPS = 1_000
-# plan-sockets: seatings simulated for the largest design (about 1.5 ms each), and rows linearised
-# over the whole grid of designs (about 0.1 ms each): past these a plan runs for minutes
+# plan-sockets: placements simulated (about 0.1 s each: the solves that reach their seatings),
+# seatings simulated for the largest design (about 1.5 ms each), rows linearised
+# over the whole grid of designs (about 0.1 ms each), and the largest design's analysis, rows x
+# columns^2 (the columns: its parameters and 3 per socket and placement; about 7 ns each): past
+# these a plan runs for minutes (benchmarks/README.md)
+MAX_PLACEMENTS = 50
 MAX_SEATINGS = 5_000
 MAX_GRID_ROWS = 100_000
+MAX_DESIGN_WORK = 1e9
 OUTLIER_ACTIONS = ("refit", "flag")
 WEAK_ACTIONS = ("eliminate", "flag")
 # where a joint rests in its lost motion, pose by pose (RobotModel.backlash_side)

@@ -27,7 +27,8 @@ from .._base.arguments import (
     wholes,
 )
 from .._base.errors import InputError
-from .._base.options import MAX_GRID_ROWS, MAX_SEATINGS
+from .._base.options import MAX_DESIGN_WORK, MAX_GRID_ROWS, MAX_PLACEMENTS, MAX_SEATINGS
+from .._base.threads import one_blas_thread
 from .._identification.identifiability import WEAK_STD, contact_identifiability
 from .._identification.problem import Problem
 from .._model.contacts import Contacts
@@ -35,8 +36,9 @@ from .._model.parameters import candidate_parameters, parameter_layout
 from .._model.robot import RobotModel
 from .contacts import PLATE, socket_campaign
 
-# the cost of a seating simulated and of a row linearised, seconds (benchmarks/README.md), for messages
-SECONDS = {"seat": 1.5e-3, "rows": 1e-4}
+# the cost of a placement's solves, of a seating simulated, of a row linearised, and of a unit of
+# the largest design's analysis (rows x columns^2), CPU seconds on one core (benchmarks/README.md)
+SECONDS = {"placements": 0.1, "seatings": 1.5e-3, "rows": 1e-4, "analysis": 7e-9}
 
 
 @dataclass(frozen=True)
@@ -83,18 +85,27 @@ def _design(model: RobotModel, campaign: Contacts, names, placements: int, poses
                         float(ratios[worst]))
 
 
-def _check_cost(placements, per, n_sockets: int) -> None:
-    """Refuse, before any work, a grid whose simulation or linearisation would run for minutes."""
+def _check_cost(placements, per, n_sockets: int, n_params: int) -> None:
+    """Refuse, before any work, a grid whose simulation or linearisation would run for minutes. The
+    analysis of the largest design solves for 3 unknowns per socket and placement with the robot's
+    parameters: its cost grows with rows x columns^2, and so with the cube of the placements."""
     largest, grid = n_sockets * placements[-1] * per[-1], n_sockets * sum(placements) * sum(per)
-    for what, n, top in (("seatings to simulate for the largest design", largest, MAX_SEATINGS),
-                         (f"rows to linearise over the {len(placements) * len(per)} designs", grid, MAX_GRID_ROWS)):
+    rows = 3 * largest + n_sockets * (n_sockets - 1) // 2 * placements[-1]
+    columns = n_params + 3 * n_sockets * placements[-1]
+    for what, unit, n, top in (
+            ("seatings to simulate for the largest design", "seatings", largest, MAX_SEATINGS),
+            (f"rows to linearise over the {len(placements) * len(per)} designs", "rows", grid, MAX_GRID_ROWS),
+            ("placements to simulate, each reached by its own solves", "placements", placements[-1], MAX_PLACEMENTS),
+            (f"rows x columns^2 to analyse in the largest design ({rows:,} x {columns:,}^2)", "analysis",
+             rows * columns ** 2, MAX_DESIGN_WORK)):
         if n > top:
-            raise InputError(f"{n:,} {what}; robocal plans up to {top:,} (about {top * SECONDS[what[:4]]:.0f} s): "
+            raise InputError(f"{n:,.0f} {what}; robocal plans up to {top:,.0f} (about {top * SECONDS[unit]:.0f} s): "
                              "compare fewer or smaller designs", where="placements")
 
 
 @accepts(model=is_a(RobotModel), placements=wholes(1, 1000), poses_per_socket=wholes(1, 10_000),
          joint_noise=NON_NEGATIVE, seat_noise=NON_NEGATIVE, parameters=NAMES, bounds=optional(MAPPING), seed=SEED)
+@one_blas_thread
 def plan_sockets(model: RobotModel, *, placements=(3, 5, 7, 9), poses_per_socket=(20, 25, 30, 35),
                  joint_noise: float = 2e-5, seat_noise: float = 5e-6, parameters=("geometric",),
                  bounds: dict | None = None, seed: int = 0) -> SocketPlan:
@@ -132,7 +143,7 @@ def plan_sockets(model: RobotModel, *, placements=(3, 5, 7, 9), poses_per_socket
     names = candidate_parameters(model, parameters)
     bounds = {**WEAK_STD, **(bounds or {})}
     placements, per = sorted(set(placements)), sorted(set(poses_per_socket))
-    _check_cost(placements, per, len(PLATE))
+    _check_cost(placements, per, len(PLATE), len(names))
     # one campaign of the largest design; each smaller one takes its first placements and first
     # seatings of each socket, so a larger design holds every row of a smaller one (never predicts worse)
     full = socket_campaign(model, placements=placements[-1], poses_per_socket=per[-1], joint_noise=joint_noise,
