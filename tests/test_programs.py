@@ -712,14 +712,16 @@ def test_a_cell_is_blind_to_where_the_instrument_stood(name):
         assert moved.text == ref.text
 
 
-# peak memory of a process that reads a program, MB (Linux reports ru_maxrss in kB)
-READ_PEAK = """import resource, sys
+# peak memory of a process that reads a program, MB: its own (VmHWM), where ru_maxrss would carry
+# the peak of the test's process, which forked it
+READ_PEAK = """import re, sys
 from robocal.io import read_program
 try:
     read_program(sys.argv[1])
 except Exception as e:
     print(e)
-print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
+status = open("/proc/self/status").read()
+print(int(re.search(r"VmHWM:\\s*(\\d+) kB", status).group(1)) / 1024)
 """
 
 
