@@ -205,6 +205,19 @@ def test_a_store_in_a_read_only_folder_is_read(cli, campaign, tmp_path):
     assert _beside(store) == ["s.sqlite"] and _digest(store) == before
 
 
+def test_reading_a_read_only_store_in_a_writable_folder_leaves_nothing_beside_it(cli, campaign, tmp_path):
+    store = tmp_path / "s.sqlite"
+    assert cli("record", campaign / "result.json", "--robot", "R", "--type", "arm", "--store", store)[0] == 0
+    before = _digest(store)
+    with _read_only(store):
+        code, out, err = cli("history", "R", "--store", store)
+        assert code == 0 and "1 calibration(s)" in out, err
+        assert cli("history", "nobody", "--store", store)[0] == 2
+        code, out, err = cli("verify", "R", campaign / "m.csv", "--no-record", "--store", store)
+        assert code in (0, 3) and "verdict" in out, err
+    assert _beside(store) == ["s.sqlite"] and _digest(store) == before
+
+
 def test_reading_a_store_leaves_nothing_beside_it(cli, campaign, tmp_path):
     store = tmp_path / "s.sqlite"
     assert cli("record", campaign / "result.json", "--robot", "R", "--type", "arm", "--store", store)[0] == 0

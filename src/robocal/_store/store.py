@@ -862,7 +862,8 @@ class _SQLite(_Backend):
         """A connection that writes only when asked. One that may write cleans up the write-ahead
         log's files when it closes, so reading goes through one where it may; elsewhere (a shared
         store, another user's) a read-only one, which reads the file as it is when no write-ahead
-        log is beside it."""
+        log is beside it (a read-only connection would make the log's files and, unable to clean
+        up, leave them)."""
         import sqlite3
         from urllib.parse import quote
 
@@ -871,6 +872,8 @@ class _SQLite(_Backend):
             return sqlite3.connect(uri + ("?mode=rwc" if create else "?mode=rw"), uri=True,
                                    timeout=WAIT_NOTICE if write else LOCK_WAIT, isolation_level=None,
                                    check_same_thread=False)
+        if not any(Path(f"{path}-{log}").exists() for log in ("wal", "shm")):
+            return sqlite3.connect(uri + "?immutable=1", uri=True, isolation_level=None, check_same_thread=False)
         conn = sqlite3.connect(uri + "?mode=ro", uri=True, timeout=LOCK_WAIT, isolation_level=None,
                                check_same_thread=False)
         try:
