@@ -62,7 +62,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 class _CommandHandler(logging.StreamHandler):
-    """The handler the command line adds to the ``robocal`` logger (one at a time)."""
+    """The handler the command line adds to the ``robocal`` logger (one at a time): progress said
+    after ``robocal:``, a warning after ``robocal: warning:`` as every other warning is."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        return ("robocal: warning: " if record.levelno >= logging.WARNING else "robocal: ") + record.getMessage()
 
 
 def _configure_logging(verbose: bool) -> None:
@@ -71,7 +75,6 @@ def _configure_logging(verbose: bool) -> None:
     for h in [h for h in logger.handlers if isinstance(h, _CommandHandler)]:
         logger.removeHandler(h)          # a handler of an earlier call holds an earlier stderr
     handler = _CommandHandler(sys.stderr)
-    handler.setFormatter(logging.Formatter("robocal: %(message)s"))
     logger.addHandler(handler)
     logger.setLevel(logging.INFO if verbose else logging.WARNING)
     logger.propagate = False
