@@ -5,7 +5,9 @@
 
 Cases come from the hypothesis strategies in tests/fuzz_cases.py, one per command of its COMMANDS
 table (model files, measurement, repeatability, target and contact CSVs, folders of seatings, robot programs, stores,
-result files and their per-pose sidecars, profiles, limit files, DH tables, URDFs, command lines).
+result files and their per-pose sidecars, profiles, limit files, DH tables, URDFs, command lines;
+devices, FIFOs, pipes, sockets and folders in any input slot, read-only folders and inputs, programs
+compensated with other tools and work objects than their motions).
 Each runs ``robocal.cli.main(argv)`` in a forked child, in a folder of its own, under a limit of
 20 s of CPU time (wall-clock time on a shared machine is not the program's; a 120 s wall-clock
 backstop too) and 1 GB of memory (on top of the address space the parent already holds); with
@@ -15,7 +17,8 @@ counted. Outcomes (fuzz_cases.OUTCOMES): clean error, ok result, traceback, hang
 non-finite output, unreadable output (an output robocal's own reader refuses), wrong output (an
 output that does not reproduce its source: an export's forward kinematics, planned poses or 'ok'
 commands beyond the joint limits, a program compensated against its own model whose targets
-moved), multi-line error; in total and per command. A few examples of each bad outcome are
+moved), multi-line error, written beside a failure (a failed command left a file, changed an
+input or a store); in total and per command. A few examples of each bad outcome are
 printed with the command line and the last lines of stderr.
 """
 
@@ -70,11 +73,9 @@ class Runner:
         self.started += 1
         folder = self.root / f"case{self.started}"
         folder.mkdir()
-        for name, data in files.items():
-            (folder / name).parent.mkdir(parents=True, exist_ok=True)
-            (folder / name).write_bytes(data)
-        pid = fuzz_cases.fork_case(folder, argv)
-        self.running[pid] = (folder, time.monotonic(), argv, files, command)
+        made = fuzz_cases.Materialised(folder, files, argv)
+        pid = fuzz_cases.fork_case(folder, made.argv)
+        self.running[pid] = (folder, time.monotonic(), argv, files, command, made)
 
     def run_here(self, command: str, files: dict, argv: list[str]) -> None:
         """Run one case in this process (fuzz_cases.run_guarded); one that ends badly runs again in a
@@ -84,7 +85,7 @@ class Runner:
         if outcome not in ("clean error", "ok result"):
             outcome, err = fuzz_cases.run_forked(files, argv)
         self.times.append(time.monotonic() - start)
-        self.tally(command, outcome, files, argv, err, None)
+        self.tally(command, outcome, files, argv, err)
 
     def reap(self) -> None:
         """Wait until one running case ends (or overruns the wall-clock backstop) and count it."""
@@ -96,28 +97,22 @@ class Runner:
             time.sleep(0.005)
 
     def count(self, pid, status, usage, killed) -> None:
-        folder, start, argv, files, command = self.running.pop(pid)
+        folder, start, argv, files, command, made = self.running.pop(pid)
         self.times.append(time.monotonic() - start)
-        outcome, err = fuzz_cases.forked_outcome(status, usage, killed, folder, files, argv)
-        self.tally(command, outcome, files, argv, err, folder)
+        changed = made.close()
+        outcome, err = fuzz_cases.forked_outcome(status, usage, killed, folder, files, argv, changed)
+        self.tally(command, outcome, files, argv, err)
         shutil.rmtree(folder, ignore_errors=True)
 
-    def tally(self, command, outcome, files, argv, err, folder) -> None:
+    def tally(self, command, outcome, files, argv, err) -> None:
         """Count one outcome; keep and show a few bad ones."""
         self.counts[outcome] += 1
         self.by_command[command][outcome] += 1
         if outcome not in ("clean error", "ok result") and len(self.examples[outcome]) < self.show:
-            self.examples[outcome].append((argv, {k: v[:300] for k, v in files.items()}, err[-1500:]))
+            self.examples[outcome].append((argv, fuzz_cases.preview(files, 300), err[-1500:]))
         if self.keep and outcome not in ("clean error", "ok result"):
             kept = self.keep / f"{outcome.replace(' ', '-')}-{sum(self.counts.values())}"
-            if folder is not None:
-                shutil.copytree(folder, kept)
-            else:
-                kept.mkdir()
-                for name, data in files.items():
-                    (kept / name).parent.mkdir(parents=True, exist_ok=True)
-                    (kept / name).write_bytes(data)
-            (kept / "argv.txt").write_text("\n".join(argv) + "\n")
+            fuzz_cases.keep_case(kept, files, argv, err)
         n = sum(self.counts.values())
         if n % 100 == 0:
             print(f"{n} cases: {dict(self.counts)}", file=sys.stderr, flush=True)

@@ -6,7 +6,9 @@ Shared by the bounded fuzz test (tests/test_fuzz.py, in-process) and the large r
 an empty folder, and the command line run there.
 Files are mutated from the shipped th8 example (cut small so a well-formed case runs quickly) and
 from a small URDF chain; the mutations are the ones that broke readers: alias and entity bombs,
-deep nesting, cycles, duplicate keys, huge numbers, other encodings, empty and binary files.
+deep nesting, cycles, duplicate keys, huge numbers, other encodings, empty and binary files. A
+file's bytes may be a ``Node`` instead: a FIFO, a pipe, a socket, a folder, a link, a read-only
+file or folder, made where the case runs (``Materialised``).
 """
 
 from __future__ import annotations
@@ -999,6 +1001,138 @@ def sidecar_case(draw, result_text=None):
     return files, ["record", "result.json", "--robot", _value(draw, "R"), "--store", "store.sqlite"]
 
 
+# -- inputs that are not regular files' bytes, and read-only folders ---------------------------------
+
+class Node:
+    """An input that is not a regular file, made where the case runs (``materialise``): ``kind`` one of
+    NODE_KINDS; ``data`` what a FIFO or pipe carries, a read-only file holds, or where a link points."""
+
+    __slots__ = ("kind", "data")
+
+    def __init__(self, kind: str, data: bytes = b""):
+        self.kind, self.data = kind, data
+
+    def __repr__(self) -> str:
+        return f"Node({self.kind!r}, {self.data[:60]!r})"
+
+
+NODE_KINDS = ("fifo", "fifo-idle", "pipe", "socket", "folder", "link", "readonly", "readonly-folder")
+# what may stand in an input's place: a device named on the command line, or a node at its path
+DEVICES = ("/dev/zero", "/dev/urandom", "/dev/null")
+STREAM_KINDS = DEVICES + ("fifo", "fifo", "fifo-idle", "pipe", "pipe", "socket", "folder", "link", "readonly")
+# options whose value is a path written, never read
+OUTPUT_OPTIONS = ("--out", "--report", "--true-model")
+
+
+def input_slots(files: dict, argv: list[str]) -> list[tuple[int | None, str]]:
+    """Every input of a case: (its index in ``argv`` or None, its path): the files (and folders of
+    files) the command line names, a store's path, and the files read through another (a result's
+    sidecar, the files of a folder of seatings)."""
+    slots, named = [], set()
+    for k, a in enumerate(argv):
+        if k and argv[k - 1] in OUTPUT_OPTIONS:
+            continue
+        if a in files or (k and argv[k - 1] == "--store" and "://" not in a) or \
+                (a and any(n.startswith(a + "/") for n in files)):
+            slots.append((k, a))
+            named.add(a)
+    slots += [(None, n) for n in files if n not in named and not isinstance(files[n], Node)]
+    return slots
+
+
+def _plain(data) -> bytes:
+    return data.data if isinstance(data, Node) else data
+
+
+@st.composite
+def streams_case(draw, result_text=None):
+    """Another command's case with one input (any slot) a device, a FIFO fed its bytes or never fed,
+    a pipe as a shell's ``<(cat FILE)`` gives it (/dev/fd/N), a socket, a folder, a link to a device,
+    or a file only readable: refused in one line or read as the file is, nothing left behind."""
+    command, files, argv = draw(case(result_text, [n for n in COMMANDS if n not in WRAPPERS]))
+    files, argv = dict(files), list(argv)
+    k, path = draw(st.sampled_from(input_slots(files, argv)))
+    kind = draw(st.sampled_from(STREAM_KINDS))
+    data = files.get(path, b"")
+    if path not in files and any(n.startswith(path + "/") for n in files):
+        kind = draw(st.sampled_from(DEVICES + ("socket", "fifo-idle", "link")))  # a folder's place
+        files = {n: v for n, v in files.items() if not n.startswith(path + "/")}
+    if kind in DEVICES and k is not None:
+        argv[k] = kind
+        return files, argv
+    if kind in DEVICES or (kind == "pipe" and k is None):
+        kind = "link" if kind in DEVICES else "fifo"
+    files[path] = Node(kind, draw(st.sampled_from(DEVICES)).encode() if kind == "link" else _plain(data))
+    return files, argv
+
+
+def _moved(files: dict, argv: list[str], into: str, inputs: bool) -> tuple[dict, list[str]]:
+    """The case with its outputs (and with ``inputs``, its inputs) in the folder ``into``."""
+    slots = {k for k, _ in input_slots(files, argv) if k is not None}
+    argv = [into + "/" + a if (k and argv[k - 1] in OUTPUT_OPTIONS) or (inputs and k in slots) else a
+            for k, a in enumerate(argv)]
+    if inputs:
+        files = {into + "/" + n: v for n, v in files.items()}
+    return files, argv
+
+
+@st.composite
+def read_only_case(draw, result_text=None):
+    """Another command's case in a read-only folder: its outputs written there, its inputs and store
+    there too, or its inputs (the store among them) only readable; a folder the command cannot write
+    is refused in one line with nothing left behind, and reading needs no write access."""
+    command, files, argv = draw(case(result_text, [n for n in COMMANDS if n not in WRAPPERS]))
+    how = draw(st.sampled_from(("outputs", "everything", "inputs")))
+    if how == "inputs":
+        store = [argv[k + 1] for k, a in enumerate(argv[:-1]) if a == "--store"]
+        names = [n for n in files if not isinstance(files[n], Node)]
+        chosen = store if store and store[0] in files and draw(st.booleans()) else names
+        return {n: Node("readonly", v) if n in chosen else v for n, v in files.items()}, argv
+    files, argv = _moved(dict(files), list(argv), "ro", how == "everything")
+    return {**files, "ro": Node("readonly-folder")}, argv
+
+
+def _tooled(program: str, name: str) -> tuple[str, list[str]]:
+    """``program`` declaring a tool and a work object other than those its motions use, and the
+    names of the tools and work objects ``--tool``/``--wobj`` may take (declared, the controller's
+    own, or none of them)."""
+    if name.endswith(".mod"):
+        decl = ("  PERS tooldata tOther := [TRUE, [[10, -20, 200], [0.9238795, 0, 0.3826834, 0]], "
+                "[1, [0, 0, 50], [1, 0, 0, 0], 0, 0, 0]];\n"
+                "  PERS wobjdata wOther := [FALSE, TRUE, \"\", [[100, 50, 20], [0.9659258, 0, 0, 0.2588190]], "
+                "[[0, 0, 0], [1, 0, 0, 0]]];\n")
+        return program.replace("  CONST jointtarget jP02", decl + "  CONST jointtarget jP02", 1), \
+            ["tOther", "wOther", "tSphere", "tool0", "wobj0", "tNone"]
+    if name.endswith(".dat"):
+        decl = "DECL FRAME T2={X 10.0,Y -20.0,Z 200.0,A 30.0,B 10.0,C 0.0}\nDECL FRAME B2={X 100.0,Y 50.0,Z 20.0," \
+               "A 30.0,B 0.0,C 0.0}\n"
+        return program.replace("ENDDAT", decl + "ENDDAT", 1), ["T2", "B2", "TOOL", "TOOL_DATA[1]", "BASE_DATA[2]", "X"]
+    if name.endswith(".src"):
+        return program, ["TOOL_DATA[1]", "BASE_DATA[1]", "$NULLFRAME", "X"]
+    decl = "  tcp2 = p[0.01, -0.02, 0.2, 0.0, 0.5, 0.0]\n  base2 = p[0.1, 0.05, 0.02, 0.0, 0.0, 0.5]\n" \
+           "  set_tcp(p[0.0, 0.0, 0.12, 0.0, 0.0, 0.0])\n"
+    return program.replace("  home = ", decl + "  home = ", 1), ["tcp2", "base2", "home", "x"]
+
+
+@st.composite
+def tools_case(draw, result_text=None):
+    """A robot program compensated with ``--tool``/``--wobj`` naming frames other than those its
+    motions were written with (a tool the program declares but does not move with, the flange, an
+    undeclared name): each target solved in the frames named or refused; against its own model every
+    target keeps its numbers."""
+    name = draw(st.sampled_from(sorted(PROGRAMS)))
+    program, frames = _tooled(PROGRAMS[name], name)
+    files = {"model.yaml": MODEL.encode(), name: program.encode()}
+    calibrated = "model.yaml"
+    if draw(st.integers(0, 3)) == 0:
+        files["true.yaml"], calibrated = TRUE_MODEL.encode(), "true.yaml"
+    argv = ["compensate", "model.yaml", calibrated, name, "--out", "out" + name[4:]]
+    for option in ("--tool", "--wobj"):
+        if draw(st.booleans()):
+            argv += [option, draw(st.sampled_from(frames))]
+    return files, argv + draw(options({"--marker": "tool", "--force": None}))
+
+
 # command -> (weight, strategy of (files, argv)). The readers and commands of later work join here:
 # add a strategy above (mutations of a shipped example, the sizes that could hang it) and a line
 # below; the judge (check_output) then learns what a sound output of it is.
@@ -1010,14 +1144,20 @@ COMMANDS = {
     "compensate-program": (2, compensate_program_case), "record": (1, functools.partial(store_case, "record")),
     "history": (1, functools.partial(store_case, "history")), "verify": (1, functools.partial(store_case, "verify")),
     "joints-program": (2, joints_program_case), "sidecar": (2, sidecar_case), "seatings": (2, seatings_case),
+    "streams": (4, streams_case), "read-only": (3, read_only_case), "tools": (1, tools_case),
 }
+# the families that take another command's case and change where its inputs and outputs are
+WRAPPERS = ("streams", "read-only")
 # the commands whose cases start from a result file (``result_text``)
 NEEDS_RESULT = ("report", *STORE_COMMANDS, "sidecar")
 
 
 # the in-process sample of the test suite (tests/test_fuzz.py): the same cases, the slow command
-# (plan-sockets simulates its seatings, about a second a run) drawn less often
-SAMPLE_WEIGHTS = {**{n: 4 * w for n, (w, _) in COMMANDS.items()}, "plan-sockets": 1}
+# (plan-sockets simulates its seatings, about a second a run) drawn less often, and so the families
+# that repeat the commands' own cases elsewhere (and may wait: a FIFO never written into is refused
+# after two seconds)
+SAMPLE_WEIGHTS = {**{n: 4 * w for n, (w, _) in COMMANDS.items()}, "plan-sockets": 1, "streams": 4, "read-only": 4,
+                  "tools": 2}
 # its share run in forked children (fork_case): the commands whose cases ask for the most work or
 # memory (large counts, long chains and tables, bombs), where a guard inside the process could come
 # too late (a long call into compiled code) and the operating system's limits are the real test
@@ -1174,7 +1314,7 @@ def _check_program(argv, folder: Path) -> str | None:
         back = read_program(out, dialect=dialect)
     except Exception:  # noqa: BLE001 - whatever stops the reader, the output is not a program it takes
         return "unreadable output"
-    if source == out:
+    if source == out or argv[1] != argv[2]:  # (against another model its targets move)
         return None
     before = read_program(source, dialect=dialect)
     if [t.kind for t in back.targets] != [t.kind for t in before.targets]:  # (inline ones are named by line)
@@ -1259,28 +1399,215 @@ def check_output(argv, folder: Path) -> str | None:
 
 
 def written_beside(folder: Path, files: dict) -> bool:
-    """Whether a failed run left a file that was not there (its streams aside) or changed a store."""
-    there = {p.relative_to(folder).as_posix() for p in folder.rglob("*") if p.is_file()}
-    if there - set(files) - {"stdout.txt", "stderr.txt"}:
+    """Whether a failed run left a file or folder that was not there (its streams aside) or changed
+    an input (a store among them)."""
+    there = {p.relative_to(folder).as_posix() for p in folder.rglob("*") if not p.is_symlink()}
+    given = set(files) | {str(q) for n in files for q in Path(n).parents if str(q) != "."}
+    if there - given - {"stdout.txt", "stderr.txt"}:
         return True
-    return "store.sqlite" in files and (folder / "store.sqlite").read_bytes() != files["store.sqlite"]
+    return any(not isinstance(v, Node) and (folder / n).read_bytes() != v for n, v in files.items())
 
 
-def judge(code, err: str, folder: Path, before: set[str], argv=None, files=None) -> str:
+def judge(code, err: str, folder: Path, before: set[str], argv=None, files=None, changed: bool = False) -> str:
     """The outcome of one finished run: exit code, its stderr, the folder it ran in, its command line
-    (and with ``files``, the inputs it was given, which a failed run leaves as they were)."""
+    (and with ``files``, the inputs it was given, which a failed run leaves as they were; ``changed``:
+    a node among them was replaced or written into, ``Materialised.close``)."""
     if "Traceback" in err or code not in (0, 1, 2, 3):
         return "traceback"
     if code in (1, 2):
         lines = [ln for ln in err.splitlines() if not ln.startswith("robocal: warning:")]
         if len(lines) == 1 and ": error: out of memory" in lines[0]:  # the CLI's word for a MemoryError
             return "over-memory"
-        if files is not None and argv and argv[0] in STORE_COMMANDS and written_beside(folder, files):
+        if files is not None and (changed or written_beside(folder, files)):
             return "written beside a failure"
         return "clean error" if len(lines) == 1 and len(lines[0]) < 1000 else "multi-line error"
     if non_finite(folder, before):
         return "non-finite output"
     return (check_output(argv, folder) if code == 0 else None) or "ok result"
+
+
+# -- a case's files made in its folder ------------------------------------------------------------
+
+_FS_IOC_GETFLAGS, _FS_IOC_SETFLAGS, _FS_IMMUTABLE_FL = 0x80086601, 0x40086602, 0x10
+
+
+def _mark_read_only(path: Path, on: bool) -> None:
+    """Make ``path`` read-only (or writable again): its mode, and for root, whom modes do not stop,
+    the file system's immutable flag (what ``chattr +i`` sets)."""
+    import fcntl
+    import os
+    import struct
+
+    if on:
+        path.chmod(0o555 if path.is_dir() else 0o444)
+    if os.geteuid() == 0:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+        try:
+            flags = struct.unpack("i", fcntl.ioctl(fd, _FS_IOC_GETFLAGS, struct.pack("i", 0)))[0]
+            flags = flags | _FS_IMMUTABLE_FL if on else flags & ~_FS_IMMUTABLE_FL
+            fcntl.ioctl(fd, _FS_IOC_SETFLAGS, struct.pack("i", flags))
+        except OSError:
+            pass  # a file system without the flag: the mode alone
+        finally:
+            os.close(fd)
+    if not on:
+        path.chmod(0o755 if path.is_dir() else 0o644)
+
+
+def _feed(path: Path, data: bytes) -> None:
+    """Write ``data`` into the FIFO at ``path`` once a reader opens it (a thread of the runner)."""
+    import os
+
+    try:
+        fd = os.open(path, os.O_WRONLY)
+    except OSError:
+        return
+    try:
+        with open(fd, "wb") as fh:
+            fh.write(data)
+    except OSError:
+        pass  # the reader left before the end (a refusal, a budget): as a shell's writer would see it
+
+
+class Materialised:
+    """A case's files made in ``folder``: regular files written, then each ``Node``: a FIFO fed its
+    bytes by a thread when a reader opens it (or never), a pipe filled and its writing end closed
+    (``argv`` names it /dev/fd/N, as a shell's ``<(cat FILE)`` does), a socket, a folder, a link,
+    read-only files and folders. ``close`` takes them down again."""
+
+    def __init__(self, folder: Path, files: dict, argv: list[str]):
+        import os
+        import socket
+        import threading
+
+        self.folder, self.files, self.argv = folder, files, list(argv)
+        self.feeders, self.pipes, self.marked = [], [], []
+        for name, data in files.items():
+            if not isinstance(data, Node):
+                (folder / name).parent.mkdir(parents=True, exist_ok=True)
+                (folder / name).write_bytes(data)
+        for name, node in files.items():
+            if not isinstance(node, Node):
+                continue
+            path = folder / name
+            path.parent.mkdir(parents=True, exist_ok=True)
+            if node.kind in ("fifo", "fifo-idle"):
+                os.mkfifo(path)
+                if node.kind == "fifo":
+                    self.feeders.append((path, threading.Thread(target=_feed, args=(path, node.data), daemon=True)))
+                    self.feeders[-1][1].start()
+            elif node.kind == "pipe":
+                self.argv = [f"/dev/fd/{self._pipe(node.data)}" if a == name else a for a in self.argv]
+            elif node.kind == "socket":
+                with socket.socket(socket.AF_UNIX) as s:
+                    s.bind(str(path))
+            elif node.kind in ("folder", "readonly-folder"):
+                path.mkdir(exist_ok=True)
+            elif node.kind == "link":
+                path.symlink_to(node.data.decode())
+            else:
+                path.write_bytes(node.data)
+        for name, node in sorted(files.items(), key=lambda kv: -kv[0].count("/")):  # files before their folders
+            if isinstance(node, Node) and node.kind in ("readonly", "readonly-folder"):
+                _mark_read_only(folder / name, True)
+                self.marked.append(folder / name)
+
+    def _pipe(self, data: bytes) -> int:
+        """A pipe holding ``data`` (as much as it takes), its writing end closed; its reading end."""
+        import contextlib
+        import fcntl
+        import os
+
+        r, w = os.pipe()
+        with contextlib.suppress(OSError):  # (a system that keeps pipes small: the rest is cut)
+            fcntl.fcntl(w, fcntl.F_SETPIPE_SZ, 1 << 20)
+        os.set_blocking(w, False)
+        try:
+            while data:
+                data = data[os.write(w, data[:1 << 16]):]
+        except BlockingIOError:
+            pass  # the pipe is full: the rest is cut, as a writer killed there leaves it
+        os.close(w)
+        self.pipes.append(r)
+        return r
+
+    def close(self) -> bool:
+        """Stop the feeders, close the pipes, lift the read-only marks, and put each node that carried
+        bytes back as a regular file (the judge reads the inputs); whether a node was replaced or
+        written into meanwhile."""
+        import os
+
+        for path, thread in self.feeders:
+            for _ in range(100):  # a writer still waiting for a reader, or blocked on a full FIFO
+                if not thread.is_alive():
+                    break
+                try:
+                    os.close(os.open(path, os.O_RDONLY | os.O_NONBLOCK))
+                except OSError:
+                    break
+                thread.join(0.05)
+        for r in self.pipes:
+            os.close(r)
+        for path in reversed(self.marked):
+            _mark_read_only(path, False)
+        changed = False
+        for name, node in self.files.items():
+            if isinstance(node, Node):
+                changed |= not self._intact(name, node)
+        return changed
+
+    def _intact(self, name: str, node: Node) -> bool:
+        """Whether the node at ``name`` is still what was made (a node that carried bytes becomes a
+        regular file of them)."""
+        import os
+        import stat
+
+        path = self.folder / name
+        try:
+            mode = path.lstat().st_mode
+        except OSError:
+            return node.kind == "pipe" and not self._restore(path, node.data)
+        if node.kind == "link":
+            return stat.S_ISLNK(mode) and os.readlink(path) == node.data.decode()
+        if node.kind == "socket":
+            return stat.S_ISSOCK(mode)
+        if node.kind in ("folder", "readonly-folder"):
+            return stat.S_ISDIR(mode) and (node.kind != "folder" or not any(path.iterdir()))
+        if node.kind == "readonly":
+            return stat.S_ISREG(mode) and path.read_bytes() == node.data
+        if not stat.S_ISFIFO(mode):
+            return False
+        path.unlink()
+        return not self._restore(path, node.data)
+
+    @staticmethod
+    def _restore(path: Path, data: bytes) -> bool:
+        path.write_bytes(data)
+        return False
+
+
+def preview(files: dict, n: int) -> dict:
+    """The first ``n`` bytes of each of a case's files (a node as its kind and bytes)."""
+    return {k: (f"<{v.kind}> " + repr(v.data[:n])) if isinstance(v, Node) else v[:n] for k, v in files.items()}
+
+
+def keep_case(folder: Path, files: dict, argv: list[str], err: str) -> None:
+    """A case written down to be run again: its regular files, nodes.txt naming its nodes, argv.txt,
+    stderr.txt."""
+    folder.mkdir(parents=True)
+    nodes = []
+    for name, data in files.items():
+        (folder / name).parent.mkdir(parents=True, exist_ok=True)
+        if isinstance(data, Node):
+            nodes.append(f"{name}: {data.kind}" + (f" -> {data.data.decode()}" if data.kind == "link" else ""))
+            data = b"" if data.kind == "link" else data.data
+            if nodes[-1].endswith("folder"):
+                (folder / name).mkdir(exist_ok=True)
+                continue
+        (folder / name).write_bytes(data)
+    (folder / "nodes.txt").write_text("".join(n + "\n" for n in nodes))
+    (folder / "argv.txt").write_text("\n".join(argv) + "\n")
+    (folder / "stderr.txt").write_text(err)
 
 
 # -- one case in a forked child, under limits the operating system enforces -----------------------
@@ -1352,9 +1679,10 @@ def poll_case(pid: int, start: float):
     return None
 
 
-def forked_outcome(status, usage, killed: bool, folder: Path, files: dict, argv: list[str]) -> tuple[str, str]:
+def forked_outcome(status, usage, killed: bool, folder: Path, files: dict, argv: list[str],
+                   changed: bool = False) -> tuple[str, str]:
     """The outcome of a forked case (``judge``'s, or hang and over-memory from how the child ended)
-    and its stderr."""
+    and its stderr (``changed``: ``Materialised.close``'s word)."""
     import os
     import signal
 
@@ -1365,7 +1693,8 @@ def forked_outcome(status, usage, killed: bool, folder: Path, files: dict, argv:
         return "hang", err
     if os.WIFSIGNALED(status) or usage.ru_maxrss * 1024 > MEMORY_BYTES + (400 << 20) or "MemoryError" in err:
         return "over-memory", err
-    return judge(os.WEXITSTATUS(status), err, folder, set(files) | {"stdout.txt", "stderr.txt"}, argv, files), err
+    return judge(os.WEXITSTATUS(status), err, folder, set(files) | {"stdout.txt", "stderr.txt"}, argv, files,
+                 changed), err
 
 
 def run_forked(files: dict, argv: list) -> tuple[str, str]:
@@ -1373,14 +1702,15 @@ def run_forked(files: dict, argv: list) -> tuple[str, str]:
     import time
 
     with tempfile.TemporaryDirectory() as folder:
-        for name, data in files.items():
-            Path(folder, name).parent.mkdir(parents=True, exist_ok=True)
-            Path(folder, name).write_bytes(data)
-        start = time.monotonic()
-        pid = fork_case(Path(folder), argv)
-        while (ended := poll_case(pid, start)) is None:
-            time.sleep(0.002)
-        return forked_outcome(*ended, Path(folder), files, argv)
+        made = Materialised(Path(folder), files, argv)
+        try:
+            start = time.monotonic()
+            pid = fork_case(Path(folder), made.argv)
+            while (ended := poll_case(pid, start)) is None:
+                time.sleep(0.002)
+        finally:
+            changed = made.close()
+        return forked_outcome(*ended, Path(folder), files, argv, changed)
 
 
 # -- one case in this process, under guards (tests/test_fuzz.py's sample, fuzz_cli.py --in-process) ----
@@ -1393,11 +1723,17 @@ def _alarm(signum, frame):
     raise Hang
 
 
+# a case in-process that waits (a FIFO, a lock) spends no CPU time: this much wall-clock time stops it
+WALL_GUARD_SECONDS = 60.0
+
+
 def install_guard() -> None:
-    """Let ``run_guarded``'s CPU-time guard interrupt a case (SIGPROF raises Hang)."""
+    """Let ``run_guarded``'s guards interrupt a case (SIGPROF for CPU time and SIGALRM for wall-clock
+    time raise Hang)."""
     import signal
 
     signal.signal(signal.SIGPROF, _alarm)
+    signal.signal(signal.SIGALRM, _alarm)
 
 
 def run_in_process(files: dict, argv: list) -> tuple[str, str]:
@@ -1410,17 +1746,16 @@ def run_in_process(files: dict, argv: list) -> tuple[str, str]:
 
     here = os.getcwd()
     with tempfile.TemporaryDirectory() as folder:
-        for name, data in files.items():
-            Path(folder, name).parent.mkdir(parents=True, exist_ok=True)
-            Path(folder, name).write_bytes(data)
+        made = Materialised(Path(folder), files, argv)
         err = io.StringIO()
         try:
             os.chdir(folder)
             with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
-                code = main(argv)
+                code = main(made.argv)
         finally:
             os.chdir(here)
-        return judge(code, err.getvalue(), Path(folder), set(files), argv, files), err.getvalue()
+            changed = made.close()
+        return judge(code, err.getvalue(), Path(folder), set(files), argv, files, changed), err.getvalue()
 
 
 def run_guarded(files: dict, argv: list) -> tuple[str, str]:
@@ -1433,6 +1768,7 @@ def run_guarded(files: dict, argv: list) -> tuple[str, str]:
     _, hard = resource.getrlimit(resource.RLIMIT_AS)
     resource.setrlimit(resource.RLIMIT_AS, (_vm_size() + MEMORY_BYTES, hard))
     signal.setitimer(signal.ITIMER_PROF, CPU_SECONDS)
+    signal.setitimer(signal.ITIMER_REAL, WALL_GUARD_SECONDS)
     try:
         return run_in_process(files, argv)
     except Hang:
@@ -1443,4 +1779,5 @@ def run_guarded(files: dict, argv: list) -> tuple[str, str]:
         return "traceback", traceback.format_exc()
     finally:
         signal.setitimer(signal.ITIMER_PROF, 0)
+        signal.setitimer(signal.ITIMER_REAL, 0)
         resource.setrlimit(resource.RLIMIT_AS, (hard, hard))
