@@ -120,7 +120,14 @@ KINDS = ["/dev/zero", "/dev/urandom", "fifo", "pipe"]
 
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("streams")
+    return stream_files(tmp_path_factory.mktemp("streams"))
+
+
+def stream_files(folder: Path) -> Path:
+    """The files the slots' commands read besides the one in the slot, made in ``folder``: the th8
+    campaign split into points and joint readings, and a store holding a calibration of robot R."""
+    from robocal.cli import main
+
     lines = (TH8 / "measurements.csv").read_text().splitlines()
     header = lines[0].split(",")
     joints = [k for k, c in enumerate(header) if c.startswith("j")]
@@ -130,6 +137,8 @@ def files(tmp_path_factory):
         (folder / name).write_text("".join(",".join(ln.split(",")[k] for k in cols) + "\n" for ln in lines))
     seatings = folder / "seatings"
     shutil.copytree(ARM7 / "seatings", seatings)
+    assert main(["calibrate", str(TH8 / "model.yaml"), str(TH8 / "measurements.csv"), "--known", "markers", "--out",
+                 str(folder / "calibration"), "--record", "R", "--store", str(folder / "store.sqlite")]) in (0, 3)
     return folder
 
 
@@ -146,13 +155,18 @@ SLOTS = {  # the command, with INPUT in the measurement slot; the file a stream 
     "limit-repeatability": (["limit", TH8 / "model.yaml", "--repeatability-csv", "INPUT", *ENCODERS],
                             TH8 / "repeatability.csv"),
     "contacts": (["calibrate", ARM7 / "model.yaml", "--contacts", "INPUT"], ARM7 / "sockets.csv"),
+    "verify": (["verify", "R", "INPUT", "--store", "{store}", "--no-record"], TH8 / "verification.csv"),
+    "compensate-program": (["compensate", TH8 / "model.yaml", TH8 / "true_model.yaml", "INPUT", "--dialect", "rapid"],
+                           TH8 / "program.mod"),
 }
-OUTPUT = {"calibrate": "run", "plan": "plan.csv", "compensate": "commands.csv", "limit": "limit.json"}
+OUTPUT = {"calibrate": "run", "plan": "plan.csv", "compensate": "commands.csv", "limit": "limit.json",
+          "compensate-program": "program.mod"}
 
 
 def _cases(slot: str, files: Path, kinds, tag: str) -> list[dict]:
     argv, content = SLOTS[slot]
-    names = {"points": files / "points.csv", "fit": files / "fit.csv", "joints": files / "joints.csv"}
+    names = {"points": files / "points.csv", "fit": files / "fit.csv", "joints": files / "joints.csv",
+             "store": files / "store.sqlite"}
     argv, content = [str(a).format(**names) for a in argv], str(content).format(**names)
     cases = []
     for k, kind in enumerate(kinds):
@@ -160,7 +174,8 @@ def _cases(slot: str, files: Path, kinds, tag: str) -> list[dict]:
         fifo = files / f"{slot}-{tag}-{k}.fifo"
         if kind.startswith("fifo"):
             os.mkfifo(fifo)
-        extra = ["--out", str(out / OUTPUT[argv[0]])] if argv[0] in OUTPUT else []
+        output = OUTPUT.get(slot, OUTPUT.get(argv[0]))
+        extra = ["--out", str(out / output)] if output else []
         cases.append({"kind": kind, "argv": argv + extra, "content": content, "out": str(out),
                       "fifo": str(fifo), "seconds": SECONDS})
         out.mkdir()
