@@ -218,16 +218,21 @@ def test_a_fifo_that_no_program_writes_into_is_refused(files):
     assert result["code"] == 2 and len(lines) == 1 and "a FIFO that no program writes into" in lines[0], lines
 
 
+def _in_place_of(path: Path, kind: str) -> Path:
+    """``path`` replaced by a FIFO nothing writes into, or by a link to the device ``kind``."""
+    path.unlink()
+    if kind == "fifo":
+        os.mkfifo(path)
+    else:
+        path.symlink_to(kind)
+    return path
+
+
 @pytest.mark.parametrize("kind", ["/dev/zero", "fifo"])
 def test_a_socket_file_of_seatings_that_is_not_a_regular_file_is_refused(files, tmp_path, kind):
     seatings = tmp_path / "seatings"
     shutil.copytree(files / "seatings", seatings)
-    socket = seatings / "P1" / "hole_0.csv"
-    socket.unlink()
-    if kind == "fifo":
-        os.mkfifo(socket)
-    else:
-        socket.symlink_to(kind)
+    _in_place_of(seatings / "P1" / "hole_0.csv", kind)
     argv = ["calibrate", str(ARM7 / "model.yaml"), "--contacts", "INPUT", "--out", str(tmp_path / "run")]
     (result,) = _run([{"kind": str(seatings), "argv": argv, "content": "", "out": str(tmp_path / "log"),
                        "seconds": SECONDS}])
@@ -235,3 +240,23 @@ def test_a_socket_file_of_seatings_that_is_not_a_regular_file_is_refused(files, 
     assert not result["killed"] and result["seconds"] < SECONDS, result
     said = "a link out of the campaign folder" if kind.startswith("/dev/") else "not a regular file"
     assert result["code"] == 2 and len(lines) == 1 and "hole_0.csv" in lines[0] and said in lines[0], lines
+
+
+@pytest.mark.parametrize("node", ["/dev/zero", "fifo"])
+def test_a_results_per_pose_file_that_is_a_device_or_a_fifo_is_refused_before_it_is_read(cli, tmp_path,
+                                                                                        monkeypatch, node):
+    """The per-pose file beside a result is one robocal wrote: a device or FIFO in its place is refused
+    at once, not read up to the 4 GB a per-pose file may hold (the fuzz found /dev/zero there out of
+    memory). The budget is made small so that reading it would end otherwise."""
+    import robocal as rc
+
+    code, _, err = cli("calibrate", TH8 / "model.yaml", TH8 / "measurements.csv", "--known", "markers", "--out",
+                       tmp_path / "run")
+    assert code in (0, 3), err
+    sidecar = _in_place_of(tmp_path / "run" / "result.npz", node)
+    monkeypatch.setattr(sys.modules[rc.io.read_result.__module__], "MAX_FILE_BYTES", 2 ** 16)
+    code, _, err = cli("report", tmp_path / "run" / "result.json", "--out", tmp_path / "report.html")
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1 and str(sidecar) in lines[0], err
+    assert ("a character device" if node.startswith("/dev") else "a FIFO") in lines[0], err
+    assert not (tmp_path / "report.html").exists()

@@ -501,7 +501,7 @@ def _sidecar(doc: _Doc, d: dict, folder: Path | None) -> dict | None:
         raise doc.error("errors.file.name", f"cannot read the per-pose arrays {excerpt(name)} here (a file name "
                                             "beside the result file, ending .npz)")
     path = folder / name
-    raw = read_bytes(path, limit=MAX_FILE_BYTES * 16, text=False)
+    raw = read_bytes(path, limit=MAX_FILE_BYTES * 16, text=False, regular=True)  # (4 GB of a stream: no)
     if hashlib.sha256(raw).hexdigest() != doc.get(ref, "sha256", "errors.file", str):
         raise InputError("is not the per-pose file of this result (its SHA-256 differs from the one in "
                          f"{doc.source}); write them again together", source=str(path))

@@ -42,7 +42,7 @@ MAX_DIGITS = 30
 
 
 def read_bytes(path, *, limit: int = MAX_FILE_BYTES, text: bool = True, lines: int | None = None,
-               rows: tuple[int, str, int | None] | None = None) -> bytes:
+               rows: tuple[int, str, int | None] | None = None, regular: bool = False) -> bytes:
     """The file's bytes, opened once and read once within a budget; a missing, unreadable or
     oversized file is an InputError naming it.
 
@@ -52,7 +52,8 @@ def read_bytes(path, *, limit: int = MAX_FILE_BYTES, text: bool = True, lines: i
     size before anything is read; its lines, and a stream's (a FIFO, a pipe such as ``<(command)``,
     a device), are counted a chunk at a time as they are read, which stops as soon as the budget
     runs out or, for ``text``, at a NUL character (``/dev/zero``, ``/dev/urandom``). A FIFO that no
-    program writes into is refused after FIFO_WAIT_SECONDS.
+    program writes into is refused after FIFO_WAIT_SECONDS. With ``regular``, anything but a regular
+    file is refused before it is read (a file only robocal writes, whose budget is no stream's).
     """
     source = str(path)
     try:
@@ -68,6 +69,9 @@ def read_bytes(path, *, limit: int = MAX_FILE_BYTES, text: bool = True, lines: i
         st = os.fstat(fd)
         if stat.S_ISDIR(st.st_mode):
             raise InputError("is a folder, not a file", source=source)
+        if regular and not stat.S_ISREG(st.st_mode):
+            kind = next((said for test, said in _KINDS if test(st.st_mode)), "something other than a file")
+            raise InputError(f"is {kind}, not the file robocal wrote", source=source)
         if stat.S_ISREG(st.st_mode) and st.st_size > limit:
             raise InputError(f"the file is {st.st_size / 2 ** 20:.0f} MB; robocal reads files up to "
                              f"{limit / 2 ** 20:.0f} MB", source=source)
