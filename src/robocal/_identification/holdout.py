@@ -263,24 +263,32 @@ def holdout_of(problem: Problem, folds: int = DEFAULT_FOLDS) -> Holdout:
     return Holdout(groups, k_points + len(placements), "; ".join(said), labels, k_points, placements)
 
 
-def fold_steps(problem: Problem, p: np.ndarray, holdout: Holdout) -> list[np.ndarray]:
+def fold_steps(problem: Problem, p: np.ndarray, holdout: Holdout, at: np.ndarray | None = None) -> list[np.ndarray]:
     """For each group, the Gauss-Newton step from ``p`` (a solution on every row) to the fit on the
     rows of the other groups: ``-(A - A_g)^+ (b - b_g)`` over the free parameters, ``A = J^T J``,
-    ``b = J^T r`` (``A_g``, ``b_g`` the group's part), in unit-column scaling. A group's own unknowns
-    (a placement's socket points) have no row left: they keep their value."""
+    ``b = J^T r`` (``A_g``, ``b_g`` the group's part), in unit-column scaling. ``at``: where the
+    solver took its last Jacobian (within its tolerances of ``p``), taken instead of a new one. A
+    group's own unknowns (a placement's socket points) have no row left: they keep their value."""
     k = holdout.k
     n_free = len(problem.free_idx)
     A, b = np.zeros((n_free, n_free)), np.zeros(n_free)
     Ag, bg = np.zeros((k, n_free, n_free)), np.zeros((k, n_free))
-    for J, r, obs in problem.pieces(p):
+    for J, r, obs in problem.pieces(p, at):
         f = holdout.groups[obs]
-        A += J.T @ J
-        b += J.T @ r
-        for g in np.unique(f[f >= 0]):
-            rows = f == g
-            Jg = J[rows]
-            Ag[g] += Jg.T @ Jg
-            bg[g] += Jg.T @ r[rows]
+        order = np.argsort(f, kind="stable")
+        bounds = np.searchsorted(f[order], np.arange(-1, k + 1))     # each group's rows in ``order``, -1 first
+        Jt, ro = np.asarray(J).T[:, order], r[order]
+        for g in range(-1, k):
+            lo, hi = bounds[g + 1], bounds[g + 2]
+            if hi == lo:
+                continue
+            part = Jt[:, lo:hi]
+            gram, grad = part @ part.T, part @ ro[lo:hi]
+            A += gram
+            b += grad
+            if g >= 0:
+                Ag[g] += gram
+                bg[g] += grad
     col = np.sqrt(np.diag(A))
     col[col == 0] = 1.0
     steps = []
@@ -330,11 +338,12 @@ class FoldProblems:
 
 
 def cross_validate(problem: Problem, p: np.ndarray, holdout: Holdout, *, on: Problem | None = None,
-                   folds: FoldProblems | None = None) -> HeldOut:
+                   folds: FoldProblems | None = None, at: np.ndarray | None = None) -> HeldOut:
     """Each observation's errors under the model fitted on the other groups (``fold_steps``); ``on``:
     the problem whose observations are predicted (default ``problem``; e.g. the whole campaign when
-    ``problem`` has observations set aside); ``folds``: the group problems to reuse."""
-    steps = fold_steps(problem, p, holdout)
+    ``problem`` has observations set aside); ``folds``: the group problems to reuse; ``at``: where
+    the solver took its last Jacobian (``Solution.jacobian_at``)."""
+    steps = fold_steps(problem, p, holdout, at)
     target = problem if on is None else on
     folds = FoldProblems(holdout) if folds is None else folds
     pos: np.ndarray | None = None

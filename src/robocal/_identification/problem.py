@@ -314,11 +314,12 @@ class Problem:
         labels = self.observations().label
         return [labels[o] for o in self.row_observations()]
 
-    def pieces(self, p):
-        """``(jacobian, residuals, row observations)`` at ``p``: whole, or for a large campaign of
-        points a chunk of poses at a time."""
+    def pieces(self, p, at=None):
+        """``(jacobian, residuals, row observations)`` at ``p``: whole (the Jacobian at ``at`` when
+        given: one kept from a solve that ended a tolerance away), or for a large campaign of points
+        a chunk of poses at a time."""
         if not self.chunked:
-            yield self.jacobian(p), self.residuals(p), self.row_observations()
+            yield self.jacobian(p if at is None else at), self.residuals(p), self.row_observations()
             return
         for J, r, poses, markers in cast(Points, self.points).pieces(p):
             yield J, r, self._point_index[poses, markers]

@@ -40,7 +40,9 @@ class Solution:
     """Where the solver stopped: the full parameter vector ``p``, the weighted residuals and the
     weighted Jacobian there, (n_rows, n_free), or for a linear fit of one kind of row its R factor
     (n_free, n_free), which has the same Gram matrix; and the solver's own account (``status`` > 0
-    is convergence, as in scipy). ``f_scale`` is where a robust loss bent (None for ``linear``)."""
+    is convergence, as in scipy). ``f_scale`` is where a robust loss bent (None for ``linear``).
+    ``jacobian_at``: the full vector the Jacobian was taken at, when not ``p`` (Levenberg-Marquardt
+    takes it at the start of its last step, within the tolerances of ``p``)."""
 
     p: np.ndarray
     residuals: np.ndarray
@@ -53,6 +55,7 @@ class Solution:
     f_scale: float | None
     row_kinds: np.ndarray | None = None
     linear_rows: np.ndarray | None = None
+    jacobian_at: np.ndarray | None = None
 
 
 @accepts(problem=is_a(Problem), p0=shaped(None), loss=one_of(LOSSES), f_scale=optional(POSITIVE),
@@ -230,9 +233,10 @@ def _levenberg_marquardt(problem, p0: np.ndarray, max_nfev: int | None, tol: flo
         cost_new = float(r_new @ r_new)
         status = _last_step(ne, x, dx, scale, cost_new, tol)
         if status:
+            at = problem.full(x, p0)     # where ne was taken
             if cost_new <= ne.cost:      # else x is the minimum to round-off
                 x, r_end = x + dx, r_new
-            break
+            return _lm_solution(problem, problem.full(x, p0), ne, r_end, status, nfev, at)
         if not cost_new <= ne.cost:
             lam = max(10.0 * lam, 1e-3)
             continue
@@ -251,15 +255,18 @@ def _last_step(ne: _Normal, x: np.ndarray, dx: np.ndarray, scale: np.ndarray, co
     return 0
 
 
-def _lm_solution(problem, p: np.ndarray, ne: _Normal, r_end: np.ndarray | None, status: int, nfev: int) -> Solution:
+def _lm_solution(problem, p: np.ndarray, ne: _Normal, r_end: np.ndarray | None, status: int, nfev: int,
+                 at: np.ndarray | None = None) -> Solution:
     """The solution at ``p``: its residuals ``r_end`` when the last step evaluated them, else those
-    of ``ne`` (the normal equations there), and the Jacobian (or its R factor) of ``ne``."""
+    of ``ne`` (the normal equations there, at ``at`` when not ``p``), and the Jacobian (or its R
+    factor) of ``ne``."""
     kinds = problem.row_kinds()
     several = kinds is not None and len(kinds) > 0 and kinds.min() != kinds.max()
     r = r_end if r_end is not None else (ne.r if ne.r is not None else problem.residuals(p))
     return Solution(p=p, residuals=r, jacobian=ne.J if several and ne.J is not None else ne.R,
                     success=status > 0, status=status, message=_MESSAGES[status], nfev=nfev, loss="linear",
-                    f_scale=None, row_kinds=kinds if several else None)
+                    f_scale=None, row_kinds=kinds if several else None,
+                    jacobian_at=None if at is None or np.array_equal(at, p) else at)
 
 
 # a row whose leverage exceeds this carries a direction of the parameters (almost) alone: the other

@@ -506,7 +506,7 @@ def fit(design: Design, options: Options, holdout: Holdout, folds: FoldProblems,
     observations it left)."""
     problem = design.problem
     solution = solve_design(design, problem, options)
-    held = cross_validate(problem, solution.p, holdout, folds=folds)
+    held = cross_validate(problem, solution.p, holdout, folds=folds, at=solution.jacobian_at)
     groups = holdout.groups
     if outliers is not None:      # fitted on what that fit left: its outliers and their notes stand
         return Fit(design, problem, solution, outliers.outliers, outliers.aside, held, groups, outliers.notes)
@@ -543,7 +543,7 @@ def _set_aside(design: Design, solution: Solution, found: Outliers, held: HeldOu
     # judged on every observation, those set aside too (predicted without them): blunders are no
     # better predicted either way, while observations whose only fault is an effect the model leaves
     # out are predicted worse once their like are set aside
-    held2 = cross_validate(kept, solution2.p, holdout, on=problem, folds=folds)
+    held2 = cross_validate(kept, solution2.p, holdout, on=problem, folds=folds, at=solution2.jacobian_at)
     mask = problem.point_mask
     excess, se = paired_excess(held2.observation_norms(mask), held.observation_norms(mask), holdout.groups >= 0)
     if judged and not excess < -REFIT_GAIN_SIGMAS * se:
