@@ -16,6 +16,7 @@ group (a fold of poses or series, a placement) and a stated deviation: what the 
 from __future__ import annotations
 
 import copy
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol, cast
 
@@ -55,15 +56,44 @@ class Solvable(Protocol):
 ROW_KINDS = ("position", "rotation", "socket", "plane", "bar", "distance")
 
 
+class Labels(Sequence):
+    """The observations' labels, made when read (a campaign may hold millions of points): a measured
+    point's is "<pose label>, marker <name>", a contact's its own. ``taken(index)``: those of some."""
+
+    def __init__(self, poses, markers, rows: np.ndarray, columns: np.ndarray, contacts: Sequence[str] = (),
+                 index: np.ndarray | None = None):
+        self._parts = (poses, markers, rows, columns, contacts)
+        self._index = index
+
+    def __len__(self) -> int:
+        return len(self._parts[2]) + len(self._parts[4]) if self._index is None else len(self._index)
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return [self[j] for j in range(*i.indices(len(self)))]
+        i = int(i if self._index is None else self._index[i])
+        poses, markers, rows, columns, contacts = self._parts
+        if i < 0:
+            i += len(rows) + len(contacts)
+        if i >= len(rows):
+            return contacts[i - len(rows)]
+        return f"{poses[rows[i]]}, marker {markers[columns[i]]}"
+
+    def taken(self, index) -> Labels:
+        """The labels of the observations ``index``, in that order."""
+        index = np.asarray(index, dtype=int)
+        return Labels(*self._parts, index=index if self._index is None else self._index[index])
+
+
 @dataclass(frozen=True, eq=False)
 class Observations:
     """Every observation of a problem, measured points first (pose by pose in the data's mask
     order), then the contacts' (``ContactRows`` order). ``kind`` ("tracker" or a contact kind),
-    ``label``, ``order`` (the pose or contact row: what consecutive means), ``placement`` (contacts;
-    "" for points)."""
+    ``label`` (``Labels``), ``order`` (the pose or contact row: what consecutive means), ``placement``
+    (contacts; "" for points)."""
 
     kind: tuple[str, ...]
-    label: tuple[str, ...]
+    label: Labels
     order: np.ndarray
     placement: tuple[str, ...]
     n_points: int
@@ -264,23 +294,26 @@ class Problem:
         return self._observations
 
     def _listed_observations(self) -> Observations:
-        kinds, labels, placements, order = [], [], [], []
+        kinds, placements, order = [], [], []
         n_points = self.n_points
+        rows = markers = np.zeros(0, dtype=int)
+        pose_labels: Sequence[str] = ()
+        marker_names: Sequence[str] = ()
         if self.points is not None:
             d = self.points.data
             rows, markers = np.nonzero(self.point_mask)
             kinds += ["tracker"] * n_points
-            pose_labels, marker_names = list(d.labels), list(d.marker_names)
-            labels += [f"{pose_labels[i]}, marker {marker_names[j]}" for i, j in zip(rows.tolist(), markers.tolist())]
+            pose_labels, marker_names = d.labels, d.marker_names
             placements += [""] * n_points
             order.append(rows)
+        contact_labels: Sequence[str] = ()
         if self.contacts is not None:
             c = self.contacts
             kinds += list(c.obs_kind)
-            labels += list(c.obs_label)
+            contact_labels = tuple(c.obs_label)
             placements += list(c.obs_placement)
             order.append(c.obs_row)
-        return Observations(tuple(kinds), tuple(labels),
+        return Observations(tuple(kinds), Labels(pose_labels, marker_names, rows, markers, contact_labels),
                             read_only(np.concatenate(order) if order else np.zeros(0, dtype=int)),
                             tuple(placements), n_points)
 

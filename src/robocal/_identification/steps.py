@@ -426,7 +426,7 @@ def find_outliers(problem: Problem, solution: Solution, noise: Noise) -> Outlier
     standing = np.zeros(n, dtype=bool)
     checks, kinds = [], []
     for kind, (errors, sigma, index) in problem.observation_errors(solution.p).items():
-        labels = [obs.label[i] for i in index]
+        labels = obs.label.taken(index)
         check, o = outlier_check(errors, sigma, noise, labels)
         checks.append(check if kind == "tracker" else replace(check, name=f"outliers among the {kind} contacts"))
         kinds.append(index)
