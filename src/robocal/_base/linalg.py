@@ -43,7 +43,14 @@ def r_factor(A: np.ndarray) -> np.ndarray:
     """
     if A.shape[0] <= A.shape[1]:
         return A
-    G = A.T @ A
+    R = gram_factor(A.T @ A)
+    return reduced(A) if R is None else R
+
+
+def gram_factor(G: np.ndarray) -> np.ndarray | None:
+    """The upper triangular R with ``R^T R = G`` (a Gram matrix) from the Cholesky factor of its
+    column-scaled form, or None when that is singular or its condition number exceeds
+    ``GRAM_COND_MAX`` (the rows themselves must then be factored)."""
     col = np.sqrt(np.diag(G))
     if np.all(col > 0) and np.all(np.isfinite(G)):
         Gs = G / np.outer(col, col)
@@ -52,7 +59,7 @@ def r_factor(A: np.ndarray) -> np.ndarray:
             rcond, info = lapack.dpocon(U, np.abs(Gs).sum(axis=0).max())
             if info == 0 and rcond * GRAM_COND_MAX >= 1.0:
                 return U * col
-    return reduced(A)
+    return None
 
 
 def solve_upper(R: np.ndarray, b: np.ndarray, *, transposed: bool = False) -> np.ndarray:

@@ -21,7 +21,7 @@ from scipy.spatial.transform import Rotation
 
 from .._base.arguments import FLAG, accepts, is_a, names_in, optional, readings_of, shaped
 from .._base.arrays import frozen, read_only
-from .._base.linalg import r_factor, reduced
+from .._base.linalg import gram_factor, r_factor, reduced
 from .._base.threads import one_blas_thread
 from .._model.configurations import design_measurements
 from .._model.kinematics import (
@@ -47,6 +47,8 @@ from .._model.robot import RobotModel
 # poses so that they hold no more than about STATE_POSES poses' worth (one at the least).
 STATES_KEPT = 8
 STATE_POSES = 40_000
+# a campaign evaluated in chunks keeps no evaluation, only the marker positions at this many vectors
+POSITIONS_KEPT = 3
 
 
 def _measured_rows(mask: np.ndarray, sigma: np.ndarray | None, default) -> tuple[list, list]:
@@ -115,21 +117,38 @@ class Points:
     def normal_equations(self, p) -> tuple[np.ndarray, np.ndarray, float]:
         """At ``p``: the R factor (n_free, n_free) of the weighted Jacobian (``R^T R = J^T J``), the
         gradient ``J^T r`` and the sum of squared weighted residuals, taken chunk by chunk (what a
-        large campaign is solved on; a problem held whole is solved on its Jacobian)."""
-        k = len(self.free_idx)
-        R, g, cost = np.zeros((0, k)), np.zeros(k), 0.0
+        large campaign is solved on; a problem held whole is solved on its Jacobian). The factor
+        comes from the Gram matrix while it is well conditioned (as ``r_factor``'s), else by QR."""
+        G, g, cost = self._chunk_sums(p, None)
+        R = gram_factor(G)
+        return (self._chunk_sums(p, reduced)[0], g, cost) if R is None else (R, g, cost)
+
+    def _chunk_sums(self, p, factor) -> tuple[np.ndarray, np.ndarray, float]:
+        """The Gram matrix of the weighted Jacobian (with ``factor``, its R factor of the chunks
+        stacked in turn), its gradient and sum of squares at ``p``, chunk by chunk; taken from the
+        last R factor made (the analysis' of more columns at the start) when it was made at ``p``."""
+        key, free = frozen(p).tobytes(), tuple(self.free_idx.tolist())
+        made = self._kept.sums
+        if made is not None and made[0] == key and set(free) <= set(made[1]):
+            cols = [made[1].index(c) for c in free]
+            R = made[2][:, cols]
+            return (factor(R) if factor else R.T @ R), made[3][cols], made[4]
+        k = len(free)
+        G, g, cost = np.zeros((0 if factor else k, k)), np.zeros(k), 0.0
         for sub in self._chunks():
             J, r = sub.jacobian(p), sub.residuals(p)
-            R = reduced(np.vstack([R, J]))
+            G = factor(np.vstack([G, J])) if factor else G + J.T @ J
             g += J.T @ r
             cost += float(r @ r)
-        return R, g, cost
+        if factor:
+            self._kept.sums = (key, free, read_only(G), read_only(g), cost)
+        return G, g, cost
 
     def reduced_jacobian(self, p) -> np.ndarray:
         """The R factor of the weighted Jacobian at ``p`` (by QR: the candidates' columns may be
         dependent): a (k, k) matrix with the same Gram matrix, which is all the identifiability
         analysis needs."""
-        return self.normal_equations(p)[0] if self.chunked else self._factor(p, reduced)
+        return self._chunk_sums(p, reduced)[0] if self.chunked else self._factor(p, reduced)
 
     def jacobian_factor(self, p) -> np.ndarray:
         """An R factor (n_free, n_free) of the weighted Jacobian at ``p`` (``r_factor``), taken from
@@ -220,11 +239,20 @@ class Points:
         return st
 
     def _positions(self, p) -> np.ndarray:
-        """(n_model_markers, n_poses, 3) marker positions at ``p``."""
-        if self.chunked:
+        """(n_model_markers, n_poses, 3) marker positions at ``p``; a campaign evaluated in chunks
+        keeps those of its last ``POSITIONS_KEPT`` vectors (the checks ask for the solution's often)."""
+        if not self.chunked:
+            return self._state(p).ps.P
+        key = frozen(p).tobytes()
+        kept = self._kept.positions
+        P = kept.pop(key, None)
+        if P is None:
             # copies: a chunk's positions are a view that would keep its whole evaluation alive
-            return np.concatenate([sub._positions(p).copy() for sub in self._chunks()], axis=1)
-        return self._state(p).ps.P
+            P = read_only(np.concatenate([sub._positions(p).copy() for sub in self._chunks()], axis=1))
+            if len(kept) >= POSITIONS_KEPT:
+                kept.pop(next(iter(kept)))
+        kept[key] = P
+        return P
 
     def predicted(self, p):
         """Marker positions (n_poses, n_data_markers, 3) and orientations (or None) at ``p``."""
@@ -341,6 +369,8 @@ class _Kept:
         self.workspace = ws
         self.states: dict = {}     # the bytes of the parameters' read-only copy -> the evaluation there
         self.read: list = []       # dropped evaluations a kept one was moved from
+        self.positions: dict = {}  # the same bytes -> marker positions, for a campaign evaluated in chunks
+        self.sums: tuple | None = None   # such a campaign's last R factor: (bytes, free, R, gradient, cost)
         weakref.finalize(self, _give_back, ws, self.states, self.read)
 
     def drop_oldest(self) -> None:
