@@ -21,13 +21,14 @@ from .._identification.holdout import DEFAULT_FOLDS
 from .._identification.identifiability import DEFAULT_TOL
 from .._identification.judgement import warn_checks
 from .._identification.result import CalibrationResult, Comparison, Diagnosis, NestedTest, compared_name
-from .._identification.steps import Options
+from .._identification.steps import Fit, Options
 from .._model.contacts import Contacts
 from .._model.measurements import Measurements
 from .._model.parameters import transmission_names
 from .._model.robot import RobotModel
 from .contacts import diagnose_contacts
-from .measured import diagnose
+from .measured import diagnosed
+from .reference import reference
 
 
 @overload
@@ -114,7 +115,7 @@ def calibrate(model: RobotModel, data: Measurements | None = None, *, contacts: 
                    nonnegative_compliance=nonnegative_compliance, folds=folds, register_validation=register_validation)
     check_inputs(model, data, contacts, validation, options)
     settled = options_of(options)
-    return screened(model, data, contacts, run(model, data, contacts, validation, settled), settled)
+    return screened(model, data, contacts, *run(model, data, contacts, validation, settled), settled)
 
 
 @accepts(model=is_a(RobotModel), data=optional(both(is_a(Measurements), measured_on())),
@@ -170,7 +171,7 @@ def compare(model: RobotModel, data: Measurements | None = None, *, contacts: Co
 
     def fit(*families: str) -> CalibrationResult:
         settled = options_of({**options, "parameters": families})
-        return screened(model, data, contacts, run(model, data, contacts, validation, settled), settled)
+        return screened(model, data, contacts, *run(model, data, contacts, validation, settled), settled)
 
     found: dict = {"geometric": fit("geometric"), "skipped": []}
     _compare_compliance(model, fit, found, validation, alpha)
@@ -256,12 +257,14 @@ def _in_use_rms(r: CalibrationResult) -> float:
 
 
 def screened(model: RobotModel, data: Measurements | None, contacts: Contacts | None, result: CalibrationResult,
-             options: Options) -> CalibrationResult:
-    """``result`` with the diagnosis of its data and its check "diagnosis" (warned when it does not pass)."""
+             fitted: Fit, options: Options) -> CalibrationResult:
+    """``result`` with the diagnosis of its data and its check "diagnosis" (warned when it does not pass);
+    ``fitted``: the calibration's fit, whose residuals and Jacobian the diagnosis takes up."""
     if contacts is not None:
         diagnosis = diagnose_contacts(model, contacts, result, data=data, noise=options.noise)
     else:
-        diagnosis = diagnose(model, data, result, noise=options.noise, limit=options.limit_m, folds=options.folds)
+        diagnosis = diagnosed(reference(model, cast(Measurements, data), result, options.noise, options.limit_m,
+                                        options.folds, fitted))
     check = diagnosis_check(diagnosis)
     warn_checks([check])
     return replace(result, checks=result.checks + (check,), diagnosis=diagnosis)

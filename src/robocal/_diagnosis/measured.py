@@ -38,7 +38,7 @@ from .campaign import (
 from .facts import FACTS
 from .joints import joint_scale, joint_sign, joints_swapped, reading_unit
 from .model_file import marker_frame, model_sign, model_values, robot_size, untestable_signs
-from .reference import CLOSE_FACTOR, MAX_REFITS, SURVIVE_FACTOR, mm, reference, refitted
+from .reference import CLOSE_FACTOR, MAX_REFITS, SURVIVE_FACTOR, Reference, mm, reference, refitted
 from .values import axes_swapped, markers_swapped, mirrored_frame, payload_unit, position_unit, rotation_convention
 
 HYPOTHESES = (rows_shifted, pose_labels_offset, mirrored_frame, axes_swapped, markers_swapped, position_unit,
@@ -95,7 +95,11 @@ def diagnose(model: RobotModel, data: Measurements, result: CalibrationResult, *
     """
     if parameters is not None:
         result = replace(result, parameters=tuple(e for e in result.parameters if e.name in set(parameters)))
-    ref = reference(model, data, result, noise, _limit_m(limit), folds)
+    return diagnosed(reference(model, data, result, noise, _limit_m(limit), folds))
+
+
+def diagnosed(ref: Reference) -> Diagnosis:
+    """The diagnosis against a ``Reference``: facts, the hypotheses screened, the survivors refitted."""
     facts = _present(h(ref) for h in FACTS)
     survivors = screened(ref)
     found = _present(refitted(ref, c) for c in survivors)

@@ -218,18 +218,25 @@ def fitted_campaign(data: Measurements, result: CalibrationResult) -> Measuremen
 
 
 def reference(model: RobotModel, data: Measurements, result: CalibrationResult, noise=None,
-              limit_m: float | None = None, folds: int = 5) -> Reference:
+              limit_m: float | None = None, folds: int = 5, fitted=None) -> Reference:
     """The reference of a calibration ``result`` of ``model`` on ``data``: no solve, one evaluation of
-    the residuals and the Jacobian at its solution on the poses diagnosed."""
+    the residuals and the Jacobian at its solution on the poses diagnosed. ``fitted``: the
+    calibration's own fit (``steps.Fit``), whose residuals and Jacobian are taken instead when it
+    fitted exactly the poses diagnosed."""
     campaign = fitted_campaign(data, result)
     rows = working_rows(campaign.n_poses)
     work = campaign if len(rows) == campaign.n_poses else campaign.subset(rows)
     names = tuple(result.parameter_names)
     start = result.calibrated_model
     fit_noise = as_noise(noise)
-    prob = Problem(start, names, data=work, compliance=needs_compliance(start, names), noise=fit_noise)
-    p = parameter_vector(start)
-    r, J = prob.residuals(p), np.array(prob.jacobian(p))
+    compliance = needs_compliance(start, names)
+    shared = _solved(fitted, work, names, compliance)
+    if shared is None:
+        prob = Problem(start, names, data=work, compliance=compliance, noise=fit_noise)
+        p = parameter_vector(start)
+        r, J = prob.residuals(p), np.array(prob.jacobian(p))
+    else:
+        prob, p, r, J = shared
     pts = cast(Points, prob.points)
     e = np.where(work.mask[..., None], pts.errors(p), 0.0)
     rms = float(np.sqrt(np.mean(e[work.mask] ** 2))) if work.mask.any() else 0.0
@@ -238,6 +245,23 @@ def reference(model: RobotModel, data: Measurements, result: CalibrationResult, 
                     errors=e, result=result, folds=folds, _cache={})
     object.__setattr__(ref, "ssr", float(ref.settled @ ref.settled))
     return ref
+
+
+def _solved(fitted, work: Measurements, names: tuple[str, ...], compliance: bool):
+    """(problem, p, residuals, Jacobian) of the calibration's fit when it fitted measured points alone
+    on exactly the poses diagnosed (none set aside), over ``names``, without lost motion; else None.
+    Its Jacobian is the solver's last (within its tolerances of the solution)."""
+    if fitted is None:
+        return None
+    prob, sol = fitted.problem, fitted.solution
+    pts = prob.points
+    if (pts is None or prob.contacts is not None or pts.backlash or pts.compliance != compliance
+            or tuple(prob.free_names) != names or prob.point_mask.shape != work.mask.shape
+            or not np.array_equal(prob.point_mask, work.mask) or not np.array_equal(pts.data.mask, work.mask)
+            or not np.array_equal(pts.data.q, work.q)):
+        return None
+    J = prob.jacobian(sol.p if sol.jacobian_at is None else sol.jacobian_at)
+    return prob, sol.p, sol.residuals, np.array(J)
 
 
 def nominal_positions(model: RobotModel, data: Measurements) -> np.ndarray:

@@ -46,7 +46,7 @@ from .judgement import (
 from .registration import rigid_base
 from .result import CalibrationResult, NestedTest
 from .solve import covariance
-from .steps import Options, analyse, choose, observed_markers, prepare, registered_nominal
+from .steps import Fit, Options, analyse, choose, observed_markers, prepare, registered_nominal
 
 
 def options_of(o: dict) -> Options:
@@ -61,8 +61,9 @@ def options_of(o: dict) -> Options:
 
 
 def run(model: RobotModel, data: Measurements | None, contacts: Contacts | None, validation,
-        options: Options) -> CalibrationResult:
-    """The steps of a calibration, in order, for every kind of observation (arguments checked)."""
+        options: Options) -> tuple[CalibrationResult, Fit]:
+    """The steps of a calibration, in order, for every kind of observation (arguments checked): its
+    record, and the fit chosen (its problem and solution, which the diagnosis takes up)."""
     inputs = prepare(model, data, contacts, validation, options, rigid_base)
     analysis = analyse(inputs, options)
     holdout = holdout_of(analysis.problem, options.folds)
@@ -83,7 +84,7 @@ def run(model: RobotModel, data: Measurements | None, contacts: Contacts | None,
               + alone_check(chosen) + use)
     warn_checks(checks)
     judged = (checks, in_use_record, validation_errors, cover, limit)
-    return record(inputs, analysis, chosen, before, cov, found, judged, options, notes)
+    return record(inputs, analysis, chosen, before, cov, found, judged, options, notes), chosen
 
 
 def _as_tuple(v) -> tuple:
