@@ -1,0 +1,79 @@
+"""What a calibration computes once and hands on (benchmarks/README.md, issue 43): the cross-validation
+steps from the solver's last Jacobian, the normal equations of a campaign evaluated in chunks from its
+Gram matrix and from the analysis' factor, the marker positions such a campaign keeps, and the
+diagnosis on the calibration's own residuals and Jacobian. Each is held against the same figure
+computed from scratch."""
+
+import warnings
+
+import numpy as np
+import pytest
+from robots import arm6r
+
+import robocal as rc
+from robocal.identification import Points, Problem, diagnose, solve
+
+
+def _campaign(n=300, seed=2):
+    m = arm6r()
+    _, data = rc.simulate(m, n, seed=seed)
+    return m, data
+
+
+def test_fold_steps_from_the_solvers_last_jacobian_are_the_least_squares_fits_without_each_fold():
+    """Each fold's step, from the Jacobian the solver took a tolerance away from its solution and
+    summed group by group, is the Gauss-Newton fit on the other folds' rows, solved directly."""
+    from robocal._identification.holdout import Holdout, fold_steps
+
+    m, data = _campaign()
+    names = rc.identifiability(m, data).identified
+    prob = Problem(m, names, data=data, compliance=False)
+    sol = solve(prob, rc.parameter_vector(m))
+    assert sol.jacobian_at is not None and not np.array_equal(sol.jacobian_at, sol.p)
+    labels = np.random.default_rng(0).permutation(data.n_poses) % 4
+    steps = fold_steps(prob, sol.p, Holdout(labels, 4, "4 folds", labels, 4), at=sol.jacobian_at)
+    J, r = np.array(prob.jacobian(sol.p)), prob.residuals(sol.p)
+    row_pose = np.repeat(np.arange(data.n_poses), 3)
+    for g, step in enumerate(steps):
+        rest = labels[row_pose] != g
+        direct = -np.linalg.lstsq(J[rest], r[rest], rcond=None)[0]
+        assert np.max(np.abs(step - direct)) <= 1e-6 * np.max(np.abs(direct))
+
+
+def test_a_campaign_in_chunks_solves_and_judges_as_the_whole_one():
+    """Normal equations from the Gram matrix (and from the analysis' factor at the start), and the
+    marker positions kept between checks, give the campaign held whole's answer."""
+    m, data = _campaign(n=400)
+    names = rc.identifiability(m, data).identified
+    p0 = rc.parameter_vector(m)
+    whole = Points(m, data, names, compliance=False, chunked=False)
+    chunked = Points(m, data, names, compliance=False, chunked=True)
+    R, g, cost = chunked.normal_equations(p0)
+    J, r = whole.jacobian(p0), whole.residuals(p0)
+    np.testing.assert_allclose(R.T @ R, J.T @ J, rtol=1e-9, atol=1e-9 * np.abs(J.T @ J).max())
+    np.testing.assert_allclose(g, J.T @ r, rtol=1e-9, atol=1e-12 * np.abs(J.T @ r).max())
+    assert cost == pytest.approx(float(r @ r), rel=1e-12)
+    first = chunked.errors(p0)
+    assert np.array_equal(first, chunked.errors(p0)) and np.array_equal(first, whole.errors(p0))
+    a = solve(Problem(m, names, data=data, compliance=False, chunked=True), p0)
+    b = solve(Problem(m, names, data=data, compliance=False, chunked=False), p0)
+    assert np.max(np.abs(a.p - b.p)) < 1e-12
+
+
+def test_the_diagnosis_inside_a_calibration_is_the_one_from_scratch():
+    """``calibrate`` diagnoses on its own residuals and Jacobian; ``diagnose`` evaluates them again: the
+    same causes, strengths and misfit, on a clean campaign and on one whose tool moved partway."""
+    m, data = _campaign()
+    moved = data.positions.copy()
+    moved[200:] += np.array([0.004, -0.002, 0.0])
+    bumped = rc.Measurements(q=data.q, positions=moved, marker_names=data.marker_names, joint_names=data.joint_names)
+    for d in (data, bumped):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            result = rc.calibrate(m, d)
+            again = diagnose(m, d, result)
+        inside = result.diagnosis
+        assert inside.rms == pytest.approx(again.rms, rel=1e-9)
+        assert [(f.cause, f.status) for f in inside.findings] == [(f.cause, f.status) for f in again.findings]
+        assert inside.refitted == again.refitted
+    assert result.diagnosis.findings        # the tool's move is named
