@@ -670,8 +670,8 @@ def test_contact_result_with_a_non_finite_deviation_is_not_written(tmp_path, cli
     real = face.run
 
     def nan_std(*a, **k):
-        res = real(*a, **k)
-        return replace(res, parameters=(replace(res.parameters[0], std=float("nan")),) + res.parameters[1:])
+        res, fitted = real(*a, **k)        # the record, and the fit the diagnosis takes up
+        return replace(res, parameters=(replace(res.parameters[0], std=float("nan")),) + res.parameters[1:]), fitted
 
     monkeypatch.setattr(face, "run", nan_std)
     (tmp_path / "c.csv").write_text(_contacts())
