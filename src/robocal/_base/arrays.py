@@ -75,7 +75,8 @@ def _frozen_value(v):
     if isinstance(v, Mapping):
         return frozen_mapping(v)
     if isinstance(v, (list, tuple)):
-        return tuple(map(_frozen_value, v))
+        # strings alone (a campaign's pose labels, up to millions) are immutable already
+        return tuple(v) if set(map(type, v)) <= {str} else tuple(map(_frozen_value, v))
     if isinstance(v, np.ndarray):
         return frozen(v, v.dtype)
     return v
