@@ -16,8 +16,8 @@ from typing import cast
 import numpy as np
 
 from .._identification.holdout import ordered
+from .._identification.points import Points
 from .._identification.problem import Problem
-from .._model.kinematics import evaluate
 from .._model.measurements import Measurements
 from .._model.parameters import candidate_parameters, parameter_layout, parameter_vector
 from .._model.robot import Marker, Payload
@@ -350,13 +350,19 @@ def unlagged(q: np.ndarray, lag: float, steps: int = 4) -> np.ndarray:
 # -- a marker elsewhere on some rows, labels swapped on some rows -----------------------------------------
 
 def _marker_frame_residuals(ref: Reference) -> np.ndarray:
-    """(n_poses, n_markers, 3) the calibration's residuals (calibrated minus measured) in each marker's
-    own frame on the robot."""
+    """(n_poses, n_markers, 3) the calibration's residuals (calibrated minus measured) in the frame each
+    marker is fixed to (0 where not measured): its position rows' columns for its own position are
+    that frame's axes in W (weighted as the rows are), so no evaluation more is needed."""
     def make():
-        ev = evaluate(ref.start, ref.data.q, orientations=True, payload_mass=ref.data.payload_mass)
-        idx = [ref.start.marker_names.index(n) for n in ref.data.marker_names]
-        R = ev.rotations[:, idx]
-        return np.einsum("nmji,nmj->nmi", R, ref.errors)
+        poses, metres = row_layout(ref)
+        markers = cast(Points, ref.problem.points).row_points()[1]
+        out = np.zeros(ref.errors.shape)
+        for m, name in enumerate(ref.data.marker_names):
+            rows = np.nonzero((markers == m) & np.isfinite(metres))[0]      # x, y, z of each pose in turn
+            axes = (_marker_columns(ref, name)[rows] * metres[rows, None]).reshape(-1, 3, 3)
+            at = poses[rows[::3]]
+            out[at, m] = np.einsum("nji,nj->ni", axes, ref.errors[at, m])
+        return out
 
     return ref.cached("marker_frame_residuals", make)
 
