@@ -66,6 +66,7 @@ def run(model: RobotModel, data: Measurements | None, contacts: Contacts | None,
     record, and the fit chosen (its problem and solution, which the diagnosis takes up)."""
     inputs = prepare(model, data, contacts, validation, options, rigid_base)
     analysis = analyse(inputs, options)
+    checked = input_checks(inputs, analysis)      # at the start, while its evaluation is at hand
     holdout = holdout_of(analysis.problem, options.folds)
     folds = FoldProblems(holdout)
     chosen, choice_notes = choose(analysis, options, holdout, folds)
@@ -78,7 +79,7 @@ def run(model: RobotModel, data: Measurements | None, contacts: Contacts | None,
     cover = campaign_coverage(chosen, cov, where)
     use, limit = use_checks(in_use_record, cover, options, point_misfit(chosen, options), where)
     better = placed_better(in_use_record, where, chosen.problem, inputs.validation)
-    checks = (input_checks(inputs, analysis) + list(chosen.outliers.checks)
+    checks = (checked + list(chosen.outliers.checks)
               + fit_checks(chosen, options, in_use_record, better)
               + result_checks(chosen, cov, found, where, better, observed_markers(inputs.data, inputs.contacts))
               + alone_check(chosen) + use)

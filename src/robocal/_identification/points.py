@@ -68,11 +68,13 @@ class Points:
     their lost motion when the model has backlash or ``free`` holds some, on the sides of the
     model's ``backlash_side`` (the approach directions from ``approach_of(data)``). ``chunked``:
     evaluate ``CHUNK_POSES`` poses at a time and solve on normal equations (default: point data of
-    over ``LARGE_POSES`` poses; data with orientations or lost motion are evaluated whole).
+    over ``LARGE_POSES`` poses; data with orientations or lost motion are evaluated whole); such a
+    problem keeps the marker positions of its last ``kept_positions`` vectors (none for one
+    evaluated once at each, as a fold held out is).
     """
 
     def __init__(self, model: RobotModel, data: Measurements, free: tuple[str, ...], *, compliance: bool,
-                 noise: Noise | None = None, chunked: bool | None = None):
+                 noise: Noise | None = None, chunked: bool | None = None, kept_positions: int = POSITIONS_KEPT):
         self.model = model
         self.data = data
         self.noise = noise
@@ -94,7 +96,7 @@ class Points:
         if self.use_rot and data.rot_mask is not None:
             self.sel_r, self.w_r = _measured_rows(data.rot_mask, data.sigma_rot,
                                                   noise.rotation if noise is not None else 1.0)
-        self._kept = _Kept(workspace(model))    # shared with the problems ``over`` makes: the same poses
+        self._kept = _Kept(workspace(model), kept_positions)    # shared with the problems ``over`` makes
         if chunked is None:
             chunked = data.n_poses > LARGE_POSES
         # orientations and lost motion are evaluated whole
@@ -126,7 +128,8 @@ class Points:
     def _chunk_sums(self, p, factor) -> tuple[np.ndarray, np.ndarray, float]:
         """The Gram matrix of the weighted Jacobian (with ``factor``, its R factor of the chunks
         stacked in turn), its gradient and sum of squares at ``p``, chunk by chunk; taken from the
-        last R factor made (the analysis' of more columns at the start) when it was made at ``p``."""
+        last R factor made (the analysis' of more columns at the start) when it was made at ``p``.
+        The marker positions the chunks evaluated are kept with those of other vectors."""
         key, free = frozen(p).tobytes(), tuple(self.free_idx.tolist())
         made = self._kept.sums
         if made is not None and made[0] == key and set(free) <= set(made[1]):
@@ -135,11 +138,14 @@ class Points:
             return (factor(R) if factor else R.T @ R), made[3][cols], made[4]
         k = len(free)
         G, g, cost = np.zeros((0 if factor else k, k)), np.zeros(k), 0.0
+        positions = []
         for sub in self._chunks():
             J, r = sub.jacobian(p), sub.residuals(p)
             G = factor(np.vstack([G, J])) if factor else G + J.T @ J
             g += J.T @ r
             cost += float(r @ r)
+            positions.append(sub._positions(p).copy())
+        self._keep_positions(key, read_only(np.concatenate(positions, axis=1)))
         if factor:
             self._kept.sums = (key, free, read_only(G), read_only(g), cost)
         return G, g, cost
@@ -240,19 +246,25 @@ class Points:
 
     def _positions(self, p) -> np.ndarray:
         """(n_model_markers, n_poses, 3) marker positions at ``p``; a campaign evaluated in chunks
-        keeps those of its last ``POSITIONS_KEPT`` vectors (the checks ask for the solution's often)."""
+        keeps those of its last ``kept_positions`` vectors (the checks ask for the solution's often)."""
         if not self.chunked:
             return self._state(p).ps.P
         key = frozen(p).tobytes()
-        kept = self._kept.positions
-        P = kept.pop(key, None)
+        P = self._kept.positions.get(key)
         if P is None:
             # copies: a chunk's positions are a view that would keep its whole evaluation alive
             P = read_only(np.concatenate([sub._positions(p).copy() for sub in self._chunks()], axis=1))
-            if len(kept) >= POSITIONS_KEPT:
-                kept.pop(next(iter(kept)))
-        kept[key] = P
+        self._keep_positions(key, P)
         return P
+
+    def _keep_positions(self, key: bytes, P: np.ndarray) -> None:
+        """Keep ``P``, the marker positions at the vector whose bytes are ``key``, as the newest."""
+        kept = self._kept.positions
+        kept.pop(key, None)
+        while kept and len(kept) >= self._kept.n_positions:
+            kept.pop(next(iter(kept)))
+        if self._kept.n_positions:
+            kept[key] = P
 
     def predicted(self, p):
         """Marker positions (n_poses, n_data_markers, 3) and orientations (or None) at ``p``."""
@@ -365,8 +377,9 @@ class _Kept:
     it goes too), and all go back when the last of these problems goes. Nothing else holds them:
     what the problem hands out is computed or copied from them, never a view."""
 
-    def __init__(self, ws: Workspace):
+    def __init__(self, ws: Workspace, n_positions: int = POSITIONS_KEPT):
         self.workspace = ws
+        self.n_positions = n_positions
         self.states: dict = {}     # the bytes of the parameters' read-only copy -> the evaluation there
         self.read: list = []       # dropped evaluations a kept one was moved from
         self.positions: dict = {}  # the same bytes -> marker positions, for a campaign evaluated in chunks
