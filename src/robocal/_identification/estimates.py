@@ -114,18 +114,24 @@ def effect_text(v: float, quantity: str) -> str:
     return f"{np.degrees(v):.3g} deg" + (" of deflection" if quantity == "compliance" else "")
 
 
-def workspace_change(start: RobotModel, p: np.ndarray, q: np.ndarray, markers, free) -> WorkspaceChange:
+def workspace_change(start: RobotModel, p: np.ndarray, q: np.ndarray, markers, free, at: Points | None = None
+                     ) -> WorkspaceChange:
     """How far the geometry of the vector ``p`` (the layout of ``start``) moves the ``markers`` from
     where ``start``'s puts them at readings ``q``, once the nominal's base and the ``free`` markers'
     parameters are registered onto it: the change of what the robot does, whatever the
     parametrisation (equivalent ones move nothing). Compliance and backlash are left out: their
-    own tolerances judge them."""
+    own tolerances judge them. ``at``: a problem of ``start`` at ``q`` already evaluated at ``p``,
+    whose predictions are taken when they are the geometry's alone."""
     lay = parameter_layout(start)
     p0 = parameter_vector(start)
     geometry = np.array([lay[n].family not in ("compliance", "backlash") for n in lay.names])
     p_geom = np.where(geometry, p, p0)
-    target = Points(start, design_measurements(start, q, markers=markers), (),
-                    compliance=start.has_compliance).predicted(p_geom)[0]
+    if (at is not None and at.compliance == start.has_compliance and np.array_equal(p_geom, p)
+            and set(markers) <= set(at.data.marker_names)):
+        target = at.predicted(p)[0][:, [at.data.marker_names.index(n) for n in markers]]
+    else:
+        target = Points(start, design_measurements(start, q, markers=markers), (),
+                        compliance=start.has_compliance).predicted(p_geom)[0]
     tol = tolerances(start)
     t_len, t_ang = tol.get(("frames", "length")), tol.get(("frames", "angle"))
     radius = float(np.max(np.linalg.norm(target - np.asarray(start.base_position, dtype=float), axis=2)))

@@ -146,10 +146,11 @@ def ordered(q: np.ndarray) -> bool:
 
 
 def _sub_problem(problem: Points, index: np.ndarray) -> Points:
-    """The measured points of the poses ``index`` of ``problem``'s data, over the same free parameters."""
+    """The measured points of the poses ``index`` of ``problem``'s data, over the same free parameters
+    (each model held out is evaluated once: no positions kept)."""
     data = problem.data.with_approach() if problem.backlash else problem.data
     return Points(problem.model, data.subset(index), free_names(problem), compliance=problem.compliance,
-                  noise=problem.noise)
+                  noise=problem.noise, kept_positions=0)
 
 
 def free_names(problem: Points) -> tuple[str, ...]:
@@ -574,17 +575,17 @@ def _spread(points: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum((p - p.mean(axis=0)) ** 2, axis=1)))) if len(p) > 1 else 0.0
 
 
-def _uncertainty(problem: Points, p: np.ndarray, q: np.ndarray, covariance: np.ndarray) -> float:
-    """RMS over the readings ``q`` of the position uncertainty (norm of one standard deviation) of
-    every marker the data measure, from the free parameters' covariance."""
-    design = _design_like(problem, q)
-    blocks = design.pose_blocks(p)[:, :, :]             # (n, rows, n_free), unweighted
-    pos = blocks.reshape(len(q), -1, 3 if not design.use_rot else 6, blocks.shape[-1])[:, :, :3]
+def _uncertainty(design: Points, p: np.ndarray, covariance: np.ndarray, n: int | None = None) -> float:
+    """RMS over the readings of ``design`` (``design_like``; its first ``n``) of the position
+    uncertainty (norm of one standard deviation) of every marker the data measure, from the free
+    parameters' covariance."""
+    blocks = design.pose_blocks(p)[:n]             # (n, rows, n_free), unweighted
+    pos = blocks.reshape(len(blocks), -1, 3 if not design.use_rot else 6, blocks.shape[-1])[:, :, :3]
     var = np.einsum("nmak,kl,nmal->nm", pos, covariance, pos)
     return float(np.sqrt(np.mean(np.maximum(var, 0.0))))
 
 
-def _design_like(problem: Points, q: np.ndarray) -> Points:
+def design_like(problem: Points, q: np.ndarray) -> Points:
     """A problem at readings ``q`` with the markers, free parameters and model of ``problem``."""
     data = problem.data
     n, m = len(q), len(data.marker_names)
@@ -623,11 +624,13 @@ def workspace_readings(model, n: int = WORKSPACE_POSES, q: np.ndarray | None = N
 
 
 def coverage(problem: Points, p: np.ndarray, covariance: np.ndarray, predicted_workspace: np.ndarray, *,
-             factor: np.ndarray | None = None) -> Coverage:
+             factor: np.ndarray | None = None, workspace: Points | None = None) -> Coverage:
     """The campaign of ``problem`` against the workspace (``Coverage``); ``predicted_workspace``
     (n, n_markers, 3) the markers at random configurations (``workspace_readings``); ``factor``: an
     R factor of the problem's (unweighted) Jacobian at ``p``, when at hand: the uncertainty at the
-    measured poses is then its mean over all of them, trace(C R^T R) / n, without a Jacobian more."""
+    measured poses is then its mean over all of them, trace(C R^T R) / n, without a Jacobian more;
+    ``workspace``: the problem at those configurations (``design_like``), when at hand: the
+    uncertainty there is carried to its first ``UNCERTAINTY_POSES`` (the same readings drawn)."""
     data = problem.data
     q = data.q
     lo, hi = use_box(problem.model, q)
@@ -645,8 +648,10 @@ def coverage(problem: Points, p: np.ndarray, covariance: np.ndarray, predicted_w
                                     / max(int(data.mask.sum()), 1)))
     else:
         pick = np.linspace(0, data.n_poses - 1, min(data.n_poses, UNCERTAINTY_POSES)).astype(int)
-        at_measured = _uncertainty(problem, p, q[pick], covariance)
-    at_workspace = _uncertainty(problem, p, workspace_readings(problem.model, UNCERTAINTY_POSES, q), covariance)
+        at_measured = _uncertainty(design_like(problem, q[pick]), p, covariance)
+    if workspace is None:
+        workspace = design_like(problem, workspace_readings(problem.model, UNCERTAINTY_POSES, q))
+    at_workspace = _uncertainty(workspace, p, covariance, UNCERTAINTY_POSES)
     return Coverage(joint_span=np.minimum(span, 1.0), joint_ranges=tuple((float(a), float(b)) for a, b in
                                                                        zip(q.min(axis=0), q.max(axis=0))),
                     box=box, spread_ratio=float(ratio), uncertainty_measured=at_measured,

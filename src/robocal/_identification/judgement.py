@@ -52,6 +52,7 @@ from .holdout import (
     contact_held_out,
     coverage,
     cross_validate,
+    design_like,
     evaluated,
     use_stats,
     workspace_readings,
@@ -228,23 +229,30 @@ def _validation_contacts(fit: Fit, before: np.ndarray, contacts) -> AccuracyInUs
 class Reach:
     """The calibrated model against the nominal one over the workspace: ``predicted`` (n, n_markers,
     3) the calibrated measured markers at random configurations within the limits (None without
-    measured points), and the judgement of the change (``WorkspaceChange``)."""
+    measured points), the judgement of the change (``WorkspaceChange``), and the problem at those
+    configurations over the fit's parameters (``design_like``; None unless measured points alone,
+    without lost motion), which the coverage carries the parameters' uncertainty to."""
 
     predicted: np.ndarray | None
     judgement: WorkspaceChange | None
+    at: Points | None = None
 
 
 def reach(inputs: Inputs, design: Design, p: np.ndarray) -> Reach:
     """The calibrated markers at the workspace's configurations, and how far the calibrated geometry
-    moves the observed markers from the nominal one's (``workspace_change``)."""
+    moves the observed markers from the nominal one's (``workspace_change``): one evaluation there."""
     start, n = design.start, design.problem.n_robot
     q = workspace_readings(start, q=np.vstack([d.q for d in (inputs.data, inputs.contacts) if d is not None]))
-    predicted = None
-    if inputs.data is not None:
+    predicted = at = None
+    pts = design.problem.points
+    if inputs.data is not None and inputs.contacts is None and pts is not None and not pts.backlash:
+        at = design_like(pts, q)
+        predicted = at.predicted(p[:n])[0]
+    elif inputs.data is not None:
         at_q = design_measurements(start, q, markers=inputs.data.marker_names)
         predicted = Points(start, at_q, (), compliance=design.compliance).predicted(p[:n])[0]
     seen = observed_markers(inputs.data, inputs.contacts)
-    return Reach(predicted, workspace_change(start, p[:n], q, seen, design.identifiability.identified))
+    return Reach(predicted, workspace_change(start, p[:n], q, seen, design.identifiability.identified, at=at), at)
 
 
 def campaign_coverage(fit: Fit, cov: Covariance, where: Reach) -> Coverage | None:
@@ -256,7 +264,7 @@ def campaign_coverage(fit: Fit, cov: Covariance, where: Reach) -> Coverage | Non
     square = problem.contacts is None and solution.jacobian.shape[0] == solution.jacobian.shape[1] and \
         solution.row_kinds is None
     return coverage(problem.points, solution.p[:problem.n_robot], cov.covariance[:k, :k], where.predicted,
-                    factor=solution.jacobian if square else None)
+                    factor=solution.jacobian if square else None, workspace=where.at)
 
 
 # -- the checks ------------------------------------------------------------------------------------
