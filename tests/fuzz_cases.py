@@ -1205,9 +1205,19 @@ def non_finite(folder: Path, before: set[str]) -> str | None:
                 return p.name
             if _json_nulls(d):
                 return p.name
-        elif _NON_FINITE.search(text):
+        elif _NON_FINITE.search(_outside_labels(p, text)):
             return p.name
     return None
+
+
+def _outside_labels(path: Path, text: str) -> str:
+    """The text of an output where numbers may stand: a CSV whose first column names its poses
+    loses that column (a pose the user named '-inf' keeps its name, and is no number)."""
+    if path.suffix != ".csv" or not text.lower().startswith("pose,"):
+        return text
+    import csv
+
+    return "\n".join(",".join(row[1:]) for row in csv.reader(text.splitlines()))
 
 
 def _json_nulls(d) -> bool:
