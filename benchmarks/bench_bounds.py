@@ -2,7 +2,8 @@
 beyond it, run as the command a user runs, each in its own process.
 
     python benchmarks/bench_bounds.py                          # this tree
-    python benchmarks/bench_bounds.py --baseline /work/base    # and a checkout to compare, same run
+    git worktree add ../robocal-32a3abb 32a3abb
+    python benchmarks/bench_bounds.py --baseline ../robocal-32a3abb   # and a checkout to compare, same run
 
 Each case's CPU time (user + system) and peak memory (maximum resident set) from /usr/bin/time;
 wall time only says how busy the machine was. A case still running after ``--timeout`` seconds is
