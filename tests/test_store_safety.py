@@ -7,6 +7,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import os
+import select
 import sqlite3
 import subprocess
 import sys
@@ -288,15 +289,22 @@ def test_a_record_waiting_for_another_writer_says_so(campaign, tmp_path):
     proc = subprocess.Popen([sys.executable, "-m", "robocal", "record", str(campaign / "result.json"), "--robot",
                              "R", "--store", str(store)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env=env)
+    said: list[str] = []
     try:
-        time.sleep(4.0)
+        # the notice comes once the command reaches the store (its start-up may take seconds on a busy machine)
+        deadline = time.monotonic() + 120.0
+        while not any("another process is writing the store; waiting" in line for line in said):
+            assert proc.poll() is None and time.monotonic() < deadline, "".join(said)
+            if select.select([proc.stderr], [], [], 0.5)[0]:
+                said.append(proc.stderr.readline())
+        time.sleep(1.0)
         assert proc.poll() is None      # still waiting
     finally:
         holder.execute("ROLLBACK")
         holder.close()
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 0 and "recorded calibration #1" in out, err
-    assert "another process is writing the store; waiting" in err and str(store) in err
+    assert str(store) in "".join(said)
 
 
 def test_the_store_reads_its_records_back_after_these_checks(campaign, tmp_path):
