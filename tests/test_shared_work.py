@@ -77,3 +77,63 @@ def test_the_diagnosis_inside_a_calibration_is_the_one_from_scratch():
         assert [(f.cause, f.status) for f in inside.findings] == [(f.cause, f.status) for f in again.findings]
         assert inside.refitted == again.refitted
     assert result.diagnosis.findings        # the tool's move is named
+
+
+# -- the diagnosis screen: the calibration's own columns and every split's sums at once ----------------------------
+
+def _reference_of(m, data):
+    """The diagnosis' reference as ``calibrate`` makes it (on its own fit's residuals and Jacobian)."""
+    from robocal._diagnosis import calibrate as face
+    from robocal._diagnosis.reference import reference
+
+    taken = {}
+    screened = face.screened
+
+    def keep(model, d, contacts, result, fitted, options):
+        taken["ref"] = reference(model, d, result, options.noise, options.limit_m, options.folds, fitted)
+        return screened(model, d, contacts, result, fitted, options)
+
+    face.screened = keep
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            rc.calibrate(m, data)
+    finally:
+        face.screened = screened
+    return taken["ref"]
+
+
+def test_a_split_from_the_sums_over_every_pose_is_the_least_squares_fit_letting_the_columns_change_there():
+    """The best split along the rows and what it takes away, from the gradient and Gram matrices summed
+    over the poses after each split (one batched product), against the least-squares fit of the
+    calibration's columns with some of them (the base's, the tool's position) let change again from
+    each split on, solved directly for every split: the same row (for the base, where the instrument
+    was bumped), the same sum of squares."""
+    from robocal._diagnosis.campaign import marker_columns, split_gain
+
+    m, data = _campaign()
+    bumped = data.positions.copy()
+    bumped[170:] += np.array([0.0005, -0.0003, 0.0002])
+    ref = _reference_of(m, rc.Measurements(q=data.q, positions=bumped, marker_names=data.marker_names,
+                                           joint_names=data.joint_names))
+    pose = np.repeat(np.arange(data.n_poses), 3)
+    before = np.linalg.lstsq(ref.J, ref.r, rcond=None)[1][0]
+    rows = np.arange(15, data.n_poses - 15 + 1)
+    base = ref.J[:, [i for i, n in enumerate(ref.names) if n.startswith("base.")]]
+    for Z, true_row in ((base, 170), (marker_columns(ref, "tool"), None)):
+        row, gain = split_gain(ref, Z, 15)
+        direct = np.array([before - np.linalg.lstsq(np.hstack([ref.J, Z * (pose >= s)[:, None]]), ref.r,
+                                                    rcond=None)[1][0] for s in rows])
+        assert row == rows[np.argmax(direct)] == (true_row or row)
+        assert gain == pytest.approx(direct[row - 15], rel=1e-6)
+
+
+def test_the_markers_columns_the_diagnosis_takes_from_the_calibration_are_those_evaluated_at_its_solution():
+    """A marker's columns in the calibration's Jacobian (taken a solver's tolerance from its solution)
+    against the columns of its position evaluated at the solution."""
+    from robocal._diagnosis.campaign import marker_columns
+
+    m, data = _campaign()
+    ref = _reference_of(m, data)
+    evaluated = np.array(ref.problem.over(("tool.x", "tool.y", "tool.z")).jacobian(ref.p))
+    assert np.max(np.abs(marker_columns(ref, "tool") - evaluated)) <= 1e-6 * np.max(np.abs(evaluated))

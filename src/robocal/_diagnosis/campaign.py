@@ -21,7 +21,17 @@ from .._identification.problem import Problem
 from .._model.measurements import Measurements
 from .._model.parameters import candidate_parameters, parameter_layout, parameter_vector
 from .._model.robot import Marker, Payload
-from .reference import Candidate, Linear, Reference, Repair, mm, projected_gain, row_layout, with_arrays
+from .reference import (
+    SURVIVE_FACTOR,
+    Candidate,
+    Linear,
+    Reference,
+    Repair,
+    mm,
+    projected_gain,
+    row_layout,
+    with_arrays,
+)
 from .rigid import gross, moments, registered, rigid_misfit
 
 # row shifts tried (rows from a row on hold the point of the pose this many rows later)
@@ -208,7 +218,7 @@ def _row_pose(ref: Reference) -> np.ndarray:
     return row_layout(ref)[0]
 
 
-def _split_gains(ref: Reference, Z: np.ndarray, edge: int) -> tuple[int, float]:
+def split_gain(ref: Reference, Z: np.ndarray, edge: int) -> tuple[int, float]:
     """The pose from which letting parameters with the columns ``Z`` (n_rows, g) change lowers the sum
     of squares most, and by how much (one Gauss-Newton step, from the gradient and Gram matrices
     summed over the poses after each split): first on a coarse grid of ``SPLITS`` rows, then row by
@@ -216,50 +226,60 @@ def _split_gains(ref: Reference, Z: np.ndarray, edge: int) -> tuple[int, float]:
     n = ref.data.n_poses
     if n - 2 * edge < 0:
         return n // 2, 0.0
-    order = ref.cached("rows_by_pose", lambda: np.argsort(_row_pose(ref), kind="stable"))
-    first = np.searchsorted(_row_pose(ref)[order], np.arange(n + 1))      # each pose's first row in ``order``
-    Zo, Jo, ro = Z[order], ref.J[order], ref.r[order]
-    inverse = ref.cached("gram_inverse", lambda: np.linalg.pinv(ref.J.T @ ref.J, hermitian=True))
-
-    def suffix(bounds):   # the sums over the poses from each bound on (bounds ascending, the last n)
-        blocks = [_sums(Zo[first[a]:first[b]], Jo[first[a]:first[b]], ro[first[a]:first[b]])
-                  for a, b in zip(bounds[:-1], bounds[1:])]
-        return [np.cumsum(np.array(x)[::-1], axis=0)[::-1] for x in zip(*blocks)]
-
+    order, first, rJ = _by_pose(ref)
+    X = np.hstack([rJ, np.vstack([Z[order], np.zeros((1, Z.shape[1]))])])
+    inverse = ref.gram_inverse
     coarse = np.unique(np.linspace(edge, n - edge, min(SPLITS, n - 2 * edge + 1)).round().astype(int))
-    sums = suffix(np.r_[coarse, n])
-    k = _best_split(sums, inverse)
-    row, gain = int(coarse[k]), _gain(sums, inverse, k)
+    gains = _split_solutions(_suffix_sums(X, Z.shape[1], first, coarse), inverse)
+    k = int(np.argmax(gains))
+    row, gain = int(coarse[k]), float(max(gains[k], 0.0))
     step = int(coarse[1] - coarse[0]) if len(coarse) > 1 else 1
     if step > 1:                      # the rows about it, each
         near = np.arange(max(edge, row - step), min(n - edge, row + step) + 1)
-        sums = suffix(np.r_[near, n])
-        k = _best_split(sums, inverse)
-        row, gain = int(near[k]), _gain(sums, inverse, k)
+        gains = _split_solutions(_suffix_sums(X, Z.shape[1], first, near), inverse)
+        k = int(np.argmax(gains))
+        row, gain = int(near[k]), float(max(gains[k], 0.0))
     return row, gain
 
 
-def _sums(Z: np.ndarray, J: np.ndarray, r: np.ndarray) -> tuple:
-    """Over some residual rows: the gradient ``Z^T r`` and the Gram matrices ``Z^T J`` and ``Z^T Z``."""
-    return Z.T @ r, Z.T @ J, Z.T @ Z
+def _by_pose(ref: Reference) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The reference's rows ordered by pose (stably), each pose's first row in that order (n_poses + 1
+    bounds), and the residuals and the Jacobian side by side in that order, a zero row last."""
+    def make():
+        pose = _row_pose(ref)
+        order = np.argsort(pose, kind="stable")
+        first = np.searchsorted(pose[order], np.arange(ref.data.n_poses + 1))
+        rJ = np.zeros((len(order) + 1, 1 + ref.J.shape[1]))
+        rJ[:-1, 0], rJ[:-1, 1:] = ref.r[order], ref.J[order]
+        return order, first, rJ
+
+    return ref.cached("rows_by_pose", make)
 
 
-def _split_solutions(sums: list, inverse: np.ndarray) -> np.ndarray:
-    """The sum of squares each split's Gauss-Newton step takes away (``sums``: gradients, ``Z^T J``, ``Z^T Z``
-    over the poses after each split)."""
-    g, HG, ZZ = sums
+def _suffix_sums(X: np.ndarray, g: int, first: np.ndarray, bounds: np.ndarray) -> np.ndarray:
+    """(len(bounds), g, w): ``Z^T X`` over the rows of the poses from each of ``bounds`` (ascending) on,
+    where ``X`` (n_rows + 1, w) holds the rows by pose and a zero row last, ``Z`` its last ``g``
+    columns: the sums between consecutive bounds in one batched product (each block padded with the
+    zero row to the longest), the rows from the last bound on in one more, summed from the end."""
+    start = first[bounds]
+    size = np.diff(start)
+    width = int(size.max()) if len(size) else 0
+    at = start[:-1, None] + np.arange(width)
+    blocks = X[np.where(np.arange(width) < size[:, None], at, len(X) - 1)]
+    tail = X[start[-1]:]
+    sums = np.concatenate([np.swapaxes(blocks[..., -g:], 1, 2) @ blocks, (tail[:, -g:].T @ tail)[None]])
+    return np.cumsum(sums[::-1], axis=0)[::-1]
+
+
+def _split_solutions(sums: np.ndarray, inverse: np.ndarray) -> np.ndarray:
+    """The sum of squares each split's Gauss-Newton step takes away (``sums``: ``Z^T [r, J, Z]`` over the
+    poses after each split, ``_suffix_sums``)."""
+    p = len(inverse)
+    g, HG, ZZ = sums[..., 0], sums[..., 1:1 + p], sums[..., 1 + p:]
     M = ZZ - HG @ inverse @ np.swapaxes(HG, 1, 2)
     ridge = (1e-10 * np.trace(M, axis1=1, axis2=2)[:, None, None] + 1e-300) * np.eye(M.shape[-1])
     sol = np.linalg.solve(M + ridge, g[..., None])[..., 0]
     return np.einsum("si,si->s", g, sol)
-
-
-def _best_split(sums: list, inverse: np.ndarray) -> int:
-    return int(np.argmax(_split_solutions(sums, inverse)))
-
-
-def _gain(sums: list, inverse: np.ndarray, k: int) -> float:
-    return float(max(_split_solutions([x[k:k + 1] for x in sums], inverse)[0], 0.0))
 
 
 def _determined(ref: Reference, freedom: int) -> bool:
@@ -280,7 +300,7 @@ def step_change(ref: Reference) -> list[Candidate]:
         side = max(edge, Z.shape[1] // 3 + 2)      # each side holds more rows than the group has parameters
         if n - 2 * side < 1 or not _determined(ref, Z.shape[1]):
             continue
-        row, gain = _split_gains(ref, Z, side)
+        row, gain = split_gain(ref, Z, side)
         freedom = Z.shape[1] + np.log2(max(n, 2))
         label = _label(ref, row)
         after = (_row_pose(ref) >= row)[:, None]
@@ -320,7 +340,7 @@ def readings_lag(ref: Reference) -> list[Candidate]:
     from .joints import joint_columns
 
     q = ref.data.q
-    if ref.data.n_poses < 8 or not ordered(q):
+    if ref.data.n_poses < 8:
         return []
     dq = np.gradient(q, axis=0)
     C = joint_columns(ref)                                    # (n_rows, n_joints) per unit reading change
@@ -328,7 +348,10 @@ def readings_lag(ref: Reference) -> list[Candidate]:
     gain = projected_gain(ref, Z)
     Zp = ref.project(Z)[:, 0]
     lag = float(-(Zp @ ref.settled) / max(float(Zp @ Zp), 1e-300))
-    if not np.isfinite(lag) or abs(lag) > max(SHIFTS) or lag == 0.0:
+    # a candidate predicted below the screen's bar is never refitted: whether the poses lie along a
+    # path then changes nothing
+    if (not np.isfinite(lag) or abs(lag) > max(SHIFTS) or lag == 0.0 or _predicted(ref, gain, 1.0) < SURVIVE_FACTOR
+            or not ordered(q)):
         return []
     return [Candidate("readings lag", f"the joint readings {'lag' if lag > 0 else 'lead'} the measurements by about "
                       f"{abs(lag):.2g} of a row: each pose's readings are those of another moment along the path",
@@ -359,7 +382,7 @@ def _marker_frame_residuals(ref: Reference) -> np.ndarray:
         out = np.zeros(ref.errors.shape)
         for m, name in enumerate(ref.data.marker_names):
             rows = np.nonzero((markers == m) & np.isfinite(metres))[0]      # x, y, z of each pose in turn
-            axes = (_marker_columns(ref, name)[rows] * metres[rows, None]).reshape(-1, 3, 3)
+            axes = (marker_columns(ref, name)[rows] * metres[rows, None]).reshape(-1, 3, 3)
             at = poses[rows[::3]]
             out[at, m] = np.einsum("nji,nj->ni", axes, ref.errors[at, m])
         return out
@@ -420,9 +443,12 @@ def _with_marker_on(ref: Reference, m: int, rows: np.ndarray) -> Repair:
                   names=ref.refit_names + tuple(f"{other}.{k}" for k in own if f"{other}.{k}" in lay.names))
 
 
-def _marker_columns(ref: Reference, name: str) -> np.ndarray:
-    """(n_rows, 3) the reference's residual rows per unit move of marker ``name`` on the robot."""
+def marker_columns(ref: Reference, name: str) -> np.ndarray:
+    """(n_rows, 3) the reference's residual rows per unit move of marker ``name`` on the robot: the
+    calibration's own columns when it fitted that position, else evaluated."""
     names = tuple(f"{name}.{k}" for k in ("x", "y", "z"))
+    if all(n in ref.names for n in names):
+        return ref.J[:, [ref.names.index(n) for n in names]]
     return np.array(ref.problem.over(names).jacobian(ref.p))
 
 
@@ -440,7 +466,7 @@ def marker_elsewhere(ref: Reference) -> list[Candidate]:
         seen = np.nonzero(ref.data.mask[:, m])[0]
         if len(seen) < 4 * MIN_ROWS or not any(n.startswith(f"{name}.") for n in ref.names):
             continue
-        row, gain_tail = _split_gains(ref, _marker_columns(ref, name), max(MIN_ROWS, int(EDGE_SHARE * n_all)))
+        row, gain_tail = split_gain(ref, marker_columns(ref, name), max(MIN_ROWS, int(EDGE_SHARE * n_all)))
         some, gain_some = _two_groups(E[seen, m])
         tail = _predicted(ref, gain_tail, 3.0 + np.log2(n_all))
         scattered = _predicted(ref, _metres_to_rows(ref, gain_some), 3.0 + len(some))

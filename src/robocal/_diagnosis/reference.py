@@ -154,14 +154,28 @@ class Reference:
 
     def project(self, Z: np.ndarray) -> np.ndarray:
         """``Z`` (n_rows, ...) less its part in the span of the calibration's columns ``J``."""
+        Js, inverse, _ = self.projector
+        return Z - Js @ (inverse @ (Js.T @ Z))
+
+    @property
+    def projector(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``J`` with unit columns, the pseudo-inverse of its Gram matrix, and the column norms."""
         def make():
             col = np.linalg.norm(self.J, axis=0)
             col[col == 0] = 1.0
             Js = self.J / col
-            return Js, np.linalg.pinv(Js.T @ Js, hermitian=True)
+            return Js, np.linalg.pinv(Js.T @ Js, hermitian=True), col
 
-        Js, inverse = self.cached("projector", make)
-        return Z - Js @ (inverse @ (Js.T @ Z))
+        return self.cached("projector", make)
+
+    @property
+    def gram_inverse(self) -> np.ndarray:
+        """The pseudo-inverse of ``J^T J`` (taken in unit-column scaling)."""
+        def make():
+            _, inverse, col = self.projector
+            return inverse / np.outer(col, col)
+
+        return self.cached("gram_inverse", make)
 
     @property
     def held_out(self) -> np.ndarray:

@@ -70,10 +70,12 @@ def gross(ref: Reference) -> bool:
     def make():
         if any(c.name == "outliers" and c.items for c in ref.result.checks):
             return True
+        if not ref.shows:
+            return False
         d = screen_data(ref)
         X = d.positions[d.mask]
         spread = float(np.sqrt(np.mean(np.sum((X - X.mean(0)) ** 2, axis=1)))) if len(X) else 0.0
-        return bool(ref.shows and np.sqrt(plain(ref)) > GROSS_SHARE * spread)
+        return bool(np.sqrt(plain(ref)) > GROSS_SHARE * spread)
 
     return ref.cached("gross", make)
 
