@@ -137,3 +137,77 @@ def test_the_markers_columns_the_diagnosis_takes_from_the_calibration_are_those_
     ref = _reference_of(m, data)
     evaluated = np.array(ref.problem.over(("tool.x", "tool.y", "tool.z")).jacobian(ref.p))
     assert np.max(np.abs(marker_columns(ref, "tool") - evaluated)) <= 1e-6 * np.max(np.abs(evaluated))
+
+
+# -- the evidence: cross-validation, accuracy in use, reach, coverage --------------------------------
+
+def _placed(m, names):
+    lay = rc.kinematics.parameter_layout(m)
+    return tuple(n for n in names if lay[n].family in ("base", "markers"))
+
+
+@pytest.mark.parametrize("masses", [False, True])
+def test_the_nominals_fold_models_moved_rigidly_are_the_ones_evaluated_from_scratch(masses):
+    """The nominal's fold models differ from it in the base and markers only: its held-out errors
+    are its one evaluation moved rigidly, and equal each fold model evaluated on its own poses (with
+    compliance evaluated at zero compliance too, and stated deviations weighing the loss)."""
+    from robocal._identification.holdout import cross_validate, evaluated, fold_steps, holdout_of
+
+    m = arm6r(markers=(("tool", (0.05, 0.02, 0.12)), ("side", (0.1, -0.05, 0.08))), masses=masses)
+    _, data = rc.simulate(m, 240, seed=3)
+    sigma = np.full(data.mask.shape, 2e-5) * (1 + np.arange(data.n_poses) % 3)[:, None]
+    data = rc.Measurements(q=data.q, positions=data.positions, marker_names=data.marker_names,
+                           joint_names=data.joint_names, sigma=sigma)
+    names = rc.identifiability(m, data).identified
+    placed = Problem(m, _placed(m, names), data=data, compliance=masses)
+    before = solve(placed, rc.parameter_vector(m)).p
+    assert placed.points.moved_positions(before, before + (np.arange(len(before)) == 0) * 1e-3) is not None
+    holdout = holdout_of(placed)
+    shared = cross_validate(placed, before, holdout)
+    steps = fold_steps(placed, before, holdout)
+    for g in range(holdout.point_folds):
+        index = np.nonzero(holdout.pose_labels == g)[0]
+        pg = before.copy()
+        pg[placed.free_idx] += steps[g]
+        alone = evaluated(Points(m, data.subset(index), _placed(m, names), compliance=masses), pg)
+        np.testing.assert_allclose(shared.positions[index], alone.positions, rtol=0, atol=1e-13)
+        np.testing.assert_allclose(shared.loss[index], alone.loss, rtol=1e-10)
+    assert np.isfinite(shared.positions).all() and shared.loss.min() > 0
+
+
+def test_a_chain_that_moves_is_not_moved_rigidly():
+    """Compliance at work, or a step of the chain, is evaluated again: no rigid move stands for it."""
+    m = arm6r(masses=True)
+    _, data = rc.simulate(m, 50, seed=1)
+    pts = Points(m, data, ("base.x",), compliance=True)
+    at = {n: i for i, n in enumerate(rc.parameter_names(m))}
+    p = rc.parameter_vector(m)
+    shifted = p.copy()
+    shifted[at["base.x"]] += 1e-3
+    assert pts.moved_positions(p, shifted) is not None
+    bent, bent_shifted = p.copy(), shifted.copy()
+    bent[at["j2.k_theta"]] = bent_shifted[at["j2.k_theta"]] = 1e-6
+    assert pts.moved_positions(bent, bent_shifted) is None
+    chain = p.copy()
+    chain[at["j2.alpha"]] += 1e-4
+    assert pts.moved_positions(p, chain) is None
+
+
+def test_the_uncertainty_over_the_workspace_is_the_covariance_carried_pose_by_pose():
+    """The coverage's uncertainty over the workspace (one matrix product over every row) is the
+    RMS over poses and markers of sqrt(trace(J C J^T)) taken one pose and marker at a time."""
+    from robocal._identification.holdout import coverage, design_like, workspace_readings
+
+    m = arm6r(markers=(("tool", (0.05, 0.02, 0.12)), ("side", (0.1, -0.05, 0.08))))
+    _, data = rc.simulate(m, 120, seed=4)
+    names = rc.identifiability(m, data).identified
+    pts = Points(m, data, names, compliance=False)
+    p = rc.parameter_vector(m)
+    A = np.random.default_rng(1).normal(size=(len(names), len(names)))
+    cov = 1e-8 * (A @ A.T + np.eye(len(names)))
+    at = design_like(pts, workspace_readings(m, 30, data.q))
+    cover = coverage(pts, p, cov, at.predicted(p)[0], workspace=at)
+    blocks = at.pose_blocks(p)
+    var = [np.trace(blocks[i, 3 * j:3 * j + 3] @ cov @ blocks[i, 3 * j:3 * j + 3].T)
+           for i in range(len(blocks)) for j in range(2)]
+    assert cover.uncertainty_workspace == pytest.approx(np.sqrt(np.mean(var)), rel=1e-12)

@@ -244,6 +244,17 @@ class Points:
         states[key] = st
         return st
 
+    def moved_positions(self, p, moved) -> np.ndarray | None:
+        """(n_model_markers, n_poses, 3) the marker positions at ``moved``, a vector that differs from
+        ``p`` in the base and markers only, as the evaluation at ``p`` moved rigidly (kept with the
+        others only when the chain is geometric there: no compliance at ``p``, no lost motion, no
+        chunks); None where that does not hold. A model refitted in its base and markers alone is
+        evaluated this way without a pass down the chain."""
+        if self.chunked or self.backlash or not moves_rigidly(self.lay, frozen(p), frozen(moved)) or (
+                self.compliance and np.any(np.asarray(p)[self.lay.compliant_params])):
+            return None
+        return moved_state(self._state(p), frozen(moved)).ps.P
+
     def _positions(self, p) -> np.ndarray:
         """(n_model_markers, n_poses, 3) marker positions at ``p``; a campaign evaluated in chunks
         keeps those of its last ``kept_positions`` vectors (the checks ask for the solution's often)."""
