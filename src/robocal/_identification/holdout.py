@@ -300,9 +300,11 @@ def fold_steps(problem: Problem, p: np.ndarray, holdout: Holdout, at: np.ndarray
     Ag, bg = np.zeros((k, n_free, n_free)), np.zeros((k, n_free))
     for J, r, obs in problem.pieces(p, at):
         f = holdout.groups[obs]
-        order = np.argsort(f, kind="stable")
-        bounds = np.searchsorted(f[order], np.arange(-1, k + 1))     # each group's rows in ``order``, -1 first
-        Jt, ro = np.asarray(J).T[:, order], r[order]
+        Jt, ro = np.asarray(J).T, r
+        if np.any(f[1:] < f[:-1]):              # rows of a group together (folds of consecutive poses are)
+            order = np.argsort(f, kind="stable")
+            f, Jt, ro = f[order], Jt[:, order], r[order]
+        bounds = np.searchsorted(f, np.arange(-1, k + 1))     # each group's rows, -1 first
         for g in range(-1, k):
             lo, hi = bounds[g + 1], bounds[g + 2]
             if hi == lo:
@@ -316,15 +318,14 @@ def fold_steps(problem: Problem, p: np.ndarray, holdout: Holdout, at: np.ndarray
                 bg[g] += grad
     col = np.sqrt(np.diag(A))
     col[col == 0] = 1.0
-    steps = []
-    for g in range(k):
-        M = (A - Ag[g]) / np.outer(col, col)
-        w, V = np.linalg.eigh(0.5 * (M + M.T))
-        keep = w > FOLD_RCOND * max(float(w.max()), 0.0)
-        v = (b - bg[g]) / col
-        x = V[:, keep] @ ((V[:, keep].T @ v) / w[keep])
-        steps.append(-x / col)
-    return steps
+    if k == 0:
+        return []
+    M = (A - Ag) / np.outer(col, col)
+    w, V = np.linalg.eigh(0.5 * (M + M.transpose(0, 2, 1)))         # every group's at once
+    keep = w > FOLD_RCOND * np.maximum(w.max(axis=1), 0.0)[:, None]
+    y = np.einsum("gij,gi->gj", V, (b - bg) / col)
+    x = np.einsum("gij,gj->gi", V, np.divide(y, w, out=np.zeros_like(y), where=keep))
+    return list(-x / col)
 
 
 class FoldProblems:

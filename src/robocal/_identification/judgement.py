@@ -366,9 +366,9 @@ def result_checks(fit: Fit, cov: Covariance, found: tuple[ParameterEstimate, ...
     corr = cov.correlation[:k, :k]
     loose = _loose(found, moments)
     unknown = tuple(m.name for m in design.start.markers if not m.rotation_known)
-    calibrated = model_from_vector(design.start, fit.solution.p[:fit.problem.n_robot])
     frames = [m.frame for m in design.start.markers if m.name in set(seen)]
-    apart = [markers_apart_check(design.start, calibrated, seen)] if len(set(frames)) < len(frames) else []
+    apart = [] if len(set(frames)) == len(frames) else [markers_apart_check(
+        design.start, model_from_vector(design.start, fit.solution.p[:fit.problem.n_robot]), seen)]
     return [plausibility_check(found, tolerances(design.start), deflections, workspace=where.judgement,
                                unknown_rotations=unknown, better=better),
             *apart,
