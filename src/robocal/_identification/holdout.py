@@ -232,10 +232,10 @@ def _moved_held_out(problem: Problem, pts: Points, p: np.ndarray, steps: list[np
             continue
         pg = p.copy()
         pg[problem.free_idx] += steps[g]
-        moved = pts.moved_positions(p[:n], pg[:n])
+        moved = pts.moved_positions(p[:n], pg[:n], index)
         if moved is None:
             return None
-        predicted[index] = moved[pts.marker_idx][:, index].transpose(1, 0, 2)
+        predicted[index] = moved
     errors = np.where(pts.data.mask[..., None], predicted - pts.data.positions, np.nan)
     return HeldOut(errors, None, point_loss(pts, p[:n], errors))
 
@@ -302,7 +302,8 @@ def fold_steps(problem: Problem, p: np.ndarray, holdout: Holdout, at: np.ndarray
         f = holdout.groups[obs]
         Jt, ro = np.asarray(J).T, r
         if np.any(f[1:] < f[:-1]):              # rows of a group together (folds of consecutive poses are)
-            order = np.argsort(f, kind="stable")
+            # a few labels: as 16-bit integers a stable sort is a radix sort (a fifth of the time)
+            order = np.argsort(f.astype(np.int16) if k < 2 ** 15 else f, kind="stable")
             f, Jt, ro = f[order], Jt[:, order], r[order]
         bounds = np.searchsorted(f, np.arange(-1, k + 1))     # each group's rows, -1 first
         for g in range(-1, k):

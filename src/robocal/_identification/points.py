@@ -27,7 +27,9 @@ from .._model.configurations import design_measurements
 from .._model.kinematics import (
     CHUNK_POSES,
     LARGE_POSES,
+    PLACEMENT_ROWS,
     Workspace,
+    base_rotation_of,
     evaluate_state,
     frame_approach,
     jacobian_columns,
@@ -244,16 +246,29 @@ class Points:
         states[key] = st
         return st
 
-    def moved_positions(self, p, moved) -> np.ndarray | None:
-        """(n_model_markers, n_poses, 3) the marker positions at ``moved``, a vector that differs from
-        ``p`` in the base and markers only, as the evaluation at ``p`` moved rigidly (kept with the
-        others only when the chain is geometric there: no compliance at ``p``, no lost motion, no
-        chunks); None where that does not hold. A model refitted in its base and markers alone is
-        evaluated this way without a pass down the chain."""
-        if self.chunked or self.backlash or not moves_rigidly(self.lay, frozen(p), frozen(moved)) or (
-                self.compliance and np.any(np.asarray(p)[self.lay.compliant_params])):
+    def moved_positions(self, p, moved, poses: np.ndarray) -> np.ndarray | None:
+        """(len(poses), n_data_markers, 3) the marker positions at ``moved``, a vector that differs
+        from ``p`` in the base and markers only, at the poses ``poses``: the frames of the evaluation
+        at ``p`` moved rigidly by the change of the base, the markers' offsets applied in their
+        frames. Exact when the chain is geometric at ``p`` (no compliance there, no lost motion, not
+        in chunks); None otherwise. A model refitted in its base and markers alone is evaluated this
+        way without a pass down the chain.
+        Reference: docs/method.md section 1: X_WB moves every frame rigidly; a marker is a point in its frame."""
+        p, moved = frozen(p), frozen(moved)
+        if self.chunked or self.backlash or not moves_rigidly(self.lay, p, moved) or (
+                self.compliance and np.any(p[self.lay.compliant_params])):
             return None
-        return moved_state(self._state(p), frozen(moved)).ps.P
+        ps = self._state(p).ps
+        Rb = base_rotation_of(self.model.base_rotation, *moved[3:6].tolist())[1]
+        dR = Rb @ ps.base_rotation.T
+        shift = moved[0:3] - dR @ ps.base_origin            # a point x goes to dR x + shift
+        out = np.empty((len(poses), len(self.marker_idx), 3))
+        for j, m in enumerate(self.marker_idx):
+            r0 = self.lay.frame_row[self.model.markers[m].frame]
+            x, y, z, o = ps.vec[r0:r0 + PLACEMENT_ROWS][:, :, poses]      # the marker's frame in W at p
+            v = moved[self.lay.marker0[m]:self.lay.marker0[m] + 3]
+            out[:, j] = (dR @ (v[0] * x + v[1] * y + v[2] * z + o)).T + shift
+        return out
 
     def _positions(self, p) -> np.ndarray:
         """(n_model_markers, n_poses, 3) marker positions at ``p``; a campaign evaluated in chunks
