@@ -30,6 +30,7 @@ from .reference import (
     mm,
     projected_gain,
     row_layout,
+    settled_gain,
     with_arrays,
 )
 from .rigid import gross, moments, registered, rigid_misfit
@@ -180,17 +181,21 @@ def _groups(ref: Reference) -> list[tuple]:
     drift may move: the base (the instrument against the robot), the load, the whole robot (only when
     the calibration shows a mistake, ``Reference.shows``: the costliest, and another robot partway
     leaves a misfit)."""
-    lay = parameter_layout(ref.start)
-    fam = np.array([lay[n].family for n in ref.names])
-    out: list[tuple] = []
-    if np.any(fam == "base"):
-        out.append(("the measurement frame against the robot (the instrument bumped or the robot moved)",
-                    np.nonzero(fam == "base")[0]))
-    if any(f.mass for f in ref.start.frames) and any(lay[n].family == "compliance" for n in ref.names):
-        out.append(("the load on the robot (a payload the data do not state)", "load"))
-    if ref.shows:
-        out.append(("the robot itself (another robot, or a load the model does not know)", np.arange(len(ref.names))))
-    return out
+    def make():
+        lay = parameter_layout(ref.start)
+        fam = np.array([lay[n].family for n in ref.names])
+        out: list[tuple] = []
+        if np.any(fam == "base"):
+            out.append(("the measurement frame against the robot (the instrument bumped or the robot moved)",
+                        np.nonzero(fam == "base")[0]))
+        if any(f.mass for f in ref.start.frames) and np.any(fam == "compliance"):
+            out.append(("the load on the robot (a payload the data do not state)", "load"))
+        if ref.shows:
+            out.append(("the robot itself (another robot, or a load the model does not know)",
+                        np.arange(len(ref.names))))
+        return out
+
+    return ref.cached("groups", make)
 
 
 def _columns(ref: Reference, cols) -> np.ndarray:
@@ -242,14 +247,15 @@ def split_gain(ref: Reference, Z: np.ndarray, edge: int) -> tuple[int, float]:
     return row, gain
 
 
-def _by_pose(ref: Reference) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The reference's rows ordered by pose (stably), each pose's first row in that order (n_poses + 1
-    bounds), and the residuals and the Jacobian side by side in that order, a zero row last."""
+def _by_pose(ref: Reference) -> tuple[np.ndarray | slice, np.ndarray, np.ndarray]:
+    """The reference's rows ordered by pose (stably; a slice of them all when they are), each pose's
+    first row in that order (n_poses + 1 bounds), and the residuals and the Jacobian side by side in
+    that order, a zero row last."""
     def make():
         pose = _row_pose(ref)
-        order = np.argsort(pose, kind="stable")
+        order = slice(None) if np.all(pose[1:] >= pose[:-1]) else np.argsort(pose, kind="stable")
         first = np.searchsorted(pose[order], np.arange(ref.data.n_poses + 1))
-        rJ = np.zeros((len(order) + 1, 1 + ref.J.shape[1]))
+        rJ = np.zeros((len(pose) + 1, 1 + ref.J.shape[1]))
         rJ[:-1, 0], rJ[:-1, 1:] = ref.r[order], ref.J[order]
         return order, first, rJ
 
@@ -345,8 +351,9 @@ def readings_lag(ref: Reference) -> list[Candidate]:
     dq = np.gradient(q, axis=0)
     C = joint_columns(ref)                                    # (n_rows, n_joints) per unit reading change
     Z = np.einsum("rj,rj->r", C, dq[_row_pose(ref)])[:, None]
-    gain = projected_gain(ref, Z)
-    Zp = ref.project(Z)[:, 0]
+    Zp = ref.project(Z)
+    gain = settled_gain(ref, Zp)
+    Zp = Zp[:, 0]
     lag = float(-(Zp @ ref.settled) / max(float(Zp @ Zp), 1e-300))
     # a candidate predicted below the screen's bar is never refitted: whether the poses lie along a
     # path then changes nothing

@@ -538,7 +538,11 @@ def _linear_fit(ref: Reference, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def projected_gain(ref: Reference, Z: np.ndarray) -> float:
     """How much columns ``Z`` (n_rows, k) joining the fit lower the reference's sum of squares (one
     Gauss-Newton step from the calibration)."""
-    Zp = ref.project(Z)
+    return settled_gain(ref, ref.project(Z))
+
+
+def settled_gain(ref: Reference, Zp: np.ndarray) -> float:
+    """``projected_gain`` of columns already projected (``Reference.project``)."""
     b = Zp.T @ ref.settled
     return float(max(b @ np.linalg.pinv(Zp.T @ Zp, hermitian=True) @ b, 0.0))
 
