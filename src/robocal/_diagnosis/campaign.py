@@ -208,7 +208,8 @@ def _load_columns(ref: Reference) -> np.ndarray:
     start, data = ref.start, ref.data
     bare = start.replace(frames=tuple(replace(f, mass=0.0) for f in start.frames), payload=Payload(mass=1.0),
                          other_payloads=())
-    names = tuple(n for n in candidate_parameters(bare, ("compliance",)) if n.endswith(".k_theta"))
+    # the same frames as the nominal model's, whose candidates are kept with it
+    names = tuple(n for n in candidate_parameters(ref.model, ("compliance",)) if n.endswith(".k_theta"))
     loaded = with_arrays(data, payload_mass=np.ones(data.n_poses))
     prob = Problem(bare, names, data=loaded, compliance=True, noise=ref.noise)
     lay = parameter_layout(bare)
