@@ -227,3 +227,43 @@ def test_the_uncertainty_over_the_workspace_is_the_covariance_carried_pose_by_po
     var = [np.trace(blocks[i, 3 * j:3 * j + 3] @ cov @ blocks[i, 3 * j:3 * j + 3].T)
            for i in range(len(blocks)) for j in range(2)]
     assert cover.uncertainty_workspace == pytest.approx(np.sqrt(np.mean(var)), rel=1e-12)
+
+
+# -- points measured at every pose: their residuals and errors without masks or weights -------------
+
+def test_points_measured_at_every_pose_give_the_residuals_and_errors_of_the_general_path():
+    """A marker measured at every pose, unweighted, takes its positions as they are (no selection, no
+    weight of 1, no blanking): the same numbers as the general path, which weighs the rows by stated
+    deviations of 1 m and blanks the points set aside."""
+    from dataclasses import replace
+
+    m, data = _campaign(n=50)
+    names = rc.identifiability(m, data).identified
+    p = rc.parameter_vector(m) + np.random.default_rng(3).normal(0.0, 1e-4, len(rc.parameter_vector(m)))
+    every = Points(m, data, names, compliance=False)
+    weighted = Points(m, replace(data, sigma=np.ones(data.mask.shape)), names, compliance=False)
+    assert not every.weighted and weighted.weighted
+    assert np.array_equal(every.residuals(p), weighted.residuals(p))
+    aside = np.zeros(data.mask.shape, dtype=bool)
+    aside[7, 0] = True
+    blanked = every.without(aside).errors(p)
+    full = every.errors(p)
+    assert full.flags.c_contiguous and np.isnan(blanked[7, 0]).all() and not np.isnan(full).any()
+    assert np.array_equal(np.where(aside[..., None], np.nan, full), blanked, equal_nan=True)
+
+
+def test_observations_of_each_kind_are_those_listed_with_it():
+    """The observations of a kind (made once for the problem) are those whose kind is listed as it,
+    measured points and contacts together, in the order the kinds first appear."""
+    from pathlib import Path
+
+    from robocal.sim import socket_campaign
+
+    arm7 = rc.read_model(Path(__file__).parent.parent / "examples" / "arm7" / "model.yaml")
+    true, data = rc.simulate(arm7, 20, noise=2e-5, seed=2)
+    sockets = socket_campaign(true, placements=3, poses_per_socket=6, joint_noise=2e-5, rng=3)
+    obs = Problem(arm7, (), data=data, contacts=sockets, compliance=False).observations()
+    assert len(obs.kinds()) > 2 and obs.kinds() == tuple(dict.fromkeys(obs.kind))
+    for kind in obs.kinds():
+        assert np.array_equal(obs.of(kind), np.array([k == kind for k in obs.kind]))
+    assert not obs.of("no such kind").any() and len(obs.of("no such kind")) == len(obs)

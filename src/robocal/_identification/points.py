@@ -95,6 +95,7 @@ class Points:
         self.sel, self.w = _measured_rows(data.mask, data.sigma,
                                           noise.position if noise is not None and self.weighted else 1.0)
         self.meas = [data.positions[s, j] for j, s in enumerate(self.sel)]
+        self._every_point = bool(data.mask.all())     # every marker measured at every pose: nothing to blank
         if self.use_rot and data.rot_mask is not None:
             self.sel_r, self.w_r = _measured_rows(data.rot_mask, data.sigma_rot,
                                                   noise.rotation if noise is not None else 1.0)
@@ -304,6 +305,8 @@ class Points:
     def errors(self, p) -> np.ndarray:
         """(n_poses, n_data_markers, 3) predicted minus measured positions, NaN where not measured."""
         pos, _ = self.predicted(p)
+        if self._every_point:
+            return np.subtract(pos, self.data.positions, order="C")
         return np.where(self.data.mask[..., None], pos - self.data.positions, np.nan)
 
     def error_norms(self, p) -> np.ndarray:
@@ -332,7 +335,9 @@ class Points:
     @one_blas_thread
     def residuals(self, p) -> np.ndarray:
         P = self._positions(p)
-        parts = [((P[m][s] - meas) * w[:, None]).ravel()
+        # unweighted rows of a marker measured at every pose: its positions as they are (w is 1)
+        parts = [((P[m] if len(s) == len(P[m]) else P[m][s]) - meas).ravel() if not self.weighted else
+                 ((P[m][s] - meas) * w[:, None]).ravel()
                  for m, s, meas, w in zip(self.marker_idx, self.sel, self.meas, self.w)]
         if self.use_rot:
             st = self._state(p)

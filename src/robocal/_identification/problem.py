@@ -18,6 +18,7 @@ from __future__ import annotations
 import copy
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Protocol, cast
 
 import numpy as np
@@ -102,10 +103,26 @@ class Observations:
         return len(self.kind)
 
     def kinds(self) -> tuple[str, ...]:
-        return tuple(dict.fromkeys(self.kind))
+        return tuple(self._masks)
 
     def of(self, kind: str) -> np.ndarray:
-        return np.array([k == kind for k in self.kind], dtype=bool)
+        """(n_observations,) read-only: those of ``kind``."""
+        mask = self._masks.get(kind)
+        return read_only(np.zeros(len(self.kind), dtype=bool)) if mask is None else mask
+
+    @cached_property
+    def _masks(self) -> dict[str, np.ndarray]:
+        """Each kind's observations, in the order the kinds first appear: made once (a campaign may
+        hold millions of points, all of one kind)."""
+        out: dict[str, np.ndarray] = {}
+        if self.n_points:
+            out["tracker"] = np.zeros(len(self.kind), dtype=bool)
+            out["tracker"][:self.n_points] = True
+        rest = self.kind[self.n_points:]
+        for k in dict.fromkeys(rest):
+            mask = out.setdefault(k, np.zeros(len(self.kind), dtype=bool))
+            mask[self.n_points:] |= np.array([x == k for x in rest], dtype=bool)
+        return {k: read_only(m) for k, m in out.items()}
 
 
 class Problem:

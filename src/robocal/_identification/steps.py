@@ -657,7 +657,9 @@ def choose(analysis: Analysis, options: Options, holdout: Holdout, folds: FoldPr
     if seen_scatter > FIT_RATIO * row_noise(used, noise, limit_m):
         with contextlib.suppress(DegenerateDataError):   # nothing pinned down at that scatter: the fit stands
             designs.append(pin_down(analysis, noise, limit_m, eliminate=True, scatter=seen_scatter, problem=used))
-    designs += [first.design, pin_down(analysis, noise, limit_m, eliminate=False, problem=used)]
+    designs.append(first.design)
+    if analysis.identifiability.identified != first.design.identifiability.identified:   # else it is the first
+        designs.append(pin_down(analysis, noise, limit_m, eliminate=False, problem=used))
     return _simplest(first, designs, options, holdout, folds)
 
 
