@@ -349,20 +349,36 @@ class Points:
         """Weighted Jacobian of ``residuals`` over the free parameters: (n_rows, n_free), column-major.
 
         Kept with the evaluation at ``p``: asked again, or for fewer parameters (the solve after
-        the analysis, at the same start), its columns are taken instead of built again."""
+        the analysis, at the same start), its columns are taken instead of built again; asked for
+        more (a model choice freeing more than the fit that evaluated ``p``), only the others are built."""
         st = self._state(p)
         kept = st.cache.setdefault("jacobians", {})
         free = tuple(self.free_idx.tolist())
         Jt = _taken(kept, free, lambda Jt, rows: Jt[rows])
         if Jt is None:
-            Jt = kept[free] = read_only(self._jacobian_rows(st))
+            Jt = kept[free] = read_only(self._grown(st, kept, free))
         return Jt.T
 
-    def _jacobian_rows(self, st) -> np.ndarray:
-        """(n_free, n_rows) the transposed weighted Jacobian at the evaluation ``st``."""
+    def _grown(self, st, kept: dict, free: tuple) -> np.ndarray:
+        """(n_free, n_rows) the transposed weighted Jacobian at ``st`` over ``free``: the rows of the
+        largest one kept for some of them, and the others built (a column does not depend on which
+        others are built with it)."""
+        have = max((h for h in kept if set(h) < set(free)), key=len, default=())
+        if not have:
+            return self._jacobian_rows(st, self.free_idx)
+        where = {c: i for i, c in enumerate(free)}
+        missing = [c for c in free if c not in set(have)]
+        out = np.empty((len(free), kept[have].shape[1]))
+        out[[where[c] for c in have]] = kept[have]
+        out[[where[c] for c in missing]] = self._jacobian_rows(st, np.array(missing, dtype=int))
+        return out
+
+    def _jacobian_rows(self, st, idx: np.ndarray) -> np.ndarray:
+        """(len(idx), n_rows) the transposed weighted Jacobian at the evaluation ``st`` over the
+        parameters ``idx``."""
         rows = 6 if self.use_rot else 3
-        k = len(self.free_idx)
-        cols = [jacobian_columns(self.model, self.lay, st, self.free_idx, m, rows) for m in self.marker_idx]
+        k = len(idx)
+        cols = [jacobian_columns(self.model, self.lay, st, idx, m, rows) for m in self.marker_idx]
         parts = []
         for C, s, w in zip(cols, self.sel, self.w):
             if len(s) == C.shape[1] and not self.weighted:

@@ -398,10 +398,10 @@ class Fit:
         return keep & (self.groups >= 0)
 
 
-def solve_design(design: Design, problem: Problem, options: Options) -> Solution:
-    """``problem`` (the design's, or with observations set aside) solved from the design's start:
-    compliances kept >= 0 if asked, and under a robust loss the rows that alone carry a quantity
-    kept linear (nothing else could outvote them)."""
+def solve_design(design: Design, problem: Problem, options: Options, start: np.ndarray) -> Solution:
+    """``problem`` (the design's, or with observations set aside) solved from ``start`` (a full
+    vector): compliances kept >= 0 if asked, and under a robust loss the rows that alone carry a
+    quantity kept linear (nothing else could outvote them)."""
     lower = None
     if options.nonnegative_compliance:
         lay = parameter_layout(design.start)
@@ -412,8 +412,20 @@ def solve_design(design: Design, problem: Problem, options: Options) -> Solution
         kept = alone_observations(problem, design.p0) | together(problem)
         rows = kept[problem.row_observations()]
         linear = rows if rows.any() else None
-    return solve(problem, design.p0, loss=options.loss, f_scale=options.f_scale, max_nfev=options.max_nfev,
+    return solve(problem, start, loss=options.loss, f_scale=options.f_scale, max_nfev=options.max_nfev,
                  lower=lower, linear_rows=linear)
+
+
+def warm_start(first: Fit, design: Design) -> np.ndarray:
+    """Where ``design``, another model choice on the first fit's observations, is solved from: when
+    it frees every parameter the first did and more, under the linear loss, where the first fit took
+    its last Jacobian (a tolerance from its solution: that evaluation and those columns are kept,
+    and its minimum is nearer there than at the nominal); else the design's own start (the nominal,
+    whose Jacobian the analysis made)."""
+    sol = first.solution
+    if sol.loss != "linear" or not set(first.problem.free_idx.tolist()) < set(design.problem.free_idx.tolist()):
+        return design.p0
+    return sol.p if sol.jacobian_at is None else sol.jacobian_at
 
 
 def find_outliers(problem: Problem, solution: Solution, noise: Noise) -> Outliers:
@@ -497,15 +509,15 @@ def in_runs(order: np.ndarray) -> np.ndarray:
 
 
 def fit(design: Design, options: Options, holdout: Holdout, folds: FoldProblems, *,
-        outliers: Fit | None = None) -> Fit:
+        outliers: Fit | None = None, start: np.ndarray | None = None) -> Fit:
     """``design`` solved and its observations held out in turn. With the linear loss and
     ``on_outliers="refit"``, observations that stand out alone (not in runs, which are systematic,
     and not carrying a quantity alone) are set aside and the design fitted again without them, kept
     when its held-out loss on every observation is not higher (the model is then the one the
     observations' deletion gives). ``outliers``: a fit whose outliers stand (a design fitted on the
-    observations it left)."""
+    observations it left); ``start``: the full vector its solve starts from (default the design's)."""
     problem = design.problem
-    solution = solve_design(design, problem, options)
+    solution = solve_design(design, problem, options, design.p0 if start is None else start)
     held = cross_validate(problem, solution.p, holdout, folds=folds, at=solution.jacobian_at)
     groups = holdout.groups
     if outliers is not None:      # fitted on what that fit left: its outliers and their notes stand
@@ -539,7 +551,7 @@ def _set_aside(design: Design, solution: Solution, found: Outliers, held: HeldOu
         return Fit(design, problem, solution, _outlier_status(found), none, held, holdout.groups, notes)
     kept = problem.without(blunder)
     again = replace(design, problem=kept)
-    solution2 = solve_design(again, kept, options)
+    solution2 = solve_design(again, kept, options, again.p0)
     # judged on every observation, those set aside too (predicted without them): blunders are no
     # better predicted either way, while observations whose only fault is an effect the model leaves
     # out are predicted worse once their like are set aside
@@ -670,7 +682,7 @@ def _simplest(first: Fit, designs: list, options: Options, holdout: Holdout, fol
         key = d.identifiability.identified
         if key not in seen:
             seen[key] = first if d is first.design or key == first.design.identifiability.identified else \
-                fit(d, replace(options, on_outliers="flag"), holdout, folds, outliers=first)
+                fit(d, replace(options, on_outliers="flag"), holdout, folds, outliers=first, start=warm_start(first, d))
             fits.append(seen[key])
     if len(fits) == 1:
         return first, ()
