@@ -443,9 +443,10 @@ def find_outliers(problem: Problem, solution: Solution, noise: Noise) -> Outlier
         checks.append(check if kind == "tracker" else replace(check, name=f"outliers among the {kind} contacts"))
         kinds.append(index)
         out[index] = o
-        scores, bar = outlier_scores(errors, sigma, noise), outlier_bar(len(o))
-        gross[index] = o & (scores > GROSS_FACTOR * bar)
-        standing[index] = o & apart(scores, bar)
+        if o.any():       # else none is gross or apart either
+            scores, bar = outlier_scores(errors, sigma, noise), outlier_bar(len(o))
+            gross[index] = o & (scores > GROSS_FACTOR * bar)
+            standing[index] = o & apart(scores, bar)
     if out.any():
         alone = alone_observations(problem, solution.p)
     runs = np.zeros(n, dtype=bool)
