@@ -92,8 +92,8 @@ def nominal_predictions(ref: Reference) -> Finding | None:
 def joint_still(ref: Reference) -> Finding | None:
     """A joint that never moves in the campaign: the parameters it alone would show are lost."""
     q = ref.campaign.q
-    still = np.nonzero(np.ptp(q, axis=0) <= 1e-9 * (1.0 + np.max(np.abs(q), axis=0)))[0]
-    if not len(still):
+    still = [j for j in range(q.shape[1]) if np.ptp(q[:, j]) <= 1e-9 * (1.0 + np.max(np.abs(q[:, j])))]
+    if not still:
         return None
     names = tuple(ref.model.joint_names[j] for j in still)
     lost = tuple(a.name for a in ref.result.identifiability.eliminated)
