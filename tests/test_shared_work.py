@@ -40,6 +40,32 @@ def test_fold_steps_from_the_solvers_last_jacobian_are_the_least_squares_fits_wi
         assert np.max(np.abs(step - direct)) <= 1e-6 * np.max(np.abs(direct))
 
 
+def test_a_fold_that_alone_moves_a_joint_leaves_its_direction_where_it_was():
+    """The last joint moves in the first fold's poses only (elsewhere by 1e-7 rad): without them the
+    last frame's alpha and d are all but undetermined (the tool's offset carries them), and the step
+    to the fit on the others is the least-norm one in unit-column scaling, as a direct least-squares
+    solve of the same rank gives (a Cholesky solve of that fold's matrix would not)."""
+    from robocal._identification.holdout import Holdout, fold_steps
+
+    m = arm6r()
+    q = rc.simulate(m, 160, seed=6)[1].q.copy()
+    labels = np.arange(160) * 4 // 160
+    q[labels > 0, 5] = 0.3 + 1e-7 * np.random.default_rng(0).normal(size=120)
+    _, data = rc.simulate(m, q=q, seed=6)
+    names = rc.identifiability(m, data).identified
+    prob = Problem(m, names, data=data, compliance=False)
+    sol = solve(prob, rc.parameter_vector(m))
+    steps = fold_steps(prob, sol.p, Holdout(labels, 4, "4 blocks", labels, 4))
+    J, r = np.array(prob.jacobian(sol.p)), prob.residuals(sol.p)
+    col = np.linalg.norm(J, axis=0)
+    rest = np.repeat(labels, 3) != 0
+    U, sv, Vt = np.linalg.svd(J[rest] / col, full_matrices=False)
+    keep = sv ** 2 > 1e-12 * sv[0] ** 2
+    assert not keep.all()                       # the first fold alone determined a direction
+    direct = -(Vt[keep].T @ ((U[:, keep].T @ r[rest]) / sv[keep])) / col
+    assert np.max(np.abs(steps[0] - direct)) <= 1e-6 * np.max(np.abs(direct))
+
+
 def test_a_campaign_in_chunks_solves_and_judges_as_the_whole_one():
     """Normal equations from the Gram matrix (and from the analysis' factor at the start), and the
     marker positions kept between checks, give the campaign held whole's answer."""
