@@ -201,19 +201,20 @@ def test_the_nominals_fold_models_moved_rigidly_are_the_ones_evaluated_from_scra
 
 
 def test_marker_positions_moved_rigidly_are_a_pass_at_the_moved_vector():
-    """A base turned and shifted and markers moved in their frames: the evaluation at the start moved
-    is the pass at the moved vector, at the poses asked for."""
+    """Bases turned and shifted and markers moved in their frames, one vector for some poses and
+    another for the others: the evaluation at the start moved is the pass at each moved vector."""
     m = arm6r(markers=(("tool", (0.05, 0.02, 0.12)), ("side", (0.1, -0.05, 0.08))))
     _, data = rc.simulate(m, 60, seed=5)
     names = rc.parameter_names(m)
     free = tuple(n for n in names if n.startswith(("base.", "tool.", "side.")))
     p = rc.parameter_vector(m)
-    moved = p.copy()
-    moved[[names.index(n) for n in free]] += np.random.default_rng(2).normal(scale=0.05, size=len(free))
-    poses = np.array([3, 0, 41, 17, 59])
-    shared = Points(m, data, free, compliance=False).moved_positions(p, moved, poses)
-    direct = Points(m, data, free, compliance=False).predicted(moved)[0][poses]
-    np.testing.assert_allclose(shared, direct, rtol=0, atol=1e-14)
+    moved = np.repeat(p[None], 2, axis=0)
+    moved[:, [names.index(n) for n in free]] += np.random.default_rng(2).normal(scale=0.05, size=(2, len(free)))
+    which = np.arange(60) % 3 // 2
+    shared = Points(m, data, free, compliance=False).moved_positions(p, moved, which)
+    for g in range(2):
+        direct = Points(m, data, free, compliance=False).predicted(moved[g])[0]
+        np.testing.assert_allclose(shared[which == g], direct[which == g], rtol=0, atol=1e-14)
 
 
 def test_a_chain_that_moves_is_not_moved_rigidly():
@@ -225,14 +226,14 @@ def test_a_chain_that_moves_is_not_moved_rigidly():
     p = rc.parameter_vector(m)
     shifted = p.copy()
     shifted[at["base.x"]] += 1e-3
-    poses = np.arange(0, 50, 3)
-    assert pts.moved_positions(p, shifted, poses) is not None
+    which = np.zeros(50, dtype=int)
+    assert pts.moved_positions(p, [shifted], which) is not None
     bent, bent_shifted = p.copy(), shifted.copy()
     bent[at["j2.k_theta"]] = bent_shifted[at["j2.k_theta"]] = 1e-6
-    assert pts.moved_positions(bent, bent_shifted, poses) is None
+    assert pts.moved_positions(bent, [bent_shifted], which) is None
     chain = p.copy()
     chain[at["j2.alpha"]] += 1e-4
-    assert pts.moved_positions(p, chain, poses) is None
+    assert pts.moved_positions(p, [shifted, chain], which) is None
 
 
 def test_the_uncertainty_over_the_workspace_is_the_covariance_carried_pose_by_pose():

@@ -228,18 +228,12 @@ def _moved_held_out(problem: Problem, pts: Points, p: np.ndarray, steps: list[np
     where that does not hold (a step of the chain, compliance, lost motion, orientations)."""
     if pts.use_rot:
         return None
-    n, labels = problem.n_robot, cast(np.ndarray, holdout.pose_labels)
-    predicted = np.full(pts.data.positions.shape, np.nan)
-    for g in range(holdout.point_folds):
-        index = np.nonzero(labels == g)[0]
-        if not len(index):
-            continue
-        pg = p.copy()
-        pg[problem.free_idx] += steps[g]
-        moved = pts.moved_positions(p[:n], pg[:n], index)
-        if moved is None:
-            return None
-        predicted[index] = moved
+    n = problem.n_robot
+    moved = np.repeat(p[None], holdout.point_folds, axis=0)
+    moved[:, problem.free_idx] += steps[:holdout.point_folds]
+    predicted = pts.moved_positions(p[:n], moved[:, :n], cast(np.ndarray, holdout.pose_labels))
+    if predicted is None:
+        return None
     errors = np.where(pts.data.mask[..., None], predicted - pts.data.positions, np.nan)
     return HeldOut(errors, None, point_loss(pts, p[:n], errors))
 

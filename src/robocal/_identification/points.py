@@ -247,28 +247,30 @@ class Points:
         states[key] = st
         return st
 
-    def moved_positions(self, p, moved, poses: np.ndarray) -> np.ndarray | None:
-        """(len(poses), n_data_markers, 3) the marker positions at ``moved``, a vector that differs
-        from ``p`` in the base and markers only, at the poses ``poses``: the frames of the evaluation
-        at ``p`` moved rigidly by the change of the base, the markers' offsets applied in their
-        frames. Exact when the chain is geometric at ``p`` (no compliance there, no lost motion, not
-        in chunks); None otherwise. A model refitted in its base and markers alone is evaluated this
-        way without a pass down the chain.
+    def moved_positions(self, p, moved: np.ndarray, which: np.ndarray) -> np.ndarray | None:
+        """(n_poses, n_data_markers, 3) the marker positions of each pose at the vector ``which`` picks
+        for it among ``moved`` (k, n_params), vectors that differ from ``p`` in the base and markers
+        only: the frames of the evaluation at ``p`` moved rigidly by the change of the base, the
+        markers' offsets applied in their frames. Exact when the chain is geometric at ``p`` (no
+        compliance there, no lost motion, not in chunks); None otherwise. Models refitted in their
+        base and markers alone are evaluated this way without a pass down the chain.
         Reference: docs/method.md section 1: X_WB moves every frame rigidly; a marker is a point in its frame."""
-        p, moved = frozen(p), frozen(moved)
-        if self.chunked or self.backlash or not moves_rigidly(self.lay, p, moved) or (
+        p, moved = frozen(p), np.asarray(moved, dtype=float)
+        if self.chunked or self.backlash or not all(moves_rigidly(self.lay, p, v) for v in moved) or (
                 self.compliance and np.any(p[self.lay.compliant_params])):
             return None
         ps = self._state(p).ps
-        Rb = base_rotation_of(self.model.base_rotation, *moved[3:6].tolist())[1]
-        dR = Rb @ ps.base_rotation.T
-        shift = moved[0:3] - dR @ ps.base_origin            # a point x goes to dR x + shift
-        out = np.empty((len(poses), len(self.marker_idx), 3))
+        turns = np.array([base_rotation_of(self.model.base_rotation, *v[3:6].tolist())[1] @ ps.base_rotation.T
+                          for v in moved])
+        shifts = moved[:, 0:3] - turns @ ps.base_origin          # a point x goes to dR x + shift
+        turn, out = turns[which], np.empty((len(which), len(self.marker_idx), 3))
         for j, m in enumerate(self.marker_idx):
             r0 = self.lay.frame_row[self.model.markers[m].frame]
-            x, y, z, o = ps.vec[r0:r0 + PLACEMENT_ROWS][:, :, poses]      # the marker's frame in W at p
-            v = moved[self.lay.marker0[m]:self.lay.marker0[m] + 3]
-            out[:, j] = (dR @ (v[0] * x + v[1] * y + v[2] * z + o)).T + shift
+            x, y, z, o = ps.vec[r0:r0 + PLACEMENT_ROWS]                   # the marker's frame in W at p
+            v = moved[:, self.lay.marker0[m]:self.lay.marker0[m] + 3][which].T
+            at_p = v[0] * x + v[1] * y + v[2] * z + o                      # (3, n_poses)
+            out[:, j] = turn[:, :, 0] * at_p[0, :, None] + turn[:, :, 1] * at_p[1, :, None] + \
+                turn[:, :, 2] * at_p[2, :, None] + shifts[which]
         return out
 
     def _positions(self, p) -> np.ndarray:
