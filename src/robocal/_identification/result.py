@@ -20,7 +20,7 @@ from .._model.measurements import Measurements
 from .._model.parameters import parameter_layout, parameter_vector
 from .._model.robot import RobotModel
 from .._version import __version__
-from .checks import STATUSES, Check, verdict
+from .checks import STATUSES, Check, vector_norms, verdict
 from .estimates import ErrorStats, ParameterEstimate, error_stats
 from .holdout import AccuracyInUse, Coverage
 from .identifiability import IdentifiabilityResult
@@ -414,14 +414,14 @@ class PoseErrors:
             if e is None:
                 return error_stats([])
             v = getattr(e, f"rotation_{when}" if rotation else when)
-            return error_stats([] if v is None else np.linalg.norm(v, axis=2))
+            return error_stats([] if v is None else vector_norms(v))
 
         return ErrorSummary(stats(self, "before"), stats(self, "after"), stats(other, "before"), stats(other, "after"))
 
     def pose_set(self) -> PoseSet:
         """The record of this set: error norms, residual vectors, measured positions, readings."""
         def norms(v):
-            return None if v is None else np.linalg.norm(v, axis=2)
+            return None if v is None else vector_norms(v)
 
         return PoseSet(readings=self.data.q,
                        measured_positions=np.where(self.data.mask[..., None], self.data.positions, np.nan),
