@@ -379,6 +379,7 @@ def test_the_row_wise_reductions_are_the_column_ones():
     rng = np.random.default_rng(4)
     v = rng.normal(size=(500, 2, 3))
     assert np.array_equal(vector_norms(v), np.linalg.norm(v, axis=2))
+    assert np.array_equal(vector_norms(v[..., :2]), np.linalg.norm(v[..., :2], axis=2))
     q = rng.normal(size=(700, 6))
     lo, hi = column_extent(q)
     assert np.array_equal(lo, q.min(axis=0)) and np.array_equal(hi, q.max(axis=0))
