@@ -374,7 +374,7 @@ def test_the_row_wise_reductions_are_the_column_ones():
     """Norms, column extents and the points' spread, taken along long rows for speed, against numpy's
     own column-wise forms: the norms and extents bit for bit, the spread to rounding, non-finite
     points left out."""
-    from robocal._identification.checks import column_extent, point_spread, vector_norms
+    from robocal._base.arrays import column_extent, point_spread, vector_norms
 
     rng = np.random.default_rng(4)
     v = rng.normal(size=(500, 2, 3))

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._base.arguments import FLAG, accepts, both, in_range, is_a, measured_on, shaped, whole
+from .._base.arrays import vector_norms
 from .._base.errors import DegenerateDataError, InputError
 from .._identification.registration import rigid_base as register_base
 from .._model.kinematics import evaluate
@@ -206,7 +207,7 @@ def _errors(model: RobotModel, data: Measurements) -> tuple[np.ndarray, np.ndarr
     mi = np.array([model.marker_names.index(n) for n in data.marker_names])
     predicted = evaluate(model, data.q, payload_mass=data.payload_mass).positions[:, mi]
     mask = np.asarray(data.mask, dtype=bool)
-    return np.where(mask, np.linalg.norm(data.positions - predicted, axis=2), np.nan), predicted
+    return np.where(mask, vector_norms(data.positions - predicted), np.nan), predicted
 
 
 def _iso_accuracy(data: Measurements, predicted: np.ndarray) -> tuple[tuple[str, ...], np.ndarray]:

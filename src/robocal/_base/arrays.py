@@ -4,6 +4,9 @@ Records (measurements, contacts, layouts, results) and what an object keeps betw
 problem's evaluations, a model's layouts) hold their arrays read-only: writing into one raises
 ``ValueError: assignment destination is read-only`` instead of silently moving every later result.
 Their mappings are read-only views (writing raises ``TypeError``), their lists tuples.
+
+Also: reductions over many short vectors (norms, extents, spreads) taken along long rows, where
+numpy is far faster than down a narrow column, with numpy's own figures.
 """
 
 from __future__ import annotations
@@ -80,3 +83,32 @@ def _frozen_value(v):
     if isinstance(v, np.ndarray):
         return frozen(v, v.dtype)
     return v
+
+
+def point_spread(points) -> float:
+    """The RMS distance (m) of the finite points among ``points`` (..., 3) from their centroid; 0 for
+    fewer than two. Taken over coordinate rows (3, n): numpy reduces a long row far faster than
+    down a narrow column."""
+    p = np.ascontiguousarray(np.asarray(points, dtype=float).reshape(-1, 3).T)
+    finite = np.isfinite(p).all(axis=0)
+    if not finite.all():
+        p = p[:, finite]
+    if p.shape[1] < 2:
+        return 0.0
+    d = p - p.mean(axis=1)[:, None]
+    return float(np.sqrt(np.mean(np.sum(d * d, axis=0))))
+
+
+def vector_norms(v: np.ndarray) -> np.ndarray:
+    """The norms of the vectors along the last axis of ``v``: ``np.linalg.norm(v, axis=-1)`` bit for
+    bit; for 3-vectors, the squares summed in turn (a fifth of its time on so short an axis)."""
+    if v.shape[-1] != 3:
+        return np.linalg.norm(v, axis=-1)
+    return np.sqrt(v[..., 0] ** 2 + v[..., 1] ** 2 + v[..., 2] ** 2)
+
+
+def column_extent(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The smallest and largest value of each column of ``a`` (n, k), taken over rows of its
+    transpose (numpy reduces a long row far faster than down a narrow column)."""
+    rows = np.ascontiguousarray(np.asarray(a, dtype=float).T)
+    return rows.min(axis=1), rows.max(axis=1)

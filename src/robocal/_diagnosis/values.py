@@ -10,6 +10,7 @@ from typing import cast
 
 import numpy as np
 
+from .._base.arrays import point_spread
 from .._model.kinematics import evaluate
 from .._model.measurements import Measurements
 from .._model.parameters import model_from_vector, parameter_layout, parameter_vector
@@ -100,10 +101,6 @@ def markers_swapped(ref: Reference) -> list[Candidate]:
                       predicted(ref, misfits[k]), 1.0, lambda: Repair(swap_markers(ref.data, a, b)))]
 
 
-def _spread(points: np.ndarray) -> float:
-    return float(np.sqrt(np.mean(np.sum((points - points.mean(0)) ** 2, axis=1)))) if len(points) else 0.0
-
-
 def model_scaled(model: RobotModel, s: float, *, markers: bool = True) -> RobotModel:
     """``model`` with every length of its frames (and, with ``markers``, of its markers and base) times ``s``."""
     lay = parameter_layout(model)
@@ -126,7 +123,7 @@ def position_unit(ref: Reference) -> list[Candidate]:
     misfits = [screened_data(ref, with_arrays(d, positions=d.positions / f)) for f in factors]
     k = int(np.argmin(misfits))
     f, why = factors[k], LENGTH_FACTORS[factors[k]]
-    cloud = _spread(ref.data.positions[ref.data.mask]) / f
+    cloud = point_spread(ref.data.positions[ref.data.mask]) / f
     if PLAUSIBLE_SPREAD[0] <= cloud <= PLAUSIBLE_SPREAD[1]:
         return [Candidate("unit factor", f"positions: {why}", "in that unit", "declare the unit of the position "
                           "columns (e.g. x_mm) and calibrate again", (), predicted(ref, misfits[k], f), 1.0,

@@ -13,6 +13,7 @@ import numpy as np
 from scipy.special import gammainc, gammainccinv
 
 from .._base.arguments import accepts, each_a, is_a, optional, shaped, whole
+from .._base.arrays import column_extent, point_spread, vector_norms
 from .._base.errors import InputError, excerpt
 from .._model.measurements import Measurements, Noise
 from .._model.robot import RobotModel
@@ -287,35 +288,6 @@ def cloud_size_check(model: RobotModel, data: Measurements, predicted: np.ndarra
                      "marker columns, joint readings in another unit or order"
     return Check(name, "fail", summary, cause=cause,
                  fix="declare the units of the marker columns (x_mm or x_m) and check the file belongs to this model")
-
-
-def point_spread(points) -> float:
-    """The RMS distance (m) of the finite points among ``points`` (..., 3) from their centroid; 0 for
-    fewer than two. Taken over coordinate rows (3, n): numpy reduces a long row far faster than
-    down a narrow column."""
-    p = np.ascontiguousarray(np.asarray(points, dtype=float).reshape(-1, 3).T)
-    finite = np.isfinite(p).all(axis=0)
-    if not finite.all():
-        p = p[:, finite]
-    if p.shape[1] < 2:
-        return 0.0
-    d = p - p.mean(axis=1)[:, None]
-    return float(np.sqrt(np.mean(np.sum(d * d, axis=0))))
-
-
-def vector_norms(v: np.ndarray) -> np.ndarray:
-    """The norms of the vectors along the last axis of ``v``: ``np.linalg.norm(v, axis=-1)`` bit for
-    bit; for 3-vectors, the squares summed in turn (a fifth of its time on so short an axis)."""
-    if v.shape[-1] != 3:
-        return np.linalg.norm(v, axis=-1)
-    return np.sqrt(v[..., 0] ** 2 + v[..., 1] ** 2 + v[..., 2] ** 2)
-
-
-def column_extent(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The smallest and largest value of each column of ``a`` (n, k), taken over rows of its
-    transpose (numpy reduces a long row far faster than down a narrow column)."""
-    rows = np.ascontiguousarray(np.asarray(a, dtype=float).T)
-    return rows.min(axis=1), rows.max(axis=1)
 
 
 def markers_check(model: RobotModel, seen) -> Check:

@@ -10,6 +10,7 @@ from typing import cast
 import numpy as np
 
 from .._base.arguments import NORMS, accepts
+from .._base.arrays import vector_norms
 from .._model.configurations import design_measurements
 from .._model.measurements import Measurements
 from .._model.parameters import parameter_layout, parameter_vector
@@ -134,7 +135,7 @@ def workspace_change(start: RobotModel, p: np.ndarray, q: np.ndarray, markers, f
                         compliance=start.has_compliance).predicted(p_geom)[0]
     tol = tolerances(start)
     t_len, t_ang = tol.get(("frames", "length")), tol.get(("frames", "angle"))
-    radius = float(np.max(np.linalg.norm(target - np.asarray(start.base_position, dtype=float), axis=2)))
+    radius = float(np.max(vector_norms(target - np.asarray(start.base_position, dtype=float))))
     placed = tuple(n for n in lay.names if lay[n].family == "base"
                    or (lay[n].role == "marker" and lay[n].owner in set(markers) and n in set(free)))
     ws = Measurements(q=q, positions=target, marker_names=tuple(markers), joint_names=start.joint_names)

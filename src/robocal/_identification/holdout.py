@@ -27,10 +27,9 @@ from typing import cast
 import numpy as np
 from scipy.linalg.lapack import dpocon, dpotrf, dpotrs
 
-from .._base.arrays import frozen, read_only
+from .._base.arrays import column_extent, frozen, point_spread, read_only, vector_norms
 from .._model.configurations import sampling_box
 from .._model.measurements import Measurements
-from .checks import column_extent, point_spread, vector_norms
 from .contact_blocks import ContactRows
 from .points import Points
 from .problem import Problem
@@ -253,7 +252,7 @@ def _moved_held_out(problem: Problem, pts: Points, p: np.ndarray, steps: list[np
     predicted = pts.moved_positions(p[:n], moved[:, :n], cast(np.ndarray, holdout.pose_labels))
     if predicted is None:
         return None
-    errors = np.where(pts.data.mask[..., None], predicted - pts.data.positions, np.nan)
+    errors = pts.errors_of(predicted)
     return HeldOut(errors, None, point_loss(pts, p[:n], errors))
 
 

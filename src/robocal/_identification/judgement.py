@@ -38,7 +38,6 @@ from .checks import (
     spacing_check,
     support_check,
     tolerances,
-    vector_norms,
 )
 from .contact_blocks import CARRIES, ContactRows
 from .contact_figures import ContactFigures, figures, recordings
@@ -143,7 +142,7 @@ def _fitted_seatings(problem: Problem, p: np.ndarray) -> np.ndarray | None:
 def _fitted_points(fit: Fit) -> np.ndarray:
     """The fitted points' error norms (m), none without measured points."""
     pts = fit.problem.points
-    return np.empty(0) if pts is None else vector_norms(pts.errors(fit.solution.p[:fit.problem.n_robot]))[pts.data.mask]
+    return np.empty(0) if pts is None else pts.error_norms(fit.solution.p[:fit.problem.n_robot])[pts.data.mask]
 
 
 def in_use(fit: Fit, before: np.ndarray, inputs: Inputs, holdout: Holdout, folds: FoldProblems,

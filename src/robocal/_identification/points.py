@@ -20,7 +20,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from .._base.arguments import FLAG, accepts, is_a, names_in, optional, readings_of, shaped
-from .._base.arrays import frozen, read_only
+from .._base.arrays import frozen, read_only, vector_norms
 from .._base.linalg import gram_factor, r_factor, reduced
 from .._base.threads import one_blas_thread
 from .._model.configurations import design_measurements
@@ -306,14 +306,17 @@ class Points:
 
     def errors(self, p) -> np.ndarray:
         """(n_poses, n_data_markers, 3) predicted minus measured positions, NaN where not measured."""
-        pos, _ = self.predicted(p)
+        return self.errors_of(self.predicted(p)[0])
+
+    def errors_of(self, pos: np.ndarray) -> np.ndarray:
+        """``errors`` of the predicted positions ``pos`` (n_poses, n_data_markers, 3)."""
         if self._every_point:
             return np.subtract(pos, self.data.positions, order="C")
         return np.where(self.data.mask[..., None], pos - self.data.positions, np.nan)
 
     def error_norms(self, p) -> np.ndarray:
         """(n_poses, n_data_markers) position error norms, NaN where not measured."""
-        return np.linalg.norm(self.errors(p), axis=2)
+        return vector_norms(self.errors(p))
 
     def rotation_errors(self, p) -> np.ndarray | None:
         """(n_poses, n_data_markers, 3) rotation vectors (rad, in W) of R_pred R_meas^T, NaN where no
@@ -369,7 +372,7 @@ class Points:
         if not have:
             return self._jacobian_rows(st, self.free_idx)
         where = {c: i for i, c in enumerate(free)}
-        missing = [c for c in free if c not in set(have)]
+        missing = [c for c in free if c not in have]
         out = np.empty((len(free), kept[have].shape[1]))
         out[[where[c] for c in have]] = kept[have]
         out[[where[c] for c in missing]] = self._jacobian_rows(st, np.array(missing, dtype=int))

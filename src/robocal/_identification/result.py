@@ -13,14 +13,14 @@ from typing import TYPE_CHECKING, cast
 import numpy as np
 
 from .._base.arguments import accepts, is_a
-from .._base.arrays import frozen, frozen_mapping
+from .._base.arrays import frozen, frozen_mapping, vector_norms
 from .._base.errors import InputError
 from .._model.contacts import Contacts
 from .._model.measurements import Measurements
 from .._model.parameters import parameter_layout, parameter_vector
 from .._model.robot import RobotModel
 from .._version import __version__
-from .checks import STATUSES, Check, vector_norms, verdict
+from .checks import STATUSES, Check, verdict
 from .estimates import ErrorStats, ParameterEstimate, error_stats
 from .holdout import AccuracyInUse, Coverage
 from .identifiability import IdentifiabilityResult
