@@ -493,13 +493,14 @@ def _place(Vt: np.ndarray, parent: np.ndarray, out: np.ndarray) -> None:
         np.matmul(Vt, parent.reshape(4, -1), out=out.reshape(len(Vt), -1))
 
 
-def _turn_rows(block: np.ndarray, unturned: np.ndarray, c, ss) -> None:
-    """The x and y axes of a frame's ``block`` turned about z per pose from those before the turn,
-    ``unturned`` (xc, yc) (2, 3, N): x = c xc + s yc, y = c yc - s xc, with c (N,) and ``ss`` the
-    (s, -s) of ``_signed_sines``. Reference: docs/method.md section 1: the joint's Rot(z, theta) of X_pj."""
+def _turn_rows(block: np.ndarray, room: np.ndarray, c, ss) -> None:
+    """The x and y axes (xc, yc) of a frame's ``block`` turned about z per pose, in place:
+    x = c xc + s yc, y = c yc - s xc, with c (N,) and ``ss`` the (s, -s) of ``_signed_sines``;
+    ``room`` (2, 3, N) scratch. Reference: docs/method.md section 1: the joint's Rot(z, theta) of X_pj."""
     xy = block[FrameRow.X_AXIS:FrameRow.Y_AXIS + 1]
-    np.multiply(unturned, c, out=xy)
-    xy += unturned[::-1] * ss                 # (yc, xc) s, -s
+    np.multiply(xy[::-1], ss, out=room)       # (yc, xc) s, -s
+    xy *= c
+    xy += room
 
 
 def kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray, defl=None,
@@ -515,7 +516,7 @@ def kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray
     N = qf.shape[0]
     base_axes, Rb = _base_placement(model, p)
     vec = take((lay.n_rows, 3, N))
-    unturned = np.empty((2, 3, N))           # a frame's x and y before its joint's turn, frame after frame
+    room = np.empty((2, 3, N))               # scratch for the joints' turns, frame after frame
     vec[ZERO_ROW] = 0.0
     ps = _Pass(vec=vec, base_axes=base_axes, base_origin=p[0:3], base_rotation=Rb, model=model, lay=lay, p=p,
                orientations=orientations, has_markers=not frames_only)
@@ -533,7 +534,7 @@ def kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray
         else:
             ps.pending.append((i, _constant_frame(vec, r0, parent, v, v[FrameStep.BETA] + d_be,
                                                   v[FrameStep.ALPHA] + d_al, d_th,
-                                                  qf[:, i] if rev else None, cos_q[i], sin_q[i], unturned)))
+                                                  qf[:, i] if rev else None, cos_q[i], sin_q[i], room)))
         if f.joint == "prismatic":
             vec[r0 + FrameRow.ORIGIN] += qf[:, i] * vec[r0 + FrameRow.Z_AXIS]
     if not frames_only:
@@ -541,11 +542,11 @@ def kinematic_pass(model: RobotModel, lay: Layout, p: np.ndarray, qf: np.ndarray
     return ps
 
 
-def _constant_frame(vec, r0, parent, v, be, al, d_th, q, cos_q, sin_q, unturned) -> list:
+def _constant_frame(vec, r0, parent, v, be, al, d_th, q, cos_q, sin_q, room) -> list:
     """Fill a frame's rows X_AXIS to ORIGIN from its parent's when beta and alpha are the same at every
     pose (``v`` the frame's values as floats): docs/method.md section 1's X_pj, its constant part
     (gamma, b, beta, alpha, d, theta's offset, r) placed by one (4 x 4) product and the joint's turn
-    per pose (through ``unturned``, (2, 3, N) room for x and y before the turn). Return the rows of
+    per pose, applied in place (``room``: (2, 3, N) scratch). Return the rows of
     the (4, 4) product giving its step axes and points (rows D_AXIS on). The constant 3-vectors are
     a few scalars: plain floats."""
     cg, sg = math.cos(v[FrameStep.GAMMA]), math.sin(v[FrameStep.GAMMA])
@@ -567,15 +568,13 @@ def _constant_frame(vec, r0, parent, v, be, al, d_th, q, cos_q, sin_q, unturned)
     yt = (c0 * y0 - s0 * x0, c0 * y1 - s0 * x1, c0 * y2 - s0 * x2, 0.0)
     z = (z0, z1, z2, 0.0)
     origin = (d * x0 + r * z0, d * x1 + r * z1, b + d * x2 + r * z2, 1.0)
-    if q is None and not per_pose:
-        _place(np.array((xt, yt, z, origin)), parent, vec[r0 + FrameRow.X_AXIS:r0 + FrameRow.ORIGIN + 1])
-    else:
-        _place(np.array((z, origin)), parent, vec[r0 + FrameRow.Z_AXIS:r0 + FrameRow.ORIGIN + 1])
-        _place(np.array((xt, yt)), parent, unturned)
+    # x and y land before the joint's turn, which is then applied in place
+    _place(np.array((xt, yt, z, origin)), parent, vec[r0 + FrameRow.X_AXIS:r0 + FrameRow.ORIGIN + 1])
+    if q is not None or per_pose:
         if per_pose:
             ang = d_th if q is None else q + d_th
             cos_q, sin_q = np.cos(ang), _signed_sines(ang)
-        _turn_rows(vec[r0:r0 + FRAME_ROWS], unturned, cos_q, sin_q)
+        _turn_rows(vec[r0:r0 + FRAME_ROWS], room, cos_q, sin_q)
     # in the parent's frame: the d axis, the beta axis (Rot(z, gamma)'s y), b's point, theta's point
     return [(x0, x1, x2, 0.0), (-sg, cg, 0.0, 0.0), (0.0, 0.0, b, 1.0), (d * x0, d * x1, b + d * x2, 1.0)]
 
