@@ -224,6 +224,38 @@ def test_series_column_kept_per_pose_and_through_subsets(files, reference):
     assert list(rc.read_measurements(files / "back.csv", model).extra["series"]) == labels
 
 
+def test_a_subset_is_the_record_built_and_checked_from_its_rows():
+    """subset() skips the checks its rows passed already: every field equals that of a record made
+    from scratch from the same rows, read-only, for integer, boolean and slice selections."""
+    import dataclasses
+
+    rng = np.random.default_rng(3)
+    n = 40
+    data = rc.Measurements(q=rng.normal(size=(n, 3)), positions=rng.normal(size=(n, 2, 3)), marker_names=("a", "b"),
+                           sigma=rng.uniform(1e-5, 1e-4, size=(n, 2)), payload_mass=rng.uniform(0, 2, n),
+                           labels=tuple(f"row {i + 2}" for i in range(n)),
+                           extra={"series": np.array([f"s{i % 3}" for i in range(n)]), "note": "kept"})
+    data = rc.Measurements(**{**{f.name: getattr(data, f.name) for f in dataclasses.fields(data)},
+                              "mask": data.mask & (rng.random((n, 2)) > 0.2)}).with_approach()
+    for index in (np.array([7, 3, 3, 20]), np.arange(n) % 4 == 1, slice(5, 30, 2), np.array([], dtype=int)):
+        part = data.subset(index)
+        made = rc.Measurements(**{f.name: getattr(part, f.name) for f in dataclasses.fields(part)})
+        for f in dataclasses.fields(part):
+            got, want = getattr(part, f.name), getattr(made, f.name)
+            if isinstance(got, np.ndarray):
+                assert got.dtype == want.dtype and np.array_equal(got, want, equal_nan=True), f.name
+                assert not got.flags.writeable, f.name
+            elif f.name == "extra":
+                assert got.keys() == want.keys() and got["note"] == "kept"
+                for k in ("series", "approach"):
+                    assert np.array_equal(got[k], want[k]) and not got[k].flags.writeable
+            else:
+                assert got == want, f.name
+        picked = np.arange(n)[index]
+        assert part.labels == tuple(f"row {i + 2}" for i in picked)
+        assert np.array_equal(part.q, data.q[picked]) and np.array_equal(part.mask, data.mask[picked])
+
+
 # -- DH tables: the convention of a theta, d, a, alpha table is stated, never guessed ----------------
 
 CRAIG = """name,joint,alpha_deg,a_mm,theta_deg,d_mm

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
@@ -10,7 +10,7 @@ from .._base.arguments import (
     accepts,
     shaped,
 )
-from .._base.arrays import frozen
+from .._base.arrays import frozen, read_only
 from .._base.errors import InputError, check_choice
 from .._base.options import DEFAULT_INSTRUMENT, INSTRUMENT_NOISE
 
@@ -210,21 +210,26 @@ class Measurements:
             idx = slice(*index.indices(self.n_poses))
             labels = self.labels[idx]
         else:
-            picked = np.arange(self.n_poses)[index]
-            idx, labels = picked, tuple(map(self.labels.__getitem__, picked.tolist()))
+            idx = np.arange(self.n_poses)[index]
+            labels = tuple(self._label_array()[idx].tolist())
 
         def cut(a):
             return None if a is None else a[idx]
 
-        return Measurements(
-            q=self.q[idx], positions=self.positions[idx], marker_names=self.marker_names,
-            joint_names=self.joint_names, mask=self.mask[idx], rotations=cut(self.rotations),
+        # the rows of a checked record pass every check again: the cut arrays are only made read-only
+        return _checked(
+            self, q=self.q[idx], positions=self.positions[idx], mask=self.mask[idx], rotations=cut(self.rotations),
             rot_mask=cut(self.rot_mask), sigma=cut(self.sigma), sigma_rot=cut(self.sigma_rot),
             payload_mass=cut(self.payload_mass), labels=labels,
-            source=self.source, sha256=self.sha256,
-            extra={k: (v[idx] if isinstance(v, np.ndarray) and v.shape[:1] == (self.n_poses,) else v)
+            extra={k: (read_only(v[idx]) if isinstance(v, np.ndarray) and v.shape[:1] == (self.n_poses,) else v)
                    for k, v in self.extra.items()},
         )
+
+    def _label_array(self) -> np.ndarray:
+        """The labels as an object array, made once: picking thousands of them is then one take."""
+        if "_labels" not in self.__dict__:
+            object.__setattr__(self, "_labels", np.array(self.labels, dtype=object))
+        return self.__dict__["_labels"]
 
     def split(self, n_validation: int | float, *, rng=None) -> tuple[Measurements, Measurements]:
         """Random split into (fit, validation); ``n_validation`` a count or a fraction. Each part keeps
@@ -246,3 +251,13 @@ class Measurements:
         """The same poses with the points ``aside`` (n_poses, n_markers) masked: set aside, not deleted."""
         return replace(self, mask=self.mask & ~aside,
                        rot_mask=None if self.rot_mask is None else self.rot_mask & ~aside)
+
+
+def _checked(record: Measurements, **cut) -> Measurements:
+    """A record of ``record``'s fields with those in ``cut`` replaced by parts of its own checked,
+    read-only arrays: built without ``__post_init__``'s checks and copies, which they pass already."""
+    out = object.__new__(Measurements)
+    for f in fields(Measurements):
+        value = cut[f.name] if f.name in cut else getattr(record, f.name)
+        object.__setattr__(out, f.name, read_only(value) if isinstance(value, np.ndarray) else value)
+    return out
