@@ -389,3 +389,39 @@ def test_the_row_wise_reductions_are_the_column_ones():
     with_gaps = np.vstack([p, [[np.nan, 0.0, 0.0], [np.inf, 1.0, 1.0]]])
     assert point_spread(with_gaps) == pytest.approx(expected, rel=1e-13)
     assert point_spread(p[:1]) == 0.0
+
+
+# -- what a campaign's readings give every problem made on it: the joints' turns -----------------------
+
+def test_a_fold_takes_the_joint_turns_of_the_campaign_and_evaluates_as_one_made_from_scratch(monkeypatch):
+    """The cosines and sines of the readings are made once per campaign while a problem holds them
+    (``Measurements.derived``) and a fold cut from it takes its rows: its errors are those of the same
+    rows in a record made from scratch, and once no problem holds them the next one makes them anew."""
+    import dataclasses
+    import gc
+
+    m, data = _campaign(n=60)
+    names = rc.identifiability(m, data).identified
+    p = rc.parameter_vector(m)
+    free = [rc.parameter_names(m).index(n) for n in names]         # geometric: the passes turn the readings
+    p[free] += np.random.default_rng(4).normal(0.0, 1e-4, len(free))
+    key = ("joint turns", m.coupling_matrix.shape, m.coupling_matrix.tobytes())
+    whole = Points(m, data, names, compliance=False)
+    whole.errors(p)
+    made = data.derived(key, lambda d: pytest.fail("made again while held"), None)
+    index = np.arange(60)[np.arange(60) % 5 != 2]
+    fold = data.subset(index)
+    scratch = rc.Measurements(**{f.name: getattr(fold, f.name) for f in dataclasses.fields(fold)})
+    from_scratch = Points(m, scratch, names, compliance=False).errors(p)
+    with monkeypatch.context() as patch:             # the fold's turns are the campaign's rows, not made
+        patch.setattr(np, "cos", lambda *a, **k: pytest.fail("the fold's turns made anew"))
+        cut = Points(m, fold, names, compliance=False)
+        errors = cut.errors(p)
+    assert np.array_equal(errors, from_scratch)
+    taken = fold.derived(key, lambda d: pytest.fail("made although the campaign's are held"), None)
+    qf = np.asarray(data.q[index]) @ m.coupling_matrix.T
+    assert np.array_equal(taken[0], np.cos(qf.T)) and np.array_equal(taken[1][:, 0, 0], np.sin(qf.T))
+    del whole, made, taken, cut
+    gc.collect()
+    fresh = data.subset(index).derived(key, lambda d: (np.zeros(1),), None)
+    assert np.array_equal(fresh[0], np.zeros(1))

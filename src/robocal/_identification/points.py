@@ -33,11 +33,11 @@ from .._model.kinematics import (
     evaluate_state,
     frame_approach,
     jacobian_columns,
-    joint_turns,
     layout,
     moved_state,
     moves_rigidly,
     pass_buffers,
+    reading_turns,
     workspace,
 )
 from .._model.measurements import Measurements, Noise, approach_of
@@ -236,7 +236,7 @@ class Points:
             near = None if self.compliance or self.backlash else next(
                 (s for s in reversed(states.values()) if moves_rigidly(self.lay, s.ps.p, p)), None)
             if near is None and self._turns is None:
-                self._turns = joint_turns(self.qf)
+                self._turns = reading_turns(self.model, self.data, self.qf)
             st = moved_state(near, p, take=kept.workspace.take) if near is not None else evaluate_state(
                 self.model, self.lay, p, self.qf, compliance=self.compliance, orientations=self.use_rot,
                 payload_mass=self.data.payload_mass, backlash=self.backlash, approach=self.approach,

@@ -474,6 +474,21 @@ def joint_turns(qf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return read_only(np.cos(qt)), read_only(_signed_sines(qt))
 
 
+def reading_turns(model: RobotModel, data, qf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``joint_turns(qf)`` of ``data``'s frame variables ``qf`` (its readings through the model's
+    couplings), made once per record and couplings and kept with the record
+    (``Measurements.derived``): the problems made on one campaign, and on the folds cut from it,
+    share them."""
+    C = model.coupling_matrix
+    return data.derived(("joint turns", C.shape, C.tobytes()), lambda _: joint_turns(qf), _turns_at)
+
+
+def _turns_at(turns: tuple, index) -> tuple[np.ndarray, np.ndarray]:
+    """The poses ``index`` of ``joint_turns``' cosines and sines, read-only."""
+    cos_q, sin_q = turns
+    return read_only(cos_q[:, index]), read_only(sin_q[..., index])
+
+
 def _signed_sines(angle: np.ndarray) -> np.ndarray:
     """(..., 2, 1, N) sin and -sin of ``angle`` (..., N), as ``_turn_rows`` takes them."""
     out = np.empty(angle.shape[:-1] + (2, 1, angle.shape[-1]))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
@@ -217,13 +218,32 @@ class Measurements:
             return None if a is None else a[idx]
 
         # the rows of a checked record pass every check again: the cut arrays are only made read-only
-        return _checked(
+        part = _checked(
             self, q=self.q[idx], positions=self.positions[idx], mask=self.mask[idx], rotations=cut(self.rotations),
             rot_mask=cut(self.rot_mask), sigma=cut(self.sigma), sigma_rot=cut(self.sigma_rot),
             payload_mass=cut(self.payload_mass), labels=labels,
             extra={k: (read_only(v[idx]) if isinstance(v, np.ndarray) and v.shape[:1] == (self.n_poses,) else v)
                    for k, v in self.extra.items()},
         )
+        object.__setattr__(part, "_cut_from", (weakref.ref(self), idx))
+        return part
+
+    def derived(self, key, make, rows) -> tuple:
+        """The arrays ``make(self)`` derives from these readings (a tuple), made once per record and
+        ``key`` while somebody holds them: the record keeps weak references only, so nothing made
+        in one calibration outlives it or serves the next. A record ``subset`` cut from another
+        whose arrays are held takes ``rows(arrays, index)`` of them (per-pose quantities: the rows
+        of the whole's, the same numbers)."""
+        memo = self.__dict__.get("_derived")
+        if memo is None:
+            object.__setattr__(self, "_derived", memo := {})
+        held = _held(memo.get(key))
+        if held is None:
+            whole, index = self.__dict__.get("_cut_from", (lambda: None, None))
+            of_whole = _held(getattr(whole(), "_derived", {}).get(key))
+            held = tuple(rows(of_whole, index) if of_whole is not None else make(self))
+            memo[key] = tuple(weakref.ref(a) for a in held)
+        return held
 
     def _label_array(self) -> np.ndarray:
         """The labels as an object array, made once: picking thousands of them is then one take."""
@@ -261,3 +281,9 @@ def _checked(record: Measurements, **cut) -> Measurements:
         value = cut[f.name] if f.name in cut else getattr(record, f.name)
         object.__setattr__(out, f.name, read_only(value) if isinstance(value, np.ndarray) else value)
     return out
+
+
+def _held(refs) -> tuple | None:
+    """The arrays behind the weak references ``refs``, or None when any is gone (or none was kept)."""
+    arrays = None if refs is None else tuple(r() for r in refs)
+    return None if arrays is None or any(a is None for a in arrays) else arrays
