@@ -425,3 +425,67 @@ def test_a_fold_takes_the_joint_turns_of_the_campaign_and_evaluates_as_one_made_
     gc.collect()
     fresh = data.subset(index).derived(key, lambda d: (np.zeros(1),), None)
     assert np.array_equal(fresh[0], np.zeros(1))
+
+
+# -- the model choice, the fits and the analysis --------------------------------------------------
+
+def test_a_triangular_factor_is_its_own_qr_as_lapack_makes_it():
+    """The R factor of stacked rows (``reduced``) is returned as its own QR (Q the identity): what
+    numpy's Householder QR gives for it, bit for bit, whatever the signs on its diagonal; any other
+    matrix is factored."""
+    from robocal._base.linalg import reduced
+    from robocal._identification.identifiability import qr_factors
+
+    rng = np.random.default_rng(5)
+    for k in (1, 6, 35, 114):
+        R = reduced(rng.normal(size=(4 * k, k)) * np.logspace(-4, 2, k))
+        Q, same = qr_factors(R)
+        Qn, Rn = np.linalg.qr(R)
+        assert np.array_equal(Q, Qn) and np.array_equal(same, Rn)
+    A = rng.normal(size=(8, 8))
+    Q, R = qr_factors(A)
+    assert np.allclose(Q @ R, A) and not np.array_equal(Q, np.eye(8))
+
+
+def test_the_all_free_design_names_the_weak_parameters_the_first_one_found_as_from_scratch():
+    """The model choice's all-free design names the weak parameters its first design found at the
+    same scatter (kept with the analysis): the same names and predicted effects as an analysis that
+    judges them anew."""
+    from dataclasses import replace
+
+    from robocal._identification.steps import pin_down
+
+    a, options, _, _, first = _choice_start()
+    assert first.design.weak and a.weak_at
+    shared = pin_down(a, options.noise, None, eliminate=False, problem=first.problem)
+    anew = pin_down(replace(a, weak_at={}), options.noise, None, eliminate=False, problem=first.problem)
+    assert shared.weak == anew.weak == first.design.weak
+    assert shared.identifiability.identified == anew.identifiability.identified
+
+
+def test_weak_parameters_eliminated_together_are_absorbed_as_each_alone():
+    """Parameters eliminated together take their absorbing combinations from one least-squares solve:
+    each combination (parameter units) and what it leaves (unit columns) as a solve of that column
+    alone on the parameters kept."""
+    from robocal._identification.identifiability import eliminate
+    from robocal._model.parameters import parameter_layout
+
+    a, _, _, _, _ = _choice_start()
+    J, names = a.stack.J, a.stack.names
+    lay = parameter_layout(a.problem.model)
+    kept = a.identifiability.identified
+    dropped = {kept[-1]: "held", kept[-3]: "held"}
+    result = eliminate(a.identifiability, J, names, [lay[n].quantity for n in names], dropped,
+                       n_rows=a.problem.n_rows)
+    unit = J / np.linalg.norm(J, axis=0)
+    cols = [names.index(n) for n in result.identified]
+    absorbed_ = [x for x in result.eliminated if x.name in dropped]
+    assert len(absorbed_) == 2
+    for absorbed in absorbed_:
+        k = names.index(absorbed.name)
+        c = np.linalg.lstsq(unit[:, cols], unit[:, k], rcond=None)[0]
+        assert absorbed.residual == pytest.approx(np.linalg.norm(unit[:, cols] @ c - unit[:, k]), rel=1e-9, abs=1e-15)
+        coef = dict(absorbed.absorbers)
+        scale = np.linalg.norm(J, axis=0)
+        for i in np.argsort(-np.abs(c))[:len(coef)]:
+            assert coef[result.identified[i]] == pytest.approx(c[i] * scale[k] / scale[cols[i]], rel=1e-9)

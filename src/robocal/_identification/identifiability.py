@@ -247,7 +247,7 @@ def _preference_qr(An: np.ndarray, nz: np.ndarray, tol: float):
     # entry is the part of column k outside the span of those before it)
     first = 0
     if n_rows >= len(cols) > 0:
-        Qa, Ra = np.linalg.qr(An[:, cols])
+        Qa, Ra = qr_factors(An[:, cols])
         small = np.nonzero(np.abs(np.diag(Ra)) <= tol)[0]
         first = int(small[0]) if len(small) else len(cols)
         basis[:, :first], Rk[:first, :first] = Qa[:, :first], Ra[:first, :first]
@@ -468,7 +468,7 @@ def _kept_prefix(A: np.ndarray, sigma: float, factor: np.ndarray):
     Rinv = np.zeros((k, k))
     if A.shape[0] < k:
         return 0, Q, Rinv, np.zeros(k)
-    Qa, Ra = np.linalg.qr(A)
+    Qa, Ra = qr_factors(A)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         inv = solve_upper(Ra, np.eye(k))           # NaN if singular: then every trial goes one at a time
         running = np.cumsum(inv ** 2, axis=1)                     # [i, m]: i's entry among the first m + 1
@@ -480,6 +480,17 @@ def _kept_prefix(A: np.ndarray, sigma: float, factor: np.ndarray):
     Q[:, :k0] = Qa[:, :k0]
     Rinv[:k0, :k0] = inv[:k0, :k0]
     return k0, Q, Rinv, np.concatenate([running[:k0, k0 - 1] if k0 else np.zeros(0), np.zeros(k - k0)])
+
+
+def qr_factors(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``np.linalg.qr(A)``; a square upper triangular ``A`` (a factor ``reduced`` made) is its own R
+    with Q the identity, as LAPACK's Householder QR returns them for it (each reflection is the
+    identity), without running it."""
+    n, k = A.shape
+    if n == k and not np.tril(A, -1).any():
+        return np.eye(k), A
+    Q, R = np.linalg.qr(A)
+    return Q, R
 
 
 def _project(B: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, float]:
@@ -507,18 +518,19 @@ def eliminate(result: IdentifiabilityResult, J: np.ndarray, names, quantities, d
     sub = [k for k, n in enumerate(names) if n not in dropped]
     kept = analyse(J[:, sub], [names[k] for k in sub], quantities=[quantities[k] for k in sub], tol=result.tol,
                    n_rows=n_rows)
-    cols = [names.index(n) for n in kept.identified]
+    rank_of = {n: i for i, n in enumerate(names)}
+    cols = [rank_of[n] for n in kept.identified]
     A = J[:, cols] / scale[cols]
+    gone = [rank_of[name] for name in dropped]
+    B = J[:, gone] / scale[gone]
+    C = np.linalg.lstsq(A, B, rcond=None)[0]       # every dropped column from one factorization
+    left = np.linalg.norm(A @ C - B, axis=0)
     extra = []
-    for name, reason in dropped.items():
-        k = names.index(name)
-        c, *_ = np.linalg.lstsq(A, J[:, k] / scale[k], rcond=None)
-        resid = float(np.linalg.norm(A @ c - J[:, k] / scale[k]))
+    for (name, reason), k, c, resid in zip(dropped.items(), gone, C.T, left.tolist()):
         coef = c * scale[k] / scale[cols]
         order = np.argsort(-np.abs(c))
         terms = tuple((kept.identified[i], float(coef[i])) for i in order[:max_terms] if abs(c[i]) > 1e-6)
         extra.append(Absorption(name, reason, terms, resid))
-    rank_of = {n: i for i, n in enumerate(names)}
     # a reason the first analysis gave in more words (a one-sided backlash) is kept
     said = {a.name: a.reason for a in result.eliminated}
     again = tuple(replace(a, reason=said[a.name]) if said.get(a.name, "").startswith(a.reason) else a

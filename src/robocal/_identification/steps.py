@@ -12,7 +12,7 @@ quantity alone), never a second sequence. The checks and the record are in ``jud
 from __future__ import annotations
 
 import contextlib
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -207,6 +207,9 @@ class Analysis:
     compliance: bool
     reach: ContactIdentifiability | None
     notes: tuple[str, ...] = ()
+    # the weak parameters among every identifiable one, by the scatter they were judged at: the
+    # model choice's all-free design names those its first design judged at the same scatter
+    weak_at: dict = field(default_factory=dict, repr=False)
 
     @property
     def identifiability(self) -> IdentifiabilityResult:
@@ -332,15 +335,21 @@ def weak_parameters(analysis: Analysis, sigma: float, *, eliminate: bool):
     prob, J, names = analysis.problem, analysis.stack.J, analysis.stack.names
     lay = parameter_layout(prob.model)
     quantities = [lay[n].quantity for n in names]
-    moments = prob.compliance_moments(prob.start_vector())
+    column = {n: k for k, n in enumerate(names)}
+    moments = None
     ident = analysis.identifiability
     dropped: dict[str, str] = {}
     said: list[tuple[str, str]] = []
     result = ident
     while True:
-        cols = [list(names).index(n) for n in result.identified]
-        found = weakly_identifiable(J[:, cols], result.identified, [quantities[k] for k in cols], sigma,
-                                    moments=moments)
+        cols = [column[n] for n in result.identified]
+        found = analysis.weak_at.get(sigma) if result is ident else None
+        if found is None:
+            moments = prob.compliance_moments(prob.start_vector()) if moments is None else moments
+            found = weakly_identifiable(J[:, cols], result.identified, [quantities[k] for k in cols], sigma,
+                                        moments=moments)
+            if result is ident:
+                analysis.weak_at[sigma] = found
         said += [(n, effect_text(e, lay[by].quantity) + ("" if by == n else f" of {by} with it"))
                  for n, by, e, _ in found]
         if not found or not eliminate:
