@@ -489,3 +489,50 @@ def test_weak_parameters_eliminated_together_are_absorbed_as_each_alone():
         scale = np.linalg.norm(J, axis=0)
         for i in np.argsort(-np.abs(c))[:len(coef)]:
             assert coef[result.identified[i]] == pytest.approx(c[i] * scale[k] / scale[cols[i]], rel=1e-9)
+
+
+# -- the evidence: folds, workspace and coverage from what the calibration holds ----------------------
+
+def _lost_motion(model):
+    """``model`` with 2 arcmin of backlash on every joint, resting on the side of its last move."""
+    from dataclasses import replace
+
+    arcmin = np.pi / 180 / 60
+    return model.replace(frames=tuple(replace(f, backlash_theta=arcmin, backlash_width=1.0) for f in model.frames),
+                         backlash_side="approach")
+
+
+@pytest.mark.parametrize("kind", ["geometric", "compliance", "backlash"])
+def test_each_folds_pass_at_its_own_readings_is_the_fold_evaluated_as_a_problem_of_its_own(kind):
+    """The fit's held-out errors, each fold's model evaluated at that fold's readings alone and the
+    errors and loss taken over the campaign at once, equal each fold made a problem of its own and
+    evaluated: folds drawn at random (poses of a fold apart), points not measured, stated
+    deviations, a payload per pose under compliance, lost motion resting by the campaign's order."""
+    from robocal._identification.holdout import Holdout, cross_validate, evaluated, fold_steps
+
+    m = arm6r(markers=(("tool", (0.05, 0.02, 0.12)), ("side", (0.1, -0.05, 0.08))), masses=kind == "compliance")
+    m = _lost_motion(m) if kind == "backlash" else m
+    mass = np.arange(90) % 3 * 2.0 if kind == "compliance" else None
+    _, data = rc.simulate(m, 90, seed=7, payload_mass=mass)
+    mask = data.mask.copy()
+    mask[::7, 1] = False
+    sigma = np.full(mask.shape, 2e-5) * (1 + np.arange(90) % 2)[:, None]
+    data = rc.Measurements(q=data.q, positions=data.positions, marker_names=data.marker_names,
+                           joint_names=data.joint_names, mask=mask, sigma=sigma, payload_mass=data.payload_mass)
+    names = rc.identifiability(m, data).identified
+    names += ("j2.k_theta",) if kind == "compliance" else ("j3.backlash_theta",) if kind == "backlash" else ()
+    prob = Problem(m, names, data=data, compliance=kind == "compliance")
+    p = rc.parameter_vector(m) + 1e-4 * np.isin(rc.parameter_names(m), names)
+    labels = np.random.default_rng(1).permutation(90) % 4
+    holdout = Holdout(labels[np.nonzero(mask)[0]], 4, "4 folds", labels, 4)
+    shared = cross_validate(prob, p, holdout)
+    steps = fold_steps(prob, p, holdout)
+    whole = data.with_approach()
+    for g in range(4):
+        index = np.nonzero(labels == g)[0]
+        pg = p.copy()
+        pg[prob.free_idx] += steps[g]
+        alone = evaluated(Points(m, whole.subset(index), names, compliance=kind == "compliance"), pg)
+        np.testing.assert_allclose(shared.positions[index], alone.positions, rtol=0, atol=1e-14)
+        np.testing.assert_allclose(shared.loss[index], alone.loss, rtol=1e-12)
+    assert np.isnan(shared.positions[::7, 1]).all() and np.isfinite(shared.positions[1::7]).all()

@@ -29,6 +29,7 @@ from scipy.linalg.lapack import dpocon, dpotrf, dpotrs
 
 from .._base.arrays import column_extent, frozen, point_spread, read_only, vector_norms
 from .._model.configurations import sampling_box
+from .._model.kinematics import CHUNK_POSES, evaluate_state
 from .._model.measurements import Measurements
 from .contact_blocks import ContactRows
 from .points import Points
@@ -256,6 +257,33 @@ def _moved_held_out(problem: Problem, pts: Points, p: np.ndarray, steps: list[np
     return HeldOut(errors, None, point_loss(pts, p[:n], errors))
 
 
+def _fold_passes(problem: Problem, pts: Points, p: np.ndarray, steps: list[np.ndarray], holdout: Holdout
+                 ) -> HeldOut | None:
+    """The measured points' held-out errors (``cross_validate``) from a pass of each fold's model at
+    that fold's readings alone (``CHUNK_POSES`` at a time), their errors and loss then taken over the
+    campaign at once: the figures of a problem made per fold, without making one. None with
+    orientations (their errors are the problem's to make)."""
+    if pts.use_rot:
+        return None
+    n, labels = problem.n_robot, cast(np.ndarray, holdout.pose_labels)
+    order = np.argsort(labels, kind="stable") if np.any(labels[1:] < labels[:-1]) else None
+    bounds = np.searchsorted(labels if order is None else labels[order], np.arange(holdout.point_folds + 1))
+    mass, approach = pts.data.payload_mass, pts.approach
+    positions = np.empty((pts.data.n_poses, len(pts.marker_idx), 3))
+    for g in range(holdout.point_folds):
+        pg = p[:n].copy()
+        pg[problem.free_idx] += steps[g]
+        for lo in range(bounds[g], bounds[g + 1], CHUNK_POSES):
+            part = slice(lo, min(lo + CHUNK_POSES, bounds[g + 1]))
+            at = part if order is None else order[part]
+            st = evaluate_state(pts.model, pts.lay, pg, pts.qf[at], compliance=pts.compliance, orientations=False,
+                                payload_mass=None if mass is None else mass[at], backlash=pts.backlash,
+                                approach=None if approach is None else approach[at])
+            positions[at] = cast(np.ndarray, st.ps.P)[pts.marker_idx].transpose(1, 0, 2)
+    errors = pts.errors_of(positions)
+    return HeldOut(errors, None, point_loss(pts, p[:n], errors))
+
+
 def contact_held_out(rows: ContactRows, p_robot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Each contact observation's error with its own unknowns from its own rows at ``p_robot``
     (n_obs, 3), and its loss in stated deviations (n_obs,)."""
@@ -401,7 +429,8 @@ def cross_validate(problem: Problem, p: np.ndarray, holdout: Holdout, *, on: Pro
     pos: np.ndarray | None = None
     rot: np.ndarray | None = None
     loss = np.zeros((0, 0))
-    moved = None if target.points is None else _moved_held_out(problem, target.points, p, steps, holdout)
+    moved = None if target.points is None else (_moved_held_out(problem, target.points, p, steps, holdout)
+                                                 or _fold_passes(problem, target.points, p, steps, holdout))
     if moved is not None:
         pos, rot, loss = moved.positions, None, moved.loss
     elif target.points is not None:
