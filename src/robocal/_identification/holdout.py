@@ -271,12 +271,12 @@ def _fold_passes(problem: Problem, pts: Points, p: np.ndarray, steps: list[np.nd
     mass, approach = pts.data.payload_mass, pts.approach
     positions = np.empty((pts.data.n_poses, len(pts.marker_idx), 3))
     for g in range(holdout.point_folds):
-        pg = p[:n].copy()
+        pg = p.copy()
         pg[problem.free_idx] += steps[g]
         for lo in range(bounds[g], bounds[g + 1], CHUNK_POSES):
             part = slice(lo, min(lo + CHUNK_POSES, bounds[g + 1]))
             at = part if order is None else order[part]
-            st = evaluate_state(pts.model, pts.lay, pg, pts.qf[at], compliance=pts.compliance, orientations=False,
+            st = evaluate_state(pts.model, pts.lay, pg[:n], pts.qf[at], compliance=pts.compliance, orientations=False,
                                 payload_mass=None if mass is None else mass[at], backlash=pts.backlash,
                                 approach=None if approach is None else approach[at])
             positions[at] = cast(np.ndarray, st.ps.P)[pts.marker_idx].transpose(1, 0, 2)
