@@ -10,7 +10,7 @@ from typing import cast
 import numpy as np
 
 from .._base.arguments import NORMS, accepts
-from .._base.arrays import vector_norms
+from .._base.arrays import read_only, vector_norms
 from .._model.configurations import design_measurements
 from .._model.measurements import Measurements
 from .._model.parameters import parameter_layout, parameter_vector
@@ -125,8 +125,8 @@ def workspace_change(start: RobotModel, p: np.ndarray, q: np.ndarray, markers, f
     whose predictions are taken when they are the geometry's alone."""
     lay = parameter_layout(start)
     p0 = parameter_vector(start)
-    geometry = np.array([lay[n].family not in ("compliance", "backlash") for n in lay.names])
-    p_geom = np.where(geometry, p, p0)
+    families = start.derived(workspace_change, lambda: read_only(np.array([lay[n].family for n in lay.names])))
+    p_geom = np.where((families != "compliance") & (families != "backlash"), p, p0)
     if (at is not None and at.compliance == start.has_compliance and np.array_equal(p_geom, p)
             and set(markers) <= set(at.data.marker_names)):
         target = at.predicted(p)[0][:, [at.data.marker_names.index(n) for n in markers]]
@@ -136,8 +136,9 @@ def workspace_change(start: RobotModel, p: np.ndarray, q: np.ndarray, markers, f
     tol = tolerances(start)
     t_len, t_ang = tol.get(("frames", "length")), tol.get(("frames", "angle"))
     radius = float(np.max(vector_norms(target - np.asarray(start.base_position, dtype=float))))
-    placed = tuple(n for n in lay.names if lay[n].family == "base"
-                   or (lay[n].role == "marker" and lay[n].owner in set(markers) and n in set(free)))
+    owners, free_set = set(markers), set(free)
+    placed = tuple(n for n, f in zip(lay.names, families) if f == "base"
+                   or (f == "markers" and lay[n].owner in owners and n in free_set))
     ws = Measurements(q=q, positions=target, marker_names=tuple(markers), joint_names=start.joint_names)
     nominal = Problem(start, placed, data=ws, compliance=start.has_compliance)
     p_start = p0.copy()
