@@ -107,7 +107,7 @@ def test_the_diagnosis_inside_a_calibration_is_the_one_from_scratch():
 
 # -- the diagnosis screen: the calibration's own columns and every split's sums at once ----------------------------
 
-def _reference_of(m, data):
+def _reference_of(m, data, **options):
     """The diagnosis' reference as ``calibrate`` makes it (on its own fit's residuals and Jacobian)."""
     from robocal._diagnosis import calibrate as face
     from robocal._diagnosis.reference import reference
@@ -123,7 +123,7 @@ def _reference_of(m, data):
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            rc.calibrate(m, data)
+            rc.calibrate(m, data, **options)
     finally:
         face.screened = screened
     return taken["ref"]
@@ -131,27 +131,66 @@ def _reference_of(m, data):
 
 def test_a_split_from_the_sums_over_every_pose_is_the_least_squares_fit_letting_the_columns_change_there():
     """The best split along the rows and what it takes away, from the gradient and Gram matrices summed
-    over the poses after each split (one batched product), against the least-squares fit of the
-    calibration's columns with some of them (the base's, the tool's position) let change again from
-    each split on, solved directly for every split: the same row (for the base, where the instrument
-    was bumped), the same sum of squares."""
-    from robocal._diagnosis.campaign import marker_columns, split_gain
+    over the poses after each split (every set of columns with the same edge in one pass, the rows
+    about the coarse grid's best pose by pose), against the least-squares fit of the calibration's
+    columns with some of them (the base's, each marker's position) let change again from each split
+    on, solved directly for every split: the same row (for the base, where the instrument was
+    bumped), the same sum of squares. Two markers, one of them not seen on some poses: the rows are
+    not in pose order and the poses hold different numbers of rows."""
+    from robocal._diagnosis.campaign import SPLITS, marker_columns, split_gains
 
-    m, data = _campaign()
-    bumped = data.positions.copy()
-    bumped[170:] += np.array([0.0005, -0.0003, 0.0002])
-    ref = _reference_of(m, rc.Measurements(q=data.q, positions=bumped, marker_names=data.marker_names,
+    m = arm6r(markers=(("tool", (0.05, 0.02, 0.12)), ("side", (-0.04, 0.06, 0.08))))
+    _, data = rc.simulate(m, 200, seed=2)
+    bumped, mask = data.positions.copy(), data.mask.copy()
+    bumped[120:] += np.array([0.0005, -0.0003, 0.0002])
+    mask[::7, 1] = False
+    bumped[~mask] = np.nan
+    ref = _reference_of(m, rc.Measurements(q=data.q, positions=bumped, mask=mask, marker_names=data.marker_names,
                                            joint_names=data.joint_names))
-    pose = np.repeat(np.arange(data.n_poses), 3)
+    pose = ref.problem.points.row_points()[0]
+    assert np.any(np.diff(pose) < 0)
     before = np.linalg.lstsq(ref.J, ref.r, rcond=None)[1][0]
-    rows = np.arange(15, data.n_poses - 15 + 1)
+    rows = np.arange(10, data.n_poses - 10 + 1)
     base = ref.J[:, [i for i, n in enumerate(ref.names) if n.startswith("base.")]]
-    for Z, true_row in ((base, 170), (marker_columns(ref, "tool"), None)):
-        row, gain = split_gain(ref, Z, 15)
+    columns = [base, marker_columns(ref, "tool"), marker_columns(ref, "side"), marker_columns(ref, "tool")]
+    edges = [10, 10, 10, 14]
+    found = split_gains(ref, columns, edges)
+    for (row, gain), Z, edge, true_row in zip(found, columns, edges, (120, None, None, None)):
         direct = np.array([before - np.linalg.lstsq(np.hstack([ref.J, Z * (pose >= s)[:, None]]), ref.r,
                                                     rcond=None)[1][0] for s in rows])
-        assert row == rows[np.argmax(direct)] == (true_row or row)
-        assert gain == pytest.approx(direct[row - 15], rel=1e-6)
+        n = data.n_poses          # the search: the best of a coarse grid, then each row about it
+        coarse = np.unique(np.linspace(edge, n - edge, min(SPLITS, n - 2 * edge + 1)).round().astype(int))
+        best = coarse[np.argmax(direct[coarse - 10])]
+        step = coarse[1] - coarse[0]
+        near = np.arange(max(edge, best - step), min(n - edge, best + step) + 1)
+        assert row == near[np.argmax(direct[near - 10])] == (true_row or row)
+        assert gain == pytest.approx(direct[row - 10], rel=1e-6)
+
+
+def test_the_load_columns_on_the_nominals_massless_copy_are_those_of_the_calibrated_models():
+    """The load columns, evaluated on the nominal's massless copy kept with it (the calibrated model's
+    stored base rotation entering as a correction), against those of a massless copy of the
+    calibrated model made for them: the same to rounding."""
+    from dataclasses import replace
+
+    from robocal._diagnosis.campaign import load_columns
+
+    m = arm6r(masses=True)
+    _, data = rc.simulate(m, 120, seed=3, parameters=("geometric", "compliance"))
+    ref = _reference_of(m, data, parameters=("geometric", "compliance"))
+    start = ref.start
+    assert not np.allclose(start.base_rotation, m.base_rotation)
+    bare = start.replace(frames=tuple(replace(f, mass=0.0) for f in start.frames), payload=rc.Payload(mass=1.0),
+                         other_payloads=())
+    names = tuple(n for n in rc.candidate_parameters(m, ("compliance",)) if n.endswith(".k_theta"))
+    loaded = replace(ref.data.with_approach(), payload_mass=np.ones(ref.data.n_poses))
+    q = rc.parameter_vector(bare)
+    compliance = np.array([p.family == "compliance" for p in rc.kinematics.parameter_layout(bare).parameters])
+    q[~compliance] = ref.p[:len(q)][~compliance]
+    scratch = np.array(Problem(bare, names, data=loaded, compliance=True, noise=ref.noise).jacobian(q))
+    kept = load_columns(m, start, ref.p, ref.data, ref.noise)
+    assert np.max(np.abs(kept - scratch)) <= 1e-12 * np.max(np.abs(scratch))
+    assert load_columns(m, start, ref.p, ref.data, ref.noise) is not kept
 
 
 def test_the_markers_columns_the_diagnosis_takes_from_the_calibration_are_those_evaluated_at_its_solution():

@@ -15,12 +15,13 @@ from typing import cast
 
 import numpy as np
 
+from .._base.spatial import rotation_vector, small_rotation
 from .._identification.holdout import ordered
 from .._identification.points import Points
 from .._identification.problem import Problem
 from .._model.measurements import Measurements
 from .._model.parameters import candidate_parameters, parameter_layout, parameter_vector
-from .._model.robot import Marker, Payload
+from .._model.robot import Marker, Payload, RobotModel
 from .reference import (
     SURVIVE_FACTOR,
     Candidate,
@@ -205,88 +206,147 @@ def _columns(ref: Reference, cols) -> np.ndarray:
 def _load_columns(ref: Reference) -> np.ndarray:
     """(n_rows, n_joints) how the joints' torsional compliances bend the robot under a unit mass at
     its last frame (the robot's own masses left out), at the calibration's values."""
-    start, data = ref.start, ref.data
-    bare = start.replace(frames=tuple(replace(f, mass=0.0) for f in start.frames), payload=Payload(mass=1.0),
-                         other_payloads=())
-    # the same frames as the nominal model's, whose candidates are kept with it
-    names = tuple(n for n in candidate_parameters(ref.model, ("compliance",)) if n.endswith(".k_theta"))
+    return load_columns(ref.model, ref.start, ref.p, ref.data, ref.noise)
+
+
+def load_columns(model: RobotModel, start: RobotModel, p: np.ndarray, data: Measurements, noise) -> np.ndarray:
+    """(n_rows, n_joints) the rows of ``data`` per unit torsional compliance of each joint under a unit
+    mass at the last frame, the links massless, at the calibrated model ``start``'s compliances and
+    ``p``'s other values (its rotation corrections applied to ``start``'s stored rotations): on the
+    nominal ``model``'s massless copy kept with it (``unloaded``, its structure made once), which
+    takes ``start``'s stored rotations as corrections of its own."""
+    bare = unloaded(model)
+    names = tuple(n for n in candidate_parameters(model, ("compliance",)) if n.endswith(".k_theta"))
     loaded = with_arrays(data, payload_mass=np.ones(data.n_poses))
-    prob = Problem(bare, names, data=loaded, compliance=True, noise=ref.noise)
+    prob = Problem(bare, names, data=loaded, compliance=True, noise=noise)
     lay = parameter_layout(bare)
-    q = parameter_vector(bare)
-    for par in lay.parameters:
-        if par.family != "compliance":
-            q[par.index] = ref.p[par.index]
+    q = np.array(p[:lay.n_params], dtype=float)
+    compliance = np.array([par.family == "compliance" for par in lay.parameters])
+    q[compliance] = parameter_vector(start)[compliance]
+    q[3:6] = rotation_vector(np.asarray(model.base_rotation).T @ np.asarray(start.base_rotation)
+                             @ small_rotation(*q[3:6]))
+    for m, (mk, mc) in enumerate(zip(model.markers, start.markers)):
+        at = slice(lay.marker0[m] + 3, lay.marker0[m] + 6)
+        q[at] = rotation_vector(np.asarray(mk.rotation).T @ np.asarray(mc.rotation) @ small_rotation(*q[at]))
     return np.array(prob.jacobian(q))
+
+
+def unloaded(model: RobotModel) -> RobotModel:
+    """``model`` with massless links and a unit payload at its last frame (no other payloads), made
+    once and kept with it."""
+    return model.derived(unloaded, lambda: model.replace(
+        frames=tuple(replace(f, mass=0.0) for f in model.frames), payload=Payload(mass=1.0), other_payloads=()))
 
 
 def _row_pose(ref: Reference) -> np.ndarray:
     return row_layout(ref)[0]
 
 
-def split_gain(ref: Reference, Z: np.ndarray, edge: int) -> tuple[int, float]:
-    """The pose from which letting parameters with the columns ``Z`` (n_rows, g) change lowers the sum
-    of squares most, and by how much (one Gauss-Newton step, from the gradient and Gram matrices
-    summed over the poses after each split): first on a coarse grid of ``SPLITS`` rows, then row by
-    row about its best."""
+def split_gains(ref: Reference, columns: list[np.ndarray], edges: list[int]) -> list[tuple[int, float]]:
+    """For each of ``columns`` (n_rows, g) and its ``edges`` (poses kept on each side), the pose from
+    which letting parameters with those columns change lowers the sum of squares most, and by how
+    much (one Gauss-Newton step, from the gradient and Gram matrices summed over the poses after each
+    split): first on a coarse grid of ``SPLITS`` rows, then row by row about its best. The sums of
+    every set of columns with the same edge come from one pass over the rows by pose (``Z^T J`` and
+    ``Z^T [Z, r]`` between consecutive grid rows, summed from the end); the rows about a best one
+    are summed pose by pose up to the next grid row and added to its sums."""
+    J, Zr, first = _split_rows(ref, columns)
     n = ref.data.n_poses
-    if n - 2 * edge < 0:
-        return n // 2, 0.0
-    order, first, rJ = _by_pose(ref)
-    X = np.hstack([rJ, np.vstack([Z[order], np.zeros((1, Z.shape[1]))])])
-    inverse = ref.gram_inverse
-    coarse = np.unique(np.linspace(edge, n - edge, min(SPLITS, n - 2 * edge + 1)).round().astype(int))
-    gains = _split_solutions(_suffix_sums(X, Z.shape[1], first, coarse), inverse)
-    k = int(np.argmax(gains))
-    row, gain = int(coarse[k]), float(max(gains[k], 0.0))
-    step = int(coarse[1] - coarse[0]) if len(coarse) > 1 else 1
-    if step > 1:                      # the rows about it, each
-        near = np.arange(max(edge, row - step), min(n - edge, row + step) + 1)
-        gains = _split_solutions(_suffix_sums(X, Z.shape[1], first, near), inverse)
-        k = int(np.argmax(gains))
-        row, gain = int(near[k]), float(max(gains[k], 0.0))
-    return row, gain
+    ends = np.cumsum([Z.shape[1] for Z in columns])
+    out: list[tuple[int, float]] = [(n // 2, 0.0)] * len(columns)
+    for edge in sorted(set(edges)):
+        if n - 2 * edge < 0:
+            continue
+        which = [k for k, e in enumerate(edges) if e == edge]
+        z = slice(int(ends[which[0]] - columns[which[0]].shape[1]), int(ends[which[-1]]))
+        coarse = np.unique(np.linspace(edge, n - edge, min(SPLITS, n - 2 * edge + 1)).round().astype(int))
+        sums = _suffix_sums(J, Zr, z, first, coarse)
+        step = int(coarse[1] - coarse[0]) if len(coarse) > 1 else 1
+        for k in which:
+            own = np.arange(ends[k] - columns[k].shape[1], ends[k])
+            row, gain = _best_split([s[:, own - z.start] for s in sums], own, coarse, ref.gram_inverse)
+            if step > 1:                      # the rows about it, each
+                near = np.arange(max(edge, row - step), min(n - edge, row + step) + 1)
+                c = int(np.searchsorted(coarse, near[-1]))
+                fine = _near_sums(J, Zr, own, first, near, int(coarse[c]), [s[c, own - z.start] for s in sums])
+                row, gain = _best_split(fine, own, near, ref.gram_inverse)
+            out[k] = (row, gain)
+    return out
 
 
-def _by_pose(ref: Reference) -> tuple[np.ndarray | slice, np.ndarray, np.ndarray]:
-    """The reference's rows ordered by pose (stably; a slice of them all when they are), each pose's
-    first row in that order (n_poses + 1 bounds), and the residuals and the Jacobian side by side in
-    that order, a zero row last."""
-    def make():
-        pose = _row_pose(ref)
-        order = slice(None) if np.all(pose[1:] >= pose[:-1]) else np.argsort(pose, kind="stable")
-        first = np.searchsorted(pose[order], np.arange(ref.data.n_poses + 1))
-        rJ = np.zeros((len(pose) + 1, 1 + ref.J.shape[1]))
-        rJ[:-1, 0], rJ[:-1, 1:] = ref.r[order], ref.J[order]
-        return order, first, rJ
-
-    return ref.cached("rows_by_pose", make)
-
-
-def _suffix_sums(X: np.ndarray, g: int, first: np.ndarray, bounds: np.ndarray) -> np.ndarray:
-    """(len(bounds), g, w): ``Z^T X`` over the rows of the poses from each of ``bounds`` (ascending) on,
-    where ``X`` (n_rows + 1, w) holds the rows by pose and a zero row last, ``Z`` its last ``g``
-    columns: the sums between consecutive bounds in one batched product (each block padded with the
-    zero row to the longest), the rows from the last bound on in one more, summed from the end."""
-    start = first[bounds]
-    size = np.diff(start)
-    width = int(size.max()) if len(size) else 0
-    at = start[:-1, None] + np.arange(width)
-    blocks = X[np.where(np.arange(width) < size[:, None], at, len(X) - 1)]
-    tail = X[start[-1]:]
-    sums = np.concatenate([np.swapaxes(blocks[..., -g:], 1, 2) @ blocks, (tail[:, -g:].T @ tail)[None]])
-    return np.cumsum(sums[::-1], axis=0)[::-1]
+def _split_rows(ref: Reference, columns: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The Jacobian, and ``columns`` with the residuals last, in the rows' pose order (stably: as they
+    are when they are in order), and each pose's first row in that order (n_poses + 1 bounds)."""
+    pose = _row_pose(ref)
+    order = slice(None) if np.all(pose[1:] >= pose[:-1]) else np.argsort(pose, kind="stable")
+    first = np.searchsorted(pose[order], np.arange(ref.data.n_poses + 1))
+    Zr = np.empty((len(pose), sum(Z.shape[1] for Z in columns) + 1))
+    at = 0
+    for Z in columns + [ref.r[:, None]]:
+        Zr[:, at:at + Z.shape[1]] = Z[order]
+        at += Z.shape[1]
+    return ref.J[order], Zr, first
 
 
-def _split_solutions(sums: np.ndarray, inverse: np.ndarray) -> np.ndarray:
-    """The sum of squares each split's Gauss-Newton step takes away (``sums``: ``Z^T [r, J, Z]`` over the
-    poses after each split, ``_suffix_sums``)."""
+def _best_split(sums: list[np.ndarray], own: np.ndarray, bounds: np.ndarray, inverse: np.ndarray
+                ) -> tuple[int, float]:
+    """The bound whose split takes most away, and how much: ``sums`` (``Z^T J`` and ``Z^T [Z_all, r]``
+    over the poses after each bound, ``Z`` the columns ``own`` of ``Z_all``), the sum of squares each
+    split's Gauss-Newton step takes away."""
+    HG, ZR = sums
+    g, ZZ = ZR[..., -1], ZR[..., own]
     p = len(inverse)
-    g, HG, ZZ = sums[..., 0], sums[..., 1:1 + p], sums[..., 1 + p:]
-    M = ZZ - HG @ inverse @ np.swapaxes(HG, 1, 2)
+    M = ZZ - (HG.reshape(-1, p) @ inverse).reshape(HG.shape) @ np.swapaxes(HG, 1, 2)
     ridge = (1e-10 * np.trace(M, axis1=1, axis2=2)[:, None, None] + 1e-300) * np.eye(M.shape[-1])
-    sol = np.linalg.solve(M + ridge, g[..., None])[..., 0]
-    return np.einsum("si,si->s", g, sol)
+    gains = np.einsum("si,si->s", g, np.linalg.solve(M + ridge, g[..., None])[..., 0])
+    j = int(np.argmax(gains))
+    return int(bounds[j]), float(max(gains[j], 0.0))
+
+
+def _suffix_sums(J: np.ndarray, Zr: np.ndarray, z: slice, first: np.ndarray, bounds: np.ndarray
+                 ) -> list[np.ndarray]:
+    """``Z^T J`` and ``Z^T Zr`` (each (len(bounds), g, ...)) over the rows of the poses from each of
+    ``bounds`` (ascending) on, ``Z`` the columns ``z`` of ``Zr`` (the rows by pose): block by block
+    from the last, each added to the sums after it (no copy of the rows)."""
+    start = first[bounds]
+    ends = np.append(start[1:], len(J))
+    HG = np.empty((len(bounds), z.stop - z.start, J.shape[1]))
+    ZR = np.empty((len(bounds), z.stop - z.start, Zr.shape[1]))
+    Zt = Zr[:, z].T
+    for k, (a, b) in enumerate(zip(start[::-1].tolist(), ends[::-1].tolist())):
+        np.matmul(Zt[:, a:b], J[a:b], out=HG[k])
+        np.matmul(Zt[:, a:b], Zr[a:b], out=ZR[k])
+        if k:                           # numpy's cumsum runs down the first axis element by element
+            HG[k] += HG[k - 1]
+            ZR[k] += ZR[k - 1]
+    return [HG[::-1], ZR[::-1]]
+
+
+def _block_sums(Zr: np.ndarray, z, start: np.ndarray, ends: np.ndarray, J: np.ndarray | None = None
+                ) -> np.ndarray:
+    """(len(start), g, w) ``Z^T Zr`` (or ``Z^T J``) over the rows ``start[k]:ends[k]`` of each block,
+    ``Z`` the columns ``z`` of ``Zr``: one batched product, each block padded with zero rows to the
+    longest."""
+    size = ends - start
+    width = int(size.max()) if len(size) else 0
+    pad = (np.arange(width) < size[:, None])[..., None]
+    rows = np.where(pad[..., 0], start[:, None] + np.arange(width), 0)
+    Zb = np.where(pad, Zr[rows], 0.0)
+    return np.swapaxes(Zb[..., z], 1, 2) @ (Zb if J is None else np.where(pad, J[rows], 0.0))
+
+
+def _near_sums(J: np.ndarray, Zr: np.ndarray, own: np.ndarray, first: np.ndarray, near: np.ndarray, bound: int,
+               after: list[np.ndarray]) -> list[np.ndarray]:
+    """``_suffix_sums`` of the columns ``own`` of ``Zr`` from each of ``near`` (consecutive poses) on,
+    from ``after``, those sums from pose ``bound`` (>= near's last) on: each pose's rows before
+    ``bound`` summed (``_block_sums``), then from the end onto ``after``."""
+    poses = np.arange(near[0], bound)
+    start, ends = first[poses], first[poses + 1]
+    out = []
+    for part, tail in zip((_block_sums(Zr, own, start, ends, J), _block_sums(Zr, own, start, ends)), after):
+        sums = np.concatenate([part, tail[None]])
+        out.append(np.cumsum(sums[::-1], axis=0)[::-1][:len(near)])
+    return out
 
 
 def _determined(ref: Reference, freedom: int) -> bool:
@@ -295,19 +355,39 @@ def _determined(ref: Reference, freedom: int) -> bool:
     return len(ref.r) - len(ref.names) - freedom >= freedom
 
 
+def _splits(ref: Reference) -> dict:
+    """Every split search of the screen in one go (``split_gains``): per group a step may move (its
+    words, ``_groups``) and per marker that may have moved from a row on (its index,
+    ``_movable_markers``), the best row and the sum of squares a step there takes away."""
+    def make():
+        n = ref.data.n_poses
+        edge = max(MIN_ROWS, int(EDGE_SHARE * n))
+        keys: list = []
+        columns, edges = [], []
+        for what, cols in _groups(ref):
+            Z = _columns(ref, cols)
+            side = max(edge, Z.shape[1] // 3 + 2)      # each side holds more rows than the group has parameters
+            if n - 2 * side >= 1 and _determined(ref, Z.shape[1]):
+                keys.append(what), columns.append(Z), edges.append(side)
+        for m, name in _movable_markers(ref):
+            keys.append(m), columns.append(marker_columns(ref, name)), edges.append(edge)
+        return dict(zip(keys, split_gains(ref, columns, edges)))
+
+    return ref.cached("splits", make)
+
+
 def step_change(ref: Reference) -> list[Candidate]:
     """A step along the campaign's order: from some row on the base, the load or the whole robot
     differs (a bumped instrument, a payload, a sister robot); each group's best row from cumulative
     sums of the calibration's gradient and Gram matrix, its columns stepped."""
     n = ref.data.n_poses
-    edge = max(3, int(EDGE_SHARE * n))
+    splits = _splits(ref)
     out = []
     for what, cols in _groups(ref):
-        Z = _columns(ref, cols)
-        side = max(edge, Z.shape[1] // 3 + 2)      # each side holds more rows than the group has parameters
-        if n - 2 * side < 1 or not _determined(ref, Z.shape[1]):
+        if what not in splits:
             continue
-        row, gain = split_gain(ref, Z, side)
+        Z = _columns(ref, cols)
+        row, gain = splits[what]
         freedom = Z.shape[1] + np.log2(max(n, 2))
         label = _label(ref, row)
         after = (_row_pose(ref) >= row)[:, None]
@@ -460,6 +540,14 @@ def marker_columns(ref: Reference, name: str) -> np.ndarray:
     return np.array(ref.problem.over(names).jacobian(ref.p))
 
 
+def _movable_markers(ref: Reference) -> list[tuple[int, str]]:
+    """(index, name) of the markers ``marker_elsewhere`` tests: seen on ``4 * MIN_ROWS`` rows or more,
+    their position fitted."""
+    seen = ref.data.mask.sum(axis=0)
+    return [(m, name) for m, name in enumerate(ref.data.marker_names)
+            if seen[m] >= 4 * MIN_ROWS and any(n.startswith(f"{name}.") for n in ref.names)]
+
+
 def marker_elsewhere(ref: Reference) -> list[Candidate]:
     """A marker elsewhere on the robot on some rows: from one row on (the tool changed, the reflector
     moved in its nest: the row from cumulative sums of the calibration's gradient and Gram matrix with
@@ -469,12 +557,11 @@ def marker_elsewhere(ref: Reference) -> list[Candidate]:
     every row when the model has it wrong, and freeing it on nearly every row would name a move."""
     E = _marker_frame_residuals(ref)
     n_all = ref.data.n_poses
+    splits = _splits(ref)
     out = []
-    for m, name in enumerate(ref.data.marker_names):
+    for m, name in _movable_markers(ref):
         seen = np.nonzero(ref.data.mask[:, m])[0]
-        if len(seen) < 4 * MIN_ROWS or not any(n.startswith(f"{name}.") for n in ref.names):
-            continue
-        row, gain_tail = split_gain(ref, marker_columns(ref, name), max(MIN_ROWS, int(EDGE_SHARE * n_all)))
+        row, gain_tail = splits[m]
         some, gain_some = _two_groups(E[seen, m])
         tail = _predicted(ref, gain_tail, 3.0 + np.log2(n_all))
         scattered = _predicted(ref, _metres_to_rows(ref, gain_some), 3.0 + len(some))
