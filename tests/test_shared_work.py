@@ -530,6 +530,30 @@ def test_weak_parameters_eliminated_together_are_absorbed_as_each_alone():
             assert coef[result.identified[i]] == pytest.approx(c[i] * scale[k] / scale[cols[i]], rel=1e-9)
 
 
+def test_observation_errors_asked_again_are_those_made_anew_and_a_changed_problem_makes_its_own():
+    """The outliers, the scatter and the checks ask a problem for its observations' errors at the
+    solution in turn: the ones kept are those a problem made anew gives (read-only), another vector
+    or the problem with observations set aside computes its own."""
+    m, data = _campaign(n=80)
+    names = rc.identifiability(m, data).identified
+    prob = Problem(m, names, data=data, compliance=False)
+    p = rc.parameter_vector(m) + np.random.default_rng(6).normal(0.0, 1e-4, len(rc.parameter_vector(m)))
+    first = prob.observation_errors(p)
+    again = prob.observation_errors(p.copy())
+    fresh = Problem(m, names, data=data, compliance=False).observation_errors(p)
+    assert again is first
+    for e, _, index in first.values():
+        assert not e.flags.writeable and not index.flags.writeable
+    assert all(np.array_equal(a, b) for a, b in zip(first["tracker"], fresh["tracker"]) if a is not None)
+    elsewhere = prob.observation_errors(p + 1e-5)
+    assert not np.array_equal(elsewhere["tracker"][0], first["tracker"][0])
+    aside = np.zeros(prob.n_points, dtype=bool)
+    aside[:5] = True
+    fewer = prob.without(aside).observation_errors(p)
+    assert len(fewer["tracker"][0]) == prob.n_points - 5
+    assert np.array_equal(fewer["tracker"][0], first["tracker"][0][5:])
+
+
 # -- the evidence: folds, workspace and coverage from what the calibration holds ----------------------
 
 def _lost_motion(model):

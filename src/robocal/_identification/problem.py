@@ -23,7 +23,7 @@ from typing import Protocol, cast
 
 import numpy as np
 
-from .._base.arrays import read_only
+from .._base.arrays import frozen, read_only
 from .._base.linalg import r_factor, reduced
 from .._model.contacts import Contacts
 from .._model.kinematics import layout
@@ -156,6 +156,7 @@ class Problem:
         self._point_index = np.full(self.point_mask.shape, -1)
         self._point_index[self.point_mask] = np.arange(int(self.point_mask.sum()))
         self._observations: Observations | None = None   # built once: the steps ask it often
+        self._errors_at: tuple | None = None     # the last observation_errors: (bytes of the vector, errors)
         self._set_free(tuple(free))
 
     # ---- parameters -------------------------------------------------------------------------
@@ -176,6 +177,7 @@ class Problem:
         return len(self.nuisance0)
 
     def _set_free(self, free: tuple[str, ...]) -> None:
+        self._errors_at = None
         self.free_names = free
         self.robot_idx = parameter_layout(self.model).indices(free)
         self.free_idx = np.concatenate([self.robot_idx, self.n_robot + np.arange(self.n_nuisance)]).astype(int)
@@ -204,6 +206,7 @@ class Problem:
             other.points = self.points.without(points)
         if self.contacts is not None and aside[n:].any():
             other.contacts = self.contacts.without(aside[n:])
+        other._errors_at = None
         return other
 
     def start_vector(self, p_robot: np.ndarray | None = None) -> np.ndarray:
@@ -224,6 +227,7 @@ class Problem:
             return self
         other = copy.copy(self)
         other.contacts = self.contacts.at_contact()
+        other._errors_at = None
         return other
 
     # ---- evaluation ---------------------------------------------------------------------------
@@ -376,8 +380,12 @@ class Problem:
 
     def observation_errors(self, p) -> dict:
         """Per kind, the errors (n, width) in m of the observations fitted, their stated standard
-        deviations (n,) or None, and their indices among ``observations`` (n,)."""
-        out = {}
+        deviations (n,) or None, and their indices among ``observations`` (n,), read-only. The last
+        vector's are kept: the outliers, the scatter and the checks ask for the solution's in turn."""
+        key = frozen(p).tobytes()
+        if self._errors_at is not None and self._errors_at[0] == key:
+            return self._errors_at[1]
+        out: dict = {}
         if self.points is not None:
             d = self.points.data
             errors = self.points.errors(p[:self.n_robot])[d.mask]
@@ -385,4 +393,6 @@ class Problem:
         if self.contacts is not None:
             for kind, (e, s, o) in self.contacts.errors(self._at(p)).items():
                 out[kind] = (e, s, self.n_points + o)
+        out = {kind: tuple(None if a is None else read_only(a) for a in v) for kind, v in out.items()}
+        self._errors_at = (key, out)
         return out
