@@ -331,3 +331,28 @@ def test_point_losses_from_the_errors_at_hand_are_the_residuals_own(chunked):
     p = rc.parameter_vector(robot) + 1e-4
     a, b = point_loss(prob, p), point_loss(prob, p, prob.errors(p))
     assert a.shape == mask.shape and np.array_equal(a, b) and np.all(a[~mask] == 0) and np.all(a[mask] > 0)
+
+
+def test_a_configuration_repeated_exactly_is_held_out_with_its_first_occurrence():
+    """Folds drawn at random or of consecutive poses: a configuration measured again goes to the
+    fold of its first occurrence (held out with it, it cannot vouch for itself); distinct ones keep
+    their fold, one apart from another along a direction that ties their projection included."""
+    from robocal._identification.holdout import FOLD_SEED, fold_labels
+
+    m = rc.serial_model("r3", [dict(), dict(alpha=np.pi / 2), dict(d=0.4)])
+    q = np.random.default_rng(2).uniform(-1, 1, size=(40, 3))
+    q[7] = q[30] = q[3]                              # the same configuration three times
+    q[12] = q[5] + np.array([np.sqrt(2.0), 0.0, -2.0]) * 1e-3
+    moved = []
+    for order in (q, q[np.argsort(q[:, 0], kind="stable")]):
+        data = rc.Measurements(q=order, positions=np.zeros((40, 1, 3)), marker_names=("tool",),
+                               joint_names=m.joint_names)
+        labels, k, how = fold_labels(data, 4)
+        drawn = np.random.default_rng(FOLD_SEED).permutation(40) % 4
+        plain = np.arange(40) * 4 // 40 if "consecutive" in how else drawn
+        first = {tuple(row): i for i, row in reversed(list(enumerate(order)))}
+        assert len(first) == 38
+        expected = np.array([plain[first[tuple(row)]] for row in order])
+        assert k == 4 and np.array_equal(labels, expected)
+        moved.append(not np.array_equal(labels, plain))
+    assert any(moved)

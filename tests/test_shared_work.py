@@ -599,3 +599,22 @@ def test_each_folds_pass_at_its_own_readings_is_the_fold_evaluated_as_a_problem_
         np.testing.assert_allclose(shared.positions[index], alone.positions, rtol=0, atol=1e-14)
         np.testing.assert_allclose(shared.loss[index], alone.loss, rtol=1e-12)
     assert np.isnan(shared.positions[::7, 1]).all() and np.isfinite(shared.positions[1::7]).all()
+
+
+def test_the_instruments_share_taken_out_by_a_plain_mean_is_the_nan_mean_one():
+    """Norms all finite take their mean square as a plain sum (np.nanmean's figure bit for bit);
+    with points not measured (NaN), an infinite norm or none at all, the NaN-aware mean as before."""
+    from robocal._identification.holdout import without_instrument
+
+    def reference(v, variance):
+        ms = float(np.nanmean(v * v)) if np.isfinite(v).any() else 0.0
+        return v if ms <= 0 or variance <= 0 else v * np.sqrt(max(1.0 - 3.0 * variance / ms, 0.0))
+
+    rng = np.random.default_rng(5)
+    for n in (1, 2, 7, 1000, 10001):
+        v = rng.lognormal(-8, 1, n)
+        gaps = np.where(np.arange(n) % 5 == 1, np.nan, v)
+        for norms in (v, gaps, np.full(n, np.nan), np.r_[v, np.inf]):
+            for variance in (0.0, 1e-9, float(np.mean(v * v))):
+                assert np.array_equal(without_instrument(norms, variance), reference(norms, variance), equal_nan=True)
+    assert without_instrument(np.zeros(0), 1e-9).size == 0

@@ -93,7 +93,9 @@ def use_stats(norms) -> UseStats:
     3.5355339059327378
     """
     v = np.asarray(norms, dtype=float).ravel()
-    v = v[np.isfinite(v)]
+    finite = np.isfinite(v)
+    if not finite.all():                  # no copy where every point was measured
+        v = v[finite]
     if v.size == 0:
         return UseStats(0, None, None, None, None)
     return UseStats(int(v.size), float(v.mean()), float(np.sqrt(np.mean(v * v))), percentile_95(v), float(v.max()))
@@ -135,10 +137,11 @@ def fold_labels(data: Measurements, folds: int = DEFAULT_FOLDS) -> tuple[np.ndar
             labels, k = labels * MAX_FOLDS // k, MAX_FOLDS
         return labels.astype(int), int(k), f"{k} folds by series"
     k = int(min(max(folds, 2), n))
-    if ordered(data.q):
+    shuffled = np.random.default_rng(FOLD_SEED).permutation(n)
+    if ordered(data.q, shuffled):
         labels, how = np.arange(n) * k // n, f"{k} folds of consecutive poses"
     else:
-        labels, how = np.random.default_rng(FOLD_SEED).permutation(n) % k, f"{k} folds drawn at random"
+        labels, how = shuffled % k, f"{k} folds drawn at random"
     return _repeats_together(data.q, labels).astype(int), k, how
 
 
@@ -147,23 +150,26 @@ def _repeats_together(q: np.ndarray, labels: np.ndarray) -> np.ndarray:
     Rows with distinct projections on a fixed direction are distinct: only when two tie are the rows
     compared whole."""
     rows = np.ascontiguousarray(q + 0.0)
-    h = rows @ (1.0 / np.sqrt(np.arange(2.0, rows.shape[1] + 2.0)))
-    if len(np.unique(h)) == len(h):
+    h = np.sort(rows @ (1.0 / np.sqrt(np.arange(2.0, rows.shape[1] + 2.0))))
+    if not np.any(h[1:] == h[:-1]):
         return labels
     _, first, inverse = np.unique(rows, axis=0, return_index=True, return_inverse=True)
     return labels[first[np.ravel(inverse)]]
 
 
-def ordered(q: np.ndarray) -> bool:
+def ordered(q: np.ndarray, shuffled: np.ndarray | None = None) -> bool:
     """Whether consecutive poses are neighbours (a grid, a path): the median step between them, in
-    each joint's spread, is below ``NEIGHBOURS`` of the median distance between poses taken at random."""
+    each joint's spread, is below ``NEIGHBOURS`` of the median distance between poses taken at random
+    (each against the pose ``shuffled`` puts in its place; default the permutation of ``FOLD_SEED``)."""
     q = np.asarray(q, dtype=float)
     if len(q) < 4:
         return True
     x = np.ascontiguousarray(q.T)                   # (n_joints, n): numpy reduces long rows fast
     spread = x.std(axis=1)
     x /= np.where(spread > 0, spread, 1.0)[:, None]
-    step, other = np.diff(x, axis=1), x - x[:, np.random.default_rng(FOLD_SEED).permutation(x.shape[1])]
+    if shuffled is None:
+        shuffled = np.random.default_rng(FOLD_SEED).permutation(x.shape[1])
+    step, other = np.diff(x, axis=1), x - x[:, shuffled]
     return bool(np.median(np.sqrt(np.sum(step * step, axis=0))) < NEIGHBOURS * np.median(
         np.sqrt(np.sum(other * other, axis=0))))
 
@@ -565,8 +571,13 @@ def without_instrument(norms: np.ndarray, variance: float) -> np.ndarray:
     square loses three times its per-axis ``variance`` (what the robot's placement errors would
     show without the instrument between; none left when the instrument explains it all)."""
     v = np.asarray(norms, dtype=float)
-    ms = float(np.nanmean(v * v)) if np.isfinite(v).any() else 0.0
-    if ms <= 0 or variance <= 0:
+    if variance <= 0:
+        return v
+    square = v * v
+    ms = float(np.sum(square)) / max(square.size, 1)     # np.nanmean's figure where every norm is finite
+    if not np.isfinite(ms):
+        ms = float(np.nanmean(square)) if np.isfinite(v).any() else 0.0
+    if ms <= 0:
         return v
     return v * np.sqrt(max(1.0 - 3.0 * variance / ms, 0.0))
 
@@ -584,8 +595,8 @@ def accuracy_in_use(method: str, folds: int | None, grouping: str, before: HeldO
     robot (seatings: their distance from their socket's mean centre), judged beside the points;
     ``fit_seatings`` the fitted seatings' distances; ``spacings`` (n_contact_observations,) the
     known distances, whose held-out errors are kept beside (``spacing_before``, ``spacing_after``)."""
-    eb, ea = without_instrument(before.norms.ravel(), noise[0]), without_instrument(after.norms.ravel(), noise[0])
     raw_after = after.norms.ravel()
+    eb, ea = without_instrument(before.norms.ravel(), noise[0]), without_instrument(raw_after, noise[0])
     fit_raw = np.asarray(fit_after, dtype=float)
     fitted = without_instrument(fit_raw, noise[0])
     if fit_seatings is not None:

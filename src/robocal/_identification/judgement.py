@@ -9,6 +9,7 @@ from typing import cast
 
 import numpy as np
 
+from .._base.arrays import vector_norms
 from .._base.errors import CheckWarning, ConvergenceWarning, IdentifiabilityWarning, MisfitWarning, warn
 from .._model.configurations import design_measurements
 from .._model.measurements import Measurements, Noise
@@ -139,12 +140,6 @@ def _fitted_seatings(problem: Problem, p: np.ndarray) -> np.ndarray | None:
     return np.linalg.norm(e[keep], axis=1)
 
 
-def _fitted_points(fit: Fit) -> np.ndarray:
-    """The fitted points' error norms (m), none without measured points."""
-    pts = fit.problem.points
-    return np.empty(0) if pts is None else pts.error_norms(fit.solution.p[:fit.problem.n_robot])[pts.data.mask]
-
-
 def in_use(fit: Fit, before: np.ndarray, inputs: Inputs, holdout: Holdout, folds: FoldProblems,
            options: Options) -> tuple[AccuracyInUse | None, PoseErrors | None, tuple[str, ...]]:
     """The accuracy in use before and after calibration, and the errors on held-out measured points:
@@ -163,10 +158,10 @@ def in_use(fit: Fit, before: np.ndarray, inputs: Inputs, holdout: Holdout, folds
     held_before = fit.held_out if only else (
         cross_validate(problem.over(placed), before, holdout, folds=folds) if placed else _everywhere(problem, before))
     pts = problem.points
-    noise = (0.0, 0.0) if pts is None else instrument_variance(problem.noise, pts.data,
-                                                               pts.errors(p[:problem.n_robot])[pts.data.mask])
+    fitted = np.zeros((0, 3)) if pts is None else pts.errors(p[:problem.n_robot])[pts.data.mask]
+    noise = (0.0, 0.0) if pts is None else instrument_variance(problem.noise, pts.data, fitted)
     record = accuracy_in_use("cross-validation", holdout.k, holdout.description, held_before, fit.held_out,
-                             _fitted_points(fit), registration_only=only, noise=noise, seatings=_seatings(problem),
+                             vector_norms(fitted), registration_only=only, noise=noise, seatings=_seatings(problem),
                              fit_seatings=_fitted_seatings(problem, p),
                              spacings=None if problem.contacts is None else _spacings(problem.contacts.obs_kind))
     return (record if record.position_after.n else None), None, ()
@@ -200,7 +195,8 @@ def _validation_points(fit: Fit, before: np.ndarray, points: Measurements, optio
     b, a = evaluated(pts, vectors[0]), evaluated(pts, vectors[1])
     method = "validation, base and tool registered on it" if register else "validation"
     fitted = None if problem.points is None else problem.points.errors(fit.solution.p[:n])[problem.points.data.mask]
-    record = accuracy_in_use(method, None, "the validation set", b, a, _fitted_points(fit),
+    record = accuracy_in_use(method, None, "the validation set", b, a,
+                             np.empty(0) if fitted is None else vector_norms(fitted),
                              noise=instrument_variance(problem.noise, points, fitted))
     k = fit.problem.n_points
     held = fit.held_out.observation_norms(fit.problem.point_mask)[:k][fit.steady()[:k]]
@@ -274,8 +270,9 @@ def input_checks(inputs: Inputs, analysis: Analysis) -> list[Check]:
     the robot's, every marker observed."""
     model, data, contacts = inputs.model, inputs.data, inputs.contacts
     parts = [(d.q, d.labels) for d in (data, contacts) if d is not None]
-    q = np.vstack([a for a, _ in parts])
-    labels = [lab for _, labs in parts for lab in labs]
+    # one kind of observation: its readings and labels as they are (no copy of every pose's)
+    q = parts[0][0] if len(parts) == 1 else np.vstack([a for a, _ in parts])
+    labels = parts[0][1] if len(parts) == 1 else [lab for _, labs in parts for lab in labs]
     out = [readings_check(model, q, labels), reading_units_check(model, q)]
     if data is not None:
         pts = cast(Points, analysis.problem.points)
