@@ -274,7 +274,10 @@ def cloud_size_check(model: RobotModel, data: Measurements, predicted: np.ndarra
     """
     name = "measured points against the robot's size"
     m = data.mask
-    measured, nominal = point_spread(data.positions[m]), point_spread(predicted[m])
+    if m.all():       # every point measured: the points as they are, in the order the mask would pick them
+        measured, nominal = point_spread(data.positions), point_spread(predicted)
+    else:
+        measured, nominal = point_spread(data.positions[m]), point_spread(predicted[m])
     if nominal <= 0 or measured <= 0:
         return Check(name, "pass", "too few distinct points to compare sizes")
     ratio = measured / nominal
@@ -610,9 +613,10 @@ def support_check(estimates) -> Check:
     name = "estimates supported by the data"
     weak = [e for e in estimates if abs(e.change) < SIGNIFICANCE_SIGMAS * e.std]
     items = tuple(f"{e.name} ({e.change / e.std:+.2g} sd)" for e in weak)
+    weak_names = {e.name for e in weak}          # names, not records compared field by field
     for label, belongs, why, fix in _UNSEEN_FAMILIES:
         family = [e for e in estimates if belongs(e)]
-        if family and all(e in weak for e in family):
+        if family and all(e.name in weak_names for e in family):
             return Check(name, "pass", f"no {label} differs from zero by {SIGNIFICANCE_SIGMAS:g} standard deviations: "
                          f"{why}; the accuracy in use judges the model with it", fix=fix, items=items)
     if not weak:

@@ -66,7 +66,9 @@ def error_stats(norms) -> ErrorStats:
         Their count, mean, standard deviation, RMS and maximum (None when there are none).
     """
     v = np.asarray(norms, dtype=float).ravel()
-    v = v[np.isfinite(v)]
+    finite = np.isfinite(v)
+    if not finite.all():                  # no copy where every point was measured
+        v = v[finite]
     if v.size == 0:
         return ErrorStats(0, None, None, None, None)
     return ErrorStats(n=int(v.size), mean=float(v.mean()), std=float(v.std(ddof=1)) if v.size > 1 else 0.0,

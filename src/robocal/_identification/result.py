@@ -438,7 +438,7 @@ def provenance(data: Measurements | None, validation: Measurements | None = None
                                "date": datetime.now(timezone.utc).isoformat(timespec="seconds")}
     for key, d in (("data", data), ("validation", validation)):
         if d is not None:
-            prov[key] = {"source": d.source, "sha256": d.sha256, "n_poses": d.n_poses, "labels": list(d.labels)}
+            prov[key] = {"source": d.source, "sha256": d.sha256, "n_poses": d.n_poses, "labels": d.labels}
     for key, c in (("contacts", contacts), ("validation_contacts", validation_contacts)):
         if c is not None:
             prov[key] = {"source": c.source, "sha256": c.sha256, "n_rows": c.n_rows, "placements": list(c.placements())}
