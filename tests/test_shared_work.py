@@ -193,6 +193,34 @@ def test_the_load_columns_on_the_nominals_massless_copy_are_those_of_the_calibra
     assert load_columns(m, start, ref.p, ref.data, ref.noise) is not kept
 
 
+def test_the_projection_from_the_solvers_factor_is_the_one_from_the_columns():
+    """The diagnosis projects out of the calibration's columns with the Gram matrix of the solver's R
+    factor (well conditioned here); the projection, the Gram inverse and the products of projected
+    columns against those made from the columns themselves; columns (nearly) in their span are
+    projected whole, as from scratch."""
+    from robocal._diagnosis.reference import projected_products
+
+    m, data = _campaign()
+    ref = _reference_of(m, data)
+    assert ref.factor is not None and ref.projector[0] is None
+    col = np.linalg.norm(ref.J, axis=0)
+    Js = ref.J / col
+    inverse = np.linalg.pinv(Js.T @ Js, hermitian=True)
+    rng = np.random.default_rng(5)
+    Z = rng.normal(size=(len(ref.r), 4)) * ref.J[:, :1]
+    Zp = Z - Js @ (inverse @ (Js.T @ Z))
+    assert np.max(np.abs(ref.project(Z) - Zp)) <= 1e-10 * np.max(np.abs(Zp))
+    assert np.max(np.abs(ref.gram_inverse * np.outer(col, col) - inverse)) <= 1e-10 * np.max(np.abs(inverse))
+    settled = ref.r - Js @ (inverse @ (Js.T @ ref.r))
+    M, b = projected_products(ref, Z)
+    assert np.max(np.abs(M - Zp.T @ Zp)) <= 1e-10 * np.max(np.abs(M))
+    assert np.max(np.abs(b - Zp.T @ settled)) <= 1e-8 * np.max(np.abs(b))
+    inside = np.hstack([ref.J[:, :2] + 1e-9 * Z[:, :2], Z[:, 2:]])
+    M, b = projected_products(ref, inside)
+    whole = ref.project(inside)
+    assert np.array_equal(M, whole.T @ whole) and np.array_equal(b, whole.T @ ref.settled)
+
+
 def test_the_markers_columns_the_diagnosis_takes_from_the_calibration_are_those_evaluated_at_its_solution():
     """A marker's columns in the calibration's Jacobian (taken a solver's tolerance from its solution)
     against the columns of its position evaluated at the solution."""

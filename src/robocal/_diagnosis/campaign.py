@@ -30,8 +30,8 @@ from .reference import (
     Repair,
     mm,
     projected_gain,
+    projected_products,
     row_layout,
-    settled_gain,
     with_arrays,
 )
 from .rigid import gross, moments, registered, rigid_misfit
@@ -390,12 +390,17 @@ def step_change(ref: Reference) -> list[Candidate]:
         row, gain = splits[what]
         freedom = Z.shape[1] + np.log2(max(n, 2))
         label = _label(ref, row)
-        after = (_row_pose(ref) >= row)[:, None]
         out.append(Candidate("step change", f"from {label} on, {what} changed", "", f"look at what happened at "
                              f"{label}; calibrate the rows before and after it apart, or measure again", (label,),
                              _predicted(ref, gain, freedom), np.log2(max(n, 2)),
-                             partial(Linear, Z * after), generic=what.startswith("the robot")))
+                             partial(_stepped, ref, Z, row), generic=what.startswith("the robot")))
     return out
+
+
+def _stepped(ref: Reference, Z: np.ndarray, row: int) -> Linear:
+    """The columns ``Z`` on the rows of the poses from ``row`` on (0 before): made only for a step that
+    survives the screen."""
+    return Linear(Z * (_row_pose(ref) >= row)[:, None])
 
 
 def drift(ref: Reference) -> list[Candidate]:
@@ -427,19 +432,16 @@ def readings_lag(ref: Reference) -> list[Candidate]:
     from .joints import joint_columns
 
     q = ref.data.q
-    if ref.data.n_poses < 8:
+    if ref.data.n_poses < 8 or not ordered(q):     # poses not along a path hold no lag
         return []
     dq = np.gradient(q, axis=0)
     C = joint_columns(ref)                                    # (n_rows, n_joints) per unit reading change
     Z = np.einsum("rj,rj->r", C, dq[_row_pose(ref)])[:, None]
-    Zp = ref.project(Z)
-    gain = settled_gain(ref, Zp)
-    Zp = Zp[:, 0]
-    lag = float(-(Zp @ ref.settled) / max(float(Zp @ Zp), 1e-300))
-    # a candidate predicted below the screen's bar is never refitted: whether the poses lie along a
-    # path then changes nothing
-    if (not np.isfinite(lag) or abs(lag) > max(SHIFTS) or lag == 0.0 or _predicted(ref, gain, 1.0) < SURVIVE_FACTOR
-            or not ordered(q)):
+    M, b = projected_products(ref, Z)
+    gain = float(max(b @ np.linalg.pinv(M, hermitian=True) @ b, 0.0))
+    lag = float(-b[0] / max(float(M[0, 0]), 1e-300))
+    # a candidate predicted below the screen's bar is never refitted
+    if not np.isfinite(lag) or abs(lag) > max(SHIFTS) or lag == 0.0 or _predicted(ref, gain, 1.0) < SURVIVE_FACTOR:
         return []
     return [Candidate("readings lag", f"the joint readings {'lag' if lag > 0 else 'lead'} the measurements by about "
                       f"{abs(lag):.2g} of a row: each pose's readings are those of another moment along the path",

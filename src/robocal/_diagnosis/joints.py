@@ -9,7 +9,7 @@ from itertools import combinations
 import numpy as np
 
 from .._model.parameters import parameter_layout
-from .reference import Candidate, Reference, Repair, row_layout, with_arrays
+from .reference import Candidate, Reference, Repair, projected_products, row_layout, with_arrays
 from .rigid import gross, predicted, screen_data, screened_readings
 
 # known factors between angle units, as the value read over the true one
@@ -43,12 +43,11 @@ def joint_scale(ref: Reference) -> list[Candidate]:
     pose = row_layout(ref)[0]
     C = joint_columns(ref) * data.q[pose]
     n_j = C.shape[1]
-    Zp = ref.project(C)
-    rp = ref.settled
-    norm = np.maximum(np.sum(Zp ** 2, axis=0), 1e-300)
-    gains = (Zp.T @ rp) ** 2 / norm                    # each joint's scale alone, one column each
+    M, b = projected_products(ref, C)
+    norm = np.maximum(np.diag(M), 1e-300)
+    gains = b ** 2 / norm                               # each joint's scale alone, one column each
     j = int(np.argmax(gains))
-    s = float(-(Zp[:, j] @ rp) / norm[j])
+    s = float(-b[j] / norm[j])
     if not np.isfinite(s) or abs(s) > 0.5 or s == 0.0:
         return []
     name = ref.model.joint_names[j]

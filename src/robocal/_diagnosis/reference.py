@@ -48,6 +48,14 @@ CLOSE_FACTOR = 4.0
 # a candidate is refitted when the cheap statistics predict it divides the residual variance by at
 # least this factor; the others are ruled out without a refit
 SURVIVE_FACTOR = 2.0
+# the Gram matrix of the calibration's unit-scaled columns is taken from the solver's R factor when
+# its smallest eigenvalue is above this share of its largest (every direction determined to many
+# digits: the same projections to rounding); else from the columns, its pseudo-inverse cutting what
+# they leave undetermined
+GRAM_RCOND = 1e-6
+# ... and columns projected out of their span from one product with them when each keeps more than
+# this share of its square norm out of it (far from cancelling)
+SPAN_SHARE = 1e-2
 # at most this many candidates are refitted, the best predicted first
 MAX_REFITS = 6
 # diagnose at most this many poses, spread evenly along the campaign
@@ -79,7 +87,8 @@ class Reference:
     loss's solution is not the linear one), ``rms`` the position residual RMS per axis (m),
     ``errors`` (n_poses, n_markers, 3) the position residuals (calibrated minus measured, m; 0 where
     not measured), ``expected`` the per-axis scatter a good fit leaves (m), ``rows`` the poses'
-    rows in the campaign, ``folds`` the calibration's number of folds."""
+    rows in the campaign, ``folds`` the calibration's number of folds, ``factor`` the solver's R
+    factor of ``J`` when it kept one (``R^T R = J^T J``)."""
 
     model: RobotModel
     start: RobotModel
@@ -99,6 +108,7 @@ class Reference:
     result: CalibrationResult
     folds: int
     _cache: dict
+    factor: np.ndarray | None = None
 
     @property
     def dof(self) -> int:
@@ -155,12 +165,24 @@ class Reference:
     def project(self, Z: np.ndarray) -> np.ndarray:
         """``Z`` (n_rows, ...) less its part in the span of the calibration's columns ``J``."""
         Js, inverse, _ = self.projector
+        if Js is None:
+            return Z - self.J @ (self.gram_inverse @ (self.J.T @ Z))
         return Z - Js @ (inverse @ (Js.T @ Z))
 
     @property
-    def projector(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``J`` with unit columns, the pseudo-inverse of its Gram matrix, and the column norms."""
+    def projector(self) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
+        """``J`` with unit columns, the pseudo-inverse of its Gram matrix, and the column norms. Where
+        the solver's R factor gives a well conditioned Gram matrix (``GRAM_RCOND``: its inverse holds
+        every direction, the same to rounding), the inverse is taken from it and ``J`` is not scaled
+        (None in its place)."""
         def make():
+            if self.factor is not None:
+                col = np.sqrt(np.einsum("ij,ij->j", self.factor, self.factor))
+                if np.all(col > 0):
+                    Rs = self.factor / col
+                    w, V = np.linalg.eigh(Rs.T @ Rs)
+                    if w[0] > GRAM_RCOND * w[-1]:
+                        return None, (V / w) @ V.T, col
             col = np.linalg.norm(self.J, axis=0)
             col[col == 0] = 1.0
             Js = self.J / col
@@ -245,26 +267,29 @@ def reference(model: RobotModel, data: Measurements, result: CalibrationResult, 
     fit_noise = as_noise(noise)
     compliance = needs_compliance(start, names)
     shared = _solved(fitted, work, names, compliance)
+    factor = None
     if shared is None:
         prob = Problem(start, names, data=work, compliance=compliance, noise=fit_noise)
         p = parameter_vector(start)
         r, J = prob.residuals(p), np.array(prob.jacobian(p))
     else:
-        prob, p, r, J = shared
+        prob, p, r, J, factor = shared
     pts = cast(Points, prob.points)
     e = np.where(work.mask[..., None], pts.errors(p), 0.0)
     rms = float(np.sqrt(np.mean(e[work.mask] ** 2))) if work.mask.any() else 0.0
     ref = Reference(model=model, start=start, names=names, data=work, campaign=campaign, rows=rows, noise=fit_noise,
                     expected=expected_noise(fit_noise, limit_m)[0], problem=prob, p=p, r=r, J=J, ssr=0.0, rms=rms,
-                    errors=e, result=result, folds=folds, _cache={})
+                    errors=e, result=result, folds=folds, _cache={}, factor=factor)
     object.__setattr__(ref, "ssr", float(ref.settled @ ref.settled))
     return ref
 
 
 def _solved(fitted, work: Measurements, names: tuple[str, ...], compliance: bool):
-    """(problem, p, residuals, Jacobian) of the calibration's fit when it fitted measured points alone
-    on exactly the poses diagnosed (none set aside), over ``names``, without lost motion; else None.
-    Its Jacobian is the solver's last (within its tolerances of the solution)."""
+    """(problem, p, residuals, Jacobian, R factor) of the calibration's fit when it fitted measured
+    points alone on exactly the poses diagnosed (none set aside), over ``names``, without lost motion;
+    else None. Its Jacobian is the solver's last (within its tolerances of the solution); its R factor
+    the solver's of it (None where the solver kept the Jacobian itself: a robust loss, rows of two
+    kinds)."""
     if fitted is None:
         return None
     prob, sol = fitted.problem, fitted.solution
@@ -275,7 +300,9 @@ def _solved(fitted, work: Measurements, names: tuple[str, ...], compliance: bool
             or not np.array_equal(pts.data.q, work.q)):
         return None
     J = prob.jacobian(sol.p if sol.jacobian_at is None else sol.jacobian_at)
-    return prob, sol.p, sol.residuals, np.array(J)
+    R = sol.jacobian
+    kept = sol.loss == "linear" and sol.row_kinds is None and R.shape == (len(names), len(names))
+    return prob, sol.p, sol.residuals, np.array(J), R if kept else None
 
 
 def nominal_positions(model: RobotModel, data: Measurements) -> np.ndarray:
@@ -538,13 +565,23 @@ def _linear_fit(ref: Reference, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def projected_gain(ref: Reference, Z: np.ndarray) -> float:
     """How much columns ``Z`` (n_rows, k) joining the fit lower the reference's sum of squares (one
     Gauss-Newton step from the calibration)."""
-    return settled_gain(ref, ref.project(Z))
+    M, b = projected_products(ref, Z)
+    return float(max(b @ np.linalg.pinv(M, hermitian=True) @ b, 0.0))
 
 
-def settled_gain(ref: Reference, Zp: np.ndarray) -> float:
-    """``projected_gain`` of columns already projected (``Reference.project``)."""
-    b = Zp.T @ ref.settled
-    return float(max(b @ np.linalg.pinv(Zp.T @ Zp, hermitian=True) @ b, 0.0))
+def projected_products(ref: Reference, Z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``Zp^T Zp`` and ``Zp^T settled``, ``Zp`` the columns ``Z`` (n_rows, k) less their part in ``J``'s
+    span (``Reference.project``). Where the projector comes from the solver's factor and every column
+    keeps more than ``SPAN_SHARE`` of its square norm out of that span, from ``A = J^T Z`` alone (one
+    product over the rows, not two): ``Z^T Z - A^T G^+ A``, and ``Z^T settled`` (``settled`` is
+    orthogonal to ``J``); else from ``Zp``."""
+    if ref.projector[0] is None:
+        A, ZZ = ref.J.T @ Z, Z.T @ Z
+        M = ZZ - A.T @ ref.gram_inverse @ A
+        if np.all(np.diag(M) > SPAN_SHARE * np.diag(ZZ)):
+            return M, Z.T @ ref.settled
+    Zp = ref.project(Z)
+    return Zp.T @ Zp, Zp.T @ ref.settled
 
 
 def linear_judgement(ref: Reference, Z: np.ndarray, freedom: float) -> tuple[Judgement, float]:
