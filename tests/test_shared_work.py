@@ -646,3 +646,26 @@ def test_the_instruments_share_taken_out_by_a_plain_mean_is_the_nan_mean_one():
             for variance in (0.0, 1e-9, float(np.mean(v * v))):
                 assert np.array_equal(without_instrument(norms, variance), reference(norms, variance), equal_nan=True)
     assert without_instrument(np.zeros(0), 1e-9).size == 0
+
+
+@pytest.mark.parametrize("stated", [False, True])
+def test_each_points_loss_from_its_errors_is_the_sum_of_its_squared_residuals(stated):
+    """A held-out point's loss taken from its errors (three weighted components squared and added)
+    equals its rows' squared residuals summed row by row, bit for bit: every point measured or some
+    not, stated deviations or none."""
+    from robocal._identification.holdout import point_loss
+
+    m = arm6r(markers=(("tool", (0.05, 0.02, 0.12)), ("side", (0.1, -0.05, 0.08))))
+    _, data = rc.simulate(m, 80, seed=9, noise=1e-4)
+    names = rc.identifiability(m, data).identified
+    p = rc.parameter_vector(m)
+    for mask in (data.mask, data.mask & (np.arange(80) % 6 != 4)[:, None] * [True, False] | [False, True]):
+        sigma = (np.full(mask.shape, 3e-5) * (1 + np.arange(80) % 4)[:, None]) if stated else None
+        d = rc.Measurements(q=data.q, positions=data.positions, marker_names=data.marker_names,
+                            joint_names=data.joint_names, mask=mask, sigma=sigma)
+        pts = Points(m, d, names, compliance=False)
+        r = pts.residuals(p)
+        poses, markers = pts.row_points()
+        by_rows = np.bincount(poses * 2 + markers, weights=r * r, minlength=160).reshape(80, 2)
+        assert np.array_equal(point_loss(pts, p, pts.errors(p)), by_rows)
+        assert np.array_equal(point_loss(pts, p), by_rows)

@@ -192,13 +192,17 @@ def point_loss(problem: Points, p: np.ndarray, errors: np.ndarray | None = None)
     """(n_poses, n_markers) each measured point's sum of squared weighted residuals at ``p``.
     ``errors``: ``problem.errors(p)`` when at hand; for point data the residuals are then those
     errors weighted (the same numbers, without evaluating the campaign again)."""
-    if errors is not None and not problem.use_rot:
-        r = np.concatenate([(errors[s, j] * w[:, None]).ravel() for j, (s, w) in enumerate(zip(problem.sel, problem.w))]
-                           + [np.zeros(0)])
-    else:
-        r = problem.residuals(p)
-    poses, markers = problem.row_points()
     n, m = problem.data.mask.shape
+    if errors is not None and not problem.use_rot:
+        # each point's three weighted residuals squared and added in row order, as the sum by rows below
+        out = np.zeros((n, m))
+        for j, (s, w) in enumerate(zip(problem.sel, problem.w)):
+            e = errors[:, j] if len(s) == n else errors[s, j]
+            r = e * w[:, None]
+            out[s, j] = r[:, 0] * r[:, 0] + r[:, 1] * r[:, 1] + r[:, 2] * r[:, 2]
+        return out
+    r = problem.residuals(p)
+    poses, markers = problem.row_points()
     return np.bincount(poses * m + markers, weights=r * r, minlength=n * m).reshape(n, m)
 
 
