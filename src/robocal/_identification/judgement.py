@@ -158,7 +158,7 @@ def in_use(fit: Fit, before: np.ndarray, inputs: Inputs, holdout: Holdout, folds
     held_before = fit.held_out if only else (
         cross_validate(problem.over(placed), before, holdout, folds=folds) if placed else _everywhere(problem, before))
     pts = problem.points
-    fitted = np.zeros((0, 3)) if pts is None else pts.errors(p[:problem.n_robot])[pts.data.mask]
+    fitted = np.zeros((0, 3)) if pts is None else problem.observation_errors(p)["tracker"][0]   # kept by the fit
     noise = (0.0, 0.0) if pts is None else instrument_variance(problem.noise, pts.data, fitted)
     record = accuracy_in_use("cross-validation", holdout.k, holdout.description, held_before, fit.held_out,
                              vector_norms(fitted), registration_only=only, noise=noise, seatings=_seatings(problem),
@@ -194,7 +194,7 @@ def _validation_points(fit: Fit, before: np.ndarray, points: Measurements, optio
     pts = cast(Points, val.points)
     b, a = evaluated(pts, vectors[0]), evaluated(pts, vectors[1])
     method = "validation, base and tool registered on it" if register else "validation"
-    fitted = None if problem.points is None else problem.points.errors(fit.solution.p[:n])[problem.points.data.mask]
+    fitted = None if problem.points is None else problem.observation_errors(fit.solution.p)["tracker"][0]
     record = accuracy_in_use(method, None, "the validation set", b, a,
                              np.empty(0) if fitted is None else vector_norms(fitted),
                              noise=instrument_variance(problem.noise, points, fitted))
