@@ -20,7 +20,13 @@ from .._identification.holdout import ordered
 from .._identification.points import Points
 from .._identification.problem import Problem
 from .._model.measurements import Measurements
-from .._model.parameters import candidate_parameters, parameter_layout, parameter_vector
+from .._model.parameters import (
+    COMPLIANCE_KINDS,
+    FRAME_KINDS,
+    candidate_parameters,
+    parameter_layout,
+    parameter_vector,
+)
 from .._model.robot import Marker, Payload, RobotModel
 from .reference import (
     SURVIVE_FACTOR,
@@ -221,7 +227,7 @@ def load_columns(model: RobotModel, start: RobotModel, p: np.ndarray, data: Meas
     prob = Problem(bare, names, data=loaded, compliance=True, noise=noise)
     lay = parameter_layout(bare)
     q = np.array(p[:lay.n_params], dtype=float)
-    compliance = np.array([par.family == "compliance" for par in lay.parameters])
+    compliance = (lay.frame0[:, None] + np.array([FRAME_KINDS.index(k) for k in COMPLIANCE_KINDS])).ravel()
     q[compliance] = parameter_vector(start)[compliance]
     q[3:6] = rotation_vector(np.asarray(model.base_rotation).T @ np.asarray(start.base_rotation)
                              @ small_rotation(*q[3:6]))
@@ -263,12 +269,13 @@ def split_gains(ref: Reference, columns: list[np.ndarray], edges: list[int]) -> 
         sums = _suffix_sums(J, Zr, z, first, coarse)
         step = int(coarse[1] - coarse[0]) if len(coarse) > 1 else 1
         for k in which:
-            own = np.arange(ends[k] - columns[k].shape[1], ends[k])
-            row, gain = _best_split([s[:, own - z.start] for s in sums], own, coarse, ref.gram_inverse)
+            own = slice(int(ends[k] - columns[k].shape[1]), int(ends[k]))
+            at = slice(own.start - z.start, own.stop - z.start)
+            row, gain = _best_split([s[:, at] for s in sums], own, coarse, ref.gram_inverse)
             if step > 1:                      # the rows about it, each
                 near = np.arange(max(edge, row - step), min(n - edge, row + step) + 1)
                 c = int(np.searchsorted(coarse, near[-1]))
-                fine = _near_sums(J, Zr, own, first, near, int(coarse[c]), [s[c, own - z.start] for s in sums])
+                fine = _near_sums(J, Zr, own, first, near, int(coarse[c]), [s[c, at] for s in sums])
                 row, gain = _best_split(fine, own, near, ref.gram_inverse)
             out[k] = (row, gain)
     return out
@@ -288,8 +295,7 @@ def _split_rows(ref: Reference, columns: list[np.ndarray]) -> tuple[np.ndarray, 
     return ref.J[order], Zr, first
 
 
-def _best_split(sums: list[np.ndarray], own: np.ndarray, bounds: np.ndarray, inverse: np.ndarray
-                ) -> tuple[int, float]:
+def _best_split(sums: list[np.ndarray], own: slice, bounds: np.ndarray, inverse: np.ndarray) -> tuple[int, float]:
     """The bound whose split takes most away, and how much: ``sums`` (``Z^T J`` and ``Z^T [Z_all, r]``
     over the poses after each bound, ``Z`` the columns ``own`` of ``Z_all``), the sum of squares each
     split's Gauss-Newton step takes away."""
@@ -335,7 +341,7 @@ def _block_sums(Zr: np.ndarray, z, start: np.ndarray, ends: np.ndarray, J: np.nd
     return np.swapaxes(Zb[..., z], 1, 2) @ (Zb if J is None else np.where(pad, J[rows], 0.0))
 
 
-def _near_sums(J: np.ndarray, Zr: np.ndarray, own: np.ndarray, first: np.ndarray, near: np.ndarray, bound: int,
+def _near_sums(J: np.ndarray, Zr: np.ndarray, own: slice, first: np.ndarray, near: np.ndarray, bound: int,
                after: list[np.ndarray]) -> list[np.ndarray]:
     """``_suffix_sums`` of the columns ``own`` of ``Zr`` from each of ``near`` (consecutive poses) on,
     from ``after``, those sums from pose ``bound`` (>= near's last) on: each pose's rows before
