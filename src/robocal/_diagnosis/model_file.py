@@ -14,7 +14,7 @@ import numpy as np
 from .._identification.checks import tolerances
 from .._identification.result import Finding
 from .._model.kinematics import evaluate
-from .._model.parameters import model_from_vector, parameter_layout, parameter_vector
+from .._model.parameters import model_from_vector, parameter_layout
 from .facts import NOTED_SCORE
 from .reference import Candidate, Reference, Repair
 from .rigid import gross, per_point, predicted, screen_data, screen_positions, screened_model
@@ -31,7 +31,7 @@ SIGN_SHARE = 0.1
 def untestable_signs(ref: Reference) -> list[str]:
     """The nominal frame values whose sign these data cannot tell: those the calibration eliminated
     because identified ones (the base's, another frame's) absorb them."""
-    p = parameter_vector(ref.model)
+    p = ref.nominal_vector
     lay = parameter_layout(ref.model)
     out = []
     for a in ref.result.identifiability.eliminated:
@@ -48,7 +48,7 @@ def model_sign(ref: Reference) -> list[Candidate]:
     if not gross(ref):
         return []
     lay = parameter_layout(ref.model)
-    p_nom = parameter_vector(ref.model)
+    p_nom = ref.nominal_vector
     eliminated = {a.name for a in ref.result.identifiability.eliminated}
     names = [par.name for par in lay.parameters if par.family == "frames" and p_nom[par.index] != 0.0
              and par.name not in eliminated]

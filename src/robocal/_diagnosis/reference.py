@@ -19,6 +19,7 @@ from typing import cast
 
 import numpy as np
 
+from .._base.arrays import read_only
 from .._base.errors import DegenerateDataError, InputError
 from .._base.options import DEFAULT_INSTRUMENT
 from .._identification.checks import (
@@ -130,8 +131,13 @@ class Reference:
     def implausible(self) -> int:
         """The calibration's changes beyond their tolerances (and payloads beyond a robot's), on the poses
         diagnosed."""
-        return self.cached("implausible", lambda: count_implausible(self.model, parameter_vector(self.model), self.p,
+        return self.cached("implausible", lambda: count_implausible(self.model, self.nominal_vector, self.p,
                                                                     self.names, self.data))
+
+    @property
+    def nominal_vector(self) -> np.ndarray:
+        """The nominal model's parameter vector (read-only)."""
+        return self.cached("nominal_vector", lambda: read_only(parameter_vector(self.model)))
 
     @property
     def shows(self) -> bool:
