@@ -582,6 +582,24 @@ def test_observation_errors_asked_again_are_those_made_anew_and_a_changed_proble
     assert np.array_equal(fewer["tracker"][0], first["tracker"][0][5:])
 
 
+def test_the_nominals_fold_steps_from_the_registrations_last_jacobian_are_those_at_its_vector():
+    """The nominal's registration (errors before calibration) ends a tolerance from where its solve
+    took its last Jacobian; the held-out errors of its fold models stepped from that Jacobian are those
+    stepped from one evaluated at the registered vector itself (1e-6)."""
+    from robocal._identification.holdout import cross_validate
+    from robocal._identification.steps import placed_parameters, registered_nominal
+
+    _, _, holdout, folds, first = _choice_start()
+    before, at, _ = registered_nominal(first.design)
+    assert at is not None and not np.array_equal(at, before)
+    placed = first.problem.over(placed_parameters(first.design))
+    shared = cross_validate(placed, before, holdout, folds=folds, at=at)
+    anew = cross_validate(placed, before, holdout, folds=folds)
+    mask = first.problem.point_mask
+    np.testing.assert_allclose(shared.observation_norms(mask), anew.observation_norms(mask), rtol=1e-6)
+    assert not np.array_equal(shared.observation_norms(mask), anew.observation_norms(mask))
+
+
 # -- the evidence: folds, workspace and coverage from what the calibration holds ----------------------
 
 def _lost_motion(model):

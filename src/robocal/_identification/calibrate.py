@@ -70,10 +70,11 @@ def run(model: RobotModel, data: Measurements | None, contacts: Contacts | None,
     holdout = holdout_of(analysis.problem, options.folds)
     folds = FoldProblems(holdout)
     chosen, choice_notes = choose(analysis, options, holdout, folds)
-    before, before_notes = registered_nominal(chosen.design)
+    before, before_at, before_notes = registered_nominal(chosen.design)
     cov = covariance(chosen.solution)
     found = estimates(chosen.design, chosen.solution.p, cov)
-    in_use_record, validation_errors, use_notes = in_use(chosen, before, inputs, holdout, folds, options)
+    in_use_record, validation_errors, use_notes = in_use(chosen, before, inputs, holdout, folds, options,
+                                                         before_at=before_at)
     notes = inputs.notes + analysis.notes + chosen.notes + choice_notes + before_notes + use_notes
     where = reach(inputs, chosen.design, chosen.solution.p)
     cover = campaign_coverage(chosen, cov, where)

@@ -141,11 +141,13 @@ def _fitted_seatings(problem: Problem, p: np.ndarray) -> np.ndarray | None:
 
 
 def in_use(fit: Fit, before: np.ndarray, inputs: Inputs, holdout: Holdout, folds: FoldProblems,
-           options: Options) -> tuple[AccuracyInUse | None, PoseErrors | None, tuple[str, ...]]:
+           options: Options, *, before_at: np.ndarray | None = None
+           ) -> tuple[AccuracyInUse | None, PoseErrors | None, tuple[str, ...]]:
     """The accuracy in use before and after calibration, and the errors on held-out measured points:
     on the validation set when given (base and markers registered on it for both models when asked,
     or when nothing fitted fixes a frame), else each observation predicted by the fit on the other
-    groups (the nominal's registration of base and markers refitted there too)."""
+    groups (the nominal's registration of base and markers refitted there too, its fold steps from
+    ``before_at``, where the registration's solve took its last Jacobian, as the fit's are)."""
     design, problem, p = fit.design, fit.problem, fit.solution.p
     if inputs.validation is not None:
         return _validation_points(fit, before, inputs.validation, options)
@@ -156,7 +158,8 @@ def in_use(fit: Fit, before: np.ndarray, inputs: Inputs, holdout: Holdout, folds
     placed = placed_parameters(design)
     only = len(placed) == len(design.identifiability.identified)
     held_before = fit.held_out if only else (
-        cross_validate(problem.over(placed), before, holdout, folds=folds) if placed else _everywhere(problem, before))
+        cross_validate(problem.over(placed), before, holdout, folds=folds, at=before_at) if placed
+        else _everywhere(problem, before))
     pts = problem.points
     fitted = np.zeros((0, 3)) if pts is None else problem.observation_errors(p)["tracker"][0]   # kept by the fit
     noise = (0.0, 0.0) if pts is None else instrument_variance(problem.noise, pts.data, fitted)

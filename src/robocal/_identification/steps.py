@@ -716,22 +716,24 @@ def _simplest(first: Fit, designs: list, options: Options, holdout: Holdout, fol
 
 # -- after the fit -------------------------------------------------------------------------------
 
-def registered_nominal(design: Design) -> tuple[np.ndarray, tuple[str, ...]]:
+def registered_nominal(design: Design) -> tuple[np.ndarray, np.ndarray | None, tuple[str, ...]]:
     """The parameter vector errors "before" are taken at: the nominal geometry, with the base and
     marker parameters being identified fitted to the data first (a raw base guess says nothing
-    about the robot), and what that noted. For a fit of the base and markers alone that is the
-    calibration itself: the robot's kinematics are unchanged."""
+    about the robot), where that fit took its last Jacobian (``Solution.jacobian_at``: None when
+    nothing was fitted or at the vector itself), and what that noted. For a fit of the base and
+    markers alone that is the calibration itself: the robot's kinematics are unchanged."""
     lay = parameter_layout(design.start)
     free = design.identifiability.identified
     placed = tuple(n for n in free if lay[n].family in ("base", "markers"))
     if not placed:
-        return design.p0, ()
+        return design.p0, None, ()
     sol = solve(design.problem.over(placed), design.p0, tol=REGISTRATION_TOL)
     if len(placed) == len(free):
-        return sol.p, ("only the base and markers are identified: a registration; errors before calibration are "
-                       "those of the same registration, the robot's kinematics are unchanged",)
-    return sol.p, ("errors before calibration are those of the nominal geometry with its base and markers fitted to "
-                   f"the data ({', '.join(placed)})",)
+        return sol.p, sol.jacobian_at, (
+            "only the base and markers are identified: a registration; errors before calibration are those of the "
+            "same registration, the robot's kinematics are unchanged",)
+    return sol.p, sol.jacobian_at, ("errors before calibration are those of the nominal geometry with its base and "
+                                    f"markers fitted to the data ({', '.join(placed)})",)
 
 
 def placed_parameters(design: Design) -> tuple[str, ...]:
