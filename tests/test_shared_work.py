@@ -600,6 +600,31 @@ def test_the_nominals_fold_steps_from_the_registrations_last_jacobian_are_those_
     assert not np.array_equal(shared.observation_norms(mask), anew.observation_norms(mask))
 
 
+def test_the_chosen_fit_keeps_its_evaluations_through_the_model_choice_and_the_registration(monkeypatch):
+    """With compliance (nothing moved rigidly) the model choice's all-free design and the nominal's
+    registration evaluate many vectors after the chosen fit's: its solution and the point of its last
+    Jacobian are still kept when the accuracy in use and the diagnosis ask for them (no vector is
+    evaluated twice on the campaign's readings)."""
+    from robots import humanoid
+
+    import robocal._identification.points as points
+
+    m = humanoid(markers=("lhand", "rhand"))
+    families = ("geometric", "compliance")
+    _, data = rc.simulate(m, 100, parameters=families, seed=1)
+    made = []
+    real = points.evaluate_state
+
+    def counted(model, lay, p, qf, **kwargs):
+        made.append((id(qf), np.asarray(p).tobytes()))
+        return real(model, lay, p, qf, **kwargs)
+
+    monkeypatch.setattr(points, "evaluate_state", counted)
+    res = rc.calibrate(m, data, parameters=families)
+    assert any(n.startswith("model choice by cross-validated error") for n in res.notes)
+    assert len(made) == len(set(made))
+
+
 # -- the evidence: folds, workspace and coverage from what the calibration holds ----------------------
 
 def _lost_motion(model):

@@ -46,8 +46,10 @@ from .._model.robot import RobotModel
 
 # A problem keeps its last evaluations (the calibration asks for the start again after the solve,
 # and for the solution after the fit of the errors before it): up to STATES_KEPT, fewer for many
-# poses so that they hold no more than about STATE_POSES poses' worth (one at the least).
-STATES_KEPT = 8
+# poses so that they hold no more than about STATE_POSES poses' worth (one at the least). Ten keep
+# the chosen fit's solution through the model choice's all-free design (four or five vectors) and
+# the nominal's registration (two, passes of the chain under compliance)
+STATES_KEPT = 10
 STATE_POSES = 40_000
 # a campaign evaluated in chunks keeps no evaluation, only the marker positions at this many vectors
 POSITIONS_KEPT = 3
