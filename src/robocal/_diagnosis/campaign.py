@@ -438,16 +438,19 @@ def readings_lag(ref: Reference) -> list[Candidate]:
     from .joints import joint_columns
 
     q = ref.data.q
-    if ref.data.n_poses < 8 or not ordered(q):     # poses not along a path hold no lag
+    if ref.data.n_poses < 8:
         return []
     dq = np.gradient(q, axis=0)
     C = joint_columns(ref)                                    # (n_rows, n_joints) per unit reading change
     Z = np.einsum("rj,rj->r", C, dq[_row_pose(ref)])[:, None]
     M, b = projected_products(ref, Z)
-    gain = float(max(b @ np.linalg.pinv(M, hermitian=True) @ b, 0.0))
-    lag = float(-b[0] / max(float(M[0, 0]), 1e-300))
-    # a candidate predicted below the screen's bar is never refitted
-    if not np.isfinite(lag) or abs(lag) > max(SHIFTS) or lag == 0.0 or _predicted(ref, gain, 1.0) < SURVIVE_FACTOR:
+    m, v = float(M[0, 0]), float(b[0])
+    gain = max(v * v / m, 0.0) if m != 0.0 else 0.0      # the pseudo-inverse's gain of one column
+    lag = -v / max(m, 1e-300)
+    # a candidate predicted below the screen's bar is never refitted: whether the poses lie along a
+    # path (the dearer test) then changes nothing
+    if (not np.isfinite(lag) or abs(lag) > max(SHIFTS) or lag == 0.0 or _predicted(ref, gain, 1.0) < SURVIVE_FACTOR
+            or not ordered(q)):
         return []
     return [Candidate("readings lag", f"the joint readings {'lag' if lag > 0 else 'lead'} the measurements by about "
                       f"{abs(lag):.2g} of a row: each pose's readings are those of another moment along the path",
