@@ -712,3 +712,18 @@ def test_each_points_loss_from_its_errors_is_the_sum_of_its_squared_residuals(st
         by_rows = np.bincount(poses * 2 + markers, weights=r * r, minlength=160).reshape(80, 2)
         assert np.array_equal(point_loss(pts, p, pts.errors(p)), by_rows)
         assert np.array_equal(point_loss(pts, p), by_rows)
+
+
+def test_a_model_given_other_words_is_the_model_a_checked_replace_makes():
+    """RobotModel.replace with a description alone skips the structure's checks (nothing they check
+    changed): the model equals the one dataclasses.replace builds and checks; other changes are checked."""
+    import dataclasses
+    import pickle
+
+    m = arm6r()
+    worded = m.replace(description="calibrated on the 6R grid")
+    assert worded == dataclasses.replace(m, description="calibrated on the 6R grid") and worded is not m
+    assert worded.description == "calibrated on the 6R grid" and m.description != worded.description
+    assert pickle.loads(pickle.dumps(worded)) == worded
+    with pytest.raises(rc.InputError):
+        m.replace(frames=())

@@ -547,7 +547,7 @@ def record(inputs: Inputs, analysis: Analysis, fit: Fit, before: np.ndarray, cov
         checks=tuple(checks), notes=notes,
         provenance=provenance(inputs.data, inputs.validation, inputs.contacts, inputs.validation_contacts))
     # the calibrated model says what it is, wherever it is written (never the nominal model's words)
-    described = replace(result.calibrated_model, description=calibrated_description(calibration_record(result)))
+    described = result.calibrated_model.replace(description=calibrated_description(calibration_record(result)))
     return replace(result, calibrated_model=described)
 
 

@@ -26,6 +26,7 @@ Conventions (see docs/conventions.md):
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass, field, fields, replace
@@ -245,6 +246,10 @@ class RobotModel:
         return any(getattr(f, k) for f in self.frames for k in TRANSMISSION_KINDS)
 
     def replace(self, **changes) -> RobotModel:
+        if changes.keys() <= {"description"}:       # words alone: the structure checked already stays
+            out = copy.copy(self)
+            object.__setattr__(out, "description", changes.get("description", self.description))
+            return out
         return replace(self, **changes)
 
     def derived(self, key: Hashable, make: Callable[[], Any]) -> Any:
