@@ -168,12 +168,14 @@ def test_a_split_from_the_sums_over_every_pose_is_the_least_squares_fit_letting_
 
 
 def test_the_load_columns_on_the_nominals_massless_copy_are_those_of_the_calibrated_models():
-    """The load columns, evaluated on the nominal's massless copy kept with it (the calibrated model's
-    stored base rotation entering as a correction), against those of a massless copy of the
-    calibrated model made for them: the same to rounding."""
+    """The load columns, evaluated on the nominal's massless copy kept with it (the fit's rotation
+    corrections, relative to the nominal's stored rotations), against those of a massless copy of the
+    calibrated model at its own values (its stored rotations holding those corrections): the same to
+    rounding, from the calibration's own fit and from a diagnosis made from scratch."""
     from dataclasses import replace
 
     from robocal._diagnosis.campaign import load_columns
+    from robocal._diagnosis.reference import reference
 
     m = arm6r(masses=True)
     _, data = rc.simulate(m, 120, seed=3, parameters=("geometric", "compliance"))
@@ -184,13 +186,15 @@ def test_the_load_columns_on_the_nominals_massless_copy_are_those_of_the_calibra
                          other_payloads=())
     names = tuple(n for n in rc.candidate_parameters(m, ("compliance",)) if n.endswith(".k_theta"))
     loaded = replace(ref.data.with_approach(), payload_mass=np.ones(ref.data.n_poses))
-    q = rc.parameter_vector(bare)
-    compliance = np.array([p.family == "compliance" for p in rc.kinematics.parameter_layout(bare).parameters])
-    q[~compliance] = ref.p[:len(q)][~compliance]
-    scratch = np.array(Problem(bare, names, data=loaded, compliance=True, noise=ref.noise).jacobian(q))
-    kept = load_columns(m, start, ref.p, ref.data, ref.noise)
+    scratch = np.array(Problem(bare, names, data=loaded, compliance=True, noise=ref.noise).jacobian(
+        rc.parameter_vector(bare)))
+    kept = load_columns(m, ref.problem.model, ref.p, ref.data, ref.noise)
+    assert ref.problem.model is not start             # the fit's vector: corrections of the nominal's rotations
     assert np.max(np.abs(kept - scratch)) <= 1e-12 * np.max(np.abs(scratch))
-    assert load_columns(m, start, ref.p, ref.data, ref.noise) is not kept
+    again = reference(m, data, ref.result, ref.noise)  # from scratch: the calibrated model's own vector
+    assert again.problem.model is start
+    from_scratch = load_columns(m, again.problem.model, again.p, again.data, again.noise)
+    assert np.max(np.abs(from_scratch - scratch)) <= 1e-12 * np.max(np.abs(scratch))
 
 
 def test_the_projection_from_the_solvers_factor_is_the_one_from_the_columns():

@@ -21,11 +21,8 @@ from .._identification.points import Points
 from .._identification.problem import Problem
 from .._model.measurements import Measurements
 from .._model.parameters import (
-    COMPLIANCE_KINDS,
-    FRAME_KINDS,
     candidate_parameters,
     parameter_layout,
-    parameter_vector,
 )
 from .._model.robot import Marker, Payload, RobotModel
 from .reference import (
@@ -212,28 +209,27 @@ def _columns(ref: Reference, cols) -> np.ndarray:
 def _load_columns(ref: Reference) -> np.ndarray:
     """(n_rows, n_joints) how the joints' torsional compliances bend the robot under a unit mass at
     its last frame (the robot's own masses left out), at the calibration's values."""
-    return load_columns(ref.model, ref.start, ref.p, ref.data, ref.noise)
+    return load_columns(ref.model, cast(Problem, ref.problem).model, ref.p, ref.data, ref.noise)
 
 
-def load_columns(model: RobotModel, start: RobotModel, p: np.ndarray, data: Measurements, noise) -> np.ndarray:
+def load_columns(model: RobotModel, at: RobotModel, p: np.ndarray, data: Measurements, noise) -> np.ndarray:
     """(n_rows, n_joints) the rows of ``data`` per unit torsional compliance of each joint under a unit
-    mass at the last frame, the links massless, at the calibrated model ``start``'s compliances and
-    ``p``'s other values (its rotation corrections applied to ``start``'s stored rotations): on the
-    nominal ``model``'s massless copy kept with it (``unloaded``, its structure made once), which
-    takes ``start``'s stored rotations as corrections of its own."""
+    mass at the last frame, the links massless, at the values ``p`` of the model ``at`` (the
+    calibration's: its compliances, and rotation corrections of ``at``'s stored rotations, which the
+    calibration's own fit takes from the nominal and a diagnosis from scratch from the calibrated
+    model): on the nominal ``model``'s massless copy kept with it (``unloaded``, its structure made
+    once), ``at``'s stored rotations entering as corrections of its own."""
     bare = unloaded(model)
     names = tuple(n for n in candidate_parameters(model, ("compliance",)) if n.endswith(".k_theta"))
     loaded = with_arrays(data, payload_mass=np.ones(data.n_poses))
     prob = Problem(bare, names, data=loaded, compliance=True, noise=noise)
     lay = parameter_layout(bare)
     q = np.array(p[:lay.n_params], dtype=float)
-    compliance = (lay.frame0[:, None] + np.array([FRAME_KINDS.index(k) for k in COMPLIANCE_KINDS])).ravel()
-    q[compliance] = parameter_vector(start)[compliance]
-    q[3:6] = rotation_vector(np.asarray(model.base_rotation).T @ np.asarray(start.base_rotation)
+    q[3:6] = rotation_vector(np.asarray(model.base_rotation).T @ np.asarray(at.base_rotation)
                              @ small_rotation(*q[3:6]))
-    for m, (mk, mc) in enumerate(zip(model.markers, start.markers)):
-        at = slice(lay.marker0[m] + 3, lay.marker0[m] + 6)
-        q[at] = rotation_vector(np.asarray(mk.rotation).T @ np.asarray(mc.rotation) @ small_rotation(*q[at]))
+    for m, (mk, mc) in enumerate(zip(model.markers, at.markers)):
+        at_rows = slice(lay.marker0[m] + 3, lay.marker0[m] + 6)
+        q[at_rows] = rotation_vector(np.asarray(mk.rotation).T @ np.asarray(mc.rotation) @ small_rotation(*q[at_rows]))
     return np.array(prob.jacobian(q))
 
 
