@@ -209,7 +209,7 @@ def _columns(ref: Reference, cols) -> np.ndarray:
 def _load_columns(ref: Reference) -> np.ndarray:
     """(n_rows, n_joints) how the joints' torsional compliances bend the robot under a unit mass at
     its last frame (the robot's own masses left out), at the calibration's values."""
-    return load_columns(ref.model, cast(Problem, ref.problem).model, ref.p, ref.data, ref.noise)
+    return load_columns(ref.model, ref.problem.model, ref.p, ref.data, ref.noise)
 
 
 def load_columns(model: RobotModel, at: RobotModel, p: np.ndarray, data: Measurements, noise) -> np.ndarray:
