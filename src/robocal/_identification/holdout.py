@@ -29,7 +29,7 @@ from scipy.linalg.lapack import dpocon, dpotrf, dpotrs
 
 from .._base.arrays import column_extent, frozen, point_spread, read_only, vector_norms
 from .._model.configurations import sampling_box
-from .._model.kinematics import CHUNK_POSES, evaluate_state, reading_turns
+from .._model.kinematics import CHUNK_POSES
 from .._model.measurements import Measurements
 from .contact_blocks import ContactRows
 from .points import Points
@@ -278,8 +278,6 @@ def _fold_passes(problem: Problem, pts: Points, p: np.ndarray, steps: list[np.nd
     n, labels = problem.n_robot, cast(np.ndarray, holdout.pose_labels)
     order = np.argsort(labels, kind="stable") if np.any(labels[1:] < labels[:-1]) else None
     bounds = np.searchsorted(labels if order is None else labels[order], np.arange(holdout.point_folds + 1))
-    mass, approach = pts.data.payload_mass, pts.approach
-    turns = None if pts.chunked else reading_turns(pts.model, pts.data, pts.qf)   # in chunks: none held whole
     positions = np.empty((pts.data.n_poses, len(pts.marker_idx), 3))
     for g in range(holdout.point_folds):
         pg = p.copy()
@@ -287,11 +285,7 @@ def _fold_passes(problem: Problem, pts: Points, p: np.ndarray, steps: list[np.nd
         for lo in range(bounds[g], bounds[g + 1], CHUNK_POSES):
             part = slice(lo, min(lo + CHUNK_POSES, bounds[g + 1]))
             at = part if order is None else order[part]
-            st = evaluate_state(pts.model, pts.lay, pg[:n], pts.qf[at], compliance=pts.compliance, orientations=False,
-                                payload_mass=None if mass is None else mass[at], backlash=pts.backlash,
-                                approach=None if approach is None else approach[at],
-                                turns=None if turns is None else (turns[0][:, at], turns[1][..., at]))
-            positions[at] = cast(np.ndarray, st.ps.P)[pts.marker_idx].transpose(1, 0, 2)
+            positions[at] = pts.positions_at(pg[:n], at)
     errors = pts.errors_of(positions)
     return HeldOut(errors, None, point_loss(pts, p[:n], errors))
 

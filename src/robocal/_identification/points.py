@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import copy
 import weakref
+from typing import cast
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -38,6 +39,7 @@ from .._model.kinematics import (
     moves_rigidly,
     pass_buffers,
     reading_turns,
+    turns_at,
     workspace,
 )
 from .._model.measurements import Measurements, Noise, approach_of
@@ -88,7 +90,7 @@ class Points:
         self.backlash = model.has_backlash or has_backlash_parameters(model, free)
         self.approach = frame_approach(model, approach_of(data)) if self.backlash else None
         self.qf = read_only(data.q @ model.coupling_matrix.T)
-        self._turns = None   # the cosines and sines of ``qf``, made at the first evaluation
+        self._turns: tuple | None = None   # the cosines and sines of ``qf``, made at the first evaluation
         self._chunk_turns: list = []   # each chunk's, made at its first evaluation (shared with ``over``'s)
         self.marker_idx = np.array([model.marker_names.index(n) for n in data.marker_names], dtype=int)
         self.use_rot = data.has_orientation
@@ -296,6 +298,19 @@ class Points:
             kept.pop(next(iter(kept)))
         if self._kept.n_positions:
             kept[key] = P
+
+    def positions_at(self, p, rows) -> np.ndarray:
+        """(n_rows, n_data_markers, 3) the marker positions at ``p`` of the poses ``rows`` (indices or
+        a slice) alone: one pass at their readings, with their payloads and approach directions,
+        kept nowhere (a fold's model at the fold's poses)."""
+        if self._turns is None and not self.chunked:
+            self._turns = reading_turns(self.model, self.data, self.qf)
+        mass, approach = self.data.payload_mass, self.approach
+        st = evaluate_state(self.model, self.lay, p, self.qf[rows], compliance=self.compliance, orientations=False,
+                            payload_mass=None if mass is None else mass[rows], backlash=self.backlash,
+                            approach=None if approach is None else approach[rows],
+                            turns=None if self._turns is None else turns_at(self._turns, rows))
+        return cast(np.ndarray, st.ps.P)[self.marker_idx].transpose(1, 0, 2)
 
     def predicted(self, p):
         """Marker positions (n_poses, n_data_markers, 3) and orientations (or None) at ``p``."""

@@ -480,10 +480,10 @@ def reading_turns(model: RobotModel, data, qf: np.ndarray) -> tuple[np.ndarray, 
     (``Measurements.derived``): the problems made on one campaign, and on the folds cut from it,
     share them."""
     C = model.coupling_matrix
-    return data.derived(("joint turns", C.shape, C.tobytes()), lambda _: joint_turns(qf), _turns_at)
+    return data.derived(("joint turns", C.shape, C.tobytes()), lambda _: joint_turns(qf), turns_at)
 
 
-def _turns_at(turns: tuple, index) -> tuple[np.ndarray, np.ndarray]:
+def turns_at(turns: tuple, index) -> tuple[np.ndarray, np.ndarray]:
     """The poses ``index`` of ``joint_turns``' cosines and sines, read-only."""
     cos_q, sin_q = turns
     return read_only(cos_q[:, index]), read_only(sin_q[..., index])
