@@ -6,6 +6,7 @@ into the published UR5 and WAM campaigns (tests/real_mistakes.py) and simulated 
 (tests/diagnosis_corpus.py); the whole corpus is benchmarks/diagnosis_corpus.py."""
 
 import json
+import re
 import warnings
 from dataclasses import replace
 
@@ -187,6 +188,19 @@ def test_a_model_file_in_metres_is_the_model_files_mistake():
     found = _first(result)
     assert found.hypothesis == "model unit" and "metres where millimetres were declared" in found.cause
     assert all(f.hypothesis != "unit factor" for f in result.diagnosis.findings)
+
+
+def test_a_mistake_the_model_absorbs_exactly_prints_no_rounding_as_a_change_in_use():
+    """A joint's sign flipped, which the model absorbs with a mirrored joint: the repair fits and
+    predicts as well, so the cross-validated error is unchanged; aa41f36 printed the two fits' rounding
+    as a fall ("falls by 6.49e-13 mm per pose ... (0.499 standard errors)")."""
+    diagnosis = corpus.joint_sign("cylindrical", 8).run()[1]
+    found = [f for f in diagnosis.findings if f.hypothesis == "joint sign"]
+    assert found and found[0].status == "fail"
+    assert "the cross-validated error is unchanged" in found[0].evidence
+    for f in diagnosis.findings:
+        for fall, before in re.findall(r"(?:falls|rises) by ([-\d.e+]+) mm per pose from ([-\d.e+]+) mm", f.evidence):
+            assert float(fall) > 1e-6 * float(before)
 
 
 # -- the new hypotheses ------------------------------------------------------------------------------------------

@@ -75,6 +75,9 @@ HEAVY_PAYLOAD = 10.0
 PLAUSIBLE_FIT = 0.5
 # ... and when its cross-validated error is no worse than by this share (or two standard errors)
 PLAUSIBLE_FIT_SHARE = 0.05
+# a cross-validated error that moves by less than this share of itself is said unchanged: rounding
+# in two fits of the same minimum, far below anything three significant digits can show
+UNCHANGED_SHARE = 1e-6
 
 
 @dataclass(frozen=True, eq=False)
@@ -608,13 +611,22 @@ def mm(v: float) -> str:
     return f"{v * 1e3:.3g} mm"
 
 
+def held_out_change(verdict: Judgement, before: float) -> str:
+    """The cross-validated error's change as text; a change below ``UNCHANGED_SHARE`` of the error
+    is rounding in the fits, not a measurement (its standard errors say nothing either)."""
+    if abs(verdict.gain) <= UNCHANGED_SHARE * before:
+        return f"the cross-validated error is unchanged, {mm(before)} per pose"
+    fell = "falls" if verdict.gain > 0 else "rises"
+    return (f"the cross-validated error {fell} by {mm(abs(verdict.gain))} per pose from {mm(before)} "
+            f"({abs(verdict.gain) / max(verdict.se, 1e-300):.3g} standard errors)")
+
+
 def finding(ref: Reference, cand: Candidate, rms: float, verdict: Judgement, how: str) -> Finding:
     """The finding of a candidate whose repair earned a status: the evidence is what the repair leaves
     (``rms``, m per axis) and the cross-validated error, against the calibration's."""
     before = float(np.nanmean(ref.held_out))
     evidence = (f"{how}: {mm(rms)} against {mm(ref.rms)} RMS per axis (the residual variance divided by "
-                f"{verdict.factor:.3g}); the cross-validated error falls by {mm(verdict.gain)} per pose from "
-                f"{mm(before)} ({verdict.gain / max(verdict.se, 1e-300):.3g} standard errors)")
+                f"{verdict.factor:.3g}); {held_out_change(verdict, before)}")
     if verdict.plausible:
         evidence += (f"; it fits as well, and of the calibration's {ref.implausible} implausible change(s) "
                      "at most half remain")
