@@ -142,19 +142,20 @@ def fold_labels(data: Measurements, folds: int = DEFAULT_FOLDS) -> tuple[np.ndar
         labels, how = np.arange(n) * k // n, f"{k} folds of consecutive poses"
     else:
         labels, how = shuffled % k, f"{k} folds drawn at random"
-    return _repeats_together(data.q, labels).astype(int), k, how
+    earliest = first_equal_rows(data.q)     # a configuration repeated exactly goes with its first
+    return (labels if earliest is None else labels[earliest]).astype(int), k, how
 
 
-def _repeats_together(q: np.ndarray, labels: np.ndarray) -> np.ndarray:
-    """``labels`` with each configuration repeated exactly given the label of its first occurrence.
-    Rows with distinct projections on a fixed direction are distinct: only when two tie are the rows
-    compared whole."""
+def first_equal_rows(q: np.ndarray) -> np.ndarray | None:
+    """For each row of ``q``, the index of the first row equal to it; None when every row is
+    distinct. Rows with distinct projections on a fixed direction are distinct: only when two
+    projections tie are the rows compared whole (+ 0.0 makes -0.0 and 0.0 alike)."""
     rows = np.ascontiguousarray(q + 0.0)
     h = np.sort(rows @ (1.0 / np.sqrt(np.arange(2.0, rows.shape[1] + 2.0))))
-    if not np.any(h[1:] == h[:-1]):
-        return labels
+    if np.all(h[1:] != h[:-1]):
+        return None
     _, first, inverse = np.unique(rows, axis=0, return_index=True, return_inverse=True)
-    return labels[first[np.ravel(inverse)]]
+    return first[np.ravel(inverse)]
 
 
 def ordered(q: np.ndarray, shuffled: np.ndarray | None = None) -> bool:

@@ -44,7 +44,7 @@ from .checks import (
 )
 from .contact_blocks import TOGETHER
 from .estimates import REGISTRATION_TOL, effect_text
-from .holdout import FoldProblems, HeldOut, Holdout, cross_validate, paired_excess
+from .holdout import FoldProblems, HeldOut, Holdout, cross_validate, first_equal_rows, paired_excess
 from .identifiability import (
     ContactIdentifiability,
     IdentifiabilityResult,
@@ -170,27 +170,20 @@ def without_copies(data: Measurements) -> tuple[Measurements, tuple[str, ...]]:
     noise)."""
     if distinct_rows(data.q) == data.n_poses:
         return data, ()
-    rows = np.ascontiguousarray(np.hstack([data.q, np.nan_to_num(data.positions.reshape(data.n_poses, -1), nan=1e300),
-                                           data.mask.astype(float)]) + 0.0)
-    _, first = np.unique(rows.view(np.dtype((np.void, rows.dtype.itemsize * rows.shape[1]))).ravel(),
-                         return_index=True)
-    if len(first) == data.n_poses:
+    first = first_equal_rows(np.hstack([data.q, np.nan_to_num(data.positions.reshape(data.n_poses, -1), nan=1e300),
+                                        data.mask.astype(float)]))
+    kept = np.arange(data.n_poses) if first is None else np.flatnonzero(first == np.arange(data.n_poses))
+    if len(kept) == data.n_poses:
         return data, ()
-    kept = np.sort(first)
     return data.with_approach().subset(kept), (
         f"{data.n_poses - len(kept)} of {data.n_poses} rows repeat an earlier row exactly (readings and measurements): "
         "counted once",)
 
 
 def distinct_rows(q: np.ndarray) -> int:
-    """The number of distinct rows of ``q``. Rows with distinct projections on a fixed direction
-    are distinct: only when two projections tie are the rows compared, as bytes (+ 0.0 makes -0.0
-    and 0.0 alike)."""
-    rows = np.ascontiguousarray(q + 0.0)
-    h = np.sort(rows @ (1.0 / np.sqrt(np.arange(2.0, rows.shape[1] + 2.0))))
-    if np.all(h[1:] != h[:-1]):
-        return len(rows)
-    return len(np.unique(rows.view(np.dtype((np.void, rows.dtype.itemsize * rows.shape[1]))).ravel()))
+    """The number of distinct rows of ``q``."""
+    first = first_equal_rows(q)
+    return len(q) if first is None else int(np.count_nonzero(first == np.arange(len(q))))
 
 
 # -- what the data identify ------------------------------------------------------------------------
