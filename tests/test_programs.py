@@ -316,6 +316,7 @@ def test_program_joints_read_a_campaign_written_as_controller_code(tmp_path):
     (".mod", 'MODULE m\n  CONST string s := "open;\n', 2, '"'),
     (".dat", "DEFDAT d\nDECL E6POS XP1={X 1,Y 2,Z 3,A 0,B 0,C 0,S 0,T 0\nENDDAT\n", 2, "={"),
     (".dat", "DEFDAT d\nDECL E6POS XP1={X 1,Y 2,Z 3,A 0,B 0,C 0,S 'B012',T 0}\nENDDAT\n", 2, "'B012'"),
+    (".src", "DEF a()\n  LIN {X 1, Y 2, Z 3, A 0, B 0, C 0, S 1e999, T 0}\nEND\n", 2, "1e999"),
     (".src", "DEF a()\n  PTP {A1 0, A2 0, A3 0, A4 0, A5 0, A6 0}}\nEND\n", 2, "}}"),
     (".script", "def a():\n  movej([0, 0, 0, 0, 0, 0], a=1.4))\nend\n", 2, "))"),
     (".script", "def a():\n  movej([0, 0, 0,\n    0, 0, 0,], a=1.4)\nend\n", 3, ",]"),
@@ -325,7 +326,7 @@ def test_a_malformed_program_is_one_line_naming_file_line_and_column(suffix, tex
     rc.write_model(nominal, tmp_path / "m.yaml")
     (tmp_path / f"p{suffix}").write_text(text)
     row = text.splitlines()[line - 1]
-    column = row.index(at) + 1 + {":= [": 3, "={": 1, "}}": 1, "))": 1, "9]": 0, '"': 0, "'B012'": 0, ",]": 0}[at]
+    column = row.index(at) + 1 + {":= [": 3, "={": 1, "}}": 1, "))": 1}.get(at, 0)
     code, _, err = cli("compensate", tmp_path / "m.yaml", tmp_path / "m.yaml", tmp_path / f"p{suffix}",
                        "--out", tmp_path / "o" / f"out{suffix}")
     assert_one_line_error(code, err, [f"p{suffix}", f"line {line}, column {column}:"], tmp_path / "o",

@@ -259,7 +259,7 @@ def _members(agg: Aggregate, sc) -> dict:
 def _status(value, sc) -> Number | None:
     """S or T as written: a number, or a bit string 'B010'."""
     if isinstance(value, Number):
-        if value.value != int(value.value) or value.value < 0:
+        if not float(value.value).is_integer() or value.value < 0:     # not infinite either
             raise sc.error(value.start, f"Status and Turn are whole numbers of 0 or more, got {value.text}")
         return value
     if isinstance(value, Token) and value.kind == "str" and value.text[1:2].upper() == "B":
