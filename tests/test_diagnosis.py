@@ -203,6 +203,17 @@ def test_a_mistake_the_model_absorbs_exactly_prints_no_rounding_as_a_change_in_u
             assert float(fall) > 1e-6 * float(before)
 
 
+def test_the_fall_in_use_is_said_from_the_error_of_the_poses_it_is_taken_over():
+    """A missed shot: the repair drops the row that has no pose, so its fall is taken over the other
+    poses; the error it falls from is theirs (aa41f36 said "falls by 499 mm per pose from 497 mm",
+    the second figure over every pose)."""
+    diagnosis = corpus.missed_shot("6r", 7).run()[1]
+    said = [re.search(r"falls by ([-\d.e+]+) mm per pose from ([-\d.e+]+) mm", f.evidence) for f in diagnosis.findings]
+    assert diagnosis.findings[0].hypothesis == "rows shifted" and said[0]
+    for m in filter(None, said):
+        assert float(m.group(1)) <= float(m.group(2))
+
+
 # -- the new hypotheses ------------------------------------------------------------------------------------------
 
 def test_the_nominal_models_predictions_as_measurements_fail():

@@ -467,7 +467,8 @@ class Judgement:
     """A repair judged: ``factor`` (residual variance divided by), the cross-validated error's fall
     (m, per pose) and its standard error, whether what is left is explained (at the expected noise,
     or scattering on held-out poses as on fitted ones), and the status it earns ("fail": decisive,
-    "warn": possible, "": not named)."""
+    "warn": possible, "": not named); ``before``: the calibration's cross-validated error (m, per
+    pose) on the poses the fall is taken over."""
 
     factor: float
     gain: float
@@ -475,6 +476,7 @@ class Judgement:
     explained: bool
     status: str
     plausible: bool = False
+    before: float = float("nan")
 
 
 def judge(ref: Reference, out: Outcome, freedom: float, absorbed: bool = False) -> Judgement:
@@ -487,7 +489,7 @@ def judge(ref: Reference, out: Outcome, freedom: float, absorbed: bool = False) 
     implausible changes plausible is decisive too: the calibration took the mistake up with a robot no
     one built."""
     f = factor(ref, out.ssr, out.n_rows, out.n_free, freedom)
-    verdict = judged(ref, f, ref.held_out[out.pose_rows] - out.held, out.rms, out.fitted, out.held)
+    verdict = judged(ref, f, ref.held_out[out.pose_rows], out.held, out.rms, out.fitted)
     worse = max(WORSE_SIGMAS * verdict.se, PLAUSIBLE_FIT_SHARE * float(np.nanmean(ref.held_out[out.pose_rows])))
     plausible = ref.implausible and out.implausible <= ref.implausible // 2
     if absorbed and not verdict.status and plausible and f >= PLAUSIBLE_FIT and verdict.gain >= -worse:
@@ -495,11 +497,14 @@ def judge(ref: Reference, out: Outcome, freedom: float, absorbed: bool = False) 
     return verdict
 
 
-def judged(ref: Reference, f: float, d: np.ndarray, rms: float, fitted: np.ndarray, held: np.ndarray) -> Judgement:
+def judged(ref: Reference, f: float, base: np.ndarray, held: np.ndarray, rms: float, fitted: np.ndarray
+           ) -> Judgement:
     """The judgement of a repair dividing the residual variance by ``f``, whose cross-validated error
-    per pose is lower by ``d`` (m; NaN where a pose is not compared), leaving ``rms`` (m per axis) and
-    the errors ``fitted`` and ``held`` (m, per pose) on fitted and held-out poses."""
-    d = d[np.isfinite(d)]
+    per pose is ``held`` against the calibration's ``base`` (m; NaN where a pose is not compared),
+    leaving ``rms`` (m per axis) and the errors ``fitted`` (m, per pose) on fitted poses."""
+    d = base - held
+    compared = np.isfinite(d)
+    d = d[compared]
     gain = float(d.mean()) if d.size else 0.0
     se = float(d.std(ddof=1) / np.sqrt(d.size)) if d.size > 1 else np.inf
     explained = bool(rms <= FIT_RATIO * ref.expected or np.nanmean(held) <= OVERFIT_RATIO * np.nanmean(fitted))
@@ -509,7 +514,7 @@ def judged(ref: Reference, f: float, d: np.ndarray, rms: float, fitted: np.ndarr
             status = "fail"
         elif gain >= WORSE_SIGMAS * se:
             status = "warn"
-    return Judgement(f, gain, se, explained, status)
+    return Judgement(f, gain, se, explained, status, before=float(base[compared].mean()) if d.size else float("nan"))
 
 
 # -- repairs that are columns: one Gauss-Newton step from the calibration ---------------------------
@@ -599,12 +604,12 @@ def linear_judgement(ref: Reference, Z: np.ndarray, freedom: float) -> tuple[Jud
     base_fit, base_held = ref.cached("linear_reference", lambda: _linear_fit(ref, ref.J))
     fitted, held = _linear_fit(ref, np.hstack([ref.J, Z]))
     f = factor(ref, float(fitted @ fitted), len(ref.r), len(ref.names), freedom + Z.shape[1])
-    d = np.full(ref.campaign.n_poses, np.nan)
-    d[ref.rows] = _per_pose(ref, base_held) - _per_pose(ref, held)
+    base, after = np.full(ref.campaign.n_poses, np.nan), np.full(ref.campaign.n_poses, np.nan)
+    base[ref.rows], after[ref.rows] = _per_pose(ref, base_held), _per_pose(ref, held)
     _, metres = row_layout(ref)
     pos = np.isfinite(metres)
     rms = float(np.sqrt(np.mean((fitted[pos] * metres[pos]) ** 2))) if pos.any() else 0.0
-    return judged(ref, f, d, rms, _per_pose(ref, fitted), _per_pose(ref, held)), rms
+    return judged(ref, f, base, after, rms, _per_pose(ref, fitted)), rms
 
 
 def mm(v: float) -> str:
@@ -624,7 +629,7 @@ def held_out_change(verdict: Judgement, before: float) -> str:
 def finding(ref: Reference, cand: Candidate, rms: float, verdict: Judgement, how: str) -> Finding:
     """The finding of a candidate whose repair earned a status: the evidence is what the repair leaves
     (``rms``, m per axis) and the cross-validated error, against the calibration's."""
-    before = float(np.nanmean(ref.held_out))
+    before = verdict.before if np.isfinite(verdict.before) else float(np.nanmean(ref.held_out))
     evidence = (f"{how}: {mm(rms)} against {mm(ref.rms)} RMS per axis (the residual variance divided by "
                 f"{verdict.factor:.3g}); {held_out_change(verdict, before)}")
     if verdict.plausible:
