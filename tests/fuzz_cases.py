@@ -1205,9 +1205,33 @@ def non_finite(folder: Path, before: set[str]) -> str | None:
                 return p.name
             if _json_nulls(d):
                 return p.name
+        elif p.suffix in (".yaml", ".yml"):
+            if _yaml_non_finite(text):
+                return p.name
         elif _NON_FINITE.search(_outside_labels(p, text)):
             return p.name
     return None
+
+
+def _yaml_non_finite(text: str) -> bool:
+    """Whether a YAML output holds a non-finite number (``.inf``, ``.nan``): its values as YAML reads
+    them, so that a name that reads like one (a joint named 'Infinity') is the string it is."""
+    import yaml
+
+    try:
+        doc = yaml.safe_load(text)
+    except yaml.YAMLError:
+        return bool(_NON_FINITE.search(text))
+    stack = [doc]
+    while stack:
+        v = stack.pop()
+        if isinstance(v, dict):
+            stack.extend(v.values())
+        elif isinstance(v, list):
+            stack.extend(v)
+        elif isinstance(v, float) and not math.isfinite(v):
+            return True
+    return False
 
 
 def _outside_labels(path: Path, text: str) -> str:
