@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import json
 import os
 import select
 import sqlite3
@@ -90,6 +91,18 @@ def test_an_unusable_store_leaves_no_calibration_files(cli, campaign, tmp_path):
     assert_one_line_error(code, err, [str(foreign), "something else"], tmp_path / "run")
     code, _, err = _calibrate(cli, campaign, tmp_path / "run", "mysql://cal@plant/robocal")
     assert_one_line_error(code, err, ["mysql", "postgresql://"], tmp_path / "run")
+
+
+def test_a_result_that_cannot_be_recorded_leaves_no_new_store(cli, campaign, tmp_path):
+    """A result whose date is no date is refused before the store is made: 5855dae left a new, empty
+    store behind the error (found by fuzzing record)."""
+    doc = json.loads((campaign / "result.json").read_text())
+    doc["provenance"]["date"] = -1
+    (tmp_path / "result.json").write_text(json.dumps(doc))
+    (tmp_path / "result.npz").write_bytes((campaign / "result.npz").read_bytes())
+    store = tmp_path / "new" / "s.sqlite"
+    code, _, err = cli("record", tmp_path / "result.json", "--robot", "SN-1", "--store", store)
+    assert_one_line_error(code, err, ["provenance.date", "ISO 8601"], tmp_path / "new", command="record")
 
 
 def test_a_damaged_earlier_record_is_reported_and_nothing_is_written(cli, campaign, tmp_path):

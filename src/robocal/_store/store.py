@@ -1116,16 +1116,16 @@ class Store:
     def record(self, result: CalibrationResult, robot: str, *, robot_type: str | None = None, at=None,
                source: str = "") -> StoredCalibration:
         """Store one calibration (see ``stored_calibration``); the stored record, with its id."""
-        with self.recording(result, robot, robot_type=robot_type, at=at, source=source) as rec:
-            return rec
+        rec = stored_calibration(result, robot, robot_type=robot_type, at=at, source=source)
+        with self.recording(result, rec) as stored:
+            return stored
 
     @contextmanager
-    def recording(self, result: CalibrationResult, robot: str, *, robot_type: str | None = None, at=None,
-                  source: str = ""):
-        """``record`` as one outcome with the caller's own work: the record (with its id) is
-        stored when the body ends and not at all when it raises (e.g. writing the result's files
-        failed)."""
-        rec = stored_calibration(result, robot, robot_type=robot_type, at=at, source=source)
+    def recording(self, result: CalibrationResult, rec: StoredCalibration):
+        """``record`` as one outcome with the caller's own work: ``rec`` (``stored_calibration`` of
+        ``result``, made before: a result that cannot be recorded is refused before any store is
+        touched) is stored, with its id, when the body ends and not at all when it raises (e.g.
+        writing the result's files failed)."""
         models = [model_document(result.nominal_model), model_document(result.calibrated_model)]
         with self._adding([rec], models) as (i,):
             yield replace(rec, id=i)

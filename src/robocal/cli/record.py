@@ -90,19 +90,21 @@ def record_result(args, result, robot: str, source: str, at=None, files=None) ->
     """Store ``result`` and write ``files`` ({path: text}, with --force as ``args.force``) as one
     outcome, both or neither; then say so, with the changes since the robot's previous calibration.
 
-    The store is checked first (ours, writable, whole; the robot's earlier records readable), so
-    an unusable store leaves nothing written. Once the record is committed, reading the history
+    The result is made a record first, and the store is checked (ours, writable, whole; the robot's
+    earlier records readable), so that a result that cannot be recorded or an unusable store leaves
+    nothing written: not even a new, empty store. Once the record is committed, reading the history
     can no longer fail the command: damage found then is reported on stderr."""
     import logging
 
-    from .._store.store import history
+    from .._store.store import history, stored_calibration
 
+    prepared = stored_calibration(result, robot, robot_type=args.robot_type, at=at, source=source)  # before any store
     with open_store(args, create=True) as store:
         store.check()
         store.calibrations(robot), store.verifications(robot)   # damaged earlier records: nothing written
         written = False
         try:
-            with store.recording(result, robot, robot_type=args.robot_type, at=at, source=source) as rec:
+            with store.recording(result, prepared) as rec:
                 if files:
                     common.write_outputs(files, force=args.force)
                     written = True
