@@ -20,10 +20,7 @@ from .._identification.holdout import ordered
 from .._identification.points import Points
 from .._identification.problem import Problem
 from .._model.measurements import Measurements
-from .._model.parameters import (
-    candidate_parameters,
-    parameter_layout,
-)
+from .._model.parameters import candidate_parameters, parameter_layout
 from .._model.robot import Marker, Payload, RobotModel
 from .reference import (
     SURVIVE_FACTOR,

@@ -172,8 +172,8 @@ def without_copies(data: Measurements) -> tuple[Measurements, tuple[str, ...]]:
         return data, ()
     first = first_equal_rows(np.hstack([data.q, np.nan_to_num(data.positions.reshape(data.n_poses, -1), nan=1e300),
                                         data.mask.astype(float)]))
-    kept = np.arange(data.n_poses) if first is None else np.flatnonzero(first == np.arange(data.n_poses))
-    if len(kept) == data.n_poses:
+    kept = None if first is None else np.flatnonzero(first == np.arange(data.n_poses))
+    if kept is None or len(kept) == data.n_poses:     # projections may tie where no row repeats
         return data, ()
     return data.with_approach().subset(kept), (
         f"{data.n_poses - len(kept)} of {data.n_poses} rows repeat an earlier row exactly (readings and measurements): "
