@@ -178,6 +178,20 @@ def test_choose_frees_what_a_stated_noise_held_back_when_that_predicts_better_in
     assert f"{n_first} parameters" in notes[0] and f"kept the {n_all} parameters" in notes[0]
 
 
+def test_choose_leaves_out_a_compared_design_that_has_not_converged_within_its_budget(monkeypatch):
+    stated = rc.Noise.of("tracker", position=3e-3)          # as above: the all-free design would be chosen
+    options = dataclasses.replace(OPTIONS, noise=stated)
+    a = analysis(options=options)
+    monkeypatch.setattr(steps, "COMPARED_NFEV", 1)         # one evaluation: the start, no step
+    chosen, notes = choose(a, options, *held(a))
+    first = pin_down(a, stated, None, eliminate=True)
+    assert chosen.design.identifiability.identified == first.identifiability.identified
+    assert chosen.solution.success and not chosen.design.kept_in_use
+    n_all = len(a.identifiability.identified)
+    assert notes == (f"the {n_all}-parameter design did not converge within 1 evaluations of the residuals: left "
+                     "out of the model choice",)
+
+
 def test_options_are_a_frozen_record():
     with pytest.raises(dataclasses.FrozenInstanceError):
         OPTIONS.loss = "huber"   # type: ignore[misc]

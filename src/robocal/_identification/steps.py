@@ -462,6 +462,11 @@ def find_outliers(problem: Problem, solution: Solution, noise: Noise) -> Outlier
 # one that alone fixes a quantity of the fit; larger ones are not searched (their rows share the work)
 SMALL_GROUP = 20
 
+# the evaluations a design solved only to be compared with the first fit gets (warm-started there, it
+# converges in tens): a design the data barely determine can crawl on for thousands, and its
+# held-out error would then judge where it stopped rather than a fit
+COMPARED_NFEV = 100
+
 
 def alone_observations(problem: Problem, p: np.ndarray) -> np.ndarray:
     """(n_observations,) the observations (of groups of at most ``SMALL_GROUP``) one of whose rows
@@ -679,16 +684,27 @@ def choose(analysis: Analysis, options: Options, holdout: Holdout, folds: FoldPr
 
 
 def _simplest(first: Fit, designs: list, options: Options, holdout: Holdout, folds: FoldProblems):
-    """Of ``designs`` (simplest first), the first within one standard error of the best held-out loss."""
-    fits, seen = [], {}
+    """Of ``designs`` (simplest first), the first within one standard error of the best held-out loss.
+    A design other than the first is solved within ``COMPARED_NFEV`` evaluations (or the ``max_nfev``
+    given) and left out of the choice, with a note, when it has not converged by then."""
+    fits, seen, stopped = [], {}, []
+    budget = COMPARED_NFEV if options.max_nfev is None else options.max_nfev
     for d in designs:
         key = d.identifiability.identified
-        if key not in seen:
-            seen[key] = first if d is first.design or key == first.design.identifiability.identified else \
-                fit(d, replace(options, on_outliers="flag"), holdout, folds, outliers=first, start=warm_start(first, d))
-            fits.append(seen[key])
+        if key in seen:
+            continue
+        if d is first.design or key == first.design.identifiability.identified:
+            seen[key] = first
+        else:
+            seen[key] = fit(d, replace(options, on_outliers="flag", max_nfev=budget), holdout, folds, outliers=first,
+                            start=warm_start(first, d))
+            if not seen[key].solution.success:
+                stopped.append(f"the {len(key)}-parameter design did not converge within {budget} evaluations of "
+                               "the residuals: left out of the model choice")
+                continue
+        fits.append(seen[key])
     if len(fits) == 1:
-        return first, ()
+        return first, tuple(stopped)
     mask = first.steady()
     pm = first.design.problem.point_mask
     loss = {id(f): f.held_out.observation_loss(pm) for f in fits}
@@ -704,7 +720,7 @@ def _simplest(first: Fit, designs: list, options: Options, holdout: Holdout, fol
             "the simplest within one standard error of the best")
     if f.design.weak_kept:
         f = replace(f, design=replace(f.design, kept_in_use=True))
-    return f, (note,)
+    return f, (note, *stopped)
 
 
 # -- after the fit -------------------------------------------------------------------------------
