@@ -760,3 +760,27 @@ def test_an_empty_triangular_system_is_solved_without_lapack_complaining(capfd):
         x = solve_upper(np.zeros((0, 0)), b)
         assert x.shape == b.shape
     assert "DTRTRS" not in capfd.readouterr().err
+
+
+def test_a_factor_of_fewer_equations_than_unknowns_is_singular_without_lapack_complaining(capfd):
+    """A registration on two validation poses (6 equations, 9 unknowns) stepped on a wide R factor:
+    LAPACK printed "On entry to DTRTRS parameter number 7 had an illegal value" on stdout (6 times in
+    14,300 fuzz cases)."""
+    from robocal._base.linalg import solve_upper
+
+    R = np.triu(np.arange(1.0, 19.0).reshape(2, 9))
+    for transposed, b in ((True, np.ones(9)), (False, np.ones((2, 3)))):
+        x = solve_upper(R, b, transposed=transposed)
+        assert x.shape == b.shape and np.isnan(x).all()
+    out, err = capfd.readouterr()
+    assert "DTRTRS" not in out + err
+
+
+def test_a_validation_set_its_registration_would_fit_exactly_is_refused(files, cli):
+    rows = (EXAMPLE / "measurements.csv").read_text().splitlines()
+    (files / "val.csv").write_text("\n".join([rows[0], *rows[-2:]]) + "\n")     # two poses the fit did not see
+    base = ("calibrate", files / "model.yaml", files / "data.csv", "--validation", files / "val.csv")
+    one_line(cli, (*base, "--register-validation", "--out", files / "out"), ["val.csv", "register", "poses"])
+    assert not (files / "out").exists()
+    code, out, _ = cli(*base, "--out", files / "out2")        # not asked: no registration is reported
+    assert code in (0, 3) and "registered on the validation set" not in out

@@ -65,9 +65,12 @@ def gram_factor(G: np.ndarray) -> np.ndarray | None:
 def solve_upper(R: np.ndarray, b: np.ndarray, *, transposed: bool = False) -> np.ndarray:
     """``R^-1 b`` (or ``R^-T b``) for an upper triangular ``R`` by LAPACK's dtrtrs, NaN where ``R`` is
     singular (scipy's checking wrapper costs several times the solve at these sizes). An empty
-    system has an empty solution (LAPACK would refuse its leading dimension of 0 on stderr)."""
+    system has an empty solution, a factor with fewer rows than columns (of fewer equations than
+    unknowns) is singular: LAPACK would refuse either's leading dimension, on the terminal."""
     if R.shape[0] == 0:
         return np.zeros(b.shape)
+    if R.shape[0] < R.shape[1]:
+        return np.full(b.shape, np.nan)
     x, info = lapack.dtrtrs(R, b if b.ndim == 2 else b[:, None], lower=0, trans=int(transposed))
     if info != 0:
         x = np.full(x.shape, np.nan)

@@ -84,6 +84,7 @@ from .steps import (
     observed_markers,
     placed_parameters,
     registered,
+    registration_determined,
     repeated_in,
 )
 
@@ -192,7 +193,7 @@ def _validation_points(fit: Fit, before: np.ndarray, points: Measurements, optio
     other = None
     if register:
         vectors = registered(val, vectors)
-    else:        # what registering would give: another set-up is told from overfitting by it
+    elif registration_determined(val):     # what registering would give: another set-up is told from overfitting by it
         other = registered(val, vectors[1:])[0]
     pts = cast(Points, val.points)
     b, a = evaluated(pts, vectors[0]), evaluated(pts, vectors[1])

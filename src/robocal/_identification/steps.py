@@ -117,10 +117,25 @@ def prepare(model: RobotModel, data: Measurements | None, contacts: Contacts | N
     held = validation if isinstance(validation, Contacts) else None
     if points is not None and data is not None:
         _held_apart(data, points)
+    if points is not None and (options.register_validation or data is None):
+        _registrable(start, points, asked=options.register_validation)
     if held is not None and options.register_validation:
         notes.append("held-out contacts are judged by socket consistency and spacing, which do not depend on "
                      "the frame: nothing to register")
     return Inputs(model, start, data, contacts, points, held, tuple(notes) + copies)
+
+
+def _registrable(model: RobotModel, points: Measurements, *, asked: bool) -> None:
+    """Refuse a validation set the accuracy in use registers base and markers on (``asked``, or
+    contacts alone, which fix no frame) when that registration fits every one of its equations."""
+    problem = Problem(model, (), data=points, compliance=False)
+    if not registration_determined(problem):
+        why = "register_validation asks for" if asked else "contacts alone fix no frame, so the accuracy in use needs"
+        raise DegenerateDataError(
+            f"{points.source or 'the validation set'}: {why} the base and markers registered on the validation "
+            f"points, and their {points.n_poses} poses give {problem.n_rows} equations, every one of which that "
+            "registration fits: it would absorb every error; give more validation poses"
+            + (", or leave register_validation off" if asked else ""))
 
 
 def _rows_as_bytes(d: Measurements) -> np.ndarray:
@@ -751,14 +766,28 @@ def placed_parameters(design: Design) -> tuple[str, ...]:
     return tuple(n for n in design.identifiability.identified if lay[n].family in ("base", "markers"))
 
 
+def placed_on(problem: Problem) -> Problem:
+    """``problem`` over the base and the markers its points measure: what a registration on them fits."""
+    lay = parameter_layout(problem.model)
+    measured = set(problem.points.data.marker_names) if problem.points is not None else set()
+    return problem.over(tuple(n for n in lay.names if lay[n].family == "base" or (lay[n].role == "marker" and
+                                                                                  lay[n].owner in measured)))
+
+
+def registration_determined(problem: Problem) -> bool:
+    """Whether a registration on ``problem``'s points (``placed_on``) leaves some of their equations
+    unabsorbed: its Jacobian's rank is below their number (a point marker's turn moves nothing, so
+    the rank, not the count of parameters). Else the registration fits every error, whatever the model."""
+    reg = placed_on(problem)
+    if reg.n_rows > len(reg.free_idx):
+        return True
+    return int(np.linalg.matrix_rank(reg.jacobian(reg.start_vector()))) < reg.n_rows
+
+
 def registered(problem: Problem, vectors: list[np.ndarray]) -> list[np.ndarray]:
     """``vectors`` with the base and the markers ``problem``'s points measure refitted on them:
     another set-up's frame, the same for every model judged there."""
-    lay = parameter_layout(problem.model)
-    measured = set(problem.points.data.marker_names) if problem.points is not None else set()
-    placed = tuple(n for n in lay.names if lay[n].family == "base" or (lay[n].role == "marker" and
-                                                                       lay[n].owner in measured))
-    reg = problem.over(placed)
+    reg = placed_on(problem)
     return [solve(reg, v, tol=REGISTRATION_TOL).p for v in vectors]
 
 
