@@ -17,7 +17,6 @@ from __future__ import annotations
 import json
 import os
 import platform
-import subprocess
 import sys
 import tempfile
 import time
@@ -28,7 +27,7 @@ from threadpoolctl import threadpool_limits
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 from bench_identify import arm6r, options  # noqa: E402
-from bench_kinematics import baseline_sources  # noqa: E402
+from bench_kinematics import baseline_sources, child_figures  # noqa: E402
 
 import robocal as rc  # noqa: E402
 
@@ -68,14 +67,6 @@ def child(sizes: list[int], repeat: int) -> None:
     print(json.dumps(out))
 
 
-def run(src: str | None, sizes: str, repeat: int) -> dict:
-    env = dict(os.environ)
-    if src is not None:
-        env["PYTHONPATH"] = os.pathsep.join([src, env.get("PYTHONPATH", "")])
-    cmd = [sys.executable, os.path.abspath(__file__), "--child", "1", "--poses", sizes, "--repeat", str(repeat)]
-    return json.loads(subprocess.run(cmd, env=env, check=True, capture_output=True, text=True).stdout)
-
-
 def main(argv=None):
     args = options(__doc__, argv, baseline="7fe2faf", poses="100,300,1000,3000", repeat=10, child=0)
     sizes = [int(v) for v in args.poses.split(",")]
@@ -90,7 +81,7 @@ def main(argv=None):
         src = baseline_sources(args.baseline, tmp)
         for _ in range(2):
             for label, path in ((args.baseline, src), ("now", None)):
-                for n, got in run(path, args.poses, args.repeat).items():
+                for n, got in child_figures(__file__, path, "--poses", args.poses, "--repeat", args.repeat).items():
                     prev = found.setdefault((label, int(n)), got)
                     prev["cpu"] = min(prev["cpu"], got["cpu"])
     print(f"| poses | {args.baseline} calls | now calls | {args.baseline} CPU (ms) | now CPU (ms) | now / "

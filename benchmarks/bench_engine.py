@@ -26,7 +26,6 @@ from __future__ import annotations
 import json
 import os
 import platform
-import subprocess
 import sys
 import tempfile
 import time
@@ -36,7 +35,7 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 from bench_identify import arm6r, options  # noqa: E402
-from bench_kinematics import baseline_sources  # noqa: E402
+from bench_kinematics import baseline_sources, child_figures  # noqa: E402
 
 import robocal as rc  # noqa: E402
 
@@ -76,15 +75,6 @@ def child(repeat: int, fk_poses: int, folder: str, variant: str) -> None:
     print(json.dumps(out))
 
 
-def run(src: str | None, args, folder: str, variant: str) -> dict:
-    env = dict(os.environ)
-    if src is not None:
-        env["PYTHONPATH"] = os.pathsep.join([src, env.get("PYTHONPATH", "")])
-    cmd = [sys.executable, os.path.abspath(__file__), "--child", "1", "--repeat", str(args.repeat),
-           "--fk-poses", str(args.fk_poses), "--folder", folder, "--variant", variant]
-    return json.loads(subprocess.run(cmd, env=env, check=True, capture_output=True, text=True).stdout)
-
-
 def agree(a: str, b: str) -> None:
     with np.load(a) as x, np.load(b) as y:
         for n in POSES:
@@ -116,7 +106,9 @@ def main(argv=None):
         for _ in range(2):
             for label in labels:
                 variant = "tuned" if label.endswith("tuned first") else ""
-                for key, t in run(sources.get(label), args, dirs[label], variant).items():
+                figures = child_figures(__file__, sources.get(label), "--repeat", args.repeat, "--fk-poses",
+                                        args.fk_poses, "--folder", dirs[label], "--variant", variant)
+                for key, t in figures.items():
                     for clock, v in zip(("wall", "cpu"), t):
                         found[label][(key, clock)] = min(found[label].get((key, clock), np.inf), v)
         for label in labels[1:]:

@@ -23,7 +23,6 @@ import json
 import os
 import platform
 import pstats
-import subprocess
 import sys
 import tempfile
 import time
@@ -35,7 +34,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.join(os.path.dirname(HERE), "tests"))
 from bench_identify import options  # noqa: E402
-from bench_kinematics import baseline_sources  # noqa: E402
+from bench_kinematics import baseline_sources, child_figures  # noqa: E402
 from robots import humanoid  # noqa: E402
 
 import robocal as rc  # noqa: E402
@@ -65,15 +64,6 @@ def child(poses: int, repeat: int) -> None:
                                   "verdict": res.verdict, "fitted": len(res.parameters),
                                   "rms": res.stats.fit_after.rms}
     print(json.dumps(out))
-
-
-def run(src: str | None, args) -> dict:
-    env = dict(os.environ)
-    if src is not None:
-        env["PYTHONPATH"] = os.pathsep.join([src, env.get("PYTHONPATH", "")])
-    cmd = [sys.executable, os.path.abspath(__file__), "--child", "1", "--poses", str(args.poses),
-           "--repeat", str(args.repeat)]
-    return json.loads(subprocess.run(cmd, env=env, check=True, capture_output=True, text=True).stdout)
 
 
 def profile(poses: int) -> None:
@@ -108,7 +98,7 @@ def main(argv=None):
         found: dict = {}
         for _ in range(2):
             for label, path in ((args.baseline, src), ("now", None)):
-                for fam, got in run(path, args).items():
+                for fam, got in child_figures(__file__, path, "--poses", args.poses, "--repeat", args.repeat).items():
                     prev = found.setdefault((label, fam), got)
                     prev["cpu"] = min(prev["cpu"], got["cpu"])
     print(f"| parameters | {args.baseline} CPU (s) | now CPU (s) | now / {args.baseline} | verdicts | parameters "

@@ -82,12 +82,13 @@ def child(repeat: int, folder: str) -> None:
     print(json.dumps(out))
 
 
-def run(src: str | None, repeat: int, folder: str) -> dict:
-    """The figures of the package in ``src`` (None: this one), from a child process."""
+def child_figures(script: str, src: str | None, *argv) -> dict:
+    """The figures (JSON on stdout) of ``script`` run with ``--child 1`` and ``argv`` on the package in
+    ``src`` (None: this one, as the caller's environment finds it), in a process of its own."""
     env = dict(os.environ)
     if src is not None:
         env["PYTHONPATH"] = os.pathsep.join([src, env.get("PYTHONPATH", "")])
-    cmd = [sys.executable, os.path.abspath(__file__), "--child", "1", "--repeat", str(repeat), "--folder", folder]
+    cmd = [sys.executable, os.path.abspath(script), "--child", "1", *map(str, argv)]
     return json.loads(subprocess.run(cmd, env=env, check=True, capture_output=True, text=True).stdout)
 
 
@@ -131,7 +132,7 @@ def main(argv=None):
         found = {label: {} for label in dirs}
         for _ in range(2):
             for label, path in (("as found", src), ("now", None)):
-                for n, t in run(path, args.repeat, dirs[label]).items():
+                for n, t in child_figures(__file__, path, "--repeat", args.repeat, "--folder", dirs[label]).items():
                     prev = found[label].get(n, {"pass": np.inf, "step": np.inf})
                     found[label][n] = {k: min(prev[k], t[k]) for k in t}
         diff = {n: agree(*(os.path.join(dirs[label], f"{n}.npz") for label in dirs)) for n in map(str, POSES)}
