@@ -13,7 +13,7 @@ from typing import cast, overload
 import numpy as np
 
 from .._base.arguments import FLAG, FRACTION, accepts, both, is_a, measured_on, optional
-from .._base.errors import InputError
+from .._base.errors import DegenerateDataError, InputError
 from .._base.threads import one_blas_thread
 from .._identification.calibrate import check_inputs, nested_test, options_of, run
 from .._identification.checks import Check
@@ -185,12 +185,26 @@ def compare(model: RobotModel, data: Measurements | None = None, *, contacts: Co
 NO_MASSES = "the model has no link masses (--assume-masses assumes them from the geometry)"
 
 
+def _fitted_or_skipped(fit, found: dict, what: str, *families: str) -> CalibrationResult | None:
+    """The calibration of ``families``, or None with ``what`` and why in ``found["skipped"]`` when the
+    data cannot determine that larger model (too few poses for its parameters): the comparison of
+    the others stands."""
+    try:
+        return fit(*families)
+    except DegenerateDataError as e:
+        found["skipped"].append(f"{what} not compared: {e}")
+        return None
+
+
 def _compare_compliance(model: RobotModel, fit, found: dict, validation, alpha: float) -> None:
     """Geometric and compliance against geometric, when the model has masses."""
     if not model.has_masses:
         found["skipped"].append(f"compliance not compared: {NO_MASSES}")
         return
-    found["combined"] = fit("geometric", "compliance")
+    combined = _fitted_or_skipped(fit, found, "compliance", "geometric", "compliance")
+    if combined is None:
+        return
+    found["combined"] = combined
     found["compliance_test"] = nested_test(found["geometric"], found["combined"], validation, alpha, "compliance")
 
 
@@ -201,7 +215,10 @@ def _compare_backlash(model: RobotModel, fit, found: dict, validation, alpha: fl
         found["skipped"].append(f"backlash not compared: its gravity-sided model needs masses and {NO_MASSES}")
         return
     small = found.get("combined", found["geometric"])
-    found["backlash"] = fit(*small.families, "backlash")
+    large = _fitted_or_skipped(fit, found, "backlash", *small.families, "backlash")
+    if large is None:
+        return
+    found["backlash"] = large
     found["backlash_test"] = nested_test(small, found["backlash"], validation, alpha, "backlash")
 
 
@@ -221,9 +238,10 @@ def _compare_transmission(model: RobotModel, fit, found: dict, validation, alpha
     bases = [r for r in (found["geometric"], found.get("combined"), found.get("backlash")) if r is not None]
     best_rms = _in_use_rms(Comparison(skipped=(), **{k: v for k, v in found.items() if k != "skipped"}).best)
     names = transmission_names(model)
-    tried = [t for small in bases for t in _transmission_levels(small, names, fit, validation, alpha)]
+    tried = [t for small in bases for t in _transmission_levels(small, names, fit, found, validation, alpha)]
     if not tried:
-        found["skipped"].append("transmission not compared: no joint can carry a transmission term")
+        if not names:
+            found["skipped"].append("transmission not compared: no joint can carry a transmission term")
         return
     helped = [t for t in tried if t[2].helped and _in_use_rms(t[1]) < best_rms]
     _, large, test = min(helped or tried, key=lambda t: _in_use_rms(t[1]))
@@ -235,8 +253,9 @@ def _compare_transmission(model: RobotModel, fit, found: dict, validation, alpha
     found["transmission_test"] = NestedTest(test.f_statistic, test.p_value, bool(helped), test.summary + others)
 
 
-def _transmission_levels(small: CalibrationResult, names, fit, validation, alpha: float) -> list:
-    """(what, result, test) of each level of transmission terms added to ``small``."""
+def _transmission_levels(small: CalibrationResult, names, fit, found: dict, validation, alpha: float) -> list:
+    """(what, result, test) of each level of transmission terms added to ``small``, up to the first the
+    data cannot determine (said in ``found["skipped"]``; the levels above it have more parameters)."""
     tried = []
     kinds: tuple = ()
     done: tuple = ()
@@ -246,8 +265,10 @@ def _transmission_levels(small: CalibrationResult, names, fit, validation, alpha
         if terms == done:
             continue                    # nothing new at this level (no stated ratio)
         done = terms
-        large = fit(*small.families, *terms)
         what = f"transmission (up to the {label}, on {compared_name(small.families)})"
+        large = _fitted_or_skipped(fit, found, what, *small.families, *terms)
+        if large is None:
+            break
         tried.append((what, large, nested_test(small, large, validation, alpha, what)))
     return tried
 

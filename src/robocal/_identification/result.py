@@ -475,7 +475,7 @@ class Comparison:
     """Geometric-only against geometric-and-compliance identification on the same data, and, when
     asked, against geometric, compliance and backlash together (the third) and with transmission
     terms added to one of these. What the model cannot support (compliance without link
-    masses) is skipped and said.
+    masses, a larger model than the poses determine) is skipped and said.
 
     Attributes
     ----------
