@@ -60,7 +60,7 @@ def step_times(m, n: int, repeat: int, out: str) -> dict:
     parameters are saved to ``out`` (an .npz) for the comparison."""
     _, data = rc.simulate(m, n, seed=1)
     names = rc.identifiability(m, data, parameters=("geometric",)).identified
-    prob = Problem(m, names, data=data, compliance=False)
+    prob = Problem(m, free=names, data=data, compliance=False)   # keywords: the order changed after fa10f9e
     p0 = parameter_vector(m)
     rng = np.random.default_rng(0)
     moves = iter([prob.full(p0[prob.free_idx] + 1e-6 * rng.standard_normal(len(names)), p0)
