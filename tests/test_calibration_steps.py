@@ -178,6 +178,33 @@ def test_choose_frees_what_a_stated_noise_held_back_when_that_predicts_better_in
     assert f"{n_first} parameters" in notes[0] and f"kept the {n_all} parameters" in notes[0]
 
 
+def test_a_compared_design_is_solved_loosely_and_once_chosen_on_to_the_solvers_tolerance(monkeypatch):
+    """The all-free design (chosen here, as above) is compared at ``COMPARED_TOL`` and, chosen, solved on
+    from there at the solver's tolerance: its estimates are those of the design solved alone from the
+    nominal, within 1e-3 of their standard deviations."""
+    from robocal._identification.solve import SOLVER_TOL, covariance
+
+    stated = rc.Noise.of("tracker", position=3e-3)
+    options = dataclasses.replace(OPTIONS, noise=stated)
+    a = analysis(options=options)
+    tols = []
+
+    def spy(problem, start, **kw):
+        tols.append((len(problem.free_idx), kw.get("tol", SOLVER_TOL)))
+        return solve(problem, start, **kw)
+
+    solve = steps.solve
+    monkeypatch.setattr(steps, "solve", spy)
+    chosen, _ = choose(a, options, *held(a))
+    n_all = len(a.identifiability.identified)
+    assert len(chosen.problem.free_idx) == n_all
+    assert (n_all, steps.COMPARED_TOL) in tols and tols[-1] == (n_all, SOLVER_TOL)
+    alone = fit(chosen.design, dataclasses.replace(options, on_outliers="flag"), *held(a))
+    std = covariance(alone.solution).std
+    free = alone.problem.free_idx
+    assert np.all(np.abs(chosen.solution.p[free] - alone.solution.p[free]) <= 1e-3 * std)
+
+
 def test_choose_leaves_out_a_compared_design_that_has_not_converged_within_its_budget(monkeypatch):
     stated = rc.Noise.of("tracker", position=3e-3)          # as above: the all-free design would be chosen
     options = dataclasses.replace(OPTIONS, noise=stated)

@@ -56,7 +56,7 @@ from .identifiability import (
 )
 from .identifiability import eliminate as eliminate_parameters
 from .problem import Problem
-from .solve import Solution, carried_alone, solve
+from .solve import SOLVER_TOL, Solution, carried_alone, solve
 
 
 @dataclass(frozen=True)
@@ -415,10 +415,11 @@ class Fit:
         return keep & (self.groups >= 0)
 
 
-def solve_design(design: Design, problem: Problem, options: Options, start: np.ndarray) -> Solution:
+def solve_design(design: Design, problem: Problem, options: Options, start: np.ndarray,
+                 tol: float = SOLVER_TOL) -> Solution:
     """``problem`` (the design's, or with observations set aside) solved from ``start`` (a full
-    vector): compliances kept >= 0 if asked, and under a robust loss the rows that alone carry a
-    quantity kept linear (nothing else could outvote them)."""
+    vector) to the solver's tolerance ``tol``: compliances kept >= 0 if asked, and under a robust
+    loss the rows that alone carry a quantity kept linear (nothing else could outvote them)."""
     lower = None
     if options.nonnegative_compliance:
         lay = parameter_layout(design.start)
@@ -430,7 +431,7 @@ def solve_design(design: Design, problem: Problem, options: Options, start: np.n
         rows = kept[problem.row_observations()]
         linear = rows if rows.any() else None
     return solve(problem, start, loss=options.loss, f_scale=options.f_scale, max_nfev=options.max_nfev,
-                 lower=lower, linear_rows=linear)
+                 lower=lower, linear_rows=linear, tol=tol)
 
 
 def warm_start(first: Fit, design: Design) -> np.ndarray:
@@ -481,6 +482,10 @@ SMALL_GROUP = 20
 # converges in tens): a design the data barely determine can crawl on for thousands, and its
 # held-out error would then judge where it stopped rather than a fit
 COMPARED_NFEV = 100
+# ... and the solver's tolerance it is solved to: its held-out error comes from one Gauss-Newton step
+# of each fold from it, which lands where a fully converged start would; the design chosen is then
+# solved on to the solver's own tolerance
+COMPARED_TOL = 1e-6
 
 
 def alone_observations(problem: Problem, p: np.ndarray) -> np.ndarray:
@@ -532,15 +537,16 @@ def in_runs(order: np.ndarray) -> np.ndarray:
 
 
 def fit(design: Design, options: Options, holdout: Holdout, folds: FoldProblems, *,
-        outliers: Fit | None = None, start: np.ndarray | None = None) -> Fit:
+        outliers: Fit | None = None, start: np.ndarray | None = None, tol: float = SOLVER_TOL) -> Fit:
     """``design`` solved and its observations held out in turn. With the linear loss and
     ``on_outliers="refit"``, observations that stand out alone (not in runs, which are systematic,
     and not carrying a quantity alone) are set aside and the design fitted again without them, kept
     when its held-out loss on every observation is not higher (the model is then the one the
     observations' deletion gives). ``outliers``: a fit whose outliers stand (a design fitted on the
-    observations it left); ``start``: the full vector its solve starts from (default the design's)."""
+    observations it left); ``start``: the full vector its solve starts from (default the design's);
+    ``tol``: the solver's tolerance."""
     problem = design.problem
-    solution = solve_design(design, problem, options, design.p0 if start is None else start)
+    solution = solve_design(design, problem, options, design.p0 if start is None else start, tol)
     held = cross_validate(problem, solution.p, holdout, folds=folds, at=solution.jacobian_at)
     groups = holdout.groups
     if outliers is not None:      # fitted on what that fit left: its outliers and their notes stand
@@ -700,8 +706,9 @@ def choose(analysis: Analysis, options: Options, holdout: Holdout, folds: FoldPr
 
 def _simplest(first: Fit, designs: list, options: Options, holdout: Holdout, folds: FoldProblems):
     """Of ``designs`` (simplest first), the first within one standard error of the best held-out loss.
-    A design other than the first is solved within ``COMPARED_NFEV`` evaluations (or the ``max_nfev``
-    given) and left out of the choice, with a note, when it has not converged by then."""
+    A design other than the first is solved to ``COMPARED_TOL`` within ``COMPARED_NFEV`` evaluations
+    (or the ``max_nfev`` given) and left out of the choice, with a note, when it has not converged by
+    then; chosen, it is solved on from there to the solver's tolerance."""
     fits, seen, stopped = [], {}, []
     budget = COMPARED_NFEV if options.max_nfev is None else options.max_nfev
     for d in designs:
@@ -712,7 +719,7 @@ def _simplest(first: Fit, designs: list, options: Options, holdout: Holdout, fol
             seen[key] = first
         else:
             seen[key] = fit(d, replace(options, on_outliers="flag", max_nfev=budget), holdout, folds, outliers=first,
-                            start=warm_start(first, d))
+                            start=warm_start(first, d), tol=COMPARED_TOL)
             if not seen[key].solution.success:
                 stopped.append(f"the {len(key)}-parameter design did not converge within {budget} evaluations of "
                                "the residuals: left out of the model choice")
@@ -733,6 +740,8 @@ def _simplest(first: Fit, designs: list, options: Options, holdout: Holdout, fol
     said = "; ".join(f"{count[id(g)]} parameters: {rms[id(g)] * 1e3:.4g} mm" for g in fits)
     note = (f"model choice by cross-validated error (RMS held out): {said}; kept the {count[id(f)]} parameters, "
             "the simplest within one standard error of the best")
+    if f is not first:
+        f = fit(f.design, replace(options, on_outliers="flag"), holdout, folds, outliers=first, start=f.solution.p)
     if f.design.weak_kept:
         f = replace(f, design=replace(f.design, kept_in_use=True))
     return f, (note, *stopped)
