@@ -541,7 +541,7 @@ def marker_columns(ref: Reference, name: str) -> np.ndarray:
     names = tuple(f"{name}.{k}" for k in ("x", "y", "z"))
     if all(n in ref.names for n in names):
         return ref.J[:, [ref.names.index(n) for n in names]]
-    return np.array(ref.problem.over(names).jacobian(ref.p))
+    return ref.columns(names)
 
 
 def _movable_markers(ref: Reference) -> list[tuple[int, str]]:

@@ -29,7 +29,7 @@ def joint_columns(ref: Reference) -> np.ndarray:
         names = [f"{f.name}.{'r' if f.joint == 'prismatic' else 'theta'}" for f in model.frames]
         lay = parameter_layout(model)
         moving = [i for i, f in enumerate(model.frames) if f.joint != "fixed" and names[i] in lay.names]
-        J = np.array(ref.problem.over(tuple(names[i] for i in moving)).jacobian(ref.p))
+        J = ref.columns(tuple(names[i] for i in moving))
         return J @ C[moving]
 
     return ref.cached("joint_columns", make)

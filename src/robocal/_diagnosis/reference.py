@@ -92,7 +92,9 @@ class Reference:
     ``errors`` (n_poses, n_markers, 3) the position residuals (calibrated minus measured, m; 0 where
     not measured), ``expected`` the per-axis scatter a good fit leaves (m), ``rows`` the poses'
     rows in the campaign, ``folds`` the calibration's number of folds, ``factor`` the solver's R
-    factor of ``J`` when it kept one (``R^T R = J^T J``)."""
+    factor of ``J`` when it kept one (``R^T R = J^T J``), ``at`` the vector ``J`` was taken at (the
+    solver's last Jacobian, within its tolerances of ``p``; None: at ``p``), where other columns
+    are taken too (its evaluation is kept)."""
 
     model: RobotModel
     start: RobotModel
@@ -113,6 +115,7 @@ class Reference:
     folds: int
     _cache: dict
     factor: np.ndarray | None = None
+    at: np.ndarray | None = None
 
     @property
     def dof(self) -> int:
@@ -126,7 +129,7 @@ class Reference:
         def make():
             weak = [a.name for a in self.result.identifiability.eliminated if a.reason.startswith("is weakly")]
             names = tuple(self.names) + tuple(n for n in weak if n not in self.names)
-            return independent(np.array(self.problem.over(names).jacobian(self.p)), names)
+            return independent(self.columns(names), names)
 
         return self.cached("refit_names", make)
 
@@ -153,6 +156,10 @@ class Reference:
     def base_free(self) -> bool:
         lay = parameter_layout(self.model)
         return any(lay[n].family == "base" for n in self.names)
+
+    def columns(self, names: tuple[str, ...]) -> np.ndarray:
+        """(n_rows, len(names)) the Jacobian's columns of the parameters ``names`` where ``J`` was taken."""
+        return np.array(self.problem.over(names).jacobian(self.p if self.at is None else self.at))
 
     def cached(self, key: str, make: Callable):
         """``make()`` computed once per reference."""
@@ -276,29 +283,29 @@ def reference(model: RobotModel, data: Measurements, result: CalibrationResult, 
     fit_noise = as_noise(noise)
     compliance = needs_compliance(start, names)
     shared = _solved(fitted, work, names, compliance)
-    factor = None
+    factor = at = None
     if shared is None:
         prob = Problem(start, names, data=work, compliance=compliance, noise=fit_noise)
         p = parameter_vector(start)
         r, J = prob.residuals(p), np.array(prob.jacobian(p))
     else:
-        prob, p, r, J, factor = shared
+        prob, p, r, J, factor, at = shared
     pts = cast(Points, prob.points)
     e = np.where(work.mask[..., None], pts.errors(p), 0.0)
     rms = float(np.sqrt(np.mean(e[work.mask] ** 2))) if work.mask.any() else 0.0
     ref = Reference(model=model, start=start, names=names, data=work, campaign=campaign, rows=rows, noise=fit_noise,
                     expected=expected_noise(fit_noise, limit_m)[0], problem=prob, p=p, r=r, J=J, ssr=0.0, rms=rms,
-                    errors=e, result=result, folds=folds, _cache={}, factor=factor)
+                    errors=e, result=result, folds=folds, _cache={}, factor=factor, at=at)
     object.__setattr__(ref, "ssr", float(ref.settled @ ref.settled))
     return ref
 
 
 def _solved(fitted, work: Measurements, names: tuple[str, ...], compliance: bool):
-    """(problem, p, residuals, Jacobian, R factor) of the calibration's fit when it fitted measured
-    points alone on exactly the poses diagnosed (none set aside), over ``names``, without lost motion;
-    else None. Its Jacobian is the solver's last (within its tolerances of the solution); its R factor
-    the solver's of it (None where the solver kept the Jacobian itself: a robust loss, rows of two
-    kinds)."""
+    """(problem, p, residuals, Jacobian, R factor, the vector the Jacobian was taken at) of the
+    calibration's fit when it fitted measured points alone on exactly the poses diagnosed (none set
+    aside), over ``names``, without lost motion; else None. Its Jacobian is the solver's last (within
+    its tolerances of the solution); its R factor the solver's of it (None where the solver kept the
+    Jacobian itself: a robust loss, rows of two kinds)."""
     if fitted is None:
         return None
     prob, sol = fitted.problem, fitted.solution
@@ -311,7 +318,7 @@ def _solved(fitted, work: Measurements, names: tuple[str, ...], compliance: bool
     J = prob.jacobian(sol.p if sol.jacobian_at is None else sol.jacobian_at)
     R = sol.jacobian
     kept = sol.loss == "linear" and sol.row_kinds is None and R.shape == (len(names), len(names))
-    return prob, sol.p, sol.residuals, np.array(J), R if kept else None
+    return prob, sol.p, sol.residuals, np.array(J), R if kept else None, sol.jacobian_at
 
 
 def nominal_positions(model: RobotModel, data: Measurements) -> np.ndarray:
