@@ -75,6 +75,10 @@ CORRELATION_SINGULAR = 0.9999
 OVERFIT_RATIO = 2.0
 OVERFIT_GROSS = 10.0
 OVERFIT_GROSS_EXCESS = 1e-3
+# registering base and tool on the validation set names another set-up when it takes away at least
+# this share of the held-out errors' excess over the fitted ones (and leaves them within OVERFIT_RATIO
+# times those): a registration that trims a little off errors of other poses explains nothing
+REGISTERED_SHARE = 0.5
 # worse in use than before beyond this many standard errors of the (paired) difference is a failure;
 # within it, "no better" is a warning (a handful of held-out poses cannot tell the two apart)
 WORSE_SIGMAS = 2.0
@@ -782,7 +786,7 @@ def _beyond_the_fit(in_use, summary: str, misfit, reach_m) -> Check | None:
     moved = _registration_explains(in_use)
     if moved is not None and (far or off_reach):
         return Check("accuracy in use", "fail", summary + ": the held-out errors are beyond anything the fit "
-                     f"explains; with base and tool registered on the validation set, {_mm(moved.mean)}",
+                     f"explains; with base and tool registered on the validation set, {_mm(moved.mean)} ({REGISTERED})",
                      cause="held-out poses of another set-up (the instrument or the base moved, another tool)",
                      fix="register base and tool on the validation set (--register-validation)")
     if off_reach:
@@ -850,11 +854,19 @@ def spacing_check(in_use) -> list[Check]:
     return [Check(name, "pass", summary)]
 
 
+# how the registered errors are figured (``AccuracyInUse.registered_after``)
+REGISTERED = "allowing for the equations the registration takes up"
+
+
 def _registration_explains(in_use):
-    """The calibrated model's errors on the validation set once base and tool are registered on it,
-    when they are within ``OVERFIT_RATIO`` times the fitted poses' (another set-up), else None."""
+    """The calibrated model's errors on the validation set once base and tool are registered on it
+    (allowing for the equations that takes up), when they are within ``OVERFIT_RATIO`` times the
+    fitted poses' and the registration took ``REGISTERED_SHARE`` of the held-out errors' excess over
+    those away (another set-up), else None."""
     fit, reg = in_use.measured_fit or in_use.fit_after, in_use.registered_after
-    if reg is not None and reg.n and fit.n and reg.mean <= OVERFIT_RATIO * fit.mean:
+    seen = in_use.measured_after or in_use.position_after
+    if reg is not None and reg.n and fit.n and reg.mean <= OVERFIT_RATIO * fit.mean and \
+            seen.mean - reg.mean >= REGISTERED_SHARE * (seen.mean - fit.mean):
         return reg
     return None
 
@@ -870,8 +882,9 @@ def _held_out_larger(in_use, summary: str, misfit=None, reach_m=None) -> Check |
     reg, cv = _registration_explains(in_use), in_use.cross_validated
     if reg is not None:
         return Check(name, "warn", summary + f"; with base and tool registered on the validation set, "
-                     f"{_mm(reg.mean)}: another set-up", cause="a validation campaign measured with the instrument or "
-                     "the tool placed otherwise", fix="register base and tool on it (--register-validation)")
+                     f"{_mm(reg.mean)} ({REGISTERED}): another set-up",
+                     cause="a validation campaign measured with the instrument or the tool placed otherwise",
+                     fix="register base and tool on it (--register-validation)")
     if cv is not None and cv.n and cv.mean <= OVERFIT_RATIO * fit.mean:
         return Check(name, "warn", summary + f"; the fitted campaign's own poses held out show {_mm(cv.mean)}: the "
                      "validation poses differ from the fitted ones", cause="validation poses in another region of "

@@ -516,7 +516,8 @@ class AccuracyInUse:
         The fitted errors after calibration as the instrument saw them, m.
     registered_after : UseStats or None
         With a validation set not registered: the calibrated model's errors on it once base and
-        tool are registered on it, m (what tells another set-up from overfitting).
+        tool are registered on it, scaled by sqrt(m / (m - r)) for the r of its m equations the
+        registration takes up, m (what tells another set-up from overfitting).
     cross_validated : UseStats or None
         With a validation set: the fitted campaign's own held-out errors as measured, m (what
         tells other poses from overfitting).

@@ -84,7 +84,7 @@ from .steps import (
     observed_markers,
     placed_parameters,
     registered,
-    registration_determined,
+    registration_freedom,
     repeated_in,
 )
 
@@ -190,11 +190,13 @@ def _validation_points(fit: Fit, before: np.ndarray, points: Measurements, optio
                   noise=problem.noise)
     vectors = [before[:n], fit.solution.p[:n]]
     register = options.register_validation or problem.points is None
-    other = None
+    other, taken, rows = None, 0, 0
     if register:
         vectors = registered(val, vectors)
-    elif registration_determined(val):     # what registering would give: another set-up is told from overfitting by it
-        other = registered(val, vectors[1:])[0]
+    else:       # what registering would give: another set-up is told from overfitting by it
+        taken, rows = registration_freedom(val)
+        if taken < rows:
+            other = registered(val, vectors[1:])[0]
     pts = cast(Points, val.points)
     b, a = evaluated(pts, vectors[0]), evaluated(pts, vectors[1])
     method = "validation, base and tool registered on it" if register else "validation"
@@ -204,8 +206,10 @@ def _validation_points(fit: Fit, before: np.ndarray, points: Measurements, optio
                              noise=instrument_variance(problem.noise, points, fitted))
     k = fit.problem.n_points
     held = fit.held_out.observation_norms(fit.problem.point_mask)[:k][fit.steady()[:k]]
-    record = replace(record, registered_after=None if other is None else use_stats(evaluated(pts, other).norms),
-                     cross_validated=use_stats(held))
+    # the registration takes up ``taken`` of the ``rows`` equations: its errors scaled back up as a fit's
+    # residuals are for its parameters, so that a few poses do not look explained by its own freedom
+    record = replace(record, registered_after=None if other is None else use_stats(
+        evaluated(pts, other).norms * np.sqrt(rows / (rows - taken))), cross_validated=use_stats(held))
     said = () if options.register_validation or not register else (
         "nothing fitted fixes a frame (contacts alone): base and tool registered on the validation points, for "
         "the models before and after alike",)

@@ -785,12 +785,16 @@ def placed_on(problem: Problem) -> Problem:
 
 def registration_determined(problem: Problem) -> bool:
     """Whether a registration on ``problem``'s points (``placed_on``) leaves some of their equations
-    unabsorbed: its Jacobian's rank is below their number (a point marker's turn moves nothing, so
-    the rank, not the count of parameters). Else the registration fits every error, whatever the model."""
+    unabsorbed (``registration_freedom``). Else the registration fits every error, whatever the model."""
+    taken, rows = registration_freedom(problem)
+    return taken < rows
+
+
+def registration_freedom(problem: Problem) -> tuple[int, int]:
+    """(equations a registration on ``problem``'s points takes up, their number): the rank of its
+    Jacobian (a point marker's turn moves nothing, so the rank, not the count of parameters)."""
     reg = placed_on(problem)
-    if reg.n_rows > len(reg.free_idx):
-        return True
-    return int(np.linalg.matrix_rank(reg.jacobian(reg.start_vector()))) < reg.n_rows
+    return int(np.linalg.matrix_rank(reg.jacobian(reg.start_vector()))), reg.n_rows
 
 
 def registered(problem: Problem, vectors: list[np.ndarray]) -> list[np.ndarray]:
