@@ -133,6 +133,18 @@ def test_worse_in_use_fails():
     assert check.status == "fail" and "worse than before" in check.summary
 
 
+def test_held_out_errors_beside_an_exact_fit_are_overfitting_without_a_ratio():
+    """Fitted poses fitted exactly (as many equations as parameters) and held-out errors: overfitting,
+    said without dividing by the fitted error (a ZeroDivisionError once the check named another set-up
+    first)."""
+    from robocal._identification.checks import in_use_check
+    from robocal._identification.holdout import HeldOut, accuracy_in_use
+    before = np.random.default_rng(1).normal(scale=1e-4, size=(60, 1, 3))
+    held = [HeldOut(v, None, np.sum(v ** 2, axis=2)) for v in (before, 0.5 * before)]
+    check = in_use_check(accuracy_in_use("cross-validation", 5, "5 folds", *held, np.zeros(60)))
+    assert check.status == "warn" and "the fitted poses fitted exactly (overfitting)" in check.summary
+
+
 def test_a_campaign_in_a_small_cube_says_where_the_model_holds():
     m = arm6r()
     true = rc.perturb_model(m, rc.identifiability(m).identified, rng=1)

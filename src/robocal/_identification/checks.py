@@ -769,7 +769,7 @@ def in_use_check(in_use, misfit: float | None = None, reach_m: float | None = No
     seen = in_use.measured_after
     if seen is not None and seen.n and seen.mean != a.mean:     # the robot's figure beside what was measured
         summary += f"; held out as measured (the instrument's noise in) {_mm(seen.mean)}"
-    for judge in (_beyond_the_fit, _no_better, _held_out_larger, _worst_grew):
+    for judge in (_beyond_the_fit, _another_set_up, _no_better, _held_out_larger, _worst_grew):
         check = judge(in_use, summary, misfit, reach_m)
         if check is not None:
             return check
@@ -871,20 +871,40 @@ def _registration_explains(in_use):
     return None
 
 
-def _held_out_larger(in_use, summary: str, misfit=None, reach_m=None) -> Check | None:
-    """Held-out errors ``OVERFIT_RATIO`` times the fitted ones (as measured), named by what explains
-    them; None when they are not."""
-    name, fit = "accuracy in use", in_use.measured_fit or in_use.fit_after
-    seen = in_use.measured_after or in_use.position_after
+def _held_out_excess(in_use) -> float | None:
+    """How many times the fitted poses' error the held-out one is (as measured), when it is
+    ``OVERFIT_RATIO`` times or more and beyond 3 standard errors; else None."""
+    fit, seen = in_use.measured_fit or in_use.fit_after, in_use.measured_after or in_use.position_after
     if not (fit.n and seen.mean > OVERFIT_RATIO * fit.mean and seen.mean - fit.mean > 3 * in_use.standard_error):
         return None
-    summary += f": {seen.mean / fit.mean:.3g} times the fitted poses' error"
-    reg, cv = _registration_explains(in_use), in_use.cross_validated
-    if reg is not None:
-        return Check(name, "warn", summary + f"; with base and tool registered on the validation set, "
-                     f"{_mm(reg.mean)} ({REGISTERED}): another set-up",
-                     cause="a validation campaign measured with the instrument or the tool placed otherwise",
-                     fix="register base and tool on it (--register-validation)")
+    return seen.mean / fit.mean if fit.mean > 0 else float("inf")
+
+
+def _times_fitted(ratio: float) -> str:
+    return f"{ratio:.3g} times the fitted poses' error" if np.isfinite(ratio) else "the fitted poses fitted exactly"
+
+
+def _another_set_up(in_use, summary: str, misfit=None, reach_m=None) -> Check | None:
+    """Held-out errors ``OVERFIT_RATIO`` times the fitted ones that registering base and tool on the
+    validation set explains: another set-up. Judged before "no better than before": the nominal
+    model's errors there are that set-up's too."""
+    ratio, reg = _held_out_excess(in_use), _registration_explains(in_use)
+    if ratio is None or reg is None:
+        return None
+    return Check("accuracy in use", "warn", summary + f": {_times_fitted(ratio)}; with base and tool registered on "
+                 f"the validation set, {_mm(reg.mean)} ({REGISTERED}): another set-up",
+                 cause="a validation campaign measured with the instrument or the tool placed otherwise",
+                 fix="register base and tool on it (--register-validation)")
+
+
+def _held_out_larger(in_use, summary: str, misfit=None, reach_m=None) -> Check | None:
+    """Held-out errors ``OVERFIT_RATIO`` times the fitted ones that no registration explains, named by
+    what does; None when they are not."""
+    ratio = _held_out_excess(in_use)
+    if ratio is None:
+        return None
+    name, fit, cv = "accuracy in use", in_use.measured_fit or in_use.fit_after, in_use.cross_validated
+    summary += f": {_times_fitted(ratio)}"
     if cv is not None and cv.n and cv.mean <= OVERFIT_RATIO * fit.mean:
         return Check(name, "warn", summary + f"; the fitted campaign's own poses held out show {_mm(cv.mean)}: the "
                      "validation poses differ from the fitted ones", cause="validation poses in another region of "
