@@ -483,8 +483,8 @@ SMALL_GROUP = 20
 # held-out error would then judge where it stopped rather than a fit
 COMPARED_NFEV = 100
 # ... and the solver's tolerance it is solved to: its held-out error comes from one Gauss-Newton step
-# of each fold from it, which lands where a fully converged start would; the design chosen is then
-# solved on to the solver's own tolerance
+# of each fold from it, which lands about where a fully converged start would (docs/checks.md); the
+# design chosen is then solved on to the solver's own tolerance
 COMPARED_TOL = 1e-6
 
 
