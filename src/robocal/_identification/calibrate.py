@@ -78,7 +78,7 @@ def run(model: RobotModel, data: Measurements | None, contacts: Contacts | None,
     notes = inputs.notes + analysis.notes + chosen.notes + choice_notes + before_notes + use_notes
     where = reach(inputs, chosen.design, chosen.solution.p)
     cover = campaign_coverage(chosen, cov, where)
-    use, limit = use_checks(in_use_record, cover, options, point_misfit(chosen, options), where)
+    use, limit = use_checks(in_use_record, cover, options, point_misfit(chosen, options), where, validation_errors)
     better = placed_better(in_use_record, where, chosen.problem, inputs.validation)
     checks = (checked + list(chosen.outliers.checks)
               + fit_checks(chosen, options, in_use_record, better)

@@ -500,6 +500,29 @@ def outlier_check(residuals: np.ndarray, sigma: np.ndarray | None, noise: Noise,
                  "(--on-outliers refit)", items=items), out
 
 
+def held_out_outlier_check(errors: np.ndarray, sigma: np.ndarray | None, noise: Noise, labels) -> Check:
+    """The held-out points (a validation set) whose errors after calibration (n, 3) stand out from
+    the others' as blunders: beyond ``GROSS_FACTOR`` times ``outlier_check``'s bar, where the fit sets
+    its own aside (held-out errors are predictions, whose spread varies over the workspace more than
+    a fit's residuals: on simulated robots beyond the model 1 draw in 10 put a point just beyond the
+    bar itself). The accuracy in use counts every held-out point, so a blunder there moves its
+    figures; named with the mean error as measured without them."""
+    name = "outliers among the held-out points"
+    z = outlier_scores(errors, sigma, noise)
+    bar = GROSS_FACTOR * outlier_bar(len(z))
+    out = z > bar
+    if not out.any():
+        return Check(name, "pass", f"no held-out point beyond {bar:.3g} robust standard deviations of the others'")
+    norms = vector_norms(errors)
+    order = np.nonzero(out)[0][np.argsort(-z[out])]
+    items = tuple(f"{labels[i]}: {norms[i] * 1e3:.3g} mm, {z[i]:.3g} sd" for i in order)
+    return Check(name, "warn", f"{out.sum()} of {len(z)} held-out point(s) beyond {bar:.3g} robust standard "
+                 f"deviations of the others': {_listed(items, 3)}; the mean held-out error as measured is "
+                 f"{_mm(float(norms[~out].mean()))} without them, {_mm(float(norms.mean()))} with them",
+                 cause="a blunder in the validation set: a mistyped or misassigned measurement, a reading taken while "
+                 "the robot moved", fix="check those measurements; the accuracy in use counts them", items=items)
+
+
 @dataclass(frozen=True)
 class WorkspaceChange:
     """How far the calibrated geometry moves the measured markers from where the nominal one puts

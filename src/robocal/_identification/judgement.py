@@ -27,6 +27,7 @@ from .checks import (
     correlation_check,
     coverage_check,
     fit_check,
+    held_out_outlier_check,
     identifiability_check,
     in_use_check,
     interchangeable_pairs,
@@ -61,7 +62,7 @@ from .holdout import (
 from .identifiability import WEAK_STD
 from .misfit import characteristic_length, misfit_notes
 from .points import Points
-from .problem import Problem
+from .problem import Labels, Problem
 from .result import (
     CalibrationResult,
     ErrorSummary,
@@ -431,14 +432,20 @@ def reach_of(where: Reach) -> float | None:
 
 
 def use_checks(in_use_record: AccuracyInUse | None, cover: Coverage | None, options: Options, misfit: float | None,
-               where: Reach):
-    """The accuracy in use (``misfit``: the measured points' fit against the instrument), where it
-    holds, and the limit of absolute accuracy."""
+               where: Reach, held: PoseErrors | None = None):
+    """The accuracy in use (``misfit``: the measured points' fit against the instrument), the
+    held-out points that stand out (``held``: a validation set's errors), where it holds, and the
+    limit of absolute accuracy."""
     if in_use_record is None:
         return [Check("accuracy in use", "pass", "no position held out (contacts of one placement, or no seating "
                       "among them): judged by the fit's checks alone",
                       fix="measure on two placements or more, or hold out measured points (--validation)")], None
     out = [in_use_check(in_use_record, misfit, reach_of(where))] + spacing_check(in_use_record)
+    if held is not None and held.data.mask.any():
+        d = held.data
+        rows, markers = np.nonzero(d.mask)
+        out.append(held_out_outlier_check(held.after[d.mask], None if d.sigma is None else d.sigma[d.mask],
+                                          options.noise, Labels(d.labels, d.marker_names, rows, markers)))
     if cover is not None:
         out.append(coverage_check(cover, in_use_record))
     judged = None if options.limit_m is None else judge_against_limit(options.limit_m, in_use_record)
