@@ -792,9 +792,10 @@ def registration_determined(problem: Problem) -> bool:
 
 def registration_freedom(problem: Problem) -> tuple[int, int]:
     """(equations a registration on ``problem``'s points takes up, their number): the rank of its
-    Jacobian (a point marker's turn moves nothing, so the rank, not the count of parameters)."""
+    Jacobian (a point marker's turn moves nothing, so the rank, not the count of parameters), from
+    its R factor (a large validation set's chunk by chunk)."""
     reg = placed_on(problem)
-    return int(np.linalg.matrix_rank(reg.jacobian(reg.start_vector()))), reg.n_rows
+    return int(np.linalg.matrix_rank(reg.reduced_jacobian(reg.start_vector()))), reg.n_rows
 
 
 def registered(problem: Problem, vectors: list[np.ndarray]) -> list[np.ndarray]:
