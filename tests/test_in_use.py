@@ -133,6 +133,27 @@ def test_worse_in_use_fails():
     assert check.status == "fail" and "worse than before" in check.summary
 
 
+def test_worse_than_before_takes_students_bar_on_few_points():
+    """Held-out errors 3 standard errors of the paired difference worse after calibration: a failure
+    on 60 points (the bar 2.04), a warning on 3 (the bar 4.5: three points' spread says little of
+    the standard error), and nothing established on one."""
+    from robocal._identification.checks import in_use_check, paired_sigmas
+    from robocal._identification.holdout import HeldOut, accuracy_in_use
+    assert paired_sigmas(60) == pytest.approx(2.04, abs=0.01) and paired_sigmas(3) == pytest.approx(4.53, abs=0.01)
+    for n, status in ((60, "fail"), (3, "warn"), (1, "warn")):
+        rng = np.random.default_rng(n)
+        before = rng.normal(scale=1e-3, size=(n, 1, 3))
+        d = rng.normal(size=n)
+        d = (d - d.mean()) / (d.std(ddof=1) if n > 1 else 1.0) * 1e-5 + (3 * 1e-5 / np.sqrt(n))
+        norms = np.linalg.norm(before, axis=2)[:, 0]
+        after = before * ((norms + d) / norms)[:, None, None]       # each error d longer: 3 se worse
+        held = [HeldOut(v, None, np.sum(v ** 2, axis=2)) for v in (before, after)]
+        check = in_use_check(accuracy_in_use("validation", None, "set", *held, np.full(n, 1e-3)))
+        assert check.status == status, (n, check.summary)
+        if n == 1:
+            assert "one held-out point has no standard error" in check.summary
+
+
 def test_no_held_out_point_is_named_a_blunder_on_robots_beyond_the_model():
     """Validation sets of 30 poses of simulated robots with effects beyond the model (every preset):
     their held-out errors are predictions, heavier-tailed than a fit's residuals (at the fit's own bar

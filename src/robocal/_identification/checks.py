@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import gammainc, gammainccinv
+from scipy.special import gammainc, gammainccinv, ndtr, stdtrit
 
 from .._base.arguments import accepts, each_a, is_a, optional, shaped, whole
 from .._base.arrays import column_extent, point_spread, vector_norms
@@ -80,7 +80,9 @@ OVERFIT_GROSS_EXCESS = 1e-3
 # times those): a registration that trims a little off errors of other poses explains nothing
 REGISTERED_SHARE = 0.5
 # worse in use than before beyond this many standard errors of the (paired) difference is a failure;
-# within it, "no better" is a warning (a handful of held-out poses cannot tell the two apart)
+# within it, "no better" is a warning (a handful of held-out poses cannot tell the two apart). On n
+# points the bar is Student's t quantile of the same probability, n - 1 degrees of freedom
+# (``paired_sigmas``): 2.05 at 48 points, 4.5 at 3, 14 at 2 (two points' spread says little of it)
 WORSE_SIGMAS = 2.0
 # two markers of one frame at least this far apart in the model, calibrated to less than this share of
 # their distance, are one point: no tool does that
@@ -537,10 +539,24 @@ class WorkspaceChange:
     n_poses: int
 
 
+def paired_sigmas(n: int) -> float:
+    """The bar, in standard errors of a paired difference over ``n`` points, that ``WORSE_SIGMAS``
+    normal standard errors set: Student's t quantile of the same one-sided probability with n - 1
+    degrees of freedom (infinite below two points).
+
+    >>> round(paired_sigmas(1000), 3), round(paired_sigmas(3), 2)
+    (2.003, 4.53)
+    """
+    return float(stdtrit(n - 1, ndtr(WORSE_SIGMAS))) if n > 1 else float("inf")
+
+
 def better_in_use(in_use, reach_m: float | None = None) -> bool:
     """Whether the calibration places the robot better in use than the nominal model: its mean
-    held-out error fell by more than ``WORSE_SIGMAS`` standard errors of the paired difference, to
-    what a robot's calibration can leave (below ``IN_USE_SHARE_MAX`` of its reach ``reach_m``)."""
+    held-out error fell by more than ``WORSE_SIGMAS`` standard errors of the paired difference (not
+    on one point, which has none), to what a robot's calibration can leave (below
+    ``IN_USE_SHARE_MAX`` of its reach ``reach_m``). The normal bar, not ``paired_sigmas``: being
+    better in use holds back failures of other checks, and a failure is what needs the stronger
+    evidence."""
     if in_use is None or in_use.registration_only or not in_use.position_after.n:
         return False
     gain, se = in_use.improvement
@@ -829,7 +845,11 @@ def _no_better(in_use, summary: str, misfit, reach_m) -> Check | None:
     """Worse than before (a failure), or no better within a standard error: a failure when the fit
     leaves ``GROSS_MISFIT`` times what the instrument explains, else a warning."""
     gain, se = in_use.improvement
-    if gain < -WORSE_SIGMAS * se:
+    if not np.isfinite(se):
+        return Check("accuracy in use", "warn", summary + ": one held-out point has no standard error, so neither "
+                     "better nor worse than before is established", cause="too few held-out points to judge by",
+                     fix="give more validation poses, spread over the workspace (robocal plan)")
+    if gain < -paired_sigmas(in_use.errors_after.size) * se:
         return Check("accuracy in use", "fail", summary + ": worse than before calibration",
                      cause="a model that fits the fitted poses but not others: too many parameters for the poses, "
                            "or data that do not belong together", fix="read the other checks and the diagnosis; "
@@ -865,11 +885,11 @@ def spacing_check(in_use) -> list[Check]:
         return []
     name = "spacing in use"
     d = before - after
-    gain, se = float(d.mean()), float(d.std(ddof=1) / np.sqrt(d.size)) if d.size > 1 else 0.0
+    gain, se = float(d.mean()), float(d.std(ddof=1) / np.sqrt(d.size)) if d.size > 1 else float("inf")
     summary = (f"held-out spacing error (calibrated minus known, absolute) mean {_mm(float(before.mean()))} before, "
                f"{_mm(float(after.mean()))} after, max {_mm(float(after.max()))}, over {len(after)} held-out "
                "placement and pair(s)")
-    if gain < -WORSE_SIGMAS * se and after.mean() > before.mean():
+    if gain < -paired_sigmas(d.size) * se and after.mean() > before.mean():
         return [Check(name, "fail", summary + ": worse than before calibration", cause="a robot scaled to meet "
                       "something else than the plate: a stated spacing that is wrong, spacing rows set aside, or "
                       "joint readings in another unit", fix="check the stated distances and their deviations; read "

@@ -555,15 +555,17 @@ class AccuracyInUse:
 
     @property
     def standard_error(self) -> float:
-        """The standard error of the mean error after calibration (m)."""
+        """The standard error of the mean error after calibration (m); infinite for one point, which
+        has none (nothing is established from it)."""
         e = self.errors_after
-        return float(e.std(ddof=1) / np.sqrt(e.size)) if e.size > 1 else 0.0
+        return float(e.std(ddof=1) / np.sqrt(e.size)) if e.size > 1 else float("inf")
 
     @property
     def improvement(self) -> tuple[float, float]:
-        """The mean error before minus after (m) and its standard error (paired over the points)."""
+        """The mean error before minus after (m) and its standard error (paired over the points;
+        infinite for one point)."""
         d = self.errors_before - self.errors_after
-        return float(d.mean()), float(d.std(ddof=1) / np.sqrt(d.size)) if d.size > 1 else 0.0
+        return float(d.mean()), float(d.std(ddof=1) / np.sqrt(d.size)) if d.size > 1 else float("inf")
 
 
 def without_instrument(norms: np.ndarray, variance: float) -> np.ndarray:
