@@ -112,3 +112,15 @@ def column_extent(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     transpose (numpy reduces a long row far faster than down a narrow column)."""
     rows = np.ascontiguousarray(np.asarray(a, dtype=float).T)
     return rows.min(axis=1), rows.max(axis=1)
+
+
+def mean_and_error(d) -> tuple[float, float]:
+    """The mean of the values ``d`` (0 for none) and its standard error, infinite below two values
+    (one has none: nothing is established from it).
+
+    >>> mean_and_error([1.0, 3.0]), mean_and_error([2.0])
+    ((2.0, 1.0), (2.0, inf))
+    """
+    d = np.asarray(d, dtype=float).ravel()
+    mean = float(d.mean()) if d.size else 0.0
+    return mean, float(d.std(ddof=1) / np.sqrt(d.size)) if d.size > 1 else float("inf")

@@ -19,7 +19,7 @@ from typing import cast
 
 import numpy as np
 
-from .._base.arrays import read_only
+from .._base.arrays import mean_and_error, read_only
 from .._base.errors import DegenerateDataError, InputError
 from .._base.options import DEFAULT_INSTRUMENT
 from .._identification.checks import (
@@ -512,8 +512,7 @@ def judged(ref: Reference, f: float, base: np.ndarray, held: np.ndarray, rms: fl
     d = base - held
     compared = np.isfinite(d)
     d = d[compared]
-    gain = float(d.mean()) if d.size else 0.0
-    se = float(d.std(ddof=1) / np.sqrt(d.size)) if d.size > 1 else np.inf
+    gain, se = mean_and_error(d)
     explained = bool(rms <= FIT_RATIO * ref.expected or np.nanmean(held) <= OVERFIT_RATIO * np.nanmean(fitted))
     status = ""
     if f >= NAMED_FACTOR and gain > 0:

@@ -13,7 +13,7 @@ import numpy as np
 from scipy.special import gammainc, gammainccinv, ndtr, stdtrit
 
 from .._base.arguments import accepts, each_a, is_a, optional, shaped, whole
-from .._base.arrays import column_extent, point_spread, vector_norms
+from .._base.arrays import column_extent, mean_and_error, point_spread, vector_norms
 from .._base.errors import InputError, excerpt
 from .._model.measurements import Measurements, Noise
 from .._model.robot import RobotModel
@@ -79,6 +79,8 @@ OVERFIT_GROSS_EXCESS = 1e-3
 # this share of the held-out errors' excess over the fitted ones (and leaves them within OVERFIT_RATIO
 # times those): a registration that trims a little off errors of other poses explains nothing
 REGISTERED_SHARE = 0.5
+# how the registered errors are figured (``AccuracyInUse.registered_after``), in the checks' words
+REGISTERED = "allowing for the equations the registration takes up"
 # worse in use than before beyond this many standard errors of the (paired) difference is a failure;
 # within it, "no better" is a warning (a handful of held-out poses cannot tell the two apart). On n
 # points the bar is Student's t quantile of the same probability, n - 1 degrees of freedom
@@ -885,7 +887,7 @@ def spacing_check(in_use) -> list[Check]:
         return []
     name = "spacing in use"
     d = before - after
-    gain, se = float(d.mean()), float(d.std(ddof=1) / np.sqrt(d.size)) if d.size > 1 else float("inf")
+    gain, se = mean_and_error(d)
     summary = (f"held-out spacing error (calibrated minus known, absolute) mean {_mm(float(before.mean()))} before, "
                f"{_mm(float(after.mean()))} after, max {_mm(float(after.max()))}, over {len(after)} held-out "
                "placement and pair(s)")
@@ -895,10 +897,6 @@ def spacing_check(in_use) -> list[Check]:
                       "joint readings in another unit", fix="check the stated distances and their deviations; read "
                       "the diagnosis")]
     return [Check(name, "pass", summary)]
-
-
-# how the registered errors are figured (``AccuracyInUse.registered_after``)
-REGISTERED = "allowing for the equations the registration takes up"
 
 
 def _registration_explains(in_use):

@@ -27,7 +27,7 @@ from typing import cast
 import numpy as np
 from scipy.linalg.lapack import dpocon, dpotrf, dpotrs
 
-from .._base.arrays import column_extent, frozen, point_spread, read_only, vector_norms
+from .._base.arrays import column_extent, frozen, mean_and_error, point_spread, read_only, vector_norms
 from .._model.configurations import sampling_box
 from .._model.kinematics import CHUNK_POSES
 from .._model.measurements import Measurements
@@ -557,15 +557,13 @@ class AccuracyInUse:
     def standard_error(self) -> float:
         """The standard error of the mean error after calibration (m); infinite for one point, which
         has none (nothing is established from it)."""
-        e = self.errors_after
-        return float(e.std(ddof=1) / np.sqrt(e.size)) if e.size > 1 else float("inf")
+        return mean_and_error(self.errors_after)[1]
 
     @property
     def improvement(self) -> tuple[float, float]:
         """The mean error before minus after (m) and its standard error (paired over the points;
         infinite for one point)."""
-        d = self.errors_before - self.errors_after
-        return float(d.mean()), float(d.std(ddof=1) / np.sqrt(d.size)) if d.size > 1 else float("inf")
+        return mean_and_error(self.errors_before - self.errors_after)
 
 
 def without_instrument(norms: np.ndarray, variance: float) -> np.ndarray:
