@@ -18,6 +18,10 @@ ANGLE_FACTORS = {180 / np.pi: "degrees read as radians", np.pi / 180: "radians r
 READING_LENGTH_FACTORS = {1e3: "millimetres read as metres", 1e-3: "metres read as millimetres"}
 # the family whose parameters carry a joint's scale and its periodic errors (docs/method.md)
 TRANSMISSION = "transmission"
+# a joint's scale within this (relative) may be the robot's own: a gear train's ratio is exact by its
+# teeth, and belts, heat and a gear's periodic error over the range stay below it; beyond it is a
+# mistake (a ratio set wrong, a reading scaled), which the calibration cannot stand on
+CARRIED_SCALE = 1e-3
 
 
 def joint_columns(ref: Reference) -> np.ndarray:
@@ -63,7 +67,8 @@ def joint_scale(ref: Reference) -> list[Candidate]:
                       "reading scale off)", "with that scale", f"correct the gear ratio (or scale) of joint {name} in "
                       f"the controller or the readings; a robot whose joint turns so carries it in the "
                       f"'{TRANSMISSION}' parameters (--parameters geometric,{TRANSMISSION})", (name,),
-                      ref.ssr / ref.dof / after, freedom, repair)]
+                      ref.ssr / ref.dof / after, freedom, repair,
+                      carried=abs(s) <= CARRIED_SCALE)]
 
 
 def _changed(q: np.ndarray, joints, factor: float) -> np.ndarray:
