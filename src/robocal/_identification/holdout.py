@@ -469,11 +469,8 @@ def cross_validate(problem: Problem, p: np.ndarray, holdout: Holdout, *, on: Pro
 def paired_excess(simple: np.ndarray, complex_: np.ndarray, mask: np.ndarray) -> tuple[float, float]:
     """How much more the simpler model loses over the points ``mask`` than the other, per point, and
     the standard error of that mean (the two are compared on the same points, so their difference
-    is measured far more precisely than either)."""
-    d = (simple - complex_)[mask]
-    if d.size < 2:
-        return float(d.mean()) if d.size else 0.0, 0.0
-    return float(d.mean()), float(d.std(ddof=1) / np.sqrt(d.size))
+    is measured far more precisely than either; infinite below two points, which establish nothing)."""
+    return mean_and_error((simple - complex_)[mask])
 
 
 @dataclass(frozen=True, eq=False)
