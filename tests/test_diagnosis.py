@@ -116,6 +116,17 @@ def test_a_robots_own_gear_error_warns_with_the_family_that_carries_it():
     assert gain > 10 * se
 
 
+def test_a_scale_no_robot_carries_decides_though_the_calibration_is_close_in_use():
+    """The UR5's elbow turning 0.99 times its reading: the geometric calibration is within 2.1 times
+    the repair in use (0.231 against 0.109 mm), which alone would only warn, but a 1 % scale is a
+    ratio set wrong or readings scaled, and then the model is 9.7 mm wrong where the readings are
+    right: it fails."""
+    result = rm.gear_ratio("UR5", ratio=0.99, joint=2).run()
+    cause = _first(result)
+    assert cause.hypothesis == "joint scale" and "elbow" in cause.cause and cause.status == "fail"
+    assert result.verdict == "fail" and "within 4 times" not in cause.evidence
+
+
 # -- no cause where there is none -------------------------------------------------------------------------
 
 def test_a_correct_real_calibration_names_nothing_and_says_what_it_cannot_tell():
