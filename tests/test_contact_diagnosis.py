@@ -159,8 +159,18 @@ def spacing_typo(seed, rng):
     return replace(c, distances=distances), "spacing stated", (f"sockets {d.a} and {d.b}",)
 
 
+def joint_rehomed(seed, rng):
+    """One joint (not the first, whose offset the plate's pose takes up) rehomed a few tenths of a
+    degree off before the second placement: its readings there are off by a constant."""
+    c = campaign(seed)
+    j = 1 + int(rng.integers(5))
+    q = c.q.copy()
+    q[np.array([p == "P2" for p in c.placement]), j] += np.radians(rng.uniform(0.2, 0.6))
+    return replace(c, q=q), "joint rehomed", (f"j{j + 1}'s", "placement P2")
+
+
 MISTAKES = (sign_flipped, degrees_as_radians, radians_as_degrees, adjacent_swapped, wrong_socket, placement_merged,
-            plate_moved, spacing_typo)
+            plate_moved, spacing_typo, joint_rehomed)
 
 
 def injected(mistake, seed: int):
@@ -190,7 +200,8 @@ def test_no_cause_is_named_without_a_mistake(effect, seed):
     perhaps failing): nothing tested explains them, and the diagnosis says so."""
     _, diagnosis = diagnosed(campaign(seed, effect), model=arm(masses=bool(effect)))
     assert diagnosis.findings == (), diagnosis.summary
-    assert diagnosis.summary.startswith("nothing tested explains the misfit") and len(diagnosis.tested) == 6
+    assert diagnosis.summary.startswith("nothing tested explains the misfit")
+    assert len(diagnosis.tested) == len(cd.CONTACT_HYPOTHESES)
 
 
 def _tracker(seed: int, n: int = 30):

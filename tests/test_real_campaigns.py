@@ -71,6 +71,31 @@ def test_a_sphere_in_socket_campaign_read_as_its_authors_publish_it():
         assert res.in_use.position_after.mean < res.in_use.position_before.mean / 5
 
 
+def test_a_joint_rehomed_on_one_placement_of_the_panda_is_named():
+    """The published Panda campaign with joint 2's readings 0.5 deg off on one placement (rehomed
+    between placements): 8fee3fe warned on the outliers and fit (1.19 mm held out, 0.20 clean) and
+    its diagnosis named nothing. Now it fails, naming the joint, the placement and the offset; the
+    first joint's offset, which the placement's sockets take up whole, changes nothing and names
+    nothing."""
+    model = _panda()
+    contacts = rc.io.read_contacts(MUKCA / "panda_3", model)
+    on = np.array([p == "backright" for p in contacts.placement])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        q = contacts.q.copy()
+        q[on, 1] += np.radians(0.5)
+        result = rc.calibrate(model, contacts=replace(contacts, q=q))
+        cause = result.diagnosis.cause
+        assert result.verdict == "fail" and cause.hypothesis == "joint rehomed" and cause.status == "fail"
+        assert "panda_joint2" in cause.cause and "backright" in cause.cause
+        assert abs(float(cause.cause.split(" deg")[0].rsplit(" ", 1)[1]) - 0.5) < 0.05
+        q = contacts.q.copy()
+        q[on, 0] += np.radians(1.0)
+        result = rc.calibrate(model, contacts=replace(contacts, q=q))
+        assert result.diagnosis.findings == () and result.verdict == "pass"
+        assert result.in_use.position_after.mean < 0.21e-3
+
+
 def _compared(robot):
     """``compare`` with the authors' split: fitted on the grid, judged on the 20 random poses; the
     test poses choose nothing that cross-validation on the grid alone would not."""

@@ -30,6 +30,7 @@ import numpy as np
 
 from .._base.arguments import accepts, both, is_a, measured_on, noise_of, optional
 from .._base.errors import DegenerateDataError, InputError, excerpt
+from .._base.linalg import r_factor, solve_upper
 from .._base.options import INSTRUMENT_NOISE
 from .._base.threads import one_blas_thread
 from .._identification.checks import outlier_bar
@@ -45,7 +46,7 @@ from .._model.parameters import needs_compliance, parameter_layout, parameter_na
 from .._model.robot import RobotModel
 from .joints import ANGLE_FACTORS
 from .measured import ranked
-from .reference import MAX_POSES, NAMED_FACTOR, as_noise, count_implausible
+from .reference import MAX_POSES, NAMED_FACTOR, SURVIVE_FACTOR, as_noise, count_implausible
 
 # a refit that turns implausible changes into plausible ones names its cause at a factor this many
 # times (log10) smaller: a possible cause, never a decisive one (a flip the model absorbs with a
@@ -69,6 +70,9 @@ NEAR_SHARE = 0.5
 MOST_RELABELLED = 0.1
 # a set-up split keeps at least this many of its placement's seatings on each side
 MIN_SIDE = 3
+# a joint's offset on one placement is screened only when at least this share of its columns' square
+# norm is left once the fit's own columns (the placement's socket points among them) take theirs
+ABSORBED_SHARE = 1e-6
 
 NAMED = float(np.log10(NAMED_FACTOR))
 
@@ -281,6 +285,65 @@ def joints_swapped(case: _Case) -> Finding | None:
     return _best_of(case, cands, "joints swapped", "with them swapped back")
 
 
+def _reading_columns(case: _Case) -> np.ndarray:
+    """(n_rows, n_joints) the reference fit's weighted residual rows per unit change of each joint
+    reading: the columns of the joint variables of the frames it drives."""
+    fit = case.fit
+    model = fit.problem.model
+    names = [f"{f.name}.{'r' if f.joint == 'prismatic' else 'theta'}" for f in model.frames]
+    moving = [i for i, f in enumerate(model.frames) if f.joint != "fixed"]
+    J = fit.problem.over(tuple(names[i] for i in moving)).jacobian(fit.p)[:, :len(moving)]
+    return J @ model.coupling_matrix[moving]
+
+
+@one_blas_thread
+def joint_rehomed(case: _Case) -> Finding | None:
+    """One joint's readings off by a constant on one placement (rehomed, or its encoder slipped,
+    between placements): every placement and joint screened at once by one Gauss-Newton step on
+    the reference fit's residuals (what its own parameters cannot take up), the best refitted with
+    that placement's readings corrected. A joint whose offset the placement's free socket points
+    take up whole (a turn about the vertical first axis) is not tested."""
+    c, fit = case.contacts, case.fit
+    placements = c.placements()
+    if len(placements) < 2:
+        return None
+    prob = fit.problem
+    obs = prob.observations()
+    rows_of = np.asarray(obs.placement, dtype=object)[prob.row_observations()]
+    Jq = _reading_columns(case)
+    Z = np.hstack([Jq * (rows_of == p)[:, None] for p in placements])
+    J, r = prob.jacobian(fit.p), prob.residuals(fit.p)
+    R = r_factor(J)
+    Zs = Z - J @ solve_upper(R, solve_upper(R, J.T @ Z, transposed=True))
+    if not np.all(np.isfinite(Zs)):       # the fit's own columns dependent: nothing to screen against
+        return None
+    norm, whole = np.sum(Zs ** 2, axis=0), np.sum(Z ** 2, axis=0)
+    b = Zs.T @ r
+    usable = norm > ABSORBED_SHARE * np.maximum(whole, 1e-300)
+    gains = np.where(usable, b ** 2 / np.maximum(norm, 1e-300), 0.0)
+    k = int(np.argmax(gains))
+    if gains[k] <= 0.0:
+        return None
+    freedom = 1.0 + float(np.log2(max(int(usable.sum()), 2)))
+    after = max(fit.ssr - gains[k], 1e-300) / max(fit.n_rows - fit.n_free - freedom, 1.0)
+    if fit.variance / after < SURVIVE_FACTOR:
+        return None
+    placement, j = placements[k // c.q.shape[1]], k % c.q.shape[1]
+    shift = float(-b[k] / norm[k])
+    q = c.q.copy()
+    q[np.array([pl == placement for pl in c.placement], dtype=bool), j] += shift
+    out = _refit(case, _readings(c, q))
+    if out is None:
+        return None
+    name = case.model.joint_names[j]
+    angle = case.model.reading_quantities[j] == "angle"
+    off = f"{np.degrees(-shift):+.4g} deg" if angle else f"{-shift * 1e3:+.4g} mm"
+    return _found(case, out, "joint rehomed", f"joint {name}'s readings on placement {placement or '-'} are {off} "
+                  "off the joint's position (the joint rehomed, or its encoder slipped, between placements)",
+                  "with them corrected", freedom, (name, placement),
+                  f"home joint {name} and record placement {placement or '-'} again (or drop it)")
+
+
 # -- hypotheses: the labels of the seatings ----------------------------------------------------------
 
 def _relabelled(case: _Case) -> dict:
@@ -453,7 +516,8 @@ def spacing_stated(case: _Case) -> Finding | None:
 
 # -- the ranking -------------------------------------------------------------------------------------
 
-CONTACT_HYPOTHESES = (joint_sign, unit_factor, joints_swapped, wrong_socket, setup_moved, spacing_stated)
+CONTACT_HYPOTHESES = (joint_sign, unit_factor, joints_swapped, joint_rehomed, wrong_socket, setup_moved,
+                      spacing_stated)
 
 
 def _recorded_on(value, name, args):
