@@ -31,7 +31,7 @@ from .._base.arguments import (
 from .._base.errors import InputError, excerpt
 from .._identification.checks import STATUSES, Check
 from .._identification.estimates import ErrorStats, ParameterEstimate
-from .._identification.holdout import AccuracyInUse, Coverage, UseStats
+from .._identification.holdout import AccuracyInUse, Coverage, JointOffset, UseStats
 from .._identification.identifiability import Absorption, IdentifiabilityResult, status_table
 from .._identification.result import (
     CalibrationResult,
@@ -187,6 +187,9 @@ def in_use_to_dict(in_use: AccuracyInUse | None) -> dict | None:
             "fit_after": _use_dict(in_use.fit_after), "measured_after": _use_dict(in_use.measured_after),
             "measured_fit": _use_dict(in_use.measured_fit), "registered_after": _use_dict(in_use.registered_after),
             "cross_validated": _use_dict(in_use.cross_validated),
+            "rehomed": None if in_use.rehomed is None else {
+                "joint": in_use.rehomed.joint, "offset": in_use.rehomed.offset, "quantity": in_use.rehomed.quantity,
+                "errors": _use_dict(in_use.rehomed.errors)},
             "spacing_before_m": None if in_use.spacing_before is None else in_use.spacing_before.tolist(),
             "spacing_after_m": None if in_use.spacing_after is None else in_use.spacing_after.tolist()}
 
@@ -218,6 +221,11 @@ def _in_use(doc: _Doc, d: dict | None) -> AccuracyInUse | None:
     stats: dict[str, Any] = {key: _use_stats(doc, doc.get(d, key, w, dict, optional=True), f"{w}.{key}")
              for key in ("position_before", "position_after", "rotation_before", "rotation_after", "fit_after",
                          "measured_after", "measured_fit", "registered_after", "cross_validated")}
+    moved = doc.get(d, "rehomed", w, dict, optional=True)
+    stats["rehomed"] = None if moved is None else JointOffset(
+        joint=doc.get(moved, "joint", f"{w}.rehomed", str), offset=doc.get(moved, "offset", f"{w}.rehomed", float),
+        quantity=doc.get(moved, "quantity", f"{w}.rehomed", str),
+        errors=cast(UseStats, _use_stats(doc, doc.get(moved, "errors", f"{w}.rehomed", dict), f"{w}.rehomed.errors")))
     for key in ("spacing_before", "spacing_after"):
         values = doc.get(d, key + "_m", w, list, optional=True)
         stats[key] = None if values is None else doc.array(values, f"{w}.{key}_m", (None,))

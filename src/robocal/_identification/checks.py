@@ -81,6 +81,11 @@ OVERFIT_GROSS_EXCESS = 1e-3
 REGISTERED_SHARE = 0.5
 # how the registered errors are figured (``AccuracyInUse.registered_after``), in the checks' words
 REGISTERED = "allowing for the equations the registration takes up"
+# a validation set whose errors one joint's constant offset explains (``AccuracyInUse.rehomed``), as
+# a registration would have to: the joint homed otherwise between the campaigns
+REHOMED_CAUSE = "joint {} homed otherwise between the fitted campaign and the validation set (or its encoder slipped)"
+REHOMED_FIX = ("home joint {} and measure the validation poses again, or calibrate on poses of one homing; if the "
+               "validation set's homing is the robot's from now on, calibrate on poses measured with it")
 # worse in use than before beyond this many standard errors of the (paired) difference is a failure;
 # within it, "no better" is a warning (a handful of held-out poses cannot tell the two apart). On n
 # points the bar is Student's t quantile of the same probability, n - 1 degrees of freedom
@@ -824,7 +829,11 @@ def _beyond_the_fit(in_use, summary: str, misfit, reach_m) -> Check | None:
         in_use.measured_fit or in_use.fit_after
     far = seen_fit.n and seen.mean > OVERFIT_GROSS * seen_fit.mean and seen.mean > seen_fit.mean + OVERFIT_GROSS_EXCESS
     off_reach = reach_m is not None and a.mean > IN_USE_SHARE_MAX * reach_m
-    moved = _registration_explains(in_use)
+    moved, homed = _registration_explains(in_use), _rehoming_explains(in_use)
+    if homed is not None and (far or off_reach):
+        return Check("accuracy in use", "fail", summary + ": the held-out errors are beyond anything the fit "
+                     f"explains; {_rehomed_words(homed)}", cause=REHOMED_CAUSE.format(homed.joint),
+                     fix=REHOMED_FIX.format(homed.joint))
     if moved is not None and (far or off_reach):
         return Check("accuracy in use", "fail", summary + ": the held-out errors are beyond anything the fit "
                      f"explains; with base and tool registered on the validation set, {_mm(moved.mean)} ({REGISTERED})",
@@ -912,6 +921,25 @@ def _registration_explains(in_use):
     return None
 
 
+def _rehoming_explains(in_use):
+    """The joint offset on the validation set (``AccuracyInUse.rehomed``) when it explains its errors
+    as a registration would have to (``_registration_explains``'s bars) and the registration alone
+    does not (the simpler explanation first: a joint more also takes up some of the robot's own
+    errors); else None."""
+    fit, homed = in_use.measured_fit or in_use.fit_after, in_use.rehomed
+    seen = in_use.measured_after or in_use.position_after
+    if homed is None or not (homed.errors.n and fit.n) or homed.errors.mean > OVERFIT_RATIO * fit.mean or \
+            seen.mean - homed.errors.mean < REGISTERED_SHARE * (seen.mean - fit.mean):
+        return None
+    return None if _registration_explains(in_use) is not None else homed
+
+
+def _rehomed_words(homed) -> str:
+    off = f"{np.degrees(homed.offset):+.4g} deg" if homed.quantity == "angle" else _mm(homed.offset)
+    return (f"with joint {homed.joint}'s readings {off} off on the validation set (base and tool registered too), "
+            f"{_mm(homed.errors.mean)} ({REGISTERED}, and the offset)")
+
+
 def _held_out_excess(in_use) -> float | None:
     """How many times the fitted poses' error the held-out one is (as measured), when it is
     ``OVERFIT_RATIO`` times or more and beyond 3 standard errors; else None."""
@@ -929,7 +957,10 @@ def _another_set_up(in_use, summary: str, misfit=None, reach_m=None) -> Check | 
     """Held-out errors ``OVERFIT_RATIO`` times the fitted ones that registering base and tool on the
     validation set explains: another set-up. Judged before "no better than before": the nominal
     model's errors there are that set-up's too."""
-    ratio, reg = _held_out_excess(in_use), _registration_explains(in_use)
+    ratio, reg, homed = _held_out_excess(in_use), _registration_explains(in_use), _rehoming_explains(in_use)
+    if ratio is not None and homed is not None:
+        return Check("accuracy in use", "warn", summary + f": {_times_fitted(ratio)}; {_rehomed_words(homed)}",
+                     cause=REHOMED_CAUSE.format(homed.joint), fix=REHOMED_FIX.format(homed.joint))
     if ratio is None or reg is None:
         return None
     return Check("accuracy in use", "warn", summary + f": {_times_fitted(ratio)}; with base and tool registered on "

@@ -473,6 +473,19 @@ def paired_excess(simple: np.ndarray, complex_: np.ndarray, mask: np.ndarray) ->
     return mean_and_error((simple - complex_)[mask])
 
 
+@dataclass(frozen=True)
+class JointOffset:
+    """The joint whose readings, off by one constant on a validation set (base and tool registered
+    on it too), explain its errors best: ``offset`` the reading less the joint's position (rad, or
+    m for a prismatic joint), ``errors`` the calibrated model's errors once it is taken off, scaled
+    as ``registered_after`` with one more equation taken up (m)."""
+
+    joint: str
+    offset: float
+    quantity: str
+    errors: UseStats
+
+
 @dataclass(frozen=True, eq=False)
 class AccuracyInUse:
     """The accuracy a calibration predicts in use, before and after it, from poses not fitted.
@@ -518,6 +531,10 @@ class AccuracyInUse:
     cross_validated : UseStats or None
         With a validation set: the fitted campaign's own held-out errors as measured, m (what
         tells other poses from overfitting).
+    rehomed : JointOffset or None
+        With a validation set not registered whose errors are ``OVERFIT_RATIO`` times the fitted
+        ones or more: the one joint whose readings, off by a constant there, explain them best (a
+        joint homed otherwise between the campaigns).
     spacing_before : numpy.ndarray or None
         With contacts: (n,) the absolute errors of the known distances between held-out sockets'
         mean centres of the nominal model, m (read-only): the scale in use.
@@ -540,6 +557,7 @@ class AccuracyInUse:
     measured_fit: UseStats | None = None
     registered_after: UseStats | None = None
     cross_validated: UseStats | None = None
+    rehomed: JointOffset | None = None
     spacing_before: np.ndarray | None = None
     spacing_after: np.ndarray | None = None
 

@@ -50,6 +50,7 @@ from .holdout import (
     FoldProblems,
     HeldOut,
     Holdout,
+    JointOffset,
     accuracy_in_use,
     contact_held_out,
     coverage,
@@ -86,6 +87,7 @@ from .steps import (
     placed_parameters,
     registered,
     registration_freedom,
+    rehomed_on,
     repeated_in,
 )
 
@@ -210,11 +212,27 @@ def _validation_points(fit: Fit, before: np.ndarray, points: Measurements, optio
     # the registration takes up ``taken`` of the ``rows`` equations: its errors scaled back up as a fit's
     # residuals are for its parameters, so that a few poses do not look explained by its own freedom
     record = replace(record, registered_after=None if other is None else use_stats(
-        evaluated(pts, other).norms * np.sqrt(rows / (rows - taken))), cross_validated=use_stats(held))
+        evaluated(pts, other).norms * np.sqrt(rows / (rows - taken))), cross_validated=use_stats(held),
+        rehomed=_rehomed(val, vectors[1], record, taken, rows) if other is not None else None)
     said = () if options.register_validation or not register else (
         "nothing fitted fixes a frame (contacts alone): base and tool registered on the validation points, for "
         "the models before and after alike",)
     return record, PoseErrors(points, b.positions, a.positions, b.rotations, a.rotations), said
+
+
+def _rehomed(val: Problem, p: np.ndarray, record: AccuracyInUse, taken: int, rows: int) -> JointOffset | None:
+    """With validation errors ``OVERFIT_RATIO`` times the fitted ones or more (as measured), the joint
+    whose readings off by a constant there explain them best (``rehomed_on``), its errors scaled as
+    the registration's with one more equation taken up; else None (nothing to explain)."""
+    fit, seen = record.measured_fit or record.fit_after, record.measured_after or record.position_after
+    if not (fit.n and seen.n) or cast(float, seen.mean) <= OVERFIT_RATIO * cast(float, fit.mean) or taken + 1 >= rows:
+        return None
+    found = rehomed_on(val, p)
+    if found is None:
+        return None
+    name, offset, quantity, moved = found
+    errors = evaluated(cast(Points, val.points), moved).norms * np.sqrt(rows / (rows - taken - 1))
+    return JointOffset(name, offset, quantity, use_stats(errors))
 
 
 def _validation_contacts(fit: Fit, before: np.ndarray, contacts) -> AccuracyInUse:

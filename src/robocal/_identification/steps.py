@@ -805,6 +805,31 @@ def registered(problem: Problem, vectors: list[np.ndarray]) -> list[np.ndarray]:
     return [solve(reg, v, tol=REGISTRATION_TOL).p for v in vectors]
 
 
+def rehomed_on(problem: Problem, p: np.ndarray) -> tuple[str, float, str, np.ndarray] | None:
+    """The joint whose readings, off by one constant on ``problem``'s points with the base and the
+    markers they measure registered too, fit them best from the robot vector ``p``: (its name, the
+    offset of its readings from its position (rad, or m), "angle" or "length", the fitted vector).
+    Only joints that drive one frame alone are tried; None when there is none."""
+    reg = placed_on(problem)
+    model = problem.model
+    C = np.asarray(model.coupling_matrix, dtype=float)
+    best = None
+    for j, name in enumerate(model.joint_names):
+        frames = np.nonzero(C[:, j])[0]
+        if len(frames) != 1 or C[frames[0], j] != 1.0 or np.count_nonzero(C[frames[0]]) != 1:
+            continue
+        f = model.frames[frames[0]]
+        var = f"{f.name}.{'r' if f.joint == 'prismatic' else 'theta'}"
+        trial = reg.over(reg.free_names + (var,))
+        sol = solve(trial, p, tol=REGISTRATION_TOL)
+        ssr = float(sol.residuals @ sol.residuals)
+        if np.isfinite(ssr) and (best is None or ssr < best[0]):
+            i = parameter_layout(model).by_name[var].index
+            quantity = "length" if f.joint == "prismatic" else "angle"
+            best = (ssr, name, float(p[i] - sol.p[i]), quantity, sol.p)
+    return None if best is None else best[1:]
+
+
 def design_points(start: RobotModel, q: np.ndarray, markers, compliance: bool) -> Problem:
     """The problem of ``start`` at readings ``q`` with nothing measured (its predictions)."""
     return Problem(start, (), data=design_measurements(start, q, markers=markers), compliance=compliance)
