@@ -820,8 +820,10 @@ def rehomed_on(problem: Problem, p: np.ndarray) -> tuple[str, float, str, np.nda
             continue
         f = model.frames[frames[0]]
         var = f"{f.name}.{'r' if f.joint == 'prismatic' else 'theta'}"
-        trial = reg.over(reg.free_names + (var,))
-        sol = solve(trial, p, tol=REGISTRATION_TOL)
+        try:
+            sol = solve(reg.over(reg.free_names + (var,)), p, tol=REGISTRATION_TOL)
+        except (DegenerateDataError, np.linalg.LinAlgError, ValueError):     # this joint explains nothing here
+            continue
         ssr = float(sol.residuals @ sol.residuals)
         if np.isfinite(ssr) and (best is None or ssr < best[0]):
             i = parameter_layout(model).by_name[var].index
