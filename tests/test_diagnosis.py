@@ -127,6 +127,16 @@ def test_a_scale_no_robot_carries_decides_though_the_calibration_is_close_in_use
     assert result.verdict == "fail" and "within 4 times" not in cause.evidence
 
 
+def test_a_scale_no_robot_carries_is_named_through_the_robots_own_scatter():
+    """The WAM's j3 turning 0.99 times its reading: its own 1.3 mm scatter keeps the repair's variance
+    factor at 2 (below the naming factor 4; e997863 named nothing and passed), but a 1 % scale is
+    no robot's and the cross-validated error falls by 10 standard errors: a possible cause."""
+    result = rm.gear_ratio("WAM", ratio=0.99, joint=2).run()
+    cause = _first(result)
+    assert cause.hypothesis == "joint scale" and "j3" in cause.cause and cause.status == "warn"
+    assert result.verdict == "warn"
+
+
 # -- no cause where there is none -------------------------------------------------------------------------
 
 def test_a_correct_real_calibration_names_nothing_and_says_what_it_cannot_tell():

@@ -69,7 +69,7 @@ def joint_scale(ref: Reference) -> list[Candidate]:
                       f"the controller or the readings; a robot whose joint turns so carries it in the "
                       f"'{TRANSMISSION}' parameters (--parameters geometric,{TRANSMISSION})", (name,),
                       ref.ssr / ref.dof / after, freedom, repair,
-                      carried=abs(s) <= CARRIED_SCALE)]
+                      carried=abs(s) <= CARRIED_SCALE, beyond_robot=abs(s) > CARRIED_SCALE)]
 
 
 def _changed(q: np.ndarray, joints, factor: float) -> np.ndarray:
