@@ -10,7 +10,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from robots import arm6r
+from robots import arm6r, cylindrical
 
 import robocal as rc
 from robocal.identification import Points, Problem, solve
@@ -143,6 +143,26 @@ def test_a_validation_set_with_a_joint_homed_otherwise_names_the_joint(tmp_path)
     rc.write_result(result, tmp_path / "result.json")
     again = rc.read_result(tmp_path / "result.json").in_use.rehomed
     assert again.joint == "elbow" and again.offset == homed.offset and again.errors.mean == homed.errors.mean
+
+
+def test_a_prismatic_joint_homed_otherwise_is_named_in_millimetres_and_a_vertical_one_is_a_set_up():
+    """The cylindrical arm's radial axis read 3 mm off on the validation set: named with its offset in
+    mm; its vertical axis read 2 mm off is a base moved up (the registration explains it first)."""
+    m = cylindrical()
+    true, data = rc.simulate(m, 60, seed=3)
+    val = rc.measure(true, rc.random_configurations(m, 30, rng=5), noise=2e-5, rng=6)
+    found = {}
+    for j, off in ((2, 3e-3), (1, 2e-3)):
+        q = val.q.copy()
+        q[:, j] += off
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            result = rc.calibrate(m, data, validation=replace(val, q=q))
+        found[j] = next(c for c in result.checks if c.name == "accuracy in use"), result.in_use.rehomed
+    (radial, homed), (vertical, _) = found[2], found[1]
+    assert "joint j3 homed otherwise" in radial.cause and "j3's readings +3.0" in radial.summary
+    assert homed.quantity == "length" and abs(homed.offset - 3e-3) < 0.05e-3
+    assert "another set-up" in vertical.cause and "homed" not in vertical.cause
 
 
 def test_worse_in_use_fails():

@@ -935,7 +935,7 @@ def _rehoming_explains(in_use):
 
 
 def _rehomed_words(homed) -> str:
-    off = f"{np.degrees(homed.offset):+.4g} deg" if homed.quantity == "angle" else _mm(homed.offset)
+    off = f"{np.degrees(homed.offset):+.4g} deg" if homed.quantity == "angle" else f"{homed.offset * 1e3:+.4g} mm"
     return (f"with joint {homed.joint}'s readings {off} off on the validation set (base and tool registered too), "
             f"{_mm(homed.errors.mean)} ({REGISTERED}, and the offset)")
 
