@@ -27,7 +27,7 @@ from .._base.arguments import (
 from .._base.errors import InputError
 from .._base.threads import one_blas_thread
 from .._model.kinematics import evaluate, layout, transmission_slope
-from .._model.parameters import parameter_layout, parameter_vector
+from .._model.parameters import joint_variable_names, parameter_layout, parameter_vector
 from .._model.robot import RobotModel
 
 log = logging.getLogger(__name__)
@@ -47,7 +47,7 @@ def joint_jacobian(model: RobotModel, q) -> np.ndarray:
         Derivatives of the marker poses in W by the joint readings.
     """
     lay = parameter_layout(model)
-    cols = [lay[f"{f.name}.{'r' if f.joint == 'prismatic' else 'theta'}"].index for f in model.frames]
+    cols = [lay[n].index for n in joint_variable_names(model)]
     ev = evaluate(model, q, jacobian=True, columns=cols)
     moving = np.array([f.joint != "fixed" for f in model.frames])
     # per frame variable; a transmission error turns the arm's variable d q_eff / d q per reading's turn

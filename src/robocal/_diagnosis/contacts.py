@@ -44,7 +44,7 @@ from .._model.contacts import Contacts, KnownDistance
 from .._model.measurements import Measurements, Noise
 from .._model.parameters import needs_compliance, parameter_layout, parameter_names, parameter_vector
 from .._model.robot import RobotModel
-from .joints import ANGLE_FACTORS
+from .joints import ANGLE_FACTORS, reading_columns
 from .measured import ranked
 from .reference import MAX_POSES, NAMED_FACTOR, SURVIVE_FACTOR, as_noise, count_implausible
 
@@ -285,17 +285,6 @@ def joints_swapped(case: _Case) -> Finding | None:
     return _best_of(case, cands, "joints swapped", "with them swapped back")
 
 
-def _reading_columns(case: _Case) -> np.ndarray:
-    """(n_rows, n_joints) the reference fit's weighted residual rows per unit change of each joint
-    reading: the columns of the joint variables of the frames it drives."""
-    fit = case.fit
-    model = fit.problem.model
-    names = [f"{f.name}.{'r' if f.joint == 'prismatic' else 'theta'}" for f in model.frames]
-    moving = [i for i, f in enumerate(model.frames) if f.joint != "fixed"]
-    J = fit.problem.over(tuple(names[i] for i in moving)).jacobian(fit.p)[:, :len(moving)]
-    return J @ model.coupling_matrix[moving]
-
-
 @one_blas_thread
 def joint_rehomed(case: _Case) -> Finding | None:
     """One joint's readings off by a constant on one placement (rehomed, or its encoder slipped,
@@ -310,7 +299,7 @@ def joint_rehomed(case: _Case) -> Finding | None:
     prob = fit.problem
     obs = prob.observations()
     rows_of = np.asarray(obs.placement, dtype=object)[prob.row_observations()]
-    Jq = _reading_columns(case)
+    Jq = reading_columns(prob, fit.p)
     Z = np.hstack([Jq * (rows_of == p)[:, None] for p in placements])
     J, r = prob.jacobian(fit.p), prob.residuals(fit.p)
     R = r_factor(J)

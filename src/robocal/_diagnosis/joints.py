@@ -8,7 +8,8 @@ from itertools import combinations
 
 import numpy as np
 
-from .._model.parameters import parameter_layout
+from .._identification.problem import Problem
+from .._model.parameters import joint_variable_names
 from .reference import Candidate, Reference, Repair, projected_products, row_layout, with_arrays
 from .rigid import gross, predicted, screen_data, screened_readings
 
@@ -25,19 +26,20 @@ TRANSMISSION = "transmission"
 CARRIED_SCALE = 5e-3
 
 
-def joint_columns(ref: Reference) -> np.ndarray:
-    """(n_rows, n_joints) the change of the reference's residual rows per unit change of each joint
-    reading, at the calibration: the columns of the joint variables of the frames it drives."""
-    def make():
-        model = ref.start
-        C = model.coupling_matrix
-        names = [f"{f.name}.{'r' if f.joint == 'prismatic' else 'theta'}" for f in model.frames]
-        lay = parameter_layout(model)
-        moving = [i for i, f in enumerate(model.frames) if f.joint != "fixed" and names[i] in lay.names]
-        J = ref.columns(tuple(names[i] for i in moving))
-        return J @ C[moving]
+def reading_columns(problem: Problem, p: np.ndarray) -> np.ndarray:
+    """(n_rows, n_joints) the change of ``problem``'s weighted residual rows per unit change of each
+    joint reading, at the full vector ``p``: the columns of the joint variables of the frames it
+    drives (measured points or contacts alike; their nuisance columns left out)."""
+    model = problem.model
+    names = joint_variable_names(model)
+    moving = [i for i, f in enumerate(model.frames) if f.joint != "fixed"]
+    J = problem.over(tuple(names[i] for i in moving)).jacobian(p)[:, :len(moving)]
+    return J @ model.coupling_matrix[moving]
 
-    return ref.cached("joint_columns", make)
+
+def joint_columns(ref: Reference) -> np.ndarray:
+    """``reading_columns`` of the reference's rows where the calibration took its Jacobian."""
+    return ref.cached("joint_columns", lambda: reading_columns(ref.problem, ref.p if ref.at is None else ref.at))
 
 
 def joint_scale(ref: Reference) -> list[Candidate]:

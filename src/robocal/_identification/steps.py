@@ -22,6 +22,7 @@ from .._model.contacts import Contacts
 from .._model.measurements import Measurements, Noise
 from .._model.parameters import (
     candidate_parameters,
+    joint_variable_names,
     matched_by_pattern,
     needs_compliance,
     parameter_layout,
@@ -813,13 +814,13 @@ def rehomed_on(problem: Problem, p: np.ndarray) -> tuple[str, float, str, np.nda
     reg = placed_on(problem)
     model = problem.model
     C = np.asarray(model.coupling_matrix, dtype=float)
+    variables = joint_variable_names(model)
     best = None
     for j, name in enumerate(model.joint_names):
         frames = np.nonzero(C[:, j])[0]
         if len(frames) != 1 or C[frames[0], j] != 1.0 or np.count_nonzero(C[frames[0]]) != 1:
             continue
-        f = model.frames[frames[0]]
-        var = f"{f.name}.{'r' if f.joint == 'prismatic' else 'theta'}"
+        f, var = model.frames[frames[0]], variables[frames[0]]
         try:
             sol = solve(reg.over(reg.free_names + (var,)), p, tol=REGISTRATION_TOL)
         except (DegenerateDataError, np.linalg.LinAlgError, ValueError):     # this joint explains nothing here

@@ -171,6 +171,12 @@ def _make_parameter_layout(model: RobotModel) -> ParameterLayout:
                            names=tuple(p.name for p in params))
 
 
+def joint_variable_names(model: RobotModel) -> tuple[str, ...]:
+    """Each frame's joint-variable parameter, in frame order: the offset its reading is added to
+    (``theta`` of a revolute frame, ``r`` of a prismatic one; a fixed frame's ``theta``)."""
+    return tuple(f"{f.name}.{'r' if f.joint == 'prismatic' else 'theta'}" for f in model.frames)
+
+
 @accepts(model=is_a(RobotModel))
 def parameter_names(model: RobotModel) -> tuple[str, ...]:
     """Names of the full parameter vector: ``base.x``..., ``<frame>.<kind>``, ``<marker>.<kind>``.
