@@ -26,6 +26,7 @@ from .reference import (
     SURVIVE_FACTOR,
     Candidate,
     Linear,
+    Outcome,
     Reference,
     Repair,
     mm,
@@ -581,13 +582,20 @@ def marker_elsewhere(ref: Reference) -> list[Candidate]:
             cause = f"marker {name} sat elsewhere {where}: a reflector put in another nest"
         if not MIN_ROWS <= len(rows) < len(seen):
             continue
-        offset = E[rows, m].mean(0) - np.delete(E[seen, m], np.searchsorted(seen, rows), axis=0).mean(0)
-        out.append(Candidate("marker moved", cause + f" (about {mm(float(np.linalg.norm(offset)))} away)",
-                             "with those rows as another marker", f"calibrate the rows {where} as a marker of "
-                             "their own (or apart), or measure them again with the reflector in its nest",
-                             (name, _label(ref, rows[0])), predicted, freedom,
-                             partial(_with_marker_on, ref, m, rows)))
+        out.append(Candidate("marker moved", cause, "with those rows as another marker", f"calibrate the rows {where} "
+                             "as a marker of their own (or apart), or measure them again with the reflector in its "
+                             "nest", (name, _label(ref, rows[0])), predicted, freedom,
+                             partial(_with_marker_on, ref, m, rows), beyond_robot=True,
+                             restated=partial(_moved_by, cause, name)))
     return out
+
+
+def _moved_by(cause: str, name: str, out: Outcome) -> str:
+    """``cause`` with how far marker ``name`` moved: its rows' marker from the rest's in the refit."""
+    lay = parameter_layout(out.model)
+    names = out.model.marker_names
+    a, b = lay.marker0[names.index(name)], lay.marker0[names.index(f"{name}'")]
+    return cause + f" ({mm(float(np.linalg.norm(out.p[b:b + 3] - out.p[a:a + 3])))} away)"
 
 
 def _metres_to_rows(ref: Reference, ss: float) -> float:

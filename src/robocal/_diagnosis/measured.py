@@ -38,7 +38,16 @@ from .campaign import (
 from .facts import FACTS
 from .joints import joint_scale, joint_sign, joints_swapped, reading_unit
 from .model_file import marker_frame, model_sign, model_values, robot_size, untestable_signs
-from .reference import CLOSE_FACTOR, MAX_REFITS, SURVIVE_FACTOR, Reference, mm, reference, refitted
+from .reference import (
+    BEYOND_SURVIVE_FACTOR,
+    CLOSE_FACTOR,
+    MAX_REFITS,
+    SURVIVE_FACTOR,
+    Reference,
+    mm,
+    reference,
+    refitted,
+)
 from .values import axes_swapped, markers_swapped, mirrored_frame, payload_unit, position_unit, rotation_convention
 
 HYPOTHESES = (rows_shifted, pose_labels_offset, mirrored_frame, axes_swapped, markers_swapped, position_unit,
@@ -121,10 +130,11 @@ def _present(findings) -> list[Finding]:
 
 def screened(ref) -> list:
     """The candidates of every hypothesis that the cheap statistics do not rule out (predicted to divide
-    the residual variance by ``SURVIVE_FACTOR`` or more), the best predicted first, at most
-    ``MAX_REFITS``."""
+    the residual variance by ``SURVIVE_FACTOR`` or more, ``BEYOND_SURVIVE_FACTOR`` for a cause no robot
+    has of its own), the best predicted first, at most ``MAX_REFITS``."""
     candidates = sorted((c for h in HYPOTHESES for c in h(ref)), key=lambda c: -c.predicted)
-    return [c for c in candidates if c.predicted >= SURVIVE_FACTOR][:MAX_REFITS]
+    return [c for c in candidates
+            if c.predicted >= (BEYOND_SURVIVE_FACTOR if c.beyond_robot else SURVIVE_FACTOR)][:MAX_REFITS]
 
 
 def ranked(found: list[Finding], tested: tuple[str, ...], rms: float, misfit: str, *, untestable=(),

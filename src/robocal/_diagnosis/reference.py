@@ -49,6 +49,10 @@ CLOSE_FACTOR = 4.0
 # a candidate is refitted when the cheap statistics predict it divides the residual variance by at
 # least this factor; the others are ruled out without a refit
 SURVIVE_FACTOR = 2.0
+# ... or, for a cause no robot has of its own (``Candidate.beyond_robot``), at least this factor: the
+# screen's one step falls short of the refit for a large change (the WAM's j2 turning 1.02 times its
+# reading: 1.91 predicted, 2.3 refitted), and such a cause is possible from SURVIVE_FACTOR refitted
+BEYOND_SURVIVE_FACTOR = 1.5
 # the Gram matrix of the calibration's unit-scaled columns is taken from the solver's R factor when
 # its smallest eigenvalue is above this share of its largest (every direction determined to many
 # digits: the same projections to rounding); else from the columns, its pseudo-inverse cutting what
@@ -404,7 +408,7 @@ class Candidate:
     warns (the calibrated model holds what the data say). An ``absorbed`` one is a mistake a calibration
     can take up exactly with implausible changes (a sign, a unit, a mirror): its repair may fit only as
     well, and make them plausible. A ``carried`` one may be a property of the robot a model can carry
-    (``CARRIED_FACTOR``); one ``beyond_robot`` is too large to be the robot's own (``refitted``)."""
+    (``CARRIED_FACTOR``); one ``beyond_robot`` is no robot's own (``refitted``)."""
 
     hypothesis: str
     cause: str
@@ -419,13 +423,15 @@ class Candidate:
     absorbed: bool = False
     carried: bool = False
     beyond_robot: bool = False
+    restated: Callable[[Outcome], str] | None = None     # the cause in the refit's figures
 
 
 @dataclass(frozen=True, eq=False)
 class Outcome:
     """A refit: its weighted sum of squares over ``n_rows`` rows and ``n_free`` free parameters, its
     position RMS per axis (m, in the data's unit), the implausible changes it makes, each pose's
-    fitted and cross-validated errors (m, data's unit) and the campaign's row each one's point is."""
+    fitted and cross-validated errors (m, data's unit), the campaign's row each one's point is, and
+    the model refitted with its solution ``p``."""
 
     ssr: float
     n_rows: int
@@ -435,6 +441,8 @@ class Outcome:
     fitted: np.ndarray
     held: np.ndarray
     pose_rows: np.ndarray
+    model: RobotModel
+    p: np.ndarray
 
 
 _SOLVE_ERRORS = (DegenerateDataError, InputError, np.linalg.LinAlgError, ValueError)
@@ -467,7 +475,7 @@ def refit(ref: Reference, repair: Repair) -> Outcome | None:
     whole = ref.rows if repair.pose_rows is None else np.asarray(repair.pose_rows)
     return Outcome(ssr=ssr * repair.scale ** 2, n_rows=len(sol.residuals), n_free=len(prob.free_idx), rms=rms,
                    implausible=count_implausible(m, start, sol.p, names, work), fitted=fitted * repair.scale,
-                   held=held * repair.scale, pose_rows=whole[rows])
+                   held=held * repair.scale, pose_rows=whole[rows], model=m, p=sol.p)
 
 
 def factor(ref: Reference, ssr: float, n_rows: int, n_free: int, freedom: float) -> float:
@@ -676,14 +684,18 @@ def refitted(ref: Reference, cand: Candidate) -> Finding | None:
     if out is None:
         return None
     verdict = judge(ref, out, cand.freedom, cand.absorbed)
-    # a cause too large to be the robot's own is possible (a warning) from SURVIVE_FACTOR on when the
-    # repair lowers the cross-validated error by REFIT_GAIN_SIGMAS standard errors and leaves what is
-    # explained: a robot's own scatter can keep a mistake below NAMED_FACTOR (a gear ratio 2 % off on
-    # the WAM, whose 1.3 mm RMS the scale only doubles)
+    # a cause no robot has of its own (a scale that large, a marker moved) is possible (a warning) from
+    # SURVIVE_FACTOR on when the repair lowers the cross-validated error by REFIT_GAIN_SIGMAS standard
+    # errors and leaves what is explained: a robot's own scatter can keep a mistake below NAMED_FACTOR
+    # (a gear ratio 1 % off on the WAM, whose 1.3 mm RMS the scale only halves)
     if cand.beyond_robot and not verdict.status and verdict.factor >= SURVIVE_FACTOR and verdict.explained and \
             verdict.gain >= REFIT_GAIN_SIGMAS * verdict.se:
         verdict = replace(verdict, status="warn")
-    return finding(ref, cand, out.rms, verdict, f"refitted {cand.how}") if verdict.status else None
+    if not verdict.status:
+        return None
+    if cand.restated is not None:
+        cand = replace(cand, cause=cand.restated(out))
+    return finding(ref, cand, out.rms, verdict, f"refitted {cand.how}")
 
 
 def with_arrays(data: Measurements, **changes) -> Measurements:
