@@ -32,6 +32,7 @@ from .reference import (
     mm,
     projected_gain,
     projected_products,
+    refit,
     row_layout,
     with_arrays,
 )
@@ -39,6 +40,8 @@ from .rigid import gross, moments, registered, rigid_misfit
 
 # row shifts tried (rows from a row on hold the point of the pose this many rows later)
 SHIFTS = (1, 2, 3, -1, -2, -3)
+# the screen's lag is refined by refits at these multiples of it
+LAG_TRIALS = (0.8, 1.0, 1.2)
 # a change point is looked for with at least this share of the poses on each side
 EDGE_SHARE = 0.05
 # a marker is elsewhere on some rows, or its labels swapped, on at least this many rows
@@ -446,11 +449,44 @@ def readings_lag(ref: Reference) -> list[Candidate]:
     if (not np.isfinite(lag) or abs(lag) > max(SHIFTS) or lag == 0.0 or _predicted(ref, gain, 1.0) < SURVIVE_FACTOR
             or not ordered(q)):
         return []
-    return [Candidate("readings lag", f"the joint readings {'lag' if lag > 0 else 'lead'} the measurements by about "
-                      f"{abs(lag):.2g} of a row: each pose's readings are those of another moment along the path",
-                      "with the readings moved by that lag", "synchronise the joint log with the instrument (a time "
-                      "offset between them), or measure at rest", (), _predicted(ref, gain, 1.0), 1.0,
-                      partial(Repair, with_arrays(ref.data, q=unlagged(q, lag)), registered=False))]
+    return [Candidate("readings lag", _lag_words(lag), "with the readings moved by that lag", "synchronise the joint "
+                      "log with the instrument (a time offset between them), or measure at rest", (),
+                      _predicted(ref, gain, 1.0), 1.0, partial(_unlagged_repair, ref, lag),
+                      restated=lambda _: _lag_words(_refined_lag(ref, lag)))]
+
+
+def _lag_words(lag: float) -> str:
+    return (f"the joint readings {'lag' if lag > 0 else 'lead'} the measurements by about {abs(lag):.2g} of a row: "
+            "each pose's readings are those of another moment along the path")
+
+
+def _moved_readings(ref: Reference, lag: float) -> Repair:
+    return Repair(with_arrays(ref.data, q=unlagged(ref.data.q, lag)), registered=False)
+
+
+def _unlagged_repair(ref: Reference, lag: float) -> Repair:
+    """The poses diagnosed with the readings moved by the lag ``_refined_lag`` finds from ``lag``."""
+    return _moved_readings(ref, _refined_lag(ref, lag))
+
+
+def _refined_lag(ref: Reference, lag: float) -> float:
+    """The lag (rows) from the screen's ``lag`` (one Gauss-Newton step from no lag: off by a tenth or
+    two of a half-row lag on a fast path) to the vertex of a parabola through the refits' sums of
+    squares at LAG_TRIALS times it, kept within the trials' span."""
+    def make():
+        trials = lag * np.asarray(LAG_TRIALS)
+        ssr = []
+        for t in trials:
+            out = refit(ref, _moved_readings(ref, float(t)))
+            if out is None:
+                return lag
+            ssr.append(out.ssr)
+        a, b, _ = np.polyfit(trials, ssr, 2)
+        if not a > 0:
+            return float(trials[int(np.argmin(ssr))])
+        return float(np.clip(-b / (2 * a), trials.min(), trials.max()))
+
+    return ref.cached(f"lag {lag!r}", make)
 
 
 def unlagged(q: np.ndarray, lag: float, steps: int = 4) -> np.ndarray:

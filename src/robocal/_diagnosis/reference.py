@@ -62,8 +62,8 @@ GRAM_RCOND = 1e-6
 # this share of its square norm out of it (far from cancelling)
 SPAN_SHARE = 1e-2
 # a repair whose cross-validated error is this many times below the calibration's decides though it
-# leaves more than the instrument or the robot's own scatter explains (a lag along a fast path: 47.3 mm
-# in use, 0.5 mm once the readings are moved, the interpolation leaving 0.145 mm against 0.02 mm)
+# leaves more than the instrument or the robot's own scatter explains (a lag along a fast path: 39 mm
+# in use, 0.7 mm once the readings are moved by the lag found, which leaves 0.193 mm against 0.02 mm)
 DOMINANT_FACTOR = 10.0
 # at most this many candidates are refitted, the best predicted first
 MAX_REFITS = 6
