@@ -412,7 +412,7 @@ class Candidate:
     warns (the calibrated model holds what the data say). An ``absorbed`` one is a mistake a calibration
     can take up exactly with implausible changes (a sign, a unit, a mirror): its repair may fit only as
     well, and make them plausible. A ``carried`` one may be a property of the robot a model can carry
-    (``CARRIED_FACTOR``); one ``beyond_robot`` is no robot's own (``refitted``)."""
+    (``CARRIED_FACTOR``); one ``beyond_robot`` is no robot's own (``judged``)."""
 
     hypothesis: str
     cause: str
@@ -506,7 +506,8 @@ class Judgement:
     before: float = float("nan")
 
 
-def judge(ref: Reference, out: Outcome, freedom: float, absorbed: bool = False) -> Judgement:
+def judge(ref: Reference, out: Outcome, freedom: float, absorbed: bool = False, beyond_robot: bool = False
+          ) -> Judgement:
     """The naming rule (docs/diagnosis.md): decisive when the repair divides the residual variance by
     ``NAMED_FACTOR``, lowers the cross-validated error by ``REFIT_GAIN_SIGMAS`` standard errors and
     leaves what the instrument (or the robot's own scatter) explains; possible when it divides the
@@ -516,7 +517,7 @@ def judge(ref: Reference, out: Outcome, freedom: float, absorbed: bool = False) 
     implausible changes plausible is decisive too: the calibration took the mistake up with a robot no
     one built."""
     f = factor(ref, out.ssr, out.n_rows, out.n_free, freedom)
-    verdict = judged(ref, f, ref.held_out[out.pose_rows], out.held, out.rms, out.fitted)
+    verdict = judged(ref, f, ref.held_out[out.pose_rows], out.held, out.rms, out.fitted, beyond_robot)
     worse = max(WORSE_SIGMAS * verdict.se, PLAUSIBLE_FIT_SHARE * float(np.nanmean(ref.held_out[out.pose_rows])))
     plausible = ref.implausible and out.implausible <= ref.implausible // 2
     if absorbed and not verdict.status and plausible and f >= PLAUSIBLE_FIT and verdict.gain >= -worse:
@@ -524,11 +525,12 @@ def judge(ref: Reference, out: Outcome, freedom: float, absorbed: bool = False) 
     return verdict
 
 
-def judged(ref: Reference, f: float, base: np.ndarray, held: np.ndarray, rms: float, fitted: np.ndarray
-           ) -> Judgement:
+def judged(ref: Reference, f: float, base: np.ndarray, held: np.ndarray, rms: float, fitted: np.ndarray,
+           beyond_robot: bool = False) -> Judgement:
     """The judgement of a repair dividing the residual variance by ``f``, whose cross-validated error
     per pose is ``held`` against the calibration's ``base`` (m; NaN where a pose is not compared),
-    leaving ``rms`` (m per axis) and the errors ``fitted`` (m, per pose) on fitted poses."""
+    leaving ``rms`` (m per axis) and the errors ``fitted`` (m, per pose) on fitted poses; of a cause
+    no robot has of its own when ``beyond_robot``."""
     d = base - held
     compared = np.isfinite(d)
     d = d[compared]
@@ -543,6 +545,12 @@ def judged(ref: Reference, f: float, base: np.ndarray, held: np.ndarray, rms: fl
             status = "fail"
         elif gain >= WORSE_SIGMAS * se:
             status = "warn"
+    # a cause no robot has of its own (a scale that large, a marker moved) is possible from
+    # SURVIVE_FACTOR on when the repair lowers the cross-validated error by REFIT_GAIN_SIGMAS standard
+    # errors and leaves what is explained: a robot's own scatter can keep a mistake below NAMED_FACTOR
+    # (a gear ratio 1 % off on the WAM, whose 1.3 mm RMS the scale only halves)
+    if beyond_robot and not status and f >= SURVIVE_FACTOR and explained and gain >= REFIT_GAIN_SIGMAS * se:
+        status = "warn"
     return Judgement(f, gain, se, explained, status, before=before)
 
 
@@ -627,7 +635,8 @@ def projected_products(ref: Reference, Z: np.ndarray) -> tuple[np.ndarray, np.nd
     return Zp.T @ Zp, Zp.T @ ref.settled
 
 
-def linear_judgement(ref: Reference, Z: np.ndarray, freedom: float) -> tuple[Judgement, float]:
+def linear_judgement(ref: Reference, Z: np.ndarray, freedom: float, beyond_robot: bool = False
+                     ) -> tuple[Judgement, float]:
     """The judgement of columns ``Z`` joining the fit (one Gauss-Newton step, and the same step on each
     fold's complement), and the position RMS per axis they leave (m)."""
     base_fit, base_held = ref.cached("linear_reference", lambda: _linear_fit(ref, ref.J))
@@ -638,7 +647,7 @@ def linear_judgement(ref: Reference, Z: np.ndarray, freedom: float) -> tuple[Jud
     _, metres = row_layout(ref)
     pos = np.isfinite(metres)
     rms = float(np.sqrt(np.mean((fitted[pos] * metres[pos]) ** 2))) if pos.any() else 0.0
-    return judged(ref, f, base, after, rms, _per_pose(ref, fitted)), rms
+    return judged(ref, f, base, after, rms, _per_pose(ref, fitted), beyond_robot), rms
 
 
 def mm(v: float) -> str:
@@ -685,21 +694,14 @@ def refitted(ref: Reference, cand: Candidate) -> Finding | None:
     if repair is None:
         return None
     if isinstance(repair, Linear):
-        verdict, rms = linear_judgement(ref, repair.Z, cand.freedom)
+        verdict, rms = linear_judgement(ref, repair.Z, cand.freedom, cand.beyond_robot)
         if not verdict.status:
             return None
         return finding(ref, cand, rms, verdict, "a fit letting it change")
     out = refit(ref, repair)
     if out is None:
         return None
-    verdict = judge(ref, out, cand.freedom, cand.absorbed)
-    # a cause no robot has of its own (a scale that large, a marker moved) is possible (a warning) from
-    # SURVIVE_FACTOR on when the repair lowers the cross-validated error by REFIT_GAIN_SIGMAS standard
-    # errors and leaves what is explained: a robot's own scatter can keep a mistake below NAMED_FACTOR
-    # (a gear ratio 1 % off on the WAM, whose 1.3 mm RMS the scale only halves)
-    if cand.beyond_robot and not verdict.status and verdict.factor >= SURVIVE_FACTOR and verdict.explained and \
-            verdict.gain >= REFIT_GAIN_SIGMAS * verdict.se:
-        verdict = replace(verdict, status="warn")
+    verdict = judge(ref, out, cand.freedom, cand.absorbed, cand.beyond_robot)
     if not verdict.status:
         return None
     if cand.restated is not None:
