@@ -324,6 +324,7 @@ def test_a_reflector_in_a_second_nest_on_some_rows_is_named():
     result = rm.second_nest("UR5").run()
     found = _first(result)
     assert result.verdict == "fail" and found.hypothesis == "marker moved" and "on 250 rows" in found.cause
+    assert found.fix.startswith("calibrate the 250 rows (")
 
 
 def test_a_tool_changed_halfway_on_the_real_ur5_fails():
@@ -333,6 +334,7 @@ def test_a_tool_changed_halfway_on_the_real_ur5_fails():
     result = case.run()
     found = _first(result)
     assert result.verdict == "fail" and found.hypothesis == "marker moved" and "from step 500 on" in found.cause
+    assert found.fix.startswith("calibrate the rows from step 500 on as a marker of their own")
 
 
 def test_a_validation_file_repeating_the_fitted_one_is_refused():

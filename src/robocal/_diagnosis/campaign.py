@@ -609,16 +609,17 @@ def marker_elsewhere(ref: Reference) -> list[Candidate]:
         if tail >= scattered:
             rows, predicted, freedom = seen[seen >= row], tail, 3.0 + np.log2(n_all)
             where = f"from {_label(ref, row)} on"
+            said = f"the rows {where}"
             cause = f"{where}, marker {name} sat elsewhere on the robot: the tool changed, or the reflector moved " \
                     "in its nest"
         else:
             rows, predicted, freedom = seen[some], scattered, 3.0 + len(some)
-            where = f"on {len(rows)} rows ({', '.join(_label(ref, r) for r in rows[:4])}" \
-                    + (" ..." if len(rows) > 4 else "") + ")"
-            cause = f"marker {name} sat elsewhere {where}: a reflector put in another nest"
+            said = f"the {len(rows)} rows ({', '.join(_label(ref, r) for r in rows[:4])}" \
+                + (" ..." if len(rows) > 4 else "") + ")"
+            cause = f"marker {name} sat elsewhere on {said.removeprefix('the ')}: a reflector put in another nest"
         if not MIN_ROWS <= len(rows) < len(seen):
             continue
-        out.append(Candidate("marker moved", cause, "with those rows as another marker", f"calibrate the rows {where} "
+        out.append(Candidate("marker moved", cause, "with those rows as another marker", f"calibrate {said} "
                              "as a marker of their own (or apart), or measure them again with the reflector in its "
                              "nest", (name, _label(ref, rows[0])), predicted, freedom,
                              partial(_with_marker_on, ref, m, rows), beyond_robot=True,
