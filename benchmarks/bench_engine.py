@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import json
 import os
-import platform
 import sys
 import tempfile
 import time
@@ -35,7 +34,7 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 from bench_identify import arm6r, options  # noqa: E402
-from bench_kinematics import baseline_sources, child_figures  # noqa: E402
+from bench_kinematics import baseline_sources, child_figures, heading  # noqa: E402
 
 import robocal as rc  # noqa: E402
 
@@ -88,10 +87,7 @@ def main(argv=None):
                    variant="")
     if args.child:
         return child(args.repeat, args.fk_poses, args.folder, args.variant)
-    print(f"# calibrate() and forward kinematics against {args.baseline}, "
-          f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {platform.machine()}, {os.cpu_count()} cores, "
-          f"numpy {np.__version__}, best of {args.repeat}; load average before "
-          f"{' '.join(f'{v:.2f}' for v in os.getloadavg())}\n")
+    print(heading("calibrate() and forward kinematics", args.baseline, args.repeat))
     revs = [args.baseline] + ([args.other] if args.other else [])
     labels = tuple(revs) + ("now", "now, allocator tuned first")
     with tempfile.TemporaryDirectory() as tmp:

@@ -21,7 +21,6 @@ from __future__ import annotations
 import cProfile
 import json
 import os
-import platform
 import pstats
 import sys
 import tempfile
@@ -34,7 +33,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.join(os.path.dirname(HERE), "tests"))
 from bench_identify import options  # noqa: E402
-from bench_kinematics import baseline_sources, child_figures  # noqa: E402
+from bench_kinematics import baseline_sources, child_figures, heading  # noqa: E402
 from robots import humanoid  # noqa: E402
 
 import robocal as rc  # noqa: E402
@@ -89,10 +88,8 @@ def main(argv=None):
     args = options(__doc__, argv, baseline="7fe2faf", poses=500, repeat=3, profile=0, child=0)
     if args.child:
         return child(args.poses, args.repeat)
-    print(f"# calibrate() of the humanoid-sized tree (19 joints, two markers, {args.poses} poses) against "
-          f"{args.baseline}, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {platform.machine()}, "
-          f"{os.cpu_count()} cores, numpy {np.__version__}, best of {args.repeat}; load average before "
-          f"{' '.join(f'{v:.2f}' for v in os.getloadavg())}\n")
+    print(heading(f"calibrate() of the humanoid-sized tree (19 joints, two markers, {args.poses} poses)", args.baseline,
+                  args.repeat))
     with tempfile.TemporaryDirectory() as tmp:
         src = baseline_sources(args.baseline, tmp)
         found: dict = {}

@@ -92,6 +92,13 @@ def child_figures(script: str, src: str | None, *argv) -> dict:
     return json.loads(subprocess.run(cmd, env=env, check=True, capture_output=True, text=True).stdout)
 
 
+def heading(what: str, baseline: str, repeat: int) -> str:
+    """The first line of a run against ``baseline``: what is timed, when, on what, and the load before."""
+    return (f"# {what} against {baseline}, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, "
+            f"{platform.machine()}, {os.cpu_count()} cores, numpy {np.__version__}, best of {repeat}; load average "
+            f"before {' '.join(f'{v:.2f}' for v in os.getloadavg())}\n")
+
+
 def baseline_sources(rev: str, folder: str) -> str:
     """The package's sources at commit ``rev``, unpacked under ``folder``; the path to put first."""
     archive = subprocess.run(["git", "archive", rev, "src/robocal"], cwd=os.path.dirname(HERE), check=True,

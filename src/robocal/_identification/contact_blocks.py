@@ -144,13 +144,15 @@ class Block:
     def residuals(self, at: At) -> np.ndarray:
         return (self.errors(at) / self.sigma[:, None]).ravel()
 
-    def jacobian(self, at: At) -> np.ndarray:
+    def fill(self, at: At, out: np.ndarray) -> None:
+        """The weighted Jacobian of the block's rows written into ``out`` (n_rows, k + nn), zeros."""
         raise NotImplementedError
 
 
 class SocketBlock(Block):
     """The marker seated in one socket: marker minus the socket's unknown point (nuisance columns
-    ``col``..``col + 2``), 3 rows per seating."""
+    ``col``..``col + 2``), 3 rows per seating. The socket blocks lead the rows: ``ContactRows.jacobian``
+    fills theirs at once."""
 
     kind, width = "socket", 3
 
@@ -163,12 +165,6 @@ class SocketBlock(Block):
     def own_errors(self, P: np.ndarray) -> np.ndarray:
         X = P[self.rows]
         return X - X.mean(axis=0)
-
-    def jacobian(self, at: At) -> np.ndarray:
-        B = at.zeros(len(self.rows), 3)         # d(P - c)/dp, -I on the point
-        B[:, :, :at.k] = at.Jm[self.rows]
-        B[:, :, at.k + self.col:at.k + self.col + 3] = -np.eye(3)
-        return (B / self.sigma[:, None, None]).reshape(-1, at.k + at.nn)
 
 
 class PlaneBlock(Block):
@@ -198,15 +194,14 @@ class PlaneBlock(Block):
         n, d = _best_plane(X)
         return (X @ n - d)[:, None]
 
-    def jacobian(self, at: At) -> np.ndarray:
+    def fill(self, at: At, out: np.ndarray) -> None:
         n, _, dn = self.plane(at.nu)                 # n on the robot, P dn and -1 on the plane
-        B = at.zeros(len(self.rows))
-        B[:, :at.k] = np.einsum("j,njk->nk", n, at.Jm[self.rows])
+        out[:, :at.k] = np.einsum("j,njk->nk", n, at.Jm[self.rows])
         col = at.k + self.col
-        B[:, col] = at.P[self.rows] @ dn[0]
-        B[:, col + 1] = at.P[self.rows] @ dn[1]
-        B[:, col + 2] = -1.0
-        return B / self.sigma[:, None]
+        out[:, col] = at.P[self.rows] @ dn[0]
+        out[:, col + 1] = at.P[self.rows] @ dn[1]
+        out[:, col + 2] = -1.0
+        out /= self.sigma[:, None]
 
 
 class KnownPlaneBlock(Block):
@@ -224,10 +219,9 @@ class KnownPlaneBlock(Block):
     def own_errors(self, P: np.ndarray) -> np.ndarray:
         return (P[self.rows] @ self.normal - self.offset)[:, None]
 
-    def jacobian(self, at: At) -> np.ndarray:
-        B = at.zeros(len(self.rows))
-        B[:, :at.k] = np.einsum("j,njk->nk", self.normal, at.Jm[self.rows])
-        return B / self.sigma[:, None]
+    def fill(self, at: At, out: np.ndarray) -> None:
+        out[:, :at.k] = np.einsum("j,njk->nk", self.normal, at.Jm[self.rows])
+        out /= self.sigma[:, None]
 
 
 class BarBlock(Block):
@@ -245,11 +239,9 @@ class BarBlock(Block):
     def own_errors(self, P: np.ndarray) -> np.ndarray:
         return np.array([[np.linalg.norm(P[self.i] - P[self.j]) - self.length]])
 
-    def jacobian(self, at: At) -> np.ndarray:
+    def fill(self, at: At, out: np.ndarray) -> None:
         d = at.P[self.i] - at.P[self.j]
-        B = at.zeros(1)
-        B[0, :at.k] = (d / np.linalg.norm(d)) @ (at.Jm[self.i] - at.Jm[self.j]) / self.sigma[0]
-        return B
+        out[0, :at.k] = (d / np.linalg.norm(d)) @ (at.Jm[self.i] - at.Jm[self.j]) / self.sigma[0]
 
 
 class DistanceBlock(Block):
@@ -271,13 +263,11 @@ class DistanceBlock(Block):
     def own_errors(self, P: np.ndarray) -> np.ndarray:
         return np.array([[np.linalg.norm(P[self.rows_a].mean(axis=0) - P[self.rows_b].mean(axis=0)) - self.length]])
 
-    def jacobian(self, at: At) -> np.ndarray:
+    def fill(self, at: At, out: np.ndarray) -> None:
         a, b = at.nu[self.col_a:self.col_a + 3], at.nu[self.col_b:self.col_b + 3]
         u = (a - b) / np.linalg.norm(a - b) / self.sigma[0]
-        B = at.zeros(1)
-        B[0, at.k + self.col_a:at.k + self.col_a + 3] = u
-        B[0, at.k + self.col_b:at.k + self.col_b + 3] = -u
-        return B
+        out[0, at.k + self.col_a:at.k + self.col_a + 3] = u
+        out[0, at.k + self.col_b:at.k + self.col_b + 3] = -u
 
 
 class ContactRows:
@@ -299,7 +289,8 @@ class ContactRows:
         self.turns = joint_turns(self.qf)   # evaluated at every step of a fit
         self.backlash = backlash
         self.approach = frame_approach(model, approach_sides(contacts.q)) if backlash else None
-        self.marker_idx = np.array([model.marker_names.index(n) for n in contacts.marker], dtype=int)
+        markers = model.marker_names
+        self.marker_idx = np.array([markers.index(n) for n in contacts.marker], dtype=int)
         self.sockets = contacts.groups("socket")
         self.free_planes = [g for g in contacts.groups("plane") if contacts.known_plane(g.target) is None]
         self.known_planes = [(g, kp) for g in contacts.groups("plane")
@@ -362,7 +353,8 @@ class ContactRows:
         kinds, labels, placements, first = [], [], [], []
         for g in self.sockets:
             kinds += ["socket"] * len(g.rows)
-            labels += [f"{lab[i]} ({g.label})" for i in g.rows]
+            said = g.label
+            labels += [f"{lab[i]} ({said})" for i in g.rows]
             placements += [g.placement] * len(g.rows)
             first += list(g.rows)
         for g in self.free_planes + [g for g, _ in self.known_planes]:
@@ -507,7 +499,35 @@ class ContactRows:
         return np.concatenate([b.residuals(at) for b in self.blocks]) if self.blocks else np.zeros(0)
 
     def jacobian(self, at: At) -> np.ndarray:
-        return np.vstack([b.jacobian(at) for b in self.blocks]) if self.blocks else at.zeros(0)
+        """The weighted Jacobian of every block's rows, in block order: each written into its rows, the
+        socket blocks, which lead (``_blocks``), at once: a campaign holds one per placement and socket."""
+        out = at.zeros(self.n_rows)
+        _, lead, rows, cols, sigma = self._sockets_at_once()
+        row = 3 * len(rows)
+        if lead:
+            B = out[:row].reshape(len(rows), 3, at.k + at.nn)    # d(P - c)/dp, -I on the point
+            B[:, :, :at.k] = at.Jm[rows]
+            B[np.arange(len(rows))[:, None], np.arange(3), at.k + cols[:, None] + np.arange(3)] = -1.0
+            B /= sigma[:, None, None]
+        for b in self.blocks[lead:]:
+            b.fill(at, out[row:row + b.n_rows])
+            row += b.n_rows
+        return out
+
+    def _sockets_at_once(self) -> tuple:
+        """(blocks, how many lead, their rows, each row's point column, its deviation) of the socket
+        blocks leading ``blocks``, kept while the blocks are."""
+        run = self.__dict__.get("_socket_run")
+        if run is None or run[0] is not self.blocks:
+            lead = 0
+            while lead < len(self.blocks) and isinstance(self.blocks[lead], SocketBlock):
+                lead += 1
+            socket = self.blocks[:lead]
+            run = (self.blocks, lead, np.concatenate([b.rows for b in socket]) if lead else np.zeros(0, dtype=int),
+                   np.concatenate([np.full(len(b.rows), b.col) for b in socket]) if lead else np.zeros(0, dtype=int),
+                   np.concatenate([b.sigma for b in socket]) if lead else np.zeros(0))
+            self._socket_run = run
+        return run
 
     def row_kinds(self) -> list[str]:
         """The kind of each row, in the order of ``residuals``."""

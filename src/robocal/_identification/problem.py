@@ -251,11 +251,10 @@ class Problem:
         if self.contacts is None:
             return cast(Points, self.points).jacobian(p)
         at = self._at(p)
-        parts = []
-        if self.points is not None:
-            Jt = self.points.jacobian(p[:self.n_robot]) * self.point_scale
-            parts.append(np.hstack([Jt, np.zeros((Jt.shape[0], self.n_nuisance))]))
-        return np.vstack(parts + [self.contacts.jacobian(at)])
+        if self.points is None:
+            return self.contacts.jacobian(at)
+        Jt = self.points.jacobian(p[:self.n_robot]) * self.point_scale
+        return np.vstack([np.hstack([Jt, np.zeros((Jt.shape[0], self.n_nuisance))]), self.contacts.jacobian(at)])
 
     def jacobian_factor(self, p) -> np.ndarray:
         """An R factor (n_free, n_free) of the weighted Jacobian at ``p``."""

@@ -133,12 +133,17 @@ class Contacts:
         return self.q.shape[0]
 
     def groups(self, kind: str | None = None) -> list[Group]:
-        """The groups (placement, target) in order of first appearance, of one ``kind`` or all."""
-        first: dict = {}
-        for i, key in enumerate(zip(self.placement, self.target)):
-            first.setdefault(key, []).append(i)
-        out = [Group(self.kind[rows[0]], p, t, read_only(np.array(rows, dtype=int))) for (p, t), rows in first.items()]
-        return [g for g in out if kind is None or g.kind == kind]
+        """The groups (placement, target) in order of first appearance, of one ``kind`` or all (found
+        once per record: the problems and the diagnosis ask for them at every step)."""
+        every = self.__dict__.get("_groups")
+        if every is None:
+            first: dict = {}
+            for i, key in enumerate(zip(self.placement, self.target)):
+                first.setdefault(key, []).append(i)
+            every = tuple(Group(self.kind[rows[0]], p, t, read_only(np.array(rows, dtype=int)))
+                          for (p, t), rows in first.items())
+            object.__setattr__(self, "_groups", every)
+        return [g for g in every if kind is None or g.kind == kind]
 
     def known_plane(self, target: str) -> KnownPlane | None:
         return next((p for p in self.planes if p.name == target), None)
