@@ -51,6 +51,27 @@ def test_holding_out_every_placement_of_a_mixed_campaign_is_refused(cli, tmp_pat
     assert_one_line_error(code, err, ["--holdout-placement", "every placement", "sockets.csv"], tmp_path / "o")
 
 
+@pytest.mark.parametrize("share", ["1e-320", "0.001", "0.99"])
+def test_a_holdout_that_holds_out_no_pose_or_every_pose_is_refused(cli, tmp_path, share):
+    """A share of 30 poses that rounds to none of them (or to all) left an empty set, on which the
+    check of copied rows raised numpy's reshape error."""
+    arm7 = rc.read_model(ARM7)
+    rc.write_measurements(rc.measure(arm7, rc.random_configurations(arm7, 30, 1), rng=1), tmp_path / "t.csv",
+                          model=arm7)
+    code, _, err = cli("calibrate", ARM7, tmp_path / "t.csv", "--out", tmp_path / "o", "--holdout", share)
+    assert_one_line_error(code, err, ["t.csv", "--holdout", "of 30 poses holds out", "1/30 to 29/30"], tmp_path / "o")
+
+
+def test_calibrating_on_or_judging_by_a_set_of_no_pose_is_refused():
+    m = arm6r()
+    _, data = rc.simulate(m, 30, seed=1)
+    none = data.subset(np.zeros(30, dtype=bool))
+    with pytest.raises(rc.InputError, match="validation: holds no pose: nothing to judge the calibration on"):
+        rc.calibrate(m, data, validation=none)
+    with pytest.raises(rc.InputError, match="data: holds no pose: nothing to fit"):
+        rc.calibrate(m, none, validation=data)
+
+
 @pytest.mark.parametrize("component", ["1e308", "-1e308", "1e200"])
 def test_a_huge_rapid_quaternion_component_is_refused_at_its_place(tmp_path, component):
     path = tmp_path / "p.mod"

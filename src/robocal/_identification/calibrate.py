@@ -129,8 +129,12 @@ def _check_options(o: dict) -> None:
 
 
 def _check_observed(model: RobotModel, d, what: str) -> None:
-    """Observations of this model: as many joint columns as it has joints, its markers only."""
+    """Observations of this model: at least one, as many joint columns as it has joints, its markers only."""
     src = d.source or what
+    if d.q.shape[0] == 0:
+        kind = "pose" if isinstance(d, Measurements) else "contact"
+        raise InputError(f"holds no {kind}: nothing to {'judge the calibration on' if what == 'validation' else 'fit'}",
+                         source=src, where=what)
     if d.q.shape[1] != model.n_joints:
         raise InputError(f"{d.q.shape[1]} joint columns for a model with {model.n_joints} joints "
                          f"({', '.join(model.joint_names)})", source=src, where=what)

@@ -121,6 +121,11 @@ def _inputs(args):
         validation = common.read_data(args, model, args.validation)
     elif args.holdout:
         data, validation = data.split(args.holdout, rng=args.seed)
+        if not data.n_poses or not validation.n_poses:
+            n = data.n_poses + validation.n_poses
+            raise InputError(f"{args.holdout:g} of {n} poses holds out {validation.n_poses}: give a fraction that "
+                             f"holds out at least one pose and keeps one to fit on (1/{n} to {n - 1}/{n})",
+                             source=args.csv, where="--holdout")
     return model, data, validation, contacts
 
 
