@@ -469,8 +469,11 @@ class ContactRows:
         """(n_rows, 3, k) the position Jacobian of each contact row's marker over the parameters
         ``robot_idx``."""
         st = self._state(p_robot)
+        seated = np.unique(self.marker_idx)
+        if len(seated) == 1:        # every row's marker: the columns as they come, viewed row-major
+            return jacobian_columns(self.model, self.lay, st, robot_idx, int(seated[0]), 3).transpose(1, 2, 0)
         out = np.zeros((len(self.marker_idx), 3, len(robot_idx)))
-        for m in np.unique(self.marker_idx):
+        for m in seated:
             rows = np.nonzero(self.marker_idx == m)[0]
             cols = jacobian_columns(self.model, self.lay, st, robot_idx, int(m), 3)   # (k, N, 3)
             out[rows] = cols[:, rows, :].transpose(1, 2, 0)
