@@ -1234,9 +1234,21 @@ def _yaml_non_finite(text: str) -> bool:
     return False
 
 
+# the attributes of a URDF that name things (a robot named 'Infinity' is no number)
+URDF_NAMES = ("name", "link", "type", "filename")
+
+
 def _outside_labels(path: Path, text: str) -> str:
     """The text of an output where numbers may stand: a CSV whose first column names its poses
-    loses that column (a pose the user named '-inf' keeps its name, and is no number)."""
+    loses that column (a pose the user named '-inf' keeps its name, and is no number); a URDF keeps
+    its elements' text and the attributes that are not names (``URDF_NAMES``), its comments dropped."""
+    if path.suffix == ".urdf":
+        try:
+            root = ET.fromstring(text)
+        except ET.ParseError:
+            return text
+        return "\n".join([v for e in root.iter() for k, v in e.attrib.items() if k not in URDF_NAMES]
+                         + [e.text for e in root.iter() if e.text])
     if path.suffix != ".csv" or not text.lower().startswith("pose,"):
         return text
     import csv

@@ -6,10 +6,13 @@ or a sound result (finite, read back, reproducing its source), never a traceback
 memory blow-up. The large run is benchmarks/fuzz_cli.py (benchmarks/README.md)."""
 
 import multiprocessing
+from pathlib import Path
 
 import fuzz_cases
 import pytest
 from hypothesis import HealthCheck, Phase, given, seed, settings
+
+import robocal as rc
 
 # cases of the sample run in-process (fuzz_cases.run_guarded: 20 s of CPU time, 1 GB of memory
 # beyond the worker's) and in forked children (fuzz_cases.fork_case), split over this many forked
@@ -66,3 +69,15 @@ def test_the_judge_reads_a_pose_named_like_a_number_as_a_name(tmp_path):
     assert fuzz_cases.non_finite(tmp_path, set()) is None
     out.write_text("\n".join(rows).replace("1.8e-12", "nan") + "\n")
     assert fuzz_cases.non_finite(tmp_path, set()) == "commands.csv"
+
+
+def test_the_judge_reads_a_robot_named_like_a_number_in_a_urdf_as_a_name(tmp_path):
+    # a model named 'Infinity' exported to URDF (seed 99's cases 26244 and 26245): its name stands
+    # in the robot's name attribute; a non-finite origin in the same file still counts
+    m = rc.read_model(Path(__file__).resolve().parents[1] / "examples" / "th8" / "model.yaml").replace(name="Infinity")
+    out = tmp_path / "out.urdf"
+    rc.io.write_urdf(m, out)
+    assert 'name="Infinity"' in out.read_text()
+    assert fuzz_cases.non_finite(tmp_path, set()) is None
+    out.write_text(out.read_text().replace('xyz="', 'xyz="nan ', 1))
+    assert fuzz_cases.non_finite(tmp_path, set()) == "out.urdf"
