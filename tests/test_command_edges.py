@@ -70,6 +70,10 @@ def test_calibrating_on_or_judging_by_a_set_of_no_pose_is_refused():
         rc.calibrate(m, data, validation=none)
     with pytest.raises(rc.InputError, match="data: holds no pose: nothing to fit"):
         rc.calibrate(m, none, validation=data)
+    with pytest.raises(rc.InputError, match="data: holds no pose"):       # numpy's ptp of nothing before
+        rc.diagnose(m, none, rc.calibrate(m, data))
+    with pytest.raises(rc.InputError, match="data: holds no pose"):
+        rc.register_base(m, none)
 
 
 @pytest.mark.parametrize("component", ["1e308", "-1e308", "1e200"])

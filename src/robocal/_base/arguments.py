@@ -507,9 +507,11 @@ def same_robot_as(other: str):
 
 
 def measured_on(model: str = "model"):
-    """Measurements of the model passed as argument ``model``: its joint count, its markers."""
+    """Measurements of the model passed as argument ``model``: at least one pose, its joint count, its markers."""
     def rule(value, name, args):
         m = args[model]
+        if value.q.shape[0] == 0:
+            raise InputError("holds no pose", source=value.source or None, where=name)
         if value.q.shape[1] != m.n_joints:
             raise InputError(f"{value.q.shape[1]} joint columns for a model with {m.n_joints} joints", where=name)
         missing = [n for n in value.marker_names if n not in m.marker_names]
