@@ -62,7 +62,7 @@ def test_a_holdout_that_holds_out_no_pose_or_every_pose_is_refused(cli, tmp_path
     assert_one_line_error(code, err, ["t.csv", "--holdout", "of 30 poses holds out", "1/30 to 29/30"], tmp_path / "o")
 
 
-def test_calibrating_on_or_judging_by_a_set_of_no_pose_is_refused():
+def test_a_set_of_no_pose_or_contact_is_refused_wherever_it_is_given():
     m = arm6r()
     _, data = rc.simulate(m, 30, seed=1)
     none = data.subset(np.zeros(30, dtype=bool))
@@ -74,6 +74,13 @@ def test_calibrating_on_or_judging_by_a_set_of_no_pose_is_refused():
         rc.diagnose(m, none, rc.calibrate(m, data))
     with pytest.raises(rc.InputError, match="data: holds no pose"):
         rc.register_base(m, none)
+    arm7 = rc.read_model(ARM7)
+    contacts = socket_campaign(arm7, placements=3, poses_per_socket=6, rng=1)
+    no_contact = contacts.subset(np.zeros(contacts.n_rows, dtype=bool))
+    with pytest.raises(rc.InputError, match="contacts: holds no contact: nothing to fit"):
+        rc.calibrate(arm7, contacts=no_contact)
+    with pytest.raises(rc.InputError, match="contacts: holds no contact"):      # numpy's concatenate before
+        rc.diagnose_contacts(arm7, no_contact, rc.calibrate(arm7, contacts=contacts))
 
 
 @pytest.mark.parametrize("component", ["1e308", "-1e308", "1e200"])
