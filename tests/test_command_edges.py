@@ -74,6 +74,11 @@ def test_a_set_of_no_pose_or_contact_is_refused_wherever_it_is_given():
         rc.diagnose(m, none, rc.calibrate(m, data))
     with pytest.raises(rc.InputError, match="data: holds no pose"):
         rc.register_base(m, none)
+    unmeasured = data.without(np.ones(data.mask.shape, dtype=bool))     # numpy's concatenate before
+    with pytest.raises(rc.InputError, match="data: holds no measured point: nothing to fit"):
+        rc.calibrate(m, unmeasured)
+    with pytest.raises(rc.InputError, match="data: holds no measured point"):
+        rc.diagnose(m, unmeasured, rc.calibrate(m, data))
     arm7 = rc.read_model(ARM7)
     contacts = socket_campaign(arm7, placements=3, poses_per_socket=6, rng=1)
     no_contact = contacts.subset(np.zeros(contacts.n_rows, dtype=bool))

@@ -512,6 +512,8 @@ def measured_on(model: str = "model"):
         m = args[model]
         if value.q.shape[0] == 0:
             raise InputError("holds no pose", source=value.source or None, where=name)
+        if not value.mask.any() and (value.rot_mask is None or not value.rot_mask.any()):
+            raise InputError("holds no measured point", source=value.source or None, where=name)
         if value.q.shape[1] != m.n_joints:
             raise InputError(f"{value.q.shape[1]} joint columns for a model with {m.n_joints} joints", where=name)
         missing = [n for n in value.marker_names if n not in m.marker_names]

@@ -131,8 +131,9 @@ def _check_options(o: dict) -> None:
 def _check_observed(model: RobotModel, d, what: str) -> None:
     """Observations of this model: at least one, as many joint columns as it has joints, its markers only."""
     src = d.source or what
-    if d.q.shape[0] == 0:
-        kind = "pose" if isinstance(d, Measurements) else "contact"
+    measured = isinstance(d, Measurements)
+    if d.q.shape[0] == 0 or (measured and not d.mask.any() and (d.rot_mask is None or not d.rot_mask.any())):
+        kind = ("measured point" if d.q.shape[0] else "pose") if measured else "contact"
         raise InputError(f"holds no {kind}: nothing to {'judge the calibration on' if what == 'validation' else 'fit'}",
                          source=src, where=what)
     if d.q.shape[1] != model.n_joints:
