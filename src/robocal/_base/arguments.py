@@ -506,14 +506,23 @@ def same_robot_as(other: str):
     return rule
 
 
+def unobserved(value) -> str | None:
+    """What a set of observations (measurements or contacts) lacks to hold one: "pose" or "contact"
+    without a row, "measured point" when measurements mask every one of theirs; None when it holds some."""
+    measured = hasattr(value, "mask")
+    if value.q.shape[0] == 0:
+        return "pose" if measured else "contact"
+    if measured and not value.mask.any() and (value.rot_mask is None or not value.rot_mask.any()):
+        return "measured point"
+    return None
+
+
 def measured_on(model: str = "model"):
     """Measurements of the model passed as argument ``model``: at least one pose, its joint count, its markers."""
     def rule(value, name, args):
         m = args[model]
-        if value.q.shape[0] == 0:
-            raise InputError("holds no pose", source=value.source or None, where=name)
-        if not value.mask.any() and (value.rot_mask is None or not value.rot_mask.any()):
-            raise InputError("holds no measured point", source=value.source or None, where=name)
+        if (lack := unobserved(value)) is not None:
+            raise InputError(f"holds no {lack}", source=value.source or None, where=name)
         if value.q.shape[1] != m.n_joints:
             raise InputError(f"{value.q.shape[1]} joint columns for a model with {m.n_joints} joints", where=name)
         missing = [n for n in value.marker_names if n not in m.marker_names]

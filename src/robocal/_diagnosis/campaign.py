@@ -614,9 +614,10 @@ def marker_elsewhere(ref: Reference) -> list[Candidate]:
                     "in its nest"
         else:
             rows, predicted, freedom = seen[some], scattered, 3.0 + len(some)
-            said = f"the {len(rows)} rows ({', '.join(_label(ref, r) for r in rows[:4])}" \
+            listed = f"{len(rows)} rows ({', '.join(_label(ref, r) for r in rows[:4])}" \
                 + (" ..." if len(rows) > 4 else "") + ")"
-            cause = f"marker {name} sat elsewhere on {said.removeprefix('the ')}: a reflector put in another nest"
+            said = f"the {listed}"
+            cause = f"marker {name} sat elsewhere on {listed}: a reflector put in another nest"
         if not MIN_ROWS <= len(rows) < len(seen):
             continue
         out.append(Candidate("marker moved", cause, "with those rows as another marker", f"calibrate {said} "

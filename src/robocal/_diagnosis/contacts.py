@@ -28,7 +28,7 @@ from typing import cast
 
 import numpy as np
 
-from .._base.arguments import accepts, both, is_a, measured_on, noise_of, optional
+from .._base.arguments import accepts, both, is_a, measured_on, noise_of, optional, unobserved
 from .._base.errors import DegenerateDataError, InputError, excerpt
 from .._base.linalg import r_factor, solve_upper
 from .._base.options import INSTRUMENT_NOISE
@@ -512,8 +512,8 @@ CONTACT_HYPOTHESES = (joint_sign, unit_factor, joints_swapped, joint_rehomed, wr
 def _recorded_on(value, name, args):
     """Contacts of the model passed as ``model``: at least one, its joint count, its markers."""
     m = args["model"]
-    if value.q.shape[0] == 0:
-        raise InputError("holds no contact", source=value.source or None, where=name)
+    if (lack := unobserved(value)) is not None:
+        raise InputError(f"holds no {lack}", source=value.source or None, where=name)
     if value.q.shape[1] != m.n_joints:
         raise InputError(f"{value.q.shape[1]} joint columns for a model with {m.n_joints} joints", where=name)
     missing = [n for n in dict.fromkeys(value.marker) if n not in m.marker_names]

@@ -20,6 +20,7 @@ from .._base.arguments import (
     noise_of,
     number,
     optional,
+    unobserved,
     whole,
 )
 from .._base.errors import InputError, check_choice
@@ -131,10 +132,8 @@ def _check_options(o: dict) -> None:
 def _check_observed(model: RobotModel, d, what: str) -> None:
     """Observations of this model: at least one, as many joint columns as it has joints, its markers only."""
     src = d.source or what
-    measured = isinstance(d, Measurements)
-    if d.q.shape[0] == 0 or (measured and not d.mask.any() and (d.rot_mask is None or not d.rot_mask.any())):
-        kind = ("measured point" if d.q.shape[0] else "pose") if measured else "contact"
-        raise InputError(f"holds no {kind}: nothing to {'judge the calibration on' if what == 'validation' else 'fit'}",
+    if (lack := unobserved(d)) is not None:
+        raise InputError(f"holds no {lack}: nothing to {'judge the calibration on' if what == 'validation' else 'fit'}",
                          source=src, where=what)
     if d.q.shape[1] != model.n_joints:
         raise InputError(f"{d.q.shape[1]} joint columns for a model with {model.n_joints} joints "

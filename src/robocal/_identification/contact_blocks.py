@@ -152,7 +152,7 @@ class Block:
 class SocketBlock(Block):
     """The marker seated in one socket: marker minus the socket's unknown point (nuisance columns
     ``col``..``col + 2``), 3 rows per seating. The socket blocks lead the rows: ``ContactRows.jacobian``
-    fills theirs at once."""
+    fills theirs at once (``ContactRows.socket_run``)."""
 
     kind, width = "socket", 3
 
@@ -301,7 +301,7 @@ class ContactRows:
         self._initial_nuisance(parameter_vector(model))
         self._observations()
         self.aside = np.zeros(len(self.obs_kind), dtype=bool) if aside is None else np.asarray(aside, dtype=bool)
-        self.blocks = self._blocks()
+        self._set_blocks()
 
     @classmethod
     def of(cls, model: RobotModel, contacts: Contacts, names, *, compliance: bool) -> ContactRows:
@@ -388,8 +388,10 @@ class ContactRows:
         self.obs_placement = tuple(placements)
         self.obs_row = np.array(first, dtype=int)
 
-    def _blocks(self) -> tuple:
-        """The blocks of the observations kept, in the order rows are stacked."""
+    def _set_blocks(self) -> None:
+        """``blocks``: those of the observations kept, in the order rows are stacked, the socket blocks
+        first; ``socket_run``: how many socket blocks lead, and their rows, each row's point column and
+        deviation concatenated (``jacobian`` fills them at once)."""
         c, keep = self.contacts, ~self.aside
         n_points = 3 * len(self.sockets)
         blocks: list[Block] = []
@@ -417,14 +419,18 @@ class ContactRows:
                 blocks.append(DistanceBlock(where[ga.placement, ga.target], where[gb.placement, gb.target], d.length,
                                             d.sigma, ga.rows, gb.rows, k))
             k += 1
-        return tuple(b for b in blocks if len(b.sigma))
+        self.blocks = tuple(b for b in blocks if len(b.sigma))
+        sockets = [b for b in self.blocks if isinstance(b, SocketBlock)]
+        self.socket_run = (len(sockets), np.concatenate([b.rows for b in sockets] or [np.zeros(0, dtype=int)]),
+                           np.concatenate([np.full(len(b.rows), b.col) for b in sockets] or [np.zeros(0, dtype=int)]),
+                           np.concatenate([b.sigma for b in sockets] or [np.zeros(0)]))
 
     def without(self, aside: np.ndarray) -> ContactRows:
         """The same rows with the observations ``aside`` (n_obs,) set aside too (the evaluation shared)."""
         other = object.__new__(ContactRows)
         other.__dict__.update(self.__dict__)
         other.aside = self.aside | np.asarray(aside, dtype=bool)
-        other.blocks = other._blocks()
+        other._set_blocks()
         return other
 
     def at_contact(self) -> ContactRows:
@@ -503,9 +509,9 @@ class ContactRows:
 
     def jacobian(self, at: At) -> np.ndarray:
         """The weighted Jacobian of every block's rows, in block order: each written into its rows, the
-        socket blocks, which lead (``_blocks``), at once: a campaign holds one per placement and socket."""
+        socket blocks, which lead (``socket_run``), at once: a campaign holds one per placement and socket."""
         out = at.zeros(self.n_rows)
-        _, lead, rows, cols, sigma = self._sockets_at_once()
+        lead, rows, cols, sigma = self.socket_run
         row = 3 * len(rows)
         if lead:
             B = out[:row].reshape(len(rows), 3, at.k + at.nn)    # d(P - c)/dp, -I on the point
@@ -516,21 +522,6 @@ class ContactRows:
             b.fill(at, out[row:row + b.n_rows])
             row += b.n_rows
         return out
-
-    def _sockets_at_once(self) -> tuple:
-        """(blocks, how many lead, their rows, each row's point column, its deviation) of the socket
-        blocks leading ``blocks``, kept while the blocks are."""
-        run = self.__dict__.get("_socket_run")
-        if run is None or run[0] is not self.blocks:
-            lead = 0
-            while lead < len(self.blocks) and isinstance(self.blocks[lead], SocketBlock):
-                lead += 1
-            socket = self.blocks[:lead]
-            run = (self.blocks, lead, np.concatenate([b.rows for b in socket]) if lead else np.zeros(0, dtype=int),
-                   np.concatenate([np.full(len(b.rows), b.col) for b in socket]) if lead else np.zeros(0, dtype=int),
-                   np.concatenate([b.sigma for b in socket]) if lead else np.zeros(0))
-            self._socket_run = run
-        return run
 
     def row_kinds(self) -> list[str]:
         """The kind of each row, in the order of ``residuals``."""
@@ -567,7 +558,8 @@ class ContactRows:
         other = object.__new__(ContactRows)
         other.__dict__.update(self.__dict__)
         other.aside = np.zeros_like(self.aside)
-        return other._blocks()
+        other._set_blocks()
+        return other.blocks
 
     def sigma(self) -> np.ndarray:
         """(n_obs,) each observation's stated standard deviation (m)."""

@@ -17,6 +17,7 @@ Everything is SI and in the measurement frame W (without an instrument, the robo
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -133,17 +134,17 @@ class Contacts:
         return self.q.shape[0]
 
     def groups(self, kind: str | None = None) -> list[Group]:
-        """The groups (placement, target) in order of first appearance, of one ``kind`` or all (found
-        once per record: the problems and the diagnosis ask for them at every step)."""
-        every = self.__dict__.get("_groups")
-        if every is None:
-            first: dict = {}
-            for i, key in enumerate(zip(self.placement, self.target)):
-                first.setdefault(key, []).append(i)
-            every = tuple(Group(self.kind[rows[0]], p, t, read_only(np.array(rows, dtype=int)))
-                          for (p, t), rows in first.items())
-            object.__setattr__(self, "_groups", every)
-        return [g for g in every if kind is None or g.kind == kind]
+        """The groups (placement, target) in order of first appearance, of one ``kind`` or all."""
+        return [g for g in self._every_group if kind is None or g.kind == kind]
+
+    @cached_property
+    def _every_group(self) -> tuple[Group, ...]:
+        """Every group, found once per record: the problems and the diagnosis ask at every step."""
+        first: dict = {}
+        for i, key in enumerate(zip(self.placement, self.target)):
+            first.setdefault(key, []).append(i)
+        return tuple(Group(self.kind[rows[0]], p, t, read_only(np.array(rows, dtype=int)))
+                     for (p, t), rows in first.items())
 
     def known_plane(self, target: str) -> KnownPlane | None:
         return next((p for p in self.planes if p.name == target), None)
