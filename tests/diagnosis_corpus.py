@@ -156,6 +156,15 @@ def sister_robot(robot, seed):
     return Case("half the campaign from a sister robot", m, replace(d, positions=pos), ("step change",))
 
 
+def joint_rehomed(robot, seed):
+    m, true, d = _sim(robot, seed)
+    j = _angle_joint(m)
+    q = d.q.copy()
+    q[N_POSES // 2:, j] += 0.1 * DEG          # rehomed halfway: from then on it reads 0.1 deg more
+    return Case("a joint rehomed halfway (its zero moved 0.1 deg)", m, replace(d, q=q), ("joint rehomed",),
+                truth=true)
+
+
 def _compliances(robot):
     """The true compliances of the joints that bend under a payload, rad/(N m)."""
     return {"j2.k_theta": 5e-6, "j3.k_theta": 6e-6} if robot == "6r" else {"j2.k_alpha": 2e-6, "j3.k_alpha": 3e-6}
@@ -398,11 +407,12 @@ def readings_lag(robot, seed):
 
 
 MISTAKES = (missed_shot, labels_offset, left_handed, axes_in_marker, marker_copied, gear_small, gear_large,
-            joint_sign, joint_still, sister_robot, payload_mid, payload_grams, reflector_moved, tool_changed,
-            second_nest, labels_swapped, tracker_bumped, thermal_drift, rotations_inverted, euler_convention,
-            quaternion_order, metres_as_mm, mm_as_metres, degrees_as_radians, radians_as_degrees, one_joint_unit,
-            prismatic_mm_as_m, whole_turn, targets, model_sign, link_off, model_in_metres, markers_swapped,
-            reading_typo, joints_swapped, marker_frame, another_robot, labels_cyclic, blunder, readings_lag)
+            joint_sign, joint_still, joint_rehomed, sister_robot, payload_mid, payload_grams, reflector_moved,
+            tool_changed, second_nest, labels_swapped, tracker_bumped, thermal_drift, rotations_inverted,
+            euler_convention, quaternion_order, metres_as_mm, mm_as_metres, degrees_as_radians, radians_as_degrees,
+            one_joint_unit, prismatic_mm_as_m, whole_turn, targets, model_sign, link_off, model_in_metres,
+            markers_swapped, reading_typo, joints_swapped, marker_frame, another_robot, labels_cyclic, blunder,
+            readings_lag)
 
 
 def mistakes(robot: str, seed: int):

@@ -188,6 +188,17 @@ def tracker_bumped(robot: str) -> Case:
     return _case(f"the tracker bumped at row {k}", robot, replace(grid, positions=pos), ("step change",))
 
 
+def joint_rehomed(robot: str, joint: int = 1, offset_deg: float = 0.1) -> Case:
+    """One joint rehomed (or its encoder slipped) at 40 % of the campaign: from then on it reads
+    ``offset_deg`` more than before."""
+    _, grid, _, _ = clean(robot)
+    k = grid.n_poses * 4 // 10
+    q = grid.q.copy()
+    q[k:, joint] += np.radians(offset_deg)
+    return _case(f"joint {joint + 1} rehomed at row {k} ({offset_deg:g} deg)", robot, replace(grid, q=q),
+                 ("joint rehomed",))
+
+
 def reading_typo(robot: str) -> Case:
     """One joint reading mistyped (40 deg off)."""
     _, grid, _, _ = clean(robot)
@@ -213,8 +224,8 @@ def validation_repeated(robot: str) -> Case:
 
 
 MISTAKES = (tool_changed, reflector_moved, second_nest, gear_ratio, whole_turn, targets, link_off, model_in_metres,
-            missed_shot, mirrored, joint_sign, joints_swapped, millimetres_as_metres, tracker_bumped, reading_typo,
-            readings_lag, validation_repeated)
+            missed_shot, mirrored, joint_sign, joints_swapped, millimetres_as_metres, tracker_bumped, joint_rehomed,
+            reading_typo, readings_lag, validation_repeated)
 # the same mistakes elsewhere: another joint, link, ratio, row and tool
 VARIANTS = (partial(gear_ratio, ratio=0.99, joint=2), partial(whole_turn, joint=0), partial(joint_sign, joint=1),
             partial(link_off, frame=1, error=0.05), partial(tool_changed, row_share=0.3, offset=(0.0, 0.01, 0.0)))

@@ -337,6 +337,39 @@ def test_a_tool_changed_halfway_on_the_real_ur5_fails():
     assert found.fix.startswith("calibrate the rows from step 500 on as a marker of their own")
 
 
+@pytest.mark.parametrize("joint, name, offset", [(1, "shoulder_lift", 0.1), (2, "elbow", -0.1)])
+def test_a_joint_rehomed_partway_on_the_real_ur5_is_named_with_its_step(joint, name, offset):
+    """The UR5's shoulder or elbow rehomed at 40 % of the grid (its readings 0.1 deg off from
+    then on): the calibration is 0.6 mm from the clean grid's in use. 4befe96 named the measurement
+    frame (the tracker bumped), sending the user to the wrong instrument; the joint's own step takes
+    one parameter, and its size is the one injected."""
+    case = rm.joint_rehomed("UR5", joint=joint, offset_deg=offset)
+    result = case.run()
+    found = _first(result)
+    assert result.verdict == "fail" and found.hypothesis == "joint rehomed" and found.status == "fail"
+    said = re.search(rf"from step 400 on, joint {name} reads ([0-9.]+) deg (more|less) than before", found.cause)
+    assert said is not None, found.cause
+    assert float(said.group(1)) == pytest.approx(abs(offset), rel=0.05)
+    assert said.group(2) == ("more" if offset > 0 else "less")
+    assert found.fix.startswith(f"home joint {name} again")
+
+
+def test_a_prismatic_joint_rehomed_under_three_times_the_noise_is_named():
+    """The cylindrical arm's radial (prismatic) joint reads 0.2 mm more from the middle of 60 poses on:
+    the fit's residuals stay under 3 times the tracker's, where the whole robot's step is not tried,
+    and 4befe96 passed it naming nothing (0.11 mm from the true robot in use, against 0.03 clean)."""
+    m = corpus.ROBOTS["cylindrical"]()
+    _, d = rc.simulate(m, 60, seed=0, noise=corpus.NOISE)
+    q = d.q.copy()
+    q[30:, 2] += 0.2e-3
+    result = rc.calibrate(m, replace(d, q=q))
+    found = _first(result)
+    assert result.verdict == "fail" and found.hypothesis == "joint rehomed"
+    said = re.search(r"from pose 30 on, joint j3 reads ([0-9.]+) mm more than before", found.cause)
+    assert said is not None, found.cause
+    assert float(said.group(1)) == pytest.approx(0.2, rel=0.05)
+
+
 def test_a_validation_file_repeating_the_fitted_one_is_refused():
     """The fitted file's last fifth, written again with fewer digits, given as the validation set."""
     case = rm.validation_repeated("UR5")

@@ -138,6 +138,7 @@ def test_a_split_from_the_sums_over_every_pose_is_the_least_squares_fit_letting_
     bumped), the same sum of squares. Two markers, one of them not seen on some poses: the rows are
     not in pose order and the poses hold different numbers of rows."""
     from robocal._diagnosis.campaign import SPLITS, marker_columns, split_gains
+    from robocal._diagnosis.joints import joint_columns
 
     m = arm6r(markers=(("tool", (0.05, 0.02, 0.12)), ("side", (-0.04, 0.06, 0.08))))
     _, data = rc.simulate(m, 200, seed=2)
@@ -145,26 +146,34 @@ def test_a_split_from_the_sums_over_every_pose_is_the_least_squares_fit_letting_
     bumped[120:] += np.array([0.0005, -0.0003, 0.0002])
     mask[::7, 1] = False
     bumped[~mask] = np.nan
-    ref = _reference_of(m, rc.Measurements(q=data.q, positions=bumped, mask=mask, marker_names=data.marker_names,
+    q = data.q.copy()
+    q[70:, 2] += np.radians(0.1)            # a joint rehomed at pose 70
+    ref = _reference_of(m, rc.Measurements(q=q, positions=bumped, mask=mask, marker_names=data.marker_names,
                                            joint_names=data.joint_names))
     pose = ref.problem.points.row_points()[0]
     assert np.any(np.diff(pose) < 0)
     before = np.linalg.lstsq(ref.J, ref.r, rcond=None)[1][0]
     rows = np.arange(10, data.n_poses - 10 + 1)
     base = ref.J[:, [i for i, n in enumerate(ref.names) if n.startswith("base.")]]
-    columns = [base, marker_columns(ref, "tool"), marker_columns(ref, "side"), marker_columns(ref, "tool")]
-    edges = [10, 10, 10, 14]
-    found = split_gains(ref, columns, edges)
-    for (row, gain), Z, edge, true_row in zip(found, columns, edges, (120, None, None, None)):
-        direct = np.array([before - np.linalg.lstsq(np.hstack([ref.J, Z * (pose >= s)[:, None]]), ref.r,
-                                                    rcond=None)[1][0] for s in rows])
+    columns = [base, marker_columns(ref, "tool"), marker_columns(ref, "side"), marker_columns(ref, "tool"),
+               joint_columns(ref)]
+    edges = [10, 10, 10, 14, 10]
+    alone = [False, False, False, False, True]     # the joints one at a time: the best one's index
+    found = split_gains(ref, columns, edges, alone)
+    assert [col is not None for _, _, col in found] == alone
+    for (row, gain, col), Z, edge, true_row in zip(found, columns, edges, (120, None, None, None, 70)):
+        tried = [Z] if col is None else [Z[:, [c]] for c in range(Z.shape[1])]
+        direct = np.array([[before - np.linalg.lstsq(np.hstack([ref.J, Zc * (pose >= s)[:, None]]), ref.r,
+                                                     rcond=None)[1][0] for s in rows] for Zc in tried])
         n = data.n_poses          # the search: the best of a coarse grid, then each row about it
         coarse = np.unique(np.linspace(edge, n - edge, min(SPLITS, n - 2 * edge + 1)).round().astype(int))
-        best = coarse[np.argmax(direct[coarse - 10])]
+        which, at = np.unravel_index(np.argmax(direct[:, coarse - 10]), (len(tried), len(coarse)))
+        assert which == (col or 0) == (2 if true_row == 70 else which)
+        best = coarse[at]
         step = coarse[1] - coarse[0]
         near = np.arange(max(edge, best - step), min(n - edge, best + step) + 1)
-        assert row == near[np.argmax(direct[near - 10])] == (true_row or row)
-        assert gain == pytest.approx(direct[row - 10], rel=1e-6)
+        assert row == near[np.argmax(direct[which, near - 10])] == (true_row or row)
+        assert gain == pytest.approx(direct[which, row - 10], rel=1e-6)
 
 
 def test_the_load_columns_on_the_nominals_massless_copy_are_those_of_the_calibrated_models():

@@ -1,7 +1,8 @@
 """Hypotheses along the campaign's order and across its rows (docs/diagnosis.md): rows shifted
 against their readings, pose labels offset, a step or a drift of the base, the load or the whole
-robot, joint readings that lag the measurements, a marker elsewhere on some rows (a reflector in
-another nest, moved in its nest, the tool changed), marker labels swapped on some rows.
+robot, a joint rehomed partway, joint readings that lag the measurements, a marker elsewhere on
+some rows (a reflector in another nest, moved in its nest, the tool changed), marker labels
+swapped on some rows.
 
 Each returns candidates (``reference.Candidate``): what cheap statistics predict, and the repair to
 refit or the columns to step when the prediction survives the screen."""
@@ -22,6 +23,7 @@ from .._identification.problem import Problem
 from .._model.measurements import Measurements
 from .._model.parameters import candidate_parameters, parameter_layout
 from .._model.robot import Marker, Payload, RobotModel
+from .joints import joint_columns
 from .reference import (
     SURVIVE_FACTOR,
     Candidate,
@@ -245,18 +247,21 @@ def _row_pose(ref: Reference) -> np.ndarray:
     return row_layout(ref)[0]
 
 
-def split_gains(ref: Reference, columns: list[np.ndarray], edges: list[int]) -> list[tuple[int, float]]:
+def split_gains(ref: Reference, columns: list[np.ndarray], edges: list[int], alone: list[bool] | None = None
+                ) -> list[tuple[int, float, int | None]]:
     """For each of ``columns`` (n_rows, g) and its ``edges`` (poses kept on each side), the pose from
-    which letting parameters with those columns change lowers the sum of squares most, and by how
-    much (one Gauss-Newton step, from the gradient and Gram matrices summed over the poses after each
-    split): first on a coarse grid of ``SPLITS`` rows, then row by row about its best. The sums of
-    every set of columns with the same edge come from one pass over the rows by pose (``Z^T J`` and
-    ``Z^T [Z, r]`` between consecutive grid rows, summed from the end); the rows about a best one
-    are summed pose by pose up to the next grid row and added to its sums."""
+    which letting parameters with those columns change lowers the sum of squares most, by how much
+    (one Gauss-Newton step, from the gradient and Gram matrices summed over the poses after each
+    split), and None; or, where ``alone`` says so, letting one of its columns change, the best one
+    (its index last instead of None). First on a coarse grid of ``SPLITS`` rows, then row by row
+    about its best. The sums of every set of columns with the same edge come from one pass over the
+    rows by pose (``Z^T J`` and ``Z^T [Z, r]`` between consecutive grid rows, summed from the end);
+    the rows about a best one are summed pose by pose up to the next grid row and added to its sums."""
     J, Zr, first = _split_rows(ref, columns)
     n = ref.data.n_poses
     ends = np.cumsum([Z.shape[1] for Z in columns])
-    out: list[tuple[int, float]] = [(n // 2, 0.0)] * len(columns)
+    alone = alone or [False] * len(columns)
+    out: list[tuple[int, float, int | None]] = [(n // 2, 0.0, 0 if a else None) for a in alone]
     for edge in sorted(set(edges)):
         if n - 2 * edge < 0:
             continue
@@ -267,14 +272,17 @@ def split_gains(ref: Reference, columns: list[np.ndarray], edges: list[int]) -> 
         step = int(coarse[1] - coarse[0]) if len(coarse) > 1 else 1
         for k in which:
             own = slice(int(ends[k] - columns[k].shape[1]), int(ends[k]))
-            at = slice(own.start - z.start, own.stop - z.start)
-            row, gain = _best_split([s[:, at] for s in sums], own, coarse, ref.gram_inverse)
+            row, gain, col = _best_split([s[:, own.start - z.start:own.stop - z.start] for s in sums], own, coarse,
+                                         ref.gram_inverse, alone=alone[k])
+            if col is not None:         # that column alone from here on
+                own = slice(own.start + col, own.start + col + 1)
             if step > 1:                      # the rows about it, each
+                at = slice(own.start - z.start, own.stop - z.start)
                 near = np.arange(max(edge, row - step), min(n - edge, row + step) + 1)
                 c = int(np.searchsorted(coarse, near[-1]))
                 fine = _near_sums(J, Zr, own, first, near, int(coarse[c]), [s[c, at] for s in sums])
-                row, gain = _best_split(fine, own, near, ref.gram_inverse)
-            out[k] = (row, gain)
+                row, gain, _ = _best_split(fine, own, near, ref.gram_inverse)
+            out[k] = (row, gain, col)
     return out
 
 
@@ -292,18 +300,25 @@ def _split_rows(ref: Reference, columns: list[np.ndarray]) -> tuple[np.ndarray, 
     return ref.J[order], Zr, first
 
 
-def _best_split(sums: list[np.ndarray], own: slice, bounds: np.ndarray, inverse: np.ndarray) -> tuple[int, float]:
-    """The bound whose split takes most away, and how much: ``sums`` (``Z^T J`` and ``Z^T [Z_all, r]``
-    over the poses after each bound, ``Z`` the columns ``own`` of ``Z_all``), the sum of squares each
-    split's Gauss-Newton step takes away."""
+def _best_split(sums: list[np.ndarray], own: slice, bounds: np.ndarray, inverse: np.ndarray, *, alone: bool = False
+                ) -> tuple[int, float, int | None]:
+    """The bound whose split takes most away, how much, and None: ``sums`` (``Z^T J`` and ``Z^T [Z_all,
+    r]`` over the poses after each bound, ``Z`` the columns ``own`` of ``Z_all``), the sum of squares
+    each split's Gauss-Newton step takes away. ``alone``: each column of ``Z`` on its own, the best
+    one's index in place of None."""
     HG, ZR = sums
     g, ZZ = ZR[..., -1], ZR[..., own]
     p = len(inverse)
+    if alone:                                   # the diagonal of the matrix below: one column at a time
+        m = np.diagonal(ZZ, axis1=1, axis2=2) - np.einsum("sgp,sgp->sg", HG @ inverse, HG)
+        gains = g ** 2 / (m * (1.0 + 1e-10) + 1e-300)
+        at, col = divmod(int(np.argmax(gains)), gains.shape[1])
+        return int(bounds[at]), float(max(gains[at, col], 0.0)), col
     M = ZZ - (HG.reshape(-1, p) @ inverse).reshape(HG.shape) @ np.swapaxes(HG, 1, 2)
     ridge = (1e-10 * np.trace(M, axis1=1, axis2=2)[:, None, None] + 1e-300) * np.eye(M.shape[-1])
     gains = np.einsum("si,si->s", g, np.linalg.solve(M + ridge, g[..., None])[..., 0])
     j = int(np.argmax(gains))
-    return int(bounds[j]), float(max(gains[j], 0.0))
+    return int(bounds[j]), float(max(gains[j], 0.0)), None
 
 
 def _suffix_sums(J: np.ndarray, Zr: np.ndarray, z: slice, first: np.ndarray, bounds: np.ndarray
@@ -374,7 +389,11 @@ def _splits(ref: Reference) -> dict:
                 keys.append(what), columns.append(Z), edges.append(side)
         for m, name in _movable_markers(ref):
             keys.append(m), columns.append(marker_columns(ref, name)), edges.append(edge)
-        return dict(zip(keys, split_gains(ref, columns, edges)))
+        alone = [False] * len(keys)
+        if steppable := _steppable_joints(ref):
+            keys.append("joints"), columns.append(joint_columns(ref)[:, steppable]), edges.append(edge)
+            alone.append(True)
+        return dict(zip(keys, split_gains(ref, columns, edges, alone)))
 
     return ref.cached("splits", make)
 
@@ -390,7 +409,7 @@ def step_change(ref: Reference) -> list[Candidate]:
         if what not in splits:
             continue
         Z = _columns(ref, cols)
-        row, gain = splits[what]
+        row, gain, _ = splits[what]
         freedom = Z.shape[1] + np.log2(max(n, 2))
         label = _label(ref, row)
         out.append(Candidate("step change", f"from {label} on, {what} changed", "", f"look at what happened at "
@@ -398,6 +417,39 @@ def step_change(ref: Reference) -> list[Candidate]:
                              _predicted(ref, gain, freedom), np.log2(max(n, 2)),
                              partial(_stepped, ref, Z, row), generic=what.startswith("the robot")))
     return out
+
+
+def _steppable_joints(ref: Reference) -> list[int]:
+    """The joints ``joint_rehomed`` steps: those whose reading moves the points diagnosed, when the
+    data leave room for a parameter more."""
+    J = joint_columns(ref)
+    return [j for j in range(J.shape[1]) if np.any(J[:, j])] if _determined(ref, 1) else []
+
+
+def joint_rehomed(ref: Reference) -> list[Candidate]:
+    """A joint rehomed partway (or its encoder slipped, or lost counts): from some row on, one joint's
+    readings are off its position by a constant more than before. The joint whose step takes most
+    away (one column each, searched together with ``step_change``'s), the choice of the joint and of
+    the row counted against it."""
+    steppable = _steppable_joints(ref)
+    if not steppable:
+        return []
+    row, gain, col = _splits(ref)["joints"]
+    j = steppable[cast(int, col)]
+    Z = joint_columns(ref)[:, [j]]
+    M, b = projected_products(ref, Z * (_row_pose(ref) >= row)[:, None])
+    if not M[0, 0] > 0:
+        return []
+    off = float(b[0] / M[0, 0])           # the readings less the joint's position, from that row on
+    name = ref.model.joint_names[j]
+    size = f"{np.degrees(abs(off)):.3g} deg" if ref.model.reading_quantities[j] == "angle" else mm(abs(off))
+    label = _label(ref, row)
+    freedom = np.log2(max(ref.data.n_poses, 2)) + np.log2(max(len(steppable), 2))
+    return [Candidate("joint rehomed", f"from {label} on, joint {name} reads {size} {'more' if off > 0 else 'less'} "
+                      "than before at the same position (the joint rehomed, or its encoder slipped)", "",
+                      f"home joint {name} again and check its encoder; calibrate the rows before and after {label} "
+                      "apart, or measure again", (label, name), _predicted(ref, gain, 1.0 + freedom), freedom,
+                      partial(_stepped, ref, Z, row))]
 
 
 def _stepped(ref: Reference, Z: np.ndarray, row: int) -> Linear:
@@ -602,7 +654,7 @@ def marker_elsewhere(ref: Reference) -> list[Candidate]:
     out = []
     for m, name in _movable_markers(ref):
         seen = np.nonzero(ref.data.mask[:, m])[0]
-        row, gain_tail = splits[m]
+        row, gain_tail, _ = splits[m]
         some, gain_some = _two_groups(E[seen, m])
         tail = _predicted(ref, gain_tail, 3.0 + np.log2(n_all))
         scattered = _predicted(ref, _metres_to_rows(ref, gain_some), 3.0 + len(some))

@@ -28,6 +28,7 @@ from .._model.measurements import Measurements, Noise
 from .._model.robot import RobotModel
 from .campaign import (
     drift,
+    joint_rehomed,
     labels_swapped,
     marker_elsewhere,
     pose_labels_offset,
@@ -52,7 +53,7 @@ from .values import axes_swapped, markers_swapped, mirrored_frame, payload_unit,
 
 HYPOTHESES = (rows_shifted, pose_labels_offset, mirrored_frame, axes_swapped, markers_swapped, position_unit,
               reading_unit, payload_unit, joint_scale, joint_sign, joints_swapped, model_sign, robot_size, marker_frame,
-              step_change, drift, readings_lag, marker_elsewhere, labels_swapped, rotation_convention)
+              step_change, joint_rehomed, drift, readings_lag, marker_elsewhere, labels_swapped, rotation_convention)
 STATUS_RANK = {"fail": 2, "warn": 1}
 
 
