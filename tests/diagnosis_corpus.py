@@ -165,6 +165,14 @@ def joint_rehomed(robot, seed):
                 truth=true)
 
 
+def joint_drifting(robot, seed):
+    m, true, d = _sim(robot, seed)
+    j = _angle_joint(m)
+    q = d.q.copy()
+    q[:, j] += 0.1 * DEG * np.linspace(0.0, 1.0, d.n_poses)    # warming up: 0.1 deg more by the last row
+    return Case("a joint's readings drifting 0.1 deg along the campaign", m, replace(d, q=q), ("drift",), truth=true)
+
+
 def _compliances(robot):
     """The true compliances of the joints that bend under a payload, rad/(N m)."""
     return {"j2.k_theta": 5e-6, "j3.k_theta": 6e-6} if robot == "6r" else {"j2.k_alpha": 2e-6, "j3.k_alpha": 3e-6}
@@ -406,8 +414,8 @@ def readings_lag(robot, seed):
                 ("readings lag",), truth=true)
 
 
-MISTAKES = (missed_shot, labels_offset, left_handed, axes_in_marker, marker_copied, gear_small, gear_large,
-            joint_sign, joint_still, joint_rehomed, sister_robot, payload_mid, payload_grams, reflector_moved,
+MISTAKES = (missed_shot, labels_offset, left_handed, axes_in_marker, marker_copied, gear_small, gear_large, joint_sign,
+            joint_still, joint_rehomed, joint_drifting, sister_robot, payload_mid, payload_grams, reflector_moved,
             tool_changed, second_nest, labels_swapped, tracker_bumped, thermal_drift, rotations_inverted,
             euler_convention, quaternion_order, metres_as_mm, mm_as_metres, degrees_as_radians, radians_as_degrees,
             one_joint_unit, prismatic_mm_as_m, whole_turn, targets, model_sign, link_off, model_in_metres,

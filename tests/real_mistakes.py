@@ -199,6 +199,16 @@ def joint_rehomed(robot: str, joint: int = 1, offset_deg: float = 0.1) -> Case:
                  ("joint rehomed",))
 
 
+def joint_drifting(robot: str, joint: int = 1, drift_deg: float = 0.1) -> Case:
+    """One joint's readings drifting off its position along the campaign (warming up), ``drift_deg``
+    more by the last row."""
+    _, grid, _, _ = clean(robot)
+    q = grid.q.copy()
+    q[:, joint] += np.radians(drift_deg) * np.linspace(0.0, 1.0, grid.n_poses)
+    return _case(f"joint {joint + 1} drifting {drift_deg:g} deg along the campaign", robot, replace(grid, q=q),
+                 ("drift",))
+
+
 def reading_typo(robot: str) -> Case:
     """One joint reading mistyped (40 deg off)."""
     _, grid, _, _ = clean(robot)
@@ -225,7 +235,7 @@ def validation_repeated(robot: str) -> Case:
 
 MISTAKES = (tool_changed, reflector_moved, second_nest, gear_ratio, whole_turn, targets, link_off, model_in_metres,
             missed_shot, mirrored, joint_sign, joints_swapped, millimetres_as_metres, tracker_bumped, joint_rehomed,
-            reading_typo, readings_lag, validation_repeated)
+            joint_drifting, reading_typo, readings_lag, validation_repeated)
 # the same mistakes elsewhere: another joint, link, ratio, row and tool
 VARIANTS = (partial(gear_ratio, ratio=0.99, joint=2), partial(whole_turn, joint=0), partial(joint_sign, joint=1),
             partial(link_off, frame=1, error=0.05), partial(tool_changed, row_share=0.3, offset=(0.0, 0.01, 0.0)))

@@ -1,8 +1,8 @@
 """Hypotheses along the campaign's order and across its rows (docs/diagnosis.md): rows shifted
 against their readings, pose labels offset, a step or a drift of the base, the load or the whole
-robot, a joint rehomed partway, joint readings that lag the measurements, a marker elsewhere on
-some rows (a reflector in another nest, moved in its nest, the tool changed), marker labels
-swapped on some rows.
+robot, a joint rehomed partway or drifting, joint readings that lag the measurements, a marker
+elsewhere on some rows (a reflector in another nest, moved in its nest, the tool changed), marker
+labels swapped on some rows.
 
 Each returns candidates (``reference.Candidate``): what cheap statistics predict, and the repair to
 refit or the columns to step when the prediction survives the screen."""
@@ -474,7 +474,34 @@ def drift(ref: Reference) -> list[Candidate]:
                              "instrument's reference, measure again", (first, last),
                              _predicted(ref, gain, Z.shape[1]), 0.0, partial(Linear, Z),
                              generic=what.startswith("the robot")))
-    return out
+    return out + _joint_drift(ref, t)
+
+
+def _joint_drift(ref: Reference, t: np.ndarray) -> list[Candidate]:
+    """One joint's readings drifting off its position in proportion to the row (a joint warming up, an
+    encoder creeping): the joint whose drift takes most away, one column each, the choice counted
+    against it."""
+    steppable = _steppable_joints(ref)
+    if not steppable:
+        return []
+    Z = joint_columns(ref)[:, steppable] * t[:, None]
+    M, b = projected_products(ref, Z)
+    d = np.diag(M)
+    gains = np.where(d > 0, b ** 2 / np.where(d > 0, d, 1.0), 0.0)
+    k = int(np.argmax(gains))
+    if not d[k] > 0:
+        return []
+    off = float(b[k] / d[k])             # the readings less the joint's position, last row against first
+    j = steppable[k]
+    name = ref.model.joint_names[j]
+    size = f"{np.degrees(abs(off)):.3g} deg" if ref.model.reading_quantities[j] == "angle" else mm(abs(off))
+    first, last = ref.campaign.labels[0], ref.campaign.labels[-1]
+    freedom = np.log2(max(len(steppable), 2))
+    return [Candidate("drift", f"joint {name}'s readings drift slowly off its position along the campaign, {size} "
+                      f"{'more' if off > 0 else 'less'} at {last} than at {first} (the joint warming up, or its "
+                      "encoder creeping)", "", f"let the robot warm up before measuring, check joint {name}'s "
+                      "encoder, measure again", (first, last, name), _predicted(ref, float(gains[k]), 1.0 + freedom),
+                      freedom, partial(Linear, Z[:, [k]]))]
 
 
 # -- the joint readings against the measurements ------------------------------------------------------
