@@ -62,6 +62,28 @@ def test_a_holdout_that_holds_out_no_pose_or_every_pose_is_refused(cli, tmp_path
     assert_one_line_error(code, err, ["t.csv", "--holdout", "of 30 poses holds out", "1/30 to 29/30"], tmp_path / "o")
 
 
+def test_points_that_never_move_while_the_joints_do_are_refused(cli, tmp_path):
+    """Every measured point the same (the instrument repeated one reading, or a pivot about the tool
+    point): 5162251 fitted a geometry that puts the tool there at every pose (a 17-pose campaign with
+    --compare and a robust loss took 107 s of CPU, its models 0.4 to 2.8 m off in use). Refused
+    before any work; one marker still on one point among others that move is not."""
+    lines = (TH8 / "measurements.csv").read_text().splitlines()
+    first = lines[1].split(",")
+    still = [lines[0]] + [",".join(row.split(",")[:7] + first[7:10] + row.split(",")[10:]) for row in lines[1:]]
+    (tmp_path / "still.csv").write_text("\n".join(still) + "\n")
+    code, _, err = cli("calibrate", TH8 / "model.yaml", tmp_path / "still.csv", "--out", tmp_path / "o")
+    assert_one_line_error(code, err, ["still.csv", "every measured point of marker tool is the same", "joints move",
+                                      "--contacts"], tmp_path / "o")
+    m = arm6r(markers=(("tool", (0.05, 0.02, 0.12)), ("side", (-0.04, 0.06, 0.08))))
+    _, data = rc.simulate(m, 30, seed=1)
+    pos = data.positions.copy()
+    pos[:, 1] = pos[0, 1]
+    with pytest.raises(rc.DegenerateDataError, match="marker side is the same"):
+        rc.calibrate(m, rc.Measurements(q=data.q, positions=pos, marker_names=data.marker_names))
+    pos[1:, 1] = np.nan                        # measured once: nothing said of its moving
+    assert rc.calibrate(m, rc.Measurements(q=data.q, positions=pos, marker_names=data.marker_names)).parameters
+
+
 def test_a_set_of_no_pose_or_contact_is_refused_wherever_it_is_given():
     m = arm6r()
     _, data = rc.simulate(m, 30, seed=1)

@@ -106,6 +106,7 @@ def prepare(model: RobotModel, data: Measurements | None, contacts: Contacts | N
     copies: tuple[str, ...] = ()
     if data is not None:
         data, copies = without_copies(data)
+        _points_move(data)
     start = model
     if options.initial_base == "register":
         if data is None:
@@ -257,6 +258,23 @@ def analyse(inputs: Inputs, options: Options) -> Analysis:
                                            and n in names)
     reach = kinds_reach(problem, stack, p0) if contacts is not None else None
     return Analysis(problem, stack, lost, compliance, reach, tuple(notes))
+
+
+def _points_move(data: Measurements) -> None:
+    """Refuse a marker whose every measured point is the same while the joints move: no robot puts it
+    there, and a fit would bend the geometry into nonsense."""
+    for m, name in enumerate(data.marker_names):
+        rows = np.flatnonzero(data.mask[:, m])
+        if len(rows) < 2 or distinct_rows(data.q[rows]) < 2:
+            continue
+        points = data.positions[rows, m]
+        if np.all(points == points[0]):
+            x, y, z = (float(v) for v in points[0])
+            raise DegenerateDataError(
+                f"every measured point of marker {name} is the same ({x:.6g}, {y:.6g}, "
+                f"{z:.6g} m) on {len(rows)} poses whose joints move: the instrument repeated one reading (it lost "
+                "the target?), or the tool was held at one point (a pivot: give those poses as contacts of one "
+                "socket, --contacts)")
 
 
 def _enough_poses(problem: Problem, data: Measurements, needed: int) -> list[str]:
