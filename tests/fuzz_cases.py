@@ -680,6 +680,73 @@ def calibrate_case(draw, result_text=None):
     return files, argv
 
 
+# numbers a valid campaign may hold that make its fit degenerate or ill-posed (mm and degrees)
+JITTERS = (0.0, 1e-12, 1e-6, 1e-3, 1.0, 100.0)
+POSITION_FACTORS = (-1.0, 1e-3, 0.999, 1.0001, 1e3)
+NUMBER_OPTIONS = {"--compare": None,
+                  "--parameters": ("geometric", "geometric,compliance", "geometric,backlash", "base", "markers"),
+                  "--known": ("markers", "base", "j2.*"), "--loss": ("soft_l1", "huber", "linear"),
+                  "--weak": ("flag",), "--on-outliers": ("flag", "refit"), "--folds": ("2", "3", "10", "50"),
+                  "--holdout": ("0.1", "0.5", "0.9"), "--limit-mm": ("0.001", "0.5", "100"),
+                  "--noise-mm": ("1e-6", "0.02", "5"), "--instrument": ("cmm", "theodolite"), "--seed": ("3",),
+                  "--diagnose": None, "--register-base": None, "--nonnegative-compliance": None}
+
+
+@st.composite
+def numbers_case(draw, result_text=None):
+    """calibrate on the example's campaign with valid files and options whose numbers make the fit
+    degenerate or ill-posed: few poses, copies, missing points, a joint that never moves, readings a
+    whole turn off, points scaled, shifted, jittered or all alike."""
+    lines = MEASUREMENTS.splitlines()
+    head, rows = lines[0], [ln.split(",") for ln in lines[1:]]
+    order = draw(st.permutations(range(len(rows))))
+    rows = [rows[i] for i in order[:draw(st.sampled_from((4, 12, 20, 30, 30, 30)))]]
+    rows += [list(rows[draw(st.integers(0, len(rows) - 1))]) for _ in range(draw(st.sampled_from((0, 0, 1, 5))))]
+    joints, points = range(1, 7), range(7, 10)
+    for _ in range(draw(st.integers(0, 3))):
+        op = draw(st.sampled_from(("blank", "still", "turn", "scale", "shift", "jitter", "alike", "swap", "set")))
+        k = draw(st.integers(0, len(rows) - 1))
+        if op == "blank":               # a point not measured on some rows
+            for r in rows[k:k + draw(st.integers(1, len(rows)))]:
+                for c in points:
+                    r[c] = ""
+        elif op in ("still", "turn", "swap"):
+            j = draw(st.sampled_from(joints))
+            i = draw(st.sampled_from(joints))
+            for r in rows:
+                if op == "still":
+                    r[j] = rows[k][j]
+                elif op == "turn" and draw(st.booleans()):
+                    r[j] = repr(float(r[j]) + 360.0)
+                elif op == "swap":
+                    r[j], r[i] = r[i], r[j]
+        elif op in ("scale", "shift", "jitter", "alike"):
+            factor = draw(st.sampled_from(POSITION_FACTORS))
+            shift = draw(st.sampled_from((1e6, -3e4, 0.5)))
+            size = draw(st.sampled_from(JITTERS))
+            cols = points if op != "jitter" or draw(st.booleans()) else joints
+            source = list(rows[k])
+            for r in rows:
+                for c in cols:
+                    cell = source[c] if op == "alike" else r[c]
+                    if cell and r[c]:               # a point not measured stays so
+                        v = float(cell)
+                        v = v * factor if op == "scale" else v + shift if op == "shift" else \
+                            v + draw(st.floats(-size, size)) if op == "jitter" else v
+                        r[c] = repr(v)
+        else:                           # which rows are held out
+            kind = draw(st.sampled_from(("fit", "validation", "mixed")))
+            for n, r in enumerate(rows):
+                r[10] = kind if kind != "mixed" else ("fit", "validation")[n % 2]
+    files = {"model.yaml": MODEL.encode(),
+             "data.csv": ("\n".join([head] + [",".join(r) for r in rows]) + "\n").encode()}
+    argv = ["calibrate", "model.yaml", "data.csv", "--out", "out"]
+    for name, values in NUMBER_OPTIONS.items():
+        if draw(st.integers(0, 3)) == 0 and not (name == "--parameters" and "--compare" in argv):
+            argv += [name] if values is None else [name, draw(st.sampled_from(values))]
+    return files, argv
+
+
 @st.composite
 def simulate_case(draw, result_text=None):
     files = {"model.yaml": _model(draw)}
@@ -1049,7 +1116,7 @@ def streams_case(draw, result_text=None):
     """Another command's case with one input (any slot) a device, a FIFO fed its bytes or never fed,
     a pipe as a shell's ``<(cat FILE)`` gives it (/dev/fd/N), a socket, a folder, a link to a device,
     or a file only readable: refused in one line or read as the file is, nothing left behind."""
-    command, files, argv = draw(case(result_text, [n for n in COMMANDS if n not in WRAPPERS]))
+    command, files, argv = draw(case(result_text, [n for n in COMMANDS if n not in WRAPPERS + NOT_WRAPPED]))
     files, argv = dict(files), list(argv)
     k, path = draw(st.sampled_from(input_slots(files, argv)))
     kind = draw(st.sampled_from(STREAM_KINDS))
@@ -1081,7 +1148,7 @@ def read_only_case(draw, result_text=None):
     """Another command's case in a read-only folder: its outputs written there, its inputs and store
     there too, or its inputs (the store among them) only readable; a folder the command cannot write
     is refused in one line with nothing left behind, and reading needs no write access."""
-    command, files, argv = draw(case(result_text, [n for n in COMMANDS if n not in WRAPPERS]))
+    command, files, argv = draw(case(result_text, [n for n in COMMANDS if n not in WRAPPERS + NOT_WRAPPED]))
     how = draw(st.sampled_from(("outputs", "everything", "inputs")))
     if how == "inputs":
         store = [argv[k + 1] for k, a in enumerate(argv[:-1]) if a == "--store"]
@@ -1145,9 +1212,12 @@ COMMANDS = {
     "history": (1, functools.partial(store_case, "history")), "verify": (1, functools.partial(store_case, "verify")),
     "joints-program": (2, joints_program_case), "sidecar": (2, sidecar_case), "seatings": (2, seatings_case),
     "streams": (4, streams_case), "read-only": (3, read_only_case), "tools": (1, tools_case),
+    "numbers": (3, numbers_case),
 }
-# the families that take another command's case and change where its inputs and outputs are
+# the families that take another command's case and change where its inputs and outputs are, and
+# the family they leave alone (the same files as calibrate's, each case a calibration)
 WRAPPERS = ("streams", "read-only")
+NOT_WRAPPED = ("numbers",)
 # the commands whose cases start from a result file (``result_text``)
 NEEDS_RESULT = ("report", *STORE_COMMANDS, "sidecar")
 
@@ -1155,9 +1225,10 @@ NEEDS_RESULT = ("report", *STORE_COMMANDS, "sidecar")
 # the in-process sample of the test suite (tests/test_fuzz.py): the same cases, the slow command
 # (plan-sockets simulates its seatings, about a second a run) drawn less often, and so the families
 # that repeat the commands' own cases elsewhere (and may wait: a FIFO never written into is refused
-# after two seconds)
+# after two seconds); not numbers, whose every case is a calibration (seconds, and with --compare on
+# nonsense tens of them, the fuzz's hang bar): benchmarks/fuzz_cli.py --commands numbers runs it
 SAMPLE_WEIGHTS = {**{n: 4 * w for n, (w, _) in COMMANDS.items()}, "plan-sockets": 1, "streams": 4, "read-only": 4,
-                  "tools": 2}
+                  "tools": 2, "numbers": 0}
 # its share run in forked children (fork_case): the commands whose cases ask for the most work or
 # memory (large counts, long chains and tables, bombs), where a guard inside the process could come
 # too late (a long call into compiled code) and the operating system's limits are the real test
@@ -1740,8 +1811,10 @@ def forked_outcome(status, usage, killed: bool, folder: Path, files: dict, argv:
 
     err = (folder / "stderr.txt").read_text(errors="replace") if (folder / "stderr.txt").exists() else ""
     cpu = usage.ru_utime + usage.ru_stime
-    if killed or (os.WIFSIGNALED(status) and os.WTERMSIG(status) in (signal.SIGXCPU, signal.SIGKILL)
-                  and cpu >= CPU_SECONDS):
+    signalled = os.WTERMSIG(status) if os.WIFSIGNALED(status) else None
+    # SIGXCPU comes only from the CPU limit (whose accounting may read a few ms under it); a SIGKILL
+    # past the limit's hard value is the same, one before it the kernel's answer to memory
+    if killed or signalled == signal.SIGXCPU or (signalled == signal.SIGKILL and cpu >= CPU_SECONDS):
         return "hang", err
     # the child's peak counts the pages it shares with this process (a long run's runner grows): those aside
     if os.WIFSIGNALED(status) or usage.ru_maxrss * 1024 > _rss() + MEMORY_BYTES + (400 << 20) or "MemoryError" in err:

@@ -81,3 +81,15 @@ def test_the_judge_reads_a_robot_named_like_a_number_in_a_urdf_as_a_name(tmp_pat
     assert fuzz_cases.non_finite(tmp_path, set()) is None
     out.write_text(out.read_text().replace('xyz="', 'xyz="nan ', 1))
     assert fuzz_cases.non_finite(tmp_path, set()) == "out.urdf"
+
+
+def test_the_judge_counts_a_child_stopped_by_its_cpu_limit_as_a_hang(tmp_path):
+    # a calibration with --compare on nonsense stopped by SIGXCPU whose rusage read 19.95 s of the
+    # 20 s limit was counted over-memory (the numbers family, seed 203); a SIGKILL before the limit
+    # is the kernel's answer to memory
+    import signal
+    from types import SimpleNamespace
+
+    usage = SimpleNamespace(ru_utime=19.9, ru_stime=0.05, ru_maxrss=100_000)
+    assert fuzz_cases.forked_outcome(signal.SIGXCPU, usage, False, tmp_path, {}, ["calibrate"])[0] == "hang"
+    assert fuzz_cases.forked_outcome(signal.SIGKILL, usage, False, tmp_path, {}, ["calibrate"])[0] == "over-memory"
