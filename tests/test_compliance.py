@@ -233,3 +233,21 @@ markers:""", 1)
     assert names == rc.candidate_parameters(model, ("compliance",))
     assert {n.split(".")[0] for n in names} == set(moving) and not any(n.startswith("flange.") for n in names)
     assert not any(n.startswith("flange.k_") for n in rc.candidate_parameters(flanged, ("*.k_*",)))
+
+
+def test_data_failing_a_check_before_solving_compare_nothing():
+    """Points in metres declared as millimetres (a cloud 1,000 times the robot's spread too small):
+    0fb5037 compared compliance and every transmission level on them too, each crawling to its
+    evaluation limit (20 s of CPU for 20 poses); the geometric calibration's failure is the answer."""
+    m = cylindrical(masses=True)
+    _, data = rc.simulate(m, 40, seed=3)
+    wrong = replace(data, positions=data.positions * 1e-3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        comparison = rc.compare(m, wrong)
+    assert comparison.geometric.verdict == "fail" and comparison.combined is None
+    assert comparison.transmission is None
+    assert comparison.skipped == ("nothing compared: the data fail measured points against the robot's size, "
+                                  "checked before solving; correct them and compare again",)
+    clean = rc.compare(m, data, transmission=False)       # the same robot's own data: compared
+    assert clean.combined is not None and clean.skipped == ()

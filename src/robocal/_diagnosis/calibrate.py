@@ -16,7 +16,7 @@ from .._base.arguments import FLAG, FRACTION, accepts, both, is_a, measured_on, 
 from .._base.errors import DegenerateDataError, InputError
 from .._base.threads import one_blas_thread
 from .._identification.calibrate import check_inputs, nested_test, options_of, run
-from .._identification.checks import Check
+from .._identification.checks import BEFORE_SOLVING, Check
 from .._identification.holdout import DEFAULT_FOLDS
 from .._identification.identifiability import DEFAULT_TOL
 from .._identification.judgement import warn_checks
@@ -174,6 +174,11 @@ def compare(model: RobotModel, data: Measurements | None = None, *, contacts: Co
         return screened(model, data, contacts, *run(model, data, contacts, validation, settled), settled)
 
     found: dict = {"geometric": fit("geometric"), "skipped": []}
+    wrong = [c.name for c in found["geometric"].checks if c.status == "fail" and c.name in BEFORE_SOLVING]
+    if wrong:       # a larger model fitted to a mistake says nothing of the robot
+        found["skipped"].append(f"nothing compared: the data fail {', '.join(wrong)}, checked before solving; "
+                                "correct them and compare again")
+        return Comparison(skipped=tuple(found.pop("skipped")), **found)
     _compare_compliance(model, fit, found, validation, alpha)
     if backlash:
         _compare_backlash(model, fit, found, validation, alpha)

@@ -203,10 +203,16 @@ def _listed(items, n: int = 6) -> str:
 
 # -- the inputs, before solving --------------------------------------------------------------------
 
+READINGS = "joint readings within the limits"
+READING_UNITS = "joint reading units"
+CLOUD_SIZE = "measured points against the robot's size"
+# the checks of the inputs that can fail: a mistake in the data, whatever model is fitted to them
+BEFORE_SOLVING = (READINGS, READING_UNITS, CLOUD_SIZE)
+
 def readings_check(model: RobotModel, q: np.ndarray, labels) -> Check:
     """Every joint reading ``q`` (n, n_joints) within the model's limits; readings beyond them named
     by pose (``labels``) and joint."""
-    name = "joint readings within the limits"
+    name = READINGS
     lo, hi = model.lower_limits, model.upper_limits
     span = np.abs(np.where(np.isfinite(hi - lo), hi - lo, 0.0))
     slack = np.maximum(1e-9 * np.maximum(1.0, span), READING_SLACK * span)
@@ -263,7 +269,7 @@ def reading_units_check(model: RobotModel, q: np.ndarray) -> Check:
     """A revolute reading that moves but stays within pi degrees, where its limits allow far more,
     looks like radians declared as degrees: a failure when every moving angle reading does so (no
     campaign keeps every joint within three degrees), a warning for some (a joint may barely move)."""
-    name = "joint reading units"
+    name = READING_UNITS
     angle = np.array([k == "angle" for k in model.reading_quantities])
     span = model.upper_limits - model.lower_limits
     lo, hi = column_extent(q)
@@ -285,7 +291,7 @@ def cloud_size_check(model: RobotModel, data: Measurements, predicted: np.ndarra
     ``predicted`` (n_poses, n_data_markers, 3): nominal marker positions, any base pose (the spread
     does not depend on it).
     """
-    name = "measured points against the robot's size"
+    name = CLOUD_SIZE
     m = data.mask
     if m.all():       # every point measured: the points as they are, in the order the mask would pick them
         measured, nominal = point_spread(data.positions), point_spread(predicted)
