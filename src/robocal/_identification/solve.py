@@ -148,6 +148,9 @@ def _trust_region(problem: Problem, p0: np.ndarray, loss: str, f_scale, max_nfev
         for _ in range(6):
             mad = 1.4826 * float(np.median(np.abs(sol.fun - np.median(sol.fun))))
             new_scale = max(ROBUST_SCALE_SIGMAS * mad, 1e-12)
+            if sol.status == 0:     # stopped at its evaluation limit: fitting again from there crawls on
+                f_scale = new_scale if f_scale is None else f_scale
+                break
             if f_scale is not None and abs(new_scale - f_scale) < 0.05 * f_scale:
                 break
             f_scale = new_scale
