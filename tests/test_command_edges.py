@@ -62,6 +62,21 @@ def test_a_holdout_that_holds_out_no_pose_or_every_pose_is_refused(cli, tmp_path
     assert_one_line_error(code, err, ["t.csv", "--holdout", "of 30 poses holds out", "1/30 to 29/30"], tmp_path / "o")
 
 
+def test_a_full_turn_joint_read_beyond_its_limits_at_every_pose_fails_its_check(cli, tmp_path):
+    """The tool roll (limits +-180 deg, a full turn: its range of use is the campaign's) read 574.32
+    deg at every pose: 0e1f3e7 drew the workspace between 574.32 and 180 deg and raised numpy's
+    'high - low < 0' (the numbers fuzz family, seed 204). The readings' check fails the calibration."""
+    lines = (TH8 / "measurements.csv").read_text().splitlines()
+    rows = [row.split(",") for row in lines[1:]]
+    for row in rows:
+        row[6] = "574.32"
+    (tmp_path / "roll.csv").write_text("\n".join([lines[0]] + [",".join(r) for r in rows]) + "\n")
+    code, out, err = cli("calibrate", TH8 / "model.yaml", tmp_path / "roll.csv", "--out", tmp_path / "o",
+                         "--parameters", "markers")
+    assert code == 3 and "Traceback" not in err
+    assert "FAIL joint readings within the limits" in out and "j6 = 574.32 deg" in out
+
+
 def test_points_that_never_move_while_the_joints_do_are_refused(cli, tmp_path):
     """Every measured point the same (the instrument repeated one reading, or a pivot about the tool
     point): 5162251 fitted a geometry that puts the tool there at every pose (a 17-pose campaign with

@@ -715,7 +715,8 @@ def use_box(model, q: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]
         for j, _ in f.coupling:
             angle[j] |= f.joint == "revolute"
     nominal = angle & ~(model.upper_limits - model.lower_limits < 2 * np.pi - 1e-9)
-    qlo, qhi = column_extent(q)
+    # readings beyond the limits (which a check fails) count at the limit they passed
+    qlo, qhi = (np.clip(v, model.lower_limits, model.upper_limits) for v in column_extent(q))
     margin = USE_MARGIN * (qhi - qlo)
     lo = np.where(nominal, np.maximum(qlo - margin, model.lower_limits), lo)
     hi = np.where(nominal, np.minimum(qhi + margin, model.upper_limits), hi)
