@@ -128,7 +128,9 @@ def compare(model: RobotModel, data: Measurements | None = None, *, contacts: Co
     """Run geometric and geometric-plus-compliance identifications on the same data (the paper's two),
     with ``backlash`` a third (geometric, compliance and backlash, tested against the second), and
     with ``transmission`` the transmission terms added to each of these, the terms kept chosen by
-    the error in use. A model without link masses skips what needs them and says so (``skipped``).
+    the error in use. A model without link masses skips what needs them and says so (``skipped``);
+    data that fail a check made before solving (readings, their units, the points' size) compare
+    nothing beyond the geometric calibration, saying so.
 
     Keyword arguments other than ``parameters`` go to every ``calibrate`` call.
 

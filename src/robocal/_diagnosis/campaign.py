@@ -440,16 +440,21 @@ def joint_rehomed(ref: Reference) -> list[Candidate]:
     M, b = projected_products(ref, Z * (_row_pose(ref) >= row)[:, None])
     if not M[0, 0] > 0:
         return []
-    off = float(b[0] / M[0, 0])           # the readings less the joint's position, from that row on
-    name = ref.model.joint_names[j]
-    size = f"{np.degrees(abs(off)):.3g} deg" if ref.model.reading_quantities[j] == "angle" else mm(abs(off))
+    name, size = _joint_offset(ref, j, float(b[0] / M[0, 0]))     # from that row on
     label = _label(ref, row)
     freedom = np.log2(max(ref.data.n_poses, 2)) + np.log2(max(len(steppable), 2))
-    return [Candidate("joint rehomed", f"from {label} on, joint {name} reads {size} {'more' if off > 0 else 'less'} "
-                      "than before at the same position (the joint rehomed, or its encoder slipped)", "",
+    return [Candidate("joint rehomed", f"from {label} on, joint {name} reads {size} than before at the same "
+                      "position (the joint rehomed, or its encoder slipped)", "",
                       f"home joint {name} again and check its encoder; calibrate the rows before and after {label} "
                       "apart, or measure again", (label, name), _predicted(ref, gain, 1.0 + freedom), freedom,
                       partial(_stepped, ref, Z, row))]
+
+
+def _joint_offset(ref: Reference, j: int, off: float) -> tuple[str, str]:
+    """Joint ``j``'s name, and ``off`` (its readings less its position, rad or m) in words: "0.1 deg
+    more" or "0.2 mm less"."""
+    size = f"{np.degrees(abs(off)):.3g} deg" if ref.model.reading_quantities[j] == "angle" else mm(abs(off))
+    return ref.model.joint_names[j], f"{size} {'more' if off > 0 else 'less'}"
 
 
 def _stepped(ref: Reference, Z: np.ndarray, row: int) -> Linear:
@@ -491,16 +496,13 @@ def _joint_drift(ref: Reference, t: np.ndarray) -> list[Candidate]:
     k = int(np.argmax(gains))
     if not d[k] > 0:
         return []
-    off = float(b[k] / d[k])             # the readings less the joint's position, last row against first
-    j = steppable[k]
-    name = ref.model.joint_names[j]
-    size = f"{np.degrees(abs(off)):.3g} deg" if ref.model.reading_quantities[j] == "angle" else mm(abs(off))
+    name, size = _joint_offset(ref, steppable[k], float(b[k] / d[k]))   # last row against first
     first, last = ref.campaign.labels[0], ref.campaign.labels[-1]
     freedom = np.log2(max(len(steppable), 2))
     return [Candidate("drift", f"joint {name}'s readings drift slowly off its position along the campaign, {size} "
-                      f"{'more' if off > 0 else 'less'} at {last} than at {first} (the joint warming up, or its "
-                      "encoder creeping)", "", f"let the robot warm up before measuring, check joint {name}'s "
-                      "encoder, measure again", (first, last, name), _predicted(ref, float(gains[k]), 1.0 + freedom),
+                      f"at {last} than at {first} (the joint warming up, or its encoder creeping)", "",
+                      f"let the robot warm up before measuring, check joint {name}'s encoder, measure again",
+                      (first, last, name), _predicted(ref, float(gains[k]), 1.0 + freedom),
                       freedom, partial(Linear, Z[:, [k]]))]
 
 

@@ -209,6 +209,7 @@ CLOUD_SIZE = "measured points against the robot's size"
 # the checks of the inputs that can fail: a mistake in the data, whatever model is fitted to them
 BEFORE_SOLVING = (READINGS, READING_UNITS, CLOUD_SIZE)
 
+
 def readings_check(model: RobotModel, q: np.ndarray, labels) -> Check:
     """Every joint reading ``q`` (n, n_joints) within the model's limits; readings beyond them named
     by pose (``labels``) and joint."""
