@@ -3,6 +3,7 @@ against central finite differences (with compliance and backlash), the terms rec
 simulated campaigns, and the family everywhere a family goes."""
 
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,6 +15,7 @@ import robocal as rc
 from robocal.kinematics import evaluate, parameter_layout
 
 DEG = np.pi / 180
+EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
 
 def _with_transmission(model, rng, *, reduction=0.0, scale=1e-2):
@@ -171,6 +173,47 @@ def test_compare_on_a_campaign_too_small_for_its_largest_level_compares_the_othe
         "transmission (up to the second harmonic, on geometric and compliance) not compared: 20 poses")
     assert "62 identifiable parameters" in cmp.skipped[0] and cmp.skipped[0] in cmp.verdict
 
+
+def test_compare_on_a_few_poses_gives_each_larger_model_a_budget_of_evaluations(monkeypatch):
+    """20 of the TH8 example's poses, the base registered: compliance and the transmission levels
+    (35 to 57 parameters on 60 equations) ran Levenberg-Marquardt for 612 to 5,800 evaluations each
+    (47 s in all). A model the comparison offers gets the model choice's budget; the geometric
+    calibration is the one ``calibrate`` gives, and a level not converged within the budget is left
+    out, saying so."""
+    import warnings
+
+    from robocal._identification import solve as solve_module
+    from robocal._identification.steps import COMPARED_NFEV
+
+    model = rc.read_model(EXAMPLES / "th8" / "model.yaml")
+    data = rc.io.read_measurements(EXAMPLES / "th8" / "measurements.csv", model)
+    poses = (17, 28, 26, 4, 10, 5, 21, 8, 3, 24, 19, 25, 30, 18, 6, 13, 20, 29, 16, 9)
+    few = data.subset(np.array([data.labels.index(f"P{p:02d}") for p in poses]))
+    evaluations = []
+    solved = solve_module._levenberg_marquardt
+
+    def counted(*args, **kwargs):
+        out = solved(*args, **kwargs)
+        evaluations.append(out.nfev)
+        return out
+
+    monkeypatch.setattr(solve_module, "_levenberg_marquardt", counted)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", rc.RobocalWarning)
+        cmp = rc.compare(model, few, initial_base="register")
+        alone = rc.calibrate(model, few, initial_base="register")
+    assert max(evaluations) <= COMPARED_NFEV, sorted(evaluations)[-5:]
+    assert [e.estimate for e in cmp.geometric.parameters] == [e.estimate for e in alone.parameters]
+    compared = [r for r in (cmp.combined, cmp.backlash, cmp.transmission) if r is not None]
+    assert compared and all(r.solver.success for r in compared)
+    assert all("not compared" in s and ("evaluations" in s or "equations" in s) for s in cmp.skipped)
+    # a budget too small for any larger model: each is left out and said, the geometric one stands
+    monkeypatch.setattr("robocal._diagnosis.calibrate.COMPARED_NFEV", 2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", rc.RobocalWarning)
+        starved = rc.compare(model, few, initial_base="register")
+    assert starved.combined is None and starved.transmission is None and starved.best is starved.geometric
+    assert starved.skipped[0].startswith("compliance not compared: its fit had not converged after 2 evaluations")
 
 def test_simulate_adds_transmission_errors_and_export_says_it_cannot_carry_them(tmp_path, cli):
     rc.write_model(arm6r(), tmp_path / "model.yaml")

@@ -21,7 +21,7 @@ from .._identification.holdout import DEFAULT_FOLDS
 from .._identification.identifiability import DEFAULT_TOL
 from .._identification.judgement import warn_checks
 from .._identification.result import CalibrationResult, Comparison, Diagnosis, NestedTest, compared_name
-from .._identification.steps import Fit, Options
+from .._identification.steps import COMPARED_NFEV, Fit, Options
 from .._model.contacts import Contacts
 from .._model.measurements import Measurements
 from .._model.parameters import transmission_names
@@ -130,7 +130,10 @@ def compare(model: RobotModel, data: Measurements | None = None, *, contacts: Co
     with ``transmission`` the transmission terms added to each of these, the terms kept chosen by
     the error in use. A model without link masses skips what needs them and says so (``skipped``);
     data that fail a check made before solving (readings, their units, the points' size) compare
-    nothing beyond the geometric calibration, saying so.
+    nothing beyond the geometric calibration, saying so. A larger model is solved within
+    ``COMPARED_NFEV`` evaluations of the residuals (``max_nfev`` when given), as the model choice's
+    designs are: one not converged by then (a model the data barely determine, which could crawl on
+    for thousands) is left out, saying so.
 
     Keyword arguments other than ``parameters`` go to every ``calibrate`` call.
 
@@ -172,7 +175,10 @@ def compare(model: RobotModel, data: Measurements | None = None, *, contacts: Co
     check_inputs(model, data, contacts, validation, options)
 
     def fit(*families: str) -> CalibrationResult:
-        settled = options_of({**options, "parameters": families})
+        # a larger model is offered, not asked for: it gets the model choice's budget of evaluations
+        budget = options["max_nfev"] if options["max_nfev"] is not None or families == ("geometric",) \
+            else COMPARED_NFEV
+        settled = options_of({**options, "parameters": families, "max_nfev": budget})
         return screened(model, data, contacts, *run(model, data, contacts, validation, settled), settled)
 
     found: dict = {"geometric": fit("geometric"), "skipped": []}
@@ -194,13 +200,20 @@ NO_MASSES = "the model has no link masses (--assume-masses assumes them from the
 
 def _fitted_or_skipped(fit, found: dict, what: str, *families: str) -> CalibrationResult | None:
     """The calibration of ``families``, or None with ``what`` and why in ``found["skipped"]`` when the
-    data cannot determine that larger model (too few poses for its parameters): the comparison of
-    the others stands."""
+    data cannot determine that larger model (too few poses for its parameters, or a solve that did
+    not converge within its evaluations: ``COMPARED_NFEV`` unless ``max_nfev`` is given): the
+    comparison of the others stands."""
     try:
-        return fit(*families)
+        large = fit(*families)
     except DegenerateDataError as e:
         found["skipped"].append(f"{what} not compared: {e}")
         return None
+    if not large.solver.success:
+        found["skipped"].append(f"{what} not compared: its fit had not converged after {large.solver.nfev} "
+                                f"evaluations of the residuals: a model of {len(large.parameters)} parameters these "
+                                "data barely determine")
+        return None
+    return large
 
 
 def _compare_compliance(model: RobotModel, fit, found: dict, validation, alpha: float) -> None:
