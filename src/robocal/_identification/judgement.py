@@ -577,7 +577,9 @@ def record(inputs: Inputs, analysis: Analysis, fit: Fit, before: np.ndarray, cov
         checks=tuple(checks), notes=notes,
         provenance=provenance(inputs.data, inputs.validation, inputs.contacts, inputs.validation_contacts))
     # the calibrated model says what it is, wherever it is written (never the nominal model's words)
-    described = result.calibrated_model.replace(description=calibrated_description(calibration_record(result)))
+    calibrated = result.calibrated_model
+    described = calibrated.replace(description=calibrated_description(calibration_record(result)))
+    described.derived(parameter_layout, lambda: parameter_layout(calibrated))     # a description: the same names
     return replace(result, calibrated_model=described)
 
 

@@ -252,8 +252,10 @@ def model_from_vector(model: RobotModel, p: np.ndarray) -> RobotModel:
         q = p[lay.marker0[m]:lay.marker0[m] + len(MARKER_KINDS)]
         R = np.asarray(mk.rotation) @ small_rotation(*q[3:6])
         markers.append(replace(mk, position=vector3(q[:3]), rotation=matrix_tuple(R)))
-    return model.replace(base_position=vector3(p[0:3]), base_rotation=matrix_tuple(Rb),
-                         frames=frames, markers=tuple(markers))
+    out = model.replace(base_position=vector3(p[0:3]), base_rotation=matrix_tuple(Rb), frames=frames,
+                        markers=tuple(markers))
+    out.derived(parameter_layout, lambda: lay)      # the same names: the layout is the same record
+    return out
 
 
 def _frame_geometric(model: RobotModel, i: int) -> list[str]:
