@@ -25,23 +25,16 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(os.path.dirname(HERE), "tests"))
-from robots import arm6r, cylindrical  # noqa: E402
+from robots import beyond_model  # noqa: E402
 
 import robocal as rc  # noqa: E402
-from robocal.sim import PRESETS, measure_real  # noqa: E402
 
 UNBUDGETED = {"max_nfev": 10 ** 9}
 
 
 def simulated(n: int, rng):
-    robots = [("arm6r", arm6r(masses=True)), ("cylindrical", cylindrical(masses=True))]
-    for k in range(n):
-        name, nominal = robots[k % 2]
-        preset = list(PRESETS)[k % len(PRESETS)]
-        true = rc.perturb_model(nominal, rc.identifiability(nominal).identified, rng=int(rng.integers(1 << 30)))
-        q = rc.random_configurations(nominal, int(rng.integers(20, 121)), rng=int(rng.integers(1 << 30)))
-        data = measure_real(true, q, PRESETS[preset], noise=2e-5, rng=int(rng.integers(1 << 30)), robot_seed=k)
-        yield f"{name} {preset} #{k} ({len(q)} poses)", nominal, data, {}
+    for name, preset, k, nominal, data in beyond_model(n, rng, poses=(20, 120)):
+        yield f"{name} {preset} #{k} ({data.n_poses} poses)", nominal, data, {}
 
 
 def th8_subsets(n: int, rng):

@@ -39,10 +39,11 @@ sys.path.insert(0, os.path.join(HERE, "..", "tests"))
 import diagnosis_corpus as corpus  # noqa: E402
 import real_campaigns as real  # noqa: E402
 import real_mistakes  # noqa: E402
+from robots import beyond_model  # noqa: E402
 
 import robocal as rc  # noqa: E402
 from robocal.errors import InputError, RobocalError  # noqa: E402
-from robocal.sim import PRESETS, measure_real  # noqa: E402
+from robocal.sim import PRESETS  # noqa: E402
 
 # a calibrated model this far (RMS, m) from the truth is wrong
 WRONG = 0.3e-3
@@ -112,17 +113,11 @@ def no_cause(subsets: int, simulated: int, seed: int) -> None:
     for robot, k, model, subset in real.subsets(subsets, rng):
         n += 1
         _tally(f"{robot} subset {k} ({subset.n_poses} poses)", _calibrated(model, subset), named, failed)
-    robots = [("arm6r", corpus.arm6r(masses=True)), ("cylindrical", corpus.cylindrical(masses=True))]
-    for k in range(simulated):
-        name, nominal = robots[k % 2]
-        preset = sorted(PRESETS)[k % len(PRESETS)]
-        true = rc.perturb_model(nominal, rc.identifiability(nominal).identified, rng=int(rng.integers(1 << 30)))
-        q = rc.random_configurations(nominal, int(rng.integers(60, 301)), rng=int(rng.integers(1 << 30)))
-        data = measure_real(true, q, PRESETS[preset], noise=2e-5, rng=int(rng.integers(1 << 30)), robot_seed=k)
+    for name, preset, k, nominal, data in beyond_model(simulated, rng, presets=sorted(PRESETS)):
         families = ("geometric", "compliance") if preset in ("elastic", "cable") else ("geometric",)
         res = _calibrated(nominal, data, parameters=families)
         n += 1
-        _tally(f"{name} {preset} #{k} ({len(q)} poses)", res, named, failed)
+        _tally(f"{name} {preset} #{k} ({data.n_poses} poses)", res, named, failed)
     print(f"clean campaigns: {n}; a cause named in {len(named)}, the verdict failed in {len(failed)}")
     for line in named + failed:
         print(f"  {line}")

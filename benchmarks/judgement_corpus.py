@@ -31,10 +31,10 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "tests"))
 
 import real_campaigns as real  # noqa: E402
-from robots import arm6r, cylindrical, humanoid  # noqa: E402
+from robots import beyond_model, humanoid  # noqa: E402
 
 import robocal as rc  # noqa: E402
-from robocal.sim import PRESETS, UnmodelledEffects, measure_real  # noqa: E402
+from robocal.sim import UnmodelledEffects, measure_real  # noqa: E402
 
 
 def _calibrate(model, data, **kw):
@@ -67,17 +67,10 @@ def real_subsets(n: int, seed: int) -> dict:
 
 
 def simulated(n: int, seed: int) -> dict:
-    rng = np.random.default_rng(seed)
-    robots = [("arm6r", arm6r(masses=True)), ("cylindrical", cylindrical(masses=True))]
     tally = _tally()
-    for k in range(n):
-        name, nominal = robots[k % len(robots)]
-        preset = list(PRESETS)[k % len(PRESETS)]
-        true = rc.perturb_model(nominal, rc.identifiability(nominal).identified, rng=int(rng.integers(1 << 30)))
-        q = rc.random_configurations(nominal, int(rng.integers(60, 301)), rng=int(rng.integers(1 << 30)))
-        data = measure_real(true, q, PRESETS[preset], noise=2e-5, rng=int(rng.integers(1 << 30)), robot_seed=k)
+    for name, preset, k, nominal, data in beyond_model(n, np.random.default_rng(seed)):
         families = ("geometric", "compliance") if preset in ("elastic", "cable") else ("geometric",)
-        _record(tally, f"{name} {preset} #{k} ({len(q)} poses, {'+'.join(families)})",
+        _record(tally, f"{name} {preset} #{k} ({data.n_poses} poses, {'+'.join(families)})",
                 _calibrate(nominal, data, parameters=families))
     return tally
 

@@ -215,6 +215,7 @@ def test_compare_on_a_few_poses_gives_each_larger_model_a_budget_of_evaluations(
     assert starved.combined is None and starved.transmission is None and starved.best is starved.geometric
     assert starved.skipped[0].startswith("compliance not compared: its fit had not converged after 2 evaluations")
 
+
 def test_simulate_adds_transmission_errors_and_export_says_it_cannot_carry_them(tmp_path, cli):
     rc.write_model(arm6r(), tmp_path / "model.yaml")
     code, out, err = cli("simulate", tmp_path / "model.yaml", "--out", tmp_path / "sim.csv", "--poses", "30",
