@@ -214,6 +214,13 @@ def test_compare_on_a_few_poses_gives_each_larger_model_a_budget_of_evaluations(
         starved = rc.compare(model, few, initial_base="register")
     assert starved.combined is None and starved.transmission is None and starved.best is starved.geometric
     assert starved.skipped[0].startswith("compliance not compared: its fit had not converged after 2 evaluations")
+    # the caller's own budget too small: the message blames the budget, not the data
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", rc.RobocalWarning)
+        capped = rc.compare(model, few, initial_base="register", max_nfev=2)
+    assert capped.combined is None and capped.transmission is None
+    assert capped.skipped[0] == ("compliance not compared: its fit had not converged within the 2 evaluations of "
+                                 "the residuals max_nfev allows"), capped.skipped
 
 
 def test_simulate_adds_transmission_errors_and_export_says_it_cannot_carry_them(tmp_path, cli):

@@ -176,10 +176,17 @@ def compare(model: RobotModel, data: Measurements | None = None, *, contacts: Co
 
     def fit(*families: str) -> CalibrationResult:
         # a larger model is offered, not asked for: it gets the model choice's budget of evaluations
-        budget = options["max_nfev"] if options["max_nfev"] is not None or families == ("geometric",) \
-            else COMPARED_NFEV
+        given = options["max_nfev"] is not None
+        budget = options["max_nfev"] if given or families == ("geometric",) else COMPARED_NFEV
         settled = options_of({**options, "parameters": families, "max_nfev": budget})
-        return screened(model, data, contacts, *run(model, data, contacts, validation, settled), settled)
+        result, chosen = run(model, data, contacts, validation, settled)
+        if families != ("geometric",) and not result.solver.success:      # not diagnosed: it is left out
+            raise _NotConverged(f"its fit had not converged within the {budget} evaluations of the residuals "
+                                "max_nfev allows" if given else
+                                f"its fit had not converged after {result.solver.nfev} evaluations of the "
+                                f"residuals: a model of {len(result.parameters)} parameters these data barely "
+                                "determine")
+        return screened(model, data, contacts, result, chosen, settled)
 
     found: dict = {"geometric": fit("geometric"), "skipped": []}
     wrong = [c.name for c in found["geometric"].checks if c.status == "fail" and c.name in BEFORE_SOLVING]
@@ -204,16 +211,14 @@ def _fitted_or_skipped(fit, found: dict, what: str, *families: str) -> Calibrati
     not converge within its evaluations: ``COMPARED_NFEV`` unless ``max_nfev`` is given): the
     comparison of the others stands."""
     try:
-        large = fit(*families)
-    except DegenerateDataError as e:
+        return fit(*families)
+    except (DegenerateDataError, _NotConverged) as e:
         found["skipped"].append(f"{what} not compared: {e}")
         return None
-    if not large.solver.success:
-        found["skipped"].append(f"{what} not compared: its fit had not converged after {large.solver.nfev} "
-                                f"evaluations of the residuals: a model of {len(large.parameters)} parameters these "
-                                "data barely determine")
-        return None
-    return large
+
+
+class _NotConverged(Exception):
+    """A larger model's fit that had not converged within its evaluations: left out of a comparison."""
 
 
 def _compare_compliance(model: RobotModel, fit, found: dict, validation, alpha: float) -> None:
