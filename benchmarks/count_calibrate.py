@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import os
 import re
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -84,6 +85,8 @@ def main() -> None:
     args = ap.parse_args()
     if args.child >= 0:
         return child(args.child, args.calls)
+    if shutil.which("valgrind") is None:
+        raise SystemExit("count_calibrate.py needs valgrind (Debian: apt install valgrind)")
     sys.path.insert(0, HERE)
     from bench_kinematics import baseline_sources
 
