@@ -56,16 +56,6 @@ def positive(value, name: str, *, high: float | None = None) -> float:
     return number(value, name, low=0.0, low_open=True, high=high)
 
 
-def non_negative(value, name: str) -> float:
-    """A finite number >= 0."""
-    return number(value, name, low=0.0)
-
-
-def optional_positive(value, name: str) -> float | None:
-    """None, or a finite number > 0."""
-    return None if value is None else positive(value, name)
-
-
 def integer(value, name: str, *, low: int | None = None, high: int | None = None) -> int:
     """A whole number (not a bool, not a float) within [``low``, ``high``]."""
     ok = isinstance(value, numbers.Integral) and not isinstance(value, (bool, np.bool_))
@@ -83,11 +73,6 @@ def flag(value, name: str) -> bool:
     if not isinstance(value, (bool, np.bool_)):
         raise InputError(f"must be True or False, got {excerpt(value)}", where=name)
     return bool(value)
-
-
-def optional_flag(value, name: str) -> bool | None:
-    """None (decided from the data), True or False."""
-    return None if value is None else flag(value, name)
 
 
 def text(value, name: str) -> str:

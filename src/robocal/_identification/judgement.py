@@ -14,7 +14,6 @@ from .._base.errors import CheckWarning, ConvergenceWarning, IdentifiabilityWarn
 from .._model.configurations import design_measurements
 from .._model.measurements import Measurements, Noise
 from .._model.parameters import model_from_vector, parameter_layout
-from .._model.robot import RobotModel
 from .checks import (
     OVERFIT_RATIO,
     Check,
@@ -581,8 +580,3 @@ def record(inputs: Inputs, analysis: Analysis, fit: Fit, before: np.ndarray, cov
     described = calibrated.replace(description=calibrated_description(calibration_record(result)))
     described.derived(parameter_layout, lambda: parameter_layout(calibrated))     # a description: the same names
     return replace(result, calibrated_model=described)
-
-
-def nominal_model_of(design: Design, before: np.ndarray) -> RobotModel:
-    """The nominal geometry with its base and markers registered (what errors before are taken at)."""
-    return model_from_vector(design.start, before[:design.problem.n_robot])

@@ -17,7 +17,6 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .._base.errors import DegenerateDataError, InputError
-from .._model.configurations import design_measurements
 from .._model.contacts import Contacts
 from .._model.measurements import Measurements, Noise
 from .._model.parameters import (
@@ -849,11 +848,6 @@ def rehomed_on(problem: Problem, p: np.ndarray) -> tuple[str, float, str, np.nda
             quantity = "length" if f.joint == "prismatic" else "angle"
             best = (ssr, name, float(p[i] - sol.p[i]), quantity, sol.p)
     return None if best is None else best[1:]
-
-
-def design_points(start: RobotModel, q: np.ndarray, markers, compliance: bool) -> Problem:
-    """The problem of ``start`` at readings ``q`` with nothing measured (its predictions)."""
-    return Problem(start, (), data=design_measurements(start, q, markers=markers), compliance=compliance)
 
 
 def vector_of(model: RobotModel, problem: Problem) -> np.ndarray:

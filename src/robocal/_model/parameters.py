@@ -454,12 +454,6 @@ def has_compliance_parameters(model: RobotModel, names: Iterable[str]) -> bool:
     return any(lay[n].family == "compliance" for n in names)
 
 
-def has_transmission_parameters(model: RobotModel, names: Iterable[str]) -> bool:
-    """Whether any of ``names`` is a transmission term of ``model``."""
-    lay = parameter_layout(model)
-    return any(lay[n].family == "transmission" for n in names)
-
-
 def has_backlash_parameters(model: RobotModel, names: Iterable[str]) -> bool:
     """Whether any of ``names`` is a backlash of ``model``."""
     lay = parameter_layout(model)
