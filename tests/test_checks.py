@@ -450,3 +450,28 @@ def test_outlier_bar_rises_with_the_campaign_so_clean_noise_names_no_point():
     check, out = outlier_check(residuals, None, Noise.of(position=NOISE), labels)
     assert check.status == "warn" and np.flatnonzero(out).tolist() == [123] and check.items[0].startswith("pose 123,")
 
+
+
+def test_an_unconverged_fit_names_what_stopped_it():
+    """The caller's budget, a model the data barely determine, or a far start: each its own cause,
+    and a registered base offered only where the fit did not start from one."""
+    from robocal._identification.checks import convergence_check
+
+    stopped = dict(success=False, message="the maximum number of function evaluations is exceeded", nfev=5800)
+    crawl = convergence_check(**stopped, n_free=48, n_rows=60, can_register=True)
+    assert crawl.status == "fail" and crawl.cause == "a model these data barely determine: 48 parameters on 60 equations"
+    assert "--register-base" not in crawl.fix and "fewer parameters" in crawl.fix
+    far = convergence_check(**stopped, n_free=30, n_rows=300, can_register=True)
+    assert far.cause.startswith("a start far from the truth") and far.fix.endswith("(--register-base)")
+    registered = convergence_check(**stopped, n_free=30, n_rows=300, can_register=False)
+    assert "--register-base" not in registered.fix
+    assert convergence_check(True, "", 4, n_free=48, n_rows=60, can_register=True).status == "pass"
+    # through calibrate: the budget it was given is named, not the data
+    root = Path(__file__).resolve().parent.parent / "examples" / "th8"
+    model = rc.read_model(root / "model.yaml")
+    data = rc.io.read_measurements(root / "measurements.csv", model)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", rc.RobocalWarning)
+        result = rc.calibrate(model, data, initial_base="register", max_nfev=2)
+    check = next(c for c in result.checks if c.name == "solver convergence")
+    assert check.status == "fail" and check.cause == "the 2 evaluations of the residuals max_nfev allows", check

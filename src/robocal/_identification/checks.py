@@ -347,13 +347,27 @@ def markers_apart_check(nominal: RobotModel, calibrated: RobotModel, seen) -> Ch
                  fix="check the marker columns of the measurement file", items=tuple(bad))
 
 
-def convergence_check(success: bool, message: str, nfev: int) -> Check:
+def convergence_check(success: bool, message: str, nfev: int, *, n_free: int, n_rows: int,
+                      can_register: bool, max_nfev: int | None = None) -> Check:
+    """The solver's own test. Not converged, the cause said is the caller's ``max_nfev`` when that
+    stopped it; the model's size when the data leave fewer residual degrees of freedom than it has
+    parameters (a fit that crawls along directions the data barely fix); else a far start, with a
+    registered base to try when the fit did not start from one (``can_register``)."""
     name = "solver convergence"
     if success:
         return Check(name, "pass", f"converged after {nfev} evaluations")
-    return Check(name, "fail", f"the solver stopped without converging after {nfev} evaluations: {message}",
+    said = f"the solver stopped without converging after {nfev} evaluations: {message}"
+    if max_nfev is not None and nfev >= max_nfev:
+        return Check(name, "fail", said, cause=f"the {max_nfev} evaluations of the residuals max_nfev allows",
+                     fix="allow more evaluations (max_nfev), or leave it out for the solver's default")
+    if n_rows - n_free < n_free:
+        return Check(name, "fail", said, cause=f"a model these data barely determine: {n_free} parameters on "
+                     f"{n_rows} equations", fix="identify fewer parameters (--parameters, --known) or add poses "
+                     "(robocal plan)")
+    return Check(name, "fail", said,
                  cause="a start far from the truth (units, a rough base guess) or data the model cannot fit",
-                 fix="check the other checks first; start from a registered base (--register-base)")
+                 fix="check the other checks first" + ("; start from a registered base (--register-base)"
+                                                       if can_register else ""))
 
 
 def expected_noise(noise: Noise, limit_m: float | None) -> tuple[float, str]:

@@ -332,7 +332,11 @@ def fit_checks(fit: Fit, options: Options, in_use_record: AccuracyInUse | None, 
     """Convergence, then each kind's residuals against what the instrument explains (judged by what
     the accuracy in use shows), and the orientations of 6D data."""
     solution, noise = fit.solution, options.noise
-    out = [convergence_check(solution.success, solution.message, solution.nfev)]
+    # a registered base to try: measured points fix the frame, and the fit did not start from one
+    can_register = fit.problem.points is not None and options.initial_base != "register"
+    out = [convergence_check(solution.success, solution.message, solution.nfev,
+                             n_free=solution.jacobian.shape[1], n_rows=fit.problem.n_rows, can_register=can_register,
+                             max_nfev=options.max_nfev)]
     errors = fit.problem.observation_errors(solution.p)
     dof = kind_dof(fit.problem, solution, errors)
     explained = explained_in_use(in_use_record, better)
