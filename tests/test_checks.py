@@ -459,7 +459,8 @@ def test_an_unconverged_fit_names_what_stopped_it():
 
     stopped = dict(success=False, message="the maximum number of function evaluations is exceeded", nfev=5800)
     crawl = convergence_check(**stopped, n_free=48, n_rows=60, can_register=True)
-    assert crawl.status == "fail" and crawl.cause == "a model these data barely determine: 48 parameters on 60 equations"
+    assert crawl.status == "fail"
+    assert crawl.cause == "a model these data barely determine: 48 parameters on 60 equations"
     assert "--register-base" not in crawl.fix and "fewer parameters" in crawl.fix
     far = convergence_check(**stopped, n_free=30, n_rows=300, can_register=True)
     assert far.cause.startswith("a start far from the truth") and far.fix.endswith("(--register-base)")
