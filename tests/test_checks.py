@@ -451,7 +451,6 @@ def test_outlier_bar_rises_with_the_campaign_so_clean_noise_names_no_point():
     assert check.status == "warn" and np.flatnonzero(out).tolist() == [123] and check.items[0].startswith("pose 123,")
 
 
-
 def test_an_unconverged_fit_names_what_stopped_it():
     """The caller's budget, a model the data barely determine, or a far start: each its own cause,
     and a registered base offered only where the fit did not start from one."""
