@@ -45,7 +45,7 @@ def run(args) -> int:
 
     from .._files.contacts import contacts_to_csv
     from .._files.model import read_model
-    from .._presentation.contacts import socket_plan_summary
+    from .._presentation.text import socket_plan_summary
     from .._simulation.sockets import plan_sockets
 
     if args.out:
