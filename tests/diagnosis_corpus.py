@@ -173,6 +173,19 @@ def joint_drifting(robot, seed):
     return Case("a joint's readings drifting 0.1 deg along the campaign", m, replace(d, q=q), ("drift",), truth=true)
 
 
+def lost_motion(robot, seed):
+    """The first angle joint with 0.05 deg of lost motion (backlash) the model leaves out, each pose
+    approached as the rows come: the campaign simulator's robot, not the model's backlash."""
+    m, true, d = _sim(robot, seed)
+    j = _angle_joint(m, 0)
+    lost = np.zeros(m.n_joints)
+    lost[j] = 0.05 * DEG
+    imp = rc.sim.RobotImperfections(encoder_resolution=(0.0,) * m.n_joints, repeatability_sigma=NOISE,
+                                    instrument_noise_per_m=0.0, backlash=tuple(lost))
+    data = rc.sim.measure_campaign(true, d.q, imp, rng=seed)
+    return Case("a joint with 0.05 deg of lost motion", m, data, ("lost motion",), truth=true)
+
+
 def _compliances(robot):
     """The true compliances of the joints that bend under a payload, rad/(N m)."""
     return {"j2.k_theta": 5e-6, "j3.k_theta": 6e-6} if robot == "6r" else {"j2.k_alpha": 2e-6, "j3.k_alpha": 3e-6}
@@ -415,12 +428,12 @@ def readings_lag(robot, seed):
 
 
 MISTAKES = (missed_shot, labels_offset, left_handed, axes_in_marker, marker_copied, gear_small, gear_large, joint_sign,
-            joint_still, joint_rehomed, joint_drifting, sister_robot, payload_mid, payload_grams, reflector_moved,
-            tool_changed, second_nest, labels_swapped, tracker_bumped, thermal_drift, rotations_inverted,
-            euler_convention, quaternion_order, metres_as_mm, mm_as_metres, degrees_as_radians, radians_as_degrees,
-            one_joint_unit, prismatic_mm_as_m, whole_turn, targets, model_sign, link_off, model_in_metres,
-            markers_swapped, reading_typo, joints_swapped, marker_frame, another_robot, labels_cyclic, blunder,
-            readings_lag)
+            joint_still, joint_rehomed, joint_drifting, lost_motion, sister_robot, payload_mid, payload_grams,
+            reflector_moved, tool_changed, second_nest, labels_swapped, tracker_bumped, thermal_drift,
+            rotations_inverted, euler_convention, quaternion_order, metres_as_mm, mm_as_metres, degrees_as_radians,
+            radians_as_degrees, one_joint_unit, prismatic_mm_as_m, whole_turn, targets, model_sign, link_off,
+            model_in_metres, markers_swapped, reading_typo, joints_swapped, marker_frame, another_robot, labels_cyclic,
+            blunder, readings_lag)
 
 
 def mistakes(robot: str, seed: int):

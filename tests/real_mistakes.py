@@ -209,6 +209,16 @@ def joint_drifting(robot: str, joint: int = 1, drift_deg: float = 0.1) -> Case:
                  ("drift",))
 
 
+def lost_motion(robot: str, joint: int = 1, lost_deg: float = 0.05) -> Case:
+    """One joint with ``lost_deg`` of lost motion (backlash) more than the robot has: its readings
+    half of it ahead of its position, along the direction of its last move in the grid's order."""
+    _, grid, _, _ = clean(robot)
+    q = grid.q.copy()
+    q[:, joint] += np.radians(lost_deg) / 2 * rc.sim.approach_sides(grid.q)[:, joint]
+    return _case(f"joint {joint + 1} with {lost_deg:g} deg of lost motion", robot, replace(grid, q=q),
+                 ("lost motion",))
+
+
 def reading_typo(robot: str) -> Case:
     """One joint reading mistyped (40 deg off)."""
     _, grid, _, _ = clean(robot)
@@ -235,7 +245,7 @@ def validation_repeated(robot: str) -> Case:
 
 MISTAKES = (tool_changed, reflector_moved, second_nest, gear_ratio, whole_turn, targets, link_off, model_in_metres,
             missed_shot, mirrored, joint_sign, joints_swapped, millimetres_as_metres, tracker_bumped, joint_rehomed,
-            joint_drifting, reading_typo, readings_lag, validation_repeated)
+            joint_drifting, lost_motion, reading_typo, readings_lag, validation_repeated)
 # the same mistakes elsewhere: another joint, link, ratio, row and tool
 VARIANTS = (partial(gear_ratio, ratio=0.99, joint=2), partial(whole_turn, joint=0), partial(joint_sign, joint=1),
             partial(link_off, frame=1, error=0.05), partial(tool_changed, row_share=0.3, offset=(0.0, 0.01, 0.0)))

@@ -368,6 +368,39 @@ def test_a_joint_drifting_on_the_real_ur5_is_named_not_the_instrument():
     assert "check joint shoulder_lift's encoder" in found.fix
 
 
+@pytest.mark.parametrize("robot", ["6r", "cylindrical"])
+def test_lost_motion_the_model_leaves_out_is_named_and_calibrating_it_as_said_clears_it(robot):
+    """The first joint stopping 0.05 deg apart from either side (the campaign simulator's lost motion,
+    not the model's), calibrated as rigid: 00ce07c named nothing and passed with a misfit five times
+    the noise. The joint's lost motion takes one column (its reading's column times its approach
+    side); its size is the one simulated, and the calibration the fix asks for passes with it."""
+    case = corpus.lost_motion(robot, 5)
+    result = case.run()[0]
+    found = _first(result)
+    assert result.verdict == "fail" and found.hypothesis == "lost motion" and found.items == ("j1",)
+    said = re.search(r"joint j1 stops about ([0-9.]+) deg apart when approached from either side", found.cause)
+    assert said is not None, found.cause
+    assert float(said.group(1)) == pytest.approx(0.05, rel=0.05)
+    assert "--parameters geometric,backlash --backlash-side approach" in found.fix
+    fixed = _calibrated(case.model.replace(backlash_side="approach"), case.data, parameters=("geometric", "backlash"))
+    assert fixed.verdict == "pass" and not fixed.diagnosis.findings, fixed.diagnosis.summary
+    lost = next(e for e in fixed.parameters if e.name == "j1.backlash_theta")
+    assert abs(2 * lost.estimate - np.radians(0.05)) < 3 * 2 * lost.std
+
+
+@pytest.mark.parametrize("joint, name", [(1, "shoulder_lift"), (2, "elbow")])
+def test_lost_motion_added_to_the_real_ur5_is_a_possible_cause_with_its_size(joint, name):
+    """0.05 deg more lost motion on the UR5's shoulder or elbow, along the grid's own order: the
+    calibration stays within 0.07 mm of the clean grid's in use, so the cause warns (a model that
+    carries it does better) rather than fails, with the joint and the size injected."""
+    result = rm.lost_motion("UR5", joint=joint).run()
+    found = _first(result)
+    assert result.verdict == "warn" and found.hypothesis == "lost motion" and found.status == "warn"
+    said = re.search(rf"joint {name} stops about ([0-9.]+) deg apart", found.cause)
+    assert said is not None, found.cause
+    assert float(said.group(1)) == pytest.approx(0.05, rel=0.1)
+
+
 def test_a_prismatic_joint_rehomed_under_three_times_the_noise_is_named():
     """The cylindrical arm's radial (prismatic) joint reads 0.2 mm more from the middle of 60 poses on:
     the fit's residuals stay under 3 times the tracker's, where the whole robot's step is not tried,

@@ -20,7 +20,7 @@ from .._base.spatial import rotation_vector, small_rotation
 from .._identification.holdout import ordered
 from .._identification.points import Points
 from .._identification.problem import Problem
-from .._model.measurements import Measurements
+from .._model.measurements import Measurements, approach_of
 from .._model.parameters import candidate_parameters, parameter_layout
 from .._model.robot import Marker, Payload, RobotModel
 from .joints import joint_columns
@@ -504,6 +504,38 @@ def _joint_drift(ref: Reference, t: np.ndarray) -> list[Candidate]:
                       f"let the robot warm up before measuring, check joint {name}'s encoder, measure again",
                       (first, last, name), _predicted(ref, float(gains[k]), 1.0 + freedom),
                       freedom, partial(Linear, Z[:, [k]]))]
+
+
+def lost_motion(ref: Reference) -> list[Candidate]:
+    """Lost motion (backlash) the calibration leaves out: a joint that stops short of its reading by a
+    constant, behind the direction of its last move in the campaign's order (docs/conventions.md,
+    backlash). The joint whose lost motion takes most away (one column each: its reading's column
+    times its approach side at each pose), the choice counted against it; a step the other way (the
+    arm ahead of its reading, as a lagging log puts it) is no lost motion."""
+    lay = parameter_layout(ref.model)
+    if any(lay[n].family == "backlash" for n in ref.names):
+        return []
+    steppable = _steppable_joints(ref)
+    if not steppable:
+        return []
+    side = approach_of(ref.data)[row_layout(ref)[0]]
+    Z = joint_columns(ref)[:, steppable] * side[:, steppable]
+    M, b = projected_products(ref, Z)
+    d = np.diag(M)
+    gains = np.where(d > 0, b ** 2 / np.where(d > 0, d, 1.0), 0.0)
+    k = int(np.argmax(gains))
+    half = float(b[k] / d[k]) if d[k] > 0 else 0.0       # the reading less the position, along the approach
+    if not half > 0:
+        return []
+    j = steppable[k]
+    name = ref.model.joint_names[j]
+    size = f"{np.degrees(2 * half):.3g} deg" if ref.model.reading_quantities[j] == "angle" else mm(2 * half)
+    freedom = np.log2(max(len(steppable), 2))
+    return [Candidate("lost motion", f"joint {name} stops about {size} apart when approached from either side "
+                      "(lost motion, backlash), which the model leaves out", "",
+                      "calibrate it (--parameters geometric,backlash --backlash-side approach), or approach every "
+                      "pose from the same side", (name,), _predicted(ref, float(gains[k]), 1.0 + freedom), freedom,
+                      partial(Linear, Z[:, [k]]), carried=True)]
 
 
 # -- the joint readings against the measurements ------------------------------------------------------
