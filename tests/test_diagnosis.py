@@ -388,6 +388,22 @@ def test_lost_motion_the_model_leaves_out_is_named_and_calibrating_it_as_said_cl
     assert abs(2 * lost.estimate - np.radians(0.05)) < 3 * 2 * lost.std
 
 
+def test_lost_motion_is_judged_by_the_files_approach_columns_when_it_has_them(tmp_path, cli):
+    """The rows of the lost-motion campaign shuffled: with the approach directions the robot moved by
+    (the file's `approach_` columns) the cause is still named, through the command line as in Python;
+    without them the rows' order says nothing of the sides, and nothing is named (no false cause)."""
+    case = corpus.lost_motion("6r", 5)
+    shuffled = case.data.subset(np.random.default_rng(0).permutation(case.data.n_poses))
+    rc.write_model(case.model, tmp_path / "m.yaml")
+    rc.write_measurements(shuffled, tmp_path / "d.csv", model=case.model)
+    assert "approach_j1" in (tmp_path / "d.csv").read_text().splitlines()[0]
+    code, out, _ = cli("calibrate", tmp_path / "m.yaml", tmp_path / "d.csv", "--out", tmp_path / "a")
+    assert code == 3 and out.splitlines()[1].startswith("  DECISIVE: joint j1 stops about 0.0")
+    bare = replace(shuffled, extra={k: v for k, v in shuffled.extra.items() if k != "approach"})
+    result = _calibrated(case.model, bare)
+    assert not any(f.hypothesis == "lost motion" for f in result.diagnosis.findings), result.diagnosis.summary
+
+
 @pytest.mark.parametrize("joint, name", [(1, "shoulder_lift"), (2, "elbow")])
 def test_lost_motion_added_to_the_real_ur5_is_a_possible_cause_with_its_size(joint, name):
     """0.05 deg more lost motion on the UR5's shoulder or elbow, along the grid's own order: the
