@@ -173,17 +173,32 @@ def joint_drifting(robot, seed):
     return Case("a joint's readings drifting 0.1 deg along the campaign", m, replace(d, q=q), ("drift",), truth=true)
 
 
-def lost_motion(robot, seed):
-    """The first angle joint with 0.05 deg of lost motion (backlash) the model leaves out, each pose
-    approached as the rows come: the campaign simulator's robot, not the model's backlash."""
-    m, true, d = _sim(robot, seed)
-    j = _angle_joint(m, 0)
+def _lost(robot, seed, joint, *, masses=False, friction=()):
+    """The arm with 0.05 deg of lost motion on ``joint`` the model leaves out: the campaign
+    simulator's robot (``RobotImperfections``), not the model's backlash. ``friction`` () rests it
+    behind its last move, zeros where its gravity load pushes it."""
+    m, true, d = _sim(robot, seed, masses=masses)
     lost = np.zeros(m.n_joints)
-    lost[j] = 0.05 * DEG
+    lost[joint] = 0.05 * DEG
     imp = rc.sim.RobotImperfections(encoder_resolution=(0.0,) * m.n_joints, repeatability_sigma=NOISE,
-                                    instrument_noise_per_m=0.0, backlash=tuple(lost))
-    data = rc.sim.measure_campaign(true, d.q, imp, rng=seed)
+                                    instrument_noise_per_m=0.0, backlash=tuple(lost), backlash_friction=friction)
+    return m, true, rc.sim.measure_campaign(true, d.q, imp, rng=seed)
+
+
+def lost_motion(robot, seed):
+    """The first angle joint with 0.05 deg of lost motion, each pose approached as the rows come."""
+    m, true, data = _lost(robot, seed, _angle_joint(ROBOTS[robot](), 0))
     return Case("a joint with 0.05 deg of lost motion", m, data, ("lost motion",), truth=true)
+
+
+def lost_motion_gravity(robot, seed):
+    """The 6R arm's shoulder with 0.05 deg of lost motion, resting where its gravity load pushes it
+    (the load turns over within the workspace); the cylindrical arm's loaded joints are slides whose
+    load never turns over (a joint offset takes it up): no case."""
+    if robot != "6r":
+        return None
+    m, true, data = _lost(robot, seed, 1, masses=True, friction=(0.0,) * 6)
+    return Case("the shoulder with 0.05 deg of lost motion under gravity", m, data, ("lost motion",), truth=true)
 
 
 def _compliances(robot):
@@ -428,8 +443,8 @@ def readings_lag(robot, seed):
 
 
 MISTAKES = (missed_shot, labels_offset, left_handed, axes_in_marker, marker_copied, gear_small, gear_large, joint_sign,
-            joint_still, joint_rehomed, joint_drifting, lost_motion, sister_robot, payload_mid, payload_grams,
-            reflector_moved, tool_changed, second_nest, labels_swapped, tracker_bumped, thermal_drift,
+            joint_still, joint_rehomed, joint_drifting, lost_motion, lost_motion_gravity, sister_robot, payload_mid,
+            payload_grams, reflector_moved, tool_changed, second_nest, labels_swapped, tracker_bumped, thermal_drift,
             rotations_inverted, euler_convention, quaternion_order, metres_as_mm, mm_as_metres, degrees_as_radians,
             radians_as_degrees, one_joint_unit, prismatic_mm_as_m, whole_turn, targets, model_sign, link_off,
             model_in_metres, markers_swapped, reading_typo, joints_swapped, marker_frame, another_robot, labels_cyclic,

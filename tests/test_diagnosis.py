@@ -21,7 +21,7 @@ import robots
 from scipy.spatial.transform import Rotation
 
 import robocal as rc
-from robocal._diagnosis import reference
+from robocal._diagnosis import campaign, reference
 from robocal.errors import InputError
 
 pytestmark = pytest.mark.skipif(not real.FILES.exists(), reason="the real campaigns are not here")
@@ -368,24 +368,41 @@ def test_a_joint_drifting_on_the_real_ur5_is_named_not_the_instrument():
     assert "check joint shoulder_lift's encoder" in found.fix
 
 
-@pytest.mark.parametrize("robot", ["6r", "cylindrical"])
-def test_lost_motion_the_model_leaves_out_is_named_and_calibrating_it_as_said_clears_it(robot):
-    """The first joint stopping 0.05 deg apart from either side (the campaign simulator's lost motion,
-    not the model's), calibrated as rigid: 00ce07c named nothing and passed with a misfit five times
-    the noise. The joint's lost motion takes one column (its reading's column times its approach
-    side); its size is the one simulated, and the calibration the fix asks for passes with it."""
-    case = corpus.lost_motion(robot, 5)
+@pytest.mark.parametrize("robot, make, seed, joint, side", [("6r", corpus.lost_motion, 5, "j1", "approach"),
+                                                            ("cylindrical", corpus.lost_motion, 5, "j1", "approach"),
+                                                            ("6r", corpus.lost_motion_gravity, 0, "j2", "gravity")])
+def test_lost_motion_the_model_leaves_out_is_named_and_calibrating_it_as_said_clears_it(robot, make, seed, joint,
+                                                                                         side):
+    """A joint stopping 0.05 deg apart (the campaign simulator's lost motion, not the model's) behind
+    its last move or under its gravity load, calibrated as rigid: 00ce07c named nothing and passed
+    with a misfit four to eight times the noise. The joint's lost motion takes one column (its
+    reading's column times its side); its size is the one simulated, and the calibration the fix asks
+    for passes with it."""
+    case = make(robot, seed)
     result = case.run()[0]
     found = _first(result)
-    assert result.verdict == "fail" and found.hypothesis == "lost motion" and found.items == ("j1",)
-    said = re.search(r"joint j1 stops about ([0-9.]+) deg apart when approached from either side", found.cause)
+    assert result.verdict == "fail" and found.hypothesis == "lost motion" and found.items == (joint,)
+    when = "when approached from either side" if side == "approach" else "as its gravity load turns over"
+    said = re.search(rf"joint {joint} stops about ([0-9.]+) deg apart {when}", found.cause)
     assert said is not None, found.cause
     assert float(said.group(1)) == pytest.approx(0.05, rel=0.05)
-    assert "--parameters geometric,backlash --backlash-side approach" in found.fix
-    fixed = _calibrated(case.model.replace(backlash_side="approach"), case.data, parameters=("geometric", "backlash"))
+    assert f"--parameters geometric,backlash --backlash-side {side}" in found.fix
+    fixed = _calibrated(case.model.replace(backlash_side=side), case.data, parameters=("geometric", "backlash"))
     assert fixed.verdict == "pass" and not fixed.diagnosis.findings, fixed.diagnosis.summary
-    lost = next(e for e in fixed.parameters if e.name == "j1.backlash_theta")
+    lost = next(e for e in fixed.parameters if e.name == f"{joint}.backlash_theta")
     assert abs(2 * lost.estimate - np.radians(0.05)) < 3 * 2 * lost.std
+
+
+def test_a_side_that_never_changes_is_no_lost_motion():
+    """Every pose approached from above (the file's approach columns all +1) on clean campaigns: a
+    lost motion would be a joint offset the calibration already holds, and no size is made up from
+    rounding (a screen without the span guard proposed j6 at 9e11 deg here)."""
+    for robot in corpus.ROBOTS:
+        for seed in range(3):
+            model, _, data = corpus._sim(robot, seed)
+            data = replace(data, extra={**data.extra, "approach": np.ones_like(data.q)})
+            ref = reference.reference(model, data, _calibrated(model, data))
+            assert campaign.lost_motion(ref) == [], (robot, seed)
 
 
 def test_lost_motion_is_judged_by_the_files_approach_columns_when_it_has_them(tmp_path, cli):

@@ -20,11 +20,13 @@ from .._base.spatial import rotation_vector, small_rotation
 from .._identification.holdout import ordered
 from .._identification.points import Points
 from .._identification.problem import Problem
+from .._model.kinematics import gravity_loads
 from .._model.measurements import Measurements, approach_of
 from .._model.parameters import candidate_parameters, parameter_layout
 from .._model.robot import Marker, Payload, RobotModel
 from .joints import joint_columns
 from .reference import (
+    SPAN_SHARE,
     SURVIVE_FACTOR,
     Candidate,
     Linear,
@@ -506,36 +508,55 @@ def _joint_drift(ref: Reference, t: np.ndarray) -> list[Candidate]:
                       freedom, partial(Linear, Z[:, [k]]))]
 
 
+def _lost_motion_sides(ref: Reference) -> dict:
+    """(n_poses, n_joints) per way a joint can rest in its lost motion, the side its position lies
+    behind its reading at each pose diagnosed (+1: below the reading): the direction of its last move
+    (``approach``), and with link masses the side its gravity load turns it away from
+    (``gravity``: docs/conventions.md, backlash)."""
+    sides = {"approach": approach_of(ref.data)}
+    if ref.start.has_masses:
+        sides["gravity"] = -np.sign(gravity_loads(ref.start, ref.data.q, payload_mass=ref.data.payload_mass))
+    return sides
+
+
 def lost_motion(ref: Reference) -> list[Candidate]:
     """Lost motion (backlash) the calibration leaves out: a joint that stops short of its reading by a
-    constant, behind the direction of its last move in the campaign's order (docs/conventions.md,
-    backlash). The joint whose lost motion takes most away (one column each: its reading's column
-    times its approach side at each pose), the choice counted against it; a step the other way (the
-    arm ahead of its reading, as a lagging log puts it) is no lost motion."""
+    constant, behind the direction of its last move in the campaign's order or against its gravity
+    load (docs/conventions.md, backlash). The joint and side whose lost motion takes most away (one
+    column each: its reading's column times its side at each pose), the choice counted against it. A
+    side that never changes is a joint offset (its column within the calibration's span: nothing to
+    tell), and a step the other way (the arm ahead of its reading, as a lagging log puts it) is no
+    lost motion."""
     lay = parameter_layout(ref.model)
     if any(lay[n].family == "backlash" for n in ref.names):
         return []
     steppable = _steppable_joints(ref)
     if not steppable:
         return []
-    side = approach_of(ref.data)[row_layout(ref)[0]]
-    Z = joint_columns(ref)[:, steppable] * side[:, steppable]
+    pose = row_layout(ref)[0]
+    J = joint_columns(ref)[:, steppable]
+    kinds = list(_lost_motion_sides(ref).items())
+    Z = np.hstack([J * side[pose][:, steppable] for _, side in kinds])
     M, b = projected_products(ref, Z)
     d = np.diag(M)
-    gains = np.where(d > 0, b ** 2 / np.where(d > 0, d, 1.0), 0.0)
+    apart = d > SPAN_SHARE * np.sum(Z ** 2, axis=0)         # columns the calibration's own do not hold
+    gains = np.where(apart, b ** 2 / np.where(apart, d, 1.0), 0.0)
     k = int(np.argmax(gains))
-    half = float(b[k] / d[k]) if d[k] > 0 else 0.0       # the reading less the position, along the approach
+    half = float(b[k] / d[k]) if apart[k] else 0.0          # the reading less the position, behind
     if not half > 0:
         return []
-    j = steppable[k]
+    how, j = kinds[k // len(steppable)][0], steppable[k % len(steppable)]
     name = ref.model.joint_names[j]
     size = f"{np.degrees(2 * half):.3g} deg" if ref.model.reading_quantities[j] == "angle" else mm(2 * half)
-    freedom = np.log2(max(len(steppable), 2))
-    return [Candidate("lost motion", f"joint {name} stops about {size} apart when approached from either side "
-                      "(lost motion, backlash), which the model leaves out", "",
-                      "calibrate it (--parameters geometric,backlash --backlash-side approach), or approach every "
-                      "pose from the same side", (name,), _predicted(ref, float(gains[k]), 1.0 + freedom), freedom,
-                      partial(Linear, Z[:, [k]]), carried=True)]
+    when = "when approached from either side" if how == "approach" else "as its gravity load turns over"
+    freedom = np.log2(max(len(Z[0]), 2))
+    return [Candidate("lost motion", f"joint {name} stops about {size} apart {when} (lost motion, backlash), which "
+                      "the model leaves out", "",
+                      f"calibrate it (--parameters geometric,backlash --backlash-side {how}), or approach every pose "
+                      "from the same side" if how == "approach" else
+                      f"calibrate it (--parameters geometric,backlash --backlash-side {how})", (name,),
+                      _predicted(ref, float(gains[k]), 1.0 + freedom), freedom, partial(Linear, Z[:, [k]]),
+                      carried=True)]
 
 
 # -- the joint readings against the measurements ------------------------------------------------------
