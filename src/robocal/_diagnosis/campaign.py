@@ -455,8 +455,12 @@ def joint_rehomed(ref: Reference) -> list[Candidate]:
 def _joint_offset(ref: Reference, j: int, off: float) -> tuple[str, str]:
     """Joint ``j``'s name, and ``off`` (its readings less its position, rad or m) in words: "0.1 deg
     more" or "0.2 mm less"."""
-    size = f"{np.degrees(abs(off)):.3g} deg" if ref.model.reading_quantities[j] == "angle" else mm(abs(off))
-    return ref.model.joint_names[j], f"{size} {'more' if off > 0 else 'less'}"
+    return ref.model.joint_names[j], f"{_reading_size(ref, j, abs(off))} {'more' if off > 0 else 'less'}"
+
+
+def _reading_size(ref: Reference, j: int, v: float) -> str:
+    """``v`` of joint ``j``'s reading (rad or m) in words: "0.1 deg" or "0.2 mm"."""
+    return f"{np.degrees(v):.3g} deg" if ref.model.reading_quantities[j] == "angle" else mm(v)
 
 
 def _stepped(ref: Reference, Z: np.ndarray, row: int) -> Linear:
@@ -509,24 +513,24 @@ def _joint_drift(ref: Reference, t: np.ndarray) -> list[Candidate]:
 
 
 def _lost_motion_sides(ref: Reference) -> dict:
-    """(n_poses, n_joints) per way a joint can rest in its lost motion, the side its position lies
-    behind its reading at each pose diagnosed (+1: below the reading): the direction of its last move
-    (``approach``), and with link masses the side its gravity load turns it away from
-    (``gravity``: docs/conventions.md, backlash)."""
-    sides = {"approach": approach_of(ref.data)}
+    """(n_poses, n_joints) per way a joint can rest in its lost motion, the side of its gap it rests
+    on at each pose diagnosed, as the model's backlash takes it (+1: above its reading; docs/
+    conventions.md, backlash): behind its last move (``approach``), and with link masses where its
+    gravity load pushes it (``gravity``)."""
+    sides = {"approach": -approach_of(ref.data)}
     if ref.start.has_masses:
-        sides["gravity"] = -np.sign(gravity_loads(ref.start, ref.data.q, payload_mass=ref.data.payload_mass))
+        sides["gravity"] = np.sign(gravity_loads(ref.start, ref.data.q, payload_mass=ref.data.payload_mass))
     return sides
 
 
 def lost_motion(ref: Reference) -> list[Candidate]:
-    """Lost motion (backlash) the calibration leaves out: a joint that stops short of its reading by a
-    constant, behind the direction of its last move in the campaign's order or against its gravity
-    load (docs/conventions.md, backlash). The joint and side whose lost motion takes most away (one
-    column each: its reading's column times its side at each pose), the choice counted against it. A
-    side that never changes is a joint offset (its column within the calibration's span: nothing to
-    tell), and a step the other way (the arm ahead of its reading, as a lagging log puts it) is no
-    lost motion."""
+    """Lost motion (backlash) the calibration leaves out: a joint resting a constant off its reading,
+    on the side of its gap behind its last move in the campaign's order or where its gravity load
+    pushes it (docs/conventions.md, backlash). The joint and side whose lost motion takes most away
+    (one column each: its reading's column times its side at each pose), the choice counted against
+    it. A side that never changes is a joint offset (its column within the calibration's span:
+    nothing to tell), and a gap the other way (the arm ahead of its reading, as a lagging log puts
+    it) is no lost motion."""
     lay = parameter_layout(ref.model)
     if any(lay[n].family == "backlash" for n in ref.names):
         return []
@@ -542,19 +546,19 @@ def lost_motion(ref: Reference) -> list[Candidate]:
     apart = d > SPAN_SHARE * np.sum(Z ** 2, axis=0)         # columns the calibration's own do not hold
     gains = np.where(apart, b ** 2 / np.where(apart, d, 1.0), 0.0)
     k = int(np.argmax(gains))
-    half = float(b[k] / d[k]) if apart[k] else 0.0          # the reading less the position, behind
+    # the columns move the readings: the position sits -b/d off them along the side, half the gap
+    half = float(-b[k] / d[k]) if apart[k] else 0.0
     if not half > 0:
         return []
     how, j = kinds[k // len(steppable)][0], steppable[k % len(steppable)]
     name = ref.model.joint_names[j]
-    size = f"{np.degrees(2 * half):.3g} deg" if ref.model.reading_quantities[j] == "angle" else mm(2 * half)
     when = "when approached from either side" if how == "approach" else "as its gravity load turns over"
-    freedom = np.log2(max(len(Z[0]), 2))
-    return [Candidate("lost motion", f"joint {name} stops about {size} apart {when} (lost motion, backlash), which "
-                      "the model leaves out", "",
-                      f"calibrate it (--parameters geometric,backlash --backlash-side {how}), or approach every pose "
-                      "from the same side" if how == "approach" else
-                      f"calibrate it (--parameters geometric,backlash --backlash-side {how})", (name,),
+    fix = f"calibrate it (--parameters geometric,backlash --backlash-side {how})"
+    if how == "approach":
+        fix += ", or approach every pose from the same side"
+    freedom = np.log2(max(Z.shape[1], 2))
+    return [Candidate("lost motion", f"joint {name} stops about {_reading_size(ref, j, 2 * half)} apart {when} "
+                      "(lost motion, backlash), which the model leaves out", "", fix, (name,),
                       _predicted(ref, float(gains[k]), 1.0 + freedom), freedom, partial(Linear, Z[:, [k]]),
                       carried=True)]
 
