@@ -37,7 +37,8 @@ def untestable_signs(ref: Reference) -> list[str]:
     for a in ref.result.identifiability.eliminated:
         if a.name in lay.names and lay[a.name].family == "frames" and p[lay[a.name].index] != 0.0 and a.absorbers:
             by = ", ".join(n for n, _ in a.absorbers[:3])
-            out.append(f"the sign of the model's {a.name}: these data cannot tell it, {by} absorb it")
+            verb = "absorbs" if len(a.absorbers) == 1 else "absorb"
+            out.append(f"the sign of the model's {a.name}: these data cannot tell it, {by} {verb} it")
     return out
 
 
