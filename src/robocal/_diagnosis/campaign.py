@@ -20,7 +20,7 @@ from .._base.spatial import rotation_vector, small_rotation
 from .._identification.holdout import ordered
 from .._identification.points import Points
 from .._identification.problem import Problem
-from .._model.kinematics import gravity_loads
+from .._model.kinematics import loads_at
 from .._model.measurements import Measurements, approach_of
 from .._model.parameters import candidate_parameters, parameter_layout
 from .._model.robot import Marker, Payload, RobotModel
@@ -519,7 +519,10 @@ def _lost_motion_sides(ref: Reference) -> dict:
     gravity load pushes it (``gravity``)."""
     sides = {"approach": -approach_of(ref.data)}
     if ref.start.has_masses:
-        sides["gravity"] = np.sign(gravity_loads(ref.start, ref.data.q, payload_mass=ref.data.payload_mass))
+        # the calibrated model's loads, on the problem's structure: its layout is made (the model's would
+        # be made anew for each calibration, as long as the loads take)
+        prob, data = ref.problem, ref.data
+        sides["gravity"] = np.sign(loads_at(prob.model, prob.lay, ref.p, data.q, payload_mass=data.payload_mass))
     return sides
 
 

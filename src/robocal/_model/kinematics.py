@@ -1590,9 +1590,13 @@ def gravity_loads(model: RobotModel, q, *, payload_mass=None) -> np.ndarray:
     numpy.ndarray, shape (n_poses, n_joints)
         The load on each joint, N m or N.
     """
-    lay = layout(model)
-    q = _readings(model, q)
-    p = parameter_vector(model)
+    return loads_at(model, layout(model), parameter_vector(model), _readings(model, q), payload_mass=payload_mass)
+
+
+def loads_at(model: RobotModel, lay: Layout, p: np.ndarray, q: np.ndarray, *, payload_mass=None) -> np.ndarray:
+    """``gravity_loads`` of the model ``model`` has at the values ``p`` (its compliances ignored), for
+    a caller that holds its layout ``lay``: (N, n_joints) at readings ``q`` (N, n_joints)."""
+    p = np.array(p, dtype=float)
     p[lay.compliant_params] = 0.0
     st = evaluate_state(model, lay, p, q @ model.coupling_matrix.T, compliance=True, orientations=False,
                          payload_mass=payload_mass)
