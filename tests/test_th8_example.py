@@ -75,6 +75,9 @@ def test_demo_writes_the_story_and_says_the_robot_is_simulated(reproduce, tmp_pa
         "limit of absolute accuracy"]
     assert out.rstrip().splitlines()[-3].startswith("verdict: pass")
     assert "geometric alone: verdict: warn (1 warning(s): limit of absolute accuracy)" in out
+    # the checks listed are the combined identification's, and say so (they read as geometry's before)
+    said = out.index("geometric and compliance (result.json), check by check:")
+    assert out.index("geometric alone: verdict") < said < out.index("  ok   limit of absolute accuracy")
     assert "simulated" in (tmp_path / "summary.md").read_text()
 
 

@@ -271,6 +271,7 @@ def one(nominal, out: Path | None):
               "each transmission's friction, behind the last move elsewhere)", ""] + backlash_lines(cmp)
     # the verdict is the story's last line, as in `robocal calibrate`
     lines += ["", "## Checks of both identifications", "", "geometric alone: " + verdict_line(cmp.geometric), ""]
+    lines += ["geometric and compliance (result.json), check by check:", ""]
     lines += checks_lines(cmp.combined.checks) + ["", verdict_line(cmp.combined)]
     print("\n".join(lines))
     if out is not None:
