@@ -519,8 +519,8 @@ def _lost_motion_sides(ref: Reference) -> dict:
     gravity load pushes it (``gravity``)."""
     sides = {"approach": -approach_of(ref.data)}
     if ref.start.has_masses:
-        # the calibrated model's loads, on the problem's structure: its layout is made (the model's would
-        # be made anew for each calibration, as long as the loads take)
+        # on the problem's model, whose layout exists: the calibrated model's would be built anew each
+        # call, at about the cost of the loads themselves
         prob, data = ref.problem, ref.data
         sides["gravity"] = np.sign(loads_at(prob.model, prob.lay, ref.p, data.q, payload_mass=data.payload_mass))
     return sides

@@ -1594,8 +1594,8 @@ def gravity_loads(model: RobotModel, q, *, payload_mass=None) -> np.ndarray:
 
 
 def loads_at(model: RobotModel, lay: Layout, p: np.ndarray, q: np.ndarray, *, payload_mass=None) -> np.ndarray:
-    """``gravity_loads`` of the model ``model`` has at the values ``p`` (its compliances ignored), for
-    a caller that holds its layout ``lay``: (N, n_joints) at readings ``q`` (N, n_joints)."""
+    """``gravity_loads`` of ``model`` with its values set to ``p`` (compliances ignored), for a caller
+    that holds the model's layout ``lay``: (N, n_joints) at readings ``q`` (N, n_joints)."""
     p = np.array(p, dtype=float)
     p[lay.compliant_params] = 0.0
     st = evaluate_state(model, lay, p, q @ model.coupling_matrix.T, compliance=True, orientations=False,
