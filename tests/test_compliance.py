@@ -175,6 +175,27 @@ def test_gravity_loads_are_the_potential_energys_gradient(which):
                                _potential_gradient(m, q, payload_mass=pm), rtol=1e-6, atol=1e-6)
 
 
+def test_the_loads_of_other_values_on_a_models_layout_are_that_models_own():
+    """The diagnosis takes a calibrated model's gravity loads on the nominal's structure, whose layout
+    exists (``loads_at``): the numbers ``gravity_loads`` gives the calibrated model itself, its
+    compliances left out as there."""
+    from robocal._model.kinematics import layout, loads_at
+    from robocal._model.parameters import candidate_parameters, model_from_vector, parameter_layout, parameter_vector
+
+    m = arm6r(masses=True)
+    p = parameter_vector(m)
+    lay = parameter_layout(m)
+    moved = [lay[n].index for n in candidate_parameters(m, ("geometric", "compliance"))]
+    # values on the model's own layout (its stored rotations), as a calibration's are
+    p[moved] += np.random.default_rng(4).uniform(1e-6, 2e-2, len(moved))
+    other = model_from_vector(m, p)
+    q = rc.random_configurations(m, 9, rng=5)
+    pm = np.linspace(0.0, 3.0, len(q))
+    expected = rc.gravity_loads(other, q, payload_mass=pm)
+    assert np.abs(expected - rc.gravity_loads(m, q, payload_mass=pm)).max() > 1e-3      # the values matter
+    np.testing.assert_allclose(loads_at(m, layout(m), p, q, payload_mass=pm), expected, rtol=0, atol=1e-12)
+
+
 @pytest.mark.parametrize("factors", [(2.0, 0.5, 2.0, 0.5, 2.0, 0.5), (0.5, 2.0, 0.5, 2.0, 0.5, 2.0)])
 def test_default_masses_give_most_of_the_compliance_benefit(factors):
     """True masses up to 2x off the default mass model: compliance identified with the default still
