@@ -125,6 +125,10 @@ def test_calibrate_compare(tmp_path, cli):
     tried = out.split("transmission (up to the ", 1)
     assert "+transmission" in out and len(tried) == 2 and tried[1].split(":", 1)[0].endswith("did not help")
     assert "calibrated model chosen: geometric+compliance" in out
+    # a note every identification has is said once, not once per identification
+    notes = [line for line in out.splitlines() if line.startswith("note")]
+    assert len(notes) == len(set(n.split(": ", 1)[1] for n in notes))
+    assert "note: errors before calibration are those of the nominal geometry" in out
     assert sorted(p.name for p in (d / "cmp").iterdir()) == [
         "calibrated.yaml", "result-compliance.json", "result-compliance.npz", "result-geometric.json",
         "result-geometric.npz", "result-transmission.json", "result-transmission.npz", "result.json", "result.npz"]
