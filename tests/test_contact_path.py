@@ -3,6 +3,7 @@ any other (result.json, the report, the store, compensation take it), and every 
 ``calibrate`` works with contacts, each tested here on simulated socket campaigns."""
 
 import json
+import re
 import warnings
 from dataclasses import replace
 from pathlib import Path
@@ -77,6 +78,10 @@ def test_a_contact_calibration_is_a_calibration_result_that_reads_back_whole(arm
     from robocal.report import render_report
 
     assert render_report(back) == render_report(res)    # the page is the same from the file as from memory
+    # under its title, as a tracker calibration's page says: what was identified, when, by what
+    meta = re.search(r'<p class="meta">([^<]*)</p>', render_report(res)).group(1).split(" &middot; ")
+    assert meta[0] == ", ".join(res.families) + " identification from contacts"
+    assert meta[1].endswith(" UTC") and meta[2] == f"robocal {rc.__version__}"
 
 
 def test_a_broken_contacts_part_of_a_result_file_is_named(arm7, kit, tmp_path):

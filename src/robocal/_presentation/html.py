@@ -786,12 +786,16 @@ def render_report(result: CalibrationResult, *, extra: dict | None = None) -> st
     tables = _extra_tables(extra)
     need_matplotlib()  # fail early and clearly without the extra
     has_val = bool((d["stats"].get("validation_after") or {}).get("n"))
-    prov = d.get("provenance") or {}
-    meta = [", ".join(d.get("families") or []) + " identification", _date(prov.get("date", "date not recorded")),
-            f'{prov.get("software", "")} {prov.get("version", "")}'.strip()]
     robot = (d.get("nominal_model") or {}).get("name", "robot")
-    return _page(f"Calibration report: {_e(robot)}", robot, " &middot; ".join(_e(m) for m in meta if m),
+    return _page(f"Calibration report: {_e(robot)}", robot, _meta(d.get("families") or [], d.get("provenance") or {}),
                  _report_sections(d, result, has_val, tables), _headline(d) + "".join(_notices(d, has_val)))
+
+
+def _meta(families, provenance, how: str = "identification") -> str:
+    """The line under the page's title: what was identified and how, when, by which software."""
+    items = [", ".join(families) + f" {how}", _date(provenance.get("date", "date not recorded")),
+             f'{provenance.get("software", "")} {provenance.get("version", "")}'.strip()]
+    return " &middot; ".join(_e(m) for m in items if m)
 
 
 def _notices(d: dict, has_val: bool) -> list[str]:
@@ -1038,4 +1042,5 @@ def render_contact_report(result: CalibrationResult) -> str:
                 ("solver", "Solver", _kv([("converged", _e("yes" if result.solver.success else "no"), "success"),
                                           ("message", _e(result.solver.message), "message"),
                                           ("evaluations", _e(str(result.solver.nfev)), "nfev")]))]
-    return _page(f"Calibration report: {_e(robot)} (contacts)", robot, "calibration from contacts", sections)
+    return _page(f"Calibration report: {_e(robot)} (contacts)", robot,
+                 _meta(result.families, result.provenance, "identification from contacts"), sections)
