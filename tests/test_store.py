@@ -16,6 +16,7 @@ import sqlite3
 import sys
 import time
 import uuid
+import warnings
 from dataclasses import replace
 
 import numpy as np
@@ -393,6 +394,37 @@ def test_a_change_reads_in_display_units_with_its_sigma(campaign):
     line = rc.change_line(c)
     assert line.startswith("j2.theta +") and line.endswith(f"since 2026-01-01, {abs(c.sigma):.1f} sigma")
     assert f"{np.degrees(c.delta):.5f}".lstrip("-") in line
+
+
+def test_calibrations_of_other_parameters_are_not_compared_and_say_why(cli, tmp_path):
+    """The same campaign calibrated with compliance, then without: the geometric calibration's
+    estimates carry the compliances it leaves out (the elbow's, 8 standard deviations from zero), so
+    comparing the two named changes of a robot that did not change (j2.d and j2.theta, and something
+    changed at p = 7e-38). They are not compared, and record and history say why."""
+    model = arm6r(masses=True)
+    _, data = rc.simulate(model, 60, parameters=("geometric", "compliance"), compliance_error=(2e-6, 6e-6), seed=3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        both = rc.calibrate(model, data, parameters=("geometric", "compliance"))
+        geo = rc.calibrate(model, data)
+    pair = [replace(rc.stored_calibration(both, "R", at="2026-01-01"), id=1),
+            replace(rc.stored_calibration(geo, "R", at="2026-06-01"), id=2)]
+    assert not any(c.named for c in rc.judge_changes(pair)[0])
+    (o,) = rc.judge_overall(pair)
+    apart = {p.name for p in both.parameters
+             if p.family == "compliance" and abs(p.estimate - p.nominal) > _store.APART_SIGMAS * p.std}
+    assert not o.compared and not o.named and apart and set(o.apart) == apart
+    # the same calibrations twice are compared as before
+    assert rc.judge_overall([pair[0], replace(pair[0], id=3, calibrated_at="2026-09-01T00:00:00+00:00")])[0].compared
+    for name, result in (("both", both), ("geo", geo)):
+        rc.io.write_result(result, tmp_path / f"{name}.json")
+    store = tmp_path / "store.sqlite"
+    assert cli("record", tmp_path / "both.json", "--robot", "R", "--store", store, "--at", "2026-01-01")[0] == 0
+    code, out, err = cli("record", tmp_path / "geo.json", "--robot", "R", "--store", store, "--at", "2026-06-01")
+    assert code == 0 and "changes since the previous calibration: not compared with 2026-01-01: j3.k_theta" in out, err
+    code, out, err = cli("history", "R", "--store", store)
+    said = out.split("changes between consecutive")[1]
+    assert code == 0 and "none among the calibrations compared" in said and "not compared with 2026-01-01" in said
 
 
 def test_robots_of_a_type_side_by_side_name_the_one_that_stands_out(location, campaign):

@@ -14,7 +14,7 @@ import numpy as np
 from .._accuracy.verification import Verification
 from .._base.arguments import FLAG, PATH, TEXT, accepts, is_a
 from .._files.text import write_texts
-from .._store.store import Change, History, StoredCalibration, TypeComparison
+from .._store.store import APART_SIGMAS, Change, History, StoredCalibration, TypeComparison
 from .plots import need_matplotlib, plot_svg
 from .units import display_unit, fmt, with_unit
 
@@ -65,6 +65,15 @@ def overall_line(o) -> str:
             f"p = {o.p:.2g}")
 
 
+def apart_line(o) -> str:
+    """'not compared with 2026-03-02: j2.k_theta fitted beyond 3 sigma of nominal in one calibration and
+    not identified in the other, ...'."""
+    shown = ", ".join(o.apart[:4]) + (f" and {len(o.apart) - 4} more" if len(o.apart) > 4 else "")
+    return (f"not compared with {_day(o.since)}: {shown} fitted beyond {APART_SIGMAS:g} sigma of nominal in one "
+            "calibration and not identified in the other, whose estimates then carry them; calibrate both with the "
+            "same parameters to compare")
+
+
 def _accuracy_text(acc) -> str:
     return "no accuracy" if acc is None else f"{with_unit(acc.rms, 'm')} RMS ({acc.source})"
 
@@ -99,7 +108,9 @@ def history_summary(h: History) -> str:
                  f"uncertainty ({n} comparisons of {', '.join(h.families)} parameters; {h.alpha:.0%} chance of naming "
                  "one in an unchanged robot):")
     named = [change_line(c) for c in h.changes] + [overall_line(o) for o in h.overall if o.named]
-    lines += [f"  {line}" for line in named] or ["  none"]
+    apart = [apart_line(o) for o in h.overall if not o.compared]
+    lines += [f"  {line}" for line in named] or [f"  none{' among the calibrations compared' if apart else ''}"]
+    lines += [f"  {line}" for line in apart]
     rest = sorted((c for c in h.comparisons if not c.named and c.sigma), key=lambda c: -abs(c.sigma))[:3]
     if rest:
         lines.append("  largest movements within the uncertainty: " + "; ".join(change_line(c) for c in rest))
@@ -328,7 +339,8 @@ def render_history(h: History) -> str:
         f"<h2>Changes</h2><p>Between consecutive calibrations, judged at {h.threshold:.2f} standard deviations of "
         f"their combined uncertainty ({len(h.comparisons)} comparisons; a {h.alpha:.0%} chance of naming one in an "
         f"unchanged robot's history, with the overall tests).</p><ul>{changes}</ul>"
-        + "".join(f"<p>{_e(overall_line(o))}</p>" for o in h.overall if o.named),
+        + "".join(f"<p>{_e(overall_line(o))}</p>" for o in h.overall if o.named)
+        + "".join(f"<p>{_e(apart_line(o))}</p>" for o in h.overall if not o.compared),
         "<h2>Drift of each parameter</h2>" + (f"<figure>{drift}<figcaption>Estimates at each calibration with a band "
                                               f"of &plusmn;{BAND:g} standard deviations; red: a change named."
                                               "</figcaption></figure>" if drift else "<p>No parameter judged.</p>"),

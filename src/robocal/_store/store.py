@@ -66,6 +66,9 @@ RCOND = {8: 1e-10, 4: 1e-4}
 MAX_NAME = 200
 # the largest standard deviation judged: its square, a variance, still a float
 MAX_STD = 1e150
+# a parameter one calibration fits this many standard deviations from its nominal and the other
+# holds at nominal (or leaves out) is carried by the other's estimates: the two are not compared
+APART_SIGMAS = 3.0
 # seconds a write waits for another process's write lock, and before it says it waits
 LOCK_WAIT = 120.0
 WAIT_NOTICE = 1.0
@@ -247,6 +250,13 @@ class Overall:
     dof: int
     p: float
     named: bool
+    apart: tuple[str, ...] = ()
+
+    @property
+    def compared(self) -> bool:
+        """Whether the two were compared: not when ``apart`` names parameters one identified away
+        from nominal that the other did not identify, whose estimates then carry them."""
+        return not self.apart
 
 
 @dataclass(frozen=True, eq=False)
@@ -395,8 +405,8 @@ def judge_changes(calibrations, *, alpha: float = DEFAULT_ALPHA, families=JUDGED
     """
     pairs = _pairs(calibrations, families)
     threshold = sidak_threshold(alpha * (1.0 - OVERALL_SHARE),
-                                sum(int(np.sum(_identified(_pseudo_inverse(p[3], p[4])[0]) > 0)) for p in pairs))
-    return tuple(c for p in pairs for c in _snooped(*p, threshold)), threshold
+                                sum(int(np.sum(_identified(_pseudo_inverse(p.C, p.rcond)[0]) > 0)) for p in pairs))
+    return tuple(c for p in pairs for c in _snooped(p.names, p.template, p.d, p.C, p.rcond, threshold)), threshold
 
 
 @accepts(calibrations=each_a(StoredCalibration), **_JUDGED)
@@ -423,16 +433,31 @@ def judge_overall(calibrations, *, alpha: float = DEFAULT_ALPHA, families=JUDGED
     pairs = _pairs(calibrations, families)
     level = -math.expm1(math.log1p(-alpha * OVERALL_SHARE) / max(len(pairs), 1))
     out = []
-    for _names, template, d, C, rcond in pairs:
-        Sp, rank = _pseudo_inverse(C, rcond)
-        stat = float(d @ Sp @ d) if rank else 0.0
+    for pair in pairs:
+        Sp, rank = _pseudo_inverse(pair.C, pair.rcond)
+        stat = float(pair.d @ Sp @ pair.d) if rank else 0.0
         p = float(chdtrc(rank, stat)) if rank else 1.0
-        since, at = (template[0].since, template[0].at) if template else ("", "")
-        out.append(Overall(since, at, stat, rank, p, p < level))
+        out.append(Overall(pair.since, pair.at, stat, rank, p, p < level, pair.apart))
     return tuple(out)
 
 
-def _pairs(calibrations, families) -> list[tuple[list, list, np.ndarray, np.ndarray, float]]:
+class _Pair(NamedTuple):
+    """Two consecutive calibrations' common judged parameters: their names, the changes to fill in,
+    the differences, the combined covariance, the share of its largest eigenvalue below which a
+    direction is not identified; the dates; ``apart``: parameters one fits away from nominal and
+    the other does not identify (then nothing is compared)."""
+
+    names: list
+    template: list
+    d: np.ndarray
+    C: np.ndarray
+    rcond: float
+    since: str
+    at: str
+    apart: tuple[str, ...]
+
+
+def _pairs(calibrations, families) -> list[_Pair]:
     ordered = sorted(calibrations, key=lambda c: (c.calibrated_at, c.id or 0))
     return [_pair(a, b, families) for a, b in zip(ordered, ordered[1:])]
 
@@ -475,19 +500,34 @@ def _identified(Sp: np.ndarray) -> np.ndarray:
     return info
 
 
-def _pair(a: StoredCalibration, b: StoredCalibration, families) -> tuple[list, list, np.ndarray, np.ndarray, float]:
-    """(names, template changes, differences, combined covariance, the share of its largest
-    eigenvalue below which a direction is not identified) of two calibrations' common judged
-    parameters: ``RCOND`` at the coarser precision of their kept correlations."""
+def _held_apart(a: StoredCalibration, b: StoredCalibration, ja: dict, jb: dict) -> tuple[str, ...]:
+    """The judged parameters one of ``a`` and ``b`` (``ja``, ``jb``: their judged estimates) fits more
+    than ``APART_SIGMAS`` from nominal and the other does not identify: the other holds them at
+    nominal (or leaves out their family), so the parameters that absorb them carry their offset, and
+    the two calibrations' estimates differ with no change of the robot."""
+    out = []
+    for c, mine, other in ((a, ja, jb), (b, jb, ja)):
+        for name, k in mine.items():
+            e = c.estimates[k]
+            if name not in other and abs(e.estimate - e.nominal) > APART_SIGMAS * e.std:
+                out.append(name)
+    return tuple(out)
+
+
+def _pair(a: StoredCalibration, b: StoredCalibration, families) -> _Pair:
+    """Two calibrations' common judged parameters (``_Pair``): ``RCOND`` at the coarser precision of
+    their kept correlations; none when one identifies a parameter away from nominal that the other
+    does not (``_held_apart``)."""
     ja, jb = _judged(a, families), _judged(b, families)
-    names = [n for n in jb if n in ja]
+    apart = _held_apart(a, b, ja, jb)
+    names = [] if apart else [n for n in jb if n in ja]
     ia, ib = [ja[n] for n in names], [jb[n] for n in names]
     d = np.array([b.estimates[kb].estimate - a.estimates[ka].estimate for ka, kb in zip(ia, ib)])
     C = _covariance(a, ia) + _covariance(b, ib)
     template = [Change(n, b.estimates[kb].unit, a.calibrated_at, b.calibrated_at, a.estimates[ka].estimate,
                        b.estimates[kb].estimate, math.nan, False) for n, ka, kb in zip(names, ia, ib)]
     kept = min((c.correlation.dtype.itemsize for c in (a, b) if c.correlation is not None), default=8)
-    return names, template, d, C, RCOND[kept]
+    return _Pair(names, template, d, C, RCOND[kept], a.calibrated_at, b.calibrated_at, apart)
 
 
 def _w_tests(d: np.ndarray, C: np.ndarray, rest: np.ndarray, rcond: float = RCOND[8]) -> np.ndarray:

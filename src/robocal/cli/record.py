@@ -126,10 +126,11 @@ def record_result(args, result, robot: str, source: str, at=None, files=None) ->
 
 
 def _print_changes(h, rec) -> None:
-    from .._presentation.history import change_line, overall_line
+    from .._presentation.history import apart_line, change_line, overall_line
 
     changes = [change_line(c) for c in h.changes if c.at == rec.calibrated_at]
     changes += [overall_line(o) for o in h.overall if o.named and o.at == rec.calibrated_at]
+    changes += [apart_line(o) for o in h.overall if not o.compared and o.at == rec.calibrated_at]
     if len(h.calibrations) > 1:
         print("changes since the previous calibration: " + ("; ".join(changes) if changes
                                                              else f"none beyond {h.threshold:.2f} sigma"))
