@@ -102,11 +102,21 @@ def history_summary(h: History) -> str:
         use_text = f", in use {with_unit(use, 'm')} RMS" if isinstance(use, (int, float)) else ""
         lines.append(f"  #{c.id} {_when(c.calibrated_at)}{kind}: {c.verdict}, {_accuracy_text(c.accuracy)}{use_text}"
                      f"{lim}, inputs {c.fingerprint[:12]}")
-    lines += _estimates_table(h)
-    n = len(h.comparisons)
-    lines.append(f"changes between consecutive calibrations, judged at {h.threshold:.2f} sigma of their combined "
-                 f"uncertainty ({n} comparisons of {', '.join(h.families)} parameters; {h.alpha:.0%} chance of naming "
-                 "one in an unchanged robot):")
+    lines += _estimates_table(h) + _changes_lines(h)
+    if h.verifications:
+        lines.append("verifications:")
+        lines += [f"  {_when(v.verified_at)} against #{v.calibration_id}: {v.verdict}, {with_unit(v.rms, 'm')} RMS "
+                  f"now against {with_unit(v.then_rms, 'm')} (ratio {v.ratio:.2f}, recalibrate beyond "
+                  f"{v.threshold:.2f}), ISO 9283 AP {with_unit(v.ap_max, 'm')}" for v in h.verifications]
+    return "\n".join(lines)
+
+
+def _changes_lines(h: History) -> list[str]:
+    """The changes named between consecutive calibrations, the pairs not compared and why, and the
+    largest movements within the uncertainty."""
+    lines = [f"changes between consecutive calibrations, judged at {h.threshold:.2f} sigma of their combined "
+             f"uncertainty ({len(h.comparisons)} comparisons of {', '.join(h.families)} parameters; {h.alpha:.0%} "
+             "chance of naming one in an unchanged robot):"]
     named = [change_line(c) for c in h.changes] + [overall_line(o) for o in h.overall if o.named]
     apart = [apart_line(o) for o in h.overall if not o.compared]
     lines += [f"  {line}" for line in named] or [f"  none{' among the calibrations compared' if apart else ''}"]
@@ -114,12 +124,7 @@ def history_summary(h: History) -> str:
     rest = sorted((c for c in h.comparisons if not c.named and c.sigma), key=lambda c: -abs(c.sigma))[:3]
     if rest:
         lines.append("  largest movements within the uncertainty: " + "; ".join(change_line(c) for c in rest))
-    if h.verifications:
-        lines.append("verifications:")
-        lines += [f"  {_when(v.verified_at)} against #{v.calibration_id}: {v.verdict}, {with_unit(v.rms, 'm')} RMS "
-                  f"now against {with_unit(v.then_rms, 'm')} (ratio {v.ratio:.2f}, recalibrate beyond "
-                  f"{v.threshold:.2f}), ISO 9283 AP {with_unit(v.ap_max, 'm')}" for v in h.verifications]
-    return "\n".join(lines)
+    return lines
 
 
 def _estimates_table(h: History) -> list[str]:

@@ -275,14 +275,18 @@ def comparison_summary(comparison, *, shown=(), weighted: bool = False) -> str:
     lines.append(_compared("verdict", [f"{r.verdict:>24}" for _, r in cols]))
     best = comparison.best
     lines += [comparison.verdict, f"calibrated model chosen: {next(name for name, r in cols if r is best)}"]
-    # a note every identification has (the data read, masses assumed) is said once
-    common = [n for n in cols[0][1].notes if n not in shown and all(n in r.notes for _, r in cols)]
-    lines += [f"note: {n}" for n in common]
-    for name, r in cols:
-        lines += [f"note ({name}): {n}" for n in r.notes if n not in shown and n not in common]
+    lines += _compared_notes(cols, shown)
     lines += checks_lines(best.checks)
     lines.append(verdict_line(best))
     return "\n".join(lines)
+
+
+def _compared_notes(cols, shown) -> list[str]:
+    """The identifications' notes not ``shown`` already: one every identification has (the data read,
+    masses assumed) once, the others each under its identification's name."""
+    common = [n for n in cols[0][1].notes if n not in shown and all(n in r.notes for _, r in cols)]
+    return [f"note: {n}" for n in common] + [f"note ({name}): {n}" for name, r in cols for n in r.notes
+                                              if n not in shown and n not in common]
 
 
 # the column heads of a comparison, by what each identification identifies
