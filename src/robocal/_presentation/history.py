@@ -70,8 +70,9 @@ def apart_line(o) -> str:
     not identified in the other, ...'."""
     shown = ", ".join(o.apart[:4]) + (f" and {len(o.apart) - 4} more" if len(o.apart) > 4 else "")
     return (f"not compared with {_day(o.since)}: {shown} fitted beyond {APART_SIGMAS:g} sigma of nominal in one "
-            "calibration and not identified in the other, whose estimates then carry them; calibrate both with the "
-            "same parameters to compare")
+            "calibration and not identified in the other (held at nominal, or its family not calibrated), whose "
+            "estimates then carry them; to compare, identify the same parameters in both (the same --parameters, "
+            "on poses that determine them)")
 
 
 def _accuracy_text(acc) -> str:
