@@ -396,11 +396,13 @@ def test_a_change_reads_in_display_units_with_its_sigma(campaign):
     assert f"{np.degrees(c.delta):.5f}".lstrip("-") in line
 
 
-def test_calibrations_of_other_parameters_are_not_compared_and_say_why(cli, tmp_path):
+def test_calibrations_of_other_parameters_are_compared_as_each_would_hold_the_others(cli, tmp_path):
     """The same campaign calibrated with compliance, then without: the geometric calibration's
     estimates carry the compliances it leaves out (the elbow's, 8 standard deviations from zero), so
-    comparing the two named changes of a robot that did not change (j2.d and j2.theta, and something
-    changed at p = 7e-38). They are not compared, and record and history say why."""
+    comparing the estimates as they are named changes of a robot that did not change (j2.d and
+    j2.theta, and something changed at p = 7e-38). The one with compliance is taken to it held at
+    nominal (conditioned on its covariance): the same data then agree to rounding. Without stored
+    correlations that cannot be done, and the two are not compared; record and history say why."""
     model = arm6r(masses=True)
     _, data = rc.simulate(model, 60, parameters=("geometric", "compliance"), compliance_error=(2e-6, 6e-6), seed=3)
     with warnings.catch_warnings():
@@ -411,20 +413,26 @@ def test_calibrations_of_other_parameters_are_not_compared_and_say_why(cli, tmp_
             replace(rc.stored_calibration(geo, "R", at="2026-06-01"), id=2)]
     assert not any(c.named for c in rc.judge_changes(pair)[0])
     (o,) = rc.judge_overall(pair)
+    assert o.compared and o.dof > 10 and o.chi2 < 1e-2, o
     apart = {p.name for p in both.parameters
              if p.family == "compliance" and abs(p.estimate - p.nominal) > _store.APART_SIGMAS * p.std}
+    bare = [replace(c, correlation=None) for c in pair]
+    (o,) = rc.judge_overall(bare)
     assert not o.compared and not o.named and apart and set(o.apart) == apart
-    # the same calibrations twice are compared as before
-    assert rc.judge_overall([pair[0], replace(pair[0], id=3, calibrated_at="2026-09-01T00:00:00+00:00")])[0].compared
+    assert not any(c.named for c in rc.judge_changes(bare)[0])
+    # through the command line, the result files keep the correlations
     for name, result in (("both", both), ("geo", geo)):
         rc.io.write_result(result, tmp_path / f"{name}.json")
     store = tmp_path / "store.sqlite"
     assert cli("record", tmp_path / "both.json", "--robot", "R", "--store", store, "--at", "2026-01-01")[0] == 0
     code, out, err = cli("record", tmp_path / "geo.json", "--robot", "R", "--store", store, "--at", "2026-06-01")
-    assert code == 0 and "changes since the previous calibration: not compared with 2026-01-01: j3.k_theta" in out, err
-    code, out, err = cli("history", "R", "--store", store)
-    said = out.split("changes between consecutive")[1]
-    assert code == 0 and "none among the calibrations compared" in said and "not compared with 2026-01-01" in said
+    assert code == 0 and "changes since the previous calibration: none beyond" in out, out + err
+    from robocal.report import history_summary
+
+    with rc.open_store(store) as opened:
+        h = rc.history(opened, "R")
+    said = history_summary(replace(h, overall=(o,))).split("changes between consecutive")[1]
+    assert "none among the calibrations compared" in said and "not compared with 2026-01-01: j3.k_theta" in said
 
 
 def test_robots_of_a_type_side_by_side_name_the_one_that_stands_out(location, campaign):

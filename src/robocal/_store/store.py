@@ -67,7 +67,8 @@ MAX_NAME = 200
 # the largest standard deviation judged: its square, a variance, still a float
 MAX_STD = 1e150
 # a parameter one calibration fits this many standard deviations from its nominal and the other
-# holds at nominal (or leaves out) is carried by the other's estimates: the two are not compared
+# holds at nominal (or leaves out) is carried by the other's estimates: without correlations to take
+# it back to nominal with, the two are not compared
 APART_SIGMAS = 3.0
 # seconds a write waits for another process's write lock, and before it says it waits
 LOCK_WAIT = 120.0
@@ -502,32 +503,51 @@ def _identified(Sp: np.ndarray) -> np.ndarray:
 
 def _held_apart(a: StoredCalibration, b: StoredCalibration, ja: dict, jb: dict) -> tuple[str, ...]:
     """The judged parameters one of ``a`` and ``b`` (``ja``, ``jb``: their judged estimates) fits more
-    than ``APART_SIGMAS`` from nominal and the other does not identify: the other holds them at
-    nominal (or leaves out their family), so the parameters that absorb them carry their offset, and
-    the two calibrations' estimates differ with no change of the robot."""
+    than ``APART_SIGMAS`` from nominal and the other does not identify, where the one has no stored
+    correlations to take them back to nominal with (``_as_held``): the other holds them at nominal (or
+    leaves out their family), so the parameters that absorb them carry their offset, and the two
+    calibrations' estimates differ with no change of the robot."""
     out = []
     for c, mine, other in ((a, ja, jb), (b, jb, ja)):
         for name, k in mine.items():
             e = c.estimates[k]
-            if name not in other and abs(e.estimate - e.nominal) > APART_SIGMAS * e.std:
+            if c.correlation is None and name not in other and abs(e.estimate - e.nominal) > APART_SIGMAS * e.std:
                 out.append(name)
     return tuple(out)
 
 
+def _as_held(c: StoredCalibration, keep: list, held: list, rcond: float) -> tuple[np.ndarray, np.ndarray]:
+    """The estimates ``keep`` (indices in ``c.estimates``) and their covariance as ``c`` would have
+    given them with the parameters ``held`` at their nominal values, as another calibration that does
+    not identify them holds them: conditioned on that (least squares is Gaussian conditioning on the
+    estimates' covariance: ``x_k - C_kh C_hh^+ (x_h - nominal_h)``, ``C_kk - C_kh C_hh^+ C_hk``).
+    Without stored correlations, or with nothing held, the estimates as they are."""
+    x = np.array([c.estimates[k].estimate for k in keep])
+    if not held or c.correlation is None:
+        return x, _covariance(c, keep)
+    full = _covariance(c, keep + held)
+    n = len(keep)
+    gain = full[:n, n:] @ _pseudo_inverse(full[n:, n:], rcond)[0]
+    off = np.array([c.estimates[k].estimate - c.estimates[k].nominal for k in held])
+    return x - gain @ off, full[:n, :n] - gain @ full[n:, :n]
+
+
 def _pair(a: StoredCalibration, b: StoredCalibration, families) -> _Pair:
     """Two calibrations' common judged parameters (``_Pair``): ``RCOND`` at the coarser precision of
-    their kept correlations; none when one identifies a parameter away from nominal that the other
-    does not (``_held_apart``)."""
+    their kept correlations. A parameter one identifies and the other does not is taken to its
+    nominal in the one (``_as_held``), so both estimate the same thing; the changes' before and after
+    are then those estimates. Nothing is compared when that cannot be done and it matters
+    (``_held_apart``)."""
     ja, jb = _judged(a, families), _judged(b, families)
+    kept = min((c.correlation.dtype.itemsize for c in (a, b) if c.correlation is not None), default=8)
     apart = _held_apart(a, b, ja, jb)
     names = [] if apart else [n for n in jb if n in ja]
     ia, ib = [ja[n] for n in names], [jb[n] for n in names]
-    d = np.array([b.estimates[kb].estimate - a.estimates[ka].estimate for ka, kb in zip(ia, ib)])
-    C = _covariance(a, ia) + _covariance(b, ib)
-    template = [Change(n, b.estimates[kb].unit, a.calibrated_at, b.calibrated_at, a.estimates[ka].estimate,
-                       b.estimates[kb].estimate, math.nan, False) for n, ka, kb in zip(names, ia, ib)]
-    kept = min((c.correlation.dtype.itemsize for c in (a, b) if c.correlation is not None), default=8)
-    return _Pair(names, template, d, C, RCOND[kept], a.calibrated_at, b.calibrated_at, apart)
+    xa, Ca = _as_held(a, ia, [k for n, k in ja.items() if n not in jb], RCOND[kept])
+    xb, Cb = _as_held(b, ib, [k for n, k in jb.items() if n not in ja], RCOND[kept])
+    template = [Change(n, b.estimates[kb].unit, a.calibrated_at, b.calibrated_at, float(va), float(vb), math.nan,
+                       False) for n, kb, va, vb in zip(names, ib, xa, xb)]
+    return _Pair(names, template, xb - xa, Ca + Cb, RCOND[kept], a.calibrated_at, b.calibrated_at, apart)
 
 
 def _w_tests(d: np.ndarray, C: np.ndarray, rest: np.ndarray, rcond: float = RCOND[8]) -> np.ndarray:
