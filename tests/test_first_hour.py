@@ -176,3 +176,33 @@ def test_the_top_level_help_ends_with_an_example(cli):
     assert code == 0
     example = out.split("example", 1)[1] if "example" in out else ""
     assert "  robocal calibrate " in example and "robocal COMMAND --help" in example
+
+
+def test_record_and_report_take_the_folder_calibrate_wrote(th8_result, tmp_path, cli):
+    # `robocal record runs/first` failed with "is a folder, not a file": the folder is what a user
+    # has in hand after `calibrate --out runs/first`
+    code, out, err = cli("record", th8_result.parent, "--robot", "R", "--store", tmp_path / "s.sqlite")
+    assert code == 0, err
+    assert "recorded calibration #1 of R" in out
+    code, out, err = cli("record", tmp_path, "--robot", "R", "--store", tmp_path / "s.sqlite")
+    assert code == 2 and "is a folder without a result.json" in err and str(tmp_path) in err
+    assert "Traceback" not in err
+
+
+def test_a_folder_of_seatings_given_as_the_measurement_file_names_contacts(tmp_path, cli):
+    seatings = ROOT / "examples" / "arm7" / "seatings"
+    code, out, err = cli("calibrate", ROOT / "examples" / "arm7" / "model.yaml", seatings, "--out", tmp_path / "o")
+    assert code == 2 and "is a folder of seatings" in err and "--contacts" in err and str(seatings) in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_history_names_only_the_families_it_compared(th8_result, tmp_path, cli):
+    # a geometric calibration recorded twice: the header said "comparisons of frames, compliance,
+    # backlash, transmission parameters" whatever was compared
+    store = tmp_path / "s.sqlite"
+    for at in ("2026-03-02T10:00:00Z", "2026-04-02T10:00:00Z"):
+        assert cli("record", th8_result, "--robot", "R", "--store", store, "--at", at)[0] == 0
+    code, out, err = cli("history", "R", "--store", store)
+    assert code == 0, err
+    header = next(line for line in out.splitlines() if line.startswith("changes between"))
+    assert "comparisons of frames parameters;" in header and "compliance" not in header

@@ -69,6 +69,12 @@ def test_a_sphere_in_socket_campaign_read_as_its_authors_publish_it():
         assert res.verdict != "fail", [c.summary for c in res.checks if c.status == "fail"]
         assert res.in_use.position_after.mean < 0.26e-3
         assert res.in_use.position_after.mean < res.in_use.position_before.mean / 5
+    # the summary said "identified 25 parameters" while two weak ones were held at nominal
+    weak = [n for n, _ in by_placement.contacts.weak]
+    assert weak and not by_placement.contacts.weak_kept
+    assert len(by_placement.parameters) == len(by_placement.contacts.identifiability.identified) - len(weak)
+    assert (f"{len(by_placement.contacts.identifiability.identified)} parameters identifiable, "
+            f"{len(by_placement.parameters)} identified;") in rc.report.calibration_summary(by_placement)
 
 
 def test_a_joint_rehomed_on_one_placement_of_the_panda_is_named():

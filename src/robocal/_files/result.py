@@ -624,7 +624,8 @@ def result_from_dict(d, *, source: str = "<dict>", folder=None) -> CalibrationRe
 @accepts(path=PATH)
 def read_result(path) -> CalibrationResult:
     """The CalibrationResult stored by ``write_result``; InputError if it is not a robocal result of a
-    known schema, naming the key that departs from it.
+    known schema, naming the key that departs from it. A folder reads its ``result.json`` (the
+    folder ``robocal calibrate --out`` writes).
 
     Parameters
     ----------
@@ -635,6 +636,11 @@ def read_result(path) -> CalibrationResult:
     CalibrationResult
         The stored result.
     """
+    if Path(path).is_dir():
+        if not (Path(path) / "result.json").is_file():
+            raise InputError("is a folder without a result.json (give the result file, or the folder robocal "
+                             "calibrate --out wrote)", source=str(path))
+        path = Path(path) / "result.json"
     source = str(path)
     return result_from_dict(load_json(read_text(path)[0], source), source=source, folder=Path(path).parent)
 

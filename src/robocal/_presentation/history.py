@@ -76,7 +76,7 @@ def apart_line(o) -> str:
 
 
 def _accuracy_text(acc) -> str:
-    return "no accuracy" if acc is None else f"{with_unit(acc.rms, 'm')} RMS ({acc.source})"
+    return "no measured accuracy" if acc is None else f"{with_unit(acc.rms, 'm')} RMS ({acc.source})"
 
 
 _HISTORY = is_a(History)
@@ -112,12 +112,21 @@ def history_summary(h: History) -> str:
     return "\n".join(lines)
 
 
+def _compared_families(h: History) -> str:
+    """The judged families of the parameters the history compared, as a list in words."""
+    family = {e.name: e.family for c in h.calibrations for e in c.estimates}
+    compared = {family.get(c.name) for c in h.comparisons}
+    return ", ".join(f for f in h.families if f in compared)
+
+
 def _changes_lines(h: History) -> list[str]:
     """The changes named between consecutive calibrations, the pairs not compared and why, and the
     largest movements within the uncertainty."""
+    families = _compared_families(h)
+    of = f" of {families} parameters" if families else ""
     lines = [f"changes between consecutive calibrations, judged at {h.threshold:.2f} sigma of their combined "
-             f"uncertainty ({len(h.comparisons)} comparisons of {', '.join(h.families)} parameters; {h.alpha:.0%} "
-             "chance of naming one in an unchanged robot):"]
+             f"uncertainty ({len(h.comparisons)} comparisons{of}; {h.alpha:.0%} chance of naming one in an "
+             "unchanged robot):"]
     named = [change_line(c) for c in h.changes] + [overall_line(o) for o in h.overall if o.named]
     apart = [apart_line(o) for o in h.overall if not o.compared]
     lines += [f"  {line}" for line in named] or [f"  none{' among the calibrations compared' if apart else ''}"]
@@ -177,7 +186,7 @@ def type_summary(t: TypeComparison) -> str:
     lines.append("robots:")
     for c in t.latest[:200]:
         flag = f", {counts[c.robot]} parameter(s) standing out" if c.robot in counts else ""
-        acc = "no accuracy" if c.accuracy_rms is None else f"{with_unit(c.accuracy_rms, 'm')} RMS"
+        acc = "no measured accuracy" if c.accuracy_rms is None else f"{with_unit(c.accuracy_rms, 'm')} RMS"
         lines.append(f"  {c.robot}: #{c.id} {_day(c.calibrated_at)}, {c.verdict}, {acc}{flag}")
     if len(t.latest) > 200:
         lines.append(f"  ... and {len(t.latest) - 200} more")

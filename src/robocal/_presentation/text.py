@@ -439,7 +439,8 @@ def contact_summary(result, shown=()) -> str:
                      f"{tracker.n}")
     if held.n:
         lines += in_use_lines(result.in_use)
-    lines.append(f"identified {len(ident.identified)} parameters; each kind alone identifies:")
+    fitted = "" if len(result.parameters) == len(ident.identified) else f", {len(result.parameters)} identified"
+    lines.append(f"{len(ident.identified)} parameters identifiable{fitted}; each kind alone identifies:")
     for kind, names in ident.contributions.items():
         lost = ident.lost_without.get(kind)
         lines.append(f"  {kind}: {len(names)}" + ("" if lost is None else

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import math
+import os
 import re
 from pathlib import Path
 
@@ -281,6 +282,9 @@ def masses_as_asked(args, model):
 def read_data(args, model, path, *, targets: bool = False):
     from .._files.measurements import read_measurements
 
+    if os.path.isdir(path) and os.path.exists(os.path.join(path, "seatings.yaml")):
+        raise InputError("is a folder of seatings, not a measurement file: give it as --contacts FOLDER",
+                         source=str(path))
     columns = {k: v for m in args.map for k, v in m.items()}
     columns.update({c: None for group in args.ignore for c in group})
     return read_measurements(path, model, units=args.units, sep=args.sep, decimal=args.decimal,

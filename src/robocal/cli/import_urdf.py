@@ -24,7 +24,8 @@ def register(sub) -> None:
     p.add_argument("--base-link", help="first link of the chain (default: the root link)")
     p.add_argument("--tip-link", help="last link of the chain (default: where the arm ends, below)")
     p.add_argument("--marker-mm", action="append", type=common.marker_mm, metavar="NAME,X,Y,Z",
-                   help="a measured point in the tip link's frame, mm (repeatable; default one marker "
+                   help="a measured point in the tip link's frame, mm (repeatable; default: the tip link "
+                        "itself, named after it, when the chain ends in fixed joints, else one marker "
                         "'tool' at the tip link's origin)")
     p.set_defaults(func=run)
 

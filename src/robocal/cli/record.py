@@ -46,7 +46,7 @@ def register(sub) -> None:
                        description="Store a result.json as a calibration of a robot: its models, every estimate "
                                    "with its standard deviation, the verdict and checks, the accuracy reached, the "
                                    "limit and a fingerprint of the input files.", example=EXAMPLE,
-                       inputs=[("result", "RESULT.json", "a result file of robocal calibrate")])
+                       inputs=[("result", "RESULT.json", "a result file of robocal calibrate, or the folder it wrote")])
     p.add_argument("--robot", required=True, type=common.checked_by(_name("--robot")), metavar="ROBOT",
                    help="the robot's serial or name")
     record_options(p)

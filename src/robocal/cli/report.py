@@ -11,7 +11,7 @@ def register(sub) -> None:
     p = common.command(sub, "report", summary="write an HTML report of a result.json (needs robocal[report])",
                        description="Write the self-contained HTML report of a calibration result file.",
                        example=EXAMPLE)
-    p.add_argument("result", metavar="RESULT.json", help="a result file of robocal calibrate")
+    p.add_argument("result", metavar="RESULT.json", help="a result file of robocal calibrate, or the folder it wrote")
     p.add_argument("--out", required=True, metavar="FILE.html", help="the report to write (one file, plots inline)")
     p.add_argument("--force", action="store_true", help="overwrite an existing file")
     p.set_defaults(func=run)
