@@ -201,7 +201,8 @@ def coverage_to_dict(cover: Coverage | None) -> dict | None:
     return {"joint_span": cover.joint_span.tolist(), "joint_ranges": [list(r) for r in cover.joint_ranges],
             "box_m": [list(cover.box[0]), list(cover.box[1])], "spread_ratio": cover.spread_ratio,
             "uncertainty_measured_m": cover.uncertainty_measured,
-            "uncertainty_workspace_m": cover.uncertainty_workspace}
+            "uncertainty_workspace_m": cover.uncertainty_workspace,
+            "use_from_campaign": list(cover.use_from_campaign)}
 
 
 def _use_stats(doc: _Doc, d: dict | None, where: str) -> UseStats | None:

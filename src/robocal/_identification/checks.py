@@ -17,6 +17,7 @@ from .._base.arrays import column_extent, mean_and_error, point_spread, vector_n
 from .._base.errors import InputError, excerpt
 from .._model.measurements import Measurements, Noise
 from .._model.robot import RobotModel
+from .holdout import USE_MARGIN
 
 STATUSES = ("pass", "warn", "fail")
 
@@ -1009,14 +1010,30 @@ def _held_out_larger(in_use, summary: str, misfit=None, reach_m=None) -> Check |
                  "plan); hold weak parameters (--weak eliminate)")
 
 
+def _joint_spans(cover) -> str:
+    """Each joint's measured span over its range of use, in words; joints whose range of use is the
+    campaign's own (limits of a full turn or more) are named apart, their span saying nothing."""
+    turn = np.array(cover.use_from_campaign or [False] * len(cover.joint_span), dtype=bool)
+    margin = f"widened by {100 * USE_MARGIN:g} % on each side"
+    if turn.all():
+        return f"every joint's limits allow a full turn or more: their ranges of use are the campaign's, {margin}"
+    names = [n for n, t in zip(cover.joint_names, turn) if t]
+    whole = (f"the limits of {', '.join(names)} allow a full turn or more: " +
+             (f"its range of use is the campaign's, {margin}" if len(names) == 1 else
+              f"their ranges of use are the campaign's, {margin}"))
+    if not turn.any():
+        return "joints over " + ", ".join(f"{100 * s:.0f} %" for s in cover.joint_span) + " of their ranges of use"
+    spans = ", ".join(f"{n} {100 * s:.0f} %" for n, s, t in zip(cover.joint_names, cover.joint_span, turn) if not t)
+    return f"joints over their ranges of use: {spans}; {whole}"
+
+
 def coverage_check(cover, in_use) -> Check:
     """Where the accuracy in use holds: the campaign's points against the spread of the robot's at
     the configurations of use (``use_box``), and the parameters' uncertainty carried from the
     measured poses to those configurations (``Coverage``); the cause named is the one the figures show."""
     name = "where the model holds"
-    joints = ", ".join(f"{100 * s:.0f} %" for s in cover.joint_span)
     summary = (f"the measured points spread {100 * cover.spread_ratio:.3g} % of the robot's at the configurations of "
-               f"use (joints over {joints} of their ranges of use); the parameters' uncertainty is "
+               f"use ({_joint_spans(cover)}); the parameters' uncertainty is "
                f"{_mm(cover.uncertainty_measured)} RMS at the measured poses, {_mm(cover.uncertainty_workspace)} "
                "at the configurations of use")
     small = cover.spread_ratio < COVERAGE_SPREAD_MIN

@@ -660,6 +660,11 @@ class Coverage:
         covariance gives at the measured poses.
     uncertainty_workspace : float
         The same at those random configurations.
+    joint_names : tuple of str
+        The joints, in the order of ``joint_span``.
+    use_from_campaign : tuple of bool
+        Per joint, whether its range of use is the campaign's widened (``use_box``: limits of a full
+        turn or more), so that its ``joint_span`` says nothing of the campaign.
     """
 
     joint_span: np.ndarray
@@ -668,6 +673,8 @@ class Coverage:
     spread_ratio: float
     uncertainty_measured: float
     uncertainty_workspace: float
+    joint_names: tuple[str, ...] = ()
+    use_from_campaign: tuple[bool, ...] = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "joint_span", frozen(self.joint_span))
@@ -710,17 +717,23 @@ def use_box(model, q: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]
     lo, hi = sampling_box(model)
     if q is None or not len(q):
         return lo, hi
-    angle = np.zeros(model.n_joints, dtype=bool)
-    for f in model.frames:
-        for j, _ in f.coupling:
-            angle[j] |= f.joint == "revolute"
-    nominal = angle & ~(model.upper_limits - model.lower_limits < 2 * np.pi - 1e-9)
+    nominal = full_turn(model)
     # readings beyond the limits (which a check fails) count at the limit they passed
     qlo, qhi = (np.clip(v, model.lower_limits, model.upper_limits) for v in column_extent(q))
     margin = USE_MARGIN * (qhi - qlo)
     lo = np.where(nominal, np.maximum(qlo - margin, model.lower_limits), lo)
     hi = np.where(nominal, np.minimum(qhi + margin, model.upper_limits), hi)
     return lo, hi
+
+
+def full_turn(model) -> np.ndarray:
+    """(n_joints,) bool: revolute joints whose limits allow a full turn or more, whose range of use
+    ``use_box`` takes from the campaign."""
+    angle = np.zeros(model.n_joints, dtype=bool)
+    for f in model.frames:
+        for j, _ in f.coupling:
+            angle[j] |= f.joint == "revolute"
+    return angle & ~(model.upper_limits - model.lower_limits < 2 * np.pi - 1e-9)
 
 
 def workspace_readings(model, n: int = WORKSPACE_POSES, q: np.ndarray | None = None) -> np.ndarray:
@@ -763,4 +776,5 @@ def coverage(problem: Points, p: np.ndarray, covariance: np.ndarray, predicted_w
     return Coverage(joint_span=np.minimum(span, 1.0), joint_ranges=tuple((float(a), float(b)) for a, b in
                                                                        zip(qlo, qhi)),
                     box=box, spread_ratio=float(ratio), uncertainty_measured=at_measured,
-                    uncertainty_workspace=at_workspace)
+                    uncertainty_workspace=at_workspace, joint_names=tuple(data.joint_names),
+                    use_from_campaign=tuple(bool(v) for v in full_turn(problem.model)))
