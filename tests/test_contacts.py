@@ -378,7 +378,14 @@ def test_a_socket_plan_recommends_the_smallest_design_within_the_bounds(arm7):
     assert good and plan.chosen == min(good, key=lambda d: d.n_seatings)
     assert not by[(3, 20)].meets_bounds      # the bounds decide: the smallest design is not enough
     assert plan.campaign.q.shape[0] == plan.chosen.n_seatings
-    assert plan_sockets(arm7, placements=(3,), poses_per_socket=(20,), bounds={"length": 1e-9}).chosen is None
+    nothing = plan_sockets(arm7, placements=(3,), poses_per_socket=(20,), bounds={"length": 1e-9, "angle": 1e-12})
+    assert nothing.chosen is None and nothing.held == ()
+    # bounds no design meets for some parameters: those are held at nominal, as the calibration
+    # holds them, and the design is chosen on the others
+    lengths = plan_sockets(arm7, placements=(3,), poses_per_socket=(20,), bounds={"length": 1e-9})
+    assert lengths.chosen is not None and lengths.held
+    assert not set(lengths.held) & set(lengths.chosen.predicted_std)
+    assert all(n.split(".")[1] in ("d", "r", "x", "y", "z") for n in lengths.held)
 
 
 

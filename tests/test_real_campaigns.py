@@ -75,6 +75,9 @@ def test_a_sphere_in_socket_campaign_read_as_its_authors_publish_it():
     assert len(by_placement.parameters) == len(by_placement.contacts.identifiability.identified) - len(weak)
     assert (f"{len(by_placement.contacts.identifiability.identified)} parameters identifiable, "
             f"{len(by_placement.parameters)} identified;") in rc.report.calibration_summary(by_placement)
+    # the socket plan holds the same ones at nominal (it said no design of its grid would do)
+    plan = rc.sim.plan_sockets(model, placements=(3,), poses_per_socket=(20,))
+    assert plan.held == tuple(weak) and plan.chosen is not None
 
 
 def test_a_joint_rehomed_on_one_placement_of_the_panda_is_named():

@@ -466,9 +466,13 @@ def socket_plan_summary(plan) -> str:
     """What ``robocal plan-sockets`` prints: every design with its worst parameter against its bound,
     then the recommendation and the chosen design's predicted standard deviations."""
     d0 = plan.designs[0]
-    lines = [f"socket plate: {len(d0.predicted_std)} parameters reachable; unreachable: "
-             f"{', '.join(d0.unreachable) or 'none'}",
-             "placements  seatings/socket  seatings  worst parameter (predicted std / bound)"]
+    lines = [f"socket plate: {len(d0.predicted_std) + len(plan.held)} parameters reachable; unreachable: "
+             f"{', '.join(d0.unreachable) or 'none'}"]
+    if plan.held:
+        lines.append(f"beyond their bound in every design of the grid, held at nominal as the calibration holds "
+                     f"them: {', '.join(plan.held)}; the designs below are judged on the other "
+                     f"{len(d0.predicted_std)} parameters")
+    lines.append("placements  seatings/socket  seatings  worst parameter (predicted std / bound)")
     for d in plan.designs:
         lines.append(f"  {d.placements:>9}  {d.poses_per_socket:>15}  {d.n_seatings:>8}  {d.worst} {d.worst_ratio:.3g}"
                      + ("" if d.meets_bounds else "  (beyond)"))

@@ -7,7 +7,9 @@ first seatings per socket (so more placements or seatings never predict worse). 
 contact problem is linearised there, and the covariance the fit would report with the stated
 deviations is ``(J^T J)^-1`` (every row is already divided by its deviation). The recommended
 design is the smallest of the grid (fewest seatings) whose predicted standard deviations all stay
-within the practical-identifiability bounds (``WEAK_STD``, docs/checks.md).
+within the practical-identifiability bounds (``WEAK_STD``, docs/checks.md). Parameters beyond their
+bound even in the largest design are held at nominal, as the calibration holds them, and the
+designs judged on the others.
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ from .._base.arguments import (
 from .._base.errors import InputError
 from .._base.options import MAX_DESIGN_WORK, MAX_GRID_ROWS, MAX_PLACEMENTS, MAX_SEATINGS
 from .._base.threads import one_blas_thread
-from .._identification.identifiability import WEAK_STD, contact_identifiability
+from .._identification.identifiability import WEAK_STD, contact_identifiability, weakly_identifiable
 from .._identification.problem import Problem
 from .._model.contacts import Contacts
 from .._model.parameters import candidate_parameters, parameter_layout
@@ -64,25 +66,45 @@ class SocketDesign:
 @dataclass(frozen=True)
 class SocketPlan:
     """Every design of the grid, the recommended one (None when none meets the bounds) and its
-    simulated seatings, ready to be written as a contact file and measured."""
+    simulated seatings, ready to be written as a contact file and measured. ``held``: parameters
+    beyond their bound in every design, which the calibration holds at nominal (``weak="eliminate"``);
+    the designs are then predicted, and the recommended one chosen, with them held."""
 
     designs: tuple[SocketDesign, ...]
     chosen: SocketDesign | None
     campaign: Contacts | None
+    held: tuple[str, ...] = ()
 
 
-def _design(model: RobotModel, campaign: Contacts, names, placements: int, poses: int, ident,
-            bounds: dict) -> SocketDesign:
+def _jacobian(model: RobotModel, campaign: Contacts, names, identified) -> np.ndarray:
+    """The weighted contact Jacobian at nominal: the ``identified`` columns, then the sockets'."""
     prob = Problem(model, names, contacts=campaign, compliance=False)
-    k = len(ident.identified)
-    J = prob.at_contact().over(ident.identified).jacobian(prob.start_vector())
+    return prob.at_contact().over(identified).jacobian(prob.start_vector())
+
+
+def _design(model: RobotModel, campaign: Contacts, names, placements: int, poses: int, identified, unreachable,
+            bounds: dict) -> SocketDesign:
+    k = len(identified)
+    J = _jacobian(model, campaign, names, identified)
     std = np.sqrt(np.diag(np.linalg.pinv(J.T @ J)))[:k]
     lay = parameter_layout(model)
-    ratios = {n: s / bounds[lay[n].quantity] for n, s in zip(ident.identified, std)}
+    ratios = {n: s / bounds[lay[n].quantity] for n, s in zip(identified, std)}
     worst = max(ratios, key=lambda n: ratios[n])
-    return SocketDesign(placements, poses, int(campaign.q.shape[0]), dict(zip(ident.identified, map(float, std))),
-                        {n: lay[n].unit for n in ident.identified}, tuple(u.name for u in ident.unreachable), worst,
-                        float(ratios[worst]))
+    return SocketDesign(placements, poses, int(campaign.q.shape[0]), dict(zip(identified, map(float, std))),
+                        {n: lay[n].unit for n in identified}, unreachable, worst, float(ratios[worst]))
+
+
+def _held(model: RobotModel, campaign: Contacts, names, identified, bounds: dict) -> tuple[str, ...]:
+    """What the calibration's rule (``weakly_identifiable``, the later member of a weak group going)
+    holds at nominal on ``campaign`` (the grid's largest design: held on every one), the sockets'
+    columns taken out of the robot's first."""
+    J = _jacobian(model, campaign, names, identified)
+    k = len(identified)
+    robot, sockets = J[:, :k], J[:, k:]
+    robot = robot - sockets @ np.linalg.lstsq(sockets, robot, rcond=None)[0]
+    lay = parameter_layout(model)
+    found = weakly_identifiable(robot, identified, [lay[n].quantity for n in identified], 1.0, bounds=bounds)
+    return tuple(n for n, _, _, _ in found)
 
 
 def _check_cost(placements, per, n_sockets: int, n_params: int) -> None:
@@ -150,15 +172,26 @@ def plan_sockets(model: RobotModel, *, placements=(3, 5, 7, 9), poses_per_socket
                            seat_noise=seat_noise, rng=np.random.default_rng(seed))
     row = np.arange(full.n_rows)
     seating, placement = row % per[-1], row // (full.n_rows // placements[-1])     # rows: placement, socket, seating
-    designs, campaigns, ident = [], {}, None
-    for n_pl in placements:
-        for n_po in per:
-            c = full.subset((placement < n_pl) & (seating < n_po))
-            if ident is None:
-                ident = contact_identifiability(Problem(model, names, contacts=c, compliance=False), names)
-            designs.append(_design(model, c, names, n_pl, n_po, ident, bounds))
-            campaigns[(n_pl, n_po)] = c
+    campaigns = {(n_pl, n_po): full.subset((placement < n_pl) & (seating < n_po))
+                 for n_pl in placements for n_po in per}
+    ident = contact_identifiability(Problem(model, names, contacts=campaigns[placements[0], per[0]],
+                                            compliance=False), names)
+    unreachable = tuple(u.name for u in ident.unreachable)
+
+    def grid(identified):
+        return [_design(model, c, names, n_pl, n_po, identified, unreachable, bounds)
+                for (n_pl, n_po), c in campaigns.items()]
+
+    designs = grid(ident.identified)
+    held: tuple[str, ...] = ()
+    if not any(d.meets_bounds for d in designs):
+        # what no design pins down, the calibration holds at nominal: the rest are judged without it
+        held = _held(model, campaigns[placements[-1], per[-1]], names, ident.identified, bounds)
+        if 0 < len(held) < len(ident.identified):
+            designs = grid(tuple(n for n in ident.identified if n not in held))
+        else:
+            held = ()
     good = [d for d in designs if d.meets_bounds]
     chosen = min(good, key=lambda d: (d.n_seatings, d.placements)) if good else None
     return SocketPlan(tuple(designs), chosen,
-                      None if chosen is None else campaigns[(chosen.placements, chosen.poses_per_socket)])
+                      None if chosen is None else campaigns[(chosen.placements, chosen.poses_per_socket)], held)
