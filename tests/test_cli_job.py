@@ -7,6 +7,7 @@ import json
 import re
 import subprocess
 import sys
+import warnings
 from dataclasses import replace
 from pathlib import Path
 
@@ -32,7 +33,7 @@ def test_plan_writes_poses_ready_to_measure(tmp_path, cli):
     assert code == 0, err
     rows = _rows(out)
     assert len(rows) == 12 and rows[0]["tool_x_mm"] == ""
-    assert "identifiable parameters" in printed and "held-out poses" in printed and "j2.d" in printed
+    assert "parameters identified" in printed and "held-out poses" in printed and "j2.d" in printed
     # the written poses read back as targets, within the joint limits
     model = rc.read_model(TH8)
     q = rc.read_measurements(out, model, targets=True).q
@@ -59,6 +60,30 @@ def test_plan_predictions_agree_with_calibrations_on_the_same_poses():
         held.append(res.stats.validation_after.rms)
     assert abs(np.mean(ratios) - 1) < 0.2
     assert abs(np.mean(held) / pred.held_out_rms - 1) < 0.2
+
+
+def test_a_plan_holds_at_nominal_what_the_calibration_holds_and_predicts_the_rest():
+    """The Panda of tests/data/real with its ball near the last axis: the plan listed panda_link7.alpha
+    and .d (and panda_link6.theta and .r with them) with predicted standard deviations of degrees
+    and centimetres, while the calibration of the same poses holds the first two at nominal and
+    pins the rest down. Now the plan holds the same two, and predicts the others as reported."""
+    from robocal.sim import simulate
+
+    real = Path(__file__).parent / "data" / "real" / "mukca"
+    model = rc.read_urdf(real / "panda.urdf", tip_link="ball_link", markers=[("ball", (0.0, 0.0, 0.0))])
+    noise = 2e-5
+    sel = rc.select_poses(model, 30, n_candidates=1000, rng=0)
+    pred = rc.predict_campaign(model, sel.q, noise=noise, n_workspace=200, rng=0)
+    assert [n for n, _ in pred.held] == ["panda_link7.alpha", "panda_link7.d"]
+    for seed in range(2):
+        _, data = simulate(model, q=sel.q, noise=noise, seed=seed)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", rc.RobocalWarning)
+            res = rc.calibrate(model, data, noise=rc.Noise.of(position=noise))
+        got = {p.name: p.std for p in res.parameters}
+        assert set(got) == set(pred.parameters)
+        ratios = np.array([got[n] / s for n, s in zip(pred.parameters, pred.std)])
+        assert np.all(np.abs(ratios - 1) < 0.2), (ratios.min(), ratios.max())
 
 
 def test_compensate_reaches_every_reachable_target_and_flags_the_rest(tmp_path, cli):

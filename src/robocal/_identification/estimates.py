@@ -117,6 +117,13 @@ def effect_text(v: float, quantity: str) -> str:
     return f"{np.degrees(v):.3g} deg" + (" of deflection" if quantity == "compliance" else "")
 
 
+def weak_words(found, lay) -> tuple[tuple[str, str], ...]:
+    """Each weak parameter of ``weakly_identifiable``'s findings with its predicted standard deviation
+    in words (that of the parameter it leaves beyond its bound, when another)."""
+    return tuple((n, effect_text(e, lay[by].quantity) + ("" if by == n else f" of {by} with it"))
+                 for n, by, e, _ in found)
+
+
 def workspace_change(start: RobotModel, p: np.ndarray, q: np.ndarray, markers, free, at: Points | None = None
                      ) -> WorkspaceChange:
     """How far the geometry of the vector ``p`` (the layout of ``start``) moves the ``markers`` from

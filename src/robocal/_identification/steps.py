@@ -43,7 +43,7 @@ from .checks import (
     outlier_scores,
 )
 from .contact_blocks import TOGETHER
-from .estimates import REGISTRATION_TOL, effect_text
+from .estimates import REGISTRATION_TOL, effect_text, weak_words
 from .holdout import FoldProblems, HeldOut, Holdout, cross_validate, first_equal_rows, paired_excess
 from .identifiability import (
     ContactIdentifiability,
@@ -376,8 +376,7 @@ def weak_parameters(analysis: Analysis, sigma: float, *, eliminate: bool):
                                         moments=moments)
             if result is ident:
                 analysis.weak_at[sigma] = found
-        said += [(n, effect_text(e, lay[by].quantity) + ("" if by == n else f" of {by} with it"))
-                 for n, by, e, _ in found]
+        said += weak_words(found, lay)
         if not found or not eliminate:
             return result, tuple(said)
         if {n for n, _, _, _ in found} | set(dropped) >= set(ident.identified):

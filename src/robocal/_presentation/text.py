@@ -375,11 +375,14 @@ def plan_summary(model, selection, prediction, *, n_candidates: int, source: str
              f"  position error after calibration over {pre.n_workspace} configurations (RMS): "
              f"{with_unit(pre.error_rms, 'm')} from the parameters' uncertainty; "
              f"{with_unit(pre.held_out_rms, 'm')} as measured on held-out poses (with the instrument's noise)",
-             f"identifiable parameters ({len(pre.parameters)}) and their predicted standard deviations:"]
+             f"parameters identified ({len(pre.parameters)}) and their predicted standard deviations:"]
     lay = parameter_layout(model)
     width = max([len(n) for n in pre.parameters] + [16])
     for name, std in zip(pre.parameters, pre.std):
         lines.append(f"  {name:<{width}} std {with_unit(std, lay[name].unit):>18}")
+    if pre.held:
+        lines.append("weakly identifiable at these poses, held at nominal as the calibration holds them (the figures "
+                     "above are with them held): " + ", ".join(f"{n} (predicted std {s})" for n, s in pre.held))
     lines += eliminated_lines(pre.identifiability, {n: lay[n].unit for n in pre.identifiability.candidates if n in lay})
     return "\n".join(lines)
 

@@ -24,10 +24,11 @@ from .._base.arguments import (
 from .._base.errors import DegenerateDataError, InputError, check_choice
 from .._base.options import MAX_POSES, MAX_SELECTION_BLOCKS, MAX_SELECTION_WORK, POSE_CRITERIA
 from .._base.threads import one_blas_thread
-from .._identification.identifiability import ONE_SIDE, identifiability
+from .._identification.estimates import weak_words
+from .._identification.identifiability import ONE_SIDE, identifiability, weakly_identifiable
 from .._identification.points import design_problem
 from .._model.configurations import random_configurations
-from .._model.parameters import has_backlash_parameters, parameter_vector
+from .._model.parameters import has_backlash_parameters, parameter_layout, parameter_vector
 from .._model.robot import RobotModel
 
 log = logging.getLogger(__name__)
@@ -280,7 +281,10 @@ class CampaignPrediction:
     ``error_rms``: the predicted RMS position error of the calibrated model over ``n_workspace``
     configurations within the joint limits (what parameter uncertainty leaves, the instrument's noise not counted);
     ``held_out_rms``: the RMS error a measurement at such a configuration would show against the
-    calibrated model (the same plus the instrument's noise on that measurement)."""
+    calibrated model (the same plus the instrument's noise on that measurement). ``held``: the
+    parameters these poses identify but cannot pin down at that noise, which the calibration holds
+    at nominal (``weakly_identifiable``, its rule), each with its predicted standard deviation in
+    words; they are not among ``parameters``, and the figures are those with them held."""
 
     q: np.ndarray
     parameters: tuple[str, ...]
@@ -290,6 +294,7 @@ class CampaignPrediction:
     error_rms: float
     held_out_rms: float
     n_workspace: int
+    held: tuple[tuple[str, str], ...] = ()
 
 
 @accepts(model=is_a(RobotModel), q=readings_of(), parameters=NAMES, known=NAMES, noise=POSITIVE,
@@ -327,7 +332,13 @@ def predict_campaign(model: RobotModel, q, *, parameters=("geometric",), known=(
     ident = identifiability(model, q, parameters=parameters, known=known, tol=tol)
     names = ident.identified
     p0 = parameter_vector(model)
-    J = design_problem(model, q, names).jacobian(p0)
+    design = design_problem(model, q, names)
+    J = design.jacobian(p0)
+    held = _held_weak(model, design, J, names, noise, p0)
+    if held:
+        weak = {n for n, _ in held}
+        keep = [k for k, n in enumerate(names) if n not in weak]
+        names, J = tuple(names[k] for k in keep), J[:, keep]
     col = np.linalg.norm(J, axis=0)
     col[col == 0] = 1.0
     Ms = (J / col).T @ (J / col)
@@ -338,4 +349,15 @@ def predict_campaign(model: RobotModel, q, *, parameters=("geometric",), known=(
     per_point = np.einsum("ri,ij,rj->", Jw, cov, Jw) / (len(Jw) / 3)   # mean of tr(J_p C J_p^T)
     return CampaignPrediction(q=q, parameters=names, std=np.sqrt(np.diag(cov)), identifiability=ident,
                               noise=noise, error_rms=float(np.sqrt(per_point)),
-                              held_out_rms=float(np.sqrt(per_point + 3 * noise ** 2)), n_workspace=n_workspace)
+                              held_out_rms=float(np.sqrt(per_point + 3 * noise ** 2)), n_workspace=n_workspace,
+                              held=held)
+
+
+def _held_weak(model: RobotModel, design, J: np.ndarray, names, noise: float, p0) -> tuple[tuple[str, str], ...]:
+    """The identifiable ``names`` the calibration would hold at nominal at position noise ``noise``
+    (its rule, ``weakly_identifiable``), in words; none when that would be every one."""
+    lay = parameter_layout(model)
+    quantities = [lay[n].quantity for n in names]
+    moments = design.compliance_moments(p0) if "compliance" in quantities else None
+    found = weakly_identifiable(J, names, quantities, noise, moments=moments)
+    return weak_words(found, lay) if len(found) < len(names) else ()
