@@ -180,6 +180,24 @@ def test_a_bag_without_the_topics_truncated_or_of_another_type_is_one_line(stora
 
 
 @needs_rosbags
+def test_the_joints_topic_defaults_to_the_bags_only_one_and_several_are_named(th8, tmp_path, cli):
+    model, true, q = th8
+    rec = recording(model, true, q[:4], seed=3, noise=NOISE)
+    one = write_bag(tmp_path / "one.bag", rec)
+    code, out, err = cli("import-bag", tmp_path / "one.bag", "--model", TH8 / "model.yaml", "--marker", f"tool={one}",
+                         "--clock-offset", rec.clock_offset, "--out", tmp_path / "one.csv")
+    assert code == 0, err
+    assert "joints from /joint_states, the bag's only sensor_msgs/msg/JointState topic" in out
+    assert rc.read_measurements(tmp_path / "one.csv", model).n_poses == 4
+    two = write_bag(tmp_path / "two.bag", rec, extra_topics=[("/other/joint_states", "sensor_msgs/msg/JointState")])
+    code, _, err = cli("import-bag", tmp_path / "two.bag", "--model", TH8 / "model.yaml", "--marker", f"tool={two}",
+                       "--out", tmp_path / "two.csv")
+    assert_one_line_error(code, err, [str(tmp_path / "two.bag"), "--joints TOPIC", "2: /joint_states, "
+                                      "/other/joint_states"], command="import-bag")
+    assert not (tmp_path / "two.csv").exists()
+
+
+@needs_rosbags
 def test_a_path_that_is_no_bag_is_one_line(tmp_path, cli):
     (tmp_path / "notes.bag").write_text("not a bag\n")
     (tmp_path / "folder").mkdir()

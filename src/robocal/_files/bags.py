@@ -70,9 +70,10 @@ def _rosbags():
                        typesys.TypesysError)
 
 
-@accepts(path=PATH, model=optional(is_a(RobotModel)), joints=TEXT, markers=lambda v, name, args: _marker_specs(v),
-         joint_names=optional(MAPPING), rules=optional(is_a(StillRules)), orientation=FLAG)
-def read_bag(path, model: RobotModel | None = None, *, joints: str, markers: Mapping[str, str],
+@accepts(path=PATH, model=optional(is_a(RobotModel)), joints=optional(TEXT),
+         markers=lambda v, name, args: _marker_specs(v), joint_names=optional(MAPPING),
+         rules=optional(is_a(StillRules)), orientation=FLAG)
+def read_bag(path, model: RobotModel | None = None, *, joints: str | None = None, markers: Mapping[str, str],
              joint_names: Mapping[str, str] | None = None, rules: StillRules | None = None,
              orientation: bool = True) -> BagCampaign:
     """The campaign a ROS bag recorded: one pose per still moment of the joints, each marker the
@@ -85,8 +86,9 @@ def read_bag(path, model: RobotModel | None = None, *, joints: str, markers: Map
     model : RobotModel, optional
         The nominal model whose joints the bag's are matched to, by name; None: the bag's
         ``/robot_description`` (URDF), each marker at the tip link's origin.
-    joints : str
-        The ``sensor_msgs/JointState`` topic.
+    joints : str, optional
+        The ``sensor_msgs/JointState`` topic (default: the bag's only one; an error listing them
+        when it has several).
     markers : mapping of str to str
         Each marker's topic (``PointStamped``, ``PoseStamped``, ``TransformStamped``, or
         ``/tf:CHILD`` for a child frame of a ``TFMessage`` topic), by the model's marker name.
@@ -112,12 +114,15 @@ def read_bag(path, model: RobotModel | None = None, *, joints: str, markers: Map
         raise InputError("a folder without metadata.yaml is not a ROS 2 bag (give the bag's folder, or its .db3 or "
                          ".mcap file)", source=source)
     with _as_input_errors(source, errors), highlevel.AnyReader([Path(path)]) as reader:
-        topics = _topics(reader, source, joints, specs, from_bag)
+        chosen = joints or _joint_topic(reader, source)
+        topics = _topics(reader, source, chosen, specs, from_bag)
         decoded = _read(reader, topics, source)
     description = decoded.pop(DESCRIPTION, None)
     model = _described(description, source, tuple(specs)) if model is None else model
     names = {jn: (joint_names or {}).get(jn, jn) for jn in model.joint_names}
-    t0, joint_stream, notes = _joint_stream(decoded.pop(joints), names, source)
+    t0, joint_stream, notes = _joint_stream(decoded.pop(chosen), names, source)
+    if joints is None:
+        notes.insert(0, f"joints from {chosen}, the bag's only {JOINT_STATE} topic")
     streams = tuple(_marker_stream(name, topics[spec], t0, orientation, notes)
                     for name, spec in specs.items())
     data, left, scattered = campaign(joint_stream, streams, model, rules, source=source)
@@ -145,6 +150,16 @@ def _as_input_errors(source: str, errors: tuple):
     except (*errors, struct.error, EOFError, UnicodeDecodeError) as e:
         raise InputError(f"not a readable ROS bag ({' '.join(str(e).split()) or type(e).__name__})",
                          source=source) from None
+
+
+def _joint_topic(reader, source: str) -> str:
+    """The bag's only ``sensor_msgs/JointState`` topic; an error naming them when there are several or none."""
+    found = sorted(name for name, info in reader.topics.items() if info.msgtype == JOINT_STATE)
+    if len(found) != 1:
+        said = f"{len(found)}: {', '.join(found)}" if found else "none"
+        raise InputError(f"name the joints' topic (joints, --joints TOPIC): the bag's {JOINT_STATE} topics are "
+                         f"{said}", source=source)
+    return found[0]
 
 
 def _topics(reader, source: str, joints: str, specs: dict[str, str], description: bool) -> dict:

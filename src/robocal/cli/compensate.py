@@ -94,8 +94,8 @@ def _run_program(args, nominal, calibrated) -> int:
     for note in result.notes:
         print(f"note: {note}")
     for r in result.flagged:
-        print(f"robocal: warning: {args.targets}: {r.name} (line {r.line}): {r.status}; left unchanged",
-              file=sys.stderr)
+        where = "" if r.name == f"line {r.line}" else f" (line {r.line})"
+        print(f"robocal: warning: {args.targets}: {r.name}{where}: {r.status}; left unchanged", file=sys.stderr)
     done = sum(r.status == "ok" for r in result.targets)
     through = sum(r.status.startswith("not compensated") for r in result.targets)
     print(f"compensated {done} of {len(result.targets)} targets of {args.targets} ({program.dialect}) for "
@@ -121,7 +121,8 @@ def _summary(r) -> str:
     """A target's line: its frames and how far it moved, or why it was not compensated."""
     frames = f"; tool {r.tool}, work object {r.wobj}" if r.tool else ""
     through = f"; also through {r.through}" if r.through and r.status == "ok" else ""
-    head = f"{r.name} (line {r.line}, {r.kind}{frames})"
+    where = "" if r.name == f"line {r.line}" else f"line {r.line}, "     # an unnamed target is named by its line
+    head = f"{r.name} ({where}{r.kind}{frames})"
     if r.status != "ok":
         return f"{head}: {r.status}"
     linear = f", {r.length_change * common.MM:.4f} mm" if r.length_change else ""

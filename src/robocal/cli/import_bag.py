@@ -28,7 +28,8 @@ def register(sub) -> None:
                                                                ".db3 or .mcap file)")])
     p.add_argument("--model", metavar="MODEL.yaml", help="the nominal model whose joints the bag's are matched to "
                                                         "(default: the bag's /robot_description)")
-    p.add_argument("--joints", required=True, metavar="TOPIC", help="the sensor_msgs/JointState topic")
+    p.add_argument("--joints", metavar="TOPIC", help="the sensor_msgs/JointState topic (default: the bag's only "
+                                                     "one)")
     p.add_argument("--marker", required=True, action="append", type=_marker, metavar="NAME=TOPIC",
                    help="a marker of the model and its topic: geometry_msgs PointStamped, PoseStamped or "
                         "TransformStamped, or /tf:CHILD_FRAME (repeatable)")
