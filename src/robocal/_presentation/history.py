@@ -65,12 +65,15 @@ def overall_line(o) -> str:
             f"p = {o.p:.2g}")
 
 
+def _few(names, n: int = 4) -> str:
+    return ", ".join(names[:n]) + (f" and {len(names) - n} more" if len(names) > n else "")
+
+
 def apart_line(o) -> str:
     """'not compared with 2026-03-02: j2.k_theta fitted beyond 3 sigma of nominal in one calibration and
     not identified in the other, ...'."""
-    shown = ", ".join(o.apart[:4]) + (f" and {len(o.apart) - 4} more" if len(o.apart) > 4 else "")
-    return (f"not compared with {_day(o.since)}: {shown} fitted beyond {APART_SIGMAS:g} sigma of nominal in one "
-            "calibration and not identified in the other (held at nominal, or its family not calibrated), whose "
+    return (f"not compared with {_day(o.since)}: {_few(o.apart)} fitted beyond {APART_SIGMAS:g} sigma of nominal in "
+            "one calibration and not identified in the other (held at nominal, or its family not calibrated), whose "
             "estimates then carry them; to compare, identify the same parameters in both (the same --parameters, "
             "on poses that determine them)")
 
@@ -183,9 +186,16 @@ def type_summary(t: TypeComparison) -> str:
               f"{_sigma(o.z)}" for o in t.outliers[:40]] or ["  none"]
     if len(t.outliers) > 40:
         lines.append(f"  ... and {len(t.outliers) - 40} more")
+    held, apart = dict(t.held), dict(t.apart)
     lines.append("robots:")
     for c in t.latest[:200]:
         flag = f", {counts[c.robot]} parameter(s) standing out" if c.robot in counts else ""
+        if c.robot in held:
+            flag += (f"; compared with {_few(held[c.robot])} held at nominal (most of the type's calibrations do not "
+                     "identify them)")
+        if c.robot in apart:
+            flag += (f"; not compared: {_few(apart[c.robot])} fitted beyond {APART_SIGMAS:g} sigma of nominal, which "
+                     "most of the type's calibrations do not identify, and no stored correlations to hold them with")
         acc = "no measured accuracy" if c.accuracy_rms is None else f"{with_unit(c.accuracy_rms, 'm')} RMS"
         lines.append(f"  {c.robot}: #{c.id} {_day(c.calibrated_at)}, {c.verdict}, {acc}{flag}")
     if len(t.latest) > 200:

@@ -328,7 +328,10 @@ class TypeComparison:
     parameter; ``median`` and ``spread`` (1.4826 median absolute deviation, or the median standard
     deviation when the robots agree closer than that) per name; ``z`` the robust distances;
     ``outliers`` those beyond ``threshold`` (Šidák over all robots and parameters at ``alpha``),
-    largest first.
+    largest first. A robot whose calibration identifies parameters most of the type's do not is
+    compared as it would be with those held at nominal (``_as_held``), and listed in ``held`` with
+    them; without stored correlations, where one of them is beyond ``APART_SIGMAS`` of nominal, it
+    is not compared (its estimates carry it; NaN) and listed in ``apart``.
     """
 
     robot_type: str
@@ -343,6 +346,8 @@ class TypeComparison:
     threshold: float
     alpha: float
     outliers: tuple[Outlier, ...]
+    held: tuple[tuple[str, tuple[str, ...]], ...] = ()
+    apart: tuple[tuple[str, tuple[str, ...]], ...] = ()
 
     @property
     def robots(self) -> tuple[str, ...]:
@@ -507,13 +512,16 @@ def _held_apart(a: StoredCalibration, b: StoredCalibration, ja: dict, jb: dict) 
     correlations to take them back to nominal with (``_as_held``): the other holds them at nominal (or
     leaves out their family), so the parameters that absorb them carry their offset, and the two
     calibrations' estimates differ with no change of the robot."""
-    out = []
-    for c, mine, other in ((a, ja, jb), (b, jb, ja)):
-        for name, k in mine.items():
-            e = c.estimates[k]
-            if c.correlation is None and name not in other and abs(e.estimate - e.nominal) > APART_SIGMAS * e.std:
-                out.append(name)
-    return tuple(out)
+    return _carried(a, ja, jb) + _carried(b, jb, ja)
+
+
+def _carried(c: StoredCalibration, mine: dict, other) -> tuple[str, ...]:
+    """The parameters of ``mine`` (judged estimates of ``c``) not in ``other`` (names) that ``c`` fits beyond
+    ``APART_SIGMAS`` of nominal with no stored correlations to take them back to nominal with."""
+    if c.correlation is not None:
+        return ()
+    return tuple(name for name, k in mine.items() if name not in other
+                 and abs(c.estimates[k].estimate - c.estimates[k].nominal) > APART_SIGMAS * c.estimates[k].std)
 
 
 def _as_held(c: StoredCalibration, keep: list, held: list, rcond: float) -> tuple[np.ndarray, np.ndarray]:
@@ -616,11 +624,34 @@ def compare_type(robot_type: str, calibrations, *, alpha: float = DEFAULT_ALPHA,
     cals = sorted(calibrations, key=lambda c: c.robot)
     latest = [Latest(c.robot, c.id or 0, c.calibrated_at, c.verdict, c.accuracy.rms if c.accuracy else None)
               for c in cals]
-    estimates = []
-    for c in cals:
-        layout = [(e.name, e.unit, e.family) for e in c.estimates]
-        estimates.append((layout, np.array([e[3:] for e in c.estimates], dtype=float).reshape(-1, 3)))
-    return _compared(robot_type, latest, estimates, alpha, families)
+    judged = [_judged(c, families) for c in cals]
+    count: dict[str, int] = {}
+    for j in judged:
+        count.update((n, count.get(n, 0) + 1) for n in j)
+    common = {n for n, k in count.items() if 2 * k >= len(cals)}     # what most robots of the type identify
+    estimates, held, apart = [], [], []
+    for c, j in zip(cals, judged):
+        extra, far, layout, values = _on_common(c, j, common)
+        estimates.append((layout, values))
+        if far:
+            apart.append((c.robot, far))
+        elif extra and c.correlation is not None:
+            held.append((c.robot, extra))
+    return replace(_compared(robot_type, latest, estimates, alpha, families), held=tuple(held), apart=tuple(apart))
+
+
+def _on_common(c: StoredCalibration, judged: dict, common: set):
+    """``c``'s estimates of the ``common`` parameters as it would give them with its others held at
+    nominal (``_as_held``): (those others, those it cannot hold (``_carried``: then none is kept),
+    the kept ones' (name, unit, family), their (n, 3) nominal/estimate/std)."""
+    extra = tuple(n for n in judged if n not in common)
+    far = _carried(c, judged, common)
+    keep = [] if far else [judged[n] for n in judged if n in common]
+    kept = 8 if c.correlation is None else c.correlation.dtype.itemsize
+    x, C = _as_held(c, keep, [judged[n] for n in extra], RCOND[kept])
+    rows = [(c.estimates[k].nominal, v, s) for k, v, s in zip(keep, x, np.sqrt(np.maximum(np.diag(C), 0.0)))]
+    layout = [(c.estimates[k].name, c.estimates[k].unit, c.estimates[k].family) for k in keep]
+    return extra, far, layout, np.array(rows, dtype=float).reshape(-1, 3)
 
 
 def _compared(robot_type: str, latest: list, estimates: list, alpha: float, families) -> TypeComparison:
