@@ -110,9 +110,17 @@ def _compared(robot):
     test poses choose nothing that cross-validation on the grid alone would not."""
     model = rc.default_masses(nominal(robot))
     grid, test = campaign(robot, "grid", model), campaign(robot, "random", model)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        cmp = rc.compare(model, grid, validation=test)
+    # each identification's warnings name it (most are not the one kept, whose checks may all pass)
+    assert caught and all(str(w.message).startswith("the ") and " identification" in str(w.message).split(": ")[0]
+                          for w in caught)
+    kept = {f"{c.name} ({'FAILED' if c.status == 'fail' else 'warning'}): {c.summary}" for c in cmp.best.checks
+            if c.status != "pass"}
+    assert kept <= {str(w.message).split(": ", 1)[1] for w in caught}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        cmp = rc.compare(model, grid, validation=test)
         assert rc.compare(model, grid).best.families == cmp.best.families
     return cmp
 

@@ -7,13 +7,14 @@ here, once."""
 from __future__ import annotations
 
 import inspect
+import warnings
 from dataclasses import replace
 from typing import cast, overload
 
 import numpy as np
 
 from .._base.arguments import FLAG, FRACTION, accepts, both, is_a, measured_on, optional
-from .._base.errors import DegenerateDataError, InputError
+from .._base.errors import DegenerateDataError, InputError, warn
 from .._base.threads import one_blas_thread
 from .._identification.calibrate import check_inputs, nested_test, options_of, run
 from .._identification.checks import BEFORE_SOLVING, Check
@@ -175,6 +176,15 @@ def compare(model: RobotModel, data: Measurements | None = None, *, contacts: Co
     check_inputs(model, data, contacts, validation, options)
 
     def fit(*families: str) -> CalibrationResult:
+        # each identification's warnings say whose they are: most are not the one kept
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            result = fitted(*families)
+        for w in caught:
+            warn(f"{_identification_label(families)}: {w.message}", w.category)
+        return result
+
+    def fitted(*families: str) -> CalibrationResult:
         # a larger model is offered, not asked for: it gets the model choice's budget of evaluations
         given = options["max_nfev"] is not None
         budget = options["max_nfev"] if given or families == ("geometric",) else COMPARED_NFEV
@@ -296,6 +306,16 @@ def _transmission_levels(small: CalibrationResult, names, fit, found: dict, vali
             break
         tried.append((what, large, nested_test(small, large, validation, alpha, what)))
     return tried
+
+
+def _identification_label(families) -> str:
+    """'the geometric and compliance identification', 'the geometric identification with transmission
+    terms up to the first harmonic': one of a comparison's, as its warnings name it."""
+    base = tuple(f for f in families if "." not in f)
+    kinds = {f.rsplit(".", 1)[1] for f in families if "." in f}
+    levels = [label for label, level in TRANSMISSION_LEVELS if kinds & set(level)]
+    terms = f" with transmission terms up to the {levels[-1]}" if levels else ""
+    return f"the {compared_name(base)} identification{terms}"
 
 
 def _in_use_rms(r: CalibrationResult) -> float:
