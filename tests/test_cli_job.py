@@ -278,6 +278,32 @@ def test_a_closed_pipe_ends_quietly(monkeypatch, capsys):
     assert capsys.readouterr().err == ""
 
 
+def test_a_closed_pipe_keeps_the_exit_code_and_the_files(monkeypatch, capsys, tmp_path):
+    """``robocal calibrate ... | head``: once the reader left, a failed calibration ended with 0 (the
+    broken pipe caught as a quiet end) though it had failed its checks. It now ends with 3, its files
+    written."""
+    from robocal.cli import main
+
+    class Closed:
+        def write(self, text):
+            raise BrokenPipeError(32, "Broken pipe")
+
+        def flush(self):
+            pass
+
+    real = ROOT / "tests" / "data" / "real"
+    grid = real / "serial_robots_datasets" / "UR5" / "3D_UR5_uncalibrated_grid_cleaned.csv"
+    columns = ("x_t+x_dif=tool_x_mm,y_t+y_dif=tool_y_mm,z_t+z_dif=tool_z_mm,step_order=pose,joint_1=shoulder_pan,"
+               "joint_2=shoulder_lift,joint_3=elbow,joint_4=wrist_1,joint_5=wrist_2,joint_6=wrist_3")
+    assert main(["import-dh", str(real / "ur5-dh.csv"), "--out", str(tmp_path / "ur5.yaml")]) == 0
+    monkeypatch.setattr(sys, "stdout", Closed())
+    # degrees declared as radians: the calibration fails, naming them
+    code = main(["calibrate", str(tmp_path / "ur5.yaml"), str(grid), "--map", columns, "--units", "mm-rad",
+                 "--out", str(tmp_path / "run")])
+    assert code == 3 and (tmp_path / "run" / "result.json").is_file()
+    assert "Traceback" not in capsys.readouterr().err
+
+
 def test_plan_from_candidate_poses(tmp_path, cli):
     out = tmp_path / "poses.csv"
     code, printed, err = cli("plan", TH8, "--poses", 10, "--candidates", ROOT / "examples/th8/measurements.csv",

@@ -89,6 +89,33 @@ def _quiet_stdout() -> None:
         pass
 
 
+class _Reader:
+    """stdout that, once its reader has left (``robocal ... | head``), drops the rest quietly: the
+    command still does all its work and ends with its own exit code (3 for a failed calibration)."""
+
+    def __init__(self, stream):
+        self._stream, self._left = stream, False
+
+    def _guarded(self, call, *args):
+        if not self._left:
+            try:
+                return call(*args)
+            except BrokenPipeError:
+                self._left = True
+                _quiet_stdout()
+        return None
+
+    def write(self, text: str) -> int:
+        self._guarded(self._stream.write, text)
+        return len(text)
+
+    def flush(self) -> None:
+        self._guarded(self._stream.flush)
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+
+
 def main(argv=None) -> int:
     parser = build_parser()
     try:
@@ -116,8 +143,12 @@ def main(argv=None) -> int:
         warnings.showwarning = show
         args.shown_warnings = shown
         logging.getLogger("robocal").info("%s: started", args.command)
-        with _sigterm_unwinds():
-            return _run(args)
+        stdout, sys.stdout = sys.stdout, _Reader(sys.stdout)
+        try:
+            with _sigterm_unwinds():
+                return _run(args)
+        finally:
+            sys.stdout = stdout
 
 
 def _terminate(signum, frame):
