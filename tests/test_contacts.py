@@ -146,6 +146,20 @@ def _by_hand(model, contacts):
     return consistency, spacing
 
 
+def test_copied_contact_rows_are_named(arm7, socket_run):
+    """A seating copied (the same readings twice, as no hand repeats them) counts as information it is
+    not: the calibration says so, as it does of repeated tracker poses."""
+    _, fit, _ = socket_run
+    copied = fit.subset(np.r_[np.arange(fit.n_rows), [3, 7, 7]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        notes = rc.calibrate(arm7, contacts=copied).notes
+        clean = rc.calibrate(arm7, contacts=fit).notes
+    assert any(n.startswith(f"3 of {fit.n_rows + 3} contact rows repeat an earlier row's joint readings exactly")
+               for n in notes), notes
+    assert not any("repeat an earlier row" in n for n in clean)
+
+
 def test_socket_consistency_and_spacing_error_match_a_hand_computation(arm7, socket_run):
     """The community's figures, fitted and held out, before and after, to 1e-9 m. "Before" is the
     nominal geometry with the ball's offset registered on the contacts (as a tracker calibration's

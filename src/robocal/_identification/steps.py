@@ -249,6 +249,8 @@ def analyse(inputs: Inputs, options: Options) -> Analysis:
         measured = tuple(n for n in data.marker_names if n in seen)
         theory = theoretical_identifiability(start, options.parameters, known, orientation, options.tol, measured)
         notes += _enough_poses(problem, data, len(theory.identified))
+    if contacts is not None:
+        notes += _repeated_contacts(contacts)
     p0 = problem.start_vector()
     stack = analyse_stack(problem, names, p0, tol=options.tol)
     if not stack.result.identified:
@@ -274,6 +276,18 @@ def _points_move(data: Measurements) -> None:
                 f"{z:.6g} m) on {len(rows)} poses whose joints move: the instrument repeated one reading (it lost "
                 "the target?), or the tool was held at one point (a pivot: give those poses as contacts of one "
                 "socket, --contacts)")
+
+
+def _repeated_contacts(contacts: Contacts) -> list[str]:
+    """Note contact rows whose joint readings repeat an earlier row's exactly: seatings by hand never
+    repeat to the encoder count, so they are copied rows, counted as if they added information."""
+    n = len(contacts.q)
+    repeats = n - distinct_rows(contacts.q)
+    if not repeats:
+        return []
+    return [f"{repeats} of {n} contact rows repeat an earlier row's joint readings exactly: copied rows (a seating "
+            "by hand never repeats to the encoder count); they add no information, yet the fit counts them as if "
+            "they did (its standard deviations are then too small): remove them"]
 
 
 def _enough_poses(problem: Problem, data: Measurements, needed: int) -> list[str]:
