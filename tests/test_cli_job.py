@@ -129,6 +129,14 @@ def test_compensate_cartesian_targets_and_joint_limits():
     assert not rc.compensate(narrow, q, nominal=model).within_limits.all()
 
 
+def test_export_takes_urdf_from_the_file_name_and_asks_for_a_tables_form(tmp_path, cli):
+    code, out, err = cli("export", TRUE, "--out", tmp_path / "m.urdf")
+    assert code == 0 and ": urdf of 6 joints" in out, err
+    code, _, err = cli("export", TRUE, "--out", tmp_path / "m.csv")
+    assert code == 2 and "--format" in err and "mdh-csv" in err and "dh-csv" in err
+    assert not (tmp_path / "m.csv").exists()
+
+
 @pytest.mark.parametrize("fmt", ["urdf", "mdh-csv", "dh-csv"])
 def test_export_round_trips(fmt, tmp_path, cli):
     source = TRUE if fmt != "dh-csv" else TH8

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import sys
 
+from .._base.errors import InputError
 from . import common
 
 FORMATS = ("urdf", "mdh-csv", "dh-csv")
@@ -24,7 +25,8 @@ def register(sub) -> None:
                        description="Write MODEL (a calibrated model file) as URDF, a modified-DH table or a classic "
                                    "DH table; each reproduces the model's forward kinematics.",
                        example=EXAMPLE, inputs=[("model", "MODEL", "model file (YAML), e.g. OUT/calibrated.yaml")])
-    p.add_argument("--format", required=True, choices=FORMATS, help="what to write")
+    p.add_argument("--format", choices=FORMATS, help="what to write (default urdf for an --out ending in .urdf; a "
+                                                     "table needs it: mdh-csv or dh-csv)")
     p.add_argument("--out", required=True, metavar="FILE", help="file to write")
     p.add_argument("--units", type=common.units, default="mm-deg", help="units of a DH table (default mm-deg)")
     p.add_argument("--allow-ill-conditioned", action="store_true",
@@ -40,6 +42,11 @@ def run(args) -> int:
     from .._files.urdf import urdf_text
     from .._model.conversion import to_standard_dh
 
+    if args.format is None:
+        if not args.out.lower().endswith(".urdf"):
+            raise InputError("needed: urdf, mdh-csv (modified DH with Hayati's beta) or dh-csv (classic DH); only an "
+                             "--out ending in .urdf says which", where="--format")
+        args.format = "urdf"
     common.refuse_existing([args.out], args.force)
     model = read_model(args.model)
     if args.format == "urdf":
