@@ -206,3 +206,7 @@ def test_history_names_only_the_families_it_compared(th8_result, tmp_path, cli):
     assert code == 0, err
     header = next(line for line in out.splitlines() if line.startswith("changes between"))
     assert "comparisons of frames parameters;" in header and "compliance" not in header
+    # the page says the same, and shows the accuracy in use the text shows beside the measured one
+    with rc.open_store(store) as opened:
+        page = rc.render_history(rc.history(opened, "R"))
+    assert "comparisons of frames parameters;" in page and "<th>in use RMS (mm)</th>" in page

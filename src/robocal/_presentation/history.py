@@ -102,8 +102,8 @@ def history_summary(h: History) -> str:
     for c in h.calibrations:
         lim = f", limit {with_unit(c.limit_m, 'm')}" if c.limit_m is not None else ""
         kind = f" [{c.robot_type}]" if c.robot_type else ""
-        use = ((c.in_use or {}).get("position_after") or {}).get("rms")
-        use_text = f", in use {with_unit(use, 'm')} RMS" if isinstance(use, (int, float)) else ""
+        use = _in_use_rms(c)
+        use_text = f", in use {with_unit(use, 'm')} RMS" if use is not None else ""
         lines.append(f"  #{c.id} {_when(c.calibrated_at)}{kind}: {c.verdict}, {_accuracy_text(c.accuracy)}{use_text}"
                      f"{lim}, inputs {c.fingerprint[:12]}")
     lines += _estimates_table(h) + _changes_lines(h)
@@ -324,12 +324,19 @@ def plot_verifications(h: History) -> str:
 _VERDICT_CLASS = {"pass": "ok", "warn": "warn", "fail": "bad"}
 
 
+def _in_use_rms(c: StoredCalibration):
+    """The RMS position error in use a calibration predicted (m), None when it has none."""
+    use = ((c.in_use or {}).get("position_after") or {}).get("rms")
+    return use if isinstance(use, (int, float)) else None
+
+
 def _calibration_rows(h: History) -> str:
     return "".join(
         f'<tr><td>#{c.id}</td><td>{_e(_when(c.calibrated_at))}</td><td>{_e(c.robot_type or "")}</td>'
         f'<td class="{_VERDICT_CLASS.get(c.verdict, "")}">{_e(c.verdict)}</td>'
         f'<td class="num">{fmt(c.accuracy.rms if c.accuracy else None)}</td>'
-        f'<td>{_e(c.accuracy.source if c.accuracy else "")}</td><td class="num">{fmt(c.limit_m)}</td>'
+        f'<td>{_e(c.accuracy.source if c.accuracy else "")}</td><td class="num">{fmt(_in_use_rms(c))}</td>'
+        f'<td class="num">{fmt(c.limit_m)}</td>'
         f"<td><code>{_e(c.fingerprint[:16])}</code></td><td>{_e(c.source)}</td></tr>" for c in h.calibrations)
 
 
@@ -347,7 +354,9 @@ def render_history(h: History) -> str:
         A self-contained HTML page.
     """
     need_matplotlib()
-    changes = "".join(f"<li>{_e(change_line(c))}</li>" for c in h.changes) or "<li>none</li>"
+    apart = [apart_line(o) for o in h.overall if not o.compared]
+    changes = "".join(f"<li>{_e(change_line(c))}</li>" for c in h.changes) or \
+        f"<li>none{' among the calibrations compared' if apart else ''}</li>"
     verifs = "".join(
         f'<tr><td>{_e(_when(v.verified_at))}</td><td>#{v.calibration_id}</td>'
         f'<td class="{"bad" if v.verdict != "within accuracy" else "ok"}">{_e(v.verdict)}</td>'
@@ -359,13 +368,16 @@ def render_history(h: History) -> str:
         f"<h1>Calibration history &ndash; {_e(h.robot)}</h1>",
         f"<p>{len(h.calibrations)} calibration(s), {len(h.verifications)} verification(s). Lengths in mm.</p>",
         "<h2>Calibrations</h2><table><thead><tr><th>#</th><th>calibrated</th><th>type</th><th>verdict</th>"
-        "<th>accuracy RMS (mm)</th><th>from</th><th>limit (mm)</th><th>inputs SHA-256</th><th>source</th></tr>"
+        "<th>measured accuracy RMS (mm)</th><th>from</th><th>in use RMS (mm)</th><th>limit (mm)</th>"
+        "<th>inputs SHA-256</th><th>source</th></tr>"
         f"</thead><tbody>{_calibration_rows(h)}</tbody></table>",
         f"<h2>Changes</h2><p>Between consecutive calibrations, judged at {h.threshold:.2f} standard deviations of "
-        f"their combined uncertainty ({len(h.comparisons)} comparisons; a {h.alpha:.0%} chance of naming one in an "
-        f"unchanged robot's history, with the overall tests).</p><ul>{changes}</ul>"
+        f"their combined uncertainty ({len(h.comparisons)} comparisons"
+        + (f" of {_e(_compared_families(h))} parameters" if _compared_families(h) else "")
+        + f"; a {h.alpha:.0%} chance of naming one in an unchanged robot's history, with the overall tests).</p>"
+        f"<ul>{changes}</ul>"
         + "".join(f"<p>{_e(overall_line(o))}</p>" for o in h.overall if o.named)
-        + "".join(f"<p>{_e(apart_line(o))}</p>" for o in h.overall if not o.compared),
+        + "".join(f"<p>{_e(line)}</p>" for line in apart),
         "<h2>Drift of each parameter</h2>" + (f"<figure>{drift}<figcaption>Estimates at each calibration with a band "
                                               f"of &plusmn;{BAND:g} standard deviations; red: a change named."
                                               "</figcaption></figure>" if drift else "<p>No parameter judged.</p>"),
