@@ -210,3 +210,14 @@ def test_history_names_only_the_families_it_compared(th8_result, tmp_path, cli):
     with rc.open_store(store) as opened:
         page = rc.render_history(rc.history(opened, "R"))
     assert "comparisons of frames parameters;" in page and "<th>in use RMS (mm)</th>" in page
+
+
+def test_verifying_a_robot_calibrated_from_contacts_says_what_verification_needs(tmp_path, cli):
+    arm7 = ROOT / "examples" / "arm7"
+    assert cli("calibrate", arm7 / "model.yaml", "--contacts", arm7 / "sockets.csv", "--out", tmp_path / "kit",
+               "--record", "A7", "--store", tmp_path / "s.sqlite")[0] == 0
+    model = rc.read_model(arm7 / "model.yaml")
+    _, data = rc.simulate(model, 12, seed=1)
+    rc.io.write_measurements(data, tmp_path / "check.csv", model=model)
+    code, _, err = cli("verify", "A7", tmp_path / "check.csv", "--store", tmp_path / "s.sqlite")
+    assert code == 2 and "contacts alone measures no position" in err and "calibrate again on new seatings" in err

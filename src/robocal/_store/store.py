@@ -1555,8 +1555,10 @@ def verify_robot(store: Store, robot: str, data: Measurements, *, register: bool
     """
     latest = latest_usable(store, robot)
     if latest.accuracy is None:
-        raise InputError(f"the latest calibration of {robot} (#{latest.id}) has no accuracy to verify against",
-                         source=store.location)
+        raise InputError(f"the latest calibration of {robot} (#{latest.id}) has no measured accuracy to verify "
+                         "against (a calibration from contacts alone measures no position): verification needs a "
+                         "calibration from measured points; from contacts, calibrate again on new seatings and read "
+                         "the changes in history", source=store.location)
     v = verify(store.model(latest.calibrated_model), data, latest.accuracy, register=register, alpha=alpha)
     rec = stored_verification(v, latest, at=at, source=data.source, fingerprint=data.sha256)
     return v, (store.add_verification(rec) if save else rec)
