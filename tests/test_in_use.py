@@ -252,6 +252,17 @@ def test_a_limit_not_reached_cannot_stand_under_a_clean_pass():
     assert not result.limit.reached and limit.status == "warn" and result.verdict != "pass"
 
 
+def test_a_limit_reached_within_the_margin_says_so():
+    # 1.03 times the limit read "(reached)", as if below it
+    from robocal._identification.checks import limit_check
+    from robocal._identification.result import LimitJudgement
+
+    near = limit_check(LimitJudgement(1e-4, "cross-validation", 1.03e-4, 1.03, True))
+    below = limit_check(LimitJudgement(1e-4, "cross-validation", 0.9e-4, 0.9, True))
+    assert near.status == "pass" and "(reached, within the 1.15 times it the check allows)" in near.summary
+    assert below.status == "pass" and below.summary.endswith("(reached)")
+
+
 def test_a_noise_stated_ten_times_too_large_is_said_and_hides_no_blunder():
     m = arm6r()
     true, data = rc.simulate(m, 60, seed=9, noise=NOISE)

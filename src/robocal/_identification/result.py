@@ -20,16 +20,13 @@ from .._model.measurements import Measurements
 from .._model.parameters import parameter_layout, parameter_vector
 from .._model.robot import RobotModel
 from .._version import __version__
-from .checks import STATUSES, Check, verdict
+from .checks import LIMIT_REACHED_WITHIN, STATUSES, Check, verdict
 from .estimates import ErrorStats, ParameterEstimate, error_stats
 from .holdout import AccuracyInUse, Coverage
 from .identifiability import IdentifiabilityResult
 
 if TYPE_CHECKING:
     from .contact_figures import ContactFigures
-
-# the limit is a mean-error bar; within this factor of it counts as reaching it
-LIMIT_REACHED_WITHIN = 1.15
 
 
 @dataclass(frozen=True)
