@@ -175,28 +175,7 @@ def compare(model: RobotModel, data: Measurements | None = None, *, contacts: Co
     options = {k: v for k, v in given.arguments.items() if k not in ("model", "data", "contacts", "validation")}
     check_inputs(model, data, contacts, validation, options)
 
-    def fit(*families: str) -> CalibrationResult:
-        # each identification's warnings say whose they are: most are not the one kept
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            result = fitted(*families)
-        for w in caught:
-            warn(f"{_identification_label(families)}: {w.message}", w.category)
-        return result
-
-    def fitted(*families: str) -> CalibrationResult:
-        # a larger model is offered, not asked for: it gets the model choice's budget of evaluations
-        given = options["max_nfev"] is not None
-        budget = options["max_nfev"] if given or families == ("geometric",) else COMPARED_NFEV
-        settled = options_of({**options, "parameters": families, "max_nfev": budget})
-        result, chosen = run(model, data, contacts, validation, settled)
-        if families != ("geometric",) and not result.solver.success:      # not diagnosed: it is left out
-            raise _NotConverged(f"its fit had not converged within the {budget} evaluations of the residuals "
-                                "max_nfev allows" if given else
-                                f"its fit had not converged after {result.solver.nfev} evaluations of the "
-                                f"residuals: a model of {len(result.parameters)} parameters these data barely "
-                                "determine")
-        return screened(model, data, contacts, result, chosen, settled)
+    fit = _Fitter(model, data, contacts, validation, options)
 
     found: dict = {"geometric": fit("geometric"), "skipped": []}
     wrong = [c.name for c in found["geometric"].checks if c.status == "fail" and c.name in BEFORE_SOLVING]
@@ -212,16 +191,65 @@ def compare(model: RobotModel, data: Measurements | None = None, *, contacts: Co
     return Comparison(skipped=tuple(found.pop("skipped")), **found)
 
 
+class _Fitter:
+    """The identifications of one comparison: ``fit(*families)`` calibrates and diagnoses one (its
+    warnings naming it); with ``screen=False`` the diagnosis waits for ``screen(result)``, asked only
+    of the one a choice keeps (the transmission levels: each is fitted, one is kept)."""
+
+    def __init__(self, model, data, contacts, validation, options: dict):
+        self.model, self.data, self.contacts, self.validation, self.options = model, data, contacts, validation, options
+        self.pending: dict = {}
+
+    def __call__(self, *families: str, screen: bool = True) -> CalibrationResult:
+        return self._labelled(families, lambda: self._fitted(families, screen))
+
+    def screen(self, result: CalibrationResult) -> CalibrationResult:
+        """``result``'s diagnosis, when its fit left it for later; else ``result``."""
+        if id(result) not in self.pending:
+            return result
+        chosen, settled = self.pending.pop(id(result))
+        return self._labelled(result.families, lambda: screened(self.model, self.data, self.contacts, result, chosen,
+                                                                settled))
+
+    @staticmethod
+    def _labelled(families, work):
+        # each identification's warnings say whose they are: most are not the one kept
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            result = work()
+        for w in caught:
+            warn(f"{_identification_label(families)}: {w.message}", w.category)
+        return result
+
+    def _fitted(self, families: tuple, screen: bool) -> CalibrationResult:
+        # a larger model is offered, not asked for: it gets the model choice's budget of evaluations
+        options = self.options
+        given = options["max_nfev"] is not None
+        budget = options["max_nfev"] if given or families == ("geometric",) else COMPARED_NFEV
+        settled = options_of({**options, "parameters": families, "max_nfev": budget})
+        result, chosen = run(self.model, self.data, self.contacts, self.validation, settled)
+        if families != ("geometric",) and not result.solver.success:      # not diagnosed: it is left out
+            raise _NotConverged(f"its fit had not converged within the {budget} evaluations of the residuals "
+                                "max_nfev allows" if given else
+                                f"its fit had not converged after {result.solver.nfev} evaluations of the "
+                                f"residuals: a model of {len(result.parameters)} parameters these data barely "
+                                "determine")
+        if not screen:
+            self.pending[id(result)] = (chosen, settled)
+            return result
+        return screened(self.model, self.data, self.contacts, result, chosen, settled)
+
+
 NO_MASSES = "the model has no link masses (--assume-masses assumes them from the geometry)"
 
 
-def _fitted_or_skipped(fit, found: dict, what: str, *families: str) -> CalibrationResult | None:
+def _fitted_or_skipped(fit, found: dict, what: str, *families: str, screen: bool = True) -> CalibrationResult | None:
     """The calibration of ``families``, or None with ``what`` and why in ``found["skipped"]`` when the
     data cannot determine that larger model (too few poses for its parameters, or a solve that did
     not converge within its evaluations: ``COMPARED_NFEV`` unless ``max_nfev`` is given): the
     comparison of the others stands."""
     try:
-        return fit(*families)
+        return fit(*families, screen=screen)
     except (DegenerateDataError, _NotConverged) as e:
         found["skipped"].append(f"{what} not compared: {e}")
         return None
@@ -284,7 +312,7 @@ def _compare_transmission(model: RobotModel, fit, found: dict, validation, alpha
         test = NestedTest(test.f_statistic, test.p_value, False,
                           test.summary + f"; not kept: the best so far does better in use ({best_rms * 1e3:.4f} mm)")
     others = "".join(f"; {w}: RMS in use {_in_use_rms(r) * 1e3:.4f} mm" for w, r, _ in tried if r is not large)
-    found["transmission"] = large
+    found["transmission"] = fit.screen(large)
     found["transmission_test"] = NestedTest(test.f_statistic, test.p_value, bool(helped), test.summary + others)
 
 
@@ -301,7 +329,7 @@ def _transmission_levels(small: CalibrationResult, names, fit, found: dict, vali
             continue                    # nothing new at this level (no stated ratio)
         done = terms
         what = f"transmission (up to the {label}, on {compared_name(small.families)})"
-        large = _fitted_or_skipped(fit, found, what, *small.families, *terms)
+        large = _fitted_or_skipped(fit, found, what, *small.families, *terms, screen=False)
         if large is None:
             break
         tried.append((what, large, nested_test(small, large, validation, alpha, what)))
