@@ -544,3 +544,15 @@ def test_the_report_shows_the_decisive_cause(tmp_path, cli):
     assert "  refitted: " in out
     report = (tmp_path / "out" / "report.html").read_text()
     assert 'data-key="diagnosis.0"' in report and "<b>Decisive:</b>" in report and "pose 20 on hold" in report
+
+
+def test_a_unit_repaired_says_what_is_left_in_that_unit():
+    """Millimetres read as metres: the refit's residual was shown in the declared unit only (65.1 mm on
+    the UR5 grid, where the instrument's is 0.065 mm), a thousand times what the repair leaves."""
+    model = robots.arm6r()
+    _, data = rc.simulate(model, 80, seed=4, noise=2e-5)
+    wrong = replace(data, positions=data.positions * 1e3)
+    first = _first(_calibrated(model, wrong))
+    assert first.hypothesis == "unit factor" and first.status == "fail"
+    left = float(re.search(r"refitted in that unit: ([\d.e+-]+) mm RMS per axis in it, ", first.evidence).group(1))
+    assert 0.01 < left < 0.04, first.evidence         # the 0.02 mm noise, in millimetres

@@ -664,12 +664,16 @@ def held_out_change(verdict: Judgement, before: float) -> str:
             f"({abs(verdict.gain) / max(verdict.se, 1e-300):.3g} standard errors)")
 
 
-def finding(ref: Reference, cand: Candidate, rms: float, verdict: Judgement, how: str) -> Finding:
+def finding(ref: Reference, cand: Candidate, rms: float, verdict: Judgement, how: str, scale: float = 1.0
+            ) -> Finding:
     """The finding of a candidate whose repair earned a status: the evidence is what the repair leaves
-    (``rms``, m per axis) and the cross-validated error, against the calibration's."""
+    (``rms``, m per axis, in the data's declared unit; ``scale`` takes the repair's unit to it) and the
+    cross-validated error, against the calibration's."""
     before = verdict.before if np.isfinite(verdict.before) else float(np.nanmean(ref.held_out))
-    evidence = (f"{how}: {mm(rms)} against {mm(ref.rms)} RMS per axis (the residual variance divided by "
-                f"{verdict.factor:.3g}); {held_out_change(verdict, before)}")
+    # a unit repaired: what the repair leaves in its own unit first, then as the file declared it
+    own = "" if scale == 1.0 else f"{mm(rms / scale)} RMS per axis in it, "
+    evidence = (f"{how}: {own}{mm(rms)} {'as declared ' if own else ''}against {mm(ref.rms)} RMS per axis (the "
+                f"residual variance divided by {verdict.factor:.3g}); {held_out_change(verdict, before)}")
     if verdict.plausible:
         evidence += (f"; it fits as well, and of the calibration's {ref.implausible} implausible change(s) "
                      "at most half remain")
@@ -706,7 +710,7 @@ def refitted(ref: Reference, cand: Candidate) -> Finding | None:
         return None
     if cand.restated is not None:
         cand = replace(cand, cause=cand.restated(out))
-    return finding(ref, cand, out.rms, verdict, f"refitted {cand.how}")
+    return finding(ref, cand, out.rms, verdict, f"refitted {cand.how}", repair.scale)
 
 
 def with_arrays(data: Measurements, **changes) -> Measurements:
