@@ -320,5 +320,9 @@ def test_plan_from_candidate_poses(tmp_path, cli):
     model = rc.read_model(TH8)
     given = rc.read_measurements(ROOT / "examples/th8/measurements.csv", model).q
     assert f"10 poses chosen from {len(given)} poses of" in printed
-    chosen = rc.read_measurements(out, model, targets=True).q
-    assert all(np.isclose(given, row).all(axis=1).any() for row in chosen)
+    chosen = rc.read_measurements(out, model, targets=True)
+    assert all(np.isclose(given, row).all(axis=1).any() for row in chosen.q)
+    # each chosen pose keeps its name in the candidates' file (they were renamed P01, P02, ...)
+    named = rc.read_measurements(ROOT / "examples/th8/measurements.csv", model)
+    for label, row in zip(chosen.labels, chosen.q):
+        assert np.allclose(named.q[named.labels.index(label)], row), label

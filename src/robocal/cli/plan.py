@@ -57,13 +57,14 @@ def run(args) -> int:
 
     common.refuse_existing([args.out], args.force)
     model = read_model(args.model)
-    candidates = common.read_data(args, model, args.candidates, targets=True).q if args.candidates else None
+    given = common.read_data(args, model, args.candidates, targets=True) if args.candidates else None
+    candidates, names = (None, ()) if given is None else (given.q, given.labels)
     if candidates is not None:  # a plan never asks for a pose beyond the joint limits
         inside = within_limits(model, candidates)
         if not inside.all():
             print(f"robocal: warning: {args.candidates}: {int((~inside).sum())} of {len(inside)} candidate poses "
                   "are beyond the joint limits and left out", file=sys.stderr)
-        candidates = candidates[inside]
+        candidates, names = candidates[inside], tuple(n for n, keep in zip(names, inside) if keep)
     n_cand = len(candidates) if candidates is not None else args.n_candidates
     if args.poses > n_cand:
         raise InputError(f"cannot choose {args.poses} poses from {n_cand} candidates", where="--poses")
@@ -76,8 +77,11 @@ def run(args) -> int:
     if not within_limits(model, sel.q).all():
         raise DegenerateDataError("the chosen poses are beyond the joint limits; nothing written")
     n, m = len(sel.q), len(model.marker_names)
+    # chosen among given poses, each keeps its name there: the plan says which of them to measure
+    labels = tuple(f"P{i + 1:02d}" for i in range(n)) if candidates is None or len(names) != len(candidates) else \
+        tuple(names[i] for i in sel.indices)
     poses = Measurements(q=sel.q, positions=np.full((n, m, 3), np.nan), marker_names=model.marker_names,
-                         joint_names=model.joint_names, labels=tuple(f"P{i + 1:02d}" for i in range(n)))
+                         joint_names=model.joint_names, labels=labels)
     common.write_outputs({args.out: measurements_to_csv(poses, model=model, units=args.out_units)}, force=args.force)
     print(plan_summary(model, sel, pred, n_candidates=n_cand,
                        source=f"poses of {args.candidates}" if args.candidates else "random configurations"))
