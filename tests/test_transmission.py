@@ -162,6 +162,13 @@ def test_compare_diagnoses_only_the_transmission_level_it_keeps(monkeypatch):
     assert cmp.best is cmp.transmission and cmp.transmission.diagnosis is not None
     assert sorted(diagnosed) == sorted(r.families for r in cmp.results.values())
     assert any(c.name == "diagnosis" for c in cmp.transmission.checks)
+    # its terms, named one by one in its families, are counted in the summary's and the report's
+    # first lines, not listed (the Panda's listed 21 names there)
+    terms = [f for f in cmp.transmission.families if "." in f]
+    head = rc.report.calibration_summary(cmp.transmission).splitlines()[0]
+    assert f"(geometric, {len(terms)} transmission parameters, loss linear)" in head and terms[0] not in head
+    page = rc.report.render_report(cmp.transmission)
+    assert f"geometric, {len(terms)} transmission parameters identification" in page
 
 
 def test_compare_on_the_command_line_without_masses_compares_what_it_can(tmp_path, cli):

@@ -51,7 +51,7 @@ from .plots import (
     residual_sample,
     residual_trends,
 )
-from .text import rotation_lines
+from .text import families_text, rotation_lines
 from .units import UNITS_SENTENCE, absorption_text, fmt, symbol, with_unit
 from .units import display_unit as _display
 from .units import finite as _num
@@ -787,13 +787,14 @@ def render_report(result: CalibrationResult, *, extra: dict | None = None) -> st
     need_matplotlib()  # fail early and clearly without the extra
     has_val = bool((d["stats"].get("validation_after") or {}).get("n"))
     robot = (d.get("nominal_model") or {}).get("name", "robot")
-    return _page(f"Calibration report: {_e(robot)}", robot, _meta(d.get("families") or [], d.get("provenance") or {}),
+    return _page(f"Calibration report: {_e(robot)}", robot, _meta(families_text(result), d.get("provenance") or {}),
                  _report_sections(d, result, has_val, tables), _headline(d) + "".join(_notices(d, has_val)))
 
 
-def _meta(families, provenance, how: str = "identification") -> str:
-    """The line under the page's title: what was identified and how, when, by which software."""
-    items = [", ".join(families) + f" {how}", _date(provenance.get("date", "date not recorded")),
+def _meta(families: str, provenance, how: str = "identification") -> str:
+    """The line under the page's title: what was identified (``families_text``) and how, when, by which
+    software."""
+    items = [f"{families} {how}", _date(provenance.get("date", "date not recorded")),
              f'{provenance.get("software", "")} {provenance.get("version", "")}'.strip()]
     return " &middot; ".join(_e(m) for m in items if m)
 
@@ -1043,4 +1044,4 @@ def render_contact_report(result: CalibrationResult) -> str:
                                           ("message", _e(result.solver.message), "message"),
                                           ("evaluations", _e(str(result.solver.nfev)), "nfev")]))]
     return _page(f"Calibration report: {_e(robot)} (contacts)", robot,
-                 _meta(result.families, result.provenance, "identification from contacts"), sections)
+                 _meta(families_text(result), result.provenance, "identification from contacts"), sections)

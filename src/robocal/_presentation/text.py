@@ -178,7 +178,7 @@ def calibration_summary(result, *, shown=(), weighted: bool = False) -> str:
         return contact_summary(result, shown)
     solver = result.solver
     lines = cause_lines(result) + [f"calibration of {result.nominal_model.name} on "
-                                   f"{result.provenance['data']['n_poses']} poses ({', '.join(result.families)}, "
+                                   f"{result.provenance['data']['n_poses']} poses ({families_text(result)}, "
                                    f"loss {solver.loss})"]
     lines += stats_lines(result.stats)
     if result.rotation_stats is not None:
@@ -422,6 +422,20 @@ def _figures(label: str, before, after) -> list[str]:
     return out
 
 
+def families_text(result) -> str:
+    """The families a calibration identified, as a list in words; parameters it named one by one (a
+    compared level's transmission terms, ``j2.alpha``) counted by their family: "geometric,
+    compliance, 21 transmission parameters" rather than the 21 names."""
+    lay = parameter_layout(result.nominal_model)
+    named: dict[str, int] = {}
+    for f in result.families:
+        if "." in f:
+            family = lay[f].family if f in lay.names else "named"
+            named[family] = named.get(family, 0) + 1
+    return ", ".join([f for f in result.families if "." not in f]
+                     + [f"{n} {family} parameter{'s' if n > 1 else ''}" for family, n in named.items()])
+
+
 def contact_summary(result, shown=()) -> str:
     """The text summary of a ``CalibrationResult`` that fitted contacts (its ``contacts`` figures);
     ``shown``: notes already printed as warnings."""
@@ -429,7 +443,7 @@ def contact_summary(result, shown=()) -> str:
     ident = c.identifiability
     rows = ", ".join(f"{n} {kind}" for kind, n in c.rows.items())
     lines = cause_lines(result) + [f"calibration of {result.nominal_model.name} from contacts ({rows}; "
-                                   f"{', '.join(result.families)}, loss {result.solver.loss})",
+                                   f"{families_text(result)}, loss {result.solver.loss})",
                                    "what the kit shows (before -> after):"]
     lines += _figures("fitted", c.fit_before, c.fit_after)
     if c.validation_before is not None:
