@@ -1016,17 +1016,16 @@ def _joint_spans(cover) -> str:
     """Each joint's measured span over its range of use, in words; joints whose range of use is the
     campaign's own (limits of a full turn or more) are named apart, their span saying nothing."""
     turn = np.array(cover.use_from_campaign or [False] * len(cover.joint_span), dtype=bool)
+    if not turn.any():
+        return "joints over " + ", ".join(f"{100 * s:.0f} %" for s in cover.joint_span) + " of their ranges of use"
     margin = f"widened by {100 * USE_MARGIN:g} % on each side"
     if turn.all():
         return f"every joint's limits allow a full turn or more: their ranges of use are the campaign's, {margin}"
     names = [n for n, t in zip(cover.joint_names, turn) if t]
-    whole = (f"the limits of {', '.join(names)} allow a full turn or more: " +
-             (f"its range of use is the campaign's, {margin}" if len(names) == 1 else
-              f"their ranges of use are the campaign's, {margin}"))
-    if not turn.any():
-        return "joints over " + ", ".join(f"{100 * s:.0f} %" for s in cover.joint_span) + " of their ranges of use"
     spans = ", ".join(f"{n} {100 * s:.0f} %" for n, s, t in zip(cover.joint_names, cover.joint_span, turn) if not t)
-    return f"joints over their ranges of use: {spans}; {whole}"
+    ranges = "its range of use is" if len(names) == 1 else "their ranges of use are"
+    return (f"joints over their ranges of use: {spans}; the limits of {', '.join(names)} allow a full turn or more: "
+            f"{ranges} the campaign's, {margin}")
 
 
 def coverage_check(cover, in_use) -> Check:

@@ -603,7 +603,7 @@ class StackAnalysis:
     names: tuple[str, ...]
 
 
-def _robot_part(R: np.ndarray, nn: int) -> np.ndarray:
+def robot_part(R: np.ndarray, nn: int) -> np.ndarray:
     """The robot columns of ``R`` (after ``nn`` nuisance columns) less their projection on the span
     of the nuisance columns: the same Gram matrix as the robot's columns of the Jacobian once the
     nuisance takes its part."""
@@ -637,7 +637,7 @@ def analyse_stack(problem: Problem, names: tuple[str, ...], p: np.ndarray, *, to
                          rank=full.rank - (len(full.identified) - len(identified)),
                          column_scale={n: v for n, v in full.column_scale.items() if n in robot})
     result = backlash_reasons(result, problem.backlash_sides(p))
-    return StackAnalysis(result, full, _robot_part(R, nn), R, tuple(names))
+    return StackAnalysis(result, full, robot_part(R, nn), R, tuple(names))
 
 
 def _kind_rows(problem: Problem) -> dict:

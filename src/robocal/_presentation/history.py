@@ -355,6 +355,7 @@ def render_history(h: History) -> str:
     """
     need_matplotlib()
     apart = [apart_line(o) for o in h.overall if not o.compared]
+    families = _compared_families(h)
     changes = "".join(f"<li>{_e(change_line(c))}</li>" for c in h.changes) or \
         f"<li>none{' among the calibrations compared' if apart else ''}</li>"
     verifs = "".join(
@@ -373,7 +374,7 @@ def render_history(h: History) -> str:
         f"</thead><tbody>{_calibration_rows(h)}</tbody></table>",
         f"<h2>Changes</h2><p>Between consecutive calibrations, judged at {h.threshold:.2f} standard deviations of "
         f"their combined uncertainty ({len(h.comparisons)} comparisons"
-        + (f" of {_e(_compared_families(h))} parameters" if _compared_families(h) else "")
+        + (f" of {_e(families)} parameters" if families else "")
         + f"; a {h.alpha:.0%} chance of naming one in an unchanged robot's history, with the overall tests).</p>"
         f"<ul>{changes}</ul>"
         + "".join(f"<p>{_e(overall_line(o))}</p>" for o in h.overall if o.named)

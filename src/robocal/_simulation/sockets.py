@@ -31,7 +31,7 @@ from .._base.arguments import (
 from .._base.errors import InputError
 from .._base.options import MAX_DESIGN_WORK, MAX_GRID_ROWS, MAX_PLACEMENTS, MAX_SEATINGS
 from .._base.threads import one_blas_thread
-from .._identification.identifiability import WEAK_STD, contact_identifiability, weakly_identifiable
+from .._identification.identifiability import WEAK_STD, contact_identifiability, robot_part, weakly_identifiable
 from .._identification.problem import Problem
 from .._model.contacts import Contacts
 from .._model.parameters import candidate_parameters, parameter_layout
@@ -100,8 +100,7 @@ def _held(model: RobotModel, campaign: Contacts, names, identified, bounds: dict
     columns taken out of the robot's first."""
     J = _jacobian(model, campaign, names, identified)
     k = len(identified)
-    robot, sockets = J[:, :k], J[:, k:]
-    robot = robot - sockets @ np.linalg.lstsq(sockets, robot, rcond=None)[0]
+    robot = robot_part(np.hstack([J[:, k:], J[:, :k]]), J.shape[1] - k)     # as the calibration's analysis does
     lay = parameter_layout(model)
     found = weakly_identifiable(robot, identified, [lay[n].quantity for n in identified], 1.0, bounds=bounds)
     return tuple(n for n, _, _, _ in found)
