@@ -251,3 +251,39 @@ def test_one_or_two_test_poses_never_fail_a_calibration_better_in_use():
                 assert use.status != "fail" and result.verdict != "fail", (robot, rows, use.summary)
                 if len(rows) == 1:
                     assert use.status == "warn" and "one held-out point has no standard error" in use.summary
+
+
+def _wam_fleet(seed: int, changed=None):
+    """Six random 120-pose subsets of the WAM grid, each calibrated as a robot of one type (the last
+    one's measurements moved by what ``changed``'s parameters do at its poses)."""
+    model = nominal("WAM")
+    grid = campaign("WAM", "grid", model)
+    rng = np.random.default_rng(seed)
+    cals = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for i in range(6):
+            sub = grid.subset(np.sort(rng.choice(grid.n_poses, 120, replace=False)))
+            if changed is not None and i == 5:
+                moved = rc.forward_kinematics(changed, sub.q).positions - rc.forward_kinematics(model, sub.q).positions
+                sub = replace(sub, positions=sub.positions + moved.reshape(sub.positions.shape))
+            cals.append(replace(rc.stored_calibration(rc.calibrate(model, sub), f"R{i}", at="2026-01-01"), id=i + 1))
+    return model, cals
+
+
+def test_robots_of_a_type_whose_poses_leave_other_parameters_weak_do_not_stand_out():
+    """Subsets of one WAM's grid: two of them leave j5 and j6 parameters weak and hold them at nominal,
+    and their j6.d carries their offsets; against the others as they are, both stood out (j6.d at 5.1
+    robust sigmas). They are compared with the others as those would be with the same held, so none
+    stands out, and a robot whose j3.d is 5 mm off still does."""
+    from robocal.report import type_summary
+
+    model, cals = _wam_fleet(4)
+    t = rc.compare_type("WAM", cals)
+    assert t.outliers == ()
+    assert [r for r, _ in t.conditioned] == ["R2", "R3"] and "j6.theta" in dict(t.conditioned)["R2"]
+    assert "R2: #3" in type_summary(t) and "(weak for its poses)" in type_summary(t)
+    p = rc.parameter_vector(model)
+    p[rc.parameter_names(model).index("j3.d")] += 5e-3
+    _, cals = _wam_fleet(4, rc.model_from_vector(model, p))
+    assert {(o.robot, o.name) for o in rc.compare_type("WAM", cals).outliers} == {("R5", "j3.d")}

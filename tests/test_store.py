@@ -435,25 +435,29 @@ def test_calibrations_of_other_parameters_are_compared_as_each_would_hold_the_ot
     assert "none among the calibrations compared" in said and "not compared with 2026-01-01: j3.k_theta" in said
 
 
-def test_a_robot_of_a_type_calibrated_with_more_parameters_is_compared_as_it_would_hold_them():
+def test_a_robot_of_a_type_calibrated_with_more_parameters_is_compared_as_it_would_hold_them(location):
     """Six campaigns of one elastic robot, five calibrated geometric and one with compliance: the
     five's estimates carry the compliance they leave out, so the sixth stood out of its type
     (j2.theta -6.2, j2.d 3.5 robust sigmas). It is now compared with its compliances held at nominal
-    (conditioned on its covariance); without stored correlations it is left out and said so."""
+    (conditioned on its covariance); without stored correlations it is left out and said so. The
+    store's comparison (``history --type``) is the same: it read no correlations and held nothing."""
     from robocal.report import type_summary
 
     model = arm6r(masses=True)
     true, _ = rc.simulate(model, 10, parameters=("geometric", "compliance"), compliance_error=(2e-6, 6e-6), seed=3)
     cals = []
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), rc.open_store(location, create=True) as store:
         warnings.simplefilter("ignore")
         for i in range(6):
             data = rc.sim.measure(true, rc.random_configurations(model, 60, np.random.default_rng(100 + i)),
                                   noise=2e-5, rng=i)
             res = rc.calibrate(model, data, parameters=("geometric", "compliance") if i == 2 else ("geometric",))
             cals.append(replace(rc.stored_calibration(res, f"R{i}", at="2026-01-01"), id=i + 1))
+            store.record(res, f"R{i}", robot_type="arm", at="2026-01-01")
+        stored = rc.type_comparison(store, "arm")
     t = rc.compare_type("arm", cals)
     assert t.outliers == () and [r for r, _ in t.held] == ["R2"] and t.apart == ()
+    assert stored.held == t.held and stored.outliers == () and np.allclose(stored.z, t.z, equal_nan=True)
     assert all(n.split(".")[1].startswith("k_") for n in t.held[0][1]) and not any(".k_" in n for n in t.names)
     assert "R2: #3 2026-01-01" in type_summary(t) and "held at nominal" in type_summary(t)
     bare = rc.compare_type("arm", [replace(c, correlation=None) for c in cals])

@@ -186,13 +186,17 @@ def type_summary(t: TypeComparison) -> str:
               f"{_sigma(o.z)}" for o in t.outliers[:40]] or ["  none"]
     if len(t.outliers) > 40:
         lines.append(f"  ... and {len(t.outliers) - 40} more")
-    held, apart = dict(t.held), dict(t.apart)
+    held, apart, conditioned = dict(t.held), dict(t.apart), dict(t.conditioned)
     lines.append("robots:")
     for c in t.latest[:200]:
         flag = f", {counts[c.robot]} parameter(s) standing out" if c.robot in counts else ""
         if c.robot in held:
             flag += (f"; compared with {_few(held[c.robot])} held at nominal (most of the type's calibrations do not "
                      "identify them)")
+        if c.robot in conditioned:
+            flag += (f"; holds {_few(conditioned[c.robot])} at nominal (weak for its poses), which most of the type's "
+                     "calibrations identify: compared with those that identify what it does, as they would be with "
+                     "them held too")
         if c.robot in apart:
             flag += (f"; not compared: {_few(apart[c.robot])} fitted beyond {APART_SIGMAS:g} sigma of nominal, which "
                      "most of the type's calibrations do not identify, and no stored correlations to hold them with")

@@ -16,6 +16,7 @@ import math
 import os
 import re
 import zlib
+from collections.abc import Sequence
 from contextlib import contextmanager, suppress
 from dataclasses import dataclass, replace
 from datetime import datetime, timezone
@@ -331,7 +332,11 @@ class TypeComparison:
     largest first. A robot whose calibration identifies parameters most of the type's do not is
     compared as it would be with those held at nominal (``_as_held``), and listed in ``held`` with
     them; without stored correlations, where one of them is beyond ``APART_SIGMAS`` of nominal, it
-    is not compared (its estimates carry it; NaN) and listed in ``apart``.
+    is not compared (its estimates carry it; NaN) and listed in ``apart``. A robot whose calibration
+    holds at nominal parameters most of the type's identify (a weak one for its poses) is compared
+    against the robots that identify at least what it does, as they would be with those held too,
+    and listed in ``conditioned`` with them (its ``z`` row; ``median`` and ``spread`` are those of
+    the robots that identify every parameter most do).
     """
 
     robot_type: str
@@ -348,6 +353,7 @@ class TypeComparison:
     outliers: tuple[Outlier, ...]
     held: tuple[tuple[str, tuple[str, ...]], ...] = ()
     apart: tuple[tuple[str, tuple[str, ...]], ...] = ()
+    conditioned: tuple[tuple[str, tuple[str, ...]], ...] = ()
 
     @property
     def robots(self) -> tuple[str, ...]:
@@ -465,21 +471,52 @@ class _Pair(NamedTuple):
 
 def _pairs(calibrations, families) -> list[_Pair]:
     ordered = sorted(calibrations, key=lambda c: (c.calibrated_at, c.id or 0))
-    return [_pair(a, b, families) for a, b in zip(ordered, ordered[1:])]
+    read = [_Estimates.of(c) for c in ordered]
+    return [_pair(a, b, ea, eb, families) for a, b, ea, eb in zip(ordered, ordered[1:], read, read[1:])]
 
 
-def _judged(c: StoredCalibration, families) -> dict:
-    """name -> index in ``c.estimates`` of the finite estimates with a positive standard deviation
-    whose variance is a number (a deviation of 1e300, damage or no information, is not judged)."""
-    return {e.name: k for k, e in enumerate(c.estimates)
-            if e.family in families and math.isfinite(e.estimate) and 0 < e.std < MAX_STD}
+class _Estimates(NamedTuple):
+    """What a judgement reads of one calibration: each estimate's (name, unit, family), their (n, 3)
+    nominal, estimate and standard deviation, and their correlation as kept (None when not stored;
+    read from the store, its stored bytes, decoded only where used)."""
+
+    layout: Sequence[tuple[str, str, str]]
+    values: np.ndarray
+    kept: Any
+
+    @classmethod
+    def of(cls, c: StoredCalibration) -> _Estimates:
+        return cls(tuple((e.name, e.unit, e.family) for e in c.estimates),
+                   np.array([e[3:] for e in c.estimates], dtype=float).reshape(-1, 3), c.correlation)
+
+    def correlation(self) -> np.ndarray | None:
+        return self.kept if self.kept is None or isinstance(self.kept, np.ndarray) else _unpacked(self.kept,
+                                                                                                   len(self.layout))
+
+    def itemsize(self) -> int:
+        """The bytes per kept correlation (4 before schema version 3), 8 without any."""
+        if self.kept is None:
+            return 8
+        if isinstance(self.kept, np.ndarray):
+            return self.kept.dtype.itemsize
+        n = len(self.layout) * (len(self.layout) + 1) // 2
+        return 4 if n and len(bytes(self.kept)) == 4 * n else 8
 
 
-def _covariance(c: StoredCalibration, index: list) -> np.ndarray:
-    std = np.array([c.estimates[k].std for k in index])
-    if c.correlation is None:
+def _judged(e: _Estimates, families) -> dict:
+    """name -> index in ``e`` of the finite estimates with a positive standard deviation whose variance
+    is a number (a deviation of 1e300, damage or no information, is not judged)."""
+    x, std = e.values[:, 1], e.values[:, 2]
+    ok = np.isfinite(x) & (std > 0) & (std < MAX_STD)
+    return {name: k for k, (name, _, family) in enumerate(e.layout) if ok[k] and family in families}
+
+
+def _covariance(e: _Estimates, index: list) -> np.ndarray:
+    std = e.values[index, 2]
+    r = e.correlation()
+    if r is None:
         return np.diag(std ** 2)
-    return np.asarray(c.correlation[np.ix_(index, index)], dtype=float) * np.outer(std, std)
+    return np.asarray(r[np.ix_(index, index)], dtype=float) * np.outer(std, std)
 
 
 def _pseudo_inverse(C: np.ndarray, rcond: float = RCOND[8]) -> tuple[np.ndarray, int]:
@@ -506,7 +543,7 @@ def _identified(Sp: np.ndarray) -> np.ndarray:
     return info
 
 
-def _held_apart(a: StoredCalibration, b: StoredCalibration, ja: dict, jb: dict) -> tuple[str, ...]:
+def _held_apart(a: _Estimates, b: _Estimates, ja: dict, jb: dict) -> tuple[str, ...]:
     """The judged parameters one of ``a`` and ``b`` (``ja``, ``jb``: their judged estimates) fits more
     than ``APART_SIGMAS`` from nominal and the other does not identify, where the one has no stored
     correlations to take them back to nominal with (``_as_held``): the other holds them at nominal (or
@@ -515,45 +552,46 @@ def _held_apart(a: StoredCalibration, b: StoredCalibration, ja: dict, jb: dict) 
     return _carried(a, ja, jb) + _carried(b, jb, ja)
 
 
-def _carried(c: StoredCalibration, mine: dict, other) -> tuple[str, ...]:
-    """The parameters of ``mine`` (judged estimates of ``c``) not in ``other`` (names) that ``c`` fits beyond
+def _carried(e: _Estimates, mine: dict, other) -> tuple[str, ...]:
+    """The parameters of ``mine`` (judged estimates of ``e``) not in ``other`` (names) that ``e`` fits beyond
     ``APART_SIGMAS`` of nominal with no stored correlations to take them back to nominal with."""
-    if c.correlation is not None:
+    if e.kept is not None:
         return ()
-    return tuple(name for name, k in mine.items() if name not in other
-                 and abs(c.estimates[k].estimate - c.estimates[k].nominal) > APART_SIGMAS * c.estimates[k].std)
+    v = e.values
+    return tuple(name for name, k in mine.items()
+                 if name not in other and abs(v[k, 1] - v[k, 0]) > APART_SIGMAS * v[k, 2])
 
 
-def _as_held(c: StoredCalibration, keep: list, held: list, rcond: float) -> tuple[np.ndarray, np.ndarray]:
+def _as_held(e: _Estimates, keep: list, held: list, rcond: float) -> tuple[np.ndarray, np.ndarray]:
     """The estimates ``keep`` (indices in ``c.estimates``) and their covariance as ``c`` would have
     given them with the parameters ``held`` at their nominal values, as another calibration that does
     not identify them holds them: conditioned on that (least squares is Gaussian conditioning on the
     estimates' covariance: ``x_k - C_kh C_hh^+ (x_h - nominal_h)``, ``C_kk - C_kh C_hh^+ C_hk``).
     Without stored correlations, or with nothing held, the estimates as they are."""
-    x = np.array([c.estimates[k].estimate for k in keep])
-    if not held or c.correlation is None:
-        return x, _covariance(c, keep)
-    full = _covariance(c, keep + held)
+    x = e.values[keep, 1]
+    if not held or e.kept is None:
+        return x, _covariance(e, keep)
+    full = _covariance(e, keep + held)
     n = len(keep)
     gain = full[:n, n:] @ _pseudo_inverse(full[n:, n:], rcond)[0]
-    off = np.array([c.estimates[k].estimate - c.estimates[k].nominal for k in held])
+    off = e.values[held, 1] - e.values[held, 0]
     return x - gain @ off, full[:n, :n] - gain @ full[n:, :n]
 
 
-def _pair(a: StoredCalibration, b: StoredCalibration, families) -> _Pair:
+def _pair(a: StoredCalibration, b: StoredCalibration, ea: _Estimates, eb: _Estimates, families) -> _Pair:
     """Two calibrations' common judged parameters (``_Pair``): ``RCOND`` at the coarser precision of
     their kept correlations. A parameter one identifies and the other does not is taken to its
     nominal in the one (``_as_held``), so both estimate the same thing; the changes' before and after
     are then those estimates. Nothing is compared when that cannot be done and it matters
     (``_held_apart``)."""
-    ja, jb = _judged(a, families), _judged(b, families)
-    kept = min((c.correlation.dtype.itemsize for c in (a, b) if c.correlation is not None), default=8)
-    apart = _held_apart(a, b, ja, jb)
+    ja, jb = _judged(ea, families), _judged(eb, families)
+    kept = min(ea.itemsize(), eb.itemsize())
+    apart = _held_apart(ea, eb, ja, jb)
     names = [] if apart else [n for n in jb if n in ja]
     ia, ib = [ja[n] for n in names], [jb[n] for n in names]
-    xa, Ca = _as_held(a, ia, [k for n, k in ja.items() if n not in jb], RCOND[kept])
-    xb, Cb = _as_held(b, ib, [k for n, k in jb.items() if n not in ja], RCOND[kept])
-    template = [Change(n, b.estimates[kb].unit, a.calibrated_at, b.calibrated_at, float(va), float(vb), math.nan,
+    xa, Ca = _as_held(ea, ia, [k for n, k in ja.items() if n not in jb], RCOND[kept])
+    xb, Cb = _as_held(eb, ib, [k for n, k in jb.items() if n not in ja], RCOND[kept])
+    template = [Change(n, eb.layout[kb][1], a.calibrated_at, b.calibrated_at, float(va), float(vb), math.nan,
                        False) for n, kb, va, vb in zip(names, ib, xa, xb)]
     return _Pair(names, template, xb - xa, Ca + Cb, RCOND[kept], a.calibrated_at, b.calibrated_at, apart)
 
@@ -624,38 +662,63 @@ def compare_type(robot_type: str, calibrations, *, alpha: float = DEFAULT_ALPHA,
     cals = sorted(calibrations, key=lambda c: c.robot)
     latest = [Latest(c.robot, c.id or 0, c.calibrated_at, c.verdict, c.accuracy.rms if c.accuracy else None)
               for c in cals]
+    return _type_compared(robot_type, latest, [_Estimates.of(c) for c in cals], alpha, families)
+
+
+def _type_compared(robot_type: str, latest: list, cals: list, alpha: float, families) -> TypeComparison:
+    """``compare_type`` of the robots ``latest`` (by robot) and their calibrations' ``_Estimates``."""
     judged = [_judged(c, families) for c in cals]
+    common = _most_identify(judged)
+    on_common = [_on_common(c, j, common) for c, j in zip(cals, judged)]
+    held = tuple((r.robot, extra) for r, c, (extra, far, _, _) in zip(latest, cals, on_common)
+                 if extra and not far and c.kept is not None)
+    apart = tuple((r.robot, far) for r, (_, far, _, _) in zip(latest, on_common) if far)
+    gaps = [frozenset() if far else frozenset(common.difference(j)) for j, (_, far, _, _) in zip(judged, on_common)]
+    names, units, values, stds = _matrix([(layout, v) for *_, layout, v in on_common], families)
+    median, spread, z = _robust_z(values, stds, [not g for g in gaps])
+    centre = np.broadcast_to(median, values.shape).copy()
+    col = {n: j for j, n in enumerate(names)}
+    for gap in sorted(set(gaps) - {frozenset()}, key=sorted):
+        _against_holding(gap, cals, judged, common, gaps, families, (col, centre, z))
+    threshold = sidak_threshold(alpha, int(np.sum(np.isfinite(z))))
+    hits = np.argwhere(np.abs(np.nan_to_num(z)) > threshold)
+    outliers = sorted((Outlier(latest[i].robot, names[j], units[j], float(values[i, j]), float(centre[i, j]),
+                               float(z[i, j])) for i, j in hits), key=lambda o: -abs(o.z))
+    return TypeComparison(robot_type, tuple(latest), names, tuple(units), values, stds, median, spread, z, threshold,
+                          alpha, tuple(outliers), held, apart,
+                          tuple((r.robot, tuple(sorted(g))) for r, g in zip(latest, gaps) if g))
+
+
+def _most_identify(judged: list) -> set:
+    """The parameters at least half the calibrations (``_judged`` each) identify."""
     count: dict[str, int] = {}
     for j in judged:
         count.update((n, count.get(n, 0) + 1) for n in j)
-    common = {n for n, k in count.items() if 2 * k >= len(cals)}     # what most robots of the type identify
-    estimates, held, apart = [], [], []
-    for c, j in zip(cals, judged):
-        extra, far, layout, values = _on_common(c, j, common)
-        estimates.append((layout, values))
-        if far:
-            apart.append((c.robot, far))
-        elif extra and c.correlation is not None:
-            held.append((c.robot, extra))
-    return replace(_compared(robot_type, latest, estimates, alpha, families), held=tuple(held), apart=tuple(apart))
+    return {n for n, k in count.items() if 2 * k >= len(judged)}
 
 
-def _on_common(c: StoredCalibration, judged: dict, common: set):
-    """``c``'s estimates of the ``common`` parameters as it would give them with its others held at
-    nominal (``_as_held``): (those others, those it cannot hold (``_carried``: then none is kept),
-    the kept ones' (name, unit, family), their (n, 3) nominal/estimate/std)."""
-    extra = tuple(n for n in judged if n not in common)
-    far = _carried(c, judged, common)
-    keep = [] if far else [judged[n] for n in judged if n in common]
-    kept = 8 if c.correlation is None else c.correlation.dtype.itemsize
-    x, C = _as_held(c, keep, [judged[n] for n in extra], RCOND[kept])
-    rows = [(c.estimates[k].nominal, v, s) for k, v, s in zip(keep, x, np.sqrt(np.maximum(np.diag(C), 0.0)))]
-    layout = [(c.estimates[k].name, c.estimates[k].unit, c.estimates[k].family) for k in keep]
-    return extra, far, layout, np.array(rows, dtype=float).reshape(-1, 3)
+def _against_holding(gap: frozenset, cals: list, judged: list, common: set, gaps: list, families, into) -> None:
+    """The rows of ``z`` (and of ``centre``, their reference) of the robots whose calibrations hold
+    ``gap`` (common parameters) at nominal, against the type as it would be with ``gap`` held too:
+    the robots that identify at least what they do (each other one holds parameters they identify,
+    which theirs carry), conditioned on ``gap`` at nominal (``_on_common``). Their estimates carry
+    ``gap``'s offsets (another subset of poses may leave other parameters weak), so against the
+    type's estimates as they are, such robots stood out with no change of the robot."""
+    col, centre, z = into
+    members = [k for k, g in enumerate(gaps) if g <= gap]
+    rows = [_on_common(cals[k], judged[k], common - gap) for k in members]
+    names, _, values, stds = _matrix([(layout, v) for *_, layout, v in rows], families)
+    median, _, zg = _robust_z(values, stds, [True] * len(members))
+    cols = np.array([col[n] for n in names], dtype=int)
+    for r, k in enumerate(members):
+        if gaps[k] == gap:
+            z[k] = np.nan
+            z[k, cols], centre[k, cols] = zg[r], median
 
 
-def _compared(robot_type: str, latest: list, estimates: list, alpha: float, families) -> TypeComparison:
-    """``compare_type`` on each robot's (layout, (n, 3) nominal/estimate/std) estimates."""
+def _matrix(estimates: list, families) -> tuple[tuple[str, ...], list[str], np.ndarray, np.ndarray]:
+    """(names, units, values, stds) of robots' (layout, (n, 3) nominal/estimate/std) estimates in the
+    ``families`` compared: one row per robot, NaN where a robot's calibration lacks a parameter."""
     col: dict[str, int] = {}
     units: list[str] = []
     where: dict[int, tuple] = {}           # per layout: (rows kept, their columns)
@@ -667,26 +730,42 @@ def _compared(robot_type: str, latest: list, estimates: list, alpha: float, fami
                     col[layout[k][0]] = len(col)
                     units.append(layout[k][1])
             where[id(layout)] = (np.array(keep, dtype=int), np.array([col[layout[k][0]] for k in keep], dtype=int))
-    values = np.full((len(latest), len(col)), np.nan)
+    values = np.full((len(estimates), len(col)), np.nan)
     stds = np.full_like(values, np.nan)
     for i, (layout, v) in enumerate(estimates):
         keep, cols = where[id(layout)]
         values[i, cols], stds[i, cols] = v[keep, 1], v[keep, 2]
-    names = tuple(col)
+    return tuple(col), units, values, stds
+
+
+def _robust_z(values: np.ndarray, stds: np.ndarray, reference) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(median, spread, z): the median of the ``reference`` rows per column, their robust spread (1.4826
+    median absolute deviation, at least their median standard deviation) and every row's distance from
+    the median in spreads; NaN in a column fewer than three reference robots have (no reference)."""
+    ref = values[np.asarray(reference, dtype=bool)]
     with np.errstate(invalid="ignore"), _quiet_nan():
-        median = np.nanmedian(values, axis=0) if values.size else np.zeros(len(names))
-        spread = 1.4826 * np.nanmedian(np.abs(values - median), axis=0) if values.size else np.zeros(len(names))
-        typical = np.nanmedian(stds, axis=0) if values.size else np.zeros(len(names))
+        median = np.nanmedian(ref, axis=0) if ref.size else np.full(values.shape[1], np.nan)
+        spread = 1.4826 * np.nanmedian(np.abs(ref - median), axis=0) if ref.size else np.full(values.shape[1], np.nan)
+        typical = (np.nanmedian(stds[np.asarray(reference, dtype=bool)], axis=0) if ref.size
+                   else np.full(values.shape[1], np.nan))
         spread = np.fmax(spread, typical)
         z = (values - median) / np.where(spread > 0, spread, np.nan)
-    enough = np.sum(np.isfinite(values), axis=0) >= 3      # a median of fewer is no reference
-    z[:, ~enough] = np.nan
-    threshold = sidak_threshold(alpha, int(np.sum(np.isfinite(z))))
-    hits = np.argwhere(np.abs(np.nan_to_num(z)) > threshold)
-    outliers = sorted((Outlier(latest[i].robot, names[j], units[j], float(values[i, j]), float(median[j]),
-                               float(z[i, j])) for i, j in hits), key=lambda o: -abs(o.z))
-    return TypeComparison(robot_type, tuple(latest), names, tuple(units), values, stds, median, spread, z, threshold,
-                          alpha, tuple(outliers))
+    z[:, np.sum(np.isfinite(ref), axis=0) < 3] = np.nan      # a median of fewer is no reference
+    return median, spread, z
+
+
+def _on_common(c: _Estimates, judged: dict, common: set):
+    """``c``'s estimates of the ``common`` parameters as it would give them with its others held at
+    nominal (``_as_held``): (those others, those it cannot hold (``_carried``: then none is kept),
+    the kept ones' (name, unit, family), their (n, 3) nominal/estimate/std)."""
+    extra = tuple(n for n in judged if n not in common)
+    far = _carried(c, judged, common)
+    keep = [] if far else [judged[n] for n in judged if n in common]
+    layout = [c.layout[k] for k in keep]
+    if not extra or c.kept is None:         # nothing to hold, or nothing to hold it with: as they are
+        return extra, far, layout, c.values[keep].reshape(-1, 3)
+    x, C = _as_held(c, keep, [judged[n] for n in extra], RCOND[c.itemsize()])
+    return extra, far, layout, np.column_stack([c.values[keep, 0], x, np.sqrt(np.maximum(np.diag(C), 0.0))])
 
 
 @contextmanager
@@ -1247,20 +1326,21 @@ class Store:
         return self._calibrations(sql, (check_name(robot_type, "type"),))
 
     def latest_estimates(self, robot_type: str) -> tuple[list, list]:
-        """(``Latest`` of each robot of a type, each one's estimates as (name, unit, family, nominal,
-        estimate, std) rows): what the type comparison reads, without the rest of the records."""
-        sql = ("SELECT robot, id, calibrated_at, verdict, accuracy, parameters, estimates FROM robocal_calibrations "
-               f"WHERE id IN ({_LATEST_OF_TYPE}) ORDER BY robot")
+        """(``Latest`` of each robot of a type, each one's ``_Estimates``): what the type comparison
+        reads, without the rest of the records (the correlations decoded only where used)."""
+        sql = ("SELECT robot, id, calibrated_at, verdict, accuracy, parameters, estimates, correlation "
+               f"FROM robocal_calibrations WHERE id IN ({_LATEST_OF_TYPE}) ORDER BY robot")
         with self._errors(), self._db.transaction(write=False) as cur:
             rows = self._execute(cur, sql, (check_name(robot_type, "type"),)).fetchall()
         latest, estimates, layouts = [], [], {}     # the parameter layouts of this read, each decoded once
-        for robot, i, at, verdict, acc, params, values in rows:
+        for robot, i, at, verdict, acc, params, values, corr in rows:
             with self._errors(f"calibration #{i}"):
                 rms = None if acc is None else _float(json.loads(acc)["rms"])
                 latest.append(Latest(_text(robot), int(i), _date(at), _text(verdict), rms))
                 if params not in layouts:
                     layouts[params] = _layout(params)
-                estimates.append(_estimate_rows(layouts[params], values))
+                layout, v = _estimate_rows(layouts[params], values)
+                estimates.append(_Estimates(layout, v, None if corr is None else bytes(corr)))
         return latest, estimates
 
     def _calibrations(self, sql: str, values) -> tuple[StoredCalibration, ...]:
@@ -1501,7 +1581,7 @@ def type_comparison(store: Store, robot_type: str, *, alpha: float = DEFAULT_ALP
     if not latest:
         raise InputError(f"no robot of type {excerpt(robot_type)} in the store", source=store.location)
     with store._errors("estimates"):
-        return _compared(robot_type, latest, estimates, alpha, families)
+        return _type_compared(robot_type, latest, estimates, alpha, families)
 
 
 @accepts(store=is_a(Store), robot=_name)
