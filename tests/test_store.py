@@ -458,6 +458,11 @@ def test_a_robot_of_a_type_calibrated_with_more_parameters_is_compared_as_it_wou
     t = rc.compare_type("arm", cals)
     assert t.outliers == () and [r for r, _ in t.held] == ["R2"] and t.apart == ()
     assert stored.held == t.held and stored.outliers == () and np.allclose(stored.z, t.z, equal_nan=True)
+    if location.endswith(".sqlite"):     # the store reads R2's correlations only to hold its compliances
+        with sqlite3.connect(location) as db:
+            db.execute("UPDATE robocal_calibrations SET correlation = x'00112233' WHERE robot = 'R2'")
+        with rc.open_store(location) as store, pytest.raises(rc.InputError, match="calibration #3: 4 bytes"):
+            rc.type_comparison(store, "arm")
     assert all(n.split(".")[1].startswith("k_") for n in t.held[0][1]) and not any(".k_" in n for n in t.names)
     assert "R2: #3 2026-01-01" in type_summary(t) and "held at nominal" in type_summary(t)
     bare = rc.compare_type("arm", [replace(c, correlation=None) for c in cals])

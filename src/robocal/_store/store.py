@@ -478,11 +478,13 @@ def _pairs(calibrations, families) -> list[_Pair]:
 class _Estimates(NamedTuple):
     """What a judgement reads of one calibration: each estimate's (name, unit, family), their (n, 3)
     nominal, estimate and standard deviation, and their correlation as kept (None when not stored;
-    read from the store, its stored bytes, decoded only where used)."""
+    read from the store, its stored bytes, decoded only where used: damage is then said with
+    ``label``, the calibration's)."""
 
     layout: Sequence[tuple[str, str, str]]
     values: np.ndarray
     kept: Any
+    label: str = ""
 
     @classmethod
     def of(cls, c: StoredCalibration) -> _Estimates:
@@ -490,8 +492,12 @@ class _Estimates(NamedTuple):
                    np.array([e[3:] for e in c.estimates], dtype=float).reshape(-1, 3), c.correlation)
 
     def correlation(self) -> np.ndarray | None:
-        return self.kept if self.kept is None or isinstance(self.kept, np.ndarray) else _unpacked(self.kept,
-                                                                                                   len(self.layout))
+        if self.kept is None or isinstance(self.kept, np.ndarray):
+            return self.kept
+        try:
+            return _unpacked(self.kept, len(self.layout))
+        except ValueError as e:
+            raise ValueError(f"{self.label}: {e}") from None
 
     def itemsize(self) -> int:
         """The bytes per kept correlation (4 before schema version 3), 8 without any."""
@@ -1340,7 +1346,7 @@ class Store:
                 if params not in layouts:
                     layouts[params] = _layout(params)
                 layout, v = _estimate_rows(layouts[params], values)
-                estimates.append(_Estimates(layout, v, None if corr is None else bytes(corr)))
+                estimates.append(_Estimates(layout, v, None if corr is None else bytes(corr), f"calibration #{i}"))
         return latest, estimates
 
     def _calibrations(self, sql: str, values) -> tuple[StoredCalibration, ...]:
