@@ -29,7 +29,6 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(
 from real_campaigns import campaign, nominal  # noqa: E402
 
 import robocal as rc  # noqa: E402
-from robocal._model.parameters import transmission_names  # noqa: E402
 
 
 def fleet(robot: str, size: int, seed: int, first=("geometric",), changed=None):
@@ -60,7 +59,7 @@ def main(argv=None) -> None:
     args = ap.parse_args(argv)
     model = nominal(args.robot)
     kinds = ("gear_scale",) if args.robot == "WAM" else ("gear_scale", "gear_cos1", "gear_sin1")
-    gear = ("geometric",) + tuple(n for n in transmission_names(model) if n.split(".")[1] in kinds)
+    gear = ("geometric",) + tuple(n for n in rc.parameter_names(model) if n.split(".")[-1] in kinds)
     args.change = args.change or (f"{model.frames[2].name}.d", "5e-3")
     p = rc.parameter_vector(model)
     p[rc.parameter_names(model).index(args.change[0])] += float(args.change[1])
