@@ -212,12 +212,23 @@ def test_history_names_only_the_families_it_compared(th8_result, tmp_path, cli):
     assert "comparisons of frames parameters;" in page and "<th>in use RMS (mm)</th>" in page
 
 
-def test_verifying_a_robot_calibrated_from_contacts_says_what_verification_needs(tmp_path, cli):
+def test_a_robot_calibrated_from_contacts_is_verified_with_seatings(tmp_path, cli):
+    """Verification said a calibration from contacts alone had nothing to verify against. It now
+    holds new seatings against the calibration's held-out ones; measured points against it are
+    refused with what to verify with instead."""
     arm7 = ROOT / "examples" / "arm7"
-    assert cli("calibrate", arm7 / "model.yaml", "--contacts", arm7 / "sockets.csv", "--out", tmp_path / "kit",
+    lines = (arm7 / "sockets.csv").read_text().splitlines(keepends=True)
+    head = [line for line in lines if line.startswith(("#", "placement,"))]
+    (tmp_path / "fit.csv").write_text("".join(head + [x for x in lines if x.startswith(("P1,", "P2,", "P3,"))]))
+    (tmp_path / "again.csv").write_text("".join(head + [x for x in lines if x.startswith("P4,")]))
+    assert cli("calibrate", arm7 / "model.yaml", "--contacts", tmp_path / "fit.csv", "--out", tmp_path / "kit",
                "--record", "A7", "--store", tmp_path / "s.sqlite")[0] == 0
+    code, out, err = cli("verify", "A7", "--contacts", tmp_path / "again.csv", "--store", tmp_path / "s.sqlite")
+    assert code == 0 and "seatings in 3 sockets" in out and "verdict: within accuracy" in out, err
     model = rc.read_model(arm7 / "model.yaml")
     _, data = rc.simulate(model, 12, seed=1)
     rc.io.write_measurements(data, tmp_path / "check.csv", model=model)
     code, _, err = cli("verify", "A7", tmp_path / "check.csv", "--store", tmp_path / "s.sqlite")
-    assert code == 2 and "contacts alone measures no position" in err and "calibrate again on new seatings" in err
+    assert code == 2 and "accuracy is of seatings" in err and "these are measured points" in err
+    code, _, err = cli("verify", "A7", "--store", tmp_path / "s.sqlite")
+    assert code == 2 and "one of them" in err

@@ -113,25 +113,33 @@ def write_sockets(m, path: Path, seed: int) -> None:
 def write_seatings(m, folder: Path, seed: int) -> None:
     """The shipped folder of seatings: a simulated arm with errors, a plate of sockets hole_0, hole_1,
     hole_2 at 3 placements, 10 seatings per socket, one headerless joint file (rad) per socket and
-    placement, and seatings.yaml stating the joint order, the units, the deviation and the spacings."""
-    if folder.exists():
-        raise SystemExit(f"{folder}: exists; remove it first")
+    placement, and seatings.yaml stating the joint order, the units, the deviation and the spacings;
+    beside it, ``seatings_check``: the same arm seated again, 8 times per socket on a new placement
+    (``P4``), what ``robocal verify --contacts`` holds against the calibration."""
+    check = folder.parent / "seatings_check"
+    for f in (folder, check):
+        if f.exists():
+            raise SystemExit(f"{f}: exists; remove it first")
     rng = np.random.default_rng(seed)
     plate = {"hole_0": (0.0, 0.0, 0.0), "hole_1": (0.2, 0.0, 0.0), "hole_2": (0.0, 0.15, 0.0)}
 
-    def campaign(robot, r):
-        return socket_campaign(robot, placements=3, poses_per_socket=10, plate=plate, joint_noise=ENCODER, rng=r)
+    def campaign(robot, r, placements=3, poses=10):
+        return socket_campaign(robot, placements=placements, poses_per_socket=poses, plate=plate, joint_noise=ENCODER,
+                               rng=r)
 
-    c = campaign(truth_for(m, campaign, rng), rng)
+    true = truth_for(m, campaign, rng)
+    c = campaign(true, rng)
+    again = campaign(true, rng, placements=1, poses=8)
     spacings = "".join(f"  - {{sockets: [{d.a}, {d.b}], length: {d.length * 1e3:.3f}, sigma: {d.sigma * 1e3:g}}}\n"
                        for d in c.distances)
-    files = {folder / "seatings.yaml": (
-        "# simulated (examples/arm7/contacts_campaigns.py --write-seatings)\n"
-        f"units: mm-rad\njoints: [{', '.join(m.joint_names)}]\nmarker: {c.marker[0]}\n"
-        f"sigma: {np.sqrt(np.mean(c.sigma ** 2)) * 1e3:.3f}\ndistances:\n{spacings}")}
-    for g in c.groups():
-        files[folder / g.placement / f"{g.target}.csv"] = "".join(
-            ",".join(f"{v:.9f}" for v in c.q[i]) + "\n" for i in g.rows)
+    manifest = ("# simulated (examples/arm7/contacts_campaigns.py --write-seatings)\n"
+                f"units: mm-rad\njoints: [{', '.join(m.joint_names)}]\nmarker: {c.marker[0]}\n"
+                f"sigma: {np.sqrt(np.mean(c.sigma ** 2)) * 1e3:.3f}\ndistances:\n{spacings}")
+    files = {folder / "seatings.yaml": manifest, check / "seatings.yaml": manifest}
+    for at, seated, rename in ((folder, c, None), (check, again, "P4")):
+        for g in seated.groups():
+            files[at / (rename or g.placement) / f"{g.target}.csv"] = "".join(
+                ",".join(f"{v:.9f}" for v in seated.q[i]) + "\n" for i in g.rows)
     for path, text in files.items():
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(text)
@@ -143,7 +151,7 @@ def main(argv=None) -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--write-sockets", type=Path, metavar="CSV", help="write the simulated socket file that ships")
     ap.add_argument("--write-seatings", type=Path, metavar="FOLDER",
-                    help="write the simulated folder of seatings that ships")
+                    help="write the simulated folder of seatings that ships, and seatings_check beside it")
     args = ap.parse_args(argv)
     m = rc.read_model(MODEL)
     if args.write_sockets:

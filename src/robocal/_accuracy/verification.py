@@ -6,6 +6,12 @@ barycentre of the attained positions against the position the model commands, ``
 worst pose's is the robot's ``AP``. The verdict compares the mean squared error now with the one at
 calibration: an F test at ``alpha`` (each point error three components; base re-registration takes
 six of them), so an unchanged robot is told "recalibrate" in about ``alpha`` of verifications.
+
+Without an instrument, a few ball seatings in sockets verify a robot calibrated from seatings: the
+calibrated model puts the ball of every seating of one socket on one point when it still holds,
+so the error of a seating is its distance from its socket's mean predicted centre (each socket's
+centre takes three components), held against the same figure of the calibration's held-out
+seatings (``SEATINGS``).
 """
 
 from __future__ import annotations
@@ -18,6 +24,7 @@ from .._base.arguments import FLAG, accepts, both, in_range, is_a, measured_on, 
 from .._base.arrays import vector_norms
 from .._base.errors import DegenerateDataError, InputError
 from .._identification.registration import rigid_base as register_base
+from .._model.contacts import Contacts
 from .._model.kinematics import evaluate
 from .._model.measurements import Measurements
 from .._model.robot import RobotModel
@@ -28,6 +35,9 @@ VERDICTS = (WITHIN, RECALIBRATE)
 DEFAULT_ALPHA = 0.01
 # a verification campaign is short: fewer poses say too little, more are a calibration
 FEW_POSES, MANY_POSES = 10, 30
+# the source of an accuracy at calibration of seatings (each one's distance from its socket's mean
+# predicted centre, held out), which only seatings are held against
+SEATINGS = "held-out seatings, each from its socket's centre"
 
 
 @dataclass(frozen=True)
@@ -35,7 +45,11 @@ class Accuracy:
     """The position accuracy a calibration reached, metres: ``rms``, ``mean``, ``p95``, ``max`` of the
     point error norms (``p95``/``max`` None when not known), over ``n`` points (the degrees of freedom
     behind ``rms`` for the verdict's test), and where it comes from (``source``: "in use
-    (validation)", "in use (cross-validation)", "held-out poses" or "fitted poses")."""
+    (validation)", "in use (cross-validation)", "held-out poses", "fitted poses" or ``SEATINGS``).
+    Of seatings, ``sets`` placements of the plate make it up, whose own mean squares scatter beyond
+    what their seatings' number explains by ``scatter`` (the standard deviation of their logs): a
+    placement is reached in configurations of its own, which seat the ball with a scatter of their
+    own, and a verification's placement is held against that too."""
 
     rms: float
     mean: float | None
@@ -43,6 +57,8 @@ class Accuracy:
     source: str
     p95: float | None = None
     max: float | None = None
+    sets: int = 0
+    scatter: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -56,7 +72,10 @@ class Verification:
     is "recalibrate"; ``registered_base``: the base was re-registered on these poses first.
     ``if_registered``: when the verdict is "recalibrate" without re-registering, (ratio, threshold)
     with the base re-registered on these poses, the check of an instrument set up again since the
-    calibration; else None.
+    calibration; else None. Of seatings (``sockets`` > 0): ``errors`` (n_rows, 1) each seating's
+    distance from its socket's mean predicted centre, ``poses`` the sockets and ``ap`` the RMS of
+    each one's distances (``ap_max`` the worst); ``rms`` as measured, the ratio's with the sockets'
+    centres' degrees of freedom taken out.
     """
 
     errors: np.ndarray
@@ -75,6 +94,7 @@ class Verification:
     n_points: int
     alpha: float
     if_registered: tuple[float, float] | None = None
+    sockets: int = 0
 
     @property
     def n_poses(self) -> int:
@@ -144,16 +164,18 @@ def ratio_threshold(n_points: int, then_n: int, *, registered: bool, alpha: floa
     >>> round(ratio_threshold(20, 60, registered=False), 3)
     1.263
     """
-    from scipy.special import fdtri  # the F quantile, without importing scipy.stats (1.8 s)
-
-    d1 = max(3 * n_points - (6 if registered else 0), 1)
-    d2 = max(3 * then_n, 1)
-    return float(np.sqrt(fdtri(d1, d2, 1.0 - alpha)))
+    return float(np.sqrt(_f_quantile(3 * n_points - (6 if registered else 0), 3 * then_n, alpha)))
 
 
-@accepts(model=is_a(RobotModel), data=both(is_a(Measurements), measured_on()), then=is_a(Accuracy), register=FLAG,
+def _observed(value, name, args):
+    """Measured points of the model (``measured_on``), or contacts."""
+    if not isinstance(value, Contacts):
+        both(is_a(Measurements, Contacts), measured_on())(value, name, args)
+
+
+@accepts(model=is_a(RobotModel), data=_observed, then=is_a(Accuracy), register=FLAG,
          alpha=in_range(0.0, 0.5, low_open=True, high_open=True))
-def verify(model: RobotModel, data: Measurements, then: Accuracy, *, register: bool = False,
+def verify(model: RobotModel, data: Measurements | Contacts, then: Accuracy, *, register: bool = False,
            alpha: float = DEFAULT_ALPHA) -> Verification:
     """Hold a short campaign ``data`` against the calibrated ``model`` and judge it against ``then``.
 
@@ -161,12 +183,14 @@ def verify(model: RobotModel, data: Measurements, then: Accuracy, *, register: b
     ----------
     model : RobotModel
         The calibrated model (as stored).
-    data : Measurements
-        The verification campaign: 10 to 30 poses are enough (more are allowed).
+    data : Measurements or Contacts
+        The verification campaign: 10 to 30 poses are enough (more are allowed); or ball seatings
+        in sockets (two or more per socket, in varied configurations), for a robot calibrated from
+        seatings.
     then : Accuracy
         The accuracy the calibration reached (``robocal.accuracy_at_calibration``).
     register : bool
-        Re-register the base on these poses first (the tracker was set up again).
+        Re-register the base on these poses first (the tracker was set up again); not with seatings.
     alpha : float
         The share of verifications of an unchanged robot that say "recalibrate".
 
@@ -180,6 +204,8 @@ def verify(model: RobotModel, data: Measurements, then: Accuracy, *, register: b
         raise InputError("the accuracy at calibration must be a positive RMS over at least one point", where="then")
     if not 0 < alpha < 0.5:
         raise InputError(f"must be between 0 and 0.5, got {alpha!r}", where="alpha")
+    if isinstance(data, Contacts) or then.source == SEATINGS:
+        return _seatings(model, data, then, register, alpha)
     missing = [m for m in data.marker_names if m not in model.marker_names]
     if missing:
         raise InputError(f"marker(s) {', '.join(missing)} are not the calibrated model's "
@@ -199,6 +225,67 @@ def verify(model: RobotModel, data: Measurements, then: Accuracy, *, register: b
                         p95=float(np.percentile(v, 95)), max=float(v.max()), poses=names, ap=ap,
                         ap_max=float(ap.max()), then=then, ratio=ratio, threshold=threshold, verdict=says,
                         registered_base=register, n_points=int(v.size), alpha=alpha, if_registered=if_registered)
+
+
+def _seatings(model: RobotModel, data, then: Accuracy, register: bool, alpha: float) -> Verification:
+    """``verify`` of ball seatings in sockets against the calibration's held-out seatings."""
+    src = getattr(data, "source", "") or None
+    if not isinstance(data, Contacts) or then.source != SEATINGS:
+        now = "measured points" if isinstance(data, Measurements) else "seatings"
+        then_kind = "seatings" if then.source == SEATINGS else "measured points"
+        raise InputError(f"the calibration's accuracy is of {then_kind} ({then.source}) and these are {now}: verify "
+                         "with what the calibration was judged on", source=src)
+    if register:
+        raise InputError("seatings have no base to register: each socket's centre is taken from its own seatings",
+                         source=src, where="register")
+    groups = [g for g in data.groups("socket") if len(g.rows) >= 2]
+    if not groups:
+        raise DegenerateDataError(f"{src or 'the verification'}: no socket seated twice or more: a seating's "
+                                  "distance from its socket's centre needs the socket seated again")
+    missing = sorted({data.marker[i] for g in groups for i in g.rows} - set(model.marker_names))
+    if missing:
+        raise InputError(f"marker(s) {', '.join(missing)} are not the calibrated model's "
+                         f"({', '.join(model.marker_names)})", source=src)
+    ball = evaluate(model, data.q).positions[np.arange(data.n_rows), [model.marker_names.index(m) for m in data.marker]]
+    errors = np.full(data.n_rows, np.nan)
+    spread = np.empty(len(groups))
+    for k, g in enumerate(groups):
+        errors[g.rows] = vector_norms(ball[g.rows] - ball[g.rows].mean(axis=0))
+        spread[k] = np.sqrt(np.mean(errors[g.rows] ** 2))
+    v = errors[np.isfinite(errors)]
+    dof = v.size - len(groups)             # each socket's centre takes three of its seatings' components
+    ratio = float(np.sqrt(np.sum(v ** 2) / dof) / then.rms)
+    threshold = _seatings_threshold(then, len({g.placement for g in groups}), dof, alpha)
+    return Verification(errors=errors[:, None], rms=float(np.sqrt(np.mean(v ** 2))), mean=float(v.mean()),
+                        p95=float(np.percentile(v, 95)), max=float(v.max()), poses=tuple(g.label for g in groups),
+                        ap=spread, ap_max=float(spread.max()), then=then, ratio=ratio, threshold=threshold,
+                        verdict=RECALIBRATE if ratio > threshold else WITHIN, registered_base=False,
+                        n_points=int(v.size), alpha=alpha, sockets=len(groups))
+
+
+def _seatings_threshold(then: Accuracy, placements: int, dof: int, alpha: float) -> float:
+    """The RMS ratio an unchanged robot's seatings on ``placements`` placements (``dof`` points'
+    degrees of freedom) exceed with probability ``alpha``: the log of their mean square against the
+    calibration's placements' (``then.sets``), each placement's drawn with the scatter between
+    placements (``then.scatter``) and its seatings' own (chi-square: variance 2 / its components of
+    the log), Student's t over the calibration's placements. Without them, the F test of
+    ``ratio_threshold``. (A few placements tell that scatter poorly: four of a simulated arm gave
+    0.06 where sixty give 0.16, so the t's degrees of freedom are the placements', whatever part of
+    the variance the scatter is. Sockets taken one by one, as if each had configurations of its own,
+    made that arm recalibrate unchanged in 5 of 100 verifications at 0.01.)"""
+    from scipy.special import stdtrit
+
+    if then.sets < 2:
+        return float(np.sqrt(_f_quantile(3 * dof, 3 * then.n, alpha)))
+    each = 2.0 / (3.0 * max(then.n / then.sets, 1.0))       # a calibration placement's log, by chance
+    var = then.scatter ** 2 / placements + 2.0 / (3.0 * dof) + (then.scatter ** 2 + each) / then.sets
+    return float(np.exp(0.5 * stdtrit(then.sets - 1, 1.0 - alpha) * np.sqrt(var)))
+
+
+def _f_quantile(d1: int, d2: int, alpha: float) -> float:
+    from scipy.special import fdtri  # the F quantile, without importing scipy.stats (1.8 s)
+
+    return float(fdtri(max(d1, 1), max(d2, 1), 1.0 - alpha))
 
 
 def _errors(model: RobotModel, data: Measurements) -> tuple[np.ndarray, np.ndarray]:

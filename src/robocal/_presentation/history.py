@@ -11,7 +11,7 @@ from datetime import datetime
 
 import numpy as np
 
-from .._accuracy.verification import Verification
+from .._accuracy.verification import SEATINGS, Verification
 from .._base.arguments import FLAG, PATH, TEXT, accepts, is_a
 from .._files.text import write_texts
 from .._store.store import APART_SIGMAS, Change, History, StoredCalibration, TypeComparison
@@ -19,6 +19,8 @@ from .plots import need_matplotlib, plot_svg
 from .units import display_unit, fmt, with_unit
 
 BAND = 2.0          # the drift plots' band: estimate +- BAND standard deviations
+# a seatings' calibration on fewer placements leaves a verification's threshold wide (Student's t)
+FEW_PLACEMENTS = 5
 SHOWN_CALIBRATIONS = 6   # the text table's columns: the latest calibrations
 AFTER, BAD = "#2266b0", "#a3262a"
 
@@ -109,10 +111,18 @@ def history_summary(h: History) -> str:
     lines += _estimates_table(h) + _changes_lines(h)
     if h.verifications:
         lines.append("verifications:")
+        seated = _by_seatings(h)
         lines += [f"  {_when(v.verified_at)} against #{v.calibration_id}: {v.verdict}, {with_unit(v.rms, 'm')} RMS "
                   f"now against {with_unit(v.then_rms, 'm')} (ratio {v.ratio:.2f}, recalibrate beyond "
-                  f"{v.threshold:.2f}), ISO 9283 AP {with_unit(v.ap_max, 'm')}" for v in h.verifications]
+                  f"{v.threshold:.2f}), {'worst socket spread' if v.id in seated else 'ISO 9283 AP'} "
+                  f"{with_unit(v.ap_max, 'm')}" for v in h.verifications]
     return "\n".join(lines)
+
+
+def _by_seatings(h: History) -> set:
+    """The ids of the verifications by socket seatings (held against a calibration's held-out seatings)."""
+    seatings = {c.id for c in h.calibrations if c.accuracy is not None and c.accuracy.source == SEATINGS}
+    return {v.id for v in h.verifications if v.calibration_id in seatings}
 
 
 def _compared_families(h: History) -> str:
@@ -227,17 +237,29 @@ def verification_summary(v: Verification, robot: str, calibration) -> str:
     """
     reg = ", base re-registered on them" if v.registered_base else ""
     worst = int(np.nanargmax(v.ap)) if v.ap.size else 0
+    what = (f"{v.n_points} seatings in {v.sockets} sockets, each from its socket's mean predicted centre" if v.sockets
+            else f"{v.n_poses} poses, {v.n_points} measured points{reg}")
     return "\n".join([
-        f"verification of {robot} against calibration #{calibration.id} ({_day(calibration.calibrated_at)}): "
-        f"{v.n_poses} poses, {v.n_points} measured points{reg}",
+        f"verification of {robot} against calibration #{calibration.id} ({_day(calibration.calibrated_at)}): {what}",
         f"  now:            RMS {with_unit(v.rms, 'm')}, mean {with_unit(v.mean, 'm')}, p95 {with_unit(v.p95, 'm')}, "
         f"max {with_unit(v.max, 'm')}",
         f"  at calibration: RMS {with_unit(v.then.rms, 'm')} ({v.then.source})",
-        f"  ISO 9283 positional accuracy AP (worst pose, {v.poses[worst] if v.poses else '-'}): "
-        f"{with_unit(v.ap_max, 'm')}",
-        f"  ratio now / at calibration {v.ratio:.2f}; recalibrate beyond {v.threshold:.2f} (an unchanged robot "
-        f"exceeds it in {v.alpha:.0%} of verifications)", *_if_registered(v),
+        (f"  socket spread (RMS about its centre; worst socket, {v.poses[worst]}): " if v.sockets else
+         f"  ISO 9283 positional accuracy AP (worst pose, {v.poses[worst] if v.poses else '-'}): ")
+        + with_unit(v.ap_max, 'm'),
+        f"  ratio now / at calibration {v.ratio:.2f}"
+        + (" (each over the degrees of freedom the sockets' centres leave)" if v.sockets else "")
+        + f"; recalibrate beyond {v.threshold:.2f} (an unchanged robot "
+        f"exceeds it in {v.alpha:.0%} of verifications)", *_if_registered(v), *_few_placements(v),
         f"verdict: {v.verdict}"])
+
+
+def _few_placements(v: Verification) -> list[str]:
+    """Seatings held against a calibration on few placements: why its threshold is wide."""
+    if not v.sockets or not 2 <= v.then.sets < FEW_PLACEMENTS:
+        return []
+    return [f"  the calibration's {v.then.sets} placements tell how much placements differ poorly, so the threshold is "
+            "wide: a calibration on more placements verifies sharper"]
 
 
 def _if_registered(v: Verification) -> list[str]:
@@ -390,7 +412,8 @@ def render_history(h: History) -> str:
             f"<figure>{vplot}<figcaption>RMS position error of each verification, against the calibration's and the "
             "ratio beyond which it says recalibrate.</figcaption></figure><table><thead><tr><th>verified</th>"
             "<th>against</th><th>verdict</th><th>RMS now (mm)</th><th>RMS then (mm)</th><th>ratio</th>"
-            "<th>threshold</th><th>ISO 9283 AP (mm)</th><th>points</th></tr></thead>"
+            "<th>threshold</th><th>ISO 9283 AP, or worst socket spread of seatings (mm)</th><th>points</th>"
+            "</tr></thead>"
             f"<tbody>{verifs}</tbody></table>" if h.verifications else "<p>No verification yet.</p>")]
     return ('<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
             f"<title>Calibration history: {_e(h.robot)}</title>\n<style>{_CSS}</style>\n</head>\n<body>\n<main>\n"

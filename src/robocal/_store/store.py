@@ -26,7 +26,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from .._accuracy.verification import DEFAULT_ALPHA as VERIFY_ALPHA
-from .._accuracy.verification import Accuracy, Verification, verify
+from .._accuracy.verification import SEATINGS, Accuracy, Verification, verify
 from .._base.arguments import (
     FLAG,
     FRACTION,
@@ -47,6 +47,7 @@ from .._base.errors import InputError, excerpt
 from .._files.model import model_from_dict, model_to_dict
 from .._files.result import plain, result_to_dict
 from .._identification.result import CalibrationResult
+from .._model.contacts import Contacts
 from .._model.measurements import Measurements
 from .._model.parameters import FAMILIES
 from .._model.robot import RobotModel
@@ -790,7 +791,8 @@ def accuracy_at_calibration(d: dict) -> Accuracy | None:
     result has held-out poses, else the fitted poses' RMS error scaled up by the degrees of freedom
     the fit took (``sqrt(n_rows / (n_rows - n_parameters))``). (The accuracy in use, ``in_use``, is
     the robot's with the instrument's noise taken out: kept, and shown, but not comparable with a
-    measured verification.)
+    measured verification.) Of a calibration from contacts alone: its held-out seatings' distances
+    from their sockets' centres (source ``SEATINGS``), what a verification by seatings is held against.
 
     Parameters
     ----------
@@ -800,9 +802,11 @@ def accuracy_at_calibration(d: dict) -> Accuracy | None:
     Returns
     -------
     Accuracy or None
-        The accuracy, or None when the result has no position errors.
+        The accuracy, or None when the result has no position errors (nor held-out seatings).
     """
     stats = d.get("stats") or {}
+    if not (stats.get("fit_after") or {}).get("n") and isinstance(d.get("contacts"), dict):
+        return _seatings_at_calibration(d)
     val = stats.get("validation_after") or {}
     if val.get("n") and _positive(val.get("rms")):
         return Accuracy(rms=float(val["rms"]), mean=_float(val.get("mean")), n=int(val["n"]), source="held-out poses",
@@ -816,6 +820,33 @@ def accuracy_at_calibration(d: dict) -> Accuracy | None:
     n = max(int(fit["n"]) - math.ceil(k / 3), 1)
     return Accuracy(rms=float(fit["rms"]) * scale, mean=_float(fit.get("mean")), n=n, source="fitted poses",
                     max=_float(fit.get("max")))
+
+
+def _seatings_at_calibration(d: dict) -> Accuracy | None:
+    """A calibration from contacts alone: its held-out seatings' distances from their sockets' mean
+    centres (the held-out placements', else each placement predicted by the others), their RMS over
+    the degrees of freedom the sockets' centres leave (three components each), what a verification
+    by seatings is held against, with the scatter of the placements' mean squares beyond their
+    seatings' number; None without a socket seated twice."""
+    c = d.get("contacts") or {}
+    held: dict = next((h["seatings_m"] for h in (c.get("validation_after"), c.get("held_out_by_placement"))
+                 if isinstance(h, dict) and h.get("seatings_m")), {})
+    sockets = {k: np.asarray(v, dtype=float) for k, v in held.items() if len(v) >= 2}
+    if not sockets or not all(np.all(np.isfinite(v)) for v in sockets.values()):
+        return None
+    by: dict = {}
+    for k, v in sockets.items():           # per placement: its squares and degrees of freedom
+        ss, dof = by.get(k.split("/")[0], (0.0, 0))
+        by[k.split("/")[0]] = (ss + float(np.sum(v ** 2)), dof + len(v) - 1)
+    ss, dof = (sum(x) for x in zip(*by.values()))
+    if not ss > 0:
+        return None
+    ms = np.array([a / b for a, b in by.values()])
+    noise = float(np.mean([2.0 / (3.0 * b) for _, b in by.values()]))     # of a log mean square, by chance
+    scatter = math.sqrt(max(float(np.var(np.log(ms), ddof=1)) - noise, 0.0)) if len(ms) > 1 else 0.0
+    every = np.concatenate(list(sockets.values()))
+    return Accuracy(rms=math.sqrt(ss / dof), mean=float(every.mean()), n=int(dof), source=SEATINGS,
+                    p95=float(np.percentile(every, 95)), max=float(every.max()), sets=len(by), scatter=scatter)
 
 
 def _float(v) -> float | None:
@@ -1427,7 +1458,7 @@ def _json(obj) -> str:
 
 def _calibration_row(r: StoredCalibration) -> tuple:
     acc = None if r.accuracy is None else {k: getattr(r.accuracy, k)
-                                           for k in ("rms", "mean", "n", "source", "p95", "max")}
+                                           for k in ("rms", "mean", "n", "source", "p95", "max", "sets", "scatter")}
     return (r.robot, r.robot_type, r.calibrated_at, r.recorded_at, r.fingerprint, r.verdict, r.limit_m,
             None if acc is None else _json(acc), _json([[e.name, e.unit, e.family] for e in r.estimates]),
             np.array([e[3:] for e in r.estimates], dtype="<f8").reshape(-1).tobytes(), _packed(r.correlation),
@@ -1508,7 +1539,8 @@ def _calibration_from_row(row) -> StoredCalibration:
     a = None if acc is None else json.loads(acc)
     accuracy = None if a is None else Accuracy(rms=_nan(a["rms"]), mean=_float(a.get("mean")), n=int(a["n"]),
                                                source=_text(a["source"]), p95=_float(a.get("p95")),
-                                               max=_float(a.get("max")))
+                                               max=_float(a.get("max")), sets=int(a.get("sets") or 0),
+                                               scatter=_float(a.get("scatter")) or 0.0)
     ests = tuple(Estimate(*head, *map(float, v)) for head, v in zip(*_estimate_rows(_layout(params), values)))
     use = None if in_use is None else json.loads(in_use)
     if use is not None and not isinstance(use, dict):
@@ -1614,9 +1646,9 @@ def latest_usable(store: Store, robot: str) -> StoredCalibration:
     return usable[-1]
 
 
-@accepts(store=is_a(Store), robot=_name, data=is_a(Measurements), register=FLAG,
+@accepts(store=is_a(Store), robot=_name, data=is_a(Measurements, Contacts), register=FLAG,
          alpha=in_range(0.0, 0.5, low_open=True, high_open=True), save=FLAG, at=INSTANT)
-def verify_robot(store: Store, robot: str, data: Measurements, *, register: bool = False,
+def verify_robot(store: Store, robot: str, data: Measurements | Contacts, *, register: bool = False,
                  alpha: float = VERIFY_ALPHA, save: bool = True, at=None) -> tuple[Verification, StoredVerification]:
     """Verify a robot against its latest stored calibration that did not fail its checks and
     (``save``) record the verification.
@@ -1624,8 +1656,9 @@ def verify_robot(store: Store, robot: str, data: Measurements, *, register: bool
     Parameters
     ----------
     {store, robot}
-    data : Measurements
-        The verification campaign (10 to 30 poses).
+    data : Measurements or Contacts
+        The verification campaign (10 to 30 poses), or ball seatings in sockets for a robot
+        calibrated from seatings.
     register : bool
         Re-register the base on these poses first.
     alpha : float
@@ -1641,10 +1674,9 @@ def verify_robot(store: Store, robot: str, data: Measurements, *, register: bool
     """
     latest = latest_usable(store, robot)
     if latest.accuracy is None:
-        raise InputError(f"the latest calibration of {robot} (#{latest.id}) has no measured accuracy to verify "
-                         "against (a calibration from contacts alone measures no position): verification needs a "
-                         "calibration from measured points; from contacts, calibrate again on new seatings and read "
-                         "the changes in history", source=store.location)
+        raise InputError(f"the latest calibration of {robot} (#{latest.id}) has no accuracy at calibration to "
+                         "verify against (neither measured points nor held-out socket seatings): calibrate again "
+                         "and read the changes in history", source=store.location)
     v = verify(store.model(latest.calibrated_model), data, latest.accuracy, register=register, alpha=alpha)
     rec = stored_verification(v, latest, at=at, source=data.source, fingerprint=data.sha256)
     return v, (store.add_verification(rec) if save else rec)

@@ -10,8 +10,12 @@ RECALIBRATE = 3
 EXAMPLE = """examples:
   robocal verify SN-1042 examples/th8/verification.csv
   robocal verify SN-1042 examples/th8/verification.csv --register-base --no-record
+  robocal calibrate examples/arm7/model.yaml --contacts examples/arm7/seatings --out runs/kit --record A7-01
+  robocal verify A7-01 --contacts examples/arm7/seatings_check
 
-10 to 30 poses measured as for a calibration. Exit code 3 when the verdict is recalibrate."""
+10 to 30 poses measured as for a calibration; or, for a robot calibrated from seatings, ball seatings
+in sockets (each socket seated two times or more, in varied configurations; the second example).
+Exit code 3 when the verdict is recalibrate."""
 
 
 def register(sub) -> None:
@@ -20,7 +24,10 @@ def register(sub) -> None:
                                    "calibrated model: accuracy now against accuracy at calibration, ISO 9283 "
                                    "positional accuracy, and a verdict (within accuracy / recalibrate). The "
                                    "verification is kept in the store.", example=EXAMPLE,
-                       inputs=[("robot", "ROBOT", "the robot"), ("csv", "CSV", "the verification measurements")])
+                       inputs=[("robot", "ROBOT", "the robot"),
+                               ("csv", "CSV", "the verification measurements (or --contacts)", "?")])
+    p.add_argument("--contacts", metavar="FILE", help="socket seatings (a contact file or folder of seatings, "
+                   "docs/formats.md) to verify a robot calibrated from seatings with, in place of CSV")
     record.store_option(p)
     p.add_argument("--register-base", action="store_true",
                    help="re-register the base on these poses first (the instrument was set up again)")
@@ -37,16 +44,25 @@ def register(sub) -> None:
 def run(args) -> int:
     from .._accuracy.verification import FEW_POSES, MANY_POSES
     from .._accuracy.verification import RECALIBRATE as SAYS_RECALIBRATE
+    from .._base.errors import InputError
+    from .._files.contacts import read_contacts
     from .._presentation.history import verification_summary
     from .._store.store import check_name, latest_usable, verify_robot
 
     robot = check_name(args.robot, "ROBOT")
+    if (args.csv is None) == (args.contacts is None):
+        raise InputError("give the verification measurements (CSV) or socket seatings (--contacts), one of them",
+                         where="CSV" if args.csv is None else "--contacts")
+    if args.contacts is not None and args.register_base:
+        raise InputError("seatings have no base to register: each socket's centre is taken from its own seatings",
+                         where="--register-base")
     with record.open_store(args, create=False, write=not args.no_record) as store:
         against = latest_usable(store, robot)
-        data = common.read_data(args, store.model(against.calibrated_model), args.csv)
+        model = store.model(against.calibrated_model)
+        data = common.read_data(args, model, args.csv) if args.contacts is None else read_contacts(args.contacts, model)
         v, _ = verify_robot(store, robot, data, register=args.register_base, alpha=args.alpha,
                             save=not args.no_record, at=args.at)
-    if not FEW_POSES <= data.n_poses <= MANY_POSES:
+    if args.contacts is None and not FEW_POSES <= data.n_poses <= MANY_POSES:
         print(f"note: {data.n_poses} poses; a verification takes {FEW_POSES} to {MANY_POSES}")
     print(verification_summary(v, robot, against))
     return RECALIBRATE if v.verdict == SAYS_RECALIBRATE else 0
