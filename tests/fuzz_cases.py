@@ -953,6 +953,10 @@ def store_case(draw, command: str, result_text):
     if command == "history":
         who = [robot] if draw(st.integers(0, 2)) else ["--type", _value(draw, "th8")]
         return files, ["history", *who, "--store", store] + draw(options(HISTORY))
+    if draw(st.integers(0, 2)) == 0:            # seatings, as a robot calibrated from them is verified
+        files.update(draw(seatings_folder()) if draw(st.booleans()) else
+                     {"campaign/" + k: v.encode() for k, v in SEATINGS.items()})
+        return files, ["verify", robot, "--contacts", "campaign", "--store", store] + draw(options(VERIFY))
     files["data.csv"] = draw(csv_file()) if draw(st.booleans()) else MEASUREMENTS.encode()
     return files, ["verify", robot, "data.csv", "--store", store] + draw(options(VERIFY))
 
