@@ -788,10 +788,13 @@ def _quiet_nan():
 def accuracy_at_calibration(d: dict) -> Accuracy | None:
     """The position accuracy a result (its file form) reached as its instrument saw it, what a
     verification measured the same way is held against: the held-out poses' RMS error when the
-    result has held-out poses, else the fitted poses' RMS error scaled up by the degrees of freedom
-    the fit took (``sqrt(n_rows / (n_rows - n_parameters))``). (The accuracy in use, ``in_use``, is
-    the robot's with the instrument's noise taken out: kept, and shown, but not comparable with a
-    measured verification.) Of a calibration from contacts alone: its held-out seatings' distances
+    result has held-out poses, else the fitted poses' errors as its cross-validation predicted them
+    (each by a model fitted without it, the instrument's noise in: new poses are predicted so, and
+    a robot with effects the model leaves out shows more error there than on the fitted poses),
+    else the fitted poses' RMS error scaled up by the degrees of freedom the fit took
+    (``sqrt(n_rows / (n_rows - n_parameters))``). (The accuracy in use, ``in_use``, is the robot's
+    with the instrument's noise taken out: kept, and shown, but not comparable with a measured
+    verification.) Of a calibration from contacts alone: its held-out seatings' distances
     from their sockets' centres (source ``SEATINGS``), what a verification by seatings is held against.
 
     Parameters
@@ -807,11 +810,19 @@ def accuracy_at_calibration(d: dict) -> Accuracy | None:
     stats = d.get("stats") or {}
     if not (stats.get("fit_after") or {}).get("n") and isinstance(d.get("contacts"), dict):
         return _seatings_at_calibration(d)
-    val = stats.get("validation_after") or {}
-    if val.get("n") and _positive(val.get("rms")):
-        return Accuracy(rms=float(val["rms"]), mean=_float(val.get("mean")), n=int(val["n"]), source="held-out poses",
-                        max=_float(val.get("max")))
-    fit = stats.get("fit_after") or {}
+    use = d.get("in_use") or {}
+    for figures, source in ((stats.get("validation_after"), "held-out poses"),
+                            (use.get("measured_after") if use.get("method") == "cross-validation" else None,
+                             f"fitted poses held out, {use.get('grouping') or 'cross-validation'}")):
+        if isinstance(figures, dict) and figures.get("n") and _positive(figures.get("rms")):
+            return Accuracy(rms=float(figures["rms"]), mean=_float(figures.get("mean")), n=int(figures["n"]),
+                            source=source, p95=_float(figures.get("p95")), max=_float(figures.get("max")))
+    return _fitted_at_calibration(d)
+
+
+def _fitted_at_calibration(d: dict) -> Accuracy | None:
+    """The fitted poses' RMS error scaled up by the degrees of freedom the fit took, None without."""
+    fit = (d.get("stats") or {}).get("fit_after") or {}
     if not (fit.get("n") and _positive(fit.get("rms"))):
         return None
     rows = int((d.get("identifiability") or {}).get("n_rows") or 0)
