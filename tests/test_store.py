@@ -550,6 +550,11 @@ def test_a_robot_calibrated_from_seatings_is_verified_with_a_few_seatings():
     assert verdicts["true"].count("within accuracy") >= 38 and verdicts["drifted"].count("recalibrate") >= 38
     with pytest.raises(rc.InputError, match="no base to register"):
         rc.verify(result.calibrated_model, seated, then, register=True)
+    # beside robots of its type its accuracy says what it is of
+    from robocal.report import type_summary
+
+    alone = rc.compare_type("arm7", [replace(rc.stored_calibration(result, "A7"), id=1)])
+    assert f"{then.rms * 1e3:.4f} mm RMS (held-out seatings" in type_summary(alone)
 
 
 def test_verification_with_the_base_re_registered_and_iso_terms(campaign):

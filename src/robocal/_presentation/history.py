@@ -210,7 +210,8 @@ def type_summary(t: TypeComparison) -> str:
         if c.robot in apart:
             flag += (f"; not compared: {_few(apart[c.robot])} fitted beyond {APART_SIGMAS:g} sigma of nominal, which "
                      "most of the type's calibrations do not identify, and no stored correlations to hold them with")
-        acc = "no measured accuracy" if c.accuracy_rms is None else f"{with_unit(c.accuracy_rms, 'm')} RMS"
+        acc = "no measured accuracy" if c.accuracy_rms is None else f"{with_unit(c.accuracy_rms, 'm')} RMS" + (
+            f" ({c.accuracy_source})" if c.accuracy_source == SEATINGS else "")
         lines.append(f"  {c.robot}: #{c.id} {_day(c.calibrated_at)}, {c.verdict}, {acc}{flag}")
     if len(t.latest) > 200:
         lines.append(f"  ... and {len(t.latest) - 200} more")

@@ -313,13 +313,14 @@ class Outlier:
 
 class Latest(NamedTuple):
     """A robot's latest calibration as the type comparison lists it: its id, date, verdict and
-    accuracy RMS (metres, None when unknown)."""
+    accuracy RMS (metres, None when unknown) and what it is of (``Accuracy.source``)."""
 
     robot: str
     id: int
     calibrated_at: str
     verdict: str
     accuracy_rms: float | None
+    accuracy_source: str = ""
 
 
 @dataclass(frozen=True, eq=False)
@@ -667,8 +668,8 @@ def compare_type(robot_type: str, calibrations, *, alpha: float = DEFAULT_ALPHA,
     TypeComparison
     """
     cals = sorted(calibrations, key=lambda c: c.robot)
-    latest = [Latest(c.robot, c.id or 0, c.calibrated_at, c.verdict, c.accuracy.rms if c.accuracy else None)
-              for c in cals]
+    latest = [Latest(c.robot, c.id or 0, c.calibrated_at, c.verdict, c.accuracy.rms if c.accuracy else None,
+                     c.accuracy.source if c.accuracy else "") for c in cals]
     return _type_compared(robot_type, latest, [_Estimates.of(c) for c in cals], alpha, families)
 
 
@@ -1383,8 +1384,9 @@ class Store:
         latest, estimates, layouts = [], [], {}     # the parameter layouts of this read, each decoded once
         for robot, i, at, verdict, acc, params, values, corr in rows:
             with self._errors(f"calibration #{i}"):
-                rms = None if acc is None else _float(json.loads(acc)["rms"])
-                latest.append(Latest(_text(robot), int(i), _date(at), _text(verdict), rms))
+                a = None if acc is None else json.loads(acc)
+                latest.append(Latest(_text(robot), int(i), _date(at), _text(verdict),
+                                     None if a is None else _float(a["rms"]), "" if a is None else _text(a["source"])))
                 if params not in layouts:
                     layouts[params] = _layout(params)
                 layout, v = _estimate_rows(layouts[params], values)
