@@ -44,8 +44,8 @@ SEATINGS = "held-out seatings, each from its socket's centre"
 class Accuracy:
     """The position accuracy a calibration reached, metres: ``rms``, ``mean``, ``p95``, ``max`` of the
     point error norms (``p95``/``max`` None when not known), over ``n`` points (the degrees of freedom
-    behind ``rms`` for the verdict's test), and where it comes from (``source``: "in use
-    (validation)", "in use (cross-validation)", "held-out poses", "fitted poses" or ``SEATINGS``).
+    behind ``rms`` for the verdict's test), and where it comes from (``source``: "held-out poses",
+    "fitted poses held out, <the cross-validation's folds>", "fitted poses" or ``SEATINGS``).
     Of seatings, ``sets`` placements of the plate make it up, whose own mean squares scatter beyond
     what their seatings' number explains by ``scatter`` (the standard deviation of their logs): a
     placement is reached in configurations of its own, which seat the ball with a scatter of their
