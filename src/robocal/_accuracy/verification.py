@@ -23,6 +23,7 @@ import numpy as np
 from .._base.arguments import FLAG, accepts, both, in_range, is_a, measured_on, shaped, whole
 from .._base.arrays import vector_norms
 from .._base.errors import DegenerateDataError, InputError
+from .._identification.contact_figures import contact_errors
 from .._identification.registration import rigid_base as register_base
 from .._model.contacts import Contacts
 from .._model.kinematics import evaluate
@@ -246,12 +247,11 @@ def _seatings(model: RobotModel, data, then: Accuracy, register: bool, alpha: fl
     if missing:
         raise InputError(f"marker(s) {', '.join(missing)} are not the calibrated model's "
                          f"({', '.join(model.marker_names)})", source=src)
-    ball = evaluate(model, data.q).positions[np.arange(data.n_rows), [model.marker_names.index(m) for m in data.marker]]
+    seated = contact_errors(model, data).seatings      # the calibration's held-out figure, on these seatings
     errors = np.full(data.n_rows, np.nan)
-    spread = np.empty(len(groups))
-    for k, g in enumerate(groups):
-        errors[g.rows] = vector_norms(ball[g.rows] - ball[g.rows].mean(axis=0))
-        spread[k] = np.sqrt(np.mean(errors[g.rows] ** 2))
+    for g in groups:
+        errors[g.rows] = seated[g.label]
+    spread = np.array([np.sqrt(np.mean(seated[g.label] ** 2)) for g in groups])
     v = errors[np.isfinite(errors)]
     dof = v.size - len(groups)             # each socket's centre takes three of its seatings' components
     ratio = float(np.sqrt(np.sum(v ** 2) / dof) / then.rms)

@@ -571,7 +571,7 @@ def _carried(e: _Estimates, mine: dict, other) -> tuple[str, ...]:
 
 
 def _as_held(e: _Estimates, keep: list, held: list, rcond: float) -> tuple[np.ndarray, np.ndarray]:
-    """The estimates ``keep`` (indices in ``c.estimates``) and their covariance as ``c`` would have
+    """The estimates ``keep`` (indices in ``e``) and their covariance as ``e``'s calibration would have
     given them with the parameters ``held`` at their nominal values, as another calibration that does
     not identify them holds them: conditioned on that (least squares is Gaussian conditioning on the
     estimates' covariance: ``x_k - C_kh C_hh^+ (x_h - nominal_h)``, ``C_kk - C_kh C_hh^+ C_hk``).
@@ -750,13 +750,13 @@ def _robust_z(values: np.ndarray, stds: np.ndarray, reference) -> tuple[np.ndarr
     """(median, spread, z): the median of the ``reference`` rows per column, their robust spread (1.4826
     median absolute deviation, at least their median standard deviation) and every row's distance from
     the median in spreads; NaN in a column fewer than three reference robots have (no reference)."""
-    ref = values[np.asarray(reference, dtype=bool)]
+    rows = np.asarray(reference, dtype=bool)
+    ref = values[rows]
+    nothing = np.full(values.shape[1], np.nan)
     with np.errstate(invalid="ignore"), _quiet_nan():
-        median = np.nanmedian(ref, axis=0) if ref.size else np.full(values.shape[1], np.nan)
-        spread = 1.4826 * np.nanmedian(np.abs(ref - median), axis=0) if ref.size else np.full(values.shape[1], np.nan)
-        typical = (np.nanmedian(stds[np.asarray(reference, dtype=bool)], axis=0) if ref.size
-                   else np.full(values.shape[1], np.nan))
-        spread = np.fmax(spread, typical)
+        median = np.nanmedian(ref, axis=0) if ref.size else nothing
+        spread = 1.4826 * np.nanmedian(np.abs(ref - median), axis=0) if ref.size else nothing
+        spread = np.fmax(spread, np.nanmedian(stds[rows], axis=0) if ref.size else nothing)
         z = (values - median) / np.where(spread > 0, spread, np.nan)
     z[:, np.sum(np.isfinite(ref), axis=0) < 3] = np.nan      # a median of fewer is no reference
     return median, spread, z
