@@ -52,6 +52,8 @@ EDGE_SHARE = 0.05
 MIN_ROWS = 3
 # a change point is first looked for at this many rows spread evenly, then about the best of them
 SPLITS = 64
+# a joint's gravity load this small against the largest is rounding: it rests on no side
+LOAD_ROUNDING = 1e-9
 
 
 def _predicted(ref: Reference, gain: float, freedom: float) -> float:
@@ -522,7 +524,9 @@ def _lost_motion_sides(ref: Reference) -> dict:
         # on the problem's model, whose layout exists: the calibrated model's would be built anew each
         # call, at about the cost of the loads themselves
         prob, data = ref.problem, ref.data
-        sides["gravity"] = np.sign(loads_at(prob.model, prob.lay, ref.p, data.q, payload_mass=data.payload_mass))
+        loads = loads_at(prob.model, prob.lay, ref.p, data.q, payload_mass=data.payload_mass)
+        # a load at rounding's level (a joint whose distal masses sit on its axis) has no side
+        sides["gravity"] = np.where(np.abs(loads) > LOAD_ROUNDING * np.abs(loads).max(initial=0.0), np.sign(loads), 0.0)
     return sides
 
 

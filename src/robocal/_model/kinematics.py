@@ -1595,13 +1595,23 @@ def gravity_loads(model: RobotModel, q, *, payload_mass=None) -> np.ndarray:
 
 def loads_at(model: RobotModel, lay: Layout, p: np.ndarray, q: np.ndarray, *, payload_mass=None) -> np.ndarray:
     """``gravity_loads`` of ``model`` with its values set to ``p`` (compliances ignored), for a caller
-    that holds the model's layout ``lay``: (N, n_joints) at readings ``q`` (N, n_joints)."""
-    p = np.array(p, dtype=float)
-    p[lay.compliant_params] = 0.0
-    st = evaluate_state(model, lay, p, q @ model.coupling_matrix.T, compliance=True, orientations=False,
-                         payload_mass=payload_mass)
-    M, msub = cast(np.ndarray, st.M), cast(np.ndarray, st.msub)     # made: compliance is on
-    return _frame_loads(model, lay, st.ps, M, msub) @ model.coupling_matrix
+    that holds the model's layout ``lay``: (N, n_joints) at readings ``q`` (N, n_joints). One pass
+    of the frames alone (no marker, no step axis): a joint's moment is taken about its axis through
+    the frame's origin, which lies on it."""
+    qf = q @ model.coupling_matrix.T
+    t = p[lay.transmission_params]
+    ps = kinematic_pass(model, lay, p, transmitted(model, qf, t) if np.any(t) else qf, frames_only=True)
+    C1, msub = mass_sums(model, lay, ps, payload_mass)
+    frames = ps._frames()
+    z, origin = frames[:, FrameRow.Z_AXIS], frames[:, FrameRow.ORIGIN]                  # (n_frames, 3, N)
+    g = np.asarray(model.gravity, dtype=float)
+    A = C1.transpose(1, 0, 2) - msub[:, None] * origin       # first moments about each origin
+    w = _gcross_cm(g, z.transpose(1, 0, 2), np.empty((3,) + msub.shape)).transpose(1, 0, 2)   # g x z
+    kind = np.array([f.joint for f in model.frames])
+    # revolute: (A x g) . z = A . (g x z); prismatic: the weight along the axis
+    loads = np.where((kind == "revolute")[:, None], np.einsum("fcn,fcn->fn", A, w),
+                     np.where((kind == "prismatic")[:, None], msub * np.einsum("fcn,c->fn", z, g), 0.0))
+    return loads.T @ model.coupling_matrix
 
 
 @accepts(**_MODEL_AND_READINGS, frames=FLAG)
