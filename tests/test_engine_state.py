@@ -7,6 +7,7 @@ import subprocess
 import sys
 import warnings
 import weakref
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -31,6 +32,16 @@ def test_a_parameter_layout_cannot_be_written_into_and_forward_kinematics_stays_
     # an equal model made apart from it, and the same model again
     for model in (m, arm6r()):
         np.testing.assert_array_equal(rc.forward_kinematics(model, q).positions, before)
+
+
+def test_a_parameter_vector_is_the_callers_own_and_the_models_values_stay_put():
+    m = arm6r()
+    first = parameter_vector(m)
+    expected = first.copy()
+    first[:] = 7.0                          # the caller's copy: the model's kept values do not change
+    np.testing.assert_array_equal(parameter_vector(m), expected)
+    other = m.replace(frames=(replace(m.frames[0], d=m.frames[0].d + 0.25),) + m.frames[1:])
+    assert parameter_vector(other)[parameter_layout(other)["j1.d"].index] == m.frames[0].d + 0.25
 
 
 def test_an_evaluation_holds_read_only_arrays_of_its_own():

@@ -212,17 +212,24 @@ def parameter_vector(model: RobotModel, reference: RobotModel | None = None) -> 
         The model's values, SI.
     """
     lay = parameter_layout(model)
+    # a model's values never change: read once and kept with it (a calibration asks several times)
+    p = model.derived(parameter_vector, lambda: read_only(_values(model, lay))).copy()
+    if reference is not None:
+        p[3:6] = rotation_vector(np.asarray(reference.base_rotation).T @ np.asarray(model.base_rotation))
+        for m, (mk, mr) in enumerate(zip(model.markers, reference.markers)):
+            relative = np.asarray(mr.rotation).T @ np.asarray(mk.rotation)
+            p[lay.marker0[m] + 3:lay.marker0[m] + 6] = rotation_vector(relative)
+    return p
+
+
+def _values(model: RobotModel, lay: ParameterLayout) -> np.ndarray:
+    """``parameter_vector`` of the model itself (rotation corrections 0)."""
     p = np.zeros(lay.n_params)
     p[0:3] = model.base_position
     for i, f in enumerate(model.frames):
         p[lay.frame0[i]:lay.frame0[i] + len(FRAME_KINDS)] = [getattr(f, k) for k in FRAME_KINDS]
     for m, mk in enumerate(model.markers):
         p[lay.marker0[m]:lay.marker0[m] + 3] = mk.position
-    if reference is not None:
-        p[3:6] = rotation_vector(np.asarray(reference.base_rotation).T @ np.asarray(model.base_rotation))
-        for m, (mk, mr) in enumerate(zip(model.markers, reference.markers)):
-            relative = np.asarray(mr.rotation).T @ np.asarray(mk.rotation)
-            p[lay.marker0[m] + 3:lay.marker0[m] + 6] = rotation_vector(relative)
     return p
 
 
