@@ -178,3 +178,13 @@ def test_argument_messages_say_what_the_argument_holds():
         forward_kinematics(arm7, np.zeros((3, 6)))
     with pytest.raises(rc.InputError, match="the Jacobian .* must hold finite numbers"):
         analyse(np.array([[1.0, np.nan]]), ["a", "b"])
+
+
+def test_a_commands_files_may_come_before_or_after_its_options(cli, tmp_path):
+    # the CSV, which --contacts lets be left out, after an option: taken, not refused as unrecognized
+    code, out, err = cli("calibrate", TH8 / "model.yaml", "--out", tmp_path / "o", "--known", "markers",
+                         TH8 / "measurements.csv")
+    assert code == 0 and (tmp_path / "o" / "result.json").exists(), err
+    code, _, err = cli("calibrate", TH8 / "model.yaml", TH8 / "measurements.csv", "--out", tmp_path / "p",
+                       TH8 / "verification.csv")
+    assert_one_line_error(code, err, ("unrecognized arguments:", "verification.csv"), tmp_path / "p")

@@ -34,7 +34,7 @@ from . import (
     simulate,
     verify,
 )
-from .common import Formatter, MissingExtra, Parser
+from .common import CommandParser, Formatter, MissingExtra, Parser
 
 COMMANDS = (plan, plan_sockets, simulate, calibrate, compensate, export, identifiability, report, limit, import_urdf,
             import_dh, import_bag, record, history, verify)
@@ -52,7 +52,7 @@ def build_parser() -> argparse.ArgumentParser:
                     epilog=EXAMPLE, formatter_class=Formatter)
     parser.add_argument("--version", action="version", version=f"robocal {__version__}")
     parser.add_argument("-v", "--verbose", action="store_true", help="log progress")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=CommandParser)
     for command in COMMANDS:
         command.register(sub)
     for command_parser in sub.choices.values():  # `robocal COMMAND -v` as well as `robocal -v COMMAND`

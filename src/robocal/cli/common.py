@@ -49,6 +49,27 @@ class Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
+class CommandParser(Parser):
+    """A command's parser: its files and options in any order (``MODEL --out DIR CSV`` as well as
+    ``MODEL CSV --out DIR``). argparse alone takes the positionals of one run together, so a CSV that
+    may be left out, given after an option, would be refused as unrecognized. An argument left over
+    is refused by the command's name."""
+
+    _intermixing = False
+
+    def parse_known_args(self, args=None, namespace=None):
+        if self._intermixing:             # the intermixed parse's own passes
+            return super().parse_known_args(args, namespace)
+        self._intermixing = True
+        try:
+            parsed, extra = self.parse_known_intermixed_args(args, namespace)
+        finally:
+            self._intermixing = False
+        if extra:                           # said by the command, not by ``robocal`` alone
+            self.error(f"unrecognized arguments: {' '.join(extra)}")
+        return parsed, extra
+
+
 # -- argument types: each refuses a bad value at parse time with one line naming the option ----------
 
 def floats(n: int, top: float = math.inf, *, ordered: bool = False):
