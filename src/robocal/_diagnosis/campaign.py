@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import replace
 from functools import partial
 from itertools import combinations
-from typing import cast
+from typing import NamedTuple, cast
 
 import numpy as np
 
@@ -290,18 +290,37 @@ def split_gains(ref: Reference, columns: list[np.ndarray], edges: list[int], alo
     return out
 
 
-def _split_rows(ref: Reference, columns: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The Jacobian, and ``columns`` with the residuals last, in the rows' pose order (stably: as they
-    are when they are in order), and each pose's first row in that order (n_poses + 1 bounds)."""
+def _split_rows(ref: Reference, columns: list[np.ndarray]) -> tuple[_ByPose, np.ndarray, np.ndarray]:
+    """The Jacobian's rows in the rows' pose order (stably: as they are when they are in order), and
+    ``columns`` with the residuals last in that order, and each pose's first row in that order
+    (n_poses + 1 bounds)."""
     pose = _row_pose(ref)
-    order = slice(None) if np.all(pose[1:] >= pose[:-1]) else np.argsort(pose, kind="stable")
-    first = np.searchsorted(pose[order], np.arange(ref.data.n_poses + 1))
+    order = None if np.all(pose[1:] >= pose[:-1]) else np.argsort(pose, kind="stable")
+    by_pose = slice(None) if order is None else order
+    first = np.searchsorted(pose[by_pose], np.arange(ref.data.n_poses + 1))
     Zr = np.empty((len(pose), sum(Z.shape[1] for Z in columns) + 1))
     at = 0
     for Z in columns + [ref.r[:, None]]:
-        Zr[:, at:at + Z.shape[1]] = Z[order]
+        Zr[:, at:at + Z.shape[1]] = Z[by_pose]
         at += Z.shape[1]
-    return ref.J[order], Zr, first
+    return _ByPose(ref.J, order), Zr, first
+
+
+class _ByPose(NamedTuple):
+    """A matrix's rows in pose order: ``order`` (None: as they are) picks them block by block, so that
+    rows kept marker by marker (several markers) are not copied whole."""
+
+    rows: np.ndarray
+    order: np.ndarray | None
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    def block(self, a: int, b: int) -> np.ndarray:
+        return self.rows[a:b] if self.order is None else self.rows[self.order[a:b]]
+
+    def at(self, index: np.ndarray) -> np.ndarray:
+        return self.rows[index if self.order is None else self.order[index]]
 
 
 def _best_split(sums: list[np.ndarray], own: slice, bounds: np.ndarray, inverse: np.ndarray, *, alone: bool = False
@@ -325,18 +344,18 @@ def _best_split(sums: list[np.ndarray], own: slice, bounds: np.ndarray, inverse:
     return int(bounds[j]), float(max(gains[j], 0.0)), None
 
 
-def _suffix_sums(J: np.ndarray, Zr: np.ndarray, z: slice, first: np.ndarray, bounds: np.ndarray
+def _suffix_sums(J: _ByPose, Zr: np.ndarray, z: slice, first: np.ndarray, bounds: np.ndarray
                  ) -> list[np.ndarray]:
     """``Z^T J`` and ``Z^T Zr`` (each (len(bounds), g, ...)) over the rows of the poses from each of
     ``bounds`` (ascending) on, ``Z`` the columns ``z`` of ``Zr`` (the rows by pose): block by block
     from the last, each added to the sums after it (no copy of the rows)."""
     start = first[bounds]
     ends = np.append(start[1:], len(J))
-    HG = np.empty((len(bounds), z.stop - z.start, J.shape[1]))
+    HG = np.empty((len(bounds), z.stop - z.start, J.rows.shape[1]))
     ZR = np.empty((len(bounds), z.stop - z.start, Zr.shape[1]))
     Zt = Zr[:, z].T
     for k, (a, b) in enumerate(zip(start[::-1].tolist(), ends[::-1].tolist())):
-        np.matmul(Zt[:, a:b], J[a:b], out=HG[k])
+        np.matmul(Zt[:, a:b], J.block(a, b), out=HG[k])
         np.matmul(Zt[:, a:b], Zr[a:b], out=ZR[k])
         if k:                           # numpy's cumsum runs down the first axis element by element
             HG[k] += HG[k - 1]
@@ -344,7 +363,7 @@ def _suffix_sums(J: np.ndarray, Zr: np.ndarray, z: slice, first: np.ndarray, bou
     return [HG[::-1], ZR[::-1]]
 
 
-def _block_sums(Zr: np.ndarray, z, start: np.ndarray, ends: np.ndarray, J: np.ndarray | None = None
+def _block_sums(Zr: np.ndarray, z, start: np.ndarray, ends: np.ndarray, J: _ByPose | None = None
                 ) -> np.ndarray:
     """(len(start), g, w) ``Z^T Zr`` (or ``Z^T J``) over the rows ``start[k]:ends[k]`` of each block,
     ``Z`` the columns ``z`` of ``Zr``: one batched product, each block padded with zero rows to the
@@ -354,10 +373,10 @@ def _block_sums(Zr: np.ndarray, z, start: np.ndarray, ends: np.ndarray, J: np.nd
     pad = (np.arange(width) < size[:, None])[..., None]
     rows = np.where(pad[..., 0], start[:, None] + np.arange(width), 0)
     Zb = np.where(pad, Zr[rows], 0.0)
-    return np.swapaxes(Zb[..., z], 1, 2) @ (Zb if J is None else np.where(pad, J[rows], 0.0))
+    return np.swapaxes(Zb[..., z], 1, 2) @ (Zb if J is None else np.where(pad, J.at(rows), 0.0))
 
 
-def _near_sums(J: np.ndarray, Zr: np.ndarray, own: slice, first: np.ndarray, near: np.ndarray, bound: int,
+def _near_sums(J: _ByPose, Zr: np.ndarray, own: slice, first: np.ndarray, near: np.ndarray, bound: int,
                after: list[np.ndarray]) -> list[np.ndarray]:
     """``_suffix_sums`` of the columns ``own`` of ``Zr`` from each of ``near`` (consecutive poses) on,
     from ``after``, those sums from pose ``bound`` (>= near's last) on: each pose's rows before
