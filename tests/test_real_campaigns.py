@@ -294,18 +294,20 @@ def test_one_or_two_test_poses_never_fail_a_calibration_better_in_use():
                     assert use.status == "warn" and "one held-out point has no standard error" in use.summary
 
 
-def _wam_fleet(seed: int, changed=None):
-    """Six random 120-pose subsets of the WAM grid, each calibrated as a robot of one type (the last
-    one's measurements moved by what ``changed``'s parameters do at its poses)."""
+def _wam_fleet(seed: int, changed=None, robots: int = 6, sizes: tuple[int, int] | None = None):
+    """``robots`` random subsets of the WAM grid (120 poses, or from ``sizes``' first to before its
+    last), each calibrated as a robot of one type (the last one's measurements moved by what
+    ``changed``'s parameters do at its poses)."""
     model = nominal("WAM")
     grid = campaign("WAM", "grid", model)
     rng = np.random.default_rng(seed)
     cals = []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        for i in range(6):
-            sub = grid.subset(np.sort(rng.choice(grid.n_poses, 120, replace=False)))
-            if changed is not None and i == 5:
+        for i in range(robots):
+            size = 120 if sizes is None else int(rng.integers(*sizes))
+            sub = grid.subset(np.sort(rng.choice(grid.n_poses, size, replace=False)))
+            if changed is not None and i == robots - 1:
                 moved = rc.forward_kinematics(changed, sub.q).positions - rc.forward_kinematics(model, sub.q).positions
                 sub = replace(sub, positions=sub.positions + moved.reshape(sub.positions.shape))
             cals.append(replace(rc.stored_calibration(rc.calibrate(model, sub), f"R{i}", at="2026-01-01"), id=i + 1))
@@ -328,3 +330,20 @@ def test_robots_of_a_type_whose_poses_leave_other_parameters_weak_do_not_stand_o
     p[rc.parameter_names(model).index("j3.d")] += 5e-3
     _, cals = _wam_fleet(4, rc.model_from_vector(model, p))
     assert {(o.robot, o.name) for o in rc.compare_type("WAM", cals).outliers} == {("R5", "j3.d")}
+
+
+def test_a_robot_calibrated_on_fewer_poses_than_its_type_is_held_to_what_its_estimates_can_say():
+    """Forty random subsets of one WAM's grid, of 70 to 139 poses: every robot is the same robot. Each
+    was held to the type's spread whatever its own standard deviations, so R15, calibrated on 70
+    poses (its j4.alpha's deviation 1.5 times the median), stood out at 4.7 robust sigmas; 7 of 20
+    such fleets named a robot. A robot's spread is now widened by its deviation beyond the median
+    one: none stands out, and a robot whose j3.d is 5 mm off still does."""
+    model, cals = _wam_fleet(101, robots=40, sizes=(70, 140))
+    t = rc.compare_type("WAM", cals)
+    r15, j4 = t.robots.index("R15"), t.names.index("j4.alpha")
+    assert t.stds[r15, j4] > 1.4 * np.nanmedian(t.stds[:, j4])
+    assert t.outliers == () and abs(t.z[r15, j4]) < t.threshold
+    p = rc.parameter_vector(model)
+    p[rc.parameter_names(model).index("j3.d")] += 5e-3
+    _, cals = _wam_fleet(101, rc.model_from_vector(model, p), robots=40, sizes=(70, 140))
+    assert {(o.robot, o.name) for o in rc.compare_type("WAM", cals).outliers} == {("R39", "j3.d")}

@@ -329,7 +329,8 @@ class TypeComparison:
 
     ``values``/``stds`` (n_robots, n_names) SI, NaN where a robot's calibration lacks the
     parameter; ``median`` and ``spread`` (1.4826 median absolute deviation, or the median standard
-    deviation when the robots agree closer than that) per name; ``z`` the robust distances;
+    deviation when the robots agree closer than that) per name; ``z`` the robust distances (a
+    robot whose standard deviation exceeds the median one: in that spread widened by the excess);
     ``outliers`` those beyond ``threshold`` (Šidák over all robots and parameters at ``alpha``),
     largest first. A robot whose calibration identifies parameters most of the type's do not is
     compared as it would be with those held at nominal (``_as_held``), and listed in ``held`` with
@@ -749,15 +750,23 @@ def _matrix(estimates: list, families) -> tuple[tuple[str, ...], list[str], np.n
 def _robust_z(values: np.ndarray, stds: np.ndarray, reference) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(median, spread, z): the median of the ``reference`` rows per column, their robust spread (1.4826
     median absolute deviation, at least their median standard deviation) and every row's distance from
-    the median in spreads; NaN in a column fewer than three reference robots have (no reference)."""
+    the median in its own spread; NaN in a column fewer than three reference robots have (no
+    reference). A robot whose standard deviation exceeds the median one has its spread widened by
+    that excess (in variance): one calibrated on fewer poses than most is held to what its estimates
+    can say, not to what the others' say."""
     rows = np.asarray(reference, dtype=bool)
     ref = values[rows]
     nothing = np.full(values.shape[1], np.nan)
     with np.errstate(invalid="ignore"), _quiet_nan():
         median = np.nanmedian(ref, axis=0) if ref.size else nothing
         spread = 1.4826 * np.nanmedian(np.abs(ref - median), axis=0) if ref.size else nothing
-        spread = np.fmax(spread, np.nanmedian(stds[rows], axis=0) if ref.size else nothing)
-        z = (values - median) / np.where(spread > 0, spread, np.nan)
+        typical = np.nanmedian(stds[rows], axis=0) ** 2 if ref.size else nothing
+        spread = np.fmax(spread, np.sqrt(typical))
+        # only ever wider: a robot's stated deviation below the typical one is no reason to hold it
+        # closer (a calibration that fits better than its type's states a smaller one, while its
+        # estimates as compared carry what the type's do)
+        own = spread ** 2 + np.fmax(np.nan_to_num(stds ** 2 - typical, nan=0.0), 0.0)
+        z = (values - median) / np.where(own > 0, np.sqrt(own), np.nan)
     z[:, np.sum(np.isfinite(ref), axis=0) < 3] = np.nan      # a median of fewer is no reference
     return median, spread, z
 
