@@ -186,7 +186,8 @@ def type_summary(t: TypeComparison) -> str:
     """
     n_cmp = int(np.sum(np.isfinite(t.z)))
     lines = [f"type {t.robot_type}: {len(t.latest)} robot(s), latest calibration of each; {len(t.names)} "
-             f"parameter(s), each robot against the type's median in robust standard deviations, named beyond "
+             f"parameter(s), each robot against the type's median in robust standard deviations (widened for "
+             f"a robot calibrated less precisely than most), named beyond "
              f"{t.threshold:.2f} ({n_cmp} comparisons; {t.alpha:.0%} chance of naming one among alike robots)"]
     counts: dict[str, int] = {}
     for o in t.outliers:
