@@ -39,6 +39,7 @@ FEW_POSES, MANY_POSES = 10, 30
 # the source of an accuracy at calibration of seatings (each one's distance from its socket's mean
 # predicted centre, held out), which only seatings are held against
 SEATINGS = "held-out seatings, each from its socket's centre"
+NO_BASE_TO_REGISTER = "seatings have no base to register: each socket's centre is taken from its own seatings"
 
 
 @dataclass(frozen=True)
@@ -237,8 +238,7 @@ def _seatings(model: RobotModel, data, then: Accuracy, register: bool, alpha: fl
         raise InputError(f"the calibration's accuracy is of {then_kind} ({then.source}) and these are {now}: verify "
                          "with what the calibration was judged on", source=src)
     if register:
-        raise InputError("seatings have no base to register: each socket's centre is taken from its own seatings",
-                         source=src, where="register")
+        raise InputError(NO_BASE_TO_REGISTER, source=src, where="register")
     groups = [g for g in data.groups("socket") if len(g.rows) >= 2]
     if not groups:
         raise DegenerateDataError(f"{src or 'the verification'}: no socket seated twice or more: a seating's "

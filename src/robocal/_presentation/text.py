@@ -430,7 +430,7 @@ def families_text(result) -> str:
     named: dict[str, int] = {}
     for f in result.families:
         if "." in f:
-            family = lay[f].family if f in lay.names else "named"
+            family = lay[f].family if f in lay else "named"
             named[family] = named.get(family, 0) + 1
     return ", ".join([f for f in result.families if "." not in f]
                      + [f"{n} {family} parameter{'s' if n > 1 else ''}" for family, n in named.items()])

@@ -760,12 +760,12 @@ def _robust_z(values: np.ndarray, stds: np.ndarray, reference) -> tuple[np.ndarr
     with np.errstate(invalid="ignore"), _quiet_nan():
         median = np.nanmedian(ref, axis=0) if ref.size else nothing
         spread = 1.4826 * np.nanmedian(np.abs(ref - median), axis=0) if ref.size else nothing
-        typical = np.nanmedian(stds[rows], axis=0) ** 2 if ref.size else nothing
-        spread = np.fmax(spread, np.sqrt(typical))
+        typical = np.nanmedian(stds[rows], axis=0) if ref.size else nothing
+        spread = np.fmax(spread, typical)
         # only ever wider: a robot's stated deviation below the typical one is no reason to hold it
         # closer (a calibration that fits better than its type's states a smaller one, while its
         # estimates as compared carry what the type's do)
-        own = spread ** 2 + np.fmax(np.nan_to_num(stds ** 2 - typical, nan=0.0), 0.0)
+        own = spread ** 2 + np.fmax(np.nan_to_num(stds ** 2 - typical ** 2, nan=0.0), 0.0)
         z = (values - median) / np.where(own > 0, np.sqrt(own), np.nan)
     z[:, np.sum(np.isfinite(ref), axis=0) < 3] = np.nan      # a median of fewer is no reference
     return median, spread, z

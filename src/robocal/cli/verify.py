@@ -42,7 +42,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from .._accuracy.verification import FEW_POSES, MANY_POSES
+    from .._accuracy.verification import FEW_POSES, MANY_POSES, NO_BASE_TO_REGISTER
     from .._accuracy.verification import RECALIBRATE as SAYS_RECALIBRATE
     from .._base.errors import InputError
     from .._files.contacts import read_contacts
@@ -54,8 +54,7 @@ def run(args) -> int:
         raise InputError("give the verification measurements (CSV) or socket seatings (--contacts), one of them",
                          where="CSV" if args.csv is None else "--contacts")
     if args.contacts is not None and args.register_base:
-        raise InputError("seatings have no base to register: each socket's centre is taken from its own seatings",
-                         where="--register-base")
+        raise InputError(NO_BASE_TO_REGISTER, where="--register-base")
     with record.open_store(args, create=False, write=not args.no_record) as store:
         against = latest_usable(store, robot)
         model = store.model(against.calibrated_model)
