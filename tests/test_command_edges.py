@@ -188,3 +188,18 @@ def test_a_commands_files_may_come_before_or_after_its_options(cli, tmp_path):
     code, _, err = cli("calibrate", TH8 / "model.yaml", TH8 / "measurements.csv", "--out", tmp_path / "p",
                        TH8 / "verification.csv")
     assert_one_line_error(code, err, ("unrecognized arguments:", "verification.csv"), tmp_path / "p")
+
+
+@pytest.mark.parametrize("path, form, command, function", [
+    (ROOT / "examples" / "urdf" / "gen3_like.urdf", "a URDF", "import-urdf", "read_urdf"),
+    (ROOT / "examples" / "dh" / "ur5-dh.csv", "a DH table", "import-dh", "read_dh_table")])
+def test_a_model_in_a_form_robocal_imports_names_the_import(cli, tmp_path, path, form, command, function):
+    """A URDF or a DH table given where a model file goes was refused as YAML that is not a mapping;
+    it now says what the file is and which command makes a model file of it."""
+    code, _, err = cli("calibrate", path, TH8 / "measurements.csv", "--out", tmp_path / "o")
+    assert_one_line_error(code, err, [str(path), form, f"robocal {command} {path} --out model.yaml"], tmp_path / "o")
+    with pytest.raises(rc.InputError, match=f"rc.{function}"):
+        rc.read_model(path)
+    imported = rc.read_urdf(path) if command == "import-urdf" else rc.read_dh_table(path)
+    rc.write_model(imported, tmp_path / "model.yaml")
+    assert rc.read_model(tmp_path / "model.yaml").joint_names == imported.joint_names

@@ -121,6 +121,18 @@ def test_the_example_folder_of_seatings_calibrates(cli, arm7, tmp_path):
     assert c.placements() == ("P1", "P2", "P3") and c.n_rows == 90 and len(c.distances) == 3
 
 
+def test_the_manifest_stands_for_its_folder(cli, arm7, tmp_path):
+    """``--contacts FOLDER/seatings.yaml`` was read as a contact file and refused for its lack of a
+    units directive; the manifest now stands for its folder. As the measurement file it is named."""
+    example = ROOT / "examples" / "arm7" / "seatings"
+    _same(rc.io.read_contacts(example / "seatings.yaml", arm7), rc.io.read_contacts(example, arm7))
+    code, out, err = cli("calibrate", ARM7, "--contacts", example / "seatings.yaml", "--out", tmp_path / "run",
+                         "--holdout-placement", "P3")
+    assert code == 0 and "verdict: pass" in out, err
+    code, _, err = cli("calibrate", ARM7, example / "seatings.yaml", "--out", tmp_path / "o")
+    assert_one_line_error(code, err, [str(example / "seatings.yaml"), "manifest", "--contacts"], tmp_path / "o")
+
+
 def test_notes_and_other_files_in_a_placement_are_skipped_and_listed(arm7, session, tmp_path):
     """A campaign folder as published: a notes file and the robot's own pose files beside the socket
     files. The manifest names the socket files; the others are skipped, never read as sockets, and

@@ -36,7 +36,7 @@ from .._base.units import UNITS, check_unit
 from .._model.contacts import CONTACT_KINDS, Contacts, KnownDistance, KnownPlane
 from .._model.robot import RobotModel
 from .measurements import MAX_MAGNITUDE
-from .seatings import read_seatings
+from .seatings import MANIFEST, read_seatings
 from .table import Table, Unfit, read_columns, scan_rows
 from .text import read_text
 
@@ -134,12 +134,13 @@ class _Facts:
 @accepts(path=PATH, model=is_a(RobotModel))
 def read_contacts(path, model: RobotModel) -> Contacts:
     """Read a contact file for ``model`` (its joints and markers name the columns), or a folder of
-    seatings (one joint file per socket, one folder per placement, ``seatings.yaml``); SI out.
+    seatings (one joint file per socket, one folder per placement, ``seatings.yaml``), given as the
+    folder or as its ``seatings.yaml``; SI out.
 
     Parameters
     ----------
     path : str or os.PathLike
-        The contact file, or the folder of seatings (docs/formats.md).
+        The contact file, or the folder of seatings or its ``seatings.yaml`` (docs/formats.md).
     {model}
 
     Returns
@@ -149,6 +150,8 @@ def read_contacts(path, model: RobotModel) -> Contacts:
     """
     if os.path.isdir(path):
         return read_seatings(path, model)
+    if os.path.basename(path) == MANIFEST and os.path.isfile(path):      # a folder's manifest names the folder
+        return read_seatings(os.path.dirname(path) or os.curdir, model)
     text, digest = read_text(path, lines=MAX_CONTACTS + MAX_DIRECTIVES + 1)
     source = str(path)
     facts = _Facts()

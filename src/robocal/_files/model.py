@@ -42,6 +42,9 @@ from .._model.robot import (
 )
 from .text import load_yaml, read_text, write_texts
 
+# a URDF's <robot> element is looked for in the file's first this many characters
+MAX_SNIFFED = 20_000
+
 FORMAT_VERSION = 1
 # the file key is the frame's attribute; its quantity says which unit scales it
 FRAME_VALUES: dict[str, str | None] = {k: KIND_QUANTITY[k] for k in ("beta", "alpha", "d", "theta", "r", "gamma", "b")}
@@ -482,10 +485,31 @@ def read_model(path) -> RobotModel:
         The model.
     """
     source = str(path)
-    d = load_yaml(read_text(path, limit=MAX_MODEL_BYTES)[0], source)
+    text = read_text(path, limit=MAX_MODEL_BYTES)[0]
+    if (other := _other_model_form(text)) is not None:
+        form, command, function = other
+        raise InputError(f"{form}, not a robocal model file: make one from it with `robocal {command} {source} --out "
+                         f"model.yaml` (`rc.{function}` in Python; docs/cli.md)", source=source)
+    d = load_yaml(text, source)
     if d is None:
         raise InputError("the file is empty", source=source)
     return model_from_dict(d, source=source)
+
+
+def _other_model_form(text: str) -> tuple[str, str, str] | None:
+    """(what the file is, the command that imports it, the function that reads it) for the model
+    forms robocal imports but does not read as a model file: a URDF (its ``<robot>`` element), a DH
+    table (a header line naming ``alpha`` and ``theta`` columns); else None."""
+    head = text.lstrip("\ufeff \t\r\n")
+    if head.startswith("<"):
+        if re.search(r"<robot[\s>]", head[:MAX_SNIFFED]):
+            return "a URDF", "import-urdf", "read_urdf"
+        return None
+    header = next((line for line in head.splitlines() if line.strip() and not line.lstrip().startswith("#")), "")
+    cells = {re.sub(r"_(deg|rad|mm|m)$", "", c.strip().lower()) for c in header.split(",")}
+    if {"alpha", "theta"} <= cells:
+        return "a DH table", "import-dh", "read_dh_table"
+    return None
 
 
 @accepts(model=is_a(RobotModel), units=UNIT_SYSTEM, calibration=optional(MAPPING))

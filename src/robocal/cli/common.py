@@ -302,10 +302,14 @@ def masses_as_asked(args, model):
 
 def read_data(args, model, path, *, targets: bool = False):
     from .._files.measurements import read_measurements
+    from .._files.seatings import MANIFEST
 
-    if os.path.isdir(path) and os.path.exists(os.path.join(path, "seatings.yaml")):
+    if os.path.isdir(path) and os.path.exists(os.path.join(path, MANIFEST)):
         raise InputError("is a folder of seatings, not a measurement file: give it as --contacts FOLDER",
                          source=str(path))
+    if os.path.basename(path) == MANIFEST and os.path.isfile(path):
+        raise InputError("is the manifest of a folder of seatings, not a measurement file: give it (or its folder) "
+                         "as --contacts", source=str(path))
     columns = {k: v for m in args.map for k, v in m.items()}
     columns.update({c: None for group in args.ignore for c in group})
     return read_measurements(path, model, units=args.units, sep=args.sep, decimal=args.decimal,
