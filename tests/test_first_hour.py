@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from conftest import assert_one_line_error
 
 import robocal as rc
 from robocal.cli import build_parser
@@ -232,3 +233,18 @@ def test_a_robot_calibrated_from_contacts_is_verified_with_seatings(tmp_path, cl
     assert code == 2 and "accuracy is of seatings" in err and "these are measured points" in err
     code, _, err = cli("verify", "A7", "--store", tmp_path / "s.sqlite")
     assert code == 2 and "one of them" in err
+
+
+def test_a_calibrations_outputs_given_as_the_model_name_the_calibrated_one(th8_result, tmp_path, cli):
+    """The result file or the folder calibrate wrote, given where a model goes (compensate's
+    calibrated model), was refused for a key it does not know ('schema') or as a folder; each now
+    names the calibrated model written beside it."""
+    run = th8_result.parent
+    targets = TH8 / "targets.csv"
+    for given, words in ((th8_result, ["robocal result file", "calibrated.yaml, written beside it"]),
+                         (run, ["folder of a calibration's outputs", str(run / "calibrated.yaml")])):
+        code, _, err = cli("compensate", TH8 / "model.yaml", given, targets, "--out", tmp_path / "c.csv")
+        assert_one_line_error(code, err, [str(given), *words], tmp_path / "c.csv", command="compensate")
+    code, out, err = cli("compensate", TH8 / "model.yaml", run / "calibrated.yaml", targets, "--out",
+                         tmp_path / "c.csv")
+    assert code == 0 and (tmp_path / "c.csv").exists(), err

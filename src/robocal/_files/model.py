@@ -44,6 +44,8 @@ from .text import load_yaml, read_text, write_texts
 
 # a URDF's <robot> element is looked for in the file's first this many characters
 MAX_SNIFFED = 20_000
+# the calibrated model `robocal calibrate` writes into its output folder
+CALIBRATED_MODEL = "calibrated.yaml"
 
 FORMAT_VERSION = 1
 # the file key is the frame's attribute; its quantity says which unit scales it
@@ -485,6 +487,9 @@ def read_model(path) -> RobotModel:
         The model.
     """
     source = str(path)
+    if Path(path).is_dir() and (Path(path) / CALIBRATED_MODEL).is_file():
+        raise InputError(f"a folder of a calibration's outputs, not a model file: its calibrated model is "
+                         f"{Path(path) / CALIBRATED_MODEL}", source=source)
     text = read_text(path, limit=MAX_MODEL_BYTES)[0]
     if (other := _other_model_form(text)) is not None:
         form, command, function = other
@@ -493,6 +498,12 @@ def read_model(path) -> RobotModel:
     d = load_yaml(text, source)
     if d is None:
         raise InputError("the file is empty", source=source)
+    schema = d.get("schema") if isinstance(d, dict) else None
+    if isinstance(schema, str) and schema.startswith("robocal.") and "robocal_model" not in d:
+        result = schema.startswith("robocal.result")
+        beside = f": the calibrated model is {CALIBRATED_MODEL}, written beside it" if result else ""
+        raise InputError(f"a robocal {schema.split('/')[0].removeprefix('robocal.')} file ({excerpt(schema)}), not a "
+                         f"model file{beside}", source=source)
     return model_from_dict(d, source=source)
 
 

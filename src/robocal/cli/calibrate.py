@@ -261,13 +261,13 @@ def _identified(args, model, data, options: dict) -> tuple:
 def _output_files(args, out: Path, named: dict, best, report) -> dict:
     """The files to write: each result (``named``: file name -> result) with its per-pose file, the
     calibrated model unless the calibration failed (or --write-failed), the report when asked."""
-    from .._files.model import model_to_yaml
+    from .._files.model import CALIBRATED_MODEL, model_to_yaml
     from .._files.result import result_files
     from .._identification.result import calibration_record
 
     files = {p: f for n, r in named.items() for p, f in result_files(r, out / n).items()}
     if best.verdict != "fail" or args.write_failed:
-        files[out / "calibrated.yaml"] = model_to_yaml(best.calibrated_model, units=args.out_units,
+        files[out / CALIBRATED_MODEL] = model_to_yaml(best.calibrated_model, units=args.out_units,
                                                        calibration=calibration_record(best))
     if report:   # rendered before anything is written: a failure there leaves nothing behind
         files[out / "report.html"] = report.render_report(best)
@@ -275,13 +275,14 @@ def _output_files(args, out: Path, named: dict, best, report) -> dict:
 
 
 def run(args) -> int:
+    from .._files.model import CALIBRATED_MODEL
     from .._files.text import sidecar_path
 
     _check_arguments(args)
     out = Path(args.out)
     names = _result_names(args)
     report = common.report_module() if args.report else None
-    common.refuse_existing([out / "calibrated.yaml"] + [out / n for n in names]
+    common.refuse_existing([out / CALIBRATED_MODEL] + [out / n for n in names]
                            + [sidecar_path(out / n) for n in names] + ([out / "report.html"] if report else []),
                            args.force)
     model, data, validation, contacts = _inputs(args)
