@@ -5,6 +5,7 @@ unexplained). The examples and documents themselves are run by tests/test_docs_c
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import stat
 import subprocess
@@ -248,3 +249,26 @@ def test_a_calibrations_outputs_given_as_the_model_name_the_calibrated_one(th8_r
     code, out, err = cli("compensate", TH8 / "model.yaml", run / "calibrated.yaml", targets, "--out",
                          tmp_path / "c.csv")
     assert code == 0 and (tmp_path / "c.csv").exists(), err
+
+
+def test_each_robocal_file_given_in_another_ones_place_is_named(th8_result, tmp_path, cli):
+    """A model, a result or a contact file given where another kind goes was read as that kind and
+    refused for its columns or keys ("unknown column 'robocal_model:'", "not valid JSON", "the units
+    directive must give the angle unit"); each is now named for what it is."""
+    model, measurements = TH8 / "model.yaml", TH8 / "measurements.csv"
+    calibrated, sockets = th8_result.parent / "calibrated.yaml", ROOT / "examples" / "arm7" / "sockets.csv"
+    cases = [
+        (("calibrate", model, model), ["a robocal model file, not a measurement file"]),
+        (("calibrate", model, th8_result), ["a robocal result file, not a measurement file"]),
+        (("calibrate", model, sockets), ["a contact file, not a measurement file", "--contacts"]),
+        (("calibrate", model, "--contacts", measurements), ["not a contact file", "placement, target, kind"]),
+        (("calibrate", model, "--contacts", model), ["a robocal model file, not a contact file"]),
+        (("report", calibrated), ["a robocal model file, not a calibration's result (result.json)"]),
+    ]
+    for k, (args, words) in enumerate(cases):
+        out = tmp_path / f"o{k}"
+        code, _, err = cli(*args, "--out", out)
+        assert_one_line_error(code, err, words, out, command=args[0])
+    as_json = tmp_path / "model.json"      # a model written as JSON is still a model
+    as_json.write_text(json.dumps(rc.io.model_to_dict(rc.read_model(model))))
+    assert rc.read_model(as_json).joint_names == rc.read_model(model).joint_names

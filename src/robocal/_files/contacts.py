@@ -18,6 +18,7 @@ from __future__ import annotations
 import csv
 import io
 import os
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -38,7 +39,7 @@ from .._model.robot import RobotModel
 from .measurements import MAX_MAGNITUDE
 from .seatings import MANIFEST, read_seatings
 from .table import Table, Unfit, read_columns, scan_rows
-from .text import read_text
+from .text import file_form, read_text
 
 REQUIRED = ("placement", "target", "kind")
 DIRECTIVES = ("units", "distance", "bar", "plane", "sigma")
@@ -154,6 +155,27 @@ def read_contacts(path, model: RobotModel) -> Contacts:
         return read_seatings(os.path.dirname(path) or os.curdir, model)
     text, digest = read_text(path, lines=MAX_CONTACTS + MAX_DIRECTIVES + 1)
     source = str(path)
+    facts, lines, body_start = _head(text, model, source)
+    body = "\n".join(lines[body_start:])
+    try:
+        return _compiled(body, body_start + 1, model, facts, source, digest)
+    except Unfit as e:  # the row reader reads the file or names its fault
+        why = (f"reading {source}: read row by row, not by the compiled parser: {e.why}",)
+    try:
+        rows = list(csv.reader(io.StringIO(body)))
+    except csv.Error as e:
+        raise InputError(f"not readable as CSV: {e}", source=source) from None
+    header = [h.strip() for h in rows[0]]
+    contacts = _rows(rows[1:], header, body_start + 1, model, facts, source, digest)
+    return replace(contacts, notes=contacts.notes + why)
+
+
+def _head(text: str, model: RobotModel, source: str) -> tuple[_Facts, list[str], int]:
+    """A contact file's directives, its lines and the index of its header line, checked: a file of
+    another kind (``file_form``) or without the columns of contacts named so, the units stated, the
+    bounds kept."""
+    if (form := file_form(text)) is not None and form.key != "contacts":
+        raise InputError(f"{form.words}, not a contact file", source=source)
     facts = _Facts()
     lines = text.splitlines()
     body_start = 0
@@ -167,6 +189,9 @@ def read_contacts(path, model: RobotModel) -> Contacts:
             facts.add(name.strip().lower(), rest.strip(), source, f"line {i + 1}")
     else:
         raise InputError("no header row", source=source)
+    if not {c.strip().strip('"').lower() for c in re.split(r"[,;\t]", lines[body_start])} & set(REQUIRED):
+        raise InputError(f"none of the columns {', '.join(REQUIRED)}: not a contact file (measurements of points are "
+                         "given after the model, not as the contacts)", source=source, where="header")
     if "angle" not in facts.units and "angle" in model.reading_quantities:
         raise InputError("the units directive must give the angle unit of the joint readings "
                          "('# units: length=mm angle=deg')", source=source)
@@ -175,18 +200,7 @@ def read_contacts(path, model: RobotModel) -> Contacts:
             ("lines before the header", body_start, MAX_DIRECTIVES)
         raise InputError(f"{what[1]:,} {what[0]}; a contact file holds up to {what[2]:,} (docs/formats.md)",
                          source=source)
-    body = "\n".join(lines[body_start:])
-    try:
-        return _compiled(body, body_start + 1, model, facts, source, digest)
-    except Unfit as e:  # the row reader reads the file or names its fault
-        why = (f"reading {source}: read row by row, not by the compiled parser: {e.why}",)
-    try:
-        rows = list(csv.reader(io.StringIO(body)))
-    except csv.Error as e:
-        raise InputError(f"not readable as CSV: {e}", source=source) from None
-    header = [h.strip() for h in rows[0]]
-    contacts = _rows(rows[1:], header, body_start + 1, model, facts, source, digest)
-    return replace(contacts, notes=contacts.notes + why)
+    return facts, lines, body_start
 
 
 def _compiled(body: str, first_line: int, model: RobotModel, facts: _Facts, source: str, digest: str) -> Contacts:

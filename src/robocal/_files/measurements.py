@@ -49,7 +49,7 @@ from .table import (
     read_table,
     scan_rows,
 )
-from .text import decode, read_bytes, write_texts
+from .text import SNIFFED_CHARS, decode, file_form, read_bytes, write_texts
 
 RESERVED = ("pose", "set", "series", "payload_kg")
 # approach_<joint>: the direction (+1 or -1) of the joint's last move before the pose (backlash)
@@ -367,7 +367,10 @@ def read_measurements(path, model: RobotModel | None = None, *, units: str | Non
     declared = dict(zip(("length", "angle"), parse_units(opts["units"]))) if opts["units"] is not None else {}
     orient = parse_orientation(opts["orientation"])
     raw = _table_bytes(path)
+    _not_another_form(raw, source)
     jraw = None if joints is None or _is_program(joints) else _table_bytes(joints)
+    if jraw is not None:
+        _not_another_form(jraw, str(joints))
     digest = hashlib.sha256(raw).hexdigest()
     try:
         data, table, cols, other = _read_fast(raw, jraw, digest, source, opts, declared, orient, model, targets,
@@ -382,6 +385,16 @@ def read_measurements(path, model: RobotModel | None = None, *, units: str | Non
     if other is not None:
         notes += tuple(f"reading {other.source}: {n}" for n in other.notes + _unknown_note(cols.ignored, other))
     return replace(data, extra={**data.extra, "notes": notes}) if notes else data
+
+
+def _not_another_form(raw: bytes, source: str) -> None:
+    """InputError when the file is one of robocal's other files or a form it imports (``file_form``),
+    named so, rather than a table whose columns are unknown."""
+    form = file_form(raw[:SNIFFED_CHARS].decode("utf-8", errors="ignore"))
+    if form is None:
+        return
+    where = ": give it as the contacts (--contacts; `read_contacts` in Python)" if form.key == "contacts" else ""
+    raise InputError(f"{form.words}, not a measurement file{where}", source=source)
 
 
 def _table_bytes(path) -> bytes:

@@ -40,10 +40,10 @@ from .._model.robot import (
     parallel_beta_frames,
     placement_parameters,
 )
-from .text import load_yaml, read_text, write_texts
+from .text import file_form, load_yaml, read_text, write_texts
 
-# a URDF's <robot> element is looked for in the file's first this many characters
-MAX_SNIFFED = 20_000
+# the forms robocal imports into a model file: (the command, the function)
+IMPORTED = {"urdf": ("import-urdf", "read_urdf"), "dh": ("import-dh", "read_dh_table")}
 # the calibrated model `robocal calibrate` writes into its output folder
 CALIBRATED_MODEL = "calibrated.yaml"
 
@@ -491,36 +491,18 @@ def read_model(path) -> RobotModel:
         raise InputError(f"a folder of a calibration's outputs, not a model file: its calibrated model is "
                          f"{Path(path) / CALIBRATED_MODEL}", source=source)
     text = read_text(path, limit=MAX_MODEL_BYTES)[0]
-    if (other := _other_model_form(text)) is not None:
-        form, command, function = other
-        raise InputError(f"{form}, not a robocal model file: make one from it with `robocal {command} {source} --out "
-                         f"model.yaml` (`rc.{function}` in Python; docs/cli.md)", source=source)
+    form = file_form(text)
+    if form is not None and form.key in IMPORTED:
+        command, function = IMPORTED[form.key]
+        raise InputError(f"{form.words}, not a robocal model file: make one from it with `robocal {command} {source} "
+                         f"--out model.yaml` (`rc.{function}` in Python; docs/cli.md)", source=source)
+    if form is not None and form.key not in ("model", "json"):      # a model may be written as JSON too
+        beside = f": the calibrated model is {CALIBRATED_MODEL}, written beside it" if form.key == "result" else ""
+        raise InputError(f"{form.words}, not a model file{beside}", source=source)
     d = load_yaml(text, source)
     if d is None:
         raise InputError("the file is empty", source=source)
-    schema = d.get("schema") if isinstance(d, dict) else None
-    if isinstance(schema, str) and schema.startswith("robocal.") and "robocal_model" not in d:
-        result = schema.startswith("robocal.result")
-        beside = f": the calibrated model is {CALIBRATED_MODEL}, written beside it" if result else ""
-        raise InputError(f"a robocal {schema.split('/')[0].removeprefix('robocal.')} file ({excerpt(schema)}), not a "
-                         f"model file{beside}", source=source)
     return model_from_dict(d, source=source)
-
-
-def _other_model_form(text: str) -> tuple[str, str, str] | None:
-    """(what the file is, the command that imports it, the function that reads it) for the model
-    forms robocal imports but does not read as a model file: a URDF (its ``<robot>`` element), a DH
-    table (a header line naming ``alpha`` and ``theta`` columns); else None."""
-    head = text.lstrip("\ufeff \t\r\n")
-    if head.startswith("<"):
-        if re.search(r"<robot[\s>]", head[:MAX_SNIFFED]):
-            return "a URDF", "import-urdf", "read_urdf"
-        return None
-    header = next((line for line in head.splitlines() if line.strip() and not line.lstrip().startswith("#")), "")
-    cells = {re.sub(r"_(deg|rad|mm|m)$", "", c.strip().lower()) for c in header.split(",")}
-    if {"alpha", "theta"} <= cells:
-        return "a DH table", "import-dh", "read_dh_table"
-    return None
 
 
 @accepts(model=is_a(RobotModel), units=UNIT_SYSTEM, calibration=optional(MAPPING))

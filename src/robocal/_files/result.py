@@ -46,7 +46,7 @@ from .._model.parameters import parameter_layout
 from .contact_result import contact_residual_dof, contacts_from_dict, contacts_to_dict
 from .measurements import MAX_MAGNITUDE
 from .model import model_from_dict, model_to_dict
-from .text import MAX_FILE_BYTES, load_json, read_bytes, read_text, sidecar_path, write_texts
+from .text import MAX_FILE_BYTES, file_form, load_json, read_bytes, read_text, sidecar_path, write_texts
 
 SCHEMA = "robocal.result/1"
 SCHEMAS = (SCHEMA,)
@@ -643,7 +643,11 @@ def read_result(path) -> CalibrationResult:
                              "calibrate --out wrote)", source=str(path))
         path = Path(path) / "result.json"
     source = str(path)
-    return result_from_dict(load_json(read_text(path)[0], source), source=source, folder=Path(path).parent)
+    text = read_text(path)[0]
+    form = file_form(text)
+    if form is not None and form.key not in ("result", "json"):
+        raise InputError(f"{form.words}, not a calibration's result (result.json)", source=source)
+    return result_from_dict(load_json(text, source), source=source, folder=Path(path).parent)
 
 
 # -- the limit of absolute accuracy ------------------------------------------------------------

@@ -229,6 +229,45 @@ def read_text(path, *, limit: int = MAX_FILE_BYTES, lines: int | None = None,
     return decode(raw, str(path)), hashlib.sha256(raw).hexdigest()
 
 
+# -- what a file is, from its first lines ----------------------------------------------------------
+
+# a file's form is told from its first this many characters
+SNIFFED_CHARS = 20_000
+
+
+class FileForm(NamedTuple):
+    """What a file holds, told from its first lines (``file_form``): ``key`` one of "model",
+    "result" (or another robocal JSON file's kind: "limit", ...), "json", "urdf", "xml", "dh",
+    "contacts"; ``words`` the same for a message ("a URDF")."""
+
+    key: str
+    words: str
+
+
+def file_form(head: str) -> FileForm | None:
+    """The form of a file whose text begins with ``head``, when it is one of robocal's own files or a
+    form robocal imports: a robocal model file (its ``robocal_model`` key), a robocal JSON file (its
+    ``schema``), other JSON, a URDF (its ``<robot>`` element), other XML, a DH table (a header
+    naming ``joint``, ``d``, ``alpha`` and ``theta`` columns), a contact file (``placement``,
+    ``target`` and ``kind`` columns); None for anything else (a measurement file among them)."""
+    text = head[:SNIFFED_CHARS].lstrip("\ufeff \t\r\n")
+    if text.startswith("{"):
+        schema = re.search(r'"schema"\s*:\s*"robocal\.([a-z_]+)/', text)
+        return FileForm(schema.group(1), f"a robocal {schema.group(1)} file") if schema else \
+            FileForm("json", "a JSON file")
+    if text.startswith("<"):
+        return FileForm("urdf", "a URDF") if re.search(r"<robot[\s>]", text) else FileForm("xml", "an XML file")
+    if re.search(r"^robocal_model\s*:", text, re.MULTILINE):
+        return FileForm("model", "a robocal model file")
+    header = next((line for line in text.splitlines() if line.strip() and not line.lstrip().startswith("#")), "")
+    cells = {re.sub(r"_(deg|rad|mm|m)$", "", c.strip().strip('"').lower()) for c in re.split(r"[,;\t]", header)}
+    if {"joint", "d", "alpha", "theta"} <= cells:
+        return FileForm("dh", "a DH table")
+    if {"placement", "target", "kind"} <= cells:
+        return FileForm("contacts", "a contact file")
+    return None
+
+
 # -- YAML without aliases, deep nesting or duplicate keys -----------------------------------------
 
 def _line(node) -> int:
