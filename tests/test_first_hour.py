@@ -264,6 +264,8 @@ def test_each_robocal_file_given_in_another_ones_place_is_named(th8_result, tmp_
         (("calibrate", model, "--contacts", measurements), ["not a contact file", "placement, target, kind"]),
         (("calibrate", model, "--contacts", model), ["a robocal model file, not a contact file"]),
         (("report", calibrated), ["a robocal model file, not a calibration's result (result.json)"]),
+        (("calibrate", model, measurements, "--limit", th8_result), ["a robocal result file, not a limit file"]),
+        (("calibrate", model, measurements, "--profile", model), ["a robocal model file, not an instrument profile"]),
     ]
     for k, (args, words) in enumerate(cases):
         out = tmp_path / f"o{k}"

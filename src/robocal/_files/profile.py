@@ -19,7 +19,7 @@ from .._base.errors import InputError, excerpt, suggest
 from .._base.options import MAX_MODEL_BYTES
 from .._base.units import parse_units
 from .table import ColumnMap, check_decimal, parse_separator
-from .text import load_yaml, read_text
+from .text import file_form, load_yaml, read_text
 
 PROFILE_VERSION = 1
 PROFILE_KEYS = ("robocal_profile", "name", "sep", "decimal", "units", "orientation", "columns", "ignore",
@@ -155,5 +155,7 @@ def read_profile(path) -> Profile:
         The profile.
     """
     source = str(path)
-    d = load_yaml(read_text(path, limit=MAX_MODEL_BYTES)[0], source)
-    return profile_from_dict(d, source=source)
+    text = read_text(path, limit=MAX_MODEL_BYTES)[0]
+    if (form := file_form(text)) is not None and form.key != "json":       # a profile may be written as JSON too
+        raise InputError(f"{form.words}, not an instrument profile", source=source)
+    return profile_from_dict(load_yaml(text, source), source=source)
