@@ -169,8 +169,12 @@ def test_a_newer_schema_a_missing_store_and_a_foreign_file_are_refused(location,
         with pytest.raises(rc.InputError, match="no store here"):
             rc.open_store(location)
         (tmp_path / "junk.sqlite").write_bytes(b"not a database at all" * 100)
-        with pytest.raises(rc.InputError, match="junk.sqlite"):
+        with pytest.raises(rc.InputError, match="junk.sqlite: not a store of calibrations"):
             rc.open_store(tmp_path / "junk.sqlite", create=True)
+        (tmp_path / "result.json").write_text('{\n "schema": "robocal.result/1"\n}\n')   # a store given a result
+        with pytest.raises(rc.InputError, match="result.json: a robocal result file, not a store of calibrations"):
+            rc.open_store(tmp_path / "result.json", create=True)
+        assert (tmp_path / "result.json").read_text() == '{\n "schema": "robocal.result/1"\n}\n'
         other = tmp_path / "other.sqlite"
         with sqlite3.connect(other) as c:
             c.execute("CREATE TABLE invoices (n INTEGER)")

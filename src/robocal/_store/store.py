@@ -1056,6 +1056,25 @@ class _Backend:
         self.conn.close()
 
 
+
+# the first bytes of every SQLite database file
+SQLITE_HEADER = b"SQLite format 3\x00"
+
+
+def _an_sqlite_file(path: Path, location: str) -> None:
+    """InputError when the file at ``path`` (not empty: SQLite makes an empty one a database) is no
+    SQLite database, naming what it is when it is one of robocal's other files (``file_form``)."""
+    from .._files.text import SNIFFED_CHARS, file_form
+
+    with open(path, "rb") as fh:
+        head = fh.read(SNIFFED_CHARS)
+    if not head or head.startswith(SQLITE_HEADER):
+        return
+    form = file_form(head.decode("utf-8", errors="ignore"))
+    raise InputError(f"{form.words + ', n' if form else 'n'}ot a store of calibrations (the SQLite file robocal "
+                     "record makes, or a postgresql:// URL)", source=location)
+
+
 class _SQLite(_Backend):
     name = "sqlite"
     types = {"id": "INTEGER PRIMARY KEY AUTOINCREMENT", "blob": "BLOB", "real": "REAL"}
@@ -1078,6 +1097,7 @@ class _SQLite(_Backend):
             # refused before SQLite opens it: a read-only store keeps no log files of a refused write
             raise InputError(f"read-only {'folder' if os.access(path, os.W_OK) else 'store'}: nothing can be "
                              "recorded here", source=location)
+        _an_sqlite_file(path, location)
         self.conn = self._connect(path, write, create)
         try:
             self.conn.execute("PRAGMA foreign_keys = ON")
