@@ -1056,7 +1056,6 @@ class _Backend:
         self.conn.close()
 
 
-
 # the first bytes of every SQLite database file
 SQLITE_HEADER = b"SQLite format 3\x00"
 
@@ -1066,8 +1065,11 @@ def _an_sqlite_file(path: Path, location: str) -> None:
     SQLite database, naming what it is when it is one of robocal's other files (``file_form``)."""
     from .._files.text import SNIFFED_CHARS, file_form
 
-    with open(path, "rb") as fh:
-        head = fh.read(SNIFFED_CHARS)
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(SNIFFED_CHARS)
+    except OSError:         # unreadable: SQLite says so when it opens it
+        return
     if not head or head.startswith(SQLITE_HEADER):
         return
     form = file_form(head.decode("utf-8", errors="ignore"))
