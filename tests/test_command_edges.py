@@ -203,3 +203,14 @@ def test_a_model_in_a_form_robocal_imports_names_the_import(cli, tmp_path, path,
     imported = rc.read_urdf(path) if command == "import-urdf" else rc.read_dh_table(path)
     rc.write_model(imported, tmp_path / "model.yaml")
     assert rc.read_model(tmp_path / "model.yaml").joint_names == imported.joint_names
+
+
+@pytest.mark.parametrize("command, path, words", [
+    ("import-urdf", ROOT / "examples" / "dh" / "ur5-dh.csv", ["a DH table, not a URDF", "robocal import-dh"]),
+    ("import-dh", ROOT / "examples" / "urdf" / "gen3_like.urdf", ["a URDF, not a DH table", "robocal import-urdf"]),
+    ("import-urdf", TH8 / "model.yaml", ["a robocal model file, not a URDF", "a model file already"])])
+def test_an_importer_given_another_form_names_the_one_that_reads_it(cli, tmp_path, command, path, words):
+    """import-urdf read a DH table or a model file as malformed XML, import-dh a URDF as a table of
+    neither convention."""
+    code, _, err = cli(command, path, "--out", tmp_path / "m.yaml")
+    assert_one_line_error(code, err, [str(path), *words], tmp_path / "m.yaml", command=command)

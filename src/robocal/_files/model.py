@@ -40,10 +40,8 @@ from .._model.robot import (
     parallel_beta_frames,
     placement_parameters,
 )
-from .text import file_form, load_yaml, read_text, write_texts
+from .text import IMPORTED, file_form, load_yaml, read_text, write_texts
 
-# the forms robocal imports into a model file: (the command, the function)
-IMPORTED = {"urdf": ("import-urdf", "read_urdf"), "dh": ("import-dh", "read_dh_table")}
 # the calibrated model `robocal calibrate` writes into its output folder
 CALIBRATED_MODEL = "calibrated.yaml"
 

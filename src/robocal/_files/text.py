@@ -233,6 +233,8 @@ def read_text(path, *, limit: int = MAX_FILE_BYTES, lines: int | None = None,
 
 # a file's form is told from its first this many characters
 SNIFFED_CHARS = 20_000
+# the forms robocal imports into a model file: (the command, the function)
+IMPORTED = {"urdf": ("import-urdf", "read_urdf"), "dh": ("import-dh", "read_dh_table")}
 
 
 class FileForm(NamedTuple):
@@ -266,6 +268,20 @@ def file_form(head: str) -> FileForm | None:
     if {"placement", "target", "kind"} <= cells:
         return FileForm("contacts", "a contact file")
     return None
+
+
+def refuse_other_import(text: str, source: str, key: str, what: str) -> None:
+    """InputError when ``text``, read by the importer of the form ``key`` (``IMPORTED``), is a file
+    of another known form (``file_form``): named, with the importer that reads it, or said to be a
+    model file already."""
+    form = file_form(text)
+    if form is None or form.key in (key, "xml", "json"):
+        return
+    if form.key in IMPORTED:
+        command, function = IMPORTED[form.key]
+        raise InputError(f"{form.words}, not {what}: `robocal {command}` (`rc.{function}`) reads it", source=source)
+    already = ": a model file already, to give as the model" if form.key == "model" else ""
+    raise InputError(f"{form.words}, not {what}{already}", source=source)
 
 
 # -- YAML without aliases, deep nesting or duplicate keys -----------------------------------------
