@@ -754,3 +754,13 @@ def test_a_program_over_its_bytes_is_refused_by_its_size(tmp_path):
         f.truncate(33 * 2 ** 20)
     with pytest.raises(rc.InputError, match="robocal reads files up to 32 MB"):
         read_program(path)
+
+
+def test_an_out_named_as_the_other_kind_is_refused(cli, tmp_path):
+    """A RAPID module compensated into commands.csv was written as RAPID under a .csv name, and a CSV of
+    targets into a .mod name as CSV: each is now refused before anything is read or written."""
+    th8 = Path(__file__).resolve().parents[1] / "examples" / "th8"
+    for targets, out, words in ((th8 / "program.mod", tmp_path / "commands.csv", ["names a CSV", "(.mod)"]),
+                                (th8 / "targets.csv", tmp_path / "program.mod", ["names a robot program (.mod)"])):
+        code, _, err = cli("compensate", th8 / "model.yaml", th8 / "true_model.yaml", targets, "--out", out)
+        assert_one_line_error(code, err, ["--out", *words], out, command="compensate")

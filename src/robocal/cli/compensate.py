@@ -73,6 +73,22 @@ def _is_program(args) -> bool:
     return args.dialect is not None or Path(args.targets).suffix.lower() in EXTENSIONS
 
 
+def _out_of_its_kind(args) -> None:
+    """A program compensated is written as that program, a CSV of targets as a CSV of commands: an
+    ``--out`` named as the other kind is refused, before anything is read."""
+    from .._files.programs import EXTENSIONS
+
+    suffix = Path(args.out).suffix.lower()
+    if _is_program(args) and suffix == ".csv":
+        raise InputError("names a CSV, but a robot program compensated is written as that program (the same "
+                         f"dialect, its targets' numbers rewritten): give it the program's extension "
+                         f"({Path(args.targets).suffix or ', '.join(EXTENSIONS)})", where="--out")
+    if not _is_program(args) and suffix in EXTENSIONS:
+        raise InputError(f"names a robot program ({suffix}), but a CSV of targets gives a CSV of joint commands: "
+                         "give it a .csv name (a program's targets are compensated from the program itself)",
+                         where="--out")
+
+
 def _run_program(args, nominal, calibrated) -> int:
     """Compensate a robot program; a line per target (mm, deg), the flagged ones also on stderr."""
     from .._files.programs import read_program
@@ -136,6 +152,7 @@ def run(args) -> int:
     from .._files.commands import BEYOND_LIMITS, REACHED, command_status, commands_to_csv
     from .._files.model import read_model
 
+    _out_of_its_kind(args)
     common.refuse_existing([args.out], args.force)
     nominal = read_model(args.nominal)
     calibrated = read_model(args.calibrated)
