@@ -274,3 +274,19 @@ def test_each_robocal_file_given_in_another_ones_place_is_named(th8_result, tmp_
     as_json = tmp_path / "model.json"      # a model written as JSON is still a model
     as_json.write_text(json.dumps(rc.io.model_to_dict(rc.read_model(model))))
     assert rc.read_model(as_json).joint_names == rc.read_model(model).joint_names
+
+
+def test_a_binary_file_of_a_known_kind_given_where_text_goes_is_named(th8_result, tmp_path, cli):
+    """A ROS bag given as the measurements (rather than to import-bag), or a result's .npz given as
+    the result, was refused for "a NUL character" at some line; each is now named, with what to do."""
+    model = TH8 / "model.yaml"
+    cases = [(("calibrate", model, TH8 / "mocap.bag"), ["a ROS 1 bag", "robocal import-bag"]),
+             (("report", th8_result.with_suffix(".npz")), ["a ZIP archive", "result.json is the result"])]
+    for k, (args, words) in enumerate(cases):
+        out = tmp_path / f"o{k}"
+        code, _, err = cli(*args, "--out", out)
+        assert_one_line_error(code, err, [str(args[-1]), *words], out, command=args[0])
+    junk = tmp_path / "junk.csv"
+    junk.write_bytes(b"pose,j1_deg\nP1,\x0012\n")
+    code, _, err = cli("calibrate", model, junk, "--out", tmp_path / "o")
+    assert_one_line_error(code, err, ["line 2", "a NUL character"], tmp_path / "o")

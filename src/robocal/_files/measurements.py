@@ -393,7 +393,8 @@ def _not_another_form(raw: bytes, source: str) -> None:
     form = file_form(raw[:SNIFFED_CHARS].decode("utf-8", errors="ignore"))
     if form is None:
         return
-    where = ": give it as the contacts (--contacts; `read_contacts` in Python)" if form.key == "contacts" else ""
+    where = (": `robocal calibrate MODEL --contacts FILE` (`read_contacts` in Python) reads it"
+             if form.key == "contacts" else "")
     raise InputError(f"{form.words}, not a measurement file{where}", source=source)
 
 

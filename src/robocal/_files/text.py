@@ -142,8 +142,7 @@ class _Budget(NamedTuple):
             if part:
                 if text and b"\x00" in part:
                     line = newlines + part[:part.index(b"\x00")].count(b"\n") + 1
-                    raise InputError("a NUL character: this is a binary file, not text", source=source,
-                                     where=f"line {line}")
+                    raise binary_error(part if not total else b"", source, line)
                 newlines += part.count(b"\n")
                 out.write(last)
                 last = part
@@ -210,9 +209,26 @@ def decode(raw: bytes, source: str) -> str:
         raise InputError(f"not UTF-8 text ({e.reason} at byte {e.start}); save the file as UTF-8", source=source,
                          where=f"line {line}") from None
     if "\x00" in text:
-        line = text[:text.index("\x00")].count("\n") + 1
-        raise InputError("a NUL character: this is a binary file, not text", source=source, where=f"line {line}")
+        raise binary_error(raw, source, text[:text.index("\x00")].count("\n") + 1)
     return text
+
+
+# the first bytes of binary files a user may give where text goes: what each is, and what to do
+BINARY_FORMS = ((b"#ROSBAG", "a ROS 1 bag, not text: `robocal import-bag` makes a measurement file of it"),
+                (b"\x89MCAP", "a ROS 2 bag (MCAP), not text: `robocal import-bag` makes a measurement file of it"),
+                (b"SQLite format 3\x00", "an SQLite database (a store of calibrations, a ROS 2 bag's .db3), not text"),
+                (b"PK\x03\x04", "a ZIP archive (a result's .npz holds its arrays; result.json is the result), "
+                               "not text"))
+
+
+def binary_error(head: bytes, source: str, line: int) -> InputError:
+    """The error for a file holding a NUL character where text goes: what it is when ``head`` (its
+    first bytes, or empty when not at hand) starts as a known binary file does (``BINARY_FORMS``),
+    else the line of the NUL."""
+    said = next((words for magic, words in BINARY_FORMS if head.startswith(magic)), None)
+    if said is not None:
+        return InputError(said, source=source)
+    return InputError("a NUL character: this is a binary file, not text", source=source, where=f"line {line}")
 
 
 def read_text(path, *, limit: int = MAX_FILE_BYTES, lines: int | None = None,
