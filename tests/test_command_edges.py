@@ -214,3 +214,23 @@ def test_an_importer_given_another_form_names_the_one_that_reads_it(cli, tmp_pat
     neither convention."""
     code, _, err = cli(command, path, "--out", tmp_path / "m.yaml")
     assert_one_line_error(code, err, [str(path), *words], tmp_path / "m.yaml", command=command)
+
+
+def test_an_output_that_is_one_of_the_commands_inputs_is_refused_even_with_force(cli, tmp_path):
+    """`compensate ... targets.csv --out targets.csv --force` replaced the targets with the commands
+    made from them, and `export model.yaml --out model.yaml --force` the model with its URDF; an
+    output that is (or links to) a file the command reads is now refused, the file left as it was."""
+    model, targets = tmp_path / "model.yaml", tmp_path / "targets.csv"
+    model.write_bytes((TH8 / "model.yaml").read_bytes())
+    targets.write_bytes((TH8 / "targets.csv").read_bytes())
+    (tmp_path / "link.csv").symlink_to(targets)
+    before = {p: p.read_bytes() for p in (model, targets)}
+    for args, out in ((("compensate", model, model, targets), targets),
+                      (("compensate", model, model, targets), tmp_path / "link.csv"),
+                      (("export", model, "--format", "urdf"), model)):
+        code, _, err = cli(*args, "--out", out, "--force")
+        assert code == 2 and "a file this command reads" in err and str(out) in err, err
+        assert len(err.strip().splitlines()) == 1
+    assert {p: p.read_bytes() for p in before} == before
+    code, _, err = cli("compensate", model, model, targets, "--out", tmp_path / "commands.csv")
+    assert code == 0, err

@@ -19,6 +19,7 @@ from .._base.errors import RobocalError, RobocalWarning
 from .._version import __version__
 from . import (
     calibrate,
+    common,
     compensate,
     export,
     history,
@@ -177,6 +178,7 @@ def _run(args) -> int:
         print(f"robocal {args.command}: {message}", file=sys.stderr)
         return code
 
+    token = common.INPUTS.set(common.input_files(args))
     try:
         return args.func(args)
     except RobocalError as e:
@@ -194,6 +196,8 @@ def _run(args) -> int:
         return fail(f"error: out of memory{f' ({one_line(e)})' if str(e) else ''}; use fewer poses or samples")
     except KeyboardInterrupt:
         return fail("interrupted; nothing was written", 130)
+    finally:
+        common.INPUTS.reset(token)
 
 
 def one_line(e: BaseException) -> str:

@@ -7,6 +7,8 @@ errors stay fast. Commands import what they need when they run.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import contextvars
 import importlib
 import math
 import os
@@ -336,11 +338,35 @@ def report_module():
         raise MissingExtra("report extra not installed (pip install 'robocal[report]')") from None
 
 
+# the files the running command reads (``input_files``), which no output of it may replace
+INPUTS: contextvars.ContextVar[tuple[str, ...]] = contextvars.ContextVar("inputs", default=())
+
+
+def input_files(args) -> tuple[str, ...]:
+    """The existing files among a command's arguments (its outputs, ``--out``, left out)."""
+    found = []
+    for key, value in vars(args).items():
+        if key == "out" or key.startswith("_"):
+            continue
+        for v in value if isinstance(value, (list, tuple)) else (value,):
+            if isinstance(v, (str, os.PathLike)) and os.path.isfile(v):
+                found.append(os.fspath(v))
+    return tuple(found)
+
+
 def refuse_existing(paths, force: bool) -> None:
-    """Fail before the work, not after it, when an output exists (without ``force``) or cannot be
-    written (its folder is read-only, a file, ...)."""
+    """Fail before the work, not after it, when an output exists (without ``force``), is a file the
+    command reads (with ``force`` too: it would be gone before anyone saw what replaced it), or
+    cannot be written (its folder is read-only, a file, ...)."""
     from .._files.text import check_writable
 
+    for p in paths:
+        with contextlib.suppress(OSError):
+            read = next((f for f in INPUTS.get() if os.path.exists(p) and os.path.samefile(p, f)), None)
+            if read is not None:
+                same = "" if os.path.abspath(p) == os.path.abspath(read) else f"the same file as {read}, "
+                raise InputError(f"{same}a file this command reads: the output would replace what it is made "
+                                 "from; write it elsewhere", source=str(p))
     check_writable(paths, force=force)
 
 
