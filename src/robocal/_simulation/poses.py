@@ -228,7 +228,8 @@ def select_poses(model: RobotModel, n: int, *, candidates=None, n_candidates: in
     B, prob = _scaled_blocks(model, q, names, orientation, approach)
     rows, k = B.shape[1], B.shape[2]
     if n * rows <= k:
-        raise DegenerateDataError(f"{n} poses give {n * rows} equations for {k} identifiable parameters")
+        raise DegenerateDataError(f"{n} poses give {n * rows} equations for {k} identifiable parameters; at least "
+                                  f"{k // rows + 1} poses are needed, and several times that for a useful estimate")
     W = np.einsum("pri,prj->ij", B, B) / len(q)
     chosen = [int(i) for i in rng.choice(len(q), size=min(n, max(1, k // rows + 1)), replace=False)]
     state = _Greedy(B, W, criterion, chosen)
