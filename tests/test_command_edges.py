@@ -234,3 +234,10 @@ def test_an_output_that_is_one_of_the_commands_inputs_is_refused_even_with_force
     assert {p: p.read_bytes() for p in before} == before
     code, _, err = cli("compensate", model, model, targets, "--out", tmp_path / "commands.csv")
     assert code == 0, err
+
+
+def test_plan_with_too_few_poses_says_how_many_it_needs(cli, tmp_path):
+    code, _, err = cli("plan", TH8 / "model.yaml", "--poses", "5", "--out", tmp_path / "plan.csv")
+    k = len(rc.identifiability(rc.read_model(TH8 / "model.yaml")).identified)
+    assert_one_line_error(code, err, ["5 poses give 15 equations", f"at least {k // 3 + 1} poses"],
+                          tmp_path / "plan.csv", command="plan")
