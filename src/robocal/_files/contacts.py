@@ -39,7 +39,7 @@ from .._model.robot import RobotModel
 from .measurements import MAX_MAGNITUDE
 from .seatings import MANIFEST, read_seatings
 from .table import Table, Unfit, read_columns, scan_rows
-from .text import file_form, read_text
+from .text import read_text, refuse_other_form
 
 REQUIRED = ("placement", "target", "kind")
 DIRECTIVES = ("units", "distance", "bar", "plane", "sigma")
@@ -172,10 +172,9 @@ def read_contacts(path, model: RobotModel) -> Contacts:
 
 def _head(text: str, model: RobotModel, source: str) -> tuple[_Facts, list[str], int]:
     """A contact file's directives, its lines and the index of its header line, checked: a file of
-    another kind (``file_form``) or without the columns of contacts named so, the units stated, the
+    another kind (``refuse_other_form``) or without the columns of contacts named so, the units stated, the
     bounds kept."""
-    if (form := file_form(text)) is not None and form.key != "contacts":
-        raise InputError(f"{form.words}, not a contact file", source=source)
+    refuse_other_form(text, source, "a contact file", ("contacts",))
     facts = _Facts()
     lines = text.splitlines()
     body_start = 0

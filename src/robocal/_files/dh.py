@@ -31,7 +31,7 @@ from .._base.spatial import matrix_rpy, matrix_tuple, pose4, rpy_matrix, vector3
 from .._base.units import UNITS, parse_units, unit_factors, unit_kind
 from .._model.conversion import MDH_TABLE_KINDS, from_standard_dh, mdh_table, to_standard_dh
 from .._model.robot import Frame, Marker, RobotModel, parallel_beta_frames, serial_model
-from .text import read_text, refuse_other_import, write_texts
+from .text import read_text, refuse_other_form, write_texts
 
 PLACEMENT = (("x", "length"), ("y", "length"), ("z", "length"), ("roll", "angle"), ("pitch", "angle"),
              ("yaw", "angle"))
@@ -150,7 +150,7 @@ class _Table:
     def __init__(self, path) -> None:
         self.source = str(path)
         text, _ = read_text(path, limit=MAX_MODEL_BYTES)
-        refuse_other_import(text, self.source, "dh", "a DH table")
+        refuse_other_form(text, self.source, "a DH table", ("dh", "xml", "json"))
         numbered = [(i, ln) for i, ln in enumerate(text.splitlines(), 1)
                     if ln.strip() and not ln.lstrip().startswith("#")]
         self.convention = None  # a '# convention: classic' line before the header

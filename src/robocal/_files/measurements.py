@@ -49,7 +49,7 @@ from .table import (
     read_table,
     scan_rows,
 )
-from .text import SNIFFED_CHARS, decode, file_form, read_bytes, write_texts
+from .text import SNIFFED_CHARS, decode, read_bytes, refuse_other_form, write_texts
 
 RESERVED = ("pose", "set", "series", "payload_kg")
 # approach_<joint>: the direction (+1 or -1) of the joint's last move before the pose (backlash)
@@ -367,10 +367,10 @@ def read_measurements(path, model: RobotModel | None = None, *, units: str | Non
     declared = dict(zip(("length", "angle"), parse_units(opts["units"]))) if opts["units"] is not None else {}
     orient = parse_orientation(opts["orientation"])
     raw = _table_bytes(path)
-    _not_another_form(raw, source)
+    refuse_other_form(_head(raw), source, "a measurement file")
     jraw = None if joints is None or _is_program(joints) else _table_bytes(joints)
     if jraw is not None:
-        _not_another_form(jraw, str(joints))
+        refuse_other_form(_head(jraw), str(joints), "a measurement file")
     digest = hashlib.sha256(raw).hexdigest()
     try:
         data, table, cols, other = _read_fast(raw, jraw, digest, source, opts, declared, orient, model, targets,
@@ -387,15 +387,9 @@ def read_measurements(path, model: RobotModel | None = None, *, units: str | Non
     return replace(data, extra={**data.extra, "notes": notes}) if notes else data
 
 
-def _not_another_form(raw: bytes, source: str) -> None:
-    """InputError when the file is one of robocal's other files or a form it imports (``file_form``),
-    named so, rather than a table whose columns are unknown."""
-    form = file_form(raw[:SNIFFED_CHARS].decode("utf-8", errors="ignore"))
-    if form is None:
-        return
-    where = (": `robocal calibrate MODEL --contacts FILE` (`read_contacts` in Python) reads it"
-             if form.key == "contacts" else "")
-    raise InputError(f"{form.words}, not a measurement file{where}", source=source)
+def _head(raw: bytes) -> str:
+    """A table's first characters, for ``refuse_other_form`` (a character cut at the end dropped)."""
+    return raw[:SNIFFED_CHARS].decode("utf-8", errors="ignore")
 
 
 def _table_bytes(path) -> bytes:

@@ -40,7 +40,7 @@ from .._model.robot import (
     parallel_beta_frames,
     placement_parameters,
 )
-from .text import IMPORTED, file_form, load_yaml, read_text, write_texts
+from .text import load_yaml, read_text, refuse_other_form, write_texts
 
 # the calibrated model `robocal calibrate` writes into its output folder
 CALIBRATED_MODEL = "calibrated.yaml"
@@ -489,14 +489,8 @@ def read_model(path) -> RobotModel:
         raise InputError(f"a folder of a calibration's outputs, not a model file: its calibrated model is "
                          f"{Path(path) / CALIBRATED_MODEL}", source=source)
     text = read_text(path, limit=MAX_MODEL_BYTES)[0]
-    form = file_form(text)
-    if form is not None and form.key in IMPORTED:
-        command, function = IMPORTED[form.key]
-        raise InputError(f"{form.words}, not a robocal model file: make one from it with `robocal {command} {source} "
-                         f"--out model.yaml` (`rc.{function}` in Python; docs/cli.md)", source=source)
-    if form is not None and form.key not in ("model", "json"):      # a model may be written as JSON too
-        beside = f": the calibrated model is {CALIBRATED_MODEL}, written beside it" if form.key == "result" else ""
-        raise InputError(f"{form.words}, not a model file{beside}", source=source)
+    refuse_other_form(text, source, "a robocal model file", ("model", "json"),       # a model may be JSON too
+                      {"result": f"the calibrated model is {CALIBRATED_MODEL}, written beside it"})
     d = load_yaml(text, source)
     if d is None:
         raise InputError("the file is empty", source=source)

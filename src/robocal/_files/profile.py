@@ -19,7 +19,7 @@ from .._base.errors import InputError, excerpt, suggest
 from .._base.options import MAX_MODEL_BYTES
 from .._base.units import parse_units
 from .table import ColumnMap, check_decimal, parse_separator
-from .text import file_form, load_yaml, read_text
+from .text import load_yaml, read_text, refuse_other_form
 
 PROFILE_VERSION = 1
 PROFILE_KEYS = ("robocal_profile", "name", "sep", "decimal", "units", "orientation", "columns", "ignore",
@@ -156,6 +156,5 @@ def read_profile(path) -> Profile:
     """
     source = str(path)
     text = read_text(path, limit=MAX_MODEL_BYTES)[0]
-    if (form := file_form(text)) is not None and form.key != "json":       # a profile may be written as JSON too
-        raise InputError(f"{form.words}, not an instrument profile", source=source)
+    refuse_other_form(text, source, "an instrument profile", ("json",))     # a profile may be JSON too
     return profile_from_dict(load_yaml(text, source), source=source)

@@ -46,7 +46,7 @@ from .._model.parameters import parameter_layout
 from .contact_result import contact_residual_dof, contacts_from_dict, contacts_to_dict
 from .measurements import MAX_MAGNITUDE
 from .model import model_from_dict, model_to_dict
-from .text import MAX_FILE_BYTES, file_form, load_json, read_bytes, read_text, sidecar_path, write_texts
+from .text import MAX_FILE_BYTES, load_json, read_bytes, read_text, refuse_other_form, sidecar_path, write_texts
 
 SCHEMA = "robocal.result/1"
 SCHEMAS = (SCHEMA,)
@@ -644,9 +644,7 @@ def read_result(path) -> CalibrationResult:
         path = Path(path) / "result.json"
     source = str(path)
     text = read_text(path)[0]
-    form = file_form(text)
-    if form is not None and form.key not in ("result", "json"):
-        raise InputError(f"{form.words}, not a calibration's result (result.json)", source=source)
+    refuse_other_form(text, source, "a calibration's result (result.json)", ("result", "json"))
     return result_from_dict(load_json(text, source), source=source, folder=Path(path).parent)
 
 

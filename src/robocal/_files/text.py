@@ -213,10 +213,12 @@ def decode(raw: bytes, source: str) -> str:
     return text
 
 
+# the first bytes of every SQLite database file
+SQLITE_MAGIC = b"SQLite format 3\x00"
 # the first bytes of binary files a user may give where text goes: what each is, and what to do
 BINARY_FORMS = ((b"#ROSBAG", "a ROS 1 bag, not text: `robocal import-bag` makes a measurement file of it"),
                 (b"\x89MCAP", "a ROS 2 bag (MCAP), not text: `robocal import-bag` makes a measurement file of it"),
-                (b"SQLite format 3\x00", "an SQLite database (a store of calibrations, a ROS 2 bag's .db3), not text"),
+                (SQLITE_MAGIC, "an SQLite database (a store of calibrations, a ROS 2 bag's .db3), not text"),
                 (b"PK\x03\x04", "a ZIP archive (a result's .npz holds its arrays; result.json is the result), "
                                "not text"))
 
@@ -286,18 +288,26 @@ def file_form(head: str) -> FileForm | None:
     return None
 
 
-def refuse_other_import(text: str, source: str, key: str, what: str) -> None:
-    """InputError when ``text``, read by the importer of the form ``key`` (``IMPORTED``), is a file
-    of another known form (``file_form``): named, with the importer that reads it, or said to be a
-    model file already."""
-    form = file_form(text)
-    if form is None or form.key in (key, "xml", "json"):
+# what to do with a file of each form given in another's place, whatever the place
+FORM_HINTS = {"contacts": "`robocal calibrate MODEL --contacts FILE` (`read_contacts` in Python) reads it",
+              "model": "a model file already, to give as the model"}
+
+
+def refuse_other_form(head: str, source: str, what: str, accepted: tuple[str, ...] = (),
+                      hints: dict[str, str] | None = None) -> None:
+    """InputError when the file whose text begins with ``head`` is of a form (``file_form``) other
+    than the ``accepted`` ones, where ``what`` (its words: "a measurement file") is expected: the
+    form named, with what to do (the command that imports it, else ``hints`` for the caller's own
+    place, else ``FORM_HINTS``). A file of no known form is the caller's to read."""
+    form = file_form(head)
+    if form is None or form.key in accepted:
         return
     if form.key in IMPORTED:
         command, function = IMPORTED[form.key]
-        raise InputError(f"{form.words}, not {what}: `robocal {command}` (`rc.{function}`) reads it", source=source)
-    already = ": a model file already, to give as the model" if form.key == "model" else ""
-    raise InputError(f"{form.words}, not {what}{already}", source=source)
+        hint = f"make a model file of it with `robocal {command} {source} --out model.yaml` (`rc.{function}` in Python)"
+    else:
+        hint = {**FORM_HINTS, **(hints or {})}.get(form.key, "")
+    raise InputError(f"{form.words}, not {what}{': ' + hint if hint else ''}", source=source)
 
 
 # -- YAML without aliases, deep nesting or duplicate keys -----------------------------------------

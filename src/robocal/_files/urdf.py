@@ -41,7 +41,7 @@ from .._base.units import ANGLE_UNITS
 from .._model.conversion import frames_from_lines, line_frames, marker_placements
 from .._model.robot import DEFAULT_PARALLEL_TOL, Marker, RobotModel, mdh_transform
 from .model import MAX_MAGNITUDE
-from .text import read_bytes, refuse_other_import, write_texts
+from .text import read_bytes, refuse_other_form, write_texts
 
 # ----------------------------------------------------------------------------------------------
 # URDF in
@@ -112,7 +112,7 @@ def _load_xml(path_or_string) -> tuple[ET.Element, str]:
             text = raw.decode("utf-8-sig")
         except UnicodeDecodeError:
             raise InputError("URDF must be UTF-8 text", source=source) from None
-        refuse_other_import(text, source, "urdf", "a URDF")
+        refuse_other_form(text, source, "a URDF", ("urdf", "xml", "json"))
     elif isinstance(path_or_string, str):
         source, text = "<string>", path_or_string
     else:

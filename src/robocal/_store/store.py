@@ -1056,25 +1056,21 @@ class _Backend:
         self.conn.close()
 
 
-# the first bytes of every SQLite database file
-SQLITE_HEADER = b"SQLite format 3\x00"
-
-
 def _an_sqlite_file(path: Path, location: str) -> None:
     """InputError when the file at ``path`` (not empty: SQLite makes an empty one a database) is no
-    SQLite database, naming what it is when it is one of robocal's other files (``file_form``)."""
-    from .._files.text import SNIFFED_CHARS, file_form
+    SQLite database, naming what it is when it is one of robocal's other files (``refuse_other_form``)."""
+    from .._files.text import SNIFFED_CHARS, SQLITE_MAGIC, refuse_other_form
 
     try:
         with open(path, "rb") as fh:
             head = fh.read(SNIFFED_CHARS)
     except OSError:         # unreadable: SQLite says so when it opens it
         return
-    if not head or head.startswith(SQLITE_HEADER):
+    if not head or head.startswith(SQLITE_MAGIC):
         return
-    form = file_form(head.decode("utf-8", errors="ignore"))
-    raise InputError(f"{form.words + ', n' if form else 'n'}ot a store of calibrations (the SQLite file robocal "
-                     "record makes, or a postgresql:// URL)", source=location)
+    what = "a store of calibrations (the SQLite file robocal record makes, or a postgresql:// URL)"
+    refuse_other_form(head.decode("utf-8", errors="ignore"), location, what)
+    raise InputError(f"not {what}", source=location)
 
 
 class _SQLite(_Backend):

@@ -132,11 +132,11 @@ def limit_mm(text: str) -> float:
     return v
 
 
-NOT_A_LIMIT_FILE = "not a limit file ('robocal limit --out' writes one)"
+LIMIT_WRITER = "'robocal limit --out' writes one"
 
 
 def _limit_from_file(path: str) -> float:
-    from .._files.text import file_form, load_json, read_text
+    from .._files.text import load_json, read_text, refuse_other_form
 
     try:
         found = Path(path).exists()
@@ -146,9 +146,7 @@ def _limit_from_file(path: str) -> float:
         raise argparse.ArgumentTypeError(f"{excerpt(path)}: no such file (expected mm or a limit file)")
     try:
         text = read_text(path)[0]
-        form = file_form(text)
-        if form is not None and form.key not in ("limit", "json"):
-            raise argparse.ArgumentTypeError(f"{path}: {form.words}, {NOT_A_LIMIT_FILE}")
+        refuse_other_form(text, path, f"a limit file ({LIMIT_WRITER})", ("limit", "json"))
         doc = load_json(text, path)  # bounded and checked like every robocal file
         if not str(doc["schema"]).startswith("robocal.limit/") or doc["unit"] != "m":
             raise KeyError("schema")
@@ -156,7 +154,7 @@ def _limit_from_file(path: str) -> float:
     except InputError as e:
         raise argparse.ArgumentTypeError(str(e)) from None
     except (KeyError, TypeError):
-        raise argparse.ArgumentTypeError(f"{path}: {NOT_A_LIMIT_FILE}") from None
+        raise argparse.ArgumentTypeError(f"{path}: not a limit file ({LIMIT_WRITER})") from None
     if not isinstance(value, (int, float)) or isinstance(value, bool) or not 0.0 < value <= 1.0:
         raise argparse.ArgumentTypeError(f"{path}: limit: expected a positive number of metres (up to 1)")
     return value * MM
