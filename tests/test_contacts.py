@@ -315,7 +315,8 @@ def test_the_contact_file_reads_back_what_was_written(arm7, small_session):
     (lambda t: t.replace("angle=deg", "angle=mm"), ["unknown angle unit 'mm'"]),
     (lambda t: t.replace("P1,A,socket", "P1,A,sockett", 1), ["line 7", "kind 'sockett'"]),
     (lambda t: t.replace("# distance: A B", "# distance: A Z", 1), ["socket 'Z'"]),
-    (lambda t: t.replace(",j3,", ",j33,"), ["column 'j3' is missing"]),
+    (lambda t: t.replace(",j3,", ",j33,"), ["column 'j3' is missing", "is 'j33' it?"]),
+    (lambda t: t.replace(",sigma", ",sigmas"), ["unknown column 'sigmas'; did you mean 'sigma'?"]),
     (lambda t: t.replace("# distance: A B 200.000000", "# distance: A B -200", 1),
      ["line 3", "length must be positive"]),
 ])

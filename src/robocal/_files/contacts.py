@@ -16,6 +16,7 @@ when the ``sigma`` directive states one for every row.
 from __future__ import annotations
 
 import csv
+import difflib
 import io
 import os
 import re
@@ -30,7 +31,7 @@ from .._base.arguments import (
     accepts,
     is_a,
 )
-from .._base.errors import InputError
+from .._base.errors import InputError, suggest
 from .._base.options import MAX_CONTACTS, MAX_DIRECTIVES, MAX_GROUPS
 from .._base.spatial import vector3
 from .._base.units import UNITS, check_unit
@@ -237,18 +238,21 @@ def _compiled(body: str, first_line: int, model: RobotModel, facts: _Facts, sour
 
 def _columns(header, model: RobotModel, facts: _Facts, source: str) -> dict:
     col = {h: i for i, h in enumerate(header)}
+    known = REQUIRED + model.joint_names + ("marker", "sigma", "label")
+    unknown = [h for h in header if h not in known]
     for name in REQUIRED + model.joint_names:
         if name not in col:
-            raise InputError(f"column {name!r} is missing (columns: {', '.join(header)})", source=source,
+            close = difflib.get_close_matches(name, unknown, n=1)
+            hint = f"; is {close[0]!r} it?" if close else ""
+            raise InputError(f"column {name!r} is missing (columns: {', '.join(header)}){hint}", source=source,
                              where="header")
+    if unknown:
+        raise InputError(f"unknown column {unknown[0]!r}{suggest(unknown[0], known)}", source=source, where="header")
     if "marker" not in col and len(model.marker_names) != 1:
         raise InputError("column 'marker' is missing and the model has several markers", source=source, where="header")
     if "sigma" not in col and facts.sigma is None:
         raise InputError("neither a 'sigma' column nor a '# sigma:' directive states the contacts' deviation",
                          source=source, where="header")
-    unknown = set(header) - set(REQUIRED + model.joint_names + ("marker", "sigma", "label"))
-    if unknown:
-        raise InputError(f"unknown column {sorted(unknown)[0]!r}", source=source, where="header")
     return col
 
 
