@@ -143,6 +143,22 @@ def test_force_overwrites(campaign, cli):
     assert cli(*args, "--force")[0] == 0
 
 
+def test_a_failed_run_with_force_leaves_no_earlier_model_beside_its_result(campaign, cli):
+    d, model, _, data = campaign
+    run = d / "run"
+    assert cli("calibrate", d / "model.yaml", d / "data.csv", "--out", run, "--compare")[0] == 0
+    assert cli("report", run / "result.json", "--out", run / "report.html")[0] == 0
+    # the readings of each pose given to another: the calibration fails
+    write_measurements(replace(data, q=np.roll(data.q, 7, axis=0)), d / "shuffled.csv", model=model)
+    args = ["calibrate", d / "model.yaml", d / "shuffled.csv", "--out", run]
+    code, _, err = cli(*args)
+    assert code == 2 and f"{run / 'calibrated.yaml'}: exists; pass --force" in err
+    code, out, _ = cli(*args, "--force")
+    assert code == 3 and "removed" in out and "an earlier run's" in out
+    assert sorted(p.name for p in run.iterdir()) == ["result.json", "result.npz"]
+    assert json.loads((run / "result.json").read_text())["verdict"] == "fail"
+
+
 def test_report_missing_extra(campaign, monkeypatch, cli):
     monkeypatch.setitem(sys.modules, "matplotlib", None)  # as if the report extra were not installed
     d, *_ = campaign

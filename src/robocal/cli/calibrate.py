@@ -9,6 +9,9 @@ from .._base.errors import DegenerateDataError, InputError
 from .._base.options import BACKLASH_SIDES, INSTRUMENT_NOISE, LOSSES, OUTLIER_ACTIONS, WEAK_ACTIONS
 from . import common, record
 
+# the identifications --compare writes a result of, each by the family it adds
+COMPARED = ("geometric", "compliance", "backlash", "transmission")
+
 # exit code of a calibration whose checks failed (docs/cli.md)
 FAILED = 3
 
@@ -62,7 +65,8 @@ def register(sub) -> None:
                    help="with --validation from another set-up: register base and tool on it before judging")
     p.add_argument("--seed", type=common.seed, default=0, help="seed of the --holdout split (default 0)")
     p.add_argument("--out-units", type=common.units, default="mm-deg", help="units of calibrated.yaml (default mm-deg)")
-    p.add_argument("--force", action="store_true", help="overwrite existing output files")
+    p.add_argument("--force", action="store_true",
+                   help="overwrite existing output files; an earlier run's files this run does not write are removed")
     p.add_argument("--report", action="store_true", help="also write OUT/report.html (needs robocal[report])")
     g = p.add_argument_group("checks (docs/checks.md)")
     g.add_argument("--instrument", choices=tuple(INSTRUMENT_NOISE), default="tracker",
@@ -207,9 +211,29 @@ def _check_arguments(args) -> None:
 def _result_names(args) -> list[str]:
     """The result files that may be written: with --compare each identification's, then the
     chosen one as result.json (what report and compensate take)."""
-    names = ["result-geometric.json", "result-compliance.json"] + (["result-backlash.json"] if args.backlash else []) \
-        + (["result-transmission.json"] if args.transmission else [])
-    return names + ["result.json"] if args.compare else ["result.json"]
+    kept = [k for k in COMPARED if k not in ("backlash", "transmission") or getattr(args, k)]
+    return [f"result-{k}.json" for k in kept] + ["result.json"] if args.compare else ["result.json"]
+
+
+def _outputs(out: Path) -> list[Path]:
+    """Every file a calibration may write in its folder, whatever its options: one run's set, so that
+    a run with --force leaves none of an earlier run's beside its own (a model that passed beside a
+    result that failed)."""
+    from .._files.model import CALIBRATED_MODEL
+    from .._files.text import sidecar_path
+
+    names = [f"result-{k}.json" for k in COMPARED] + ["result.json"]
+    return [out / CALIBRATED_MODEL] + [out / n for n in names] + [sidecar_path(out / n) for n in names] + \
+        [out / "report.html"]
+
+
+def _remove_stale(out: Path, written) -> None:
+    """Remove the files of an earlier run this one did not replace (--force), and say so."""
+    stale = [p for p in _outputs(out) if p not in set(written) and (p.exists() or p.is_symlink())]
+    for p in stale:
+        p.unlink()
+    if stale:
+        print(f"removed {', '.join(str(p) for p in stale)}: an earlier run's, which this one does not replace")
 
 
 def _result_file(name: str) -> str:
@@ -275,16 +299,10 @@ def _output_files(args, out: Path, named: dict, best, report) -> dict:
 
 
 def run(args) -> int:
-    from .._files.model import CALIBRATED_MODEL
-    from .._files.text import sidecar_path
-
     _check_arguments(args)
     out = Path(args.out)
-    names = _result_names(args)
     report = common.report_module() if args.report else None
-    common.refuse_existing([out / CALIBRATED_MODEL] + [out / n for n in names]
-                           + [sidecar_path(out / n) for n in names] + ([out / "report.html"] if report else []),
-                           args.force)
+    common.refuse_existing(_outputs(out), args.force)
     model, data, validation, contacts = _inputs(args)
     if contacts is None:
         logging.getLogger("robocal").info("read %s: %d poses to fit, %d held out", args.csv, data.n_poses,
@@ -300,6 +318,7 @@ def run(args) -> int:
     else:
         common.write_outputs(files, force=args.force)
         print(f"wrote {', '.join(str(p) for p in files)}")
+    _remove_stale(out, files)
     if best.verdict == "fail":
         print(f"not written: {out / 'calibrated.yaml'} (the calibration failed its checks; --write-failed writes it "
               "anyway, marked as failed)" if not args.write_failed else
