@@ -263,6 +263,12 @@ def test_csv_units_from_comment_line_or_option(tmp_path):
         read_measurements(tmp_path / "plain.csv", model)
     with pytest.raises(rc.InputError, match="must agree"):
         read_measurements(tmp_path / "comment.csv", model, units="m-deg")
+    # units stated in two lines are read together; a unit stated twice is refused, not the last one taken
+    (tmp_path / "split.csv").write_text("# units: length=mm\n# units: angle=deg\n" + text)
+    np.testing.assert_allclose(read_measurements(tmp_path / "split.csv", model).q, data.q, atol=1e-15)
+    (tmp_path / "twice.csv").write_text("# units: length=mm angle=deg\n# units: angle=rad\n" + text)
+    with pytest.raises(rc.InputError, match=r"twice.csv: line 2: units.angle stated twice \(line 1: deg, line 2: rad"):
+        read_measurements(tmp_path / "twice.csv", model)
 
 
 @pytest.mark.parametrize("convention, parts, columns", [

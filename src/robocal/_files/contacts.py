@@ -83,6 +83,8 @@ class _Facts:
     def add(self, name: str, body: str, source: str, where: str) -> None:
         words = body.replace(",", " ").split() if name == "units" else body.split()
         if name == "units":
+            if self.units:
+                raise InputError("a second units directive: state the units once", source=source, where=where)
             for k, v in _options(words, source, where).items():
                 if k not in UNITS:
                     raise InputError(f"expected '# units: length=mm angle=deg', got {k!r}", source=source, where=where)
@@ -171,6 +173,15 @@ def read_contacts(path, model: RobotModel) -> Contacts:
     return replace(contacts, notes=contacts.notes + why)
 
 
+def _meant_directive(word: str) -> str | None:
+    """The directive a comment's ``word:`` most likely misspells (a socket plate's spacing is a
+    ``distance``), or None for a comment of its own."""
+    if word in ("spacing", "spacings"):
+        return "distance"
+    close = difflib.get_close_matches(word, DIRECTIVES, n=1, cutoff=0.85)   # not "plate" for "plane"
+    return close[0] if close else None
+
+
 def _head(text: str, model: RobotModel, source: str) -> tuple[_Facts, list[str], int]:
     """A contact file's directives, its lines and the index of its header line, checked: a file of
     another kind (``refuse_other_form``) or without the columns of contacts named so, the units stated, the
@@ -184,9 +195,13 @@ def _head(text: str, model: RobotModel, source: str) -> tuple[_Facts, list[str],
         if stripped and not stripped.startswith("#"):
             body_start = i
             break
-        name, _, rest = stripped.lstrip("#").strip().partition(":")
-        if name.strip().lower() in DIRECTIVES and _:
-            facts.add(name.strip().lower(), rest.strip(), source, f"line {i + 1}")
+        name, colon, rest = stripped.lstrip("#").strip().partition(":")
+        word = name.strip().lower()
+        if colon and word in DIRECTIVES:
+            facts.add(word, rest.strip(), source, f"line {i + 1}")
+        elif colon and (close := _meant_directive(word)):
+            raise InputError(f"unknown directive {word!r}; did you mean {close!r}? (a comment that reads as a "
+                             "directive is refused rather than ignored)", source=source, where=f"line {i + 1}")
     else:
         raise InputError("no header row", source=source)
     if not {c.strip().strip('"').lower() for c in re.split(r"[,;\t]", lines[body_start])} & set(REQUIRED):

@@ -573,11 +573,18 @@ def _profile(profile) -> Profile:
 
 def _directives(table: Table):
     """The ``# units:`` and ``# orientation:`` lines before the header."""
-    comment_units, comment_orient, orient_text = {}, None, ""
+    comment_units: dict[str, str] = {}
+    comment_orient, orient_text = None, ""
+    stated: dict[str, int] = {}
     for line, text in table.comments:
         u = _directive(text, "units")
         if u is not None:
-            comment_units.update(_comment_units(u, table.source, line))
+            for key, unit in _comment_units(u, table.source, line).items():
+                if key in stated:
+                    raise InputError(f"units.{key} stated twice (line {stated[key]}: {comment_units[key]}, line "
+                                     f"{line}: {unit}): state each unit once", source=table.source,
+                                     where=f"line {line}")
+                stated[key], comment_units[key] = line, unit
         o = _directive(text, "orientation")
         if o is not None:
             comment_orient = parse_orientation(o, source=table.source, where=f"line {line}")

@@ -83,7 +83,8 @@ def run(model: RobotModel, data: Measurements | None, contacts: Contacts | None,
     better = placed_better(in_use_record, where, chosen.problem, inputs.validation)
     checks = (checked + list(chosen.outliers.checks)
               + fit_checks(chosen, options, in_use_record, better)
-              + result_checks(chosen, cov, found, where, better, observed_markers(inputs.data, inputs.contacts))
+              + result_checks(chosen, cov, found, where, better, observed_markers(inputs.data, inputs.contacts),
+                              unreachable=() if analysis.reach is None else analysis.reach.unreachable)
               + alone_check(chosen) + use)
     warn_checks(checks)
     judged = (checks, in_use_record, validation_errors, cover, limit)

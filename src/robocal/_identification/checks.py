@@ -775,14 +775,22 @@ def correlation_check(names, corr: np.ndarray, loose=None) -> Check:
 
 
 def identifiability_check(lost, weak, *, weak_kept: bool = False, interchangeable=(),
-                          kept_in_use: bool = False) -> Check:
+                          kept_in_use: bool = False, size_unreached: bool = False) -> Check:
     """Parameters the structure allows but the poses cannot separate (``lost``: a warning), and those
     they cannot pin down (``weak``: (name, predicted std text) pairs). Weak ones are held at nominal
     and named, which is the right handling (a pass), unless they were kept (``weak_kept``: a warning).
     Identified pairs that are interchangeable (``interchangeable``) are a warning too: the analysis
     cannot say every parameter is pinned down beside them. ``kept_in_use``: the weak ones were kept
-    because the accuracy in use is better with them (a pass)."""
+    because the accuracy in use is better with them (a pass). ``size_unreached``: contacts that fix
+    the robot's shape and not its size (a warning: the accuracy in use, of contacts alike, cannot see
+    a size error)."""
     name = "identifiability at these poses"
+    if size_unreached:
+        return Check(name, "warn", "the robot's size is out of reach of these contacts: its lengths are fitted "
+                     "relative to one another at the nominal model's scale, and the contacts' accuracy in use "
+                     "cannot show an error of size", cause="no known length among the observations",
+                     fix="state a known distance between two sockets ('# distance:' or the manifest's spacings), "
+                         "or add a ball bar, a known plane or tracker points")
     items = tuple(lost) + tuple(f"{n} (predicted std {s})" for n, s in weak) + tuple(interchangeable)
     if interchangeable:
         return Check(name, "warn", f"kept but interchangeable at these poses: {_listed(interchangeable, 3)}",

@@ -382,9 +382,9 @@ def _orientation_check(pts: Points, p: np.ndarray) -> Check:
 
 
 def result_checks(fit: Fit, cov: Covariance, found: tuple[ParameterEstimate, ...], where: Reach, better: bool,
-                  seen) -> list[Check]:
+                  seen, unreachable=()) -> list[Check]:
     """What the estimates say: plausible changes, support, physical signs, correlations,
-    identifiability at these observations."""
+    identifiability at these observations (``unreachable``: what no contact reaches)."""
     design = fit.design
     moments = fit.problem.compliance_moments(fit.solution.p)
     deflections = {e.name: e.estimate * float(np.max(np.abs(moments[e.name]))) for e in found if e.name in moments}
@@ -403,7 +403,8 @@ def result_checks(fit: Fit, cov: Covariance, found: tuple[ParameterEstimate, ...
             correlation_check(names, corr, loose),
             identifiability_check(design.lost, design.weak, weak_kept=design.weak_kept,
                                   interchangeable=interchangeable_pairs(names, corr, loose),
-                                  kept_in_use=design.kept_in_use)]
+                                  kept_in_use=design.kept_in_use,
+                                  size_unreached=any(u.name == "scale" for u in unreachable))]
 
 
 def _loose(found, moments: dict) -> set:
