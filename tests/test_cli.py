@@ -303,6 +303,16 @@ def test_existing_output_without_force(campaign, cli):
     assert (d / "run" / "result.json").read_text() == "mine"
 
 
+@pytest.mark.parametrize("second", ["sim.csv", "./sub/../sim.csv"])
+def test_one_file_given_for_two_outputs_is_refused(campaign, cli, second):
+    d, *_ = campaign
+    (d / "sub").mkdir()
+    code, _, err = cli("simulate", d / "model.yaml", "--out", d / "sim.csv", "--poses", "10",
+                       "--true-model", d / second, "--force")
+    assert_one_line_error(code, err, ["given for two outputs", f"also as {d / 'sim.csv'}"], d / "sim.csv",
+                          command="simulate")
+
+
 def test_simulate_refuses_existing_output(tmp_path, cli):
     write_model(arm6r(), tmp_path / "m.yaml")
     (tmp_path / "s.csv").write_text("keep")

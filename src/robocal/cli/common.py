@@ -358,6 +358,13 @@ def refuse_existing(paths, force: bool) -> None:
     cannot be written (its folder is read-only, a file, ...)."""
     from .._files.text import check_writable
 
+    given: dict[str, str] = {}
+    for p in paths:     # one file for two outputs: the second written would replace the first
+        key = os.path.realpath(p)
+        if key in given:
+            raise InputError(f"given for two outputs (also as {given[key]}): each output needs a file of its own",
+                             source=str(p))
+        given[key] = str(p)
     for p in paths:
         with contextlib.suppress(OSError):
             read = next((f for f in INPUTS.get() if os.path.exists(p) and os.path.samefile(p, f)), None)
