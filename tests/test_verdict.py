@@ -109,6 +109,29 @@ def test_a_real_campaign_is_not_warned_for_not_covering_its_nominal_plus_minus_3
         assert "every joint's limits allow a full turn or more" in check.summary and " 83 %" not in check.summary
 
 
+def test_a_correction_far_beyond_what_the_measured_poses_show_fails():
+    """Two wrist joints never moved and the tool declared known: the calibration takes the tool's
+    error up as a twist of the wrist, fits to the noise and holds out as well, yet is about 50 mm off
+    where the wrist turns (the nominal: 4 mm). Its own figures show it: the geometry moves the tool
+    there a dozen times what the nominal misses the fitted points by. With every joint moving,
+    the same robot passes."""
+    nominal_model, true = rc.read_model(TH8 / "model.yaml"), rc.read_model(TH8 / "true_model.yaml")
+    rng = np.random.default_rng(1)
+    q = rc.random_configurations(nominal_model, 60, rng=rng)
+    still = q.copy()
+    still[:, 3], still[:, 5] = 0.3, 0.1
+    use = rc.random_configurations(nominal_model, 300, rng=5)
+    for readings, verdict in ((still, "fail"), (q, "pass")):
+        res = _quiet(rc.calibrate, nominal_model, rc.measure(true, readings, rng=rng), known=("markers",))
+        off = np.linalg.norm(rc.forward_kinematics(res.calibrated_model, use).positions
+                             - rc.forward_kinematics(true, use).positions, axis=-1)
+        check = _checks(res)["where the model holds"]
+        assert (check.status, res.verdict) == (verdict, verdict), check.summary
+        assert ("times what the nominal misses the fitted points by" in check.summary) == (verdict == "fail")
+        # what the check judges, against the truth in use
+        assert (np.sqrt(np.mean(off ** 2)) > 0.02) == (verdict == "fail")
+
+
 def test_coverage_names_the_joints_whose_range_of_use_is_the_campaigns():
     from robocal._identification.checks import coverage_check
     from robocal._identification.holdout import Coverage, UseStats

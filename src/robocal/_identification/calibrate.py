@@ -34,6 +34,7 @@ from .judgement import (
     campaign_coverage,
     estimates,
     fit_checks,
+    fit_errors,
     in_use,
     input_checks,
     placed_better,
@@ -79,7 +80,9 @@ def run(model: RobotModel, data: Measurements | None, contacts: Contacts | None,
     notes = inputs.notes + analysis.notes + chosen.notes + choice_notes + before_notes + use_notes
     where = reach(inputs, chosen.design, chosen.solution.p)
     cover = campaign_coverage(chosen, cov, where)
-    use, limit = use_checks(in_use_record, cover, options, point_misfit(chosen, options), where, validation_errors)
+    fitted = fit_errors(inputs, chosen, before)
+    use, limit = use_checks(in_use_record, cover, options, point_misfit(chosen, options), where, validation_errors,
+                            fitted)
     better = placed_better(in_use_record, where, chosen.problem, inputs.validation)
     checks = (checked + list(chosen.outliers.checks)
               + fit_checks(chosen, options, in_use_record, better)
@@ -87,7 +90,7 @@ def run(model: RobotModel, data: Measurements | None, contacts: Contacts | None,
                               unreachable=() if analysis.reach is None else analysis.reach.unreachable)
               + alone_check(chosen) + use)
     warn_checks(checks)
-    judged = (checks, in_use_record, validation_errors, cover, limit)
+    judged = (checks, in_use_record, validation_errors, cover, limit, fitted)
     return record(inputs, analysis, chosen, before, cov, found, judged, options, notes), chosen
 
 

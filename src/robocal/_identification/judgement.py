@@ -454,10 +454,10 @@ def reach_of(where: Reach) -> float | None:
 
 
 def use_checks(in_use_record: AccuracyInUse | None, cover: Coverage | None, options: Options, misfit: float | None,
-               where: Reach, held: PoseErrors | None = None):
+               where: Reach, held: PoseErrors | None = None, fitted: PoseErrors | None = None):
     """The accuracy in use (``misfit``: the measured points' fit against the instrument), the
-    held-out points that stand out (``held``: a validation set's errors), where it holds, and the
-    limit of absolute accuracy."""
+    held-out points that stand out (``held``: a validation set's errors), where it holds (against
+    the ``fitted`` points' errors before), and the limit of absolute accuracy."""
     if in_use_record is None:
         return [Check("accuracy in use", "pass", "no position held out (contacts of one placement, or no seating "
                       "among them): judged by the fit's checks alone",
@@ -469,7 +469,8 @@ def use_checks(in_use_record: AccuracyInUse | None, cover: Coverage | None, opti
         out.append(held_out_outlier_check(held.after[d.mask], None if d.sigma is None else d.sigma[d.mask],
                                           options.noise, Labels(d.labels, d.marker_names, rows, markers)))
     if cover is not None:
-        out.append(coverage_check(cover, in_use_record))
+        missed = 0.0 if fitted is None else float(np.sqrt(np.nanmean(np.sum(fitted.before ** 2, axis=-1))))
+        out.append(coverage_check(cover, in_use_record, where.judgement, missed))
     judged = None if options.limit_m is None else judge_against_limit(options.limit_m, in_use_record)
     if judged is not None:
         out.append(limit_check(judged))
@@ -562,10 +563,9 @@ def record(inputs: Inputs, analysis: Analysis, fit: Fit, before: np.ndarray, cov
            ) -> CalibrationResult:
     """The calibration's record: estimates, covariance, errors before and after, the accuracy in
     use, the checks."""
-    checks, in_use_record, val, cover, limit = judged
+    checks, in_use_record, val, cover, limit, fitted = judged
     solution, design = fit.solution, fit.design
     k = len(found)
-    fitted = fit_errors(inputs, fit, before)
     stats, rotation_stats = error_summaries(fitted, val)
     result = CalibrationResult(
         nominal_model=inputs.model, calibrated_model=model_from_vector(design.start, solution.p[:fit.problem.n_robot]),
