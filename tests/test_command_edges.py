@@ -241,3 +241,26 @@ def test_plan_with_too_few_poses_says_how_many_it_needs(cli, tmp_path):
     k = len(rc.identifiability(rc.read_model(TH8 / "model.yaml")).identified)
     assert_one_line_error(code, err, ["5 poses give 15 equations", f"at least {k // 3 + 1} poses"],
                           tmp_path / "plan.csv", command="plan")
+
+
+def test_plan_counts_a_candidate_given_twice_once_and_names_what_its_poses_cannot_separate(cli, tmp_path):
+    """Twenty copies of one pose were a plan predicting 0.008 mm in use (condition number 1e110); a
+    joint that never moves among the candidates left its neighbours' parameters out without a word."""
+    model = rc.read_model(TH8 / "model.yaml")
+    lines = (TH8 / "measurements.csv").read_text().splitlines()
+    header, first = lines[0], lines[1]
+    label = first.split(",")[0]
+    (tmp_path / "copies.csv").write_text("\n".join([header] + [first.replace(label, f"C{i}", 1) for i in range(20)]))
+    code, _, err = cli("plan", TH8 / "model.yaml", "--poses", "20", "--candidates", tmp_path / "copies.csv",
+                       "--out", tmp_path / "plan.csv")
+    assert code == 2 and "19 candidate poses repeat others" in err
+    assert "cannot choose 20 poses from 1 distinct candidates" in err and not (tmp_path / "plan.csv").exists()
+    q = rc.random_configurations(model, 200, rng=1)
+    q[:, 3] = 0.3
+    rc.write_measurements(rc.measure(model, q, rng=1), tmp_path / "still.csv", model=model)
+    code, out, err = cli("plan", TH8 / "model.yaml", "--poses", "20", "--candidates", tmp_path / "still.csv",
+                         "--out", tmp_path / "plan.csv")
+    assert code == 0, err
+    assert "warning: these poses cannot separate j5.alpha, j5.d, j5.theta, j5.r" in out
+    code, out, _ = cli("plan", TH8 / "model.yaml", "--poses", "20", "--out", tmp_path / "random.csv")
+    assert code == 0 and "cannot separate" not in out

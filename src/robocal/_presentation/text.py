@@ -383,6 +383,10 @@ def plan_summary(model, selection, prediction, *, n_candidates: int, source: str
     if pre.held:
         lines.append("weakly identifiable at these poses, held at nominal as the calibration holds them (the figures "
                      "above are with them held): " + ", ".join(f"{n} (predicted std {s})" for n, s in pre.held))
+    if pre.lost:
+        lines.append(f"warning: these poses cannot separate {_listed(pre.lost)}, which the robot's structure allows "
+                     "(a joint that hardly moves among them): held at nominal, their errors are in none of the "
+                     "figures above; add poses that move every joint")
     lines += eliminated_lines(pre.identifiability, {n: lay[n].unit for n in pre.identifiability.candidates if n in lay})
     return "\n".join(lines)
 

@@ -25,7 +25,12 @@ from .._base.errors import DegenerateDataError, InputError, check_choice
 from .._base.options import MAX_POSES, MAX_SELECTION_BLOCKS, MAX_SELECTION_WORK, POSE_CRITERIA
 from .._base.threads import one_blas_thread
 from .._identification.estimates import weak_words
-from .._identification.identifiability import ONE_SIDE, identifiability, weakly_identifiable
+from .._identification.identifiability import (
+    ONE_SIDE,
+    identifiability,
+    theoretical_identifiability,
+    weakly_identifiable,
+)
 from .._identification.points import design_problem
 from .._model.configurations import random_configurations
 from .._model.parameters import has_backlash_parameters, parameter_layout, parameter_vector
@@ -285,7 +290,9 @@ class CampaignPrediction:
     calibrated model (the same plus the instrument's noise on that measurement). ``held``: the
     parameters these poses identify but cannot pin down at that noise, which the calibration holds
     at nominal (``weakly_identifiable``, its rule), each with its predicted standard deviation in
-    words; they are not among ``parameters``, and the figures are those with them held."""
+    words; they are not among ``parameters``, and the figures are those with them held. ``lost``:
+    the parameters the robot's structure allows that these poses cannot separate (a joint that
+    hardly moves among them), held at nominal: their errors are in no figure here."""
 
     q: np.ndarray
     parameters: tuple[str, ...]
@@ -296,6 +303,7 @@ class CampaignPrediction:
     held_out_rms: float
     n_workspace: int
     held: tuple[tuple[str, str], ...] = ()
+    lost: tuple[str, ...] = ()
 
 
 @accepts(model=is_a(RobotModel), q=readings_of(), parameters=NAMES, known=NAMES, noise=POSITIVE,
@@ -332,6 +340,8 @@ def predict_campaign(model: RobotModel, q, *, parameters=("geometric",), known=(
         raise InputError(f"noise must be positive, got {noise}", where="noise")
     ident = identifiability(model, q, parameters=parameters, known=known, tol=tol)
     names = ident.identified
+    allowed = theoretical_identifiability(model, tuple(parameters), tuple(known), False, tol).identified
+    lost = tuple(n for n in allowed if n not in set(names))
     p0 = parameter_vector(model)
     design = design_problem(model, q, names)
     J = design.jacobian(p0)
@@ -351,7 +361,7 @@ def predict_campaign(model: RobotModel, q, *, parameters=("geometric",), known=(
     return CampaignPrediction(q=q, parameters=names, std=np.sqrt(np.diag(cov)), identifiability=ident,
                               noise=noise, error_rms=float(np.sqrt(per_point)),
                               held_out_rms=float(np.sqrt(per_point + 3 * noise ** 2)), n_workspace=n_workspace,
-                              held=held)
+                              held=held, lost=lost)
 
 
 def _held_weak(model: RobotModel, design, J: np.ndarray, names, noise: float, p0) -> tuple[tuple[str, str], ...]:

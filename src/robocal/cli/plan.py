@@ -64,10 +64,17 @@ def run(args) -> int:
         if not inside.all():
             print(f"robocal: warning: {args.candidates}: {int((~inside).sum())} of {len(inside)} candidate poses "
                   "are beyond the joint limits and left out", file=sys.stderr)
-        candidates, names = candidates[inside], tuple(n for n, keep in zip(names, inside) if keep)
+        # a pose given twice is one candidate: choosing it twice measures nothing new
+        _, first = np.unique(candidates[inside], axis=0, return_index=True)
+        keep = np.flatnonzero(inside)[np.sort(first)]
+        if len(keep) < inside.sum():
+            print(f"robocal: warning: {args.candidates}: {int(inside.sum()) - len(keep)} candidate poses repeat "
+                  "others and are left out", file=sys.stderr)
+        candidates, names = candidates[keep], tuple(names[i] for i in keep) if len(names) == len(inside) else ()
     n_cand = len(candidates) if candidates is not None else args.n_candidates
     if args.poses > n_cand:
-        raise InputError(f"cannot choose {args.poses} poses from {n_cand} candidates", where="--poses")
+        distinct = " distinct" if candidates is not None else ""
+        raise InputError(f"cannot choose {args.poses} poses from {n_cand}{distinct} candidates", where="--poses")
     parameters = args.parameters or ("geometric",)
     sel = select_poses(model, args.poses, candidates=candidates, n_candidates=args.n_candidates,
                        parameters=parameters, known=args.known, criterion=args.criterion, rng=args.seed)
