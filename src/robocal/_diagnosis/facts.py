@@ -10,6 +10,7 @@ from itertools import combinations
 import numpy as np
 
 from .._identification.checks import whole_turns as whole_turns_of
+from .._identification.identifiability import DEFAULT_TOL, theoretical_identifiability
 from .._identification.result import Finding
 from .reference import NAMED_FACTOR, Reference, mm
 
@@ -96,7 +97,11 @@ def joint_still(ref: Reference) -> Finding | None:
     if not still:
         return None
     names = tuple(ref.model.joint_names[j] for j in still)
-    lost = tuple(a.name for a in ref.result.identifiability.eliminated)
+    ident = ref.result.identifiability
+    # those the robot's structure allows (not those every campaign leaves to the base or the tool)
+    allowed = set(theoretical_identifiability(ref.model, tuple(ident.candidates), (), ref.campaign.has_orientation,
+                                              DEFAULT_TOL, ref.campaign.marker_names).identified)
+    lost = tuple(a.name for a in ident.eliminated if a.name in allowed)
     said = f"; the parameters the data cannot separate: {', '.join(lost[:6])}" if lost else ""
     return Finding("joint still", f"joint(s) {', '.join(names)} never move in this campaign",
                    f"every reading of {', '.join(names)} is the same{said}", NOTED_SCORE, names, ref.rms, None,
