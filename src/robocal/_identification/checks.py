@@ -284,7 +284,8 @@ def reading_units_check(model: RobotModel, q: np.ndarray) -> Check:
     moving = angle & (span > 4 * RADIANS_AS_DEGREES) & (hi - lo > 0)
     small = moving & (np.maximum(-lo, hi) <= RADIANS_AS_DEGREES)
     if not small.any():
-        return Check(name, "pass", "every moving angle reading spans more than a few degrees")
+        return Check(name, "pass", "no moving angle reading stays within 3.14 degrees of zero, as radians declared "
+                     "as degrees would")
     joints = tuple(model.joint_names[j] for j in np.nonzero(small)[0])
     status = "fail" if small.sum() == moving.sum() else "warn"
     return Check(name, status, f"every reading of {_listed(joints)} stays within 3.14 degrees, where the limits "
