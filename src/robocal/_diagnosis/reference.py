@@ -672,15 +672,17 @@ def finding(ref: Reference, cand: Candidate, rms: float, verdict: Judgement, how
     before = verdict.before if np.isfinite(verdict.before) else float(np.nanmean(ref.held_out))
     # a unit repaired: what the repair leaves in its own unit first, then as the file declared it
     own = "" if scale == 1.0 else f"{mm(rms / scale)} RMS per axis in it, "
-    evidence = (f"{how}: {own}{mm(rms)} {'as declared ' if own else ''}against {mm(ref.rms)} RMS per axis (the "
-                f"residual variance divided by {verdict.factor:.3g}); {held_out_change(verdict, before)}")
-    if verdict.plausible:
-        evidence += (f"; it fits as well, and of the calibration's {ref.implausible} implausible change(s) "
-                     "at most half remain")
-    elif not verdict.explained:
-        evidence += "; what is left is more than the instrument or the robot's own scatter explains"
-        if verdict.status == "fail":
-            evidence += f", and at most 1/{DOMINANT_FACTOR:g} of the calibration's error in use"
+    figures = (f"{own}{mm(rms)} {'as declared ' if own else ''}against {mm(ref.rms)} RMS per axis (the residual "
+               f"variance divided by {verdict.factor:.3g}); {held_out_change(verdict, before)}")
+    if verdict.plausible:   # what decides comes first: the figures beside it are no better, no worse
+        evidence = (f"{how}: it fits as well, and of the calibration's {ref.implausible} implausible change(s) at most "
+                    f"half remain ({figures})")
+    else:
+        evidence = f"{how}: {figures}"
+        if not verdict.explained:
+            evidence += "; what is left is more than the instrument or the robot's own scatter explains"
+            if verdict.status == "fail":
+                evidence += f", and at most 1/{DOMINANT_FACTOR:g} of the calibration's error in use"
     score = float(np.log10(verdict.factor)) - (float(np.log10(CLOSE_FACTOR)) if cand.generic else 0.0)
     # the calibration took up a mistake of the model file: its model holds what the data say
     status = "warn" if verdict.plausible and cand.model_file else verdict.status
