@@ -57,12 +57,18 @@ def test_a_contact_calibration_is_a_calibration_result_that_reads_back_whole(arm
     assert res.in_use.grouping == "each placement predicted by the others" and res.in_use.folds == 4
     assert res.in_use.position_after.mean == pytest.approx(res.contacts.held_out.consistency_mean, rel=1e-12)
     assert res.in_use.position_before.mean > 20 * res.in_use.position_after.mean
+    # and its "before": the nominal model predicting the same seatings (its ball registered on the other
+    # placements), not the fitted figures copied
+    before = res.contacts.held_out_before
+    assert res.in_use.position_before.mean == pytest.approx(before.consistency_mean, rel=1e-12)
+    assert np.mean(res.in_use.spacing_before) == pytest.approx(before.spacing_mean, rel=1e-12)
+    assert abs(before.consistency_mean - res.contacts.fit_before.consistency_mean) > 1e-3 * before.consistency_mean
     rc.write_result(res, tmp_path / "result.json")
     back = rc.read_result(tmp_path / "result.json")
     assert [(p.name, p.estimate, p.std) for p in back.parameters] == [(p.name, p.estimate, p.std)
                                                                       for p in res.parameters]
     a, b = res.contacts, back.contacts
-    for key in ("fit_before", "fit_after", "held_out"):
+    for key in ("fit_before", "fit_after", "held_out_before", "held_out"):
         x, y = getattr(a, key), getattr(b, key)
         assert x.consistency == y.consistency and x.distance == y.distance and x.spread == y.spread
         assert x.seatings.keys() == y.seatings.keys()
@@ -82,6 +88,15 @@ def test_a_contact_calibration_is_a_calibration_result_that_reads_back_whole(arm
     meta = re.search(r'<p class="meta">([^<]*)</p>', render_report(res)).group(1).split(" &middot; ")
     assert meta[0] == ", ".join(res.families) + " identification from contacts"
     assert meta[1].endswith(" UTC") and meta[2] == f"robocal {rc.__version__}"
+    # a file written before the nominal model's prediction was kept: its "before" is said to be missing
+    d = json.loads((tmp_path / "result.json").read_text())
+    del d["contacts"]["held_out_by_placement_before"]
+    (tmp_path / "result.json").write_text(json.dumps(d))
+    old = rc.read_result(tmp_path / "result.json")
+    assert old.contacts.held_out_before is None
+    assert "predicted by the others, socket consistency (each seating's distance from its socket's mean centre), " \
+           "mean over seatings: – -> " in rc.report.calibration_summary(old)
+    assert 'data-key="held_out_before.' not in render_report(old)
 
 
 def test_a_broken_contacts_part_of_a_result_file_is_named(arm7, kit, tmp_path):
@@ -169,7 +184,37 @@ def test_holdout_takes_a_fraction_of_the_placements(cli, kit, tmp_path):
     saved = json.loads((tmp_path / "h" / "result.json").read_text())["contacts"]
     assert {k.split("/")[0] for k in saved["validation_after"]["consistency_m"]} == {name}
     assert name not in {k.split("/")[0] for k in saved["fit_after"]["consistency_m"]}
-    assert name not in {k.split("/")[0] for k in saved["held_out_by_placement"]["consistency_m"]}
+    # the held-out placement judges the calibration: no cross-validation of the others beside it
+    assert saved["held_out_by_placement"] is None and saved["held_out_by_placement_before"] is None
+    assert "held-out socket consistency" in out and "predicted by the others," not in out
+
+
+def _figure(out: str, line: str, figure: str) -> tuple[float, float]:
+    """The before and after (mm) of ``figure`` ("mean over seatings", "mean |e|") on the summary's line
+    starting with ``line``."""
+    text = next(t for t in out.splitlines() if t.strip().startswith(line))
+    found = re.search(re.escape(figure) + r": ([0-9.]+) mm -> ([0-9.]+) mm", text)
+    assert found, text
+    return float(found[1]), float(found[2])
+
+
+def test_each_figure_of_a_contact_summary_is_the_same_wherever_it_is_shown(cli, kit, tmp_path):
+    """Each placement predicted by the others: the kit's lines and the checks "accuracy in use" and
+    "spacing in use" give the same figures before and after (the "before" was the fitted one copied:
+    2.6044 mm beside 2.632 mm on the real Panda)."""
+    _, _, folder = kit
+    code, out, err = cli("calibrate", ARM7, "--contacts", folder / "sockets.csv", "--out", tmp_path / "run")
+    assert code == 0, err
+    use = json.loads((tmp_path / "run" / "result.json").read_text())["in_use"]
+    label = "each placement predicted by the others, "
+    consistency = _figure(out, label + "socket consistency", "mean over seatings")
+    spacing = _figure(out, label + "spacing error", "mean |e|")
+    assert consistency == pytest.approx((use["position_before"]["mean"] * 1e3, use["position_after"]["mean"] * 1e3),
+                                        abs=6e-5)
+    assert spacing == pytest.approx((np.mean(use["spacing_before_m"]) * 1e3, np.mean(use["spacing_after_m"]) * 1e3),
+                                    abs=6e-5)
+    fitted = _figure(out, "fitted socket consistency", "mean over seatings")
+    assert abs(consistency[0] - fitted[0]) > 1e-3
 
 
 def test_measured_points_judge_a_contact_calibration_in_use(cli, arm7, kit, tmp_path):

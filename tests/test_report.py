@@ -822,11 +822,15 @@ def test_a_contact_calibration_report_renders_in_headless_chromium(chromium, cli
 
     for key, figure, saved_as in (("fit_after", "consistency_mean", "consistency_mean_m"),
                                   ("held_out", "consistency_mean", "consistency_mean_m"),
+                                  ("held_out_before", "consistency_mean", "consistency_mean_m"),
                                   ("held_out", "spacing_max", "spacing_error_max_m")):
-        value = saved["fit_after" if key == "fit_after" else "held_out_by_placement"][saved_as]
+        value = saved[{"held_out": "held_out_by_placement",
+                       "held_out_before": "held_out_by_placement_before"}.get(key, key)][saved_as]
         assert f'data-key="{key}.{figure}">{fmt(value, "m")}<' in html
-    for socket, figures in saved["held_out_by_placement"]["consistency_m"].items():
-        assert f'data-key="held_out.consistency.{socket}.max">{fmt(figures["max"], "m")}<' in html
+    for key in ("held_out_by_placement", "held_out_by_placement_before"):
+        for socket, figures in saved[key]["consistency_m"].items():
+            cell = key.replace("_by_placement", "")
+            assert f'data-key="{cell}.consistency.{socket}.max">{fmt(figures["max"], "m")}<' in html
     r = _render_in_chromium(chromium, path, "report-contacts.png")
     assert [m for m in r["console"] if m[0] in ("error", "pageerror")] == []
     assert r["requests"] == [r["url"]] and r["title"].startswith("Calibration report")

@@ -17,7 +17,8 @@ _FIGURES = (("spread_m", "spread"), ("distance_error_m", "distance"), ("plane_rm
 _SUMMARIES = (("consistency_mean_m", "consistency_mean"), ("consistency_max_m", "consistency_max"),
               ("spacing_error_mean_m", "spacing_mean"), ("spacing_error_max_m", "spacing_max"))
 _SETS = (("fit_before", "fit_before"), ("fit_after", "fit_after"), ("validation_before", "validation_before"),
-         ("validation_after", "validation_after"), ("held_out_by_placement", "held_out"))
+         ("validation_after", "validation_after"), ("held_out_by_placement_before", "held_out_before"),
+         ("held_out_by_placement", "held_out"))
 
 
 def _errors_dict(e: ContactErrors | None) -> dict | None:

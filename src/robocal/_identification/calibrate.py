@@ -32,9 +32,11 @@ from .holdout import FoldProblems, holdout_of
 from .judgement import (
     alone_check,
     campaign_coverage,
+    cross_validated,
     estimates,
     fit_checks,
     fit_errors,
+    held_out_nominal,
     in_use,
     input_checks,
     placed_better,
@@ -75,8 +77,9 @@ def run(model: RobotModel, data: Measurements | None, contacts: Contacts | None,
     before, before_at, before_notes = registered_nominal(chosen.design)
     cov = covariance(chosen.solution)
     found = estimates(chosen.design, chosen.solution.p, cov)
-    in_use_record, validation_errors, use_notes = in_use(chosen, before, inputs, holdout, folds, options,
-                                                         before_at=before_at)
+    held_before = held_out_nominal(chosen, before, holdout, folds, before_at) if cross_validated(inputs, holdout) \
+        else None
+    in_use_record, validation_errors, use_notes = in_use(chosen, before, inputs, holdout, options, held_before)
     notes = inputs.notes + analysis.notes + chosen.notes + choice_notes + before_notes + use_notes
     where = reach(inputs, chosen.design, chosen.solution.p)
     cover = campaign_coverage(chosen, cov, where)
@@ -91,7 +94,7 @@ def run(model: RobotModel, data: Measurements | None, contacts: Contacts | None,
               + alone_check(chosen) + use)
     warn_checks(checks)
     judged = (checks, in_use_record, validation_errors, cover, limit, fitted)
-    return record(inputs, analysis, chosen, before, cov, found, judged, options, notes), chosen
+    return record(inputs, analysis, chosen, before, cov, found, judged, options, notes, held_before), chosen
 
 
 def _as_tuple(v) -> tuple:

@@ -157,9 +157,13 @@ class ContactFigures:
         The nominal model's on held-out contacts; None without them.
     validation_after : ContactErrors or None
         The calibrated model's on held-out contacts; None without them.
+    held_out_before : ContactErrors or None
+        The nominal model's figures of each placement predicted by the others (its base and
+        markers registered on the others, as the accuracy in use's "before"); None with held-out
+        contacts or one placement.
     held_out : ContactErrors or None
-        The figures of each placement predicted by the fit on the others; None with a validation
-        set or one placement.
+        The figures of each placement predicted by the fit on the others; None with held-out
+        contacts (they judge the calibration instead) or one placement.
     noise_ratio : Mapping
         Per kind of row the RMS residual in stated standard deviations.
     weak : tuple of (str, str)
@@ -178,6 +182,7 @@ class ContactFigures:
     fit_after: ContactErrors
     validation_before: ContactErrors | None = None
     validation_after: ContactErrors | None = None
+    held_out_before: ContactErrors | None = None
     held_out: ContactErrors | None = None
     noise_ratio: Mapping[str, float] = field(default_factory=dict)
     weak: tuple[tuple[str, str], ...] = ()

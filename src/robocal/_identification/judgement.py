@@ -143,26 +143,42 @@ def _fitted_seatings(problem: Problem, p: np.ndarray) -> np.ndarray | None:
     return np.linalg.norm(e[keep], axis=1)
 
 
-def in_use(fit: Fit, before: np.ndarray, inputs: Inputs, holdout: Holdout, folds: FoldProblems,
-           options: Options, *, before_at: np.ndarray | None = None
-           ) -> tuple[AccuracyInUse | None, PoseErrors | None, tuple[str, ...]]:
+def held_out_nominal(fit: Fit, before: np.ndarray, holdout: Holdout, folds: FoldProblems,
+                     before_at: np.ndarray | None = None) -> HeldOut:
+    """The nominal model's errors at each observation predicted by the other groups: its registration
+    of base and markers refitted there (``cross_validate``; its fold steps from ``before_at``, where
+    the registration's solve took its last Jacobian, as the fit's are), the fit's own held-out errors
+    when the fit identified nothing else. The "before" of every cross-validated figure."""
+    design, problem = fit.design, fit.problem
+    placed = placed_parameters(design)
+    if len(placed) == len(design.identifiability.identified):
+        return fit.held_out
+    return cross_validate(problem.over(placed), before, holdout, folds=folds, at=before_at) if placed \
+        else _everywhere(problem, before)
+
+
+def cross_validated(inputs: Inputs, holdout: Holdout) -> bool:
+    """Whether the calibration is judged by its own groups predicted by the others: two groups or more,
+    and no held-out set that judges it instead (contacts keep their placements' figures beside held-out
+    measured points)."""
+    return holdout.k > 0 and inputs.validation_contacts is None and (inputs.validation is None
+                                                                       or inputs.contacts is not None)
+
+
+def in_use(fit: Fit, before: np.ndarray, inputs: Inputs, holdout: Holdout, options: Options,
+           held_before: HeldOut | None = None) -> tuple[AccuracyInUse | None, PoseErrors | None, tuple[str, ...]]:
     """The accuracy in use before and after calibration, and the errors on held-out measured points:
     on the validation set when given (base and markers registered on it for both models when asked,
     or when nothing fitted fixes a frame), else each observation predicted by the fit on the other
-    groups (the nominal's registration of base and markers refitted there too, its fold steps from
-    ``before_at``, where the registration's solve took its last Jacobian, as the fit's are)."""
+    groups, against ``held_before`` (``held_out_nominal``; None: nothing cross-validated)."""
     design, problem, p = fit.design, fit.problem, fit.solution.p
     if inputs.validation is not None:
         return _validation_points(fit, before, inputs.validation, options)
     if inputs.validation_contacts is not None:
         return _validation_contacts(fit, before, inputs.validation_contacts), None, ()
-    if holdout.k == 0:
+    if held_before is None:
         return None, None, ()
-    placed = placed_parameters(design)
-    only = len(placed) == len(design.identifiability.identified)
-    held_before = fit.held_out if only else (
-        cross_validate(problem.over(placed), before, holdout, folds=folds, at=before_at) if placed
-        else _everywhere(problem, before))
+    only = len(placed_parameters(design)) == len(design.identifiability.identified)
     pts = problem.points
     fitted = np.zeros((0, 3)) if pts is None else problem.observation_errors(p)["tracker"][0]   # kept by the fit
     noise = (0.0, 0.0) if pts is None else instrument_variance(problem.noise, pts.data, fitted)
@@ -492,10 +508,11 @@ def warn_checks(checks) -> None:
 
 # -- the record ------------------------------------------------------------------------------------
 
-def contact_figures(inputs: Inputs, analysis: Analysis, fit: Fit, before: np.ndarray, cov: Covariance
-                    ) -> ContactFigures | None:
-    """What contacts add to the record: the kit's figures before and after, fitted, held out by
-    placement and on held-out contacts, the nuisance estimates, each kind's residual ratio."""
+def contact_figures(inputs: Inputs, analysis: Analysis, fit: Fit, before: np.ndarray, cov: Covariance,
+                    held_before: HeldOut | None = None) -> ContactFigures | None:
+    """What contacts add to the record: the kit's figures before and after, fitted, and on held-out
+    contacts or else each placement predicted by the others (``held_before``: the nominal model's
+    errors there, ``held_out_nominal``), the nuisance estimates, each kind's residual ratio."""
     problem, p = fit.problem, fit.solution.p
     if problem.contacts is None or inputs.contacts is None or analysis.reach is None:
         return None
@@ -504,8 +521,11 @@ def contact_figures(inputs: Inputs, analysis: Analysis, fit: Fit, before: np.nda
     val_rows = None if inputs.validation_contacts is None else ContactRows.of(
         fit.design.start, inputs.validation_contacts, fit.design.identifiability.identified,
         compliance=fit.design.compliance)
-    held = fit.held_out.contact_errors
-    held_figures = figures(rows, held) if held is not None and np.isfinite(held[:, 0]).any() else None
+    cross_before = cross_after = None
+    nominal, calibrated = None if held_before is None else held_before.contact_errors, fit.held_out.contact_errors
+    # held-out placements judge the calibration when given: the others' cross-validation is not shown beside
+    if val_rows is None and nominal is not None and calibrated is not None and np.isfinite(calibrated[:, 0]).any():
+        cross_before, cross_after = figures(rows, nominal), figures(rows, calibrated)
     ratios = {kind: float(np.sqrt(np.mean((e / (s if s is not None else np.full(len(e), options_noise(problem)))
                                            [:, None]) ** 2)))
               for kind, (e, s, _) in problem.observation_errors(p).items()}
@@ -515,8 +535,9 @@ def contact_figures(inputs: Inputs, analysis: Analysis, fit: Fit, before: np.nda
         fit_before=figures(rows, rows.own_errors(before[:n])), fit_after=figures(rows, rows.own_errors(p[:n])),
         validation_before=None if val_rows is None else figures(val_rows, val_rows.own_errors(before[:n])),
         validation_after=None if val_rows is None else figures(val_rows, val_rows.own_errors(p[:n])),
-        held_out=held_figures, noise_ratio=ratios, weak=fit.design.weak, weak_kept=fit.design.weak_kept,
-        rows=recordings(inputs.contacts, inputs.data), source=inputs.contacts.source or "")
+        held_out_before=cross_before, held_out=cross_after, noise_ratio=ratios, weak=fit.design.weak,
+        weak_kept=fit.design.weak_kept, rows=recordings(inputs.contacts, inputs.data),
+        source=inputs.contacts.source or "")
 
 
 def point_misfit(fit: Fit, options: Options) -> float | None:
@@ -559,10 +580,10 @@ def error_summaries(fitted: PoseErrors | None, val: PoseErrors | None) -> tuple[
 
 
 def record(inputs: Inputs, analysis: Analysis, fit: Fit, before: np.ndarray, cov: Covariance,
-           found: tuple[ParameterEstimate, ...], judged: tuple, options: Options, notes: tuple[str, ...]
-           ) -> CalibrationResult:
+           found: tuple[ParameterEstimate, ...], judged: tuple, options: Options, notes: tuple[str, ...],
+           held_before: HeldOut | None = None) -> CalibrationResult:
     """The calibration's record: estimates, covariance, errors before and after, the accuracy in
-    use, the checks."""
+    use, the checks (``held_before``: the nominal model's cross-validated errors, ``held_out_nominal``)."""
     checks, in_use_record, val, cover, limit, fitted = judged
     solution, design = fit.solution, fit.design
     k = len(found)
@@ -577,7 +598,8 @@ def record(inputs: Inputs, analysis: Analysis, fit: Fit, before: np.ndarray, cov
         families=options.parameters,
         fit=fitted.pose_set() if fitted is not None else PoseSet.empty(inputs.model),
         validation=None if val is None else val.pose_set(), stats=stats, rotation_stats=rotation_stats,
-        in_use=in_use_record, coverage=cover, limit=limit, contacts=contact_figures(inputs, analysis, fit, before, cov),
+        in_use=in_use_record, coverage=cover, limit=limit,
+        contacts=contact_figures(inputs, analysis, fit, before, cov, held_before),
         checks=tuple(checks), notes=notes,
         provenance=provenance(inputs.data, inputs.validation, inputs.contacts, inputs.validation_contacts))
     # the calibrated model says what it is, wherever it is written (never the nominal model's words)

@@ -935,14 +935,14 @@ def _contact_cell(value, key: str) -> str:
 
 
 def _contact_sets(c: ContactFigures) -> list[tuple[str, str, ContactErrors]]:
-    """(key, heading, ContactErrors) of every set of figures the calibration holds."""
-    out = [("fit_before", "fitted, nominal", c.fit_before), ("fit_after", "fitted, calibrated", c.fit_after)]
-    if c.validation_after is not None and c.validation_before is not None:
-        out += [("validation_before", "held out, nominal", c.validation_before),
-                ("validation_after", "held out, calibrated", c.validation_after)]
-    if c.held_out is not None:
-        out.append(("held_out", "each placement predicted by the others", c.held_out))
-    return out
+    """(key, heading, ContactErrors) of every set of figures the calibration holds: the fitted
+    placements' (fitted, then each predicted by the others), then the held-out placements'."""
+    named = [("fit_before", "fitted, nominal", c.fit_before), ("fit_after", "fitted, calibrated", c.fit_after),
+             ("held_out_before", "each placement predicted by the others, nominal", c.held_out_before),
+             ("held_out", "each placement predicted by the others, calibrated", c.held_out),
+             ("validation_before", "held out, nominal", c.validation_before),
+             ("validation_after", "held out, calibrated", c.validation_after)]
+    return [(key, label, e) for key, label, e in named if e is not None]
 
 
 def _contact_figures(c: ContactFigures) -> str:

@@ -13,6 +13,7 @@ from .._base.arguments import (
     is_a,
 )
 from .._identification.checks import Check
+from .._identification.contact_figures import ContactErrors
 from .._identification.identifiability import IdentifiabilityResult
 from .._identification.result import CalibrationResult, Comparison
 from .._model.parameters import BACKLASH_KINDS, BASE_KINDS, FRAME_KINDS, MARKER_KINDS, parameter_layout
@@ -401,28 +402,34 @@ def _mm(v) -> str:
     return "–" if v is None else with_unit(v, "m")
 
 
+def _rms(values) -> float | None:
+    return float(np.sqrt(np.mean(np.square(list(values))))) if values else None
+
+
 def _figures(label: str, before, after) -> list[str]:
-    """Mean socket spread, known-distance RMS error, plane RMS and ball-bar RMS error, before -> after."""
+    """Mean socket spread, socket consistency, known-distance RMS error and spacing error, plane RMS
+    and ball-bar RMS error, before -> after; ``before`` None ("–": a result file without it)."""
+    b = before if before is not None else ContactErrors({}, {}, {}, {})
     out = []
-    if before.spread:
-        out.append(f"  {label} socket spread (RMS about each socket's centre, mean over {len(before.spread)}): "
-                   f"{_mm(before.mean_spread)} -> {_mm(after.mean_spread)}")
-    if before.consistency:
+    if after.spread:
+        out.append(f"  {label} socket spread (RMS about each socket's centre, mean over {len(after.spread)}): "
+                   f"{_mm(b.mean_spread)} -> {_mm(after.mean_spread)}")
+    if after.consistency:
         out.append(f"  {label} socket consistency (each seating's distance from its socket's mean centre), "
-                   f"mean over seatings: {_mm(before.consistency_mean)} -> {_mm(after.consistency_mean)}; "
-                   f"mean over placements: {_mm(before.consistency_by_placement)} -> "
+                   f"mean over seatings: {_mm(b.consistency_mean)} -> {_mm(after.consistency_mean)}; "
+                   f"mean over placements: {_mm(b.consistency_by_placement)} -> "
                    f"{_mm(after.consistency_by_placement)}; "
-                   f"max: {_mm(before.consistency_max)} -> {_mm(after.consistency_max)}")
-    if before.distance:
-        out.append(f"  {label} known distances, RMS error over {len(before.distance)}: "
-                   f"{_mm(before.distance_rms)} -> {_mm(after.distance_rms)}")
-        out.append(f"  {label} spacing error (calibrated minus known), mean |e|: {_mm(before.spacing_mean)} -> "
-                   f"{_mm(after.spacing_mean)}; max |e|: {_mm(before.spacing_max)} -> {_mm(after.spacing_max)}")
+                   f"max: {_mm(b.consistency_max)} -> {_mm(after.consistency_max)}")
+    if after.distance:
+        out.append(f"  {label} known distances, RMS error over {len(after.distance)}: "
+                   f"{_mm(b.distance_rms)} -> {_mm(after.distance_rms)}")
+        out.append(f"  {label} spacing error (calibrated minus known), mean |e|: {_mm(b.spacing_mean)} -> "
+                   f"{_mm(after.spacing_mean)}; max |e|: {_mm(b.spacing_max)} -> {_mm(after.spacing_max)}")
     for name, kind in (("plane", "plane contacts, RMS distance to their plane"), ("bar", "ball-bar length error")):
-        b, a = getattr(before, name), getattr(after, name)
-        if b:
-            rms = [float(np.sqrt(np.mean(np.square(list(d.values()))))) for d in (b, a)]
-            out.append(f"  {label} {kind}, RMS over {len(b)}: {_mm(rms[0])} -> {_mm(rms[1])}")
+        a = getattr(after, name)
+        if a:
+            out.append(f"  {label} {kind}, RMS over {len(a)}: {_mm(_rms(getattr(b, name).values()))} -> "
+                       f"{_mm(_rms(a.values()))}")
     return out
 
 
@@ -453,7 +460,7 @@ def contact_summary(result, shown=()) -> str:
     if c.validation_before is not None:
         lines += _figures("held-out", c.validation_before, c.validation_after)
     if c.held_out is not None:
-        lines += _figures("each placement predicted by the others,", c.fit_before, c.held_out)
+        lines += _figures("each placement predicted by the others,", c.held_out_before, c.held_out)
     tracker, held = result.stats.fit_after, result.stats.validation_after
     if tracker.n:
         lines.append(f"  tracker points: {_mm(result.stats.fit_before.rms)} -> {_mm(tracker.rms)} RMS over "
