@@ -8,6 +8,7 @@ import re
 import shutil
 import subprocess
 import sys
+import warnings
 from dataclasses import replace
 from html.parser import HTMLParser
 from pathlib import Path
@@ -799,6 +800,35 @@ def test_summary_error_columns_stay_apart_past_999_mm():
         for name, cell in zip(("mean", "std", "RMS", "max"), cells[1:]):
             assert head.index(name) + len(name) == line.index(cell) + len(cell)
     assert len(lines) == 4
+
+
+def test_a_contact_report_shows_the_held_out_placements_sockets_and_spacings(tmp_path):
+    """With placements held out, the page's per-socket and spacing tables hold their sockets with their
+    figures, nominal and calibrated, as result.json does (they were left out: only the fitted
+    placements' sockets had rows, their "held out" cells all "–"); no placement is then shown as
+    predicted by the others."""
+    from robocal._presentation.units import fmt
+    from robocal.sim import socket_campaign
+
+    arm7 = rc.read_model(ROOT / "examples" / "arm7" / "model.yaml")
+    true = rc.perturb_model(arm7, rc.identifiability(arm7, parameters=("frames", "markers")).identified, rng=3)
+    fit, held = socket_campaign(true, placements=3, poses_per_socket=10, joint_noise=2e-5, rng=3).split_placements(
+        ["P2"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        saved = _roundtrip(rc.calibrate(arm7, contacts=fit, validation=held))
+    html = _render(saved)
+    c = saved["contacts"]
+    for key in ("validation_before", "validation_after"):
+        sockets, spacings = c[key]["consistency_m"], c[key]["distance_error_m"]
+        assert {s.split("/")[0] for s in sockets} == {"P2"} and len(sockets) == 3 and len(spacings) == 3
+        for socket, figures in sockets.items():
+            for which in ("mean", "max"):
+                assert f'data-key="{key}.consistency.{socket}.{which}">{fmt(figures[which], "m")}<' in html
+        for pair, value in spacings.items():
+            assert f'data-key="{key}.spacing.{pair}">{fmt(value, "m")}<' in html
+    assert "Socket consistency, held-out placements" in html
+    assert c["held_out_by_placement"] is None and "predicted by the others" not in html
 
 
 def test_a_contact_calibration_report_renders_in_headless_chromium(chromium, cli, tmp_path):

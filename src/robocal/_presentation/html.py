@@ -970,22 +970,29 @@ def _contact_figures(c: ContactFigures) -> str:
 
 
 def _contact_sockets(c: ContactFigures) -> str:
-    """Per socket the mean and largest distance of its seatings from its centre; per known distance
-    the spacing error; in every set."""
+    """Per socket the mean and largest distance of its seatings from its centre, per known distance
+    the spacing error: for the fitted placements in their sets, then for the held-out ones in theirs."""
     sets = _contact_sets(c)
-    labels = list(c.fit_before.consistency)
-    rows = [f"<tr><td>{_e(s)}</td>" + "".join(
-        _contact_cell((e.consistency.get(s) or (None, None))[i], f"{key}.consistency.{s}.{'mean' if i == 0 else 'max'}")
-        for key, _, e in sets for i in (0, 1)) + "</tr>" for s in labels]
-    head = ["socket"] + [f"{label}: {what}" for _, label, _ in sets for what in ("mean", "max")]
-    out = _table(head, rows, cls="contacts", num_from=1) if rows else "<p>No socket contacts.</p>"
-    pairs = list(c.fit_before.distance)
-    if pairs:
+    out = ""
+    for group, those in (("fitted placements", [s for s in sets if not s[0].startswith("validation")]),
+                         ("held-out placements", [s for s in sets if s[0].startswith("validation")])):
+        if not those:
+            continue
+        first = those[0][2]
+        rows = [f"<tr><td>{_e(s)}</td>" + "".join(
+            _contact_cell((e.consistency.get(s) or (None, None))[i],
+                          f"{key}.consistency.{s}.{'mean' if i == 0 else 'max'}")
+            for key, _, e in those for i in (0, 1)) + "</tr>" for s in first.consistency]
+        if rows:
+            out += f"<h3>Socket consistency, {group}</h3>" + _table(
+                ["socket"] + [f"{label}: {what}" for _, label, _ in those for what in ("mean", "max")], rows,
+                cls="contacts", num_from=1)
         rows = [f"<tr><td>{_e(p)}</td>" + "".join(_contact_cell(e.distance.get(p), f"{key}.spacing.{p}")
-                                                   for key, _, e in sets) + "</tr>" for p in pairs]
-        out += "<h3>Spacing error (calibrated minus known distance)</h3>" + _table(
-            ["placement: sockets"] + [label for _, label, _ in sets], rows, cls="contacts", num_from=1)
-    return out
+                                                   for key, _, e in those) + "</tr>" for p in first.distance]
+        if rows:
+            out += f"<h3>Spacing error (calibrated minus known distance), {group}</h3>" + _table(
+                ["placement: sockets"] + [label for _, label, _ in those], rows, cls="contacts", num_from=1)
+    return out or "<p>No socket contacts.</p>"
 
 
 def _contact_parameters(result: CalibrationResult) -> str:
