@@ -32,9 +32,9 @@ def test_demo_writes_the_story_and_says_the_robot_is_simulated(reproduce, tmp_pa
     assert reproduce.main(["--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "simulated" in out and "dimensions chosen by robocal" in out
-    assert {"summary.md", "result.json", "result-geometric.json", "calibrated.yaml", "limit.json",
-            "report.html"} <= {p.name for p in tmp_path.iterdir()}
-    result = json.loads((tmp_path / "result.json").read_text())
+    assert {"summary.md", "result.json", "result-geometric.json", "result-compliance.json", "calibrated.yaml",
+            "limit.json", "report.html"} <= {p.name for p in tmp_path.iterdir()}
+    result = json.loads((tmp_path / "result-compliance.json").read_text())
     geo = json.loads((tmp_path / "result-geometric.json").read_text())
     before = result["stats"]["validation_before"]["mean"]
     # the paper's pattern on the shipped campaign: geometry cuts the error at least threefold,
@@ -47,7 +47,7 @@ def test_demo_writes_the_story_and_says_the_robot_is_simulated(reproduce, tmp_pa
     nominal = rc.read_model(TH8 / "model.yaml")
     fit, _ = rc.split_sets(rc.read_measurements(TH8 / "measurements.csv", nominal))
     ident = rc.identifiability(nominal, fit, parameters=("geometric", "compliance"), known=("markers",))
-    used = rc.read_result(tmp_path / "result.json").identifiability
+    used = rc.read_result(tmp_path / "result-compliance.json").identifiability
     weak = {a.name for a in used.eliminated if a.reason.startswith("is weakly identifiable")}
     # what the structure separates at these poses, less what the data cannot pin down (a member of
     # the same dependent group may then carry it)
@@ -74,10 +74,23 @@ def test_demo_writes_the_story_and_says_the_robot_is_simulated(reproduce, tmp_pa
     assert geo["verdict"] == "warn" and [c["name"] for c in geo["checks"] if c["status"] != "pass"] == [
         "limit of absolute accuracy"]
     assert out.rstrip().splitlines()[-3].startswith("verdict: pass")
-    assert "geometric alone: verdict: warn (1 warning(s): limit of absolute accuracy)" in out
-    # the checks listed are the combined identification's, and say so (they read as geometry's before)
-    said = out.index("geometric and compliance (result.json), check by check:")
-    assert out.index("geometric alone: verdict") < said < out.index("  ok   limit of absolute accuracy")
+    assert "geometric (result-geometric.json): verdict: warn (1 warning(s): limit of absolute accuracy)" in out
+    # the checks listed are the kept identification's, and say so (they read as geometry's before)
+    said = out.index("kept, the best in use of those that helped: geometric, compliance, backlash and transmission "
+                     "(result.json and calibrated.yaml; result-transmission.json), check by check:")
+    geometric = out.index("geometric (result-geometric.json): verdict")
+    assert geometric < said < out.index("  ok   limit of absolute accuracy")
+    # result.json is the result of the model calibrated.yaml holds (what `robocal record` stores and
+    # `robocal compensate` uses), the kept one; every other identification has its own file
+    kept = rc.read_result(tmp_path / "result.json")
+    written = rc.read_model(tmp_path / "calibrated.yaml")
+    assert "transmission" in {p["family"] for p in json.loads((tmp_path / "result.json").read_text())["parameters"]}
+    assert rc.parameter_names(written) == rc.parameter_names(kept.calibrated_model)
+    np.testing.assert_allclose(rc.parameter_vector(written), rc.parameter_vector(kept.calibrated_model),
+                               rtol=1e-12, atol=1e-15)
+    assert kept.verdict == "pass" and "verdict: pass" in (tmp_path / "calibrated.yaml").read_text()
+    named, chosen = (json.loads((tmp_path / f).read_text()) for f in ("result-transmission.json", "result.json"))
+    assert named.pop("errors")["file"]["sha256"] == chosen.pop("errors")["file"]["sha256"] and named == chosen
     assert "simulated" in (tmp_path / "summary.md").read_text()
 
 

@@ -276,18 +276,24 @@ def one(nominal, out: Path | None):
     lines += identifiability_table(cmp.combined, nominal.frame_names)
     lines += ["", f"## Backlash (the third identification, {nominal.backlash_side}-sided where the load beats "
               "each transmission's friction, behind the last move elsewhere)", ""] + backlash_lines(cmp)
-    # the verdict is the story's last line, as in `robocal calibrate`
-    lines += ["", "## Checks of both identifications", "", "geometric alone: " + verdict_line(cmp.geometric), ""]
-    lines += ["geometric and compliance (result.json), check by check:", ""]
-    lines += checks_lines(cmp.combined.checks) + ["", verdict_line(cmp.combined)]
+    # the verdict of the model kept is the story's last line, as in `robocal calibrate --compare`
+    best = cmp.best
+    kept = next(k for k, r in cmp.results.items() if r is best)
+    lines += ["", "## Checks of each identification", ""]
+    lines += [f"{k} ({_result_name(k)}): {verdict_line(r)}" for k, r in cmp.results.items() if r is not best]
+    lines += ["", f"kept, the best in use of those that helped: {kept} (result.json and calibrated.yaml; "
+              f"{_result_name(kept)}), check by check:", ""]
+    lines += checks_lines(best.checks) + ["", verdict_line(best)]
     print("\n".join(lines))
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
         (out / "summary.md").write_text("\n".join(lines) + "\n")
-        rc.write_result(cmp.geometric, out / "result-geometric.json", force=True)
-        rc.write_result(cmp.combined, out / "result.json", force=True)
-        rc.write_result(cmp.backlash, out / "result-backlash.json", force=True)
-        rc.write_model(cmp.best.calibrated_model, out / "calibrated.yaml", force=True)
+        # each identification under its own name, the one kept as result.json beside its model
+        for key, res in cmp.results.items():
+            rc.write_result(res, out / _result_name(key), force=True)
+        rc.write_result(best, out / "result.json", force=True)
+        rc.write_model(best.calibrated_model, out / "calibrated.yaml", force=True,
+                       calibration=rc.io.calibration_record(best))
         (out / "limit.json").write_text(json.dumps(rc.io.limit_to_dict(limit), indent=2))
         if importlib.util.find_spec("matplotlib") is None:
             print("(report extra not installed: no report.html)")
@@ -300,6 +306,12 @@ def one(nominal, out: Path | None):
             # the report of the file just written, as `robocal report` would draw it
             rc.write_report(rc.read_result(out / "result.json"), out / "report.html", force=True, extra=extra)
         print(f"\nwritten: {', '.join(sorted(p.name for p in out.iterdir()))} in {out}")
+
+
+def _result_name(key: str) -> str:
+    """An identification's result file, by the family it adds (as `robocal calibrate --compare`
+    names them): result-geometric.json, result-compliance.json, result-backlash.json ..."""
+    return f"result-{key.rsplit(' ', 1)[-1]}.json"
 
 
 def gravity_displacement(true, n=2000):
