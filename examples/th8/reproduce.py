@@ -402,7 +402,8 @@ def main(argv=None):
     ap.add_argument("--seeds", type=int, default=0, help="run this many simulated campaigns instead")
     ap.add_argument("--write-data", action="store_true", help="regenerate the shipped campaign files")
     ap.add_argument("--size-backlash", action="store_true",
-                    help="find the base's lost motion that matches the paper's geometric result (about 30 s)")
+                    help="find the base's lost motion that matches the paper's geometric result "
+                         "(about a minute of CPU time)")
     ap.add_argument("--backlash-base-arcmin", type=float, default=None,
                     help=f"with --seeds: the base's lost motion, arc minutes (default {BACKLASH_BASE_ARCMIN:g}; "
                          f"the wrist's is {WRIST_TO_BASE:g} times it; 0: no lost motion anywhere)")
