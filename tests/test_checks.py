@@ -251,6 +251,15 @@ def test_blunder_is_named_and_refitted_or_failed(tmp_path, cli):
     code, out, _, result = _calibrate(tmp_path, cli, m, lines, "--on-outliers", "flag")
     outliers = next(c for c in result["checks"] if c["name"] == "outliers")
     assert outliers["status"] == "warn" and "kept in the fit" in outliers["summary"]
+    # flag names them and warns, it does not fail; refit sets them aside with the linear loss, no
+    # robust loss: the help and docs/cli.md say so
+    assert code == 0 and result["verdict"] == "warn" and not any("set aside" in n for n in result["notes"])
+    _, shown, _ = cli("calibrate", "--help")
+    shown = " ".join(shown[shown.index("--on-outliers {refit,flag}\n"):].split("\n  --")[0].split())
+    row = next(line for line in (Path(__file__).resolve().parents[1] / "docs" / "cli.md").read_text().splitlines()
+               if line.startswith("| `--on-outliers"))
+    for said in (shown, row):
+        assert "set aside" in said and "robust loss" not in said and "fail" not in said.replace("does not fail", "")
 
 
 def test_noise_only_data_calibrated_with_compliance(tmp_path, cli):

@@ -76,7 +76,9 @@ def register(sub) -> None:
     g.add_argument("--noise-deg", type=common.noise_deg, metavar="X",
                    help="expected rotation noise of 6D measurements, degrees (overrides the instrument's)")
     g.add_argument("--on-outliers", choices=OUTLIER_ACTIONS, default="refit",
-                   help="refit with a robust loss when a few points stand out (default), or only name them")
+                   help="refit: set aside measured points that stand out alone (blunders) and fit again without "
+                        "them, kept when that lowers the cross-validated error (default; linear loss); flag: only "
+                        "name them, kept in the fit (the outliers check warns); docs/checks.md")
     g.add_argument("--weak", choices=WEAK_ACTIONS, default="eliminate",
                    help="hold weakly identifiable parameters at nominal (default), or keep them and warn")
     g.add_argument("--nonnegative-compliance", action="store_true", help="keep identified compliances >= 0")
