@@ -49,11 +49,16 @@ def continued(lines, prompts) -> list[str]:
     return out
 
 
-def help_examples() -> list[str]:
-    """The example commands of ``robocal --help`` and of each command's ``--help``, in that order."""
+def parsers() -> dict[str, argparse.ArgumentParser]:
+    """The parser of ``robocal`` and of each command, by name ("robocal" for the top level)."""
     parser = build_parser()
     sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-    return [c for p in (parser, *sub.choices.values()) for c in continued((p.epilog or "").splitlines(), ("  ",))]
+    return {"robocal": parser, **sub.choices}
+
+
+def help_examples() -> list[str]:
+    """The example commands of ``robocal --help`` and of each command's ``--help``, in that order."""
+    return [c for p in parsers().values() for c in continued((p.epilog or "").splitlines(), ("  ",))]
 
 
 def console_outputs(path: Path) -> dict[str, list[str]]:
@@ -174,6 +179,29 @@ def test_the_readme_shows_what_make_demo_prints(after_demo):
                  and p.startswith(head)]
         assert found, f"README shows, the demo does not print (after line {at}): {line!r}"
         at = found[0] + 1
+
+
+def test_every_document_named_exists():
+    # a reader sent to "METHOD.md section 5" finds nothing: every .md a document or a --help names
+    # is a file of the repository (from its root or beside the document), and every "section N" of
+    # docs/method.md it cites is one of its numbered sections
+    written = {"summary.md"}                            # what the demo writes, not a document
+    texts = {str(p.relative_to(ROOT)): p.read_text() for p in
+             [ROOT / "README.md", *ROOT.glob("docs/*.md"), *ROOT.glob("examples/*/README.md"),
+              *ROOT.glob("benchmarks/*.md")]}
+    texts.update({f"{n} --help": p.format_help() for n, p in parsers().items()})
+    sections = set(re.findall(r"^## (\d+)\. ", (ROOT / "docs" / "method.md").read_text(), re.M))
+    missing = []
+    for where, text in texts.items():
+        here = (ROOT / where).parent if where.endswith(".md") else ROOT
+        text = " ".join(text.split())
+        for name in set(re.findall(r"[\w./-]+\.md\b", text)) - written:
+            if not (ROOT / name).is_file() and not (here / name).is_file():
+                missing.append(f"{where}: {name}")
+        for n in re.findall(r"method\.md,? sections? (\d+)", text):
+            if n not in sections:
+                missing.append(f"{where}: docs/method.md section {n}")
+    assert missing == [], missing
 
 
 def test_the_readme_says_when_the_postgresql_tests_are_skipped():
