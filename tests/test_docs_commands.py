@@ -204,6 +204,22 @@ def test_every_document_named_exists():
     assert missing == [], missing
 
 
+def test_the_checks_doc_says_where_each_threshold_it_names_is_defined():
+    # "every threshold is in checks.py, holdout.py or identifiability.py" while CARRIED_ALONE was in
+    # solve.py: each constant docs/checks.md names is defined in a file its statement names
+    doc = (ROOT / "docs" / "checks.md").read_text()
+    statement = " ".join(doc.split("Every threshold below", 1)[1].split("\n\n", 1)[0].split())
+    defined = {}
+    for path in (ROOT / "src" / "robocal").rglob("*.py"):
+        for name in re.findall(r"^([A-Z][A-Z0-9_]+)(?:: [^=\n]+)? = ", path.read_text(), re.M):
+            defined.setdefault(name, []).append(path)
+    named = {n for n in re.findall(r"`([A-Z][A-Z0-9_]{2,})`", doc) if n in defined}
+    assert len(named) >= 20
+    unsaid = [f"{n}: {', '.join(p.name for p in defined[n])}" for n in sorted(named)
+              if not any(p.name in statement for p in defined[n])]
+    assert unsaid == [], unsaid
+
+
 def test_the_readme_says_when_the_postgresql_tests_are_skipped():
     store_tests = (ROOT / "tests" / "test_store.py").read_text()
     readme = (ROOT / "README.md").read_text()
