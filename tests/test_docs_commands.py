@@ -9,6 +9,7 @@ import argparse
 import contextlib
 import importlib.util
 import io
+import json
 import os
 import re
 import shlex
@@ -218,6 +219,16 @@ def test_the_checks_doc_says_where_each_threshold_it_names_is_defined():
     unsaid = [f"{n}: {', '.join(p.name for p in defined[n])}" for n in sorted(named)
               if not any(p.name in statement for p in defined[n])]
     assert unsaid == [], unsaid
+
+
+def test_the_result_file_doc_names_every_column_of_the_identifiability_table(after_demo):
+    # docs/formats.md listed the geometric and compliance columns only; the demo's result holds
+    # backlash and transmission ones too
+    rows = json.loads((after_demo[0] / "runs" / "th8" / "result.json").read_text())["identifiability_table"]
+    doc = next(line for line in (ROOT / "docs" / "formats.md").read_text().splitlines()
+               if line.startswith("| `identifiability_table` |"))
+    assert re.findall(r"`(\w+)`", doc.split("docs/conventions.md:", 1)[1]) == [k for k in rows[0] if k != "frame"]
+    assert "`frame`" in doc and {r["frame"] for r in rows} == {"j1", "j2", "j3", "j4", "j5", "j6"}
 
 
 def test_the_readme_says_when_the_postgresql_tests_are_skipped():
