@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import importlib.util
 import io
 import json
@@ -19,6 +20,7 @@ from pathlib import Path
 
 import pytest
 
+import robocal.io
 from robocal.cli import build_parser
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -229,6 +231,14 @@ def test_the_result_file_doc_names_every_column_of_the_identifiability_table(aft
                if line.startswith("| `identifiability_table` |"))
     assert re.findall(r"`(\w+)`", doc.split("docs/conventions.md:", 1)[1]) == [k for k in rows[0] if k != "frame"]
     assert "`frame`" in doc and {r["frame"] for r in rows} == {"j1", "j2", "j3", "j4", "j5", "j6"}
+
+
+def test_the_bag_reader_doc_names_where_its_campaign_keeps_each_part():
+    # "returns a BagCampaign: the Measurements, the model, ..." left the reader to guess `.data`
+    doc = " ".join((ROOT / "docs" / "formats.md").read_text().split())
+    said = doc.split("`robocal.io.read_bag(", 1)[1].split("## ", 1)[0]
+    assert [f"`.{f.name}`" for f in dataclasses.fields(robocal.io.BagCampaign) if f"`.{f.name}`" not in said] == []
+    assert [f"`{f.name}`" for f in dataclasses.fields(robocal.io.Left) if f"`{f.name}`" not in said] == []
 
 
 def test_the_readme_says_when_the_postgresql_tests_are_skipped():
