@@ -16,11 +16,12 @@ import re
 import shlex
 import shutil
 import subprocess
+import warnings
 from pathlib import Path
 
 import pytest
 
-import robocal.io
+import robocal as rc
 from robocal.cli import build_parser
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -237,8 +238,23 @@ def test_the_bag_reader_doc_names_where_its_campaign_keeps_each_part():
     # "returns a BagCampaign: the Measurements, the model, ..." left the reader to guess `.data`
     doc = " ".join((ROOT / "docs" / "formats.md").read_text().split())
     said = doc.split("`robocal.io.read_bag(", 1)[1].split("## ", 1)[0]
-    assert [f"`.{f.name}`" for f in dataclasses.fields(robocal.io.BagCampaign) if f"`.{f.name}`" not in said] == []
-    assert [f"`{f.name}`" for f in dataclasses.fields(robocal.io.Left) if f"`{f.name}`" not in said] == []
+    assert [f"`.{f.name}`" for f in dataclasses.fields(rc.io.BagCampaign) if f"`.{f.name}`" not in said] == []
+    assert [f"`{f.name}`" for f in dataclasses.fields(rc.io.Left) if f"`{f.name}`" not in said] == []
+
+
+def test_folds_are_described_as_the_cross_validation_makes_them():
+    # calibrate --help said "consecutive blocks of poses, or the file's series": a campaign of random
+    # poses is cross-validated on folds drawn at random, which the help and docs/cli.md must say
+    model = rc.read_model(ROOT / "examples" / "th8" / "model.yaml")
+    _, data = rc.simulate(model, 40, seed=1, noise=2e-5)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        grouping = rc.calibrate(model, data, known=("markers",)).in_use.grouping
+    assert grouping == "5 folds drawn at random"
+    shown = " ".join(parsers()["calibrate"].format_help().split("\n  --folds K", 1)[1].split("\n  --")[0].split())
+    row = next(line for line in (ROOT / "docs" / "cli.md").read_text().splitlines() if line.startswith("| `--folds"))
+    for said in (shown, row):
+        assert "drawn at random" in said and "series" in said and "consecutive poses" in said, said
 
 
 def test_the_readme_says_when_the_postgresql_tests_are_skipped():

@@ -59,8 +59,10 @@ def register(sub) -> None:
     p.add_argument("--limit-mm", type=common.limit_mm, metavar="X|LIMIT.json",
                    help="limit of absolute accuracy to judge against: mm, or the file 'robocal limit --out' wrote")
     p.add_argument("--folds", type=common.integer(2, 1000), default=5, metavar="K",
-                   help="folds of the cross-validation that estimates the accuracy in use without --validation: "
-                        "consecutive blocks of poses, or the file's series (default 5)")
+                   help="folds of the cross-validation that estimates the accuracy in use without --validation "
+                        "(default 5): the file's series where it has a series column (K unused), else K blocks of "
+                        "consecutive poses where consecutive poses are neighbours, else K folds drawn at random "
+                        "(the same draw every run)")
     p.add_argument("--register-validation", action="store_true",
                    help="with --validation from another set-up: register base and tool on it before judging")
     p.add_argument("--seed", type=common.seed, default=0, help="seed of the --holdout split (default 0)")
