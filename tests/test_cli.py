@@ -189,6 +189,19 @@ def test_simulate_then_identifiability(tmp_path, cli):
     assert code == 0 and "30 random poses" in out2
 
 
+def test_identifiability_of_a_file_analyses_the_poses_calibrate_fits(cli):
+    # the TH8 file holds 48 poses to fit and 48 marked validation: what these data can identify is
+    # what calibrate identifies from the 48 it fits, not from all 96
+    th8 = Path(__file__).resolve().parents[1] / "examples" / "th8"
+    nominal = read_model(th8 / "model.yaml")
+    fit, held = rc.split_sets(rc.read_measurements(th8 / "measurements.csv", nominal))
+    res = rc.identifiability(nominal, fit)
+    code, out, err = cli("identifiability", th8 / "model.yaml", th8 / "measurements.csv")
+    assert code == 0, err
+    assert f"at the {fit.n_poses} poses of " in out and f"the {held.n_poses} validation rows left out" in out
+    assert f"(rank {res.rank}, {res.n_rows} equations)" in out and res.n_rows == 3 * fit.n_poses == 144
+
+
 def test_help_for_every_command(cli):
     for cmd in ("calibrate", "simulate", "identifiability", "report", "limit", "import-urdf"):
         code, out, err = cli(cmd, "--help")

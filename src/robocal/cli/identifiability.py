@@ -12,7 +12,8 @@ EXAMPLE = """examples:
 def register(sub) -> None:
     p = common.command(sub, "identifiability",
                        summary="which parameters can be identified, and what absorbs the others",
-                       description="Identifiability of the parameters at the poses of CSV, or at --poses random "
+                       description="Identifiability of the parameters at the poses of CSV that calibrate fits "
+                                   "(without the rows its 'set' column marks validation), or at --poses random "
                                    "poses within the joint limits.",
                        example=EXAMPLE,
                        inputs=[("model", "MODEL", "model file (YAML)"),
@@ -27,10 +28,12 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    from .._files.measurements import split_sets
     from .._files.model import read_model
 
     model = common.masses_as_asked(args, read_model(args.model))
-    data = common.read_data(args, model, args.csv) if args.csv else None
+    # the poses calibrate would fit: rows a `set` column holds out are not part of the identification
+    data, held = split_sets(common.read_data(args, model, args.csv)) if args.csv else (None, None)
     # imported once the inputs are read: refusing them needs none of the analysis (a second of imports)
     from .._identification.identifiability import identifiability
     from .._presentation.text import identifiability_summary
@@ -40,8 +43,10 @@ def run(args) -> int:
     if not res.identified:
         raise DegenerateDataError(f"no parameter is identifiable at tolerance {args.tol:g}; the condition number is "
                                   "undefined")
-    where = f"the {data.n_poses} poses of {args.csv}" if data is not None else \
-        f"{args.poses} random poses (seed {args.seed}) within the joint limits"
+    where = f"{args.poses} random poses (seed {args.seed}) within the joint limits" if data is None else \
+        f"the {data.n_poses} poses of {args.csv}" if held is None else \
+        f"the {data.n_poses} poses of {args.csv} that calibrate fits (column 'set'; the {held.n_poses} validation " \
+        "rows left out)"
     print(identifiability_summary(model, res, where))
     from .._model.parameters import matched_by_pattern
 
