@@ -5,6 +5,7 @@ the model's, with the value the data say; what the data cannot tell is said as s
 into the published UR5 and WAM campaigns (tests/real_mistakes.py) and simulated ones
 (tests/diagnosis_corpus.py); the whole corpus is benchmarks/diagnosis_corpus.py."""
 
+import importlib.util
 import json
 import re
 import warnings
@@ -185,6 +186,14 @@ def test_a_blunder_set_aside_is_the_only_cause():
     result = _calibrated(real.nominal("UR5"), replace(grid, positions=pos))
     assert [f.hypothesis for f in result.diagnosis.findings] == ["blunders"]
     assert result.diagnosis.rms < 0.07e-3
+    # a fact the calibration carries: noted (docs/diagnosis.md), not printed as a possible cause; the
+    # check warns, as the outliers check does
+    assert _first(result).noted and result.diagnosis.summary.startswith("noted: ")
+    summary = rc.report.calibration_summary(result)
+    assert "  noted: 1 measured point(s) are blunders" in summary and "possible cause" not in summary
+    if importlib.util.find_spec("matplotlib") is not None:       # the report extra draws the report
+        assert "<b>Noted:</b> 1 measured point(s) are blunders" in rc.report.render_report(result)
+    assert next(c for c in result.checks if c.name == "diagnosis").status == "warn"
 
 
 def test_a_refit_that_barely_helps_is_not_named():

@@ -154,7 +154,7 @@ def ranked(found: list[Finding], tested: tuple[str, ...], rms: float, misfit: st
     untested = tuple(untestable)
     if shown:
         first = shown[0]
-        strength = "decisive" if first.status == "fail" else "possible cause"
+        strength = "decisive" if first.status == "fail" else "noted" if first.noted else "possible cause"
         summary = f"{strength}: {first.cause} ({first.evidence})"
     else:
         summary = (f"nothing tested explains the misfit ({misfit}): none of the {len(tested)} explanations tested "

@@ -224,6 +224,12 @@ class Finding:
     def __post_init__(self) -> None:
         object.__setattr__(self, "items", tuple(self.items))
 
+    @property
+    def noted(self) -> bool:
+        """A fact the calibration already carries, noted rather than suspected: not decisive and
+        needing no refit (blunders it set aside, a joint that never moves, model-file values it took up)."""
+        return self.status == "warn" and self.rms_after is None
+
 
 @dataclass(frozen=True)
 class Diagnosis:

@@ -298,10 +298,13 @@ def _diagnosis_html(diag: dict | None) -> str:
 
 
 def _strength(f: dict, k: int) -> str:
-    """How a finding is introduced: decisive, a possible cause, or another beside the first."""
+    """How a finding is introduced: decisive, noted (a fact the calibration carries, no refit), a
+    possible cause, or another beside the first."""
     if k:
         return "Or"
-    return "Decisive" if f.get("status") == "fail" else "Possible cause"
+    if f.get("status") == "fail":
+        return "Decisive"
+    return "Noted" if f.get("rms_after_m") is None else "Possible cause"
 
 
 def _stats_table(d: dict, *, rotation: bool = False) -> str:

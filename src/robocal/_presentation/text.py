@@ -102,7 +102,7 @@ def diagnosis_lines(diagnosis, *, full: bool = False) -> list[str]:
     else:
         lines = ["diagnosis:"]
         for k, f in enumerate(diagnosis.findings):
-            strength = ("DECISIVE" if f.status == "fail" else "possible cause") if k == 0 else "or"
+            strength = "or" if k else "DECISIVE" if f.status == "fail" else "noted" if f.noted else "possible cause"
             lines.append(f"  {strength}: {f.cause}: {f.evidence}")
             lines += [f"    fix: {f.fix}"] if f.fix else []
     if full:
