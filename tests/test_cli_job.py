@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import assert_one_line_error
 from robots import arm6r
 
 import robocal as rc
@@ -181,6 +182,9 @@ def test_classic_dh_export_refuses_ill_conditioned_parallel_axes(tmp_path, cli):
     rc.write_model(true, tmp_path / "cal.yaml")
     code, _, err = cli("export", tmp_path / "cal.yaml", "--format", "dh-csv", "--out", tmp_path / "dh.csv")
     assert code == 2 and "ill-conditioned" in err and "j2" in err and not (tmp_path / "dh.csv").exists()
+    # one line as every refusal: the model file, where, what, and the option that writes it anyway
+    assert_one_line_error(code, err, [f"{tmp_path / 'cal.yaml'}: frames: classic DH is ill-conditioned",
+                                      "--allow-ill-conditioned"], command="export")
     code, _, err = cli("export", tmp_path / "cal.yaml", "--format", "dh-csv", "--out", tmp_path / "dh.csv",
                        "--allow-ill-conditioned")
     assert code == 0 and "warning" in err and "ill-conditioned" in err
@@ -253,7 +257,6 @@ def test_broken_pipe_is_quiet():
     ((",revolute,0,0,-425", ",rotary,0,0,-425"), ["line 6", "'joint'", "rotary"]),
 ], ids=["number", "joint-kind"])
 def test_import_dh_bad_table(edit, words, tmp_path, cli):
-    from conftest import assert_one_line_error
 
     text = ((ROOT / "examples/dh/ur5-dh.csv").read_text()).replace(*edit)
     (tmp_path / "t.csv").write_text(text)

@@ -35,11 +35,28 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
+def _exported(args, model) -> str:
+    """The text of ``model`` in ``args.format``; what its geometry refuses names the model file (and,
+    for a classic DH table it makes ill-conditioned, the option that writes it anyway)."""
+    from .._files.dh import dh_csv, mdh_csv
+    from .._files.urdf import urdf_text
+
+    writers = {"urdf": lambda: urdf_text(model), "mdh-csv": lambda: mdh_csv(model, units=args.units),
+               "dh-csv": lambda: dh_csv(model, units=args.units,
+                                        max_offset=float("inf") if args.allow_ill_conditioned else None)}
+    try:
+        return writers[args.format]()
+    except InputError as e:
+        if e.source is not None:
+            raise
+        hint = ", or --allow-ill-conditioned to write it anyway (with a warning)" if "ill-conditioned" in e.detail \
+            else ""
+        raise InputError(e.detail + hint, source=args.model, where=e.where) from None
+
+
 def run(args) -> int:
     from .._files.checked import check_export
-    from .._files.dh import dh_csv, mdh_csv
     from .._files.model import read_model
-    from .._files.urdf import urdf_text
     from .._model.conversion import to_standard_dh
 
     if args.format is None:
@@ -49,12 +66,8 @@ def run(args) -> int:
         args.format = "urdf"
     common.refuse_existing([args.out], args.force)
     model = read_model(args.model)
-    if args.format == "urdf":
-        text = urdf_text(model)
-    elif args.format == "mdh-csv":
-        text = mdh_csv(model, units=args.units)
-    else:
-        text = dh_csv(model, units=args.units, max_offset=float("inf") if args.allow_ill_conditioned else None)
+    text = _exported(args, model)
+    if args.format == "dh-csv":
         far = to_standard_dh(model, max_offset=float("inf")).offsets
         if far:
             print(f"robocal: warning: classic DH of {args.model} is ill-conditioned: offsets "
