@@ -237,8 +237,11 @@ def test_measured_points_judge_a_contact_calibration_in_use(cli, arm7, kit, tmp_
     from robocal.report import render_report
 
     page = render_report(back)
-    assert f'data-key="in_use.mean">{fmt(use.position_before.mean, "m")} &rarr; {fmt(use.position_after.mean, "m")}<' \
-        in page
+    # noise-free points, base and tool registered on them: nothing of the robot's is left once the
+    # instrument's noise is taken out, and the page says so rather than a bare 0 (a perfect robot)
+    assert use.position_after.rms == 0 and use.noise > 0 and "0 mm after" not in out
+    assert (f'data-key="in_use.mean">{fmt(use.position_before.mean, "m")} &rarr; within the instrument&#x27;s noise of '
+            f'{use.noise * 1e3:.4g} mm RMS<') in page
     code, _, err = cli("calibrate", ARM7, "--contacts", folder / "sockets.csv", "--out", tmp_path / "w",
                        "--validation", tmp_path / "val.csv", "--holdout-placement", "P2")
     assert_one_line_error(code, err, ["--validation", "--holdout-placement"], tmp_path / "w")

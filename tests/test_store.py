@@ -561,6 +561,104 @@ def test_a_robot_calibrated_from_seatings_is_verified_with_a_few_seatings():
     assert f"{then.rms * 1e3:.4f} mm RMS (held-out seatings" in type_summary(alone)
 
 
+@pytest.fixture(scope="module")
+def arm7_kit():
+    """A simulated 7-joint arm (examples/arm7), a socket plate at 4 placements (20 seatings per
+    socket) and 30 tracker points of it: (model, true robot, sockets, points)."""
+    from robocal.sim import socket_campaign
+
+    arm7 = rc.read_model(ROOT / "examples" / "arm7" / "model.yaml")
+    rng = np.random.default_rng(5)
+    true = rc.perturb_model(arm7, rc.identifiability(arm7).identified, rng=rng)
+    points = rc.measure(true, rc.random_configurations(arm7, 30, rng), noise=2e-5, rng=rng)
+    sockets = socket_campaign(true, placements=4, poses_per_socket=20, joint_noise=2e-5, rng=rng)
+    return arm7, true, sockets, points
+
+
+def _verdicts(store, robot, true, changed, model, n=40, **kwargs):
+    """(within accuracy of the unchanged robot, recalibrate of the changed one) over ``n`` verifications
+    of 20 tracker poses each."""
+    rng = np.random.default_rng(21)
+    counts = [0, 0]
+    for _ in range(n):
+        q = rc.random_configurations(model, 20, rng)
+        for k, (robot_now, says) in enumerate(((true, "within accuracy"), (changed, "recalibrate"))):
+            v, _ = rc.verify_robot(store, robot, rc.measure(robot_now, q, noise=2e-5, rng=rng), save=False, **kwargs)
+            counts[k] += v.verdict == says
+    return counts
+
+
+def test_tracker_points_and_seatings_together_are_verified_each_against_its_own_accuracy(arm7_kit, tmp_path):
+    """A calibration from tracker points and a socket plate together: its accuracy in use mixes the
+    240 held-out seatings' distances with the 30 points' errors. Held against that mixture, 20 new
+    tracker poses of the same robot said "recalibrate" (ratio 1.35 against 1.22); held against the
+    points' own cross-validated errors they are within accuracy, and the seatings against the
+    seatings' own."""
+    from robocal.sim import socket_campaign
+
+    arm7, true, sockets, points = arm7_kit
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = rc.calibrate(arm7, points, contacts=sockets)
+    rec = rc.stored_calibration(result, "T-02")
+    assert rec.accuracy.n == 30 and rec.accuracy.source == "fitted poses held out, 5 folds drawn at random"
+    assert rec.accuracy.rms == pytest.approx(result.in_use.measured_points.rms)
+    assert rec.seatings_accuracy == rc.accuracy_at_calibration(rc.io.result_to_dict(result), seatings=True)
+    assert rec.seatings_accuracy.source == "held-out seatings, each from its socket's centre"
+    with rc.open_store(tmp_path / "s.sqlite", create=True) as store:
+        back = replace(store.record(result, "T-02"), recorded_at=rec.recorded_at)
+        (read,) = store.calibrations("T-02")
+        assert (read.accuracy, read.seatings_accuracy) == (rec.accuracy, rec.seatings_accuracy) == \
+            (back.accuracy, back.seatings_accuracy)
+        within, named = _verdicts(store, "T-02", true, _drifted(true, "j3.r"), arm7)
+        assert within >= 38 and named >= 38, (within, named)
+        seated = socket_campaign(true, placements=1, poses_per_socket=8, joint_noise=2e-5, rng=99)
+        v, kept = rc.verify_robot(store, "T-02", seated)
+        assert v.verdict == "within accuracy" and v.then == rec.seatings_accuracy and kept.sockets == 3
+        text = rc.history_summary(rc.history(store, "T-02"))
+    assert "worst socket spread" in text and f"{rec.seatings_accuracy.rms * 1e3:.4f} mm RMS (held-out seatings" in text
+
+
+def test_a_figure_within_the_instruments_noise_is_said_so_and_a_tracker_validation_verifies(arm7_kit, tmp_path):
+    """Sockets to calibrate, 30 tracker points to judge it, base and tool registered on them: their
+    errors are within the instrument's noise, which the accuracy in use once said as "0 mm after (95 %
+    within 0 mm, max 0 mm)", the store as "in use 0.0000 mm RMS", and verify with tracker points was
+    refused ("the calibration's accuracy is of seatings") although the points judged it."""
+    arm7, true, sockets, points = arm7_kit
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = rc.calibrate(arm7, contacts=sockets, validation=points)
+    use = result.in_use
+    assert use.method == "validation, base and tool registered on it" and use.position_after.rms == 0
+    noise = f"within the instrument's noise of {use.noise * 1e3:.4g} mm RMS"
+    assert use.noise == pytest.approx(np.sqrt(3) * 2e-5, rel=0.3)
+    check = next(c for c in result.checks if c.name == "accuracy in use")
+    assert f"{noise} after on 30 held-out point(s)" in check.summary and " 0 mm" not in check.summary
+    from robocal.report import calibration_summary
+
+    assert any(line.split() == ["after", *noise.split()] for line in calibration_summary(result).splitlines())
+    rec = rc.stored_calibration(result, "T-01")
+    # the held-out points' errors as measured, over the degrees of freedom base and tool left (9 of 90)
+    assert rec.accuracy.source.startswith("held-out poses with base and tool registered on them")
+    assert rec.accuracy.rms == pytest.approx(result.stats.validation_after.rms * np.sqrt(90 / 81))
+    assert rec.accuracy.n == 27 and rec.seatings_accuracy.source == "held-out seatings, each from its socket's centre"
+    with rc.open_store(tmp_path / "s.sqlite", create=True) as store:
+        store.record(result, "T-01")
+        # the base the sockets leave free is the tracker's to place: re-registered on the poses
+        within, named = _verdicts(store, "T-01", true, _drifted(true, "j3.r"), arm7, register=True)
+        assert within >= 38 and named >= 38, (within, named)
+        text = rc.history_summary(rc.history(store, "T-01"))
+    assert f"in use {noise}" in text and "0.0000 mm" not in text
+
+
+def test_fitted_points_within_the_instruments_noise_are_said_so(campaign):
+    """Simulated points fitted below their stated noise: "0 mm on the fitted ones" read as a perfect fit."""
+    use = campaign[2].in_use
+    assert use.fit_after.rms == 0 and use.noise > 0
+    check = next(c for c in campaign[2].checks if c.name == "accuracy in use")
+    assert f"; within the instrument's noise of {use.noise * 1e3:.4g} mm RMS on the fitted ones" in check.summary
+
+
 def test_verification_with_the_base_re_registered_and_iso_terms(campaign):
     model, true, result = campaign
     then = rc.accuracy_at_calibration(_store.result_to_dict(result))

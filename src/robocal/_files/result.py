@@ -185,7 +185,8 @@ def in_use_to_dict(in_use: AccuracyInUse | None) -> dict | None:
             "position_before": _use_dict(in_use.position_before), "position_after": _use_dict(in_use.position_after),
             "rotation_before": _use_dict(in_use.rotation_before), "rotation_after": _use_dict(in_use.rotation_after),
             "fit_after": _use_dict(in_use.fit_after), "measured_after": _use_dict(in_use.measured_after),
-            "measured_fit": _use_dict(in_use.measured_fit), "registered_after": _use_dict(in_use.registered_after),
+            "measured_fit": _use_dict(in_use.measured_fit), "measured_points": _use_dict(in_use.measured_points),
+            "noise_m": in_use.noise, "registered_after": _use_dict(in_use.registered_after),
             "cross_validated": _use_dict(in_use.cross_validated),
             "rehomed": None if in_use.rehomed is None else {
                 "joint": in_use.rehomed.joint, "offset": in_use.rehomed.offset, "quantity": in_use.rehomed.quantity,
@@ -221,7 +222,7 @@ def _in_use(doc: _Doc, d: dict | None) -> AccuracyInUse | None:
     k = doc.get(d, "k", w, int, optional=True)
     stats: dict[str, Any] = {key: _use_stats(doc, doc.get(d, key, w, dict, optional=True), f"{w}.{key}")
              for key in ("position_before", "position_after", "rotation_before", "rotation_after", "fit_after",
-                         "measured_after", "measured_fit", "registered_after", "cross_validated")}
+                         "measured_after", "measured_fit", "measured_points", "registered_after", "cross_validated")}
     moved = doc.get(d, "rehomed", w, dict, optional=True)
     stats["rehomed"] = None if moved is None else JointOffset(
         joint=doc.get(moved, "joint", f"{w}.rehomed", str), offset=doc.get(moved, "offset", f"{w}.rehomed", float),
@@ -233,8 +234,10 @@ def _in_use(doc: _Doc, d: dict | None) -> AccuracyInUse | None:
     for key in ("position_before", "position_after", "fit_after"):
         if stats[key] is None:
             raise doc.error(f"{w}.{key}", "missing key")
+    noise = doc.get(d, "noise_m", w, float, optional=True)
     return AccuracyInUse(method=doc.get(d, "method", w, str), folds=k, grouping=doc.get(d, "grouping", w, str),
-                         errors_before=np.zeros(0), errors_after=np.zeros(0), **stats)
+                         noise=0.0 if noise is None else noise, errors_before=np.zeros(0), errors_after=np.zeros(0),
+                         **stats)
 
 
 def diagnosis_to_dict(diagnosis: Diagnosis) -> dict:

@@ -17,7 +17,7 @@ from .._base.arrays import column_extent, mean_and_error, point_spread, vector_n
 from .._base.errors import InputError, excerpt
 from .._model.measurements import Measurements, Noise
 from .._model.robot import RobotModel
-from .holdout import USE_MARGIN
+from .holdout import USE_MARGIN, within_noise
 
 STATUSES = ("pass", "warn", "fail")
 # the limit of absolute accuracy counts as reached up to this many times it
@@ -842,13 +842,15 @@ def in_use_check(in_use, misfit: float | None = None, reach_m: float | None = No
     how = in_use.method + (f", {in_use.grouping}" if in_use.method == "cross-validation" else "")
     if not a.n:
         return Check(name, "warn", "no held-out position to judge the calibration in use")
+    noise, spread = within_noise(a.rms, in_use.noise), f" (95 % within {_mm(a.p95)}, max {_mm(a.max)})"
     if in_use.registration_only:
-        return Check(name, "pass", f"a registration of base and markers only: mean error {_mm(a.mean)} "
-                     f"(95 % within {_mm(a.p95)}, max {_mm(a.max)}) on {a.n} held-out point(s) ({how}), the robot's "
-                     "kinematics unchanged")
-    summary = (f"mean error {_mm(b.mean)} before, {_mm(a.mean)} after (95 % within {_mm(a.p95)}, max {_mm(a.max)}) "
-               f"on {a.n} held-out point(s) ({how})" + (f"; {_mm(fit.mean)} on the fitted ones" if fit.n else
-                                                         "; no measured point fitted"))
+        return Check(name, "pass", f"a registration of base and markers only: mean error "
+                     f"{noise or _mm(a.mean) + spread} on {a.n} held-out point(s) ({how}), the robot's kinematics "
+                     "unchanged")
+    summary = (f"mean error {_mm(b.mean)} before, " + (f"{noise} after" if noise else f"{_mm(a.mean)} after{spread}")
+               + f" on {a.n} held-out point(s) ({how})"
+               + (f"; {within_noise(fit.rms, in_use.noise) or _mm(fit.mean)} on the fitted ones" if fit.n else
+                  "; no measured point fitted"))
     seen = in_use.measured_after
     if seen is not None and seen.n and seen.mean != a.mean:     # the robot's figure beside what was measured
         summary += f"; held out as measured (the instrument's noise in) {_mm(seen.mean)}"

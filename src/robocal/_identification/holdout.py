@@ -524,6 +524,13 @@ class AccuracyInUse:
         The held-out errors after calibration as the instrument saw them, m.
     measured_fit : UseStats or None
         The fitted errors after calibration as the instrument saw them, m.
+    measured_points : UseStats or None
+        The held-out measured points alone after calibration as the instrument saw them, m:
+        ``measured_after`` without the seatings held out beside them (what a verification with
+        measured points is held against).
+    noise : float
+        The instrument's noise taken out of each measured point's figure, as an RMS error norm
+        (the square root of three times its per-axis variance), m; 0 when none was.
     registered_after : UseStats or None
         With a validation set not registered: the calibrated model's errors on it once base and
         tool are registered on it, scaled by sqrt(m / (m - r)) for the r of its m equations the
@@ -555,6 +562,8 @@ class AccuracyInUse:
     registration_only: bool = False
     measured_after: UseStats | None = None
     measured_fit: UseStats | None = None
+    measured_points: UseStats | None = None
+    noise: float = 0.0
     registered_after: UseStats | None = None
     cross_validated: UseStats | None = None
     rehomed: JointOffset | None = None
@@ -597,6 +606,20 @@ def without_instrument(norms: np.ndarray, variance: float) -> np.ndarray:
     return v * np.sqrt(max(1.0 - 3.0 * variance / ms, 0.0))
 
 
+def within_noise(figure: float | None, noise: float | None) -> str | None:
+    """'within the instrument's noise of 0.03464 mm RMS' when the robot's ``figure`` (m) is nothing
+    once the instrument's ``noise`` (``AccuracyInUse.noise``; None: not known) is taken out: the
+    errors measured were within it, and a bare 0 would read as a perfect robot. None otherwise
+    (with no noise taken out, a figure of 0 is what was measured).
+
+    >>> within_noise(0.0, 3.4641e-05), within_noise(2e-05, 3.4641e-05)
+    ("within the instrument's noise of 0.03464 mm RMS", None)
+    """
+    if figure is None or figure > 0 or (noise is not None and not noise > 0):
+        return None
+    return "within the instrument's noise" + ("" if noise is None else f" of {noise * 1e3:.4g} mm RMS")
+
+
 def accuracy_in_use(method: str, folds: int | None, grouping: str, before: HeldOut, after: HeldOut,
                     fit_after: np.ndarray, *, registration_only: bool = False, noise: tuple[float, float] = (0.0, 0.0),
                     seatings: np.ndarray | None = None, fit_seatings: np.ndarray | None = None,
@@ -635,8 +658,9 @@ def accuracy_in_use(method: str, folds: int | None, grouping: str, before: HeldO
                          position_after=use_stats(ea[both]), rotation_before=None if rb is None else use_stats(rb),
                          rotation_after=None if ra is None else use_stats(ra), fit_after=use_stats(fitted),
                          errors_before=eb[both], errors_after=ea[both], registration_only=registration_only,
-                         measured_after=use_stats(raw_after), measured_fit=use_stats(fit_raw), spacing_before=sb,
-                         spacing_after=sa)
+                         measured_after=use_stats(raw_after), measured_fit=use_stats(fit_raw),
+                         measured_points=use_stats(after.norms), noise=float(np.sqrt(3.0 * max(noise[0], 0.0))),
+                         spacing_before=sb, spacing_after=sa)
 
 
 @dataclass(frozen=True, eq=False)

@@ -14,6 +14,7 @@ import numpy as np
 from .._accuracy.verification import SEATINGS, Verification
 from .._base.arguments import FLAG, PATH, TEXT, accepts, is_a
 from .._files.text import write_texts
+from .._identification.holdout import within_noise
 from .._store.store import APART_SIGMAS, Change, History, StoredCalibration, TypeComparison
 from .plots import need_matplotlib, plot_svg
 from .units import display_unit, fmt, with_unit
@@ -80,8 +81,11 @@ def apart_line(o) -> str:
             "on poses that determine them)")
 
 
-def _accuracy_text(acc) -> str:
-    return "no measured accuracy" if acc is None else f"{with_unit(acc.rms, 'm')} RMS ({acc.source})"
+def _accuracy_text(c: StoredCalibration) -> str:
+    """The accuracy at calibration, each kind's: a calibration from measured points and seatings keeps both."""
+    if c.accuracy is None:
+        return "no measured accuracy"
+    return "; ".join(f"{with_unit(a.rms, 'm')} RMS ({a.source})" for a in (c.accuracy, c.seatings_accuracy) if a)
 
 
 _HISTORY = is_a(History)
@@ -105,8 +109,8 @@ def history_summary(h: History) -> str:
         lim = f", limit {with_unit(c.limit_m, 'm')}" if c.limit_m is not None else ""
         kind = f" [{c.robot_type}]" if c.robot_type else ""
         use = _in_use_rms(c)
-        use_text = f", in use {with_unit(use, 'm')} RMS" if use is not None else ""
-        lines.append(f"  #{c.id} {_when(c.calibrated_at)}{kind}: {c.verdict}, {_accuracy_text(c.accuracy)}{use_text}"
+        use_text = "" if use is None else f", in use {_in_use_noise(c) or with_unit(use, 'm') + ' RMS'}"
+        lines.append(f"  #{c.id} {_when(c.calibrated_at)}{kind}: {c.verdict}, {_accuracy_text(c)}{use_text}"
                      f"{lim}, inputs {c.fingerprint[:12]}")
     lines += _estimates_table(h) + _changes_lines(h)
     if h.verifications:
@@ -120,9 +124,10 @@ def history_summary(h: History) -> str:
 
 
 def _by_seatings(h: History) -> set:
-    """The ids of the verifications by socket seatings (held against a calibration's held-out seatings)."""
+    """The ids of the verifications by socket seatings (held against a calibration's held-out seatings;
+    one stored before they kept their sockets: held against a calibration from seatings alone)."""
     seatings = {c.id for c in h.calibrations if c.accuracy is not None and c.accuracy.source == SEATINGS}
-    return {v.id for v in h.verifications if v.calibration_id in seatings}
+    return {v.id for v in h.verifications if v.sockets or v.calibration_id in seatings}
 
 
 def _compared_families(h: History) -> str:
@@ -355,7 +360,15 @@ _VERDICT_CLASS = {"pass": "ok", "warn": "warn", "fail": "bad"}
 def _in_use_rms(c: StoredCalibration):
     """The RMS position error in use a calibration predicted (m), None when it has none."""
     use = ((c.in_use or {}).get("position_after") or {}).get("rms")
-    return use if isinstance(use, (int, float)) else None
+    return use if isinstance(use, (int, float)) and not isinstance(use, bool) else None
+
+
+def _in_use_noise(c: StoredCalibration) -> str | None:
+    """Within the instrument's noise, when the accuracy in use is nothing of the robot's once it was
+    taken out (a result written before it kept its noise: without the figure); else None."""
+    noise = (c.in_use or {}).get("noise_m")
+    return within_noise(_in_use_rms(c), float(noise) if isinstance(noise, (int, float)) and
+                        not isinstance(noise, bool) else None)
 
 
 def _calibration_rows(h: History) -> str:
@@ -363,7 +376,8 @@ def _calibration_rows(h: History) -> str:
         f'<tr><td>#{c.id}</td><td>{_e(_when(c.calibrated_at))}</td><td>{_e(c.robot_type or "")}</td>'
         f'<td class="{_VERDICT_CLASS.get(c.verdict, "")}">{_e(c.verdict)}</td>'
         f'<td class="num">{fmt(c.accuracy.rms if c.accuracy else None)}</td>'
-        f'<td>{_e(c.accuracy.source if c.accuracy else "")}</td><td class="num">{fmt(_in_use_rms(c))}</td>'
+        f'<td>{_e(c.accuracy.source if c.accuracy else "")}</td>'
+        f'<td class="num">{_e(_in_use_noise(c) or fmt(_in_use_rms(c)))}</td>'
         f'<td class="num">{fmt(c.limit_m)}</td>'
         f"<td><code>{_e(c.fingerprint[:16])}</code></td><td>{_e(c.source)}</td></tr>" for c in h.calibrations)
 

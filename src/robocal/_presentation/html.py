@@ -28,6 +28,7 @@ from .._base.errors import InputError
 from .._files.result import diagnosis_to_dict, per_pose_arrays, result_to_dict
 from .._files.text import write_texts
 from .._identification.contact_figures import ContactErrors, ContactFigures
+from .._identification.holdout import within_noise
 from .._identification.result import CalibrationResult
 from .._model.kinematics import evaluate, layout, transmission_basis
 from .._model.parameters import FRAME_KINDS, GEOMETRIC_KINDS, SI_UNITS, parameter_layout, parameter_vector
@@ -1043,7 +1044,8 @@ def render_contact_report(result: CalibrationResult) -> str:
                    f"over {tracker.n}.</p>")
     if result.stats.validation_after.n and use is not None:
         points += (f'<p>Measured points held out ({_e(use.method)}): mean error <span data-key="in_use.mean">'
-                   f'{_e(fmt(use.position_before.mean, "m"))} &rarr; {_e(fmt(use.position_after.mean, "m"))}</span> '
+                   f'{_e(fmt(use.position_before.mean, "m"))} &rarr; '
+                   f'{_e(within_noise(use.position_after.rms, use.noise) or fmt(use.position_after.mean, "m"))}</span> '
                    f"over {use.position_after.n}, the instrument's noise taken out.</p>")
     sections = [("checks", "Verdict and checks", _checks_html(d)),
                 ("figures", "What the kit shows", _contact_figures(c) + points),

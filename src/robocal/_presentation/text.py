@@ -14,6 +14,7 @@ from .._base.arguments import (
 )
 from .._identification.checks import Check
 from .._identification.contact_figures import ContactErrors
+from .._identification.holdout import within_noise
 from .._identification.identifiability import IdentifiabilityResult
 from .._identification.result import CalibrationResult, Comparison
 from .._model.parameters import BACKLASH_KINDS, BASE_KINDS, FRAME_KINDS, MARKER_KINDS, parameter_layout
@@ -63,10 +64,11 @@ def in_use_lines(in_use, indent: str = "  ") -> list[str]:
     width = max([8] + [len(c) + 2 for row in cells for c in row])
     lines = [f"accuracy in use ({how}), on {in_use.position_after.n} held-out point(s):",
              f"{indent}{'position error (mm)':<24}" + "".join(f"{h:>{width}}" for h in ("mean", "RMS", "95 %", "max"))]
+    noise = within_noise(in_use.position_after.rms, in_use.noise)
     for label, s, k in rows:
-        lines.append(f"{indent}{label:<24}" + ("" if s is None else
-                                              "".join(f"{getattr(s, f) * k:>{width}.3f}"
-                                                      for f in ("mean", "rms", "p95", "max"))))
+        lines.append(f"{indent}{label:<24}" + ("" if s is None else f"  {noise}" if s is in_use.position_after and noise
+                                              else "".join(f"{getattr(s, f) * k:>{width}.3f}"
+                                                           for f in ("mean", "rms", "p95", "max"))))
     return lines
 
 

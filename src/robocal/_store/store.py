@@ -163,7 +163,9 @@ class StoredCalibration:
 
     ``calibrated_at``/``recorded_at`` ISO 8601 UTC; ``fingerprint`` SHA-256 of the input files'
     SHA-256s (``inputs``: input name -> SHA-256); ``checks`` (name, status, summary) of each check;
-    ``accuracy`` the position accuracy reached (None when the result has no error statistics);
+    ``accuracy`` the position accuracy reached (None when the result has no error statistics): of
+    the measured points when it has any, else of its held-out seatings; ``seatings_accuracy`` that of
+    its held-out seatings when it fitted or held out measured points too (``accuracy_for``);
     ``in_use`` the result's predicted accuracy in use when it has one; ``limit_m`` the limit of
     absolute accuracy when known; the models by the SHA-256 of their file form
     (``Store.model``). ``correlation`` (n, n) the correlation of the estimates (in their order),
@@ -187,15 +189,23 @@ class StoredCalibration:
     inputs: tuple[tuple[str, str], ...] = ()
     id: int | None = None
     correlation: np.ndarray | None = None
+    seatings_accuracy: Accuracy | None = None
 
     def estimate(self, name: str) -> Estimate | None:
         return next((e for e in self.estimates if e.name == name), None)
+
+    def accuracy_for(self, data) -> Accuracy | None:
+        """The accuracy at calibration a verification by ``data`` is held against: of the held-out
+        seatings for seatings (``Contacts``), else ``accuracy`` (``verify`` refuses the other kind)."""
+        if isinstance(data, Contacts) and self.seatings_accuracy is not None:
+            return self.seatings_accuracy
+        return self.accuracy
 
 
 @dataclass(frozen=True)
 class StoredVerification:
     """One verification as the store keeps it (metres); ``calibration_id`` the calibration it was
-    held against."""
+    held against; ``sockets`` the sockets of a verification by seatings (0: measured points)."""
 
     robot: str
     calibration_id: int
@@ -214,6 +224,7 @@ class StoredVerification:
     source: str = ""
     fingerprint: str = ""
     id: int | None = None
+    sockets: int = 0
 
 
 @dataclass(frozen=True)
@@ -794,40 +805,74 @@ def _quiet_nan():
         yield
 
 
-@accepts(d=MAPPING)
-def accuracy_at_calibration(d: dict) -> Accuracy | None:
+@accepts(d=MAPPING, seatings=optional(FLAG))
+def accuracy_at_calibration(d: dict, *, seatings: bool | None = None) -> Accuracy | None:
     """The position accuracy a result (its file form) reached as its instrument saw it, what a
     verification measured the same way is held against: the held-out poses' RMS error when the
-    result has held-out poses, else the fitted poses' errors as its cross-validation predicted them
+    result has held-out poses (scaled up by the degrees of freedom a registration of base and tool
+    on them took), else the fitted poses' errors as its cross-validation predicted them
     (each by a model fitted without it, the instrument's noise in: new poses are predicted so, and
     a robot with effects the model leaves out shows more error there than on the fitted poses),
     else the fitted poses' RMS error scaled up by the degrees of freedom the fit took
     (``sqrt(n_rows / (n_rows - n_parameters))``). (The accuracy in use, ``in_use``, is the robot's
     with the instrument's noise taken out: kept, and shown, but not comparable with a measured
-    verification.) Of a calibration from contacts alone: its held-out seatings' distances
-    from their sockets' centres (source ``SEATINGS``), what a verification by seatings is held against.
+    verification.) Of seatings: the held-out seatings' distances from their sockets' centres
+    (source ``SEATINGS``), what a verification by seatings is held against. Of a calibration from
+    measured points and seatings together, each kind's own: a socket's seatings scatter otherwise
+    than a tracker's points, and a verification holds one kind.
 
     Parameters
     ----------
     d : dict
         The result in its file form (``result_to_dict``).
+    seatings : bool, optional
+        True: the seatings' accuracy; False: the measured points'; None: the measured points' when
+        the result fitted or held out measured points, else the seatings'.
 
     Returns
     -------
     Accuracy or None
-        The accuracy, or None when the result has no position errors (nor held-out seatings).
+        The accuracy, or None when the result has none of that kind.
     """
-    stats = d.get("stats") or {}
-    if not (stats.get("fit_after") or {}).get("n") and isinstance(d.get("contacts"), dict):
-        return _seatings_at_calibration(d)
-    use = d.get("in_use") or {}
-    for figures, source in ((stats.get("validation_after"), "held-out poses"),
-                            (use.get("measured_after") if use.get("method") == "cross-validation" else None,
-                             f"fitted poses held out, {use.get('grouping') or 'cross-validation'}")):
+    points = None if seatings else _points_at_calibration(d)
+    if points is not None or seatings is False:
+        return points
+    return _seatings_at_calibration(d)
+
+
+def _points_at_calibration(d: dict) -> Accuracy | None:
+    """``accuracy_at_calibration`` of the measured points: held out, else cross-validated, else fitted."""
+    stats, use = d.get("stats") or {}, d.get("in_use") or {}
+    crossed, grouping = None, str(use.get("grouping") or "cross-validation")
+    if isinstance(d.get("contacts"), dict):     # how the points were held out, before how the placements were
+        grouping = grouping.split("; ")[0]
+    if use.get("method") == "cross-validation":
+        # the measured points alone; a result written before ``measured_points`` with contacts beside
+        # has their seatings in ``measured_after`` too
+        crossed = use["measured_points"] if "measured_points" in use else \
+            None if isinstance(d.get("contacts"), dict) else use.get("measured_after")
+    held = stats.get("validation_after")
+    registered = use.get("method") == "validation, base and tool registered on it"
+    for figures, source, taken in ((held, "held-out poses", _registered_on(d, held) if registered else 0),
+                                   (crossed, f"fitted poses held out, {grouping}", 0)):
         if isinstance(figures, dict) and figures.get("n") and _positive(figures.get("rms")):
-            return Accuracy(rms=float(figures["rms"]), mean=_float(figures.get("mean")), n=int(figures["n"]),
-                            source=source, p95=_float(figures.get("p95")), max=_float(figures.get("max")))
+            n = int(figures["n"])
+            return Accuracy(rms=float(figures["rms"]) * math.sqrt(3 * n / (3 * n - taken)),
+                            mean=_float(figures.get("mean")), n=n - taken // 3,
+                            source=source + (f" with base and tool registered on them, over the degrees of "
+                                             f"freedom that leaves ({taken} taken)" if taken else ""),
+                            p95=_float(figures.get("p95")), max=_float(figures.get("max")))
     return _fitted_at_calibration(d)
+
+
+def _registered_on(d: dict, held) -> int:
+    """The degrees of freedom a registration of base and tool on the held-out poses (``held``, their
+    statistics) took: the base's six and three per marker (0 when that would leave fewer than one
+    point's)."""
+    markers = (d.get("calibrated_model") or {}).get("markers")
+    taken = 6 + 3 * max(len(markers) if isinstance(markers, list) else 1, 1)
+    n = held.get("n") if isinstance(held, dict) else 0
+    return taken if isinstance(n, int) and 3 * n - taken >= 3 else 0
 
 
 def _fitted_at_calibration(d: dict) -> Accuracy | None:
@@ -954,6 +999,7 @@ def stored_calibration(result: CalibrationResult, robot: str, *, robot_type: str
     fingerprint = hashlib.sha256("".join(f"{k}:{h}\n" for k, h in inputs).encode()).hexdigest()
     lim = d.get("limit") or {}
     in_use = d.get("in_use")
+    accuracy = accuracy_at_calibration(d)
     return StoredCalibration(
         robot=check_name(robot, "robot"), robot_type=None if robot_type is None else check_name(robot_type, "type"),
         calibrated_at=utc_text(at if at is not None else prov.get("date"), where="at" if at is not None else
@@ -961,7 +1007,9 @@ def stored_calibration(result: CalibrationResult, robot: str, *, robot_type: str
         recorded_at=utc_text(recorded_at), fingerprint=fingerprint, verdict=str(d["verdict"]),
         checks=tuple((c["name"], c["status"], c["summary"]) for c in d.get("checks") or []),
         estimates=tuple(Estimate(p.name, p.unit, p.family, p.nominal, p.estimate, p.std) for p in result.parameters),
-        accuracy=accuracy_at_calibration(d), in_use=plain(in_use) if isinstance(in_use, dict) else None,
+        accuracy=accuracy, in_use=plain(in_use) if isinstance(in_use, dict) else None,
+        seatings_accuracy=None if accuracy is None or accuracy.source == SEATINGS else
+        accuracy_at_calibration(d, seatings=True),
         limit_m=_float(lim.get("limit_m")), nominal_model=model_document(result.nominal_model)[0],
         calibrated_model=model_document(result.calibrated_model)[0], source=str(source), inputs=inputs,
         correlation=_correlation_of(result))
@@ -980,7 +1028,7 @@ def stored_verification(v: Verification, calibration: StoredCalibration, *, at=N
                               verified_at=utc_text(at), verdict=v.verdict, rms=v.rms, mean=v.mean, p95=v.p95,
                               max=v.max, ap_max=v.ap_max, then_rms=v.then.rms, ratio=v.ratio, threshold=v.threshold,
                               n_points=v.n_points, registered_base=v.registered_base, source=str(source),
-                              fingerprint=fingerprint)
+                              fingerprint=fingerprint, sockets=v.sockets)
 
 
 # -- the back-ends ----------------------------------------------------------------------------------
@@ -1379,7 +1427,7 @@ class Store:
     def add_verification(self, v: StoredVerification) -> StoredVerification:
         """Store a verification (one transaction); the stored record, with its id."""
         doc = {k: getattr(v, k) for k in ("rms", "mean", "p95", "max", "ap_max", "then_rms", "ratio", "threshold",
-                                          "n_points", "registered_base", "source", "fingerprint")}
+                                          "n_points", "registered_base", "source", "fingerprint", "sockets")}
         sql = ("INSERT INTO robocal_verifications (robot, calibration_id, verified_at, verdict, document) "
                "VALUES (?, ?, ?, ?, ?)")
         with self._errors(), self._db.transaction(write=True) as cur:
@@ -1496,9 +1544,13 @@ def _json(obj) -> str:
     return json.dumps(plain(obj), separators=(",", ":"), allow_nan=False)
 
 
+_ACCURACY_FIELDS = ("rms", "mean", "n", "source", "p95", "max", "sets", "scatter")
+
+
 def _calibration_row(r: StoredCalibration) -> tuple:
-    acc = None if r.accuracy is None else {k: getattr(r.accuracy, k)
-                                           for k in ("rms", "mean", "n", "source", "p95", "max", "sets", "scatter")}
+    acc = None if r.accuracy is None else {k: getattr(r.accuracy, k) for k in _ACCURACY_FIELDS}
+    if acc is not None and r.seatings_accuracy is not None:     # beside the points': read by older robocal as before
+        acc["seatings"] = {k: getattr(r.seatings_accuracy, k) for k in _ACCURACY_FIELDS}
     return (r.robot, r.robot_type, r.calibrated_at, r.recorded_at, r.fingerprint, r.verdict, r.limit_m,
             None if acc is None else _json(acc), _json([[e.name, e.unit, e.family] for e in r.estimates]),
             np.array([e[3:] for e in r.estimates], dtype="<f8").reshape(-1).tobytes(), _packed(r.correlation),
@@ -1577,10 +1629,8 @@ def _calibration_from_row(row) -> StoredCalibration:
     (i, robot, rtype, cal_at, rec_at, fp, verdict, limit_m, acc, params, values, corr, nominal, calibrated, source,
      inputs, in_use, checks) = row
     a = None if acc is None else json.loads(acc)
-    accuracy = None if a is None else Accuracy(rms=_nan(a["rms"]), mean=_float(a.get("mean")), n=int(a["n"]),
-                                               source=_text(a["source"]), p95=_float(a.get("p95")),
-                                               max=_float(a.get("max")), sets=int(a.get("sets") or 0),
-                                               scatter=_float(a.get("scatter")) or 0.0)
+    accuracy = None if a is None else _accuracy_from(a)
+    seated = None if a is None or a.get("seatings") is None else _accuracy_from(a["seatings"])
     ests = tuple(Estimate(*head, *map(float, v)) for head, v in zip(*_estimate_rows(_layout(params), values)))
     use = None if in_use is None else json.loads(in_use)
     if use is not None and not isinstance(use, dict):
@@ -1594,7 +1644,17 @@ def _calibration_from_row(row) -> StoredCalibration:
         checks=tuple((_text(n), _text(s), _text(t)) for n, s, t in json.loads(checks)), estimates=ests,
         accuracy=accuracy, in_use=use, limit_m=None if limit_m is None else _nan(limit_m),
         nominal_model=_text(nominal), calibrated_model=_text(calibrated), source=_text(source),
-        inputs=tuple((_text(k), _text(v)) for k, v in inp.items()), id=int(i), correlation=_unpacked(corr, len(ests)))
+        inputs=tuple((_text(k), _text(v)) for k, v in inp.items()), id=int(i), correlation=_unpacked(corr, len(ests)),
+        seatings_accuracy=seated)
+
+
+def _accuracy_from(a) -> Accuracy:
+    """A stored accuracy at calibration."""
+    if not isinstance(a, dict):
+        raise ValueError("an accuracy that is not a mapping")
+    return Accuracy(rms=_nan(a["rms"]), mean=_float(a.get("mean")), n=int(a["n"]), source=_text(a["source"]),
+                    p95=_float(a.get("p95")), max=_float(a.get("max")), sets=int(a.get("sets") or 0),
+                    scatter=_float(a.get("scatter")) or 0.0)
 
 
 def _verification_from_row(row) -> StoredVerification:
@@ -1604,7 +1664,8 @@ def _verification_from_row(row) -> StoredVerification:
                               verdict=_text(verdict), **{k: _nan(d[k]) for k in ("rms", "mean", "p95", "max", "ap_max",
                                                                                  "then_rms", "ratio", "threshold")},
                               n_points=int(d["n_points"]), registered_base=bool(d["registered_base"]),
-                              source=_text(d["source"]), fingerprint=_text(d["fingerprint"]), id=int(i))
+                              source=_text(d["source"]), fingerprint=_text(d["fingerprint"]), id=int(i),
+                              sockets=int(d.get("sockets") or 0))
 
 
 # -- what the commands ask --------------------------------------------------------------------------
@@ -1713,10 +1774,11 @@ def verify_robot(store: Store, robot: str, data: Measurements | Contacts, *, reg
     (Verification, StoredVerification)
     """
     latest = latest_usable(store, robot)
-    if latest.accuracy is None:
+    then = latest.accuracy_for(data)
+    if then is None:
         raise InputError(f"the latest calibration of {robot} (#{latest.id}) has no accuracy at calibration to "
                          "verify against (neither measured points nor held-out socket seatings): calibrate again "
                          "and read the changes in history", source=store.location)
-    v = verify(store.model(latest.calibrated_model), data, latest.accuracy, register=register, alpha=alpha)
+    v = verify(store.model(latest.calibrated_model), data, then, register=register, alpha=alpha)
     rec = stored_verification(v, latest, at=at, source=data.source, fingerprint=data.sha256)
     return v, (store.add_verification(rec) if save else rec)
