@@ -93,6 +93,26 @@ def test_an_unusable_store_leaves_no_calibration_files(cli, campaign, tmp_path):
     assert_one_line_error(code, err, ["mysql", "postgresql://"], tmp_path / "run")
 
 
+def test_a_store_that_cannot_take_the_record_fails_calibrate_before_its_work(cli, campaign, tmp_path):
+    """A result file or another application's database given as the store: calibrate --record ran
+    the whole calibration and printed its summary, then failed; now it fails before the work."""
+    foreign = tmp_path / "other.db"
+    _damage(foreign, "CREATE TABLE accounts (id INTEGER)")
+    before = _digest(foreign)
+    for store, words in ((foreign, "something else"), (campaign / "result.json", "a robocal result file")):
+        code, out, err = _calibrate(cli, campaign, tmp_path / "run", store)
+        assert_one_line_error(code, err, [str(store), words], tmp_path / "run")
+        assert out == "", out       # no calibration ran
+    assert _digest(foreign) == before
+    # a store not made yet is made by the record; --at dates it
+    code, out, err = _calibrate(cli, campaign, tmp_path / "run", tmp_path / "new" / "s.sqlite", "--at", "2026-03-02")
+    assert code == 0 and "recorded calibration #1 of SN-1 (2026-03-02T00:00:00+00:00" in out, err
+    for option, value in (("--at", "2026-03-02"), ("--type", "arm"), ("--store", str(foreign))):
+        code, _, err = cli("calibrate", campaign / "model.yaml", campaign / "m.csv", "--out", tmp_path / "x",
+                           option, value)
+        assert_one_line_error(code, err, [option, "needs --record"], tmp_path / "x")
+
+
 def test_a_result_that_cannot_be_recorded_leaves_no_new_store(cli, campaign, tmp_path):
     """A result whose date is no date is refused before the store is made: 5855dae left a new, empty
     store behind the error (found by fuzzing record)."""

@@ -1347,10 +1347,11 @@ class Store:
             db.lock(cur)
             tables = db.tables(cur)
             if "robocal_schema" not in tables:
-                if not create:
-                    raise InputError("not a robocal store (no robocal_schema table)", source=self.location)
                 if db.name == "sqlite" and tables - set(_TABLES) - {"sqlite_sequence"}:
-                    raise InputError("a database of something else: not made a robocal store", source=self.location)
+                    raise InputError("a database of something else: not " + ("made a robocal store" if create else
+                                                                             "a robocal store"), source=self.location)
+                if not create:
+                    raise _Unmade("not a robocal store (no robocal_schema table)", source=self.location)
                 version = 0
             else:
                 rows = list(self._execute(cur, "SELECT version FROM robocal_schema").fetchall())
@@ -1507,6 +1508,29 @@ class Store:
         with self._errors(f"model {sha256[:12]}"):
             d = json.loads(zlib.decompress(bytes(row[0])).decode())
             return model_from_dict(d, source=f"{self.location}: model {sha256[:12]}")
+
+
+class _Unmade(InputError):
+    """A database with no store in it yet, which recording makes one (SQLite: none of another
+    application's tables in it)."""
+
+
+def check_recordable(location: str, robot: str) -> None:
+    """What recording a calibration of ``robot`` in the store at ``location`` refuses for the store
+    itself, found without writing, so that a command refuses it before its work: another file or a
+    database of something else, a damaged or read-only store, one of a newer schema, the robot's
+    earlier records unreadable. A store not made yet, or of an older schema, passes: recording makes
+    or upgrades it."""
+    location = store_location(location)
+    if not is_url(location) and not Path(location).exists():
+        _check_scheme(location)
+        return
+    try:
+        with Store(location, write=True) as store:
+            store.check()
+            store.calibrations(robot), store.verifications(robot)
+    except (_Unmade, _Upgrade):
+        pass
 
 
 class _Upgrade(InputError):

@@ -195,7 +195,8 @@ def _diagnosis(args, best) -> None:
 
 def _check_arguments(args) -> None:
     """The options that go together: a measurement file or contacts, one held-out set, --compare
-    without --parameters, --backlash and --no-transmission with --compare."""
+    without --parameters, --backlash and --no-transmission with --compare, --type, --at and --store
+    with --record."""
     if args.contacts:
         _one_held_out_set(args)
     elif args.csv is None:
@@ -207,6 +208,9 @@ def _check_arguments(args) -> None:
     if args.backlash and not args.compare:
         raise InputError("--backlash adds a third identification to --compare; for one identification name the "
                          "family: --parameters geometric compliance backlash", where="--backlash")
+    unused = [option for option, key in record.RECORD_OPTIONS if getattr(args, key) is not None]
+    if unused and not args.record:
+        raise InputError("keeps the result in the store of calibrations: needs --record ROBOT", where=unused[0])
     if not args.transmission and not args.compare:
         raise InputError("--no-transmission leaves the transmission terms out of --compare; without --compare "
                          "name the families: --parameters", where="--no-transmission")
@@ -307,6 +311,8 @@ def run(args) -> int:
     out = Path(args.out)
     report = common.report_module() if args.report else None
     common.refuse_existing(_outputs(out), args.force)
+    if args.record:     # a store that cannot take the record fails the command before the work
+        record.check_store(args, args.record)
     model, data, validation, contacts = _inputs(args)
     if contacts is None:
         logging.getLogger("robocal").info("read %s: %d poses to fit, %d held out", args.csv, data.n_poses,
@@ -318,7 +324,7 @@ def run(args) -> int:
     _diagnosis(args, best)
     files = _output_files(args, out, results, best, report)
     if args.record:     # the files and the record: both or neither
-        record.record_result(args, best, args.record, str(out / "result.json"), files=files)
+        record.record_result(args, best, args.record, str(out / "result.json"), at=args.at, files=files)
     else:
         common.write_outputs(files, force=args.force)
         print(f"wrote {', '.join(str(p) for p in files)}")

@@ -10,35 +10,45 @@ from . import common
 EXAMPLE = """example:
   robocal record runs/compare/result.json --robot SN-1042 --type th8
 
-The store is --store, else $ROBOCAL_STORE, else ~/.local/share/robocal/store.sqlite (docs/store.md); a
-plant's store on a PostgreSQL server: --store postgresql://cal@plant-db/robocal."""
+The store is --store, else $ROBOCAL_STORE, else $XDG_DATA_HOME/robocal/store.sqlite (XDG_DATA_HOME by
+default ~/.local/share; docs/store.md); a plant's store on a PostgreSQL server:
+--store postgresql://cal@plant-db/robocal."""
 
 
 def store_option(p) -> None:
     """--store: a SQLite file or a postgresql:// URL."""
     p.add_argument("--store", metavar="PATH|URL", help="the store: a SQLite file or a postgresql:// URL (default "
-                                                       "$ROBOCAL_STORE, else ~/.local/share/robocal/store.sqlite)")
+                                                       "$ROBOCAL_STORE, else $XDG_DATA_HOME/robocal/store.sqlite, "
+                                                       "XDG_DATA_HOME by default ~/.local/share)")
 
 
 def open_store(args, *, create: bool = False, write: bool | None = None):
     """The store the options name, open (read-only unless ``create`` or ``write``); MissingExtra
     for PostgreSQL without psycopg."""
-    from .._store.store import is_url
     from .._store.store import open_store as open_
 
-    location = _location(args)
+    return open_(_location(args), create=create, write=write)
+
+
+def check_store(args, robot: str) -> None:
+    """The store ``calibrate --record`` will write, checked before the calibration's work
+    (``check_recordable``): a store that cannot take the record fails the command at once."""
+    from .._store.store import check_recordable
+
+    check_recordable(_location(args), robot)
+
+
+def _location(args) -> str:
+    """The store the options name; MissingExtra for PostgreSQL without psycopg."""
+    from .._store.store import is_url, store_location
+
+    location = store_location(args.store)
     if is_url(location):
         try:
             import psycopg  # noqa: F401
         except ImportError:
             raise common.MissingExtra("a PostgreSQL store needs psycopg (pip install 'robocal[store-pg]')") from None
-    return open_(location, create=create, write=write)
-
-
-def _location(args) -> str:
-    from .._store.store import store_location
-
-    return store_location(args.store)
+    return location
 
 
 def register(sub) -> None:
@@ -50,18 +60,22 @@ def register(sub) -> None:
     p.add_argument("--robot", required=True, type=common.checked_by(_name("--robot")), metavar="ROBOT",
                    help="the robot's serial or name")
     record_options(p)
-    p.add_argument("--at", type=common.checked_by(_date("--at")), metavar="ISO-DATE",
-                   help="when the calibration was made, e.g. 2026-03-02T10:00:00Z (default: the result's date)")
     p.set_defaults(func=run)
 
 
+# what a calibration is recorded with: calibrate takes them with --record only
+RECORD_OPTIONS = (("--type", "robot_type"), ("--at", "at"), ("--store", "store"))
+
+
 def record_options(p, *, robot: bool = False) -> None:
-    """--type and --store (and with ``robot``, calibrate's --record ROBOT)."""
+    """--type, --at and --store (and with ``robot``, calibrate's --record ROBOT)."""
     if robot:
         p.add_argument("--record", type=common.checked_by(_name("--record")), metavar="ROBOT",
                        help="also keep the result in the store of calibrations as a calibration of ROBOT")
     p.add_argument("--type", dest="robot_type", type=common.checked_by(_name("--type")), metavar="TYPE",
                    help="the robot's type, to compare robots of one type (robocal history --type)")
+    p.add_argument("--at", type=common.checked_by(_date("--at")), metavar="ISO-DATE",
+                   help="when the calibration was made, e.g. 2026-03-02T10:00:00Z (default: the result's date)")
     store_option(p)
 
 
