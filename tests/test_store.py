@@ -477,6 +477,48 @@ def test_a_robot_of_a_type_calibrated_with_more_parameters_is_compared_as_it_wou
     assert "R2" in type_summary(bare) and "not compared" in type_summary(bare)
 
 
+def test_what_was_not_compared_is_said_so_and_a_family_not_calibrated_is_not_called_weak(campaign, tmp_path):
+    """Robots of one type, two calibrated with compliance and two geometric. Of two robots nothing is
+    compared (fewer than three hold each parameter): history --type printed "named beyond 1.96 (0
+    comparisons...)" and said the geometric robot "holds j2.k_theta ... at nominal (weak for its
+    poses), which most of the type's calibrations identify", one of two. Of three, the geometric one's
+    compliances are said not calibrated. Of four, two and two: "most" counted half, so the two with
+    compliance were held against themselves alone, and neither was compared at all. A history of one
+    calibration printed "judged at 2.05 sigma (0 comparisons...)"."""
+    from robocal.report import history_summary, type_summary
+
+    model = arm6r(masses=True)
+    true, _ = rc.simulate(model, 10, parameters=("geometric", "compliance"), compliance_error=(2e-6, 6e-6), seed=3)
+    cals = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for i, families in enumerate((("geometric", "compliance"), ("geometric",)) * 2):
+            data = rc.sim.measure(true, rc.random_configurations(model, 60, np.random.default_rng(200 + i)),
+                                  noise=2e-5, rng=i)
+            cals.append(replace(rc.stored_calibration(rc.calibrate(model, data, parameters=families), f"R{i}",
+                                                      at="2026-01-01"), id=i + 1))
+    pair = rc.compare_type("arm", cals[:2])
+    text = type_summary(pair)
+    assert pair.compared == 0 and "nothing compared" in text and "and the type has 2" in text
+    assert "comparisons" not in text and "weak" not in text and "most" not in text
+    three = rc.compare_type("arm", cals[:3])
+    text = type_summary(three)
+    assert three.compared > 0 and [r for r, _ in three.uncalibrated] == ["R1"]
+    lines = {line.split(":")[0].strip(): line for line in text.splitlines() if line.startswith("  R")}
+    assert "(their family not calibrated) at nominal" in lines["R1"] and "weak" not in lines["R1"]
+    # the two with compliance: three robots identify what they do, their median is no reference
+    assert [bool(np.isfinite(row).any()) for row in three.z] == [False, True, False]
+    assert all("not compared: fewer than three" in lines[r] for r in ("R0", "R2"))
+    four = rc.compare_type("arm", cals)
+    assert all(np.isfinite(row).any() for row in four.z), four.z     # every robot compared
+    assert sorted(r for r, _ in four.held) == ["R0", "R2"] and four.conditioned == ()
+    with rc.open_store(tmp_path / "s.sqlite", create=True) as store:
+        store.record(campaign[2], "SN-1")
+        text = history_summary(rc.history(store, "SN-1"))
+    assert "changes between consecutive calibrations: nothing compared (one calibration" in text
+    assert "comparisons" not in text and "judged at" not in text
+
+
 def test_robots_of_a_type_side_by_side_name_the_one_that_stands_out(location, campaign):
     result = campaign[2]
     rng = np.random.default_rng(5)

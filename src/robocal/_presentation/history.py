@@ -142,6 +142,9 @@ def _changes_lines(h: History) -> list[str]:
     largest movements within the uncertainty."""
     families = _compared_families(h)
     of = f" of {families} parameters" if families else ""
+    if not h.comparisons:
+        return [f"changes between consecutive calibrations: nothing compared ({_why_none(h)})"] + \
+            [f"  {apart_line(o)}" for o in h.overall if not o.compared]
     lines = [f"changes between consecutive calibrations, judged at {h.threshold:.2f} sigma of their combined "
              f"uncertainty ({len(h.comparisons)} comparisons{of}; {h.alpha:.0%} chance of naming one in an "
              "unchanged robot):"]
@@ -153,6 +156,15 @@ def _changes_lines(h: History) -> list[str]:
     if rest:
         lines.append("  largest movements within the uncertainty: " + "; ".join(change_line(c) for c in rest))
     return lines
+
+
+def _why_none(h: History) -> str:
+    """Why a history compared no parameter between calibrations."""
+    if len(h.calibrations) < 2:
+        return "one calibration: a change is between two"
+    if all(not o.compared for o in h.overall):
+        return "each pair of consecutive calibrations apart, below"
+    return f"consecutive calibrations identify no {' or '.join(h.families)} parameter in common"
 
 
 def _estimates_table(h: History) -> list[str]:
@@ -189,39 +201,57 @@ def type_summary(t: TypeComparison) -> str:
     str
         The robots standing out and each robot's latest calibration, as text.
     """
-    n_cmp = int(np.sum(np.isfinite(t.z)))
-    lines = [f"type {t.robot_type}: {len(t.latest)} robot(s), latest calibration of each; {len(t.names)} "
-             f"parameter(s), each robot against the type's median in robust standard deviations (widened for "
-             f"a robot calibrated less precisely than most), named beyond "
-             f"{t.threshold:.2f} ({n_cmp} comparisons; {t.alpha:.0%} chance of naming one among alike robots)"]
-    counts: dict[str, int] = {}
-    for o in t.outliers:
-        counts[o.robot] = counts.get(o.robot, 0) + 1
-    lines.append("standing out:")
-    lines += [f"  {o.robot} {o.name} {with_unit(o.value - o.median, o.unit, sign=True)} from the type's median, "
-              f"{_sigma(o.z)}" for o in t.outliers[:40]] or ["  none"]
-    if len(t.outliers) > 40:
-        lines.append(f"  ... and {len(t.outliers) - 40} more")
-    held, apart, conditioned = dict(t.held), dict(t.apart), dict(t.conditioned)
-    lines.append("robots:")
-    for c in t.latest[:200]:
-        flag = f", {counts[c.robot]} parameter(s) standing out" if c.robot in counts else ""
-        if c.robot in held:
-            flag += (f"; compared with {_few(held[c.robot])} held at nominal (most of the type's calibrations do not "
-                     "identify them)")
-        if c.robot in conditioned:
-            flag += (f"; holds {_few(conditioned[c.robot])} at nominal (weak for its poses), which most of the type's "
-                     "calibrations identify: compared with those that identify what it does, as they would be with "
-                     "them held too")
-        if c.robot in apart:
-            flag += (f"; not compared: {_few(apart[c.robot])} fitted beyond {APART_SIGMAS:g} sigma of nominal, which "
-                     "most of the type's calibrations do not identify, and no stored correlations to hold them with")
-        acc = "no measured accuracy" if c.accuracy_rms is None else f"{with_unit(c.accuracy_rms, 'm')} RMS" + (
-            f" ({c.accuracy_source})" if c.accuracy_source == SEATINGS else "")
-        lines.append(f"  {c.robot}: #{c.id} {_day(c.calibrated_at)}, {c.verdict}, {acc}{flag}")
+    head = f"type {t.robot_type}: {len(t.latest)} robot(s), latest calibration of each; {len(t.names)} parameter(s)"
+    if not t.compared:      # no threshold, no robot held to it: nothing of how robots are compared applies
+        lines = [f"{head}; nothing compared: a parameter is compared with the type's median over three robots or "
+                 "more that identify it" + (f", and the type has {len(t.latest)}" if len(t.latest) < 3 else
+                                             ", and no parameter has them"), "robots:"]
+        lines += [f"  {_latest_line(c)}" for c in t.latest[:200]]
+    else:
+        lines = [f"{head}, each robot against the type's median in robust standard deviations (widened for a robot "
+                 f"calibrated less precisely than most), named beyond {t.threshold:.2f} ({t.compared} comparisons; "
+                 f"{t.alpha:.0%} chance of naming one among alike robots)", "standing out:"]
+        lines += [f"  {o.robot} {o.name} {with_unit(o.value - o.median, o.unit, sign=True)} from the type's median, "
+                  f"{_sigma(o.z)}" for o in t.outliers[:40]] or ["  none"]
+        if len(t.outliers) > 40:
+            lines.append(f"  ... and {len(t.outliers) - 40} more")
+        lines.append("robots:")
+        lines += [f"  {_latest_line(c)}{_compared_as(t, c.robot, row)}" for c, row in zip(t.latest[:200], t.z)]
     if len(t.latest) > 200:
         lines.append(f"  ... and {len(t.latest) - 200} more")
     return "\n".join(lines)
+
+
+def _latest_line(c) -> str:
+    """'R1: #3 2026-01-01, pass, 0.0462 mm RMS' of a robot's latest calibration."""
+    acc = "no measured accuracy" if c.accuracy_rms is None else f"{with_unit(c.accuracy_rms, 'm')} RMS" + (
+        f" ({c.accuracy_source})" if c.accuracy_source == SEATINGS else "")
+    return f"{c.robot}: #{c.id} {_day(c.calibrated_at)}, {c.verdict}, {acc}"
+
+
+def _compared_as(t: TypeComparison, robot: str, z) -> str:
+    """How a robot (``z`` its row) was compared with its type: its parameters standing out, those held
+    at nominal and why, or why it was not compared."""
+    flag = ""
+    standing = sum(o.robot == robot for o in t.outliers)
+    if standing:
+        flag += f", {standing} parameter(s) standing out"
+    held, apart, conditioned = dict(t.held).get(robot), dict(t.apart).get(robot), dict(t.conditioned).get(robot)
+    if held:
+        flag += f"; compared with {_few(held)} held at nominal (not identified by most of the type's calibrations)"
+    if conditioned:
+        none = set(dict(t.uncalibrated).get(robot, ()))
+        weak = [n for n in conditioned if n not in none]
+        why = [f"{_few(weak)} (weak for its poses)"] * bool(weak) + \
+            [f"{_few(sorted(none))} (their family not calibrated)"] * bool(none)
+        flag += (f"; holds {' and '.join(why)} at nominal, which most of the type's calibrations identify: compared "
+                 "with those that identify what it does, as they would be with them held too")
+    if apart:
+        flag += (f"; not compared: {_few(apart)} fitted beyond {APART_SIGMAS:g} sigma of nominal, not identified "
+                 "by most of the type's calibrations, and no stored correlations to hold them with")
+    elif not np.isfinite(z).any():
+        flag += "; not compared: fewer than three of the type's calibrations identify what it does"
+    return flag
 
 
 @accepts(v=is_a(Verification), robot=TEXT, calibration=is_a(StoredCalibration))
@@ -414,11 +444,12 @@ def render_history(h: History) -> str:
         "<th>measured accuracy RMS (mm)</th><th>from</th><th>in use RMS (mm)</th><th>limit (mm)</th>"
         "<th>inputs SHA-256</th><th>source</th></tr>"
         f"</thead><tbody>{_calibration_rows(h)}</tbody></table>",
-        f"<h2>Changes</h2><p>Between consecutive calibrations, judged at {h.threshold:.2f} standard deviations of "
-        f"their combined uncertainty ({len(h.comparisons)} comparisons"
-        + (f" of {_e(families)} parameters" if families else "")
-        + f"; a {h.alpha:.0%} chance of naming one in an unchanged robot's history, with the overall tests).</p>"
-        f"<ul>{changes}</ul>"
+        (f"<h2>Changes</h2><p>Between consecutive calibrations, judged at {h.threshold:.2f} standard deviations of "
+         f"their combined uncertainty ({len(h.comparisons)} comparisons"
+         + (f" of {_e(families)} parameters" if families else "")
+         + f"; a {h.alpha:.0%} chance of naming one in an unchanged robot's history, with the overall tests).</p>"
+         f"<ul>{changes}</ul>" if h.comparisons else
+         f"<h2>Changes</h2><p>Between consecutive calibrations: nothing compared ({_e(_why_none(h))}).</p>")
         + "".join(f"<p>{_e(overall_line(o))}</p>" for o in h.overall if o.named)
         + "".join(f"<p>{_e(line)}</p>" for line in apart),
         "<h2>Drift of each parameter</h2>" + (f"<figure>{drift}<figcaption>Estimates at each calibration with a band "

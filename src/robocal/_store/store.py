@@ -350,7 +350,9 @@ class TypeComparison:
     holds at nominal parameters most of the type's identify (a weak one for its poses) is compared
     against the robots that identify at least what it does, as they would be with those held too,
     and listed in ``conditioned`` with them (its ``z`` row; ``median`` and ``spread`` are those of
-    the robots that identify every parameter most do).
+    the robots that identify every parameter most do); ``uncalibrated`` names those of them whose
+    family its calibration has no parameter of (not calibrated, rather than weak for its poses).
+    "Most": more than half.
     """
 
     robot_type: str
@@ -368,10 +370,16 @@ class TypeComparison:
     held: tuple[tuple[str, tuple[str, ...]], ...] = ()
     apart: tuple[tuple[str, tuple[str, ...]], ...] = ()
     conditioned: tuple[tuple[str, tuple[str, ...]], ...] = ()
+    uncalibrated: tuple[tuple[str, tuple[str, ...]], ...] = ()
 
     @property
     def robots(self) -> tuple[str, ...]:
         return tuple(c.robot for c in self.latest)
+
+    @property
+    def compared(self) -> int:
+        """How many (robot, parameter) pairs were compared with the type (finite ``z``)."""
+        return int(np.sum(np.isfinite(self.z)))
 
 
 # -- judgement: pure functions ----------------------------------------------------------------------
@@ -706,15 +714,28 @@ def _type_compared(robot_type: str, latest: list, cals: list, alpha: float, fami
                                float(z[i, j])) for i, j in hits), key=lambda o: -abs(o.z))
     return TypeComparison(robot_type, tuple(latest), names, tuple(units), values, stds, median, spread, z, threshold,
                           alpha, tuple(outliers), held, apart,
-                          tuple((r.robot, tuple(sorted(g))) for r, g in zip(latest, gaps) if g))
+                          tuple((r.robot, tuple(sorted(g))) for r, g in zip(latest, gaps) if g),
+                          _uncalibrated(latest, cals, judged, gaps))
 
 
 def _most_identify(judged: list) -> set:
-    """The parameters at least half the calibrations (``_judged`` each) identify."""
+    """The parameters more than half the calibrations (``_judged`` each) identify."""
     count: dict[str, int] = {}
     for j in judged:
         count.update((n, count.get(n, 0) + 1) for n in j)
-    return {n for n, k in count.items() if 2 * k >= len(judged)}
+    return {n for n, k in count.items() if 2 * k > len(judged)}
+
+
+def _uncalibrated(latest: list, cals: list, judged: list, gaps: list) -> tuple:
+    """(robot, the parameters of its ``gaps`` of families its calibration has no parameter of) of each
+    robot with any: parameters it did not calibrate, rather than left weak by its poses."""
+    family = {n: c.layout[k][2] for c, j in zip(cals, judged) for n, k in j.items()}
+    out = []
+    for r, c, gap in zip(latest, cals, gaps):
+        own = {f for _, _, f in c.layout}
+        if none := tuple(sorted(n for n in gap if family[n] not in own)):
+            out.append((r.robot, none))
+    return tuple(out)
 
 
 def _against_holding(gap: frozenset, cals: list, judged: list, common: set, gaps: list, families, into) -> None:
