@@ -686,8 +686,9 @@ def test_a_figure_within_the_instruments_noise_is_said_so_and_a_tracker_validati
     assert rec.accuracy.n == 27 and rec.seatings_accuracy.source == "held-out seatings, each from its socket's centre"
     with rc.open_store(tmp_path / "s.sqlite", create=True) as store:
         store.record(result, "T-01")
-        # the base the sockets leave free is the tracker's to place: re-registered on the poses
-        within, named = _verdicts(store, "T-01", true, _drifted(true, "j3.r"), arm7, register=True)
+        # the base the sockets leave free is the tracker's to place: registered on the poses
+        assert store.calibrations("T-01")[0].frame_unfixed
+        within, named = _verdicts(store, "T-01", true, _drifted(true, "j3.r"), arm7)
         assert within >= 38 and named >= 38, (within, named)
         text = rc.history_summary(rc.history(store, "T-01"))
     assert f"in use {noise}" in text and "0.0000 mm" not in text

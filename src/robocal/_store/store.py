@@ -194,6 +194,15 @@ class StoredCalibration:
     def estimate(self, name: str) -> Estimate | None:
         return next((e for e in self.estimates if e.name == name), None)
 
+    @property
+    def frame_unfixed(self) -> bool:
+        """Nothing the calibration fitted fixes the instrument's frame (contacts alone, judged on
+        measured points with base and tool registered on them): a verification with measured points
+        registers the base on them."""
+        use = self.in_use or {}
+        return use.get("method") == "validation, base and tool registered on it" and \
+            not (use.get("fit_after") or {}).get("n")
+
     def accuracy_for(self, data) -> Accuracy | None:
         """The accuracy at calibration a verification by ``data`` is held against: of the held-out
         seatings for seatings (``Contacts``), else ``accuracy`` (``verify`` refuses the other kind)."""
@@ -1806,7 +1815,8 @@ def verify_robot(store: Store, robot: str, data: Measurements | Contacts, *, reg
         The verification campaign (10 to 30 poses), or ball seatings in sockets for a robot
         calibrated from seatings.
     register : bool
-        Re-register the base on these poses first.
+        Re-register the base on these poses first (always, for measured points, when nothing the
+        calibration fitted fixes the instrument's frame: ``StoredCalibration.frame_unfixed``).
     alpha : float
         The share of verifications of an unchanged robot that say "recalibrate".
     save : bool
@@ -1824,6 +1834,7 @@ def verify_robot(store: Store, robot: str, data: Measurements | Contacts, *, reg
         raise InputError(f"the latest calibration of {robot} (#{latest.id}) has no accuracy at calibration to "
                          "verify against (neither measured points nor held-out socket seatings): calibrate again "
                          "and read the changes in history", source=store.location)
+    register = register or (isinstance(data, Measurements) and latest.frame_unfixed)
     v = verify(store.model(latest.calibrated_model), data, then, register=register, alpha=alpha)
     rec = stored_verification(v, latest, at=at, source=data.source, fingerprint=data.sha256)
     return v, (store.add_verification(rec) if save else rec)

@@ -63,5 +63,8 @@ def run(args) -> int:
                             save=not args.no_record, at=args.at)
     if args.contacts is None and not FEW_POSES <= data.n_poses <= MANY_POSES:
         print(f"note: {data.n_poses} poses; a verification takes {FEW_POSES} to {MANY_POSES}")
+    if v.registered_base and not args.register_base:
+        print("note: nothing the calibration fitted fixes the instrument's frame (contacts alone): the base is "
+              "registered on these poses")
     print(verification_summary(v, robot, against))
     return RECALIBRATE if v.verdict == SAYS_RECALIBRATE else 0
