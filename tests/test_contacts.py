@@ -421,6 +421,26 @@ def test_a_socket_plan_recommends_the_smallest_design_within_the_bounds(arm7):
     assert all(n.split(".")[1] in ("d", "r", "x", "y", "z") for n in lengths.held)
 
 
+def test_a_design_too_small_to_identify_what_the_plate_reaches_is_never_recommended(arm7, cli, tmp_path):
+    """One placement of two seatings per socket identifies only part of what the plate reaches: what
+    it reaches is the largest design's, the small design loses the rest, is not recommended, and the
+    summary names what it loses."""
+    plan = plan_sockets(arm7, placements=(1, 3), poses_per_socket=(2, 20), joint_noise=ENCODER)
+    by = {(d.placements, d.poses_per_socket): d for d in plan.designs}
+    names = rc.candidate_parameters(arm7, ("geometric",))
+    largest = socket_campaign(arm7, placements=3, poses_per_socket=20, rng=0)
+    reach = contact_identifiability(Problem(arm7, names, contacts=largest, compliance=False), names).identified
+    assert set(by[(3, 20)].predicted_std) == set(reach) and not by[(3, 20)].lost
+    tiny = by[(1, 2)]
+    assert tiny.lost and set(tiny.lost) | set(tiny.predicted_std) == set(reach)
+    assert not tiny.meets_bounds and tiny.worst in tiny.lost
+    assert plan.chosen is not None and plan.chosen != tiny and set(plan.chosen.predicted_std) == set(reach)
+    code, out, err = cli("plan-sockets", ARM7, "--placements", "1,3", "--poses-per-socket", "2,20")
+    assert code == 0, err
+    assert f"socket plate: {len(reach)} parameters reachable" in out
+    assert f"cannot identify {len(tiny.lost)} of the {len(reach)}: {', '.join(tiny.lost)}" in out
+    assert "recommended: 1 placements, 2 seatings" not in out
+
 
 def test_the_only_spacing_row_is_kept_and_named(arm7):
     """One placement, one known distance stated 5 mm wrong, and a socket row read while the arm moved

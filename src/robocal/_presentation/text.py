@@ -495,16 +495,18 @@ def contact_summary(result, shown=()) -> str:
 def socket_plan_summary(plan) -> str:
     """What ``robocal plan-sockets`` prints: every design with its worst parameter against its bound,
     then the recommendation and the chosen design's predicted standard deviations."""
-    d0 = plan.designs[0]
-    lines = [f"socket plate: {len(d0.predicted_std) + len(plan.held)} parameters reachable; unreachable: "
-             f"{', '.join(d0.unreachable) or 'none'}"]
+    top = plan.designs[-1]      # the largest: what the plate reaches
+    judged = len(top.predicted_std) + len(top.lost)
+    lines = [f"socket plate: {judged + len(plan.held)} parameters reachable; unreachable: "
+             f"{', '.join(top.unreachable) or 'none'}"]
     if plan.held:
         lines.append(f"beyond their bound in every design of the grid, held at nominal as the calibration holds "
-                     f"them: {', '.join(plan.held)}; the designs below are judged on the other "
-                     f"{len(d0.predicted_std)} parameters")
+                     f"them: {', '.join(plan.held)}; the designs below are judged on the other {judged} parameters")
     lines.append("placements  seatings/socket  seatings  worst parameter (predicted std / bound)")
     for d in plan.designs:
-        lines.append(f"  {d.placements:>9}  {d.poses_per_socket:>15}  {d.n_seatings:>8}  {d.worst} {d.worst_ratio:.3g}"
+        worst = (f"cannot identify {len(d.lost)} of the {judged}: {', '.join(d.lost)}" if d.lost
+                 else f"{d.worst} {d.worst_ratio:.3g}")
+        lines.append(f"  {d.placements:>9}  {d.poses_per_socket:>15}  {d.n_seatings:>8}  {worst}"
                      + ("" if d.meets_bounds else "  (beyond)"))
     if plan.chosen is None:
         lines.append("no design of the grid keeps every parameter within its bound: more placements or seatings, "

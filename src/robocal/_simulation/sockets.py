@@ -5,15 +5,18 @@ The largest design is simulated on the nominal robot (``socket_campaign``: rando
 the joint limits, the plate at random placements) and each smaller one is its first placements and
 first seatings per socket (so more placements or seatings never predict worse). Each design's
 contact problem is linearised there, and the covariance the fit would report with the stated
-deviations is ``(J^T J)^-1`` (every row is already divided by its deviation). The recommended
-design is the smallest of the grid (fewest seatings) whose predicted standard deviations all stay
-within the practical-identifiability bounds (``WEAK_STD``, docs/checks.md). Parameters beyond their
+deviations is ``(J^T J)^-1`` (every row is already divided by its deviation). What the plate
+reaches is what the largest design identifies; a smaller design that cannot identify some of it
+loses them. The recommended design is the smallest of the grid (fewest seatings) that loses none
+and whose predicted standard deviations all stay within the practical-identifiability bounds
+(``WEAK_STD``, docs/checks.md). Parameters beyond their
 bound even in the largest design are held at nominal, as the calibration holds them, and the
 designs judged on the others.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,7 +34,15 @@ from .._base.arguments import (
 from .._base.errors import InputError
 from .._base.options import MAX_DESIGN_WORK, MAX_GRID_ROWS, MAX_PLACEMENTS, MAX_SEATINGS
 from .._base.threads import one_blas_thread
-from .._identification.identifiability import WEAK_STD, contact_identifiability, robot_part, weakly_identifiable
+from .._identification.identifiability import (
+    DEFAULT_TOL,
+    WEAK_STD,
+    StackAnalysis,
+    analyse_stack,
+    kinds_reach,
+    robot_part,
+    weakly_identifiable,
+)
 from .._identification.problem import Problem
 from .._model.contacts import Contacts
 from .._model.parameters import candidate_parameters, parameter_layout
@@ -47,7 +58,10 @@ SECONDS = {"placements": 0.1, "seatings": 1.5e-3, "rows": 1e-4, "analysis": 7e-9
 class SocketDesign:
     """One design of the grid: ``placements`` of the plate, ``poses_per_socket`` seatings of each
     socket, the robot parameters it identifies with their predicted standard deviations (SI), the
-    directions it cannot reach, and the parameter furthest beyond (or closest to) its bound."""
+    directions the plate cannot reach, the parameter furthest beyond (or closest to) its bound, and
+    ``lost``: those the plate reaches (in the grid's largest design) that this design cannot
+    identify; a design that loses any is beyond its bounds (``worst`` is the first, ``worst_ratio``
+    infinite)."""
 
     placements: int
     poses_per_socket: int
@@ -57,6 +71,7 @@ class SocketDesign:
     unreachable: tuple[str, ...]
     worst: str
     worst_ratio: float          # predicted std over its bound for ``worst``
+    lost: tuple[str, ...] = ()
 
     @property
     def meets_bounds(self) -> bool:
@@ -76,31 +91,41 @@ class SocketPlan:
     held: tuple[str, ...] = ()
 
 
-def _jacobian(model: RobotModel, campaign: Contacts, names, identified) -> np.ndarray:
-    """The weighted contact Jacobian at nominal: the ``identified`` columns, then the sockets'."""
+def _analysis(model: RobotModel, campaign: Contacts, names) -> tuple[Problem, StackAnalysis]:
+    """The structural analysis of a design over the candidates ``names`` at nominal, as the
+    calibration's: the sockets' columns first, what they absorb leaving the robot."""
     prob = Problem(model, names, contacts=campaign, compliance=False)
-    return prob.at_contact().over(identified).jacobian(prob.start_vector())
+    return prob, analyse_stack(prob, tuple(names), prob.start_vector(), tol=DEFAULT_TOL)
 
 
-def _design(model: RobotModel, campaign: Contacts, names, placements: int, poses: int, identified, unreachable,
-            bounds: dict) -> SocketDesign:
-    k = len(identified)
-    J = _jacobian(model, campaign, names, identified)
-    std = np.sqrt(np.diag(np.linalg.pinv(J.T @ J)))[:k]
+def _columns(stack: StackAnalysis, chosen) -> np.ndarray:
+    """The reduced Jacobian's sockets' columns, then those of the robot parameters ``chosen``."""
+    nn = stack.R.shape[1] - len(stack.names)
+    return stack.R[:, np.r_[np.arange(nn), nn + np.array([stack.names.index(n) for n in chosen], dtype=int)]]
+
+
+def _design(model: RobotModel, stack: StackAnalysis, n_seatings: int, placements: int, poses: int, target,
+            unreachable, bounds: dict) -> SocketDesign:
+    """A design judged on the parameters ``target``: those it cannot identify are ``lost`` (beyond
+    any bound), the others predicted with ``(J^T J)^-1`` over them and the sockets."""
+    lost = tuple(n for n in target if n not in stack.result.identified)
+    kept = tuple(n for n in target if n not in lost)
+    R = _columns(stack, kept)
+    std = np.sqrt(np.diag(np.linalg.pinv(R.T @ R)))[R.shape[1] - len(kept):]
     lay = parameter_layout(model)
-    ratios = {n: s / bounds[lay[n].quantity] for n, s in zip(identified, std)}
-    worst = max(ratios, key=lambda n: ratios[n])
-    return SocketDesign(placements, poses, int(campaign.q.shape[0]), dict(zip(identified, map(float, std))),
-                        {n: lay[n].unit for n in identified}, unreachable, worst, float(ratios[worst]))
+    ratios = {n: s / bounds[lay[n].quantity] for n, s in zip(kept, std)}
+    worst = lost[0] if lost else max(ratios, key=lambda n: ratios[n])
+    return SocketDesign(placements, poses, n_seatings, dict(zip(kept, map(float, std))),
+                        {n: lay[n].unit for n in kept}, unreachable, worst,
+                        math.inf if lost else float(ratios[worst]), lost)
 
 
-def _held(model: RobotModel, campaign: Contacts, names, identified, bounds: dict) -> tuple[str, ...]:
+def _held(model: RobotModel, stack: StackAnalysis, identified, bounds: dict) -> tuple[str, ...]:
     """What the calibration's rule (``weakly_identifiable``, the later member of a weak group going)
-    holds at nominal on ``campaign`` (the grid's largest design: held on every one), the sockets'
+    holds at nominal on the design of ``stack`` (the grid's largest: held on every one), the sockets'
     columns taken out of the robot's first."""
-    J = _jacobian(model, campaign, names, identified)
-    k = len(identified)
-    robot = robot_part(np.hstack([J[:, k:], J[:, :k]]), J.shape[1] - k)     # as the calibration's analysis does
+    R = _columns(stack, identified)
+    robot = robot_part(R, R.shape[1] - len(identified))     # as the calibration's analysis does
     lay = parameter_layout(model)
     found = weakly_identifiable(robot, identified, [lay[n].quantity for n in identified], 1.0, bounds=bounds)
     return tuple(n for n, _, _, _ in found)
@@ -136,7 +161,8 @@ def plan_sockets(model: RobotModel, *, placements=(3, 5, 7, 9), poses_per_socket
     ``joint_noise`` (rad or m per reading) and ``seat_noise`` (m) are the deviations the fit will
     state; ``bounds`` the standard deviation each quantity must stay within (``{"length": m,
     "angle": rad}``, default ``WEAK_STD``); ``seed`` draws the simulated seatings and placements. What
-    the plate identifies and cannot reach is the structure's, found once on the smallest design.
+    the plate identifies and cannot reach is found on the largest design; a smaller design that
+    cannot identify some of it loses them (``SocketDesign.lost``) and is never recommended.
 
     Parameters
     ----------
@@ -173,19 +199,23 @@ def plan_sockets(model: RobotModel, *, placements=(3, 5, 7, 9), poses_per_socket
     seating, placement = row % per[-1], row // (full.n_rows // placements[-1])     # rows: placement, socket, seating
     campaigns = {(n_pl, n_po): full.subset((placement < n_pl) & (seating < n_po))
                  for n_pl in placements for n_po in per}
-    ident = contact_identifiability(Problem(model, names, contacts=campaigns[placements[0], per[0]],
-                                            compliance=False), names)
+    stacks = {key: _analysis(model, c, names) for key, c in campaigns.items()}
+    # what the plate reaches is what the largest design identifies (it holds every smaller one's
+    # rows): every design is judged on all of it, and one that cannot identify some loses them
+    largest = placements[-1], per[-1]
+    prob, stack = stacks[largest]
+    ident = kinds_reach(prob, stack, prob.start_vector())
     unreachable = tuple(u.name for u in ident.unreachable)
 
-    def grid(identified):
-        return [_design(model, c, names, n_pl, n_po, identified, unreachable, bounds)
-                for (n_pl, n_po), c in campaigns.items()]
+    def grid(target):
+        return [_design(model, s, campaigns[key].q.shape[0], *key, target, unreachable, bounds)
+                for key, (_, s) in stacks.items()]
 
     designs = grid(ident.identified)
     held: tuple[str, ...] = ()
     if not any(d.meets_bounds for d in designs):
         # what no design pins down, the calibration holds at nominal: the rest are judged without it
-        held = _held(model, campaigns[placements[-1], per[-1]], names, ident.identified, bounds)
+        held = _held(model, stack, ident.identified, bounds)
         if 0 < len(held) < len(ident.identified):
             designs = grid(tuple(n for n in ident.identified if n not in held))
         else:
