@@ -39,6 +39,7 @@ from .judgement import (
     held_out_nominal,
     in_use,
     input_checks,
+    noise_cost,
     placed_better,
     point_misfit,
     reach,
@@ -85,7 +86,7 @@ def run(model: RobotModel, data: Measurements | None, contacts: Contacts | None,
     cover = campaign_coverage(chosen, cov, where)
     fitted = fit_errors(inputs, chosen, before)
     use, limit = use_checks(in_use_record, cover, options, point_misfit(chosen, options), where, validation_errors,
-                            fitted)
+                            fitted, noise_cost(chosen, in_use_record, holdout))
     better = placed_better(in_use_record, where, chosen.problem, inputs.validation)
     checks = (checked + list(chosen.outliers.checks)
               + fit_checks(chosen, options, in_use_record, better)

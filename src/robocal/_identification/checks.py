@@ -8,6 +8,7 @@ threshold is a named constant here, and docs/checks.md gives each one with its r
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 from scipy.special import gammainc, gammainccinv, ndtr, stdtrit
@@ -823,15 +824,19 @@ def _mm(v: float) -> str:
     return f"{v * 1e3:.4g} mm"
 
 
-def in_use_check(in_use, misfit: float | None = None, reach_m: float | None = None) -> Check:
+def in_use_check(in_use, misfit: float | None = None, reach_m: float | None = None, noise_cost: float = 0.0
+                 ) -> Check:
     """Will the model place the robot better than the nominal one, and how well (``AccuracyInUse``)?
 
     A failure when the mean error in use is worse after calibration than before (beyond
-    ``WORSE_SIGMAS`` standard errors of the paired difference), when the held-out errors are beyond
-    anything the fit explains (``OVERFIT_GROSS`` times the fitted poses' and a millimetre more:
-    another set-up, or a mistake), or when it is no better than before while the fit leaves
-    ``GROSS_MISFIT`` times what the instrument explains (``misfit``: a mistake, not the robot). A
-    warning when it is no better than before within a standard error, when its worst error grew, or
+    ``WORSE_SIGMAS`` standard errors of the paired difference, and by more than ``noise_cost``, m:
+    what the stated noise alone costs the estimates at positions they were not fitted on, a
+    calibration with nothing to correct being that much worse; within it, a warning), when the
+    held-out errors are beyond anything the fit explains (``OVERFIT_GROSS`` times the fitted poses'
+    and a millimetre more: another set-up, or a mistake), or when it is no better than before while
+    the fit leaves ``GROSS_MISFIT`` times what the instrument explains (``misfit``: a mistake, not
+    the robot). A warning when it is no better than before within a standard error, when its worst
+    error grew, or
     when held-out errors are ``OVERFIT_RATIO`` times those of the fitted poses: overfitting when the
     campaign's own cross-validation shows it too, another set-up when registering base and tool on
     the validation set explains it, other poses otherwise. A failure too when the mean error in use
@@ -854,7 +859,8 @@ def in_use_check(in_use, misfit: float | None = None, reach_m: float | None = No
     seen = in_use.measured_after
     if seen is not None and seen.n and seen.mean != a.mean:     # the robot's figure beside what was measured
         summary += f"; held out as measured (the instrument's noise in) {_mm(seen.mean)}"
-    for judge in (_beyond_the_fit, _another_set_up, _no_better, _held_out_larger, _worst_grew):
+    for judge in (_beyond_the_fit, _another_set_up, partial(_no_better, noise_cost=noise_cost), _held_out_larger,
+                  _worst_grew):
         check = judge(in_use, summary, misfit, reach_m)
         if check is not None:
             return check
@@ -891,15 +897,17 @@ def _beyond_the_fit(in_use, summary: str, misfit, reach_m) -> Check | None:
     return None
 
 
-def _no_better(in_use, summary: str, misfit, reach_m) -> Check | None:
-    """Worse than before (a failure), or no better within a standard error: a failure when the fit
-    leaves ``GROSS_MISFIT`` times what the instrument explains, else a warning."""
+def _no_better(in_use, summary: str, misfit, reach_m, noise_cost: float = 0.0) -> Check | None:
+    """Worse than before by more than the stated noise costs the estimates (a failure), or no better
+    within a standard error: a failure when the fit leaves ``GROSS_MISFIT`` times what the
+    instrument explains, else a warning."""
     gain, se = in_use.improvement
     if not np.isfinite(se):
         return Check("accuracy in use", "warn", summary + ": one held-out point has no standard error, so neither "
                      "better nor worse than before is established", cause="too few held-out points to judge by",
                      fix="give more validation poses, spread over the workspace (robocal plan)")
-    if gain < -paired_sigmas(in_use.errors_after.size) * se:
+    worse = gain < -paired_sigmas(in_use.errors_after.size) * se
+    if worse and -gain > noise_cost:
         return Check("accuracy in use", "fail", summary + ": worse than before calibration",
                      cause="a model that fits the fitted poses but not others: too many parameters for the poses, "
                            "or data that do not belong together", fix="read the other checks and the diagnosis; "
@@ -911,6 +919,11 @@ def _no_better(in_use, summary: str, misfit, reach_m) -> Check | None:
                      f"{misfit:.3g} times what the instrument explains", cause="data that do not come from this "
                      "model: a mistake in the data or the model file, not the robot's own errors",
                      fix="read the diagnosis; check joint order, signs, units and the marker columns")
+    if worse:
+        return Check("accuracy in use", "warn", summary + f": worse than before by {_mm(-gain)}, no more than the "
+                     f"stated noise costs the estimates at positions they were not fitted on ({_mm(noise_cost)}): "
+                     "nothing these data show needs correcting", cause="a robot as its nominal model, or errors "
+                     "below what the campaign resolves", fix="keep the nominal model; or measure more poses")
     return Check("accuracy in use", "warn", summary + f": no better than before within its standard error "
                  f"({_mm(se)})", cause="errors the model cannot take up (repeatability, unmodelled effects)",
                  fix="calibrate with the compliance or backlash families if the robot has them, or keep the "

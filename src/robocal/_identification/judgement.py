@@ -469,16 +469,37 @@ def reach_of(where: Reach) -> float | None:
     return None if where.judgement is None else where.judgement.reach_m
 
 
+def noise_cost(fit: Fit, in_use_record: AccuracyInUse | None, holdout: Holdout) -> float:
+    """What the stated noise alone costs the fitted robot at positions it was not fitted on (m, RMS):
+    k parameters estimated from n positions of per-axis deviation s leave s sqrt(k / n) there (the
+    hat matrix's trace is k), n those each held-out position was predicted from (in
+    cross-validation, all but its group's). A robot that is its nominal model is that much worse
+    after a calibration, which has nothing to correct; the tracker's points and the seatings alike."""
+    problem = fit.problem
+    errors = problem.observation_errors(fit.solution.p)
+    parts = [(errors[kind][1], errors[kind][2]) for kind in POSITION_KINDS if kind in errors]
+    if in_use_record is None or not parts:
+        return 0.0
+    s = np.concatenate([np.full(len(o), options_noise(problem)) if s is None else s for s, o in parts])
+    obs = np.concatenate([o for _, o in parts])
+    seen = np.full(len(obs), float(len(obs)))
+    if in_use_record.method == "cross-validation":
+        group = holdout.groups[obs]
+        held = group >= 0
+        seen = len(obs) - np.bincount(group[held], minlength=holdout.k)[group[held]]
+    return float(np.sqrt(np.mean(s ** 2) * len(problem.robot_idx) * np.mean(1.0 / np.maximum(seen, 1))))
+
+
 def use_checks(in_use_record: AccuracyInUse | None, cover: Coverage | None, options: Options, misfit: float | None,
-               where: Reach, held: PoseErrors | None = None, fitted: PoseErrors | None = None):
-    """The accuracy in use (``misfit``: the measured points' fit against the instrument), the
-    held-out points that stand out (``held``: a validation set's errors), where it holds (against
-    the ``fitted`` points' errors before), and the limit of absolute accuracy."""
+               where: Reach, held: PoseErrors | None = None, fitted: PoseErrors | None = None, cost: float = 0.0):
+    """The accuracy in use (``misfit``: the measured points' fit against the instrument; ``cost``:
+    ``noise_cost``), the held-out points that stand out (``held``: a validation set's errors), where
+    it holds (against the ``fitted`` points' errors before), and the limit of absolute accuracy."""
     if in_use_record is None:
         return [Check("accuracy in use", "pass", "no position held out (contacts of one placement, or no seating "
                       "among them): judged by the fit's checks alone",
                       fix="measure on two placements or more, or hold out measured points (--validation)")], None
-    out = [in_use_check(in_use_record, misfit, reach_of(where))] + spacing_check(in_use_record)
+    out = [in_use_check(in_use_record, misfit, reach_of(where), cost)] + spacing_check(in_use_record)
     if held is not None and held.data.mask.any():
         d = held.data
         rows, markers = np.nonzero(d.mask)
