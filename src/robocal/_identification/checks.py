@@ -836,12 +836,12 @@ def in_use_check(in_use, misfit: float | None = None, reach_m: float | None = No
     and a millimetre more: another set-up, or a mistake), or when it is no better than before while
     the fit leaves ``GROSS_MISFIT`` times what the instrument explains (``misfit``: a mistake, not
     the robot). A warning when it is no better than before within a standard error, when its worst
-    error grew, or
-    when held-out errors are ``OVERFIT_RATIO`` times those of the fitted poses: overfitting when the
-    campaign's own cross-validation shows it too, another set-up when registering base and tool on
-    the validation set explains it, other poses otherwise. A failure too when the mean error in use
-    after calibration exceeds ``IN_USE_SHARE_MAX`` of the robot's reach ``reach_m``: no robot is
-    placed that far off by a model of it. Otherwise a pass, with the figures."""
+    error grew, or when held-out errors are ``OVERFIT_RATIO`` times those of the fitted poses:
+    overfitting when the campaign's own cross-validation shows it too, another set-up when
+    registering base and tool on the validation set explains it, other poses otherwise. A failure
+    too when the mean error in use after calibration exceeds ``IN_USE_SHARE_MAX`` of the robot's
+    reach ``reach_m``: no robot is placed that far off by a model of it. Otherwise a pass, with the
+    figures."""
     name = "accuracy in use"
     b, a, fit = in_use.position_before, in_use.position_after, in_use.fit_after
     how = in_use.method + (f", {in_use.grouping}" if in_use.method == "cross-validation" else "")

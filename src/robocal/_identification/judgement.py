@@ -480,7 +480,7 @@ def noise_cost(fit: Fit, in_use_record: AccuracyInUse | None, holdout: Holdout) 
     parts = [(errors[kind][1], errors[kind][2]) for kind in POSITION_KINDS if kind in errors]
     if in_use_record is None or not parts:
         return 0.0
-    s = np.concatenate([np.full(len(o), options_noise(problem)) if s is None else s for s, o in parts])
+    s = np.concatenate([np.full(len(o), options_noise(problem)) if stated is None else stated for stated, o in parts])
     obs = np.concatenate([o for _, o in parts])
     seen = np.full(len(obs), float(len(obs)))
     if in_use_record.method == "cross-validation":
