@@ -96,18 +96,24 @@ def test_compensate_reaches_every_reachable_target_and_flags_the_rest(tmp_path, 
                          zip(nominal.joint_names, nominal.reading_quantities)] + ["tool_x_mm", "tool_y_mm", "tool_z_mm"]
     scale = [1e3 if k == "length" else 180 / np.pi for k in nominal.reading_quantities]
     far = rc.forward_kinematics(nominal, q[:1]).positions[0, 0] * 1e3 + [5000.0, 0, 0]
+    # reachable within the limits, from a starting guess whose base axis is 2.4 rad off: the solver
+    # stops short of it, which is not the same as out of reach
+    goal = np.array([120 * np.pi / 180, 0.4, 0.3, 0, 0, 0])
+    there = rc.forward_kinematics(true, goal).positions[0, 0] * 1e3
     with open(targets, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(header)
         for i, qi in enumerate(q):
             w.writerow([f"T{i}"] + [v * s for v, s in zip(qi, scale)] + ["", "", ""])
         w.writerow(["far"] + [v * s for v, s in zip(q[0], scale)] + list(far))   # Cartesian, out of reach
+        w.writerow(["short"] + [v * s for v, s in zip(goal - [2.4, 0, 0, 0, 0, 0], scale)] + list(there))
     out = tmp_path / "commands.csv"
     code, printed, err = cli("compensate", TH8, TRUE, targets, "--out", out)
     assert code == 0, err
     rows = _rows(out)
-    assert [r["pose"] for r in rows] == [f"T{i}" for i in range(8)] + ["far"]       # none dropped
-    assert [r["status"] for r in rows] == ["ok"] * 8 + ["out of reach"] and "far: out of reach" in err
+    assert [r["pose"] for r in rows] == [f"T{i}" for i in range(8)] + ["far", "short"]       # none dropped
+    assert [r["status"] for r in rows] == ["ok"] * 8 + ["out of reach", "not converged"]
+    assert "far: out of reach" in err and "short: not converged" in err
     got = np.array([[float(r[c]) / s for c, s in zip(header[1:7], scale)] for r in rows[:8]])
     # the nominal pose on the calibrated robot's base: the nominal base (a guess of where the
     # instrument stood) moves no target
@@ -128,6 +134,20 @@ def test_compensate_cartesian_targets_and_joint_limits():
     assert np.abs(rc.forward_kinematics(true, comp.q).positions[:, 0] - goal).max() < 1e-6
     narrow = model.replace(joint_limits=tuple((lo * 1e-3, hi * 1e-3) for lo, hi in model.joint_limits))
     assert not rc.compensate(narrow, q, nominal=model).within_limits.all()
+
+
+def test_a_target_beyond_the_arms_reach_is_out_of_reach_and_one_stopped_short_of_is_not():
+    """Targets twice as far from the base as the arm reaches: once the solver no longer approaches
+    them it says they are out of reach; stopped while still approaching, it does not."""
+    model = arm6r()
+    true, _ = rc.simulate(model, 3, seed=2)
+    q = rc.random_configurations(model, 5, 1) * 0.7
+    goal = 2.0 * rc.forward_kinematics(model, q).positions[:, 0]
+    comp = rc.compensate(true, q, nominal=model, positions=goal, iterations=300)
+    assert comp.stuck.all() and comp.out_of_reach().all() and (comp.residual > 0.3).all()
+    early = rc.compensate(true, q, nominal=model, positions=goal, iterations=3)
+    assert not early.stuck.any() and not early.reached().any()
+    assert np.array_equal(early.out_of_reach(), ~early.within_limits)
 
 
 def test_export_takes_urdf_from_the_file_name_and_asks_for_a_tables_form(tmp_path, cli):

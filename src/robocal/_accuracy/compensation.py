@@ -27,19 +27,23 @@ from .._base.arguments import (
 from .._base.errors import InputError
 from .._base.threads import one_blas_thread
 from .._model.kinematics import evaluate, layout, transmission_slope
+from .._model.measurements import approach_sides
 from .._model.parameters import joint_variable_names, parameter_layout, parameter_vector
 from .._model.robot import RobotModel
 
 log = logging.getLogger(__name__)
 
 
-@accepts(model=is_a(RobotModel), q=readings_of())
-def joint_jacobian(model: RobotModel, q) -> np.ndarray:
+@accepts(model=is_a(RobotModel), q=readings_of(), approach=optional(rows_for("q", lambda args: args["model"].n_joints)))
+def joint_jacobian(model: RobotModel, q, approach=None) -> np.ndarray:
     """d(marker pose)/d(joint readings): (N, n_markers, 6, n_joints) in W (rows dx, dy, dz, rotation).
 
     Parameters
     ----------
     {model, q}
+    approach : array_like, shape (n_poses, n_joints), optional
+        Direction (+1 or -1) of each joint's last move, for a model with backlash (None: from the
+        row order of ``q``, as ``evaluate``).
 
     Returns
     -------
@@ -48,7 +52,7 @@ def joint_jacobian(model: RobotModel, q) -> np.ndarray:
     """
     lay = parameter_layout(model)
     cols = [lay[n].index for n in joint_variable_names(model)]
-    ev = evaluate(model, q, jacobian=True, columns=cols)
+    ev = evaluate(model, q, jacobian=True, columns=cols, approach=approach)
     moving = np.array([f.joint != "fixed" for f in model.frames])
     # per frame variable; a transmission error turns the arm's variable d q_eff / d q per reading's turn
     qf = np.atleast_2d(q) @ model.coupling_matrix.T
@@ -62,17 +66,27 @@ class Compensation:
     """``q`` (N, n_joints) corrected readings; ``residual`` (N,) remaining position error (m) and
     ``residual_rot`` (N,) orientation error (rad, 0 where orientation was not matched) of the
     corrected poses against the targets; ``within_limits`` (N,) whether the corrected readings
-    respect the joint limits; ``oriented`` (N,) whether each target's orientation was matched."""
+    respect the joint limits; ``oriented`` (N,) whether each target's orientation was matched;
+    ``stuck`` (N,) whether the solver no longer approached the target when it stopped (its step
+    vanished, or its error fell by less than ``STALL_DROP`` over its last ``STALL_WINDOW`` steps)."""
 
     q: np.ndarray
     residual: np.ndarray
     residual_rot: np.ndarray
     within_limits: np.ndarray
     oriented: np.ndarray
+    stuck: np.ndarray
 
     def reached(self, tol: float = 1e-6, tol_rot: float = 1e-6) -> np.ndarray:
         """(N,) whether each target was reached within ``tol`` (m) and ``tol_rot`` (rad)."""
         return (self.residual <= tol) & (self.residual_rot <= tol_rot)
+
+    def out_of_reach(self, tol: float = 1e-6, tol_rot: float = 1e-6) -> np.ndarray:
+        """(N,) whether each target is not reached and out of reach: the solver no longer approached
+        it (``stuck``), or approached it only beyond a joint limit. A target neither reached nor out
+        of reach is one the solver was still approaching when it stopped (from a starting guess far
+        from it, say): not converged, it may be reachable."""
+        return ~self.reached(tol, tol_rot) & (self.stuck | ~self.within_limits)
 
 
 def registered(model: RobotModel, on: RobotModel) -> RobotModel:
@@ -92,9 +106,9 @@ def on_robot_base(model: RobotModel) -> RobotModel:
     return model.replace(base_position=(0.0, 0.0, 0.0), base_rotation=tuple(map(tuple, np.eye(3))))
 
 
-def _targets(model, nominal, q0, positions, rotations, marker, orientation):
+def _targets(model, nominal, q0, positions, rotations, marker, orientation, approach):
     """Target positions and rotations in W (N, 3), (N, 3, 3) and which rows match orientation."""
-    target = evaluate(nominal, q0, orientations=True)
+    target = evaluate(nominal, q0, orientations=True, approach=approach)
     Pt = target.positions[:, marker].copy()
     Rt = target.rotations[:, marker].copy()
     if orientation is None:
@@ -111,31 +125,37 @@ def _targets(model, nominal, q0, positions, rotations, marker, orientation):
     return Pt, Rt, oriented
 
 
-def _errors(model, q, p, marker, Pt, Rt):
-    ev = evaluate(model, q, p, orientations=True)
-    e_pos = ev.positions[:, marker] - Pt
-    e_rot = Rotation.from_matrix(ev.rotations[:, marker] @ np.swapaxes(Rt, -1, -2)).as_rotvec()
-    return e_pos, e_rot
+@dataclass(frozen=True)
+class _Goal:
+    """What the solver is asked, per pose: the marker's position ``P`` (N, 3) and rotation ``R``
+    (N, 3, 3) in W, whether the rotation counts (``oriented`` (N,)), and the direction of each
+    joint's last move (``approach`` (N, n_joints)), which holds while the readings change: a joint
+    with backlash rests on the side its command is approached from, not on one the solver's
+    iterates would give."""
 
+    marker: int
+    P: np.ndarray
+    R: np.ndarray
+    oriented: np.ndarray
+    approach: np.ndarray
 
-def _damped_newton(model, q0, Pt, Rt, oriented, *, marker, iterations, tol, damping, max_step):
-    """Readings that put ``marker`` on the poses (Pt, Rt) in W, from ``q0``: damped least-squares
-    steps per pose, each pose left alone once within ``tol`` (m, rad) or once its step vanishes
-    (a local minimum: out of reach)."""
-    q = np.array(q0, dtype=float)
-    p = parameter_vector(model)
-    active = np.arange(len(q))
-    for it in range(iterations):
-        e_pos, e_rot = _errors(model, q[active], p, marker, Pt[active], Rt[active])
-        e_rot[~oriented[active]] = 0.0
-        log.info("compensation step %d: largest position error %.3g m", it,
-                 np.max(np.linalg.norm(e_pos, axis=1), initial=0.0))
-        left = (np.linalg.norm(e_pos, axis=1) >= tol) | (np.abs(e_rot).max(axis=1) >= tol)
-        active, e = active[left], np.concatenate([e_pos, e_rot], axis=1)[left]
-        if not len(active):
-            break
-        J = joint_jacobian(model, q[active])[:, marker].copy()
-        J[~oriented[active], 3:] = 0.0          # position-only rows: the rotation rows ask nothing
+    def rows(self, k) -> _Goal:
+        return _Goal(self.marker, self.P[k], self.R[k], self.oriented[k], self.approach[k])
+
+    def errors(self, model, q, p) -> tuple[np.ndarray, np.ndarray]:
+        """Position (N, 3) and rotation-vector (N, 3) errors of the marker at readings ``q``, the
+        latter zero where the rotation does not count."""
+        ev = evaluate(model, q, p, orientations=True, approach=self.approach)
+        e_pos = ev.positions[:, self.marker] - self.P
+        e_rot = Rotation.from_matrix(ev.rotations[:, self.marker] @ np.swapaxes(self.R, -1, -2)).as_rotvec()
+        e_rot[~self.oriented] = 0.0
+        return e_pos, e_rot
+
+    def step(self, model, q, e, damping) -> tuple[np.ndarray, np.ndarray]:
+        """The damped least-squares step (N, n_joints) that removes the errors ``e`` (N, 6) to first
+        order, and the errors (N, 6) it leaves to first order."""
+        J = joint_jacobian(model, q, self.approach)[:, self.marker].copy()
+        J[~self.oriented, 3:] = 0.0          # position-only rows: the rotation rows ask nothing
         # damped least squares per pose: near a singularity (wrist aligned) an exact step would
         # swing the joints by radians for a micrometre; damping and a step bound keep it local
         JT = np.swapaxes(J, 1, 2)
@@ -143,20 +163,61 @@ def _damped_newton(model, q0, Pt, Rt, oriented, *, marker, iterations, tol, damp
         # pinv, not solve: where the damping is lost in round-off (joints that move the marker alike,
         # far from it) A is singular and solve raised LinAlgError for every pose
         step = (np.linalg.pinv(A, hermitian=True) @ np.einsum("nji,ni->nj", JT, e)[..., None])[..., 0]
+        return step, e - np.einsum("nij,nj->ni", J, step)
+
+
+def _damped_newton(model, q0, goal: _Goal, *, iterations, tol, damping, max_step):
+    """Readings that put the marker on ``goal``'s poses, from ``q0``, and whether each pose stalled:
+    damped least-squares steps per pose, each pose left alone once within ``tol`` (m, rad) or once
+    its step vanishes (a local minimum). A pose stalled where its step vanished or its error fell by
+    less than ``STALL_DROP`` over its last ``STALL_WINDOW`` steps: the solver settled at (or about)
+    the nearest pose it finds, out of reach; one that did neither was still approaching its target."""
+    q = np.array(q0, dtype=float)
+    p = parameter_vector(model)
+    active = np.arange(len(q))
+    sizes = np.full((iterations, len(q)), np.nan)       # each pose's error, step by step
+    vanished = np.zeros(len(q), dtype=bool)
+    for it in range(iterations):
+        sub = goal.rows(active)
+        e_pos, e_rot = sub.errors(model, q[active], p)
+        log.info("compensation step %d: largest position error %.3g m", it,
+                 np.max(np.linalg.norm(e_pos, axis=1), initial=0.0))
+        left = (np.linalg.norm(e_pos, axis=1) >= tol) | (np.abs(e_rot).max(axis=1) >= tol)
+        active, e = active[left], np.concatenate([e_pos, e_rot], axis=1)[left]
+        if not len(active):
+            break
+        sizes[it, active] = np.linalg.norm(e, axis=1)
+        step = sub.rows(left).step(model, q[active], e, damping)[0]
         big = np.abs(step).max(axis=1, keepdims=True)
         q[active] -= step * np.minimum(1.0, max_step / np.maximum(big, 1e-300))
+        vanished[active[big[:, 0] <= 1e-15]] = True
         active = active[big[:, 0] > 1e-15]
-    return q
+    return q, vanished | _stalled(sizes)
+
+
+# a pose whose error fell by less than this share over its last STALL_WINDOW steps has stalled
+STALL_DROP, STALL_WINDOW = 0.01, 10
+
+
+def _stalled(sizes) -> np.ndarray:
+    """(N,) whether each pose's error (``sizes`` (iterations, N), NaN where it took no step) fell by
+    less than ``STALL_DROP`` over its last ``STALL_WINDOW`` steps."""
+    taken = np.isfinite(sizes)
+    last = len(sizes) - 1 - np.argmax(taken[::-1], axis=0)
+    cols = np.arange(sizes.shape[1])
+    earlier = sizes[np.maximum(last - STALL_WINDOW, 0), cols]
+    return taken.any(axis=0) & (last >= STALL_WINDOW) & (sizes[last, cols] > (1.0 - STALL_DROP) * earlier)
 
 
 @accepts(model=is_a(RobotModel), targets_q=readings_of(), nominal=optional(is_a(RobotModel)),
          positions=optional(shaped(None, 3, finite=False)), rotations=optional(shaped(None, 3, 3, finite=False)),
          marker=marker_of(), orientation=optional(FLAG), iterations=whole(1, 10_000), tol=POSITIVE,
-         damping=NON_NEGATIVE, max_step=POSITIVE)
+         damping=NON_NEGATIVE, max_step=POSITIVE,
+         approach=optional(rows_for("targets_q", lambda args: args["model"].n_joints)))
 @one_blas_thread
 def compensate(model: RobotModel, targets_q, *, nominal: RobotModel | None = None, positions=None,
                rotations=None, marker: int = 0, orientation: bool | None = None, iterations: int = 50,
-               tol: float = 1e-10, damping: float = 1e-6, max_step: float = 0.05) -> Compensation:
+               tol: float = 1e-10, damping: float = 1e-6, max_step: float = 0.05, approach=None) -> Compensation:
     """Readings q' at which ``model`` reaches the pose ``nominal`` reaches at ``targets_q``, both
     on ``model``'s base.
 
@@ -167,10 +228,14 @@ def compensate(model: RobotModel, targets_q, *, nominal: RobotModel | None = Non
     otherwise its position only (least-norm correction). ``positions`` (N, 3) and ``rotations``
     (N, 3, 3), W: Cartesian targets instead, where a row is finite; ``targets_q`` is then the
     starting guess (e.g. the nominal controller's inverse kinematics), and orientation is matched
-    where a rotation is given. Damped least-squares steps (``damping`` in the Jacobian's units,
-    each step at most ``max_step`` rad or m per joint), batched over poses. ``residual`` tells how
-    well each target was reached: out of reach, or near a singularity where the exact pose would
-    need a large joint motion, the damped step settles for the nearest pose instead.
+    where a rotation is given. A joint with backlash rests on the side ``approach`` gives for its
+    command, the targets visited in row order by default (as ``evaluate``, from ``targets_q``):
+    held while solving, so that each command's side is that of the move to it. Damped
+    least-squares steps (``damping`` in the Jacobian's units, each step at most ``max_step`` rad or
+    m per joint), batched over poses. ``residual`` tells how well each target was reached, and
+    ``out_of_reach`` why one was not: out of reach, or near a singularity where the exact pose would
+    need a large joint motion, the damped steps settle short of it (``stuck``); from a starting
+    guess far from it, they may still be approaching it when ``iterations`` run out.
 
     Parameters
     ----------
@@ -186,6 +251,9 @@ def compensate(model: RobotModel, targets_q, *, nominal: RobotModel | None = Non
     tol : float
         Position tolerance of a reached target, m.
     {damping, max_step}
+    approach : array_like, shape (N, n_joints), optional
+        Direction (+1 or -1) of each joint's move to each command (None: the targets visited in row
+        order, the first approached from the last; ``robocal.sim.approach_sides`` of ``targets_q``).
 
     Returns
     -------
@@ -193,19 +261,18 @@ def compensate(model: RobotModel, targets_q, *, nominal: RobotModel | None = Non
         Corrected joint commands, with what each reaches.
     """
     q0 = np.atleast_2d(np.asarray(targets_q, dtype=float))
+    approach = approach_sides(q0) if approach is None else np.asarray(approach, dtype=float).reshape(q0.shape)
     nominal = model if nominal is None else registered(nominal, model)
     Pt, Rt, oriented = _targets(model, nominal, q0,
                                 None if positions is None else np.asarray(positions, dtype=float).reshape(-1, 3),
                                 None if rotations is None else np.asarray(rotations, dtype=float).reshape(-1, 3, 3),
-                                marker, orientation)
-    q = _damped_newton(model, q0, Pt, Rt, oriented, marker=marker, iterations=iterations, tol=tol,
-                       damping=damping, max_step=max_step)
-    p = parameter_vector(model)
-    e_pos, e_rot = _errors(model, q, p, marker, Pt, Rt)
-    res_rot = np.where(oriented, np.linalg.norm(e_rot, axis=1), 0.0)
+                                marker, orientation, approach)
+    goal = _Goal(marker, Pt, Rt, oriented, approach)
+    q, stuck = _damped_newton(model, q0, goal, iterations=iterations, tol=tol, damping=damping, max_step=max_step)
+    e_pos, e_rot = goal.errors(model, q, parameter_vector(model))
     inside = np.all((q >= model.lower_limits) & (q <= model.upper_limits), axis=1)
-    return Compensation(q=q, residual=np.linalg.norm(e_pos, axis=1), residual_rot=res_rot, within_limits=inside,
-                        oriented=oriented)
+    return Compensation(q=q, residual=np.linalg.norm(e_pos, axis=1), residual_rot=np.linalg.norm(e_rot, axis=1),
+                        within_limits=inside, oriented=oriented, stuck=stuck)
 
 
 # -- Cartesian targets: the nominal controller's inverse kinematics ------------------------------------
@@ -505,14 +572,17 @@ def inverse_kinematics(model: RobotModel, positions, rotations, *, marker: int =
     q[far] = seeds[0][far]
     state[far] = 2
     p = parameter_vector(model)
+    # the controller's model: a joint with backlash on one side throughout, so that a target's
+    # solution never depends on which others are solved with it
+    goal = _Goal(marker, P, R, np.ones(n, dtype=bool), np.ones((n, model.n_joints)))
     for seed in seeds:
         todo = np.flatnonzero(state < 2)
         if not len(todo):
             break
-        qk = _damped_newton(model, seed[todo], P[todo], R[todo], np.ones(len(todo), dtype=bool), marker=marker,
-                            iterations=iterations, tol=tol, damping=1e-6, max_step=0.3)
+        qk = _damped_newton(model, seed[todo], goal.rows(todo), iterations=iterations, tol=tol, damping=1e-6,
+                            max_step=0.3)[0]
         qk = _turned(model, qk, turn_from[todo])
-        e_pos, e_rot = _errors(model, qk, p, marker, P[todo], R[todo])
+        e_pos, e_rot = goal.rows(todo).errors(model, qk, p)
         good = (np.linalg.norm(e_pos, axis=1) <= 10 * tol) & (np.linalg.norm(e_rot, axis=1) <= 10 * tol)
         good &= posture_fits(posture_margins(model, qk, marker=marker), want[todo], distinct)
         inside = np.all((qk >= model.lower_limits) & (qk <= model.upper_limits), axis=1)
@@ -586,6 +656,6 @@ def compensate_poses(nominal: RobotModel, calibrated: RobotModel, positions, rot
     start = np.where(ik.solved[:, None], ik.q, 0.0)
     comp = compensate(calibrated, start, nominal=nominal, positions=np.where(ik.solved[:, None], P, np.nan),
                       rotations=R, marker=marker, orientation=True)
-    ev = evaluate(nominal, comp.q, orientations=True)
+    ev = evaluate(nominal, comp.q, orientations=True, approach=np.ones_like(comp.q))     # as its inverse kinematics
     return PoseCompensation(q_nominal=ik.q, q=comp.q, positions=ev.positions[:, marker],
                             rotations=ev.rotations[:, marker], solved=ik.solved, compensation=comp)

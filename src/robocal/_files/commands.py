@@ -10,14 +10,15 @@ from .._base.units import ANGLE_UNITS, LENGTH_UNITS, parse_units
 from .._model.robot import RobotModel
 
 # what the status column says of a target
-REACHED, UNREACHED, BEYOND_LIMITS = "ok", "out of reach", "beyond joint limits"
+REACHED, UNREACHED, NOT_CONVERGED, BEYOND_LIMITS = "ok", "out of reach", "not converged", "beyond joint limits"
 
 
 def command_status(comp: Compensation, tol: float, tol_rot: float) -> list[str]:
-    """Per target: ``ok``, ``out of reach`` (residual above the tolerances) or ``beyond joint limits``."""
-    reached = comp.reached(tol, tol_rot)
-    return [UNREACHED if not r else (REACHED if inside else BEYOND_LIMITS)
-            for r, inside in zip(reached, comp.within_limits)]
+    """Per target: ``ok``; ``out of reach`` or ``not converged`` (residual above the tolerances, see
+    ``Compensation.out_of_reach``); ``beyond joint limits``."""
+    reached, far = comp.reached(tol, tol_rot), comp.out_of_reach(tol, tol_rot)
+    return [(UNREACHED if f else NOT_CONVERGED) if not r else (REACHED if inside else BEYOND_LIMITS)
+            for r, f, inside in zip(reached, far, comp.within_limits)]
 
 
 def commands_to_csv(model: RobotModel, labels, comp: Compensation, status, *, units: str = "mm-deg") -> str:

@@ -14,8 +14,8 @@ EXAMPLE = """examples:
       --out program-compensated.mod
 
 A robot program (ABB RAPID .mod/.prg/.sys, KUKA KRL .src/.dat, URScript .script; or --dialect)
-is written back with only its targets' numbers changed; a target out of reach or beyond a joint
-limit is left unchanged and flagged in a comment (docs/formats.md, "Robot programs").
+is written back with only its targets' numbers changed; a target out of reach, not converged or
+beyond a joint limit is left unchanged and flagged in a comment (docs/formats.md, "Robot programs").
 
 TARGETS.csv has the measurement-file layout: joint columns (the readings the nominal controller
 would command) and, optionally, marker columns. A row with a marker position (and orientation) is a
@@ -27,7 +27,7 @@ def register(sub) -> None:
     p = common.command(sub, "compensate", summary="corrected joint commands for the calibrated robot",
                        description="Joint commands that put the calibrated robot where the nominal controller "
                                    "was asked to go, with the residual of each and a flag where a target is out "
-                                   "of reach or beyond a joint limit.",
+                                   "of reach, not converged or beyond a joint limit.",
                        example=EXAMPLE,
                        inputs=[("nominal", "NOMINAL", "the model the controller holds (YAML)"),
                                ("calibrated", "CALIBRATED", "the calibrated model (YAML)"),
@@ -49,9 +49,9 @@ def register(sub) -> None:
     p.add_argument("--position-only", action="store_true",
                    help="match the marker's position only, even with six joints or more")
     p.add_argument("--tol-mm", type=common.noise_mm, default=0.001,
-                   help="position residual above which a target counts as out of reach (default 0.001)")
+                   help="position residual above which a target counts as not reached (default 0.001)")
     p.add_argument("--tol-deg", type=common.noise_deg, default=1e-4,
-                   help="orientation residual above which a target counts as out of reach (default 1e-4)")
+                   help="orientation residual above which a target counts as not reached (default 1e-4)")
     p.add_argument("--out-units", type=common.units, default="mm-deg",
                    help="units of the written file (default mm-deg)")
     p.add_argument("--force", action="store_true", help="overwrite an existing file")
@@ -166,7 +166,7 @@ def run(args) -> int:
     comp = compensate(calibrated, data.q, nominal=nominal, marker=m,
                       positions=None if col is None else data.positions[:, col],
                       rotations=None if col is None or data.rotations is None else data.rotations[:, col],
-                      orientation=False if args.position_only else None)
+                      orientation=False if args.position_only else None, approach=data.extra.get("approach"))
     status = command_status(comp, args.tol_mm / common.MM, args.tol_deg / common.DEG)
     # the controller holds the nominal model: a command beyond its limits is flagged too
     status = [BEYOND_LIMITS if s == REACHED and not ok else s

@@ -33,6 +33,7 @@ DIGITS = {1e-3: 7, 1.0: 10, math.pi / 180: 9}
 # what the summary and the flag comments say of a target
 REACHED, UNREACHED, BEYOND, NO_SOLUTION = ("ok", "out of reach of the calibrated robot", "beyond a joint limit",
                                            "no nominal solution in its configuration")
+NOT_CONVERGED = "the calibrated robot's commands did not converge"
 CONFIGURATION = "its configuration data no longer fit"
 
 

@@ -33,6 +33,7 @@ from . import (
     DIGITS,
     KEEP,
     NO_SOLUTION,
+    NOT_CONVERGED,
     REACHED,
     UNREACHED,
     joint_units,
@@ -114,9 +115,9 @@ def _angle(Ra, Rb) -> np.ndarray:
 
 
 def _status(solved, comp, tol, tol_rot) -> list[str]:
-    reached = comp.reached(tol, tol_rot)
-    return [NO_SOLUTION if not s else UNREACHED if not r else BEYOND if not inside else REACHED
-            for s, r, inside in zip(solved, reached, comp.within_limits)]
+    reached, far = comp.reached(tol, tol_rot), comp.out_of_reach(tol, tol_rot)
+    return [NO_SOLUTION if not s else (UNREACHED if f else NOT_CONVERGED) if not r else BEYOND if not inside else
+            REACHED for s, r, f, inside in zip(solved, reached, far, comp.within_limits)]
 
 
 def _changes(model, q_old, q_new):
