@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from robots import arm6r, cylindrical
 from test_backlash import _column_errors, _with_backlash
+from test_cli_job import _rows
 from test_kinematics import _assert_columns_match, _random_tree_model
 
 import robocal as rc
@@ -416,3 +417,71 @@ def test_joint_targets_compensated_with_compliance_backlash_and_gear_errors_reac
     # solved alone, a target gets the command it gets among the others when its sides are given
     one = rc.compensate(calibrated, targets[7], nominal=nominal, approach=approach[7], tol=1e-12)
     np.testing.assert_allclose(one.q[0], comp.q[7], atol=1e-9)
+
+
+UR5_MAP = ("step_order=pose,x_t+x_dif=tool_x_mm,y_t+y_dif=tool_y_mm,z_t+z_dif=tool_z_mm,joint_1=shoulder_pan_deg,"
+           "joint_2=shoulder_lift_deg,joint_3=elbow_deg,joint_4=wrist_1_deg,joint_5=wrist_2_deg,joint_6=wrist_3_deg")
+
+
+def test_compensate_names_the_targets_beyond_the_readings_the_calibration_measured(tmp_path, cli):
+    """The published UR5, calibrated on its grid (shoulder_pan over -24 to 57 deg) with gear terms:
+    the calibrated model file records each joint's range of readings, and compensate names the targets
+    whose commands it extrapolates to (shoulder_pan at 180 deg), counts them, and still writes them."""
+    from real_campaigns import FILES, HERE, campaign, nominal
+
+    grid = FILES / "UR5" / "3D_UR5_uncalibrated_grid_cleaned.csv"
+    assert cli("import-dh", HERE / "ur5-dh.csv", "--out", tmp_path / "ur5.yaml")[0] == 0
+    code, out, err = cli("calibrate", tmp_path / "ur5.yaml", grid, "--map", UR5_MAP, "--out", tmp_path / "run",
+                         "--compare")
+    assert code == 0 and "calibrated model chosen: +transmission" in out, err
+    measured = campaign("UR5", "grid", nominal("UR5")).q
+    record = rc.io.read_calibration(tmp_path / "run" / "calibrated.yaml")
+    np.testing.assert_allclose(record["joint_ranges"], np.stack([measured.min(axis=0), measured.max(axis=0)], 1),
+                               atol=1e-12)
+    assert rc.io.read_calibration(tmp_path / "ur5.yaml") is None
+    test = campaign("UR5", "random", nominal("UR5")).q[:4]
+    far = test.copy()
+    far[:, 0] = np.pi
+    targets = tmp_path / "targets.csv"
+    rc.write_measurements(rc.Measurements(q=np.vstack([test, far]), positions=np.full((8, 0, 3), np.nan),
+                                          marker_names=(), joint_names=nominal("UR5").joint_names,
+                                          labels=[f"in{i}" for i in range(4)] + [f"far{i}" for i in range(4)]),
+                          targets, model=nominal("UR5"))
+    code, out, err = cli("compensate", tmp_path / "ur5.yaml", tmp_path / "run" / "calibrated.yaml", targets,
+                         "--out", tmp_path / "commands.csv")
+    assert code == 0, err
+    assert "8 reached, 0 flagged, 4 beyond the calibrated ranges" in out
+    assert "the calibration measured shoulder_pan over -24.4454 deg to 56.5311 deg" in out
+    rows = _rows(tmp_path / "commands.csv")
+    assert [r["status"] for r in rows] == ["ok"] * 8
+    assert [r["beyond_calibrated_range"] for r in rows] == [""] * 4 + ["shoulder_pan"] * 4
+    assert all(f"far{i}: beyond the readings the calibration measured on shoulder_pan" in err for i in range(4))
+    assert "in0" not in err
+    # a program's joint target there is compensated, and named
+    script = tmp_path / "p.script"
+    moves = "".join(f"  movej([{', '.join(f'{v:.6f}' for v in qi)}])\n" for qi in (test[0], far[0]))
+    script.write_text(f"def p():\n{moves}end\n")
+    code, out, err = cli("compensate", tmp_path / "ur5.yaml", tmp_path / "run" / "calibrated.yaml", script,
+                         "--out", tmp_path / "out.script")
+    assert code == 0, err
+    lines = [line for line in out.splitlines() if line.startswith("line ")]
+    assert "beyond" not in lines[0] and lines[1].endswith("; beyond the calibrated range of shoulder_pan")
+    assert "0 flagged, 1 beyond the calibrated ranges" in out and "line 3: beyond the readings" in err
+
+
+def test_the_calibration_records_joint_ranges_read_back_in_si_and_a_wrong_one_is_named(tmp_path):
+    """The ranges are written in the file's units (mm for a slide) and read back in SI; a range whose
+    lowest reading exceeds its highest, or of a joint the model lacks, is refused by key."""
+    model = rc.read_model(EXAMPLES / "th8" / "model.yaml")
+    ranges = np.array([[-1.0, 1.0], [0.1, 0.6], [0.0, 0.5], [-2.0, 2.0], [-1.5, 1.0], [-3.0, 3.0]])
+    rc.write_model(model, tmp_path / "m.yaml", calibration={"verdict": "pass", "joint_ranges": ranges})
+    text = (tmp_path / "m.yaml").read_text()
+    assert "j2: [100.0, 600.0]" in text and "j1: [-57.2957795130823, 57.2957795130823]" in text
+    np.testing.assert_allclose(rc.io.read_calibration(tmp_path / "m.yaml")["joint_ranges"], ranges, rtol=1e-14)
+    for bad, key in (("j2: [600.0, 100.0]", "calibration.joint_ranges.j2"),
+                     ("j9: [0, 1]", "calibration.joint_ranges.j9")):
+        (tmp_path / "bad.yaml").write_text(text.replace("j2: [100.0, 600.0]", bad))
+        with pytest.raises(rc.InputError, match=key.replace(".", r"\.")):
+            rc.read_model(tmp_path / "bad.yaml")
+    comp = rc.compensate(model, np.array([[0.5, 0.3, 0.2, 0, 0, 0], [1.2, 0.3, 0.2, 0, 0, 0]]), ranges=ranges)
+    assert comp.outside.tolist() == [[False] * 6, [True] + [False] * 5]

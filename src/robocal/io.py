@@ -7,7 +7,7 @@ from ._files.bags import BagCampaign, read_bag
 from ._files.contacts import contacts_to_csv, read_contacts, write_contacts
 from ._files.dh import dh_csv, mdh_csv, read_dh_table, write_mdh_csv
 from ._files.measurements import measurements_to_csv, read_measurements, split_sets, write_measurements
-from ._files.model import model_from_dict, model_to_dict, model_to_yaml, read_model, write_model
+from ._files.model import model_from_dict, model_to_dict, model_to_yaml, read_calibration, read_model, write_model
 from ._files.profile import Profile, profile_from_dict, read_profile
 from ._files.programs import program_joints, read_program, read_program_joints
 from ._files.programs.compensation import ProgramCompensation, TargetResult, compensate_program
@@ -31,7 +31,8 @@ from ._model.contacts import Contacts, KnownDistance, KnownPlane
 from ._model.conversion import StandardDH, from_standard_dh, mdh_table, to_standard_dh
 from ._model.measurements import Measurements, Noise
 
-__all__ = ["read_model", "write_model", "calibration_record", "model_from_dict", "model_to_dict", "model_to_yaml",
+__all__ = ["read_model", "write_model", "calibration_record", "read_calibration", "model_from_dict", "model_to_dict",
+           "model_to_yaml",
            "Measurements", "Noise", "Contacts", "KnownDistance", "KnownPlane",
            "read_measurements", "write_measurements", "read_profile", "profile_from_dict",
            "Profile", "ColumnMap", "measurements_to_csv", "split_sets", "read_result",

@@ -68,7 +68,9 @@ class Compensation:
     corrected poses against the targets; ``within_limits`` (N,) whether the corrected readings
     respect the joint limits; ``oriented`` (N,) whether each target's orientation was matched;
     ``stuck`` (N,) whether the solver no longer approached the target when it stopped (its step
-    vanished, or its error fell by less than ``STALL_DROP`` over its last ``STALL_WINDOW`` steps)."""
+    vanished, or its error fell by less than ``STALL_DROP`` over its last ``STALL_WINDOW`` steps);
+    ``outside`` (N, n_joints) which corrected readings lie beyond the ranges the calibration measured
+    (``compensate``'s ``ranges``; False throughout without them): there the model is extrapolated."""
 
     q: np.ndarray
     residual: np.ndarray
@@ -76,6 +78,7 @@ class Compensation:
     within_limits: np.ndarray
     oriented: np.ndarray
     stuck: np.ndarray
+    outside: np.ndarray
 
     def reached(self, tol: float = 1e-6, tol_rot: float = 1e-6) -> np.ndarray:
         """(N,) whether each target was reached within ``tol`` (m) and ``tol_rot`` (rad)."""
@@ -209,15 +212,40 @@ def _stalled(sizes) -> np.ndarray:
     return taken.any(axis=0) & (last >= STALL_WINDOW) & (sizes[last, cols] > (1.0 - STALL_DROP) * earlier)
 
 
+# a reading this far (rad, m) beyond a calibrated range is still within it: the range as a file
+# holds it, to 15 digits, and a command at the campaign's own extreme are not extrapolations
+RANGE_SLACK = 1e-9
+
+
+def ranges_for(model: str):
+    """The rule of a ``ranges`` argument: per joint of the model passed as ``model`` a [lowest,
+    highest] reading, NaN where not known."""
+    def rule(value, name, args):
+        if np.any(np.diff(items(value, name, (2,), args[model].n_joints, finite=False), axis=1) < 0):
+            raise InputError("must hold per joint a [lowest, highest] reading, lowest first", where=name)
+    return rule
+
+
+def _outside(q, ranges) -> np.ndarray:
+    """(N, n_joints) which readings ``q`` lie beyond ``ranges`` (n_joints, 2; None: none)."""
+    if ranges is None:
+        return np.zeros(q.shape, dtype=bool)
+    r = np.asarray(ranges, dtype=float)
+    with np.errstate(invalid="ignore"):         # NaN: a joint whose range is not known
+        return (q < r[:, 0] - RANGE_SLACK) | (q > r[:, 1] + RANGE_SLACK)
+
+
 @accepts(model=is_a(RobotModel), targets_q=readings_of(), nominal=optional(is_a(RobotModel)),
          positions=optional(shaped(None, 3, finite=False)), rotations=optional(shaped(None, 3, 3, finite=False)),
          marker=marker_of(), orientation=optional(FLAG), iterations=whole(1, 10_000), tol=POSITIVE,
          damping=NON_NEGATIVE, max_step=POSITIVE,
-         approach=optional(rows_for("targets_q", lambda args: args["model"].n_joints)))
+         approach=optional(rows_for("targets_q", lambda args: args["model"].n_joints)),
+         ranges=optional(ranges_for("model")))
 @one_blas_thread
 def compensate(model: RobotModel, targets_q, *, nominal: RobotModel | None = None, positions=None,
                rotations=None, marker: int = 0, orientation: bool | None = None, iterations: int = 50,
-               tol: float = 1e-10, damping: float = 1e-6, max_step: float = 0.05, approach=None) -> Compensation:
+               tol: float = 1e-10, damping: float = 1e-6, max_step: float = 0.05, approach=None,
+               ranges=None) -> Compensation:
     """Readings q' at which ``model`` reaches the pose ``nominal`` reaches at ``targets_q``, both
     on ``model``'s base.
 
@@ -254,6 +282,10 @@ def compensate(model: RobotModel, targets_q, *, nominal: RobotModel | None = Non
     approach : array_like, shape (N, n_joints), optional
         Direction (+1 or -1) of each joint's move to each command (None: the targets visited in row
         order, the first approached from the last; ``robocal.sim.approach_sides`` of ``targets_q``).
+    ranges : array_like, shape (n_joints, 2), optional
+        Each joint's lowest and highest reading where the model was calibrated (SI, NaN where not
+        known: ``robocal.io.read_calibration(path)["joint_ranges"]``); the corrected readings beyond
+        them are marked in ``outside``.
 
     Returns
     -------
@@ -272,7 +304,9 @@ def compensate(model: RobotModel, targets_q, *, nominal: RobotModel | None = Non
     e_pos, e_rot = goal.errors(model, q, parameter_vector(model))
     inside = np.all((q >= model.lower_limits) & (q <= model.upper_limits), axis=1)
     return Compensation(q=q, residual=np.linalg.norm(e_pos, axis=1), residual_rot=np.linalg.norm(e_rot, axis=1),
-                        within_limits=inside, oriented=oriented, stuck=stuck)
+                        within_limits=inside, oriented=oriented, stuck=stuck, outside=_outside(q, ranges))
+
+
 
 
 # -- Cartesian targets: the nominal controller's inverse kinematics ------------------------------------
@@ -611,10 +645,10 @@ class PoseCompensation:
     compensation: Compensation
 
 
-@accepts(nominal=_seeded,
-         calibrated=both(is_a(RobotModel), same_robot_as("nominal")), **_TARGETS)
+@accepts(nominal=_seeded, calibrated=both(is_a(RobotModel), same_robot_as("nominal")), **_TARGETS,
+         ranges=optional(ranges_for("nominal")))
 def compensate_poses(nominal: RobotModel, calibrated: RobotModel, positions, rotations, *, marker: int = 0,
-                     want=None, turn_from=None, hints=None) -> PoseCompensation:
+                     want=None, turn_from=None, hints=None, ranges=None) -> PoseCompensation:
     """Targets for a controller holding ``nominal`` so that the calibrated robot reaches the poses
     (``positions`` (N, 3), ``rotations`` (N, 3, 3), W) the nominal model gives them, both models on
     ``calibrated``'s base (``registered``: the nominal base, a guess of where the instrument stood,
@@ -643,6 +677,8 @@ def compensate_poses(nominal: RobotModel, calibrated: RobotModel, positions, rot
         As in ``inverse_kinematics``.
     hints : array_like, shape (N, n_joints), optional
         As in ``inverse_kinematics``.
+    ranges : array_like, shape (n_joints, 2), optional
+        As in ``compensate``.
 
     Returns
     -------
@@ -655,7 +691,7 @@ def compensate_poses(nominal: RobotModel, calibrated: RobotModel, positions, rot
     ik = inverse_kinematics(nominal, P, R, marker=marker, want=want, turn_from=turn_from, hints=hints)
     start = np.where(ik.solved[:, None], ik.q, 0.0)
     comp = compensate(calibrated, start, nominal=nominal, positions=np.where(ik.solved[:, None], P, np.nan),
-                      rotations=R, marker=marker, orientation=True)
+                      rotations=R, marker=marker, orientation=True, ranges=ranges)
     ev = evaluate(nominal, comp.q, orientations=True, approach=np.ones_like(comp.q))     # as its inverse kinematics
     return PoseCompensation(q_nominal=ik.q, q=comp.q, positions=ev.positions[:, marker],
                             rotations=ev.rotations[:, marker], solved=ik.solved, compensation=comp)

@@ -196,6 +196,12 @@ def model_from_dict(d: dict, *, source: str = "<dict>") -> RobotModel:
     RobotModel
         The model.
     """
+    return model_and_record(d, source)[0]
+
+
+def model_and_record(d: dict, source: str = "<dict>") -> tuple[RobotModel, dict | None]:
+    """``model_from_dict`` and the file's calibration record (None without one), its
+    ``joint_ranges`` a (n_joints, 2) array of readings, SI (NaN for a joint it does not name)."""
     rd = _Reader(source)
     L, A = _units_of(rd, d)
     name = d.get("name", Path(source).stem)
@@ -217,18 +223,46 @@ def model_from_dict(d: dict, *, source: str = "<dict>") -> RobotModel:
     gravity = rd.point(d["gravity"], "gravity") if "gravity" in d else (0.0, 0.0, -9.81)
     payloads = _payloads(rd, d.get("payload"), frame_names, L)
     tolerances = _tolerances(rd, d.get("tolerances"), L, A)
-    if d.get("calibration") is not None:
-        rd.mapping(d["calibration"], "calibration", ("verdict", "failed", "warned", "date", "data", "poses",
-                                                      "families", "nominal"))
+    record = _calibration(rd, d.get("calibration"), joint_names, frames, L, A)
     try:
-        return RobotModel(name=str(name), frames=tuple(frames), joint_names=tuple(joint_names),
-                          joint_limits=tuple(limits), markers=tuple(markers), base_position=base_position,
-                          base_rotation=base_rotation, gravity=gravity, payload=payloads[0],
-                          other_payloads=tuple(payloads[1:]), description=description, tolerances=tolerances,
-                          notes=tuple(f"{source}: {n}" for n in rd.notes),
-                          backlash_side=_backlash_side(rd, d.get("backlash")))
+        model = RobotModel(name=str(name), frames=tuple(frames), joint_names=tuple(joint_names),
+                           joint_limits=tuple(limits), markers=tuple(markers), base_position=base_position,
+                           base_rotation=base_rotation, gravity=gravity, payload=payloads[0],
+                           other_payloads=tuple(payloads[1:]), description=description, tolerances=tolerances,
+                           notes=tuple(f"{source}: {n}" for n in rd.notes),
+                           backlash_side=_backlash_side(rd, d.get("backlash")))
     except InputError as e:  # the record's own checks: add the file name
         raise InputError(e.detail, source=source, where=e.where) from None
+    return model, record
+
+
+CALIBRATION_KEYS = ("verdict", "failed", "warned", "date", "data", "poses", "families", "nominal", "joint_ranges")
+
+
+def _calibration(rd: _Reader, value, joint_names: list[str], frames: list[Frame], L: float, A: float) -> dict | None:
+    """The calibration record, its ``joint_ranges`` ({joint: [lo, hi]} in the file's units) as a
+    (n_joints, 2) array, SI."""
+    if value is None:
+        return None
+    record = dict(rd.mapping(value, "calibration", CALIBRATION_KEYS))
+    if record.get("joint_ranges") is not None:
+        given = rd.mapping(record["joint_ranges"], "calibration.joint_ranges", joint_names)
+        ranges = np.full((len(joint_names), 2), np.nan)
+        for jn, raw in given.items():
+            j, where = joint_names.index(jn), f"calibration.joint_ranges.{jn}"
+            ranges[j] = [rd.number(v, f"{where}[{k}]") * (L if _drives(frames, j) == "prismatic" else A)
+                         for k, v in enumerate(_pair(rd, raw, where))]
+            if not ranges[j, 0] <= ranges[j, 1]:
+                raise rd.error(where, f"lowest reading exceeds highest ({raw[0]} > {raw[1]})")
+        record["joint_ranges"] = ranges
+    return record
+
+
+def _drives(frames: list[Frame], j: int) -> str:
+    """What joint ``j``'s reading drives (the first frame it drives): a reading is in the unit of
+    that, the length unit for a prismatic frame, else the angle unit."""
+    drives = [f.joint for f in frames if any(k == j for k, _ in f.coupling)]
+    return drives[0] if drives else "revolute"
 
 
 def _units_of(rd: _Reader, d) -> tuple[float, float]:
@@ -326,15 +360,13 @@ def _limits(rd: _Reader, raw_limits: list, joint_names: list[str], frames: list[
     limits = []
     for j, raw in enumerate(raw_limits):
         # a limit is in the unit of what the reading drives: a length for a prismatic frame
-        drives = [f.joint for f in frames if any(k == j for k, _ in f.coupling)]
-        kind = drives[0] if drives else "revolute"
         where = f"joints[{j}].limits"
         if raw is None:
-            if kind == "prismatic":
+            if _drives(frames, j) == "prismatic":
                 raise rd.error(where, f"missing required key 'limits' (joint {joint_names[j]!r} is prismatic)")
             limits.append((-np.pi, np.pi))
             continue
-        scale = L if kind == "prismatic" else A
+        scale = L if _drives(frames, j) == "prismatic" else A
         lo, hi = (rd.number(v, f"{where}[{k}]", finite=False) * scale
                   for k, v in enumerate(_pair(rd, raw, where)))
         if not lo <= hi:
@@ -484,6 +516,11 @@ def read_model(path) -> RobotModel:
     RobotModel
         The model.
     """
+    return read_model_and_record(path)[0]
+
+
+def read_model_and_record(path) -> tuple[RobotModel, dict | None]:
+    """``read_model`` and the file's calibration record (``read_calibration``)."""
     source = str(path)
     if Path(path).is_dir() and (Path(path) / CALIBRATED_MODEL).is_file():
         raise InputError(f"a folder of a calibration's outputs, not a model file: its calibrated model is "
@@ -494,7 +531,26 @@ def read_model(path) -> RobotModel:
     d = load_yaml(text, source)
     if d is None:
         raise InputError("the file is empty", source=source)
-    return model_from_dict(d, source=source)
+    return model_and_record(d, source)
+
+
+@accepts(path=PATH)
+def read_calibration(path) -> dict | None:
+    """The calibration record of a calibrated model file (``calibration_record``'s, as the file holds
+    it), None for a model no calibration wrote.
+
+    Parameters
+    ----------
+    {path}
+
+    Returns
+    -------
+    dict or None
+        The record; its ``joint_ranges``, where present, a (n_joints, 2) array of each joint's
+        lowest and highest reading over the poses the model was fitted on, SI (NaN for a joint the
+        file does not name).
+    """
+    return read_model_and_record(path)[1]
 
 
 @accepts(model=is_a(RobotModel), units=UNIT_SYSTEM, calibration=optional(MAPPING))
@@ -539,8 +595,22 @@ def model_to_dict(model: RobotModel, *, units: str = "mm-deg", calibration: dict
     if model.backlash_side != "gravity" or model.has_backlash:
         d["backlash"] = {"side": model.backlash_side}
     if calibration:
-        d["calibration"] = calibration
+        d["calibration"] = _calibration_dict(model, calibration, scale)
     return d
+
+
+def _calibration_dict(model: RobotModel, calibration: dict, scale: dict) -> dict:
+    """The calibration record as the file holds it: ``joint_ranges`` ({joint: [lo, hi]}, SI, or a
+    (n_joints, 2) array as ``model_and_record`` reads it) in the file's units."""
+    out = dict(calibration)
+    ranges = calibration.get("joint_ranges")
+    if ranges is None:
+        return out
+    if not isinstance(ranges, dict):
+        ranges = dict(zip(model.joint_names, np.asarray(ranges, dtype=float)))
+    out["joint_ranges"] = {jn: _vec(ranges[jn], scale[k]) for jn, k in zip(model.joint_names, model.reading_quantities)
+                           if jn in ranges and np.all(np.isfinite(ranges[jn]))}
+    return out
 
 
 def _num(x, s: float = 1.0) -> float:

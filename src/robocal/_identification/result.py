@@ -551,8 +551,10 @@ def compared_name(families) -> str:
 
 @accepts(result=is_a(CalibrationResult))
 def calibration_record(result) -> dict:
-    """What a calibrated model file says of its own calibration: the verdict, the date and the checks
-    that did not pass.
+    """What a calibrated model file says of its own calibration: the verdict, the date, the checks
+    that did not pass, and ``joint_ranges``: each joint's lowest and highest reading over the fitted
+    poses (``coverage.joint_ranges``, SI; absent without measured points), where the model was
+    calibrated.
 
     Parameters
     ----------
@@ -561,7 +563,7 @@ def calibration_record(result) -> dict:
     Returns
     -------
     dict
-        The calibration record a model file stores (verdict, checks, date).
+        The calibration record a model file stores (verdict, checks, date, joint ranges).
     """
     out = {"verdict": result.verdict, "date": result.provenance.get("date", "")}
     data = result.provenance.get("data") or {}
@@ -576,6 +578,9 @@ def calibration_record(result) -> dict:
         names = [c.name for c in result.checks if c.status == status]
         if names:
             out[key] = names
+    if result.coverage is not None:
+        names = result.coverage.joint_names or result.nominal_model.joint_names
+        out["joint_ranges"] = {n: [float(lo), float(hi)] for n, (lo, hi) in zip(names, result.coverage.joint_ranges)}
     return out
 
 

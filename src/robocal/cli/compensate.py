@@ -89,7 +89,7 @@ def _out_of_its_kind(args) -> None:
                          where="--out")
 
 
-def _run_program(args, nominal, calibrated) -> int:
+def _run_program(args, nominal, calibrated, ranges) -> int:
     """Compensate a robot program; a line per target (mm, deg), the flagged ones also on stderr."""
     from .._files.programs import read_program
     from .._files.programs.compensation import compensate_program
@@ -101,7 +101,8 @@ def _run_program(args, nominal, calibrated) -> int:
     m = nominal.marker_names.index(name)
     companions = [read_program(path, dialect=program.dialect) for path in _companions(args, program)]
     result = compensate_program(program, nominal, calibrated, marker=m, tool=args.tool, wobj=args.wobj,
-                                companions=companions, tol=args.tol_mm / common.MM, tol_rot=args.tol_deg / common.DEG)
+                                companions=companions, tol=args.tol_mm / common.MM, tol_rot=args.tol_deg / common.DEG,
+                                ranges=ranges)
     common.write_outputs({args.out: result.text}, force=args.force)
     if companions:
         print(f"read with {', '.join(c.source for c in companions)}")
@@ -110,14 +111,20 @@ def _run_program(args, nominal, calibrated) -> int:
     for note in result.notes:
         print(f"note: {note}")
     for r in result.flagged:
-        where = "" if r.name == f"line {r.line}" else f" (line {r.line})"
-        print(f"robocal: warning: {args.targets}: {r.name}{where}: {r.status}; left unchanged", file=sys.stderr)
+        print(f"robocal: warning: {args.targets}: {_named(r)}: {r.status}; left unchanged", file=sys.stderr)
+    beyond = _beyond(args, calibrated, ranges, {_named(r): r.outside for r in result.targets if r.outside})
     done = sum(r.status == "ok" for r in result.targets)
     through = sum(r.status.startswith("not compensated") for r in result.targets)
     print(f"compensated {done} of {len(result.targets)} targets of {args.targets} ({program.dialect}) for "
           f"{calibrated.name}: {len(result.flagged)} flagged"
-          f"{f', {through} reached only through expressions' if through else ''}; wrote {args.out}")
+          f"{f', {through} reached only through expressions' if through else ''}"
+          f"{f', {beyond} beyond the calibrated ranges' if beyond else ''}; wrote {args.out}")
     return 0
+
+
+def _named(r) -> str:
+    """A program's target as the messages name it: its name, and its line where the name is not that."""
+    return r.name if r.name == f"line {r.line}" else f"{r.name} (line {r.line})"
 
 
 def _companions(args, program) -> list[str]:
@@ -142,42 +149,79 @@ def _summary(r) -> str:
     if r.status != "ok":
         return f"{head}: {r.status}"
     linear = f", {r.length_change * common.MM:.4f} mm" if r.length_change else ""
+    beyond = f"; beyond the calibrated range of {', '.join(r.outside)}" if r.outside else ""
     return (f"{head}: moved {r.moved * common.MM:.4f} mm, turned {r.turned * common.DEG:.5f} deg; joints by up to "
-            f"{r.angle_change * common.DEG:.5f} deg{linear}{through}")
+            f"{r.angle_change * common.DEG:.5f} deg{linear}{through}{beyond}")
+
+
+def _ranges(args, record):
+    """The calibrated model's ranges of readings (its calibration record's ``joint_ranges``), None
+    where it has none; a note where a calibration wrote it without them."""
+    ranges = None if record is None else record.get("joint_ranges")
+    if record is not None and ranges is None:
+        print(f"note: {args.calibrated}: its calibration record holds no joint ranges (a file written before "
+              "they were recorded, or a calibration from contacts alone): the commands are not checked against "
+              "the readings it was calibrated on")
+    return ranges
+
+
+def _beyond(args, model, ranges, outside) -> int:
+    """Warn of the targets (``outside``: label -> joints) whose commands lie beyond the calibrated
+    ranges, with those ranges once; their number."""
+    for label, joints in outside.items():
+        print(f"robocal: warning: {args.targets}: {label}: beyond the readings the calibration measured on "
+              f"{', '.join(joints)}: the model is extrapolated there", file=sys.stderr)
+    named = sorted({j for joints in outside.values() for j in joints}, key=model.joint_names.index)
+    if named:
+        print("note: the calibration measured " + ", ".join(
+            f"{j} over {_reading(model, j, ranges, 0)} to {_reading(model, j, ranges, 1)}" for j in named))
+    return len(outside)
+
+
+def _reading(model, joint: str, ranges, k: int) -> str:
+    j = model.joint_names.index(joint)
+    length = model.reading_quantities[j] == "length"
+    return f"{ranges[j, k] * (common.MM if length else common.DEG):.6g} {'mm' if length else 'deg'}"
 
 
 def run(args) -> int:
     from .._accuracy.compensation import compensate
     from .._files.checked import within_limits
     from .._files.commands import BEYOND_LIMITS, REACHED, command_status, commands_to_csv
-    from .._files.model import read_model
+    from .._files.model import read_model, read_model_and_record
 
     _out_of_its_kind(args)
     common.refuse_existing([args.out], args.force)
     nominal = read_model(args.nominal)
-    calibrated = read_model(args.calibrated)
+    calibrated, record = read_model_and_record(args.calibrated)
     if calibrated.joint_names != nominal.joint_names:
         raise InputError(f"joints {', '.join(calibrated.joint_names)} differ from the nominal model's "
                          f"({', '.join(nominal.joint_names)})", source=args.calibrated)
+    ranges = _ranges(args, record)
     if _is_program(args):
-        return _run_program(args, nominal, calibrated)
+        return _run_program(args, nominal, calibrated, ranges)
     data = common.read_data(args, nominal, args.targets, targets=True)
     m, col = _marker(args, nominal, data)
     comp = compensate(calibrated, data.q, nominal=nominal, marker=m,
                       positions=None if col is None else data.positions[:, col],
                       rotations=None if col is None or data.rotations is None else data.rotations[:, col],
-                      orientation=False if args.position_only else None, approach=data.extra.get("approach"))
+                      orientation=False if args.position_only else None, approach=data.extra.get("approach"),
+                      ranges=ranges)
     status = command_status(comp, args.tol_mm / common.MM, args.tol_deg / common.DEG)
     # the controller holds the nominal model: a command beyond its limits is flagged too
     status = [BEYOND_LIMITS if s == REACHED and not ok else s
               for s, ok in zip(status, within_limits(nominal, comp.q))]
-    common.write_outputs({args.out: commands_to_csv(calibrated, data.labels, comp, status, units=args.out_units)},
-                         force=args.force)
+    common.write_outputs({args.out: commands_to_csv(calibrated, data.labels, comp, status, units=args.out_units,
+                                                    ranges_known=ranges is not None)}, force=args.force)
     flagged = [(lab, s) for lab, s in zip(data.labels, status) if s != "ok"]
     for lab, s in flagged:
         print(f"robocal: warning: {args.targets}: {lab}: {s}", file=sys.stderr)
+    outside = {lab: [j for j, o in zip(calibrated.joint_names, row) if o]
+               for lab, row in zip(data.labels, comp.outside) if row.any()}
+    beyond = _beyond(args, calibrated, ranges, outside)
     kind = "position" if not comp.oriented.any() else "pose"
     print(f"compensated {data.n_poses} targets for {calibrated.name} ({kind} "
-          f"of marker {nominal.marker_names[m]}): {data.n_poses - len(flagged)} reached, {len(flagged)} flagged; "
+          f"of marker {nominal.marker_names[m]}): {data.n_poses - len(flagged)} reached, {len(flagged)} flagged"
+          f"{f', {beyond} beyond the calibrated ranges' if beyond else ''}; "
           f"worst residual {comp.residual.max() * common.MM:.3g} mm: wrote {args.out}")
     return 0

@@ -21,6 +21,7 @@ from ..._accuracy.compensation import (
     distinct_postures,
     on_robot_base,
     posture_margins,
+    ranges_for,
 )
 from ..._base.arguments import POSITIVE, TEXT, accepts, both, each_a, is_a, marker_of, optional, same_robot_as
 from ..._base.errors import InputError, suggest
@@ -49,8 +50,9 @@ class TargetResult:
     for a target that is not a literal, ``not compensated: ...`` for one motions reach only through
     expressions), the ``tool`` and work object ``wobj`` a pose target was solved with, how far its
     tool moved (``moved``, m) and turned (``turned``, rad) between the old target and the new one,
-    the largest change of a revolute and of a prismatic reading (rad, m), and ``through``: the
-    expressions motions also reach it through (``Offs (line 30)``)."""
+    the largest change of a revolute and of a prismatic reading (rad, m), ``through``: the
+    expressions motions also reach it through (``Offs (line 30)``), and ``outside``: the joints
+    whose compensated readings lie beyond the ranges the calibration measured (``ranges``)."""
 
     name: str
     line: int
@@ -63,6 +65,7 @@ class TargetResult:
     tool: str = ""
     wobj: str = ""
     through: str = ""
+    outside: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -120,6 +123,15 @@ def _status(solved, comp, tol, tol_rot) -> list[str]:
             REACHED for s, r, f, inside in zip(solved, reached, far, comp.within_limits)]
 
 
+def _results(model, targets, status, ok, comp, moved, turned, ang, lin) -> list[TargetResult]:
+    """A result per target; where it was compensated (``ok``), how far it moved and the joints whose
+    compensated readings lie beyond the calibrated ranges."""
+    return [TargetResult(t.name, t.line, t.kind, st) if not ok[i] else
+            TargetResult(t.name, t.line, t.kind, st, moved[i], turned[i], ang[i], lin[i],
+                         outside=tuple(n for n, o in zip(model.joint_names, comp.outside[i]) if o))
+            for i, (t, st) in enumerate(zip(targets, status))]
+
+
 def _changes(model, q_old, q_new):
     angle = np.array([k == "angle" for k in model.reading_quantities])
     d = np.abs(q_new - q_old)
@@ -164,7 +176,7 @@ def _needs(module, nominal, marker, target, q, want) -> str:
     return f"{CONFIGURATION}: the compensated joints need {','.join(map(str, new))}, not {','.join(map(str, old))}"
 
 
-def _pose_targets(program, module, nominal, calibrated, marker, X_BO, targets, hints, tol, tol_rot, edits):
+def _pose_targets(program, module, nominal, calibrated, marker, X_BO, targets, hints, tol, tol_rot, edits, ranges):
     """Compensate the pose targets (``X_BO``: their work object in the robot's base frame); their
     results (the joint targets' results are made alongside)."""
     chain = arm_chain(nominal, marker)
@@ -175,7 +187,7 @@ def _pose_targets(program, module, nominal, calibrated, marker, X_BO, targets, h
     X_B = X_BO @ module.poses(targets)
     want, turn = _configurations(module, targets)
     pc = compensate_poses(nominal, calibrated, X_B[:, :3, 3], X_B[:, :3, :3], marker=marker, want=want,
-                          turn_from=turn, hints=hints)
+                          turn_from=turn, hints=hints, ranges=ranges)
     status = _status(pc.solved, pc.compensation, tol, tol_rot)
     # the configuration data stay as written: a target they no longer reach is left unchanged
     fits = configuration_fits(nominal, pc.q, want, turn, marker=marker)
@@ -191,16 +203,15 @@ def _pose_targets(program, module, nominal, calibrated, marker, X_BO, targets, h
     with np.errstate(over="ignore"):            # a target far out of reach: not reported, its distance may overflow
         moved = np.linalg.norm(pc.positions - X_B[:, :3, 3], axis=1)
     turned = _angle(pc.rotations, X_B[:, :3, :3])
-    return [TargetResult(t.name, t.line, t.kind, s, *((moved[i], turned[i], ang[i], lin[i]) if ok[i] else ()))
-            for i, (t, s) in enumerate(zip(targets, status))]
+    return _results(nominal, targets, status, ok, pc.compensation, moved, turned, ang, lin)
 
 
 @accepts(program=is_a(Program), nominal=is_a(RobotModel), calibrated=both(is_a(RobotModel), same_robot_as("nominal")),
          marker=marker_of("nominal"), tool=optional(TEXT), wobj=optional(TEXT), companions=each_a(Program),
-         tol=POSITIVE, tol_rot=POSITIVE)
+         tol=POSITIVE, tol_rot=POSITIVE, ranges=optional(ranges_for("nominal")))
 def compensate_program(program: Program, nominal: RobotModel, calibrated: RobotModel, *, marker: int = 0,
                        tool: str | None = None, wobj: str | None = None, companions=(), tol: float = 1e-6,
-                       tol_rot: float = math.radians(1e-4)) -> ProgramCompensation:
+                       tol_rot: float = math.radians(1e-4), ranges=None) -> ProgramCompensation:
     """The program with every literal target compensated for the calibrated robot.
 
     Targets are in the robot's base frame: both models are taken on it (``on_robot_base``), so
@@ -238,6 +249,10 @@ def compensate_program(program: Program, nominal: RobotModel, calibrated: RobotM
         Position residual above which a target counts as out of reach, m.
     tol_rot : float
         Rotation residual above which a target counts as out of reach, rad.
+    ranges : array_like, shape (n_joints, 2), optional
+        Each joint's lowest and highest reading where ``calibrated`` was calibrated (SI, NaN where
+        not known: ``read_calibration``); each target names the joints its compensated readings
+        take beyond them (``TargetResult.outside``).
 
     Returns
     -------
@@ -256,7 +271,7 @@ def compensate_program(program: Program, nominal: RobotModel, calibrated: RobotM
     results: dict[int, TargetResult] = {}
     if joints:      # a six-axis arm's joint targets match the flange's pose, which carries any tool
         results.update(_joint_targets(program, nominal, calibrated.replace(markers=nominal.markers), marker,
-                                      joints, tol, tol_rot, edits))
+                                      joints, tol, tol_rot, edits, ranges))
     uses = program.uses + tuple(u for c in companions for u in c.uses)
     for (tool_name, wobj_name), poses in _pose_groups(module, live, uses, tool, wobj, results).items():
         X_FT, X_BO = catalogue.find(tool_name, TOOLS), catalogue.find(wobj_name, WOBJS)
@@ -269,7 +284,7 @@ def compensate_program(program: Program, nominal: RobotModel, calibrated: RobotM
         n_, c_, m_ = _tool_models(nominal, calibrated, marker, tool_name, X_FT)
         targets = [t for t, _ in poses]
         done = _pose_targets(program, module, n_, c_, m_, X_BO, targets, _hints(program, n_, targets), tol,
-                             tol_rot, edits)
+                             tol_rot, edits, ranges)
         results.update({id(t): dataclasses.replace(r, through=via, **names) for (t, via), r in zip(poses, done)})
     rows = [results.get(id(t), TargetResult(t.name, t.line, t.kind, f"read only: {t.skip or 'a frame in use'}"))
             for t in program.targets]
@@ -313,10 +328,10 @@ def _flags(program: Program, rows) -> list[tuple[int, str]]:
             for t, r in zip(program.targets, rows) if _is_flagged(r)]
 
 
-def _joint_targets(program, nominal, calibrated, marker, joints, tol, tol_rot, edits) -> dict:
+def _joint_targets(program, nominal, calibrated, marker, joints, tol, tol_rot, edits, ranges) -> dict:
     """Compensate the joint targets; their results by ``id``."""
     q = joint_values(program, joints, nominal)
-    comp = compensate(calibrated, q, nominal=nominal, marker=marker)
+    comp = compensate(calibrated, q, nominal=nominal, marker=marker, ranges=ranges)
     status = _status(np.ones(len(q), dtype=bool), comp, tol, tol_rot)
     ok = np.array([s == REACHED for s in status])
     _joint_edits(program, nominal, [t for t, k in zip(joints, ok) if k], comp.q[ok], edits)
@@ -324,8 +339,7 @@ def _joint_targets(program, nominal, calibrated, marker, joints, tol, tol_rot, e
     moved = np.linalg.norm(a.positions[:, marker] - b.positions[:, marker], axis=1)
     turned = _angle(a.rotations[:, marker], b.rotations[:, marker])
     ang, lin = _changes(nominal, q, comp.q)
-    return {id(t): TargetResult(t.name, t.line, t.kind, s, *((moved[i], turned[i], ang[i], lin[i]) if ok[i] else ()))
-            for i, (t, s) in enumerate(zip(joints, status))}
+    return {id(t): r for t, r in zip(joints, _results(nominal, joints, status, ok, comp, moved, turned, ang, lin))}
 
 
 def _hints(program: Program, nominal: RobotModel, poses) -> np.ndarray:
