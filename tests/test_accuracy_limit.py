@@ -3,6 +3,7 @@
 import json
 import math
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -298,13 +299,32 @@ def test_cli_writes_the_limit(model_file, tmp_path, cli):
     ("0.01deg,0.01deg", "6 joints"),
     ("0.01deg,0.01deg,0.01deg,0.01deg,0.01deg,0.1mm", "joint 6"),
     ("0.01deg,0.01deg,0.01deg,0.01deg,0.01deg,0.01", "unit"),
-    ("0.01deg,0.01deg,0.01deg,0.01deg,0.01deg,-0.01deg", ">= 0"),
+    ("0.01deg,0.01deg,0.01deg,0.01deg,0.01deg,-0.01deg", "joint 6: '-0.01deg' is not a resolution"),
+    # a step past a whole turn, no step at all, an infinite one
+    ("1000deg,0.01deg,0.01deg,0.01deg,0.01deg,0.01deg", "joint 1: '1000deg' is not a resolution: expected above 0 "
+                                                        "and up to 1 degree"),
+    ("0.01deg,0.01deg,0rad,0.01deg,0.01deg,0.01deg", "joint 3: '0rad'"),
+    ("0.01deg,0.01deg,0.01deg,0.01deg,1e400deg,0.01deg", "joint 5"),
 ])
 def test_cli_bad_resolution_is_one_line(model_file, tmp_path, resolution, words, cli):
     out = tmp_path / "x.json"
     code, _, err = cli("limit", model_file, "--repeatability-mm", "0.03", "--encoder-resolution", resolution,
                        "--length-quantum-mm", "0.1", "--angle-quantum-deg", "0.001", "--samples", "100", "--out", out)
     assert_one_line_error(code, err, [words], out, command="limit")
+
+
+@pytest.mark.parametrize("resolution, words", [
+    # a unit slip: 1e9 mm gave a limit of 249,433,807 mm, exit 0
+    ("0.01deg,1e9mm,0.12mm,0.005deg,0.002deg,0.002deg", "joint 2: '1e9mm' is not a resolution: expected above 0 and "
+                                                        "up to 1 mm"),
+    ("0.01deg,0.1mm,0.12m,0.005deg,0.002deg,0.002deg", "joint 3: '0.12m'"),
+])
+def test_cli_a_prismatic_resolution_beyond_a_millimetre_is_refused(tmp_path, resolution, words, cli):
+    out = tmp_path / "x.json"
+    th8 = Path(__file__).resolve().parents[1] / "examples" / "th8" / "model.yaml"
+    code, _, err = cli("limit", th8, "--repeatability-mm", "0.3", "--encoder-resolution", resolution,
+                       "--length-quantum-mm", "0.1", "--angle-quantum-deg", "0.001", "--samples", "100", "--out", out)
+    assert_one_line_error(code, err, ["--encoder-resolution", words], out, command="limit")
 
 
 def test_cli_main_with_progress_on_a_terminal(model_file, tmp_path, capsys, monkeypatch):

@@ -18,6 +18,9 @@ from . import common
 
 PROG = "robocal limit"
 _ENTRY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([a-z]+)\s*$")
+# the coarsest step a joint encoder reads, SI: 360 counts a turn, or a millimetre a count, is coarser
+# than any robot's; beyond it a value is a slip of unit (0.1m for 0.1mm)
+COARSEST = {"angle": (math.radians(1.0), "1 degree"), "length": (1e-3, "1 mm")}
 
 
 EXAMPLE = """example:
@@ -40,7 +43,8 @@ def register(sub) -> None:
     p.add_argument("--csv-units", choices=tuple(LENGTH_UNITS),
                    help="units of plain x, y, z columns (not needed when they are named x_mm... or x_m...)")
     p.add_argument("--encoder-resolution", required=True, metavar="LIST",
-                   help='one per joint with its unit, e.g. "0.01deg,0.01deg,0.1mm" (deg, rad, mm, m)')
+                   help='one per joint with its unit, e.g. "0.01deg,0.01deg,0.1mm" (deg, rad, mm, m); '
+                        'each above 0 and up to 1 degree or 1 mm (no robot\'s encoder reads coarser)')
     p.add_argument("--length-quantum-mm", required=True, type=common.length_mm, metavar="X",
                    help="round-off quantum of stored lengths, mm")
     p.add_argument("--angle-quantum-deg", required=True, type=common.angle_deg, metavar="X",
@@ -74,7 +78,13 @@ def parse_resolution(text: str, is_angle) -> list[float]:
         if unit_is_angle != bool(angle):
             kind = "revolute (deg or rad)" if angle else "prismatic (mm or m)"
             raise InputError(f"joint {j + 1} is {kind}, got {entry.strip()!r}", where="--encoder-resolution")
-        out.append(float(m.group(1)) * scale)
+        value = float(m.group(1)) * scale
+        coarsest, said = COARSEST[kind]
+        if not 0.0 < value <= coarsest:
+            raise InputError(f"joint {j + 1}: {entry.strip()!r} is not a resolution: expected above 0 and up to "
+                             f"{said} (no robot's encoder reads coarser; is the unit right?)",
+                             where="--encoder-resolution")
+        out.append(value)
     return out
 
 
