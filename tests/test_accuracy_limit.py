@@ -91,12 +91,17 @@ def test_csv_units_metres_match_millimetres(tmp_path):
 
 
 @pytest.mark.parametrize("text, where, words", [
-    ("pose,x,y,z\nA,0,0,0\nA,1,0,0\n", "header", "cycle"),
-    ("pose,cycle,x,y,z\nA,1,0,0,0\nA,2,0,abc,0\n", "row 3, column 'y'", "abc"),
-    ("pose,cycle,x,y,z\nA,1,0,0,0\nA,2,0,0,nan\n", "row 3, column 'z'", "finite"),
-    ("pose,cycle,x,y,z\nA,1,0,0,0\nA,2,0,0,1\nB,1,0,0,0\n", "row 4", "single cycle"),
-    ("pose,cycle,x,y,z\nA,1,0,0,0\nA,1,0,0,1\n", "row 3", "already"),
-    ("pose,cycle,x,y,z\nA,one,0,0,0\nA,2,0,0,1\n", "row 2, column 'cycle'", "integer"),
+    ("pose,x,y,z\nA,0,0,0\nA,1,0,0\n", "line 1", "cycle"),
+    ("pose,cycle,x,y,z\nA,1,0,0,0\nA,2,0,abc,0\n", "line 3, column 'y'", "abc"),
+    ("pose,cycle,x,y,z\nA,1,0,0,0\nA,2,0,0,nan\n", "line 3, column 'z'", "'nan' is not a measurement"),
+    ("pose,cycle,x,y,z\nA,1,0,0,0\nA,2,0,0,1\nB,1,0,0,0\n", "line 4", "single cycle"),
+    ("pose,cycle,x,y,z\nA,1,0,0,0\nA,1,0,0,1\n", "line 3", "already"),
+    ("pose,cycle,x,y,z\nA,one,0,0,0\nA,2,0,0,1\n", "line 2, column 'cycle'", "integer"),
+    # the file's column names, as written
+    ("Pose,Cycle,X_mm,Y_mm,Z_mm\nA,1,0,0,0\nA,2,0,0,\n", "line 3, column 'Z_mm'", "empty cell"),
+    # every cycle of every pose at one position read 'repeatability 0.0000 mm'
+    ("pose,cycle,x,y,z\nA,1,1,2,3\nA,2,1,2,3\nB,1,0,0,0\nB,2,0,0,0\n", "lines 2-5",
+     "the cycles of each of the 2 poses read the same x, y, z to the last digit"),
 ])
 def test_csv_bad_input(tmp_path, text, where, words):
     f = tmp_path / "bad.csv"
@@ -104,6 +109,18 @@ def test_csv_bad_input(tmp_path, text, where, words):
     with pytest.raises(rc.InputError) as exc:
         read_repeatability_csv(f, units="mm")
     assert exc.value.source == str(f) and exc.value.where == where and words in exc.value.detail
+
+
+def test_csv_separator_and_decimal_mark_are_detected(tmp_path):
+    """A ';' file with decimal commas read as 'missing column 'pose''."""
+    f, g = tmp_path / "comma.csv", tmp_path / "semicolon.csv"
+    f.write_text(CSV)
+    g.write_text(CSV.replace(",", ";").replace(".", ","))
+    np.testing.assert_array_equal(read_repeatability_csv(g, units="mm").points,
+                                  read_repeatability_csv(f, units="mm").points)
+    g.write_text(CSV.replace(",", "\t"))
+    np.testing.assert_array_equal(read_repeatability_csv(g, units="mm").points,
+                                  read_repeatability_csv(f, units="mm").points)
 
 
 def test_csv_units_must_be_explicit_and_known(tmp_path):
@@ -114,7 +131,7 @@ def test_csv_units_must_be_explicit_and_known(tmp_path):
     # plain x, y, z without a declared unit: refused, not assumed
     with pytest.raises(rc.InputError, match="unit of column 'x' is not declared") as exc:
         read_repeatability_csv(f)
-    assert exc.value.where == "header"
+    assert exc.value.where == "line 1"
     # units in the column names need nothing else, and must agree with any units given
     g = tmp_path / "suffixed.csv"
     g.write_text(CSV.replace("x,y,z", "x_m,y_m,z_m", 1))
@@ -325,6 +342,25 @@ def test_cli_a_prismatic_resolution_beyond_a_millimetre_is_refused(tmp_path, res
     code, _, err = cli("limit", th8, "--repeatability-mm", "0.3", "--encoder-resolution", resolution,
                        "--length-quantum-mm", "0.1", "--angle-quantum-deg", "0.001", "--samples", "100", "--out", out)
     assert_one_line_error(code, err, ["--encoder-resolution", words], out, command="limit")
+
+
+@pytest.mark.parametrize("edit, words", [
+    # every cycle a copy of the first: 'repeatability 0.0000 mm', exit 0
+    (lambda rows: [rows[0]] + [",".join(r.split(",")[:2] + rows[int(r.split(",")[0])].split(",")[2:])
+                               for r in rows[1:]],
+     ["rep.csv: lines 2-151: the cycles of each of the 5 poses read the same x_mm, y_mm, z_mm"]),
+    # y in metres beside x and z in mm: 'repeatability 260.3 mm', exit 0
+    (lambda rows: [rows[0].replace("y_mm", "y_m")] + rows[1:], ["rep.csv: line 1: columns 'x_mm', 'y_m', 'z_mm'"]),
+])
+def test_cli_a_repeatability_file_that_cannot_be_measured_is_refused(tmp_path, edit, words, cli):
+    th8 = Path(__file__).resolve().parents[1] / "examples" / "th8"
+    rows = (th8 / "repeatability.csv").read_text().splitlines()
+    (tmp_path / "rep.csv").write_text("\n".join(edit(rows)) + "\n")
+    out = tmp_path / "x.json"
+    code, _, err = cli("limit", th8 / "model.yaml", "--repeatability-csv", tmp_path / "rep.csv", "--encoder-resolution",
+                       "0.01deg,0.1mm,0.12mm,0.005deg,0.002deg,0.002deg", "--length-quantum-mm", "0.1",
+                       "--angle-quantum-deg", "0.001", "--samples", "100", "--out", out)
+    assert_one_line_error(code, err, words, out, command="limit")
 
 
 def test_cli_main_with_progress_on_a_terminal(model_file, tmp_path, capsys, monkeypatch):

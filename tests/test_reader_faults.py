@@ -169,19 +169,23 @@ REPEATED = REPEATABILITY.splitlines()   # pose, cycle, x_mm, y_mm, z_mm; row 4 i
 
 
 @pytest.mark.parametrize("text, units, where, detail", [
-    (REPEATABILITY.replace(REPEATED[3], REPEATED[3].rsplit(",", 1)[0] + ","), None, "row 4, column 'z'", "empty cell"),
-    (REPEATABILITY.replace(REPEATED[3], REPEATED[3].replace(",1,", ",1.5,", 1)), None, "row 4, column 'cycle'",
+    (REPEATABILITY.replace(REPEATED[3], REPEATED[3].rsplit(",", 1)[0] + ","), None, "line 4, column 'z_mm'",
+     "empty cell"),
+    (REPEATABILITY.replace(REPEATED[3], REPEATED[3].replace(",1,", ",1.5,", 1)), None, "line 4, column 'cycle'",
      "expected an integer cycle number, got '1.5'"),
-    (REPEATABILITY.replace(REPEATED[3], REPEATED[3].replace(",1,", ",1234567890,", 1)), None, "row 4, column 'cycle'",
+    (REPEATABILITY.replace(REPEATED[3], REPEATED[3].replace(",1,", ",1234567890,", 1)), None, "line 4, column 'cycle'",
      "expected an integer cycle number, got '1234567890'"),
-    (REPEATABILITY.replace(REPEATED[3], REPEATED[3].rsplit(",", 1)[0] + ",x"), None, "row 4, column 'z'",
+    (REPEATABILITY.replace(REPEATED[3], REPEATED[3].rsplit(",", 1)[0] + ",x"), None, "line 4, column 'z_mm'",
      "expected a number, got 'x'"),
-    (REPEATABILITY.replace(REPEATED[3], REPEATED[3].rsplit(",", 1)[0] + ",1e400"), None, "row 4, column 'z'",
-     "expected a finite number of magnitude up to 1e+12, got '1e400'"),
-    (REPEATABILITY + REPEATED[3] + "\n", None, "row 42", "pose '3' cycle 1 already given in row 4"),
-    ("\n".join(REPEATED[:3] + [REPEATED[1].replace("1,1,", "99,1,", 1)]) + "\n", None, "row 2",
+    (REPEATABILITY.replace(REPEATED[3], REPEATED[3].rsplit(",", 1)[0] + ",1e400"), None, "line 4, column 'z_mm'",
+     "'1e400' is too large for a measurement (magnitude up to 1e+12)"),
+    (REPEATABILITY + REPEATED[3] + "\n", None, "line 42", "pose '3' cycle 1 already given in line 4"),
+    ("\n".join(REPEATED[:3] + [REPEATED[1].replace("1,1,", "99,1,", 1)]) + "\n", None, "line 2",
      "pose '1' has a single cycle; repeatability needs at least two"),
-    (REPEATABILITY, "m", "header", "column 'x_mm' says mm but units 'm' were given"),
+    (REPEATABILITY, "m", "line 1", "column 'x_mm' says mm but units 'm' were given"),
+    # a position's axes in two units read 'repeatability 260.3 mm'
+    (REPEATABILITY.replace("y_mm", "y_m", 1), None, "line 1",
+     "columns 'x_mm', 'y_m', 'z_mm' are in different units: a position's axes share one unit (a column misnamed?)"),
 ])
 def test_a_repeatability_files_faults(text, units, where, detail, tmp_path):
     (tmp_path / "r.csv").write_text(text)

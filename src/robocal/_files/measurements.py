@@ -652,7 +652,7 @@ def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str, ta
                              source=source, where=f"line {line}")
 
         def num(k, *, required=True, row=row, line=line):
-            return _number(row[k], decimal, source, line, cols.names[k], required)
+            return number_cell(row[k], decimal, source, line, cols.names[k], required)
 
         for j, (k, s) in enumerate(joints):
             q[i, j] = num(k) * s
@@ -825,7 +825,9 @@ def _approach_to_write(data: Measurements):
     return approach
 
 
-def _number(text: str, decimal: str, source: str, line: int, column: str, required: bool) -> float:
+def number_cell(text: str, decimal: str, source: str, line, column: str, required: bool) -> float:
+    """The number in a cell of a table with decimal mark ``decimal``; NaN for an empty cell that is
+    not ``required`` (a marker not seen), an InputError naming ``line`` and ``column`` otherwise."""
     t = text.strip()
     where = f"line {line}, column {column!r}"
     if not t:
@@ -833,8 +835,8 @@ def _number(text: str, decimal: str, source: str, line: int, column: str, requir
             raise InputError("empty cell", source=source, where=where)
         return np.nan
     if _NOT_FINITE.match(t):
-        raise InputError(f"{t!r} is not a measurement; leave a missing marker's cells empty", source=source,
-                         where=where)
+        raise InputError(f"{t!r} is not a measurement" + ("" if required else "; leave a missing marker's cells "
+                                                                              "empty"), source=source, where=where)
     if decimal != ".":
         if "." in t:
             raise InputError(f"expected a number with decimal mark {decimal!r}, got {t!r}{decimal_hint(t, decimal)}",
