@@ -491,11 +491,13 @@ def test_model_of_a_hundred_frames_is_written_in_linear_time(tmp_path, cli):
 
 
 def test_import_dh_writes_only_a_model_that_reads_back(tmp_path, cli):
-    # theta of 1e26 degrees: the table read, the model file it gave did not (magnitude)
+    # theta of 1e26 degrees: the table read, the model file it gave did not (magnitude), and the
+    # message named the model's key (frames[0].theta), not the table's line and column
     (tmp_path / "t.csv").write_text(DH.read_text().replace("shoulder_pan,revolute,0,", "shoulder_pan,revolute,"
                                                                                       + "9" * 26 + ","))
     one_line(cli, ("import-dh", tmp_path / "t.csv", "--out", tmp_path / "m.yaml"),
-             ["t.csv", "would not read back", "frames[0].theta"])
+             ["t.csv: line 5, column 'theta_deg': '99999999999999999999999999' is too large for a robot "
+              "(magnitude below 1e+12 in deg)"])
     assert not (tmp_path / "m.yaml").exists()
 
 

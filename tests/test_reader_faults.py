@@ -5,6 +5,7 @@ measurement records."""
 
 import math
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -125,16 +126,54 @@ def test_a_urdf_links_and_joints_faults(old, new, where, detail):
     assert _fault(lambda: rc.io.read_urdf(URDF.replace(old, new, 1))) == (where, detail)
 
 
-@pytest.mark.parametrize("old, new, where, detail", [
-    ("j3,j2,revolute,j3,", "j3,j2,revolute,x*j3,", "line 5, column 'reading'",
+UR5_DH = (Path(__file__).resolve().parents[1] / "examples" / "dh" / "ur5-dh.csv").read_text()
+
+
+@pytest.mark.parametrize("table, old, new, where, detail", [
+    (MDH_TABLE, "j3,j2,revolute,j3,", "j3,j2,revolute,x*j3,", "line 5, column 'reading'",
      "a reading is NAME or COEF*NAME, got 'x*j3'"),
-    ("j3,j2,revolute,j3,", "j3,j2,revolute,,", "line 5, column 'reading'", "a moving frame needs a reading"),
-    ("j2,j1,revolute", "j2,j3,revolute", "line 4, column 'parent'", "parent 'j3' is not 'base' or an earlier frame"),
-    ("ball,j3,marker", "ball,j7,marker", "line 6, column 'parent'", "marker parent 'j7' is not a frame"),
+    (MDH_TABLE, "j3,j2,revolute,j3,", "j3,j2,revolute,,", "line 5, column 'reading'",
+     "a moving frame needs a reading"),
+    (MDH_TABLE, "j2,j1,revolute", "j2,j3,revolute", "line 4, column 'parent'",
+     "parent 'j3' is not 'base' or an earlier frame"),
+    (MDH_TABLE, "ball,j3,marker", "ball,j7,marker", "line 6, column 'parent'", "marker parent 'j7' is not a frame"),
+    (MDH_TABLE, "reading,beta_deg", "reading,bta_deg", "line 1, column 'bta_deg'",
+     "unknown column 'bta_deg'; did you mean 'beta_deg'?"),
+    (MDH_TABLE, "j3,j2,revolute", "j2,j2,revolute", "line 5, column 'frame'", "'j2' already names line 4"),
+    # a second base row: the last won, silently
+    (UR5_DH, "base,base,,,,,,,0,0,0,0,0,0\n", "base,base,,,,,,,0,0,0,0,0,0\nbase,base,,,,,,,0,0,100,0,0,0\n",
+     "line 5, column 'joint'", "a second base row (the first is line 4): a table places its first frame once"),
+    # misspelt limit columns: ignored, and the limits +-180 degrees, not the table's
+    (UR5_DH, "lower_deg,upper_deg", "lower_dg,uper_deg", "line 3, column 'lower_dg'",
+     "unknown column 'lower_dg'; did you mean 'lower_deg'?"),
+    (UR5_DH, "lower_deg,upper_deg", "lower_deg,uper_deg", "line 3, column 'uper_deg'",
+     "unknown column 'uper_deg'; did you mean 'upper_deg'?"),
+    # a name twice: 'frames: frame name 'shoulder_pan' is used twice', no line
+    (UR5_DH, "elbow,revolute", "shoulder_pan,revolute", "line 7, column 'name'", "'shoulder_pan' already names line 5"),
+    # beyond what a model file holds: named frames[2].d of the model it would have written
+    (UR5_DH, "0,0,-425,0", "0,0,1e13,0", "line 6, column 'a_mm'",
+     "'1e13' is too large for a robot (magnitude below 1e+12 in mm)"),
+    # an angle's column suggested alpha_mm
+    (UR5_DH, ",alpha_deg,", ",alpha,", "line 3, column 'alpha'", "alpha needs its unit: alpha_deg or alpha_rad"),
+    (UR5_DH, ",a_mm,", ",a_deg,", "line 3, column 'a_deg'", "a is a length: a_mm or a_m"),
+    (UR5_DH, ",lower_deg,", ",lower_mm,", "line 5, column 'lower_mm'",
+     "a revolute joint's limits are lower_deg or lower_rad"),
+    (UR5_DH, "0,0,-392.25,0,-180,180", "0,0,-392.25,0,10,10", "line 7",
+     "lower limit '10' is not below upper limit '10': a joint that cannot move"),
+    (UR5_DH, "tool,marker", "tool,fixed", "line 11, column 'joint'",
+     "a classic DH row is a revolute or prismatic joint"),
 ])
-def test_a_modified_dh_tables_faults(old, new, where, detail, tmp_path):
-    (tmp_path / "t.csv").write_text(MDH_TABLE.replace(old, new))
+def test_a_dh_tables_faults(table, old, new, where, detail, tmp_path):
+    assert old in table
+    (tmp_path / "t.csv").write_text(table.replace(old, new))
     assert _fault(lambda: rc.io.read_dh_table(tmp_path / "t.csv")) == (where, detail)
+
+
+def test_a_dh_table_without_a_column_names_it_with_its_units(tmp_path):
+    rows = [ln.split(",") for ln in UR5_DH.splitlines()]
+    (tmp_path / "t.csv").write_text("\n".join(",".join(r[:5] + r[6:]) if len(r) > 5 else r[0] for r in rows))
+    assert _fault(lambda: rc.io.read_dh_table(tmp_path / "t.csv")) == ("line 3",
+                                                                     "no column alpha (alpha_deg or alpha_rad)")
 
 
 def test_coupled_readings_in_a_modified_dh_table(tmp_path):

@@ -25,12 +25,14 @@ from .._base.arguments import (
     one_of,
     optional,
 )
-from .._base.errors import InputError
+from .._base.errors import InputError, excerpt, suggest
 from .._base.options import MAX_FRAMES, MAX_MARKERS, MAX_MODEL_BYTES
 from .._base.spatial import matrix_rpy, matrix_tuple, pose4, rpy_matrix, vector3
 from .._base.units import UNITS, parse_units, unit_factors, unit_kind
 from .._model.conversion import MDH_TABLE_KINDS, from_standard_dh, mdh_table, to_standard_dh
+from .._model.parameters import KIND_QUANTITY
 from .._model.robot import Frame, Marker, RobotModel, parallel_beta_frames, serial_model
+from .model import MAX_MAGNITUDE
 from .text import read_text, refuse_other_form, write_texts
 
 PLACEMENT = (("x", "length"), ("y", "length"), ("z", "length"), ("roll", "angle"), ("pitch", "angle"),
@@ -42,6 +44,14 @@ ROW_KINDS = ("revolute", "prismatic", "fixed", "base", "marker")
 CONVENTIONS = ("classic", "modified")
 # Craig's column -> our frame's parameter
 CRAIG = (("alpha", "alpha"), ("a", "d"), ("theta", "theta"), ("d", "r"))
+# the columns of each form of table: its words, and its numbers with the quantity of each (None: a
+# limit, an angle or a length as its joint is)
+LIMITS = (("lower", None), ("upper", None))
+CLASSIC_COLUMNS = (("name", "joint"), dict(DH_KINDS + LIMITS + PLACEMENT))
+MODIFIED_COLUMNS = (("frame", "parent", "joint", "reading", "has_beta"),
+                    dict(tuple((k, KIND_QUANTITY[k]) for k in MDH_TABLE_KINDS) + LIMITS + PLACEMENT))
+# the finest unit of each quantity: a value must be below the model's bound in it, as written to a model file
+FINEST = {kind: min(table.values()) for kind, table in UNITS.items()}
 
 
 def _placement(X: np.ndarray, names: dict, factors: dict) -> dict:
@@ -168,46 +178,91 @@ class _Table:
         except csv.Error as e:
             raise InputError(f"not readable as CSV: {e}", source=self.source) from None
         header = [c.strip() for c in parsed[0]]
-        self.scale: dict[str, list[tuple[int, float]]] = {}   # limits have a column per unit
+        self.header_line = numbered[0][0]
+        self.scale: dict[str, list[tuple[int, float, str]]] = {}   # limits have a column per quantity
         self.text: dict[str, int] = {}
         for k, c in enumerate(header):
             base, _, unit = c.rpartition("_")
             kind = unit_kind(unit) if base else None
             if kind is None:
-                self.text[c] = k
+                self.text.setdefault(c, k)
             else:
-                self.scale.setdefault(base, []).append((k, UNITS[kind][unit]))
+                self.scale.setdefault(base, []).append((k, UNITS[kind][unit], kind))
         self.rows = [(line, row) for (line, _), row in zip(numbered[1:], parsed[1:])]
         self.header = header
 
     def where(self, line: int, column: str | None = None) -> str:
         return f"line {line}" + (f", column {column!r}" if column else "")
 
-    def get(self, line, row, name: str, default=None) -> float:
-        if name not in self.scale:
+    def check_columns(self, form: tuple[tuple[str, ...], dict], required: tuple[str, ...]) -> None:
+        """Every column one of the ``form``'s (its words, its numbers with the unit of their quantity),
+        each once, and the ``required`` ones there; an InputError naming the header's column otherwise."""
+        words, numbers = form
+        seen: dict[tuple[str, str | None], str] = {}
+        for c in filter(None, self.header):     # an empty name: a separator at the end of the header
+            detail = self._column_fault(c, words, numbers, seen)
+            if detail:
+                raise InputError(detail, source=self.source, where=self.where(self.header_line, c))
+        for c in required:
+            if c not in self.text and c not in self.scale:
+                detail = f"no column {c} ({self._named(c, numbers[c])})" if c in numbers else f"no column {c!r}"
+                raise InputError(detail, source=self.source, where=self.where(self.header_line))
+
+    def _column_fault(self, c: str, words: tuple[str, ...], numbers: dict, seen: dict) -> str:
+        """What is wrong with column ``c`` of a table of ``words`` and ``numbers`` ('' when nothing;
+        ``seen``: the columns before it, by base name and quantity)."""
+        base, _, unit = c.rpartition("_")
+        kind = unit_kind(unit) if base and c not in words else None
+        if kind is None and c in numbers:
+            return f"{c} needs its unit: {self._named(c, numbers[c])}"
+        if (kind is None and c not in words) or (kind is not None and base not in numbers):
+            known = list(words) + [f"{n}_{u}" for n, q in numbers.items() for kind in ((q,) if q else UNITS)
+                                   for u in UNITS[kind]]
+            return f"unknown column {excerpt(c)}{suggest(c, known)}"
+        if kind is not None and numbers[base] not in (None, kind):
+            return f"{base} is {'an angle' if numbers[base] == 'angle' else 'a length'}: " \
+                   f"{self._named(base, numbers[base])}"
+        key = (base if kind else c, kind)
+        if key in seen:
+            return f"column {excerpt(c)} repeats column {seen[key]!r}"
+        seen[key] = c
+        return ""
+
+    @staticmethod
+    def _named(base: str, quantity: str | None) -> str:
+        """``"alpha_deg or alpha_rad"``: the names a column of ``quantity`` may have (a limit: either)."""
+        units = {"angle": ("deg", "rad"), "length": ("mm", "m")}.get(quantity or "", ("deg", "mm"))
+        return " or ".join(f"{base}_{u}" for u in units)
+
+    def get(self, line, row, name: str, default=None, quantity: str | None = None) -> float:
+        columns = [(k, s, q) for k, s, q in self.scale.get(name, ()) if quantity in (None, q)]
+        if not columns:
             if default is None:
-                raise InputError(f"no column {name} (with a unit suffix, e.g. {name}_mm or {name}_deg)",
-                                 source=self.source)
+                raise InputError(f"no column {name}", source=self.source, where=self.where(self.header_line))
             return default
-        filled = [(k, s) for k, s in self.scale[name] if k < len(row) and row[k].strip()]
-        k, s = (filled or self.scale[name])[0]
+        filled = [(k, s, q) for k, s, q in columns if k < len(row) and row[k].strip()]
+        k, s, q = (filled or columns)[0]
         cell = row[k].strip() if k < len(row) else ""
+        where = self.where(line, self.header[k])
         if not cell:
             if default is None:
-                raise InputError("empty cell", source=self.source, where=self.where(line, self.header[k]))
+                raise InputError("empty cell", source=self.source, where=where)
             return default
         try:
             v = float(cell)
         except ValueError:
-            raise InputError(f"expected a number, got {cell!r}", source=self.source,
-                             where=self.where(line, self.header[k])) from None
+            raise InputError(f"expected a number, got {excerpt(cell)}", source=self.source, where=where) from None
         if not math.isfinite(v):
-            raise InputError("expected a finite number", source=self.source, where=self.where(line, self.header[k]))
+            raise InputError("expected a finite number", source=self.source, where=where)
+        if not abs(v * s / FINEST[q]) < MAX_MAGNITUDE:   # beyond it a model file cannot hold the value
+            raise InputError(f"{excerpt(cell)} is too large for a robot (magnitude below {MAX_MAGNITUDE:g} in "
+                             f"{next(u for u, f in UNITS[q].items() if f == FINEST[q])})", source=self.source,
+                             where=where)
         return v * s
 
     def word(self, line, row, name: str) -> str:
         if name not in self.text:
-            raise InputError(f"no column {name!r}", source=self.source)
+            raise InputError(f"no column {name!r}", source=self.source, where=self.where(self.header_line))
         k = self.text[name]
         return row[k].strip() if k < len(row) else ""
 
@@ -216,12 +271,32 @@ class _Table:
         return pose4(rpy_matrix(v[3:]), v[:3])
 
     def limits(self, line, row, joint: str) -> tuple[float, float]:
+        """A joint's limits from the lower and upper columns of its quantity (an angle for a revolute
+        joint); the default +-180 degrees, or 0 to 1 m, where they are empty."""
+        quantity = "angle" if joint == "revolute" else "length"
+        for b in ("lower", "upper"):
+            other = [k for k, _, q in self.scale.get(b, ()) if q != quantity and k < len(row) and row[k].strip()]
+            if other:
+                raise InputError(f"a {joint} joint's limits are {self._named(b, quantity)}", source=self.source,
+                                 where=self.where(line, self.header[other[0]]))
         default = (-math.pi, math.pi) if joint == "revolute" else (0.0, 1.0)
-        return self.get(line, row, "lower", default[0]), self.get(line, row, "upper", default[1])
+        lo, hi = (self.get(line, row, b, d, quantity) for b, d in zip(("lower", "upper"), default))
+        if not lo < hi:
+            raise InputError(f"lower limit {excerpt(self.cell(row, 'lower', quantity))} is not below upper limit "
+                             f"{excerpt(self.cell(row, 'upper', quantity))}: a joint that cannot move",
+                             source=self.source, where=self.where(line))
+        return lo, hi
+
+    def cell(self, row, name: str, quantity: str) -> str:
+        """The text of the first filled ``name`` cell of ``quantity`` in ``row`` (the default's '' if none)."""
+        return next((row[k].strip() for k, _, q in self.scale.get(name, ())
+                     if q == quantity and k < len(row) and row[k].strip()), "")
 
 
 def _rows_by_kind(table: _Table, name_column: str):
     base, joints, markers = None, [], []
+    base_line = None
+    named: dict[tuple[bool, str], int] = {}     # (a marker?, name) -> its line
     for line, row in table.rows:
         kind = table.word(line, row, "joint")
         name = table.word(line, row, name_column)
@@ -230,8 +305,16 @@ def _rows_by_kind(table: _Table, name_column: str):
                              where=table.where(line, "joint"))
         if not name:
             raise InputError("no name", source=table.source, where=table.where(line, name_column))
+        if kind == "base" and base_line is not None:
+            raise InputError(f"a second base row (the first is line {base_line}): a table places its first frame "
+                             "once", source=table.source, where=table.where(line, "joint"))
+        if kind != "base" and (kind == "marker", name) in named:
+            raise InputError(f"{'marker ' if kind == 'marker' else ''}{excerpt(name)} already names line "
+                             f"{named[kind == 'marker', name]}", source=table.source,
+                             where=table.where(line, name_column))
+        named[kind == "marker", name] = line
         if kind == "base":
-            base = table.placement(line, row)
+            base, base_line = table.placement(line, row), line
         elif kind == "marker":
             markers.append((line, row, name))
         else:
@@ -276,8 +359,10 @@ def read_dh_table(path, *, name: str | None = None, convention: str | None = Non
                              source=table.source, where="convention")
     stated = convention or table.convention
     if "r" in table.scale and "frame" in table.text:
+        table.check_columns(MODIFIED_COLUMNS, ("frame", "parent", "joint"))
         return _modified(table, name)
     if "a" in table.scale:
+        table.check_columns(CLASSIC_COLUMNS, ("name", "joint") + tuple(k for k, _ in DH_KINDS))
         if stated is None:
             raise InputError("columns theta, d, a, alpha fit classic DH and modified (Craig's) DH alike: say which, "
                              "with --convention classic|modified (convention=...) or a '# convention: classic' line "
