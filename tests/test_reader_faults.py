@@ -121,6 +121,9 @@ def test_a_measurement_files_fault_is_named_where_it_is(text, options, where, de
     ('<child link="l1"/>', '<child link="lx"/>', "joint 'j1'", "child link 'lx' is not defined"),
     ('<child link="l2"/>', '<child link="l1"/>', "joint 'j2'", "link 'l1' is the child of two joints ('j1')"),
     ('upper="1"/></joint>', 'upper="1"/><mimic multiplier="2"/></joint>', "joint 'j1'", "<mimic> needs joint=..."),
+    # a negative mass became 0 kg on its frame, silently
+    ('<link name="l1"><inertial><mass value="1"/>', '<link name="l1"><inertial><mass value="-1.377"/>',
+     "link 'l1' inertial mass", "mass must be non-negative, got -1.377 kg"),
 ])
 def test_a_urdf_links_and_joints_faults(old, new, where, detail):
     assert _fault(lambda: rc.io.read_urdf(URDF.replace(old, new, 1))) == (where, detail)

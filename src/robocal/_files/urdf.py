@@ -203,6 +203,8 @@ def _parse_links(root: ET.Element, source: str) -> tuple[set[str], dict[str, tup
         if iner is not None and iner.find("mass") is not None:
             where = f"link {lname!r} inertial"
             m = _attr_float(iner.find("mass"), "value", 0.0, source, where)
+            if m < 0:   # summed onto its frame it would take mass off the links beside it, or make none
+                raise InputError(f"mass must be non-negative, got {m:g} kg", source=source, where=f"{where} mass")
             org = iner.find("origin")
             com = _floats(None if org is None else org.get("xyz"), 3, [0, 0, 0], source, where)
             inertials[lname] = (m, com)
