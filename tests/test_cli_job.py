@@ -158,6 +158,21 @@ def test_export_takes_urdf_from_the_file_name_and_asks_for_a_tables_form(tmp_pat
     assert not (tmp_path / "m.csv").exists()
 
 
+@pytest.mark.parametrize("fmt, name, words", [
+    # a classic DH table written into x.urdf, exit 0
+    ("dh-csv", "x.urdf", "names a .urdf file, but --format dh-csv writes a .csv one: give it a .csv name, or "
+                         "--format urdf"),
+    ("mdh-csv", "x.URDF", "names a .urdf file"),
+    ("urdf", "x.csv", "names a .csv file, but --format urdf writes a .urdf one: give it a .urdf name, or --format "
+                      "mdh-csv or dh-csv"),
+])
+def test_export_refuses_an_out_named_as_another_format(fmt, name, words, tmp_path, cli):
+    (tmp_path / name).write_text("kept\n")
+    code, _, err = cli("export", TRUE, "--format", fmt, "--out", tmp_path / name, "--force")
+    assert_one_line_error(code, err, ["--out", words], command="export")
+    assert (tmp_path / name).read_text() == "kept\n"
+
+
 @pytest.mark.parametrize("fmt", ["urdf", "mdh-csv", "dh-csv"])
 def test_export_round_trips(fmt, tmp_path, cli):
     source = TRUE if fmt != "dh-csv" else TH8

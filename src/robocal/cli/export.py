@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 from .._base.errors import InputError
 from . import common
 
 FORMATS = ("urdf", "mdh-csv", "dh-csv")
+# the extension each format's file is named by
+EXTENSION = {"urdf": ".urdf", "mdh-csv": ".csv", "dh-csv": ".csv"}
 
 EXAMPLE = """examples:
   robocal export examples/th8/true_model.yaml --format urdf --out th8.urdf
@@ -27,7 +30,8 @@ def register(sub) -> None:
                        example=EXAMPLE, inputs=[("model", "MODEL", "model file (YAML), e.g. OUT/calibrated.yaml")])
     p.add_argument("--format", choices=FORMATS, help="what to write (default urdf for an --out ending in .urdf; a "
                                                      "table needs it: mdh-csv or dh-csv)")
-    p.add_argument("--out", required=True, metavar="FILE", help="file to write")
+    p.add_argument("--out", required=True, metavar="FILE", help="file to write (.urdf for urdf, .csv for a table; "
+                                                                "another format's extension is refused)")
     p.add_argument("--units", type=common.units, default="mm-deg", help="units of a DH table (default mm-deg)")
     p.add_argument("--allow-ill-conditioned", action="store_true",
                    help="dh-csv: write even where nearly parallel axes need huge offsets (with a warning)")
@@ -54,6 +58,16 @@ def _exported(args, model) -> str:
         raise InputError(e.detail + hint, source=args.model, where=e.where) from None
 
 
+def _out_of_its_kind(out: str, fmt: str) -> None:
+    """An ``--out`` named as another format's file (a CSV table written into x.urdf) is refused
+    before anything is read: the next program to open it goes by its name."""
+    suffix = Path(out).suffix.lower()
+    others = [f for f, ext in EXTENSION.items() if ext == suffix and ext != EXTENSION[fmt]]
+    if others:
+        raise InputError(f"names a {suffix} file, but --format {fmt} writes a {EXTENSION[fmt]} one: give it a "
+                         f"{EXTENSION[fmt]} name, or --format {' or '.join(others)}", where="--out")
+
+
 def run(args) -> int:
     from .._files.checked import check_export
     from .._files.model import read_model
@@ -64,6 +78,7 @@ def run(args) -> int:
             raise InputError("needed: urdf, mdh-csv (modified DH with Hayati's beta) or dh-csv (classic DH); only an "
                              "--out ending in .urdf says which", where="--format")
         args.format = "urdf"
+    _out_of_its_kind(args.out, args.format)
     common.refuse_existing([args.out], args.force)
     model = read_model(args.model)
     text = _exported(args, model)
