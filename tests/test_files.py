@@ -143,6 +143,12 @@ def good_dict():
     (lambda d: d["markers"][0].update(rotation={"quaternion_xyzw": [0, 0, 0, 0]}),
      "markers[0].rotation.quaternion_xyzw", "zero norm"),
     (lambda d: d["joints"][0].update(limits=[10, -10]), "joints[0].limits", "lower limit exceeds"),
+    # a joint of no range, and one that drives no frame, were read as if they could be calibrated
+    (lambda d: d["joints"][4].update(limits=[10, 10]), "joints[4].limits",
+     "lower and upper limit are both 10: a joint that cannot move can be neither moved nor calibrated"),
+    (lambda d: d["joints"].append({"name": "j7", "limits": [-180, 180]}), "joints[6]",
+     "joint 'j7' drives no frame (no frame's reading or coupling names it): add the frame it moves, or leave the "
+     "joint out"),
     (lambda d: d.update(colour="red"), "colour", "unknown key"),
     (lambda d: d["frames"][0].update(name="base"), "frames[0].name", "reserved"),
 ])

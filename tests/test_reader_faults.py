@@ -121,6 +121,9 @@ def test_a_measurement_files_fault_is_named_where_it_is(text, options, where, de
     ('<child link="l1"/>', '<child link="lx"/>', "joint 'j1'", "child link 'lx' is not defined"),
     ('<child link="l2"/>', '<child link="l1"/>', "joint 'j2'", "link 'l1' is the child of two joints ('j1')"),
     ('upper="1"/></joint>', 'upper="1"/><mimic multiplier="2"/></joint>', "joint 'j1'", "<mimic> needs joint=..."),
+    ('lower="-1" upper="1"', 'lower="0" upper="0"', "joint 'j1'", "limit lower and upper are both 0 (a <limit> "
+                                                                  "without them gives 0 and 0): a joint that cannot "
+                                                                  "move; give its range"),
     # a negative mass became 0 kg on its frame, silently
     ('<link name="l1"><inertial><mass value="1"/>', '<link name="l1"><inertial><mass value="-1.377"/>',
      "link 'l1' inertial mass", "mass must be non-negative, got -1.377 kg"),
@@ -245,6 +248,8 @@ F = ARM.frames
     ({"joint_limits": ARM.joint_limits[:5]}, "joint_limits", "one (lower, upper) limit pair is needed per joint"),
     ({"joint_limits": ((1.0, -1.0),) + ARM.joint_limits[1:]}, "joints[0].limits",
      "lower limit 1.0 exceeds upper limit -1.0"),
+    ({"joint_limits": ARM.joint_limits[:2] + ((0.5, 0.5),) + ARM.joint_limits[3:]}, "joints[2].limits",
+     "lower and upper limit are both 0.5: a joint that cannot move"),
     ({"frames": (replace(F[0], joint="ball"),) + F[1:]}, "frames[0] (j1)",
      "joint type must be one of revolute, prismatic, fixed, got 'ball'"),
     ({"frames": (F[0], replace(F[1], parent=3)) + F[2:]}, "frames[1] (j2)",

@@ -360,6 +360,9 @@ def _limits(rd: _Reader, raw_limits: list, joint_names: list[str], frames: list[
     limits = []
     for j, raw in enumerate(raw_limits):
         # a limit is in the unit of what the reading drives: a length for a prismatic frame
+        if not any(k == j for f in frames for k, _ in f.coupling):     # declared, yet moving nothing
+            raise rd.error(f"joints[{j}]", f"joint {joint_names[j]!r} drives no frame (no frame's reading or "
+                                           "coupling names it): add the frame it moves, or leave the joint out")
         where = f"joints[{j}].limits"
         if raw is None:
             if _drives(frames, j) == "prismatic":
@@ -371,6 +374,9 @@ def _limits(rd: _Reader, raw_limits: list, joint_names: list[str], frames: list[
                   for k, v in enumerate(_pair(rd, raw, where)))
         if not lo <= hi:
             raise rd.error(where, f"lower limit exceeds upper limit ({raw[0]} > {raw[1]})")
+        if lo == hi:
+            raise rd.error(where, f"lower and upper limit are both {raw[0]}: a joint that cannot move can be neither "
+                                  "moved nor calibrated (a locked joint's frame is fixed)")
         limits.append((lo, hi))
     return limits
 

@@ -402,6 +402,9 @@ def _moving_joints(chain, source: str) -> list[str]:
                 raise InputError(f"a {j.type} joint needs <limit lower upper>", source=source, where=where)
             if j.limits is not None and j.type != "continuous" and not j.limits[0] <= j.limits[1]:
                 raise InputError("limit lower exceeds upper", source=source, where=where)
+            if j.limits is not None and j.type != "continuous" and j.mimic is None and j.limits[0] == j.limits[1]:
+                raise InputError(f"limit lower and upper are both {j.limits[0]:g} (a <limit> without them gives 0 and "
+                                 "0): a joint that cannot move; give its range", source=source, where=where)
             moving.append(j.name)
     if not moving:
         raise InputError("no moving joint between base and tip", source=source)
