@@ -209,6 +209,26 @@ def test_report_on_a_broken_result_refuses_in_one_line(tmp_path, cli, result_tex
     assert not (tmp_path / "r.html").exists()
 
 
+@pytest.mark.parametrize("path, value, words", [
+    # record stored 'verdict pass' of a file saying 'great'
+    (("verdict",), "great", "verdict: expected one of pass, warn, fail, got 'great'"),
+    (("verdict",), "other", "verdict: says {other}, but its checks give {given} (the worst of them)"),
+    (("parameters", 3, "std"), -1e-4, "parameters[3].std: std is never negative, got -0.0001"),
+    (("stats", "fit_after", "rms"), -1e-4, "stats.fit_after.rms: rms is never negative, got -0.0001"),
+])
+def test_report_and_record_refuse_a_result_of_impossible_figures(tmp_path, cli, result_text, path, value, words):
+    d = json.loads(result_text)
+    given = d["verdict"]
+    other = "fail" if given != "fail" else "pass"
+    _edit(d, path, other if value == "other" else value)
+    (tmp_path / "r.json").write_text(json.dumps(d))
+    words = words.format(other=other, given=given)
+    one_line(cli, ("report", tmp_path / "r.json", "--out", tmp_path / "r.html"), [f"r.json: {words}"])
+    one_line(cli, ("record", tmp_path / "r.json", "--robot", "R", "--store", tmp_path / "s.sqlite"),
+             [f"r.json: {words}"])
+    assert not (tmp_path / "r.html").exists() and not (tmp_path / "s.sqlite").exists()
+
+
 def test_report_on_a_large_result_renders(tmp_path, cli, result_text):
     """A result of 5,000 poses once kept report busy for minutes (an artist per pose)."""
     pytest.importorskip("matplotlib")

@@ -29,7 +29,7 @@ from .._base.arguments import (
     optional,
 )
 from .._base.errors import InputError, excerpt
-from .._identification.checks import STATUSES, Check
+from .._identification.checks import STATUSES, Check, verdict
 from .._identification.estimates import ErrorStats, ParameterEstimate
 from .._identification.holdout import AccuracyInUse, Coverage, JointOffset, UseStats
 from .._identification.identifiability import Absorption, IdentifiabilityResult, status_table
@@ -210,7 +210,7 @@ def _use_stats(doc: _Doc, d: dict | None, where: str) -> UseStats | None:
     if d is None:
         return None
     n = doc.get(d, "n", where, int)
-    vals = {f: (doc.get(d, f, where, float, optional=True) if n else None) for f in _USE_FIELDS[1:]}
+    vals = {f: (doc.size(d, f, where, optional=True) if n else None) for f in _USE_FIELDS[1:]}
     return UseStats(n=n, **{f: (None if v is None or math.isnan(v) else v) for f, v in vals.items()})
 
 
@@ -269,7 +269,7 @@ def _diagnosis(doc: _Doc, d: dict | None) -> Diagnosis | None:
         return doc.strings(doc.get(d, key, "diagnosis", list), f"diagnosis.{key}")
 
     return Diagnosis(findings=tuple(found), tested=names("tested"), summary=doc.get(d, "summary", "diagnosis", str),
-                     rms=doc.get(d, "rms_m", "diagnosis", float), untestable=names("untestable"),
+                     rms=doc.size(d, "rms_m", "diagnosis"), untestable=names("untestable"),
                      refitted=names("refitted"))
 
 
@@ -371,6 +371,13 @@ class _Doc:
             raise self.error(path, f"expected {_KIND_NAMES.get(kind, kind.__name__)}, got {excerpt(v)}")
         return v
 
+    def size(self, d: dict, key: str, where: str, *, optional: bool = False):
+        """A figure that is never negative (a standard deviation, an RMS, an error's size); null reads as NaN."""
+        v = self.get(d, key, where, float, optional=optional)
+        if v is not None and v < 0:
+            raise self.error(f"{where}.{key}" if where else key, f"{key} is never negative, got {v:g}")
+        return v
+
     def number(self, v, where: str) -> float:
         """A float; null reads as NaN (how the writer stores non-finite values)."""
         if v is None:
@@ -428,7 +435,7 @@ def _stats(doc: _Doc, d: dict, where: str = "stats") -> ErrorSummary:
         n = doc.get(s, "n", w, int)
         if n < 0:
             raise doc.error(f"{w}.n", f"expected a count, got {n}")
-        vals = {f: (doc.get(s, f, w, float, optional=True) if n else None) for f in ("mean", "std", "rms", "max")}
+        vals = {f: (doc.size(s, f, w, optional=True) if n else None) for f in ("mean", "std", "rms", "max")}
         parts[key] = ErrorStats(n=n, **{f: (None if v is None or math.isnan(v) else v) for f, v in vals.items()})
     return ErrorSummary(**parts)
 
@@ -438,7 +445,7 @@ def _solver(doc: _Doc, d: dict) -> SolverRecord:
     dof = contact_residual_dof(doc, doc.get(d, "contacts", "", dict, optional=True))
     return SolverRecord(success=doc.get(d, "success", "", bool), status=doc.get(d, "status", "", int),
                         message=doc.get(d, "message", "", str), nfev=doc.get(d, "nfev", "", int),
-                        loss=doc.get(d, "loss", "", str), sigma0=doc.get(d, "sigma0_m", "", float), residual_dof=dof)
+                        loss=doc.get(d, "loss", "", str), sigma0=doc.size(d, "sigma0_m", ""), residual_dof=dof)
 
 
 def _limit_judgement(doc: _Doc, d: dict | None) -> LimitJudgement | None:
@@ -487,6 +494,20 @@ def _checks(doc: _Doc, d: list) -> tuple[Check, ...]:
     return tuple(out)
 
 
+def _verdict(doc: _Doc, d: dict, checks: tuple[Check, ...]) -> None:
+    """The verdict a file states is one of pass, warn, fail, and the one its checks give (the worst):
+    what reads the file (a report, the store) takes the checks' word, so a file saying otherwise was
+    edited or is damaged."""
+    stated = doc.get(d, "verdict", "", str, optional=True)
+    if stated is None:
+        return
+    if stated not in STATUSES:
+        raise doc.error("verdict", f"expected one of {', '.join(STATUSES)}, got {excerpt(stated)}")
+    if stated != verdict(checks):
+        raise doc.error("verdict", f"says {stated}, but its checks give {verdict(checks)} (the worst of them): the "
+                                   "file was edited or is damaged; write it again from the calibration")
+
+
 def _parameters(doc: _Doc, d: list, nominal) -> tuple[ParameterEstimate, ...]:
     lay = parameter_layout(nominal)
     out = []
@@ -495,7 +516,7 @@ def _parameters(doc: _Doc, d: list, nominal) -> tuple[ParameterEstimate, ...]:
         if name not in lay:
             raise doc.error(f"{w}.name", f"{excerpt(name)} is not a parameter of the nominal model")
         out.append(ParameterEstimate(name, doc.get(p, "unit", w, str), doc.get(p, "nominal", w, float),
-                                     doc.get(p, "estimate", w, float), doc.get(p, "std", w, float),
+                                     doc.get(p, "estimate", w, float), doc.size(p, "std", w),
                                      family=lay[name].family, quantity=lay[name].quantity))
     return tuple(out)
 
@@ -609,6 +630,8 @@ def result_from_dict(d, *, source: str = "<dict>", folder=None) -> CalibrationRe
     rotation = doc.get(stats, "rotation", "stats", dict, optional=True)
     ident = _identifiability(doc, doc.get(d, "identifiability", "", dict))
     fit, validation = _errors(doc, errors, len(markers), nominal.n_joints, None if folder is None else Path(folder))
+    checks = _checks(doc, doc.get(d, "checks", "", list, optional=True) or [])
+    _verdict(doc, d, checks)
     return CalibrationResult(
         nominal_model=nominal, calibrated_model=calibrated, parameters=params,
         covariance=doc.array(doc.get(d, "covariance", "", list), "covariance", (k, k)),
@@ -619,8 +642,7 @@ def result_from_dict(d, *, source: str = "<dict>", folder=None) -> CalibrationRe
         contacts=contacts_from_dict(doc, doc.get(d, "contacts", "", dict, optional=True), ident),
         notes=doc.strings(doc.get(d, "notes", "", list), "notes"),
         limit=_limit_judgement(doc, doc.get(d, "limit", "", dict, optional=True)),
-        checks=_checks(doc, doc.get(d, "checks", "", list, optional=True) or []),
-        in_use=_in_use(doc, doc.get(d, "in_use", "", dict, optional=True)),
+        checks=checks, in_use=_in_use(doc, doc.get(d, "in_use", "", dict, optional=True)),
         provenance=_provenance(doc, doc.get(d, "provenance", "", dict, optional=True) or {}),
         diagnosis=_diagnosis(doc, doc.get(d, "diagnosis", "", dict, optional=True)))
 
