@@ -146,16 +146,36 @@ def test_tab_as_written_and_column_map_ignores(tmp_path):
     assert "columns ignored as asked: head_deg" in back.extra["notes"][-1]
 
 
-@pytest.mark.parametrize("argv, words", [
-    (("--sep", ","), ["line 1", "one column", "looks separated by ';'", "--sep ';'"]),
-    (("--decimal", "."), ["line 2", "column 'j1_deg'", "'0,5'", "decimal comma", "--decimal ,"]),
+HEADER = "pose;j1_deg;j2_deg;j3_deg;j4_deg;j5_deg;j6_deg;tool_x_mm;tool_y_mm;tool_z_mm\n"
+# decimal commas, and one row of decimal points (line 4)
+MIXED = HEADER + "1;0,5;1,5;2,5;3;4;5;1000;200;300\n2;0,6;1,5;2,5;3;4;5;1000;200;300\n3;0.7;1;2;3;4;5;1000;200;300\n"
+BOTH_MARKS = ("the file writes both decimal marks (numbers of its first rows: 1 with '.' from line 4, 6 with ',' "
+              "from line 2): a file holds one; correct the ones with '.', from line 4")
+
+
+@pytest.mark.parametrize("text, argv, words", [
+    (HEADER + "1;0,5;1;2;3;4;5;1000;200;300\n", ("--sep", ","),
+     ["line 1", "one column", "looks separated by ';'", "--sep ';'"]),
+    (HEADER + "1;0,5;1;2;3;4;5;1000;200;300\n", ("--decimal", "."),
+     ["line 2", "column 'j1_deg'", "'0,5'", "decimal comma", "--decimal ,", "or leave the decimal mark out"]),
+    # the detected mark blamed line 2 and told to leave the mark out to have it detected, which it was
+    (MIXED, (), ["line 4, column 'j1_deg'", "'0.7'", BOTH_MARKS]),
+    (MIXED, ("--decimal", ","), ["line 4, column 'j1_deg'", BOTH_MARKS]),
+    (MIXED, ("--decimal", "."), ["line 2, column 'j1_deg'", BOTH_MARKS]),
+    # a quoted decimal comma in a comma-separated file was told to use --decimal , (then refused)
+    (HEADER.replace(";", ",") + '1,"0,5",1.5,2,3,4,5,1000,200,300\n', (),
+     ["line 2, column 'j1_deg'", "'0,5'", "the file's other numbers write '.' (1 in its first rows, from line 2): a "
+                                          "file holds one decimal mark; correct this cell"]),
+    (HEADER.replace(";", ",") + '1,"0,5",1,2,3,4,5,1000,200,300\n', (),
+     ["line 2, column 'j1_deg'", "a decimal comma cannot be read where commas separate the columns: write the number "
+                                 "with a decimal point"]),
 ])
-def test_hints_name_the_likely_fix(tmp_path, cli, argv, words):
+def test_hints_name_the_likely_fix(tmp_path, cli, text, argv, words):
     _model_file(tmp_path)
-    (tmp_path / "d.csv").write_text("pose;j1_deg;j2_deg;j3_deg;j4_deg;j5_deg;j6_deg;tool_x_mm;tool_y_mm;tool_z_mm\n"
-                                    "1;0,5;1;2;3;4;5;1000;200;300\n")
+    (tmp_path / "d.csv").write_text(text)
     code, out, err = cli("calibrate", tmp_path / "model.yaml", tmp_path / "d.csv", "--out", tmp_path / "o", *argv)
     assert_one_line_error(code, err, words, tmp_path / "o")
+    assert "--decimal ," not in err or "--decimal ," in " ".join(words)
 
 
 def test_bad_column_map_option(tmp_path, cli):

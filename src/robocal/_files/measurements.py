@@ -417,7 +417,7 @@ def _read_slow(raw: bytes, jraw: bytes | None, digest: str, source, opts, declar
     if len(table.rows) > MAX_POSES:
         raise InputError(f"{len(table.rows):,} rows; robocal reads up to {MAX_POSES:,} poses per file "
                          "(docs/formats.md)", source=source)
-    return _parse_rows(table.rows, cols, table.decimal, source, digest, targets), table, cols, other
+    return _parse_rows(table.rows, cols, table, source, digest, targets), table, cols, other
 
 
 def _columns(table: Table, source: str, declared: dict, orient, opts: dict, model, targets: bool) -> _Columns:
@@ -632,7 +632,7 @@ def _empty_arrays(markers: list[_Marker], n: int):
             np.full((n, nm, 3, 3), np.nan) if has_rot else None, np.full((n, nm), np.nan) if has_sigma_rot else None)
 
 
-def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str, targets: bool = False) -> Measurements:
+def _parse_rows(rows, cols: _Columns, table: Table, source: str, digest: str, targets: bool = False) -> Measurements:
     """The measurements in ``rows`` ((line, cells) of the table), read cell by cell: a fault is an
     InputError at its line and column."""
     n = len(rows)
@@ -652,7 +652,7 @@ def _parse_rows(rows, cols: _Columns, decimal: str, source: str, digest: str, ta
                              source=source, where=f"line {line}")
 
         def num(k, *, required=True, row=row, line=line):
-            return number_cell(row[k], decimal, source, line, cols.names[k], required)
+            return number_cell(row[k], table, source, line, cols.names[k], required)
 
         for j, (k, s) in enumerate(joints):
             q[i, j] = num(k) * s
@@ -825,9 +825,10 @@ def _approach_to_write(data: Measurements):
     return approach
 
 
-def number_cell(text: str, decimal: str, source: str, line, column: str, required: bool) -> float:
-    """The number in a cell of a table with decimal mark ``decimal``; NaN for an empty cell that is
-    not ``required`` (a marker not seen), an InputError naming ``line`` and ``column`` otherwise."""
+def number_cell(text: str, table: Table, source: str, line, column: str, required: bool) -> float:
+    """The number in a cell of ``table`` (in its decimal mark); NaN for an empty cell that is not
+    ``required`` (a marker not seen), an InputError naming ``line`` and ``column`` otherwise."""
+    decimal = table.decimal
     t = text.strip()
     where = f"line {line}, column {column!r}"
     if not t:
@@ -839,11 +840,11 @@ def number_cell(text: str, decimal: str, source: str, line, column: str, require
                                                                               "empty"), source=source, where=where)
     if decimal != ".":
         if "." in t:
-            raise InputError(f"expected a number with decimal mark {decimal!r}, got {t!r}{decimal_hint(t, decimal)}",
+            raise InputError(f"expected a number with decimal mark {decimal!r}, got {t!r}{decimal_hint(t, table)}",
                              source=source, where=where)
         t = t.replace(decimal, ".")
     if not _NUMBER.match(t):
-        raise InputError(f"expected a number, got {excerpt(text.strip())}{decimal_hint(text, decimal)}",
+        raise InputError(f"expected a number, got {excerpt(text.strip())}{decimal_hint(text, table)}",
                          source=source, where=where)
     v = float(t)
     if not abs(v) <= MAX_MAGNITUDE:

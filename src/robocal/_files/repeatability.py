@@ -87,7 +87,7 @@ def _repeatability_row(row: list[str], col: dict[str, _Column], table: Table, li
         if col[c].at >= len(row) or not row[col[c].at].strip():
             raise InputError("empty cell", source=table.source, where=f"line {line}, column {col[c].name!r}")
         cells[c] = row[col[c].at].strip()
-    xyz = [number_cell(row[col[c].at] if col[c].at < len(row) else "", table.decimal, table.source, line,
+    xyz = [number_cell(row[col[c].at] if col[c].at < len(row) else "", table, table.source, line,
                        col[c].name, True) * col[c].scale for c in "xyz"]
     return cells["pose"], _cycle(cells["cycle"], table.source, line, col["cycle"].name), xyz
 

@@ -54,6 +54,9 @@ class Table:
     decimal: str = "."
     notes: tuple[str, ...] = ()
     header_given: bool = False
+    # {mark: (cells of the first rows that read as numbers with it, the first one's line)}: what the
+    # decimal mark was detected from, and what a cell written otherwise is told
+    decimals_seen: Mapping[str, tuple[int, str]] = field(default_factory=dict)
 
     @property
     def header_where(self) -> str:
@@ -142,14 +145,15 @@ def read_table(text: str, source: str, *, sep: str | None = None, decimal: str |
         names, note = _spaced_names(lines[header_line - 1], names, rows)
         notes += [note] if note else []
     rows = _trimmed(rows, len(names))
+    seen = _decimals_seen(sep, rows)
     if decimal is None:
-        decimal = _detect_decimal(sep, rows)
+        decimal = _detect_decimal(seen)
         if decimal != ".":
             notes.append(f"decimal mark {decimal!r} (detected)")
     check_decimal(decimal, sep)
     return Table(header=tuple(names), rows=tuple(rows), source=source, header_line=header_line,
                  comments=_comments(lines, header_line), sep=sep, decimal=decimal, notes=tuple(notes),
-                 header_given=header is not None)
+                 header_given=header is not None, decimals_seen=seen)
 
 
 def _sampled_separator(header: str, data: list[tuple[int, str]], given: bool) -> str:
@@ -241,16 +245,24 @@ def _detect_separator(header: str, sample: list[str]) -> str:
     return WHITESPACE if len(header.split()) > 1 else ","
 
 
-def _detect_decimal(sep: str, rows) -> str:
-    if sep == ",":
-        return "."
-    comma = dot = False
-    for _, row in rows[:_SAMPLE]:
+def _decimals_seen(sep: str, rows) -> dict[str, tuple[int, str]]:
+    """{mark: (how many cells of the first rows read as numbers with it, the first one's line)};
+    a comma is no decimal mark where it separates the columns (a quoted cell holds it)."""
+    seen: dict[str, tuple[int, str]] = {}
+    for line, row in rows[:_SAMPLE]:
         for c in row:
             c = c.strip()
-            comma = comma or bool(_COMMA_NUMBER.match(c))
-            dot = dot or bool(_DOT_NUMBER.match(c))
-    return "," if comma and not dot else "."
+            for mark, pattern in ((",", _COMMA_NUMBER), (".", _DOT_NUMBER)):
+                if pattern.match(c) and not (mark == "," and sep == ","):
+                    n, first = seen.get(mark, (0, line))
+                    seen[mark] = (n + 1, first)
+    return seen
+
+
+def _detect_decimal(seen: Mapping[str, tuple[int, str]]) -> str:
+    """The mark most numbers of the first rows write (a point when as many, or none, write a comma):
+    a row of the other is then named where it is read."""
+    return "," if seen.get(",", (0,))[0] > seen.get(".", (0,))[0] else "."
 
 
 def _refuse_other_separator(header: list[str], sep: str, source: str, line: int) -> None:
@@ -280,15 +292,30 @@ def _cli(sep: str) -> str:
     return {"\t": "'\\t'", WHITESPACE: "whitespace"}.get(sep, f"'{sep}'")
 
 
-def decimal_hint(text: str, decimal: str) -> str:
-    """'; ...' naming the other decimal mark when ``text`` reads as a number with it, else ''."""
+def decimal_hint(text: str, table: Table) -> str:
+    """'; ...' saying what to do when ``text`` reads as a number with the other decimal mark than
+    ``table``'s, else '': correct the cell where the file's other numbers write the table's mark,
+    else name the mark that reads it (never the separator)."""
     t = text.strip()
-    if decimal == "." and _COMMA_NUMBER.match(t):
-        return "; it looks like a decimal comma: pass decimal=',' (--decimal ,) or leave the decimal mark out " \
-               "to have it detected"
-    if decimal == "," and _DOT_NUMBER.match(t):
-        return "; it looks like a decimal point: pass decimal='.' (--decimal .)"
-    return ""
+    other = "," if table.decimal == "." else "."
+    if not (_COMMA_NUMBER if other == "," else _DOT_NUMBER).match(t):
+        return ""
+    seen = table.decimals_seen
+    if len(seen) == 2:      # both among the first rows: the fewer are the slips, whichever was taken
+        fewer = min(DECIMALS, key=lambda m: (seen[m][0], m == table.decimal))
+        both = ", ".join(f"{seen[m][0]} with {m!r} from line {seen[m][1]}" for m in DECIMALS)
+        return (f"; the file writes both decimal marks (numbers of its first rows: {both}): a file holds one; "
+                f"correct the ones with {fewer!r}, from line {seen[fewer][1]}")
+    if table.decimal in seen:
+        n, first = seen[table.decimal]
+        return (f"; the file's other numbers write {table.decimal!r} ({n} in its first rows, from line {first}): a "
+                "file holds one decimal mark; correct this cell")
+    if other == table.sep:
+        return "; a decimal comma cannot be read where commas separate the columns: write the number with a " \
+               "decimal point"
+    detected = table.decimals_seen.get(other, (0,))[0] > 0     # so the mark was given, not detected
+    return (f"; it looks like a decimal {'comma' if other == ',' else 'point'}: pass decimal={other!r} "
+            f"(--decimal {other})" + (" or leave the decimal mark out to have it detected" if detected else ""))
 
 
 def map_columns(table: Table, columns: ColumnMap | None) -> Table:
@@ -353,7 +380,7 @@ def _sum_cells(cells: list[str], names: list[str], table: Table, line: str) -> s
                              source=table.source, where=where)
         number = t.replace(table.decimal, ".") if table.decimal != "." and "." not in t else t
         if not _PLAIN_NUMBER.match(number):
-            raise InputError(f"expected a number, got {excerpt(t)}{decimal_hint(t, table.decimal)}",
+            raise InputError(f"expected a number, got {excerpt(t)}{decimal_hint(t, table)}",
                              source=table.source, where=where)
         total += float(number)
     return repr(total).replace(".", table.decimal)
