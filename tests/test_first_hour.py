@@ -249,6 +249,17 @@ def test_a_calibrations_outputs_given_as_the_model_name_the_calibrated_one(th8_r
     code, out, err = cli("compensate", TH8 / "model.yaml", run / "calibrated.yaml", targets, "--out",
                          tmp_path / "c.csv")
     assert code == 0 and (tmp_path / "c.csv").exists(), err
+    # a failed calibration's result was said to have calibrated.yaml written beside it, which it has not
+    d = json.loads(th8_result.read_text())
+    d["checks"][0]["status"] = d["verdict"] = "fail"
+    (tmp_path / "failed").mkdir()
+    (tmp_path / "failed" / "result.json").write_text(json.dumps(d))
+    code, _, err = cli("compensate", TH8 / "model.yaml", tmp_path / "failed" / "result.json", targets, "--out",
+                       tmp_path / "f.csv")
+    assert_one_line_error(code, err, ["a robocal result file, not a robocal model file: its calibration failed its "
+                                      "checks (the verdict in the file): calibrated.yaml is written beside it only "
+                                      "by `robocal calibrate --write-failed`"], tmp_path / "f.csv",
+                          command="compensate")
 
 
 def test_each_robocal_file_given_in_another_ones_place_is_named(th8_result, tmp_path, cli):
@@ -261,7 +272,11 @@ def test_each_robocal_file_given_in_another_ones_place_is_named(th8_result, tmp_
         (("calibrate", model, model), ["a robocal model file, not a measurement file"]),
         (("calibrate", model, th8_result), ["a robocal result file, not a measurement file"]),
         (("calibrate", model, sockets), ["a contact file, not a measurement file", "--contacts"]),
-        (("calibrate", model, "--contacts", measurements), ["not a contact file", "placement, target, kind"]),
+        (("calibrate", model, "--contacts", measurements),
+         ["a measurement file, not a contact file", "given after the model (`robocal calibrate MODEL DATA`"]),
+        # a measurement file as the model: 'expected a mapping (key: value)'
+        (("simulate", measurements, "--poses", "5"),
+         ["a measurement file, not a robocal model file: it is given after the model"]),
         (("calibrate", model, "--contacts", model), ["a robocal model file, not a contact file"]),
         (("report", calibrated), ["a robocal model file, not a calibration's result (result.json)"]),
         (("calibrate", model, measurements, "--limit", th8_result), ["a robocal result file, not a limit file"]),

@@ -367,10 +367,10 @@ def read_measurements(path, model: RobotModel | None = None, *, units: str | Non
     declared = dict(zip(("length", "angle"), parse_units(opts["units"]))) if opts["units"] is not None else {}
     orient = parse_orientation(opts["orientation"])
     raw = _table_bytes(path)
-    refuse_other_form(_head(raw), source, "a measurement file")
+    refuse_other_form(_head(raw), source, "a measurement file", ("measurements",))
     jraw = None if joints is None or _is_program(joints) else _table_bytes(joints)
     if jraw is not None:
-        refuse_other_form(_head(jraw), str(joints), "a measurement file")
+        refuse_other_form(_head(jraw), str(joints), "a measurement file", ("measurements",))
     digest = hashlib.sha256(raw).hexdigest()
     try:
         data, table, cols, other = _read_fast(raw, jraw, digest, source, opts, declared, orient, model, targets,

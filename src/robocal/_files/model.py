@@ -7,6 +7,7 @@ always rad/(N m) and gravity m/s^2.
 
 from __future__ import annotations
 
+import json
 import re
 from dataclasses import replace
 from pathlib import Path
@@ -509,6 +510,19 @@ def _coupling(rd: _Reader, item: dict, where: str, fname: str, joint: str, joint
     return ((free[0], 1.0),)
 
 
+def _calibrated_beside(text: str) -> str:
+    """Where the calibrated model of the result in ``text`` is: beside it, unless the calibration
+    failed its checks (then it is written only when asked, carrying the verdict)."""
+    try:
+        failed = json.loads(text).get("verdict") == "fail"
+    except (ValueError, AttributeError, RecursionError):     # no result to tell: say where it would be
+        failed = False
+    if not failed:
+        return f"the calibrated model is {CALIBRATED_MODEL}, written beside it"
+    return (f"its calibration failed its checks (the verdict in the file): {CALIBRATED_MODEL} is written beside it "
+            "only by `robocal calibrate --write-failed`, carrying that verdict; `robocal report` on it says why")
+
+
 @accepts(path=PATH)
 def read_model(path) -> RobotModel:
     """Read a model file (docs/formats.md) into a RobotModel in SI units.
@@ -533,7 +547,7 @@ def read_model_and_record(path) -> tuple[RobotModel, dict | None]:
                          f"{Path(path) / CALIBRATED_MODEL}", source=source)
     text = read_text(path, limit=MAX_MODEL_BYTES)[0]
     refuse_other_form(text, source, "a robocal model file", ("model", "json"),       # a model may be JSON too
-                      {"result": f"the calibrated model is {CALIBRATED_MODEL}, written beside it"})
+                      {"result": _calibrated_beside(text)})
     d = load_yaml(text, source)
     if d is None:
         raise InputError("the file is empty", source=source)

@@ -258,7 +258,7 @@ IMPORTED = {"urdf": ("import-urdf", "read_urdf"), "dh": ("import-dh", "read_dh_t
 class FileForm(NamedTuple):
     """What a file holds, told from its first lines (``file_form``): ``key`` one of "model",
     "result" (or another robocal JSON file's kind: "limit", ...), "json", "urdf", "xml", "dh",
-    "contacts"; ``words`` the same for a message ("a URDF")."""
+    "contacts", "measurements"; ``words`` the same for a message ("a URDF")."""
 
     key: str
     words: str
@@ -269,7 +269,8 @@ def file_form(head: str) -> FileForm | None:
     form robocal imports: a robocal model file (its ``robocal_model`` key), a robocal JSON file (its
     ``schema``), other JSON, a URDF (its ``<robot>`` element), other XML, a DH table (a header
     naming ``joint``, ``d``, ``alpha`` and ``theta`` columns), a contact file (``placement``,
-    ``target`` and ``kind`` columns); None for anything else (a measurement file among them)."""
+    ``target`` and ``kind`` columns), a measurement file (a marker's ``NAME_x``, ``NAME_y``,
+    ``NAME_z`` beside other columns); None for anything else."""
     text = head[:SNIFFED_CHARS].lstrip("\ufeff \t\r\n")
     if text.startswith("{"):
         schema = re.search(r'"schema"\s*:\s*"robocal\.([a-z_]+)/', text)
@@ -285,12 +286,21 @@ def file_form(head: str) -> FileForm | None:
         return FileForm("dh", "a DH table")
     if {"placement", "target", "kind"} <= cells:
         return FileForm("contacts", "a contact file")
+    if _measured_points(cells) and len(cells) > 3:     # a marker's x, y, z beside joint readings
+        return FileForm("measurements", "a measurement file")
     return None
+
+
+def _measured_points(cells: set[str]) -> bool:
+    """Whether a header's ``cells`` (their units dropped) hold a marker's position, NAME_x, NAME_y, NAME_z."""
+    return any(c.endswith("_x") and {c[:-1] + "y", c[:-1] + "z"} <= cells for c in cells if len(c) > 2)
 
 
 # what to do with a file of each form given in another's place, whatever the place
 FORM_HINTS = {"contacts": "`robocal calibrate MODEL --contacts FILE` (`read_contacts` in Python) reads it",
-              "model": "a model file already, to give as the model"}
+              "model": "a model file already, to give as the model",
+              "measurements": "it is given after the model (`robocal calibrate MODEL DATA`; `read_measurements` in "
+                              "Python)"}
 
 
 def refuse_other_form(head: str, source: str, what: str, accepted: tuple[str, ...] = (),
