@@ -375,7 +375,7 @@ def _limits(rd: _Reader, raw_limits: list, joint_names: list[str], frames: list[
                   for k, v in enumerate(_pair(rd, raw, where)))
         if not lo <= hi:
             raise rd.error(where, f"lower limit exceeds upper limit ({raw[0]} > {raw[1]})")
-        if lo == hi:
+        if lo == hi and np.isfinite(lo):     # (both infinite: no finite range, said where it is sampled)
             raise rd.error(where, f"lower and upper limit are both {raw[0]}: a joint that cannot move can be neither "
                                   "moved nor calibrated (a locked joint's frame is fixed)")
         limits.append((lo, hi))

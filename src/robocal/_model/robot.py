@@ -346,7 +346,7 @@ def _check_joint_limits(model: RobotModel) -> None:
     for j, (lo, hi) in enumerate(model.joint_limits):
         if not (lo <= hi):
             raise InputError(f"lower limit {lo} exceeds upper limit {hi}", where=f"joints[{j}].limits")
-        if lo == hi:    # a joint of no range can be neither moved nor calibrated
+        if lo == hi and math.isfinite(lo):    # a joint of no range can be neither moved nor calibrated
             raise InputError(f"lower and upper limit are both {lo}: a joint that cannot move",
                              where=f"joints[{j}].limits")
 
