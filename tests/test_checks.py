@@ -484,3 +484,22 @@ def test_an_unconverged_fit_names_what_stopped_it():
         result = rc.calibrate(model, data, initial_base="register", max_nfev=2)
     check = next(c for c in result.checks if c.name == "solver convergence")
     assert check.status == "fail" and check.cause == "the 2 evaluations of the residuals max_nfev allows", check
+
+
+def test_a_model_written_from_a_failed_calibration_is_named_where_it_is_used(tmp_path, cli):
+    """--write-failed writes the model marked as failed; compensate and export used it without a word
+    (a URDF made from it cannot carry the mark)."""
+    m, _, data = _campaign()
+    lines = _rename(_csv(data, m), "_mm", "_m", where=_markers_only)
+    code, *_ = _calibrate(tmp_path, cli, m, lines, "--write-failed")
+    written = tmp_path / "out" / "calibrated.yaml"
+    assert code == 3 and written.exists()
+    targets = tmp_path / "targets.csv"
+    targets.write_text("pose," + ",".join(f"{j}_rad" for j in m.joint_names) + "\n"
+                       + "".join(f"T{k}," + ",".join(f"{v:.9f}" for v in q) + "\n" for k, q in enumerate(data.q[:3])))
+    for args in (("compensate", tmp_path / "model.yaml", written, targets, "--out", tmp_path / "c.csv"),
+                 ("export", written, "--format", "urdf", "--out", tmp_path / "m.urdf")):
+        code, _, err = cli(*args)
+        assert code == 0 and f"{written}: a calibration that failed" in err, err
+    code, _, err = cli("export", tmp_path / "model.yaml", "--format", "urdf", "--out", tmp_path / "n.urdf")
+    assert code == 0 and "failed" not in err

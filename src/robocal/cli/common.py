@@ -13,6 +13,7 @@ import importlib
 import math
 import os
 import re
+import sys
 from pathlib import Path
 
 from .._base.errors import DegenerateDataError, InputError, excerpt
@@ -373,6 +374,15 @@ def refuse_existing(paths, force: bool) -> None:
                 raise InputError(f"{same}a file this command reads: the output would replace what it is made "
                                  "from; write it elsewhere", source=str(p))
     check_writable(paths, force=force)
+
+
+def warn_if_failed(path, record: dict | None, use: str) -> None:
+    """A warning on stderr when the model file at ``path`` is a calibration that failed its checks
+    (written anyway with --write-failed): ``use`` says what is about to be made with it."""
+    if record is not None and record.get("verdict") == "fail":
+        failed = ", ".join(record.get("failed") or ()) or "its checks"
+        print(f"robocal: warning: {path}: a calibration that failed ({failed}), written with --write-failed: "
+              f"{use} a model its calibration said not to use", file=sys.stderr)
 
 
 def require_finite(what: str, values: dict) -> None:

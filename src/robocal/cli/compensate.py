@@ -194,6 +194,7 @@ def run(args) -> int:
     common.refuse_existing([args.out], args.force)
     nominal = read_model(args.nominal)
     calibrated, record = read_model_and_record(args.calibrated)
+    common.warn_if_failed(args.calibrated, record, "the commands are made with")
     if calibrated.joint_names != nominal.joint_names:
         raise InputError(f"joints {', '.join(calibrated.joint_names)} differ from the nominal model's "
                          f"({', '.join(nominal.joint_names)})", source=args.calibrated)

@@ -70,7 +70,7 @@ def _out_of_its_kind(out: str, fmt: str) -> None:
 
 def run(args) -> int:
     from .._files.checked import check_export
-    from .._files.model import read_model
+    from .._files.model import read_model_and_record
     from .._model.conversion import to_standard_dh
 
     if args.format is None:
@@ -80,7 +80,8 @@ def run(args) -> int:
         args.format = "urdf"
     _out_of_its_kind(args.out, args.format)
     common.refuse_existing([args.out], args.force)
-    model = read_model(args.model)
+    model, record = read_model_and_record(args.model)
+    common.warn_if_failed(args.model, record, f"the {args.format} file, which cannot say so, is written from")
     text = _exported(args, model)
     if args.format == "dh-csv":
         far = to_standard_dh(model, max_offset=float("inf")).offsets
