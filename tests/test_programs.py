@@ -353,6 +353,12 @@ def test_cli_compensates_a_program_and_prints_each_target(models, tmp_path, cli)
                        "--tool", "tGriper", "--out", tmp_path / "t.mod")
     assert_one_line_error(code, err, ["--tool", "tGriper", "tGripper"], command="compensate")
     assert not (tmp_path / "t.mod").exists()
+    # a program without a target compensated nothing and wrote a copy, exit 0
+    (tmp_path / "empty.mod").write_text("MODULE Empty\nENDMODULE\n")
+    code, _, err = cli("compensate", tmp_path / "nominal.yaml", tmp_path / "calibrated.yaml", tmp_path / "empty.mod",
+                       "--out", tmp_path / "e.mod")
+    assert_one_line_error(code, err, ["empty.mod", "no target in this rapid program"], command="compensate")
+    assert not (tmp_path / "e.mod").exists()
 
 
 def test_a_campaign_whose_joint_readings_are_controller_code_is_read(tmp_path, cli):

@@ -100,6 +100,9 @@ def _run_program(args, nominal, calibrated, ranges) -> int:
         raise InputError(f"no marker {name!r}; the model has {', '.join(nominal.marker_names)}", where="--marker")
     m = nominal.marker_names.index(name)
     companions = [read_program(path, dialect=program.dialect) for path in _companions(args, program)]
+    if not any(p.targets for p in [program] + companions):     # an empty file, or a program of another kind
+        raise InputError(f"no target in this {program.dialect} program (docs/formats.md says which declarations "
+                         "and motion instructions are read): nothing to compensate", source=str(args.targets))
     result = compensate_program(program, nominal, calibrated, marker=m, tool=args.tool, wobj=args.wobj,
                                 companions=companions, tol=args.tol_mm / common.MM, tol_rot=args.tol_deg / common.DEG,
                                 ranges=ranges)
