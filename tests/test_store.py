@@ -548,6 +548,17 @@ def _drifted(true, name="j3.d", by=3e-4):
     return rc.model_from_vector(true, p)
 
 
+def test_a_verification_of_copied_rows_is_refused(campaign):
+    """Fifteen copies of one measured pose, relabelled, were judged as fifteen points "within accuracy"."""
+    model, true, result = campaign
+    then = rc.accuracy_at_calibration(rc.io.result_to_dict(result))
+    data = rc.measure(true, rc.random_configurations(model, 12, 3), noise=2e-5, rng=3)
+    assert rc.verify(result.calibrated_model, data, then).n_points == 12
+    copied = replace(data.subset(np.zeros(15, dtype=int)), labels=tuple(f"V{i}" for i in range(15)))
+    with pytest.raises(rc.DegenerateDataError, match="14 of 15 poses repeat an earlier one exactly"):
+        rc.verify(result.calibrated_model, copied, then)
+
+
 def test_verification_says_recalibrate_after_a_drift_of_0_3_mm_and_within_otherwise(campaign):
     model, true, result = campaign
     then = rc.accuracy_at_calibration(_store.result_to_dict(result))

@@ -25,6 +25,7 @@ from .._base.arrays import vector_norms
 from .._base.errors import DegenerateDataError, InputError
 from .._identification.contact_figures import contact_errors
 from .._identification.registration import rigid_base as register_base
+from .._identification.steps import without_copies
 from .._model.contacts import Contacts
 from .._model.kinematics import evaluate
 from .._model.measurements import Measurements
@@ -212,6 +213,7 @@ def verify(model: RobotModel, data: Measurements | Contacts, then: Accuracy, *, 
     if missing:
         raise InputError(f"marker(s) {', '.join(missing)} are not the calibrated model's "
                          f"({', '.join(model.marker_names)})", source=data.source or None)
+    _refuse_copies(data)
     norms, predicted = _errors(register_base(model, data) if register else model, data)
     v = norms[np.isfinite(norms)]
     if v.size < (4 if register else 1):
@@ -227,6 +229,16 @@ def verify(model: RobotModel, data: Measurements | Contacts, then: Accuracy, *, 
                         p95=float(np.percentile(v, 95)), max=float(v.max()), poses=names, ap=ap,
                         ap_max=float(ap.max()), then=then, ratio=ratio, threshold=threshold, verdict=says,
                         registered_base=register, n_points=int(v.size), alpha=alpha, if_registered=if_registered)
+
+
+def _refuse_copies(data: Measurements) -> None:
+    """Refuse poses that repeat an earlier one exactly: an instrument never repeats a reading to the
+    last digit, and counted, copies would be evidence the verification does not have."""
+    copies = data.n_poses - without_copies(data)[0].n_poses
+    if copies:
+        raise DegenerateDataError(f"{data.source or 'the verification'}: {copies} of {data.n_poses} poses repeat an "
+                                  "earlier one exactly (readings and measured positions): copies, not measurements; "
+                                  "remove them")
 
 
 def _seatings(model: RobotModel, data, then: Accuracy, register: bool, alpha: float) -> Verification:
