@@ -55,6 +55,11 @@ MEASUREMENT_FAULTS = [
      "unknown column 'temp_C'; expected one of pose, set, series, payload_kg, j1, j2, j3, j4, j5, j6, tool_x, tool_y, "
      "tool_z; the model has joints j1, j2, j3, j4, j5, j6 and markers tool; map it (--map 'temp_C=NAME'), ignore it "
      "(--ignore 'temp_C') or ignore every unknown column (--unknown ignore)"),
+    # a name the column map gave: the map is what to fix, the file's column what it names
+    (MEASUREMENTS, {"columns": {"j4_deg": "jj4_deg"}}, "line 1",
+     "unknown column 'jj4_deg', the name --map gives the file's column 'j4_deg'; expected one of pose, set, series, "
+     "payload_kg, j1, j2, j3, j4, j5, j6, tool_x, tool_y, tool_z; the model has joints j1, j2, j3, j4, j5, j6 and "
+     "markers tool; map it to one of those (--map 'j4_deg=NAME')"),
     (_added("approach_j1", "1"), {}, "line 1",
      "missing column approach_j2: approach directions are given per joint, for every joint or none"),
     (_renamed("j1_deg", "jx_deg"), {"unknown": "ignore"}, "line 1",

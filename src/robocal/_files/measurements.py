@@ -97,9 +97,11 @@ class _Columns:
     """What each header column holds, with its unit resolved (or an InputError saying how to declare it)."""
 
     def __init__(self, header, model, declared, orientation, source, line: str, unknown: str = "refuse",
-                 targets: bool = False):
-        """``line``: where messages place the header (``"line 3"``)."""
+                 targets: bool = False, renamed=None):
+        """``line``: where messages place the header (``"line 3"``); ``renamed``: {name a column map
+        gave: the file's column}, which messages name."""
         self.source, self.line = source, line
+        self.renamed = dict(renamed or {})
         self.names = header
         self._check_names(header)
         if model is not None:
@@ -158,6 +160,11 @@ class _Columns:
         valid = list(RESERVED) + joint_names + [f"{m}_{p}" for m in marker_names for p in POSITION]
         known = f"; the model has joints {', '.join(joint_names)} and markers {', '.join(marker_names)}" \
             if model is not None else ""
+        if column in self.renamed:      # a name the map gave: the map is what to fix
+            given = self.renamed[column]
+            return InputError(f"unknown column {column!r}, the name --map gives the file's column {given!r}"
+                              f"{suggest(column, valid)}{known}; map it to one of those (--map '{given}=NAME')",
+                              source=self.source, where=self.line)
         return InputError(f"unknown column {column!r}{suggest(column, valid)}{known}; map it (--map '{column}=NAME'), "
                           f"ignore it (--ignore '{column}') or ignore every unknown column (--unknown ignore)",
                           source=self.source, where=self.line)
@@ -433,7 +440,8 @@ def _columns(table: Table, source: str, declared: dict, orient, opts: dict, mode
         raise InputError(f"the file declares orientation {orient_text}, the option says {opts['orientation']}",
                          source=source, where="orientation")
     return _Columns(list(table.header), model, declared, orient or comment_orient, source, table.header_where,
-                    unknown=opts["columns"].unknown, targets=targets)
+                    unknown=opts["columns"].unknown, targets=targets,
+                    renamed={new: old for old, new in opts["columns"].rename.items()})
 
 
 def _is_program(joints) -> bool:
