@@ -96,6 +96,25 @@ def _weak_by_brute_force(J, names, quantities, sigma, bounds):
     return out
 
 
+def test_a_floor_of_parameters_is_kept_and_the_others_judged_beside_it():
+    """An identification nested on another keeps the other's parameters (``floor``) whatever their
+    spread, and judges what it adds beside them (the floor first, whatever the order given): a
+    column close to a kept one goes."""
+    from robocal.identification import weakly_identifiable
+
+    rng = np.random.default_rng(7)
+    x, y, z = rng.standard_normal((3, 200))
+    J = np.column_stack([x, x + 1e-3 * y, rng.standard_normal(200), x + 1e-3 * z])
+    names, quantities, bounds = ["a", "b", "c", "d"], ["length"] * 4, {"length": 1e-3}
+    assert [w[:2] for w in weakly_identifiable(J, names, quantities, 3e-5, bounds=bounds)] == [("b", "a"),
+                                                                                                ("d", "a")]
+    assert [w[:2] for w in weakly_identifiable(J, names, quantities, 3e-5, bounds=bounds, floor=("a", "b"))] == [
+        ("d", "d")]
+    # the floor comes first, whatever the order given: what is close to it goes, the rest stays
+    assert [w[:2] for w in weakly_identifiable(J, names, quantities, 3e-5, bounds=bounds, floor=("d",))] == [
+        ("a", "a"), ("b", "b")]
+
+
 @pytest.mark.parametrize("seed", range(6))
 def test_weak_parameters_match_the_one_at_a_time_test(seed):
     """The prefix shortcut and the one-column updates give what trial-by-trial SVDs give, whether

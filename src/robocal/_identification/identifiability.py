@@ -392,10 +392,10 @@ def predicted_std(J: np.ndarray, sigma: float) -> np.ndarray:
 
 
 @accepts(J=shaped(None, None), names=columns_of("J"), quantities=columns_of("J"), sigma=POSITIVE,
-         moments=optional(MAPPING), bounds=optional(MAPPING))
+         moments=optional(MAPPING), bounds=optional(MAPPING), floor=NAMES)
 @one_blas_thread
 def weakly_identifiable(J: np.ndarray, names, quantities, sigma: float, *, moments: dict | None = None,
-                        bounds: dict | None = None) -> list[tuple[str, str, float, float]]:
+                        bounds: dict | None = None, floor=()) -> list[tuple[str, str, float, float]]:
     """Parameters to eliminate because the design cannot pin them down.
 
     ``J`` (n_rows, k): the (weighted) Jacobian of the identified parameters ``names``, in preference
@@ -404,8 +404,10 @@ def weakly_identifiable(J: np.ndarray, names, quantities, sigma: float, *, momen
     compared with ``bounds[quantity]`` (default ``WEAK_STD``). As in the rank analysis, parameters
     are taken in preference order, each joining those kept before it: one that leaves itself or a
     kept one beyond its bound is eliminated (the later member of a near-dependent group goes, as
-    the later member of an exactly dependent one does). Returns, in order, (name, the parameter
-    beyond its bound with it: itself or an earlier one, that one's predicted effect, its bound).
+    the later member of an exactly dependent one does). Parameters named in ``floor`` join first
+    whatever their spread, unjudged (an identification's a larger one adds to), the others judged
+    beside them. Returns, in order, (name, the parameter beyond its bound with it: itself or an earlier
+    one, that one's predicted effect, its bound).
 
     Parameters
     ----------
@@ -413,6 +415,8 @@ def weakly_identifiable(J: np.ndarray, names, quantities, sigma: float, *, momen
     names : sequence of str
         Name of each column of ``J``.
     {quantities, sigma, moments, bounds}
+    floor : str or sequence of str
+        Parameters kept, unjudged.
 
     Returns
     -------
@@ -420,10 +424,14 @@ def weakly_identifiable(J: np.ndarray, names, quantities, sigma: float, *, momen
         Each weak parameter with its quantity, predicted standard deviation and bound.
     """
     bounds = WEAK_STD if bounds is None else bounds
+    floor = {floor} if isinstance(floor, str) else set(floor)
     names, quantities = list(names), list(quantities)
+    if floor:                   # the floor first, the others in their order
+        first = sorted(range(len(names)), key=lambda i: names[i] not in floor)
+        J, names, quantities = np.asarray(J)[:, first], [names[i] for i in first], [quantities[i] for i in first]
     scale = np.array([np.sqrt(np.mean(moments[n] ** 2)) if q == "compliance" and moments else 1.0
                       for n, q in zip(names, quantities)])
-    limit = np.array([bounds.get(q, np.inf) for q in quantities])
+    limit = np.array([np.inf if n in floor else bounds.get(q, np.inf) for n, q in zip(names, quantities)])
     norms = np.linalg.norm(J, axis=0)
     norms[norms == 0] = 1.0
     A = reduced(J / norms)
@@ -444,7 +452,7 @@ def weakly_identifiable(J: np.ndarray, names, quantities, sigma: float, *, momen
         effect = sigma * np.sqrt(np.nan_to_num(trial_diag, nan=np.inf)) / norms[trial] * scale[trial]
         ratio = np.where(np.isinf(limit[trial]), 0.0, effect / limit[trial])    # an unbounded quantity never fails
         worst = int(np.argmax(ratio))
-        if ratio[worst] > 1.0:
+        if ratio[worst] > 1.0 and names[k] not in floor:
             out.append((names[k], names[trial[worst]], float(effect[worst]), float(limit[trial[worst]])))
             continue
         Q[:, j] = (A[:, k] - Q[:, :j] @ proj) / s

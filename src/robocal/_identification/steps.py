@@ -79,6 +79,9 @@ class Options:
     limit_m: float | None
     initial_base: str
     register_validation: bool
+    # parameters never held back as weak: those of an identification this one is nested on, so that
+    # it adds to them (``compare``)
+    floor: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True, eq=False)
@@ -216,8 +219,8 @@ class Analysis:
     compliance: bool
     reach: ContactIdentifiability | None
     notes: tuple[str, ...] = ()
-    # the weak parameters among every identifiable one, by the scatter they were judged at: the
-    # model choice's all-free design names those its first design judged at the same scatter
+    # the weak parameters among every identifiable one, by the scatter they were judged at (and the
+    # floor kept): the model choice's all-free design names those its first design judged there
     weak_at: dict = field(default_factory=dict, repr=False)
 
     @property
@@ -346,14 +349,14 @@ def row_noise(problem: Problem, noise: Noise, limit_m: float | None) -> float:
 
 
 def pin_down(analysis: Analysis, noise: Noise, limit_m: float | None, *, eliminate: bool, scatter: float = 0.0,
-             problem: Problem | None = None) -> Design:
+             problem: Problem | None = None, floor: tuple[str, ...] = ()) -> Design:
     """The design over what the data can also pin down at the expected scatter (or at ``scatter``,
     the rows' units, when the fit showed more); with ``eliminate`` False every identifiable
     parameter stays free (the weak ones named). ``problem``: the observations to fit (default the
-    analysis', e.g. with some set aside)."""
+    analysis', e.g. with some set aside); ``floor``: parameters kept whatever their scatter."""
     prob = analysis.problem if problem is None else problem
     sigma = max(row_noise(prob, noise, limit_m), scatter)
-    ident, weak_found = weak_parameters(analysis, sigma, eliminate=eliminate)
+    ident, weak_found = weak_parameters(analysis, sigma, eliminate=eliminate, floor=floor)
     if not ident.identified:
         raise DegenerateDataError("no parameter is identifiable from these data")
     free = prob.over(ident.identified)
@@ -366,30 +369,32 @@ def pin_down(analysis: Analysis, noise: Noise, limit_m: float | None, *, elimina
                   judged_at=sigma)
 
 
-def weak_parameters(analysis: Analysis, sigma: float, *, eliminate: bool):
+def weak_parameters(analysis: Analysis, sigma: float, *, eliminate: bool, floor: tuple[str, ...] = ()):
     """The analysis with weakly identifiable parameters eliminated (or only named) at a scatter
     ``sigma`` (the rows' units), and those parameters with their predicted standard deviations.
     Eliminating one may let an equivalent one in (a member of the same dependent group): the
     analysis repeats until none is weak. The robot's columns are judged once what the nuisance
-    parameters absorb is taken out of them."""
+    parameters absorb is taken out of them. Parameters of ``floor`` are kept unjudged (one the
+    analysis found a combination of others takes the place of one of those), the others judged
+    beside them."""
     prob, J, names = analysis.problem, analysis.stack.J, analysis.stack.names
     lay = parameter_layout(prob.model)
     quantities = [lay[n].quantity for n in names]
     column = {n: k for k, n in enumerate(names)}
     moments = None
     ident = analysis.identifiability
-    dropped: dict[str, str] = {}
+    dropped = _giving_way(ident, floor)
     said: list[tuple[str, str]] = []
-    result = ident
+    result = eliminate_parameters(ident, J, names, quantities, dropped, n_rows=prob.n_rows) if dropped else ident
     while True:
         cols = [column[n] for n in result.identified]
-        found = analysis.weak_at.get(sigma) if result is ident else None
+        found = analysis.weak_at.get((sigma, floor)) if result is ident else None
         if found is None:
             moments = prob.compliance_moments(prob.start_vector()) if moments is None else moments
             found = weakly_identifiable(J[:, cols], result.identified, [quantities[k] for k in cols], sigma,
-                                        moments=moments)
+                                        moments=moments, floor=floor)
             if result is ident:
-                analysis.weak_at[sigma] = found
+                analysis.weak_at[(sigma, floor)] = found
         said += weak_words(found, lay)
         if not found or not eliminate:
             return result, tuple(said)
@@ -399,6 +404,18 @@ def weak_parameters(analysis: Analysis, sigma: float, *, eliminate: bool):
                            if by == n else f"with it, {by}'s predicted std {effect_text(e, lay[by].quantity)} exceeds ")
                         + effect_text(b, lay[by].quantity) for n, by, e, b in found})
         result = eliminate_parameters(ident, J, names, quantities, dropped, n_rows=prob.n_rows)
+
+
+def _giving_way(ident: IdentifiabilityResult, floor: tuple[str, ...]) -> dict[str, str]:
+    """Identified parameters that give way to a parameter of ``floor`` the analysis found a combination
+    of them (a member of the same dependent group, preferred by an identification it is nested on):
+    for each, the first other one of its combination."""
+    out: dict[str, str] = {}
+    for a in ident.eliminated:
+        other = next((n for n, _ in a.absorbers if n not in floor and n not in out), None) if a.name in floor else None
+        if other is not None:
+            out[other] = "is a combination of identified parameters"
+    return out
 
 
 def _scatter_text(problem: Problem, sigma: float) -> str:
@@ -720,7 +737,8 @@ def choose(analysis: Analysis, options: Options, holdout: Holdout, folds: FoldPr
     """
     eliminate = options.weak == "eliminate"
     noise, limit_m = options.noise, options.limit_m
-    first = fit(pin_down(analysis, noise, limit_m, eliminate=eliminate), options, holdout, folds)
+    floor = options.floor
+    first = fit(pin_down(analysis, noise, limit_m, eliminate=eliminate, floor=floor), options, holdout, folds)
     if not eliminate:
         return first, ()
     used = first.problem
@@ -728,10 +746,11 @@ def choose(analysis: Analysis, options: Options, holdout: Holdout, folds: FoldPr
     seen_scatter = scatter(first)
     if seen_scatter > FIT_RATIO * row_noise(used, noise, limit_m):
         with contextlib.suppress(DegenerateDataError):   # nothing pinned down at that scatter: the fit stands
-            designs.append(pin_down(analysis, noise, limit_m, eliminate=True, scatter=seen_scatter, problem=used))
+            designs.append(pin_down(analysis, noise, limit_m, eliminate=True, scatter=seen_scatter, problem=used,
+                                    floor=floor))
     designs.append(first.design)
     if analysis.identifiability.identified != first.design.identifiability.identified:   # else it is the first
-        designs.append(pin_down(analysis, noise, limit_m, eliminate=False, problem=used))
+        designs.append(pin_down(analysis, noise, limit_m, eliminate=False, problem=used, floor=floor))
     return _simplest(first, designs, options, holdout, folds)
 
 
