@@ -89,6 +89,26 @@ def test_zero_compliance_is_found_zero_and_reported_useless(design):
     assert cmp.best is cmp.geometric
 
 
+def test_an_identification_not_nested_in_the_other_is_said_beside_its_f_test(design):
+    """The F test takes the larger identification to hold every parameter of the smaller; one that
+    holds some at nominal is said, by name. ``compare`` keeps them (its nested fits add to the
+    smaller's parameters)."""
+    from robocal._identification.calibrate import nested_test
+
+    m = arm6r(masses=True)
+    _, fit, val = _campaign(m, design, 0, TRUE_K)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cmp = rc.compare(m, fit, validation=val)
+        held = rc.calibrate(m, fit, validation=val, parameters=BOTH, known=("j2.alpha",))
+    assert set(cmp.geometric.parameter_names) <= set(cmp.combined.parameter_names)
+    assert "not nested" not in cmp.compliance_test.summary
+    said = nested_test(cmp.geometric, held, val, 0.01, "compliance").summary
+    assert "j2.alpha" in cmp.geometric.parameter_names and said.endswith(
+        "; not nested: the larger holds j2.alpha at nominal, which the smaller identifies (the F test compares fits "
+        "that are not nested)")
+
+
 def test_paper_layout_table_lists_compliance():
     m = cylindrical(masses=True)
     ident = rc.identifiability(m, parameters=BOTH)

@@ -61,7 +61,7 @@ def test_demo_writes_the_story_and_says_the_robot_is_simulated(reproduce, tmp_pa
     # and recovers the simulated robot's lost motion where the data separate it from the offsets
     third = json.loads((tmp_path / "result-backlash.json").read_text())
     assert third["stats"]["validation_after"]["mean"] < 0.8 * result["stats"]["validation_after"]["mean"]
-    assert "backlash helped" in out and "geometric, compliance and backlash" in out
+    assert "backlash (on geometric and compliance) helped" in out and "geometric, compliance and backlash" in out
     half = dict(zip(nominal.frame_names, np.array(reproduce.IMPERFECTIONS.backlash) / 2))
     est = {p["name"]: p for p in third["parameters"] if ".backlash_" in p["name"]}
     assert {"j1.backlash_theta", "j4.backlash_theta", "j5.backlash_theta"} <= set(est)

@@ -17,7 +17,7 @@ from .._base.arguments import FLAG, FRACTION, accepts, both, is_a, measured_on, 
 from .._base.errors import DegenerateDataError, InputError, warn
 from .._base.threads import one_blas_thread
 from .._identification.calibrate import check_inputs, nested_test, options_of, run
-from .._identification.checks import BEFORE_SOLVING, Check
+from .._identification.checks import BEFORE_SOLVING, Check, error_where_used
 from .._identification.holdout import DEFAULT_FOLDS
 from .._identification.identifiability import DEFAULT_TOL
 from .._identification.judgement import warn_checks
@@ -127,9 +127,12 @@ def compare(model: RobotModel, data: Measurements | None = None, *, contacts: Co
             validation=None, alpha: float = 0.01, backlash: bool = False, transmission: bool = True,
             **kwargs) -> Comparison:
     """Run geometric and geometric-plus-compliance identifications on the same data (the paper's two),
-    with ``backlash`` a third (geometric, compliance and backlash, tested against the second), and
-    with ``transmission`` the transmission terms added to each of these, the terms kept chosen by
-    the error in use. A model without link masses skips what needs them and says so (``skipped``);
+    with ``backlash`` a third (backlash added to the one kept), and with ``transmission`` the
+    transmission terms added to the one kept then. Each larger identification keeps the parameters of
+    the one it adds to (``nested_test`` judges it against that one: it helps when the F test says so
+    and it places the robot better in use, where measured and over the range of use, as the check
+    "where the model holds" predicts). A model without link masses skips what needs them and says so
+    (``skipped``);
     data that fail a check made before solving (readings, their units, the points' size) compare
     nothing beyond the geometric calibration, saying so. A larger model is solved within
     ``COMPARED_NFEV`` evaluations of the residuals (``max_nfev`` when given), as the model choice's
@@ -153,10 +156,11 @@ def compare(model: RobotModel, data: Measurements | None = None, *, contacts: Co
     alpha : float
         Significance level of the F tests, in (0, 1).
     backlash : bool
-        Also calibrate with backlash and test it against geometric + compliance.
+        Also calibrate with backlash added to the identification kept so far, tested against it.
     transmission : bool
-        Also calibrate with transmission terms (``TRANSMISSION_LEVELS``) added to each
-        identification so far, test them against it, and keep the best in use of those that helped.
+        Also calibrate with transmission terms (``TRANSMISSION_LEVELS``) added to the identification
+        kept so far, test them against it, and keep, of those that helped, the one with the smallest
+        error in use over the range of use.
     **kwargs
         Further arguments of ``calibrate`` (``parameters`` excepted), for every calibration.
 
@@ -176,32 +180,33 @@ def compare(model: RobotModel, data: Measurements | None = None, *, contacts: Co
     check_inputs(model, data, contacts, validation, options)
 
     fit = _Fitter(model, data, contacts, validation, options)
-
     found: dict = {"geometric": fit("geometric"), "skipped": []}
     wrong = [c.name for c in found["geometric"].checks if c.status == "fail" and c.name in BEFORE_SOLVING]
     if wrong:       # a larger model fitted to a mistake says nothing of the robot
         found["skipped"].append(f"nothing compared: the data fail {', '.join(wrong)}, checked before solving; "
                                 "correct them and compare again")
-        return Comparison(skipped=tuple(found.pop("skipped")), **found)
-    _compare_compliance(model, fit, found, validation, alpha)
-    if backlash:
-        _compare_backlash(model, fit, found, validation, alpha)
-    if transmission:
-        _compare_transmission(model, fit, found, validation, alpha)
+    else:
+        _compare_compliance(model, fit, found, validation, alpha)
+        if backlash:
+            _compare_backlash(model, fit, found, validation, alpha)
+        if transmission:
+            _compare_transmission(model, fit, found, validation, alpha)
     return Comparison(skipped=tuple(found.pop("skipped")), **found)
 
 
 class _Fitter:
-    """The identifications of one comparison: ``fit(*families)`` calibrates and diagnoses one (its
-    warnings naming it); with ``screen=False`` the diagnosis waits for ``screen(result)``, asked only
-    of the one a choice keeps (the transmission levels: each is fitted, one is kept)."""
+    """The identifications of one comparison: ``fit(*families, on=smaller)`` calibrates and diagnoses
+    one (its warnings naming it), nested on ``smaller`` (whose parameters it keeps, adding to them);
+    with ``screen=False`` the diagnosis waits for ``screen(result)``, asked only of the one a choice
+    keeps (the transmission levels: each is fitted, one is kept)."""
 
     def __init__(self, model, data, contacts, validation, options: dict):
         self.model, self.data, self.contacts, self.validation, self.options = model, data, contacts, validation, options
         self.pending: dict = {}
 
-    def __call__(self, *families: str, screen: bool = True) -> CalibrationResult:
-        return self._labelled(families, lambda: self._fitted(families, screen))
+    def __call__(self, *families: str, on: CalibrationResult | None = None, screen: bool = True) -> CalibrationResult:
+        floor = () if on is None else on.parameter_names
+        return self._labelled(families, lambda: self._fitted(families, floor, screen))
 
     def screen(self, result: CalibrationResult) -> CalibrationResult:
         """``result``'s diagnosis, when its fit left it for later; else ``result``."""
@@ -221,12 +226,12 @@ class _Fitter:
             warn(f"{_identification_label(families)}: {w.message}", w.category)
         return result
 
-    def _fitted(self, families: tuple, screen: bool) -> CalibrationResult:
+    def _fitted(self, families: tuple, floor: tuple, screen: bool) -> CalibrationResult:
         # a larger model is offered, not asked for: it gets the model choice's budget of evaluations
         options = self.options
         given = options["max_nfev"] is not None
         budget = options["max_nfev"] if given or families == ("geometric",) else COMPARED_NFEV
-        settled = options_of({**options, "parameters": families, "max_nfev": budget})
+        settled = replace(options_of({**options, "parameters": families, "max_nfev": budget}), floor=floor)
         result, chosen = run(self.model, self.data, self.contacts, self.validation, settled)
         if families != ("geometric",) and not result.solver.success:      # not diagnosed: it is left out
             raise _NotConverged(f"its fit had not converged within the {budget} evaluations of the residuals "
@@ -243,13 +248,14 @@ class _Fitter:
 NO_MASSES = "the model has no link masses (--assume-masses assumes them from the geometry)"
 
 
-def _fitted_or_skipped(fit, found: dict, what: str, *families: str, screen: bool = True) -> CalibrationResult | None:
-    """The calibration of ``families``, or None with ``what`` and why in ``found["skipped"]`` when the
-    data cannot determine that larger model (too few poses for its parameters, or a solve that did
-    not converge within its evaluations: ``COMPARED_NFEV`` unless ``max_nfev`` is given): the
-    comparison of the others stands."""
+def _fitted_or_skipped(fit, found: dict, what: str, *families: str, on: CalibrationResult,
+                       screen: bool = True) -> CalibrationResult | None:
+    """The calibration of ``families`` nested on ``on``, or None with ``what`` and why in
+    ``found["skipped"]`` when the data cannot determine that larger model (too few poses for its
+    parameters, or a solve that did not converge within its evaluations: ``COMPARED_NFEV`` unless
+    ``max_nfev`` is given): the comparison of the others stands."""
     try:
-        return fit(*families, screen=screen)
+        return fit(*families, on=on, screen=screen)
     except (DegenerateDataError, _NotConverged) as e:
         found["skipped"].append(f"{what} not compared: {e}")
         return None
@@ -259,30 +265,37 @@ class _NotConverged(Exception):
     """A larger model's fit that had not converged within its evaluations: left out of a comparison."""
 
 
+def _kept(found: dict) -> CalibrationResult:
+    """The identification kept so far: the one the next adds to."""
+    return Comparison(skipped=(), **{k: v for k, v in found.items() if k != "skipped"}).best
+
+
 def _compare_compliance(model: RobotModel, fit, found: dict, validation, alpha: float) -> None:
     """Geometric and compliance against geometric, when the model has masses."""
     if not model.has_masses:
         found["skipped"].append(f"compliance not compared: {NO_MASSES}")
         return
-    combined = _fitted_or_skipped(fit, found, "compliance", "geometric", "compliance")
+    geometric = found["geometric"]
+    combined = _fitted_or_skipped(fit, found, "compliance", "geometric", "compliance", on=geometric)
     if combined is None:
         return
     found["combined"] = combined
-    found["compliance_test"] = nested_test(found["geometric"], found["combined"], validation, alpha, "compliance")
+    found["compliance_test"] = nested_test(geometric, combined, validation, alpha, "compliance")
 
 
 def _compare_backlash(model: RobotModel, fit, found: dict, validation, alpha: float) -> None:
-    """Backlash added to geometric and compliance (to geometric alone without masses, when the
+    """Backlash added to the identification kept so far (geometric alone without masses, when the
     approach-sided model needs none)."""
     if not model.has_masses and model.backlash_side == "gravity":
         found["skipped"].append(f"backlash not compared: its gravity-sided model needs masses and {NO_MASSES}")
         return
-    small = found.get("combined", found["geometric"])
-    large = _fitted_or_skipped(fit, found, "backlash", *small.families, "backlash")
+    small = _kept(found)
+    what = f"backlash (on {compared_name(small.families)})"
+    large = _fitted_or_skipped(fit, found, what, *small.families, "backlash", on=small)
     if large is None:
         return
     found["backlash"] = large
-    found["backlash_test"] = nested_test(small, found["backlash"], validation, alpha, "backlash")
+    found["backlash_test"] = nested_test(small, found["backlash"], validation, alpha, what)
 
 
 # the transmission terms the comparison offers, each level adding to the one before: the gears'
@@ -294,26 +307,21 @@ TRANSMISSION_LEVELS = (("gear scale", ("gear_scale",)), ("first harmonic", ("gea
 
 
 def _compare_transmission(model: RobotModel, fit, found: dict, validation, alpha: float) -> None:
-    """Transmission terms added, level after level, to each identification so far (a gear's error
-    may show only beside the compliance that takes the rest); kept: the one with the smallest error
-    in use among those that helped against what they add to and do better in use than the best so
-    far (else the one that did best in use, not kept)."""
-    bases = [r for r in (found["geometric"], found.get("combined"), found.get("backlash")) if r is not None]
-    best_rms = _in_use_rms(Comparison(skipped=(), **{k: v for k, v in found.items() if k != "skipped"}).best)
+    """Transmission terms added, level after level, to the identification kept so far; kept: of the
+    levels that helped (``nested_test``), the one with the smallest error in use over the range of
+    use (else that one of them all, shown and not kept)."""
     names = transmission_names(model)
-    tried = [t for small in bases for t in _transmission_levels(small, names, fit, found, validation, alpha)]
+    tried = _transmission_levels(_kept(found), names, fit, found, validation, alpha)
     if not tried:
         if not names:
             found["skipped"].append("transmission not compared: no joint can carry a transmission term")
         return
-    helped = [t for t in tried if t[2].helped and _in_use_rms(t[1]) < best_rms]
-    _, large, test = min(helped or tried, key=lambda t: _in_use_rms(t[1]))
-    if not helped and test.helped:
-        test = NestedTest(test.f_statistic, test.p_value, False,
-                          test.summary + f"; not kept: the best so far does better in use ({best_rms * 1e3:.4f} mm)")
-    others = "".join(f"; {w}: RMS in use {_in_use_rms(r) * 1e3:.4f} mm" for w, r, _ in tried if r is not large)
+    helped = [t for t in tried if t[2].helped]
+    _, large, test = min(helped or tried, key=lambda t: _where_used(t[1]))
+    others = "".join(f"; {w}: RMS in use {_in_use_rms(r) * 1e3:.4f} mm, over the range of use "
+                     f"{_where_used(r) * 1e3:.4f} mm" for w, r, _ in tried if r is not large)
     found["transmission"] = fit.screen(large)
-    found["transmission_test"] = NestedTest(test.f_statistic, test.p_value, bool(helped), test.summary + others)
+    found["transmission_test"] = NestedTest(test.f_statistic, test.p_value, test.helped, test.summary + others)
 
 
 def _transmission_levels(small: CalibrationResult, names, fit, found: dict, validation, alpha: float) -> list:
@@ -329,7 +337,7 @@ def _transmission_levels(small: CalibrationResult, names, fit, found: dict, vali
             continue                    # nothing new at this level (no stated ratio)
         done = terms
         what = f"transmission (up to the {label}, on {compared_name(small.families)})"
-        large = _fitted_or_skipped(fit, found, what, *small.families, *terms, screen=False)
+        large = _fitted_or_skipped(fit, found, what, *small.families, *terms, on=small, screen=False)
         if large is None:
             break
         tried.append((what, large, nested_test(small, large, validation, alpha, what)))
@@ -348,6 +356,11 @@ def _identification_label(families) -> str:
 
 def _in_use_rms(r: CalibrationResult) -> float:
     return np.inf if r.in_use is None else cast(float, r.in_use.position_after.rms)
+
+
+def _where_used(r: CalibrationResult) -> float:
+    """The error in use over the range of use (the check "where the model holds"), m RMS."""
+    return np.inf if r.in_use is None else error_where_used(r.coverage, _in_use_rms(r))
 
 
 def screened(model: RobotModel, data: Measurements | None, contacts: Contacts | None, result: CalibrationResult,

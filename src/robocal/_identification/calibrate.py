@@ -28,6 +28,7 @@ from .._base.options import DEFAULT_INSTRUMENT, INITIAL_BASES, INSTRUMENT_NOISE,
 from .._model.contacts import Contacts
 from .._model.measurements import Measurements, Noise
 from .._model.robot import RobotModel
+from .checks import error_where_used
 from .holdout import FoldProblems, holdout_of
 from .judgement import (
     alone_check,
@@ -174,7 +175,10 @@ def register_base(model: RobotModel, data: Measurements) -> RobotModel:
 
 def nested_test(small: CalibrationResult, large: CalibrationResult, validation, alpha: float,
                  what: str) -> NestedTest:
-    """F test of ``large`` against ``small`` nested in it, and the held-out RMS."""
+    """F test of ``large`` against ``small`` nested in it, and the accuracy in use: the held-out RMS,
+    and over the range of use (``error_where_used``, the check "where the model holds"). The larger
+    helps when the test says so and it places the robot better in both: one better where measured
+    but worse where the robot is used (terms that extrapolate badly) is not kept."""
     from scipy.special import fdtrc  # the F distribution's survival function (scipy.stats takes 1.8 s to import)
 
     dof1, dof2 = small.solver.residual_dof, large.solver.residual_dof
@@ -182,18 +186,35 @@ def nested_test(small: CalibrationResult, large: CalibrationResult, validation, 
     dfn, dfd = max(dof1 - dof2, 1), dof2
     F = max((ssr1 - ssr2) / dfn, 0.0) / (ssr2 / dfd)
     p_value = float(fdtrc(dfn, dfd, F))
+    tested = f"F = {F:.3g}, p = {p_value:.2g}"
+    nested = _not_nested(small, large)
     # in use: the held-out set's RMS, or the cross-validated one (the same folds for both fits)
     if small.in_use is None or large.in_use is None:    # contacts of one placement: nothing held out
-        verdict = (f"{what} not judged in use: no placement held out, the simpler identification is kept; "
-                   f"F = {F:.3g}, p = {p_value:.2g}")
-        return NestedTest(float(F), p_value, False, verdict)
+        verdict = f"{what} not judged in use: no placement held out, the simpler identification is kept; {tested}"
+        return NestedTest(float(F), p_value, False, verdict + nested)
     v1, v2 = cast(float, small.in_use.position_after.rms), cast(float, large.in_use.position_after.rms)
-    helped = p_value < alpha and v2 < v1
+    w1, w2 = error_where_used(small.coverage, v1), error_where_used(large.coverage, v2)
+    helped = p_value < alpha and v2 < v1 and w2 <= w1
     kind = "held-out" if validation is not None else "cross-validated"
     if small.contacts is not None:
         kind = "held-out placements' socket consistency" if validation is not None else \
             "socket consistency of each placement predicted by the others,"
     detail = f"{kind} RMS {v1 * 1e3:.4f} mm -> {v2 * 1e3:.4f} mm"
-    verdict = (f"{what} helped: {detail}; F = {F:.3g}, p = {p_value:.2g}" if helped else
-               f"{what} did not help: {detail}; F = {F:.3g}, p = {p_value:.2g} (threshold {alpha})")
-    return NestedTest(float(F), p_value, bool(helped), verdict)
+    if small.coverage is not None and large.coverage is not None:
+        worse = p_value < alpha and v2 < v1 and not helped
+        detail += (f"{', but' if worse else ','} over the range of use about {w1 * 1e3:.4f} mm -> {w2 * 1e3:.4f} mm"
+                   + (" (where the model holds: the parameters' uncertainty carried to the configurations of use)"
+                      if worse else ""))
+    verdict = (f"{what} helped: {detail}; {tested}" if helped else
+               f"{what} did not help: {detail}; {tested} (threshold {alpha})")
+    return NestedTest(float(F), p_value, bool(helped), verdict + nested)
+
+
+def _not_nested(small: CalibrationResult, large: CalibrationResult) -> str:
+    """What the smaller identification frees and the larger holds, said beside the F test (which
+    then compares fits that are not nested); "" when the larger holds none."""
+    held = [n for n in small.parameter_names if n not in set(large.parameter_names)]
+    if not held:
+        return ""
+    return (f"; not nested: the larger holds {', '.join(held)} at nominal, which the smaller identifies (the F "
+            "test compares fits that are not nested)")

@@ -1056,6 +1056,15 @@ def _joint_spans(cover) -> str:
             f"{ranges} the campaign's, {margin}")
 
 
+def error_where_used(cover, rms: float) -> float:
+    """The accuracy in use over the range of use (m RMS): the held-out error ``rms`` with the
+    uncertainty the parameters gain from the measured poses to the configurations of use
+    (``Coverage``); ``rms`` itself without a coverage (contacts)."""
+    if cover is None:
+        return rms
+    return float(np.sqrt(rms ** 2 + max(cover.uncertainty_workspace ** 2 - cover.uncertainty_measured ** 2, 0.0)))
+
+
 def coverage_check(cover, in_use, change: WorkspaceChange | None = None, missed: float = 0.0) -> Check:
     """Where the accuracy in use holds: the campaign's points against the spread of the robot's at
     the configurations of use (``use_box``), and the parameters' uncertainty carried from the
@@ -1080,8 +1089,7 @@ def coverage_check(cover, in_use, change: WorkspaceChange | None = None, missed:
                      fix="measure poses that move every joint over its range of use (robocal plan)")
     small = cover.spread_ratio < COVERAGE_SPREAD_MIN
     rms = in_use.position_after.rms or 0.0
-    # the accuracy in use where the robot is used: the held-out error with the uncertainty it gains there
-    there = float(np.sqrt(rms ** 2 + max(cover.uncertainty_workspace ** 2 - cover.uncertainty_measured ** 2, 0.0)))
+    there = error_where_used(cover, rms)
     grows = cover.extrapolation > EXTRAPOLATION_MAX and there > COVERAGE_GROWTH * rms
     if not (small or grows):
         return Check(name, "pass", summary)

@@ -461,8 +461,9 @@ class NestedTest:
     p_value : float
         Its p-value.
     helped : bool
-        True when p < ``alpha`` and the RMS error in use (held-out poses, else cross-validated on
-        the same folds) fell too: a model choice is checked by what it does in use.
+        True when p < ``alpha``, the RMS error in use (held-out poses, else cross-validated on
+        the same folds) fell too, and the error in use over the range of use (the check "where the
+        model holds") did not grow: a model choice is checked by what it does in use.
     summary : str
         What the test found, in one sentence.
     """
@@ -476,9 +477,9 @@ class NestedTest:
 @dataclass(frozen=True, eq=False)
 class Comparison:
     """Geometric-only against geometric-and-compliance identification on the same data, and, when
-    asked, against geometric, compliance and backlash together (the third) and with transmission
-    terms added to one of these. What the model cannot support (compliance without link
-    masses, a larger model than the poses determine) is skipped and said.
+    asked, backlash added to the one kept (the third) and transmission terms added to the one kept
+    then; each larger one keeps the parameters of the one it adds to. What the model cannot support
+    (compliance without link masses, a larger model than the poses determine) is skipped and said.
 
     Attributes
     ----------
@@ -489,12 +490,13 @@ class Comparison:
     compliance_test : NestedTest or None
         ``combined`` against ``geometric``: did the compliances help? None when skipped.
     backlash : CalibrationResult or None
-        Backlash added to the geometric and compliance identification; None unless asked.
+        Backlash added to the identification kept before it (geometric and compliance when
+        compliance helped, else geometric); None unless asked.
     backlash_test : NestedTest or None
         ``backlash`` against the identification it adds to; None unless asked.
     transmission : CalibrationResult or None
-        Transmission terms added to one of the above, the level and the identification they add
-        to that did best in use; None unless asked.
+        Transmission terms added to the identification kept before them, the level that did best
+        in use over the range of use; None unless asked.
     transmission_test : NestedTest or None
         ``transmission`` against the identification it adds to; None unless asked.
     skipped : tuple of str

@@ -12,7 +12,7 @@ from .._base.arguments import (
     each_a,
     is_a,
 )
-from .._identification.checks import Check
+from .._identification.checks import Check, error_where_used
 from .._identification.contact_figures import ContactErrors
 from .._identification.holdout import within_noise
 from .._identification.identifiability import IdentifiabilityResult
@@ -265,17 +265,22 @@ def comparison_summary(comparison, *, shown=(), weighted: bool = False) -> str:
     """
     geo = comparison.geometric
     cols = tuple((compared_head(k), r) for k, r in comparison.results.items())
+    widths = [max(24, len(name) + 2) for name, _ in cols]
     on = (f"contacts ({', '.join(f'{n} {k}' for k, n in geo.contacts.rows.items())})" if geo.contacts
           else f"{geo.provenance['data']['n_poses']} poses")
-    lines = cause_lines(comparison.best) + [f"comparison on {on}", _compared("", [f"{name:>24}" for name, _ in cols]),
-             _compared("parameters identified", [f"{len(r.parameters):>24}" for _, r in cols])]
-    lines += _compared_contacts(cols) + _compared_stats(cols)
+
+    def row(label: str, cells) -> str:
+        return f"  {label:<30}" + "".join(f"{c:>{w}}" for c, w in zip(cells, widths))
+
+    lines = cause_lines(comparison.best) + [f"comparison on {on}", row("", [name for name, _ in cols]),
+                                            row("parameters identified", [len(r.parameters) for _, r in cols])]
+    lines += [row(label, cells) for label, cells in _compared_contacts(cols) + _compared_stats(cols)]
     if weighted:
-        lines.append(_compared("residual std (stated stds)", [f"{r.solver.sigma0:>24.4g}" for _, r in cols]))
+        lines.append(row("residual std (stated stds)", [f"{r.solver.sigma0:.4g}" for _, r in cols]))
     else:
-        lines.append(_compared("residual std (mm)", [f"{r.solver.sigma0 * MM:>24.4f}" for _, r in cols]))
-    lines.append(_compared("solver", [f"{'converged' if r.solver.success else 'NOT converged':>24}" for _, r in cols]))
-    lines.append(_compared("verdict", [f"{r.verdict:>24}" for _, r in cols]))
+        lines.append(row("residual std (mm)", [f"{r.solver.sigma0 * MM:.4f}" for _, r in cols]))
+    lines.append(row("solver", ["converged" if r.solver.success else "NOT converged" for _, r in cols]))
+    lines.append(row("verdict", [r.verdict for _, r in cols]))
     best = comparison.best
     lines += [comparison.verdict, f"calibrated model chosen: {next(name for name, r in cols if r is best)}"]
     lines += _compared_notes(cols, shown)
@@ -292,21 +297,13 @@ def _compared_notes(cols, shown) -> list[str]:
                                               if n not in shown and n not in common]
 
 
-# the column heads of a comparison, by what each identification identifies
-COMPARED = {"geometric": "geometric", "geometric and compliance": "geometric+compliance"}
-
-
 def compared_head(name: str) -> str:
-    """A comparison's column head: the first two by name, a later one by the family it adds."""
-    return COMPARED.get(name, "+" + name.rsplit(" ", 1)[-1])
+    """A comparison's column head, by what its identification identifies: "geometric+compliance",
+    "geometric+transmission"."""
+    return name.replace(", ", "+").replace(" and ", "+")
 
 
-def _compared(label: str, cells: list[str]) -> str:
-    """A row of the comparison: its label, then one cell per identification."""
-    return f"  {label:<30}" + "".join(cells)
-
-
-def _compared_contacts(cols) -> list[str]:
+def _compared_contacts(cols) -> list[tuple[str, list[str]]]:
     """The socket consistency of each identification, fitted and in use (with contacts; mm)."""
     if cols[0][1].contacts is None:
         return []
@@ -315,18 +312,22 @@ def _compared_contacts(cols) -> list[str]:
                         ("socket consistency, in use", lambda r: r.in_use and r.in_use.position_after.mean)):
         values = [pick(r) for _, r in cols]
         if all(v is not None for v in values):
-            lines.append(_compared(label + " (mm)", [f"{v * MM:>24.4f}" for v in values]))
+            lines.append((label + " (mm)", [f"{v * MM:.4f}" for v in values]))
     return lines
 
 
-def _compared_stats(cols) -> list[str]:
-    """The position error statistics of each identification, on the sets the first one has (mm)."""
+def _compared_stats(cols) -> list[tuple[str, list[str]]]:
+    """The position error statistics of each identification, on the sets the first one has, and the
+    RMS error in use over the range of use (the check "where the model holds") the choice weighs (mm)."""
     first = cols[0][1].stats
     lines = []
     for key in (k for k in STAT_ROWS if getattr(first, k).n):
         for q in ("mean", "std", "rms", "max"):
-            lines.append(_compared(f"{key.replace('_', ', ')} {q} (mm)",
-                                   [f"{getattr(getattr(r.stats, key), q) * MM:>24.3f}" for _, r in cols]))
+            lines.append((f"{key.replace('_', ', ')} {q} (mm)",
+                          [f"{getattr(getattr(r.stats, key), q) * MM:.3f}" for _, r in cols]))
+    if all(r.in_use is not None and r.coverage is not None for _, r in cols):
+        lines.append(("in use, range of use rms (mm)",
+                      [f"{error_where_used(r.coverage, r.in_use.position_after.rms) * MM:.3f}" for _, r in cols]))
     return lines
 
 

@@ -44,11 +44,11 @@ def register(sub) -> None:
     common.parameter_options(p)
     p.add_argument("--compare", action="store_true",
                    help="fit geometric and geometric+compliance on the same data, then transmission terms on the "
-                        "better, and keep what helps in use")
+                        "one kept, and keep what helps in use, where measured and over the range of use")
     p.add_argument("--no-transmission", dest="transmission", action="store_false",
                    help="with --compare: leave the transmission terms out")
     p.add_argument("--backlash", action="store_true",
-                   help="with --compare: a third identification, geometric+compliance+backlash")
+                   help="with --compare: a third identification, backlash added to the one kept")
     p.add_argument("--backlash-side", choices=BACKLASH_SIDES, default=None,
                    help="where each joint rests in its lost motion in this campaign: on the side its gravity load "
                         "pushes it to, or behind its last move (default: the model file's backlash.side)")
