@@ -178,13 +178,17 @@ def test_compare_leaves_out_transmission_terms_predicted_worse_over_the_range_of
     region best (0.022 mm cross-validated, against 0.04 mm up to the first), but nothing there pins it
     down over the rest of the turn: predicted at 0.23 mm over the range of use, it is 0.30 mm off
     (mean) at random configurations over the limits. The comparison judged by the held-out error
-    alone kept it; now it is left out, saying why, and the terms kept place the robot better."""
+    alone kept it; now it is left out, saying why, and the terms kept place the robot better. The
+    warnings said are the kept model's alone: the second harmonic's (where the model holds) were
+    said first, as if they were the calibration's."""
     import warnings
 
     m, true, data = _geared_arm(0, 60.0)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        cmp = rc.compare(m, data, noise=rc.Noise.of(position=NOISE))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        cmp = rc.compare(m, data, noise=rc.Noise.of(position=NOISE))
         terms = [n for n in parameter_layout(m).names if n.rsplit(".", 1)[1].startswith("gear_")]
         second = rc.calibrate(m, data, parameters=("geometric", *terms), noise=rc.Noise.of(position=NOISE))
     assert second.in_use.position_after.rms < cmp.best.in_use.position_after.rms
@@ -193,6 +197,12 @@ def test_compare_leaves_out_transmission_terms_predicted_worse_over_the_range_of
     assert "transmission (up to the second harmonic, on geometric): RMS in use" in said
     assert "over the range of use" in said.split("second harmonic, on geometric)")[1]
     assert _placed(true, cmp.best.calibrated_model, 0) < _placed(true, second.calibrated_model, 0)
+    # warnings: the kept identification's, named as it
+    assert any(c.status != "pass" for c in second.checks)
+    level = "first harmonic" if any(f.endswith(".gear_sin1") for f in cmp.best.families) else "gear scale"
+    kept = f"the geometric identification with transmission terms up to the {level}: "
+    assert {str(w.message) for w in caught} == {kept + f"{c.name} (warning): {c.summary}" for c in cmp.best.checks
+                                                if c.status == "warn"}
 
 
 def test_compare_diagnoses_only_the_transmission_level_it_keeps(monkeypatch):

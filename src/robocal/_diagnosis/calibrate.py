@@ -131,8 +131,9 @@ def compare(model: RobotModel, data: Measurements | None = None, *, contacts: Co
     transmission terms added to the one kept then. Each larger identification keeps the parameters of
     the one it adds to (``nested_test`` judges it against that one: it helps when the F test says so
     and it places the robot better in use, where measured and over the range of use, as the check
-    "where the model holds" predicts). A model without link masses skips what needs them and says so
-    (``skipped``);
+    "where the model holds" predicts). The warnings said are those of the identification kept, named
+    as it (the others' are in their checks). A model without link masses skips what needs them and
+    says so (``skipped``);
     data that fail a check made before solving (readings, their units, the points' size) compare
     nothing beyond the geometric calibration, saying so. A larger model is solved within
     ``COMPARED_NFEV`` evaluations of the residuals (``max_nfev`` when given), as the model choice's
@@ -191,39 +192,45 @@ def compare(model: RobotModel, data: Measurements | None = None, *, contacts: Co
             _compare_backlash(model, fit, found, validation, alpha)
         if transmission:
             _compare_transmission(model, fit, found, validation, alpha)
-    return Comparison(skipped=tuple(found.pop("skipped")), **found)
+    comparison = Comparison(skipped=tuple(found.pop("skipped")), **found)
+    fit.warn_kept(comparison.best)
+    return comparison
 
 
 class _Fitter:
     """The identifications of one comparison: ``fit(*families, on=smaller)`` calibrates and diagnoses
-    one (its warnings naming it), nested on ``smaller`` (whose parameters it keeps, adding to them);
-    with ``screen=False`` the diagnosis waits for ``screen(result)``, asked only of the one a choice
-    keeps (the transmission levels: each is fitted, one is kept)."""
+    one, nested on ``smaller`` (whose parameters it keeps, adding to them); with ``screen=False``
+    the diagnosis waits for ``screen(result)``, asked only of the one a choice keeps (the
+    transmission levels: each is fitted, one is kept). Each one's warnings are held, by what it
+    identifies, for ``warn_kept``."""
 
     def __init__(self, model, data, contacts, validation, options: dict):
         self.model, self.data, self.contacts, self.validation, self.options = model, data, contacts, validation, options
         self.pending: dict = {}
+        self.warned: dict = {}
 
     def __call__(self, *families: str, on: CalibrationResult | None = None, screen: bool = True) -> CalibrationResult:
         floor = () if on is None else on.parameter_names
-        return self._labelled(families, lambda: self._fitted(families, floor, screen))
+        return self._held(families, lambda: self._fitted(families, floor, screen))
 
     def screen(self, result: CalibrationResult) -> CalibrationResult:
         """``result``'s diagnosis, when its fit left it for later; else ``result``."""
         if id(result) not in self.pending:
             return result
         chosen, settled = self.pending.pop(id(result))
-        return self._labelled(result.families, lambda: screened(self.model, self.data, self.contacts, result, chosen,
-                                                                settled))
+        return self._held(result.families, lambda: screened(self.model, self.data, self.contacts, result, chosen,
+                                                            settled))
 
-    @staticmethod
-    def _labelled(families, work):
-        # each identification's warnings say whose they are: most are not the one kept
+    def warn_kept(self, kept: CalibrationResult) -> None:
+        """The warnings of the identification kept, named as it: the others' are in their checks."""
+        for message, category in self.warned.get(kept.families, ()):
+            warn(f"{_identification_label(kept.families)}: {message}", category)
+
+    def _held(self, families, work):
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             result = work()
-        for w in caught:
-            warn(f"{_identification_label(families)}: {w.message}", w.category)
+        self.warned.setdefault(tuple(families), []).extend((w.message, w.category) for w in caught)
         return result
 
     def _fitted(self, families: tuple, floor: tuple, screen: bool) -> CalibrationResult:
