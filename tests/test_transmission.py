@@ -500,7 +500,7 @@ def test_compensate_names_the_targets_beyond_the_readings_the_calibration_measur
     assert cli("import-dh", HERE / "ur5-dh.csv", "--out", tmp_path / "ur5.yaml")[0] == 0
     code, out, err = cli("calibrate", tmp_path / "ur5.yaml", grid, "--map", UR5_MAP, "--out", tmp_path / "run",
                          "--compare")
-    assert code == 0 and "calibrated model chosen: +transmission" in out, err
+    assert code == 0 and "calibrated model chosen: geometric+transmission" in out, err
     measured = campaign("UR5", "grid", nominal("UR5")).q
     record = rc.io.read_calibration(tmp_path / "run" / "calibrated.yaml")
     np.testing.assert_allclose(record["joint_ranges"], np.stack([measured.min(axis=0), measured.max(axis=0)], 1),
