@@ -99,6 +99,23 @@ def test_the_published_test_poses_verify_the_robot_calibrated_on_its_grid(robot)
     assert v.verdict == "within accuracy", (v.ratio, v.threshold)
 
 
+def test_the_panda_without_its_stated_spacing_warns_that_its_size_is_out_of_reach():
+    """The published campaign with its one known distance left out: shape, not size. The accuracy in
+    use (consistency of seatings) cannot show a size error, so the identifiability check warns and
+    says so beside the weak parameters it holds; nothing else changes."""
+    model = _panda()
+    contacts = rc.io.read_contacts(MUKCA / "panda_3", model)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        spaced = rc.calibrate(model, contacts=contacts)
+        unspaced = rc.calibrate(model, contacts=replace(contacts, distances=()))
+    ident = next(c for c in unspaced.checks if c.name == "identifiability at these poses")
+    assert spaced.verdict == "pass" and unspaced.verdict == "warn"
+    assert [c.name for c in unspaced.checks if c.status != "pass"] == ["identifiability at these poses"]
+    assert ident.summary.startswith("the robot's size is out of reach") and "weakly identifiable" in ident.summary
+    assert unspaced.in_use.position_after.mean < 0.26e-3
+
+
 def test_the_panda_verified_with_the_seatings_of_a_placement_it_was_not_calibrated_on():
     """Each placement of the published Panda held out in turn, calibrated on the other five and
     verified with its seatings: within accuracy each time (ratios 0.90 to 1.11); a model with one

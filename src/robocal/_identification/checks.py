@@ -791,12 +791,16 @@ def identifiability_check(lost, weak, *, weak_kept: bool = False, interchangeabl
     the robot's shape and not its size (a warning: the accuracy in use, of contacts alike, cannot see
     a size error)."""
     name = "identifiability at these poses"
-    if size_unreached:
+    if size_unreached:      # said first, beside what the poses say of the other parameters
+        rest = identifiability_check(lost, weak, weak_kept=weak_kept, interchangeable=interchangeable,
+                                     kept_in_use=kept_in_use)
         return Check(name, "warn", "the robot's size is out of reach of these contacts: its lengths are fitted "
                      "relative to one another at the nominal model's scale, and the contacts' accuracy in use "
-                     "cannot show an error of size", cause="no known length among the observations",
+                     "cannot show an error of size" + ("" if rest.status == "pass" and not rest.items else
+                                                      f"; {rest.summary}"),
+                     cause="no known length among the observations",
                      fix="state a known distance between two sockets ('# distance:' or the manifest's spacings), "
-                         "or add a ball bar, a known plane or tracker points")
+                         "or add a ball bar, a known plane or tracker points", items=rest.items)
     items = tuple(lost) + tuple(f"{n} (predicted std {s})" for n, s in weak) + tuple(interchangeable)
     if interchangeable:
         return Check(name, "warn", f"kept but interchangeable at these poses: {_listed(interchangeable, 3)}",
