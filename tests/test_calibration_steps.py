@@ -94,8 +94,11 @@ def test_analyse_refuses_too_few_distinct_poses_and_notes_repeated_configuration
     repeated = data.subset(np.r_[np.arange(40), np.zeros(5, dtype=int)])
     positions = repeated.positions.copy()
     positions[40:] += 1e-5 * np.arange(1, 6)[:, None, None]            # measured again: not copies
-    notes = analysis(dataclasses.replace(repeated, positions=positions)).notes
-    assert any(n.startswith("5 of 45 poses repeat an earlier joint configuration") for n in notes), notes
+    labels = tuple(f"P{i}" for i in range(45))
+    notes = analysis(dataclasses.replace(repeated, positions=positions, labels=labels)).notes
+    note = next(n for n in notes if n.startswith("5 of 45 poses repeat an earlier joint configuration"))
+    # the fifth repeat moved 5e-5 m along each axis from the first pose's point
+    assert f"their points lie up to {5e-2 * np.sqrt(3):.4g} mm apart (P0 and P44)" in note, note
 
 
 # -- pin_down --------------------------------------------------------------------------------------

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .._base.arrays import vector_norms
 from .._base.errors import DegenerateDataError, InputError
 from .._model.contacts import Contacts
 from .._model.measurements import Measurements, Noise
@@ -305,8 +306,25 @@ def _enough_poses(problem: Problem, data: Measurements, needed: int) -> list[str
             "that for a useful estimate")
     if n_unique < data.n_poses:
         return [f"{data.n_poses - n_unique} of {data.n_poses} poses repeat an earlier joint configuration "
-                "exactly: they average noise but add no information"]
+                f"exactly: they average noise but add no information{_repeat_gap(data)}"]
     return []
+
+
+def _repeat_gap(data: Measurements) -> str:
+    """How far apart the points of poses with equal readings lie at most (the model puts them at one
+    place: what separates them is the robot's repeatability, drift or a wrong row), in words."""
+    first = first_equal_rows(data.q)
+    if first is None:
+        return ""
+    again = np.flatnonzero(first != np.arange(data.n_poses))
+    both = data.mask[again] & data.mask[first[again]]
+    gap = np.where(both, vector_norms(data.positions[again] - data.positions[first[again]]), -1.0).max(axis=1)
+    if not (gap >= 0).any():
+        return ""
+    k = int(np.argmax(gap))
+    a, b = (data.labels[i] if data.labels else f"pose {i}" for i in (int(first[again[k]]), int(again[k])))
+    return (f"; their points lie up to {gap[k] * 1e3:.4g} mm apart ({a} and {b}): the robot's repeatability and "
+            "drift, or a wrong row when far beyond them")
 
 
 # -- what the data pin down -----------------------------------------------------------------------
