@@ -614,6 +614,29 @@ def test_a_robot_calibrated_from_seatings_is_verified_with_a_few_seatings():
     assert f"{then.rms * 1e3:.4f} mm RMS (held-out seatings" in type_summary(alone)
 
 
+def test_a_socket_seated_once_is_named_as_left_out_of_a_verification(cli, tmp_path):
+    """A socket seated once cannot show consistency (its one seating is its socket's centre), and
+    verify left it out without a word: three sockets seated, a verdict on two, nothing said."""
+    import shutil
+
+    store = tmp_path / "s.sqlite"
+    code, _, _ = cli("calibrate", ROOT / "examples/arm7/model.yaml", "--contacts", ROOT / "examples/arm7/seatings",
+                     "--out", tmp_path / "kit", "--record", "A7", "--store", store)
+    assert code == 0
+    check = tmp_path / "check"
+    shutil.copytree(ROOT / "examples/arm7/seatings_check", check)
+    hole = check / "P4" / "hole_2.csv"
+    seatings = hole.read_text().splitlines()
+    assert len(seatings) == 8
+    hole.write_text(seatings[0] + "\n")
+    code, out, _ = cli("verify", "A7", "--contacts", check, "--store", store, "--no-record")
+    lines = out.splitlines()
+    assert code == 0 and "16 seatings in 2 sockets" in lines[0]
+    assert lines[1] == ("  left out: socket P4/hole_2, seated once: one seating cannot show consistency (it is its "
+                        "socket's centre)")
+    assert sum("left out" in line for line in lines) == 1
+
+
 @pytest.fixture(scope="module")
 def arm7_kit():
     """A simulated 7-joint arm (examples/arm7), a socket plate at 4 placements (20 seatings per

@@ -78,7 +78,8 @@ class Verification:
     calibration; else None. Of seatings (``sockets`` > 0): ``errors`` (n_rows, 1) each seating's
     distance from its socket's mean predicted centre, ``poses`` the sockets and ``ap`` the RMS of
     each one's distances (``ap_max`` the worst); ``rms`` as measured, the ratio's with the sockets'
-    centres' degrees of freedom taken out.
+    centres' degrees of freedom taken out; ``left_out`` what the verification did not count and why
+    (a socket seated once).
     """
 
     errors: np.ndarray
@@ -98,6 +99,7 @@ class Verification:
     alpha: float
     if_registered: tuple[float, float] | None = None
     sockets: int = 0
+    left_out: tuple[str, ...] = ()
 
     @property
     def n_poses(self) -> int:
@@ -188,8 +190,8 @@ def verify(model: RobotModel, data: Measurements | Contacts, then: Accuracy, *, 
         The calibrated model (as stored).
     data : Measurements or Contacts
         The verification campaign: 10 to 30 poses are enough (more are allowed); or ball seatings
-        in sockets (two or more per socket, in varied configurations), for a robot calibrated from
-        seatings.
+        in sockets (two or more per socket, in varied configurations; a socket seated once is left
+        out, named in ``left_out``), for a robot calibrated from seatings.
     then : Accuracy
         The accuracy the calibration reached (``robocal.accuracy_at_calibration``).
     register : bool
@@ -251,7 +253,7 @@ def _seatings(model: RobotModel, data, then: Accuracy, register: bool, alpha: fl
                          "with what the calibration was judged on", source=src)
     if register:
         raise InputError(NO_BASE_TO_REGISTER, source=src, where="register")
-    groups = [g for g in data.groups("socket") if len(g.rows) >= 2]
+    groups, left_out = _seated_again(data)
     if not groups:
         raise DegenerateDataError(f"{src or 'the verification'}: no socket seated twice or more: a seating's "
                                   "distance from its socket's centre needs the socket seated again")
@@ -272,7 +274,16 @@ def _seatings(model: RobotModel, data, then: Accuracy, register: bool, alpha: fl
                         p95=float(np.percentile(v, 95)), max=float(v.max()), poses=tuple(g.label for g in groups),
                         ap=spread, ap_max=float(spread.max()), then=then, ratio=ratio, threshold=threshold,
                         verdict=RECALIBRATE if ratio > threshold else WITHIN, registered_base=False,
-                        n_points=int(v.size), alpha=alpha, sockets=len(groups))
+                        n_points=int(v.size), alpha=alpha, sockets=len(groups), left_out=left_out)
+
+
+def _seated_again(data: Contacts) -> tuple[list, tuple[str, ...]]:
+    """The sockets seated twice or more, and each one left out with why: a socket seated once (its one
+    seating is its socket's centre)."""
+    sockets = data.groups("socket")
+    return [g for g in sockets if len(g.rows) >= 2], tuple(
+        f"socket {g.label}, seated once: one seating cannot show consistency (it is its socket's centre)"
+        for g in sockets if len(g.rows) < 2)
 
 
 def _seatings_threshold(then: Accuracy, placements: int, dof: int, alpha: float) -> float:

@@ -278,6 +278,7 @@ def verification_summary(v: Verification, robot: str, calibration) -> str:
             else f"{v.n_poses} poses, {v.n_points} measured points{reg}")
     return "\n".join([
         f"verification of {robot} against calibration #{calibration.id} ({_day(calibration.calibrated_at)}): {what}",
+        *(f"  left out: {why}" for why in v.left_out),
         f"  now:            RMS {with_unit(v.rms, 'm')}, mean {with_unit(v.mean, 'm')}, p95 {with_unit(v.p95, 'm')}, "
         f"max {with_unit(v.max, 'm')}",
         f"  at calibration: RMS {with_unit(v.then.rms, 'm')} ({v.then.source})",
