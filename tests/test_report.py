@@ -187,6 +187,27 @@ def test_stats_and_limit_equal_the_result(full, tmp_path):
     assert page.keyed["provenance.data.source"] == full["provenance"]["data"]["source"]
 
 
+def test_the_accuracy_in_use_is_shown_apart_from_the_errors_as_measured(full, tmp_path):
+    """The page showed the held-out errors as the instrument measured them (its noise in) as "Mean
+    error after" and "Position errors", and the accuracy in use (the robot's, its noise taken out)
+    only in a check's sentence: two figures of the same poses, nothing to tell them apart. Each now
+    says which it is, and the accuracy in use has its table, headed as the summary heads it."""
+    import html
+
+    page, text = _page(full, tmp_path)
+    text = html.unescape(text)
+    use = full["in_use"]
+    for key in ("position_before", "position_after", "measured_after"):
+        for f in ("mean", "rms", "p95", "max"):
+            _shown_equals(page, f"in_use.{key}.{f}", use[key][f])
+    assert use["measured_after"]["mean"] == full["stats"]["validation_after"]["mean"] != use["position_after"]["mean"]
+    assert "Position errors as measured (the instrument's noise in)" in text
+    assert "Mean error after, as measured" in text
+    assert (f"Accuracy in use (validation), on {use['position_after']['n']} held-out point(s): the robot's error, "
+            f"the instrument's noise ({use['noise_m'] * 1e3:.4g} mm RMS) taken out") in text
+    assert "the robot's, the instrument's noise taken out) on the held-out poses" in text      # the limit's figure
+
+
 def test_largest_errors_are_named_by_pose_label(full, tmp_path):
     page, _ = _page(full, tmp_path)
     err, prov = full["errors"], full["provenance"]

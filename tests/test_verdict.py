@@ -91,6 +91,34 @@ def test_the_in_use_table_prints_the_measured_figure_beside_the_robots_and_keeps
     assert all(v in row.split() for v in ("1234.500", "2345.600", "3456.700", "4567.800")), row
 
 
+def test_the_held_out_errors_as_measured_and_the_robots_are_named_apart():
+    """The UR5 validated on its 20 test poses: the summary printed "validation, after" 0.101 mm and,
+    under "accuracy in use", "after" 0.095 mm, with nothing to say that the first is as the tracker
+    measured it and the second the robot's, the tracker's noise taken out (the same poses, the same
+    registration); the limit's line called the robot's figure "validation after"."""
+    from robocal.report import calibration_summary
+
+    model = nominal("UR5")
+    res = _quiet(rc.calibrate, model, campaign("UR5", "grid", model), validation=campaign("UR5", "random", model),
+                 limit=1e-4)
+    use, held = res.in_use, res.stats.validation_after
+    lines = calibration_summary(res).splitlines()
+
+    def row(label):
+        """The figures of the row ``label`` (n first in the first table)."""
+        return next(line.strip()[len(label):].split() for line in lines if line.strip().startswith(label + "  "))
+
+    assert lines[1].split()[:5] == ["position", "error", "as", "measured", "(mm)"]
+    assert row("validation, after")[:2] == ["20", f"{held.mean * 1e3:.3f}"] and f"{held.mean * 1e3:.3f}" == "0.101"
+    assert lines[6] == ("accuracy in use (validation), on 20 held-out point(s): the robot's error, the instrument's "
+                        f"noise ({use.noise * 1e3:.4g} mm RMS) taken out")
+    assert row("after")[0] == f"{use.position_after.mean * 1e3:.3f}" == "0.095"
+    assert row("after, as measured")[0] == "0.101"        # the first table's figure, named as it
+    limit = next(line for line in lines if line.startswith("limit of absolute accuracy"))
+    assert "validation after" not in limit and f"the robot's, as the accuracy in use says) " \
+        f"{use.position_after.mean * 1e3:.3f} mm" in limit
+
+
 # -- where the model holds: against use ------------------------------------------------------------
 
 @pytest.mark.parametrize("robot", ["UR5", "WAM"])

@@ -52,7 +52,7 @@ from .plots import (
     residual_sample,
     residual_trends,
 )
-from .text import families_text, rotation_lines
+from .text import REGISTERED_ON_IT, families_text, in_use_heading, in_use_rows, rotation_lines
 from .units import UNITS_SENTENCE, absorption_text, fmt, symbol, with_unit
 from .units import display_unit as _display
 from .units import finite as _num
@@ -204,7 +204,7 @@ def _headline(d: dict) -> str:
     cards = []
     for when in ("before", "after"):
         s = stats.get(f"{on}_{when}") or {}
-        cards.append(f'<div class="card {when}"><div class="label">Mean error {when}</div>'
+        cards.append(f'<div class="card {when}"><div class="label">Mean error {when}, as measured</div>'
                      f'<div class="value">{fmt(s.get("mean"))} <small>mm</small></div>'
                      f'<div class="sub">{where}, {_e(s.get("n", 0))} points; max {fmt(s.get("max"))} mm'
                      f'{_rotation_note(stats, f"{on}_{when}")}</div></div>')
@@ -313,8 +313,10 @@ def _stats_table(d: dict, *, rotation: bool = False) -> str:
     stats, unit, prefix = (d["stats"]["rotation"], "rad", "stats.rotation") if rotation else (d["stats"], "m", "stats")
     shown = _display(unit)[0]
     rows = []
+    registered = (d.get("in_use") or {}).get("method") == REGISTERED_ON_IT
     for key, poses, when in STAT_SETS:
         s = stats.get(key) or {}
+        poses = f"{poses}, base and tool registered on them" if registered and key.startswith("validation") else poses
         lead = f'<tr class="{when}"><td>{poses}</td><td><span class="tag {when}">{when}</span></td>'
         if not s.get("n"):
             rows.append(lead + f'<td class="num" data-key="{prefix}.{key}.n">0</td>'
@@ -324,7 +326,8 @@ def _stats_table(d: dict, *, rotation: bool = False) -> str:
         rows.append(lead + f'<td class="num" data-key="{prefix}.{key}.n">{_e(s["n"])}</td>{cells}</tr>')
     what = "rotation" if rotation else "position"
     return _table(["poses", "calibration", "points"] + [f"{f} ({shown})" for f in ("mean", "std", "RMS", "max")],
-                  rows, cls="stats", num_from=2, caption=f"{what.capitalize()} errors")
+                  rows, cls="stats", num_from=2, caption=f"{what.capitalize()} errors as measured (the instrument's "
+                  "noise in)")
 
 
 def _limit_text(d: dict) -> str:
@@ -335,8 +338,9 @@ def _limit_text(d: dict) -> str:
                                                                                           lim.get("compared"))
     ok = bool(lim.get("reached"))
     return (f'<p class="notice {"good" if ok else "bad"}">Limit of absolute accuracy '
-            f'<b data-key="limit.limit_m" data-unit="mm">{fmt(lim.get("limit_m"))}</b> mm; mean error after '
-            f'calibration on the {_e(compared)} <b data-key="limit.mean_error_m" data-unit="mm">'
+            f'<b data-key="limit.limit_m" data-unit="mm">{fmt(lim.get("limit_m"))}</b> mm; mean error in use after '
+            f"calibration (the robot's, the instrument's noise taken out) on the {_e(compared)} "
+            f'<b data-key="limit.mean_error_m" data-unit="mm">'
             f'{fmt(lim.get("mean_error_m"))}</b> mm, ratio <b data-key="limit.ratio">{_ratio(lim.get("ratio"), ".3f")}'
             f'</b>: the limit is <b data-key="limit.reached">{"reached" if ok else "not reached"}</b> '
             "(within 15 % of it counts as reached).</p>")
@@ -704,7 +708,27 @@ nav ol{columns:4}:target{outline:none;background:none}}
 """ % {"before": BEFORE, "after": AFTER, "limit": LIMIT}  # noqa: UP031 - the CSS is full of braces
 
 
-def _errors_section(d: dict, has_val: bool) -> str:
+def _in_use_table(result: CalibrationResult) -> str:
+    """The accuracy in use: the robot's error at the held-out points before and after, the
+    instrument's noise taken out, as ``robocal calibrate`` prints it (``in_use_rows``)."""
+    use = result.in_use
+    if use is None or not use.position_after.n:
+        return ""
+    within = within_noise(use.position_after.rms, use.noise)
+    body = []
+    for label, key, unit in in_use_rows(use):
+        if key is None:
+            body.append(f'<tr><th colspan="5">{_e(label)}</th></tr>')
+            continue
+        cells = (f'<td colspan="4" data-key="in_use.{key}">{_e(within)}</td>' if key == "position_after" and within
+                 else "".join(_cell(getattr(getattr(use, key), f), unit, f"in_use.{key}.{f}")
+                              for f in ("mean", "rms", "p95", "max")))
+        body.append(f"<tr><td>{_e(label)}</td>{cells}</tr>")
+    return _table(["", "mean (mm)", "RMS (mm)", "95 % (mm)", "max (mm)"], body, cls="stats", num_from=1,
+                  caption=_e(_sentence(in_use_heading(use))))
+
+
+def _errors_section(d: dict, has_val: bool, result: CalibrationResult) -> str:
     lim = d.get("limit")
     n = sum(len(v) for v in (errors_array(d, k) for k in ("fit_before", "validation_before")) if v is not None)
     how = ("Position error of each measured point before (orange) and after (blue) calibration. Filled circles: "
@@ -713,7 +737,8 @@ def _errors_section(d: dict, has_val: bool) -> str:
            "consecutive poses: the line is the median of a bin, the band holds 90 % of its points; dashed lines "
            "and the grey band: held-out poses")
     rotation = d["stats"].get("rotation")
-    return (_stats_table(d) + (_stats_table(d, rotation=True) if rotation else "") + _limit_text(d)
+    return (_stats_table(d) + (_stats_table(d, rotation=True) if rotation else "") + _in_use_table(result)
+            + _limit_text(d)
             + _figure(plot_errors_per_pose(d), how + ("" if has_val else " (none given)")
                       + ". Dashed red line: the limit of absolute accuracy" + ("" if lim else " (not given)") + ".")
             + _figure(plot_histograms(d), "Distribution of the errors. Solid bars: fitted poses; hatched: held-out "
@@ -858,7 +883,8 @@ def _report_sections(d: dict, result: CalibrationResult, has_val: bool, tables: 
     """(id, heading, HTML) of every section of the report, in page order."""
     nominal, units = _nominal_values(result)
     title = "Position and rotation errors" if d["stats"].get("rotation") else "Position errors"
-    sections = [("checks", "Verdict and checks", _checks_html(d)), ("errors", title, _errors_section(d, has_val)),
+    sections = [("checks", "Verdict and checks", _checks_html(d)),
+                ("errors", title, _errors_section(d, has_val, result)),
                 ("parameters", "Parameters", _parameters_section(d, result, nominal, units)),
                 ("identifiability", "Eliminated parameters and what absorbs them",
                  "<p>An eliminated parameter cannot be told apart from a combination of identified ones: a "

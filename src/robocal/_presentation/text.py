@@ -22,27 +22,57 @@ from .._model.robot import TRANSMISSION_KINDS, RobotModel
 from .units import MM, absorption_text, display_unit, with_unit
 
 STAT_ROWS = ("fit_before", "fit_after", "validation_before", "validation_after")
+# the accuracy in use's method when base and tool were registered on the validation set (both models)
+REGISTERED_ON_IT = "validation, base and tool registered on it"
 # the paper's table shows these kinds; gamma and b join them where a tree uses them
 PAPER_KINDS = tuple(k for k in FRAME_KINDS[2:] if k not in BACKLASH_KINDS + TRANSMISSION_KINDS)
 
 
-def stats_lines(stats, indent: str = "  ", *, unit: str = "m") -> list[str]:
-    """The error table before and after, on fitted and held-out poses, in display units."""
+def stats_lines(stats, indent: str = "  ", *, unit: str = "m", in_use=None) -> list[str]:
+    """The error table before and after, on fitted and held-out poses, as the instrument measured
+    them (its noise in: the accuracy in use is the robot's, without it), in display units; the
+    held-out rows say when base and tool were registered on them (``in_use``'s method)."""
     shown, k, _ = display_unit(unit)
-    label = "position error" if unit == "m" else "rotation error"
-    rows = [(key, getattr(stats, key)) for key in STAT_ROWS if getattr(stats, key).n]
+    head = f"{'position' if unit == 'm' else 'rotation'} error as measured ({shown})"
+    held = "validation, registered on it" if in_use is not None and in_use.method == REGISTERED_ON_IT \
+        else "validation"
+    rows = [(key.replace("validation", held).replace("_", ", "), getattr(stats, key))
+            for key in STAT_ROWS if getattr(stats, key).n]
     texts = {(key, f): "-" if getattr(s, f) is None else f"{getattr(s, f) * k:.3f}"
              for key, s in rows for f in ("mean", "std", "rms", "max")}
     # columns at least one space apart however large the errors (1234.567 mm)
     w = max([7] + [len(t) for t in texts.values()]) + 1
-    lines = [f"{indent}{f'{label} ({shown})':<24}{'n':>5}{'mean':>{w}}{'std':>{w}}{'RMS':>{w}}{'max':>{w}}"]
+    lab = max([len(head)] + [len(key) for key, _ in rows]) + 1
+    lines = [f"{indent}{head:<{lab}}{'n':>5}{'mean':>{w}}{'std':>{w}}{'RMS':>{w}}{'max':>{w}}"]
     for key, s in rows:
-        lines.append(f"{indent}{key.replace('_', ', '):<24}{s.n:>5}"
+        lines.append(f"{indent}{key:<{lab}}{s.n:>5}"
                      + "".join(f"{texts[(key, f)]:>{w}}" for f in ("mean", "std", "rms", "max")))
     return lines
 
 
 MARKS = {"pass": "ok  ", "warn": "WARN", "fail": "FAIL"}
+
+
+def in_use_heading(in_use) -> str:
+    """What the accuracy in use's table holds (``AccuracyInUse``): how its points were held out, how
+    many, and that the figures are the robot's, the instrument's noise taken out."""
+    how = in_use.method + (f", {in_use.grouping}" if in_use.method == "cross-validation" else "")
+    taken = f", the instrument's noise ({in_use.noise * MM:.4g} mm RMS) taken out" if in_use.noise > 0 else ""
+    return f"accuracy in use ({how}), on {in_use.position_after.n} held-out point(s): the robot's error{taken}"
+
+
+def in_use_rows(in_use) -> list[tuple[str, str | None, str]]:
+    """(label, field of ``AccuracyInUse``, SI unit) of each row of the accuracy in use's table:
+    before and after, after as the instrument measured it when that differs (the error table's
+    figure), and the rotations of 6D data under a head of their own (field None)."""
+    rows: list[tuple[str, str | None, str]] = [("before", "position_before", "m"), ("after", "position_after", "m")]
+    seen = in_use.measured_after
+    if seen is not None and seen.n and seen.mean != in_use.position_after.mean:
+        rows.append(("after, as measured", "measured_after", "m"))
+    if in_use.rotation_after is not None and in_use.rotation_after.n:
+        rows += [("rotation error (deg)", None, "rad"), ("before", "rotation_before", "rad"),
+                 ("after", "rotation_after", "rad")]
+    return rows
 
 
 def in_use_lines(in_use, indent: str = "  ") -> list[str]:
@@ -51,18 +81,11 @@ def in_use_lines(in_use, indent: str = "  ") -> list[str]:
     Columns keep apart at any size."""
     if in_use is None or not in_use.position_after.n:
         return []
-    how = in_use.method + (f", {in_use.grouping}" if in_use.method == "cross-validation" else "")
-    rows = [("before", in_use.position_before, MM), ("after", in_use.position_after, MM)]
-    seen = in_use.measured_after
-    if seen is not None and seen.n and seen.mean != in_use.position_after.mean:
-        rows.append(("after, as measured", seen, MM))
-    if in_use.rotation_after is not None and in_use.rotation_after.n:
-        k = 180.0 / np.pi
-        rows += [("rotation error (deg)", None, k), ("before", in_use.rotation_before, k),
-                 ("after", in_use.rotation_after, k)]
+    rows = [(label, None if key is None else getattr(in_use, key), display_unit(u)[1])
+            for label, key, u in in_use_rows(in_use)]
     cells = [[f"{getattr(s, f) * k:.3f}" for f in ("mean", "rms", "p95", "max")] for _, s, k in rows if s is not None]
     width = max([8] + [len(c) + 2 for row in cells for c in row])
-    lines = [f"accuracy in use ({how}), on {in_use.position_after.n} held-out point(s):",
+    lines = [in_use_heading(in_use),
              f"{indent}{'position error (mm)':<24}" + "".join(f"{h:>{width}}" for h in ("mean", "RMS", "95 %", "max"))]
     noise = within_noise(in_use.position_after.rms, in_use.noise)
     for label, s, k in rows:
@@ -183,9 +206,9 @@ def calibration_summary(result, *, shown=(), weighted: bool = False) -> str:
     lines = cause_lines(result) + [f"calibration of {result.nominal_model.name} on "
                                    f"{result.provenance['data']['n_poses']} poses ({families_text(result)}, "
                                    f"loss {solver.loss})"]
-    lines += stats_lines(result.stats)
+    lines += stats_lines(result.stats, in_use=result.in_use)
     if result.rotation_stats is not None:
-        lines += stats_lines(result.rotation_stats, unit="rad")
+        lines += stats_lines(result.rotation_stats, unit="rad", in_use=result.in_use)
     lines += in_use_lines(result.in_use)
     lines.append(f"identified parameters ({len(result.parameters)}): change = estimate - nominal")
     width = max([len(p.name) for p in result.parameters] + [16])
@@ -209,8 +232,8 @@ def calibration_summary(result, *, shown=(), weighted: bool = False) -> str:
         lines.append(f"residual standard deviation: {solver.sigma0 * MM:.4f} mm")
     if result.limit:
         lim = result.limit
-        lines.append(f"limit of absolute accuracy {lim.limit_m * MM:.3f} mm: mean error in use "
-                     f"({lim.compared.replace('_', ' ')}) {lim.mean_error_m * MM:.3f} mm, "
+        lines.append(f"limit of absolute accuracy {lim.limit_m * MM:.3f} mm: mean error in use after (the robot's, "
+                     f"as the accuracy in use says) {lim.mean_error_m * MM:.3f} mm, "
                      f"{'reached' if lim.reached else 'not reached'}")
     lines += [f"note: {n}" for n in result.notes if n not in shown]
     lines += checks_lines(result.checks)
