@@ -53,6 +53,51 @@ ROOT = Path(__file__).resolve().parent.parent
 TH8_MODEL, TH8_DATA = str(ROOT / "examples/th8/model.yaml"), str(ROOT / "examples/th8/measurements.csv")
 
 
+def test_a_base_40_mm_off_shows_what_the_nominal_as_given_missed_beside_the_registered_before(tmp_path, cli):
+    """The TH8's measured points 40 mm further along x (the robot's base 40 mm off the model's):
+    "before" is the nominal model with its base registered on the data, 3.3 mm, and nothing showed
+    that the nominal as given missed by 40 mm. The summary shows both, result.json keeps both, and a
+    file written before the nominal's figures reads without them."""
+    from robocal.report import calibration_summary
+
+    lines = Path(TH8_DATA).read_text().splitlines()
+    x = lines[0].split(",").index("tool_x_mm")
+    rows = [r.split(",") for r in lines[1:]]
+    for r in rows:
+        r[x] = repr(float(r[x]) + 40.0)
+    moved = tmp_path / "moved.csv"
+    moved.write_text("\n".join([lines[0]] + [",".join(r) for r in rows]) + "\n")
+    code, out, err = cli("calibrate", TH8_MODEL, moved, "--out", tmp_path / "run", "--known", "markers")
+    assert code == 0, err
+    stats = json.loads((tmp_path / "run" / "result.json").read_text())["stats"]
+
+    def row(text, label):
+        """The n and mean of the row ``label`` of ``text``'s error table."""
+        return next(line.strip()[len(label):].split()[:2] for line in text.splitlines()
+                    if line.strip().startswith(label + "  "))
+
+    model = rc.read_model(TH8_MODEL)
+    for poses, data in zip(("fit", "validation"), rc.split_sets(rc.read_measurements(moved, model))):
+        raw, before = stats[f"{poses}_nominal"], stats[f"{poses}_before"]
+        # the model as given at the readings, against the points as measured
+        missed = np.linalg.norm(rc.forward_kinematics(model, data.q).positions[:, :1] - data.positions, axis=-1)
+        assert raw["mean"] == pytest.approx(missed.mean(), abs=1e-9) and 0.039 < raw["mean"] < 0.042
+        assert before["mean"] < 0.004
+        assert row(out, f"{poses}, nominal as given") == [str(raw["n"]), f"{raw['mean'] * 1e3:.3f}"]
+        assert row(out, f"{poses}, before, registered") == [str(before["n"]), f"{before['mean'] * 1e3:.3f}"]
+    assert re.search(r"^  before, registered +3\.2", out, re.M)          # the accuracy in use's before
+    # a result file written before the nominal's figures: read without them, "before" as it was
+    doc = json.loads((tmp_path / "run" / "result.json").read_text())
+    for key in ("fit_nominal", "validation_nominal"):
+        del doc["stats"][key]
+    (tmp_path / "run" / "result.json").write_text(json.dumps(doc))
+    old = rc.read_result(tmp_path / "run" / "result.json")
+    assert old.stats.fit_nominal is None and old.stats.validation_nominal is None
+    text = calibration_summary(old)
+    assert "nominal as given" not in text and row(text, "fit, before") == [str(stats["fit_before"]["n"]),
+                                                                           f"{stats['fit_before']['mean'] * 1e3:.3f}"]
+
+
 def test_calibrated_model_says_it_is_calibrated_from_what_and_when(tmp_path, cli):
     nominal = tmp_path / "model.yaml"
     nominal.write_text(Path(TH8_MODEL).read_text())

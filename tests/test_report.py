@@ -208,6 +208,25 @@ def test_the_accuracy_in_use_is_shown_apart_from_the_errors_as_measured(full, tm
     assert "the robot's, the instrument's noise taken out) on the held-out poses" in text      # the limit's figure
 
 
+def test_the_nominal_as_given_is_shown_beside_the_registered_before(full, tmp_path):
+    """"Before" is the nominal model with base and markers registered on the poses: a base far off
+    the model's showed as a small "before", and the page never said what the nominal as given
+    missed. Its figures (result.json's ``stats.fit_nominal``) stand beside it, named."""
+    import html
+
+    page, text = _page(full, tmp_path)
+    text = html.unescape(text)
+    stats = full["stats"]
+    for key in ("fit_nominal", "validation_nominal"):
+        assert stats[key]["mean"] > 1.5 * stats[key.replace("nominal", "before")]["mean"]
+        assert int(page.keyed[f"stats.{key}.n"]) == stats[key]["n"]
+        for f in ("mean", "std", "rms", "max"):
+            _shown_equals(page, f"stats.{key}.{f}", stats[key][f])
+    assert text.count('<span class="tag nominal">nominal as given</span>') == 2
+    assert text.count('<span class="tag before">before, registered</span>') == 2
+    _shown_equals(page, "headline.validation_nominal.mean", stats["validation_nominal"]["mean"])
+
+
 def test_largest_errors_are_named_by_pose_label(full, tmp_path):
     page, _ = _page(full, tmp_path)
     err, prov = full["errors"], full["provenance"]

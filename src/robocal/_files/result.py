@@ -100,12 +100,17 @@ _PARTS = (("before", "errors_before"), ("after", "errors_after"), ("residual_vec
 _ERROR_ARRAYS = tuple((f"{which}_{part}", which, field) for which in _SETS for part, field in _PARTS)
 
 
+# the nominal model as given on the fitted and held-out poses (optional: files written before them lack them)
+NOMINAL_KEYS = ("fit_nominal", "validation_nominal")
+
+
 def _stats_dict(s: ErrorStats) -> dict:
     return {"n": s.n, "mean": s.mean, "std": s.std, "rms": s.rms, "max": s.max}
 
 
 def _summary_dict(summary: ErrorSummary) -> dict:
-    return {k: _stats_dict(getattr(summary, k)) for k in ErrorSummary.KEYS}
+    return {**{k: _stats_dict(getattr(summary, k)) for k in ErrorSummary.KEYS},
+            **{k: None if getattr(summary, k) is None else _stats_dict(getattr(summary, k)) for k in NOMINAL_KEYS}}
 
 
 def _array(a):
@@ -428,16 +433,19 @@ def _identifiability(doc: _Doc, d: dict) -> IdentifiabilityResult:
 
 
 def _stats(doc: _Doc, d: dict, where: str = "stats") -> ErrorSummary:
-    parts = {}
-    for key in ErrorSummary.KEYS:
-        s = doc.get(d, key, where, dict)
+    def one(key: str, optional: bool = False) -> ErrorStats | None:
+        s = doc.get(d, key, where, dict, optional=optional)
+        if s is None:
+            return None             # the nominal as given: not in files written before it
         w = f"{where}.{key}"
         n = doc.get(s, "n", w, int)
         if n < 0:
             raise doc.error(f"{w}.n", f"expected a count, got {n}")
         vals = {f: (doc.size(s, f, w, optional=True) if n else None) for f in ("mean", "std", "rms", "max")}
-        parts[key] = ErrorStats(n=n, **{f: (None if v is None or math.isnan(v) else v) for f, v in vals.items()})
-    return ErrorSummary(**parts)
+        return ErrorStats(n=n, **{f: (None if v is None or math.isnan(v) else v) for f, v in vals.items()})
+
+    return ErrorSummary(*(cast(ErrorStats, one(key)) for key in ErrorSummary.KEYS),
+                        *(one(key, optional=True) for key in NOMINAL_KEYS))
 
 
 def _solver(doc: _Doc, d: dict) -> SolverRecord:

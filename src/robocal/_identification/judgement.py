@@ -13,7 +13,8 @@ from .._base.arrays import vector_norms
 from .._base.errors import CheckWarning, ConvergenceWarning, IdentifiabilityWarning, MisfitWarning, warn
 from .._model.configurations import design_measurements
 from .._model.measurements import Measurements, Noise
-from .._model.parameters import model_from_vector, parameter_layout
+from .._model.parameters import model_from_vector, parameter_layout, parameter_vector
+from .._model.robot import RobotModel
 from .checks import (
     OVERFIT_RATIO,
     Check,
@@ -173,7 +174,7 @@ def in_use(fit: Fit, before: np.ndarray, inputs: Inputs, holdout: Holdout, optio
     groups, against ``held_before`` (``held_out_nominal``; None: nothing cross-validated)."""
     design, problem, p = fit.design, fit.problem, fit.solution.p
     if inputs.validation is not None:
-        return _validation_points(fit, before, inputs.validation, options)
+        return _validation_points(fit, before, inputs.validation, options, inputs.model)
     if inputs.validation_contacts is not None:
         return _validation_contacts(fit, before, inputs.validation_contacts), None, ()
     if held_before is None:
@@ -199,9 +200,10 @@ def _everywhere(problem: Problem, p: np.ndarray) -> HeldOut:
     return HeldOut(held.positions, held.rotations, held.loss, e, loss)
 
 
-def _validation_points(fit: Fit, before: np.ndarray, points: Measurements, options: Options):
+def _validation_points(fit: Fit, before: np.ndarray, points: Measurements, options: Options, model: RobotModel):
     """Measured points held out: the nominal and the calibrated model on them, base and the measured
-    markers registered on them for both when asked or when the fit fixed no frame (contacts alone)."""
+    markers registered on them for both when asked or when the fit fixed no frame (contacts alone),
+    else also the nominal ``model`` as given (nothing registered)."""
     design, problem = fit.design, fit.problem
     n = problem.n_robot
     val = Problem(design.start, design.identifiability.identified, data=points, compliance=design.compliance,
@@ -232,7 +234,10 @@ def _validation_points(fit: Fit, before: np.ndarray, points: Measurements, optio
     said = () if options.register_validation or not register else (
         "nothing fitted fixes a frame (contacts alone): base and tool registered on the validation points, for "
         "the models before and after alike",)
-    return record, PoseErrors(points, b.positions, a.positions, b.rotations, a.rotations), said
+    raw = None if register else parameter_vector(model)
+    return record, PoseErrors(points, b.positions, a.positions, b.rotations, a.rotations,
+                              nominal=None if raw is None else pts.errors(raw),
+                              rotation_nominal=None if raw is None else pts.rotation_errors(raw)), said
 
 
 def _rehomed(val: Problem, p: np.ndarray, record: AccuracyInUse, taken: int, rows: int) -> JointOffset | None:
@@ -584,9 +589,10 @@ def fit_errors(inputs: Inputs, fit: Fit, before: np.ndarray) -> PoseErrors | Non
     if inputs.data is None or pts is None:
         return None
     n = fit.problem.n_robot
-    b, a = before[:n], fit.solution.p[:n]
+    b, a, raw = before[:n], fit.solution.p[:n], parameter_vector(inputs.model)
     return PoseErrors(inputs.data, pts.errors(b), pts.errors(a), pts.rotation_errors(b), pts.rotation_errors(a),
-                      set_aside=inputs.data.mask & ~pts.data.mask)
+                      set_aside=inputs.data.mask & ~pts.data.mask, nominal=pts.errors(raw),
+                      rotation_nominal=pts.rotation_errors(raw))
 
 
 def error_summaries(fitted: PoseErrors | None, val: PoseErrors | None) -> tuple[ErrorSummary, ErrorSummary | None]:
@@ -596,7 +602,8 @@ def error_summaries(fitted: PoseErrors | None, val: PoseErrors | None) -> tuple[
         return cast(ErrorSummary, fitted.summary(val, rotation=False)), fitted.summary(val, rotation=True)
     if val is not None:
         held = cast(ErrorSummary, val.summary(None, rotation=False))     # its own figures, in the validation's place
-        return ErrorSummary(held.validation_before, held.validation_after, held.fit_before, held.fit_after), None
+        return ErrorSummary(held.validation_before, held.validation_after, held.fit_before, held.fit_after,
+                            validation_nominal=held.fit_nominal), None
     return PoseErrors.summary_of_none(), None
 
 

@@ -44,12 +44,20 @@ class ErrorSummary:
         The nominal model on the held-out poses (n = 0 without them).
     validation_after : ErrorStats
         The calibrated model on the held-out poses (n = 0 without them).
+    fit_nominal : ErrorStats or None
+        The nominal model as given (the model's base and markers, nothing registered: what it
+        missed as measured) on the fitted poses, where "before" has base and markers registered;
+        None when not known (a result written before it, nothing measured fitted).
+    validation_nominal : ErrorStats or None
+        The same on the held-out poses; None without them, or when they were registered on.
     """
 
     fit_before: ErrorStats
     fit_after: ErrorStats
     validation_before: ErrorStats
     validation_after: ErrorStats
+    fit_nominal: ErrorStats | None = None
+    validation_nominal: ErrorStats | None = None
 
     KEYS = ("fit_before", "fit_after", "validation_before", "validation_after")
 
@@ -402,6 +410,8 @@ class PoseErrors:
     rotation_before: np.ndarray | None
     rotation_after: np.ndarray | None
     set_aside: np.ndarray | None = None
+    nominal: np.ndarray | None = None
+    rotation_nominal: np.ndarray | None = None
 
     @staticmethod
     def summary_of_none() -> ErrorSummary:
@@ -419,7 +429,11 @@ class PoseErrors:
             v = getattr(e, f"rotation_{when}" if rotation else when)
             return error_stats([] if v is None else vector_norms(v))
 
-        return ErrorSummary(stats(self, "before"), stats(self, "after"), stats(other, "before"), stats(other, "after"))
+        def nominal(e: PoseErrors | None):
+            return None if e is None or e.nominal is None else stats(e, "nominal")
+
+        return ErrorSummary(stats(self, "before"), stats(self, "after"), stats(other, "before"), stats(other, "after"),
+                            nominal(self), nominal(other))
 
     def pose_set(self) -> PoseSet:
         """The record of this set: error norms, residual vectors, measured positions, readings."""

@@ -29,7 +29,7 @@ from .._files.result import diagnosis_to_dict, per_pose_arrays, result_to_dict
 from .._files.text import write_texts
 from .._identification.contact_figures import ContactErrors, ContactFigures
 from .._identification.holdout import within_noise
-from .._identification.result import CalibrationResult
+from .._identification.result import CalibrationResult, ErrorSummary
 from .._model.kinematics import evaluate, layout, transmission_basis
 from .._model.parameters import FRAME_KINDS, GEOMETRIC_KINDS, SI_UNITS, parameter_layout, parameter_vector
 from .._model.robot import DEFAULT_LINK_DENSITY, RELATIVE_MASSES, mdh_transform
@@ -52,7 +52,7 @@ from .plots import (
     residual_sample,
     residual_trends,
 )
-from .text import REGISTERED_ON_IT, families_text, in_use_heading, in_use_rows, rotation_lines
+from .text import REGISTERED_ON_IT, families_text, in_use_heading, in_use_rows, registered_before, rotation_lines
 from .units import UNITS_SENTENCE, absorption_text, fmt, symbol, with_unit
 from .units import display_unit as _display
 from .units import finite as _num
@@ -196,18 +196,24 @@ def _rotation_note(stats: dict, key: str) -> str:
     return f"; rotation mean {fmt(r.get('mean'), 'rad')} deg" if r.get("n") else ""
 
 
-def _headline(d: dict) -> str:
-    """Cards at the top: mean error before and after, the limit, the solver."""
+def _headline(d: dict, summary: ErrorSummary) -> str:
+    """Cards at the top: mean error before and after as measured (before beside the nominal model as
+    given where base and markers were registered for it: ``summary``, ``registered_before``), the
+    limit, the solver."""
     stats = d["stats"]
     on = "validation" if (stats.get("validation_after") or {}).get("n") else "fit"
     where = "held-out poses" if on == "validation" else "fitted poses"
+    raw = (f'; nominal as given <span data-key="headline.{on}_nominal.mean" data-unit="mm">'
+           f'{fmt((stats.get(f"{on}_nominal") or {}).get("mean"))}</span> mm'
+           if registered_before(summary, on) else "")
     cards = []
     for when in ("before", "after"):
         s = stats.get(f"{on}_{when}") or {}
-        cards.append(f'<div class="card {when}"><div class="label">Mean error {when}, as measured</div>'
+        label = "before, registered" if raw and when == "before" else when
+        cards.append(f'<div class="card {when}"><div class="label">Mean error {label}, as measured</div>'
                      f'<div class="value">{fmt(s.get("mean"))} <small>mm</small></div>'
                      f'<div class="sub">{where}, {_e(s.get("n", 0))} points; max {fmt(s.get("max"))} mm'
-                     f'{_rotation_note(stats, f"{on}_{when}")}</div></div>')
+                     f'{_rotation_note(stats, f"{on}_{when}")}{raw if when == "before" else ""}</div></div>')
     lim = d.get("limit")
     if lim:
         ok = bool(lim.get("reached"))
@@ -308,22 +314,29 @@ def _strength(f: dict, k: int) -> str:
     return "Noted" if f.get("rms_after_m") is None else "Possible cause"
 
 
-def _stats_table(d: dict, *, rotation: bool = False) -> str:
-    """Position errors before and after, on fitted and held-out poses; the rotation errors with ``rotation``."""
+def _stats_table(d: dict, summary: ErrorSummary | None, *, rotation: bool = False) -> str:
+    """Position errors before and after, on fitted and held-out poses, as measured; the nominal model
+    as given beside "before" where that registered base and markers (``summary``, the record's
+    ``ErrorSummary``: ``registered_before``); the rotation errors with ``rotation``."""
     stats, unit, prefix = (d["stats"]["rotation"], "rad", "stats.rotation") if rotation else (d["stats"], "m", "stats")
     shown = _display(unit)[0]
     rows = []
-    registered = (d.get("in_use") or {}).get("method") == REGISTERED_ON_IT
+    on_it = (d.get("in_use") or {}).get("method") == REGISTERED_ON_IT
     for key, poses, when in STAT_SETS:
-        s = stats.get(key) or {}
-        poses = f"{poses}, base and tool registered on them" if registered and key.startswith("validation") else poses
-        lead = f'<tr class="{when}"><td>{poses}</td><td><span class="tag {when}">{when}</span></td>'
-        if not s.get("n"):
-            rows.append(lead + f'<td class="num" data-key="{prefix}.{key}.n">0</td>'
-                        f'<td colspan="4" class="muted">not given</td></tr>')
-            continue
-        cells = "".join(_cell(s.get(f), unit, f"{prefix}.{key}.{f}") for f in STAT_FIELDS)
-        rows.append(lead + f'<td class="num" data-key="{prefix}.{key}.n">{_e(s["n"])}</td>{cells}</tr>')
+        which = key.split("_")[0]
+        registered = summary is not None and registered_before(summary, which)
+        poses = f"{poses}, base and tool registered on them" if on_it and which == "validation" else poses
+        shown_as = [(f"{which}_nominal", "nominal", "nominal as given")] if registered and when == "before" else []
+        shown_as.append((key, when, "before, registered" if registered and when == "before" else when))
+        for k, cls, label in shown_as:
+            s = stats.get(k) or {}
+            lead = f'<tr class="{cls}"><td>{poses}</td><td><span class="tag {cls}">{label}</span></td>'
+            if not s.get("n"):
+                rows.append(lead + f'<td class="num" data-key="{prefix}.{k}.n">0</td>'
+                            f'<td colspan="4" class="muted">not given</td></tr>')
+                continue
+            cells = "".join(_cell(s.get(f), unit, f"{prefix}.{k}.{f}") for f in STAT_FIELDS)
+            rows.append(lead + f'<td class="num" data-key="{prefix}.{k}.n">{_e(s["n"])}</td>{cells}</tr>')
     what = "rotation" if rotation else "position"
     return _table(["poses", "calibration", "points"] + [f"{f} ({shown})" for f in ("mean", "std", "RMS", "max")],
                   rows, cls="stats", num_from=2, caption=f"{what.capitalize()} errors as measured (the instrument's "
@@ -669,7 +682,7 @@ td.name,td.expr{font-family:var(--mono);font-size:12.5px}
 td.name{white-space:nowrap}
 td.hash{font-family:var(--mono);font-size:11.5px;word-break:break-all}
 .tag{display:inline-block;padding:0 8px;border-radius:9px;font-size:12px;color:#fff}
-.tag.before{background:var(--before)}.tag.after{background:var(--after)}
+.tag.before{background:var(--before)}.tag.after{background:var(--after)}.tag.nominal{background:var(--muted)}
 table.stats tr.after td{background:#f3f7fc}
 table.params th.frame{background:var(--soft);font-family:var(--mono);vertical-align:middle;
 border-right:1px solid var(--line)}
@@ -716,7 +729,7 @@ def _in_use_table(result: CalibrationResult) -> str:
         return ""
     within = within_noise(use.position_after.rms, use.noise)
     body = []
-    for label, key, unit in in_use_rows(use):
+    for label, key, unit in in_use_rows(use, registered_before(result.stats, "fit")):
         if key is None:
             body.append(f'<tr><th colspan="5">{_e(label)}</th></tr>')
             continue
@@ -737,7 +750,8 @@ def _errors_section(d: dict, has_val: bool, result: CalibrationResult) -> str:
            "consecutive poses: the line is the median of a bin, the band holds 90 % of its points; dashed lines "
            "and the grey band: held-out poses")
     rotation = d["stats"].get("rotation")
-    return (_stats_table(d) + (_stats_table(d, rotation=True) if rotation else "") + _in_use_table(result)
+    return (_stats_table(d, result.stats) + (_stats_table(d, result.rotation_stats, rotation=True) if rotation else "")
+            + _in_use_table(result)
             + _limit_text(d)
             + _figure(plot_errors_per_pose(d), how + ("" if has_val else " (none given)")
                       + ". Dashed red line: the limit of absolute accuracy" + ("" if lim else " (not given)") + ".")
@@ -817,7 +831,8 @@ def render_report(result: CalibrationResult, *, extra: dict | None = None) -> st
     has_val = bool((d["stats"].get("validation_after") or {}).get("n"))
     robot = (d.get("nominal_model") or {}).get("name", "robot")
     return _page(f"Calibration report: {_e(robot)}", robot, _meta(families_text(result), d.get("provenance") or {}),
-                 _report_sections(d, result, has_val, tables), _headline(d) + "".join(_notices(d, has_val)))
+                 _report_sections(d, result, has_val, tables),
+                 _headline(d, result.stats) + "".join(_notices(d, has_val)))
 
 
 def _meta(families: str, provenance, how: str = "identification") -> str:

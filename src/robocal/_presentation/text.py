@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .._base.arguments import (
@@ -14,6 +16,7 @@ from .._base.arguments import (
 )
 from .._identification.checks import Check, error_where_used
 from .._identification.contact_figures import ContactErrors
+from .._identification.estimates import ErrorStats
 from .._identification.holdout import within_noise
 from .._identification.identifiability import IdentifiabilityResult
 from .._identification.result import CalibrationResult, Comparison
@@ -28,16 +31,40 @@ REGISTERED_ON_IT = "validation, base and tool registered on it"
 PAPER_KINDS = tuple(k for k in FRAME_KINDS[2:] if k not in BACKLASH_KINDS + TRANSMISSION_KINDS)
 
 
+def registered_before(stats, poses: str) -> bool:
+    """Whether "before" on the ``poses`` ("fit", "validation") had base and markers registered on
+    them, away from the nominal model as given (``ErrorSummary.fit_nominal``; not known: False)."""
+    raw, before = getattr(stats, f"{poses}_nominal"), getattr(stats, f"{poses}_before")
+    return raw is not None and raw.n > 0 and not all(
+        math.isclose(getattr(raw, f) or 0.0, getattr(before, f) or 0.0, rel_tol=1e-9, abs_tol=1e-9)
+        for f in ("mean", "max"))
+
+
+def stat_rows(stats) -> list[tuple[str, str, ErrorStats]]:
+    """(key of ``ErrorSummary``, what it is, statistics) of each row of the error table shown, on the
+    fitted poses then the held-out ones: the nominal model as given beside "before" where base and
+    markers were registered for "before" (what the nominal missed as measured), then after."""
+    rows = []
+    for poses in ("fit", "validation"):
+        registered = registered_before(stats, poses)
+        for when, label in (("nominal", "nominal as given"), ("before", "before, registered" if registered
+                                                                else "before"), ("after", "after")):
+            s = getattr(stats, f"{poses}_{when}")
+            if s is not None and s.n and (when != "nominal" or registered):
+                rows.append((f"{poses}_{when}", label, s))
+    return rows
+
+
 def stats_lines(stats, indent: str = "  ", *, unit: str = "m", in_use=None) -> list[str]:
     """The error table before and after, on fitted and held-out poses, as the instrument measured
     them (its noise in: the accuracy in use is the robot's, without it), in display units; the
-    held-out rows say when base and tool were registered on them (``in_use``'s method)."""
+    nominal model as given beside "before" where that registered base and markers (``stat_rows``);
+    the held-out rows say when base and tool were registered on them (``in_use``'s method)."""
     shown, k, _ = display_unit(unit)
     head = f"{'position' if unit == 'm' else 'rotation'} error as measured ({shown})"
     held = "validation, registered on it" if in_use is not None and in_use.method == REGISTERED_ON_IT \
         else "validation"
-    rows = [(key.replace("validation", held).replace("_", ", "), getattr(stats, key))
-            for key in STAT_ROWS if getattr(stats, key).n]
+    rows = [(f"{key.split('_')[0].replace('validation', held)}, {label}", s) for key, label, s in stat_rows(stats)]
     texts = {(key, f): "-" if getattr(s, f) is None else f"{getattr(s, f) * k:.3f}"
              for key, s in rows for f in ("mean", "std", "rms", "max")}
     # columns at least one space apart however large the errors (1234.567 mm)
@@ -61,28 +88,30 @@ def in_use_heading(in_use) -> str:
     return f"accuracy in use ({how}), on {in_use.position_after.n} held-out point(s): the robot's error{taken}"
 
 
-def in_use_rows(in_use) -> list[tuple[str, str | None, str]]:
+def in_use_rows(in_use, registered: bool = False) -> list[tuple[str, str | None, str]]:
     """(label, field of ``AccuracyInUse``, SI unit) of each row of the accuracy in use's table:
-    before and after, after as the instrument measured it when that differs (the error table's
-    figure), and the rotations of 6D data under a head of their own (field None)."""
-    rows: list[tuple[str, str | None, str]] = [("before", "position_before", "m"), ("after", "position_after", "m")]
+    before (``registered``: base and markers registered, as the error table says) and after, after
+    as the instrument measured it when that differs (the error table's figure), and the rotations of
+    6D data under a head of their own (field None)."""
+    before = "before, registered" if registered else "before"
+    rows: list[tuple[str, str | None, str]] = [(before, "position_before", "m"), ("after", "position_after", "m")]
     seen = in_use.measured_after
     if seen is not None and seen.n and seen.mean != in_use.position_after.mean:
         rows.append(("after, as measured", "measured_after", "m"))
     if in_use.rotation_after is not None and in_use.rotation_after.n:
-        rows += [("rotation error (deg)", None, "rad"), ("before", "rotation_before", "rad"),
+        rows += [("rotation error (deg)", None, "rad"), (before, "rotation_before", "rad"),
                  ("after", "rotation_after", "rad")]
     return rows
 
 
-def in_use_lines(in_use, indent: str = "  ") -> list[str]:
+def in_use_lines(in_use, indent: str = "  ", *, registered: bool = False) -> list[str]:
     """The accuracy in use before and after calibration (``AccuracyInUse``), mm and deg: the robot's
-    figures, and beside them the held-out errors as the instrument measured them when the two differ.
-    Columns keep apart at any size."""
+    figures, and beside them the held-out errors as the instrument measured them when the two differ
+    (``registered``: see ``in_use_rows``). Columns keep apart at any size."""
     if in_use is None or not in_use.position_after.n:
         return []
     rows = [(label, None if key is None else getattr(in_use, key), display_unit(u)[1])
-            for label, key, u in in_use_rows(in_use)]
+            for label, key, u in in_use_rows(in_use, registered)]
     cells = [[f"{getattr(s, f) * k:.3f}" for f in ("mean", "rms", "p95", "max")] for _, s, k in rows if s is not None]
     width = max([8] + [len(c) + 2 for row in cells for c in row])
     lines = [in_use_heading(in_use),
@@ -209,7 +238,7 @@ def calibration_summary(result, *, shown=(), weighted: bool = False) -> str:
     lines += stats_lines(result.stats, in_use=result.in_use)
     if result.rotation_stats is not None:
         lines += stats_lines(result.rotation_stats, unit="rad", in_use=result.in_use)
-    lines += in_use_lines(result.in_use)
+    lines += in_use_lines(result.in_use, registered=registered_before(result.stats, "fit"))
     lines.append(f"identified parameters ({len(result.parameters)}): change = estimate - nominal")
     width = max([len(p.name) for p in result.parameters] + [16])
     for p in result.parameters:
