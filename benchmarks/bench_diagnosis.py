@@ -29,7 +29,7 @@ import real_campaigns as real  # noqa: E402
 from robots import arm6r, humanoid  # noqa: E402
 
 import robocal as rc  # noqa: E402
-from robocal.sim import UnmodelledEffects, measure_real  # noqa: E402
+from robocal.sim import RobotImperfections, measure_campaign  # noqa: E402
 
 
 def _best(f, repeat: int):
@@ -54,8 +54,8 @@ def _cases(args):
         tree = humanoid()
         true = rc.perturb_model(tree, rc.identifiability(tree).identified, rng=1)
         q = rc.random_configurations(tree, 500, rng=2)
-        data = measure_real(true, q, UnmodelledEffects(elasticity=4e-4, load_scale=1e9, scatter=1e-4), noise=2e-4,
-                            rng=3, robot_seed=0)
+        robot = RobotImperfections(elasticity=4e-4, load_scale=1e9, repeatability_sigma=1e-4, instrument_noise=2e-4)
+        data = measure_campaign(true, q, robot, rng=3, robot_seed=0)
         yield "humanoid tree, 500 poses", tree, data, {"parameters": ("geometric", "compliance"), "noise": "camera"}
     _, data = rc.simulate(m, args.poses[0], seed=1, noise=2e-5)
     yield f"6R, {args.poses[0]:,} poses, mirrored", m, replace(data, positions=data.positions * [1.0, -1.0, 1.0]), {}

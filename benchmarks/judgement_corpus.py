@@ -34,7 +34,7 @@ import real_campaigns as real  # noqa: E402
 from robots import beyond_model, humanoid  # noqa: E402
 
 import robocal as rc  # noqa: E402
-from robocal.sim import UnmodelledEffects, measure_real  # noqa: E402
+from robocal.sim import RobotImperfections, measure_campaign  # noqa: E402
 
 
 def _calibrate(model, data, **kw):
@@ -80,12 +80,12 @@ def elastic_humanoid(n: int, seed: int) -> tuple[dict, int]:
     tally and how many failed although they improved the accuracy in use."""
     rng = np.random.default_rng(seed)
     nominal = humanoid()
-    effects = UnmodelledEffects(elasticity=4e-4, load_scale=1e9, scatter=1e-4)
+    robot = RobotImperfections(elasticity=4e-4, load_scale=1e9, repeatability_sigma=1e-4, instrument_noise=2e-4)
     tally, wrong = _tally(), 0
     for k in range(n):
         true = rc.perturb_model(nominal, rc.identifiability(nominal).identified, rng=int(rng.integers(1 << 30)))
         q = rc.random_configurations(nominal, 500, rng=int(rng.integers(1 << 30)))
-        data = measure_real(true, q, effects, noise=2e-4, rng=int(rng.integers(1 << 30)), robot_seed=k)
+        data = measure_campaign(true, q, robot, rng=int(rng.integers(1 << 30)), robot_seed=k)
         res = _calibrate(nominal, data, parameters=("geometric", "compliance"), noise="camera")
         _record(tally, f"humanoid #{k}", res)
         gain, se = res.in_use.improvement

@@ -56,7 +56,7 @@ def beyond_model(n: int, rng, *, poses=(60, 300), presets=None):
     arm with masses in turn, each perturbed, the presets of ``robocal.sim.PRESETS`` in turn (in the
     order of ``presets``, default the table's), ``poses[0]`` to ``poses[1]`` random poses measured with
     20 um of noise, all drawn from ``rng``; yields (robot name, preset, k, nominal model, data)."""
-    from robocal.sim import PRESETS, measure_real
+    from robocal.sim import PRESETS, measure_campaign
 
     order = list(PRESETS) if presets is None else list(presets)
     robots = [("arm6r", arm6r(masses=True)), ("cylindrical", cylindrical(masses=True))]
@@ -65,7 +65,7 @@ def beyond_model(n: int, rng, *, poses=(60, 300), presets=None):
         preset = order[k % len(order)]
         true = rc.perturb_model(nominal, rc.identifiability(nominal).identified, rng=int(rng.integers(1 << 30)))
         q = rc.random_configurations(nominal, int(rng.integers(poses[0], poses[1] + 1)), rng=int(rng.integers(1 << 30)))
-        data = measure_real(true, q, PRESETS[preset], noise=2e-5, rng=int(rng.integers(1 << 30)), robot_seed=k)
+        data = measure_campaign(true, q, PRESETS[preset], rng=int(rng.integers(1 << 30)), robot_seed=k)
         yield name, preset, k, nominal, data
 
 

@@ -76,14 +76,12 @@ def _world_of_programs_and_store(model, data, result) -> dict:
     """A six-axis arm with a program, and a store's records, for the programs' and the store's calls."""
     from robots import arm6r
 
-    from robocal.sim import UnmodelledEffects
-
     arm = arm6r()
     ev = rc.forward_kinematics(arm, np.radians([[10.0, -20, 30, 5, 40, 15], [-15, 10, 20, -5, 30, 0]]))
     cals = [rc.stored_calibration(result, "SN-1", robot_type="arm", at=f"2026-0{k}-01") for k in (1, 2)]
     h = rc.judge_changes(cals)
     v = rc.verify(model, data, rc.accuracy_at_calibration(rc.io.result_to_dict(result)))
-    return dict(arm=arm, arm_P=ev.positions[:, 0], arm_R=ev.rotations[:, 0], effects=UnmodelledEffects(),
+    return dict(arm=arm, arm_P=ev.positions[:, 0], arm_R=ev.rotations[:, 0],
                 program=rc.io.read_program(ROOT / "tests" / "programs" / "example.mod"), cals=cals, changes=h,
                 verification=v, diagnosis=rc.diagnose(model, data, result),
                 then=rc.accuracy_at_calibration(rc.io.result_to_dict(result)))
@@ -221,9 +219,8 @@ def valid_calls(tmp: Path) -> dict:
         "plane_campaign": ((w["arm7"],), dict(planes=2, poses_per_plane=5, rng=0)),
         "bar_campaign": ((w["arm7"],), dict(pairs=5, rng=0)),
         "plate_placements": ((3,), {"rng": 0}),
-        "attained": ((w["true"], q, rc.sim.UnmodelledEffects()), {"warmth": np.zeros(len(q)), "rng": 0}),
-        "measure_real": ((w["true"], q, rc.sim.UnmodelledEffects()), {"rng": 0}),
-        "placement_errors": ((w["true"], m, rc.sim.UnmodelledEffects()), {"n": 5, "rng": 0}),
+        "attained": ((w["true"], q, w["imp"]), {"warmth": np.zeros(len(q)), "rng": 0}),
+        "placement_errors": ((w["true"], m, rc.sim.PRESETS["gears"]), {"n": 5, "rng": 0}),
         "reach": ((m, rc.forward_kinematics(m, q).positions[:, 0]), {"rng": 0}),
         # identification
         "contact_errors": ((w["arm7"], w["contacts"]), {}),
@@ -305,9 +302,8 @@ BAD = [
     ("outlier_check", "residuals", np.zeros(3)), ("outlier_check", "sigma", np.ones(2)),
     ("outlier_check", "labels", ["a"]),
     ("outlier_bar", "n_points", -1), ("outlier_bar", "n_points", 1.5),
-    ("attained", "q", Q2), ("attained", "effects", None), ("attained", "warmth", np.zeros(2)),
-    ("attained", "rng", "x"), ("attained", "robot_seed", -1),
-    ("measure_real", "noise", -1.0), ("measure_real", "true_model", None), ("measure_real", "labels", 3),
+    ("attained", "q", Q2), ("attained", "imp", None), ("attained", "warmth", np.zeros(2)),
+    ("attained", "warmth", np.full(5, 1.5)), ("attained", "rng", "x"), ("attained", "robot_seed", -1),
     ("placement_errors", "n", 0), ("placement_errors", "marker", 1), ("placement_errors", "model", None),
     ("arm_chain", "marker", 1), ("arm_chain", "model", None),
     ("posture", "q", Q2), ("posture", "marker", -1), ("posture", "model", "arm"),
@@ -413,7 +409,11 @@ BAD = [
     ("rounded_parameters", "length_quantum", -1.0), ("accuracy_limit", "precision", None),
     ("accuracy_limit", "repeatability", -1.0),
     ("measure_campaign", "imp", None), ("measure_campaign", "q_commanded", Q2), ("measure_campaign", "rng", -2),
+    ("measure_campaign", "imp", rc.sim.RobotImperfections(backlash=(1e-4,) * 2)),
+    ("measure_campaign", "true_model", None), ("measure_campaign", "labels", 3),
+    ("measure_campaign", "robot_seed", -1), ("measure_campaign", "payload_mass", [1.0, 2.0]),
     ("accuracy_in_use", "marker", -1), ("accuracy_in_use", "controller_model", "m"),
+    ("accuracy_in_use", "imp", rc.sim.RobotImperfections(encoder_resolution=(1e-5,) * 6)),
     ("backlash_sides", "payload_mass", [[1.0]]), ("stored_model", "imp", {}),
     ("approach_sides", "q", [1.0, 2.0]),
     ("plan_sockets", "placements", ()), ("plan_sockets", "poses_per_socket", (0,)), ("plan_sockets", "seed", -1),

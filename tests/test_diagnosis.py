@@ -111,7 +111,7 @@ def test_a_robots_own_gear_error_warns_with_the_family_that_carries_it():
     nominal = robots.cylindrical(masses=True)
     true = rc.perturb_model(nominal, rc.identifiability(nominal).identified, rng=451231239)
     q = rc.random_configurations(nominal, 187, rng=247226356)
-    data = rc.sim.measure_real(true, q, rc.sim.PRESETS["gears"], noise=2e-5, rng=843730971, robot_seed=41)
+    data = rc.sim.measure_campaign(true, q, rc.sim.PRESETS["gears"], rng=843730971, robot_seed=41)
     result = _calibrated(nominal, data)
     cause = _first(result)
     assert cause.hypothesis == "joint scale" and cause.status == "warn" and "transmission" in cause.fix
@@ -497,7 +497,7 @@ def test_no_cause_on_robots_with_effects_beyond_the_model(preset):
     for make in corpus.ROBOTS.values():
         m = make(masses=True)
         true, d = rc.simulate(m, corpus.N_POSES, seed=3, noise=corpus.NOISE)
-        data = rc.sim.measure_real(true, d.q, rc.sim.PRESETS[preset], rng=3, robot_seed=3)
+        data = rc.sim.measure_campaign(true, d.q, rc.sim.PRESETS[preset], rng=3, robot_seed=3)
         result = _calibrated(m, data)
         named += [result.diagnosis.summary] if result.diagnosis.findings else []
     assert not named, named

@@ -148,8 +148,8 @@ def _geared_arm(seed: int, span_deg: float | None):
     q = rc.random_configurations(m, 150, rng=seed + 1000)
     if span_deg is not None:
         q[:, 0] = np.random.default_rng(seed + 7).uniform(-span_deg / 2, span_deg / 2, len(q)) * DEG
-    return m, true, rc.sim.measure_real(true, q, rc.sim.PRESETS["gears"], noise=NOISE, rng=seed + 2000,
-                                        robot_seed=seed)
+    robot = replace(rc.sim.PRESETS["gears"], instrument_noise=NOISE)
+    return m, true, rc.sim.measure_campaign(true, q, robot, rng=seed + 2000, robot_seed=seed)
 
 
 def _placed(true, model, seed: int) -> float:

@@ -15,7 +15,7 @@ from real_campaigns import campaign, nominal
 from robots import arm6r, humanoid
 
 import robocal as rc
-from robocal.sim import UnmodelledEffects, measure_real
+from robocal.sim import RobotImperfections, measure_campaign
 
 TH8 = Path(__file__).resolve().parent.parent / "examples" / "th8"
 
@@ -39,8 +39,8 @@ def test_an_elastic_humanoid_calibrated_with_compliance_is_not_failed():
     model = humanoid()
     true = rc.perturb_model(model, rc.identifiability(model).identified, rng=3)
     q = rc.random_configurations(model, 300, rng=4)
-    data = measure_real(true, q, UnmodelledEffects(elasticity=4e-4, load_scale=1e9, scatter=1e-4), noise=2e-4,
-                        rng=5, robot_seed=1)
+    robot = RobotImperfections(elasticity=4e-4, load_scale=1e9, repeatability_sigma=1e-4, instrument_noise=2e-4)
+    data = measure_campaign(true, q, robot, rng=5, robot_seed=1)
     res = _quiet(rc.calibrate, model, data, parameters=("geometric", "compliance"), noise="camera")
     assert res.verdict != "fail", [c.summary for c in res.checks if c.status == "fail"]
     assert res.in_use.position_after.mean < res.in_use.position_before.mean / 5
@@ -317,7 +317,7 @@ def test_clean_campaigns_of_robots_with_effects_beyond_the_model_name_no_blunder
     for k, preset in enumerate(["elastic", "cable"] * 4):
         true = rc.perturb_model(nominal, rc.identifiability(nominal).identified, rng=int(rng.integers(1 << 30)))
         q = rc.random_configurations(nominal, int(rng.integers(150, 260)), rng=int(rng.integers(1 << 30)))
-        data = measure_real(true, q, PRESETS[preset], noise=2e-5, rng=int(rng.integers(1 << 30)), robot_seed=k)
+        data = measure_campaign(true, q, PRESETS[preset], rng=int(rng.integers(1 << 30)), robot_seed=k)
         res = _quiet(rc.calibrate, nominal, data, parameters=("geometric", "compliance"))
         assert not any("set aside" in n for n in res.notes), (k, preset, res.notes)
         assert _checks(res)["outliers"].status == "pass", (k, preset, _checks(res)["outliers"].summary)
