@@ -35,6 +35,11 @@ def _cell(row: int, column: str, value: str) -> str:
     return "\n".join(",".join(r) for r in rows) + "\n"
 
 
+def _mapped(old: str, new: str, row: int, value: str) -> str:
+    """The file with column ``old`` named ``new`` and its cell of ``row`` holding ``value``."""
+    return _cell(row, old, value).replace(HEADER, HEADER.replace(old, new), 1)
+
+
 def _fault(read) -> tuple:
     with pytest.raises(InputError) as e:
         read()
@@ -60,6 +65,16 @@ MEASUREMENT_FAULTS = [
      "unknown column 'jj4_deg', the name --map gives the file's column 'j4_deg'; expected one of pose, set, series, "
      "payload_kg, j1, j2, j3, j4, j5, j6, tool_x, tool_y, tool_z; the model has joints j1, j2, j3, j4, j5, j6 and "
      "markers tool; map it to one of those (--map 'j4_deg=NAME')"),
+    # a cell of a column the map renamed: named by the file's own column, the map's name after it
+    (_mapped("j1_deg", "joint_1", 5, "12.5abc"), {"columns": {"joint_1": "j1_deg"}},
+     "line 6, column 'joint_1' (mapped to 'j1_deg')", "expected a number, got '12.5abc'"),
+    (_mapped("tool_z_mm", "Z", 3, "1e13"), {"columns": {"Z": "tool_z_mm"}},
+     "line 4, column 'Z' (mapped to 'tool_z_mm')", "'1e13' is too large for a measurement (magnitude up to 1e+12)"),
+    (_mapped("set", "Split", 4, "train"), {"columns": {"Split": "set"}},
+     "line 5, column 'Split' (mapped to 'set')", "set must be fit or validation, got 'train'"),
+    (_mapped("j2_mm", "J2", 1, "571.1"), {"columns": {"J2": "j2"}}, "line 1, column 'J2' (mapped to 'j2')",
+     "no length unit declared for this column: map it to j2_mm, put '# units: length=mm angle=deg' before the "
+     "header, or pass units='mm-deg' (--units mm-deg on the command line)"),
     (_added("approach_j1", "1"), {}, "line 1",
      "missing column approach_j2: approach directions are given per joint, for every joint or none"),
     (_renamed("j1_deg", "jx_deg"), {"unknown": "ignore"}, "line 1",

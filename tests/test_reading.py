@@ -173,6 +173,27 @@ def test_position_as_target_plus_deviation(files, cli, reference):
         rc.read_measurements(files / "d.csv", rc.read_model(files / "model.yaml"), columns=sums)
 
 
+def test_a_bad_cell_of_a_mapped_column_names_the_files_own_column(files, cli):
+    """The names a map gives are not in the user's file: a cell's fault names the file's column."""
+    header, rows = table()
+    header = ["step_order" if c == "pose" else "joint_1" if c == "j1_deg" else c for c in header]
+    k = header.index("tool_x_mm")
+    header[k:k + 1] = ["x_t", "x_dif"]
+    rows = [r[:k] + [r[k], "0.0"] + r[k + 1:] for r in rows]
+    rows[4][1] = "12.5abc"
+    rows[7][k + 1] = "1e13"
+    write(files / "d.csv", header, rows)
+    mapping = "step_order=pose,x_t+x_dif=tool_x_mm,joint_1=j1_deg"
+    code, _, err = cli("calibrate", files / "model.yaml", files / "d.csv", "--out", files / "o", "--map", mapping)
+    assert_one_line_error(code, err, ["d.csv: line 6, column 'joint_1' (mapped to 'j1_deg'): expected a number, "
+                                      "got '12.5abc'"], files / "o")
+    rows[4][1] = "12.5"
+    write(files / "d.csv", header, rows)
+    code, _, err = cli("calibrate", files / "model.yaml", files / "d.csv", "--out", files / "o", "--map", mapping)
+    assert_one_line_error(code, err, ["d.csv: line 9, column 'x_t+x_dif' (mapped to 'tool_x_mm'): "
+                                      "'10000000001624.93' is too large for a measurement"], files / "o")
+
+
 @pytest.mark.skipif(not UR5_GRID.exists(), reason="the real UR5 campaign is not here")
 def test_the_real_ur5_campaign_reads_with_a_map_alone():
     columns = {"step_order": "pose", **{f"joint_{i}": f"j{i}_deg" for i in range(1, 7)},
@@ -201,6 +222,26 @@ def test_joint_file_notes_under_its_own_name(files):
     assert any("does not know, ignored: Odd" in n for n in joint_notes), notes
     assert not any(w in n for n in notes if n.startswith(f"reading {files / 'points.csv'}: ")
                    for w in ("';'", "Temp_C", "Odd")), notes
+
+
+def test_a_bad_cell_of_a_mapped_column_of_the_joint_file_names_its_own_column(files):
+    header, rows = table()
+    joint_cols = [k for k, c in enumerate(header) if c.startswith("j")]
+    keep = [k for k in range(len(header)) if k not in joint_cols]
+    write(files / "points.csv", [header[k] for k in keep], [[r[k] for k in keep] for r in rows])
+    jrows = [[r[0]] + [r[k] for k in joint_cols] for r in rows]
+    jrows[4][1] = "12.5abc"
+    jheader = ["Index", "joint_1"] + [header[k] for k in joint_cols[1:]]
+    write(files / "joints.txt", jheader, jrows, sep=";")
+    model, columns = rc.read_model(files / "model.yaml"), {"Index": "pose", "joint_1": "j1_deg"}
+    with pytest.raises(rc.InputError) as e:
+        rc.read_measurements(files / "points.csv", model, joints=files / "joints.txt", columns=columns)
+    assert e.value.where == f"line 6 ({files / 'joints.txt'} line 6), column 'joint_1' (mapped to 'j1_deg')", e.value
+    jrows[4][1], jrows[6][0] = "12.5", ""
+    write(files / "joints.txt", jheader, jrows, sep=";")
+    with pytest.raises(rc.InputError) as e:
+        rc.read_measurements(files / "points.csv", model, joints=files / "joints.txt", columns=columns)
+    assert (e.value.where, e.value.detail) == ("line 8, column 'Index' (mapped to 'pose')", "empty key cell"), e.value
 
 
 def test_series_column_kept_per_pose_and_through_subsets(files, reference):

@@ -38,6 +38,7 @@ from .table import (
     ColumnMap,
     Table,
     Unfit,
+    column_named,
     decimal_hint,
     join_notes,
     join_rows,
@@ -220,13 +221,14 @@ class _Columns:
 
     def _scale(self, column: str, unit: str | None, kind: str) -> float:
         """SI per file unit for ``column`` holding a ``kind`` ("length"/"angle") quantity."""
-        where = f"{self.line}, column {column!r}"
+        where = f"{self.line}, {column_named(column, self.renamed)}"
         if unit is None:
             unit = self.declared.get(kind)
             if unit is None:
                 example = "mm" if kind == "length" else "deg"
+                fix = "map it to" if column in self.renamed else "name it"
                 raise InputError(
-                    f"no {kind} unit declared for this column: name it {column}_{example}, put "
+                    f"no {kind} unit declared for this column: {fix} {column}_{example}, put "
                     f"'# units: length=mm angle=deg' before the header, or pass units='mm-deg' "
                     f"(--units mm-deg on the command line)", source=self.source, where=where)
         return UNITS[kind][check_unit(unit, kind, source=self.source, where=where)]
@@ -235,7 +237,7 @@ class _Columns:
         if part in ORIENTATION_PARTS["quat"]:
             if unit is not None:
                 raise InputError("a quaternion component has no unit", source=self.source,
-                                 where=f"{self.line}, column {column!r}")
+                                 where=f"{self.line}, {column_named(column, self.renamed)}")
             return 1.0
         kind = "length" if part in POSITION + ("sigma",) + SIGMA_AXES else "angle"
         return self._scale(column, unit, kind)
@@ -440,8 +442,7 @@ def _columns(table: Table, source: str, declared: dict, orient, opts: dict, mode
         raise InputError(f"the file declares orientation {orient_text}, the option says {opts['orientation']}",
                          source=source, where="orientation")
     return _Columns(list(table.header), model, declared, orient or comment_orient, source, table.header_where,
-                    unknown=opts["columns"].unknown, targets=targets,
-                    renamed={new: old for old, new in opts["columns"].rename.items()})
+                    unknown=opts["columns"].unknown, targets=targets, renamed=table.renamed)
 
 
 def _is_program(joints) -> bool:
@@ -501,7 +502,8 @@ def _heads(raw: bytes, jraw: bytes | None, source, opts, joints):
     header, kr = joined_header(table, other, key)
     jraw_cols = _file_columns(jhead.header, opts["columns"])
     raw_cols += [(1, r) for k, r in enumerate(jraw_cols) if k != kr] + [(1, jraw_cols[kr])]
-    return replace(table, header=header), other, [(raw, head), (jraw, jhead)], raw_cols, \
+    return replace(table, header=header, renamed={**other.renamed, **table.renamed}), other, \
+        [(raw, head), (jraw, jhead)], raw_cols, \
         [header.index(key), len(header)]
 
 
@@ -662,11 +664,14 @@ def _parse_rows(rows, cols: _Columns, table: Table, source: str, digest: str, ta
         def num(k, *, required=True, row=row, line=line):
             return number_cell(row[k], table, source, line, cols.names[k], required)
 
+        def at(k, line=line):
+            return table.cell_where(line, cols.names[k])
+
         for j, (k, s) in enumerate(joints):
             q[i, j] = num(k) * s
         for m, mk in enumerate(markers):
-            _marker_cells(mk, i, m, arrays, num, source, line, cols.names)
-        _per_pose_cells(per_pose, i, row, line, num, cols, source)
+            _marker_cells(mk, i, m, arrays, num, source, line, at)
+        _per_pose_cells(per_pose, i, row, num, cols, source, at)
         label = row[special["pose"]].strip() if "pose" in special else ""
         labels.append(label or f"line {line}")
     if not targets and not np.any(np.isfinite(arrays[0])):
@@ -674,26 +679,28 @@ def _parse_rows(rows, cols: _Columns, table: Table, source: str, digest: str, ta
     return _measurements(cols, q, arrays, per_pose, tuple(labels), source, digest)
 
 
-def _marker_cells(mk: _Marker, i: int, m: int, arrays, num, source: str, line, names) -> None:
+def _marker_cells(mk: _Marker, i: int, m: int, arrays, num, source: str, line, at) -> None:
     """Marker ``m``'s cells in row ``i`` into ``arrays`` (positions, sigma, rotations, sigma_rot); a
-    group of cells left empty (the marker not seen) stays NaN."""
+    group of cells left empty (the marker not seen) stays NaN. ``at(k)``: where messages place the
+    cell of column ``k``."""
     pos, sigma, rot, sigma_rot = arrays
-    xyz = _group(mk.cols, POSITION, num, source, line, mk.name, names)
+    xyz = _group(mk.cols, POSITION, num, source, line, mk.name, at)
     if xyz is not None:
         pos[i, m] = xyz
         if mk.sigma:
-            sigma[i, m] = _sigma(num, mk.cols, mk.sigma, source, line, names)
+            sigma[i, m] = _sigma(num, mk.cols, mk.sigma, source, at)
     if mk.orientation:
         kind, seq = mk.orientation
-        vals = _group(mk.cols, ORIENTATION_PARTS[kind], num, source, line, mk.name, names)
+        vals = _group(mk.cols, ORIENTATION_PARTS[kind], num, source, line, mk.name, at)
         if vals is not None:
-            rot[i, m] = _rotation(kind, seq, vals, source, line, names[mk.cols[ORIENTATION_PARTS[kind][0]][0]])
+            rot[i, m] = _rotation(kind, seq, vals, source, at(mk.cols[ORIENTATION_PARTS[kind][0]][0]))
             if mk.sigma_rot:
-                sigma_rot[i, m] = _sigma(num, mk.cols, mk.sigma_rot, source, line, names)
+                sigma_rot[i, m] = _sigma(num, mk.cols, mk.sigma_rot, source, at)
 
 
-def _per_pose_cells(per_pose: _PerPose, i: int, row, line, num, cols: _Columns, source: str) -> None:
-    """Row ``i``'s payload, approach directions, set and series into ``per_pose``."""
+def _per_pose_cells(per_pose: _PerPose, i: int, row, num, cols: _Columns, source: str, at) -> None:
+    """Row ``i``'s payload, approach directions, set and series into ``per_pose`` (``at(k)``: where
+    messages place the cell of column ``k``)."""
     if per_pose.payload is not None:
         per_pose.payload[i] = num(cols.special["payload_kg"])
     if per_pose.approach is not None:
@@ -701,12 +708,12 @@ def _per_pose_cells(per_pose: _PerPose, i: int, row, line, num, cols: _Columns, 
             per_pose.approach[i, j] = num(cols.approach_cols[jn])
             if per_pose.approach[i, j] not in (-1.0, 1.0):
                 raise InputError(f"an approach direction is +1 or -1, got {row[cols.approach_cols[jn]]!r}",
-                                 source=source, where=f"line {line}, column {APPROACH_PREFIX + jn!r}")
+                                 source=source, where=at(cols.approach_cols[jn]))
     if per_pose.validation is not None:
         value = row[cols.special["set"]].strip().lower()
         if value not in SETS:
             raise InputError(f"set must be fit or validation, got {row[cols.special['set']]!r}", source=source,
-                             where=f"line {line}, column 'set'")
+                             where=at(cols.special["set"]))
         per_pose.validation[i] = value == "validation"
     if per_pose.series is not None:
         per_pose.series.append(row[cols.special["series"]].strip())
@@ -835,10 +842,11 @@ def _approach_to_write(data: Measurements):
 
 def number_cell(text: str, table: Table, source: str, line, column: str, required: bool) -> float:
     """The number in a cell of ``table`` (in its decimal mark); NaN for an empty cell that is not
-    ``required`` (a marker not seen), an InputError naming ``line`` and ``column`` otherwise."""
+    ``required`` (a marker not seen), an InputError naming ``line`` and ``column`` otherwise (the
+    file's own name of a column a map renamed)."""
     decimal = table.decimal
     t = text.strip()
-    where = f"line {line}, column {column!r}"
+    where = table.cell_where(line, column)
     if not t:
         if required:
             raise InputError("empty cell", source=source, where=where)
@@ -861,7 +869,7 @@ def number_cell(text: str, table: Table, source: str, line, column: str, require
     return v
 
 
-def _group(mc, parts, num, source, line, marker, names):
+def _group(mc, parts, num, source, line, marker, at):
     """The values of ``parts`` of one marker, or None when all their cells are empty."""
     vals = [num(mc[p][0], required=False) for p in parts]
     empty = [np.isnan(v) for v in vals]
@@ -871,7 +879,7 @@ def _group(mc, parts, num, source, line, marker, names):
         p = parts[empty.index(True)]
         raise InputError(f"empty cell while other {marker} cells of this group are filled; leave all of "
                          f"{', '.join(f'{marker}_{q}' for q in parts)} empty when the marker was not seen",
-                         source=source, where=f"line {line}, column {names[mc[p][0]]!r}")
+                         source=source, where=at(mc[p][0]))
     return np.array(vals) * np.array([mc[p][1] for p in parts])
 
 
@@ -881,26 +889,25 @@ def _sigma_parts(mc, one: str, axes: tuple[str, ...]) -> tuple[str, ...]:
     return (one,) if one in mc else axes if axes[0] in mc else ()
 
 
-def _sigma(num, mc, parts, source, line, names) -> float:
+def _sigma(num, mc, parts, source, at) -> float:
     """One standard deviation per point (or orientation); per-axis ones combine as their root mean
     square, which gives the weighted residual the same expected size (docs/formats.md)."""
-    vals = [_positive(num, mc[p], source, line, names) for p in parts]
+    vals = [_positive(num, mc[p], source, at) for p in parts]
     return float(np.sqrt(np.mean(np.square(vals))))
 
 
-def _positive(num, col, source, line, names) -> float:
+def _positive(num, col, source, at) -> float:
     k, s = col
     v = num(k)
     if not v > 0:
         raise InputError(f"a standard deviation must be positive, got {v}", source=source,
-                         where=f"line {line}, column {names[k]!r}")
+                         where=at(k))
     return v * s
 
 
-def _rotation(kind, seq, vals, source, line, column) -> np.ndarray:
+def _rotation(kind, seq, vals, source, where: str) -> np.ndarray:
     if kind == "quat" and not 1e-12 < np.linalg.norm(vals) < np.inf:
-        raise InputError("quaternion of zero norm (or too large)", source=source,
-                         where=f"line {line}, column {column!r}")
+        raise InputError("quaternion of zero norm (or too large)", source=source, where=where)
     return _matrices(kind, seq, vals)
 
 

@@ -57,14 +57,27 @@ class Table:
     # {mark: (cells of the first rows that read as numbers with it, the first one's line)}: what the
     # decimal mark was detected from, and what a cell written otherwise is told
     decimals_seen: Mapping[str, tuple[int, str]] = field(default_factory=dict)
+    # {name a column map gave: the file's own column (or sum "A+B")}, for messages to name the latter
+    renamed: Mapping[str, str] = field(default_factory=dict)
 
     @property
     def header_where(self) -> str:
         """Where messages place the header: its line, or the names given for a file without one."""
         return "the given column names (header)" if self.header_given else f"line {self.header_line}"
 
+    def cell_where(self, line: str, column: str) -> str:
+        """Where messages place the cell of ``column`` on ``line``."""
+        return f"line {line}, {column_named(column, self.renamed)}"
+
     def with_notes(self, *notes: str) -> Table:
         return replace(self, notes=self.notes + tuple(n for n in notes if n))
+
+
+def column_named(column: str, renamed: Mapping[str, str]) -> str:
+    """How messages name ``column``: by the file's own name, the name a column map gave it
+    (``renamed``: {that name: the file's}) in parentheses."""
+    given = renamed.get(column)
+    return f"column {column!r}" if given is None else f"column {given!r} (mapped to {column!r})"
 
 
 @dataclass(frozen=True)
@@ -338,7 +351,12 @@ def map_columns(table: Table, columns: ColumnMap | None) -> Table:
     rows = tuple((line, [row[k] if k < len(row) else "" for k in keep] if len(row) == len(table.header) else row)
                  for line, row in table.rows)
     note = f"columns ignored as asked: {', '.join(dropped)}" if dropped else ""
-    return replace(table, header=tuple(header), rows=rows).with_notes(note)
+    return replace(table, header=tuple(header), rows=rows, renamed=_renamed(table, columns)).with_notes(note)
+
+
+def _renamed(table: Table, columns: ColumnMap) -> dict[str, str]:
+    """``table.renamed`` with the names ``columns`` gives the table's columns."""
+    return {**table.renamed, **{new: old for old, new in columns.rename.items() if old in table.header}}
 
 
 def _sum_columns(table: Table, sums: dict) -> Table:
@@ -415,7 +433,7 @@ def join_tables(points: Table, readings: Table, key: str) -> Table:
                          f"in {readings.source})", source=points.source, where=f"column {key!r}")
     lost = [[v for v in mine if v not in other] for mine, other in ((seen, by_key), (by_key, seen))]
     header = points.header + tuple(c for k, c in enumerate(readings.header) if k != kr)
-    return replace(points, header=header, rows=tuple(rows)).with_notes(
+    return replace(points, header=header, rows=tuple(rows), renamed={**readings.renamed, **points.renamed}).with_notes(
         *join_notes(points, readings, key, len(rows), *lost))
 
 
@@ -463,7 +481,7 @@ def _keyed(table: Table, k: int) -> dict:
     for line, row in table.rows:
         value = row[k].strip() if k < len(row) else ""
         if not value:
-            raise InputError("empty key cell", source=table.source, where=f"line {line}, column {table.header[k]!r}")
+            raise InputError("empty key cell", source=table.source, where=table.cell_where(line, table.header[k]))
         if value in out:
             raise InputError(f"{table.header[k]} {value!r} appears twice (also line {out[value][0]})",
                              source=table.source, where=f"line {line}")
