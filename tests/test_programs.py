@@ -333,6 +333,55 @@ def test_a_malformed_program_is_one_line_naming_file_line_and_column(suffix, tex
                           command="compensate")
 
 
+EXT = "[9E9, 9E9, 9E9, 9E9, 9E9, 9E9]"
+
+
+@pytest.mark.parametrize("suffix, text, value", [
+    (".mod", f"MODULE m\n  CONST robtarget p1 := [[628.819, 962.752x, 1135.675], [1, 0, 0, 0], [0, 0, 0, 0], {EXT}];\n"
+             "ENDMODULE\n", "962.752x"),
+    (".mod", f"MODULE m\n  CONST jointtarget j1 := [[10, -30, 4.0.5, 20, 50, -30], {EXT}];\nENDMODULE\n", "4.0.5"),
+    (".mod", f"MODULE m\n  PROC main()\n    MoveL [[1, 2, 3], [1, 0, 0, 0], [0, 0, 0, 0e], {EXT}], v10, fine, tool0;\n"
+             "  ENDPROC\nENDMODULE\n", "0e"),
+    (".script", "def a():\n  movel(p[0.1, 0.2x, 0.3, 0, 0, 0], a=1.2, v=0.25)\nend\n", "0.2x"),
+    (".script", "def a():\n  home = [0.1, 0.2, 0.3, 0.4, 0.5, -0.6rad]\n  movej(home)\nend\n", "0.6rad"),
+    (".src", "DEF a()\n  LIN {X 962.752x, Y 2, Z 3, A 0, B 0, C 0, S 0, T 0}\nEND\n", "962.752x"),
+])
+def test_a_malformed_number_in_a_target_is_refused_naming_file_line_and_value(suffix, text, value, tmp_path, cli):
+    """A number run into letters or into another number is a slip, not a value computed in the
+    program: listing the target as read only would leave it uncompensated without saying why."""
+    rc.write_model(arm6r(), tmp_path / "m.yaml")
+    (tmp_path / f"p{suffix}").write_text(text)
+    line = next(k for k, row in enumerate(text.splitlines(), 1) if value in row)
+    column = text.splitlines()[line - 1].index(value.lstrip("-")) + 1
+    code, _, err = cli("compensate", tmp_path / "m.yaml", tmp_path / "m.yaml", tmp_path / f"p{suffix}",
+                       "--out", tmp_path / "o" / f"out{suffix}")
+    assert_one_line_error(code, err, [f"p{suffix}: line {line}, column {column}: '{value}' is not a number"],
+                          tmp_path / "o", command="compensate")
+
+
+def test_targets_computed_in_the_program_stay_read_only(tmp_path, cli):
+    """Expressions, variables, calls and RAPID's whole numbers in base 16 are no malformed numbers."""
+    rapid = (f"MODULE m\n  VAR num x0 := 10;\n"
+             f"  CONST robtarget p1 := [[x0 + 10, 962.752, 1135.675], [1, 0, 0, 0], [0, 0, 0, 0], {EXT}];\n"
+             f"  CONST robtarget p2 := [[10*2, 962.752, 1135.675], [1, 0, 0, 0], [0, 0, 0, 0], {EXT}];\n"
+             f"  CONST jointtarget j1 := [[0x1F, 0, 0, 0, 0, 0], {EXT}];\n"
+             f"  CONST jointtarget j2 := [[10 DIV 2, Abs(x0), 0, 0, 0, 0], {EXT}];\n"
+             f"  CONST jointtarget j3 := [[10, -30, 40, 20, 50, -30], {EXT}];\n"
+             "  PROC main()\n    MoveL Offs(p2, 0, 0, 10), v100, fine, tool0;\n  ENDPROC\nENDMODULE\n")
+    script = ("def a():\n  x0 = 0.1\n  movel(p[x0 + 0.1, 0.2, 0.3, 0, 0, 0], a=1.2, v=0.25)\n"
+              "  movej([2*x0, 0, 0, 0, 0, 0], a=1.4, v=1.05)\n  movej([0.1, 0.2, 0.3, 0.4, 0.5, 0.6])\nend\n")
+    for name, text, skip in (("p.mod", rapid, "not a literal value"), ("p.script", script, "not six literal numbers")):
+        (tmp_path / name).write_text(text)
+        targets = read_program(tmp_path / name).targets
+        assert [t.skip for t in targets] == [skip] * (len(targets) - 1) + [""], targets
+        assert len(targets) == (5 if name == "p.mod" else 3)
+    rc.write_model(arm6r(), tmp_path / "m.yaml")
+    code, out, err = cli("compensate", tmp_path / "m.yaml", tmp_path / "m.yaml", tmp_path / "p.mod",
+                         "--out", tmp_path / "out.mod")
+    assert code == 0, err
+    assert "p1 (line 3, pose): read only: not a literal value" in out and "compensated 1 of 5 targets" in out
+
+
 def test_cli_compensates_a_program_and_prints_each_target(models, tmp_path, cli):
     nominal, calibrated = models
     rc.write_model(nominal, tmp_path / "nominal.yaml")

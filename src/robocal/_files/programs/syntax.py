@@ -36,6 +36,8 @@ _NUMBER = r"(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?"
 _SIGNED = rf"[-+]?{_NUMBER}"
 _FLAT = rf"(?P<flat>\[[ \t]*{_SIGNED}(?:[ \t]*,[ \t]*{_SIGNED})*[ \t]*\])"
 _SIGNED_RE = re.compile(_SIGNED)
+# whole numbers in base 16, 8 or 2 (RAPID's 0xFF, 0o377, 0b101): read as a 0 run into a name, but no slip
+_PREFIXED = re.compile(r"0[xX][0-9A-Fa-f]+|0[oO][0-7]+|0[bB][01]+")
 _INDENT = re.compile(r"[ \t]*")
 
 
@@ -293,12 +295,29 @@ def aggregate(tokens: Tokens, i: int, scanner: Scanner, depth: int = 0) -> tuple
             item_end = k
             while item_end < end and tokens[item_end].text != ",":
                 item_end = closing(tokens, item_end, scanner) + 1 if tokens[item_end].text in "[{(" else item_end + 1
-            items[-1] = tokens[j]            # something else than a value: kept as a token
+            _refuse_run_together(tokens, j, item_end, scanner)
+            items[-1] = tokens[j]            # something else than a value (an expression): kept as a token
             k = item_end
         j = k + 1
         if k < end and j == end:
             raise scanner.error(tokens[k].start, "a value is missing after the last ','")
     return Aggregate(tuple(items), tokens[i].start, tokens[end].end, label), end + 1
+
+
+def _refuse_run_together(tokens, a: int, b: int, scanner: Scanner) -> None:
+    """An InputError at a number run into letters or into another number among ``tokens[a:b]``
+    (``962.752x``, ``1.2.3``): a malformed number, which no dialect reads as an expression (an
+    expression, ``x0 + 10`` or ``Offs(p, 0, 0, 10)``, separates its numbers from what follows)."""
+    for k in range(a, b - 1):
+        t = tokens[k]
+        if t.kind != "num" or tokens[k + 1].start != t.end or tokens[k + 1].kind not in ("num", "name"):
+            continue
+        last = k + 1
+        while last + 1 < b and tokens[last + 1].start == tokens[last].end and tokens[last + 1].kind in ("num", "name"):
+            last += 1
+        text = scanner.text[t.start:tokens[last].end]
+        if not _PREFIXED.fullmatch(text):
+            raise scanner.error(t.start, f"{excerpt(text)} is not a number")
 
 
 def _item(tokens, j, end, scanner, depth):
