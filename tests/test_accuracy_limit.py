@@ -344,19 +344,23 @@ def test_cli_a_prismatic_resolution_beyond_a_millimetre_is_refused(tmp_path, res
     assert_one_line_error(code, err, ["--encoder-resolution", words], out, command="limit")
 
 
-@pytest.mark.parametrize("quantum, code", [("0", 0), ("1", 0), ("1.5", 2), ("10", 2), ("1000", 2)])
-def test_cli_a_length_quantum_beyond_a_millimetre_is_refused(tmp_path, quantum, code, cli):
-    """A length quantum of 1000 mm gave a limit of 1133 mm, exit 0: no controller rounds its lengths
-    to a metre, and 10 typed for 10 um is a slip of unit."""
+@pytest.mark.parametrize("option, unit", [("--length-quantum-mm", "1 mm"), ("--angle-quantum-deg", "1 degree")])
+@pytest.mark.parametrize("quantum, code", [("0", 0), ("1", 0), ("1.5", 2), ("10", 2), ("180", 2), ("1000", 2)])
+def test_cli_a_quantum_coarser_than_an_encoder_count_is_refused(tmp_path, option, unit, quantum, code, cli):
+    """A length quantum of 1000 mm gave a limit of 1133 mm, an angle quantum of 180 degrees one of
+    2434 mm, exit 0: no controller rounds its dimensions so, and 10 typed for 10 um is a slip of unit."""
     out = tmp_path / "x.json"
     th8 = Path(__file__).resolve().parents[1] / "examples" / "th8" / "model.yaml"
+    quanta = {"--length-quantum-mm": "0.1", "--angle-quantum-deg": "0.001", option: quantum}
     got, _, err = cli("limit", th8, "--repeatability-mm", "0.3", "--encoder-resolution",
-                      "0.01deg,0.1mm,0.12mm,0.005deg,0.002deg,0.002deg", "--length-quantum-mm", quantum,
-                      "--angle-quantum-deg", "0.001", "--samples", "100", "--out", out)
+                      "0.01deg,0.1mm,0.12mm,0.005deg,0.002deg,0.002deg", *[a for kv in quanta.items() for a in kv],
+                      "--samples", "100", "--out", out)
     if code == 0:
-        assert got == 0 and json.loads(out.read_text())["precision_detail"]["length_quantum"] == float(quantum) * 1e-3
+        stored = json.loads(out.read_text())["precision_detail"]
+        assert got == 0 and stored[option[2:].split("-")[0] + "_quantum"] == pytest.approx(
+            float(quantum) * (1e-3 if "mm" in option else math.pi / 180), rel=1e-15)
     else:
-        assert_one_line_error(got, err, ["--length-quantum-mm", "expected a number from 0 to 1 mm", f"got '{quantum}'"],
+        assert_one_line_error(got, err, [option, f"expected a number from 0 to {unit}", f"got '{quantum}'"],
                               out, command="limit")
 
 

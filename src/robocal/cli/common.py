@@ -163,10 +163,8 @@ def _limit_from_file(path: str) -> float:
 
 fraction = number_in(lambda v: 0.0 < v < 1.0, "a fraction between 0 and 1")
 positive = number_in(lambda v: 0.0 < v < math.inf, "a positive number")
-# lengths in mm and angles in degrees a user may type for noise, errors, quanta: beyond a metre or
-# half a turn they are not what the option means
+# lengths in mm a user may type for noise, repeatability: beyond a metre they are not what the option means
 length_mm = number_in(lambda v: 0.0 <= v <= 1e3, "a number from 0 to 1000 (mm)")
-angle_deg = number_in(lambda v: 0.0 <= v <= 180.0, "a number from 0 to 180 (degrees)")
 tolerance = number_in(lambda v: 0.0 < v < 1.0, "a tolerance between 0 and 1 (exclusive)")
 # noise of an instrument, mm and degrees: beyond a metre or half a turn it is not a measurement,
 # below a nanometre or a nanodegree no instrument's (the checks' ratios to it overflow)

@@ -21,11 +21,19 @@ _ENTRY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([a-z]+)
 # the coarsest step a joint encoder reads, SI: 360 counts a turn, or a millimetre a count, is coarser
 # than any robot's; beyond it a value is a slip of unit (0.1m for 0.1mm)
 COARSEST = {"angle": (math.radians(1.0), "1 degree"), "length": (1e-3, "1 mm")}
-# the round-off of the lengths a controller stores: no coarser than the step its encoders count in
-# (a 5 mm quantum moves the tool by centimetres); beyond it a value is a slip of unit (10 for 10 um)
-length_quantum_mm = common.number_in(lambda v: 0.0 <= v <= COARSEST["length"][0] * 1e3,
-                                     f"a number from 0 to {COARSEST['length'][1]} (no controller stores its "
-                                     "lengths coarser; is the unit right?)")
+
+
+def _quantum(kind: str, per_si: float):
+    """The argparse type of the round-off of a controller's stored lengths or angles: no coarser than
+    the step its encoders count in (a 5 mm quantum moves the tool by centimetres); beyond it a value
+    is a slip of unit (10 typed for 10 um)."""
+    coarsest, said = COARSEST[kind]
+    return common.number_in(lambda v: 0.0 <= v <= coarsest * per_si,
+                            f"a number from 0 to {said} (no controller stores its {kind}s coarser; is the unit right?)")
+
+
+length_quantum_mm = _quantum("length", 1e3)
+angle_quantum_deg = _quantum("angle", 180.0 / math.pi)
 
 
 EXAMPLE = """example:
@@ -52,8 +60,8 @@ def register(sub) -> None:
                         'each above 0 and up to 1 degree or 1 mm (no robot\'s encoder reads coarser)')
     p.add_argument("--length-quantum-mm", required=True, type=length_quantum_mm, metavar="X",
                    help=f"round-off quantum of stored lengths, mm, from 0 (exact) to {COARSEST['length'][1]}")
-    p.add_argument("--angle-quantum-deg", required=True, type=common.angle_deg, metavar="X",
-                   help="round-off quantum of stored angles, degrees")
+    p.add_argument("--angle-quantum-deg", required=True, type=angle_quantum_deg, metavar="X",
+                   help=f"round-off quantum of stored angles, degrees, from 0 (exact) to {COARSEST['angle'][1]}")
     p.add_argument("--samples", type=common.integer(1, MAX_SAMPLES), default=100_000, metavar="N",
                    help="Monte Carlo samples (default 100000)")
     p.add_argument("--seed", type=common.seed, default=0, metavar="S", help="random seed (default 0)")
