@@ -167,6 +167,29 @@ def test_urdf_origin_beyond_a_models_bound_is_refused(tmp_path, cli):
     assert not (tmp_path / "m.yaml").exists()
 
 
+def test_urdf_origins_that_add_up_beyond_a_models_bound_are_refused_at_import(tmp_path, cli):
+    """Each origin 6e8 m, within the bound, the base 1.2e9 m from the first axis: 1.2e12 mm, which
+    no model file holds. The library's import gave the model, and the model file written of it did
+    not read back."""
+    origin, near = '<origin xyz="6e8 0 0"/>', '<origin xyz="0.3 0 0"/>'
+    joint = ('<joint name="{}" type="revolute"><parent link="{}"/><child link="{}"/>{}<axis xyz="0 {} 1"/>'
+             '<limit lower="-1" upper="1"/></joint>')
+    urdf = ('<robot name="far"><link name="world"/><link name="a"/><link name="l1"/><link name="l2"/>'
+            f'<link name="tip"/><joint name="mount" type="fixed"><parent link="world"/><child link="a"/>{origin}'
+            f'</joint>{joint.format("j1", "a", "l1", origin, 0)}'
+            f'{joint.format("j2", "l1", "l2", near, 1)}{joint.format("j3", "l2", "tip", origin, 1)}'
+            '</robot>')
+    (tmp_path / "r.urdf").write_text(urdf)
+    with pytest.raises(rc.InputError) as e:
+        rc.io.read_urdf(tmp_path / "r.urdf")
+    assert (e.value.where, e.value.detail) == (
+        "link 'world' to joint 'j1'", "the model it gives holds base.position[0], in mm-deg, beyond what a model file "
+                                      "holds: expected a finite number (magnitude below 1e+12), got 1200000000000.0")
+    one_line(cli, ("import-urdf", tmp_path / "r.urdf", "--out", tmp_path / "m.yaml", "--units", "m-rad"),
+             ["r.urdf: link 'world' to joint 'j1': the model it gives holds base.position[0]"])
+    assert not (tmp_path / "m.yaml").exists()
+
+
 def test_urdf_depth_and_entity_bombs(tmp_path, cli):
     (tmp_path / "r.urdf").write_text(URDF.replace("</robot>", "<a>" * 100_000 + "</a>" * 100_000 + "</robot>"))
     one_line(cli, ("import-urdf", tmp_path / "r.urdf", "--out", tmp_path / "m.yaml"), ["nested"])

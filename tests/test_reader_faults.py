@@ -147,6 +147,19 @@ def test_a_measurement_files_fault_is_named_where_it_is(text, options, where, de
     # a negative mass became 0 kg on its frame, silently
     ('<link name="l1"><inertial><mass value="1"/>', '<link name="l1"><inertial><mass value="-1.377"/>',
      "link 'l1' inertial mass", "mass must be non-negative, got -1.377 kg"),
+    # beyond what a model file holds (below 1e12 in mm and degrees): the import wrote a model that
+    # did not read back
+    ('<origin xyz="0 0 0.3"', '<origin xyz="0 0 1e11"', "joint 'j1' origin xyz",
+     "'0 0 1e11' is too large (magnitude below 1e+09 m, what a model file holds)"),
+    ('<mass value="1"/><origin xyz="0 0 0.1"/>', '<mass value="1"/><origin xyz="2e9 0 0.1"/>',
+     "link 'l0' inertial origin xyz", "'2e9 0 0.1' is too large (magnitude below 1e+09 m, what a model file holds)"),
+    ('lower="-1" upper="1"', 'lower="-1e11" upper="1"', "joint 'j1' limit lower",
+     "'-1e11' is too large (magnitude below 1.74533e+10 rad, what a model file holds)"),
+    ('<child link="l2"/><origin xyz="0 0 0.3" rpy="0 0.5 0"/><axis xyz="0 0 1"/><limit lower="-1" upper="1"/>',
+     '<child link="l2"/><origin xyz="0 0 0.3" rpy="0 0.5 0"/><axis xyz="0 0 1"/><limit lower="-1" upper="2e9"/>',
+     "joint 'j2' limit upper", "'2e9' is too large (magnitude below 1e+09 m, what a model file holds)"),
+    ('upper="1"/></joint>', 'upper="1"/><mimic joint="j3" offset="1e11"/></joint>', "joint 'j1' mimic offset",
+     "'1e11' is too large (magnitude below 1.74533e+10 rad, what a model file holds)"),
 ])
 def test_a_urdf_links_and_joints_faults(old, new, where, detail):
     assert _fault(lambda: rc.io.read_urdf(URDF.replace(old, new, 1))) == (where, detail)

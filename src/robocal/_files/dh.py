@@ -32,7 +32,7 @@ from .._base.units import UNITS, parse_units, unit_factors, unit_kind
 from .._model.conversion import MDH_TABLE_KINDS, from_standard_dh, mdh_table, to_standard_dh
 from .._model.parameters import KIND_QUANTITY
 from .._model.robot import Frame, Marker, RobotModel, parallel_beta_frames, serial_model
-from .model import MAX_MAGNITUDE
+from .model import FINEST, LARGEST, MAX_MAGNITUDE
 from .text import read_text, refuse_other_form, write_texts
 
 PLACEMENT = (("x", "length"), ("y", "length"), ("z", "length"), ("roll", "angle"), ("pitch", "angle"),
@@ -50,8 +50,6 @@ LIMITS = (("lower", None), ("upper", None))
 CLASSIC_COLUMNS = (("name", "joint"), dict(DH_KINDS + LIMITS + PLACEMENT))
 MODIFIED_COLUMNS = (("frame", "parent", "joint", "reading", "has_beta"),
                     dict(tuple((k, KIND_QUANTITY[k]) for k in MDH_TABLE_KINDS) + LIMITS + PLACEMENT))
-# the finest unit of each quantity: a value must be below the model's bound in it, as written to a model file
-FINEST = {kind: min(table.values()) for kind, table in UNITS.items()}
 
 
 def _placement(X: np.ndarray, names: dict, factors: dict) -> dict:
@@ -254,10 +252,9 @@ class _Table:
             raise InputError(f"expected a number, got {excerpt(cell)}", source=self.source, where=where) from None
         if not math.isfinite(v):
             raise InputError("expected a finite number", source=self.source, where=where)
-        if not abs(v * s / FINEST[q]) < MAX_MAGNITUDE:   # beyond it a model file cannot hold the value
+        if not abs(v * s) < LARGEST[q]:   # beyond it a model file cannot hold the value
             raise InputError(f"{excerpt(cell)} is too large for a robot (magnitude below {MAX_MAGNITUDE:g} in "
-                             f"{next(u for u, f in UNITS[q].items() if f == FINEST[q])})", source=self.source,
-                             where=where)
+                             f"{FINEST[q]})", source=self.source, where=where)
         return v * s
 
     def word(self, line, row, name: str) -> str:

@@ -28,7 +28,7 @@ from .._base.arguments import (
 from .._base.errors import InputError, excerpt, suggest
 from .._base.options import BACKLASH_SIDES, MAX_MODEL_BYTES
 from .._base.spatial import nearest_rotation, pose4, vector3
-from .._base.units import ANGLE_UNITS, LENGTH_UNITS, check_unit, parse_units
+from .._base.units import ANGLE_UNITS, LENGTH_UNITS, UNITS, check_unit, parse_units
 from .._model.parameters import KIND_QUANTITY
 from .._model.robot import (
     DEFAULT_PARALLEL_TOL,
@@ -78,6 +78,10 @@ IDENTITY = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
 RESERVED_NAMES = ("base",)
 # no quantity of a model, in any of its units, comes near this; beyond it arithmetic overflows
 MAX_MAGNITUDE = 1e12
+# the unit of each quantity a model file holds the largest numbers in (mm, deg), and the magnitude
+# (SI) below which a value is held in every unit: what an importer may take
+FINEST = {kind: min(table, key=table.__getitem__) for kind, table in UNITS.items()}
+LARGEST = {kind: MAX_MAGNITUDE * UNITS[kind][FINEST[kind]] for kind in UNITS}
 _NUMBER = re.compile(r"^[+-]?(\d+(\.\d*)?|\.\d+)([eE][+-]?\d+)?$")
 
 

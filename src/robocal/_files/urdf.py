@@ -40,13 +40,14 @@ from .._base.spatial import (
 from .._base.units import ANGLE_UNITS
 from .._model.conversion import frames_from_lines, line_frames, marker_placements
 from .._model.robot import DEFAULT_PARALLEL_TOL, Marker, RobotModel, mdh_transform
-from .model import MAX_MAGNITUDE
+from .model import FINEST, LARGEST, MAX_MAGNITUDE, model_from_dict, model_to_dict
 from .text import read_bytes, refuse_other_form, write_texts
 
 # ----------------------------------------------------------------------------------------------
 # URDF in
 
 _NUM = re.compile(r"\s+")
+SI = {"length": "m", "angle": "rad"}     # the URDF rule
 
 
 @dataclass(frozen=True)
@@ -61,7 +62,9 @@ class _UJoint:
     mimic: tuple[str, float, float] | None
 
 
-def _floats(text: str | None, n: int, default, source: str, where: str) -> np.ndarray:
+def _floats(text: str | None, n: int, default, source: str, where: str, quantity: str | None = None) -> np.ndarray:
+    """The ``n`` numbers of an attribute (``default`` without it); ``quantity`` ("length" or
+    "angle", None for a plain number): beyond what a model file holds of it, an InputError."""
     if text is None:
         return np.asarray(default, dtype=float)
     parts = [p for p in _NUM.split(text.strip()) if p]
@@ -71,8 +74,11 @@ def _floats(text: str | None, n: int, default, source: str, where: str) -> np.nd
         raise InputError(f"expected {n} numbers, got {text!r}", source=source, where=where) from None
     if vals.shape != (n,) or not np.all(np.isfinite(vals)):
         raise InputError(f"expected {n} finite numbers, got {text!r}", source=source, where=where)
-    if not np.all(np.abs(vals) < MAX_MAGNITUDE):     # a model's own bound (a 1e308 m origin overflows to NaN)
-        raise InputError(f"{text!r} is too large (magnitude below {MAX_MAGNITUDE:g})", source=source, where=where)
+    # a model file's own bound, in the unit it holds the largest numbers in (a 1e11 m origin is 1e14 mm)
+    largest, said = (LARGEST[quantity], f"{LARGEST[quantity]:g} {SI[quantity]}, what a model file holds") \
+        if quantity else (MAX_MAGNITUDE, f"{MAX_MAGNITUDE:g}")
+    if not np.all(np.abs(vals) < largest):
+        raise InputError(f"{text!r} is too large (magnitude below {said})", source=source, where=where)
     return vals
 
 
@@ -98,8 +104,8 @@ def _round_angle(v: float, text: str | None) -> float:
     return round(v / ANGLE_UNITS["deg"], decimals) * ANGLE_UNITS["deg"]
 
 
-def _attr_float(el, key: str, default: float, source: str, where: str) -> float:
-    return float(_floats(el.get(key), 1, [default], source, where + f" {key}")[0])
+def _attr_float(el, key: str, default: float, source: str, where: str, quantity: str | None = None) -> float:
+    return float(_floats(el.get(key), 1, [default], source, where + f" {key}", quantity)[0])
 
 
 def _load_xml(path_or_string) -> tuple[ET.Element, str]:
@@ -206,7 +212,8 @@ def _parse_links(root: ET.Element, source: str) -> tuple[set[str], dict[str, tup
             if m < 0:   # summed onto its frame it would take mass off the links beside it, or make none
                 raise InputError(f"mass must be non-negative, got {m:g} kg", source=source, where=f"{where} mass")
             org = iner.find("origin")
-            com = _floats(None if org is None else org.get("xyz"), 3, [0, 0, 0], source, where)
+            com = _floats(None if org is None else org.get("xyz"), 3, [0, 0, 0], source, f"{where} origin xyz",
+                          "length")
             inertials[lname] = (m, com)
     return links, inertials
 
@@ -226,14 +233,15 @@ def _parse_joint(el: ET.Element, jname: str, parent: str, child: str, source: st
     """A joint's origin, axis, limits and mimic."""
     jtype = el.get("type")
     org = el.find("origin")
-    xyz = _floats(None if org is None else org.get("xyz"), 3, [0, 0, 0], source, where + " origin xyz")
-    rpy = _floats(None if org is None else org.get("rpy"), 3, [0, 0, 0], source, where + " origin rpy")
+    xyz = _floats(None if org is None else org.get("xyz"), 3, [0, 0, 0], source, where + " origin xyz", "length")
+    rpy = _floats(None if org is None else org.get("rpy"), 3, [0, 0, 0], source, where + " origin rpy", "angle")
+    moves = "length" if jtype == "prismatic" else "angle"   # what its limits and a mimic's offset are
     ax = el.find("axis")
     axis = _floats(None if ax is None else ax.get("xyz"), 3, [1, 0, 0], source, where + " axis")
     lim = el.find("limit")
     limits = None
     if lim is not None:  # URDF: lower/upper default to 0
-        lower, upper = (_attr_float(lim, k, 0.0, source, where + " limit") for k in ("lower", "upper"))
+        lower, upper = (_attr_float(lim, k, 0.0, source, where + " limit", moves) for k in ("lower", "upper"))
         if jtype in ("revolute", "continuous"):
             lower, upper = _round_angle(lower, lim.get("lower")), _round_angle(upper, lim.get("upper"))
         limits = (lower, upper)
@@ -244,7 +252,7 @@ def _parse_joint(el: ET.Element, jname: str, parent: str, child: str, source: st
         if not master:
             raise InputError("<mimic> needs joint=...", source=source, where=where)
         mimic = (master, _attr_float(mim, "multiplier", 1.0, source, where + " mimic"),
-                 _attr_float(mim, "offset", 0.0, source, where + " mimic"))
+                 _attr_float(mim, "offset", 0.0, source, where + " mimic", moves))
     return _UJoint(jname, jtype or "", parent, child, pose4(rpy_matrix(rpy), xyz), axis, limits, mimic)
 
 
@@ -609,12 +617,31 @@ def read_urdf(path_or_string, *, base_link: str | None = None, tip_link: str | N
               tuple(_clean(v, joints[jn].type == "revolute", tol) for v in joints[jn].limits or ())
               for jn in readings]  # a reading's limits are given (checked as the joints are read)
     base_position, base_rotation = _clean_pose(X_0B, decimals)
-    return RobotModel(
+    model = RobotModel(
         name=root.get("name") or "robot", frames=tuple(frames), joint_names=tuple(readings),
         joint_limits=tuple((float(lo), float(hi)) for lo, hi in limits), markers=tuple(mk),
         base_position=base_position, base_rotation=base_rotation,
         description=f"imported from URDF {source}, {chain[0].parent} -> {tip}",
     )
+    _refuse_unwritable(model, moving, chain, source)
+    return model
+
+
+def _refuse_unwritable(model: RobotModel, moving: list[str], chain, source: str) -> None:
+    """An InputError naming the URDF joint (or links) behind a value of ``model`` that a model file
+    cannot hold in the units it holds the largest numbers in: origins each within the bound that
+    add up beyond it, masses summed onto a frame."""
+    units = f"{FINEST['length']}-{FINEST['angle']}"
+    try:
+        model_from_dict(model_to_dict(model, units=units), source=source)
+    except InputError as e:
+        where = e.where or ""
+        at = re.match(r"(frames|joints|markers)\[(\d+)\]", where)
+        whose = f"link {chain[-1].child!r}" if at and at[1] == "markers" else \
+            f"joint {(moving if at[1] == 'frames' else model.joint_names)[int(at[2])]!r}" if at else \
+            f"link {chain[0].parent!r} to joint {moving[0]!r}" if where.startswith("base") else None
+        raise InputError(f"the model it gives holds {e.where}, in {units}, beyond what a model file holds: {e.detail}",
+                         source=source, where=whose) from None
 
 
 # ----------------------------------------------------------------------------------------------

@@ -31,7 +31,6 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from .._files.model import model_from_dict, model_to_dict
     from .._files.urdf import chain_end, read_urdf
 
     common.refuse_existing([args.out], args.force)
@@ -46,11 +45,6 @@ def run(args) -> int:
         if e.source is None:  # the model's own checks (e.g. its size) know no file
             raise InputError(e.detail, source=args.urdf, where=e.where) from None
         raise
-    try:  # never write a model file robocal would then refuse to read
-        model_from_dict(model_to_dict(model, units=args.units), source=args.out)
-    except InputError as e:
-        raise InputError(f"the model it gives cannot be written as a robocal model: {e.where or ''} {e.detail}",
-                         source=args.urdf) from None
     common.write_imported_model(args, model, f"{len(model.frames)} frames, ", source=args.urdf)
     print(_end_line(chain_end(args.urdf, base_link=args.base_link)) if args.tip_link is None else
           f"the chain ends at link {args.tip_link!r} (--tip-link)")
