@@ -857,3 +857,23 @@ def test_a_verification_holds_the_robot_against_its_latest_calibration_that_did_
         store.add([replace(rec, robot="SN-2", verdict="fail")], models)
         with pytest.raises(rc.InputError, match="failed its checks"):
             rc.latest_usable(store, "SN-2")
+
+
+def test_contacts_of_other_kinds_are_named_as_left_out_of_a_verification(cli, tmp_path):
+    """A verification judges socket seatings only: plane contacts recorded beside them were dropped
+    without a word; now each group left out is named with its kind and its contacts."""
+    code, _, _ = cli("calibrate", ROOT / "examples/arm7/model.yaml", "--contacts", ROOT / "examples/arm7/seatings",
+                     "--out", tmp_path / "kit")
+    assert code == 0
+    model = rc.read_model(tmp_path / "kit" / "calibrated.yaml")
+    then = rc.accuracy_at_calibration(json.loads((tmp_path / "kit" / "result.json").read_text()))
+    check = rc.io.read_contacts(ROOT / "examples/arm7/seatings_check", model)
+    table = check.q[:3]
+    with_plane = replace(check, q=np.vstack([check.q, table]), marker=check.marker + ("ball",) * 3,
+                         kind=check.kind + ("plane",) * 3, target=check.target + ("table",) * 3,
+                         placement=check.placement + ("",) * 3, sigma=np.r_[check.sigma, check.sigma[:3]],
+                         labels=check.labels + ("t1", "t2", "t3"))
+    alone, both = rc.verify(model, check, then), rc.verify(model, with_plane, then)
+    assert alone.left_out == ()
+    assert both.left_out == ("plane table, 3 contact(s): a verification judges socket seatings only",)
+    assert both.ratio == alone.ratio and both.n_points == alone.n_points

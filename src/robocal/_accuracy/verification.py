@@ -79,7 +79,7 @@ class Verification:
     distance from its socket's mean predicted centre, ``poses`` the sockets and ``ap`` the RMS of
     each one's distances (``ap_max`` the worst); ``rms`` as measured, the ratio's with the sockets'
     centres' degrees of freedom taken out; ``left_out`` what the verification did not count and why
-    (a socket seated once).
+    (a socket seated once, contacts of other kinds).
     """
 
     errors: np.ndarray
@@ -190,8 +190,8 @@ def verify(model: RobotModel, data: Measurements | Contacts, then: Accuracy, *, 
         The calibrated model (as stored).
     data : Measurements or Contacts
         The verification campaign: 10 to 30 poses are enough (more are allowed); or ball seatings
-        in sockets (two or more per socket, in varied configurations; a socket seated once is left
-        out, named in ``left_out``), for a robot calibrated from seatings.
+        in sockets (two or more per socket, in varied configurations; a socket seated once, and plane
+        and bar contacts, are left out, named in ``left_out``), for a robot calibrated from seatings.
     then : Accuracy
         The accuracy the calibration reached (``robocal.accuracy_at_calibration``).
     register : bool
@@ -279,11 +279,14 @@ def _seatings(model: RobotModel, data, then: Accuracy, register: bool, alpha: fl
 
 def _seated_again(data: Contacts) -> tuple[list, tuple[str, ...]]:
     """The sockets seated twice or more, and each one left out with why: a socket seated once (its one
-    seating is its socket's centre)."""
+    seating is its socket's centre), and the contacts of other kinds (planes, bars), which hold no
+    socket's consistency."""
     sockets = data.groups("socket")
+    others = [g for g in data.groups() if g.kind != "socket"]
     return [g for g in sockets if len(g.rows) >= 2], tuple(
         f"socket {g.label}, seated once: one seating cannot show consistency (it is its socket's centre)"
-        for g in sockets if len(g.rows) < 2)
+        for g in sockets if len(g.rows) < 2) + tuple(
+        f"{g.kind} {g.label}, {len(g.rows)} contact(s): a verification judges socket seatings only" for g in others)
 
 
 def _seatings_threshold(then: Accuracy, placements: int, dof: int, alpha: float) -> float:
