@@ -486,6 +486,10 @@ class JointOffset:
     errors: UseStats
 
 
+# the method of an accuracy in use taken on a validation set once base and tool are registered on it
+REGISTERED_ON_IT = "validation, base and tool registered on it"
+
+
 @dataclass(frozen=True, eq=False)
 class AccuracyInUse:
     """The accuracy a calibration predicts in use, before and after it, from poses not fitted.

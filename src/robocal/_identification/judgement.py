@@ -45,6 +45,7 @@ from .contact_blocks import CARRIES, ContactRows
 from .contact_figures import ContactFigures, figures, recordings
 from .estimates import ParameterEstimate, workspace_change
 from .holdout import (
+    REGISTERED_ON_IT,
     AccuracyInUse,
     Coverage,
     FoldProblems,
@@ -219,7 +220,7 @@ def _validation_points(fit: Fit, before: np.ndarray, points: Measurements, optio
             other = registered(val, vectors[1:])[0]
     pts = cast(Points, val.points)
     b, a = evaluated(pts, vectors[0]), evaluated(pts, vectors[1])
-    method = "validation, base and tool registered on it" if register else "validation"
+    method = REGISTERED_ON_IT if register else "validation"
     fitted = None if problem.points is None else problem.observation_errors(fit.solution.p)["tracker"][0]
     record = accuracy_in_use(method, None, "the validation set", b, a,
                              np.empty(0) if fitted is None else vector_norms(fitted),

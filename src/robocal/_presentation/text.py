@@ -17,7 +17,7 @@ from .._base.arguments import (
 from .._identification.checks import Check, error_where_used
 from .._identification.contact_figures import ContactErrors
 from .._identification.estimates import ErrorStats
-from .._identification.holdout import within_noise
+from .._identification.holdout import REGISTERED_ON_IT, within_noise
 from .._identification.identifiability import IdentifiabilityResult
 from .._identification.result import CalibrationResult, Comparison
 from .._model.parameters import BACKLASH_KINDS, BASE_KINDS, FRAME_KINDS, MARKER_KINDS, parameter_layout
@@ -25,8 +25,6 @@ from .._model.robot import TRANSMISSION_KINDS, RobotModel
 from .units import MM, absorption_text, display_unit, with_unit
 
 STAT_ROWS = ("fit_before", "fit_after", "validation_before", "validation_after")
-# the accuracy in use's method when base and tool were registered on the validation set (both models)
-REGISTERED_ON_IT = "validation, base and tool registered on it"
 # the paper's table shows these kinds; gamma and b join them where a tree uses them
 PAPER_KINDS = tuple(k for k in FRAME_KINDS[2:] if k not in BACKLASH_KINDS + TRANSMISSION_KINDS)
 

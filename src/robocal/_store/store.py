@@ -46,6 +46,7 @@ from .._base.arguments import (
 from .._base.errors import InputError, excerpt
 from .._files.model import model_from_dict, model_to_dict
 from .._files.result import plain, result_to_dict
+from .._identification.holdout import REGISTERED_ON_IT
 from .._identification.result import CalibrationResult
 from .._model.contacts import Contacts
 from .._model.measurements import Measurements
@@ -200,7 +201,7 @@ class StoredCalibration:
         measured points with base and tool registered on them): a verification with measured points
         registers the base on them."""
         use = self.in_use or {}
-        return use.get("method") == "validation, base and tool registered on it" and \
+        return use.get("method") == REGISTERED_ON_IT and \
             not (use.get("fit_after") or {}).get("n")
 
     def accuracy_for(self, data) -> Accuracy | None:
@@ -882,7 +883,7 @@ def _points_at_calibration(d: dict) -> Accuracy | None:
         crossed = use["measured_points"] if "measured_points" in use else \
             None if isinstance(d.get("contacts"), dict) else use.get("measured_after")
     held = stats.get("validation_after")
-    registered = use.get("method") == "validation, base and tool registered on it"
+    registered = use.get("method") == REGISTERED_ON_IT
     for figures, source, taken in ((held, "held-out poses", _registered_on(d, held) if registered else 0),
                                    (crossed, f"fitted poses held out, {grouping}", 0)):
         if isinstance(figures, dict) and figures.get("n") and _positive(figures.get("rms")):
