@@ -98,6 +98,20 @@ def test_a_base_40_mm_off_shows_what_the_nominal_as_given_missed_beside_the_regi
                                                                            f"{stats['fit_before']['mean'] * 1e3:.3f}"]
 
 
+def test_the_comparison_shows_the_nominal_as_given_beside_the_registered_before(tmp_path, cli):
+    """--compare's table had the registered "before" alone, labelled as if it were the nominal's error:
+    it shows the rows the calibration's summary shows, the nominal as given among them."""
+    code, out, err = cli("calibrate", TH8_MODEL, TH8_DATA, "--out", tmp_path / "run", "--compare")
+    assert code == 0, err
+    kept = json.loads((tmp_path / "run" / "result.json").read_text())["stats"]
+    cells_of = [re.split(r"\s{2,}", line.strip()) for line in out.splitlines() if line.endswith(tuple("0123456789"))]
+    table = {c[0]: c[1:] for c in cells_of}
+    for poses in ("fit", "validation"):
+        for when, key in (("nominal as given", "nominal"), ("before, registered", "before"), ("after", "after")):
+            cells = table[f"{poses}, {when} rms (mm)"]
+            assert len(cells) == 3 and f"{kept[f'{poses}_{key}']['rms'] * 1e3:.3f}" in cells, (poses, when, cells)
+    assert float(table["fit, nominal as given rms (mm)"][0]) > 2 * float(table["fit, before, registered rms (mm)"][0])
+
 def test_calibrated_model_says_it_is_calibrated_from_what_and_when(tmp_path, cli):
     nominal = tmp_path / "model.yaml"
     nominal.write_text(Path(TH8_MODEL).read_text())

@@ -24,7 +24,6 @@ from .._model.parameters import BACKLASH_KINDS, BASE_KINDS, FRAME_KINDS, MARKER_
 from .._model.robot import TRANSMISSION_KINDS, RobotModel
 from .units import MM, absorption_text, display_unit, with_unit
 
-STAT_ROWS = ("fit_before", "fit_after", "validation_before", "validation_after")
 # the paper's table shows these kinds; gamma and b join them where a tree uses them
 PAPER_KINDS = tuple(k for k in FRAME_KINDS[2:] if k not in BACKLASH_KINDS + TRANSMISSION_KINDS)
 
@@ -319,12 +318,15 @@ def comparison_summary(comparison, *, shown=(), weighted: bool = False) -> str:
     on = (f"contacts ({', '.join(f'{n} {k}' for k, n in geo.contacts.rows.items())})" if geo.contacts
           else f"{geo.provenance['data']['n_poses']} poses")
 
+    figures = _compared_contacts(cols) + _compared_stats(cols)
+    lab = max([30] + [len(label) + 1 for label, _ in figures])
+
     def row(label: str, cells) -> str:
-        return f"  {label:<30}" + "".join(f"{c:>{w}}" for c, w in zip(cells, widths))
+        return f"  {label:<{lab}}" + "".join(f"{c:>{w}}" for c, w in zip(cells, widths))
 
     lines = cause_lines(comparison.best) + [f"comparison on {on}", row("", [name for name, _ in cols]),
                                             row("parameters identified", [len(r.parameters) for _, r in cols])]
-    lines += [row(label, cells) for label, cells in _compared_contacts(cols) + _compared_stats(cols)]
+    lines += [row(label, cells) for label, cells in figures]
     if weighted:
         lines.append(row("residual std (stated stds)", [f"{r.solver.sigma0:.4g}" for _, r in cols]))
     else:
@@ -367,13 +369,14 @@ def _compared_contacts(cols) -> list[tuple[str, list[str]]]:
 
 
 def _compared_stats(cols) -> list[tuple[str, list[str]]]:
-    """The position error statistics of each identification, on the sets the first one has, and the
-    RMS error in use over the range of use (the check "where the model holds") the choice weighs (mm)."""
-    first = cols[0][1].stats
+    """The position error statistics of each identification, on the sets and rows the first one's
+    summary shows (``stat_rows``: the nominal as given where "before" registered base and markers),
+    and the RMS error in use over the range of use (the check "where the model holds") the choice
+    weighs (mm)."""
     lines = []
-    for key in (k for k in STAT_ROWS if getattr(first, k).n):
+    for key, label, _ in stat_rows(cols[0][1].stats):
         for q in ("mean", "std", "rms", "max"):
-            lines.append((f"{key.replace('_', ', ')} {q} (mm)",
+            lines.append((f"{key.split('_')[0]}, {label} {q} (mm)",
                           [f"{getattr(getattr(r.stats, key), q) * MM:.3f}" for _, r in cols]))
     if all(r.in_use is not None and r.coverage is not None for _, r in cols):
         lines.append(("in use, range of use rms (mm)",
