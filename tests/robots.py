@@ -1,4 +1,4 @@
-"""Test robots built in code (SI): a 6R industrial arm and a TH8-like cylindrical arm."""
+"""Test robots built in code (SI): a 6R industrial arm, a TH8-like cylindrical arm, a 7-joint arm."""
 
 from pathlib import Path
 
@@ -51,6 +51,24 @@ def cylindrical(masses=False):
                         base_position=(2.0, 0.5, -0.3))
 
 
+def arm7(masses=False):
+    """A 7-joint arm of the collaborative shape of examples/arm7 (alternating perpendicular axes,
+    about 0.8 m reach), placed in a tracker's frame."""
+    rows = [dict(joint="revolute", r=0.34), dict(joint="revolute", alpha=-90 * DEG),
+            dict(joint="revolute", alpha=90 * DEG, r=0.4), dict(joint="revolute", alpha=90 * DEG),
+            dict(joint="revolute", alpha=-90 * DEG, r=0.4), dict(joint="revolute", alpha=-90 * DEG),
+            dict(joint="revolute", alpha=90 * DEG, r=0.126)]
+    if masses:
+        coms = [(0, -0.03, -0.1), (0, -0.1, 0.03), (0.03, 0, -0.12), (0, 0.1, 0.03), (0, 0.03, -0.1), (0.05, 0, 0),
+                (0, 0, 0.05)]
+        for row, m, c in zip(rows, [4.0, 4.0, 3.0, 2.7, 1.7, 1.6, 0.5], coms):
+            row.update(mass=m, com=c)
+    limits = [(-170 * DEG, 170 * DEG), (-120 * DEG, 120 * DEG)] * 3 + [(-175 * DEG, 175 * DEG)]
+    c, s = np.cos(-0.5), np.sin(-0.5)
+    return serial_model("arm7", rows, markers=[("ball", (0.03, 0.02, 0.1))], joint_limits=limits,
+                        base_position=(1.0, 0.8, 0.0), base_rotation=[[c, -s, 0], [s, c, 0], [0, 0, 1]])
+
+
 def beyond_model(n: int, rng, *, poses=(60, 300), presets=None):
     """``n`` campaigns of simulated robots with effects beyond the model: the 6R and the cylindrical
     arm with masses in turn, each perturbed, the presets of ``robocal.sim.PRESETS`` in turn (in the
@@ -67,6 +85,57 @@ def beyond_model(n: int, rng, *, poses=(60, 300), presets=None):
         q = rc.random_configurations(nominal, int(rng.integers(poses[0], poses[1] + 1)), rng=int(rng.integers(1 << 30)))
         data = measure_campaign(true, q, PRESETS[preset], rng=int(rng.integers(1 << 30)), robot_seed=k)
         yield name, preset, k, nominal, data
+
+
+# the effects a real campaign meets, at the sizes industrial arms and a tracker show (SI)
+EFFECTS = ("encoder", "repeatability", "backlash", "gears", "elasticity", "drift")
+
+
+def imperfections(model: rc.RobotModel, effects, rng):
+    """``RobotImperfections`` with the ``effects`` named (of ``EFFECTS``) at sizes drawn from ``rng``,
+    and a tracker's noise: a 17 to 20 bit encoder on each revolute joint (1 to 5 um on a prismatic
+    one); a per-axis repeatability of 10 to 50 um; lost motion of 0.005 to 0.03 deg (5 to 30 um) per
+    joint, held on gravity's side where the load beats a friction of 0.5 to 50 N m (5 to 500 N); gear
+    errors of 0.005 to 0.03 deg; the elastic preset's elasticity and bending; a drift of 1e-4 to 5e-4."""
+    from robocal.sim import PRESETS, RobotImperfections
+
+    angle = np.array([k == "angle" for k in model.reading_quantities])
+    n = model.n_joints
+    kw: dict = {"instrument_noise": rc.Noise.of("tracker").position}
+    if "encoder" in effects:
+        bits = int(rng.integers(17, 21))
+        kw["encoder_resolution"] = tuple(np.where(angle, 2 * np.pi / 2 ** bits, rng.uniform(1e-6, 5e-6, n)))
+    if "repeatability" in effects:
+        kw["repeatability_sigma"] = float(rng.uniform(10e-6, 50e-6))
+    if "backlash" in effects:
+        kw["backlash"] = tuple(np.where(angle, rng.uniform(0.005, 0.03, n) * DEG, rng.uniform(5e-6, 30e-6, n)))
+        kw["backlash_friction"] = tuple(np.exp(rng.uniform(np.log(0.5), np.log(50.0), n)) * np.where(angle, 1, 10))
+    if "gears" in effects:
+        kw["gear_error"] = float(rng.uniform(0.005, 0.03) * DEG)
+    if "elasticity" in effects:
+        kw.update(elasticity=PRESETS["elastic"].elasticity, bending=PRESETS["elastic"].bending)
+    if "drift" in effects:
+        kw["drift"] = float(rng.uniform(1e-4, 5e-4))
+    return RobotImperfections(**kw)
+
+
+def combined_effects(n: int, rng, *, poses=(60, 300)):
+    """``n`` campaigns of simulated robots with several effects beyond the model at once: the 6R, the
+    cylindrical and the 7-joint arm with masses in turn, each perturbed, with 2 to 4 of ``EFFECTS``
+    (``imperfections``), ``poses[0]`` to ``poses[1]`` random poses, all drawn from ``rng``; yields
+    (robot name, effects, k, nominal model, true model, imperfections, data)."""
+    from robocal.sim import measure_campaign
+
+    robots = [("arm6r", arm6r(masses=True)), ("cylindrical", cylindrical(masses=True)), ("arm7", arm7(masses=True))]
+    for k in range(n):
+        name, nominal = robots[k % len(robots)]
+        effects = tuple(sorted(rng.choice(len(EFFECTS), int(rng.integers(2, 5)), replace=False)))
+        effects = tuple(EFFECTS[i] for i in effects)
+        imp = imperfections(nominal, effects, rng)
+        true = rc.perturb_model(nominal, rc.identifiability(nominal).identified, rng=int(rng.integers(1 << 30)))
+        q = rc.random_configurations(nominal, int(rng.integers(poses[0], poses[1] + 1)), rng=int(rng.integers(1 << 30)))
+        data = measure_campaign(true, q, imp, rng=int(rng.integers(1 << 30)), robot_seed=k)
+        yield name, effects, k, nominal, true, imp, data
 
 
 TORSO = Path(__file__).resolve().parents[1] / "examples" / "torso" / "model.yaml"
