@@ -106,8 +106,8 @@ def test_a_robots_own_gear_error_warns_with_the_family_that_carries_it():
     """A cylindrical arm whose joints have gear errors of 0.02 deg (the judgement corpus' campaign 41):
     a scale of j1 lowers the cross-validated error from 0.157 to 0.074 mm, but the geometric
     calibration places the robot 12x better than the nominal: a possible cause that names the
-    transmission parameters, not a failure (8fee3fe failed it). The repair must be far better in use
-    to decide, as for a gear ratio 1.02 (the test above)."""
+    transmission parameters, not a failure (8fee3fe failed it). A scale no robot has of its own
+    decides, as a gear ratio 1.02 (the test above)."""
     nominal = robots.cylindrical(masses=True)
     true = rc.perturb_model(nominal, rc.identifiability(nominal).identified, rng=451231239)
     q = rc.random_configurations(nominal, 187, rng=247226356)
@@ -115,9 +115,39 @@ def test_a_robots_own_gear_error_warns_with_the_family_that_carries_it():
     result = _calibrated(nominal, data)
     cause = _first(result)
     assert cause.hypothesis == "joint scale" and cause.status == "warn" and "transmission" in cause.fix
-    assert result.verdict == "warn" and "within 4 times the repair's" in cause.evidence
+    assert result.verdict == "warn" and "the robot's own effect, not a mistake in the data" in cause.evidence
     gain, se = result.in_use.improvement
     assert gain > 10 * se
+
+
+def _combined(seed: int, k: int):
+    """Campaign ``k`` of ``robots.combined_effects`` drawn with ``seed``: (effects, nominal, true, imp, data)."""
+    for _, effects, j, nominal, true, imp, data in robots.combined_effects(k + 1, np.random.default_rng(seed)):
+        if j == k:
+            return effects, nominal, true, imp, data
+
+
+def _placed(true, model, imp, k: int) -> float:
+    """The mean distance between where ``model`` puts the marker and where the true robot goes, over the limits."""
+    return float(rc.sim.placement_errors(true, model, imp, rng=7, robot_seed=k).mean())
+
+
+@pytest.mark.parametrize("seed, k, hypothesis", [(3, 86, "drift"), (1, 34, "lost motion")])
+def test_a_robots_own_drift_or_lost_motion_warns_and_never_fails_a_calibration_better_in_use(seed, k, hypothesis):
+    """Robots with several effects beyond the model (the judgement corpus' combined group): a 7-joint
+    arm growing 0.05 % as it warms up over the campaign, and a cylindrical arm whose j1 has 0.028 deg
+    of lost motion (its repair 4.02 times better in use). Each geometric calibration places its robot
+    many times better than the nominal in truth (1.9 -> 0.1 mm, 1.2 -> 0.15 mm), and the diagnosis
+    failed both, the drift as a mistake in the data and the lost motion beyond 4 times its repair's
+    error: the robot's own effects warn with their fix, the calibration stands."""
+    effects, nominal, true, imp, data = _combined(seed, k)
+    assert hypothesis.split()[0].replace("lost", "backlash") in " ".join(effects)
+    result = _calibrated(nominal, data)
+    cause = _first(result)
+    assert cause.hypothesis == hypothesis and cause.status == "warn", cause
+    assert result.verdict == "warn" and "the robot's own effect, not a mistake in the data" in cause.evidence
+    registered = rc.register_base(nominal, data)
+    assert _placed(true, result.calibrated_model, imp, k) < 0.2 * _placed(true, registered, imp, k)
 
 
 def test_a_scale_no_robot_carries_decides_though_the_calibration_is_close_in_use():
@@ -387,11 +417,15 @@ def test_lost_motion_the_model_leaves_out_is_named_and_calibrating_it_as_said_cl
     its last move or under its gravity load, calibrated as rigid: 00ce07c named nothing and passed
     with a misfit four to eight times the noise. The joint's lost motion takes one column (its
     reading's column times its side); its size is the one simulated, and the calibration the fix asks
-    for passes with it."""
+    for passes with it. The robot's own effect, it warns: the rigid calibration places the robot 4.5 to
+    7 times better in use than the nominal (1.5 -> 0.2 mm), within 0.1 to 0.23 mm of the truth."""
     case = make(robot, seed)
     result = case.run()[0]
     found = _first(result)
-    assert result.verdict == "fail" and found.hypothesis == "lost motion" and found.items == (joint,)
+    assert result.verdict == "warn" and found.hypothesis == "lost motion" and found.items == (joint,)
+    assert found.status == "warn" and case.model_error(result) < 0.25e-3
+    gain, se = result.in_use.improvement
+    assert gain > 10 * se and result.in_use.position_after.rms < 0.25 * result.in_use.position_before.rms
     when = "when approached from either side" if side == "approach" else "as its gravity load turns over"
     said = re.search(rf"joint {joint} stops about ([0-9.]+) deg apart {when}", found.cause)
     assert said is not None, found.cause
@@ -425,7 +459,7 @@ def test_lost_motion_is_judged_by_the_files_approach_columns_when_it_has_them(tm
     rc.write_measurements(shuffled, tmp_path / "d.csv", model=case.model)
     assert "approach_j1" in (tmp_path / "d.csv").read_text().splitlines()[0]
     code, out, _ = cli("calibrate", tmp_path / "m.yaml", tmp_path / "d.csv", "--out", tmp_path / "a")
-    assert code == 3 and out.splitlines()[1].startswith("  DECISIVE: joint j1 stops about 0.0")
+    assert code == 0 and out.splitlines()[1].startswith("  possible cause: joint j1 stops about 0.0")
     bare = replace(shuffled, extra={k: v for k, v in shuffled.extra.items() if k != "approach"})
     result = _calibrated(case.model, bare)
     assert not any(f.hypothesis == "lost motion" for f in result.diagnosis.findings), result.diagnosis.summary
@@ -493,13 +527,16 @@ def test_no_cause_is_named_where_there_is_none(make):
 
 @pytest.mark.parametrize("preset", ["elastic", "gears", "cable", "scatter", "thermal"])
 def test_no_cause_on_robots_with_effects_beyond_the_model(preset):
-    named = []
+    """No mistake is named where the data hold none; an elastic robot calibrated as rigid may be said
+    to give under its weight (the robot's own, a warning with compliance as the fix), nothing else."""
+    named, elastic = [], rc.sim.PRESETS[preset].elasticity > 0
     for make in corpus.ROBOTS.values():
         m = make(masses=True)
         true, d = rc.simulate(m, corpus.N_POSES, seed=3, noise=corpus.NOISE)
         data = rc.sim.measure_campaign(true, d.q, rc.sim.PRESETS[preset], rng=3, robot_seed=3)
         result = _calibrated(m, data)
-        named += [result.diagnosis.summary] if result.diagnosis.findings else []
+        named += [f.cause for f in result.diagnosis.findings
+                  if not (elastic and f.hypothesis == "compliance left out" and f.status == "warn")]
     assert not named, named
 
 
@@ -568,3 +605,34 @@ def test_a_unit_repaired_says_what_is_left_in_that_unit():
     # what decides first: the figures in the declared unit beside it are no better, which read as
     # evidence against the cause when they came first
     assert first.evidence.index("it fits as well") < first.evidence.index("as declared"), first.evidence
+
+
+def test_joints_that_give_under_the_robots_weight_are_named_with_compliance_as_the_fix():
+    """An elastic 6R arm with masses calibrated as rigid (the judgement corpus' combined group, seed
+    1, campaign 20): the diagnosis named a joint scale of 1.0004 with the fix "correct the gear ratio",
+    a cause that is not there, for no hypothesis let the joints give under the robot's own weight.
+    Each loaded joint's reading column times its gravity load now does (all together, as a
+    calibration with compliance frees them); it comes first, and the calibration it asks for places
+    the robot better in truth than the rigid one."""
+    effects, nominal, true, imp, data = _combined(1, 20)
+    assert "elasticity" in effects and "gears" not in effects
+    rigid = _calibrated(nominal, data)
+    cause = _first(rigid)
+    assert cause.hypothesis == "compliance left out" and cause.status == "warn", rigid.diagnosis.summary
+    assert cause.fix == "calibrate it (--parameters geometric,compliance)"
+    elastic = _calibrated(nominal, data, parameters=("geometric", "compliance"))
+    assert not any(f.hypothesis == "compliance left out" for f in elastic.diagnosis.findings)
+    assert _placed(true, elastic.calibrated_model, imp, 20) < 0.5 * _placed(true, rigid.calibrated_model, imp, 20)
+
+
+def test_a_rigid_robot_with_masses_is_not_said_to_give_under_its_weight():
+    """The 6R and cylindrical arms with masses, clean or with a rigid robot's effects beyond the model
+    (gear errors, scatter, thermal growth), calibrated as rigid: no compliance is named where the
+    robot has none."""
+    campaigns = list(robots.beyond_model(6, np.random.default_rng(3), presets=("gears", "scatter", "thermal")))
+    for model in (robots.arm6r(masses=True), robots.cylindrical(masses=True)):
+        campaigns.append(("clean", "none", 0, model, rc.simulate(model, 120, seed=4)[1]))
+    for name, preset, k, model, data in campaigns:
+        assert model.has_masses
+        result = _calibrated(model, data)
+        assert not any(f.hypothesis == "compliance left out" for f in result.diagnosis.findings), (name, preset, k)

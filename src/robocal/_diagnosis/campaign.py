@@ -492,7 +492,8 @@ def _stepped(ref: Reference, Z: np.ndarray, row: int) -> Linear:
 
 def drift(ref: Reference) -> list[Candidate]:
     """A slow drift along the campaign's order (warming up, the instrument creeping): the base, the load
-    or the whole robot changing in proportion to the row (its columns stepped)."""
+    or the whole robot changing in proportion to the row (its columns stepped). The whole robot's is
+    its own (it grows as it warms up): ``carried``."""
     t = ref.rows[_row_pose(ref)] / max(ref.campaign.n_poses - 1, 1) - 0.5
     out = []
     for what, cols in _groups(ref):
@@ -505,7 +506,7 @@ def drift(ref: Reference) -> list[Candidate]:
                              "instrument creeping)", "", "let the robot and the instrument warm up, check the "
                              "instrument's reference, measure again", (first, last),
                              _predicted(ref, gain, Z.shape[1]), 0.0, partial(Linear, Z),
-                             generic=what.startswith("the robot")))
+                             generic=what.startswith("the robot"), carried=what.startswith("the robot")))
     return out + _joint_drift(ref, t)
 
 
@@ -540,13 +541,39 @@ def _lost_motion_sides(ref: Reference) -> dict:
     gravity load pushes it (``gravity``)."""
     sides = {"approach": -approach_of(ref.data)}
     if ref.start.has_masses:
-        # on the problem's model, whose layout exists: the calibrated model's would be built anew each
-        # call, at about the cost of the loads themselves
-        prob, data = ref.problem, ref.data
-        loads = loads_at(prob.model, prob.lay, ref.p, data.q, payload_mass=data.payload_mass)
+        loads = _gravity_loads(ref)
         # a load at rounding's level (a joint whose distal masses sit on its axis) has no side
         sides["gravity"] = np.where(np.abs(loads) > LOAD_ROUNDING * np.abs(loads).max(initial=0.0), np.sign(loads), 0.0)
     return sides
+
+
+def _gravity_loads(ref: Reference) -> np.ndarray:
+    """(n_poses, n_joints) each joint's gravity load at the poses diagnosed, at the calibration's
+    values (a model with masses), made once: on the problem's model, whose layout exists (the
+    calibrated model's would be built anew each call, at about the cost of the loads themselves)."""
+    prob, data = ref.problem, ref.data
+    return ref.cached("gravity loads", lambda: loads_at(prob.model, prob.lay, ref.p, data.q,
+                                                        payload_mass=data.payload_mass))
+
+
+def compliance_left_out(ref: Reference) -> list[Candidate]:
+    """Joints that give under the robot's own weight (joint compliance) where the calibration left
+    compliance out, on a model with masses: each loaded joint's reading column times its gravity load
+    (docs/method.md section 2, the joint's deflection ``k * load``), all together, as a calibration
+    with compliance frees them. The robot's own, which a model carries."""
+    lay = parameter_layout(ref.model)
+    if not ref.start.has_masses or any(lay[n].family == "compliance" for n in ref.names):
+        return []
+    loads = _gravity_loads(ref)
+    loaded = [j for j in _steppable_joints(ref) if np.ptp(loads[:, j]) > LOAD_ROUNDING * np.abs(loads).max()]
+    if not loaded or not _determined(ref, len(loaded)):
+        return []
+    Z = joint_columns(ref)[:, loaded] * loads[row_layout(ref)[0]][:, loaded]
+    names = tuple(ref.model.joint_names[j] for j in loaded)
+    return [Candidate("compliance left out", f"the joints give under the robot's own weight ({', '.join(names)}: "
+                      "joint compliance), which the model leaves out", "", "calibrate it (--parameters "
+                      "geometric,compliance)", names, _predicted(ref, projected_gain(ref, Z), Z.shape[1]),
+                      0.0, partial(Linear, Z), carried=True)]
 
 
 def lost_motion(ref: Reference) -> list[Candidate]:

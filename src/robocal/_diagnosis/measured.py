@@ -27,6 +27,7 @@ from .._identification.result import CalibrationResult, Diagnosis, Finding
 from .._model.measurements import Measurements, Noise
 from .._model.robot import RobotModel
 from .campaign import (
+    compliance_left_out,
     drift,
     joint_rehomed,
     labels_swapped,
@@ -54,8 +55,8 @@ from .values import axes_swapped, markers_swapped, mirrored_frame, payload_unit,
 
 HYPOTHESES = (rows_shifted, pose_labels_offset, mirrored_frame, axes_swapped, markers_swapped, position_unit,
               reading_unit, payload_unit, joint_scale, joint_sign, joints_swapped, model_sign, robot_size, marker_frame,
-              step_change, joint_rehomed, drift, lost_motion, readings_lag, marker_elsewhere, labels_swapped,
-              rotation_convention)
+              step_change, joint_rehomed, drift, lost_motion, compliance_left_out, readings_lag, marker_elsewhere,
+              labels_swapped, rotation_convention)
 STATUS_RANK = {"fail": 2, "warn": 1}
 
 

@@ -83,11 +83,6 @@ HEAVY_PAYLOAD = 10.0
 PLAUSIBLE_FIT = 0.5
 # ... and when its cross-validated error is no worse than by this share (or two standard errors)
 PLAUSIBLE_FIT_SHARE = 0.05
-# a cause that may be a property of the robot a model can carry (a joint's scale small enough to be
-# the robot's: the transmission parameters) decides the verdict only when the calibration's
-# cross-validated error is at least this many times the repair's; below, the calibration stands and
-# the finding warns with the parameters that carry it
-CARRIED_FACTOR = 4.0
 # a cross-validated error that moves by less than this share of itself is said unchanged: rounding
 # in two fits of the same minimum, far below anything three significant digits can show
 UNCHANGED_SHARE = 1e-6
@@ -411,8 +406,9 @@ class Candidate:
     ``model_file`` candidate repairs the nominal model: when the calibration took its mistake up, it
     warns (the calibrated model holds what the data say). An ``absorbed`` one is a mistake a calibration
     can take up exactly with implausible changes (a sign, a unit, a mirror): its repair may fit only as
-    well, and make them plausible. A ``carried`` one may be a property of the robot a model can carry
-    (``CARRIED_FACTOR``); one ``beyond_robot`` is no robot's own (``judged``)."""
+    well, and make them plausible. A ``carried`` one may be the robot's own (its lost motion, a gear's
+    scale, its growth as it warms up), which never fails a calibration: the calibration stands on its
+    accuracy in use (``finding``); one ``beyond_robot`` is no robot's own (``judged``)."""
 
     hypothesis: str
     cause: str
@@ -686,10 +682,10 @@ def finding(ref: Reference, cand: Candidate, rms: float, verdict: Judgement, how
     score = float(np.log10(verdict.factor)) - (float(np.log10(CLOSE_FACTOR)) if cand.generic else 0.0)
     # the calibration took up a mistake of the model file: its model holds what the data say
     status = "warn" if verdict.plausible and cand.model_file else verdict.status
-    if cand.carried and status == "fail" and before < CARRIED_FACTOR * (before - verdict.gain):
+    if cand.carried and status == "fail":     # the robot's own, not a mistake in its data
         status = "warn"
-        evidence += (f"; the calibration's error in use is within {CARRIED_FACTOR:g} times the repair's: it stands, "
-                     "and a model that carries the cause does better")
+        evidence += ("; the robot's own effect, not a mistake in the data: the calibration stands on its accuracy in "
+                     "use, and the fix does better")
     return Finding(cand.hypothesis, cand.cause, evidence, score, cand.items, ref.rms, rms, cand.fix, status)
 
 
