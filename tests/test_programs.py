@@ -382,6 +382,28 @@ def test_targets_computed_in_the_program_stay_read_only(tmp_path, cli):
     assert "p1 (line 3, pose): read only: not a literal value" in out and "compensated 1 of 5 targets" in out
 
 
+def test_a_target_computed_inline_is_listed_read_only_not_dropped(tmp_path, cli):
+    """A RAPID target written inline in a motion with an expression inside is listed as read only,
+    as a declared one is; a motion's other bracketed arguments (speed data) are no targets."""
+    rapid = ("MODULE m\n  VAR num x0 := 10;\n  PROC main()\n"
+             f"    MoveL [[Abs(x0), 10, 20], [1, 0, 0, 0], [0, 0, 0, 0], {EXT}], v100, z10, tool0;\n"
+             f"    MoveAbsJ [[10, -30, x0 + 40, 20, 50, -30], {EXT}], v100, fine, tool0;\n"
+             f"    MoveL [p0.trans, [1, 0, 0, 0], [0, 0, 0, 0], {EXT}], [100, 500, 5000, 1000], fine, tool0;\n"
+             f"    MoveAbsJ [[10, -30, 40, 20, 50, -30], {EXT}], [vtcp, vori, vleax, vreax], fine, tool0;\n"
+             "  ENDPROC\nENDMODULE\n")
+    (tmp_path / "p.mod").write_text(rapid)
+    targets = read_program(tmp_path / "p.mod").targets
+    assert [(t.name, t.kind, t.skip) for t in targets] == [
+        ("line 4", "pose", "not a literal value"), ("line 5", "joint", "not a literal value"),
+        ("line 6", "pose", "not a literal value"), ("line 7", "joint", "")]
+    rc.write_model(arm6r(), tmp_path / "m.yaml")
+    code, out, err = cli("compensate", tmp_path / "m.yaml", tmp_path / "m.yaml", tmp_path / "p.mod",
+                         "--out", tmp_path / "out.mod")
+    assert code == 0, err
+    assert "line 4 (pose): read only: not a literal value" in out
+    assert "line 5 (joint): read only: not a literal value" in out and "compensated 1 of 4 targets" in out
+
+
 def test_cli_compensates_a_program_and_prints_each_target(models, tmp_path, cli):
     nominal, calibrated = models
     rc.write_model(nominal, tmp_path / "nominal.yaml")

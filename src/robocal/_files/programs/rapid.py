@@ -35,6 +35,7 @@ LENGTH, ANGLE = 1e-3, math.pi / 180            # file units to SI
 ORIENTATION = 1.0                              # a quaternion's components
 JOINT_TARGET = "[[rax_1, ..., rax_6], [eax_a, ..., eax_f]]"
 ROB_TARGET = "[[x, y, z], [q1, q2, q3, q4], [cf1, cf4, cf6, cfx], [eax_a, ..., eax_f]]"
+SIZES = {"jointtarget": (6, 6), "robtarget": (3, 4, 4, 6)}      # the parts of each and their lengths
 DECLARES = ("const", "pers", "var")
 MOTION = ("move", "trigg", "search")           # instructions whose literal targets are read
 TURN_JOINTS = (0, 3, 5)                         # cf1, cf4, cf6: quadrants of axes 1, 4 and 6
@@ -174,17 +175,24 @@ def _declaration(toks, d: int, end: int, sc, targets, frames) -> None:
 
 
 def _inline(agg: Aggregate, sc, targets, anchor: int, **frames) -> None:
+    """A motion's bracketed argument shaped as a jointtarget or robtarget: a target, read only where
+    something in it is computed (``[[Abs(x0), 10, 20], ...]``), as a declared one is."""
     line = sc.line_col(agg.start)[0]
-    for kind in ("jointtarget", "robtarget"):
-        if _shape(kind, agg):
+    for kind in SIZES:
+        if _shape(kind, agg, computed=True):
             targets.append(_target(kind, f"line {line}", agg, sc, anchor=anchor, **frames))
 
 
-def _shape(kind: str, agg) -> bool:
-    if not isinstance(agg, Aggregate):
+def _shape(kind: str, agg, *, computed: bool = False) -> bool:
+    """Whether ``agg`` is a ``kind`` of literal numbers; with ``computed``, also one whose parts, or
+    numbers in them, are expressions, provided a part of its size tells it from other data."""
+    sizes = SIZES[kind]
+    if not isinstance(agg, Aggregate) or len(agg.items) != len(sizes):
         return False
-    sizes = (6, 6) if kind == "jointtarget" else (3, 4, 4, 6)
-    return len(agg.items) == len(sizes) and all(numbers(a, n) is not None for a, n in zip(agg.items, sizes))
+    if not computed:
+        return all(numbers(a, n) is not None for a, n in zip(agg.items, sizes))
+    parts = [isinstance(a, Aggregate) and len(a.items) == n for a, n in zip(agg.items, sizes)]
+    return any(parts) and all(p or not isinstance(a, (Aggregate, Number)) for p, a in zip(parts, agg.items))
 
 
 def _literal(agg) -> bool:
