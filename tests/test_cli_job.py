@@ -160,11 +160,14 @@ def test_export_takes_urdf_from_the_file_name_and_asks_for_a_tables_form(tmp_pat
 
 @pytest.mark.parametrize("fmt, name, words", [
     # a classic DH table written into x.urdf, exit 0
-    ("dh-csv", "x.urdf", "names a .urdf file, but --format dh-csv writes a .csv one: give it a .csv name, or "
-                         "--format urdf"),
-    ("mdh-csv", "x.URDF", "names a .urdf file"),
-    ("urdf", "x.csv", "names a .csv file, but --format urdf writes a .urdf one: give it a .urdf name, or --format "
-                      "mdh-csv or dh-csv"),
+    ("dh-csv", "x.urdf", "names a URDF file (.urdf), but --format dh-csv writes a CSV file: give it a .csv name, "
+                         "or --format urdf"),
+    ("mdh-csv", "x.URDF", "names a URDF file (.urdf)"),
+    ("urdf", "x.csv", "names a CSV file (.csv), but --format urdf writes a URDF file: give it a .urdf name, or "
+                      "--format mdh-csv or dh-csv"),
+    # a URDF written under a model file's or a robot program's name, exit 0
+    ("urdf", "x.yaml", "names a model file (.yaml)"),
+    ("mdh-csv", "x.mod", "names a rapid program file (.mod)"),
 ])
 def test_export_refuses_an_out_named_as_another_format(fmt, name, words, tmp_path, cli):
     (tmp_path / name).write_text("kept\n")

@@ -224,10 +224,11 @@ def test_an_output_that_is_one_of_the_commands_inputs_is_refused_even_with_force
     model.write_bytes((TH8 / "model.yaml").read_bytes())
     targets.write_bytes((TH8 / "targets.csv").read_bytes())
     (tmp_path / "link.csv").symlink_to(targets)
+    (tmp_path / "link.urdf").symlink_to(model)      # model.yaml itself is refused by its name first
     before = {p: p.read_bytes() for p in (model, targets)}
     for args, out in ((("compensate", model, model, targets), targets),
                       (("compensate", model, model, targets), tmp_path / "link.csv"),
-                      (("export", model, "--format", "urdf"), model)):
+                      (("export", model, "--format", "urdf"), tmp_path / "link.urdf")):
         code, _, err = cli(*args, "--out", out, "--force")
         assert code == 2 and "a file this command reads" in err and str(out) in err, err
         assert len(err.strip().splitlines()) == 1

@@ -833,11 +833,39 @@ def test_a_program_over_its_bytes_is_refused_by_its_size(tmp_path):
         read_program(path)
 
 
-def test_an_out_named_as_the_other_kind_is_refused(cli, tmp_path):
-    """A RAPID module compensated into commands.csv was written as RAPID under a .csv name, and a CSV of
-    targets into a .mod name as CSV: each is now refused before anything is read or written."""
+@pytest.mark.parametrize("targets, out, words", [
+    ("program.mod", "commands.csv", "names a CSV file (.csv), but a rapid program compensated writes a rapid "
+                                    "program file: give it a .mod, .modx, .prg, .sys or .sysx name"),
+    ("targets.csv", "program.mod", "names a rapid program file (.mod), but a CSV of targets compensated writes a "
+                                   "CSV file: give it a .csv name (a program's targets are compensated from the "
+                                   "program itself)"),
+    # a RAPID module written under a KRL or URScript name was read back as KRL and refused, exit 0
+    ("program.mod", "program.src", "names a krl program file (.src)"),
+    ("program.mod", "program.script", "names a urscript program file (.script)"),
+    # commands written under a model file's or a URDF's name
+    ("targets.csv", "commands.yaml", "names a model file (.yaml)"),
+    ("targets.csv", "commands.URDF", "names a URDF file (.urdf)"),
+])
+def test_an_out_named_as_another_kind_is_refused(targets, out, words, cli, tmp_path):
+    """The output is of the input's kind, never of the name's: an --out named as another kind of file
+    (another dialect's program too) is refused before anything is read or written, even with --force."""
     th8 = Path(__file__).resolve().parents[1] / "examples" / "th8"
-    for targets, out, words in ((th8 / "program.mod", tmp_path / "commands.csv", ["names a CSV", "(.mod)"]),
-                                (th8 / "targets.csv", tmp_path / "program.mod", ["names a robot program (.mod)"])):
-        code, _, err = cli("compensate", th8 / "model.yaml", th8 / "true_model.yaml", targets, "--out", out)
-        assert_one_line_error(code, err, ["--out", *words], out, command="compensate")
+    (tmp_path / out).write_text("kept\n")
+    code, _, err = cli("compensate", th8 / "model.yaml", th8 / "true_model.yaml", th8 / targets,
+                       "--out", tmp_path / out, "--force")
+    assert_one_line_error(code, err, ["--out", words], command="compensate")
+    assert (tmp_path / out).read_text() == "kept\n"
+
+
+def test_an_out_of_the_programs_dialect_is_taken(cli, tmp_path):
+    """A RAPID module may be written under any RAPID extension, and a program read by --dialect under
+    its own extension or a name robocal gives no kind."""
+    th8 = Path(__file__).resolve().parents[1] / "examples" / "th8"
+    (tmp_path / "program.txt").write_bytes((th8 / "program.mod").read_bytes())
+    (tmp_path / "program.src").write_bytes((th8 / "program.mod").read_bytes())
+    for targets, out, extra in ((th8 / "program.mod", "out.prg", ()),
+                                (tmp_path / "program.txt", "out.txt", ("--dialect", "rapid")),
+                                (tmp_path / "program.src", "out.src", ("--dialect", "rapid"))):
+        code, _, err = cli("compensate", th8 / "model.yaml", th8 / "true_model.yaml", targets, "--out",
+                           tmp_path / out, *extra)
+        assert code == 0 and (tmp_path / out).exists(), err

@@ -374,6 +374,22 @@ def refuse_existing(paths, force: bool) -> None:
     check_writable(paths, force=force)
 
 
+def refuse_misnamed(out: str, written: str, by: str, hint: str = "") -> None:
+    """Refuse an ``--out`` named as another kind of file than the ``written`` one (``CSV``, ``URDF``,
+    ``rapid program``...), ``by`` what writes it: before anything is read, and with ``--force`` too,
+    since the next program to open it goes by its name. ``hint``: what else the user may do."""
+    from .._files.programs import EXTENSIONS
+
+    kinds = {".csv": "CSV", ".urdf": "URDF", ".yaml": "model", ".yml": "model", ".json": "JSON",
+             **{ext: f"{dialect} program" for ext, dialect in EXTENSIONS.items()}}
+    suffix = Path(out).suffix.lower()
+    if kinds.get(suffix, written) != written:
+        names = [ext for ext, kind in kinds.items() if kind == written]
+        raise InputError(f"names a {kinds[suffix]} file ({suffix}), but {by} writes a {written} file: give it a "
+                         f"{', '.join(names[:-1]) + ' or ' if len(names) > 1 else ''}{names[-1]} name{hint}",
+                         where="--out")
+
+
 def warn_if_failed(path, record: dict | None, use: str) -> None:
     """A warning on stderr when the model file at ``path`` is a calibration that failed its checks
     (written anyway with --write-failed): ``use`` says what is about to be made with it."""

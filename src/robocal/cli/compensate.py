@@ -33,7 +33,9 @@ def register(sub) -> None:
                                ("calibrated", "CALIBRATED", "the calibrated model (YAML)"),
                                ("targets", "TARGETS", "targets: a CSV of joint readings or positions/poses in W, "
                                                       "or a robot program")])
-    p.add_argument("--out", required=True, metavar="FILE", help="corrected commands (CSV) or the compensated program")
+    p.add_argument("--out", required=True, metavar="FILE",
+                   help="corrected commands (.csv) or the compensated program (its dialect's extension); a name of "
+                        "another kind is refused")
     g = p.add_argument_group("robot program")
     g.add_argument("--dialect", choices=("rapid", "krl", "urscript"),
                    help="the program's language (default: from its extension)")
@@ -73,20 +75,18 @@ def _is_program(args) -> bool:
     return args.dialect is not None or Path(args.targets).suffix.lower() in EXTENSIONS
 
 
-def _out_of_its_kind(args) -> None:
+def _refuse_misnamed(args) -> None:
     """A program compensated is written as that program, a CSV of targets as a CSV of commands: an
-    ``--out`` named as the other kind is refused, before anything is read."""
-    from .._files.programs import EXTENSIONS
+    ``--out`` named as another kind of file (another dialect's program too) is refused."""
+    from .._files.programs import dialect_of
 
-    suffix = Path(args.out).suffix.lower()
-    if _is_program(args) and suffix == ".csv":
-        raise InputError("names a CSV, but a robot program compensated is written as that program (the same "
-                         f"dialect, its targets' numbers rewritten): give it the program's extension "
-                         f"({Path(args.targets).suffix or ', '.join(EXTENSIONS)})", where="--out")
-    if not _is_program(args) and suffix in EXTENSIONS:
-        raise InputError(f"names a robot program ({suffix}), but a CSV of targets gives a CSV of joint commands: "
-                         "give it a .csv name (a program's targets are compensated from the program itself)",
-                         where="--out")
+    if not _is_program(args):
+        common.refuse_misnamed(args.out, "CSV", "a CSV of targets compensated",
+                               " (a program's targets are compensated from the program itself)")
+        return
+    if Path(args.out).suffix.lower() != Path(args.targets).suffix.lower():     # the program's own name stands
+        dialect = dialect_of(args.targets, args.dialect)
+        common.refuse_misnamed(args.out, f"{dialect} program", f"a {dialect} program compensated")
 
 
 def _run_program(args, nominal, calibrated, ranges) -> int:
@@ -193,7 +193,7 @@ def run(args) -> int:
     from .._files.commands import BEYOND_LIMITS, REACHED, command_status, commands_to_csv
     from .._files.model import read_model, read_model_and_record
 
-    _out_of_its_kind(args)
+    _refuse_misnamed(args)
     common.refuse_existing([args.out], args.force)
     nominal = read_model(args.nominal)
     calibrated, record = read_model_and_record(args.calibrated)

@@ -30,8 +30,8 @@ def register(sub) -> None:
                        example=EXAMPLE, inputs=[("model", "MODEL", "model file (YAML), e.g. OUT/calibrated.yaml")])
     p.add_argument("--format", choices=FORMATS, help="what to write (default urdf for an --out ending in .urdf; a "
                                                      "table needs it: mdh-csv or dh-csv)")
-    p.add_argument("--out", required=True, metavar="FILE", help="file to write (.urdf for urdf, .csv for a table; "
-                                                                "another format's extension is refused)")
+    p.add_argument("--out", required=True, metavar="FILE", help="file to write (.urdf for urdf, .csv for a table; a "
+                                                                "name of another kind (.yaml, .mod...) is refused)")
     p.add_argument("--units", type=common.units, default="mm-deg", help="units of a DH table (default mm-deg)")
     p.add_argument("--allow-ill-conditioned", action="store_true",
                    help="dh-csv: write even where nearly parallel axes need huge offsets (with a warning)")
@@ -58,16 +58,6 @@ def _exported(args, model) -> str:
         raise InputError(e.detail + hint, source=args.model, where=e.where) from None
 
 
-def _out_of_its_kind(out: str, fmt: str) -> None:
-    """An ``--out`` named as another format's file (a CSV table written into x.urdf) is refused
-    before anything is read: the next program to open it goes by its name."""
-    suffix = Path(out).suffix.lower()
-    others = [f for f, ext in EXTENSION.items() if ext == suffix and ext != EXTENSION[fmt]]
-    if others:
-        raise InputError(f"names a {suffix} file, but --format {fmt} writes a {EXTENSION[fmt]} one: give it a "
-                         f"{EXTENSION[fmt]} name, or --format {' or '.join(others)}", where="--out")
-
-
 def run(args) -> int:
     from .._files.checked import check_export
     from .._files.model import read_model_and_record
@@ -78,7 +68,9 @@ def run(args) -> int:
             raise InputError("needed: urdf, mdh-csv (modified DH with Hayati's beta) or dh-csv (classic DH); only an "
                              "--out ending in .urdf says which", where="--format")
         args.format = "urdf"
-    _out_of_its_kind(args.out, args.format)
+    others = [f for f, ext in EXTENSION.items() if ext == Path(args.out).suffix.lower() and f != args.format]
+    common.refuse_misnamed(args.out, "URDF" if args.format == "urdf" else "CSV", f"--format {args.format}",
+                           f", or --format {' or '.join(others)}" if others else "")
     common.refuse_existing([args.out], args.force)
     model, record = read_model_and_record(args.model)
     common.warn_if_failed(args.model, record, f"the {args.format} file, which cannot say so, is written from")
