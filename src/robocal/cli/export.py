@@ -5,6 +5,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from .._base.errors import InputError
 from . import common
 
@@ -58,6 +60,30 @@ def _exported(args, model) -> str:
         raise InputError(e.detail + hint, source=args.model, where=e.where) from None
 
 
+def _left_out(model) -> str:
+    """What of ``model`` no export carries ("" for nothing): compliance, backlash, transmission errors."""
+    terms = [name for name, has in (("compliance", model.has_compliance), ("backlash", model.has_backlash),
+                                    ("transmission errors (gear scales, harmonics)", model.has_transmission)) if has]
+    if not terms:
+        return ""
+    verb = "are" if len(terms) > 1 or model.has_transmission else "is"
+    return f"{', '.join(terms[:-1]) + ' and ' if len(terms) > 1 else ''}{terms[-1]} {verb} not exported"
+
+
+def _moved(model, n: int = 1000) -> str:
+    """How far the geometry alone puts the markers from where ``model`` puts them: the largest
+    distance over ``n`` readings within the joint limits, so that the user can judge the export."""
+    from .._files.checked import sample_readings, without_transmission
+    from .._model.kinematics import evaluate
+
+    q = sample_readings(model, n)
+    full = evaluate(model, q).positions
+    geometry = evaluate(without_transmission(model), q, compliance=False, backlash=False).positions
+    gap = np.linalg.norm(full - geometry, axis=-1).max() * common.MM
+    return (f"the markers ({', '.join(model.marker_names)}) up to {gap:.3g} mm from the model's ({n} readings "
+            "within the joint limits)")
+
+
 def run(args) -> int:
     from .._files.checked import check_export
     from .._files.model import read_model_and_record
@@ -81,12 +107,10 @@ def run(args) -> int:
             print(f"robocal: warning: classic DH of {args.model} is ill-conditioned: offsets "
                   f"{', '.join(f'{n} {v:.3g} m' for n, v in far)}; rounding them moves the tool", file=sys.stderr)
     check_export(model, text, args.format, source=args.model)
-    if model.has_compliance:
-        print(f"robocal: warning: {args.model}: compliance is not exported; {args.format} holds the geometry only",
-              file=sys.stderr)
-    if model.has_transmission:
-        print(f"robocal: warning: {args.model}: transmission errors (gear scales, harmonics) are not exported; "
-              f"{args.format} cannot carry them and holds the geometry only", file=sys.stderr)
+    left_out = _left_out(model)
+    if left_out:
+        print(f"robocal: warning: {args.model}: {left_out}: {args.format} holds the geometry only, which puts "
+              f"{_moved(model)}", file=sys.stderr)
     common.write_outputs({args.out: text}, force=args.force)
     print(f"{model.name}: {args.format} of {model.n_joints} joints, markers {', '.join(model.marker_names)}: "
           f"wrote {args.out}")
