@@ -743,6 +743,25 @@ def test_krl_targets_whose_tool_data_are_not_read_are_flagged_and_left_unchanged
     assert kept == [ln for ln in program.text.splitlines() if not ln.lstrip().startswith(";")]
 
 
+def test_krl_spline_segments_are_compensated_as_any_motion(models, tmp_path):
+    """An SPL segment of a SPLINE block was not read: its point stayed where the nominal robot would
+    have gone while the SLIN beside it moved, bending the path between them."""
+    nominal, calibrated = models
+    pose = "X 103.185, Y -20.000, Z -229.637, A 0.0000, B 65.0000, C 180.0000"
+    text = ("DEF spline( )\n$TOOL = TOOL_DATA[1]\n$BASE = $NULLFRAME\n"
+            "PTP {A1 0.0, A2 -40.0, A3 60.0, A4 0.0, A5 45.0, A6 0.0}\n"
+            f"SPLINE\n  SPL {{{pose}}}\n  SLIN {{{pose}}}\n  SPL XP1\nENDSPLINE\nEND\n")
+    program = _reread(tmp_path, text, "spline.src")
+    assert [(t.name, t.kind) for t in program.targets] == [("line 4", "joint"), ("line 6", "pose"),
+                                                           ("line 7", "pose")]
+    assert [(u.name, u.line) for u in program.uses] == [("XP1", 8)]
+    result = compensate_program(program, nominal, calibrated, companions=(read_program(HERE / "$config.dat"),))
+    assert [r.status for r in result.targets] == ["ok"] * 3
+    new = _reread(tmp_path, result.text, "new.src").targets
+    # the two segments to the same point move alike
+    assert new[1].position[0].text == new[2].position[0].text != program.targets[1].position[0].text
+
+
 def test_krl_frame_declarations_are_never_moved():
     """Why 4: the fixture's FRAME in the .dat is a frame, not a motion target: its line stays."""
     program, companions, (nominal, calibrated) = _cell("pick.dat")

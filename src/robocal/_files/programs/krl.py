@@ -1,6 +1,6 @@
 """KUKA KRL programs: ``.dat`` declarations (``E6POS``, ``POS``, ``FRAME``, ``E6AXIS``, ``AXIS``,
 with or without ``DECL`` and ``GLOBAL``), ``TOOL_DATA[n]``/``BASE_DATA[n]`` assignments as named
-frames, and the targets written inline in ``.src`` motions (``PTP``, ``LIN``, ``CIRC``, ``SPTP``,
+frames, and the targets written inline in ``.src`` motions (``PTP``, ``LIN``, ``CIRC``, ``SPTP``, ``SPL``,
 ``SLIN``, ``SCIRC``).
 
 A Cartesian target is ``{X, Y, Z, A, B, C, S, T, E1...}``: mm, deg with R = Rz(A) Ry(B) Rx(C), the
@@ -37,7 +37,7 @@ COMMENT = ";"
 LENGTH, ANGLE = 1e-3, math.pi / 180
 ORIENTATION = ANGLE
 POSES, AXES = ("E6POS", "POS", "FRAME"), ("E6AXIS", "AXIS")
-MOTION = ("PTP", "LIN", "CIRC", "SPTP", "SLIN", "SCIRC")
+MOTION = ("PTP", "LIN", "CIRC", "SPTP", "SPL", "SLIN", "SCIRC")
 CARTESIAN, JOINTS = ("X", "Y", "Z", "A", "B", "C"), tuple(f"A{i}" for i in range(1, 7))
 # the flange and the robot's base ($ROBROOT taken as the world, a robot not configured elsewhere);
 # no expression keeps a target's frames
