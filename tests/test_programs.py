@@ -715,6 +715,22 @@ def test_rapid_targets_by_index_in_a_loop_and_through_offs_and_reltool_keep_thei
     assert {r.status for r in rows.values()} == {"ok"} and len(rows) == 8
 
 
+def test_rapid_motions_with_arguments_after_the_tool_take_their_tool(models, tmp_path):
+    """MoveLDO's signal and value, and MoveLSync's procedure, follow the tool: its targets were
+    flagged 'its tool is not a name' and left unchanged."""
+    nominal, calibrated = models
+    program = read_program(HERE / "example.mod")
+    text = program.text.replace("MoveJ pApproach, v1000, z50, tGripper;",
+                                "MoveJDO pApproach, v1000, z50, tGripper, do1, 1;")
+    text = text.replace("MoveL pLeave, v100, fine, tGripper;", 'MoveLSync pLeave, v100, fine, tGripper, "proc1";')
+    assert text.count("DO pApproach") == 1 and text.count("Sync pLeave") == 1
+    changed = _reread(tmp_path, text, "p.mod")
+    before = {r.name: r for r in compensate_program(program, nominal, calibrated).targets}
+    after = {r.name: r for r in compensate_program(changed, nominal, calibrated).targets}
+    assert [(after[n].status, after[n].tool) for n in ("pApproach", "pLeave")] == [("ok", "tGripper")] * 2
+    assert after == before
+
+
 def test_tool0_is_the_flange():
     """Why 6: tool0 is the flange the controller means, not the model's calibration sphere."""
     result = _assert_each_lands("glue.mod", min_moved=1e-3)

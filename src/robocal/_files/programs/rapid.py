@@ -43,6 +43,9 @@ TURN_JOINTS = (0, 3, 5)                         # cf1, cf4, cf6: quadrants of ax
 # of a robot not configured elsewhere), and the functions a target keeps its frames through
 BUILTIN = {"tool0": "tool", "wobj0": "wobj"}
 FOLLOWED = ("offs", "reltool")
+# arguments after the tool: MoveJDO, MoveLAO, MoveCGO... set a signal (name, value) at the point,
+# MoveJSync... call a procedure
+TRAILING = {"do": 2, "ao": 2, "go": 2, "sync": 1}
 
 
 def read(text: str, source: str) -> Program:
@@ -98,10 +101,11 @@ def _arguments(toks, j: int, end: int) -> list[tuple[list, list]]:
     return out
 
 
-def _frames(toks, args) -> tuple[str, str, str]:
-    """The tool (the last positional argument) and work object (``\\WObj:=``, else ``wobj0``) a
-    motion moves with, and why either is not known where it is an expression."""
-    last = args[-1][0]
+def _frames(toks, args, instruction: str) -> tuple[str, str, str]:
+    """The tool (the last positional argument, before those ``TRAILING`` gives the instruction) and
+    work object (``\\WObj:=``, else ``wobj0``) a motion moves with, and why either is not known
+    where it is an expression."""
+    last = args[-1 - _trailing(instruction)][0] if len(args) > 1 + _trailing(instruction) else []
     tool = toks[last[0]].text if len(last) == 1 and toks[last[0]].kind == "name" else ""
     wobj, unknown = "wobj0", "" if tool else "its tool is not a name"
     for _, switches in args:
@@ -111,6 +115,13 @@ def _frames(toks, args) -> tuple[str, str, str]:
                 wobj = switches[k + 3].text if simple else ""
                 unknown = unknown or ("" if simple else "its work object is not a name")
     return tool, wobj, unknown
+
+
+def _trailing(instruction: str) -> int:
+    """How many arguments follow a motion's tool: MoveLDO's signal and value, MoveLSync's procedure."""
+    name = instruction.lower()
+    return next((n for end, n in TRAILING.items() if name.startswith(("movej", "movel", "movec")) and
+                 name.endswith(end)), 0)
 
 
 def _named(toks, main: list) -> list[tuple[str, str]]:
@@ -140,7 +151,7 @@ def _motion(toks, m: int, end: int, sc, targets, uses) -> None:
     """The literal targets of a motion instruction, with the tool and work object it moves them
     with, and its uses of declared targets (by name, by index, through ``Offs`` or ``RelTool``)."""
     args = _arguments(toks, m + 1, end)
-    tool, wobj, unknown = _frames(toks, args)
+    tool, wobj, unknown = _frames(toks, args, toks[m].text)
     line = sc.line_col(toks[m].start)[0]
     for main, _ in args[:-1]:
         if not main:
