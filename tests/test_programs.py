@@ -731,6 +731,20 @@ def test_rapid_motions_with_arguments_after_the_tool_take_their_tool(models, tmp
     assert after == before
 
 
+def test_a_rapid_jointtarget_of_external_axes_only_is_read_not_solved(models, tmp_path):
+    """A jointtarget whose robot axes are all 9E9 (not used: MoveExtJ moves external axes only) was
+    solved at 9E9 degrees and flagged out of reach."""
+    nominal, calibrated = models
+    unused = "[[9E9, 9E9, 9E9, 9E9, 9E9, 9E9], [1200, 9E9, 9E9, 9E9, 9E9, 9E9]]"
+    text = (f"MODULE m\n  CONST jointtarget jTrack := {unused};\n  PROC main()\n    MoveExtJ jTrack, vrot50, z50;\n"
+            f"    MoveExtJ {unused}, vrot50, fine;\n  ENDPROC\nENDMODULE\n")
+    result = compensate_program(_reread(tmp_path, text, "p.mod"), nominal, calibrated)
+    assert [(r.name, r.status) for r in result.targets] == [
+        ("jTrack", "read only: its robot axes are 9E9 (not used)"),
+        ("line 5", "read only: its robot axes are 9E9 (not used)")]
+    assert result.text == text and not result.flagged
+
+
 def test_tool0_is_the_flange():
     """Why 6: tool0 is the flange the controller means, not the model's calibration sphere."""
     result = _assert_each_lands("glue.mod", min_moved=1e-3)

@@ -36,6 +36,7 @@ ORIENTATION = 1.0                              # a quaternion's components
 JOINT_TARGET = "[[rax_1, ..., rax_6], [eax_a, ..., eax_f]]"
 ROB_TARGET = "[[x, y, z], [q1, q2, q3, q4], [cf1, cf4, cf6, cfx], [eax_a, ..., eax_f]]"
 SIZES = {"jointtarget": (6, 6), "robtarget": (3, 4, 4, 6)}      # the parts of each and their lengths
+UNUSED = 9e9                                   # the value of an axis a target does not move
 DECLARES = ("const", "pers", "var")
 MOTION = ("move", "trigg", "search")           # instructions whose literal targets are read
 TURN_JOINTS = (0, 3, 5)                         # cf1, cf4, cf6: quadrants of axes 1, 4 and 6
@@ -221,7 +222,10 @@ def _target(kind: str, name: str, agg, sc, **where) -> Target:
                       skip="not a literal value", **where)
     check_finite([n for part in agg.items[:1 if kind == "jointtarget" else 3] for n in part.items], sc, name)
     if kind == "jointtarget":
-        return Target(name, "joint", line, column, joints=agg.items[0].items, **where)
+        robot = agg.items[0].items
+        if all(n.value == UNUSED for n in robot):      # MoveExtJ's: it moves external axes only
+            return Target(name, "joint", line, column, skip="its robot axes are 9E9 (not used)", **where)
+        return Target(name, "joint", line, column, joints=robot, **where)
     quat = agg.items[1].items
     norm = math.hypot(*(n.value for n in quat))   # no overflow for a huge component
     if not 0.9 < norm < 1.1:
