@@ -792,6 +792,21 @@ def test_krl_spline_segments_are_compensated_as_any_motion(models, tmp_path):
     assert new[1].position[0].text == new[2].position[0].text != program.targets[1].position[0].text
 
 
+def test_krl_tool_and_base_set_to_a_literal_frame_are_those_frames(models, tmp_path):
+    """``$TOOL = {X 50, ...}`` was taken for an expression and its targets flagged; a literal frame
+    is the frame it writes, as TOOL_DATA[1] holding the same values is."""
+    nominal, calibrated = models
+    lin = "LIN {X 103.185, Y -20.000, Z -229.637, A 0.0000, B 65.0000, C 180.0000, S 'B000', T 'B001011'}\n"
+    named = f"DEF a( )\n$TOOL = TOOL_DATA[1]\n$BASE = BASE_DATA[1]\n{lin}END\n"
+    literal = (f"DEF a( )\n$TOOL = {{X 50.0,Y 20.0,Z 120.0,A 0.0,B 0.0,C 0.0}}\n"
+               f"$BASE = {{X 100.0,Y 0.0,Z 0.0,A 0.0,B 0.0,C 0.0}}\n{lin}END\n")
+    config = (read_program(HERE / "$config.dat"),)
+    a = compensate_program(_reread(tmp_path, named, "a.src"), nominal, calibrated, companions=config)
+    b = compensate_program(_reread(tmp_path, literal, "b.src"), nominal, calibrated)
+    assert [(r.status, r.tool, r.wobj) for r in b.targets] == [("ok", "$TOOL (line 2)", "$BASE (line 3)")]
+    assert a.targets[0].status == "ok" and b.text.splitlines()[3] == a.text.splitlines()[3] != lin.strip()
+
+
 def test_krl_frame_declarations_are_never_moved():
     """Why 4: the fixture's FRAME in the .dat is a frame, not a motion target: its line stays."""
     program, companions, (nominal, calibrated) = _cell("pick.dat")

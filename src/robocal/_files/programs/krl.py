@@ -99,7 +99,8 @@ def _line(toks, sc, state: _State) -> None:
         return
     line = sc.line_col(toks[0].start)[0]
     if len(words) > 2 and words[0] in ("$TOOL", "$BASE") and words[1] == "=":
-        _set(state, words[0], _frame_name(toks[2:], words[0]), line)
+        _set(state, words[0], _literal_frame(toks, words, sc, state.frames, line) or
+             _frame_name(toks[2:], words[0]), line)
     elif len(words) > 2 and words[0] == "FDAT_ACT" and words[1] == "=":
         state.fdat = toks[2].text if len(toks) == 3 else ""
     elif len(words) > 5 and words[:3] == ["BAS", "(", "#"]:
@@ -117,6 +118,19 @@ def _frame_name(toks, variable: str) -> str:
     if call:
         return f"{call.group(1)}.{member}"
     return text if re.fullmatch(r"(?i)\$?\w+(?:\[\d+\])?", text) else ""
+
+
+def _literal_frame(toks, words: list[str], sc, frames, line: int) -> str:
+    """``$TOOL = {X 50, Y 0, ...}`` (or ``$BASE``): the frame written there, named by the variable and
+    the line; "" where the value is not a literal frame."""
+    if words[2] != "{" or toks.partner[2] != len(toks) - 1:
+        return ""
+    name = f"{words[0]} (line {line})"
+    target = _target(name, "FRAME", aggregate(toks, 2, sc)[0], sc)
+    if target.skip:
+        return ""
+    frames.append(NamedFrame(name, "tool" if words[0] == "$TOOL" else "wobj", poses([target])[0]))
+    return name
 
 
 def _set(state: _State, variable: str, name: str, line: int) -> None:
