@@ -217,6 +217,25 @@ def test_export_says_what_it_leaves_out_and_how_far_that_moves_the_tool(fmt, tmp
     assert code == 0 and err.count("warning") == 1 and ": compliance is not exported: " in err, err
 
 
+def test_a_classic_dh_table_is_the_robots_own_wherever_the_instrument_stood(tmp_path, cli):
+    """The classic table put its frame 0 on axis 1 at the point nearest the instrument's origin: the
+    TH8, whose vertical slide sits 600 mm above its base, was written with d = -200 mm because the
+    theodolites stood 800 mm below it; its rows now hold the robot alone, the base row where it stood."""
+    code, _, err = cli("export", TH8, "--format", "dh-csv", "--out", tmp_path / "dh.csv")
+    assert code == 0, err
+    lines = (tmp_path / "dh.csv").read_text().splitlines()
+    rows = {r["name"]: r for r in csv.DictReader(line for line in lines if line[0] != "#")}
+    assert [float(rows[n]["d_mm"]) for n in ("j1", "j2")] == pytest.approx([0.0, 600.0], abs=1e-9)
+    assert [float(rows["base"][k]) for k in ("x_mm", "y_mm", "z_mm", "yaw_deg")] == pytest.approx(
+        [2000.0, 1200.0, -800.0, 30.0], abs=1e-9)
+    model = rc.read_model(TRUE)
+    here = rc.to_standard_dh(model.replace(base_position=(0.0, 0.0, 0.0),
+                                           base_rotation=((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))))
+    there = rc.to_standard_dh(model)
+    assert there.rows == here.rows
+    assert np.abs(there.X_W0 - model.X_WB @ here.X_W0).max() < 1e-12
+
+
 def test_the_calibrated_th8_exports_to_classic_dh_and_reproduces_its_kinematics(tmp_path, cli):
     # what the README says of its own example: the calibrated TH8's classic-DH table is written and usable
     code, _, err = cli("calibrate", TH8, str(ROOT / "examples/th8/measurements.csv"), "--out", tmp_path / "run",

@@ -324,8 +324,9 @@ def to_standard_dh(model: RobotModel, *, max_offset: float | None = None) -> Sta
     """Classic DH of a serial model, with the same forward kinematics (exact up to a tilt below
     1e-12 rad between axes taken as parallel).
 
-    Classic DH places each frame on the common normal of consecutive joint axes. Where the axes
-    are nearly parallel (what Hayati's beta exists for) that normal runs off: the table needs
+    Classic DH places each frame on the common normal of consecutive joint axes, frame 0 on axis 1
+    level with the model's base: the rows are the robot's own, ``X_W0`` alone holds its base. Where
+    the axes are nearly parallel (what Hayati's beta exists for) that normal runs off: the table needs
     offsets of hundreds of metres that cancel to give a metre-sized robot, and rounding them
     ruins the model. Offsets beyond ``max_offset`` (default ten times the robot's extent, and at
     least 10 m) raise an InputError naming the frames; ``max_offset=inf`` accepts them (the
@@ -343,7 +344,8 @@ def to_standard_dh(model: RobotModel, *, max_offset: float | None = None) -> Sta
         The classic DH table with the base and tool placements.
     """
     _serial_frames(model, "classic DH")
-    X = frame_poses(model)
+    # the table is the robot's own, found in its base frame: where the instrument stood moves the base row only
+    X = frame_poses(model.replace(base_position=(0.0, 0.0, 0.0), base_rotation=tuple(map(tuple, np.eye(3)))))
     pts = np.array([x[:3, 3] for x in X])
     X_0B, lines = line_frames(pts, np.array([x[:3, 2] for x in X]), 1e-12)
     rel = [_decompose(inverse4(prev) @ cur, use_beta=False) for prev, cur in zip([X_0B] + lines[:-1], lines)]
@@ -353,8 +355,8 @@ def to_standard_dh(model: RobotModel, *, max_offset: float | None = None) -> Sta
         # classic row i: this frame's theta and r, the next frame's d and alpha (from_standard_dh, reversed)
         rows.append(dict(name=f.name, joint=f.joint, theta=rel[i]["theta"], d=rel[i]["r"], a=nxt["d"],
                          alpha=nxt["alpha"]))
-    X_W0 = X_0B @ rot4(0, rel[0]["alpha"]) @ trans4(0, rel[0]["d"])
-    extent = max(1.0, float(np.max(np.linalg.norm(pts - model.X_WB[:3, 3], axis=1))))
+    X_W0 = model.X_WB @ X_0B @ rot4(0, rel[0]["alpha"]) @ trans4(0, rel[0]["d"])
+    extent = max(1.0, float(np.max(np.linalg.norm(pts, axis=1))))
     size = [(r["name"], max(abs(r["d"]), abs(r["a"]))) for r in rows]
     offsets = tuple((n, v) for n, v in size if v > 10.0 * extent)
     too_far = [(n, v) for n, v in size if v > (10.0 * extent if max_offset is None else max_offset)]
