@@ -24,7 +24,7 @@ from ..._accuracy.compensation import (
     ranges_for,
 )
 from ..._base.arguments import POSITIVE, TEXT, accepts, both, each_a, is_a, marker_of, optional, same_robot_as
-from ..._base.errors import InputError, suggest
+from ..._base.errors import InputError, RobocalWarning, suggest, warn
 from ..._model.kinematics import evaluate
 from ..._model.robot import Marker, RobotModel
 from . import (
@@ -266,6 +266,8 @@ def compensate_program(program: Program, nominal: RobotModel, calibrated: RobotM
     _given(catalogue, program, tool, TOOLS, "--tool")
     _given(catalogue, program, wobj, WOBJS, "--wobj")
     live = [t for t in program.targets if not t.skip and t.name not in (tool, wobj)]
+    if live:
+        _marker_moved(nominal, calibrated, marker, tol)
     joints = [t for t in live if t.kind == "joint"]
     edits: list[tuple[int, int, str]] = []
     results: dict[int, TargetResult] = {}
@@ -290,6 +292,22 @@ def compensate_program(program: Program, nominal: RobotModel, calibrated: RobotM
             for t in program.targets]
     return ProgramCompensation(text=edited(program.text, edits, _flags(program, rows), comment=module.COMMENT),
                                targets=tuple(rows), notes=_posture_notes(nominal, marker, live))
+
+
+def _marker_moved(nominal: RobotModel, calibrated: RobotModel, marker: int, tol: float) -> None:
+    """Warn where the calibration moved a marker on the flange by more than ``tol`` (m): a program's
+    tools are exact on the flange, and the flange's own error that no campaign tells from the
+    marker's (its offset along the last axis) is then in the marker, not compensated."""
+    frame = nominal.markers[marker].frame
+    moved = [(float(np.linalg.norm(np.subtract(c.position, m.position))), m.name)
+             for m, c in zip(nominal.markers, calibrated.markers) if m.frame == frame]
+    gap, name = max(moved)
+    if gap > tol:
+        warn(f"the calibrated model places marker {name} {gap * 1e3:.3g} mm from its nominal place on the flange: a "
+             "program's tools are taken as exact on the flange, so what of that is the flange's own error (its "
+             "offset along the last axis, which no campaign tells from the marker's) is not compensated; with the "
+             "marker's place measured and held (calibrate --known markers) the flange's error is identified as such",
+             RobocalWarning)
 
 
 def _posture_notes(nominal: RobotModel, marker: int, live) -> tuple[str, ...]:
