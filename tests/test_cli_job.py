@@ -114,6 +114,8 @@ def test_compensate_reaches_every_reachable_target_and_flags_the_rest(tmp_path, 
     assert [r["pose"] for r in rows] == [f"T{i}" for i in range(8)] + ["far", "short"]       # none dropped
     assert [r["status"] for r in rows] == ["ok"] * 8 + ["out of reach", "not converged"]
     assert "far: out of reach" in err and "short: not converged" in err
+    # their solver's last readings command no pose asked for: left empty, not sent to the robot
+    assert all(r[c] == "" for r in rows[8:] for c in header[1:7]) and all(r["residual_mm"] for r in rows[8:])
     got = np.array([[float(r[c]) / s for c, s in zip(header[1:7], scale)] for r in rows[:8]])
     # the nominal pose on the calibrated robot's base: the nominal base (a guess of where the
     # instrument stood) moves no target

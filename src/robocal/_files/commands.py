@@ -25,10 +25,11 @@ def command_status(comp: Compensation, tol: float, tol_rot: float) -> list[str]:
 
 def commands_to_csv(model: RobotModel, labels, comp: Compensation, status, *, units: str = "mm-deg",
                     ranges_known: bool = False) -> str:
-    """CSV text: pose, the corrected readings (unit suffix per joint), the residual position and
-    orientation errors, the status of each target, and where the calibrated ranges are known
-    (``ranges_known``) the joints whose corrected readings lie beyond them (``Compensation.outside``,
-    separated by ";")."""
+    """CSV text: pose, the corrected readings (unit suffix per joint; empty for a target out of reach
+    or not converged, whose solver's last readings command no pose asked for), the residual
+    position and orientation errors, the status of each target, and where the calibrated ranges are
+    known (``ranges_known``) the joints whose corrected readings lie beyond them
+    (``Compensation.outside``, separated by ";")."""
     lu, au = parse_units(units)
     L, A = LENGTH_UNITS[lu], ANGLE_UNITS[au]
     scale = [L if k == "length" else A for k in model.reading_quantities]
@@ -39,6 +40,7 @@ def commands_to_csv(model: RobotModel, labels, comp: Compensation, status, *, un
                + [f"residual_{lu}", f"residual_rot_{au}", "status"] + [OUTSIDE] * ranges_known)
     for i, label in enumerate(labels):
         beyond = [";".join(n for n, o in zip(model.joint_names, comp.outside[i]) if o)] * ranges_known
-        w.writerow([label] + [repr(float(v) / s) for v, s in zip(comp.q[i], scale)]
+        missed = status[i] in (UNREACHED, NOT_CONVERGED)
+        w.writerow([label] + ["" if missed else repr(float(v) / s) for v, s in zip(comp.q[i], scale)]
                    + [format(comp.residual[i] / L, ".3g"), format(comp.residual_rot[i] / A, ".3g"), status[i]] + beyond)
     return buf.getvalue()
