@@ -52,13 +52,19 @@ from .plots import (
     residual_sample,
     residual_trends,
 )
-from .text import REGISTERED_ON_IT, families_text, in_use_heading, in_use_rows, registered_before, rotation_lines
+from .text import (
+    REGISTERED_ON_IT,
+    families_text,
+    in_use_heading,
+    in_use_rows,
+    registered_before,
+    rotation_lines,
+    stat_labels,
+)
 from .units import UNITS_SENTENCE, absorption_text, fmt, symbol, with_unit
 from .units import display_unit as _display
 from .units import finite as _num
 
-STAT_SETS = (("fit_before", "fitted poses", "before"), ("fit_after", "fitted poses", "after"),
-             ("validation_before", "held-out poses", "before"), ("validation_after", "held-out poses", "after"))
 STAT_FIELDS = ("mean", "std", "rms", "max")
 ALWAYS_SHOWN = GEOMETRIC_KINDS[2:]  # the paper's columns; gamma and b only for frames of a tree
 WORST_POSES = 10
@@ -322,13 +328,10 @@ def _stats_table(d: dict, summary: ErrorSummary | None, *, rotation: bool = Fals
     shown = _display(unit)[0]
     rows = []
     on_it = (d.get("in_use") or {}).get("method") == REGISTERED_ON_IT
-    for key, poses, when in STAT_SETS:
-        which = key.split("_")[0]
-        registered = summary is not None and registered_before(summary, which)
+    for which, poses in (("fit", "fitted poses"), ("validation", "held-out poses")):
         poses = f"{poses}, base and tool registered on them" if on_it and which == "validation" else poses
-        shown_as = [(f"{which}_nominal", "nominal", "nominal as given")] if registered and when == "before" else []
-        shown_as.append((key, when, "before, registered" if registered and when == "before" else when))
-        for k, cls, label in shown_as:
+        for cls, label in stat_labels(summary, which):
+            k = f"{which}_{cls}"
             s = stats.get(k) or {}
             lead = f'<tr class="{cls}"><td>{poses}</td><td><span class="tag {cls}">{label}</span></td>'
             if not s.get("n"):

@@ -37,19 +37,21 @@ def registered_before(stats, poses: str) -> bool:
         for f in ("mean", "max"))
 
 
+def stat_labels(stats, poses: str) -> list[tuple[str, str]]:
+    """(when: "nominal", "before" or "after", what it is) of the error table's rows on the ``poses``
+    ("fit", "validation"): the nominal model as given beside "before" where base and markers were
+    registered for "before" (what the nominal missed as measured; ``stats`` None: not known)."""
+    registered = stats is not None and registered_before(stats, poses)
+    return ([("nominal", "nominal as given")] if registered else []) + [
+        ("before", "before, registered" if registered else "before"), ("after", "after")]
+
+
 def stat_rows(stats) -> list[tuple[str, str, ErrorStats]]:
-    """(key of ``ErrorSummary``, what it is, statistics) of each row of the error table shown, on the
-    fitted poses then the held-out ones: the nominal model as given beside "before" where base and
-    markers were registered for "before" (what the nominal missed as measured), then after."""
-    rows = []
-    for poses in ("fit", "validation"):
-        registered = registered_before(stats, poses)
-        for when, label in (("nominal", "nominal as given"), ("before", "before, registered" if registered
-                                                                else "before"), ("after", "after")):
-            s = getattr(stats, f"{poses}_{when}")
-            if s is not None and s.n and (when != "nominal" or registered):
-                rows.append((f"{poses}_{when}", label, s))
-    return rows
+    """(key of ``ErrorSummary``, what it is, statistics) of each row of the error table shown that
+    holds points, on the fitted poses then the held-out ones (``stat_labels``)."""
+    return [(f"{poses}_{when}", label, s) for poses in ("fit", "validation")
+            for when, label in stat_labels(stats, poses)
+            if (s := getattr(stats, f"{poses}_{when}")) is not None and s.n]
 
 
 def stats_lines(stats, indent: str = "  ", *, unit: str = "m", in_use=None) -> list[str]:
