@@ -337,26 +337,32 @@ def test_a_malformed_program_is_one_line_naming_file_line_and_column(suffix, tex
 EXT = "[9E9, 9E9, 9E9, 9E9, 9E9, 9E9]"
 
 
-@pytest.mark.parametrize("suffix, text, value", [
+@pytest.mark.parametrize("suffix, text, value, named", [
     (".mod", f"MODULE m\n  CONST robtarget p1 := [[628.819, 962.752x, 1135.675], [1, 0, 0, 0], [0, 0, 0, 0], {EXT}];\n"
-             "ENDMODULE\n", "962.752x"),
-    (".mod", f"MODULE m\n  CONST jointtarget j1 := [[10, -30, 4.0.5, 20, 50, -30], {EXT}];\nENDMODULE\n", "4.0.5"),
+             "ENDMODULE\n", "962.752x", "p1: "),
+    (".mod", f"MODULE m\n  CONST jointtarget j1 := [[10, -30, 4.0.5, 20, 50, -30], {EXT}];\nENDMODULE\n", "4.0.5",
+     "j1: "),
     (".mod", f"MODULE m\n  PROC main()\n    MoveL [[1, 2, 3], [1, 0, 0, 0], [0, 0, 0, 0e], {EXT}], v10, fine, tool0;\n"
-             "  ENDPROC\nENDMODULE\n", "0e"),
-    (".script", "def a():\n  movel(p[0.1, 0.2x, 0.3, 0, 0, 0], a=1.2, v=0.25)\nend\n", "0.2x"),
-    (".script", "def a():\n  home = [0.1, 0.2, 0.3, 0.4, 0.5, -0.6rad]\n  movej(home)\nend\n", "0.6rad"),
-    (".src", "DEF a()\n  LIN {X 962.752x, Y 2, Z 3, A 0, B 0, C 0, S 0, T 0}\nEND\n", "962.752x"),
+             "  ENDPROC\nENDMODULE\n", "0e", ""),
+    (".script", "def a():\n  movel(p[0.1, 0.2x, 0.3, 0, 0, 0], a=1.2, v=0.25)\nend\n", "0.2x", ""),
+    (".script", "def a():\n  home = [0.1, 0.2, 0.3, 0.4, 0.5, -0.6rad]\n  movej(home)\nend\n", "0.6rad", "home: "),
+    (".src", "DEF a()\n  LIN {X 962.752x, Y 2, Z 3, A 0, B 0, C 0, S 0, T 0}\nEND\n", "962.752x", ""),
+    (".dat", "DEFDAT a\n  DECL E6POS XP1={X 962.752x, Y 2, Z 3, A 0, B 0, C 0, S 0, T 0}\nENDDAT\n", "962.752x",
+     "XP1: "),
+    (".dat", "DEFDAT a\n  TOOL_DATA[1]={X 1.2.3, Y 2, Z 3, A 0, B 0, C 0}\nENDDAT\n", "1.2.3", "TOOL_DATA[1]: "),
 ])
-def test_a_malformed_number_in_a_target_is_refused_naming_file_line_and_value(suffix, text, value, tmp_path, cli):
+def test_a_malformed_number_in_a_target_is_refused_naming_file_line_and_value(suffix, text, value, named, tmp_path,
+                                                                             cli):
     """A number run into letters or into another number is a slip, not a value computed in the
-    program: listing the target as read only would leave it uncompensated without saying why."""
+    program: listing the target as read only would leave it uncompensated without saying why. A
+    declared target or frame is named (an inline one has only its line)."""
     rc.write_model(arm6r(), tmp_path / "m.yaml")
     (tmp_path / f"p{suffix}").write_text(text)
     line = next(k for k, row in enumerate(text.splitlines(), 1) if value in row)
     column = text.splitlines()[line - 1].index(value.lstrip("-")) + 1
     code, _, err = cli("compensate", tmp_path / "m.yaml", tmp_path / "m.yaml", tmp_path / f"p{suffix}",
                        "--out", tmp_path / "o" / f"out{suffix}")
-    assert_one_line_error(code, err, [f"p{suffix}: line {line}, column {column}: '{value}' is not a number"],
+    assert_one_line_error(code, err, [f"p{suffix}: line {line}, column {column}: {named}'{value}' is not a number"],
                           tmp_path / "o", command="compensate")
 
 
@@ -431,6 +437,38 @@ def test_cli_compensates_a_program_and_prints_each_target(models, tmp_path, cli)
                        "--out", tmp_path / "e.mod")
     assert_one_line_error(code, err, ["empty.mod", "no target in this rapid program"], command="compensate")
     assert not (tmp_path / "e.mod").exists()
+
+
+def test_a_relative_motion_is_left_as_written_and_said(models, tmp_path):
+    """KRL's relative motions (PTP_REL, LIN_REL...) move by an offset from wherever the robot is: no
+    target of their own to compensate, and the summary said nothing of them."""
+    nominal, calibrated = models
+    text = (HERE / "example.src").read_text().replace("FDAT_ACT", "lin_rel {X 10.0, Z -5.0} C_DIS\nFDAT_ACT")
+    program = _reread(tmp_path, text, "example.src")
+    assert program.relative == (("PTP_REL", 17), ("LIN_REL", 18))
+    result = compensate_program(program, nominal, calibrated, companions=_with(program))
+    assert "PTP_REL (line 17), LIN_REL (line 18) left as written: a relative motion" in " ".join(result.notes)
+    lines = result.text.splitlines()
+    assert lines[16:18] == ["PTP_REL {A1 10.0}", "lin_rel {X 10.0, Z -5.0} C_DIS"]
+    assert not any("REL" in n for n in _compensate(read_program(HERE / "example.mod"), nominal, calibrated).notes)
+
+
+@pytest.mark.parametrize("example, dialect", [("example.mod", "rapid"), ("example.dat", "krl"),
+                                              ("example.src", "krl"), ("example.script", "urscript")])
+def test_a_program_under_a_name_no_dialect_claims_is_refused_naming_its_dialect(example, dialect, tmp_path, cli):
+    """A program saved as .txt was read as a CSV of targets: "unknown column 'MODULE'" said nothing
+    of the --dialect it needed."""
+    rc.write_model(arm6r(), tmp_path / "m.yaml")
+    (tmp_path / "prog.txt").write_text("\n" + (HERE / example).read_text())
+    code, _, err = cli("compensate", tmp_path / "m.yaml", tmp_path / "m.yaml", tmp_path / "prog.txt",
+                       "--out", tmp_path / "o" / "out.csv")
+    assert_one_line_error(code, err, ["prog.txt", f"reads as a {dialect} program", f"give --dialect {dialect}"],
+                          tmp_path / "o", command="compensate")
+    # a CSV of targets with an unknown column keeps its own message
+    (tmp_path / "t.csv").write_text("MODULE,j1\n1,2\n")
+    code, _, err = cli("compensate", tmp_path / "m.yaml", tmp_path / "m.yaml", tmp_path / "t.csv",
+                       "--out", tmp_path / "o" / "out.csv")
+    assert_one_line_error(code, err, ["t.csv", "unknown column 'MODULE'"], tmp_path / "o", command="compensate")
 
 
 def test_a_campaign_whose_joint_readings_are_controller_code_is_read(tmp_path, cli):

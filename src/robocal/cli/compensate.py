@@ -89,6 +89,21 @@ def _refuse_misnamed(args) -> None:
         common.refuse_misnamed(args.out, f"{dialect} program", f"a {dialect} program compensated")
 
 
+def _read_targets(args, nominal):
+    """The CSV of targets; a file refused as one that reads as a robot program under a name no
+    dialect claims (``program.txt``) is refused saying which dialect to give."""
+    from .._files.programs import dialect_in
+
+    try:
+        return common.read_data(args, nominal, args.targets, targets=True)
+    except InputError as err:
+        dialect = dialect_in(args.targets)
+        if dialect is None:
+            raise
+        raise InputError(f"reads as a {dialect} program, not a CSV of targets, but its extension is no program's: "
+                         f"give --dialect {dialect}", source=str(args.targets)) from err
+
+
 def _run_program(args, nominal, calibrated, ranges) -> int:
     """Compensate a robot program; a line per target (mm, deg), the flagged ones also on stderr."""
     from .._files.programs import read_program
@@ -204,7 +219,7 @@ def run(args) -> int:
     ranges = _ranges(args, record)
     if _is_program(args):
         return _run_program(args, nominal, calibrated, ranges)
-    data = common.read_data(args, nominal, args.targets, targets=True)
+    data = _read_targets(args, nominal)
     m, col = _marker(args, nominal, data)
     comp = compensate(calibrated, data.q, nominal=nominal, marker=m,
                       positions=None if col is None else data.positions[:, col],

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import codecs
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -49,6 +50,29 @@ def dialect_of(path, dialect: str | None = None) -> str:
         raise InputError(f"cannot tell the program's dialect from {ext or 'no extension'!r}; give --dialect "
                          f"({', '.join(DIALECTS)})", source=str(path))
     return EXTENSIONS[ext]
+
+
+# how each dialect's files begin (their first line that is neither blank nor a comment)
+_OPENINGS = (("urscript", re.compile(r"\s*def\s+\w+\s*\(\s*\)\s*:")),
+             ("rapid", re.compile(r"(?i)\s*(%%%|module\s+\w)")),
+             ("krl", re.compile(r"(?i)\s*(&(access|rel|param|comment)\b|(global\s+)?def(dat|fct)?\s+\w)")))
+_SNIFF_BYTES = 1 << 16
+
+
+def dialect_in(path) -> str | None:
+    """The dialect a regular file's text opens as (``MODULE name``, ``DEF name()``, ``def name():``),
+    None for anything else; a stream is never read here (it could not be read again)."""
+    p = Path(path)
+    if not p.is_file():
+        return None
+    try:
+        with p.open("rb") as f:
+            head = f.read(_SNIFF_BYTES).decode("utf-8", errors="replace").lstrip("\ufeff")
+    except OSError:
+        return None
+    comments = tuple(DIALECTS[name].COMMENT for name in DIALECTS)
+    line = next((ln for ln in head.splitlines() if ln.strip() and not ln.lstrip().startswith(comments)), "")
+    return next((name for name, opening in _OPENINGS if opening.match(line)), None)
 
 
 _DIALECT = optional(one_of(tuple(DIALECTS)))

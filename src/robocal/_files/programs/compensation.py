@@ -291,7 +291,18 @@ def compensate_program(program: Program, nominal: RobotModel, calibrated: RobotM
     rows = [results.get(id(t), TargetResult(t.name, t.line, t.kind, f"read only: {t.skip or 'a frame in use'}"))
             for t in program.targets]
     return ProgramCompensation(text=edited(program.text, edits, _flags(program, rows), comment=module.COMMENT),
-                               targets=tuple(rows), notes=_posture_notes(nominal, marker, live))
+                               targets=tuple(rows), notes=_posture_notes(nominal, marker, live)
+                               + _relative_notes(program))
+
+
+def _relative_notes(program: Program) -> tuple[str, ...]:
+    """What a program's relative motions (KRL's ``LIN_REL``) get: nothing of their own."""
+    if not program.relative:
+        return ()
+    listed = ", ".join(f"{what} (line {line})" for what, line in program.relative)
+    return (f"{listed} left as written: a relative motion moves by its offset from wherever the robot is, so it "
+            "carries the compensation of the target before it, not one of its own (the calibration's change over "
+            "the offset is not compensated)",)
 
 
 def _marker_moved(nominal: RobotModel, calibrated: RobotModel, marker: int, tol: float) -> None:

@@ -38,6 +38,7 @@ LENGTH, ANGLE = 1e-3, math.pi / 180
 ORIENTATION = ANGLE
 POSES, AXES = ("E6POS", "POS", "FRAME"), ("E6AXIS", "AXIS")
 MOTION = ("PTP", "LIN", "CIRC", "SPTP", "SPL", "SLIN", "SCIRC")
+RELATIVE = tuple(f"{m}_REL" for m in MOTION)
 CARTESIAN, JOINTS = ("X", "Y", "Z", "A", "B", "C"), tuple(f"A{i}" for i in range(1, 7))
 # the flange and the robot's base ($ROBROOT taken as the world, a robot not configured elsewhere);
 # no expression keeps a target's frames
@@ -55,14 +56,14 @@ def read(text: str, source: str) -> Program:
     sc = Scanner(text, source, comment=COMMENT, quotes="\"'", newlines=True, names=r"[A-Za-z_$][A-Za-z0-9_$]*",
                  flat=False)
     toks = sc.tokens()
-    state = _State([], [], [])
+    state = _State([], [], [], [])
     a = 0
     for b in [i for i, t in enumerate(toks) if t.kind == "nl"] + [len(toks)]:
         if b > a:
             _line(toks.part(a, b), sc, state)
         a = b + 1
     return Program(source=source, dialect=NAME, text=text, targets=tuple(state.targets), frames=tuple(state.frames),
-                   uses=tuple(state.uses))
+                   uses=tuple(state.uses), relative=tuple(state.relative))
 
 
 def key(name: str) -> str:
@@ -72,12 +73,13 @@ def key(name: str) -> str:
 
 @dataclass
 class _State:
-    """What the lines read so far made: targets, frames, uses, and the tool and base in force (""
-    with ``unknown`` saying why where the program has not set them)."""
+    """What the lines read so far made: targets, frames, uses, relative motions, and the tool and base
+    in force ("" with ``unknown`` saying why where the program has not set them)."""
 
     targets: list
     frames: list
     uses: list
+    relative: list
     tool: str = ""
     base: str = ""
     unknown: str = "no $TOOL and $BASE set before it"
@@ -107,6 +109,8 @@ def _line(toks, sc, state: _State) -> None:
         _bas(words, state, line)
     elif words[0] in MOTION:
         _motion(toks, words, sc, state, line)
+    elif words[0] in RELATIVE:
+        state.relative.append((words[0], line))
 
 
 def _frame_name(toks, variable: str) -> str:
@@ -126,7 +130,7 @@ def _literal_frame(toks, words: list[str], sc, frames, line: int) -> str:
     if words[2] != "{" or toks.partner[2] != len(toks) - 1:
         return ""
     name = f"{words[0]} (line {line})"
-    target = _target(name, "FRAME", aggregate(toks, 2, sc)[0], sc)
+    target = _target(name, "FRAME", aggregate(toks, 2, sc, name=name)[0], sc)
     if target.skip:
         return ""
     frames.append(NamedFrame(name, "tool" if words[0] == "$TOOL" else "wobj", poses([target])[0]))
@@ -236,7 +240,7 @@ def _declaration(toks, words: list[str], sc, targets, frames) -> bool:
     if not (k + 3 < len(toks) and words[k] in POSES + AXES and toks[k + 1].kind == "name" and words[k + 2] == "="
             and words[k + 3] == "{"):
         return False
-    agg, _ = aggregate(toks, k + 3, sc)
+    agg, _ = aggregate(toks, k + 3, sc, name=toks[k + 1].text)
     target = _target(toks[k + 1].text, words[k], agg, sc)
     if words[k] != "FRAME":
         targets.append(target)
@@ -249,8 +253,8 @@ def _frame_data(toks, words: list[str], sc, frames) -> bool:
     """``NAME[n] = {...}`` (``TOOL_DATA[1]``, ``BASE_DATA[2]``): a named frame; whether the line is one."""
     if not (len(toks) > 5 and words[1] == "[" and words[3] == "]" and words[4] == "=" and words[5] == "{"):
         return False
-    agg, _ = aggregate(toks, 5, sc)
     name = "".join(t.text for t in toks[:4])
+    agg, _ = aggregate(toks, 5, sc, name=name)
     target = _target(name, "FRAME", agg, sc)
     if not target.skip:
         kind = {"TOOL_DATA": "tool", "BASE_DATA": "wobj"}.get(words[0], "frame")

@@ -173,7 +173,7 @@ def _declaration(toks, d: int, end: int, sc, targets, frames) -> None:
         j = closing(toks, j, sc) + 1
     if j + 1 >= end or toks[j].text != ":=" or toks[j + 1].text[:1] != "[":
         return                                   # declared without a literal value
-    value, _ = aggregate(toks, j + 1, sc)
+    value, _ = aggregate(toks, j + 1, sc, name=name)
     if kind in ("tooldata", "wobjdata"):
         frames.append(_frame(kind, name, value, sc))
         return

@@ -164,8 +164,9 @@ class NamedFrame:
 
 @dataclass(frozen=True)
 class Program:
-    """A robot program as read: its text, dialect, targets in source order, named frames and the
-    motions' uses of declared targets."""
+    """A robot program as read: its text, dialect, targets in source order, named frames, the
+    motions' uses of declared targets and its relative motions (instruction, line: KRL's
+    ``LIN_REL``), which move by an offset from wherever the robot is and have no target of their own."""
 
     source: str
     dialect: str
@@ -173,6 +174,7 @@ class Program:
     targets: tuple[Target, ...]
     frames: tuple[NamedFrame, ...] = ()
     uses: tuple[Use, ...] = ()
+    relative: tuple[tuple[str, int], ...] = ()
 
 
 class Scanner:
@@ -278,8 +280,9 @@ def closing(tokens: Tokens, i: int, scanner: Scanner) -> int:
     return j
 
 
-def aggregate(tokens: Tokens, i: int, scanner: Scanner, depth: int = 0) -> tuple[Aggregate, int]:
-    """The aggregate whose opening bracket is ``tokens[i]`` and the index after its closing one."""
+def aggregate(tokens: Tokens, i: int, scanner: Scanner, depth: int = 0, name: str = "") -> tuple[Aggregate, int]:
+    """The aggregate whose opening bracket is ``tokens[i]`` and the index after its closing one;
+    ``name``: the declaration it is the value of, which a malformed number's message names."""
     if depth > MAX_DEPTH:
         raise scanner.error(tokens[i].start, f"values nested more than {MAX_DEPTH} levels deep")
     if tokens[i].kind == "flat":
@@ -289,13 +292,13 @@ def aggregate(tokens: Tokens, i: int, scanner: Scanner, depth: int = 0) -> tuple
     if j + 1 < end and tokens[j].kind == "name" and tokens[j + 1].text == ":":   # KRL {E6POS: ...}
         label, j = tokens[j].text, j + 2
     while j < end:
-        k, item = _item(tokens, j, end, scanner, depth)
+        k, item = _item(tokens, j, end, scanner, depth, name)
         items.append(item)
         if k < end and tokens[k].text != ",":
             item_end = k
             while item_end < end and tokens[item_end].text != ",":
                 item_end = closing(tokens, item_end, scanner) + 1 if tokens[item_end].text in "[{(" else item_end + 1
-            _refuse_run_together(tokens, j, item_end, scanner)
+            _refuse_run_together(tokens, j, item_end, scanner, name)
             items[-1] = tokens[j]            # something else than a value (an expression): kept as a token
             k = item_end
         j = k + 1
@@ -304,7 +307,7 @@ def aggregate(tokens: Tokens, i: int, scanner: Scanner, depth: int = 0) -> tuple
     return Aggregate(tuple(items), tokens[i].start, tokens[end].end, label), end + 1
 
 
-def _refuse_run_together(tokens, a: int, b: int, scanner: Scanner) -> None:
+def _refuse_run_together(tokens, a: int, b: int, scanner: Scanner, name: str) -> None:
     """An InputError at a number run into letters or into another number among ``tokens[a:b]``
     (``962.752x``, ``1.2.3``): a malformed number, which no dialect reads as an expression (an
     expression, ``x0 + 10`` or ``Offs(p, 0, 0, 10)``, separates its numbers from what follows)."""
@@ -317,10 +320,10 @@ def _refuse_run_together(tokens, a: int, b: int, scanner: Scanner) -> None:
             last += 1
         text = scanner.text[t.start:tokens[last].end]
         if not _PREFIXED.fullmatch(text):
-            raise scanner.error(t.start, f"{excerpt(text)} is not a number")
+            raise scanner.error(t.start, f"{name + ': ' if name else ''}{excerpt(text)} is not a number")
 
 
-def _item(tokens, j, end, scanner, depth):
+def _item(tokens, j, end, scanner, depth, name=""):
     t = tokens[j]
     if t.text in ("-", "+") and j + 1 < end and tokens[j + 1].kind == "num":
         n = tokens[j + 1]
@@ -328,13 +331,13 @@ def _item(tokens, j, end, scanner, depth):
     if t.kind == "num":
         return j + 1, Number(float(t.text), t.text, t.start, t.end)
     if t.text in ("[", "{") or t.kind == "flat":
-        return aggregate(tokens, j, scanner, depth + 1)[::-1]
+        return aggregate(tokens, j, scanner, depth + 1, name)[::-1]
     if t.kind == "name" and j + 1 < end and tokens[j + 1].text[:1] == "[" and t.text == "p":  # URScript pose
-        agg, k = aggregate(tokens, j + 1, scanner, depth + 1)
+        agg, k = aggregate(tokens, j + 1, scanner, depth + 1, name)
         return k, Aggregate(agg.items, t.start, agg.end, "p")
     if t.kind == "name" and j + 1 < end and tokens[j + 1].text not in (",", "(", "[", ".") \
             and tokens[j + 1].kind != "flat":  # KRL field
-        k, value = _item(tokens, j + 1, end, scanner, depth + 1)
+        k, value = _item(tokens, j + 1, end, scanner, depth + 1, name)
         return k, Field(t.text, value, t.start)
     return j + 1, t
 

@@ -97,7 +97,7 @@ class _Walk:
         while j < len(toks):
             t = toks[j]
             after = toks[j + 1].text if j + 1 < len(toks) else ""
-            found = _literal(toks, j + 2, len(toks), self.sc) if t.kind == "name" and after == "=" else None
+            found = _literal(toks, j + 2, len(toks), self.sc, t.text) if t.kind == "name" and after == "=" else None
             if found is not None:
                 anchor = toks[j - 1].start if j and toks[j - 1].text in ("global", "local") else t.start
                 self.literals.append((t.text, found[0], anchor))
@@ -160,15 +160,15 @@ def _spans(toks, j: int, end: int) -> list[tuple[int, int]]:
     return out
 
 
-def _literal(toks, k: int, end: int, sc) -> tuple[Aggregate, int] | None:
-    """The list ``[...]`` or pose ``p[...]`` written at token ``k`` (of the tokens before ``end``) and
-    the token after it; None where none begins there."""
+def _literal(toks, k: int, end: int, sc, name: str = "") -> tuple[Aggregate, int] | None:
+    """The list ``[...]`` or pose ``p[...]`` written at token ``k`` (of the tokens before ``end``; the
+    value of the variable ``name``, if one) and the token after it; None where none begins there."""
     if k >= end:
         return None
     is_pose = toks[k].text == "p" and k + 1 < end and toks[k + 1].text[:1] == "["
     if not is_pose and toks[k].text[:1] != "[":
         return None
-    agg, after = aggregate(toks, k + is_pose, sc)
+    agg, after = aggregate(toks, k + is_pose, sc, name=name)
     return Aggregate(agg.items, toks[k].start, agg.end, "p" if is_pose else ""), after
 
 
